@@ -1,0 +1,1 @@
+//! The sparse grid layout of seed 000.

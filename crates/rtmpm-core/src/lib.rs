@@ -1,0 +1,28 @@
+//! rtmpm core: everything that is not tied to one compute backend.
+//!
+//! * [`math`], [`svd`], [`shape`]: small linear algebra, the 3x3 SVD/polar decomposition and the
+//!   quadratic B-spline weights of MLS-MPM.
+//! * [`material`]: one file per constitutive model (stress and return mapping).
+//! * [`grid`]: the sparse grid layout of seed 000 (4x4x4 blocks, 64-bit interleaved codes,
+//!   block hash to dense ids, gblocks/pblocks with 3x3x3 neighbour lists).
+//! * [`particles`]: particle state, struct-of-arrays.
+//! * [`boundary`]: domain walls and colliders (signed distance fields, OBJ meshes).
+//! * [`scene`]: the TOML scene schema, its validation and particle sampling.
+//! * [`sim`]: the backend trait and the frame/step driver shared by every backend.
+//! * [`cpu`]: the CPU reference backend (deterministic, rayon).
+//! * [`io`]: PLY, VTK XML (.vtu/.pvd) and checkpoints, all written atomically.
+
+pub mod boundary;
+pub mod cpu;
+pub mod grid;
+pub mod io;
+pub mod material;
+pub mod math;
+pub mod particles;
+pub mod scene;
+pub mod shape;
+pub mod sim;
+pub mod svd;
+
+pub use particles::Particles;
+pub use scene::Scene;

@@ -1,0 +1,111 @@
+//! Particle state, stored as a struct of arrays so that the CPU loops and the GPU buffers
+//! share one layout.
+
+use crate::math::{Mat3, Vec3};
+
+/// All particles of a simulation. Every array has the same length.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Particles {
+    /// Position (m).
+    pub x: Vec<Vec3>,
+    /// Velocity (m/s).
+    pub v: Vec<Vec3>,
+    /// APIC affine velocity matrix `C` (approximates the velocity gradient), 1/s.
+    pub c: Vec<Mat3>,
+    /// Elastic deformation gradient `F` (for fluids `J^(1/3) I`).
+    pub f: Vec<Mat3>,
+    /// One scalar of plastic state whose meaning depends on the material: snow `Jp`, sand
+    /// hardening `q` / von Mises equivalent plastic strain; unused (0) for purely elastic models and fluid.
+    pub plastic: Vec<f32>,
+    /// Mass (kg).
+    pub mass: Vec<f32>,
+    /// Initial volume (m^3).
+    pub vol0: Vec<f32>,
+    /// Index into the scene's material list.
+    pub material: Vec<u32>,
+}
+
+impl Particles {
+    /// Number of particles.
+    pub fn len(&self) -> usize {
+        self.x.len()
+    }
+
+    /// True when there are no particles.
+    pub fn is_empty(&self) -> bool {
+        self.x.is_empty()
+    }
+
+    /// Append one particle at rest and undeformed.
+    #[allow(clippy::too_many_arguments)]
+    pub fn push(&mut self, x: Vec3, v: Vec3, mass: f32, vol0: f32, material: u32, plastic: f32) {
+        self.x.push(x);
+        self.v.push(v);
+        self.c.push(Mat3::ZERO);
+        self.f.push(Mat3::IDENTITY);
+        self.plastic.push(plastic);
+        self.mass.push(mass);
+        self.vol0.push(vol0);
+        self.material.push(material);
+    }
+
+    /// Append all particles of `other`.
+    pub fn extend(&mut self, other: &Particles) {
+        self.x.extend_from_slice(&other.x);
+        self.v.extend_from_slice(&other.v);
+        self.c.extend_from_slice(&other.c);
+        self.f.extend_from_slice(&other.f);
+        self.plastic.extend_from_slice(&other.plastic);
+        self.mass.extend_from_slice(&other.mass);
+        self.vol0.extend_from_slice(&other.vol0);
+        self.material.extend_from_slice(&other.material);
+    }
+
+    /// Total mass.
+    pub fn total_mass(&self) -> f64 {
+        self.mass.iter().map(|&m| m as f64).sum()
+    }
+
+    /// Total linear momentum.
+    pub fn momentum(&self) -> [f64; 3] {
+        let mut p = [0.0f64; 3];
+        for (m, v) in self.mass.iter().zip(&self.v) {
+            p[0] += (*m * v.x) as f64;
+            p[1] += (*m * v.y) as f64;
+            p[2] += (*m * v.z) as f64;
+        }
+        p
+    }
+
+    /// Centre of mass.
+    pub fn center_of_mass(&self) -> [f64; 3] {
+        let mut c = [0.0f64; 3];
+        for (m, x) in self.mass.iter().zip(&self.x) {
+            c[0] += (*m * x.x) as f64;
+            c[1] += (*m * x.y) as f64;
+            c[2] += (*m * x.z) as f64;
+        }
+        let mt = self.total_mass().max(f64::MIN_POSITIVE);
+        [c[0] / mt, c[1] / mt, c[2] / mt]
+    }
+
+    /// Kinetic energy `sum m |v|^2 / 2`.
+    pub fn kinetic_energy(&self) -> f64 {
+        self.mass
+            .iter()
+            .zip(&self.v)
+            .map(|(m, v)| 0.5 * (*m as f64) * (v.length_squared() as f64))
+            .sum()
+    }
+
+    /// Axis-aligned bounding box `(min, max)` of the positions.
+    pub fn bounding_box(&self) -> (Vec3, Vec3) {
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for x in &self.x {
+            lo = lo.min(*x);
+            hi = hi.max(*x);
+        }
+        (lo, hi)
+    }
+}

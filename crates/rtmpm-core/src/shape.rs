@@ -1,0 +1,1 @@
+//! Quadratic B-spline shape functions (MLS-MPM).

@@ -1,0 +1,1 @@
+//! The backend trait and the simulation driver.

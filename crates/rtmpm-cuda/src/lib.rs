@@ -1,0 +1,1 @@
+//! rtmpm CUDA backend.
