@@ -1,0 +1,61 @@
+// Small vector/matrix types for the rtmpm kernels. Column-major like glam on the host:
+// m[c * 3 + r] is row r, column c. `real` is float unless RTMPM_F64 is defined (issue: double precision).
+#pragma once
+
+#ifdef RTMPM_F64
+typedef double real;
+#else
+typedef float real;
+#endif
+
+struct vec3 { real x, y, z; };
+struct mat3 { real m[9]; };
+
+__device__ __forceinline__ vec3 make_v3(real x, real y, real z) { vec3 v; v.x = x; v.y = y; v.z = z; return v; }
+__device__ __forceinline__ vec3 operator+(vec3 a, vec3 b) { return make_v3(a.x + b.x, a.y + b.y, a.z + b.z); }
+__device__ __forceinline__ vec3 operator-(vec3 a, vec3 b) { return make_v3(a.x - b.x, a.y - b.y, a.z - b.z); }
+__device__ __forceinline__ vec3 operator*(vec3 a, real s) { return make_v3(a.x * s, a.y * s, a.z * s); }
+__device__ __forceinline__ vec3 operator*(real s, vec3 a) { return make_v3(a.x * s, a.y * s, a.z * s); }
+__device__ __forceinline__ real dot(vec3 a, vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+__device__ __forceinline__ vec3 cross(vec3 a, vec3 b) { return make_v3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x); }
+__device__ __forceinline__ real length(vec3 a) { return sqrt(dot(a, a)); }
+
+__device__ __forceinline__ real at(const mat3& a, int r, int c) { return a.m[c * 3 + r]; }
+__device__ __forceinline__ mat3 mat3_zero() { mat3 a; for (int i = 0; i < 9; ++i) a.m[i] = 0; return a; }
+__device__ __forceinline__ mat3 mat3_identity() { mat3 a = mat3_zero(); a.m[0] = a.m[4] = a.m[8] = 1; return a; }
+__device__ __forceinline__ mat3 mat3_diag(vec3 d) { mat3 a = mat3_zero(); a.m[0] = d.x; a.m[4] = d.y; a.m[8] = d.z; return a; }
+__device__ __forceinline__ mat3 operator+(const mat3& a, const mat3& b) { mat3 c; for (int i = 0; i < 9; ++i) c.m[i] = a.m[i] + b.m[i]; return c; }
+__device__ __forceinline__ mat3 operator-(const mat3& a, const mat3& b) { mat3 c; for (int i = 0; i < 9; ++i) c.m[i] = a.m[i] - b.m[i]; return c; }
+__device__ __forceinline__ mat3 operator*(const mat3& a, real s) { mat3 c; for (int i = 0; i < 9; ++i) c.m[i] = a.m[i] * s; return c; }
+__device__ __forceinline__ mat3 operator*(real s, const mat3& a) { return a * s; }
+__device__ __forceinline__ mat3 operator*(const mat3& a, const mat3& b) {
+    mat3 c;
+    for (int col = 0; col < 3; ++col)
+        for (int r = 0; r < 3; ++r)
+            c.m[col * 3 + r] = a.m[r] * b.m[col * 3] + a.m[3 + r] * b.m[col * 3 + 1] + a.m[6 + r] * b.m[col * 3 + 2];
+    return c;
+}
+__device__ __forceinline__ vec3 operator*(const mat3& a, vec3 v) {
+    return make_v3(a.m[0] * v.x + a.m[3] * v.y + a.m[6] * v.z,
+                   a.m[1] * v.x + a.m[4] * v.y + a.m[7] * v.z,
+                   a.m[2] * v.x + a.m[5] * v.y + a.m[8] * v.z);
+}
+__device__ __forceinline__ mat3 transpose(const mat3& a) {
+    mat3 t;
+    for (int c = 0; c < 3; ++c) for (int r = 0; r < 3; ++r) t.m[r * 3 + c] = a.m[c * 3 + r];
+    return t;
+}
+__device__ __forceinline__ real trace(const mat3& a) { return a.m[0] + a.m[4] + a.m[8]; }
+__device__ __forceinline__ real determinant(const mat3& a) {
+    return a.m[0] * (a.m[4] * a.m[8] - a.m[7] * a.m[5])
+         - a.m[3] * (a.m[1] * a.m[8] - a.m[7] * a.m[2])
+         + a.m[6] * (a.m[1] * a.m[5] - a.m[4] * a.m[2]);
+}
+// Outer product a b^T.
+__device__ __forceinline__ mat3 outer(vec3 a, vec3 b) {
+    mat3 c;
+    c.m[0] = a.x * b.x; c.m[1] = a.y * b.x; c.m[2] = a.z * b.x;
+    c.m[3] = a.x * b.y; c.m[4] = a.y * b.y; c.m[5] = a.z * b.y;
+    c.m[6] = a.x * b.z; c.m[7] = a.y * b.z; c.m[8] = a.z * b.z;
+    return c;
+}
