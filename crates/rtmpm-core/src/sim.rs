@@ -1,1 +1,234 @@
-//! The backend trait and the simulation driver.
+//! The backend trait and the frame/step driver shared by every backend.
+//!
+//! A [`Backend`] advances particle state by explicit steps; [`Simulation`] chooses the time steps
+//! (fixed, or CFL-adaptive with a cap), lands every frame exactly on its time, and reports
+//! blow-ups with the particle, its material and advice.
+
+use crate::Particles;
+use crate::scene::{Scene, StepMode};
+use crate::math::Vec3;
+use std::fmt;
+
+/// Why a simulation stopped.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SimError {
+    /// A particle's state became non-finite or its speed exploded.
+    Blowup(Box<Blowup>),
+    /// The backend failed (device error, out of capacity, ...).
+    Backend(String),
+}
+
+/// Where and why a simulation blew up.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Blowup {
+    pub step: u64,
+    pub time: f64,
+    pub particle: usize,
+    pub position: Vec3,
+    pub velocity: Vec3,
+    /// Name of the particle's material.
+    pub material: String,
+    /// What was detected, e.g. "velocity is NaN".
+    pub reason: String,
+    /// The time step in use.
+    pub dt: f32,
+}
+
+impl fmt::Display for SimError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SimError::Backend(m) => write!(f, "backend error: {m}"),
+            SimError::Blowup(b) => write!(
+                f,
+                "simulation blew up at step {} (t = {:.6} s, dt = {:.3e} s): particle {} of material `{}`: {}\n  \
+                 position ({:.4}, {:.4}, {:.4}), velocity ({:.4e}, {:.4e}, {:.4e})\n  \
+                 advice: use a smaller time step (lower `time.dt`, or `time.cfl` / `time.max_dt`), \
+                 or a softer material (lower stiffness) at this resolution",
+                b.step,
+                b.time,
+                b.dt,
+                b.particle,
+                b.material,
+                b.reason,
+                b.position.x,
+                b.position.y,
+                b.position.z,
+                b.velocity.x,
+                b.velocity.y,
+                b.velocity.z
+            ),
+        }
+    }
+}
+
+impl std::error::Error for SimError {}
+
+/// A particle whose state is not sane after a step: non-finite, or faster than
+/// [`MAX_CELLS_PER_STEP`] cells per step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BadParticle {
+    pub index: usize,
+    pub reason: BadReason,
+}
+
+/// What was wrong with a [`BadParticle`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BadReason {
+    NonFinite,
+    TooFast,
+}
+
+/// A particle moving more than this many cells in one step is taken as a blow-up.
+pub const MAX_CELLS_PER_STEP: f32 = 2.0;
+
+/// Health check of one particle after a step.
+#[inline]
+pub fn check_particle(x: Vec3, v: Vec3, dt: f32, dx: f32) -> Option<BadReason> {
+    if !(x.is_finite() && v.is_finite()) {
+        Some(BadReason::NonFinite)
+    } else if v.length() * dt > MAX_CELLS_PER_STEP * dx {
+        Some(BadReason::TooFast)
+    } else {
+        None
+    }
+}
+
+/// A compute backend: CPU reference or CUDA.
+pub trait Backend {
+    /// Human-readable name, e.g. "cpu (2 threads)".
+    fn name(&self) -> String;
+    /// Number of particles.
+    fn num_particles(&self) -> usize;
+    /// Advance one explicit step of size `dt` from time `t` (colliders move with `t`).
+    /// Backends may detect blow-ups lazily (see [`Backend::check`]).
+    fn step(&mut self, dt: f32, t: f32) -> Result<(), SimError>;
+    /// Largest particle speed after the last step (for the CFL condition).
+    fn max_speed(&mut self) -> Result<f32, SimError>;
+    /// Wait for queued work and report the first bad particle since the last check, if any.
+    fn check(&mut self) -> Result<Option<BadParticle>, SimError>;
+    /// Copy the particle state to the host.
+    fn read_particles(&mut self, out: &mut Particles) -> Result<(), SimError>;
+    /// True when [`Backend::check`] costs nothing (no device round trip), so the driver checks
+    /// after every step and stops at the very step that blew up.
+    fn cheap_check(&self) -> bool {
+        false
+    }
+}
+
+/// Drives a backend through frames of a scene.
+pub struct Simulation {
+    pub scene: Scene,
+    pub backend: Box<dyn Backend>,
+    /// Simulated time (s).
+    pub time: f64,
+    /// Steps taken so far.
+    pub step: u64,
+    /// Frames completed so far.
+    pub frame: u64,
+    /// Time step of the last step.
+    pub last_dt: f32,
+    max_sound_speed: f32,
+}
+
+impl Simulation {
+    /// A simulation at time 0 (or at the given state when resuming).
+    pub fn new(scene: Scene, backend: Box<dyn Backend>) -> Simulation {
+        let max_sound_speed =
+            scene.materials.iter().map(|m| m.model.sound_speed(m.density)).fold(0.0f32, f32::max);
+        Simulation { scene, backend, time: 0.0, step: 0, frame: 0, last_dt: 0.0, max_sound_speed }
+    }
+
+    /// Duration of one frame (s).
+    pub fn frame_duration(&self) -> f64 {
+        1.0 / self.scene.time.fps as f64
+    }
+
+    /// Time step for the next step, before clipping to the frame end.
+    pub fn next_dt(&mut self) -> Result<f32, SimError> {
+        Ok(match self.scene.time.step {
+            StepMode::Fixed { dt } => dt,
+            StepMode::Cfl { cfl, max_dt } => {
+                let speed = self.backend.max_speed()? + self.max_sound_speed;
+                if speed > 0.0 { (cfl * self.scene.dx / speed).min(max_dt) } else { max_dt }
+            }
+        })
+    }
+
+    /// One step of size `dt`.
+    pub fn step_once(&mut self, dt: f32) -> Result<(), SimError> {
+        self.backend.step(dt, self.time as f32)?;
+        self.time += dt as f64;
+        self.step += 1;
+        self.last_dt = dt;
+        if self.backend.cheap_check() {
+            self.check()?;
+        }
+        Ok(())
+    }
+
+    /// Advance to the end of the next frame; returns the number of steps taken.
+    ///
+    /// With a fixed dt that divides the frame duration, exactly that many equal steps are taken;
+    /// otherwise the last step is shortened to land on the frame time.
+    pub fn advance_frame(&mut self) -> Result<u64, SimError> {
+        let frame_end = (self.frame + 1) as f64 * self.frame_duration();
+        let start_step = self.step;
+        if let StepMode::Fixed { dt } = self.scene.time.step {
+            let n = (frame_end - self.time) / dt as f64;
+            if (n - n.round()).abs() < 1e-6 * n.max(1.0) {
+                for _ in 0..n.round() as u64 {
+                    self.step_once(dt)?;
+                }
+                self.time = frame_end;
+                return self.finish_frame(start_step);
+            }
+        }
+        let eps = 1e-9 * self.frame_duration();
+        while self.time < frame_end - eps {
+            let dt = self.next_dt()?;
+            let remaining = (frame_end - self.time) as f32;
+            let dt = if dt >= remaining { remaining } else { dt };
+            self.step_once(dt)?;
+        }
+        self.time = frame_end;
+        self.finish_frame(start_step)
+    }
+
+    fn finish_frame(&mut self, start_step: u64) -> Result<u64, SimError> {
+        self.frame += 1;
+        self.check()?;
+        Ok(self.step - start_step)
+    }
+
+    /// Check the backend for a bad particle and turn it into a [`SimError::Blowup`].
+    pub fn check(&mut self) -> Result<(), SimError> {
+        if let Some(bad) = self.backend.check()? {
+            let mut p = Particles::default();
+            self.backend.read_particles(&mut p)?;
+            let i = bad.index.min(p.len().saturating_sub(1));
+            let material = p
+                .material
+                .get(i)
+                .and_then(|&m| self.scene.materials.get(m as usize))
+                .map(|m| m.name.clone())
+                .unwrap_or_else(|| "?".into());
+            let reason = match bad.reason {
+                BadReason::NonFinite => "position or velocity is not finite (NaN or infinity)".into(),
+                BadReason::TooFast => format!(
+                    "speed exceeds {MAX_CELLS_PER_STEP} cells per step (|v| dt > {MAX_CELLS_PER_STEP} dx)"
+                ),
+            };
+            return Err(SimError::Blowup(Box::new(Blowup {
+                step: self.step,
+                time: self.time,
+                particle: bad.index,
+                position: p.x.get(i).copied().unwrap_or(Vec3::NAN),
+                velocity: p.v.get(i).copied().unwrap_or(Vec3::NAN),
+                material,
+                reason,
+                dt: self.last_dt,
+            })));
+        }
+        Ok(())
+    }
+}
