@@ -130,7 +130,8 @@ impl BlockLayout {
     /// gblock's 3x3x3 neighbourhood).
     #[inline]
     pub fn node_index(&self, g: usize, node: IVec3) -> usize {
-        let rel = block_of(node) - self.block_coords[g];
+        let rel = IVec3::new(node.x >> BLOCK_BITS, node.y >> BLOCK_BITS, node.z >> BLOCK_BITS)
+            - self.block_coords[g];
         let id = self.neighbors[g][neighbor_slot(rel.x, rel.y, rel.z)];
         id as usize * BLOCK_NODES + cell_code(node.x, node.y, node.z)
     }
