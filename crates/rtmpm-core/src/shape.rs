@@ -9,7 +9,11 @@ use crate::math::{IVec3, Vec3};
 /// Weights of the three nodes of one axis.
 #[inline]
 pub fn weights_1d(fx: f32) -> [f32; 3] {
-    [0.5 * (1.5 - fx) * (1.5 - fx), 0.75 - (fx - 1.0) * (fx - 1.0), 0.5 * (fx - 0.5) * (fx - 0.5)]
+    [
+        0.5 * (1.5 - fx) * (1.5 - fx),
+        0.75 - (fx - 1.0) * (fx - 1.0),
+        0.5 * (fx - 0.5) * (fx - 0.5),
+    ]
 }
 
 /// Derivatives d w / d fx of the three weights of one axis.
@@ -118,7 +122,11 @@ mod tests {
             let (wp, wm) = (weights_1d(fx + h), weights_1d(fx - h));
             for n in 0..3 {
                 let fd = (wp[n] - wm[n]) / (2.0 * h);
-                assert!((fd - d[n]).abs() < 1e-3, "node {n} at {fx}: {fd} vs {}", d[n]);
+                assert!(
+                    (fd - d[n]).abs() < 1e-3,
+                    "node {n} at {fx}: {fd} vs {}",
+                    d[n]
+                );
             }
         }
     }

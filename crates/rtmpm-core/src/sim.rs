@@ -5,8 +5,8 @@
 //! blow-ups with the particle, its material and advice.
 
 use crate::Particles;
-use crate::scene::{Scene, StepMode};
 use crate::math::Vec3;
+use crate::scene::{Scene, StepMode};
 use std::fmt;
 
 /// Why a simulation stopped.
@@ -133,9 +133,20 @@ pub struct Simulation {
 impl Simulation {
     /// A simulation at time 0 (or at the given state when resuming).
     pub fn new(scene: Scene, backend: Box<dyn Backend>) -> Simulation {
-        let max_sound_speed =
-            scene.materials.iter().map(|m| m.model.sound_speed(m.density)).fold(0.0f32, f32::max);
-        Simulation { scene, backend, time: 0.0, step: 0, frame: 0, last_dt: 0.0, max_sound_speed }
+        let max_sound_speed = scene
+            .materials
+            .iter()
+            .map(|m| m.model.sound_speed(m.density))
+            .fold(0.0f32, f32::max);
+        Simulation {
+            scene,
+            backend,
+            time: 0.0,
+            step: 0,
+            frame: 0,
+            last_dt: 0.0,
+            max_sound_speed,
+        }
     }
 
     /// Duration of one frame (s).
@@ -149,7 +160,11 @@ impl Simulation {
             StepMode::Fixed { dt } => dt,
             StepMode::Cfl { cfl, max_dt } => {
                 let speed = self.backend.max_speed()? + self.max_sound_speed;
-                if speed > 0.0 { (cfl * self.scene.dx / speed).min(max_dt) } else { max_dt }
+                if speed > 0.0 {
+                    (cfl * self.scene.dx / speed).min(max_dt)
+                } else {
+                    max_dt
+                }
             }
         })
     }
@@ -213,7 +228,9 @@ impl Simulation {
                 .map(|m| m.name.clone())
                 .unwrap_or_else(|| "?".into());
             let reason = match bad.reason {
-                BadReason::NonFinite => "position or velocity is not finite (NaN or infinity)".into(),
+                BadReason::NonFinite => {
+                    "position or velocity is not finite (NaN or infinity)".into()
+                }
                 BadReason::TooFast => format!(
                     "speed exceeds {MAX_CELLS_PER_STEP} cells per step (|v| dt > {MAX_CELLS_PER_STEP} dx)"
                 ),

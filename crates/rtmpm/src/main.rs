@@ -1,1 +1,51 @@
-fn main() {}
+//! `rtmpm`: run, check and benchmark Material Point Method scenes.
+
+mod backend;
+mod bench;
+mod check;
+mod info;
+mod output;
+mod run;
+
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(name = "rtmpm", version, about = "Real-time Material Point Method simulator", long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run a scene and write its frames.
+    Run(run::RunArgs),
+    /// Version, available backends and the GPU found.
+    Info,
+    /// Validate a scene file without running it.
+    Check {
+        /// Scene file (TOML).
+        scene: PathBuf,
+    },
+    /// Benchmark: the classic MLS-MPM fluid block, particle-steps per second.
+    Bench(bench::BenchArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Run(args) => run::run(args),
+        Command::Info => info::info(),
+        Command::Check { scene } => check::check(&scene),
+        Command::Bench(args) => bench::bench(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -58,7 +58,11 @@ pub fn cell_code(i: i32, j: i32, k: i32) -> usize {
 /// Full 64-bit code of node `(i, j, k)` (non-negative grid indices).
 #[inline]
 pub fn node_code(i: i32, j: i32, k: i32) -> u64 {
-    let b = [(i >> BLOCK_BITS) as u32, (j >> BLOCK_BITS) as u32, (k >> BLOCK_BITS) as u32];
+    let b = [
+        (i >> BLOCK_BITS) as u32,
+        (j >> BLOCK_BITS) as u32,
+        (k >> BLOCK_BITS) as u32,
+    ];
     (block_code(b) << 6) | cell_code(i, j, k) as u64
 }
 
@@ -74,7 +78,13 @@ mod tests {
 
     #[test]
     fn block_code_round_trips() {
-        for b in [[0, 0, 0], [1, 2, 3], [524_287, 0, 17], [12345, 54321, 99999], [524_287; 3]] {
+        for b in [
+            [0, 0, 0],
+            [1, 2, 3],
+            [524_287, 0, 17],
+            [12345, 54321, 99999],
+            [524_287; 3],
+        ] {
             assert_eq!(decode_block(block_code(b)), b);
         }
     }

@@ -62,7 +62,8 @@ impl BlockLayout {
         for (id, &code) in self.codes.iter().enumerate() {
             self.map.insert(code, id as u32);
             let c = super::codes::decode_block(code);
-            self.block_coords.push(IVec3::new(c[0] as i32, c[1] as i32, c[2] as i32));
+            self.block_coords
+                .push(IVec3::new(c[0] as i32, c[1] as i32, c[2] as i32));
         }
 
         // 2. pblocks: every gblock's 3x3x3 neighbours, with explicit neighbour lists.
@@ -99,7 +100,8 @@ impl BlockLayout {
                 last_id = self.map[&code];
                 last_code = code;
             }
-            self.keys.push(last_id * BLOCK_NODES as u32 + cell_code(b.x, b.y, b.z) as u32);
+            self.keys
+                .push(last_id * BLOCK_NODES as u32 + cell_code(b.x, b.y, b.z) as u32);
         }
         self.counts.clear();
         self.counts.resize(buckets + 1, 0);
@@ -110,7 +112,8 @@ impl BlockLayout {
             self.counts[i + 1] += self.counts[i];
         }
         self.particle_start.clear();
-        self.particle_start.extend((0..=self.gblock_count).map(|g| self.counts[g * BLOCK_NODES]));
+        self.particle_start
+            .extend((0..=self.gblock_count).map(|g| self.counts[g * BLOCK_NODES]));
         self.order.clear();
         self.order.resize(bases.len(), 0);
         for (p, &k) in self.keys.iter().enumerate() {
@@ -126,12 +129,21 @@ impl BlockLayout {
         &self.order[self.particle_start[g] as usize..self.particle_start[g + 1] as usize]
     }
 
+    /// gblock of particle `p` (as sorted by the last rebuild).
+    #[inline]
+    pub fn gblock_of(&self, p: usize) -> usize {
+        self.keys[p] as usize / BLOCK_NODES
+    }
+
     /// Memory index of node `node` for a particle of gblock `g` (the node must lie in the
     /// gblock's 3x3x3 neighbourhood).
     #[inline]
     pub fn node_index(&self, g: usize, node: IVec3) -> usize {
-        let rel = IVec3::new(node.x >> BLOCK_BITS, node.y >> BLOCK_BITS, node.z >> BLOCK_BITS)
-            - self.block_coords[g];
+        let rel = IVec3::new(
+            node.x >> BLOCK_BITS,
+            node.y >> BLOCK_BITS,
+            node.z >> BLOCK_BITS,
+        ) - self.block_coords[g];
         let id = self.neighbors[g][neighbor_slot(rel.x, rel.y, rel.z)];
         id as usize * BLOCK_NODES + cell_code(node.x, node.y, node.z)
     }
@@ -140,7 +152,11 @@ impl BlockLayout {
 /// Block coordinates of a node.
 #[inline]
 pub fn block_of(node: IVec3) -> [u32; 3] {
-    [(node.x >> BLOCK_BITS) as u32, (node.y >> BLOCK_BITS) as u32, (node.z >> BLOCK_BITS) as u32]
+    [
+        (node.x >> BLOCK_BITS) as u32,
+        (node.y >> BLOCK_BITS) as u32,
+        (node.z >> BLOCK_BITS) as u32,
+    ]
 }
 
 #[cfg(test)]
@@ -169,7 +185,10 @@ mod tests {
                 for dj in -1..=1 {
                     for dk in -1..=1 {
                         let id = l.neighbors[g][neighbor_slot(di, dj, dk)] as usize;
-                        assert_eq!(l.block_coords[id], l.block_coords[g] + IVec3::new(di, dj, dk));
+                        assert_eq!(
+                            l.block_coords[id],
+                            l.block_coords[g] + IVec3::new(di, dj, dk)
+                        );
                     }
                 }
             }
@@ -178,7 +197,9 @@ mod tests {
 
     #[test]
     fn node_index_is_unique_per_node() {
-        let bases: Vec<IVec3> = (0..40).map(|i| IVec3::new(4 + i % 9, 5 + i % 7, 6 + i % 5)).collect();
+        let bases: Vec<IVec3> = (0..40)
+            .map(|i| IVec3::new(4 + i % 9, 5 + i % 7, 6 + i % 5))
+            .collect();
         let mut l = BlockLayout::default();
         l.rebuild(&bases);
         let mut seen = std::collections::HashMap::new();

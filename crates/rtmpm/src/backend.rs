@@ -1,0 +1,55 @@
+//! Choosing and constructing a backend.
+
+use anyhow::{Result, bail};
+use clap::ValueEnum;
+use rtmpm_core::cpu::CpuBackend;
+use rtmpm_core::sim::Backend;
+use rtmpm_core::{Particles, Scene};
+
+/// Which backend to run on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum BackendKind {
+    /// CUDA when a GPU is usable, else the CPU.
+    Auto,
+    /// The CPU reference backend.
+    Cpu,
+    /// The CUDA backend (fails with the reason when no GPU is usable).
+    Cuda,
+}
+
+/// Construct the backend; says which one `auto` picked and why.
+pub fn make_backend(
+    kind: BackendKind,
+    scene: &Scene,
+    particles: Particles,
+    threads: Option<usize>,
+) -> Result<Box<dyn Backend>> {
+    match kind {
+        BackendKind::Cpu => Ok(Box::new(CpuBackend::new(scene, particles, threads)?)),
+        BackendKind::Cuda => match cuda_backend(scene, &particles) {
+            Ok(b) => Ok(b),
+            Err(why) => {
+                bail!("the CUDA backend is not usable here: {why}\n  hint: use --backend cpu")
+            }
+        },
+        BackendKind::Auto => match cuda_backend(scene, &particles) {
+            Ok(b) => {
+                eprintln!("backend: auto -> {}", b.name());
+                Ok(b)
+            }
+            Err(why) => {
+                let b = CpuBackend::new(scene, particles, threads)?;
+                eprintln!("backend: auto -> {} (CUDA not usable: {why})", b.name());
+                Ok(Box::new(b))
+            }
+        },
+    }
+}
+
+/// The CUDA backend, or why it cannot run.
+fn cuda_backend(
+    _scene: &Scene,
+    _particles: &Particles,
+) -> std::result::Result<Box<dyn Backend>, String> {
+    Err("the CUDA backend is not built yet".into())
+}

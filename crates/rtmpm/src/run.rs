@@ -1,0 +1,218 @@
+//! `rtmpm run SCENE`: simulate frames with a progress bar, write output, checkpoints.
+
+use crate::backend::{BackendKind, make_backend};
+use crate::output::FrameOutput;
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use rtmpm_core::io::checkpoint::Checkpoint;
+use rtmpm_core::sim::Simulation;
+use rtmpm_core::{Particles, Scene};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Args)]
+pub struct RunArgs {
+    /// Scene file (TOML). Optional with --resume (the checkpoint holds its scene).
+    pub scene: Option<PathBuf>,
+    /// Backend.
+    #[arg(long, value_enum, default_value_t = BackendKind::Auto)]
+    pub backend: BackendKind,
+    /// Output folder (default: the scene's `output.dir`).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Number of frames to simulate (default: the scene's duration x fps).
+    #[arg(long)]
+    pub frames: Option<u64>,
+    /// Stop after this many steps (a partial last frame is not written).
+    #[arg(long)]
+    pub steps: Option<u64>,
+    /// CPU worker threads (default: one per core).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Write a checkpoint every N frames.
+    #[arg(long, value_name = "N")]
+    pub checkpoint_every: Option<u64>,
+    /// Continue from a checkpoint written by --checkpoint-every.
+    #[arg(long, value_name = "CKPT")]
+    pub resume: Option<PathBuf>,
+    /// Write no frame files (for timing).
+    #[arg(long)]
+    pub no_output: bool,
+}
+
+pub fn run(args: RunArgs) -> Result<()> {
+    // Scene and initial state: from the scene file, or from a checkpoint.
+    let (scene, particles, resume_state) = match &args.resume {
+        Some(ckpt_path) => {
+            let ckpt = Checkpoint::load(ckpt_path)
+                .with_context(|| format!("cannot resume from {}", ckpt_path.display()))?;
+            let scene = Scene::from_toml(&ckpt.scene_toml, &ckpt.scene_origin)?;
+            (
+                scene,
+                ckpt.particles,
+                Some((ckpt.time, ckpt.step, ckpt.frame, ckpt.scene_toml)),
+            )
+        }
+        None => {
+            let Some(path) = &args.scene else {
+                bail!("no scene given: rtmpm run SCENE (or --resume CKPT)")
+            };
+            let scene = Scene::from_file(path)?;
+            let particles = scene.sample_particles()?;
+            (scene, particles, None)
+        }
+    };
+    let scene_text = match (&resume_state, &args.scene) {
+        (Some((_, _, _, text)), _) => text.clone(),
+        (None, Some(path)) => {
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?
+        }
+        (None, None) => String::new(),
+    };
+    let n = particles.len();
+    let out_dir = args.out.clone().unwrap_or_else(|| scene.output.dir.clone());
+    let backend = make_backend(args.backend, &scene, particles, args.threads)?;
+    let mut sim = Simulation::new(scene, backend);
+    let mut output = if args.no_output {
+        None
+    } else {
+        Some(FrameOutput::new(&out_dir, &sim.scene)?)
+    };
+    if let Some((time, step, frame, _)) = &resume_state {
+        sim.time = *time;
+        sim.step = *step;
+        sim.frame = *frame;
+        if let Some(out) = output.as_mut() {
+            out.resume(*time)?;
+        }
+    }
+    let total_frames = args.frames.unwrap_or_else(|| sim.scene.time.frames());
+    eprintln!(
+        "running `{}`: {n} particles, {} frames on {}{}",
+        sim.scene.name,
+        total_frames.saturating_sub(sim.frame),
+        sim.backend.name(),
+        output
+            .as_ref()
+            .map(|o| format!(", output in {}", o.dir.display()))
+            .unwrap_or_default()
+    );
+    let mut host = Particles::default();
+    if sim.frame == 0 {
+        if let Some(out) = output.as_mut() {
+            sim.backend.read_particles(&mut host)?;
+            out.write_frame(0, 0.0, &host, &sim.scene)?;
+        }
+    }
+
+    let bar = ProgressBar::new(total_frames);
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} frame {pos}/{len} [{bar:30}] t = {msg} | elapsed {elapsed_precise} | ETA {eta_precise}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    bar.set_position(sim.frame);
+    let start = Instant::now();
+    let start_step = sim.step;
+    let mut stopped_by_steps = false;
+    while sim.frame < total_frames {
+        if let Some(max_steps) = args.steps {
+            // Exactly N steps in total from this run's start, then stop.
+            let left = max_steps.saturating_sub(sim.step - start_step);
+            if left == 0 {
+                stopped_by_steps = true;
+                break;
+            }
+            let frame_end = (sim.frame + 1) as f64 * sim.frame_duration();
+            let mut taken = 0;
+            while taken < left && sim.time < frame_end - 1e-12 {
+                let dt = sim.next_dt()?.min((frame_end - sim.time) as f32);
+                sim.step_once(dt)?;
+                taken += 1;
+            }
+            if sim.time < frame_end - 1e-12 {
+                sim.check()?;
+                stopped_by_steps = true;
+                break;
+            }
+            sim.time = frame_end;
+            sim.frame += 1;
+            sim.check()?;
+        } else {
+            sim.advance_frame()?;
+        }
+        let elapsed = start.elapsed().as_secs_f64();
+        let rate = (sim.step - start_step) as f64 * n as f64 / elapsed.max(1e-9);
+        bar.set_message(format!(
+            "{:.4} s | dt {:.2e} | {}",
+            sim.time,
+            sim.last_dt,
+            human_rate(rate)
+        ));
+        bar.set_position(sim.frame);
+        if let Some(out) = output.as_mut() {
+            sim.backend.read_particles(&mut host)?;
+            out.write_frame(sim.frame, sim.time, &host, &sim.scene)?;
+            if let Some(every) = args.checkpoint_every {
+                if every > 0 && sim.frame % every == 0 {
+                    let ckpt = Checkpoint {
+                        scene_toml: scene_text.clone(),
+                        scene_origin: sim
+                            .scene
+                            .source
+                            .as_ref()
+                            .map_or("<checkpoint>".into(), |p| p.display().to_string()),
+                        time: sim.time,
+                        step: sim.step,
+                        frame: sim.frame,
+                        particles: host.clone(),
+                    };
+                    let path = out.dir.join(format!("checkpoint_{:05}.ckpt", sim.frame));
+                    ckpt.save(&path)
+                        .with_context(|| format!("writing checkpoint {}", path.display()))?;
+                }
+            }
+        }
+    }
+    bar.finish_and_clear();
+    let wall = start.elapsed().as_secs_f64();
+    let steps = sim.step - start_step;
+    println!("summary");
+    println!("  scene        {}", sim.scene.name);
+    println!("  backend      {}", sim.backend.name());
+    println!("  particles    {n}");
+    println!(
+        "  frames       {}{}",
+        sim.frame,
+        if stopped_by_steps {
+            " (stopped by --steps)"
+        } else {
+            ""
+        }
+    );
+    println!("  steps        {steps} (simulated time {:.4} s)", sim.time);
+    println!("  wall time    {wall:.2} s");
+    println!(
+        "  throughput   {} ({:.2} ms/step)",
+        human_rate(steps as f64 * n as f64 / wall.max(1e-9)),
+        1e3 * wall / steps.max(1) as f64
+    );
+    if let Some(out) = &output {
+        println!("  output       {}", out.dir.display());
+    }
+    Ok(())
+}
+
+/// Particle-steps per second in human units.
+pub fn human_rate(r: f64) -> String {
+    if r >= 1e9 {
+        format!("{:.2} G particle-steps/s", r / 1e9)
+    } else if r >= 1e6 {
+        format!("{:.2} M particle-steps/s", r / 1e6)
+    } else {
+        format!("{:.1} k particle-steps/s", r / 1e3)
+    }
+}

@@ -1,0 +1,13 @@
+#!/usr/bin/env bash
+# Run a small scene for two frames and read its PLY/VTU/PVD with meshio (a real VTK reader).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+out=target/ci-out
+rm -rf "$out"
+cargo run --quiet -p rtmpm -- run scenes/elastic_cubes.toml --backend cpu --frames 2 --out "$out"
+venv=target/ci-tools/py
+if ! python3 -c "import meshio" 2>/dev/null; then
+  python3 -m pip install --quiet --disable-pip-version-check --target "$venv" meshio
+  export PYTHONPATH="$PWD/$venv${PYTHONPATH:+:$PYTHONPATH}"
+fi
+python3 scripts/check_vtu.py "$out/frames.pvd"
