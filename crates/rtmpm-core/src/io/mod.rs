@@ -35,15 +35,13 @@ impl FrameFields<'_> {
                 format!("{what} has {len} entries, expected {n} (one per particle)"),
             ))
         };
-        if let Some(s) = self.stress {
-            if s.len() != n {
-                return bad("stress", s.len());
-            }
+        match self.stress {
+            Some(s) if s.len() != n => return bad("stress", s.len()),
+            _ => {}
         }
-        if let Some(j) = self.jacobian {
-            if j.len() != n {
-                return bad("jacobian", j.len());
-            }
+        match self.jacobian {
+            Some(j) if j.len() != n => return bad("jacobian", j.len()),
+            _ => {}
         }
         Ok(())
     }

@@ -310,7 +310,7 @@ fn parse_values(ty: &str, data: &[u8]) -> Result<VtuValues, VtuError> {
         "UInt8" => 1,
         other => return Err(format_err(format!("unsupported DataArray type {other}"))),
     };
-    if data.len() % size != 0 {
+    if !data.chunks_exact(size).remainder().is_empty() {
         return Err(format_err(format!(
             "{ty} data length {} is not a multiple of {size}",
             data.len()
@@ -569,6 +569,7 @@ fn parse_pvd(text: &str) -> Result<Vec<(f64, String)>, VtuError> {
 mod tests {
     use super::*;
     use crate::io::atomic::tests::TestDir;
+    use crate::io::ply::write_ply;
     use crate::math::Vec3;
 
     fn sample(n: usize) -> Particles {
@@ -679,6 +680,42 @@ mod tests {
             vec![0u8; 12]
         );
         assert!(decode_binary("DAAAAAAAAAA=AAAA").is_err());
+    }
+
+    /// Writes a small `.pvd` + `.vtu` sequence. With `RTMPM_IO_EXAMPLE_DIR=dir` the files are
+    /// written (and kept) there, for checking with `scripts/check_vtu.py dir/particles.pvd`.
+    #[test]
+    fn example_sequence_for_external_readers() {
+        let tmp = TestDir::new("vtu-example");
+        let dir = std::env::var_os("RTMPM_IO_EXAMPLE_DIR")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| tmp.0.clone());
+        let n = 100;
+        let mut p = sample(n);
+        let j = vec![1.0f32; n];
+        let s = vec![[1.0f32, 2.0, 3.0, 0.1, 0.2, 0.3]; n];
+        let mut pvd = PvdWriter::new(dir.join("particles.pvd")).unwrap();
+        for frame in 0..3 {
+            for x in p.x.iter_mut() {
+                x.y -= 0.01;
+            }
+            let name = format!("frames/frame_{frame:04}.vtu");
+            let fields = FrameFields {
+                stress: (frame > 0).then_some(s.as_slice()),
+                jacobian: Some(&j),
+            };
+            write_vtu(&dir.join(&name), &p, &fields).unwrap();
+            write_ply(
+                &dir.join(format!("frames/frame_{frame:04}.ply")),
+                &p,
+                &fields,
+            )
+            .unwrap();
+            pvd.add(frame as f64 / 24.0, &name).unwrap();
+        }
+        let r = read_vtu(&dir.join("frames/frame_0002.vtu")).unwrap();
+        assert_eq!(r.num_points, n);
+        assert_eq!(pvd.entries().len(), 3);
     }
 
     #[test]
