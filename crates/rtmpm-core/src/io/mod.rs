@@ -1,8 +1,72 @@
-//! Output and checkpoint files. Every file is written to a temporary name and renamed.
+//! Output and checkpoint files. Every file is written to a temporary name and renamed
+//! (see [`atomic`]).
+//!
+//! * [`ply`]: binary little-endian PLY point clouds (one vertex per particle).
+//! * [`vtu`]: VTK XML UnstructuredGrid (`.vtu`, base64 binary) and `.pvd` collections.
+//! * [`checkpoint`]: bit-exact binary checkpoints with a checksum.
 
 pub mod atomic;
 pub mod checkpoint;
 pub mod ply;
 pub mod vtu;
 
-pub use atomic::write_atomic;
+pub use atomic::{write_atomic, write_atomic_with};
+pub use checkpoint::{Checkpoint, CheckpointError};
+pub use ply::{PlyColumn, PlyData, PlyError, read_ply, write_ply};
+pub use vtu::{PvdWriter, VtuArray, VtuData, VtuError, VtuValues, read_vtu, write_vtu};
+
+/// Optional per-particle fields written next to the particle state in output frames. They are
+/// computed by the caller (e.g. from the material model); each slice, when present, must have
+/// one entry per particle.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct FrameFields<'a> {
+    /// Cauchy stress per particle, symmetric, stored as `[xx, yy, zz, xy, yz, xz]` (Pa).
+    pub stress: Option<&'a [[f32; 6]]>,
+    /// Volume ratio `J = det F` per particle.
+    pub jacobian: Option<&'a [f32]>,
+}
+
+impl FrameFields<'_> {
+    /// Check that every present field has `n` entries.
+    pub(crate) fn check_len(&self, n: usize) -> std::io::Result<()> {
+        let bad = |what: &str, len: usize| {
+            Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                format!("{what} has {len} entries, expected {n} (one per particle)"),
+            ))
+        };
+        match self.stress {
+            Some(s) if s.len() != n => return bad("stress", s.len()),
+            _ => {}
+        }
+        match self.jacobian {
+            Some(j) if j.len() != n => return bad("jacobian", j.len()),
+            _ => {}
+        }
+        Ok(())
+    }
+}
+
+/// Check that every array of `p` has `p.len()` entries (a malformed particle set would otherwise
+/// produce a file that lies about its size).
+pub(crate) fn check_particles(p: &crate::Particles) -> std::io::Result<()> {
+    let n = p.len();
+    let lens = [
+        ("v", p.v.len()),
+        ("c", p.c.len()),
+        ("f", p.f.len()),
+        ("plastic", p.plastic.len()),
+        ("mass", p.mass.len()),
+        ("vol0", p.vol0.len()),
+        ("material", p.material.len()),
+    ];
+    for (name, len) in lens {
+        if len != n {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                format!("particle array {name} has {len} entries, x has {n}"),
+            ));
+        }
+    }
+    Ok(())
+}

@@ -1,1 +1,532 @@
+//! Binary little-endian PLY point clouds, one vertex per particle.
+//!
+//! [`write_ply`] writes a `vertex` element with these properties, in this order:
+//!
+//! | property                          | PLY type | meaning                                   |
+//! |-----------------------------------|----------|-------------------------------------------|
+//! | `x y z`                           | `float`  | position (m)                              |
+//! | `vx vy vz`                        | `float`  | velocity (m/s)                            |
+//! | `material`                        | `int`    | material index (32-bit signed; indices are `u32` in memory and must be below 2^31) |
+//! | `plastic`                         | `float`  | the material's scalar plastic state       |
+//! | `J` (optional)                    | `float`  | volume ratio `det F`                      |
+//! | `sxx syy szz sxy syz sxz` (opt.)  | `float`  | Cauchy stress (Pa)                        |
+//!
+//! `int` is used for `material` rather than `uint` because more tools (e.g. Houdini, some
+//! Blender importers) handle signed integers.
+//!
+//! [`read_ply`] reads any `binary_little_endian 1.0` PLY file whose elements have scalar
+//! properties (list properties are skipped in elements other than `vertex`) and returns the
+//! `vertex` columns by name.
 
+use std::fs;
+use std::io::{self, Write};
+use std::path::Path;
+
+use super::FrameFields;
+use super::atomic::write_atomic_with;
+use crate::Particles;
+
+/// Errors of [`read_ply`].
+#[derive(Debug, thiserror::Error)]
+pub enum PlyError {
+    /// The file could not be read.
+    #[error("PLY I/O error: {0}")]
+    Io(#[from] io::Error),
+    /// The file is a PLY file in a format this reader does not handle (ASCII, big endian).
+    #[error("unsupported PLY format `{0}`: only binary_little_endian 1.0 is read")]
+    UnsupportedFormat(String),
+    /// The file is not a well-formed PLY file.
+    #[error("malformed PLY file: {0}")]
+    Malformed(String),
+}
+
+/// One column of a PLY element, with the values widened to a common Rust type.
+#[derive(Clone, Debug, PartialEq)]
+pub enum PlyColumn {
+    /// A `float` / `float32` property.
+    Float(Vec<f32>),
+    /// A `double` / `float64` property.
+    Double(Vec<f64>),
+    /// Any integer property (`char`, `uchar`, `short`, `ushort`, `int`, `uint` and their
+    /// `int8`... aliases), widened to `i64`.
+    Int(Vec<i64>),
+}
+
+impl PlyColumn {
+    /// Number of values.
+    pub fn len(&self) -> usize {
+        match self {
+            PlyColumn::Float(v) => v.len(),
+            PlyColumn::Double(v) => v.len(),
+            PlyColumn::Int(v) => v.len(),
+        }
+    }
+
+    /// True when the column is empty.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// The `vertex` element of a PLY file: its columns by name, in file order.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PlyData {
+    /// Number of vertices.
+    pub count: usize,
+    /// `(property name, values)`, in the order of the header.
+    pub columns: Vec<(String, PlyColumn)>,
+    /// `comment` lines of the header (without the `comment ` prefix).
+    pub comments: Vec<String>,
+}
+
+impl PlyData {
+    /// The column named `name`, if any.
+    pub fn column(&self, name: &str) -> Option<&PlyColumn> {
+        self.columns.iter().find(|(n, _)| n == name).map(|(_, c)| c)
+    }
+
+    /// The `float` column named `name`, if it exists and has that type.
+    pub fn f32(&self, name: &str) -> Option<&[f32]> {
+        match self.column(name)? {
+            PlyColumn::Float(v) => Some(v),
+            _ => None,
+        }
+    }
+
+    /// The integer column named `name`, if it exists and has an integer type.
+    pub fn int(&self, name: &str) -> Option<&[i64]> {
+        match self.column(name)? {
+            PlyColumn::Int(v) => Some(v),
+            _ => None,
+        }
+    }
+
+    /// Property names, in file order.
+    pub fn names(&self) -> Vec<&str> {
+        self.columns.iter().map(|(n, _)| n.as_str()).collect()
+    }
+}
+
+/// Write `particles` (and the optional `fields`) as a binary little-endian PLY point cloud at
+/// `path`, atomically. See the module documentation for the property list.
+pub fn write_ply(path: &Path, particles: &Particles, fields: &FrameFields) -> io::Result<()> {
+    super::check_particles(particles)?;
+    let n = particles.len();
+    fields.check_len(n)?;
+    if let Some(m) = particles.material.iter().find(|&&m| m > i32::MAX as u32) {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!("material index {m} does not fit the PLY int property"),
+        ));
+    }
+
+    let mut header = String::new();
+    header.push_str("ply\nformat binary_little_endian 1.0\n");
+    header.push_str("comment rtmpm particles\n");
+    header.push_str(&format!("element vertex {n}\n"));
+    for p in ["x", "y", "z", "vx", "vy", "vz"] {
+        header.push_str(&format!("property float {p}\n"));
+    }
+    header.push_str("property int material\n");
+    header.push_str("property float plastic\n");
+    if fields.jacobian.is_some() {
+        header.push_str("property float J\n");
+    }
+    if fields.stress.is_some() {
+        for p in ["sxx", "syy", "szz", "sxy", "syz", "sxz"] {
+            header.push_str(&format!("property float {p}\n"));
+        }
+    }
+    header.push_str("end_header\n");
+
+    write_atomic_with(path, |w| {
+        w.write_all(header.as_bytes())?;
+        let mut row: Vec<u8> = Vec::with_capacity(15 * 4);
+        for i in 0..n {
+            row.clear();
+            let x = particles.x[i];
+            let v = particles.v[i];
+            for c in [x.x, x.y, x.z, v.x, v.y, v.z] {
+                row.extend_from_slice(&c.to_le_bytes());
+            }
+            row.extend_from_slice(&(particles.material[i] as i32).to_le_bytes());
+            row.extend_from_slice(&particles.plastic[i].to_le_bytes());
+            if let Some(j) = fields.jacobian {
+                row.extend_from_slice(&j[i].to_le_bytes());
+            }
+            if let Some(s) = fields.stress {
+                for c in s[i] {
+                    row.extend_from_slice(&c.to_le_bytes());
+                }
+            }
+            w.write_all(&row)?;
+        }
+        Ok(())
+    })
+}
+
+/// Scalar property types of PLY.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum ScalarType {
+    I8,
+    U8,
+    I16,
+    U16,
+    I32,
+    U32,
+    F32,
+    F64,
+}
+
+impl ScalarType {
+    fn parse(s: &str) -> Option<Self> {
+        Some(match s {
+            "char" | "int8" => ScalarType::I8,
+            "uchar" | "uint8" => ScalarType::U8,
+            "short" | "int16" => ScalarType::I16,
+            "ushort" | "uint16" => ScalarType::U16,
+            "int" | "int32" => ScalarType::I32,
+            "uint" | "uint32" => ScalarType::U32,
+            "float" | "float32" => ScalarType::F32,
+            "double" | "float64" => ScalarType::F64,
+            _ => return None,
+        })
+    }
+
+    fn size(self) -> usize {
+        match self {
+            ScalarType::I8 | ScalarType::U8 => 1,
+            ScalarType::I16 | ScalarType::U16 => 2,
+            ScalarType::I32 | ScalarType::U32 | ScalarType::F32 => 4,
+            ScalarType::F64 => 8,
+        }
+    }
+
+    fn empty_column(self, cap: usize) -> PlyColumn {
+        match self {
+            ScalarType::F32 => PlyColumn::Float(Vec::with_capacity(cap)),
+            ScalarType::F64 => PlyColumn::Double(Vec::with_capacity(cap)),
+            _ => PlyColumn::Int(Vec::with_capacity(cap)),
+        }
+    }
+
+    /// Read an integer value (used for list counts and integer columns). `b` has `size()` bytes.
+    fn read_int(self, b: &[u8]) -> i64 {
+        match self {
+            ScalarType::I8 => b[0] as i8 as i64,
+            ScalarType::U8 => b[0] as i64,
+            ScalarType::I16 => i16::from_le_bytes([b[0], b[1]]) as i64,
+            ScalarType::U16 => u16::from_le_bytes([b[0], b[1]]) as i64,
+            ScalarType::I32 => i32::from_le_bytes([b[0], b[1], b[2], b[3]]) as i64,
+            ScalarType::U32 => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as i64,
+            ScalarType::F32 => f32::from_le_bytes([b[0], b[1], b[2], b[3]]) as i64,
+            ScalarType::F64 => f64::from_le_bytes(b[..8].try_into().unwrap()) as i64,
+        }
+    }
+}
+
+#[derive(Debug)]
+enum Property {
+    Scalar { name: String, ty: ScalarType },
+    List { count: ScalarType, item: ScalarType },
+}
+
+#[derive(Debug)]
+struct Element {
+    name: String,
+    count: usize,
+    props: Vec<Property>,
+}
+
+fn malformed(msg: impl Into<String>) -> PlyError {
+    PlyError::Malformed(msg.into())
+}
+
+/// Parse the header; returns the elements, the comments and the offset of the binary body.
+fn parse_header(bytes: &[u8]) -> Result<(Vec<Element>, Vec<String>, usize), PlyError> {
+    if !bytes.starts_with(b"ply\n") && !bytes.starts_with(b"ply\r\n") {
+        return Err(malformed("missing `ply` magic line (not a PLY file)"));
+    }
+    let mut pos = 0usize;
+    let mut elements: Vec<Element> = Vec::new();
+    let mut comments = Vec::new();
+    let mut saw_format = false;
+    loop {
+        let rest = &bytes[pos..];
+        let nl = rest
+            .iter()
+            .position(|&b| b == b'\n')
+            .ok_or_else(|| malformed("header not terminated by `end_header`"))?;
+        let line = std::str::from_utf8(&rest[..nl])
+            .map_err(|_| malformed("header is not valid UTF-8"))?
+            .trim_end_matches('\r');
+        pos += nl + 1;
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("ply") | None => {}
+            Some("format") => {
+                let fmt = words.next().unwrap_or("");
+                let version = words.next().unwrap_or("");
+                if fmt != "binary_little_endian" || version != "1.0" {
+                    return Err(PlyError::UnsupportedFormat(format!("{fmt} {version}")));
+                }
+                saw_format = true;
+            }
+            Some("comment") | Some("obj_info") => {
+                let text = line.split_once(' ').map(|x| x.1).unwrap_or("");
+                comments.push(text.to_string());
+            }
+            Some("element") => {
+                let name = words
+                    .next()
+                    .ok_or_else(|| malformed(format!("bad element line `{line}`")))?;
+                let count = words
+                    .next()
+                    .and_then(|c| c.parse::<usize>().ok())
+                    .ok_or_else(|| malformed(format!("bad element count in `{line}`")))?;
+                elements.push(Element {
+                    name: name.to_string(),
+                    count,
+                    props: Vec::new(),
+                });
+            }
+            Some("property") => {
+                let el = elements
+                    .last_mut()
+                    .ok_or_else(|| malformed("property before any element"))?;
+                let ty = words.next().unwrap_or("");
+                let bad = || malformed(format!("bad property line `{line}`"));
+                if ty == "list" {
+                    let count = ScalarType::parse(words.next().unwrap_or("")).ok_or_else(bad)?;
+                    let item = ScalarType::parse(words.next().unwrap_or("")).ok_or_else(bad)?;
+                    words.next().ok_or_else(bad)?;
+                    el.props.push(Property::List { count, item });
+                } else {
+                    let ty = ScalarType::parse(ty).ok_or_else(bad)?;
+                    let name = words.next().ok_or_else(bad)?;
+                    el.props.push(Property::Scalar {
+                        name: name.to_string(),
+                        ty,
+                    });
+                }
+            }
+            Some("end_header") => break,
+            Some(other) => return Err(malformed(format!("unknown header keyword `{other}`"))),
+        }
+    }
+    if !saw_format {
+        return Err(malformed("missing `format` line"));
+    }
+    Ok((elements, comments, pos))
+}
+
+/// Read the `vertex` element of a binary little-endian PLY file (such as those written by
+/// [`write_ply`]) and return its columns by name.
+pub fn read_ply(path: &Path) -> Result<PlyData, PlyError> {
+    let bytes = fs::read(path)?;
+    parse_ply(&bytes)
+}
+
+fn parse_ply(bytes: &[u8]) -> Result<PlyData, PlyError> {
+    let (elements, comments, mut pos) = parse_header(bytes)?;
+    let truncated = || malformed("body is shorter than the header announces (truncated file?)");
+    for el in &elements {
+        let is_vertex = el.name == "vertex";
+        if !is_vertex {
+            // Skip this element, record by record (list lengths vary).
+            for _ in 0..el.count {
+                for p in &el.props {
+                    match p {
+                        Property::Scalar { ty, .. } => pos += ty.size(),
+                        Property::List { count, item } => {
+                            let b = bytes.get(pos..pos + count.size()).ok_or_else(truncated)?;
+                            let k = count.read_int(b);
+                            if k < 0 {
+                                return Err(malformed("negative list length"));
+                            }
+                            pos += count.size() + k as usize * item.size();
+                        }
+                    }
+                }
+                if pos > bytes.len() {
+                    return Err(truncated());
+                }
+            }
+            continue;
+        }
+        let mut cols: Vec<(String, ScalarType, PlyColumn)> = Vec::new();
+        let mut stride = 0usize;
+        for p in &el.props {
+            match p {
+                Property::Scalar { name, ty } => {
+                    stride += ty.size();
+                    cols.push((name.clone(), *ty, ty.empty_column(el.count)));
+                }
+                Property::List { .. } => {
+                    return Err(malformed("list properties in `vertex` are not supported"));
+                }
+            }
+        }
+        let need = stride
+            .checked_mul(el.count)
+            .and_then(|s| s.checked_add(pos))
+            .ok_or_else(|| malformed("vertex count overflows"))?;
+        if need > bytes.len() {
+            return Err(truncated());
+        }
+        for _ in 0..el.count {
+            for (_, ty, col) in cols.iter_mut() {
+                let b = &bytes[pos..pos + ty.size()];
+                match col {
+                    PlyColumn::Float(v) => v.push(f32::from_le_bytes(b.try_into().unwrap())),
+                    PlyColumn::Double(v) => v.push(f64::from_le_bytes(b.try_into().unwrap())),
+                    PlyColumn::Int(v) => v.push(ty.read_int(b)),
+                }
+                pos += ty.size();
+            }
+        }
+        return Ok(PlyData {
+            count: el.count,
+            columns: cols.into_iter().map(|(n, _, c)| (n, c)).collect(),
+            comments,
+        });
+    }
+    Err(malformed("no `vertex` element"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::atomic::tests::TestDir;
+    use crate::math::Vec3;
+
+    pub(crate) fn sample_particles(n: usize) -> Particles {
+        let mut p = Particles::default();
+        for i in 0..n {
+            let f = i as f32;
+            p.push(
+                Vec3::new(f * 0.5, -f, f * f * 1e-3),
+                Vec3::new(1.0 + f, 2.0, -3.0 * f),
+                0.25 + f,
+                1e-6,
+                (i % 3) as u32,
+                0.1 * f,
+            );
+        }
+        p
+    }
+
+    #[test]
+    fn round_trip_with_fields() {
+        let d = TestDir::new("ply");
+        let p = sample_particles(17);
+        let j: Vec<f32> = (0..17).map(|i| 1.0 + i as f32 * 0.01).collect();
+        let s: Vec<[f32; 6]> = (0..17)
+            .map(|i| {
+                let f = i as f32;
+                [f, -f, 2.0 * f, 0.5, -0.5, 1e5 * f]
+            })
+            .collect();
+        let fields = FrameFields {
+            stress: Some(&s),
+            jacobian: Some(&j),
+        };
+        let path = d.path("frames/f0001.ply");
+        write_ply(&path, &p, &fields).unwrap();
+        let r = read_ply(&path).unwrap();
+        assert_eq!(r.count, 17);
+        assert_eq!(
+            r.names(),
+            [
+                "x", "y", "z", "vx", "vy", "vz", "material", "plastic", "J", "sxx", "syy", "szz",
+                "sxy", "syz", "sxz"
+            ]
+        );
+        let xs: Vec<f32> = p.x.iter().map(|x| x.x).collect();
+        let vzs: Vec<f32> = p.v.iter().map(|v| v.z).collect();
+        assert_eq!(r.f32("x").unwrap(), xs.as_slice());
+        assert_eq!(r.f32("vz").unwrap(), vzs.as_slice());
+        let mats: Vec<i64> = p.material.iter().map(|&m| m as i64).collect();
+        assert_eq!(r.int("material").unwrap(), mats.as_slice());
+        assert_eq!(r.f32("plastic").unwrap(), p.plastic.as_slice());
+        assert_eq!(r.f32("J").unwrap(), j.as_slice());
+        let sxz: Vec<f32> = s.iter().map(|s| s[5]).collect();
+        assert_eq!(r.f32("sxz").unwrap(), sxz.as_slice());
+        assert_eq!(r.comments, ["rtmpm particles"]);
+    }
+
+    #[test]
+    fn round_trip_without_fields_and_empty() {
+        let d = TestDir::new("ply-min");
+        let p = sample_particles(3);
+        let path = d.path("a.ply");
+        write_ply(&path, &p, &FrameFields::default()).unwrap();
+        let r = read_ply(&path).unwrap();
+        assert_eq!(r.names().len(), 8);
+        assert!(r.column("J").is_none());
+        // Exact size: header + 3 * 8 * 4 bytes.
+        let bytes = fs::read(&path).unwrap();
+        let body = bytes.len()
+            - (bytes
+                .windows(11)
+                .position(|w| w == b"end_header\n")
+                .unwrap()
+                + 11);
+        assert_eq!(body, 3 * 32);
+
+        let empty = d.path("empty.ply");
+        write_ply(&empty, &Particles::default(), &FrameFields::default()).unwrap();
+        assert_eq!(read_ply(&empty).unwrap().count, 0);
+    }
+
+    #[test]
+    fn field_length_mismatch_is_rejected() {
+        let d = TestDir::new("ply-bad");
+        let p = sample_particles(3);
+        let j = [1.0f32; 2];
+        let fields = FrameFields {
+            stress: None,
+            jacobian: Some(&j),
+        };
+        let err = write_ply(&d.path("a.ply"), &p, &fields).unwrap_err();
+        assert_eq!(err.kind(), io::ErrorKind::InvalidInput);
+        assert!(!d.path("a.ply").exists());
+    }
+
+    #[test]
+    fn other_formats_and_truncation_give_errors() {
+        let ascii = b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1.0\n";
+        match parse_ply(ascii) {
+            Err(PlyError::UnsupportedFormat(f)) => assert_eq!(f, "ascii 1.0"),
+            other => panic!("unexpected {other:?}"),
+        }
+        assert!(matches!(
+            parse_ply(b"not a ply"),
+            Err(PlyError::Malformed(_))
+        ));
+        let mut trunc =
+            b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\nend_header\n"
+                .to_vec();
+        trunc.extend_from_slice(&1.0f32.to_le_bytes());
+        let err = parse_ply(&trunc).unwrap_err();
+        assert!(err.to_string().contains("truncated"), "{err}");
+    }
+
+    #[test]
+    fn reads_foreign_layout_with_faces_and_doubles() {
+        // A face element (with a list) before the vertices, and a double + uchar column.
+        let mut b = b"ply\r\nformat binary_little_endian 1.0\r\nelement face 1\r\nproperty list uchar int vertex_indices\r\nelement vertex 2\r\nproperty double x\r\nproperty uchar red\r\nend_header\r\n".to_vec();
+        b.push(3);
+        for i in [0i32, 1, 0] {
+            b.extend_from_slice(&i.to_le_bytes());
+        }
+        for (x, r) in [(1.5f64, 7u8), (-2.0, 255)] {
+            b.extend_from_slice(&x.to_le_bytes());
+            b.push(r);
+        }
+        let r = parse_ply(&b).unwrap();
+        assert_eq!(r.count, 2);
+        assert_eq!(r.column("x"), Some(&PlyColumn::Double(vec![1.5, -2.0])));
+        assert_eq!(r.int("red").unwrap(), &[7, 255]);
+    }
+}
