@@ -17,10 +17,13 @@ impl FrameOutput {
     pub fn new(dir: &Path, scene: &Scene) -> Result<FrameOutput> {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("cannot create output folder {}", dir.display()))?;
-        let pvd = scene
-            .output
-            .vtu
-            .then(|| PvdWriter::new(&dir.join("frames.pvd")));
+        let pvd = match scene.output.vtu {
+            true => {
+                let path = dir.join("frames.pvd");
+                Some(PvdWriter::new(&path).with_context(|| format!("writing {}", path.display()))?)
+            }
+            false => None,
+        };
         Ok(FrameOutput {
             dir: dir.to_path_buf(),
             pvd,
