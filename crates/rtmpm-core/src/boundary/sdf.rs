@@ -8,11 +8,25 @@ use std::sync::Arc;
 #[derive(Clone, Debug)]
 pub enum Shape {
     /// Points `x` with `(x - point) . normal < 0` are inside.
-    HalfSpace { point: Vec3, normal: Vec3 },
-    Box { center: Vec3, half_extents: Vec3 },
-    Sphere { center: Vec3, radius: f32 },
+    HalfSpace {
+        point: Vec3,
+        normal: Vec3,
+    },
+    Box {
+        center: Vec3,
+        half_extents: Vec3,
+    },
+    Sphere {
+        center: Vec3,
+        radius: f32,
+    },
     /// Capped cylinder along unit `axis`.
-    Cylinder { center: Vec3, axis: Vec3, radius: f32, half_height: f32 },
+    Cylinder {
+        center: Vec3,
+        axis: Vec3,
+        radius: f32,
+        half_height: f32,
+    },
     /// Triangle mesh sampled into a signed distance grid.
     Mesh(Arc<MeshSdf>),
 }
