@@ -1,5 +1,6 @@
 // Material dispatch for the kernels (Rust: crates/rtmpm-core/src/material/mod.rs, Model).
 #pragma once
+#include <cstddef>
 #include "fluid.cuh"
 #include "fixed_corotated.cuh"
 #include "neo_hookean.cuh"
@@ -35,6 +36,10 @@ struct MaterialGpu {
     DruckerPragerParams drucker_prager;
     VonMisesParams von_mises;
 };
+#ifndef RTMPM_F64
+static_assert(sizeof(MaterialGpu) == 88, "MaterialGpu layout must match the host #[repr(C)] mirror");
+static_assert(offsetof(MaterialGpu, snow) == 36 && offsetof(MaterialGpu, von_mises) == 72, "MaterialGpu offsets");
+#endif
 
 // Kirchhoff stress tau = P F^T; c is the APIC affine matrix (viscous fluid only).
 __device__ __forceinline__ mat3 material_kirchhoff(const MaterialGpu& m, const mat3& f, real plastic, const mat3& c) {
