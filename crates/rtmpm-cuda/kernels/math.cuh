@@ -59,3 +59,18 @@ __device__ __forceinline__ mat3 outer(vec3 a, vec3 b) {
     c.m[6] = a.x * b.z; c.m[7] = a.y * b.z; c.m[8] = a.z * b.z;
     return c;
 }
+
+// ---- helpers added for svd.cuh / material/*.cuh ----
+__device__ __forceinline__ vec3 operator-(vec3 a) { return make_v3(-a.x, -a.y, -a.z); }
+__device__ __forceinline__ vec3 make_v3s(real s) { return make_v3(s, s, s); }
+__device__ __forceinline__ real sum(vec3 a) { return a.x + a.y + a.z; }
+__device__ __forceinline__ mat3 mat3_from_cols(vec3 c0, vec3 c1, vec3 c2) {
+    mat3 a;
+    a.m[0] = c0.x; a.m[1] = c0.y; a.m[2] = c0.z;
+    a.m[3] = c1.x; a.m[4] = c1.y; a.m[5] = c1.z;
+    a.m[6] = c2.x; a.m[7] = c2.y; a.m[8] = c2.z;
+    return a;
+}
+__device__ __forceinline__ vec3 mat3_col(const mat3& a, int c) { return make_v3(a.m[c * 3], a.m[c * 3 + 1], a.m[c * 3 + 2]); }
+// a * diag(d) * b^T
+__device__ __forceinline__ mat3 mul_diag_bt(const mat3& a, vec3 d, const mat3& b) { return a * mat3_diag(d) * transpose(b); }

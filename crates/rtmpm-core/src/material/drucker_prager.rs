@@ -1,10 +1,38 @@
-//! Drucker-Prager sand, Klar et al. 2016 (stub: to be implemented).
+//! Drucker-Prager sand, Klar et al. 2016 ("Drucker-Prager elastoplasticity for sand animation"):
+//! St.Venant-Kirchhoff elasticity with Hencky strain and a return mapping in log-strain space.
 
-use crate::math::Mat3;
+use crate::math::{Mat3, Vec3};
+use crate::svd::svd3;
 
+/// Singular values are clamped to at least this value before `ln` (degenerate or inverted `F`):
+/// the Hencky strain stays finite (`ln(1e-4) ~ -9.2`), i.e. a very compressed, uninverted state.
+pub const HENCKY_SIGMA_MIN: f32 = 1e-4;
+
+/// Hencky (logarithmic) principal strain `ln(max(sigma, HENCKY_SIGMA_MIN))`.
+pub fn hencky_strain(sigma: Vec3) -> Vec3 {
+    sigma.max(Vec3::splat(HENCKY_SIGMA_MIN)).ln()
+}
+
+/// Principal Kirchhoff stress of St.Venant-Kirchhoff with Hencky strain:
+/// `2 mu eps + lambda tr(eps)` (Klar 2016, eq. 26 times `F^T`).
+pub fn hencky_principal_stress(eps: Vec3, mu: f32, lambda: f32) -> Vec3 {
+    2.0 * mu * eps + Vec3::splat(lambda * (eps.x + eps.y + eps.z))
+}
+
+/// Kirchhoff stress `tau = U (2 mu eps + lambda tr(eps) I) U^T`, `eps = ln(sigma)`, `F = U sigma V^T`.
+pub fn hencky_kirchhoff(f: Mat3, mu: f32, lambda: f32) -> Mat3 {
+    let (u, sigma, _) = svd3(f);
+    let t = hencky_principal_stress(hencky_strain(sigma), mu, lambda);
+    u * Mat3::from_diagonal(t) * u.transpose()
+}
+
+/// Drucker-Prager sand. The plastic scalar accumulates the plastic multipliers `|delta gamma|`
+/// of the return mapping (Klar's `q` without hardening: it is only recorded, for output).
 #[derive(Clone, Debug, PartialEq)]
 pub struct DruckerPrager {
+    /// Shear modulus mu (Pa).
     pub mu: f32,
+    /// First Lamé parameter lambda (Pa).
     pub lambda: f32,
     /// Friction angle (degrees).
     pub friction_angle: f32,
@@ -13,10 +41,219 @@ pub struct DruckerPrager {
 }
 
 impl DruckerPrager {
-    pub fn kirchhoff(&self, _f: Mat3) -> Mat3 {
-        todo!()
+    /// From Young's modulus (Pa), Poisson's ratio, friction angle (degrees) and cohesion.
+    pub fn new(
+        youngs_modulus: f32,
+        poisson_ratio: f32,
+        friction_angle: f32,
+        cohesion: f32,
+    ) -> Self {
+        let (mu, lambda) = super::lame(youngs_modulus, poisson_ratio);
+        Self {
+            mu,
+            lambda,
+            friction_angle,
+            cohesion,
+        }
     }
-    pub fn project(&self, _f_trial: Mat3, _q: &mut f32) -> Mat3 {
-        todo!()
+
+    /// Cone slope `alpha = sqrt(2/3) 2 sin(phi) / (3 - sin(phi))` (Klar 2016, eq. 27).
+    pub fn alpha(&self) -> f32 {
+        let s = self.friction_angle.to_radians().sin();
+        (2.0f32 / 3.0).sqrt() * 2.0 * s / (3.0 - s)
+    }
+
+    /// Kirchhoff stress (St.Venant-Kirchhoff with Hencky strain), see [`hencky_kirchhoff`].
+    pub fn kirchhoff(&self, f: Mat3) -> Mat3 {
+        hencky_kirchhoff(f, self.mu, self.lambda)
+    }
+
+    /// Return mapping on the principal log strain (Klar 2016, algorithm 2 / section 7.3, d = 3),
+    /// with the cone tip shifted by the cohesion `c`: `eps' = eps - c`, project `eps'`, add `c`
+    /// back. Returns the projected principal log strain and the plastic multiplier (0 = elastic).
+    pub fn project_strain(&self, eps: Vec3) -> (Vec3, f32) {
+        let c = Vec3::splat(self.cohesion);
+        let e = eps - c;
+        let tr = e.x + e.y + e.z;
+        let e_hat = e - Vec3::splat(tr / 3.0);
+        let e_hat_norm = e_hat.length();
+        // Klar eq. 28: delta gamma = ||eps_hat|| + (d lambda + 2 mu) / (2 mu) tr(eps) alpha
+        let dg =
+            e_hat_norm + (3.0 * self.lambda + 2.0 * self.mu) / (2.0 * self.mu) * tr * self.alpha();
+        if dg <= 0.0 {
+            // Case I: inside the cone (includes pure hydrostatic compression).
+            (eps, 0.0)
+        } else if e_hat_norm <= 0.0 || tr > 0.0 {
+            // Case II: tension beyond the (shifted) tip: project to the tip.
+            (c, e.length())
+        } else {
+            // Case III: project along the deviatoric direction onto the cone.
+            (e - e_hat * (dg / e_hat_norm) + c, dg)
+        }
+    }
+
+    /// Plastic projection of the trial elastic `F`; `q` accumulates the plastic multipliers.
+    /// Elastic states return `f_trial` unchanged.
+    pub fn project(&self, f_trial: Mat3, q: &mut f32) -> Mat3 {
+        let (u, sigma, v) = svd3(f_trial);
+        let (h, dq) = self.project_strain(hencky_strain(sigma));
+        if dq <= 0.0 {
+            return f_trial;
+        }
+        *q += dq;
+        u * Mat3::from_diagonal(h.exp()) * v.transpose()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: Mat3, b: Mat3, tol: f32) -> bool {
+        (a - b).to_cols_array().iter().all(|x| x.abs() <= tol)
+    }
+
+    fn sand() -> DruckerPrager {
+        DruckerPrager {
+            mu: 1.0,
+            lambda: 2.0,
+            friction_angle: 30.0,
+            cohesion: 0.0,
+        }
+    }
+
+    /// Yield function value of a principal log strain (<= 0 inside the cone).
+    fn yield_value(m: &DruckerPrager, eps: Vec3) -> f32 {
+        let e = eps - Vec3::splat(m.cohesion);
+        let tr = e.x + e.y + e.z;
+        let e_hat = e - Vec3::splat(tr / 3.0);
+        e_hat.length() + (3.0 * m.lambda + 2.0 * m.mu) / (2.0 * m.mu) * tr * m.alpha()
+    }
+
+    #[test]
+    fn alpha_hand_computed() {
+        // phi = 30 deg: sin = 0.5, alpha = sqrt(2/3) * 1 / 2.5 = 0.8164966 * 0.4 = 0.3265986.
+        assert!((sand().alpha() - 0.3265986).abs() < 1e-6);
+    }
+
+    #[test]
+    fn zero_stress_at_rest() {
+        assert_eq!(sand().kirchhoff(Mat3::IDENTITY), Mat3::ZERO);
+    }
+
+    #[test]
+    fn uniaxial_stretch_hand_computed() {
+        // F = diag(1.1, 1, 1): eps = (ln 1.1, 0, 0) = (0.0953102, 0, 0), tr = 0.0953102;
+        // tau = 2 mu eps + lambda tr = (0.1906204 + 0.1906204, 0.1906204, 0.1906204).
+        let tau = sand().kirchhoff(Mat3::from_diagonal(Vec3::new(1.1, 1.0, 1.0)));
+        let expected = Mat3::from_diagonal(Vec3::new(0.3812408, 0.1906204, 0.1906204));
+        assert!(close(tau, expected, 1e-6), "{tau:?}");
+    }
+
+    #[test]
+    fn frame_indifference() {
+        let m = sand();
+        let r = Mat3::from_axis_angle(Vec3::new(0.3, -1.0, 0.5).normalize(), 2.2);
+        let f = Mat3::from_cols(
+            Vec3::new(1.1, 0.2, -0.1),
+            Vec3::new(0.05, 0.9, 0.1),
+            Vec3::new(0.0, 0.3, 1.2),
+        );
+        let lhs = m.kirchhoff(r * f);
+        let rhs = r * m.kirchhoff(f) * r.transpose();
+        assert!(close(lhs, rhs, 1e-5), "{lhs:?} vs {rhs:?}");
+    }
+
+    #[test]
+    fn tension_projects_to_tip() {
+        // F = 1.1 I: eps = ln(1.1) (1, 1, 1), tr > 0 -> sigma = I, q += ||eps|| = sqrt(3) ln 1.1.
+        let m = sand();
+        let mut q = 0.0;
+        let r = Mat3::from_axis_angle(Vec3::new(1.0, 1.0, 1.0).normalize(), 0.5);
+        let fe = m.project(r * Mat3::from_diagonal(Vec3::new(1.1, 1.1, 1.1)), &mut q);
+        assert!(close(fe, r, 1e-6), "{fe:?}");
+        assert!((q - 3f32.sqrt() * 1.1f32.ln()).abs() < 1e-6, "{q}");
+        assert!(close(m.kirchhoff(fe), Mat3::ZERO, 1e-6));
+        // Tension with shear too.
+        let mut q = 0.0;
+        let fe = m.project(Mat3::from_diagonal(Vec3::new(1.2, 1.0, 1.05)), &mut q);
+        assert!(close(fe, Mat3::IDENTITY, 1e-6), "{fe:?}");
+    }
+
+    #[test]
+    fn cohesion_shifts_tip() {
+        // c = 0.01: tension goes to sigma = exp(0.01) I, with tensile stress
+        // (2 mu + 3 lambda) c = 8 * 0.01 = 0.08 on the diagonal.
+        let m = DruckerPrager {
+            cohesion: 0.01,
+            ..sand()
+        };
+        let mut q = 0.0;
+        let fe = m.project(Mat3::from_diagonal(Vec3::splat(1.1)), &mut q);
+        assert!(close(fe, Mat3::IDENTITY * 0.01f32.exp(), 1e-6), "{fe:?}");
+        assert!(close(m.kirchhoff(fe), Mat3::IDENTITY * 0.08, 1e-5));
+        // Small tension below the cohesion is elastic.
+        let f = Mat3::from_diagonal(Vec3::splat(1.005));
+        let mut q = 0.0;
+        assert_eq!(m.project(f, &mut q), f);
+        assert_eq!(q, 0.0);
+    }
+
+    #[test]
+    fn hydrostatic_compression_stays_elastic() {
+        let m = sand();
+        for s in [0.99, 0.9, 0.5] {
+            let f = Mat3::from_diagonal(Vec3::splat(s));
+            let mut q = 0.0;
+            assert_eq!(m.project(f, &mut q), f);
+            assert_eq!(q, 0.0);
+        }
+    }
+
+    #[test]
+    fn pure_shear_yields_to_cone() {
+        // Isochoric shear eps = (l, -l, 0): tr = 0 so the cone has zero radius there; case III
+        // removes the whole deviatoric part: sigma = I, q += ||eps_hat|| = sqrt(2) l.
+        let m = sand();
+        let l = 1.1f32.ln();
+        let mut q = 0.0;
+        let fe = m.project(Mat3::from_diagonal(Vec3::new(1.1, 1.0 / 1.1, 1.0)), &mut q);
+        assert!(close(fe, Mat3::IDENTITY, 1e-6), "{fe:?}");
+        assert!((q - 2f32.sqrt() * l).abs() < 1e-6);
+    }
+
+    #[test]
+    fn shear_under_pressure_lands_on_cone() {
+        // eps = (l - p, -l - p, -p) with l = 0.1, p = 0.01: yield = sqrt(2) 0.1 - 4 * 0.03 * alpha
+        // = 0.1414214 - 0.0391918 > 0 -> case III; afterwards on the cone (yield = 0), trace kept.
+        let m = sand();
+        let eps = Vec3::new(0.09, -0.11, -0.01);
+        assert!((yield_value(&m, eps) - 0.1022296).abs() < 1e-6);
+        let (h, dg) = m.project_strain(eps);
+        assert!((dg - 0.1022296).abs() < 1e-6);
+        assert!(yield_value(&m, h).abs() < 1e-6, "{h:?}");
+        assert!(((h.x + h.y + h.z) - (eps.x + eps.y + eps.z)).abs() < 1e-6);
+        // The deviatoric direction is kept.
+        let d = h - Vec3::splat((h.x + h.y + h.z) / 3.0);
+        let d0 = eps - Vec3::splat((eps.x + eps.y + eps.z) / 3.0);
+        assert!(d.normalize().dot(d0.normalize()) > 1.0 - 1e-6);
+        // Through the full F path in a rotated frame.
+        let r1 = Mat3::from_axis_angle(Vec3::new(1.0, 2.0, 0.5).normalize(), 0.6);
+        let r2 = Mat3::from_axis_angle(Vec3::new(-1.0, 0.2, 0.5).normalize(), 1.9);
+        let mut q = 0.5;
+        let fe = m.project(r1 * Mat3::from_diagonal(eps.exp()) * r2, &mut q);
+        assert!(close(fe, r1 * Mat3::from_diagonal(h.exp()) * r2, 1e-5));
+        assert!((q - 0.5 - 0.1022296).abs() < 1e-6);
+    }
+
+    #[test]
+    fn degenerate_sigma_is_finite() {
+        let m = sand();
+        let mut q = 0.0;
+        for f in [Mat3::ZERO, Mat3::from_diagonal(Vec3::new(1.0, 1.0, -0.5))] {
+            assert!(m.kirchhoff(f).is_finite());
+            let fe = m.project(f, &mut q);
+            assert!(fe.is_finite() && q.is_finite());
+        }
     }
 }

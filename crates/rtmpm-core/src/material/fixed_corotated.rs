@@ -1,15 +1,104 @@
-//! FixedCorotated hyperelasticity (stub: to be implemented).
+//! FixedCorotated hyperelasticity (Stomakhin et al. 2012, "Energetically consistent invertible
+//! elasticity").
 
-use crate::math::Mat3;
+use crate::math::{Mat3, Vec3};
+use crate::svd::polar;
 
+/// FixedCorotated hyperelastic solid.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FixedCorotated {
+    /// Shear modulus mu (Pa).
     pub mu: f32,
+    /// First Lamé parameter lambda (Pa).
     pub lambda: f32,
 }
 
+/// Kirchhoff stress of the FixedCorotated model with Lamé parameters `mu`, `lambda`:
+/// `tau = P F^T = 2 mu (F - R) F^T + lambda (J - 1) J I` (Stomakhin 2012, eq. 2, with `R` the
+/// rotation of the polar decomposition of `F`; well defined for inverted `F`).
+pub fn fixed_corotated_kirchhoff(f: Mat3, mu: f32, lambda: f32) -> Mat3 {
+    let (r, _) = polar(f);
+    let j = f.determinant();
+    (f - r) * f.transpose() * (2.0 * mu) + Mat3::from_diagonal(Vec3::splat(lambda * (j - 1.0) * j))
+}
+
 impl FixedCorotated {
-    pub fn kirchhoff(&self, _f: Mat3) -> Mat3 {
-        todo!()
+    /// From Young's modulus (Pa) and Poisson's ratio.
+    pub fn from_young_poisson(youngs_modulus: f32, poisson_ratio: f32) -> Self {
+        let (mu, lambda) = super::lame(youngs_modulus, poisson_ratio);
+        Self { mu, lambda }
+    }
+
+    /// Kirchhoff stress `tau = 2 mu (F - R) F^T + lambda (J - 1) J I`.
+    pub fn kirchhoff(&self, f: Mat3) -> Mat3 {
+        fixed_corotated_kirchhoff(f, self.mu, self.lambda)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: Mat3, b: Mat3, tol: f32) -> bool {
+        (a - b).to_cols_array().iter().all(|x| x.abs() <= tol)
+    }
+
+    const M: FixedCorotated = FixedCorotated {
+        mu: 1.0,
+        lambda: 2.0,
+    };
+
+    #[test]
+    fn zero_stress_at_rest_and_under_rotation() {
+        assert!(close(M.kirchhoff(Mat3::IDENTITY), Mat3::ZERO, 1e-7));
+        let r = Mat3::from_axis_angle(Vec3::new(1.0, 1.0, 0.0).normalize(), 1.3);
+        assert!(close(M.kirchhoff(r), Mat3::ZERO, 1e-6));
+    }
+
+    #[test]
+    fn uniaxial_stretch_hand_computed() {
+        // F = diag(1.1, 1, 1): R = I, F - R = diag(0.1, 0, 0), (F - R) F^T = diag(0.11, 0, 0),
+        // J = 1.1, lambda (J - 1) J = 2 * 0.1 * 1.1 = 0.22.
+        // tau = 2 * 1 * diag(0.11, 0, 0) + 0.22 I = diag(0.44, 0.22, 0.22).
+        let tau = M.kirchhoff(Mat3::from_diagonal(Vec3::new(1.1, 1.0, 1.0)));
+        assert!(
+            close(tau, Mat3::from_diagonal(Vec3::new(0.44, 0.22, 0.22)), 1e-6),
+            "{tau:?}"
+        );
+    }
+
+    #[test]
+    fn inverted_hand_computed() {
+        // F = diag(1, 1, -1): the SVD is already diagonal, u = v = I, sigma = (1, 1, -1), so
+        // R = I (a rotation, not the reflection F itself) and F - R = diag(0, 0, -2),
+        // (F - R) F^T = diag(0, 0, 2), J = -1, lambda (J - 1) J = 2 * (-2) * (-1) = 4.
+        // tau = 2 * diag(0, 0, 2) + 4 I = diag(4, 4, 8): pushes the inverted axis back out.
+        let tau = M.kirchhoff(Mat3::from_diagonal(Vec3::new(1.0, 1.0, -1.0)));
+        assert!(
+            close(tau, Mat3::from_diagonal(Vec3::new(4.0, 4.0, 8.0)), 1e-5),
+            "{tau:?}"
+        );
+    }
+
+    #[test]
+    fn frame_indifference() {
+        let r = Mat3::from_axis_angle(Vec3::new(0.3, -1.0, 0.5).normalize(), 2.2);
+        let f = Mat3::from_cols(
+            Vec3::new(1.1, 0.2, -0.1),
+            Vec3::new(0.05, 0.9, 0.1),
+            Vec3::new(0.0, 0.3, 1.2),
+        );
+        let lhs = M.kirchhoff(r * f);
+        let rhs = r * M.kirchhoff(f) * r.transpose();
+        assert!(close(lhs, rhs, 1e-5), "{lhs:?} vs {rhs:?}");
+        // tau is symmetric.
+        let t = M.kirchhoff(f);
+        assert!(close(t, t.transpose(), 1e-6));
+    }
+
+    #[test]
+    fn constructor_from_young_poisson() {
+        let m = FixedCorotated::from_young_poisson(1e4, 0.25);
+        assert!((m.mu - 4000.0).abs() < 1e-2 && (m.lambda - 4000.0).abs() < 1e-2);
     }
 }

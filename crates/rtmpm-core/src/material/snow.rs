@@ -1,11 +1,29 @@
-//! Snow plasticity, Stomakhin et al. 2013 (stub: to be implemented).
+//! Snow plasticity, Stomakhin et al. 2013 ("A material point method for snow simulation"):
+//! FixedCorotated elasticity hardened by `exp(xi (1 - Jp))` and singular-value clamping.
 
-use crate::math::Mat3;
+use super::fixed_corotated::fixed_corotated_kirchhoff;
+use crate::math::{Mat3, Vec3};
+use crate::svd::svd3;
 
+/// Bound on the hardening exponent: `xi (1 - Jp)` is clamped to `[-M, M]` with `M = 3`, so the
+/// Lamé parameters stay within a factor `e^3 ~ 20` of their initial values. Without it
+/// `exp(xi (1 - Jp))` overflows f32 for `xi (1 - Jp) > 88` (e.g. a stretched particle with
+/// `Jp = 10`, `xi = 10` gives `e^-90` and a compacted one drives the CFL step to zero).
+pub const SNOW_MAX_HARDENING_EXPONENT: f32 = 3.0;
+
+/// `Jp` is kept in `[SNOW_JP_MIN, SNOW_JP_MAX]` so it stays positive (an inverted trial `F` has a
+/// negative determinant ratio) and finite; inside the range used by the clamped exponent this is
+/// irrelevant for any `xi >= 0.003`.
+pub const SNOW_JP_MIN: f32 = 1e-3;
+/// Upper bound of `Jp`, see [`SNOW_JP_MIN`].
+pub const SNOW_JP_MAX: f32 = 1e3;
+
+/// Snow (Stomakhin et al. 2013). The plastic scalar is `Jp`, the plastic volume ratio (starts at 1).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Snow {
     /// Initial Lamé parameters (hardened by `exp(xi (1 - Jp))`).
     pub mu: f32,
+    /// Initial first Lamé parameter lambda (Pa).
     pub lambda: f32,
     /// Critical compression theta_c (e.g. 2.5e-2).
     pub critical_compression: f32,
@@ -16,14 +34,167 @@ pub struct Snow {
 }
 
 impl Snow {
-    pub fn kirchhoff(&self, _f: Mat3, _jp: f32) -> Mat3 {
-        todo!()
+    /// The paper's parameters (Stomakhin 2013, table 2, "reference"): E = 1.4e5 Pa, nu = 0.2,
+    /// theta_c = 2.5e-2, theta_s = 7.5e-3, xi = 10.
+    pub fn reference() -> Self {
+        let (mu, lambda) = super::lame(1.4e5, 0.2);
+        Self {
+            mu,
+            lambda,
+            critical_compression: 2.5e-2,
+            critical_stretch: 7.5e-3,
+            hardening: 10.0,
+        }
     }
-    pub fn project(&self, _f_trial: Mat3, _jp: &mut f32) -> Mat3 {
-        todo!()
+
+    /// Hardening factor `exp(clamp(xi (1 - Jp), -M, M))` (Stomakhin 2013, eq. 8), see
+    /// [`SNOW_MAX_HARDENING_EXPONENT`].
+    pub fn hardening_factor(&self, jp: f32) -> f32 {
+        let e = (self.hardening * (1.0 - jp))
+            .clamp(-SNOW_MAX_HARDENING_EXPONENT, SNOW_MAX_HARDENING_EXPONENT);
+        e.exp()
     }
-    /// Upper bound of `lambda + 2 mu` over the admissible hardening range, for the CFL condition.
+
+    /// Kirchhoff stress: FixedCorotated with `mu`, `lambda` times [`Snow::hardening_factor`].
+    pub fn kirchhoff(&self, f: Mat3, jp: f32) -> Mat3 {
+        let h = self.hardening_factor(jp);
+        fixed_corotated_kirchhoff(f, self.mu * h, self.lambda * h)
+    }
+
+    /// Clamps the singular values of the trial elastic `F` into `[1 - theta_c, 1 + theta_s]`
+    /// and moves the removed volume into `Jp`: `Jp_new = Jp J_e_trial / J_e_new`
+    /// (Stomakhin 2013, section 7), clamped to `[SNOW_JP_MIN, SNOW_JP_MAX]`.
+    pub fn project(&self, f_trial: Mat3, jp: &mut f32) -> Mat3 {
+        let (u, s, v) = svd3(f_trial);
+        let lo = 1.0 - self.critical_compression;
+        let hi = 1.0 + self.critical_stretch;
+        let sc = Vec3::new(s.x.clamp(lo, hi), s.y.clamp(lo, hi), s.z.clamp(lo, hi));
+        let ratio = (s.x * s.y * s.z) / (sc.x * sc.y * sc.z);
+        *jp = (*jp * ratio).clamp(SNOW_JP_MIN, SNOW_JP_MAX);
+        u * Mat3::from_diagonal(sc) * v.transpose()
+    }
+
+    /// Upper bound of `lambda + 2 mu` over the admissible hardening range, for the CFL condition:
+    /// `Jp` can approach its lower bound (0, compaction), where the exponent is
+    /// `min(xi, M)` for `xi >= 0`; for `xi < 0`, stretching (`Jp` large) reaches `M`.
     pub fn max_stiffness(&self) -> f32 {
-        todo!()
+        let e_max = if self.hardening >= 0.0 {
+            self.hardening.min(SNOW_MAX_HARDENING_EXPONENT)
+        } else {
+            SNOW_MAX_HARDENING_EXPONENT
+        };
+        (self.lambda + 2.0 * self.mu) * e_max.exp()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: Mat3, b: Mat3, tol: f32) -> bool {
+        (a - b).to_cols_array().iter().all(|x| x.abs() <= tol)
+    }
+
+    fn snow() -> Snow {
+        Snow {
+            mu: 1.0,
+            lambda: 2.0,
+            critical_compression: 0.025,
+            critical_stretch: 0.0075,
+            hardening: 10.0,
+        }
+    }
+
+    #[test]
+    fn zero_stress_at_rest() {
+        assert!(close(
+            snow().kirchhoff(Mat3::IDENTITY, 1.0),
+            Mat3::ZERO,
+            1e-7
+        ));
+        assert!(close(
+            snow().kirchhoff(Mat3::IDENTITY, 0.8),
+            Mat3::ZERO,
+            1e-7
+        ));
+    }
+
+    #[test]
+    fn hardened_stress_hand_computed() {
+        // Jp = 0.95: h = exp(10 * 0.05) = exp(0.5) = 1.6487213. FixedCorotated with mu = 1,
+        // lambda = 2 at F = diag(1.1, 1, 1) is diag(0.44, 0.22, 0.22) (see fixed_corotated.rs),
+        // linear in (mu, lambda): tau = 1.6487213 * diag(0.44, 0.22, 0.22).
+        let tau = snow().kirchhoff(Mat3::from_diagonal(Vec3::new(1.1, 1.0, 1.0)), 0.95);
+        let expected = Mat3::from_diagonal(Vec3::new(0.7254374, 0.3627187, 0.3627187));
+        assert!(close(tau, expected, 1e-5), "{tau:?}");
+    }
+
+    #[test]
+    fn hardening_exponent_is_clamped() {
+        let m = snow();
+        assert!((m.hardening_factor(-100.0) - 3f32.exp()).abs() < 1e-4);
+        assert!((m.hardening_factor(1e6) - (-3f32).exp()).abs() < 1e-7);
+        assert!(
+            m.kirchhoff(Mat3::from_diagonal(Vec3::splat(0.9)), 1e-3)
+                .is_finite()
+        );
+        // CFL bound covers every admissible Jp.
+        for jp in [SNOW_JP_MIN, 0.1, 0.5, 0.9, 1.0, 2.0, SNOW_JP_MAX] {
+            let h = m.hardening_factor(jp);
+            assert!(h * (m.lambda + 2.0 * m.mu) <= m.max_stiffness() * (1.0 + 1e-6));
+        }
+        assert!((m.max_stiffness() - 4.0 * 3f32.exp()).abs() < 1e-4);
+        let soft = Snow {
+            hardening: 1.0,
+            ..snow()
+        };
+        assert!((soft.max_stiffness() - 4.0 * 1f32.exp()).abs() < 1e-5);
+    }
+
+    #[test]
+    fn project_clamps_and_updates_jp() {
+        // F = diag(1.1, 0.9, 1.0): clamped to diag(1.0075, 0.975, 1.0);
+        // Jp = 1 * (1.1 * 0.9 * 1) / (1.0075 * 0.975 * 1) = 0.99 / 0.98231250 = 1.0078259.
+        let m = snow();
+        let mut jp = 1.0;
+        let fe = m.project(Mat3::from_diagonal(Vec3::new(1.1, 0.9, 1.0)), &mut jp);
+        assert!(
+            close(fe, Mat3::from_diagonal(Vec3::new(1.0075, 0.975, 1.0)), 1e-6),
+            "{fe:?}"
+        );
+        assert!((jp - 1.0078259).abs() < 1e-6, "{jp}");
+        // Rotated frame: singular values clamped, rotations kept, total volume preserved.
+        let r1 = Mat3::from_axis_angle(Vec3::new(1.0, 2.0, 0.5).normalize(), 0.6);
+        let r2 = Mat3::from_axis_angle(Vec3::new(-1.0, 0.2, 0.5).normalize(), 1.9);
+        let f = r1 * Mat3::from_diagonal(Vec3::new(1.2, 0.99, 0.8)) * r2;
+        let mut jp = 0.9;
+        let fe = m.project(f, &mut jp);
+        let expected = r1 * Mat3::from_diagonal(Vec3::new(1.0075, 0.99, 0.975)) * r2;
+        assert!(close(fe, expected, 1e-5), "{fe:?}");
+        assert!((jp * fe.determinant() - 0.9 * f.determinant()).abs() < 1e-5);
+    }
+
+    #[test]
+    fn project_inside_is_identity() {
+        let m = snow();
+        let f = Mat3::from_diagonal(Vec3::new(1.005, 0.98, 1.0));
+        let mut jp = 0.97;
+        let fe = m.project(f, &mut jp);
+        assert!(close(fe, f, 1e-6));
+        assert!((jp - 0.97).abs() < 1e-6);
+    }
+
+    #[test]
+    fn frame_indifference() {
+        let m = snow();
+        let r = Mat3::from_axis_angle(Vec3::new(0.3, -1.0, 0.5).normalize(), 2.2);
+        let f = Mat3::from_cols(
+            Vec3::new(1.01, 0.02, 0.0),
+            Vec3::new(0.0, 0.98, 0.01),
+            Vec3::new(0.0, 0.0, 1.0),
+        );
+        let lhs = m.kirchhoff(r * f, 0.9);
+        let rhs = r * m.kirchhoff(f, 0.9) * r.transpose();
+        assert!(close(lhs, rhs, 1e-5), "{lhs:?} vs {rhs:?}");
     }
 }

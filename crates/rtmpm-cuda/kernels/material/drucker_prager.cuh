@@ -1,0 +1,53 @@
+// Drucker-Prager sand (Klar et al. 2016): port of crates/rtmpm-core/src/material/drucker_prager.rs.
+#pragma once
+#include "hencky.cuh"
+
+// Host mirror (#[repr(C)]): { f32 mu; f32 lambda; f32 friction_angle (degrees); f32 cohesion; }
+// (16 bytes).
+struct DruckerPragerParams {
+    real mu;
+    real lambda;
+    real friction_angle;
+    real cohesion;
+};
+
+// alpha = sqrt(2/3) 2 sin(phi) / (3 - sin(phi)) (Klar 2016 eq. 27)
+__device__ __forceinline__ real drucker_prager_alpha(const DruckerPragerParams& p) {
+    real s = sin(p.friction_angle * ((real)3.14159265358979323846 / (real)180));
+    return sqrt((real)2 / (real)3) * (real)2 * s / ((real)3 - s);
+}
+
+__device__ __forceinline__ mat3 drucker_prager_kirchhoff(const DruckerPragerParams& p, const mat3& f) {
+    return hencky_kirchhoff(f, p.mu, p.lambda);
+}
+
+// Return mapping on the principal log strain (Klar 2016 alg. 2), tip shifted by the cohesion.
+// Returns the projected strain; *dq = plastic multiplier (0 = elastic).
+__device__ __forceinline__ vec3 drucker_prager_project_strain(const DruckerPragerParams& p, vec3 eps, real* dq) {
+    vec3 c = make_v3s(p.cohesion);
+    vec3 e = eps - c;
+    real tr = sum(e);
+    vec3 e_hat = e - make_v3s(tr / (real)3);
+    real e_hat_norm = length(e_hat);
+    real dg = e_hat_norm + ((real)3 * p.lambda + (real)2 * p.mu) / ((real)2 * p.mu) * tr * drucker_prager_alpha(p);
+    if (dg <= (real)0) {  // case I: inside the cone
+        *dq = 0;
+        return eps;
+    } else if (e_hat_norm <= (real)0 || tr > (real)0) {  // case II: to the (shifted) tip
+        *dq = length(e);
+        return c;
+    }
+    *dq = dg;  // case III: along the deviatoric direction onto the cone
+    return e - e_hat * (dg / e_hat_norm) + c;
+}
+
+__device__ __forceinline__ mat3 drucker_prager_project(const DruckerPragerParams& p, const mat3& f_trial, real* q) {
+    mat3 u, v;
+    vec3 s;
+    svd3(f_trial, u, s, v);
+    real dq;
+    vec3 h = drucker_prager_project_strain(p, hencky_strain(s), &dq);
+    if (dq <= (real)0) return f_trial;
+    *q += dq;
+    return mul_diag_bt(u, exp3(h), v);
+}

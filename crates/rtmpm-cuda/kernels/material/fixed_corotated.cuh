@@ -1,0 +1,21 @@
+// FixedCorotated (Stomakhin et al. 2012): port of crates/rtmpm-core/src/material/fixed_corotated.rs.
+#pragma once
+#include "../svd.cuh"
+
+// Host mirror (#[repr(C)]): { f32 mu; f32 lambda; } (8 bytes).
+struct FixedCorotatedParams {
+    real mu;
+    real lambda;
+};
+
+// tau = 2 mu (F - R) F^T + lambda (J - 1) J I, R from the polar decomposition.
+__device__ __forceinline__ mat3 fixed_corotated_kirchhoff_lame(const mat3& f, real mu, real lambda) {
+    mat3 r, s;
+    polar(f, r, s);
+    real j = determinant(f);
+    return (f - r) * transpose(f) * ((real)2 * mu) + mat3_diag(make_v3s(lambda * (j - (real)1) * j));
+}
+
+__device__ __forceinline__ mat3 fixed_corotated_kirchhoff(const FixedCorotatedParams& p, const mat3& f) {
+    return fixed_corotated_kirchhoff_lame(f, p.mu, p.lambda);
+}

@@ -1,0 +1,25 @@
+// St.Venant-Kirchhoff with Hencky strain, shared by drucker_prager.cuh and von_mises.cuh
+// (Rust: hencky_* in crates/rtmpm-core/src/material/drucker_prager.rs).
+#pragma once
+#include "../svd.cuh"
+
+#define HENCKY_SIGMA_MIN ((real)1e-4)  // singular values clamped before ln
+
+__device__ __forceinline__ vec3 hencky_strain(vec3 s) {
+    return make_v3(log(fmax(s.x, HENCKY_SIGMA_MIN)), log(fmax(s.y, HENCKY_SIGMA_MIN)), log(fmax(s.z, HENCKY_SIGMA_MIN)));
+}
+
+// 2 mu eps + lambda tr(eps) (Klar 2016 eq. 26 times F^T)
+__device__ __forceinline__ vec3 hencky_principal_stress(vec3 eps, real mu, real lambda) {
+    return (real)2 * mu * eps + make_v3s(lambda * sum(eps));
+}
+
+// tau = U (2 mu eps + lambda tr(eps) I) U^T
+__device__ __forceinline__ mat3 hencky_kirchhoff(const mat3& f, real mu, real lambda) {
+    mat3 u, v;
+    vec3 s;
+    svd3(f, u, s, v);
+    return mul_diag_bt(u, hencky_principal_stress(hencky_strain(s), mu, lambda), u);
+}
+
+__device__ __forceinline__ vec3 exp3(vec3 a) { return make_v3(exp(a.x), exp(a.y), exp(a.z)); }
