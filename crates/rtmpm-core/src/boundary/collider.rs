@@ -26,7 +26,11 @@ impl Collider {
     pub fn rotation(&self, t: f32) -> Mat3 {
         let w = self.angular_velocity;
         let speed = w.length();
-        if speed > 0.0 { Mat3::from_axis_angle(w / speed, speed * t) } else { Mat3::IDENTITY }
+        if speed > 0.0 {
+            Mat3::from_axis_angle(w / speed, speed * t)
+        } else {
+            Mat3::IDENTITY
+        }
     }
 
     /// Position of the pivot at time `t`.
@@ -37,7 +41,8 @@ impl Collider {
     /// Signed distance of the world point `x` to the collider at time `t`.
     pub fn distance(&self, x: Vec3, t: f32) -> f32 {
         let r = self.rotation(t);
-        self.shape.distance(r.transpose() * (x - self.pivot_at(t)) + self.pivot)
+        self.shape
+            .distance(r.transpose() * (x - self.pivot_at(t)) + self.pivot)
     }
 
     /// At time `t`, if `x` is inside the collider (signed distance <= 0), return the outward
@@ -49,7 +54,9 @@ impl Collider {
         if self.shape.distance(x_rest) > 0.0 {
             return None;
         }
-        let n = (r * self.shape.normal(x_rest)).try_normalize().unwrap_or(Vec3::Y);
+        let n = (r * self.shape.normal(x_rest))
+            .try_normalize()
+            .unwrap_or(Vec3::Y);
         let v = self.velocity + self.angular_velocity.cross(x - pivot_t);
         Some((n, v))
     }
@@ -61,13 +68,19 @@ mod tests {
     use crate::boundary::Condition;
 
     fn rule() -> BoundaryRule {
-        BoundaryRule { condition: Condition::Slip, friction: 0.0 }
+        BoundaryRule {
+            condition: Condition::Slip,
+            friction: 0.0,
+        }
     }
 
     #[test]
     fn static_sphere() {
         let c = Collider {
-            shape: Shape::Sphere { center: Vec3::ZERO, radius: 1.0 },
+            shape: Shape::Sphere {
+                center: Vec3::ZERO,
+                radius: 1.0,
+            },
             rule: rule(),
             velocity: Vec3::ZERO,
             angular_velocity: Vec3::ZERO,
@@ -82,7 +95,10 @@ mod tests {
     #[test]
     fn moving_sphere() {
         let c = Collider {
-            shape: Shape::Sphere { center: Vec3::ZERO, radius: 1.0 },
+            shape: Shape::Sphere {
+                center: Vec3::ZERO,
+                radius: 1.0,
+            },
             rule: rule(),
             velocity: Vec3::new(2.0, 0.0, 0.0),
             angular_velocity: Vec3::ZERO,
@@ -101,7 +117,10 @@ mod tests {
         // A thin paddle along x, spinning about z at pi/2 rad/s around the origin.
         let w = std::f32::consts::FRAC_PI_2;
         let c = Collider {
-            shape: Shape::Box { center: Vec3::ZERO, half_extents: Vec3::new(1.0, 0.1, 0.1) },
+            shape: Shape::Box {
+                center: Vec3::ZERO,
+                half_extents: Vec3::new(1.0, 0.1, 0.1),
+            },
             rule: rule(),
             velocity: Vec3::ZERO,
             angular_velocity: Vec3::new(0.0, 0.0, w),
@@ -122,7 +141,10 @@ mod tests {
     #[test]
     fn rotating_and_translating_pivot() {
         let c = Collider {
-            shape: Shape::Sphere { center: Vec3::new(1.0, 0.0, 0.0), radius: 0.25 },
+            shape: Shape::Sphere {
+                center: Vec3::new(1.0, 0.0, 0.0),
+                radius: 0.25,
+            },
             rule: rule(),
             velocity: Vec3::new(0.0, 0.0, 1.0),
             angular_velocity: Vec3::new(0.0, std::f32::consts::PI, 0.0),
@@ -131,7 +153,8 @@ mod tests {
         // At t = 1: pivot at (0,0,1), the sphere centre rotated by pi about y: (-1, 0, 1).
         let p = Vec3::new(-1.0, 0.0, 1.0);
         let (_, v) = c.query(p, 1.0).unwrap();
-        let expect = Vec3::new(0.0, 0.0, 1.0) + Vec3::new(0.0, std::f32::consts::PI, 0.0).cross(p - Vec3::Z);
+        let expect =
+            Vec3::new(0.0, 0.0, 1.0) + Vec3::new(0.0, std::f32::consts::PI, 0.0).cross(p - Vec3::Z);
         assert!((v - expect).length() < 1e-5);
         assert!(c.query(Vec3::new(1.0, 0.0, 1.0), 1.0).is_none());
     }

@@ -26,13 +26,20 @@ pub struct TriMesh {
 #[derive(Debug, thiserror::Error)]
 pub enum MeshError {
     #[error("cannot read mesh file {path}: {source}")]
-    Io { path: String, source: std::io::Error },
+    Io {
+        path: String,
+        source: std::io::Error,
+    },
     #[error("cannot parse OBJ file {path}: {message}")]
     Parse { path: String, message: String },
     #[error("mesh file {path} holds no triangles")]
     Empty { path: String },
     #[error("mesh file {path} has a face referring to vertex {index} of {count}")]
-    BadIndex { path: String, index: u32, count: usize },
+    BadIndex {
+        path: String,
+        index: u32,
+        count: usize,
+    },
     #[error("mesh file {path} has a non-finite vertex coordinate")]
     NonFinite { path: String },
 }
@@ -42,8 +49,10 @@ impl TriMesh {
     /// translate: `x' = x * scale + translate`.
     pub fn load_obj(path: &Path, scale: Vec3, translate: Vec3) -> Result<TriMesh, MeshError> {
         let name = path.display().to_string();
-        let bytes =
-            std::fs::read(path).map_err(|source| MeshError::Io { path: name.clone(), source })?;
+        let bytes = std::fs::read(path).map_err(|source| MeshError::Io {
+            path: name.clone(),
+            source,
+        })?;
         Self::parse_obj(&bytes, &name, scale, translate)
     }
 
@@ -64,7 +73,10 @@ impl TriMesh {
         let mut reader = std::io::BufReader::new(bytes);
         let (models, _) =
             tobj::load_obj_buf(&mut reader, &opts, |_| Err(tobj::LoadError::OpenFileFailed))
-                .map_err(|e| MeshError::Parse { path: name.to_string(), message: e.to_string() })?;
+                .map_err(|e| MeshError::Parse {
+                    path: name.to_string(),
+                    message: e.to_string(),
+                })?;
         let mut mesh = TriMesh::default();
         for m in &models {
             let base = mesh.vertices.len() as u32;
@@ -72,7 +84,9 @@ impl TriMesh {
             for v in p.chunks_exact(3) {
                 let x = Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32) * scale + translate;
                 if !x.is_finite() {
-                    return Err(MeshError::NonFinite { path: name.to_string() });
+                    return Err(MeshError::NonFinite {
+                        path: name.to_string(),
+                    });
                 }
                 mesh.vertices.push(x);
             }
@@ -80,14 +94,20 @@ impl TriMesh {
             for t in m.mesh.indices.chunks_exact(3) {
                 for &i in t {
                     if i as usize >= count {
-                        return Err(MeshError::BadIndex { path: name.to_string(), index: i, count });
+                        return Err(MeshError::BadIndex {
+                            path: name.to_string(),
+                            index: i,
+                            count,
+                        });
                     }
                 }
                 mesh.triangles.push([base + t[0], base + t[1], base + t[2]]);
             }
         }
         if mesh.triangles.is_empty() {
-            return Err(MeshError::Empty { path: name.to_string() });
+            return Err(MeshError::Empty {
+                path: name.to_string(),
+            });
         }
         Ok(mesh)
     }
@@ -105,7 +125,11 @@ impl TriMesh {
 
     fn tri(&self, t: usize) -> (Vec3, Vec3, Vec3) {
         let [a, b, c] = self.triangles[t];
-        (self.vertices[a as usize], self.vertices[b as usize], self.vertices[c as usize])
+        (
+            self.vertices[a as usize],
+            self.vertices[b as usize],
+            self.vertices[c as usize],
+        )
     }
 }
 
@@ -151,7 +175,11 @@ pub fn closest_point_on_triangle(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
         // Degenerate triangle: nearest of its three edges' end points.
         return [a, b, c]
             .into_iter()
-            .min_by(|x, y| (p - *x).length_squared().total_cmp(&(p - *y).length_squared()))
+            .min_by(|x, y| {
+                (p - *x)
+                    .length_squared()
+                    .total_cmp(&(p - *y).length_squared())
+            })
             .unwrap_or(a);
     }
     let v = vb * denom;
@@ -196,7 +224,11 @@ impl MeshSdf {
         let (lo, hi) = mesh.bounds();
         let extent = (hi - lo).max(Vec3::splat(1e-6));
         let margin = margin.max(1);
-        let mut h = if spacing.is_finite() && spacing > 0.0 { spacing } else { extent.max_element() / 32.0 };
+        let mut h = if spacing.is_finite() && spacing > 0.0 {
+            spacing
+        } else {
+            extent.max_element() / 32.0
+        };
         let max_cells = (MAX_DIM - 1 - 2 * margin) as f32;
         h = h.max(extent.max_element() / max_cells);
         let origin = lo - Vec3::splat(margin as f32 * h);
@@ -204,7 +236,8 @@ impl MeshSdf {
         let [nx, ny, nz] = dims.map(|d| d as usize);
         let n = nx * ny * nz;
         let idx = |i: usize, j: usize, k: usize| i + nx * (j + ny * k);
-        let pos = |i: usize, j: usize, k: usize| origin + Vec3::new(i as f32, j as f32, k as f32) * h;
+        let pos =
+            |i: usize, j: usize, k: usize| origin + Vec3::new(i as f32, j as f32, k as f32) * h;
 
         let mut dist = vec![f32::INFINITY; n];
         let mut closest = vec![u32::MAX; n];
@@ -245,7 +278,11 @@ impl MeshSdf {
                 let dj: isize = if dir & 2 == 0 { 1 } else { -1 };
                 let dk: isize = if dir & 4 == 0 { 1 } else { -1 };
                 let range = |d: isize, len: usize| -> Vec<usize> {
-                    if d > 0 { (1..len).collect() } else { (0..len.saturating_sub(1)).rev().collect() }
+                    if d > 0 {
+                        (1..len).collect()
+                    } else {
+                        (0..len.saturating_sub(1)).rev().collect()
+                    }
                 };
                 let (ri, rj, rk) = (range(di, nx), range(dj, ny), range(dk, nz));
                 for &k in &rk {
@@ -360,7 +397,14 @@ impl MeshSdf {
                 if v >= 2 { -d } else { d }
             })
             .collect();
-        MeshSdf { origin, spacing: h, dims, values, mesh_min: lo, mesh_max: hi }
+        MeshSdf {
+            origin,
+            spacing: h,
+            dims,
+            values,
+            mesh_min: lo,
+            mesh_max: hi,
+        }
     }
 
     /// Upper corner of the grid.
@@ -475,8 +519,14 @@ mod tests {
         let (a, b, c) = (Vec3::ZERO, Vec3::X, Vec3::Y);
         let p = closest_point_on_triangle(Vec3::new(0.2, 0.2, 1.0), a, b, c);
         assert!((p - Vec3::new(0.2, 0.2, 0.0)).length() < 1e-6);
-        assert_eq!(closest_point_on_triangle(Vec3::new(-1.0, -1.0, 0.0), a, b, c), a);
-        assert_eq!(closest_point_on_triangle(Vec3::new(2.0, -0.5, 0.0), a, b, c), b);
+        assert_eq!(
+            closest_point_on_triangle(Vec3::new(-1.0, -1.0, 0.0), a, b, c),
+            a
+        );
+        assert_eq!(
+            closest_point_on_triangle(Vec3::new(2.0, -0.5, 0.0), a, b, c),
+            b
+        );
         let p = closest_point_on_triangle(Vec3::new(1.0, 1.0, 0.0), a, b, c);
         assert!((p - Vec3::new(0.5, 0.5, 0.0)).length() < 1e-6);
         let p = closest_point_on_triangle(Vec3::new(0.5, -1.0, 3.0), a, b, c);
@@ -536,7 +586,8 @@ mod tests {
 
     #[test]
     fn missing_and_empty_mesh() {
-        let e = TriMesh::load_obj(Path::new("/nonexistent/x.obj"), Vec3::ONE, Vec3::ZERO).unwrap_err();
+        let e =
+            TriMesh::load_obj(Path::new("/nonexistent/x.obj"), Vec3::ONE, Vec3::ZERO).unwrap_err();
         assert!(matches!(e, MeshError::Io { .. }), "{e}");
         let e = TriMesh::parse_obj(b"# nothing\n", "e.obj", Vec3::ONE, Vec3::ZERO).unwrap_err();
         assert!(matches!(e, MeshError::Empty { .. }), "{e}");
@@ -551,7 +602,11 @@ mod tests {
             let th = std::f32::consts::PI * j as f32 / nv as f32;
             for i in 0..nu {
                 let ph = 2.0 * std::f32::consts::PI * i as f32 / nu as f32;
-                mesh.vertices.push(Vec3::new(th.sin() * ph.cos(), th.cos(), th.sin() * ph.sin()));
+                mesh.vertices.push(Vec3::new(
+                    th.sin() * ph.cos(),
+                    th.cos(),
+                    th.sin() * ph.sin(),
+                ));
             }
         }
         for j in 0..nv {

@@ -31,7 +31,10 @@ pub struct BoundaryRule {
 
 impl Default for BoundaryRule {
     fn default() -> Self {
-        BoundaryRule { condition: Condition::Separate, friction: 0.0 }
+        BoundaryRule {
+            condition: Condition::Separate,
+            friction: 0.0,
+        }
     }
 }
 
@@ -50,7 +53,11 @@ impl BoundaryRule {
                 let vt_len = vt.length();
                 if self.friction > 0.0 && vt_len > 0.0 {
                     let reduced = vt_len - self.friction * vn.abs();
-                    if reduced <= 0.0 { Vec3::ZERO } else { vt * (reduced / vt_len) }
+                    if reduced <= 0.0 {
+                        Vec3::ZERO
+                    } else {
+                        vt * (reduced / vt_len)
+                    }
                 } else {
                     vt
                 }
@@ -70,7 +77,10 @@ pub struct Walls {
 
 impl Default for Walls {
     fn default() -> Self {
-        Walls { thickness: 3, faces: [BoundaryRule::default(); 6] }
+        Walls {
+            thickness: 3,
+            faces: [BoundaryRule::default(); 6],
+        }
     }
 }
 

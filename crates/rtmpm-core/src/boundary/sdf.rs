@@ -8,12 +8,26 @@ use std::sync::Arc;
 #[derive(Clone, Debug)]
 pub enum Shape {
     /// Points `x` with `(x - point) . normal < 0` are inside. `normal` is a unit vector.
-    HalfSpace { point: Vec3, normal: Vec3 },
+    HalfSpace {
+        point: Vec3,
+        normal: Vec3,
+    },
     /// Axis-aligned box.
-    Box { center: Vec3, half_extents: Vec3 },
-    Sphere { center: Vec3, radius: f32 },
+    Box {
+        center: Vec3,
+        half_extents: Vec3,
+    },
+    Sphere {
+        center: Vec3,
+        radius: f32,
+    },
     /// Capped cylinder along unit `axis`.
-    Cylinder { center: Vec3, axis: Vec3, radius: f32, half_height: f32 },
+    Cylinder {
+        center: Vec3,
+        axis: Vec3,
+        radius: f32,
+        half_height: f32,
+    },
     /// Triangle mesh sampled into a signed distance grid.
     Mesh(Arc<MeshSdf>),
 }
@@ -56,11 +70,17 @@ impl Shape {
     pub fn distance(&self, x: Vec3) -> f32 {
         match self {
             Shape::HalfSpace { point, normal } => (x - *point).dot(*normal),
-            Shape::Box { center, half_extents } => box_distance(x, *center, *half_extents),
+            Shape::Box {
+                center,
+                half_extents,
+            } => box_distance(x, *center, *half_extents),
             Shape::Sphere { center, radius } => sphere_distance(x, *center, *radius),
-            Shape::Cylinder { center, axis, radius, half_height } => {
-                cylinder_distance(x, *center, *axis, *radius, *half_height)
-            }
+            Shape::Cylinder {
+                center,
+                axis,
+                radius,
+                half_height,
+            } => cylinder_distance(x, *center, *axis, *radius, *half_height),
             Shape::Mesh(m) => m.distance(x),
         }
     }
@@ -72,13 +92,18 @@ impl Shape {
         match self {
             Shape::HalfSpace { normal, .. } => *normal,
             Shape::Sphere { center, .. } => (x - *center).try_normalize().unwrap_or(Vec3::Y),
-            Shape::Box { center, half_extents } => {
+            Shape::Box {
+                center,
+                half_extents,
+            } => {
                 let p = x - *center;
                 let q = p.abs() - *half_extents;
                 let sign = Vec3::select(p.cmplt(Vec3::ZERO), Vec3::NEG_ONE, Vec3::ONE);
                 if q.max_element() > 0.0 {
                     // Outside: gradient of the distance to the nearest point.
-                    (q.max(Vec3::ZERO) * sign).try_normalize().unwrap_or(Vec3::Y)
+                    (q.max(Vec3::ZERO) * sign)
+                        .try_normalize()
+                        .unwrap_or(Vec3::Y)
                 } else {
                     // Inside: the face of least penetration.
                     let mut n = Vec3::ZERO;
@@ -93,12 +118,21 @@ impl Shape {
                     n
                 }
             }
-            Shape::Cylinder { center, axis, radius, half_height } => {
+            Shape::Cylinder {
+                center,
+                axis,
+                radius,
+                half_height,
+            } => {
                 let p = x - *center;
                 let h = p.dot(*axis);
                 let radial = p - h * *axis;
                 let r = radial.length();
-                let er = if r > 0.0 { radial / r } else { any_perpendicular(*axis) };
+                let er = if r > 0.0 {
+                    radial / r
+                } else {
+                    any_perpendicular(*axis)
+                };
                 let ea = if h >= 0.0 { *axis } else { -*axis };
                 let dr = r - *radius;
                 let dh = h.abs() - *half_height;
@@ -140,7 +174,10 @@ mod tests {
 
     #[test]
     fn half_space() {
-        let s = Shape::HalfSpace { point: Vec3::new(0.0, 1.0, 0.0), normal: Vec3::Y };
+        let s = Shape::HalfSpace {
+            point: Vec3::new(0.0, 1.0, 0.0),
+            normal: Vec3::Y,
+        };
         assert!(close(s.distance(Vec3::new(5.0, 3.0, 2.0)), 2.0));
         assert!(close(s.distance(Vec3::new(5.0, 0.5, 2.0)), -0.5));
         assert!(close(s.distance(Vec3::new(0.0, 1.0, 0.0)), 0.0));
@@ -150,7 +187,10 @@ mod tests {
 
     #[test]
     fn sphere() {
-        let s = Shape::Sphere { center: Vec3::ONE, radius: 0.5 };
+        let s = Shape::Sphere {
+            center: Vec3::ONE,
+            radius: 0.5,
+        };
         assert!(close(s.distance(Vec3::ONE), -0.5));
         assert!(close(s.distance(Vec3::new(2.0, 1.0, 1.0)), 0.5));
         assert!(close(s.distance(Vec3::new(1.0, 1.5, 1.0)), 0.0));
@@ -160,7 +200,10 @@ mod tests {
 
     #[test]
     fn boxes() {
-        let s = Shape::Box { center: Vec3::ZERO, half_extents: Vec3::new(1.0, 2.0, 3.0) };
+        let s = Shape::Box {
+            center: Vec3::ZERO,
+            half_extents: Vec3::new(1.0, 2.0, 3.0),
+        };
         assert!(close(s.distance(Vec3::ZERO), -1.0));
         assert!(close(s.distance(Vec3::new(0.0, 1.5, 0.0)), -0.5));
         assert!(close(s.distance(Vec3::new(2.0, 0.0, 0.0)), 1.0));
@@ -176,7 +219,12 @@ mod tests {
 
     #[test]
     fn cylinder() {
-        let s = Shape::Cylinder { center: Vec3::ZERO, axis: Vec3::Z, radius: 1.0, half_height: 2.0 };
+        let s = Shape::Cylinder {
+            center: Vec3::ZERO,
+            axis: Vec3::Z,
+            radius: 1.0,
+            half_height: 2.0,
+        };
         assert!(close(s.distance(Vec3::ZERO), -1.0));
         assert!(close(s.distance(Vec3::new(0.0, 0.0, 1.8)), -0.2));
         assert!(close(s.distance(Vec3::new(3.0, 0.0, 0.0)), 2.0));
@@ -186,6 +234,9 @@ mod tests {
         assert!(vclose(s.normal(Vec3::new(0.0, 2.0, 0.0)), Vec3::Y));
         assert!(vclose(s.normal(Vec3::new(0.0, 0.5, -1.9)), -Vec3::Z));
         assert!(vclose(s.normal(Vec3::new(0.9, 0.0, 0.0)), Vec3::X));
-        assert!(vclose(s.normal(Vec3::new(4.0, 0.0, 6.0)), Vec3::new(3.0, 0.0, 4.0) / 5.0));
+        assert!(vclose(
+            s.normal(Vec3::new(4.0, 0.0, 6.0)),
+            Vec3::new(3.0, 0.0, 4.0) / 5.0
+        ));
     }
 }

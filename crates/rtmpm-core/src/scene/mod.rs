@@ -5,13 +5,16 @@
 //! fields rejected), then [`validate`] checks and resolves them. Every error names the field
 //! path (e.g. `material[1].poisson_ratio`), its line and column, and a hint.
 
+// `SceneError` is deliberately rich (position, field, hint); it is only built on failure.
+#![allow(clippy::result_large_err)]
+
 pub mod error;
 pub mod sampling;
 pub mod schema;
 pub mod spans;
-mod validate;
 #[cfg(test)]
 mod tests;
+mod validate;
 
 pub use error::SceneError;
 pub use sampling::Sampling;
@@ -112,7 +115,12 @@ impl Scene {
             hint: Some("check the path and permissions".into()),
         })?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        let mut scene = validate::parse(&text, &origin, &base, path.file_stem().and_then(|s| s.to_str()))?;
+        let mut scene = validate::parse(
+            &text,
+            &origin,
+            &base,
+            path.file_stem().and_then(|s| s.to_str()),
+        )?;
         scene.source = Some(path.to_path_buf());
         Ok(scene)
     }

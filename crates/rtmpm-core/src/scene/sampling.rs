@@ -27,10 +27,21 @@ pub const MAX_PARTICLES_PER_BODY: u64 = 50_000_000;
 /// Geometry of a body.
 #[derive(Clone, Debug)]
 pub enum BodyShape {
-    Box { min: Vec3, max: Vec3 },
-    Sphere { center: Vec3, radius: f32 },
+    Box {
+        min: Vec3,
+        max: Vec3,
+    },
+    Sphere {
+        center: Vec3,
+        radius: f32,
+    },
     /// Capped cylinder along unit `axis`.
-    Cylinder { center: Vec3, axis: Vec3, radius: f32, half_height: f32 },
+    Cylinder {
+        center: Vec3,
+        axis: Vec3,
+        radius: f32,
+        half_height: f32,
+    },
     Mesh(Arc<MeshSdf>),
 }
 
@@ -51,10 +62,15 @@ impl BodyShape {
     pub fn contains(&self, x: Vec3) -> bool {
         match self {
             BodyShape::Box { min, max } => x.cmpge(*min).all() && x.cmple(*max).all(),
-            BodyShape::Sphere { center, radius } => (x - *center).length_squared() <= radius * radius,
-            BodyShape::Cylinder { center, axis, radius, half_height } => {
-                cylinder_distance(x, *center, *axis, *radius, *half_height) <= 0.0
+            BodyShape::Sphere { center, radius } => {
+                (x - *center).length_squared() <= radius * radius
             }
+            BodyShape::Cylinder {
+                center,
+                axis,
+                radius,
+                half_height,
+            } => cylinder_distance(x, *center, *axis, *radius, *half_height) <= 0.0,
             BodyShape::Mesh(m) => m.distance(x) < 0.0,
         }
     }
@@ -62,11 +78,16 @@ impl BodyShape {
     /// Signed distance (negative inside).
     pub fn distance(&self, x: Vec3) -> f32 {
         match self {
-            BodyShape::Box { min, max } => box_distance(x, 0.5 * (*min + *max), 0.5 * (*max - *min)),
-            BodyShape::Sphere { center, radius } => (x - *center).length() - radius,
-            BodyShape::Cylinder { center, axis, radius, half_height } => {
-                cylinder_distance(x, *center, *axis, *radius, *half_height)
+            BodyShape::Box { min, max } => {
+                box_distance(x, 0.5 * (*min + *max), 0.5 * (*max - *min))
             }
+            BodyShape::Sphere { center, radius } => (x - *center).length() - radius,
+            BodyShape::Cylinder {
+                center,
+                axis,
+                radius,
+                half_height,
+            } => cylinder_distance(x, *center, *axis, *radius, *half_height),
             BodyShape::Mesh(m) => m.distance(x),
         }
     }
@@ -76,7 +97,12 @@ impl BodyShape {
         match self {
             BodyShape::Box { min, max } => (*min, *max),
             BodyShape::Sphere { center, radius } => (*center - *radius, *center + *radius),
-            BodyShape::Cylinder { center, axis, radius, half_height } => {
+            BodyShape::Cylinder {
+                center,
+                axis,
+                radius,
+                half_height,
+            } => {
                 let a = *axis;
                 let e = Vec3::new(
                     half_height * a.x.abs() + radius * (1.0 - a.x * a.x).max(0.0).sqrt(),
@@ -94,9 +120,11 @@ impl BodyShape {
         match self {
             BodyShape::Box { min, max } => (*max - *min).max(Vec3::ZERO).element_product(),
             BodyShape::Sphere { radius, .. } => 4.0 / 3.0 * std::f32::consts::PI * radius.powi(3),
-            BodyShape::Cylinder { radius, half_height, .. } => {
-                std::f32::consts::PI * radius * radius * 2.0 * half_height
-            }
+            BodyShape::Cylinder {
+                radius,
+                half_height,
+                ..
+            } => std::f32::consts::PI * radius * radius * 2.0 * half_height,
             BodyShape::Mesh(m) => m.volume(),
         }
     }
@@ -125,7 +153,11 @@ pub fn sample_body(scene: &Scene, index: usize) -> Result<Particles, SceneError>
         .get(index)
         .ok_or_else(|| body_error(index, "no such body".into(), "use an existing body index"))?;
     let material = scene.materials.get(body.material as usize).ok_or_else(|| {
-        body_error(index, format!("material index {} out of range", body.material), "fix the material")
+        body_error(
+            index,
+            format!("material index {} out of range", body.material),
+            "fix the material",
+        )
     })?;
     let dx = scene.dx;
     let shape = &body.shape;
@@ -179,8 +211,8 @@ pub fn sample_body(scene: &Scene, index: usize) -> Result<Particles, SceneError>
             let volume = shape.volume();
             let count = match body.count {
                 Some(c) => c,
-                None => (body.particles_per_cell as f64 * volume as f64 / (dx as f64).powi(3)).round()
-                    as u64,
+                None => (body.particles_per_cell as f64 * volume as f64 / (dx as f64).powi(3))
+                    .round() as u64,
             };
             if count > MAX_PARTICLES_PER_BODY {
                 return Err(body_error(
@@ -195,18 +227,29 @@ pub fn sample_body(scene: &Scene, index: usize) -> Result<Particles, SceneError>
                 if attempts >= max_attempts {
                     return Err(body_error(
                         index,
-                        format!("placed only {} of {count} random particles", positions.len()),
+                        format!(
+                            "placed only {} of {count} random particles",
+                            positions.len()
+                        ),
                         "the shape is too thin for random sampling; use sampling = \"regular\"",
                     ));
                 }
                 attempts += 1;
-                let r = Vec3::new(rng.random::<f32>(), rng.random::<f32>(), rng.random::<f32>());
+                let r = Vec3::new(
+                    rng.random::<f32>(),
+                    rng.random::<f32>(),
+                    rng.random::<f32>(),
+                );
                 let x = lo + r * (hi - lo);
                 if shape.contains(x) {
                     positions.push(x);
                 }
             }
-            vol0 = if count > 0 { volume / count as f32 } else { 0.0 };
+            vol0 = if count > 0 {
+                volume / count as f32
+            } else {
+                0.0
+            };
         }
     }
     let n = positions.len().max(1) as f32;

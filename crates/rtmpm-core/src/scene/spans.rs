@@ -80,12 +80,12 @@ pub fn span_in_doc(doc: &Doc<'_>, path: &str) -> Option<usize> {
     let mut best: Option<usize> = None;
     for seg in parse_path(path) {
         let next = match (seg, node) {
-            (Seg::Key(k), Node::Table(t)) => t.get_key_value(k).map(|(key, item)| {
-                (key.span().or_else(|| item.span()), node_of_item(item))
-            }),
-            (Seg::Key(k), Node::Inline(t)) => t.get_key_value(k).map(|(key, item)| {
-                (key.span().or_else(|| item.span()), node_of_item(item))
-            }),
+            (Seg::Key(k), Node::Table(t)) => t
+                .get_key_value(k)
+                .map(|(key, item)| (key.span().or_else(|| item.span()), node_of_item(item))),
+            (Seg::Key(k), Node::Inline(t)) => t
+                .get_key_value(k)
+                .map(|(key, item)| (key.span().or_else(|| item.span()), node_of_item(item))),
             (Seg::Index(i), Node::Aot(a)) => a.get(i).map(|t| (t.span(), Node::Table(t))),
             (Seg::Index(i), Node::Array(a)) => a.get(i).map(|v| (v.span(), node_of_value(v))),
             _ => None,
@@ -172,13 +172,17 @@ trait IterKv {
 
 impl IterKv for Table {
     fn iter_kv(&self) -> Vec<(&toml_edit::Key, &Item)> {
-        self.iter().filter_map(|(k, _)| self.get_key_value(k)).collect()
+        self.iter()
+            .filter_map(|(k, _)| self.get_key_value(k))
+            .collect()
     }
 }
 
 impl IterKv for InlineTable {
     fn iter_kv(&self) -> Vec<(&toml_edit::Key, &Item)> {
-        self.iter().filter_map(|(k, _)| self.get_key_value(k)).collect()
+        self.iter()
+            .filter_map(|(k, _)| self.get_key_value(k))
+            .collect()
     }
 }
 
@@ -190,11 +194,14 @@ mod tests {
 
     #[test]
     fn paths() {
-        assert_eq!(parse_path("material[1].poisson_ratio"), vec![
-            Seg::Key("material"),
-            Seg::Index(1),
-            Seg::Key("poisson_ratio")
-        ]);
+        assert_eq!(
+            parse_path("material[1].poisson_ratio"),
+            vec![
+                Seg::Key("material"),
+                Seg::Index(1),
+                Seg::Key("poisson_ratio")
+            ]
+        );
         assert_eq!(span_of(TEXT, "name"), Some((1, 1)));
         assert_eq!(span_of(TEXT, "domain.dx"), Some((4, 1)));
         assert_eq!(span_of(TEXT, "material[1].poisson_ratio"), Some((11, 3)));
@@ -208,9 +215,15 @@ mod tests {
     fn offset_to_path() {
         let doc = Doc::parse(TEXT).unwrap();
         let off = TEXT.find("poisson").unwrap() + 3;
-        assert_eq!(path_at(&doc, off).as_deref(), Some("material[1].poisson_ratio"));
+        assert_eq!(
+            path_at(&doc, off).as_deref(),
+            Some("material[1].poisson_ratio")
+        );
         let off = TEXT.find("0.5").unwrap();
-        assert_eq!(path_at(&doc, off).as_deref(), Some("material[1].poisson_ratio"));
+        assert_eq!(
+            path_at(&doc, off).as_deref(),
+            Some("material[1].poisson_ratio")
+        );
         assert_eq!(line_col("ab\ncd", 4), (2, 2));
     }
 }

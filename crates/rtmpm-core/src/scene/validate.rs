@@ -53,7 +53,10 @@ fn toml_error(text: &str, origin: &str, e: &toml::de::Error) -> SceneError {
             Some(p) => format!("{p}.{name}"),
             None => name.to_string(),
         };
-        (Some(field), "remove the field or fix its spelling (the fields are listed in docs/scene-format.md)")
+        (
+            Some(field),
+            "remove the field or fix its spelling (the fields are listed in docs/scene-format.md)",
+        )
     } else if let Some(name) = backticked(&message, "missing field ") {
         let field = match &at {
             Some(p) => format!("{p}.{name}"),
@@ -65,15 +68,29 @@ fn toml_error(text: &str, origin: &str, e: &toml::de::Error) -> SceneError {
     } else if doc.is_none() {
         (None, "fix the TOML syntax at this position")
     } else {
-        (at, "check the value's type: numbers without quotes, names in quotes, vectors as [x, y, z]")
+        (
+            at,
+            "check the value's type: numbers without quotes, names in quotes, vectors as [x, y, z]",
+        )
     };
-    SceneError { origin: origin.to_string(), line, column, field, message, hint: Some(hint.into()) }
+    SceneError {
+        origin: origin.to_string(),
+        line,
+        column,
+        field,
+        message,
+        hint: Some(hint.into()),
+    }
 }
 
 /// Parse and validate scene text.
 pub(super) fn parse(text: &str, origin: &str, base: &Path, stem: Option<&str>) -> R<Scene> {
     let raw: RawScene = toml::from_str(text).map_err(|e| toml_error(text, origin, &e))?;
-    let v = V { text, origin, doc: toml_edit::Document::parse(text).ok() };
+    let v = V {
+        text,
+        origin,
+        doc: toml_edit::Document::parse(text).ok(),
+    };
     v.resolve(raw, base, stem)
 }
 
@@ -82,7 +99,12 @@ fn fmt3(v: Vec3) -> String {
 }
 
 impl V<'_> {
-    fn err(&self, field: impl Into<String>, message: impl Into<String>, hint: impl Into<String>) -> SceneError {
+    fn err(
+        &self,
+        field: impl Into<String>,
+        message: impl Into<String>,
+        hint: impl Into<String>,
+    ) -> SceneError {
         let field = field.into();
         let pos = self
             .doc
@@ -103,7 +125,11 @@ impl V<'_> {
         if x.is_finite() {
             Ok(x)
         } else {
-            Err(self.err(field, format!("{x} is not a finite number"), "write a finite number"))
+            Err(self.err(
+                field,
+                format!("{x} is not a finite number"),
+                "write a finite number",
+            ))
         }
     }
 
@@ -112,7 +138,11 @@ impl V<'_> {
         if x > 0.0 {
             Ok(x)
         } else {
-            Err(self.err(field, format!("{what} must be > 0, got {x}"), format!("give a positive {what}")))
+            Err(self.err(
+                field,
+                format!("{what} must be > 0, got {x}"),
+                format!("give a positive {what}"),
+            ))
         }
     }
 
@@ -121,7 +151,11 @@ impl V<'_> {
         if x >= 0.0 {
             Ok(x)
         } else {
-            Err(self.err(field, format!("{what} must be >= 0, got {x}"), format!("use 0 or a positive {what}")))
+            Err(self.err(
+                field,
+                format!("{what} must be >= 0, got {x}"),
+                format!("use 0 or a positive {what}"),
+            ))
         }
     }
 
@@ -130,19 +164,33 @@ impl V<'_> {
         if x.is_finite() {
             Ok(x)
         } else {
-            Err(self.err(field, format!("{} has a non-finite component", fmt3(x)), "write finite numbers"))
+            Err(self.err(
+                field,
+                format!("{} has a non-finite component", fmt3(x)),
+                "write finite numbers",
+            ))
         }
     }
 
     fn unit(&self, field: &str, v: V3, what: &str) -> R<Vec3> {
         let x = self.vec3(field, v)?;
-        x.try_normalize().filter(|_| x.length() > 1e-12).ok_or_else(|| {
-            self.err(field, format!("the {what} {} has zero length", fmt3(x)), format!("give a nonzero {what}, e.g. [0, 1, 0]"))
-        })
+        x.try_normalize()
+            .filter(|_| x.length() > 1e-12)
+            .ok_or_else(|| {
+                self.err(
+                    field,
+                    format!("the {what} {} has zero length", fmt3(x)),
+                    format!("give a nonzero {what}, e.g. [0, 1, 0]"),
+                )
+            })
     }
 
     fn resolve(&self, raw: RawScene, base: &Path, stem: Option<&str>) -> R<Scene> {
-        let name = raw.name.clone().or_else(|| stem.map(str::to_string)).unwrap_or_else(|| "scene".into());
+        let name = raw
+            .name
+            .clone()
+            .or_else(|| stem.map(str::to_string))
+            .unwrap_or_else(|| "scene".into());
         // Domain.
         let dx = self.positive("domain.dx", raw.domain.dx, "the grid spacing dx")?;
         let dmin = self.vec3("domain.min", raw.domain.min)?;
@@ -151,7 +199,11 @@ impl V<'_> {
             if dmax[a] <= dmin[a] {
                 return Err(self.err(
                     format!("domain.max[{a}]"),
-                    format!("domain max {} is not above min {} along axis {a}", fmt3(dmax), fmt3(dmin)),
+                    format!(
+                        "domain max {} is not above min {} along axis {a}",
+                        fmt3(dmax),
+                        fmt3(dmin)
+                    ),
                     "make every component of max larger than that of min",
                 ));
             }
@@ -168,7 +220,11 @@ impl V<'_> {
                 ));
             }
             if n.round() > 4096.0 {
-                return Err(self.err("domain.dx", format!("{} cells along axis {a} is too many", n.round()), "use a larger dx (at most 4096 cells per axis)"));
+                return Err(self.err(
+                    "domain.dx",
+                    format!("{} cells along axis {a} is too many", n.round()),
+                    "use a larger dx (at most 4096 cells per axis)",
+                ));
             }
         }
         let gravity = match raw.gravity {
@@ -182,30 +238,58 @@ impl V<'_> {
         let fps = self.positive("time.fps", t.fps.unwrap_or(30.0), "fps")?;
         let step = match (t.dt, t.cfl) {
             (Some(_), Some(_)) => {
-                return Err(self.err("time.cfl", "both dt and cfl are given", "keep dt for a fixed step or cfl for an adaptive one"));
+                return Err(self.err(
+                    "time.cfl",
+                    "both dt and cfl are given",
+                    "keep dt for a fixed step or cfl for an adaptive one",
+                ));
             }
             (Some(dt), None) => {
                 if t.max_dt.is_some() {
-                    return Err(self.err("time.max_dt", "max_dt only applies to a CFL step", "remove max_dt, or replace dt by cfl"));
+                    return Err(self.err(
+                        "time.max_dt",
+                        "max_dt only applies to a CFL step",
+                        "remove max_dt, or replace dt by cfl",
+                    ));
                 }
-                StepMode::Fixed { dt: self.positive("time.dt", dt, "dt (s)")? }
+                StepMode::Fixed {
+                    dt: self.positive("time.dt", dt, "dt (s)")?,
+                }
             }
             (None, cfl) => {
                 let cfl = cfl.unwrap_or(0.4);
                 self.finite("time.cfl", cfl)?;
                 if !(cfl > 0.0 && cfl <= 1.0) {
-                    return Err(self.err("time.cfl", format!("cfl must be in (0, 1], got {cfl}"), "use a CFL number such as 0.4"));
+                    return Err(self.err(
+                        "time.cfl",
+                        format!("cfl must be in (0, 1], got {cfl}"),
+                        "use a CFL number such as 0.4",
+                    ));
                 }
-                let max_dt = self.positive("time.max_dt", t.max_dt.unwrap_or(1e-3), "max_dt (s)")?;
+                let max_dt =
+                    self.positive("time.max_dt", t.max_dt.unwrap_or(1e-3), "max_dt (s)")?;
                 StepMode::Cfl { cfl, max_dt }
             }
         };
-        if let StepMode::Fixed { dt } = step {
-            if dt > 1.0 / fps {
-                return Err(self.err("time.dt", format!("dt = {dt} s is longer than a frame (1/fps = {} s)", 1.0 / fps), "use a smaller dt"));
+        if let StepMode::Fixed { dt } = step
+            && dt > 1.0 / fps
+        {
+            {
+                return Err(self.err(
+                    "time.dt",
+                    format!(
+                        "dt = {dt} s is longer than a frame (1/fps = {} s)",
+                        1.0 / fps
+                    ),
+                    "use a smaller dt",
+                ));
             }
         }
-        let time = TimeSettings { duration, fps, step };
+        let time = TimeSettings {
+            duration,
+            fps,
+            step,
+        };
 
         // Walls.
         let walls = self.walls(raw.walls.as_ref(), cells)?;
@@ -215,7 +299,11 @@ impl V<'_> {
         for (i, m) in raw.material.iter().enumerate() {
             let mat = self.material(i, m)?;
             if materials.iter().any(|o| o.name == mat.name) {
-                return Err(self.err(format!("material[{i}].name"), format!("material name {:?} is used twice", mat.name), "give every material a unique name"));
+                return Err(self.err(
+                    format!("material[{i}].name"),
+                    format!("material name {:?} is used twice", mat.name),
+                    "give every material a unique name",
+                ));
             }
             materials.push(mat);
         }
@@ -240,7 +328,9 @@ impl V<'_> {
             .and_then(|o| o.dir.clone())
             .map(PathBuf::from)
             .unwrap_or_else(|| PathBuf::from("out").join(&name));
-        let formats = out.and_then(|o| o.formats.clone()).unwrap_or_else(|| vec![RawFormat::Ply]);
+        let formats = out
+            .and_then(|o| o.formats.clone())
+            .unwrap_or_else(|| vec![RawFormat::Ply]);
         let fields = out.and_then(|o| o.fields.clone()).unwrap_or_default();
         let output = OutputSettings {
             dir,
@@ -267,7 +357,9 @@ impl V<'_> {
         };
         // Every body must produce particles.
         for i in 0..scene.bodies.len() {
-            let p = sampling::sample_body(&scene, i).map_err(|e| self.err(format!("body[{i}]"), e.message, e.hint.unwrap_or_default()))?;
+            let p = sampling::sample_body(&scene, i).map_err(|e| {
+                self.err(format!("body[{i}]"), e.message, e.hint.unwrap_or_default())
+            })?;
             if p.is_empty() {
                 return Err(self.err(
                     format!("body[{i}]"),
@@ -293,11 +385,21 @@ impl V<'_> {
         let thickness = w.thickness.unwrap_or(3);
         let min_cells = cells.min_element().round() as u32;
         if 2 * thickness >= min_cells {
-            return Err(self.err("walls.thickness", format!("walls {thickness} cells thick leave no room in a domain {min_cells} cells wide"), "use thinner walls or a larger domain"));
+            return Err(self.err(
+                "walls.thickness",
+                format!(
+                    "walls {thickness} cells thick leave no room in a domain {min_cells} cells wide"
+                ),
+                "use thinner walls or a larger domain",
+            ));
         }
         let condition = Self::condition(w.condition.unwrap_or(RawCondition::Separate));
-        let friction = self.non_negative("walls.friction", w.friction.unwrap_or(0.0), "friction")?;
-        let rule = BoundaryRule { condition, friction };
+        let friction =
+            self.non_negative("walls.friction", w.friction.unwrap_or(0.0), "friction")?;
+        let rule = BoundaryRule {
+            condition,
+            friction,
+        };
         let mut faces = [rule; 6];
         if let Some(f) = &w.faces {
             let list = [&f.x_min, &f.x_max, &f.y_min, &f.y_max, &f.z_min, &f.z_max];
@@ -308,7 +410,11 @@ impl V<'_> {
                         faces[k].condition = Self::condition(c);
                     }
                     if let Some(fr) = face.friction {
-                        faces[k].friction = self.non_negative(&format!("walls.faces.{}.friction", names[k]), fr, "friction")?;
+                        faces[k].friction = self.non_negative(
+                            &format!("walls.faces.{}.friction", names[k]),
+                            fr,
+                            "friction",
+                        )?;
                     }
                 }
             }
@@ -319,16 +425,44 @@ impl V<'_> {
     fn material(&self, i: usize, m: &RawMaterial) -> R<Material> {
         let p = |f: &str| format!("material[{i}].{f}");
         if m.name.trim().is_empty() {
-            return Err(self.err(p("name"), "the material name is empty", "give the material a name, e.g. name = \"water\""));
+            return Err(self.err(
+                p("name"),
+                "the material name is empty",
+                "give the material a name, e.g. name = \"water\"",
+            ));
         }
         let density = self.positive(&p("density"), m.density, "density (kg/m^3)")?;
         // Fields that do not apply to the type.
         let allowed: &[&str] = match m.kind {
             RawModel::Fluid => &["bulk_modulus", "gamma", "eos", "viscosity"],
-            RawModel::FixedCorotated | RawModel::NeoHookean => &["youngs_modulus", "poisson_ratio", "mu", "lambda"],
-            RawModel::Snow => &["youngs_modulus", "poisson_ratio", "mu", "lambda", "critical_compression", "critical_stretch", "hardening"],
-            RawModel::DruckerPrager => &["youngs_modulus", "poisson_ratio", "mu", "lambda", "friction_angle", "cohesion"],
-            RawModel::VonMises => &["youngs_modulus", "poisson_ratio", "mu", "lambda", "yield_stress", "hardening_modulus"],
+            RawModel::FixedCorotated | RawModel::NeoHookean => {
+                &["youngs_modulus", "poisson_ratio", "mu", "lambda"]
+            }
+            RawModel::Snow => &[
+                "youngs_modulus",
+                "poisson_ratio",
+                "mu",
+                "lambda",
+                "critical_compression",
+                "critical_stretch",
+                "hardening",
+            ],
+            RawModel::DruckerPrager => &[
+                "youngs_modulus",
+                "poisson_ratio",
+                "mu",
+                "lambda",
+                "friction_angle",
+                "cohesion",
+            ],
+            RawModel::VonMises => &[
+                "youngs_modulus",
+                "poisson_ratio",
+                "mu",
+                "lambda",
+                "yield_stress",
+                "hardening_modulus",
+            ],
         };
         let given = [
             ("youngs_modulus", m.youngs_modulus.is_some()),
@@ -349,57 +483,123 @@ impl V<'_> {
         ];
         for (f, is) in given {
             if is && !allowed.contains(&f) {
-                return Err(self.err(p(f), format!("`{f}` does not apply to a material of this type"), format!("remove it; this type takes: {}", allowed.join(", "))));
+                return Err(self.err(
+                    p(f),
+                    format!("`{f}` does not apply to a material of this type"),
+                    format!("remove it; this type takes: {}", allowed.join(", ")),
+                ));
             }
         }
         let model = match m.kind {
             RawModel::Fluid => {
-                let k = m.bulk_modulus.ok_or_else(|| self.err(p("bulk_modulus"), "a fluid needs bulk_modulus (Pa)", "add bulk_modulus, e.g. 1e5 for water at dx ~ 1/64"))?;
+                let k = m.bulk_modulus.ok_or_else(|| {
+                    self.err(
+                        p("bulk_modulus"),
+                        "a fluid needs bulk_modulus (Pa)",
+                        "add bulk_modulus, e.g. 1e5 for water at dx ~ 1/64",
+                    )
+                })?;
                 let bulk_modulus = self.positive(&p("bulk_modulus"), k, "bulk modulus")?;
                 let eos = match (m.eos, m.gamma) {
-                    (Some(RawEos::Linear), Some(_)) => return Err(self.err(p("gamma"), "gamma is given but eos = \"linear\"", "remove gamma, or use eos = \"tait\"")),
+                    (Some(RawEos::Linear), Some(_)) => {
+                        return Err(self.err(
+                            p("gamma"),
+                            "gamma is given but eos = \"linear\"",
+                            "remove gamma, or use eos = \"tait\"",
+                        ));
+                    }
                     (Some(RawEos::Linear), None) | (None, None) => Eos::Linear,
                     (_, g) => {
                         let gamma = self.positive(&p("gamma"), g.unwrap_or(7.0), "gamma")?;
                         Eos::Tait { gamma }
                     }
                 };
-                let viscosity = self.non_negative(&p("viscosity"), m.viscosity.unwrap_or(0.0), "viscosity (Pa s)")?;
-                Model::Fluid(Fluid { bulk_modulus, eos, viscosity })
+                let viscosity = self.non_negative(
+                    &p("viscosity"),
+                    m.viscosity.unwrap_or(0.0),
+                    "viscosity (Pa s)",
+                )?;
+                Model::Fluid(Fluid {
+                    bulk_modulus,
+                    eos,
+                    viscosity,
+                })
             }
             kind => {
                 let (mu, lambda) = self.elastic(i, m)?;
                 match kind {
-                    RawModel::FixedCorotated => Model::FixedCorotated(FixedCorotated { mu, lambda }),
+                    RawModel::FixedCorotated => {
+                        Model::FixedCorotated(FixedCorotated { mu, lambda })
+                    }
                     RawModel::NeoHookean => Model::NeoHookean(NeoHookean { mu, lambda }),
                     RawModel::Snow => Model::Snow(Snow {
                         mu,
                         lambda,
-                        critical_compression: self.positive(&p("critical_compression"), m.critical_compression.unwrap_or(2.5e-2), "critical compression")?,
-                        critical_stretch: self.positive(&p("critical_stretch"), m.critical_stretch.unwrap_or(7.5e-3), "critical stretch")?,
-                        hardening: self.non_negative(&p("hardening"), m.hardening.unwrap_or(10.0), "hardening")?,
+                        critical_compression: self.positive(
+                            &p("critical_compression"),
+                            m.critical_compression.unwrap_or(2.5e-2),
+                            "critical compression",
+                        )?,
+                        critical_stretch: self.positive(
+                            &p("critical_stretch"),
+                            m.critical_stretch.unwrap_or(7.5e-3),
+                            "critical stretch",
+                        )?,
+                        hardening: self.non_negative(
+                            &p("hardening"),
+                            m.hardening.unwrap_or(10.0),
+                            "hardening",
+                        )?,
                     }),
                     RawModel::DruckerPrager => {
-                        let phi = self.finite(&p("friction_angle"), m.friction_angle.unwrap_or(30.0))?;
+                        let phi =
+                            self.finite(&p("friction_angle"), m.friction_angle.unwrap_or(30.0))?;
                         if !(0.0..90.0).contains(&phi) {
-                            return Err(self.err(p("friction_angle"), format!("friction angle must be in [0, 90) degrees, got {phi}"), "use degrees, typically 25-45 for sand"));
+                            return Err(self.err(
+                                p("friction_angle"),
+                                format!("friction angle must be in [0, 90) degrees, got {phi}"),
+                                "use degrees, typically 25-45 for sand",
+                            ));
                         }
-                        let cohesion = self.non_negative(&p("cohesion"), m.cohesion.unwrap_or(0.0), "cohesion")?;
-                        Model::DruckerPrager(DruckerPrager { mu, lambda, friction_angle: phi, cohesion })
+                        let cohesion = self.non_negative(
+                            &p("cohesion"),
+                            m.cohesion.unwrap_or(0.0),
+                            "cohesion",
+                        )?;
+                        Model::DruckerPrager(DruckerPrager {
+                            mu,
+                            lambda,
+                            friction_angle: phi,
+                            cohesion,
+                        })
                     }
                     _ => {
-                        let ys = m.yield_stress.ok_or_else(|| self.err(p("yield_stress"), "a von_mises material needs yield_stress (Pa)", "add yield_stress"))?;
+                        let ys = m.yield_stress.ok_or_else(|| {
+                            self.err(
+                                p("yield_stress"),
+                                "a von_mises material needs yield_stress (Pa)",
+                                "add yield_stress",
+                            )
+                        })?;
                         Model::VonMises(VonMises {
                             mu,
                             lambda,
                             yield_stress: self.positive(&p("yield_stress"), ys, "yield stress")?,
-                            hardening: self.non_negative(&p("hardening_modulus"), m.hardening_modulus.unwrap_or(0.0), "hardening modulus")?,
+                            hardening: self.non_negative(
+                                &p("hardening_modulus"),
+                                m.hardening_modulus.unwrap_or(0.0),
+                                "hardening modulus",
+                            )?,
                         })
                     }
                 }
             }
         };
-        Ok(Material { name: m.name.clone(), density, model })
+        Ok(Material {
+            name: m.name.clone(),
+            density,
+            model,
+        })
     }
 
     fn elastic(&self, i: usize, m: &RawMaterial) -> R<(f32, f32)> {
@@ -412,7 +612,11 @@ impl V<'_> {
                     return Err(self.err(p("poisson_ratio"), format!("Poisson's ratio must be below 0.5, got {nu} (incompressible: lambda is infinite)"), "use nu < 0.5 (e.g. 0.45 for rubbery jelly), or a type = \"fluid\" material for liquids"));
                 }
                 if nu <= -1.0 {
-                    return Err(self.err(p("poisson_ratio"), format!("Poisson's ratio must be above -1, got {nu}"), "use a value in (-1, 0.5), typically 0.2-0.4"));
+                    return Err(self.err(
+                        p("poisson_ratio"),
+                        format!("Poisson's ratio must be above -1, got {nu}"),
+                        "use a value in (-1, 0.5), typically 0.2-0.4",
+                    ));
                 }
                 Ok(material::lame(e, nu))
             }
@@ -420,7 +624,13 @@ impl V<'_> {
                 let mu = self.positive(&p("mu"), mu, "shear modulus mu (Pa)")?;
                 self.finite(&p("lambda"), lambda)?;
                 if lambda + 2.0 / 3.0 * mu <= 0.0 {
-                    return Err(self.err(p("lambda"), format!("lambda = {lambda} gives a non-positive bulk modulus lambda + 2 mu / 3"), "use lambda > -2 mu / 3 (usually lambda > 0)"));
+                    return Err(self.err(
+                        p("lambda"),
+                        format!(
+                            "lambda = {lambda} gives a non-positive bulk modulus lambda + 2 mu / 3"
+                        ),
+                        "use lambda > -2 mu / 3 (usually lambda > 0)",
+                    ));
                 }
                 Ok((mu, lambda))
             }
@@ -431,9 +641,7 @@ impl V<'_> {
                     "youngs_modulus"
                 } else if mu.is_some() && lambda.is_none() {
                     "lambda"
-                } else if lambda.is_some() && mu.is_none() {
-                    "mu"
-                } else if e.is_some() {
+                } else if (lambda.is_some() && mu.is_none()) || e.is_some() {
                     "mu"
                 } else {
                     "youngs_modulus"
@@ -444,14 +652,24 @@ impl V<'_> {
     }
 
     fn mesh(&self, prefix: &str, g: &RawGeometry, base: &Path, dx: f32) -> R<Arc<MeshSdf>> {
-        let file = g.file.as_ref().ok_or_else(|| self.err(format!("{prefix}.file"), "a mesh needs a file", "add file = \"meshes/x.obj\" (relative to the scene file)"))?;
+        let file = g.file.as_ref().ok_or_else(|| {
+            self.err(
+                format!("{prefix}.file"),
+                "a mesh needs a file",
+                "add file = \"meshes/x.obj\" (relative to the scene file)",
+            )
+        })?;
         let scale = match g.scale {
             None => Vec3::ONE,
             Some(RawScale::Uniform(s)) => Vec3::splat(s),
             Some(RawScale::PerAxis(s)) => Vec3::from_array(s),
         };
         if !scale.is_finite() || scale.min_element() <= 0.0 {
-            return Err(self.err(format!("{prefix}.scale"), format!("scale {} must be positive", fmt3(scale)), "use positive scale factors"));
+            return Err(self.err(
+                format!("{prefix}.scale"),
+                format!("scale {} must be positive", fmt3(scale)),
+                "use positive scale factors",
+            ));
         }
         let translate = match g.translate {
             Some(t) => self.vec3(&format!("{prefix}.translate"), t)?,
@@ -487,18 +705,35 @@ impl V<'_> {
         ];
         for (f, is) in given {
             if is && !allowed.contains(&f) {
-                return Err(self.err(format!("{prefix}.{f}"), format!("`{f}` is not a parameter of shape \"{}\"", shape.name()), format!("remove it; this shape takes: {}", allowed.join(", "))));
+                return Err(self.err(
+                    format!("{prefix}.{f}"),
+                    format!("`{f}` is not a parameter of shape \"{}\"", shape.name()),
+                    format!("remove it; this shape takes: {}", allowed.join(", ")),
+                ));
             }
         }
         Ok(())
     }
 
     fn need<T: Copy>(&self, prefix: &str, f: &str, x: Option<T>, shape: RawShape) -> R<T> {
-        x.ok_or_else(|| self.err(format!("{prefix}.{f}"), format!("shape \"{}\" needs `{f}`", shape.name()), format!("add {f}")))
+        x.ok_or_else(|| {
+            self.err(
+                format!("{prefix}.{f}"),
+                format!("shape \"{}\" needs `{f}`", shape.name()),
+                format!("add {f}"),
+            )
+        })
     }
 
     /// Analytic body shapes, or a mesh.
-    fn body_shape(&self, prefix: &str, shape: RawShape, g: &RawGeometry, base: &Path, dx: f32) -> R<BodyShape> {
+    fn body_shape(
+        &self,
+        prefix: &str,
+        shape: RawShape,
+        g: &RawGeometry,
+        base: &Path,
+        dx: f32,
+    ) -> R<BodyShape> {
         self.shape_fields(prefix, shape, g)?;
         let f = |n: &str| format!("{prefix}.{n}");
         Ok(match shape {
@@ -506,40 +741,87 @@ impl V<'_> {
                 let min = self.vec3(&f("min"), self.need(prefix, "min", g.min, shape)?)?;
                 let max = self.vec3(&f("max"), self.need(prefix, "max", g.max, shape)?)?;
                 if !max.cmpgt(min).all() {
-                    return Err(self.err(f("max"), format!("box max {} is not above min {} on every axis", fmt3(max), fmt3(min)), "make every component of max larger than min"));
+                    return Err(self.err(
+                        f("max"),
+                        format!(
+                            "box max {} is not above min {} on every axis",
+                            fmt3(max),
+                            fmt3(min)
+                        ),
+                        "make every component of max larger than min",
+                    ));
                 }
                 BodyShape::Box { min, max }
             }
             RawShape::Sphere => {
-                let center = self.vec3(&f("center"), self.need(prefix, "center", g.center, shape)?)?;
-                let radius = self.positive(&f("radius"), self.need(prefix, "radius", g.radius, shape)?, "radius")?;
+                let center =
+                    self.vec3(&f("center"), self.need(prefix, "center", g.center, shape)?)?;
+                let radius = self.positive(
+                    &f("radius"),
+                    self.need(prefix, "radius", g.radius, shape)?,
+                    "radius",
+                )?;
                 BodyShape::Sphere { center, radius }
             }
             RawShape::Cylinder => {
-                let center = self.vec3(&f("center"), self.need(prefix, "center", g.center, shape)?)?;
+                let center =
+                    self.vec3(&f("center"), self.need(prefix, "center", g.center, shape)?)?;
                 let axis = self.unit(&f("axis"), g.axis.unwrap_or([0.0, 1.0, 0.0]), "axis")?;
-                let radius = self.positive(&f("radius"), self.need(prefix, "radius", g.radius, shape)?, "radius")?;
-                let height = self.positive(&f("height"), self.need(prefix, "height", g.height, shape)?, "height")?;
-                BodyShape::Cylinder { center, axis, radius, half_height: 0.5 * height }
+                let radius = self.positive(
+                    &f("radius"),
+                    self.need(prefix, "radius", g.radius, shape)?,
+                    "radius",
+                )?;
+                let height = self.positive(
+                    &f("height"),
+                    self.need(prefix, "height", g.height, shape)?,
+                    "height",
+                )?;
+                BodyShape::Cylinder {
+                    center,
+                    axis,
+                    radius,
+                    half_height: 0.5 * height,
+                }
             }
             RawShape::Mesh => BodyShape::Mesh(self.mesh(prefix, g, base, dx)?),
             RawShape::HalfSpace => {
-                return Err(self.err(f("shape"), "a body cannot be a half-space (it is infinite)", "use box, sphere, cylinder or mesh"));
+                return Err(self.err(
+                    f("shape"),
+                    "a body cannot be a half-space (it is infinite)",
+                    "use box, sphere, cylinder or mesh",
+                ));
             }
         })
     }
 
-    fn body(&self, i: usize, b: &RawBody, materials: &[Material], base: &Path, dx: f32, interior: (Vec3, Vec3)) -> R<Body> {
+    fn body(
+        &self,
+        i: usize,
+        b: &RawBody,
+        materials: &[Material],
+        base: &Path,
+        dx: f32,
+        interior: (Vec3, Vec3),
+    ) -> R<Body> {
         let prefix = format!("body[{i}]");
         let f = |n: &str| format!("{prefix}.{n}");
-        let material = materials.iter().position(|m| m.name == b.material).ok_or_else(|| {
-            let known: Vec<String> = materials.iter().map(|m| format!("{:?}", m.name)).collect();
-            self.err(
-                f("material"),
-                format!("unknown material {:?}", b.material),
-                if known.is_empty() { "define it in a [[material]] table".to_string() } else { format!("use one of: {}", known.join(", ")) },
-            )
-        })? as u32;
+        let material = materials
+            .iter()
+            .position(|m| m.name == b.material)
+            .ok_or_else(|| {
+                let known: Vec<String> =
+                    materials.iter().map(|m| format!("{:?}", m.name)).collect();
+                self.err(
+                    f("material"),
+                    format!("unknown material {:?}", b.material),
+                    if known.is_empty() {
+                        "define it in a [[material]] table".to_string()
+                    } else {
+                        format!("use one of: {}", known.join(", "))
+                    },
+                )
+            })? as u32;
         let shape = self.body_shape(&prefix, b.shape, &b.geometry(), base, dx)?;
         let (lo, hi) = shape.bounds();
         let (imin, imax) = interior;
@@ -547,13 +829,25 @@ impl V<'_> {
         if lo.cmplt(imin - tol).any() || hi.cmpgt(imax + tol).any() {
             return Err(self.err(
                 f("shape"),
-                format!("the body spans {} .. {}, outside the domain or inside the walls", fmt3(lo), fmt3(hi)),
-                format!("keep bodies inside the box {} .. {} (the domain minus the walls)", fmt3(imin), fmt3(imax)),
+                format!(
+                    "the body spans {} .. {}, outside the domain or inside the walls",
+                    fmt3(lo),
+                    fmt3(hi)
+                ),
+                format!(
+                    "keep bodies inside the box {} .. {} (the domain minus the walls)",
+                    fmt3(imin),
+                    fmt3(imax)
+                ),
             ));
         }
         let ppc = b.particles_per_cell.unwrap_or(8);
         if ppc == 0 {
-            return Err(self.err(f("particles_per_cell"), "particles_per_cell must be at least 1", "use 8 (2 per axis) or 27 (3 per axis)"));
+            return Err(self.err(
+                f("particles_per_cell"),
+                "particles_per_cell must be at least 1",
+                "use 8 (2 per axis) or 27 (3 per axis)",
+            ));
         }
         let sampling = match b.sampling.unwrap_or(RawSampling::Jittered) {
             RawSampling::Regular => Sampling::Regular,
@@ -562,10 +856,18 @@ impl V<'_> {
         };
         if let Some(c) = b.count {
             if sampling != Sampling::Random {
-                return Err(self.err(f("count"), "count only applies to sampling = \"random\"", "remove count, or set sampling = \"random\""));
+                return Err(self.err(
+                    f("count"),
+                    "count only applies to sampling = \"random\"",
+                    "remove count, or set sampling = \"random\"",
+                ));
             }
             if c == 0 {
-                return Err(self.err(f("count"), "count must be at least 1", "give a positive particle count"));
+                return Err(self.err(
+                    f("count"),
+                    "count must be at least 1",
+                    "give a positive particle count",
+                ));
             }
         }
         let velocity = match b.velocity {
@@ -596,14 +898,32 @@ impl V<'_> {
         let shape = match c.shape {
             RawShape::HalfSpace => {
                 self.shape_fields(&prefix, c.shape, &g)?;
-                let point = self.vec3(&f("point"), self.need(&prefix, "point", g.point, c.shape)?)?;
-                let normal = self.unit(&f("normal"), self.need(&prefix, "normal", g.normal, c.shape)?, "normal")?;
+                let point =
+                    self.vec3(&f("point"), self.need(&prefix, "point", g.point, c.shape)?)?;
+                let normal = self.unit(
+                    &f("normal"),
+                    self.need(&prefix, "normal", g.normal, c.shape)?,
+                    "normal",
+                )?;
                 Shape::HalfSpace { point, normal }
             }
             s => match self.body_shape(&prefix, s, &g, base, dx)? {
-                BodyShape::Box { min, max } => Shape::Box { center: 0.5 * (min + max), half_extents: 0.5 * (max - min) },
+                BodyShape::Box { min, max } => Shape::Box {
+                    center: 0.5 * (min + max),
+                    half_extents: 0.5 * (max - min),
+                },
                 BodyShape::Sphere { center, radius } => Shape::Sphere { center, radius },
-                BodyShape::Cylinder { center, axis, radius, half_height } => Shape::Cylinder { center, axis, radius, half_height },
+                BodyShape::Cylinder {
+                    center,
+                    axis,
+                    radius,
+                    half_height,
+                } => Shape::Cylinder {
+                    center,
+                    axis,
+                    radius,
+                    half_height,
+                },
                 BodyShape::Mesh(m) => Shape::Mesh(m),
             },
         };
@@ -621,6 +941,15 @@ impl V<'_> {
             Some(p) => self.vec3(&f("pivot"), p)?,
             None => shape.center(),
         };
-        Ok(Collider { shape, rule: BoundaryRule { condition, friction }, velocity, angular_velocity, pivot })
+        Ok(Collider {
+            shape,
+            rule: BoundaryRule {
+                condition,
+                friction,
+            },
+            velocity,
+            angular_velocity,
+            pivot,
+        })
     }
 }
