@@ -515,3 +515,17 @@ fn never_panics_on_garbage() {
     let nan = BASE.replacen("duration = 1.0", "duration = nan", 1);
     parse_err(&nan, "time.duration");
 }
+
+#[test]
+fn doc_example_validates() {
+    let doc = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/scene-format.md"),
+    )
+    .unwrap();
+    let start = doc.find("## Example").unwrap();
+    let block = &doc[start..];
+    let a = block.find("```toml\n").unwrap() + 8;
+    let b = a + block[a..].find("```").unwrap();
+    let s = parse(&block[a..b]).unwrap();
+    assert_eq!(s.colliders.len(), 1);
+}
