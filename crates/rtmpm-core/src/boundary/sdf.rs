@@ -1,4 +1,4 @@
-//! Signed distance functions of collider shapes (stub).
+//! Signed distance functions of collider shapes (negative inside, outward normals).
 
 use super::mesh::MeshSdf;
 use crate::math::Vec3;
@@ -7,11 +7,12 @@ use std::sync::Arc;
 /// Collider shape in its rest pose; negative distance inside.
 #[derive(Clone, Debug)]
 pub enum Shape {
-    /// Points `x` with `(x - point) . normal < 0` are inside.
+    /// Points `x` with `(x - point) . normal < 0` are inside. `normal` is a unit vector.
     HalfSpace {
         point: Vec3,
         normal: Vec3,
     },
+    /// Axis-aligned box.
     Box {
         center: Vec3,
         half_extents: Vec3,
@@ -31,13 +32,211 @@ pub enum Shape {
     Mesh(Arc<MeshSdf>),
 }
 
+/// Signed distance to an axis-aligned box (exact, negative inside).
+#[inline]
+pub fn box_distance(x: Vec3, center: Vec3, half_extents: Vec3) -> f32 {
+    let q = (x - center).abs() - half_extents;
+    q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
+}
+
+/// Signed distance to a sphere.
+#[inline]
+pub fn sphere_distance(x: Vec3, center: Vec3, radius: f32) -> f32 {
+    (x - center).length() - radius
+}
+
+/// Signed distance to a capped cylinder (exact, negative inside); `axis` must be a unit vector.
+#[inline]
+pub fn cylinder_distance(x: Vec3, center: Vec3, axis: Vec3, radius: f32, half_height: f32) -> f32 {
+    let p = x - center;
+    let h = p.dot(axis);
+    let r = (p - h * axis).length();
+    let dr = r - radius;
+    let dh = h.abs() - half_height;
+    let ox = dr.max(0.0);
+    let oy = dh.max(0.0);
+    (ox * ox + oy * oy).sqrt() + dr.max(dh).min(0.0)
+}
+
+/// Any unit vector perpendicular to unit `a`.
+#[inline]
+pub(crate) fn any_perpendicular(a: Vec3) -> Vec3 {
+    let t = if a.x.abs() < 0.9 { Vec3::X } else { Vec3::Y };
+    a.cross(t).normalize()
+}
+
 impl Shape {
     /// Signed distance (negative inside).
-    pub fn distance(&self, _x: Vec3) -> f32 {
-        todo!()
+    pub fn distance(&self, x: Vec3) -> f32 {
+        match self {
+            Shape::HalfSpace { point, normal } => (x - *point).dot(*normal),
+            Shape::Box {
+                center,
+                half_extents,
+            } => box_distance(x, *center, *half_extents),
+            Shape::Sphere { center, radius } => sphere_distance(x, *center, *radius),
+            Shape::Cylinder {
+                center,
+                axis,
+                radius,
+                half_height,
+            } => cylinder_distance(x, *center, *axis, *radius, *half_height),
+            Shape::Mesh(m) => m.distance(x),
+        }
     }
-    /// Outward unit normal (gradient of the distance).
-    pub fn normal(&self, _x: Vec3) -> Vec3 {
-        todo!()
+
+    /// Outward unit normal (gradient of the distance). Analytic for the simple shapes; at
+    /// points where the gradient is undefined (a sphere's centre) an arbitrary but fixed unit
+    /// vector is returned.
+    pub fn normal(&self, x: Vec3) -> Vec3 {
+        match self {
+            Shape::HalfSpace { normal, .. } => *normal,
+            Shape::Sphere { center, .. } => (x - *center).try_normalize().unwrap_or(Vec3::Y),
+            Shape::Box {
+                center,
+                half_extents,
+            } => {
+                let p = x - *center;
+                let q = p.abs() - *half_extents;
+                let sign = Vec3::select(p.cmplt(Vec3::ZERO), Vec3::NEG_ONE, Vec3::ONE);
+                if q.max_element() > 0.0 {
+                    // Outside: gradient of the distance to the nearest point.
+                    (q.max(Vec3::ZERO) * sign)
+                        .try_normalize()
+                        .unwrap_or(Vec3::Y)
+                } else {
+                    // Inside: the face of least penetration.
+                    let mut n = Vec3::ZERO;
+                    let axis = if q.x >= q.y && q.x >= q.z {
+                        0
+                    } else if q.y >= q.z {
+                        1
+                    } else {
+                        2
+                    };
+                    n[axis] = sign[axis];
+                    n
+                }
+            }
+            Shape::Cylinder {
+                center,
+                axis,
+                radius,
+                half_height,
+            } => {
+                let p = x - *center;
+                let h = p.dot(*axis);
+                let radial = p - h * *axis;
+                let r = radial.length();
+                let er = if r > 0.0 {
+                    radial / r
+                } else {
+                    any_perpendicular(*axis)
+                };
+                let ea = if h >= 0.0 { *axis } else { -*axis };
+                let dr = r - *radius;
+                let dh = h.abs() - *half_height;
+                if dr > 0.0 && dh > 0.0 {
+                    (er * dr + ea * dh).normalize()
+                } else if dr > 0.0 || (dr <= 0.0 && dh <= 0.0 && dr >= dh) {
+                    er
+                } else {
+                    ea
+                }
+            }
+            Shape::Mesh(m) => m.normal(x),
+        }
+    }
+
+    /// A natural centre of the shape (default pivot of a collider): the point of a half-space,
+    /// the centre of the analytic shapes, the centre of a mesh's bounding box.
+    pub fn center(&self) -> Vec3 {
+        match self {
+            Shape::HalfSpace { point, .. } => *point,
+            Shape::Box { center, .. }
+            | Shape::Sphere { center, .. }
+            | Shape::Cylinder { center, .. } => *center,
+            Shape::Mesh(m) => 0.5 * (m.mesh_min + m.mesh_max),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: f32, b: f32) -> bool {
+        (a - b).abs() < 1e-5
+    }
+    fn vclose(a: Vec3, b: Vec3) -> bool {
+        (a - b).length() < 1e-5
+    }
+
+    #[test]
+    fn half_space() {
+        let s = Shape::HalfSpace {
+            point: Vec3::new(0.0, 1.0, 0.0),
+            normal: Vec3::Y,
+        };
+        assert!(close(s.distance(Vec3::new(5.0, 3.0, 2.0)), 2.0));
+        assert!(close(s.distance(Vec3::new(5.0, 0.5, 2.0)), -0.5));
+        assert!(close(s.distance(Vec3::new(0.0, 1.0, 0.0)), 0.0));
+        assert_eq!(s.normal(Vec3::ZERO), Vec3::Y);
+        assert!(vclose(s.center(), Vec3::Y));
+    }
+
+    #[test]
+    fn sphere() {
+        let s = Shape::Sphere {
+            center: Vec3::ONE,
+            radius: 0.5,
+        };
+        assert!(close(s.distance(Vec3::ONE), -0.5));
+        assert!(close(s.distance(Vec3::new(2.0, 1.0, 1.0)), 0.5));
+        assert!(close(s.distance(Vec3::new(1.0, 1.5, 1.0)), 0.0));
+        assert!(vclose(s.normal(Vec3::new(1.0, 0.0, 1.0)), -Vec3::Y));
+        assert!(vclose(s.normal(Vec3::new(1.2, 1.0, 1.0)), Vec3::X));
+    }
+
+    #[test]
+    fn boxes() {
+        let s = Shape::Box {
+            center: Vec3::ZERO,
+            half_extents: Vec3::new(1.0, 2.0, 3.0),
+        };
+        assert!(close(s.distance(Vec3::ZERO), -1.0));
+        assert!(close(s.distance(Vec3::new(0.0, 1.5, 0.0)), -0.5));
+        assert!(close(s.distance(Vec3::new(2.0, 0.0, 0.0)), 1.0));
+        assert!(close(s.distance(Vec3::new(1.0, 0.0, 0.0)), 0.0));
+        // Corner region: Euclidean distance to the corner.
+        assert!(close(s.distance(Vec3::new(4.0, 6.0, 0.0)), 5.0));
+        assert!(vclose(s.normal(Vec3::new(2.0, 0.0, 0.0)), Vec3::X));
+        assert!(vclose(s.normal(Vec3::new(0.0, -1.9, 0.0)), -Vec3::Y));
+        assert!(vclose(s.normal(Vec3::new(0.0, 0.0, 2.9)), Vec3::Z));
+        let n = s.normal(Vec3::new(4.0, 6.0, 0.0));
+        assert!(vclose(n, Vec3::new(3.0, 4.0, 0.0) / 5.0));
+    }
+
+    #[test]
+    fn cylinder() {
+        let s = Shape::Cylinder {
+            center: Vec3::ZERO,
+            axis: Vec3::Z,
+            radius: 1.0,
+            half_height: 2.0,
+        };
+        assert!(close(s.distance(Vec3::ZERO), -1.0));
+        assert!(close(s.distance(Vec3::new(0.0, 0.0, 1.8)), -0.2));
+        assert!(close(s.distance(Vec3::new(3.0, 0.0, 0.0)), 2.0));
+        assert!(close(s.distance(Vec3::new(0.0, 0.0, 3.0)), 1.0));
+        assert!(close(s.distance(Vec3::new(0.0, 1.0, 0.0)), 0.0));
+        assert!(close(s.distance(Vec3::new(4.0, 0.0, 6.0)), 5.0));
+        assert!(vclose(s.normal(Vec3::new(0.0, 2.0, 0.0)), Vec3::Y));
+        assert!(vclose(s.normal(Vec3::new(0.0, 0.5, -1.9)), -Vec3::Z));
+        assert!(vclose(s.normal(Vec3::new(0.9, 0.0, 0.0)), Vec3::X));
+        assert!(vclose(
+            s.normal(Vec3::new(4.0, 0.0, 6.0)),
+            Vec3::new(3.0, 0.0, 4.0) / 5.0
+        ));
     }
 }

@@ -1,11 +1,24 @@
 //! Scene files (TOML): schema, validation with precise error messages, and particle sampling.
 //!
-//! The schema is documented in `docs/scene-format.md`. (Parser: stub, to be implemented.)
+//! The schema is documented in `docs/scene-format.md`. [`Scene::from_file`] /
+//! [`Scene::from_toml`] parse the text with serde into the raw structs of [`schema`] (unknown
+//! fields rejected), then [`validate`] checks and resolves them. Every error names the field
+//! path (e.g. `material[1].poisson_ratio`), its line and column, and a hint.
+
+// `SceneError` is deliberately rich (position, field, hint); it is only built on failure.
+#![allow(clippy::result_large_err)]
 
 pub mod error;
 pub mod sampling;
+pub mod schema;
+pub mod spans;
+#[cfg(test)]
+mod tests;
+mod validate;
 
 pub use error::SceneError;
+pub use sampling::Sampling;
+pub use spans::span_of;
 
 use crate::boundary::{Collider, Walls};
 use crate::material::Material;
@@ -57,8 +70,13 @@ pub struct Body {
     pub name: String,
     pub material: u32,
     pub shape: sampling::BodyShape,
+    /// Requested particles per cell (regular/jittered use `round(cbrt(ppc))^3`).
     pub particles_per_cell: u32,
+    /// True for jittered sampling (kept for compatibility; see `sampling`).
     pub jitter: bool,
+    pub sampling: Sampling,
+    /// Exact particle count for random sampling (else `ppc * volume / dx^3`).
+    pub count: Option<u64>,
     pub velocity: Vec3,
     pub angular_velocity: Vec3,
 }
@@ -85,20 +103,49 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// Read and validate a scene file.
-    pub fn from_file(_path: &Path) -> Result<Scene, SceneError> {
-        todo!()
+    /// Read and validate a scene file; mesh paths are relative to the file's folder.
+    pub fn from_file(path: &Path) -> Result<Scene, SceneError> {
+        let origin = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| SceneError {
+            origin: origin.clone(),
+            line: None,
+            column: None,
+            field: None,
+            message: format!("cannot read the scene file: {e}"),
+            hint: Some("check the path and permissions".into()),
+        })?;
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let mut scene = validate::parse(
+            &text,
+            &origin,
+            &base,
+            path.file_stem().and_then(|s| s.to_str()),
+        )?;
+        scene.source = Some(path.to_path_buf());
+        Ok(scene)
     }
 
-    /// Parse and validate scene text; `origin` names it in error messages.
-    pub fn from_toml(_text: &str, _origin: &str) -> Result<Scene, SceneError> {
-        todo!()
+    /// Parse and validate scene text; `origin` names it in error messages. Mesh paths are
+    /// relative to the current directory.
+    pub fn from_toml(text: &str, origin: &str) -> Result<Scene, SceneError> {
+        validate::parse(text, origin, Path::new(""), None)
+    }
+
+    /// Like [`Scene::from_toml`], with mesh paths relative to `base_dir`.
+    pub fn from_toml_in(text: &str, origin: &str, base_dir: &Path) -> Result<Scene, SceneError> {
+        validate::parse(text, origin, base_dir, None)
     }
 
     /// Number of cells along each axis.
     pub fn n_cells(&self) -> [u32; 3] {
         let n = (self.domain_max - self.domain_min) / self.dx;
         [n.x.round() as u32, n.y.round() as u32, n.z.round() as u32]
+    }
+
+    /// The box bodies must lie in: the domain minus the walls.
+    pub fn interior(&self) -> (Vec3, Vec3) {
+        let w = self.walls.thickness as f32 * self.dx;
+        (self.domain_min + w, self.domain_max - w)
     }
 
     /// Fill the bodies with particles (deterministic for a given seed).

@@ -1,10 +1,28 @@
-//! Filling bodies with particles (stub).
+//! Filling bodies with particles.
+//!
+//! * `regular`: a lattice of `n = round(cbrt(ppc))` particles per axis and cell, at the centres
+//!   of the sub-cells of the *global* grid (so neighbouring bodies tile seamlessly); each
+//!   particle has volume `(dx/n)^3`.
+//! * `jittered`: the same lattice, each particle moved uniformly within its sub-cell
+//!   (Pcg64 seeded from the scene seed and the body index: deterministic).
+//! * `random`: uniform positions in the body's bounding box, rejected outside the shape, until
+//!   `count` (or `round(ppc * volume / dx^3)`) particles are placed; volume `volume / count`.
+//!
+//! Lattice and jittered particles are kept when their (jittered) position is inside the shape
+//! (mesh: signed distance < 0). Velocities are `v0 + w x (x - c)` with `c` the centroid of the
+//! body's particles.
 
 use super::{Scene, SceneError};
 use crate::Particles;
 use crate::boundary::mesh::MeshSdf;
+use crate::boundary::sdf::{box_distance, cylinder_distance};
 use crate::math::Vec3;
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64;
 use std::sync::Arc;
+
+/// Most particles a single body may produce (guards against runaway memory use).
+pub const MAX_PARTICLES_PER_BODY: u64 = 50_000_000;
 
 /// Geometry of a body.
 #[derive(Clone, Debug)]
@@ -17,6 +35,7 @@ pub enum BodyShape {
         center: Vec3,
         radius: f32,
     },
+    /// Capped cylinder along unit `axis`.
     Cylinder {
         center: Vec3,
         axis: Vec3,
@@ -26,7 +45,229 @@ pub enum BodyShape {
     Mesh(Arc<MeshSdf>),
 }
 
-/// Sample every body of the scene.
-pub fn sample_scene(_scene: &Scene) -> Result<Particles, SceneError> {
-    todo!()
+/// How a body is filled.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Sampling {
+    /// Sub-cell centres of the global grid.
+    Regular,
+    /// Sub-cell centres plus uniform jitter within the sub-cell.
+    #[default]
+    Jittered,
+    /// Uniformly random positions.
+    Random,
+}
+
+impl BodyShape {
+    /// True when `x` is inside (mesh: signed distance < 0; analytic shapes include the surface).
+    pub fn contains(&self, x: Vec3) -> bool {
+        match self {
+            BodyShape::Box { min, max } => x.cmpge(*min).all() && x.cmple(*max).all(),
+            BodyShape::Sphere { center, radius } => {
+                (x - *center).length_squared() <= radius * radius
+            }
+            BodyShape::Cylinder {
+                center,
+                axis,
+                radius,
+                half_height,
+            } => cylinder_distance(x, *center, *axis, *radius, *half_height) <= 0.0,
+            BodyShape::Mesh(m) => m.distance(x) < 0.0,
+        }
+    }
+
+    /// Signed distance (negative inside).
+    pub fn distance(&self, x: Vec3) -> f32 {
+        match self {
+            BodyShape::Box { min, max } => {
+                box_distance(x, 0.5 * (*min + *max), 0.5 * (*max - *min))
+            }
+            BodyShape::Sphere { center, radius } => (x - *center).length() - radius,
+            BodyShape::Cylinder {
+                center,
+                axis,
+                radius,
+                half_height,
+            } => cylinder_distance(x, *center, *axis, *radius, *half_height),
+            BodyShape::Mesh(m) => m.distance(x),
+        }
+    }
+
+    /// Axis-aligned bounding box `(min, max)`.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        match self {
+            BodyShape::Box { min, max } => (*min, *max),
+            BodyShape::Sphere { center, radius } => (*center - *radius, *center + *radius),
+            BodyShape::Cylinder {
+                center,
+                axis,
+                radius,
+                half_height,
+            } => {
+                let a = *axis;
+                let e = Vec3::new(
+                    half_height * a.x.abs() + radius * (1.0 - a.x * a.x).max(0.0).sqrt(),
+                    half_height * a.y.abs() + radius * (1.0 - a.y * a.y).max(0.0).sqrt(),
+                    half_height * a.z.abs() + radius * (1.0 - a.z * a.z).max(0.0).sqrt(),
+                );
+                (*center - e, *center + e)
+            }
+            BodyShape::Mesh(m) => (m.mesh_min, m.mesh_max),
+        }
+    }
+
+    /// Volume (m^3): analytic, or estimated from the signed distance grid for meshes.
+    pub fn volume(&self) -> f32 {
+        match self {
+            BodyShape::Box { min, max } => (*max - *min).max(Vec3::ZERO).element_product(),
+            BodyShape::Sphere { radius, .. } => 4.0 / 3.0 * std::f32::consts::PI * radius.powi(3),
+            BodyShape::Cylinder {
+                radius,
+                half_height,
+                ..
+            } => std::f32::consts::PI * radius * radius * 2.0 * half_height,
+            BodyShape::Mesh(m) => m.volume(),
+        }
+    }
+}
+
+/// Particles per axis and cell for a particles-per-cell count: `round(cbrt(ppc))`, at least 1.
+pub fn per_axis(ppc: u32) -> u32 {
+    ((ppc as f64).cbrt().round() as u32).max(1)
+}
+
+fn body_error(i: usize, message: String, hint: &str) -> SceneError {
+    SceneError {
+        origin: String::new(),
+        line: None,
+        column: None,
+        field: Some(format!("body[{i}]")),
+        message,
+        hint: Some(hint.to_string()),
+    }
+}
+
+/// Sample body `index` of the scene.
+pub fn sample_body(scene: &Scene, index: usize) -> Result<Particles, SceneError> {
+    let body = scene
+        .bodies
+        .get(index)
+        .ok_or_else(|| body_error(index, "no such body".into(), "use an existing body index"))?;
+    let material = scene.materials.get(body.material as usize).ok_or_else(|| {
+        body_error(
+            index,
+            format!("material index {} out of range", body.material),
+            "fix the material",
+        )
+    })?;
+    let dx = scene.dx;
+    let shape = &body.shape;
+    let (lo, hi) = shape.bounds();
+    let seed = scene.seed ^ (index as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    let mut rng = Pcg64::seed_from_u64(seed);
+    let mut out = Particles::default();
+    let plastic = material.model.initial_plastic();
+    let mut positions = Vec::new();
+    let vol0;
+    match body.sampling {
+        Sampling::Regular | Sampling::Jittered => {
+            let n = per_axis(body.particles_per_cell);
+            let h = dx / n as f32;
+            vol0 = h * h * h;
+            let first = ((lo - scene.domain_min) / h).floor();
+            let last = ((hi - scene.domain_min) / h).ceil();
+            let count = (last - first + 1.0).max(Vec3::ZERO);
+            let total = count.x as f64 * count.y as f64 * count.z as f64;
+            if total > MAX_PARTICLES_PER_BODY as f64 {
+                return Err(body_error(
+                    index,
+                    format!("the body would need about {total:.3e} lattice points"),
+                    "make the body smaller, dx larger, or particles_per_cell smaller",
+                ));
+            }
+            let (i0, j0, k0) = (first.x as i64, first.y as i64, first.z as i64);
+            let (i1, j1, k1) = (last.x as i64, last.y as i64, last.z as i64);
+            let jitter = body.sampling == Sampling::Jittered;
+            for k in k0..=k1 {
+                for j in j0..=j1 {
+                    for i in i0..=i1 {
+                        let mut x = scene.domain_min
+                            + Vec3::new(i as f32 + 0.5, j as f32 + 0.5, k as f32 + 0.5) * h;
+                        if jitter {
+                            let r = Vec3::new(
+                                rng.random::<f32>() - 0.5,
+                                rng.random::<f32>() - 0.5,
+                                rng.random::<f32>() - 0.5,
+                            );
+                            x += r * h;
+                        }
+                        if shape.contains(x) {
+                            positions.push(x);
+                        }
+                    }
+                }
+            }
+        }
+        Sampling::Random => {
+            let volume = shape.volume();
+            let count = match body.count {
+                Some(c) => c,
+                None => (body.particles_per_cell as f64 * volume as f64 / (dx as f64).powi(3))
+                    .round() as u64,
+            };
+            if count > MAX_PARTICLES_PER_BODY {
+                return Err(body_error(
+                    index,
+                    format!("the body would hold {count} particles"),
+                    "lower count or particles_per_cell",
+                ));
+            }
+            let max_attempts = count.saturating_mul(1000).max(10_000);
+            let mut attempts = 0u64;
+            while (positions.len() as u64) < count {
+                if attempts >= max_attempts {
+                    return Err(body_error(
+                        index,
+                        format!(
+                            "placed only {} of {count} random particles",
+                            positions.len()
+                        ),
+                        "the shape is too thin for random sampling; use sampling = \"regular\"",
+                    ));
+                }
+                attempts += 1;
+                let r = Vec3::new(
+                    rng.random::<f32>(),
+                    rng.random::<f32>(),
+                    rng.random::<f32>(),
+                );
+                let x = lo + r * (hi - lo);
+                if shape.contains(x) {
+                    positions.push(x);
+                }
+            }
+            vol0 = if count > 0 {
+                volume / count as f32
+            } else {
+                0.0
+            };
+        }
+    }
+    let n = positions.len().max(1) as f32;
+    let centre = positions.iter().fold(Vec3::ZERO, |a, b| a + *b) / n;
+    let mass = material.density * vol0;
+    for x in positions {
+        let v = body.velocity + body.angular_velocity.cross(x - centre);
+        out.push(x, v, mass, vol0, body.material, plastic);
+    }
+    Ok(out)
+}
+
+/// Sample every body of the scene, in order.
+pub fn sample_scene(scene: &Scene) -> Result<Particles, SceneError> {
+    let mut all = Particles::default();
+    for i in 0..scene.bodies.len() {
+        let p = sample_body(scene, i)?;
+        all.extend(&p);
+    }
+    Ok(all)
 }

@@ -1,0 +1,282 @@
+//! Raw serde structs of the scene file, exactly as written (before validation).
+//!
+//! Every struct denies unknown fields so that typos are reported with their position.
+//! Optional fields are `Option` so that the validator can tell "absent" (use the default)
+//! from "given" (check it, and reject it where it does not apply).
+
+use serde::Deserialize;
+
+/// A 3-vector written as `[x, y, z]`.
+pub type V3 = [f32; 3];
+
+/// The whole file.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawScene {
+    pub name: Option<String>,
+    pub seed: Option<u64>,
+    pub domain: RawDomain,
+    pub gravity: Option<V3>,
+    pub time: RawTime,
+    pub walls: Option<RawWalls>,
+    #[serde(default)]
+    pub material: Vec<RawMaterial>,
+    #[serde(default)]
+    pub body: Vec<RawBody>,
+    #[serde(default)]
+    pub collider: Vec<RawCollider>,
+    pub output: Option<RawOutput>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawDomain {
+    pub min: V3,
+    pub max: V3,
+    pub dx: f32,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawTime {
+    pub duration: f32,
+    pub fps: Option<f32>,
+    pub dt: Option<f32>,
+    pub cfl: Option<f32>,
+    pub max_dt: Option<f32>,
+}
+
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum RawCondition {
+    Sticky,
+    Slip,
+    Separate,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawFace {
+    pub condition: Option<RawCondition>,
+    pub friction: Option<f32>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawFaces {
+    pub x_min: Option<RawFace>,
+    pub x_max: Option<RawFace>,
+    pub y_min: Option<RawFace>,
+    pub y_max: Option<RawFace>,
+    pub z_min: Option<RawFace>,
+    pub z_max: Option<RawFace>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawWalls {
+    pub thickness: Option<u32>,
+    pub condition: Option<RawCondition>,
+    pub friction: Option<f32>,
+    pub faces: Option<RawFaces>,
+}
+
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum RawModel {
+    Fluid,
+    FixedCorotated,
+    NeoHookean,
+    Snow,
+    DruckerPrager,
+    VonMises,
+}
+
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum RawEos {
+    Linear,
+    Tait,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawMaterial {
+    pub name: String,
+    #[serde(rename = "type")]
+    pub kind: RawModel,
+    pub density: f32,
+    pub youngs_modulus: Option<f32>,
+    pub poisson_ratio: Option<f32>,
+    pub mu: Option<f32>,
+    pub lambda: Option<f32>,
+    pub bulk_modulus: Option<f32>,
+    pub gamma: Option<f32>,
+    pub eos: Option<RawEos>,
+    pub viscosity: Option<f32>,
+    pub critical_compression: Option<f32>,
+    pub critical_stretch: Option<f32>,
+    pub hardening: Option<f32>,
+    pub friction_angle: Option<f32>,
+    pub cohesion: Option<f32>,
+    pub yield_stress: Option<f32>,
+    pub hardening_modulus: Option<f32>,
+}
+
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum RawShape {
+    HalfSpace,
+    Box,
+    Sphere,
+    Cylinder,
+    Mesh,
+}
+
+impl RawShape {
+    pub fn name(self) -> &'static str {
+        match self {
+            RawShape::HalfSpace => "half_space",
+            RawShape::Box => "box",
+            RawShape::Sphere => "sphere",
+            RawShape::Cylinder => "cylinder",
+            RawShape::Mesh => "mesh",
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum RawSampling {
+    Regular,
+    Jittered,
+    Random,
+}
+
+/// A mesh scale: one number (uniform) or `[sx, sy, sz]`.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(untagged)]
+pub enum RawScale {
+    Uniform(f32),
+    PerAxis(V3),
+}
+
+/// Shape parameters shared by bodies and colliders.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawGeometry {
+    pub min: Option<V3>,
+    pub max: Option<V3>,
+    pub center: Option<V3>,
+    pub radius: Option<f32>,
+    pub axis: Option<V3>,
+    pub height: Option<f32>,
+    pub file: Option<String>,
+    pub scale: Option<RawScale>,
+    pub translate: Option<V3>,
+    pub point: Option<V3>,
+    pub normal: Option<V3>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawBody {
+    pub name: Option<String>,
+    pub material: String,
+    pub shape: RawShape,
+    pub min: Option<V3>,
+    pub max: Option<V3>,
+    pub center: Option<V3>,
+    pub radius: Option<f32>,
+    pub axis: Option<V3>,
+    pub height: Option<f32>,
+    pub file: Option<String>,
+    pub scale: Option<RawScale>,
+    pub translate: Option<V3>,
+    pub particles_per_cell: Option<u32>,
+    pub sampling: Option<RawSampling>,
+    pub count: Option<u64>,
+    pub velocity: Option<V3>,
+    pub angular_velocity: Option<V3>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawCollider {
+    pub shape: RawShape,
+    pub min: Option<V3>,
+    pub max: Option<V3>,
+    pub center: Option<V3>,
+    pub radius: Option<f32>,
+    pub axis: Option<V3>,
+    pub height: Option<f32>,
+    pub file: Option<String>,
+    pub scale: Option<RawScale>,
+    pub translate: Option<V3>,
+    pub point: Option<V3>,
+    pub normal: Option<V3>,
+    pub condition: Option<RawCondition>,
+    pub friction: Option<f32>,
+    pub velocity: Option<V3>,
+    pub angular_velocity: Option<V3>,
+    pub pivot: Option<V3>,
+}
+
+impl RawBody {
+    pub fn geometry(&self) -> RawGeometry {
+        RawGeometry {
+            min: self.min,
+            max: self.max,
+            center: self.center,
+            radius: self.radius,
+            axis: self.axis,
+            height: self.height,
+            file: self.file.clone(),
+            scale: self.scale,
+            translate: self.translate,
+            point: None,
+            normal: None,
+        }
+    }
+}
+
+impl RawCollider {
+    pub fn geometry(&self) -> RawGeometry {
+        RawGeometry {
+            min: self.min,
+            max: self.max,
+            center: self.center,
+            radius: self.radius,
+            axis: self.axis,
+            height: self.height,
+            file: self.file.clone(),
+            scale: self.scale,
+            translate: self.translate,
+            point: self.point,
+            normal: self.normal,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum RawFormat {
+    Ply,
+    Vtu,
+}
+
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+pub enum RawField {
+    #[serde(rename = "stress")]
+    Stress,
+    #[serde(rename = "J")]
+    J,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawOutput {
+    pub dir: Option<String>,
+    pub formats: Option<Vec<RawFormat>>,
+    pub fields: Option<Vec<RawField>>,
+}

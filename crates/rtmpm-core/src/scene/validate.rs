@@ -1,0 +1,955 @@
+//! Validation: raw serde structs -> [`Scene`], with field paths, positions and hints.
+
+use super::sampling::{self, BodyShape, Sampling};
+use super::schema::*;
+use super::spans::{line_col, path_at, span_in_doc};
+use super::{Body, OutputSettings, Scene, SceneError, StepMode, TimeSettings};
+use crate::boundary::mesh::MeshSdf;
+use crate::boundary::sdf::Shape;
+use crate::boundary::{BoundaryRule, Collider, Condition, Walls};
+use crate::material::{
+    self, DruckerPrager, Eos, FixedCorotated, Fluid, Material, Model, NeoHookean, Snow, VonMises,
+};
+use crate::math::Vec3;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+type R<T> = Result<T, SceneError>;
+
+/// Grid cells of margin around a mesh's signed distance grid.
+const MESH_MARGIN: u32 = 3;
+
+struct V<'a> {
+    text: &'a str,
+    origin: &'a str,
+    doc: Option<toml_edit::Document<&'a str>>,
+}
+
+fn backticked<'m>(message: &'m str, prefix: &str) -> Option<&'m str> {
+    let rest = &message[message.find(prefix)? + prefix.len()..];
+    let rest = rest.strip_prefix('`')?;
+    Some(&rest[..rest.find('`')?])
+}
+
+/// Convert a toml parse/deserialize error into a positioned [`SceneError`].
+fn toml_error(text: &str, origin: &str, e: &toml::de::Error) -> SceneError {
+    let message = e.message().trim().to_string();
+    let offset = e.span().map(|s| s.start);
+    let (line, column) = match offset {
+        Some(o) => {
+            let (l, c) = line_col(text, o);
+            (Some(l), Some(c))
+        }
+        None => (None, None),
+    };
+    let doc = toml_edit::Document::parse(text).ok();
+    let at = match (&doc, offset) {
+        (Some(d), Some(o)) => path_at(d, o),
+        _ => None,
+    };
+    let (field, hint) = if let Some(name) = backticked(&message, "unknown field ") {
+        let field = match &at {
+            Some(p) if p.ends_with(name) => p.clone(),
+            Some(p) => format!("{p}.{name}"),
+            None => name.to_string(),
+        };
+        (
+            Some(field),
+            "remove the field or fix its spelling (the fields are listed in docs/scene-format.md)",
+        )
+    } else if let Some(name) = backticked(&message, "missing field ") {
+        let field = match &at {
+            Some(p) => format!("{p}.{name}"),
+            None => name.to_string(),
+        };
+        (Some(field), "add the field; it has no default")
+    } else if message.contains("unknown variant") {
+        (at, "use one of the listed values")
+    } else if doc.is_none() {
+        (None, "fix the TOML syntax at this position")
+    } else {
+        (
+            at,
+            "check the value's type: numbers without quotes, names in quotes, vectors as [x, y, z]",
+        )
+    };
+    SceneError {
+        origin: origin.to_string(),
+        line,
+        column,
+        field,
+        message,
+        hint: Some(hint.into()),
+    }
+}
+
+/// Parse and validate scene text.
+pub(super) fn parse(text: &str, origin: &str, base: &Path, stem: Option<&str>) -> R<Scene> {
+    let raw: RawScene = toml::from_str(text).map_err(|e| toml_error(text, origin, &e))?;
+    let v = V {
+        text,
+        origin,
+        doc: toml_edit::Document::parse(text).ok(),
+    };
+    v.resolve(raw, base, stem)
+}
+
+fn fmt3(v: Vec3) -> String {
+    format!("[{}, {}, {}]", v.x, v.y, v.z)
+}
+
+impl V<'_> {
+    fn err(
+        &self,
+        field: impl Into<String>,
+        message: impl Into<String>,
+        hint: impl Into<String>,
+    ) -> SceneError {
+        let field = field.into();
+        let pos = self
+            .doc
+            .as_ref()
+            .and_then(|d| span_in_doc(d, &field))
+            .map(|o| line_col(self.text, o));
+        SceneError {
+            origin: self.origin.to_string(),
+            line: pos.map(|p| p.0),
+            column: pos.map(|p| p.1),
+            field: Some(field),
+            message: message.into(),
+            hint: Some(hint.into()),
+        }
+    }
+
+    fn finite(&self, field: &str, x: f32) -> R<f32> {
+        if x.is_finite() {
+            Ok(x)
+        } else {
+            Err(self.err(
+                field,
+                format!("{x} is not a finite number"),
+                "write a finite number",
+            ))
+        }
+    }
+
+    fn positive(&self, field: &str, x: f32, what: &str) -> R<f32> {
+        self.finite(field, x)?;
+        if x > 0.0 {
+            Ok(x)
+        } else {
+            Err(self.err(
+                field,
+                format!("{what} must be > 0, got {x}"),
+                format!("give a positive {what}"),
+            ))
+        }
+    }
+
+    fn non_negative(&self, field: &str, x: f32, what: &str) -> R<f32> {
+        self.finite(field, x)?;
+        if x >= 0.0 {
+            Ok(x)
+        } else {
+            Err(self.err(
+                field,
+                format!("{what} must be >= 0, got {x}"),
+                format!("use 0 or a positive {what}"),
+            ))
+        }
+    }
+
+    fn vec3(&self, field: &str, v: V3) -> R<Vec3> {
+        let x = Vec3::from_array(v);
+        if x.is_finite() {
+            Ok(x)
+        } else {
+            Err(self.err(
+                field,
+                format!("{} has a non-finite component", fmt3(x)),
+                "write finite numbers",
+            ))
+        }
+    }
+
+    fn unit(&self, field: &str, v: V3, what: &str) -> R<Vec3> {
+        let x = self.vec3(field, v)?;
+        x.try_normalize()
+            .filter(|_| x.length() > 1e-12)
+            .ok_or_else(|| {
+                self.err(
+                    field,
+                    format!("the {what} {} has zero length", fmt3(x)),
+                    format!("give a nonzero {what}, e.g. [0, 1, 0]"),
+                )
+            })
+    }
+
+    fn resolve(&self, raw: RawScene, base: &Path, stem: Option<&str>) -> R<Scene> {
+        let name = raw
+            .name
+            .clone()
+            .or_else(|| stem.map(str::to_string))
+            .unwrap_or_else(|| "scene".into());
+        // Domain.
+        let dx = self.positive("domain.dx", raw.domain.dx, "the grid spacing dx")?;
+        let dmin = self.vec3("domain.min", raw.domain.min)?;
+        let dmax = self.vec3("domain.max", raw.domain.max)?;
+        for a in 0..3 {
+            if dmax[a] <= dmin[a] {
+                return Err(self.err(
+                    format!("domain.max[{a}]"),
+                    format!(
+                        "domain max {} is not above min {} along axis {a}",
+                        fmt3(dmax),
+                        fmt3(dmin)
+                    ),
+                    "make every component of max larger than that of min",
+                ));
+            }
+        }
+        let cells = (dmax - dmin) / dx;
+        for a in 0..3 {
+            let n = cells[a];
+            if (n - n.round()).abs() > 1e-3 * n.max(1.0) {
+                let fixed = dmin[a] + n.round().max(1.0) * dx;
+                return Err(self.err(
+                    format!("domain.max[{a}]"),
+                    format!("the domain is {n} cells long along axis {a}, not a whole number of cells of dx = {dx}"),
+                    format!("set domain.max[{a}] = {fixed} (a whole number of cells) or change dx"),
+                ));
+            }
+            if n.round() > 4096.0 {
+                return Err(self.err(
+                    "domain.dx",
+                    format!("{} cells along axis {a} is too many", n.round()),
+                    "use a larger dx (at most 4096 cells per axis)",
+                ));
+            }
+        }
+        let gravity = match raw.gravity {
+            Some(g) => self.vec3("gravity", g)?,
+            None => Vec3::new(0.0, -9.81, 0.0),
+        };
+
+        // Time.
+        let t = &raw.time;
+        let duration = self.positive("time.duration", t.duration, "duration (s)")?;
+        let fps = self.positive("time.fps", t.fps.unwrap_or(30.0), "fps")?;
+        let step = match (t.dt, t.cfl) {
+            (Some(_), Some(_)) => {
+                return Err(self.err(
+                    "time.cfl",
+                    "both dt and cfl are given",
+                    "keep dt for a fixed step or cfl for an adaptive one",
+                ));
+            }
+            (Some(dt), None) => {
+                if t.max_dt.is_some() {
+                    return Err(self.err(
+                        "time.max_dt",
+                        "max_dt only applies to a CFL step",
+                        "remove max_dt, or replace dt by cfl",
+                    ));
+                }
+                StepMode::Fixed {
+                    dt: self.positive("time.dt", dt, "dt (s)")?,
+                }
+            }
+            (None, cfl) => {
+                let cfl = cfl.unwrap_or(0.4);
+                self.finite("time.cfl", cfl)?;
+                if !(cfl > 0.0 && cfl <= 1.0) {
+                    return Err(self.err(
+                        "time.cfl",
+                        format!("cfl must be in (0, 1], got {cfl}"),
+                        "use a CFL number such as 0.4",
+                    ));
+                }
+                let max_dt =
+                    self.positive("time.max_dt", t.max_dt.unwrap_or(1e-3), "max_dt (s)")?;
+                StepMode::Cfl { cfl, max_dt }
+            }
+        };
+        if let StepMode::Fixed { dt } = step
+            && dt > 1.0 / fps
+        {
+            {
+                return Err(self.err(
+                    "time.dt",
+                    format!(
+                        "dt = {dt} s is longer than a frame (1/fps = {} s)",
+                        1.0 / fps
+                    ),
+                    "use a smaller dt",
+                ));
+            }
+        }
+        let time = TimeSettings {
+            duration,
+            fps,
+            step,
+        };
+
+        // Walls.
+        let walls = self.walls(raw.walls.as_ref(), cells)?;
+
+        // Materials.
+        let mut materials: Vec<Material> = Vec::new();
+        for (i, m) in raw.material.iter().enumerate() {
+            let mat = self.material(i, m)?;
+            if materials.iter().any(|o| o.name == mat.name) {
+                return Err(self.err(
+                    format!("material[{i}].name"),
+                    format!("material name {:?} is used twice", mat.name),
+                    "give every material a unique name",
+                ));
+            }
+            materials.push(mat);
+        }
+
+        // Bodies.
+        let thick = walls.thickness as f32 * dx;
+        let (imin, imax) = (dmin + thick, dmax - thick);
+        let mut bodies = Vec::new();
+        for (i, b) in raw.body.iter().enumerate() {
+            bodies.push(self.body(i, b, &materials, base, dx, (imin, imax))?);
+        }
+
+        // Colliders.
+        let mut colliders = Vec::new();
+        for (i, c) in raw.collider.iter().enumerate() {
+            colliders.push(self.collider(i, c, base, dx)?);
+        }
+
+        // Output.
+        let out = raw.output.as_ref();
+        let dir = out
+            .and_then(|o| o.dir.clone())
+            .map(PathBuf::from)
+            .unwrap_or_else(|| PathBuf::from("out").join(&name));
+        let formats = out
+            .and_then(|o| o.formats.clone())
+            .unwrap_or_else(|| vec![RawFormat::Ply]);
+        let fields = out.and_then(|o| o.fields.clone()).unwrap_or_default();
+        let output = OutputSettings {
+            dir,
+            ply: formats.contains(&RawFormat::Ply),
+            vtu: formats.contains(&RawFormat::Vtu),
+            stress: fields.contains(&RawField::Stress),
+            jacobian: fields.contains(&RawField::J),
+        };
+
+        let scene = Scene {
+            name,
+            source: None,
+            domain_min: dmin,
+            domain_max: dmax,
+            dx,
+            gravity,
+            time,
+            materials,
+            bodies,
+            colliders,
+            walls,
+            output,
+            seed: raw.seed.unwrap_or(0),
+        };
+        // Every body must produce particles.
+        for i in 0..scene.bodies.len() {
+            let p = sampling::sample_body(&scene, i).map_err(|e| {
+                self.err(format!("body[{i}]"), e.message, e.hint.unwrap_or_default())
+            })?;
+            if p.is_empty() {
+                return Err(self.err(
+                    format!("body[{i}]"),
+                    "the body produces 0 particles",
+                    "make it larger than a particle spacing (dx / round(cbrt(particles_per_cell))) or raise particles_per_cell/count",
+                ));
+            }
+        }
+        Ok(scene)
+    }
+
+    fn condition(c: RawCondition) -> Condition {
+        match c {
+            RawCondition::Sticky => Condition::Sticky,
+            RawCondition::Slip => Condition::Slip,
+            RawCondition::Separate => Condition::Separate,
+        }
+    }
+
+    fn walls(&self, w: Option<&RawWalls>, cells: Vec3) -> R<Walls> {
+        let default = RawWalls::default();
+        let w = w.unwrap_or(&default);
+        let thickness = w.thickness.unwrap_or(3);
+        let min_cells = cells.min_element().round() as u32;
+        if 2 * thickness >= min_cells {
+            return Err(self.err(
+                "walls.thickness",
+                format!(
+                    "walls {thickness} cells thick leave no room in a domain {min_cells} cells wide"
+                ),
+                "use thinner walls or a larger domain",
+            ));
+        }
+        let condition = Self::condition(w.condition.unwrap_or(RawCondition::Separate));
+        let friction =
+            self.non_negative("walls.friction", w.friction.unwrap_or(0.0), "friction")?;
+        let rule = BoundaryRule {
+            condition,
+            friction,
+        };
+        let mut faces = [rule; 6];
+        if let Some(f) = &w.faces {
+            let list = [&f.x_min, &f.x_max, &f.y_min, &f.y_max, &f.z_min, &f.z_max];
+            let names = ["x_min", "x_max", "y_min", "y_max", "z_min", "z_max"];
+            for (k, face) in list.iter().enumerate() {
+                if let Some(face) = face {
+                    if let Some(c) = face.condition {
+                        faces[k].condition = Self::condition(c);
+                    }
+                    if let Some(fr) = face.friction {
+                        faces[k].friction = self.non_negative(
+                            &format!("walls.faces.{}.friction", names[k]),
+                            fr,
+                            "friction",
+                        )?;
+                    }
+                }
+            }
+        }
+        Ok(Walls { thickness, faces })
+    }
+
+    fn material(&self, i: usize, m: &RawMaterial) -> R<Material> {
+        let p = |f: &str| format!("material[{i}].{f}");
+        if m.name.trim().is_empty() {
+            return Err(self.err(
+                p("name"),
+                "the material name is empty",
+                "give the material a name, e.g. name = \"water\"",
+            ));
+        }
+        let density = self.positive(&p("density"), m.density, "density (kg/m^3)")?;
+        // Fields that do not apply to the type.
+        let allowed: &[&str] = match m.kind {
+            RawModel::Fluid => &["bulk_modulus", "gamma", "eos", "viscosity"],
+            RawModel::FixedCorotated | RawModel::NeoHookean => {
+                &["youngs_modulus", "poisson_ratio", "mu", "lambda"]
+            }
+            RawModel::Snow => &[
+                "youngs_modulus",
+                "poisson_ratio",
+                "mu",
+                "lambda",
+                "critical_compression",
+                "critical_stretch",
+                "hardening",
+            ],
+            RawModel::DruckerPrager => &[
+                "youngs_modulus",
+                "poisson_ratio",
+                "mu",
+                "lambda",
+                "friction_angle",
+                "cohesion",
+            ],
+            RawModel::VonMises => &[
+                "youngs_modulus",
+                "poisson_ratio",
+                "mu",
+                "lambda",
+                "yield_stress",
+                "hardening_modulus",
+            ],
+        };
+        let given = [
+            ("youngs_modulus", m.youngs_modulus.is_some()),
+            ("poisson_ratio", m.poisson_ratio.is_some()),
+            ("mu", m.mu.is_some()),
+            ("lambda", m.lambda.is_some()),
+            ("bulk_modulus", m.bulk_modulus.is_some()),
+            ("gamma", m.gamma.is_some()),
+            ("eos", m.eos.is_some()),
+            ("viscosity", m.viscosity.is_some()),
+            ("critical_compression", m.critical_compression.is_some()),
+            ("critical_stretch", m.critical_stretch.is_some()),
+            ("hardening", m.hardening.is_some()),
+            ("friction_angle", m.friction_angle.is_some()),
+            ("cohesion", m.cohesion.is_some()),
+            ("yield_stress", m.yield_stress.is_some()),
+            ("hardening_modulus", m.hardening_modulus.is_some()),
+        ];
+        for (f, is) in given {
+            if is && !allowed.contains(&f) {
+                return Err(self.err(
+                    p(f),
+                    format!("`{f}` does not apply to a material of this type"),
+                    format!("remove it; this type takes: {}", allowed.join(", ")),
+                ));
+            }
+        }
+        let model = match m.kind {
+            RawModel::Fluid => {
+                let k = m.bulk_modulus.ok_or_else(|| {
+                    self.err(
+                        p("bulk_modulus"),
+                        "a fluid needs bulk_modulus (Pa)",
+                        "add bulk_modulus, e.g. 1e5 for water at dx ~ 1/64",
+                    )
+                })?;
+                let bulk_modulus = self.positive(&p("bulk_modulus"), k, "bulk modulus")?;
+                let eos = match (m.eos, m.gamma) {
+                    (Some(RawEos::Linear), Some(_)) => {
+                        return Err(self.err(
+                            p("gamma"),
+                            "gamma is given but eos = \"linear\"",
+                            "remove gamma, or use eos = \"tait\"",
+                        ));
+                    }
+                    (Some(RawEos::Linear), None) | (None, None) => Eos::Linear,
+                    (_, g) => {
+                        let gamma = self.positive(&p("gamma"), g.unwrap_or(7.0), "gamma")?;
+                        Eos::Tait { gamma }
+                    }
+                };
+                let viscosity = self.non_negative(
+                    &p("viscosity"),
+                    m.viscosity.unwrap_or(0.0),
+                    "viscosity (Pa s)",
+                )?;
+                Model::Fluid(Fluid {
+                    bulk_modulus,
+                    eos,
+                    viscosity,
+                })
+            }
+            kind => {
+                let (mu, lambda) = self.elastic(i, m)?;
+                match kind {
+                    RawModel::FixedCorotated => {
+                        Model::FixedCorotated(FixedCorotated { mu, lambda })
+                    }
+                    RawModel::NeoHookean => Model::NeoHookean(NeoHookean { mu, lambda }),
+                    RawModel::Snow => Model::Snow(Snow {
+                        mu,
+                        lambda,
+                        critical_compression: self.positive(
+                            &p("critical_compression"),
+                            m.critical_compression.unwrap_or(2.5e-2),
+                            "critical compression",
+                        )?,
+                        critical_stretch: self.positive(
+                            &p("critical_stretch"),
+                            m.critical_stretch.unwrap_or(7.5e-3),
+                            "critical stretch",
+                        )?,
+                        hardening: self.non_negative(
+                            &p("hardening"),
+                            m.hardening.unwrap_or(10.0),
+                            "hardening",
+                        )?,
+                    }),
+                    RawModel::DruckerPrager => {
+                        let phi =
+                            self.finite(&p("friction_angle"), m.friction_angle.unwrap_or(30.0))?;
+                        if !(0.0..90.0).contains(&phi) {
+                            return Err(self.err(
+                                p("friction_angle"),
+                                format!("friction angle must be in [0, 90) degrees, got {phi}"),
+                                "use degrees, typically 25-45 for sand",
+                            ));
+                        }
+                        let cohesion = self.non_negative(
+                            &p("cohesion"),
+                            m.cohesion.unwrap_or(0.0),
+                            "cohesion",
+                        )?;
+                        Model::DruckerPrager(DruckerPrager {
+                            mu,
+                            lambda,
+                            friction_angle: phi,
+                            cohesion,
+                        })
+                    }
+                    _ => {
+                        let ys = m.yield_stress.ok_or_else(|| {
+                            self.err(
+                                p("yield_stress"),
+                                "a von_mises material needs yield_stress (Pa)",
+                                "add yield_stress",
+                            )
+                        })?;
+                        Model::VonMises(VonMises {
+                            mu,
+                            lambda,
+                            yield_stress: self.positive(&p("yield_stress"), ys, "yield stress")?,
+                            hardening: self.non_negative(
+                                &p("hardening_modulus"),
+                                m.hardening_modulus.unwrap_or(0.0),
+                                "hardening modulus",
+                            )?,
+                        })
+                    }
+                }
+            }
+        };
+        Ok(Material {
+            name: m.name.clone(),
+            density,
+            model,
+        })
+    }
+
+    fn elastic(&self, i: usize, m: &RawMaterial) -> R<(f32, f32)> {
+        let p = |f: &str| format!("material[{i}].{f}");
+        match (m.youngs_modulus, m.poisson_ratio, m.mu, m.lambda) {
+            (Some(e), Some(nu), None, None) => {
+                let e = self.positive(&p("youngs_modulus"), e, "Young's modulus (Pa)")?;
+                self.finite(&p("poisson_ratio"), nu)?;
+                if nu >= 0.5 {
+                    return Err(self.err(p("poisson_ratio"), format!("Poisson's ratio must be below 0.5, got {nu} (incompressible: lambda is infinite)"), "use nu < 0.5 (e.g. 0.45 for rubbery jelly), or a type = \"fluid\" material for liquids"));
+                }
+                if nu <= -1.0 {
+                    return Err(self.err(
+                        p("poisson_ratio"),
+                        format!("Poisson's ratio must be above -1, got {nu}"),
+                        "use a value in (-1, 0.5), typically 0.2-0.4",
+                    ));
+                }
+                Ok(material::lame(e, nu))
+            }
+            (None, None, Some(mu), Some(lambda)) => {
+                let mu = self.positive(&p("mu"), mu, "shear modulus mu (Pa)")?;
+                self.finite(&p("lambda"), lambda)?;
+                if lambda + 2.0 / 3.0 * mu <= 0.0 {
+                    return Err(self.err(
+                        p("lambda"),
+                        format!(
+                            "lambda = {lambda} gives a non-positive bulk modulus lambda + 2 mu / 3"
+                        ),
+                        "use lambda > -2 mu / 3 (usually lambda > 0)",
+                    ));
+                }
+                Ok((mu, lambda))
+            }
+            (e, nu, mu, lambda) => {
+                let field = if e.is_some() && nu.is_none() {
+                    "poisson_ratio"
+                } else if nu.is_some() && e.is_none() {
+                    "youngs_modulus"
+                } else if mu.is_some() && lambda.is_none() {
+                    "lambda"
+                } else if (lambda.is_some() && mu.is_none()) || e.is_some() {
+                    "mu"
+                } else {
+                    "youngs_modulus"
+                };
+                Err(self.err(p(field), "give the elasticity as youngs_modulus + poisson_ratio, or as mu + lambda (one pair, not both)", "e.g. youngs_modulus = 3e5, poisson_ratio = 0.3"))
+            }
+        }
+    }
+
+    fn mesh(&self, prefix: &str, g: &RawGeometry, base: &Path, dx: f32) -> R<Arc<MeshSdf>> {
+        let file = g.file.as_ref().ok_or_else(|| {
+            self.err(
+                format!("{prefix}.file"),
+                "a mesh needs a file",
+                "add file = \"meshes/x.obj\" (relative to the scene file)",
+            )
+        })?;
+        let scale = match g.scale {
+            None => Vec3::ONE,
+            Some(RawScale::Uniform(s)) => Vec3::splat(s),
+            Some(RawScale::PerAxis(s)) => Vec3::from_array(s),
+        };
+        if !scale.is_finite() || scale.min_element() <= 0.0 {
+            return Err(self.err(
+                format!("{prefix}.scale"),
+                format!("scale {} must be positive", fmt3(scale)),
+                "use positive scale factors",
+            ));
+        }
+        let translate = match g.translate {
+            Some(t) => self.vec3(&format!("{prefix}.translate"), t)?,
+            None => Vec3::ZERO,
+        };
+        let path = base.join(file);
+        let sdf = MeshSdf::from_obj(&path, scale, translate, 0.5 * dx, MESH_MARGIN)
+            .map_err(|e| self.err(format!("{prefix}.file"), e.to_string(), "give a readable, closed OBJ mesh with triangles (paths are relative to the scene file)"))?;
+        Ok(Arc::new(sdf))
+    }
+
+    /// Check that only the parameters of `shape` are given.
+    fn shape_fields(&self, prefix: &str, shape: RawShape, g: &RawGeometry) -> R<()> {
+        let allowed: &[&str] = match shape {
+            RawShape::HalfSpace => &["point", "normal"],
+            RawShape::Box => &["min", "max"],
+            RawShape::Sphere => &["center", "radius"],
+            RawShape::Cylinder => &["center", "axis", "radius", "height"],
+            RawShape::Mesh => &["file", "scale", "translate"],
+        };
+        let given = [
+            ("min", g.min.is_some()),
+            ("max", g.max.is_some()),
+            ("center", g.center.is_some()),
+            ("radius", g.radius.is_some()),
+            ("axis", g.axis.is_some()),
+            ("height", g.height.is_some()),
+            ("file", g.file.is_some()),
+            ("scale", g.scale.is_some()),
+            ("translate", g.translate.is_some()),
+            ("point", g.point.is_some()),
+            ("normal", g.normal.is_some()),
+        ];
+        for (f, is) in given {
+            if is && !allowed.contains(&f) {
+                return Err(self.err(
+                    format!("{prefix}.{f}"),
+                    format!("`{f}` is not a parameter of shape \"{}\"", shape.name()),
+                    format!("remove it; this shape takes: {}", allowed.join(", ")),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn need<T: Copy>(&self, prefix: &str, f: &str, x: Option<T>, shape: RawShape) -> R<T> {
+        x.ok_or_else(|| {
+            self.err(
+                format!("{prefix}.{f}"),
+                format!("shape \"{}\" needs `{f}`", shape.name()),
+                format!("add {f}"),
+            )
+        })
+    }
+
+    /// Analytic body shapes, or a mesh.
+    fn body_shape(
+        &self,
+        prefix: &str,
+        shape: RawShape,
+        g: &RawGeometry,
+        base: &Path,
+        dx: f32,
+    ) -> R<BodyShape> {
+        self.shape_fields(prefix, shape, g)?;
+        let f = |n: &str| format!("{prefix}.{n}");
+        Ok(match shape {
+            RawShape::Box => {
+                let min = self.vec3(&f("min"), self.need(prefix, "min", g.min, shape)?)?;
+                let max = self.vec3(&f("max"), self.need(prefix, "max", g.max, shape)?)?;
+                if !max.cmpgt(min).all() {
+                    return Err(self.err(
+                        f("max"),
+                        format!(
+                            "box max {} is not above min {} on every axis",
+                            fmt3(max),
+                            fmt3(min)
+                        ),
+                        "make every component of max larger than min",
+                    ));
+                }
+                BodyShape::Box { min, max }
+            }
+            RawShape::Sphere => {
+                let center =
+                    self.vec3(&f("center"), self.need(prefix, "center", g.center, shape)?)?;
+                let radius = self.positive(
+                    &f("radius"),
+                    self.need(prefix, "radius", g.radius, shape)?,
+                    "radius",
+                )?;
+                BodyShape::Sphere { center, radius }
+            }
+            RawShape::Cylinder => {
+                let center =
+                    self.vec3(&f("center"), self.need(prefix, "center", g.center, shape)?)?;
+                let axis = self.unit(&f("axis"), g.axis.unwrap_or([0.0, 1.0, 0.0]), "axis")?;
+                let radius = self.positive(
+                    &f("radius"),
+                    self.need(prefix, "radius", g.radius, shape)?,
+                    "radius",
+                )?;
+                let height = self.positive(
+                    &f("height"),
+                    self.need(prefix, "height", g.height, shape)?,
+                    "height",
+                )?;
+                BodyShape::Cylinder {
+                    center,
+                    axis,
+                    radius,
+                    half_height: 0.5 * height,
+                }
+            }
+            RawShape::Mesh => BodyShape::Mesh(self.mesh(prefix, g, base, dx)?),
+            RawShape::HalfSpace => {
+                return Err(self.err(
+                    f("shape"),
+                    "a body cannot be a half-space (it is infinite)",
+                    "use box, sphere, cylinder or mesh",
+                ));
+            }
+        })
+    }
+
+    fn body(
+        &self,
+        i: usize,
+        b: &RawBody,
+        materials: &[Material],
+        base: &Path,
+        dx: f32,
+        interior: (Vec3, Vec3),
+    ) -> R<Body> {
+        let prefix = format!("body[{i}]");
+        let f = |n: &str| format!("{prefix}.{n}");
+        let material = materials
+            .iter()
+            .position(|m| m.name == b.material)
+            .ok_or_else(|| {
+                let known: Vec<String> =
+                    materials.iter().map(|m| format!("{:?}", m.name)).collect();
+                self.err(
+                    f("material"),
+                    format!("unknown material {:?}", b.material),
+                    if known.is_empty() {
+                        "define it in a [[material]] table".to_string()
+                    } else {
+                        format!("use one of: {}", known.join(", "))
+                    },
+                )
+            })? as u32;
+        let shape = self.body_shape(&prefix, b.shape, &b.geometry(), base, dx)?;
+        let (lo, hi) = shape.bounds();
+        let (imin, imax) = interior;
+        let tol = 1e-5 * (imax - imin).max_element();
+        if lo.cmplt(imin - tol).any() || hi.cmpgt(imax + tol).any() {
+            return Err(self.err(
+                f("shape"),
+                format!(
+                    "the body spans {} .. {}, outside the domain or inside the walls",
+                    fmt3(lo),
+                    fmt3(hi)
+                ),
+                format!(
+                    "keep bodies inside the box {} .. {} (the domain minus the walls)",
+                    fmt3(imin),
+                    fmt3(imax)
+                ),
+            ));
+        }
+        let ppc = b.particles_per_cell.unwrap_or(8);
+        if ppc == 0 {
+            return Err(self.err(
+                f("particles_per_cell"),
+                "particles_per_cell must be at least 1",
+                "use 8 (2 per axis) or 27 (3 per axis)",
+            ));
+        }
+        let sampling = match b.sampling.unwrap_or(RawSampling::Jittered) {
+            RawSampling::Regular => Sampling::Regular,
+            RawSampling::Jittered => Sampling::Jittered,
+            RawSampling::Random => Sampling::Random,
+        };
+        if let Some(c) = b.count {
+            if sampling != Sampling::Random {
+                return Err(self.err(
+                    f("count"),
+                    "count only applies to sampling = \"random\"",
+                    "remove count, or set sampling = \"random\"",
+                ));
+            }
+            if c == 0 {
+                return Err(self.err(
+                    f("count"),
+                    "count must be at least 1",
+                    "give a positive particle count",
+                ));
+            }
+        }
+        let velocity = match b.velocity {
+            Some(v) => self.vec3(&f("velocity"), v)?,
+            None => Vec3::ZERO,
+        };
+        let angular_velocity = match b.angular_velocity {
+            Some(v) => self.vec3(&f("angular_velocity"), v)?,
+            None => Vec3::ZERO,
+        };
+        Ok(Body {
+            name: b.name.clone().unwrap_or_else(|| format!("body{i}")),
+            material,
+            shape,
+            particles_per_cell: ppc,
+            jitter: sampling == Sampling::Jittered,
+            sampling,
+            count: b.count,
+            velocity,
+            angular_velocity,
+        })
+    }
+
+    fn collider(&self, i: usize, c: &RawCollider, base: &Path, dx: f32) -> R<Collider> {
+        let prefix = format!("collider[{i}]");
+        let f = |n: &str| format!("{prefix}.{n}");
+        let g = c.geometry();
+        let shape = match c.shape {
+            RawShape::HalfSpace => {
+                self.shape_fields(&prefix, c.shape, &g)?;
+                let point =
+                    self.vec3(&f("point"), self.need(&prefix, "point", g.point, c.shape)?)?;
+                let normal = self.unit(
+                    &f("normal"),
+                    self.need(&prefix, "normal", g.normal, c.shape)?,
+                    "normal",
+                )?;
+                Shape::HalfSpace { point, normal }
+            }
+            s => match self.body_shape(&prefix, s, &g, base, dx)? {
+                BodyShape::Box { min, max } => Shape::Box {
+                    center: 0.5 * (min + max),
+                    half_extents: 0.5 * (max - min),
+                },
+                BodyShape::Sphere { center, radius } => Shape::Sphere { center, radius },
+                BodyShape::Cylinder {
+                    center,
+                    axis,
+                    radius,
+                    half_height,
+                } => Shape::Cylinder {
+                    center,
+                    axis,
+                    radius,
+                    half_height,
+                },
+                BodyShape::Mesh(m) => Shape::Mesh(m),
+            },
+        };
+        let condition = Self::condition(c.condition.unwrap_or(RawCondition::Slip));
+        let friction = self.non_negative(&f("friction"), c.friction.unwrap_or(0.0), "friction")?;
+        let velocity = match c.velocity {
+            Some(v) => self.vec3(&f("velocity"), v)?,
+            None => Vec3::ZERO,
+        };
+        let angular_velocity = match c.angular_velocity {
+            Some(v) => self.vec3(&f("angular_velocity"), v)?,
+            None => Vec3::ZERO,
+        };
+        let pivot = match c.pivot {
+            Some(p) => self.vec3(&f("pivot"), p)?,
+            None => shape.center(),
+        };
+        Ok(Collider {
+            shape,
+            rule: BoundaryRule {
+                condition,
+                friction,
+            },
+            velocity,
+            angular_velocity,
+            pivot,
+        })
+    }
+}
