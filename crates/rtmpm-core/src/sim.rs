@@ -113,6 +113,10 @@ pub trait Backend {
     fn cheap_check(&self) -> bool {
         false
     }
+    /// Time spent per pipeline stage so far, as (stage name, seconds), where the backend measures it.
+    fn stage_times(&self) -> Vec<(&'static str, f64)> {
+        Vec::new()
+    }
 }
 
 /// Drives a backend through frames of a scene.
@@ -186,33 +190,56 @@ impl Simulation {
     /// With a fixed dt that divides the frame duration, exactly that many equal steps are taken;
     /// otherwise the last step is shortened to land on the frame time.
     pub fn advance_frame(&mut self) -> Result<u64, SimError> {
+        let start = self.step;
+        self.advance(u64::MAX)?;
+        Ok(self.step - start)
+    }
+
+    /// Advance towards the end of the current frame, taking at most `max_steps` steps. Returns
+    /// true when the frame was completed (then [`Simulation::frame`] has moved on).
+    pub fn advance(&mut self, max_steps: u64) -> Result<bool, SimError> {
+        let frame_start = self.frame as f64 * self.frame_duration();
         let frame_end = (self.frame + 1) as f64 * self.frame_duration();
-        let start_step = self.step;
+        let mut taken = 0;
         if let StepMode::Fixed { dt } = self.scene.time.step {
-            let n = (frame_end - self.time) / dt as f64;
-            if (n - n.round()).abs() < 1e-6 * n.max(1.0) {
-                for _ in 0..n.round() as u64 {
+            let per_frame = self.frame_duration() / dt as f64;
+            if (per_frame - per_frame.round()).abs() < 1e-6 * per_frame.max(1.0) {
+                // Whole number of equal steps per frame: count them, so time never drifts.
+                let per_frame = per_frame.round() as u64;
+                let done = ((self.time - frame_start) / dt as f64).round() as u64;
+                while done + taken < per_frame {
+                    if taken == max_steps {
+                        self.check()?;
+                        return Ok(false);
+                    }
                     self.step_once(dt)?;
+                    taken += 1;
+                    self.time = frame_start + (done + taken) as f64 * dt as f64;
                 }
                 self.time = frame_end;
-                return self.finish_frame(start_step);
+                self.finish_frame()?;
+                return Ok(true);
             }
         }
         let eps = 1e-9 * self.frame_duration();
         while self.time < frame_end - eps {
+            if taken == max_steps {
+                self.check()?;
+                return Ok(false);
+            }
             let dt = self.next_dt()?;
             let remaining = (frame_end - self.time) as f32;
-            let dt = if dt >= remaining { remaining } else { dt };
-            self.step_once(dt)?;
+            self.step_once(dt.min(remaining))?;
+            taken += 1;
         }
         self.time = frame_end;
-        self.finish_frame(start_step)
+        self.finish_frame()?;
+        Ok(true)
     }
 
-    fn finish_frame(&mut self, start_step: u64) -> Result<u64, SimError> {
+    fn finish_frame(&mut self) -> Result<(), SimError> {
         self.frame += 1;
-        self.check()?;
-        Ok(self.step - start_step)
+        self.check()
     }
 
     /// Check the backend for a bad particle and turn it into a [`SimError::Blowup`].

@@ -90,6 +90,7 @@ pub fn bench(args: BenchArgs) -> Result<()> {
         sim.step_once(dt)?;
     }
     sim.check()?;
+    let before: Vec<f64> = sim.backend.stage_times().iter().map(|s| s.1).collect();
     let start = Instant::now();
     for _ in 0..args.steps {
         sim.step_once(dt)?;
@@ -115,5 +116,11 @@ pub fn bench(args: BenchArgs) -> Result<()> {
         "  throughput   {} ({rate:.4e} particle-steps/s)",
         human_rate(rate)
     );
+    for ((name, total), b) in sim.backend.stage_times().into_iter().zip(before) {
+        println!(
+            "  stage        {name:<12} {:.3} ms/step",
+            1e3 * (total - b) / args.steps as f64
+        );
+    }
     Ok(())
 }

@@ -8,7 +8,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use rtmpm_core::io::checkpoint::Checkpoint;
 use rtmpm_core::sim::Simulation;
 use rtmpm_core::{Particles, Scene};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Args)]
@@ -47,7 +47,10 @@ pub fn run(args: RunArgs) -> Result<()> {
         Some(ckpt_path) => {
             let ckpt = Checkpoint::load(ckpt_path)
                 .with_context(|| format!("cannot resume from {}", ckpt_path.display()))?;
-            let scene = Scene::from_toml(&ckpt.scene_toml, &ckpt.scene_origin)?;
+            let base = Path::new(&ckpt.scene_origin)
+                .parent()
+                .unwrap_or(Path::new(""));
+            let scene = Scene::from_toml_in(&ckpt.scene_toml, &ckpt.scene_origin, base)?;
             (
                 scene,
                 ckpt.particles,
@@ -99,11 +102,9 @@ pub fn run(args: RunArgs) -> Result<()> {
             .unwrap_or_default()
     );
     let mut host = Particles::default();
-    if sim.frame == 0 {
-        if let Some(out) = output.as_mut() {
-            sim.backend.read_particles(&mut host)?;
-            out.write_frame(0, 0.0, &host, &sim.scene)?;
-        }
+    if let (0, Some(out)) = (sim.frame, output.as_mut()) {
+        sim.backend.read_particles(&mut host)?;
+        out.write_frame(0, 0.0, &host, &sim.scene)?;
     }
 
     let bar = ProgressBar::new(total_frames);
@@ -119,30 +120,12 @@ pub fn run(args: RunArgs) -> Result<()> {
     let start_step = sim.step;
     let mut stopped_by_steps = false;
     while sim.frame < total_frames {
-        if let Some(max_steps) = args.steps {
-            // Exactly N steps in total from this run's start, then stop.
-            let left = max_steps.saturating_sub(sim.step - start_step);
-            if left == 0 {
-                stopped_by_steps = true;
-                break;
-            }
-            let frame_end = (sim.frame + 1) as f64 * sim.frame_duration();
-            let mut taken = 0;
-            while taken < left && sim.time < frame_end - 1e-12 {
-                let dt = sim.next_dt()?.min((frame_end - sim.time) as f32);
-                sim.step_once(dt)?;
-                taken += 1;
-            }
-            if sim.time < frame_end - 1e-12 {
-                sim.check()?;
-                stopped_by_steps = true;
-                break;
-            }
-            sim.time = frame_end;
-            sim.frame += 1;
-            sim.check()?;
-        } else {
-            sim.advance_frame()?;
+        let left = args
+            .steps
+            .map_or(u64::MAX, |max| max.saturating_sub(sim.step - start_step));
+        if !sim.advance(left)? {
+            stopped_by_steps = true;
+            break;
         }
         let elapsed = start.elapsed().as_secs_f64();
         let rate = (sim.step - start_step) as f64 * n as f64 / elapsed.max(1e-9);
@@ -156,25 +139,29 @@ pub fn run(args: RunArgs) -> Result<()> {
         if let Some(out) = output.as_mut() {
             sim.backend.read_particles(&mut host)?;
             out.write_frame(sim.frame, sim.time, &host, &sim.scene)?;
-            if let Some(every) = args.checkpoint_every {
-                if every > 0 && sim.frame % every == 0 {
-                    let ckpt = Checkpoint {
-                        scene_toml: scene_text.clone(),
-                        scene_origin: sim
-                            .scene
-                            .source
-                            .as_ref()
-                            .map_or("<checkpoint>".into(), |p| p.display().to_string()),
-                        time: sim.time,
-                        step: sim.step,
-                        frame: sim.frame,
-                        particles: host.clone(),
-                    };
-                    let path = out.dir.join(format!("checkpoint_{:05}.ckpt", sim.frame));
-                    ckpt.save(&path)
-                        .with_context(|| format!("writing checkpoint {}", path.display()))?;
-                }
-            }
+        }
+        if args
+            .checkpoint_every
+            .is_some_and(|every| every > 0 && sim.frame.is_multiple_of(every))
+        {
+            sim.backend.read_particles(&mut host)?;
+            let ckpt = Checkpoint {
+                scene_toml: scene_text.clone(),
+                scene_origin: sim
+                    .scene
+                    .source
+                    .as_ref()
+                    .map_or("<checkpoint>".into(), |p| p.display().to_string()),
+                time: sim.time,
+                step: sim.step,
+                frame: sim.frame,
+                particles: host.clone(),
+            };
+            std::fs::create_dir_all(&out_dir)
+                .with_context(|| format!("cannot create output folder {}", out_dir.display()))?;
+            let path = out_dir.join(format!("checkpoint_{:05}.ckpt", sim.frame));
+            ckpt.save(&path)
+                .with_context(|| format!("writing checkpoint {}", path.display()))?;
         }
     }
     bar.finish_and_clear();

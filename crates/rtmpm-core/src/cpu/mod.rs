@@ -77,6 +77,8 @@ pub struct CpuBackend {
     pub grid: Vec<Node>,
     /// gblocks of each of the 8 colours `(bx & 1, by & 1, bz & 1)`.
     pub colours: [Vec<u32>; 8],
+    /// Accumulated wall time of each stage: rebuild, p2g, grid update, g2p (seconds).
+    pub stage_seconds: [f64; 4],
     pool: Option<rayon::ThreadPool>,
     max_speed: f32,
     bad: Option<BadParticle>,
@@ -116,6 +118,7 @@ impl CpuBackend {
             bases: Vec::new(),
             grid: Vec::new(),
             colours: Default::default(),
+            stage_seconds: [0.0; 4],
             pool,
             max_speed,
             bad: None,
@@ -130,10 +133,22 @@ impl CpuBackend {
     }
 
     fn step_inner(&mut self, dt: f32, t: f32) {
+        let t0 = std::time::Instant::now();
         rebuild::rebuild(self);
+        let t1 = std::time::Instant::now();
         p2g::p2g(self, dt);
+        let t2 = std::time::Instant::now();
         grid_update::grid_update(self, dt, t);
+        let t3 = std::time::Instant::now();
         let (max_speed, bad) = g2p::g2p(self, dt);
+        let t4 = std::time::Instant::now();
+        for (acc, (a, b)) in
+            self.stage_seconds
+                .iter_mut()
+                .zip([(t0, t1), (t1, t2), (t2, t3), (t3, t4)])
+        {
+            *acc += (b - a).as_secs_f64();
+        }
         self.max_speed = max_speed;
         if self.bad.is_none() {
             self.bad = bad;
@@ -176,5 +191,12 @@ impl Backend for CpuBackend {
 
     fn cheap_check(&self) -> bool {
         true
+    }
+
+    fn stage_times(&self) -> Vec<(&'static str, f64)> {
+        ["rebuild", "p2g", "grid_update", "g2p"]
+            .into_iter()
+            .zip(self.stage_seconds)
+            .collect()
     }
 }

@@ -20,6 +20,17 @@ struct GridPtr(*mut Node);
 unsafe impl Send for GridPtr {}
 unsafe impl Sync for GridPtr {}
 
+impl GridPtr {
+    /// # Safety
+    /// `idx` is in bounds and no other thread accesses node `idx` concurrently.
+    #[allow(clippy::mut_from_ref)]
+    #[inline]
+    unsafe fn node(&self, idx: usize) -> &mut Node {
+        // SAFETY: guaranteed by the caller.
+        unsafe { &mut *self.0.add(idx) }
+    }
+}
+
 /// Scatter particle mass and momentum to the grid.
 pub fn p2g(b: &mut CpuBackend, dt: f32) {
     let n_nodes = b.layout.node_count();
@@ -32,7 +43,6 @@ pub fn p2g(b: &mut CpuBackend, dt: f32) {
     for colour in &b.colours {
         colour.par_iter().for_each(|&g| {
             let g = g as usize;
-            let grid = grid;
             for &pi in layout.particles_of(g) {
                 let pi = pi as usize;
                 let s = Stencil::new((p.x[pi] - c.origin) * c.inv_dx);
@@ -52,7 +62,7 @@ pub fn p2g(b: &mut CpuBackend, dt: f32) {
                             let mom = w * (mv + affine_dx * s.dpos(i, j, k));
                             // SAFETY: idx < n_nodes (neighbour lists point at allocated
                             // pblocks) and no other thread writes this node in this pass.
-                            let n = unsafe { &mut *grid.0.add(idx) };
+                            let n = unsafe { grid.node(idx) };
                             n[0] += w * m;
                             n[1] += mom.x;
                             n[2] += mom.y;

@@ -1,7 +1,6 @@
 //! Stage 1: particle stencil bases, block layout and particle order.
 
 use super::CpuBackend;
-use crate::grid::codes::BLOCK_BITS;
 use crate::shape::Stencil;
 use rayon::prelude::*;
 
@@ -23,5 +22,4 @@ pub fn rebuild(b: &mut CpuBackend) {
         let colour = ((bc.x & 1) << 2 | (bc.y & 1) << 1 | (bc.z & 1)) as usize;
         b.colours[colour].push(g as u32);
     }
-    debug_assert!(BLOCK_BITS == 2);
 }

@@ -213,8 +213,8 @@ fn free_fall_matches_x0_minus_half_g_t_squared() {
     let t = n as f32 * dt;
     // Symplectic Euler lags the exact parabola by g t dt / 2.
     let tol = 0.5 * 9.8 * t * dt + 1e-5;
-    for i in 0..x0.len() {
-        let exact = x0[i] + 0.5 * g * t * t;
+    for (i, &x0) in x0.iter().enumerate() {
+        let exact = x0 + 0.5 * g * t * t;
         assert!(
             (b.particles.x[i] - exact).length() <= tol,
             "particle {i}: {} vs {exact}",
