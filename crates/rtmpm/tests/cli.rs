@@ -1,0 +1,220 @@
+//! End-to-end tests of the `rtmpm` command line.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn rtmpm(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rtmpm"))
+        .args(args)
+        .output()
+        .expect("rtmpm starts")
+}
+
+fn data(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data")
+        .join(name)
+        .display()
+        .to_string()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch dir");
+    dir
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+#[test]
+fn run_writes_frames_and_resume_is_bit_identical() {
+    let dir = scratch("resume");
+    let (a, b) = (dir.join("a"), dir.join("b"));
+    let full = rtmpm(&[
+        "run",
+        &data("small_drop.toml"),
+        "--backend",
+        "cpu",
+        "--out",
+        a.to_str().unwrap(),
+        "--checkpoint-every",
+        "2",
+    ]);
+    assert!(full.status.success(), "{}", text(&full));
+    let summary = text(&full);
+    assert!(
+        summary.contains("particles") && summary.contains("particle-steps/s"),
+        "{summary}"
+    );
+    for f in [
+        "frame_00000.ply",
+        "frame_00004.ply",
+        "frame_00004.vtu",
+        "frames.pvd",
+        "checkpoint_00002.ckpt",
+    ] {
+        assert!(a.join(f).exists(), "{f} missing");
+    }
+    // No temporary files are left behind.
+    for e in std::fs::read_dir(&a).unwrap() {
+        let name = e.unwrap().file_name().into_string().unwrap();
+        assert!(!name.contains(".tmp"), "leftover {name}");
+    }
+    let ckpt = a.join("checkpoint_00002.ckpt");
+    let resumed = rtmpm(&[
+        "run",
+        "--resume",
+        ckpt.to_str().unwrap(),
+        "--backend",
+        "cpu",
+        "--out",
+        b.to_str().unwrap(),
+    ]);
+    assert!(resumed.status.success(), "{}", text(&resumed));
+    assert!(
+        !b.join("frame_00002.ply").exists(),
+        "resume starts after the checkpoint's frame"
+    );
+    for f in ["frame_00003.ply", "frame_00004.ply", "frame_00004.vtu"] {
+        let (x, y) = (
+            std::fs::read(a.join(f)).unwrap(),
+            std::fs::read(b.join(f)).unwrap(),
+        );
+        assert!(x == y, "{f} differs after resume");
+    }
+}
+
+#[test]
+fn bad_scene_is_a_clear_error_not_a_panic() {
+    let dir = scratch("bad");
+    let good = std::fs::read_to_string(data("small_drop.toml")).unwrap();
+    let cases = [
+        (
+            good.replace("poisson_ratio = 0.3", "poisson_ratio = 0.5"),
+            "poisson_ratio",
+        ),
+        (good.replace("dx = 0.03125", "dx = -0.03125"), "dx"),
+        (
+            good.replace("density = 1000.0\nyoungs", "density = -5.0\nyoungs"),
+            "density",
+        ),
+        (good.replace("radius = 0.06", "radius = 0.6"), "outside"),
+        (good.replace("[time]", "[time\n"), "toml:10:6"),
+        (good.replace("gamma = 7.0", "gama = 7.0"), "gama"),
+    ];
+    for (i, (scene, needle)) in cases.iter().enumerate() {
+        let path = dir.join(format!("bad{i}.toml"));
+        std::fs::write(&path, scene).unwrap();
+        for cmd in ["check", "run"] {
+            let o = rtmpm(
+                &[cmd, path.to_str().unwrap(), "--backend", "cpu"]
+                    [..if cmd == "check" { 2 } else { 4 }],
+            );
+            let t = text(&o);
+            assert!(!o.status.success(), "case {i} ({needle}) accepted by {cmd}");
+            assert!(
+                t.contains(needle),
+                "case {i}: message does not name `{needle}`:\n{t}"
+            );
+            assert!(
+                t.contains(&format!("bad{i}.toml:")),
+                "case {i}: no file:line in\n{t}"
+            );
+            assert!(!t.contains("panicked"), "case {i} panicked:\n{t}");
+        }
+    }
+    let o = rtmpm(&["check", "/nonexistent/scene.toml"]);
+    assert!(
+        !o.status.success() && text(&o).contains("/nonexistent/scene.toml"),
+        "{}",
+        text(&o)
+    );
+}
+
+#[test]
+fn blowup_stops_with_particle_material_and_advice() {
+    let dir = scratch("blowup");
+    let good = std::fs::read_to_string(data("small_drop.toml")).unwrap();
+    // A stiff material with a huge fixed step explodes.
+    let scene = good
+        .replace("cfl = 0.4\nmax_dt = 2e-3", "dt = 5e-3")
+        .replace("youngs_modulus = 2.0e4", "youngs_modulus = 2.0e9");
+    let path = dir.join("explode.toml");
+    std::fs::write(&path, scene).unwrap();
+    let o = rtmpm(&[
+        "run",
+        path.to_str().unwrap(),
+        "--backend",
+        "cpu",
+        "--no-output",
+    ]);
+    let t = text(&o);
+    assert!(!o.status.success(), "explosion not detected:\n{t}");
+    assert!(
+        t.contains("blew up") && t.contains("particle") && t.contains("jelly"),
+        "{t}"
+    );
+    assert!(t.contains("smaller time step"), "{t}");
+}
+
+#[test]
+fn info_and_auto_backend_work_without_a_gpu() {
+    let o = rtmpm(&["info"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("cpu"), "{}", text(&o));
+    let o = rtmpm(&[
+        "run",
+        &data("small_drop.toml"),
+        "--backend",
+        "auto",
+        "--frames",
+        "1",
+        "--no-output",
+    ]);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    assert!(
+        t.contains("backend: auto ->"),
+        "auto does not say what it picked:\n{t}"
+    );
+    let o = rtmpm(&[
+        "run",
+        &data("small_drop.toml"),
+        "--backend",
+        "cuda",
+        "--frames",
+        "1",
+        "--no-output",
+    ]);
+    let t = text(&o);
+    assert!(!t.contains("panicked"), "{t}");
+    if !o.status.success() {
+        assert!(
+            t.contains("CUDA") && t.contains("--backend cpu"),
+            "unclear message without a GPU:\n{t}"
+        );
+    }
+}
+
+#[test]
+fn steps_limit_stops_early() {
+    let o = rtmpm(&[
+        "run",
+        &data("small_drop.toml"),
+        "--backend",
+        "cpu",
+        "--steps",
+        "3",
+        "--no-output",
+    ]);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    assert!(t.contains("steps        3"), "{t}");
+}
