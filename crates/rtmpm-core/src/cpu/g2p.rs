@@ -2,7 +2,7 @@
 //! plastic return mapping, advection and health check.
 
 use super::CpuBackend;
-use crate::math::{IVec3, Mat3, Vec3, outer};
+use crate::math::{Mat3, Vec3, outer};
 use crate::shape::{Stencil, inv_d};
 use crate::sim::{BadParticle, check_particle};
 use rayon::prelude::*;
@@ -24,15 +24,14 @@ pub fn g2p(b: &mut CpuBackend, dt: f32) -> (f32, Option<BadParticle>) {
         .map(|(pi, ((((x, v), cp), f), plastic))| {
             let s = Stencil::new((*x - c.origin) * c.inv_dx);
             debug_assert_eq!(s.base, bases[pi]);
-            let g = layout.gblock_of(pi);
+            let nodes = layout.stencil_nodes(layout.gblock_of(pi), s.base);
             let mut new_v = Vec3::ZERO;
             let mut new_c = Mat3::ZERO;
             for i in 0..3 {
                 for j in 0..3 {
                     for k in 0..3 {
                         let w = s.weight(i, j, k);
-                        let node = s.base + IVec3::new(i as i32, j as i32, k as i32);
-                        let n = grid[layout.node_index(g, node)];
+                        let n = grid[nodes[i * 9 + j * 3 + k] as usize];
                         let vi = Vec3::new(n[1], n[2], n[3]);
                         new_v += w * vi;
                         // C = D^-1 sum w v_i (x_i - x_p)^T, dpos in metres.

@@ -8,7 +8,7 @@
 //! fixed order, whatever the number of threads.
 
 use super::{CpuBackend, Node};
-use crate::math::{IVec3, Mat3};
+use crate::math::Mat3;
 use crate::shape::{Stencil, inv_d};
 use rayon::prelude::*;
 
@@ -46,6 +46,7 @@ pub fn p2g(b: &mut CpuBackend, dt: f32) {
             for &pi in layout.particles_of(g) {
                 let pi = pi as usize;
                 let s = Stencil::new((p.x[pi] - c.origin) * c.inv_dx);
+                let nodes = layout.stencil_nodes(g, s.base);
                 let m = p.mass[pi];
                 let model = &c.materials[p.material[pi] as usize].model;
                 // tau = P F^T (Kirchhoff); MLS-MPM force term -dt V0 D^-1 tau.
@@ -57,8 +58,7 @@ pub fn p2g(b: &mut CpuBackend, dt: f32) {
                     for j in 0..3 {
                         for k in 0..3 {
                             let w = s.weight(i, j, k);
-                            let node = s.base + IVec3::new(i as i32, j as i32, k as i32);
-                            let idx = layout.node_index(g, node);
+                            let idx = nodes[i * 9 + j * 3 + k] as usize;
                             let mom = w * (mv + affine_dx * s.dpos(i, j, k));
                             // SAFETY: idx < n_nodes (neighbour lists point at allocated
                             // pblocks) and no other thread writes this node in this pass.

@@ -135,6 +135,34 @@ impl BlockLayout {
         self.keys[p] as usize / BLOCK_NODES
     }
 
+    /// Memory indices of the 3x3x3 stencil starting at node `base`, for a particle of gblock `g`,
+    /// in the order `i * 9 + j * 3 + k`. Same result as [`BlockLayout::node_index`] per node, with
+    /// the block/cell split done once per axis.
+    #[inline]
+    pub fn stencil_nodes(&self, g: usize, base: IVec3) -> [u32; 27] {
+        let corner = self.block_coords[g] << BLOCK_BITS;
+        let r = base - corner;
+        // Per axis and stencil node: neighbour-slot contribution and cell-code contribution.
+        let axis = |r: i32, slot_stride: i32, cell_shift: i32| -> [(i32, u32); 3] {
+            std::array::from_fn(|n| {
+                let rn = r + n as i32;
+                (((rn >> BLOCK_BITS) + 1) * slot_stride, ((rn & 3) << cell_shift) as u32)
+            })
+        };
+        let (ax, ay, az) = (axis(r.x, 9, 4), axis(r.y, 3, 2), axis(r.z, 1, 0));
+        let nb = &self.neighbors[g];
+        let mut out = [0u32; 27];
+        for (i, &(sx, cx)) in ax.iter().enumerate() {
+            for (j, &(sy, cy)) in ay.iter().enumerate() {
+                for (k, &(sz, cz)) in az.iter().enumerate() {
+                    let id = nb[(sx + sy + sz) as usize];
+                    out[i * 9 + j * 3 + k] = id * BLOCK_NODES as u32 + (cx | cy | cz);
+                }
+            }
+        }
+        out
+    }
+
     /// Memory index of node `node` for a particle of gblock `g` (the node must lie in the
     /// gblock's 3x3x3 neighbourhood).
     #[inline]
@@ -189,6 +217,27 @@ mod tests {
                             l.block_coords[id],
                             l.block_coords[g] + IVec3::new(di, dj, dk)
                         );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn stencil_nodes_match_node_index() {
+        let bases: Vec<IVec3> = (0..60).map(|i| IVec3::new(4 + i % 11, 5 + i % 7, 6 + i % 13)).collect();
+        let mut l = BlockLayout::default();
+        l.rebuild(&bases);
+        for g in 0..l.gblock_count {
+            for &p in l.particles_of(g) {
+                let b = bases[p as usize];
+                let s = l.stencil_nodes(g, b);
+                for i in 0..3 {
+                    for j in 0..3 {
+                        for k in 0..3 {
+                            let n = b + IVec3::new(i, j, k);
+                            assert_eq!(s[(i * 9 + j * 3 + k) as usize] as usize, l.node_index(g, n));
+                        }
                     }
                 }
             }
