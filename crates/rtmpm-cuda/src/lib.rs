@@ -1,1 +1,2 @@
 //! rtmpm CUDA backend.
+pub mod compile;
