@@ -8,7 +8,10 @@ use std::path::PathBuf;
 pub const SOURCES: &[(&str, &str)] = &[
     ("math.cuh", include_str!("../kernels/math.cuh")),
     ("common.cuh", include_str!("../kernels/common.cuh")),
-    ("material_dispatch.cuh", include_str!("../kernels/material_dispatch.cuh")),
+    (
+        "material_dispatch.cuh",
+        include_str!("../kernels/material_dispatch.cuh"),
+    ),
     ("rebuild.cu", include_str!("../kernels/rebuild.cu")),
     ("p2g.cu", include_str!("../kernels/p2g.cu")),
     ("grid_update.cu", include_str!("../kernels/grid_update.cu")),
@@ -88,7 +91,8 @@ pub fn nvrtc_options(o: &KernelOptions) -> Vec<String> {
 /// later `dlopen("libnvrtc.so.13")` finds the already loaded library by its soname.
 pub fn preload_nvrtc() {
     use std::sync::OnceLock;
-    static LIB: OnceLock<Option<(libloading::Library, Option<libloading::Library>)>> = OnceLock::new();
+    static LIB: OnceLock<Option<(libloading::Library, Option<libloading::Library>)>> =
+        OnceLock::new();
     LIB.get_or_init(|| {
         let mut candidates: Vec<PathBuf> = Vec::new();
         if let Ok(p) = std::env::var("RTMPM_NVRTC_LIB") {
@@ -110,7 +114,9 @@ pub fn preload_nvrtc() {
                     let builtins = c.parent().and_then(|d| {
                         let b = d.join("libnvrtc-builtins.so.13.0");
                         // SAFETY: as above.
-                        b.exists().then(|| unsafe { libloading::Library::new(&b) }.ok()).flatten()
+                        b.exists()
+                            .then(|| unsafe { libloading::Library::new(&b) }.ok())
+                            .flatten()
                     });
                     return Some((l, builtins));
                 }
@@ -226,10 +232,25 @@ mod tests {
             return;
         }
         for (fast_math, f64) in [(true, false), (false, false), (true, true)] {
-            let o = KernelOptions { arch: (9, 0), fast_math, f64 };
+            let o = KernelOptions {
+                arch: (9, 0),
+                fast_math,
+                f64,
+            };
             let ptx = compile_fresh(&o).unwrap_or_else(|e| panic!("{o:?}: {e}"));
-            for k in ["rb_begin", "rb_scatter", "p2g", "p2g_shared", "grid_update", "g2p", "grid_clear"] {
-                assert!(ptx.contains(&format!(".entry {k}(")), "{k} missing from PTX");
+            for k in [
+                "rb_begin",
+                "rb_scatter",
+                "p2g",
+                "p2g_shared",
+                "grid_update",
+                "g2p",
+                "grid_clear",
+            ] {
+                assert!(
+                    ptx.contains(&format!(".entry {k}(")),
+                    "{k} missing from PTX"
+                );
             }
         }
     }
