@@ -1,0 +1,175 @@
+// Shared device structures of the rtmpm CUDA pipeline (seed 000). Must match src/layout.rs.
+#pragma once
+#include "math.cuh"
+
+#define RTMPM_MAX_COLLIDERS 16
+#define RTMPM_NFIELDS 29
+// Field offsets of the particle state (structure of arrays: field f of particle i is at
+// state[f * cap + i]; every field is 32 bits).
+#define F_X 0
+#define F_V 3
+#define F_C 6
+#define F_F 15
+#define F_PLASTIC 24
+#define F_MASS 25
+#define F_VOL0 26
+#define F_MAT 27
+#define F_ID 28
+
+// Control words (unsigned ctl[]).
+#define CTL_NEED_REBUILD 0
+#define CTL_GBLOCKS 1
+#define CTL_PBLOCKS 2
+#define CTL_ERROR 3
+#define CTL_BAD_INDEX 4
+#define CTL_BAD_REASON 5
+#define CTL_MAX_SPEED 6
+#define CTL_REBUILDS 7
+#define CTL_WARPS 8
+#define CTL_EXTRA 9
+#define CTL_WORDS 16
+
+#define ERR_HASH 1u
+#define ERR_GBLOCKS 2u
+#define ERR_PBLOCKS 4u
+#define ERR_WARPS 8u
+
+#define EMPTY_KEY 0xffffffffffffffffull
+#define EMPTY_ID 0xffffffffu
+
+struct GpuMaterial {
+    unsigned kind;  // 0 fluid (others: TODO, once the ported material headers land)
+    unsigned eos;   // fluid: 0 linear, 1 Tait
+    float p[6];     // fluid: K, gamma, viscosity
+};
+
+struct GpuCollider {
+    unsigned kind;  // 0 half-space, 1 box, 2 sphere, 3 cylinder, 4 mesh
+    unsigned cond;  // 0 sticky, 1 slip, 2 separate
+    float friction;
+    unsigned mesh_offset;
+    float velocity[3];
+    float angular_velocity[3];
+    float pivot[3];
+    float p[8];        // shape parameters in the rest pose
+    unsigned dims[3];  // mesh: grid dims
+    unsigned pad;
+};
+
+// Written with an async host-to-device copy on the compute stream before every step.
+struct StepParams {
+    float dt, t;
+    float gravity[3];
+    unsigned always_rebuild;
+    unsigned pad[2];
+    float rot[RTMPM_MAX_COLLIDERS][9];    // rest -> world rotation at t (column-major)
+    float pivot_t[RTMPM_MAX_COLLIDERS][3];
+};
+
+// Constant for the life of the backend; passed by value to every kernel.
+struct Ctx {
+    float* state;
+    float* scratch;
+    real* grid;               // 4 reals per node: mass, momentum (velocity after grid update)
+    unsigned* ctl;
+    const StepParams* step;
+    const GpuMaterial* materials;
+    const GpuCollider* colliders;
+    const float* mesh_values;
+    unsigned long long* hash_keys;
+    unsigned* hash_values;
+    int* block_coords;        // 3 ints per pblock
+    unsigned* neighbors;      // 27 per gblock
+    unsigned* hist;           // gblock_cap * 64 + 1 bucket counts / offsets
+    unsigned* scan_sums;      // block sums of the scan
+    unsigned* pkey;           // per particle: bucket
+    unsigned* prank;          // per particle: rank in bucket
+    unsigned* warps;          // 3 per warp: gblock, first, count
+    float origin[3];
+    float dx, inv_dx;
+    float domain_min[3], domain_max[3];
+    int n_cells[3];
+    int wall_thickness;
+    unsigned wall_cond[6];
+    float wall_friction[6];
+    unsigned n, cap, gblock_cap, pblock_cap, hash_cap, warp_cap, n_colliders, n_buckets;
+    unsigned warp_reduce, warp_sort, pad0, pad1;
+};
+
+__device__ __forceinline__ unsigned long long spread3(unsigned v) {
+    unsigned long long x = v & 0x7ffffull;
+    x = (x | (x << 32)) & 0x001f00000000ffffull;
+    x = (x | (x << 16)) & 0x001f0000ff0000ffull;
+    x = (x | (x << 8)) & 0x100f00f00f00f00full;
+    x = (x | (x << 4)) & 0x10c30c30c30c30c3ull;
+    x = (x | (x << 2)) & 0x1249249249249249ull;
+    return x;
+}
+__device__ __forceinline__ unsigned compact3(unsigned long long c) {
+    unsigned long long x = c & 0x1249249249249249ull;
+    x = (x | (x >> 2)) & 0x10c30c30c30c30c3ull;
+    x = (x | (x >> 4)) & 0x100f00f00f00f00full;
+    x = (x | (x >> 8)) & 0x001f0000ff0000ffull;
+    x = (x | (x >> 16)) & 0x001f00000000ffffull;
+    x = (x | (x >> 32)) & 0x7ffffull;
+    return (unsigned)x;
+}
+// Block code as rtmpm_core::grid::codes::block_code.
+__device__ __forceinline__ unsigned long long block_code(int bi, int bj, int bk) {
+    return (spread3((unsigned)bi) << 2) | (spread3((unsigned)bj) << 1) | spread3((unsigned)bk);
+}
+__device__ __forceinline__ int cell_code(int i, int j, int k) { return ((i & 3) << 4) | ((j & 3) << 2) | (k & 3); }
+__device__ __forceinline__ int nb_slot(int di, int dj, int dk) { return (di + 1) * 9 + (dj + 1) * 3 + (dk + 1); }
+
+__device__ __forceinline__ vec3 load_v3(const float* s, unsigned cap, int f, unsigned i) {
+    return make_v3(s[f * cap + i], s[(f + 1) * cap + i], s[(f + 2) * cap + i]);
+}
+__device__ __forceinline__ void store_v3(float* s, unsigned cap, int f, unsigned i, vec3 v) {
+    s[f * cap + i] = (float)v.x; s[(f + 1) * cap + i] = (float)v.y; s[(f + 2) * cap + i] = (float)v.z;
+}
+__device__ __forceinline__ mat3 load_m3(const float* s, unsigned cap, int f, unsigned i) {
+    mat3 m; for (int c = 0; c < 9; ++c) m.m[c] = s[(f + c) * cap + i]; return m;
+}
+__device__ __forceinline__ void store_m3(float* s, unsigned cap, int f, unsigned i, const mat3& m) {
+    for (int c = 0; c < 9; ++c) s[(f + c) * cap + i] = (float)m.m[c];
+}
+
+// Grid coordinate, stencil base and fractional offset of a position (shape.rs).
+__device__ __forceinline__ void stencil_of(const Ctx& c, vec3 x, int base[3], real fx[3]) {
+    real xg[3] = {(x.x - c.origin[0]) * c.inv_dx, (x.y - c.origin[1]) * c.inv_dx, (x.z - c.origin[2]) * c.inv_dx};
+    for (int a = 0; a < 3; ++a) {
+        real b = floor(xg[a] - (real)0.5);
+        base[a] = (int)b;
+        fx[a] = xg[a] - b;
+    }
+}
+__device__ __forceinline__ void weights_1d(real fx, real w[3]) {
+    w[0] = (real)0.5 * ((real)1.5 - fx) * ((real)1.5 - fx);
+    w[1] = (real)0.75 - (fx - (real)1.0) * (fx - (real)1.0);
+    w[2] = (real)0.5 * (fx - (real)0.5) * (fx - (real)0.5);
+}
+
+// Hash lookup of a block code; EMPTY_ID if absent.
+__device__ __forceinline__ unsigned hash_find(const Ctx& c, unsigned long long key) {
+    unsigned mask = c.hash_cap - 1;
+    unsigned h = (unsigned)((key * 0x9E3779B97F4A7C15ull) >> 32) & mask;
+    for (unsigned probe = 0; probe < c.hash_cap; ++probe) {
+        unsigned long long k = c.hash_keys[h];
+        if (k == key) return c.hash_values[h];
+        if (k == EMPTY_KEY) return EMPTY_ID;
+        h = (h + 1) & mask;
+    }
+    return EMPTY_ID;
+}
+// Insert a key (atomicCAS open addressing, linear probing). Sets ERR_HASH when full.
+__device__ __forceinline__ void hash_insert(const Ctx& c, unsigned long long key) {
+    unsigned mask = c.hash_cap - 1;
+    unsigned h = (unsigned)((key * 0x9E3779B97F4A7C15ull) >> 32) & mask;
+    for (unsigned probe = 0; probe < c.hash_cap; ++probe) {
+        unsigned long long prev = atomicCAS(&c.hash_keys[h], EMPTY_KEY, key);
+        if (prev == EMPTY_KEY || prev == key) return;
+        h = (h + 1) & mask;
+    }
+    atomicOr(&c.ctl[CTL_ERROR], ERR_HASH);
+}
+__device__ __forceinline__ unsigned thread_index() { return blockIdx.x * blockDim.x + threadIdx.x; }

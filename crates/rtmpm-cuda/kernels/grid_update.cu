@@ -1,0 +1,169 @@
+// Grid update (merged): momentum -> velocity, gravity, domain walls, colliders, in one kernel.
+#include "common.cuh"
+
+// rtmpm_core::boundary::BoundaryRule::apply, literally. cond: 0 sticky, 1 slip, 2 separate.
+__device__ __forceinline__ vec3 rule_apply(unsigned cond, real friction, vec3 v, vec3 n) {
+    real vn = dot(v, n);
+    if (cond == 0) return make_v3(0, 0, 0);
+    if (cond == 2 && vn >= 0) return v;
+    vec3 vt = v - n * vn;
+    real vt_len = length(vt);
+    if (friction > 0 && vt_len > 0) {
+        real reduced = vt_len - friction * fabs(vn);
+        if (reduced <= 0) return make_v3(0, 0, 0);
+        return vt * (reduced / vt_len);
+    }
+    return vt;
+}
+
+__device__ __forceinline__ vec3 normalize_or_y(vec3 v) {
+    real l = length(v);
+    if (l > 0 && isfinite(l)) return v * ((real)1 / l);
+    return make_v3(0, 1, 0);
+}
+__device__ __forceinline__ vec3 v3f(const float* p) { return make_v3(p[0], p[1], p[2]); }
+__device__ __forceinline__ real sgn1(real x) { return x < 0 ? (real)-1 : (real)1; }
+
+__device__ real mesh_distance(const Ctx& c, const GpuCollider& col, vec3 x) {
+    const float* vals = c.mesh_values + col.mesh_offset;
+    real o[3] = {col.p[0], col.p[1], col.p[2]};
+    real h = col.p[3];
+    real xs[3] = {x.x, x.y, x.z};
+    real out2 = 0;
+    int b[3]; real fr[3];
+    for (int a = 0; a < 3; ++a) {
+        int d = (int)col.dims[a];
+        real gmax = o[a] + (real)(d - 1) * h;
+        real cl = fmin(fmax(xs[a], o[a]), gmax);
+        out2 += (xs[a] - cl) * (xs[a] - cl);
+        real g = (cl - o[a]) / h;
+        if (d < 2) { b[a] = 0; fr[a] = 0; continue; }
+        int bb = (int)fmax(floor(g), (real)0);
+        bb = min(bb, d - 2);
+        b[a] = bb;
+        fr[a] = fmin(fmax(g - (real)bb, (real)0), (real)1);
+    }
+    real v = 0;
+    for (int corner = 0; corner < 8; ++corner) {
+        int ix[3]; real w = 1;
+        for (int a = 0; a < 3; ++a) {
+            int oa = (corner >> a) & 1;
+            ix[a] = min(b[a] + oa, (int)col.dims[a] - 1);
+            w *= oa ? fr[a] : (real)1 - fr[a];
+        }
+        v += w * vals[ix[0] + col.dims[0] * (ix[1] + col.dims[1] * ix[2])];
+    }
+    return v + sqrt(out2);
+}
+
+// Signed distance (negative inside) of the rest-pose shape (rtmpm_core::boundary::sdf::Shape).
+__device__ real shape_distance(const Ctx& c, const GpuCollider& col, vec3 x) {
+    const float* p = col.p;
+    switch (col.kind) {
+    case 0: return dot(x - v3f(p), v3f(p + 3));
+    case 1: {
+        vec3 q = x - v3f(p);
+        q = make_v3(fabs(q.x) - p[3], fabs(q.y) - p[4], fabs(q.z) - p[5]);
+        vec3 qp = make_v3(fmax(q.x, (real)0), fmax(q.y, (real)0), fmax(q.z, (real)0));
+        return length(qp) + fmin(fmax(q.x, fmax(q.y, q.z)), (real)0);
+    }
+    case 2: return length(x - v3f(p)) - p[3];
+    case 3: {
+        vec3 a = v3f(p + 3);
+        vec3 q = x - v3f(p);
+        real h = dot(q, a);
+        real r = length(q - a * h);
+        real dr = r - p[6], dh = fabs(h) - p[7];
+        real ox = fmax(dr, (real)0), oy = fmax(dh, (real)0);
+        return sqrt(ox * ox + oy * oy) + fmin(fmax(dr, dh), (real)0);
+    }
+    default: return mesh_distance(c, col, x);
+    }
+}
+
+__device__ vec3 shape_normal(const Ctx& c, const GpuCollider& col, vec3 x) {
+    const float* p = col.p;
+    switch (col.kind) {
+    case 0: return v3f(p + 3);
+    case 1: {
+        vec3 d = x - v3f(p);
+        vec3 q = make_v3(fabs(d.x) - p[3], fabs(d.y) - p[4], fabs(d.z) - p[5]);
+        vec3 s = make_v3(sgn1(d.x), sgn1(d.y), sgn1(d.z));
+        if (fmax(q.x, fmax(q.y, q.z)) > 0)
+            return normalize_or_y(make_v3(fmax(q.x, (real)0) * s.x, fmax(q.y, (real)0) * s.y, fmax(q.z, (real)0) * s.z));
+        if (q.x >= q.y && q.x >= q.z) return make_v3(s.x, 0, 0);
+        if (q.y >= q.z) return make_v3(0, s.y, 0);
+        return make_v3(0, 0, s.z);
+    }
+    case 2: return normalize_or_y(x - v3f(p));
+    case 3: {
+        vec3 a = v3f(p + 3);
+        vec3 q = x - v3f(p);
+        real h = dot(q, a);
+        vec3 radial = q - a * h;
+        real r = length(radial);
+        vec3 er;
+        if (r > 0) er = radial * ((real)1 / r);
+        else {
+            vec3 t = fabs(a.x) < (real)0.9 ? make_v3(1, 0, 0) : make_v3(0, 1, 0);
+            er = normalize_or_y(cross(a, t));
+        }
+        vec3 ea = h >= 0 ? a : a * (real)-1;
+        real dr = r - p[6], dh = fabs(h) - p[7];
+        if (dr > 0 && dh > 0) return normalize_or_y(er * dr + ea * dh);
+        if (dr > 0 || (dr <= 0 && dh <= 0 && dr >= dh)) return er;
+        return ea;
+    }
+    default: {
+        real e = (real)0.5 * p[3];
+        vec3 g = make_v3(mesh_distance(c, col, x + make_v3(e, 0, 0)) - mesh_distance(c, col, x - make_v3(e, 0, 0)),
+                         mesh_distance(c, col, x + make_v3(0, e, 0)) - mesh_distance(c, col, x - make_v3(0, e, 0)),
+                         mesh_distance(c, col, x + make_v3(0, 0, e)) - mesh_distance(c, col, x - make_v3(0, 0, e)));
+        return normalize_or_y(g);
+    }
+    }
+}
+
+extern "C" __global__ void grid_update(Ctx c) {
+    if (c.ctl[CTL_ERROR]) return;
+    unsigned t = thread_index();
+    if (t >= c.ctl[CTL_PBLOCKS] * 64u) return;
+    real* node = c.grid + 4u * t;
+    real m = node[0];
+    if (!(m > 0)) return;
+    const StepParams& sp = *c.step;
+    real inv_m = (real)1 / m;
+    vec3 v = make_v3(node[1] * inv_m + sp.dt * sp.gravity[0], node[2] * inv_m + sp.dt * sp.gravity[1],
+                     node[3] * inv_m + sp.dt * sp.gravity[2]);
+    unsigned id = t >> 6, cell = t & 63u;
+    int gi[3] = {c.block_coords[3 * id] * 4 + (int)(cell >> 4), c.block_coords[3 * id + 1] * 4 + (int)((cell >> 2) & 3u),
+                 c.block_coords[3 * id + 2] * 4 + (int)(cell & 3u)};
+    // Walls (rtmpm_core::boundary::Walls::apply): index counted from the domain min = gi - 4.
+    for (int a = 0; a < 3; ++a) {
+        int i = gi[a] - 4;
+        vec3 n = make_v3(0, 0, 0);
+        if (i < c.wall_thickness) {
+            (&n.x)[a] = 1;
+            v = rule_apply(c.wall_cond[2 * a], c.wall_friction[2 * a], v, n);
+        } else if (i > c.n_cells[a] - c.wall_thickness) {
+            (&n.x)[a] = -1;
+            v = rule_apply(c.wall_cond[2 * a + 1], c.wall_friction[2 * a + 1], v, n);
+        }
+    }
+    // Colliders (rtmpm_core::boundary::Collider::query): v = vc + rule(v - vc, n).
+    if (c.n_colliders) {
+        vec3 x = make_v3(c.origin[0] + gi[0] * c.dx, c.origin[1] + gi[1] * c.dx, c.origin[2] + gi[2] * c.dx);
+        for (unsigned k = 0; k < c.n_colliders; ++k) {
+            GpuCollider col = c.colliders[k];
+            mat3 R;
+            for (int q = 0; q < 9; ++q) R.m[q] = sp.rot[k][q];
+            vec3 pt = v3f(sp.pivot_t[k]);
+            vec3 xr = transpose(R) * (x - pt) + v3f(col.pivot);
+            if (shape_distance(c, col, xr) > 0) continue;
+            vec3 n = normalize_or_y(R * shape_normal(c, col, xr));
+            vec3 vc = v3f(col.velocity) + cross(v3f(col.angular_velocity), x - pt);
+            v = vc + rule_apply(col.cond, col.friction, v - vc, n);
+        }
+    }
+    node[1] = v.x; node[2] = v.y; node[3] = v.z;
+}

@@ -1,0 +1,161 @@
+// P2G (MLS-MPM, Hu et al. 2018) with the Kirchhoff stress computed inline (merged kernel).
+// One warp per warp-list entry, 4 warps per CUDA block, no shared memory, no __syncthreads.
+// Mixed sorting (seed 000): the 32 particles of a warp are sorted by their current stencil key
+// (bitonic sort via __shfl_xor_sync), then lanes writing the same nodes are reduced with
+// segmented __shfl_down_sync sums (Gao et al. 2018) and only segment heads issue atomicAdd.
+#include "common.cuh"
+#include "material_dispatch.cuh"
+
+__device__ __forceinline__ void atomic_add_real(real* p, real v) { atomicAdd(p, v); }
+
+// Memory index of node base + (i, j, k) for a particle of gblock g.
+__device__ __forceinline__ unsigned node_index(const Ctx& c, unsigned g, const int base[3], int i, int j, int k) {
+    const int* bc = c.block_coords + 3 * g;
+    int n0 = base[0] + i, n1 = base[1] + j, n2 = base[2] + k;
+    int s = nb_slot((n0 >> 2) - bc[0], (n1 >> 2) - bc[1], (n2 >> 2) - bc[2]);
+    return c.neighbors[27 * g + s] * 64u + (unsigned)cell_code(n0, n1, n2);
+}
+
+extern "C" __global__ void p2g(Ctx c) {
+    if (c.ctl[CTL_ERROR]) return;
+    unsigned w = thread_index() >> 5, lane = threadIdx.x & 31;
+    if (w >= c.ctl[CTL_WARPS]) return;  // uniform per warp
+    unsigned g = c.warps[3 * w], first = c.warps[3 * w + 1], count = c.warps[3 * w + 2];
+    bool active = lane < count;
+    unsigned src = lane;
+    if (c.warp_sort) {
+        // Cheap in-warp sort: key = (neighbour slot of the base block, cell code of the base).
+        unsigned key = 0xffffu;
+        if (active) {
+            int base[3]; real fx[3];
+            stencil_of(c, load_v3(c.state, c.cap, F_X, first + lane), base, fx);
+            const int* bc = c.block_coords + 3 * g;
+            key = (unsigned)(nb_slot((base[0] >> 2) - bc[0], (base[1] >> 2) - bc[1], (base[2] >> 2) - bc[2]) << 6)
+                | (unsigned)cell_code(base[0], base[1], base[2]);
+        }
+        unsigned kv = (key << 5) | lane;  // unique keys; payload = source lane
+        for (unsigned size = 2; size <= 32; size <<= 1) {
+            for (unsigned stride = size >> 1; stride > 0; stride >>= 1) {
+                unsigned other = __shfl_xor_sync(0xffffffffu, kv, stride);
+                bool up = ((lane & size) == 0);
+                bool lower = (lane & stride) == 0;
+                unsigned lo = min(kv, other), hi = max(kv, other);
+                kv = (lower == up) ? lo : hi;
+            }
+        }
+        src = kv & 31u;
+        active = (kv >> 5) != 0xffffu;
+    }
+    unsigned p = first + src;
+    int base[3] = {0, 0, 0};
+    real wt[3][3];
+    real fx[3] = {1, 1, 1};
+    real m = 0, vol0 = 0;
+    vec3 v = make_v3(0, 0, 0);
+    mat3 affine = mat3_zero();
+    if (active) {
+        stencil_of(c, load_v3(c.state, c.cap, F_X, p), base, fx);
+        for (int a = 0; a < 3; ++a) weights_1d(fx[a], wt[a]);
+        m = c.state[F_MASS * c.cap + p];
+        vol0 = c.state[F_VOL0 * c.cap + p];
+        v = load_v3(c.state, c.cap, F_V, p);
+        mat3 C = load_m3(c.state, c.cap, F_C, p);
+        mat3 F = load_m3(c.state, c.cap, F_F, p);
+        real plastic = c.state[F_PLASTIC * c.cap + p];
+        GpuMaterial mat = c.materials[__float_as_uint(c.state[F_MAT * c.cap + p])];
+        mat3 tau = material_kirchhoff(mat, F, plastic, C);
+        real dt = c.step->dt;
+        affine = tau * (-dt * vol0 * (real)4 * c.inv_dx * c.inv_dx) + C * m;
+    } else {
+        for (int a = 0; a < 3; ++a) { wt[a][0] = wt[a][1] = wt[a][2] = 0; }
+    }
+    // Segments: lanes with equal stencil base (after the sort they are adjacent).
+    unsigned seg_len = 0;
+    bool head = active;
+    if (c.warp_reduce) {
+        int pb0 = __shfl_up_sync(0xffffffffu, base[0], 1);
+        int pb1 = __shfl_up_sync(0xffffffffu, base[1], 1);
+        int pb2 = __shfl_up_sync(0xffffffffu, base[2], 1);
+        unsigned pact = __shfl_up_sync(0xffffffffu, (unsigned)active, 1);
+        bool boundary = lane == 0 || !pact || !active || pb0 != base[0] || pb1 != base[1] || pb2 != base[2];
+        unsigned mark = __ballot_sync(0xffffffffu, boundary);
+        unsigned rest = lane < 31 ? (mark & ~((2u << lane) - 1u)) : 0u;
+        unsigned end = rest ? (unsigned)(__ffs(rest) - 1) : 32u;
+        seg_len = end - lane - 1;
+        head = boundary && active;
+    }
+    vec3 mv = v * m;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            for (int k = 0; k < 3; ++k) {
+                real weight = wt[0][i] * wt[1][j] * wt[2][k];
+                vec3 dpos = make_v3(((real)i - fx[0]) * c.dx, ((real)j - fx[1]) * c.dx, ((real)k - fx[2]) * c.dx);
+                vec3 mom = (mv + affine * dpos) * weight;
+                real val[4] = {weight * m, mom.x, mom.y, mom.z};
+                if (c.warp_reduce) {
+                    for (unsigned s = 1; s < 32; s <<= 1) {
+                        for (int q = 0; q < 4; ++q) {
+                            real o = __shfl_down_sync(0xffffffffu, val[q], s);
+                            if (s <= seg_len) val[q] += o;
+                        }
+                    }
+                }
+                if (head) {
+                    real* node = c.grid + 4u * node_index(c, g, base, i, j, k);
+                    for (int q = 0; q < 4; ++q) atomic_add_real(node + q, val[q]);
+                }
+            }
+}
+
+// Ablation: shared-memory P2G like earlier work. One CUDA block per gblock (looping over its
+// particles); nodes are accumulated into a shared 12x12x12 tile covering the gblock's 3x3x3
+// neighbourhood with shared atomics, then written out after __syncthreads.
+#define TILE 12
+extern "C" __global__ void p2g_shared(Ctx c) {
+    __shared__ float tile[TILE * TILE * TILE * 4];
+    if (c.ctl[CTL_ERROR]) return;
+    unsigned g = blockIdx.x;
+    if (g >= c.ctl[CTL_GBLOCKS] || g >= c.gblock_cap) return;  // uniform per block
+    for (unsigned t = threadIdx.x; t < TILE * TILE * TILE * 4; t += blockDim.x) tile[t] = 0;
+    __syncthreads();
+    const int* bc = c.block_coords + 3 * g;
+    int lo[3] = {4 * bc[0] - 4, 4 * bc[1] - 4, 4 * bc[2] - 4};
+    // Particles of gblock g are contiguous (sorted): find them from the warp list is not needed;
+    // the bucket offsets give the range.
+    unsigned start = c.hist[g * 64u];
+    unsigned end = (g + 1 < c.ctl[CTL_GBLOCKS]) ? c.hist[(g + 1) * 64u] : c.n;
+    for (unsigned p = start + threadIdx.x; p < end; p += blockDim.x) {
+        int base[3]; real fx[3]; real wt[3][3];
+        stencil_of(c, load_v3(c.state, c.cap, F_X, p), base, fx);
+        for (int a = 0; a < 3; ++a) weights_1d(fx[a], wt[a]);
+        real m = c.state[F_MASS * c.cap + p];
+        real vol0 = c.state[F_VOL0 * c.cap + p];
+        vec3 v = load_v3(c.state, c.cap, F_V, p);
+        mat3 C = load_m3(c.state, c.cap, F_C, p);
+        mat3 F = load_m3(c.state, c.cap, F_F, p);
+        GpuMaterial mat = c.materials[__float_as_uint(c.state[F_MAT * c.cap + p])];
+        mat3 tau = material_kirchhoff(mat, F, c.state[F_PLASTIC * c.cap + p], C);
+        mat3 affine = tau * (-(real)c.step->dt * vol0 * (real)4 * c.inv_dx * c.inv_dx) + C * m;
+        vec3 mv = v * m;
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+                for (int k = 0; k < 3; ++k) {
+                    real weight = wt[0][i] * wt[1][j] * wt[2][k];
+                    vec3 dpos = make_v3(((real)i - fx[0]) * c.dx, ((real)j - fx[1]) * c.dx, ((real)k - fx[2]) * c.dx);
+                    vec3 mom = (mv + affine * dpos) * weight;
+                    int t = ((base[0] + i - lo[0]) * TILE + (base[1] + j - lo[1])) * TILE + (base[2] + k - lo[2]);
+                    atomicAdd(&tile[4 * t], (float)(weight * m));
+                    atomicAdd(&tile[4 * t + 1], (float)mom.x);
+                    atomicAdd(&tile[4 * t + 2], (float)mom.y);
+                    atomicAdd(&tile[4 * t + 3], (float)mom.z);
+                }
+    }
+    __syncthreads();
+    for (unsigned t = threadIdx.x; t < TILE * TILE * TILE; t += blockDim.x) {
+        if (tile[4 * t] == 0.0f) continue;
+        int n[3] = {lo[0] + (int)(t / (TILE * TILE)), lo[1] + (int)(t / TILE % TILE), lo[2] + (int)(t % TILE)};
+        int base[3] = {n[0], n[1], n[2]};
+        real* node = c.grid + 4u * node_index(c, g, base, 0, 0, 0);
+        for (int q = 0; q < 4; ++q) atomic_add_real(node + q, (real)tile[4 * t + q]);
+    }
+}

@@ -1,0 +1,598 @@
+//! [`CudaBackend`]: device memory, the step driver and read-back.
+
+use crate::CudaOptions;
+use crate::compile::{KernelOptions, compile};
+use crate::layout::*;
+use cudarc::driver::{
+    CudaContext, CudaFunction, CudaGraph, CudaSlice, CudaStream, DevicePtr, LaunchConfig,
+};
+use rtmpm_core::boundary::Condition;
+use rtmpm_core::boundary::sdf::Shape;
+use rtmpm_core::grid::BlockLayout;
+use rtmpm_core::material::{Eos, Model};
+use rtmpm_core::math::{IVec3, Mat3, Vec3};
+use rtmpm_core::sim::{Backend, BadParticle, BadReason, SimError};
+use rtmpm_core::{Particles, Scene};
+use std::sync::Arc;
+
+/// Launch configuration covering `n` threads.
+pub(crate) fn cfg(n: usize, block: u32) -> LaunchConfig {
+    LaunchConfig {
+        grid_dim: ((n.max(1)).div_ceil(block as usize) as u32, 1, 1),
+        block_dim: (block, 1, 1),
+        shared_mem_bytes: 0,
+    }
+}
+
+fn err(what: &str) -> impl Fn(cudarc::driver::DriverError) -> SimError + '_ {
+    move |e| SimError::Backend(format!("CUDA: {what}: {e:?}"))
+}
+
+/// The kernels of the pipeline.
+pub(crate) struct Kernels {
+    pub rb_begin: CudaFunction,
+    pub rb_clear: CudaFunction,
+    pub rb_insert_gblocks: CudaFunction,
+    pub rb_assign: CudaFunction,
+    pub rb_insert_neighbors: CudaFunction,
+    pub rb_neighbor_lists: CudaFunction,
+    pub rb_histogram: CudaFunction,
+    pub rb_scan_blocks: CudaFunction,
+    pub rb_scan_sums: CudaFunction,
+    pub rb_scan_add: CudaFunction,
+    pub rb_scatter: CudaFunction,
+    pub rb_copy_back: CudaFunction,
+    pub rb_end: CudaFunction,
+    pub grid_clear: CudaFunction,
+    pub p2g: CudaFunction,
+    pub p2g_shared: CudaFunction,
+    pub grid_update: CudaFunction,
+    pub g2p: CudaFunction,
+}
+
+/// The CUDA backend (one GPU).
+pub struct CudaBackend {
+    pub(crate) stream: Arc<CudaStream>,
+    pub(crate) kernels: Kernels,
+    pub(crate) ctx: Ctx,
+    pub(crate) options: CudaOptions,
+    state: CudaSlice<f32>,
+    _scratch: CudaSlice<f32>,
+    pub(crate) grid: CudaSlice<u8>,
+    ctl: CudaSlice<u32>,
+    step_buf: CudaSlice<u8>,
+    _bufs: Vec<CudaSlice<u8>>,
+    scene: Scene,
+    n: usize,
+    graph: Option<(CudaGraph, f32)>,
+    device_name: String,
+    real_bytes: usize,
+}
+
+fn material(m: &Model) -> Result<GpuMaterial, String> {
+    match m {
+        Model::Fluid(f) => {
+            let (eos, gamma) = match f.eos {
+                Eos::Linear => (0, 1.0),
+                Eos::Tait { gamma } => (1, gamma),
+            };
+            Ok(GpuMaterial {
+                kind: 0,
+                eos,
+                p: [f.bulk_modulus, gamma, f.viscosity, 0.0, 0.0, 0.0],
+            })
+        }
+        // TODO: the ported material headers (kernels/material/*.cuh) add the other models.
+        other => Err(format!(
+            "material model `{}` is not supported by the CUDA backend yet",
+            other.kind()
+        )),
+    }
+}
+
+fn cond(c: Condition) -> u32 {
+    match c {
+        Condition::Sticky => 0,
+        Condition::Slip => 1,
+        Condition::Separate => 2,
+    }
+}
+
+fn collider(c: &rtmpm_core::boundary::Collider, mesh: &mut Vec<f32>) -> GpuCollider {
+    let mut g = GpuCollider {
+        cond: cond(c.rule.condition),
+        friction: c.rule.friction,
+        velocity: c.velocity.to_array(),
+        angular_velocity: c.angular_velocity.to_array(),
+        pivot: c.pivot.to_array(),
+        ..Default::default()
+    };
+    let put =
+        |g: &mut GpuCollider, at: usize, v: Vec3| g.p[at..at + 3].copy_from_slice(&v.to_array());
+    match &c.shape {
+        Shape::HalfSpace { point, normal } => {
+            g.kind = 0;
+            put(&mut g, 0, *point);
+            put(&mut g, 3, *normal);
+        }
+        Shape::Box {
+            center,
+            half_extents,
+        } => {
+            g.kind = 1;
+            put(&mut g, 0, *center);
+            put(&mut g, 3, *half_extents);
+        }
+        Shape::Sphere { center, radius } => {
+            g.kind = 2;
+            put(&mut g, 0, *center);
+            g.p[3] = *radius;
+        }
+        Shape::Cylinder {
+            center,
+            axis,
+            radius,
+            half_height,
+        } => {
+            g.kind = 3;
+            put(&mut g, 0, *center);
+            put(&mut g, 3, *axis);
+            g.p[6] = *radius;
+            g.p[7] = *half_height;
+        }
+        Shape::Mesh(m) => {
+            g.kind = 4;
+            put(&mut g, 0, m.origin);
+            g.p[3] = m.spacing;
+            g.dims = m.dims;
+            g.mesh_offset = mesh.len() as u32;
+            mesh.extend_from_slice(&m.values);
+        }
+    }
+    g
+}
+
+impl CudaBackend {
+    /// Upload the scene and particles to CUDA device 0 and compile the kernels.
+    pub fn new(
+        scene: &Scene,
+        particles: &Particles,
+        options: CudaOptions,
+    ) -> Result<CudaBackend, SimError> {
+        let info =
+            crate::probe().map_err(|e| SimError::Backend(format!("CUDA unavailable: {e}")))?;
+        let n = particles.len();
+        if n == 0 {
+            return Err(SimError::Backend("CUDA backend: no particles".into()));
+        }
+        let mats = scene
+            .materials
+            .iter()
+            .map(|m| material(&m.model))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(SimError::Backend)?;
+        if scene.colliders.len() > MAX_COLLIDERS {
+            return Err(SimError::Backend(format!(
+                "CUDA backend: at most {MAX_COLLIDERS} colliders"
+            )));
+        }
+        let ptx = compile(&KernelOptions {
+            arch: info.compute_capability,
+            fast_math: options.fast_math,
+            f64: options.f64,
+        })
+        .map_err(SimError::Backend)?;
+        let context = CudaContext::new(0).map_err(err("context"))?;
+        // Single stream: no cross-stream event tracking (keeps launches capturable).
+        // SAFETY: all our buffers are used on `stream` only.
+        unsafe { context.disable_event_tracking() };
+        let stream = context.new_stream().map_err(err("stream"))?;
+        let module = context
+            .load_module(cudarc::nvrtc::Ptx::from_src(ptx))
+            .map_err(err("load module"))?;
+        let f = |name: &str| {
+            module
+                .load_function(name)
+                .map_err(|e| SimError::Backend(format!("CUDA: kernel {name}: {e:?}")))
+        };
+        let kernels = Kernels {
+            rb_begin: f("rb_begin")?,
+            rb_clear: f("rb_clear")?,
+            rb_insert_gblocks: f("rb_insert_gblocks")?,
+            rb_assign: f("rb_assign")?,
+            rb_insert_neighbors: f("rb_insert_neighbors")?,
+            rb_neighbor_lists: f("rb_neighbor_lists")?,
+            rb_histogram: f("rb_histogram")?,
+            rb_scan_blocks: f("rb_scan_blocks")?,
+            rb_scan_sums: f("rb_scan_sums")?,
+            rb_scan_add: f("rb_scan_add")?,
+            rb_scatter: f("rb_scatter")?,
+            rb_copy_back: f("rb_copy_back")?,
+            rb_end: f("rb_end")?,
+            grid_clear: f("grid_clear")?,
+            p2g: f("p2g")?,
+            p2g_shared: f("p2g_shared")?,
+            grid_update: f("grid_update")?,
+            g2p: f("g2p")?,
+        };
+
+        // Capacities from the initial layout (host BlockLayout) with headroom.
+        let dx = scene.dx;
+        let origin = scene.domain_min - 4.0 * dx;
+        let bases: Vec<IVec3> = particles
+            .x
+            .iter()
+            .map(|x| ((*x - origin) / dx - 0.5).floor().as_ivec3())
+            .collect();
+        let mut l = BlockLayout::default();
+        l.rebuild(&bases);
+        let gblock_cap = options
+            .gblock_capacity
+            .unwrap_or((2 * l.gblock_count).max(64));
+        let pblock_cap = options
+            .pblock_capacity
+            .unwrap_or((2 * l.pblock_count()).max(4 * gblock_cap).max(256));
+        let hash_cap = (2 * pblock_cap).next_power_of_two();
+        let warp_cap = n.div_ceil(32) + gblock_cap + 1;
+        let n_buckets = gblock_cap * 64 + 1;
+        let real_bytes = if options.f64 { 8 } else { 4 };
+
+        // Particle state, SoA.
+        let mut host = vec![0f32; NFIELDS * n];
+        for i in 0..n {
+            let mut put = |f: usize, v: f32| host[f * n + i] = v;
+            for a in 0..3 {
+                put(F_X + a, particles.x[i][a]);
+                put(F_V + a, particles.v[i][a]);
+            }
+            let (c, fm) = (
+                particles.c[i].to_cols_array(),
+                particles.f[i].to_cols_array(),
+            );
+            for e in 0..9 {
+                put(F_C + e, c[e]);
+                put(F_F + e, fm[e]);
+            }
+            put(F_PLASTIC, particles.plastic[i]);
+            put(F_MASS, particles.mass[i]);
+            put(F_VOL0, particles.vol0[i]);
+            let m = particles.material[i];
+            if m as usize >= mats.len() {
+                return Err(SimError::Backend(format!(
+                    "particle {i} has material {m} out of range"
+                )));
+            }
+            put(F_MAT, f32::from_bits(m));
+            put(F_ID, f32::from_bits(i as u32));
+        }
+        let state = stream.clone_htod(&host).map_err(err("upload particles"))?;
+        let scratch = stream
+            .alloc_zeros::<f32>(NFIELDS * n)
+            .map_err(err("alloc scratch"))?;
+        let grid = stream
+            .alloc_zeros::<u8>(pblock_cap * 64 * 4 * real_bytes)
+            .map_err(err("alloc grid"))?;
+        let mut ctl_host = [0u32; CTL_WORDS];
+        ctl_host[0] = 1; // rebuild at the first step
+        ctl_host[CTL_BAD_INDEX] = u32::MAX;
+        let ctl = stream.clone_htod(&ctl_host).map_err(err("alloc control"))?;
+        let step_buf = stream
+            .alloc_zeros::<u8>(std::mem::size_of::<StepParams>())
+            .map_err(err("alloc params"))?;
+        let mut mesh = Vec::new();
+        let cols: Vec<GpuCollider> = scene
+            .colliders
+            .iter()
+            .map(|c| collider(c, &mut mesh))
+            .collect();
+        mesh.push(0.0);
+        let mut bufs = Vec::new();
+        let mut bytes = |b: &[u8]| -> Result<u64, SimError> {
+            let mut v = b.to_vec();
+            v.resize(b.len().max(16), 0);
+            let s = stream.clone_htod(&v).map_err(err("upload"))?;
+            let p = s.device_ptr(&stream).0;
+            bufs.push(s);
+            Ok(p)
+        };
+        let materials = bytes(as_bytes(&mats))?;
+        let colliders = bytes(as_bytes(&cols))?;
+        let mesh_values = bytes(as_bytes(&mesh))?;
+        let mut zeros = |len: usize| -> Result<u64, SimError> {
+            let s = stream
+                .alloc_zeros::<u8>(len.max(16))
+                .map_err(err("alloc"))?;
+            let p = s.device_ptr(&stream).0;
+            bufs.push(s);
+            Ok(p)
+        };
+        let hash_keys = zeros(hash_cap * 8)?;
+        let hash_values = zeros(hash_cap * 4)?;
+        let block_coords = zeros(pblock_cap * 12)?;
+        let neighbors = zeros(gblock_cap * 27 * 4)?;
+        let hist = zeros(n_buckets * 4)?;
+        let scan_sums = zeros(n_buckets.div_ceil(1024) * 4)?;
+        let pkey = zeros(n * 4)?;
+        let prank = zeros(n * 4)?;
+        let warps = zeros(warp_cap * 12)?;
+        let w = &scene.walls;
+        let n_cells = scene.n_cells();
+        let ctx = Ctx {
+            state: state.device_ptr(&stream).0,
+            scratch: scratch.device_ptr(&stream).0,
+            grid: grid.device_ptr(&stream).0,
+            ctl: ctl.device_ptr(&stream).0,
+            step: step_buf.device_ptr(&stream).0,
+            materials,
+            colliders,
+            mesh_values,
+            hash_keys,
+            hash_values,
+            block_coords,
+            neighbors,
+            hist,
+            scan_sums,
+            pkey,
+            prank,
+            warps,
+            origin: origin.to_array(),
+            dx,
+            inv_dx: 1.0 / dx,
+            domain_min: scene.domain_min.to_array(),
+            domain_max: scene.domain_max.to_array(),
+            n_cells: n_cells.map(|c| c as i32),
+            wall_thickness: w.thickness as i32,
+            wall_cond: w.faces.map(|f| cond(f.condition)),
+            wall_friction: w.faces.map(|f| f.friction),
+            n: n as u32,
+            cap: n as u32,
+            gblock_cap: gblock_cap as u32,
+            pblock_cap: pblock_cap as u32,
+            hash_cap: hash_cap as u32,
+            warp_cap: warp_cap as u32,
+            n_colliders: cols.len() as u32,
+            n_buckets: n_buckets as u32,
+            warp_reduce: options.warp_reduce as u32,
+            warp_sort: (options.warp_reduce && options.mixed_sort) as u32,
+            pad: [0; 2],
+        };
+        Ok(CudaBackend {
+            stream,
+            kernels,
+            ctx,
+            options,
+            state,
+            _scratch: scratch,
+            grid,
+            ctl,
+            step_buf,
+            _bufs: bufs,
+            scene: scene.clone(),
+            n,
+            graph: None,
+            device_name: info.name,
+            real_bytes,
+        })
+    }
+
+    fn step_params(&self, dt: f32, t: f32) -> StepParams {
+        let mut p = StepParams {
+            dt,
+            t,
+            gravity: self.scene.gravity.to_array(),
+            always_rebuild: (!self.options.free_zone || !self.options.mixed_sort) as u32,
+            pad: [0; 2],
+            rot: [[0.0; 9]; MAX_COLLIDERS],
+            pivot_t: [[0.0; 3]; MAX_COLLIDERS],
+        };
+        for (k, c) in self.scene.colliders.iter().enumerate() {
+            let w = c.angular_velocity;
+            let r = if w.length() > 0.0 {
+                Mat3::from_axis_angle(w / w.length(), w.length() * t)
+            } else {
+                Mat3::IDENTITY
+            };
+            p.rot[k] = r.to_cols_array();
+            p.pivot_t[k] = (c.pivot + c.velocity * t).to_array();
+        }
+        p
+    }
+
+    /// Enqueue the kernels of one step (parameters already uploaded).
+    pub(crate) fn enqueue_step(&self) -> Result<(), SimError> {
+        let (k, s, c) = (&self.kernels, &self.stream, &self.ctx);
+        crate::rebuild::enqueue(k, s, c).map_err(err("rebuild"))?;
+        crate::p2g::enqueue(k, s, c, self.options.p2g).map_err(err("p2g"))?;
+        crate::grid_update::enqueue(k, s, c).map_err(err("grid update"))?;
+        crate::g2p::enqueue(k, s, c).map_err(err("g2p"))?;
+        Ok(())
+    }
+
+    /// Upload the step parameters (async on the compute stream).
+    pub(crate) fn upload_params(&mut self, dt: f32, t: f32) -> Result<(), SimError> {
+        let p = [self.step_params(dt, t)];
+        self.stream
+            .memcpy_htod(as_bytes(&p), &mut self.step_buf)
+            .map_err(err("upload step parameters"))
+    }
+
+    fn ctl_words(&mut self) -> Result<Vec<u32>, SimError> {
+        self.stream
+            .clone_dtoh(&self.ctl)
+            .map_err(err("read control words"))
+    }
+
+    /// Number of rebuilds of the mapping so far (synchronises).
+    pub fn rebuild_count(&mut self) -> Result<u32, SimError> {
+        Ok(self.ctl_words()?[CTL_REBUILDS])
+    }
+
+    /// Current (gblock, pblock, warp) counts (synchronises).
+    pub fn block_counts(&mut self) -> Result<(u32, u32, u32), SimError> {
+        let c = self.ctl_words()?;
+        Ok((c[CTL_GBLOCKS], c[CTL_PBLOCKS], c[CTL_WARPS]))
+    }
+
+    /// Sum of node masses and momenta/velocities on the grid, as f64 (synchronises). After a step
+    /// the grid holds velocities; see the tests for how P2G alone is checked.
+    pub fn grid_sums(&mut self) -> Result<[f64; 4], SimError> {
+        let (_, p, _) = self.block_counts()?;
+        let bytes = self
+            .stream
+            .clone_dtoh(&self.grid)
+            .map_err(err("read grid"))?;
+        let mut s = [0f64; 4];
+        let nodes = p as usize * 64;
+        for i in 0..nodes * 4 {
+            let v = if self.real_bytes == 8 {
+                f64::from_le_bytes(bytes[8 * i..8 * i + 8].try_into().unwrap_or([0; 8]))
+            } else {
+                f32::from_le_bytes(bytes[4 * i..4 * i + 4].try_into().unwrap_or([0; 4])) as f64
+            };
+            s[i % 4] += v;
+        }
+        Ok(s)
+    }
+
+    /// Enqueue only rebuild + P2G with the given dt (for tests of P2G conservation).
+    pub fn run_p2g_only(&mut self, dt: f32) -> Result<(), SimError> {
+        self.upload_params(dt, 0.0)?;
+        let (k, s, c) = (&self.kernels, &self.stream, &self.ctx);
+        crate::rebuild::enqueue(k, s, c).map_err(err("rebuild"))?;
+        crate::p2g::enqueue(k, s, c, self.options.p2g).map_err(err("p2g"))
+    }
+
+    fn error_check(&mut self, c: &[u32]) -> Result<(), SimError> {
+        let e = c[CTL_ERROR];
+        if e != 0 {
+            let mut what = Vec::new();
+            if e & 1 != 0 {
+                what.push(format!(
+                    "block hash table full ({} slots)",
+                    self.ctx.hash_cap
+                ));
+            }
+            if e & 2 != 0 {
+                what.push(format!("more than {} gblocks", self.ctx.gblock_cap));
+            }
+            if e & 4 != 0 {
+                what.push(format!("more than {} pblocks", self.ctx.pblock_cap));
+            }
+            if e & 8 != 0 {
+                what.push(format!("more than {} warps", self.ctx.warp_cap));
+            }
+            return Err(SimError::Backend(format!(
+                "CUDA backend out of capacity: {} (the material spread over more blocks than allocated; \
+                 raise the capacity with the gblocks=/pblocks= options)",
+                what.join(", ")
+            )));
+        }
+        Ok(())
+    }
+}
+
+impl Backend for CudaBackend {
+    fn name(&self) -> String {
+        format!("cuda ({})", self.device_name)
+    }
+
+    fn num_particles(&self) -> usize {
+        self.n
+    }
+
+    fn step(&mut self, dt: f32, t: f32) -> Result<(), SimError> {
+        self.upload_params(dt, t)?;
+        if !self.options.graph {
+            return self.enqueue_step();
+        }
+        if let Some((g, gdt)) = &self.graph
+            && *gdt == dt
+        {
+            return g.launch().map_err(err("graph launch"));
+        }
+        // Capture one step (parameters live in device memory, so the graph is valid for any t).
+        use cudarc::driver::sys::{CUgraphInstantiate_flags, CUstreamCaptureMode};
+        self.graph = None;
+        self.stream
+            .begin_capture(CUstreamCaptureMode::CU_STREAM_CAPTURE_MODE_THREAD_LOCAL)
+            .map_err(err("begin capture"))?;
+        let r = self.enqueue_step();
+        let g = self
+            .stream
+            .end_capture(CUgraphInstantiate_flags(0))
+            .map_err(err("end capture"))?;
+        r?;
+        let g = g.ok_or_else(|| SimError::Backend("CUDA: empty graph".into()))?;
+        g.launch().map_err(err("graph launch"))?;
+        self.graph = Some((g, dt));
+        Ok(())
+    }
+
+    fn max_speed(&mut self) -> Result<f32, SimError> {
+        let c = self.ctl_words()?;
+        self.error_check(&c)?;
+        Ok(f32::from_bits(c[CTL_MAX_SPEED]))
+    }
+
+    fn check(&mut self) -> Result<Option<BadParticle>, SimError> {
+        let c = self.ctl_words()?;
+        self.error_check(&c)?;
+        if c[CTL_BAD_INDEX] == u32::MAX {
+            return Ok(None);
+        }
+        let reset = [u32::MAX, 0];
+        let mut view = self.ctl.slice_mut(CTL_BAD_INDEX..CTL_BAD_INDEX + 2);
+        self.stream
+            .memcpy_htod(&reset, &mut view)
+            .map_err(err("reset bad particle"))?;
+        let reason = if c[CTL_BAD_REASON] == 1 {
+            BadReason::NonFinite
+        } else {
+            BadReason::TooFast
+        };
+        Ok(Some(BadParticle {
+            index: c[CTL_BAD_INDEX] as usize,
+            reason,
+        }))
+    }
+
+    fn read_particles(&mut self, out: &mut Particles) -> Result<(), SimError> {
+        let host = self
+            .stream
+            .clone_dtoh(&self.state)
+            .map_err(err("read particles"))?;
+        let n = self.n;
+        *out = Particles::default();
+        let z = Vec3::ZERO;
+        out.x = vec![z; n];
+        out.v = vec![z; n];
+        out.c = vec![Mat3::ZERO; n];
+        out.f = vec![Mat3::ZERO; n];
+        out.plastic = vec![0.0; n];
+        out.mass = vec![0.0; n];
+        out.vol0 = vec![0.0; n];
+        out.material = vec![0; n];
+        let g = |f: usize, i: usize| host[f * n + i];
+        for i in 0..n {
+            let id = g(F_ID, i).to_bits() as usize;
+            if id >= n {
+                return Err(SimError::Backend(format!("CUDA: corrupt particle id {id}")));
+            }
+            out.x[id] = Vec3::new(g(F_X, i), g(F_X + 1, i), g(F_X + 2, i));
+            out.v[id] = Vec3::new(g(F_V, i), g(F_V + 1, i), g(F_V + 2, i));
+            let mut c = [0f32; 9];
+            let mut f = [0f32; 9];
+            for e in 0..9 {
+                c[e] = g(F_C + e, i);
+                f[e] = g(F_F + e, i);
+            }
+            out.c[id] = Mat3::from_cols_array(&c);
+            out.f[id] = Mat3::from_cols_array(&f);
+            out.plastic[id] = g(F_PLASTIC, i);
+            out.mass[id] = g(F_MASS, i);
+            out.vol0[id] = g(F_VOL0, i);
+            out.material[id] = g(F_MAT, i).to_bits();
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,264 @@
+//! Kernel sources (embedded), a small `#include` preprocessor and NVRTC compilation with an
+//! on-disk PTX cache.
+
+use std::collections::HashSet;
+use std::path::PathBuf;
+
+/// Every kernel source file, by name (embedded at build time).
+pub const SOURCES: &[(&str, &str)] = &[
+    ("math.cuh", include_str!("../kernels/math.cuh")),
+    ("common.cuh", include_str!("../kernels/common.cuh")),
+    (
+        "material_dispatch.cuh",
+        include_str!("../kernels/material_dispatch.cuh"),
+    ),
+    ("rebuild.cu", include_str!("../kernels/rebuild.cu")),
+    ("p2g.cu", include_str!("../kernels/p2g.cu")),
+    ("grid_update.cu", include_str!("../kernels/grid_update.cu")),
+    ("g2p.cu", include_str!("../kernels/g2p.cu")),
+];
+
+/// The translation units compiled into the one module of the pipeline.
+pub const UNITS: &[&str] = &["rebuild.cu", "p2g.cu", "grid_update.cu", "g2p.cu"];
+
+/// Compilation options of the kernels.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub struct KernelOptions {
+    /// Compute capability, e.g. (9, 0).
+    pub arch: (i32, i32),
+    /// Pass `--use_fast_math`.
+    pub fast_math: bool,
+    /// Define `RTMPM_F64` (double precision arithmetic in the kernels).
+    pub f64: bool,
+}
+
+fn source(name: &str) -> Option<&'static str> {
+    SOURCES.iter().find(|(n, _)| *n == name).map(|(_, s)| *s)
+}
+
+fn expand(name: &str, seen: &mut HashSet<String>, out: &mut String) -> Result<(), String> {
+    let text = source(name).ok_or_else(|| format!("kernel source `{name}` not found"))?;
+    out.push_str(&format!("#line 1 \"{name}\"\n"));
+    for (n, line) in text.lines().enumerate() {
+        let t = line.trim();
+        if t == "#pragma once" {
+            out.push('\n');
+            continue;
+        }
+        if let Some(rest) = t.strip_prefix("#include \"") {
+            let inc = rest.trim_end_matches('"');
+            if seen.insert(inc.to_string()) {
+                expand(inc, seen, out)?;
+            }
+            out.push_str(&format!("#line {} \"{name}\"\n", n + 2));
+            continue;
+        }
+        out.push_str(line);
+        out.push('\n');
+    }
+    Ok(())
+}
+
+/// The whole program: every unit with its headers inlined once, `#line` directives naming the
+/// original files so that NVRTC errors point at `kernels/<file>:<line>`.
+pub fn program_source() -> Result<String, String> {
+    let mut seen = HashSet::new();
+    let mut out = String::new();
+    for unit in UNITS {
+        seen.insert(unit.to_string());
+        expand(unit, &mut seen, &mut out)?;
+    }
+    Ok(out)
+}
+
+/// NVRTC command line options.
+pub fn nvrtc_options(o: &KernelOptions) -> Vec<String> {
+    let mut v = vec![
+        format!("--gpu-architecture=sm_{}{}", o.arch.0, o.arch.1),
+        "-std=c++17".to_string(),
+        "--device-as-default-execution-space".to_string(),
+    ];
+    if o.fast_math {
+        v.push("--use_fast_math".into());
+    }
+    if o.f64 {
+        v.push("-DRTMPM_F64".into());
+    }
+    v
+}
+
+/// Try to load libnvrtc from `RTMPM_NVRTC_LIB` or common install locations, so that cudarc's
+/// later `dlopen("libnvrtc.so.13")` finds the already loaded library by its soname.
+pub fn preload_nvrtc() {
+    use std::sync::OnceLock;
+    static LIB: OnceLock<Option<(libloading::Library, Option<libloading::Library>)>> =
+        OnceLock::new();
+    LIB.get_or_init(|| {
+        let mut candidates: Vec<PathBuf> = Vec::new();
+        if let Ok(p) = std::env::var("RTMPM_NVRTC_LIB") {
+            candidates.push(p.into());
+        }
+        for p in [
+            "/work/.tools/cuda/nvidia/cu13/lib/libnvrtc.so.13",
+            "/usr/local/cuda/lib64/libnvrtc.so.13",
+            "/usr/local/cuda-13.0/lib64/libnvrtc.so.13",
+            "/usr/lib/x86_64-linux-gnu/libnvrtc.so.13",
+        ] {
+            candidates.push(p.into());
+        }
+        for c in candidates {
+            if c.exists() {
+                // SAFETY: loading a shared library runs its initialisers; libnvrtc's are benign.
+                if let Ok(l) = unsafe { libloading::Library::new(&c) } {
+                    // NVRTC dlopens its builtins library by soname too: load the sibling first.
+                    let builtins = c.parent().and_then(|d| {
+                        let b = d.join("libnvrtc-builtins.so.13.0");
+                        // SAFETY: as above.
+                        b.exists()
+                            .then(|| unsafe { libloading::Library::new(&b) }.ok())
+                            .flatten()
+                    });
+                    return Some((l, builtins));
+                }
+            }
+        }
+        None
+    });
+}
+
+/// True when libnvrtc can be loaded (never panics).
+pub fn nvrtc_available() -> bool {
+    preload_nvrtc();
+    std::panic::catch_unwind(|| unsafe { cudarc::nvrtc::sys::is_culib_present() }).unwrap_or(false)
+}
+
+/// NVRTC version (major, minor).
+pub fn nvrtc_version() -> Option<(i32, i32)> {
+    if !nvrtc_available() {
+        return None;
+    }
+    std::panic::catch_unwind(|| {
+        let (mut a, mut b) = (0, 0);
+        // SAFETY: plain out-parameters.
+        let r = unsafe { cudarc::nvrtc::sys::nvrtcVersion(&mut a, &mut b) };
+        (r == cudarc::nvrtc::sys::nvrtcResult::NVRTC_SUCCESS).then_some((a, b))
+    })
+    .ok()
+    .flatten()
+}
+
+fn fnv1a(data: &[u8], mut h: u64) -> u64 {
+    for b in data {
+        h ^= *b as u64;
+        h = h.wrapping_mul(0x100_0000_01b3);
+    }
+    h
+}
+
+/// Cache folder: `$RTMPM_CACHE_DIR`, `$XDG_CACHE_HOME/rtmpm/kernels` or `~/.cache/rtmpm/kernels`.
+pub fn cache_dir() -> Option<PathBuf> {
+    if let Ok(d) = std::env::var("RTMPM_CACHE_DIR") {
+        return Some(d.into());
+    }
+    let base = std::env::var_os("XDG_CACHE_HOME")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))?;
+    Some(base.join("rtmpm").join("kernels"))
+}
+
+/// Compile the pipeline to PTX (or take it from the disk cache). Errors carry the NVRTC log.
+pub fn compile(o: &KernelOptions) -> Result<String, String> {
+    if !nvrtc_available() {
+        return Err("libnvrtc.so.13 not found (pip install nvidia-cuda-nvrtc==13.0.*, or set RTMPM_NVRTC_LIB / LD_LIBRARY_PATH)".into());
+    }
+    let src = program_source()?;
+    let opts = nvrtc_options(o);
+    let mut h = fnv1a(src.as_bytes(), 0xcbf2_9ce4_8422_2325);
+    h = fnv1a(opts.join(" ").as_bytes(), h);
+    h = fnv1a(format!("{:?}", nvrtc_version()).as_bytes(), h);
+    let path = cache_dir().map(|d| d.join(format!("{h:016x}.ptx")));
+    if let Some(p) = &path
+        && let Ok(ptx) = std::fs::read_to_string(p)
+    {
+        return Ok(ptx);
+    }
+    let copts = cudarc::nvrtc::CompileOptions {
+        options: opts,
+        name: Some("rtmpm_pipeline.cu".into()),
+        ..Default::default()
+    };
+    let res = std::panic::catch_unwind(|| cudarc::nvrtc::compile_ptx_with_opts(&src, copts))
+        .map_err(|_| "NVRTC panicked (library missing?)".to_string())?;
+    let ptx = match res {
+        Ok(p) => p.to_src(),
+        Err(cudarc::nvrtc::CompileError::CompileError { log, options, .. }) => {
+            let log = log.to_string_lossy();
+            eprintln!("NVRTC compilation failed (options {options:?}):\n{log}");
+            return Err(format!("NVRTC compilation failed:\n{log}"));
+        }
+        Err(e) => return Err(format!("NVRTC error: {e:?}")),
+    };
+    if let Some(p) = &path {
+        // Best effort; write atomically via a temporary file.
+        if let Some(d) = p.parent() {
+            let _ = std::fs::create_dir_all(d);
+        }
+        let tmp = p.with_extension(format!("tmp{}", std::process::id()));
+        if std::fs::write(&tmp, &ptx).is_ok() {
+            let _ = std::fs::rename(&tmp, p);
+        }
+    }
+    Ok(ptx)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn compile_fresh(o: &KernelOptions) -> Result<String, String> {
+        // Bypass the cache so a syntax error always fails.
+        // SAFETY: tests in this module run this with a private folder; other tests don't read it.
+        let dir = std::env::temp_dir().join(format!("rtmpm-nvrtc-test-{}", std::process::id()));
+        unsafe { std::env::set_var("RTMPM_CACHE_DIR", &dir) };
+        let r = compile(o);
+        let _ = std::fs::remove_dir_all(&dir);
+        r
+    }
+
+    #[test]
+    fn every_kernel_compiles_with_nvrtc_for_sm90() {
+        if !nvrtc_available() {
+            println!("skipped: libnvrtc.so.13 not found (pip install nvidia-cuda-nvrtc==13.0.*)");
+            return;
+        }
+        for (fast_math, f64) in [(true, false), (false, false), (true, true)] {
+            let o = KernelOptions {
+                arch: (9, 0),
+                fast_math,
+                f64,
+            };
+            let ptx = compile_fresh(&o).unwrap_or_else(|e| panic!("{o:?}: {e}"));
+            for k in [
+                "rb_begin",
+                "rb_scatter",
+                "p2g",
+                "p2g_shared",
+                "grid_update",
+                "g2p",
+                "grid_clear",
+            ] {
+                assert!(
+                    ptx.contains(&format!(".entry {k}(")),
+                    "{k} missing from PTX"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn preprocessor_inlines_headers_once_with_line_directives() {
+        let s = program_source().unwrap();
+        assert_eq!(s.matches("#line 1 \"common.cuh\"").count(), 1);
+        assert!(s.contains("#line 1 \"g2p.cu\""));
+    }
+}

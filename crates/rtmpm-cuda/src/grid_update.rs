@@ -1,0 +1,16 @@
+//! Host side of `kernels/grid_update.cu`.
+
+use crate::backend::{Kernels, cfg};
+use crate::layout::Ctx;
+use cudarc::driver::{CudaStream, DriverError, PushKernelArg};
+
+/// Enqueue the merged grid update (velocity, gravity, walls, colliders).
+pub(crate) fn enqueue(k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), DriverError> {
+    // SAFETY: the kernel bounds-checks against the pblock count.
+    unsafe {
+        s.launch_builder(&k.grid_update)
+            .arg(c)
+            .launch(cfg(c.pblock_cap as usize * 64, 128))?
+    };
+    Ok(())
+}

@@ -1,0 +1,153 @@
+//! `#[repr(C)]` mirrors of the device structures in `kernels/common.cuh`.
+
+/// Maximum number of colliders (`RTMPM_MAX_COLLIDERS`).
+pub const MAX_COLLIDERS: usize = 16;
+/// 32-bit fields per particle in the state arrays (`RTMPM_NFIELDS`).
+pub const NFIELDS: usize = 29;
+/// Field offsets (see `common.cuh`): x, v, C, F (column-major), plastic, mass, vol0,
+/// material (u32 bits), original index (u32 bits).
+pub const F_X: usize = 0;
+/// Velocity.
+pub const F_V: usize = 3;
+/// APIC C.
+pub const F_C: usize = 6;
+/// Deformation gradient.
+pub const F_F: usize = 15;
+/// Plastic scalar.
+pub const F_PLASTIC: usize = 24;
+/// Mass.
+pub const F_MASS: usize = 25;
+/// Initial volume.
+pub const F_VOL0: usize = 26;
+/// Material id (bits).
+pub const F_MAT: usize = 27;
+/// Original particle index (bits).
+pub const F_ID: usize = 28;
+/// Control words.
+pub const CTL_GBLOCKS: usize = 1;
+/// Pblock count.
+pub const CTL_PBLOCKS: usize = 2;
+/// Error bits.
+pub const CTL_ERROR: usize = 3;
+/// First bad particle.
+pub const CTL_BAD_INDEX: usize = 4;
+/// Its reason (1 non-finite, 2 too fast).
+pub const CTL_BAD_REASON: usize = 5;
+/// Max speed (f32 bits).
+pub const CTL_MAX_SPEED: usize = 6;
+/// Rebuild count.
+pub const CTL_REBUILDS: usize = 7;
+/// Warp count.
+pub const CTL_WARPS: usize = 8;
+/// Number of control words.
+pub const CTL_WORDS: usize = 16;
+
+/// Material parameters on the device.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default)]
+pub struct GpuMaterial {
+    /// 0 fluid.
+    pub kind: u32,
+    /// Fluid: 0 linear, 1 Tait.
+    pub eos: u32,
+    /// Fluid: K, gamma, viscosity.
+    pub p: [f32; 6],
+}
+
+/// Collider on the device.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default)]
+pub struct GpuCollider {
+    /// 0 half-space, 1 box, 2 sphere, 3 cylinder, 4 mesh.
+    pub kind: u32,
+    /// 0 sticky, 1 slip, 2 separate.
+    pub cond: u32,
+    /// Coulomb friction.
+    pub friction: f32,
+    /// Offset of the mesh SDF in the concatenated values.
+    pub mesh_offset: u32,
+    /// Linear velocity.
+    pub velocity: [f32; 3],
+    /// Angular velocity.
+    pub angular_velocity: [f32; 3],
+    /// Pivot at t = 0.
+    pub pivot: [f32; 3],
+    /// Shape parameters.
+    pub p: [f32; 8],
+    /// Mesh grid dims.
+    pub dims: [u32; 3],
+    /// Padding.
+    pub pad: u32,
+}
+
+/// Per-step parameters, copied to the device before each step.
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct StepParams {
+    /// Time step.
+    pub dt: f32,
+    /// Time at the start of the step.
+    pub t: f32,
+    /// Gravity.
+    pub gravity: [f32; 3],
+    /// Force a rebuild this step (free zone off).
+    pub always_rebuild: u32,
+    /// Padding.
+    pub pad: [u32; 2],
+    /// Collider rotations (rest to world) at t, column-major.
+    pub rot: [[f32; 9]; MAX_COLLIDERS],
+    /// Collider pivots at t.
+    pub pivot_t: [[f32; 3]; MAX_COLLIDERS],
+}
+
+/// Kernel context passed by value to every kernel.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Ctx {
+    pub state: u64,
+    pub scratch: u64,
+    pub grid: u64,
+    pub ctl: u64,
+    pub step: u64,
+    pub materials: u64,
+    pub colliders: u64,
+    pub mesh_values: u64,
+    pub hash_keys: u64,
+    pub hash_values: u64,
+    pub block_coords: u64,
+    pub neighbors: u64,
+    pub hist: u64,
+    pub scan_sums: u64,
+    pub pkey: u64,
+    pub prank: u64,
+    pub warps: u64,
+    pub origin: [f32; 3],
+    pub dx: f32,
+    pub inv_dx: f32,
+    pub domain_min: [f32; 3],
+    pub domain_max: [f32; 3],
+    pub n_cells: [i32; 3],
+    pub wall_thickness: i32,
+    pub wall_cond: [u32; 6],
+    pub wall_friction: [f32; 6],
+    pub n: u32,
+    pub cap: u32,
+    pub gblock_cap: u32,
+    pub pblock_cap: u32,
+    pub hash_cap: u32,
+    pub warp_cap: u32,
+    pub n_colliders: u32,
+    pub n_buckets: u32,
+    pub warp_reduce: u32,
+    pub warp_sort: u32,
+    pub pad: [u32; 2],
+}
+
+// SAFETY: plain old data with the C layout of the kernel structs.
+unsafe impl cudarc::driver::DeviceRepr for Ctx {}
+
+/// View a slice of plain-old-data as bytes.
+pub fn as_bytes<T: Copy>(v: &[T]) -> &[u8] {
+    // SAFETY: T is Copy plain data without padding-dependent invariants; reading bytes is fine.
+    unsafe { std::slice::from_raw_parts(v.as_ptr() as *const u8, std::mem::size_of_val(v)) }
+}

@@ -1,0 +1,61 @@
+//! Host side of `kernels/rebuild.cu`: the rebuild-mapping kernels, enqueued every step (they
+//! return at once on the device unless the free-zone flag asks for a rebuild), and the grid clear.
+
+use crate::backend::{Kernels, cfg};
+use crate::layout::{Ctx, NFIELDS};
+use cudarc::driver::{CudaStream, DriverError, PushKernelArg};
+
+/// Enqueue the rebuild kernels and the grid clear.
+pub(crate) fn enqueue(k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), DriverError> {
+    let one = cfg(1, 32);
+    let n = c.n as usize;
+    let hc = (c.hash_cap as usize).max(c.n_buckets as usize);
+    let g27 = c.gblock_cap as usize * 27;
+    let scan_blocks = (c.n_buckets as usize).div_ceil(1024);
+    let (first, second) = (1u32, 0u32);
+    let n_sums = scan_blocks as u32;
+    // SAFETY: every kernel bounds-checks against the capacities in `c`.
+    unsafe {
+        s.launch_builder(&k.rb_begin).arg(c).launch(one)?;
+        s.launch_builder(&k.rb_clear).arg(c).launch(cfg(hc, 256))?;
+        s.launch_builder(&k.rb_insert_gblocks)
+            .arg(c)
+            .launch(cfg(n, 256))?;
+        s.launch_builder(&k.rb_assign)
+            .arg(c)
+            .arg(&first)
+            .launch(cfg(c.hash_cap as usize, 256))?;
+        s.launch_builder(&k.rb_insert_neighbors)
+            .arg(c)
+            .launch(cfg(g27, 256))?;
+        s.launch_builder(&k.rb_assign)
+            .arg(c)
+            .arg(&second)
+            .launch(cfg(c.hash_cap as usize, 256))?;
+        s.launch_builder(&k.rb_neighbor_lists)
+            .arg(c)
+            .launch(cfg(g27, 256))?;
+        s.launch_builder(&k.rb_histogram)
+            .arg(c)
+            .launch(cfg(n, 256))?;
+        s.launch_builder(&k.rb_scan_blocks)
+            .arg(c)
+            .launch(cfg(scan_blocks * 1024, 1024))?;
+        s.launch_builder(&k.rb_scan_sums)
+            .arg(c)
+            .arg(&n_sums)
+            .launch(cfg(1024, 1024))?;
+        s.launch_builder(&k.rb_scan_add)
+            .arg(c)
+            .launch(cfg(scan_blocks * 1024, 1024))?;
+        s.launch_builder(&k.rb_scatter).arg(c).launch(cfg(n, 256))?;
+        s.launch_builder(&k.rb_copy_back)
+            .arg(c)
+            .launch(cfg(n * NFIELDS, 256))?;
+        s.launch_builder(&k.rb_end).arg(c).launch(one)?;
+        s.launch_builder(&k.grid_clear)
+            .arg(c)
+            .launch(cfg(c.pblock_cap as usize * 256, 256))?;
+    }
+    Ok(())
+}
