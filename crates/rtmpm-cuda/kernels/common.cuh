@@ -1,6 +1,7 @@
 // Shared device structures of the rtmpm CUDA pipeline (seed 000). Must match src/layout.rs.
 #pragma once
 #include "math.cuh"
+#include "material/materials.cuh"
 
 #define RTMPM_MAX_COLLIDERS 16
 #define RTMPM_NFIELDS 29
@@ -37,11 +38,8 @@
 #define EMPTY_KEY 0xffffffffffffffffull
 #define EMPTY_ID 0xffffffffu
 
-struct GpuMaterial {
-    unsigned kind;  // 0 fluid (others: TODO, once the ported material headers land)
-    unsigned eos;   // fluid: 0 linear, 1 Tait
-    float p[6];     // fluid: K, gamma, viscosity
-};
+// Materials: the ported constitutive models (kernels/material/), one MaterialGpu each.
+typedef MaterialGpu GpuMaterial;
 
 struct GpuCollider {
     unsigned kind;  // 0 half-space, 1 box, 2 sphere, 3 cylinder, 4 mesh

@@ -70,24 +70,45 @@ pub struct CudaBackend {
 }
 
 fn material(m: &Model) -> Result<GpuMaterial, String> {
+    let mut g = GpuMaterial::default();
     match m {
         Model::Fluid(f) => {
-            let (eos, gamma) = match f.eos {
+            g.kind = 0;
+            g.fluid_bulk_modulus = f.bulk_modulus;
+            g.fluid_viscosity = f.viscosity;
+            (g.fluid_eos, g.fluid_gamma) = match f.eos {
                 Eos::Linear => (0, 1.0),
                 Eos::Tait { gamma } => (1, gamma),
             };
-            Ok(GpuMaterial {
-                kind: 0,
-                eos,
-                p: [f.bulk_modulus, gamma, f.viscosity, 0.0, 0.0, 0.0],
-            })
         }
-        // TODO: the ported material headers (kernels/material/*.cuh) add the other models.
-        other => Err(format!(
-            "material model `{}` is not supported by the CUDA backend yet",
-            other.kind()
-        )),
+        Model::FixedCorotated(e) => {
+            g.kind = 1;
+            g.fixed_corotated = [e.mu, e.lambda];
+        }
+        Model::NeoHookean(e) => {
+            g.kind = 2;
+            g.neo_hookean = [e.mu, e.lambda];
+        }
+        Model::Snow(s) => {
+            g.kind = 3;
+            g.snow = [
+                s.mu,
+                s.lambda,
+                s.critical_compression,
+                s.critical_stretch,
+                s.hardening,
+            ];
+        }
+        Model::DruckerPrager(d) => {
+            g.kind = 4;
+            g.drucker_prager = [d.mu, d.lambda, d.friction_angle, d.cohesion];
+        }
+        Model::VonMises(v) => {
+            g.kind = 5;
+            g.von_mises = [v.mu, v.lambda, v.yield_stress, v.hardening];
+        }
     }
+    Ok(g)
 }
 
 fn cond(c: Condition) -> u32 {

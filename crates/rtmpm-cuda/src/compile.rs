@@ -12,6 +12,39 @@ pub const SOURCES: &[(&str, &str)] = &[
         "material_dispatch.cuh",
         include_str!("../kernels/material_dispatch.cuh"),
     ),
+    ("svd.cuh", include_str!("../kernels/svd.cuh")),
+    (
+        "material/materials.cuh",
+        include_str!("../kernels/material/materials.cuh"),
+    ),
+    (
+        "material/fluid.cuh",
+        include_str!("../kernels/material/fluid.cuh"),
+    ),
+    (
+        "material/fixed_corotated.cuh",
+        include_str!("../kernels/material/fixed_corotated.cuh"),
+    ),
+    (
+        "material/neo_hookean.cuh",
+        include_str!("../kernels/material/neo_hookean.cuh"),
+    ),
+    (
+        "material/snow.cuh",
+        include_str!("../kernels/material/snow.cuh"),
+    ),
+    (
+        "material/hencky.cuh",
+        include_str!("../kernels/material/hencky.cuh"),
+    ),
+    (
+        "material/drucker_prager.cuh",
+        include_str!("../kernels/material/drucker_prager.cuh"),
+    ),
+    (
+        "material/von_mises.cuh",
+        include_str!("../kernels/material/von_mises.cuh"),
+    ),
     ("rebuild.cu", include_str!("../kernels/rebuild.cu")),
     ("p2g.cu", include_str!("../kernels/p2g.cu")),
     ("grid_update.cu", include_str!("../kernels/grid_update.cu")),
@@ -36,6 +69,22 @@ fn source(name: &str) -> Option<&'static str> {
     SOURCES.iter().find(|(n, _)| *n == name).map(|(_, s)| *s)
 }
 
+/// Path of `include` as written in file `from`, relative to the kernels folder ("a/../b" folded).
+fn resolve(from: &str, include: &str) -> String {
+    let mut parts: Vec<&str> = from.split('/').collect();
+    parts.pop();
+    for piece in include.split('/') {
+        match piece {
+            ".." => {
+                parts.pop();
+            }
+            "." => {}
+            p => parts.push(p),
+        }
+    }
+    parts.join("/")
+}
+
 fn expand(name: &str, seen: &mut HashSet<String>, out: &mut String) -> Result<(), String> {
     let text = source(name).ok_or_else(|| format!("kernel source `{name}` not found"))?;
     out.push_str(&format!("#line 1 \"{name}\"\n"));
@@ -46,7 +95,8 @@ fn expand(name: &str, seen: &mut HashSet<String>, out: &mut String) -> Result<()
             continue;
         }
         if let Some(rest) = t.strip_prefix("#include \"") {
-            let inc = rest.trim_end_matches('"');
+            let inc = resolve(name, rest.trim_end_matches('"'));
+            let inc = inc.as_str();
             if seen.insert(inc.to_string()) {
                 expand(inc, seen, out)?;
             }

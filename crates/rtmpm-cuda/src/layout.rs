@@ -42,17 +42,34 @@ pub const CTL_WARPS: usize = 8;
 /// Number of control words.
 pub const CTL_WORDS: usize = 16;
 
-/// Material parameters on the device.
+/// Material parameters on the device: the mirror of `MaterialGpu` in
+/// kernels/material/materials.cuh (88 bytes, every field 4 bytes, no padding). Only the
+/// parameters of the model selected by `kind` are read.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default)]
 pub struct GpuMaterial {
-    /// 0 fluid.
-    pub kind: u32,
+    /// Model, in the order of `rtmpm_core::material::Model`: 0 fluid, 1 fixed corotated,
+    /// 2 neo-Hookean, 3 snow, 4 Drucker-Prager, 5 von Mises.
+    pub kind: i32,
+    /// Fluid: bulk modulus.
+    pub fluid_bulk_modulus: f32,
     /// Fluid: 0 linear, 1 Tait.
-    pub eos: u32,
-    /// Fluid: K, gamma, viscosity.
-    pub p: [f32; 6],
+    pub fluid_eos: i32,
+    pub fluid_gamma: f32,
+    pub fluid_viscosity: f32,
+    /// Fixed corotated: mu, lambda.
+    pub fixed_corotated: [f32; 2],
+    /// Neo-Hookean: mu, lambda.
+    pub neo_hookean: [f32; 2],
+    /// Snow: mu, lambda, critical compression, critical stretch, hardening.
+    pub snow: [f32; 5],
+    /// Drucker-Prager: mu, lambda, friction angle (degrees), cohesion.
+    pub drucker_prager: [f32; 4],
+    /// von Mises: mu, lambda, yield stress, hardening modulus.
+    pub von_mises: [f32; 4],
 }
+
+const _: () = assert!(std::mem::size_of::<GpuMaterial>() == 88);
 
 /// Collider on the device.
 #[repr(C)]

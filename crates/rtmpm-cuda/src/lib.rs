@@ -20,7 +20,8 @@
 //! every rebuild and carry their original index, [`CudaBackend`] returns them in original order.
 //! Grid nodes: 4 reals (mass, momentum/velocity) per node, 64 nodes per pblock.
 //!
-//! Materials: fluid only for now (`kernels/material_dispatch.cuh`, TODO: ported headers).
+//! Materials: every model of rtmpm-core, ported line for line in `kernels/material/*.cuh` (with
+//! `kernels/svd.cuh`), dispatched on `MaterialGpu::kind`.
 
 pub mod backend;
 pub mod bench;

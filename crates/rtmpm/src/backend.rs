@@ -5,6 +5,7 @@ use clap::ValueEnum;
 use rtmpm_core::cpu::CpuBackend;
 use rtmpm_core::sim::Backend;
 use rtmpm_core::{Particles, Scene};
+use rtmpm_cuda::CudaOptions;
 
 /// Which backend to run on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -23,16 +24,17 @@ pub fn make_backend(
     scene: &Scene,
     particles: Particles,
     threads: Option<usize>,
+    cuda: &CudaOptions,
 ) -> Result<Box<dyn Backend>> {
     match kind {
         BackendKind::Cpu => Ok(Box::new(CpuBackend::new(scene, particles, threads)?)),
-        BackendKind::Cuda => match cuda_backend(scene, &particles) {
+        BackendKind::Cuda => match cuda_backend(scene, &particles, cuda) {
             Ok(b) => Ok(b),
             Err(why) => {
                 bail!("the CUDA backend is not usable here: {why}\n  hint: use --backend cpu")
             }
         },
-        BackendKind::Auto => match cuda_backend(scene, &particles) {
+        BackendKind::Auto => match cuda_backend(scene, &particles, cuda) {
             Ok(b) => {
                 eprintln!("backend: auto -> {}", b.name());
                 Ok(b)
@@ -48,8 +50,12 @@ pub fn make_backend(
 
 /// The CUDA backend, or why it cannot run.
 fn cuda_backend(
-    _scene: &Scene,
-    _particles: &Particles,
+    scene: &Scene,
+    particles: &Particles,
+    options: &CudaOptions,
 ) -> std::result::Result<Box<dyn Backend>, String> {
-    Err("the CUDA backend is not built yet".into())
+    rtmpm_cuda::probe().map_err(|e| e.to_string())?;
+    let b = rtmpm_cuda::CudaBackend::new(scene, particles, options.clone())
+        .map_err(|e| e.to_string())?;
+    Ok(Box::new(b))
 }

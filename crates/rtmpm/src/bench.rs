@@ -7,8 +7,9 @@ use crate::backend::{BackendKind, make_backend};
 use crate::run::human_rate;
 use anyhow::{Result, bail};
 use clap::Args;
-use rtmpm_core::Scene;
+use rtmpm_core::scene::StepMode;
 use rtmpm_core::sim::Simulation;
+use rtmpm_core::{Particles, Scene};
 use std::time::Instant;
 
 #[derive(Args)]
@@ -19,12 +20,21 @@ pub struct BenchArgs {
     /// Timed steps (after warm-up).
     #[arg(long, default_value_t = 500)]
     pub steps: u64,
+    /// Benchmark this scene file instead of the fluid block (needs a fixed `time.dt`).
+    #[arg(long)]
+    pub scene: Option<std::path::PathBuf>,
+    /// Timed frames of the scene (overrides --steps).
+    #[arg(long)]
+    pub frames: Option<u64>,
     /// Untimed warm-up steps.
     #[arg(long, default_value_t = 20)]
     pub warmup: u64,
     /// Backend.
     #[arg(long, value_enum, default_value_t = BackendKind::Auto)]
     pub backend: BackendKind,
+    /// CUDA backend switches, e.g. `free_zone=off,warp_reduce=off,p2g=shared,graph=off`.
+    #[arg(long, value_name = "LIST", default_value = "")]
+    pub cuda_options: rtmpm_cuda::CudaOptions,
     /// CPU worker threads (default: one per core).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -77,14 +87,43 @@ count = {count}
 }
 
 pub fn bench(args: BenchArgs) -> Result<()> {
-    if !(8..=1024).contains(&args.n) {
-        bail!("--n {} is out of range: use 8..=1024", args.n);
-    }
-    let scene = Scene::from_toml(&fluid_block_scene(args.n), "<bench fluid block>")?;
+    let (scene, label) = match &args.scene {
+        Some(path) => (Scene::from_file(path)?, format!("scene {}", path.display())),
+        None => {
+            if !(8..=1024).contains(&args.n) {
+                bail!("--n {} is out of range: use 8..=1024", args.n);
+            }
+            let text = fluid_block_scene(args.n);
+            let label = format!("MLS-MPM fluid block, n = {} (dx = 1/{})", args.n, args.n);
+            (Scene::from_toml(&text, "<bench fluid block>")?, label)
+        }
+    };
+    let StepMode::Fixed { dt } = scene.time.step else {
+        bail!("benchmarks need a fixed time step: set `time.dt` in the scene");
+    };
+    let per_frame = (1.0 / (scene.time.fps as f64 * dt as f64)).round() as u64;
+    let steps = args.frames.map_or(args.steps, |f| f * per_frame);
     let particles = scene.sample_particles()?;
     let n = particles.len();
-    let dt = fluid_block_dt(args.n);
-    let backend = make_backend(args.backend, &scene, particles, args.threads)?;
+    let use_cuda = match args.backend {
+        BackendKind::Cpu => false,
+        BackendKind::Cuda => true,
+        BackendKind::Auto => rtmpm_cuda::probe().is_ok(),
+    };
+    println!(
+        "benchmark: {label}, dt = {dt:e}, {steps} steps ({} frames of {per_frame})",
+        steps / per_frame.max(1)
+    );
+    if use_cuda {
+        return bench_cuda(&args, &scene, &particles, dt, steps);
+    }
+    let backend = make_backend(
+        BackendKind::Cpu,
+        &scene,
+        particles,
+        args.threads,
+        &args.cuda_options,
+    )?;
     let mut sim = Simulation::new(scene, backend);
     for _ in 0..args.warmup {
         sim.step_once(dt)?;
@@ -92,25 +131,18 @@ pub fn bench(args: BenchArgs) -> Result<()> {
     sim.check()?;
     let before: Vec<f64> = sim.backend.stage_times().iter().map(|s| s.1).collect();
     let start = Instant::now();
-    for _ in 0..args.steps {
+    for _ in 0..steps {
         sim.step_once(dt)?;
     }
     sim.check()?;
     let wall = start.elapsed().as_secs_f64();
-    let rate = n as f64 * args.steps as f64 / wall;
-    println!(
-        "benchmark: MLS-MPM fluid block, n = {} (dx = 1/{}), dt = {dt:e}",
-        args.n, args.n
-    );
+    let rate = n as f64 * steps as f64 / wall;
     println!("  backend      {}", sim.backend.name());
     println!("  particles    {n}");
-    println!(
-        "  steps        {} timed after {} warm-up",
-        args.steps, args.warmup
-    );
+    println!("  steps        {steps} timed after {} warm-up", args.warmup);
     println!(
         "  wall time    {wall:.3} s ({:.3} ms/step)",
-        1e3 * wall / args.steps as f64
+        1e3 * wall / steps as f64
     );
     println!(
         "  throughput   {} ({rate:.4e} particle-steps/s)",
@@ -119,8 +151,72 @@ pub fn bench(args: BenchArgs) -> Result<()> {
     for ((name, total), b) in sim.backend.stage_times().into_iter().zip(before) {
         println!(
             "  stage        {name:<12} {:.3} ms/step",
-            1e3 * (total - b) / args.steps as f64
+            1e3 * (total - b) / steps as f64
         );
     }
+    Ok(())
+}
+
+/// CUDA: whole-run throughput (graph replay when enabled), then per-kernel event timing and the
+/// fraction of the memory-bandwidth floor.
+fn bench_cuda(
+    args: &BenchArgs,
+    scene: &Scene,
+    particles: &Particles,
+    dt: f32,
+    steps: u64,
+) -> Result<()> {
+    use rtmpm_core::sim::Backend;
+    rtmpm_cuda::probe().map_err(|e| anyhow::anyhow!("the CUDA backend is not usable here: {e}"))?;
+    let n = particles.len();
+    let mut b = rtmpm_cuda::CudaBackend::new(scene, particles, args.cuda_options.clone())?;
+    for i in 0..args.warmup {
+        b.step(dt, i as f32 * dt)?;
+    }
+    b.check()?;
+    let start = Instant::now();
+    for i in 0..steps {
+        b.step(dt, (args.warmup + i) as f32 * dt)?;
+    }
+    if let Some(bad) = b.check()? {
+        bail!("the benchmark blew up (particle {})", bad.index);
+    }
+    let wall = start.elapsed().as_secs_f64();
+    let rate = n as f64 * steps as f64 / wall;
+    println!("  backend      {} [{:?}]", b.name(), args.cuda_options);
+    println!("  particles    {n}");
+    println!("  steps        {steps} timed after {} warm-up", args.warmup);
+    println!(
+        "  wall time    {wall:.3} s ({:.4} ms/step)",
+        1e3 * wall / steps as f64
+    );
+    println!(
+        "  throughput   {} ({rate:.4e} particle-steps/s)",
+        human_rate(rate)
+    );
+    let k = rtmpm_cuda::bench_kernels(&mut b, dt, 0, steps.min(400) as u32)?;
+    let bw = rtmpm_cuda::measure_copy_bandwidth()?;
+    let floor_ms = k.bytes_per_step as f64 / (bw * 1e9) * 1e3;
+    println!(
+        "  kernels      (CUDA events, {} steps, {} rebuilds)",
+        k.steps, k.rebuilds
+    );
+    for (name, ms) in [
+        ("rebuild", k.rebuild_ms),
+        ("p2g", k.p2g_ms),
+        ("grid_update", k.grid_update_ms),
+        ("g2p", k.g2p_ms),
+    ] {
+        println!(
+            "    {name:<12} {ms:.4} ms/step ({:.0} %)",
+            100.0 * ms / k.ms_per_step.max(1e-12)
+        );
+    }
+    println!("    step         {:.4} ms/step", k.ms_per_step);
+    println!(
+        "  bandwidth    {:.1} MB/step must move; copy bandwidth {bw:.0} GB/s -> floor {floor_ms:.4} ms/step = {:.0} % of the evented step",
+        k.bytes_per_step as f64 / 1e6,
+        100.0 * floor_ms / k.ms_per_step.max(1e-12)
+    );
     Ok(())
 }

@@ -36,6 +36,9 @@ pub struct RunArgs {
     /// Continue from a checkpoint written by --checkpoint-every.
     #[arg(long, value_name = "CKPT")]
     pub resume: Option<PathBuf>,
+    /// CUDA backend switches, e.g. `free_zone=off,warp_reduce=off,p2g=shared,graph=off`.
+    #[arg(long, value_name = "LIST", default_value = "")]
+    pub cuda_options: rtmpm_cuda::CudaOptions,
     /// Write no frame files (for timing).
     #[arg(long)]
     pub no_output: bool,
@@ -75,7 +78,13 @@ pub fn run(args: RunArgs) -> Result<()> {
     };
     let n = particles.len();
     let out_dir = args.out.clone().unwrap_or_else(|| scene.output.dir.clone());
-    let backend = make_backend(args.backend, &scene, particles, args.threads)?;
+    let backend = make_backend(
+        args.backend,
+        &scene,
+        particles,
+        args.threads,
+        &args.cuda_options,
+    )?;
     let mut sim = Simulation::new(scene, backend);
     let mut output = if args.no_output {
         None

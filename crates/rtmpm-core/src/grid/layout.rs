@@ -146,7 +146,10 @@ impl BlockLayout {
         let axis = |r: i32, slot_stride: i32, cell_shift: i32| -> [(i32, u32); 3] {
             std::array::from_fn(|n| {
                 let rn = r + n as i32;
-                (((rn >> BLOCK_BITS) + 1) * slot_stride, ((rn & 3) << cell_shift) as u32)
+                (
+                    ((rn >> BLOCK_BITS) + 1) * slot_stride,
+                    ((rn & 3) << cell_shift) as u32,
+                )
             })
         };
         let (ax, ay, az) = (axis(r.x, 9, 4), axis(r.y, 3, 2), axis(r.z, 1, 0));
@@ -225,7 +228,9 @@ mod tests {
 
     #[test]
     fn stencil_nodes_match_node_index() {
-        let bases: Vec<IVec3> = (0..60).map(|i| IVec3::new(4 + i % 11, 5 + i % 7, 6 + i % 13)).collect();
+        let bases: Vec<IVec3> = (0..60)
+            .map(|i| IVec3::new(4 + i % 11, 5 + i % 7, 6 + i % 13))
+            .collect();
         let mut l = BlockLayout::default();
         l.rebuild(&bases);
         for g in 0..l.gblock_count {
@@ -236,7 +241,10 @@ mod tests {
                     for j in 0..3 {
                         for k in 0..3 {
                             let n = b + IVec3::new(i, j, k);
-                            assert_eq!(s[(i * 9 + j * 3 + k) as usize] as usize, l.node_index(g, n));
+                            assert_eq!(
+                                s[(i * 9 + j * 3 + k) as usize] as usize,
+                                l.node_index(g, n)
+                            );
                         }
                     }
                 }

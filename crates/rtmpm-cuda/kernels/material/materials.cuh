@@ -1,6 +1,5 @@
 // Material dispatch for the kernels (Rust: crates/rtmpm-core/src/material/mod.rs, Model).
 #pragma once
-#include <cstddef>
 #include "fluid.cuh"
 #include "fixed_corotated.cuh"
 #include "neo_hookean.cuh"
@@ -38,7 +37,6 @@ struct MaterialGpu {
 };
 #ifndef RTMPM_F64
 static_assert(sizeof(MaterialGpu) == 88, "MaterialGpu layout must match the host #[repr(C)] mirror");
-static_assert(offsetof(MaterialGpu, snow) == 36 && offsetof(MaterialGpu, von_mises) == 72, "MaterialGpu offsets");
 #endif
 
 // Kirchhoff stress tau = P F^T; c is the APIC affine matrix (viscous fluid only).
