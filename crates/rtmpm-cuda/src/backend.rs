@@ -69,6 +69,9 @@ pub struct CudaBackend {
     real_bytes: usize,
 }
 
+/// Largest grid allocated by default for the whole domain (bytes).
+const GRID_BUDGET_BYTES: usize = 4 << 30;
+
 fn material(m: &Model) -> Result<GpuMaterial, String> {
     let mut g = GpuMaterial::default();
     match m {
@@ -237,7 +240,6 @@ impl CudaBackend {
             g2p: f("g2p")?,
         };
 
-        // Capacities from the initial layout (host BlockLayout) with headroom.
         let dx = scene.dx;
         let origin = scene.domain_min - 4.0 * dx;
         let bases: Vec<IVec3> = particles
@@ -247,12 +249,23 @@ impl CudaBackend {
             .collect();
         let mut l = BlockLayout::default();
         l.rebuild(&bases);
-        let gblock_cap = options
-            .gblock_capacity
-            .unwrap_or((2 * l.gblock_count).max(64));
-        let pblock_cap = options
-            .pblock_capacity
-            .unwrap_or((2 * l.pblock_count()).max(4 * gblock_cap).max(256));
+        // Default capacity: every block the domain can hold (particles are clamped into the
+        // domain, so the layout can never outgrow it), unless that grid would exceed
+        // GRID_BUDGET_BYTES; then 8x the initial layout, and an overflow is reported as an error.
+        let n_cells = scene.n_cells();
+        let domain_blocks: usize = n_cells.iter().map(|&c| (c as usize + 8).div_ceil(4) + 1).product();
+        let real_bytes_grid = if options.f64 { 8 } else { 4 };
+        let fits = domain_blocks * 64 * 4 * real_bytes_grid <= GRID_BUDGET_BYTES;
+        let gblock_cap = options.gblock_capacity.unwrap_or(if fits {
+            domain_blocks.min(n.max(64))
+        } else {
+            (8 * l.gblock_count).max(64)
+        });
+        let pblock_cap = options.pblock_capacity.unwrap_or(if fits {
+            domain_blocks
+        } else {
+            (8 * l.pblock_count()).max(4 * gblock_cap).max(256)
+        });
         let hash_cap = (2 * pblock_cap).next_power_of_two();
         let warp_cap = n.div_ceil(32) + gblock_cap + 1;
         let n_buckets = gblock_cap * 64 + 1;
