@@ -46,6 +46,18 @@ impl Stencil {
         }
     }
 
+    /// Stencil of a particle at grid coordinate `xg` whose base node is already known
+    /// (`base == floor(xg - 0.5)`), avoiding the floor.
+    #[inline]
+    pub fn with_base(xg: Vec3, base: IVec3) -> Stencil {
+        let fx = xg - base.as_vec3();
+        Stencil {
+            base,
+            fx,
+            w: [weights_1d(fx.x), weights_1d(fx.y), weights_1d(fx.z)],
+        }
+    }
+
     /// Weight of node `(i, j, k)` of the stencil.
     #[inline]
     pub fn weight(&self, i: usize, j: usize, k: usize) -> f32 {

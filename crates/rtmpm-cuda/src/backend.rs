@@ -253,7 +253,10 @@ impl CudaBackend {
         // domain, so the layout can never outgrow it), unless that grid would exceed
         // GRID_BUDGET_BYTES; then 8x the initial layout, and an overflow is reported as an error.
         let n_cells = scene.n_cells();
-        let domain_blocks: usize = n_cells.iter().map(|&c| (c as usize + 8).div_ceil(4) + 1).product();
+        let domain_blocks: usize = n_cells
+            .iter()
+            .map(|&c| (c as usize + 8).div_ceil(4) + 1)
+            .product();
         let real_bytes_grid = if options.f64 { 8 } else { 4 };
         let fits = domain_blocks * 64 * 4 * real_bytes_grid <= GRID_BUDGET_BYTES;
         let gblock_cap = options.gblock_capacity.unwrap_or(if fits {

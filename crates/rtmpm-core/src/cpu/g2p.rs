@@ -22,23 +22,34 @@ pub fn g2p(b: &mut CpuBackend, dt: f32) -> (f32, Option<BadParticle>) {
         .zip(p.plastic.par_iter_mut())
         .enumerate()
         .map(|(pi, ((((x, v), cp), f), plastic))| {
-            let s = Stencil::new((*x - c.origin) * c.inv_dx);
-            debug_assert_eq!(s.base, bases[pi]);
+            let s = Stencil::with_base((*x - c.origin) * c.inv_dx, bases[pi]);
             let nodes = layout.stencil_nodes(layout.gblock_of(pi), s.base);
+            // v = sum w v_i and B = sum w v_i (i, j, k)^T, accumulated axis by axis; then
+            // C = D^-1 dx (B - v fx^T) = D^-1 sum w v_i (x_i - x_p)^T (APIC, Jiang et al. 2015).
             let mut new_v = Vec3::ZERO;
-            let mut new_c = Mat3::ZERO;
+            let (mut b0, mut b1, mut b2) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
             for i in 0..3 {
+                let (mut sum_i, mut b1_i, mut b2_i) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
                 for j in 0..3 {
+                    let wij = s.w[0][i] * s.w[1][j];
+                    let mut sum_j = Vec3::ZERO;
+                    let mut b2_j = Vec3::ZERO;
                     for k in 0..3 {
-                        let w = s.weight(i, j, k);
                         let n = grid[nodes[i * 9 + j * 3 + k] as usize];
-                        let vi = Vec3::new(n[1], n[2], n[3]);
-                        new_v += w * vi;
-                        // C = D^-1 sum w v_i (x_i - x_p)^T, dpos in metres.
-                        new_c += outer(w * vi, s.dpos(i, j, k) * c.dx);
+                        let wv = (wij * s.w[2][k]) * Vec3::new(n[1], n[2], n[3]);
+                        sum_j += wv;
+                        b2_j += k as f32 * wv;
                     }
+                    sum_i += sum_j;
+                    b1_i += j as f32 * sum_j;
+                    b2_i += b2_j;
                 }
+                new_v += sum_i;
+                b0 += i as f32 * sum_i;
+                b1 += b1_i;
+                b2 += b2_i;
             }
+            let mut new_c = (Mat3::from_cols(b0, b1, b2) - outer(new_v, s.fx)) * c.dx;
             new_c *= inv_d;
             *v = new_v;
             *cp = new_c;

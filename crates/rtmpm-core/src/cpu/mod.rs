@@ -68,7 +68,14 @@ pub type Node = [f32; 4];
 /// The CPU backend's state.
 pub struct CpuBackend {
     pub consts: StepConstants,
+    /// Particle state in storage order: sorted by block and cell at every rebuild, so that P2G
+    /// and G2P walk memory in order. `ids[i]` is the original index of stored particle `i`.
     pub particles: Particles,
+    /// Original index of each stored particle.
+    pub ids: Vec<u32>,
+    spare: Particles,
+    spare_ids: Vec<u32>,
+    spare_bases: Vec<IVec3>,
     /// Block layout of the current step.
     pub layout: BlockLayout,
     /// Stencil base node of each particle (grid indices).
@@ -113,7 +120,11 @@ impl CpuBackend {
         let max_speed = particles.v.iter().map(|v| v.length()).fold(0.0, f32::max);
         Ok(CpuBackend {
             consts,
+            ids: (0..particles.len() as u32).collect(),
             particles,
+            spare: Particles::default(),
+            spare_ids: Vec::new(),
+            spare_bases: Vec::new(),
             layout: BlockLayout::default(),
             bases: Vec::new(),
             grid: Vec::new(),
@@ -151,7 +162,10 @@ impl CpuBackend {
         }
         self.max_speed = max_speed;
         if self.bad.is_none() {
-            self.bad = bad;
+            self.bad = bad.map(|b| BadParticle {
+                index: self.ids[b.index] as usize,
+                ..b
+            });
         }
     }
 }
@@ -185,7 +199,20 @@ impl Backend for CpuBackend {
     }
 
     fn read_particles(&mut self, out: &mut Particles) -> Result<(), SimError> {
+        // Back to the original order.
         out.clone_from(&self.particles);
+        let p = &self.particles;
+        for (i, &id) in self.ids.iter().enumerate() {
+            let id = id as usize;
+            out.x[id] = p.x[i];
+            out.v[id] = p.v[i];
+            out.c[id] = p.c[i];
+            out.f[id] = p.f[i];
+            out.plastic[id] = p.plastic[i];
+            out.mass[id] = p.mass[i];
+            out.vol0[id] = p.vol0[i];
+            out.material[id] = p.material[i];
+        }
         Ok(())
     }
 

@@ -37,7 +37,7 @@ pub fn p2g(b: &mut CpuBackend, dt: f32) {
     b.grid.clear();
     b.grid.resize(n_nodes, [0.0; 4]);
     let grid = GridPtr(b.grid.as_mut_ptr());
-    let (c, p, layout) = (&b.consts, &b.particles, &b.layout);
+    let (c, p, layout, bases) = (&b.consts, &b.particles, &b.layout, &b.bases);
     let dx = c.dx;
     let inv_d = inv_d(dx);
     for colour in &b.colours {
@@ -45,7 +45,7 @@ pub fn p2g(b: &mut CpuBackend, dt: f32) {
             let g = g as usize;
             for &pi in layout.particles_of(g) {
                 let pi = pi as usize;
-                let s = Stencil::new((p.x[pi] - c.origin) * c.inv_dx);
+                let s = Stencil::with_base((p.x[pi] - c.origin) * c.inv_dx, bases[pi]);
                 let nodes = layout.stencil_nodes(g, s.base);
                 let m = p.mass[pi];
                 let model = &c.materials[p.material[pi] as usize].model;

@@ -26,6 +26,7 @@ pub struct BlockLayout {
     pub particle_start: Vec<u32>,
     codes: Vec<u64>,
     keys: Vec<u32>,
+    scratch: Vec<u32>,
     counts: Vec<u32>,
 }
 
@@ -44,6 +45,13 @@ impl BlockLayout {
     ///
     /// Deterministic: the result depends only on `bases`, never on thread count or timing.
     pub fn rebuild(&mut self, bases: &[IVec3]) {
+        self.rebuild_with_ties(bases, None);
+    }
+
+    /// [`BlockLayout::rebuild`], with particles of one cell ordered by `ids` (their original
+    /// indices) instead of by storage index, so that the order is a function of the particle
+    /// state alone, whatever order they are stored in.
+    pub fn rebuild_with_ties(&mut self, bases: &[IVec3], ids: Option<&[u32]>) {
         // 1. gblocks: the distinct blocks of the base nodes, sorted by block code.
         self.map.clear();
         self.codes.clear();
@@ -120,6 +128,34 @@ impl BlockLayout {
             let slot = &mut self.counts[k as usize];
             self.order[*slot as usize] = p as u32;
             *slot += 1;
+        }
+        if let Some(ids) = ids {
+            // counts[k] is now the end of bucket k. Buckets (cells) hold a few particles: insertion sort.
+            let mut start = 0usize;
+            for k in 0..buckets {
+                let end = self.counts[k] as usize;
+                let bucket = &mut self.order[start..end];
+                for i in 1..bucket.len() {
+                    let mut j = i;
+                    while j > 0 && ids[bucket[j - 1] as usize] > ids[bucket[j] as usize] {
+                        bucket.swap(j - 1, j);
+                        j -= 1;
+                    }
+                }
+                start = end;
+            }
+        }
+    }
+
+    /// After the caller has stored the particles in `order` (particle `order[i]` moved to slot
+    /// `i`), renumber the layout accordingly: `order` becomes the identity.
+    pub fn adopt_order(&mut self) {
+        self.scratch.clear();
+        self.scratch
+            .extend(self.order.iter().map(|&p| self.keys[p as usize]));
+        std::mem::swap(&mut self.keys, &mut self.scratch);
+        for (i, o) in self.order.iter_mut().enumerate() {
+            *o = i as u32;
         }
     }
 
