@@ -28,6 +28,7 @@
 #define CTL_REBUILDS 7
 #define CTL_WARPS 8
 #define CTL_EXTRA 9
+#define CTL_PREV_GBLOCKS 10
 #define CTL_WORDS 16
 
 #define ERR_HASH 1u

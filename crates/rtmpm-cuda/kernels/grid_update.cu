@@ -124,10 +124,16 @@ __device__ vec3 shape_normal(const Ctx& c, const GpuCollider& col, vec3 x) {
     }
 }
 
+__device__ void grid_update_node(const Ctx& c, unsigned t);
+
+// Grid-stride over the nodes of the pblocks in use (launched with at most one wave of blocks).
 extern "C" __global__ void grid_update(Ctx c) {
     if (c.ctl[CTL_ERROR]) return;
-    unsigned t = thread_index();
-    if (t >= c.ctl[CTL_PBLOCKS] * 64u) return;
+    unsigned n_nodes = c.ctl[CTL_PBLOCKS] * 64u;
+    for (unsigned t = thread_index(); t < n_nodes; t += gridDim.x * blockDim.x) grid_update_node(c, t);
+}
+
+__device__ void grid_update_node(const Ctx& c, unsigned t) {
     real* node = c.grid + 4u * t;
     real m = node[0];
     if (!(m > 0)) return;

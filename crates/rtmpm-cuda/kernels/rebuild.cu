@@ -2,7 +2,11 @@
 // dense id), gblocks, pblocks with explicit 3x3x3 neighbour lists, complete block+cell counting
 // sort (histogram, scan, scatter) with physical reordering of the particle arrays, warp list.
 // Every kernel is launched every step and returns at once unless ctl[CTL_NEED_REBUILD] is set.
+// Launches use a grid of at most one full wave of the device (grid-stride loops), so that a step
+// without a rebuild costs only a few early-exiting blocks per kernel.
 #include "common.cuh"
+
+#define GRID_STRIDE(i, n) for (unsigned i = thread_index(); i < (n); i += gridDim.x * blockDim.x)
 
 #define NEED(c) (((volatile unsigned*)(c).ctl)[CTL_NEED_REBUILD] != 0)
 
@@ -13,6 +17,7 @@ extern "C" __global__ void rb_begin(Ctx c) {
     if (c.step->always_rebuild) c.ctl[CTL_NEED_REBUILD] = 1;
     if (!c.ctl[CTL_NEED_REBUILD]) return;
     c.ctl[CTL_REBUILDS] += 1;
+    c.ctl[CTL_PREV_GBLOCKS] = c.ctl[CTL_GBLOCKS];
     c.ctl[CTL_GBLOCKS] = 0;
     c.ctl[CTL_PBLOCKS] = 0;
     c.ctl[CTL_EXTRA] = 0;
@@ -21,9 +26,10 @@ extern "C" __global__ void rb_begin(Ctx c) {
 
 extern "C" __global__ void rb_clear(Ctx c) {
     if (!NEED(c)) return;
-    unsigned i = thread_index();
-    if (i < c.hash_cap) { c.hash_keys[i] = EMPTY_KEY; c.hash_values[i] = EMPTY_ID; }
-    if (i < c.n_buckets) c.hist[i] = 0;
+    GRID_STRIDE(i, c.hash_cap) { c.hash_keys[i] = EMPTY_KEY; c.hash_values[i] = EMPTY_ID; }
+    // The histogram (bucket starts, read by the shared-memory P2G between rebuilds) of the last
+    // rebuild's buckets; the rest is still zero from the allocation.
+    GRID_STRIDE(i, min(c.ctl[CTL_PREV_GBLOCKS], c.gblock_cap) * 64u) c.hist[i] = 0;
 }
 
 // Block of the stencil base of particle i.
@@ -36,68 +42,73 @@ __device__ __forceinline__ void particle_block(const Ctx& c, unsigned i, int b[3
 
 extern "C" __global__ void rb_insert_gblocks(Ctx c) {
     if (!NEED(c)) return;
-    unsigned i = thread_index();
-    if (i >= c.n) return;
-    int b[3], base[3];
-    particle_block(c, i, b, base);
-    hash_insert(c, block_code(b[0], b[1], b[2]));
+    GRID_STRIDE(i, c.n) {
+        int b[3], base[3];
+        particle_block(c, i, b, base);
+        hash_insert(c, block_code(b[0], b[1], b[2]));
+    }
 }
 
 // Give every new key a dense id: gblocks (first == 1) from 0, neighbours after the gblocks.
 extern "C" __global__ void rb_assign(Ctx c, unsigned first) {
     if (!NEED(c)) return;
-    unsigned h = thread_index();
-    if (h >= c.hash_cap) return;
-    unsigned long long key = c.hash_keys[h];
-    if (key == EMPTY_KEY || c.hash_values[h] != EMPTY_ID) return;
-    unsigned id;
-    if (first) {
-        id = atomicAdd(&c.ctl[CTL_GBLOCKS], 1u);
-        if (id >= c.gblock_cap) { atomicOr(&c.ctl[CTL_ERROR], ERR_GBLOCKS); return; }
-    } else {
-        id = c.ctl[CTL_GBLOCKS] + atomicAdd(&c.ctl[CTL_EXTRA], 1u);
+    GRID_STRIDE(h, c.hash_cap) {
+        unsigned long long key = c.hash_keys[h];
+        if (key == EMPTY_KEY || c.hash_values[h] != EMPTY_ID) continue;
+        unsigned id;
+        if (first) {
+            id = atomicAdd(&c.ctl[CTL_GBLOCKS], 1u);
+            if (id >= c.gblock_cap) { atomicOr(&c.ctl[CTL_ERROR], ERR_GBLOCKS); continue; }
+        } else {
+            id = c.ctl[CTL_GBLOCKS] + atomicAdd(&c.ctl[CTL_EXTRA], 1u);
+        }
+        if (id >= c.pblock_cap) { atomicOr(&c.ctl[CTL_ERROR], ERR_PBLOCKS); continue; }
+        c.hash_values[h] = id;
+        c.block_coords[3 * id] = (int)compact3(key >> 2);
+        c.block_coords[3 * id + 1] = (int)compact3(key >> 1);
+        c.block_coords[3 * id + 2] = (int)compact3(key);
     }
-    if (id >= c.pblock_cap) { atomicOr(&c.ctl[CTL_ERROR], ERR_PBLOCKS); return; }
-    c.hash_values[h] = id;
-    c.block_coords[3 * id] = (int)compact3(key >> 2);
-    c.block_coords[3 * id + 1] = (int)compact3(key >> 1);
-    c.block_coords[3 * id + 2] = (int)compact3(key);
 }
 
 extern "C" __global__ void rb_insert_neighbors(Ctx c) {
     if (!NEED(c)) return;
-    unsigned t = thread_index();
-    unsigned g = t / 27, s = t % 27;
-    if (g >= c.ctl[CTL_GBLOCKS] || g >= c.gblock_cap) return;
-    const int* bc = c.block_coords + 3 * g;
-    int di = (int)(s / 9) - 1, dj = (int)(s / 3 % 3) - 1, dk = (int)(s % 3) - 1;
-    hash_insert(c, block_code(bc[0] + di, bc[1] + dj, bc[2] + dk));
+    unsigned gcount = min(c.ctl[CTL_GBLOCKS], c.gblock_cap);
+    GRID_STRIDE(t, gcount * 27u) {
+        unsigned g = t / 27, s = t % 27;
+        const int* bc = c.block_coords + 3 * g;
+        int di = (int)(s / 9) - 1, dj = (int)(s / 3 % 3) - 1, dk = (int)(s % 3) - 1;
+        hash_insert(c, block_code(bc[0] + di, bc[1] + dj, bc[2] + dk));
+    }
 }
 
 extern "C" __global__ void rb_neighbor_lists(Ctx c) {
     if (!NEED(c)) return;
-    unsigned t = thread_index();
-    unsigned g = t / 27, s = t % 27;
     unsigned gcount = c.ctl[CTL_GBLOCKS];
-    if (t == 0) c.ctl[CTL_PBLOCKS] = min(gcount + c.ctl[CTL_EXTRA], c.pblock_cap);
-    if (g >= gcount || g >= c.gblock_cap) return;
-    const int* bc = c.block_coords + 3 * g;
-    int di = (int)(s / 9) - 1, dj = (int)(s / 3 % 3) - 1, dk = (int)(s % 3) - 1;
-    c.neighbors[27 * g + s] = hash_find(c, block_code(bc[0] + di, bc[1] + dj, bc[2] + dk));
+    if (thread_index() == 0) c.ctl[CTL_PBLOCKS] = min(gcount + c.ctl[CTL_EXTRA], c.pblock_cap);
+    gcount = min(gcount, c.gblock_cap);
+    GRID_STRIDE(t, gcount * 27u) {
+        unsigned g = t / 27, s = t % 27;
+        const int* bc = c.block_coords + 3 * g;
+        int di = (int)(s / 9) - 1, dj = (int)(s / 3 % 3) - 1, dk = (int)(s % 3) - 1;
+        c.neighbors[27 * g + s] = hash_find(c, block_code(bc[0] + di, bc[1] + dj, bc[2] + dk));
+    }
 }
 
 // Counting sort, 1: histogram of (gblock, cell code) buckets; remember each particle's rank.
 extern "C" __global__ void rb_histogram(Ctx c) {
     if (!NEED(c) || c.ctl[CTL_ERROR]) return;
-    unsigned i = thread_index();
-    if (i >= c.n) return;
-    int b[3], base[3];
-    particle_block(c, i, b, base);
-    unsigned g = hash_find(c, block_code(b[0], b[1], b[2]));
-    unsigned key = g * 64u + (unsigned)cell_code(base[0], base[1], base[2]);
-    c.pkey[i] = key;
-    c.prank[i] = atomicAdd(&c.hist[key], 1u);
+    GRID_STRIDE(i, c.n) {
+        int b[3], base[3];
+        particle_block(c, i, b, base);
+        unsigned g = hash_find(c, block_code(b[0], b[1], b[2]));
+        unsigned key = g * 64u + (unsigned)cell_code(base[0], base[1], base[2]);
+        c.pkey[i] = key;
+        c.prank[i] = atomicAdd(&c.hist[key], 1u);
+    }
 }
+
+// Buckets in use: 64 per gblock.
+__device__ __forceinline__ unsigned active_buckets(const Ctx& c) { return min(c.ctl[CTL_GBLOCKS], c.gblock_cap) * 64u; }
 
 // Counting sort, 2: exclusive scan of the bucket counts (3 kernels: blocks of 1024, block sums,
 // add). Our own scan: the CUB host API is not available under NVRTC.
@@ -126,19 +137,24 @@ __device__ __forceinline__ unsigned block_exclusive_scan(unsigned v, unsigned* t
     return incl - v;
 }
 
+// Chunks of blockDim.x buckets, strided over the blocks (uniform trip count per block).
 extern "C" __global__ void rb_scan_blocks(Ctx c) {
     if (!NEED(c) || c.ctl[CTL_ERROR]) return;
-    unsigned i = thread_index();
-    unsigned v = i < c.n_buckets ? c.hist[i] : 0;
-    unsigned total;
-    unsigned e = block_exclusive_scan(v, &total);
-    if (i < c.n_buckets) c.hist[i] = e;
-    if (threadIdx.x == 0) c.scan_sums[blockIdx.x] = total;
+    unsigned nb = active_buckets(c), chunks = (nb + blockDim.x - 1) / blockDim.x;
+    for (unsigned chunk = blockIdx.x; chunk < chunks; chunk += gridDim.x) {
+        unsigned i = chunk * blockDim.x + threadIdx.x;
+        unsigned v = i < nb ? c.hist[i] : 0;
+        unsigned total;
+        unsigned e = block_exclusive_scan(v, &total);
+        if (i < nb) c.hist[i] = e;
+        if (threadIdx.x == 0) c.scan_sums[chunk] = total;
+    }
 }
 
 // One block of 1024 threads scans the block sums in chunks.
-extern "C" __global__ void rb_scan_sums(Ctx c, unsigned n_sums) {
+extern "C" __global__ void rb_scan_sums(Ctx c) {
     if (!NEED(c) || c.ctl[CTL_ERROR]) return;
+    unsigned n_sums = (active_buckets(c) + 1023u) / 1024u;
     unsigned carry = 0;
     for (unsigned start = 0; start < n_sums; start += blockDim.x) {
         unsigned i = start + threadIdx.x;
@@ -152,40 +168,42 @@ extern "C" __global__ void rb_scan_sums(Ctx c, unsigned n_sums) {
 
 extern "C" __global__ void rb_scan_add(Ctx c) {
     if (!NEED(c) || c.ctl[CTL_ERROR]) return;
-    unsigned i = thread_index();
-    if (i < c.n_buckets) c.hist[i] += c.scan_sums[blockIdx.x];
+    unsigned nb = active_buckets(c), chunks = (nb + blockDim.x - 1) / blockDim.x;
+    for (unsigned chunk = blockIdx.x; chunk < chunks; chunk += gridDim.x) {
+        unsigned i = chunk * blockDim.x + threadIdx.x;
+        if (i < nb) c.hist[i] += c.scan_sums[chunk];
+    }
 }
 
 // Counting sort, 3: scatter every field to its sorted slot in the scratch arrays, and emit the
 // warp list (each warp: up to 32 consecutive particles of one gblock).
 extern "C" __global__ void rb_scatter(Ctx c) {
     if (!NEED(c) || c.ctl[CTL_ERROR]) return;
-    unsigned i = thread_index();
-    if (i >= c.n) return;
-    unsigned key = c.pkey[i];
-    unsigned dst = c.hist[key] + c.prank[i];
-    for (int f = 0; f < RTMPM_NFIELDS; ++f) c.scratch[f * c.cap + dst] = c.state[f * c.cap + i];
-    unsigned g = key >> 6;
-    unsigned start = c.hist[g * 64u];
-    unsigned end = (g + 1 < c.ctl[CTL_GBLOCKS]) ? c.hist[(g + 1) * 64u] : c.n;
-    if ((dst - start) % 32u == 0) {
-        unsigned w = atomicAdd(&c.ctl[CTL_WARPS], 1u);
-        if (w >= c.warp_cap) { atomicOr(&c.ctl[CTL_ERROR], ERR_WARPS); return; }
-        c.warps[3 * w] = g;
-        c.warps[3 * w + 1] = dst;
-        c.warps[3 * w + 2] = min(32u, end - dst);
+    GRID_STRIDE(i, c.n) {
+        unsigned key = c.pkey[i];
+        unsigned dst = c.hist[key] + c.prank[i];
+        for (int f = 0; f < RTMPM_NFIELDS; ++f) c.scratch[f * c.cap + dst] = c.state[f * c.cap + i];
+        unsigned g = key >> 6;
+        unsigned start = c.hist[g * 64u];
+        unsigned end = (g + 1 < c.ctl[CTL_GBLOCKS]) ? c.hist[(g + 1) * 64u] : c.n;
+        if ((dst - start) % 32u == 0) {
+            unsigned w = atomicAdd(&c.ctl[CTL_WARPS], 1u);
+            if (w >= c.warp_cap) { atomicOr(&c.ctl[CTL_ERROR], ERR_WARPS); continue; }
+            c.warps[3 * w] = g;
+            c.warps[3 * w + 1] = dst;
+            c.warps[3 * w + 2] = min(32u, end - dst);
+        }
     }
 }
 
 // Copy the sorted scratch back (the state pointer never changes, so a step can be captured in a
 // CUDA graph), and clear the rebuild flag.
 extern "C" __global__ void rb_copy_back(Ctx c) {
-    if (!NEED(c)) return;
-    unsigned t = thread_index();
-    if (t >= c.n * RTMPM_NFIELDS) return;
-    if (c.ctl[CTL_ERROR]) return;
-    unsigned f = t / c.n, i = t % c.n;
-    c.state[f * c.cap + i] = c.scratch[f * c.cap + i];
+    if (!NEED(c) || c.ctl[CTL_ERROR]) return;
+    GRID_STRIDE(t, c.n * RTMPM_NFIELDS) {
+        unsigned f = t / c.n, i = t % c.n;
+        c.state[f * c.cap + i] = c.scratch[f * c.cap + i];
+    }
 }
 
 extern "C" __global__ void rb_end(Ctx c) {
@@ -194,7 +212,5 @@ extern "C" __global__ void rb_end(Ctx c) {
 
 // Zero the grid nodes of all pblocks (every step).
 extern "C" __global__ void grid_clear(Ctx c) {
-    unsigned t = thread_index();
-    if (t >= c.ctl[CTL_PBLOCKS] * 64u * 4u) return;
-    c.grid[t] = 0;
+    GRID_STRIDE(t, c.ctl[CTL_PBLOCKS] * 64u * 4u) c.grid[t] = 0;
 }

@@ -24,12 +24,19 @@ pub(crate) fn cfg(n: usize, block: u32) -> LaunchConfig {
     }
 }
 
+/// Like [`cfg`], but with at most `wave_threads` threads in all (kernels with grid-stride loops).
+pub(crate) fn cfg_wave(n: usize, block: u32, wave_threads: usize) -> LaunchConfig {
+    cfg(n.min(wave_threads.max(block as usize)), block)
+}
+
 fn err(what: &str) -> impl Fn(cudarc::driver::DriverError) -> SimError + '_ {
     move |e| SimError::Backend(format!("CUDA: {what}: {e:?}"))
 }
 
 /// The kernels of the pipeline.
 pub(crate) struct Kernels {
+    /// Threads of one full wave of the device (SMs x 2048).
+    pub wave_threads: usize,
     pub rb_begin: CudaFunction,
     pub rb_clear: CudaFunction,
     pub rb_insert_gblocks: CudaFunction,
@@ -220,6 +227,7 @@ impl CudaBackend {
                 .map_err(|e| SimError::Backend(format!("CUDA: kernel {name}: {e:?}")))
         };
         let kernels = Kernels {
+            wave_threads: info.sm_count.max(1) as usize * 2048,
             rb_begin: f("rb_begin")?,
             rb_clear: f("rb_clear")?,
             rb_insert_gblocks: f("rb_insert_gblocks")?,

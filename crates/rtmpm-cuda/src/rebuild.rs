@@ -1,19 +1,20 @@
 //! Host side of `kernels/rebuild.cu`: the rebuild-mapping kernels, enqueued every step (they
 //! return at once on the device unless the free-zone flag asks for a rebuild), and the grid clear.
 
-use crate::backend::{Kernels, cfg};
+use crate::backend::{Kernels, cfg, cfg_wave};
 use crate::layout::{Ctx, NFIELDS};
 use cudarc::driver::{CudaStream, DriverError, PushKernelArg};
 
 /// Enqueue the rebuild kernels and the grid clear.
 pub(crate) fn enqueue(k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), DriverError> {
     let one = cfg(1, 32);
+    // At most one full wave: the kernels loop over their items (grid-stride).
+    let cfg = |n: usize, block: u32| cfg_wave(n, block, k.wave_threads);
     let n = c.n as usize;
     let hc = (c.hash_cap as usize).max(c.n_buckets as usize);
     let g27 = c.gblock_cap as usize * 27;
     let scan_blocks = (c.n_buckets as usize).div_ceil(1024);
     let (first, second) = (1u32, 0u32);
-    let n_sums = scan_blocks as u32;
     // SAFETY: every kernel bounds-checks against the capacities in `c`.
     unsafe {
         s.launch_builder(&k.rb_begin).arg(c).launch(one)?;
@@ -43,7 +44,6 @@ pub(crate) fn enqueue(k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), Driver
             .launch(cfg(scan_blocks * 1024, 1024))?;
         s.launch_builder(&k.rb_scan_sums)
             .arg(c)
-            .arg(&n_sums)
             .launch(cfg(1024, 1024))?;
         s.launch_builder(&k.rb_scan_add)
             .arg(c)
