@@ -148,6 +148,22 @@ __device__ __forceinline__ void weights_1d(real fx, real w[3]) {
     w[2] = (real)0.5 * (fx - (real)0.5) * (fx - (real)0.5);
 }
 
+// Node addressing of one particle's 3x3x3 stencil, split per axis once (rtmpm_core's
+// BlockLayout::stencil_nodes): node (i, j, k) lives at
+// neighbors[27 g + slot[0][i] + slot[1][j] + slot[2][k]] * 64 + (cell[0][i] | cell[1][j] | cell[2][k]).
+struct StencilIdx { int slot[3][3]; unsigned cell[3][3]; };
+__device__ __forceinline__ StencilIdx stencil_idx(const int* bc, const int base[3]) {
+    StencilIdx s;
+    const int stride[3] = {9, 3, 1}, shift[3] = {4, 2, 0};
+    for (int a = 0; a < 3; ++a)
+        for (int n = 0; n < 3; ++n) {
+            int r = base[a] + n - 4 * bc[a];
+            s.slot[a][n] = ((r >> 2) + 1) * stride[a];
+            s.cell[a][n] = (unsigned)(r & 3) << shift[a];
+        }
+    return s;
+}
+
 // Hash lookup of a block code; EMPTY_ID if absent.
 __device__ __forceinline__ unsigned hash_find(const Ctx& c, unsigned long long key) {
     unsigned mask = c.hash_cap - 1;

@@ -3,10 +3,20 @@
 #include "common.cuh"
 #include "material_dispatch.cuh"
 
-extern "C" __global__ void g2p(Ctx c) {
+#ifndef G2P_MIN_BLOCKS
+#define G2P_MIN_BLOCKS 1
+#endif
+
+__device__ __forceinline__ void g2p_warp(const Ctx& c, unsigned w, unsigned lane);
+
+// Warps loop over the warp list (grid-stride, launched with about one wave of blocks).
+extern "C" __global__ void __launch_bounds__(128, G2P_MIN_BLOCKS) g2p(Ctx c) {
     if (c.ctl[CTL_ERROR]) return;
-    unsigned w = thread_index() >> 5, lane = threadIdx.x & 31;
-    if (w >= c.ctl[CTL_WARPS]) return;
+    unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
+    for (unsigned w = thread_index() >> 5; w < n_warps; w += stride) g2p_warp(c, w, threadIdx.x & 31);
+}
+
+__device__ __forceinline__ void g2p_warp(const Ctx& c, unsigned w, unsigned lane) {
     unsigned g = c.warps[3 * w], first = c.warps[3 * w + 1], count = c.warps[3 * w + 2];
     if (lane >= count) return;
     unsigned p = first + lane;
@@ -16,20 +26,43 @@ extern "C" __global__ void g2p(Ctx c) {
     for (int a = 0; a < 3; ++a) weights_1d(fx[a], wt[a]);
     const int* bc = c.block_coords + 3 * g;
     const unsigned* nbs = c.neighbors + 27 * g;
-    vec3 v = make_v3(0, 0, 0);
-    mat3 B = mat3_zero();
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j)
+    StencilIdx si = stencil_idx(bc, base);
+    // v = sum w v_i; B = sum w v_i (i, j, k)^T accumulated axis by axis; then
+    // C = D^-1 dx (B - v fx^T) = D^-1 sum w v_i (x_i - x_p)^T (APIC; cpu/g2p.rs does the same).
+    vec3 v = make_v3(0, 0, 0), b0 = v, b1 = v, b2 = v;
+    for (int i = 0; i < 3; ++i) {
+        vec3 sum_i = make_v3(0, 0, 0), b1_i = sum_i, b2_i = sum_i;
+        for (int j = 0; j < 3; ++j) {
+            real wij = wt[0][i] * wt[1][j];
+            vec3 sum_j = make_v3(0, 0, 0), b2_j = sum_j;
             for (int k = 0; k < 3; ++k) {
-                int n0 = base[0] + i, n1 = base[1] + j, n2 = base[2] + k;
-                unsigned id = nbs[nb_slot((n0 >> 2) - bc[0], (n1 >> 2) - bc[1], (n2 >> 2) - bc[2])];
-                const real* node = c.grid + 4u * (id * 64u + (unsigned)cell_code(n0, n1, n2));
+                unsigned id = nbs[si.slot[0][i] + si.slot[1][j] + si.slot[2][k]];
+                unsigned cell = si.cell[0][i] | si.cell[1][j] | si.cell[2][k];
+#ifdef RTMPM_F64
+                const real* node = c.grid + 4u * (id * 64u + cell);
                 vec3 vi = make_v3(node[1], node[2], node[3]);
-                real weight = wt[0][i] * wt[1][j] * wt[2][k];
-                vec3 dpos = make_v3(((real)i - fx[0]) * c.dx, ((real)j - fx[1]) * c.dx, ((real)k - fx[2]) * c.dx);
-                v = v + vi * weight;
-                B = B + outer(vi * weight, dpos);
+#else
+                float4 nd = __ldg(reinterpret_cast<const float4*>(c.grid) + (id * 64u + cell));
+                vec3 vi = make_v3(nd.y, nd.z, nd.w);
+#endif
+                vec3 wv = vi * (wij * wt[2][k]);
+                sum_j = sum_j + wv;
+                b2_j = b2_j + wv * (real)k;
             }
+            sum_i = sum_i + sum_j;
+            b1_i = b1_i + sum_j * (real)j;
+            b2_i = b2_i + b2_j;
+        }
+        v = v + sum_i;
+        b0 = b0 + sum_i * (real)i;
+        b1 = b1 + b1_i;
+        b2 = b2 + b2_i;
+    }
+    mat3 B;
+    B.m[0] = b0.x; B.m[1] = b0.y; B.m[2] = b0.z;
+    B.m[3] = b1.x; B.m[4] = b1.y; B.m[5] = b1.z;
+    B.m[6] = b2.x; B.m[7] = b2.y; B.m[8] = b2.z;
+    B = (B - outer(v, make_v3(fx[0], fx[1], fx[2]))) * c.dx;
     real dt = c.step->dt;
     mat3 C = B * ((real)4 * c.inv_dx * c.inv_dx);
     x = x + v * dt;
@@ -46,7 +79,12 @@ extern "C" __global__ void g2p(Ctx c) {
         unsigned prev = atomicMin(&c.ctl[CTL_BAD_INDEX], id);
         if (prev > id) atomicExch(&c.ctl[CTL_BAD_REASON], finite ? 2u : 1u);
     }
-    if (finite) atomicMax(&c.ctl[CTL_MAX_SPEED], __float_as_uint((float)speed));
+    // Max speed: reduce within the warp first (one atomic per warp, not per particle). Floats
+    // >= 0 order like their bit patterns.
+    unsigned bits = finite ? __float_as_uint((float)speed) : 0u;
+    unsigned mask = __activemask();
+    unsigned wmax = __reduce_max_sync(mask, bits);
+    if (lane == (unsigned)(__ffs(mask) - 1)) atomicMax(&c.ctl[CTL_MAX_SPEED], wmax);
     x.x = fmin(fmax(x.x, (real)c.domain_min[0]), (real)c.domain_max[0]);
     x.y = fmin(fmax(x.y, (real)c.domain_min[1]), (real)c.domain_max[1]);
     x.z = fmin(fmax(x.z, (real)c.domain_min[2]), (real)c.domain_max[2]);

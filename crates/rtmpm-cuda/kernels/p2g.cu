@@ -6,7 +6,14 @@
 #include "common.cuh"
 #include "material_dispatch.cuh"
 
-__device__ __forceinline__ void atomic_add_real(real* p, real v) { atomicAdd(p, v); }
+// Add (mass, momentum) to a node: one 16-byte vector atomic on sm_90 (f32), else four.
+__device__ __forceinline__ void atomic_add_node(real* node, const real val[4]) {
+#if !defined(RTMPM_F64) && defined(__CUDA_ARCH__) && __CUDA_ARCH__ >= 900
+    atomicAdd(reinterpret_cast<float4*>(node), make_float4(val[0], val[1], val[2], val[3]));
+#else
+    for (int q = 0; q < 4; ++q) atomicAdd(node + q, val[q]);
+#endif
+}
 
 // Memory index of node base + (i, j, k) for a particle of gblock g.
 __device__ __forceinline__ unsigned node_index(const Ctx& c, unsigned g, const int base[3], int i, int j, int k) {
@@ -16,10 +23,20 @@ __device__ __forceinline__ unsigned node_index(const Ctx& c, unsigned g, const i
     return c.neighbors[27 * g + s] * 64u + (unsigned)cell_code(n0, n1, n2);
 }
 
-extern "C" __global__ void p2g(Ctx c) {
+#ifndef P2G_MIN_BLOCKS
+#define P2G_MIN_BLOCKS 1
+#endif
+
+__device__ __forceinline__ void p2g_warp(const Ctx& c, unsigned w, unsigned lane);
+
+// Warps loop over the warp list (grid-stride, launched with about one wave of blocks).
+extern "C" __global__ void __launch_bounds__(128, P2G_MIN_BLOCKS) p2g(Ctx c) {
     if (c.ctl[CTL_ERROR]) return;
-    unsigned w = thread_index() >> 5, lane = threadIdx.x & 31;
-    if (w >= c.ctl[CTL_WARPS]) return;  // uniform per warp
+    unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
+    for (unsigned w = thread_index() >> 5; w < n_warps; w += stride) p2g_warp(c, w, threadIdx.x & 31);
+}
+
+__device__ __forceinline__ void p2g_warp(const Ctx& c, unsigned w, unsigned lane) {
     unsigned g = c.warps[3 * w], first = c.warps[3 * w + 1], count = c.warps[3 * w + 2];
     bool active = lane < count;
     unsigned src = lane;
@@ -84,7 +101,11 @@ extern "C" __global__ void p2g(Ctx c) {
         seg_len = end - lane - 1;
         head = boundary && active;
     }
+    // Reduction rounds needed: up to the longest segment of this warp.
+    unsigned max_seg = c.warp_reduce ? __reduce_max_sync(0xffffffffu, seg_len) : 0u;
     vec3 mv = v * m;
+    StencilIdx si = stencil_idx(c.block_coords + 3 * g, base);
+    const unsigned* nbs = c.neighbors + 27 * g;
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j)
             for (int k = 0; k < 3; ++k) {
@@ -92,8 +113,8 @@ extern "C" __global__ void p2g(Ctx c) {
                 vec3 dpos = make_v3(((real)i - fx[0]) * c.dx, ((real)j - fx[1]) * c.dx, ((real)k - fx[2]) * c.dx);
                 vec3 mom = (mv + affine * dpos) * weight;
                 real val[4] = {weight * m, mom.x, mom.y, mom.z};
-                if (c.warp_reduce) {
-                    for (unsigned s = 1; s < 32; s <<= 1) {
+                if (max_seg > 0) {
+                    for (unsigned s = 1; s <= max_seg; s <<= 1) {
                         for (int q = 0; q < 4; ++q) {
                             real o = __shfl_down_sync(0xffffffffu, val[q], s);
                             if (s <= seg_len) val[q] += o;
@@ -101,8 +122,8 @@ extern "C" __global__ void p2g(Ctx c) {
                     }
                 }
                 if (head) {
-                    real* node = c.grid + 4u * node_index(c, g, base, i, j, k);
-                    for (int q = 0; q < 4; ++q) atomic_add_real(node + q, val[q]);
+                    unsigned id = nbs[si.slot[0][i] + si.slot[1][j] + si.slot[2][k]];
+                    atomic_add_node(c.grid + 4u * (id * 64u + (si.cell[0][i] | si.cell[1][j] | si.cell[2][k])), val);
                 }
             }
 }
@@ -156,6 +177,6 @@ extern "C" __global__ void p2g_shared(Ctx c) {
         int n[3] = {lo[0] + (int)(t / (TILE * TILE)), lo[1] + (int)(t / TILE % TILE), lo[2] + (int)(t % TILE)};
         int base[3] = {n[0], n[1], n[2]};
         real* node = c.grid + 4u * node_index(c, g, base, 0, 0, 0);
-        for (int q = 0; q < 4; ++q) atomic_add_real(node + q, (real)tile[4 * t + q]);
+        for (int q = 0; q < 4; ++q) atomicAdd(node + q, (real)tile[4 * t + q]);
     }
 }

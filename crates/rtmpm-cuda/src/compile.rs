@@ -134,6 +134,16 @@ pub fn nvrtc_options(o: &KernelOptions) -> Vec<String> {
     if o.f64 {
         v.push("-DRTMPM_F64".into());
     }
+    // Tuning experiments: extra `-DNAME=VALUE` flags, e.g. "-DG2P_MIN_BLOCKS=6" (part of the
+    // cache key like every other option).
+    if let Ok(defines) = std::env::var("RTMPM_KERNEL_DEFINES") {
+        v.extend(
+            defines
+                .split_whitespace()
+                .filter(|d| d.starts_with("-D"))
+                .map(String::from),
+        );
+    }
     v
 }
 

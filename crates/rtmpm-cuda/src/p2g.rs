@@ -1,7 +1,7 @@
 //! Host side of `kernels/p2g.cu`.
 
 use crate::P2gMode;
-use crate::backend::{Kernels, cfg};
+use crate::backend::{Kernels, cfg_wave};
 use crate::layout::Ctx;
 use cudarc::driver::{CudaStream, DriverError, LaunchConfig, PushKernelArg};
 
@@ -15,10 +15,11 @@ pub(crate) fn enqueue(
     // SAFETY: the kernels bounds-check against the device counters and capacities.
     unsafe {
         match mode {
-            P2gMode::Warp => s
-                .launch_builder(&k.p2g)
-                .arg(c)
-                .launch(cfg(c.warp_cap as usize * 32, 128))?,
+            P2gMode::Warp => s.launch_builder(&k.p2g).arg(c).launch(cfg_wave(
+                c.warp_cap as usize * 32,
+                128,
+                k.wave_threads,
+            ))?,
             P2gMode::Shared => s
                 .launch_builder(&k.p2g_shared)
                 .arg(c)
