@@ -28,7 +28,7 @@ impl Camera {
         let half_h = (half_v.tan() * aspect.max(1e-3)).atan();
         let half = half_v.min(half_h);
         // The bounding sphere fits the view; the box itself is a little smaller, so move in.
-        let dist = 0.85 * radius / half.sin();
+        let dist = 0.95 * radius / half.sin();
         Camera {
             position: center + dir * dist,
             target: center,
