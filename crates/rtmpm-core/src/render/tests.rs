@@ -358,3 +358,50 @@ fn render_1m_benchmark() {
     let dt = t.elapsed().as_secs_f64() / reps as f64;
     println!("render 1M particles 1280x720: {:.3} s/frame ({} threads)", dt, rayon::current_num_threads());
 }
+
+const SCENE: &str = r#"
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [1.0, 1.0, 1.0]
+dx = 0.0625
+[time]
+duration = 1.0
+[[material]]
+name = "w"
+type = "fluid"
+density = 1000.0
+bulk_modulus = 1e4
+[[body]]
+material = "w"
+shape = "box"
+min = [0.25, 0.25, 0.25]
+max = [0.5, 0.5, 0.5]
+"#;
+
+#[test]
+fn scene_render_table() {
+    let s = crate::Scene::from_toml(SCENE, "t.toml").unwrap();
+    assert_eq!(s.render, crate::scene::RenderSettings::default());
+    let text = format!(
+        "{SCENE}[render]\ncamera = [2.0, 1.0, 3.0]\ntarget = [0.5, 0.2, 0.5]\nfov = 30\nwidth = 640\nheight = 360\ncolor_by = \"J\"\n"
+    );
+    let s = crate::Scene::from_toml(&text, "t.toml").unwrap();
+    assert_eq!(s.render.camera, Some(Vec3::new(2.0, 1.0, 3.0)));
+    assert_eq!(s.render.fov, Some(30.0));
+    assert_eq!((s.render.width, s.render.height), (Some(640), Some(360)));
+    assert_eq!(s.render.color_by, Some(ColorBy::J));
+    for (bad, field) in [
+        ("fov = 180", "render.fov"),
+        ("width = 8", "render.width"),
+        ("color_by = \"colour\"", "render.color_by"),
+        ("camera = [1.0, 1.0, 1.0]\ntarget = [1.0, 1.0, 1.0]", "render.target"),
+        ("zoom = 2", "render.zoom"),
+    ] {
+        let e = crate::Scene::from_toml(&format!("{SCENE}[render]\n{bad}\n"), "t.toml")
+            .expect_err(bad);
+        assert!(
+            e.field.as_deref().is_some_and(|f| f.starts_with(field) || field.starts_with(f)),
+            "{bad}: {e}"
+        );
+    }
+}
