@@ -22,13 +22,26 @@ impl Camera {
     /// (width / height).
     pub fn framing(min: Vec3, max: Vec3, aspect: f32, fov_deg: f32) -> Camera {
         let center = 0.5 * (min + max);
-        let radius = (0.5 * (max - min).length()).max(1e-6);
         let dir = Vec3::new(0.55, 0.5, 1.0).normalize();
         let half_v = 0.5 * fov_deg.to_radians();
-        let half_h = (half_v.tan() * aspect.max(1e-3)).atan();
-        let half = half_v.min(half_h);
-        // The bounding sphere fits the view; the box itself is a little smaller, so move in.
-        let dist = 0.95 * radius / half.sin();
+        let (tan_v, tan_h) = (half_v.tan(), half_v.tan() * aspect.max(1e-3));
+        // Basis of the view (forward = -dir), as in `view`.
+        let fwd = -dir;
+        let right = fwd.cross(Vec3::Y).normalize();
+        let up = right.cross(fwd);
+        // The nearest distance at which every corner of the box is inside the view, plus 5%.
+        let mut dist: f32 = 1e-6;
+        for i in 0..8 {
+            let c = Vec3::new(
+                if i & 1 == 0 { min.x } else { max.x },
+                if i & 2 == 0 { min.y } else { max.y },
+                if i & 4 == 0 { min.z } else { max.z },
+            );
+            let o = c - center;
+            let need = o.dot(dir) + (o.dot(right).abs() / tan_h).max(o.dot(up).abs() / tan_v);
+            dist = dist.max(need);
+        }
+        let dist = 1.05 * dist;
         Camera {
             position: center + dir * dist,
             target: center,

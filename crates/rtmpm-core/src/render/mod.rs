@@ -530,7 +530,7 @@ pub fn render(input: &RenderInput, opts: &RenderOptions) -> Result<Image, Render
                     }
                     let ao = 1.0 - 0.55 * occ / 8.0;
                     let rim = 0.12 * (1.0 - nz).powi(2);
-                    base(g.id) * (0.32 * ao + 0.68 * lambert * (0.25 + 0.75 * lit)) + Vec3::splat(rim * ao)
+                    base(g.id) * (0.32 * ao + 0.68 * lambert * (0.5 + 0.5 * lit)) + Vec3::splat(rim * ao)
                 } else if ground_t.is_finite() {
                     let p = view.pos + ray * ground_t;
                     let inside = p.x >= blo.x && p.x <= bhi.x && p.z >= blo.z && p.z <= bhi.z;
