@@ -64,7 +64,9 @@ fn parse_size(s: &str) -> Result<Size, String> {
     let w: u32 = w.trim().parse().map_err(|_| bad())?;
     let h: u32 = h.trim().parse().map_err(|_| bad())?;
     if !(16..=8192).contains(&w) || !(16..=8192).contains(&h) {
-        return Err(format!("image size {w}x{h} out of range (16 to 8192 per side)"));
+        return Err(format!(
+            "image size {w}x{h} out of range (16 to 8192 per side)"
+        ));
     }
     Ok(Size(w, h))
 }
@@ -76,7 +78,9 @@ fn parse_floats(s: &str, n: usize) -> Result<Vec<f32>, String> {
         .collect::<Result<_, _>>()
         .map_err(|_| format!("expected {n} comma-separated numbers, got `{s}`"))?;
     if v.len() != n || v.iter().any(|x| !x.is_finite()) {
-        return Err(format!("expected {n} comma-separated finite numbers, got `{s}`"));
+        return Err(format!(
+            "expected {n} comma-separated finite numbers, got `{s}`"
+        ));
     }
     Ok(v)
 }
@@ -111,7 +115,10 @@ fn scene_palette(scene: &Scene) -> Vec<[f32; 3]> {
                 Model::VonMises(_) => 5,
             };
             let n = used.len();
-            let k = (0..n).map(|d| (want + d) % n).find(|&k| !used[k]).unwrap_or(want);
+            let k = (0..n)
+                .map(|d| (want + d) % n)
+                .find(|&k| !used[k])
+                .unwrap_or(want);
             used[k] = true;
             colormap::PALETTE[k]
         })
@@ -218,7 +225,10 @@ impl FrameJob {
         let (x, y, z) = (col("x")?, col("y")?, col("z")?);
         let positions: Vec<Vec3> = (0..d.count).map(|i| Vec3::new(x[i], y[i], z[i])).collect();
         let material: Vec<u32> = match d.int("material") {
-            Some(m) => m.iter().map(|&m| m.clamp(0, u32::MAX as i64) as u32).collect(),
+            Some(m) => m
+                .iter()
+                .map(|&m| m.clamp(0, u32::MAX as i64) as u32)
+                .collect(),
             None => vec![0; d.count],
         };
         let field = match color_by {
@@ -369,7 +379,12 @@ fn ffmpeg_mp4(dir: &Path, first: u64, fps: f32) -> Result<Option<PathBuf>> {
         .arg(format!("{fps}"))
         .args(["-start_number", &first.to_string(), "-i"])
         .arg(dir.join("frame_%05d.png"))
-        .args(["-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2", "-pix_fmt", "yuv420p"])
+        .args([
+            "-vf",
+            "pad=ceil(iw/2)*2:ceil(ih/2)*2",
+            "-pix_fmt",
+            "yuv420p",
+        ])
         .arg(&tmp)
         .stdin(Stdio::null())
         .status()
@@ -412,10 +427,7 @@ impl RunRenderer {
         if !render && preview.is_none() {
             return None;
         }
-        let color_by = view
-            .color_by
-            .or(scene.render.color_by)
-            .unwrap_or_default();
+        let color_by = view.color_by.or(scene.render.color_by).unwrap_or_default();
         Some(RunRenderer {
             tx: None,
             handle: None,
@@ -626,7 +638,9 @@ fn bench(args: &RenderArgs) -> Result<()> {
             }
         }
     }
-    let material: Vec<u32> = (0..positions.len()).map(|i| (i * 3 / positions.len()) as u32).collect();
+    let material: Vec<u32> = (0..positions.len())
+        .map(|i| (i * 3 / positions.len()) as u32)
+        .collect();
     let field: Vec<f32> = positions.iter().map(|p| p.y).collect();
     let (lo, hi) = (Vec3::ZERO, Vec3::new(1.0, 0.75, 0.7));
     let opts = resolve(&args.view, None, (lo, hi), lo.y + 0.1, 0.6 * h)?;

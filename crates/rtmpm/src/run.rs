@@ -120,8 +120,13 @@ pub fn run(args: RunArgs) -> Result<()> {
             .map(|o| format!(", output in {}", o.dir.display()))
             .unwrap_or_default()
     );
-    let mut renderer =
-        RunRenderer::new(args.render, args.preview.clone(), &args.view, &out_dir, &sim.scene);
+    let mut renderer = RunRenderer::new(
+        args.render,
+        args.preview.clone(),
+        &args.view,
+        &out_dir,
+        &sim.scene,
+    );
     let mut host = Particles::default();
     if sim.frame == 0 && (output.is_some() || renderer.is_some()) {
         sim.backend.read_particles(&mut host)?;

@@ -108,14 +108,19 @@ impl View {
         let d = p - self.pos;
         let z = d.dot(self.fwd);
         let s = self.focal / z;
-        (self.cx + d.dot(self.right) * s, self.cy - d.dot(self.up) * s, z)
+        (
+            self.cx + d.dot(self.right) * s,
+            self.cy - d.dot(self.up) * s,
+            z,
+        )
     }
 
     /// World direction (not normalised; its component along `fwd` is 1) through pixel
     /// coordinates `(x, y)`.
     #[inline]
     pub fn ray(&self, x: f32, y: f32) -> Vec3 {
-        self.fwd + self.right * ((x - self.cx) / self.focal) - self.up * ((y - self.cy) / self.focal)
+        self.fwd + self.right * ((x - self.cx) / self.focal)
+            - self.up * ((y - self.cy) / self.focal)
     }
 }
 

@@ -66,7 +66,10 @@ mod tests {
         assert_eq!(viridis(f32::NAN), VIRIDIS[0]);
         let m = viridis(0.55);
         for k in 0..3 {
-            let (lo, hi) = (VIRIDIS[5][k].min(VIRIDIS[6][k]), VIRIDIS[5][k].max(VIRIDIS[6][k]));
+            let (lo, hi) = (
+                VIRIDIS[5][k].min(VIRIDIS[6][k]),
+                VIRIDIS[5][k].max(VIRIDIS[6][k]),
+            );
             assert!(m[k] >= lo && m[k] <= hi);
         }
     }

@@ -67,15 +67,15 @@ impl Image {
                 for sy in y0..y1 {
                     for sx in x0..x1 {
                         let i = 3 * (sy * sw + sx);
-                        for k in 0..3 {
-                            acc[k] += self.rgb[i + k] as u32;
+                        for (a, &c) in acc.iter_mut().zip(&self.rgb[i..i + 3]) {
+                            *a += c as u32;
                         }
                     }
                 }
                 let cnt = ((y1 - y0) * (x1 - x0)) as u32;
                 let o = 3 * (y * dw + x);
-                for k in 0..3 {
-                    out.rgb[o + k] = ((acc[k] + cnt / 2) / cnt) as u8;
+                for (d, a) in out.rgb[o..o + 3].iter_mut().zip(acc) {
+                    *d = ((a + cnt / 2) / cnt) as u8;
                 }
             }
         }
@@ -158,7 +158,11 @@ impl GifMovie {
         encoder
             .set_repeat(gif::Repeat::Infinite)
             .map_err(io::Error::other)?;
-        let fps = if fps.is_finite() && fps > 0.0 { fps } else { 30.0 };
+        let fps = if fps.is_finite() && fps > 0.0 {
+            fps
+        } else {
+            30.0
+        };
         Ok(GifMovie {
             encoder,
             width,

@@ -15,9 +15,9 @@ pub mod camera;
 pub mod colormap;
 pub mod image;
 pub(crate) mod raster;
-pub mod text;
 #[cfg(test)]
 mod tests;
+pub mod text;
 
 pub use camera::Camera;
 pub use image::{GifMovie, Image};
@@ -89,7 +89,9 @@ impl FromStr for ColorBy {
         ColorBy::ALL
             .into_iter()
             .find(|c| c.name() == s || (s == "j" && *c == ColorBy::J))
-            .ok_or_else(|| format!("unknown colouring `{s}`: use material, speed, J, stress or plastic"))
+            .ok_or_else(|| {
+                format!("unknown colouring `{s}`: use material, speed, J, stress or plastic")
+            })
     }
 }
 
@@ -178,7 +180,11 @@ pub fn estimate_radius(positions: &[Vec3]) -> f32 {
     }
     let ext = (hi - lo).max(Vec3::splat(1e-6));
     if n < 2 || !ext.is_finite() {
-        return if ext.is_finite() { (ext.max_element() / 200.0).max(1e-3) } else { 0.01 };
+        return if ext.is_finite() {
+            (ext.max_element() / 200.0).max(1e-3)
+        } else {
+            0.01
+        };
     }
     // Cell size: the spacing if the particles filled their box, at least 1/256 of its longest
     // side; particles in occupied regions are denser, so neighbours are within one cell.
@@ -397,7 +403,10 @@ pub fn render(input: &RenderInput, opts: &RenderOptions) -> Result<Image, Render
             )));
         }
         (_, Some(f)) if f.len() != n => {
-            return Err(RenderError(format!("{} field values for {n} particles", f.len())));
+            return Err(RenderError(format!(
+                "{} field values for {n} particles",
+                f.len()
+            )));
         }
         (_, Some(f)) => Some(f),
     };
@@ -501,7 +510,8 @@ pub fn render(input: &RenderInput, opts: &RenderOptions) -> Result<Image, Render
         .enumerate()
         .for_each(|(y, row)| {
             let sky_t = y as f32 / h as f32;
-            let sky = Vec3::new(0.15, 0.17, 0.21) * (1.0 - sky_t) + Vec3::new(0.36, 0.38, 0.43) * sky_t;
+            let sky =
+                Vec3::new(0.15, 0.17, 0.21) * (1.0 - sky_t) + Vec3::new(0.36, 0.38, 0.43) * sky_t;
             for x in 0..w {
                 let ray = view.ray(x as f32 + 0.5, y as f32 + 0.5);
                 let ground_t = match opts.floor {
@@ -530,7 +540,8 @@ pub fn render(input: &RenderInput, opts: &RenderOptions) -> Result<Image, Render
                     }
                     let ao = 1.0 - 0.55 * occ / 8.0;
                     let rim = 0.12 * (1.0 - nz).powi(2);
-                    base(g.id) * (0.32 * ao + 0.68 * lambert * (0.5 + 0.5 * lit)) + Vec3::splat(rim * ao)
+                    base(g.id) * (0.32 * ao + 0.68 * lambert * (0.5 + 0.5 * lit))
+                        + Vec3::splat(rim * ao)
                 } else if ground_t.is_finite() {
                     let p = view.pos + ray * ground_t;
                     let inside = p.x >= blo.x && p.x <= bhi.x && p.z >= blo.z && p.z <= bhi.z;

@@ -10,7 +10,10 @@ fn cube(c: Vec3, size: f32, k: usize) -> Vec<Vec3> {
     for i in 0..k {
         for j in 0..k {
             for l in 0..k {
-                v.push(c - Vec3::splat(0.5 * size) + (Vec3::new(i as f32, j as f32, l as f32) + 0.5) * h);
+                v.push(
+                    c - Vec3::splat(0.5 * size)
+                        + (Vec3::new(i as f32, j as f32, l as f32) + 0.5) * h,
+                );
             }
         }
     }
@@ -77,7 +80,12 @@ fn cube_covers_centre_not_corners() {
     )
     .unwrap();
     // Material 0 is blue: the centre is blue, the corners are background.
-    assert_eq!(dominant(img.pixel(80, 45)), Some(2), "{:?}", img.pixel(80, 45));
+    assert_eq!(
+        dominant(img.pixel(80, 45)),
+        Some(2),
+        "{:?}",
+        img.pixel(80, 45)
+    );
     for (x, y) in [(0, 0), (159, 0), (0, 89), (159, 89)] {
         assert_ne!(dominant(img.pixel(x, y)), Some(2), "corner {x},{y}");
     }
@@ -107,7 +115,12 @@ fn near_red_occludes_far_blue() {
         &o,
     )
     .unwrap();
-    assert_eq!(dominant(img.pixel(32, 32)), Some(0), "{:?}", img.pixel(32, 32));
+    assert_eq!(
+        dominant(img.pixel(32, 32)),
+        Some(0),
+        "{:?}",
+        img.pixel(32, 32)
+    );
     // And swapping depth shows blue.
     let pos = [Vec3::new(0.0, 0.0, -0.5), Vec3::new(0.0, 0.0, 0.5)];
     let img = render(
@@ -119,7 +132,12 @@ fn near_red_occludes_far_blue() {
         &o,
     )
     .unwrap();
-    assert_eq!(dominant(img.pixel(32, 32)), Some(2), "{:?}", img.pixel(32, 32));
+    assert_eq!(
+        dominant(img.pixel(32, 32)),
+        Some(2),
+        "{:?}",
+        img.pixel(32, 32)
+    );
 }
 
 #[test]
@@ -187,7 +205,10 @@ fn field_colouring_draws_colour_bar_and_errors_without_field() {
     // Material colouring has no bar.
     o.color_by = ColorBy::Material;
     let img2 = render(&input, &o).unwrap();
-    assert!(dominant(img2.pixel(xb as u32, 180 / 4 + 2)).is_none() || img2.pixel(xb as u32, 180 / 4 + 2) != top);
+    assert!(
+        dominant(img2.pixel(xb as u32, 180 / 4 + 2)).is_none()
+            || img2.pixel(xb as u32, 180 / 4 + 2) != top
+    );
     // Missing field: a clear error.
     o.color_by = ColorBy::J;
     let err = render(
@@ -291,7 +312,10 @@ fn radius_estimate_and_range_and_format() {
     assert!(estimate_radius(&[Vec3::ONE]) > 0.0);
     let v: Vec<f32> = (0..=1000).map(|i| i as f32).collect();
     let (lo, hi) = field_range(&v);
-    assert!((lo - 10.0).abs() <= 1.0 && (hi - 990.0).abs() <= 1.0, "{lo} {hi}");
+    assert!(
+        (lo - 10.0).abs() <= 1.0 && (hi - 990.0).abs() <= 1.0,
+        "{lo} {hi}"
+    );
     let (lo, hi) = field_range(&[2.0; 10]);
     assert!(lo < 2.0 && hi > 2.0);
     assert_eq!(field_range(&[f32::NAN]), (0.0, 1.0));
@@ -356,7 +380,11 @@ fn render_1m_benchmark() {
         render(&input, &o).unwrap();
     }
     let dt = t.elapsed().as_secs_f64() / reps as f64;
-    println!("render 1M particles 1280x720: {:.3} s/frame ({} threads)", dt, rayon::current_num_threads());
+    println!(
+        "render 1M particles 1280x720: {:.3} s/frame ({} threads)",
+        dt,
+        rayon::current_num_threads()
+    );
 }
 
 const SCENE: &str = r#"
@@ -394,13 +422,18 @@ fn scene_render_table() {
         ("fov = 180", "render.fov"),
         ("width = 8", "render.width"),
         ("color_by = \"colour\"", "render.color_by"),
-        ("camera = [1.0, 1.0, 1.0]\ntarget = [1.0, 1.0, 1.0]", "render.target"),
+        (
+            "camera = [1.0, 1.0, 1.0]\ntarget = [1.0, 1.0, 1.0]",
+            "render.target",
+        ),
         ("zoom = 2", "render.zoom"),
     ] {
-        let e = crate::Scene::from_toml(&format!("{SCENE}[render]\n{bad}\n"), "t.toml")
-            .expect_err(bad);
+        let e =
+            crate::Scene::from_toml(&format!("{SCENE}[render]\n{bad}\n"), "t.toml").expect_err(bad);
         assert!(
-            e.field.as_deref().is_some_and(|f| f.starts_with(field) || field.starts_with(f)),
+            e.field
+                .as_deref()
+                .is_some_and(|f| f.starts_with(field) || field.starts_with(f)),
             "{bad}: {e}"
         );
     }

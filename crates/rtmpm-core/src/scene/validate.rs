@@ -379,8 +379,14 @@ impl V<'_> {
         let Some(r) = r else {
             return Ok(RenderSettings::default());
         };
-        let camera = r.camera.map(|v| self.vec3("render.camera", v)).transpose()?;
-        let target = r.target.map(|v| self.vec3("render.target", v)).transpose()?;
+        let camera = r
+            .camera
+            .map(|v| self.vec3("render.camera", v))
+            .transpose()?;
+        let target = r
+            .target
+            .map(|v| self.vec3("render.target", v))
+            .transpose()?;
         if let (Some(c), Some(t)) = (camera, target)
             && (c - t).length() <= 1e-9
         {
@@ -413,9 +419,10 @@ impl V<'_> {
         }
         let color_by = match &r.color_by {
             None => None,
-            Some(c) => Some(c.parse::<ColorBy>().map_err(|e| {
-                self.err("render.color_by", e, "e.g. color_by = \"speed\"")
-            })?),
+            Some(c) => Some(
+                c.parse::<ColorBy>()
+                    .map_err(|e| self.err("render.color_by", e, "e.g. color_by = \"speed\""))?,
+            ),
         };
         Ok(RenderSettings {
             camera,
