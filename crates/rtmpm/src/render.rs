@@ -568,7 +568,10 @@ pub fn render_cmd(args: RenderArgs) -> Result<()> {
         .unwrap_or_default();
     let read = |num: u64, path: &Path| -> Result<FrameJob> {
         let d = read_ply(path).with_context(|| format!("reading {}", path.display()))?;
-        FrameJob::from_ply(num, &d, color_by, path)
+        let mut job = FrameJob::from_ply(num, &d, color_by, path)?;
+        // Frame n of a run is at time n / fps.
+        job.time = scene.as_ref().map(|s| num as f64 / s.time.fps as f64);
+        Ok(job)
     };
     let first = read(frames[0].0, &frames[0].1)?;
     let radius = estimate_radius(&first.positions);
