@@ -11,6 +11,7 @@
 //! * [`sim`]: the backend trait and the frame/step driver shared by every backend.
 //! * [`cpu`]: the CPU reference backend (deterministic, rayon).
 //! * [`io`]: PLY, VTK XML (.vtu/.pvd) and checkpoints, all written atomically.
+//! * [`render`]: CPU particle renderer (shaded spheres, ground, shadows, colour bar), PNG/GIF.
 
 pub mod boundary;
 pub mod cpu;
@@ -19,6 +20,7 @@ pub mod io;
 pub mod material;
 pub mod math;
 pub mod particles;
+pub mod render;
 pub mod scene;
 pub mod shape;
 pub mod sim;

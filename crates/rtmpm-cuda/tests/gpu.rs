@@ -54,6 +54,7 @@ fn scene(dx: f32) -> Scene {
             stress: false,
             jacobian: false,
         },
+        render: Default::default(),
         seed: 0,
     }
 }

@@ -5,6 +5,7 @@ mod bench;
 mod check;
 mod info;
 mod output;
+mod render;
 mod run;
 
 use clap::{Parser, Subcommand};
@@ -29,6 +30,8 @@ enum Command {
         /// Scene file (TOML).
         scene: PathBuf,
     },
+    /// Render the PLY frames of a run to PNG images, movie.gif and (with ffmpeg) movie.mp4.
+    Render(render::RenderArgs),
     /// Benchmark: the classic MLS-MPM fluid block, particle-steps per second.
     Bench(bench::BenchArgs),
 }
@@ -40,6 +43,7 @@ fn main() -> ExitCode {
         Command::Info => info::info(),
         Command::Check { scene } => check::check(&scene),
         Command::Bench(args) => bench::bench(args),
+        Command::Render(args) => render::render_cmd(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -2,6 +2,7 @@
 
 use crate::backend::{BackendKind, make_backend};
 use crate::output::FrameOutput;
+use crate::render::RunRenderer;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -42,6 +43,15 @@ pub struct RunArgs {
     /// Write no frame files (for timing).
     #[arg(long)]
     pub no_output: bool,
+    /// Render every frame to OUT/frame_NNNNN.png while simulating, then movie.gif (and
+    /// movie.mp4 when ffmpeg is on the PATH).
+    #[arg(long)]
+    pub render: bool,
+    /// Rewrite this PNG after every frame (atomically): a live preview for an image viewer.
+    #[arg(long, value_name = "PNG")]
+    pub preview: Option<PathBuf>,
+    #[command(flatten)]
+    pub view: crate::render::ViewArgs,
 }
 
 pub fn run(args: RunArgs) -> Result<()> {
@@ -110,10 +120,22 @@ pub fn run(args: RunArgs) -> Result<()> {
             .map(|o| format!(", output in {}", o.dir.display()))
             .unwrap_or_default()
     );
+    let mut renderer = RunRenderer::new(
+        args.render,
+        args.preview.clone(),
+        &args.view,
+        &out_dir,
+        &sim.scene,
+    );
     let mut host = Particles::default();
-    if let (0, Some(out)) = (sim.frame, output.as_mut()) {
+    if sim.frame == 0 && (output.is_some() || renderer.is_some()) {
         sim.backend.read_particles(&mut host)?;
-        out.write_frame(0, 0.0, &host, &sim.scene)?;
+        if let Some(out) = output.as_mut() {
+            out.write_frame(0, 0.0, &host, &sim.scene)?;
+        }
+        if let Some(r) = renderer.as_mut() {
+            r.submit(0, 0.0, &host, &sim.scene)?;
+        }
     }
 
     let bar = ProgressBar::new(total_frames);
@@ -145,9 +167,14 @@ pub fn run(args: RunArgs) -> Result<()> {
             human_rate(rate)
         ));
         bar.set_position(sim.frame);
-        if let Some(out) = output.as_mut() {
+        if output.is_some() || renderer.is_some() {
             sim.backend.read_particles(&mut host)?;
+        }
+        if let Some(out) = output.as_mut() {
             out.write_frame(sim.frame, sim.time, &host, &sim.scene)?;
+        }
+        if let Some(r) = renderer.as_mut() {
+            r.submit(sim.frame, sim.time, &host, &sim.scene)?;
         }
         if args
             .checkpoint_every
@@ -174,6 +201,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         }
     }
     bar.finish_and_clear();
+    let rendered = renderer.map(RunRenderer::finish).transpose()?.flatten();
     let wall = start.elapsed().as_secs_f64();
     let steps = sim.step - start_step;
     println!("summary");
@@ -198,6 +226,9 @@ pub fn run(args: RunArgs) -> Result<()> {
     );
     if let Some(out) = &output {
         println!("  output       {}", out.dir.display());
+    }
+    if let Some(r) = rendered {
+        println!("  render       {r}");
     }
     Ok(())
 }

@@ -23,6 +23,7 @@ pub use spans::span_of;
 use crate::boundary::{Collider, Walls};
 use crate::material::Material;
 use crate::math::Vec3;
+use crate::render::ColorBy;
 use std::path::{Path, PathBuf};
 
 /// How the time step is chosen.
@@ -64,6 +65,23 @@ pub struct OutputSettings {
     pub jacobian: bool,
 }
 
+/// Optional `[render]` settings; `None` fields fall back to command-line flags or defaults.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RenderSettings {
+    /// Camera position (m).
+    pub camera: Option<Vec3>,
+    /// Point looked at (m).
+    pub target: Option<Vec3>,
+    /// Vertical field of view (degrees).
+    pub fov: Option<f32>,
+    /// Image width (pixels).
+    pub width: Option<u32>,
+    /// Image height (pixels).
+    pub height: Option<u32>,
+    /// Colouring.
+    pub color_by: Option<ColorBy>,
+}
+
 /// A body of material to be filled with particles (kept for `rtmpm check` summaries).
 #[derive(Clone, Debug)]
 pub struct Body {
@@ -98,6 +116,8 @@ pub struct Scene {
     pub colliders: Vec<Collider>,
     pub walls: Walls,
     pub output: OutputSettings,
+    /// `[render]` table (camera, image size, colouring).
+    pub render: RenderSettings,
     /// Seed of the jittered sampling.
     pub seed: u64,
 }

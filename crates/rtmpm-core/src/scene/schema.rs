@@ -26,6 +26,7 @@ pub struct RawScene {
     #[serde(default)]
     pub collider: Vec<RawCollider>,
     pub output: Option<RawOutput>,
+    pub render: Option<RawRender>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -279,4 +280,16 @@ pub struct RawOutput {
     pub dir: Option<String>,
     pub formats: Option<Vec<RawFormat>>,
     pub fields: Option<Vec<RawField>>,
+}
+
+/// `[render]`: camera and image settings of `rtmpm render` / `rtmpm run --render`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawRender {
+    pub camera: Option<V3>,
+    pub target: Option<V3>,
+    pub fov: Option<f32>,
+    pub width: Option<u32>,
+    pub height: Option<u32>,
+    pub color_by: Option<String>,
 }

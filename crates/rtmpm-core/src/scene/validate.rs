@@ -3,7 +3,7 @@
 use super::sampling::{self, BodyShape, Sampling};
 use super::schema::*;
 use super::spans::{line_col, path_at, span_in_doc};
-use super::{Body, OutputSettings, Scene, SceneError, StepMode, TimeSettings};
+use super::{Body, OutputSettings, RenderSettings, Scene, SceneError, StepMode, TimeSettings};
 use crate::boundary::mesh::MeshSdf;
 use crate::boundary::sdf::Shape;
 use crate::boundary::{BoundaryRule, Collider, Condition, Walls};
@@ -11,6 +11,7 @@ use crate::material::{
     self, DruckerPrager, Eos, FixedCorotated, Fluid, Material, Model, NeoHookean, Snow, VonMises,
 };
 use crate::math::Vec3;
+use crate::render::ColorBy;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -340,6 +341,8 @@ impl V<'_> {
             jacobian: fields.contains(&RawField::J),
         };
 
+        let render = self.render(raw.render.as_ref())?;
+
         let scene = Scene {
             name,
             source: None,
@@ -353,6 +356,7 @@ impl V<'_> {
             colliders,
             walls,
             output,
+            render,
             seed: raw.seed.unwrap_or(0),
         };
         // Every body must produce particles.
@@ -369,6 +373,65 @@ impl V<'_> {
             }
         }
         Ok(scene)
+    }
+
+    fn render(&self, r: Option<&RawRender>) -> R<RenderSettings> {
+        let Some(r) = r else {
+            return Ok(RenderSettings::default());
+        };
+        let camera = r
+            .camera
+            .map(|v| self.vec3("render.camera", v))
+            .transpose()?;
+        let target = r
+            .target
+            .map(|v| self.vec3("render.target", v))
+            .transpose()?;
+        if let (Some(c), Some(t)) = (camera, target)
+            && (c - t).length() <= 1e-9
+        {
+            return Err(self.err(
+                "render.target",
+                "the camera position and target coincide",
+                "move the camera away from the point it looks at",
+            ));
+        }
+        if let Some(fov) = r.fov {
+            self.finite("render.fov", fov)?;
+            if !(fov > 0.0 && fov < 180.0) {
+                return Err(self.err(
+                    "render.fov",
+                    format!("field of view must be in (0, 180) degrees, got {fov}"),
+                    "use e.g. fov = 40",
+                ));
+            }
+        }
+        for (field, v) in [("render.width", r.width), ("render.height", r.height)] {
+            if let Some(v) = v
+                && !(16..=8192).contains(&v)
+            {
+                return Err(self.err(
+                    field,
+                    format!("image size {v} is out of range"),
+                    "use 16 to 8192 pixels (default 1280x720)",
+                ));
+            }
+        }
+        let color_by = match &r.color_by {
+            None => None,
+            Some(c) => Some(
+                c.parse::<ColorBy>()
+                    .map_err(|e| self.err("render.color_by", e, "e.g. color_by = \"speed\""))?,
+            ),
+        };
+        Ok(RenderSettings {
+            camera,
+            target,
+            fov: r.fov,
+            width: r.width,
+            height: r.height,
+            color_by,
+        })
     }
 
     fn condition(c: RawCondition) -> Condition {
