@@ -1,37 +1,8 @@
 //! End-to-end tests of the `rtmpm` command line.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn rtmpm(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rtmpm"))
-        .args(args)
-        .output()
-        .expect("rtmpm starts")
-}
-
-fn data(name: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data")
-        .join(name)
-        .display()
-        .to_string()
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
+use common::{data, rtmpm, scratch, text};
 
 #[test]
 fn run_writes_frames_and_resume_is_bit_identical() {
