@@ -11,3 +11,6 @@ if ! python3 -c "import meshio" 2>/dev/null; then
   export PYTHONPATH="$PWD/$venv${PYTHONPATH:+:$PYTHONPATH}"
 fi
 python3 scripts/check_vtu.py "$out/frames.pvd"
+
+# The validation suite at its quick resolutions (issue 4): a failing case fails CI.
+cargo run --quiet -p rtmpm -- validate --quick --backend cpu

@@ -7,6 +7,7 @@ mod info;
 mod output;
 mod render;
 mod run;
+mod validate;
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -30,6 +31,8 @@ enum Command {
         /// Scene file (TOML).
         scene: PathBuf,
     },
+    /// Run the validation cases against published results and print a table.
+    Validate(validate::ValidateArgs),
     /// Render the PLY frames of a run to PNG images, movie.gif and (with ffmpeg) movie.mp4.
     Render(render::RenderArgs),
     /// Benchmark: the classic MLS-MPM fluid block, particle-steps per second.
@@ -44,6 +47,7 @@ fn main() -> ExitCode {
         Command::Check { scene } => check::check(&scene),
         Command::Bench(args) => bench::bench(args),
         Command::Render(args) => render::render_cmd(args),
+        Command::Validate(args) => validate::validate(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

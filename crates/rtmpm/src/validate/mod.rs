@@ -1,0 +1,182 @@
+//! `rtmpm validate`: run the published validation cases (`validation/*.toml`), measure, compare
+//! with the reference and print a table. Sources: `../shared/validation/REFERENCES.md`,
+//! `docs/validation.md`.
+
+mod bar;
+mod free_fall;
+mod hydrostatic;
+mod measure;
+
+use crate::backend::{BackendKind, make_backend};
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use rtmpm_core::sim::Simulation;
+use rtmpm_core::{Particles, Scene};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Args)]
+pub struct ValidateArgs {
+    /// Backend.
+    #[arg(long, value_enum, default_value_t = BackendKind::Auto)]
+    pub backend: BackendKind,
+    /// Run only this case (free_fall, hydrostatic_column, vibrating_bar).
+    #[arg(long)]
+    pub case: Option<String>,
+    /// Coarse resolutions that finish in a few minutes on 2 CPU cores (what CI runs).
+    #[arg(long)]
+    pub quick: bool,
+    /// Also run the convergence studies (three resolutions, observed order).
+    #[arg(long)]
+    pub convergence: bool,
+    /// Folder of the validation scenes.
+    #[arg(long, default_value = "validation")]
+    pub scenes: PathBuf,
+    /// CPU worker threads (default: one per core).
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+/// One line of the table.
+pub struct Row {
+    pub case: String,
+    pub quantity: String,
+    pub reference: f64,
+    pub simulated: f64,
+    /// Error in the unit the tolerance is stated in.
+    pub error: f64,
+    pub tolerance: f64,
+    /// "%" for relative errors, else the unit of an absolute error.
+    pub unit: &'static str,
+}
+
+impl Row {
+    fn pass(&self) -> bool {
+        self.error.is_finite() && self.error <= self.tolerance
+    }
+}
+
+/// What a case needs from the command line.
+pub struct Ctx<'a> {
+    pub args: &'a ValidateArgs,
+}
+
+impl Ctx<'_> {
+    /// Load a validation scene.
+    pub fn scene(&self, file: &str) -> Result<Scene> {
+        let path = self.args.scenes.join(file);
+        Scene::from_file(&path).with_context(|| format!("validation scene {}", path.display()))
+    }
+
+    /// Run `scene` from `particles`, calling `each_frame(time, particles)` after every frame
+    /// (and once at t = 0). Returns the simulation for a final read.
+    pub fn run(
+        &self,
+        scene: Scene,
+        particles: Particles,
+        mut each_frame: impl FnMut(f64, &Particles),
+    ) -> Result<Simulation> {
+        each_frame(0.0, &particles);
+        let backend = make_backend(
+            self.args.backend,
+            &scene,
+            particles,
+            self.args.threads,
+            &rtmpm_cuda::CudaOptions::default(),
+        )?;
+        let mut sim = Simulation::new(scene, backend);
+        let mut host = Particles::default();
+        for _ in 0..sim.scene.time.frames() {
+            sim.advance_frame()?;
+            sim.backend.read_particles(&mut host)?;
+            each_frame(sim.time, &host);
+        }
+        Ok(sim)
+    }
+}
+
+type Case = fn(&Ctx) -> Result<Vec<Row>>;
+
+const CASES: &[(&str, Case)] = &[
+    ("free_fall", free_fall::run),
+    ("hydrostatic_column", hydrostatic::run),
+    ("vibrating_bar", bar::run),
+];
+
+pub fn validate(args: ValidateArgs) -> Result<()> {
+    if !args.scenes.is_dir() {
+        bail!(
+            "validation scenes not found in {} (run from the repository root or pass --scenes)",
+            args.scenes.display()
+        );
+    }
+    let selected: Vec<&(&str, Case)> = match &args.case {
+        Some(name) => {
+            let found: Vec<_> = CASES.iter().filter(|(n, _)| n == name).collect();
+            if found.is_empty() {
+                let names: Vec<_> = CASES.iter().map(|(n, _)| *n).collect();
+                bail!("unknown case `{name}`; cases: {}", names.join(", "));
+            }
+            found
+        }
+        None => CASES.iter().collect(),
+    };
+    let ctx = Ctx { args: &args };
+    let mut rows = Vec::new();
+    for (name, case) in selected {
+        let start = Instant::now();
+        eprintln!("validate: {name} ...");
+        let r = case(&ctx).with_context(|| format!("validation case {name}"))?;
+        eprintln!(
+            "validate: {name} done in {:.1} s",
+            start.elapsed().as_secs_f64()
+        );
+        rows.extend(r);
+    }
+    print_table(&rows);
+    let failed = rows.iter().filter(|r| !r.pass()).count();
+    if failed > 0 {
+        bail!("{failed} of {} validation checks failed", rows.len());
+    }
+    println!("{} passed, 0 failed", rows.len());
+    Ok(())
+}
+
+fn print_table(rows: &[Row]) {
+    println!(
+        "{:<20} {:<44} {:>12} {:>12} {:>11} {:>11}  result",
+        "case", "quantity", "reference", "simulated", "error", "tolerance"
+    );
+    for r in rows {
+        let num = |v: f64| {
+            if r.unit == "%" || v == 0.0 || (1e-2..1e5).contains(&v.abs()) {
+                format!("{v:.4}")
+            } else {
+                format!("{v:.3e}")
+            }
+        };
+        println!(
+            "{:<20} {:<44} {:>12} {:>12} {:>11} {:>11}  {}",
+            r.case,
+            r.quantity,
+            num(r.reference),
+            num(r.simulated),
+            format!("{}{}", num(r.error), r.unit),
+            format!("{}{}", num(r.tolerance), r.unit),
+            if r.pass() { "PASS" } else { "FAIL" }
+        );
+    }
+}
+
+/// Observed order of convergence from errors at resolutions refined by `ratio` each time.
+pub fn observed_order(errors: &[f64], ratio: f64) -> Vec<f64> {
+    errors
+        .windows(2)
+        .map(|w| (w[0] / w[1]).ln() / ratio.ln())
+        .collect()
+}
+
+/// Relative error in percent.
+pub fn rel_pct(simulated: f64, reference: f64) -> f64 {
+    100.0 * (simulated - reference).abs() / reference.abs()
+}
