@@ -3,6 +3,7 @@
 //! `docs/validation.md`.
 
 mod bar;
+mod dam_break;
 mod free_fall;
 mod hydrostatic;
 mod measure;
@@ -20,7 +21,7 @@ pub struct ValidateArgs {
     /// Backend.
     #[arg(long, value_enum, default_value_t = BackendKind::Auto)]
     pub backend: BackendKind,
-    /// Run only this case (free_fall, hydrostatic_column, vibrating_bar).
+    /// Run only this case (free_fall, hydrostatic_column, vibrating_bar, dam_break).
     #[arg(long)]
     pub case: Option<String>,
     /// Coarse resolutions that finish in a few minutes on 2 CPU cores (what CI runs).
@@ -101,6 +102,7 @@ const CASES: &[(&str, Case)] = &[
     ("free_fall", free_fall::run),
     ("hydrostatic_column", hydrostatic::run),
     ("vibrating_bar", bar::run),
+    ("dam_break", dam_break::run),
 ];
 
 pub fn validate(args: ValidateArgs) -> Result<()> {
