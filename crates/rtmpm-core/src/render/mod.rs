@@ -14,6 +14,7 @@
 pub mod camera;
 pub mod colormap;
 pub mod image;
+pub mod plot;
 pub(crate) mod raster;
 #[cfg(test)]
 mod tests;

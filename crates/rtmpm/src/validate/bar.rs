@@ -5,6 +5,7 @@ use super::{Ctx, Row, observed_order, rel_pct};
 use anyhow::Result;
 use rtmpm_core::Scene;
 use rtmpm_core::math::Vec3;
+use rtmpm_core::render::plot::{Plot, Series, Style};
 use rtmpm_core::scene::sampling::BodyShape;
 use std::f64::consts::PI;
 
@@ -25,8 +26,8 @@ fn at_resolution(mut scene: Scene, cells: u32) -> Scene {
     scene
 }
 
-/// (period, amplitude) of the centre-of-mass velocity over the run.
-fn measure(ctx: &Ctx, cells: u32) -> Result<(f64, f64)> {
+/// (period, amplitude) of the centre-of-mass velocity over the run, and the samples (t, v).
+fn measure(ctx: &Ctx, cells: u32) -> Result<(f64, f64, Vec<(f64, f64)>)> {
     let scene = at_resolution(ctx.scene("vibrating_bar.toml")?, cells);
     let mut p0 = scene.sample_particles()?;
     let beta = PI / (2.0 * L);
@@ -46,16 +47,44 @@ fn measure(ctx: &Ctx, cells: u32) -> Result<(f64, f64)> {
         t.push(time);
         v.push(mv / m);
     })?;
-    period_and_amplitude(&t, &v).ok_or_else(|| anyhow::anyhow!("the bar did not oscillate"))
+    let (p, a) =
+        period_and_amplitude(&t, &v).ok_or_else(|| anyhow::anyhow!("the bar did not oscillate"))?;
+    Ok((p, a, t.into_iter().zip(v).collect()))
 }
 
 pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
     // 14 cells (the reference's typical run) loses 2.2 % of the amplitude to APIC dissipation over
     // 3 periods (see the convergence study); 28 cells is within 0.3 %.
     let cells = if ctx.args.quick { 28 } else { 56 };
-    let (period, amplitude) = measure(ctx, cells)?;
+    let (period, amplitude, samples) = measure(ctx, cells)?;
     let w1 = PI / (2.0 * L) * (100.0f64 / 1.0).sqrt();
     let (p_ref, a_ref) = (2.0 * PI / w1, 2.0 * V0 / PI);
+    let exact: Vec<(f64, f64)> = samples
+        .iter()
+        .map(|&(t, _)| (t, a_ref * (w1 * t).cos()))
+        .collect();
+    ctx.plot(
+        "vibrating_bar_com_velocity",
+        Plot {
+            title: format!("Vibrating bar: centre-of-mass velocity ({cells} cells)"),
+            x_label: "t (s)".into(),
+            y_label: "v com (m/s)".into(),
+            series: vec![
+                Series {
+                    label: "exact".into(),
+                    points: exact,
+                    rgb: [40, 40, 40],
+                    style: Style::Line,
+                },
+                Series {
+                    label: "rtmpm".into(),
+                    points: samples,
+                    rgb: [220, 60, 40],
+                    style: Style::Line,
+                },
+            ],
+        },
+    );
     let mut rows = vec![
         Row {
             case: "vibrating_bar".into(),
@@ -79,7 +108,7 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
     if ctx.args.convergence {
         let mut errs = Vec::new();
         for c in [14u32, 28, 56] {
-            let (p, a) = measure(ctx, c)?;
+            let (p, a, _) = measure(ctx, c)?;
             let e = rel_pct(p, p_ref);
             println!(
                 "convergence vibrating_bar: {c} cells: period {p:.4} s ({e:.3} %), amplitude {a:.5} m/s ({:.3} %)",

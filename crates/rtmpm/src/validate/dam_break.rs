@@ -2,6 +2,7 @@
 
 use super::{Ctx, Row};
 use anyhow::Result;
+use rtmpm_core::render::plot::{Plot, Series, Style};
 
 /// Martin & Moyce's data as tabulated in REFERENCES.md: (T, Z).
 const DATA: [(f64, f64); 14] = [
@@ -60,6 +61,33 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
         worst = worst.max((interp(&ts, &zs, t) - z).abs());
     }
     let z3 = interp(&ts, &zs, 2.96);
+    ctx.plot(
+        "dam_break_front",
+        Plot {
+            title: "Dam break: surge front, Martin and Moyce 1952".into(),
+            x_label: "T = t sqrt(2 g / a)".into(),
+            y_label: "Z = x front / a".into(),
+            series: vec![
+                Series {
+                    label: "experiment".into(),
+                    points: DATA.to_vec(),
+                    rgb: [40, 40, 40],
+                    style: Style::Markers,
+                },
+                Series {
+                    label: "rtmpm".into(),
+                    points: ts
+                        .iter()
+                        .copied()
+                        .zip(zs.iter().copied())
+                        .filter(|p| p.0 <= 3.2)
+                        .collect(),
+                    rgb: [40, 90, 220],
+                    style: Style::Line,
+                },
+            ],
+        },
+    );
     Ok(vec![
         Row {
             case: "dam_break".into(),

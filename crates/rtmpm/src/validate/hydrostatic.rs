@@ -5,6 +5,7 @@ use super::{Ctx, Row, observed_order, rel_pct};
 use anyhow::Result;
 use rtmpm_core::Scene;
 use rtmpm_core::math::Vec3;
+use rtmpm_core::render::plot::{Plot, Series, Style};
 use rtmpm_core::scene::sampling::BodyShape;
 
 /// Column height (m) and the exact base stress magnitude rho g H (Pa).
@@ -29,8 +30,9 @@ fn at_resolution(mut scene: Scene, dx: f32) -> Scene {
     scene
 }
 
-/// (slope of -sigma_yy against depth, -sigma_yy extrapolated to the base) of the settled column.
-fn measure(ctx: &Ctx, dx: f32) -> Result<(f64, f64, f64)> {
+/// (slope of -sigma_yy against depth, -sigma_yy extrapolated to the base, rho g, layer samples
+/// (height, -sigma_yy)) of the settled column.
+fn measure(ctx: &Ctx, dx: f32) -> Result<(f64, f64, f64, Vec<(f64, f64)>)> {
     let scene = at_resolution(ctx.scene("hydrostatic_column.toml")?, dx);
     let rho = scene.materials[0].density as f64;
     let g = scene.gravity.length() as f64;
@@ -66,12 +68,38 @@ fn measure(ctx: &Ctx, dx: f32) -> Result<(f64, f64, f64)> {
     );
     let (a, b) = fit_line(&heights, &stresses);
     // -sigma_yy(h) = a + b h: slope -b against depth; base value at h = 0.
-    Ok((-b, a, rho * g))
+    let layers: Vec<(f64, f64)> = (0..layers)
+        .filter(|&l| count[l] > 0)
+        .map(|l| ((l as f64 + 0.5) * dx as f64, sum[l] / count[l] as f64))
+        .collect();
+    Ok((-b, a, rho * g, layers))
 }
 
 pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
     let dx = if ctx.args.quick { 0.01 } else { 0.005 };
-    let (slope, base, rho_g) = measure(ctx, dx)?;
+    let (slope, base, rho_g, layers) = measure(ctx, dx)?;
+    ctx.plot(
+        "hydrostatic_column_stress",
+        Plot {
+            title: format!("Hydrostatic column: vertical stress (h = {dx})"),
+            x_label: "height above the base (m)".into(),
+            y_label: "-sigma yy (Pa)".into(),
+            series: vec![
+                Series {
+                    label: "exact rho g (H - y)".into(),
+                    points: vec![(0.0, rho_g * HEIGHT), (HEIGHT, 0.0)],
+                    rgb: [40, 40, 40],
+                    style: Style::Line,
+                },
+                Series {
+                    label: "rtmpm (layer means)".into(),
+                    points: layers,
+                    rgb: [30, 150, 60],
+                    style: Style::Markers,
+                },
+            ],
+        },
+    );
     let exact_base = rho_g * HEIGHT;
     let mut rows = vec![
         Row {
@@ -98,7 +126,7 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
         let hs = [0.02f32, 0.01, 0.005];
         let mut errs = Vec::new();
         for &h in &hs {
-            let (_, base_h, _) = measure(ctx, h)?;
+            let (_, base_h, _, _) = measure(ctx, h)?;
             let e = rel_pct(base_h, exact_base);
             println!(
                 "convergence hydrostatic_column: h = {h}: base {base_h:.1} Pa, error {e:.3} %"

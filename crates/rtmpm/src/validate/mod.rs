@@ -11,6 +11,7 @@ mod measure;
 use crate::backend::{BackendKind, make_backend};
 use anyhow::{Context, Result, bail};
 use clap::Args;
+use rtmpm_core::render::plot::Plot;
 use rtmpm_core::sim::Simulation;
 use rtmpm_core::{Particles, Scene};
 use std::path::PathBuf;
@@ -33,6 +34,9 @@ pub struct ValidateArgs {
     /// Folder of the validation scenes.
     #[arg(long, default_value = "validation")]
     pub scenes: PathBuf,
+    /// Where the plots go.
+    #[arg(long, default_value = "out/validation")]
+    pub out: PathBuf,
     /// CPU worker threads (default: one per core).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -57,12 +61,18 @@ impl Row {
     }
 }
 
-/// What a case needs from the command line.
+/// What a case needs from the command line, and the plots it produces.
 pub struct Ctx<'a> {
     pub args: &'a ValidateArgs,
+    plots: std::cell::RefCell<Vec<(String, Plot)>>,
 }
 
 impl Ctx<'_> {
+    /// Keep a plot, written as `<out>/<name>.png` after the table.
+    pub fn plot(&self, name: &str, plot: Plot) {
+        self.plots.borrow_mut().push((name.to_string(), plot));
+    }
+
     /// Load a validation scene.
     pub fn scene(&self, file: &str) -> Result<Scene> {
         let path = self.args.scenes.join(file);
@@ -123,7 +133,10 @@ pub fn validate(args: ValidateArgs) -> Result<()> {
         }
         None => CASES.iter().collect(),
     };
-    let ctx = Ctx { args: &args };
+    let ctx = Ctx {
+        args: &args,
+        plots: Default::default(),
+    };
     let mut rows = Vec::new();
     for (name, case) in selected {
         let start = Instant::now();
@@ -136,6 +149,15 @@ pub fn validate(args: ValidateArgs) -> Result<()> {
         rows.extend(r);
     }
     print_table(&rows);
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    for (name, plot) in ctx.plots.borrow().iter() {
+        let path = args.out.join(format!("{name}.png"));
+        plot.render(900, 560)
+            .write_png(&path)
+            .with_context(|| format!("writing {}", path.display()))?;
+        println!("plot: {}", path.display());
+    }
     let failed = rows.iter().filter(|r| !r.pass()).count();
     if failed > 0 {
         bail!("{failed} of {} validation checks failed", rows.len());
