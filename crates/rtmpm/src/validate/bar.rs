@@ -1,6 +1,6 @@
 //! Case 1: axial vibration of a continuous elastic bar (exact, Bardenhagen 2002).
 
-use super::measure::period_and_amplitude;
+use super::measure::{Curve, period_and_amplitude};
 use super::{Ctx, Row, observed_order, rel_pct};
 use anyhow::Result;
 use rtmpm_core::Scene;
@@ -27,7 +27,7 @@ fn at_resolution(mut scene: Scene, cells: u32) -> Scene {
 }
 
 /// (period, amplitude) of the centre-of-mass velocity over the run, and the samples (t, v).
-fn measure(ctx: &Ctx, cells: u32) -> Result<(f64, f64, Vec<(f64, f64)>)> {
+fn measure(ctx: &Ctx, cells: u32) -> Result<(f64, f64, Curve)> {
     let scene = at_resolution(ctx.scene("vibrating_bar.toml")?, cells);
     let mut p0 = scene.sample_particles()?;
     let beta = PI / (2.0 * L);

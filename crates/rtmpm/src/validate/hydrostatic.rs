@@ -1,6 +1,6 @@
 //! Case 2: hydrostatic column (exact): sigma_yy = -rho g d; cb-geo's explicit MPM for comparison.
 
-use super::measure::fit_line;
+use super::measure::{Curve, fit_line};
 use super::{Ctx, Row, observed_order, rel_pct};
 use anyhow::Result;
 use rtmpm_core::Scene;
@@ -32,7 +32,7 @@ fn at_resolution(mut scene: Scene, dx: f32) -> Scene {
 
 /// (slope of -sigma_yy against depth, -sigma_yy extrapolated to the base, rho g, layer samples
 /// (height, -sigma_yy)) of the settled column.
-fn measure(ctx: &Ctx, dx: f32) -> Result<(f64, f64, f64, Vec<(f64, f64)>)> {
+fn measure(ctx: &Ctx, dx: f32) -> Result<(f64, f64, f64, Curve)> {
     let scene = at_resolution(ctx.scene("hydrostatic_column.toml")?, dx);
     let rho = scene.materials[0].density as f64;
     let g = scene.gravity.length() as f64;

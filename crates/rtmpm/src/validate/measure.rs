@@ -1,5 +1,8 @@
 //! Extracting measured quantities from sampled signals.
 
+/// Sampled curve points (x, y).
+pub type Curve = Vec<(f64, f64)>;
+
 /// Period and amplitude of an oscillating signal sampled at times `t`: the period is twice the
 /// mean spacing of its zero crossings (linearly interpolated), the amplitude the mean of the
 /// largest |value| between consecutive crossings (including the start, where the signal is at a
