@@ -33,11 +33,38 @@ impl FixedCorotated {
     pub fn kirchhoff(&self, f: Mat3) -> Mat3 {
         fixed_corotated_kirchhoff(f, self.mu, self.lambda)
     }
+
+    /// Strain energy density per reference volume (Stomakhin et al. 2012):
+    /// psi = mu |F - R|^2 + lambda / 2 (J - 1)^2.
+    pub fn energy_density(&self, f: Mat3) -> f32 {
+        let (r, _) = crate::svd::polar(f);
+        let j = f.determinant();
+        self.mu * crate::math::norm2(f - r) + 0.5 * self.lambda * (j - 1.0) * (j - 1.0)
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn energy_is_zero_at_rest_and_its_derivative_is_the_stress() {
+        let m = FixedCorotated { mu: 3.0, lambda: 5.0 };
+        assert!(m.energy_density(Mat3::IDENTITY).abs() < 1e-6);
+        // P = d psi / d F by central differences must match tau F^-T (tau = P F^T).
+        let f = Mat3::from_cols_array(&[1.1, 0.05, -0.02, 0.03, 0.95, 0.04, -0.01, 0.02, 1.05]);
+        let p = m.kirchhoff(f) * f.transpose().inverse();
+        let h = 1e-3;
+        for k in 0..9 {
+            let mut a = f.to_cols_array();
+            let mut b = a;
+            a[k] += h;
+            b[k] -= h;
+            let d = (m.energy_density(Mat3::from_cols_array(&a)) - m.energy_density(Mat3::from_cols_array(&b))) / (2.0 * h);
+            let pk = p.to_cols_array()[k];
+            assert!((d - pk).abs() < 2e-2 * (1.0 + pk.abs()), "component {k}: d psi/dF = {d}, P = {pk}");
+        }
+    }
 
     fn close(a: Mat3, b: Mat3, tol: f32) -> bool {
         (a - b).to_cols_array().iter().all(|x| x.abs() <= tol)

@@ -75,6 +75,15 @@ impl Model {
         }
     }
 
+    /// Elastic strain energy density per reference volume, for the models that define one
+    /// (fixed corotated); None for the others.
+    pub fn energy_density(&self, f: Mat3) -> Option<f32> {
+        match self {
+            Model::FixedCorotated(m) => Some(m.energy_density(f)),
+            _ => None,
+        }
+    }
+
     /// Initial value of the plastic state scalar (snow: `Jp = 1`).
     pub fn initial_plastic(&self) -> f32 {
         match self {

@@ -4,6 +4,7 @@
 
 mod bar;
 mod dam_break;
+mod disks;
 mod free_fall;
 mod hydrostatic;
 mod measure;
@@ -22,9 +23,10 @@ pub struct ValidateArgs {
     /// Backend.
     #[arg(long, value_enum, default_value_t = BackendKind::Auto)]
     pub backend: BackendKind,
-    /// Run only this case (free_fall, hydrostatic_column, vibrating_bar, dam_break).
-    #[arg(long)]
-    pub case: Option<String>,
+    /// Run only these cases, comma separated (free_fall, hydrostatic_column, vibrating_bar,
+    /// dam_break, colliding_disks).
+    #[arg(long, value_delimiter = ',')]
+    pub case: Vec<String>,
     /// Coarse resolutions that finish in a few minutes on 2 CPU cores (what CI runs).
     #[arg(long)]
     pub quick: bool,
@@ -113,6 +115,7 @@ const CASES: &[(&str, Case)] = &[
     ("hydrostatic_column", hydrostatic::run),
     ("vibrating_bar", bar::run),
     ("dam_break", dam_break::run),
+    ("colliding_disks", disks::run),
 ];
 
 pub fn validate(args: ValidateArgs) -> Result<()> {
@@ -122,17 +125,14 @@ pub fn validate(args: ValidateArgs) -> Result<()> {
             args.scenes.display()
         );
     }
-    let selected: Vec<&(&str, Case)> = match &args.case {
-        Some(name) => {
-            let found: Vec<_> = CASES.iter().filter(|(n, _)| n == name).collect();
-            if found.is_empty() {
-                let names: Vec<_> = CASES.iter().map(|(n, _)| *n).collect();
-                bail!("unknown case `{name}`; cases: {}", names.join(", "));
-            }
-            found
+    for name in &args.case {
+        if !CASES.iter().any(|(n, _)| n == name) {
+            let names: Vec<_> = CASES.iter().map(|(n, _)| *n).collect();
+            bail!("unknown case `{name}`; cases: {}", names.join(", "));
         }
-        None => CASES.iter().collect(),
-    };
+    }
+    let selected: Vec<&(&str, Case)> =
+        CASES.iter().filter(|(n, _)| args.case.is_empty() || args.case.iter().any(|c| c == n)).collect();
     let ctx = Ctx {
         args: &args,
         plots: Default::default(),
