@@ -49,7 +49,10 @@ mod tests {
 
     #[test]
     fn energy_is_zero_at_rest_and_its_derivative_is_the_stress() {
-        let m = FixedCorotated { mu: 3.0, lambda: 5.0 };
+        let m = FixedCorotated {
+            mu: 3.0,
+            lambda: 5.0,
+        };
         assert!(m.energy_density(Mat3::IDENTITY).abs() < 1e-6);
         // P = d psi / d F by central differences must match tau F^-T (tau = P F^T).
         let f = Mat3::from_cols_array(&[1.1, 0.05, -0.02, 0.03, 0.95, 0.04, -0.01, 0.02, 1.05]);
@@ -60,9 +63,14 @@ mod tests {
             let mut b = a;
             a[k] += h;
             b[k] -= h;
-            let d = (m.energy_density(Mat3::from_cols_array(&a)) - m.energy_density(Mat3::from_cols_array(&b))) / (2.0 * h);
+            let d = (m.energy_density(Mat3::from_cols_array(&a))
+                - m.energy_density(Mat3::from_cols_array(&b)))
+                / (2.0 * h);
             let pk = p.to_cols_array()[k];
-            assert!((d - pk).abs() < 2e-2 * (1.0 + pk.abs()), "component {k}: d psi/dF = {d}, P = {pk}");
+            assert!(
+                (d - pk).abs() < 2e-2 * (1.0 + pk.abs()),
+                "component {k}: d psi/dF = {d}, P = {pk}"
+            );
         }
     }
 

@@ -17,7 +17,12 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
     let (mut ke, mut se, mut total): (Curve, Curve, Curve) = (Vec::new(), Vec::new(), Vec::new());
     let mut missing_energy = false;
     ctx.run(scene, p0, |t, p| {
-        let k: f64 = p.mass.iter().zip(&p.v).map(|(&m, v)| 0.5 * m as f64 * v.length_squared() as f64).sum();
+        let k: f64 = p
+            .mass
+            .iter()
+            .zip(&p.v)
+            .map(|(&m, v)| 0.5 * m as f64 * v.length_squared() as f64)
+            .sum();
         let mut s = 0.0;
         for i in 0..p.len() {
             match model.energy_density(p.f[i]) {
@@ -29,9 +34,15 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
         se.push((t, s / THICKNESS));
         total.push((t, (k + s) / THICKNESS));
     })?;
-    anyhow::ensure!(!missing_energy, "the disks' material defines no strain energy");
+    anyhow::ensure!(
+        !missing_energy,
+        "the disks' material defines no strain energy"
+    );
     let e0 = total[0].1;
-    let worst = total.iter().map(|&(_, e)| rel_pct(e, e0)).fold(0.0, f64::max);
+    let worst = total
+        .iter()
+        .map(|&(_, e)| rel_pct(e, e0))
+        .fold(0.0, f64::max);
     let ke_min = ke.iter().map(|p| p.1).fold(f64::MAX, f64::min);
     ctx.plot(
         "colliding_disks_energy",
@@ -40,9 +51,24 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
             x_label: "t (s)".into(),
             y_label: "energy (J/m)".into(),
             series: vec![
-                Series { label: "kinetic".into(), points: ke, rgb: [220, 60, 40], style: Style::Line },
-                Series { label: "strain".into(), points: se, rgb: [40, 90, 220], style: Style::Line },
-                Series { label: "total".into(), points: total, rgb: [40, 40, 40], style: Style::Line },
+                Series {
+                    label: "kinetic".into(),
+                    points: ke,
+                    rgb: [220, 60, 40],
+                    style: Style::Line,
+                },
+                Series {
+                    label: "strain".into(),
+                    points: se,
+                    rgb: [40, 90, 220],
+                    style: Style::Line,
+                },
+                Series {
+                    label: "total".into(),
+                    points: total,
+                    rgb: [40, 40, 40],
+                    style: Style::Line,
+                },
             ],
         },
     );

@@ -131,8 +131,10 @@ pub fn validate(args: ValidateArgs) -> Result<()> {
             bail!("unknown case `{name}`; cases: {}", names.join(", "));
         }
     }
-    let selected: Vec<&(&str, Case)> =
-        CASES.iter().filter(|(n, _)| args.case.is_empty() || args.case.iter().any(|c| c == n)).collect();
+    let selected: Vec<&(&str, Case)> = CASES
+        .iter()
+        .filter(|(n, _)| args.case.is_empty() || args.case.iter().any(|c| c == n))
+        .collect();
     let ctx = Ctx {
         args: &args,
         plots: Default::default(),
