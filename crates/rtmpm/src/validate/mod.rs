@@ -6,6 +6,7 @@ mod bar;
 mod dam_break;
 mod disks;
 mod free_fall;
+mod granular;
 mod hydrostatic;
 mod measure;
 
@@ -24,7 +25,7 @@ pub struct ValidateArgs {
     #[arg(long, value_enum, default_value_t = BackendKind::Auto)]
     pub backend: BackendKind,
     /// Run only these cases, comma separated (free_fall, hydrostatic_column, vibrating_bar,
-    /// dam_break, colliding_disks).
+    /// dam_break, colliding_disks, granular_column).
     #[arg(long, value_delimiter = ',')]
     pub case: Vec<String>,
     /// Coarse resolutions that finish in a few minutes on 2 CPU cores (what CI runs).
@@ -116,6 +117,7 @@ const CASES: &[(&str, Case)] = &[
     ("vibrating_bar", bar::run),
     ("dam_break", dam_break::run),
     ("colliding_disks", disks::run),
+    ("granular_column", granular::run),
 ];
 
 pub fn validate(args: ValidateArgs) -> Result<()> {
