@@ -5,7 +5,8 @@ use rtmpm_core::cpu::CpuBackend;
 use rtmpm_core::sim::Simulation;
 
 /// An elastic column (E = 1 MPa, nu = 0, as cb-geo's hydrostatic column) in a slab with slip walls
-/// settles under gravity; its vertical stress must grow with depth as rho g d.
+/// settles under gravity (settling damping: resting on the floor's wall plane, nothing else damps
+/// its elastic oscillation); its vertical stress must grow with depth as rho g d.
 #[test]
 fn settled_column_pressure_grows_with_depth() {
     let text = r#"
@@ -20,6 +21,7 @@ duration = 0.6
 fps = 10
 cfl = 0.4
 max_dt = 1e-3
+damping = 40.0
 [walls]
 thickness = 3
 condition = "slip"

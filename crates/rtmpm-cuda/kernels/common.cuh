@@ -60,7 +60,8 @@ struct StepParams {
     float dt, t;
     float gravity[3];
     unsigned always_rebuild;
-    unsigned pad[2];
+    float damping;  // settling damping factor on grid velocities (1 = off)
+    unsigned pad;
     float rot[RTMPM_MAX_COLLIDERS][9];    // rest -> world rotation at t (column-major)
     float pivot_t[RTMPM_MAX_COLLIDERS][3];
 };

@@ -140,7 +140,7 @@ __device__ void grid_update_node(const Ctx& c, unsigned t) {
     const StepParams& sp = *c.step;
     real inv_m = (real)1 / m;
     vec3 v = make_v3(node[1] * inv_m + sp.dt * sp.gravity[0], node[2] * inv_m + sp.dt * sp.gravity[1],
-                     node[3] * inv_m + sp.dt * sp.gravity[2]);
+                     node[3] * inv_m + sp.dt * sp.gravity[2]) * (real)sp.damping;  // settling damping
     unsigned id = t >> 6, cell = t & 63u;
     int gi[3] = {c.block_coords[3 * id] * 4 + (int)(cell >> 4), c.block_coords[3 * id + 1] * 4 + (int)((cell >> 2) & 3u),
                  c.block_coords[3 * id + 2] * 4 + (int)(cell & 3u)};
@@ -148,10 +148,10 @@ __device__ void grid_update_node(const Ctx& c, unsigned t) {
     for (int a = 0; a < 3; ++a) {
         int i = gi[a] - 4;
         vec3 n = make_v3(0, 0, 0);
-        if (i < c.wall_thickness) {
+        if (i <= c.wall_thickness) {
             (&n.x)[a] = 1;
             v = rule_apply(c.wall_cond[2 * a], c.wall_friction[2 * a], v, n);
-        } else if (i > c.n_cells[a] - c.wall_thickness) {
+        } else if (i >= c.n_cells[a] - c.wall_thickness) {
             (&n.x)[a] = -1;
             v = rule_apply(c.wall_cond[2 * a + 1], c.wall_friction[2 * a + 1], v, n);
         }

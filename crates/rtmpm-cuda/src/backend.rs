@@ -111,7 +111,8 @@ fn material(m: &Model) -> Result<GpuMaterial, String> {
         }
         Model::DruckerPrager(d) => {
             g.kind = 4;
-            g.drucker_prager = [d.mu, d.lambda, d.friction_angle, d.cohesion];
+            // The cone slope from its one formula, DruckerPrager::alpha.
+            g.drucker_prager = [d.mu, d.lambda, d.alpha(), d.cohesion];
         }
         Model::VonMises(v) => {
             g.kind = 5;
@@ -426,7 +427,8 @@ impl CudaBackend {
             t,
             gravity: self.scene.gravity.to_array(),
             always_rebuild: (!self.options.free_zone || !self.options.mixed_sort) as u32,
-            pad: [0; 2],
+            damping: self.scene.time.damping.factor(dt, t),
+            pad: [0; 1],
             rot: [[0.0; 9]; MAX_COLLIDERS],
             pivot_t: [[0.0; 3]; MAX_COLLIDERS],
         };

@@ -109,8 +109,11 @@ pub struct StepParams {
     pub gravity: [f32; 3],
     /// Force a rebuild this step (free zone off).
     pub always_rebuild: u32,
+    /// Settling damping factor on the grid velocities this step (1 = off), from
+    /// `rtmpm_core::scene::Damping::factor`.
+    pub damping: f32,
     /// Padding.
-    pub pad: [u32; 2],
+    pub pad: [u32; 1],
     /// Collider rotations (rest to world) at t, column-major.
     pub rot: [[f32; 9]; MAX_COLLIDERS],
     /// Collider pivots at t.

@@ -34,6 +34,7 @@ fn scene(dx: f32) -> Scene {
             duration: 1.0,
             fps: 30.0,
             step: StepMode::Fixed { dt: 1e-4 },
+            damping: Default::default(),
         },
         materials: vec![Material {
             name: "water".into(),

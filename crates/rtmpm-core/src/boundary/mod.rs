@@ -66,7 +66,10 @@ impl BoundaryRule {
     }
 }
 
-/// The six domain walls: nodes within `thickness` cells of a domain face obey that face's rule.
+/// The six domain walls: nodes at most `thickness` cells from a domain face obey that face's rule.
+/// The node plane `thickness` cells in, where bodies may start (the domain minus the walls), is
+/// part of the wall: material resting on a wall then stays on that plane instead of sinking a cell
+/// into the wall band.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Walls {
     /// Wall thickness in cells.
@@ -93,14 +96,31 @@ impl Walls {
         for axis in 0..3 {
             let i = node[axis];
             let mut normal = Vec3::ZERO;
-            if i < t {
+            if i <= t {
                 normal[axis] = 1.0;
                 v = self.faces[2 * axis].apply(v, normal);
-            } else if i > n_cells[axis] as i32 - t {
+            } else if i >= n_cells[axis] as i32 - t {
                 normal[axis] = -1.0;
                 v = self.faces[2 * axis + 1].apply(v, normal);
             }
         }
         v
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wall_includes_the_plane_where_bodies_start() {
+        // 3 cells thick in a 16-cell domain: nodes 0..=3 and 13..=16 are wall nodes.
+        let w = Walls::default();
+        let down = Vec3::new(-1.0, -1.0, 0.0);
+        let n = [16; 3];
+        assert_eq!(w.apply([3, 8, 8], n, down), Vec3::new(0.0, -1.0, 0.0));
+        assert_eq!(w.apply([4, 8, 8], n, down), down);
+        assert_eq!(w.apply([8, 13, 8], n, -down), Vec3::new(1.0, 0.0, 0.0));
+        assert_eq!(w.apply([8, 12, 8], n, -down), -down);
     }
 }

@@ -5,9 +5,10 @@ use crate::grid::codes::{BLOCK_NODES, BLOCK_SIZE};
 use crate::math::Vec3;
 use rayon::prelude::*;
 
-/// Turn node momentum into velocity, add gravity and apply boundary conditions.
+/// Turn node momentum into velocity, add gravity, damp (settling) and apply boundary conditions.
 pub fn grid_update(b: &mut CpuBackend, dt: f32, t: f32) {
     let c = &b.consts;
+    let damp = c.damping.factor(dt, t);
     let coords = &b.layout.block_coords;
     b.grid
         .par_chunks_mut(BLOCK_NODES)
@@ -26,7 +27,7 @@ pub fn grid_update(b: &mut CpuBackend, dt: f32, t: f32) {
                         (cell >> 2 & 3) as i32,
                         (cell & 3) as i32,
                     );
-                let mut v = Vec3::new(node[1], node[2], node[3]) / m + dt * c.gravity;
+                let mut v = (Vec3::new(node[1], node[2], node[3]) / m + dt * c.gravity) * damp;
                 let rel = idx - crate::math::IVec3::splat(GRID_PAD);
                 v = c.walls.apply([rel.x, rel.y, rel.z], c.n_cells, v);
                 if !c.colliders.is_empty() {

@@ -40,6 +40,8 @@ pub struct StepConstants {
     pub n_cells: [u32; 3],
     pub gravity: Vec3,
     pub walls: Walls,
+    /// Settling damping of the grid velocities.
+    pub damping: crate::scene::Damping,
     pub colliders: Vec<Collider>,
     pub materials: Vec<Material>,
 }
@@ -56,6 +58,7 @@ impl StepConstants {
             n_cells: scene.n_cells(),
             gravity: scene.gravity,
             walls: scene.walls.clone(),
+            damping: scene.time.damping,
             colliders: scene.colliders.clone(),
             materials: scene.materials.clone(),
         }

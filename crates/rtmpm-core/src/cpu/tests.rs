@@ -23,6 +23,7 @@ fn consts(materials: Vec<Material>, walls: u32, gravity: Vec3) -> StepConstants 
                 friction: 0.0,
             }; 6],
         },
+        damping: Default::default(),
         colliders: Vec::new(),
         materials,
     }

@@ -26,6 +26,20 @@ pub fn hencky_kirchhoff(f: Mat3, mu: f32, lambda: f32) -> Mat3 {
     u * Mat3::from_diagonal(t) * u.transpose()
 }
 
+/// Which Mohr-Coulomb states the Drucker-Prager cone is fitted to, for a given friction angle.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Cone {
+    /// Through Mohr-Coulomb's triaxial-compression corners (Klar 2016, eq. 27): the usual 3D
+    /// fit. In plane-strain flow it is stronger than Mohr-Coulomb: 30 degrees acts like 43.9.
+    #[default]
+    Compression,
+    /// Equal to Mohr-Coulomb in plane-strain plastic flow. The return mapping keeps the volume
+    /// (no dilatancy), so the out-of-plane deviatoric stress vanishes in plane-strain flow
+    /// (tau_z = mean stress) and `||dev tau|| = -alpha tr(tau)` is Mohr-Coulomb's
+    /// `(tau_1 - tau_3) = -(tau_1 + tau_3) sin(phi)` when `alpha = sqrt(2) sin(phi) / 3`.
+    PlaneStrain,
+}
+
 /// Drucker-Prager sand. The plastic scalar accumulates the plastic multipliers `|delta gamma|`
 /// of the return mapping (Klar's `q` without hardening: it is only recorded, for output).
 #[derive(Clone, Debug, PartialEq)]
@@ -36,16 +50,20 @@ pub struct DruckerPrager {
     pub lambda: f32,
     /// Friction angle (degrees).
     pub friction_angle: f32,
+    /// How the cone is fitted to Mohr-Coulomb at that friction angle.
+    pub cone: Cone,
     /// Cohesion, as a log-strain shift of the cone tip (0 = dry sand).
     pub cohesion: f32,
 }
 
 impl DruckerPrager {
-    /// From Young's modulus (Pa), Poisson's ratio, friction angle (degrees) and cohesion.
+    /// From Young's modulus (Pa), Poisson's ratio, friction angle (degrees), the cone's fit and
+    /// cohesion.
     pub fn new(
         youngs_modulus: f32,
         poisson_ratio: f32,
         friction_angle: f32,
+        cone: Cone,
         cohesion: f32,
     ) -> Self {
         let (mu, lambda) = super::lame(youngs_modulus, poisson_ratio);
@@ -53,14 +71,20 @@ impl DruckerPrager {
             mu,
             lambda,
             friction_angle,
+            cone,
             cohesion,
         }
     }
 
-    /// Cone slope `alpha = sqrt(2/3) 2 sin(phi) / (3 - sin(phi))` (Klar 2016, eq. 27).
+    /// Cone slope alpha of the yield surface `||dev tau|| + alpha tr(tau) <= 0`:
+    /// compression cone `sqrt(2/3) 2 sin(phi) / (3 - sin(phi))` (Klar 2016, eq. 27), or
+    /// plane-strain cone `sqrt(2) sin(phi) / 3` (see [`Cone::PlaneStrain`]).
     pub fn alpha(&self) -> f32 {
         let s = self.friction_angle.to_radians().sin();
-        (2.0f32 / 3.0).sqrt() * 2.0 * s / (3.0 - s)
+        match self.cone {
+            Cone::Compression => (2.0f32 / 3.0).sqrt() * 2.0 * s / (3.0 - s),
+            Cone::PlaneStrain => 2.0f32.sqrt() * s / 3.0,
+        }
     }
 
     /// Kirchhoff stress (St.Venant-Kirchhoff with Hencky strain), see [`hencky_kirchhoff`].
@@ -118,6 +142,7 @@ mod tests {
             mu: 1.0,
             lambda: 2.0,
             friction_angle: 30.0,
+            cone: Cone::Compression,
             cohesion: 0.0,
         }
     }
@@ -134,6 +159,53 @@ mod tests {
     fn alpha_hand_computed() {
         // phi = 30 deg: sin = 0.5, alpha = sqrt(2/3) * 1 / 2.5 = 0.8164966 * 0.4 = 0.3265986.
         assert!((sand().alpha() - 0.3265986).abs() < 1e-6);
+    }
+
+    #[test]
+    fn plane_strain_alpha_hand_computed() {
+        // sqrt(2) * 0.5 / 3 = 0.2357023.
+        let m = DruckerPrager {
+            cone: Cone::PlaneStrain,
+            ..sand()
+        };
+        assert!((m.alpha() - 0.2357023).abs() < 1e-6);
+    }
+
+    /// Mobilised friction `sin(phi) = (tau_1 - tau_3) / -(tau_1 + tau_3)` of the in-plane
+    /// principal Kirchhoff stresses after plane-strain simple shear (x moves with y, z fixed)
+    /// under isotropic compression, driven through the return mapping to steady plastic flow;
+    /// also the out-of-plane stress relative to the in-plane mean (0 in steady flow).
+    fn plane_strain_shear(m: &DruckerPrager) -> (f32, f32) {
+        let mut fe = Mat3::from_diagonal(Vec3::splat(0.99));
+        let mut q = 0.0;
+        let shear = Mat3::from_cols(Vec3::X, Vec3::new(1e-4, 1.0, 0.0), Vec3::Z);
+        for _ in 0..5000 {
+            fe = m.project(shear * fe, &mut q);
+        }
+        let tau = m.kirchhoff(fe);
+        let (txx, tyy, txy) = (tau.x_axis.x, tau.y_axis.y, tau.y_axis.x);
+        let centre = 0.5 * (txx + tyy);
+        let radius = (0.25 * (txx - tyy) * (txx - tyy) + txy * txy).sqrt();
+        (radius / -centre, tau.z_axis.z / centre - 1.0)
+    }
+
+    #[test]
+    fn plane_strain_flow_mobilises_the_friction_angle_of_the_cone() {
+        // Plane-strain cone: Mohr-Coulomb's 30 degrees, sin = 0.5.
+        let ps = DruckerPrager {
+            cone: Cone::PlaneStrain,
+            ..sand()
+        };
+        let (s, z) = plane_strain_shear(&ps);
+        assert!((s - 0.5).abs() < 1e-3, "sin(phi) {s}");
+        assert!(z.abs() < 1e-3, "out-of-plane {z}");
+        // Compression cone at 30 degrees: sin(phi) = 3 alpha / sqrt(2) = 0.6928 (43.9 degrees).
+        let (s, z) = plane_strain_shear(&sand());
+        assert!(
+            (s - 3.0 * sand().alpha() / 2f32.sqrt()).abs() < 1e-3,
+            "sin(phi) {s}"
+        );
+        assert!((s - 0.6928203).abs() < 1e-3 && z.abs() < 1e-3, "{s} {z}");
     }
 
     #[test]

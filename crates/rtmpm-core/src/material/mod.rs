@@ -12,7 +12,7 @@ pub mod neo_hookean;
 pub mod snow;
 pub mod von_mises;
 
-pub use drucker_prager::DruckerPrager;
+pub use drucker_prager::{Cone, DruckerPrager};
 pub use fixed_corotated::FixedCorotated;
 pub use fluid::{Eos, Fluid};
 pub use neo_hookean::NeoHookean;

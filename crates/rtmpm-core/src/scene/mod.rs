@@ -43,6 +43,39 @@ pub struct TimeSettings {
     /// Output frames per second of simulated time.
     pub fps: f32,
     pub step: StepMode,
+    /// Velocity damping for settling a scene into equilibrium (off by default).
+    pub damping: Damping,
+}
+
+/// Global velocity damping for settling: every step, while `t < until`, the grid velocities are
+/// multiplied by `max(0, 1 - rate dt)` (a viscous drag `-rate v` per unit mass). At rest it
+/// exerts no force, so a static equilibrium reached under it is the undamped one.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Damping {
+    /// Damping rate (1/s); 0 = off.
+    pub rate: f32,
+    /// Damping acts while the step starts before this time (s).
+    pub until: f32,
+}
+
+impl Default for Damping {
+    fn default() -> Self {
+        Damping {
+            rate: 0.0,
+            until: f32::INFINITY,
+        }
+    }
+}
+
+impl Damping {
+    /// Factor on the grid velocities of the step of length `dt` starting at time `t`.
+    pub fn factor(&self, dt: f32, t: f32) -> f32 {
+        if self.rate > 0.0 && t < self.until {
+            (1.0 - self.rate * dt).max(0.0)
+        } else {
+            1.0
+        }
+    }
 }
 
 impl TimeSettings {

@@ -45,6 +45,8 @@ pub struct RawTime {
     pub dt: Option<f32>,
     pub cfl: Option<f32>,
     pub max_dt: Option<f32>,
+    pub damping: Option<f32>,
+    pub damping_until: Option<f32>,
 }
 
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
@@ -100,6 +102,13 @@ pub enum RawEos {
     Tait,
 }
 
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum RawCone {
+    Compression,
+    PlaneStrain,
+}
+
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RawMaterial {
@@ -119,6 +128,7 @@ pub struct RawMaterial {
     pub critical_stretch: Option<f32>,
     pub hardening: Option<f32>,
     pub friction_angle: Option<f32>,
+    pub cone: Option<RawCone>,
     pub cohesion: Option<f32>,
     pub yield_stress: Option<f32>,
     pub hardening_modulus: Option<f32>,

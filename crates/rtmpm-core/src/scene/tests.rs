@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::boundary::Condition;
-use crate::material::{Eos, Model};
+use crate::material::{Cone, Eos, Model};
 
 fn scenes_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes")
@@ -277,7 +277,16 @@ fn material_values() {
     };
     let s = parse(&sand("")).unwrap();
     assert!(
-        matches!(&s.materials[0].model, Model::DruckerPrager(d) if d.friction_angle == 30.0 && d.cohesion == 0.0)
+        matches!(&s.materials[0].model, Model::DruckerPrager(d) if d.friction_angle == 30.0 && d.cohesion == 0.0 && d.cone == Cone::Compression)
+    );
+    let s = parse(&sand("cone = \"plane_strain\"")).unwrap();
+    assert!(
+        matches!(&s.materials[0].model, Model::DruckerPrager(d) if d.cone == Cone::PlaneStrain)
+    );
+    parse_err(&sand("cone = \"triaxial\""), "material[0].cone");
+    parse_err(
+        &fluid("bulk_modulus = 1e5\ncone = \"plane_strain\""),
+        "material[0].cone",
     );
     parse_err(&sand("friction_angle = 90.0"), "material[0].friction_angle");
     parse_err(&sand("friction_angle = -1.0"), "material[0].friction_angle");
@@ -528,4 +537,18 @@ fn doc_example_validates() {
     let b = a + block[a..].find("```").unwrap();
     let s = parse(&block[a..b]).unwrap();
     assert_eq!(s.colliders.len(), 1);
+}
+
+#[test]
+fn settling_damping() {
+    let s =
+        parse(&BASE.replacen("[time]", "[time]\ndamping = 20.0\ndamping_until = 0.5", 1)).unwrap();
+    let d = s.time.damping;
+    assert!((d.factor(1e-3, 0.1) - 0.98).abs() < 1e-6);
+    assert_eq!(d.factor(1e-3, 0.5), 1.0);
+    assert_eq!(parse(BASE).unwrap().time.damping.factor(1e-3, 0.0), 1.0);
+    parse_err(
+        &BASE.replacen("[time]", "[time]\ndamping = -1.0", 1),
+        "time.damping",
+    );
 }

@@ -3,12 +3,15 @@
 use super::sampling::{self, BodyShape, Sampling};
 use super::schema::*;
 use super::spans::{line_col, path_at, span_in_doc};
-use super::{Body, OutputSettings, RenderSettings, Scene, SceneError, StepMode, TimeSettings};
+use super::{
+    Body, Damping, OutputSettings, RenderSettings, Scene, SceneError, StepMode, TimeSettings,
+};
 use crate::boundary::mesh::MeshSdf;
 use crate::boundary::sdf::Shape;
 use crate::boundary::{BoundaryRule, Collider, Condition, Walls};
 use crate::material::{
-    self, DruckerPrager, Eos, FixedCorotated, Fluid, Material, Model, NeoHookean, Snow, VonMises,
+    self, Cone, DruckerPrager, Eos, FixedCorotated, Fluid, Material, Model, NeoHookean, Snow,
+    VonMises,
 };
 use crate::math::Vec3;
 use crate::render::ColorBy;
@@ -286,10 +289,18 @@ impl V<'_> {
                 ));
             }
         }
+        let damping = Damping {
+            rate: self.non_negative("time.damping", t.damping.unwrap_or(0.0), "damping (1/s)")?,
+            until: match t.damping_until {
+                Some(u) => self.positive("time.damping_until", u, "damping_until (s)")?,
+                None => f32::INFINITY,
+            },
+        };
         let time = TimeSettings {
             duration,
             fps,
             step,
+            damping,
         };
 
         // Walls.
@@ -447,7 +458,8 @@ impl V<'_> {
         let w = w.unwrap_or(&default);
         let thickness = w.thickness.unwrap_or(3);
         let min_cells = cells.min_element().round() as u32;
-        if 2 * thickness >= min_cells {
+        // Nodes 0..=thickness and cells-thickness..=cells are wall nodes: keep one free plane.
+        if 2 * thickness + 2 > min_cells {
             return Err(self.err(
                 "walls.thickness",
                 format!(
@@ -516,6 +528,7 @@ impl V<'_> {
                 "mu",
                 "lambda",
                 "friction_angle",
+                "cone",
                 "cohesion",
             ],
             RawModel::VonMises => &[
@@ -540,6 +553,7 @@ impl V<'_> {
             ("critical_stretch", m.critical_stretch.is_some()),
             ("hardening", m.hardening.is_some()),
             ("friction_angle", m.friction_angle.is_some()),
+            ("cone", m.cone.is_some()),
             ("cohesion", m.cohesion.is_some()),
             ("yield_stress", m.yield_stress.is_some()),
             ("hardening_modulus", m.hardening_modulus.is_some()),
@@ -629,10 +643,15 @@ impl V<'_> {
                             m.cohesion.unwrap_or(0.0),
                             "cohesion",
                         )?;
+                        let cone = match m.cone.unwrap_or(RawCone::Compression) {
+                            RawCone::Compression => Cone::Compression,
+                            RawCone::PlaneStrain => Cone::PlaneStrain,
+                        };
                         Model::DruckerPrager(DruckerPrager {
                             mu,
                             lambda,
                             friction_angle: phi,
+                            cone,
                             cohesion,
                         })
                     }

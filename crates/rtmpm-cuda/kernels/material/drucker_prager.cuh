@@ -2,20 +2,15 @@
 #pragma once
 #include "hencky.cuh"
 
-// Host mirror (#[repr(C)]): { f32 mu; f32 lambda; f32 friction_angle (degrees); f32 cohesion; }
-// (16 bytes).
+// Host mirror (#[repr(C)]): { f32 mu; f32 lambda; f32 alpha; f32 cohesion; } (16 bytes).
+// alpha: the cone slope, computed on the host from the friction angle and the cone's fit
+// (rtmpm_core::material::DruckerPrager::alpha: Klar 2016 eq. 27, or the plane-strain cone).
 struct DruckerPragerParams {
     real mu;
     real lambda;
-    real friction_angle;
+    real alpha;
     real cohesion;
 };
-
-// alpha = sqrt(2/3) 2 sin(phi) / (3 - sin(phi)) (Klar 2016 eq. 27)
-__device__ __forceinline__ real drucker_prager_alpha(const DruckerPragerParams& p) {
-    real s = sin(p.friction_angle * ((real)3.14159265358979323846 / (real)180));
-    return sqrt((real)2 / (real)3) * (real)2 * s / ((real)3 - s);
-}
 
 __device__ __forceinline__ mat3 drucker_prager_kirchhoff(const DruckerPragerParams& p, const mat3& f) {
     return hencky_kirchhoff(f, p.mu, p.lambda);
@@ -29,7 +24,7 @@ __device__ __forceinline__ vec3 drucker_prager_project_strain(const DruckerPrage
     real tr = sum(e);
     vec3 e_hat = e - make_v3s(tr / (real)3);
     real e_hat_norm = length(e_hat);
-    real dg = e_hat_norm + ((real)3 * p.lambda + (real)2 * p.mu) / ((real)2 * p.mu) * tr * drucker_prager_alpha(p);
+    real dg = e_hat_norm + ((real)3 * p.lambda + (real)2 * p.mu) / ((real)2 * p.mu) * tr * p.alpha;
     if (dg <= (real)0) {  // case I: inside the cone
         *dq = 0;
         return eps;

@@ -44,7 +44,7 @@ __global__ void check(real* out) {
     out[k++] = jp;           // 16: 1.0078259
     out[k++] = at(fe, 0, 0);  // 17: 1.0075
     out[k++] = at(snow_kirchhoff(sn, dmat(1.1f, 1, 1), 0.95f), 0, 0);  // 18: 0.7254374
-    DruckerPragerParams dp = {1, 2, 30, 0};
+    DruckerPragerParams dp = {1, 2, 0.3265986f, 0};  // alpha of 30 degrees, compression cone
     real dq;
     drucker_prager_project_strain(dp, make_v3(0.09f, -0.11f, -0.01f), &dq);
     out[k++] = dq;  // 19: 0.1022296
