@@ -5,6 +5,8 @@
 
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
+use rtmpm_core::boundary::Collider;
+use rtmpm_core::boundary::sdf::Shape;
 use rtmpm_core::io::ply::{PlyData, read_ply};
 use rtmpm_core::material::Model;
 use rtmpm_core::math::Vec3;
@@ -52,6 +54,9 @@ pub struct ViewArgs {
     /// No shadows (a little faster).
     #[arg(long)]
     pub no_shadows: bool,
+    /// Do not draw the scene's colliders (drawn grey by default).
+    #[arg(long)]
+    pub no_colliders: bool,
 }
 
 /// An image size.
@@ -165,6 +170,9 @@ fn resolve(
     opts.shadows = !view.no_shadows;
     if let Some(s) = scene {
         opts.palette = scene_palette(s);
+        if !view.no_colliders {
+            opts.colliders = s.colliders.clone();
+        }
     }
     Ok(opts)
 }
@@ -308,6 +316,8 @@ impl Sink {
             Some(t) => format!("FRAME {}  T = {:.3} S", job.frame, t),
             None => format!("FRAME {}", job.frame),
         });
+        // Moving colliders are posed at the frame's time.
+        self.opts.time = job.time.unwrap_or(0.0) as f32;
         let t0 = Instant::now();
         let img = render(
             &RenderInput {
@@ -652,13 +662,16 @@ fn bench(args: &RenderArgs) -> Result<()> {
         material: &material,
         field: Some(&field),
     };
-    render(&input, &opts)?;
-    let reps = 3;
-    let t0 = Instant::now();
-    for _ in 0..reps {
-        render(&input, &opts)?;
-    }
-    let dt = t0.elapsed().as_secs_f64() / reps as f64;
+    let time = |opts: &RenderOptions| -> Result<f64> {
+        render(&input, opts)?;
+        let reps = 3;
+        let t0 = Instant::now();
+        for _ in 0..reps {
+            render(&input, opts)?;
+        }
+        Ok(t0.elapsed().as_secs_f64() / reps as f64)
+    };
+    let dt = time(&opts)?;
     println!(
         "render bench: {} particles, {}x{}, coloured by {}, {} threads: {:.3} s per frame",
         positions.len(),
@@ -668,6 +681,34 @@ fn bench(args: &RenderArgs) -> Result<()> {
         rayon_threads(),
         dt
     );
+    // The same with three colliders (unless --no-colliders): a back wall (half-space), a
+    // sphere and a box beside the block.
+    if !args.view.no_colliders {
+        let mut with = opts.clone();
+        let collider = |shape: Shape| Collider {
+            pivot: shape.center(),
+            shape,
+            rule: Default::default(),
+            velocity: Vec3::ZERO,
+            angular_velocity: Vec3::ZERO,
+        };
+        with.colliders = vec![
+            collider(Shape::HalfSpace {
+                point: Vec3::new(0.0, 0.0, 0.05),
+                normal: Vec3::Z,
+            }),
+            collider(Shape::Sphere {
+                center: Vec3::new(0.8, 0.25, 0.35),
+                radius: 0.12,
+            }),
+            collider(Shape::Box {
+                center: Vec3::new(0.8, 0.2, 0.6),
+                half_extents: Vec3::new(0.1, 0.1, 0.05),
+            }),
+        ];
+        let dt = time(&with)?;
+        println!("render bench with 3 colliders (wall, sphere, box): {dt:.3} s per frame");
+    }
     Ok(())
 }
 

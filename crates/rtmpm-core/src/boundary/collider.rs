@@ -45,6 +45,29 @@ impl Collider {
             .distance(r.transpose() * (x - self.pivot_at(t)) + self.pivot)
     }
 
+    /// The world position at time `t` of the rest-pose point `x_rest`.
+    pub fn to_world(&self, x_rest: Vec3, t: f32) -> Vec3 {
+        self.rotation(t) * (x_rest - self.pivot) + self.pivot_at(t)
+    }
+
+    /// Axis-aligned world bounds at time `t` (the posed corners of [`Shape::bounds`]); `None`
+    /// for a half-space.
+    pub fn bounds(&self, t: f32) -> Option<(Vec3, Vec3)> {
+        let (lo, hi) = self.shape.bounds()?;
+        let (mut wlo, mut whi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        for i in 0..8 {
+            let c = Vec3::new(
+                if i & 1 == 0 { lo.x } else { hi.x },
+                if i & 2 == 0 { lo.y } else { hi.y },
+                if i & 4 == 0 { lo.z } else { hi.z },
+            );
+            let w = self.to_world(c, t);
+            wlo = wlo.min(w);
+            whi = whi.max(w);
+        }
+        Some((wlo, whi))
+    }
+
     /// At time `t`, if `x` is inside the collider (signed distance <= 0), return the outward
     /// unit normal and the collider's velocity at `x`.
     pub fn query(&self, x: Vec3, t: f32) -> Option<(Vec3, Vec3)> {

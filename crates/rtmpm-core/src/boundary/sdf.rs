@@ -148,6 +148,36 @@ impl Shape {
         }
     }
 
+    /// Axis-aligned bounds of the shape in its rest pose; `None` for the unbounded half-space.
+    /// A mesh is bounded by its distance grid.
+    pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        match self {
+            Shape::HalfSpace { .. } => None,
+            Shape::Box {
+                center,
+                half_extents,
+            } => Some((*center - *half_extents, *center + *half_extents)),
+            Shape::Sphere { center, radius } => Some((
+                *center - Vec3::splat(*radius),
+                *center + Vec3::splat(*radius),
+            )),
+            Shape::Cylinder {
+                center,
+                axis,
+                radius,
+                half_height,
+            } => {
+                // Per axis: the half-height along the axis plus the radius of the caps' discs.
+                let a = axis.abs();
+                let disc = (Vec3::ONE - *axis * *axis).max(Vec3::ZERO);
+                let e = a * *half_height
+                    + Vec3::new(disc.x.sqrt(), disc.y.sqrt(), disc.z.sqrt()) * *radius;
+                Some((*center - e, *center + e))
+            }
+            Shape::Mesh(m) => Some((m.origin, m.grid_max())),
+        }
+    }
+
     /// A natural centre of the shape (default pivot of a collider): the point of a half-space,
     /// the centre of the analytic shapes, the centre of a mesh's bounding box.
     pub fn center(&self) -> Vec3 {
@@ -215,6 +245,56 @@ mod tests {
         assert!(vclose(s.normal(Vec3::new(0.0, 0.0, 2.9)), Vec3::Z));
         let n = s.normal(Vec3::new(4.0, 6.0, 0.0));
         assert!(vclose(n, Vec3::new(3.0, 4.0, 0.0) / 5.0));
+    }
+
+    #[test]
+    fn bounds_contain_the_shape() {
+        let shapes = [
+            Shape::Sphere {
+                center: Vec3::ONE,
+                radius: 0.5,
+            },
+            Shape::Box {
+                center: Vec3::ZERO,
+                half_extents: Vec3::new(1.0, 2.0, 3.0),
+            },
+            Shape::Cylinder {
+                center: Vec3::new(0.2, 0.0, 0.0),
+                axis: Vec3::new(1.0, 2.0, 0.5).normalize(),
+                radius: 0.3,
+                half_height: 0.8,
+            },
+        ];
+        for s in &shapes {
+            let (lo, hi) = s.bounds().unwrap();
+            // Points just outside every face of the bounds are outside the shape, and the
+            // bounds are tight: some point on each face is within 1e-3 of the surface.
+            for axis in 0..3 {
+                for (side, face) in [(-1.0f32, lo[axis]), (1.0, hi[axis])] {
+                    let mut best = f32::INFINITY;
+                    for i in 0..=40 {
+                        for j in 0..=40 {
+                            let mut p = lo + (hi - lo) * 0.5;
+                            let (a1, a2) = ((axis + 1) % 3, (axis + 2) % 3);
+                            p[a1] = lo[a1] + (hi[a1] - lo[a1]) * i as f32 / 40.0;
+                            p[a2] = lo[a2] + (hi[a2] - lo[a2]) * j as f32 / 40.0;
+                            p[axis] = face + side * 1e-4;
+                            assert!(s.distance(p) > 0.0, "{s:?} {p}");
+                            best = best.min(s.distance(p));
+                        }
+                    }
+                    assert!(best < 0.02, "{s:?} axis {axis}: {best}");
+                }
+            }
+        }
+        assert!(
+            Shape::HalfSpace {
+                point: Vec3::ZERO,
+                normal: Vec3::Y
+            }
+            .bounds()
+            .is_none()
+        );
     }
 
     #[test]

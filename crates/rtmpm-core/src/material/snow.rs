@@ -5,11 +5,15 @@ use super::fixed_corotated::fixed_corotated_kirchhoff;
 use crate::math::{Mat3, Vec3};
 use crate::svd::svd3;
 
-/// Bound on the hardening exponent: `xi (1 - Jp)` is clamped to `[-M, M]` with `M = 3`, so the
-/// Lamé parameters stay within a factor `e^3 ~ 20` of their initial values. Without it
-/// `exp(xi (1 - Jp))` overflows f32 for `xi (1 - Jp) > 88` (e.g. a stretched particle with
-/// `Jp = 10`, `xi = 10` gives `e^-90` and a compacted one drives the CFL step to zero).
+/// Bound on the hardening exponent: `xi (1 - Jp)` is clamped to `[-S, M]` with `M = 3`, so
+/// compacted snow is at most `e^3 ~ 20` times stiffer than fresh snow (an unbounded factor
+/// would drive the CFL step to zero).
 pub const SNOW_MAX_HARDENING_EXPONENT: f32 = 3.0;
+
+/// Bound on the softening side: `xi (1 - Jp) >= -S`, `S = 10`: stretched snow keeps at least
+/// `e^-10 ~ 5e-5` of its stiffness, practically the paper's unbounded softening (an earlier
+/// bound of 3 kept 5 % of the stiffness in torn snow).
+pub const SNOW_MAX_SOFTENING_EXPONENT: f32 = 10.0;
 
 /// `Jp` is kept in `[SNOW_JP_MIN, SNOW_JP_MAX]` so it stays positive (an inverted trial `F` has a
 /// negative determinant ratio) and finite; inside the range used by the clamped exponent this is
@@ -47,11 +51,11 @@ impl Snow {
         }
     }
 
-    /// Hardening factor `exp(clamp(xi (1 - Jp), -M, M))` (Stomakhin 2013, eq. 8), see
-    /// [`SNOW_MAX_HARDENING_EXPONENT`].
+    /// Hardening factor `exp(clamp(xi (1 - Jp), -S, M))` (Stomakhin 2013, eq. 8), see
+    /// [`SNOW_MAX_HARDENING_EXPONENT`] and [`SNOW_MAX_SOFTENING_EXPONENT`].
     pub fn hardening_factor(&self, jp: f32) -> f32 {
         let e = (self.hardening * (1.0 - jp))
-            .clamp(-SNOW_MAX_HARDENING_EXPONENT, SNOW_MAX_HARDENING_EXPONENT);
+            .clamp(-SNOW_MAX_SOFTENING_EXPONENT, SNOW_MAX_HARDENING_EXPONENT);
         e.exp()
     }
 
@@ -133,7 +137,9 @@ mod tests {
     fn hardening_exponent_is_clamped() {
         let m = snow();
         assert!((m.hardening_factor(-100.0) - 3f32.exp()).abs() < 1e-4);
-        assert!((m.hardening_factor(1e6) - (-3f32).exp()).abs() < 1e-7);
+        assert!((m.hardening_factor(1e6) - (-10f32).exp()).abs() < 1e-9);
+        // Softening goes on past the compaction bound: Jp = 1.5 gives e^-5 (the paper's value).
+        assert!((m.hardening_factor(1.5) - (-5f32).exp()).abs() < 1e-7);
         assert!(
             m.kirchhoff(Mat3::from_diagonal(Vec3::splat(0.9)), 1e-3)
                 .is_finite()

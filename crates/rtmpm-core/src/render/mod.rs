@@ -4,6 +4,8 @@
 //!
 //! * [`camera`]: pinhole camera and automatic framing of the domain.
 //! * [`raster`]: sphere splatting, parallel over bands of rows (rayon).
+//! * `colliders`: colliders drawn by sphere tracing their signed distances, clipped to the
+//!   scene box, into the same depth buffers (they hide, and cast and receive shadows).
 //! * [`colormap`]: viridis and the material palette.
 //! * [`text`]: a built-in 5x7 bitmap font for labels.
 //! * [`image`]: RGB images, PNG encoding/decoding, resizing, GIF movies.
@@ -12,6 +14,7 @@
 //! build the same [`RenderInput`] from the file's columns.
 
 pub mod camera;
+mod colliders;
 pub mod colormap;
 pub mod image;
 pub mod plot;
@@ -23,7 +26,9 @@ pub mod text;
 pub use camera::Camera;
 pub use image::{GifMovie, Image};
 
+use crate::boundary::Collider;
 use crate::math::Vec3;
+use colliders::{COLLIDER_COLOR, COLLIDER_ID, PosedCollider};
 use raster::{Splat, raster};
 use rayon::prelude::*;
 use std::fmt;
@@ -140,8 +145,12 @@ pub struct RenderOptions {
     pub palette: Vec<[f32; 3]>,
     /// Text drawn in the top-left corner (e.g. the frame number).
     pub label: Option<String>,
-    /// Shadows cast by the particles (on the ground and each other).
+    /// Shadows cast by the particles and colliders (on the ground and each other).
     pub shadows: bool,
+    /// Colliders to draw (grey, clipped to `bounds`); empty draws none.
+    pub colliders: Vec<Collider>,
+    /// Simulated time of the frame (s): the pose of moving colliders.
+    pub time: f32,
 }
 
 impl RenderOptions {
@@ -160,6 +169,8 @@ impl RenderOptions {
             palette: Vec::new(),
             label: None,
             shadows: true,
+            colliders: Vec::new(),
+            time: 0.0,
         }
     }
 }
@@ -467,7 +478,17 @@ pub fn render(input: &RenderInput, opts: &RenderOptions) -> Result<Image, Render
         }
     });
     drop(splats);
-    let shadow = opts.shadows.then(|| ShadowMap::build(input, opts));
+    let posed: Vec<PosedCollider> = opts
+        .colliders
+        .iter()
+        .filter_map(|c| PosedCollider::new(c, opts.time, opts.bounds))
+        .collect();
+    colliders::draw(&posed, &view, near, w, h, &mut gbuf);
+    let shadow = opts.shadows.then(|| {
+        let mut map = ShadowMap::build(input, opts);
+        colliders::cast_shadows(&posed, &mut map);
+        map
+    });
 
     // Colours.
     let (lo, hi) = match field {
@@ -481,6 +502,9 @@ pub fn render(input: &RenderInput, opts: &RenderOptions) -> Result<Image, Render
         &opts.palette
     };
     let base = |id: u32| -> Vec3 {
+        if id == COLLIDER_ID {
+            return Vec3::from(COLLIDER_COLOR);
+        }
         let c = match field {
             Some(f) => colormap::viridis((f[id as usize] - lo) * inv_range),
             None => palette[input.material[id as usize] as usize % palette.len()],
@@ -540,7 +564,12 @@ pub fn render(input: &RenderInput, opts: &RenderOptions) -> Result<Image, Render
                         }
                     }
                     let ao = 1.0 - 0.55 * occ / 8.0;
-                    let rim = 0.12 * (1.0 - nz).powi(2);
+                    // Rim light on the particles' edges (colliders' surfaces are not spheres).
+                    let rim = if g.id == COLLIDER_ID {
+                        0.0
+                    } else {
+                        0.12 * (1.0 - nz).powi(2)
+                    };
                     base(g.id) * (0.32 * ao + 0.68 * lambert * (0.5 + 0.5 * lit))
                         + Vec3::splat(rim * ao)
                 } else if ground_t.is_finite() {

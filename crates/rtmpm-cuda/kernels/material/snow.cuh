@@ -2,7 +2,8 @@
 #pragma once
 #include "fixed_corotated.cuh"
 
-#define SNOW_MAX_HARDENING_EXPONENT ((real)3)  // xi (1 - Jp) clamped to [-3, 3]
+#define SNOW_MAX_HARDENING_EXPONENT ((real)3)  // xi (1 - Jp) clamped to [-10, 3]
+#define SNOW_MAX_SOFTENING_EXPONENT ((real)10)
 #define SNOW_JP_MIN ((real)1e-3)
 #define SNOW_JP_MAX ((real)1e3)
 
@@ -16,9 +17,9 @@ struct SnowParams {
     real hardening;
 };
 
-// exp(clamp(xi (1 - Jp), -M, M)) (Stomakhin 2013 eq. 8)
+// exp(clamp(xi (1 - Jp), -S, M)) (Stomakhin 2013 eq. 8)
 __device__ __forceinline__ real snow_hardening_factor(const SnowParams& p, real jp) {
-    real e = fmin(fmax(p.hardening * ((real)1 - jp), -SNOW_MAX_HARDENING_EXPONENT), SNOW_MAX_HARDENING_EXPONENT);
+    real e = fmin(fmax(p.hardening * ((real)1 - jp), -SNOW_MAX_SOFTENING_EXPONENT), SNOW_MAX_HARDENING_EXPONENT);
     return exp(e);
 }
 
