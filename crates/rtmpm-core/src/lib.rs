@@ -1,7 +1,9 @@
 //! rtmpm core: everything that is not tied to one compute backend.
 //!
 //! * [`math`], [`svd`], [`shape`]: small linear algebra, the 3x3 SVD/polar decomposition and the
-//!   quadratic B-spline weights of MLS-MPM.
+//!   shape functions (quadratic B-splines of MLS-MPM, uGIMP, linear hats).
+//! * [`transfer`]: the particle-grid transfer schemes (MLS/APIC, GIMP, linear MPM; USL/MUSL;
+//!   PIC/FLIP) selected by a scene's `[solver]` table.
 //! * [`material`]: one file per constitutive model (stress and return mapping).
 //! * [`grid`]: the sparse grid layout of seed 000 (4x4x4 blocks, 64-bit interleaved codes,
 //!   block hash to dense ids, gblocks/pblocks with 3x3x3 neighbour lists).
@@ -25,6 +27,7 @@ pub mod scene;
 pub mod shape;
 pub mod sim;
 pub mod svd;
+pub mod transfer;
 
 pub use particles::Particles;
 pub use scene::Scene;

@@ -1,6 +1,7 @@
 // Shared device structures of the rtmpm CUDA pipeline (seed 000). Must match src/layout.rs.
 #pragma once
 #include "math.cuh"
+#include "shape.cuh"
 #include "material/materials.cuh"
 
 #define RTMPM_MAX_COLLIDERS 16
@@ -85,6 +86,8 @@ struct Ctx {
     unsigned* pkey;           // per particle: bucket
     unsigned* prank;          // per particle: rank in bucket
     unsigned* warps;          // 3 per warp: gblock, first, count
+    real* grid_aux;           // classic MPM transfers only (else null), 4 reals per node: unused,
+                              // dt f_i after P2G, v_old after the grid update, MUSL re-mapped v
     float origin[3];
     float dx, inv_dx;
     float domain_min[3], domain_max[3];
@@ -93,7 +96,10 @@ struct Ctx {
     unsigned wall_cond[6];
     float wall_friction[6];
     unsigned n, cap, gblock_cap, pblock_cap, hash_cap, warp_cap, n_colliders, n_buckets;
-    unsigned warp_reduce, warp_sort, pad0, pad1;
+    unsigned warp_reduce, warp_sort;
+    unsigned transfer, update;  // TRANSFER_*, UPDATE_* (shape.cuh)
+    float flip;                 // FLIP fraction of the classic transfers
+    unsigned pad0;
 };
 
 __device__ __forceinline__ unsigned long long spread3(unsigned v) {
@@ -143,10 +149,13 @@ __device__ __forceinline__ void stencil_of(const Ctx& c, vec3 x, int base[3], re
         fx[a] = xg[a] - b;
     }
 }
-__device__ __forceinline__ void weights_1d(real fx, real w[3]) {
-    w[0] = (real)0.5 * ((real)1.5 - fx) * ((real)1.5 - fx);
-    w[1] = (real)0.75 - (fx - (real)1.0) * (fx - (real)1.0);
-    w[2] = (real)0.5 * (fx - (real)0.5) * (fx - (real)0.5);
+// Stencil of a particle for the active transfer: base node, fractional offset, per-axis weights
+// w[axis][node] and derivatives d[axis][node] (d w / d fx). Weight of node (i, j, k):
+// w[0][i] w[1][j] w[2][k]; its gradient: shape_grad(w, d, i, j, k) * inv_dx. The per-(particle,
+// node) interface every P2G/G2P variant can use (rtmpm_core::shape::Stencil::for_transfer).
+__device__ __forceinline__ void particle_stencil(const Ctx& c, vec3 x, int base[3], real fx[3], real w[3][3], real d[3][3]) {
+    stencil_of(c, x, base, fx);
+    for (int a = 0; a < 3; ++a) shape_1d(c.transfer, fx[a], w[a], d[a]);
 }
 
 // Node addressing of one particle's 3x3x3 stencil, split per axis once (rtmpm_core's

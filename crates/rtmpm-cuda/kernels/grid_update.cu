@@ -133,14 +133,10 @@ extern "C" __global__ void grid_update(Ctx c) {
     for (unsigned t = thread_index(); t < n_nodes; t += gridDim.x * blockDim.x) grid_update_node(c, t);
 }
 
-__device__ void grid_update_node(const Ctx& c, unsigned t) {
-    real* node = c.grid + 4u * t;
-    real m = node[0];
-    if (!(m > 0)) return;
+// Boundary conditions of node t at the step's time: walls, then colliders (cpu/grid_update.rs:
+// boundary).
+__device__ vec3 node_boundary(const Ctx& c, unsigned t, vec3 v) {
     const StepParams& sp = *c.step;
-    real inv_m = (real)1 / m;
-    vec3 v = make_v3(node[1] * inv_m + sp.dt * sp.gravity[0], node[2] * inv_m + sp.dt * sp.gravity[1],
-                     node[3] * inv_m + sp.dt * sp.gravity[2]) * (real)sp.damping;  // settling damping
     unsigned id = t >> 6, cell = t & 63u;
     int gi[3] = {c.block_coords[3 * id] * 4 + (int)(cell >> 4), c.block_coords[3 * id + 1] * 4 + (int)((cell >> 2) & 3u),
                  c.block_coords[3 * id + 2] * 4 + (int)(cell & 3u)};
@@ -171,5 +167,45 @@ __device__ void grid_update_node(const Ctx& c, unsigned t) {
             v = vc + rule_apply(col.cond, col.friction, v - vc, n);
         }
     }
+    return v;
+}
+
+// MLS: v = p / m + dt g. Classic MPM transfers: v = (p + dt f) / m + dt g with dt f from
+// grid_aux, which then keeps v_old = p / m (no force, no boundary condition) for FLIP.
+__device__ void grid_update_node(const Ctx& c, unsigned t) {
+    real* node = c.grid + 4u * t;
+    real m = node[0];
+    if (!(m > 0)) return;
+    const StepParams& sp = *c.step;
+    real inv_m = (real)1 / m;
+    vec3 v;
+    if (c.transfer == TRANSFER_MLS) {
+        v = make_v3(node[1] * inv_m + sp.dt * sp.gravity[0], node[2] * inv_m + sp.dt * sp.gravity[1],
+                    node[3] * inv_m + sp.dt * sp.gravity[2]);
+    } else {
+        real* aux = c.grid_aux + 4u * t;
+        vec3 p = make_v3(node[1], node[2], node[3]);
+        vec3 f = make_v3(aux[1], aux[2], aux[3]);
+        v = (p + f) * inv_m + make_v3(sp.gravity[0], sp.gravity[1], sp.gravity[2]) * (real)sp.dt;
+        vec3 v_old = p * inv_m;
+        aux[1] = v_old.x; aux[2] = v_old.y; aux[3] = v_old.z;
+    }
+    v = v * (real)sp.damping;  // settling damping (1 = off)
+    v = node_boundary(c, t, v);
     node[1] = v.x; node[2] = v.y; node[3] = v.z;
+}
+
+// MUSL re-map (cpu/grid_update.rs: grid_update_musl): re-mapped momentum in grid_aux to
+// velocity with the same boundary conditions (gravity is already in the particle velocities).
+extern "C" __global__ void grid_update_musl(Ctx c) {
+    if (c.ctl[CTL_ERROR]) return;
+    unsigned n_nodes = c.ctl[CTL_PBLOCKS] * 64u;
+    for (unsigned t = thread_index(); t < n_nodes; t += gridDim.x * blockDim.x) {
+        real m = c.grid[4u * t];
+        if (!(m > 0)) continue;
+        real* aux = c.grid_aux + 4u * t;
+        real inv_m = (real)1 / m;
+        vec3 v = node_boundary(c, t, make_v3(aux[1] * inv_m, aux[2] * inv_m, aux[3] * inv_m));
+        aux[1] = v.x; aux[2] = v.y; aux[3] = v.z;
+    }
 }

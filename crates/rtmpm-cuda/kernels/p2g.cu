@@ -180,3 +180,69 @@ extern "C" __global__ void p2g_shared(Ctx c) {
         for (int q = 0; q < 4; ++q) atomicAdd(node + q, (real)tile[4 * t + q]);
     }
 }
+
+// P2G of the classic MPM transfers (uGIMP, linear hats; cpu/p2g.rs: p2g_mpm): mass and momentum
+// into the grid, dt f_i = -dt sum_p V0_p tau_p grad w_ip into grid_aux (kept apart for FLIP's
+// v_old). One lane per particle of the warp list, direct atomics (no in-warp reduction).
+extern "C" __global__ void p2g_mpm(Ctx c) {
+    if (c.ctl[CTL_ERROR]) return;
+    unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
+    unsigned lane = threadIdx.x & 31;
+    for (unsigned w = thread_index() >> 5; w < n_warps; w += stride) {
+        unsigned g = c.warps[3 * w], first = c.warps[3 * w + 1], count = c.warps[3 * w + 2];
+        if (lane >= count) continue;
+        unsigned p = first + lane;
+        int base[3]; real fx[3]; real wt[3][3]; real dw[3][3];
+        particle_stencil(c, load_v3(c.state, c.cap, F_X, p), base, fx, wt, dw);
+        real m = c.state[F_MASS * c.cap + p];
+        real vol0 = c.state[F_VOL0 * c.cap + p];
+        vec3 mv = load_v3(c.state, c.cap, F_V, p) * m;
+        mat3 C = load_m3(c.state, c.cap, F_C, p);
+        mat3 F = load_m3(c.state, c.cap, F_F, p);
+        GpuMaterial mat = c.materials[__float_as_uint(c.state[F_MAT * c.cap + p])];
+        mat3 tau = material_kirchhoff(mat, F, c.state[F_PLASTIC * c.cap + p], C);
+        // grad w in world units is shape_grad / dx.
+        mat3 stress = tau * (-(real)c.step->dt * vol0 * c.inv_dx);
+        StencilIdx si = stencil_idx(c.block_coords + 3 * g, base);
+        const unsigned* nbs = c.neighbors + 27 * g;
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+                for (int k = 0; k < 3; ++k) {
+                    real weight = wt[0][i] * wt[1][j] * wt[2][k];
+                    vec3 f = stress * shape_grad(wt, dw, i, j, k);
+                    real val[4] = {weight * m, weight * mv.x, weight * mv.y, weight * mv.z};
+                    real aux[4] = {0, f.x, f.y, f.z};
+                    unsigned node = nbs[si.slot[0][i] + si.slot[1][j] + si.slot[2][k]] * 64u
+                        + (si.cell[0][i] | si.cell[1][j] | si.cell[2][k]);
+                    atomic_add_node(c.grid + 4u * node, val);
+                    atomic_add_node(c.grid_aux + 4u * node, aux);
+                }
+    }
+}
+
+// MUSL re-map (Sulsky et al. 1995; cpu/p2g.rs: p2g_musl): the updated particle momenta
+// sum_p w_ip m_p v_p into grid_aux (cleared before), weights at the start-of-step positions.
+extern "C" __global__ void p2g_musl(Ctx c) {
+    if (c.ctl[CTL_ERROR]) return;
+    unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
+    unsigned lane = threadIdx.x & 31;
+    for (unsigned w = thread_index() >> 5; w < n_warps; w += stride) {
+        unsigned g = c.warps[3 * w], first = c.warps[3 * w + 1], count = c.warps[3 * w + 2];
+        if (lane >= count) continue;
+        unsigned p = first + lane;
+        int base[3]; real fx[3]; real wt[3][3]; real dw[3][3];
+        particle_stencil(c, load_v3(c.state, c.cap, F_X, p), base, fx, wt, dw);
+        vec3 mv = load_v3(c.state, c.cap, F_V, p) * (real)c.state[F_MASS * c.cap + p];
+        StencilIdx si = stencil_idx(c.block_coords + 3 * g, base);
+        const unsigned* nbs = c.neighbors + 27 * g;
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+                for (int k = 0; k < 3; ++k) {
+                    real weight = wt[0][i] * wt[1][j] * wt[2][k];
+                    real aux[4] = {0, weight * mv.x, weight * mv.y, weight * mv.z};
+                    unsigned node = nbs[si.slot[0][i] + si.slot[1][j] + si.slot[2][k]] * 64u
+                        + (si.cell[0][i] | si.cell[1][j] | si.cell[2][k]);
+                    atomic_add_node(c.grid_aux + 4u * node, aux);
+                }
+    }
+}

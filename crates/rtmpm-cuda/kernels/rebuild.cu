@@ -212,5 +212,12 @@ extern "C" __global__ void rb_end(Ctx c) {
 
 // Zero the grid nodes of all pblocks (every step).
 extern "C" __global__ void grid_clear(Ctx c) {
-    GRID_STRIDE(t, c.ctl[CTL_PBLOCKS] * 64u * 4u) c.grid[t] = 0;
+    GRID_STRIDE(t, c.ctl[CTL_PBLOCKS] * 64u * 4u) {
+        c.grid[t] = 0;
+        if (c.grid_aux) c.grid_aux[t] = 0;
+    }
+}
+// Clear only grid_aux (before the MUSL re-map).
+extern "C" __global__ void grid_clear_aux(Ctx c) {
+    GRID_STRIDE(t, c.ctl[CTL_PBLOCKS] * 64u * 4u) c.grid_aux[t] = 0;
 }

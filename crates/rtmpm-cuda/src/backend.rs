@@ -12,6 +12,7 @@ use rtmpm_core::grid::BlockLayout;
 use rtmpm_core::material::{Eos, Model};
 use rtmpm_core::math::{IVec3, Mat3, Vec3};
 use rtmpm_core::sim::{Backend, BadParticle, BadReason, SimError};
+use rtmpm_core::transfer::{Transfer, Update};
 use rtmpm_core::{Particles, Scene};
 use std::sync::Arc;
 
@@ -51,10 +52,16 @@ pub(crate) struct Kernels {
     pub rb_copy_back: CudaFunction,
     pub rb_end: CudaFunction,
     pub grid_clear: CudaFunction,
+    pub grid_clear_aux: CudaFunction,
     pub p2g: CudaFunction,
     pub p2g_shared: CudaFunction,
+    pub p2g_mpm: CudaFunction,
+    pub p2g_musl: CudaFunction,
     pub grid_update: CudaFunction,
+    pub grid_update_musl: CudaFunction,
     pub g2p: CudaFunction,
+    pub g2p_mpm: CudaFunction,
+    pub g2p_mpm_velocity: CudaFunction,
 }
 
 /// The CUDA backend (one GPU).
@@ -243,10 +250,16 @@ impl CudaBackend {
             rb_copy_back: f("rb_copy_back")?,
             rb_end: f("rb_end")?,
             grid_clear: f("grid_clear")?,
+            grid_clear_aux: f("grid_clear_aux")?,
             p2g: f("p2g")?,
             p2g_shared: f("p2g_shared")?,
+            p2g_mpm: f("p2g_mpm")?,
+            p2g_musl: f("p2g_musl")?,
             grid_update: f("grid_update")?,
+            grid_update_musl: f("grid_update_musl")?,
             g2p: f("g2p")?,
+            g2p_mpm: f("g2p_mpm")?,
+            g2p_mpm_velocity: f("g2p_mpm_velocity")?,
         };
 
         let dx = scene.dx;
@@ -361,6 +374,13 @@ impl CudaBackend {
         let pkey = zeros(n * 4)?;
         let prank = zeros(n * 4)?;
         let warps = zeros(warp_cap * 12)?;
+        // The classic MPM transfers keep a second value per node (force, v_old, MUSL re-map).
+        let solver = scene.solver;
+        let grid_aux = if solver.transfer == Transfer::Mls {
+            0
+        } else {
+            zeros(pblock_cap * 64 * 4 * real_bytes)?
+        };
         let w = &scene.walls;
         let n_cells = scene.n_cells();
         let ctx = Ctx {
@@ -381,6 +401,7 @@ impl CudaBackend {
             pkey,
             prank,
             warps,
+            grid_aux,
             origin: origin.to_array(),
             dx,
             inv_dx: 1.0 / dx,
@@ -400,7 +421,10 @@ impl CudaBackend {
             n_buckets: n_buckets as u32,
             warp_reduce: options.warp_reduce as u32,
             warp_sort: (options.warp_reduce && options.mixed_sort) as u32,
-            pad: [0; 2],
+            transfer: solver.transfer.code(),
+            update: (solver.update == Update::Musl) as u32,
+            flip: solver.flip,
+            pad: 0,
         };
         Ok(CudaBackend {
             stream,
@@ -451,6 +475,12 @@ impl CudaBackend {
         crate::rebuild::enqueue(k, s, c).map_err(err("rebuild"))?;
         crate::p2g::enqueue(k, s, c, self.options.p2g).map_err(err("p2g"))?;
         crate::grid_update::enqueue(k, s, c).map_err(err("grid update"))?;
+        if c.transfer != Transfer::Mls.code() && c.update == 1 {
+            // MUSL: new particle velocities, their momenta re-mapped, then the final G2P.
+            crate::g2p::enqueue_velocity(k, s, c).map_err(err("g2p (MUSL velocity)"))?;
+            crate::p2g::enqueue_musl(k, s, c).map_err(err("p2g (MUSL re-map)"))?;
+            crate::grid_update::enqueue_musl(k, s, c).map_err(err("grid update (MUSL)"))?;
+        }
         crate::g2p::enqueue(k, s, c).map_err(err("g2p"))?;
         Ok(())
     }

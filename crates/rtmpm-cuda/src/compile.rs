@@ -8,6 +8,7 @@ use std::path::PathBuf;
 pub const SOURCES: &[(&str, &str)] = &[
     ("math.cuh", include_str!("../kernels/math.cuh")),
     ("common.cuh", include_str!("../kernels/common.cuh")),
+    ("shape.cuh", include_str!("../kernels/shape.cuh")),
     (
         "material_dispatch.cuh",
         include_str!("../kernels/material_dispatch.cuh"),

@@ -3,16 +3,34 @@
 use crate::backend::{Kernels, cfg_wave};
 use crate::layout::Ctx;
 use cudarc::driver::{CudaStream, DriverError, PushKernelArg};
+use rtmpm_core::transfer::Transfer;
 
-/// Enqueue the merged G2P (interpolation, F, plasticity, advection, free-zone and health checks).
+/// Enqueue the merged G2P (interpolation, F, plasticity, advection, free-zone and health checks):
+/// `g2p` for MLS, `g2p_mpm` for the classic MPM transfers.
 pub(crate) fn enqueue(k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), DriverError> {
+    let f = if c.transfer == Transfer::Mls.code() {
+        &k.g2p
+    } else {
+        &k.g2p_mpm
+    };
     // SAFETY: the kernel bounds-checks against the warp count.
     unsafe {
-        s.launch_builder(&k.g2p).arg(c).launch(cfg_wave(
+        s.launch_builder(f).arg(c).launch(cfg_wave(
             c.warp_cap as usize * 32,
             128,
             k.wave_threads,
         ))?
+    };
+    Ok(())
+}
+
+/// Enqueue the first MUSL pass: PIC/FLIP blend of the particle velocities only.
+pub(crate) fn enqueue_velocity(k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), DriverError> {
+    // SAFETY: the kernel bounds-checks against the warp count.
+    unsafe {
+        s.launch_builder(&k.g2p_mpm_velocity)
+            .arg(c)
+            .launch(cfg_wave(c.warp_cap as usize * 32, 128, k.wave_threads))?
     };
     Ok(())
 }

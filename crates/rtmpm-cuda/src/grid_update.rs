@@ -16,3 +16,14 @@ pub(crate) fn enqueue(k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), Driver
     };
     Ok(())
 }
+
+/// Enqueue the MUSL re-mapped momentum to velocity (with the boundary conditions).
+pub(crate) fn enqueue_musl(k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), DriverError> {
+    // SAFETY: the kernel bounds-checks against the pblock count.
+    unsafe {
+        s.launch_builder(&k.grid_update_musl)
+            .arg(c)
+            .launch(cfg_wave(c.pblock_cap as usize * 64, 128, k.wave_threads))?
+    };
+    Ok(())
+}

@@ -141,6 +141,8 @@ pub struct Ctx {
     pub pkey: u64,
     pub prank: u64,
     pub warps: u64,
+    /// Second value per node for the classic MPM transfers (0 for MLS).
+    pub grid_aux: u64,
     pub origin: [f32; 3],
     pub dx: f32,
     pub inv_dx: f32,
@@ -160,7 +162,13 @@ pub struct Ctx {
     pub n_buckets: u32,
     pub warp_reduce: u32,
     pub warp_sort: u32,
-    pub pad: [u32; 2],
+    /// `rtmpm_core::transfer::Transfer::code` (`TRANSFER_*` in shape.cuh).
+    pub transfer: u32,
+    /// 0 USL, 1 MUSL.
+    pub update: u32,
+    /// FLIP fraction.
+    pub flip: f32,
+    pub pad: u32,
 }
 
 // SAFETY: plain old data with the C layout of the kernel structs.

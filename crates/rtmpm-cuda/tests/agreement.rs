@@ -4,6 +4,7 @@
 use rtmpm_core::cpu::CpuBackend;
 use rtmpm_core::math::Vec3;
 use rtmpm_core::sim::{Backend, Simulation};
+use rtmpm_core::transfer::{SolverSettings, Transfer, Update};
 use rtmpm_core::{Particles, Scene};
 use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
 use std::path::Path;
@@ -26,7 +27,84 @@ fn read(b: &mut dyn Backend) -> Particles {
 }
 
 /// After one step every particle agrees within float tolerance; after `steps` steps the aggregate
-/// quantities agree within the stated tolerances.
+/// quantities agree within the stated tolerances. Returns the failures.
+fn compare(name: &str, scene: &Scene, steps: usize) -> Vec<String> {
+    let mut failures = Vec::new();
+    let p0 = scene.sample_particles().expect("particles");
+    let mut cpu = CpuBackend::new(scene, p0.clone(), None).expect("cpu");
+    // Precise math on the GPU for the per-particle comparison.
+    let opts = CudaOptions {
+        fast_math: false,
+        ..CudaOptions::default()
+    };
+    let mut gpu = CudaBackend::new(scene, &p0, opts).expect("cuda backend");
+    // One dt for both (the CFL step of the initial state), so that they see the same steps.
+    let mut sim = Simulation::new(
+        scene.clone(),
+        Box::new(CpuBackend::new(scene, p0.clone(), Some(1)).expect("cpu")),
+    );
+    let dt = sim.next_dt().expect("dt");
+    let dx = scene.dx;
+    cpu.step(dt, 0.0).expect("cpu step");
+    gpu.step(dt, 0.0).expect("gpu step");
+    let (a, b) = (read(&mut cpu), read(&mut gpu));
+    let vscale = a.v.iter().map(|v| v.length()).fold(1e-3f32, f32::max);
+    let mut worst_x = 0.0f32;
+    let mut worst_v = 0.0f32;
+    for i in 0..a.len() {
+        worst_x = worst_x.max((a.x[i] - b.x[i]).length());
+        worst_v = worst_v.max((a.v[i] - b.v[i]).length());
+    }
+    println!(
+        "{name}: 1 step, dt {dt:.3e}: max |dx| {worst_x:.3e} m, max |dv| {worst_v:.3e} m/s (v scale {vscale:.3e})"
+    );
+    if worst_x > 1e-5 * dx.max(1e-3) + 1e-6 || worst_v > 1e-3 * vscale {
+        failures.push(format!(
+            "{name}: first step differs: |dx| {worst_x:.3e}, |dv| {worst_v:.3e}"
+        ));
+    }
+    for s in 1..steps {
+        cpu.step(dt, s as f32 * dt).expect("cpu step");
+        gpu.step(dt, s as f32 * dt).expect("gpu step");
+    }
+    assert!(gpu.check().expect("check").is_none(), "{name}: GPU blow-up");
+    let (a, b) = (read(&mut cpu), read(&mut gpu));
+    let (ca, cb) = (a.center_of_mass(), b.center_of_mass());
+    let dcom = Vec3::new(
+        (ca[0] - cb[0]) as f32,
+        (ca[1] - cb[1]) as f32,
+        (ca[2] - cb[2]) as f32,
+    )
+    .length();
+    let (ka, kb) = (a.kinetic_energy(), b.kinetic_energy());
+    let (la, ha) = a.bounding_box();
+    let (lb, hb) = b.bounding_box();
+    let dbox = (la - lb)
+        .abs()
+        .max_element()
+        .max((ha - hb).abs().max_element());
+    let dke = (ka - kb).abs() / ka.max(1e-12);
+    println!(
+        "{name}: {steps} steps: |d com| {dcom:.3e} m ({:.3} dx), KE cpu {ka:.4e} gpu {kb:.4e} ({:.2} %), |d bbox| {dbox:.3e} m ({:.2} dx)",
+        dcom / dx,
+        100.0 * dke,
+        dbox / dx
+    );
+    // Tolerances: centre of mass within 0.1 cell, kinetic energy within 2 %, bounding box
+    // within 1 cell (splashes separate single particles chaotically).
+    if dcom > 0.1 * dx || dke > 0.02 || dbox > dx {
+        failures.push(format!("{name}: aggregates differ after {steps} steps"));
+    }
+    failures
+}
+
+fn steps() -> usize {
+    std::env::var("RTMPM_AGREEMENT_STEPS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(300)
+}
+
 #[test]
 #[ignore = "needs a CUDA GPU"]
 fn cuda_agrees_with_cpu_on_every_example_scene() {
@@ -34,78 +112,41 @@ fn cuda_agrees_with_cpu_on_every_example_scene() {
         println!("skipped: no usable CUDA GPU ({e})");
         return;
     }
-    let steps: usize = std::env::var("RTMPM_AGREEMENT_STEPS")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(300);
     let mut failures = Vec::new();
     for path in scenes() {
         let scene = Scene::from_file(&path).expect("scene");
-        let p0 = scene.sample_particles().expect("particles");
-        let mut cpu = CpuBackend::new(&scene, p0.clone(), None).expect("cpu");
-        // Precise math on the GPU for the per-particle comparison.
-        let opts = CudaOptions {
-            fast_math: false,
-            ..CudaOptions::default()
-        };
-        let mut gpu = CudaBackend::new(&scene, &p0, opts).expect("cuda backend");
-        // One dt for both (the CFL step of the initial state), so that they see the same steps.
-        let mut sim = Simulation::new(
-            scene.clone(),
-            Box::new(CpuBackend::new(&scene, p0.clone(), Some(1)).expect("cpu")),
-        );
-        let dt = sim.next_dt().expect("dt");
-        let dx = scene.dx;
-        cpu.step(dt, 0.0).expect("cpu step");
-        gpu.step(dt, 0.0).expect("gpu step");
-        let (a, b) = (read(&mut cpu), read(&mut gpu));
-        let vscale = a.v.iter().map(|v| v.length()).fold(1e-3f32, f32::max);
-        let mut worst_x = 0.0f32;
-        let mut worst_v = 0.0f32;
-        for i in 0..a.len() {
-            worst_x = worst_x.max((a.x[i] - b.x[i]).length());
-            worst_v = worst_v.max((a.v[i] - b.v[i]).length());
-        }
         let name = path.file_name().unwrap().to_string_lossy().to_string();
-        println!(
-            "{name}: 1 step, dt {dt:.3e}: max |dx| {worst_x:.3e} m, max |dv| {worst_v:.3e} m/s (v scale {vscale:.3e})"
-        );
-        if worst_x > 1e-5 * dx.max(1e-3) + 1e-6 || worst_v > 1e-3 * vscale {
-            failures.push(format!(
-                "{name}: first step differs: |dx| {worst_x:.3e}, |dv| {worst_v:.3e}"
-            ));
-        }
-        for s in 1..steps {
-            cpu.step(dt, s as f32 * dt).expect("cpu step");
-            gpu.step(dt, s as f32 * dt).expect("gpu step");
-        }
-        assert!(gpu.check().expect("check").is_none(), "{name}: GPU blow-up");
-        let (a, b) = (read(&mut cpu), read(&mut gpu));
-        let (ca, cb) = (a.center_of_mass(), b.center_of_mass());
-        let dcom = Vec3::new(
-            (ca[0] - cb[0]) as f32,
-            (ca[1] - cb[1]) as f32,
-            (ca[2] - cb[2]) as f32,
-        )
-        .length();
-        let (ka, kb) = (a.kinetic_energy(), b.kinetic_energy());
-        let (la, ha) = a.bounding_box();
-        let (lb, hb) = b.bounding_box();
-        let dbox = (la - lb)
-            .abs()
-            .max_element()
-            .max((ha - hb).abs().max_element());
-        let dke = (ka - kb).abs() / ka.max(1e-12);
-        println!(
-            "{name}: {steps} steps: |d com| {dcom:.3e} m ({:.3} dx), KE cpu {ka:.4e} gpu {kb:.4e} ({:.2} %), |d bbox| {dbox:.3e} m ({:.2} dx)",
-            dcom / dx,
-            100.0 * dke,
-            dbox / dx
-        );
-        // Tolerances: centre of mass within 0.1 cell, kinetic energy within 2 %, bounding box
-        // within 1 cell (splashes separate single particles chaotically).
-        if dcom > 0.1 * dx || dke > 0.02 || dbox > dx {
-            failures.push(format!("{name}: aggregates differ after {steps} steps"));
+        failures.extend(compare(&name, &scene, steps()));
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// The classic MPM transfers (`[solver]`): GIMP + USL (PIC), GIMP + MUSL + FLIP and linear-hat
+/// MPM (MUSL, PIC/FLIP blend) on an elastic and a fluid example scene.
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn cuda_agrees_with_cpu_with_the_classic_transfers() {
+    if let Err(e) = probe() {
+        println!("skipped: no usable CUDA GPU ({e})");
+        return;
+    }
+    let solvers = [
+        (Transfer::Gimp, Update::Usl, 0.0),
+        (Transfer::Gimp, Update::Musl, 1.0),
+        (Transfer::MpmLinear, Update::Musl, 0.9),
+    ];
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    let mut failures = Vec::new();
+    for file in ["elastic_cubes.toml", "dam_break.toml"] {
+        for (transfer, update, flip) in solvers {
+            let mut scene = Scene::from_file(&dir.join(file)).expect("scene");
+            scene.solver = SolverSettings {
+                transfer,
+                update,
+                flip,
+            };
+            let name = format!("{file} ({})", scene.solver.describe());
+            failures.extend(compare(&name, &scene, steps()));
         }
     }
     assert!(failures.is_empty(), "{failures:#?}");

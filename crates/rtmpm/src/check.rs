@@ -40,6 +40,7 @@ pub fn check(path: &Path) -> Result<()> {
             m.density
         );
     }
+    println!("  solver      {}", scene.solver.describe());
     println!("  colliders   {}", scene.colliders.len());
     println!("  particles   {}", particles.len());
     Ok(())

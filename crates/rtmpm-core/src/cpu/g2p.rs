@@ -5,6 +5,7 @@ use super::CpuBackend;
 use crate::math::{Mat3, Vec3, outer};
 use crate::shape::{Stencil, inv_d};
 use crate::sim::{BadParticle, check_particle};
+use crate::transfer::flip_blend;
 use rayon::prelude::*;
 
 /// Gather velocities back to the particles and advance them. Returns the largest particle speed
@@ -66,14 +67,102 @@ pub fn g2p(b: &mut CpuBackend, dt: f32) -> (f32, Option<BadParticle>) {
             };
             (speed, bad)
         })
-        .reduce(
-            || (0.0f32, None),
-            |(s1, b1), (s2, b2)| {
-                let bad = match (b1, b2) {
-                    (Some(a), Some(b)) => Some(if a.index <= b.index { a } else { b }),
-                    (a, b) => a.or(b),
-                };
-                (s1.max(s2), bad)
-            },
-        )
+        .reduce(|| (0.0f32, None), worst)
+}
+
+/// Combine the (max speed, lowest-index bad particle) of two ranges of particles.
+fn worst(
+    (s1, b1): (f32, Option<BadParticle>),
+    (s2, b2): (f32, Option<BadParticle>),
+) -> (f32, Option<BadParticle>) {
+    let bad = match (b1, b2) {
+        (Some(a), Some(b)) => Some(if a.index <= b.index { a } else { b }),
+        (a, b) => a.or(b),
+    };
+    (s1.max(s2), bad)
+}
+
+/// G2P of the classic MPM transfers (uGIMP, linear hats). The grid holds `v_i` (after the
+/// update) and `grid_aux` `v_i_old` (USL) or the MUSL re-mapped velocities. Positions move with
+/// `v_PIC = sum_i w_ip v_i`; the velocity gradient `L_p = sum_i v_i (x) grad w_ip` (of the
+/// re-mapped velocities with MUSL) updates `F = (I + dt L) F` and is kept in the particle's `C`.
+/// With USL the particle velocity is the PIC/FLIP blend; with MUSL [`g2p_mpm_velocity`] has
+/// already set it.
+pub fn g2p_mpm(b: &mut CpuBackend, dt: f32, musl: bool) -> (f32, Option<BadParticle>) {
+    let c = &b.consts;
+    let (layout, grid, aux, bases) = (&b.layout, &b.grid, &b.grid_aux, &b.bases);
+    let (transfer, alpha) = (c.solver.transfer, c.solver.flip);
+    let p = &mut b.particles;
+    let materials = &p.material;
+    p.x.par_iter_mut()
+        .zip(p.v.par_iter_mut())
+        .zip(p.c.par_iter_mut())
+        .zip(p.f.par_iter_mut())
+        .zip(p.plastic.par_iter_mut())
+        .enumerate()
+        .map(|(pi, ((((x, v), cp), f), plastic))| {
+            let s = Stencil::for_transfer(transfer, (*x - c.origin) * c.inv_dx, bases[pi]);
+            let nodes = layout.stencil_nodes(layout.gblock_of(pi), s.base);
+            let (mut v_pic, mut dv, mut l) = (Vec3::ZERO, Vec3::ZERO, Mat3::ZERO);
+            for i in 0..3 {
+                for j in 0..3 {
+                    for k in 0..3 {
+                        let idx = nodes[i * 9 + j * 3 + k] as usize;
+                        let n = grid[idx];
+                        let vi = Vec3::new(n[1], n[2], n[3]);
+                        let w = s.weight(i, j, k);
+                        v_pic += w * vi;
+                        let grad = s.grad(i, j, k) * c.inv_dx;
+                        if musl {
+                            l += outer(aux[idx], grad);
+                        } else {
+                            dv += w * (vi - aux[idx]);
+                            l += outer(vi, grad);
+                        }
+                    }
+                }
+            }
+            if !musl {
+                *v = flip_blend(alpha, *v, v_pic, dv);
+            }
+            *cp = l;
+            *x = (*x + dt * v_pic).clamp(c.domain_min, c.domain_max);
+            let model = &c.materials[materials[pi] as usize].model;
+            *f = model.project((Mat3::IDENTITY + l * dt) * *f, plastic);
+            let bad =
+                check_particle(*x, *v, dt, c.dx).map(|reason| BadParticle { index: pi, reason });
+            let speed = if v.is_finite() { v.length() } else { 0.0 };
+            (speed, bad)
+        })
+        .reduce(|| (0.0f32, None), worst)
+}
+
+/// MUSL, first pass: the PIC/FLIP blend of the particle velocities only (positions and `F` wait
+/// for the re-map, [`g2p_mpm`] with `musl`).
+pub fn g2p_mpm_velocity(b: &mut CpuBackend) {
+    let c = &b.consts;
+    let (layout, grid, aux, bases) = (&b.layout, &b.grid, &b.grid_aux, &b.bases);
+    let (transfer, alpha) = (c.solver.transfer, c.solver.flip);
+    let p = &mut b.particles;
+    p.v.par_iter_mut()
+        .zip(p.x.par_iter())
+        .enumerate()
+        .for_each(|(pi, (v, x))| {
+            let s = Stencil::for_transfer(transfer, (*x - c.origin) * c.inv_dx, bases[pi]);
+            let nodes = layout.stencil_nodes(layout.gblock_of(pi), s.base);
+            let (mut v_pic, mut dv) = (Vec3::ZERO, Vec3::ZERO);
+            for i in 0..3 {
+                for j in 0..3 {
+                    for k in 0..3 {
+                        let idx = nodes[i * 9 + j * 3 + k] as usize;
+                        let n = grid[idx];
+                        let vi = Vec3::new(n[1], n[2], n[3]);
+                        let w = s.weight(i, j, k);
+                        v_pic += w * vi;
+                        dv += w * (vi - aux[idx]);
+                    }
+                }
+            }
+            *v = flip_blend(alpha, *v, v_pic, dv);
+        });
 }

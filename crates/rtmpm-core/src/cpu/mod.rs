@@ -1,8 +1,10 @@
-//! The CPU reference backend: explicit MLS-MPM (APIC, quadratic B-splines), f32, parallel with
-//! rayon and deterministic: the same scene gives the same result bit for bit whatever the number
-//! of threads.
+//! The CPU reference backend: explicit MLS-MPM (APIC, quadratic B-splines) or, per scene, the
+//! classic MPM transfers (uGIMP or linear hats, USL or MUSL, PIC/FLIP; see [`crate::transfer`]),
+//! f32, parallel with rayon and deterministic: the same scene gives the same result bit for bit
+//! whatever the number of threads.
 //!
-//! One step is four stages, each in its own file:
+//! One step is four stages, each in its own file (MUSL adds a re-map: `g2p_mpm_velocity`,
+//! `p2g_musl`, `grid_update_musl` before the final G2P):
 //! 1. [`rebuild`]: stencil base of every particle, block layout (hash, gblocks, pblocks,
 //!    3x3x3 neighbour lists) and the particle order (sorted by block, then cell). The CPU rebuilds
 //!    every step; the free zone that avoids it is a GPU optimisation.
@@ -24,6 +26,7 @@ use crate::material::Material;
 use crate::math::{IVec3, Vec3};
 use crate::scene::Scene;
 use crate::sim::{Backend, BadParticle, SimError};
+use crate::transfer::{SolverSettings, Transfer, Update};
 
 /// Grid nodes of padding below the domain's min corner (one block), so indices stay non-negative.
 pub const GRID_PAD: i32 = 4;
@@ -44,6 +47,8 @@ pub struct StepConstants {
     pub damping: crate::scene::Damping,
     pub colliders: Vec<Collider>,
     pub materials: Vec<Material>,
+    /// Particle-grid transfer (`[solver]`).
+    pub solver: SolverSettings,
 }
 
 impl StepConstants {
@@ -61,6 +66,7 @@ impl StepConstants {
             damping: scene.time.damping,
             colliders: scene.colliders.clone(),
             materials: scene.materials.clone(),
+            solver: scene.solver,
         }
     }
 }
@@ -85,6 +91,10 @@ pub struct CpuBackend {
     pub bases: Vec<IVec3>,
     /// Node storage, 64 nodes per pblock.
     pub grid: Vec<Node>,
+    /// Second value per node, used by the classic MPM transfers only (empty for MLS): the
+    /// internal force times dt after P2G, the velocity before the update (`v_old`, for FLIP) after
+    /// the grid update, and the re-mapped velocity after the MUSL re-map.
+    pub grid_aux: Vec<Vec3>,
     /// gblocks of each of the 8 colours `(bx & 1, by & 1, bz & 1)`.
     pub colours: [Vec<u32>; 8],
     /// Accumulated wall time of each stage: rebuild, p2g, grid update, g2p (seconds).
@@ -131,6 +141,7 @@ impl CpuBackend {
             layout: BlockLayout::default(),
             bases: Vec::new(),
             grid: Vec::new(),
+            grid_aux: Vec::new(),
             colours: Default::default(),
             stage_seconds: [0.0; 4],
             pool,
@@ -150,11 +161,29 @@ impl CpuBackend {
         let t0 = std::time::Instant::now();
         rebuild::rebuild(self);
         let t1 = std::time::Instant::now();
-        p2g::p2g(self, dt);
-        let t2 = std::time::Instant::now();
-        grid_update::grid_update(self, dt, t);
-        let t3 = std::time::Instant::now();
-        let (max_speed, bad) = g2p::g2p(self, dt);
+        let solver = self.consts.solver;
+        let (max_speed, bad, t2, t3);
+        if solver.transfer == Transfer::Mls {
+            p2g::p2g(self, dt);
+            t2 = std::time::Instant::now();
+            grid_update::grid_update(self, dt, t);
+            t3 = std::time::Instant::now();
+            (max_speed, bad) = g2p::g2p(self, dt);
+        } else {
+            p2g::p2g_mpm(self, dt);
+            t2 = std::time::Instant::now();
+            grid_update::grid_update(self, dt, t);
+            t3 = std::time::Instant::now();
+            let musl = solver.update == Update::Musl;
+            if musl {
+                // MUSL (Sulsky et al. 1995): new particle velocities, their momenta mapped to
+                // the grid again, then the velocity gradient from that grid.
+                g2p::g2p_mpm_velocity(self);
+                p2g::p2g_musl(self);
+                grid_update::grid_update_musl(self, t);
+            }
+            (max_speed, bad) = g2p::g2p_mpm(self, dt, musl);
+        }
         let t4 = std::time::Instant::now();
         for (acc, (a, b)) in
             self.stage_seconds

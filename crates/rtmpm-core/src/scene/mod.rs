@@ -24,6 +24,7 @@ use crate::boundary::{Collider, Walls};
 use crate::material::Material;
 use crate::math::Vec3;
 use crate::render::ColorBy;
+use crate::transfer::SolverSettings;
 use std::path::{Path, PathBuf};
 
 /// How the time step is chosen.
@@ -153,6 +154,8 @@ pub struct Scene {
     pub render: RenderSettings,
     /// Seed of the jittered sampling.
     pub seed: u64,
+    /// `[solver]` table: particle-grid transfer, stress update, FLIP fraction.
+    pub solver: SolverSettings,
 }
 
 impl Scene {

@@ -27,6 +27,33 @@ pub struct RawScene {
     pub collider: Vec<RawCollider>,
     pub output: Option<RawOutput>,
     pub render: Option<RawRender>,
+    pub solver: Option<RawSolver>,
+}
+
+/// `[solver]`: the particle-grid transfer (see `rtmpm_core::transfer`).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawSolver {
+    pub transfer: Option<RawTransfer>,
+    pub update: Option<RawUpdate>,
+    pub flip: Option<f32>,
+}
+
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+pub enum RawTransfer {
+    #[serde(rename = "mls")]
+    Mls,
+    #[serde(rename = "gimp")]
+    Gimp,
+    #[serde(rename = "mpm-linear")]
+    MpmLinear,
+}
+
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum RawUpdate {
+    Usl,
+    Musl,
 }
 
 #[derive(Debug, Deserialize)]

@@ -552,3 +552,63 @@ fn settling_damping() {
         "time.damping",
     );
 }
+}
+
+#[test]
+fn solver_table_defaults_and_values() {
+    use crate::transfer::{SolverSettings, Transfer, Update};
+    // No [solver]: MLS-MPM/APIC, exactly today's behaviour.
+    assert_eq!(parse(BASE).unwrap().solver, SolverSettings::default());
+    let with = |t: &str| parse(&format!("{BASE}[solver]\n{t}\n"));
+    let s = with("transfer = \"gimp\"").unwrap().solver;
+    assert_eq!(
+        (s.transfer, s.update, s.flip),
+        (Transfer::Gimp, Update::Usl, 1.0)
+    );
+    let s = with("transfer = \"mpm-linear\"\nupdate = \"musl\"\nflip = 0.25")
+        .unwrap()
+        .solver;
+    assert_eq!(
+        (s.transfer, s.update, s.flip),
+        (Transfer::MpmLinear, Update::Musl, 0.25)
+    );
+    assert_eq!(
+        with("transfer = \"mls\"").unwrap().solver.transfer,
+        Transfer::Mls
+    );
+}
+
+#[test]
+fn solver_table_errors_name_the_field_line_and_allowed_values() {
+    let with = |t: &str| {
+        let text = format!("{BASE}[solver]\n{t}\n");
+        let e = parse(&text).expect_err(t);
+        assert!(e.line.is_some() && e.hint.is_some(), "{e}");
+        (e, text)
+    };
+    let (e, text) = with("transfer = \"flip\"");
+    assert_eq!(e.line, Some(line_of(&text, "transfer = \"flip\"")), "{e}");
+    let msg = e.to_string();
+    for allowed in ["mls", "gimp", "mpm-linear"] {
+        assert!(msg.contains(allowed), "{msg}");
+    }
+    let (e, _) = with("transfer = \"gimp\"\nupdate = \"usf\"");
+    assert!(e.to_string().contains("musl"), "{e}");
+    let (e, text) = with("transfer = \"gimp\"\nflip = 1.5");
+    assert_eq!(e.field.as_deref(), Some("solver.flip"));
+    assert_eq!(e.line, Some(line_of(&text, "flip = 1.5")));
+    let (e, _) = with("flip = 0.5");
+    assert_eq!(
+        e.field.as_deref(),
+        Some("solver.flip"),
+        "flip with mls: {e}"
+    );
+    let (e, _) = with("update = \"musl\"");
+    assert_eq!(
+        e.field.as_deref(),
+        Some("solver.update"),
+        "musl with mls: {e}"
+    );
+    let (e, _) = with("transfer = \"gimp\"\nfip = 0.5");
+    assert!(e.to_string().contains("fip"), "{e}");
+}

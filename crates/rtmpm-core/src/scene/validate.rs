@@ -15,6 +15,7 @@ use crate::material::{
 };
 use crate::math::Vec3;
 use crate::render::ColorBy;
+use crate::transfer::{SolverSettings, Transfer, Update};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -353,6 +354,7 @@ impl V<'_> {
         };
 
         let render = self.render(raw.render.as_ref())?;
+        let solver = self.solver(raw.solver.as_ref())?;
 
         let scene = Scene {
             name,
@@ -369,6 +371,7 @@ impl V<'_> {
             output,
             render,
             seed: raw.seed.unwrap_or(0),
+            solver,
         };
         // Every body must produce particles.
         for i in 0..scene.bodies.len() {
@@ -384,6 +387,63 @@ impl V<'_> {
             }
         }
         Ok(scene)
+    }
+
+    /// `[solver]`: defaults to MLS-MPM/APIC; `update` and `flip` only apply to the classic MPM
+    /// transfers (gimp, mpm-linear), whose defaults are USL and pure FLIP (flip = 1).
+    fn solver(&self, s: Option<&RawSolver>) -> R<SolverSettings> {
+        let Some(s) = s else {
+            return Ok(SolverSettings::default());
+        };
+        let transfer = match s.transfer.unwrap_or(RawTransfer::Mls) {
+            RawTransfer::Mls => Transfer::Mls,
+            RawTransfer::Gimp => Transfer::Gimp,
+            RawTransfer::MpmLinear => Transfer::MpmLinear,
+        };
+        let update = match s.update.unwrap_or(RawUpdate::Usl) {
+            RawUpdate::Usl => Update::Usl,
+            RawUpdate::Musl => Update::Musl,
+        };
+        if transfer == Transfer::Mls {
+            if update == Update::Musl {
+                return Err(self.err(
+                    "solver.update",
+                    "update = \"musl\" needs a classic MPM transfer; MLS-MPM folds the stress into P2G (USL only)",
+                    "use transfer = \"gimp\" or \"mpm-linear\" with musl, or remove update",
+                ));
+            }
+            if s.flip.is_some() {
+                return Err(self.err(
+                    "solver.flip",
+                    "flip does not apply to transfer = \"mls\" (APIC keeps the affine velocity; it has no PIC/FLIP blend)",
+                    "remove flip, or use transfer = \"gimp\" or \"mpm-linear\"",
+                ));
+            }
+            return Ok(SolverSettings {
+                transfer,
+                update,
+                flip: 0.0,
+            });
+        }
+        let flip = match s.flip {
+            Some(f) => {
+                self.finite("solver.flip", f)?;
+                if !(0.0..=1.0).contains(&f) {
+                    return Err(self.err(
+                        "solver.flip",
+                        format!("flip must be in [0, 1], got {f}"),
+                        "use 0 for PIC, 1 for FLIP, or a blend such as 0.99",
+                    ));
+                }
+                f
+            }
+            None => 1.0,
+        };
+        Ok(SolverSettings {
+            transfer,
+            update,
+            flip,
+        })
     }
 
     fn render(&self, r: Option<&RawRender>) -> R<RenderSettings> {

@@ -1,4 +1,5 @@
-//! Case 5: two colliding elastic disks (Sulsky, Chen & Schreyer 1994): energy behaviour.
+//! Case 5: two colliding elastic disks (Sulsky, Chen & Schreyer 1994): energy behaviour, with the
+//! reference's transfer (linear-hat MPM, MUSL, FLIP; the scene's `[solver]` table).
 
 use super::measure::Curve;
 use super::{Ctx, Row, rel_pct};
@@ -13,6 +14,7 @@ const KE0: f64 = 2.513;
 pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
     let scene = ctx.scene("colliding_disks.toml")?;
     let model = scene.materials[0].model.clone();
+    let transfer = scene.solver.describe();
     let p0 = scene.sample_particles()?;
     let (mut ke, mut se, mut total): (Curve, Curve, Curve) = (Vec::new(), Vec::new(), Vec::new());
     let mut missing_energy = false;
@@ -47,7 +49,7 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
     ctx.plot(
         "colliding_disks_energy",
         Plot {
-            title: "Colliding disks: energies per unit thickness".into(),
+            title: format!("Colliding disks: energies per unit thickness ({transfer})"),
             x_label: "t (s)".into(),
             y_label: "energy (J/m)".into(),
             series: vec![

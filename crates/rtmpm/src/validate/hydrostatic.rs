@@ -7,6 +7,7 @@ use rtmpm_core::Scene;
 use rtmpm_core::math::Vec3;
 use rtmpm_core::render::plot::{Plot, Series, Style};
 use rtmpm_core::scene::sampling::BodyShape;
+use rtmpm_core::transfer::SolverSettings;
 
 /// Column height (m) and the exact base stress magnitude rho g H (Pa).
 const HEIGHT: f64 = 0.1;
@@ -32,8 +33,11 @@ fn at_resolution(mut scene: Scene, dx: f32) -> Scene {
 
 /// (slope of -sigma_yy against depth, -sigma_yy extrapolated to the base, rho g, layer samples
 /// (height, -sigma_yy)) of the settled column.
-fn measure(ctx: &Ctx, dx: f32) -> Result<(f64, f64, f64, Curve)> {
-    let scene = at_resolution(ctx.scene("hydrostatic_column.toml")?, dx);
+fn measure(ctx: &Ctx, dx: f32, solver: Option<SolverSettings>) -> Result<(f64, f64, f64, Curve)> {
+    let mut scene = at_resolution(ctx.scene("hydrostatic_column.toml")?, dx);
+    if let Some(s) = solver {
+        scene.solver = s;
+    }
     let rho = scene.materials[0].density as f64;
     let g = scene.gravity.length() as f64;
     let BodyShape::Box { min, .. } = scene.bodies[0].shape.clone() else {
@@ -75,13 +79,28 @@ fn measure(ctx: &Ctx, dx: f32) -> Result<(f64, f64, f64, Curve)> {
     Ok((-b, a, rho * g, layers))
 }
 
+/// The column with the scene's transfer (MLS-MPM/APIC).
 pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
+    run_with(ctx, "hydrostatic_column", None)
+}
+
+/// The same column with uGIMP ([`super::GIMP`]).
+pub fn run_gimp(ctx: &Ctx) -> Result<Vec<Row>> {
+    run_with(ctx, "hydrostatic_column_gimp", Some(super::GIMP))
+}
+
+fn run_with(ctx: &Ctx, case: &str, solver: Option<SolverSettings>) -> Result<Vec<Row>> {
     let dx = if ctx.args.quick { 0.01 } else { 0.005 };
-    let (slope, base, rho_g, layers) = measure(ctx, dx)?;
+    let (slope, base, rho_g, layers) = measure(ctx, dx, solver)?;
+    let transfer = match solver {
+        Some(s) => s,
+        None => ctx.scene("hydrostatic_column.toml")?.solver,
+    }
+    .describe();
     ctx.plot(
-        "hydrostatic_column_stress",
+        &format!("{case}_stress"),
         Plot {
-            title: format!("Hydrostatic column: vertical stress (h = {dx})"),
+            title: format!("Hydrostatic column: vertical stress (h = {dx}, {transfer})"),
             x_label: "height above the base (m)".into(),
             y_label: "-sigma yy (Pa)".into(),
             series: vec![
@@ -103,7 +122,7 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
     let exact_base = rho_g * HEIGHT;
     let mut rows = vec![
         Row {
-            case: "hydrostatic_column".into(),
+            case: case.into(),
             quantity: format!("d(-sigma_yy)/d depth (Pa/m), h={dx}"),
             reference: rho_g,
             simulated: slope,
@@ -113,7 +132,7 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
             unit: "%",
         },
         Row {
-            case: "hydrostatic_column".into(),
+            case: case.into(),
             quantity: format!("-sigma_yy at the base, fitted (Pa), h={dx}"),
             reference: exact_base,
             simulated: base,
@@ -126,17 +145,15 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
         let hs = [0.02f32, 0.01, 0.005];
         let mut errs = Vec::new();
         for &h in &hs {
-            let (_, base_h, _, _) = measure(ctx, h)?;
+            let (_, base_h, _, _) = measure(ctx, h, solver)?;
             let e = rel_pct(base_h, exact_base);
-            println!(
-                "convergence hydrostatic_column: h = {h}: base {base_h:.1} Pa, error {e:.3} %"
-            );
+            println!("convergence {case}: h = {h}: base {base_h:.1} Pa, error {e:.3} %");
             errs.push(e);
         }
         let orders = observed_order(&errs, 2.0);
-        println!("convergence hydrostatic_column: observed orders {orders:?}");
+        println!("convergence {case}: observed orders {orders:?}");
         rows.push(Row {
-            case: "hydrostatic_column".into(),
+            case: case.into(),
             quantity: "base error shrinks with h (finest/coarsest)".into(),
             reference: errs[0],
             simulated: errs[2],

@@ -24,8 +24,9 @@ pub struct ValidateArgs {
     /// Backend.
     #[arg(long, value_enum, default_value_t = BackendKind::Auto)]
     pub backend: BackendKind,
-    /// Run only these cases, comma separated (free_fall, hydrostatic_column, vibrating_bar,
-    /// dam_break, colliding_disks, granular_column).
+    /// Run only these cases, comma separated (free_fall, hydrostatic_column,
+    /// hydrostatic_column_gimp, vibrating_bar, vibrating_bar_gimp, dam_break, colliding_disks,
+    /// granular_column).
     #[arg(long, value_delimiter = ',')]
     pub case: Vec<String>,
     /// Coarse resolutions that finish in a few minutes on 2 CPU cores (what CI runs).
@@ -111,10 +112,20 @@ impl Ctx<'_> {
 
 type Case = fn(&Ctx) -> Result<Vec<Row>>;
 
+/// The transfer of the `*_gimp` cases: uGIMP with MUSL and a pure FLIP velocity update, the
+/// energy-conserving classic scheme (Bardenhagen & Kober 2004; Sulsky et al. 1995).
+pub const GIMP: rtmpm_core::transfer::SolverSettings = rtmpm_core::transfer::SolverSettings {
+    transfer: rtmpm_core::transfer::Transfer::Gimp,
+    update: rtmpm_core::transfer::Update::Musl,
+    flip: 1.0,
+};
+
 const CASES: &[(&str, Case)] = &[
     ("free_fall", free_fall::run),
     ("hydrostatic_column", hydrostatic::run),
+    ("hydrostatic_column_gimp", hydrostatic::run_gimp),
     ("vibrating_bar", bar::run),
+    ("vibrating_bar_gimp", bar::run_gimp),
     ("dam_break", dam_break::run),
     ("colliding_disks", disks::run),
     ("granular_column", granular::run),
@@ -172,7 +183,7 @@ pub fn validate(args: ValidateArgs) -> Result<()> {
 
 fn print_table(rows: &[Row]) {
     println!(
-        "{:<20} {:<44} {:>12} {:>12} {:>11} {:>11}  result",
+        "{:<24} {:<44} {:>12} {:>12} {:>11} {:>11}  result",
         "case", "quantity", "reference", "simulated", "error", "tolerance"
     );
     for r in rows {
@@ -184,7 +195,7 @@ fn print_table(rows: &[Row]) {
             }
         };
         println!(
-            "{:<20} {:<44} {:>12} {:>12} {:>11} {:>11}  {}",
+            "{:<24} {:<44} {:>12} {:>12} {:>11} {:>11}  {}",
             r.case,
             r.quantity,
             num(r.reference),
