@@ -137,7 +137,7 @@ __device__ void grid_update_node(const Ctx& c, unsigned t) {
     real* node = c.grid + 4u * t;
     real m = node[0];
     if (!(m > 0)) return;
-    const StepParams& sp = *c.step;
+    const StepParams& sp = step_params(c);
     real inv_m = (real)1 / m;
     vec3 v = make_v3(node[1] * inv_m + sp.dt * sp.gravity[0], node[2] * inv_m + sp.dt * sp.gravity[1],
                      node[3] * inv_m + sp.dt * sp.gravity[2]);
@@ -160,7 +160,7 @@ __device__ void grid_update_node(const Ctx& c, unsigned t) {
     if (c.n_colliders) {
         vec3 x = make_v3(c.origin[0] + gi[0] * c.dx, c.origin[1] + gi[1] * c.dx, c.origin[2] + gi[2] * c.dx);
         for (unsigned k = 0; k < c.n_colliders; ++k) {
-            GpuCollider col = c.colliders[k];
+            GpuCollider col = collider_at(c, k);
             mat3 R;
             for (int q = 0; q < 9; ++q) R.m[q] = sp.rot[k][q];
             vec3 pt = v3f(sp.pivot_t[k]);
