@@ -236,6 +236,12 @@ fn bench_cuda(
         },
         b.grid_bytes() as f64 / 1e6
     );
+    if let Some(r) = b.reverse_map_size() {
+        println!(
+            "  reverse map  {} maps x {} entries per node, {} pblocks",
+            r.replicas, r.slots, r.pblocks
+        );
+    }
     println!(
         "  bandwidth    {:.1} MB/step must move; copy bandwidth {bw:.0} GB/s -> floor {floor_ms:.4} ms/step = {:.0} % of the evented step",
         k.bytes_per_step as f64 / 1e6,
