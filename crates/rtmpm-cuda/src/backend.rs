@@ -668,9 +668,14 @@ impl CudaBackend {
                 };
                 what.push(detail);
             }
+            let hint = if e & 15 != 0 {
+                " (the material spread over more blocks than allocated; raise the capacity with \
+                 the gblocks=/pblocks= options)"
+            } else {
+                ""
+            };
             return Err(SimError::Backend(format!(
-                "CUDA backend out of capacity: {} (the material spread over more blocks than allocated; \
-                 raise the capacity with the gblocks=/pblocks= options)",
+                "CUDA backend out of capacity: {}{hint}",
                 what.join(", ")
             )));
         }

@@ -341,6 +341,13 @@ mod tests {
                     "{k} missing from PTX"
                 );
             }
+            // Read-only parameters in constant memory, written by the host under these names.
+            for sym in ["c_step", "c_materials", "c_colliders"] {
+                assert!(
+                    ptx.contains(&format!(" .b8 {sym}[")),
+                    "constant {sym} missing from PTX"
+                );
+            }
         }
     }
 
