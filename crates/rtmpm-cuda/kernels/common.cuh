@@ -36,6 +36,7 @@
 #define ERR_GBLOCKS 2u
 #define ERR_PBLOCKS 4u
 #define ERR_WARPS 8u
+#define ERR_P2G_MAP 16u  // reverse map of the gather P2G full (p2g_reverse_map.cu)
 
 #define EMPTY_KEY 0xffffffffffffffffull
 #define EMPTY_ID 0xffffffffu
@@ -101,6 +102,39 @@ struct Ctx {
     float flip;                 // FLIP fraction of the classic transfers
     unsigned pad0;
 };
+
+// Read-only parameters in constant memory (seed 001: "constant memory is used for read-only input
+// data"): the step parameters, the materials table and the colliders are read by every thread with
+// (mostly) warp-uniform addresses, which the constant cache broadcasts. The host writes both these
+// symbols and the global copies behind Ctx::step/materials/colliders; compiling with
+// -DRTMPM_PARAMS_GLOBAL (RTMPM_KERNEL_DEFINES) reads the global copies instead, to measure the
+// difference (bench/RESULTS.md).
+#define RTMPM_MAX_MATERIALS 64
+__constant__ StepParams c_step;
+__constant__ GpuMaterial c_materials[RTMPM_MAX_MATERIALS];
+__constant__ GpuCollider c_colliders[RTMPM_MAX_COLLIDERS];
+
+__device__ __forceinline__ const StepParams& step_params(const Ctx& c) {
+#ifdef RTMPM_PARAMS_GLOBAL
+    return *c.step;
+#else
+    return c_step;
+#endif
+}
+__device__ __forceinline__ const GpuMaterial& material_at(const Ctx& c, unsigned id) {
+#ifdef RTMPM_PARAMS_GLOBAL
+    return c.materials[id];
+#else
+    return c_materials[id];
+#endif
+}
+__device__ __forceinline__ const GpuCollider& collider_at(const Ctx& c, unsigned k) {
+#ifdef RTMPM_PARAMS_GLOBAL
+    return c.colliders[k];
+#else
+    return c_colliders[k];
+#endif
+}
 
 __device__ __forceinline__ unsigned long long spread3(unsigned v) {
     unsigned long long x = v & 0x7ffffull;

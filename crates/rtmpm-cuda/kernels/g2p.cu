@@ -64,7 +64,7 @@ __device__ __forceinline__ void g2p_warp(const Ctx& c, unsigned w, unsigned lane
     B.m[3] = b1.x; B.m[4] = b1.y; B.m[5] = b1.z;
     B.m[6] = b2.x; B.m[7] = b2.y; B.m[8] = b2.z;
     B = (B - outer(v, make_v3(fx[0], fx[1], fx[2]))) * c.dx;
-    real dt = c.step->dt;
+    real dt = step_params(c).dt;
     mat3 C = B * ((real)4 * c.inv_dx * c.inv_dx);
     g2p_finish(c, bc, p, lane, x + v * dt, v, C);
 }
@@ -73,11 +73,11 @@ __device__ __forceinline__ void g2p_warp(const Ctx& c, unsigned w, unsigned lane
 // would hide NaN), max speed, domain clamp, free-zone check, stores. `x` is the advected position,
 // `C` the velocity gradient (APIC's C for MLS).
 __device__ __forceinline__ void g2p_finish(const Ctx& c, const int* bc, unsigned p, unsigned lane, vec3 x, vec3 v, const mat3& C) {
-    real dt = c.step->dt;
+    real dt = step_params(c).dt;
     mat3 F = load_m3(c.state, c.cap, F_F, p);
     F = (mat3_identity() + C * dt) * F;
     real plastic = c.state[F_PLASTIC * c.cap + p];
-    GpuMaterial mat = c.materials[__float_as_uint(c.state[F_MAT * c.cap + p])];
+    GpuMaterial mat = material_at(c, __float_as_uint(c.state[F_MAT * c.cap + p]));
     F = material_project(mat, F, &plastic);
     // Health check before the clamp (the clamp would hide NaN).
     unsigned id = __float_as_uint(c.state[F_ID * c.cap + p]);
@@ -161,7 +161,7 @@ extern "C" __global__ void g2p_mpm(Ctx c) {
         const int* bc; vec3 v_pic, dv; mat3 L;
         g2p_mpm_gather(c, g, x, &bc, &v_pic, &dv, &L, musl);
         if (!musl) v = flip_blend((real)c.flip, v, v_pic, dv);
-        g2p_finish(c, bc, p, lane, x + v_pic * (real)c.step->dt, v, L);
+        g2p_finish(c, bc, p, lane, x + v_pic * (real)step_params(c).dt, v, L);
     }
 }
 

@@ -136,7 +136,7 @@ extern "C" __global__ void grid_update(Ctx c) {
 // Boundary conditions of node t at the step's time: walls, then colliders (cpu/grid_update.rs:
 // boundary).
 __device__ vec3 node_boundary(const Ctx& c, unsigned t, vec3 v) {
-    const StepParams& sp = *c.step;
+    const StepParams& sp = step_params(c);
     unsigned id = t >> 6, cell = t & 63u;
     int gi[3] = {c.block_coords[3 * id] * 4 + (int)(cell >> 4), c.block_coords[3 * id + 1] * 4 + (int)((cell >> 2) & 3u),
                  c.block_coords[3 * id + 2] * 4 + (int)(cell & 3u)};
@@ -156,7 +156,7 @@ __device__ vec3 node_boundary(const Ctx& c, unsigned t, vec3 v) {
     if (c.n_colliders) {
         vec3 x = make_v3(c.origin[0] + gi[0] * c.dx, c.origin[1] + gi[1] * c.dx, c.origin[2] + gi[2] * c.dx);
         for (unsigned k = 0; k < c.n_colliders; ++k) {
-            GpuCollider col = c.colliders[k];
+            GpuCollider col = collider_at(c, k);
             mat3 R;
             for (int q = 0; q < 9; ++q) R.m[q] = sp.rot[k][q];
             vec3 pt = v3f(sp.pivot_t[k]);
@@ -176,7 +176,7 @@ __device__ void grid_update_node(const Ctx& c, unsigned t) {
     real* node = c.grid + 4u * t;
     real m = node[0];
     if (!(m > 0)) return;
-    const StepParams& sp = *c.step;
+    const StepParams& sp = step_params(c);
     real inv_m = (real)1 / m;
     vec3 v;
     if (c.transfer == TRANSFER_MLS) {

@@ -3,8 +3,9 @@
 // Mixed sorting (seed 000): the 32 particles of a warp are sorted by their current stencil key
 // (bitonic sort via __shfl_xor_sync), then lanes writing the same nodes are reduced with
 // segmented __shfl_down_sync sums (Gao et al. 2018) and only segment heads issue atomicAdd.
-#include "common.cuh"
-#include "material_dispatch.cuh"
+// The per-particle quantities (stencil, weights, stress, affine momentum) come from p2g_particle.cuh,
+// shared with the gather strategies (p2g_reverse_map.cu, p2g_sort.cu).
+#include "p2g_particle.cuh"
 
 // Add (mass, momentum) to a node: one 16-byte vector atomic on sm_90 (f32), else four.
 __device__ __forceinline__ void atomic_add_node(real* node, const real val[4]) {
@@ -64,28 +65,9 @@ __device__ __forceinline__ void p2g_warp(const Ctx& c, unsigned w, unsigned lane
         active = (kv >> 5) != 0xffffu;
     }
     unsigned p = first + src;
-    int base[3] = {0, 0, 0};
-    real wt[3][3];
-    real fx[3] = {1, 1, 1};
-    real m = 0, vol0 = 0;
-    vec3 v = make_v3(0, 0, 0);
-    mat3 affine = mat3_zero();
-    if (active) {
-        stencil_of(c, load_v3(c.state, c.cap, F_X, p), base, fx);
-        for (int a = 0; a < 3; ++a) weights_1d(fx[a], wt[a]);
-        m = c.state[F_MASS * c.cap + p];
-        vol0 = c.state[F_VOL0 * c.cap + p];
-        v = load_v3(c.state, c.cap, F_V, p);
-        mat3 C = load_m3(c.state, c.cap, F_C, p);
-        mat3 F = load_m3(c.state, c.cap, F_F, p);
-        real plastic = c.state[F_PLASTIC * c.cap + p];
-        GpuMaterial mat = c.materials[__float_as_uint(c.state[F_MAT * c.cap + p])];
-        mat3 tau = material_kirchhoff(mat, F, plastic, C);
-        real dt = c.step->dt;
-        affine = tau * (-dt * vol0 * (real)4 * c.inv_dx * c.inv_dx) + C * m;
-    } else {
-        for (int a = 0; a < 3; ++a) { wt[a][0] = wt[a][1] = wt[a][2] = 0; }
-    }
+    P2gParticle q = p2g_particle_zero();
+    if (active) q = p2g_particle(c, p);
+    const int* base = q.base;
     // Segments: lanes with equal stencil base (after the sort they are adjacent).
     unsigned seg_len = 0;
     bool head = active;
@@ -103,28 +85,22 @@ __device__ __forceinline__ void p2g_warp(const Ctx& c, unsigned w, unsigned lane
     }
     // Reduction rounds needed: up to the longest segment of this warp.
     unsigned max_seg = c.warp_reduce ? __reduce_max_sync(0xffffffffu, seg_len) : 0u;
-    vec3 mv = v * m;
     StencilIdx si = stencil_idx(c.block_coords + 3 * g, base);
     const unsigned* nbs = c.neighbors + 27 * g;
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j)
             for (int k = 0; k < 3; ++k) {
-                real weight = wt[0][i] * wt[1][j] * wt[2][k];
-                vec3 dpos = make_v3(((real)i - fx[0]) * c.dx, ((real)j - fx[1]) * c.dx, ((real)k - fx[2]) * c.dx);
-                vec3 mom = (mv + affine * dpos) * weight;
-                real val[4] = {weight * m, mom.x, mom.y, mom.z};
+                real val[4];
+                p2g_node_value(c, q, i, j, k, val);
                 if (max_seg > 0) {
                     for (unsigned s = 1; s <= max_seg; s <<= 1) {
-                        for (int q = 0; q < 4; ++q) {
-                            real o = __shfl_down_sync(0xffffffffu, val[q], s);
-                            if (s <= seg_len) val[q] += o;
+                        for (int e = 0; e < 4; ++e) {
+                            real o = __shfl_down_sync(0xffffffffu, val[e], s);
+                            if (s <= seg_len) val[e] += o;
                         }
                     }
                 }
-                if (head) {
-                    unsigned id = nbs[si.slot[0][i] + si.slot[1][j] + si.slot[2][k]];
-                    atomic_add_node(c.grid + 4u * (id * 64u + (si.cell[0][i] | si.cell[1][j] | si.cell[2][k])), val);
-                }
+                if (head) atomic_add_node(c.grid + 4u * stencil_node(si, nbs, i, j, k), val);
             }
 }
 
@@ -146,29 +122,14 @@ extern "C" __global__ void p2g_shared(Ctx c) {
     unsigned start = c.hist[g * 64u];
     unsigned end = (g + 1 < c.ctl[CTL_GBLOCKS]) ? c.hist[(g + 1) * 64u] : c.n;
     for (unsigned p = start + threadIdx.x; p < end; p += blockDim.x) {
-        int base[3]; real fx[3]; real wt[3][3];
-        stencil_of(c, load_v3(c.state, c.cap, F_X, p), base, fx);
-        for (int a = 0; a < 3; ++a) weights_1d(fx[a], wt[a]);
-        real m = c.state[F_MASS * c.cap + p];
-        real vol0 = c.state[F_VOL0 * c.cap + p];
-        vec3 v = load_v3(c.state, c.cap, F_V, p);
-        mat3 C = load_m3(c.state, c.cap, F_C, p);
-        mat3 F = load_m3(c.state, c.cap, F_F, p);
-        GpuMaterial mat = c.materials[__float_as_uint(c.state[F_MAT * c.cap + p])];
-        mat3 tau = material_kirchhoff(mat, F, c.state[F_PLASTIC * c.cap + p], C);
-        mat3 affine = tau * (-(real)c.step->dt * vol0 * (real)4 * c.inv_dx * c.inv_dx) + C * m;
-        vec3 mv = v * m;
+        P2gParticle q = p2g_particle(c, p);
         for (int i = 0; i < 3; ++i)
             for (int j = 0; j < 3; ++j)
                 for (int k = 0; k < 3; ++k) {
-                    real weight = wt[0][i] * wt[1][j] * wt[2][k];
-                    vec3 dpos = make_v3(((real)i - fx[0]) * c.dx, ((real)j - fx[1]) * c.dx, ((real)k - fx[2]) * c.dx);
-                    vec3 mom = (mv + affine * dpos) * weight;
-                    int t = ((base[0] + i - lo[0]) * TILE + (base[1] + j - lo[1])) * TILE + (base[2] + k - lo[2]);
-                    atomicAdd(&tile[4 * t], (float)(weight * m));
-                    atomicAdd(&tile[4 * t + 1], (float)mom.x);
-                    atomicAdd(&tile[4 * t + 2], (float)mom.y);
-                    atomicAdd(&tile[4 * t + 3], (float)mom.z);
+                    real val[4];
+                    p2g_node_value(c, q, i, j, k, val);
+                    int t = ((q.base[0] + i - lo[0]) * TILE + (q.base[1] + j - lo[1])) * TILE + (q.base[2] + k - lo[2]);
+                    for (int e = 0; e < 4; ++e) atomicAdd(&tile[4 * t + e], (float)val[e]);
                 }
     }
     __syncthreads();
@@ -199,10 +160,10 @@ extern "C" __global__ void p2g_mpm(Ctx c) {
         vec3 mv = load_v3(c.state, c.cap, F_V, p) * m;
         mat3 C = load_m3(c.state, c.cap, F_C, p);
         mat3 F = load_m3(c.state, c.cap, F_F, p);
-        GpuMaterial mat = c.materials[__float_as_uint(c.state[F_MAT * c.cap + p])];
+        const GpuMaterial& mat = material_at(c, __float_as_uint(c.state[F_MAT * c.cap + p]));
         mat3 tau = material_kirchhoff(mat, F, c.state[F_PLASTIC * c.cap + p], C);
         // grad w in world units is shape_grad / dx.
-        mat3 stress = tau * (-(real)c.step->dt * vol0 * c.inv_dx);
+        mat3 stress = tau * (-(real)step_params(c).dt * vol0 * c.inv_dx);
         StencilIdx si = stencil_idx(c.block_coords + 3 * g, base);
         const unsigned* nbs = c.neighbors + 27 * g;
         for (int i = 0; i < 3; ++i)

@@ -5,6 +5,7 @@
 // Launches use a grid of at most one full wave of the device (grid-stride loops), so that a step
 // without a rebuild costs only a few early-exiting blocks per kernel.
 #include "common.cuh"
+#include "scan.cuh"
 
 #define GRID_STRIDE(i, n) for (unsigned i = thread_index(); i < (n); i += gridDim.x * blockDim.x)
 
@@ -14,7 +15,7 @@
 extern "C" __global__ void rb_begin(Ctx c) {
     if (thread_index() != 0) return;
     c.ctl[CTL_MAX_SPEED] = 0;
-    if (c.step->always_rebuild) c.ctl[CTL_NEED_REBUILD] = 1;
+    if (step_params(c).always_rebuild) c.ctl[CTL_NEED_REBUILD] = 1;
     if (!c.ctl[CTL_NEED_REBUILD]) return;
     c.ctl[CTL_REBUILDS] += 1;
     c.ctl[CTL_PREV_GBLOCKS] = c.ctl[CTL_GBLOCKS];
@@ -111,32 +112,7 @@ extern "C" __global__ void rb_histogram(Ctx c) {
 __device__ __forceinline__ unsigned active_buckets(const Ctx& c) { return min(c.ctl[CTL_GBLOCKS], c.gblock_cap) * 64u; }
 
 // Counting sort, 2: exclusive scan of the bucket counts (3 kernels: blocks of 1024, block sums,
-// add). Our own scan: the CUB host API is not available under NVRTC.
-__device__ __forceinline__ unsigned block_exclusive_scan(unsigned v, unsigned* total) {
-    __shared__ unsigned warp_sums[32];
-    unsigned lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
-    unsigned x = v;
-    for (int o = 1; o < 32; o <<= 1) {
-        unsigned y = __shfl_up_sync(0xffffffffu, x, o);
-        if (lane >= (unsigned)o) x += y;
-    }
-    if (lane == 31) warp_sums[warp] = x;
-    __syncthreads();
-    if (warp == 0) {
-        unsigned s = lane < (blockDim.x >> 5) ? warp_sums[lane] : 0;
-        for (int o = 1; o < 32; o <<= 1) {
-            unsigned y = __shfl_up_sync(0xffffffffu, s, o);
-            if (lane >= (unsigned)o) s += y;
-        }
-        warp_sums[lane] = s;
-    }
-    __syncthreads();
-    unsigned incl = x + (warp > 0 ? warp_sums[warp - 1] : 0);
-    *total = warp_sums[(blockDim.x >> 5) - 1];
-    __syncthreads();
-    return incl - v;
-}
-
+// add; block_exclusive_scan in scan.cuh). Our own scan: the CUB host API is not available under NVRTC.
 // Chunks of blockDim.x buckets, strided over the blocks (uniform trip count per block).
 extern "C" __global__ void rb_scan_blocks(Ctx c) {
     if (!NEED(c) || c.ctl[CTL_ERROR]) return;

@@ -1,10 +1,15 @@
 //! [`CudaBackend`]: device memory, the step driver and read-back.
 
 use crate::CudaOptions;
+use crate::P2gMode;
 use crate::compile::{KernelOptions, compile};
 use crate::layout::*;
+use crate::p2g::P2gPlan;
+use crate::p2g_reverse_map::{ReverseMap, ReverseMapSize};
+use crate::p2g_sort::SortMap;
 use cudarc::driver::{
-    CudaContext, CudaFunction, CudaGraph, CudaSlice, CudaStream, DevicePtr, LaunchConfig,
+    CudaContext, CudaFunction, CudaGraph, CudaModule, CudaSlice, CudaStream, DevicePtr,
+    LaunchConfig,
 };
 use rtmpm_core::boundary::Condition;
 use rtmpm_core::boundary::sdf::Shape;
@@ -70,7 +75,11 @@ pub struct CudaBackend {
     pub(crate) kernels: Kernels,
     pub(crate) ctx: Ctx,
     pub(crate) options: CudaOptions,
+    /// The P2G strategy and its buffers.
+    pub(crate) p2g: P2gPlan,
+    module: Arc<CudaModule>,
     state: CudaSlice<f32>,
+    block_coords: CudaSlice<u8>,
     _scratch: CudaSlice<f32>,
     pub(crate) grid: CudaSlice<u8>,
     ctl: CudaSlice<u32>,
@@ -81,6 +90,26 @@ pub struct CudaBackend {
     graph: Option<(CudaGraph, f32)>,
     device_name: String,
     real_bytes: usize,
+}
+
+/// Write `bytes` to the `__constant__` symbol `name` of the module (async on the stream).
+fn write_symbol(
+    module: &Arc<CudaModule>,
+    stream: &Arc<CudaStream>,
+    name: &str,
+    bytes: &[u8],
+) -> Result<(), SimError> {
+    if bytes.is_empty() {
+        return Ok(());
+    }
+    let mut sym = module
+        .get_global(name, stream)
+        .map_err(|e| SimError::Backend(format!("CUDA: constant symbol {name}: {e:?}")))?;
+    let len = bytes.len().min(sym.len());
+    let mut view = sym.slice_mut(..len);
+    stream
+        .memcpy_htod(&bytes[..len], &mut view)
+        .map_err(|e| SimError::Backend(format!("CUDA: write constant {name}: {e:?}")))
 }
 
 /// Largest grid allocated by default for the whole domain (bytes).
@@ -210,9 +239,25 @@ impl CudaBackend {
             .map(|m| material(&m.model))
             .collect::<Result<Vec<_>, _>>()
             .map_err(SimError::Backend)?;
+        if mats.len() > MAX_MATERIALS {
+            return Err(SimError::Backend(format!(
+                "CUDA backend: at most {MAX_MATERIALS} materials (the scene has {})",
+                mats.len()
+            )));
+        }
         if scene.colliders.len() > MAX_COLLIDERS {
             return Err(SimError::Backend(format!(
                 "CUDA backend: at most {MAX_COLLIDERS} colliders"
+            )));
+        }
+        if matches!(options.p2g, P2gMode::ReverseMap | P2gMode::Sort)
+            && scene.solver.transfer != rtmpm_core::transfer::Transfer::Mls
+        {
+            return Err(SimError::Backend(format!(
+                "CUDA backend: p2g={} gathers MLS-MPM contributions only; the scene's [solver] \
+                 transfer is \"{}\": use p2g=warp (the default) or p2g=shared",
+                options.p2g.name(),
+                scene.solver.transfer.name()
             )));
         }
         let ptx = compile(&KernelOptions {
@@ -367,7 +412,10 @@ impl CudaBackend {
         };
         let hash_keys = zeros(hash_cap * 8)?;
         let hash_values = zeros(hash_cap * 4)?;
-        let block_coords = zeros(pblock_cap * 12)?;
+        let block_coords_buf = stream
+            .alloc_zeros::<u8>(pblock_cap * 12)
+            .map_err(err("alloc block coordinates"))?;
+        let block_coords = block_coords_buf.device_ptr(&stream).0;
         let neighbors = zeros(gblock_cap * 27 * 4)?;
         let hist = zeros(n_buckets * 4)?;
         let scan_sums = zeros(n_buckets.div_ceil(1024) * 4)?;
@@ -426,12 +474,39 @@ impl CudaBackend {
             flip: solver.flip,
             pad: 0,
         };
+        // Read-only parameters in constant memory (kernels/common.cuh); the global copies above
+        // serve kernels compiled with -DRTMPM_PARAMS_GLOBAL.
+        write_symbol(&module, &stream, "c_materials", as_bytes(&mats))?;
+        write_symbol(&module, &stream, "c_colliders", as_bytes(&cols))?;
+        let p2g = match options.p2g {
+            P2gMode::Warp => P2gPlan::Warp,
+            P2gMode::Shared => P2gPlan::Shared,
+            P2gMode::ReverseMap => {
+                let mut size = ReverseMapSize::for_particles(
+                    &bases,
+                    options.rmap_replicas,
+                    l.pblock_count(),
+                    pblock_cap,
+                );
+                if let Some(s) = options.rmap_slots {
+                    size.slots = s.max(1);
+                }
+                if let Some(p) = options.rmap_pblocks {
+                    size.pblocks = p.clamp(1, pblock_cap);
+                }
+                P2gPlan::ReverseMap(ReverseMap::new(&module, &stream, &ctx, real_bytes, size)?)
+            }
+            P2gMode::Sort => P2gPlan::Sort(SortMap::new(&module, &stream, &ctx, real_bytes)?),
+        };
         Ok(CudaBackend {
             stream,
             kernels,
             ctx,
             options,
+            p2g,
+            module,
             state,
+            block_coords: block_coords_buf,
             _scratch: scratch,
             grid,
             ctl,
@@ -473,7 +548,7 @@ impl CudaBackend {
     pub(crate) fn enqueue_step(&self) -> Result<(), SimError> {
         let (k, s, c) = (&self.kernels, &self.stream, &self.ctx);
         crate::rebuild::enqueue(k, s, c).map_err(err("rebuild"))?;
-        crate::p2g::enqueue(k, s, c, self.options.p2g).map_err(err("p2g"))?;
+        self.p2g.enqueue(k, s, c).map_err(err("p2g"))?;
         crate::grid_update::enqueue(k, s, c).map_err(err("grid update"))?;
         if c.transfer != Transfer::Mls.code() && c.update == 1 {
             // MUSL: new particle velocities, their momenta re-mapped, then the final G2P.
@@ -490,7 +565,73 @@ impl CudaBackend {
         let p = [self.step_params(dt, t)];
         self.stream
             .memcpy_htod(as_bytes(&p), &mut self.step_buf)
-            .map_err(err("upload step parameters"))
+            .map_err(err("upload step parameters"))?;
+        write_symbol(&self.module, &self.stream, "c_step", as_bytes(&p))
+    }
+
+    /// Extra device memory of the P2G strategy: (buffer, bytes); empty for the scatter.
+    pub fn p2g_memory(&self) -> Vec<(&'static str, usize)> {
+        self.p2g.memory()
+    }
+
+    /// Bytes of the grid (nodes of every allocated pblock), for comparison with
+    /// [`CudaBackend::p2g_memory`].
+    pub fn grid_bytes(&self) -> usize {
+        self.ctx.pblock_cap as usize * 64 * 4 * self.real_bytes
+    }
+
+    /// Sizes of the reverse map (`p2g=reverse_map` only).
+    pub fn reverse_map_size(&self) -> Option<ReverseMapSize> {
+        match &self.p2g {
+            P2gPlan::ReverseMap(r) => Some(r.size),
+            _ => None,
+        }
+    }
+
+    /// Every grid node of the pblocks in use with its four values (mass, momentum or velocity), by
+    /// grid coordinate (synchronises). Pblock ids differ between runs, coordinates do not: this
+    /// compares the grids of two backends node by node.
+    pub fn grid_nodes(&mut self) -> Result<Vec<(IVec3, [f64; 4])>, SimError> {
+        let (_, p, _) = self.block_counts()?;
+        let grid = self
+            .stream
+            .clone_dtoh(&self.grid)
+            .map_err(err("read grid"))?;
+        let coords = self
+            .stream
+            .clone_dtoh(&self.block_coords)
+            .map_err(err("read block coordinates"))?;
+        let word = |b: &[u8], i: usize| {
+            i32::from_le_bytes([b[4 * i], b[4 * i + 1], b[4 * i + 2], b[4 * i + 3]])
+        };
+        let mut out = Vec::with_capacity(p as usize * 64);
+        for id in 0..(p as usize).min(self.ctx.pblock_cap as usize) {
+            let bc = IVec3::new(
+                word(&coords, 3 * id),
+                word(&coords, 3 * id + 1),
+                word(&coords, 3 * id + 2),
+            );
+            for cell in 0..64usize {
+                let node = bc * 4
+                    + IVec3::new(
+                        (cell >> 4) as i32,
+                        ((cell >> 2) & 3) as i32,
+                        (cell & 3) as i32,
+                    );
+                let mut v = [0f64; 4];
+                for (q, x) in v.iter_mut().enumerate() {
+                    let i = 4 * (id * 64 + cell) + q;
+                    *x = if self.real_bytes == 8 {
+                        f64::from_le_bytes(grid[8 * i..8 * i + 8].try_into().unwrap_or([0; 8]))
+                    } else {
+                        f32::from_le_bytes(grid[4 * i..4 * i + 4].try_into().unwrap_or([0; 4]))
+                            as f64
+                    };
+                }
+                out.push((node, v));
+            }
+        }
+        Ok(out)
     }
 
     fn ctl_words(&mut self) -> Result<Vec<u32>, SimError> {
@@ -536,7 +677,7 @@ impl CudaBackend {
         self.upload_params(dt, 0.0)?;
         let (k, s, c) = (&self.kernels, &self.stream, &self.ctx);
         crate::rebuild::enqueue(k, s, c).map_err(err("rebuild"))?;
-        crate::p2g::enqueue(k, s, c, self.options.p2g).map_err(err("p2g"))
+        self.p2g.enqueue(k, s, c).map_err(err("p2g"))
     }
 
     fn error_check(&mut self, c: &[u32]) -> Result<(), SimError> {
@@ -558,9 +699,25 @@ impl CudaBackend {
             if e & 8 != 0 {
                 what.push(format!("more than {} warps", self.ctx.warp_cap));
             }
+            if e & 16 != 0 {
+                let detail = match self.reverse_map_size() {
+                    Some(s) => format!(
+                        "p2g=reverse_map: a node received more than {} entries in one of its {} maps, \
+                         or the material reached more than {} pblocks (raise rmap_slots= or rmap_pblocks=)",
+                        s.slots, s.replicas, s.pblocks
+                    ),
+                    None => "P2G contribution map overflow".to_string(),
+                };
+                what.push(detail);
+            }
+            let hint = if e & 15 != 0 {
+                " (the material spread over more blocks than allocated; raise the capacity with \
+                 the gblocks=/pblocks= options)"
+            } else {
+                ""
+            };
             return Err(SimError::Backend(format!(
-                "CUDA backend out of capacity: {} (the material spread over more blocks than allocated; \
-                 raise the capacity with the gblocks=/pblocks= options)",
+                "CUDA backend out of capacity: {}{hint}",
                 what.join(", ")
             )));
         }

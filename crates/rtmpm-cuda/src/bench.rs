@@ -12,8 +12,12 @@ pub struct KernelTimings {
     pub ms_per_step: f64,
     /// Milliseconds per step in the rebuild stage (incl. grid clear; mostly early returns).
     pub rebuild_ms: f64,
-    /// P2G.
+    /// P2G (all its phases).
     pub p2g_ms: f64,
+    /// The phases of the P2G strategy (e.g. reverse map: build, gather), ms per step each.
+    pub p2g_phases: Vec<(&'static str, f64)>,
+    /// Extra device memory of the P2G strategy (buffer, bytes); empty for the scatter.
+    pub p2g_memory: Vec<(&'static str, usize)>,
     /// Grid update.
     pub grid_update_ms: f64,
     /// G2P.
@@ -51,9 +55,14 @@ pub fn bench_kernels(
         ctx.new_event(Some(CUevent_flags::CU_EVENT_DEFAULT))
             .map_err(err("event"))
     };
-    let e: Vec<_> = (0..5).map(|_| ev()).collect::<Result<_, _>>()?;
+    let phases = b.p2g.phases();
+    let np = phases.len();
+    // Events: start, after rebuild, after each P2G phase, after the grid update, after G2P.
+    let e: Vec<_> = (0..np + 4).map(|_| ev()).collect::<Result<_, _>>()?;
     let mut t = KernelTimings {
         steps,
+        p2g_phases: phases.iter().map(|p| (*p, 0.0)).collect(),
+        p2g_memory: b.p2g_memory(),
         ..Default::default()
     };
     for i in 0..steps {
@@ -62,23 +71,33 @@ pub fn bench_kernels(
         e[0].record(s).map_err(err("record"))?;
         crate::rebuild::enqueue(k, s, c).map_err(err("rebuild"))?;
         e[1].record(s).map_err(err("record"))?;
-        crate::p2g::enqueue(k, s, c, b.options.p2g).map_err(err("p2g"))?;
-        e[2].record(s).map_err(err("record"))?;
+        for p in 0..np {
+            b.p2g.enqueue_phase(p, k, s, c).map_err(err("p2g"))?;
+            e[2 + p].record(s).map_err(err("record"))?;
+        }
         crate::grid_update::enqueue(k, s, c).map_err(err("grid"))?;
-        e[3].record(s).map_err(err("record"))?;
+        e[np + 2].record(s).map_err(err("record"))?;
         crate::g2p::enqueue(k, s, c).map_err(err("g2p"))?;
-        e[4].record(s).map_err(err("record"))?;
-        e[4].synchronize().map_err(err("sync"))?;
+        e[np + 3].record(s).map_err(err("record"))?;
+        e[np + 3].synchronize().map_err(err("sync"))?;
         let ms = |a: usize, z: usize| {
             e[a].elapsed_ms(&e[z])
                 .map(|v| v as f64)
                 .map_err(err("elapsed"))
         };
         t.rebuild_ms += ms(0, 1)?;
-        t.p2g_ms += ms(1, 2)?;
-        t.grid_update_ms += ms(2, 3)?;
-        t.g2p_ms += ms(3, 4)?;
-        t.ms_per_step += ms(0, 4)?;
+        for p in 0..np {
+            t.p2g_phases[p].1 += ms(1 + p, 2 + p)?;
+        }
+        t.p2g_ms += ms(1, np + 1)?;
+        t.grid_update_ms += ms(np + 1, np + 2)?;
+        t.g2p_ms += ms(np + 2, np + 3)?;
+        t.ms_per_step += ms(0, np + 3)?;
+    }
+    if b.check()?.is_some() {
+        return Err(SimError::Backend(
+            "a particle went bad during the timed steps".into(),
+        ));
     }
     let d = steps.max(1) as f64;
     for v in [
@@ -89,6 +108,9 @@ pub fn bench_kernels(
         &mut t.ms_per_step,
     ] {
         *v /= d;
+    }
+    for p in &mut t.p2g_phases {
+        p.1 /= d;
     }
     t.rebuilds = b.rebuild_count()? - r0;
     let (_, pblocks, _) = b.block_counts()?;

@@ -46,14 +46,31 @@ pub const SOURCES: &[(&str, &str)] = &[
         "material/von_mises.cuh",
         include_str!("../kernels/material/von_mises.cuh"),
     ),
+    ("scan.cuh", include_str!("../kernels/scan.cuh")),
+    (
+        "p2g_particle.cuh",
+        include_str!("../kernels/p2g_particle.cuh"),
+    ),
     ("rebuild.cu", include_str!("../kernels/rebuild.cu")),
     ("p2g.cu", include_str!("../kernels/p2g.cu")),
+    (
+        "p2g_reverse_map.cu",
+        include_str!("../kernels/p2g_reverse_map.cu"),
+    ),
+    ("p2g_sort.cu", include_str!("../kernels/p2g_sort.cu")),
     ("grid_update.cu", include_str!("../kernels/grid_update.cu")),
     ("g2p.cu", include_str!("../kernels/g2p.cu")),
 ];
 
 /// The translation units compiled into the one module of the pipeline.
-pub const UNITS: &[&str] = &["rebuild.cu", "p2g.cu", "grid_update.cu", "g2p.cu"];
+pub const UNITS: &[&str] = &[
+    "rebuild.cu",
+    "p2g.cu",
+    "p2g_reverse_map.cu",
+    "p2g_sort.cu",
+    "grid_update.cu",
+    "g2p.cu",
+];
 
 /// Compilation options of the kernels.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
@@ -309,6 +326,13 @@ mod tests {
                 "rb_scatter",
                 "p2g",
                 "p2g_shared",
+                "p2g_rmap_build",
+                "p2g_rmap_gather",
+                "p2g_sort_emit",
+                "p2g_sort_count",
+                "p2g_sort_scatter",
+                "p2g_sort_segments",
+                "p2g_sort_gather",
                 "grid_update",
                 "g2p",
                 "grid_clear",
@@ -316,6 +340,13 @@ mod tests {
                 assert!(
                     ptx.contains(&format!(".entry {k}(")),
                     "{k} missing from PTX"
+                );
+            }
+            // Read-only parameters in constant memory, written by the host under these names.
+            for sym in ["c_step", "c_materials", "c_colliders"] {
+                assert!(
+                    ptx.contains(&format!(" .b8 {sym}[")),
+                    "constant {sym} missing from PTX"
                 );
             }
         }

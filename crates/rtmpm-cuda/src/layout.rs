@@ -2,6 +2,8 @@
 
 /// Maximum number of colliders (`RTMPM_MAX_COLLIDERS`).
 pub const MAX_COLLIDERS: usize = 16;
+/// Maximum number of materials (`RTMPM_MAX_MATERIALS`, the constant-memory table).
+pub const MAX_MATERIALS: usize = 64;
 /// 32-bit fields per particle in the state arrays (`RTMPM_NFIELDS`).
 pub const NFIELDS: usize = 29;
 /// Field offsets (see `common.cuh`): x, v, C, F (column-major), plastic, mass, vol0,

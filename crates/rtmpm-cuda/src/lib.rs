@@ -10,7 +10,10 @@
 //!    block+cell counting sort (histogram, our own scan, scatter into scratch arrays and copy back,
 //!    so device pointers never change and a step can be captured in a CUDA graph), warp list.
 //! 2. [`p2g`] (`kernels/p2g.cu`), **merged**: Kirchhoff stress + in-warp cell-code sort (mixed
-//!    sorting) + warp-level segmented reduction + global atomics.
+//!    sorting) + warp-level segmented reduction + global atomics. Or one of the two gather
+//!    strategies of seed 001 (`p2g=reverse_map`, `p2g=sort`): [`p2g_reverse_map`]
+//!    (`kernels/p2g_reverse_map.cu`), [`p2g_sort`] (`kernels/p2g_sort.cu`). Every strategy takes
+//!    the per-particle quantities from the same device function (`kernels/p2g_particle.cuh`).
 //! 3. [`grid_update`] (`kernels/grid_update.cu`), **merged**: velocity + gravity + walls + colliders.
 //! 4. [`g2p`] (`kernels/g2p.cu`), **merged**: interpolation + F update + plasticity + advection +
 //!    domain clamp + free-zone check + health check (first bad particle, max speed).
@@ -19,6 +22,9 @@
 //! `state[f * capacity + i]` ([`layout`] lists the fields); particles are physically reordered at
 //! every rebuild and carry their original index, [`CudaBackend`] returns them in original order.
 //! Grid nodes: 4 reals (mass, momentum/velocity) per node, 64 nodes per pblock.
+//!
+//! Read-only parameters (step parameters, materials, colliders) are read from constant memory
+//! (seed 001), see `kernels/common.cuh`.
 //!
 //! Materials: every model of rtmpm-core, ported line for line in `kernels/material/*.cuh` (with
 //! `kernels/svd.cuh`), dispatched on `MaterialGpu::kind`.
@@ -30,6 +36,8 @@ pub mod g2p;
 pub mod grid_update;
 pub mod layout;
 pub mod p2g;
+pub mod p2g_reverse_map;
+pub mod p2g_sort;
 pub mod rebuild;
 
 pub use backend::CudaBackend;
@@ -131,6 +139,22 @@ pub enum P2gMode {
     Warp,
     /// One CUDA block per gblock with a shared-memory node tile (earlier work), for ablation.
     Shared,
+    /// Gather through replicated node-to-particle reverse maps built with atomicAdd (seed 001).
+    ReverseMap,
+    /// Gather through one sort per step of the particle-node contributions (seed 001).
+    Sort,
+}
+
+impl P2gMode {
+    /// The name used by `--cuda-options p2g=NAME`.
+    pub fn name(self) -> &'static str {
+        match self {
+            P2gMode::Warp => "warp",
+            P2gMode::Shared => "shared",
+            P2gMode::ReverseMap => "reverse_map",
+            P2gMode::Sort => "sort",
+        }
+    }
 }
 
 /// Ablation switches of the seed-000 principles. `Default` = all on.
@@ -144,6 +168,12 @@ pub struct CudaOptions {
     pub warp_reduce: bool,
     /// P2G variant.
     pub p2g: P2gMode,
+    /// `p2g=reverse_map`: number of replicated maps (the paper's nine by default).
+    pub rmap_replicas: usize,
+    /// `p2g=reverse_map`: entries per node and map; `None`: twice the initial largest node load.
+    pub rmap_slots: Option<usize>,
+    /// `p2g=reverse_map`: pblocks the maps cover; `None`: four times the initial pblocks.
+    pub rmap_pblocks: Option<usize>,
     /// `--use_fast_math`.
     pub fast_math: bool,
     /// Capture one step in a CUDA graph and replay it (used while dt stays fixed).
@@ -163,6 +193,9 @@ impl Default for CudaOptions {
             mixed_sort: true,
             warp_reduce: true,
             p2g: P2gMode::Warp,
+            rmap_replicas: p2g_reverse_map::DEFAULT_REPLICAS,
+            rmap_slots: None,
+            rmap_pblocks: None,
             fast_math: true,
             graph: true,
             f64: false,
@@ -175,7 +208,8 @@ impl Default for CudaOptions {
 impl std::str::FromStr for CudaOptions {
     type Err = String;
     /// Comma separated `key=value`: `free_zone`, `mixed_sort`, `warp_reduce`, `fast_math`,
-    /// `graph`, `f64` (on/off/true/false/1/0), `p2g` (warp/shared), `gblocks`, `pblocks` (counts).
+    /// `graph`, `f64` (on/off/true/false/1/0), `p2g` (warp/shared/reverse_map/sort), `gblocks`,
+    /// `pblocks`, `rmap_replicas`, `rmap_slots`, `rmap_pblocks` (counts).
     fn from_str(s: &str) -> Result<Self, String> {
         let mut o = CudaOptions::default();
         for item in s.split(',').map(str::trim).filter(|t| !t.is_empty()) {
@@ -199,11 +233,25 @@ impl std::str::FromStr for CudaOptions {
                     o.p2g = match v {
                         "warp" => P2gMode::Warp,
                         "shared" => P2gMode::Shared,
-                        _ => return Err(format!("`{item}`: expected warp or shared")),
+                        "reverse_map" => P2gMode::ReverseMap,
+                        "sort" => P2gMode::Sort,
+                        _ => {
+                            return Err(format!(
+                                "`{item}`: expected warp, shared, reverse_map or sort"
+                            ));
+                        }
                     }
                 }
                 "gblocks" => o.gblock_capacity = Some(n()?),
                 "pblocks" => o.pblock_capacity = Some(n()?),
+                "rmap_replicas" => {
+                    o.rmap_replicas = n()?;
+                    if o.rmap_replicas == 0 {
+                        return Err(format!("`{item}`: at least 1 map"));
+                    }
+                }
+                "rmap_slots" => o.rmap_slots = Some(n()?),
+                "rmap_pblocks" => o.rmap_pblocks = Some(n()?),
                 _ => return Err(format!("unknown CUDA option `{k}`")),
             }
         }
@@ -228,5 +276,13 @@ mod tests {
         let o: CudaOptions = "free_zone=off, p2g=shared, gblocks=10".parse().unwrap();
         assert!(!o.free_zone && o.p2g == P2gMode::Shared && o.gblock_capacity == Some(10));
         assert!("bogus=1".parse::<CudaOptions>().is_err());
+        let o: CudaOptions = "p2g=reverse_map,rmap_replicas=1,rmap_slots=40"
+            .parse()
+            .unwrap();
+        assert!(o.p2g == P2gMode::ReverseMap && o.rmap_replicas == 1 && o.rmap_slots == Some(40));
+        let o: CudaOptions = "p2g=sort".parse().unwrap();
+        assert_eq!(o.p2g, P2gMode::Sort);
+        assert!("p2g=gather".parse::<CudaOptions>().is_err());
+        assert!("rmap_replicas=0".parse::<CudaOptions>().is_err());
     }
 }

@@ -2,12 +2,13 @@
 //! usable CUDA device is present.
 
 use rtmpm_core::boundary::Walls;
-use rtmpm_core::material::{Eos, Fluid, Material, Model};
-use rtmpm_core::math::Vec3;
+use rtmpm_core::material::{Eos, FixedCorotated, Fluid, Material, Model};
+use rtmpm_core::math::{IVec3, Mat3, Vec3};
 use rtmpm_core::scene::{OutputSettings, StepMode, TimeSettings};
 use rtmpm_core::sim::{Backend, SimError};
 use rtmpm_core::{Particles, Scene};
 use rtmpm_cuda::{CudaBackend, CudaOptions, P2gMode, probe};
+use std::collections::HashMap;
 
 fn gpu() -> bool {
     match probe() {
@@ -196,6 +197,19 @@ fn ablation_switches_agree() {
             graph: false,
             ..base.clone()
         },
+        CudaOptions {
+            p2g: P2gMode::ReverseMap,
+            ..base.clone()
+        },
+        CudaOptions {
+            p2g: P2gMode::ReverseMap,
+            rmap_replicas: 1,
+            ..base.clone()
+        },
+        CudaOptions {
+            p2g: P2gMode::Sort,
+            ..base.clone()
+        },
     ] {
         let (q, n) = dam_break(o.clone()).unwrap();
         let worst =
@@ -223,6 +237,110 @@ fn capacity_overflow_is_an_error() {
     println!("{r:?}", r = r.as_ref().map(|_| ()));
     match r {
         Err(SimError::Backend(m)) => assert!(m.contains("capacity"), "{m}"),
+        other => panic!("expected a capacity error, got {:?}", other.map(|_| ())),
+    }
+}
+
+/// P2G alone on a block of fluid and elastic particles with velocities, APIC matrices and
+/// deformation gradients (so that the stress term is non-zero), with one P2G strategy.
+fn p2g_grid(mode: P2gMode) -> Result<HashMap<IVec3, [f64; 4]>, SimError> {
+    let mut s = scene(1.0 / 32.0);
+    s.materials.push(Material {
+        name: "jelly".into(),
+        density: 1000.0,
+        model: Model::FixedCorotated(FixedCorotated {
+            mu: 4e4,
+            lambda: 6e4,
+        }),
+    });
+    let mut p = block(&s, Vec3::new(0.2, 0.25, 0.3), Vec3::new(0.55, 0.5, 0.6));
+    for i in 0..p.len() {
+        let a = i as f32;
+        p.v[i] = Vec3::new((a * 0.37).sin(), 0.5 * (a * 0.11).cos(), 0.25);
+        p.c[i] = Mat3::from_cols_array(&[0.3, -0.1, 0.2, 0.05, -0.2, 0.1, 0.0, 0.15, 0.1])
+            * (a * 0.01).sin();
+        p.f[i] = Mat3::IDENTITY
+            + Mat3::from_cols_array(&[0.05, 0.01, -0.02, 0.0, -0.04, 0.03, 0.02, 0.0, 0.06])
+                * (a * 0.07).cos();
+        p.material[i] = (i % 2) as u32;
+    }
+    let o = CudaOptions {
+        p2g: mode,
+        fast_math: false,
+        graph: false,
+        ..Default::default()
+    };
+    let mut b = CudaBackend::new(&s, &p, o)?;
+    b.run_p2g_only(1e-4)?;
+    // Capacity errors of the gather strategies surface here.
+    b.check()?;
+    let nodes = b.grid_nodes()?;
+    let mut m = HashMap::new();
+    for (x, v) in nodes {
+        assert!(m.insert(x, v).is_none(), "node {x} twice");
+    }
+    Ok(m)
+}
+
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn gather_strategies_give_the_scatter_grid_node_by_node() {
+    if !gpu() {
+        return;
+    }
+    let reference = p2g_grid(P2gMode::Warp).unwrap();
+    // Largest magnitude of each component: the float-summation tolerance scales with it.
+    let mut scale = [0f64; 4];
+    for v in reference.values() {
+        for q in 0..4 {
+            scale[q] = scale[q].max(v[q].abs());
+        }
+    }
+    let active = reference.values().filter(|v| v[0] > 0.0).count();
+    println!(
+        "scatter: {} nodes, {active} with mass, max |component| {scale:?}",
+        reference.len()
+    );
+    assert!(active > 1000 && scale[1] > 0.0 && scale[2] > 0.0);
+    for mode in [P2gMode::ReverseMap, P2gMode::Sort, P2gMode::Shared] {
+        let g = p2g_grid(mode).unwrap();
+        assert_eq!(g.len(), reference.len(), "{mode:?}: node count");
+        let mut worst = [0f64; 4];
+        for (x, r) in &reference {
+            let v = g
+                .get(x)
+                .unwrap_or_else(|| panic!("{mode:?}: node {x} missing"));
+            for q in 0..4 {
+                worst[q] = worst[q].max((v[q] - r[q]).abs() / scale[q]);
+            }
+        }
+        println!("{mode:?}: largest node difference / max |component| = {worst:?}");
+        // f32 sums of up to ~200 terms in a different order.
+        for (q, w) in worst.iter().enumerate() {
+            assert!(
+                *w < 1e-5,
+                "{mode:?}: component {q} differs by {w} of its scale"
+            );
+        }
+    }
+}
+
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn reverse_map_overflow_is_an_error() {
+    if !gpu() {
+        return;
+    }
+    let o = CudaOptions {
+        p2g: P2gMode::ReverseMap,
+        rmap_slots: Some(2),
+        ..Default::default()
+    };
+    match dam_break(o) {
+        Err(SimError::Backend(m)) => {
+            println!("{m}");
+            assert!(m.contains("rmap_slots"), "{m}")
+        }
         other => panic!("expected a capacity error, got {:?}", other.map(|_| ())),
     }
 }

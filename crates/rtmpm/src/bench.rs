@@ -32,7 +32,8 @@ pub struct BenchArgs {
     /// Backend.
     #[arg(long, value_enum, default_value_t = BackendKind::Auto)]
     pub backend: BackendKind,
-    /// CUDA backend switches, e.g. `free_zone=off,warp_reduce=off,p2g=shared,graph=off`.
+    /// CUDA backend switches, e.g. `free_zone=off,warp_reduce=off,graph=off`; P2G strategy
+    /// `p2g=warp|shared|reverse_map|sort`.
     #[arg(long, value_name = "LIST", default_value = "")]
     pub cuda_options: rtmpm_cuda::CudaOptions,
     /// CPU worker threads (default: one per core).
@@ -211,8 +212,36 @@ fn bench_cuda(
             "    {name:<12} {ms:.4} ms/step ({:.0} %)",
             100.0 * ms / k.ms_per_step.max(1e-12)
         );
+        if name == "p2g" && k.p2g_phases.len() > 1 {
+            for (phase, ms) in &k.p2g_phases {
+                println!("      p2g.{phase:<10} {ms:.4} ms/step");
+            }
+        }
     }
     println!("    step         {:.4} ms/step", k.ms_per_step);
+    let extra: usize = k.p2g_memory.iter().map(|m| m.1).sum();
+    let parts: Vec<String> = k
+        .p2g_memory
+        .iter()
+        .map(|(what, bytes)| format!("{what} {:.1}", *bytes as f64 / 1e6))
+        .collect();
+    println!(
+        "  p2g memory   {:?}: {:.1} MB extra ({}); grid {:.1} MB",
+        args.cuda_options.p2g,
+        extra as f64 / 1e6,
+        if parts.is_empty() {
+            "none".to_string()
+        } else {
+            parts.join(", ") + " MB"
+        },
+        b.grid_bytes() as f64 / 1e6
+    );
+    if let Some(r) = b.reverse_map_size() {
+        println!(
+            "  reverse map  {} maps x {} entries per node, {} pblocks",
+            r.replicas, r.slots, r.pblocks
+        );
+    }
     println!(
         "  bandwidth    {:.1} MB/step must move; copy bandwidth {bw:.0} GB/s -> floor {floor_ms:.4} ms/step = {:.0} % of the evented step",
         k.bytes_per_step as f64 / 1e6,

@@ -37,7 +37,8 @@ pub struct RunArgs {
     /// Continue from a checkpoint written by --checkpoint-every.
     #[arg(long, value_name = "CKPT")]
     pub resume: Option<PathBuf>,
-    /// CUDA backend switches, e.g. `free_zone=off,warp_reduce=off,p2g=shared,graph=off`.
+    /// CUDA backend switches, e.g. `free_zone=off,warp_reduce=off,graph=off`; P2G strategy
+    /// `p2g=warp|shared|reverse_map|sort`.
     #[arg(long, value_name = "LIST", default_value = "")]
     pub cuda_options: rtmpm_cuda::CudaOptions,
     /// Write no frame files (for timing).

@@ -552,7 +552,6 @@ fn settling_damping() {
         "time.damping",
     );
 }
-}
 
 #[test]
 fn solver_table_defaults_and_values() {

@@ -1,0 +1,107 @@
+// The per-particle quantities of P2G, from ONE function for every P2G strategy: the scatter
+// kernels of p2g.cu and the gathers of p2g_reverse_map.cu and p2g_sort.cu (seed 001). A change of
+// the shape function (weights at the 3x3x3 stencil) or of the stress term is made here once.
+//
+// MLS-MPM (Hu et al. 2018, eq. 16/29): node i of the stencil receives
+//   m_i += w_ip m_p,   (m v)_i += w_ip (m_p v_p + A_p (x_i - x_p)),
+//   A_p = -dt V0 (4 / dx^2) tau_p + m_p C_p   (tau: Kirchhoff stress of the material).
+#pragma once
+#include "common.cuh"
+#include "material_dispatch.cuh"
+
+struct P2gParticle {
+    int base[3];   // stencil base node (grid coordinates)
+    real fx[3];    // position - base, in cells
+    real w[3][3];  // shape-function weights per axis at base + 0, 1, 2
+    real m;        // mass
+    vec3 mv;       // momentum m v
+    mat3 affine;   // A_p
+};
+
+// A particle that contributes nothing (inactive lanes of the warp scatter).
+__device__ __forceinline__ P2gParticle p2g_particle_zero() {
+    P2gParticle q;
+    for (int a = 0; a < 3; ++a) {
+        q.base[a] = 0;
+        q.fx[a] = 1;
+        q.w[a][0] = q.w[a][1] = q.w[a][2] = 0;
+    }
+    q.m = 0;
+    q.mv = make_v3(0, 0, 0);
+    q.affine = mat3_zero();
+    return q;
+}
+
+// Stencil, weights, momentum and affine term of particle p (the stress is evaluated here).
+__device__ __forceinline__ P2gParticle p2g_particle(const Ctx& c, unsigned p) {
+    P2gParticle q;
+    stencil_of(c, load_v3(c.state, c.cap, F_X, p), q.base, q.fx);
+    for (int a = 0; a < 3; ++a) weights_1d(q.fx[a], q.w[a]);
+    q.m = c.state[F_MASS * c.cap + p];
+    real vol0 = c.state[F_VOL0 * c.cap + p];
+    vec3 v = load_v3(c.state, c.cap, F_V, p);
+    mat3 C = load_m3(c.state, c.cap, F_C, p);
+    mat3 F = load_m3(c.state, c.cap, F_F, p);
+    real plastic = c.state[F_PLASTIC * c.cap + p];
+    GpuMaterial mat = material_at(c, __float_as_uint(c.state[F_MAT * c.cap + p]));
+    mat3 tau = material_kirchhoff(mat, F, plastic, C);
+    real dt = step_params(c).dt;
+    q.affine = tau * (-dt * vol0 * (real)4 * c.inv_dx * c.inv_dx) + C * q.m;
+    q.mv = v * q.m;
+    return q;
+}
+
+// a[i] for i in 0..3 by selects (a dynamic index would move the whole particle to local memory).
+__device__ __forceinline__ real pick3(const real a[3], int i) { return i == 0 ? a[0] : (i == 1 ? a[1] : a[2]); }
+
+// (mass, momentum) that particle q gives to its stencil node base + (i, j, k).
+__device__ __forceinline__ void p2g_node_value(const Ctx& c, const P2gParticle& q, int i, int j, int k, real val[4]) {
+    real weight = pick3(q.w[0], i) * pick3(q.w[1], j) * pick3(q.w[2], k);
+    vec3 dpos = make_v3(((real)i - q.fx[0]) * c.dx, ((real)j - q.fx[1]) * c.dx, ((real)k - q.fx[2]) * c.dx);
+    vec3 mom = (q.mv + q.affine * dpos) * weight;
+    val[0] = weight * q.m;
+    val[1] = mom.x;
+    val[2] = mom.y;
+    val[3] = mom.z;
+}
+
+// ---- Gather strategies (seed 001): the particle pass computes every (particle, stencil node)
+// value with p2g_node_value and stores it at entry (i * 9 + j * 3 + k) * cap + p of an array of
+// 4 reals per entry (slot-major: the lanes of a warp store consecutive entries); the maps name
+// entries, and the gather of a node sums its entries.
+__device__ __forceinline__ unsigned p2g_entry(const Ctx& c, unsigned p, int i, int j, int k) {
+    return (unsigned)(i * 9 + j * 3 + k) * c.cap + p;
+}
+
+__device__ __forceinline__ void p2g_store_entry(real* contrib, unsigned entry, const real val[4]) {
+#ifdef RTMPM_F64
+    for (int e = 0; e < 4; ++e) contrib[4u * entry + e] = val[e];
+#else
+    reinterpret_cast<float4*>(contrib)[entry] = make_float4(val[0], val[1], val[2], val[3]);
+#endif
+}
+
+// acc += the value of entry `entry`.
+__device__ __forceinline__ void p2g_add_entry(const real* __restrict__ contrib, unsigned entry, real acc[4]) {
+#ifdef RTMPM_F64
+    for (int e = 0; e < 4; ++e) acc[e] += __ldg(contrib + 4u * entry + e);
+#else
+    float4 v = __ldg(reinterpret_cast<const float4*>(contrib) + entry);
+    acc[0] += v.x; acc[1] += v.y; acc[2] += v.z; acc[3] += v.w;
+#endif
+}
+
+// Store the gathered node (plain stores: one thread owns the node).
+__device__ __forceinline__ void p2g_store_node(const Ctx& c, unsigned node, const real acc[4]) {
+#ifdef RTMPM_F64
+    for (int e = 0; e < 4; ++e) c.grid[4u * node + e] = acc[e];
+#else
+    reinterpret_cast<float4*>(c.grid)[node] = make_float4(acc[0], acc[1], acc[2], acc[3]);
+#endif
+}
+
+// Memory index (pblock id * 64 + cell) of stencil node (i, j, k) of a particle of the gblock whose
+// neighbour list is nbs (the addressing of every P2G strategy).
+__device__ __forceinline__ unsigned stencil_node(const StencilIdx& si, const unsigned* nbs, int i, int j, int k) {
+    return nbs[si.slot[0][i] + si.slot[1][j] + si.slot[2][k]] * 64u + (si.cell[0][i] | si.cell[1][j] | si.cell[2][k]);
+}
