@@ -1,5 +1,7 @@
 //! rtmpm core: everything that is not tied to one compute backend.
 //!
+//! * [`real`]: the precision of the physics (f32 here; `rtmpm-f64` compiles the same physics
+//!   files in f64).
 //! * [`math`], [`svd`], [`shape`]: small linear algebra, the 3x3 SVD/polar decomposition and the
 //!   quadratic B-spline weights of MLS-MPM.
 //! * [`material`]: one file per constitutive model (stress and return mapping).
@@ -20,6 +22,7 @@ pub mod io;
 pub mod material;
 pub mod math;
 pub mod particles;
+pub mod real;
 pub mod render;
 pub mod scene;
 pub mod shape;

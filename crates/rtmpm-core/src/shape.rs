@@ -4,11 +4,11 @@
 //! at `base = floor(xg - 0.5)`. With `fx = xg - base` in `[0.5, 1.5)` the 1D weights are
 //! `w0 = (1.5 - fx)^2 / 2`, `w1 = 3/4 - (fx - 1)^2`, `w2 = (fx - 0.5)^2 / 2`.
 
-use crate::math::{IVec3, Vec3};
+use crate::math::{IVec3, Real, ToReal, Vec3};
 
 /// Weights of the three nodes of one axis.
 #[inline]
-pub fn weights_1d(fx: f32) -> [f32; 3] {
+pub fn weights_1d(fx: Real) -> [Real; 3] {
     [
         0.5 * (1.5 - fx) * (1.5 - fx),
         0.75 - (fx - 1.0) * (fx - 1.0),
@@ -18,7 +18,7 @@ pub fn weights_1d(fx: f32) -> [f32; 3] {
 
 /// Derivatives d w / d fx of the three weights of one axis.
 #[inline]
-pub fn dweights_1d(fx: f32) -> [f32; 3] {
+pub fn dweights_1d(fx: Real) -> [Real; 3] {
     [fx - 1.5, -2.0 * (fx - 1.0), fx - 0.5]
 }
 
@@ -30,7 +30,7 @@ pub struct Stencil {
     /// `xg - base`, in `[0.5, 1.5)` per axis.
     pub fx: Vec3,
     /// `w[axis][node]`.
-    pub w: [[f32; 3]; 3],
+    pub w: [[Real; 3]; 3],
 }
 
 impl Stencil {
@@ -50,7 +50,7 @@ impl Stencil {
     /// (`base == floor(xg - 0.5)`), avoiding the floor.
     #[inline]
     pub fn with_base(xg: Vec3, base: IVec3) -> Stencil {
-        let fx = xg - base.as_vec3();
+        let fx = xg - base.to_real();
         Stencil {
             base,
             fx,
@@ -60,20 +60,20 @@ impl Stencil {
 
     /// Weight of node `(i, j, k)` of the stencil.
     #[inline]
-    pub fn weight(&self, i: usize, j: usize, k: usize) -> f32 {
+    pub fn weight(&self, i: usize, j: usize, k: usize) -> Real {
         self.w[0][i] * self.w[1][j] * self.w[2][k]
     }
 
     /// Node position minus particle position, in units of dx: `(i, j, k) - fx`.
     #[inline]
     pub fn dpos(&self, i: usize, j: usize, k: usize) -> Vec3 {
-        Vec3::new(i as f32, j as f32, k as f32) - self.fx
+        Vec3::new(i as Real, j as Real, k as Real) - self.fx
     }
 }
 
 /// `D^-1` of APIC/MLS-MPM for the quadratic B-spline: `4 / dx^2`.
 #[inline]
-pub fn inv_d(dx: f32) -> f32 {
+pub fn inv_d(dx: Real) -> Real {
     4.0 / (dx * dx)
 }
 

@@ -56,6 +56,7 @@ fn scene(dx: f32) -> Scene {
         },
         render: Default::default(),
         seed: 0,
+        precision: Default::default(),
     }
 }
 

@@ -2,14 +2,14 @@
 //! plastic return mapping, advection and health check.
 
 use super::CpuBackend;
-use crate::math::{Mat3, Vec3, outer};
+use crate::math::{Mat3, Real, Vec3, outer};
 use crate::shape::{Stencil, inv_d};
 use crate::sim::{BadParticle, check_particle};
 use rayon::prelude::*;
 
 /// Gather velocities back to the particles and advance them. Returns the largest particle speed
 /// and the lowest-index bad particle, if any.
-pub fn g2p(b: &mut CpuBackend, dt: f32) -> (f32, Option<BadParticle>) {
+pub fn g2p(b: &mut CpuBackend, dt: Real) -> (Real, Option<BadParticle>) {
     let c = &b.consts;
     let (layout, grid, bases) = (&b.layout, &b.grid, &b.bases);
     let inv_d = inv_d(c.dx);
@@ -38,14 +38,14 @@ pub fn g2p(b: &mut CpuBackend, dt: f32) -> (f32, Option<BadParticle>) {
                         let n = grid[nodes[i * 9 + j * 3 + k] as usize];
                         let wv = (wij * s.w[2][k]) * Vec3::new(n[1], n[2], n[3]);
                         sum_j += wv;
-                        b2_j += k as f32 * wv;
+                        b2_j += k as Real * wv;
                     }
                     sum_i += sum_j;
-                    b1_i += j as f32 * sum_j;
+                    b1_i += j as Real * sum_j;
                     b2_i += b2_j;
                 }
                 new_v += sum_i;
-                b0 += i as f32 * sum_i;
+                b0 += i as Real * sum_i;
                 b1 += b1_i;
                 b2 += b2_i;
             }
@@ -67,7 +67,7 @@ pub fn g2p(b: &mut CpuBackend, dt: f32) -> (f32, Option<BadParticle>) {
             (speed, bad)
         })
         .reduce(
-            || (0.0f32, None),
+            || (0.0, None),
             |(s1, b1), (s2, b2)| {
                 let bad = match (b1, b2) {
                     (Some(a), Some(b)) => Some(if a.index <= b.index { a } else { b }),

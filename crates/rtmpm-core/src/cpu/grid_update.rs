@@ -2,11 +2,11 @@
 
 use super::{CpuBackend, GRID_PAD};
 use crate::grid::codes::{BLOCK_NODES, BLOCK_SIZE};
-use crate::math::Vec3;
+use crate::math::{Real, ToReal, Vec3};
 use rayon::prelude::*;
 
 /// Turn node momentum into velocity, add gravity and apply boundary conditions.
-pub fn grid_update(b: &mut CpuBackend, dt: f32, t: f32) {
+pub fn grid_update(b: &mut CpuBackend, dt: Real, t: f32) {
     let c = &b.consts;
     let coords = &b.layout.block_coords;
     b.grid
@@ -30,7 +30,7 @@ pub fn grid_update(b: &mut CpuBackend, dt: f32, t: f32) {
                 let rel = idx - crate::math::IVec3::splat(GRID_PAD);
                 v = c.walls.apply([rel.x, rel.y, rel.z], c.n_cells, v);
                 if !c.colliders.is_empty() {
-                    let xw = c.origin + idx.as_vec3() * c.dx;
+                    let xw = c.origin + idx.to_real() * c.dx;
                     for col in &c.colliders {
                         if let Some((n, vc)) = col.query(xw, t) {
                             v = vc + col.rule.apply(v - vc, n);

@@ -8,7 +8,7 @@
 //! fixed order, whatever the number of threads.
 
 use super::{CpuBackend, Node};
-use crate::math::Mat3;
+use crate::math::{Mat3, Real};
 use crate::shape::{Stencil, inv_d};
 use rayon::prelude::*;
 
@@ -32,7 +32,7 @@ impl GridPtr {
 }
 
 /// Scatter particle mass and momentum to the grid.
-pub fn p2g(b: &mut CpuBackend, dt: f32) {
+pub fn p2g(b: &mut CpuBackend, dt: Real) {
     let n_nodes = b.layout.node_count();
     b.grid.clear();
     b.grid.resize(n_nodes, [0.0; 4]);

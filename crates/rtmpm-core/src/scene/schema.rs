@@ -27,6 +27,7 @@ pub struct RawScene {
     pub collider: Vec<RawCollider>,
     pub output: Option<RawOutput>,
     pub render: Option<RawRender>,
+    pub solver: Option<RawSolver>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -292,4 +293,11 @@ pub struct RawRender {
     pub width: Option<u32>,
     pub height: Option<u32>,
     pub color_by: Option<String>,
+}
+
+/// `[solver]`: how the step is computed.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawSolver {
+    pub precision: Option<super::Precision>,
 }
