@@ -69,10 +69,10 @@ __device__ __forceinline__ void g2p_warp(const Ctx& c, unsigned w, unsigned lane
     mat3 F = load_m3(c.state, c.cap, F_F, p);
     F = (mat3_identity() + C * dt) * F;
     real plastic = c.state[F_PLASTIC * c.cap + p];
-    GpuMaterial mat = c.materials[__float_as_uint(c.state[F_MAT * c.cap + p])];
+    GpuMaterial mat = c.materials[state_bits(c.state[F_MAT * c.cap + p])];
     F = material_project(mat, F, &plastic);
     // Health check before the clamp (the clamp would hide NaN).
-    unsigned id = __float_as_uint(c.state[F_ID * c.cap + p]);
+    unsigned id = state_bits(c.state[F_ID * c.cap + p]);
     real speed = length(v);
     bool finite = isfinite(x.x) && isfinite(x.y) && isfinite(x.z) && isfinite(v.x) && isfinite(v.y) && isfinite(v.z);
     if (!finite || speed * dt > (real)2 * c.dx) {
@@ -98,5 +98,5 @@ __device__ __forceinline__ void g2p_warp(const Ctx& c, unsigned w, unsigned lane
     store_v3(c.state, c.cap, F_V, p, v);
     store_m3(c.state, c.cap, F_C, p, C);
     store_m3(c.state, c.cap, F_F, p, F);
-    c.state[F_PLASTIC * c.cap + p] = (float)plastic;
+    c.state[F_PLASTIC * c.cap + p] = plastic;
 }

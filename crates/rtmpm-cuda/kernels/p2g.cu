@@ -79,7 +79,7 @@ __device__ __forceinline__ void p2g_warp(const Ctx& c, unsigned w, unsigned lane
         mat3 C = load_m3(c.state, c.cap, F_C, p);
         mat3 F = load_m3(c.state, c.cap, F_F, p);
         real plastic = c.state[F_PLASTIC * c.cap + p];
-        GpuMaterial mat = c.materials[__float_as_uint(c.state[F_MAT * c.cap + p])];
+        GpuMaterial mat = c.materials[state_bits(c.state[F_MAT * c.cap + p])];
         mat3 tau = material_kirchhoff(mat, F, plastic, C);
         real dt = c.step->dt;
         affine = tau * (-dt * vol0 * (real)4 * c.inv_dx * c.inv_dx) + C * m;
@@ -154,7 +154,7 @@ extern "C" __global__ void p2g_shared(Ctx c) {
         vec3 v = load_v3(c.state, c.cap, F_V, p);
         mat3 C = load_m3(c.state, c.cap, F_C, p);
         mat3 F = load_m3(c.state, c.cap, F_F, p);
-        GpuMaterial mat = c.materials[__float_as_uint(c.state[F_MAT * c.cap + p])];
+        GpuMaterial mat = c.materials[state_bits(c.state[F_MAT * c.cap + p])];
         mat3 tau = material_kirchhoff(mat, F, c.state[F_PLASTIC * c.cap + p], C);
         mat3 affine = tau * (-(real)c.step->dt * vol0 * (real)4 * c.inv_dx * c.inv_dx) + C * m;
         vec3 mv = v * m;
