@@ -42,5 +42,6 @@ pub fn check(path: &Path) -> Result<()> {
     }
     println!("  colliders   {}", scene.colliders.len());
     println!("  particles   {}", particles.len());
+    println!("  precision   {}", scene.precision.name());
     Ok(())
 }
