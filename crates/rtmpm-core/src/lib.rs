@@ -1,5 +1,7 @@
 //! rtmpm core: everything that is not tied to one compute backend.
 //!
+//! * [`real`]: the precision of the physics (f32 here; `rtmpm-f64` compiles the same physics
+//!   files in f64).
 //! * [`math`], [`svd`], [`shape`]: small linear algebra, the 3x3 SVD/polar decomposition and the
 //!   shape functions (quadratic B-splines of MLS-MPM, uGIMP, linear hats).
 //! * [`transfer`]: the particle-grid transfer schemes (MLS/APIC, GIMP, linear MPM; USL/MUSL;
@@ -22,6 +24,7 @@ pub mod io;
 pub mod material;
 pub mod math;
 pub mod particles;
+pub mod real;
 pub mod render;
 pub mod scene;
 pub mod shape;

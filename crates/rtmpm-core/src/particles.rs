@@ -1,7 +1,8 @@
 //! Particle state, stored as a struct of arrays so that the CPU loops and the GPU buffers
 //! share one layout.
 
-use crate::math::{Mat3, Vec3};
+use crate::math::{Mat3, Real, Vec3};
+use crate::sim::BadReason;
 
 /// All particles of a simulation. Every array has the same length.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -16,11 +17,11 @@ pub struct Particles {
     pub f: Vec<Mat3>,
     /// One scalar of plastic state whose meaning depends on the material: snow `Jp`, sand
     /// hardening `q` / von Mises equivalent plastic strain; unused (0) for purely elastic models and fluid.
-    pub plastic: Vec<f32>,
+    pub plastic: Vec<Real>,
     /// Mass (kg).
-    pub mass: Vec<f32>,
+    pub mass: Vec<Real>,
     /// Initial volume (m^3).
-    pub vol0: Vec<f32>,
+    pub vol0: Vec<Real>,
     /// Index into the scene's material list.
     pub material: Vec<u32>,
 }
@@ -38,7 +39,7 @@ impl Particles {
 
     /// Append one particle at rest and undeformed.
     #[allow(clippy::too_many_arguments)]
-    pub fn push(&mut self, x: Vec3, v: Vec3, mass: f32, vol0: f32, material: u32, plastic: f32) {
+    pub fn push(&mut self, x: Vec3, v: Vec3, mass: Real, vol0: Real, material: u32, plastic: Real) {
         self.x.push(x);
         self.v.push(v);
         self.c.push(Mat3::ZERO);
@@ -100,12 +101,27 @@ impl Particles {
 
     /// Axis-aligned bounding box `(min, max)` of the positions.
     pub fn bounding_box(&self) -> (Vec3, Vec3) {
-        let mut lo = Vec3::splat(f32::INFINITY);
-        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        let mut lo = Vec3::splat(Real::INFINITY);
+        let mut hi = Vec3::splat(Real::NEG_INFINITY);
         for x in &self.x {
             lo = lo.min(*x);
             hi = hi.max(*x);
         }
         (lo, hi)
+    }
+}
+
+/// A particle moving more than this many cells in one step is taken as a blow-up.
+pub const MAX_CELLS_PER_STEP: Real = 2.0;
+
+/// Health check of one particle after a step.
+#[inline]
+pub fn check_particle(x: Vec3, v: Vec3, dt: Real, dx: Real) -> Option<BadReason> {
+    if !(x.is_finite() && v.is_finite()) {
+        Some(BadReason::NonFinite)
+    } else if v.length() * dt > MAX_CELLS_PER_STEP * dx {
+        Some(BadReason::TooFast)
+    } else {
+        None
     }
 }

@@ -9,12 +9,12 @@
 //! `r = fx - n` vanish outside the same three nodes, so every transfer shares the stencil, the
 //! block layout and the free zone. All weights are tensor products of 1D weights.
 
-use crate::math::{IVec3, Vec3};
+use crate::math::{IVec3, Real, ToReal, Vec3};
 use crate::transfer::Transfer;
 
 /// Weights of the three nodes of one axis.
 #[inline]
-pub fn weights_1d(fx: f32) -> [f32; 3] {
+pub fn weights_1d(fx: Real) -> [Real; 3] {
     [
         0.5 * (1.5 - fx) * (1.5 - fx),
         0.75 - (fx - 1.0) * (fx - 1.0),
@@ -24,19 +24,19 @@ pub fn weights_1d(fx: f32) -> [f32; 3] {
 
 /// Derivatives d w / d fx of the three weights of one axis.
 #[inline]
-pub fn dweights_1d(fx: f32) -> [f32; 3] {
+pub fn dweights_1d(fx: Real) -> [Real; 3] {
     [fx - 1.5, -2.0 * (fx - 1.0), fx - 0.5]
 }
 
 /// uGIMP particle half-size in cells (dx/4: the particle domain of 2 particles per cell and axis).
-pub const GIMP_HALF_SIZE: f32 = 0.25;
+pub const GIMP_HALF_SIZE: Real = 0.25;
 
 /// uGIMP 1D weight and its derivative d S / d r of a node at signed distance `r = x_p - x_i`
 /// (in cells), half-size `l` = [`GIMP_HALF_SIZE`], spacing 1 (Bardenhagen & Kober 2004, eq. 31):
 /// `1 - (r^2 + l^2) / 2l` for `|r| < l`, `1 - |r|` for `l <= |r| < 1 - l`,
 /// `(1 + l - |r|)^2 / 4l` for `1 - l <= |r| < 1 + l`, else 0.
 #[inline]
-pub fn gimp_1d(r: f32) -> (f32, f32) {
+pub fn gimp_1d(r: Real) -> (Real, Real) {
     let l = GIMP_HALF_SIZE;
     let a = r.abs();
     let s = if r < 0.0 { -1.0 } else { 1.0 };
@@ -56,7 +56,7 @@ pub fn gimp_1d(r: f32) -> (f32, f32) {
 /// the kinks the derivative is the one to the right (`r = -1`: +1, `r = 0`: -1, `r = 1`: 0), so
 /// that the three nodes' derivatives still sum to zero on cell faces.
 #[inline]
-pub fn linear_1d(r: f32) -> (f32, f32) {
+pub fn linear_1d(r: Real) -> (Real, Real) {
     if !(-1.0..1.0).contains(&r) {
         (0.0, 0.0)
     } else if r >= 0.0 {
@@ -68,7 +68,7 @@ pub fn linear_1d(r: f32) -> (f32, f32) {
 
 /// Weights and derivatives d w / d fx of the three nodes of one axis for a transfer.
 #[inline]
-pub fn shape_1d(transfer: Transfer, fx: f32) -> ([f32; 3], [f32; 3]) {
+pub fn shape_1d(transfer: Transfer, fx: Real) -> ([Real; 3], [Real; 3]) {
     match transfer {
         Transfer::Mls => (weights_1d(fx), dweights_1d(fx)),
         Transfer::Gimp => {
@@ -90,9 +90,9 @@ pub struct Stencil {
     /// `xg - base`, in `[0.5, 1.5)` per axis.
     pub fx: Vec3,
     /// `w[axis][node]`.
-    pub w: [[f32; 3]; 3],
+    pub w: [[Real; 3]; 3],
     /// `dw[axis][node]`: d w / d fx (per cell); only filled by [`Stencil::for_transfer`].
-    pub dw: [[f32; 3]; 3],
+    pub dw: [[Real; 3]; 3],
 }
 
 impl Stencil {
@@ -113,7 +113,7 @@ impl Stencil {
     /// (`base == floor(xg - 0.5)`), avoiding the floor.
     #[inline]
     pub fn with_base(xg: Vec3, base: IVec3) -> Stencil {
-        let fx = xg - base.as_vec3();
+        let fx = xg - base.to_real();
         Stencil {
             base,
             fx,
@@ -126,7 +126,7 @@ impl Stencil {
     /// whose base node is known: the per-(particle, node) interface every P2G/G2P variant uses.
     #[inline]
     pub fn for_transfer(transfer: Transfer, xg: Vec3, base: IVec3) -> Stencil {
-        let fx = xg - base.as_vec3();
+        let fx = xg - base.to_real();
         let (wx, dx) = shape_1d(transfer, fx.x);
         let (wy, dy) = shape_1d(transfer, fx.y);
         let (wz, dz) = shape_1d(transfer, fx.z);
@@ -153,21 +153,29 @@ impl Stencil {
 
     /// Weight of node `(i, j, k)` of the stencil.
     #[inline]
-    pub fn weight(&self, i: usize, j: usize, k: usize) -> f32 {
+    pub fn weight(&self, i: usize, j: usize, k: usize) -> Real {
         self.w[0][i] * self.w[1][j] * self.w[2][k]
     }
 
     /// Node position minus particle position, in units of dx: `(i, j, k) - fx`.
     #[inline]
     pub fn dpos(&self, i: usize, j: usize, k: usize) -> Vec3 {
-        Vec3::new(i as f32, j as f32, k as f32) - self.fx
+        Vec3::new(i as Real, j as Real, k as Real) - self.fx
     }
 }
 
 /// `D^-1` of APIC/MLS-MPM for the quadratic B-spline: `4 / dx^2`.
 #[inline]
-pub fn inv_d(dx: f32) -> f32 {
+pub fn inv_d(dx: Real) -> Real {
     4.0 / (dx * dx)
+}
+
+/// PIC/FLIP blend of a particle velocity: `(1 - alpha) v_PIC + alpha (v_p + dv)`, with
+/// `v_PIC = sum_i w_ip v_i` and the FLIP increment `dv = sum_i w_ip (v_i - v_i_old)` (Brackbill &
+/// Ruppel 1986; Stomakhin et al. 2013, eq. 11). Mirrored by `flip_blend` in `kernels/shape.cuh`.
+#[inline]
+pub fn flip_blend(alpha: Real, v_p: Vec3, v_pic: Vec3, dv: Vec3) -> Vec3 {
+    v_pic * (1.0 - alpha) + (v_p + dv) * alpha
 }
 
 #[cfg(test)]

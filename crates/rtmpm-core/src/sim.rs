@@ -4,8 +4,11 @@
 //! (fixed, or CFL-adaptive with a cap), lands every frame exactly on its time, and reports
 //! blow-ups with the particle, its material and advice.
 
-use crate::Particles;
 use crate::math::Vec3;
+/// The particles of the backend interface: f32 whatever precision a backend computes in.
+pub use crate::particles::Particles;
+/// The health check of one particle (in `particles.rs`, compiled in each precision).
+pub use crate::particles::{MAX_CELLS_PER_STEP, check_particle};
 use crate::scene::{Scene, StepMode};
 use std::fmt;
 
@@ -76,21 +79,6 @@ pub struct BadParticle {
 pub enum BadReason {
     NonFinite,
     TooFast,
-}
-
-/// A particle moving more than this many cells in one step is taken as a blow-up.
-pub const MAX_CELLS_PER_STEP: f32 = 2.0;
-
-/// Health check of one particle after a step.
-#[inline]
-pub fn check_particle(x: Vec3, v: Vec3, dt: f32, dx: f32) -> Option<BadReason> {
-    if !(x.is_finite() && v.is_finite()) {
-        Some(BadReason::NonFinite)
-    } else if v.length() * dt > MAX_CELLS_PER_STEP * dx {
-        Some(BadReason::TooFast)
-    } else {
-        None
-    }
 }
 
 /// A compute backend: CPU reference or CUDA.

@@ -1,10 +1,10 @@
-//! 3x3 singular value and polar decompositions, single precision.
+//! 3x3 singular value and polar decompositions, in the precision of [`crate::real`].
 //!
 //! Algorithm (ported line for line to `crates/rtmpm-cuda/kernels/svd.cuh`):
 //! 1. one-sided (Hestenes) Jacobi: the columns of `B = A V` are orthogonalised by plane rotations
 //!    applied from the right and accumulated into `V` (a proper rotation by construction). The
 //!    rotation angles are computed from the columns themselves, never from `A^T A`, so small
-//!    singular values keep their accuracy in f32. At most [`MAX_SWEEPS`] cyclic sweeps, stopping
+//!    singular values keep their accuracy in f32 (and f64). At most [`MAX_SWEEPS`] cyclic sweeps, stopping
 //!    early after a sweep without rotation;
 //! 2. the columns of `B` (and `V`) are sorted by decreasing norm, swapping two columns and
 //!    negating one of them so that `det V` stays +1;
@@ -12,13 +12,13 @@
 //!    minimal branching", section 4): `U = Q` is a proper rotation, `sigma = diag(R)` with
 //!    `sigma_1, sigma_2 >= 0` and the sign of `det A` carried by `sigma_3`.
 
-use crate::math::{Mat3, Vec3};
+use crate::math::{Mat3, Real, Vec3};
 
 /// Maximum number of cyclic Jacobi sweeps (3 rotations each); 3x3 converges in 3-5.
 pub const MAX_SWEEPS: usize = 8;
 
 /// Relative tolerance below which two columns count as orthogonal.
-const ORTHO_TOL: f32 = f32::EPSILON;
+const ORTHO_TOL: Real = Real::EPSILON;
 
 /// One Hestenes rotation of columns `p`, `q` of `b`, accumulated into `v`. Returns whether a
 /// rotation was applied.

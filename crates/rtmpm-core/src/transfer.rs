@@ -14,8 +14,6 @@
 //! velocity gradient `L_p = sum_i v_i (x) grad w_ip` kept in the particle's `C`, and either the
 //! USL or the MUSL stress update ([`Update`]).
 
-use crate::math::Vec3;
-
 /// The particle-grid transfer and its shape functions.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Transfer {
@@ -100,12 +98,4 @@ impl SolverSettings {
             t => format!("{}, {}, flip {}", t.name(), self.update.name(), self.flip),
         }
     }
-}
-
-/// PIC/FLIP blend of a particle velocity: `(1 - alpha) v_PIC + alpha (v_p + dv)`, with
-/// `v_PIC = sum_i w_ip v_i` and the FLIP increment `dv = sum_i w_ip (v_i - v_i_old)` (Brackbill &
-/// Ruppel 1986; Stomakhin et al. 2013, eq. 11). Mirrored by `flip_blend` in `kernels/shape.cuh`.
-#[inline]
-pub fn flip_blend(alpha: f32, v_p: Vec3, v_pic: Vec3, dv: Vec3) -> Vec3 {
-    v_pic * (1.0 - alpha) + (v_p + dv) * alpha
 }

@@ -57,21 +57,33 @@ struct GpuCollider {
     unsigned pad;
 };
 
+// Precision: the scalars the step computes with exist in both widths, so that the host has one
+// layout for both (src/layout.rs); kernels read those of their precision under the plain name
+// (`c.dx`), the others carry a suffix. Collider geometry stays float, as on the CPU.
+#ifdef RTMPM_F64
+#define NAME_IF_F32(name) name##_f32
+#define NAME_IF_F64(name) name
+#else
+#define NAME_IF_F32(name) name
+#define NAME_IF_F64(name) name##_f64
+#endif
+
 // Written with an async host-to-device copy on the compute stream before every step.
 struct StepParams {
-    float dt, t;
-    float gravity[3];
+    float NAME_IF_F32(dt), t;
+    float NAME_IF_F32(gravity)[3];
     unsigned always_rebuild;
     float damping;  // settling damping factor on grid velocities (1 = off)
     unsigned pad;
     float rot[RTMPM_MAX_COLLIDERS][9];    // rest -> world rotation at t (column-major)
     float pivot_t[RTMPM_MAX_COLLIDERS][3];
+    double NAME_IF_F64(dt), NAME_IF_F64(gravity)[3];
 };
 
 // Constant for the life of the backend; passed by value to every kernel.
 struct Ctx {
-    float* state;
-    float* scratch;
+    real* state;              // RTMPM_NFIELDS reals per particle (material and id: state_bits)
+    real* scratch;
     real* grid;               // 4 reals per node: mass, momentum (velocity after grid update)
     unsigned* ctl;
     const StepParams* step;
@@ -89,19 +101,24 @@ struct Ctx {
     unsigned* warps;          // 3 per warp: gblock, first, count
     real* grid_aux;           // classic MPM transfers only (else null), 4 reals per node: unused,
                               // dt f_i after P2G, v_old after the grid update, MUSL re-mapped v
-    float origin[3];
-    float dx, inv_dx;
-    float domain_min[3], domain_max[3];
+    float NAME_IF_F32(origin)[3];
+    float NAME_IF_F32(dx), NAME_IF_F32(inv_dx);
+    float NAME_IF_F32(domain_min)[3], NAME_IF_F32(domain_max)[3];
     int n_cells[3];
     int wall_thickness;
     unsigned wall_cond[6];
-    float wall_friction[6];
+    float NAME_IF_F32(wall_friction)[6];
     unsigned n, cap, gblock_cap, pblock_cap, hash_cap, warp_cap, n_colliders, n_buckets;
     unsigned warp_reduce, warp_sort;
     unsigned transfer, update;  // TRANSFER_*, UPDATE_* (shape.cuh)
     float flip;                 // FLIP fraction of the classic transfers
-    unsigned pad0;
+    unsigned pad0, pad1;
+    double NAME_IF_F64(origin)[3];
+    double NAME_IF_F64(dx), NAME_IF_F64(inv_dx);
+    double NAME_IF_F64(domain_min)[3], NAME_IF_F64(domain_max)[3];
+    double NAME_IF_F64(wall_friction)[6];
 };
+static_assert(sizeof(Ctx) == 448 && sizeof(StepParams) == 832, "Ctx/StepParams must match src/layout.rs");
 
 // Read-only parameters in constant memory (seed 001: "constant memory is used for read-only input
 // data"): the step parameters, the materials table and the colliders are read by every thread with
@@ -161,17 +178,25 @@ __device__ __forceinline__ unsigned long long block_code(int bi, int bj, int bk)
 __device__ __forceinline__ int cell_code(int i, int j, int k) { return ((i & 3) << 4) | ((j & 3) << 2) | (k & 3); }
 __device__ __forceinline__ int nb_slot(int di, int dj, int dk) { return (di + 1) * 9 + (dj + 1) * 3 + (dk + 1); }
 
-__device__ __forceinline__ vec3 load_v3(const float* s, unsigned cap, int f, unsigned i) {
+__device__ __forceinline__ vec3 load_v3(const real* s, unsigned cap, int f, unsigned i) {
     return make_v3(s[f * cap + i], s[(f + 1) * cap + i], s[(f + 2) * cap + i]);
 }
-__device__ __forceinline__ void store_v3(float* s, unsigned cap, int f, unsigned i, vec3 v) {
-    s[f * cap + i] = (float)v.x; s[(f + 1) * cap + i] = (float)v.y; s[(f + 2) * cap + i] = (float)v.z;
+__device__ __forceinline__ void store_v3(real* s, unsigned cap, int f, unsigned i, vec3 v) {
+    s[f * cap + i] = v.x; s[(f + 1) * cap + i] = v.y; s[(f + 2) * cap + i] = v.z;
 }
-__device__ __forceinline__ mat3 load_m3(const float* s, unsigned cap, int f, unsigned i) {
+__device__ __forceinline__ mat3 load_m3(const real* s, unsigned cap, int f, unsigned i) {
     mat3 m; for (int c = 0; c < 9; ++c) m.m[c] = s[(f + c) * cap + i]; return m;
 }
-__device__ __forceinline__ void store_m3(float* s, unsigned cap, int f, unsigned i, const mat3& m) {
-    for (int c = 0; c < 9; ++c) s[(f + c) * cap + i] = (float)m.m[c];
+__device__ __forceinline__ void store_m3(real* s, unsigned cap, int f, unsigned i, const mat3& m) {
+    for (int c = 0; c < 9; ++c) s[(f + c) * cap + i] = m.m[c];
+}
+// Integer field of the state (material id, original index): its bits in the low 32 bits of the word.
+__device__ __forceinline__ unsigned state_bits(real w) {
+#ifdef RTMPM_F64
+    return (unsigned)__double_as_longlong(w);
+#else
+    return __float_as_uint(w);
+#endif
 }
 
 // Grid coordinate, stencil base and fractional offset of a position (shape.rs).

@@ -77,10 +77,10 @@ __device__ __forceinline__ void g2p_finish(const Ctx& c, const int* bc, unsigned
     mat3 F = load_m3(c.state, c.cap, F_F, p);
     F = (mat3_identity() + C * dt) * F;
     real plastic = c.state[F_PLASTIC * c.cap + p];
-    GpuMaterial mat = material_at(c, __float_as_uint(c.state[F_MAT * c.cap + p]));
+    GpuMaterial mat = material_at(c, state_bits(c.state[F_MAT * c.cap + p]));
     F = material_project(mat, F, &plastic);
     // Health check before the clamp (the clamp would hide NaN).
-    unsigned id = __float_as_uint(c.state[F_ID * c.cap + p]);
+    unsigned id = state_bits(c.state[F_ID * c.cap + p]);
     real speed = length(v);
     bool finite = isfinite(x.x) && isfinite(x.y) && isfinite(x.z) && isfinite(v.x) && isfinite(v.y) && isfinite(v.z);
     if (!finite || speed * dt > (real)2 * c.dx) {
@@ -106,7 +106,7 @@ __device__ __forceinline__ void g2p_finish(const Ctx& c, const int* bc, unsigned
     store_v3(c.state, c.cap, F_V, p, v);
     store_m3(c.state, c.cap, F_C, p, C);
     store_m3(c.state, c.cap, F_F, p, F);
-    c.state[F_PLASTIC * c.cap + p] = (float)plastic;
+    c.state[F_PLASTIC * c.cap + p] = plastic;
 }
 
 // Interpolation of the classic MPM transfers at one particle (cpu/g2p.rs: g2p_mpm): v_pic =

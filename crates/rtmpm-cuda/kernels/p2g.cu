@@ -160,7 +160,7 @@ extern "C" __global__ void p2g_mpm(Ctx c) {
         vec3 mv = load_v3(c.state, c.cap, F_V, p) * m;
         mat3 C = load_m3(c.state, c.cap, F_C, p);
         mat3 F = load_m3(c.state, c.cap, F_F, p);
-        const GpuMaterial& mat = material_at(c, __float_as_uint(c.state[F_MAT * c.cap + p]));
+        const GpuMaterial& mat = material_at(c, state_bits(c.state[F_MAT * c.cap + p]));
         mat3 tau = material_kirchhoff(mat, F, c.state[F_PLASTIC * c.cap + p], C);
         // grad w in world units is shape_grad / dx.
         mat3 stress = tau * (-(real)step_params(c).dt * vol0 * c.inv_dx);

@@ -43,7 +43,7 @@ __device__ __forceinline__ P2gParticle p2g_particle(const Ctx& c, unsigned p) {
     mat3 C = load_m3(c.state, c.cap, F_C, p);
     mat3 F = load_m3(c.state, c.cap, F_F, p);
     real plastic = c.state[F_PLASTIC * c.cap + p];
-    GpuMaterial mat = material_at(c, __float_as_uint(c.state[F_MAT * c.cap + p]));
+    GpuMaterial mat = material_at(c, state_bits(c.state[F_MAT * c.cap + p]));
     mat3 tau = material_kirchhoff(mat, F, plastic, C);
     real dt = step_params(c).dt;
     q.affine = tau * (-dt * vol0 * (real)4 * c.inv_dx * c.inv_dx) + C * q.m;

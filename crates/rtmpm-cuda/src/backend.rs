@@ -78,9 +78,10 @@ pub struct CudaBackend {
     /// The P2G strategy and its buffers.
     pub(crate) p2g: P2gPlan,
     module: Arc<CudaModule>,
-    state: CudaSlice<f32>,
+    /// Particle state in the backend's precision (see [`crate::state`]).
+    state: CudaSlice<u8>,
     block_coords: CudaSlice<u8>,
-    _scratch: CudaSlice<f32>,
+    _scratch: CudaSlice<u8>,
     pub(crate) grid: CudaSlice<u8>,
     ctl: CudaSlice<u32>,
     step_buf: CudaSlice<u8>,
@@ -227,6 +228,18 @@ impl CudaBackend {
         particles: &Particles,
         options: CudaOptions,
     ) -> Result<CudaBackend, SimError> {
+        // The scene's precision, or the `f64` switch: the whole pipeline in f64.
+        let options = CudaOptions {
+            f64: options.f64 || scene.precision == rtmpm_core::scene::Precision::F64,
+            ..options
+        };
+        if options.f64 && options.p2g == crate::P2gMode::Shared {
+            return Err(SimError::Backend(
+                "CUDA backend: p2g=shared is single precision only (a 12^3 tile of f64 nodes \
+                 exceeds the 48 KiB of static shared memory); use p2g=warp with f64"
+                    .into(),
+            ));
+        }
         let info =
             crate::probe().map_err(|e| SimError::Backend(format!("CUDA unavailable: {e}")))?;
         let n = particles.len();
@@ -341,37 +354,12 @@ impl CudaBackend {
         let n_buckets = gblock_cap * 64 + 1;
         let real_bytes = if options.f64 { 8 } else { 4 };
 
-        // Particle state, SoA.
-        let mut host = vec![0f32; NFIELDS * n];
-        for i in 0..n {
-            let mut put = |f: usize, v: f32| host[f * n + i] = v;
-            for a in 0..3 {
-                put(F_X + a, particles.x[i][a]);
-                put(F_V + a, particles.v[i][a]);
-            }
-            let (c, fm) = (
-                particles.c[i].to_cols_array(),
-                particles.f[i].to_cols_array(),
-            );
-            for e in 0..9 {
-                put(F_C + e, c[e]);
-                put(F_F + e, fm[e]);
-            }
-            put(F_PLASTIC, particles.plastic[i]);
-            put(F_MASS, particles.mass[i]);
-            put(F_VOL0, particles.vol0[i]);
-            let m = particles.material[i];
-            if m as usize >= mats.len() {
-                return Err(SimError::Backend(format!(
-                    "particle {i} has material {m} out of range"
-                )));
-            }
-            put(F_MAT, f32::from_bits(m));
-            put(F_ID, f32::from_bits(i as u32));
-        }
+        // Particle state, SoA, in the backend's precision.
+        let host =
+            crate::state::pack(particles, mats.len(), options.f64).map_err(SimError::Backend)?;
         let state = stream.clone_htod(&host).map_err(err("upload particles"))?;
         let scratch = stream
-            .alloc_zeros::<f32>(NFIELDS * n)
+            .alloc_zeros::<u8>(host.len())
             .map_err(err("alloc scratch"))?;
         let grid = stream
             .alloc_zeros::<u8>(pblock_cap * 64 * 4 * real_bytes)
@@ -399,7 +387,12 @@ impl CudaBackend {
             bufs.push(s);
             Ok(p)
         };
-        let materials = bytes(as_bytes(&mats))?;
+        let materials = if options.f64 {
+            let mats: Vec<_> = mats.iter().map(GpuMaterial::to_f64).collect();
+            bytes(as_bytes(&mats))?
+        } else {
+            bytes(as_bytes(&mats))?
+        };
         let colliders = bytes(as_bytes(&cols))?;
         let mesh_values = bytes(as_bytes(&mesh))?;
         let mut zeros = |len: usize| -> Result<u64, SimError> {
@@ -472,7 +465,14 @@ impl CudaBackend {
             transfer: solver.transfer.code(),
             update: (solver.update == Update::Musl) as u32,
             flip: solver.flip,
-            pad: 0,
+            pad: [0; 2],
+            // The same geometry in f64 (computed in f64 like rtmpm-f64's StepConstants).
+            origin_f64: (scene.domain_min.as_dvec3() - 4.0 * dx as f64).to_array(),
+            dx_f64: dx as f64,
+            inv_dx_f64: 1.0 / dx as f64,
+            domain_min_f64: scene.domain_min.as_dvec3().to_array(),
+            domain_max_f64: scene.domain_max.as_dvec3().to_array(),
+            wall_friction_f64: w.faces.map(|f| f.friction as f64),
         };
         // Read-only parameters in constant memory (kernels/common.cuh); the global copies above
         // serve kernels compiled with -DRTMPM_PARAMS_GLOBAL.
@@ -530,6 +530,8 @@ impl CudaBackend {
             pad: [0; 1],
             rot: [[0.0; 9]; MAX_COLLIDERS],
             pivot_t: [[0.0; 3]; MAX_COLLIDERS],
+            dt_f64: dt as f64,
+            gravity_f64: self.scene.gravity.as_dvec3().to_array(),
         };
         for (k, c) in self.scene.colliders.iter().enumerate() {
             let w = c.angular_velocity;
@@ -640,6 +642,16 @@ impl CudaBackend {
             .map_err(err("read control words"))
     }
 
+    /// Positions and velocities of every particle in original order, in the backend's
+    /// precision widened to f64 (synchronises; for precision tests).
+    pub fn read_x_v_f64(&mut self) -> Result<Vec<[[f64; 3]; 2]>, SimError> {
+        let host = self
+            .stream
+            .clone_dtoh(&self.state)
+            .map_err(err("read particles"))?;
+        crate::state::unpack_x_v_f64(&host, self.n, self.options.f64).map_err(SimError::Backend)
+    }
+
     /// Number of rebuilds of the mapping so far (synchronises).
     pub fn rebuild_count(&mut self) -> Result<u32, SimError> {
         Ok(self.ctl_words()?[CTL_REBUILDS])
@@ -727,7 +739,11 @@ impl CudaBackend {
 
 impl Backend for CudaBackend {
     fn name(&self) -> String {
-        format!("cuda ({})", self.device_name)
+        if self.options.f64 {
+            format!("cuda ({}, f64)", self.device_name)
+        } else {
+            format!("cuda ({})", self.device_name)
+        }
     }
 
     fn num_particles(&self) -> usize {
@@ -795,38 +811,6 @@ impl Backend for CudaBackend {
             .stream
             .clone_dtoh(&self.state)
             .map_err(err("read particles"))?;
-        let n = self.n;
-        *out = Particles::default();
-        let z = Vec3::ZERO;
-        out.x = vec![z; n];
-        out.v = vec![z; n];
-        out.c = vec![Mat3::ZERO; n];
-        out.f = vec![Mat3::ZERO; n];
-        out.plastic = vec![0.0; n];
-        out.mass = vec![0.0; n];
-        out.vol0 = vec![0.0; n];
-        out.material = vec![0; n];
-        let g = |f: usize, i: usize| host[f * n + i];
-        for i in 0..n {
-            let id = g(F_ID, i).to_bits() as usize;
-            if id >= n {
-                return Err(SimError::Backend(format!("CUDA: corrupt particle id {id}")));
-            }
-            out.x[id] = Vec3::new(g(F_X, i), g(F_X + 1, i), g(F_X + 2, i));
-            out.v[id] = Vec3::new(g(F_V, i), g(F_V + 1, i), g(F_V + 2, i));
-            let mut c = [0f32; 9];
-            let mut f = [0f32; 9];
-            for e in 0..9 {
-                c[e] = g(F_C + e, i);
-                f[e] = g(F_F + e, i);
-            }
-            out.c[id] = Mat3::from_cols_array(&c);
-            out.f[id] = Mat3::from_cols_array(&f);
-            out.plastic[id] = g(F_PLASTIC, i);
-            out.mass[id] = g(F_MASS, i);
-            out.vol0[id] = g(F_VOL0, i);
-            out.material[id] = g(F_MAT, i).to_bits();
-        }
-        Ok(())
+        crate::state::unpack(&host, self.n, self.options.f64, out).map_err(SimError::Backend)
     }
 }

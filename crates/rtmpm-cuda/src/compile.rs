@@ -314,7 +314,7 @@ mod tests {
             println!("skipped: libnvrtc.so.13 not found (pip install nvidia-cuda-nvrtc==13.0.*)");
             return;
         }
-        for (fast_math, f64) in [(true, false), (false, false), (true, true)] {
+        for (fast_math, f64) in [(true, false), (false, false), (true, true), (false, true)] {
             let o = KernelOptions {
                 arch: (9, 0),
                 fast_math,

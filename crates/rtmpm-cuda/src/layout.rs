@@ -45,33 +45,53 @@ pub const CTL_WARPS: usize = 8;
 pub const CTL_WORDS: usize = 16;
 
 /// Material parameters on the device: the mirror of `MaterialGpu` in
-/// kernels/material/materials.cuh (88 bytes, every field 4 bytes, no padding). Only the
-/// parameters of the model selected by `kind` are read.
+/// kernels/material/materials.cuh, with `R` the kernels' `real`: f32 (88 bytes, every field 4
+/// bytes, no padding) or f64 (176 bytes, C padding after each i32). Only the parameters of the
+/// model selected by `kind` are read.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default)]
-pub struct GpuMaterial {
+pub struct GpuMaterial<R = f32> {
     /// Model, in the order of `rtmpm_core::material::Model`: 0 fluid, 1 fixed corotated,
     /// 2 neo-Hookean, 3 snow, 4 Drucker-Prager, 5 von Mises.
     pub kind: i32,
     /// Fluid: bulk modulus.
-    pub fluid_bulk_modulus: f32,
+    pub fluid_bulk_modulus: R,
     /// Fluid: 0 linear, 1 Tait.
     pub fluid_eos: i32,
-    pub fluid_gamma: f32,
-    pub fluid_viscosity: f32,
+    pub fluid_gamma: R,
+    pub fluid_viscosity: R,
     /// Fixed corotated: mu, lambda.
-    pub fixed_corotated: [f32; 2],
+    pub fixed_corotated: [R; 2],
     /// Neo-Hookean: mu, lambda.
-    pub neo_hookean: [f32; 2],
+    pub neo_hookean: [R; 2],
     /// Snow: mu, lambda, critical compression, critical stretch, hardening.
-    pub snow: [f32; 5],
+    pub snow: [R; 5],
     /// Drucker-Prager: mu, lambda, friction angle (degrees), cohesion.
-    pub drucker_prager: [f32; 4],
+    pub drucker_prager: [R; 4],
     /// von Mises: mu, lambda, yield stress, hardening modulus.
-    pub von_mises: [f32; 4],
+    pub von_mises: [R; 4],
 }
 
 const _: () = assert!(std::mem::size_of::<GpuMaterial>() == 88);
+const _: () = assert!(std::mem::size_of::<GpuMaterial<f64>>() == 176);
+
+impl GpuMaterial<f32> {
+    /// The same parameters for kernels compiled with `RTMPM_F64` (exact widening).
+    pub fn to_f64(&self) -> GpuMaterial<f64> {
+        GpuMaterial {
+            kind: self.kind,
+            fluid_bulk_modulus: self.fluid_bulk_modulus.into(),
+            fluid_eos: self.fluid_eos,
+            fluid_gamma: self.fluid_gamma.into(),
+            fluid_viscosity: self.fluid_viscosity.into(),
+            fixed_corotated: self.fixed_corotated.map(f64::from),
+            neo_hookean: self.neo_hookean.map(f64::from),
+            snow: self.snow.map(f64::from),
+            drucker_prager: self.drucker_prager.map(f64::from),
+            von_mises: self.von_mises.map(f64::from),
+        }
+    }
+}
 
 /// Collider on the device.
 #[repr(C)]
@@ -120,6 +140,11 @@ pub struct StepParams {
     pub rot: [[f32; 9]; MAX_COLLIDERS],
     /// Collider pivots at t.
     pub pivot_t: [[f32; 3]; MAX_COLLIDERS],
+    /// `dt` and `gravity` in f64, read instead of the f32 ones by kernels compiled with
+    /// `RTMPM_F64`.
+    pub dt_f64: f64,
+    /// See `dt_f64`.
+    pub gravity_f64: [f64; 3],
 }
 
 /// Kernel context passed by value to every kernel.
@@ -170,8 +195,25 @@ pub struct Ctx {
     pub update: u32,
     /// FLIP fraction.
     pub flip: f32,
-    pub pad: u32,
+    pub pad: [u32; 2],
+    /// The geometry in f64, read instead of the f32 fields above by kernels compiled with
+    /// `RTMPM_F64` (`common.cuh` swaps the names).
+    pub origin_f64: [f64; 3],
+    /// See `origin_f64`.
+    pub dx_f64: f64,
+    /// See `origin_f64`.
+    pub inv_dx_f64: f64,
+    /// See `origin_f64`.
+    pub domain_min_f64: [f64; 3],
+    /// See `origin_f64`.
+    pub domain_max_f64: [f64; 3],
+    /// See `origin_f64`.
+    pub wall_friction_f64: [f64; 6],
 }
+
+// One layout for both precisions, checked on both sides (`common.cuh` asserts the same sizes).
+const _: () = assert!(std::mem::size_of::<Ctx>() == 448);
+const _: () = assert!(std::mem::size_of::<StepParams>() == 832);
 
 // SAFETY: plain old data with the C layout of the kernel structs.
 unsafe impl cudarc::driver::DeviceRepr for Ctx {}

@@ -18,13 +18,19 @@
 //! 4. [`g2p`] (`kernels/g2p.cu`), **merged**: interpolation + F update + plasticity + advection +
 //!    domain clamp + free-zone check + health check (first bad particle, max speed).
 //!
-//! Particle state: structure of arrays of 32-bit fields, field `f` of particle `i` at
-//! `state[f * capacity + i]` ([`layout`] lists the fields); particles are physically reordered at
-//! every rebuild and carry their original index, [`CudaBackend`] returns them in original order.
+//! Particle state: structure of arrays of `real` fields (f32, or f64 with `precision = "f64"`),
+//! field `f` of particle `i` at `state[f * capacity + i]` ([`layout`] lists the fields,
+//! [`state`] converts at upload and download); particles are physically reordered at every
+//! rebuild and carry their original index, [`CudaBackend`] returns them in original order.
 //! Grid nodes: 4 reals (mass, momentum/velocity) per node, 64 nodes per pblock.
 //!
 //! Read-only parameters (step parameters, materials, colliders) are read from constant memory
 //! (seed 001), see `kernels/common.cuh`.
+//!
+//! Precision: with `[solver] precision = "f64"` (or `--precision f64`) the kernels are compiled
+//! with `RTMPM_F64` (`real` = double, NVRTC output cached per option set) and the particle
+//! state, the grid, the material parameters and the per-step scalars (dx, origin, dt, gravity,
+//! wall friction) are f64. Collider geometry stays f32, as on the CPU.
 //!
 //! Materials: every model of rtmpm-core, ported line for line in `kernels/material/*.cuh` (with
 //! `kernels/svd.cuh`), dispatched on `MaterialGpu::kind`.
@@ -39,6 +45,7 @@ pub mod p2g;
 pub mod p2g_reverse_map;
 pub mod p2g_sort;
 pub mod rebuild;
+pub mod state;
 
 pub use backend::CudaBackend;
 pub use bench::{KernelTimings, bench_kernels, measure_copy_bandwidth};
@@ -178,7 +185,8 @@ pub struct CudaOptions {
     pub fast_math: bool,
     /// Capture one step in a CUDA graph and replay it (used while dt stays fixed).
     pub graph: bool,
-    /// Double precision arithmetic in the kernels (state stays f32).
+    /// Double precision: the whole pipeline in f64 (also set by the scene's
+    /// `[solver] precision = "f64"`).
     pub f64: bool,
     /// Capacity overrides (gblocks, pblocks); `None`: from the initial layout with headroom.
     pub gblock_capacity: Option<usize>,

@@ -59,6 +59,7 @@ fn scene(dx: f32) -> Scene {
         render: Default::default(),
         seed: 0,
         solver: Default::default(),
+        precision: Default::default(),
     }
 }
 

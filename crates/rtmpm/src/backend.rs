@@ -3,6 +3,7 @@
 use anyhow::{Result, bail};
 use clap::ValueEnum;
 use rtmpm_core::cpu::CpuBackend;
+use rtmpm_core::scene::Precision;
 use rtmpm_core::sim::Backend;
 use rtmpm_core::{Particles, Scene};
 use rtmpm_cuda::CudaOptions;
@@ -18,7 +19,19 @@ pub enum BackendKind {
     Cuda,
 }
 
-/// Construct the backend; says which one `auto` picked and why.
+/// The CPU backend in the scene's precision (`[solver] precision`).
+fn cpu_backend(
+    scene: &Scene,
+    particles: Particles,
+    threads: Option<usize>,
+) -> Result<Box<dyn Backend>> {
+    Ok(match scene.precision {
+        Precision::F32 => Box::new(CpuBackend::new(scene, particles, threads)?),
+        Precision::F64 => Box::new(rtmpm_f64::cpu::CpuBackend::new(scene, particles, threads)?),
+    })
+}
+
+/// Construct the backend, in the scene's precision; says which one `auto` picked and why.
 pub fn make_backend(
     kind: BackendKind,
     scene: &Scene,
@@ -27,7 +40,7 @@ pub fn make_backend(
     cuda: &CudaOptions,
 ) -> Result<Box<dyn Backend>> {
     match kind {
-        BackendKind::Cpu => Ok(Box::new(CpuBackend::new(scene, particles, threads)?)),
+        BackendKind::Cpu => cpu_backend(scene, particles, threads),
         BackendKind::Cuda => match cuda_backend(scene, &particles, cuda) {
             Ok(b) => Ok(b),
             Err(why) => {
@@ -40,9 +53,9 @@ pub fn make_backend(
                 Ok(b)
             }
             Err(why) => {
-                let b = CpuBackend::new(scene, particles, threads)?;
+                let b = cpu_backend(scene, particles, threads)?;
                 eprintln!("backend: auto -> {} (CUDA not usable: {why})", b.name());
-                Ok(Box::new(b))
+                Ok(b)
             }
         },
     }

@@ -36,6 +36,10 @@ pub struct BenchArgs {
     /// `p2g=warp|shared|reverse_map|sort`.
     #[arg(long, value_name = "LIST", default_value = "")]
     pub cuda_options: rtmpm_cuda::CudaOptions,
+    /// Floating-point precision of the whole step: f32 or f64 (default: the scene's
+    /// `[solver] precision`, else f32).
+    #[arg(long, value_name = "f32|f64")]
+    pub precision: Option<rtmpm_core::scene::Precision>,
     /// CPU worker threads (default: one per core).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -99,6 +103,10 @@ pub fn bench(args: BenchArgs) -> Result<()> {
             (Scene::from_toml(&text, "<bench fluid block>")?, label)
         }
     };
+    let mut scene = scene;
+    if let Some(p) = args.precision {
+        scene.precision = p;
+    }
     let StepMode::Fixed { dt } = scene.time.step else {
         bail!("benchmarks need a fixed time step: set `time.dt` in the scene");
     };

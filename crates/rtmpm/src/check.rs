@@ -43,5 +43,6 @@ pub fn check(path: &Path) -> Result<()> {
     println!("  solver      {}", scene.solver.describe());
     println!("  colliders   {}", scene.colliders.len());
     println!("  particles   {}", particles.len());
+    println!("  precision   {}", scene.precision.name());
     Ok(())
 }

@@ -41,6 +41,10 @@ pub struct RunArgs {
     /// `p2g=warp|shared|reverse_map|sort`.
     #[arg(long, value_name = "LIST", default_value = "")]
     pub cuda_options: rtmpm_cuda::CudaOptions,
+    /// Floating-point precision of the whole step: f32 or f64 (default: the scene's
+    /// `[solver] precision`, else f32).
+    #[arg(long, value_name = "f32|f64")]
+    pub precision: Option<rtmpm_core::scene::Precision>,
     /// Write no frame files (for timing).
     #[arg(long)]
     pub no_output: bool,
@@ -87,6 +91,10 @@ pub fn run(args: RunArgs) -> Result<()> {
         }
         (None, None) => String::new(),
     };
+    let mut scene = scene;
+    if let Some(p) = args.precision {
+        scene.precision = p;
+    }
     let n = particles.len();
     let out_dir = args.out.clone().unwrap_or_else(|| scene.output.dir.clone());
     let backend = make_backend(

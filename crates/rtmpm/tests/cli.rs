@@ -189,3 +189,25 @@ fn steps_limit_stops_early() {
     assert!(o.status.success(), "{t}");
     assert!(t.contains("steps        3"), "{t}");
 }
+
+#[test]
+fn precision_flag_selects_the_f64_backend() {
+    let dir = scratch("precision");
+    let run = rtmpm(&[
+        "run",
+        &data("small_drop.toml"),
+        "--backend",
+        "cpu",
+        "--precision",
+        "f64",
+        "--frames",
+        "1",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(run.status.success(), "{}", text(&run));
+    assert!(text(&run).contains("threads, f64)"), "{}", text(&run));
+    let bad = rtmpm(&["run", &data("small_drop.toml"), "--precision", "f16"]);
+    assert!(!bad.status.success());
+    assert!(text(&bad).contains("expected f32 or f64"), "{}", text(&bad));
+}

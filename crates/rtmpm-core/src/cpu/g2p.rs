@@ -2,15 +2,15 @@
 //! plastic return mapping, advection and health check.
 
 use super::CpuBackend;
-use crate::math::{Mat3, Vec3, outer};
-use crate::shape::{Stencil, inv_d};
+use crate::math::{Mat3, Real, Vec3, outer};
+use crate::real;
+use crate::shape::{Stencil, flip_blend, inv_d};
 use crate::sim::{BadParticle, check_particle};
-use crate::transfer::flip_blend;
 use rayon::prelude::*;
 
 /// Gather velocities back to the particles and advance them. Returns the largest particle speed
 /// and the lowest-index bad particle, if any.
-pub fn g2p(b: &mut CpuBackend, dt: f32) -> (f32, Option<BadParticle>) {
+pub fn g2p(b: &mut CpuBackend, dt: Real) -> (Real, Option<BadParticle>) {
     let c = &b.consts;
     let (layout, grid, bases) = (&b.layout, &b.grid, &b.bases);
     let inv_d = inv_d(c.dx);
@@ -39,14 +39,14 @@ pub fn g2p(b: &mut CpuBackend, dt: f32) -> (f32, Option<BadParticle>) {
                         let n = grid[nodes[i * 9 + j * 3 + k] as usize];
                         let wv = (wij * s.w[2][k]) * Vec3::new(n[1], n[2], n[3]);
                         sum_j += wv;
-                        b2_j += k as f32 * wv;
+                        b2_j += k as Real * wv;
                     }
                     sum_i += sum_j;
-                    b1_i += j as f32 * sum_j;
+                    b1_i += j as Real * sum_j;
                     b2_i += b2_j;
                 }
                 new_v += sum_i;
-                b0 += i as f32 * sum_i;
+                b0 += i as Real * sum_i;
                 b1 += b1_i;
                 b2 += b2_i;
             }
@@ -67,14 +67,14 @@ pub fn g2p(b: &mut CpuBackend, dt: f32) -> (f32, Option<BadParticle>) {
             };
             (speed, bad)
         })
-        .reduce(|| (0.0f32, None), worst)
+        .reduce(|| (0.0, None), worst)
 }
 
 /// Combine the (max speed, lowest-index bad particle) of two ranges of particles.
 fn worst(
-    (s1, b1): (f32, Option<BadParticle>),
-    (s2, b2): (f32, Option<BadParticle>),
-) -> (f32, Option<BadParticle>) {
+    (s1, b1): (Real, Option<BadParticle>),
+    (s2, b2): (Real, Option<BadParticle>),
+) -> (Real, Option<BadParticle>) {
     let bad = match (b1, b2) {
         (Some(a), Some(b)) => Some(if a.index <= b.index { a } else { b }),
         (a, b) => a.or(b),
@@ -88,10 +88,10 @@ fn worst(
 /// re-mapped velocities with MUSL) updates `F = (I + dt L) F` and is kept in the particle's `C`.
 /// With USL the particle velocity is the PIC/FLIP blend; with MUSL [`g2p_mpm_velocity`] has
 /// already set it.
-pub fn g2p_mpm(b: &mut CpuBackend, dt: f32, musl: bool) -> (f32, Option<BadParticle>) {
+pub fn g2p_mpm(b: &mut CpuBackend, dt: Real, musl: bool) -> (Real, Option<BadParticle>) {
     let c = &b.consts;
     let (layout, grid, aux, bases) = (&b.layout, &b.grid, &b.grid_aux, &b.bases);
-    let (transfer, alpha) = (c.solver.transfer, c.solver.flip);
+    let (transfer, alpha) = (c.solver.transfer, real::real(c.solver.flip));
     let p = &mut b.particles;
     let materials = &p.material;
     p.x.par_iter_mut()
@@ -134,7 +134,7 @@ pub fn g2p_mpm(b: &mut CpuBackend, dt: f32, musl: bool) -> (f32, Option<BadParti
             let speed = if v.is_finite() { v.length() } else { 0.0 };
             (speed, bad)
         })
-        .reduce(|| (0.0f32, None), worst)
+        .reduce(|| (0.0, None), worst)
 }
 
 /// MUSL, first pass: the PIC/FLIP blend of the particle velocities only (positions and `F` wait
@@ -142,7 +142,7 @@ pub fn g2p_mpm(b: &mut CpuBackend, dt: f32, musl: bool) -> (f32, Option<BadParti
 pub fn g2p_mpm_velocity(b: &mut CpuBackend) {
     let c = &b.consts;
     let (layout, grid, aux, bases) = (&b.layout, &b.grid, &b.grid_aux, &b.bases);
-    let (transfer, alpha) = (c.solver.transfer, c.solver.flip);
+    let (transfer, alpha) = (c.solver.transfer, real::real(c.solver.flip));
     let p = &mut b.particles;
     p.v.par_iter_mut()
         .zip(p.x.par_iter())

@@ -2,7 +2,8 @@
 
 use super::{CpuBackend, GRID_PAD, StepConstants};
 use crate::grid::codes::{BLOCK_NODES, BLOCK_SIZE};
-use crate::math::{IVec3, Vec3};
+use crate::math::{IVec3, Real, ToReal, Vec3};
+use crate::real;
 use crate::transfer::Transfer;
 use rayon::prelude::*;
 
@@ -23,7 +24,7 @@ fn boundary(c: &StepConstants, idx: IVec3, mut v: Vec3, t: f32) -> Vec3 {
     let rel = idx - IVec3::splat(GRID_PAD);
     v = c.walls.apply([rel.x, rel.y, rel.z], c.n_cells, v);
     if !c.colliders.is_empty() {
-        let xw = c.origin + idx.as_vec3() * c.dx;
+        let xw = c.origin + idx.to_real() * c.dx;
         for col in &c.colliders {
             if let Some((n, vc)) = col.query(xw, t) {
                 v = vc + col.rule.apply(v - vc, n);
@@ -36,9 +37,9 @@ fn boundary(c: &StepConstants, idx: IVec3, mut v: Vec3, t: f32) -> Vec3 {
 /// Turn node momentum into velocity, add gravity, damp (settling) and apply boundary conditions. For the classic
 /// MPM transfers the internal force (times dt) comes from `grid_aux`, which then keeps the
 /// velocity before the update, `v_old = p / m` (no force, no boundary condition), for FLIP.
-pub fn grid_update(b: &mut CpuBackend, dt: f32, t: f32) {
+pub fn grid_update(b: &mut CpuBackend, dt: Real, t: f32) {
     let c = &b.consts;
-    let damp = c.damping.factor(dt, t);
+    let damp = real::real(c.damping.factor(real::to_f32(dt), t));
     let coords = &b.layout.block_coords;
     if c.solver.transfer == Transfer::Mls {
         b.grid

@@ -1,7 +1,8 @@
 //! The CPU reference backend: explicit MLS-MPM (APIC, quadratic B-splines) or, per scene, the
 //! classic MPM transfers (uGIMP or linear hats, USL or MUSL, PIC/FLIP; see [`crate::transfer`]),
-//! f32, parallel with rayon and deterministic: the same scene gives the same result bit for bit
-//! whatever the number of threads.
+//! parallel with rayon and deterministic: the same scene gives the same result bit for bit
+//! whatever the number of threads. Every quantity of the step is a [`Real`]: f32 in this crate,
+//! f64 where `rtmpm-f64` compiles these files again (see [`crate::real`]).
 //!
 //! One step is four stages, each in its own file (MUSL adds a re-map: `g2p_mpm_velocity`,
 //! `p2g_musl`, `grid_update_musl` before the final G2P):
@@ -23,9 +24,10 @@ use crate::Particles;
 use crate::boundary::{Collider, Walls};
 use crate::grid::BlockLayout;
 use crate::material::Material;
-use crate::math::{IVec3, Vec3};
+use crate::math::{IVec3, Real, Vec3};
+use crate::real;
 use crate::scene::Scene;
-use crate::sim::{Backend, BadParticle, SimError};
+use crate::sim::{self, Backend, BadParticle, SimError};
 use crate::transfer::{SolverSettings, Transfer, Update};
 
 /// Grid nodes of padding below the domain's min corner (one block), so indices stay non-negative.
@@ -34,8 +36,8 @@ pub const GRID_PAD: i32 = 4;
 /// Read-only per-scene constants of a step.
 #[derive(Clone, Debug)]
 pub struct StepConstants {
-    pub dx: f32,
-    pub inv_dx: f32,
+    pub dx: Real,
+    pub inv_dx: Real,
     /// World position of grid node (0, 0, 0): the domain's min corner minus [`GRID_PAD`] cells.
     pub origin: Vec3,
     pub domain_min: Vec3,
@@ -55,24 +57,25 @@ impl StepConstants {
     /// Constants of a scene.
     pub fn from_scene(scene: &Scene) -> StepConstants {
         StepConstants {
-            dx: scene.dx,
-            inv_dx: 1.0 / scene.dx,
-            origin: scene.domain_min - Vec3::splat(GRID_PAD as f32 * scene.dx),
-            domain_min: scene.domain_min,
-            domain_max: scene.domain_max,
+            dx: real::real(scene.dx),
+            inv_dx: 1.0 / real::real(scene.dx),
+            origin: real::vec3(scene.domain_min)
+                - Vec3::splat(GRID_PAD as Real * real::real(scene.dx)),
+            domain_min: real::vec3(scene.domain_min),
+            domain_max: real::vec3(scene.domain_max),
             n_cells: scene.n_cells(),
-            gravity: scene.gravity,
-            walls: scene.walls.clone(),
+            gravity: real::vec3(scene.gravity),
+            walls: real::walls(&scene.walls),
             damping: scene.time.damping,
-            colliders: scene.colliders.clone(),
-            materials: scene.materials.clone(),
+            colliders: real::colliders(&scene.colliders),
+            materials: real::materials(&scene.materials),
             solver: scene.solver,
         }
     }
 }
 
 /// Grid node: mass, then momentum (after P2G) or velocity (after the grid update).
-pub type Node = [f32; 4];
+pub type Node = [Real; 4];
 
 /// The CPU backend's state.
 pub struct CpuBackend {
@@ -100,16 +103,16 @@ pub struct CpuBackend {
     /// Accumulated wall time of each stage: rebuild, p2g, grid update, g2p (seconds).
     pub stage_seconds: [f64; 4],
     pool: Option<rayon::ThreadPool>,
-    max_speed: f32,
+    max_speed: Real,
     bad: Option<BadParticle>,
 }
 
 impl CpuBackend {
-    /// A backend for `scene` starting from `particles`; `threads` fixes the number of worker
-    /// threads (None: rayon's default, one per core).
+    /// A backend for `scene` starting from `particles` (converted to [`Real`]); `threads` fixes
+    /// the number of worker threads (None: rayon's default, one per core).
     pub fn new(
         scene: &Scene,
-        particles: Particles,
+        particles: sim::Particles,
         threads: Option<usize>,
     ) -> Result<Self, SimError> {
         Self::from_constants(StepConstants::from_scene(scene), particles, threads)
@@ -118,9 +121,10 @@ impl CpuBackend {
     /// A backend from explicit step constants (tests, benchmarks).
     pub fn from_constants(
         consts: StepConstants,
-        particles: Particles,
+        particles: sim::Particles,
         threads: Option<usize>,
     ) -> Result<Self, SimError> {
+        let particles = real::particles(particles);
         let pool = match threads {
             Some(n) => Some(
                 rayon::ThreadPoolBuilder::new()
@@ -130,7 +134,7 @@ impl CpuBackend {
             ),
             None => None,
         };
-        let max_speed = particles.v.iter().map(|v| v.length()).fold(0.0, f32::max);
+        let max_speed = particles.v.iter().map(|v| v.length()).fold(0.0, Real::max);
         Ok(CpuBackend {
             consts,
             ids: (0..particles.len() as u32).collect(),
@@ -157,7 +161,7 @@ impl CpuBackend {
             .map_or_else(rayon::current_num_threads, |p| p.current_num_threads())
     }
 
-    fn step_inner(&mut self, dt: f32, t: f32) {
+    fn step_inner(&mut self, dt: Real, t: f32) {
         let t0 = std::time::Instant::now();
         rebuild::rebuild(self);
         let t1 = std::time::Instant::now();
@@ -204,7 +208,10 @@ impl CpuBackend {
 
 impl Backend for CpuBackend {
     fn name(&self) -> String {
-        format!("cpu ({} threads)", self.threads())
+        match real::PRECISION {
+            "f32" => format!("cpu ({} threads)", self.threads()),
+            p => format!("cpu ({} threads, {p})", self.threads()),
+        }
     }
 
     fn num_particles(&self) -> usize {
@@ -212,6 +219,7 @@ impl Backend for CpuBackend {
     }
 
     fn step(&mut self, dt: f32, t: f32) -> Result<(), SimError> {
+        let dt = real::real(dt);
         match self.pool.take() {
             Some(pool) => {
                 pool.install(|| self.step_inner(dt, t));
@@ -223,26 +231,34 @@ impl Backend for CpuBackend {
     }
 
     fn max_speed(&mut self) -> Result<f32, SimError> {
-        Ok(self.max_speed)
+        Ok(real::to_f32(self.max_speed))
     }
 
     fn check(&mut self) -> Result<Option<BadParticle>, SimError> {
         Ok(self.bad)
     }
 
-    fn read_particles(&mut self, out: &mut Particles) -> Result<(), SimError> {
-        // Back to the original order.
-        out.clone_from(&self.particles);
+    fn read_particles(&mut self, out: &mut sim::Particles) -> Result<(), SimError> {
+        // Back to the original order, and to the interface's f32.
         let p = &self.particles;
+        let n = p.len();
+        out.x.resize(n, Default::default());
+        out.v.resize(n, Default::default());
+        out.c.resize(n, Default::default());
+        out.f.resize(n, Default::default());
+        out.plastic.resize(n, 0.0);
+        out.mass.resize(n, 0.0);
+        out.vol0.resize(n, 0.0);
+        out.material.resize(n, 0);
         for (i, &id) in self.ids.iter().enumerate() {
             let id = id as usize;
-            out.x[id] = p.x[i];
-            out.v[id] = p.v[i];
-            out.c[id] = p.c[i];
-            out.f[id] = p.f[i];
-            out.plastic[id] = p.plastic[i];
-            out.mass[id] = p.mass[i];
-            out.vol0[id] = p.vol0[i];
+            out.x[id] = real::vec3_to_f32(p.x[i]);
+            out.v[id] = real::vec3_to_f32(p.v[i]);
+            out.c[id] = real::mat3_to_f32(p.c[i]);
+            out.f[id] = real::mat3_to_f32(p.f[i]);
+            out.plastic[id] = real::to_f32(p.plastic[i]);
+            out.mass[id] = real::to_f32(p.mass[i]);
+            out.vol0[id] = real::to_f32(p.vol0[i]);
             out.material[id] = p.material[i];
         }
         Ok(())

@@ -8,7 +8,7 @@
 //! fixed order, whatever the number of threads.
 
 use super::CpuBackend;
-use crate::math::{Mat3, Vec3};
+use crate::math::{Mat3, Real, Vec3};
 use crate::shape::{Stencil, inv_d};
 use rayon::prelude::*;
 
@@ -38,7 +38,7 @@ impl<T> GridPtr<T> {
 }
 
 /// Scatter particle mass and momentum to the grid.
-pub fn p2g(b: &mut CpuBackend, dt: f32) {
+pub fn p2g(b: &mut CpuBackend, dt: Real) {
     let n_nodes = b.layout.node_count();
     b.grid.clear();
     b.grid.resize(n_nodes, [0.0; 4]);
@@ -84,7 +84,7 @@ pub fn p2g(b: &mut CpuBackend, dt: f32) {
 /// P2G of the classic MPM transfers (uGIMP, linear hats): mass and momentum into the nodes,
 /// `dt f_i = -dt sum_p V0_p tau_p grad w_ip` (`V sigma = V0 tau`) into `grid_aux`, kept apart so
 /// that the grid update can keep the velocity before the update for FLIP.
-pub fn p2g_mpm(b: &mut CpuBackend, dt: f32) {
+pub fn p2g_mpm(b: &mut CpuBackend, dt: Real) {
     let n_nodes = b.layout.node_count();
     b.grid.clear();
     b.grid.resize(n_nodes, [0.0; 4]);

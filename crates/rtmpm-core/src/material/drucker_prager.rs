@@ -1,12 +1,12 @@
 //! Drucker-Prager sand, Klar et al. 2016 ("Drucker-Prager elastoplasticity for sand animation"):
 //! St.Venant-Kirchhoff elasticity with Hencky strain and a return mapping in log-strain space.
 
-use crate::math::{Mat3, Vec3};
+use crate::math::{Mat3, Real, Vec3};
 use crate::svd::svd3;
 
 /// Singular values are clamped to at least this value before `ln` (degenerate or inverted `F`):
 /// the Hencky strain stays finite (`ln(1e-4) ~ -9.2`), i.e. a very compressed, uninverted state.
-pub const HENCKY_SIGMA_MIN: f32 = 1e-4;
+pub const HENCKY_SIGMA_MIN: Real = 1e-4;
 
 /// Hencky (logarithmic) principal strain `ln(max(sigma, HENCKY_SIGMA_MIN))`.
 pub fn hencky_strain(sigma: Vec3) -> Vec3 {
@@ -15,12 +15,12 @@ pub fn hencky_strain(sigma: Vec3) -> Vec3 {
 
 /// Principal Kirchhoff stress of St.Venant-Kirchhoff with Hencky strain:
 /// `2 mu eps + lambda tr(eps)` (Klar 2016, eq. 26 times `F^T`).
-pub fn hencky_principal_stress(eps: Vec3, mu: f32, lambda: f32) -> Vec3 {
+pub fn hencky_principal_stress(eps: Vec3, mu: Real, lambda: Real) -> Vec3 {
     2.0 * mu * eps + Vec3::splat(lambda * (eps.x + eps.y + eps.z))
 }
 
 /// Kirchhoff stress `tau = U (2 mu eps + lambda tr(eps) I) U^T`, `eps = ln(sigma)`, `F = U sigma V^T`.
-pub fn hencky_kirchhoff(f: Mat3, mu: f32, lambda: f32) -> Mat3 {
+pub fn hencky_kirchhoff(f: Mat3, mu: Real, lambda: Real) -> Mat3 {
     let (u, sigma, _) = svd3(f);
     let t = hencky_principal_stress(hencky_strain(sigma), mu, lambda);
     u * Mat3::from_diagonal(t) * u.transpose()
@@ -45,26 +45,26 @@ pub enum Cone {
 #[derive(Clone, Debug, PartialEq)]
 pub struct DruckerPrager {
     /// Shear modulus mu (Pa).
-    pub mu: f32,
+    pub mu: Real,
     /// First Lamé parameter lambda (Pa).
-    pub lambda: f32,
+    pub lambda: Real,
     /// Friction angle (degrees).
-    pub friction_angle: f32,
+    pub friction_angle: Real,
     /// How the cone is fitted to Mohr-Coulomb at that friction angle.
     pub cone: Cone,
     /// Cohesion, as a log-strain shift of the cone tip (0 = dry sand).
-    pub cohesion: f32,
+    pub cohesion: Real,
 }
 
 impl DruckerPrager {
     /// From Young's modulus (Pa), Poisson's ratio, friction angle (degrees), the cone's fit and
     /// cohesion.
     pub fn new(
-        youngs_modulus: f32,
-        poisson_ratio: f32,
-        friction_angle: f32,
+        youngs_modulus: Real,
+        poisson_ratio: Real,
+        friction_angle: Real,
         cone: Cone,
-        cohesion: f32,
+        cohesion: Real,
     ) -> Self {
         let (mu, lambda) = super::lame(youngs_modulus, poisson_ratio);
         Self {
@@ -79,11 +79,11 @@ impl DruckerPrager {
     /// Cone slope alpha of the yield surface `||dev tau|| + alpha tr(tau) <= 0`:
     /// compression cone `sqrt(2/3) 2 sin(phi) / (3 - sin(phi))` (Klar 2016, eq. 27), or
     /// plane-strain cone `sqrt(2) sin(phi) / 3` (see [`Cone::PlaneStrain`]).
-    pub fn alpha(&self) -> f32 {
+    pub fn alpha(&self) -> Real {
         let s = self.friction_angle.to_radians().sin();
         match self.cone {
-            Cone::Compression => (2.0f32 / 3.0).sqrt() * 2.0 * s / (3.0 - s),
-            Cone::PlaneStrain => 2.0f32.sqrt() * s / 3.0,
+            Cone::Compression => Real::sqrt(2.0 / 3.0) * 2.0 * s / (3.0 - s),
+            Cone::PlaneStrain => Real::sqrt(2.0) * s / 3.0,
         }
     }
 
@@ -95,7 +95,7 @@ impl DruckerPrager {
     /// Return mapping on the principal log strain (Klar 2016, algorithm 2 / section 7.3, d = 3),
     /// with the cone tip shifted by the cohesion `c`: `eps' = eps - c`, project `eps'`, add `c`
     /// back. Returns the projected principal log strain and the plastic multiplier (0 = elastic).
-    pub fn project_strain(&self, eps: Vec3) -> (Vec3, f32) {
+    pub fn project_strain(&self, eps: Vec3) -> (Vec3, Real) {
         let c = Vec3::splat(self.cohesion);
         let e = eps - c;
         let tr = e.x + e.y + e.z;
@@ -118,7 +118,7 @@ impl DruckerPrager {
 
     /// Plastic projection of the trial elastic `F`; `q` accumulates the plastic multipliers.
     /// Elastic states return `f_trial` unchanged.
-    pub fn project(&self, f_trial: Mat3, q: &mut f32) -> Mat3 {
+    pub fn project(&self, f_trial: Mat3, q: &mut Real) -> Mat3 {
         let (u, sigma, v) = svd3(f_trial);
         let (h, dq) = self.project_strain(hencky_strain(sigma));
         if dq <= 0.0 {

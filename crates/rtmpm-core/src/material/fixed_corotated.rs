@@ -1,22 +1,22 @@
 //! FixedCorotated hyperelasticity (Stomakhin et al. 2012, "Energetically consistent invertible
 //! elasticity").
 
-use crate::math::{Mat3, Vec3};
+use crate::math::{Mat3, Real, Vec3};
 use crate::svd::polar;
 
 /// FixedCorotated hyperelastic solid.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FixedCorotated {
     /// Shear modulus mu (Pa).
-    pub mu: f32,
+    pub mu: Real,
     /// First Lamé parameter lambda (Pa).
-    pub lambda: f32,
+    pub lambda: Real,
 }
 
 /// Kirchhoff stress of the FixedCorotated model with Lamé parameters `mu`, `lambda`:
 /// `tau = P F^T = 2 mu (F - R) F^T + lambda (J - 1) J I` (Stomakhin 2012, eq. 2, with `R` the
 /// rotation of the polar decomposition of `F`; well defined for inverted `F`).
-pub fn fixed_corotated_kirchhoff(f: Mat3, mu: f32, lambda: f32) -> Mat3 {
+pub fn fixed_corotated_kirchhoff(f: Mat3, mu: Real, lambda: Real) -> Mat3 {
     let (r, _) = polar(f);
     let j = f.determinant();
     (f - r) * f.transpose() * (2.0 * mu) + Mat3::from_diagonal(Vec3::splat(lambda * (j - 1.0) * j))
@@ -24,7 +24,7 @@ pub fn fixed_corotated_kirchhoff(f: Mat3, mu: f32, lambda: f32) -> Mat3 {
 
 impl FixedCorotated {
     /// From Young's modulus (Pa) and Poisson's ratio.
-    pub fn from_young_poisson(youngs_modulus: f32, poisson_ratio: f32) -> Self {
+    pub fn from_young_poisson(youngs_modulus: Real, poisson_ratio: Real) -> Self {
         let (mu, lambda) = super::lame(youngs_modulus, poisson_ratio);
         Self { mu, lambda }
     }
@@ -36,7 +36,7 @@ impl FixedCorotated {
 
     /// Strain energy density per reference volume (Stomakhin et al. 2012):
     /// psi = mu |F - R|^2 + lambda / 2 (J - 1)^2.
-    pub fn energy_density(&self, f: Mat3) -> f32 {
+    pub fn energy_density(&self, f: Mat3) -> Real {
         let (r, _) = crate::svd::polar(f);
         let j = f.determinant();
         self.mu * crate::math::norm2(f - r) + 0.5 * self.lambda * (j - 1.0) * (j - 1.0)

@@ -1,11 +1,11 @@
 //! Weakly compressible fluid tracking only the volume ratio `J = det F`.
 
-use crate::math::Mat3;
+use crate::math::{Mat3, Real, Vec3};
 
 /// Smallest volume ratio used by the fluid: `project` and the equation of state clamp `J` to at
 /// least this value, so an inverted or collapsed particle gets a large but finite restoring
 /// pressure instead of NaN (`J^-gamma` of a non-positive `J`).
-pub const FLUID_J_MIN: f32 = 1e-3;
+pub const FLUID_J_MIN: Real = 1e-3;
 
 /// Equation of state.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -15,7 +15,7 @@ pub enum Eos {
     /// `p = K (J^-gamma - 1)` (Tait / Cole).
     Tait {
         /// Exponent gamma (7 for water).
-        gamma: f32,
+        gamma: Real,
     },
 }
 
@@ -23,16 +23,16 @@ pub enum Eos {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Fluid {
     /// Bulk modulus K (Pa).
-    pub bulk_modulus: f32,
+    pub bulk_modulus: Real,
     /// Equation of state.
     pub eos: Eos,
     /// Dynamic viscosity (Pa s).
-    pub viscosity: f32,
+    pub viscosity: Real,
 }
 
 impl Fluid {
     /// Pressure `p(J)` of the equation of state (`J` clamped to [`FLUID_J_MIN`]).
-    pub fn pressure(&self, j: f32) -> f32 {
+    pub fn pressure(&self, j: Real) -> Real {
         let j = j.max(FLUID_J_MIN);
         match self.eos {
             // mpm88: p = K (1 - J)
@@ -48,18 +48,18 @@ impl Fluid {
         let j = f.determinant().max(FLUID_J_MIN);
         let p = self.pressure(j);
         // Newtonian fluid: sigma = -p I + mu (grad v + grad v^T); tau = J sigma.
-        Mat3::from_diagonal(glam::Vec3::splat(-j * p)) + (c + c.transpose()) * (j * self.viscosity)
+        Mat3::from_diagonal(Vec3::splat(-j * p)) + (c + c.transpose()) * (j * self.viscosity)
     }
 
     /// Resets `F` to the isotropic `J^(1/3) I` keeping only the volume ratio (Taichi's mpm99),
     /// `J` clamped to [`FLUID_J_MIN`].
     pub fn project(&self, f_trial: Mat3) -> Mat3 {
         let j = f_trial.determinant().max(FLUID_J_MIN);
-        Mat3::from_diagonal(glam::Vec3::splat(j.cbrt()))
+        Mat3::from_diagonal(Vec3::splat(j.cbrt()))
     }
 
     /// Factor on K giving the small-strain stiffness dp/d(-J) at J = 1 (1 for linear, gamma for Tait).
-    pub fn eos_stiffness_factor(&self) -> f32 {
+    pub fn eos_stiffness_factor(&self) -> Real {
         match self.eos {
             Eos::Linear => 1.0,
             Eos::Tait { gamma } => gamma,
@@ -70,7 +70,6 @@ impl Fluid {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::math::Vec3;
 
     fn close(a: Mat3, b: Mat3, tol: f32) -> bool {
         (a - b).to_cols_array().iter().all(|x| x.abs() <= tol)

@@ -19,10 +19,10 @@ pub use neo_hookean::NeoHookean;
 pub use snow::Snow;
 pub use von_mises::VonMises;
 
-use crate::math::Mat3;
+use crate::math::{Mat3, Real};
 
 /// Lamé parameters `(mu, lambda)` from Young's modulus and Poisson's ratio.
-pub fn lame(youngs_modulus: f32, poisson_ratio: f32) -> (f32, f32) {
+pub fn lame(youngs_modulus: Real, poisson_ratio: Real) -> (Real, Real) {
     let (e, nu) = (youngs_modulus, poisson_ratio);
     let mu = e / (2.0 * (1.0 + nu));
     let lambda = e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
@@ -45,14 +45,14 @@ pub enum Model {
 pub struct Material {
     pub name: String,
     /// Density (kg/m^3).
-    pub density: f32,
+    pub density: Real,
     pub model: Model,
 }
 
 impl Model {
     /// Kirchhoff stress `tau = P(F) F^T` (= J sigma). `c` is the APIC velocity gradient, used by
     /// viscous models.
-    pub fn kirchhoff(&self, f: Mat3, plastic: f32, c: Mat3) -> Mat3 {
+    pub fn kirchhoff(&self, f: Mat3, plastic: Real, c: Mat3) -> Mat3 {
         match self {
             Model::Fluid(m) => m.kirchhoff(f, c),
             Model::FixedCorotated(m) => m.kirchhoff(f),
@@ -65,7 +65,7 @@ impl Model {
 
     /// Plastic return mapping: maps the trial elastic `F` to the admissible one and updates the
     /// plastic state scalar. Purely elastic models return `f_trial` unchanged.
-    pub fn project(&self, f_trial: Mat3, plastic: &mut f32) -> Mat3 {
+    pub fn project(&self, f_trial: Mat3, plastic: &mut Real) -> Mat3 {
         match self {
             Model::Fluid(m) => m.project(f_trial),
             Model::FixedCorotated(_) | Model::NeoHookean(_) => f_trial,
@@ -77,7 +77,7 @@ impl Model {
 
     /// Elastic strain energy density per reference volume, for the models that define one
     /// (fixed corotated); None for the others.
-    pub fn energy_density(&self, f: Mat3) -> Option<f32> {
+    pub fn energy_density(&self, f: Mat3) -> Option<Real> {
         match self {
             Model::FixedCorotated(m) => Some(m.energy_density(f)),
             _ => None,
@@ -85,7 +85,7 @@ impl Model {
     }
 
     /// Initial value of the plastic state scalar (snow: `Jp = 1`).
-    pub fn initial_plastic(&self) -> f32 {
+    pub fn initial_plastic(&self) -> Real {
         match self {
             Model::Snow(_) => 1.0,
             _ => 0.0,
@@ -93,7 +93,7 @@ impl Model {
     }
 
     /// P-wave speed `sqrt((lambda + 2 mu) / rho)` (fluid: `sqrt(K / rho)`), for the CFL condition.
-    pub fn sound_speed(&self, density: f32) -> f32 {
+    pub fn sound_speed(&self, density: Real) -> Real {
         let modulus = match self {
             Model::Fluid(m) => m.bulk_modulus * m.eos_stiffness_factor(),
             Model::FixedCorotated(m) => m.lambda + 2.0 * m.mu,

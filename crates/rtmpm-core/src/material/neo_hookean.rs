@@ -1,23 +1,23 @@
 //! Compressible NeoHookean hyperelasticity (Bonet & Wood, "Nonlinear continuum mechanics", eq. 6.28).
 
-use crate::math::{Mat3, Vec3};
+use crate::math::{Mat3, Real, Vec3};
 
 /// Smallest `J` used in `ln(J)`: `J <= 0` (inverted element) is clamped to this value so the
 /// stress stays finite and strongly repulsive (`lambda ln(1e-4) ~ -9.2 lambda`).
-pub const NEO_HOOKEAN_J_MIN: f32 = 1e-4;
+pub const NEO_HOOKEAN_J_MIN: Real = 1e-4;
 
 /// Compressible NeoHookean solid.
 #[derive(Clone, Debug, PartialEq)]
 pub struct NeoHookean {
     /// Shear modulus mu (Pa).
-    pub mu: f32,
+    pub mu: Real,
     /// First Lamé parameter lambda (Pa).
-    pub lambda: f32,
+    pub lambda: Real,
 }
 
 impl NeoHookean {
     /// From Young's modulus (Pa) and Poisson's ratio.
-    pub fn from_young_poisson(youngs_modulus: f32, poisson_ratio: f32) -> Self {
+    pub fn from_young_poisson(youngs_modulus: Real, poisson_ratio: Real) -> Self {
         let (mu, lambda) = super::lame(youngs_modulus, poisson_ratio);
         Self { mu, lambda }
     }

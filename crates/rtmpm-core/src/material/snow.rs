@@ -2,39 +2,39 @@
 //! FixedCorotated elasticity hardened by `exp(xi (1 - Jp))` and singular-value clamping.
 
 use super::fixed_corotated::fixed_corotated_kirchhoff;
-use crate::math::{Mat3, Vec3};
+use crate::math::{Mat3, Real, Vec3};
 use crate::svd::svd3;
 
 /// Bound on the hardening exponent: `xi (1 - Jp)` is clamped to `[-S, M]` with `M = 3`, so
 /// compacted snow is at most `e^3 ~ 20` times stiffer than fresh snow (an unbounded factor
 /// would drive the CFL step to zero).
-pub const SNOW_MAX_HARDENING_EXPONENT: f32 = 3.0;
+pub const SNOW_MAX_HARDENING_EXPONENT: Real = 3.0;
 
 /// Bound on the softening side: `xi (1 - Jp) >= -S`, `S = 10`: stretched snow keeps at least
 /// `e^-10 ~ 5e-5` of its stiffness, practically the paper's unbounded softening (an earlier
 /// bound of 3 kept 5 % of the stiffness in torn snow).
-pub const SNOW_MAX_SOFTENING_EXPONENT: f32 = 10.0;
+pub const SNOW_MAX_SOFTENING_EXPONENT: Real = 10.0;
 
 /// `Jp` is kept in `[SNOW_JP_MIN, SNOW_JP_MAX]` so it stays positive (an inverted trial `F` has a
 /// negative determinant ratio) and finite; inside the range used by the clamped exponent this is
 /// irrelevant for any `xi >= 0.003`.
-pub const SNOW_JP_MIN: f32 = 1e-3;
+pub const SNOW_JP_MIN: Real = 1e-3;
 /// Upper bound of `Jp`, see [`SNOW_JP_MIN`].
-pub const SNOW_JP_MAX: f32 = 1e3;
+pub const SNOW_JP_MAX: Real = 1e3;
 
 /// Snow (Stomakhin et al. 2013). The plastic scalar is `Jp`, the plastic volume ratio (starts at 1).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Snow {
     /// Initial Lamé parameters (hardened by `exp(xi (1 - Jp))`).
-    pub mu: f32,
+    pub mu: Real,
     /// Initial first Lamé parameter lambda (Pa).
-    pub lambda: f32,
+    pub lambda: Real,
     /// Critical compression theta_c (e.g. 2.5e-2).
-    pub critical_compression: f32,
+    pub critical_compression: Real,
     /// Critical stretch theta_s (e.g. 7.5e-3).
-    pub critical_stretch: f32,
+    pub critical_stretch: Real,
     /// Hardening coefficient xi (e.g. 10).
-    pub hardening: f32,
+    pub hardening: Real,
 }
 
 impl Snow {
@@ -53,14 +53,14 @@ impl Snow {
 
     /// Hardening factor `exp(clamp(xi (1 - Jp), -S, M))` (Stomakhin 2013, eq. 8), see
     /// [`SNOW_MAX_HARDENING_EXPONENT`] and [`SNOW_MAX_SOFTENING_EXPONENT`].
-    pub fn hardening_factor(&self, jp: f32) -> f32 {
+    pub fn hardening_factor(&self, jp: Real) -> Real {
         let e = (self.hardening * (1.0 - jp))
             .clamp(-SNOW_MAX_SOFTENING_EXPONENT, SNOW_MAX_HARDENING_EXPONENT);
         e.exp()
     }
 
     /// Kirchhoff stress: FixedCorotated with `mu`, `lambda` times [`Snow::hardening_factor`].
-    pub fn kirchhoff(&self, f: Mat3, jp: f32) -> Mat3 {
+    pub fn kirchhoff(&self, f: Mat3, jp: Real) -> Mat3 {
         let h = self.hardening_factor(jp);
         fixed_corotated_kirchhoff(f, self.mu * h, self.lambda * h)
     }
@@ -68,7 +68,7 @@ impl Snow {
     /// Clamps the singular values of the trial elastic `F` into `[1 - theta_c, 1 + theta_s]`
     /// and moves the removed volume into `Jp`: `Jp_new = Jp J_e_trial / J_e_new`
     /// (Stomakhin 2013, section 7), clamped to `[SNOW_JP_MIN, SNOW_JP_MAX]`.
-    pub fn project(&self, f_trial: Mat3, jp: &mut f32) -> Mat3 {
+    pub fn project(&self, f_trial: Mat3, jp: &mut Real) -> Mat3 {
         let (u, s, v) = svd3(f_trial);
         let lo = 1.0 - self.critical_compression;
         let hi = 1.0 + self.critical_stretch;
@@ -81,7 +81,7 @@ impl Snow {
     /// Upper bound of `lambda + 2 mu` over the admissible hardening range, for the CFL condition:
     /// `Jp` can approach its lower bound (0, compaction), where the exponent is
     /// `min(xi, M)` for `xi >= 0`; for `xi < 0`, stretching (`Jp` large) reaches `M`.
-    pub fn max_stiffness(&self) -> f32 {
+    pub fn max_stiffness(&self) -> Real {
         let e_max = if self.hardening >= 0.0 {
             self.hardening.min(SNOW_MAX_HARDENING_EXPONENT)
         } else {

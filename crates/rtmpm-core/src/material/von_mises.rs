@@ -3,7 +3,7 @@
 //! box 3.1; with Hencky strain as in Simo 1992).
 
 use super::drucker_prager::{hencky_kirchhoff, hencky_strain};
-use crate::math::{Mat3, Vec3};
+use crate::math::{Mat3, Real, Vec3};
 use crate::svd::svd3;
 
 /// von Mises metal/plasticine. The plastic scalar is the equivalent plastic strain
@@ -11,18 +11,23 @@ use crate::svd::svd3;
 #[derive(Clone, Debug, PartialEq)]
 pub struct VonMises {
     /// Shear modulus mu (Pa).
-    pub mu: f32,
+    pub mu: Real,
     /// First Lamé parameter lambda (Pa).
-    pub lambda: f32,
+    pub lambda: Real,
     /// Initial yield stress (Pa).
-    pub yield_stress: f32,
+    pub yield_stress: Real,
     /// Linear isotropic hardening modulus (Pa); 0 = perfectly plastic.
-    pub hardening: f32,
+    pub hardening: Real,
 }
 
 impl VonMises {
     /// From Young's modulus (Pa), Poisson's ratio, yield stress (Pa) and hardening modulus (Pa).
-    pub fn new(youngs_modulus: f32, poisson_ratio: f32, yield_stress: f32, hardening: f32) -> Self {
+    pub fn new(
+        youngs_modulus: Real,
+        poisson_ratio: Real,
+        yield_stress: Real,
+        hardening: Real,
+    ) -> Self {
         let (mu, lambda) = super::lame(youngs_modulus, poisson_ratio);
         Self {
             mu,
@@ -38,15 +43,15 @@ impl VonMises {
     }
 
     /// Radius of the yield surface `||dev tau|| <= sqrt(2/3) (sigma_y + H eps_p)`.
-    pub fn yield_radius(&self, eps_p: f32) -> f32 {
-        (2.0f32 / 3.0).sqrt() * (self.yield_stress + self.hardening * eps_p)
+    pub fn yield_radius(&self, eps_p: Real) -> Real {
+        Real::sqrt(2.0 / 3.0) * (self.yield_stress + self.hardening * eps_p)
     }
 
     /// Radial return of the principal log strain: `f = 2 mu ||dev eps|| - sqrt(2/3)(sigma_y +
     /// H eps_p)`; if `f > 0`, `delta gamma = f / (2 mu + 2 H / 3)` (Simo & Hughes box 3.1),
     /// `dev eps -= delta gamma n`, `eps_p += sqrt(2/3) delta gamma`. Returns the new strain and the
     /// increment of `eps_p` (0 = elastic).
-    pub fn project_strain(&self, eps: Vec3, eps_p: f32) -> (Vec3, f32) {
+    pub fn project_strain(&self, eps: Vec3, eps_p: Real) -> (Vec3, Real) {
         let tr = eps.x + eps.y + eps.z;
         let e_hat = eps - Vec3::splat(tr / 3.0);
         let norm = e_hat.length();
@@ -55,11 +60,11 @@ impl VonMises {
             return (eps, 0.0);
         }
         let dg = f / (2.0 * self.mu + 2.0 * self.hardening / 3.0);
-        (eps - e_hat * (dg / norm), (2.0f32 / 3.0).sqrt() * dg)
+        (eps - e_hat * (dg / norm), Real::sqrt(2.0 / 3.0) * dg)
     }
 
     /// Plastic projection of the trial elastic `F`; elastic states return `f_trial` unchanged.
-    pub fn project(&self, f_trial: Mat3, eps_p: &mut f32) -> Mat3 {
+    pub fn project(&self, f_trial: Mat3, eps_p: &mut Real) -> Mat3 {
         let (u, sigma, v) = svd3(f_trial);
         let (h, dp) = self.project_strain(hencky_strain(sigma), *eps_p);
         if dp <= 0.0 {

@@ -133,6 +133,38 @@ pub struct Body {
     pub angular_velocity: Vec3,
 }
 
+/// Floating-point precision of the whole step (`[solver] precision`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Precision {
+    /// Single precision (the default).
+    #[default]
+    F32,
+    /// Double precision: particle state, grid and every quantity of the step in f64.
+    F64,
+}
+
+impl Precision {
+    /// The name written in scene files: "f32" or "f64".
+    pub fn name(self) -> &'static str {
+        match self {
+            Precision::F32 => "f32",
+            Precision::F64 => "f64",
+        }
+    }
+}
+
+impl std::str::FromStr for Precision {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "f32" => Ok(Precision::F32),
+            "f64" => Ok(Precision::F64),
+            _ => Err(format!("unknown precision `{s}`: expected f32 or f64")),
+        }
+    }
+}
+
 /// A validated scene, identical for every backend.
 #[derive(Clone, Debug)]
 pub struct Scene {
@@ -156,6 +188,8 @@ pub struct Scene {
     pub seed: u64,
     /// `[solver]` table: particle-grid transfer, stress update, FLIP fraction.
     pub solver: SolverSettings,
+    /// Floating-point precision of the step (`[solver] precision`).
+    pub precision: Precision,
 }
 
 impl Scene {

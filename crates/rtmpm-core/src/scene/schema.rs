@@ -30,13 +30,15 @@ pub struct RawScene {
     pub solver: Option<RawSolver>,
 }
 
-/// `[solver]`: the particle-grid transfer (see `rtmpm_core::transfer`).
-#[derive(Debug, Deserialize)]
+/// `[solver]`: how the step is computed: the particle-grid transfer (see
+/// `rtmpm_core::transfer`) and the floating-point precision.
+#[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RawSolver {
     pub transfer: Option<RawTransfer>,
     pub update: Option<RawUpdate>,
     pub flip: Option<f32>,
+    pub precision: Option<super::Precision>,
 }
 
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]

@@ -372,6 +372,11 @@ impl V<'_> {
             render,
             seed: raw.seed.unwrap_or(0),
             solver,
+            precision: raw
+                .solver
+                .as_ref()
+                .and_then(|s| s.precision)
+                .unwrap_or_default(),
         };
         // Every body must produce particles.
         for i in 0..scene.bodies.len() {

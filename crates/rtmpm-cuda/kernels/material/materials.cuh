@@ -25,7 +25,8 @@
 //   drucker_prager: DruckerPragerParams (4)     offset 56
 //   von_mises: VonMisesParams (4)               offset 72
 //   total 88 bytes. Only the member selected by `kind` is read; the others may be zero.
-// (With RTMPM_F64, `real` is double and the host mirror must use f64 and matching padding.)
+// With RTMPM_F64, `real` is double: 176 bytes, 4 bytes of padding after `kind` and after
+// `fluid.eos` (the host mirror GpuMaterial<f64> has the same C layout).
 struct MaterialGpu {
     int kind;
     FluidParams fluid;
@@ -37,6 +38,8 @@ struct MaterialGpu {
 };
 #ifndef RTMPM_F64
 static_assert(sizeof(MaterialGpu) == 88, "MaterialGpu layout must match the host #[repr(C)] mirror");
+#else
+static_assert(sizeof(MaterialGpu) == 176, "MaterialGpu layout must match the host #[repr(C)] mirror");
 #endif
 
 // Kirchhoff stress tau = P F^T; c is the APIC affine matrix (viscous fluid only).

@@ -44,6 +44,10 @@ pub struct ValidateArgs {
     /// CPU worker threads (default: one per core).
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Floating-point precision of the whole step: f32 or f64 (default: the scene's
+    /// `[solver] precision`, else f32).
+    #[arg(long, value_name = "f32|f64")]
+    pub precision: Option<rtmpm_core::scene::Precision>,
 }
 
 /// One line of the table.
@@ -87,10 +91,13 @@ impl Ctx<'_> {
     /// (and once at t = 0). Returns the simulation for a final read.
     pub fn run(
         &self,
-        scene: Scene,
+        mut scene: Scene,
         particles: Particles,
         mut each_frame: impl FnMut(f64, &Particles),
     ) -> Result<Simulation> {
+        if let Some(p) = self.args.precision {
+            scene.precision = p;
+        }
         each_frame(0.0, &particles);
         let backend = make_backend(
             self.args.backend,

@@ -1,0 +1,209 @@
+//! The particle state on the device, in the backend's precision: host upload and download.
+//!
+//! Structure of arrays of [`NFIELDS`] words per particle, field `f` of particle `i` at word
+//! `f * n + i`. A word is an f32 (`real` = float) or an f64 (kernels compiled with `RTMPM_F64`);
+//! the material id and the original index are stored as integer bits in the low 32 bits of
+//! their word (`state_bits` in `kernels/common.cuh`). The [`Particles`] interface is f32: the
+//! upload widens exactly, the download rounds to nearest.
+
+use crate::layout::*;
+use rtmpm_core::Particles;
+use rtmpm_core::math::{Mat3, Vec3};
+
+/// One word of the device state.
+trait Word: Copy + Default {
+    const BYTES: usize;
+    fn from_f32(x: f32) -> Self;
+    fn from_id(bits: u32) -> Self;
+    fn read(bytes: &[u8]) -> Self;
+    fn write(self, out: &mut Vec<u8>);
+    fn to_f32(self) -> f32;
+    fn to_f64(self) -> f64;
+    fn id(self) -> u32;
+}
+
+impl Word for f32 {
+    const BYTES: usize = 4;
+    fn from_f32(x: f32) -> Self {
+        x
+    }
+    fn from_id(bits: u32) -> Self {
+        f32::from_bits(bits)
+    }
+    fn read(b: &[u8]) -> Self {
+        f32::from_le_bytes([b[0], b[1], b[2], b[3]])
+    }
+    fn write(self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&self.to_le_bytes());
+    }
+    fn to_f32(self) -> f32 {
+        self
+    }
+    fn to_f64(self) -> f64 {
+        self as f64
+    }
+    fn id(self) -> u32 {
+        self.to_bits()
+    }
+}
+
+impl Word for f64 {
+    const BYTES: usize = 8;
+    fn from_f32(x: f32) -> Self {
+        x as f64
+    }
+    fn from_id(bits: u32) -> Self {
+        f64::from_bits(bits as u64)
+    }
+    fn read(b: &[u8]) -> Self {
+        f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]])
+    }
+    fn write(self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&self.to_le_bytes());
+    }
+    fn to_f32(self) -> f32 {
+        self as f32
+    }
+    fn to_f64(self) -> f64 {
+        self
+    }
+    fn id(self) -> u32 {
+        self.to_bits() as u32
+    }
+}
+
+/// Bytes of one state word.
+pub fn word_bytes(f64: bool) -> usize {
+    if f64 { 8 } else { 4 }
+}
+
+/// The device image of `particles` (f64 words when `f64`); materials must be below `n_materials`.
+pub fn pack(particles: &Particles, n_materials: usize, f64: bool) -> Result<Vec<u8>, String> {
+    if f64 {
+        pack_words::<f64>(particles, n_materials)
+    } else {
+        pack_words::<f32>(particles, n_materials)
+    }
+}
+
+fn pack_words<W: Word>(p: &Particles, n_materials: usize) -> Result<Vec<u8>, String> {
+    let n = p.len();
+    let mut host = vec![W::default(); NFIELDS * n];
+    for i in 0..n {
+        let mut put = |f: usize, v: W| host[f * n + i] = v;
+        for a in 0..3 {
+            put(F_X + a, W::from_f32(p.x[i][a]));
+            put(F_V + a, W::from_f32(p.v[i][a]));
+        }
+        let (c, fm) = (p.c[i].to_cols_array(), p.f[i].to_cols_array());
+        for e in 0..9 {
+            put(F_C + e, W::from_f32(c[e]));
+            put(F_F + e, W::from_f32(fm[e]));
+        }
+        put(F_PLASTIC, W::from_f32(p.plastic[i]));
+        put(F_MASS, W::from_f32(p.mass[i]));
+        put(F_VOL0, W::from_f32(p.vol0[i]));
+        let m = p.material[i];
+        if m as usize >= n_materials {
+            return Err(format!("particle {i} has material {m} out of range"));
+        }
+        put(F_MAT, W::from_id(m));
+        put(F_ID, W::from_id(i as u32));
+    }
+    let mut bytes = Vec::with_capacity(host.len() * W::BYTES);
+    for w in host {
+        w.write(&mut bytes);
+    }
+    Ok(bytes)
+}
+
+/// Particles in original order from the device image of `n` particles.
+pub fn unpack(bytes: &[u8], n: usize, f64: bool, out: &mut Particles) -> Result<(), String> {
+    if f64 {
+        unpack_words::<f64>(bytes, n, out)
+    } else {
+        unpack_words::<f32>(bytes, n, out)
+    }
+}
+
+fn unpack_words<W: Word>(bytes: &[u8], n: usize, out: &mut Particles) -> Result<(), String> {
+    if bytes.len() < NFIELDS * n * W::BYTES {
+        return Err(format!("CUDA: state of {} bytes is too short", bytes.len()));
+    }
+    *out = Particles::default();
+    out.x = vec![Vec3::ZERO; n];
+    out.v = vec![Vec3::ZERO; n];
+    out.c = vec![Mat3::ZERO; n];
+    out.f = vec![Mat3::ZERO; n];
+    out.plastic = vec![0.0; n];
+    out.mass = vec![0.0; n];
+    out.vol0 = vec![0.0; n];
+    out.material = vec![0; n];
+    let g = |f: usize, i: usize| W::read(&bytes[(f * n + i) * W::BYTES..]);
+    let r = |f: usize, i: usize| g(f, i).to_f32();
+    for i in 0..n {
+        let id = g(F_ID, i).id() as usize;
+        if id >= n {
+            return Err(format!("CUDA: corrupt particle id {id}"));
+        }
+        out.x[id] = Vec3::new(r(F_X, i), r(F_X + 1, i), r(F_X + 2, i));
+        out.v[id] = Vec3::new(r(F_V, i), r(F_V + 1, i), r(F_V + 2, i));
+        out.c[id] = Mat3::from_cols_array(&std::array::from_fn(|e| r(F_C + e, i)));
+        out.f[id] = Mat3::from_cols_array(&std::array::from_fn(|e| r(F_F + e, i)));
+        out.plastic[id] = r(F_PLASTIC, i);
+        out.mass[id] = r(F_MASS, i);
+        out.vol0[id] = r(F_VOL0, i);
+        out.material[id] = g(F_MAT, i).id();
+    }
+    Ok(())
+}
+
+/// Positions and velocities in original order, unrounded (f64 words stay f64): for tests that
+/// compare double-precision states.
+pub fn unpack_x_v_f64(bytes: &[u8], n: usize, f64: bool) -> Result<Vec<[[f64; 3]; 2]>, String> {
+    if f64 {
+        x_v_words::<f64>(bytes, n)
+    } else {
+        x_v_words::<f32>(bytes, n)
+    }
+}
+
+fn x_v_words<W: Word>(bytes: &[u8], n: usize) -> Result<Vec<[[f64; 3]; 2]>, String> {
+    if bytes.len() < NFIELDS * n * W::BYTES {
+        return Err(format!("CUDA: state of {} bytes is too short", bytes.len()));
+    }
+    let g = |f: usize, i: usize| W::read(&bytes[(f * n + i) * W::BYTES..]);
+    let v3 = |f: usize, i: usize| [g(f, i).to_f64(), g(f + 1, i).to_f64(), g(f + 2, i).to_f64()];
+    let mut out = vec![[[0.0; 3]; 2]; n];
+    for i in 0..n {
+        let id = g(F_ID, i).id() as usize;
+        if id >= n {
+            return Err(format!("CUDA: corrupt particle id {id}"));
+        }
+        out[id] = [v3(F_X, i), v3(F_V, i)];
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pack_unpack_round_trip_both_precisions() {
+        let mut p = Particles::default();
+        for i in 0..5 {
+            let x = Vec3::new(0.1 * i as f32, 0.3, 1.0 / 3.0);
+            p.push(x, Vec3::new(1.5, -2.25, 0.1), 0.01, 1e-6, i % 2, 0.5);
+        }
+        p.f[3] = Mat3::from_cols_array(&[1.1, 0.2, 0.0, -0.1, 0.9, 0.3, 0.0, 0.0, 1.05]);
+        for f64 in [false, true] {
+            let bytes = pack(&p, 2, f64).expect("pack");
+            assert_eq!(bytes.len(), NFIELDS * 5 * word_bytes(f64));
+            let mut q = Particles::default();
+            unpack(&bytes, 5, f64, &mut q).expect("unpack");
+            assert_eq!(p, q, "f64 = {f64}");
+        }
+        assert!(pack(&p, 1, true).is_err());
+    }
+}
