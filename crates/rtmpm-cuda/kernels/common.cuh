@@ -29,12 +29,16 @@
 #define CTL_WARPS 8
 #define CTL_EXTRA 9
 #define CTL_PREV_GBLOCKS 10
+#define CTL_REBUILT_NOW 11
+#define CTL_SHARED 12
+#define CTL_SHARED_CAP 13
 #define CTL_WORDS 16
 
 #define ERR_HASH 1u
 #define ERR_GBLOCKS 2u
 #define ERR_PBLOCKS 4u
 #define ERR_WARPS 8u
+#define ERR_SHARED 16u
 
 #define EMPTY_KEY 0xffffffffffffffffull
 #define EMPTY_ID 0xffffffffu
@@ -84,6 +88,7 @@ struct Ctx {
     unsigned* pkey;           // per particle: bucket
     unsigned* prank;          // per particle: rank in bucket
     unsigned* warps;          // 3 per warp: gblock, first, count
+    unsigned* boundary;       // per gblock: 1 if a neighbour block is shared with another GPU
     float origin[3];
     float dx, inv_dx;
     float domain_min[3], domain_max[3];

@@ -62,7 +62,7 @@ pub fn bench_kernels(
         e[0].record(s).map_err(err("record"))?;
         crate::rebuild::enqueue(k, s, c).map_err(err("rebuild"))?;
         e[1].record(s).map_err(err("record"))?;
-        crate::p2g::enqueue(k, s, c, b.options.p2g).map_err(err("p2g"))?;
+        crate::p2g::enqueue(k, s, c, b.options.p2g, 0).map_err(err("p2g"))?;
         e[2].record(s).map_err(err("record"))?;
         crate::grid_update::enqueue(k, s, c).map_err(err("grid"))?;
         e[3].record(s).map_err(err("record"))?;

@@ -46,13 +46,23 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/material/von_mises.cuh"),
     ),
     ("rebuild.cu", include_str!("../kernels/rebuild.cu")),
+    (
+        "reduce_shared.cu",
+        include_str!("../kernels/reduce_shared.cu"),
+    ),
     ("p2g.cu", include_str!("../kernels/p2g.cu")),
     ("grid_update.cu", include_str!("../kernels/grid_update.cu")),
     ("g2p.cu", include_str!("../kernels/g2p.cu")),
 ];
 
 /// The translation units compiled into the one module of the pipeline.
-pub const UNITS: &[&str] = &["rebuild.cu", "p2g.cu", "grid_update.cu", "g2p.cu"];
+pub const UNITS: &[&str] = &[
+    "rebuild.cu",
+    "reduce_shared.cu",
+    "p2g.cu",
+    "grid_update.cu",
+    "g2p.cu",
+];
 
 /// Compilation options of the kernels.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
@@ -311,6 +321,10 @@ mod tests {
                 "grid_update",
                 "g2p",
                 "grid_clear",
+                "sb_mark",
+                "sb_list",
+                "sb_pack",
+                "sb_unpack",
             ] {
                 assert!(
                     ptx.contains(&format!(".entry {k}(")),

@@ -23,7 +23,9 @@ pub const F_VOL0: usize = 26;
 pub const F_MAT: usize = 27;
 /// Original particle index (bits).
 pub const F_ID: usize = 28;
-/// Control words.
+/// Control words: rebuild the mapping at the next step.
+pub const CTL_NEED_REBUILD: usize = 0;
+/// Gblock count.
 pub const CTL_GBLOCKS: usize = 1;
 /// Pblock count.
 pub const CTL_PBLOCKS: usize = 2;
@@ -39,6 +41,12 @@ pub const CTL_MAX_SPEED: usize = 6;
 pub const CTL_REBUILDS: usize = 7;
 /// Warp count.
 pub const CTL_WARPS: usize = 8;
+/// 1 when the mapping was rebuilt in this step (multi-GPU: the occupancy mask is redone).
+pub const CTL_REBUILT_NOW: usize = 11;
+/// Number of blocks shared with other GPUs (multi-GPU).
+pub const CTL_SHARED: usize = 12;
+/// Capacity of the shared-block reduction (blocks; multi-GPU).
+pub const CTL_SHARED_CAP: usize = 13;
 /// Number of control words.
 pub const CTL_WORDS: usize = 16;
 
@@ -138,6 +146,8 @@ pub struct Ctx {
     pub pkey: u64,
     pub prank: u64,
     pub warps: u64,
+    /// Per gblock: 1 when one of its 27 neighbours is shared with another GPU (multi-GPU).
+    pub boundary: u64,
     pub origin: [f32; 3],
     pub dx: f32,
     pub inv_dx: f32,

@@ -4,6 +4,7 @@ mod backend;
 mod bench;
 mod check;
 mod info;
+mod multi;
 mod output;
 mod render;
 mod run;
