@@ -180,6 +180,9 @@ pub struct CudaOptions {
     pub shared_capacity: Option<usize>,
     /// Several GPUs: re-partition the particles at a frame end when they have drifted.
     pub rebalance: bool,
+    /// Several GPUs: overlap the shared-block reduction with the P2G of the interior gblocks
+    /// (off: P2G of every particle, then the reduction).
+    pub overlap: bool,
 }
 
 impl Default for CudaOptions {
@@ -196,6 +199,7 @@ impl Default for CudaOptions {
             pblock_capacity: None,
             shared_capacity: None,
             rebalance: true,
+            overlap: true,
         }
     }
 }
@@ -203,7 +207,7 @@ impl Default for CudaOptions {
 impl std::str::FromStr for CudaOptions {
     type Err = String;
     /// Comma separated `key=value`: `free_zone`, `mixed_sort`, `warp_reduce`, `fast_math`,
-    /// `graph`, `f64`, `rebalance` (on/off/true/false/1/0), `p2g` (warp/shared), `gblocks`,
+    /// `graph`, `f64`, `rebalance`, `overlap` (on/off/true/false/1/0), `p2g` (warp/shared), `gblocks`,
     /// `pblocks`, `shared` (counts).
     fn from_str(s: &str) -> Result<Self, String> {
         let mut o = CudaOptions::default();
@@ -235,6 +239,7 @@ impl std::str::FromStr for CudaOptions {
                 "pblocks" => o.pblock_capacity = Some(n()?),
                 "shared" => o.shared_capacity = Some(n()?),
                 "rebalance" => o.rebalance = b()?,
+                "overlap" => o.overlap = b()?,
                 _ => return Err(format!("unknown CUDA option `{k}`")),
             }
         }

@@ -110,6 +110,9 @@ pub struct GpuRank {
     p2g_done: CudaEvent,
     reduced: CudaEvent,
     graph: Option<(CudaGraph, f32)>,
+    /// Steps run without capture so far: NCCL connects lazily at a communicator's first
+    /// collectives, which must not be captured (capture was invalidated on 2 H200s otherwise).
+    eager_steps: u32,
     /// Events around the reduction on the comm stream (timing mode: no graph).
     timing: Option<(CudaEvent, CudaEvent)>,
     ctl_all: Option<CudaSlice<u32>>,
@@ -181,6 +184,7 @@ impl GpuRank {
             p2g_done,
             reduced,
             graph: None,
+            eager_steps: 0,
             timing: None,
             ctl_all: None,
             state_all: None,
@@ -260,7 +264,10 @@ impl GpuRank {
         }
         .map_err(nccl_err)?;
         enqueue_list(k, s, c, sc).map_err(err("shared list"))?;
-        crate::p2g::enqueue(k, s, c, mode, 1).map_err(err("p2g boundary"))?;
+        // Overlap off (ablation): all of P2G, then the reduction.
+        let overlap = self.b.options.overlap;
+        crate::p2g::enqueue(k, s, c, mode, if overlap { 1 } else { 0 })
+            .map_err(err("p2g boundary"))?;
         self.p2g_done.record(s).map_err(err("event"))?;
         t.wait(&self.p2g_done).map_err(err("wait"))?;
         if let Some((a, _)) = &self.timing {
@@ -284,7 +291,9 @@ impl GpuRank {
             b.record(t).map_err(err("event"))?;
         }
         self.reduced.record(t).map_err(err("event"))?;
-        crate::p2g::enqueue(k, s, c, mode, 2).map_err(err("p2g interior"))?;
+        if overlap {
+            crate::p2g::enqueue(k, s, c, mode, 2).map_err(err("p2g interior"))?;
+        }
         s.wait(&self.reduced).map_err(err("wait"))?;
         crate::grid_update::enqueue(k, s, c).map_err(err("grid update"))?;
         crate::g2p::enqueue(k, s, c).map_err(err("g2p"))?;
@@ -299,7 +308,8 @@ impl GpuRank {
             .bind_to_thread()
             .map_err(err("bind"))?;
         self.b.upload_params(dt, t)?;
-        if !self.b.options.graph || self.timing.is_some() {
+        if !self.b.options.graph || self.timing.is_some() || self.eager_steps < 2 {
+            self.eager_steps += 1;
             return self.enqueue();
         }
         if let Some((g, gdt)) = &self.graph
@@ -628,6 +638,15 @@ impl MultiGpuBackend {
             Ok(())
         })?;
         Ok((wall / steps.max(1) as f64, reduce / steps.max(1) as f64))
+    }
+}
+
+impl Drop for MultiGpuBackend {
+    fn drop(&mut self) {
+        // Let every worker leave its loop (and destroy its communicator) before joining any.
+        for w in &mut self.workers {
+            w.tx = None;
+        }
     }
 }
 

@@ -1,7 +1,8 @@
 //! Several GPUs vs one GPU on every example scene (needs 2 CUDA GPUs and NCCL; skips with a
 //! message otherwise): `cargo test -p rtmpm-cuda --test multi_gpu -- --include-ignored --nocapture`.
 //! `RTMPM_MULTI_GPU_STEPS` sets the steps (default 300), `RTMPM_MULTI_GPU_COUNTS` the GPU counts
-//! compared with one GPU (default "2,4", those above the devices present are skipped).
+//! compared with one GPU (default "2,4", those above the devices present are skipped),
+//! `RTMPM_MULTI_GPU_OPTIONS` the CUDA options (e.g. "graph=off").
 
 use rtmpm_core::math::Vec3;
 use rtmpm_core::sim::{Backend, Simulation};
@@ -83,7 +84,11 @@ fn several_gpus_agree_with_one_on_every_example_scene() {
         let name = path.file_name().unwrap().to_string_lossy().to_string();
         let scene = Scene::from_file(&path).expect("scene");
         let p0 = scene.sample_particles().expect("particles");
-        let opts = CudaOptions::default();
+        // RTMPM_MULTI_GPU_OPTIONS: CUDA options of every backend, e.g. "graph=off".
+        let opts: CudaOptions = std::env::var("RTMPM_MULTI_GPU_OPTIONS")
+            .unwrap_or_default()
+            .parse()
+            .expect("RTMPM_MULTI_GPU_OPTIONS");
         let dt = {
             let mut sim = Simulation::new(
                 scene.clone(),

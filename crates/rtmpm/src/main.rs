@@ -41,6 +41,12 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    // NVLink multicast (NVLS) stays off in NCCL unless the user asks for it: a program using it
+    // can put a shared host's GPUs out of service. Set before any thread starts.
+    if std::env::var_os("NCCL_NVLS_ENABLE").is_none() {
+        // SAFETY: single-threaded here (no thread has been started yet).
+        unsafe { std::env::set_var("NCCL_NVLS_ENABLE", "0") };
+    }
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Run(args) => run::run(args),

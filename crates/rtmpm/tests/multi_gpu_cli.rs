@@ -82,6 +82,13 @@ fn two_gpus_and_two_processes_agree_with_one_gpu_on_every_example_scene() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(4);
     let f = frames.to_string();
+    // RTMPM_MULTI_GPU_OPTIONS: --cuda-options of every run, e.g. "graph=off".
+    let copts = std::env::var("RTMPM_MULTI_GPU_OPTIONS").unwrap_or_default();
+    let run = |extra: &[&str]| {
+        let mut a = extra.to_vec();
+        a.extend(["--cuda-options", copts.as_str()]);
+        rtmpm(&a)
+    };
     let mut failures = Vec::new();
     for path in scenes() {
         let name = path.file_stem().unwrap().to_string_lossy().to_string();
