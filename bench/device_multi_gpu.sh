@@ -26,10 +26,10 @@ mkdir -p /work && ln -sfn "$PWD" /work/wt-mgpu
 mkdir -p target/release target/tmp && cp "$D/rtmpm" target/release/rtmpm
 
 if [ "$WHAT" != bench ]; then
-  RTMPM_MULTI_GPU_COUNTS=2,4 RTMPM_MULTI_GPU_STEPS=300 timeout 200 $D/test_multi_gpu --include-ignored --nocapture \
+  RTMPM_MULTI_GPU_COUNTS=2,4 RTMPM_MULTI_GPU_STEPS=300 timeout 120 $D/test_multi_gpu --include-ignored --nocapture \
     > "$OUT/test_multi_gpu.log" 2>&1; say "test_multi_gpu rc=$?: $(grep -E '^test result' "$OUT/test_multi_gpu.log")"
   grep -E "steps:|1 step:|error|panicked" "$OUT/test_multi_gpu.log" | head -30 | tee -a "$S"
-  timeout 240 $D/test_multi_gpu_cli --include-ignored --nocapture > "$OUT/test_cli.log" 2>&1
+  timeout 150 $D/test_multi_gpu_cli --include-ignored --nocapture > "$OUT/test_cli.log" 2>&1
   say "test_multi_gpu_cli rc=$?: $(grep -E '^test result' "$OUT/test_cli.log")"
   grep -E "d com|panicked|error" "$OUT/test_cli.log" | head -30 | tee -a "$S"
   if grep -q capture "$OUT/test_multi_gpu.log" "$OUT/test_cli.log"; then
@@ -40,13 +40,13 @@ if [ "$WHAT" != bench ]; then
     grep -hE "steps:|d com|panicked" "$OUT/test_multi_gpu_nograph.log" "$OUT/test_cli_nograph.log" | head -40 | tee -a "$S"
   fi
   for s in dam_break sand_column elastic_cubes snowball mixed bench_fluid_n64; do
-    r=$(timeout 90 $D/rtmpm run scenes/$s.toml --gpus 2 --no-output 2>&1); rc=$?
+    r=$(timeout 45 $D/rtmpm run scenes/$s.toml --gpus 2 --no-output 2>&1); rc=$?
     echo "$r" >> "$OUT/scenes.log"
     say "scene $s --gpus 2 rc=$rc: $(echo "$r" | grep -E 'steps  |wall time|^error' | tr -s ' ' | tr '\n' ' ')"
   done
   rm -f /tmp/rtmpm-rdv
   for r in 0 1; do
-    timeout 90 $D/rtmpm run scenes/dam_break.toml --rendezvous file:/tmp/rtmpm-rdv --nccl-ranks 2 --nccl-rank $r \
+    timeout 45 $D/rtmpm run scenes/dam_break.toml --rendezvous file:/tmp/rtmpm-rdv --nccl-ranks 2 --nccl-rank $r \
       --out /tmp/ranks_out > "$OUT/ranks_$r.log" 2>&1 &
   done
   wait

@@ -100,7 +100,8 @@ pub enum CommSource {
 /// shared-block reduction buffers and the second stream the reduction runs on.
 pub struct GpuRank {
     pub(crate) b: CudaBackend,
-    comm: Communicator,
+    /// Always `Some` (taken by [`GpuRank::into_comm`] only).
+    comm: Option<Communicator>,
     comm_stream: Arc<CudaStream>,
     sc: SharedCtx,
     _mask: CudaSlice<u8>,
@@ -174,7 +175,7 @@ impl GpuRank {
         );
         let mut r = GpuRank {
             b,
-            comm,
+            comm: Some(comm),
             comm_stream,
             sc,
             _mask: mask,
@@ -195,8 +196,24 @@ impl GpuRank {
     }
 
     /// Give the communicator back (to build a new rank object on the same GPU).
-    pub fn into_comm(self) -> Communicator {
+    pub fn into_comm(mut self) -> Option<Communicator> {
+        self.release_graph();
+        self.comm.take()
+    }
+
+    /// Wait for the streams and destroy the captured graph. NCCL (2.26+) waits in
+    /// `ncclCommDestroy` until every graph holding the communicator's work is destroyed, so the
+    /// graph must go first (otherwise destroying the communicator never returns).
+    fn release_graph(&mut self) {
+        let _ = self.comm_stream.synchronize();
+        let _ = self.b.stream.synchronize();
+        self.graph = None;
+    }
+
+    fn comm(&self) -> Result<&Communicator, SimError> {
         self.comm
+            .as_ref()
+            .ok_or_else(|| SimError::Backend("GPU rank without a communicator".into()))
     }
 
     /// Shared blocks the reduction holds.
@@ -253,7 +270,7 @@ impl GpuRank {
         enqueue_mask(k, s, c, sc).map_err(err("mask"))?;
         // SAFETY: mask and counts hold d + 1 bytes on this GPU and live as long as self.
         unsafe {
-            self.comm.all_reduce(
+            self.comm()?.all_reduce(
                 sc.mask,
                 sc.counts,
                 sc.d as usize + 1,
@@ -276,7 +293,7 @@ impl GpuRank {
         enqueue_copy(k, t, c, sc, true).map_err(err("pack"))?;
         // SAFETY: buf holds cap * 256 reals on this GPU and lives as long as self.
         unsafe {
-            self.comm.all_reduce(
+            self.comm()?.all_reduce(
                 sc.buf,
                 sc.buf,
                 sc.cap as usize * 256,
@@ -340,7 +357,7 @@ impl GpuRank {
 
     /// Every rank's control words, through an NCCL all-gather (collective; synchronises).
     pub fn gather_ctl(&mut self) -> Result<Vec<Vec<u32>>, SimError> {
-        let ranks = self.comm.ranks;
+        let ranks = self.comm()?.ranks;
         let s = self.b.stream.clone();
         if self.ctl_all.is_none() {
             self.ctl_all = Some(
@@ -355,7 +372,7 @@ impl GpuRank {
             .unwrap_or(0);
         // SAFETY: ctl holds CTL_WORDS words, all ranks * CTL_WORDS.
         unsafe {
-            self.comm
+            self.comm()?
                 .all_gather(self.b.ctx.ctl, all, CTL_WORDS, DataType::U32, s.cu_stream())
         }
         .map_err(nccl_err)?;
@@ -370,7 +387,7 @@ impl GpuRank {
     /// NCCL all-gather (collective; synchronises).
     pub fn gather_state(&mut self) -> Result<Vec<f32>, SimError> {
         let per = NFIELDS * self.b.ctx.cap as usize;
-        let ranks = self.comm.ranks;
+        let ranks = self.comm()?.ranks;
         let s = self.b.stream.clone();
         if self.state_all.is_none() {
             self.state_all = Some(s.alloc_zeros::<f32>(ranks * per).map_err(err("alloc"))?);
@@ -382,7 +399,7 @@ impl GpuRank {
             .unwrap_or(0);
         // SAFETY: state holds NFIELDS * cap floats, all ranks times that.
         unsafe {
-            self.comm
+            self.comm()?
                 .all_gather(self.b.ctx.state, all, per, DataType::F32, s.cu_stream())
         }
         .map_err(nccl_err)?;
@@ -390,6 +407,13 @@ impl GpuRank {
             Some(a) => s.clone_dtoh(a).map_err(err("read particles")),
             None => Ok(Vec::new()),
         }
+    }
+}
+
+impl Drop for GpuRank {
+    fn drop(&mut self) {
+        // The graph before the communicator (the fields drop after this).
+        self.release_graph();
     }
 }
 
@@ -580,7 +604,10 @@ impl MultiGpuBackend {
             };
             let comm = match (slot.take(), id) {
                 (_, Some(id)) => CommSource::New { id, rank: i, ranks },
-                (Some(old), None) => CommSource::Existing(old.into_comm()),
+                (Some(old), None) => match old.into_comm() {
+                    Some(c) => CommSource::Existing(c),
+                    None => return Err(SimError::Backend("no communicator".into())),
+                },
                 (None, None) => return Err(SimError::Backend("no communicator".into())),
             };
             *slot = Some(GpuRank::new(&scene, p, &part, options.clone(), cap, comm)?);
@@ -851,7 +878,8 @@ impl Backend for NcclRankBackend {
         let r = self.r()?;
         let c = r.gather_ctl()?;
         let (_, bad) = combine(&r.b, &c)?;
-        if c[r.comm.rank][CTL_BAD_INDEX] != u32::MAX {
+        let me = r.comm()?.rank;
+        if c[me][CTL_BAD_INDEX] != u32::MAX {
             r.b.check()?;
         }
         Ok(bad)
@@ -890,7 +918,7 @@ impl Backend for NcclRankBackend {
             self.read_particles(&mut all)?;
             let old = self.rank.take();
             let comm = old
-                .map(GpuRank::into_comm)
+                .and_then(GpuRank::into_comm)
                 .ok_or_else(|| SimError::Backend("no communicator".into()))?;
             self.load(&all, CommSource::Existing(comm))?;
             self.r()?.b.set_ctl_word(CTL_MAX_SPEED, speed.to_bits())?;
