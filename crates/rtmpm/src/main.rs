@@ -24,7 +24,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Run a scene and write its frames.
-    Run(run::RunArgs),
+    Run(Box<run::RunArgs>),
     /// Version, available backends and the GPU found.
     Info,
     /// Validate a scene file without running it.
@@ -49,7 +49,7 @@ fn main() -> ExitCode {
     }
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Run(args) => run::run(args),
+        Command::Run(args) => run::run(*args),
         Command::Info => info::info(),
         Command::Check { scene } => check::check(&scene),
         Command::Bench(args) => bench::bench(args),

@@ -96,7 +96,7 @@ fn two_gpus_and_two_processes_agree_with_one_gpu_on_every_example_scene() {
         let s = path.to_str().unwrap();
         let dir = scratch(&format!("mgpu_{name}"));
         let (one, two, ranks) = (dir.join("one"), dir.join("two"), dir.join("ranks"));
-        let o = rtmpm(&[
+        let o = run(&[
             "run",
             s,
             "--backend",
@@ -107,7 +107,7 @@ fn two_gpus_and_two_processes_agree_with_one_gpu_on_every_example_scene() {
             one.to_str().unwrap(),
         ]);
         assert!(o.status.success(), "{}", text(&o));
-        let o = rtmpm(&[
+        let o = run(&[
             "run",
             s,
             "--gpus",
