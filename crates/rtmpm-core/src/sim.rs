@@ -105,6 +105,11 @@ pub trait Backend {
     fn stage_times(&self) -> Vec<(&'static str, f64)> {
         Vec::new()
     }
+    /// Called by [`Simulation`] after every frame (after the check): a place for work that may
+    /// synchronise, e.g. rebalancing particles between GPUs.
+    fn end_of_frame(&mut self) -> Result<(), SimError> {
+        Ok(())
+    }
 }
 
 /// Drives a backend through frames of a scene.
@@ -227,7 +232,8 @@ impl Simulation {
 
     fn finish_frame(&mut self) -> Result<(), SimError> {
         self.frame += 1;
-        self.check()
+        self.check()?;
+        self.backend.end_of_frame()
     }
 
     /// Check the backend for a bad particle and turn it into a [`SimError::Blowup`].

@@ -30,6 +30,9 @@
 #define CTL_WARPS 8
 #define CTL_EXTRA 9
 #define CTL_PREV_GBLOCKS 10
+#define CTL_REBUILT_NOW 11
+#define CTL_SHARED 12
+#define CTL_SHARED_CAP 13
 #define CTL_WORDS 16
 
 #define ERR_HASH 1u
@@ -37,6 +40,7 @@
 #define ERR_PBLOCKS 4u
 #define ERR_WARPS 8u
 #define ERR_P2G_MAP 16u  // reverse map of the gather P2G full (p2g_reverse_map.cu)
+#define ERR_SHARED 32u  // more blocks shared between GPUs than the reduction holds (reduce_shared.cu)
 
 #define EMPTY_KEY 0xffffffffffffffffull
 #define EMPTY_ID 0xffffffffu
@@ -101,6 +105,7 @@ struct Ctx {
     unsigned* warps;          // 3 per warp: gblock, first, count
     real* grid_aux;           // classic MPM transfers only (else null), 4 reals per node: unused,
                               // dt f_i after P2G, v_old after the grid update, MUSL re-mapped v
+    unsigned* boundary;       // per gblock: 1 if a neighbour block is shared with another GPU
     float NAME_IF_F32(origin)[3];
     float NAME_IF_F32(dx), NAME_IF_F32(inv_dx);
     float NAME_IF_F32(domain_min)[3], NAME_IF_F32(domain_max)[3];
@@ -118,7 +123,7 @@ struct Ctx {
     double NAME_IF_F64(domain_min)[3], NAME_IF_F64(domain_max)[3];
     double NAME_IF_F64(wall_friction)[6];
 };
-static_assert(sizeof(Ctx) == 448 && sizeof(StepParams) == 832, "Ctx/StepParams must match src/layout.rs");
+static_assert(sizeof(Ctx) == 456 && sizeof(StepParams) == 832, "Ctx/StepParams must match src/layout.rs");
 
 // Read-only parameters in constant memory (seed 001: "constant memory is used for read-only input
 // data"): the step parameters, the materials table and the colliders are read by every thread with

@@ -30,11 +30,19 @@ __device__ __forceinline__ unsigned node_index(const Ctx& c, unsigned g, const i
 
 __device__ __forceinline__ void p2g_warp(const Ctx& c, unsigned w, unsigned lane);
 
+// Multi-GPU split of P2G (reduce_shared.cu): part 0 = every warp; part 1 = warps of boundary
+// gblocks (those next to a block shared with another GPU), run first so that the reduction of the
+// shared blocks overlaps part 2 = the other warps, which never touch a shared block.
+__device__ __forceinline__ bool in_part(const Ctx& c, unsigned g, unsigned part) {
+    return part == 0 || ((c.boundary[g] != 0) == (part == 1));
+}
+
 // Warps loop over the warp list (grid-stride, launched with about one wave of blocks).
-extern "C" __global__ void __launch_bounds__(128, P2G_MIN_BLOCKS) p2g(Ctx c) {
+extern "C" __global__ void __launch_bounds__(128, P2G_MIN_BLOCKS) p2g(Ctx c, unsigned part) {
     if (c.ctl[CTL_ERROR]) return;
     unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
-    for (unsigned w = thread_index() >> 5; w < n_warps; w += stride) p2g_warp(c, w, threadIdx.x & 31);
+    for (unsigned w = thread_index() >> 5; w < n_warps; w += stride)
+        if (in_part(c, c.warps[3 * w], part)) p2g_warp(c, w, threadIdx.x & 31);
 }
 
 __device__ __forceinline__ void p2g_warp(const Ctx& c, unsigned w, unsigned lane) {
@@ -108,11 +116,12 @@ __device__ __forceinline__ void p2g_warp(const Ctx& c, unsigned w, unsigned lane
 // particles); nodes are accumulated into a shared 12x12x12 tile covering the gblock's 3x3x3
 // neighbourhood with shared atomics, then written out after __syncthreads.
 #define TILE 12
-extern "C" __global__ void p2g_shared(Ctx c) {
+extern "C" __global__ void p2g_shared(Ctx c, unsigned part) {
     __shared__ float tile[TILE * TILE * TILE * 4];
     if (c.ctl[CTL_ERROR]) return;
     unsigned g = blockIdx.x;
     if (g >= c.ctl[CTL_GBLOCKS] || g >= c.gblock_cap) return;  // uniform per block
+    if (!in_part(c, g, part)) return;
     for (unsigned t = threadIdx.x; t < TILE * TILE * TILE * 4; t += blockDim.x) tile[t] = 0;
     __syncthreads();
     const int* bc = c.block_coords + 3 * g;

@@ -16,6 +16,7 @@ extern "C" __global__ void rb_begin(Ctx c) {
     if (thread_index() != 0) return;
     c.ctl[CTL_MAX_SPEED] = 0;
     if (step_params(c).always_rebuild) c.ctl[CTL_NEED_REBUILD] = 1;
+    c.ctl[CTL_REBUILT_NOW] = c.ctl[CTL_NEED_REBUILD] ? 1u : 0u;
     if (!c.ctl[CTL_NEED_REBUILD]) return;
     c.ctl[CTL_REBUILDS] += 1;
     c.ctl[CTL_PREV_GBLOCKS] = c.ctl[CTL_GBLOCKS];

@@ -35,7 +35,7 @@ pub(crate) fn cfg_wave(n: usize, block: u32, wave_threads: usize) -> LaunchConfi
     cfg(n.min(wave_threads.max(block as usize)), block)
 }
 
-fn err(what: &str) -> impl Fn(cudarc::driver::DriverError) -> SimError + '_ {
+pub(crate) fn err(what: &str) -> impl Fn(cudarc::driver::DriverError) -> SimError + '_ {
     move |e| SimError::Backend(format!("CUDA: {what}: {e:?}"))
 }
 
@@ -67,6 +67,14 @@ pub(crate) struct Kernels {
     pub g2p: CudaFunction,
     pub g2p_mpm: CudaFunction,
     pub g2p_mpm_velocity: CudaFunction,
+    pub sb_clear_mask: CudaFunction,
+    pub sb_mark: CudaFunction,
+    pub sb_chunk_count: CudaFunction,
+    pub sb_chunk_scan: CudaFunction,
+    pub sb_list: CudaFunction,
+    pub sb_boundary: CudaFunction,
+    pub sb_pack: CudaFunction,
+    pub sb_unpack: CudaFunction,
 }
 
 /// The CUDA backend (one GPU).
@@ -221,6 +229,17 @@ fn collider(c: &rtmpm_core::boundary::Collider, mesh: &mut Vec<f32>) -> GpuColli
     g
 }
 
+/// Where a [`CudaBackend`] runs and which particles it holds, when it is one GPU of several.
+#[derive(Clone, Debug, Default)]
+pub struct Part {
+    /// CUDA device ordinal.
+    pub device: usize,
+    /// Original (global) index of each particle given to [`CudaBackend::new_part`]; `None`: 0..n.
+    pub ids: Option<Vec<u32>>,
+    /// Particle capacity of the state arrays (at least the particle count; 0: the count).
+    pub capacity: usize,
+}
+
 impl CudaBackend {
     /// Upload the scene and particles to CUDA device 0 and compile the kernels.
     pub fn new(
@@ -228,6 +247,20 @@ impl CudaBackend {
         particles: &Particles,
         options: CudaOptions,
     ) -> Result<CudaBackend, SimError> {
+        Self::new_part(scene, particles, &Part::default(), options)
+    }
+
+    /// Upload `particles` (one GPU's share of a multi-GPU run, or all of them) to device
+    /// `part.device`.
+    pub fn new_part(
+        scene: &Scene,
+        particles: &Particles,
+        part: &Part,
+        options: CudaOptions,
+    ) -> Result<CudaBackend, SimError> {
+        let info = crate::probe_device(part.device).map_err(|e| {
+            SimError::Backend(format!("CUDA device {} unavailable: {e}", part.device))
+        })?;
         // The scene's precision, or the `f64` switch: the whole pipeline in f64.
         let options = CudaOptions {
             f64: options.f64 || scene.precision == rtmpm_core::scene::Precision::F64,
@@ -240,11 +273,20 @@ impl CudaBackend {
                     .into(),
             ));
         }
-        let info =
-            crate::probe().map_err(|e| SimError::Backend(format!("CUDA unavailable: {e}")))?;
         let n = particles.len();
         if n == 0 {
-            return Err(SimError::Backend("CUDA backend: no particles".into()));
+            return Err(SimError::Backend(format!(
+                "CUDA backend (device {}): no particles",
+                part.device
+            )));
+        }
+        let cap = part.capacity.max(n);
+        if let Some(ids) = &part.ids
+            && ids.len() != n
+        {
+            return Err(SimError::Backend(
+                "CUDA backend: one id per particle".into(),
+            ));
         }
         let mats = scene
             .materials
@@ -279,7 +321,7 @@ impl CudaBackend {
             f64: options.f64,
         })
         .map_err(SimError::Backend)?;
-        let context = CudaContext::new(0).map_err(err("context"))?;
+        let context = CudaContext::new(part.device).map_err(err("context"))?;
         // Single stream: no cross-stream event tracking (keeps launches capturable).
         // SAFETY: all our buffers are used on `stream` only.
         unsafe { context.disable_event_tracking() };
@@ -318,6 +360,14 @@ impl CudaBackend {
             g2p: f("g2p")?,
             g2p_mpm: f("g2p_mpm")?,
             g2p_mpm_velocity: f("g2p_mpm_velocity")?,
+            sb_clear_mask: f("sb_clear_mask")?,
+            sb_mark: f("sb_mark")?,
+            sb_chunk_count: f("sb_chunk_count")?,
+            sb_chunk_scan: f("sb_chunk_scan")?,
+            sb_list: f("sb_list")?,
+            sb_boundary: f("sb_boundary")?,
+            sb_pack: f("sb_pack")?,
+            sb_unpack: f("sb_unpack")?,
         };
 
         let dx = scene.dx;
@@ -354,9 +404,9 @@ impl CudaBackend {
         let n_buckets = gblock_cap * 64 + 1;
         let real_bytes = if options.f64 { 8 } else { 4 };
 
-        // Particle state, SoA, in the backend's precision.
-        let host =
-            crate::state::pack(particles, mats.len(), options.f64).map_err(SimError::Backend)?;
+        // Particle state, SoA with stride `cap`, in the backend's precision.
+        let host = crate::state::pack(particles, mats.len(), options.f64, cap, part.ids.as_deref())
+            .map_err(SimError::Backend)?;
         let state = stream.clone_htod(&host).map_err(err("upload particles"))?;
         let scratch = stream
             .alloc_zeros::<u8>(host.len())
@@ -422,6 +472,7 @@ impl CudaBackend {
         } else {
             zeros(pblock_cap * 64 * 4 * real_bytes)?
         };
+        let boundary = zeros(gblock_cap * 4)?;
         let w = &scene.walls;
         let n_cells = scene.n_cells();
         let ctx = Ctx {
@@ -443,6 +494,7 @@ impl CudaBackend {
             prank,
             warps,
             grid_aux,
+            boundary,
             origin: origin.to_array(),
             dx,
             inv_dx: 1.0 / dx,
@@ -453,7 +505,7 @@ impl CudaBackend {
             wall_cond: w.faces.map(|f| cond(f.condition)),
             wall_friction: w.faces.map(|f| f.friction),
             n: n as u32,
-            cap: n as u32,
+            cap: cap as u32,
             gblock_cap: gblock_cap as u32,
             pblock_cap: pblock_cap as u32,
             hash_cap: hash_cap as u32,
@@ -636,7 +688,7 @@ impl CudaBackend {
         Ok(out)
     }
 
-    fn ctl_words(&mut self) -> Result<Vec<u32>, SimError> {
+    pub(crate) fn ctl_words(&mut self) -> Result<Vec<u32>, SimError> {
         self.stream
             .clone_dtoh(&self.ctl)
             .map_err(err("read control words"))
@@ -649,7 +701,44 @@ impl CudaBackend {
             .stream
             .clone_dtoh(&self.state)
             .map_err(err("read particles"))?;
-        crate::state::unpack_x_v_f64(&host, self.n, self.options.f64).map_err(SimError::Backend)
+        crate::state::unpack_x_v_f64(&host, self.n, self.ctx.cap as usize, self.options.f64)
+            .map_err(SimError::Backend)
+    }
+
+    /// The particle state arrays as stored (SoA, stride = capacity; synchronises). Single
+    /// precision only (the multi-GPU runs that use it refuse f64).
+    pub fn read_state(&mut self) -> Result<Vec<f32>, SimError> {
+        if self.options.f64 {
+            return Err(SimError::Backend(
+                "CUDA: read_state is single precision only".into(),
+            ));
+        }
+        let bytes = self
+            .stream
+            .clone_dtoh(&self.state)
+            .map_err(err("read particles"))?;
+        Ok(bytes
+            .chunks_exact(4)
+            .map(|w| f32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+            .collect())
+    }
+
+    /// Write one control word (asynchronously, on the compute stream).
+    pub(crate) fn set_ctl_word(&mut self, word: usize, value: u32) -> Result<(), SimError> {
+        let mut view = self.ctl.slice_mut(word..word + 1);
+        self.stream
+            .memcpy_htod(&[value], &mut view)
+            .map_err(err("write control word"))
+    }
+
+    /// Number of particles on this GPU.
+    pub fn len(&self) -> usize {
+        self.n
+    }
+
+    /// True when it holds no particle (never: construction refuses that).
+    pub fn is_empty(&self) -> bool {
+        self.n == 0
     }
 
     /// Number of rebuilds of the mapping so far (synchronises).
@@ -692,7 +781,7 @@ impl CudaBackend {
         self.p2g.enqueue(k, s, c).map_err(err("p2g"))
     }
 
-    fn error_check(&mut self, c: &[u32]) -> Result<(), SimError> {
+    pub(crate) fn error_check(&self, c: &[u32]) -> Result<(), SimError> {
         let e = c[CTL_ERROR];
         if e != 0 {
             let mut what = Vec::new();
@@ -721,6 +810,12 @@ impl CudaBackend {
                     None => "P2G contribution map overflow".to_string(),
                 };
                 what.push(detail);
+            }
+            if e & 32 != 0 {
+                what.push(format!(
+                    "more than {} blocks shared between GPUs (raise it with the shared= option)",
+                    c[CTL_SHARED_CAP]
+                ));
             }
             let hint = if e & 15 != 0 {
                 " (the material spread over more blocks than allocated; raise the capacity with \
@@ -811,6 +906,53 @@ impl Backend for CudaBackend {
             .stream
             .clone_dtoh(&self.state)
             .map_err(err("read particles"))?;
-        crate::state::unpack(&host, self.n, self.options.f64, out).map_err(SimError::Backend)
+        crate::state::unpack(&host, self.n, self.ctx.cap as usize, self.options.f64, out)
+            .map_err(SimError::Backend)
     }
+}
+
+/// Size every column of `out` for `n` particles (zeros).
+pub fn resize_particles(out: &mut Particles, n: usize) {
+    let z = Vec3::ZERO;
+    out.x.resize(n, z);
+    out.v.resize(n, z);
+    out.c.resize(n, Mat3::ZERO);
+    out.f.resize(n, Mat3::ZERO);
+    out.plastic.resize(n, 0.0);
+    out.mass.resize(n, 0.0);
+    out.vol0.resize(n, 0.0);
+    out.material.resize(n, 0);
+}
+
+/// Put the `n` particles of a state array (SoA with stride `cap`, as stored on one GPU) at their
+/// original index in `out` (already sized for every particle of the run).
+pub fn scatter_state(
+    host: &[f32],
+    n: usize,
+    cap: usize,
+    out: &mut Particles,
+) -> Result<(), SimError> {
+    let total = out.x.len();
+    let g = |f: usize, i: usize| host[f * cap + i];
+    for i in 0..n {
+        let id = g(F_ID, i).to_bits() as usize;
+        if id >= total {
+            return Err(SimError::Backend(format!("CUDA: corrupt particle id {id}")));
+        }
+        out.x[id] = Vec3::new(g(F_X, i), g(F_X + 1, i), g(F_X + 2, i));
+        out.v[id] = Vec3::new(g(F_V, i), g(F_V + 1, i), g(F_V + 2, i));
+        let mut c = [0f32; 9];
+        let mut f = [0f32; 9];
+        for e in 0..9 {
+            c[e] = g(F_C + e, i);
+            f[e] = g(F_F + e, i);
+        }
+        out.c[id] = Mat3::from_cols_array(&c);
+        out.f[id] = Mat3::from_cols_array(&f);
+        out.plastic[id] = g(F_PLASTIC, i);
+        out.mass[id] = g(F_MASS, i);
+        out.vol0[id] = g(F_VOL0, i);
+        out.material[id] = g(F_MAT, i).to_bits();
+    }
+    Ok(())
 }

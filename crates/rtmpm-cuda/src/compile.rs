@@ -52,6 +52,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../kernels/p2g_particle.cuh"),
     ),
     ("rebuild.cu", include_str!("../kernels/rebuild.cu")),
+    (
+        "reduce_shared.cu",
+        include_str!("../kernels/reduce_shared.cu"),
+    ),
     ("p2g.cu", include_str!("../kernels/p2g.cu")),
     (
         "p2g_reverse_map.cu",
@@ -65,6 +69,7 @@ pub const SOURCES: &[(&str, &str)] = &[
 /// The translation units compiled into the one module of the pipeline.
 pub const UNITS: &[&str] = &[
     "rebuild.cu",
+    "reduce_shared.cu",
     "p2g.cu",
     "p2g_reverse_map.cu",
     "p2g_sort.cu",
@@ -336,6 +341,10 @@ mod tests {
                 "grid_update",
                 "g2p",
                 "grid_clear",
+                "sb_mark",
+                "sb_list",
+                "sb_pack",
+                "sb_unpack",
             ] {
                 assert!(
                     ptx.contains(&format!(".entry {k}(")),

@@ -25,7 +25,9 @@ pub const F_VOL0: usize = 26;
 pub const F_MAT: usize = 27;
 /// Original particle index (bits).
 pub const F_ID: usize = 28;
-/// Control words.
+/// Control words: rebuild the mapping at the next step.
+pub const CTL_NEED_REBUILD: usize = 0;
+/// Gblock count.
 pub const CTL_GBLOCKS: usize = 1;
 /// Pblock count.
 pub const CTL_PBLOCKS: usize = 2;
@@ -41,6 +43,12 @@ pub const CTL_MAX_SPEED: usize = 6;
 pub const CTL_REBUILDS: usize = 7;
 /// Warp count.
 pub const CTL_WARPS: usize = 8;
+/// 1 when the mapping was rebuilt in this step (multi-GPU: the occupancy mask is redone).
+pub const CTL_REBUILT_NOW: usize = 11;
+/// Number of blocks shared with other GPUs (multi-GPU).
+pub const CTL_SHARED: usize = 12;
+/// Capacity of the shared-block reduction (blocks; multi-GPU).
+pub const CTL_SHARED_CAP: usize = 13;
 /// Number of control words.
 pub const CTL_WORDS: usize = 16;
 
@@ -170,6 +178,8 @@ pub struct Ctx {
     pub warps: u64,
     /// Second value per node for the classic MPM transfers (0 for MLS).
     pub grid_aux: u64,
+    /// Per gblock: 1 when one of its 27 neighbours is shared with another GPU (multi-GPU).
+    pub boundary: u64,
     pub origin: [f32; 3],
     pub dx: f32,
     pub inv_dx: f32,
@@ -212,7 +222,7 @@ pub struct Ctx {
 }
 
 // One layout for both precisions, checked on both sides (`common.cuh` asserts the same sizes).
-const _: () = assert!(std::mem::size_of::<Ctx>() == 448);
+const _: () = assert!(std::mem::size_of::<Ctx>() == 456);
 const _: () = assert!(std::mem::size_of::<StepParams>() == 832);
 
 // SAFETY: plain old data with the C layout of the kernel structs.

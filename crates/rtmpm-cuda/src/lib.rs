@@ -41,14 +41,20 @@ pub mod compile;
 pub mod g2p;
 pub mod grid_update;
 pub mod layout;
+pub mod multi_gpu;
+pub mod nccl;
 pub mod p2g;
 pub mod p2g_reverse_map;
 pub mod p2g_sort;
+pub mod partition;
 pub mod rebuild;
+pub mod reduce_shared;
+pub mod rendezvous;
 pub mod state;
 
 pub use backend::CudaBackend;
 pub use bench::{KernelTimings, bench_kernels, measure_copy_bandwidth};
+pub use multi_gpu::{MultiGpuBackend, NcclRankBackend};
 
 use std::fmt;
 
@@ -104,6 +110,21 @@ fn driver_present() -> bool {
 
 /// Probe CUDA device 0. Never panics.
 pub fn probe() -> Result<DeviceInfo, Unavailable> {
+    probe_device(0)
+}
+
+/// Number of CUDA devices (0 when the driver or NVRTC is missing). Never panics.
+pub fn device_count() -> usize {
+    if !driver_present() || !compile::nvrtc_available() {
+        return 0;
+    }
+    std::panic::catch_unwind(|| cudarc::driver::CudaContext::device_count().unwrap_or(0))
+        .unwrap_or(0)
+        .max(0) as usize
+}
+
+/// Probe CUDA device `ordinal`. Never panics.
+pub fn probe_device(ordinal: usize) -> Result<DeviceInfo, Unavailable> {
     if !driver_present() {
         return Err(Unavailable::NoDriverLibrary);
     }
@@ -113,10 +134,10 @@ pub fn probe() -> Result<DeviceInfo, Unavailable> {
     let r = std::panic::catch_unwind(|| -> Result<DeviceInfo, Unavailable> {
         use cudarc::driver::{CudaContext, sys::CUdevice_attribute};
         let n = CudaContext::device_count().map_err(|e| Unavailable::Driver(format!("{e:?}")))?;
-        if n < 1 {
+        if n < 1 || ordinal >= n as usize {
             return Err(Unavailable::NoDevice);
         }
-        let ctx = CudaContext::new(0).map_err(|e| Unavailable::Driver(format!("{e:?}")))?;
+        let ctx = CudaContext::new(ordinal).map_err(|e| Unavailable::Driver(format!("{e:?}")))?;
         let d = |e| Unavailable::Driver(format!("{e:?}"));
         let mut driver_version = 0;
         // SAFETY: out-parameter.
@@ -192,6 +213,14 @@ pub struct CudaOptions {
     pub gblock_capacity: Option<usize>,
     /// See `gblock_capacity`.
     pub pblock_capacity: Option<usize>,
+    /// Several GPUs: blocks the shared-block reduction holds (`None`: from the partition, grown
+    /// at frame ends).
+    pub shared_capacity: Option<usize>,
+    /// Several GPUs: re-partition the particles at a frame end when they have drifted.
+    pub rebalance: bool,
+    /// Several GPUs: overlap the shared-block reduction with the P2G of the interior gblocks
+    /// (off: P2G of every particle, then the reduction).
+    pub overlap: bool,
 }
 
 impl Default for CudaOptions {
@@ -209,6 +238,9 @@ impl Default for CudaOptions {
             f64: false,
             gblock_capacity: None,
             pblock_capacity: None,
+            shared_capacity: None,
+            rebalance: true,
+            overlap: true,
         }
     }
 }
@@ -216,8 +248,9 @@ impl Default for CudaOptions {
 impl std::str::FromStr for CudaOptions {
     type Err = String;
     /// Comma separated `key=value`: `free_zone`, `mixed_sort`, `warp_reduce`, `fast_math`,
-    /// `graph`, `f64` (on/off/true/false/1/0), `p2g` (warp/shared/reverse_map/sort), `gblocks`,
-    /// `pblocks`, `rmap_replicas`, `rmap_slots`, `rmap_pblocks` (counts).
+    /// `graph`, `f64`, `rebalance`, `overlap` (on/off/true/false/1/0), `p2g`
+    /// (warp/shared/reverse_map/sort), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
+    /// `rmap_pblocks`, `shared` (counts).
     fn from_str(s: &str) -> Result<Self, String> {
         let mut o = CudaOptions::default();
         for item in s.split(',').map(str::trim).filter(|t| !t.is_empty()) {
@@ -260,6 +293,9 @@ impl std::str::FromStr for CudaOptions {
                 }
                 "rmap_slots" => o.rmap_slots = Some(n()?),
                 "rmap_pblocks" => o.rmap_pblocks = Some(n()?),
+                "shared" => o.shared_capacity = Some(n()?),
+                "rebalance" => o.rebalance = b()?,
+                "overlap" => o.overlap = b()?,
                 _ => return Err(format!("unknown CUDA option `{k}`")),
             }
         }

@@ -53,7 +53,7 @@ impl P2gPlan {
         c: &Ctx,
     ) -> Result<(), DriverError> {
         match self {
-            P2gPlan::Warp | P2gPlan::Shared => enqueue_scatter(k, s, c, self.mode()),
+            P2gPlan::Warp | P2gPlan::Shared => enqueue_scatter(k, s, c, self.mode(), 0),
             P2gPlan::ReverseMap(r) => r.enqueue_phase(i, k, s, c),
             P2gPlan::Sort(m) => m.enqueue_phase(i, k, s, c),
         }
@@ -78,8 +78,16 @@ impl P2gPlan {
 }
 
 /// Enqueue the scatter P2G: for MLS the warp variant (4 warps per CUDA block) or the
-/// shared-memory ablation; for the classic MPM transfers `p2g_mpm` (whatever `mode`).
-fn enqueue_scatter(k: &Kernels, s: &CudaStream, c: &Ctx, mode: P2gMode) -> Result<(), DriverError> {
+/// shared-memory ablation; for the classic MPM transfers `p2g_mpm` (whatever `mode`). `part`: 0
+/// every particle; multi-GPU (MLS only): 1 the gblocks next to a shared block, 2 the others
+/// (`p2g.cu`).
+pub(crate) fn enqueue_scatter(
+    k: &Kernels,
+    s: &CudaStream,
+    c: &Ctx,
+    mode: P2gMode,
+    part: u32,
+) -> Result<(), DriverError> {
     let wave = cfg_wave(c.warp_cap as usize * 32, 128, k.wave_threads);
     // SAFETY: the kernels bounds-check against the device counters and capacities.
     unsafe {
@@ -88,15 +96,17 @@ fn enqueue_scatter(k: &Kernels, s: &CudaStream, c: &Ctx, mode: P2gMode) -> Resul
             return Ok(());
         }
         match mode {
-            P2gMode::Shared => s
-                .launch_builder(&k.p2g_shared)
-                .arg(c)
-                .launch(LaunchConfig {
-                    grid_dim: (c.gblock_cap, 1, 1),
-                    block_dim: (256, 1, 1),
-                    shared_mem_bytes: 0,
-                })?,
-            _ => s.launch_builder(&k.p2g).arg(c).launch(wave)?,
+            P2gMode::Shared => {
+                s.launch_builder(&k.p2g_shared)
+                    .arg(c)
+                    .arg(&part)
+                    .launch(LaunchConfig {
+                        grid_dim: (c.gblock_cap, 1, 1),
+                        block_dim: (256, 1, 1),
+                        shared_mem_bytes: 0,
+                    })?
+            }
+            _ => s.launch_builder(&k.p2g).arg(c).arg(&part).launch(wave)?,
         };
     }
     Ok(())

@@ -1,7 +1,7 @@
 //! The particle state on the device, in the backend's precision: host upload and download.
 //!
 //! Structure of arrays of [`NFIELDS`] words per particle, field `f` of particle `i` at word
-//! `f * n + i`. A word is an f32 (`real` = float) or an f64 (kernels compiled with `RTMPM_F64`);
+//! `f * cap + i` (`cap`: the particle capacity, at least `n`). A word is an f32 (`real` = float) or an f64 (kernels compiled with `RTMPM_F64`);
 //! the material id and the original index are stored as integer bits in the low 32 bits of
 //! their word (`state_bits` in `kernels/common.cuh`). The [`Particles`] interface is f32: the
 //! upload widens exactly, the download rounds to nearest.
@@ -77,20 +77,37 @@ pub fn word_bytes(f64: bool) -> usize {
     if f64 { 8 } else { 4 }
 }
 
-/// The device image of `particles` (f64 words when `f64`); materials must be below `n_materials`.
-pub fn pack(particles: &Particles, n_materials: usize, f64: bool) -> Result<Vec<u8>, String> {
+/// The device image of `particles` (f64 words when `f64`), SoA with stride `cap` (at least the
+/// particle count; the words past the particles are zero); materials must be below
+/// `n_materials`. `ids`: the original index of each particle (one GPU of several), else 0..n.
+pub fn pack(
+    particles: &Particles,
+    n_materials: usize,
+    f64: bool,
+    cap: usize,
+    ids: Option<&[u32]>,
+) -> Result<Vec<u8>, String> {
     if f64 {
-        pack_words::<f64>(particles, n_materials)
+        pack_words::<f64>(particles, n_materials, cap, ids)
     } else {
-        pack_words::<f32>(particles, n_materials)
+        pack_words::<f32>(particles, n_materials, cap, ids)
     }
 }
 
-fn pack_words<W: Word>(p: &Particles, n_materials: usize) -> Result<Vec<u8>, String> {
+fn pack_words<W: Word>(
+    p: &Particles,
+    n_materials: usize,
+    cap: usize,
+    ids: Option<&[u32]>,
+) -> Result<Vec<u8>, String> {
     let n = p.len();
-    let mut host = vec![W::default(); NFIELDS * n];
+    let cap = cap.max(n);
+    if ids.is_some_and(|ids| ids.len() != n) {
+        return Err("CUDA backend: one id per particle".into());
+    }
+    let mut host = vec![W::default(); NFIELDS * cap];
     for i in 0..n {
-        let mut put = |f: usize, v: W| host[f * n + i] = v;
+        let mut put = |f: usize, v: W| host[f * cap + i] = v;
         for a in 0..3 {
             put(F_X + a, W::from_f32(p.x[i][a]));
             put(F_V + a, W::from_f32(p.v[i][a]));
@@ -108,7 +125,7 @@ fn pack_words<W: Word>(p: &Particles, n_materials: usize) -> Result<Vec<u8>, Str
             return Err(format!("particle {i} has material {m} out of range"));
         }
         put(F_MAT, W::from_id(m));
-        put(F_ID, W::from_id(i as u32));
+        put(F_ID, W::from_id(ids.map_or(i as u32, |ids| ids[i])));
     }
     let mut bytes = Vec::with_capacity(host.len() * W::BYTES);
     for w in host {
@@ -117,17 +134,28 @@ fn pack_words<W: Word>(p: &Particles, n_materials: usize) -> Result<Vec<u8>, Str
     Ok(bytes)
 }
 
-/// Particles in original order from the device image of `n` particles.
-pub fn unpack(bytes: &[u8], n: usize, f64: bool, out: &mut Particles) -> Result<(), String> {
+/// Particles in original order from the device image of `n` particles (stride `cap`).
+pub fn unpack(
+    bytes: &[u8],
+    n: usize,
+    cap: usize,
+    f64: bool,
+    out: &mut Particles,
+) -> Result<(), String> {
     if f64 {
-        unpack_words::<f64>(bytes, n, out)
+        unpack_words::<f64>(bytes, n, cap, out)
     } else {
-        unpack_words::<f32>(bytes, n, out)
+        unpack_words::<f32>(bytes, n, cap, out)
     }
 }
 
-fn unpack_words<W: Word>(bytes: &[u8], n: usize, out: &mut Particles) -> Result<(), String> {
-    if bytes.len() < NFIELDS * n * W::BYTES {
+fn unpack_words<W: Word>(
+    bytes: &[u8],
+    n: usize,
+    cap: usize,
+    out: &mut Particles,
+) -> Result<(), String> {
+    if cap < n || bytes.len() < NFIELDS * cap * W::BYTES {
         return Err(format!("CUDA: state of {} bytes is too short", bytes.len()));
     }
     *out = Particles::default();
@@ -139,7 +167,7 @@ fn unpack_words<W: Word>(bytes: &[u8], n: usize, out: &mut Particles) -> Result<
     out.mass = vec![0.0; n];
     out.vol0 = vec![0.0; n];
     out.material = vec![0; n];
-    let g = |f: usize, i: usize| W::read(&bytes[(f * n + i) * W::BYTES..]);
+    let g = |f: usize, i: usize| W::read(&bytes[(f * cap + i) * W::BYTES..]);
     let r = |f: usize, i: usize| g(f, i).to_f32();
     for i in 0..n {
         let id = g(F_ID, i).id() as usize;
@@ -160,19 +188,24 @@ fn unpack_words<W: Word>(bytes: &[u8], n: usize, out: &mut Particles) -> Result<
 
 /// Positions and velocities in original order, unrounded (f64 words stay f64): for tests that
 /// compare double-precision states.
-pub fn unpack_x_v_f64(bytes: &[u8], n: usize, f64: bool) -> Result<Vec<[[f64; 3]; 2]>, String> {
+pub fn unpack_x_v_f64(
+    bytes: &[u8],
+    n: usize,
+    cap: usize,
+    f64: bool,
+) -> Result<Vec<[[f64; 3]; 2]>, String> {
     if f64 {
-        x_v_words::<f64>(bytes, n)
+        x_v_words::<f64>(bytes, n, cap)
     } else {
-        x_v_words::<f32>(bytes, n)
+        x_v_words::<f32>(bytes, n, cap)
     }
 }
 
-fn x_v_words<W: Word>(bytes: &[u8], n: usize) -> Result<Vec<[[f64; 3]; 2]>, String> {
-    if bytes.len() < NFIELDS * n * W::BYTES {
+fn x_v_words<W: Word>(bytes: &[u8], n: usize, cap: usize) -> Result<Vec<[[f64; 3]; 2]>, String> {
+    if cap < n || bytes.len() < NFIELDS * cap * W::BYTES {
         return Err(format!("CUDA: state of {} bytes is too short", bytes.len()));
     }
-    let g = |f: usize, i: usize| W::read(&bytes[(f * n + i) * W::BYTES..]);
+    let g = |f: usize, i: usize| W::read(&bytes[(f * cap + i) * W::BYTES..]);
     let v3 = |f: usize, i: usize| [g(f, i).to_f64(), g(f + 1, i).to_f64(), g(f + 2, i).to_f64()];
     let mut out = vec![[[0.0; 3]; 2]; n];
     for i in 0..n {
@@ -198,12 +231,21 @@ mod tests {
         }
         p.f[3] = Mat3::from_cols_array(&[1.1, 0.2, 0.0, -0.1, 0.9, 0.3, 0.0, 0.0, 1.05]);
         for f64 in [false, true] {
-            let bytes = pack(&p, 2, f64).expect("pack");
-            assert_eq!(bytes.len(), NFIELDS * 5 * word_bytes(f64));
-            let mut q = Particles::default();
-            unpack(&bytes, 5, f64, &mut q).expect("unpack");
-            assert_eq!(p, q, "f64 = {f64}");
+            for cap in [5, 8] {
+                let bytes = pack(&p, 2, f64, cap, None).expect("pack");
+                assert_eq!(bytes.len(), NFIELDS * cap * word_bytes(f64));
+                let mut q = Particles::default();
+                unpack(&bytes, 5, cap, f64, &mut q).expect("unpack");
+                assert_eq!(p, q, "f64 = {f64}, cap = {cap}");
+            }
         }
-        assert!(pack(&p, 1, true).is_err());
+        assert!(pack(&p, 1, true, 5, None).is_err());
+        assert!(pack(&p, 2, false, 5, Some(&[0, 1])).is_err());
+        // Ids put each particle at its original index (reversed here).
+        let bytes = pack(&p, 2, false, 6, Some(&[4, 3, 2, 1, 0])).expect("pack");
+        let mut q = Particles::default();
+        unpack(&bytes, 5, 6, false, &mut q).expect("unpack");
+        assert_eq!(q.x[0], p.x[4]);
+        assert_eq!(q.f[1], p.f[3]);
     }
 }

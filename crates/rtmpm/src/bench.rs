@@ -43,6 +43,9 @@ pub struct BenchArgs {
     /// CPU worker threads (default: one per core).
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Several GPUs of this machine (CUDA, NCCL): also times the shared-block reduction.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub gpus: usize,
 }
 
 /// The fixed time step of the classic scene at resolution n.
@@ -123,8 +126,14 @@ pub fn bench(args: BenchArgs) -> Result<()> {
         "benchmark: {label}, dt = {dt:e}, {steps} steps ({} frames of {per_frame})",
         steps / per_frame.max(1)
     );
+    if use_cuda && args.gpus > 1 {
+        return bench_multi_gpu(&args, &scene, &particles, dt, steps);
+    }
     if use_cuda {
         return bench_cuda(&args, &scene, &particles, dt, steps);
+    }
+    if args.gpus > 1 {
+        bail!("--gpus {} needs the CUDA backend", args.gpus);
     }
     let backend = make_backend(
         BackendKind::Cpu,
@@ -254,6 +263,55 @@ fn bench_cuda(
         "  bandwidth    {:.1} MB/step must move; copy bandwidth {bw:.0} GB/s -> floor {floor_ms:.4} ms/step = {:.0} % of the evented step",
         k.bytes_per_step as f64 / 1e6,
         100.0 * floor_ms / k.ms_per_step.max(1e-12)
+    );
+    Ok(())
+}
+
+/// Several GPUs: whole-run throughput (graph replay), then up to 200 steps with events around the
+/// shared-block reduction (no graph, one synchronisation per step).
+fn bench_multi_gpu(
+    args: &BenchArgs,
+    scene: &Scene,
+    particles: &Particles,
+    dt: f32,
+    steps: u64,
+) -> Result<()> {
+    use rtmpm_core::sim::Backend;
+    let n = particles.len();
+    let mut b =
+        rtmpm_cuda::MultiGpuBackend::new(scene, particles, args.gpus, args.cuda_options.clone())?;
+    for i in 0..args.warmup {
+        b.step(dt, i as f32 * dt)?;
+    }
+    b.check()?;
+    let start = Instant::now();
+    for i in 0..steps {
+        b.step(dt, (args.warmup + i) as f32 * dt)?;
+    }
+    if let Some(bad) = b.check()? {
+        bail!("the benchmark blew up (particle {})", bad.index);
+    }
+    let wall = start.elapsed().as_secs_f64();
+    let rate = n as f64 * steps as f64 / wall;
+    let shared = b.shared_blocks()?;
+    let counts = b.counts()?;
+    println!("  backend      {} [{:?}]", b.name(), args.cuda_options);
+    println!("  particles    {n} ({counts:?} per GPU)");
+    println!("  steps        {steps} timed after {} warm-up", args.warmup);
+    println!(
+        "  wall time    {wall:.3} s ({:.4} ms/step)",
+        1e3 * wall / steps as f64
+    );
+    println!(
+        "  throughput   {} ({rate:.4e} particle-steps/s)",
+        human_rate(rate)
+    );
+    let t0 = (args.warmup + steps) as f32 * dt;
+    let k = steps.min(200) as u32;
+    let (step_ms, reduce_ms) = b.time_reduction(dt, t0, k)?;
+    println!(
+        "  reduction    {reduce_ms:.4} ms/step (pack + NCCL all-reduce + unpack, {shared} shared blocks = {:.1} MB; evented step {step_ms:.4} ms, {k} steps)",
+        shared as f64 * 1024.0 / 1e6
     );
     Ok(())
 }

@@ -4,6 +4,7 @@ mod backend;
 mod bench;
 mod check;
 mod info;
+mod multi;
 mod output;
 mod render;
 mod run;
@@ -23,7 +24,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Run a scene and write its frames.
-    Run(run::RunArgs),
+    Run(Box<run::RunArgs>),
     /// Version, available backends and the GPU found.
     Info,
     /// Validate a scene file without running it.
@@ -40,9 +41,15 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    // NVLink multicast (NVLS) stays off in NCCL unless the user asks for it: a program using it
+    // can put a shared host's GPUs out of service. Set before any thread starts.
+    if std::env::var_os("NCCL_NVLS_ENABLE").is_none() {
+        // SAFETY: single-threaded here (no thread has been started yet).
+        unsafe { std::env::set_var("NCCL_NVLS_ENABLE", "0") };
+    }
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Run(args) => run::run(args),
+        Command::Run(args) => run::run(*args),
         Command::Info => info::info(),
         Command::Check { scene } => check::check(&scene),
         Command::Bench(args) => bench::bench(args),

@@ -57,6 +57,8 @@ pub struct RunArgs {
     pub preview: Option<PathBuf>,
     #[command(flatten)]
     pub view: crate::render::ViewArgs,
+    #[command(flatten)]
+    pub multi: crate::multi::MultiGpuArgs,
 }
 
 pub fn run(args: RunArgs) -> Result<()> {
@@ -97,15 +99,28 @@ pub fn run(args: RunArgs) -> Result<()> {
     }
     let n = particles.len();
     let out_dir = args.out.clone().unwrap_or_else(|| scene.output.dir.clone());
-    let backend = make_backend(
-        args.backend,
-        &scene,
-        particles,
-        args.threads,
-        &args.cuda_options,
-    )?;
+    let mode = args.multi.mode()?;
+    let backend = if mode == crate::multi::Mode::Single {
+        make_backend(
+            args.backend,
+            &scene,
+            particles,
+            args.threads,
+            &args.cuda_options,
+        )?
+    } else {
+        if args.backend == BackendKind::Cpu {
+            bail!("--gpus and --rendezvous need the CUDA backend (not --backend cpu)");
+        }
+        args.multi
+            .backend(mode, &scene, &particles, &args.cuda_options)?
+    };
+    // Multi-process runs: rank 0 writes the files; every rank gathers the particles at the same
+    // points (a collective), so every rank must be given the same options.
+    let writer = args.multi.writes_output();
+    let collect = !args.no_output || args.render || args.preview.is_some();
     let mut sim = Simulation::new(scene, backend);
-    let mut output = if args.no_output {
+    let mut output = if args.no_output || !writer {
         None
     } else {
         Some(FrameOutput::new(&out_dir, &sim.scene)?)
@@ -130,14 +145,14 @@ pub fn run(args: RunArgs) -> Result<()> {
             .unwrap_or_default()
     );
     let mut renderer = RunRenderer::new(
-        args.render,
-        args.preview.clone(),
+        args.render && writer,
+        args.preview.clone().filter(|_| writer),
         &args.view,
         &out_dir,
         &sim.scene,
     );
     let mut host = Particles::default();
-    if sim.frame == 0 && (output.is_some() || renderer.is_some()) {
+    if sim.frame == 0 && collect {
         sim.backend.read_particles(&mut host)?;
         if let Some(out) = output.as_mut() {
             out.write_frame(0, 0.0, &host, &sim.scene)?;
@@ -147,7 +162,11 @@ pub fn run(args: RunArgs) -> Result<()> {
         }
     }
 
-    let bar = ProgressBar::new(total_frames);
+    let bar = if writer {
+        ProgressBar::new(total_frames)
+    } else {
+        ProgressBar::hidden()
+    };
     bar.set_style(
         ProgressStyle::with_template(
             "{spinner} frame {pos}/{len} [{bar:30}] t = {msg} | elapsed {elapsed_precise} | ETA {eta_precise}",
@@ -176,7 +195,7 @@ pub fn run(args: RunArgs) -> Result<()> {
             human_rate(rate)
         ));
         bar.set_position(sim.frame);
-        if output.is_some() || renderer.is_some() {
+        if collect {
             sim.backend.read_particles(&mut host)?;
         }
         if let Some(out) = output.as_mut() {
@@ -190,6 +209,9 @@ pub fn run(args: RunArgs) -> Result<()> {
             .is_some_and(|every| every > 0 && sim.frame.is_multiple_of(every))
         {
             sim.backend.read_particles(&mut host)?;
+            if !writer {
+                continue;
+            }
             let ckpt = Checkpoint {
                 scene_toml: scene_text.clone(),
                 scene_origin: sim

@@ -1,0 +1,167 @@
+//! Several GPUs vs one GPU on every example scene (needs 2 CUDA GPUs and NCCL; skips with a
+//! message otherwise): `cargo test -p rtmpm-cuda --test multi_gpu -- --include-ignored --nocapture`.
+//! `RTMPM_MULTI_GPU_STEPS` sets the steps (default 300), `RTMPM_MULTI_GPU_COUNTS` the GPU counts
+//! compared with one GPU (default "2,4", those above the devices present are skipped),
+//! `RTMPM_MULTI_GPU_OPTIONS` the CUDA options (e.g. "graph=off").
+
+use rtmpm_core::math::Vec3;
+use rtmpm_core::sim::{Backend, Simulation};
+use rtmpm_core::{Particles, Scene};
+use rtmpm_cuda::{CudaBackend, CudaOptions, MultiGpuBackend, device_count, nccl};
+use std::path::Path;
+
+fn scenes() -> Vec<std::path::PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    let mut v: Vec<_> = std::fs::read_dir(dir)
+        .expect("scenes/")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    v.sort();
+    v
+}
+
+fn read(b: &mut dyn Backend) -> Particles {
+    let mut p = Particles::default();
+    b.read_particles(&mut p).expect("read particles");
+    p
+}
+
+/// (|d com|, relative d KE, |d bbox|) between two particle sets.
+fn differences(a: &Particles, b: &Particles) -> (f32, f64, f32) {
+    let (ca, cb) = (a.center_of_mass(), b.center_of_mass());
+    let dcom = Vec3::new(
+        (ca[0] - cb[0]) as f32,
+        (ca[1] - cb[1]) as f32,
+        (ca[2] - cb[2]) as f32,
+    )
+    .length();
+    let (ka, kb) = (a.kinetic_energy(), b.kinetic_energy());
+    let (la, ha) = a.bounding_box();
+    let (lb, hb) = b.bounding_box();
+    let dbox = (la - lb)
+        .abs()
+        .max_element()
+        .max((ha - hb).abs().max_element());
+    (dcom, (ka - kb).abs() / ka.max(1e-12), dbox)
+}
+
+fn usable(gpus: usize) -> bool {
+    let found = device_count();
+    if found < gpus {
+        println!("skipped: {gpus} CUDA GPUs needed, {found} found");
+        return false;
+    }
+    if let Err(e) = nccl::library() {
+        println!("skipped: NCCL not usable ({e})");
+        return false;
+    }
+    true
+}
+
+/// The tolerances of the CPU/GPU agreement test (tests/agreement.rs): after `steps` steps the
+/// centre of mass within 0.1 cell, the kinetic energy within 2 %, the bounding box within 1 cell;
+/// after one step every particle within float tolerance. Halfway, the particles are re-partitioned
+/// (rebalancing) and the run goes on.
+#[test]
+#[ignore = "needs 2 CUDA GPUs and NCCL"]
+fn several_gpus_agree_with_one_on_every_example_scene() {
+    if !usable(2) {
+        return;
+    }
+    let steps: usize = std::env::var("RTMPM_MULTI_GPU_STEPS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(300);
+    let counts: Vec<usize> = std::env::var("RTMPM_MULTI_GPU_COUNTS")
+        .unwrap_or_else(|_| "2,4".into())
+        .split(',')
+        .filter_map(|s| s.trim().parse().ok())
+        .filter(|&n| n >= 2 && n <= device_count())
+        .collect();
+    let mut failures = Vec::new();
+    for path in scenes() {
+        let name = path.file_name().unwrap().to_string_lossy().to_string();
+        let scene = Scene::from_file(&path).expect("scene");
+        let p0 = scene.sample_particles().expect("particles");
+        // RTMPM_MULTI_GPU_OPTIONS: CUDA options of every backend, e.g. "graph=off".
+        let opts: CudaOptions = std::env::var("RTMPM_MULTI_GPU_OPTIONS")
+            .unwrap_or_default()
+            .parse()
+            .expect("RTMPM_MULTI_GPU_OPTIONS");
+        let dt = {
+            let mut sim = Simulation::new(
+                scene.clone(),
+                Box::new(CudaBackend::new(&scene, &p0, opts.clone()).expect("1 GPU")),
+            );
+            sim.next_dt().expect("dt")
+        };
+        let dx = scene.dx;
+        for &gpus in &counts {
+            let mut many = MultiGpuBackend::new(&scene, &p0, gpus, opts.clone()).expect("N GPUs");
+            let mut first = CudaBackend::new(&scene, &p0, opts.clone()).expect("1 GPU");
+            first.step(dt, 0.0).expect("step");
+            many.step(dt, 0.0).expect("step");
+            let (a, b) = (read(&mut first), read(&mut many));
+            let vscale = a.v.iter().map(|v| v.length()).fold(1e-3f32, f32::max);
+            let (mut wx, mut wv) = (0f32, 0f32);
+            for i in 0..a.len() {
+                wx = wx.max((a.x[i] - b.x[i]).length());
+                wv = wv.max((a.v[i] - b.v[i]).length());
+            }
+            println!(
+                "{name} x{gpus}: 1 step: max |dx| {wx:.3e} m, max |dv| {wv:.3e} m/s (v scale {vscale:.3e}); {} shared blocks, {:?} particles per GPU",
+                many.shared_blocks().unwrap(),
+                many.counts().unwrap()
+            );
+            if wx > 1e-5 * dx.max(1e-3) + 1e-6 || wv > 1e-3 * vscale {
+                failures.push(format!("{name} x{gpus}: first step differs"));
+            }
+            for s in 1..steps {
+                if s == steps / 2 {
+                    many.rebalance_now().expect("rebalance");
+                }
+                first.step(dt, s as f32 * dt).expect("step");
+                many.step(dt, s as f32 * dt).expect("step");
+            }
+            assert!(many.check().expect("check").is_none(), "{name}: blow-up");
+            let (a, b) = (read(&mut first), read(&mut many));
+            let (dcom, dke, dbox) = differences(&a, &b);
+            println!(
+                "{name} x{gpus}: {steps} steps: |d com| {dcom:.3e} m ({:.4} dx), d KE {:.3} %, |d bbox| {dbox:.3e} m ({:.3} dx), {} rebalance(s)",
+                dcom / dx,
+                100.0 * dke,
+                dbox / dx,
+                many.rebalances
+            );
+            if dcom > 0.1 * dx || dke > 0.02 || dbox > dx {
+                failures.push(format!(
+                    "{name} x{gpus}: aggregates differ after {steps} steps"
+                ));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// Too many GPUs asked: a clear error, no panic.
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn asking_for_more_gpus_than_present_is_a_clear_error() {
+    let found = device_count();
+    if found == 0 {
+        println!("skipped: no CUDA GPU");
+        return;
+    }
+    let scene = Scene::from_file(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/dam_break.toml"),
+    )
+    .unwrap();
+    let p = scene.sample_particles().unwrap();
+    let e = MultiGpuBackend::new(&scene, &p, found + 1, CudaOptions::default())
+        .err()
+        .expect("an error");
+    let msg = e.to_string();
+    println!("{msg}");
+    assert!(msg.contains(&format!("{found} CUDA device")), "{msg}");
+}
