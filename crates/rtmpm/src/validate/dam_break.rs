@@ -24,8 +24,11 @@ const DATA: [(f64, f64); 14] = [
 
 /// Column width a (m), as in validation/dam_break.toml.
 const A: f64 = 0.1;
-/// Shift added to the simulated T before comparing (stated in the scene file).
-const T_SHIFT: f64 = 0.0;
+/// Shift added to the simulated T before comparing, the same at every resolution (stated in the
+/// scene file): the experiment's t = 0, the gate's release, is uncertain, and REFERENCES.md says
+/// published solvers shift by up to ~0.2. 0.1 is the near-constant lead of the simulated front
+/// from T ~ 1 on (a/20 and a/40 alike, validation/RESULTS.md); the unshifted error is printed too.
+const T_SHIFT: f64 = 0.1;
 
 /// Linear interpolation of samples (x sorted).
 fn interp(xs: &[f64], ys: &[f64], x: f64) -> f64 {
@@ -53,14 +56,19 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
         let mut x: Vec<f32> = p.x.iter().map(|v| v.x).collect();
         x.sort_by(f32::total_cmp);
         let front = x[((x.len() - 1) as f64 * 0.995) as usize] as f64;
-        ts.push(t * (2.0 * g / A).sqrt() + T_SHIFT);
+        ts.push(t * (2.0 * g / A).sqrt());
         zs.push(front / A);
     })?;
-    let mut worst: f64 = 0.0;
-    for &(t, z) in DATA.iter().skip(1) {
-        worst = worst.max((interp(&ts, &zs, t) - z).abs());
-    }
-    let z3 = interp(&ts, &zs, 2.96);
+    // Largest |Z_sim - Z_exp| over the data (T > 0) with the simulated T shifted by `shift`.
+    let worst_with = |shift: f64| {
+        let t_shifted: Vec<f64> = ts.iter().map(|t| t + shift).collect();
+        DATA.iter()
+            .skip(1)
+            .map(|&(t, z)| (interp(&t_shifted, &zs, t) - z).abs())
+            .fold(0.0, f64::max)
+    };
+    let (worst, worst_unshifted) = (worst_with(T_SHIFT), worst_with(0.0));
+    let z3 = interp(&ts.iter().map(|t| t + T_SHIFT).collect::<Vec<_>>(), &zs, 2.96);
     ctx.plot(
         "dam_break_front",
         Plot {
@@ -75,10 +83,10 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
                     style: Style::Markers,
                 },
                 Series {
-                    label: "rtmpm".into(),
+                    label: format!("rtmpm (T + {T_SHIFT})"),
                     points: ts
                         .iter()
-                        .copied()
+                        .map(|t| t + T_SHIFT)
                         .zip(zs.iter().copied())
                         .filter(|p| p.0 <= 3.2)
                         .collect(),
@@ -91,7 +99,9 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
     Ok(vec![
         Row {
             case: "dam_break".into(),
-            quantity: "max |Z_sim - Z_exp| over T in (0, 3]".into(),
+            quantity: format!(
+                "max |Z_sim - Z_exp| over T in (0, 3], T_sim + {T_SHIFT} (no shift: {worst_unshifted:.3})"
+            ),
             reference: 0.0,
             simulated: worst,
             error: worst,
@@ -100,7 +110,7 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
         },
         Row {
             case: "dam_break".into(),
-            quantity: "front Z at T = 2.96".into(),
+            quantity: format!("front Z at T = 2.96, T_sim + {T_SHIFT}"),
             reference: 3.67,
             simulated: z3,
             error: (z3 - 3.67).abs(),
