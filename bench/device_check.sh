@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# One device call after a merge (binaries built on the CPU machine by scripts/prepare_device.sh,
+# carried in $D): the GPU tests (agreement with the CPU backend, transfers, P2G strategies, f64),
+# the validation suite at full resolution on the GPU, and a short benchmark of the claymore scenes.
+# Logs in $OUT; a summary is printed last.
+# Usage: D=.device OUT=$OUT bash bench/device_check.sh [tests|validate|bench|all]
+set -uo pipefail
+export NCCL_NVLS_ENABLE=0
+D=${D:-.device}
+OUT=${OUT:-/tmp/out}
+WHAT=${1:-all}
+mkdir -p "$OUT"
+S="$OUT/summary.txt"
+: > "$S"
+say() { echo "$*" | tee -a "$S"; }
+say "$(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader | head -1); commit $(cat $D/COMMIT 2>/dev/null)"
+# The test binaries find scenes through the path they were built in (/work/main).
+mkdir -p /work && [ -e /work/main ] || ln -sfn "$PWD" /work/main
+mkdir -p target/release && cp "$D/rtmpm" target/release/rtmpm
+
+if [ "$WHAT" = all ] || [ "$WHAT" = tests ]; then
+  for t in test_gpu test_agreement; do
+    [ -x "$D/$t" ] || { say "$t missing"; continue; }
+    timeout 300 "$D/$t" --include-ignored --test-threads 1 > "$OUT/$t.log" 2>&1
+    say "$t rc=$?: $(grep -E '^test result' "$OUT/$t.log")"
+    grep -E "FAILED|panicked" "$OUT/$t.log" | head -10 | tee -a "$S"
+  done
+fi
+
+if [ "$WHAT" = all ] || [ "$WHAT" = validate ]; then
+  timeout 300 $D/rtmpm validate --backend cuda --out "$OUT/validation" > "$OUT/validate_full.log" 2>&1
+  say "validate --backend cuda (full) rc=$?"
+  grep -E "PASS|FAIL|passed" "$OUT/validate_full.log" | sed -E 's/ +/ /g' | tee -a "$S"
+fi
+
+if [ "$WHAT" = all ] || [ "$WHAT" = bench ]; then
+  b() { # label, args...
+    local label=$1; shift
+    local r; r=$(timeout 120 $D/rtmpm bench --backend cuda "$@" 2>&1)
+    echo "== $label: $*" >> "$OUT/bench.log"; echo "$r" >> "$OUT/bench.log"
+    say "$label | $(echo "$r" | grep -E 'wall time|throughput|^error' | sed -E 's/ +/ /g' | tr '\n' '|')"
+  }
+  b "fluid_dam_2m" --scene bench/fluid_dam_2m.toml --frames 10
+  b "jelly_drop_2m" --scene bench/jelly_drop_2m.toml --frames 5
+  b "snow_1m" --scene bench/snow_1m.toml --frames 10
+  b "fluid n=128 f64" --n 128 --steps 300 --precision f64
+  b "fluid n=128 p2g=reverse_map" --n 128 --steps 300 --cuda-options p2g=reverse_map
+fi
+echo "==== summary"; cat "$S"
