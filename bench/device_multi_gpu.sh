@@ -3,10 +3,11 @@
 # $D): device facts, the multi-GPU tests (--gpus 2 and two processes vs one GPU on every example
 # scene), every example scene on --gpus 2, a two-process run through a file rendezvous, and the
 # strong/weak scaling benchmarks. Logs in $OUT; a summary is printed last.
-# Usage: D=.device-mgpu OUT=/tmp/out bash bench/device_multi_gpu.sh [tests|bench|all]
+# Usage: D=.device OUT=/tmp/out bash bench/device_multi_gpu.sh [tests|bench|all]
+# (scripts/prepare_device.sh stages the binaries in .device)
 set -uo pipefail
 export NCCL_NVLS_ENABLE=0 TORCH_SYMM_MEM_DISABLE_MULTICAST=1 NVSHMEM_DISABLE_NVLS=1
-D=${D:-.device-mgpu}
+D=${D:-.device}
 OUT=${OUT:-/tmp/out}
 WHAT=${1:-all}
 mkdir -p "$OUT"
@@ -21,8 +22,8 @@ if [ -z "${RTMPM_NCCL_LIB:-}" ]; then
 fi
 { nvidia-smi -L; nvidia-smi topo -m; echo "NCCL: $RTMPM_NCCL_LIB"; $D/rtmpm info; } > "$OUT/device.txt" 2>&1
 say "gpus $NGPU; $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader | head -1); NCCL $RTMPM_NCCL_LIB"
-# The test binaries look for /work/wt-mgpu (where they were built): point it at this tree.
-mkdir -p /work && ln -sfn "$PWD" /work/wt-mgpu
+# The test binaries look for /work/main (where they were built): point it at this tree.
+mkdir -p /work && [ -e /work/main ] || ln -sfn "$PWD" /work/main
 mkdir -p target/release target/tmp && cp "$D/rtmpm" target/release/rtmpm
 
 if [ "$WHAT" != bench ]; then
@@ -60,17 +61,17 @@ if [ "$WHAT" != tests ]; then
     echo "== $label: $*" >> "$OUT/bench.log"; echo "$r" >> "$OUT/bench.log"
     say "$label rc=$rc | $(echo "$r" | grep -E 'wall time|reduction|particles  |^error' | sed -E 's/ +/ /g' | tr '\n' '|')"
   }
-  b "strong 16M x1" 200 --backend cuda --scene $D/bench/strong_16m.toml --frames 2
-  b "strong 16M x2" 200 --scene $D/bench/strong_16m.toml --frames 2 --gpus 2
-  b "weak 4M x1" 150 --backend cuda --scene $D/bench/weak_4m_x1.toml --frames 2
-  b "weak 4M x2" 150 --scene $D/bench/weak_4m_x2.toml --frames 2 --gpus 2
-  b "strong 16M x2 graph=off" 200 --scene $D/bench/strong_16m.toml --frames 2 --gpus 2 --cuda-options graph=off
-  b "strong 16M x2 overlap=off" 200 --scene $D/bench/strong_16m.toml --frames 2 --gpus 2 --cuda-options overlap=off
-  b "weak 4M x2 graph=off" 150 --scene $D/bench/weak_4m_x2.toml --frames 2 --gpus 2 --cuda-options graph=off
-  b "weak 4M x2 overlap=off" 150 --scene $D/bench/weak_4m_x2.toml --frames 2 --gpus 2 --cuda-options overlap=off
+  b "strong 16M x1" 200 --backend cuda --scene bench/strong_16m.toml --frames 2
+  b "strong 16M x2" 200 --scene bench/strong_16m.toml --frames 2 --gpus 2
+  b "weak 4M x1" 150 --backend cuda --scene bench/weak_4m_x1.toml --frames 2
+  b "weak 4M x2" 150 --scene bench/weak_4m_x2.toml --frames 2 --gpus 2
+  b "strong 16M x2 graph=off" 200 --scene bench/strong_16m.toml --frames 2 --gpus 2 --cuda-options graph=off
+  b "strong 16M x2 overlap=off" 200 --scene bench/strong_16m.toml --frames 2 --gpus 2 --cuda-options overlap=off
+  b "weak 4M x2 graph=off" 150 --scene bench/weak_4m_x2.toml --frames 2 --gpus 2 --cuda-options graph=off
+  b "weak 4M x2 overlap=off" 150 --scene bench/weak_4m_x2.toml --frames 2 --gpus 2 --cuda-options overlap=off
   if [ "$NGPU" -ge 4 ]; then
-    b "strong 16M x4" 200 --scene $D/bench/strong_16m.toml --frames 2 --gpus 4
-    b "weak 4M x4" 200 --scene $D/bench/weak_4m_x4.toml --frames 2 --gpus 4
+    b "strong 16M x4" 200 --scene bench/strong_16m.toml --frames 2 --gpus 4
+    b "weak 4M x4" 200 --scene bench/weak_4m_x4.toml --frames 2 --gpus 4
   fi
 fi
 echo "==== summary"; cat "$S"

@@ -5,7 +5,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release -p rtmpm
 rm -rf .device && mkdir -p .device
-cargo test --release -p rtmpm-cuda --no-run --message-format=json 2>/dev/null | python3 -c '
+cargo test --release -p rtmpm-cuda -p rtmpm --test gpu --test agreement --test multi_gpu --test multi_gpu_cli --no-run --message-format=json 2>/dev/null | python3 -c '
 import sys, json, shutil
 for line in sys.stdin:
     m = json.loads(line)

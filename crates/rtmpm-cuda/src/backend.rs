@@ -437,12 +437,14 @@ impl CudaBackend {
             bufs.push(s);
             Ok(p)
         };
-        let materials = if options.f64 {
+        // The material table in the kernels' precision (global copy and constant memory alike).
+        let material_bytes: Vec<u8> = if options.f64 {
             let mats: Vec<_> = mats.iter().map(GpuMaterial::to_f64).collect();
-            bytes(as_bytes(&mats))?
+            as_bytes(&mats).to_vec()
         } else {
-            bytes(as_bytes(&mats))?
+            as_bytes(&mats).to_vec()
         };
+        let materials = bytes(&material_bytes)?;
         let colliders = bytes(as_bytes(&cols))?;
         let mesh_values = bytes(as_bytes(&mesh))?;
         let mut zeros = |len: usize| -> Result<u64, SimError> {
@@ -528,7 +530,7 @@ impl CudaBackend {
         };
         // Read-only parameters in constant memory (kernels/common.cuh); the global copies above
         // serve kernels compiled with -DRTMPM_PARAMS_GLOBAL.
-        write_symbol(&module, &stream, "c_materials", as_bytes(&mats))?;
+        write_symbol(&module, &stream, "c_materials", &material_bytes)?;
         write_symbol(&module, &stream, "c_colliders", as_bytes(&cols))?;
         let p2g = match options.p2g {
             P2gMode::Warp => P2gPlan::Warp,
