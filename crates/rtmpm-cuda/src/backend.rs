@@ -913,48 +913,16 @@ impl Backend for CudaBackend {
     }
 }
 
-/// Size every column of `out` for `n` particles (zeros).
-pub fn resize_particles(out: &mut Particles, n: usize) {
-    let z = Vec3::ZERO;
-    out.x.resize(n, z);
-    out.v.resize(n, z);
-    out.c.resize(n, Mat3::ZERO);
-    out.f.resize(n, Mat3::ZERO);
-    out.plastic.resize(n, 0.0);
-    out.mass.resize(n, 0.0);
-    out.vol0.resize(n, 0.0);
-    out.material.resize(n, 0);
-}
+/// Size every column of `out` for `n` particles (zeros); see [`crate::state::resize_particles`].
+pub use crate::state::resize_particles;
 
-/// Put the `n` particles of a state array (SoA with stride `cap`, as stored on one GPU) at their
-/// original index in `out` (already sized for every particle of the run).
+/// Put the `n` particles of a single-precision state array (SoA with stride `cap`, as stored on
+/// one GPU) at their original index in `out` (already sized for every particle of the run).
 pub fn scatter_state(
     host: &[f32],
     n: usize,
     cap: usize,
     out: &mut Particles,
 ) -> Result<(), SimError> {
-    let total = out.x.len();
-    let g = |f: usize, i: usize| host[f * cap + i];
-    for i in 0..n {
-        let id = g(F_ID, i).to_bits() as usize;
-        if id >= total {
-            return Err(SimError::Backend(format!("CUDA: corrupt particle id {id}")));
-        }
-        out.x[id] = Vec3::new(g(F_X, i), g(F_X + 1, i), g(F_X + 2, i));
-        out.v[id] = Vec3::new(g(F_V, i), g(F_V + 1, i), g(F_V + 2, i));
-        let mut c = [0f32; 9];
-        let mut f = [0f32; 9];
-        for e in 0..9 {
-            c[e] = g(F_C + e, i);
-            f[e] = g(F_F + e, i);
-        }
-        out.c[id] = Mat3::from_cols_array(&c);
-        out.f[id] = Mat3::from_cols_array(&f);
-        out.plastic[id] = g(F_PLASTIC, i);
-        out.mass[id] = g(F_MASS, i);
-        out.vol0[id] = g(F_VOL0, i);
-        out.material[id] = g(F_MAT, i).to_bits();
-    }
-    Ok(())
+    crate::state::scatter_f32(host, n, cap, out).map_err(SimError::Backend)
 }

@@ -159,19 +159,43 @@ fn unpack_words<W: Word>(
         return Err(format!("CUDA: state of {} bytes is too short", bytes.len()));
     }
     *out = Particles::default();
-    out.x = vec![Vec3::ZERO; n];
-    out.v = vec![Vec3::ZERO; n];
-    out.c = vec![Mat3::ZERO; n];
-    out.f = vec![Mat3::ZERO; n];
-    out.plastic = vec![0.0; n];
-    out.mass = vec![0.0; n];
-    out.vol0 = vec![0.0; n];
-    out.material = vec![0; n];
-    let g = |f: usize, i: usize| W::read(&bytes[(f * cap + i) * W::BYTES..]);
+    resize_particles(out, n);
+    scatter_words(|f, i| W::read(&bytes[(f * cap + i) * W::BYTES..]), n, out)
+}
+
+/// Size every column of `out` for `n` particles (zeros).
+pub fn resize_particles(out: &mut Particles, n: usize) {
+    out.x.resize(n, Vec3::ZERO);
+    out.v.resize(n, Vec3::ZERO);
+    out.c.resize(n, Mat3::ZERO);
+    out.f.resize(n, Mat3::ZERO);
+    out.plastic.resize(n, 0.0);
+    out.mass.resize(n, 0.0);
+    out.vol0.resize(n, 0.0);
+    out.material.resize(n, 0);
+}
+
+/// Put the `n` particles of a single-precision state image (SoA with stride `cap`, as stored on
+/// one GPU of several) at their original index in `out` (already sized for every particle).
+pub fn scatter_f32(host: &[f32], n: usize, cap: usize, out: &mut Particles) -> Result<(), String> {
+    if cap < n || host.len() < NFIELDS * cap {
+        return Err(format!("CUDA: state of {} words is too short", host.len()));
+    }
+    scatter_words(|f, i| host[f * cap + i], n, out)
+}
+
+/// Put `n` particles, read word by word with `g(field, particle)`, at their original index
+/// (the id field) in `out`, which is already sized.
+fn scatter_words<W: Word>(
+    g: impl Fn(usize, usize) -> W,
+    n: usize,
+    out: &mut Particles,
+) -> Result<(), String> {
+    let total = out.x.len();
     let r = |f: usize, i: usize| g(f, i).to_f32();
     for i in 0..n {
         let id = g(F_ID, i).id() as usize;
-        if id >= n {
+        if id >= total {
             return Err(format!("CUDA: corrupt particle id {id}"));
         }
         out.x[id] = Vec3::new(r(F_X, i), r(F_X + 1, i), r(F_X + 2, i));
