@@ -3,7 +3,7 @@
 # carried in $D): the GPU tests (agreement with the CPU backend, transfers, P2G strategies, f64),
 # the validation suite at full resolution on the GPU, and a short benchmark of the claymore scenes.
 # Logs in $OUT; a summary is printed last.
-# Usage: D=.device OUT=$OUT bash bench/device_check.sh [tests|validate|bench|all]
+# Usage: D=.device OUT=$OUT bash bench/device_check.sh [tests|validate|bench|all|convergence]
 set -uo pipefail
 export NCCL_NVLS_ENABLE=0
 D=${D:-.device}
@@ -31,6 +31,18 @@ if [ "$WHAT" = all ] || [ "$WHAT" = validate ]; then
   timeout 300 $D/rtmpm validate --backend cuda --out "$OUT/validation" > "$OUT/validate_full.log" 2>&1
   say "validate --backend cuda (full) rc=$?"
   grep -E "PASS|FAIL|passed" "$OUT/validate_full.log" | sed -E 's/ +/ /g' | tee -a "$S"
+fi
+
+if [ "$WHAT" = convergence ]; then
+  timeout 300 $D/rtmpm validate --backend cuda --convergence --case vibrating_bar,vibrating_bar_gimp,hydrostatic_column \
+    --out "$OUT/convergence" > "$OUT/validate_convergence.log" 2>&1
+  say "validate --backend cuda --convergence rc=$?"
+  grep -E "PASS|FAIL|passed|order|error at" "$OUT/validate_convergence.log" | sed -E 's/ +/ /g' | tee -a "$S"
+  timeout 300 $D/rtmpm validate --backend cuda --precision f64 \
+    --case vibrating_bar,vibrating_bar_gimp,hydrostatic_column,hydrostatic_column_gimp,colliding_disks,dam_break \
+    --out "$OUT/f64" > "$OUT/validate_f64.log" 2>&1
+  say "validate --backend cuda --precision f64 rc=$?"
+  grep -E "PASS|FAIL|passed" "$OUT/validate_f64.log" | sed -E 's/ +/ /g' | tee -a "$S"
 fi
 
 if [ "$WHAT" = all ] || [ "$WHAT" = bench ]; then
