@@ -68,7 +68,11 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
             .fold(0.0, f64::max)
     };
     let (worst, worst_unshifted) = (worst_with(T_SHIFT), worst_with(0.0));
-    let z3 = interp(&ts.iter().map(|t| t + T_SHIFT).collect::<Vec<_>>(), &zs, 2.96);
+    let z3 = interp(
+        &ts.iter().map(|t| t + T_SHIFT).collect::<Vec<_>>(),
+        &zs,
+        2.96,
+    );
     ctx.plot(
         "dam_break_front",
         Plot {

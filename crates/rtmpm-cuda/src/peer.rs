@@ -1,0 +1,53 @@
+//! Peer access between the GPUs of one process (transport=p2p, seed 000's "in-kernel peer-to-peer
+//! read/write operations"): whether every pair of GPUs can reach each other's memory
+//! (`cuDeviceCanAccessPeer`), and turning it on (`cuCtxEnablePeerAccess`). With unified addressing
+//! a device pointer of GPU j is then valid in GPU i's kernels as it is.
+
+use cudarc::driver::sys;
+
+/// The first pair (i, j) of GPUs 0..gpus where GPU i cannot access GPU j's memory, or `None` when
+/// every pair can. `Err` when the driver cannot be asked.
+pub fn first_pair_without_access(gpus: usize) -> Result<Option<(usize, usize)>, String> {
+    // Initialises the driver (cuInit) if no context exists yet.
+    let n = cudarc::driver::CudaContext::device_count().map_err(|e| format!("{e:?}"))? as usize;
+    if gpus > n {
+        return Err(format!("{gpus} GPUs asked, {n} found"));
+    }
+    let dev = |i: usize| -> Result<sys::CUdevice, String> {
+        let mut d: sys::CUdevice = 0;
+        // SAFETY: out-parameter; i < device count.
+        unsafe { sys::cuDeviceGet(&mut d, i as i32) }
+            .result()
+            .map_err(|e| format!("cuDeviceGet({i}): {e:?}"))?;
+        Ok(d)
+    };
+    for i in 0..gpus {
+        for j in 0..gpus {
+            if i == j {
+                continue;
+            }
+            let mut can = 0;
+            // SAFETY: out-parameter; both devices exist.
+            unsafe { sys::cuDeviceCanAccessPeer(&mut can, dev(i)?, dev(j)?) }
+                .result()
+                .map_err(|e| format!("cuDeviceCanAccessPeer({i}, {j}): {e:?}"))?;
+            if can == 0 {
+                return Ok(Some((i, j)));
+            }
+        }
+    }
+    Ok(None)
+}
+
+/// Let the context current on this thread access the memory of `peer` (a `CUcontext` of another
+/// GPU, as an integer); enabling it twice is not an error.
+pub fn enable(peer: usize) -> Result<(), String> {
+    // SAFETY: `peer` is a live context handle of another GPU of this process.
+    let r = unsafe { sys::cuCtxEnablePeerAccess(peer as sys::CUcontext, 0) };
+    match r {
+        sys::CUresult::CUDA_SUCCESS | sys::CUresult::CUDA_ERROR_PEER_ACCESS_ALREADY_ENABLED => {
+            Ok(())
+        }
+        e => Err(format!("cuCtxEnablePeerAccess: {e:?}")),
+    }
+}
