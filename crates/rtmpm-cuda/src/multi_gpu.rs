@@ -719,6 +719,11 @@ impl MultiGpuBackend {
         }
         let info = crate::probe().map_err(|e| SimError::Backend(e.to_string()))?;
         let (transport, why) = choose_transport(gpus, &options)?;
+        let mut options = options;
+        options.transport = Some(transport);
+        if transport == Transport::P2p {
+            options.barrier = Some(choose_barrier(gpus, &options)?);
+        }
         let (id, what) = match transport {
             Transport::Nccl => {
                 let nccl = crate::nccl::library().map_err(|e| {
@@ -731,9 +736,9 @@ impl MultiGpuBackend {
                 )
             }
             Transport::P2p => {
-                let b = match options.barrier.unwrap_or(BarrierKind::Spin) {
-                    BarrierKind::Spin => "spin barrier",
-                    BarrierKind::Events => "events barrier, no CUDA graph",
+                let b = match options.barrier {
+                    Some(BarrierKind::Events) => "events barrier, no CUDA graph",
+                    _ => "spin barrier",
                 };
                 (None, format!("transport p2p, {b} ({why})"))
             }
@@ -1023,6 +1028,21 @@ fn choose_transport(gpus: usize, o: &CudaOptions) -> Result<(Transport, String),
         ));
     }
     Ok(chosen)
+}
+
+/// The barrier of transport=p2p: the one asked for, else spin (it needs native atomics between
+/// every pair of GPUs; without them the default is events).
+fn choose_barrier(gpus: usize, o: &CudaOptions) -> Result<BarrierKind, SimError> {
+    let missing = crate::peer::first_pair_without_atomics(gpus)
+        .map_err(|e| SimError::Backend(format!("peer atomics query: {e}")))?;
+    match (o.barrier, missing) {
+        (Some(BarrierKind::Spin), Some((i, j))) => Err(SimError::Backend(format!(
+            "barrier=spin: GPU {i} has no native atomics on GPU {j}'s memory; use barrier=events"
+        ))),
+        (Some(b), _) => Ok(b),
+        (None, Some(_)) => Ok(BarrierKind::Events),
+        (None, None) => Ok(BarrierKind::Spin),
+    }
 }
 
 // ---------------------------------------------------------------------------------------------

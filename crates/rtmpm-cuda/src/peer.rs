@@ -8,6 +8,22 @@ use cudarc::driver::sys;
 /// The first pair (i, j) of GPUs 0..gpus where GPU i cannot access GPU j's memory, or `None` when
 /// every pair can. `Err` when the driver cannot be asked.
 pub fn first_pair_without_access(gpus: usize) -> Result<Option<(usize, usize)>, String> {
+    first_pair_without(gpus, None)
+}
+
+/// The first pair (i, j) where GPU i has no native atomics on GPU j's memory (the spin barrier
+/// adds to a counter in GPU 0's memory), or `None` when every pair has them.
+pub fn first_pair_without_atomics(gpus: usize) -> Result<Option<(usize, usize)>, String> {
+    first_pair_without(
+        gpus,
+        Some(sys::CUdevice_P2PAttribute::CU_DEVICE_P2P_ATTRIBUTE_NATIVE_ATOMIC_SUPPORTED),
+    )
+}
+
+fn first_pair_without(
+    gpus: usize,
+    attribute: Option<sys::CUdevice_P2PAttribute>,
+) -> Result<Option<(usize, usize)>, String> {
     // Initialises the driver (cuInit) if no context exists yet.
     let n = cudarc::driver::CudaContext::device_count().map_err(|e| format!("{e:?}"))? as usize;
     if gpus > n {
@@ -27,10 +43,15 @@ pub fn first_pair_without_access(gpus: usize) -> Result<Option<(usize, usize)>, 
                 continue;
             }
             let mut can = 0;
-            // SAFETY: out-parameter; both devices exist.
-            unsafe { sys::cuDeviceCanAccessPeer(&mut can, dev(i)?, dev(j)?) }
-                .result()
-                .map_err(|e| format!("cuDeviceCanAccessPeer({i}, {j}): {e:?}"))?;
+            // SAFETY: out-parameters; both devices exist.
+            match attribute {
+                None => unsafe { sys::cuDeviceCanAccessPeer(&mut can, dev(i)?, dev(j)?) }
+                    .result()
+                    .map_err(|e| format!("cuDeviceCanAccessPeer({i}, {j}): {e:?}"))?,
+                Some(a) => unsafe { sys::cuDeviceGetP2PAttribute(&mut can, a, dev(i)?, dev(j)?) }
+                    .result()
+                    .map_err(|e| format!("cuDeviceGetP2PAttribute({i}, {j}): {e:?}"))?,
+            }
             if can == 0 {
                 return Ok(Some((i, j)));
             }
