@@ -128,6 +128,7 @@ pub enum CommSource {
 /// access, handles as integers so that they cross threads).
 #[derive(Clone, Copy, Debug)]
 pub struct PeerExport {
+    device: usize,
     ctx: usize,
     mask: u64,
     buf: u64,
@@ -351,6 +352,7 @@ impl GpuRank {
         let s = &self.b.stream;
         s.synchronize().map_err(err("sync"))?;
         Ok(PeerExport {
+            device: self.b.stream.context().ordinal(),
             ctx: s.context().cu_ctx() as usize,
             mask: self.sc.mask,
             buf: self.sc.buf,
@@ -385,6 +387,14 @@ impl GpuRank {
                     .map_err(|m| SimError::Backend(format!("GPU {me} -> GPU {j}: {m}")))?;
             }
         }
+        // The peers read this GPU's pool allocations (mask, pack buffer, barrier counter).
+        let peers: Vec<usize> = all
+            .iter()
+            .filter(|e| e.device != self.b.stream.context().ordinal())
+            .map(|e| e.device)
+            .collect();
+        crate::peer::grant_pool_access(self.b.stream.context().ordinal(), &peers)
+            .map_err(SimError::Backend)?;
         let p = self
             .p2p
             .as_mut()

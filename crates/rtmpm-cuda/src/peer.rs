@@ -72,3 +72,36 @@ pub fn enable(peer: usize) -> Result<(), String> {
         e => Err(format!("cuCtxEnablePeerAccess: {e:?}")),
     }
 }
+
+/// Let the GPUs `peers` (ordinals) read and write every allocation of GPU `own`'s current memory
+/// pool, those made before and after. cudarc allocates from the pool (`cuMemAllocAsync`) where the
+/// device has pools, and pool memory is not reached through `cuCtxEnablePeerAccess`.
+pub fn grant_pool_access(own: usize, peers: &[usize]) -> Result<(), String> {
+    let mut dev: sys::CUdevice = 0;
+    // SAFETY: out-parameter; `own` is a device of this process.
+    unsafe { sys::cuDeviceGet(&mut dev, own as i32) }
+        .result()
+        .map_err(|e| format!("cuDeviceGet({own}): {e:?}"))?;
+    let mut pool: sys::CUmemoryPool = std::ptr::null_mut();
+    // SAFETY: out-parameter.
+    unsafe { sys::cuDeviceGetMemPool(&mut pool, dev) }
+        .result()
+        .map_err(|e| format!("cuDeviceGetMemPool({own}): {e:?}"))?;
+    let descs: Vec<sys::CUmemAccessDesc> = peers
+        .iter()
+        .map(|&p| sys::CUmemAccessDesc {
+            location: sys::CUmemLocation {
+                type_: sys::CUmemLocationType::CU_MEM_LOCATION_TYPE_DEVICE,
+                id: p as i32,
+            },
+            flags: sys::CUmemAccess_flags::CU_MEM_ACCESS_FLAGS_PROT_READWRITE,
+        })
+        .collect();
+    if descs.is_empty() {
+        return Ok(());
+    }
+    // SAFETY: `descs` holds `descs.len()` valid descriptors of other devices.
+    unsafe { sys::cuMemPoolSetAccess(pool, descs.as_ptr(), descs.len()) }
+        .result()
+        .map_err(|e| format!("cuMemPoolSetAccess(GPU {own} -> {peers:?}): {e:?}"))
+}
