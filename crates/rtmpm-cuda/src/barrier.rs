@@ -37,7 +37,7 @@ pub struct SpinBarrier {
 unsafe impl DeviceRepr for SpinBarrier {}
 
 /// How long a GPU (spin) or a host thread (events) waits for the others before giving up.
-pub const TIMEOUT: Duration = Duration::from_secs(30);
+pub const TIMEOUT: Duration = Duration::from_secs(10);
 
 /// Enqueue the spin barrier on `s`.
 pub(crate) fn enqueue_spin(
