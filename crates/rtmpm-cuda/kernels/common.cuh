@@ -41,6 +41,7 @@
 #define ERR_WARPS 8u
 #define ERR_P2G_MAP 16u  // reverse map of the gather P2G full (p2g_reverse_map.cu)
 #define ERR_SHARED 32u  // more blocks shared between GPUs than the reduction holds (reduce_shared.cu)
+#define ERR_BARRIER 64u  // the inter-GPU spin barrier timed out: another GPU never arrived (barrier.cu)
 
 #define EMPTY_KEY 0xffffffffffffffffull
 #define EMPTY_ID 0xffffffffu

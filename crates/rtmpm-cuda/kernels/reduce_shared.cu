@@ -14,6 +14,10 @@
 //   4. After P2G of the boundary gblocks: sb_pack copies the shared blocks' nodes into a buffer,
 //      NCCL all-reduce (sum) of the buffer, sb_unpack copies the sums back; P2G of the other
 //      gblocks runs meanwhile on the compute stream.
+// transport=p2p (GPUs of one process with peer access; no NCCL): step 2 is sb_counts_peers, which
+// sums the GPUs' masks read through peer pointers after an inter-GPU barrier (barrier.cu); in
+// step 4 the NCCL all-reduce and sb_unpack are replaced by a barrier and sb_sum_peers, which sums
+// every GPU's packed buffer, read through peer pointers, into this GPU's grid.
 // The scan helper block_exclusive_scan is rebuild.cu's (same NVRTC program, compiled before).
 #include "common.cuh"
 
@@ -141,5 +145,45 @@ extern "C" __global__ void sb_unpack(Ctx c, SharedCtx s) {
     SB_GRID_STRIDE(t, n) {
         unsigned id = s.shared_local[t >> 8];
         if (id != EMPTY_ID) c.grid[id * 256u + (t & 255u)] = s.buf[t];
+    }
+}
+
+// transport=p2p: every GPU's mask and packed buffer (this GPU's included), as pointers this GPU
+// can dereference (unified addressing + peer access), in rank order.
+#define SB_MAX_GPUS 8
+struct PeerCtx {
+    const unsigned char* mask[SB_MAX_GPUS];  // d + 1 bytes each (SharedCtx::mask of that GPU)
+    const real* buf[SB_MAX_GPUS];            // cap * 256 reals each (SharedCtx::buf of that GPU)
+    unsigned n;                              // GPUs
+    unsigned me;                             // this GPU's rank
+};
+
+// counts = the sum of every GPU's mask (the NCCL all-reduce of the masks, done by reading the peers'
+// masks; runs after the barrier that follows every GPU's sb_mark). When no GPU rebuilt, no mask
+// changed since the last sum: only counts[d] (= 0) is written and the list kernels return at once.
+extern "C" __global__ void sb_counts_peers(Ctx c, SharedCtx s, PeerCtx p) {
+    unsigned rebuilt = 0;
+    for (unsigned g = 0; g < p.n; ++g) rebuilt += __ldcg(p.mask[g] + s.d);
+    if (thread_index() == 0) s.counts[s.d] = (unsigned char)rebuilt;
+    if (!rebuilt) return;
+    SB_GRID_STRIDE(i, s.d) {
+        unsigned n = 0;
+        for (unsigned g = 0; g < p.n; ++g) n += __ldcg(p.mask[g] + i);
+        s.counts[i] = (unsigned char)n;
+    }
+}
+
+// The reduce-sum of the shared blocks through peer reads: after the barrier that follows every
+// GPU's sb_pack, node t of shared block t / 256 is the sum of the GPUs' packed values in rank order
+// (for 2 GPUs the same single addition as the NCCL all-reduce), written into this GPU's grid.
+extern "C" __global__ void sb_sum_peers(Ctx c, SharedCtx s, PeerCtx p) {
+    if (c.ctl[CTL_ERROR]) return;
+    unsigned n = min(c.ctl[CTL_SHARED], s.cap) * 256u;
+    SB_GRID_STRIDE(t, n) {
+        unsigned id = s.shared_local[t >> 8];
+        if (id == EMPTY_ID) continue;
+        real sum = __ldcg(p.buf[0] + t);
+        for (unsigned g = 1; g < p.n; ++g) sum += __ldcg(p.buf[g] + t);
+        c.grid[id * 256u + (t & 255u)] = sum;
     }
 }

@@ -75,6 +75,9 @@ pub(crate) struct Kernels {
     pub sb_boundary: CudaFunction,
     pub sb_pack: CudaFunction,
     pub sb_unpack: CudaFunction,
+    pub sb_counts_peers: CudaFunction,
+    pub sb_sum_peers: CudaFunction,
+    pub barrier_spin: CudaFunction,
 }
 
 /// The CUDA backend (one GPU).
@@ -368,6 +371,9 @@ impl CudaBackend {
             sb_boundary: f("sb_boundary")?,
             sb_pack: f("sb_pack")?,
             sb_unpack: f("sb_unpack")?,
+            sb_counts_peers: f("sb_counts_peers")?,
+            sb_sum_peers: f("sb_sum_peers")?,
+            barrier_spin: f("barrier_spin")?,
         };
 
         let dx = scene.dx;
@@ -819,14 +825,26 @@ impl CudaBackend {
                     c[CTL_SHARED_CAP]
                 ));
             }
+            if e & 64 != 0 {
+                what.push(
+                    "the inter-GPU spin barrier timed out: another GPU never arrived (its host \
+                     thread stopped; see the other errors)"
+                        .to_string(),
+                );
+            }
             let hint = if e & 15 != 0 {
                 " (the material spread over more blocks than allocated; raise the capacity with \
                  the gblocks=/pblocks= options)"
             } else {
                 ""
             };
+            let head = if e & !64 != 0 {
+                "CUDA backend out of capacity"
+            } else {
+                "CUDA multi-GPU run stopped"
+            };
             return Err(SimError::Backend(format!(
-                "CUDA backend out of capacity: {}{hint}",
+                "{head}: {}{hint}",
                 what.join(", ")
             )));
         }

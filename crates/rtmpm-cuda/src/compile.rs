@@ -56,6 +56,7 @@ pub const SOURCES: &[(&str, &str)] = &[
         "reduce_shared.cu",
         include_str!("../kernels/reduce_shared.cu"),
     ),
+    ("barrier.cu", include_str!("../kernels/barrier.cu")),
     ("p2g.cu", include_str!("../kernels/p2g.cu")),
     (
         "p2g_reverse_map.cu",
@@ -70,6 +71,7 @@ pub const SOURCES: &[(&str, &str)] = &[
 pub const UNITS: &[&str] = &[
     "rebuild.cu",
     "reduce_shared.cu",
+    "barrier.cu",
     "p2g.cu",
     "p2g_reverse_map.cu",
     "p2g_sort.cu",
@@ -345,6 +347,9 @@ mod tests {
                 "sb_list",
                 "sb_pack",
                 "sb_unpack",
+                "sb_counts_peers",
+                "sb_sum_peers",
+                "barrier_spin",
             ] {
                 assert!(
                     ptx.contains(&format!(".entry {k}(")),

@@ -36,6 +36,7 @@
 //! `kernels/svd.cuh`), dispatched on `MaterialGpu::kind`.
 
 pub mod backend;
+pub mod barrier;
 pub mod bench;
 pub mod compile;
 pub mod g2p;
@@ -47,6 +48,7 @@ pub mod p2g;
 pub mod p2g_reverse_map;
 pub mod p2g_sort;
 pub mod partition;
+pub mod peer;
 pub mod rebuild;
 pub mod reduce_shared;
 pub mod rendezvous;
@@ -185,6 +187,24 @@ impl P2gMode {
     }
 }
 
+/// Several GPUs of one process: how the shared blocks are summed across GPUs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Transport {
+    /// Each GPU's kernel reads the peers' packed shared blocks through peer pointers (seed 000).
+    P2p,
+    /// NCCL all-reduce.
+    Nccl,
+}
+
+/// Several GPUs with `transport=p2p`: the inter-GPU synchronisation of a step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BarrierKind {
+    /// The seed's spin-lock barrier: a one-block kernel with system-scope atomics.
+    Spin,
+    /// Events: every GPU's stream waits on the peers' events (no CUDA graph).
+    Events,
+}
+
 /// Ablation switches of the seed-000 principles. `Default` = all on.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CudaOptions {
@@ -221,6 +241,11 @@ pub struct CudaOptions {
     /// Several GPUs: overlap the shared-block reduction with the P2G of the interior gblocks
     /// (off: P2G of every particle, then the reduction).
     pub overlap: bool,
+    /// Several GPUs of one process: transport of the shared-block reduction (`None`: p2p when
+    /// every pair of GPUs has peer access, else NCCL).
+    pub transport: Option<Transport>,
+    /// Several GPUs with `transport=p2p`: the synchronisation (`None`: spin).
+    pub barrier: Option<BarrierKind>,
 }
 
 impl Default for CudaOptions {
@@ -241,6 +266,8 @@ impl Default for CudaOptions {
             shared_capacity: None,
             rebalance: true,
             overlap: true,
+            transport: None,
+            barrier: None,
         }
     }
 }
@@ -249,7 +276,7 @@ impl std::str::FromStr for CudaOptions {
     type Err = String;
     /// Comma separated `key=value`: `free_zone`, `mixed_sort`, `warp_reduce`, `fast_math`,
     /// `graph`, `f64`, `rebalance`, `overlap` (on/off/true/false/1/0), `p2g`
-    /// (warp/shared/reverse_map/sort), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
+    /// (warp/shared/reverse_map/sort), `transport` (p2p/nccl), `barrier` (spin/events), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
     /// `rmap_pblocks`, `shared` (counts).
     fn from_str(s: &str) -> Result<Self, String> {
         let mut o = CudaOptions::default();
@@ -296,6 +323,20 @@ impl std::str::FromStr for CudaOptions {
                 "shared" => o.shared_capacity = Some(n()?),
                 "rebalance" => o.rebalance = b()?,
                 "overlap" => o.overlap = b()?,
+                "transport" => {
+                    o.transport = Some(match v {
+                        "p2p" => Transport::P2p,
+                        "nccl" => Transport::Nccl,
+                        _ => return Err(format!("`{item}`: expected p2p or nccl")),
+                    })
+                }
+                "barrier" => {
+                    o.barrier = Some(match v {
+                        "spin" => BarrierKind::Spin,
+                        "events" => BarrierKind::Events,
+                        _ => return Err(format!("`{item}`: expected spin or events")),
+                    })
+                }
                 _ => return Err(format!("unknown CUDA option `{k}`")),
             }
         }
@@ -328,5 +369,10 @@ mod tests {
         assert_eq!(o.p2g, P2gMode::Sort);
         assert!("p2g=gather".parse::<CudaOptions>().is_err());
         assert!("rmap_replicas=0".parse::<CudaOptions>().is_err());
+        let o: CudaOptions = "transport=p2p,barrier=events".parse().unwrap();
+        assert_eq!(o.transport, Some(Transport::P2p));
+        assert_eq!(o.barrier, Some(BarrierKind::Events));
+        assert!("transport=mpi".parse::<CudaOptions>().is_err());
+        assert!("barrier=sleep".parse::<CudaOptions>().is_err());
     }
 }

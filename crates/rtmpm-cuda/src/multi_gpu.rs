@@ -1,8 +1,9 @@
 //! Several GPUs, seed 000's "job splitting by particles": particles are assigned to GPUs in
 //! spatially coherent slabs ([`crate::partition`]); every GPU runs the single-GPU pipeline on its
 //! own particles with its own block list; after P2G the grid blocks present on several GPUs are
-//! summed across GPUs ([`crate::reduce_shared`], NCCL all-reduce), then every GPU runs the grid
-//! update and G2P on its own particles.
+//! summed across GPUs ([`crate::reduce_shared`]: NCCL all-reduce, or, between the GPUs of one
+//! process with peer access, peer reads inside kernels after an inter-GPU barrier,
+//! [`crate::barrier`]), then every GPU runs the grid update and G2P on its own particles.
 //!
 //! One step on one GPU, all on the device, no host synchronisation (captured in a CUDA graph):
 //!
@@ -20,6 +21,27 @@
 //! The inter-GPU synchronisation of a step is the all-reduce itself (NCCL's own device-side
 //! synchronisation); the reduction overlaps the P2G of the interior gblocks.
 //!
+//! transport=p2p (one process, every pair of GPUs with peer access): the same step with the two
+//! NCCL all-reduces replaced by a barrier ([`crate::barrier`], spin kernel or events) and a kernel
+//! reading the other GPUs' buffers through peer pointers:
+//!
+//! ```text
+//! compute stream: rebuild -> occupancy mask -> BARRIER 1 -> sum of every GPU's mask (peer reads)
+//!                 -> shared-block list -> P2G of the boundary gblocks --event--+
+//!                 -> P2G of the other gblocks                    comm stream: pack
+//!                                                                -> BARRIER 2
+//!                 <--------------------------------------event-- -> sum of every GPU's pack into
+//!                 -> grid update -> G2P                              this GPU's grid (peer reads)
+//! ```
+//!
+//! Why no buffer is overwritten while a peer reads it (so no double buffering is needed): GPU i
+//! rewrites its pack buffer at step n+1 only after barrier 1 of step n+1, which GPU j reaches only
+//! after its step-n sum (stream order: sum -> grid update -> G2P -> rebuild -> mask -> barrier 1);
+//! GPU i rewrites its mask at step n+1 only after barrier 2 of step n, which GPU j reaches only
+//! after its step-n sum of the masks (stream order: counts -> list -> P2G -> pack -> barrier 2).
+//! Two synchronisations per step, like the two all-reduces of NCCL: the masks must be summed
+//! before the shared list can be made, and a GPU's blocks change at its own rebuild, which the
+//! others cannot foresee.//!
 //! Two ways to run: [`MultiGpuBackend`], one process driving N GPUs (one thread per GPU), and
 //! [`NcclRankBackend`], one process per GPU (several machines), meeting through a
 //! [`crate::rendezvous::Rendezvous`].
@@ -30,12 +52,16 @@
 //! grows `cap` when the count passed half of it, and re-partitions the particles (rebalancing)
 //! when the shared blocks have grown well beyond those of the last partition (particles drifted).
 
-use crate::CudaOptions;
 use crate::backend::{CudaBackend, Part, err, resize_particles, scatter_state};
+use crate::barrier::{HostBarrier, SpinBarrier, TIMEOUT, enqueue_spin, wait_events};
 use crate::layout::*;
 use crate::nccl::{Communicator, DataType, RedOp, UniqueId};
 use crate::partition::{Partition, shared_blocks, slabs};
-use crate::reduce_shared::{SharedCtx, dense_dims, enqueue_copy, enqueue_list, enqueue_mask};
+use crate::reduce_shared::{
+    MAX_PEER_GPUS, PeerCtx, SharedCtx, dense_dims, enqueue_copy, enqueue_counts_peers,
+    enqueue_list, enqueue_mask, enqueue_sum_peers,
+};
+use crate::{BarrierKind, CudaOptions, Transport};
 use cudarc::driver::{CudaEvent, CudaGraph, CudaSlice, CudaStream, DevicePtr};
 use rtmpm_core::sim::{Backend, BadParticle, BadReason, SimError};
 use rtmpm_core::{Particles, Scene};
@@ -94,6 +120,36 @@ pub enum CommSource {
     },
     /// Keep the communicator of a previous rank object (rebalancing).
     Existing(Communicator),
+    /// No communicator: transport=p2p (peer reads and barriers, [`GpuRank::connect`]).
+    PeerToPeer,
+}
+
+/// What a GPU shows the others for transport=p2p (pointers valid on every GPU through peer
+/// access, handles as integers so that they cross threads).
+#[derive(Clone, Copy, Debug)]
+pub struct PeerExport {
+    device: usize,
+    ctx: usize,
+    mask: u64,
+    buf: u64,
+    count: u64,
+    events: [usize; 2],
+}
+
+/// transport=p2p: this GPU's barrier resources and its view of the other GPUs.
+struct P2pRank {
+    kind: BarrierKind,
+    /// Spin: this GPU's barrier calls so far.
+    calls: CudaSlice<u64>,
+    /// Spin: the arrival counter (GPU 0's is the one every GPU uses).
+    count: CudaSlice<u64>,
+    /// Events: recorded at barrier 1 (masks) and barrier 2 (packed blocks).
+    events: [CudaEvent; 2],
+    /// Set by [`GpuRank::connect`].
+    pc: PeerCtx,
+    spin: SpinBarrier,
+    peer_events: [Vec<usize>; 2],
+    host: Option<Arc<HostBarrier>>,
 }
 
 /// One GPU of a multi-GPU run: the single-GPU backend on its particles, its communicator, the
@@ -119,6 +175,8 @@ pub struct GpuRank {
     ctl_all: Option<CudaSlice<u32>>,
     state_all: Option<CudaSlice<f32>>,
     real: DataType,
+    /// transport=p2p (`None`: NCCL).
+    p2p: Option<P2pRank>,
 }
 
 impl GpuRank {
@@ -160,10 +218,11 @@ impl GpuRank {
         let ctx = b.stream.context().clone();
         ctx.bind_to_thread().map_err(err("bind context"))?;
         let comm = match comm {
-            CommSource::Existing(c) => c,
+            CommSource::Existing(c) => Some(c),
             CommSource::New { id, rank, ranks } => {
-                Communicator::init(&id, rank, ranks).map_err(nccl_err)?
+                Some(Communicator::init(&id, rank, ranks).map_err(nccl_err)?)
             }
+            CommSource::PeerToPeer => None,
         };
         let comm_stream = ctx.new_stream().map_err(err("comm stream"))?;
         let s = &b.stream;
@@ -184,13 +243,26 @@ impl GpuRank {
         };
         let ev = || ctx.new_event(None).map_err(err("event"));
         let (p2g_done, reduced) = (ev()?, ev()?);
+        let p2p = match comm {
+            Some(_) => None,
+            None => Some(P2pRank {
+                kind: b.options.barrier.unwrap_or(BarrierKind::Spin),
+                calls: s.alloc_zeros::<u64>(1).map_err(err("alloc barrier"))?,
+                count: s.alloc_zeros::<u64>(1).map_err(err("alloc barrier"))?,
+                events: [ev()?, ev()?],
+                pc: PeerCtx::default(),
+                spin: SpinBarrier::default(),
+                peer_events: [Vec::new(), Vec::new()],
+                host: None,
+            }),
+        };
         let placeholder = (
             s.alloc_zeros::<u32>(1).map_err(err("alloc"))?,
             s.alloc_zeros::<u8>(1).map_err(err("alloc"))?,
         );
         let mut r = GpuRank {
             b,
-            comm: Some(comm),
+            comm,
             comm_stream,
             sc,
             _mask: mask,
@@ -205,6 +277,7 @@ impl GpuRank {
             ctl_all: None,
             state_all: None,
             real,
+            p2p,
         };
         r.set_shared_capacity(shared_cap)?;
         Ok(r)
@@ -269,6 +342,110 @@ impl GpuRank {
         Ok(())
     }
 
+    /// transport=p2p: what the other GPUs need of this one (synchronises, so that the buffers
+    /// exist before anyone reads them).
+    pub fn peer_export(&self) -> Result<PeerExport, SimError> {
+        let p = self
+            .p2p
+            .as_ref()
+            .ok_or_else(|| SimError::Backend("not a transport=p2p rank".into()))?;
+        let s = &self.b.stream;
+        s.synchronize().map_err(err("sync"))?;
+        Ok(PeerExport {
+            device: self.b.stream.context().ordinal(),
+            ctx: s.context().cu_ctx() as usize,
+            mask: self.sc.mask,
+            buf: self.sc.buf,
+            count: p.count.device_ptr(s).0,
+            events: [
+                p.events[0].cu_event() as usize,
+                p.events[1].cu_event() as usize,
+            ],
+        })
+    }
+
+    /// transport=p2p: enable peer access to every other GPU and take their buffers and barrier
+    /// (again after any GPU reallocated its buffers; drops the captured graph).
+    pub fn connect(
+        &mut self,
+        me: usize,
+        all: &[PeerExport],
+        host: Arc<HostBarrier>,
+    ) -> Result<(), SimError> {
+        self.release_graph();
+        let s = self.b.stream.clone();
+        s.context().bind_to_thread().map_err(err("bind"))?;
+        let n = all.len();
+        if n > MAX_PEER_GPUS {
+            return Err(SimError::Backend(format!(
+                "transport=p2p handles at most {MAX_PEER_GPUS} GPUs; use transport=nccl"
+            )));
+        }
+        for (j, e) in all.iter().enumerate() {
+            if j != me {
+                crate::peer::enable(e.ctx)
+                    .map_err(|m| SimError::Backend(format!("GPU {me} -> GPU {j}: {m}")))?;
+            }
+        }
+        // The peers read this GPU's pool allocations (mask, pack buffer, barrier counter).
+        let peers: Vec<usize> = all
+            .iter()
+            .filter(|e| e.device != self.b.stream.context().ordinal())
+            .map(|e| e.device)
+            .collect();
+        crate::peer::grant_pool_access(self.b.stream.context().ordinal(), &peers)
+            .map_err(SimError::Backend)?;
+        let p = self
+            .p2p
+            .as_mut()
+            .ok_or_else(|| SimError::Backend("not a transport=p2p rank".into()))?;
+        let mut pc = PeerCtx {
+            n: n as u32,
+            me: me as u32,
+            ..Default::default()
+        };
+        for (j, e) in all.iter().enumerate() {
+            pc.mask[j] = e.mask;
+            pc.buf[j] = e.buf;
+        }
+        p.pc = pc;
+        p.spin = SpinBarrier {
+            count: all[0].count,
+            calls: p.calls.device_ptr(&s).0,
+            timeout_ns: TIMEOUT.as_nanos() as u64,
+            n: n as u32,
+            pad: 0,
+        };
+        for k in 0..2 {
+            p.peer_events[k] = all
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != me)
+                .map(|(_, e)| e.events[k])
+                .collect();
+        }
+        p.host = Some(host);
+        Ok(())
+    }
+
+    /// transport=p2p: enqueue inter-GPU barrier `k` (0: masks, 1: packed blocks) on `st`.
+    fn barrier(&self, p: &P2pRank, k: usize, st: &CudaStream) -> Result<(), SimError> {
+        match p.kind {
+            BarrierKind::Spin => {
+                enqueue_spin(&self.b.kernels, st, &self.b.ctx, &p.spin).map_err(err("barrier"))
+            }
+            BarrierKind::Events => {
+                p.events[k].record(st).map_err(err("event"))?;
+                let host = p
+                    .host
+                    .as_ref()
+                    .ok_or_else(|| SimError::Backend("GPU rank not connected".into()))?;
+                host.wait(TIMEOUT).map_err(SimError::Backend)?;
+                wait_events(st, &p.peer_events[k]).map_err(err("wait peer events"))
+            }
+        }
+    }
+
     /// Milliseconds of the last step's reduction (pack, all-reduce, unpack; synchronises).
     pub fn last_reduce_ms(&self) -> Result<f64, SimError> {
         match &self.timing {
@@ -283,18 +460,23 @@ impl GpuRank {
         let mode = self.b.options.p2g;
         crate::rebuild::enqueue(k, s, c).map_err(err("rebuild"))?;
         enqueue_mask(k, s, c, sc).map_err(err("mask"))?;
-        // SAFETY: mask and counts hold d + 1 bytes on this GPU and live as long as self.
-        unsafe {
-            self.comm()?.all_reduce(
-                sc.mask,
-                sc.counts,
-                sc.d as usize + 1,
-                DataType::U8,
-                RedOp::Sum,
-                s.cu_stream(),
-            )
+        if let Some(p) = &self.p2p {
+            self.barrier(p, 0, s)?;
+            enqueue_counts_peers(k, s, c, sc, &p.pc).map_err(err("mask sum"))?;
+        } else {
+            // SAFETY: mask and counts hold d + 1 bytes on this GPU and live as long as self.
+            unsafe {
+                self.comm()?.all_reduce(
+                    sc.mask,
+                    sc.counts,
+                    sc.d as usize + 1,
+                    DataType::U8,
+                    RedOp::Sum,
+                    s.cu_stream(),
+                )
+            }
+            .map_err(nccl_err)?;
         }
-        .map_err(nccl_err)?;
         enqueue_list(k, s, c, sc).map_err(err("shared list"))?;
         // Overlap off (ablation): all of P2G, then the reduction.
         let overlap = self.b.options.overlap;
@@ -306,19 +488,24 @@ impl GpuRank {
             a.record(t).map_err(err("event"))?;
         }
         enqueue_copy(k, t, c, sc, true).map_err(err("pack"))?;
-        // SAFETY: buf holds cap * 256 reals on this GPU and lives as long as self.
-        unsafe {
-            self.comm()?.all_reduce(
-                sc.buf,
-                sc.buf,
-                sc.cap as usize * 256,
-                self.real,
-                RedOp::Sum,
-                t.cu_stream(),
-            )
+        if let Some(p) = &self.p2p {
+            self.barrier(p, 1, t)?;
+            enqueue_sum_peers(k, t, c, sc, &p.pc).map_err(err("peer sum"))?;
+        } else {
+            // SAFETY: buf holds cap * 256 reals on this GPU and lives as long as self.
+            unsafe {
+                self.comm()?.all_reduce(
+                    sc.buf,
+                    sc.buf,
+                    sc.cap as usize * 256,
+                    self.real,
+                    RedOp::Sum,
+                    t.cu_stream(),
+                )
+            }
+            .map_err(nccl_err)?;
+            enqueue_copy(k, t, c, sc, false).map_err(err("unpack"))?;
         }
-        .map_err(nccl_err)?;
-        enqueue_copy(k, t, c, sc, false).map_err(err("unpack"))?;
         if let Some((_, b)) = &self.timing {
             b.record(t).map_err(err("event"))?;
         }
@@ -340,7 +527,9 @@ impl GpuRank {
             .bind_to_thread()
             .map_err(err("bind"))?;
         self.b.upload_params(dt, t)?;
-        if !self.b.options.graph || self.timing.is_some() || self.eager_steps < 2 {
+        // Events barrier: no graph (the waits must bind to the peers' records of this step).
+        let events = matches!(&self.p2p, Some(p) if p.kind == BarrierKind::Events);
+        if !self.b.options.graph || events || self.timing.is_some() || self.eager_steps < 2 {
             self.eager_steps += 1;
             return self.enqueue();
         }
@@ -495,12 +684,15 @@ impl Drop for Worker {
     }
 }
 
-/// N GPUs of one process, one thread per GPU (each owns its CUDA context, streams, graph and
-/// NCCL communicator).
+/// N GPUs of one process, one thread per GPU (each owns its CUDA context, streams, graph and,
+/// with transport=nccl, NCCL communicator).
 pub struct MultiGpuBackend {
     workers: Vec<Worker>,
     scene: Scene,
     options: CudaOptions,
+    transport: Transport,
+    /// Events barrier: where the worker threads meet.
+    host: Arc<HostBarrier>,
     n: usize,
     name: String,
     shared_cap: usize,
@@ -535,16 +727,40 @@ impl MultiGpuBackend {
                 }
             )));
         }
-        let nccl = crate::nccl::library()
-            .map_err(|e| SimError::Backend(format!("several GPUs need NCCL: {e}")))?;
         let info = crate::probe().map_err(|e| SimError::Backend(e.to_string()))?;
-        let id = nccl.unique_id().map_err(nccl_err)?;
+        let (transport, why) = choose_transport(gpus, &options)?;
+        let mut options = options;
+        options.transport = Some(transport);
+        if transport == Transport::P2p {
+            options.barrier = Some(choose_barrier(gpus, &options)?);
+        }
+        let (id, what) = match transport {
+            Transport::Nccl => {
+                let nccl = crate::nccl::library().map_err(|e| {
+                    SimError::Backend(format!("several GPUs with transport=nccl need NCCL: {e}"))
+                })?;
+                let id = nccl.unique_id().map_err(nccl_err)?;
+                (
+                    Some(id),
+                    format!("transport nccl: NCCL {} ({why})", nccl.version),
+                )
+            }
+            Transport::P2p => {
+                let b = match options.barrier {
+                    Some(BarrierKind::Events) => "events barrier, no CUDA graph",
+                    _ => "spin barrier",
+                };
+                (None, format!("transport p2p, {b} ({why})"))
+            }
+        };
         let mut m = MultiGpuBackend {
             workers: Vec::new(),
             scene: scene.clone(),
             options: options.clone(),
+            transport,
+            host: Arc::new(HostBarrier::new(gpus)),
             n: particles.len(),
-            name: format!("cuda x{gpus} ({}, NCCL {})", info.name, nccl.version),
+            name: format!("cuda x{gpus} ({}, {what})", info.name),
             shared_cap: 0,
             shared_at_partition: 0,
             d: dense_count(scene),
@@ -563,8 +779,35 @@ impl MultiGpuBackend {
                 handle: Some(handle),
             });
         }
-        m.load(particles, Some(id))?;
+        m.load(particles, id)?;
         Ok(m)
+    }
+
+    /// The transport of the shared-block reduction.
+    pub fn transport(&self) -> Transport {
+        self.transport
+    }
+
+    /// What the reduction of a step consists of (for reports).
+    pub fn reduction_steps(&self) -> &'static str {
+        match (self.transport, self.options.barrier) {
+            (Transport::Nccl, _) => "pack + NCCL all-reduce + unpack",
+            (Transport::P2p, Some(BarrierKind::Events)) => {
+                "pack + events barrier + sum of peer reads"
+            }
+            (Transport::P2p, _) => "pack + spin barrier + sum of peer reads",
+        }
+    }
+
+    /// transport=p2p: give every GPU the others' buffers and barrier (after any reallocation).
+    fn connect(&self) -> Result<(), SimError> {
+        if self.transport != Transport::P2p {
+            return Ok(());
+        }
+        let all = Arc::new(self.all(|_, r| rank(r)?.peer_export())?);
+        let host = self.host.clone();
+        self.all(move |i, r| rank(r)?.connect(i, &all, host.clone()))?;
+        Ok(())
     }
 
     /// Run `f` on every worker (concurrently) and collect the results in rank order.
@@ -610,6 +853,7 @@ impl MultiGpuBackend {
                 .collect(),
         );
         let (scene, options, cap) = (self.scene.clone(), self.options.clone(), self.shared_cap);
+        let p2p = self.transport == Transport::P2p;
         self.all(move |i, slot| {
             let (p, ids) = &subsets[i];
             let part = Part {
@@ -618,6 +862,7 @@ impl MultiGpuBackend {
                 capacity: 0,
             };
             let comm = match (slot.take(), id) {
+                _ if p2p => CommSource::PeerToPeer,
                 (_, Some(id)) => CommSource::New { id, rank: i, ranks },
                 (Some(old), None) => match old.into_comm() {
                     Some(c) => CommSource::Existing(c),
@@ -628,7 +873,7 @@ impl MultiGpuBackend {
             *slot = Some(GpuRank::new(&scene, p, &part, options.clone(), cap, comm)?);
             Ok(())
         })?;
-        Ok(())
+        self.connect()
     }
 
     /// Re-partition the particles now (gather, split, rebuild every GPU's rank; synchronises).
@@ -750,8 +995,63 @@ impl Backend for MultiGpuBackend {
         } else if let Some(cap) = p.grow_to {
             self.shared_cap = cap;
             self.all(move |_, r| rank(r)?.set_shared_capacity(cap))?;
+            self.connect()?;
         }
         Ok(())
+    }
+}
+
+/// The transport of a run of `gpus` GPUs in one process, and why: the one asked for, else p2p
+/// when every pair of GPUs has peer access (and there are at most [`MAX_PEER_GPUS`]), else NCCL.
+fn choose_transport(gpus: usize, o: &CudaOptions) -> Result<(Transport, String), SimError> {
+    let missing = crate::peer::first_pair_without_access(gpus)
+        .map_err(|e| SimError::Backend(format!("peer access query: {e}")))?;
+    let chosen = match (o.transport, missing) {
+        (Some(Transport::P2p), Some((i, j))) => {
+            return Err(SimError::Backend(format!(
+                "transport=p2p: GPU {i} has no peer access to GPU {j}'s memory; use \
+                 transport=nccl (or leave transport= out)"
+            )));
+        }
+        (Some(Transport::P2p), None) if gpus > MAX_PEER_GPUS => {
+            return Err(SimError::Backend(format!(
+                "transport=p2p handles at most {MAX_PEER_GPUS} GPUs; use transport=nccl"
+            )));
+        }
+        (Some(t), _) => (t, "asked for".to_string()),
+        (None, Some((i, j))) => (
+            Transport::Nccl,
+            format!("default: GPU {i} has no peer access to GPU {j}"),
+        ),
+        (None, None) if gpus > MAX_PEER_GPUS => (
+            Transport::Nccl,
+            format!("default: p2p handles at most {MAX_PEER_GPUS} GPUs"),
+        ),
+        (None, None) => (
+            Transport::P2p,
+            "default: peer access between every pair of GPUs".to_string(),
+        ),
+    };
+    if chosen.0 == Transport::Nccl && o.barrier.is_some() {
+        return Err(SimError::Backend(
+            "barrier= applies to transport=p2p only (NCCL synchronises the GPUs itself)".into(),
+        ));
+    }
+    Ok(chosen)
+}
+
+/// The barrier of transport=p2p: the one asked for, else spin (it needs native atomics between
+/// every pair of GPUs; without them the default is events).
+fn choose_barrier(gpus: usize, o: &CudaOptions) -> Result<BarrierKind, SimError> {
+    let missing = crate::peer::first_pair_without_atomics(gpus)
+        .map_err(|e| SimError::Backend(format!("peer atomics query: {e}")))?;
+    match (o.barrier, missing) {
+        (Some(BarrierKind::Spin), Some((i, j))) => Err(SimError::Backend(format!(
+            "barrier=spin: GPU {i} has no native atomics on GPU {j}'s memory; use barrier=events"
+        ))),
+        (Some(b), _) => Ok(b),
+        (None, Some(_)) => Ok(BarrierKind::Events),
+        (None, None) => Ok(BarrierKind::Spin),
     }
 }
 
@@ -795,6 +1095,13 @@ impl NcclRankBackend {
             return Err(SimError::Backend(format!(
                 "--nccl-rank {me} must be below --nccl-ranks {ranks}"
             )));
+        }
+        if options.transport == Some(Transport::P2p) || options.barrier.is_some() {
+            return Err(SimError::Backend(
+                "transport=p2p and barrier= need the GPUs in one process (--gpus N); runs of \
+                 several processes use NCCL"
+                    .into(),
+            ));
         }
         let nccl = crate::nccl::library()
             .map_err(|e| SimError::Backend(format!("multi-process runs need NCCL: {e}")))?;

@@ -1,6 +1,6 @@
 //! Host side of `kernels/reduce_shared.cu`: the multi-GPU reduce-sum of shared grid blocks (seed
-//! 000, job splitting by particles). The NCCL calls between these launches are made by
-//! [`crate::multi_gpu::GpuRank`].
+//! 000, job splitting by particles). The NCCL calls (transport=nccl) or barriers (transport=p2p,
+//! [`crate::barrier`]) between these launches are made by [`crate::multi_gpu::GpuRank`].
 
 use crate::backend::{Kernels, cfg, cfg_wave};
 use crate::layout::Ctx;
@@ -32,6 +32,27 @@ pub struct SharedCtx {
 
 // SAFETY: plain old data with the C layout of the kernel struct.
 unsafe impl DeviceRepr for SharedCtx {}
+
+/// Most GPUs of transport=p2p (`SB_MAX_GPUS` in the kernel).
+pub const MAX_PEER_GPUS: usize = 8;
+
+/// Mirror of `PeerCtx` in `kernels/reduce_shared.cu`: every GPU's mask and packed buffer (this
+/// GPU's included, rank order), as pointers this GPU can dereference through peer access.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PeerCtx {
+    /// `SharedCtx::mask` of every GPU.
+    pub mask: [u64; MAX_PEER_GPUS],
+    /// `SharedCtx::buf` of every GPU.
+    pub buf: [u64; MAX_PEER_GPUS],
+    /// Number of GPUs.
+    pub n: u32,
+    /// This GPU's rank.
+    pub me: u32,
+}
+
+// SAFETY: plain old data with the C layout of the kernel struct.
+unsafe impl DeviceRepr for PeerCtx {}
 
 /// Dimensions of the dense array of every block a particle's stencil can reach in the domain:
 /// pblock coordinates -1 ..= ((n_cells + 3) >> 2) + 1 per axis (the grid origin is 4 cells below
@@ -116,6 +137,45 @@ pub(crate) fn enqueue_copy(
     Ok(())
 }
 
+/// transport=p2p: enqueue the sum of every GPU's mask into `counts` (after the mask barrier).
+pub(crate) fn enqueue_counts_peers(
+    k: &Kernels,
+    s: &CudaStream,
+    c: &Ctx,
+    sc: &SharedCtx,
+    pc: &PeerCtx,
+) -> Result<(), DriverError> {
+    // SAFETY: every pointer of `pc` holds d + 1 bytes on a GPU this one has peer access to.
+    unsafe {
+        s.launch_builder(&k.sb_counts_peers)
+            .arg(c)
+            .arg(sc)
+            .arg(pc)
+            .launch(cfg_wave(sc.d as usize, 256, k.wave_threads))?;
+    }
+    Ok(())
+}
+
+/// transport=p2p: enqueue the sum of every GPU's packed buffer into this GPU's shared blocks
+/// (after the barrier that follows every GPU's pack).
+pub(crate) fn enqueue_sum_peers(
+    k: &Kernels,
+    s: &CudaStream,
+    c: &Ctx,
+    sc: &SharedCtx,
+    pc: &PeerCtx,
+) -> Result<(), DriverError> {
+    // SAFETY: every buffer of `pc` holds cap * 256 reals (every GPU has the same cap).
+    unsafe {
+        s.launch_builder(&k.sb_sum_peers)
+            .arg(c)
+            .arg(sc)
+            .arg(pc)
+            .launch(cfg_wave(sc.cap as usize * 256, 256, k.wave_threads))?;
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -124,6 +184,8 @@ mod tests {
     fn shared_ctx_matches_the_kernel_struct() {
         // 5 pointers, int dims[3], unsigned d, cap: 60 bytes, aligned to 8.
         assert_eq!(std::mem::size_of::<SharedCtx>(), 64);
+        // 16 pointers, unsigned n, me.
+        assert_eq!(std::mem::size_of::<PeerCtx>(), 136);
     }
 
     #[test]

@@ -1,13 +1,16 @@
-//! Several GPUs vs one GPU on every example scene (needs 2 CUDA GPUs and NCCL; skips with a
-//! message otherwise): `cargo test -p rtmpm-cuda --test multi_gpu -- --include-ignored --nocapture`.
+//! Several GPUs vs one GPU on every example scene (needs 2 CUDA GPUs, and NCCL for
+//! transport=nccl; skips with a message otherwise):
+//! `cargo test -p rtmpm-cuda --test multi_gpu -- --include-ignored --nocapture`.
 //! `RTMPM_MULTI_GPU_STEPS` sets the steps (default 300), `RTMPM_MULTI_GPU_COUNTS` the GPU counts
 //! compared with one GPU (default "2,4", those above the devices present are skipped),
-//! `RTMPM_MULTI_GPU_OPTIONS` the CUDA options (e.g. "graph=off").
+//! `RTMPM_MULTI_GPU_OPTIONS` the CUDA options (e.g. "graph=off"), `RTMPM_MULTI_GPU_MODES` the
+//! transports and barriers compared, separated by `;` (default
+//! "transport=p2p,barrier=spin;transport=p2p,barrier=events;transport=nccl").
 
 use rtmpm_core::math::Vec3;
 use rtmpm_core::sim::{Backend, Simulation};
 use rtmpm_core::{Particles, Scene};
-use rtmpm_cuda::{CudaBackend, CudaOptions, MultiGpuBackend, device_count, nccl};
+use rtmpm_cuda::{CudaBackend, CudaOptions, MultiGpuBackend, Transport, device_count, nccl, peer};
 use std::path::Path;
 
 fn scenes() -> Vec<std::path::PathBuf> {
@@ -52,9 +55,28 @@ fn usable(gpus: usize) -> bool {
         println!("skipped: {gpus} CUDA GPUs needed, {found} found");
         return false;
     }
-    if let Err(e) = nccl::library() {
-        println!("skipped: NCCL not usable ({e})");
-        return false;
+    true
+}
+
+/// Whether `mode` (e.g. "transport=nccl") can run on `gpus` GPUs here; prints why not.
+fn mode_usable(mode: &str, gpus: usize) -> bool {
+    if mode.contains("transport=nccl") {
+        if let Err(e) = nccl::library() {
+            println!("skipped {mode}: NCCL not usable ({e})");
+            return false;
+        }
+    } else if mode.contains("transport=p2p") {
+        match peer::first_pair_without_access(gpus) {
+            Ok(None) => {}
+            Ok(Some((i, j))) => {
+                println!("skipped {mode} x{gpus}: GPU {i} has no peer access to GPU {j}");
+                return false;
+            }
+            Err(e) => {
+                println!("skipped {mode} x{gpus}: {e}");
+                return false;
+            }
+        }
     }
     true
 }
@@ -79,16 +101,23 @@ fn several_gpus_agree_with_one_on_every_example_scene() {
         .filter_map(|s| s.trim().parse().ok())
         .filter(|&n| n >= 2 && n <= device_count())
         .collect();
+    let modes: Vec<String> = std::env::var("RTMPM_MULTI_GPU_MODES")
+        .unwrap_or_else(|_| {
+            "transport=p2p,barrier=spin;transport=p2p,barrier=events;transport=nccl".into()
+        })
+        .split(';')
+        .map(|m| m.trim().to_string())
+        .filter(|m| !m.is_empty())
+        .collect();
     let mut failures = Vec::new();
+    let mut ran = 0;
     for path in scenes() {
         let name = path.file_name().unwrap().to_string_lossy().to_string();
         let scene = Scene::from_file(&path).expect("scene");
         let p0 = scene.sample_particles().expect("particles");
         // RTMPM_MULTI_GPU_OPTIONS: CUDA options of every backend, e.g. "graph=off".
-        let opts: CudaOptions = std::env::var("RTMPM_MULTI_GPU_OPTIONS")
-            .unwrap_or_default()
-            .parse()
-            .expect("RTMPM_MULTI_GPU_OPTIONS");
+        let base = std::env::var("RTMPM_MULTI_GPU_OPTIONS").unwrap_or_default();
+        let opts: CudaOptions = base.parse().expect("RTMPM_MULTI_GPU_OPTIONS");
         let dt = {
             let mut sim = Simulation::new(
                 scene.clone(),
@@ -97,8 +126,24 @@ fn several_gpus_agree_with_one_on_every_example_scene() {
             sim.next_dt().expect("dt")
         };
         let dx = scene.dx;
-        for &gpus in &counts {
-            let mut many = MultiGpuBackend::new(&scene, &p0, gpus, opts.clone()).expect("N GPUs");
+        for (&gpus, mode) in counts
+            .iter()
+            .flat_map(|g| modes.iter().map(move |m| (g, m)))
+        {
+            if !mode_usable(mode, gpus) {
+                continue;
+            }
+            let mopts: CudaOptions = format!("{base},{mode}").parse().expect("mode");
+            let mut many = MultiGpuBackend::new(&scene, &p0, gpus, mopts.clone()).expect("N GPUs");
+            // The backend runs the transport asked for.
+            let want = if mode.contains("transport=nccl") {
+                Transport::Nccl
+            } else {
+                Transport::P2p
+            };
+            assert_eq!(many.transport(), want, "{mode}: {}", many.name());
+            ran += 1;
+            let name = format!("{name} [{mode}]");
             let mut first = CudaBackend::new(&scene, &p0, opts.clone()).expect("1 GPU");
             first.step(dt, 0.0).expect("step");
             many.step(dt, 0.0).expect("step");
@@ -142,6 +187,29 @@ fn several_gpus_agree_with_one_on_every_example_scene() {
         }
     }
     assert!(failures.is_empty(), "{failures:#?}");
+    println!("{ran} runs of several GPUs compared with one GPU");
+}
+
+/// barrier= with transport=nccl, and an unknown transport: clear errors, no panic.
+#[test]
+#[ignore = "needs 2 CUDA GPUs"]
+fn barrier_with_nccl_is_a_clear_error() {
+    if !usable(2) {
+        return;
+    }
+    let scene = Scene::from_file(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/dam_break.toml"),
+    )
+    .unwrap();
+    let p = scene.sample_particles().unwrap();
+    let o: CudaOptions = "transport=nccl,barrier=spin".parse().unwrap();
+    let e = MultiGpuBackend::new(&scene, &p, 2, o)
+        .err()
+        .expect("an error")
+        .to_string();
+    println!("{e}");
+    assert!(e.contains("barrier= applies to transport=p2p"), "{e}");
+    assert!("transport=shm".parse::<CudaOptions>().is_err());
 }
 
 /// Too many GPUs asked: a clear error, no panic.

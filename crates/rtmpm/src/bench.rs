@@ -43,7 +43,7 @@ pub struct BenchArgs {
     /// CPU worker threads (default: one per core).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Several GPUs of this machine (CUDA, NCCL): also times the shared-block reduction.
+    /// Several GPUs of this machine (CUDA; peer-to-peer or NCCL): also times the shared-block reduction.
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub gpus: usize,
 }
@@ -310,7 +310,8 @@ fn bench_multi_gpu(
     let k = steps.min(200) as u32;
     let (step_ms, reduce_ms) = b.time_reduction(dt, t0, k)?;
     println!(
-        "  reduction    {reduce_ms:.4} ms/step (pack + NCCL all-reduce + unpack, {shared} shared blocks = {:.1} MB; evented step {step_ms:.4} ms, {k} steps)",
+        "  reduction    {reduce_ms:.4} ms/step ({}, {shared} shared blocks = {:.1} MB; evented step {step_ms:.4} ms, {k} steps)",
+        b.reduction_steps(),
         shared as f64 * 1024.0 / 1e6
     );
     Ok(())

@@ -11,7 +11,7 @@ use rtmpm_cuda::rendezvous::Rendezvous;
 /// Multi-GPU options of `rtmpm run`.
 #[derive(Args, Clone, Debug, Default)]
 pub struct MultiGpuArgs {
-    /// Run on several GPUs of this machine: a number, or `all` (CUDA backend; needs NCCL).
+    /// Run on several GPUs of this machine: a number, or `all` (CUDA backend; peer-to-peer between the GPUs, or NCCL: --cuda-options transport=p2p|nccl).
     #[arg(long, value_name = "N|all")]
     pub gpus: Option<String>,
     /// One process per GPU: where the processes meet, `tcp://HOST:PORT` (rank 0's host; rank 0

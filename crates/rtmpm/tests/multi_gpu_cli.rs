@@ -119,6 +119,8 @@ fn two_gpus_and_two_processes_agree_with_one_gpu_on_every_example_scene() {
         ]);
         assert!(o.status.success(), "{}", text(&o));
         assert!(text(&o).contains("cuda x2"), "{}", text(&o));
+        // The run summary says which transport summed the shared blocks, and why.
+        assert!(text(&o).contains("transport "), "{}", text(&o));
         // Two processes, one GPU each, meeting on a free local port.
         let port = std::net::TcpListener::bind("127.0.0.1:0")
             .unwrap()
