@@ -179,6 +179,32 @@ pub struct GpuRank {
     p2p: Option<P2pRank>,
 }
 
+/// What several GPUs support, checked before any GPU work: the warp P2G, MLS-MPM and single
+/// precision (clear errors otherwise).
+pub fn check_supported(scene: &Scene, options: &CudaOptions) -> Result<(), SimError> {
+    if options.p2g != crate::P2gMode::Warp {
+        return Err(SimError::Backend(
+            "several GPUs need the warp P2G (p2g=warp)".into(),
+        ));
+    }
+    if scene.solver.transfer != rtmpm_core::transfer::Transfer::Mls {
+        return Err(SimError::Backend(format!(
+            "several GPUs run MLS-MPM only: the scene's [solver] transfer is \"{}\" (its \
+             per-node force and FLIP velocity are not summed across GPUs yet); run it on one \
+             GPU (--gpus 1) or on the CPU",
+            scene.solver.transfer.name()
+        )));
+    }
+    if options.f64 || scene.precision == rtmpm_core::scene::Precision::F64 {
+        return Err(SimError::Backend(
+            "several GPUs run in single precision only (the particle exchange at \
+             rebalancing moves f32 state); run f64 scenes on one GPU (--gpus 1)"
+                .into(),
+        ));
+    }
+    Ok(())
+}
+
 impl GpuRank {
     /// Upload one GPU's particles (`part.ids`: their original indices) and join the communicator.
     pub fn new(
@@ -189,26 +215,7 @@ impl GpuRank {
         shared_cap: usize,
         comm: CommSource,
     ) -> Result<GpuRank, SimError> {
-        if options.p2g != crate::P2gMode::Warp {
-            return Err(SimError::Backend(
-                "several GPUs need the warp P2G (p2g=warp)".into(),
-            ));
-        }
-        if scene.solver.transfer != rtmpm_core::transfer::Transfer::Mls {
-            return Err(SimError::Backend(format!(
-                "several GPUs run MLS-MPM only: the scene's [solver] transfer is \"{}\" (its \
-                 per-node force and FLIP velocity are not summed across GPUs yet); run it on one \
-                 GPU (--gpus 1) or on the CPU",
-                scene.solver.transfer.name()
-            )));
-        }
-        if options.f64 || scene.precision == rtmpm_core::scene::Precision::F64 {
-            return Err(SimError::Backend(
-                "several GPUs run in single precision only (the particle exchange at \
-                 rebalancing moves f32 state); run f64 scenes on one GPU (--gpus 1)"
-                    .into(),
-            ));
-        }
+        check_supported(scene, &options)?;
         let real = if options.f64 {
             DataType::F64
         } else {
@@ -710,6 +717,7 @@ impl MultiGpuBackend {
         gpus: usize,
         options: CudaOptions,
     ) -> Result<MultiGpuBackend, SimError> {
+        check_supported(scene, &options)?;
         let found = crate::device_count();
         if gpus < 1 || gpus > found {
             return Err(SimError::Backend(format!(
@@ -1091,6 +1099,7 @@ impl NcclRankBackend {
         rendezvous: &crate::rendezvous::Rendezvous,
         options: CudaOptions,
     ) -> Result<NcclRankBackend, SimError> {
+        check_supported(scene, &options)?;
         if me >= ranks {
             return Err(SimError::Backend(format!(
                 "--nccl-rank {me} must be below --nccl-ranks {ranks}"
@@ -1256,6 +1265,32 @@ impl Backend for NcclRankBackend {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn unsupported_scenes_are_clear_errors_before_any_gpu_work() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/dam_break.toml");
+        let scene = Scene::from_file(&path).expect("dam_break scene");
+        let o = CudaOptions::default();
+        assert!(check_supported(&scene, &o).is_ok());
+        let msg = |r: Result<(), SimError>| r.err().map(|e| e.to_string()).unwrap_or_default();
+        let shared = CudaOptions {
+            p2g: crate::P2gMode::Shared,
+            ..o.clone()
+        };
+        assert!(msg(check_supported(&scene, &shared)).contains("p2g=warp"));
+        let f64 = CudaOptions {
+            f64: true,
+            ..o.clone()
+        };
+        assert!(msg(check_supported(&scene, &f64)).contains("single precision"));
+        let mut gimp = scene.clone();
+        gimp.solver.transfer = rtmpm_core::transfer::Transfer::Gimp;
+        assert!(msg(check_supported(&gimp, &o)).contains("\"gimp\""));
+        let mut double = scene;
+        double.precision = rtmpm_core::scene::Precision::F64;
+        assert!(msg(check_supported(&double, &o)).contains("--gpus 1"));
+    }
 
     #[test]
     fn frame_plan_grows_the_reduction_and_rebalances_after_drift() {
