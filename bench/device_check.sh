@@ -3,7 +3,7 @@
 # carried in $D): the GPU tests (agreement with the CPU backend, transfers, P2G strategies, f64),
 # the validation suite at full resolution on the GPU, and a short benchmark of the claymore scenes.
 # Logs in $OUT; a summary is printed last.
-# Usage: D=.device OUT=$OUT bash bench/device_check.sh [tests|validate|bench|all|convergence]
+# Usage: D=.device OUT=$OUT bash bench/device_check.sh [tests|validate|bench|all|convergence|rebuild]
 set -uo pipefail
 export NCCL_NVLS_ENABLE=0
 D=${D:-.device}
@@ -43,6 +43,28 @@ if [ "$WHAT" = convergence ]; then
     --out "$OUT/f64" > "$OUT/validate_f64.log" 2>&1
   say "validate --backend cuda --precision f64 rc=$?"
   grep -E "PASS|FAIL|passed" "$OUT/validate_f64.log" | sed -E 's/ +/ /g' | tee -a "$S"
+fi
+
+if [ "$WHAT" = rebuild ]; then
+  # The fused rebuild (default) against the fifteen kernels, interleaved A B A B.
+  r() { # label, args...
+    local label=$1; shift
+    local out; out=$(timeout 120 $D/rtmpm bench --backend cuda "$@" 2>&1)
+    echo "== $label: $*" >> "$OUT/bench_rebuild.log"; echo "$out" >> "$OUT/bench_rebuild.log"
+    say "$label | $(echo "$out" | grep -E 'wall time|rebuild  |^error' | sed -E 's/ +/ /g' | tr '\n' '|')"
+  }
+  for rep in 1 2; do
+    for o in rebuild=fused rebuild=kernels; do
+      r "fluid_dam_2m $o #$rep" --scene bench/fluid_dam_2m.toml --frames 10 --cuda-options $o
+      r "jelly_drop_2m $o #$rep" --scene bench/jelly_drop_2m.toml --frames 5 --cuda-options $o
+      r "snow_1m $o #$rep" --scene bench/snow_1m.toml --frames 10 --cuda-options $o
+    done
+  done
+  r "fluid n=128 rebuild=fused" --n 128 --steps 300 --cuda-options rebuild=fused
+  r "fluid n=128 rebuild=kernels" --n 128 --steps 300 --cuda-options rebuild=kernels
+  timeout 200 $D/rtmpm validate --backend cuda --case dam_break,granular_column,colliding_disks \
+    --out "$OUT/validation" > "$OUT/validate_rebuild.log" 2>&1
+  say "validate dam_break,granular_column,colliding_disks (fused rebuild) rc=$?: $(grep -E 'passed' "$OUT/validate_rebuild.log")"
 fi
 
 if [ "$WHAT" = all ] || [ "$WHAT" = bench ]; then

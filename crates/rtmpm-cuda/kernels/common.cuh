@@ -33,6 +33,8 @@
 #define CTL_REBUILT_NOW 11
 #define CTL_SHARED 12
 #define CTL_SHARED_CAP 13
+#define CTL_BARRIER_COUNT 14  // grid barrier of rb_fused (rebuild.cu): blocks arrived
+#define CTL_BARRIER_GEN 15    // grid barrier of rb_fused: generation
 #define CTL_WORDS 16
 
 #define ERR_HASH 1u

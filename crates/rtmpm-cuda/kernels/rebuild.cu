@@ -1,9 +1,10 @@
 // Rebuild of the particle-to-block mapping (seed 000): block codes, GPU hash table (block code ->
 // dense id), gblocks, pblocks with explicit 3x3x3 neighbour lists, complete block+cell counting
 // sort (histogram, scan, scatter) with physical reordering of the particle arrays, warp list.
-// Every kernel is launched every step and returns at once unless ctl[CTL_NEED_REBUILD] is set.
-// Launches use a grid of at most one full wave of the device (grid-stride loops), so that a step
-// without a rebuild costs only a few early-exiting blocks per kernel.
+// Each phase is a device function `rb_X_body`, run either as its own kernel `rb_X` (launched every
+// step, returning at once unless ctl[CTL_NEED_REBUILD] is set; a grid of at most one wave,
+// grid-stride loops) or, by default, as a phase of the single persistent kernel `rb_fused` at the
+// end of this file.
 #include "common.cuh"
 #include "scan.cuh"
 
@@ -12,8 +13,7 @@
 #define NEED(c) (((volatile unsigned*)(c).ctl)[CTL_NEED_REBUILD] != 0)
 
 // One thread: decide whether this step rebuilds; reset per-step counters.
-extern "C" __global__ void rb_begin(Ctx c) {
-    if (thread_index() != 0) return;
+__device__ __forceinline__ void rb_begin_body(const Ctx& c) {
     c.ctl[CTL_MAX_SPEED] = 0;
     if (step_params(c).always_rebuild) c.ctl[CTL_NEED_REBUILD] = 1;
     c.ctl[CTL_REBUILT_NOW] = c.ctl[CTL_NEED_REBUILD] ? 1u : 0u;
@@ -25,13 +25,19 @@ extern "C" __global__ void rb_begin(Ctx c) {
     c.ctl[CTL_EXTRA] = 0;
     c.ctl[CTL_WARPS] = 0;
 }
+extern "C" __global__ void rb_begin(Ctx c) {
+    if (thread_index() == 0) rb_begin_body(c);
+}
 
-extern "C" __global__ void rb_clear(Ctx c) {
-    if (!NEED(c)) return;
+__device__ __forceinline__ void rb_clear_body(const Ctx& c) {
     GRID_STRIDE(i, c.hash_cap) { c.hash_keys[i] = EMPTY_KEY; c.hash_values[i] = EMPTY_ID; }
     // The histogram (bucket starts, read by the shared-memory P2G between rebuilds) of the last
     // rebuild's buckets; the rest is still zero from the allocation.
     GRID_STRIDE(i, min(c.ctl[CTL_PREV_GBLOCKS], c.gblock_cap) * 64u) c.hist[i] = 0;
+}
+extern "C" __global__ void rb_clear(Ctx c) {
+    if (!NEED(c)) return;
+    rb_clear_body(c);
 }
 
 // Block of the stencil base of particle i.
@@ -42,18 +48,20 @@ __device__ __forceinline__ void particle_block(const Ctx& c, unsigned i, int b[3
     for (int a = 0; a < 3; ++a) b[a] = base[a] >> 2;
 }
 
-extern "C" __global__ void rb_insert_gblocks(Ctx c) {
-    if (!NEED(c)) return;
+__device__ __forceinline__ void rb_insert_gblocks_body(const Ctx& c) {
     GRID_STRIDE(i, c.n) {
         int b[3], base[3];
         particle_block(c, i, b, base);
         hash_insert(c, block_code(b[0], b[1], b[2]));
     }
 }
+extern "C" __global__ void rb_insert_gblocks(Ctx c) {
+    if (!NEED(c)) return;
+    rb_insert_gblocks_body(c);
+}
 
 // Give every new key a dense id: gblocks (first == 1) from 0, neighbours after the gblocks.
-extern "C" __global__ void rb_assign(Ctx c, unsigned first) {
-    if (!NEED(c)) return;
+__device__ __forceinline__ void rb_assign_body(const Ctx& c, unsigned first) {
     GRID_STRIDE(h, c.hash_cap) {
         unsigned long long key = c.hash_keys[h];
         if (key == EMPTY_KEY || c.hash_values[h] != EMPTY_ID) continue;
@@ -71,9 +79,12 @@ extern "C" __global__ void rb_assign(Ctx c, unsigned first) {
         c.block_coords[3 * id + 2] = (int)compact3(key);
     }
 }
-
-extern "C" __global__ void rb_insert_neighbors(Ctx c) {
+extern "C" __global__ void rb_assign(Ctx c, unsigned first) {
     if (!NEED(c)) return;
+    rb_assign_body(c, first);
+}
+
+__device__ __forceinline__ void rb_insert_neighbors_body(const Ctx& c) {
     unsigned gcount = min(c.ctl[CTL_GBLOCKS], c.gblock_cap);
     GRID_STRIDE(t, gcount * 27u) {
         unsigned g = t / 27, s = t % 27;
@@ -82,9 +93,12 @@ extern "C" __global__ void rb_insert_neighbors(Ctx c) {
         hash_insert(c, block_code(bc[0] + di, bc[1] + dj, bc[2] + dk));
     }
 }
-
-extern "C" __global__ void rb_neighbor_lists(Ctx c) {
+extern "C" __global__ void rb_insert_neighbors(Ctx c) {
     if (!NEED(c)) return;
+    rb_insert_neighbors_body(c);
+}
+
+__device__ __forceinline__ void rb_neighbor_lists_body(const Ctx& c) {
     unsigned gcount = c.ctl[CTL_GBLOCKS];
     if (thread_index() == 0) c.ctl[CTL_PBLOCKS] = min(gcount + c.ctl[CTL_EXTRA], c.pblock_cap);
     gcount = min(gcount, c.gblock_cap);
@@ -95,10 +109,13 @@ extern "C" __global__ void rb_neighbor_lists(Ctx c) {
         c.neighbors[27 * g + s] = hash_find(c, block_code(bc[0] + di, bc[1] + dj, bc[2] + dk));
     }
 }
+extern "C" __global__ void rb_neighbor_lists(Ctx c) {
+    if (!NEED(c)) return;
+    rb_neighbor_lists_body(c);
+}
 
 // Counting sort, 1: histogram of (gblock, cell code) buckets; remember each particle's rank.
-extern "C" __global__ void rb_histogram(Ctx c) {
-    if (!NEED(c) || c.ctl[CTL_ERROR]) return;
+__device__ __forceinline__ void rb_histogram_body(const Ctx& c) {
     GRID_STRIDE(i, c.n) {
         int b[3], base[3];
         particle_block(c, i, b, base);
@@ -108,6 +125,10 @@ extern "C" __global__ void rb_histogram(Ctx c) {
         c.prank[i] = atomicAdd(&c.hist[key], 1u);
     }
 }
+extern "C" __global__ void rb_histogram(Ctx c) {
+    if (!NEED(c) || c.ctl[CTL_ERROR]) return;
+    rb_histogram_body(c);
+}
 
 // Buckets in use: 64 per gblock.
 __device__ __forceinline__ unsigned active_buckets(const Ctx& c) { return min(c.ctl[CTL_GBLOCKS], c.gblock_cap) * 64u; }
@@ -115,8 +136,7 @@ __device__ __forceinline__ unsigned active_buckets(const Ctx& c) { return min(c.
 // Counting sort, 2: exclusive scan of the bucket counts (3 kernels: blocks of 1024, block sums,
 // add; block_exclusive_scan in scan.cuh). Our own scan: the CUB host API is not available under NVRTC.
 // Chunks of blockDim.x buckets, strided over the blocks (uniform trip count per block).
-extern "C" __global__ void rb_scan_blocks(Ctx c) {
-    if (!NEED(c) || c.ctl[CTL_ERROR]) return;
+__device__ __forceinline__ void rb_scan_blocks_body(const Ctx& c) {
     unsigned nb = active_buckets(c), chunks = (nb + blockDim.x - 1) / blockDim.x;
     for (unsigned chunk = blockIdx.x; chunk < chunks; chunk += gridDim.x) {
         unsigned i = chunk * blockDim.x + threadIdx.x;
@@ -127,10 +147,13 @@ extern "C" __global__ void rb_scan_blocks(Ctx c) {
         if (threadIdx.x == 0) c.scan_sums[chunk] = total;
     }
 }
+extern "C" __global__ void rb_scan_blocks(Ctx c) {
+    if (!NEED(c) || c.ctl[CTL_ERROR]) return;
+    rb_scan_blocks_body(c);
+}
 
 // One block of 1024 threads scans the block sums in chunks.
-extern "C" __global__ void rb_scan_sums(Ctx c) {
-    if (!NEED(c) || c.ctl[CTL_ERROR]) return;
+__device__ __forceinline__ void rb_scan_sums_body(const Ctx& c) {
     unsigned n_sums = (active_buckets(c) + 1023u) / 1024u;
     unsigned carry = 0;
     for (unsigned start = 0; start < n_sums; start += blockDim.x) {
@@ -142,20 +165,26 @@ extern "C" __global__ void rb_scan_sums(Ctx c) {
         carry += total;
     }
 }
-
-extern "C" __global__ void rb_scan_add(Ctx c) {
+extern "C" __global__ void rb_scan_sums(Ctx c) {
     if (!NEED(c) || c.ctl[CTL_ERROR]) return;
+    rb_scan_sums_body(c);
+}
+
+__device__ __forceinline__ void rb_scan_add_body(const Ctx& c) {
     unsigned nb = active_buckets(c), chunks = (nb + blockDim.x - 1) / blockDim.x;
     for (unsigned chunk = blockIdx.x; chunk < chunks; chunk += gridDim.x) {
         unsigned i = chunk * blockDim.x + threadIdx.x;
         if (i < nb) c.hist[i] += c.scan_sums[chunk];
     }
 }
+extern "C" __global__ void rb_scan_add(Ctx c) {
+    if (!NEED(c) || c.ctl[CTL_ERROR]) return;
+    rb_scan_add_body(c);
+}
 
 // Counting sort, 3: scatter every field to its sorted slot in the scratch arrays, and emit the
 // warp list (each warp: up to 32 consecutive particles of one gblock).
-extern "C" __global__ void rb_scatter(Ctx c) {
-    if (!NEED(c) || c.ctl[CTL_ERROR]) return;
+__device__ __forceinline__ void rb_scatter_body(const Ctx& c) {
     GRID_STRIDE(i, c.n) {
         unsigned key = c.pkey[i];
         unsigned dst = c.hist[key] + c.prank[i];
@@ -172,15 +201,22 @@ extern "C" __global__ void rb_scatter(Ctx c) {
         }
     }
 }
+extern "C" __global__ void rb_scatter(Ctx c) {
+    if (!NEED(c) || c.ctl[CTL_ERROR]) return;
+    rb_scatter_body(c);
+}
 
 // Copy the sorted scratch back (the state pointer never changes, so a step can be captured in a
 // CUDA graph), and clear the rebuild flag.
-extern "C" __global__ void rb_copy_back(Ctx c) {
-    if (!NEED(c) || c.ctl[CTL_ERROR]) return;
+__device__ __forceinline__ void rb_copy_back_body(const Ctx& c) {
     GRID_STRIDE(t, c.n * RTMPM_NFIELDS) {
         unsigned f = t / c.n, i = t % c.n;
         c.state[f * c.cap + i] = c.scratch[f * c.cap + i];
     }
+}
+extern "C" __global__ void rb_copy_back(Ctx c) {
+    if (!NEED(c) || c.ctl[CTL_ERROR]) return;
+    rb_copy_back_body(c);
 }
 
 extern "C" __global__ void rb_end(Ctx c) {
@@ -188,13 +224,90 @@ extern "C" __global__ void rb_end(Ctx c) {
 }
 
 // Zero the grid nodes of all pblocks (every step).
-extern "C" __global__ void grid_clear(Ctx c) {
+__device__ __forceinline__ void grid_clear_body(const Ctx& c) {
     GRID_STRIDE(t, c.ctl[CTL_PBLOCKS] * 64u * 4u) {
         c.grid[t] = 0;
         if (c.grid_aux) c.grid_aux[t] = 0;
     }
 }
+extern "C" __global__ void grid_clear(Ctx c) { grid_clear_body(c); }
 // Clear only grid_aux (before the MUSL re-map).
 extern "C" __global__ void grid_clear_aux(Ctx c) {
     GRID_STRIDE(t, c.ctl[CTL_PBLOCKS] * 64u * 4u) c.grid_aux[t] = 0;
+}
+
+// ---- The whole rebuild in ONE launch (`rebuild=fused`, the default): seed 000's "merge kernels"
+// applied to the rebuild. The kernels above become the phases of one persistent kernel, separated
+// by a grid-wide barrier; its grid is exactly the blocks that fit on the device at once (a
+// cooperative launch, so every block is resident and the barrier cannot deadlock). A step without
+// a rebuild then costs one launch (the decision, the per-step resets and the grid clear) instead of
+// fifteen early-exiting ones. Phases never return early: an error only skips the work of the
+// remaining phases, every block still meets every barrier.
+
+// Grid-wide barrier (sense by generation): the last block to arrive resets the count and bumps
+// the generation; the others spin on the generation they saw before arriving.
+__device__ __forceinline__ void rb_grid_barrier(const Ctx& c) {
+    __syncthreads();
+    if (threadIdx.x == 0) {
+        volatile unsigned* gen = c.ctl + CTL_BARRIER_GEN;
+        unsigned g = *gen;
+        __threadfence();
+        if (atomicAdd(&c.ctl[CTL_BARRIER_COUNT], 1u) == gridDim.x - 1) {
+            c.ctl[CTL_BARRIER_COUNT] = 0;
+            __threadfence();
+            atomicAdd(&c.ctl[CTL_BARRIER_GEN], 1u);
+        } else {
+            while (*gen == g) {}
+        }
+        __threadfence();
+    }
+    __syncthreads();
+}
+
+__device__ __forceinline__ bool rb_error(const Ctx& c) { return ((volatile unsigned*)c.ctl)[CTL_ERROR] != 0; }
+
+extern "C" __global__ void __launch_bounds__(1024) rb_fused(Ctx c) {
+    // Every block takes the same decision before anyone writes the flag (it is cleared only at the end).
+    bool need = NEED(c) || step_params(c).always_rebuild;
+    if (!need) {
+        if (thread_index() == 0) {
+            c.ctl[CTL_MAX_SPEED] = 0;
+            c.ctl[CTL_REBUILT_NOW] = 0;
+        }
+        grid_clear_body(c);
+        return;  // uniform: no block meets a barrier
+    }
+    if (thread_index() == 0) rb_begin_body(c);
+    rb_grid_barrier(c);
+    rb_clear_body(c);
+    rb_grid_barrier(c);
+    rb_insert_gblocks_body(c);
+    rb_grid_barrier(c);
+    rb_assign_body(c, 1u);
+    rb_grid_barrier(c);
+    rb_insert_neighbors_body(c);
+    rb_grid_barrier(c);
+    rb_assign_body(c, 0u);
+    rb_grid_barrier(c);
+    rb_neighbor_lists_body(c);
+    rb_grid_barrier(c);
+    // From here the phases skip their work after an error (read after a barrier: the same value
+    // in every block), but never a barrier.
+    bool err = rb_error(c);
+    if (!err) rb_histogram_body(c);
+    rb_grid_barrier(c);
+    err = rb_error(c);
+    if (!err) rb_scan_blocks_body(c);
+    rb_grid_barrier(c);
+    if (!err && blockIdx.x == 0) rb_scan_sums_body(c);
+    rb_grid_barrier(c);
+    if (!err) rb_scan_add_body(c);
+    rb_grid_barrier(c);
+    if (!err) rb_scatter_body(c);
+    rb_grid_barrier(c);
+    err = rb_error(c);
+    if (!err) rb_copy_back_body(c);
+    rb_grid_barrier(c);
+    if (thread_index() == 0) c.ctl[CTL_NEED_REBUILD] = 0;
+    grid_clear_body(c);
 }

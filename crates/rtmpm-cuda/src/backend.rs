@@ -43,6 +43,11 @@ pub(crate) fn err(what: &str) -> impl Fn(cudarc::driver::DriverError) -> SimErro
 pub(crate) struct Kernels {
     /// Threads of one full wave of the device (SMs x 2048).
     pub wave_threads: usize,
+    /// The rebuild as one persistent kernel (`rebuild=fused`).
+    pub rb_fused: CudaFunction,
+    /// Its grid (blocks of 1024 threads that fit on the device at once); `None`: the rebuild
+    /// runs as separate kernels (`rebuild=kernels`).
+    pub rb_fused_grid: Option<u32>,
     pub rb_begin: CudaFunction,
     pub rb_clear: CudaFunction,
     pub rb_insert_gblocks: CudaFunction,
@@ -337,8 +342,21 @@ impl CudaBackend {
                 .load_function(name)
                 .map_err(|e| SimError::Backend(format!("CUDA: kernel {name}: {e:?}")))
         };
+        // The fused rebuild runs as many 1024-thread blocks as fit on the device at once
+        // (a cooperative launch: all resident, so its grid barrier cannot deadlock).
+        let rb_fused = f("rb_fused")?;
+        let rb_fused_grid = if options.fused_rebuild {
+            let per_sm = rb_fused
+                .occupancy_max_active_blocks_per_multiprocessor(1024, 0, None)
+                .map_err(err("occupancy of rb_fused"))?;
+            Some(per_sm * info.sm_count.max(1) as u32).filter(|&g| g > 0)
+        } else {
+            None
+        };
         let kernels = Kernels {
             wave_threads: info.sm_count.max(1) as usize * 2048,
+            rb_fused,
+            rb_fused_grid,
             rb_begin: f("rb_begin")?,
             rb_clear: f("rb_clear")?,
             rb_insert_gblocks: f("rb_insert_gblocks")?,

@@ -49,6 +49,10 @@ pub const CTL_REBUILT_NOW: usize = 11;
 pub const CTL_SHARED: usize = 12;
 /// Capacity of the shared-block reduction (blocks; multi-GPU).
 pub const CTL_SHARED_CAP: usize = 13;
+/// Grid barrier of the fused rebuild (`rb_fused`): blocks arrived, generation.
+pub const CTL_BARRIER_COUNT: usize = 14;
+/// See [`CTL_BARRIER_COUNT`].
+pub const CTL_BARRIER_GEN: usize = 15;
 /// Number of control words.
 pub const CTL_WORDS: usize = 16;
 

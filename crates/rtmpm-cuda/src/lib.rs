@@ -246,6 +246,9 @@ pub struct CudaOptions {
     pub transport: Option<Transport>,
     /// Several GPUs with `transport=p2p`: the synchronisation (`None`: spin).
     pub barrier: Option<BarrierKind>,
+    /// The rebuild as one persistent kernel with grid-wide barriers (`rb_fused`, one launch per
+    /// step) instead of fifteen kernels that return at once when nothing is rebuilt.
+    pub fused_rebuild: bool,
 }
 
 impl Default for CudaOptions {
@@ -268,6 +271,7 @@ impl Default for CudaOptions {
             overlap: true,
             transport: None,
             barrier: None,
+            fused_rebuild: true,
         }
     }
 }
@@ -275,7 +279,7 @@ impl Default for CudaOptions {
 impl std::str::FromStr for CudaOptions {
     type Err = String;
     /// Comma separated `key=value`: `free_zone`, `mixed_sort`, `warp_reduce`, `fast_math`,
-    /// `graph`, `f64`, `rebalance`, `overlap` (on/off/true/false/1/0), `p2g`
+    /// `graph`, `f64`, `rebalance`, `overlap` (on/off/true/false/1/0), `rebuild` (fused/kernels), `p2g`
     /// (warp/shared/reverse_map/sort), `transport` (p2p/nccl), `barrier` (spin/events), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
     /// `rmap_pblocks`, `shared` (counts).
     fn from_str(s: &str) -> Result<Self, String> {
@@ -323,6 +327,13 @@ impl std::str::FromStr for CudaOptions {
                 "shared" => o.shared_capacity = Some(n()?),
                 "rebalance" => o.rebalance = b()?,
                 "overlap" => o.overlap = b()?,
+                "rebuild" => {
+                    o.fused_rebuild = match v {
+                        "fused" => true,
+                        "kernels" => false,
+                        _ => return Err(format!("`{item}`: expected fused or kernels")),
+                    }
+                }
                 "transport" => {
                     o.transport = Some(match v {
                         "p2p" => Transport::P2p,
@@ -374,5 +385,13 @@ mod tests {
         assert_eq!(o.barrier, Some(BarrierKind::Events));
         assert!("transport=mpi".parse::<CudaOptions>().is_err());
         assert!("barrier=sleep".parse::<CudaOptions>().is_err());
+        assert!(CudaOptions::default().fused_rebuild);
+        assert!(
+            !"rebuild=kernels"
+                .parse::<CudaOptions>()
+                .unwrap()
+                .fused_rebuild
+        );
+        assert!("rebuild=maybe".parse::<CudaOptions>().is_err());
     }
 }

@@ -1,12 +1,29 @@
-//! Host side of `kernels/rebuild.cu`: the rebuild-mapping kernels, enqueued every step (they
-//! return at once on the device unless the free-zone flag asks for a rebuild), and the grid clear.
+//! Host side of `kernels/rebuild.cu`: the rebuild of the mapping, enqueued every step (it does
+//! nothing on the device unless the free-zone flag asks for a rebuild), and the grid clear.
+//! Default: one cooperative launch of the persistent kernel `rb_fused`; `rebuild=kernels`: the
+//! fifteen phase kernels, each returning at once when nothing is rebuilt.
 
 use crate::backend::{Kernels, cfg, cfg_wave};
 use crate::layout::{Ctx, NFIELDS};
-use cudarc::driver::{CudaStream, DriverError, PushKernelArg};
+use cudarc::driver::{CudaStream, DriverError, LaunchConfig, PushKernelArg};
 
-/// Enqueue the rebuild kernels and the grid clear.
+/// Enqueue the rebuild and the grid clear.
 pub(crate) fn enqueue(k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), DriverError> {
+    if let Some(grid) = k.rb_fused_grid {
+        let cfg = LaunchConfig {
+            grid_dim: (grid, 1, 1),
+            block_dim: (1024, 1, 1),
+            shared_mem_bytes: 0,
+        };
+        // SAFETY: every phase bounds-checks against the capacities in `c`; the cooperative
+        // launch keeps all `grid` blocks resident for the grid barrier.
+        unsafe {
+            s.launch_builder(&k.rb_fused)
+                .arg(c)
+                .launch_cooperative(cfg)?
+        };
+        return Ok(());
+    }
     let one = cfg(1, 32);
     // At most one full wave: the kernels loop over their items (grid-stride).
     let cfg = |n: usize, block: u32| cfg_wave(n, block, k.wave_threads);
