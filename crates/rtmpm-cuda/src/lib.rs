@@ -4,8 +4,9 @@
 //! [`probe`] says why CUDA is unusable instead of panicking.
 //!
 //! # Pipeline (one step, all launches on one non-default stream, no host synchronisation)
-//! 1. [`rebuild`] (`kernels/rebuild.cu`): launched every step, every kernel returns at once unless
-//!    the device rebuild flag is set (free zone). Block codes, GPU hash table (block code -> dense
+//! 1. [`rebuild`] (`kernels/rebuild.cu`), **merged**: one persistent kernel launched every step
+//!    (`rb_fused`, cooperative, phases separated by a grid barrier; `rebuild=kernels`: fifteen
+//!    kernels); it only clears the grid unless the device rebuild flag is set (free zone). Block codes, GPU hash table (block code -> dense
 //!    id, atomicCAS open addressing), gblocks, pblocks with explicit 3x3x3 neighbour lists, complete
 //!    block+cell counting sort (histogram, our own scan, scatter into scratch arrays and copy back,
 //!    so device pointers never change and a step can be captured in a CUDA graph), warp list.
