@@ -5,7 +5,7 @@
 #include "material/materials.cuh"
 
 #define RTMPM_MAX_COLLIDERS 16
-#define RTMPM_NFIELDS 35
+#define RTMPM_NFIELDS 29
 // Field offsets of the particle state (structure of arrays: field f of particle i is at
 // state[f * cap + i]; every field is 32 bits).
 #define F_X 0
@@ -17,7 +17,6 @@
 #define F_VOL0 26
 #define F_MAT 27
 #define F_ID 28
-#define F_TAU 29  // Kirchhoff stress after the last G2P (symmetric: xx yy zz xy xz yz), read by P2G
 
 // Control words (unsigned ctl[]).
 #define CTL_NEED_REBUILD 0
@@ -198,24 +197,6 @@ __device__ __forceinline__ mat3 load_m3(const real* s, unsigned cap, int f, unsi
 }
 __device__ __forceinline__ void store_m3(real* s, unsigned cap, int f, unsigned i, const mat3& m) {
     for (int c = 0; c < 9; ++c) s[(f + c) * cap + i] = m.m[c];
-}
-// A symmetric matrix as 6 fields: xx yy zz xy xz yz (m[c * 3 + r]: row r, column c).
-__device__ __forceinline__ void store_sym(real* s, unsigned cap, int f, unsigned i, const mat3& m) {
-    s[(f + 0) * cap + i] = m.m[0];
-    s[(f + 1) * cap + i] = m.m[4];
-    s[(f + 2) * cap + i] = m.m[8];
-    s[(f + 3) * cap + i] = (real)0.5 * (m.m[3] + m.m[1]);
-    s[(f + 4) * cap + i] = (real)0.5 * (m.m[6] + m.m[2]);
-    s[(f + 5) * cap + i] = (real)0.5 * (m.m[7] + m.m[5]);
-}
-__device__ __forceinline__ mat3 load_sym(const real* s, unsigned cap, int f, unsigned i) {
-    real xx = s[(f + 0) * cap + i], yy = s[(f + 1) * cap + i], zz = s[(f + 2) * cap + i];
-    real xy = s[(f + 3) * cap + i], xz = s[(f + 4) * cap + i], yz = s[(f + 5) * cap + i];
-    mat3 m;
-    m.m[0] = xx; m.m[1] = xy; m.m[2] = xz;
-    m.m[3] = xy; m.m[4] = yy; m.m[5] = yz;
-    m.m[6] = xz; m.m[7] = yz; m.m[8] = zz;
-    return m;
 }
 // Integer field of the state (material id, original index): its bits in the low 32 bits of the word.
 __device__ __forceinline__ unsigned state_bits(real w) {

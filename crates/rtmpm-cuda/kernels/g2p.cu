@@ -69,18 +69,16 @@ __device__ __forceinline__ void g2p_warp(const Ctx& c, unsigned w, unsigned lane
     g2p_finish(c, bc, p, lane, x + v * dt, v, C);
 }
 
-// The end of every G2P: F = (I + dt C) F, plasticity and the Kirchhoff stress of the new F (kept
-// for the next P2G, which then needs neither F nor the material), health check (before the clamp,
-// which would hide NaN), max speed, domain clamp, free-zone check, stores. `x` is the advected
-// position, `C` the velocity gradient (APIC's C for MLS).
+// The end of every G2P: F = (I + dt C) F, plasticity, health check (before the clamp, which
+// would hide NaN), max speed, domain clamp, free-zone check, stores. `x` is the advected position,
+// `C` the velocity gradient (APIC's C for MLS).
 __device__ __forceinline__ void g2p_finish(const Ctx& c, const int* bc, unsigned p, unsigned lane, vec3 x, vec3 v, const mat3& C) {
     real dt = step_params(c).dt;
     mat3 F = load_m3(c.state, c.cap, F_F, p);
     F = (mat3_identity() + C * dt) * F;
     real plastic = c.state[F_PLASTIC * c.cap + p];
     GpuMaterial mat = material_at(c, state_bits(c.state[F_MAT * c.cap + p]));
-    mat3 tau;
-    F = material_project_kirchhoff(mat, F, &plastic, C, &tau);
+    F = material_project(mat, F, &plastic);
     // Health check before the clamp (the clamp would hide NaN).
     unsigned id = state_bits(c.state[F_ID * c.cap + p]);
     real speed = length(v);
@@ -109,17 +107,6 @@ __device__ __forceinline__ void g2p_finish(const Ctx& c, const int* bc, unsigned
     store_m3(c.state, c.cap, F_C, p, C);
     store_m3(c.state, c.cap, F_F, p, F);
     c.state[F_PLASTIC * c.cap + p] = plastic;
-    store_sym(c.state, c.cap, F_TAU, p, tau);
-}
-
-// The stored Kirchhoff stress of freshly uploaded particles (before their first P2G).
-extern "C" __global__ void stress_init(Ctx c) {
-    for (unsigned p = thread_index(); p < c.n; p += gridDim.x * blockDim.x) {
-        GpuMaterial mat = material_at(c, state_bits(c.state[F_MAT * c.cap + p]));
-        mat3 F = load_m3(c.state, c.cap, F_F, p);
-        mat3 C = load_m3(c.state, c.cap, F_C, p);
-        store_sym(c.state, c.cap, F_TAU, p, material_kirchhoff(mat, F, c.state[F_PLASTIC * c.cap + p], C));
-    }
 }
 
 // Interpolation of the classic MPM transfers at one particle (cpu/g2p.rs: g2p_mpm): v_pic =

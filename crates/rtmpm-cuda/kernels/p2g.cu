@@ -167,7 +167,10 @@ extern "C" __global__ void p2g_mpm(Ctx c) {
         real m = c.state[F_MASS * c.cap + p];
         real vol0 = c.state[F_VOL0 * c.cap + p];
         vec3 mv = load_v3(c.state, c.cap, F_V, p) * m;
-        mat3 tau = load_sym(c.state, c.cap, F_TAU, p);  // stored by the last G2P
+        mat3 C = load_m3(c.state, c.cap, F_C, p);
+        mat3 F = load_m3(c.state, c.cap, F_F, p);
+        const GpuMaterial& mat = material_at(c, state_bits(c.state[F_MAT * c.cap + p]));
+        mat3 tau = material_kirchhoff(mat, F, c.state[F_PLASTIC * c.cap + p], C);
         // grad w in world units is shape_grad / dx.
         mat3 stress = tau * (-(real)step_params(c).dt * vol0 * c.inv_dx);
         StencilIdx si = stencil_idx(c.block_coords + 3 * g, base);

@@ -32,8 +32,7 @@ __device__ __forceinline__ P2gParticle p2g_particle_zero() {
     return q;
 }
 
-// Stencil, weights, momentum and affine term of particle p (the Kirchhoff stress was stored by
-// the last G2P, g2p_finish, or by stress_init).
+// Stencil, weights, momentum and affine term of particle p (the stress is evaluated here).
 __device__ __forceinline__ P2gParticle p2g_particle(const Ctx& c, unsigned p) {
     P2gParticle q;
     stencil_of(c, load_v3(c.state, c.cap, F_X, p), q.base, q.fx);
@@ -42,7 +41,10 @@ __device__ __forceinline__ P2gParticle p2g_particle(const Ctx& c, unsigned p) {
     real vol0 = c.state[F_VOL0 * c.cap + p];
     vec3 v = load_v3(c.state, c.cap, F_V, p);
     mat3 C = load_m3(c.state, c.cap, F_C, p);
-    mat3 tau = load_sym(c.state, c.cap, F_TAU, p);  // evaluated at the end of the last G2P
+    mat3 F = load_m3(c.state, c.cap, F_F, p);
+    real plastic = c.state[F_PLASTIC * c.cap + p];
+    GpuMaterial mat = material_at(c, state_bits(c.state[F_MAT * c.cap + p]));
+    mat3 tau = material_kirchhoff(mat, F, plastic, C);
     real dt = step_params(c).dt;
     q.affine = tau * (-dt * vol0 * (real)4 * c.inv_dx * c.inv_dx) + C * q.m;
     q.mv = v * q.m;

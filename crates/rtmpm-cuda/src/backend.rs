@@ -9,7 +9,7 @@ use crate::p2g_reverse_map::{ReverseMap, ReverseMapSize};
 use crate::p2g_sort::SortMap;
 use cudarc::driver::{
     CudaContext, CudaFunction, CudaGraph, CudaModule, CudaSlice, CudaStream, DevicePtr,
-    LaunchConfig, PushKernelArg,
+    LaunchConfig,
 };
 use rtmpm_core::boundary::Condition;
 use rtmpm_core::boundary::sdf::Shape;
@@ -48,8 +48,6 @@ pub(crate) struct Kernels {
     /// Its grid (blocks of 1024 threads that fit on the device at once); `None`: the rebuild
     /// runs as separate kernels (`rebuild=kernels`).
     pub rb_fused_grid: Option<u32>,
-    /// Fills the stored Kirchhoff stress of uploaded particles (`g2p.cu`).
-    pub stress_init: CudaFunction,
     pub rb_begin: CudaFunction,
     pub rb_clear: CudaFunction,
     pub rb_insert_gblocks: CudaFunction,
@@ -361,7 +359,6 @@ impl CudaBackend {
             wave_threads: info.sm_count.max(1) as usize * 2048,
             rb_fused,
             rb_fused_grid,
-            stress_init: f("stress_init")?,
             rb_begin: f("rb_begin")?,
             rb_clear: f("rb_clear")?,
             rb_insert_gblocks: f("rb_insert_gblocks")?,
@@ -581,15 +578,6 @@ impl CudaBackend {
             }
             P2gMode::Sort => P2gPlan::Sort(SortMap::new(&module, &stream, &ctx, real_bytes)?),
         };
-        // The stress P2G reads is stored by G2P; the uploaded particles get theirs here.
-        // SAFETY: the kernel reads and writes the n particles of the state arrays only.
-        unsafe {
-            stream
-                .launch_builder(&kernels.stress_init)
-                .arg(&ctx)
-                .launch(cfg_wave(n, 256, kernels.wave_threads))
-        }
-        .map_err(err("stress_init"))?;
         Ok(CudaBackend {
             stream,
             kernels,

@@ -117,10 +117,7 @@ pub fn bench_kernels(
     let n = b.ctx.n as u64;
     let node_bytes = 4 * if b.options.f64 { 8 } else { 4 } as u64;
     let nodes = pblocks as u64 * 64;
-    // Words per particle: P2G reads x, v, C, the stored stress (6), mass, vol0; G2P reads x, F,
-    // plastic, material and writes x, v, C, F, plastic and the stress.
-    let word = if b.options.f64 { 8 } else { 4 };
-    let particle = n * word * ((3 + 3 + 9 + 6 + 1 + 1) + (3 + 9 + 1 + 1) + (3 + 3 + 9 + 9 + 1 + 6));
+    let particle = n * 4 * (28 + (3 + 9 + 1 + 1) + (3 + 3 + 9 + 9 + 1));
     let _ = NFIELDS;
     t.bytes_per_step = particle + nodes * node_bytes * (1 + 2 + 1);
     Ok(t)

@@ -5,7 +5,7 @@ pub const MAX_COLLIDERS: usize = 16;
 /// Maximum number of materials (`RTMPM_MAX_MATERIALS`, the constant-memory table).
 pub const MAX_MATERIALS: usize = 64;
 /// 32-bit fields per particle in the state arrays (`RTMPM_NFIELDS`).
-pub const NFIELDS: usize = 35;
+pub const NFIELDS: usize = 29;
 /// Field offsets (see `common.cuh`): x, v, C, F (column-major), plastic, mass, vol0,
 /// material (u32 bits), original index (u32 bits).
 pub const F_X: usize = 0;
@@ -25,9 +25,6 @@ pub const F_VOL0: usize = 26;
 pub const F_MAT: usize = 27;
 /// Original particle index (bits).
 pub const F_ID: usize = 28;
-/// Kirchhoff stress after the last G2P, symmetric (xx yy zz xy xz yz): computed where the
-/// plasticity already has F's SVD, read by P2G (`stress_init` fills it after an upload).
-pub const F_TAU: usize = 29;
 /// Control words: rebuild the mapping at the next step.
 pub const CTL_NEED_REBUILD: usize = 0;
 /// Gblock count.

@@ -65,12 +65,3 @@ __device__ __forceinline__ mat3 material_project(const MaterialGpu& m, const mat
     default: return f_trial;
     }
 }
-
-// Plastic return mapping, then the Kirchhoff stress of the projected F into *tau (stored for the
-// next P2G); snow takes both from one SVD, the other models call the two functions above.
-__device__ __forceinline__ mat3 material_project_kirchhoff(const MaterialGpu& m, const mat3& f_trial, real* plastic, const mat3& c, mat3* tau) {
-    if (m.kind == MATERIAL_SNOW) return snow_project_kirchhoff(m.snow, f_trial, plastic, tau);
-    mat3 f = material_project(m, f_trial, plastic);
-    *tau = material_kirchhoff(m, f, *plastic, c);
-    return f;
-}

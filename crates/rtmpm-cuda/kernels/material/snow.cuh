@@ -29,31 +29,14 @@ __device__ __forceinline__ mat3 snow_kirchhoff(const SnowParams& p, const mat3& 
 }
 
 // Clamp singular values into [1 - theta_c, 1 + theta_s]; Jp *= J_e_trial / J_e_new, clamped.
-// Also returns the SVD of the projected F: U, the clamped singular values, V.
-__device__ __forceinline__ mat3 snow_project_svd(const SnowParams& p, const mat3& f_trial, real* jp, mat3& u, vec3& sc, mat3& v) {
+__device__ __forceinline__ mat3 snow_project(const SnowParams& p, const mat3& f_trial, real* jp) {
+    mat3 u, v;
     vec3 s;
     svd3(f_trial, u, s, v);
     real lo = (real)1 - p.critical_compression;
     real hi = (real)1 + p.critical_stretch;
-    sc = make_v3(fmin(fmax(s.x, lo), hi), fmin(fmax(s.y, lo), hi), fmin(fmax(s.z, lo), hi));
+    vec3 sc = make_v3(fmin(fmax(s.x, lo), hi), fmin(fmax(s.y, lo), hi), fmin(fmax(s.z, lo), hi));
     real ratio = (s.x * s.y * s.z) / (sc.x * sc.y * sc.z);
     *jp = fmin(fmax(*jp * ratio, SNOW_JP_MIN), SNOW_JP_MAX);
     return mul_diag_bt(u, sc, v);
-}
-
-__device__ __forceinline__ mat3 snow_project(const SnowParams& p, const mat3& f_trial, real* jp) {
-    mat3 u, v;
-    vec3 sc;
-    return snow_project_svd(p, f_trial, jp, u, sc, v);
-}
-
-// Projection and the Kirchhoff stress of the projected F from ONE SVD: the clamped singular
-// values are positive, so F = U Sc V^T is F's SVD, R = U V^T its polar rotation and J = det Sc.
-__device__ __forceinline__ mat3 snow_project_kirchhoff(const SnowParams& p, const mat3& f_trial, real* jp, mat3* tau) {
-    mat3 u, v;
-    vec3 sc;
-    mat3 f = snow_project_svd(p, f_trial, jp, u, sc, v);
-    real h = snow_hardening_factor(p, *jp);
-    *tau = fixed_corotated_kirchhoff_rj(f, u * transpose(v), sc.x * sc.y * sc.z, p.mu * h, p.lambda * h);
-    return f;
 }
