@@ -109,6 +109,36 @@ impl Particles {
         }
         (lo, hi)
     }
+
+    /// How far `other` is from these particles in aggregate, the quantities the backend
+    /// agreement tests compare (CPU vs GPU, one GPU vs several).
+    pub fn aggregate_difference(&self, other: &Particles) -> AggregateDifference {
+        let (ca, cb) = (self.center_of_mass(), other.center_of_mass());
+        let com =
+            ((ca[0] - cb[0]).powi(2) + (ca[1] - cb[1]).powi(2) + (ca[2] - cb[2]).powi(2)).sqrt();
+        let (ka, kb) = (self.kinetic_energy(), other.kinetic_energy());
+        let ((la, ha), (lb, hb)) = (self.bounding_box(), other.bounding_box());
+        let bbox = (la - lb)
+            .abs()
+            .max_element()
+            .max((ha - hb).abs().max_element());
+        AggregateDifference {
+            com,
+            kinetic: (ka - kb).abs() / ka.max(1e-12),
+            bbox: bbox as f64,
+        }
+    }
+}
+
+/// See [`Particles::aggregate_difference`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AggregateDifference {
+    /// Distance between the centres of mass (m).
+    pub com: f64,
+    /// Kinetic-energy difference relative to the first set's.
+    pub kinetic: f64,
+    /// Largest difference of a bounding-box corner coordinate (m).
+    pub bbox: f64,
 }
 
 /// A particle moving more than this many cells in one step is taken as a blow-up.
@@ -123,5 +153,28 @@ pub fn check_particle(x: Vec3, v: Vec3, dt: Real, dx: Real) -> Option<BadReason>
         Some(BadReason::TooFast)
     } else {
         None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn aggregate_difference_of_a_shifted_faster_copy() {
+        let mut a = Particles::default();
+        a.push(Vec3::new(0.0, 0.0, 0.0), Vec3::X, 1.0, 1.0, 0, 0.0);
+        a.push(Vec3::new(1.0, 0.0, 0.0), Vec3::X, 3.0, 1.0, 0, 0.0);
+        let mut b = a.clone();
+        for x in &mut b.x {
+            *x += Vec3::new(0.0, 0.5, 0.0);
+        }
+        b.v[1] = Vec3::new(2.0, 0.0, 0.0);
+        let d = a.aggregate_difference(&b);
+        assert!((d.com - 0.5).abs() < 1e-6, "{d:?}");
+        assert!((d.bbox - 0.5).abs() < 1e-6, "{d:?}");
+        // KE 0.5 + 1.5 = 2 against 0.5 + 6 = 6.5.
+        assert!((d.kinetic - 2.25).abs() < 1e-9, "{d:?}");
+        assert_eq!(a.aggregate_difference(&a).com, 0.0);
     }
 }

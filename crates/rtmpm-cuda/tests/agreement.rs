@@ -2,7 +2,6 @@
 //! otherwise): `cargo test -p rtmpm-cuda --test agreement -- --include-ignored --nocapture`.
 
 use rtmpm_core::cpu::CpuBackend;
-use rtmpm_core::math::Vec3;
 use rtmpm_core::sim::{Backend, Simulation};
 use rtmpm_core::transfer::{SolverSettings, Transfer, Update};
 use rtmpm_core::{Particles, Scene};
@@ -69,30 +68,21 @@ fn compare(name: &str, scene: &Scene, steps: usize) -> Vec<String> {
     }
     assert!(gpu.check().expect("check").is_none(), "{name}: GPU blow-up");
     let (a, b) = (read(&mut cpu), read(&mut gpu));
-    let (ca, cb) = (a.center_of_mass(), b.center_of_mass());
-    let dcom = Vec3::new(
-        (ca[0] - cb[0]) as f32,
-        (ca[1] - cb[1]) as f32,
-        (ca[2] - cb[2]) as f32,
-    )
-    .length();
-    let (ka, kb) = (a.kinetic_energy(), b.kinetic_energy());
-    let (la, ha) = a.bounding_box();
-    let (lb, hb) = b.bounding_box();
-    let dbox = (la - lb)
-        .abs()
-        .max_element()
-        .max((ha - hb).abs().max_element());
-    let dke = (ka - kb).abs() / ka.max(1e-12);
+    let d = a.aggregate_difference(&b);
+    let dx = dx as f64;
     println!(
-        "{name}: {steps} steps: |d com| {dcom:.3e} m ({:.3} dx), KE cpu {ka:.4e} gpu {kb:.4e} ({:.2} %), |d bbox| {dbox:.3e} m ({:.2} dx)",
-        dcom / dx,
-        100.0 * dke,
-        dbox / dx
+        "{name}: {steps} steps: |d com| {:.3e} m ({:.3} dx), KE cpu {:.4e} gpu {:.4e} ({:.2} %), |d bbox| {:.3e} m ({:.2} dx)",
+        d.com,
+        d.com / dx,
+        a.kinetic_energy(),
+        b.kinetic_energy(),
+        100.0 * d.kinetic,
+        d.bbox,
+        d.bbox / dx
     );
     // Tolerances: centre of mass within 0.1 cell, kinetic energy within 2 %, bounding box
     // within 1 cell (splashes separate single particles chaotically).
-    if dcom > 0.1 * dx || dke > 0.02 || dbox > dx {
+    if d.com > 0.1 * dx || d.kinetic > 0.02 || d.bbox > dx {
         failures.push(format!("{name}: aggregates differ after {steps} steps"));
     }
     failures
@@ -219,17 +209,16 @@ fn cuda_f64_agrees_with_cpu_f64_on_every_example_scene() {
         }
         assert!(gpu.check().expect("check").is_none(), "{name}: GPU blow-up");
         let (a, b) = (read(&mut cpu), read(&mut gpu));
-        let (ca, cb) = (a.center_of_mass(), b.center_of_mass());
-        let dcom = ((ca[0] - cb[0]).powi(2) + (ca[1] - cb[1]).powi(2) + (ca[2] - cb[2]).powi(2))
-            .sqrt() as f32;
-        let (ka, kb) = (a.kinetic_energy(), b.kinetic_energy());
-        let dke = (ka - kb).abs() / ka.max(1e-12);
+        let d = a.aggregate_difference(&b);
         println!(
-            "{name} (f64): {steps} steps: |d com| {dcom:.3e} m ({:.3} dx), KE cpu {ka:.4e} gpu {kb:.4e} ({:.2} %)",
-            dcom / dx,
-            100.0 * dke
+            "{name} (f64): {steps} steps: |d com| {:.3e} m ({:.3} dx), KE cpu {:.4e} gpu {:.4e} ({:.2} %)",
+            d.com,
+            d.com / dx as f64,
+            a.kinetic_energy(),
+            b.kinetic_energy(),
+            100.0 * d.kinetic
         );
-        if dcom > 0.1 * dx || dke > 0.02 {
+        if d.com > 0.1 * dx as f64 || d.kinetic > 0.02 {
             failures.push(format!("{name}: aggregates differ after {steps} steps"));
         }
     }

@@ -7,7 +7,6 @@
 //! transports and barriers compared, separated by `;` (default
 //! "transport=p2p,barrier=spin;transport=p2p,barrier=events;transport=nccl").
 
-use rtmpm_core::math::Vec3;
 use rtmpm_core::sim::{Backend, Simulation};
 use rtmpm_core::{Particles, Scene};
 use rtmpm_cuda::{CudaBackend, CudaOptions, MultiGpuBackend, Transport, device_count, nccl, peer};
@@ -28,25 +27,6 @@ fn read(b: &mut dyn Backend) -> Particles {
     let mut p = Particles::default();
     b.read_particles(&mut p).expect("read particles");
     p
-}
-
-/// (|d com|, relative d KE, |d bbox|) between two particle sets.
-fn differences(a: &Particles, b: &Particles) -> (f32, f64, f32) {
-    let (ca, cb) = (a.center_of_mass(), b.center_of_mass());
-    let dcom = Vec3::new(
-        (ca[0] - cb[0]) as f32,
-        (ca[1] - cb[1]) as f32,
-        (ca[2] - cb[2]) as f32,
-    )
-    .length();
-    let (ka, kb) = (a.kinetic_energy(), b.kinetic_energy());
-    let (la, ha) = a.bounding_box();
-    let (lb, hb) = b.bounding_box();
-    let dbox = (la - lb)
-        .abs()
-        .max_element()
-        .max((ha - hb).abs().max_element());
-    (dcom, (ka - kb).abs() / ka.max(1e-12), dbox)
 }
 
 fn usable(gpus: usize) -> bool {
@@ -171,15 +151,18 @@ fn several_gpus_agree_with_one_on_every_example_scene() {
             }
             assert!(many.check().expect("check").is_none(), "{name}: blow-up");
             let (a, b) = (read(&mut first), read(&mut many));
-            let (dcom, dke, dbox) = differences(&a, &b);
+            let d = a.aggregate_difference(&b);
+            let dx = dx as f64;
             println!(
-                "{name} x{gpus}: {steps} steps: |d com| {dcom:.3e} m ({:.4} dx), d KE {:.3} %, |d bbox| {dbox:.3e} m ({:.3} dx), {} rebalance(s)",
-                dcom / dx,
-                100.0 * dke,
-                dbox / dx,
+                "{name} x{gpus}: {steps} steps: |d com| {:.3e} m ({:.4} dx), d KE {:.3} %, |d bbox| {:.3e} m ({:.3} dx), {} rebalance(s)",
+                d.com,
+                d.com / dx,
+                100.0 * d.kinetic,
+                d.bbox,
+                d.bbox / dx,
                 many.rebalances
             );
-            if dcom > 0.1 * dx || dke > 0.02 || dbox > dx {
+            if d.com > 0.1 * dx || d.kinetic > 0.02 || d.bbox > dx {
                 failures.push(format!(
                     "{name} x{gpus}: aggregates differ after {steps} steps"
                 ));

@@ -46,23 +46,15 @@ fn last_frame(dir: &Path, frames: u64, scene: &Scene) -> Particles {
 /// Agreement as in the CPU/GPU agreement test: centre of mass within 0.1 cell, kinetic energy
 /// within 2 %, bounding box within 1 cell.
 fn agree(name: &str, dx: f32, a: &Particles, b: &Particles) -> bool {
-    let (ca, cb) = (a.center_of_mass(), b.center_of_mass());
-    let dcom = ((ca[0] - cb[0]).powi(2) + (ca[1] - cb[1]).powi(2) + (ca[2] - cb[2]).powi(2)).sqrt();
-    let (ka, kb) = (a.kinetic_energy(), b.kinetic_energy());
-    let dke = (ka - kb).abs() / ka.max(1e-12);
-    let (la, ha) = a.bounding_box();
-    let (lb, hb) = b.bounding_box();
-    let dbox = (la - lb)
-        .abs()
-        .max_element()
-        .max((ha - hb).abs().max_element());
+    let d = a.aggregate_difference(b);
+    let dx = dx as f64;
     println!(
         "{name}: |d com| {:.4} dx, d KE {:.3} %, |d bbox| {:.3} dx",
-        dcom / dx as f64,
-        100.0 * dke,
-        dbox / dx
+        d.com / dx,
+        100.0 * d.kinetic,
+        d.bbox / dx
     );
-    dcom < 0.1 * dx as f64 && dke < 0.02 && dbox < dx
+    d.com < 0.1 * dx && d.kinetic < 0.02 && d.bbox < dx
 }
 
 #[test]
