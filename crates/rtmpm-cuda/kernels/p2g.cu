@@ -60,13 +60,17 @@ __device__ __forceinline__ void p2g_warp(const Ctx& c, unsigned w, unsigned lane
                 | (unsigned)cell_code(base[0], base[1], base[2]);
         }
         unsigned kv = (key << 5) | lane;  // unique keys; payload = source lane
-        for (unsigned size = 2; size <= 32; size <<= 1) {
-            for (unsigned stride = size >> 1; stride > 0; stride >>= 1) {
-                unsigned other = __shfl_xor_sync(0xffffffffu, kv, stride);
-                bool up = ((lane & size) == 0);
-                bool lower = (lane & stride) == 0;
-                unsigned lo = min(kv, other), hi = max(kv, other);
-                kv = (lower == up) ? lo : hi;
+        // Between rebuilds most warps are still in order: skip the sort when they are.
+        unsigned prev = __shfl_up_sync(0xffffffffu, kv, 1);
+        if (!__all_sync(0xffffffffu, lane == 0 || prev < kv)) {
+            for (unsigned size = 2; size <= 32; size <<= 1) {
+                for (unsigned stride = size >> 1; stride > 0; stride >>= 1) {
+                    unsigned other = __shfl_xor_sync(0xffffffffu, kv, stride);
+                    bool up = ((lane & size) == 0);
+                    bool lower = (lane & stride) == 0;
+                    unsigned lo = min(kv, other), hi = max(kv, other);
+                    kv = (lower == up) ? lo : hi;
+                }
             }
         }
         src = kv & 31u;
@@ -93,23 +97,41 @@ __device__ __forceinline__ void p2g_warp(const Ctx& c, unsigned w, unsigned lane
     }
     // Reduction rounds needed: up to the longest segment of this warp.
     unsigned max_seg = c.warp_reduce ? __reduce_max_sync(0xffffffffu, seg_len) : 0u;
-    StencilIdx si = stencil_idx(c.block_coords + 3 * g, base);
+    // The 27 nodes row by row: row (i, j) holds nodes k = 0, 1, 2, whose 12 values are reduced
+    // together (one shuffle round serves three nodes). Addresses as in stencil_idx, per row:
+    // r = base - 4 bc is the node offset from the gblock origin, r >> 2 its neighbour block.
+    const int* bc = c.block_coords + 3 * g;
+    int r0 = base[0] - 4 * bc[0], r1 = base[1] - 4 * bc[1], r2 = base[2] - 4 * bc[2];
     const unsigned* nbs = c.neighbors + 27 * g;
     for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j)
-            for (int k = 0; k < 3; ++k) {
-                real val[4];
-                p2g_node_value(c, q, i, j, k, val);
-                if (max_seg > 0) {
-                    for (unsigned s = 1; s <= max_seg; s <<= 1) {
-                        for (int e = 0; e < 4; ++e) {
-                            real o = __shfl_down_sync(0xffffffffu, val[e], s);
-                            if (s <= seg_len) val[e] += o;
-                        }
+        for (int j = 0; j < 3; ++j) {
+            int ri = r0 + i, rj = r1 + j;
+            int slot_ij = ((ri >> 2) + 1) * 9 + ((rj >> 2) + 1) * 3 + 1;
+            unsigned cell_ij = (unsigned)(((ri & 3) << 4) | ((rj & 3) << 2));
+            real w_ij = p2g_row_weight(q, i, j);
+            vec3 mom_ij = p2g_row_momentum(q, i, j);
+            real val[3][4];
+#pragma unroll
+            for (int k = 0; k < 3; ++k) p2g_row_node_value(q, w_ij, mom_ij, k, val[k]);
+            for (unsigned s = 1; s <= max_seg; s <<= 1) {
+                bool take = s <= seg_len;
+#pragma unroll
+                for (int k = 0; k < 3; ++k)
+#pragma unroll
+                    for (int e = 0; e < 4; ++e) {
+                        real o = __shfl_down_sync(0xffffffffu, val[k][e], s);
+                        if (take) val[k][e] += o;
                     }
-                }
-                if (head) atomic_add_node(c.grid + 4u * stencil_node(si, nbs, i, j, k), val);
             }
+            if (head) {
+#pragma unroll
+                for (int k = 0; k < 3; ++k) {
+                    int rk = r2 + k;
+                    unsigned node = nbs[slot_ij + (rk >> 2)] * 64u + (cell_ij | (unsigned)(rk & 3));
+                    atomic_add_node(c.grid + 4u * node, val[k]);
+                }
+            }
+        }
 }
 
 // Ablation: shared-memory P2G like earlier work. One CUDA block per gblock (looping over its
@@ -136,7 +158,7 @@ extern "C" __global__ void p2g_shared(Ctx c, unsigned part) {
             for (int j = 0; j < 3; ++j)
                 for (int k = 0; k < 3; ++k) {
                     real val[4];
-                    p2g_node_value(c, q, i, j, k, val);
+                    p2g_node_value(q, i, j, k, val);
                     int t = ((q.base[0] + i - lo[0]) * TILE + (q.base[1] + j - lo[1])) * TILE + (q.base[2] + k - lo[2]);
                     for (int e = 0; e < 4; ++e) atomicAdd(&tile[4 * t + e], (float)val[e]);
                 }

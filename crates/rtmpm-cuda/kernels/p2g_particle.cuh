@@ -11,11 +11,13 @@
 
 struct P2gParticle {
     int base[3];   // stencil base node (grid coordinates)
-    real fx[3];    // position - base, in cells
     real w[3][3];  // shape-function weights per axis at base + 0, 1, 2
     real m;        // mass
-    vec3 mv;       // momentum m v
-    mat3 affine;   // A_p
+    // Momentum term of node base + (i, j, k): m v + A_p (x_i - x_p) = q0 + i a[0] + j a[1] + k a[2]
+    // with a[c] = dx A_p e_c and q0 = m v - dx A_p fx (the affine term split per axis, so that a
+    // node costs three additions instead of a matrix-vector product).
+    vec3 q0;
+    vec3 a[3];
 };
 
 // A particle that contributes nothing (inactive lanes of the warp scatter).
@@ -23,20 +25,20 @@ __device__ __forceinline__ P2gParticle p2g_particle_zero() {
     P2gParticle q;
     for (int a = 0; a < 3; ++a) {
         q.base[a] = 0;
-        q.fx[a] = 1;
         q.w[a][0] = q.w[a][1] = q.w[a][2] = 0;
+        q.a[a] = make_v3(0, 0, 0);
     }
     q.m = 0;
-    q.mv = make_v3(0, 0, 0);
-    q.affine = mat3_zero();
+    q.q0 = make_v3(0, 0, 0);
     return q;
 }
 
 // Stencil, weights, momentum and affine term of particle p (the stress is evaluated here).
 __device__ __forceinline__ P2gParticle p2g_particle(const Ctx& c, unsigned p) {
     P2gParticle q;
-    stencil_of(c, load_v3(c.state, c.cap, F_X, p), q.base, q.fx);
-    for (int a = 0; a < 3; ++a) weights_1d(q.fx[a], q.w[a]);
+    real fx[3];
+    stencil_of(c, load_v3(c.state, c.cap, F_X, p), q.base, fx);
+    for (int a = 0; a < 3; ++a) weights_1d(fx[a], q.w[a]);
     q.m = c.state[F_MASS * c.cap + p];
     real vol0 = c.state[F_VOL0 * c.cap + p];
     vec3 v = load_v3(c.state, c.cap, F_V, p);
@@ -46,23 +48,35 @@ __device__ __forceinline__ P2gParticle p2g_particle(const Ctx& c, unsigned p) {
     GpuMaterial mat = material_at(c, state_bits(c.state[F_MAT * c.cap + p]));
     mat3 tau = material_kirchhoff(mat, F, plastic, C);
     real dt = step_params(c).dt;
-    q.affine = tau * (-dt * vol0 * (real)4 * c.inv_dx * c.inv_dx) + C * q.m;
-    q.mv = v * q.m;
+    mat3 affine = tau * (-dt * vol0 * (real)4 * c.inv_dx * c.inv_dx) + C * q.m;
+    for (int a = 0; a < 3; ++a) q.a[a] = make_v3(affine.m[3 * a], affine.m[3 * a + 1], affine.m[3 * a + 2]) * c.dx;
+    q.q0 = v * q.m - (q.a[0] * fx[0] + q.a[1] * fx[1] + q.a[2] * fx[2]);
     return q;
 }
 
 // a[i] for i in 0..3 by selects (a dynamic index would move the whole particle to local memory).
 __device__ __forceinline__ real pick3(const real a[3], int i) { return i == 0 ? a[0] : (i == 1 ? a[1] : a[2]); }
 
-// (mass, momentum) that particle q gives to its stencil node base + (i, j, k).
-__device__ __forceinline__ void p2g_node_value(const Ctx& c, const P2gParticle& q, int i, int j, int k, real val[4]) {
-    real weight = pick3(q.w[0], i) * pick3(q.w[1], j) * pick3(q.w[2], k);
-    vec3 dpos = make_v3(((real)i - q.fx[0]) * c.dx, ((real)j - q.fx[1]) * c.dx, ((real)k - q.fx[2]) * c.dx);
-    vec3 mom = (q.mv + q.affine * dpos) * weight;
+// Weight product w0[i] w1[j] and momentum term q0 + i a0 + j a1 of the stencil row (i, j).
+__device__ __forceinline__ real p2g_row_weight(const P2gParticle& q, int i, int j) { return pick3(q.w[0], i) * pick3(q.w[1], j); }
+__device__ __forceinline__ vec3 p2g_row_momentum(const P2gParticle& q, int i, int j) {
+    return q.q0 + q.a[0] * (real)i + q.a[1] * (real)j;
+}
+
+// (mass, momentum) that particle q gives to node base + (i, j, k), from the row terms of (i, j):
+// w_ip (m_p, m_p v_p + A_p (x_i - x_p)).
+__device__ __forceinline__ void p2g_row_node_value(const P2gParticle& q, real w_ij, vec3 mom_ij, int k, real val[4]) {
+    real weight = w_ij * pick3(q.w[2], k);
+    vec3 mom = (mom_ij + q.a[2] * (real)k) * weight;
     val[0] = weight * q.m;
     val[1] = mom.x;
     val[2] = mom.y;
     val[3] = mom.z;
+}
+
+// (mass, momentum) that particle q gives to its stencil node base + (i, j, k).
+__device__ __forceinline__ void p2g_node_value(const P2gParticle& q, int i, int j, int k, real val[4]) {
+    p2g_row_node_value(q, p2g_row_weight(q, i, j), p2g_row_momentum(q, i, j), k, val);
 }
 
 // ---- Gather strategies (seed 001): the particle pass computes every (particle, stencil node)

@@ -44,7 +44,7 @@ extern "C" __global__ void __launch_bounds__(128) p2g_rmap_build(Ctx c, RmapCtx 
                 for (int k = 0; k < 3; ++k) {
                     unsigned e = p2g_entry(c, p, i, j, k);
                     real val[4];
-                    p2g_node_value(c, q, i, j, k, val);
+                    p2g_node_value(q, i, j, k, val);
                     p2g_store_entry(r.contrib, e, val);
                     unsigned node = stencil_node(si, nbs, i, j, k);
                     if (node >= r.node_cap) { atomicOr(&c.ctl[CTL_ERROR], ERR_P2G_MAP); continue; }

@@ -60,7 +60,7 @@ extern "C" __global__ void __launch_bounds__(128) p2g_sort_emit(Ctx c, SortCtx s
                 for (int k = 0; k < 3; ++k) {
                     unsigned e = p2g_entry(c, p, i, j, k);
                     real val[4];
-                    p2g_node_value(c, q, i, j, k, val);
+                    p2g_node_value(q, i, j, k, val);
                     p2g_store_entry(s.contrib, e, val);
                     s.keys[0][e] = stencil_node(si, nbs, i, j, k);
                 }
