@@ -7,8 +7,24 @@
 #define G2P_MIN_BLOCKS 1
 #endif
 
+// The state G2P updates besides x, v and C: loaded before the grid gather, so that its memory
+// latency overlaps the gather's instead of following it (G2P is bound by load latency).
+struct G2pState {
+    mat3 F;
+    real plastic;
+    unsigned material, id;
+};
+__device__ __forceinline__ G2pState g2p_load_state(const Ctx& c, unsigned p) {
+    G2pState s;
+    s.F = load_m3(c.state, c.cap, F_F, p);
+    s.plastic = c.state[F_PLASTIC * c.cap + p];
+    s.material = state_bits(c.state[F_MAT * c.cap + p]);
+    s.id = state_bits(c.state[F_ID * c.cap + p]);
+    return s;
+}
+
 __device__ __forceinline__ void g2p_warp(const Ctx& c, unsigned w, unsigned lane);
-__device__ __forceinline__ void g2p_finish(const Ctx& c, const int* bc, unsigned p, unsigned lane, vec3 x, vec3 v, const mat3& C);
+__device__ __forceinline__ void g2p_finish(const Ctx& c, const int* bc, unsigned p, unsigned lane, G2pState st, vec3 x, vec3 v, const mat3& C);
 
 // Warps loop over the warp list (grid-stride, launched with about one wave of blocks).
 extern "C" __global__ void __launch_bounds__(128, G2P_MIN_BLOCKS) g2p(Ctx c) {
@@ -22,6 +38,7 @@ __device__ __forceinline__ void g2p_warp(const Ctx& c, unsigned w, unsigned lane
     if (lane >= count) return;
     unsigned p = first + lane;
     vec3 x = load_v3(c.state, c.cap, F_X, p);
+    G2pState st = g2p_load_state(c, p);
     int base[3]; real fx[3]; real wt[3][3];
     stencil_of(c, x, base, fx);
     for (int a = 0; a < 3; ++a) weights_1d(fx[a], wt[a]);
@@ -66,21 +83,20 @@ __device__ __forceinline__ void g2p_warp(const Ctx& c, unsigned w, unsigned lane
     B = (B - outer(v, make_v3(fx[0], fx[1], fx[2]))) * c.dx;
     real dt = step_params(c).dt;
     mat3 C = B * ((real)4 * c.inv_dx * c.inv_dx);
-    g2p_finish(c, bc, p, lane, x + v * dt, v, C);
+    g2p_finish(c, bc, p, lane, st, x + v * dt, v, C);
 }
 
 // The end of every G2P: F = (I + dt C) F, plasticity, health check (before the clamp, which
 // would hide NaN), max speed, domain clamp, free-zone check, stores. `x` is the advected position,
 // `C` the velocity gradient (APIC's C for MLS).
-__device__ __forceinline__ void g2p_finish(const Ctx& c, const int* bc, unsigned p, unsigned lane, vec3 x, vec3 v, const mat3& C) {
+__device__ __forceinline__ void g2p_finish(const Ctx& c, const int* bc, unsigned p, unsigned lane, G2pState st, vec3 x, vec3 v, const mat3& C) {
     real dt = step_params(c).dt;
-    mat3 F = load_m3(c.state, c.cap, F_F, p);
-    F = (mat3_identity() + C * dt) * F;
-    real plastic = c.state[F_PLASTIC * c.cap + p];
-    GpuMaterial mat = material_at(c, state_bits(c.state[F_MAT * c.cap + p]));
+    mat3 F = (mat3_identity() + C * dt) * st.F;
+    real plastic = st.plastic;
+    GpuMaterial mat = material_at(c, st.material);
     F = material_project(mat, F, &plastic);
     // Health check before the clamp (the clamp would hide NaN).
-    unsigned id = state_bits(c.state[F_ID * c.cap + p]);
+    unsigned id = st.id;
     real speed = length(v);
     bool finite = isfinite(x.x) && isfinite(x.y) && isfinite(x.z) && isfinite(v.x) && isfinite(v.y) && isfinite(v.z);
     if (!finite || speed * dt > (real)2 * c.dx) {
@@ -158,10 +174,11 @@ extern "C" __global__ void g2p_mpm(Ctx c) {
         unsigned p = first + lane;
         vec3 x = load_v3(c.state, c.cap, F_X, p);
         vec3 v = load_v3(c.state, c.cap, F_V, p);
+        G2pState st = g2p_load_state(c, p);
         const int* bc; vec3 v_pic, dv; mat3 L;
         g2p_mpm_gather(c, g, x, &bc, &v_pic, &dv, &L, musl);
         if (!musl) v = flip_blend((real)c.flip, v, v_pic, dv);
-        g2p_finish(c, bc, p, lane, x + v_pic * (real)step_params(c).dt, v, L);
+        g2p_finish(c, bc, p, lane, st, x + v_pic * (real)step_params(c).dt, v, L);
     }
 }
 
