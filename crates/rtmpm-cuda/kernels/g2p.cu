@@ -23,19 +23,31 @@ __device__ __forceinline__ G2pState g2p_load_state(const Ctx& c, unsigned p) {
     return s;
 }
 
-__device__ __forceinline__ void g2p_warp(const Ctx& c, unsigned w, unsigned lane);
-__device__ __forceinline__ void g2p_finish(const Ctx& c, const int* bc, unsigned p, unsigned lane, G2pState st, vec3 x, vec3 v, const mat3& C);
+__device__ __forceinline__ unsigned g2p_warp(const Ctx& c, unsigned w, unsigned lane);
+__device__ __forceinline__ unsigned g2p_finish(const Ctx& c, const int* bc, unsigned p, G2pState st, vec3 x, vec3 v, const mat3& C);
+
+// Max speed of the step (the float bits of the running max of each thread's particles; floats
+// >= 0 order like their bit patterns): reduced in the warp and written with ONE atomic per warp
+// at the end of the kernel, not one per warp-list entry (65,536 same-address atomics per step for
+// 2M particles queue at one L2 slice).
+__device__ __forceinline__ void report_max_speed(const Ctx& c, unsigned bits) {
+    unsigned wmax = __reduce_max_sync(0xffffffffu, bits);
+    if ((threadIdx.x & 31) == 0 && wmax) atomicMax(&c.ctl[CTL_MAX_SPEED], wmax);
+}
 
 // Warps loop over the warp list (grid-stride, launched with about one wave of blocks).
 extern "C" __global__ void __launch_bounds__(128, G2P_MIN_BLOCKS) g2p(Ctx c) {
     if (c.ctl[CTL_ERROR]) return;
     unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
-    for (unsigned w = thread_index() >> 5; w < n_warps; w += stride) g2p_warp(c, w, threadIdx.x & 31);
+    unsigned speed = 0;
+    for (unsigned w = thread_index() >> 5; w < n_warps; w += stride) speed = max(speed, g2p_warp(c, w, threadIdx.x & 31));
+    report_max_speed(c, speed);
 }
 
-__device__ __forceinline__ void g2p_warp(const Ctx& c, unsigned w, unsigned lane) {
+// G2P of the particle of `lane` in warp-list entry w; returns its speed (float bits; 0 if none).
+__device__ __forceinline__ unsigned g2p_warp(const Ctx& c, unsigned w, unsigned lane) {
     unsigned g = c.warps[3 * w], first = c.warps[3 * w + 1], count = c.warps[3 * w + 2];
-    if (lane >= count) return;
+    if (lane >= count) return 0;
     unsigned p = first + lane;
     vec3 x = load_v3(c.state, c.cap, F_X, p);
     G2pState st = g2p_load_state(c, p);
@@ -83,13 +95,13 @@ __device__ __forceinline__ void g2p_warp(const Ctx& c, unsigned w, unsigned lane
     B = (B - outer(v, make_v3(fx[0], fx[1], fx[2]))) * c.dx;
     real dt = step_params(c).dt;
     mat3 C = B * ((real)4 * c.inv_dx * c.inv_dx);
-    g2p_finish(c, bc, p, lane, st, x + v * dt, v, C);
+    return g2p_finish(c, bc, p, st, x + v * dt, v, C);
 }
 
 // The end of every G2P: F = (I + dt C) F, plasticity, health check (before the clamp, which
 // would hide NaN), max speed, domain clamp, free-zone check, stores. `x` is the advected position,
-// `C` the velocity gradient (APIC's C for MLS).
-__device__ __forceinline__ void g2p_finish(const Ctx& c, const int* bc, unsigned p, unsigned lane, G2pState st, vec3 x, vec3 v, const mat3& C) {
+// `C` the velocity gradient (APIC's C for MLS). Returns the speed (float bits, 0 if not finite).
+__device__ __forceinline__ unsigned g2p_finish(const Ctx& c, const int* bc, unsigned p, G2pState st, vec3 x, vec3 v, const mat3& C) {
     real dt = step_params(c).dt;
     mat3 F = (mat3_identity() + C * dt) * st.F;
     real plastic = st.plastic;
@@ -103,12 +115,6 @@ __device__ __forceinline__ void g2p_finish(const Ctx& c, const int* bc, unsigned
         unsigned prev = atomicMin(&c.ctl[CTL_BAD_INDEX], id);
         if (prev > id) atomicExch(&c.ctl[CTL_BAD_REASON], finite ? 2u : 1u);
     }
-    // Max speed: reduce within the warp first (one atomic per warp, not per particle). Floats
-    // >= 0 order like their bit patterns.
-    unsigned bits = finite ? __float_as_uint((float)speed) : 0u;
-    unsigned mask = __activemask();
-    unsigned wmax = __reduce_max_sync(mask, bits);
-    if (lane == (unsigned)(__ffs(mask) - 1)) atomicMax(&c.ctl[CTL_MAX_SPEED], wmax);
     x.x = fmin(fmax(x.x, (real)c.domain_min[0]), (real)c.domain_max[0]);
     x.y = fmin(fmax(x.y, (real)c.domain_min[1]), (real)c.domain_max[1]);
     x.z = fmin(fmax(x.z, (real)c.domain_min[2]), (real)c.domain_max[2]);
@@ -123,6 +129,7 @@ __device__ __forceinline__ void g2p_finish(const Ctx& c, const int* bc, unsigned
     store_m3(c.state, c.cap, F_C, p, C);
     store_m3(c.state, c.cap, F_F, p, F);
     c.state[F_PLASTIC * c.cap + p] = plastic;
+    return finite ? __float_as_uint((float)speed) : 0u;
 }
 
 // Interpolation of the classic MPM transfers at one particle (cpu/g2p.rs: g2p_mpm): v_pic =
@@ -168,6 +175,7 @@ extern "C" __global__ void g2p_mpm(Ctx c) {
     unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
     unsigned lane = threadIdx.x & 31;
     bool musl = c.update == UPDATE_MUSL;
+    unsigned speed = 0;
     for (unsigned w = thread_index() >> 5; w < n_warps; w += stride) {
         unsigned g = c.warps[3 * w], first = c.warps[3 * w + 1], count = c.warps[3 * w + 2];
         if (lane >= count) continue;
@@ -178,8 +186,9 @@ extern "C" __global__ void g2p_mpm(Ctx c) {
         const int* bc; vec3 v_pic, dv; mat3 L;
         g2p_mpm_gather(c, g, x, &bc, &v_pic, &dv, &L, musl);
         if (!musl) v = flip_blend((real)c.flip, v, v_pic, dv);
-        g2p_finish(c, bc, p, lane, st, x + v_pic * (real)step_params(c).dt, v, L);
+        speed = max(speed, g2p_finish(c, bc, p, st, x + v_pic * (real)step_params(c).dt, v, L));
     }
+    report_max_speed(c, speed);
 }
 
 // MUSL, first pass (cpu/g2p.rs: g2p_mpm_velocity): the PIC/FLIP blend of the particle velocities
