@@ -35,7 +35,8 @@
 #define CTL_SHARED_CAP 13
 #define CTL_BARRIER_COUNT 14  // grid barrier of rb_fused (rebuild.cu): blocks arrived
 #define CTL_BARRIER_GEN 15    // grid barrier of rb_fused: generation
-#define CTL_WORDS 16
+#define CTL_P2G_PENDING 16    // G2P2G: the grid of this step still needs a P2G (first step, new dt)
+#define CTL_WORDS 17
 
 #define ERR_HASH 1u
 #define ERR_GBLOCKS 2u
@@ -120,7 +121,8 @@ struct Ctx {
     unsigned warp_reduce, warp_sort;
     unsigned transfer, update;  // TRANSFER_*, UPDATE_* (shape.cuh)
     float flip;                 // FLIP fraction of the classic transfers
-    unsigned pad0, pad1;
+    real* grid_next;            // G2P2G (g2p.cu): the grid the fused kernel scatters the next step
+                                // into (null: G2P and P2G are separate kernels)
     double NAME_IF_F64(origin)[3];
     double NAME_IF_F64(dx), NAME_IF_F64(inv_dx);
     double NAME_IF_F64(domain_min)[3], NAME_IF_F64(domain_max)[3];
@@ -265,3 +267,11 @@ __device__ __forceinline__ void hash_insert(const Ctx& c, unsigned long long key
     atomicOr(&c.ctl[CTL_ERROR], ERR_HASH);
 }
 __device__ __forceinline__ unsigned thread_index() { return blockIdx.x * blockDim.x + threadIdx.x; }
+
+// G2P2G: does this step's grid still need its P2G (and the clear before it)? Always without
+// G2P2G; with it only after a rebuild (new mapping) or when the host asked (first step, new dt):
+// otherwise the previous step's fused kernel has already scattered the particles into it.
+// Read only in kernels launched after the one that sets CTL_REBUILT_NOW.
+__device__ __forceinline__ bool grid_needs_p2g(const Ctx& c) {
+    return !c.grid_next || c.ctl[CTL_REBUILT_NOW] || c.ctl[CTL_P2G_PENDING];
+}

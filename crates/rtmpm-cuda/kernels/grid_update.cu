@@ -130,7 +130,18 @@ __device__ void grid_update_node(const Ctx& c, unsigned t);
 extern "C" __global__ void grid_update(Ctx c) {
     if (c.ctl[CTL_ERROR]) return;
     unsigned n_nodes = c.ctl[CTL_PBLOCKS] * 64u;
-    for (unsigned t = thread_index(); t < n_nodes; t += gridDim.x * blockDim.x) grid_update_node(c, t);
+    if (c.grid_next && thread_index() == 0) c.ctl[CTL_P2G_PENDING] = 0;  // this step's P2G is done
+    for (unsigned t = thread_index(); t < n_nodes; t += gridDim.x * blockDim.x) {
+        grid_update_node(c, t);
+        // G2P2G: clear the next step's grid, which the fused kernel scatters into.
+        if (c.grid_next) {
+#ifdef RTMPM_F64
+            for (int e = 0; e < 4; ++e) c.grid_next[4u * t + e] = 0;
+#else
+            reinterpret_cast<float4*>(c.grid_next)[t] = make_float4(0.f, 0.f, 0.f, 0.f);
+#endif
+        }
+    }
 }
 
 // Boundary conditions of node t at the step's time: walls, then colliders (cpu/grid_update.rs:

@@ -5,16 +5,7 @@
 // segmented __shfl_down_sync sums (Gao et al. 2018) and only segment heads issue atomicAdd.
 // The per-particle quantities (stencil, weights, stress, affine momentum) come from p2g_particle.cuh,
 // shared with the gather strategies (p2g_reverse_map.cu, p2g_sort.cu).
-#include "p2g_particle.cuh"
-
-// Add (mass, momentum) to a node: one 16-byte vector atomic on sm_90 (f32), else four.
-__device__ __forceinline__ void atomic_add_node(real* node, const real val[4]) {
-#if !defined(RTMPM_F64) && defined(__CUDA_ARCH__) && __CUDA_ARCH__ >= 900
-    atomicAdd(reinterpret_cast<float4*>(node), make_float4(val[0], val[1], val[2], val[3]));
-#else
-    for (int q = 0; q < 4; ++q) atomicAdd(node + q, val[q]);
-#endif
-}
+#include "p2g_warp.cuh"
 
 // Memory index of node base + (i, j, k) for a particle of gblock g.
 __device__ __forceinline__ unsigned node_index(const Ctx& c, unsigned g, const int base[3], int i, int j, int k) {
@@ -28,8 +19,6 @@ __device__ __forceinline__ unsigned node_index(const Ctx& c, unsigned g, const i
 #define P2G_MIN_BLOCKS 1
 #endif
 
-__device__ __forceinline__ void p2g_warp(const Ctx& c, unsigned w, unsigned lane);
-
 // Multi-GPU split of P2G (reduce_shared.cu): part 0 = every warp; part 1 = warps of boundary
 // gblocks (those next to a block shared with another GPU), run first so that the reduction of the
 // shared blocks overlaps part 2 = the other warps, which never touch a shared block.
@@ -37,101 +26,31 @@ __device__ __forceinline__ bool in_part(const Ctx& c, unsigned g, unsigned part)
     return part == 0 || ((c.boundary[g] != 0) == (part == 1));
 }
 
-// Warps loop over the warp list (grid-stride, launched with about one wave of blocks).
+// Warps loop over the warp list (grid-stride, launched with about one wave of blocks). With
+// G2P2G (g2p.cu) the previous step's fused kernel has already scattered the particles, and this
+// kernel only runs after a rebuild or when the host asks (grid_needs_p2g).
 extern "C" __global__ void __launch_bounds__(128, P2G_MIN_BLOCKS) p2g(Ctx c, unsigned part) {
-    if (c.ctl[CTL_ERROR]) return;
+    if (c.ctl[CTL_ERROR] || !grid_needs_p2g(c)) return;
     unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
-    for (unsigned w = thread_index() >> 5; w < n_warps; w += stride)
-        if (in_part(c, c.warps[3 * w], part)) p2g_warp(c, w, threadIdx.x & 31);
-}
-
-__device__ __forceinline__ void p2g_warp(const Ctx& c, unsigned w, unsigned lane) {
-    unsigned g = c.warps[3 * w], first = c.warps[3 * w + 1], count = c.warps[3 * w + 2];
-    bool active = lane < count;
-    unsigned src = lane;
-    if (c.warp_sort) {
-        // Cheap in-warp sort: key = (neighbour slot of the base block, cell code of the base).
-        unsigned key = 0xffffu;
-        if (active) {
-            int base[3]; real fx[3];
-            stencil_of(c, load_v3(c.state, c.cap, F_X, first + lane), base, fx);
-            const int* bc = c.block_coords + 3 * g;
-            key = (unsigned)(nb_slot((base[0] >> 2) - bc[0], (base[1] >> 2) - bc[1], (base[2] >> 2) - bc[2]) << 6)
-                | (unsigned)cell_code(base[0], base[1], base[2]);
-        }
-        unsigned kv = (key << 5) | lane;  // unique keys; payload = source lane
-        // Between rebuilds most warps are still in order: skip the sort when they are.
-        unsigned prev = __shfl_up_sync(0xffffffffu, kv, 1);
-        if (!__all_sync(0xffffffffu, lane == 0 || prev < kv)) {
-            for (unsigned size = 2; size <= 32; size <<= 1) {
-                for (unsigned stride = size >> 1; stride > 0; stride >>= 1) {
-                    unsigned other = __shfl_xor_sync(0xffffffffu, kv, stride);
-                    bool up = ((lane & size) == 0);
-                    bool lower = (lane & stride) == 0;
-                    unsigned lo = min(kv, other), hi = max(kv, other);
-                    kv = (lower == up) ? lo : hi;
-                }
+    unsigned lane = threadIdx.x & 31;
+    for (unsigned w = thread_index() >> 5; w < n_warps; w += stride) {
+        unsigned g = c.warps[3 * w], first = c.warps[3 * w + 1], count = c.warps[3 * w + 2];
+        if (!in_part(c, g, part)) continue;
+        bool active = lane < count;
+        unsigned src = lane;
+        if (c.warp_sort) {
+            unsigned key = P2G_KEY_NONE;
+            if (active) {
+                int base[3]; real fx[3];
+                stencil_of(c, load_v3(c.state, c.cap, F_X, first + lane), base, fx);
+                key = p2g_sort_key(c, g, base);
             }
+            src = p2g_warp_sort(key, lane, &active);
         }
-        src = kv & 31u;
-        active = (kv >> 5) != 0xffffu;
+        P2gParticle q = p2g_particle_zero();
+        if (active) q = p2g_particle(c, first + src);
+        p2g_scatter_warp(c, g, q, active, lane, c.grid);
     }
-    unsigned p = first + src;
-    P2gParticle q = p2g_particle_zero();
-    if (active) q = p2g_particle(c, p);
-    const int* base = q.base;
-    // Segments: lanes with equal stencil base (after the sort they are adjacent).
-    unsigned seg_len = 0;
-    bool head = active;
-    if (c.warp_reduce) {
-        int pb0 = __shfl_up_sync(0xffffffffu, base[0], 1);
-        int pb1 = __shfl_up_sync(0xffffffffu, base[1], 1);
-        int pb2 = __shfl_up_sync(0xffffffffu, base[2], 1);
-        unsigned pact = __shfl_up_sync(0xffffffffu, (unsigned)active, 1);
-        bool boundary = lane == 0 || !pact || !active || pb0 != base[0] || pb1 != base[1] || pb2 != base[2];
-        unsigned mark = __ballot_sync(0xffffffffu, boundary);
-        unsigned rest = lane < 31 ? (mark & ~((2u << lane) - 1u)) : 0u;
-        unsigned end = rest ? (unsigned)(__ffs(rest) - 1) : 32u;
-        seg_len = end - lane - 1;
-        head = boundary && active;
-    }
-    // Reduction rounds needed: up to the longest segment of this warp.
-    unsigned max_seg = c.warp_reduce ? __reduce_max_sync(0xffffffffu, seg_len) : 0u;
-    // The 27 nodes row by row: row (i, j) holds nodes k = 0, 1, 2, whose 12 values are reduced
-    // together (one shuffle round serves three nodes). Addresses as in stencil_idx, per row:
-    // r = base - 4 bc is the node offset from the gblock origin, r >> 2 its neighbour block.
-    const int* bc = c.block_coords + 3 * g;
-    int r0 = base[0] - 4 * bc[0], r1 = base[1] - 4 * bc[1], r2 = base[2] - 4 * bc[2];
-    const unsigned* nbs = c.neighbors + 27 * g;
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) {
-            int ri = r0 + i, rj = r1 + j;
-            int slot_ij = ((ri >> 2) + 1) * 9 + ((rj >> 2) + 1) * 3 + 1;
-            unsigned cell_ij = (unsigned)(((ri & 3) << 4) | ((rj & 3) << 2));
-            real w_ij = p2g_row_weight(q, i, j);
-            vec3 mom_ij = p2g_row_momentum(q, i, j);
-            real val[3][4];
-#pragma unroll
-            for (int k = 0; k < 3; ++k) p2g_row_node_value(q, w_ij, mom_ij, k, val[k]);
-            for (unsigned s = 1; s <= max_seg; s <<= 1) {
-                bool take = s <= seg_len;
-#pragma unroll
-                for (int k = 0; k < 3; ++k)
-#pragma unroll
-                    for (int e = 0; e < 4; ++e) {
-                        real o = __shfl_down_sync(0xffffffffu, val[k][e], s);
-                        if (take) val[k][e] += o;
-                    }
-            }
-            if (head) {
-#pragma unroll
-                for (int k = 0; k < 3; ++k) {
-                    int rk = r2 + k;
-                    unsigned node = nbs[slot_ij + (rk >> 2)] * 64u + (cell_ij | (unsigned)(rk & 3));
-                    atomic_add_node(c.grid + 4u * node, val[k]);
-                }
-            }
-        }
 }
 
 // Ablation: shared-memory P2G like earlier work. One CUDA block per gblock (looping over its

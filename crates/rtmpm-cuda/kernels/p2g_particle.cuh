@@ -33,25 +33,43 @@ __device__ __forceinline__ P2gParticle p2g_particle_zero() {
     return q;
 }
 
-// Stencil, weights, momentum and affine term of particle p (the stress is evaluated here).
-__device__ __forceinline__ P2gParticle p2g_particle(const Ctx& c, unsigned p) {
+// Stencil, weights, momentum and affine term of a particle from its state (the stress is
+// evaluated here): from memory in p2g_particle, from registers in the fused G2P2G (g2p.cu).
+__device__ __forceinline__ P2gParticle p2g_particle_of(const Ctx& c, vec3 x, real m, real vol0, vec3 v, const mat3& C,
+                                                       const mat3& F, real plastic, unsigned material) {
     P2gParticle q;
     real fx[3];
-    stencil_of(c, load_v3(c.state, c.cap, F_X, p), q.base, fx);
+    stencil_of(c, x, q.base, fx);
     for (int a = 0; a < 3; ++a) weights_1d(fx[a], q.w[a]);
-    q.m = c.state[F_MASS * c.cap + p];
-    real vol0 = c.state[F_VOL0 * c.cap + p];
-    vec3 v = load_v3(c.state, c.cap, F_V, p);
-    mat3 C = load_m3(c.state, c.cap, F_C, p);
-    mat3 F = load_m3(c.state, c.cap, F_F, p);
-    real plastic = c.state[F_PLASTIC * c.cap + p];
-    GpuMaterial mat = material_at(c, state_bits(c.state[F_MAT * c.cap + p]));
+    q.m = m;
+    GpuMaterial mat = material_at(c, material);
     mat3 tau = material_kirchhoff(mat, F, plastic, C);
     real dt = step_params(c).dt;
-    mat3 affine = tau * (-dt * vol0 * (real)4 * c.inv_dx * c.inv_dx) + C * q.m;
+    mat3 affine = tau * (-dt * vol0 * (real)4 * c.inv_dx * c.inv_dx) + C * m;
     for (int a = 0; a < 3; ++a) q.a[a] = make_v3(affine.m[3 * a], affine.m[3 * a + 1], affine.m[3 * a + 2]) * c.dx;
-    q.q0 = v * q.m - (q.a[0] * fx[0] + q.a[1] * fx[1] + q.a[2] * fx[2]);
+    q.q0 = v * m - (q.a[0] * fx[0] + q.a[1] * fx[1] + q.a[2] * fx[2]);
     return q;
+}
+
+// The same for particle p of the state array.
+__device__ __forceinline__ P2gParticle p2g_particle(const Ctx& c, unsigned p) {
+    return p2g_particle_of(c, load_v3(c.state, c.cap, F_X, p), c.state[F_MASS * c.cap + p], c.state[F_VOL0 * c.cap + p],
+                           load_v3(c.state, c.cap, F_V, p), load_m3(c.state, c.cap, F_C, p), load_m3(c.state, c.cap, F_F, p),
+                           c.state[F_PLASTIC * c.cap + p], state_bits(c.state[F_MAT * c.cap + p]));
+}
+
+// Particle q of lane `src` (a warp-wide permutation: every lane of the warp calls it).
+__device__ __forceinline__ P2gParticle p2g_particle_from_lane(const P2gParticle& q, unsigned src) {
+    P2gParticle r;
+    const unsigned all = 0xffffffffu;
+    for (int a = 0; a < 3; ++a) {
+        r.base[a] = __shfl_sync(all, q.base[a], src);
+        for (int n = 0; n < 3; ++n) r.w[a][n] = __shfl_sync(all, q.w[a][n], src);
+        r.a[a] = make_v3(__shfl_sync(all, q.a[a].x, src), __shfl_sync(all, q.a[a].y, src), __shfl_sync(all, q.a[a].z, src));
+    }
+    r.m = __shfl_sync(all, q.m, src);
+    r.q0 = make_v3(__shfl_sync(all, q.q0.x, src), __shfl_sync(all, q.q0.y, src), __shfl_sync(all, q.q0.z, src));
+    return r;
 }
 
 // a[i] for i in 0..3 by selects (a dynamic index would move the whole particle to local memory).

@@ -230,7 +230,9 @@ __device__ __forceinline__ void grid_clear_body(const Ctx& c) {
         if (c.grid_aux) c.grid_aux[t] = 0;
     }
 }
-extern "C" __global__ void grid_clear(Ctx c) { grid_clear_body(c); }
+extern "C" __global__ void grid_clear(Ctx c) {
+    if (grid_needs_p2g(c)) grid_clear_body(c);
+}
 // Clear only grid_aux (before the MUSL re-map).
 extern "C" __global__ void grid_clear_aux(Ctx c) {
     GRID_STRIDE(t, c.ctl[CTL_PBLOCKS] * 64u * 4u) c.grid_aux[t] = 0;
@@ -274,7 +276,8 @@ extern "C" __global__ void __launch_bounds__(1024) rb_fused(Ctx c) {
             c.ctl[CTL_MAX_SPEED] = 0;
             c.ctl[CTL_REBUILT_NOW] = 0;
         }
-        grid_clear_body(c);
+        // G2P2G: the grid already holds the fused kernel's scatter unless the host asked for a P2G.
+        if (!c.grid_next || c.ctl[CTL_P2G_PENDING]) grid_clear_body(c);
         return;  // uniform: no block meets a barrier
     }
     if (thread_index() == 0) rb_begin_body(c);

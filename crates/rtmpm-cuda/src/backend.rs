@@ -70,6 +70,7 @@ pub(crate) struct Kernels {
     pub grid_update: CudaFunction,
     pub grid_update_musl: CudaFunction,
     pub g2p: CudaFunction,
+    pub g2p2g: CudaFunction,
     pub g2p_mpm: CudaFunction,
     pub g2p_mpm_velocity: CudaFunction,
     pub sb_clear_mask: CudaFunction,
@@ -99,6 +100,15 @@ pub struct CudaBackend {
     block_coords: CudaSlice<u8>,
     _scratch: CudaSlice<u8>,
     pub(crate) grid: CudaSlice<u8>,
+    /// G2P2G: the second grid (the steps alternate: one grid is read by G2P while the fused
+    /// kernel scatters the next step into the other).
+    grid_next: Option<CudaSlice<u8>>,
+    /// G2P2G: which grid the coming step reads (0: `grid`, 1: `grid_next`).
+    parity: usize,
+    /// The grid the last step (or P2G) wrote, read back by [`CudaBackend::grid_nodes`].
+    last_grid: usize,
+    /// G2P2G: dt of the last upload (a new dt asks for a P2G, the fused scatter used the old one).
+    last_dt: Option<f32>,
     ctl: CudaSlice<u32>,
     step_buf: CudaSlice<u8>,
     /// The step parameters last uploaded, with `t` zeroed (see [`CudaBackend::upload_params`]).
@@ -106,7 +116,8 @@ pub struct CudaBackend {
     _bufs: Vec<CudaSlice<u8>>,
     scene: Scene,
     n: usize,
-    graph: Option<(CudaGraph, f32)>,
+    /// The captured step per grid parity (one without G2P2G), with its dt.
+    graph: [Option<(CudaGraph, f32)>; 2],
     device_name: String,
     real_bytes: usize,
 }
@@ -381,6 +392,7 @@ impl CudaBackend {
             grid_update: f("grid_update")?,
             grid_update_musl: f("grid_update_musl")?,
             g2p: f("g2p")?,
+            g2p2g: f("g2p2g")?,
             g2p_mpm: f("g2p_mpm")?,
             g2p_mpm_velocity: f("g2p_mpm_velocity")?,
             sb_clear_mask: f("sb_clear_mask")?,
@@ -442,6 +454,7 @@ impl CudaBackend {
             .map_err(err("alloc grid"))?;
         let mut ctl_host = [0u32; CTL_WORDS];
         ctl_host[0] = 1; // rebuild at the first step
+        ctl_host[CTL_P2G_PENDING] = 1;
         ctl_host[CTL_BAD_INDEX] = u32::MAX;
         let ctl = stream.clone_htod(&ctl_host).map_err(err("alloc control"))?;
         let step_buf = stream
@@ -501,6 +514,20 @@ impl CudaBackend {
             zeros(pblock_cap * 64 * 4 * real_bytes)?
         };
         let boundary = zeros(gblock_cap * 4)?;
+        // G2P2G where it applies (see CudaOptions::g2p2g); the second grid.
+        let g2p2g = options.g2p2g
+            && solver.transfer == Transfer::Mls
+            && options.p2g == P2gMode::Warp
+            && options.free_zone;
+        let grid_next = if g2p2g {
+            Some(
+                stream
+                    .alloc_zeros::<u8>(pblock_cap * 64 * 4 * real_bytes)
+                    .map_err(err("alloc second grid (G2P2G)"))?,
+            )
+        } else {
+            None
+        };
         let w = &scene.walls;
         let n_cells = scene.n_cells();
         let ctx = Ctx {
@@ -545,7 +572,7 @@ impl CudaBackend {
             transfer: solver.transfer.code(),
             update: (solver.update == Update::Musl) as u32,
             flip: solver.flip,
-            pad: [0; 2],
+            grid_next: grid_next.as_ref().map_or(0, |g| g.device_ptr(&stream).0),
             // The same geometry in f64 (computed in f64 like rtmpm-f64's StepConstants).
             origin_f64: (scene.domain_min.as_dvec3() - 4.0 * dx as f64).to_array(),
             dx_f64: dx as f64,
@@ -589,13 +616,17 @@ impl CudaBackend {
             block_coords: block_coords_buf,
             _scratch: scratch,
             grid,
+            grid_next,
+            parity: 0,
+            last_grid: 0,
+            last_dt: None,
             ctl,
             step_buf,
             last_params: None,
             _bufs: bufs,
             scene: scene.clone(),
             n,
-            graph: None,
+            graph: [None, None],
             device_name: info.name,
             real_bytes,
         })
@@ -627,9 +658,67 @@ impl CudaBackend {
         p
     }
 
+    /// True when G2P and the next step's P2G run as one kernel (see [`CudaOptions::g2p2g`]).
+    pub fn g2p2g(&self) -> bool {
+        self.grid_next.is_some()
+    }
+
+    /// The context of the coming step: with G2P2G the two grids swap roles every step.
+    pub(crate) fn step_ctx(&self) -> Ctx {
+        let mut c = self.ctx;
+        if self.parity == 1 {
+            std::mem::swap(&mut c.grid, &mut c.grid_next);
+        }
+        c
+    }
+
+    /// After enqueuing a step: the next one reads the other grid (G2P2G).
+    pub(crate) fn end_step(&mut self) {
+        self.last_grid = self.parity;
+        if self.g2p2g() {
+            self.parity ^= 1;
+        }
+    }
+
+    /// Enqueue one step: replay of the graph captured for this grid parity and dt, else a
+    /// capture (parameters live in device memory, so a graph is valid for any t).
+    fn step_enqueued(&mut self, dt: f32) -> Result<(), SimError> {
+        if !self.options.graph {
+            return self.enqueue_step();
+        }
+        if let Some((g, gdt)) = &self.graph[self.parity]
+            && *gdt == dt
+        {
+            return g.launch().map_err(err("graph launch"));
+        }
+        use cudarc::driver::sys::{CUgraphInstantiate_flags, CUstreamCaptureMode};
+        self.graph[self.parity] = None;
+        self.stream
+            .begin_capture(CUstreamCaptureMode::CU_STREAM_CAPTURE_MODE_THREAD_LOCAL)
+            .map_err(err("begin capture"))?;
+        let r = self.enqueue_step();
+        let g = self
+            .stream
+            .end_capture(CUgraphInstantiate_flags(0))
+            .map_err(err("end capture"))?;
+        r?;
+        let g = g.ok_or_else(|| SimError::Backend("CUDA: empty graph".into()))?;
+        g.launch().map_err(err("graph launch"))?;
+        self.graph[self.parity] = Some((g, dt));
+        Ok(())
+    }
+
+    /// The grid the last step wrote (velocities after the grid update).
+    fn shown_grid(&self) -> &CudaSlice<u8> {
+        match (self.last_grid, &self.grid_next) {
+            (1, Some(g)) => g,
+            _ => &self.grid,
+        }
+    }
+
     /// Enqueue the kernels of one step (parameters already uploaded).
     pub(crate) fn enqueue_step(&self) -> Result<(), SimError> {
-        let (k, s, c) = (&self.kernels, &self.stream, &self.ctx);
+        let (k, s, c) = (&self.kernels, &self.stream, &self.step_ctx());
         crate::rebuild::enqueue(k, s, c).map_err(err("rebuild"))?;
         self.p2g.enqueue(k, s, c).map_err(err("p2g"))?;
         crate::grid_update::enqueue(k, s, c).map_err(err("grid update"))?;
@@ -658,6 +747,11 @@ impl CudaBackend {
             .map_err(err("upload step parameters"))?;
         write_symbol(&self.module, &self.stream, "c_step", as_bytes(&p))?;
         self.last_params = Some(key);
+        // G2P2G: the last fused scatter used the old dt in the stress term; redo this step's P2G.
+        if self.g2p2g() && self.last_dt.is_some_and(|d| d != dt) {
+            self.set_ctl_word(CTL_P2G_PENDING, 1)?;
+        }
+        self.last_dt = Some(dt);
         Ok(())
     }
 
@@ -687,7 +781,7 @@ impl CudaBackend {
         let (_, p, _) = self.block_counts()?;
         let grid = self
             .stream
-            .clone_dtoh(&self.grid)
+            .clone_dtoh(self.shown_grid())
             .map_err(err("read grid"))?;
         let coords = self
             .stream
@@ -796,7 +890,7 @@ impl CudaBackend {
         let (_, p, _) = self.block_counts()?;
         let bytes = self
             .stream
-            .clone_dtoh(&self.grid)
+            .clone_dtoh(self.shown_grid())
             .map_err(err("read grid"))?;
         let mut s = [0f64; 4];
         let nodes = p as usize * 64;
@@ -814,7 +908,8 @@ impl CudaBackend {
     /// Enqueue only rebuild + P2G with the given dt (for tests of P2G conservation).
     pub fn run_p2g_only(&mut self, dt: f32) -> Result<(), SimError> {
         self.upload_params(dt, 0.0)?;
-        let (k, s, c) = (&self.kernels, &self.stream, &self.ctx);
+        self.last_grid = self.parity;
+        let (k, s, c) = (&self.kernels, &self.stream, &self.step_ctx());
         crate::rebuild::enqueue(k, s, c).map_err(err("rebuild"))?;
         self.p2g.enqueue(k, s, c).map_err(err("p2g"))
     }
@@ -897,30 +992,9 @@ impl Backend for CudaBackend {
 
     fn step(&mut self, dt: f32, t: f32) -> Result<(), SimError> {
         self.upload_params(dt, t)?;
-        if !self.options.graph {
-            return self.enqueue_step();
-        }
-        if let Some((g, gdt)) = &self.graph
-            && *gdt == dt
-        {
-            return g.launch().map_err(err("graph launch"));
-        }
-        // Capture one step (parameters live in device memory, so the graph is valid for any t).
-        use cudarc::driver::sys::{CUgraphInstantiate_flags, CUstreamCaptureMode};
-        self.graph = None;
-        self.stream
-            .begin_capture(CUstreamCaptureMode::CU_STREAM_CAPTURE_MODE_THREAD_LOCAL)
-            .map_err(err("begin capture"))?;
-        let r = self.enqueue_step();
-        let g = self
-            .stream
-            .end_capture(CUgraphInstantiate_flags(0))
-            .map_err(err("end capture"))?;
-        r?;
-        let g = g.ok_or_else(|| SimError::Backend("CUDA: empty graph".into()))?;
-        g.launch().map_err(err("graph launch"))?;
-        self.graph = Some((g, dt));
-        Ok(())
+        let r = self.step_enqueued(dt);
+        self.end_step();
+        r
     }
 
     fn max_speed(&mut self) -> Result<f32, SimError> {

@@ -31,6 +31,8 @@ pub struct KernelTimings {
     /// x, v, C, F, plastic written), grid nodes written by P2G, read+written by the update and
     /// read by G2P.
     pub bytes_per_step: u64,
+    /// G2P2G: `g2p_ms` is the fused kernel and `p2g_ms` the P2G that runs after rebuilds only.
+    pub g2p2g: bool,
 }
 
 fn err(what: &'static str) -> impl Fn(cudarc::driver::DriverError) -> SimError {
@@ -67,7 +69,7 @@ pub fn bench_kernels(
     };
     for i in 0..steps {
         b.upload_params(dt, (warmup + i) as f32 * dt)?;
-        let (k, s, c) = (&b.kernels, &b.stream, &b.ctx);
+        let (k, s, c) = (&b.kernels, &b.stream, &b.step_ctx());
         e[0].record(s).map_err(err("record"))?;
         crate::rebuild::enqueue(k, s, c).map_err(err("rebuild"))?;
         e[1].record(s).map_err(err("record"))?;
@@ -79,6 +81,7 @@ pub fn bench_kernels(
         e[np + 2].record(s).map_err(err("record"))?;
         crate::g2p::enqueue(k, s, c).map_err(err("g2p"))?;
         e[np + 3].record(s).map_err(err("record"))?;
+        b.end_step();
         e[np + 3].synchronize().map_err(err("sync"))?;
         let ms = |a: usize, z: usize| {
             e[a].elapsed_ms(&e[z])
@@ -117,9 +120,18 @@ pub fn bench_kernels(
     let n = b.ctx.n as u64;
     let node_bytes = 4 * if b.options.f64 { 8 } else { 4 } as u64;
     let nodes = pblocks as u64 * 64;
-    let particle = n * 4 * (28 + (3 + 9 + 1 + 1) + (3 + 3 + 9 + 9 + 1));
     let _ = NFIELDS;
-    t.bytes_per_step = particle + nodes * node_bytes * (1 + 2 + 1);
+    t.g2p2g = b.g2p2g();
+    // Words per particle: P2G reads x, v, C, F, plastic, mass, vol0, material (28); G2P reads x,
+    // F, plastic, material, id (15) and writes x, v, C, F, plastic (25). G2P2G reads the G2P
+    // words, mass and vol0 (17) and writes 25. Grid: P2G's read-modify-write counted once, the
+    // update reads and writes, G2P reads; G2P2G also clears the second grid.
+    let (particle_words, grid_passes) = if t.g2p2g {
+        (17 + 25, 5)
+    } else {
+        (28 + 15 + 25, 4)
+    };
+    t.bytes_per_step = n * 4 * particle_words + nodes * node_bytes * grid_passes;
     Ok(t)
 }
 

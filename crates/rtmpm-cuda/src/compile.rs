@@ -64,7 +64,13 @@ pub const SOURCES: &[(&str, &str)] = &[
     ),
     ("p2g_sort.cu", include_str!("../kernels/p2g_sort.cu")),
     ("grid_update.cu", include_str!("../kernels/grid_update.cu")),
+    (
+        "g2p_particle.cuh",
+        include_str!("../kernels/g2p_particle.cuh"),
+    ),
+    ("p2g_warp.cuh", include_str!("../kernels/p2g_warp.cuh")),
     ("g2p.cu", include_str!("../kernels/g2p.cu")),
+    ("g2p2g.cu", include_str!("../kernels/g2p2g.cu")),
 ];
 
 /// The translation units compiled into the one module of the pipeline.
@@ -77,6 +83,7 @@ pub const UNITS: &[&str] = &[
     "p2g_sort.cu",
     "grid_update.cu",
     "g2p.cu",
+    "g2p2g.cu",
 ];
 
 /// Compilation options of the kernels.

@@ -6,9 +6,12 @@ use cudarc::driver::{CudaStream, DriverError, PushKernelArg};
 use rtmpm_core::transfer::Transfer;
 
 /// Enqueue the merged G2P (interpolation, F, plasticity, advection, free-zone and health checks):
-/// `g2p` for MLS, `g2p_mpm` for the classic MPM transfers.
+/// `g2p2g` with G2P2G (the next step's P2G in the same kernel, `kernels/g2p2g.cu`), else `g2p`
+/// for MLS, `g2p_mpm` for the classic MPM transfers.
 pub(crate) fn enqueue(k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), DriverError> {
-    let f = if c.transfer == Transfer::Mls.code() {
+    let f = if c.grid_next != 0 {
+        &k.g2p2g
+    } else if c.transfer == Transfer::Mls.code() {
         &k.g2p
     } else {
         &k.g2p_mpm

@@ -54,7 +54,9 @@ pub const CTL_BARRIER_COUNT: usize = 14;
 /// See [`CTL_BARRIER_COUNT`].
 pub const CTL_BARRIER_GEN: usize = 15;
 /// Number of control words.
-pub const CTL_WORDS: usize = 16;
+/// G2P2G: the grid of the coming step still needs its P2G (set by the host: first step, new dt).
+pub const CTL_P2G_PENDING: usize = 16;
+pub const CTL_WORDS: usize = 17;
 
 /// Material parameters on the device: the mirror of `MaterialGpu` in
 /// kernels/material/materials.cuh, with `R` the kernels' `real`: f32 (88 bytes, every field 4
@@ -209,7 +211,8 @@ pub struct Ctx {
     pub update: u32,
     /// FLIP fraction.
     pub flip: f32,
-    pub pad: [u32; 2],
+    /// G2P2G: the grid the fused kernel scatters the next step into (0: no G2P2G).
+    pub grid_next: u64,
     /// The geometry in f64, read instead of the f32 fields above by kernels compiled with
     /// `RTMPM_F64` (`common.cuh` swaps the names).
     pub origin_f64: [f64; 3],

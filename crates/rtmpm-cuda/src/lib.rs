@@ -250,6 +250,10 @@ pub struct CudaOptions {
     /// The rebuild as one persistent kernel with grid-wide barriers (`rb_fused`, one launch per
     /// step) instead of fifteen kernels that return at once when nothing is rebuilt.
     pub fused_rebuild: bool,
+    /// G2P2G: the G2P of a step and the P2G of the next in one kernel (`kernels/g2p2g.cu`), the
+    /// P2G kernel running only after a rebuild. One GPU, MLS transfer, `p2g=warp` and the free
+    /// zone only; elsewhere ignored.
+    pub g2p2g: bool,
 }
 
 impl Default for CudaOptions {
@@ -273,6 +277,7 @@ impl Default for CudaOptions {
             transport: None,
             barrier: None,
             fused_rebuild: true,
+            g2p2g: true,
         }
     }
 }
@@ -280,7 +285,7 @@ impl Default for CudaOptions {
 impl std::str::FromStr for CudaOptions {
     type Err = String;
     /// Comma separated `key=value`: `free_zone`, `mixed_sort`, `warp_reduce`, `fast_math`,
-    /// `graph`, `f64`, `rebalance`, `overlap` (on/off/true/false/1/0), `rebuild` (fused/kernels), `p2g`
+    /// `graph`, `f64`, `rebalance`, `overlap`, `g2p2g` (on/off/true/false/1/0), `rebuild` (fused/kernels), `p2g`
     /// (warp/shared/reverse_map/sort), `transport` (p2p/nccl), `barrier` (spin/events), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
     /// `rmap_pblocks`, `shared` (counts).
     fn from_str(s: &str) -> Result<Self, String> {
@@ -327,6 +332,7 @@ impl std::str::FromStr for CudaOptions {
                 "rmap_pblocks" => o.rmap_pblocks = Some(n()?),
                 "shared" => o.shared_capacity = Some(n()?),
                 "rebalance" => o.rebalance = b()?,
+                "g2p2g" => o.g2p2g = b()?,
                 "overlap" => o.overlap = b()?,
                 "rebuild" => {
                     o.fused_rebuild = match v {
@@ -394,5 +400,7 @@ mod tests {
                 .fused_rebuild
         );
         assert!("rebuild=maybe".parse::<CudaOptions>().is_err());
+        assert!(CudaOptions::default().g2p2g);
+        assert!(!"g2p2g=off".parse::<CudaOptions>().unwrap().g2p2g);
     }
 }

@@ -221,6 +221,11 @@ impl GpuRank {
         } else {
             DataType::F32
         };
+        // G2P2G is single-GPU: the shared-block reduction needs P2G as a step of its own.
+        let options = CudaOptions {
+            g2p2g: false,
+            ..options
+        };
         let b = CudaBackend::new_part(scene, particles, part, options)?;
         let ctx = b.stream.context().clone();
         ctx.bind_to_thread().map_err(err("bind context"))?;

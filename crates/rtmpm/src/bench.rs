@@ -219,11 +219,13 @@ fn bench_cuda(
         "  kernels      (CUDA events, {} steps, {} rebuilds)",
         k.steps, k.rebuilds
     );
+    // With G2P2G the P2G kernel runs only after a rebuild; the fused kernel does the rest.
+    let g2p_name = if k.g2p2g { "g2p2g" } else { "g2p" };
     for (name, ms) in [
         ("rebuild", k.rebuild_ms),
         ("p2g", k.p2g_ms),
         ("grid_update", k.grid_update_ms),
-        ("g2p", k.g2p_ms),
+        (g2p_name, k.g2p_ms),
     ] {
         println!(
             "    {name:<12} {ms:.4} ms/step ({:.0} %)",
