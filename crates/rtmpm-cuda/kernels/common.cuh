@@ -121,8 +121,8 @@ struct Ctx {
     unsigned warp_reduce, warp_sort;
     unsigned transfer, update;  // TRANSFER_*, UPDATE_* (shape.cuh)
     float flip;                 // FLIP fraction of the classic transfers
-    real* grid_next;            // G2P2G (g2p.cu): the grid the fused kernel scatters the next step
-                                // into (null: G2P and P2G are separate kernels)
+    real* grid_next;            // G2P2G (g2p2g.cu): the grid the fused kernel scatters the next
+                                // step into (null: G2P and P2G are separate kernels)
     double NAME_IF_F64(origin)[3];
     double NAME_IF_F64(dx), NAME_IF_F64(inv_dx);
     double NAME_IF_F64(domain_min)[3], NAME_IF_F64(domain_max)[3];
@@ -199,6 +199,24 @@ __device__ __forceinline__ mat3 load_m3(const real* s, unsigned cap, int f, unsi
 }
 __device__ __forceinline__ void store_m3(real* s, unsigned cap, int f, unsigned i, const mat3& m) {
     for (int c = 0; c < 9; ++c) s[(f + c) * cap + i] = m.m[c];
+}
+
+// The deformation gradient of particle i. A fluid's F is always J^(1/3) I (fluid_project; the
+// host uploads it in that form, src/state.rs), so the kernel variant for scenes that are all
+// fluid (ALL_FLUID in g2p_particle.cuh) reads one word of F and writes the three diagonal ones
+// (the zero off-diagonal words are never touched): 4 words moved for F per step instead of 18.
+__device__ __forceinline__ mat3 load_deformation(const real* s, unsigned cap, unsigned i, bool fluid) {
+    if (fluid) return mat3_diag(make_v3s(s[F_F * cap + i]));
+    return load_m3(s, cap, F_F, i);
+}
+__device__ __forceinline__ void store_deformation(real* s, unsigned cap, unsigned i, const mat3& f, bool fluid) {
+    if (fluid) {
+        s[F_F * cap + i] = f.m[0];
+        s[(F_F + 4) * cap + i] = f.m[4];
+        s[(F_F + 8) * cap + i] = f.m[8];
+    } else {
+        store_m3(s, cap, F_F, i, f);
+    }
 }
 // Integer field of the state (material id, original index): its bits in the low 32 bits of the word.
 __device__ __forceinline__ unsigned state_bits(real w) {

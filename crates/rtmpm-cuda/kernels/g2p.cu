@@ -14,7 +14,7 @@ extern "C" __global__ void __launch_bounds__(128, G2P_MIN_BLOCKS) g2p(Ctx c) {
     unsigned speed = 0;
     for (unsigned w = thread_index() >> 5; w < n_warps; w += stride) {
         unsigned g = c.warps[3 * w], first = c.warps[3 * w + 1], count = c.warps[3 * w + 2];
-        if (lane < count) speed = max(speed, g2p_particle(c, g, first + lane).speed);
+        if (lane < count) speed = max(speed, g2p_particle<false>(c, g, first + lane).speed);
     }
     report_max_speed(c, speed);
 }
@@ -69,11 +69,11 @@ extern "C" __global__ void g2p_mpm(Ctx c) {
         unsigned p = first + lane;
         vec3 x = load_v3(c.state, c.cap, F_X, p);
         vec3 v = load_v3(c.state, c.cap, F_V, p);
-        G2pState st = g2p_load_state(c, p);
+        G2pState st = g2p_load_state<false>(c, p);
         const int* bc; vec3 v_pic, dv; mat3 L;
         g2p_mpm_gather(c, g, x, &bc, &v_pic, &dv, &L, musl);
         if (!musl) v = flip_blend((real)c.flip, v, v_pic, dv);
-        speed = max(speed, g2p_finish(c, bc, p, st, x + v_pic * (real)step_params(c).dt, v, L).speed);
+        speed = max(speed, g2p_finish<false>(c, bc, p, st, x + v_pic * (real)step_params(c).dt, v, L).speed);
     }
     report_max_speed(c, speed);
 }

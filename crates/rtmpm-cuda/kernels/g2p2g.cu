@@ -11,8 +11,17 @@
 #include "g2p_particle.cuh"
 #include "p2g_warp.cuh"
 
+// Register budgets, measured (bench/RESULTS.md): the general kernel as ptxas picks it (128
+// registers; a minimum-blocks hint, even of 1, changes its choices and cost jelly 8 %); the fluid
+// variant with at least 4 resident blocks (128 registers; left alone it takes 168 and runs 8 %
+// slower, at 5 blocks it spills).
+#ifndef G2P2G_FLUID_MIN_BLOCKS
+#define G2P2G_FLUID_MIN_BLOCKS 4
+#endif
+
 // Warps loop over the warp list (grid-stride, launched with about one wave of blocks).
-extern "C" __global__ void __launch_bounds__(128) g2p2g(Ctx c) {
+template <bool ALL_FLUID>
+__device__ __forceinline__ void g2p2g_body(const Ctx& c) {
     if (c.ctl[CTL_ERROR]) return;
     unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
     unsigned lane = threadIdx.x & 31;
@@ -26,10 +35,10 @@ extern "C" __global__ void __launch_bounds__(128) g2p2g(Ctx c) {
         if (lane < count) {
             unsigned p = first + lane;
             real m = c.state[F_MASS * c.cap + p], vol0 = c.state[F_VOL0 * c.cap + p];
-            G2pResult r = g2p_particle(c, g, p);
+            G2pResult r = g2p_particle<ALL_FLUID>(c, g, p);
             speed = max(speed, r.speed);
             if (!r.leave) {
-                q = p2g_particle_of(c, r.x, m, vol0, r.v, r.C, r.F, r.plastic, r.material);
+                q = p2g_particle_of<ALL_FLUID>(c, r.x, m, vol0, r.v, r.C, r.F, r.plastic, r.material);
                 key = p2g_sort_key(c, g, q.base);
                 scatter = true;
             }
@@ -44,3 +53,8 @@ extern "C" __global__ void __launch_bounds__(128) g2p2g(Ctx c) {
     }
     report_max_speed(c, speed);
 }
+
+// Every scene.
+extern "C" __global__ void __launch_bounds__(128) g2p2g(Ctx c) { g2p2g_body<false>(c); }
+// Scenes whose materials are all fluids (see ALL_FLUID in g2p_particle.cuh).
+extern "C" __global__ void __launch_bounds__(128, G2P2G_FLUID_MIN_BLOCKS) g2p2g_fluid(Ctx c) { g2p2g_body<true>(c); }

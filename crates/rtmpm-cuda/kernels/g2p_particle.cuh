@@ -7,17 +7,24 @@
 
 // The state G2P updates besides x, v and C: loaded before the grid gather, so that its memory
 // latency overlaps the gather's instead of following it (G2P is bound by load latency).
+//
+// ALL_FLUID (template flag of the functions below): the variant for scenes whose materials are
+// all weakly compressible fluids, whose F is J^(1/3) I: F is one word in and three out
+// (load_deformation), the material model is not dispatched, the plastic word (unused by a fluid)
+// is neither read nor written and the id is read only for a bad particle. The general variant
+// (false) serves every scene.
 struct G2pState {
     mat3 F;
     real plastic;
     unsigned material, id;
 };
+template <bool ALL_FLUID>
 __device__ __forceinline__ G2pState g2p_load_state(const Ctx& c, unsigned p) {
     G2pState s;
-    s.F = load_m3(c.state, c.cap, F_F, p);
-    s.plastic = c.state[F_PLASTIC * c.cap + p];
+    s.F = load_deformation(c.state, c.cap, p, ALL_FLUID);
+    s.plastic = ALL_FLUID ? (real)0 : c.state[F_PLASTIC * c.cap + p];
     s.material = state_bits(c.state[F_MAT * c.cap + p]);
-    s.id = state_bits(c.state[F_ID * c.cap + p]);
+    s.id = ALL_FLUID ? 0u : state_bits(c.state[F_ID * c.cap + p]);
     return s;
 }
 
@@ -43,18 +50,19 @@ __device__ __forceinline__ void report_max_speed(const Ctx& c, unsigned bits) {
 // The end of every G2P: F = (I + dt C) F, plasticity, health check (before the clamp, which
 // would hide NaN), max speed, domain clamp, free-zone check, stores. `x` is the advected position,
 // `C` the velocity gradient (APIC's C for MLS). Returns the new state.
+template <bool ALL_FLUID>
 __device__ __forceinline__ G2pResult g2p_finish(const Ctx& c, const int* bc, unsigned p, const G2pState& st, vec3 x, vec3 v,
                                                 const mat3& C) {
     real dt = step_params(c).dt;
     mat3 F = (mat3_identity() + C * dt) * st.F;
     real plastic = st.plastic;
     GpuMaterial mat = material_at(c, st.material);
-    F = material_project(mat, F, &plastic);
+    F = ALL_FLUID ? fluid_project(mat.fluid, F) : material_project(mat, F, &plastic);
     // Health check before the clamp (the clamp would hide NaN).
-    unsigned id = st.id;
     real speed = length(v);
     bool finite = isfinite(x.x) && isfinite(x.y) && isfinite(x.z) && isfinite(v.x) && isfinite(v.y) && isfinite(v.z);
     if (!finite || speed * dt > (real)2 * c.dx) {
+        unsigned id = ALL_FLUID ? state_bits(c.state[F_ID * c.cap + p]) : st.id;
         unsigned prev = atomicMin(&c.ctl[CTL_BAD_INDEX], id);
         if (prev > id) atomicExch(&c.ctl[CTL_BAD_REASON], finite ? 2u : 1u);
     }
@@ -70,8 +78,8 @@ __device__ __forceinline__ G2pResult g2p_finish(const Ctx& c, const int* bc, uns
     store_v3(c.state, c.cap, F_X, p, x);
     store_v3(c.state, c.cap, F_V, p, v);
     store_m3(c.state, c.cap, F_C, p, C);
-    store_m3(c.state, c.cap, F_F, p, F);
-    c.state[F_PLASTIC * c.cap + p] = plastic;
+    store_deformation(c.state, c.cap, p, F, ALL_FLUID);
+    if (!ALL_FLUID) c.state[F_PLASTIC * c.cap + p] = plastic;
     G2pResult r;
     r.x = x; r.v = v; r.C = C; r.F = F; r.plastic = plastic;
     r.leave = leave;
@@ -82,9 +90,10 @@ __device__ __forceinline__ G2pResult g2p_finish(const Ctx& c, const int* bc, uns
 
 // MLS-MPM G2P of particle p of gblock g (Hu et al. 2018): gather of v and C from the grid, then
 // g2p_finish. The new state is stored and returned.
+template <bool ALL_FLUID>
 __device__ __forceinline__ G2pResult g2p_particle(const Ctx& c, unsigned g, unsigned p) {
     vec3 x = load_v3(c.state, c.cap, F_X, p);
-    G2pState st = g2p_load_state(c, p);
+    G2pState st = g2p_load_state<ALL_FLUID>(c, p);
     int base[3]; real fx[3]; real wt[3][3];
     stencil_of(c, x, base, fx);
     for (int a = 0; a < 3; ++a) weights_1d(fx[a], wt[a]);
@@ -129,5 +138,5 @@ __device__ __forceinline__ G2pResult g2p_particle(const Ctx& c, unsigned g, unsi
     B = (B - outer(v, make_v3(fx[0], fx[1], fx[2]))) * c.dx;
     real dt = step_params(c).dt;
     mat3 C = B * ((real)4 * c.inv_dx * c.inv_dx);
-    return g2p_finish(c, bc, p, st, x + v * dt, v, C);
+    return g2p_finish<ALL_FLUID>(c, bc, p, st, x + v * dt, v, C);
 }

@@ -35,6 +35,8 @@ __device__ __forceinline__ P2gParticle p2g_particle_zero() {
 
 // Stencil, weights, momentum and affine term of a particle from its state (the stress is
 // evaluated here): from memory in p2g_particle, from registers in the fused G2P2G (g2p.cu).
+// ALL_FLUID: the material is a fluid (g2p_particle.cuh), its stress is not dispatched.
+template <bool ALL_FLUID>
 __device__ __forceinline__ P2gParticle p2g_particle_of(const Ctx& c, vec3 x, real m, real vol0, vec3 v, const mat3& C,
                                                        const mat3& F, real plastic, unsigned material) {
     P2gParticle q;
@@ -43,7 +45,7 @@ __device__ __forceinline__ P2gParticle p2g_particle_of(const Ctx& c, vec3 x, rea
     for (int a = 0; a < 3; ++a) weights_1d(fx[a], q.w[a]);
     q.m = m;
     GpuMaterial mat = material_at(c, material);
-    mat3 tau = material_kirchhoff(mat, F, plastic, C);
+    mat3 tau = ALL_FLUID ? fluid_kirchhoff(mat.fluid, F, C) : material_kirchhoff(mat, F, plastic, C);
     real dt = step_params(c).dt;
     mat3 affine = tau * (-dt * vol0 * (real)4 * c.inv_dx * c.inv_dx) + C * m;
     for (int a = 0; a < 3; ++a) q.a[a] = make_v3(affine.m[3 * a], affine.m[3 * a + 1], affine.m[3 * a + 2]) * c.dx;
@@ -53,9 +55,10 @@ __device__ __forceinline__ P2gParticle p2g_particle_of(const Ctx& c, vec3 x, rea
 
 // The same for particle p of the state array.
 __device__ __forceinline__ P2gParticle p2g_particle(const Ctx& c, unsigned p) {
-    return p2g_particle_of(c, load_v3(c.state, c.cap, F_X, p), c.state[F_MASS * c.cap + p], c.state[F_VOL0 * c.cap + p],
-                           load_v3(c.state, c.cap, F_V, p), load_m3(c.state, c.cap, F_C, p), load_m3(c.state, c.cap, F_F, p),
-                           c.state[F_PLASTIC * c.cap + p], state_bits(c.state[F_MAT * c.cap + p]));
+    return p2g_particle_of<false>(c, load_v3(c.state, c.cap, F_X, p), c.state[F_MASS * c.cap + p], c.state[F_VOL0 * c.cap + p],
+                                  load_v3(c.state, c.cap, F_V, p), load_m3(c.state, c.cap, F_C, p),
+                                  load_m3(c.state, c.cap, F_F, p), c.state[F_PLASTIC * c.cap + p],
+                                  state_bits(c.state[F_MAT * c.cap + p]));
 }
 
 // Particle q of lane `src` (a warp-wide permutation: every lane of the warp calls it).

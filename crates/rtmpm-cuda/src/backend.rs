@@ -71,6 +71,7 @@ pub(crate) struct Kernels {
     pub grid_update_musl: CudaFunction,
     pub g2p: CudaFunction,
     pub g2p2g: CudaFunction,
+    pub g2p2g_fluid: CudaFunction,
     pub g2p_mpm: CudaFunction,
     pub g2p_mpm_velocity: CudaFunction,
     pub sb_clear_mask: CudaFunction,
@@ -103,6 +104,8 @@ pub struct CudaBackend {
     /// G2P2G: the second grid (the steps alternate: one grid is read by G2P while the fused
     /// kernel scatters the next step into the other).
     grid_next: Option<CudaSlice<u8>>,
+    /// Every material is a fluid: G2P2G runs its fluid variant (`g2p2g_fluid`).
+    pub(crate) all_fluid: bool,
     /// G2P2G: which grid the coming step reads (0: `grid`, 1: `grid_next`).
     parity: usize,
     /// The grid the last step (or P2G) wrote, read back by [`CudaBackend::grid_nodes`].
@@ -393,6 +396,7 @@ impl CudaBackend {
             grid_update_musl: f("grid_update_musl")?,
             g2p: f("g2p")?,
             g2p2g: f("g2p2g")?,
+            g2p2g_fluid: f("g2p2g_fluid")?,
             g2p_mpm: f("g2p_mpm")?,
             g2p_mpm_velocity: f("g2p_mpm_velocity")?,
             sb_clear_mask: f("sb_clear_mask")?,
@@ -443,7 +447,12 @@ impl CudaBackend {
         let real_bytes = if options.f64 { 8 } else { 4 };
 
         // Particle state, SoA with stride `cap`, in the backend's precision.
-        let host = crate::state::pack(particles, mats.len(), options.f64, cap, part.ids.as_deref())
+        let fluid: Vec<bool> = scene
+            .materials
+            .iter()
+            .map(|m| matches!(m.model, rtmpm_core::material::Model::Fluid(_)))
+            .collect();
+        let host = crate::state::pack(particles, &fluid, options.f64, cap, part.ids.as_deref())
             .map_err(SimError::Backend)?;
         let state = stream.clone_htod(&host).map_err(err("upload particles"))?;
         let scratch = stream
@@ -573,6 +582,7 @@ impl CudaBackend {
             update: (solver.update == Update::Musl) as u32,
             flip: solver.flip,
             grid_next: grid_next.as_ref().map_or(0, |g| g.device_ptr(&stream).0),
+
             // The same geometry in f64 (computed in f64 like rtmpm-f64's StepConstants).
             origin_f64: (scene.domain_min.as_dvec3() - 4.0 * dx as f64).to_array(),
             dx_f64: dx as f64,
@@ -617,6 +627,7 @@ impl CudaBackend {
             _scratch: scratch,
             grid,
             grid_next,
+            all_fluid: fluid.iter().all(|f| *f),
             parity: 0,
             last_grid: 0,
             last_dt: None,
@@ -728,7 +739,7 @@ impl CudaBackend {
             crate::p2g::enqueue_musl(k, s, c).map_err(err("p2g (MUSL re-map)"))?;
             crate::grid_update::enqueue_musl(k, s, c).map_err(err("grid update (MUSL)"))?;
         }
-        crate::g2p::enqueue(k, s, c).map_err(err("g2p"))?;
+        crate::g2p::enqueue(k, s, c, self.all_fluid).map_err(err("g2p"))?;
         Ok(())
     }
 

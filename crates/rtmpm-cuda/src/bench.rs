@@ -79,7 +79,7 @@ pub fn bench_kernels(
         }
         crate::grid_update::enqueue(k, s, c).map_err(err("grid"))?;
         e[np + 2].record(s).map_err(err("record"))?;
-        crate::g2p::enqueue(k, s, c).map_err(err("g2p"))?;
+        crate::g2p::enqueue(k, s, c, b.all_fluid).map_err(err("g2p"))?;
         e[np + 3].record(s).map_err(err("record"))?;
         b.end_step();
         e[np + 3].synchronize().map_err(err("sync"))?;

@@ -7,9 +7,17 @@ use rtmpm_core::transfer::Transfer;
 
 /// Enqueue the merged G2P (interpolation, F, plasticity, advection, free-zone and health checks):
 /// `g2p2g` with G2P2G (the next step's P2G in the same kernel, `kernels/g2p2g.cu`), else `g2p`
-/// for MLS, `g2p_mpm` for the classic MPM transfers.
-pub(crate) fn enqueue(k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), DriverError> {
-    let f = if c.grid_next != 0 {
+/// for MLS, `g2p_mpm` for the classic MPM transfers. `all_fluid`: every material is a fluid
+/// (G2P2G then runs `g2p2g_fluid`, which moves one word of F in and three out).
+pub(crate) fn enqueue(
+    k: &Kernels,
+    s: &CudaStream,
+    c: &Ctx,
+    all_fluid: bool,
+) -> Result<(), DriverError> {
+    let f = if c.grid_next != 0 && all_fluid {
+        &k.g2p2g_fluid
+    } else if c.grid_next != 0 {
         &k.g2p2g
     } else if c.transfer == Transfer::Mls.code() {
         &k.g2p

@@ -527,7 +527,8 @@ impl GpuRank {
         }
         s.wait(&self.reduced).map_err(err("wait"))?;
         crate::grid_update::enqueue(k, s, c).map_err(err("grid update"))?;
-        crate::g2p::enqueue(k, s, c).map_err(err("g2p"))?;
+        // No G2P2G on several GPUs (GpuRank::new), so no fluid variant either.
+        crate::g2p::enqueue(k, s, c, false).map_err(err("g2p"))?;
         Ok(())
     }
 

@@ -78,25 +78,28 @@ pub fn word_bytes(f64: bool) -> usize {
 }
 
 /// The device image of `particles` (f64 words when `f64`), SoA with stride `cap` (at least the
-/// particle count; the words past the particles are zero); materials must be below
-/// `n_materials`. `ids`: the original index of each particle (one GPU of several), else 0..n.
+/// particle count; the words past the particles are zero); `fluid` has one entry per material
+/// (true for a fluid) and materials must be below its length. `ids`: the original index of each
+/// particle (one GPU of several), else 0..n. A fluid particle's F is written as J^(1/3) I with
+/// J = det F: the form the fluid's projection keeps it in (the same J, so the same stress), which
+/// the kernels rely on to read and write only its diagonal (`load_deformation` in common.cuh).
 pub fn pack(
     particles: &Particles,
-    n_materials: usize,
+    fluid: &[bool],
     f64: bool,
     cap: usize,
     ids: Option<&[u32]>,
 ) -> Result<Vec<u8>, String> {
     if f64 {
-        pack_words::<f64>(particles, n_materials, cap, ids)
+        pack_words::<f64>(particles, fluid, cap, ids)
     } else {
-        pack_words::<f32>(particles, n_materials, cap, ids)
+        pack_words::<f32>(particles, fluid, cap, ids)
     }
 }
 
 fn pack_words<W: Word>(
     p: &Particles,
-    n_materials: usize,
+    fluid: &[bool],
     cap: usize,
     ids: Option<&[u32]>,
 ) -> Result<Vec<u8>, String> {
@@ -112,7 +115,16 @@ fn pack_words<W: Word>(
             put(F_X + a, W::from_f32(p.x[i][a]));
             put(F_V + a, W::from_f32(p.v[i][a]));
         }
-        let (c, fm) = (p.c[i].to_cols_array(), p.f[i].to_cols_array());
+        let m = p.material[i];
+        let Some(&is_fluid) = fluid.get(m as usize) else {
+            return Err(format!("particle {i} has material {m} out of range"));
+        };
+        let f = if is_fluid {
+            Mat3::from_diagonal(Vec3::splat(p.f[i].determinant().cbrt()))
+        } else {
+            p.f[i]
+        };
+        let (c, fm) = (p.c[i].to_cols_array(), f.to_cols_array());
         for e in 0..9 {
             put(F_C + e, W::from_f32(c[e]));
             put(F_F + e, W::from_f32(fm[e]));
@@ -120,10 +132,6 @@ fn pack_words<W: Word>(
         put(F_PLASTIC, W::from_f32(p.plastic[i]));
         put(F_MASS, W::from_f32(p.mass[i]));
         put(F_VOL0, W::from_f32(p.vol0[i]));
-        let m = p.material[i];
-        if m as usize >= n_materials {
-            return Err(format!("particle {i} has material {m} out of range"));
-        }
         put(F_MAT, W::from_id(m));
         put(F_ID, W::from_id(ids.map_or(i as u32, |ids| ids[i])));
     }
@@ -256,20 +264,37 @@ mod tests {
         p.f[3] = Mat3::from_cols_array(&[1.1, 0.2, 0.0, -0.1, 0.9, 0.3, 0.0, 0.0, 1.05]);
         for f64 in [false, true] {
             for cap in [5, 8] {
-                let bytes = pack(&p, 2, f64, cap, None).expect("pack");
+                let bytes = pack(&p, &[false, false], f64, cap, None).expect("pack");
                 assert_eq!(bytes.len(), NFIELDS * cap * word_bytes(f64));
                 let mut q = Particles::default();
                 unpack(&bytes, 5, cap, f64, &mut q).expect("unpack");
                 assert_eq!(p, q, "f64 = {f64}, cap = {cap}");
             }
         }
-        assert!(pack(&p, 1, true, 5, None).is_err());
-        assert!(pack(&p, 2, false, 5, Some(&[0, 1])).is_err());
+        assert!(pack(&p, &[false], true, 5, None).is_err());
+        assert!(pack(&p, &[false, false], false, 5, Some(&[0, 1])).is_err());
         // Ids put each particle at its original index (reversed here).
-        let bytes = pack(&p, 2, false, 6, Some(&[4, 3, 2, 1, 0])).expect("pack");
+        let bytes = pack(&p, &[false, false], false, 6, Some(&[4, 3, 2, 1, 0])).expect("pack");
         let mut q = Particles::default();
         unpack(&bytes, 5, 6, false, &mut q).expect("unpack");
         assert_eq!(q.x[0], p.x[4]);
         assert_eq!(q.f[1], p.f[3]);
+    }
+
+    #[test]
+    fn a_fluid_particle_is_packed_as_j_to_the_third_times_identity() {
+        let mut p = Particles::default();
+        p.push(Vec3::ZERO, Vec3::ZERO, 0.01, 1e-6, 0, 0.0);
+        p.push(Vec3::ONE, Vec3::ZERO, 0.01, 1e-6, 1, 0.0);
+        let sheared = Mat3::from_cols_array(&[1.1, 0.2, 0.0, -0.1, 0.9, 0.3, 0.0, 0.0, 1.05]);
+        p.f[0] = sheared;
+        p.f[1] = sheared;
+        let bytes = pack(&p, &[true, false], false, 2, None).expect("pack");
+        let mut q = Particles::default();
+        unpack(&bytes, 2, 2, false, &mut q).expect("unpack");
+        let s = sheared.determinant().cbrt();
+        assert_eq!(q.f[0], Mat3::from_diagonal(Vec3::splat(s)));
+        assert!((q.f[0].determinant() - sheared.determinant()).abs() < 1e-6);
+        assert_eq!(q.f[1], sheared, "a solid keeps its F");
     }
 }
