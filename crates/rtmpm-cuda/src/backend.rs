@@ -523,11 +523,13 @@ impl CudaBackend {
             zeros(pblock_cap * 64 * 4 * real_bytes)?
         };
         let boundary = zeros(gblock_cap * 4)?;
-        // G2P2G where it applies (see CudaOptions::g2p2g); the second grid.
+        // G2P2G where it applies (see CudaOptions::g2p2g): not when every step rebuilds (the
+        // fused scatter would always be redone); the second grid.
         let g2p2g = options.g2p2g
             && solver.transfer == Transfer::Mls
             && options.p2g == P2gMode::Warp
-            && options.free_zone;
+            && options.free_zone
+            && options.mixed_sort;
         let grid_next = if g2p2g {
             Some(
                 stream

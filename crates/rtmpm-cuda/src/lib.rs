@@ -251,8 +251,8 @@ pub struct CudaOptions {
     /// step) instead of fifteen kernels that return at once when nothing is rebuilt.
     pub fused_rebuild: bool,
     /// G2P2G: the G2P of a step and the P2G of the next in one kernel (`kernels/g2p2g.cu`), the
-    /// P2G kernel running only after a rebuild. One GPU, MLS transfer, `p2g=warp` and the free
-    /// zone only; elsewhere ignored.
+    /// P2G kernel running only after a rebuild. One GPU, MLS transfer, `p2g=warp`, the free zone
+    /// and mixed sorting only (not when every step rebuilds); elsewhere ignored.
     pub g2p2g: bool,
 }
 
