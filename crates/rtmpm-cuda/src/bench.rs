@@ -125,11 +125,12 @@ pub fn bench_kernels(
     // Words per particle: P2G reads x, v, C, F, plastic, mass, vol0, material (28); G2P reads x,
     // F, plastic, material, id (15) and writes x, v, C, F, plastic (25). G2P2G reads the G2P
     // words, mass and vol0 (17) and writes 25. Grid: P2G's read-modify-write counted once, the
-    // update reads and writes, G2P reads; G2P2G also clears the second grid.
-    let (particle_words, grid_passes) = if t.g2p2g {
-        (17 + 25, 5)
-    } else {
-        (28 + 15 + 25, 4)
+    // update reads and writes, G2P reads; G2P2G also clears the second grid. Its fluid variant
+    // reads x, F's one word, material, mass, vol0 (7) and writes x, v, C, F's diagonal (18).
+    let (particle_words, grid_passes) = match (t.g2p2g, b.all_fluid) {
+        (true, true) => (7 + 18, 5),
+        (true, false) => (17 + 25, 5),
+        (false, _) => (28 + 15 + 25, 4),
     };
     t.bytes_per_step = n * 4 * particle_words + nodes * node_bytes * grid_passes;
     Ok(t)

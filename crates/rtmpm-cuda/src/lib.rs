@@ -6,7 +6,8 @@
 //! # Pipeline (one step, all launches on one non-default stream, no host synchronisation)
 //! 1. [`rebuild`] (`kernels/rebuild.cu`), **merged**: one persistent kernel launched every step
 //!    (`rb_fused`, cooperative, phases separated by a grid barrier; `rebuild=kernels`: fifteen
-//!    kernels); it only clears the grid unless the device rebuild flag is set (free zone). Block codes, GPU hash table (block code -> dense
+//!    kernels); it only clears the grid unless the device rebuild flag is set (free zone; with
+//!    G2P2G not even that). Block codes, GPU hash table (block code -> dense
 //!    id, atomicCAS open addressing), gblocks, pblocks with explicit 3x3x3 neighbour lists, complete
 //!    block+cell counting sort (histogram, our own scan, scatter into scratch arrays and copy back,
 //!    so device pointers never change and a step can be captured in a CUDA graph), warp list.
@@ -18,6 +19,18 @@
 //! 3. [`grid_update`] (`kernels/grid_update.cu`), **merged**: velocity + gravity + walls + colliders.
 //! 4. [`g2p`] (`kernels/g2p.cu`), **merged**: interpolation + F update + plasticity + advection +
 //!    domain clamp + free-zone check + health check (first bad particle, max speed).
+//!
+//! **G2P2G** (default on one GPU with the MLS transfer, `g2p2g=off` to compare): stage 4 and the
+//! next step's stage 2 run as ONE kernel (`kernels/g2p2g.cu`, seed 000's "merge kernels" across
+//! the step boundary, the G2P2G of Wang et al. 2020): while a particle's new state is in
+//! registers it is scattered into a second grid, which the next step's grid update reads; the
+//! two grids alternate (one CUDA graph per parity). The P2G kernel then runs only after a
+//! rebuild (new mapping; a particle that left its free zone is not scattered by the fused
+//! kernel) or when dt changed. A step is then rebuild (gated) + P2G (gated) + grid update +
+//! G2P2G. Scenes whose materials are all fluids run `g2p2g_fluid`, which moves one word of F in
+//! and three out (a fluid's F is J^(1/3) I) and skips the material dispatch. The per-particle
+//! code is shared: `kernels/g2p_particle.cuh` (G2P) and `kernels/p2g_warp.cuh` (in-warp sort,
+//! segmented reduction, atomics).
 //!
 //! Particle state: structure of arrays of `real` fields (f32, or f64 with `precision = "f64"`),
 //! field `f` of particle `i` at `state[f * capacity + i]` ([`layout`] lists the fields,
