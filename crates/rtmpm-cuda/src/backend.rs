@@ -584,7 +584,6 @@ impl CudaBackend {
             update: (solver.update == Update::Musl) as u32,
             flip: solver.flip,
             grid_next: grid_next.as_ref().map_or(0, |g| g.device_ptr(&stream).0),
-
             // The same geometry in f64 (computed in f64 like rtmpm-f64's StepConstants).
             origin_f64: (scene.domain_min.as_dvec3() - 4.0 * dx as f64).to_array(),
             dx_f64: dx as f64,
