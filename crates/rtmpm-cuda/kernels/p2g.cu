@@ -4,7 +4,8 @@
 // (bitonic sort via __shfl_xor_sync), then lanes writing the same nodes are reduced with
 // segmented __shfl_down_sync sums (Gao et al. 2018) and only segment heads issue atomicAdd.
 // The per-particle quantities (stencil, weights, stress, affine momentum) come from p2g_particle.cuh,
-// shared with the gather strategies (p2g_reverse_map.cu, p2g_sort.cu).
+// shared with the gather strategies (p2g_reverse_map.cu, p2g_sort.cu); the sort, the reduction and
+// the atomics from p2g_warp.cuh, shared with the fused G2P2G (g2p2g.cu).
 #include "p2g_warp.cuh"
 
 // Memory index of node base + (i, j, k) for a particle of gblock g.
@@ -27,7 +28,7 @@ __device__ __forceinline__ bool in_part(const Ctx& c, unsigned g, unsigned part)
 }
 
 // Warps loop over the warp list (grid-stride, launched with about one wave of blocks). With
-// G2P2G (g2p.cu) the previous step's fused kernel has already scattered the particles, and this
+// G2P2G (g2p2g.cu) the previous step's fused kernel has already scattered the particles, and this
 // kernel only runs after a rebuild or when the host asks (grid_needs_p2g).
 extern "C" __global__ void __launch_bounds__(128, P2G_MIN_BLOCKS) p2g(Ctx c, unsigned part) {
     if (c.ctl[CTL_ERROR] || !grid_needs_p2g(c)) return;
