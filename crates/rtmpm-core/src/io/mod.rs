@@ -2,15 +2,18 @@
 //! (see [`atomic`]).
 //!
 //! * [`ply`]: binary little-endian PLY point clouds (one vertex per particle).
+//! * [`bgeo`]: Houdini's classic binary geometry (`.bgeo`, `.bgeo.gz`) with point attributes.
 //! * [`vtu`]: VTK XML UnstructuredGrid (`.vtu`, base64 binary) and `.pvd` collections.
 //! * [`checkpoint`]: bit-exact binary checkpoints with a checksum.
 
 pub mod atomic;
+pub mod bgeo;
 pub mod checkpoint;
 pub mod ply;
 pub mod vtu;
 
 pub use atomic::{write_atomic, write_atomic_with};
+pub use bgeo::{BgeoData, BgeoError, read_bgeo, write_bgeo};
 pub use checkpoint::{Checkpoint, CheckpointError};
 pub use ply::{PlyColumn, PlyData, PlyError, read_ply, write_ply};
 pub use vtu::{PvdWriter, VtuArray, VtuData, VtuError, VtuValues, read_vtu, write_vtu};
