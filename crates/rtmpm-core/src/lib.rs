@@ -15,6 +15,7 @@
 //! * [`sim`]: the backend trait and the frame/step driver shared by every backend.
 //! * [`cpu`]: the CPU reference backend (deterministic, rayon).
 //! * [`io`]: PLY, VTK XML (.vtu/.pvd) and checkpoints, all written atomically.
+//! * [`surface`]: fluid surfaces as triangle meshes (reconstruction: cargo feature `surface`).
 //! * [`render`]: CPU particle renderer (shaded spheres, ground, shadows, colour bar), PNG/GIF.
 
 pub mod boundary;
@@ -29,6 +30,7 @@ pub mod render;
 pub mod scene;
 pub mod shape;
 pub mod sim;
+pub mod surface;
 pub mod svd;
 pub mod transfer;
 
