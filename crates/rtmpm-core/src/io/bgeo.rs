@@ -298,7 +298,9 @@ pub fn read_bgeo(path: &Path) -> Result<BgeoData, BgeoError> {
     if raw.starts_with(&[0x1f, 0x8b]) {
         // Deflate expands at most about 1032:1, so the output is bounded by what the file
         // holds; it is read incrementally (no allocation ahead of the data).
-        let limit = (raw.len() as u64).saturating_mul(1032).saturating_add(1 << 16);
+        let limit = (raw.len() as u64)
+            .saturating_mul(1032)
+            .saturating_add(1 << 16);
         let mut bytes = Vec::new();
         flate2::read::MultiGzDecoder::new(&raw[..])
             .take(limit)
@@ -422,7 +424,9 @@ fn parse_bgeo(bytes: &[u8]) -> Result<BgeoData, BgeoError> {
         .into_iter()
         .map(|(name, ty, size, strings)| BgeoAttribute {
             values: match ty {
-                BgeoType::Float | BgeoType::Vector => BgeoValues::Float(Vec::with_capacity(n * size)),
+                BgeoType::Float | BgeoType::Vector => {
+                    BgeoValues::Float(Vec::with_capacity(n * size))
+                }
                 _ => BgeoValues::Int(Vec::with_capacity(n * size)),
             },
             name,
@@ -455,4 +459,4 @@ fn parse_bgeo(bytes: &[u8]) -> Result<BgeoData, BgeoError> {
 
 #[cfg(test)]
 #[path = "bgeo_tests.rs"]
-mod tests;
+pub(crate) mod tests;

@@ -49,7 +49,9 @@ fn round_trip_plain_and_gzip() {
         let names: Vec<&str> = r.attributes.iter().map(|a| a.name.as_str()).collect();
         assert_eq!(
             names,
-            ["v", "id", "material", "plastic", "mass", "pscale", "J", "stress"]
+            [
+                "v", "id", "material", "plastic", "mass", "pscale", "J", "stress"
+            ]
         );
         for i in 0..n {
             assert_eq!(r.positions[i], p.x[i].to_array());

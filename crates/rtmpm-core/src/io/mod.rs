@@ -4,12 +4,15 @@
 //! * [`ply`]: binary little-endian PLY point clouds (one vertex per particle).
 //! * [`bgeo`]: Houdini's classic binary geometry (`.bgeo`, `.bgeo.gz`) with point attributes.
 //! * [`vtu`]: VTK XML UnstructuredGrid (`.vtu`, base64 binary) and `.pvd` collections.
+//! * [`vtk_appended`]: ParaView-grade `.vtu` (zlib-compressed appended arrays, 3x3 stress
+//!   tensors), also for surface meshes.
 //! * [`checkpoint`]: bit-exact binary checkpoints with a checksum.
 
 pub mod atomic;
 pub mod bgeo;
 pub mod checkpoint;
 pub mod ply;
+pub mod vtk_appended;
 pub mod vtu;
 
 pub use atomic::{write_atomic, write_atomic_with};

@@ -228,7 +228,7 @@ impl VtuData {
 }
 
 /// Value of attribute `name` in the start tag `tag` (the text between `<` and `>`).
-fn attr<'a>(tag: &'a str, name: &str) -> Option<&'a str> {
+pub(super) fn attr<'a>(tag: &'a str, name: &str) -> Option<&'a str> {
     let mut rest = tag;
     loop {
         let i = rest.find(name)?;
@@ -261,7 +261,7 @@ fn xml_escape(s: &str) -> String {
         .replace('\'', "&apos;")
 }
 
-fn xml_unescape(s: &str) -> String {
+pub(super) fn xml_unescape(s: &str) -> String {
     s.replace("&lt;", "<")
         .replace("&gt;", ">")
         .replace("&quot;", "\"")
@@ -298,7 +298,7 @@ fn decode_binary(text: &str) -> Result<Vec<u8>, VtuError> {
     Ok(data)
 }
 
-fn parse_values(ty: &str, data: &[u8]) -> Result<VtuValues, VtuError> {
+pub(super) fn parse_values(ty: &str, data: &[u8]) -> Result<VtuValues, VtuError> {
     fn chunks<const N: usize, T>(data: &[u8], f: impl Fn([u8; N]) -> T) -> Vec<T> {
         data.chunks_exact(N)
             .map(|c| f(c.try_into().unwrap()))

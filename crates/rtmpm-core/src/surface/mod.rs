@@ -55,7 +55,11 @@ impl TriMesh {
         if !self.normals.is_empty() && self.normals.len() != n {
             return Err(format!("{} normals for {n} vertices", self.normals.len()));
         }
-        if let Some(t) = self.triangles.iter().find(|t| t.iter().any(|&i| i as usize >= n)) {
+        if let Some(t) = self
+            .triangles
+            .iter()
+            .find(|t| t.iter().any(|&i| i as usize >= n))
+        {
             return Err(format!("triangle {t:?} indexes past the {n} vertices"));
         }
         Ok(())

@@ -19,11 +19,7 @@ pub fn reconstruct(positions: &[Vec3], params: &SurfaceParams) -> Result<TriMesh
         return Ok(TriMesh::default());
     }
     let r = params.particle_radius;
-    let mut sp = Parameters::new(
-        r,
-        2.0 * params.smoothing_length * r,
-        params.cube_size * r,
-    );
+    let mut sp = Parameters::new(r, 2.0 * params.smoothing_length * r, params.cube_size * r);
     sp.iso_surface_threshold = params.threshold;
     let recon = reconstruct_surface::<i64, f32>(&pts, &sp)
         .map_err(|e| format!("surface reconstruction failed: {e:#}"))?;
