@@ -6,12 +6,14 @@
 //! * [`vtu`]: VTK XML UnstructuredGrid (`.vtu`, base64 binary) and `.pvd` collections.
 //! * [`vtk_appended`]: ParaView-grade `.vtu` (zlib-compressed appended arrays, 3x3 stress
 //!   tensors), also for surface meshes.
+//! * [`trimesh`]: surface meshes as OBJ, PLY and VTU.
 //! * [`checkpoint`]: bit-exact binary checkpoints with a checksum.
 
 pub mod atomic;
 pub mod bgeo;
 pub mod checkpoint;
 pub mod ply;
+pub mod trimesh;
 pub mod vtk_appended;
 pub mod vtu;
 
