@@ -7,12 +7,14 @@
 //! * [`vtk_appended`]: ParaView-grade `.vtu` (zlib-compressed appended arrays, 3x3 stress
 //!   tensors), also for surface meshes.
 //! * [`trimesh`]: surface meshes as OBJ, PLY and VTU.
+//! * [`points`]: particles in: the points of a PLY, VTU or BGEO file for a body.
 //! * [`checkpoint`]: bit-exact binary checkpoints with a checksum.
 
 pub mod atomic;
 pub mod bgeo;
 pub mod checkpoint;
 pub mod ply;
+pub mod points;
 pub mod trimesh;
 pub mod vtk_appended;
 pub mod vtu;

@@ -1,0 +1,287 @@
+//! Particles in: the points of a PLY, VTU or BGEO file (positions, and velocities, volumes and
+//! masses when the file has them), to start a body from (`[[body]] shape = "particles"`).
+//!
+//! Columns looked for, by format (the names rtmpm writes come first):
+//!
+//! | | PLY | VTU | BGEO |
+//! | --- | --- | --- | --- |
+//! | position | `x y z` | the points | `P` |
+//! | velocity | `vx vy vz` | `velocity`, `v` or `Velocity` (3 components) | `v` |
+//! | volume | `volume` | `volume` | `volume` |
+//! | mass | `mass` | `mass` | `mass` |
+//!
+//! Every reader checks sizes against the file before it allocates; errors name the file.
+
+use std::fs;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use super::bgeo::read_bgeo;
+use super::ply::{PlyColumn, read_ply};
+use super::vtk_appended::read_any_vtu;
+use super::vtu::{VtuData, VtuValues};
+use crate::math::Vec3;
+
+/// The points of a particle file.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PointSet {
+    /// The file read.
+    pub source: PathBuf,
+    /// Positions (m).
+    pub positions: Vec<Vec3>,
+    /// Velocities (m/s), when the file has them.
+    pub velocities: Option<Vec<Vec3>>,
+    /// Volume per particle (m^3), when the file has it.
+    pub volumes: Option<Vec<f32>>,
+    /// Mass per particle (kg), when the file has it.
+    pub masses: Option<Vec<f32>>,
+}
+
+/// Why a particle file could not be used; the message names the file.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: {message}")]
+pub struct PointsError {
+    /// The file.
+    pub path: String,
+    /// What is wrong.
+    pub message: String,
+}
+
+/// Read the points of `path`, by its extension: `.ply`, `.vtu`, `.bgeo` or `.bgeo.gz`.
+pub fn read_points(path: &Path) -> Result<PointSet, PointsError> {
+    let err = |m: String| PointsError {
+        path: path.display().to_string(),
+        message: m,
+    };
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_lowercase())
+        .unwrap_or_default();
+    let mut set = if name.ends_with(".ply") {
+        ply_precheck(path).map_err(err)?;
+        let d = read_ply(path).map_err(|e| err(e.to_string()))?;
+        let col = |n: &str| -> Option<Vec<f32>> {
+            Some(match d.column(n)? {
+                PlyColumn::Float(v) => v.clone(),
+                PlyColumn::Double(v) => v.iter().map(|&x| x as f32).collect(),
+                PlyColumn::Int(v) => v.iter().map(|&x| x as f32).collect(),
+            })
+        };
+        let vec3 = |a: &str, b: &str, c: &str| -> Option<Vec<Vec3>> {
+            let (x, y, z) = (col(a)?, col(b)?, col(c)?);
+            Some((0..x.len()).map(|i| Vec3::new(x[i], y[i], z[i])).collect())
+        };
+        PointSet {
+            positions: vec3("x", "y", "z")
+                .ok_or_else(|| err("the vertex element has no x, y, z properties".into()))?,
+            velocities: vec3("vx", "vy", "vz"),
+            volumes: col("volume"),
+            masses: col("mass"),
+            ..Default::default()
+        }
+    } else if name.ends_with(".vtu") {
+        let d = read_any_vtu(path).map_err(|e| err(e.to_string()))?;
+        from_vtu(&d)
+    } else if name.ends_with(".bgeo") || name.ends_with(".bgeo.gz") {
+        let d = read_bgeo(path).map_err(|e| err(e.to_string()))?;
+        let v3 = |v: &[f32]| {
+            v.chunks_exact(3)
+                .map(|c| Vec3::new(c[0], c[1], c[2]))
+                .collect()
+        };
+        PointSet {
+            positions: d.positions.iter().map(|p| Vec3::from_array(*p)).collect(),
+            velocities: d.floats("v", 3).map(v3),
+            volumes: d.floats("volume", 1).map(<[f32]>::to_vec),
+            masses: d.floats("mass", 1).map(<[f32]>::to_vec),
+            ..Default::default()
+        }
+    } else {
+        return Err(err(
+            "unknown particle file type: use .ply, .vtu, .bgeo or .bgeo.gz".into(),
+        ));
+    };
+    set.source = path.to_path_buf();
+    check(&set).map_err(err)?;
+    Ok(set)
+}
+
+fn from_vtu(d: &VtuData) -> PointSet {
+    let floats = |names: &[&str], ncomp: usize| -> Option<Vec<f32>> {
+        let a = d
+            .point_data
+            .iter()
+            .find(|a| names.contains(&a.name.as_str()) && a.num_components == ncomp)?;
+        Some(match &a.values {
+            VtuValues::Float32(v) => v.clone(),
+            VtuValues::Float64(v) => v.iter().map(|&x| x as f32).collect(),
+            _ => return None,
+        })
+    };
+    PointSet {
+        positions: d.points.iter().map(|p| Vec3::from_array(*p)).collect(),
+        velocities: floats(&["velocity", "v", "Velocity"], 3).map(|v| {
+            v.chunks_exact(3)
+                .map(|c| Vec3::new(c[0], c[1], c[2]))
+                .collect()
+        }),
+        volumes: floats(&["volume"], 1),
+        masses: floats(&["mass"], 1),
+        ..Default::default()
+    }
+}
+
+/// Finite values, one per point, positive volumes and masses.
+fn check(s: &PointSet) -> Result<(), String> {
+    let n = s.positions.len();
+    if let Some(i) = s.positions.iter().position(|p| !p.is_finite()) {
+        return Err(format!(
+            "point {i} has a non-finite position {}",
+            s.positions[i]
+        ));
+    }
+    if let Some(v) = &s.velocities {
+        if v.len() != n {
+            return Err(format!("{} velocities for {n} points", v.len()));
+        }
+        if let Some(i) = v.iter().position(|v| !v.is_finite()) {
+            return Err(format!("point {i} has a non-finite velocity"));
+        }
+    }
+    for (what, col) in [("volume", &s.volumes), ("mass", &s.masses)] {
+        if let Some(c) = col {
+            if c.len() != n {
+                return Err(format!("{} {what} values for {n} points", c.len()));
+            }
+            if let Some(i) = c.iter().position(|x| !(x.is_finite() && *x > 0.0)) {
+                return Err(format!(
+                    "point {i} has {what} {}, not a positive number",
+                    c[i]
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Before [`read_ply`] sizes its columns from the header's counts: the `vertex` count times
+/// its smallest record must fit in the file.
+fn ply_precheck(path: &Path) -> Result<(), String> {
+    let len = fs::metadata(path).map_err(|e| e.to_string())?.len();
+    let mut head = Vec::new();
+    fs::File::open(path)
+        .map_err(|e| e.to_string())?
+        .take(64 * 1024)
+        .read_to_end(&mut head)
+        .map_err(|e| e.to_string())?;
+    let end = head
+        .windows(10)
+        .position(|w| w == b"end_header")
+        .ok_or("no `end_header` in the first 64 KiB (not a PLY file, or a damaged header)")?;
+    let text = String::from_utf8_lossy(&head[..end]);
+    let mut in_vertex = false;
+    let mut count: u64 = 0;
+    let mut record: u64 = 0;
+    for line in text.lines() {
+        let w: Vec<&str> = line.split_whitespace().collect();
+        match w.as_slice() {
+            ["element", name, n, ..] => {
+                in_vertex = *name == "vertex";
+                if in_vertex {
+                    count = n
+                        .parse()
+                        .map_err(|_| format!("bad vertex count `{n}` in the header"))?;
+                }
+            }
+            ["property", "list", ..] => {}
+            ["property", ty, ..] if in_vertex => {
+                record += match *ty {
+                    "char" | "uchar" | "int8" | "uint8" => 1,
+                    "short" | "ushort" | "int16" | "uint16" => 2,
+                    "double" | "float64" => 8,
+                    _ => 4,
+                };
+            }
+            _ => {}
+        }
+    }
+    if count.saturating_mul(record.max(1)) > len {
+        return Err(format!(
+            "the header announces {count} vertices of {record} bytes, more than the file's {len} bytes (truncated file?)"
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Particles;
+    use crate::io::FrameFields;
+    use crate::io::atomic::tests::TestDir;
+    use crate::io::bgeo::tests::sample;
+    use crate::io::bgeo::write_bgeo;
+    use crate::io::ply::write_ply;
+    use crate::io::vtk_appended::write_particles_vtu;
+    use crate::io::vtu::write_vtu;
+
+    #[test]
+    fn every_format_rtmpm_writes_seeds_a_body() {
+        let d = TestDir::new("points");
+        let p: Particles = sample(50);
+        let f = FrameFields::default();
+        write_ply(&d.path("a.ply"), &p, &f).unwrap();
+        write_vtu(&d.path("inline.vtu"), &p, &f).unwrap();
+        write_particles_vtu(&d.path("c.vtu"), &p, &f, true).unwrap();
+        write_bgeo(&d.path("b.bgeo"), &p, &f, false).unwrap();
+        write_bgeo(&d.path("b.bgeo.gz"), &p, &f, true).unwrap();
+        for name in ["a.ply", "inline.vtu", "c.vtu", "b.bgeo", "b.bgeo.gz"] {
+            let s = read_points(&d.path(name)).unwrap();
+            assert_eq!(s.positions, p.x, "{name}");
+            assert_eq!(s.velocities.as_ref(), Some(&p.v), "{name}");
+            assert!(s.volumes.is_none());
+            if name.ends_with("ply") {
+                assert!(s.masses.is_none());
+            } else {
+                assert_eq!(s.masses.as_ref(), Some(&p.mass), "{name}");
+            }
+        }
+    }
+
+    #[test]
+    fn bad_files_name_the_file() {
+        let d = TestDir::new("points-bad");
+        let e = read_points(&d.path("x.xyz")).unwrap_err().to_string();
+        assert!(e.contains("x.xyz") && e.contains(".bgeo"), "{e}");
+        let e = read_points(&d.path("missing.ply")).unwrap_err().to_string();
+        assert!(e.contains("missing.ply"), "{e}");
+        // A PLY header announcing a billion vertices in a few bytes.
+        let path = d.path("huge.ply");
+        fs::write(&path, b"ply\nformat binary_little_endian 1.0\nelement vertex 1000000000\nproperty float x\nproperty float y\nproperty float z\nend_header\n").unwrap();
+        let e = read_points(&path).unwrap_err().to_string();
+        assert!(e.contains("huge.ply") && e.contains("truncated"), "{e}");
+        // No positions.
+        let path = d.path("nox.ply");
+        fs::write(&path, b"ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float a\nend_header\n\0\0\0\0").unwrap();
+        assert!(
+            read_points(&path)
+                .unwrap_err()
+                .to_string()
+                .contains("x, y, z")
+        );
+        // Non-finite values.
+        let mut p = sample(3);
+        p.x[1].y = f32::NAN;
+        write_bgeo(&d.path("nan.bgeo"), &p, &FrameFields::default(), false).unwrap();
+        let e = read_points(&d.path("nan.bgeo")).unwrap_err().to_string();
+        assert!(e.contains("nan.bgeo") && e.contains("point 1"), "{e}");
+        // Garbage with a known extension.
+        fs::write(d.path("g.vtu"), b"hello").unwrap();
+        assert!(
+            read_points(&d.path("g.vtu"))
+                .unwrap_err()
+                .to_string()
+                .contains("g.vtu")
+        );
+    }
+}
