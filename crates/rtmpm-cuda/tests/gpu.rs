@@ -55,6 +55,7 @@ fn scene(dx: f32) -> Scene {
             vtu: false,
             stress: false,
             jacobian: false,
+            ..Default::default()
         },
         render: Default::default(),
         seed: 0,

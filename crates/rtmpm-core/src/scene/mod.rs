@@ -14,6 +14,8 @@ pub mod schema;
 pub mod spans;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_io;
 mod validate;
 
 pub use error::SceneError;
@@ -87,16 +89,101 @@ impl TimeSettings {
 }
 
 /// What is written per frame.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct OutputSettings {
     /// Output folder (relative paths are relative to the working directory).
     pub dir: PathBuf,
     pub ply: bool,
     pub vtu: bool,
-    /// Also write the Cauchy stress (6 components) per particle.
+    /// Houdini's classic `.bgeo` per frame.
+    pub bgeo: bool,
+    /// The same, gzip-compressed (`.bgeo.gz`).
+    pub bgeo_gz: bool,
+    /// Also write the Cauchy stress per particle.
     pub stress: bool,
     /// Also write the volume ratio J per particle.
     pub jacobian: bool,
+    /// zlib-compress the arrays of `.vtu` files (default on).
+    pub compress: bool,
+    /// Surface mesh files per frame (`[output] surface`); all false: none.
+    pub surface_formats: MeshFormats,
+    /// How surfaces are reconstructed (`[surface]`).
+    pub surface: SurfaceSettings,
+}
+
+/// Which surface mesh files are written per frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MeshFormats {
+    pub obj: bool,
+    pub ply: bool,
+    pub vtu: bool,
+}
+
+impl MeshFormats {
+    /// True when any format is on.
+    pub fn any(&self) -> bool {
+        self.obj || self.ply || self.vtu
+    }
+}
+
+/// `[surface]`: which materials form the surface and how it is reconstructed (see
+/// [`crate::surface::SurfaceParams`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SurfaceSettings {
+    /// Material indices whose particles are meshed (default: every fluid).
+    pub materials: Vec<u32>,
+    /// SPH smoothing length, in particle radii.
+    pub smoothing_length: f32,
+    /// Marching-cubes cell edge, in particle radii.
+    pub cube_size: f32,
+    /// Iso-surface as a fraction of the rest density.
+    pub threshold: f32,
+    /// Laplacian smoothing iterations of the vertices.
+    pub smoothing_iters: u32,
+    /// Smoothing iterations of the normals.
+    pub normal_smoothing_iters: u32,
+}
+
+impl Default for SurfaceSettings {
+    fn default() -> Self {
+        let p = crate::surface::SurfaceParams::for_volume(1.0);
+        SurfaceSettings {
+            materials: Vec::new(),
+            smoothing_length: p.smoothing_length,
+            cube_size: p.cube_size,
+            threshold: p.threshold,
+            smoothing_iters: p.smoothing_iters,
+            normal_smoothing_iters: p.normal_smoothing_iters,
+        }
+    }
+}
+
+impl SurfaceSettings {
+    /// The reconstruction parameters for particles of mean volume `volume` (m^3).
+    pub fn params(&self, volume: f32) -> crate::surface::SurfaceParams {
+        crate::surface::SurfaceParams {
+            particle_radius: crate::surface::radius_of_volume(volume),
+            smoothing_length: self.smoothing_length,
+            cube_size: self.cube_size,
+            threshold: self.threshold,
+            smoothing_iters: self.smoothing_iters,
+            normal_smoothing_iters: self.normal_smoothing_iters,
+        }
+    }
+
+    /// Positions and mean initial volume of the particles that form the surface.
+    pub fn select(&self, p: &crate::Particles) -> (Vec<Vec3>, f32) {
+        let mut vol = 0.0f64;
+        let xs: Vec<Vec3> = (0..p.len())
+            .filter(|&i| self.materials.contains(&p.material[i]))
+            .map(|i| {
+                vol += p.vol0[i] as f64;
+                p.x[i]
+            })
+            .collect();
+        let mean = (vol / xs.len().max(1) as f64) as f32;
+        (xs, mean)
+    }
 }
 
 /// Optional `[render]` settings; `None` fields fall back to command-line flags or defaults.

@@ -8,6 +8,11 @@
 //! * `random`: uniform positions in the body's bounding box, rejected outside the shape, until
 //!   `count` (or `round(ppc * volume / dx^3)`) particles are placed; volume `volume / count`.
 //!
+//! * `particles` bodies (`shape = "particles"`) take the points of a file as they are (see
+//!   [`crate::io::points`]): volume per particle from the file's `volume`, else its `mass` over
+//!   the material's density, else `dx^3 / particles_per_cell`; velocities from the file unless
+//!   the body gives `velocity` or `angular_velocity`.
+//!
 //! Lattice and jittered particles are kept when their (jittered) position is inside the shape
 //! (mesh: signed distance < 0). Velocities are `v0 + w x (x - c)` with `c` the centroid of the
 //! body's particles.
@@ -43,6 +48,11 @@ pub enum BodyShape {
         half_height: f32,
     },
     Mesh(Arc<MeshSdf>),
+    /// The points of a particle file, and whether the body uses the file's velocities.
+    Particles {
+        points: Arc<crate::io::points::PointSet>,
+        file_velocity: bool,
+    },
 }
 
 /// How a body is filled.
@@ -72,6 +82,7 @@ impl BodyShape {
                 half_height,
             } => cylinder_distance(x, *center, *axis, *radius, *half_height) <= 0.0,
             BodyShape::Mesh(m) => m.distance(x) < 0.0,
+            BodyShape::Particles { .. } => false,
         }
     }
 
@@ -89,6 +100,8 @@ impl BodyShape {
                 half_height,
             } => cylinder_distance(x, *center, *axis, *radius, *half_height),
             BodyShape::Mesh(m) => m.distance(x),
+            // A cloud of points has no inside.
+            BodyShape::Particles { .. } => f32::INFINITY,
         }
     }
 
@@ -112,6 +125,14 @@ impl BodyShape {
                 (*center - e, *center + e)
             }
             BodyShape::Mesh(m) => (m.mesh_min, m.mesh_max),
+            BodyShape::Particles { points, .. } => {
+                let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+                for p in &points.positions {
+                    lo = lo.min(*p);
+                    hi = hi.max(*p);
+                }
+                (lo, hi)
+            }
         }
     }
 
@@ -126,6 +147,10 @@ impl BodyShape {
                 ..
             } => std::f32::consts::PI * radius * radius * 2.0 * half_height,
             BodyShape::Mesh(m) => m.volume(),
+            BodyShape::Particles { points, .. } => points
+                .volumes
+                .as_ref()
+                .map_or(0.0, |v| v.iter().map(|&x| x as f64).sum::<f64>() as f32),
         }
     }
 }
@@ -166,6 +191,35 @@ pub fn sample_body(scene: &Scene, index: usize) -> Result<Particles, SceneError>
     let mut rng = Pcg64::seed_from_u64(seed);
     let mut out = Particles::default();
     let plastic = material.model.initial_plastic();
+    if let BodyShape::Particles {
+        points,
+        file_velocity,
+    } = shape
+    {
+        let n = points.positions.len();
+        if n as u64 > MAX_PARTICLES_PER_BODY {
+            return Err(body_error(
+                index,
+                format!("{} holds {n} points", points.source.display()),
+                "use a file with at most 50 million points per body",
+            ));
+        }
+        let uniform = dx * dx * dx / body.particles_per_cell as f32;
+        let centre = points.positions.iter().fold(Vec3::ZERO, |a, b| a + *b) / n.max(1) as f32;
+        for (i, &x) in points.positions.iter().enumerate() {
+            let vol0 = match (&points.volumes, &points.masses) {
+                (Some(v), _) => v[i],
+                (None, Some(m)) => m[i] / material.density,
+                (None, None) => uniform,
+            };
+            let v = match (&points.velocities, file_velocity) {
+                (Some(v), true) => v[i],
+                _ => body.velocity + body.angular_velocity.cross(x - centre),
+            };
+            out.push(x, v, material.density * vol0, vol0, body.material, plastic);
+        }
+        return Ok(out);
+    }
     let mut positions = Vec::new();
     let vol0;
     match body.sampling {

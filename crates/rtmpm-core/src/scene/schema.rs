@@ -28,6 +28,20 @@ pub struct RawScene {
     pub output: Option<RawOutput>,
     pub render: Option<RawRender>,
     pub solver: Option<RawSolver>,
+    pub surface: Option<RawSurface>,
+}
+
+/// `[surface]`: how fluid surfaces are reconstructed (`[output] surface`, `rtmpm mesh`,
+/// rendering).
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawSurface {
+    pub materials: Option<Vec<String>>,
+    pub smoothing_length: Option<f32>,
+    pub cube_size: Option<f32>,
+    pub threshold: Option<f32>,
+    pub smoothing_iters: Option<u32>,
+    pub normal_smoothing_iters: Option<u32>,
 }
 
 /// `[solver]`: how the step is computed: the particle-grid transfer (see
@@ -171,6 +185,7 @@ pub enum RawShape {
     Sphere,
     Cylinder,
     Mesh,
+    Particles,
 }
 
 impl RawShape {
@@ -181,6 +196,7 @@ impl RawShape {
             RawShape::Sphere => "sphere",
             RawShape::Cylinder => "cylinder",
             RawShape::Mesh => "mesh",
+            RawShape::Particles => "particles",
         }
     }
 }
@@ -303,6 +319,17 @@ impl RawCollider {
 pub enum RawFormat {
     Ply,
     Vtu,
+    Bgeo,
+    #[serde(rename = "bgeo.gz")]
+    BgeoGz,
+}
+
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum RawMeshFormat {
+    Obj,
+    Ply,
+    Vtu,
 }
 
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
@@ -319,6 +346,8 @@ pub struct RawOutput {
     pub dir: Option<String>,
     pub formats: Option<Vec<RawFormat>>,
     pub fields: Option<Vec<RawField>>,
+    pub surface: Option<Vec<RawMeshFormat>>,
+    pub compress: Option<bool>,
 }
 
 /// `[render]`: camera and image settings of `rtmpm render` / `rtmpm run --render`.

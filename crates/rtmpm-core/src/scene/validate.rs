@@ -3,9 +3,7 @@
 use super::sampling::{self, BodyShape, Sampling};
 use super::schema::*;
 use super::spans::{line_col, path_at, span_in_doc};
-use super::{
-    Body, Damping, OutputSettings, RenderSettings, Scene, SceneError, StepMode, TimeSettings,
-};
+use super::{Body, Damping, RenderSettings, Scene, SceneError, StepMode, TimeSettings};
 use crate::boundary::mesh::MeshSdf;
 use crate::boundary::sdf::Shape;
 use crate::boundary::{BoundaryRule, Collider, Condition, Walls};
@@ -20,6 +18,9 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 type R<T> = Result<T, SceneError>;
+
+#[path = "validate_io.rs"]
+mod io_fields;
 
 /// Grid cells of margin around a mesh's signed distance grid.
 const MESH_MARGIN: u32 = 3;
@@ -335,23 +336,13 @@ impl V<'_> {
             colliders.push(self.collider(i, c, base, dx)?);
         }
 
-        // Output.
-        let out = raw.output.as_ref();
-        let dir = out
-            .and_then(|o| o.dir.clone())
-            .map(PathBuf::from)
-            .unwrap_or_else(|| PathBuf::from("out").join(&name));
-        let formats = out
-            .and_then(|o| o.formats.clone())
-            .unwrap_or_else(|| vec![RawFormat::Ply]);
-        let fields = out.and_then(|o| o.fields.clone()).unwrap_or_default();
-        let output = OutputSettings {
-            dir,
-            ply: formats.contains(&RawFormat::Ply),
-            vtu: formats.contains(&RawFormat::Vtu),
-            stress: fields.contains(&RawField::Stress),
-            jacobian: fields.contains(&RawField::J),
-        };
+        // Output and surfaces (validate_io.rs).
+        let output = self.output(
+            raw.output.as_ref(),
+            raw.surface.as_ref(),
+            &materials,
+            PathBuf::from("out").join(&name),
+        )?;
 
         let render = self.render(raw.render.as_ref())?;
         let solver = self.solver(raw.solver.as_ref())?;
@@ -835,7 +826,7 @@ impl V<'_> {
             RawShape::Box => &["min", "max"],
             RawShape::Sphere => &["center", "radius"],
             RawShape::Cylinder => &["center", "axis", "radius", "height"],
-            RawShape::Mesh => &["file", "scale", "translate"],
+            RawShape::Mesh | RawShape::Particles => &["file", "scale", "translate"],
         };
         let given = [
             ("min", g.min.is_some()),
@@ -932,6 +923,13 @@ impl V<'_> {
                 }
             }
             RawShape::Mesh => BodyShape::Mesh(self.mesh(prefix, g, base, dx)?),
+            RawShape::Particles => {
+                return Err(self.err(
+                    f("shape"),
+                    "only a body can be made of particles",
+                    "use box, sphere, cylinder, mesh or half_space for a collider",
+                ));
+            }
             RawShape::HalfSpace => {
                 return Err(self.err(
                     f("shape"),
@@ -969,7 +967,10 @@ impl V<'_> {
                     },
                 )
             })? as u32;
-        let shape = self.body_shape(&prefix, b.shape, &b.geometry(), base, dx)?;
+        let shape = match b.shape {
+            RawShape::Particles => self.particles_shape(&prefix, b, base)?,
+            s => self.body_shape(&prefix, s, &b.geometry(), base, dx)?,
+        };
         let (lo, hi) = shape.bounds();
         let (imin, imax) = interior;
         let tol = 1e-5 * (imax - imin).max_element();
@@ -1072,6 +1073,13 @@ impl V<'_> {
                     half_height,
                 },
                 BodyShape::Mesh(m) => Shape::Mesh(m),
+                BodyShape::Particles { .. } => {
+                    return Err(self.err(
+                        f("shape"),
+                        "only a body can be made of particles",
+                        "use box, sphere, cylinder, mesh or half_space",
+                    ));
+                }
             },
         };
         let condition = Self::condition(c.condition.unwrap_or(RawCondition::Slip));
