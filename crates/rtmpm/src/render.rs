@@ -324,6 +324,7 @@ impl Sink {
                 positions: &job.positions,
                 material: &job.material,
                 field: job.field.as_deref(),
+                surface: None,
             },
             &self.opts,
         )
@@ -661,6 +662,7 @@ fn bench(args: &RenderArgs) -> Result<()> {
         positions: &positions,
         material: &material,
         field: Some(&field),
+        surface: None,
     };
     let time = |opts: &RenderOptions| -> Result<f64> {
         render(&input, opts)?;

@@ -4,6 +4,8 @@
 //!
 //! * [`camera`]: pinhole camera and automatic framing of the domain.
 //! * [`raster`]: sphere splatting, parallel over bands of rows (rayon).
+//! * `mesh`: triangle meshes (fluid surfaces) rasterised into the same depth buffers, shaded
+//!   with a specular highlight.
 //! * `colliders`: colliders drawn by sphere tracing their signed distances, clipped to the
 //!   scene box, into the same depth buffers (they hide, and cast and receive shadows).
 //! * [`colormap`]: viridis and the material palette.
@@ -17,10 +19,13 @@ pub mod camera;
 mod colliders;
 pub mod colormap;
 pub mod image;
+mod mesh;
 pub mod plot;
 pub(crate) mod raster;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+pub(crate) use tests::support as tests_support;
 pub mod text;
 
 pub use camera::Camera;
@@ -120,6 +125,9 @@ pub struct RenderInput<'a> {
     /// The scalar field coloured by, one value per particle (required unless colouring by
     /// material).
     pub field: Option<&'a [f32]>,
+    /// A surface mesh drawn with the colour of the given material (fluid surfaces; the
+    /// caller leaves the particles it replaces out of `positions`).
+    pub surface: Option<(&'a crate::surface::TriMesh, u32)>,
 }
 
 /// How to draw a frame.
@@ -484,9 +492,17 @@ pub fn render(input: &RenderInput, opts: &RenderOptions) -> Result<Image, Render
         .filter_map(|c| PosedCollider::new(c, opts.time, opts.bounds))
         .collect();
     colliders::draw(&posed, &view, near, w, h, &mut gbuf);
+    if let Some((m, material)) = input.surface {
+        m.check()
+            .map_err(|e| RenderError(format!("bad surface mesh: {e}")))?;
+        mesh::draw(m, material, &view, near, w, h, &mut gbuf);
+    }
     let shadow = opts.shadows.then(|| {
         let mut map = ShadowMap::build(input, opts);
         colliders::cast_shadows(&posed, &mut map);
+        if let Some((m, _)) = input.surface {
+            mesh::cast_shadows(m, &mut map);
+        }
         map
     });
 
@@ -504,6 +520,9 @@ pub fn render(input: &RenderInput, opts: &RenderOptions) -> Result<Image, Render
     let base = |id: u32| -> Vec3 {
         if id == COLLIDER_ID {
             return Vec3::from(COLLIDER_COLOR);
+        }
+        if let Some(m) = mesh::mesh_material(id) {
+            return Vec3::from(palette[m as usize % palette.len()]);
         }
         let c = match field {
             Some(f) => colormap::viridis((f[id as usize] - lo) * inv_range),
@@ -570,8 +589,15 @@ pub fn render(input: &RenderInput, opts: &RenderOptions) -> Result<Image, Render
                     } else {
                         0.12 * (1.0 - nz).powi(2)
                     };
+                    // Surfaces (water) get a specular highlight (Blinn-Phong).
+                    let spec = if mesh::mesh_material(g.id).is_some() {
+                        let half = (light - ray.normalize()).normalize_or(light);
+                        0.45 * normal.dot(half).max(0.0).powi(60) * lit
+                    } else {
+                        0.0
+                    };
                     base(g.id) * (0.32 * ao + 0.68 * lambert * (0.5 + 0.5 * lit))
-                        + Vec3::splat(rim * ao)
+                        + Vec3::splat(rim * ao + spec)
                 } else if ground_t.is_finite() {
                     let p = view.pos + ray * ground_t;
                     let inside = p.x >= blo.x && p.x <= bhi.x && p.z >= blo.z && p.z <= bhi.z;

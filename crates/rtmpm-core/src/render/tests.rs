@@ -20,48 +20,53 @@ fn cube(c: Vec3, size: f32, k: usize) -> Vec<Vec3> {
     v
 }
 
-fn front_camera() -> Camera {
-    Camera {
-        position: Vec3::new(0.0, 0.0, 3.0),
-        target: Vec3::ZERO,
-        fov_deg: 40.0,
+pub(crate) mod support {
+    use super::*;
+
+    pub(crate) fn front_camera() -> Camera {
+        Camera {
+            position: Vec3::new(0.0, 0.0, 3.0),
+            target: Vec3::ZERO,
+            fov_deg: 40.0,
+        }
+    }
+
+    pub(crate) fn o_view(w: u32, h: u32) -> camera::View {
+        front_camera().view(w, h)
+    }
+
+    pub(crate) fn opts(w: u32, h: u32) -> RenderOptions {
+        let mut o = RenderOptions::new(Vec3::splat(-1.0), Vec3::splat(1.0), 0.02);
+        o.width = w;
+        o.height = h;
+        o.camera = front_camera();
+        o
+    }
+
+    /// Save an image for inspection when `RTMPM_RENDER_TEST_DIR` is set.
+    pub(crate) fn dump(img: &Image, name: &str) {
+        if let Some(dir) = std::env::var_os("RTMPM_RENDER_TEST_DIR") {
+            img.write_png(&std::path::Path::new(&dir).join(format!("{name}.png")))
+                .unwrap();
+        }
+    }
+
+    pub(crate) fn count_close(img: &Image, rgb: [u8; 3], tol: i32) -> usize {
+        img.rgb
+            .chunks(3)
+            .filter(|p| (0..3).all(|k| (p[k] as i32 - rgb[k] as i32).abs() <= tol))
+            .count()
+    }
+
+    /// Hue family of a pixel: which channel dominates clearly.
+    pub(crate) fn dominant(p: [u8; 3]) -> Option<usize> {
+        let m = *p.iter().max().unwrap();
+        let i = p.iter().position(|&c| c == m).unwrap();
+        let others = (0..3).filter(|&k| k != i).map(|k| p[k]).max().unwrap();
+        (m as i32 - others as i32 > 40).then_some(i)
     }
 }
-
-fn o_view(w: u32, h: u32) -> camera::View {
-    front_camera().view(w, h)
-}
-
-fn opts(w: u32, h: u32) -> RenderOptions {
-    let mut o = RenderOptions::new(Vec3::splat(-1.0), Vec3::splat(1.0), 0.02);
-    o.width = w;
-    o.height = h;
-    o.camera = front_camera();
-    o
-}
-
-/// Save an image for inspection when `RTMPM_RENDER_TEST_DIR` is set.
-fn dump(img: &Image, name: &str) {
-    if let Some(dir) = std::env::var_os("RTMPM_RENDER_TEST_DIR") {
-        img.write_png(&std::path::Path::new(&dir).join(format!("{name}.png")))
-            .unwrap();
-    }
-}
-
-fn count_close(img: &Image, rgb: [u8; 3], tol: i32) -> usize {
-    img.rgb
-        .chunks(3)
-        .filter(|p| (0..3).all(|k| (p[k] as i32 - rgb[k] as i32).abs() <= tol))
-        .count()
-}
-
-/// Hue family of a pixel: which channel dominates clearly.
-fn dominant(p: [u8; 3]) -> Option<usize> {
-    let m = *p.iter().max().unwrap();
-    let i = p.iter().position(|&c| c == m).unwrap();
-    let others = (0..3).filter(|&k| k != i).map(|k| p[k]).max().unwrap();
-    (m as i32 - others as i32 > 40).then_some(i)
-}
+use support::*;
 
 #[test]
 fn cube_covers_centre_not_corners() {
@@ -75,6 +80,7 @@ fn cube_covers_centre_not_corners() {
             positions: &pos,
             material: &mat,
             field: None,
+            surface: None,
         },
         &o,
     )
@@ -111,6 +117,7 @@ fn near_red_occludes_far_blue() {
             positions: &pos,
             material: &mat,
             field: None,
+            surface: None,
         },
         &o,
     )
@@ -128,6 +135,7 @@ fn near_red_occludes_far_blue() {
             positions: &pos,
             material: &mat,
             field: None,
+            surface: None,
         },
         &o,
     )
@@ -151,6 +159,7 @@ fn material_colours_present() {
             positions: &pos,
             material: &mat,
             field: None,
+            surface: None,
         },
         &opts(200, 120),
     )
@@ -171,6 +180,7 @@ fn material_colours_present() {
             positions: &pos,
             material: &mat,
             field: None,
+            surface: None,
         },
         &o,
     )
@@ -190,6 +200,7 @@ fn field_colouring_draws_colour_bar_and_errors_without_field() {
         positions: &pos,
         material: &mat,
         field: Some(&field),
+        surface: None,
     };
     let img = render(&input, &o).unwrap();
     dump(&img, "colour_bar");
@@ -241,6 +252,7 @@ fn ground_and_shadow_are_drawn() {
             positions: &pos,
             material: &mat,
             field: None,
+            surface: None,
         },
         &o,
     )
@@ -251,6 +263,7 @@ fn ground_and_shadow_are_drawn() {
             positions: &pos,
             material: &mat,
             field: None,
+            surface: None,
         },
         &o,
     )
@@ -322,6 +335,7 @@ fn colliders_are_drawn_hide_particles_and_can_be_hidden() {
         positions: &pos,
         material: &mat,
         field: None,
+        surface: None,
     };
     let with = render(&input, &o).unwrap();
     let colliders = std::mem::take(&mut o.colliders);
@@ -429,6 +443,7 @@ fn colliders_cast_shadows() {
         positions: &pos,
         material: &mat,
         field: None,
+        surface: None,
     };
     let lit = render(&input, &o).unwrap();
     o.shadows = false;
@@ -460,6 +475,7 @@ fn png_round_trip_and_gif_frame_count() {
             positions: &pos,
             material: &mat,
             field: None,
+            surface: None,
         },
         &opts(96, 54),
     )
@@ -522,6 +538,7 @@ fn bad_options_are_errors() {
         positions: &pos,
         material: &[0],
         field: None,
+        surface: None,
     };
     let mut o = opts(0, 10);
     assert!(render(&input, &o).is_err());
@@ -535,6 +552,7 @@ fn bad_options_are_errors() {
         positions: &pos,
         material: &[],
         field: None,
+        surface: None,
     };
     assert!(render(&bad, &opts(10, 10)).is_err());
     // Empty frames render the background.
@@ -542,6 +560,7 @@ fn bad_options_are_errors() {
         positions: &[],
         material: &[],
         field: None,
+        surface: None,
     };
     assert!(render(&empty, &opts(10, 10)).is_ok());
 }
@@ -558,6 +577,7 @@ fn render_1m_benchmark() {
         positions: &pos,
         material: &mat,
         field: None,
+        surface: None,
     };
     render(&input, &o).unwrap();
     let t = std::time::Instant::now();
