@@ -4,6 +4,7 @@ mod backend;
 mod bench;
 mod check;
 mod info;
+mod mesh;
 mod multi;
 mod output;
 mod render;
@@ -36,6 +37,8 @@ enum Command {
     Validate(validate::ValidateArgs),
     /// Render the PLY frames of a run to PNG images, movie.gif and (with ffmpeg) movie.mp4.
     Render(render::RenderArgs),
+    /// Reconstruct a fluid surface mesh per PLY frame of a run (OBJ, PLY, VTU).
+    Mesh(mesh::MeshArgs),
     /// Benchmark: the classic MLS-MPM fluid block, particle-steps per second.
     Bench(bench::BenchArgs),
 }
@@ -54,6 +57,7 @@ fn main() -> ExitCode {
         Command::Check { scene } => check::check(&scene),
         Command::Bench(args) => bench::bench(args),
         Command::Render(args) => render::render_cmd(args),
+        Command::Mesh(args) => mesh::mesh_cmd(args),
         Command::Validate(args) => validate::validate(args),
     };
     match result {

@@ -14,6 +14,8 @@ use rtmpm_core::render::{
     Camera, ColorBy, GifMovie, RenderInput, RenderOptions, colormap, estimate_radius, render,
     von_mises,
 };
+use rtmpm_core::scene::SurfaceSettings;
+use rtmpm_core::surface::{SurfaceParams, TriMesh};
 use rtmpm_core::{Particles, Scene};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{SyncSender, sync_channel};
@@ -57,6 +59,10 @@ pub struct ViewArgs {
     /// Do not draw the scene's colliders (drawn grey by default).
     #[arg(long)]
     pub no_colliders: bool,
+    /// Draw fluids as particles, not as their reconstructed surface (the default when this
+    /// build has fluid surfaces and the scene has a surface material).
+    #[arg(long)]
+    pub particles: bool,
 }
 
 /// An image size.
@@ -177,6 +183,14 @@ fn resolve(
     Ok(opts)
 }
 
+/// The surface of a frame: none, ready, or to be reconstructed on the render thread from
+/// these positions.
+pub enum SurfaceJob {
+    None,
+    Ready(TriMesh, u32),
+    Build(Vec<Vec3>, SurfaceParams, u32),
+}
+
 /// The particles of one frame, owned (sent to the render thread).
 pub struct FrameJob {
     frame: u64,
@@ -184,6 +198,48 @@ pub struct FrameJob {
     positions: Vec<Vec3>,
     material: Vec<u32>,
     field: Option<Vec<f32>>,
+    surface: SurfaceJob,
+}
+
+impl FrameJob {
+    /// Take the particles of the surface materials out of the splats and arrange their
+    /// surface: `mesh` when given, else reconstructed on the render thread from them with
+    /// particles of mean volume `volume`.
+    fn with_surface(
+        mut self,
+        settings: &SurfaceSettings,
+        volume: f32,
+        mesh: Option<TriMesh>,
+    ) -> FrameJob {
+        let Some(&first) = settings.materials.first() else {
+            return self;
+        };
+        let keep: Vec<bool> = self
+            .material
+            .iter()
+            .map(|m| !settings.materials.contains(m))
+            .collect();
+        let pick = |v: &[Vec3]| -> Vec<Vec3> {
+            v.iter()
+                .zip(&keep)
+                .filter(|(_, k)| !**k)
+                .map(|(x, _)| *x)
+                .collect()
+        };
+        self.surface = match mesh {
+            Some(m) => SurfaceJob::Ready(m, first),
+            None => SurfaceJob::Build(pick(&self.positions), settings.params(volume), first),
+        };
+        let mut k = keep.iter();
+        self.positions.retain(|_| *k.next().unwrap_or(&true));
+        let mut k = keep.iter();
+        self.material.retain(|_| *k.next().unwrap_or(&true));
+        if let Some(f) = self.field.as_mut() {
+            let mut k = keep.iter();
+            f.retain(|_| *k.next().unwrap_or(&true));
+        }
+        self
+    }
 }
 
 impl FrameJob {
@@ -213,6 +269,7 @@ impl FrameJob {
             positions: p.x.clone(),
             material: p.material.clone(),
             field,
+            surface: SurfaceJob::None,
         }
     }
 
@@ -269,6 +326,7 @@ impl FrameJob {
             positions,
             material,
             field,
+            surface: SurfaceJob::None,
         })
     }
 }
@@ -319,12 +377,17 @@ impl Sink {
         // Moving colliders are posed at the frame's time.
         self.opts.time = job.time.unwrap_or(0.0) as f32;
         let t0 = Instant::now();
+        let surface = match job.surface {
+            SurfaceJob::None => None,
+            SurfaceJob::Ready(m, mat) => Some((m, mat)),
+            SurfaceJob::Build(xs, params, mat) => Some((build_surface(&xs, &params)?, mat)),
+        };
         let img = render(
             &RenderInput {
                 positions: &job.positions,
                 material: &job.material,
                 field: job.field.as_deref(),
-                surface: None,
+                surface: surface.as_ref().map(|(m, k)| (m, *k)),
             },
             &self.opts,
         )
@@ -408,6 +471,24 @@ fn ffmpeg_mp4(dir: &Path, first: u64, fps: f32) -> Result<Option<PathBuf>> {
     Ok(Some(out))
 }
 
+/// Reconstruct a surface for a picture.
+fn build_surface(xs: &[Vec3], params: &SurfaceParams) -> Result<TriMesh> {
+    #[cfg(feature = "surface")]
+    {
+        rtmpm_core::surface::reconstruct(xs, params).map_err(anyhow::Error::msg)
+    }
+    #[cfg(not(feature = "surface"))]
+    {
+        let _ = (xs, params);
+        bail!("this rtmpm was built without fluid surfaces (cargo feature `surface`)")
+    }
+}
+
+/// Whether pictures of `scene` show its fluids as surfaces.
+fn draws_surfaces(view: &ViewArgs, scene: &Scene) -> bool {
+    rtmpm_core::surface::AVAILABLE && !view.particles && !scene.output.surface.materials.is_empty()
+}
+
 /// Bounds (the box the particles live in) and ground height of a scene.
 fn scene_bounds(scene: &Scene) -> ((Vec3, Vec3), f32) {
     let (lo, hi) = scene.interior();
@@ -423,6 +504,8 @@ pub struct RunRenderer {
     handle: Option<JoinHandle<Result<String>>>,
     setup: Option<(ViewArgs, Option<PathBuf>, Option<PathBuf>, f32)>,
     color_by: ColorBy,
+    /// Mean initial volume of the surface particles, when fluids are drawn as surfaces.
+    surface_volume: Option<f32>,
 }
 
 impl RunRenderer {
@@ -449,13 +532,24 @@ impl RunRenderer {
                 scene.time.fps,
             )),
             color_by,
+            surface_volume: draws_surfaces(view, scene).then_some(0.0),
         })
     }
 
     /// Queue frame `frame` (blocks while two frames are waiting). The first call starts the
     /// thread, taking the particle radius from the particles' initial volumes.
-    pub fn submit(&mut self, frame: u64, time: f64, p: &Particles, scene: &Scene) -> Result<()> {
+    pub fn submit(
+        &mut self,
+        frame: u64,
+        time: f64,
+        p: &Particles,
+        scene: &Scene,
+        mesh: Option<TriMesh>,
+    ) -> Result<()> {
         if let Some((view, dir, preview, fps)) = self.setup.take() {
+            if self.surface_volume.is_some() {
+                self.surface_volume = Some(scene.output.surface.select(p).1);
+            }
             let mean_vol = p.vol0.iter().map(|&v| v as f64).sum::<f64>() / p.len().max(1) as f64;
             let radius = if mean_vol > 0.0 {
                 0.6 * (mean_vol as f32).cbrt()
@@ -479,7 +573,10 @@ impl RunRenderer {
                     .context("starting the render thread")?,
             );
         }
-        let job = FrameJob::from_particles(frame, time, p, scene, self.color_by);
+        let mut job = FrameJob::from_particles(frame, time, p, scene, self.color_by);
+        if let Some(vol) = self.surface_volume {
+            job = job.with_surface(&scene.output.surface, vol, mesh);
+        }
         let sent = self.tx.as_ref().is_some_and(|tx| tx.send(job).is_ok());
         if !sent {
             // The thread stopped: report its error.
@@ -529,7 +626,7 @@ pub struct RenderArgs {
 }
 
 /// Frame files `frame_NNNNN.ply` in `dir`, sorted by number.
-fn ply_frames(dir: &Path) -> Result<Vec<(u64, PathBuf)>> {
+pub fn ply_frames(dir: &Path) -> Result<Vec<(u64, PathBuf)>> {
     let entries =
         std::fs::read_dir(dir).with_context(|| format!("cannot read folder {}", dir.display()))?;
     let mut frames = Vec::new();
@@ -577,9 +674,19 @@ pub fn render_cmd(args: RenderArgs) -> Result<()> {
         .color_by
         .or(scene.as_ref().and_then(|s| s.render.color_by))
         .unwrap_or_default();
+    // Fluids as surfaces: the scene says which materials, its particles their volume.
+    let surface_volume = match &scene {
+        Some(sc) if draws_surfaces(&args.view, sc) => {
+            Some(sc.output.surface.select(&sc.sample_particles()?).1)
+        }
+        _ => None,
+    };
     let read = |num: u64, path: &Path| -> Result<FrameJob> {
         let d = read_ply(path).with_context(|| format!("reading {}", path.display()))?;
         let mut job = FrameJob::from_ply(num, &d, color_by, path)?;
+        if let (Some(vol), Some(sc)) = (surface_volume, &scene) {
+            job = job.with_surface(&sc.output.surface, vol, None);
+        }
         // Frame n of a run is at time n / fps.
         job.time = scene.as_ref().map(|s| num as f64 / s.time.fps as f64);
         Ok(job)

@@ -154,11 +154,12 @@ pub fn run(args: RunArgs) -> Result<()> {
     let mut host = Particles::default();
     if sim.frame == 0 && collect {
         sim.backend.read_particles(&mut host)?;
+        let mut mesh = None;
         if let Some(out) = output.as_mut() {
-            out.write_frame(0, 0.0, &host, &sim.scene)?;
+            mesh = out.write_frame(0, 0.0, &host, &sim.scene)?;
         }
         if let Some(r) = renderer.as_mut() {
-            r.submit(0, 0.0, &host, &sim.scene)?;
+            r.submit(0, 0.0, &host, &sim.scene, mesh)?;
         }
     }
 
@@ -198,11 +199,12 @@ pub fn run(args: RunArgs) -> Result<()> {
         if collect {
             sim.backend.read_particles(&mut host)?;
         }
+        let mut mesh = None;
         if let Some(out) = output.as_mut() {
-            out.write_frame(sim.frame, sim.time, &host, &sim.scene)?;
+            mesh = out.write_frame(sim.frame, sim.time, &host, &sim.scene)?;
         }
         if let Some(r) = renderer.as_mut() {
-            r.submit(sim.frame, sim.time, &host, &sim.scene)?;
+            r.submit(sim.frame, sim.time, &host, &sim.scene, mesh)?;
         }
         if args
             .checkpoint_every

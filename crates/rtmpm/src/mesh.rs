@@ -1,0 +1,192 @@
+//! `rtmpm mesh OUTDIR`: a fluid surface mesh per PLY frame of a finished run
+//! (`surface_NNNNN.obj/.ply/.vtu`, `surface.pvd`), and `rtmpm mesh --bench`.
+
+use crate::output::write_mesh;
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use rtmpm_core::Scene;
+use rtmpm_core::io::ply::read_ply;
+use rtmpm_core::io::vtu::PvdWriter;
+use rtmpm_core::math::Vec3;
+use rtmpm_core::render::estimate_radius;
+use rtmpm_core::scene::{MeshFormats, SurfaceSettings};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// `rtmpm mesh`.
+#[derive(Args)]
+pub struct MeshArgs {
+    /// Folder with the `frame_NNNNN.ply` files of a run; the meshes are written next to them.
+    pub outdir: Option<PathBuf>,
+    /// The run's scene: which materials form the surface (its fluids, or `[surface]
+    /// materials`), the particle volume, the `[surface]` settings and the frame times.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Material indices to mesh (default: the scene's surface materials; without a scene,
+    /// every particle).
+    #[arg(long, value_delimiter = ',', value_name = "I,J")]
+    pub materials: Option<Vec<u32>>,
+    /// Mesh files to write: any of obj, ply, vtu.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "obj,ply,vtu",
+        value_name = "LIST"
+    )]
+    pub formats: Vec<String>,
+    /// Write the .vtu meshes without zlib compression.
+    #[arg(long)]
+    pub no_compress: bool,
+    /// Time the reconstruction of one synthetic fluid frame of --bench-particles particles.
+    #[arg(long)]
+    pub bench: bool,
+    /// Particles of --bench.
+    #[arg(long, default_value_t = 1_000_000)]
+    pub bench_particles: usize,
+}
+
+fn formats(list: &[String]) -> Result<MeshFormats> {
+    let mut f = MeshFormats::default();
+    for s in list {
+        match s.trim() {
+            "obj" => f.obj = true,
+            "ply" => f.ply = true,
+            "vtu" => f.vtu = true,
+            other => bail!("unknown mesh format `{other}`: use obj, ply or vtu"),
+        }
+    }
+    if !f.any() {
+        bail!("no mesh format given: --formats obj,ply,vtu");
+    }
+    Ok(f)
+}
+
+pub fn mesh_cmd(args: MeshArgs) -> Result<()> {
+    if !rtmpm_core::surface::AVAILABLE {
+        bail!("this rtmpm was built without fluid surfaces (cargo feature `surface`)");
+    }
+    if args.bench {
+        return bench(args.bench_particles);
+    }
+    let Some(dir) = &args.outdir else {
+        bail!("no folder given: rtmpm mesh OUTDIR (or rtmpm mesh --bench)")
+    };
+    let formats = formats(&args.formats)?;
+    let frames = crate::render::ply_frames(dir)?;
+    if frames.is_empty() {
+        bail!(
+            "no frame_NNNNN.ply files in {} (run a scene with PLY output first)",
+            dir.display()
+        );
+    }
+    let scene = args.scene.as_deref().map(Scene::from_file).transpose()?;
+    let mut settings = scene
+        .as_ref()
+        .map(|s| s.output.surface.clone())
+        .unwrap_or_default();
+    if let Some(m) = &args.materials {
+        settings.materials = m.clone();
+    }
+    // Mean particle volume: from the scene's particles, else from the first frame's spacing.
+    let volume = match &scene {
+        Some(s) => Some(settings.select(&s.sample_particles()?).1),
+        None => None,
+    };
+    if scene.is_some() && settings.materials.is_empty() {
+        bail!(
+            "the scene has no fluid material: name the materials with --materials or [surface] materials"
+        );
+    }
+    let fps = scene.as_ref().map_or(30.0, |s| s.time.fps as f64);
+    let mut pvd = match formats.vtu {
+        true => Some(PvdWriter::new(dir.join("surface.pvd")).context("writing surface.pvd")?),
+        false => None,
+    };
+    let t0 = Instant::now();
+    let mut volume = volume;
+    for (num, path) in &frames {
+        let xs = selected(path, args.materials.is_some() || scene.is_some(), &settings)?;
+        let vol = *volume.get_or_insert_with(|| (estimate_radius(&xs) / 0.6).powi(3));
+        let mesh = rtmpm_core::surface::reconstruct(&xs, &settings.params(vol))
+            .map_err(anyhow::Error::msg)
+            .with_context(|| format!("meshing {}", path.display()))?;
+        write_mesh(dir, *num, &mesh, formats, !args.no_compress)?;
+        if let Some(p) = pvd.as_mut() {
+            p.add(*num as f64 / fps, &format!("surface_{num:05}.vtu"))
+                .context("writing surface.pvd")?;
+        }
+        eprintln!(
+            "{}: {} particles -> {} triangles",
+            path.display(),
+            xs.len(),
+            mesh.triangles.len()
+        );
+    }
+    println!(
+        "{} surfaces written to {} ({:.2} s per frame)",
+        frames.len(),
+        dir.display(),
+        t0.elapsed().as_secs_f64() / frames.len() as f64
+    );
+    Ok(())
+}
+
+/// Positions of the particles of the chosen materials in a PLY frame (all when `filter` is
+/// false).
+fn selected(path: &Path, filter: bool, s: &SurfaceSettings) -> Result<Vec<Vec3>> {
+    let d = read_ply(path).with_context(|| format!("reading {}", path.display()))?;
+    let col = |n: &str| {
+        d.f32(n)
+            .with_context(|| format!("{} has no float column `{n}`", path.display()))
+    };
+    let (x, y, z) = (col("x")?, col("y")?, col("z")?);
+    let mat = d.int("material");
+    if filter && mat.is_none() {
+        bail!(
+            "{} has no `material` column to choose the fluid by",
+            path.display()
+        );
+    }
+    Ok((0..d.count)
+        .filter(|&i| !filter || mat.is_some_and(|m| s.materials.contains(&(m[i] as u32))))
+        .map(|i| Vec3::new(x[i], y[i], z[i]))
+        .collect())
+}
+
+/// A dam-break fluid block of about `n` particles (8 per cell, jittered), meshed three times.
+fn bench(n: usize) -> Result<()> {
+    use rand::{Rng, SeedableRng};
+    let n = n.max(8);
+    // A block 2 x 1 x 1 of k x k/2 x k/2 sub-cells.
+    let k = ((4 * n) as f64).cbrt().round() as usize;
+    let h = 1.0 / k as f32;
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(1);
+    let mut xs = Vec::with_capacity(k * k * k / 4);
+    for i in 0..k {
+        for j in 0..k / 2 {
+            for l in 0..k / 2 {
+                let jitter = Vec3::new(rng.random(), rng.random(), rng.random()) - 0.5;
+                xs.push((Vec3::new(i as f32, j as f32, l as f32) + 0.5 + jitter) * h);
+            }
+        }
+    }
+    let params = SurfaceSettings::default().params(h * h * h);
+    let run = || -> Result<(usize, f64)> {
+        let t = Instant::now();
+        let m = rtmpm_core::surface::reconstruct(&xs, &params).map_err(anyhow::Error::msg)?;
+        Ok((m.triangles.len(), t.elapsed().as_secs_f64()))
+    };
+    run()?;
+    let times: Vec<(usize, f64)> = (0..3).map(|_| run()).collect::<Result<_>>()?;
+    let best = times.iter().map(|t| t.1).fold(f64::INFINITY, f64::min);
+    let mean = times.iter().map(|t| t.1).sum::<f64>() / 3.0;
+    println!(
+        "mesh bench: {} particles, {} triangles, {} threads: {:.3} s per frame (best of 3), mean {:.3} s",
+        xs.len(),
+        times[0].0,
+        std::thread::available_parallelism().map_or(1, |n| n.get()),
+        best,
+        mean
+    );
+    Ok(())
+}
