@@ -13,6 +13,8 @@
 pub mod atomic;
 pub mod bgeo;
 pub mod checkpoint;
+#[cfg(all(test, feature = "interop"))]
+mod interop_tests;
 pub mod ply;
 pub mod points;
 pub mod trimesh;
