@@ -184,7 +184,7 @@ fn bench(n: usize) -> Result<()> {
         "mesh bench: {} particles, {} triangles, {} threads: {:.3} s per frame (best of 3), mean {:.3} s",
         xs.len(),
         times[0].0,
-        std::thread::available_parallelism().map_or(1, |n| n.get()),
+        rayon::current_num_threads(),
         best,
         mean
     );
