@@ -107,8 +107,7 @@ pub fn mesh_cmd(args: MeshArgs) -> Result<()> {
     for (num, path) in &frames {
         let xs = selected(path, args.materials.is_some() || scene.is_some(), &settings)?;
         let vol = *volume.get_or_insert_with(|| (estimate_radius(&xs) / 0.6).powi(3));
-        let mesh = rtmpm_core::surface::reconstruct(&xs, &settings.params(vol))
-            .map_err(anyhow::Error::msg)
+        let mesh = crate::output::reconstruct_points(&xs, &settings.params(vol))
             .with_context(|| format!("meshing {}", path.display()))?;
         write_mesh(dir, *num, &mesh, formats, !args.no_compress)?;
         if let Some(p) = pvd.as_mut() {
@@ -173,7 +172,7 @@ fn bench(n: usize) -> Result<()> {
     let params = SurfaceSettings::default().params(h * h * h);
     let run = || -> Result<(usize, f64)> {
         let t = Instant::now();
-        let m = rtmpm_core::surface::reconstruct(&xs, &params).map_err(anyhow::Error::msg)?;
+        let m = crate::output::reconstruct_points(&xs, &params)?;
         Ok((m.triangles.len(), t.elapsed().as_secs_f64()))
     };
     run()?;

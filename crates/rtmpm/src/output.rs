@@ -3,8 +3,9 @@
 use anyhow::{Context, Result, bail};
 use rtmpm_core::io::vtu::PvdWriter;
 use rtmpm_core::io::{FrameFields, bgeo, ply, trimesh, vtk_appended};
+use rtmpm_core::math::Vec3;
 use rtmpm_core::scene::{MeshFormats, SurfaceSettings};
-use rtmpm_core::surface::TriMesh;
+use rtmpm_core::surface::{SurfaceParams, TriMesh};
 use rtmpm_core::{Particles, Scene};
 use std::path::{Path, PathBuf};
 
@@ -79,17 +80,22 @@ impl SurfaceOutput {
 
 /// The surface of the particles of `settings.materials` (empty when there are none).
 pub fn reconstruct(p: &Particles, settings: &SurfaceSettings) -> Result<TriMesh> {
+    let (xs, vol) = settings.select(p);
+    if xs.is_empty() {
+        return Ok(TriMesh::default());
+    }
+    reconstruct_points(&xs, &settings.params(vol))
+}
+
+/// The surface around `xs` (an error when this build has no surfaces).
+pub fn reconstruct_points(xs: &[Vec3], params: &SurfaceParams) -> Result<TriMesh> {
     #[cfg(feature = "surface")]
     {
-        let (xs, vol) = settings.select(p);
-        if xs.is_empty() {
-            return Ok(TriMesh::default());
-        }
-        rtmpm_core::surface::reconstruct(&xs, &settings.params(vol)).map_err(anyhow::Error::msg)
+        rtmpm_core::surface::reconstruct(xs, params).map_err(anyhow::Error::msg)
     }
     #[cfg(not(feature = "surface"))]
     {
-        let _ = (p, settings);
+        let _ = (xs, params);
         bail!("this rtmpm was built without fluid surfaces (cargo feature `surface`)")
     }
 }

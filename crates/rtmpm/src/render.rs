@@ -380,7 +380,9 @@ impl Sink {
         let surface = match job.surface {
             SurfaceJob::None => None,
             SurfaceJob::Ready(m, mat) => Some((m, mat)),
-            SurfaceJob::Build(xs, params, mat) => Some((build_surface(&xs, &params)?, mat)),
+            SurfaceJob::Build(xs, params, mat) => {
+                Some((crate::output::reconstruct_points(&xs, &params)?, mat))
+            }
         };
         let img = render(
             &RenderInput {
@@ -469,19 +471,6 @@ fn ffmpeg_mp4(dir: &Path, first: u64, fps: f32) -> Result<Option<PathBuf>> {
     }
     std::fs::rename(&tmp, &out).with_context(|| format!("renaming to {}", out.display()))?;
     Ok(Some(out))
-}
-
-/// Reconstruct a surface for a picture.
-fn build_surface(xs: &[Vec3], params: &SurfaceParams) -> Result<TriMesh> {
-    #[cfg(feature = "surface")]
-    {
-        rtmpm_core::surface::reconstruct(xs, params).map_err(anyhow::Error::msg)
-    }
-    #[cfg(not(feature = "surface"))]
-    {
-        let _ = (xs, params);
-        bail!("this rtmpm was built without fluid surfaces (cargo feature `surface`)")
-    }
 }
 
 /// Whether pictures of `scene` show its fluids as surfaces.

@@ -152,12 +152,15 @@ pub fn symmetric_to_full(s: [f32; 6]) -> [f32; 9] {
     [xx, xy, xz, xy, yy, yz, xz, yz, zz]
 }
 
-/// One attribute to write: name, type, components, and a function giving point `i`'s values.
+/// Appends point `i`'s big-endian values of one attribute to a buffer.
+type PutFn<'a> = Box<dyn Fn(usize, &mut Vec<u8>) + 'a>;
+
+/// One attribute to write: name, type, components, and its values.
 struct OutAttr<'a> {
     name: &'static str,
     ty: BgeoType,
     size: usize,
-    put: Box<dyn Fn(usize, &mut Vec<u8>) + 'a>,
+    put: PutFn<'a>,
 }
 
 /// Write `particles` (and the optional `fields`) as a classic BGEO file at `path`, atomically,
