@@ -13,8 +13,12 @@ scenes/splash_small.toml). Checks, for every frame:
   * surface_N.obj, surface_N.ply (Blender's importers read these two), surface_N.vtu: meshio
     reads a triangle mesh with the same vertices in all three, normals of unit length, and
     surface.pvd lists the .vtu files.
+  * frame_N.usda and surface_N.usda (when present): read by Pixar's USD library (usd-core):
+    points, velocities, ids, material, J and the stress tensor equal the PLY's; the surface
+    Mesh has the .vtu's vertices and triangles.
 The BGEO values themselves are compared with an independent reader in the Rust interop test
-(splashsurf_lib). Exits non-zero with a message on the first failure. Requires meshio, numpy.
+(splashsurf_lib). Exits non-zero with a message on the first failure. Requires meshio, numpy, and usd-core for
+the .usda files.
 """
 
 import glob
@@ -28,6 +32,70 @@ import xml.etree.ElementTree as ET
 def fail(msg):
     print(f"check_formats: FAIL: {msg}", file=sys.stderr)
     sys.exit(1)
+
+
+def usd_stage(path):
+    try:
+        from pxr import Usd
+    except ImportError:
+        fail("usd-core is not installed (pip install usd-core)")
+    stage = Usd.Stage.Open(path)
+    if stage is None:
+        fail(f"{path}: USD cannot open it")
+    return stage
+
+
+def check_usd_points(path, ply, np):
+    from pxr import UsdGeom
+
+    stage = usd_stage(path)
+    if UsdGeom.GetStageUpAxis(stage) != "Y":
+        fail(f"{path}: up axis is not Y")
+    pts = UsdGeom.Points(stage.GetPrimAtPath("/particles"))
+    if not pts:
+        fail(f"{path}: no Points prim /particles")
+    n = len(ply.points)
+    p = np.array(pts.GetPointsAttr().Get(), dtype=np.float32)
+    if not np.array_equal(p, ply.points.astype(np.float32)):
+        fail(f"{path}: points differ from the PLY")
+    v = np.array(pts.GetVelocitiesAttr().Get(), dtype=np.float32)
+    pv = np.stack([ply.point_data[c] for c in ("vx", "vy", "vz")], axis=1)
+    if not np.array_equal(v, pv):
+        fail(f"{path}: velocities differ from the PLY")
+    if list(pts.GetIdsAttr().Get()) != list(range(n)):
+        fail(f"{path}: ids are not 0..N-1")
+    pv_api = UsdGeom.PrimvarsAPI(pts)
+    mat = np.array(pv_api.GetPrimvar("material").Get())
+    if not np.array_equal(mat, ply.point_data["material"]):
+        fail(f"{path}: material differs")
+    if pv_api.GetPrimvar("material").GetInterpolation() != "vertex":
+        fail(f"{path}: material is not a vertex primvar")
+    if not np.array_equal(np.array(pv_api.GetPrimvar("J").Get(), dtype=np.float32), ply.point_data["J"]):
+        fail(f"{path}: J differs")
+    st = np.array(pv_api.GetPrimvar("stress").Get())
+    if st.shape != (n, 3, 3):
+        fail(f"{path}: stress has shape {st.shape}")
+    for (i, j), c in zip(((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2)), ("sxx", "syy", "szz", "sxy", "syz", "sxz")):
+        if not np.array_equal(st[:, i, j].astype(np.float32), ply.point_data[c]) or not np.array_equal(st[:, j, i].astype(np.float32), ply.point_data[c]):
+            fail(f"{path}: stress[{i}][{j}] differs from the PLY's {c}")
+
+
+def check_usd_mesh(path, ref, triangles, np):
+    from pxr import UsdGeom
+
+    stage = usd_stage(path)
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/surface"))
+    if not mesh:
+        fail(f"{path}: no Mesh prim /surface")
+    p = np.array(mesh.GetPointsAttr().Get(), dtype=np.float32)
+    if not np.array_equal(p, ref.points.astype(np.float32)):
+        fail(f"{path}: vertices differ from the .vtu's")
+    counts = np.array(mesh.GetFaceVertexCountsAttr().Get())
+    idx = np.array(mesh.GetFaceVertexIndicesAttr().Get())
+    if not (counts == 3).all() or not np.array_equal(idx.reshape(-1, 3), triangles):
+        fail(f"{path}: faces differ from the .vtu's triangles")
+    if len(mesh.GetNormalsAttr().Get()) != len(p):
+        fail(f"{path}: not one normal per vertex")
 
 
 def main():
@@ -75,7 +143,9 @@ def main():
             fail(f"{stem}.bgeo.gz is not the gzip of {stem}.bgeo")
         if raw[:5] != b"BgeoV" or struct.unpack(">ii", raw[5:13]) != (5, n):
             fail(f"{stem}.bgeo: header is not classic V5 with {n} points")
-        print(f"ok {stem}: {n} particles in PLY, VTU (compressed, 9-component stress), BGEO, BGEO.gz")
+        if os.path.exists(stem + ".usda"):
+            check_usd_points(stem + ".usda", ply, np)
+        print(f"ok {stem}: {n} particles in PLY, VTU (compressed, 9-component stress), BGEO, BGEO.gz, USD")
 
     surfaces = sorted(glob.glob(os.path.join(out, "surface_*.vtu")))
     if len(surfaces) != len(frames):
@@ -94,10 +164,13 @@ def main():
                 fail(f"{stem}{ext}: triangles differ from the .vtu's")
             if not np.allclose(m.points, ref.points, rtol=0, atol=1e-6):
                 fail(f"{stem}{ext}: vertices differ from the .vtu's")
+        if os.path.exists(stem + ".usda"):
+            check_usd_mesh(stem + ".usda", ref, tri[0].data, np)
         normals = ref.point_data["Normals"]
         if not np.allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-4):
             fail(f"{stem}.vtu: normals are not unit vectors")
-        print(f"ok {stem}: {len(ref.points)} vertices, {ntri} triangles in OBJ, PLY, VTU")
+        usd = ", USD" if os.path.exists(stem + ".usda") else ""
+        print(f"ok {stem}: {len(ref.points)} vertices, {ntri} triangles in OBJ, PLY, VTU{usd}")
     root = ET.parse(os.path.join(out, "surface.pvd")).getroot()
     listed = [d.get("file") for d in root.findall("./Collection/DataSet")]
     if listed != [os.path.basename(p) for p in surfaces]:

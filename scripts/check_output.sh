@@ -12,14 +12,24 @@ if ! python3 -c "import meshio" 2>/dev/null; then
   export PYTHONPATH="$PWD/$venv${PYTHONPATH:+:$PYTHONPATH}"
 fi
 python3 scripts/check_vtu.py "$out/frames.pvd"
+if ! python3 -c "import pxr" 2>/dev/null; then
+  python3 -m pip install --quiet --disable-pip-version-check --target "$venv" usd-core
+  export PYTHONPATH="$PWD/$venv${PYTHONPATH:+:$PYTHONPATH}"
+fi
 
-# Every format (issue 15): a fluid scene writing PLY, compressed VTU, BGEO, BGEO.gz and surface
-# meshes (OBJ, PLY, VTU), read back by meshio and Python's gzip, and its BGEO files by
+# Every format (issue 15): a fluid scene writing PLY, compressed VTU, BGEO, BGEO.gz, USD and surface
+# meshes (OBJ, PLY, VTU, USD), read back by meshio, Python's gzip and usd-core, and its BGEO files by
 # splashsurf_lib's reader (an independent implementation) in the Rust interop test.
 fmt_out=target/ci-out-formats
 rm -rf "$fmt_out"
 cargo run --quiet -p rtmpm -- run scenes/splash_small.toml --backend cpu --frames 2 --out "$fmt_out"
 python3 scripts/check_formats.py "$fmt_out"
+# `rtmpm mesh` on the run's PLY frames rebuilds the very surfaces the run wrote.
+mesh_out=target/ci-out-mesh
+rm -rf "$mesh_out" && mkdir -p "$mesh_out" && cp "$fmt_out"/frame_*.ply "$mesh_out"/
+cargo run --quiet -p rtmpm -- mesh "$mesh_out" --scene scenes/splash_small.toml --formats obj
+for f in "$fmt_out"/surface_*.obj; do cmp "$f" "$mesh_out/$(basename "$f")"; done
+echo "ok rtmpm mesh: the same surfaces as the run's"
 RTMPM_INTEROP_DIR="$PWD/$fmt_out" cargo test --quiet -p rtmpm-core --features interop --lib io::interop_tests -- --nocapture
 
 # The validation suite at its quick resolutions (issue 4): a failing case fails CI.

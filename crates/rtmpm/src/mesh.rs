@@ -1,5 +1,5 @@
 //! `rtmpm mesh OUTDIR`: a fluid surface mesh per PLY frame of a finished run
-//! (`surface_NNNNN.obj/.ply/.vtu`, `surface.pvd`), and `rtmpm mesh --bench`.
+//! (`surface_NNNNN.obj/.ply/.vtu/.usda`, `surface.pvd`), and `rtmpm mesh --bench`.
 
 use crate::output::write_mesh;
 use anyhow::{Context, Result, bail};
@@ -26,7 +26,7 @@ pub struct MeshArgs {
     /// every particle).
     #[arg(long, value_delimiter = ',', value_name = "I,J")]
     pub materials: Option<Vec<u32>>,
-    /// Mesh files to write: any of obj, ply, vtu.
+    /// Mesh files to write: any of obj, ply, vtu, usda.
     #[arg(
         long,
         value_delimiter = ',',
@@ -52,7 +52,8 @@ fn formats(list: &[String]) -> Result<MeshFormats> {
             "obj" => f.obj = true,
             "ply" => f.ply = true,
             "vtu" => f.vtu = true,
-            other => bail!("unknown mesh format `{other}`: use obj, ply or vtu"),
+            "usda" => f.usda = true,
+            other => bail!("unknown mesh format `{other}`: use obj, ply, vtu or usda"),
         }
     }
     if !f.any() {

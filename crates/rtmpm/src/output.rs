@@ -1,8 +1,8 @@
-//! Per-frame output: PLY, VTK XML (.vtu + .pvd series), BGEO, and fluid surface meshes.
+//! Per-frame output: PLY, VTK XML (.vtu + .pvd series), BGEO, USD, and fluid surface meshes.
 
 use anyhow::{Context, Result, bail};
 use rtmpm_core::io::vtu::PvdWriter;
-use rtmpm_core::io::{FrameFields, bgeo, ply, trimesh, vtk_appended};
+use rtmpm_core::io::{FrameFields, bgeo, ply, trimesh, usd, vtk_appended};
 use rtmpm_core::math::Vec3;
 use rtmpm_core::scene::{MeshFormats, SurfaceSettings};
 use rtmpm_core::surface::{SurfaceParams, TriMesh};
@@ -117,6 +117,10 @@ pub fn write_mesh(
         let p = path("ply");
         trimesh::write_mesh_ply(&p, mesh).with_context(|| format!("writing {}", p.display()))?;
     }
+    if formats.usda {
+        let p = path("usda");
+        usd::write_usda_mesh(&p, mesh).with_context(|| format!("writing {}", p.display()))?;
+    }
     if formats.vtu {
         let p = path("vtu");
         trimesh::write_mesh_vtu(&p, mesh, compress)
@@ -199,6 +203,11 @@ impl FrameOutput {
                 bgeo::write_bgeo(&path, p, &fields, gz)
                     .with_context(|| format!("writing {}", path.display()))?;
             }
+        }
+        if o.usda {
+            let path = path("usda");
+            usd::write_usda_points(&path, p, &fields)
+                .with_context(|| format!("writing {}", path.display()))?;
         }
         if let Some(pvd) = self.pvd.as_mut() {
             let name = format!("frame_{frame:05}.vtu");

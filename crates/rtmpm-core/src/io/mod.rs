@@ -8,6 +8,7 @@
 //!   tensors), also for surface meshes.
 //! * [`trimesh`]: surface meshes as OBJ, PLY and VTU.
 //! * [`points`]: particles in: the points of a PLY, VTU or BGEO file for a body.
+//! * [`usd`]: USD text files (`.usda`): particles as `Points`, surfaces as `Mesh`.
 //! * [`checkpoint`]: bit-exact binary checkpoints with a checksum.
 
 pub mod atomic;
@@ -18,6 +19,7 @@ mod interop_tests;
 pub mod ply;
 pub mod points;
 pub mod trimesh;
+pub mod usd;
 pub mod vtk_appended;
 pub mod vtu;
 

@@ -99,6 +99,8 @@ pub struct OutputSettings {
     pub bgeo: bool,
     /// The same, gzip-compressed (`.bgeo.gz`).
     pub bgeo_gz: bool,
+    /// USD text (`.usda`) per frame.
+    pub usda: bool,
     /// Also write the Cauchy stress per particle.
     pub stress: bool,
     /// Also write the volume ratio J per particle.
@@ -117,12 +119,13 @@ pub struct MeshFormats {
     pub obj: bool,
     pub ply: bool,
     pub vtu: bool,
+    pub usda: bool,
 }
 
 impl MeshFormats {
     /// True when any format is on.
     pub fn any(&self) -> bool {
-        self.obj || self.ply || self.vtu
+        self.obj || self.ply || self.vtu || self.usda
     }
 }
 

@@ -322,6 +322,7 @@ pub enum RawFormat {
     Bgeo,
     #[serde(rename = "bgeo.gz")]
     BgeoGz,
+    Usda,
 }
 
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
@@ -330,6 +331,7 @@ pub enum RawMeshFormat {
     Obj,
     Ply,
     Vtu,
+    Usda,
 }
 
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]

@@ -51,7 +51,8 @@ fn output_formats_and_surface_defaults() {
         MeshFormats {
             obj: true,
             ply: false,
-            vtu: true
+            vtu: true,
+            usda: false
         }
     );
     // Fluids form the surface by default.

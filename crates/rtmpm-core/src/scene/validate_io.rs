@@ -33,6 +33,7 @@ impl V<'_> {
             obj: mesh.contains(&RawMeshFormat::Obj),
             ply: mesh.contains(&RawMeshFormat::Ply),
             vtu: mesh.contains(&RawMeshFormat::Vtu),
+            usda: mesh.contains(&RawMeshFormat::Usda),
         };
         let surface = self.surface(surface, materials)?;
         if surface_formats.any() && surface.materials.is_empty() {
@@ -48,6 +49,7 @@ impl V<'_> {
             vtu: formats.contains(&RawFormat::Vtu),
             bgeo: formats.contains(&RawFormat::Bgeo),
             bgeo_gz: formats.contains(&RawFormat::BgeoGz),
+            usda: formats.contains(&RawFormat::Usda),
             stress: fields.contains(&RawField::Stress),
             jacobian: fields.contains(&RawField::J),
             compress: out.and_then(|o| o.compress).unwrap_or(true),
