@@ -1,0 +1,104 @@
+//! End-to-end tests of issue 15 on the command line: BGEO frames, a run seeded from another
+//! run's frame, and clear errors for bad particle files and empty folders.
+
+mod common;
+
+use common::{data, rtmpm, scratch, text};
+
+/// The PLY columns x, y, z of a frame (binary little endian, rtmpm's layout: 8 floats/ints
+/// first, then optional fields), as raw f32 triples.
+fn ply_positions(path: &std::path::Path) -> Vec<[f32; 3]> {
+    let b = std::fs::read(path).unwrap();
+    let end = b.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
+    let head = String::from_utf8_lossy(&b[..end]).into_owned();
+    let n: usize = head
+        .lines()
+        .find_map(|l| l.strip_prefix("element vertex "))
+        .unwrap()
+        .parse()
+        .unwrap();
+    let props = head.lines().filter(|l| l.starts_with("property")).count();
+    let f = |o: usize| f32::from_le_bytes(b[o..o + 4].try_into().unwrap());
+    (0..n)
+        .map(|i| {
+            let o = end + i * props * 4;
+            [f(o), f(o + 4), f(o + 8)]
+        })
+        .collect()
+}
+
+#[test]
+fn a_runs_bgeo_frame_seeds_a_new_run() {
+    let dir = scratch("dcc-seed");
+    let first = dir.join("first");
+    let scene = std::fs::read_to_string(data("small_drop.toml"))
+        .unwrap()
+        .replace(
+            "formats = [\"ply\", \"vtu\"]",
+            "formats = [\"ply\", \"bgeo.gz\"]",
+        );
+    let scene_path = dir.join("first.toml");
+    std::fs::write(&scene_path, scene).unwrap();
+    let o = rtmpm(&[
+        "run",
+        scene_path.to_str().unwrap(),
+        "--backend",
+        "cpu",
+        "--frames",
+        "2",
+        "--out",
+        first.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(first.join("frame_00002.bgeo.gz").exists());
+
+    // A second scene: one body of water made of the first run's last frame.
+    let second = format!(
+        "name = \"seeded\"\n[domain]\nmin = [0.0, 0.0, 0.0]\nmax = [0.5, 0.5, 0.5]\ndx = 0.03125\n[time]\nduration = 0.05\nfps = 40\n[[material]]\nname = \"water\"\ntype = \"fluid\"\ndensity = 1000.0\nbulk_modulus = 2.0e4\n[[body]]\nmaterial = \"water\"\nshape = \"particles\"\nfile = \"first/frame_00002.bgeo.gz\"\n[output]\nformats = [\"ply\"]\n"
+    );
+    let second_path = dir.join("second.toml");
+    std::fs::write(&second_path, second).unwrap();
+    let out2 = dir.join("second");
+    let o = rtmpm(&[
+        "run",
+        second_path.to_str().unwrap(),
+        "--backend",
+        "cpu",
+        "--frames",
+        "1",
+        "--out",
+        out2.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    // Frame 0 of the new run is exactly the first run's frame 2.
+    let a = ply_positions(&first.join("frame_00002.ply"));
+    let b = ply_positions(&out2.join("frame_00000.ply"));
+    assert!(!a.is_empty());
+    assert_eq!(a, b);
+
+    // `rtmpm check` reports a damaged particle file by name, with a non-zero exit.
+    let bytes = std::fs::read(first.join("frame_00002.bgeo.gz")).unwrap();
+    std::fs::write(first.join("frame_00002.bgeo.gz"), &bytes[..bytes.len() / 3]).unwrap();
+    let o = rtmpm(&["check", second_path.to_str().unwrap()]);
+    assert!(!o.status.success());
+    let t = text(&o);
+    assert!(
+        t.contains("frame_00002.bgeo.gz") && t.contains("body[0].file"),
+        "{t}"
+    );
+    assert!(!t.contains("panicked"), "{t}");
+}
+
+#[test]
+fn mesh_needs_frames() {
+    let dir = scratch("dcc-mesh-empty");
+    let o = rtmpm(&["mesh", dir.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("no frame_NNNNN.ply"), "{}", text(&o));
+    let o = rtmpm(&["mesh", dir.to_str().unwrap(), "--formats", "stl"]);
+    assert!(
+        text(&o).contains("unknown mesh format `stl`"),
+        "{}",
+        text(&o)
+    );
+}
