@@ -2,7 +2,7 @@
 //! usable CUDA device is present.
 
 use rtmpm_core::boundary::Walls;
-use rtmpm_core::material::{Eos, FixedCorotated, Fluid, Material, Model};
+use rtmpm_core::material::Material;
 use rtmpm_core::math::{IVec3, Mat3, Vec3};
 use rtmpm_core::scene::{OutputSettings, StepMode, TimeSettings};
 use rtmpm_core::sim::{Backend, SimError};
@@ -37,15 +37,9 @@ fn scene(dx: f32) -> Scene {
             step: StepMode::Fixed { dt: 1e-4 },
             damping: Default::default(),
         },
-        materials: vec![Material {
-            name: "water".into(),
-            density: 1000.0,
-            model: Model::Fluid(Fluid {
-                bulk_modulus: 1e4,
-                eos: Eos::Linear,
-                viscosity: 0.0,
-            }),
-        }],
+        materials: vec![
+            Material::parse("water", 1000.0, "fluid", "bulk_modulus = 1e4").expect("water"),
+        ],
         bodies: vec![],
         colliders: vec![],
         walls: Walls::default(),
@@ -322,14 +316,10 @@ fn capacity_overflow_is_an_error() {
 /// deformation gradients (so that the stress term is non-zero), with one P2G strategy.
 fn p2g_grid(mode: P2gMode) -> Result<HashMap<IVec3, [f64; 4]>, SimError> {
     let mut s = scene(1.0 / 32.0);
-    s.materials.push(Material {
-        name: "jelly".into(),
-        density: 1000.0,
-        model: Model::FixedCorotated(FixedCorotated {
-            mu: 4e4,
-            lambda: 6e4,
-        }),
-    });
+    s.materials.push(
+        Material::parse("jelly", 1000.0, "fixed_corotated", "mu = 4e4\nlambda = 6e4")
+            .expect("jelly"),
+    );
     let mut p = block(&s, Vec3::new(0.2, 0.25, 0.3), Vec3::new(0.55, 0.5, 0.6));
     for i in 0..p.len() {
         let a = i as f32;

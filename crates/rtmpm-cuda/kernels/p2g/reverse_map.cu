@@ -13,7 +13,7 @@
 //
 // Layout: counts[r * node_cap + node]; entries[(r * slots + s) * node_cap + node]: for a fixed
 // (replica, slot) the entries of consecutive nodes are consecutive (coalesced gather reads).
-#include "p2g_particle.cuh"
+#include "particle.cuh"
 
 // Passed by value with the Ctx (src/p2g_reverse_map.rs mirrors it).
 struct RmapCtx {

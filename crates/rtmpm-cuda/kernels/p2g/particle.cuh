@@ -6,8 +6,8 @@
 //   m_i += w_ip m_p,   (m v)_i += w_ip (m_p v_p + A_p (x_i - x_p)),
 //   A_p = -dt V0 (4 / dx^2) tau_p + m_p C_p   (tau: Kirchhoff stress of the material).
 #pragma once
-#include "common.cuh"
-#include "material_dispatch.cuh"
+#include "../common.cuh"
+#include "../material/dispatch.cuh"
 
 struct P2gParticle {
     int base[3];   // stencil base node (grid coordinates)
@@ -44,11 +44,12 @@ __device__ __forceinline__ P2gParticle p2g_particle_of(const Ctx& c, vec3 x, rea
     stencil_of(c, x, q.base, fx);
     for (int a = 0; a < 3; ++a) weights_1d(fx[a], q.w[a]);
     q.m = m;
-    GpuMaterial mat = material_at(c, material);
-    mat3 tau = ALL_FLUID ? fluid_kirchhoff(mat.fluid, F, C) : material_kirchhoff(mat, F, plastic, C);
+    const MaterialGpu& mat = material_at(c, material);
+    mat3 tau = ALL_FLUID ? fluid_kirchhoff(fluid_params(mat), F, plastic, C) : material_kirchhoff(mat, F, plastic, C);
     real dt = step_params(c).dt;
-    mat3 affine = tau * (-dt * vol0 * (real)4 * c.inv_dx * c.inv_dx) + C * m;
-    for (int a = 0; a < 3; ++a) q.a[a] = make_v3(affine.m[3 * a], affine.m[3 * a + 1], affine.m[3 * a + 2]) * c.dx;
+    const Scalars& sc = scalars(c);
+    mat3 affine = tau * (-dt * vol0 * (real)4 * sc.inv_dx * sc.inv_dx) + C * m;
+    for (int a = 0; a < 3; ++a) q.a[a] = make_v3(affine.m[3 * a], affine.m[3 * a + 1], affine.m[3 * a + 2]) * sc.dx;
     q.q0 = v * m - (q.a[0] * fx[0] + q.a[1] * fx[1] + q.a[2] * fx[2]);
     return q;
 }

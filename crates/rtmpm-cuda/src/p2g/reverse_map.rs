@@ -1,13 +1,11 @@
-//! Host side of `kernels/p2g_reverse_map.cu`: P2G as a gather through replicated node-to-particle
-//! reverse maps (seed 001; the paper uses nine replicas). Every buffer is allocated here, once: a
+//! Host side of `kernels/p2g/reverse_map.cu`: P2G as a gather through replicated node-to-particle
+//! reverse maps (Chiang et al., "GPU Acceleration of the Generalized Interpolation Material Point
+//! Method", SAAHPC 2009; the paper uses nine replicas). Every buffer is allocated here, once: a
 //! step allocates nothing and never waits for the host, so it can be captured in a CUDA graph.
 
-use crate::backend::{Kernels, cfg_wave};
-use crate::layout::Ctx;
-use cudarc::driver::{
-    CudaFunction, CudaModule, CudaSlice, CudaStream, DevicePtr, DeviceRepr, DriverError,
-    PushKernelArg,
-};
+use crate::contract::{Ctx, RmapCtx};
+use crate::kernels::{Kernel, Kernels};
+use cudarc::driver::{CudaSlice, CudaStream, DevicePtr, DriverError, PushKernelArg};
 use rtmpm_core::math::IVec3;
 use rtmpm_core::sim::SimError;
 use std::collections::HashMap;
@@ -17,26 +15,10 @@ use std::sync::Arc;
 pub const DEFAULT_REPLICAS: usize = 9;
 
 /// Bytes of the entry array of the gather strategies: 27 (particle, node) values of 4 reals per
-/// particle (`kernels/p2g_particle.cuh`).
+/// particle (`kernels/p2g/particle.cuh`).
 pub(crate) fn entry_bytes(cap: usize, real_bytes: usize) -> usize {
     27 * cap * 4 * real_bytes
 }
-
-/// Mirror of `RmapCtx` in `kernels/p2g_reverse_map.cu`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default)]
-pub(crate) struct RmapCtx {
-    contrib: u64,
-    counts: u64,
-    entries: u64,
-    node_cap: u32,
-    replicas: u32,
-    slots: u32,
-    pad: u32,
-}
-
-// SAFETY: plain old data with the C layout of the kernel struct.
-unsafe impl DeviceRepr for RmapCtx {}
 
 /// Sizes of the reverse map.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -119,9 +101,7 @@ impl ReverseMapSize {
 }
 
 /// The reverse-map P2G of one backend: its kernels and buffers.
-pub(crate) struct ReverseMap {
-    build: CudaFunction,
-    gather: CudaFunction,
+pub struct ReverseMap {
     ctx: RmapCtx,
     /// Sizes.
     pub size: ReverseMapSize,
@@ -134,19 +114,13 @@ impl ReverseMap {
     /// Timed phases.
     pub const PHASES: &'static [&'static str] = &["build", "gather"];
 
-    /// Allocate the maps and load the kernels.
+    /// Allocate the maps.
     pub(crate) fn new(
-        module: &Arc<CudaModule>,
         stream: &Arc<CudaStream>,
         c: &Ctx,
         real_bytes: usize,
         size: ReverseMapSize,
     ) -> Result<ReverseMap, SimError> {
-        let f = |name: &str| {
-            module
-                .load_function(name)
-                .map_err(|e| SimError::Backend(format!("CUDA: kernel {name}: {e:?}")))
-        };
         let nodes = size.pblocks * 64;
         if (c.n as u64) * 27 > u32::MAX as u64
             || (nodes as u64) * (size.replicas * size.slots) as u64 > u32::MAX as u64
@@ -176,8 +150,6 @@ impl ReverseMap {
             bufs.push(b);
         }
         Ok(ReverseMap {
-            build: f("p2g_rmap_build")?,
-            gather: f("p2g_rmap_gather")?,
             ctx: RmapCtx {
                 contrib: ptrs[0],
                 counts: ptrs[1],
@@ -204,15 +176,15 @@ impl ReverseMap {
         // SAFETY: the kernels bounds-check against the device counters and the capacities.
         unsafe {
             if i == 0 {
-                s.launch_builder(&self.build)
+                s.launch_builder(&k[Kernel::P2gRmapBuild])
                     .arg(c)
                     .arg(&self.ctx)
-                    .launch(cfg_wave(c.warp_cap as usize * 32, 128, k.wave_threads))?;
+                    .launch(k.wave(c.warp_cap as usize * 32, 128))?;
             } else {
-                s.launch_builder(&self.gather)
+                s.launch_builder(&k[Kernel::P2gRmapGather])
                     .arg(c)
                     .arg(&self.ctx)
-                    .launch(cfg_wave(self.ctx.node_cap as usize, 256, k.wave_threads))?;
+                    .launch(k.wave(self.ctx.node_cap as usize, 256))?;
             }
         }
         Ok(())

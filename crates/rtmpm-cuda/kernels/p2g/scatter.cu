@@ -6,7 +6,7 @@
 // The per-particle quantities (stencil, weights, stress, affine momentum) come from p2g_particle.cuh,
 // shared with the gather strategies (p2g_reverse_map.cu, p2g_sort.cu); the sort, the reduction and
 // the atomics from p2g_warp.cuh, shared with the fused G2P2G (g2p2g.cu).
-#include "p2g_warp.cuh"
+#include "warp.cuh"
 
 // Memory index of node base + (i, j, k) for a particle of gblock g.
 __device__ __forceinline__ unsigned node_index(const Ctx& c, unsigned g, const int base[3], int i, int j, int k) {
@@ -111,10 +111,10 @@ extern "C" __global__ void p2g_mpm(Ctx c) {
         vec3 mv = load_v3(c.state, c.cap, F_V, p) * m;
         mat3 C = load_m3(c.state, c.cap, F_C, p);
         mat3 F = load_m3(c.state, c.cap, F_F, p);
-        const GpuMaterial& mat = material_at(c, state_bits(c.state[F_MAT * c.cap + p]));
+        const MaterialGpu& mat = material_at(c, state_bits(c.state[F_MAT * c.cap + p]));
         mat3 tau = material_kirchhoff(mat, F, c.state[F_PLASTIC * c.cap + p], C);
         // grad w in world units is shape_grad / dx.
-        mat3 stress = tau * (-(real)step_params(c).dt * vol0 * c.inv_dx);
+        mat3 stress = tau * (-step_params(c).dt * vol0 * scalars(c).inv_dx);
         StencilIdx si = stencil_idx(c.block_coords + 3 * g, base);
         const unsigned* nbs = c.neighbors + 27 * g;
         for (int i = 0; i < 3; ++i)

@@ -1,6 +1,6 @@
 // G2P kernels (merged): the MLS-MPM G2P and those of the classic MPM transfers. The per-particle
 // work is in g2p_particle.cuh (shared with the fused G2P2G of g2p2g.cu).
-#include "g2p_particle.cuh"
+#include "particle.cuh"
 
 #ifndef G2P_MIN_BLOCKS
 #define G2P_MIN_BLOCKS 1
@@ -43,7 +43,7 @@ __device__ __forceinline__ void g2p_mpm_gather(const Ctx& c, unsigned g, vec3 x,
                 vec3 vi = make_v3(n[1], n[2], n[3]);
                 vec3 ai = make_v3(a[1], a[2], a[3]);
                 real weight = wt[0][i] * wt[1][j] * wt[2][k];
-                vec3 grad = shape_grad(wt, dw, i, j, k) * c.inv_dx;
+                vec3 grad = shape_grad(wt, dw, i, j, k) * scalars(c).inv_dx;
                 *v_pic = *v_pic + vi * weight;
                 if (musl_gradient) {
                     *L = *L + outer(ai, grad);
@@ -72,8 +72,8 @@ extern "C" __global__ void g2p_mpm(Ctx c) {
         G2pState st = g2p_load_state<false>(c, p);
         const int* bc; vec3 v_pic, dv; mat3 L;
         g2p_mpm_gather(c, g, x, &bc, &v_pic, &dv, &L, musl);
-        if (!musl) v = flip_blend((real)c.flip, v, v_pic, dv);
-        speed = max(speed, g2p_finish<false>(c, bc, p, st, x + v_pic * (real)step_params(c).dt, v, L).speed);
+        if (!musl) v = flip_blend(scalars(c).flip, v, v_pic, dv);
+        speed = max(speed, g2p_finish<false>(c, bc, p, st, x + v_pic * step_params(c).dt, v, L).speed);
     }
     report_max_speed(c, speed);
 }
@@ -92,6 +92,6 @@ extern "C" __global__ void g2p_mpm_velocity(Ctx c) {
         vec3 v = load_v3(c.state, c.cap, F_V, p);
         const int* bc; vec3 v_pic, dv; mat3 L;
         g2p_mpm_gather(c, g, x, &bc, &v_pic, &dv, &L, false);
-        store_v3(c.state, c.cap, F_V, p, flip_blend((real)c.flip, v, v_pic, dv));
+        store_v3(c.state, c.cap, F_V, p, flip_blend(scalars(c).flip, v, v_pic, dv));
     }
 }

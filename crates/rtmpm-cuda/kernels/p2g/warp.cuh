@@ -2,7 +2,7 @@
 // (g2p2g.cu): the cheap in-warp cell sort of mixed sorting, the segmented warp reduction of lanes
 // that write the same nodes (Gao et al. 2018) and direct global atomics by segment heads.
 #pragma once
-#include "p2g_particle.cuh"
+#include "particle.cuh"
 
 // Add (mass, momentum) to a node: one 16-byte vector atomic on sm_90 (f32), else four.
 __device__ __forceinline__ void atomic_add_node(real* node, const real val[4]) {

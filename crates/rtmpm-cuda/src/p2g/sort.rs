@@ -1,16 +1,14 @@
-//! Host side of `kernels/p2g_sort.cu`: P2G as a gather through one sort per step of the
-//! particle-node contributions (seed 001). Every buffer is allocated here, once; the number of
+//! Host side of `kernels/p2g/sort.cu`: P2G as a gather through one sort per step of the
+//! particle-node contributions (Chiang et al., "GPU Acceleration of the Generalized
+//! Interpolation Material Point Method", SAAHPC 2009). Every buffer is allocated here, once; the number of
 //! radix passes enqueued follows from the node capacity (passes above the node indices in use
 //! return at once on the device), so a step is the same launch sequence every time and can be
 //! captured in a CUDA graph.
 
-use crate::backend::{Kernels, cfg, cfg_wave};
-use crate::layout::Ctx;
-use crate::p2g_reverse_map::entry_bytes;
-use cudarc::driver::{
-    CudaFunction, CudaModule, CudaSlice, CudaStream, DevicePtr, DeviceRepr, DriverError,
-    PushKernelArg,
-};
+use super::reverse_map::entry_bytes;
+use crate::contract::{Ctx, SortCtx};
+use crate::kernels::{Kernel, Kernels, cfg};
+use cudarc::driver::{CudaSlice, CudaStream, DevicePtr, DriverError, PushKernelArg};
 use rtmpm_core::sim::SimError;
 use std::sync::Arc;
 
@@ -21,40 +19,8 @@ const SORT_DIGITS: usize = 256;
 /// Pairs per tile (`SORT_TILE`).
 const SORT_TILE: usize = SORT_DIGITS * 8;
 
-/// Mirror of `SortCtx` in `kernels/p2g_sort.cu`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default)]
-pub(crate) struct SortCtx {
-    contrib: u64,
-    keys: [u64; 2],
-    vals: [u64; 2],
-    tile_counts: u64,
-    scan_sums: u64,
-    seg_start: u64,
-    seg_end: u64,
-    n_items: u32,
-    n_tiles: u32,
-    node_cap: u32,
-    pad: u32,
-}
-
-// SAFETY: plain old data with the C layout of the kernel struct.
-unsafe impl DeviceRepr for SortCtx {}
-
-struct Fns {
-    emit: CudaFunction,
-    count: CudaFunction,
-    scan_blocks: CudaFunction,
-    scan_sums: CudaFunction,
-    scan_add: CudaFunction,
-    scatter: CudaFunction,
-    segments: CudaFunction,
-    gather: CudaFunction,
-}
-
 /// The sort-based P2G of one backend: its kernels and buffers.
-pub(crate) struct SortMap {
-    fns: Fns,
+pub struct SortMap {
     ctx: SortCtx,
     /// Radix passes enqueued per step.
     pub passes: u32,
@@ -67,18 +33,12 @@ impl SortMap {
     /// Timed phases.
     pub const PHASES: &'static [&'static str] = &["emit", "sort", "segments", "gather"];
 
-    /// Allocate the buffers and load the kernels.
+    /// Allocate the buffers.
     pub(crate) fn new(
-        module: &Arc<CudaModule>,
         stream: &Arc<CudaStream>,
         c: &Ctx,
         real_bytes: usize,
     ) -> Result<SortMap, SimError> {
-        let f = |name: &str| {
-            module
-                .load_function(name)
-                .map_err(|e| SimError::Backend(format!("CUDA: kernel {name}: {e:?}")))
-        };
         let n_items = c.n as u64 * 27;
         let node_cap = c.pblock_cap as u64 * 64;
         if n_items > u32::MAX as u64 || node_cap > u32::MAX as u64 {
@@ -131,16 +91,6 @@ impl SortMap {
         let [k0, k1] = keys;
         let [v0, v1] = vals;
         Ok(SortMap {
-            fns: Fns {
-                emit: f("p2g_sort_emit")?,
-                count: f("p2g_sort_count")?,
-                scan_blocks: f("p2g_sort_scan_blocks")?,
-                scan_sums: f("p2g_sort_scan_sums")?,
-                scan_add: f("p2g_sort_scan_add")?,
-                scatter: f("p2g_sort_scatter")?,
-                segments: f("p2g_sort_segments")?,
-                gather: f("p2g_sort_gather")?,
-            },
             ctx,
             passes,
             _bufs: vec![
@@ -166,43 +116,42 @@ impl SortMap {
         s: &CudaStream,
         c: &Ctx,
     ) -> Result<(), DriverError> {
-        let f = &self.fns;
         let sc = &self.ctx;
-        let wave = |n: usize, block: u32| cfg_wave(n, block, k.wave_threads);
+        let wave = |n: usize, block: u32| k.wave(n, block);
         let tiles = sc.n_tiles as usize * SORT_DIGITS;
         let scan = SORT_DIGITS * sc.n_tiles as usize;
         // SAFETY: the kernels bounds-check against the device counters and the capacities.
         unsafe {
             match i {
                 0 => {
-                    s.launch_builder(&f.emit)
+                    s.launch_builder(&k[Kernel::P2gSortEmit])
                         .arg(c)
                         .arg(sc)
                         .launch(wave(c.warp_cap as usize * 32, 128))?;
                 }
                 1 => {
                     for pass in 0..self.passes {
-                        s.launch_builder(&f.count)
+                        s.launch_builder(&k[Kernel::P2gSortCount])
                             .arg(c)
                             .arg(sc)
                             .arg(&pass)
                             .launch(wave(tiles, SORT_DIGITS as u32))?;
-                        s.launch_builder(&f.scan_blocks)
+                        s.launch_builder(&k[Kernel::P2gSortScanBlocks])
                             .arg(c)
                             .arg(sc)
                             .arg(&pass)
                             .launch(wave(scan.div_ceil(1024) * 1024, 1024))?;
-                        s.launch_builder(&f.scan_sums)
+                        s.launch_builder(&k[Kernel::P2gSortScanSums])
                             .arg(c)
                             .arg(sc)
                             .arg(&pass)
                             .launch(cfg(1024, 1024))?;
-                        s.launch_builder(&f.scan_add)
+                        s.launch_builder(&k[Kernel::P2gSortScanAdd])
                             .arg(c)
                             .arg(sc)
                             .arg(&pass)
                             .launch(wave(scan.div_ceil(1024) * 1024, 1024))?;
-                        s.launch_builder(&f.scatter)
+                        s.launch_builder(&k[Kernel::P2gSortScatter])
                             .arg(c)
                             .arg(sc)
                             .arg(&pass)
@@ -210,13 +159,13 @@ impl SortMap {
                     }
                 }
                 2 => {
-                    s.launch_builder(&f.segments)
+                    s.launch_builder(&k[Kernel::P2gSortSegments])
                         .arg(c)
                         .arg(sc)
                         .launch(wave(sc.n_items as usize, 256))?;
                 }
                 _ => {
-                    s.launch_builder(&f.gather)
+                    s.launch_builder(&k[Kernel::P2gSortGather])
                         .arg(c)
                         .arg(sc)
                         .launch(wave(sc.node_cap as usize, 256))?;

@@ -8,8 +8,8 @@
 // neighbourhood, so it is not scattered; it has set the rebuild flag, and the next step rebuilds
 // the mapping and redoes its P2G from the stored state (the P2G kernel runs only then, see
 // grid_needs_p2g). The scatter uses this step's dt; the host asks for a P2G when dt changes.
-#include "g2p_particle.cuh"
-#include "p2g_warp.cuh"
+#include "particle.cuh"
+#include "../p2g/warp.cuh"
 
 // Register budgets, measured (bench/RESULTS.md): the general kernel as ptxas picks it (128
 // registers; a minimum-blocks hint, even of 1, changes its choices and cost jelly 8 %); the fluid

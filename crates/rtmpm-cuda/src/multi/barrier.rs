@@ -1,7 +1,7 @@
 //! The inter-GPU synchronisation of transport=p2p (the GPUs of one process), two kinds
 //! (`--cuda-options barrier=spin|events`):
 //!
-//! - spin (seed 000's spin-lock barrier): `kernels/barrier.cu`, a one-thread kernel on every GPU
+//! - spin (seed 000's spin-lock barrier): `kernels/multi/barrier.cu`, a one-thread kernel on every GPU
 //!   that adds 1 to a counter in GPU 0's memory with a system-scope atomic and spins until every
 //!   GPU arrived. Everything stays on the device, so a step with barriers is captured in a CUDA
 //!   graph and replayed like a single-GPU step.
@@ -11,30 +11,13 @@
 //!   waiting; a CUDA graph launched later could not bind to the peers' records of the same step,
 //!   so this kind runs without CUDA graphs.
 
-use crate::backend::{Kernels, cfg};
-use crate::layout::Ctx;
-use cudarc::driver::{CudaStream, DeviceRepr, DriverError, PushKernelArg};
+use crate::contract::Ctx;
+use crate::kernels::{Kernel, Kernels, cfg};
+use cudarc::driver::{CudaStream, DriverError, PushKernelArg};
 use std::sync::{Condvar, Mutex};
 use std::time::Duration;
 
-/// Mirror of `SpinBarrier` in `kernels/barrier.cu`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default)]
-pub struct SpinBarrier {
-    /// u64 on GPU 0: arrivals so far.
-    pub count: u64,
-    /// u64 on this GPU: this GPU's barrier calls so far.
-    pub calls: u64,
-    /// A GPU waiting longer than this sets `ERR_BARRIER` and goes on.
-    pub timeout_ns: u64,
-    /// Number of GPUs.
-    pub n: u32,
-    /// Padding.
-    pub pad: u32,
-}
-
-// SAFETY: plain old data with the C layout of the kernel struct.
-unsafe impl DeviceRepr for SpinBarrier {}
+pub use crate::contract::SpinBarrier;
 
 /// How long a GPU (spin) or a host thread (events) waits for the others before giving up.
 pub const TIMEOUT: Duration = Duration::from_secs(10);
@@ -48,7 +31,7 @@ pub(crate) fn enqueue_spin(
 ) -> Result<(), DriverError> {
     // SAFETY: `count` and `calls` are live u64 on GPUs this one has peer access to.
     unsafe {
-        s.launch_builder(&k.barrier_spin)
+        s.launch_builder(&k[Kernel::BarrierSpin])
             .arg(c)
             .arg(b)
             .launch(cfg(1, 1))?;
@@ -124,12 +107,6 @@ mod tests {
     use super::*;
     use std::sync::Arc;
     use std::sync::atomic::{AtomicUsize, Ordering};
-
-    #[test]
-    fn spin_barrier_matches_the_kernel_struct() {
-        // 3 x u64, 2 x u32.
-        assert_eq!(std::mem::size_of::<SpinBarrier>(), 32);
-    }
 
     #[test]
     fn host_barrier_lets_no_thread_pass_before_all_arrived() {

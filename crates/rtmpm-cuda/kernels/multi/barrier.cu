@@ -13,7 +13,7 @@
 // spin orders this GPU's later reads of peer memory after it. A GPU that never arrives (its host
 // thread failed) does not hang the others: after timeout_ns the kernel sets ERR_BARRIER and
 // returns; the host reports the error at the next check.
-#include "common.cuh"
+#include "../common.cuh"
 
 struct SpinBarrier {
     unsigned long long* count;  // on GPU 0: arrivals so far, over every GPU and call

@@ -2,8 +2,8 @@
 // interpolation of v and C, F update, plasticity, advection, domain clamp, free-zone check (sets
 // the rebuild flag) and health check (first bad particle, max speed).
 #pragma once
-#include "common.cuh"
-#include "material_dispatch.cuh"
+#include "../common.cuh"
+#include "../material/dispatch.cuh"
 
 // The state G2P updates besides x, v and C: loaded before the grid gather, so that its memory
 // latency overlaps the gather's instead of following it (G2P is bound by load latency).
@@ -56,19 +56,20 @@ __device__ __forceinline__ G2pResult g2p_finish(const Ctx& c, const int* bc, uns
     real dt = step_params(c).dt;
     mat3 F = (mat3_identity() + C * dt) * st.F;
     real plastic = st.plastic;
-    GpuMaterial mat = material_at(c, st.material);
-    F = ALL_FLUID ? fluid_project(mat.fluid, F) : material_project(mat, F, &plastic);
+    const MaterialGpu& mat = material_at(c, st.material);
+    F = ALL_FLUID ? fluid_project(fluid_params(mat), F, &plastic) : material_project(mat, F, &plastic);
     // Health check before the clamp (the clamp would hide NaN).
     real speed = length(v);
     bool finite = isfinite(x.x) && isfinite(x.y) && isfinite(x.z) && isfinite(v.x) && isfinite(v.y) && isfinite(v.z);
-    if (!finite || speed * dt > (real)2 * c.dx) {
+    const Scalars& sc = scalars(c);
+    if (!finite || speed * dt > (real)2 * sc.dx) {
         unsigned id = ALL_FLUID ? state_bits(c.state[F_ID * c.cap + p]) : st.id;
         unsigned prev = atomicMin(&c.ctl[CTL_BAD_INDEX], id);
         if (prev > id) atomicExch(&c.ctl[CTL_BAD_REASON], finite ? 2u : 1u);
     }
-    x.x = fmin(fmax(x.x, (real)c.domain_min[0]), (real)c.domain_max[0]);
-    x.y = fmin(fmax(x.y, (real)c.domain_min[1]), (real)c.domain_max[1]);
-    x.z = fmin(fmax(x.z, (real)c.domain_min[2]), (real)c.domain_max[2]);
+    x.x = fmin(fmax(x.x, sc.domain_min[0]), sc.domain_max[0]);
+    x.y = fmin(fmax(x.y, sc.domain_min[1]), sc.domain_max[1]);
+    x.z = fmin(fmax(x.z, sc.domain_min[2]), sc.domain_max[2]);
     // Free zone: the 3x3x3 neighbourhood of gblock B covers the stencil iff base in [4B-4, 4B+5].
     int nb[3]; real nfx[3];
     stencil_of(c, x, nb, nfx);
@@ -135,8 +136,9 @@ __device__ __forceinline__ G2pResult g2p_particle(const Ctx& c, unsigned g, unsi
     B.m[0] = b0.x; B.m[1] = b0.y; B.m[2] = b0.z;
     B.m[3] = b1.x; B.m[4] = b1.y; B.m[5] = b1.z;
     B.m[6] = b2.x; B.m[7] = b2.y; B.m[8] = b2.z;
-    B = (B - outer(v, make_v3(fx[0], fx[1], fx[2]))) * c.dx;
+    const Scalars& sc = scalars(c);
+    B = (B - outer(v, make_v3(fx[0], fx[1], fx[2]))) * sc.dx;
     real dt = step_params(c).dt;
-    mat3 C = B * ((real)4 * c.inv_dx * c.inv_dx);
+    mat3 C = B * ((real)4 * sc.inv_dx * sc.inv_dx);
     return g2p_finish<ALL_FLUID>(c, bc, p, st, x + v * dt, v, C);
 }

@@ -19,7 +19,8 @@
 // step 4 the NCCL all-reduce and sb_unpack are replaced by a barrier and sb_sum_peers, which sums
 // every GPU's packed buffer, read through peer pointers, into this GPU's grid.
 // The scan helper block_exclusive_scan is rebuild.cu's (same NVRTC program, compiled before).
-#include "common.cuh"
+#include "../common.cuh"
+#include "../scan.cuh"
 
 struct SharedCtx {
     unsigned char* mask;     // d + 1: this GPU's pblocks; [d] = 1 if it rebuilt this step
@@ -30,6 +31,7 @@ struct SharedCtx {
     int dims[3];             // dense block array: pblock coordinates -1 .. dims - 2 per axis
     unsigned d;              // dims[0] * dims[1] * dims[2]
     unsigned cap;            // shared blocks the reduction holds
+    unsigned pad;
 };
 
 #define SB_GRID_STRIDE(i, n) for (unsigned i = thread_index(); i < (n); i += gridDim.x * blockDim.x)
@@ -150,7 +152,6 @@ extern "C" __global__ void sb_unpack(Ctx c, SharedCtx s) {
 
 // transport=p2p: every GPU's mask and packed buffer (this GPU's included), as pointers this GPU
 // can dereference (unified addressing + peer access), in rank order.
-#define SB_MAX_GPUS 8
 struct PeerCtx {
     const unsigned char* mask[SB_MAX_GPUS];  // d + 1 bytes each (SharedCtx::mask of that GPU)
     const real* buf[SB_MAX_GPUS];            // cap * 256 reals each (SharedCtx::buf of that GPU)

@@ -15,8 +15,8 @@
 // 4. p2g_sort_gather, one thread per grid node of the pblocks in use: sums the entries of its run
 //    (uncoalesced reads, as the paper says), stores the node (no atomics) and resets its run.
 // The sum order is fixed by the stable sort: unlike the atomics, the result is deterministic.
-#include "p2g_particle.cuh"
-#include "scan.cuh"
+#include "particle.cuh"
+#include "../scan.cuh"
 
 #define SORT_BITS 8
 #define SORT_DIGITS 256  // = blockDim.x of the count and scatter kernels
