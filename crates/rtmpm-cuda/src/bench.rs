@@ -25,7 +25,8 @@ pub struct KernelTimings {
     pub grid_update_ms: f64,
     /// MUSL re-map (velocities, momenta to the grid again, their update); 0 for USL and MLS.
     pub musl_ms: f64,
-    /// The stages timed, in step order (`pipeline::Stage`, as the step ran them).
+    /// The stages timed, in step order (`pipeline::Stage`, as the step ran them; the phases of
+    /// P2G count once).
     pub stages: Vec<&'static str>,
     /// G2P.
     pub g2p_ms: f64,
@@ -98,7 +99,11 @@ pub fn bench_kernels(
         steps,
         p2g_phases: b.p2g.phases().iter().map(|p| (*p, 0.0)).collect(),
         p2g_memory: b.p2g_memory(),
-        stages: stages.iter().map(|s| stage_name(*s)).collect(),
+        stages: {
+            let mut names: Vec<&'static str> = stages.iter().map(|s| stage_name(*s)).collect();
+            names.dedup(); // the phases of a gather P2G are one stage
+            names
+        },
         ..Default::default()
     };
     let start = ev()?;
