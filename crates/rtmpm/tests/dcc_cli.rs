@@ -53,9 +53,26 @@ fn a_runs_bgeo_frame_seeds_a_new_run() {
     assert!(first.join("frame_00002.bgeo.gz").exists());
 
     // A second scene: one body of water made of the first run's last frame.
-    let second = format!(
-        "name = \"seeded\"\n[domain]\nmin = [0.0, 0.0, 0.0]\nmax = [0.5, 0.5, 0.5]\ndx = 0.03125\n[time]\nduration = 0.05\nfps = 40\n[[material]]\nname = \"water\"\ntype = \"fluid\"\ndensity = 1000.0\nbulk_modulus = 2.0e4\n[[body]]\nmaterial = \"water\"\nshape = \"particles\"\nfile = \"first/frame_00002.bgeo.gz\"\n[output]\nformats = [\"ply\"]\n"
-    );
+    let second = r#"name = "seeded"
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [0.5, 0.5, 0.5]
+dx = 0.03125
+[time]
+duration = 0.05
+fps = 40
+[[material]]
+name = "water"
+type = "fluid"
+density = 1000.0
+bulk_modulus = 2.0e4
+[[body]]
+material = "water"
+shape = "particles"
+file = "first/frame_00002.bgeo.gz"
+[output]
+formats = ["ply"]
+"#;
     let second_path = dir.join("second.toml");
     std::fs::write(&second_path, second).unwrap();
     let out2 = dir.join("second");
