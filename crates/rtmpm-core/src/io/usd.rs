@@ -201,14 +201,15 @@ mod tests {
     #[test]
     fn mesh_file() {
         let d = TestDir::new("usda-mesh");
-        let mut m = TriMesh::default();
-        m.vertices = vec![
-            crate::math::Vec3::ZERO,
-            crate::math::Vec3::X,
-            crate::math::Vec3::Y,
-        ];
-        m.normals = vec![crate::math::Vec3::Z; 3];
-        m.triangles = vec![[0, 1, 2]];
+        let mut m = TriMesh {
+            vertices: vec![
+                crate::math::Vec3::ZERO,
+                crate::math::Vec3::X,
+                crate::math::Vec3::Y,
+            ],
+            normals: vec![crate::math::Vec3::Z; 3],
+            triangles: vec![[0, 1, 2]],
+        };
         let path = d.path("s.usda");
         write_usda_mesh(&path, &m).unwrap();
         let t = std::fs::read_to_string(&path).unwrap();
