@@ -112,10 +112,11 @@ pub trait Backend {
     }
 }
 
-/// Drives a backend through frames of a scene.
-pub struct Simulation {
+/// Drives a backend through frames of a scene. The backend is a `Box<dyn Backend>` by default;
+/// a caller that needs the concrete type (or `Send`) names it, e.g. `Simulation<MyBackend>`.
+pub struct Simulation<B: Backend + ?Sized = dyn Backend> {
     pub scene: Scene,
-    pub backend: Box<dyn Backend>,
+    pub backend: Box<B>,
     /// Simulated time (s).
     pub time: f64,
     /// Steps taken so far.
@@ -127,9 +128,9 @@ pub struct Simulation {
     max_sound_speed: f32,
 }
 
-impl Simulation {
+impl<B: Backend + ?Sized> Simulation<B> {
     /// A simulation at time 0 (or at the given state when resuming).
-    pub fn new(scene: Scene, backend: Box<dyn Backend>) -> Simulation {
+    pub fn new(scene: Scene, backend: Box<B>) -> Simulation<B> {
         let max_sound_speed = scene
             .materials
             .iter()

@@ -97,7 +97,7 @@ pub struct CudaBackend {
     pub(crate) p2g: P2gPlan,
     module: Arc<CudaModule>,
     /// Particle state in the backend's precision (see [`crate::state`]).
-    state: CudaSlice<u8>,
+    pub(crate) state: CudaSlice<u8>,
     block_coords: CudaSlice<u8>,
     _scratch: CudaSlice<u8>,
     pub(crate) grid: CudaSlice<u8>,
@@ -118,7 +118,9 @@ pub struct CudaBackend {
     last_params: Option<Vec<u8>>,
     _bufs: Vec<CudaSlice<u8>>,
     scene: Scene,
-    n: usize,
+    pub(crate) n: usize,
+    /// Pinned host memory of [`CudaBackend::read_fields`] (crate::export).
+    pub(crate) staging: crate::export::Staging,
     /// The captured step per grid parity (one without G2P2G), with its dt.
     graph: [Option<(CudaGraph, f32)>; 2],
     device_name: String,
@@ -638,6 +640,7 @@ impl CudaBackend {
             _bufs: bufs,
             scene: scene.clone(),
             n,
+            staging: Default::default(),
             graph: [None, None],
             device_name: info.name,
             real_bytes,

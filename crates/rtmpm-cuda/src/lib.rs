@@ -53,6 +53,7 @@ pub mod backend;
 pub mod barrier;
 pub mod bench;
 pub mod compile;
+pub mod export;
 pub mod g2p;
 pub mod grid_update;
 pub mod layout;
@@ -69,6 +70,7 @@ pub mod rendezvous;
 pub mod state;
 
 pub use backend::CudaBackend;
+pub use export::DeviceParticles;
 pub use bench::{KernelTimings, bench_kernels, measure_copy_bandwidth};
 pub use multi_gpu::{MultiGpuBackend, NcclRankBackend};
 

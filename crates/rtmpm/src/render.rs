@@ -8,7 +8,6 @@ use clap::Args;
 use rtmpm_core::boundary::Collider;
 use rtmpm_core::boundary::sdf::Shape;
 use rtmpm_core::io::ply::{PlyData, read_ply};
-use rtmpm_core::material::Model;
 use rtmpm_core::math::Vec3;
 use rtmpm_core::render::{
     Camera, ColorBy, GifMovie, RenderInput, RenderOptions, colormap, estimate_radius, render,
@@ -103,33 +102,6 @@ fn parse_range(s: &str) -> Result<(f32, f32), String> {
     Ok((v[0], v[1]))
 }
 
-/// Colour per material from the scene: fluids blue, sand sand-coloured, snow white, elastic
-/// solids red (then green), von Mises metal purple; a type used twice takes the next free
-/// palette entry.
-fn scene_palette(scene: &Scene) -> Vec<[f32; 3]> {
-    let mut used = [false; colormap::PALETTE.len()];
-    scene
-        .materials
-        .iter()
-        .map(|m| {
-            let want = match m.model {
-                Model::Fluid(_) => 0,
-                Model::DruckerPrager(_) => 1,
-                Model::FixedCorotated(_) | Model::NeoHookean(_) => 2,
-                Model::Snow(_) => 4,
-                Model::VonMises(_) => 5,
-            };
-            let n = used.len();
-            let k = (0..n)
-                .map(|d| (want + d) % n)
-                .find(|&k| !used[k])
-                .unwrap_or(want);
-            used[k] = true;
-            colormap::PALETTE[k]
-        })
-        .collect()
-}
-
 /// Resolve the render options: flags, then the scene's `[render]`, then defaults. `bounds` is
 /// the box the particles live in, `floor` the ground height.
 fn resolve(
@@ -169,7 +141,7 @@ fn resolve(
     opts.floor = Some(floor);
     opts.shadows = !view.no_shadows;
     if let Some(s) = scene {
-        opts.palette = scene_palette(s);
+        opts.palette = colormap::scene_palette(s);
         if !view.no_colliders {
             opts.colliders = s.colliders.clone();
         }

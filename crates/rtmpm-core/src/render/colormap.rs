@@ -74,3 +74,30 @@ mod tests {
         }
     }
 }
+
+/// Colour per material of a scene: fluids blue, sand sand-coloured, snow white, elastic solids
+/// red (then green), von Mises metal purple; a type used twice takes the next free palette entry.
+pub fn scene_palette(scene: &crate::Scene) -> Vec<[f32; 3]> {
+    use crate::material::Model;
+    let mut used = [false; PALETTE.len()];
+    scene
+        .materials
+        .iter()
+        .map(|m| {
+            let want = match m.model {
+                Model::Fluid(_) => 0,
+                Model::DruckerPrager(_) => 1,
+                Model::FixedCorotated(_) | Model::NeoHookean(_) => 2,
+                Model::Snow(_) => 4,
+                Model::VonMises(_) => 5,
+            };
+            let n = used.len();
+            let k = (0..n)
+                .map(|d| (want + d) % n)
+                .find(|&k| !used[k])
+                .unwrap_or(want);
+            used[k] = true;
+            PALETTE[k]
+        })
+        .collect()
+}
