@@ -368,17 +368,19 @@ impl PySimulation {
         let inner = self.get();
         let start = inner.sim.step;
         let target = inner.sim.time + seconds;
-        let eps = 1e-9 * inner.sim.frame_duration();
+        let fd = inner.sim.frame_duration();
         inner.drive(py, |sim, chunk| {
             let mut taken = 0;
             loop {
+                // Reached within a thousandth of a step (times are sums of f32 steps).
+                let eps = 1e-9 * fd + 1e-3 * sim.last_dt as f64;
                 if sim.time >= target - eps {
                     return Ok(true);
                 }
                 if taken >= chunk {
                     return Ok(false);
                 }
-                let frame_end = (sim.frame + 1) as f64 * sim.frame_duration();
+                let frame_end = (sim.frame + 1) as f64 * fd;
                 let s0 = sim.step;
                 if frame_end <= target + eps {
                     sim.advance(chunk - taken)?;
