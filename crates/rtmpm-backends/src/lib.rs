@@ -109,7 +109,11 @@ pub fn create(
         let b = rtmpm_cuda::MultiGpuBackend::new(scene, &particles, gpus, request.cuda.clone())
             .map_err(|e| e.to_string())?;
         let backend = AnyBackend::MultiGpu(Box::new(b));
-        let reason = format!("{} -> {} ({gpus} GPUs)", request.kind.name(), backend.name());
+        let reason = format!(
+            "{} -> {} ({gpus} GPUs)",
+            request.kind.name(),
+            backend.name()
+        );
         return Ok(Created { backend, reason });
     }
     match request.kind {
@@ -264,6 +268,10 @@ mod tests {
         let c = create(&req, &scene, p).unwrap();
         assert_eq!(c.backend.kind(), BackendKind::Cpu);
         assert_eq!(c.backend.num_particles(), n);
-        assert!(c.reason.starts_with("cpu -> cpu (1 threads)"), "{}", c.reason);
+        assert!(
+            c.reason.starts_with("cpu -> cpu (1 threads)"),
+            "{}",
+            c.reason
+        );
     }
 }

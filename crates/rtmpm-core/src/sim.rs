@@ -128,9 +128,17 @@ pub struct Simulation<B: Backend + ?Sized = dyn Backend> {
     max_sound_speed: f32,
 }
 
-impl<B: Backend + ?Sized> Simulation<B> {
+impl Simulation {
     /// A simulation at time 0 (or at the given state when resuming).
-    pub fn new(scene: Scene, backend: Box<B>) -> Simulation<B> {
+    pub fn new(scene: Scene, backend: Box<dyn Backend>) -> Simulation {
+        Simulation::with_backend(scene, backend)
+    }
+}
+
+impl<B: Backend + ?Sized> Simulation<B> {
+    /// A simulation of a backend of type `B` (see [`Simulation::new`] for the usual
+    /// `Box<dyn Backend>`).
+    pub fn with_backend(scene: Scene, backend: Box<B>) -> Simulation<B> {
         let max_sound_speed = scene
             .materials
             .iter()

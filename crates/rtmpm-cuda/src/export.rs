@@ -93,9 +93,7 @@ impl CudaBackend {
         let Some(staging) = self.staging.0.as_mut() else {
             return Err(SimError::Backend("CUDA: no staging memory".into()));
         };
-        let all = staging
-            .as_mut_slice()
-            .map_err(err("pinned memory"))?;
+        let all = staging.as_mut_slice().map_err(err("pinned memory"))?;
         for (k, &f) in fields.iter().enumerate() {
             let src = self.state.slice(f * cap * wb..f * cap * wb + row);
             self.stream
@@ -127,7 +125,10 @@ impl CudaBackend {
         let ids: Vec<usize> = {
             let id_row = self.read_fields(&[F_ID])?[0];
             (0..n)
-                .map(|i| u32::from_le_bytes(id_row[i * wb..i * wb + 4].try_into().unwrap_or([0; 4])) as usize)
+                .map(|i| {
+                    u32::from_le_bytes(id_row[i * wb..i * wb + 4].try_into().unwrap_or([0; 4]))
+                        as usize
+                })
                 .collect()
         };
         if ids.iter().any(|&id| id >= n) {
@@ -139,9 +140,9 @@ impl CudaBackend {
         for (first, values) in [(F_X, x), (F_V, v)] {
             let Some(values) = values else { continue };
             let mut rows = Vec::with_capacity(3 * n * wb);
-            for a in 0..3 {
+            for axis in [0usize, 1, 2] {
                 for &id in &ids {
-                    let c = values[id][a];
+                    let c = values[id][axis];
                     if wb == 8 {
                         rows.extend_from_slice(&(c as f64).to_le_bytes());
                     } else {
@@ -149,11 +150,11 @@ impl CudaBackend {
                     }
                 }
             }
-            for a in 0..3 {
+            for (a, row) in rows.chunks_exact(n * wb).enumerate() {
                 let at = (first + a) * cap * wb;
                 let mut dst = self.state.slice_mut(at..at + n * wb);
                 self.stream
-                    .memcpy_htod(&rows[a * n * wb..(a + 1) * n * wb], &mut dst)
+                    .memcpy_htod(row, &mut dst)
                     .map_err(err("write particle fields"))?;
             }
         }

@@ -70,8 +70,8 @@ pub mod rendezvous;
 pub mod state;
 
 pub use backend::CudaBackend;
-pub use export::DeviceParticles;
 pub use bench::{KernelTimings, bench_kernels, measure_copy_bandwidth};
+pub use export::DeviceParticles;
 pub use multi_gpu::{MultiGpuBackend, NcclRankBackend};
 
 use std::fmt;

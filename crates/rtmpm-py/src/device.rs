@@ -87,7 +87,8 @@ unsafe extern "C" fn capsule_destructor(capsule: *mut ffi::PyObject) {
     // SAFETY: called by Python with a valid capsule; the pointer is a DLManagedTensor.
     unsafe {
         if ffi::PyCapsule_IsValid(capsule, CAPSULE_NAME.as_ptr()) == 1 {
-            let m = ffi::PyCapsule_GetPointer(capsule, CAPSULE_NAME.as_ptr()) as *mut DLManagedTensor;
+            let m =
+                ffi::PyCapsule_GetPointer(capsule, CAPSULE_NAME.as_ptr()) as *mut DLManagedTensor;
             if !m.is_null()
                 && let Some(d) = (*m).deleter
             {
@@ -250,7 +251,10 @@ impl DeviceArray {
         d.set_item("typestr", self.typestr())?;
         d.set_item("data", (self.base + self.offset, false))?;
         d.set_item("version", 3)?;
-        d.set_item("strides", pyo3::types::PyTuple::new(py, self.strides_bytes())?)?;
+        d.set_item(
+            "strides",
+            pyo3::types::PyTuple::new(py, self.strides_bytes())?,
+        )?;
         d.set_item("stream", py.None())?;
         Ok(d)
     }
@@ -264,7 +268,11 @@ impl DeviceArray {
     /// ``"float32"``, ``"float64"`` or ``"int32"``.
     #[getter]
     fn dtype(&self) -> String {
-        let kind = if self.code == KDL_FLOAT { "float" } else { "int" };
+        let kind = if self.code == KDL_FLOAT {
+            "float"
+        } else {
+            "int"
+        };
         format!("{kind}{}", self.bits)
     }
 

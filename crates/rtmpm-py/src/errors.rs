@@ -56,7 +56,14 @@ pub fn scene_error(py: Python<'_>, e: &RustSceneError, from_dict: bool) -> PyErr
         // the message (which holds everything) still reaches the user.
         let _ = v.setattr(name, value);
     };
-    set("file", e.origin.clone().into_pyobject(py).map(|o| o.into_any().unbind()).unwrap_or_else(|_| py.None()));
+    set(
+        "file",
+        e.origin
+            .clone()
+            .into_pyobject(py)
+            .map(|o| o.into_any().unbind())
+            .unwrap_or_else(|_| py.None()),
+    );
     set("line", opt(py, e.line));
     set("column", opt(py, e.column));
     set("field", opt_str(py, e.field.as_deref()));

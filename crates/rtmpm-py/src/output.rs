@@ -115,8 +115,7 @@ pub fn render<'py>(
             )));
         }
         None => {
-            let mean_vol =
-                p.vol0.iter().map(|&v| v as f64).sum::<f64>() / p.len().max(1) as f64;
+            let mean_vol = p.vol0.iter().map(|&v| v as f64).sum::<f64>() / p.len().max(1) as f64;
             if mean_vol > 0.0 {
                 0.6 * (mean_vol as f32).cbrt()
             } else {
@@ -156,12 +155,9 @@ pub fn render<'py>(
                 ColorBy::Speed => Some(p.v.iter().map(|v| v.length()).collect()),
                 ColorBy::J => Some(p.f.iter().map(|f| f.determinant()).collect()),
                 ColorBy::Plastic => Some(p.plastic.clone()),
-                ColorBy::Stress => Some(
-                    cauchy_stress(p, scene)
-                        .into_iter()
-                        .map(von_mises)
-                        .collect(),
-                ),
+                ColorBy::Stress => {
+                    Some(cauchy_stress(p, scene).into_iter().map(von_mises).collect())
+                }
             };
             rtmpm_core::render::render(
                 &RenderInput {

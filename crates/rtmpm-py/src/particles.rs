@@ -93,8 +93,12 @@ fn read_vec3_cuda(inner: &mut Inner, field: Vec3Field) -> Result<Option<Vec<f32>
         let bad = AtomicBool::new(false);
         let ids = rows[3];
         (0..n).into_par_iter().with_min_len(1 << 14).for_each(|i| {
-            let id = u32::from_le_bytes([ids[i * wb], ids[i * wb + 1], ids[i * wb + 2], ids[i * wb + 3]])
-                as usize;
+            let id = u32::from_le_bytes([
+                ids[i * wb],
+                ids[i * wb + 1],
+                ids[i * wb + 2],
+                ids[i * wb + 3],
+            ]) as usize;
             if id >= n {
                 bad.store(true, Ordering::Relaxed);
                 return;
@@ -119,7 +123,10 @@ fn vec3s_to_array<'py>(py: Python<'py>, v: &[Vec3]) -> PyResult<Bound<'py, PyArr
 
 fn mat3s_to_array<'py>(py: Python<'py>, m: &[Mat3]) -> PyResult<Bound<'py, PyArray3<f32>>> {
     // glam stores columns; NumPy rows: F[i, r, c] = column c, row r.
-    let flat: Vec<f32> = m.iter().flat_map(|a| a.transpose().to_cols_array()).collect();
+    let flat: Vec<f32> = m
+        .iter()
+        .flat_map(|a| a.transpose().to_cols_array())
+        .collect();
     PyArray1::from_vec(py, flat).reshape([m.len(), 3, 3])
 }
 
@@ -128,7 +135,10 @@ impl PyParticles {
         let mut s = self.sim.bind(py).borrow_mut();
         let inner = s.get();
         inner.usable()?;
-        let cached = inner.host.as_ref().is_some_and(|(v, _)| *v == inner.version);
+        let cached = inner
+            .host
+            .as_ref()
+            .is_some_and(|(v, _)| *v == inner.version);
         if !cached {
             let r = py.detach(|| {
                 std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
@@ -203,7 +213,12 @@ impl PyParticles {
 
 /// Give new positions/velocities to the backend (several GPUs: a new backend from the host
 /// state).
-fn apply_x_v(py: Python<'_>, inner: &mut Inner, x: Option<&[Vec3]>, v: Option<&[Vec3]>) -> PyResult<()> {
+fn apply_x_v(
+    py: Python<'_>,
+    inner: &mut Inner,
+    x: Option<&[Vec3]>,
+    v: Option<&[Vec3]>,
+) -> PyResult<()> {
     let r: Result<(), SimError> = match inner.sim.backend.as_mut() {
         AnyBackend::Cpu(b) => b.set_x_v(x, v),
         AnyBackend::CpuF64(b) => b.set_x_v(x, v),
@@ -229,7 +244,13 @@ fn apply_x_v(py: Python<'_>, inner: &mut Inner, x: Option<&[Vec3]>, v: Option<&[
 #[pymethods]
 impl PyParticles {
     fn __len__(&self, py: Python<'_>) -> usize {
-        self.sim.bind(py).borrow_mut().get().sim.backend.num_particles()
+        self.sim
+            .bind(py)
+            .borrow_mut()
+            .get()
+            .sim
+            .backend
+            .num_particles()
     }
 
     /// Positions, ``(n, 3)`` float32 (m). Assign an ``(n, 3)`` float array to move the
@@ -275,7 +296,10 @@ impl PyParticles {
     fn j<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f32>>> {
         let mut s = self.sim.bind(py).borrow_mut();
         let p = s.get().host(py)?;
-        Ok(PyArray1::from_vec(py, p.f.iter().map(|f| f.determinant()).collect()))
+        Ok(PyArray1::from_vec(
+            py,
+            p.f.iter().map(|f| f.determinant()).collect(),
+        ))
     }
 
     /// Material index of each particle, ``(n,)`` int32 (into ``scene.materials``).
@@ -283,7 +307,10 @@ impl PyParticles {
     fn material<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<i32>>> {
         let mut s = self.sim.bind(py).borrow_mut();
         let p = s.get().host(py)?;
-        Ok(PyArray1::from_vec(py, p.material.iter().map(|&m| m as i32).collect()))
+        Ok(PyArray1::from_vec(
+            py,
+            p.material.iter().map(|&m| m as i32).collect(),
+        ))
     }
 
     /// Original particle index, ``(n,)`` int32: ``arange(n)`` (host arrays are in original order).
@@ -372,7 +399,13 @@ impl PyParticles {
 }
 
 impl PyParticles {
-    fn device(&self, py: Python<'_>, field: usize, inner_shape: &[usize], elem: Elem) -> PyResult<DeviceArray> {
+    fn device(
+        &self,
+        py: Python<'_>,
+        field: usize,
+        inner_shape: &[usize],
+        elem: Elem,
+    ) -> PyResult<DeviceArray> {
         let mut s = self.sim.bind(py).borrow_mut();
         let inner = s.get();
         inner.usable()?;
@@ -384,6 +417,12 @@ impl PyParticles {
         };
         let d = c.0.device_particles().map_err(|e| sim_error(py, &e))?;
         inner.exported = true;
-        Ok(DeviceArray::new(self.sim.clone_ref(py).into_any(), &d, field, inner_shape, elem))
+        Ok(DeviceArray::new(
+            self.sim.clone_ref(py).into_any(),
+            &d,
+            field,
+            inner_shape,
+            elem,
+        ))
     }
 }

@@ -161,7 +161,11 @@ impl PyScene {
     /// Material names, in the order of the particles' ``material`` index.
     #[getter]
     fn materials(&self) -> Vec<String> {
-        self.scene.materials.iter().map(|m| m.name.clone()).collect()
+        self.scene
+            .materials
+            .iter()
+            .map(|m| m.name.clone())
+            .collect()
     }
 
     /// Number of particles the bodies are filled with (samples them).

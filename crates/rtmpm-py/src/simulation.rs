@@ -52,9 +52,8 @@ impl Inner {
         if stale {
             let sim = &mut self.sim;
             let mut p = self.host.take().map(|(_, p)| p).unwrap_or_default();
-            let r = py.detach(|| {
-                catch_unwind(AssertUnwindSafe(|| sim.backend.read_particles(&mut p)))
-            });
+            let r =
+                py.detach(|| catch_unwind(AssertUnwindSafe(|| sim.backend.read_particles(&mut p))));
             self.settle(py, r)?;
             self.host = Some((self.version, p));
         }
@@ -176,12 +175,16 @@ impl PySimulation {
         let req = request.clone();
         let s2 = s.clone();
         let created = py
-            .detach(|| catch_unwind(AssertUnwindSafe(|| rtmpm_backends::create(&req, &s2, particles))))
+            .detach(|| {
+                catch_unwind(AssertUnwindSafe(|| {
+                    rtmpm_backends::create(&req, &s2, particles)
+                }))
+            })
             .map_err(|p| internal_error(p.as_ref()))?
             .map_err(backend_error)?;
         Ok(PySimulation {
             inner: Mutex::new(Inner {
-                sim: Simulation::new(s, Box::new(created.backend)),
+                sim: Simulation::with_backend(s, Box::new(created.backend)),
                 request,
                 reason: created.reason,
                 scene,
@@ -415,7 +418,7 @@ impl PySimulation {
             slf.borrow_mut().run_frame(py)?;
             if let Some(cb) = &callback {
                 let r = cb.call1(py, (slf.clone(),))?;
-                if r.bind(py).is(&pyo3::types::PyBool::new(py, false)) {
+                if r.bind(py).is(pyo3::types::PyBool::new(py, false)) {
                     return Ok(done + 1);
                 }
             }

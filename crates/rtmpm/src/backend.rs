@@ -43,8 +43,7 @@ pub fn make_backend(
         gpus: 1,
         cuda: cuda.clone(),
     };
-    let created = rtmpm_backends::create(&request, scene, particles)
-        .map_err(|e| anyhow!("{e}"))?;
+    let created = rtmpm_backends::create(&request, scene, particles).map_err(|e| anyhow!("{e}"))?;
     if kind == BackendKind::Auto {
         eprintln!("backend: {}", created.reason);
     }

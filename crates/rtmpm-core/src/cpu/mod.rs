@@ -190,7 +190,12 @@ impl CpuBackend {
             }
         }
         if v.is_some() {
-            self.max_speed = self.particles.v.iter().map(|v| v.length()).fold(0.0, Real::max);
+            self.max_speed = self
+                .particles
+                .v
+                .iter()
+                .map(|v| v.length())
+                .fold(0.0, Real::max);
         }
         Ok(())
     }

@@ -53,28 +53,6 @@ pub fn to_u8(c: f32) -> u8 {
     (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn viridis_ends_and_clamping() {
-        assert_eq!(viridis(0.0), VIRIDIS[0]);
-        assert_eq!(viridis(1.0), VIRIDIS[10]);
-        assert_eq!(viridis(-3.0), VIRIDIS[0]);
-        assert_eq!(viridis(7.0), VIRIDIS[10]);
-        assert_eq!(viridis(f32::NAN), VIRIDIS[0]);
-        let m = viridis(0.55);
-        for k in 0..3 {
-            let (lo, hi) = (
-                VIRIDIS[5][k].min(VIRIDIS[6][k]),
-                VIRIDIS[5][k].max(VIRIDIS[6][k]),
-            );
-            assert!(m[k] >= lo && m[k] <= hi);
-        }
-    }
-}
-
 /// Colour per material of a scene: fluids blue, sand sand-coloured, snow white, elastic solids
 /// red (then green), von Mises metal purple; a type used twice takes the next free palette entry.
 pub fn scene_palette(scene: &crate::Scene) -> Vec<[f32; 3]> {
@@ -100,4 +78,26 @@ pub fn scene_palette(scene: &crate::Scene) -> Vec<[f32; 3]> {
             PALETTE[k]
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn viridis_ends_and_clamping() {
+        assert_eq!(viridis(0.0), VIRIDIS[0]);
+        assert_eq!(viridis(1.0), VIRIDIS[10]);
+        assert_eq!(viridis(-3.0), VIRIDIS[0]);
+        assert_eq!(viridis(7.0), VIRIDIS[10]);
+        assert_eq!(viridis(f32::NAN), VIRIDIS[0]);
+        let m = viridis(0.55);
+        for k in 0..3 {
+            let (lo, hi) = (
+                VIRIDIS[5][k].min(VIRIDIS[6][k]),
+                VIRIDIS[5][k].max(VIRIDIS[6][k]),
+            );
+            assert!(m[k] >= lo && m[k] <= hi);
+        }
+    }
 }
