@@ -24,6 +24,7 @@ pub enum Elem {
 }
 
 // DLPack ABI (dlpack.h, v0.8 "legacy" managed tensor, which every consumer accepts).
+const KDL_CPU: i32 = 1;
 const KDL_CUDA: i32 = 2;
 const KDL_INT: u8 = 0;
 const KDL_FLOAT: u8 = 2;
@@ -75,11 +76,17 @@ unsafe extern "C" fn deleter(m: *mut DLManagedTensor) {
         return;
     }
     // SAFETY: `m` and its manager_ctx were made by Box::into_raw in `__dlpack__`, and DLPack
-    // calls the deleter once. Dropping the owner without the interpreter lock is deferred by pyo3.
-    unsafe {
+    // calls the deleter once.
+    let ctx = unsafe {
         let m = Box::from_raw(m);
-        drop(Box::from_raw(m.manager_ctx as *mut Ctx));
-    }
+        Box::from_raw(m.manager_ctx as *mut Ctx)
+    };
+    // Release the owner now (attaching to the interpreter if the consumer calls from a thread
+    // that is not; pyo3 would otherwise defer the release to its next call).
+    // Never unwind out of this C callback (an interpreter shutting down: leak the context).
+    let _ = std::panic::catch_unwind(std::panic::AssertUnwindSafe(move || {
+        Python::attach(move |_| drop(ctx))
+    }));
 }
 
 /// Capsule destructor: frees the tensor unless a consumer took it (renamed the capsule).
@@ -119,6 +126,8 @@ pub struct DeviceArray {
     code: u8,
     bits: u8,
     device: i32,
+    /// DLPack device type: kDLCUDA, or kDLCPU for the layout test of `_layout_view`.
+    device_type: i32,
 }
 
 impl DeviceArray {
@@ -158,6 +167,7 @@ impl DeviceArray {
             code,
             bits,
             device: d.device as i32,
+            device_type: KDL_CUDA,
         }
     }
 
@@ -191,11 +201,11 @@ impl DeviceArray {
             ));
         }
         if let Some(dev) = dl_device
-            && dev != (KDL_CUDA, self.device)
+            && dev != (self.device_type, self.device)
         {
             return Err(PyBufferError::new_err(format!(
-                "rtmpm device arrays live on CUDA device {}: cannot export to {dev:?}",
-                self.device
+                "this array lives on DLPack device {:?}: cannot export to {dev:?}",
+                (self.device_type, self.device)
             )));
         }
         let mut ctx = Box::new(Ctx {
@@ -206,7 +216,7 @@ impl DeviceArray {
         let tensor = DLTensor {
             data: self.base as *mut c_void,
             device: DLDevice {
-                device_type: KDL_CUDA,
+                device_type: self.device_type,
                 device_id: self.device,
             },
             ndim: ctx.shape.len() as i32,
@@ -240,7 +250,7 @@ impl DeviceArray {
 
     /// ``(2, device)``: a CUDA device (DLPack's kDLCUDA).
     fn __dlpack_device__(&self) -> (i32, i32) {
-        (KDL_CUDA, self.device)
+        (self.device_type, self.device)
     }
 
     /// The CUDA Array Interface, version 3 (strides in bytes; no stream synchronisation needed).
@@ -313,4 +323,59 @@ impl DeviceArray {
     fn strides_bytes(&self) -> Vec<i64> {
         self.strides.iter().map(|s| s * self.itemsize()).collect()
     }
+}
+
+/// A view with the GPU state's layout over a host NumPy buffer (DLPack device kCPU), so that
+/// the shapes, strides, dtypes and capsule handling of device arrays are tested without a GPU
+/// (tests/test_device_layout.py). `state` is a 1-D float32/float64 array of `29 * stride`
+/// words: field `f` of slot `i` at `f * stride + i`.
+#[pyfunction]
+#[pyo3(signature = (state, n, stride, field, inner, int32 = false))]
+pub fn _layout_view(
+    state: &Bound<'_, PyAny>,
+    n: usize,
+    stride: usize,
+    field: usize,
+    inner: Vec<usize>,
+    int32: bool,
+) -> PyResult<DeviceArray> {
+    let bad = || {
+        pyo3::exceptions::PyValueError::new_err(
+            "state: a contiguous 1-D NumPy array of 4- or 8-byte words, 29 fields of `stride`",
+        )
+    };
+    let ndim: usize = state.getattr("ndim")?.extract()?;
+    let word_bytes: usize = state.getattr("itemsize")?.extract()?;
+    let len: usize = state.getattr("size")?.extract()?;
+    let contiguous: bool = state
+        .getattr("flags")?
+        .get_item("C_CONTIGUOUS")?
+        .extract()?;
+    if ndim != 1 || !contiguous || !(word_bytes == 4 || word_bytes == 8) {
+        return Err(bad());
+    }
+    if n > stride || len < rtmpm_cuda::layout::NFIELDS * stride {
+        return Err(bad());
+    }
+    if field + inner.iter().product::<usize>() > rtmpm_cuda::layout::NFIELDS {
+        return Err(pyo3::exceptions::PyValueError::new_err(
+            "field out of range",
+        ));
+    }
+    let ptr: u64 = state
+        .getattr("__array_interface__")?
+        .get_item("data")?
+        .get_item(0)?
+        .extract()?;
+    let d = DeviceParticles {
+        device: 0,
+        ptr,
+        n,
+        stride,
+        word_bytes,
+    };
+    let elem = if int32 { Elem::Int32 } else { Elem::Real };
+    let mut a = DeviceArray::new(state.clone().unbind(), &d, field, &inner, elem);
+    a.device_type = KDL_CPU;
+    Ok(a)
 }
