@@ -42,6 +42,6 @@ echo "== examples"
 (cd "$OUT" && $PY "$OLDPWD/examples/python/vibrating_bar.py" --backend cuda) 2>&1 | tee "$OUT/example_bar.log" | tail -5 || rc=1
 (cd "$OUT" && $PY "$OLDPWD/examples/python/dam_break_energy.py" --frames 3) 2>&1 | tee "$OUT/example_dam.log" | tail -5 || rc=1
 echo "== benchmark"
-$PY bench/python_gpu.py --cli .device/rtmpm --frames ${FRAMES:-10} --repeat ${REPEAT:-3} --json "$OUT/python_bench.json" 2>&1 | tee "$OUT/python_bench.txt" || rc=1
+$PY bench/python_gpu.py --cli .device/rtmpm --frames ${FRAMES:-20} --repeat ${REPEAT:-3} --json "$OUT/python_bench.json" 2>&1 | tee "$OUT/python_bench.txt" || rc=1
 nvidia-smi --query-gpu=name,driver_version --format=csv,noheader >> "$OUT/python_bench.txt" 2>/dev/null
 exit $rc
