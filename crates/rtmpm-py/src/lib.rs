@@ -8,9 +8,11 @@
 //! * [`device`]: `DeviceArray` (zero-copy DLPack / CUDA Array Interface views on the GPU).
 //! * [`errors`]: the exceptions.
 
+mod backend;
 mod device;
 mod dict_toml;
 mod errors;
+mod frames;
 mod output;
 mod particles;
 mod scene;
@@ -65,8 +67,8 @@ fn _rtmpm(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<scene::PyScene>()?;
     m.add_class::<simulation::PySimulation>()?;
-    m.add_class::<simulation::BackendInfo>()?;
-    m.add_class::<simulation::FrameIter>()?;
+    m.add_class::<backend::BackendInfo>()?;
+    m.add_class::<frames::FrameIter>()?;
     m.add_class::<particles::PyParticles>()?;
     m.add_class::<device::DeviceArray>()?;
     m.add("RtmpmError", py.get_type::<errors::RtmpmError>())?;

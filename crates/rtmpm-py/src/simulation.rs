@@ -5,11 +5,13 @@
 //! `KeyboardInterrupt` between two steps and leaves the simulation usable. Panics are caught
 //! at this boundary and become `rtmpm.SimulationError`.
 
+use crate::backend::{BackendInfo, request};
 use crate::errors::{backend_error, internal_error, sim_error};
+use crate::frames::FrameIter;
 use crate::scene::{PyScene, scene_arg};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use rtmpm_backends::{AnyBackend, BackendKind, BackendRequest};
+use rtmpm_backends::{AnyBackend, BackendRequest};
 use rtmpm_core::Particles;
 use rtmpm_core::io::checkpoint::Checkpoint;
 use rtmpm_core::scene::Precision;
@@ -198,70 +200,6 @@ impl PySimulation {
     }
 }
 
-fn request(
-    backend: &str,
-    threads: Option<usize>,
-    gpus: &Bound<'_, PyAny>,
-    cuda_options: Option<&str>,
-) -> PyResult<BackendRequest> {
-    let kind: BackendKind = backend.parse().map_err(PyValueError::new_err)?;
-    let gpus = if let Ok(s) = gpus.extract::<String>() {
-        if s != "all" {
-            return Err(PyValueError::new_err(format!(
-                "gpus={s:?}: expected a number of GPUs or \"all\""
-            )));
-        }
-        rtmpm_cuda::device_count().max(1)
-    } else {
-        let n: usize = gpus.extract().map_err(|_| {
-            PyValueError::new_err("gpus must be a positive number of GPUs or \"all\"")
-        })?;
-        if n == 0 {
-            return Err(PyValueError::new_err("gpus must be at least 1"));
-        }
-        n
-    };
-    if threads == Some(0) {
-        return Err(PyValueError::new_err("threads must be at least 1"));
-    }
-    let cuda = match cuda_options {
-        Some(s) => s
-            .parse::<rtmpm_cuda::CudaOptions>()
-            .map_err(|e| PyValueError::new_err(format!("cuda_options: {e}")))?,
-        None => Default::default(),
-    };
-    Ok(BackendRequest {
-        kind,
-        threads,
-        gpus,
-        cuda,
-    })
-}
-
-/// What :attr:`Simulation.backend` says: the backend picked and why.
-#[pyclass(name = "BackendInfo", module = "rtmpm", frozen, get_all)]
-pub struct BackendInfo {
-    /// ``"cpu"`` or ``"cuda"``.
-    pub kind: String,
-    /// The backend's name, e.g. ``"cpu (2 threads)"`` or ``"cuda (NVIDIA H100 80GB HBM3)"``.
-    pub name: String,
-    /// What was asked for and why this backend was picked.
-    pub reason: String,
-}
-
-#[pymethods]
-impl BackendInfo {
-    fn __str__(&self) -> String {
-        self.reason.clone()
-    }
-    fn __repr__(&self) -> String {
-        format!(
-            "BackendInfo(kind={:?}, name={:?}, reason={:?})",
-            self.kind, self.name, self.reason
-        )
-    }
-}
-
 #[pymethods]
 impl PySimulation {
     #[new]
@@ -351,7 +289,7 @@ impl PySimulation {
 
     /// Simulate to the end of the current frame (the frame's time, exactly); returns the
     /// number of steps taken. One call per frame steps exactly as ``rtmpm run`` does.
-    fn run_frame(&mut self, py: Python<'_>) -> PyResult<u64> {
+    pub fn run_frame(&mut self, py: Python<'_>) -> PyResult<u64> {
         let inner = self.get();
         let start = inner.sim.step;
         inner.drive(py, |sim, chunk| sim.advance(chunk))?;
@@ -615,33 +553,5 @@ impl PySimulation {
             inner.sim.frame,
             inner.sim.time
         )
-    }
-}
-
-/// The iterator of :meth:`Simulation.frames`.
-#[pyclass(name = "FrameIterator", module = "rtmpm")]
-pub struct FrameIter {
-    sim: Py<PySimulation>,
-    left: u64,
-}
-
-#[pymethods]
-impl FrameIter {
-    fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
-        slf
-    }
-
-    fn __next__(&mut self, py: Python<'_>) -> PyResult<Option<u64>> {
-        if self.left == 0 {
-            return Ok(None);
-        }
-        self.left -= 1;
-        let mut s = self.sim.bind(py).borrow_mut();
-        s.run_frame(py)?;
-        Ok(Some(s.get().sim.frame))
-    }
-
-    fn __len__(&self) -> usize {
-        self.left as usize
     }
 }
