@@ -9,7 +9,7 @@
 //! block and cell); field [`F_ID`] gives each slot's original particle index.
 
 use crate::backend::{CudaBackend, err};
-use crate::layout::*;
+use crate::contract::*;
 use cudarc::driver::{DevicePtr, PinnedHostSlice};
 use rtmpm_core::math::Vec3;
 use rtmpm_core::sim::SimError;
@@ -30,7 +30,7 @@ pub struct DeviceParticles {
 }
 
 impl DeviceParticles {
-    /// Device address of field `field` (one of the `F_*` constants of [`crate::layout`]).
+    /// Device address of field `field` (one of the `F_*` constants of [`crate::contract`]).
     pub fn field_ptr(&self, field: usize) -> u64 {
         self.ptr + (field * self.stride * self.word_bytes) as u64
     }
@@ -48,7 +48,7 @@ impl CudaBackend {
         self.stream.synchronize().map_err(err("synchronize"))?;
         Ok(DeviceParticles {
             device: self.stream.context().ordinal(),
-            ptr: self.state.device_ptr(&self.stream).0,
+            ptr: self.buffers.state.device_ptr(&self.stream).0,
             n: self.n,
             stride: self.ctx.cap as usize,
             word_bytes: crate::state::word_bytes(self.options.f64),
@@ -65,7 +65,7 @@ impl CudaBackend {
             .map_err(err("synchronize the context"))
     }
 
-    /// Copy the fields `fields` (`F_*` of [`crate::layout`]) of the `n` particles, in storage
+    /// Copy the fields `fields` (`F_*` of [`crate::contract`]) of the `n` particles, in storage
     /// order, to pinned host memory and return them as raw little-endian words (`n` words of
     /// [`DeviceParticles::word_bytes`] each, one slice per field). Synchronises.
     pub fn read_fields(&mut self, fields: &[usize]) -> Result<Vec<&[u8]>, SimError> {
@@ -95,7 +95,7 @@ impl CudaBackend {
         };
         let all = staging.as_mut_slice().map_err(err("pinned memory"))?;
         for (k, &f) in fields.iter().enumerate() {
-            let src = self.state.slice(f * cap * wb..f * cap * wb + row);
+            let src = self.buffers.state.slice(f * cap * wb..f * cap * wb + row);
             self.stream
                 .memcpy_dtoh(&src, &mut all[k * row..(k + 1) * row])
                 .map_err(err("read particle fields"))?;
@@ -152,7 +152,7 @@ impl CudaBackend {
             }
             for (a, row) in rows.chunks_exact(n * wb).enumerate() {
                 let at = (first + a) * cap * wb;
-                let mut dst = self.state.slice_mut(at..at + n * wb);
+                let mut dst = self.buffers.state.slice_mut(at..at + n * wb);
                 self.stream
                     .memcpy_htod(row, &mut dst)
                     .map_err(err("write particle fields"))?;

@@ -131,7 +131,7 @@ pub struct DeviceArray {
 }
 
 impl DeviceArray {
-    /// The view of field `field` (`F_*` of rtmpm_cuda::layout) with per-particle shape
+    /// The view of field `field` (`F_*` of rtmpm_cuda::contract) with per-particle shape
     /// `inner` (`[]`, `[3]` or `[3, 3]` with components `field + 3 * col + row`).
     pub fn new(
         owner: Py<PyAny>,
@@ -354,10 +354,10 @@ pub fn _layout_view(
     if ndim != 1 || !contiguous || !(word_bytes == 4 || word_bytes == 8) {
         return Err(bad());
     }
-    if n > stride || len < rtmpm_cuda::layout::NFIELDS * stride {
+    if n > stride || len < rtmpm_cuda::contract::NFIELDS * stride {
         return Err(bad());
     }
-    if field + inner.iter().product::<usize>() > rtmpm_cuda::layout::NFIELDS {
+    if field + inner.iter().product::<usize>() > rtmpm_cuda::contract::NFIELDS {
         return Err(pyo3::exceptions::PyValueError::new_err(
             "field out of range",
         ));

@@ -12,7 +12,7 @@ use rayon::prelude::*;
 use rtmpm_backends::AnyBackend;
 use rtmpm_core::math::{Mat3, Vec3};
 use rtmpm_core::sim::{Backend, SimError};
-use rtmpm_cuda::layout::{F_C, F_F, F_ID, F_MASS, F_MAT, F_PLASTIC, F_V, F_VOL0, F_X};
+use rtmpm_cuda::contract::{F_C, F_F, F_ID, F_MASS, F_MAT, F_PLASTIC, F_V, F_VOL0, F_X};
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 /// The particles of a :class:`rtmpm.Simulation`.

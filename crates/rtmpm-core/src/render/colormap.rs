@@ -53,29 +53,28 @@ pub fn to_u8(c: f32) -> u8 {
     (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
 }
 
-/// Colour per material of a scene: fluids blue, sand sand-coloured, snow white, elastic solids
-/// red (then green), von Mises metal purple; a type used twice takes the next free palette entry.
+/// Colour per material of a scene: each model's own colour (`Constitutive::COLOUR`: fluids
+/// blue, sand sand-coloured, snow white, elastic solids red, ...); a colour already taken by an
+/// earlier material goes to the first free entry of the palette instead. Shared by the command
+/// line and the Python package.
 pub fn scene_palette(scene: &crate::Scene) -> Vec<[f32; 3]> {
-    use crate::material::Model;
-    let mut used = [false; PALETTE.len()];
+    let mut taken: Vec<[f32; 3]> = Vec::new();
     scene
         .materials
         .iter()
         .map(|m| {
-            let want = match m.model {
-                Model::Fluid(_) => 0,
-                Model::DruckerPrager(_) => 1,
-                Model::FixedCorotated(_) | Model::NeoHookean(_) => 2,
-                Model::Snow(_) => 4,
-                Model::VonMises(_) => 5,
+            let own = m.model.colour();
+            let c = if taken.contains(&own) {
+                PALETTE
+                    .iter()
+                    .copied()
+                    .find(|p| !taken.contains(p))
+                    .unwrap_or(own)
+            } else {
+                own
             };
-            let n = used.len();
-            let k = (0..n)
-                .map(|d| (want + d) % n)
-                .find(|&k| !used[k])
-                .unwrap_or(want);
-            used[k] = true;
-            PALETTE[k]
+            taken.push(c);
+            c
         })
         .collect()
 }

@@ -9,6 +9,7 @@
 #![allow(clippy::result_large_err)]
 
 pub mod error;
+pub mod material;
 pub mod sampling;
 pub mod schema;
 pub mod spans;
