@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # rtmpm's Python package on the GPU machine (issue 16).
 #
-# Here (CPU machine, Rust):   bash scripts/gpu/python.sh build
-#   builds the release wheel into .device/wheels/ and the release CLI into .device/rtmpm.
+# Here (CPU machine, Rust):   bash scripts/gpu/python.sh build   (after scripts/gpu/prepare.sh,
+#   which empties .device/) builds the release wheel into .device/wheels/ (also what the
+#   `python` suite of scripts/gpu/run.sh installs) and the release CLI into .device/rtmpm.
 # There (GPU machine):        bash scripts/gpu/python.sh          (carry [".device"])
 #   installs the wheel into a private folder (no network, no venv needed), then runs
 #   1. the whole pytest suite (CPU tests and tests/test_gpu.py: DLPack with PyTorch, the CUDA
