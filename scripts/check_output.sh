@@ -13,7 +13,8 @@ fi
 python3 scripts/check_vtu.py "$out/frames.pvd"
 
 # The validation suite at its quick resolutions (issue 4): a failing case fails CI.
-# All seven quick cases; colliding_disks runs with the reference's transfer (linear-hat MPM, MUSL,
-# FLIP; about 10 s on 2 cores), granular_column with the plane-strain Drucker-Prager cone (about 60 s).
+# The quick cases; colliding_disks runs with the reference's transfer (linear-hat MPM, MUSL, FLIP;
+# about 10 s on 2 cores), granular_column with the plane-strain Drucker-Prager cone (about 60 s),
+# cohesive_column with non-associated Cam-clay (about 40 s).
 cargo run --quiet -p rtmpm -- validate --quick --backend cpu \
-  --case free_fall,hydrostatic_column,vibrating_bar,vibrating_bar_gimp,dam_break,colliding_disks,granular_column
+  --case free_fall,hydrostatic_column,vibrating_bar,vibrating_bar_gimp,dam_break,colliding_disks,granular_column,cohesive_column
