@@ -34,7 +34,8 @@ python3 scripts/check_formats.py --same-surfaces "$fmt_out" "$mesh_out"
 RTMPM_INTEROP_DIR="$PWD/$fmt_out" cargo test --quiet -p rtmpm-core --features interop --lib io::interop_tests -- --nocapture
 
 # The validation suite at its quick resolutions (issue 4): a failing case fails CI.
-# All seven quick cases; colliding_disks runs with the reference's transfer (linear-hat MPM, MUSL,
-# FLIP; about 10 s on 2 cores), granular_column with the plane-strain Drucker-Prager cone (about 60 s).
+# The quick cases; colliding_disks runs with the reference's transfer (linear-hat MPM, MUSL, FLIP;
+# about 10 s on 2 cores), granular_column with the plane-strain Drucker-Prager cone (about 60 s),
+# cohesive_column with non-associated Cam-clay (about 40 s).
 cargo run --quiet -p rtmpm -- validate --quick --backend cpu \
-  --case free_fall,hydrostatic_column,vibrating_bar,vibrating_bar_gimp,dam_break,colliding_disks,granular_column
+  --case free_fall,hydrostatic_column,vibrating_bar,vibrating_bar_gimp,dam_break,colliding_disks,granular_column,cohesive_column

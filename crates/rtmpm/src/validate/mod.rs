@@ -3,12 +3,14 @@
 //! `docs/validation.md`.
 
 mod bar;
+mod column;
 mod dam_break;
 mod disks;
 mod free_fall;
 mod granular;
 mod hydrostatic;
 mod measure;
+mod slump;
 
 use crate::backend::{BackendKind, make_backend};
 use anyhow::{Context, Result, bail};
@@ -26,7 +28,7 @@ pub struct ValidateArgs {
     pub backend: BackendKind,
     /// Run only these cases, comma separated (free_fall, hydrostatic_column,
     /// hydrostatic_column_gimp, vibrating_bar, vibrating_bar_gimp, dam_break, colliding_disks,
-    /// granular_column).
+    /// granular_column, slump, cohesive_column).
     #[arg(long, value_delimiter = ',')]
     pub case: Vec<String>,
     /// Coarse resolutions that finish in a few minutes on 2 CPU cores (what CI runs).
@@ -136,6 +138,8 @@ const CASES: &[(&str, Case)] = &[
     ("dam_break", dam_break::run),
     ("colliding_disks", disks::run),
     ("granular_column", granular::run),
+    ("slump", slump::run),
+    ("cohesive_column", column::run),
 ];
 
 pub fn validate(args: ValidateArgs) -> Result<()> {
