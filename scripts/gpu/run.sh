@@ -12,7 +12,8 @@
 #   validate     the validation suite at full resolution on the GPU (`rtmpm validate`)
 #   convergence  the convergence studies and the f64 validation cases
 #   bench        the claymore scenes (fluid 2M, jelly 2M, snow 1.33M) and a fluid block; with
-#                .device/rtmpm_base, A/B against that build, interleaved (REPS=2 by default)
+#                .device/rtmpm_base, A/B against that build, interleaved (REPS=2 by default);
+#                BENCH_RUNS="bin|cuda-options ..." sets the runs (default "rtmpm_base| rtmpm|")
 #   ablation     the switches of the seed principles on the claymore scenes (--cuda-options)
 #   variants     A/B of compile-time defines: VARIANTS="label|binary|defines[|options] ..."
 #   multi        several GPUs: agreement tests in every mode, 2 NCCL processes, scaling
@@ -74,10 +75,13 @@ for suite in "$@"; do
       say "f64 rc=$?"; grep -E "PASS|FAIL|passed" "$OUT/f64.log" | tee -a "$S"
       ;;
     bench)
-      bins="rtmpm"; [ -x "$D/rtmpm_base" ] && bins="rtmpm_base rtmpm"
+      runs=${BENCH_RUNS:-"rtmpm|"}; [ -z "${BENCH_RUNS:-}" ] && [ -x "$D/rtmpm_base" ] && runs="rtmpm_base| rtmpm|"
       for rep in $(seq 1 "${REPS:-2}"); do
         for sc in $CLAYMORE; do
-          for bin in $bins; do b "${sc%%:*} #$rep" "$bin" --scene "bench/${sc%%:*}.toml" --frames "${sc##*:}"; done
+          for r in $runs; do
+            bin=${r%%|*}; opts=${r#*|}
+            b "${sc%%:*} #$rep ${opts}" "$bin" --scene "bench/${sc%%:*}.toml" --frames "${sc##*:}" ${opts:+--cuda-options "$opts"}
+          done
         done
       done
       b "fluid block n=128" rtmpm --n 128 --steps 500
@@ -118,4 +122,7 @@ for suite in "$@"; do
     *) say "unknown suite $suite" ;;
   esac
 done
+# At most 8 files come back from a device call: every log in one archive, the summary beside it.
+(cd "$OUT" && ls | grep -v -e '^summary.txt$' -e '^logs.tgz$' > /tmp/logs.list && \
+  tar czf logs.tgz -T /tmp/logs.list && xargs rm -rf < /tmp/logs.list) 2>/dev/null
 echo "==== summary"; cat "$S"

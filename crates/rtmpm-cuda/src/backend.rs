@@ -164,10 +164,19 @@ impl CudaBackend {
         let tables = encode::tables(scene, options.f64)?;
 
         // The program, compiled for this GPU (or from the cache), and its kernels.
+        // Compiled for this GPU and for the scene's models only (a smaller material switch).
         let ptx = compile(&KernelOptions {
             arch: info.compute_capability,
             fast_math: options.fast_math,
             f64: options.f64,
+            materials: if options.specialize {
+                scene
+                    .materials
+                    .iter()
+                    .fold(0u32, |m, mat| m | 1 << mat.model.code())
+            } else {
+                u32::MAX
+            },
         })
         .map_err(SimError::Backend)?;
         let context = CudaContext::new(part.device).map_err(err("context"))?;

@@ -17,6 +17,21 @@ pub struct KernelOptions {
     pub fast_math: bool,
     /// Define `RTMPM_F64` (double precision arithmetic in the kernels).
     pub f64: bool,
+    /// The material models the program must handle: bit k for kind code k
+    /// (`rtmpm_core::material::Model::code`); `u32::MAX`: every model.
+    pub materials: u32,
+}
+
+impl KernelOptions {
+    /// Every model, fast math, single precision, for `arch`.
+    pub fn all_models(arch: (i32, i32), fast_math: bool, f64: bool) -> KernelOptions {
+        KernelOptions {
+            arch,
+            fast_math,
+            f64,
+            materials: u32::MAX,
+        }
+    }
 }
 
 /// A kernel file, or one of the headers generated from the Rust contract.
@@ -106,6 +121,9 @@ pub fn nvrtc_options(o: &KernelOptions) -> Vec<String> {
     ];
     if o.fast_math {
         v.push("--use_fast_math".into());
+    }
+    if o.materials != u32::MAX {
+        v.push(format!("-DRTMPM_MATERIAL_MASK={:#x}u", o.materials));
     }
     // Tuning experiments: extra `-DNAME=VALUE` flags, e.g. "-DG2P_MIN_BLOCKS=6" (part of the
     // cache key like every other option).
@@ -292,11 +310,7 @@ mod tests {
             return;
         }
         for (fast_math, f64) in [(true, false), (false, false), (true, true), (false, true)] {
-            let o = KernelOptions {
-                arch: (9, 0),
-                fast_math,
-                f64,
-            };
+            let o = KernelOptions::all_models((9, 0), fast_math, f64);
             let ptx = compile_fresh(&o).unwrap_or_else(|e| panic!("{o:?}: {e}"));
             for k in crate::kernels::Kernel::ALL {
                 assert!(

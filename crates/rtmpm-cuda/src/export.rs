@@ -100,6 +100,8 @@ impl CudaBackend {
                 .memcpy_dtoh(&src, &mut all[k * row..(k + 1) * row])
                 .map_err(err("read particle fields"))?;
         }
+        // The copies into pinned memory are asynchronous: wait for them before the host reads.
+        self.stream.synchronize().map_err(err("synchronize"))?;
         let all: &[u8] = all;
         Ok((0..fields.len())
             .map(|k| &all[k * row..(k + 1) * row])

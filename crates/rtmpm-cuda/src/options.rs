@@ -93,6 +93,9 @@ pub struct CudaOptions {
     /// P2G kernel running only after a rebuild. One GPU, MLS transfer, `p2g=warp`, the free zone
     /// and mixed sorting only (not when every step rebuilds); elsewhere ignored.
     pub g2p2g: bool,
+    /// Compile the kernels for the scene's material models only (a smaller material switch in
+    /// the merged kernels); off: every model of the registry.
+    pub specialize: bool,
 }
 
 impl Default for CudaOptions {
@@ -117,6 +120,7 @@ impl Default for CudaOptions {
             barrier: None,
             fused_rebuild: true,
             g2p2g: true,
+            specialize: true,
         }
     }
 }
@@ -124,7 +128,7 @@ impl Default for CudaOptions {
 impl std::str::FromStr for CudaOptions {
     type Err = String;
     /// Comma separated `key=value`: `free_zone`, `mixed_sort`, `warp_reduce`, `fast_math`,
-    /// `graph`, `f64`, `rebalance`, `overlap`, `g2p2g` (on/off/true/false/1/0), `rebuild` (fused/kernels), `p2g`
+    /// `graph`, `f64`, `rebalance`, `overlap`, `g2p2g`, `specialize` (on/off/true/false/1/0), `rebuild` (fused/kernels), `p2g`
     /// (warp/shared/reverse_map/sort), `transport` (p2p/nccl), `barrier` (spin/events), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
     /// `rmap_pblocks`, `shared` (counts).
     fn from_str(s: &str) -> Result<Self, String> {
@@ -172,6 +176,7 @@ impl std::str::FromStr for CudaOptions {
                 "shared" => o.shared_capacity = Some(n()?),
                 "rebalance" => o.rebalance = b()?,
                 "g2p2g" => o.g2p2g = b()?,
+                "specialize" => o.specialize = b()?,
                 "overlap" => o.overlap = b()?,
                 "rebuild" => {
                     o.fused_rebuild = match v {
@@ -233,5 +238,7 @@ mod tests {
         assert!("rebuild=maybe".parse::<CudaOptions>().is_err());
         assert!(CudaOptions::default().g2p2g);
         assert!(!"g2p2g=off".parse::<CudaOptions>().unwrap().g2p2g);
+        assert!(CudaOptions::default().specialize);
+        assert!(!"specialize=off".parse::<CudaOptions>().unwrap().specialize);
     }
 }

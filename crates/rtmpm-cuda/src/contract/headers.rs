@@ -249,7 +249,12 @@ pub fn material_registry() -> String {
     for (code, m) in Model::ALL.iter().enumerate() {
         let _ = writeln!(s, "#define MATERIAL_{} {code}u", upper(m.name));
     }
-    s.push('\n');
+    s.push_str(
+        "\n// The models a program is compiled for: bit k of RTMPM_MATERIAL_MASK for kind k (the backend\n\
+         // passes its scene's, so a kernel holds only the models it can meet; default: all).\n\
+         #ifndef RTMPM_MATERIAL_MASK\n#define RTMPM_MATERIAL_MASK 0xffffffffu\n#endif\n\
+         #define RTMPM_HAS_MATERIAL(kind) ((RTMPM_MATERIAL_MASK >> (kind)) & 1u)\n\n",
+    );
     for m in Model::ALL {
         let _ = writeln!(s, "// {}: {}", m.name, m.summary);
         let _ = write!(s, "struct {} {{", params_struct(m.name));
@@ -279,25 +284,25 @@ pub fn material_registry() -> String {
     for m in Model::ALL {
         let _ = writeln!(
             s,
-            "    case MATERIAL_{}: return {1}_kirchhoff({1}_params(m), f, plastic, c);",
+            "    case MATERIAL_{}: if (RTMPM_HAS_MATERIAL(MATERIAL_{0})) return {1}_kirchhoff({1}_params(m), f, plastic, c); break;",
             upper(m.name),
             m.name
         );
     }
     s.push_str(
-        "    default: return mat3_zero();\n    }\n}\n\n\
+        "    }\n    return mat3_zero();\n}\n\n\
          // Plastic return mapping of the trial elastic F of material m after a step dt; updates *plastic.\n\
          __device__ __forceinline__ mat3 material_project(const MaterialGpu& m, const mat3& f_trial, real* plastic, real dt) {\n    switch (m.kind) {\n",
     );
     for m in Model::ALL {
         let _ = writeln!(
             s,
-            "    case MATERIAL_{}: return {1}_project({1}_params(m), f_trial, plastic, dt);",
+            "    case MATERIAL_{}: if (RTMPM_HAS_MATERIAL(MATERIAL_{0})) return {1}_project({1}_params(m), f_trial, plastic, dt); break;",
             upper(m.name),
             m.name
         );
     }
-    s.push_str("    default: return f_trial;\n    }\n}\n");
+    s.push_str("    }\n    return f_trial;\n}\n");
     s
 }
 
@@ -366,7 +371,7 @@ mod tests {
         assert!(r.contains(
             "struct FluidParams { real bulk_modulus; real tait; real gamma; real viscosity; };"
         ));
-        assert!(r.contains("case MATERIAL_VON_MISES: return von_mises_kirchhoff(von_mises_params(m), f, plastic, c);"));
+        assert!(r.contains("case MATERIAL_VON_MISES: if (RTMPM_HAS_MATERIAL(MATERIAL_VON_MISES)) return von_mises_kirchhoff(von_mises_params(m), f, plastic, c); break;"));
         assert!(r.contains("VonMisesParams von_mises_params(const MaterialGpu& m) { return VonMisesParams{m.p[0], m.p[1], m.p[2], m.p[3]}; }"));
         assert!(r.contains("#include \"drucker_prager.cuh\""));
     }

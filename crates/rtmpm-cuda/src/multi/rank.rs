@@ -56,11 +56,9 @@ impl GpuRank {
         comm: CommSource,
     ) -> Result<GpuRank, SimError> {
         check_supported(scene, &options)?;
-        // G2P2G is single-GPU: the shared-block reduction needs P2G as a step of its own.
-        let options = CudaOptions {
-            g2p2g: false,
-            ..options
-        };
+        // With G2P2G (the default) the exchange sums what the previous step's fused kernel (or
+        // this step's P2G, after a rebuild) scattered into this step's grid: it is the step's hook
+        // between P2G and the grid update either way (crate::pipeline).
         let b = CudaBackend::new_part(scene, particles, part, options)?;
         b.stream
             .context()
