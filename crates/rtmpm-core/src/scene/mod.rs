@@ -196,13 +196,27 @@ impl Scene {
     /// Read and validate a scene file; mesh paths are relative to the file's folder.
     pub fn from_file(path: &Path) -> Result<Scene, SceneError> {
         let origin = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| SceneError {
-            origin: origin.clone(),
-            line: None,
-            column: None,
-            field: None,
-            message: format!("cannot read the scene file: {e}"),
-            hint: Some("check the path and permissions".into()),
+        let text = crate::io::limits::read_text_bounded(
+            path,
+            crate::io::limits::SCENE_MAX_BYTES,
+            "scene file",
+        )
+        .map_err(|e| {
+            let hint = match e.kind() {
+                std::io::ErrorKind::NotFound => {
+                    "check the path (it is relative to the current folder)"
+                }
+                std::io::ErrorKind::PermissionDenied => "check the file's permissions",
+                _ => "give a scene file: TOML text as in scenes/ and docs/scene-format.md",
+            };
+            SceneError {
+                origin: origin.clone(),
+                line: None,
+                column: None,
+                field: None,
+                message: format!("cannot read the scene file: {e}"),
+                hint: Some(hint.into()),
+            }
         })?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let mut scene = validate::parse(

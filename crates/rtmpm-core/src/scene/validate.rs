@@ -2,7 +2,7 @@
 
 use super::sampling::{self, BodyShape, Sampling};
 use super::schema::*;
-use super::spans::{line_col, path_at, span_in_doc};
+use super::spans::{is_table, line_col, path_at, path_by_text, span_in_doc};
 use super::{
     Body, Damping, OutputSettings, RenderSettings, Scene, SceneError, StepMode, TimeSettings,
 };
@@ -50,6 +50,7 @@ fn toml_error(text: &str, origin: &str, e: &toml::de::Error) -> SceneError {
     let doc = toml_edit::Document::parse(text).ok();
     let at = match (&doc, offset) {
         (Some(d), Some(o)) => path_at(d, o),
+        (None, Some(o)) => path_by_text(text, o),
         _ => None,
     };
     let (field, hint) = if let Some(name) = backticked(&message, "unknown field ") {
@@ -60,22 +61,44 @@ fn toml_error(text: &str, origin: &str, e: &toml::de::Error) -> SceneError {
         };
         (
             Some(field),
-            "remove the field or fix its spelling (the fields are listed in docs/scene-format.md)",
+            "remove the field or fix its spelling (the fields are listed in docs/scene-format.md)"
+                .to_string(),
         )
     } else if let Some(name) = backticked(&message, "missing field ") {
-        let field = match &at {
-            Some(p) => format!("{p}.{name}"),
-            None => name.to_string(),
+        // The error points into the table that lacks the field: name that table (the root
+        // when the position is on a plain key such as `name`).
+        let mut table = at.clone().unwrap_or_default();
+        if let Some(d) = &doc {
+            while !table.is_empty() && !is_table(d, &table) {
+                table = match table.rfind(['.', '[']) {
+                    Some(i) => table[..i].to_string(),
+                    None => String::new(),
+                };
+            }
+        }
+        let (field, hint) = if table.is_empty() {
+            (
+                name.to_string(),
+                format!("add the [{name}] table or `{name} = ...` (see docs/scene-format.md)"),
+            )
+        } else {
+            (
+                format!("{table}.{name}"),
+                "add the field; it has no default".to_string(),
+            )
         };
-        (Some(field), "add the field; it has no default")
+        (Some(field), hint)
     } else if message.contains("unknown variant") {
-        (at, "use one of the listed values")
+        (at, "use one of the listed values".to_string())
+    } else if let Some(ty) = integer_out_of_range(&message) {
+        (at, ty)
     } else if doc.is_none() {
-        (None, "fix the TOML syntax at this position")
+        (at, "fix the TOML syntax at this position".to_string())
     } else {
         (
             at,
-            "check the value's type: numbers without quotes, names in quotes, vectors as [x, y, z]",
+            "check the value's type: numbers without quotes, names in quotes, vectors as [x, y, z]"
+                .to_string(),
         )
     };
     SceneError {
@@ -84,8 +107,26 @@ fn toml_error(text: &str, origin: &str, e: &toml::de::Error) -> SceneError {
         column,
         field,
         message,
-        hint: Some(hint.into()),
+        hint: Some(hint),
     }
+}
+
+/// The fix for an integer too large (or negative) for its field, from serde's message
+/// (`invalid value: integer `-1`, expected u32`, `... as i128, expected u64`).
+fn integer_out_of_range(message: &str) -> Option<String> {
+    if !message.contains("integer") {
+        return None;
+    }
+    let ty = message.rsplit("expected ").next()?.trim();
+    let range = match ty {
+        "u32" => format!("0 to {}", u32::MAX),
+        "u64" => format!("0 to {}", u64::MAX),
+        "i64" => format!("{} to {}", i64::MIN, i64::MAX),
+        _ => return None,
+    };
+    Some(format!(
+        "the number is out of range for this field: use a whole number from {range}"
+    ))
 }
 
 /// Parse and validate scene text.
@@ -196,6 +237,7 @@ impl V<'_> {
             .clone()
             .or_else(|| stem.map(str::to_string))
             .unwrap_or_else(|| "scene".into());
+        self.file_name_ok(&name, raw.name.is_some())?;
         // Domain.
         let dx = self.positive("domain.dx", raw.domain.dx, "the grid spacing dx")?;
         let dmin = self.vec3("domain.min", raw.domain.min)?;
@@ -341,6 +383,17 @@ impl V<'_> {
             .and_then(|o| o.dir.clone())
             .map(PathBuf::from)
             .unwrap_or_else(|| PathBuf::from("out").join(&name));
+        if dir.as_os_str().is_empty()
+            || dir
+                .components()
+                .any(|c| matches!(c, std::path::Component::ParentDir))
+        {
+            return Err(self.err(
+                "output.dir",
+                format!("output folder {:?} is empty or climbs out with `..`", dir),
+                "give a folder below the current one (e.g. \"out/my_run\") or an absolute path without `..`",
+            ));
+        }
         let formats = out
             .and_then(|o| o.formats.clone())
             .unwrap_or_else(|| vec![RawFormat::Ply]);
@@ -392,6 +445,32 @@ impl V<'_> {
             }
         }
         Ok(scene)
+    }
+
+    /// The scene name names the output folder `out/<name>`: it must be one plain folder name
+    /// (no `/`, `\\`, `..`, control characters, not hidden), so it cannot write outside `out/`.
+    fn file_name_ok(&self, name: &str, given: bool) -> R<()> {
+        let bad = if name.trim().is_empty() {
+            Some("is empty")
+        } else if name.contains(['/', '\\']) {
+            Some("contains a path separator")
+        } else if name.starts_with('.') {
+            Some("starts with `.` (a hidden folder, or `..` which climbs out of out/)")
+        } else if name.chars().any(char::is_control) {
+            Some("contains control characters")
+        } else if name.len() > 200 {
+            Some("is longer than 200 bytes")
+        } else {
+            None
+        };
+        match bad {
+            None => Ok(()),
+            Some(why) => Err(self.err(
+                if given { "name" } else { "<file name>" },
+                format!("the scene name {name:?} {why}; it names the output folder out/<name>"),
+                "use letters, digits, `-` and `_` (e.g. name = \"dam_break\"); choose the folder with [output] dir",
+            )),
+        }
     }
 
     /// `[solver]`: defaults to MLS-MPM/APIC; `update` and `flip` only apply to the classic MPM
