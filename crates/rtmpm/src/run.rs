@@ -71,6 +71,8 @@ pub fn run(args: RunArgs) -> Result<()> {
                 .parent()
                 .unwrap_or(Path::new(""));
             let scene = Scene::from_toml_in(&ckpt.scene_toml, &ckpt.scene_origin, base)?;
+            ckpt.check_scene(&scene)
+                .with_context(|| format!("cannot resume from {}", ckpt_path.display()))?;
             (
                 scene,
                 ckpt.particles,

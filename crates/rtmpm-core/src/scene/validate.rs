@@ -431,12 +431,13 @@ impl V<'_> {
                 .and_then(|s| s.precision)
                 .unwrap_or_default(),
         };
-        // Every body must produce particles.
+        // Every body must produce particles (found without storing them: the first one is
+        // enough; the size of the whole scene is checked by the budget, scene::budget).
         for i in 0..scene.bodies.len() {
-            let p = sampling::sample_body(&scene, i).map_err(|e| {
+            let empty = sampling::body_is_empty(&scene, i).map_err(|e| {
                 self.err(format!("body[{i}]"), e.message, e.hint.unwrap_or_default())
             })?;
-            if p.is_empty() {
+            if empty {
                 return Err(self.err(
                     format!("body[{i}]"),
                     "the body produces 0 particles",
