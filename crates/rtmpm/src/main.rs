@@ -2,6 +2,7 @@
 
 mod backend;
 mod bench;
+mod budget;
 mod check;
 mod info;
 mod multi;

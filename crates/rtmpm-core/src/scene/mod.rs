@@ -8,6 +8,7 @@
 // `SceneError` is deliberately rich (position, field, hint); it is only built on failure.
 #![allow(clippy::result_large_err)]
 
+pub mod budget;
 pub mod error;
 pub mod sampling;
 pub mod schema;
@@ -16,6 +17,7 @@ pub mod spans;
 mod tests;
 mod validate;
 
+pub use budget::Budget;
 pub use error::SceneError;
 pub use sampling::Sampling;
 pub use spans::span_of;
@@ -32,8 +34,9 @@ use std::path::{Path, PathBuf};
 pub enum StepMode {
     /// Fixed dt (s).
     Fixed { dt: f32 },
-    /// `dt = min(max_dt, cfl * dx / (max particle speed + max sound speed))`.
-    Cfl { cfl: f32, max_dt: f32 },
+    /// `dt = min(max_dt, cfl * dx / (max particle speed + max sound speed))`; a step below
+    /// `min_dt` stops the run (the CFL step collapsed: a particle far faster than sound).
+    Cfl { cfl: f32, max_dt: f32, min_dt: f32 },
 }
 
 /// Simulated time and frame rate.

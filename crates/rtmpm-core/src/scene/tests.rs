@@ -89,13 +89,16 @@ fn bench_scene_matches_spec() {
 fn defaults() {
     let s = parse(BASE).unwrap();
     assert_eq!(s.gravity, Vec3::new(0.0, -9.81, 0.0));
-    assert_eq!(
-        s.time.step,
-        StepMode::Cfl {
-            cfl: 0.4,
-            max_dt: 1e-3
-        }
-    );
+    let StepMode::Cfl {
+        cfl,
+        max_dt,
+        min_dt,
+    } = s.time.step
+    else {
+        panic!("{:?}", s.time.step)
+    };
+    assert_eq!((cfl, max_dt), (0.4, 1e-3));
+    assert!(min_dt > 0.0 && min_dt <= 1e-6, "{min_dt}");
     assert_eq!(s.walls.thickness, 3);
     assert_eq!(s.walls.faces[0].condition, Condition::Separate);
     assert_eq!(s.output.dir, PathBuf::from("out/t"));

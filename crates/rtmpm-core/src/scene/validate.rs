@@ -140,6 +140,18 @@ pub(super) fn parse(text: &str, origin: &str, base: &Path, stem: Option<&str>) -
     v.resolve(raw, base, stem)
 }
 
+/// Largest sound speed of the scene's materials (0 when one cannot be built yet: its own
+/// error is reported when the materials are validated).
+fn materials_sound_speed(raw: &RawScene, v: &V<'_>) -> f32 {
+    raw.material
+        .iter()
+        .enumerate()
+        .filter_map(|(i, m)| v.material(i, m).ok())
+        .map(|m| m.model.sound_speed(m.density))
+        .filter(|c| c.is_finite())
+        .fold(0.0, f32::max)
+}
+
 fn fmt3(v: Vec3) -> String {
     format!("[{}, {}, {}]", v.x, v.y, v.z)
 }
@@ -292,6 +304,13 @@ impl V<'_> {
                 ));
             }
             (Some(dt), None) => {
+                if t.min_dt.is_some() {
+                    return Err(self.err(
+                        "time.min_dt",
+                        "min_dt only applies to a CFL step",
+                        "remove min_dt, or replace dt by cfl",
+                    ));
+                }
                 if t.max_dt.is_some() {
                     return Err(self.err(
                         "time.max_dt",
@@ -315,7 +334,32 @@ impl V<'_> {
                 }
                 let max_dt =
                     self.positive("time.max_dt", t.max_dt.unwrap_or(1e-3), "max_dt (s)")?;
-                StepMode::Cfl { cfl, max_dt }
+                // Default: a thousandth of the step the materials' sound speed allows at rest.
+                let sound = materials_sound_speed(&raw, self);
+                let at_rest = if sound > 0.0 {
+                    (cfl * dx / sound).min(max_dt)
+                } else {
+                    max_dt
+                };
+                let min_dt = match t.min_dt {
+                    Some(m) => {
+                        let m = self.positive("time.min_dt", m, "min_dt (s)")?;
+                        if m > max_dt {
+                            return Err(self.err(
+                                "time.min_dt",
+                                format!("min_dt = {m} s is above max_dt = {max_dt} s"),
+                                "use a min_dt well below max_dt, e.g. 1e-7",
+                            ));
+                        }
+                        m
+                    }
+                    None => at_rest * 1e-3,
+                };
+                StepMode::Cfl {
+                    cfl,
+                    max_dt,
+                    min_dt,
+                }
             }
         };
         if let StepMode::Fixed { dt } = step
