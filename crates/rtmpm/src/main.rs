@@ -6,6 +6,7 @@ mod budget;
 mod check;
 mod info;
 mod multi;
+mod outdir;
 mod output;
 mod render;
 mod run;

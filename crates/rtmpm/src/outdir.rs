@@ -59,9 +59,10 @@ pub fn classify(name: &str) -> Option<RunFile> {
 
 /// A temporary file of an atomic write (`.NAME.tmp-PID`, see `rtmpm_core::io::atomic`).
 fn is_temp(name: &str) -> bool {
-    name.starts_with('.') && name.rsplit_once(".tmp-").is_some_and(|(_, pid)| {
-        !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit())
-    })
+    name.starts_with('.')
+        && name
+            .rsplit_once(".tmp-")
+            .is_some_and(|(_, pid)| !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit()))
 }
 
 /// An output folder held by this process: the lock lasts as long as the value.
@@ -129,7 +130,7 @@ impl OutDir {
                 v.push((name.to_string(), kind));
             }
         }
-        v.sort();
+        v.sort_by(|a, b| a.0.cmp(&b.0));
         Ok(v)
     }
 
@@ -217,6 +218,25 @@ impl OutDir {
                 self.dir.display()
             );
         } else {
+            // frames.pvd is continued by the run: one that cannot be read stops the resume
+            // here, before anything is removed.
+            let pvd = self.dir.join("frames.pvd");
+            if pvd.exists() {
+                let text = rtmpm_core::io::read_text_bounded(
+                    &pvd,
+                    rtmpm_core::io::limits::PVD_MAX_BYTES,
+                    "ParaView collection",
+                )
+                .map_err(anyhow::Error::from)
+                .and_then(|t| rtmpm_core::io::vtu::parse_pvd(&t).map_err(anyhow::Error::from));
+                if let Err(e) = text {
+                    bail!(
+                        "cannot continue {}: {e:#} (the frames themselves are intact); move it \
+                         away to start a new collection from the resumed frames",
+                        pvd.display()
+                    );
+                }
+            }
             let n = self.remove_where(
                 |name| matches!(classify(name), Some(RunFile::Frame(f)) if f > frame),
             )?;
@@ -240,9 +260,18 @@ mod tests {
     fn names() {
         assert_eq!(classify("frame_00012.ply"), Some(RunFile::Frame(12)));
         assert_eq!(classify("frame_00012.png"), Some(RunFile::Frame(12)));
-        assert_eq!(classify("checkpoint_00002.ckpt"), Some(RunFile::Checkpoint(2)));
+        assert_eq!(
+            classify("checkpoint_00002.ckpt"),
+            Some(RunFile::Checkpoint(2))
+        );
         assert_eq!(classify("frames.pvd"), Some(RunFile::Other));
-        for other in ["frame_.ply", "frame_1.txt", "notes.md", "frame_1a.ply", ".rtmpm.lock"] {
+        for other in [
+            "frame_.ply",
+            "frame_1.txt",
+            "notes.md",
+            "frame_1a.ply",
+            ".rtmpm.lock",
+        ] {
             assert_eq!(classify(other), None, "{other}");
         }
         assert!(is_temp(".frame_00001.ply.tmp-1234"));

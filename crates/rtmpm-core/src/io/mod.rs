@@ -18,7 +18,7 @@ pub use atomic::{write_atomic, write_atomic_with};
 pub use checkpoint::{Checkpoint, CheckpointError};
 pub use contents::{BadValue, check_particle_values, check_particles_in_domain};
 pub use limits::{read_bounded, read_text_bounded};
-pub use ply::{PlyColumn, PlyData, PlyError, read_ply, write_ply};
+pub use ply::{PlyColumn, PlyData, PlyError, read_ply, write_ply, write_ply_with_comments};
 pub use vtu::{PvdWriter, VtuArray, VtuData, VtuError, VtuValues, read_vtu, write_vtu};
 
 /// Optional per-particle fields written next to the particle state in output frames. They are

@@ -110,7 +110,24 @@ impl PlyData {
 /// Write `particles` (and the optional `fields`) as a binary little-endian PLY point cloud at
 /// `path`, atomically. See the module documentation for the property list.
 pub fn write_ply(path: &Path, particles: &Particles, fields: &FrameFields) -> io::Result<()> {
+    write_ply_with_comments(path, particles, fields, &[])
+}
+
+/// [`write_ply`] with extra `comment` lines in the header (e.g. the run a frame belongs to);
+/// a comment must be one line.
+pub fn write_ply_with_comments(
+    path: &Path,
+    particles: &Particles,
+    fields: &FrameFields,
+    comments: &[&str],
+) -> io::Result<()> {
     super::check_particles(particles)?;
+    if let Some(c) = comments.iter().find(|c| c.contains(['\n', '\r'])) {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!("PLY comment {c:?} spans several lines"),
+        ));
+    }
     let n = particles.len();
     fields.check_len(n)?;
     if let Some(m) = particles.material.iter().find(|&&m| m > i32::MAX as u32) {
@@ -123,6 +140,9 @@ pub fn write_ply(path: &Path, particles: &Particles, fields: &FrameFields) -> io
     let mut header = String::new();
     header.push_str("ply\nformat binary_little_endian 1.0\n");
     header.push_str("comment rtmpm particles\n");
+    for c in comments {
+        header.push_str(&format!("comment {c}\n"));
+    }
     header.push_str(&format!("element vertex {n}\n"));
     for p in ["x", "y", "z", "vx", "vy", "vz"] {
         header.push_str(&format!("property float {p}\n"));
