@@ -562,7 +562,7 @@ pub fn render_cmd(args: RenderArgs) -> Result<()> {
     }
     if !dir.is_dir() {
         bail!(
-            "{} is not a folder: give the output folder of a run",
+            "cannot read folder {}: it is not a folder (give the output folder of a run)",
             dir.display()
         );
     }
