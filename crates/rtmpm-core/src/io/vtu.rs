@@ -285,6 +285,9 @@ fn decode_binary(text: &str) -> Result<Vec<u8>, VtuError> {
     let bad = |e: base64::DecodeError| format_err(format!("bad base64 data: {e}"));
     let (nbytes, data) = if s.as_bytes()[11] == b'=' {
         let h = STANDARD.decode(&s[..12]).map_err(bad)?;
+        if h.len() < 8 {
+            return Err(format_err("binary data header is not 8 bytes"));
+        }
         let nbytes = u64::from_le_bytes(h[..8].try_into().unwrap());
         (nbytes, STANDARD.decode(&s[12..]).map_err(bad)?)
     } else {
