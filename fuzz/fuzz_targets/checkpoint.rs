@@ -1,6 +1,8 @@
-//! Checkpoint reader. The input is taken as a checkpoint's payload and wrapped in a valid
-//! header and checksum (random bytes would almost never pass the checksum), so the fuzzer
-//! explores the decoding and the value checks behind it. Whatever decodes is checked against a
+//! Checkpoint reader. The input becomes a checkpoint's payload wrapped in a valid header and
+//! checksum (random bytes would almost never pass the checksum), so the fuzzer explores the
+//! decoding and the value checks behind it: when the first byte is even, the input is the
+//! payload as is (lengths and counts fuzzed too); when odd, the rest is the time, step, frame
+//! and particle bytes of a payload whose strings and count are made consistent. Whatever decodes is checked against a
 //! scene, and must then be safe to simulate: finite, positive mass, materials in range, inside
 //! the domain.
 #![no_main]
@@ -21,7 +23,27 @@ fn scene() -> &'static Scene {
     })
 }
 
-fuzz_target!(|payload: &[u8]| {
+fuzz_target!(|data: &[u8]| {
+    let Some((&mode, rest)) = data.split_first() else {
+        return;
+    };
+    let structured;
+    let payload = if mode % 2 == 0 {
+        rest
+    } else {
+        let (head, particles) = rest.split_at(rest.len().min(24));
+        let n = particles.len() / 112;
+        let mut p = Vec::with_capacity(rest.len() + 24);
+        p.extend_from_slice(&0u64.to_le_bytes()); // scene_toml: empty
+        p.extend_from_slice(&0u64.to_le_bytes()); // scene_origin: empty
+        let mut h = [0u8; 24];
+        h[..head.len()].copy_from_slice(head);
+        p.extend_from_slice(&h); // time, step, frame
+        p.extend_from_slice(&(n as u64).to_le_bytes());
+        p.extend_from_slice(&particles[..n * 112]);
+        structured = p;
+        &structured
+    };
     let mut bytes = Vec::with_capacity(payload.len() + 32);
     bytes.extend_from_slice(&MAGIC);
     bytes.extend_from_slice(&VERSION.to_le_bytes());

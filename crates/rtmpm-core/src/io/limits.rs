@@ -1,6 +1,6 @@
 //! Bounded reads of input files: the size of a file is checked before anything is allocated,
-//! and no more than a limit per kind of file is ever read (a device such as `/dev/zero` or a
-//! FIFO has no size: it is read up to [`STREAM_MAX_BYTES`]).
+//! and no more than a limit per kind of file is ever read; a device such as `/dev/zero`, a
+//! named pipe or a socket is refused at once (it has no size, and a pipe blocks).
 //!
 //! Every reader of rtmpm (scene, OBJ mesh, PLY, VTU/PVD, checkpoint) goes through
 //! [`read_bounded`], so a wrong path (a folder, a device, a 100 GB file) is a clear error naming
@@ -19,9 +19,6 @@ pub const PVD_MAX_BYTES: u64 = 256 << 20;
 /// Largest particle data file (PLY, VTU, checkpoint); reads are also bounded by the memory
 /// available (see [`read_bounded`]).
 pub const DATA_MAX_BYTES: u64 = 1 << 40;
-/// Most bytes read from something that is not a regular file (a device, a FIFO), whose size is
-/// not known in advance.
-pub const STREAM_MAX_BYTES: u64 = 64 << 20;
 
 /// Human-readable byte count: `1.50 GiB`.
 pub fn human_bytes(b: u64) -> String {
@@ -39,10 +36,45 @@ pub fn human_bytes(b: u64) -> String {
     }
 }
 
-/// Memory the system could give this process now (`MemAvailable` of `/proc/meminfo`), or
-/// `None` where that is not known.
+/// Memory this process could get now: the system's `MemAvailable` (`/proc/meminfo`), lowered
+/// to the process's address-space limit (`ulimit -v`) and its cgroup's `memory.max` where
+/// those are set; `None` where nothing is known.
 pub fn host_memory_available() -> Option<u64> {
-    meminfo_field("MemAvailable:")
+    [
+        meminfo_field("MemAvailable:"),
+        address_space_limit(),
+        cgroup_memory_left(),
+    ]
+    .into_iter()
+    .flatten()
+    .min()
+}
+
+/// `Max address space` of `/proc/self/limits` (soft limit), when set.
+fn address_space_limit() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/self/limits").ok()?;
+    let line = text.lines().find(|l| l.starts_with("Max address space"))?;
+    line["Max address space".len()..]
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}
+
+/// `memory.max - memory.current` of this process's cgroup (v2), when a limit is set.
+fn cgroup_memory_left() -> Option<u64> {
+    let cg = std::fs::read_to_string("/proc/self/cgroup").ok()?;
+    let path = cg.lines().find_map(|l| l.strip_prefix("0::"))?.trim();
+    let dir = Path::new("/sys/fs/cgroup").join(path.trim_start_matches('/'));
+    let read = |f: &str| -> Option<u64> {
+        std::fs::read_to_string(dir.join(f))
+            .ok()?
+            .trim()
+            .parse()
+            .ok()
+    };
+    let max = read("memory.max")?;
+    Some(max.saturating_sub(read("memory.current").unwrap_or(0)))
 }
 
 /// Total memory of the machine (`MemTotal`), or `None` where that is not known.
@@ -74,9 +106,8 @@ fn too_large(what: &str, path: &Path, size: String, limit: u64, why: &str) -> io
 }
 
 /// Read the whole file at `path`, refusing (before reading) a regular file larger than
-/// `limit` bytes or than the memory available, and reading at most
-/// `min(limit, STREAM_MAX_BYTES)` bytes from anything else. `what` names the kind of file in
-/// messages ("scene file", "PLY file", ...). A folder is an error.
+/// `limit` bytes or than the memory available; a folder, a device, a pipe or a socket is an
+/// error. `what` names the kind of file in messages ("scene file", "PLY file", ...).
 pub fn read_bounded(path: &Path, limit: u64, what: &str) -> io::Result<Vec<u8>> {
     let meta = std::fs::metadata(path)?;
     if meta.is_dir() {
@@ -88,48 +119,49 @@ pub fn read_bounded(path: &Path, limit: u64, what: &str) -> io::Result<Vec<u8>> 
             ),
         ));
     }
-    let (cap, expected) = if meta.is_file() {
-        let size = meta.len();
-        if size > limit {
-            return Err(too_large(
-                what,
-                path,
-                human_bytes(size),
-                limit,
-                "the limit for this kind of file",
-            ));
-        }
-        if let Some(avail) = host_memory_available()
-            && size > avail
-        {
-            return Err(too_large(
-                what,
-                path,
-                human_bytes(size),
-                avail,
-                "the memory available now",
-            ));
-        }
-        (size, size as usize)
-    } else {
-        (limit.min(STREAM_MAX_BYTES), 0)
-    };
+    if !meta.is_file() {
+        // A device (/dev/zero), a named pipe or a socket: no size to check, and opening a pipe
+        // waits for a writer. rtmpm reads files.
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!(
+                "{what} {} is not a regular file (a device, a pipe or a socket); give the \
+                 path of a file",
+                path.display()
+            ),
+        ));
+    }
+    let size = meta.len();
+    if size > limit {
+        return Err(too_large(
+            what,
+            path,
+            human_bytes(size),
+            limit,
+            "the limit for this kind of file",
+        ));
+    }
+    if let Some(avail) = host_memory_available()
+        && size > avail
+    {
+        return Err(too_large(
+            what,
+            path,
+            human_bytes(size),
+            avail,
+            "the memory available now",
+        ));
+    }
+    let (cap, expected) = (size, size as usize);
     let file = File::open(path)?;
     let mut bytes = Vec::with_capacity(expected);
     // One byte more than allowed tells a stream that is too long from one that fits exactly.
     file.take(cap.saturating_add(1)).read_to_end(&mut bytes)?;
     if bytes.len() as u64 > cap {
-        let msg = if meta.is_file() {
-            format!("{what} {} grew while it was read", path.display())
-        } else {
-            format!(
-                "{what} {} is not a regular file (a device or a pipe) and gives more than {}, \
-                 the most read from one; is this the right file?",
-                path.display(),
-                human_bytes(cap)
-            )
-        };
-        return Err(io::Error::new(io::ErrorKind::InvalidData, msg));
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidData,
+            format!("{what} {} grew while it was read", path.display()),
+        ));
     }
     Ok(bytes)
 }
@@ -180,17 +212,27 @@ mod tests {
     }
 
     #[test]
-    fn devices_are_read_up_to_the_stream_limit() {
-        let zero = Path::new("/dev/zero");
-        if !zero.exists() {
-            return;
-        }
+    fn devices_and_pipes_are_refused_at_once() {
         let t = std::time::Instant::now();
-        let e = read_bounded(zero, 1 << 20, "mesh file").unwrap_err();
-        assert!(e.to_string().contains("more than 1.00 MiB"), "{e}");
-        let e = read_bounded(zero, u64::MAX, "mesh file").unwrap_err();
-        assert!(e.to_string().contains("a device or a pipe"), "{e}");
-        assert!(t.elapsed().as_secs_f64() < 10.0);
+        for dev in ["/dev/zero", "/dev/null", "/dev/urandom"] {
+            if Path::new(dev).exists() {
+                let e = read_bounded(Path::new(dev), u64::MAX, "mesh file").unwrap_err();
+                assert!(e.to_string().contains("not a regular file"), "{e}");
+            }
+        }
+        // A named pipe without a writer: opening it would block.
+        let d = TestDir::new("limits-fifo");
+        let fifo = d.path("pipe");
+        if std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .is_ok_and(|s| s.success())
+        {
+            let e = read_bounded(&fifo, 100, "scene file").unwrap_err();
+            assert!(e.to_string().contains("a pipe"), "{e}");
+        }
+        assert!(t.elapsed().as_secs_f64() < 5.0);
+        assert!(host_memory_available().is_none_or(|m| m > 0));
     }
 
     #[test]
