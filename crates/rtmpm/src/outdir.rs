@@ -153,7 +153,7 @@ impl OutDir {
     }
 
     fn marker(&self) -> Option<String> {
-        fs::read_to_string(self.dir.join(RUN_FILE))
+        rtmpm_core::io::read_text_bounded(&self.dir.join(RUN_FILE), 4096, "run marker")
             .ok()
             .map(|s| s.trim().to_string())
     }

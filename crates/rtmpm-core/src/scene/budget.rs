@@ -36,6 +36,8 @@ pub struct Budget {
     pub steps: u64,
     /// The time step used for `steps` (s).
     pub dt: f64,
+    /// What sets that step, e.g. "the sound speed 3.2e3 m/s of material `steel`".
+    pub dt_reason: String,
     /// Bytes of frame files written (PLY and/or VTU, every frame including frame 0).
     pub output_bytes: u64,
     /// Host memory of a CPU run (particles, sorting copies, the grid of the touched blocks).
@@ -82,28 +84,43 @@ impl Budget {
             .fold(0u64, |a, &b| a.saturating_add(b));
         let frames = frames.unwrap_or_else(|| scene.time.frames());
         let frame_time = 1.0 / scene.time.fps as f64;
-        let dt = match scene.time.step {
-            StepMode::Fixed { dt } => dt as f64,
+        let (dt, dt_reason) = match scene.time.step {
+            StepMode::Fixed { dt } => (dt as f64, "the fixed time.dt".to_string()),
             StepMode::Cfl { cfl, max_dt, .. } => {
-                let sound = scene
+                let (sound, material) = scene
                     .materials
                     .iter()
-                    .map(|m| m.model.sound_speed(m.density) as f64)
-                    .fold(0.0, f64::max);
-                let speed = scene
+                    .map(|m| (m.model.sound_speed(m.density) as f64, m.name.as_str()))
+                    .fold((0.0, ""), |a, b| if b.0 > a.0 { b } else { a });
+                let (speed, body) = scene
                     .bodies
                     .iter()
-                    .map(|b| {
+                    .enumerate()
+                    .map(|(i, b)| {
                         let (lo, hi) = b.shape.bounds();
-                        b.velocity.length() as f64
-                            + b.angular_velocity.length() as f64 * (hi - lo).length() as f64
+                        let s = b.velocity.length() as f64
+                            + b.angular_velocity.length() as f64 * (hi - lo).length() as f64;
+                        (s, i)
                     })
-                    .fold(0.0, f64::max);
+                    .fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a });
                 let cfl_dt = cfl as f64 * scene.dx as f64 / (sound + speed);
-                if cfl_dt.is_finite() {
-                    cfl_dt.min(max_dt as f64)
+                if !(cfl_dt < max_dt as f64) {
+                    (max_dt as f64, "time.max_dt".to_string())
+                } else if speed > sound {
+                    (
+                        cfl_dt,
+                        format!(
+                            "the CFL condition at the initial speed {speed:.3e} m/s of body[{body}]"
+                        ),
+                    )
                 } else {
-                    max_dt as f64
+                    (
+                        cfl_dt,
+                        format!(
+                            "the CFL condition at the sound speed {sound:.3e} m/s of material \
+                             `{material}` (set by its stiffness and density)"
+                        ),
+                    )
                 }
             }
         };
@@ -145,6 +162,7 @@ impl Budget {
             frames,
             steps,
             dt,
+            dt_reason,
             output_bytes,
             host_bytes,
             gpu_bytes,
@@ -164,10 +182,15 @@ impl Budget {
         if let Some(avail) = host_available
             && self.host_bytes > avail
         {
+            let (largest, count) = self
+                .body_particles
+                .iter()
+                .enumerate()
+                .fold((0, 0), |a, (i, &n)| if n > a.1 { (i, n) } else { a });
             out.push(BudgetIssue {
                 message: format!(
                     "the run needs about {} of memory for {} particles, more than the {} \
-                     available",
+                     available (the largest, body[{largest}], has {count})",
                     human_bytes(self.host_bytes),
                     self.particles,
                     human_bytes(avail)
@@ -186,7 +209,7 @@ impl Budget {
                     "the frames would take about {} ({} frames of {} particles), more than the \
                      {} free on the output disk",
                     human_bytes(self.output_bytes),
-                    self.frames + 1,
+                    self.frames.saturating_add(1),
                     self.particles,
                     human_bytes(avail)
                 ),
@@ -207,11 +230,12 @@ impl Budget {
         if self.steps > MAX_STEPS {
             out.push(BudgetIssue {
                 message: format!(
-                    "about {:.2e} steps of dt = {:.2e} s is more than the {:.0e} allowed (it \
-                     would not end)",
-                    self.steps as f64, self.dt, MAX_STEPS as f64
+                    "about {:.2e} steps of dt = {:.2e} s ({}) is more than the {:.0e} allowed \
+                     (it would not end)",
+                    self.steps as f64, self.dt, self.dt_reason, MAX_STEPS as f64
                 ),
-                fix: "use a larger time.dt (or a CFL step: cfl = 0.4), or a shorter \
+                fix: "use a larger time.dt, a softer material (a lower youngs_modulus or \
+                      bulk_modulus), slower bodies (velocity, angular_velocity), or a shorter \
                       time.duration"
                     .into(),
             });
@@ -224,10 +248,12 @@ impl Budget {
         let mut out = Vec::new();
         if self.steps > WARN_STEPS && self.steps <= MAX_STEPS {
             out.push(format!(
-                "about {:.2e} steps of dt = {:.2e} s: {:.2e} particle-steps, hours or days of \
-                 computing; check time.dt / time.max_dt and time.duration",
+                "about {:.2e} steps of dt = {:.2e} s ({}): {:.2e} particle-steps, hours or days \
+                 of computing; check time.dt / time.max_dt, the materials' stiffness and \
+                 time.duration",
                 self.steps as f64,
                 self.dt,
+                self.dt_reason,
                 self.steps as f64 * self.particles as f64
             ));
         }
@@ -235,7 +261,7 @@ impl Budget {
             out.push(format!(
                 "{} frames: check time.fps ({} files per format)",
                 self.frames,
-                self.frames + 1
+                self.frames.saturating_add(1)
             ));
         }
         out

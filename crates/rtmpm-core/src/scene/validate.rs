@@ -270,6 +270,16 @@ impl V<'_> {
         let cells = (dmax - dmin) / dx;
         for a in 0..3 {
             let n = cells[a];
+            if !(n.round() >= 1.0) {
+                return Err(self.err(
+                    "domain.dx",
+                    format!(
+                        "dx = {dx} is larger than the domain along axis {a} ({} m)",
+                        dmax[a] - dmin[a]
+                    ),
+                    "use a dx that divides the domain into cells (e.g. a 64th of its size)",
+                ));
+            }
             if (n - n.round()).abs() > 1e-3 * n.max(1.0) {
                 let fixed = dmin[a] + n.round().max(1.0) * dx;
                 return Err(self.err(
