@@ -107,7 +107,7 @@ impl OutDir {
             dir: dir.to_path_buf(),
             _lock: file,
         };
-        let stale = out.remove_where(|name| is_temp(name))?;
+        let stale = out.remove_where(is_temp)?;
         if stale > 0 {
             eprintln!(
                 "removed {stale} temporary file(s) left in {} by an interrupted run",

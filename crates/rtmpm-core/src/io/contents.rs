@@ -103,7 +103,8 @@ mod tests {
     #[test]
     fn each_bad_value_is_named() {
         assert_eq!(check_particle_values(&two()), Ok(()));
-        let cases: Vec<(fn(&mut Particles), &str)> = vec![
+        type Edit = fn(&mut Particles);
+        let cases: Vec<(Edit, &str)> = vec![
             (|p| p.mass[1] = -1.0, "mass -1"),
             (|p| p.mass[1] = f32::NAN, "mass NaN"),
             (|p| p.vol0[1] = 0.0, "initial volume 0"),

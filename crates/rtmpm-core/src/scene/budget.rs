@@ -104,7 +104,7 @@ impl Budget {
                     })
                     .fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a });
                 let cfl_dt = cfl as f64 * scene.dx as f64 / (sound + speed);
-                if !(cfl_dt < max_dt as f64) {
+                if cfl_dt.is_nan() || cfl_dt >= max_dt as f64 {
                     (max_dt as f64, "time.max_dt".to_string())
                 } else if speed > sound {
                     (

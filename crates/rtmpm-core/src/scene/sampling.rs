@@ -220,7 +220,7 @@ fn walk_body(scene: &Scene, index: usize, mut visit: Visit<'_>) -> Result<f32, S
             let last = ((hi - scene.domain_min) / h).ceil();
             let count = (last - first + 1.0).max(Vec3::ZERO);
             let total = count.x as f64 * count.y as f64 * count.z as f64;
-            if !(total <= MAX_PARTICLES_PER_BODY as f64) {
+            if !total.is_finite() || total > MAX_PARTICLES_PER_BODY as f64 {
                 return Err(body_error(
                     index,
                     format!(
@@ -275,7 +275,7 @@ fn walk_body(scene: &Scene, index: usize, mut visit: Visit<'_>) -> Result<f32, S
                 0.0
             };
             let expected = count as f64 / fill.max(1e-30);
-            if count > 0 && !(expected <= MAX_RANDOM_TRIES as f64 / 4.0) {
+            if count > 0 && (!expected.is_finite() || expected > MAX_RANDOM_TRIES as f64 / 4.0) {
                 return Err(body_error(
                     index,
                     format!(

@@ -270,7 +270,7 @@ impl V<'_> {
         let cells = (dmax - dmin) / dx;
         for a in 0..3 {
             let n = cells[a];
-            if !(n.round() >= 1.0) {
+            if n.round() < 1.0 {
                 return Err(self.err(
                     "domain.dx",
                     format!(
