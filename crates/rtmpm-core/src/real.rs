@@ -68,8 +68,8 @@ pub fn particles(p: sim::Particles) -> crate::Particles {
 }
 
 /// The scene's materials in this precision.
-pub fn materials(m: &[Material]) -> Vec<Material> {
-    m.to_vec()
+pub fn materials(m: &[Material]) -> Result<Vec<Material>, sim::SimError> {
+    Ok(m.to_vec())
 }
 
 /// The scene's walls in this precision.

@@ -1,60 +1,25 @@
-// Shared device structures of the rtmpm CUDA pipeline (seed 000). Must match src/layout.rs.
+// Shared device structures of the rtmpm CUDA pipeline (Fei, Huang & Gao, "Real-Time Simulation of
+// MPM on Modern GPUs", GTC 2022). The constants come from the Rust contract (contract.cuh, generated
+// by src/contract.rs), and every struct here has a Rust twin there whose field offsets the end of
+// the program asserts one by one.
 #pragma once
+#include "contract.cuh"
 #include "math.cuh"
 #include "shape.cuh"
-#include "material/materials.cuh"
-
-#define RTMPM_MAX_COLLIDERS 16
-#define RTMPM_NFIELDS 29
-// Field offsets of the particle state (structure of arrays: field f of particle i is at
-// state[f * cap + i]; every field is 32 bits).
-#define F_X 0
-#define F_V 3
-#define F_C 6
-#define F_F 15
-#define F_PLASTIC 24
-#define F_MASS 25
-#define F_VOL0 26
-#define F_MAT 27
-#define F_ID 28
-
-// Control words (unsigned ctl[]).
-#define CTL_NEED_REBUILD 0
-#define CTL_GBLOCKS 1
-#define CTL_PBLOCKS 2
-#define CTL_ERROR 3
-#define CTL_BAD_INDEX 4
-#define CTL_BAD_REASON 5
-#define CTL_MAX_SPEED 6
-#define CTL_REBUILDS 7
-#define CTL_WARPS 8
-#define CTL_EXTRA 9
-#define CTL_PREV_GBLOCKS 10
-#define CTL_REBUILT_NOW 11
-#define CTL_SHARED 12
-#define CTL_SHARED_CAP 13
-#define CTL_BARRIER_COUNT 14  // grid barrier of rb_fused (rebuild.cu): blocks arrived
-#define CTL_BARRIER_GEN 15    // grid barrier of rb_fused: generation
-#define CTL_P2G_PENDING 16    // G2P2G: the grid of this step still needs a P2G (first step, new dt)
-#define CTL_WORDS 17
-
-#define ERR_HASH 1u
-#define ERR_GBLOCKS 2u
-#define ERR_PBLOCKS 4u
-#define ERR_WARPS 8u
-#define ERR_P2G_MAP 16u  // reverse map of the gather P2G full (p2g_reverse_map.cu)
-#define ERR_SHARED 32u  // more blocks shared between GPUs than the reduction holds (reduce_shared.cu)
-#define ERR_BARRIER 64u  // the inter-GPU spin barrier timed out: another GPU never arrived (barrier.cu)
 
 #define EMPTY_KEY 0xffffffffffffffffull
 #define EMPTY_ID 0xffffffffu
 
-// Materials: the ported constitutive models (kernels/material/), one MaterialGpu each.
-typedef MaterialGpu GpuMaterial;
+// One material: its model's parameters (read as the model's <Name>Params struct, generated in
+// material/registry.cuh) and its kind code (MATERIAL_*).
+struct MaterialGpu {
+    real p[MATERIAL_PARAMS];
+    unsigned kind, pad;
+};
 
 struct GpuCollider {
-    unsigned kind;  // 0 half-space, 1 box, 2 sphere, 3 cylinder, 4 mesh
-    unsigned cond;  // 0 sticky, 1 slip, 2 separate
+    unsigned kind;  // COLLIDER_*
+    unsigned cond;  // COND_*
     float friction;
     unsigned mesh_offset;
     float velocity[3];
@@ -65,27 +30,26 @@ struct GpuCollider {
     unsigned pad;
 };
 
-// Precision: the scalars the step computes with exist in both widths, so that the host has one
-// layout for both (src/layout.rs); kernels read those of their precision under the plain name
-// (`c.dx`), the others carry a suffix. Collider geometry stays float, as on the CPU.
-#ifdef RTMPM_F64
-#define NAME_IF_F32(name) name##_f32
-#define NAME_IF_F64(name) name
-#else
-#define NAME_IF_F32(name) name
-#define NAME_IF_F64(name) name##_f64
-#endif
+// The precision-dependent constants of a run (constant memory: scalars(c)).
+struct Scalars {
+    real origin[3];  // grid origin: the domain minimum minus 4 cells
+    real dx, inv_dx;
+    real domain_min[3], domain_max[3];
+    real wall_friction[6];
+    real flip;  // FLIP fraction of the classic transfers
+};
 
-// Written with an async host-to-device copy on the compute stream before every step.
+// Parameters of one step (constant memory: step_params(c)), uploaded when they change.
 struct StepParams {
-    float NAME_IF_F32(dt), t;
-    float NAME_IF_F32(gravity)[3];
-    unsigned always_rebuild;
-    float damping;  // settling damping factor on grid velocities (1 = off)
-    unsigned pad;
-    float rot[RTMPM_MAX_COLLIDERS][9];    // rest -> world rotation at t (column-major)
-    float pivot_t[RTMPM_MAX_COLLIDERS][3];
-    double NAME_IF_F64(dt), NAME_IF_F64(gravity)[3];
+    real dt, t;
+    real gravity[3];
+    real damping;  // settling damping factor on grid velocities (1 = off)
+};
+
+// Collider poses at the step's time (constant memory: poses(c)); geometry is float, as on the CPU.
+struct ColliderPoses {
+    float rot[RTMPM_MAX_COLLIDERS][9];  // rest -> world rotation at t (column-major)
+    float pivot[RTMPM_MAX_COLLIDERS][3];
 };
 
 // Constant for the life of the backend; passed by value to every kernel.
@@ -93,9 +57,15 @@ struct Ctx {
     real* state;              // RTMPM_NFIELDS reals per particle (material and id: state_bits)
     real* scratch;
     real* grid;               // 4 reals per node: mass, momentum (velocity after grid update)
+    real* grid_next;          // G2P2G (g2p/g2p2g.cu): the grid the fused kernel scatters the next
+                              // step into (null: G2P and P2G are separate kernels)
+    real* grid_aux;           // classic MPM transfers only (else null), 4 reals per node: unused,
+                              // dt f_i after P2G, v_old after the grid update, MUSL re-mapped v
     unsigned* ctl;
-    const StepParams* step;
-    const GpuMaterial* materials;
+    const Scalars* scalars;   // global copies of the constant-memory parameters
+    const StepParams* step;   // (read with -DRTMPM_PARAMS_GLOBAL)
+    const ColliderPoses* poses;
+    const MaterialGpu* materials;
     const GpuCollider* colliders;
     const float* mesh_values;
     unsigned long long* hash_keys;
@@ -107,60 +77,41 @@ struct Ctx {
     unsigned* pkey;           // per particle: bucket
     unsigned* prank;          // per particle: rank in bucket
     unsigned* warps;          // 3 per warp: gblock, first, count
-    real* grid_aux;           // classic MPM transfers only (else null), 4 reals per node: unused,
-                              // dt f_i after P2G, v_old after the grid update, MUSL re-mapped v
     unsigned* boundary;       // per gblock: 1 if a neighbour block is shared with another GPU
-    float NAME_IF_F32(origin)[3];
-    float NAME_IF_F32(dx), NAME_IF_F32(inv_dx);
-    float NAME_IF_F32(domain_min)[3], NAME_IF_F32(domain_max)[3];
     int n_cells[3];
     int wall_thickness;
-    unsigned wall_cond[6];
-    float NAME_IF_F32(wall_friction)[6];
+    unsigned wall_cond[6];    // COND_* of x min, x max, y min, ...
     unsigned n, cap, gblock_cap, pblock_cap, hash_cap, warp_cap, n_colliders, n_buckets;
     unsigned warp_reduce, warp_sort;
-    unsigned transfer, update;  // TRANSFER_*, UPDATE_* (shape.cuh)
-    float flip;                 // FLIP fraction of the classic transfers
-    real* grid_next;            // G2P2G (g2p2g.cu): the grid the fused kernel scatters the next
-                                // step into (null: G2P and P2G are separate kernels)
-    double NAME_IF_F64(origin)[3];
-    double NAME_IF_F64(dx), NAME_IF_F64(inv_dx);
-    double NAME_IF_F64(domain_min)[3], NAME_IF_F64(domain_max)[3];
-    double NAME_IF_F64(wall_friction)[6];
+    unsigned transfer, update;  // TRANSFER_*, UPDATE_*
+    unsigned always_rebuild;    // rebuild every step (free zone or mixed sorting off)
+    unsigned pad;
 };
-static_assert(sizeof(Ctx) == 456 && sizeof(StepParams) == 832, "Ctx/StepParams must match src/layout.rs");
 
-// Read-only parameters in constant memory (seed 001: "constant memory is used for read-only input
-// data"): the step parameters, the materials table and the colliders are read by every thread with
-// (mostly) warp-uniform addresses, which the constant cache broadcasts. The host writes both these
-// symbols and the global copies behind Ctx::step/materials/colliders; compiling with
-// -DRTMPM_PARAMS_GLOBAL (RTMPM_KERNEL_DEFINES) reads the global copies instead, to measure the
-// difference (bench/RESULTS.md).
-#define RTMPM_MAX_MATERIALS 64
+// Read-only parameters in constant memory (the GPU MPM/GIMP port: "constant memory is used for
+// read-only input data"): they are read by every thread with (mostly) warp-uniform addresses,
+// which the constant cache broadcasts. The host writes both these symbols and the global copies
+// behind Ctx::scalars/step/poses/materials/colliders; compiling with -DRTMPM_PARAMS_GLOBAL
+// (RTMPM_KERNEL_DEFINES) reads the global copies instead, to measure the difference.
+__constant__ Scalars c_scalars;
 __constant__ StepParams c_step;
-__constant__ GpuMaterial c_materials[RTMPM_MAX_MATERIALS];
+__constant__ ColliderPoses c_poses;
+__constant__ MaterialGpu c_materials[RTMPM_MAX_MATERIALS];
 __constant__ GpuCollider c_colliders[RTMPM_MAX_COLLIDERS];
 
-__device__ __forceinline__ const StepParams& step_params(const Ctx& c) {
 #ifdef RTMPM_PARAMS_GLOBAL
-    return *c.step;
+#define RTMPM_PARAM(global, constant) (global)
 #else
-    return c_step;
+#define RTMPM_PARAM(global, constant) (constant)
 #endif
-}
-__device__ __forceinline__ const GpuMaterial& material_at(const Ctx& c, unsigned id) {
-#ifdef RTMPM_PARAMS_GLOBAL
-    return c.materials[id];
-#else
-    return c_materials[id];
-#endif
+__device__ __forceinline__ const Scalars& scalars(const Ctx& c) { return RTMPM_PARAM(*c.scalars, c_scalars); }
+__device__ __forceinline__ const StepParams& step_params(const Ctx& c) { return RTMPM_PARAM(*c.step, c_step); }
+__device__ __forceinline__ const ColliderPoses& poses(const Ctx& c) { return RTMPM_PARAM(*c.poses, c_poses); }
+__device__ __forceinline__ const MaterialGpu& material_at(const Ctx& c, unsigned id) {
+    return RTMPM_PARAM(c.materials[id], c_materials[id]);
 }
 __device__ __forceinline__ const GpuCollider& collider_at(const Ctx& c, unsigned k) {
-#ifdef RTMPM_PARAMS_GLOBAL
-    return c.colliders[k];
-#else
-    return c_colliders[k];
-#endif
+    return RTMPM_PARAM(c.colliders[k], c_colliders[k]);
 }
 
 __device__ __forceinline__ unsigned long long spread3(unsigned v) {
@@ -229,7 +180,8 @@ __device__ __forceinline__ unsigned state_bits(real w) {
 
 // Grid coordinate, stencil base and fractional offset of a position (shape.rs).
 __device__ __forceinline__ void stencil_of(const Ctx& c, vec3 x, int base[3], real fx[3]) {
-    real xg[3] = {(x.x - c.origin[0]) * c.inv_dx, (x.y - c.origin[1]) * c.inv_dx, (x.z - c.origin[2]) * c.inv_dx};
+    const Scalars& sc = scalars(c);
+    real xg[3] = {(x.x - sc.origin[0]) * sc.inv_dx, (x.y - sc.origin[1]) * sc.inv_dx, (x.z - sc.origin[2]) * sc.inv_dx};
     for (int a = 0; a < 3; ++a) {
         real b = floor(xg[a] - (real)0.5);
         base[a] = (int)b;

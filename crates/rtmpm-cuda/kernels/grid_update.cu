@@ -1,11 +1,11 @@
 // Grid update (merged): momentum -> velocity, gravity, domain walls, colliders, in one kernel.
 #include "common.cuh"
 
-// rtmpm_core::boundary::BoundaryRule::apply, literally. cond: 0 sticky, 1 slip, 2 separate.
+// rtmpm_core::boundary::BoundaryRule::apply, literally. cond: COND_*.
 __device__ __forceinline__ vec3 rule_apply(unsigned cond, real friction, vec3 v, vec3 n) {
     real vn = dot(v, n);
-    if (cond == 0) return make_v3(0, 0, 0);
-    if (cond == 2 && vn >= 0) return v;
+    if (cond == COND_STICKY) return make_v3(0, 0, 0);
+    if (cond == COND_SEPARATE && vn >= 0) return v;
     vec3 vt = v - n * vn;
     real vt_len = length(vt);
     if (friction > 0 && vt_len > 0) {
@@ -60,15 +60,15 @@ __device__ real mesh_distance(const Ctx& c, const GpuCollider& col, vec3 x) {
 __device__ real shape_distance(const Ctx& c, const GpuCollider& col, vec3 x) {
     const float* p = col.p;
     switch (col.kind) {
-    case 0: return dot(x - v3f(p), v3f(p + 3));
-    case 1: {
+    case COLLIDER_HALF_SPACE: return dot(x - v3f(p), v3f(p + 3));
+    case COLLIDER_BOX: {
         vec3 q = x - v3f(p);
         q = make_v3(fabs(q.x) - p[3], fabs(q.y) - p[4], fabs(q.z) - p[5]);
         vec3 qp = make_v3(fmax(q.x, (real)0), fmax(q.y, (real)0), fmax(q.z, (real)0));
         return length(qp) + fmin(fmax(q.x, fmax(q.y, q.z)), (real)0);
     }
-    case 2: return length(x - v3f(p)) - p[3];
-    case 3: {
+    case COLLIDER_SPHERE: return length(x - v3f(p)) - p[3];
+    case COLLIDER_CYLINDER: {
         vec3 a = v3f(p + 3);
         vec3 q = x - v3f(p);
         real h = dot(q, a);
@@ -84,8 +84,8 @@ __device__ real shape_distance(const Ctx& c, const GpuCollider& col, vec3 x) {
 __device__ vec3 shape_normal(const Ctx& c, const GpuCollider& col, vec3 x) {
     const float* p = col.p;
     switch (col.kind) {
-    case 0: return v3f(p + 3);
-    case 1: {
+    case COLLIDER_HALF_SPACE: return v3f(p + 3);
+    case COLLIDER_BOX: {
         vec3 d = x - v3f(p);
         vec3 q = make_v3(fabs(d.x) - p[3], fabs(d.y) - p[4], fabs(d.z) - p[5]);
         vec3 s = make_v3(sgn1(d.x), sgn1(d.y), sgn1(d.z));
@@ -95,8 +95,8 @@ __device__ vec3 shape_normal(const Ctx& c, const GpuCollider& col, vec3 x) {
         if (q.y >= q.z) return make_v3(0, s.y, 0);
         return make_v3(0, 0, s.z);
     }
-    case 2: return normalize_or_y(x - v3f(p));
-    case 3: {
+    case COLLIDER_SPHERE: return normalize_or_y(x - v3f(p));
+    case COLLIDER_CYLINDER: {
         vec3 a = v3f(p + 3);
         vec3 q = x - v3f(p);
         real h = dot(q, a);
@@ -147,7 +147,8 @@ extern "C" __global__ void grid_update(Ctx c) {
 // Boundary conditions of node t at the step's time: walls, then colliders (cpu/grid_update.rs:
 // boundary).
 __device__ vec3 node_boundary(const Ctx& c, unsigned t, vec3 v) {
-    const StepParams& sp = step_params(c);
+    const Scalars& sc = scalars(c);
+    const ColliderPoses& pose = poses(c);
     unsigned id = t >> 6, cell = t & 63u;
     int gi[3] = {c.block_coords[3 * id] * 4 + (int)(cell >> 4), c.block_coords[3 * id + 1] * 4 + (int)((cell >> 2) & 3u),
                  c.block_coords[3 * id + 2] * 4 + (int)(cell & 3u)};
@@ -157,20 +158,20 @@ __device__ vec3 node_boundary(const Ctx& c, unsigned t, vec3 v) {
         vec3 n = make_v3(0, 0, 0);
         if (i <= c.wall_thickness) {
             (&n.x)[a] = 1;
-            v = rule_apply(c.wall_cond[2 * a], c.wall_friction[2 * a], v, n);
+            v = rule_apply(c.wall_cond[2 * a], sc.wall_friction[2 * a], v, n);
         } else if (i >= c.n_cells[a] - c.wall_thickness) {
             (&n.x)[a] = -1;
-            v = rule_apply(c.wall_cond[2 * a + 1], c.wall_friction[2 * a + 1], v, n);
+            v = rule_apply(c.wall_cond[2 * a + 1], sc.wall_friction[2 * a + 1], v, n);
         }
     }
     // Colliders (rtmpm_core::boundary::Collider::query): v = vc + rule(v - vc, n).
     if (c.n_colliders) {
-        vec3 x = make_v3(c.origin[0] + gi[0] * c.dx, c.origin[1] + gi[1] * c.dx, c.origin[2] + gi[2] * c.dx);
+        vec3 x = make_v3(sc.origin[0] + gi[0] * sc.dx, sc.origin[1] + gi[1] * sc.dx, sc.origin[2] + gi[2] * sc.dx);
         for (unsigned k = 0; k < c.n_colliders; ++k) {
             GpuCollider col = collider_at(c, k);
             mat3 R;
-            for (int q = 0; q < 9; ++q) R.m[q] = sp.rot[k][q];
-            vec3 pt = v3f(sp.pivot_t[k]);
+            for (int q = 0; q < 9; ++q) R.m[q] = pose.rot[k][q];
+            vec3 pt = v3f(pose.pivot[k]);
             vec3 xr = transpose(R) * (x - pt) + v3f(col.pivot);
             if (shape_distance(c, col, xr) > 0) continue;
             vec3 n = normalize_or_y(R * shape_normal(c, col, xr));

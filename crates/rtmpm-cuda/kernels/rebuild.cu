@@ -15,7 +15,7 @@
 // One thread: decide whether this step rebuilds; reset per-step counters.
 __device__ __forceinline__ void rb_begin_body(const Ctx& c) {
     c.ctl[CTL_MAX_SPEED] = 0;
-    if (step_params(c).always_rebuild) c.ctl[CTL_NEED_REBUILD] = 1;
+    if (c.always_rebuild) c.ctl[CTL_NEED_REBUILD] = 1;
     c.ctl[CTL_REBUILT_NOW] = c.ctl[CTL_NEED_REBUILD] ? 1u : 0u;
     if (!c.ctl[CTL_NEED_REBUILD]) return;
     c.ctl[CTL_REBUILDS] += 1;
@@ -270,7 +270,7 @@ __device__ __forceinline__ bool rb_error(const Ctx& c) { return ((volatile unsig
 
 extern "C" __global__ void __launch_bounds__(1024) rb_fused(Ctx c) {
     // Every block takes the same decision before anyone writes the flag (it is cleared only at the end).
-    bool need = NEED(c) || step_params(c).always_rebuild;
+    bool need = NEED(c) || c.always_rebuild;
     if (!need) {
         if (thread_index() == 0) {
             c.ctl[CTL_MAX_SPEED] = 0;

@@ -3,15 +3,8 @@
 // (Bardenhagen & Kober 2004) and linear hats (Sulsky et al. 1994); every one is a tensor product
 // of 1D weights over the same 3x3x3 stencil (base = floor(xg - 0.5), fx = xg - base in [0.5, 1.5)).
 #pragma once
+#include "contract.cuh"  // TRANSFER_* (Ctx::transfer)
 #include "math.cuh"
-
-// Ctx::transfer (rtmpm_core::transfer::Transfer::code).
-#define TRANSFER_MLS 0u
-#define TRANSFER_GIMP 1u
-#define TRANSFER_LINEAR 2u
-// Ctx::update (rtmpm_core::transfer::Update).
-#define UPDATE_USL 0u
-#define UPDATE_MUSL 1u
 
 // Quadratic B-spline weights of the three nodes of one axis (shape.rs: weights_1d).
 __device__ __forceinline__ void weights_1d(real fx, real w[3]) {

@@ -1,8 +1,11 @@
-//! Per-kernel timing with CUDA events and a device-to-device copy bandwidth reference.
+//! Timing of each stage of the step with CUDA events (the step of a run, through its one
+//! sequence, `crate::pipeline`, with an event after each stage), and a device-to-device copy
+//! bandwidth reference.
 
 use crate::backend::CudaBackend;
-use crate::layout::NFIELDS;
+use crate::pipeline::{Hooks, Stage};
 use cudarc::driver::sys::CUevent_flags;
+use cudarc::driver::{CudaEvent, CudaStream};
 use rtmpm_core::sim::SimError;
 
 /// Timings of the pipeline, averaged over the measured steps.
@@ -20,6 +23,11 @@ pub struct KernelTimings {
     pub p2g_memory: Vec<(&'static str, usize)>,
     /// Grid update.
     pub grid_update_ms: f64,
+    /// MUSL re-map (velocities, momenta to the grid again, their update); 0 for USL and MLS.
+    pub musl_ms: f64,
+    /// The stages timed, in step order (`pipeline::Stage`, as the step ran them; the phases of
+    /// P2G count once).
+    pub stages: Vec<&'static str>,
     /// G2P.
     pub g2p_ms: f64,
     /// Rebuilds of the mapping during the measured steps.
@@ -39,7 +47,36 @@ fn err(what: &'static str) -> impl Fn(cudarc::driver::DriverError) -> SimError {
     move |e| SimError::Backend(format!("CUDA: {what}: {e:?}"))
 }
 
-/// Run `warmup` then `steps` steps of size `dt` (no graph), timing each stage with events.
+/// The benchmark's hooks: an event after every stage of the step.
+struct Probe {
+    events: Vec<(Stage, CudaEvent)>,
+    pool: Vec<CudaEvent>,
+}
+
+impl Hooks for Probe {
+    fn after(&mut self, stage: Stage, s: &CudaStream) -> Result<(), SimError> {
+        let e = self
+            .pool
+            .pop()
+            .ok_or_else(|| SimError::Backend("benchmark: out of events".into()))?;
+        e.record(s).map_err(err("record"))?;
+        self.events.push((stage, e));
+        Ok(())
+    }
+}
+
+fn stage_name(s: Stage) -> &'static str {
+    match s {
+        Stage::Rebuild => "rebuild",
+        Stage::P2g(_) => "p2g",
+        Stage::GridUpdate => "grid_update",
+        Stage::MuslRemap => "musl_remap",
+        Stage::G2p => "g2p",
+    }
+}
+
+/// Run `warmup` then `steps` steps of size `dt` without the graph, through the same step
+/// sequence as a run ([`crate::pipeline`]), timing each stage with events.
 pub fn bench_kernels(
     b: &mut CudaBackend,
     dt: f32,
@@ -57,45 +94,46 @@ pub fn bench_kernels(
         ctx.new_event(Some(CUevent_flags::CU_EVENT_DEFAULT))
             .map_err(err("event"))
     };
-    let phases = b.p2g.phases();
-    let np = phases.len();
-    // Events: start, after rebuild, after each P2G phase, after the grid update, after G2P.
-    let e: Vec<_> = (0..np + 4).map(|_| ev()).collect::<Result<_, _>>()?;
+    let stages = b.plan().stages(&b.step_ctx());
     let mut t = KernelTimings {
         steps,
-        p2g_phases: phases.iter().map(|p| (*p, 0.0)).collect(),
+        p2g_phases: b.p2g.phases().iter().map(|p| (*p, 0.0)).collect(),
         p2g_memory: b.p2g_memory(),
+        stages: {
+            let mut names: Vec<&'static str> = stages.iter().map(|s| stage_name(*s)).collect();
+            names.dedup(); // the phases of a gather P2G are one stage
+            names
+        },
         ..Default::default()
+    };
+    let start = ev()?;
+    let mut probe = Probe {
+        events: Vec::new(),
+        pool: (0..stages.len()).map(|_| ev()).collect::<Result<_, _>>()?,
     };
     for i in 0..steps {
         b.upload_params(dt, (warmup + i) as f32 * dt)?;
-        let (k, s, c) = (&b.kernels, &b.stream, &b.step_ctx());
-        e[0].record(s).map_err(err("record"))?;
-        crate::rebuild::enqueue(k, s, c).map_err(err("rebuild"))?;
-        e[1].record(s).map_err(err("record"))?;
-        for p in 0..np {
-            b.p2g.enqueue_phase(p, k, s, c).map_err(err("p2g"))?;
-            e[2 + p].record(s).map_err(err("record"))?;
+        start.record(&b.stream).map_err(err("record"))?;
+        b.run_step(dt, &mut probe, false)?;
+        let last = probe.events.last().map(|e| &e.1).unwrap_or(&start);
+        last.synchronize().map_err(err("sync"))?;
+        let mut prev = &start;
+        for (stage, e) in &probe.events {
+            let ms = prev.elapsed_ms(e).map_err(err("elapsed"))? as f64;
+            match stage {
+                Stage::Rebuild => t.rebuild_ms += ms,
+                Stage::P2g(p) => {
+                    t.p2g_phases[*p].1 += ms;
+                    t.p2g_ms += ms;
+                }
+                Stage::GridUpdate => t.grid_update_ms += ms,
+                Stage::MuslRemap => t.musl_ms += ms,
+                Stage::G2p => t.g2p_ms += ms,
+            }
+            prev = e;
         }
-        crate::grid_update::enqueue(k, s, c).map_err(err("grid"))?;
-        e[np + 2].record(s).map_err(err("record"))?;
-        crate::g2p::enqueue(k, s, c, b.all_fluid).map_err(err("g2p"))?;
-        e[np + 3].record(s).map_err(err("record"))?;
-        b.end_step();
-        e[np + 3].synchronize().map_err(err("sync"))?;
-        let ms = |a: usize, z: usize| {
-            e[a].elapsed_ms(&e[z])
-                .map(|v| v as f64)
-                .map_err(err("elapsed"))
-        };
-        t.rebuild_ms += ms(0, 1)?;
-        for p in 0..np {
-            t.p2g_phases[p].1 += ms(1 + p, 2 + p)?;
-        }
-        t.p2g_ms += ms(1, np + 1)?;
-        t.grid_update_ms += ms(np + 1, np + 2)?;
-        t.g2p_ms += ms(np + 2, np + 3)?;
-        t.ms_per_step += ms(0, np + 3)?;
+        t.ms_per_step += start.elapsed_ms(prev).map_err(err("elapsed"))? as f64;
+        probe.pool.extend(probe.events.drain(..).map(|e| e.1));
     }
     if b.check()?.is_some() {
         return Err(SimError::Backend(
@@ -107,6 +145,7 @@ pub fn bench_kernels(
         &mut t.rebuild_ms,
         &mut t.p2g_ms,
         &mut t.grid_update_ms,
+        &mut t.musl_ms,
         &mut t.g2p_ms,
         &mut t.ms_per_step,
     ] {
@@ -118,9 +157,8 @@ pub fn bench_kernels(
     t.rebuilds = b.rebuild_count()? - r0;
     let (_, pblocks, _) = b.block_counts()?;
     let n = b.ctx.n as u64;
-    let node_bytes = 4 * if b.options.f64 { 8 } else { 4 } as u64;
+    let node_bytes = 4 * b.real_bytes() as u64;
     let nodes = pblocks as u64 * 64;
-    let _ = NFIELDS;
     t.g2p2g = b.g2p2g();
     // Words per particle: P2G reads x, v, C, F, plastic, mass, vol0, material (28); G2P reads x,
     // F, plastic, material, id (15) and writes x, v, C, F, plastic (25). G2P2G reads the G2P

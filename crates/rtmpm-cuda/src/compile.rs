@@ -1,90 +1,12 @@
-//! Kernel sources (embedded), a small `#include` preprocessor and NVRTC compilation with an
-//! on-disk PTX cache.
+//! The program's source (the kernel files of [`crate::kernels::SOURCES`] and the generated
+//! headers of [`crate::contract`]), a small `#include` preprocessor and NVRTC compilation with
+//! an on-disk PTX cache.
 
+use crate::contract;
+use crate::kernels::{SOURCES, UNITS};
+use std::borrow::Cow;
 use std::collections::HashSet;
 use std::path::PathBuf;
-
-/// Every kernel source file, by name (embedded at build time).
-pub const SOURCES: &[(&str, &str)] = &[
-    ("math.cuh", include_str!("../kernels/math.cuh")),
-    ("common.cuh", include_str!("../kernels/common.cuh")),
-    ("shape.cuh", include_str!("../kernels/shape.cuh")),
-    (
-        "material_dispatch.cuh",
-        include_str!("../kernels/material_dispatch.cuh"),
-    ),
-    ("svd.cuh", include_str!("../kernels/svd.cuh")),
-    (
-        "material/materials.cuh",
-        include_str!("../kernels/material/materials.cuh"),
-    ),
-    (
-        "material/fluid.cuh",
-        include_str!("../kernels/material/fluid.cuh"),
-    ),
-    (
-        "material/fixed_corotated.cuh",
-        include_str!("../kernels/material/fixed_corotated.cuh"),
-    ),
-    (
-        "material/neo_hookean.cuh",
-        include_str!("../kernels/material/neo_hookean.cuh"),
-    ),
-    (
-        "material/snow.cuh",
-        include_str!("../kernels/material/snow.cuh"),
-    ),
-    (
-        "material/hencky.cuh",
-        include_str!("../kernels/material/hencky.cuh"),
-    ),
-    (
-        "material/drucker_prager.cuh",
-        include_str!("../kernels/material/drucker_prager.cuh"),
-    ),
-    (
-        "material/von_mises.cuh",
-        include_str!("../kernels/material/von_mises.cuh"),
-    ),
-    ("scan.cuh", include_str!("../kernels/scan.cuh")),
-    (
-        "p2g_particle.cuh",
-        include_str!("../kernels/p2g_particle.cuh"),
-    ),
-    ("rebuild.cu", include_str!("../kernels/rebuild.cu")),
-    (
-        "reduce_shared.cu",
-        include_str!("../kernels/reduce_shared.cu"),
-    ),
-    ("barrier.cu", include_str!("../kernels/barrier.cu")),
-    ("p2g.cu", include_str!("../kernels/p2g.cu")),
-    (
-        "p2g_reverse_map.cu",
-        include_str!("../kernels/p2g_reverse_map.cu"),
-    ),
-    ("p2g_sort.cu", include_str!("../kernels/p2g_sort.cu")),
-    ("grid_update.cu", include_str!("../kernels/grid_update.cu")),
-    (
-        "g2p_particle.cuh",
-        include_str!("../kernels/g2p_particle.cuh"),
-    ),
-    ("p2g_warp.cuh", include_str!("../kernels/p2g_warp.cuh")),
-    ("g2p.cu", include_str!("../kernels/g2p.cu")),
-    ("g2p2g.cu", include_str!("../kernels/g2p2g.cu")),
-];
-
-/// The translation units compiled into the one module of the pipeline.
-pub const UNITS: &[&str] = &[
-    "rebuild.cu",
-    "reduce_shared.cu",
-    "barrier.cu",
-    "p2g.cu",
-    "p2g_reverse_map.cu",
-    "p2g_sort.cu",
-    "grid_update.cu",
-    "g2p.cu",
-    "g2p2g.cu",
-];
 
 /// Compilation options of the kernels.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
@@ -97,8 +19,16 @@ pub struct KernelOptions {
     pub f64: bool,
 }
 
-fn source(name: &str) -> Option<&'static str> {
-    SOURCES.iter().find(|(n, _)| *n == name).map(|(_, s)| *s)
+/// A kernel file, or one of the headers generated from the Rust contract.
+fn source(name: &str) -> Option<Cow<'static, str>> {
+    match name {
+        "contract.cuh" => Some(contract::prelude().into()),
+        "material/registry.cuh" => Some(contract::material_registry().into()),
+        _ => SOURCES
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|(_, s)| Cow::Borrowed(*s)),
+    }
 }
 
 /// Path of `include` as written in file `from`, relative to the kernels folder ("a/../b" folded).
@@ -127,7 +57,7 @@ fn expand(name: &str, seen: &mut HashSet<String>, out: &mut String) -> Result<()
             continue;
         }
         if let Some(rest) = t.strip_prefix("#include \"") {
-            let inc = resolve(name, rest.trim_end_matches('"'));
+            let inc = resolve(name, rest.split('"').next().unwrap_or(rest));
             let inc = inc.as_str();
             if seen.insert(inc.to_string()) {
                 expand(inc, seen, out)?;
@@ -141,15 +71,20 @@ fn expand(name: &str, seen: &mut HashSet<String>, out: &mut String) -> Result<()
     Ok(())
 }
 
-/// The whole program: every unit with its headers inlined once, `#line` directives naming the
-/// original files so that NVRTC errors point at `kernels/<file>:<line>`.
-pub fn program_source() -> Result<String, String> {
+/// The whole program in precision `f64` (else f32): every unit with its headers inlined once,
+/// `#line` directives naming the original files so that NVRTC errors point at
+/// `kernels/<file>:<line>`, then the layout checks of the contract.
+pub fn program_source(f64: bool) -> Result<String, String> {
     let mut seen = HashSet::new();
     let mut out = String::new();
+    if f64 {
+        out.push_str("#define RTMPM_F64\n");
+    }
     for unit in UNITS {
         seen.insert(unit.to_string());
         expand(unit, &mut seen, &mut out)?;
     }
+    out.push_str(&contract::layout_asserts(f64));
     Ok(out)
 }
 
@@ -162,9 +97,6 @@ pub fn nvrtc_options(o: &KernelOptions) -> Vec<String> {
     ];
     if o.fast_math {
         v.push("--use_fast_math".into());
-    }
-    if o.f64 {
-        v.push("-DRTMPM_F64".into());
     }
     // Tuning experiments: extra `-DNAME=VALUE` flags, e.g. "-DG2P_MIN_BLOCKS=6" (part of the
     // cache key like every other option).
@@ -263,7 +195,7 @@ pub fn compile(o: &KernelOptions) -> Result<String, String> {
     if !nvrtc_available() {
         return Err("libnvrtc.so.13 not found (pip install nvidia-cuda-nvrtc==13.0.*, or set RTMPM_NVRTC_LIB / LD_LIBRARY_PATH)".into());
     }
-    let src = program_source()?;
+    let src = program_source(o.f64)?;
     let opts = nvrtc_options(o);
     let mut h = fnv1a(src.as_bytes(), 0xcbf2_9ce4_8422_2325);
     h = fnv1a(opts.join(" ").as_bytes(), h);
@@ -335,36 +267,15 @@ mod tests {
                 f64,
             };
             let ptx = compile_fresh(&o).unwrap_or_else(|e| panic!("{o:?}: {e}"));
-            for k in [
-                "rb_begin",
-                "rb_scatter",
-                "p2g",
-                "p2g_shared",
-                "p2g_rmap_build",
-                "p2g_rmap_gather",
-                "p2g_sort_emit",
-                "p2g_sort_count",
-                "p2g_sort_scatter",
-                "p2g_sort_segments",
-                "p2g_sort_gather",
-                "grid_update",
-                "g2p",
-                "grid_clear",
-                "sb_mark",
-                "sb_list",
-                "sb_pack",
-                "sb_unpack",
-                "sb_counts_peers",
-                "sb_sum_peers",
-                "barrier_spin",
-            ] {
+            for k in crate::kernels::Kernel::ALL {
                 assert!(
-                    ptx.contains(&format!(".entry {k}(")),
-                    "{k} missing from PTX"
+                    ptx.contains(&format!(".entry {}(", k.name())),
+                    "{} missing from PTX",
+                    k.name()
                 );
             }
             // Read-only parameters in constant memory, written by the host under these names.
-            for sym in ["c_step", "c_materials", "c_colliders"] {
+            for sym in crate::backend::CONSTANT_SYMBOLS {
                 assert!(
                     ptx.contains(&format!(" .b8 {sym}[")),
                     "constant {sym} missing from PTX"
@@ -375,8 +286,15 @@ mod tests {
 
     #[test]
     fn preprocessor_inlines_headers_once_with_line_directives() {
-        let s = program_source().unwrap();
+        let s = program_source(false).unwrap();
         assert_eq!(s.matches("#line 1 \"common.cuh\"").count(), 1);
-        assert!(s.contains("#line 1 \"g2p.cu\""));
+        assert_eq!(s.matches("#line 1 \"contract.cuh\"").count(), 1);
+        assert!(s.contains("#line 1 \"g2p/g2p.cu\""));
+        assert!(!s.starts_with("#define RTMPM_F64"));
+        assert!(
+            program_source(true)
+                .unwrap()
+                .starts_with("#define RTMPM_F64")
+        );
     }
 }

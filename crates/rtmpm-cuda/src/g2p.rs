@@ -1,14 +1,14 @@
-//! Host side of `kernels/g2p.cu`.
+//! Host side of `kernels/g2p/`: the G2P kernels (`g2p.cu`) and the fused G2P2G (`g2p2g.cu`).
 
-use crate::backend::{Kernels, cfg_wave};
-use crate::layout::Ctx;
+use crate::contract::Ctx;
+use crate::kernels::{Kernel, Kernels};
 use cudarc::driver::{CudaStream, DriverError, PushKernelArg};
 use rtmpm_core::transfer::Transfer;
 
 /// Enqueue the merged G2P (interpolation, F, plasticity, advection, free-zone and health checks):
-/// `g2p2g` with G2P2G (the next step's P2G in the same kernel, `kernels/g2p2g.cu`), else `g2p`
-/// for MLS, `g2p_mpm` for the classic MPM transfers. `all_fluid`: every material is a fluid
-/// (G2P2G then runs `g2p2g_fluid`, which moves one word of F in and three out).
+/// `g2p2g` with G2P2G (the next step's P2G in the same kernel), else `g2p` for MLS, `g2p_mpm`
+/// for the classic MPM transfers. `all_fluid`: every material is a fluid (G2P2G then runs
+/// `g2p2g_fluid`, which moves one word of F in and three out).
 pub(crate) fn enqueue(
     k: &Kernels,
     s: &CudaStream,
@@ -16,21 +16,19 @@ pub(crate) fn enqueue(
     all_fluid: bool,
 ) -> Result<(), DriverError> {
     let f = if c.grid_next != 0 && all_fluid {
-        &k.g2p2g_fluid
+        Kernel::G2p2gFluid
     } else if c.grid_next != 0 {
-        &k.g2p2g
+        Kernel::G2p2g
     } else if c.transfer == Transfer::Mls.code() {
-        &k.g2p
+        Kernel::G2p
     } else {
-        &k.g2p_mpm
+        Kernel::G2pMpm
     };
     // SAFETY: the kernel bounds-checks against the warp count.
     unsafe {
-        s.launch_builder(f).arg(c).launch(cfg_wave(
-            c.warp_cap as usize * 32,
-            128,
-            k.wave_threads,
-        ))?
+        s.launch_builder(&k[f])
+            .arg(c)
+            .launch(k.wave(c.warp_cap as usize * 32, 128))?
     };
     Ok(())
 }
@@ -39,9 +37,9 @@ pub(crate) fn enqueue(
 pub(crate) fn enqueue_velocity(k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), DriverError> {
     // SAFETY: the kernel bounds-checks against the warp count.
     unsafe {
-        s.launch_builder(&k.g2p_mpm_velocity)
+        s.launch_builder(&k[Kernel::G2pMpmVelocity])
             .arg(c)
-            .launch(cfg_wave(c.warp_cap as usize * 32, 128, k.wave_threads))?
+            .launch(k.wave(c.warp_cap as usize * 32, 128))?
     };
     Ok(())
 }

@@ -1,18 +1,16 @@
 //! Host side of `kernels/grid_update.cu`.
 
-use crate::backend::{Kernels, cfg_wave};
-use crate::layout::Ctx;
+use crate::contract::Ctx;
+use crate::kernels::{Kernel, Kernels};
 use cudarc::driver::{CudaStream, DriverError, PushKernelArg};
 
 /// Enqueue the merged grid update (velocity, gravity, walls, colliders).
 pub(crate) fn enqueue(k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), DriverError> {
     // SAFETY: the kernel bounds-checks against the pblock count.
     unsafe {
-        s.launch_builder(&k.grid_update).arg(c).launch(cfg_wave(
-            c.pblock_cap as usize * 64,
-            128,
-            k.wave_threads,
-        ))?
+        s.launch_builder(&k[Kernel::GridUpdate])
+            .arg(c)
+            .launch(k.wave(c.pblock_cap as usize * 64, 128))?
     };
     Ok(())
 }
@@ -21,9 +19,9 @@ pub(crate) fn enqueue(k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), Driver
 pub(crate) fn enqueue_musl(k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), DriverError> {
     // SAFETY: the kernel bounds-checks against the pblock count.
     unsafe {
-        s.launch_builder(&k.grid_update_musl)
+        s.launch_builder(&k[Kernel::GridUpdateMusl])
             .arg(c)
-            .launch(cfg_wave(c.pblock_cap as usize * 64, 128, k.wave_threads))?
+            .launch(k.wave(c.pblock_cap as usize * 64, 128))?
     };
     Ok(())
 }

@@ -6,7 +6,7 @@
 //! their word (`state_bits` in `kernels/common.cuh`). The [`Particles`] interface is f32: the
 //! upload widens exactly, the download rounds to nearest.
 
-use crate::layout::*;
+use crate::contract::*;
 use rtmpm_core::Particles;
 use rtmpm_core::math::{Mat3, Vec3};
 

@@ -2,7 +2,7 @@
 //! usable CUDA device is present.
 
 use rtmpm_core::boundary::Walls;
-use rtmpm_core::material::{Eos, FixedCorotated, Fluid, Material, Model};
+use rtmpm_core::material::Material;
 use rtmpm_core::math::{IVec3, Mat3, Vec3};
 use rtmpm_core::scene::{OutputSettings, StepMode, TimeSettings};
 use rtmpm_core::sim::{Backend, SimError};
@@ -37,15 +37,9 @@ fn scene(dx: f32) -> Scene {
             step: StepMode::Fixed { dt: 1e-4 },
             damping: Default::default(),
         },
-        materials: vec![Material {
-            name: "water".into(),
-            density: 1000.0,
-            model: Model::Fluid(Fluid {
-                bulk_modulus: 1e4,
-                eos: Eos::Linear,
-                viscosity: 0.0,
-            }),
-        }],
+        materials: vec![
+            Material::parse("water", 1000.0, "fluid", "bulk_modulus = 1e4").expect("water"),
+        ],
         bodies: vec![],
         colliders: vec![],
         walls: Walls::default(),
@@ -322,14 +316,10 @@ fn capacity_overflow_is_an_error() {
 /// deformation gradients (so that the stress term is non-zero), with one P2G strategy.
 fn p2g_grid(mode: P2gMode) -> Result<HashMap<IVec3, [f64; 4]>, SimError> {
     let mut s = scene(1.0 / 32.0);
-    s.materials.push(Material {
-        name: "jelly".into(),
-        density: 1000.0,
-        model: Model::FixedCorotated(FixedCorotated {
-            mu: 4e4,
-            lambda: 6e4,
-        }),
-    });
+    s.materials.push(
+        Material::parse("jelly", 1000.0, "fixed_corotated", "mu = 4e4\nlambda = 6e4")
+            .expect("jelly"),
+    );
     let mut p = block(&s, Vec3::new(0.2, 0.25, 0.3), Vec3::new(0.55, 0.5, 0.6));
     for i in 0..p.len() {
         let a = i as f32;
@@ -420,4 +410,44 @@ fn reverse_map_overflow_is_an_error() {
         }
         other => panic!("expected a capacity error, got {:?}", other.map(|_| ())),
     }
+}
+
+/// The benchmark times the run's own step: on a MUSL scene its stages include the MUSL re-map,
+/// which takes time, and the evented step is the sum of the stages.
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn bench_times_the_musl_step_of_a_musl_scene() {
+    if !gpu() {
+        return;
+    }
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../validation/colliding_disks.toml");
+    let s = Scene::from_file(&path).expect("colliding disks scene");
+    assert_eq!(s.solver.update, rtmpm_core::transfer::Update::Musl);
+    let p = s.sample_particles().expect("particles");
+    let mut b = CudaBackend::new(&s, &p, CudaOptions::default()).expect("backend");
+    let t = rtmpm_cuda::bench_kernels(&mut b, 1e-3, 5, 20).expect("bench");
+    println!("{t:?}");
+    assert_eq!(
+        t.stages,
+        vec!["rebuild", "p2g", "grid_update", "musl_remap", "g2p"]
+    );
+    assert!(t.musl_ms > 0.0, "MUSL re-map not timed: {t:?}");
+    let sum = t.rebuild_ms + t.p2g_ms + t.grid_update_ms + t.musl_ms + t.g2p_ms;
+    assert!(
+        (sum - t.ms_per_step).abs() <= 1e-6 + 1e-6 * t.ms_per_step,
+        "{t:?}"
+    );
+    // An MLS scene has no MUSL stage.
+    let mut b = CudaBackend::new(
+        &scene(1.0 / 32.0),
+        &block(&scene(1.0 / 32.0), Vec3::splat(0.3), Vec3::splat(0.6)),
+        CudaOptions::default(),
+    )
+    .expect("backend");
+    let t = rtmpm_cuda::bench_kernels(&mut b, 1e-4, 2, 5).expect("bench");
+    assert!(
+        !t.stages.contains(&"musl_remap") && t.musl_ms == 0.0,
+        "{t:?}"
+    );
 }

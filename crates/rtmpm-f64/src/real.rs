@@ -5,9 +5,7 @@
 //! interface's f32 values into f64 (exactly) and back (rounded to nearest).
 
 use crate::boundary::{BoundaryRule, Collider, Walls};
-use crate::material::{
-    Cone, DruckerPrager, Eos, FixedCorotated, Fluid, Material, Model, NeoHookean, Snow, VonMises,
-};
+use crate::material::Material;
 use crate::sim;
 pub use glam::{DMat3 as Mat3, DVec3 as Vec3};
 use rtmpm_core::material as core;
@@ -81,59 +79,14 @@ pub fn particles(p: sim::Particles) -> crate::Particles {
     }
 }
 
-/// One constitutive model with its parameters in [`Real`] (field by field; the formulas are
-/// the shared ones in `material/`).
-pub fn model(m: &core::Model) -> Model {
-    match m {
-        core::Model::Fluid(m) => Model::Fluid(Fluid {
-            bulk_modulus: real(m.bulk_modulus),
-            eos: match m.eos {
-                core::Eos::Linear => Eos::Linear,
-                core::Eos::Tait { gamma } => Eos::Tait { gamma: real(gamma) },
-            },
-            viscosity: real(m.viscosity),
-        }),
-        core::Model::FixedCorotated(m) => Model::FixedCorotated(FixedCorotated {
-            mu: real(m.mu),
-            lambda: real(m.lambda),
-        }),
-        core::Model::NeoHookean(m) => Model::NeoHookean(NeoHookean {
-            mu: real(m.mu),
-            lambda: real(m.lambda),
-        }),
-        core::Model::Snow(m) => Model::Snow(Snow {
-            mu: real(m.mu),
-            lambda: real(m.lambda),
-            critical_compression: real(m.critical_compression),
-            critical_stretch: real(m.critical_stretch),
-            hardening: real(m.hardening),
-        }),
-        core::Model::DruckerPrager(m) => Model::DruckerPrager(DruckerPrager {
-            mu: real(m.mu),
-            lambda: real(m.lambda),
-            friction_angle: real(m.friction_angle),
-            cone: match m.cone {
-                core::Cone::Compression => Cone::Compression,
-                core::Cone::PlaneStrain => Cone::PlaneStrain,
-            },
-            cohesion: real(m.cohesion),
-        }),
-        core::Model::VonMises(m) => Model::VonMises(VonMises {
-            mu: real(m.mu),
-            lambda: real(m.lambda),
-            yield_stress: real(m.yield_stress),
-            hardening: real(m.hardening),
-        }),
-    }
-}
-
-/// The scene's materials in this precision.
-pub fn materials(m: &[core::Material]) -> Vec<Material> {
+/// The scene's materials in this precision: each model built from the scene's parameters by the
+/// shared model files (`material/<model>.rs`), so the f64 models are those of the scene text,
+/// not widened f32 models.
+pub fn materials(m: &[core::Material]) -> Result<Vec<Material>, sim::SimError> {
     m.iter()
-        .map(|m| Material {
-            name: m.name.clone(),
-            density: real(m.density),
-            model: model(&m.model),
+        .map(|m| {
+            Material::new(&m.name, real(m.density), m.params.clone())
+                .map_err(|e| sim::SimError::Backend(format!("material `{}` in f64: {e}", m.name)))
         })
         .collect()
 }

@@ -229,12 +229,15 @@ fn bench_cuda(
     );
     // With G2P2G the P2G kernel runs only after a rebuild; the fused kernel does the rest.
     let g2p_name = if k.g2p2g { "g2p2g" } else { "g2p" };
-    for (name, ms) in [
-        ("rebuild", k.rebuild_ms),
-        ("p2g", k.p2g_ms),
-        ("grid_update", k.grid_update_ms),
-        (g2p_name, k.g2p_ms),
-    ] {
+    // The stages in the order the step ran them (the MUSL re-map only on MUSL scenes).
+    for stage in &k.stages {
+        let (name, ms) = match *stage {
+            "rebuild" => ("rebuild", k.rebuild_ms),
+            "p2g" => ("p2g", k.p2g_ms),
+            "grid_update" => ("grid_update", k.grid_update_ms),
+            "musl_remap" => ("musl_remap", k.musl_ms),
+            _ => (g2p_name, k.g2p_ms),
+        };
         println!(
             "    {name:<12} {ms:.4} ms/step ({:.0} %)",
             100.0 * ms / k.ms_per_step.max(1e-12)

@@ -8,7 +8,6 @@ use clap::Args;
 use rtmpm_core::boundary::Collider;
 use rtmpm_core::boundary::sdf::Shape;
 use rtmpm_core::io::ply::{PlyData, read_ply};
-use rtmpm_core::material::Model;
 use rtmpm_core::math::Vec3;
 use rtmpm_core::render::{
     Camera, ColorBy, GifMovie, RenderInput, RenderOptions, colormap, estimate_radius, render,
@@ -103,29 +102,27 @@ fn parse_range(s: &str) -> Result<(f32, f32), String> {
     Ok((v[0], v[1]))
 }
 
-/// Colour per material from the scene: fluids blue, sand sand-coloured, snow white, elastic
-/// solids red (then green), von Mises metal purple; a type used twice takes the next free
-/// palette entry.
+/// Colour per material from the scene: each model's own colour (`Constitutive::COLOUR`: fluids
+/// blue, sand sand-coloured, snow white, elastic solids red, ...); a colour already taken by an
+/// earlier material goes to the first free entry of the palette instead.
 fn scene_palette(scene: &Scene) -> Vec<[f32; 3]> {
-    let mut used = [false; colormap::PALETTE.len()];
+    let mut taken: Vec<[f32; 3]> = Vec::new();
     scene
         .materials
         .iter()
         .map(|m| {
-            let want = match m.model {
-                Model::Fluid(_) => 0,
-                Model::DruckerPrager(_) => 1,
-                Model::FixedCorotated(_) | Model::NeoHookean(_) => 2,
-                Model::Snow(_) => 4,
-                Model::VonMises(_) => 5,
+            let own = m.model.colour();
+            let c = if taken.contains(&own) {
+                colormap::PALETTE
+                    .iter()
+                    .copied()
+                    .find(|p| !taken.contains(p))
+                    .unwrap_or(own)
+            } else {
+                own
             };
-            let n = used.len();
-            let k = (0..n)
-                .map(|d| (want + d) % n)
-                .find(|&k| !used[k])
-                .unwrap_or(want);
-            used[k] = true;
-            colormap::PALETTE[k]
+            taken.push(c);
+            c
         })
         .collect()
 }

@@ -58,8 +58,8 @@ pub struct StepConstants {
 
 impl StepConstants {
     /// Constants of a scene.
-    pub fn from_scene(scene: &Scene) -> StepConstants {
-        StepConstants {
+    pub fn from_scene(scene: &Scene) -> Result<StepConstants, SimError> {
+        Ok(StepConstants {
             dx: real::real(scene.dx),
             inv_dx: 1.0 / real::real(scene.dx),
             origin: real::vec3(scene.domain_min)
@@ -71,9 +71,9 @@ impl StepConstants {
             walls: real::walls(&scene.walls),
             damping: scene.time.damping,
             colliders: real::colliders(&scene.colliders),
-            materials: real::materials(&scene.materials),
+            materials: real::materials(&scene.materials)?,
             solver: scene.solver,
-        }
+        })
     }
 }
 
@@ -118,7 +118,7 @@ impl CpuBackend {
         particles: sim::Particles,
         threads: Option<usize>,
     ) -> Result<Self, SimError> {
-        Self::from_constants(StepConstants::from_scene(scene), particles, threads)
+        Self::from_constants(StepConstants::from_scene(scene)?, particles, threads)
     }
 
     /// A backend from explicit step constants (tests, benchmarks).

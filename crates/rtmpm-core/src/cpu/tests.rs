@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::boundary::{BoundaryRule, Condition};
-use crate::material::{Eos, FixedCorotated, Fluid, Model};
+use crate::material::{FixedCorotated, Model};
 use crate::math::Mat3;
 use crate::sim::Backend;
 use crate::transfer::{SolverSettings, Transfer, Update};
@@ -32,26 +32,18 @@ fn consts(materials: Vec<Material>, walls: u32, gravity: Vec3) -> StepConstants 
 }
 
 fn jelly() -> Material {
-    Material {
-        name: "jelly".into(),
-        density: 1000.0,
-        model: Model::FixedCorotated(FixedCorotated {
-            mu: 1e4,
-            lambda: 2e4,
-        }),
-    }
+    Material::parse("jelly", 1000.0, "fixed_corotated", "mu = 1e4\nlambda = 2e4")
+        .expect("jelly parameters")
 }
 
 fn water() -> Material {
-    Material {
-        name: "water".into(),
-        density: 1000.0,
-        model: Model::Fluid(Fluid {
-            bulk_modulus: 1e4,
-            eos: Eos::Tait { gamma: 7.0 },
-            viscosity: 0.0,
-        }),
-    }
+    Material::parse(
+        "water",
+        1000.0,
+        "fluid",
+        "bulk_modulus = 1e4\neos = \"tait\"\ngamma = 7.0",
+    )
+    .expect("water parameters")
 }
 
 /// A lattice block of particles, 2 per cell per axis, in [lo, hi].

@@ -1,30 +1,11 @@
 //! Drucker-Prager sand, Klar et al. 2016 ("Drucker-Prager elastoplasticity for sand animation"):
 //! St.Venant-Kirchhoff elasticity with Hencky strain and a return mapping in log-strain space.
 
+use super::Constitutive;
+use super::hencky;
+use super::params::{self, Elasticity, ParamError};
 use crate::math::{Mat3, Real, Vec3};
-use crate::svd::svd3;
-
-/// Singular values are clamped to at least this value before `ln` (degenerate or inverted `F`):
-/// the Hencky strain stays finite (`ln(1e-4) ~ -9.2`), i.e. a very compressed, uninverted state.
-pub const HENCKY_SIGMA_MIN: Real = 1e-4;
-
-/// Hencky (logarithmic) principal strain `ln(max(sigma, HENCKY_SIGMA_MIN))`.
-pub fn hencky_strain(sigma: Vec3) -> Vec3 {
-    sigma.max(Vec3::splat(HENCKY_SIGMA_MIN)).ln()
-}
-
-/// Principal Kirchhoff stress of St.Venant-Kirchhoff with Hencky strain:
-/// `2 mu eps + lambda tr(eps)` (Klar 2016, eq. 26 times `F^T`).
-pub fn hencky_principal_stress(eps: Vec3, mu: Real, lambda: Real) -> Vec3 {
-    2.0 * mu * eps + Vec3::splat(lambda * (eps.x + eps.y + eps.z))
-}
-
-/// Kirchhoff stress `tau = U (2 mu eps + lambda tr(eps) I) U^T`, `eps = ln(sigma)`, `F = U sigma V^T`.
-pub fn hencky_kirchhoff(f: Mat3, mu: Real, lambda: Real) -> Mat3 {
-    let (u, sigma, _) = svd3(f);
-    let t = hencky_principal_stress(hencky_strain(sigma), mu, lambda);
-    u * Mat3::from_diagonal(t) * u.transpose()
-}
+use serde::Deserialize;
 
 /// Which Mohr-Coulomb states the Drucker-Prager cone is fitted to, for a given friction angle.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -56,10 +37,34 @@ pub struct DruckerPrager {
     pub cohesion: Real,
 }
 
+/// The scene parameters of Drucker-Prager sand.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DruckerPragerParams {
+    pub youngs_modulus: Option<f32>,
+    pub poisson_ratio: Option<f32>,
+    pub mu: Option<f32>,
+    pub lambda: Option<f32>,
+    /// Degrees, in [0, 90) (default 30).
+    pub friction_angle: Option<f32>,
+    /// `"compression"` (default) or `"plane_strain"`.
+    pub cone: Option<ConeName>,
+    /// Log-strain shift of the cone tip (default 0).
+    pub cohesion: Option<f32>,
+}
+
+/// The cone fits by name.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum ConeName {
+    Compression,
+    PlaneStrain,
+}
+
 impl DruckerPrager {
     /// From Young's modulus (Pa), Poisson's ratio, friction angle (degrees), the cone's fit and
     /// cohesion.
-    pub fn new(
+    pub fn from_young_poisson(
         youngs_modulus: Real,
         poisson_ratio: Real,
         friction_angle: Real,
@@ -87,11 +92,6 @@ impl DruckerPrager {
         }
     }
 
-    /// Kirchhoff stress (St.Venant-Kirchhoff with Hencky strain), see [`hencky_kirchhoff`].
-    pub fn kirchhoff(&self, f: Mat3) -> Mat3 {
-        hencky_kirchhoff(f, self.mu, self.lambda)
-    }
-
     /// Return mapping on the principal log strain (Klar 2016, algorithm 2 / section 7.3, d = 3),
     /// with the cone tip shifted by the cohesion `c`: `eps' = eps - c`, project `eps'`, add `c`
     /// back. Returns the projected principal log strain and the plastic multiplier (0 = elastic).
@@ -115,17 +115,62 @@ impl DruckerPrager {
             (e - e_hat * (dg / e_hat_norm) + c, dg)
         }
     }
+}
 
-    /// Plastic projection of the trial elastic `F`; `q` accumulates the plastic multipliers.
-    /// Elastic states return `f_trial` unchanged.
-    pub fn project(&self, f_trial: Mat3, q: &mut Real) -> Mat3 {
-        let (u, sigma, v) = svd3(f_trial);
-        let (h, dq) = self.project_strain(hencky_strain(sigma));
-        if dq <= 0.0 {
-            return f_trial;
+impl Constitutive for DruckerPrager {
+    const NAME: &'static str = "drucker_prager";
+    const SUMMARY: &'static str =
+        "Drucker-Prager sand: Hencky elasticity, log-strain return mapping (Klar 2016)";
+    const GPU_PARAMS: &'static [&'static str] = &["mu", "lambda", "alpha", "cohesion"];
+    const COLOUR: [f32; 3] = [0.86, 0.70, 0.42];
+    type Params = DruckerPragerParams;
+
+    fn new(p: DruckerPragerParams) -> Result<Self, ParamError> {
+        let (mu, lambda) = Elasticity {
+            youngs_modulus: p.youngs_modulus,
+            poisson_ratio: p.poisson_ratio,
+            mu: p.mu,
+            lambda: p.lambda,
         }
-        *q += dq;
-        u * Mat3::from_diagonal(h.exp()) * v.transpose()
+        .lame()?;
+        let phi = params::finite("friction_angle", p.friction_angle.unwrap_or(30.0))?;
+        if !(0.0..90.0).contains(&phi) {
+            return Err(ParamError::new(
+                "friction_angle",
+                format!("friction angle must be in [0, 90) degrees, got {phi}"),
+                "use degrees, typically 25-45 for sand",
+            ));
+        }
+        Ok(DruckerPrager {
+            mu,
+            lambda,
+            friction_angle: phi,
+            cone: match p.cone.unwrap_or(ConeName::Compression) {
+                ConeName::Compression => Cone::Compression,
+                ConeName::PlaneStrain => Cone::PlaneStrain,
+            },
+            cohesion: params::non_negative("cohesion", p.cohesion, 0.0, "cohesion")?,
+        })
+    }
+
+    /// Kirchhoff stress (St.Venant-Kirchhoff with Hencky strain), see [`hencky::kirchhoff`].
+    fn kirchhoff(&self, f: Mat3, _q: Real, _c: Mat3) -> Mat3 {
+        hencky::kirchhoff(f, self.mu, self.lambda)
+    }
+
+    /// Plastic projection of the trial elastic `F` ([`DruckerPrager::project_strain`] through
+    /// [`hencky::return_map`]); `q` accumulates the plastic multipliers.
+    fn project(&self, f_trial: Mat3, q: &mut Real) -> Mat3 {
+        hencky::return_map(f_trial, q, |eps, _| self.project_strain(eps))
+    }
+
+    fn wave_modulus(&self) -> Real {
+        self.lambda + 2.0 * self.mu
+    }
+
+    /// The cone slope from its one formula, [`DruckerPrager::alpha`].
+    fn gpu_params(&self) -> Vec<Real> {
+        vec![self.mu, self.lambda, self.alpha(), self.cohesion]
     }
 }
 
@@ -182,7 +227,7 @@ mod tests {
         for _ in 0..5000 {
             fe = m.project(shear * fe, &mut q);
         }
-        let tau = m.kirchhoff(fe);
+        let tau = m.kirchhoff(fe, 0.0, Mat3::ZERO);
         let (txx, tyy, txy) = (tau.x_axis.x, tau.y_axis.y, tau.y_axis.x);
         let centre = 0.5 * (txx + tyy);
         let radius = (0.25 * (txx - tyy) * (txx - tyy) + txy * txy).sqrt();
@@ -210,14 +255,21 @@ mod tests {
 
     #[test]
     fn zero_stress_at_rest() {
-        assert_eq!(sand().kirchhoff(Mat3::IDENTITY), Mat3::ZERO);
+        assert_eq!(
+            sand().kirchhoff(Mat3::IDENTITY, 0.0, Mat3::ZERO),
+            Mat3::ZERO
+        );
     }
 
     #[test]
     fn uniaxial_stretch_hand_computed() {
         // F = diag(1.1, 1, 1): eps = (ln 1.1, 0, 0) = (0.0953102, 0, 0), tr = 0.0953102;
         // tau = 2 mu eps + lambda tr = (0.1906204 + 0.1906204, 0.1906204, 0.1906204).
-        let tau = sand().kirchhoff(Mat3::from_diagonal(Vec3::new(1.1, 1.0, 1.0)));
+        let tau = sand().kirchhoff(
+            Mat3::from_diagonal(Vec3::new(1.1, 1.0, 1.0)),
+            0.0,
+            Mat3::ZERO,
+        );
         let expected = Mat3::from_diagonal(Vec3::new(0.3812408, 0.1906204, 0.1906204));
         assert!(close(tau, expected, 1e-6), "{tau:?}");
     }
@@ -231,8 +283,8 @@ mod tests {
             Vec3::new(0.05, 0.9, 0.1),
             Vec3::new(0.0, 0.3, 1.2),
         );
-        let lhs = m.kirchhoff(r * f);
-        let rhs = r * m.kirchhoff(f) * r.transpose();
+        let lhs = m.kirchhoff(r * f, 0.0, Mat3::ZERO);
+        let rhs = r * m.kirchhoff(f, 0.0, Mat3::ZERO) * r.transpose();
         assert!(close(lhs, rhs, 1e-5), "{lhs:?} vs {rhs:?}");
     }
 
@@ -245,7 +297,7 @@ mod tests {
         let fe = m.project(r * Mat3::from_diagonal(Vec3::new(1.1, 1.1, 1.1)), &mut q);
         assert!(close(fe, r, 1e-6), "{fe:?}");
         assert!((q - 3f32.sqrt() * 1.1f32.ln()).abs() < 1e-6, "{q}");
-        assert!(close(m.kirchhoff(fe), Mat3::ZERO, 1e-6));
+        assert!(close(m.kirchhoff(fe, 0.0, Mat3::ZERO), Mat3::ZERO, 1e-6));
         // Tension with shear too.
         let mut q = 0.0;
         let fe = m.project(Mat3::from_diagonal(Vec3::new(1.2, 1.0, 1.05)), &mut q);
@@ -263,7 +315,11 @@ mod tests {
         let mut q = 0.0;
         let fe = m.project(Mat3::from_diagonal(Vec3::splat(1.1)), &mut q);
         assert!(close(fe, Mat3::IDENTITY * 0.01f32.exp(), 1e-6), "{fe:?}");
-        assert!(close(m.kirchhoff(fe), Mat3::IDENTITY * 0.08, 1e-5));
+        assert!(close(
+            m.kirchhoff(fe, 0.0, Mat3::ZERO),
+            Mat3::IDENTITY * 0.08,
+            1e-5
+        ));
         // Small tension below the cohesion is elastic.
         let f = Mat3::from_diagonal(Vec3::splat(1.005));
         let mut q = 0.0;
@@ -323,7 +379,7 @@ mod tests {
         let m = sand();
         let mut q = 0.0;
         for f in [Mat3::ZERO, Mat3::from_diagonal(Vec3::new(1.0, 1.0, -0.5))] {
-            assert!(m.kirchhoff(f).is_finite());
+            assert!(m.kirchhoff(f, 0.0, Mat3::ZERO).is_finite());
             let fe = m.project(f, &mut q);
             assert!(fe.is_finite() && q.is_finite());
         }

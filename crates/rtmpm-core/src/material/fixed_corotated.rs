@@ -1,6 +1,8 @@
 //! FixedCorotated hyperelasticity (Stomakhin et al. 2012, "Energetically consistent invertible
 //! elasticity").
 
+use super::Constitutive;
+use super::params::{Elasticity, ParamError};
 use crate::math::{Mat3, Real, Vec3};
 use crate::svd::polar;
 
@@ -28,18 +30,39 @@ impl FixedCorotated {
         let (mu, lambda) = super::lame(youngs_modulus, poisson_ratio);
         Self { mu, lambda }
     }
+}
+
+impl Constitutive for FixedCorotated {
+    const NAME: &'static str = "fixed_corotated";
+    const SUMMARY: &'static str = "FixedCorotated hyperelastic solid (jelly, rubber)";
+    const GPU_PARAMS: &'static [&'static str] = &["mu", "lambda"];
+    const COLOUR: [f32; 3] = [0.88, 0.22, 0.25];
+    type Params = Elasticity;
+
+    fn new(p: Elasticity) -> Result<Self, ParamError> {
+        let (mu, lambda) = p.lame()?;
+        Ok(Self { mu, lambda })
+    }
 
     /// Kirchhoff stress `tau = 2 mu (F - R) F^T + lambda (J - 1) J I`.
-    pub fn kirchhoff(&self, f: Mat3) -> Mat3 {
+    fn kirchhoff(&self, f: Mat3, _plastic: Real, _c: Mat3) -> Mat3 {
         fixed_corotated_kirchhoff(f, self.mu, self.lambda)
+    }
+
+    fn wave_modulus(&self) -> Real {
+        self.lambda + 2.0 * self.mu
     }
 
     /// Strain energy density per reference volume (Stomakhin et al. 2012):
     /// psi = mu |F - R|^2 + lambda / 2 (J - 1)^2.
-    pub fn energy_density(&self, f: Mat3) -> Real {
+    fn energy_density(&self, f: Mat3) -> Option<Real> {
         let (r, _) = crate::svd::polar(f);
         let j = f.determinant();
-        self.mu * crate::math::norm2(f - r) + 0.5 * self.lambda * (j - 1.0) * (j - 1.0)
+        Some(self.mu * crate::math::norm2(f - r) + 0.5 * self.lambda * (j - 1.0) * (j - 1.0))
+    }
+
+    fn gpu_params(&self) -> Vec<Real> {
+        vec![self.mu, self.lambda]
     }
 }
 
@@ -53,18 +76,21 @@ mod tests {
             mu: 3.0,
             lambda: 5.0,
         };
-        assert!(m.energy_density(Mat3::IDENTITY).abs() < 1e-6);
+        assert!(m.energy_density(Mat3::IDENTITY).unwrap_or(f32::NAN).abs() < 1e-6);
         // P = d psi / d F by central differences must match tau F^-T (tau = P F^T).
         let f = Mat3::from_cols_array(&[1.1, 0.05, -0.02, 0.03, 0.95, 0.04, -0.01, 0.02, 1.05]);
-        let p = m.kirchhoff(f) * f.transpose().inverse();
+        let p = m.kirchhoff(f, 0.0, Mat3::ZERO) * f.transpose().inverse();
         let h = 1e-3;
         for k in 0..9 {
             let mut a = f.to_cols_array();
             let mut b = a;
             a[k] += h;
             b[k] -= h;
-            let d = (m.energy_density(Mat3::from_cols_array(&a))
-                - m.energy_density(Mat3::from_cols_array(&b)))
+            let d = (m
+                .energy_density(Mat3::from_cols_array(&a))
+                .unwrap_or(f32::NAN)
+                - m.energy_density(Mat3::from_cols_array(&b))
+                    .unwrap_or(f32::NAN))
                 / (2.0 * h);
             let pk = p.to_cols_array()[k];
             assert!(
@@ -85,9 +111,13 @@ mod tests {
 
     #[test]
     fn zero_stress_at_rest_and_under_rotation() {
-        assert!(close(M.kirchhoff(Mat3::IDENTITY), Mat3::ZERO, 1e-7));
+        assert!(close(
+            M.kirchhoff(Mat3::IDENTITY, 0.0, Mat3::ZERO),
+            Mat3::ZERO,
+            1e-7
+        ));
         let r = Mat3::from_axis_angle(Vec3::new(1.0, 1.0, 0.0).normalize(), 1.3);
-        assert!(close(M.kirchhoff(r), Mat3::ZERO, 1e-6));
+        assert!(close(M.kirchhoff(r, 0.0, Mat3::ZERO), Mat3::ZERO, 1e-6));
     }
 
     #[test]
@@ -95,7 +125,11 @@ mod tests {
         // F = diag(1.1, 1, 1): R = I, F - R = diag(0.1, 0, 0), (F - R) F^T = diag(0.11, 0, 0),
         // J = 1.1, lambda (J - 1) J = 2 * 0.1 * 1.1 = 0.22.
         // tau = 2 * 1 * diag(0.11, 0, 0) + 0.22 I = diag(0.44, 0.22, 0.22).
-        let tau = M.kirchhoff(Mat3::from_diagonal(Vec3::new(1.1, 1.0, 1.0)));
+        let tau = M.kirchhoff(
+            Mat3::from_diagonal(Vec3::new(1.1, 1.0, 1.0)),
+            0.0,
+            Mat3::ZERO,
+        );
         assert!(
             close(tau, Mat3::from_diagonal(Vec3::new(0.44, 0.22, 0.22)), 1e-6),
             "{tau:?}"
@@ -108,7 +142,11 @@ mod tests {
         // R = I (a rotation, not the reflection F itself) and F - R = diag(0, 0, -2),
         // (F - R) F^T = diag(0, 0, 2), J = -1, lambda (J - 1) J = 2 * (-2) * (-1) = 4.
         // tau = 2 * diag(0, 0, 2) + 4 I = diag(4, 4, 8): pushes the inverted axis back out.
-        let tau = M.kirchhoff(Mat3::from_diagonal(Vec3::new(1.0, 1.0, -1.0)));
+        let tau = M.kirchhoff(
+            Mat3::from_diagonal(Vec3::new(1.0, 1.0, -1.0)),
+            0.0,
+            Mat3::ZERO,
+        );
         assert!(
             close(tau, Mat3::from_diagonal(Vec3::new(4.0, 4.0, 8.0)), 1e-5),
             "{tau:?}"
@@ -123,11 +161,11 @@ mod tests {
             Vec3::new(0.05, 0.9, 0.1),
             Vec3::new(0.0, 0.3, 1.2),
         );
-        let lhs = M.kirchhoff(r * f);
-        let rhs = r * M.kirchhoff(f) * r.transpose();
+        let lhs = M.kirchhoff(r * f, 0.0, Mat3::ZERO);
+        let rhs = r * M.kirchhoff(f, 0.0, Mat3::ZERO) * r.transpose();
         assert!(close(lhs, rhs, 1e-5), "{lhs:?} vs {rhs:?}");
         // tau is symmetric.
-        let t = M.kirchhoff(f);
+        let t = M.kirchhoff(f, 0.0, Mat3::ZERO);
         assert!(close(t, t.transpose(), 1e-6));
     }
 

@@ -1,9 +1,12 @@
 //! Snow plasticity, Stomakhin et al. 2013 ("A material point method for snow simulation"):
 //! FixedCorotated elasticity hardened by `exp(xi (1 - Jp))` and singular-value clamping.
 
+use super::Constitutive;
 use super::fixed_corotated::fixed_corotated_kirchhoff;
+use super::params::{self, Elasticity, ParamError};
 use crate::math::{Mat3, Real, Vec3};
 use crate::svd::svd3;
+use serde::Deserialize;
 
 /// Bound on the hardening exponent: `xi (1 - Jp)` is clamped to `[-S, M]` with `M = 3`, so
 /// compacted snow is at most `e^3 ~ 20` times stiffer than fresh snow (an unbounded factor
@@ -37,6 +40,22 @@ pub struct Snow {
     pub hardening: Real,
 }
 
+/// The scene parameters of snow.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SnowParams {
+    pub youngs_modulus: Option<f32>,
+    pub poisson_ratio: Option<f32>,
+    pub mu: Option<f32>,
+    pub lambda: Option<f32>,
+    /// theta_c (default 2.5e-2).
+    pub critical_compression: Option<f32>,
+    /// theta_s (default 7.5e-3).
+    pub critical_stretch: Option<f32>,
+    /// xi (default 10).
+    pub hardening: Option<f32>,
+}
+
 impl Snow {
     /// The paper's parameters (Stomakhin 2013, table 2, "reference"): E = 1.4e5 Pa, nu = 0.2,
     /// theta_c = 2.5e-2, theta_s = 7.5e-3, xi = 10.
@@ -58,9 +77,49 @@ impl Snow {
             .clamp(-SNOW_MAX_SOFTENING_EXPONENT, SNOW_MAX_HARDENING_EXPONENT);
         e.exp()
     }
+}
+
+impl Constitutive for Snow {
+    const NAME: &'static str = "snow";
+    const SUMMARY: &'static str =
+        "snow: FixedCorotated hardened by compaction, singular-value clamping (Stomakhin 2013)";
+    const GPU_PARAMS: &'static [&'static str] = &[
+        "mu",
+        "lambda",
+        "critical_compression",
+        "critical_stretch",
+        "hardening",
+    ];
+    const COLOUR: [f32; 3] = [0.92, 0.93, 0.96];
+    type Params = SnowParams;
+
+    fn new(p: SnowParams) -> Result<Self, ParamError> {
+        let (mu, lambda) = Elasticity {
+            youngs_modulus: p.youngs_modulus,
+            poisson_ratio: p.poisson_ratio,
+            mu: p.mu,
+            lambda: p.lambda,
+        }
+        .lame()?;
+        Ok(Snow {
+            mu,
+            lambda,
+            critical_compression: params::positive(
+                "critical_compression",
+                p.critical_compression.unwrap_or(2.5e-2),
+                "critical compression",
+            )?,
+            critical_stretch: params::positive(
+                "critical_stretch",
+                p.critical_stretch.unwrap_or(7.5e-3),
+                "critical stretch",
+            )?,
+            hardening: params::non_negative("hardening", p.hardening, 10.0, "hardening")?,
+        })
+    }
 
     /// Kirchhoff stress: FixedCorotated with `mu`, `lambda` times [`Snow::hardening_factor`].
-    pub fn kirchhoff(&self, f: Mat3, jp: Real) -> Mat3 {
+    fn kirchhoff(&self, f: Mat3, jp: Real, _c: Mat3) -> Mat3 {
         let h = self.hardening_factor(jp);
         fixed_corotated_kirchhoff(f, self.mu * h, self.lambda * h)
     }
@@ -68,7 +127,7 @@ impl Snow {
     /// Clamps the singular values of the trial elastic `F` into `[1 - theta_c, 1 + theta_s]`
     /// and moves the removed volume into `Jp`: `Jp_new = Jp J_e_trial / J_e_new`
     /// (Stomakhin 2013, section 7), clamped to `[SNOW_JP_MIN, SNOW_JP_MAX]`.
-    pub fn project(&self, f_trial: Mat3, jp: &mut Real) -> Mat3 {
+    fn project(&self, f_trial: Mat3, jp: &mut Real) -> Mat3 {
         let (u, s, v) = svd3(f_trial);
         let lo = 1.0 - self.critical_compression;
         let hi = 1.0 + self.critical_stretch;
@@ -78,16 +137,31 @@ impl Snow {
         u * Mat3::from_diagonal(sc) * v.transpose()
     }
 
+    /// The plastic volume ratio starts at 1.
+    fn initial_plastic(&self) -> Real {
+        1.0
+    }
+
     /// Upper bound of `lambda + 2 mu` over the admissible hardening range, for the CFL condition:
     /// `Jp` can approach its lower bound (0, compaction), where the exponent is
     /// `min(xi, M)` for `xi >= 0`; for `xi < 0`, stretching (`Jp` large) reaches `M`.
-    pub fn max_stiffness(&self) -> Real {
+    fn wave_modulus(&self) -> Real {
         let e_max = if self.hardening >= 0.0 {
             self.hardening.min(SNOW_MAX_HARDENING_EXPONENT)
         } else {
             SNOW_MAX_HARDENING_EXPONENT
         };
         (self.lambda + 2.0 * self.mu) * e_max.exp()
+    }
+
+    fn gpu_params(&self) -> Vec<Real> {
+        vec![
+            self.mu,
+            self.lambda,
+            self.critical_compression,
+            self.critical_stretch,
+            self.hardening,
+        ]
     }
 }
 
@@ -112,12 +186,12 @@ mod tests {
     #[test]
     fn zero_stress_at_rest() {
         assert!(close(
-            snow().kirchhoff(Mat3::IDENTITY, 1.0),
+            snow().kirchhoff(Mat3::IDENTITY, 1.0, Mat3::ZERO),
             Mat3::ZERO,
             1e-7
         ));
         assert!(close(
-            snow().kirchhoff(Mat3::IDENTITY, 0.8),
+            snow().kirchhoff(Mat3::IDENTITY, 0.8, Mat3::ZERO),
             Mat3::ZERO,
             1e-7
         ));
@@ -128,7 +202,11 @@ mod tests {
         // Jp = 0.95: h = exp(10 * 0.05) = exp(0.5) = 1.6487213. FixedCorotated with mu = 1,
         // lambda = 2 at F = diag(1.1, 1, 1) is diag(0.44, 0.22, 0.22) (see fixed_corotated.rs),
         // linear in (mu, lambda): tau = 1.6487213 * diag(0.44, 0.22, 0.22).
-        let tau = snow().kirchhoff(Mat3::from_diagonal(Vec3::new(1.1, 1.0, 1.0)), 0.95);
+        let tau = snow().kirchhoff(
+            Mat3::from_diagonal(Vec3::new(1.1, 1.0, 1.0)),
+            0.95,
+            Mat3::ZERO,
+        );
         let expected = Mat3::from_diagonal(Vec3::new(0.7254374, 0.3627187, 0.3627187));
         assert!(close(tau, expected, 1e-5), "{tau:?}");
     }
@@ -141,20 +219,20 @@ mod tests {
         // Softening goes on past the compaction bound: Jp = 1.5 gives e^-5 (the paper's value).
         assert!((m.hardening_factor(1.5) - (-5f32).exp()).abs() < 1e-7);
         assert!(
-            m.kirchhoff(Mat3::from_diagonal(Vec3::splat(0.9)), 1e-3)
+            m.kirchhoff(Mat3::from_diagonal(Vec3::splat(0.9)), 1e-3, Mat3::ZERO)
                 .is_finite()
         );
         // CFL bound covers every admissible Jp.
         for jp in [SNOW_JP_MIN, 0.1, 0.5, 0.9, 1.0, 2.0, SNOW_JP_MAX] {
             let h = m.hardening_factor(jp);
-            assert!(h * (m.lambda + 2.0 * m.mu) <= m.max_stiffness() * (1.0 + 1e-6));
+            assert!(h * (m.lambda + 2.0 * m.mu) <= m.wave_modulus() * (1.0 + 1e-6));
         }
-        assert!((m.max_stiffness() - 4.0 * 3f32.exp()).abs() < 1e-4);
+        assert!((m.wave_modulus() - 4.0 * 3f32.exp()).abs() < 1e-4);
         let soft = Snow {
             hardening: 1.0,
             ..snow()
         };
-        assert!((soft.max_stiffness() - 4.0 * 1f32.exp()).abs() < 1e-5);
+        assert!((soft.wave_modulus() - 4.0 * 1f32.exp()).abs() < 1e-5);
     }
 
     #[test]
@@ -199,8 +277,8 @@ mod tests {
             Vec3::new(0.0, 0.98, 0.01),
             Vec3::new(0.0, 0.0, 1.0),
         );
-        let lhs = m.kirchhoff(r * f, 0.9);
-        let rhs = r * m.kirchhoff(f, 0.9) * r.transpose();
+        let lhs = m.kirchhoff(r * f, 0.9, Mat3::ZERO);
+        let rhs = r * m.kirchhoff(f, 0.9, Mat3::ZERO) * r.transpose();
         assert!(close(lhs, rhs, 1e-5), "{lhs:?} vs {rhs:?}");
     }
 }

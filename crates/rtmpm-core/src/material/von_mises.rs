@@ -2,9 +2,11 @@
 //! return in principal log-strain space (Simo & Hughes 1998, "Computational inelasticity",
 //! box 3.1; with Hencky strain as in Simo 1992).
 
-use super::drucker_prager::{hencky_kirchhoff, hencky_strain};
+use super::Constitutive;
+use super::hencky;
+use super::params::{self, Elasticity, ParamError};
 use crate::math::{Mat3, Real, Vec3};
-use crate::svd::svd3;
+use serde::Deserialize;
 
 /// von Mises metal/plasticine. The plastic scalar is the equivalent plastic strain
 /// `eps_p = sum sqrt(2/3) delta gamma` (uniaxial plastic strain), which drives the hardening.
@@ -20,9 +22,23 @@ pub struct VonMises {
     pub hardening: Real,
 }
 
+/// The scene parameters of a von Mises solid.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VonMisesParams {
+    pub youngs_modulus: Option<f32>,
+    pub poisson_ratio: Option<f32>,
+    pub mu: Option<f32>,
+    pub lambda: Option<f32>,
+    /// Initial yield stress (Pa), required.
+    pub yield_stress: Option<f32>,
+    /// Linear isotropic hardening modulus (Pa, default 0).
+    pub hardening_modulus: Option<f32>,
+}
+
 impl VonMises {
     /// From Young's modulus (Pa), Poisson's ratio, yield stress (Pa) and hardening modulus (Pa).
-    pub fn new(
+    pub fn from_young_poisson(
         youngs_modulus: Real,
         poisson_ratio: Real,
         yield_stress: Real,
@@ -35,11 +51,6 @@ impl VonMises {
             yield_stress,
             hardening,
         }
-    }
-
-    /// Kirchhoff stress (St.Venant-Kirchhoff with Hencky strain), see [`hencky_kirchhoff`].
-    pub fn kirchhoff(&self, f: Mat3) -> Mat3 {
-        hencky_kirchhoff(f, self.mu, self.lambda)
     }
 
     /// Radius of the yield surface `||dev tau|| <= sqrt(2/3) (sigma_y + H eps_p)`.
@@ -62,16 +73,55 @@ impl VonMises {
         let dg = f / (2.0 * self.mu + 2.0 * self.hardening / 3.0);
         (eps - e_hat * (dg / norm), Real::sqrt(2.0 / 3.0) * dg)
     }
+}
 
-    /// Plastic projection of the trial elastic `F`; elastic states return `f_trial` unchanged.
-    pub fn project(&self, f_trial: Mat3, eps_p: &mut Real) -> Mat3 {
-        let (u, sigma, v) = svd3(f_trial);
-        let (h, dp) = self.project_strain(hencky_strain(sigma), *eps_p);
-        if dp <= 0.0 {
-            return f_trial;
+impl Constitutive for VonMises {
+    const NAME: &'static str = "von_mises";
+    const SUMMARY: &'static str =
+        "von Mises (J2) metal/plasticine: Hencky elasticity, radial return, linear hardening";
+    const GPU_PARAMS: &'static [&'static str] = &["mu", "lambda", "yield_stress", "hardening"];
+    const COLOUR: [f32; 3] = [0.60, 0.38, 0.82];
+    type Params = VonMisesParams;
+
+    fn new(p: VonMisesParams) -> Result<Self, ParamError> {
+        let (mu, lambda) = Elasticity {
+            youngs_modulus: p.youngs_modulus,
+            poisson_ratio: p.poisson_ratio,
+            mu: p.mu,
+            lambda: p.lambda,
         }
-        *eps_p += dp;
-        u * Mat3::from_diagonal(h.exp()) * v.transpose()
+        .lame()?;
+        let ys = params::required("yield_stress", p.yield_stress, "von_mises", "1e4")?;
+        Ok(VonMises {
+            mu,
+            lambda,
+            yield_stress: params::positive("yield_stress", ys, "yield stress")?,
+            hardening: params::non_negative(
+                "hardening_modulus",
+                p.hardening_modulus,
+                0.0,
+                "hardening modulus",
+            )?,
+        })
+    }
+
+    /// Kirchhoff stress (St.Venant-Kirchhoff with Hencky strain), see [`hencky::kirchhoff`].
+    fn kirchhoff(&self, f: Mat3, _eps_p: Real, _c: Mat3) -> Mat3 {
+        hencky::kirchhoff(f, self.mu, self.lambda)
+    }
+
+    /// Plastic projection of the trial elastic `F` ([`VonMises::project_strain`] through
+    /// [`hencky::return_map`]); elastic states return `f_trial` unchanged.
+    fn project(&self, f_trial: Mat3, eps_p: &mut Real) -> Mat3 {
+        hencky::return_map(f_trial, eps_p, |eps, eps_p| self.project_strain(eps, eps_p))
+    }
+
+    fn wave_modulus(&self) -> Real {
+        self.lambda + 2.0 * self.mu
+    }
+
+    fn gpu_params(&self) -> Vec<Real> {
+        vec![self.mu, self.lambda, self.yield_stress, self.hardening]
     }
 }
 
@@ -100,14 +150,21 @@ mod tests {
 
     #[test]
     fn zero_stress_at_rest() {
-        assert_eq!(metal(0.0).kirchhoff(Mat3::IDENTITY), Mat3::ZERO);
+        assert_eq!(
+            metal(0.0).kirchhoff(Mat3::IDENTITY, 0.0, Mat3::ZERO),
+            Mat3::ZERO
+        );
     }
 
     #[test]
     fn uniaxial_stretch_hand_computed() {
         // mu = 100, lambda = 200, F = diag(1.01, 1, 1): eps = (ln 1.01, 0, 0) = (0.00995033, 0, 0);
         // tau = (2*100*0.00995033 + 200*0.00995033, 200*0.00995033, same) = (3.980132, 1.990066, ..).
-        let tau = metal(0.0).kirchhoff(Mat3::from_diagonal(Vec3::new(1.01, 1.0, 1.0)));
+        let tau = metal(0.0).kirchhoff(
+            Mat3::from_diagonal(Vec3::new(1.01, 1.0, 1.0)),
+            0.0,
+            Mat3::ZERO,
+        );
         let expected = Mat3::from_diagonal(Vec3::new(3.980132, 1.990066, 1.990066));
         assert!(close(tau, expected, 1e-4), "{tau:?}");
     }
@@ -121,8 +178,8 @@ mod tests {
             Vec3::new(0.05, 0.9, 0.1),
             Vec3::new(0.0, 0.3, 1.2),
         );
-        let lhs = m.kirchhoff(r * f);
-        let rhs = r * m.kirchhoff(f) * r.transpose();
+        let lhs = m.kirchhoff(r * f, 0.0, Mat3::ZERO);
+        let rhs = r * m.kirchhoff(f, 0.0, Mat3::ZERO) * r.transpose();
         assert!(close(lhs, rhs, 1e-3), "{lhs:?} vs {rhs:?}");
     }
 
@@ -173,7 +230,7 @@ mod tests {
                 let fe = m.project(f, &mut ep);
                 assert!(ep >= ep0);
                 let radius = m.yield_radius(ep);
-                let d = dev_norm(m.kirchhoff(fe));
+                let d = dev_norm(m.kirchhoff(fe, 0.0, Mat3::ZERO));
                 assert!(d <= radius * (1.0 + 1e-3) + 1e-4, "{d} > {radius}");
                 if ep > ep0 {
                     // consistent return: exactly on the (hardened) surface

@@ -10,6 +10,7 @@
 
 pub mod budget;
 pub mod error;
+pub mod material;
 pub mod sampling;
 pub mod schema;
 pub mod spans;

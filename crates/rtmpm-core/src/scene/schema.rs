@@ -114,54 +114,16 @@ pub struct RawWalls {
     pub faces: Option<RawFaces>,
 }
 
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
-pub enum RawModel {
-    Fluid,
-    FixedCorotated,
-    NeoHookean,
-    Snow,
-    DruckerPrager,
-    VonMises,
-}
-
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
-pub enum RawEos {
-    Linear,
-    Tait,
-}
-
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
-pub enum RawCone {
-    Compression,
-    PlaneStrain,
-}
-
+/// A `[[material]]` table: its name, type and density; the model's own fields are read by the
+/// model (`rtmpm_core::material`, each model's `Params`), which rejects unknown ones.
 #[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct RawMaterial {
     pub name: String,
     #[serde(rename = "type")]
-    pub kind: RawModel,
+    pub kind: String,
     pub density: f32,
-    pub youngs_modulus: Option<f32>,
-    pub poisson_ratio: Option<f32>,
-    pub mu: Option<f32>,
-    pub lambda: Option<f32>,
-    pub bulk_modulus: Option<f32>,
-    pub gamma: Option<f32>,
-    pub eos: Option<RawEos>,
-    pub viscosity: Option<f32>,
-    pub critical_compression: Option<f32>,
-    pub critical_stretch: Option<f32>,
-    pub hardening: Option<f32>,
-    pub friction_angle: Option<f32>,
-    pub cone: Option<RawCone>,
-    pub cohesion: Option<f32>,
-    pub yield_stress: Option<f32>,
-    pub hardening_modulus: Option<f32>,
+    #[serde(flatten)]
+    pub fields: toml::Table,
 }
 
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]

@@ -1,5 +1,6 @@
 //! Validation: raw serde structs -> [`Scene`], with field paths, positions and hints.
 
+use super::material::backticked;
 use super::sampling::{self, BodyShape, Sampling};
 use super::schema::*;
 use super::spans::{is_table, line_col, path_at, path_by_text, span_in_doc};
@@ -9,10 +10,7 @@ use super::{
 use crate::boundary::mesh::MeshSdf;
 use crate::boundary::sdf::Shape;
 use crate::boundary::{BoundaryRule, Collider, Condition, Walls};
-use crate::material::{
-    self, Cone, DruckerPrager, Eos, FixedCorotated, Fluid, Material, Model, NeoHookean, Snow,
-    VonMises,
-};
+use crate::material::{Material, MaterialParams};
 use crate::math::Vec3;
 use crate::render::ColorBy;
 use crate::transfer::{SolverSettings, Transfer, Update};
@@ -28,12 +26,6 @@ struct V<'a> {
     text: &'a str,
     origin: &'a str,
     doc: Option<toml_edit::Document<&'a str>>,
-}
-
-fn backticked<'m>(message: &'m str, prefix: &str) -> Option<&'m str> {
-    let rest = &message[message.find(prefix)? + prefix.len()..];
-    let rest = rest.strip_prefix('`')?;
-    Some(&rest[..rest.find('`')?])
 }
 
 /// Convert a toml parse/deserialize error into a positioned [`SceneError`].
@@ -706,230 +698,19 @@ impl V<'_> {
             ));
         }
         let density = self.positive(&p("density"), m.density, "density (kg/m^3)")?;
-        // Fields that do not apply to the type.
-        let allowed: &[&str] = match m.kind {
-            RawModel::Fluid => &["bulk_modulus", "gamma", "eos", "viscosity"],
-            RawModel::FixedCorotated | RawModel::NeoHookean => {
-                &["youngs_modulus", "poisson_ratio", "mu", "lambda"]
-            }
-            RawModel::Snow => &[
-                "youngs_modulus",
-                "poisson_ratio",
-                "mu",
-                "lambda",
-                "critical_compression",
-                "critical_stretch",
-                "hardening",
-            ],
-            RawModel::DruckerPrager => &[
-                "youngs_modulus",
-                "poisson_ratio",
-                "mu",
-                "lambda",
-                "friction_angle",
-                "cone",
-                "cohesion",
-            ],
-            RawModel::VonMises => &[
-                "youngs_modulus",
-                "poisson_ratio",
-                "mu",
-                "lambda",
-                "yield_stress",
-                "hardening_modulus",
-            ],
+        let params = MaterialParams {
+            kind: m.kind.clone(),
+            fields: m.fields.clone(),
         };
-        let given = [
-            ("youngs_modulus", m.youngs_modulus.is_some()),
-            ("poisson_ratio", m.poisson_ratio.is_some()),
-            ("mu", m.mu.is_some()),
-            ("lambda", m.lambda.is_some()),
-            ("bulk_modulus", m.bulk_modulus.is_some()),
-            ("gamma", m.gamma.is_some()),
-            ("eos", m.eos.is_some()),
-            ("viscosity", m.viscosity.is_some()),
-            ("critical_compression", m.critical_compression.is_some()),
-            ("critical_stretch", m.critical_stretch.is_some()),
-            ("hardening", m.hardening.is_some()),
-            ("friction_angle", m.friction_angle.is_some()),
-            ("cone", m.cone.is_some()),
-            ("cohesion", m.cohesion.is_some()),
-            ("yield_stress", m.yield_stress.is_some()),
-            ("hardening_modulus", m.hardening_modulus.is_some()),
-        ];
-        for (f, is) in given {
-            if is && !allowed.contains(&f) {
-                return Err(self.err(
-                    p(f),
-                    format!("`{f}` does not apply to a material of this type"),
-                    format!("remove it; this type takes: {}", allowed.join(", ")),
-                ));
-            }
-        }
-        let model = match m.kind {
-            RawModel::Fluid => {
-                let k = m.bulk_modulus.ok_or_else(|| {
-                    self.err(
-                        p("bulk_modulus"),
-                        "a fluid needs bulk_modulus (Pa)",
-                        "add bulk_modulus, e.g. 1e5 for water at dx ~ 1/64",
-                    )
-                })?;
-                let bulk_modulus = self.positive(&p("bulk_modulus"), k, "bulk modulus")?;
-                let eos = match (m.eos, m.gamma) {
-                    (Some(RawEos::Linear), Some(_)) => {
-                        return Err(self.err(
-                            p("gamma"),
-                            "gamma is given but eos = \"linear\"",
-                            "remove gamma, or use eos = \"tait\"",
-                        ));
-                    }
-                    (Some(RawEos::Linear), None) | (None, None) => Eos::Linear,
-                    (_, g) => {
-                        let gamma = self.positive(&p("gamma"), g.unwrap_or(7.0), "gamma")?;
-                        Eos::Tait { gamma }
-                    }
-                };
-                let viscosity = self.non_negative(
-                    &p("viscosity"),
-                    m.viscosity.unwrap_or(0.0),
-                    "viscosity (Pa s)",
-                )?;
-                Model::Fluid(Fluid {
-                    bulk_modulus,
-                    eos,
-                    viscosity,
-                })
-            }
-            kind => {
-                let (mu, lambda) = self.elastic(i, m)?;
-                match kind {
-                    RawModel::FixedCorotated => {
-                        Model::FixedCorotated(FixedCorotated { mu, lambda })
-                    }
-                    RawModel::NeoHookean => Model::NeoHookean(NeoHookean { mu, lambda }),
-                    RawModel::Snow => Model::Snow(Snow {
-                        mu,
-                        lambda,
-                        critical_compression: self.positive(
-                            &p("critical_compression"),
-                            m.critical_compression.unwrap_or(2.5e-2),
-                            "critical compression",
-                        )?,
-                        critical_stretch: self.positive(
-                            &p("critical_stretch"),
-                            m.critical_stretch.unwrap_or(7.5e-3),
-                            "critical stretch",
-                        )?,
-                        hardening: self.non_negative(
-                            &p("hardening"),
-                            m.hardening.unwrap_or(10.0),
-                            "hardening",
-                        )?,
-                    }),
-                    RawModel::DruckerPrager => {
-                        let phi =
-                            self.finite(&p("friction_angle"), m.friction_angle.unwrap_or(30.0))?;
-                        if !(0.0..90.0).contains(&phi) {
-                            return Err(self.err(
-                                p("friction_angle"),
-                                format!("friction angle must be in [0, 90) degrees, got {phi}"),
-                                "use degrees, typically 25-45 for sand",
-                            ));
-                        }
-                        let cohesion = self.non_negative(
-                            &p("cohesion"),
-                            m.cohesion.unwrap_or(0.0),
-                            "cohesion",
-                        )?;
-                        let cone = match m.cone.unwrap_or(RawCone::Compression) {
-                            RawCone::Compression => Cone::Compression,
-                            RawCone::PlaneStrain => Cone::PlaneStrain,
-                        };
-                        Model::DruckerPrager(DruckerPrager {
-                            mu,
-                            lambda,
-                            friction_angle: phi,
-                            cone,
-                            cohesion,
-                        })
-                    }
-                    _ => {
-                        let ys = m.yield_stress.ok_or_else(|| {
-                            self.err(
-                                p("yield_stress"),
-                                "a von_mises material needs yield_stress (Pa)",
-                                "add yield_stress",
-                            )
-                        })?;
-                        Model::VonMises(VonMises {
-                            mu,
-                            lambda,
-                            yield_stress: self.positive(&p("yield_stress"), ys, "yield stress")?,
-                            hardening: self.non_negative(
-                                &p("hardening_modulus"),
-                                m.hardening_modulus.unwrap_or(0.0),
-                                "hardening modulus",
-                            )?,
-                        })
-                    }
-                }
-            }
-        };
-        Ok(Material {
-            name: m.name.clone(),
-            density,
-            model,
+        // The model checks its own fields (material/<model>.rs).
+        Material::new(&m.name, density, params).map_err(|e| {
+            let field = if e.field.is_empty() {
+                "type"
+            } else {
+                e.field.as_str()
+            };
+            self.err(p(field), e.message, e.hint)
         })
-    }
-
-    fn elastic(&self, i: usize, m: &RawMaterial) -> R<(f32, f32)> {
-        let p = |f: &str| format!("material[{i}].{f}");
-        match (m.youngs_modulus, m.poisson_ratio, m.mu, m.lambda) {
-            (Some(e), Some(nu), None, None) => {
-                let e = self.positive(&p("youngs_modulus"), e, "Young's modulus (Pa)")?;
-                self.finite(&p("poisson_ratio"), nu)?;
-                if nu >= 0.5 {
-                    return Err(self.err(p("poisson_ratio"), format!("Poisson's ratio must be below 0.5, got {nu} (incompressible: lambda is infinite)"), "use nu < 0.5 (e.g. 0.45 for rubbery jelly), or a type = \"fluid\" material for liquids"));
-                }
-                if nu <= -1.0 {
-                    return Err(self.err(
-                        p("poisson_ratio"),
-                        format!("Poisson's ratio must be above -1, got {nu}"),
-                        "use a value in (-1, 0.5), typically 0.2-0.4",
-                    ));
-                }
-                Ok(material::lame(e, nu))
-            }
-            (None, None, Some(mu), Some(lambda)) => {
-                let mu = self.positive(&p("mu"), mu, "shear modulus mu (Pa)")?;
-                self.finite(&p("lambda"), lambda)?;
-                if lambda + 2.0 / 3.0 * mu <= 0.0 {
-                    return Err(self.err(
-                        p("lambda"),
-                        format!(
-                            "lambda = {lambda} gives a non-positive bulk modulus lambda + 2 mu / 3"
-                        ),
-                        "use lambda > -2 mu / 3 (usually lambda > 0)",
-                    ));
-                }
-                Ok((mu, lambda))
-            }
-            (e, nu, mu, lambda) => {
-                let field = if e.is_some() && nu.is_none() {
-                    "poisson_ratio"
-                } else if nu.is_some() && e.is_none() {
-                    "youngs_modulus"
-                } else if mu.is_some() && lambda.is_none() {
-                    "lambda"
-                } else if (lambda.is_some() && mu.is_none()) || e.is_some() {
-                    "mu"
-                } else {
-                    "youngs_modulus"
-                };
-                Err(self.err(p(field), "give the elasticity as youngs_modulus + poisson_ratio, or as mu + lambda (one pair, not both)", "e.g. youngs_modulus = 3e5, poisson_ratio = 0.3"))
-            }
-        }
     }
 
     fn mesh(&self, prefix: &str, g: &RawGeometry, base: &Path, dx: f32) -> R<Arc<MeshSdf>> {

@@ -1,18 +1,12 @@
 // Drucker-Prager sand (Klar et al. 2016): port of crates/rtmpm-core/src/material/drucker_prager.rs.
+// alpha: the cone slope, from the model's one formula on the host (DruckerPrager::alpha).
 #pragma once
 #include "hencky.cuh"
 
-// Host mirror (#[repr(C)]): { f32 mu; f32 lambda; f32 alpha; f32 cohesion; } (16 bytes).
-// alpha: the cone slope, computed on the host from the friction angle and the cone's fit
-// (rtmpm_core::material::DruckerPrager::alpha: Klar 2016 eq. 27, or the plane-strain cone).
-struct DruckerPragerParams {
-    real mu;
-    real lambda;
-    real alpha;
-    real cohesion;
-};
-
-__device__ __forceinline__ mat3 drucker_prager_kirchhoff(const DruckerPragerParams& p, const mat3& f) {
+__device__ __forceinline__ mat3 drucker_prager_kirchhoff(const DruckerPragerParams& p, const mat3& f, real plastic,
+                                                         const mat3& c) {
+    (void)plastic;
+    (void)c;
     return hencky_kirchhoff(f, p.mu, p.lambda);
 }
 
@@ -37,12 +31,5 @@ __device__ __forceinline__ vec3 drucker_prager_project_strain(const DruckerPrage
 }
 
 __device__ __forceinline__ mat3 drucker_prager_project(const DruckerPragerParams& p, const mat3& f_trial, real* q) {
-    mat3 u, v;
-    vec3 s;
-    svd3(f_trial, u, s, v);
-    real dq;
-    vec3 h = drucker_prager_project_strain(p, hencky_strain(s), &dq);
-    if (dq <= (real)0) return f_trial;
-    *q += dq;
-    return mul_diag_bt(u, exp3(h), v);
+    return hencky_return_map(f_trial, q, [&](vec3 eps, real, real* dq) { return drucker_prager_project_strain(p, eps, dq); });
 }

@@ -2,12 +2,6 @@
 #pragma once
 #include "../svd.cuh"
 
-// Host mirror (#[repr(C)]): { f32 mu; f32 lambda; } (8 bytes).
-struct FixedCorotatedParams {
-    real mu;
-    real lambda;
-};
-
 // tau = 2 mu (F - R) F^T + lambda (J - 1) J I, R from the polar decomposition.
 __device__ __forceinline__ mat3 fixed_corotated_kirchhoff_lame(const mat3& f, real mu, real lambda) {
     mat3 r, s;
@@ -16,6 +10,16 @@ __device__ __forceinline__ mat3 fixed_corotated_kirchhoff_lame(const mat3& f, re
     return (f - r) * transpose(f) * ((real)2 * mu) + mat3_diag(make_v3s(lambda * (j - (real)1) * j));
 }
 
-__device__ __forceinline__ mat3 fixed_corotated_kirchhoff(const FixedCorotatedParams& p, const mat3& f) {
+__device__ __forceinline__ mat3 fixed_corotated_kirchhoff(const FixedCorotatedParams& p, const mat3& f, real plastic,
+                                                          const mat3& c) {
+    (void)plastic;
+    (void)c;
     return fixed_corotated_kirchhoff_lame(f, p.mu, p.lambda);
+}
+
+// Elastic: F stays the trial F.
+__device__ __forceinline__ mat3 fixed_corotated_project(const FixedCorotatedParams& p, const mat3& f_trial, real* plastic) {
+    (void)p;
+    (void)plastic;
+    return f_trial;
 }

@@ -1,5 +1,6 @@
-// St.Venant-Kirchhoff with Hencky strain, shared by drucker_prager.cuh and von_mises.cuh
-// (Rust: hencky_* in crates/rtmpm-core/src/material/drucker_prager.rs).
+// Hencky (logarithmic) strain: the St.Venant-Kirchhoff stress of the log-strain models and the one
+// return mapping they share (port of crates/rtmpm-core/src/material/hencky.rs; Klar et al. 2016,
+// "Drucker-Prager elastoplasticity for sand animation", section 7.3).
 #pragma once
 #include "../svd.cuh"
 
@@ -23,3 +24,18 @@ __device__ __forceinline__ mat3 hencky_kirchhoff(const mat3& f, real mu, real la
 }
 
 __device__ __forceinline__ vec3 exp3(vec3 a) { return make_v3(exp(a.x), exp(a.y), exp(a.z)); }
+
+// The return mapping of a log-strain model: F = U sigma V^T, eps = ln(sigma); rule(eps, plastic,
+// &dp) maps eps to the admissible strain and sets the plastic increment dp, which *plastic
+// accumulates. An elastic step (dp <= 0) returns f_trial unchanged; else U exp(eps') V^T.
+template <class Rule>
+__device__ __forceinline__ mat3 hencky_return_map(const mat3& f_trial, real* plastic, Rule rule) {
+    mat3 u, v;
+    vec3 s;
+    svd3(f_trial, u, s, v);
+    real dp = 0;
+    vec3 h = rule(hencky_strain(s), *plastic, &dp);
+    if (dp <= (real)0) return f_trial;
+    *plastic += dp;
+    return mul_diag_bt(u, exp3(h), v);
+}

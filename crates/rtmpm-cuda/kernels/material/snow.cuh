@@ -7,23 +7,14 @@
 #define SNOW_JP_MIN ((real)1e-3)
 #define SNOW_JP_MAX ((real)1e3)
 
-// Host mirror (#[repr(C)]): { f32 mu; f32 lambda; f32 critical_compression; f32 critical_stretch;
-// f32 hardening; } (20 bytes).
-struct SnowParams {
-    real mu;
-    real lambda;
-    real critical_compression;
-    real critical_stretch;
-    real hardening;
-};
-
 // exp(clamp(xi (1 - Jp), -S, M)) (Stomakhin 2013 eq. 8)
 __device__ __forceinline__ real snow_hardening_factor(const SnowParams& p, real jp) {
     real e = fmin(fmax(p.hardening * ((real)1 - jp), -SNOW_MAX_SOFTENING_EXPONENT), SNOW_MAX_HARDENING_EXPONENT);
     return exp(e);
 }
 
-__device__ __forceinline__ mat3 snow_kirchhoff(const SnowParams& p, const mat3& f, real jp) {
+__device__ __forceinline__ mat3 snow_kirchhoff(const SnowParams& p, const mat3& f, real jp, const mat3& c) {
+    (void)c;
     real h = snow_hardening_factor(p, jp);
     return fixed_corotated_kirchhoff_lame(f, p.mu * h, p.lambda * h);
 }

@@ -3,15 +3,9 @@
 #pragma once
 #include "hencky.cuh"
 
-// Host mirror (#[repr(C)]): { f32 mu; f32 lambda; f32 yield_stress; f32 hardening; } (16 bytes).
-struct VonMisesParams {
-    real mu;
-    real lambda;
-    real yield_stress;
-    real hardening;
-};
-
-__device__ __forceinline__ mat3 von_mises_kirchhoff(const VonMisesParams& p, const mat3& f) {
+__device__ __forceinline__ mat3 von_mises_kirchhoff(const VonMisesParams& p, const mat3& f, real plastic, const mat3& c) {
+    (void)plastic;
+    (void)c;
     return hencky_kirchhoff(f, p.mu, p.lambda);
 }
 
@@ -36,12 +30,5 @@ __device__ __forceinline__ vec3 von_mises_project_strain(const VonMisesParams& p
 }
 
 __device__ __forceinline__ mat3 von_mises_project(const VonMisesParams& p, const mat3& f_trial, real* eps_p) {
-    mat3 u, v;
-    vec3 s;
-    svd3(f_trial, u, s, v);
-    real dp;
-    vec3 h = von_mises_project_strain(p, hencky_strain(s), *eps_p, &dp);
-    if (dp <= (real)0) return f_trial;
-    *eps_p += dp;
-    return mul_diag_bt(u, exp3(h), v);
+    return hencky_return_map(f_trial, eps_p, [&](vec3 eps, real ep, real* dp) { return von_mises_project_strain(p, eps, ep, dp); });
 }

@@ -1,0 +1,60 @@
+// G2P2G: seed 000's "merge kernels" taken across the step boundary (the G2P2G of Wang et al.
+// 2020). One pass over the particles does the G2P of step n from `grid` and, while the new state
+// is still in registers, the P2G of step n+1 into `grid_next` (cleared by this step's grid
+// update): the next step reads no particle for its P2G and launches no P2G kernel.
+//
+// The seed's caveat (G2P2G forbids changing the particles between G2P and P2G) meets the free
+// zone here: a particle that leaves its free zone may no longer be covered by its gblock's 3x3x3
+// neighbourhood, so it is not scattered; it has set the rebuild flag, and the next step rebuilds
+// the mapping and redoes its P2G from the stored state (the P2G kernel runs only then, see
+// grid_needs_p2g). The scatter uses this step's dt; the host asks for a P2G when dt changes.
+#include "particle.cuh"
+#include "../p2g/warp.cuh"
+
+// Register budgets, measured (bench/RESULTS.md): the general kernel as ptxas picks it (128
+// registers; a minimum-blocks hint, even of 1, changes its choices and cost jelly 8 %); the fluid
+// variant with at least 4 resident blocks (128 registers; left alone it takes 168 and runs 8 %
+// slower, at 5 blocks it spills).
+#ifndef G2P2G_FLUID_MIN_BLOCKS
+#define G2P2G_FLUID_MIN_BLOCKS 4
+#endif
+
+// Warps loop over the warp list (grid-stride, launched with about one wave of blocks).
+template <bool ALL_FLUID>
+__device__ __forceinline__ void g2p2g_body(const Ctx& c) {
+    if (c.ctl[CTL_ERROR]) return;
+    unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
+    unsigned lane = threadIdx.x & 31;
+    unsigned speed = 0;
+    for (unsigned w = thread_index() >> 5; w < n_warps; w += stride) {
+        unsigned g = c.warps[3 * w], first = c.warps[3 * w + 1], count = c.warps[3 * w + 2];
+        // G2P of step n; the particle's P2G quantities of step n+1 from the new state.
+        bool scatter = false;
+        unsigned key = P2G_KEY_NONE;
+        P2gParticle q = p2g_particle_zero();
+        if (lane < count) {
+            unsigned p = first + lane;
+            real m = c.state[F_MASS * c.cap + p], vol0 = c.state[F_VOL0 * c.cap + p];
+            G2pResult r = g2p_particle<ALL_FLUID>(c, g, p);
+            speed = max(speed, r.speed);
+            if (!r.leave) {
+                q = p2g_particle_of<ALL_FLUID>(c, r.x, m, vol0, r.v, r.C, r.F, r.plastic, r.material);
+                key = p2g_sort_key(c, g, q.base);
+                scatter = true;
+            }
+        }
+        // P2G of step n+1, as in p2g.cu: in-warp sort (the particles change lanes by shuffles,
+        // only when the warp is out of order), segmented reduction, atomics into grid_next.
+        if (c.warp_sort) {
+            unsigned src = p2g_warp_sort(key, lane, &scatter);
+            if (__any_sync(0xffffffffu, src != lane)) q = p2g_particle_from_lane(q, src);
+        }
+        p2g_scatter_warp(c, g, q, scatter, lane, c.grid_next);
+    }
+    report_max_speed(c, speed);
+}
+
+// Every scene.
+extern "C" __global__ void __launch_bounds__(128) g2p2g(Ctx c) { g2p2g_body<false>(c); }
+// Scenes whose materials are all fluids (see ALL_FLUID in g2p_particle.cuh).
+extern "C" __global__ void __launch_bounds__(128, G2P2G_FLUID_MIN_BLOCKS) g2p2g_fluid(Ctx c) { g2p2g_body<true>(c); }

@@ -1,0 +1,57 @@
+// The inter-GPU barrier of seed 000 ("Implementation of the inter-GPU barrier": a spin lock on
+// system-scope atomics), used by transport=p2p between the GPUs of one process.
+//
+// One counter in GPU 0's memory, reached by every GPU through peer access. Every GPU counts its own
+// barrier calls (calls, in its own memory, incremented by the kernel itself, so a CUDA graph can
+// replay the kernel): at its g-th call a GPU adds 1 to the counter and spins until the counter
+// reaches g * n. No GPU passes call g before all n arrived at it (each has then added exactly g),
+// so the counter never needs a reset (the seed resets it from GPU 0 after a second round of
+// arrivals; the generation target makes that round unnecessary). 64 bits: no wrap in practice.
+//
+// __threadfence_system() before arriving makes this GPU's writes (the packed shared blocks, the
+// occupancy mask) visible to every GPU before any of them leaves the barrier; the one after the
+// spin orders this GPU's later reads of peer memory after it. A GPU that never arrives (its host
+// thread failed) does not hang the others: after timeout_ns the kernel sets ERR_BARRIER and
+// returns; the host reports the error at the next check.
+#include "../common.cuh"
+
+struct SpinBarrier {
+    unsigned long long* count;  // on GPU 0: arrivals so far, over every GPU and call
+    unsigned long long* calls;  // on this GPU: this GPU's barrier calls so far
+    unsigned long long timeout_ns;
+    unsigned n;                 // GPUs
+    unsigned pad;
+};
+
+__device__ __forceinline__ unsigned long long bar_now_ns() {
+    unsigned long long t;
+    asm volatile("mov.u64 %0, %%globaltimer;" : "=l"(t));
+    return t;
+}
+
+// One block of one thread.
+extern "C" __global__ void barrier_spin(Ctx c, SpinBarrier b) {
+#if __CUDA_ARCH__ >= 700
+    if (threadIdx.x != 0 || blockIdx.x != 0) return;
+    __threadfence_system();
+    unsigned long long g = *b.calls + 1ull;
+    *b.calls = g;
+    atomicAdd_system(b.count, 1ull);
+    unsigned long long target = g * (unsigned long long)b.n;
+    unsigned long long start = bar_now_ns();
+    for (;;) {
+        unsigned long long v;
+        asm volatile("ld.acquire.sys.global.u64 %0, [%1];" : "=l"(v) : "l"(b.count) : "memory");
+        if (v >= target) break;
+        if (bar_now_ns() - start > b.timeout_ns) {
+            atomicOr(&c.ctl[CTL_ERROR], ERR_BARRIER);
+            break;
+        }
+        __nanosleep(32);
+    }
+    __threadfence_system();
+#else
+    // Peer access and system-scope atomics need compute capability 7.0 here.
+    if (threadIdx.x == 0 && blockIdx.x == 0) atomicOr(&c.ctl[CTL_ERROR], ERR_BARRIER);
+#endif
+}

@@ -1,0 +1,188 @@
+//! The device memory of one GPU: every buffer of the pipeline, allocated once when the backend is
+//! built (nothing is allocated inside a step), and the kernel context [`Ctx`] that points into
+//! it.
+
+use crate::capacity::Capacity;
+use crate::contract::{self, CTL_BAD_INDEX, CTL_P2G_PENDING, CTL_WORDS, Ctx, NFIELDS};
+use cudarc::driver::{CudaSlice, CudaStream, DevicePtr, DriverError};
+use rtmpm_core::Scene;
+use rtmpm_core::sim::SimError;
+use rtmpm_core::transfer::Transfer;
+use std::sync::Arc;
+
+fn err(what: &'static str) -> impl Fn(DriverError) -> SimError {
+    move |e| SimError::Backend(format!("CUDA: {what}: {e:?}"))
+}
+
+/// What a GPU's buffers hold besides the capacities: its particle count, the precision and the
+/// optional buffers.
+#[derive(Clone, Copy, Debug)]
+pub struct Needs {
+    /// Particles on this GPU.
+    pub particles: usize,
+    /// Bytes per `real` (4, or 8 in f64).
+    pub real_bytes: usize,
+    /// G2P2G: a second grid.
+    pub grid_next: bool,
+}
+
+/// The buffers of one GPU. The [`Ctx`] holds their device addresses; the slices keep them alive.
+pub struct Buffers {
+    /// Particle state, SoA with stride `Capacity::particles`, in the backend's precision.
+    pub state: CudaSlice<u8>,
+    /// 3 ints per pblock.
+    pub block_coords: CudaSlice<u8>,
+    /// The grid (4 reals per node).
+    pub grid: CudaSlice<u8>,
+    /// G2P2G: the second grid.
+    pub grid_next: Option<CudaSlice<u8>>,
+    /// Control words.
+    pub ctl: CudaSlice<u32>,
+    /// Global copies of the constant-memory parameters.
+    pub scalars: CudaSlice<u8>,
+    /// See `scalars`.
+    pub step: CudaSlice<u8>,
+    /// See `scalars`.
+    pub poses: CudaSlice<u8>,
+    /// Every other buffer (scratch, hash, lists, sort, tables).
+    _rest: Vec<CudaSlice<u8>>,
+}
+
+/// Allocate every buffer of a GPU for `cap`, upload the particle state (`state`, already packed
+/// by [`crate::state::pack`]) and the scene's tables, and build the context.
+pub fn allocate(
+    stream: &Arc<CudaStream>,
+    scene: &Scene,
+    state: &[u8],
+    cap: &Capacity,
+    needs: Needs,
+    tables: &crate::encode::Tables,
+    options: &crate::CudaOptions,
+) -> Result<(Buffers, Ctx), SimError> {
+    let s = stream;
+    let (n, rb) = (needs.particles, needs.real_bytes);
+    let ptr = |b: &CudaSlice<u8>| b.device_ptr(s).0;
+    let mut rest = Vec::new();
+    let mut zeros = |len: usize, what: &'static str| -> Result<u64, SimError> {
+        let b = s.alloc_zeros::<u8>(len.max(16)).map_err(err(what))?;
+        let p = b.device_ptr(s).0;
+        rest.push(b);
+        Ok(p)
+    };
+    let scratch = zeros(state.len(), "alloc scratch")?;
+    let hash_keys = zeros(cap.hash * 8, "alloc hash")?;
+    let hash_values = zeros(cap.hash * 4, "alloc hash")?;
+    let neighbors = zeros(cap.gblocks * 27 * 4, "alloc neighbour lists")?;
+    let hist = zeros(cap.buckets * 4, "alloc histogram")?;
+    let scan_sums = zeros(cap.buckets.div_ceil(1024) * 4, "alloc scan")?;
+    let pkey = zeros(n * 4, "alloc sort keys")?;
+    let prank = zeros(n * 4, "alloc sort ranks")?;
+    let warps = zeros(cap.warps * 12, "alloc warp list")?;
+    let boundary = zeros(cap.gblocks * 4, "alloc boundary flags")?;
+    let grid_bytes = cap.pblocks * 64 * 4 * rb;
+    // The classic MPM transfers keep a second value per node (force, v_old, MUSL re-map).
+    let grid_aux = if scene.solver.transfer == Transfer::Mls {
+        0
+    } else {
+        zeros(grid_bytes, "alloc second node values")?
+    };
+    let mut upload = |bytes: &[u8], what: &'static str| -> Result<u64, SimError> {
+        let mut v = bytes.to_vec();
+        v.resize(v.len().max(16), 0);
+        let b = s.clone_htod(&v).map_err(err(what))?;
+        let p = b.device_ptr(s).0;
+        rest.push(b);
+        Ok(p)
+    };
+    let materials = upload(&tables.materials, "upload materials")?;
+    let colliders = upload(bytemuck::cast_slice(&tables.colliders), "upload colliders")?;
+    let mesh_values = upload(bytemuck::cast_slice(&tables.mesh), "upload meshes")?;
+
+    let state = s.clone_htod(state).map_err(err("upload particles"))?;
+    let grid = s.alloc_zeros::<u8>(grid_bytes).map_err(err("alloc grid"))?;
+    let grid_next = if needs.grid_next {
+        Some(
+            s.alloc_zeros::<u8>(grid_bytes)
+                .map_err(err("alloc second grid (G2P2G)"))?,
+        )
+    } else {
+        None
+    };
+    let block_coords = s
+        .alloc_zeros::<u8>(cap.pblocks * 12)
+        .map_err(err("alloc block coordinates"))?;
+    let mut ctl_host = [0u32; CTL_WORDS];
+    ctl_host[contract::CTL_NEED_REBUILD] = 1; // rebuild at the first step
+    ctl_host[CTL_P2G_PENDING] = 1;
+    ctl_host[CTL_BAD_INDEX] = u32::MAX;
+    let ctl = s
+        .clone_htod(&ctl_host)
+        .map_err(err("alloc control words"))?;
+    let scalars = s
+        .clone_htod(&tables.scalars)
+        .map_err(err("upload scalars"))?;
+    let step = s
+        .alloc_zeros::<u8>(std::mem::size_of::<contract::StepParams<f64>>())
+        .map_err(err("alloc step parameters"))?;
+    let poses = s
+        .alloc_zeros::<u8>(std::mem::size_of::<contract::ColliderPoses>())
+        .map_err(err("alloc collider poses"))?;
+
+    let w = &scene.walls;
+    let ctx = Ctx {
+        state: ptr(&state),
+        scratch,
+        grid: ptr(&grid),
+        grid_next: grid_next.as_ref().map_or(0, ptr),
+        grid_aux,
+        ctl: ctl.device_ptr(s).0,
+        scalars: ptr(&scalars),
+        step: ptr(&step),
+        poses: ptr(&poses),
+        materials,
+        colliders,
+        mesh_values,
+        hash_keys,
+        hash_values,
+        block_coords: ptr(&block_coords),
+        neighbors,
+        hist,
+        scan_sums,
+        pkey,
+        prank,
+        warps,
+        boundary,
+        n_cells: scene.n_cells().map(|c| c as i32),
+        wall_thickness: w.thickness as i32,
+        wall_cond: w.faces.map(|f| contract::condition(f.condition)),
+        n: n as u32,
+        cap: cap.particles as u32,
+        gblock_cap: cap.gblocks as u32,
+        pblock_cap: cap.pblocks as u32,
+        hash_cap: cap.hash as u32,
+        warp_cap: cap.warps as u32,
+        n_colliders: tables.colliders.len() as u32,
+        n_buckets: cap.buckets as u32,
+        warp_reduce: options.warp_reduce as u32,
+        warp_sort: (options.warp_reduce && options.mixed_sort) as u32,
+        transfer: scene.solver.transfer.code(),
+        update: contract::update(scene.solver.update),
+        always_rebuild: (!options.free_zone || !options.mixed_sort) as u32,
+        pad: 0,
+    };
+    debug_assert_eq!(state.len(), NFIELDS * cap.particles * rb);
+    Ok((
+        Buffers {
+            state,
+            block_coords,
+            grid,
+            grid_next,
+            ctl,
+            scalars,
+            step,
+            poses,
+            _rest: rest,
+        },
+        ctx,
+    ))
+}

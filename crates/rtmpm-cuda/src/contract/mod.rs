@@ -1,0 +1,148 @@
+//! The host/device contract, defined once, here: the constants the kernels and the host share
+//! (particle fields, control words, error bits, limits, material, collider, boundary and
+//! transfer codes) and the layouts of every struct copied to the GPU. The kernels get the
+//! constants from a generated header (`contract.cuh`, [`prelude`]), the material registry from
+//! another (`material/registry.cuh`, [`material_registry`]), and the program ends with a
+//! `static_assert` per field of every struct ([`layout_asserts`]): a C struct that drifts from
+//! its Rust twin fails to compile, naming the field.
+//!
+//! Precision: one mechanism. Every struct that holds `real` values is generic over the host
+//! type (`f32` or `f64`) and declared with `real` on the device ([`Scalars`], [`StepParams`],
+//! [`MaterialGpu`]); every other struct ([`Ctx`], [`GpuCollider`], [`ColliderPoses`], ...) has
+//! no precision. Every struct derives (or, for the generic ones, implements with a compile-time
+//! proof of no padding) `bytemuck::Pod`, so no padding byte is ever read.
+
+use rtmpm_core::boundary::Condition;
+use rtmpm_core::boundary::sdf::Shape;
+use rtmpm_core::transfer::Update;
+
+mod headers;
+mod layout;
+
+pub use headers::{layout_asserts, material_registry, materials, prelude};
+pub use layout::*;
+
+// ---------------------------------------------------------------------------------------------
+// Particle state: structure of arrays, field f of particle i at state[f * cap + i].
+
+/// Words per particle in the state arrays.
+pub const NFIELDS: usize = 29;
+/// Position (3 words).
+pub const F_X: usize = 0;
+/// Velocity (3).
+pub const F_V: usize = 3;
+/// APIC C (9, column-major).
+pub const F_C: usize = 6;
+/// Deformation gradient (9, column-major).
+pub const F_F: usize = 15;
+/// Plastic scalar.
+pub const F_PLASTIC: usize = 24;
+/// Mass.
+pub const F_MASS: usize = 25;
+/// Initial volume.
+pub const F_VOL0: usize = 26;
+/// Material id (integer bits in the low 32 bits of the word).
+pub const F_MAT: usize = 27;
+/// Original particle index (integer bits).
+pub const F_ID: usize = 28;
+
+// ---------------------------------------------------------------------------------------------
+// Control words (u32, one array per GPU).
+
+/// Rebuild the mapping at the next step.
+pub const CTL_NEED_REBUILD: usize = 0;
+/// Gblock count.
+pub const CTL_GBLOCKS: usize = 1;
+/// Pblock count.
+pub const CTL_PBLOCKS: usize = 2;
+/// Error bits (`ERR_*`).
+pub const CTL_ERROR: usize = 3;
+/// First bad particle (original index; `u32::MAX`: none).
+pub const CTL_BAD_INDEX: usize = 4;
+/// Its reason: 1 non-finite, 2 too fast.
+pub const CTL_BAD_REASON: usize = 5;
+/// Max speed of the step (f32 bits).
+pub const CTL_MAX_SPEED: usize = 6;
+/// Rebuilds so far.
+pub const CTL_REBUILDS: usize = 7;
+/// Warp count.
+pub const CTL_WARPS: usize = 8;
+/// Scratch of the rebuild (extra warps of the warp list).
+pub const CTL_EXTRA: usize = 9;
+/// Gblock count before the neighbour insertion of a rebuild.
+pub const CTL_PREV_GBLOCKS: usize = 10;
+/// 1 when the mapping was rebuilt in this step (several GPUs: the occupancy mask is redone).
+pub const CTL_REBUILT_NOW: usize = 11;
+/// Blocks shared with other GPUs.
+pub const CTL_SHARED: usize = 12;
+/// Capacity of the shared-block reduction (blocks).
+pub const CTL_SHARED_CAP: usize = 13;
+/// Grid barrier of the fused rebuild (`rb_fused`): blocks arrived.
+pub const CTL_BARRIER_COUNT: usize = 14;
+/// Grid barrier of the fused rebuild: generation.
+pub const CTL_BARRIER_GEN: usize = 15;
+/// G2P2G: the grid of the coming step still needs its P2G (first step, new dt).
+pub const CTL_P2G_PENDING: usize = 16;
+/// Number of control words.
+pub const CTL_WORDS: usize = 17;
+
+// ---------------------------------------------------------------------------------------------
+// Error bits of CTL_ERROR, with what the host says of each.
+
+/// The block hash table is full.
+pub const ERR_HASH: u32 = 1;
+/// More gblocks than allocated.
+pub const ERR_GBLOCKS: u32 = 2;
+/// More pblocks than allocated.
+pub const ERR_PBLOCKS: u32 = 4;
+/// More warps than allocated.
+pub const ERR_WARPS: u32 = 8;
+/// The reverse map of the gather P2G is full.
+pub const ERR_P2G_MAP: u32 = 16;
+/// More blocks shared between GPUs than the reduction holds.
+pub const ERR_SHARED: u32 = 32;
+/// The inter-GPU spin barrier timed out.
+pub const ERR_BARRIER: u32 = 64;
+/// The capacity errors of the mapping (hash, gblocks, pblocks, warps).
+pub const ERR_MAPPING: u32 = ERR_HASH | ERR_GBLOCKS | ERR_PBLOCKS | ERR_WARPS;
+
+// ---------------------------------------------------------------------------------------------
+// Limits and codes.
+
+/// Colliders a scene may have on the GPU (constant-memory table).
+pub const MAX_COLLIDERS: usize = 16;
+/// Materials a scene may have on the GPU (constant-memory table).
+pub const MAX_MATERIALS: usize = 64;
+/// Most GPUs of transport=p2p.
+pub const MAX_PEER_GPUS: usize = 8;
+/// `real` parameters per material on the GPU (the largest model's).
+pub const MATERIAL_PARAMS: usize = 8;
+
+/// Collider shape codes (`GpuCollider::kind`).
+pub fn collider_kind(s: &Shape) -> u32 {
+    match s {
+        Shape::HalfSpace { .. } => 0,
+        Shape::Box { .. } => 1,
+        Shape::Sphere { .. } => 2,
+        Shape::Cylinder { .. } => 3,
+        Shape::Mesh(_) => 4,
+    }
+}
+pub(crate) const COLLIDER_KINDS: [&str; 5] = ["HALF_SPACE", "BOX", "SPHERE", "CYLINDER", "MESH"];
+
+/// Boundary condition codes (walls and colliders).
+pub fn condition(c: Condition) -> u32 {
+    match c {
+        Condition::Sticky => 0,
+        Condition::Slip => 1,
+        Condition::Separate => 2,
+    }
+}
+
+/// Stress update code (`Ctx::update`).
+pub fn update(u: Update) -> u32 {
+    match u {
+        Update::Usl => 0,
+        Update::Musl => 1,
+    }
+}

@@ -1,0 +1,255 @@
+//! The scene as GPU parameters, in the kernels' precision: the structs of [`crate::contract`]
+//! filled from a [`Scene`] and returned as the bytes that are copied to the device. Each
+//! material's parameters come from its own model (`Model::gpu_params`); in f64 from the model
+//! built in f64 (rtmpm-f64) from the scene's parameters, so the GPU's f64 materials are the CPU's.
+
+use crate::contract::{
+    self, ColliderPoses, GpuCollider, GpuReal, MAX_COLLIDERS, MAX_MATERIALS, Scalars, StepParams,
+};
+use rtmpm_core::Scene;
+use rtmpm_core::boundary::Collider;
+use rtmpm_core::boundary::sdf::Shape;
+use rtmpm_core::math::{Mat3, Vec3};
+use rtmpm_core::sim::SimError;
+
+/// The read-only tables of a run, as copied to the device.
+pub struct Tables {
+    /// [`Scalars`] in the kernels' precision.
+    pub scalars: Vec<u8>,
+    /// The materials ([`contract::MaterialGpu`]) in the kernels' precision.
+    pub materials: Vec<u8>,
+    /// The colliders.
+    pub colliders: Vec<GpuCollider>,
+    /// The values of the mesh colliders' distance grids.
+    pub mesh: Vec<f32>,
+}
+
+/// Every table of `scene` in the precision `f64` or f32.
+pub fn tables(scene: &Scene, f64: bool) -> Result<Tables, SimError> {
+    let (colliders, mesh) = colliders(scene)?;
+    Ok(Tables {
+        scalars: scalars_bytes(scene, f64),
+        materials: materials(scene, f64)?,
+        colliders,
+        mesh,
+    })
+}
+
+/// The material table in the kernels' precision (`f64` or f32), as bytes.
+pub fn materials(scene: &Scene, f64: bool) -> Result<Vec<u8>, SimError> {
+    if scene.materials.len() > MAX_MATERIALS {
+        return Err(SimError::Backend(format!(
+            "CUDA backend: at most {MAX_MATERIALS} materials (the scene has {})",
+            scene.materials.len()
+        )));
+    }
+    let bytes = if f64 {
+        let models = rtmpm_f64::real::materials(&scene.materials)?
+            .iter()
+            .map(|m| (m.model.code(), m.model.gpu_params()))
+            .collect::<Vec<_>>();
+        bytemuck::cast_slice(&contract::materials(&models).map_err(SimError::Backend)?).to_vec()
+    } else {
+        let models = scene
+            .materials
+            .iter()
+            .map(|m| (m.model.code(), m.model.gpu_params()))
+            .collect::<Vec<_>>();
+        bytemuck::cast_slice(&contract::materials(&models).map_err(SimError::Backend)?).to_vec()
+    };
+    Ok(bytes)
+}
+
+/// The collider table and the concatenated values of the mesh colliders' distance grids.
+pub fn colliders(scene: &Scene) -> Result<(Vec<GpuCollider>, Vec<f32>), SimError> {
+    if scene.colliders.len() > MAX_COLLIDERS {
+        return Err(SimError::Backend(format!(
+            "CUDA backend: at most {MAX_COLLIDERS} colliders (the scene has {})",
+            scene.colliders.len()
+        )));
+    }
+    let mut mesh = Vec::new();
+    let cols = scene
+        .colliders
+        .iter()
+        .map(|c| collider(c, &mut mesh))
+        .collect();
+    mesh.push(0.0);
+    Ok((cols, mesh))
+}
+
+fn collider(c: &Collider, mesh: &mut Vec<f32>) -> GpuCollider {
+    let mut g = GpuCollider {
+        kind: contract::collider_kind(&c.shape),
+        cond: contract::condition(c.rule.condition),
+        friction: c.rule.friction,
+        velocity: c.velocity.to_array(),
+        angular_velocity: c.angular_velocity.to_array(),
+        pivot: c.pivot.to_array(),
+        ..Default::default()
+    };
+    let put =
+        |g: &mut GpuCollider, at: usize, v: Vec3| g.p[at..at + 3].copy_from_slice(&v.to_array());
+    match &c.shape {
+        Shape::HalfSpace { point, normal } => {
+            put(&mut g, 0, *point);
+            put(&mut g, 3, *normal);
+        }
+        Shape::Box {
+            center,
+            half_extents,
+        } => {
+            put(&mut g, 0, *center);
+            put(&mut g, 3, *half_extents);
+        }
+        Shape::Sphere { center, radius } => {
+            put(&mut g, 0, *center);
+            g.p[3] = *radius;
+        }
+        Shape::Cylinder {
+            center,
+            axis,
+            radius,
+            half_height,
+        } => {
+            put(&mut g, 0, *center);
+            put(&mut g, 3, *axis);
+            g.p[6] = *radius;
+            g.p[7] = *half_height;
+        }
+        Shape::Mesh(m) => {
+            put(&mut g, 0, m.origin);
+            g.p[3] = m.spacing;
+            g.dims = m.dims;
+            g.mesh_offset = mesh.len() as u32;
+            mesh.extend_from_slice(&m.values);
+        }
+    }
+    g
+}
+
+/// The run's constants in precision `R`, computed in `R` from the scene's values as the CPU
+/// backend of that precision does (`cpu::StepConstants`).
+pub fn scalars<R: GpuReal>(scene: &Scene) -> Scalars<R> {
+    let r = R::from_f32;
+    let dx = r(scene.dx);
+    let v3 = |v: Vec3| v.to_array().map(r);
+    let lo = v3(scene.domain_min);
+    Scalars {
+        origin: lo.map(|x| x - r(4.0) * dx),
+        dx,
+        inv_dx: r(1.0) / dx,
+        domain_min: lo,
+        domain_max: v3(scene.domain_max),
+        wall_friction: scene.walls.faces.map(|f| r(f.friction)),
+        flip: r(scene.solver.flip),
+    }
+}
+
+/// [`scalars`] in the precision `f64` or f32, as bytes.
+pub fn scalars_bytes(scene: &Scene, f64: bool) -> Vec<u8> {
+    if f64 {
+        bytemuck::bytes_of(&scalars::<f64>(scene)).to_vec()
+    } else {
+        bytemuck::bytes_of(&scalars::<f32>(scene)).to_vec()
+    }
+}
+
+/// The parameters of the step of length `dt` starting at `t`.
+pub fn step<R: GpuReal>(scene: &Scene, dt: f32, t: f32) -> StepParams<R> {
+    let r = R::from_f32;
+    StepParams {
+        dt: r(dt),
+        t: r(t),
+        gravity: scene.gravity.to_array().map(r),
+        damping: r(scene.time.damping.factor(dt, t)),
+    }
+}
+
+/// [`step`] in the precision `f64` or f32, as bytes; with `t` zeroed when `without_t` (the
+/// kernels never read `t`: two steps whose bytes differ only in it need no new upload).
+pub fn step_bytes(scene: &Scene, dt: f32, t: f32, f64: bool, without_t: bool) -> Vec<u8> {
+    let t = if without_t { 0.0 } else { t };
+    if f64 {
+        bytemuck::bytes_of(&step::<f64>(scene, dt, t)).to_vec()
+    } else {
+        bytemuck::bytes_of(&step::<f32>(scene, dt, t)).to_vec()
+    }
+}
+
+/// Every collider's pose at time `t`: rotation by `angular_velocity t` about the pivot, which
+/// moves with `velocity`.
+pub fn poses(scene: &Scene, t: f32) -> ColliderPoses {
+    let mut p = ColliderPoses::default();
+    for (k, c) in scene.colliders.iter().enumerate().take(MAX_COLLIDERS) {
+        let w = c.angular_velocity;
+        let r = if w.length() > 0.0 {
+            Mat3::from_axis_angle(w / w.length(), w.length() * t)
+        } else {
+            Mat3::IDENTITY
+        };
+        p.rot[k] = r.to_cols_array();
+        p.pivot[k] = (c.pivot + c.velocity * t).to_array();
+    }
+    p
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene() -> Scene {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/mixed.toml");
+        Scene::from_file(&path).expect("mixed scene")
+    }
+
+    #[test]
+    fn materials_carry_their_kind_and_parameters_in_both_precisions() {
+        let s = scene();
+        let f32s: Vec<contract::MaterialGpu<f32>> =
+            bytemuck::pod_collect_to_vec(&materials(&s, false).unwrap());
+        assert_eq!(f32s.len(), s.materials.len());
+        for (g, m) in f32s.iter().zip(&s.materials) {
+            assert_eq!(g.kind, m.model.code());
+            let p = m.model.gpu_params();
+            assert_eq!(&g.p[..p.len()], &p[..]);
+        }
+        let f64s: Vec<contract::MaterialGpu<f64>> =
+            bytemuck::pod_collect_to_vec(&materials(&s, true).unwrap());
+        for (a, b) in f64s.iter().zip(&f32s) {
+            assert_eq!(a.kind, b.kind);
+            for (x, y) in a.p.iter().zip(&b.p) {
+                assert!(
+                    (x - *y as f64).abs() <= 1e-6 * x.abs().max(1.0),
+                    "{x} vs {y}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn scalars_are_computed_in_their_precision() {
+        let s = scene();
+        let a = scalars::<f32>(&s);
+        let b = scalars::<f64>(&s);
+        assert_eq!(a.origin[0], s.domain_min.x - 4.0 * s.dx);
+        assert_eq!(b.origin[0], s.domain_min.x as f64 - 4.0 * s.dx as f64);
+        assert_eq!(a.inv_dx, 1.0 / s.dx);
+        assert_eq!(
+            scalars_bytes(&s, true).len(),
+            std::mem::size_of::<Scalars<f64>>()
+        );
+        let p = step_bytes(&s, 1e-4, 0.5, false, true);
+        assert_eq!(p, step_bytes(&s, 1e-4, 0.0, false, false));
+    }
+
+    #[test]
+    fn poses_move_the_pivot_and_turn_about_it() {
+        let s = scene();
+        let p = poses(&s, 0.25);
+        for (k, c) in s.colliders.iter().enumerate() {
+            let pivot = c.pivot + c.velocity * 0.25;
+            assert_eq!(p.pivot[k], pivot.to_array());
+        }
+    }
+}

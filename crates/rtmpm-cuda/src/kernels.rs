@@ -1,0 +1,103 @@
+//! The kernels of the program, from one list: `build.rs` reads the `kernels/` folder and writes
+//! [`SOURCES`], [`UNITS`] and the [`Kernel`] enum (every `extern "C" __global__` function);
+//! [`Kernels`] loads every one of them by name, and launch code indexes it by [`Kernel`].
+
+use cudarc::driver::{CudaFunction, CudaModule, LaunchConfig};
+use rtmpm_core::sim::SimError;
+use std::sync::Arc;
+
+include!(concat!(env!("OUT_DIR"), "/kernel_list.rs"));
+
+/// Every kernel of the loaded module, and the launch sizes of the device.
+pub struct Kernels {
+    functions: Vec<CudaFunction>,
+    /// Threads of one full wave of the device (SMs x 2048): kernels with grid-stride loops launch
+    /// at most this many.
+    pub wave_threads: usize,
+    /// The fused rebuild's grid (blocks of 1024 threads that fit on the device at once, for its
+    /// cooperative launch); `None`: the rebuild runs as separate kernels (`rebuild=kernels`).
+    pub rb_fused_grid: Option<u32>,
+}
+
+impl Kernels {
+    /// Load every kernel of `module`; `sm_count` sizes the waves, `fused_rebuild` asks for the
+    /// persistent rebuild kernel's grid.
+    pub(crate) fn load(
+        module: &Arc<CudaModule>,
+        sm_count: i32,
+        fused_rebuild: bool,
+    ) -> Result<Kernels, SimError> {
+        let functions = Kernel::ALL
+            .iter()
+            .map(|k| {
+                module
+                    .load_function(k.name())
+                    .map_err(|e| SimError::Backend(format!("CUDA: kernel {}: {e:?}", k.name())))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut k = Kernels {
+            functions,
+            wave_threads: sm_count.max(1) as usize * 2048,
+            rb_fused_grid: None,
+        };
+        if fused_rebuild {
+            // A cooperative launch needs every block resident, so its grid barrier cannot deadlock.
+            let per_sm = k[Kernel::RbFused]
+                .occupancy_max_active_blocks_per_multiprocessor(1024, 0, None)
+                .map_err(|e| SimError::Backend(format!("CUDA: occupancy of rb_fused: {e:?}")))?;
+            k.rb_fused_grid = Some(per_sm * sm_count.max(1) as u32).filter(|&g| g > 0);
+        }
+        Ok(k)
+    }
+
+    /// Launch configuration for `n` threads in blocks of `block`, at most one wave (the kernels
+    /// loop over their items, grid-stride).
+    pub(crate) fn wave(&self, n: usize, block: u32) -> LaunchConfig {
+        cfg(n.min(self.wave_threads.max(block as usize)), block)
+    }
+}
+
+impl std::ops::Index<Kernel> for Kernels {
+    type Output = CudaFunction;
+    fn index(&self, k: Kernel) -> &CudaFunction {
+        &self.functions[k as usize]
+    }
+}
+
+/// Launch configuration covering `n` threads in blocks of `block`.
+pub(crate) fn cfg(n: usize, block: u32) -> LaunchConfig {
+    LaunchConfig {
+        grid_dim: ((n.max(1)).div_ceil(block as usize) as u32, 1, 1),
+        block_dim: (block, 1, 1),
+        shared_mem_bytes: 0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_list_holds_every_stage_kernel_once() {
+        for name in [
+            "rb_fused",
+            "p2g",
+            "grid_update",
+            "g2p",
+            "g2p2g",
+            "g2p2g_fluid",
+            "sb_sum_peers",
+        ] {
+            assert_eq!(
+                Kernel::ALL.iter().filter(|k| k.name() == name).count(),
+                1,
+                "{name}"
+            );
+        }
+        assert!(UNITS.contains(&"p2g/scatter.cu"));
+        assert!(SOURCES.iter().any(|(n, _)| *n == "material/hencky.cuh"));
+        for (i, k) in Kernel::ALL.iter().enumerate() {
+            assert_eq!(*k as usize, i);
+        }
+    }
+}

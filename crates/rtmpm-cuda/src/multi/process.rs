@@ -1,0 +1,218 @@
+//! One process per GPU, on any number of machines ([`NcclRankBackend`]), meeting through a
+//! [`super::rendezvous::Rendezvous`]; the GPUs sum their shared blocks through NCCL.
+
+use super::nccl::UniqueId;
+use super::partition::slabs;
+use super::plan::{check_supported, combine, dense_count, plan, shared_capacity, subset};
+use super::rank::{CommSource, GpuRank};
+use crate::backend::Part;
+use crate::contract::{CTL_BAD_INDEX, CTL_MAX_SPEED, CTL_SHARED, NFIELDS};
+use crate::readback::{resize_particles, scatter_state};
+use crate::{CudaOptions, Transport};
+use rtmpm_core::sim::{Backend, BadParticle, SimError};
+use rtmpm_core::{Particles, Scene};
+
+fn nccl_err(e: String) -> SimError {
+    SimError::Backend(e)
+}
+
+fn rank(r: &mut Option<GpuRank>) -> Result<&mut GpuRank, SimError> {
+    r.as_mut()
+        .ok_or_else(|| SimError::Backend("GPU rank missing".into()))
+}
+
+/// This process's GPU in a run of several processes (one per GPU, any number of machines).
+/// Every process runs the same driver loop; max speed, bad particles and particle read-back are
+/// NCCL collectives, so every process calls them at the same points (they do: the same scene and
+/// the same time steps everywhere).
+pub struct NcclRankBackend {
+    rank: Option<GpuRank>,
+    scene: Scene,
+    options: CudaOptions,
+    me: usize,
+    ranks: usize,
+    device: usize,
+    counts: Vec<usize>,
+    n: usize,
+    name: String,
+    shared_cap: usize,
+    shared_at_partition: usize,
+    d: usize,
+    /// Rebalances done so far.
+    pub rebalances: u32,
+}
+
+impl NcclRankBackend {
+    /// Join the run as rank `me` of `ranks` on CUDA device `device`; `particles` are all the
+    /// particles of the scene (every process samples the same ones).
+    pub fn new(
+        scene: &Scene,
+        particles: &Particles,
+        me: usize,
+        ranks: usize,
+        device: usize,
+        rendezvous: &super::rendezvous::Rendezvous,
+        options: CudaOptions,
+    ) -> Result<NcclRankBackend, SimError> {
+        check_supported(scene, &options)?;
+        if me >= ranks {
+            return Err(SimError::Backend(format!(
+                "--nccl-rank {me} must be below --nccl-ranks {ranks}"
+            )));
+        }
+        if options.transport == Some(Transport::P2p) || options.barrier.is_some() {
+            return Err(SimError::Backend(
+                "transport=p2p and barrier= need the GPUs in one process (--gpus N); runs of \
+                 several processes use NCCL"
+                    .into(),
+            ));
+        }
+        let nccl = super::nccl::library()
+            .map_err(|e| SimError::Backend(format!("multi-process runs need NCCL: {e}")))?;
+        let info = crate::probe_device(device)
+            .map_err(|e| SimError::Backend(format!("rank {me}: CUDA device {device}: {e}")))?;
+        let id = if me == 0 {
+            Some(nccl.unique_id().map_err(nccl_err)?.to_bytes())
+        } else {
+            None
+        };
+        let id = rendezvous.exchange(me, ranks, id).map_err(nccl_err)?;
+        let mut b = NcclRankBackend {
+            rank: None,
+            scene: scene.clone(),
+            options,
+            me,
+            ranks,
+            device,
+            counts: Vec::new(),
+            n: particles.len(),
+            name: format!(
+                "cuda rank {me}/{ranks} on device {device} ({}, NCCL {})",
+                info.name, nccl.version
+            ),
+            shared_cap: 0,
+            shared_at_partition: 0,
+            d: dense_count(scene),
+            rebalances: 0,
+        };
+        b.load(
+            particles,
+            CommSource::New {
+                id: UniqueId::from_bytes(&id),
+                rank: me,
+                ranks,
+            },
+        )?;
+        Ok(b)
+    }
+
+    /// Partition every particle (the same on every rank) and build this rank's share; every rank
+    /// gets the capacity of the largest share, so that the state arrays can be all-gathered.
+    fn load(&mut self, particles: &Particles, comm: CommSource) -> Result<(), SimError> {
+        let part = slabs(&particles.x, self.ranks);
+        let (cap, s) = shared_capacity(&self.scene, particles, &part, &self.options);
+        self.shared_cap = cap.max(self.shared_cap.min(self.d));
+        self.shared_at_partition = s;
+        self.counts = part.parts.iter().map(Vec::len).collect();
+        let ids = &part.parts[self.me];
+        let p = Part {
+            device: self.device,
+            ids: Some(ids.clone()),
+            capacity: part.max_len(),
+        };
+        self.rank = Some(GpuRank::new(
+            &self.scene,
+            &subset(particles, ids),
+            &p,
+            self.options.clone(),
+            self.shared_cap,
+            comm,
+        )?);
+        Ok(())
+    }
+
+    fn r(&mut self) -> Result<&mut GpuRank, SimError> {
+        rank(&mut self.rank)
+    }
+
+    /// This process's rank.
+    pub fn rank(&self) -> usize {
+        self.me
+    }
+}
+
+impl Backend for NcclRankBackend {
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+
+    fn num_particles(&self) -> usize {
+        self.n
+    }
+
+    fn step(&mut self, dt: f32, t: f32) -> Result<(), SimError> {
+        self.r()?.step(dt, t)
+    }
+
+    fn max_speed(&mut self) -> Result<f32, SimError> {
+        let r = self.r()?;
+        let c = r.gather_ctl()?;
+        Ok(combine(&r.b, &c)?.0)
+    }
+
+    fn check(&mut self) -> Result<Option<BadParticle>, SimError> {
+        let r = self.r()?;
+        let c = r.gather_ctl()?;
+        let (_, bad) = combine(&r.b, &c)?;
+        let me = r.x.comm()?.rank;
+        if c[me][CTL_BAD_INDEX] != u32::MAX {
+            r.b.check()?;
+        }
+        Ok(bad)
+    }
+
+    fn read_particles(&mut self, out: &mut Particles) -> Result<(), SimError> {
+        let counts = self.counts.clone();
+        let n = self.n;
+        let r = self.r()?;
+        let cap = r.b.ctx.cap as usize;
+        let all = r.gather_state()?;
+        *out = Particles::default();
+        resize_particles(out, n);
+        let per = NFIELDS * cap;
+        for (k, &count) in counts.iter().enumerate() {
+            scatter_state(&all[k * per..(k + 1) * per], count, cap, out)?;
+        }
+        Ok(())
+    }
+
+    fn end_of_frame(&mut self) -> Result<(), SimError> {
+        let c = self.r()?.ctl()?;
+        let shared = c[CTL_SHARED] as usize;
+        let p = plan(
+            shared,
+            self.shared_cap,
+            self.d,
+            self.shared_at_partition,
+            self.ranks,
+            &self.options,
+        );
+        if p.rebalance {
+            let speed = f32::from_bits(c[CTL_MAX_SPEED]);
+            let speed = self.max_speed()?.max(speed);
+            let mut all = Particles::default();
+            self.read_particles(&mut all)?;
+            let old = self.rank.take();
+            let comm = old
+                .and_then(GpuRank::into_comm)
+                .ok_or_else(|| SimError::Backend("no communicator".into()))?;
+            self.load(&all, CommSource::Existing(comm))?;
+            self.r()?.b.set_ctl_word(CTL_MAX_SPEED, speed.to_bits())?;
+            self.rebalances += 1;
+        } else if let Some(cap) = p.grow_to {
+            self.shared_cap = cap;
+            self.r()?.set_shared_capacity(cap)?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,237 @@
+//! The switches of the CUDA backend (`--cuda-options`): the ablation switches of the principles
+//! of Fei, Huang & Gao's "Real-Time Simulation of MPM on Modern GPUs" (GTC 2022), the P2G
+//! strategy, capacities, and the multi-GPU transport.
+
+/// P2G variant.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum P2gMode {
+    /// Warps of 32 particles, no shared memory (seed 000).
+    Warp,
+    /// One CUDA block per gblock with a shared-memory node tile (earlier work), for ablation.
+    Shared,
+    /// Gather through replicated node-to-particle reverse maps built with atomicAdd (seed 001).
+    ReverseMap,
+    /// Gather through one sort per step of the particle-node contributions (seed 001).
+    Sort,
+}
+
+impl P2gMode {
+    /// The name used by `--cuda-options p2g=NAME`.
+    pub fn name(self) -> &'static str {
+        match self {
+            P2gMode::Warp => "warp",
+            P2gMode::Shared => "shared",
+            P2gMode::ReverseMap => "reverse_map",
+            P2gMode::Sort => "sort",
+        }
+    }
+}
+
+/// Several GPUs of one process: how the shared blocks are summed across GPUs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Transport {
+    /// Each GPU's kernel reads the peers' packed shared blocks through peer pointers (seed 000).
+    P2p,
+    /// NCCL all-reduce.
+    Nccl,
+}
+
+/// Several GPUs with `transport=p2p`: the inter-GPU synchronisation of a step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BarrierKind {
+    /// The seed's spin-lock barrier: a one-block kernel with system-scope atomics.
+    Spin,
+    /// Events: every GPU's stream waits on the peers' events (no CUDA graph).
+    Events,
+}
+
+/// Ablation switches of the seed-000 principles. `Default` = all on.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CudaOptions {
+    /// Rebuild the mapping only when a particle leaves its free zone (else every step).
+    pub free_zone: bool,
+    /// Mixed sorting: in-warp cell sort between rebuilds. Off: complete sort (rebuild) every step.
+    pub mixed_sort: bool,
+    /// Warp-level segmented reduction in P2G (off: every lane issues its own atomics).
+    pub warp_reduce: bool,
+    /// P2G variant.
+    pub p2g: P2gMode,
+    /// `p2g=reverse_map`: number of replicated maps (the paper's nine by default).
+    pub rmap_replicas: usize,
+    /// `p2g=reverse_map`: entries per node and map; `None`: twice the initial largest node load.
+    pub rmap_slots: Option<usize>,
+    /// `p2g=reverse_map`: pblocks the maps cover; `None`: four times the initial pblocks.
+    pub rmap_pblocks: Option<usize>,
+    /// `--use_fast_math`.
+    pub fast_math: bool,
+    /// Capture one step in a CUDA graph and replay it (used while dt stays fixed).
+    pub graph: bool,
+    /// Double precision: the whole pipeline in f64 (also set by the scene's
+    /// `[solver] precision = "f64"`).
+    pub f64: bool,
+    /// Capacity overrides (gblocks, pblocks); `None`: from the initial layout with headroom.
+    pub gblock_capacity: Option<usize>,
+    /// See `gblock_capacity`.
+    pub pblock_capacity: Option<usize>,
+    /// Several GPUs: blocks the shared-block reduction holds (`None`: from the partition, grown
+    /// at frame ends).
+    pub shared_capacity: Option<usize>,
+    /// Several GPUs: re-partition the particles at a frame end when they have drifted.
+    pub rebalance: bool,
+    /// Several GPUs: overlap the shared-block reduction with the P2G of the interior gblocks
+    /// (off: P2G of every particle, then the reduction).
+    pub overlap: bool,
+    /// Several GPUs of one process: transport of the shared-block reduction (`None`: p2p when
+    /// every pair of GPUs has peer access, else NCCL).
+    pub transport: Option<Transport>,
+    /// Several GPUs with `transport=p2p`: the synchronisation (`None`: spin).
+    pub barrier: Option<BarrierKind>,
+    /// The rebuild as one persistent kernel with grid-wide barriers (`rb_fused`, one launch per
+    /// step) instead of fifteen kernels that return at once when nothing is rebuilt.
+    pub fused_rebuild: bool,
+    /// G2P2G: the G2P of a step and the P2G of the next in one kernel (`kernels/g2p2g.cu`), the
+    /// P2G kernel running only after a rebuild. One GPU, MLS transfer, `p2g=warp`, the free zone
+    /// and mixed sorting only (not when every step rebuilds); elsewhere ignored.
+    pub g2p2g: bool,
+}
+
+impl Default for CudaOptions {
+    fn default() -> Self {
+        CudaOptions {
+            free_zone: true,
+            mixed_sort: true,
+            warp_reduce: true,
+            p2g: P2gMode::Warp,
+            rmap_replicas: crate::p2g::reverse_map::DEFAULT_REPLICAS,
+            rmap_slots: None,
+            rmap_pblocks: None,
+            fast_math: true,
+            graph: true,
+            f64: false,
+            gblock_capacity: None,
+            pblock_capacity: None,
+            shared_capacity: None,
+            rebalance: true,
+            overlap: true,
+            transport: None,
+            barrier: None,
+            fused_rebuild: true,
+            g2p2g: true,
+        }
+    }
+}
+
+impl std::str::FromStr for CudaOptions {
+    type Err = String;
+    /// Comma separated `key=value`: `free_zone`, `mixed_sort`, `warp_reduce`, `fast_math`,
+    /// `graph`, `f64`, `rebalance`, `overlap`, `g2p2g` (on/off/true/false/1/0), `rebuild` (fused/kernels), `p2g`
+    /// (warp/shared/reverse_map/sort), `transport` (p2p/nccl), `barrier` (spin/events), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
+    /// `rmap_pblocks`, `shared` (counts).
+    fn from_str(s: &str) -> Result<Self, String> {
+        let mut o = CudaOptions::default();
+        for item in s.split(',').map(str::trim).filter(|t| !t.is_empty()) {
+            let (k, v) = item
+                .split_once('=')
+                .ok_or_else(|| format!("`{item}`: expected key=value"))?;
+            let b = || match v {
+                "on" | "true" | "1" | "yes" => Ok(true),
+                "off" | "false" | "0" | "no" => Ok(false),
+                _ => Err(format!("`{item}`: expected on/off")),
+            };
+            let n = || v.parse::<usize>().map_err(|e| format!("`{item}`: {e}"));
+            match k {
+                "free_zone" => o.free_zone = b()?,
+                "mixed_sort" => o.mixed_sort = b()?,
+                "warp_reduce" => o.warp_reduce = b()?,
+                "fast_math" => o.fast_math = b()?,
+                "graph" => o.graph = b()?,
+                "f64" => o.f64 = b()?,
+                "p2g" => {
+                    o.p2g = match v {
+                        "warp" => P2gMode::Warp,
+                        "shared" => P2gMode::Shared,
+                        "reverse_map" => P2gMode::ReverseMap,
+                        "sort" => P2gMode::Sort,
+                        _ => {
+                            return Err(format!(
+                                "`{item}`: expected warp, shared, reverse_map or sort"
+                            ));
+                        }
+                    }
+                }
+                "gblocks" => o.gblock_capacity = Some(n()?),
+                "pblocks" => o.pblock_capacity = Some(n()?),
+                "rmap_replicas" => {
+                    o.rmap_replicas = n()?;
+                    if o.rmap_replicas == 0 {
+                        return Err(format!("`{item}`: at least 1 map"));
+                    }
+                }
+                "rmap_slots" => o.rmap_slots = Some(n()?),
+                "rmap_pblocks" => o.rmap_pblocks = Some(n()?),
+                "shared" => o.shared_capacity = Some(n()?),
+                "rebalance" => o.rebalance = b()?,
+                "g2p2g" => o.g2p2g = b()?,
+                "overlap" => o.overlap = b()?,
+                "rebuild" => {
+                    o.fused_rebuild = match v {
+                        "fused" => true,
+                        "kernels" => false,
+                        _ => return Err(format!("`{item}`: expected fused or kernels")),
+                    }
+                }
+                "transport" => {
+                    o.transport = Some(match v {
+                        "p2p" => Transport::P2p,
+                        "nccl" => Transport::Nccl,
+                        _ => return Err(format!("`{item}`: expected p2p or nccl")),
+                    })
+                }
+                "barrier" => {
+                    o.barrier = Some(match v {
+                        "spin" => BarrierKind::Spin,
+                        "events" => BarrierKind::Events,
+                        _ => return Err(format!("`{item}`: expected spin or events")),
+                    })
+                }
+                _ => return Err(format!("unknown CUDA option `{k}`")),
+            }
+        }
+        Ok(o)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn options_parse() {
+        let o: CudaOptions = "free_zone=off, p2g=shared, gblocks=10".parse().unwrap();
+        assert!(!o.free_zone && o.p2g == P2gMode::Shared && o.gblock_capacity == Some(10));
+        assert!("bogus=1".parse::<CudaOptions>().is_err());
+        let o: CudaOptions = "p2g=reverse_map,rmap_replicas=1,rmap_slots=40"
+            .parse()
+            .unwrap();
+        assert!(o.p2g == P2gMode::ReverseMap && o.rmap_replicas == 1 && o.rmap_slots == Some(40));
+        let o: CudaOptions = "p2g=sort".parse().unwrap();
+        assert_eq!(o.p2g, P2gMode::Sort);
+        assert!("p2g=gather".parse::<CudaOptions>().is_err());
+        assert!("rmap_replicas=0".parse::<CudaOptions>().is_err());
+        let o: CudaOptions = "transport=p2p,barrier=events".parse().unwrap();
+        assert_eq!(o.transport, Some(Transport::P2p));
+        assert_eq!(o.barrier, Some(BarrierKind::Events));
+        assert!("transport=mpi".parse::<CudaOptions>().is_err());
+        assert!("barrier=sleep".parse::<CudaOptions>().is_err());
+        assert!(CudaOptions::default().fused_rebuild);
+        assert!(
+            !"rebuild=kernels"
+                .parse::<CudaOptions>()
+                .unwrap()
+                .fused_rebuild
+        );
+        assert!("rebuild=maybe".parse::<CudaOptions>().is_err());
+        assert!(CudaOptions::default().g2p2g);
+        assert!(!"g2p2g=off".parse::<CudaOptions>().unwrap().g2p2g);
+    }
+}

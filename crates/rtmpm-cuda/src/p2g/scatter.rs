@@ -1,0 +1,45 @@
+//! Host side of `kernels/p2g/scatter.cu`: the scatter P2G (warps with segmented reduction and
+//! atomics, or the shared-memory tile of the ablation) and that of the classic MPM transfers.
+
+use crate::P2gMode;
+use crate::contract::Ctx;
+use crate::kernels::{Kernel, Kernels};
+use cudarc::driver::{CudaStream, DriverError, LaunchConfig, PushKernelArg};
+use rtmpm_core::transfer::Transfer;
+
+/// Enqueue the scatter P2G: for MLS the warp variant (4 warps per CUDA block) or the
+/// shared-memory ablation; for the classic MPM transfers `p2g_mpm` (whatever `mode`). `part`: 0
+/// every particle; several GPUs (MLS only): 1 the gblocks next to a shared block, 2 the others.
+pub(crate) fn enqueue(
+    k: &Kernels,
+    s: &CudaStream,
+    c: &Ctx,
+    mode: P2gMode,
+    part: u32,
+) -> Result<(), DriverError> {
+    let wave = k.wave(c.warp_cap as usize * 32, 128);
+    // SAFETY: the kernels bounds-check against the device counters and capacities.
+    unsafe {
+        if c.transfer != Transfer::Mls.code() {
+            s.launch_builder(&k[Kernel::P2gMpm]).arg(c).launch(wave)?;
+            return Ok(());
+        }
+        match mode {
+            P2gMode::Shared => s
+                .launch_builder(&k[Kernel::P2gShared])
+                .arg(c)
+                .arg(&part)
+                .launch(LaunchConfig {
+                    grid_dim: (c.gblock_cap, 1, 1),
+                    block_dim: (256, 1, 1),
+                    shared_mem_bytes: 0,
+                })?,
+            _ => s
+                .launch_builder(&k[Kernel::P2g])
+                .arg(c)
+                .arg(&part)
+                .launch(wave)?,
+        };
+    }
+    Ok(())
+}

@@ -1,0 +1,121 @@
+#!/usr/bin/env bash
+# The one GPU-run script: named suites, run on the device machine with the binaries that
+# scripts/gpu/prepare.sh built here (carried in .device/). Full logs go to $OUT; a short
+# summary (summary.txt) is printed last.
+#
+#   bash scripts/gpu/run.sh SUITE [SUITE...]
+#
+# Suites:
+#   tests        GPU tests: kernels, P2G strategies, transfers, f64, the material check
+#                (every model on the GPU against Rust), the CPU/GPU agreement on every example
+#                scene, the CLI on the GPU
+#   validate     the validation suite at full resolution on the GPU (`rtmpm validate`)
+#   convergence  the convergence studies and the f64 validation cases
+#   bench        the claymore scenes (fluid 2M, jelly 2M, snow 1.33M) and a fluid block; with
+#                .device/rtmpm_base, A/B against that build, interleaved (REPS=2 by default)
+#   ablation     the switches of the seed principles on the claymore scenes (--cuda-options)
+#   variants     A/B of compile-time defines: VARIANTS="label|binary|defines[|options] ..."
+#   multi        several GPUs: agreement tests in every mode, 2 NCCL processes, scaling
+#   python       the Python package's GPU tests (wheel in .device/wheels)
+set -uo pipefail
+export NCCL_NVLS_ENABLE=0 TORCH_SYMM_MEM_DISABLE_MULTICAST=1 NVSHMEM_DISABLE_NVLS=1
+D=${D:-.device}
+OUT=${OUT:-/tmp/out}
+mkdir -p "$OUT"
+S="$OUT/summary.txt"
+say() { echo "$*" | tee -a "$S"; }
+say "$(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader | head -1) x$(nvidia-smi -L | wc -l); commit $(cat $D/COMMIT 2>/dev/null); base $(cat $D/BASE_COMMIT 2>/dev/null || echo none); $(date -u +%FT%TZ)"
+# The test binaries find the repository through the path they were built in (/work/main).
+mkdir -p /work && { [ -e /work/main ] || ln -sfn "$PWD" /work/main; }
+mkdir -p target/release && cp "$D/rtmpm" target/release/rtmpm
+
+# test binary, args...: run it, one summary line with its result and failures.
+t() {
+  local name=$1; shift
+  [ -x "$D/$name" ] || { say "$name: missing"; return; }
+  timeout 500 "$D/$name" --include-ignored --test-threads 1 "$@" > "$OUT/$name.log" 2>&1
+  say "$name rc=$?: $(grep -E '^test result' "$OUT/$name.log" | tail -1)"
+  grep -E "FAILED|panicked" "$OUT/$name.log" | head -8 | tee -a "$S"
+}
+
+# label, binary, bench args...: one summary line with ms/step and the stage times.
+b() {
+  local label=$1 bin=$2; shift 2
+  local r; r=$(timeout 200 "$D/$bin" bench --backend cuda "$@" 2>&1)
+  echo "== $label ($bin): $*" >> "$OUT/bench.log"; echo "$r" >> "$OUT/bench.log"
+  local ms; ms=$(echo "$r" | grep -oE '\(([0-9.]+) ms/step\)' | head -1 | tr -d '()' | cut -d' ' -f1)
+  local tp; tp=$(echo "$r" | grep -m1 "throughput" | sed -E 's/.*throughput +//; s/ \(.*//')
+  local k; k=$(echo "$r" | grep -E '^\s+(rebuild|p2g|grid_update|musl_remap|g2p|g2p2g) ' | awk '{printf "%s=%s ", $1, $2}')
+  local e; e=$(echo "$r" | grep -iE '^error' | head -1)
+  printf '%-30s %-11s %9s ms/step %-22s %s%s\n' "$label" "$bin" "$ms" "$tp" "$k" "$e" | tee -a "$S"
+}
+
+CLAYMORE="fluid_dam_2m:10 jelly_drop_2m:5 snow_1m:20"
+
+for suite in "$@"; do
+  say "== $suite"
+  case "$suite" in
+    tests)
+      for x in test_gpu test_materials test_agreement test_cli test_render_cli; do t "$x"; done
+      ;;
+    validate)
+      timeout 500 "$D/rtmpm" validate --backend cuda --out "$OUT/validation" > "$OUT/validate.log" 2>&1
+      say "validate --backend cuda rc=$?"
+      grep -E "PASS|FAIL|passed" "$OUT/validate.log" | sed -E 's/ +/ /g' | tee -a "$S"
+      ;;
+    convergence)
+      timeout 400 "$D/rtmpm" validate --backend cuda --convergence \
+        --case vibrating_bar,vibrating_bar_gimp,hydrostatic_column --out "$OUT/convergence" \
+        > "$OUT/convergence.log" 2>&1
+      say "convergence rc=$?"; grep -E "PASS|FAIL|passed|order" "$OUT/convergence.log" | tee -a "$S"
+      timeout 300 "$D/rtmpm" validate --backend cuda --precision f64 \
+        --case vibrating_bar,vibrating_bar_gimp,hydrostatic_column,colliding_disks,dam_break \
+        --out "$OUT/f64" > "$OUT/f64.log" 2>&1
+      say "f64 rc=$?"; grep -E "PASS|FAIL|passed" "$OUT/f64.log" | tee -a "$S"
+      ;;
+    bench)
+      bins="rtmpm"; [ -x "$D/rtmpm_base" ] && bins="rtmpm_base rtmpm"
+      for rep in $(seq 1 "${REPS:-2}"); do
+        for sc in $CLAYMORE; do
+          for bin in $bins; do b "${sc%%:*} #$rep" "$bin" --scene "bench/${sc%%:*}.toml" --frames "${sc##*:}"; done
+        done
+      done
+      b "fluid block n=128" rtmpm --n 128 --steps 500
+      b "musl scene (bench of MUSL)" rtmpm --scene validation/colliding_disks.toml --frames 2
+      ;;
+    ablation)
+      for sc in fluid_dam_2m:10 jelly_drop_2m:5; do
+        for o in free_zone=off mixed_sort=off warp_reduce=off p2g=shared graph=off fast_math=off g2p2g=off rebuild=kernels; do
+          b "${sc%%:*} $o" rtmpm --scene "bench/${sc%%:*}.toml" --frames "${sc##*:}" --cuda-options "$o"
+        done
+      done
+      ;;
+    variants)
+      for sc in $CLAYMORE; do
+        for v in ${VARIANTS:-}; do
+          IFS='|' read -r label bin defines opts <<< "$v"
+          RTMPM_KERNEL_DEFINES="$defines" b "${sc%%:*} $label" "$bin" --scene "bench/${sc%%:*}.toml" \
+            --frames "${sc##*:}" ${opts:+--cuda-options "$opts"}
+        done
+      done
+      ;;
+    multi)
+      t test_multi_gpu
+      t test_multi_gpu_cli
+      for g in 1 2; do b "strong 16.8M gpus=$g" rtmpm --scene bench/strong_16m.toml --frames 2 --gpus "$g"; done
+      b "weak 4.2M gpus=1" rtmpm --scene bench/weak_4m_x1.toml --frames 4
+      b "weak 8.4M gpus=2" rtmpm --scene bench/weak_4m_x2.toml --frames 4 --gpus 2
+      ;;
+    python)
+      if [ -d "$D/wheels" ]; then
+        python3 -m pip install -q --no-index --no-deps --target /tmp/site "$D"/wheels/*.whl && export PYTHONPATH=/tmp/site
+        PYTHONUNBUFFERED=1 timeout 500 python3 -m pytest -q crates/rtmpm-py/tests > "$OUT/python.log" 2>&1
+        say "python rc=$?: $(tail -1 "$OUT/python.log")"
+      else
+        say "python: no wheel in $D/wheels"
+      fi
+      ;;
+    *) say "unknown suite $suite" ;;
+  esac
+done
+echo "==== summary"; cat "$S"
