@@ -517,6 +517,7 @@ def main():
     ap.add_argument("--timeout", type=float, default=60)
     ap.add_argument("--report", default=None)
     ap.add_argument("--only", default=None)
+    ap.add_argument("--backend", default="cpu", help="backend of the run cases (cpu, or cuda on a GPU machine)")
     a = ap.parse_args()
     BIN = a.rtmpm or next((str(p) for p in [ROOT / "target/release/rtmpm", ROOT / "target/debug/rtmpm"] if p.exists()), None)
     if not BIN:
@@ -540,6 +541,8 @@ def main():
             continue
         before = {k: tree_hash(w / k) for k in c.keep}
         args = [s.replace("{W}", str(w)) for s in c.args]
+        if a.backend != "cpu" and "--threads" not in args:
+            args = [a.backend if x == "cpu" and args[i - 1] == "--backend" else x for i, x in enumerate(args)]
         t = time.time()
         try:
             r = subprocess.run([BIN] + args, capture_output=True, stdin=subprocess.DEVNULL, timeout=a.timeout,

@@ -3,6 +3,7 @@
 use anyhow::{Result, bail};
 use clap::ValueEnum;
 use rtmpm_core::cpu::CpuBackend;
+use rtmpm_core::io::limits::human_bytes;
 use rtmpm_core::scene::Precision;
 use rtmpm_core::sim::Backend;
 use rtmpm_core::{Particles, Scene};
@@ -67,8 +68,26 @@ fn cuda_backend(
     particles: &Particles,
     options: &CudaOptions,
 ) -> std::result::Result<Box<dyn Backend>, String> {
-    rtmpm_cuda::probe().map_err(|e| e.to_string())?;
-    let b = rtmpm_cuda::CudaBackend::new(scene, particles, options.clone())
-        .map_err(|e| e.to_string())?;
+    let info = rtmpm_cuda::probe().map_err(|e| e.to_string())?;
+    // The budget's device estimate against the GPU's memory, before anything is allocated.
+    let need = rtmpm_core::scene::Budget::estimate(scene, Some(1)).gpu_bytes;
+    if need > info.memory as u64 {
+        return Err(format!(
+            "the scene needs about {} of GPU memory for {} particles and its grid (an \
+             estimate), more than the {} of the {}; use fewer particles or a coarser dx, \
+             several GPUs (--gpus N), or --backend cpu",
+            human_bytes(need),
+            particles.len(),
+            human_bytes(info.memory as u64),
+            info.name
+        ));
+    }
+    let b = rtmpm_cuda::CudaBackend::new(scene, particles, options.clone()).map_err(|e| {
+        format!(
+            "{e} (the estimate for this scene was {} of the {} GPU memory)",
+            human_bytes(need),
+            human_bytes(info.memory as u64)
+        )
+    })?;
     Ok(Box::new(b))
 }
