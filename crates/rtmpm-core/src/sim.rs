@@ -136,10 +136,11 @@ pub trait Backend {
     }
 }
 
-/// Drives a backend through frames of a scene.
-pub struct Simulation {
+/// Drives a backend through frames of a scene. The backend is a `Box<dyn Backend>` by default;
+/// a caller that needs the concrete type (or `Send`) names it, e.g. `Simulation<MyBackend>`.
+pub struct Simulation<B: Backend + ?Sized = dyn Backend> {
     pub scene: Scene,
-    pub backend: Box<dyn Backend>,
+    pub backend: Box<B>,
     /// Simulated time (s).
     pub time: f64,
     /// Steps taken so far.
@@ -154,6 +155,14 @@ pub struct Simulation {
 impl Simulation {
     /// A simulation at time 0 (or at the given state when resuming).
     pub fn new(scene: Scene, backend: Box<dyn Backend>) -> Simulation {
+        Simulation::with_backend(scene, backend)
+    }
+}
+
+impl<B: Backend + ?Sized> Simulation<B> {
+    /// A simulation of a backend of type `B` (see [`Simulation::new`] for the usual
+    /// `Box<dyn Backend>`).
+    pub fn with_backend(scene: Scene, backend: Box<B>) -> Simulation<B> {
         let max_sound_speed = scene
             .materials
             .iter()

@@ -86,6 +86,8 @@ pub struct CudaBackend {
     last_params: Option<(Vec<u8>, ColliderPoses)>,
     scene: Scene,
     pub(crate) n: usize,
+    /// Pinned host memory of [`CudaBackend::read_fields`] (`export.rs`).
+    pub(crate) staging: crate::export::Staging,
     graphs: StepGraphs,
     device_name: String,
 }
@@ -249,6 +251,7 @@ impl CudaBackend {
             last_params: None,
             scene: scene.clone(),
             n,
+            staging: Default::default(),
             graphs: StepGraphs::default(),
             device_name: info.name,
         })

@@ -49,6 +49,15 @@ fn resolve(from: &str, include: &str) -> String {
 
 fn expand(name: &str, seen: &mut HashSet<String>, out: &mut String) -> Result<(), String> {
     let text = source(name).ok_or_else(|| format!("kernel source `{name}` not found"))?;
+    expand_text(name, &text, seen, out)
+}
+
+fn expand_text(
+    name: &str,
+    text: &str,
+    seen: &mut HashSet<String>,
+    out: &mut String,
+) -> Result<(), String> {
     out.push_str(&format!("#line 1 \"{name}\"\n"));
     for (n, line) in text.lines().enumerate() {
         let t = line.trim();
@@ -193,7 +202,7 @@ pub fn cache_dir() -> Option<PathBuf> {
 /// Compile the pipeline to PTX (or take it from the disk cache). Errors carry the NVRTC log.
 pub fn compile(o: &KernelOptions) -> Result<String, String> {
     if !nvrtc_available() {
-        return Err("libnvrtc.so.13 not found (pip install nvidia-cuda-nvrtc==13.0.*, or set RTMPM_NVRTC_LIB / LD_LIBRARY_PATH)".into());
+        return Err(NO_NVRTC.into());
     }
     let src = program_source(o.f64)?;
     let opts = nvrtc_options(o);
@@ -206,22 +215,7 @@ pub fn compile(o: &KernelOptions) -> Result<String, String> {
     {
         return Ok(ptx);
     }
-    let copts = cudarc::nvrtc::CompileOptions {
-        options: opts,
-        name: Some("rtmpm_pipeline.cu".into()),
-        ..Default::default()
-    };
-    let res = std::panic::catch_unwind(|| cudarc::nvrtc::compile_ptx_with_opts(&src, copts))
-        .map_err(|_| "NVRTC panicked (library missing?)".to_string())?;
-    let ptx = match res {
-        Ok(p) => p.to_src(),
-        Err(cudarc::nvrtc::CompileError::CompileError { log, options, .. }) => {
-            let log = log.to_string_lossy();
-            eprintln!("NVRTC compilation failed (options {options:?}):\n{log}");
-            return Err(format!("NVRTC compilation failed:\n{log}"));
-        }
-        Err(e) => return Err(format!("NVRTC error: {e:?}")),
-    };
+    let ptx = nvrtc(&src, "rtmpm_pipeline.cu", opts)?;
     if let Some(p) = &path {
         // Best effort; write atomically via a temporary file.
         if let Some(d) = p.parent() {
@@ -233,6 +227,43 @@ pub fn compile(o: &KernelOptions) -> Result<String, String> {
         }
     }
     Ok(ptx)
+}
+
+const NO_NVRTC: &str = "libnvrtc.so.13 not found (pip install nvidia-cuda-nvrtc==13.0.*, or set RTMPM_NVRTC_LIB / LD_LIBRARY_PATH)";
+
+/// Compile one more translation unit `text` (named `name`) against the kernel headers (its
+/// `#include`s resolve in `kernels/` and the generated headers), without the pipeline: the
+/// device-side checks of the tests (no cache).
+pub fn compile_unit(name: &str, text: &str, o: &KernelOptions) -> Result<String, String> {
+    if !nvrtc_available() {
+        return Err(NO_NVRTC.into());
+    }
+    let mut src = String::new();
+    if o.f64 {
+        src.push_str("#define RTMPM_F64\n");
+    }
+    expand_text(name, text, &mut HashSet::new(), &mut src)?;
+    nvrtc(&src, name, nvrtc_options(o))
+}
+
+/// NVRTC: `src` to PTX.
+fn nvrtc(src: &str, name: &str, opts: Vec<String>) -> Result<String, String> {
+    let copts = cudarc::nvrtc::CompileOptions {
+        options: opts,
+        name: Some(name.into()),
+        ..Default::default()
+    };
+    let res = std::panic::catch_unwind(|| cudarc::nvrtc::compile_ptx_with_opts(src, copts))
+        .map_err(|_| "NVRTC panicked (library missing?)".to_string())?;
+    match res {
+        Ok(p) => Ok(p.to_src()),
+        Err(cudarc::nvrtc::CompileError::CompileError { log, options, .. }) => {
+            let log = log.to_string_lossy();
+            eprintln!("NVRTC compilation failed (options {options:?}):\n{log}");
+            Err(format!("NVRTC compilation failed:\n{log}"))
+        }
+        Err(e) => Err(format!("NVRTC error: {e:?}")),
+    }
 }
 
 #[cfg(test)]

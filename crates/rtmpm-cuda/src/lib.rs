@@ -65,6 +65,7 @@ pub mod capacity;
 pub mod compile;
 pub mod contract;
 pub mod encode;
+pub mod export;
 pub mod g2p;
 pub mod graph;
 pub mod grid_update;
@@ -79,6 +80,7 @@ pub mod state;
 
 pub use backend::CudaBackend;
 pub use bench::{KernelTimings, bench_kernels, measure_copy_bandwidth};
+pub use export::DeviceParticles;
 pub use multi::{MultiGpuBackend, NcclRankBackend, nccl, peer, rendezvous};
 pub use options::{BarrierKind, CudaOptions, P2gMode, Transport};
 

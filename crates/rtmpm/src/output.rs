@@ -87,16 +87,5 @@ impl FrameOutput {
     }
 }
 
-/// Cauchy stress `sigma = tau / J` per particle: xx, yy, zz, xy, yz, xz.
-pub fn cauchy_stress(p: &Particles, scene: &Scene) -> Vec<[f32; 6]> {
-    (0..p.len())
-        .map(|i| {
-            let model = &scene.materials[p.material[i] as usize].model;
-            let j = p.f[i].determinant();
-            let s = model.kirchhoff(p.f[i], p.plastic[i], p.c[i]) * (1.0 / j);
-            [
-                s.x_axis.x, s.y_axis.y, s.z_axis.z, s.y_axis.x, s.z_axis.y, s.z_axis.x,
-            ]
-        })
-        .collect()
-}
+/// Cauchy stress per particle (see [`rtmpm_core::io::cauchy_stress`]).
+pub use rtmpm_core::io::cauchy_stress;

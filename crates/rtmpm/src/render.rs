@@ -102,31 +102,6 @@ fn parse_range(s: &str) -> Result<(f32, f32), String> {
     Ok((v[0], v[1]))
 }
 
-/// Colour per material from the scene: each model's own colour (`Constitutive::COLOUR`: fluids
-/// blue, sand sand-coloured, snow white, elastic solids red, ...); a colour already taken by an
-/// earlier material goes to the first free entry of the palette instead.
-fn scene_palette(scene: &Scene) -> Vec<[f32; 3]> {
-    let mut taken: Vec<[f32; 3]> = Vec::new();
-    scene
-        .materials
-        .iter()
-        .map(|m| {
-            let own = m.model.colour();
-            let c = if taken.contains(&own) {
-                colormap::PALETTE
-                    .iter()
-                    .copied()
-                    .find(|p| !taken.contains(p))
-                    .unwrap_or(own)
-            } else {
-                own
-            };
-            taken.push(c);
-            c
-        })
-        .collect()
-}
-
 /// Resolve the render options: flags, then the scene's `[render]`, then defaults. `bounds` is
 /// the box the particles live in, `floor` the ground height.
 fn resolve(
@@ -166,7 +141,7 @@ fn resolve(
     opts.floor = Some(floor);
     opts.shadows = !view.no_shadows;
     if let Some(s) = scene {
-        opts.palette = scene_palette(s);
+        opts.palette = colormap::scene_palette(s);
         if !view.no_colliders {
             opts.colliders = s.colliders.clone();
         }

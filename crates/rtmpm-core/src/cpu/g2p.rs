@@ -57,7 +57,7 @@ pub fn g2p(b: &mut CpuBackend, dt: Real) -> (Real, Option<BadParticle>) {
             *x = (*x + dt * new_v).clamp(c.domain_min, c.domain_max);
             // F^{n+1} = (I + dt C) F^n, then the plastic return mapping.
             let model = &c.materials[materials[pi] as usize].model;
-            *f = model.project((Mat3::IDENTITY + new_c * dt) * *f, plastic);
+            *f = model.project((Mat3::IDENTITY + new_c * dt) * *f, plastic, dt);
             let bad =
                 check_particle(*x, new_v, dt, c.dx).map(|reason| BadParticle { index: pi, reason });
             let speed = if new_v.is_finite() {
@@ -128,7 +128,7 @@ pub fn g2p_mpm(b: &mut CpuBackend, dt: Real, musl: bool) -> (Real, Option<BadPar
             *cp = l;
             *x = (*x + dt * v_pic).clamp(c.domain_min, c.domain_max);
             let model = &c.materials[materials[pi] as usize].model;
-            *f = model.project((Mat3::IDENTITY + l * dt) * *f, plastic);
+            *f = model.project((Mat3::IDENTITY + l * dt) * *f, plastic, dt);
             let bad =
                 check_particle(*x, *v, dt, c.dx).map(|reason| BadParticle { index: pi, reason });
             let speed = if v.is_finite() { v.length() } else { 0.0 };

@@ -172,6 +172,45 @@ impl CpuBackend {
             .map_or_else(rayon::current_num_threads, |p| p.current_num_threads())
     }
 
+    /// Overwrite the positions and/or the velocities of every particle, given in original order
+    /// in the interface's f32 (widened exactly in f64), keeping the rest of each particle's
+    /// state. The next step rebuilds the layout from the new positions (the CPU rebuilds every
+    /// step); the CFL speed is taken from the new velocities.
+    pub fn set_x_v(
+        &mut self,
+        x: Option<&[glam::Vec3]>,
+        v: Option<&[glam::Vec3]>,
+    ) -> Result<(), SimError> {
+        let n = self.particles.len();
+        for (what, a) in [("positions", x), ("velocities", v)] {
+            if let Some(a) = a
+                && a.len() != n
+            {
+                return Err(SimError::Backend(format!(
+                    "{} {what} given for {n} particles",
+                    a.len()
+                )));
+            }
+        }
+        for (i, &id) in self.ids.iter().enumerate() {
+            if let Some(x) = x {
+                self.particles.x[i] = real::vec3(x[id as usize]);
+            }
+            if let Some(v) = v {
+                self.particles.v[i] = real::vec3(v[id as usize]);
+            }
+        }
+        if v.is_some() {
+            self.max_speed = self
+                .particles
+                .v
+                .iter()
+                .map(|v| v.length())
+                .fold(0.0, Real::max);
+        }
+        Ok(())
+    }
+
     fn step_inner(&mut self, dt: Real, t: f32) {
         let t0 = std::time::Instant::now();
         rebuild::rebuild(self);

@@ -53,6 +53,22 @@ impl FrameFields<'_> {
     }
 }
 
+/// Cauchy stress `sigma = tau / J` per particle, `[xx, yy, zz, xy, yz, xz]` (Pa), from each
+/// particle's material model (the `stress` field of output frames; the renderer's von Mises
+/// colouring).
+pub fn cauchy_stress(p: &crate::Particles, scene: &crate::Scene) -> Vec<[f32; 6]> {
+    (0..p.len())
+        .map(|i| {
+            let model = &scene.materials[p.material[i] as usize].model;
+            let j = p.f[i].determinant();
+            let s = model.kirchhoff(p.f[i], p.plastic[i], p.c[i]) * (1.0 / j);
+            [
+                s.x_axis.x, s.y_axis.y, s.z_axis.z, s.y_axis.x, s.z_axis.y, s.z_axis.x,
+            ]
+        })
+        .collect()
+}
+
 /// Check that every array of `p` has `p.len()` entries (a malformed particle set would otherwise
 /// produce a file that lies about its size).
 pub(crate) fn check_particles(p: &crate::Particles) -> std::io::Result<()> {

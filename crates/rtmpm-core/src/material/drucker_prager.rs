@@ -160,8 +160,11 @@ impl Constitutive for DruckerPrager {
 
     /// Plastic projection of the trial elastic `F` ([`DruckerPrager::project_strain`] through
     /// [`hencky::return_map`]); `q` accumulates the plastic multipliers.
-    fn project(&self, f_trial: Mat3, q: &mut Real) -> Mat3 {
-        hencky::return_map(f_trial, q, |eps, _| self.project_strain(eps))
+    fn project(&self, f_trial: Mat3, q: &mut Real, _dt: Real) -> Mat3 {
+        hencky::return_map(f_trial, q, |eps, q| {
+            let (eps, dq) = self.project_strain(eps);
+            (dq > 0.0).then_some((eps, q + dq))
+        })
     }
 
     fn wave_modulus(&self) -> Real {
@@ -225,7 +228,7 @@ mod tests {
         let mut q = 0.0;
         let shear = Mat3::from_cols(Vec3::X, Vec3::new(1e-4, 1.0, 0.0), Vec3::Z);
         for _ in 0..5000 {
-            fe = m.project(shear * fe, &mut q);
+            fe = m.project(shear * fe, &mut q, 1e-3);
         }
         let tau = m.kirchhoff(fe, 0.0, Mat3::ZERO);
         let (txx, tyy, txy) = (tau.x_axis.x, tau.y_axis.y, tau.y_axis.x);
@@ -294,13 +297,17 @@ mod tests {
         let m = sand();
         let mut q = 0.0;
         let r = Mat3::from_axis_angle(Vec3::new(1.0, 1.0, 1.0).normalize(), 0.5);
-        let fe = m.project(r * Mat3::from_diagonal(Vec3::new(1.1, 1.1, 1.1)), &mut q);
+        let fe = m.project(
+            r * Mat3::from_diagonal(Vec3::new(1.1, 1.1, 1.1)),
+            &mut q,
+            1e-3,
+        );
         assert!(close(fe, r, 1e-6), "{fe:?}");
         assert!((q - 3f32.sqrt() * 1.1f32.ln()).abs() < 1e-6, "{q}");
         assert!(close(m.kirchhoff(fe, 0.0, Mat3::ZERO), Mat3::ZERO, 1e-6));
         // Tension with shear too.
         let mut q = 0.0;
-        let fe = m.project(Mat3::from_diagonal(Vec3::new(1.2, 1.0, 1.05)), &mut q);
+        let fe = m.project(Mat3::from_diagonal(Vec3::new(1.2, 1.0, 1.05)), &mut q, 1e-3);
         assert!(close(fe, Mat3::IDENTITY, 1e-6), "{fe:?}");
     }
 
@@ -313,7 +320,7 @@ mod tests {
             ..sand()
         };
         let mut q = 0.0;
-        let fe = m.project(Mat3::from_diagonal(Vec3::splat(1.1)), &mut q);
+        let fe = m.project(Mat3::from_diagonal(Vec3::splat(1.1)), &mut q, 1e-3);
         assert!(close(fe, Mat3::IDENTITY * 0.01f32.exp(), 1e-6), "{fe:?}");
         assert!(close(
             m.kirchhoff(fe, 0.0, Mat3::ZERO),
@@ -323,7 +330,7 @@ mod tests {
         // Small tension below the cohesion is elastic.
         let f = Mat3::from_diagonal(Vec3::splat(1.005));
         let mut q = 0.0;
-        assert_eq!(m.project(f, &mut q), f);
+        assert_eq!(m.project(f, &mut q, 1e-3), f);
         assert_eq!(q, 0.0);
     }
 
@@ -333,7 +340,7 @@ mod tests {
         for s in [0.99, 0.9, 0.5] {
             let f = Mat3::from_diagonal(Vec3::splat(s));
             let mut q = 0.0;
-            assert_eq!(m.project(f, &mut q), f);
+            assert_eq!(m.project(f, &mut q, 1e-3), f);
             assert_eq!(q, 0.0);
         }
     }
@@ -345,7 +352,11 @@ mod tests {
         let m = sand();
         let l = 1.1f32.ln();
         let mut q = 0.0;
-        let fe = m.project(Mat3::from_diagonal(Vec3::new(1.1, 1.0 / 1.1, 1.0)), &mut q);
+        let fe = m.project(
+            Mat3::from_diagonal(Vec3::new(1.1, 1.0 / 1.1, 1.0)),
+            &mut q,
+            1e-3,
+        );
         assert!(close(fe, Mat3::IDENTITY, 1e-6), "{fe:?}");
         assert!((q - 2f32.sqrt() * l).abs() < 1e-6);
     }
@@ -369,7 +380,7 @@ mod tests {
         let r1 = Mat3::from_axis_angle(Vec3::new(1.0, 2.0, 0.5).normalize(), 0.6);
         let r2 = Mat3::from_axis_angle(Vec3::new(-1.0, 0.2, 0.5).normalize(), 1.9);
         let mut q = 0.5;
-        let fe = m.project(r1 * Mat3::from_diagonal(eps.exp()) * r2, &mut q);
+        let fe = m.project(r1 * Mat3::from_diagonal(eps.exp()) * r2, &mut q, 1e-3);
         assert!(close(fe, r1 * Mat3::from_diagonal(h.exp()) * r2, 1e-5));
         assert!((q - 0.5 - 0.1022296).abs() < 1e-6);
     }
@@ -380,7 +391,7 @@ mod tests {
         let mut q = 0.0;
         for f in [Mat3::ZERO, Mat3::from_diagonal(Vec3::new(1.0, 1.0, -0.5))] {
             assert!(m.kirchhoff(f, 0.0, Mat3::ZERO).is_finite());
-            let fe = m.project(f, &mut q);
+            let fe = m.project(f, &mut q, 1e-3);
             assert!(fe.is_finite() && q.is_finite());
         }
     }

@@ -119,7 +119,7 @@ impl Constitutive for Fluid {
 
     /// Resets `F` to the isotropic `J^(1/3) I` keeping only the volume ratio (Taichi's mpm99),
     /// `J` clamped to [`FLUID_J_MIN`].
-    fn project(&self, f_trial: Mat3, _plastic: &mut Real) -> Mat3 {
+    fn project(&self, f_trial: Mat3, _plastic: &mut Real, _dt: Real) -> Mat3 {
         let j = f_trial.determinant().max(FLUID_J_MIN);
         Mat3::from_diagonal(Vec3::splat(j.cbrt()))
     }
@@ -247,11 +247,11 @@ mod tests {
             Vec3::new(0.0, 0.0, 0.8),
         );
         let j = f.determinant();
-        let g = WATER_LINEAR.project(f, &mut 0.0);
+        let g = WATER_LINEAR.project(f, &mut 0.0, 1e-3);
         assert!((g.determinant() - j).abs() < 1e-5);
         assert!(close(g, Mat3::IDENTITY * j.cbrt(), 1e-6));
         // Inverted: clamped to the minimum volume ratio, stays finite and positive.
-        let g = WATER_LINEAR.project(-Mat3::IDENTITY, &mut 0.0);
+        let g = WATER_LINEAR.project(-Mat3::IDENTITY, &mut 0.0, 1e-3);
         assert!((g.determinant() - FLUID_J_MIN).abs() < 1e-6);
         let tau = Fluid {
             bulk_modulus: 1e6,

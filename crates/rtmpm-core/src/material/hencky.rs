@@ -29,19 +29,17 @@ pub fn kirchhoff(f: Mat3, mu: Real, lambda: Real) -> Mat3 {
 }
 
 /// The return mapping of a log-strain model: `F = U sigma V^T`, `eps = ln(sigma)`; the model's
-/// rule maps `eps` to the admissible strain and returns the plastic increment, which `plastic`
-/// accumulates. An elastic step (increment <= 0) returns `f_trial` unchanged; else
-/// `U exp(eps') V^T`.
+/// rule maps `(eps, plastic)` to the admissible strain and the new plastic state, or `None` when
+/// the step is elastic (then `f_trial` is returned unchanged); else `U exp(eps') V^T`.
 pub fn return_map(
     f_trial: Mat3,
     plastic: &mut Real,
-    rule: impl FnOnce(Vec3, Real) -> (Vec3, Real),
+    rule: impl FnOnce(Vec3, Real) -> Option<(Vec3, Real)>,
 ) -> Mat3 {
     let (u, sigma, v) = svd3(f_trial);
-    let (eps, dp) = rule(strain(sigma), *plastic);
-    if dp <= 0.0 {
+    let Some((eps, p)) = rule(strain(sigma), *plastic) else {
         return f_trial;
-    }
-    *plastic += dp;
+    };
+    *plastic = p;
     u * Mat3::from_diagonal(eps.exp()) * v.transpose()
 }

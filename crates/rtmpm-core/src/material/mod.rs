@@ -20,6 +20,8 @@ pub mod drucker_prager;
 pub mod fixed_corotated;
 pub mod fluid;
 pub mod hencky;
+pub mod herschel_bulkley;
+pub mod nacc;
 pub mod neo_hookean;
 pub mod params;
 pub mod snow;
@@ -28,6 +30,8 @@ pub mod von_mises;
 pub use drucker_prager::{Cone, DruckerPrager};
 pub use fixed_corotated::FixedCorotated;
 pub use fluid::{Eos, Fluid};
+pub use herschel_bulkley::HerschelBulkley;
+pub use nacc::Nacc;
 pub use neo_hookean::NeoHookean;
 pub use params::{MaterialParams, ParamError};
 pub use snow::Snow;
@@ -65,9 +69,10 @@ pub trait Constitutive: Sized {
     /// Kirchhoff stress `tau = P(F) F^T` (`= J sigma`) of the elastic `F`, with the plastic state
     /// scalar and the APIC velocity gradient `c` (viscous models).
     fn kirchhoff(&self, f: Mat3, plastic: Real, c: Mat3) -> Mat3;
-    /// Plastic return mapping of the trial elastic `F`, updating the plastic state scalar.
-    /// Elastic models return `f_trial`.
-    fn project(&self, f_trial: Mat3, _plastic: &mut Real) -> Mat3 {
+    /// Plastic return mapping of the trial elastic `F` at the end of a step of length `dt`
+    /// (rate-dependent models), updating the plastic state scalar. Elastic models return
+    /// `f_trial`.
+    fn project(&self, f_trial: Mat3, _plastic: &mut Real, _dt: Real) -> Mat3 {
         f_trial
     }
     /// Initial value of the plastic state scalar.
@@ -128,8 +133,8 @@ macro_rules! models {
             }
 
             /// Plastic return mapping, see [`Constitutive::project`].
-            pub fn project(&self, f_trial: Mat3, plastic: &mut Real) -> Mat3 {
-                match self { $(Model::$variant(m) => m.project(f_trial, plastic)),* }
+            pub fn project(&self, f_trial: Mat3, plastic: &mut Real, dt: Real) -> Mat3 {
+                match self { $(Model::$variant(m) => m.project(f_trial, plastic, dt)),* }
             }
 
             /// See [`Constitutive::initial_plastic`].
@@ -172,6 +177,8 @@ models! {
     Snow(Snow),
     DruckerPrager(DruckerPrager),
     VonMises(VonMises),
+    HerschelBulkley(HerschelBulkley),
+    Nacc(Nacc),
 }
 
 impl Model {

@@ -112,8 +112,11 @@ impl Constitutive for VonMises {
 
     /// Plastic projection of the trial elastic `F` ([`VonMises::project_strain`] through
     /// [`hencky::return_map`]); elastic states return `f_trial` unchanged.
-    fn project(&self, f_trial: Mat3, eps_p: &mut Real) -> Mat3 {
-        hencky::return_map(f_trial, eps_p, |eps, eps_p| self.project_strain(eps, eps_p))
+    fn project(&self, f_trial: Mat3, eps_p: &mut Real, _dt: Real) -> Mat3 {
+        hencky::return_map(f_trial, eps_p, |eps, eps_p| {
+            let (eps, dp) = self.project_strain(eps, eps_p);
+            (dp > 0.0).then_some((eps, eps_p + dp))
+        })
     }
 
     fn wave_modulus(&self) -> Real {
@@ -189,11 +192,11 @@ mod tests {
         let m = metal(0.0);
         let f = Mat3::from_diagonal(Vec3::new(1.001, 0.999, 1.0));
         let mut ep = 0.0;
-        assert_eq!(m.project(f, &mut ep), f);
+        assert_eq!(m.project(f, &mut ep, 1e-3), f);
         assert_eq!(ep, 0.0);
         // Pure volumetric strain never yields.
         let f = Mat3::from_diagonal(Vec3::splat(0.7));
-        assert_eq!(m.project(f, &mut ep), f);
+        assert_eq!(m.project(f, &mut ep, 1e-3), f);
         assert_eq!(ep, 0.0);
     }
 
@@ -227,7 +230,7 @@ mod tests {
                         }));
                 let mut ep = rng.random_range(0.0..0.1);
                 let ep0 = ep;
-                let fe = m.project(f, &mut ep);
+                let fe = m.project(f, &mut ep, 1e-3);
                 assert!(ep >= ep0);
                 let radius = m.yield_radius(ep);
                 let d = dev_norm(m.kirchhoff(fe, 0.0, Mat3::ZERO));

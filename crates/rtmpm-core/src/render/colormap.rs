@@ -53,6 +53,32 @@ pub fn to_u8(c: f32) -> u8 {
     (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
 }
 
+/// Colour per material of a scene: each model's own colour (`Constitutive::COLOUR`: fluids
+/// blue, sand sand-coloured, snow white, elastic solids red, ...); a colour already taken by an
+/// earlier material goes to the first free entry of the palette instead. Shared by the command
+/// line and the Python package.
+pub fn scene_palette(scene: &crate::Scene) -> Vec<[f32; 3]> {
+    let mut taken: Vec<[f32; 3]> = Vec::new();
+    scene
+        .materials
+        .iter()
+        .map(|m| {
+            let own = m.model.colour();
+            let c = if taken.contains(&own) {
+                PALETTE
+                    .iter()
+                    .copied()
+                    .find(|p| !taken.contains(p))
+                    .unwrap_or(own)
+            } else {
+                own
+            };
+            taken.push(c);
+            c
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

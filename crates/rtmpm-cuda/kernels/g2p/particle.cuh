@@ -57,7 +57,7 @@ __device__ __forceinline__ G2pResult g2p_finish(const Ctx& c, const int* bc, uns
     mat3 F = (mat3_identity() + C * dt) * st.F;
     real plastic = st.plastic;
     const MaterialGpu& mat = material_at(c, st.material);
-    F = ALL_FLUID ? fluid_project(fluid_params(mat), F, &plastic) : material_project(mat, F, &plastic);
+    F = ALL_FLUID ? fluid_project(fluid_params(mat), F, &plastic, dt) : material_project(mat, F, &plastic, dt);
     // Health check before the clamp (the clamp would hide NaN).
     real speed = length(v);
     bool finite = isfinite(x.x) && isfinite(x.y) && isfinite(x.z) && isfinite(v.x) && isfinite(v.y) && isfinite(v.z);

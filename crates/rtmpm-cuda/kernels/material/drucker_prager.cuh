@@ -30,6 +30,12 @@ __device__ __forceinline__ vec3 drucker_prager_project_strain(const DruckerPrage
     return e - e_hat * (dg / e_hat_norm) + c;
 }
 
-__device__ __forceinline__ mat3 drucker_prager_project(const DruckerPragerParams& p, const mat3& f_trial, real* q) {
-    return hencky_return_map(f_trial, q, [&](vec3 eps, real, real* dq) { return drucker_prager_project_strain(p, eps, dq); });
+__device__ __forceinline__ mat3 drucker_prager_project(const DruckerPragerParams& p, const mat3& f_trial, real* q, real dt) {
+    (void)dt;
+    return hencky_return_map(f_trial, q, [&](vec3 eps, real q0, vec3* e, real* q1) {
+        real dq;
+        *e = drucker_prager_project_strain(p, eps, &dq);
+        *q1 = q0 + dq;
+        return dq > (real)0;
+    });
 }

@@ -18,7 +18,9 @@ __device__ __forceinline__ mat3 fixed_corotated_kirchhoff(const FixedCorotatedPa
 }
 
 // Elastic: F stays the trial F.
-__device__ __forceinline__ mat3 fixed_corotated_project(const FixedCorotatedParams& p, const mat3& f_trial, real* plastic) {
+__device__ __forceinline__ mat3 fixed_corotated_project(const FixedCorotatedParams& p, const mat3& f_trial, real* plastic,
+                                                        real dt) {
+    (void)dt;
     (void)p;
     (void)plastic;
     return f_trial;

@@ -26,16 +26,16 @@ __device__ __forceinline__ mat3 hencky_kirchhoff(const mat3& f, real mu, real la
 __device__ __forceinline__ vec3 exp3(vec3 a) { return make_v3(exp(a.x), exp(a.y), exp(a.z)); }
 
 // The return mapping of a log-strain model: F = U sigma V^T, eps = ln(sigma); rule(eps, plastic,
-// &dp) maps eps to the admissible strain and sets the plastic increment dp, which *plastic
-// accumulates. An elastic step (dp <= 0) returns f_trial unchanged; else U exp(eps') V^T.
+// &eps_new, &plastic_new) returns false for an elastic step (f_trial is returned unchanged), else
+// sets the admissible strain and the new plastic state; the result is U exp(eps_new) V^T.
 template <class Rule>
 __device__ __forceinline__ mat3 hencky_return_map(const mat3& f_trial, real* plastic, Rule rule) {
     mat3 u, v;
     vec3 s;
     svd3(f_trial, u, s, v);
-    real dp = 0;
-    vec3 h = rule(hencky_strain(s), *plastic, &dp);
-    if (dp <= (real)0) return f_trial;
-    *plastic += dp;
+    vec3 h;
+    real p = *plastic;
+    if (!rule(hencky_strain(s), *plastic, &h, &p)) return f_trial;
+    *plastic = p;
     return mul_diag_bt(u, exp3(h), v);
 }

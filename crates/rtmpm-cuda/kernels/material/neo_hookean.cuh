@@ -13,7 +13,8 @@ __device__ __forceinline__ mat3 neo_hookean_kirchhoff(const NeoHookeanParams& p,
 }
 
 // Elastic: F stays the trial F.
-__device__ __forceinline__ mat3 neo_hookean_project(const NeoHookeanParams& p, const mat3& f_trial, real* plastic) {
+__device__ __forceinline__ mat3 neo_hookean_project(const NeoHookeanParams& p, const mat3& f_trial, real* plastic, real dt) {
+    (void)dt;
     (void)p;
     (void)plastic;
     return f_trial;

@@ -20,7 +20,8 @@ __device__ __forceinline__ mat3 snow_kirchhoff(const SnowParams& p, const mat3& 
 }
 
 // Clamp singular values into [1 - theta_c, 1 + theta_s]; Jp *= J_e_trial / J_e_new, clamped.
-__device__ __forceinline__ mat3 snow_project(const SnowParams& p, const mat3& f_trial, real* jp) {
+__device__ __forceinline__ mat3 snow_project(const SnowParams& p, const mat3& f_trial, real* jp, real dt) {
+    (void)dt;
     mat3 u, v;
     vec3 s;
     svd3(f_trial, u, s, v);

@@ -29,6 +29,12 @@ __device__ __forceinline__ vec3 von_mises_project_strain(const VonMisesParams& p
     return eps - e_hat * (dg / norm);
 }
 
-__device__ __forceinline__ mat3 von_mises_project(const VonMisesParams& p, const mat3& f_trial, real* eps_p) {
-    return hencky_return_map(f_trial, eps_p, [&](vec3 eps, real ep, real* dp) { return von_mises_project_strain(p, eps, ep, dp); });
+__device__ __forceinline__ mat3 von_mises_project(const VonMisesParams& p, const mat3& f_trial, real* eps_p, real dt) {
+    (void)dt;
+    return hencky_return_map(f_trial, eps_p, [&](vec3 eps, real ep, vec3* e, real* ep1) {
+        real dp;
+        *e = von_mises_project_strain(p, eps, ep, &dp);
+        *ep1 = ep + dp;
+        return dp > (real)0;
+    });
 }

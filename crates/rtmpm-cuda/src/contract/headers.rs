@@ -286,13 +286,13 @@ pub fn material_registry() -> String {
     }
     s.push_str(
         "    default: return mat3_zero();\n    }\n}\n\n\
-         // Plastic return mapping of the trial elastic F of material m; updates *plastic.\n\
-         __device__ __forceinline__ mat3 material_project(const MaterialGpu& m, const mat3& f_trial, real* plastic) {\n    switch (m.kind) {\n",
+         // Plastic return mapping of the trial elastic F of material m after a step dt; updates *plastic.\n\
+         __device__ __forceinline__ mat3 material_project(const MaterialGpu& m, const mat3& f_trial, real* plastic, real dt) {\n    switch (m.kind) {\n",
     );
     for m in Model::ALL {
         let _ = writeln!(
             s,
-            "    case MATERIAL_{}: return {1}_project({1}_params(m), f_trial, plastic);",
+            "    case MATERIAL_{}: return {1}_project({1}_params(m), f_trial, plastic, dt);",
             upper(m.name),
             m.name
         );

@@ -1,0 +1,171 @@
+//! The particle state of a [`CudaBackend`] for other libraries: where it lives on the device
+//! (zero-copy export through DLPack / `__cuda_array_interface__` by the Python package), fast
+//! reads of single fields, and writes of positions and velocities between steps.
+//!
+//! Layout (see [`crate::state`]): one buffer, field `f` of the particle stored at slot `i` at
+//! word `f * stride + i`, a word being an f32 (an f64 with `precision = "f64"`); the material
+//! id and the original index are integer bits in the low 32 bits of their word. The slots are
+//! in the backend's storage order, which changes at every rebuild (particles are sorted by
+//! block and cell); field [`F_ID`] gives each slot's original particle index.
+
+use crate::backend::{CudaBackend, err};
+use crate::contract::*;
+use cudarc::driver::{DevicePtr, PinnedHostSlice};
+use rtmpm_core::math::Vec3;
+use rtmpm_core::sim::SimError;
+
+/// Where the particle state of a [`CudaBackend`] is, for zero-copy views.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DeviceParticles {
+    /// CUDA device ordinal (the arrays live in its primary context).
+    pub device: usize,
+    /// Device address of the state buffer (field 0 of slot 0).
+    pub ptr: u64,
+    /// Number of particles (valid slots `0..n` of every field).
+    pub n: usize,
+    /// Distance between two fields, in words (the particle capacity, at least `n`).
+    pub stride: usize,
+    /// Bytes of one word: 4 (f32) or 8 (f64).
+    pub word_bytes: usize,
+}
+
+impl DeviceParticles {
+    /// Device address of field `field` (one of the `F_*` constants of [`crate::contract`]).
+    pub fn field_ptr(&self, field: usize) -> u64 {
+        self.ptr + (field * self.stride * self.word_bytes) as u64
+    }
+}
+
+/// Pinned host memory reused by [`CudaBackend::read_fields`].
+#[derive(Default)]
+pub(crate) struct Staging(Option<PinnedHostSlice<u8>>);
+
+impl CudaBackend {
+    /// Where the particle state is on the device. Waits for the queued work first, so the
+    /// arrays are complete when this returns. The address stays valid for the backend's life
+    /// (rebuilds sort the particles in place).
+    pub fn device_particles(&mut self) -> Result<DeviceParticles, SimError> {
+        self.stream.synchronize().map_err(err("synchronize"))?;
+        Ok(DeviceParticles {
+            device: self.stream.context().ordinal(),
+            ptr: self.buffers.state.device_ptr(&self.stream).0,
+            n: self.n,
+            stride: self.ctx.cap as usize,
+            word_bytes: crate::state::word_bytes(self.options.f64),
+        })
+    }
+
+    /// Wait for all work on the device context, this backend's and other libraries' (e.g.
+    /// PyTorch reading the arrays of [`CudaBackend::device_particles`] on its own stream), so
+    /// that a step does not overwrite arrays still being read.
+    pub fn wait_for_device(&self) -> Result<(), SimError> {
+        self.stream
+            .context()
+            .synchronize()
+            .map_err(err("synchronize the context"))
+    }
+
+    /// Copy the fields `fields` (`F_*` of [`crate::contract`]) of the `n` particles, in storage
+    /// order, to pinned host memory and return them as raw little-endian words (`n` words of
+    /// [`DeviceParticles::word_bytes`] each, one slice per field). Synchronises.
+    pub fn read_fields(&mut self, fields: &[usize]) -> Result<Vec<&[u8]>, SimError> {
+        let wb = crate::state::word_bytes(self.options.f64);
+        let (n, cap) = (self.n, self.ctx.cap as usize);
+        let row = n * wb;
+        let need = row * fields.len();
+        if fields.iter().any(|&f| f >= NFIELDS) {
+            return Err(SimError::Backend(format!(
+                "CUDA: field index out of range (0..{NFIELDS})"
+            )));
+        }
+        if self.staging.0.as_ref().is_none_or(|s| s.len() < need) {
+            self.staging.0 = None;
+            // SAFETY: the memory is written by the copies below before it is read. Plain
+            // page-locked memory (not write-combined: the host reads it).
+            let buf = unsafe {
+                self.stream
+                    .context()
+                    .alloc_pinned_with_flags::<u8>(need.max(1), 0)
+            }
+            .map_err(err("allocate pinned memory"))?;
+            self.staging.0 = Some(buf);
+        }
+        let Some(staging) = self.staging.0.as_mut() else {
+            return Err(SimError::Backend("CUDA: no staging memory".into()));
+        };
+        let all = staging.as_mut_slice().map_err(err("pinned memory"))?;
+        for (k, &f) in fields.iter().enumerate() {
+            let src = self.buffers.state.slice(f * cap * wb..f * cap * wb + row);
+            self.stream
+                .memcpy_dtoh(&src, &mut all[k * row..(k + 1) * row])
+                .map_err(err("read particle fields"))?;
+        }
+        let all: &[u8] = all;
+        Ok((0..fields.len())
+            .map(|k| &all[k * row..(k + 1) * row])
+            .collect())
+    }
+
+    /// Overwrite the positions and/or velocities of every particle (original order, f32,
+    /// widened exactly in f64), keeping the rest of each particle's state; the next step
+    /// rebuilds the mapping (and, with G2P2G, redoes its P2G) from them. Synchronises.
+    pub fn write_x_v(&mut self, x: Option<&[Vec3]>, v: Option<&[Vec3]>) -> Result<(), SimError> {
+        let n = self.n;
+        for (what, a) in [("positions", x), ("velocities", v)] {
+            if let Some(a) = a
+                && a.len() != n
+            {
+                return Err(SimError::Backend(format!(
+                    "{} {what} given for {n} particles",
+                    a.len()
+                )));
+            }
+        }
+        let wb = crate::state::word_bytes(self.options.f64);
+        let ids: Vec<usize> = {
+            let id_row = self.read_fields(&[F_ID])?[0];
+            (0..n)
+                .map(|i| {
+                    u32::from_le_bytes(id_row[i * wb..i * wb + 4].try_into().unwrap_or([0; 4]))
+                        as usize
+                })
+                .collect()
+        };
+        if ids.iter().any(|&id| id >= n) {
+            return Err(SimError::Backend(
+                "CUDA: a particle's original index is out of range".into(),
+            ));
+        }
+        let cap = self.ctx.cap as usize;
+        for (first, values) in [(F_X, x), (F_V, v)] {
+            let Some(values) = values else { continue };
+            let mut rows = Vec::with_capacity(3 * n * wb);
+            for axis in [0usize, 1, 2] {
+                for &id in &ids {
+                    let c = values[id][axis];
+                    if wb == 8 {
+                        rows.extend_from_slice(&(c as f64).to_le_bytes());
+                    } else {
+                        rows.extend_from_slice(&c.to_le_bytes());
+                    }
+                }
+            }
+            for (a, row) in rows.chunks_exact(n * wb).enumerate() {
+                let at = (first + a) * cap * wb;
+                let mut dst = self.buffers.state.slice_mut(at..at + n * wb);
+                self.stream
+                    .memcpy_htod(row, &mut dst)
+                    .map_err(err("write particle fields"))?;
+            }
+        }
+        self.set_ctl_word(CTL_NEED_REBUILD, 1)?;
+        if self.g2p2g() {
+            self.set_ctl_word(CTL_P2G_PENDING, 1)?;
+        }
+        if let Some(v) = v {
+            let max = v.iter().map(|v| v.length()).fold(0.0f32, f32::max);
+            self.set_ctl_word(CTL_MAX_SPEED, max.to_bits())?;
+        }
+        self.stream.synchronize().map_err(err("synchronize"))
+    }
+}

@@ -1,0 +1,428 @@
+//! `rtmpm.Particles`: the particle state of a simulation as NumPy arrays (copies, in original
+//! order) with setters for positions and velocities, and, on the CUDA backend, zero-copy
+//! device arrays (see [`crate::device`]).
+
+use crate::device::{DeviceArray, Elem};
+use crate::errors::{backend_error, sim_error};
+use crate::simulation::{Inner, PySimulation};
+use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods};
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use rayon::prelude::*;
+use rtmpm_backends::AnyBackend;
+use rtmpm_core::math::{Mat3, Vec3};
+use rtmpm_core::sim::{Backend, SimError};
+use rtmpm_cuda::contract::{F_C, F_F, F_ID, F_MASS, F_MAT, F_PLASTIC, F_V, F_VOL0, F_X};
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+
+/// The particles of a :class:`rtmpm.Simulation`.
+///
+/// **Order**: index ``i`` is particle ``i`` of the scene's sampling (the bodies in file order,
+/// each in its sampling order), the same on every backend and in output frames;
+/// :attr:`id` is ``arange(n)``.
+///
+/// **Host arrays** (NumPy, fresh copies each access; assigning to an array's elements does not
+/// change the simulation, assigning to :attr:`x` or :attr:`v` does):
+///
+/// ========== ============== ========== ==============================================
+/// name       shape          dtype      meaning
+/// ========== ============== ========== ==============================================
+/// x          (n, 3)         float32    position (m)
+/// v          (n, 3)         float32    velocity (m/s)
+/// F          (n, 3, 3)      float32    deformation gradient, ``F[i, row, col]``
+/// C          (n, 3, 3)      float32    APIC affine matrix (about grad v), 1/s
+/// J          (n,)           float32    volume ratio ``det F``
+/// material   (n,)           int32      index into ``scene.materials``
+/// id         (n,)           int32      original particle index
+/// mass       (n,)           float32    kg
+/// vol0       (n,)           float32    initial volume (m^3)
+/// plastic    (n,)           float32    the material's plastic scalar (snow Jp, ...)
+/// ========== ============== ========== ==============================================
+///
+/// Host arrays are float32 whatever the precision (an f64 simulation rounds them; setters widen
+/// exactly).
+///
+/// **Device arrays** (CUDA backend, one GPU): ``x_device``, ``v_device``, ``F_device``,
+/// ``C_device``, ``material_device``, ``id_device``, ``mass_device``, ``vol0_device``,
+/// ``plastic_device`` are :class:`rtmpm.DeviceArray` views of the simulation's own GPU memory
+/// (no copy), for ``torch.from_dlpack`` and CuPy (``__cuda_array_interface__``). They are in the
+/// GPU's **storage order**, which changes at every step (particles are sorted by grid block):
+/// row ``j`` holds particle ``id_device[j]``. Their dtype is float32 (float64 in f64), ids and
+/// materials int32; they are strided (one array per component, see :class:`DeviceArray`).
+/// Treat them as read-only and read them between steps: use the setters to change the state.
+#[pyclass(name = "Particles", module = "rtmpm")]
+pub struct PyParticles {
+    pub sim: Py<PySimulation>,
+}
+
+/// Which host array.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Vec3Field {
+    X,
+    V,
+}
+
+fn rows_f32(row: &[u8], wb: usize, i: usize) -> f32 {
+    if wb == 8 {
+        f64::from_le_bytes(row[8 * i..8 * i + 8].try_into().unwrap_or([0; 8])) as f32
+    } else {
+        f32::from_le_bytes(row[4 * i..4 * i + 4].try_into().unwrap_or([0; 4]))
+    }
+}
+
+/// Positions or velocities straight from the GPU: three field rows and the ids (pinned host
+/// memory), put back in original order by a parallel scatter.
+fn read_vec3_cuda(inner: &mut Inner, field: Vec3Field) -> Result<Option<Vec<f32>>, SimError> {
+    let AnyBackend::Cuda(c) = inner.sim.backend.as_mut() else {
+        return Ok(None);
+    };
+    let first = if field == Vec3Field::X { F_X } else { F_V };
+    let n = c.0.len();
+    let wb = if inner.sim.scene.precision == rtmpm_core::scene::Precision::F64 {
+        8
+    } else {
+        4
+    };
+    let rows = c.0.read_fields(&[first, first + 1, first + 2, F_ID])?;
+    let mut out = vec![0f32; 3 * n];
+    {
+        // SAFETY: AtomicU32 has the size and alignment of f32 (and u32); the atomics make
+        // concurrent stores to one element (only possible with duplicate ids) well defined.
+        let cells: &[AtomicU32] =
+            unsafe { &*(out.as_mut_slice() as *mut [f32] as *const [AtomicU32]) };
+        let bad = AtomicBool::new(false);
+        let ids = rows[3];
+        (0..n).into_par_iter().with_min_len(1 << 14).for_each(|i| {
+            let id = u32::from_le_bytes([
+                ids[i * wb],
+                ids[i * wb + 1],
+                ids[i * wb + 2],
+                ids[i * wb + 3],
+            ]) as usize;
+            if id >= n {
+                bad.store(true, Ordering::Relaxed);
+                return;
+            }
+            for k in 0..3 {
+                cells[3 * id + k].store(rows_f32(rows[k], wb, i).to_bits(), Ordering::Relaxed);
+            }
+        });
+        if bad.load(Ordering::Relaxed) {
+            return Err(SimError::Backend(
+                "CUDA: a particle's original index is out of range".into(),
+            ));
+        }
+    }
+    Ok(Some(out))
+}
+
+fn vec3s_to_array<'py>(py: Python<'py>, v: &[Vec3]) -> PyResult<Bound<'py, PyArray2<f32>>> {
+    let flat: Vec<f32> = v.iter().flat_map(|a| a.to_array()).collect();
+    PyArray1::from_vec(py, flat).reshape([v.len(), 3])
+}
+
+fn mat3s_to_array<'py>(py: Python<'py>, m: &[Mat3]) -> PyResult<Bound<'py, PyArray3<f32>>> {
+    // glam stores columns; NumPy rows: F[i, r, c] = column c, row r.
+    let flat: Vec<f32> = m
+        .iter()
+        .flat_map(|a| a.transpose().to_cols_array())
+        .collect();
+    PyArray1::from_vec(py, flat).reshape([m.len(), 3, 3])
+}
+
+impl PyParticles {
+    fn vec3<'py>(&self, py: Python<'py>, field: Vec3Field) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let mut s = self.sim.bind(py).borrow_mut();
+        let inner = s.get();
+        inner.usable()?;
+        let cached = inner
+            .host
+            .as_ref()
+            .is_some_and(|(v, _)| *v == inner.version);
+        if !cached {
+            let r = py.detach(|| {
+                std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    read_vec3_cuda(inner, field)
+                }))
+            });
+            if let Some(flat) = inner.settle(py, r)? {
+                let n = flat.len() / 3;
+                return PyArray1::from_vec(py, flat).reshape([n, 3]);
+            }
+        }
+        let p = inner.host(py)?;
+        vec3s_to_array(py, if field == Vec3Field::X { &p.x } else { &p.v })
+    }
+
+    fn set_vec3(&self, py: Python<'_>, value: &Bound<'_, PyAny>, field: Vec3Field) -> PyResult<()> {
+        let what = if field == Vec3Field::X {
+            "positions (x)"
+        } else {
+            "velocities (v)"
+        };
+        let mut s = self.sim.bind(py).borrow_mut();
+        let inner = s.get();
+        inner.usable()?;
+        let n = inner.sim.backend.num_particles();
+        let np = py.import("numpy")?;
+        let arr = np.call_method1("asarray", (value,))?;
+        let kind: String = arr.getattr("dtype")?.getattr("kind")?.extract()?;
+        if kind != "f" {
+            let dtype = arr.getattr("dtype")?.str()?.to_string();
+            return Err(PyTypeError::new_err(format!(
+                "{what}: expected a float array (float32 or float64), got dtype {dtype}"
+            )));
+        }
+        let shape: Vec<usize> = arr.getattr("shape")?.extract()?;
+        if shape != [n, 3] {
+            return Err(PyValueError::new_err(format!(
+                "{what}: expected shape ({n}, 3), got {shape:?}"
+            )));
+        }
+        let arr = np.call_method1("ascontiguousarray", (arr, "float32"))?;
+        let arr = arr.cast::<PyArray2<f32>>()?.readonly();
+        let flat = arr.as_slice()?;
+        let vals: Vec<Vec3> = flat.chunks_exact(3).map(Vec3::from_slice).collect();
+        if let Some(i) = vals.iter().position(|v| !v.is_finite()) {
+            return Err(PyValueError::new_err(format!(
+                "{what}: particle {i} is not finite: {:?}",
+                vals[i].to_array()
+            )));
+        }
+        if field == Vec3Field::X {
+            let (lo, hi) = (inner.sim.scene.domain_min, inner.sim.scene.domain_max);
+            if let Some(i) = vals
+                .iter()
+                .position(|x| x.cmplt(lo).any() || x.cmpgt(hi).any())
+            {
+                return Err(PyValueError::new_err(format!(
+                    "{what}: particle {i} at {:?} is outside the domain [{:?}, {:?}]",
+                    vals[i].to_array(),
+                    lo.to_array(),
+                    hi.to_array()
+                )));
+            }
+        }
+        let (x, v) = match field {
+            Vec3Field::X => (Some(vals.as_slice()), None),
+            Vec3Field::V => (None, Some(vals.as_slice())),
+        };
+        apply_x_v(py, inner, x, v)
+    }
+}
+
+/// Give new positions/velocities to the backend (several GPUs: a new backend from the host
+/// state).
+fn apply_x_v(
+    py: Python<'_>,
+    inner: &mut Inner,
+    x: Option<&[Vec3]>,
+    v: Option<&[Vec3]>,
+) -> PyResult<()> {
+    let r: Result<(), SimError> = match inner.sim.backend.as_mut() {
+        AnyBackend::Cpu(b) => b.set_x_v(x, v),
+        AnyBackend::CpuF64(b) => b.set_x_v(x, v),
+        AnyBackend::Cuda(c) => c.0.write_x_v(x, v),
+        AnyBackend::MultiGpu(_) => {
+            let mut p = inner.host(py)?.clone();
+            if let Some(x) = x {
+                p.x.copy_from_slice(x);
+            }
+            if let Some(v) = v {
+                p.v.copy_from_slice(v);
+            }
+            let created = rtmpm_backends::create(&inner.request, &inner.sim.scene, p)
+                .map_err(backend_error)?;
+            *inner.sim.backend = created.backend;
+            Ok(())
+        }
+    };
+    inner.version += 1;
+    r.map_err(|e| sim_error(py, &e))
+}
+
+#[pymethods]
+impl PyParticles {
+    fn __len__(&self, py: Python<'_>) -> usize {
+        self.sim
+            .bind(py)
+            .borrow_mut()
+            .get()
+            .sim
+            .backend
+            .num_particles()
+    }
+
+    /// Positions, ``(n, 3)`` float32 (m). Assign an ``(n, 3)`` float array to move the
+    /// particles (inside the domain; the next step rebuilds the grid layout).
+    #[getter]
+    fn x<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        self.vec3(py, Vec3Field::X)
+    }
+
+    #[setter(x)]
+    fn set_x(&self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        self.set_vec3(py, value, Vec3Field::X)
+    }
+
+    /// Velocities, ``(n, 3)`` float32 (m/s). Assign an ``(n, 3)`` float array to set them
+    /// (e.g. an initial velocity field).
+    #[getter]
+    fn v<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        self.vec3(py, Vec3Field::V)
+    }
+
+    #[setter(v)]
+    fn set_v(&self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        self.set_vec3(py, value, Vec3Field::V)
+    }
+
+    /// Deformation gradients, ``(n, 3, 3)`` float32, ``F[i, row, col]``.
+    #[getter(F)]
+    fn f<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray3<f32>>> {
+        let mut s = self.sim.bind(py).borrow_mut();
+        mat3s_to_array(py, &s.get().host(py)?.f)
+    }
+
+    /// APIC affine matrices, ``(n, 3, 3)`` float32, ``C[i, row, col]``.
+    #[getter(C)]
+    fn c<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray3<f32>>> {
+        let mut s = self.sim.bind(py).borrow_mut();
+        mat3s_to_array(py, &s.get().host(py)?.c)
+    }
+
+    /// Volume ratios ``det F``, ``(n,)`` float32.
+    #[getter(J)]
+    fn j<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f32>>> {
+        let mut s = self.sim.bind(py).borrow_mut();
+        let p = s.get().host(py)?;
+        Ok(PyArray1::from_vec(
+            py,
+            p.f.iter().map(|f| f.determinant()).collect(),
+        ))
+    }
+
+    /// Material index of each particle, ``(n,)`` int32 (into ``scene.materials``).
+    #[getter]
+    fn material<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<i32>>> {
+        let mut s = self.sim.bind(py).borrow_mut();
+        let p = s.get().host(py)?;
+        Ok(PyArray1::from_vec(
+            py,
+            p.material.iter().map(|&m| m as i32).collect(),
+        ))
+    }
+
+    /// Original particle index, ``(n,)`` int32: ``arange(n)`` (host arrays are in original order).
+    #[getter]
+    fn id<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<i32>> {
+        let n = self.__len__(py);
+        PyArray1::from_vec(py, (0..n as i32).collect())
+    }
+
+    /// Masses, ``(n,)`` float32 (kg).
+    #[getter]
+    fn mass<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f32>>> {
+        let mut s = self.sim.bind(py).borrow_mut();
+        Ok(PyArray1::from_slice(py, &s.get().host(py)?.mass))
+    }
+
+    /// Initial volumes, ``(n,)`` float32 (m^3).
+    #[getter]
+    fn vol0<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f32>>> {
+        let mut s = self.sim.bind(py).borrow_mut();
+        Ok(PyArray1::from_slice(py, &s.get().host(py)?.vol0))
+    }
+
+    /// The material's plastic scalar, ``(n,)`` float32 (snow ``Jp``, sand hardening, von Mises
+    /// equivalent plastic strain; 0 otherwise).
+    #[getter]
+    fn plastic<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f32>>> {
+        let mut s = self.sim.bind(py).borrow_mut();
+        Ok(PyArray1::from_slice(py, &s.get().host(py)?.plastic))
+    }
+
+    /// Positions on the GPU, ``(n, 3)``, storage order (no copy; CUDA backend only).
+    #[getter]
+    fn x_device(&self, py: Python<'_>) -> PyResult<DeviceArray> {
+        self.device(py, F_X, &[3], Elem::Real)
+    }
+
+    /// Velocities on the GPU, ``(n, 3)``, storage order.
+    #[getter]
+    fn v_device(&self, py: Python<'_>) -> PyResult<DeviceArray> {
+        self.device(py, F_V, &[3], Elem::Real)
+    }
+
+    /// Deformation gradients on the GPU, ``(n, 3, 3)`` (``[i, row, col]``), storage order.
+    #[getter(F_device)]
+    fn f_device(&self, py: Python<'_>) -> PyResult<DeviceArray> {
+        self.device(py, F_F, &[3, 3], Elem::Real)
+    }
+
+    /// APIC matrices on the GPU, ``(n, 3, 3)`` (``[i, row, col]``), storage order.
+    #[getter(C_device)]
+    fn c_device(&self, py: Python<'_>) -> PyResult<DeviceArray> {
+        self.device(py, F_C, &[3, 3], Elem::Real)
+    }
+
+    /// Material indices on the GPU, ``(n,)`` int32, storage order.
+    #[getter]
+    fn material_device(&self, py: Python<'_>) -> PyResult<DeviceArray> {
+        self.device(py, F_MAT, &[], Elem::Int32)
+    }
+
+    /// Original particle index of each GPU slot, ``(n,)`` int32: ``x[id_device[j]]`` is
+    /// ``x_device[j]``.
+    #[getter]
+    fn id_device(&self, py: Python<'_>) -> PyResult<DeviceArray> {
+        self.device(py, F_ID, &[], Elem::Int32)
+    }
+
+    /// Masses on the GPU, ``(n,)``, storage order.
+    #[getter]
+    fn mass_device(&self, py: Python<'_>) -> PyResult<DeviceArray> {
+        self.device(py, F_MASS, &[], Elem::Real)
+    }
+
+    /// Initial volumes on the GPU, ``(n,)``, storage order.
+    #[getter]
+    fn vol0_device(&self, py: Python<'_>) -> PyResult<DeviceArray> {
+        self.device(py, F_VOL0, &[], Elem::Real)
+    }
+
+    /// Plastic scalars on the GPU, ``(n,)``, storage order.
+    #[getter]
+    fn plastic_device(&self, py: Python<'_>) -> PyResult<DeviceArray> {
+        self.device(py, F_PLASTIC, &[], Elem::Real)
+    }
+}
+
+impl PyParticles {
+    fn device(
+        &self,
+        py: Python<'_>,
+        field: usize,
+        inner_shape: &[usize],
+        elem: Elem,
+    ) -> PyResult<DeviceArray> {
+        let mut s = self.sim.bind(py).borrow_mut();
+        let inner = s.get();
+        inner.usable()?;
+        let AnyBackend::Cuda(c) = inner.sim.backend.as_mut() else {
+            return Err(backend_error(format!(
+                "device arrays need the CUDA backend on one GPU; this simulation runs on {}",
+                inner.sim.backend.name()
+            )));
+        };
+        let d = c.0.device_particles().map_err(|e| sim_error(py, &e))?;
+        inner.exported = true;
+        Ok(DeviceArray::new(
+            self.sim.clone_ref(py).into_any(),
+            &d,
+            field,
+            inner_shape,
+            elem,
+        ))
+    }
+}

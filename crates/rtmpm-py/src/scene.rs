@@ -1,0 +1,208 @@
+//! `rtmpm.Scene`: a validated scene, from a file, TOML text or a dict (the same schema and
+//! validation as `rtmpm run`, see docs/scene-format.md).
+
+use crate::errors::scene_error;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use rtmpm_core::Scene;
+use rtmpm_core::scene::StepMode;
+use std::path::{Path, PathBuf};
+
+/// A validated scene.
+///
+/// Build one with :meth:`Scene.load` (a TOML file), :meth:`Scene.from_toml` (TOML text) or
+/// :meth:`Scene.from_dict` (the same structure as a dict). Invalid scenes raise
+/// :class:`rtmpm.SceneError` with the file, line, field and fix.
+#[pyclass(name = "Scene", module = "rtmpm", frozen)]
+pub struct PyScene {
+    pub scene: Scene,
+    /// The scene's TOML text (written into checkpoints).
+    pub text: String,
+    /// Where it came from: a path, "<string>" or "<dict>".
+    pub origin: String,
+}
+
+impl PyScene {
+    /// Parse `text` as the scene that `origin` names, with mesh paths relative to `base`.
+    pub fn parse(
+        py: Python<'_>,
+        text: String,
+        origin: String,
+        base: &Path,
+        from_dict: bool,
+    ) -> PyResult<PyScene> {
+        let scene = Scene::from_toml_in(&text, &origin, base)
+            .map_err(|e| scene_error(py, &e, from_dict))?;
+        Ok(PyScene {
+            scene,
+            text,
+            origin,
+        })
+    }
+}
+
+#[pymethods]
+impl PyScene {
+    /// Read and validate a scene file (mesh paths are relative to the file's folder).
+    ///
+    /// Raises :class:`rtmpm.SceneError` when the file cannot be read or is invalid.
+    #[staticmethod]
+    fn load(py: Python<'_>, path: PathBuf) -> PyResult<PyScene> {
+        let scene = Scene::from_file(&path).map_err(|e| scene_error(py, &e, false))?;
+        // from_file succeeded, so the file was readable a moment ago.
+        let text = std::fs::read_to_string(&path).map_err(|e| {
+            crate::errors::SceneError::new_err(format!("{}: cannot read: {e}", path.display()))
+        })?;
+        Ok(PyScene {
+            scene,
+            text,
+            origin: path.display().to_string(),
+        })
+    }
+
+    /// Parse and validate scene text (TOML). Mesh paths are relative to ``base_dir`` (default:
+    /// the current directory).
+    #[staticmethod]
+    #[pyo3(signature = (text, base_dir = None))]
+    fn from_toml(py: Python<'_>, text: String, base_dir: Option<PathBuf>) -> PyResult<PyScene> {
+        let base = base_dir.unwrap_or_default();
+        PyScene::parse(py, text, "<string>".into(), &base, false)
+    }
+
+    /// Validate a scene given as a dict with the structure of a scene file, e.g.
+    /// ``{"domain": {"min": [0, 0, 0], "max": [1, 1, 1], "dx": 0.05}, "time": {...},
+    /// "material": [{...}], "body": [{...}]}``. Lists, tuples and NumPy arrays are arrays;
+    /// ``None`` values are left out. Mesh paths are relative to ``base_dir``.
+    ///
+    /// Errors are the same as for files, without line numbers (``file == "<dict>"``).
+    #[staticmethod]
+    #[pyo3(signature = (d, base_dir = None))]
+    fn from_dict(
+        py: Python<'_>,
+        d: &Bound<'_, PyDict>,
+        base_dir: Option<PathBuf>,
+    ) -> PyResult<PyScene> {
+        let text = crate::dict_toml::dict_to_toml(d)?;
+        let base = base_dir.unwrap_or_default();
+        PyScene::parse(py, text, "<dict>".into(), &base, true)
+    }
+
+    /// The scene's TOML text (for a dict scene, the TOML generated from it).
+    fn to_toml(&self) -> String {
+        self.text.clone()
+    }
+
+    /// Scene name (the default output folder's name).
+    #[getter]
+    fn name(&self) -> String {
+        self.scene.name.clone()
+    }
+
+    /// Where the scene came from: its path, ``"<string>"`` or ``"<dict>"``.
+    #[getter]
+    fn source(&self) -> String {
+        self.origin.clone()
+    }
+
+    /// Grid spacing (m).
+    #[getter]
+    fn dx(&self) -> f32 {
+        self.scene.dx
+    }
+
+    /// The simulation box as ``((xmin, ymin, zmin), (xmax, ymax, zmax))`` (m).
+    #[getter]
+    fn domain(&self) -> ([f32; 3], [f32; 3]) {
+        (
+            self.scene.domain_min.to_array(),
+            self.scene.domain_max.to_array(),
+        )
+    }
+
+    /// Gravity (m/s^2).
+    #[getter]
+    fn gravity(&self) -> [f32; 3] {
+        self.scene.gravity.to_array()
+    }
+
+    /// Output frames per simulated second.
+    #[getter]
+    fn fps(&self) -> f32 {
+        self.scene.time.fps
+    }
+
+    /// Simulated duration (s).
+    #[getter]
+    fn duration(&self) -> f32 {
+        self.scene.time.duration
+    }
+
+    /// Number of frames of the duration.
+    #[getter]
+    fn frames(&self) -> u64 {
+        self.scene.time.frames()
+    }
+
+    /// The fixed time step (s), or None with the CFL rule.
+    #[getter]
+    fn fixed_dt(&self) -> Option<f32> {
+        match self.scene.time.step {
+            StepMode::Fixed { dt } => Some(dt),
+            StepMode::Cfl { .. } => None,
+        }
+    }
+
+    /// ``"f32"`` or ``"f64"`` (``[solver] precision``).
+    #[getter]
+    fn precision(&self) -> &'static str {
+        self.scene.precision.name()
+    }
+
+    /// Material names, in the order of the particles' ``material`` index.
+    #[getter]
+    fn materials(&self) -> Vec<String> {
+        self.scene
+            .materials
+            .iter()
+            .map(|m| m.name.clone())
+            .collect()
+    }
+
+    /// Number of particles the bodies are filled with (samples them).
+    fn count_particles(&self, py: Python<'_>) -> PyResult<usize> {
+        let p = self
+            .scene
+            .sample_particles()
+            .map_err(|e| scene_error(py, &e, self.origin == "<dict>"))?;
+        Ok(p.len())
+    }
+
+    fn __repr__(&self) -> String {
+        let (lo, hi) = (self.scene.domain_min, self.scene.domain_max);
+        format!(
+            "Scene(name={:?}, source={:?}, domain=({:?}, {:?}), dx={}, materials={:?})",
+            self.scene.name,
+            self.origin,
+            lo.to_array(),
+            hi.to_array(),
+            self.scene.dx,
+            self.materials()
+        )
+    }
+}
+
+/// Accept a Scene, a path (str or os.PathLike) or a dict where a scene is expected.
+pub fn scene_arg(py: Python<'_>, obj: &Bound<'_, PyAny>) -> PyResult<Py<PyScene>> {
+    if let Ok(s) = obj.cast::<PyScene>() {
+        return Ok(s.clone().unbind());
+    }
+    if let Ok(d) = obj.cast::<PyDict>() {
+        return Py::new(py, PyScene::from_dict(py, d, None)?);
+    }
+    if let Ok(p) = obj.extract::<PathBuf>() {
+        return Py::new(py, PyScene::load(py, p)?);
+    }
+    Err(pyo3::exceptions::PyTypeError::new_err(
+        "scene must be an rtmpm.Scene, a path to a scene file or a dict",
+    ))
+}

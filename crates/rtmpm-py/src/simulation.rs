@@ -1,0 +1,557 @@
+//! `rtmpm.Simulation`: a scene running on a backend, stepped from Python.
+//!
+//! Stepping releases the interpreter lock (other Python threads run meanwhile) and returns to
+//! the interpreter about every [`CHUNK_SECONDS`] to check for Ctrl-C, which raises
+//! `KeyboardInterrupt` between two steps and leaves the simulation usable. Panics are caught
+//! at this boundary and become `rtmpm.SimulationError`.
+
+use crate::backend::{BackendInfo, request};
+use crate::errors::{backend_error, internal_error, sim_error};
+use crate::frames::FrameIter;
+use crate::scene::{PyScene, scene_arg};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use rtmpm_backends::{AnyBackend, BackendRequest};
+use rtmpm_core::Particles;
+use rtmpm_core::io::checkpoint::Checkpoint;
+use rtmpm_core::scene::Precision;
+use rtmpm_core::sim::{Backend, SimError, Simulation};
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::Instant;
+
+/// Wall time between two checks for Ctrl-C while stepping (s).
+pub const CHUNK_SECONDS: f64 = 0.05;
+
+pub type Sim = Simulation<AnyBackend>;
+
+/// The state behind a `Simulation` object.
+pub struct Inner {
+    pub sim: Sim,
+    pub request: BackendRequest,
+    /// Which backend was picked and why.
+    pub reason: String,
+    /// The scene object (kept for `sim.scene` and checkpoints).
+    pub scene: Py<PyScene>,
+    /// Changes whenever the particle state may have changed (steps, setters).
+    pub version: u64,
+    /// Host copy of the particles at `version`.
+    pub host: Option<(u64, Particles)>,
+    /// Steps per call with the interpreter lock released (adapted to [`CHUNK_SECONDS`]).
+    chunk: u64,
+    /// Device arrays were handed out: wait for their readers before the next step.
+    pub exported: bool,
+    /// Set after a panic: the state may be inconsistent.
+    broken: Option<String>,
+}
+
+impl Inner {
+    /// The particles on the host, in original order (read from the backend when stale).
+    pub fn host(&mut self, py: Python<'_>) -> PyResult<&Particles> {
+        self.usable()?;
+        let stale = self.host.as_ref().is_none_or(|(v, _)| *v != self.version);
+        if stale {
+            let sim = &mut self.sim;
+            let mut p = self.host.take().map(|(_, p)| p).unwrap_or_default();
+            let r =
+                py.detach(|| catch_unwind(AssertUnwindSafe(|| sim.backend.read_particles(&mut p))));
+            self.settle(py, r)?;
+            self.host = Some((self.version, p));
+        }
+        match &self.host {
+            Some((_, p)) => Ok(p),
+            None => Err(backend_error("particles could not be read")),
+        }
+    }
+
+    pub fn usable(&self) -> PyResult<()> {
+        match &self.broken {
+            Some(why) => Err(crate::errors::SimulationError::new_err(format!(
+                "this simulation stopped after an internal error ({why}); create a new one"
+            ))),
+            None => Ok(()),
+        }
+    }
+
+    /// Turn the result of a guarded call into a Python result, marking the simulation broken
+    /// after a panic.
+    pub fn settle<T>(
+        &mut self,
+        py: Python<'_>,
+        r: std::thread::Result<Result<T, SimError>>,
+    ) -> PyResult<T> {
+        match r {
+            Ok(Ok(v)) => Ok(v),
+            Ok(Err(e)) => Err(sim_error(py, &e)),
+            Err(payload) => {
+                let err = internal_error(payload.as_ref());
+                self.broken = Some(err.to_string());
+                Err(err)
+            }
+        }
+    }
+
+    /// Run `work(sim, chunk)` with the interpreter lock released until it returns true, in
+    /// chunks of about [`CHUNK_SECONDS`], checking for Ctrl-C between chunks.
+    fn drive(
+        &mut self,
+        py: Python<'_>,
+        mut work: impl FnMut(&mut Sim, u64) -> Result<bool, SimError> + Send,
+    ) -> PyResult<()> {
+        self.usable()?;
+        if self.exported
+            && let AnyBackend::Cuda(c) = self.sim.backend.as_mut()
+        {
+            // Readers of the device arrays (PyTorch, CuPy) may still be at work on their streams.
+            c.0.wait_for_device().map_err(|e| sim_error(py, &e))?;
+        }
+        loop {
+            let chunk = self.chunk;
+            let sim = &mut self.sim;
+            let t0 = Instant::now();
+            let r = py.detach(|| catch_unwind(AssertUnwindSafe(|| work(sim, chunk))));
+            self.version += 1;
+            let elapsed = t0.elapsed().as_secs_f64();
+            if elapsed < 0.5 * CHUNK_SECONDS {
+                self.chunk = (self.chunk * 2).min(1 << 20);
+            } else if elapsed > 2.0 * CHUNK_SECONDS {
+                self.chunk = (self.chunk / 2).max(1);
+            }
+            if self.settle(py, r)? {
+                return Ok(());
+            }
+            py.check_signals()?;
+        }
+    }
+}
+
+/// Take exactly `k` steps (crossing frame ends as `rtmpm run --steps` does).
+fn step_n(sim: &mut Sim, k: u64) -> Result<(), SimError> {
+    let target = sim.step + k;
+    while sim.step < target {
+        sim.advance(target - sim.step)?;
+    }
+    Ok(())
+}
+
+/// A simulation of a scene on a backend.
+///
+/// ``Simulation(scene, backend="auto", precision=None, threads=None, gpus=1)``:
+///
+/// * ``scene``: an :class:`rtmpm.Scene`, a path to a scene file or a dict;
+/// * ``backend``: ``"auto"`` (CUDA when a GPU is usable, else the CPU), ``"cpu"`` or ``"cuda"``;
+///   :attr:`backend` says what was picked and why;
+/// * ``precision``: ``"f32"`` or ``"f64"`` (default: the scene's ``[solver] precision``);
+/// * ``threads``: CPU worker threads (default: one per core);
+/// * ``gpus``: GPUs of this machine to split the particles over (CUDA), an int or ``"all"``;
+/// * ``cuda_options``: the switches of ``rtmpm run --cuda-options``, e.g. ``"graph=off"``.
+///
+/// The particles are in :attr:`particles`; :meth:`step`, :meth:`run_frame`, :meth:`advance`,
+/// :meth:`frames` and :meth:`run` move the simulation on.
+#[pyclass(name = "Simulation", module = "rtmpm")]
+pub struct PySimulation {
+    pub inner: Mutex<Inner>,
+}
+
+impl PySimulation {
+    /// The state (no locking: `&mut self` is exclusive already).
+    pub fn get(&mut self) -> &mut Inner {
+        match self.inner.get_mut() {
+            Ok(i) => i,
+            Err(poisoned) => poisoned.into_inner(),
+        }
+    }
+
+    fn build(
+        py: Python<'_>,
+        scene: Py<PyScene>,
+        particles: Particles,
+        request: BackendRequest,
+        precision: Option<&str>,
+    ) -> PyResult<PySimulation> {
+        let mut s = scene.get().scene.clone();
+        if let Some(p) = precision {
+            s.precision = p.parse::<Precision>().map_err(PyValueError::new_err)?;
+        }
+        let req = request.clone();
+        let s2 = s.clone();
+        let created = py
+            .detach(|| {
+                catch_unwind(AssertUnwindSafe(|| {
+                    rtmpm_backends::create(&req, &s2, particles)
+                }))
+            })
+            .map_err(|p| internal_error(p.as_ref()))?
+            .map_err(backend_error)?;
+        Ok(PySimulation {
+            inner: Mutex::new(Inner {
+                sim: Simulation::with_backend(s, Box::new(created.backend)),
+                request,
+                reason: created.reason,
+                scene,
+                version: 0,
+                host: None,
+                chunk: 8,
+                exported: false,
+                broken: None,
+            }),
+        })
+    }
+}
+
+#[pymethods]
+impl PySimulation {
+    #[new]
+    #[pyo3(signature = (scene, backend = "auto", precision = None, threads = None, gpus = None, cuda_options = None))]
+    fn new(
+        py: Python<'_>,
+        scene: &Bound<'_, PyAny>,
+        backend: &str,
+        precision: Option<&str>,
+        threads: Option<usize>,
+        gpus: Option<&Bound<'_, PyAny>>,
+        cuda_options: Option<&str>,
+    ) -> PyResult<PySimulation> {
+        let one = 1usize.into_pyobject(py)?.into_any();
+        let req = request(backend, threads, gpus.unwrap_or(&one), cuda_options)?;
+        let scene = scene_arg(py, scene)?;
+        let s = &scene.get().scene;
+        let particles = s
+            .sample_particles()
+            .map_err(|e| crate::errors::scene_error(py, &e, scene.get().origin == "<dict>"))?;
+        if particles.is_empty() {
+            return Err(crate::errors::SceneError::new_err(format!(
+                "{}: the scene's bodies hold no particles (add a [[body]] or make it larger)",
+                scene.get().origin
+            )));
+        }
+        PySimulation::build(py, scene, particles, req, precision)
+    }
+
+    /// Continue from a checkpoint written by :meth:`checkpoint` or ``rtmpm run
+    /// --checkpoint-every`` (the checkpoint holds its scene); the backend arguments are those
+    /// of the constructor. On the CPU in f32 the resumed run continues bit for bit.
+    #[staticmethod]
+    #[pyo3(signature = (path, backend = "auto", precision = None, threads = None, gpus = None, cuda_options = None))]
+    fn resume(
+        py: Python<'_>,
+        path: PathBuf,
+        backend: &str,
+        precision: Option<&str>,
+        threads: Option<usize>,
+        gpus: Option<&Bound<'_, PyAny>>,
+        cuda_options: Option<&str>,
+    ) -> PyResult<PySimulation> {
+        let one = 1usize.into_pyobject(py)?.into_any();
+        let req = request(backend, threads, gpus.unwrap_or(&one), cuda_options)?;
+        let ckpt = Checkpoint::load(&path).map_err(|e| {
+            crate::errors::RtmpmError::new_err(format!(
+                "cannot resume from {}: {e}",
+                path.display()
+            ))
+        })?;
+        let base = Path::new(&ckpt.scene_origin)
+            .parent()
+            .unwrap_or(Path::new(""))
+            .to_path_buf();
+        let from_dict = ckpt.scene_origin == "<dict>";
+        let scene = PyScene::parse(
+            py,
+            ckpt.scene_toml.clone(),
+            ckpt.scene_origin.clone(),
+            &base,
+            from_dict,
+        )?;
+        let scene = Py::new(py, scene)?;
+        let mut sim = PySimulation::build(py, scene, ckpt.particles, req, precision)?;
+        let inner = sim.get();
+        inner.sim.time = ckpt.time;
+        inner.sim.step = ckpt.step;
+        inner.sim.frame = ckpt.frame;
+        Ok(sim)
+    }
+
+    /// Take ``n`` steps (frames end on their times as with ``rtmpm run``). Returns the number
+    /// of steps taken. Ctrl-C stops between two steps (``KeyboardInterrupt``).
+    #[pyo3(signature = (n = 1))]
+    fn step(&mut self, py: Python<'_>, n: u64) -> PyResult<u64> {
+        let inner = self.get();
+        let start = inner.sim.step;
+        let target = start + n;
+        inner.drive(py, |sim, chunk| {
+            let k = chunk.min(target - sim.step);
+            step_n(sim, k)?;
+            Ok(sim.step >= target)
+        })?;
+        Ok(inner.sim.step - start)
+    }
+
+    /// Simulate to the end of the current frame (the frame's time, exactly); returns the
+    /// number of steps taken. One call per frame steps exactly as ``rtmpm run`` does.
+    pub fn run_frame(&mut self, py: Python<'_>) -> PyResult<u64> {
+        let inner = self.get();
+        let start = inner.sim.step;
+        inner.drive(py, |sim, chunk| sim.advance(chunk))?;
+        Ok(inner.sim.step - start)
+    }
+
+    /// Simulate for ``seconds`` of simulated time: whole frames while they end before the
+    /// target, then single steps until :attr:`time` reaches it (the last step is not shortened,
+    /// so :attr:`time` may pass the target by less than one dt unless it is a frame time).
+    /// Returns the number of steps taken.
+    fn advance(&mut self, py: Python<'_>, seconds: f64) -> PyResult<u64> {
+        if !(seconds.is_finite() && seconds >= 0.0) {
+            return Err(PyValueError::new_err(format!(
+                "seconds must be a finite time >= 0, got {seconds}"
+            )));
+        }
+        let inner = self.get();
+        let start = inner.sim.step;
+        let target = inner.sim.time + seconds;
+        let fd = inner.sim.frame_duration();
+        inner.drive(py, |sim, chunk| {
+            let mut taken = 0;
+            loop {
+                // Reached within a thousandth of a step (times are sums of f32 steps).
+                let eps = 1e-9 * fd + 1e-3 * sim.last_dt as f64;
+                if sim.time >= target - eps {
+                    return Ok(true);
+                }
+                if taken >= chunk {
+                    return Ok(false);
+                }
+                let frame_end = (sim.frame + 1) as f64 * fd;
+                let s0 = sim.step;
+                if frame_end <= target + eps {
+                    sim.advance(chunk - taken)?;
+                } else {
+                    sim.advance(1)?;
+                }
+                taken += sim.step - s0;
+            }
+        })?;
+        Ok(inner.sim.step - start)
+    }
+
+    /// Run ``frames`` frames (default: to the end of the scene's duration), calling
+    /// ``callback(sim)`` after each; a callback that returns ``False`` stops the run. Returns
+    /// the number of frames run.
+    #[pyo3(signature = (frames = None, callback = None))]
+    fn run(
+        slf: &Bound<'_, Self>,
+        py: Python<'_>,
+        frames: Option<u64>,
+        callback: Option<Py<PyAny>>,
+    ) -> PyResult<u64> {
+        let count = match frames {
+            Some(f) => f,
+            None => {
+                let mut s = slf.borrow_mut();
+                let i = s.get();
+                i.sim.scene.time.frames().saturating_sub(i.sim.frame)
+            }
+        };
+        for done in 0..count {
+            slf.borrow_mut().run_frame(py)?;
+            if let Some(cb) = &callback {
+                let r = cb.call1(py, (slf.clone(),))?;
+                if r.bind(py).is(pyo3::types::PyBool::new(py, false)) {
+                    return Ok(done + 1);
+                }
+            }
+        }
+        Ok(count)
+    }
+
+    /// An iterator over frames: each iteration runs one frame and yields its number
+    /// (:attr:`frame`). ``count`` frames (default: to the end of the scene's duration).
+    ///
+    /// ``for frame in sim.frames(): x = sim.particles.x``
+    #[pyo3(signature = (count = None))]
+    fn frames(slf: &Bound<'_, Self>, count: Option<u64>) -> PyResult<FrameIter> {
+        let left = match count {
+            Some(c) => c,
+            None => {
+                let mut s = slf.borrow_mut();
+                let i = s.get();
+                i.sim.scene.time.frames().saturating_sub(i.sim.frame)
+            }
+        };
+        Ok(FrameIter {
+            sim: slf.clone().unbind(),
+            left,
+        })
+    }
+
+    /// Simulated time (s).
+    #[getter]
+    fn time(&mut self) -> f64 {
+        self.get().sim.time
+    }
+
+    /// Frames completed.
+    #[getter]
+    fn frame(&mut self) -> u64 {
+        self.get().sim.frame
+    }
+
+    /// Steps taken.
+    #[getter]
+    fn steps(&mut self) -> u64 {
+        self.get().sim.step
+    }
+
+    /// The time step (s): that of the last step, or before the first step the one the scene's
+    /// rule gives now (fixed dt, or CFL from the current velocities).
+    #[getter]
+    fn dt(&mut self, py: Python<'_>) -> PyResult<f32> {
+        let inner = self.get();
+        if inner.sim.step > 0 {
+            return Ok(inner.sim.last_dt);
+        }
+        let sim = &mut inner.sim;
+        let r = catch_unwind(AssertUnwindSafe(|| sim.next_dt()));
+        inner.settle(py, r)
+    }
+
+    /// Duration of one frame (s), ``1 / fps``.
+    #[getter]
+    fn frame_duration(&mut self) -> f64 {
+        self.get().sim.frame_duration()
+    }
+
+    /// The backend picked and why (:class:`rtmpm.BackendInfo`; ``str()`` gives the reason).
+    #[getter]
+    fn backend(&mut self) -> BackendInfo {
+        let inner = self.get();
+        BackendInfo {
+            kind: inner.sim.backend.kind().name().into(),
+            name: inner.sim.backend.name(),
+            reason: inner.reason.clone(),
+        }
+    }
+
+    /// The scene (:class:`rtmpm.Scene`).
+    #[getter]
+    fn scene(&mut self, py: Python<'_>) -> Py<PyScene> {
+        self.get().scene.clone_ref(py)
+    }
+
+    /// ``"f32"`` or ``"f64"``: the precision the backend computes in.
+    #[getter]
+    fn precision(&mut self) -> &'static str {
+        self.get().sim.scene.precision.name()
+    }
+
+    /// Number of particles.
+    #[getter]
+    fn num_particles(&mut self) -> usize {
+        self.get().sim.backend.num_particles()
+    }
+
+    /// The particle state: NumPy arrays (and, on CUDA, device arrays); see
+    /// :class:`rtmpm.Particles`.
+    #[getter]
+    fn particles(slf: &Bound<'_, Self>) -> crate::particles::PyParticles {
+        crate::particles::PyParticles {
+            sim: slf.clone().unbind(),
+        }
+    }
+
+    /// Write a checkpoint (the scene, time, step, frame and every particle; atomic). Resume with
+    /// :meth:`Simulation.resume` or ``rtmpm run --resume``.
+    fn checkpoint(&mut self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        let inner = self.get();
+        let particles = inner.host(py)?.clone();
+        let scene = inner.scene.get();
+        let ckpt = Checkpoint {
+            scene_toml: scene.text.clone(),
+            scene_origin: scene.origin.clone(),
+            time: inner.sim.time,
+            step: inner.sim.step,
+            frame: inner.sim.frame,
+            particles,
+        };
+        py.detach(|| ckpt.save(&path)).map_err(|e| {
+            crate::errors::RtmpmError::new_err(format!(
+                "writing checkpoint {}: {e}",
+                path.display()
+            ))
+        })
+    }
+
+    /// Write the particles as one frame file: ``format`` ``"ply"`` (binary PLY) or ``"vtu"``
+    /// (VTK XML), by default from the file's extension. ``fields``: extra columns among
+    /// ``"J"`` and ``"stress"`` (default: the scene's ``[output] fields``). Atomic.
+    #[pyo3(signature = (path, format = None, fields = None))]
+    fn write_frame(
+        &mut self,
+        py: Python<'_>,
+        path: PathBuf,
+        format: Option<&str>,
+        fields: Option<Vec<String>>,
+    ) -> PyResult<()> {
+        let inner = self.get();
+        let scene = inner.sim.scene.clone();
+        let p = inner.host(py)?;
+        crate::output::write_frame(py, &path, format, fields, p, &scene)
+    }
+
+    /// Render the particles as shaded spheres (the renderer of ``rtmpm render``) and return
+    /// the image as a NumPy ``uint8`` array of shape ``(height, width, 3)``.
+    ///
+    /// ``camera``/``target``: positions ``(x, y, z)`` (default: the scene's ``[render]``, else
+    /// front-right-above framing the domain); ``size``: ``(width, height)`` (default 1280x720);
+    /// ``fov`` in degrees; ``color_by``: ``"material"``, ``"speed"``, ``"J"``, ``"stress"`` or
+    /// ``"plastic"``; ``range``: ``(lo, hi)`` of the colour bar; ``radius`` of the spheres (m);
+    /// ``shadows``, ``colliders``: draw them; ``label``: text in the top-left corner (default:
+    /// frame and time).
+    #[pyo3(signature = (camera = None, target = None, size = None, fov = None, color_by = None, range = None, radius = None, shadows = true, colliders = true, label = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn render<'py>(
+        &mut self,
+        py: Python<'py>,
+        camera: Option<[f32; 3]>,
+        target: Option<[f32; 3]>,
+        size: Option<(u32, u32)>,
+        fov: Option<f32>,
+        color_by: Option<&str>,
+        range: Option<(f32, f32)>,
+        radius: Option<f32>,
+        shadows: bool,
+        colliders: bool,
+        label: Option<String>,
+    ) -> PyResult<Bound<'py, numpy::PyArray3<u8>>> {
+        let inner = self.get();
+        let (frame, time) = (inner.sim.frame, inner.sim.time);
+        let scene = inner.sim.scene.clone();
+        let p = inner.host(py)?;
+        let view = crate::output::View {
+            camera,
+            target,
+            size,
+            fov,
+            color_by,
+            range,
+            radius,
+            shadows,
+            colliders,
+            label: Some(label.unwrap_or_else(|| format!("FRAME {frame}  T = {time:.3} S"))),
+            time: time as f32,
+        };
+        crate::output::render(py, p, &scene, &view)
+    }
+
+    fn __repr__(&mut self) -> String {
+        let inner = self.get();
+        format!(
+            "Simulation(scene={:?}, backend={:?}, particles={}, frame={}, time={:.6})",
+            inner.sim.scene.name,
+            inner.sim.backend.name(),
+            inner.sim.backend.num_particles(),
+            inner.sim.frame,
+            inner.sim.time
+        )
+    }
+}

@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# The Python package in CI: build the wheel in a fresh virtual environment (maturin, from PyPI),
+# install it, run the pytest suite (crates/rtmpm-py/tests; the GPU tests skip without a GPU) and
+# two examples. The wheel is built with the dev profile at opt-level 3, the settings of the test
+# profile: the workspace crates `cargo test` built are reused, only pyo3, numpy and the extension
+# are compiled (a release build would compile everything again).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+venv=target/ci-python
+rm -rf "$venv" target/ci-wheels
+python3 -m venv "$venv"
+"$venv/bin/pip" install --quiet --disable-pip-version-check "maturin>=1.9,<2" "numpy>=1.21" "pytest>=7"
+CARGO_PROFILE_DEV_OPT_LEVEL=3 "$venv/bin/maturin" build --profile dev -m crates/rtmpm-py/Cargo.toml -o target/ci-wheels
+"$venv/bin/pip" install --quiet --disable-pip-version-check --no-deps target/ci-wheels/rtmpm-*.whl
+# The command line for the bit-for-bit tests (built by `cargo test`).
+export RTMPM_CLI=${RTMPM_CLI:-$PWD/target/debug/rtmpm}
+[ -x "$RTMPM_CLI" ] || cargo build -p rtmpm
+"$venv/bin/python" -m pytest -q -p no:cacheprovider crates/rtmpm-py/tests
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+"$venv/bin/python" examples/python/vibrating_bar.py --out "$tmp/bar.png"
+"$venv/bin/python" examples/python/dam_break_energy.py --frames 2 --out "$tmp/energy.png"
