@@ -2,9 +2,11 @@
 
 mod backend;
 mod bench;
+mod budget;
 mod check;
 mod info;
 mod multi;
+mod outdir;
 mod output;
 mod render;
 mod run;

@@ -10,36 +10,48 @@ use std::path::{Path, PathBuf};
 pub struct FrameOutput {
     pub dir: PathBuf,
     pvd: Option<PvdWriter>,
+    /// `comment` line of every PLY header naming the run (see `outdir::scene_identity`), so
+    /// that `rtmpm render` never mixes the frames of two runs.
+    run_comment: String,
 }
 
+/// The PLY comment that names the run a frame belongs to.
+pub const RUN_COMMENT_PREFIX: &str = "rtmpm-run ";
+
 impl FrameOutput {
-    /// Create the output folder.
-    pub fn new(dir: &Path, scene: &Scene) -> Result<FrameOutput> {
+    /// Start writing frames into `dir` (created): a fresh `frames.pvd`, or, when `resume_time`
+    /// is given, the existing one continued (entries before that time kept; an unreadable one
+    /// is an error, never silently replaced).
+    pub fn new(
+        dir: &Path,
+        scene: &Scene,
+        identity: &str,
+        resume_time: Option<f64>,
+    ) -> Result<FrameOutput> {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("cannot create output folder {}", dir.display()))?;
         let pvd = match scene.output.vtu {
             true => {
                 let path = dir.join("frames.pvd");
-                Some(PvdWriter::new(&path).with_context(|| format!("writing {}", path.display()))?)
+                Some(match resume_time {
+                    None => PvdWriter::new(&path)
+                        .with_context(|| format!("writing {}", path.display()))?,
+                    Some(t) => PvdWriter::resume(&path, t).with_context(|| {
+                        format!(
+                            "cannot continue {} (the frames themselves are intact); move it \
+                             away to start a new collection from the resumed frames",
+                            path.display()
+                        )
+                    })?,
+                })
             }
             false => None,
         };
         Ok(FrameOutput {
             dir: dir.to_path_buf(),
             pvd,
+            run_comment: format!("{RUN_COMMENT_PREFIX}{identity}"),
         })
-    }
-
-    /// Continue a series after resuming at `time`.
-    pub fn resume(&mut self, time: f64) -> Result<()> {
-        if self.pvd.is_some() {
-            let path = self.dir.join("frames.pvd");
-            self.pvd = Some(
-                PvdWriter::resume(&path, time)
-                    .with_context(|| format!("reading {}", path.display()))?,
-            );
-        }
-        Ok(())
     }
 
     /// Write frame `frame` at simulated `time`.
@@ -61,7 +73,7 @@ impl FrameOutput {
         };
         if scene.output.ply {
             let path = self.dir.join(format!("frame_{frame:05}.ply"));
-            ply::write_ply(&path, p, &fields)
+            ply::write_ply_with_comments(&path, p, &fields, &[&self.run_comment])
                 .with_context(|| format!("writing {}", path.display()))?;
         }
         if let Some(pvd) = self.pvd.as_mut() {
