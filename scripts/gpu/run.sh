@@ -6,7 +6,7 @@
 #   bash scripts/gpu/run.sh SUITE [SUITE...]
 #
 # Suites:
-#   tests        GPU tests: kernels, P2G strategies, transfers, f64, the material check
+#   tests        GPU tests (TESTS="test_gpu ..." to choose): kernels, P2G strategies, transfers, f64, the material check
 #                (every model on the GPU against Rust), the CPU/GPU agreement on every example
 #                scene, the CLI on the GPU
 #   validate     the validation suite at full resolution on the GPU (`rtmpm validate`)
@@ -57,7 +57,7 @@ for suite in "$@"; do
   say "== $suite"
   case "$suite" in
     tests)
-      for x in test_gpu test_materials test_agreement test_cli test_render_cli; do t "$x"; done
+      for x in ${TESTS:-test_gpu test_materials test_agreement test_cli test_render_cli}; do t "$x"; done
       ;;
     validate)
       timeout 500 "$D/rtmpm" validate --backend cuda --out "$OUT/validation" > "$OUT/validate.log" 2>&1
