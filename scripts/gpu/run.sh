@@ -6,7 +6,7 @@
 #   bash scripts/gpu/run.sh SUITE [SUITE...]
 #
 # Suites:
-#   tests        GPU tests: kernels, P2G strategies, transfers, f64, the material check
+#   tests        GPU tests (TESTS="test_gpu ..." to choose): kernels, P2G strategies, transfers, f64, the material check
 #                (every model on the GPU against Rust), the CPU/GPU agreement on every example
 #                scene, the CLI on the GPU
 #   validate     the validation suite at full resolution on the GPU (`rtmpm validate`)
@@ -57,7 +57,7 @@ for suite in "$@"; do
   say "== $suite"
   case "$suite" in
     tests)
-      for x in test_gpu test_materials test_agreement test_cli test_render_cli; do t "$x"; done
+      for x in ${TESTS:-test_gpu test_materials test_agreement test_cli test_render_cli}; do t "$x"; done
       ;;
     validate)
       timeout 500 "$D/rtmpm" validate --backend cuda --out "$OUT/validation" > "$OUT/validate.log" 2>&1
@@ -107,8 +107,24 @@ for suite in "$@"; do
       t test_multi_gpu
       t test_multi_gpu_cli
       for g in 1 2; do b "strong 16.8M gpus=$g" rtmpm --scene bench/strong_16m.toml --frames 2 --gpus "$g"; done
+      b "strong 16.8M gpus=1 g2p2g=off" rtmpm --scene bench/strong_16m.toml --frames 2 --cuda-options g2p2g=off
+      for o in overlap=off transport=nccl transport=nccl,overlap=off g2p2g=off,overlap=off; do
+        b "strong 16.8M gpus=2 $o" rtmpm --scene bench/strong_16m.toml --frames 2 --gpus 2 --cuda-options "$o"
+      done
       b "weak 4.2M gpus=1" rtmpm --scene bench/weak_4m_x1.toml --frames 4
       b "weak 8.4M gpus=2" rtmpm --scene bench/weak_4m_x2.toml --frames 4 --gpus 2
+      b "weak 8.4M gpus=2 overlap=off" rtmpm --scene bench/weak_4m_x2.toml --frames 4 --gpus 2 --cuda-options overlap=off
+      # One process per GPU (NCCL, file rendezvous) against one process driving both, same scene.
+      r=$(timeout 200 "$D/rtmpm" run bench/strong_16m.toml --frames 4 --no-output --gpus 2 2>&1)
+      echo "$r" >> "$OUT/ranks.log"
+      say "strong 16.8M one process --gpus 2: $(echo "$r" | grep -E 'throughput|^error' | tr -s ' ')"
+      rm -f /tmp/rtmpm-rdv
+      for rk in 0 1; do
+        timeout 200 "$D/rtmpm" run bench/strong_16m.toml --frames 4 --no-output --rendezvous file:/tmp/rtmpm-rdv \
+          --nccl-ranks 2 --nccl-rank $rk > "$OUT/rank_$rk.log" 2>&1 &
+      done
+      wait
+      say "strong 16.8M two NCCL processes: $(grep -hE 'throughput|^error' "$OUT/rank_0.log" "$OUT/rank_1.log" | tr -s ' ' | tr '\n' ' ')"
       ;;
     python)
       if [ -d "$D/wheels" ]; then

@@ -6,6 +6,7 @@
 //! `Box<dyn Backend>`, so that a caller can reach the backend's own methods (the CUDA backend's
 //! device pointers, the CPU backend's state setters) and move it across threads (it is `Send`).
 
+use rtmpm_core::io::limits::human_bytes;
 use rtmpm_core::scene::Precision;
 use rtmpm_core::sim::{Backend, BadParticle, SimError};
 use rtmpm_core::{Particles, Scene};
@@ -170,9 +171,29 @@ fn cuda_backend(
     particles: &Particles,
     options: &CudaOptions,
 ) -> Result<AnyBackend, String> {
-    rtmpm_cuda::probe().map_err(|e| e.to_string())?;
-    let b = rtmpm_cuda::CudaBackend::new(scene, particles, options.clone())
-        .map_err(|e| e.to_string())?;
+    let info = rtmpm_cuda::probe().map_err(|e| e.to_string())?;
+    // The budget's device estimate (rtmpm_core::scene::budget) against the GPU's memory,
+    // before anything is allocated: a clear error with the sizes.
+    let need = rtmpm_core::scene::Budget::estimate(scene, Some(1)).gpu_bytes;
+    let have = info.memory as u64;
+    if need > have {
+        return Err(format!(
+            "the scene needs about {} of GPU memory for {} particles and its grid (an \
+             estimate), more than the {} of the {}; use fewer particles or a coarser dx, \
+             several GPUs (--gpus N), or --backend cpu",
+            human_bytes(need),
+            particles.len(),
+            human_bytes(have),
+            info.name
+        ));
+    }
+    let b = rtmpm_cuda::CudaBackend::new(scene, particles, options.clone()).map_err(|e| {
+        format!(
+            "{e} (estimated need {} of the GPU's {})",
+            human_bytes(need),
+            human_bytes(have)
+        )
+    })?;
     Ok(AnyBackend::Cuda(CudaSend(Box::new(b))))
 }
 

@@ -17,6 +17,9 @@ use std::fmt;
 pub enum SimError {
     /// A particle's state became non-finite or its speed exploded.
     Blowup(Box<Blowup>),
+    /// The CFL time step fell below `time.min_dt`: the run would crawl without end. The
+    /// [`Blowup`] names the fastest particle.
+    Stall(Box<Blowup>),
     /// The backend failed (device error, out of capacity, ...).
     Backend(String),
 }
@@ -41,6 +44,27 @@ impl fmt::Display for SimError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             SimError::Backend(m) => write!(f, "backend error: {m}"),
+            SimError::Stall(b) => write!(
+                f,
+                "the time step collapsed at step {} (t = {:.6} s): {}\n  \
+                 fastest: particle {} of material `{}` at ({:.4}, {:.4}, {:.4}), velocity \
+                 ({:.4e}, {:.4e}, {:.4e})\n  \
+                 advice: this speed is far above the material's sound speed (a blow-up under way, \
+                 or an initial velocity too large): lower the body's velocity, use a fixed \
+                 `time.dt` or a softer material; or, if the speed is intended, lower \
+                 `time.min_dt`",
+                b.step,
+                b.time,
+                b.reason,
+                b.particle,
+                b.material,
+                b.position.x,
+                b.position.y,
+                b.position.z,
+                b.velocity.x,
+                b.velocity.y,
+                b.velocity.z
+            ),
             SimError::Blowup(b) => write!(
                 f,
                 "simulation blew up at step {} (t = {:.6} s, dt = {:.3e} s): particle {} of material `{}`: {}\n  \
@@ -164,15 +188,57 @@ impl<B: Backend + ?Sized> Simulation<B> {
     pub fn next_dt(&mut self) -> Result<f32, SimError> {
         Ok(match self.scene.time.step {
             StepMode::Fixed { dt } => dt,
-            StepMode::Cfl { cfl, max_dt } => {
+            StepMode::Cfl {
+                cfl,
+                max_dt,
+                min_dt,
+            } => {
                 let speed = self.backend.max_speed()? + self.max_sound_speed;
-                if speed > 0.0 {
+                let dt = if speed > 0.0 {
                     (cfl * self.scene.dx / speed).min(max_dt)
                 } else {
                     max_dt
+                };
+                // NaN speeds are the health check's (a blow-up); a finite collapse is a stall.
+                if dt < min_dt {
+                    return Err(self.stall(dt, min_dt));
                 }
+                dt
             }
         })
+    }
+
+    /// The error of a CFL step `dt` below `min_dt`, naming the fastest particle.
+    fn stall(&mut self, dt: f32, min_dt: f32) -> SimError {
+        let mut p = Particles::default();
+        if let Err(e) = self.backend.read_particles(&mut p) {
+            return e;
+        }
+        let (i, speed) =
+            p.v.iter()
+                .map(|v| v.length())
+                .enumerate()
+                .fold((0, f32::NEG_INFINITY), |a, b| if b.1 > a.1 { b } else { a });
+        let material = p
+            .material
+            .get(i)
+            .and_then(|&m| self.scene.materials.get(m as usize))
+            .map(|m| m.name.clone())
+            .unwrap_or_else(|| "?".into());
+        SimError::Stall(Box::new(Blowup {
+            step: self.step,
+            time: self.time,
+            particle: i,
+            position: p.x.get(i).copied().unwrap_or(Vec3::NAN),
+            velocity: p.v.get(i).copied().unwrap_or(Vec3::NAN),
+            material,
+            reason: format!(
+                "the CFL step is {dt:.3e} s, below time.min_dt = {min_dt:.3e} s (fastest \
+                 particle at {speed:.4e} m/s, sound speed {:.4e} m/s)",
+                self.max_sound_speed
+            ),
+            dt,
+        }))
     }
 
     /// One step of size `dt`.

@@ -139,32 +139,42 @@ __device__ __forceinline__ unsigned long long block_code(int bi, int bj, int bk)
 __device__ __forceinline__ int cell_code(int i, int j, int k) { return ((i & 3) << 4) | ((j & 3) << 2) | (k & 3); }
 __device__ __forceinline__ int nb_slot(int di, int dj, int dk) { return (di + 1) * 9 + (dj + 1) * 3 + (dk + 1); }
 
+// The word of field f of slot i in the state arrays (structure of arrays, stride cap). Computed in
+// 64 bits when the arrays hold 2^32 words or more (the host then defines RTMPM_STATE_64, for
+// capacities above 148M particles); in 32 bits otherwise, as cheap as before.
+#ifdef RTMPM_STATE_64
+typedef unsigned long long state_index_t;
+#else
+typedef unsigned state_index_t;
+#endif
+__device__ __forceinline__ state_index_t sidx(unsigned cap, int f, unsigned i) { return (state_index_t)f * cap + i; }
+
 __device__ __forceinline__ vec3 load_v3(const real* s, unsigned cap, int f, unsigned i) {
-    return make_v3(s[f * cap + i], s[(f + 1) * cap + i], s[(f + 2) * cap + i]);
+    return make_v3(s[sidx(cap, f, i)], s[sidx(cap, f + 1, i)], s[sidx(cap, f + 2, i)]);
 }
 __device__ __forceinline__ void store_v3(real* s, unsigned cap, int f, unsigned i, vec3 v) {
-    s[f * cap + i] = v.x; s[(f + 1) * cap + i] = v.y; s[(f + 2) * cap + i] = v.z;
+    s[sidx(cap, f, i)] = v.x; s[sidx(cap, f + 1, i)] = v.y; s[sidx(cap, f + 2, i)] = v.z;
 }
 __device__ __forceinline__ mat3 load_m3(const real* s, unsigned cap, int f, unsigned i) {
-    mat3 m; for (int c = 0; c < 9; ++c) m.m[c] = s[(f + c) * cap + i]; return m;
+    mat3 m; for (int c = 0; c < 9; ++c) m.m[c] = s[sidx(cap, f + c, i)]; return m;
 }
 __device__ __forceinline__ void store_m3(real* s, unsigned cap, int f, unsigned i, const mat3& m) {
-    for (int c = 0; c < 9; ++c) s[(f + c) * cap + i] = m.m[c];
+    for (int c = 0; c < 9; ++c) s[sidx(cap, f + c, i)] = m.m[c];
 }
 
 // The deformation gradient of particle i. A fluid's F is always J^(1/3) I (fluid_project; the
 // host uploads it in that form, src/state.rs), so the kernel variant for scenes that are all
-// fluid (ALL_FLUID in g2p_particle.cuh) reads one word of F and writes the three diagonal ones
+// fluid (ALL_FLUID in g2p/particle.cuh) reads one word of F and writes the three diagonal ones
 // (the zero off-diagonal words are never touched): 4 words moved for F per step instead of 18.
 __device__ __forceinline__ mat3 load_deformation(const real* s, unsigned cap, unsigned i, bool fluid) {
-    if (fluid) return mat3_diag(make_v3s(s[F_F * cap + i]));
+    if (fluid) return mat3_diag(make_v3s(s[sidx(cap, F_F, i)]));
     return load_m3(s, cap, F_F, i);
 }
 __device__ __forceinline__ void store_deformation(real* s, unsigned cap, unsigned i, const mat3& f, bool fluid) {
     if (fluid) {
-        s[F_F * cap + i] = f.m[0];
-        s[(F_F + 4) * cap + i] = f.m[4];
-        s[(F_F + 8) * cap + i] = f.m[8];
+        s[sidx(cap, F_F, i)] = f.m[0];
+        s[sidx(cap, F_F + 4, i)] = f.m[4];
+        s[sidx(cap, F_F + 8, i)] = f.m[8];
     } else {
         store_m3(s, cap, F_F, i, f);
     }

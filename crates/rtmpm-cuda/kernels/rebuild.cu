@@ -188,7 +188,7 @@ __device__ __forceinline__ void rb_scatter_body(const Ctx& c) {
     GRID_STRIDE(i, c.n) {
         unsigned key = c.pkey[i];
         unsigned dst = c.hist[key] + c.prank[i];
-        for (int f = 0; f < RTMPM_NFIELDS; ++f) c.scratch[f * c.cap + dst] = c.state[f * c.cap + i];
+        for (int f = 0; f < RTMPM_NFIELDS; ++f) c.scratch[sidx(c.cap, f, dst)] = c.state[sidx(c.cap, f, i)];
         unsigned g = key >> 6;
         unsigned start = c.hist[g * 64u];
         unsigned end = (g + 1 < c.ctl[CTL_GBLOCKS]) ? c.hist[(g + 1) * 64u] : c.n;
@@ -209,9 +209,8 @@ extern "C" __global__ void rb_scatter(Ctx c) {
 // Copy the sorted scratch back (the state pointer never changes, so a step can be captured in a
 // CUDA graph), and clear the rebuild flag.
 __device__ __forceinline__ void rb_copy_back_body(const Ctx& c) {
-    GRID_STRIDE(t, c.n * RTMPM_NFIELDS) {
-        unsigned f = t / c.n, i = t % c.n;
-        c.state[f * c.cap + i] = c.scratch[f * c.cap + i];
+    for (int f = 0; f < RTMPM_NFIELDS; ++f) {  // field by field: n * NFIELDS may pass 2^32
+        GRID_STRIDE(i, c.n) c.state[sidx(c.cap, f, i)] = c.scratch[sidx(c.cap, f, i)];
     }
 }
 extern "C" __global__ void rb_copy_back(Ctx c) {

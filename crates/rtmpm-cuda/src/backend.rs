@@ -164,8 +164,17 @@ impl CudaBackend {
         let tables = encode::tables(scene, options.f64)?;
 
         // The program, compiled for this GPU (or from the cache), and its kernels.
-        // Compiled for this GPU and for the scene's models only (a smaller material switch).
+        // Capacities from the initial mapping.
+        let n = particles.len();
+        let bases = capacity::bases(scene, particles);
+        let mut layout = BlockLayout::default();
+        layout.rebuild(&bases);
+        let cap = Capacity::plan(scene, n, part.capacity, &layout, &options);
+
+        // Compiled for this GPU, the state's index width (64 bits past 2^32 words), and with
+        // specialize=on the scene's models only (a smaller material switch).
         let ptx = compile(&KernelOptions {
+            state64: crate::compile::state_needs_64_bits(cap.particles),
             arch: info.compute_capability,
             fast_math: options.fast_math,
             f64: options.f64,
@@ -189,27 +198,15 @@ impl CudaBackend {
             .map_err(err("load module"))?;
         let kernels = Kernels::load(&module, info.sm_count, options.fused_rebuild)?;
 
-        // Capacities from the initial mapping.
-        let n = particles.len();
-        let bases = capacity::bases(scene, particles);
-        let mut layout = BlockLayout::default();
-        layout.rebuild(&bases);
-        let cap = Capacity::plan(scene, n, part.capacity, &layout, &options);
-
         // The particle state (a fluid's F packed as J^(1/3) I) and every buffer.
         let fluid: Vec<bool> = scene
             .materials
             .iter()
             .map(|m| matches!(m.model, Model::Fluid(_)))
             .collect();
-        let state = crate::state::pack(
-            particles,
-            &fluid,
-            options.f64,
-            cap.particles,
-            part.ids.as_deref(),
-        )
-        .map_err(SimError::Backend)?;
+        // Packed with stride n; buffers::allocate places each field at its stride-cap offset.
+        let state = crate::state::pack(particles, &fluid, options.f64, n, part.ids.as_deref())
+            .map_err(SimError::Backend)?;
         // G2P2G where it applies (see CudaOptions::g2p2g): not when every step rebuilds (the
         // fused scatter would always be redone).
         let g2p2g = options.g2p2g

@@ -48,8 +48,10 @@ pub struct Buffers {
     _rest: Vec<CudaSlice<u8>>,
 }
 
-/// Allocate every buffer of a GPU for `cap`, upload the particle state (`state`, already packed
-/// by [`crate::state::pack`]) and the scene's tables, and build the context.
+/// Allocate every buffer of a GPU for `cap`, upload the particle state (`state`: the particles
+/// packed by [`crate::state::pack`] with stride `needs.particles`, placed field by field into the
+/// arrays of stride `cap.particles`, so the host never holds the capacity's empty slots) and the
+/// scene's tables, and build the context.
 pub fn allocate(
     stream: &Arc<CudaStream>,
     scene: &Scene,
@@ -69,7 +71,8 @@ pub fn allocate(
         rest.push(b);
         Ok(p)
     };
-    let scratch = zeros(state.len(), "alloc scratch")?;
+    let state_bytes = NFIELDS * cap.particles * rb;
+    let scratch = zeros(state_bytes, "alloc scratch")?;
     let hash_keys = zeros(cap.hash * 8, "alloc hash")?;
     let hash_values = zeros(cap.hash * 4, "alloc hash")?;
     let neighbors = zeros(cap.gblocks * 27 * 4, "alloc neighbour lists")?;
@@ -98,7 +101,19 @@ pub fn allocate(
     let colliders = upload(bytemuck::cast_slice(&tables.colliders), "upload colliders")?;
     let mesh_values = upload(bytemuck::cast_slice(&tables.mesh), "upload meshes")?;
 
-    let state = s.clone_htod(state).map_err(err("upload particles"))?;
+    let mut state_buf = s
+        .alloc_zeros::<u8>(state_bytes)
+        .map_err(err("alloc particle state"))?;
+    let row = n * rb;
+    for f in 0..NFIELDS {
+        let at = f * cap.particles * rb;
+        s.memcpy_htod(
+            &state[f * row..(f + 1) * row],
+            &mut state_buf.slice_mut(at..at + row),
+        )
+        .map_err(err("upload particles"))?;
+    }
+    let state = state_buf;
     let grid = s.alloc_zeros::<u8>(grid_bytes).map_err(err("alloc grid"))?;
     let grid_next = if needs.grid_next {
         Some(
@@ -170,7 +185,7 @@ pub fn allocate(
         always_rebuild: (!options.free_zone || !options.mixed_sort) as u32,
         pad: 0,
     };
-    debug_assert_eq!(state.len(), NFIELDS * cap.particles * rb);
+    debug_assert_eq!(state.len(), state_bytes);
     Ok((
         Buffers {
             state,

@@ -20,6 +20,15 @@ pub struct KernelOptions {
     /// The material models the program must handle: bit k for kind code k
     /// (`rtmpm_core::material::Model::code`); `u32::MAX`: every model.
     pub materials: u32,
+    /// Index the state arrays in 64 bits (`RTMPM_STATE_64`): needed from 2^32 words on
+    /// ([`state_needs_64_bits`]).
+    pub state64: bool,
+}
+
+/// True when state arrays of `capacity` particles hold 2^32 words or more: their indices
+/// (`field * capacity + slot`) need 64 bits (a capacity of 148.1M particles or more).
+pub fn state_needs_64_bits(capacity: usize) -> bool {
+    (crate::contract::NFIELDS as u64) * capacity as u64 >= 1 << 32
 }
 
 impl KernelOptions {
@@ -30,6 +39,7 @@ impl KernelOptions {
             fast_math,
             f64,
             materials: u32::MAX,
+            state64: false,
         }
     }
 }
@@ -121,6 +131,9 @@ pub fn nvrtc_options(o: &KernelOptions) -> Vec<String> {
     ];
     if o.fast_math {
         v.push("--use_fast_math".into());
+    }
+    if o.state64 {
+        v.push("-DRTMPM_STATE_64".into());
     }
     if o.materials != u32::MAX {
         v.push(format!("-DRTMPM_MATERIAL_MASK={:#x}u", o.materials));
@@ -309,8 +322,17 @@ mod tests {
             println!("skipped: libnvrtc.so.13 not found (pip install nvidia-cuda-nvrtc==13.0.*)");
             return;
         }
-        for (fast_math, f64) in [(true, false), (false, false), (true, true), (false, true)] {
-            let o = KernelOptions::all_models((9, 0), fast_math, f64);
+        for (fast_math, f64, state64) in [
+            (true, false, false),
+            (false, false, false),
+            (true, true, false),
+            (false, true, false),
+            (true, false, true),
+        ] {
+            let o = KernelOptions {
+                state64,
+                ..KernelOptions::all_models((9, 0), fast_math, f64)
+            };
             let ptx = compile_fresh(&o).unwrap_or_else(|e| panic!("{o:?}: {e}"));
             for k in crate::kernels::Kernel::ALL {
                 assert!(
@@ -327,6 +349,24 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn state_indices_switch_to_64_bits_at_2_pow_32_words() {
+        // 29 fields: 148,102,320 particles hold 4,294,967,280 words; one more passes 2^32.
+        assert_eq!(crate::contract::NFIELDS, 29);
+        assert!(!state_needs_64_bits(148_102_320));
+        assert!(state_needs_64_bits(148_102_321));
+        assert!(state_needs_64_bits(500_000_000));
+        let o = KernelOptions {
+            state64: true,
+            ..KernelOptions::all_models((9, 0), true, false)
+        };
+        assert!(nvrtc_options(&o).contains(&"-DRTMPM_STATE_64".to_string()));
+        assert!(
+            !nvrtc_options(&KernelOptions::all_models((9, 0), true, false))
+                .contains(&"-DRTMPM_STATE_64".to_string())
+        );
     }
 
     #[test]

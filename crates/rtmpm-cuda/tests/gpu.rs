@@ -452,3 +452,45 @@ fn bench_times_the_musl_step_of_a_musl_scene() {
         "{t:?}"
     );
 }
+
+/// The state arrays past 2^32 words (capacity above 148.1M particles: their indices are 64-bit,
+/// `RTMPM_STATE_64`): a small scene stepped in arrays of 160M slots gives exactly what it gives in
+/// arrays sized to it. With 32-bit indices the fields past the boundary would alias others
+/// (the crash of a 187.6M-particle scene, issue 19). 37 GB of state and scratch on the GPU.
+#[test]
+#[ignore = "needs a CUDA GPU with 40 GB"]
+fn state_arrays_past_two_to_the_32_words_index_in_64_bits() {
+    if !gpu() {
+        return;
+    }
+    let big = 160_000_000;
+    assert!(rtmpm_cuda::compile::state_needs_64_bits(big));
+    let s = scene(1.0 / 32.0);
+    let p = block(&s, Vec3::new(0.2, 0.2, 0.2), Vec3::new(0.5, 0.6, 0.5));
+    let run = |capacity: usize| -> Particles {
+        let part = rtmpm_cuda::backend::Part {
+            capacity,
+            ..Default::default()
+        };
+        let mut b = CudaBackend::new_part(&s, &p, &part, CudaOptions::default()).expect("backend");
+        for i in 0..40 {
+            b.step(2e-4, i as f32 * 2e-4).expect("step");
+        }
+        assert_eq!(b.check().expect("check"), None);
+        let mut out = Particles::default();
+        b.read_particles(&mut out).expect("read");
+        out
+    };
+    let (small, large) = (run(0), run(big));
+    // The same up to the order of the atomic sums of P2G (not deterministic on the GPU).
+    assert_eq!(small.material, large.material);
+    let dx = s.dx;
+    for i in 0..small.len() {
+        assert!(
+            (small.x[i] - large.x[i]).length() < 1e-4 * dx,
+            "particle {i}: x"
+        );
+        assert!((small.v[i] - large.v[i]).length() < 1e-3, "particle {i}: v");
+        assert_eq!(small.mass[i], large.mass[i]);
+    }
+}

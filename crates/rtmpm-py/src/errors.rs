@@ -113,6 +113,22 @@ pub fn sim_error(py: Python<'_>, e: &SimError) -> PyErr {
                  softer material (lower stiffness) at this resolution",
             );
         }
+        SimError::Stall(b) => {
+            let _ = v.setattr("kind", "stall");
+            let _ = v.setattr("step", b.step);
+            let _ = v.setattr("time", b.time);
+            let _ = v.setattr("dt", b.dt);
+            let _ = v.setattr("particle", b.particle);
+            let _ = v.setattr("material", b.material.as_str());
+            let _ = v.setattr("position", b.position.to_array());
+            let _ = v.setattr("velocity", b.velocity.to_array());
+            let _ = v.setattr("reason", b.reason.as_str());
+            let _ = v.setattr(
+                "advice",
+                "the CFL step fell below time.min_dt: lower the body's velocity, use a fixed \
+                 time.dt or a softer material; or lower time.min_dt if the speed is intended",
+            );
+        }
         SimError::Backend(m) => {
             let _ = v.setattr("kind", "backend");
             let _ = v.setattr("reason", m.as_str());

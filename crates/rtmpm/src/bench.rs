@@ -14,7 +14,8 @@ use std::time::Instant;
 
 #[derive(Args)]
 pub struct BenchArgs {
-    /// Grid resolution n (dx = 1/n, n^3/4 particles).
+    /// Grid resolution n (dx = 1/n, n^3/4 particles), 20 to 584: below 20 the 3-cell walls
+    /// reach into the block at 0.15, above 584 the block exceeds 50M particles.
     #[arg(long, default_value_t = 64)]
     pub n: u32,
     /// Timed steps (after warm-up).
@@ -98,8 +99,13 @@ pub fn bench(args: BenchArgs) -> Result<()> {
     let (scene, label) = match &args.scene {
         Some(path) => (Scene::from_file(path)?, format!("scene {}", path.display())),
         None => {
-            if !(8..=1024).contains(&args.n) {
-                bail!("--n {} is out of range: use 8..=1024", args.n);
+            if !(20..=584).contains(&args.n) {
+                bail!(
+                    "--n {} is out of range: use 20..=584 (below 20 the walls, 3 cells thick, \
+                     reach into the fluid block at 0.15; above 584 the block's n^3/4 particles \
+                     exceed the 50M allowed per body)",
+                    args.n
+                );
             }
             let text = fluid_block_scene(args.n);
             let label = format!("MLS-MPM fluid block, n = {} (dx = 1/{})", args.n, args.n);
@@ -115,6 +121,8 @@ pub fn bench(args: BenchArgs) -> Result<()> {
     };
     let per_frame = (1.0 / (scene.time.fps as f64 * dt as f64)).round() as u64;
     let steps = args.frames.map_or(args.steps, |f| f * per_frame);
+    // Memory first: a scene that cannot fit is refused before it is sampled.
+    crate::budget::enforce(&scene, Some(1), None)?;
     let particles = scene.sample_particles()?;
     let n = particles.len();
     let use_cuda = match args.backend {

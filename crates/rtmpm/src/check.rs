@@ -1,12 +1,19 @@
-//! `rtmpm check SCENE`: validate without running.
+//! `rtmpm check SCENE`: validate without running, and print the run's budget.
 
 use anyhow::Result;
 use rtmpm_core::Scene;
+use rtmpm_core::scene::sampling;
 use std::path::Path;
 
 pub fn check(path: &Path) -> Result<()> {
     let scene = Scene::from_file(path)?;
-    let particles = scene.sample_particles()?;
+    // The budget first: a scene that cannot fit is refused before anything is sampled.
+    let budget = crate::budget::enforce(&scene, None, Some(&scene.output.dir))?;
+    // Particles are counted, not stored, so `check` needs no memory for them.
+    let mut per_material = vec![0u64; scene.materials.len()];
+    for (i, b) in scene.bodies.iter().enumerate() {
+        per_material[b.material as usize] += sampling::count_body(&scene, i)?;
+    }
     let [nx, ny, nz] = scene.n_cells();
     println!("{}: ok", path.display());
     println!("  name        {}", scene.name);
@@ -27,12 +34,7 @@ pub fn check(path: &Path) -> Result<()> {
         scene.time.frames(),
         scene.time.step
     );
-    for (i, m) in scene.materials.iter().enumerate() {
-        let n = particles
-            .material
-            .iter()
-            .filter(|&&id| id as usize == i)
-            .count();
+    for (m, n) in scene.materials.iter().zip(&per_material) {
         println!(
             "  material    {} ({}, density {} kg/m^3): {n} particles",
             m.name,
@@ -42,7 +44,8 @@ pub fn check(path: &Path) -> Result<()> {
     }
     println!("  solver      {}", scene.solver.describe());
     println!("  colliders   {}", scene.colliders.len());
-    println!("  particles   {}", particles.len());
+    println!("  particles   {}", per_material.iter().sum::<u64>());
     println!("  precision   {}", scene.precision.name());
+    println!("{}", budget.describe());
     Ok(())
 }

@@ -2,10 +2,12 @@
 
 mod backend;
 mod bench;
+mod budget;
 mod check;
 mod info;
 mod mesh;
 mod multi;
+mod outdir;
 mod output;
 mod render;
 mod run;

@@ -73,6 +73,14 @@ pub fn mesh_cmd(args: MeshArgs) -> Result<()> {
         bail!("no folder given: rtmpm mesh OUTDIR (or rtmpm mesh --bench)")
     };
     let formats = formats(&args.formats)?;
+    if !dir.is_dir() {
+        bail!(
+            "cannot read folder {}: it is not a folder (give the output folder of a run)",
+            dir.display()
+        );
+    }
+    // Meshes are written into the folder: not while a run writes into it.
+    let _lock = crate::outdir::OutDir::lock(dir, "rtmpm mesh")?;
     let frames = crate::render::ply_frames(dir)?;
     if frames.is_empty() {
         bail!(

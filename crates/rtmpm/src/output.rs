@@ -14,6 +14,28 @@ pub struct FrameOutput {
     pub dir: PathBuf,
     pvd: Option<PvdWriter>,
     surfaces: Option<SurfaceOutput>,
+    /// `comment` line of every PLY header naming the run (see `outdir::scene_identity`), so
+    /// that `rtmpm render` never mixes the frames of two runs.
+    run_comment: String,
+}
+
+/// The PLY comment that names the run a frame belongs to.
+pub const RUN_COMMENT_PREFIX: &str = "rtmpm-run ";
+
+/// A fresh `.pvd` collection at `path`, or, when `resume_time` is given, the existing one
+/// continued (entries before that time kept; an unreadable one is an error, never silently
+/// replaced).
+fn open_pvd(path: &Path, resume_time: Option<f64>) -> Result<PvdWriter> {
+    Ok(match resume_time {
+        None => PvdWriter::new(path).with_context(|| format!("writing {}", path.display()))?,
+        Some(t) => PvdWriter::resume(path, t).with_context(|| {
+            format!(
+                "cannot continue {} (the frames themselves are intact); move it away to start \
+                 a new collection from the resumed frames",
+                path.display()
+            )
+        })?,
+    })
 }
 
 /// Writes the surface meshes of a run (`surface_NNNNN.{obj,ply,vtu}`, `surface.pvd`).
@@ -26,12 +48,14 @@ pub struct SurfaceOutput {
 }
 
 impl SurfaceOutput {
-    /// Start the series in `dir` (fails when this build cannot reconstruct surfaces).
+    /// Start the series in `dir`, or continue it after resuming at `resume_time` (see
+    /// [`FrameOutput::new`]); fails when this build cannot reconstruct surfaces.
     pub fn new(
         dir: &Path,
         formats: MeshFormats,
         settings: SurfaceSettings,
         compress: bool,
+        resume_time: Option<f64>,
     ) -> Result<SurfaceOutput> {
         if !rtmpm_core::surface::AVAILABLE {
             bail!(
@@ -39,10 +63,7 @@ impl SurfaceOutput {
             );
         }
         let pvd = match formats.vtu {
-            true => {
-                let path = dir.join("surface.pvd");
-                Some(PvdWriter::new(&path).with_context(|| format!("writing {}", path.display()))?)
-            }
+            true => Some(open_pvd(&dir.join("surface.pvd"), resume_time)?),
             false => None,
         };
         Ok(SurfaceOutput {
@@ -52,18 +73,6 @@ impl SurfaceOutput {
             compress,
             pvd,
         })
-    }
-
-    /// Continue after resuming at `time`.
-    fn resume(&mut self, time: f64) -> Result<()> {
-        if self.pvd.is_some() {
-            let path = self.dir.join("surface.pvd");
-            self.pvd = Some(
-                PvdWriter::resume(&path, time)
-                    .with_context(|| format!("reading {}", path.display()))?,
-            );
-        }
-        Ok(())
     }
 
     /// Reconstruct the surface of `p` and write it as frame `frame`; returns the mesh.
@@ -130,15 +139,18 @@ pub fn write_mesh(
 }
 
 impl FrameOutput {
-    /// Create the output folder.
-    pub fn new(dir: &Path, scene: &Scene) -> Result<FrameOutput> {
+    /// Start writing frames into `dir` (created): fresh `frames.pvd` and `surface.pvd`, or,
+    /// when `resume_time` is given, the existing ones continued (see [`open_pvd`]).
+    pub fn new(
+        dir: &Path,
+        scene: &Scene,
+        identity: &str,
+        resume_time: Option<f64>,
+    ) -> Result<FrameOutput> {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("cannot create output folder {}", dir.display()))?;
         let pvd = match scene.output.vtu {
-            true => {
-                let path = dir.join("frames.pvd");
-                Some(PvdWriter::new(&path).with_context(|| format!("writing {}", path.display()))?)
-            }
+            true => Some(open_pvd(&dir.join("frames.pvd"), resume_time)?),
             false => None,
         };
         let o = &scene.output;
@@ -148,6 +160,7 @@ impl FrameOutput {
                 o.surface_formats,
                 o.surface.clone(),
                 o.compress,
+                resume_time,
             )?),
             false => None,
         };
@@ -155,22 +168,8 @@ impl FrameOutput {
             dir: dir.to_path_buf(),
             pvd,
             surfaces,
+            run_comment: format!("{RUN_COMMENT_PREFIX}{identity}"),
         })
-    }
-
-    /// Continue a series after resuming at `time`.
-    pub fn resume(&mut self, time: f64) -> Result<()> {
-        if self.pvd.is_some() {
-            let path = self.dir.join("frames.pvd");
-            self.pvd = Some(
-                PvdWriter::resume(&path, time)
-                    .with_context(|| format!("reading {}", path.display()))?,
-            );
-        }
-        if let Some(s) = self.surfaces.as_mut() {
-            s.resume(time)?;
-        }
-        Ok(())
     }
 
     /// Write frame `frame` at simulated `time`; returns the surface mesh when one was made.
@@ -194,7 +193,7 @@ impl FrameOutput {
         let path = |ext: &str| self.dir.join(format!("frame_{frame:05}.{ext}"));
         if o.ply {
             let path = path("ply");
-            ply::write_ply(&path, p, &fields)
+            ply::write_ply_with_comments(&path, p, &fields, &[&self.run_comment])
                 .with_context(|| format!("writing {}", path.display()))?;
         }
         for (on, ext, gz) in [(o.bgeo, "bgeo", false), (o.bgeo_gz, "bgeo.gz", true)] {

@@ -619,6 +619,14 @@ pub fn render_cmd(args: RenderArgs) -> Result<()> {
     {
         bail!("--fps must be positive, got {fps}");
     }
+    if !dir.is_dir() {
+        bail!(
+            "cannot read folder {}: it is not a folder (give the output folder of a run)",
+            dir.display()
+        );
+    }
+    // Images are written into the folder: not while a run writes into it.
+    let _lock = crate::outdir::OutDir::lock(dir, "rtmpm render")?;
     let frames = ply_frames(dir)?;
     if frames.is_empty() {
         bail!(
@@ -642,8 +650,34 @@ pub fn render_cmd(args: RenderArgs) -> Result<()> {
         }
         _ => None,
     };
+    // Only one run's frames make one movie: every frame must name the run of the first (the
+    // PLY comment rtmpm writes) and hold as many particles.
+    let first_run = std::cell::RefCell::new(None::<(u64, Option<String>, usize)>);
     let read = |num: u64, path: &Path| -> Result<FrameJob> {
         let d = read_ply(path).with_context(|| format!("reading {}", path.display()))?;
+        let run = d
+            .comments
+            .iter()
+            .find_map(|c| c.strip_prefix(crate::output::RUN_COMMENT_PREFIX))
+            .map(str::to_string);
+        let mut first = first_run.borrow_mut();
+        match &*first {
+            None => *first = Some((num, run, d.count)),
+            Some((f, r, count)) => {
+                if *r != run || *count != d.count {
+                    bail!(
+                        "{} holds frames of two runs: frame {f} ({}, {count} particles) and \
+                         frame {num} ({}, {} particles); a movie is made of one run\n  fix: \
+                         move one run's frame files to another folder (or rerun the scene with \
+                         --overwrite)",
+                        dir.display(),
+                        r.as_deref().unwrap_or("run unknown"),
+                        run.as_deref().unwrap_or("run unknown"),
+                        d.count
+                    );
+                }
+            }
+        }
         let mut job = FrameJob::from_ply(num, &d, color_by, path)?;
         if let (Some(vol), Some(sc)) = (surface_volume, &scene) {
             job = job.with_surface(&sc.output.surface, vol, None);

@@ -1,12 +1,14 @@
 //! `rtmpm run SCENE`: simulate frames with a progress bar, write output, checkpoints.
 
 use crate::backend::{BackendKind, make_backend};
+use crate::outdir::{OutDir, scene_identity};
 use crate::output::FrameOutput;
 use crate::render::RunRenderer;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use rtmpm_core::io::checkpoint::Checkpoint;
+use rtmpm_core::io::limits::{SCENE_MAX_BYTES, read_text_bounded};
 use rtmpm_core::sim::Simulation;
 use rtmpm_core::{Particles, Scene};
 use std::path::{Path, PathBuf};
@@ -48,6 +50,10 @@ pub struct RunArgs {
     /// Write no frame files (for timing).
     #[arg(long)]
     pub no_output: bool,
+    /// Remove the files of a previous run in the output folder first (frames, frames.pvd,
+    /// checkpoints, movies; nothing else). Without it a folder holding another run is refused.
+    #[arg(long)]
+    pub overwrite: bool,
     /// Render every frame to OUT/frame_NNNNN.png while simulating, then movie.gif (and
     /// movie.mp4 when ffmpeg is on the PATH).
     #[arg(long)]
@@ -71,6 +77,8 @@ pub fn run(args: RunArgs) -> Result<()> {
                 .parent()
                 .unwrap_or(Path::new(""));
             let scene = Scene::from_toml_in(&ckpt.scene_toml, &ckpt.scene_origin, base)?;
+            ckpt.check_scene(&scene)
+                .with_context(|| format!("cannot resume from {}", ckpt_path.display()))?;
             (
                 scene,
                 ckpt.particles,
@@ -81,24 +89,48 @@ pub fn run(args: RunArgs) -> Result<()> {
             let Some(path) = &args.scene else {
                 bail!("no scene given: rtmpm run SCENE (or --resume CKPT)")
             };
-            let scene = Scene::from_file(path)?;
-            let particles = scene.sample_particles()?;
-            (scene, particles, None)
+            (Scene::from_file(path)?, Particles::default(), None)
         }
     };
     let scene_text = match (&resume_state, &args.scene) {
         (Some((_, _, _, text)), _) => text.clone(),
-        (None, Some(path)) => {
-            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?
-        }
+        (None, Some(path)) => read_text_bounded(path, SCENE_MAX_BYTES, "scene file")
+            .with_context(|| format!("reading {}", path.display()))?,
         (None, None) => String::new(),
     };
     let mut scene = scene;
     if let Some(p) = args.precision {
         scene.precision = p;
     }
-    let n = particles.len();
     let out_dir = args.out.clone().unwrap_or_else(|| scene.output.dir.clone());
+    // Multi-process runs: rank 0 writes the files; every rank gathers the particles at the same
+    // points (a collective), so every rank must be given the same options.
+    let writer = args.multi.writes_output();
+    let writes_frames = writer && !args.no_output;
+    // The budget before anything is sampled or allocated: refused with numbers and a fix.
+    crate::budget::enforce(
+        &scene,
+        args.frames,
+        writes_frames.then_some(out_dir.as_path()),
+    )?;
+    // The output folder: locked for this run, and holding no other run's files.
+    let identity = scene_identity(&scene.name, &scene_text);
+    // Held (the lock) until the run ends.
+    let _folder = if writer && (writes_frames || args.render || args.checkpoint_every.is_some()) {
+        let folder = OutDir::lock(&out_dir, &format!("rtmpm run of `{}`", scene.name))?;
+        match &resume_state {
+            None => folder.start_fresh(&identity, args.overwrite)?,
+            Some((_, _, frame, _)) => folder.start_resume(&identity, *frame, args.overwrite)?,
+        }
+        Some(folder)
+    } else {
+        None
+    };
+    let particles = match resume_state {
+        Some(_) => particles,
+        None => scene.sample_particles()?,
+    };
+    let n = particles.len();
     let mode = args.multi.mode()?;
     let backend = if mode == crate::multi::Mode::Single {
         make_backend(
@@ -115,23 +147,26 @@ pub fn run(args: RunArgs) -> Result<()> {
         args.multi
             .backend(mode, &scene, &particles, &args.cuda_options)?
     };
-    // Multi-process runs: rank 0 writes the files; every rank gathers the particles at the same
-    // points (a collective), so every rank must be given the same options.
-    let writer = args.multi.writes_output();
     let collect = !args.no_output || args.render || args.preview.is_some();
     let mut sim = Simulation::new(scene, backend);
-    let mut output = if args.no_output || !writer {
-        None
+    // Entries of frames.pvd up to the checkpoint's own frame are kept: half a frame later.
+    let resume_time = resume_state
+        .as_ref()
+        .map(|(time, ..)| *time + 0.5 / sim.scene.time.fps as f64);
+    let mut output = if writes_frames {
+        Some(FrameOutput::new(
+            &out_dir,
+            &sim.scene,
+            &identity,
+            resume_time,
+        )?)
     } else {
-        Some(FrameOutput::new(&out_dir, &sim.scene)?)
+        None
     };
     if let Some((time, step, frame, _)) = &resume_state {
         sim.time = *time;
         sim.step = *step;
         sim.frame = *frame;
-        if let Some(out) = output.as_mut() {
-            out.resume(*time)?;
-        }
     }
     let total_frames = args.frames.unwrap_or_else(|| sim.scene.time.frames());
     eprintln!(
@@ -179,13 +214,23 @@ pub fn run(args: RunArgs) -> Result<()> {
     let start = Instant::now();
     let start_step = sim.step;
     let mut stopped_by_steps = false;
+    let mut progress = Progress::new(n, total_frames);
     while sim.frame < total_frames {
         let left = args
             .steps
             .map_or(u64::MAX, |max| max.saturating_sub(sim.step - start_step));
-        if !sim.advance(left)? {
-            stopped_by_steps = true;
-            break;
+        // Steps in chunks of about a second, so that progress shows inside long frames.
+        let chunk = progress.chunk();
+        let t0 = Instant::now();
+        let done = sim.advance(left.min(chunk))?;
+        progress.chunk_took(t0.elapsed().as_secs_f64());
+        progress.tick(&sim, start_step);
+        if !done {
+            if sim.step - start_step >= args.steps.unwrap_or(u64::MAX) {
+                stopped_by_steps = true;
+                break;
+            }
+            continue;
         }
         let elapsed = start.elapsed().as_secs_f64();
         let rate = (sim.step - start_step) as f64 * n as f64 / elapsed.max(1e-9);
@@ -264,6 +309,70 @@ pub fn run(args: RunArgs) -> Result<()> {
         println!("  render       {r}");
     }
     Ok(())
+}
+
+/// Periodic progress lines on stderr when it is not a terminal (a log file, a pipe, a batch
+/// job), where the progress bar does not show: every `RTMPM_PROGRESS_SECONDS` (default 10).
+struct Progress {
+    particles: usize,
+    frames: u64,
+    every: Option<f64>,
+    started: Instant,
+    last: Instant,
+    chunk: u64,
+}
+
+impl Progress {
+    fn new(particles: usize, frames: u64) -> Progress {
+        use std::io::IsTerminal;
+        let every = std::env::var("RTMPM_PROGRESS_SECONDS")
+            .ok()
+            .and_then(|s| s.parse::<f64>().ok())
+            .filter(|s| s.is_finite() && *s >= 0.0)
+            .unwrap_or(10.0);
+        Progress {
+            particles,
+            frames,
+            every: (!std::io::stderr().is_terminal()).then_some(every),
+            started: Instant::now(),
+            last: Instant::now(),
+            chunk: 1,
+        }
+    }
+
+    /// Steps to take before looking at the clock again.
+    fn chunk(&self) -> u64 {
+        self.chunk
+    }
+
+    /// Grow the chunk while a chunk takes under a quarter of a second, shrink it above one.
+    fn chunk_took(&mut self, seconds: f64) {
+        if seconds < 0.25 {
+            self.chunk = (self.chunk * 2).min(1 << 16);
+        } else if seconds > 1.0 {
+            self.chunk = (self.chunk / 2).max(1);
+        }
+    }
+
+    fn tick(&mut self, sim: &Simulation, start_step: u64) {
+        let Some(every) = self.every else { return };
+        if self.last.elapsed().as_secs_f64() < every {
+            return;
+        }
+        self.last = Instant::now();
+        let elapsed = self.started.elapsed().as_secs_f64();
+        let rate = (sim.step - start_step) as f64 * self.particles as f64 / elapsed.max(1e-9);
+        eprintln!(
+            "progress: frame {}/{}, t = {:.6} s, dt = {:.3e} s, step {}, {}, elapsed {:.0} s",
+            sim.frame,
+            self.frames,
+            sim.time,
+            sim.last_dt,
+            sim.step,
+            human_rate(rate),
+            elapsed
+        );
+    }
 }
 
 /// Particle-steps per second in human units.

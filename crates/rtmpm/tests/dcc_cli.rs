@@ -119,3 +119,74 @@ fn mesh_needs_frames() {
         text(&o)
     );
 }
+
+/// Every file of issue 15's formats belongs to the folder's run (issue 18's output folders):
+/// a resume continues `surface.pvd` and writes the later frames again, an unreadable
+/// `surface.pvd` stops the resume before anything is removed, and `--overwrite` removes BGEO,
+/// USD and surface files with the rest.
+#[cfg(feature = "surface")]
+#[test]
+fn bgeo_usd_and_surface_files_belong_to_the_folders_run() {
+    use std::fs;
+    let dir = scratch("dcc-folder");
+    let out = dir.join("out");
+    let scene = fs::read_to_string(data("small_drop.toml"))
+        .unwrap()
+        .replace(
+            "formats = [\"ply\", \"vtu\"]",
+            "formats = [\"ply\", \"bgeo.gz\", \"usda\"]\nsurface = [\"obj\", \"vtu\"]",
+        );
+    let scene_path = dir.join("drop.toml");
+    fs::write(&scene_path, scene).unwrap();
+    let run = |extra: &[&str]| {
+        let mut args = vec!["run"];
+        if !extra.contains(&"--resume") {
+            args.push(scene_path.to_str().unwrap());
+        }
+        args.extend(["--backend", "cpu", "--out", out.to_str().unwrap()]);
+        args.extend_from_slice(extra);
+        rtmpm(&args)
+    };
+    let o = run(&["--checkpoint-every", "2"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let surface1 = fs::read(out.join("surface_00001.obj")).unwrap();
+    let bgeo4 = fs::read(out.join("frame_00004.bgeo.gz")).unwrap();
+    assert!(out.join("frame_00004.usda").exists() && out.join("surface_00004.vtu").exists());
+
+    // Resume after frame 2: frames 3 and 4 are written again (BGEO bit-identical on the CPU),
+    // frame 1 untouched, surface.pvd lists frames 0..=4 once each.
+    let ckpt = out.join("checkpoint_00002.ckpt");
+    fs::remove_file(out.join("surface_00004.obj")).unwrap();
+    let o = run(&["--resume", ckpt.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(fs::read(out.join("surface_00001.obj")).unwrap(), surface1);
+    assert_eq!(fs::read(out.join("frame_00004.bgeo.gz")).unwrap(), bgeo4);
+    assert!(out.join("surface_00004.obj").exists());
+    let pvd = fs::read_to_string(out.join("surface.pvd")).unwrap();
+    assert_eq!(pvd.matches("<DataSet").count(), 5, "{pvd}");
+
+    // An unreadable surface.pvd: the resume is refused, the file and the frames stay.
+    fs::write(out.join("surface.pvd"), "garbage").unwrap();
+    let o = run(&["--resume", ckpt.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("surface.pvd"), "{}", text(&o));
+    assert_eq!(
+        fs::read_to_string(out.join("surface.pvd")).unwrap(),
+        "garbage"
+    );
+    assert!(out.join("frame_00004.bgeo.gz").exists());
+
+    // A fresh run of another scene with --overwrite: no file of the old run is left.
+    let plain = fs::read_to_string(data("small_drop.toml")).unwrap();
+    fs::write(&scene_path, plain).unwrap();
+    let o = run(&["--frames", "1"]);
+    assert!(!o.status.success(), "{}", text(&o));
+    let o = run(&["--frames", "1", "--overwrite"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let left: Vec<String> = fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.contains("bgeo") || n.contains("usda") || n.starts_with("surface"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}

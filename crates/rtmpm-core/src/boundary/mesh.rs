@@ -49,10 +49,12 @@ impl TriMesh {
     /// translate: `x' = x * scale + translate`.
     pub fn load_obj(path: &Path, scale: Vec3, translate: Vec3) -> Result<TriMesh, MeshError> {
         let name = path.display().to_string();
-        let bytes = std::fs::read(path).map_err(|source| MeshError::Io {
-            path: name.clone(),
-            source,
-        })?;
+        let bytes =
+            crate::io::limits::read_bounded(path, crate::io::limits::MESH_MAX_BYTES, "mesh file")
+                .map_err(|source| MeshError::Io {
+                path: name.clone(),
+                source,
+            })?;
         Self::parse_obj(&bytes, &name, scale, translate)
     }
 

@@ -33,6 +33,9 @@ use crate::transfer::{SolverSettings, Transfer, Update};
 /// Grid nodes of padding below the domain's min corner (one block), so indices stay non-negative.
 pub const GRID_PAD: i32 = 4;
 
+/// Most worker threads a CPU backend starts (`--threads`).
+pub const MAX_THREADS: usize = 1024;
+
 /// Read-only per-scene constants of a step.
 #[derive(Clone, Debug)]
 pub struct StepConstants {
@@ -124,6 +127,14 @@ impl CpuBackend {
         particles: sim::Particles,
         threads: Option<usize>,
     ) -> Result<Self, SimError> {
+        if let Some(n) = threads
+            && n > MAX_THREADS
+        {
+            return Err(SimError::Backend(format!(
+                "{n} CPU threads is more than the {MAX_THREADS} allowed; give --threads 1 to \
+                 {MAX_THREADS} (default: one per core)"
+            )));
+        }
         let particles = real::particles(particles);
         let pool = match threads {
             Some(n) => Some(

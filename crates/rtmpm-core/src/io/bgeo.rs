@@ -24,12 +24,12 @@
 //! the bytes present before it allocates: a truncated or hostile file is an error, never a
 //! panic or a huge allocation.
 
-use std::fs;
 use std::io::{self, Read, Write};
 use std::path::Path;
 
 use super::FrameFields;
 use super::atomic::write_atomic_with;
+use super::limits::{DATA_MAX_BYTES, decompressed_limit, human_bytes, read_bounded};
 use crate::Particles;
 
 /// Errors of [`read_bgeo`].
@@ -297,18 +297,24 @@ pub fn write_bgeo(
 /// Read the points and point attributes of a classic BGEO file (plain, or gzip-compressed:
 /// detected from its first bytes, whatever its name).
 pub fn read_bgeo(path: &Path) -> Result<BgeoData, BgeoError> {
-    let raw = fs::read(path)?;
+    let raw = read_bounded(path, DATA_MAX_BYTES, "BGEO file")?;
     if raw.starts_with(&[0x1f, 0x8b]) {
         // Deflate expands at most about 1032:1, so the output is bounded by what the file
-        // holds; it is read incrementally (no allocation ahead of the data).
-        let limit = (raw.len() as u64)
-            .saturating_mul(1032)
-            .saturating_add(1 << 16);
+        // holds (and by the memory available); it is read incrementally (no allocation ahead
+        // of the data).
+        let limit = decompressed_limit(raw.len() as u64);
         let mut bytes = Vec::new();
         flate2::read::MultiGzDecoder::new(&raw[..])
-            .take(limit)
+            .take(limit.saturating_add(1))
             .read_to_end(&mut bytes)
             .map_err(|e| malformed(format!("gzip data is damaged: {e}")))?;
+        if bytes.len() as u64 > limit {
+            return Err(malformed(format!(
+                "{} expands to more than {} (the memory available, or a damaged file)",
+                path.display(),
+                human_bytes(limit)
+            )));
+        }
         drop(raw);
         parse_bgeo(&bytes)
     } else {

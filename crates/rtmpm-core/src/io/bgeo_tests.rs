@@ -1,6 +1,7 @@
 use super::*;
 use crate::io::atomic::tests::TestDir;
 use crate::math::Vec3;
+use std::fs;
 
 pub(crate) fn sample(n: usize) -> Particles {
     let mut p = Particles::default();

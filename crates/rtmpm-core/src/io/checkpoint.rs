@@ -17,11 +17,12 @@
 //! order as raw little-endian f32/u32 bits: `x` (3n), `v` (3n), `c` (9n, column-major), `f`
 //! (9n, column-major), `plastic` (n), `mass` (n), `vol0` (n), `material` (n, u32).
 
-use std::fs;
 use std::io::{self, Write};
 use std::path::Path;
 
 use super::atomic::write_atomic_with;
+use super::contents::{check_particle_values, check_particles_in_domain};
+use super::limits::{DATA_MAX_BYTES, read_bounded};
 use crate::Particles;
 use crate::math::{Mat3, Vec3};
 
@@ -89,6 +90,10 @@ pub enum CheckpointError {
     /// The payload is inconsistent (should not happen when the checksum matches).
     #[error("checkpoint is malformed: {0}")]
     Malformed(String),
+    /// The bytes are intact but a value cannot be simulated (a NaN mass, a material index out
+    /// of range, a particle far outside the domain, a negative time).
+    #[error("checkpoint holds a value that cannot be simulated: {0}")]
+    BadValue(String),
 }
 
 /// FNV-1a 64-bit hash, updated incrementally.
@@ -192,8 +197,22 @@ impl Checkpoint {
     /// Read a checkpoint written by [`save`](Checkpoint::save). Truncated, corrupt or foreign
     /// files give an error, never a panic.
     pub fn load(path: &Path) -> Result<Checkpoint, CheckpointError> {
-        let bytes = fs::read(path)?;
+        let bytes = read_bounded(path, DATA_MAX_BYTES, "checkpoint")?;
         Self::from_bytes(&bytes)
+    }
+
+    /// Check the values against the scene the checkpoint resumes: material indices in range,
+    /// positions inside the domain (within one cell). [`Checkpoint::from_bytes`] has already
+    /// checked what does not depend on the scene.
+    pub fn check_scene(&self, scene: &crate::Scene) -> Result<(), CheckpointError> {
+        check_particles_in_domain(
+            &self.particles,
+            scene.domain_min,
+            scene.domain_max,
+            scene.dx,
+            scene.materials.len(),
+        )
+        .map_err(|e| CheckpointError::BadValue(e.to_string()))
     }
 
     /// Decode a checkpoint from its file content.
@@ -275,6 +294,16 @@ impl Checkpoint {
                 .collect()
         };
         let floats = |w: Vec<u32>| -> Vec<f32> { w.into_iter().map(f32::from_bits).collect() };
+        if !(time.is_finite() && time >= 0.0) {
+            return Err(CheckpointError::BadValue(format!(
+                "the time {time} is not a finite number >= 0"
+            )));
+        }
+        if frame > step {
+            return Err(CheckpointError::BadValue(format!(
+                "frame {frame} is after step {step} (every frame takes at least one step)"
+            )));
+        }
         let particles = Particles {
             x: vec3(x),
             v: vec3(v),
@@ -285,6 +314,7 @@ impl Checkpoint {
             vol0: floats(r.words(n)?),
             material: r.words(n)?,
         };
+        check_particle_values(&particles).map_err(|e| CheckpointError::BadValue(e.to_string()))?;
         Ok(Checkpoint {
             scene_toml,
             scene_origin,
@@ -340,6 +370,7 @@ mod tests {
     use crate::io::atomic::tests::TestDir;
     use rand::{Rng, SeedableRng};
     use rand_pcg::Pcg64;
+    use std::fs;
 
     fn random_checkpoint(n: usize, seed: u64) -> Checkpoint {
         let mut rng = Pcg64::seed_from_u64(seed);
@@ -362,7 +393,7 @@ mod tests {
         if n > 2 {
             p.x[0].x = -0.0;
             p.v[1].y = f32::MIN_POSITIVE / 4.0; // subnormal
-            p.plastic[2] = f32::INFINITY;
+            p.plastic[2] = f32::MAX;
             p.material[2] = u32::MAX;
         }
         Checkpoint {
@@ -483,6 +514,63 @@ mod tests {
             Checkpoint::load(&d.path("missing.ckpt")),
             Err(CheckpointError::Io(_))
         ));
+    }
+
+    /// Intact bytes (a valid checksum) around values that cannot be simulated are refused
+    /// with the particle and the value, never run.
+    #[test]
+    fn valid_checksum_bad_values_are_refused() {
+        let mut good = random_checkpoint(5, 3);
+        good.particles.material.iter_mut().for_each(|m| *m = 0);
+        good.particles.plastic[2] = 0.0;
+        let scene = crate::Scene::from_toml(
+            "[domain]\nmin = [-1000, -1000, -1000]\nmax = [1000, 1000, 1000]\ndx = 10\n\
+             [time]\nduration = 1\n[[material]]\nname = \"w\"\ntype = \"fluid\"\n\
+             density = 1000\nbulk_modulus = 1e5\n",
+            "<test>",
+        )
+        .unwrap();
+        let round = |ck: &Checkpoint| {
+            let d = TestDir::new("ckpt-values");
+            let path = d.path("v.ckpt");
+            ck.save(&path).unwrap();
+            Checkpoint::load(&path)
+        };
+        let back = round(&good).unwrap();
+        back.check_scene(&scene).unwrap();
+
+        type Edit = fn(&mut Checkpoint);
+        let cases: [(Edit, &str); 7] = [
+            (|c| c.particles.mass[1] = f32::NAN, "mass NaN"),
+            (|c| c.particles.mass[3] = -2.0, "mass -2"),
+            (
+                |c| c.particles.vol0[0] = f32::INFINITY,
+                "initial volume inf",
+            ),
+            (|c| c.particles.v[4].x = f32::NAN, "velocity"),
+            (|c| c.time = -1.0, "time -1"),
+            (|c| c.time = f64::INFINITY, "time inf"),
+            (|c| c.frame = c.step + 1, "frame"),
+        ];
+        for (edit, expect) in cases {
+            let mut ck = good.clone();
+            edit(&mut ck);
+            let e = round(&ck).unwrap_err();
+            assert!(matches!(e, CheckpointError::BadValue(_)), "{e:?}");
+            assert!(e.to_string().contains(expect), "{e} (expected {expect})");
+        }
+        // Scene-dependent values: checked by check_scene.
+        let mut ck = good.clone();
+        ck.particles.material[2] = 7;
+        let e = round(&ck).unwrap().check_scene(&scene).unwrap_err();
+        assert!(
+            e.to_string().contains("particle 2: material index 7"),
+            "{e}"
+        );
+        let mut ck = good.clone();
+        ck.particles.x[1].y = 1e9;
+        let e = round(&ck).unwrap().check_scene(&scene).unwrap_err();
+        assert!(e.to_string().contains("particle 1: position"), "{e}");
     }
 
     #[test]

@@ -10,12 +10,16 @@
 //! * [`points`]: particles in: the points of a PLY, VTU or BGEO file for a body.
 //! * [`usd`]: USD text files (`.usda`): particles as `Points`, surfaces as `Mesh`.
 //! * [`checkpoint`]: bit-exact binary checkpoints with a checksum.
+//! * [`limits`]: bounded reads (sizes checked before allocating) shared by every reader.
+//! * [`contents`]: checks of the values read (finite, positive, in range, inside the domain).
 
 pub mod atomic;
 pub mod bgeo;
 pub mod checkpoint;
+pub mod contents;
 #[cfg(all(test, feature = "interop"))]
 mod interop_tests;
+pub mod limits;
 pub mod ply;
 pub mod points;
 pub mod trimesh;
@@ -26,7 +30,9 @@ pub mod vtu;
 pub use atomic::{write_atomic, write_atomic_with};
 pub use bgeo::{BgeoData, BgeoError, read_bgeo, write_bgeo};
 pub use checkpoint::{Checkpoint, CheckpointError};
-pub use ply::{PlyColumn, PlyData, PlyError, read_ply, write_ply};
+pub use contents::{BadValue, check_particle_values, check_particles_in_domain};
+pub use limits::{read_bounded, read_text_bounded};
+pub use ply::{PlyColumn, PlyData, PlyError, read_ply, write_ply, write_ply_with_comments};
 pub use vtu::{PvdWriter, VtuArray, VtuData, VtuError, VtuValues, read_vtu, write_vtu};
 
 /// Optional per-particle fields written next to the particle state in output frames. They are

@@ -18,12 +18,12 @@
 //! properties (list properties are skipped in elements other than `vertex`) and returns the
 //! `vertex` columns by name.
 
-use std::fs;
 use std::io::{self, Write};
 use std::path::Path;
 
 use super::FrameFields;
 use super::atomic::write_atomic_with;
+use super::limits::{DATA_MAX_BYTES, read_bounded};
 use crate::Particles;
 
 /// Errors of [`read_ply`].
@@ -110,7 +110,24 @@ impl PlyData {
 /// Write `particles` (and the optional `fields`) as a binary little-endian PLY point cloud at
 /// `path`, atomically. See the module documentation for the property list.
 pub fn write_ply(path: &Path, particles: &Particles, fields: &FrameFields) -> io::Result<()> {
+    write_ply_with_comments(path, particles, fields, &[])
+}
+
+/// [`write_ply`] with extra `comment` lines in the header (e.g. the run a frame belongs to);
+/// a comment must be one line.
+pub fn write_ply_with_comments(
+    path: &Path,
+    particles: &Particles,
+    fields: &FrameFields,
+    comments: &[&str],
+) -> io::Result<()> {
     super::check_particles(particles)?;
+    if let Some(c) = comments.iter().find(|c| c.contains(['\n', '\r'])) {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!("PLY comment {c:?} spans several lines"),
+        ));
+    }
     let n = particles.len();
     fields.check_len(n)?;
     if let Some(m) = particles.material.iter().find(|&&m| m > i32::MAX as u32) {
@@ -123,6 +140,9 @@ pub fn write_ply(path: &Path, particles: &Particles, fields: &FrameFields) -> io
     let mut header = String::new();
     header.push_str("ply\nformat binary_little_endian 1.0\n");
     header.push_str("comment rtmpm particles\n");
+    for c in comments {
+        header.push_str(&format!("comment {c}\n"));
+    }
     header.push_str(&format!("element vertex {n}\n"));
     for p in ["x", "y", "z", "vx", "vy", "vz"] {
         header.push_str(&format!("property float {p}\n"));
@@ -242,6 +262,11 @@ fn malformed(msg: impl Into<String>) -> PlyError {
     PlyError::Malformed(msg.into())
 }
 
+/// Longest PLY header read (the header is text before the binary body).
+const MAX_HEADER_BYTES: usize = 1 << 20;
+/// Most elements and properties a header may declare.
+const MAX_HEADER_ITEMS: usize = 4096;
+
 /// Parse the header; returns the elements, the comments and the offset of the binary body.
 fn parse_header(bytes: &[u8]) -> Result<(Vec<Element>, Vec<String>, usize), PlyError> {
     if !bytes.starts_with(b"ply\n") && !bytes.starts_with(b"ply\r\n") {
@@ -250,8 +275,15 @@ fn parse_header(bytes: &[u8]) -> Result<(Vec<Element>, Vec<String>, usize), PlyE
     let mut pos = 0usize;
     let mut elements: Vec<Element> = Vec::new();
     let mut comments = Vec::new();
+    let mut items = 0usize;
     let mut saw_format = false;
     loop {
+        if pos > MAX_HEADER_BYTES || items > MAX_HEADER_ITEMS {
+            return Err(malformed(format!(
+                "header longer than {MAX_HEADER_BYTES} bytes or {MAX_HEADER_ITEMS} lines \
+                 without `end_header`"
+            )));
+        }
         let rest = &bytes[pos..];
         let nl = rest
             .iter()
@@ -261,6 +293,7 @@ fn parse_header(bytes: &[u8]) -> Result<(Vec<Element>, Vec<String>, usize), PlyE
             .map_err(|_| malformed("header is not valid UTF-8"))?
             .trim_end_matches('\r');
         pos += nl + 1;
+        items += 1;
         let mut words = line.split_whitespace();
         match words.next() {
             Some("ply") | None => {}
@@ -282,7 +315,8 @@ fn parse_header(bytes: &[u8]) -> Result<(Vec<Element>, Vec<String>, usize), PlyE
                     .ok_or_else(|| malformed(format!("bad element line `{line}`")))?;
                 let count = words
                     .next()
-                    .and_then(|c| c.parse::<usize>().ok())
+                    .and_then(|c| c.parse::<u64>().ok())
+                    .and_then(|c| usize::try_from(c).ok())
                     .ok_or_else(|| malformed(format!("bad element count in `{line}`")))?;
                 elements.push(Element {
                     name: name.to_string(),
@@ -321,59 +355,88 @@ fn parse_header(bytes: &[u8]) -> Result<(Vec<Element>, Vec<String>, usize), PlyE
 }
 
 /// Read the `vertex` element of a binary little-endian PLY file (such as those written by
-/// [`write_ply`]) and return its columns by name.
+/// [`write_ply`]) and return its columns by name. The file's size is checked before it is read
+/// ([`super::limits`]) and the counts of the header against the file before anything is
+/// allocated.
 pub fn read_ply(path: &Path) -> Result<PlyData, PlyError> {
-    let bytes = fs::read(path)?;
+    let bytes = read_bounded(path, DATA_MAX_BYTES, "PLY file")?;
     parse_ply(&bytes)
 }
 
-fn parse_ply(bytes: &[u8]) -> Result<PlyData, PlyError> {
+/// Decode a PLY file's bytes (see [`read_ply`]). Never panics and never allocates more than
+/// the body the header announces, which must be present in `bytes`.
+pub fn parse_ply(bytes: &[u8]) -> Result<PlyData, PlyError> {
     let (elements, comments, mut pos) = parse_header(bytes)?;
     let truncated = || malformed("body is shorter than the header announces (truncated file?)");
     for el in &elements {
+        let remaining = (bytes.len() - pos) as u64;
+        // Every record holds at least the scalars and the list counts: a count that cannot fit
+        // in the rest of the file is refused before any loop or allocation.
+        let min_record: u64 = el
+            .props
+            .iter()
+            .map(|p| match p {
+                Property::Scalar { ty, .. } => ty.size() as u64,
+                Property::List { count, .. } => count.size() as u64,
+            })
+            .sum();
+        if (el.count as u64)
+            .checked_mul(min_record)
+            .is_none_or(|b| b > remaining)
+        {
+            return Err(truncated());
+        }
         let is_vertex = el.name == "vertex";
         if !is_vertex {
+            if min_record == 0 {
+                continue; // nothing stored per record
+            }
             // Skip this element, record by record (list lengths vary).
             for _ in 0..el.count {
                 for p in &el.props {
-                    match p {
-                        Property::Scalar { ty, .. } => pos += ty.size(),
+                    let size = match p {
+                        Property::Scalar { ty, .. } => ty.size(),
                         Property::List { count, item } => {
                             let b = bytes.get(pos..pos + count.size()).ok_or_else(truncated)?;
                             let k = count.read_int(b);
                             if k < 0 {
                                 return Err(malformed("negative list length"));
                             }
-                            pos += count.size() + k as usize * item.size();
+                            (k as usize)
+                                .checked_mul(item.size())
+                                .and_then(|s| s.checked_add(count.size()))
+                                .ok_or_else(truncated)?
                         }
-                    }
-                }
-                if pos > bytes.len() {
-                    return Err(truncated());
+                    };
+                    pos = pos
+                        .checked_add(size)
+                        .filter(|&p| p <= bytes.len())
+                        .ok_or_else(truncated)?;
                 }
             }
             continue;
         }
-        let mut cols: Vec<(String, ScalarType, PlyColumn)> = Vec::new();
         let mut stride = 0usize;
+        let mut types = Vec::new();
         for p in &el.props {
             match p {
                 Property::Scalar { name, ty } => {
                     stride += ty.size();
-                    cols.push((name.clone(), *ty, ty.empty_column(el.count)));
+                    types.push((name.clone(), *ty));
                 }
                 Property::List { .. } => {
                     return Err(malformed("list properties in `vertex` are not supported"));
                 }
             }
         }
-        let need = stride
-            .checked_mul(el.count)
-            .and_then(|s| s.checked_add(pos))
-            .ok_or_else(|| malformed("vertex count overflows"))?;
-        if need > bytes.len() {
-            return Err(truncated());
+        if types.is_empty() {
+            return Err(malformed("the `vertex` element has no properties"));
         }
+        // Checked above: stride * count fits in the rest of the file.
+        let mut cols: Vec<(String, ScalarType, PlyColumn)> = types
+            .into_iter()
+            .map(|(n, ty)| (n, ty, ty.empty_column(el.count)))
+            .collect();
         for _ in 0..el.count {
             for (_, ty, col) in cols.iter_mut() {
                 let b = &bytes[pos..pos + ty.size()];
@@ -385,6 +448,7 @@ fn parse_ply(bytes: &[u8]) -> Result<PlyData, PlyError> {
                 pos += ty.size();
             }
         }
+        debug_assert!(stride > 0);
         return Ok(PlyData {
             count: el.count,
             columns: cols.into_iter().map(|(n, _, c)| (n, c)).collect(),
@@ -399,6 +463,7 @@ mod tests {
     use super::*;
     use crate::io::atomic::tests::TestDir;
     use crate::math::Vec3;
+    use std::fs;
 
     pub(crate) fn sample_particles(n: usize) -> Particles {
         let mut p = Particles::default();
@@ -510,6 +575,35 @@ mod tests {
         trunc.extend_from_slice(&1.0f32.to_le_bytes());
         let err = parse_ply(&trunc).unwrap_err();
         assert!(err.to_string().contains("truncated"), "{err}");
+    }
+
+    /// Counts in the header are checked against the file before anything is allocated or
+    /// looped over (a header claiming 10^12 vertices once aborted on a 4 TB allocation).
+    #[test]
+    fn huge_counts_are_refused_at_once() {
+        let t = std::time::Instant::now();
+        for header in [
+            "element vertex 1000000000000\nproperty float x\n",
+            "element vertex 18446744073709551615\nproperty double x\n",
+            "element vertex 1000000000000\n",
+            "element face 1000000000000\nproperty list uchar int v\nelement vertex 1\nproperty float x\n",
+            "element face 1000000000000\nelement vertex 1\nproperty float x\n",
+            "element vertex 99999999999999999999999\nproperty float x\n",
+        ] {
+            let text = format!("ply\nformat binary_little_endian 1.0\n{header}end_header\n");
+            let mut b = text.into_bytes();
+            b.extend_from_slice(&[0u8; 16]);
+            match parse_ply(&b) {
+                Err(PlyError::Malformed(_)) => {}
+                Ok(d) if d.count == 1 => {} // the zero-size face element is skipped
+                other => panic!("{header}: unexpected {other:?}"),
+            }
+        }
+        // A list whose length runs past the end of the file.
+        let mut b = b"ply\nformat binary_little_endian 1.0\nelement face 1\nproperty list uint int v\nelement vertex 0\nproperty float x\nend_header\n".to_vec();
+        b.extend_from_slice(&u32::MAX.to_le_bytes());
+        assert!(parse_ply(&b).is_err());
+        assert!(t.elapsed().as_secs_f64() < 5.0);
     }
 
     #[test]

@@ -278,6 +278,11 @@ mod tests;
 /// Read a `.vtu` file whether its arrays are appended (this module's format, ParaView's
 /// default) or inline (`format="binary"`, read by [`super::vtu::read_vtu`]).
 pub fn read_any_vtu(path: &Path) -> Result<VtuData, VtuError> {
+    // A folder, a device or a pipe (which would block this peek) is refused by the bounded
+    // read of the inline reader, with its message.
+    if !fs::metadata(path)?.is_file() {
+        return super::vtu::read_vtu(path);
+    }
     let mut head = Vec::new();
     fs::File::open(path)?.take(1 << 20).read_to_end(&mut head)?;
     if head.windows(13).any(|w| w == b"<AppendedData")

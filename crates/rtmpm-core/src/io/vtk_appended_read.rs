@@ -1,9 +1,9 @@
 //! Reading VTK XML UnstructuredGrid files with appended raw data, compressed or not.
 
-use std::fs;
 use std::io::Read;
 use std::path::Path;
 
+use crate::io::limits::{DATA_MAX_BYTES, decompressed_limit, read_bounded};
 use crate::io::vtu::{VtuArray, VtuData, VtuError, VtuValues, attr, parse_values, xml_unescape};
 
 fn bad(msg: impl Into<String>) -> VtuError {
@@ -78,9 +78,10 @@ impl Framing {
                 .and_then(|s| s.checked_add(last))
                 .ok_or_else(|| bad(format!("{what}: block sizes overflow")))?,
         };
-        if last > block || total_out > total_in.saturating_mul(1032).saturating_add(1 << 16) {
+        if last > block || total_out > decompressed_limit(total_in) {
             return Err(bad(format!(
-                "{what}: the header claims {total_out} bytes from {total_in} compressed bytes (corrupt header)"
+                "{what}: the header claims {total_out} bytes from {total_in} compressed bytes \
+                 (corrupt header, or more than the memory available)"
             )));
         }
         let mut out = Vec::with_capacity(total_out as usize);
@@ -108,7 +109,7 @@ impl Framing {
 /// (ParaView's default, and [`super::write_particles_vtu`]'s), compressed with zlib or not.
 /// Only the first piece is read; `Points`, `Cells` and `PointData` arrays are returned.
 pub fn read_appended_vtu(path: &Path) -> Result<VtuData, VtuError> {
-    let bytes = fs::read(path)?;
+    let bytes = read_bounded(path, DATA_MAX_BYTES, "VTU file")?;
     parse_appended(&bytes)
 }
 

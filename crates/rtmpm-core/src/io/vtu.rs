@@ -18,6 +18,7 @@ use base64::write::EncoderWriter;
 
 use super::FrameFields;
 use super::atomic::{write_atomic, write_atomic_with};
+use super::limits::{DATA_MAX_BYTES, PVD_MAX_BYTES, read_text_bounded};
 use crate::Particles;
 
 /// Errors of [`read_vtu`] and [`PvdWriter::resume`].
@@ -273,12 +274,20 @@ pub(super) fn xml_unescape(s: &str) -> String {
 /// separately (as VTK and [`write_vtu`] do) or together with the data.
 fn decode_binary(text: &str) -> Result<Vec<u8>, VtuError> {
     let s: String = text.chars().filter(|c| !c.is_ascii_whitespace()).collect();
+    if !s.is_ascii() {
+        return Err(format_err(
+            "binary data holds characters that are not base64",
+        ));
+    }
     if s.len() < 12 {
         return Err(format_err("binary data shorter than its header"));
     }
     let bad = |e: base64::DecodeError| format_err(format!("bad base64 data: {e}"));
     let (nbytes, data) = if s.as_bytes()[11] == b'=' {
         let h = STANDARD.decode(&s[..12]).map_err(bad)?;
+        if h.len() < 8 {
+            return Err(format_err("binary data header is not 8 bytes"));
+        }
         let nbytes = u64::from_le_bytes(h[..8].try_into().unwrap());
         (nbytes, STANDARD.decode(&s[12..]).map_err(bad)?)
     } else {
@@ -329,11 +338,13 @@ pub(super) fn parse_values(ty: &str, data: &[u8]) -> Result<VtuValues, VtuError>
 /// `format="binary"` arrays, little endian, `UInt64` headers. This is a minimal parser meant for
 /// tests and tools, not a general VTK reader.
 pub fn read_vtu(path: &Path) -> Result<VtuData, VtuError> {
-    let text = fs::read_to_string(path)?;
+    let text = read_text_bounded(path, DATA_MAX_BYTES, "VTU file")?;
     parse_vtu(&text)
 }
 
-fn parse_vtu(text: &str) -> Result<VtuData, VtuError> {
+/// Decode the text of a `.vtu` file (see [`read_vtu`]). Never panics; allocates no more than
+/// the decoded arrays, whose sizes are bounded by the text.
+pub fn parse_vtu(text: &str) -> Result<VtuData, VtuError> {
     let root_start = text
         .find("<VTKFile")
         .ok_or_else(|| format_err("no <VTKFile> element"))?;
@@ -428,7 +439,9 @@ fn parse_vtu(text: &str) -> Result<VtuData, VtuError> {
                         let VtuValues::Float32(v) = &array.values else {
                             return Err(format_err("Points must be Float32"));
                         };
-                        if array.num_components != 3 || v.len() != 3 * out.num_points {
+                        if array.num_components != 3
+                            || Some(v.len()) != out.num_points.checked_mul(3)
+                        {
                             return Err(format_err(format!(
                                 "Points has {} values, expected 3 x {}",
                                 v.len(),
@@ -439,7 +452,9 @@ fn parse_vtu(text: &str) -> Result<VtuData, VtuError> {
                     }
                     Section::Cells => out.cells.push(array),
                     Section::PointData => {
-                        if array.values.len() != array.num_components * out.num_points {
+                        if Some(array.values.len())
+                            != array.num_components.checked_mul(out.num_points)
+                        {
                             return Err(format_err(format!(
                                 "point array {} has {} values, expected {} x {}",
                                 array.name,
@@ -492,7 +507,7 @@ impl PvdWriter {
         keep_frames_before_time: f64,
     ) -> Result<Self, VtuError> {
         let path = path.into();
-        let entries = match fs::read_to_string(&path) {
+        let entries = match read_text_bounded(&path, PVD_MAX_BYTES, "ParaView collection") {
             Ok(text) => parse_pvd(&text)?,
             Err(e) if e.kind() == io::ErrorKind::NotFound => Vec::new(),
             Err(e) => return Err(e.into()),
@@ -543,8 +558,8 @@ impl PvdWriter {
     }
 }
 
-/// Parse the `DataSet` entries of a `.pvd` collection.
-fn parse_pvd(text: &str) -> Result<Vec<(f64, String)>, VtuError> {
+/// Parse the `DataSet` entries `(time, file)` of a `.pvd` collection; times must be finite.
+pub fn parse_pvd(text: &str) -> Result<Vec<(f64, String)>, VtuError> {
     if !text.contains("type=\"Collection\"") {
         return Err(format_err("not a VTK Collection (.pvd) file"));
     }
@@ -557,6 +572,7 @@ fn parse_pvd(text: &str) -> Result<Vec<(f64, String)>, VtuError> {
         let tag = &rest[i..i + end];
         let t = attr(tag, "timestep")
             .and_then(|t| t.trim().parse::<f64>().ok())
+            .filter(|t| t.is_finite())
             .ok_or_else(|| format_err(format!("DataSet without a valid timestep: {tag}")))?;
         let f = attr(tag, "file").ok_or_else(|| format_err("DataSet without file"))?;
         out.push((t, xml_unescape(f)));

@@ -26,7 +26,9 @@ impl fmt::Display for SceneError {
                 write!(f, ":{c}")?;
             }
         }
-        write!(f, ": ")?;
+        if !self.origin.is_empty() || self.line.is_some() {
+            write!(f, ": ")?;
+        }
         if let Some(field) = &self.field {
             write!(f, "field `{field}`: ")?;
         }

@@ -8,6 +8,7 @@
 // `SceneError` is deliberately rich (position, field, hint); it is only built on failure.
 #![allow(clippy::result_large_err)]
 
+pub mod budget;
 pub mod error;
 pub mod material;
 pub mod sampling;
@@ -19,6 +20,7 @@ mod tests;
 mod tests_io;
 mod validate;
 
+pub use budget::Budget;
 pub use error::SceneError;
 pub use sampling::Sampling;
 pub use spans::span_of;
@@ -35,8 +37,9 @@ use std::path::{Path, PathBuf};
 pub enum StepMode {
     /// Fixed dt (s).
     Fixed { dt: f32 },
-    /// `dt = min(max_dt, cfl * dx / (max particle speed + max sound speed))`.
-    Cfl { cfl: f32, max_dt: f32 },
+    /// `dt = min(max_dt, cfl * dx / (max particle speed + max sound speed))`; a step below
+    /// `min_dt` stops the run (the CFL step collapsed: a particle far faster than sound).
+    Cfl { cfl: f32, max_dt: f32, min_dt: f32 },
 }
 
 /// Simulated time and frame rate.
@@ -287,13 +290,27 @@ impl Scene {
     /// Read and validate a scene file; mesh paths are relative to the file's folder.
     pub fn from_file(path: &Path) -> Result<Scene, SceneError> {
         let origin = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| SceneError {
-            origin: origin.clone(),
-            line: None,
-            column: None,
-            field: None,
-            message: format!("cannot read the scene file: {e}"),
-            hint: Some("check the path and permissions".into()),
+        let text = crate::io::limits::read_text_bounded(
+            path,
+            crate::io::limits::SCENE_MAX_BYTES,
+            "scene file",
+        )
+        .map_err(|e| {
+            let hint = match e.kind() {
+                std::io::ErrorKind::NotFound => {
+                    "check the path (it is relative to the current folder)"
+                }
+                std::io::ErrorKind::PermissionDenied => "check the file's permissions",
+                _ => "give a scene file: TOML text as in scenes/ and docs/scene-format.md",
+            };
+            SceneError {
+                origin: origin.clone(),
+                line: None,
+                column: None,
+                field: None,
+                message: format!("cannot read the scene file: {e}"),
+                hint: Some(hint.into()),
+            }
         })?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let mut scene = validate::parse(
@@ -331,6 +348,14 @@ impl Scene {
 
     /// Fill the bodies with particles (deterministic for a given seed).
     pub fn sample_particles(&self) -> Result<crate::Particles, SceneError> {
-        sampling::sample_scene(self)
+        sampling::sample_scene(self).map_err(|mut e| {
+            // Sampling errors name the body; the scene file names where it is.
+            if e.origin.is_empty()
+                && let Some(src) = &self.source
+            {
+                e.origin = src.display().to_string();
+            }
+            e
+        })
     }
 }

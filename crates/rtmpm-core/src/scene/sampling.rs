@@ -21,7 +21,10 @@ use super::{Scene, SceneError};
 use crate::Particles;
 use crate::boundary::mesh::MeshSdf;
 use crate::boundary::sdf::{box_distance, cylinder_distance};
-use crate::math::Vec3;
+use crate::io::contents::check_particle_values;
+use crate::io::points::PointSet;
+use crate::material::Material;
+use crate::math::{Mat3, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use std::sync::Arc;
@@ -50,7 +53,7 @@ pub enum BodyShape {
     Mesh(Arc<MeshSdf>),
     /// The points of a particle file, and whether the body uses the file's velocities.
     Particles {
-        points: Arc<crate::io::points::PointSet>,
+        points: Arc<PointSet>,
         file_velocity: bool,
     },
 }
@@ -171,70 +174,116 @@ fn body_error(i: usize, message: String, hint: &str) -> SceneError {
     }
 }
 
-/// Sample body `index` of the scene.
-pub fn sample_body(scene: &Scene, index: usize) -> Result<Particles, SceneError> {
+/// Most random positions tried for one body (random sampling of a thin shape would otherwise
+/// run for hours before failing).
+pub const MAX_RANDOM_TRIES: u64 = 2_000_000_000;
+
+/// A particles body may hold at most [`MAX_PARTICLES_PER_BODY`] points.
+fn check_point_count(index: usize, n: usize, source: &std::path::Path) -> Result<(), SceneError> {
+    if n as u64 > MAX_PARTICLES_PER_BODY {
+        return Err(body_error(
+            index,
+            format!(
+                "{} holds {n} points, more than the {MAX_PARTICLES_PER_BODY} allowed per body",
+                source.display()
+            ),
+            "use a file with at most 50 million points per body",
+        ));
+    }
+    Ok(())
+}
+
+/// Estimated particle count of body `index`, without sampling: `volume / h^3` for the lattice
+/// samplings (exact for boxes aligned with the lattice), the count for random sampling, the
+/// number of points for a particles body (exact).
+pub fn estimate_body(scene: &Scene, index: usize) -> u64 {
+    let Some(body) = scene.bodies.get(index) else {
+        return 0;
+    };
+    if let BodyShape::Particles { points, .. } = &body.shape {
+        return points.positions.len() as u64;
+    }
+    let volume = body.shape.volume().max(0.0) as f64;
+    let est = match body.sampling {
+        Sampling::Regular | Sampling::Jittered => {
+            let h = scene.dx as f64 / per_axis(body.particles_per_cell) as f64;
+            volume / (h * h * h)
+        }
+        Sampling::Random => match body.count {
+            Some(c) => c as f64,
+            None => body.particles_per_cell as f64 * volume / (scene.dx as f64).powi(3),
+        },
+    };
+    if est.is_finite() {
+        est.round().max(0.0) as u64
+    } else {
+        u64::MAX
+    }
+}
+
+/// What to do with the particles of a body: keep them, count them, or stop at the first.
+enum Visit<'a> {
+    Keep(&'a mut Vec<Vec3>),
+    Count(&'a mut u64),
+    First(&'a mut bool),
+}
+
+impl Visit<'_> {
+    /// Record `x`; false when the walk can stop.
+    fn add(&mut self, x: Vec3) -> bool {
+        match self {
+            Visit::Keep(v) => {
+                v.push(x);
+                true
+            }
+            Visit::Count(n) => {
+                **n += 1;
+                true
+            }
+            Visit::First(f) => {
+                **f = true;
+                false
+            }
+        }
+    }
+}
+
+/// Walk the particle positions of body `index`; returns the volume of one particle.
+fn walk_body(scene: &Scene, index: usize, mut visit: Visit<'_>) -> Result<f32, SceneError> {
     let body = scene
         .bodies
         .get(index)
         .ok_or_else(|| body_error(index, "no such body".into(), "use an existing body index"))?;
-    let material = scene.materials.get(body.material as usize).ok_or_else(|| {
-        body_error(
-            index,
-            format!("material index {} out of range", body.material),
-            "fix the material",
-        )
-    })?;
     let dx = scene.dx;
     let shape = &body.shape;
+    if let BodyShape::Particles { points, .. } = shape {
+        check_point_count(index, points.positions.len(), &points.source)?;
+        for &x in &points.positions {
+            if !visit.add(x) {
+                break;
+            }
+        }
+        // Volumes differ per point (see `sample_points`); this is the default one.
+        return Ok(dx * dx * dx / body.particles_per_cell.max(1) as f32);
+    }
     let (lo, hi) = shape.bounds();
     let seed = scene.seed ^ (index as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
     let mut rng = Pcg64::seed_from_u64(seed);
-    let mut out = Particles::default();
-    let plastic = material.model.initial_plastic();
-    if let BodyShape::Particles {
-        points,
-        file_velocity,
-    } = shape
-    {
-        let n = points.positions.len();
-        if n as u64 > MAX_PARTICLES_PER_BODY {
-            return Err(body_error(
-                index,
-                format!("{} holds {n} points", points.source.display()),
-                "use a file with at most 50 million points per body",
-            ));
-        }
-        let uniform = dx * dx * dx / body.particles_per_cell as f32;
-        let centre = points.positions.iter().fold(Vec3::ZERO, |a, b| a + *b) / n.max(1) as f32;
-        for (i, &x) in points.positions.iter().enumerate() {
-            let vol0 = match (&points.volumes, &points.masses) {
-                (Some(v), _) => v[i],
-                (None, Some(m)) => m[i] / material.density,
-                (None, None) => uniform,
-            };
-            let v = match (&points.velocities, file_velocity) {
-                (Some(v), true) => v[i],
-                _ => body.velocity + body.angular_velocity.cross(x - centre),
-            };
-            out.push(x, v, material.density * vol0, vol0, body.material, plastic);
-        }
-        return Ok(out);
-    }
-    let mut positions = Vec::new();
-    let vol0;
     match body.sampling {
         Sampling::Regular | Sampling::Jittered => {
             let n = per_axis(body.particles_per_cell);
             let h = dx / n as f32;
-            vol0 = h * h * h;
             let first = ((lo - scene.domain_min) / h).floor();
             let last = ((hi - scene.domain_min) / h).ceil();
             let count = (last - first + 1.0).max(Vec3::ZERO);
             let total = count.x as f64 * count.y as f64 * count.z as f64;
-            if total > MAX_PARTICLES_PER_BODY as f64 {
+            if !total.is_finite() || total > MAX_PARTICLES_PER_BODY as f64 {
                 return Err(body_error(
                     index,
-                    format!("the body would need about {total:.3e} lattice points"),
+                    format!(
+                        "the body would need about {total:.3e} lattice points, more than the \
+                         {MAX_PARTICLES_PER_BODY} allowed per body"
+                    ),
                     "make the body smaller, dx larger, or particles_per_cell smaller",
                 ));
             }
@@ -254,37 +303,54 @@ pub fn sample_body(scene: &Scene, index: usize) -> Result<Particles, SceneError>
                             );
                             x += r * h;
                         }
-                        if shape.contains(x) {
-                            positions.push(x);
+                        if shape.contains(x) && !visit.add(x) {
+                            return Ok(h * h * h);
                         }
                     }
                 }
             }
+            Ok(h * h * h)
         }
         Sampling::Random => {
             let volume = shape.volume();
-            let count = match body.count {
-                Some(c) => c,
-                None => (body.particles_per_cell as f64 * volume as f64 / (dx as f64).powi(3))
-                    .round() as u64,
-            };
+            let count = estimate_body(scene, index);
             if count > MAX_PARTICLES_PER_BODY {
                 return Err(body_error(
                     index,
-                    format!("the body would hold {count} particles"),
+                    format!(
+                        "the body would hold {count} particles, more than the \
+                         {MAX_PARTICLES_PER_BODY} allowed per body"
+                    ),
                     "lower count or particles_per_cell",
                 ));
             }
-            let max_attempts = count.saturating_mul(1000).max(10_000);
+            // Expected tries: count / (fraction of the bounding box inside the shape).
+            let bbox = (hi - lo).max(Vec3::ZERO).element_product() as f64;
+            let fill = if bbox > 0.0 {
+                (volume as f64 / bbox).min(1.0)
+            } else {
+                0.0
+            };
+            let expected = count as f64 / fill.max(1e-30);
+            if count > 0 && (!expected.is_finite() || expected > MAX_RANDOM_TRIES as f64 / 4.0) {
+                return Err(body_error(
+                    index,
+                    format!(
+                        "random sampling would need about {expected:.2e} tries: the shape fills \
+                         {:.2e} of its bounding box",
+                        fill
+                    ),
+                    "use sampling = \"regular\" or \"jittered\", or fewer particles",
+                ));
+            }
+            let max_attempts = count.saturating_mul(1000).clamp(10_000, MAX_RANDOM_TRIES);
             let mut attempts = 0u64;
-            while (positions.len() as u64) < count {
+            let mut placed = 0u64;
+            while placed < count {
                 if attempts >= max_attempts {
                     return Err(body_error(
                         index,
-                        format!(
-                            "placed only {} of {count} random particles",
-                            positions.len()
-                        ),
+                        format!("placed only {placed} of {count} random particles"),
                         "the shape is too thin for random sampling; use sampling = \"regular\"",
                     ));
                 }
@@ -296,23 +362,134 @@ pub fn sample_body(scene: &Scene, index: usize) -> Result<Particles, SceneError>
                 );
                 let x = lo + r * (hi - lo);
                 if shape.contains(x) {
-                    positions.push(x);
+                    placed += 1;
+                    if !visit.add(x) {
+                        break;
+                    }
                 }
             }
-            vol0 = if count > 0 {
+            Ok(if count > 0 {
                 volume / count as f32
             } else {
                 0.0
-            };
+            })
         }
     }
+}
+
+/// Number of particles body `index` gets, counted without storing them.
+pub fn count_body(scene: &Scene, index: usize) -> Result<u64, SceneError> {
+    let mut n = 0;
+    walk_body(scene, index, Visit::Count(&mut n))?;
+    Ok(n)
+}
+
+/// True when body `index` gets no particle (stops at the first one; stores none).
+pub fn body_is_empty(scene: &Scene, index: usize) -> Result<bool, SceneError> {
+    let mut any = false;
+    walk_body(scene, index, Visit::First(&mut any))?;
+    Ok(!any)
+}
+
+/// Sample body `index` of the scene.
+pub fn sample_body(scene: &Scene, index: usize) -> Result<Particles, SceneError> {
+    let body = scene
+        .bodies
+        .get(index)
+        .ok_or_else(|| body_error(index, "no such body".into(), "use an existing body index"))?;
+    let material = scene.materials.get(body.material as usize).ok_or_else(|| {
+        body_error(
+            index,
+            format!("material index {} out of range", body.material),
+            "fix the material",
+        )
+    })?;
+    if let BodyShape::Particles {
+        points,
+        file_velocity,
+    } = &body.shape
+    {
+        return sample_points(scene, index, material, points, *file_velocity);
+    }
+    let mut positions = Vec::new();
+    let vol0 = walk_body(scene, index, Visit::Keep(&mut positions))?;
+    let plastic = material.model.initial_plastic();
     let n = positions.len().max(1) as f32;
     let centre = positions.iter().fold(Vec3::ZERO, |a, b| a + *b) / n;
     let mass = material.density * vol0;
+    let c = spin_matrix(body.angular_velocity);
+    let mut out = Particles::default();
     for x in positions {
         let v = body.velocity + body.angular_velocity.cross(x - centre);
         out.push(x, v, mass, vol0, body.material, plastic);
+        if let Some(last) = out.c.last_mut() {
+            *last = c;
+        }
     }
+    Ok(out)
+}
+
+/// APIC: C is the velocity gradient of the initial field v0 + w x (x - c), the cross-product
+/// matrix of w (zero for a pure translation), so P2G carries the rotation from step 0.
+fn spin_matrix(w: Vec3) -> Mat3 {
+    Mat3::from_cols(
+        Vec3::new(0.0, w.z, -w.y),
+        Vec3::new(-w.z, 0.0, w.x),
+        Vec3::new(w.y, -w.x, 0.0),
+    )
+}
+
+/// The particles of a particles body: one per point of the file, volume from the file's
+/// `volume`, else its `mass` over the material's density, else `dx^3 / particles_per_cell`;
+/// velocity from the file (C = 0: the file has no gradient) unless the body gives its own
+/// (then `v0 + w x (x - c)` as for the other shapes). The values are checked
+/// ([`check_particle_values`]): an error names the file and the point.
+fn sample_points(
+    scene: &Scene,
+    index: usize,
+    material: &Material,
+    points: &PointSet,
+    file_velocity: bool,
+) -> Result<Particles, SceneError> {
+    check_point_count(index, points.positions.len(), &points.source)?;
+    let body = &scene.bodies[index];
+    let plastic = material.model.initial_plastic();
+    let n = points.positions.len();
+    let uniform = scene.dx.powi(3) / body.particles_per_cell.max(1) as f32;
+    let centre = points.positions.iter().fold(Vec3::ZERO, |a, b| a + *b) / n.max(1) as f32;
+    let file_v = points.velocities.as_ref().filter(|_| file_velocity);
+    let c = match file_v {
+        Some(_) => Mat3::ZERO,
+        None => spin_matrix(body.angular_velocity),
+    };
+    let mut out = Particles::default();
+    for (i, &x) in points.positions.iter().enumerate() {
+        let vol0 = match (&points.volumes, &points.masses) {
+            (Some(v), _) => v[i],
+            (None, Some(m)) => m[i] / material.density,
+            (None, None) => uniform,
+        };
+        let v = match file_v {
+            Some(v) => v[i],
+            None => body.velocity + body.angular_velocity.cross(x - centre),
+        };
+        out.push(x, v, material.density * vol0, vol0, body.material, plastic);
+        if let Some(last) = out.c.last_mut() {
+            *last = c;
+        }
+    }
+    check_particle_values(&out).map_err(|e| {
+        body_error(
+            index,
+            format!(
+                "{}: point {}: {}",
+                points.source.display(),
+                e.index,
+                e.message
+            ),
+            "fix the file's values (volume, mass) or the material's density",
+        )
+    })?;
     Ok(out)
 }
 
@@ -324,4 +501,22 @@ pub fn sample_scene(scene: &Scene) -> Result<Particles, SceneError> {
         all.extend(&p);
     }
     Ok(all)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_particles_body_over_the_limit_names_the_file() {
+        let file = std::path::Path::new("big.bgeo");
+        let max = MAX_PARTICLES_PER_BODY as usize;
+        assert!(check_point_count(3, max, file).is_ok());
+        let e = check_point_count(3, max + 1, file).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("body[3]"));
+        assert!(
+            e.message.contains("big.bgeo") && e.message.contains("50000001 points"),
+            "{e}"
+        );
+    }
 }

@@ -88,6 +88,7 @@ pub struct RawTime {
     pub dt: Option<f32>,
     pub cfl: Option<f32>,
     pub max_dt: Option<f32>,
+    pub min_dt: Option<f32>,
     pub damping: Option<f32>,
     pub damping_until: Option<f32>,
 }

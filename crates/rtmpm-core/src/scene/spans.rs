@@ -166,6 +166,77 @@ pub fn path_at(doc: &Doc<'_>, offset: usize) -> Option<String> {
     walk_table(doc.as_table().iter_kv(), "", offset)
 }
 
+/// True when `path` names a table (a `[table]`, an inline table or an entry of an array of
+/// tables) of the document; the empty path is the root table.
+pub fn is_table(doc: &Doc<'_>, path: &str) -> bool {
+    let mut node = Node::Table(doc.as_table());
+    for seg in parse_path(path) {
+        node = match (seg, node) {
+            (Seg::Key(k), Node::Table(t)) => match t.get(k) {
+                Some(i) => node_of_item(i),
+                None => return false,
+            },
+            (Seg::Key(k), Node::Inline(t)) => match t.get(k) {
+                Some(v) => node_of_value(v),
+                None => return false,
+            },
+            (Seg::Index(i), Node::Aot(a)) => match a.get(i) {
+                Some(t) => Node::Table(t),
+                None => return false,
+            },
+            (Seg::Index(i), Node::Array(a)) => match a.get(i) {
+                Some(v) => node_of_value(v),
+                None => return false,
+            },
+            _ => return false,
+        };
+    }
+    matches!(node, Node::Table(_) | Node::Inline(_))
+}
+
+/// The field at byte `offset` read from the text alone, for text that `toml_edit` cannot parse
+/// (e.g. an integer beyond 64 bits): the key before `=` on that line, under the last table
+/// header above it (`[[body]]` headers counted, giving `body[2].count`).
+pub fn path_by_text(text: &str, offset: usize) -> Option<String> {
+    let offset = offset.min(text.len());
+    let mut table = String::new();
+    let mut counts: Vec<(String, usize)> = Vec::new();
+    let mut line_start = 0;
+    for line in text.split_inclusive('\n') {
+        let end = line_start + line.len();
+        let t = line.trim();
+        if let Some(name) = t.strip_prefix("[[").and_then(|r| r.split("]]").next()) {
+            let name = name.trim().to_string();
+            let n = match counts.iter_mut().find(|(k, _)| *k == name) {
+                Some((_, c)) => {
+                    *c += 1;
+                    *c - 1
+                }
+                None => {
+                    counts.push((name.clone(), 1));
+                    0
+                }
+            };
+            table = format!("{name}[{n}]");
+        } else if let Some(name) = t.strip_prefix('[').and_then(|r| r.split(']').next()) {
+            table = name.trim().to_string();
+        }
+        if offset < end || end == text.len() {
+            let key = t.split('=').next()?.trim().trim_matches('"');
+            if key.is_empty() || key.starts_with('[') || !t.contains('=') {
+                return None;
+            }
+            return Some(if table.is_empty() {
+                key.to_string()
+            } else {
+                format!("{table}.{key}")
+            });
+        }
+        line_start = end;
+    }
+    None
+}
+
 trait IterKv {
     fn iter_kv(&self) -> Vec<(&toml_edit::Key, &Item)>;
 }
@@ -225,5 +296,17 @@ mod tests {
             Some("material[1].poisson_ratio")
         );
         assert_eq!(line_col("ab\ncd", 4), (2, 2));
+        assert!(is_table(&doc, "") && is_table(&doc, "material[1]") && is_table(&doc, "domain"));
+        assert!(!is_table(&doc, "name") && !is_table(&doc, "domain.dx"));
+    }
+
+    #[test]
+    fn path_from_text_alone() {
+        let t = "seed = 1\n[[body]]\na = 1\n[[body]]\ncount = 99999999999999999999\n[time]\nx=1\n";
+        let at = |s: &str| path_by_text(t, t.find(s).unwrap());
+        assert_eq!(at("99999").as_deref(), Some("body[1].count"));
+        assert_eq!(at("seed").as_deref(), Some("seed"));
+        assert_eq!(at("x=1").as_deref(), Some("time.x"));
+        assert_eq!(at("[time]"), None);
     }
 }

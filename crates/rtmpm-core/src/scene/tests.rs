@@ -89,13 +89,16 @@ fn bench_scene_matches_spec() {
 fn defaults() {
     let s = parse(BASE).unwrap();
     assert_eq!(s.gravity, Vec3::new(0.0, -9.81, 0.0));
-    assert_eq!(
-        s.time.step,
-        StepMode::Cfl {
-            cfl: 0.4,
-            max_dt: 1e-3
-        }
-    );
+    let StepMode::Cfl {
+        cfl,
+        max_dt,
+        min_dt,
+    } = s.time.step
+    else {
+        panic!("{:?}", s.time.step)
+    };
+    assert_eq!((cfl, max_dt), (0.4, 1e-3));
+    assert!(min_dt > 0.0 && min_dt <= 1.001e-6, "{min_dt}");
     assert_eq!(s.walls.thickness, 3);
     assert_eq!(s.walls.faces[0].condition, Condition::Separate);
     assert_eq!(s.output.dir, PathBuf::from("out/t"));
@@ -610,4 +613,30 @@ fn solver_table_errors_name_the_field_line_and_allowed_values() {
     );
     let (e, _) = with("transfer = \"gimp\"\nfip = 0.5");
     assert!(e.to_string().contains("fip"), "{e}");
+}
+
+/// Messages for the hostile inputs of issue 18: the table that is missing, the field of an
+/// integer too large for 64 bits, a name that would climb out of `out/`.
+#[test]
+fn missing_tables_big_integers_and_escaping_names_are_named() {
+    let base = "[domain]\nmin = [0, 0, 0]\nmax = [1, 1, 1]\ndx = 0.1\n[time]\nduration = 1\n";
+    let e = Scene::from_toml("name = \"x\"\n[time]\nduration = 1\n", "s").unwrap_err();
+    assert_eq!(e.field.as_deref(), Some("domain"), "{e}");
+    assert!(e.hint.unwrap().contains("[domain]"));
+    let e = Scene::from_toml(
+        "[domain]\nmin = [0, 0, 0]\nmax = [1, 1, 1]\n[time]\nduration = 1\n",
+        "s",
+    )
+    .unwrap_err();
+    assert_eq!(e.field.as_deref(), Some("domain.dx"), "{e}");
+    let e = Scene::from_toml(&format!("seed = 123456789012345678901234\n{base}"), "s").unwrap_err();
+    assert_eq!(e.field.as_deref(), Some("seed"), "{e}");
+    assert!(e.hint.unwrap().contains("18446744073709551615"));
+    for name in ["../../evil", "a/b", "..", ".hidden", "", "a\u{7}b"] {
+        let e = Scene::from_toml(&format!("name = {name:?}\n{base}"), "s").unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("name"), "{name}: {e}");
+    }
+    let e = Scene::from_toml(&format!("{base}[output]\ndir = \"out/../../x\"\n"), "s").unwrap_err();
+    assert_eq!(e.field.as_deref(), Some("output.dir"), "{e}");
+    assert!(Scene::from_toml(&format!("name = \"ok-name_1\"\n{base}"), "s").is_ok());
 }

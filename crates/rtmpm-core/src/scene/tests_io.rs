@@ -212,3 +212,69 @@ fn particles_body_errors() {
     .unwrap_err();
     assert!(e.to_string().contains("only a body"), "{e}");
 }
+
+/// A particles body in the sampling walk and the budget: its estimate is exact (the file's
+/// point count), counting and sampling agree, and the file's velocities set the CFL step.
+#[test]
+fn particles_body_estimate_count_and_budget() {
+    use crate::scene::budget::Budget;
+    use crate::scene::sampling::{body_is_empty, count_body, estimate_body};
+    let d = TestDir::new("scene-particles-budget");
+    let first = parse_in(&d.0, &format!("{SCENE}{}", box_body("jelly"))).unwrap();
+    let mut p = first.sample_particles().unwrap();
+    let n = p.len();
+    assert!(n > 100);
+    write_ply(&d.path("still.ply"), &p, &FrameFields::default()).unwrap();
+    p.v[7] = Vec3::new(0.0, -1000.0, 0.0);
+    write_ply(&d.path("fast.ply"), &p, &FrameFields::default()).unwrap();
+    let body = |file: &str| {
+        format!("{SCENE}[[body]]\nmaterial = \"jelly\"\nshape = \"particles\"\nfile = \"{file}\"\n")
+    };
+    let still = parse_in(&d.0, &body("still.ply")).unwrap();
+    assert_eq!(estimate_body(&still, 0), n as u64);
+    assert_eq!(count_body(&still, 0).unwrap(), n as u64);
+    assert!(!body_is_empty(&still, 0).unwrap());
+    assert_eq!(still.sample_particles().unwrap().len(), n);
+    let b = Budget::estimate(&still, Some(1));
+    assert_eq!(
+        (b.body_particles.as_slice(), b.particles),
+        (&[n as u64][..], n as u64)
+    );
+    assert!(!b.dt_reason.contains("initial speed"), "{}", b.dt_reason);
+    // 1000 m/s in the file, far above the jelly's sound speed: it sets the step.
+    let fast = parse_in(&d.0, &body("fast.ply")).unwrap();
+    let b = Budget::estimate(&fast, Some(1));
+    assert!(b.dt_reason.contains("initial speed"), "{}", b.dt_reason);
+    assert!(b.dt < 0.4 * 0.0625 / 1000.0, "{}", b.dt);
+    // The body's own velocity replaces the file's: the budget no longer sees 1000 m/s.
+    let mut text = body("fast.ply");
+    text.push_str("velocity = [0.0, 0.0, 0.0]\n");
+    let b = Budget::estimate(&parse_in(&d.0, &text).unwrap(), Some(1));
+    assert!(!b.dt_reason.contains("initial speed"), "{}", b.dt_reason);
+}
+
+/// The particles made from a file go through the value checks of `io::contents`: a volume
+/// that is finite in the file but gives an infinite mass is an error naming the file.
+#[test]
+fn particles_body_values_are_checked() {
+    let d = TestDir::new("scene-particles-values");
+    let mut ply = b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nproperty float volume\nend_header\n".to_vec();
+    for (x, vol) in [(0.5f32, 1e-4f32), (0.6, 1e37)] {
+        for v in [x, 0.5, 0.5, vol] {
+            ply.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    std::fs::write(d.path("heavy.ply"), &ply).unwrap();
+    let text = format!(
+        "{SCENE}[[body]]\nmaterial = \"jelly\"\nshape = \"particles\"\nfile = \"heavy.ply\"\n"
+    );
+    let s = parse_in(&d.0, &text).unwrap();
+    let e = s.sample_particles().unwrap_err();
+    assert_eq!(e.field.as_deref(), Some("body[0]"));
+    assert!(
+        e.message.contains("heavy.ply")
+            && e.message.contains("point 1")
+            && e.message.contains("mass"),
+        "{e}"
+    );
+}

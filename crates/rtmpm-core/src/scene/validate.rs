@@ -3,7 +3,7 @@
 use super::material::backticked;
 use super::sampling::{self, BodyShape, Sampling};
 use super::schema::*;
-use super::spans::{line_col, path_at, span_in_doc};
+use super::spans::{is_table, line_col, path_at, path_by_text, span_in_doc};
 use super::{Body, Damping, RenderSettings, Scene, SceneError, StepMode, TimeSettings};
 use crate::boundary::mesh::MeshSdf;
 use crate::boundary::sdf::Shape;
@@ -43,6 +43,7 @@ fn toml_error(text: &str, origin: &str, e: &toml::de::Error) -> SceneError {
     let doc = toml_edit::Document::parse(text).ok();
     let at = match (&doc, offset) {
         (Some(d), Some(o)) => path_at(d, o),
+        (None, Some(o)) => path_by_text(text, o),
         _ => None,
     };
     let (field, hint) = if let Some(name) = backticked(&message, "unknown field ") {
@@ -53,22 +54,44 @@ fn toml_error(text: &str, origin: &str, e: &toml::de::Error) -> SceneError {
         };
         (
             Some(field),
-            "remove the field or fix its spelling (the fields are listed in docs/scene-format.md)",
+            "remove the field or fix its spelling (the fields are listed in docs/scene-format.md)"
+                .to_string(),
         )
     } else if let Some(name) = backticked(&message, "missing field ") {
-        let field = match &at {
-            Some(p) => format!("{p}.{name}"),
-            None => name.to_string(),
+        // The error points into the table that lacks the field: name that table (the root
+        // when the position is on a plain key such as `name`).
+        let mut table = at.clone().unwrap_or_default();
+        if let Some(d) = &doc {
+            while !table.is_empty() && !is_table(d, &table) {
+                table = match table.rfind(['.', '[']) {
+                    Some(i) => table[..i].to_string(),
+                    None => String::new(),
+                };
+            }
+        }
+        let (field, hint) = if table.is_empty() {
+            (
+                name.to_string(),
+                format!("add the [{name}] table or `{name} = ...` (see docs/scene-format.md)"),
+            )
+        } else {
+            (
+                format!("{table}.{name}"),
+                "add the field; it has no default".to_string(),
+            )
         };
-        (Some(field), "add the field; it has no default")
+        (Some(field), hint)
     } else if message.contains("unknown variant") {
-        (at, "use one of the listed values")
+        (at, "use one of the listed values".to_string())
+    } else if let Some(ty) = integer_out_of_range(&message) {
+        (at, ty)
     } else if doc.is_none() {
-        (None, "fix the TOML syntax at this position")
+        (at, "fix the TOML syntax at this position".to_string())
     } else {
         (
             at,
-            "check the value's type: numbers without quotes, names in quotes, vectors as [x, y, z]",
+            "check the value's type: numbers without quotes, names in quotes, vectors as [x, y, z]"
+                .to_string(),
         )
     };
     SceneError {
@@ -77,8 +100,26 @@ fn toml_error(text: &str, origin: &str, e: &toml::de::Error) -> SceneError {
         column,
         field,
         message,
-        hint: Some(hint.into()),
+        hint: Some(hint),
     }
+}
+
+/// The fix for an integer too large (or negative) for its field, from serde's message
+/// (`invalid value: integer `-1`, expected u32`, `... as i128, expected u64`).
+fn integer_out_of_range(message: &str) -> Option<String> {
+    if !message.contains("integer") {
+        return None;
+    }
+    let ty = message.rsplit("expected ").next()?.trim();
+    let range = match ty {
+        "u32" => format!("0 to {}", u32::MAX),
+        "u64" => format!("0 to {}", u64::MAX),
+        "i64" => format!("{} to {}", i64::MIN, i64::MAX),
+        _ => return None,
+    };
+    Some(format!(
+        "the number is out of range for this field: use a whole number from {range}"
+    ))
 }
 
 /// Parse and validate scene text.
@@ -90,6 +131,18 @@ pub(super) fn parse(text: &str, origin: &str, base: &Path, stem: Option<&str>) -
         doc: toml_edit::Document::parse(text).ok(),
     };
     v.resolve(raw, base, stem)
+}
+
+/// Largest sound speed of the scene's materials (0 when one cannot be built yet: its own
+/// error is reported when the materials are validated).
+fn materials_sound_speed(raw: &RawScene, v: &V<'_>) -> f32 {
+    raw.material
+        .iter()
+        .enumerate()
+        .filter_map(|(i, m)| v.material(i, m).ok())
+        .map(|m| m.model.sound_speed(m.density))
+        .filter(|c| c.is_finite())
+        .fold(0.0, f32::max)
 }
 
 fn fmt3(v: Vec3) -> String {
@@ -189,6 +242,7 @@ impl V<'_> {
             .clone()
             .or_else(|| stem.map(str::to_string))
             .unwrap_or_else(|| "scene".into());
+        self.file_name_ok(&name, raw.name.is_some())?;
         // Domain.
         let dx = self.positive("domain.dx", raw.domain.dx, "the grid spacing dx")?;
         let dmin = self.vec3("domain.min", raw.domain.min)?;
@@ -209,6 +263,16 @@ impl V<'_> {
         let cells = (dmax - dmin) / dx;
         for a in 0..3 {
             let n = cells[a];
+            if n.round() < 1.0 {
+                return Err(self.err(
+                    "domain.dx",
+                    format!(
+                        "dx = {dx} is larger than the domain along axis {a} ({} m)",
+                        dmax[a] - dmin[a]
+                    ),
+                    "use a dx that divides the domain into cells (e.g. a 64th of its size)",
+                ));
+            }
             if (n - n.round()).abs() > 1e-3 * n.max(1.0) {
                 let fixed = dmin[a] + n.round().max(1.0) * dx;
                 return Err(self.err(
@@ -243,6 +307,13 @@ impl V<'_> {
                 ));
             }
             (Some(dt), None) => {
+                if t.min_dt.is_some() {
+                    return Err(self.err(
+                        "time.min_dt",
+                        "min_dt only applies to a CFL step",
+                        "remove min_dt, or replace dt by cfl",
+                    ));
+                }
                 if t.max_dt.is_some() {
                     return Err(self.err(
                         "time.max_dt",
@@ -266,7 +337,32 @@ impl V<'_> {
                 }
                 let max_dt =
                     self.positive("time.max_dt", t.max_dt.unwrap_or(1e-3), "max_dt (s)")?;
-                StepMode::Cfl { cfl, max_dt }
+                // Default: a thousandth of the step the materials' sound speed allows at rest.
+                let sound = materials_sound_speed(&raw, self);
+                let at_rest = if sound > 0.0 {
+                    (cfl * dx / sound).min(max_dt)
+                } else {
+                    max_dt
+                };
+                let min_dt = match t.min_dt {
+                    Some(m) => {
+                        let m = self.positive("time.min_dt", m, "min_dt (s)")?;
+                        if m > max_dt {
+                            return Err(self.err(
+                                "time.min_dt",
+                                format!("min_dt = {m} s is above max_dt = {max_dt} s"),
+                                "use a min_dt well below max_dt, e.g. 1e-7",
+                            ));
+                        }
+                        m
+                    }
+                    None => at_rest * 1e-3,
+                };
+                StepMode::Cfl {
+                    cfl,
+                    max_dt,
+                    min_dt,
+                }
             }
         };
         if let StepMode::Fixed { dt } = step
@@ -361,12 +457,13 @@ impl V<'_> {
                 .and_then(|s| s.precision)
                 .unwrap_or_default(),
         };
-        // Every body must produce particles.
+        // Every body must produce particles (found without storing them: the first one is
+        // enough; the size of the whole scene is checked by the budget, scene::budget).
         for i in 0..scene.bodies.len() {
-            let p = sampling::sample_body(&scene, i).map_err(|e| {
+            let empty = sampling::body_is_empty(&scene, i).map_err(|e| {
                 self.err(format!("body[{i}]"), e.message, e.hint.unwrap_or_default())
             })?;
-            if p.is_empty() {
+            if empty {
                 return Err(self.err(
                     format!("body[{i}]"),
                     "the body produces 0 particles",
@@ -375,6 +472,32 @@ impl V<'_> {
             }
         }
         Ok(scene)
+    }
+
+    /// The scene name names the output folder `out/<name>`: it must be one plain folder name
+    /// (no `/`, `\\`, `..`, control characters, not hidden), so it cannot write outside `out/`.
+    fn file_name_ok(&self, name: &str, given: bool) -> R<()> {
+        let bad = if name.trim().is_empty() {
+            Some("is empty")
+        } else if name.contains(['/', '\\']) {
+            Some("contains a path separator")
+        } else if name.starts_with('.') {
+            Some("starts with `.` (a hidden folder, or `..` which climbs out of out/)")
+        } else if name.chars().any(char::is_control) {
+            Some("contains control characters")
+        } else if name.len() > 200 {
+            Some("is longer than 200 bytes")
+        } else {
+            None
+        };
+        match bad {
+            None => Ok(()),
+            Some(why) => Err(self.err(
+                if given { "name" } else { "<file name>" },
+                format!("the scene name {name:?} {why}; it names the output folder out/<name>"),
+                "use letters, digits, `-` and `_` (e.g. name = \"dam_break\"); choose the folder with [output] dir",
+            )),
+        }
     }
 
     /// `[solver]`: defaults to MLS-MPM/APIC; `update` and `flip` only apply to the classic MPM

@@ -24,6 +24,17 @@ impl V<'_> {
             .and_then(|o| o.dir.clone())
             .map(PathBuf::from)
             .unwrap_or(default_dir);
+        if dir.as_os_str().is_empty()
+            || dir
+                .components()
+                .any(|c| matches!(c, std::path::Component::ParentDir))
+        {
+            return Err(self.err(
+                "output.dir",
+                format!("output folder {:?} is empty or climbs out with `..`", dir),
+                "give a folder below the current one (e.g. \"out/my_run\") or an absolute path without `..`",
+            ));
+        }
         let formats = out
             .and_then(|o| o.formats.clone())
             .unwrap_or_else(|| vec![RawFormat::Ply]);

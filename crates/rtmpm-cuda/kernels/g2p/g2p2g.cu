@@ -34,7 +34,7 @@ __device__ __forceinline__ void g2p2g_body(const Ctx& c) {
         P2gParticle q = p2g_particle_zero();
         if (lane < count) {
             unsigned p = first + lane;
-            real m = c.state[F_MASS * c.cap + p], vol0 = c.state[F_VOL0 * c.cap + p];
+            real m = c.state[sidx(c.cap, F_MASS, p)], vol0 = c.state[sidx(c.cap, F_VOL0, p)];
             G2pResult r = g2p_particle<ALL_FLUID>(c, g, p);
             speed = max(speed, r.speed);
             if (!r.leave) {

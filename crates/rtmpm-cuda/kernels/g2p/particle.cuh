@@ -22,9 +22,9 @@ template <bool ALL_FLUID>
 __device__ __forceinline__ G2pState g2p_load_state(const Ctx& c, unsigned p) {
     G2pState s;
     s.F = load_deformation(c.state, c.cap, p, ALL_FLUID);
-    s.plastic = ALL_FLUID ? (real)0 : c.state[F_PLASTIC * c.cap + p];
-    s.material = state_bits(c.state[F_MAT * c.cap + p]);
-    s.id = ALL_FLUID ? 0u : state_bits(c.state[F_ID * c.cap + p]);
+    s.plastic = ALL_FLUID ? (real)0 : c.state[sidx(c.cap, F_PLASTIC, p)];
+    s.material = state_bits(c.state[sidx(c.cap, F_MAT, p)]);
+    s.id = ALL_FLUID ? 0u : state_bits(c.state[sidx(c.cap, F_ID, p)]);
     return s;
 }
 
@@ -63,7 +63,7 @@ __device__ __forceinline__ G2pResult g2p_finish(const Ctx& c, const int* bc, uns
     bool finite = isfinite(x.x) && isfinite(x.y) && isfinite(x.z) && isfinite(v.x) && isfinite(v.y) && isfinite(v.z);
     const Scalars& sc = scalars(c);
     if (!finite || speed * dt > (real)2 * sc.dx) {
-        unsigned id = ALL_FLUID ? state_bits(c.state[F_ID * c.cap + p]) : st.id;
+        unsigned id = ALL_FLUID ? state_bits(c.state[sidx(c.cap, F_ID, p)]) : st.id;
         unsigned prev = atomicMin(&c.ctl[CTL_BAD_INDEX], id);
         if (prev > id) atomicExch(&c.ctl[CTL_BAD_REASON], finite ? 2u : 1u);
     }
@@ -80,7 +80,7 @@ __device__ __forceinline__ G2pResult g2p_finish(const Ctx& c, const int* bc, uns
     store_v3(c.state, c.cap, F_V, p, v);
     store_m3(c.state, c.cap, F_C, p, C);
     store_deformation(c.state, c.cap, p, F, ALL_FLUID);
-    if (!ALL_FLUID) c.state[F_PLASTIC * c.cap + p] = plastic;
+    if (!ALL_FLUID) c.state[sidx(c.cap, F_PLASTIC, p)] = plastic;
     G2pResult r;
     r.x = x; r.v = v; r.C = C; r.F = F; r.plastic = plastic;
     r.leave = leave;

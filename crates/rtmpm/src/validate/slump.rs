@@ -116,7 +116,9 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
     // Full resolution only: at h = H/12 the slump is not resolved (s' = 0.28 against 0.39 at
     // tau' = 0.15, validation/RESULTS.md), and h = H/24 takes minutes on two CPU cores.
     if ctx.args.quick {
-        eprintln!("validate: slump runs at full resolution only (h = H/24; run it without --quick)");
+        eprintln!(
+            "validate: slump runs at full resolution only (h = H/24; run it without --quick)"
+        );
         return Ok(Vec::new());
     }
     let (dx, taus): (f32, &[f64]) = (0.1 / 24.0, &[0.10, 0.15, 0.25]);
@@ -132,7 +134,10 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
         );
         rows.push(Row {
             case: "slump".into(),
-            quantity: format!("slump s' at tau' = {tau:.2} (von Mises), h = H/{:.0}", H / dx as f64),
+            quantity: format!(
+                "slump s' at tau' = {tau:.2} (von Mises), h = H/{:.0}",
+                H / dx as f64
+            ),
             reference,
             simulated: s,
             error: rel_pct(s, reference),

@@ -1,0 +1,43 @@
+//! The run's budget on this machine: the estimate of `rtmpm_core::scene::budget` against the
+//! memory available and the free space of the output disk.
+
+use anyhow::{Result, bail};
+use rtmpm_core::Scene;
+use rtmpm_core::io::limits::host_memory_available;
+use rtmpm_core::scene::Budget;
+use std::path::Path;
+
+/// Free bytes (for an unprivileged user) of the file system holding `dir`, or of its nearest
+/// existing ancestor; `None` where that is not known.
+pub fn disk_available(dir: &Path) -> Option<u64> {
+    let abs = std::path::absolute(dir).ok()?;
+    let existing = abs.ancestors().find(|p| p.exists())?;
+    let c = std::ffi::CString::new(existing.as_os_str().as_encoded_bytes()).ok()?;
+    let mut st: libc::statvfs = unsafe { std::mem::zeroed() };
+    // SAFETY: `c` is a NUL-terminated path and `st` a writable statvfs.
+    if unsafe { libc::statvfs(c.as_ptr(), &mut st) } != 0 {
+        return None;
+    }
+    (st.f_bavail as u64).checked_mul(st.f_frsize as u64)
+}
+
+/// Estimate the budget of a run of `scene` (`frames` overriding its duration), print the
+/// warnings, and refuse (with the numbers and the fix) what cannot fit. `out` is the output
+/// folder, `None` when no frame files are written.
+pub fn enforce(scene: &Scene, frames: Option<u64>, out: Option<&Path>) -> Result<Budget> {
+    let budget = Budget::estimate(scene, frames);
+    for w in budget.warnings() {
+        eprintln!("warning: {w}");
+    }
+    let disk = out.and_then(disk_available);
+    let refusals = budget.refusals(host_memory_available(), disk, out.is_some());
+    if !refusals.is_empty() {
+        let text: Vec<String> = refusals.iter().map(|r| r.to_string()).collect();
+        bail!(
+            "scene `{}` does not fit this machine:\n{}",
+            scene.name,
+            text.join("\n")
+        );
+    }
+    Ok(budget)
+}

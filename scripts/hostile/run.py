@@ -1,0 +1,628 @@
+#!/usr/bin/env python3
+"""Hostile-input corpus for the rtmpm command line (issue 18), and a tally of the outcomes.
+
+    python3 scripts/hostile/run.py [--rtmpm target/release/rtmpm] [--work DIR] [--timeout 60]
+                                   [--report FILE.md] [--only SUBSTRING]
+
+Every case is built here (scene files, meshes, PLY files, checkpoints with valid checksums
+around bad values, used output folders, bad flags), run with closed stdin, a time limit and an
+address-space limit (ulimit -v 8 GiB: a huge allocation aborts), and classified:
+
+  clear     non-zero exit, an `error:` message that names what the case expects (a field, a
+            file, a particle, the fix), no panic
+  unclear   non-zero exit without the expected words
+  accepted  exit 0 for an input the case allows to run (e.g. a large but valid value)
+  crash     a panic, an abort, a signal
+  hang      killed at the time limit
+  lost      files that must survive (another run's frames, a collection) changed or vanished
+
+Exit status 1 when any case crashed, hung, lost data or gave an unclear message.
+"""
+
+import argparse
+import hashlib
+import os
+import re
+import resource
+import shutil
+import struct
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+MEM_LIMIT = 8 << 30
+
+GOOD_SCENE = """name = "h"
+seed = 1
+gravity = [0.0, -9.81, 0.0]
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [0.5, 0.5, 0.5]
+dx = 0.03125
+[time]
+duration = 0.05
+fps = 40
+cfl = 0.4
+max_dt = 2e-3
+[walls]
+thickness = 3
+friction = 0.1
+[[material]]
+name = "jelly"
+type = "fixed_corotated"
+density = 1000.0
+youngs_modulus = 2.0e4
+poisson_ratio = 0.3
+[[material]]
+name = "water"
+type = "fluid"
+density = 1000.0
+bulk_modulus = 2.0e4
+[[body]]
+material = "jelly"
+shape = "box"
+min = [0.125, 0.2, 0.125]
+max = [0.25, 0.325, 0.25]
+particles_per_cell = 8
+velocity = [0.5, 0.0, 0.0]
+angular_velocity = [0.0, 1.0, 0.0]
+[[body]]
+material = "water"
+shape = "sphere"
+center = [0.33, 0.2, 0.3]
+radius = 0.06
+[[collider]]
+shape = "half_space"
+point = [0.0, 0.1, 0.0]
+normal = [0.0, 1.0, 0.0]
+[output]
+formats = ["ply", "vtu"]
+[render]
+fov = 40
+"""
+
+# (field path, the line of GOOD_SCENE that sets it); each is replaced by hostile values.
+SLOTS = [
+    ("seed", "seed = 1"),
+    ("gravity", "gravity = [0.0, -9.81, 0.0]"),
+    ("domain.min", "min = [0.0, 0.0, 0.0]"),
+    ("domain.max", "max = [0.5, 0.5, 0.5]"),
+    ("domain.dx", "dx = 0.03125"),
+    ("time.duration", "duration = 0.05"),
+    ("time.fps", "fps = 40"),
+    ("time.cfl", "cfl = 0.4"),
+    ("time.max_dt", "max_dt = 2e-3"),
+    ("walls.thickness", "thickness = 3"),
+    ("walls.friction", "friction = 0.1"),
+    ("material[0].density", "density = 1000.0\nyoungs"),
+    ("material[0].youngs_modulus", "youngs_modulus = 2.0e4"),
+    ("material[0].poisson_ratio", "poisson_ratio = 0.3"),
+    ("material[1].bulk_modulus", "bulk_modulus = 2.0e4"),
+    ("body[0].min", "min = [0.125, 0.2, 0.125]"),
+    ("body[0].particles_per_cell", "particles_per_cell = 8"),
+    ("body[0].velocity", "velocity = [0.5, 0.0, 0.0]"),
+    ("body[0].angular_velocity", "angular_velocity = [0.0, 1.0, 0.0]"),
+    ("body[1].radius", "radius = 0.06"),
+    ("collider[0].normal", "normal = [0.0, 1.0, 0.0]"),
+    ("render.fov", "fov = 40"),
+]
+HOSTILE = ["nan", "-inf", "-1", "0", "1e38", "99999999999999999999", '"text"', "[]", "[nan, 0, 0]"]
+
+
+def scene_with(slot_line, value):
+    key = slot_line.split("=")[0].strip()
+    rest = slot_line.split("\n", 1)[1] if "\n" in slot_line else None
+    new = f"{key} = {value}" + (f"\n{rest}" if rest else "")
+    assert slot_line in GOOD_SCENE, slot_line
+    return GOOD_SCENE.replace(slot_line, new, 1)
+
+
+class Case:
+    def __init__(self, name, args, expect, may_accept=False, setup=None, keep=(), stdin=None):
+        self.name = name          # short id
+        self.args = args          # argv after the binary; "{W}" is the case's work folder
+        self.expect = expect      # words a clear error must contain (any one of each tuple)
+        self.may_accept = may_accept
+        self.setup = setup        # fn(work_dir) run first
+        self.keep = keep          # paths (relative to work) that must not change
+
+
+def write(p, data):
+    p.parent.mkdir(parents=True, exist_ok=True)
+    if isinstance(data, str):
+        data = data.encode()
+    p.write_bytes(data)
+
+
+# ---------------------------------------------------------------- files made here
+
+def ply_bytes(header_lines, body=b""):
+    h = "ply\nformat binary_little_endian 1.0\n" + "".join(l + "\n" for l in header_lines)
+    return (h + "end_header\n").encode() + body
+
+
+def good_ply(n=4):
+    body = b"".join(struct.pack("<6fif", i * 0.1, 0.2, 0.3, 0, 0, 0, 0, 0) for i in range(n))
+    return ply_bytes([f"element vertex {n}"] + [f"property float {c}" for c in
+                     ["x", "y", "z", "vx", "vy", "vz"]] + ["property int material",
+                     "property float plastic"], body)
+
+
+def fnv1a(b):
+    h = 0xcbf29ce484222325
+    for c in b:
+        h ^= c
+        h = (h * 0x100000001b3) & 0xFFFFFFFFFFFFFFFF
+    return h
+
+
+def checkpoint(scene_text, particles, time_=0.025, step=10, frame=1, origin="/x/h.toml",
+               version=1, payload_len=None, n_override=None):
+    """A checkpoint with a valid checksum. particles: list of dicts with x, v, mass, vol, mat."""
+    p = b""
+    for s in (scene_text.encode(), origin.encode()):
+        p += struct.pack("<Q", len(s)) + s
+    p += struct.pack("<dQQQ", time_, step, frame,
+                     len(particles) if n_override is None else n_override)
+    cols = {k: b"" for k in "xvcfpmwt"}
+    for q in particles:
+        cols["x"] += struct.pack("<3f", *q.get("x", (0.3, 0.3, 0.3)))
+        cols["v"] += struct.pack("<3f", *q.get("v", (0, 0, 0)))
+        cols["c"] += struct.pack("<9f", *([0.0] * 9))
+        cols["f"] += struct.pack("<9f", *q.get("f", (1, 0, 0, 0, 1, 0, 0, 0, 1)))
+        cols["p"] += struct.pack("<f", q.get("plastic", 0.0))
+        cols["m"] += struct.pack("<f", q.get("mass", 1e-3))
+        cols["w"] += struct.pack("<f", q.get("vol", 1e-6))
+        cols["t"] += struct.pack("<I", q.get("mat", 0))
+    p += b"".join(cols[k] for k in "xvcfpmwt")
+    head = b"RTMPMCKP" + struct.pack("<II", version, 0)
+    head += struct.pack("<Q", len(p) if payload_len is None else payload_len)
+    body = head + p
+    return body + struct.pack("<Q", fnv1a(body))
+
+
+def tree_hash(d):
+    h = hashlib.sha256()
+    if not d.exists():
+        return "missing"
+    for f in sorted(d.rglob("*")):
+        if f.is_file() and not f.name.startswith(".rtmpm.lock"):
+            h.update(f.name.encode())
+            h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+# ---------------------------------------------------------------- the corpus
+
+def cases():
+    out = []
+    S = "{W}/scene.toml"
+    run = ["run", S, "--backend", "cpu", "--frames", "1", "--out", "{W}/out"]
+
+    # 1. every slot of a valid scene with each hostile value: check, then a short run.
+    for field, line in SLOTS:
+        for v in HOSTILE:
+            text = scene_with(line, v)
+            last = field.split(".")[-1]
+            parent = field.rsplit(".", 1)[0] + "." if "." in field else field
+            out.append(Case(f"value {field} = {v}", ["check", S], [(field, last, parent)], may_accept=True,
+                            setup=lambda w, t=text: write(w / "scene.toml", t)))
+    # ... and a run of those values that a check accepts is done by the 'run' cases below.
+    for field, line, v, words in [
+        ("body[0].velocity", "velocity = [0.5, 0.0, 0.0]", "[1e6, 0, 0]", ("time step collapsed", "min_dt")),
+        ("body[0].velocity", "velocity = [0.5, 0.0, 0.0]", "[1e30, 0, 0]", ("time step collapsed", "blew up", "initial speed")),
+        ("body[0].angular_velocity", "angular_velocity = [0.0, 1.0, 0.0]", "[0, 1e7, 0]", ("time step collapsed", "blew up")),
+        ("gravity", "gravity = [0.0, -9.81, 0.0]", "[0, -1e30, 0]", ("blew up", "time step collapsed")),
+        ("material[0].youngs_modulus", "youngs_modulus = 2.0e4", "1e38", ("time step collapsed", "blew up", "min_dt", "does not fit")),
+        ("time.max_dt", "max_dt = 2e-3", "1e-12", ("steps",)),
+    ]:
+        text = scene_with(line, v)
+        out.append(Case(f"run {field} = {v}", run + ["--no-output"], [words], may_accept=True,
+                        setup=lambda w, t=text: write(w / "scene.toml", t)))
+
+    # 2. scene files that are not scenes.
+    structural = {
+        "empty file": ("", [("domain",)]),
+        "missing [domain]": ("name = 'x'\n[time]\nduration = 1\n", [("field `domain`",)]),
+        "missing [time]": (GOOD_SCENE.replace("[time]\nduration = 0.05\nfps = 40\ncfl = 0.4\nmax_dt = 2e-3\n", ""), [("time",)]),
+        "missing domain.dx": (GOOD_SCENE.replace("dx = 0.03125\n", ""), [("domain.dx",)]),
+        "unknown field": (GOOD_SCENE.replace("seed = 1", "sed = 1"), [("sed",)]),
+        "unknown table": (GOOD_SCENE + "[solvr]\nx = 1\n", [("solvr",)]),
+        "unknown material type": (GOOD_SCENE.replace('"fixed_corotated"', '"steel"'), [("type", "material[0]")]),
+        "unknown body material": (GOOD_SCENE.replace('material = "jelly"', 'material = "jely"'), [("body[0].material",)]),
+        "syntax error": (GOOD_SCENE.replace("[time]", "[time"), [(":8:6",)]),
+        "toml_edit panic input": ("==\n.=", [("h.toml", "scene.toml")]),
+        "binary garbage": (bytes(range(256)) * 64, [("not UTF-8",)]),
+        "utf-16 text": (GOOD_SCENE.encode("utf-16"), [("not UTF-8",)]),
+        "20 MB of comments": ("#" * (20 << 20), [("more than 16.00 MiB",)]),
+        "name climbs out": (GOOD_SCENE.replace('name = "h"', 'name = "../../evil"'), [("name",)]),
+        "name is a path": (GOOD_SCENE.replace('name = "h"', 'name = "/etc/x"'), [("name",)]),
+        "hidden name": (GOOD_SCENE.replace('name = "h"', 'name = ".."'), [("name",)]),
+        "output dir climbs": (GOOD_SCENE + '', [("output.dir",)]),
+        "duplicate key": (GOOD_SCENE.replace("seed = 1", "seed = 1\nseed = 2"), [("seed", "duplicate")]),
+        "body outside": (GOOD_SCENE.replace("radius = 0.06", "radius = 6"), [("outside",)]),
+        "body inside walls": (GOOD_SCENE.replace("min = [0.125, 0.2, 0.125]", "min = [0.01, 0.2, 0.125]"), [("walls",)]),
+        "dt and cfl": (GOOD_SCENE.replace("cfl = 0.4", "cfl = 0.4\ndt = 1e-4"), [("time.cfl", "time.dt")]),
+        "min_dt above max_dt": (GOOD_SCENE.replace("cfl = 0.4", "cfl = 0.4\nmin_dt = 1"), [("min_dt",)]),
+        "walls fill domain": (GOOD_SCENE.replace("thickness = 3", "thickness = 10"), [("walls.thickness",)]),
+        "4096 cells, body too fine": (GOOD_SCENE.replace("dx = 0.03125", "dx = 0.0001220703125"), [("lattice points",)]),
+        "dx above the domain": (GOOD_SCENE.replace("dx = 0.03125", "dx = 1.0"), [("domain.dx", "domain.max")]),
+        "random thin shape": (GOOD_SCENE.replace("radius = 0.06", 'radius = 0.06\nsampling = "random"\ncount = 40000000'), [("body[1]",)]),
+        "count without random": (GOOD_SCENE.replace("radius = 0.06", "radius = 0.06\ncount = 5"), [("count",)]),
+        "ppc 2^32": (GOOD_SCENE.replace("particles_per_cell = 8", "particles_per_cell = 4294967296"), [("particles_per_cell",)]),
+        "seed 2^64": (GOOD_SCENE.replace("seed = 1", "seed = 18446744073709551616"), [("seed",)]),
+        "negative seed": (GOOD_SCENE.replace("seed = 1", "seed = -1"), [("seed",)]),
+        "zero-volume body": (GOOD_SCENE.replace("max = [0.25, 0.325, 0.25]", "max = [0.125, 0.325, 0.25]"), [("body[0]",)]),
+        "vector of 2": (GOOD_SCENE.replace("gravity = [0.0, -9.81, 0.0]", "gravity = [0.0, -9.81]"), [("gravity",)]),
+        "nested arrays": (GOOD_SCENE.replace("gravity = [0.0, -9.81, 0.0]", "gravity = [[0.0], -9.81, 0.0]"), [("gravity",)]),
+        "10k materials": (GOOD_SCENE + "".join(f'[[material]]\nname = "m{i}"\ntype = "fluid"\ndensity = 1\nbulk_modulus = 1\n' for i in range(10000)), [],),
+    }
+    structural["output dir climbs"] = (GOOD_SCENE + '', [("output.dir",)])
+    for name, (text, words) in structural.items():
+        if name == "output dir climbs":
+            text = GOOD_SCENE.replace('formats = ["ply", "vtu"]', 'formats = ["ply", "vtu"]\ndir = "out/../../x"')
+        out.append(Case(f"scene: {name}", ["check", S], words or [()], may_accept=not words,
+                        setup=lambda w, t=text: write(w / "scene.toml", t)))
+    for name, path, words in [
+        ("scene is /dev/zero", "/dev/zero", ("not a regular file",)),
+        ("scene is /dev/urandom", "/dev/urandom", ("not a regular file",)),
+        ("scene is a folder", "{W}", ("is a folder",)),
+        ("scene missing", "{W}/nope.toml", ("No such file", "check the path")),
+        ("scene is a fifo", "{W}/fifo.toml", ("not a regular file",)),
+    ]:
+        def mk(w, path=path):
+            if "fifo" in path:
+                os.mkfifo(w / "fifo.toml")
+        out.append(Case(name, ["check", path], [words], setup=mk))
+        out.append(Case(name + " (run)", ["run", path, "--backend", "cpu", "--no-output"], [words], setup=mk))
+
+    # 3. sizes: huge bodies, absurd steps and frames.
+    big = GOOD_SCENE.replace("max = [0.5, 0.5, 0.5]\ndx = 0.03125", "max = [4.0, 4.0, 4.0]\ndx = 0.01")
+    one_45m = big.replace("radius = 0.06", "radius = 0.06").replace(
+        "min = [0.125, 0.2, 0.125]\nmax = [0.25, 0.325, 0.25]", "min = [0.05, 0.05, 0.05]\nmax = [1.8, 1.8, 1.8]")
+    five = big + "".join(
+        f'[[body]]\nmaterial = "water"\nshape = "box"\nmin = [0.05, 0.05, {0.05 + 0.75 * i}]\nmax = [3.9, 3.9, {0.39 + 0.75 * i}]\n'
+        for i in range(5))
+    for name, text, words in [
+        ("45M-particle body (check)", one_45m, ("does not fit", "ok")),
+        ("five 40M-particle bodies (check)", five, ("does not fit",)),
+        ("dt = 1e-12", GOOD_SCENE.replace("cfl = 0.4\nmax_dt = 2e-3", "dt = 1e-12"), ("steps",)),
+        ("fps = 1e12", GOOD_SCENE.replace("fps = 40\ncfl = 0.4\nmax_dt = 2e-3", "fps = 1e12\ndt = 1e-13"), ("frames",)),
+        ("duration = 1e30", GOOD_SCENE.replace("duration = 0.05", "duration = 1e30"), ("frames",)),
+    ]:
+        out.append(Case(f"size: {name}", ["check", S], [words], may_accept="45M" in name,
+                        setup=lambda w, t=text: write(w / "scene.toml", t)))
+        out.append(Case(f"size: {name} (run)", run[:4] + run[6:], [words],
+                        setup=lambda w, t=text: write(w / "scene.toml", t)))
+
+    # 4. meshes.
+    cube = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n" \
+           "f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 2 3 7\nf 2 7 6\nf 3 4 8\nf 3 8 7\nf 4 1 5\nf 4 5 8\n"
+    mesh_body = GOOD_SCENE.replace('shape = "sphere"\ncenter = [0.33, 0.2, 0.3]\nradius = 0.06',
+                                   'shape = "mesh"\nfile = "MESH"\nscale = 0.1\ntranslate = [0.3, 0.15, 0.3]')
+    for name, mesh, words in [
+        ("mesh is /dev/zero", "/dev/zero", ("not a regular file",)),
+        ("mesh missing", "nope.obj", ("nope.obj",)),
+        ("mesh is a folder", ".", ("folder",)),
+        ("mesh garbage", "g.obj", ("g.obj",)),
+        ("mesh NaN vertex", "nan.obj", ("non-finite",)),
+        ("mesh bad face index", "idx.obj", ("vertex",)),
+        ("mesh no triangles", "empty.obj", ("no triangles",)),
+        ("mesh huge coordinates", "huge.obj", ("body[1]",)),
+        ("mesh non-UTF-8", "bin.obj", ("body[1]",)),
+    ]:
+        def mk(w, mesh=mesh, name=name):
+            write(w / "scene.toml", mesh_body.replace("MESH", mesh))
+            if mesh == "g.obj":
+                write(w / mesh, os.urandom(4096))
+            if mesh == "nan.obj":
+                write(w / mesh, cube.replace("v 1 1 1", "v nan 1 1"))
+            if mesh == "idx.obj":
+                write(w / mesh, cube + "f 1 2 99\n")
+            if mesh == "empty.obj":
+                write(w / mesh, "v 0 0 0\n")
+            if mesh == "huge.obj":
+                write(w / mesh, cube.replace("v 1 1 1", "v 1e30 1 1"))
+            if mesh == "bin.obj":
+                write(w / mesh, b"\xff\xfe" + cube.encode("utf-16-le"))
+        out.append(Case(f"mesh: {name}", ["check", S], [words], setup=mk))
+
+    # 4b. particle files (`shape = "particles"`, issue 15): PLY, VTU, BGEO readers.
+    pts_body = GOOD_SCENE.replace('shape = "sphere"\ncenter = [0.33, 0.2, 0.3]\nradius = 0.06',
+                                  'shape = "particles"\nfile = "PTS"')
+
+    def xyz_ply(points, volume=None):
+        props = ["x", "y", "z"] + (["volume"] if volume is not None else [])
+        body = b"".join(struct.pack(f"<{len(props)}f", *p, *([volume] if volume is not None else []))
+                        for p in points)
+        return ply_bytes([f"element vertex {len(points)}"] + [f"property float {c}" for c in props], body)
+
+    inside = [(0.3, 0.2, 0.3), (0.32, 0.2, 0.3)]
+    for name, pts, words, files, how in [
+        ("no extension (/dev/zero)", "/dev/zero", ("unknown particle file type",), {}, "check"),
+        ("symlink to /dev/zero", "zero.ply", ("not a regular file",), {"zero.ply": "->/dev/zero"}, "check"),
+        ("named pipe", "pipe.vtu", ("a pipe",), {"pipe.vtu": "fifo"}, "check"),
+        ("folder", "d.bgeo", ("folder",), {"d.bgeo": "dir"}, "check"),
+        ("missing", "nope.ply", ("nope.ply",), {}, "check"),
+        ("garbage BGEO.gz", "g.bgeo.gz", ("g.bgeo.gz",), {"g.bgeo.gz": os.urandom(4096)}, "check"),
+        ("garbage VTU", "g.vtu", ("g.vtu",), {"g.vtu": os.urandom(4096)}, "check"),
+        ("gzip of 64 MB of zeros", "z.bgeo.gz", ("z.bgeo.gz",), {"z.bgeo.gz": "zeros.gz"}, "check"),
+        ("PLY header of 1e9 points", "h.ply", ("truncated",),
+         {"h.ply": ply_bytes(["element vertex 1000000000", "property float x", "property float y",
+                              "property float z"])}, "check"),
+        ("PLY NaN position", "nan.ply", ("non-finite",), {"nan.ply": xyz_ply([inside[0], (float("nan"), 0.2, 0.3)])}, "check"),
+        ("PLY no points", "none.ply", ("no points",), {"none.ply": xyz_ply([])}, "check"),
+        ("PLY point outside the domain", "far.ply", ("outside the domain",), {"far.ply": xyz_ply(inside + [(5.0, 0.2, 0.3)])}, "check"),
+        ("PLY volume 1e37 (infinite mass)", "heavy.ply", ("mass",), {"heavy.ply": xyz_ply(inside, 1e37)}, "run"),
+    ]:
+        def mk(w, pts=pts, files=files):
+            write(w / "scene.toml", pts_body.replace("PTS", pts))
+            for f, data in files.items():
+                if data == "fifo":
+                    os.mkfifo(w / f)
+                elif data == "dir":
+                    (w / f).mkdir()
+                elif data == "zeros.gz":
+                    import gzip
+                    write(w / f, gzip.compress(bytes(64 << 20), compresslevel=1))
+                elif isinstance(data, str) and data.startswith("->"):
+                    os.symlink(data[2:], w / f)
+                else:
+                    write(w / f, data)
+        args = ["check", S] if how == "check" else run
+        out.append(Case(f"particles file: {name}", args, [words, ("body[1]",)], setup=mk))
+
+    # 5. checkpoints with valid checksums around bad values, and broken files.
+    ok_particles = [dict(x=(0.2, 0.2, 0.2)), dict(x=(0.3, 0.25, 0.2), mat=1)]
+    for name, kw, plist, words in [
+        ("material index 7", {}, [dict(mat=7)], ("material index 7",)),
+        ("particle 1e9 m away", {}, [dict(x=(1e9, 0.2, 0.2))], ("outside the domain",)),
+        ("particle at -1", {}, [dict(x=(-1, 0.2, 0.2))], ("outside the domain",)),
+        ("NaN mass", {}, [dict(mass=float("nan"))], ("mass",)),
+        ("negative mass", {}, [dict(mass=-1.0)], ("mass",)),
+        ("zero volume", {}, [dict(vol=0.0)], ("volume",)),
+        ("inf velocity", {}, [dict(v=(float("inf"), 0, 0))], ("velocity",)),
+        ("NaN position", {}, [dict(x=(float("nan"), 0, 0))], ("position",)),
+        ("NaN F", {}, [dict(f=(float("nan"),) * 9)], ("deformation gradient",)),
+        ("inf plastic", {}, [dict(plastic=float("inf"))], ("plastic",)),
+        ("NaN time", dict(time_=float("nan")), ok_particles, ("time",)),
+        ("negative time", dict(time_=-1.0), ok_particles, ("time",)),
+        ("inf time", dict(time_=float("inf")), ok_particles, ("time",)),
+        ("frame after step", dict(frame=99, step=3), ok_particles, ("frame",)),
+        ("count mismatch", dict(n_override=5), ok_particles, ("particles do not match",)),
+        ("count 2^63", dict(n_override=1 << 63), ok_particles, ("particles do not match",)),
+        ("version 99", dict(version=99), ok_particles, ("version 99",)),
+        ("payload length huge", dict(payload_len=(1 << 64) - 1), ok_particles, ("truncated",)),
+    ]:
+        def mk(w, kw=kw, plist=plist):
+            write(w / "c.ckpt", checkpoint(GOOD_SCENE, plist, **kw))
+        out.append(Case(f"checkpoint: {name}", ["run", "--resume", "{W}/c.ckpt", "--backend", "cpu",
+                        "--out", "{W}/out", "--frames", "3"], [words], setup=mk))
+    for name, content, words in [
+        ("scene in checkpoint invalid", checkpoint(GOOD_SCENE.replace("dx = 0.03125", "dx = -1"), ok_particles), ("domain.dx",)),
+        ("scene in checkpoint not UTF-8", None, ("not UTF-8",)),
+        ("empty file", b"", ("not an rtmpm checkpoint",)),
+        ("a PLY file", good_ply(), ("not an rtmpm checkpoint",)),
+        ("one bit flipped", None, ("corrupt",)),
+        ("truncated", None, ("truncated",)),
+    ]:
+        def mk(w, content=content, name=name):
+            if content is None:
+                good = bytearray(checkpoint(GOOD_SCENE, ok_particles))
+                if "flipped" in name:
+                    good[100] ^= 4
+                    content = bytes(good)
+                elif "truncated" in name:
+                    content = bytes(good[:-50])
+                else:
+                    bad = GOOD_SCENE.encode()[:50] + b"\xff" + GOOD_SCENE.encode()[51:]
+                    raw = checkpoint("X" * len(bad), ok_particles)
+                    i = raw.index(b"X" * len(bad))
+                    raw = raw[:i] + bad + raw[i + len(bad):-8]
+                    content = raw + struct.pack("<Q", fnv1a(raw))
+            write(w / "c.ckpt", content)
+        out.append(Case(f"checkpoint: {name}", ["run", "--resume", "{W}/c.ckpt", "--backend", "cpu",
+                        "--out", "{W}/out"], [words], setup=mk))
+    for name, path, words in [("checkpoint is /dev/zero", "/dev/zero", ("not a regular file",)),
+                              ("checkpoint is a folder", "{W}", ("folder",)),
+                              ("checkpoint missing", "{W}/none.ckpt", ("No such file",))]:
+        out.append(Case(name, ["run", "--resume", path, "--backend", "cpu"], [words]))
+
+    # 6. PLY frames given to render.
+    xyz = [f"property float {c}" for c in "xyz"]
+    for name, data, words in [
+        ("1e12 vertices", ply_bytes(["element vertex 1000000000000"] + xyz, b"\0" * 64), ("truncated",)),
+        ("2^64-1 vertices", ply_bytes(["element vertex 18446744073709551615"] + xyz), ("truncated", "count")),
+        ("count beyond u64", ply_bytes(["element vertex 99999999999999999999999"] + xyz), ("element count",)),
+        ("vertex without properties", ply_bytes(["element vertex 1000000000000"]), ("no properties",)),
+        ("1e12 empty faces", ply_bytes(["element face 1000000000000", "element vertex 1"] + xyz, b"\0" * 12), ()),
+        ("1e12 faces with lists", ply_bytes(["element face 1000000000000", "property list uchar int v", "element vertex 1"] + xyz, b"\0" * 12), ("truncated",)),
+        ("list length 2^32-1", ply_bytes(["element face 1", "property list uint int v", "element vertex 0"] + xyz, b"\xff\xff\xff\xff"), ("truncated",)),
+        ("ascii ply", b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n", ("binary_little_endian",)),
+        ("big endian", b"ply\nformat binary_big_endian 1.0\nelement vertex 0\nend_header\n", ("binary_little_endian",)),
+        ("no end_header", b"ply\nformat binary_little_endian 1.0\nelement vertex 1\n", ("end_header",)),
+        ("no x column", ply_bytes(["element vertex 1", "property float y"], b"\0" * 4), ("`x`",)),
+        ("double x column", ply_bytes(["element vertex 1", "property double x", "property double y", "property double z"], b"\0" * 24), ("`x`",)),
+        ("truncated body", good_ply()[:-7], ("truncated",)),
+        ("NaN positions", good_ply().replace(struct.pack("<f", 0.2), struct.pack("<f", float("nan"))), ()),
+        ("not a ply", b"hello", ("not a PLY",)),
+        ("header of 2 MB", b"ply\n" + b"comment " + b"x" * (2 << 20) + b"\n", ("header",)),
+        ("100k header lines", b"ply\nformat binary_little_endian 1.0\n" + b"comment x\n" * 100000, ("header",)),
+    ]:
+        def mk(w, data=data):
+            write(w / "frames" / "frame_00000.ply", data)
+        out.append(Case(f"ply: {name}", ["render", "{W}/frames", "--size", "64x36", "--no-movie"],
+                        [words] if words else [()], may_accept=not words, setup=mk))
+    out.append(Case("ply: frame is a link to /dev/zero", ["render", "{W}/frames", "--no-movie"],
+                    [("not a regular file",)],
+                    setup=lambda w: ((w / "frames").mkdir(), os.symlink("/dev/zero", w / "frames" / "frame_00000.ply"))))
+
+    # 7. output folders: nothing of another run lost or mixed.
+    def used(w):
+        r = subprocess.run([BIN, "run", str(w / "scene.toml"), "--backend", "cpu", "--out", str(w / "out"),
+                            "--checkpoint-every", "1"], capture_output=True, stdin=subprocess.DEVNULL)
+        assert r.returncode == 0, r.stderr
+    def base(w):
+        write(w / "scene.toml", GOOD_SCENE)
+        used(w)
+    other = GOOD_SCENE.replace("radius = 0.06", "radius = 0.07")
+    out.append(Case("folder: fresh run into a used folder", run, [("already holds", "--overwrite")],
+                    setup=base, keep=["out"]))
+    out.append(Case("folder: other scene into a used folder", run, [("already holds",)],
+                    setup=lambda w: (base(w), write(w / "scene.toml", other)), keep=["out"]))
+    out.append(Case("folder: unparsable frames.pvd on resume",
+                    ["run", "--resume", "{W}/out/checkpoint_00001.ckpt", "--backend", "cpu", "--out", "{W}/out"],
+                    [("frames.pvd",)], setup=lambda w: (base(w), write(w / "out/frames.pvd", "garbage")), keep=["out"]))
+    out.append(Case("folder: resume another scene's checkpoint here",
+                    ["run", "--resume", "{W}/o/checkpoint_00001.ckpt", "--backend", "cpu", "--out", "{W}/out"],
+                    [("another run",)], keep=["out"],
+                    setup=lambda w: (write(w / "o.toml", other),
+                                     subprocess.run([BIN, "run", str(w / "o.toml"), "--backend", "cpu", "--out", str(w / "o"),
+                                                     "--checkpoint-every", "1"], capture_output=True), base(w))))
+    def locked(w):
+        base(w)
+        w_out = w / "out"
+        p = subprocess.Popen([BIN, "run", str(w / "scene.toml"), "--backend", "cpu", "--threads", "1", "--no-output",
+                              "--frames", "100000", "--checkpoint-every", "100000", "--out", str(w_out), "--overwrite"],
+                             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        LONG.append(p)
+        t = time.time()
+        while str(p.pid) not in (w_out / ".rtmpm.lock").read_text(errors="ignore"):
+            time.sleep(0.02)
+            if time.time() - t > 30:
+                break
+    out.append(Case("folder: second run while the first runs", run + ["--overwrite"], [("in use",)], setup=locked))
+    out.append(Case("folder: render while a run writes", ["render", "{W}/out"], [("in use",)], setup=locked))
+    out.append(Case("folder: --out is a file", ["run", S, "--backend", "cpu", "--out", "{W}/file"], [("file",)],
+                    setup=lambda w: (write(w / "scene.toml", GOOD_SCENE), write(w / "file", "x"))))
+    def mixed(w):
+        base(w)
+        write(w / "b.toml", other)
+        subprocess.run([BIN, "run", str(w / "b.toml"), "--backend", "cpu", "--out", str(w / "b"), "--frames", "4"],
+                       capture_output=True)
+        for f in ["frame_00003.ply", "frame_00004.ply"]:
+            shutil.copy(w / "b" / f, w / "out" / f)
+    out.append(Case("folder: render two runs' frames", ["render", "{W}/out", "--no-movie", "--size", "64x36"],
+                    [("two runs",)], setup=mixed))
+
+    # 8. flags.
+    for args, words in [
+        (["bench", "--n", "8", "--backend", "cpu"], ("20..=584",)),
+        (["bench", "--n", "0", "--backend", "cpu"], ("20..=584",)),
+        (["bench", "--n", "585", "--backend", "cpu"], ("20..=584",)),
+        (["bench", "--n", "99999999999", "--backend", "cpu"], ("--n",)),
+        (["run", S, "--backend", "cpu", "--threads", "999999", "--no-output", "--frames", "1"], ("thread",)),
+        (["run", S, "--backend", "cpu", "--frames", "-1"], ("-1",)),
+        (["run", S, "--backend", "gpu"], ("--backend",)),
+        (["run", S, "--precision", "f16"], ("precision", "f16")),
+        (["render", "{W}", "--fps", "nan"], ("--fps",)),
+        (["render", "{W}", "--size", "0x0"], ("size",)),
+        (["render", "{W}", "--size", "100000x100000"], ("size",)),
+        (["run"], ("no scene given",)),
+    ]:
+        out.append(Case("flags: " + " ".join(a for a in args if "{W}" not in a), args, [words],
+                        setup=lambda w: write(w / "scene.toml", GOOD_SCENE)))
+    return out
+
+
+# ---------------------------------------------------------------- running and judging
+
+LONG = []
+BIN = ""
+
+
+def limit():
+    resource.setrlimit(resource.RLIMIT_AS, (MEM_LIMIT, MEM_LIMIT))
+
+
+def judge(case, rc, text, timed_out, lost):
+    if timed_out:
+        return "hang"
+    if lost:
+        return "lost"
+    if rc < 0 or rc in (101, 134, 137, 139) or "panicked" in text or "memory allocation of" in text:
+        return "crash"
+    if rc == 0:
+        return "accepted" if case.may_accept else "unclear"
+    if not any(l.startswith("error") for l in text.splitlines()):
+        return "unclear"
+    for words in case.expect:
+        if words and not any(w in text for w in words):
+            return "unclear"
+    return "clear"
+
+
+def main():
+    global BIN
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--rtmpm", default=None)
+    ap.add_argument("--work", default=str(ROOT / "target" / "hostile"))
+    ap.add_argument("--timeout", type=float, default=60)
+    ap.add_argument("--report", default=None)
+    ap.add_argument("--only", default=None)
+    ap.add_argument("--backend", default="cpu", help="backend of the run cases (cpu, or cuda on a GPU machine)")
+    a = ap.parse_args()
+    BIN = a.rtmpm or next((str(p) for p in [ROOT / "target/release/rtmpm", ROOT / "target/debug/rtmpm"] if p.exists()), None)
+    if not BIN:
+        sys.exit("build rtmpm first: cargo build --release")
+    BIN = str(Path(BIN).resolve())
+    work = Path(a.work)
+    shutil.rmtree(work, ignore_errors=True)
+    work.mkdir(parents=True)
+    env = dict(os.environ, RTMPM_PROGRESS_SECONDS="1000000", NO_COLOR="1")
+    env.pop("RUST_BACKTRACE", None)
+    rows = []
+    all_cases = [c for c in cases() if not a.only or a.only in c.name]
+    for i, c in enumerate(all_cases):
+        w = work / f"case{i:03d}"
+        w.mkdir()
+        try:
+            if c.setup:
+                c.setup(w)
+        except Exception as e:  # a setup failure is a bug of this script, not of rtmpm
+            rows.append((c.name, "setup-failed", 0, f"{e}"))
+            continue
+        before = {k: tree_hash(w / k) for k in c.keep}
+        args = [s.replace("{W}", str(w)) for s in c.args]
+        if a.backend != "cpu" and "--threads" not in args:
+            args = [a.backend if x == "cpu" and args[i - 1] == "--backend" else x for i, x in enumerate(args)]
+        t = time.time()
+        try:
+            r = subprocess.run([BIN] + args, capture_output=True, stdin=subprocess.DEVNULL, timeout=a.timeout,
+                               preexec_fn=limit, env=env, cwd=w)
+            rc, text, timed_out = r.returncode, (r.stderr + r.stdout).decode(errors="replace"), False
+        except subprocess.TimeoutExpired as e:
+            rc, text, timed_out = None, ((e.stderr or b"") + (e.stdout or b"")).decode(errors="replace"), True
+        dt = time.time() - t
+        for p in LONG:
+            p.kill()
+            p.wait()
+        LONG.clear()
+        lost = any(tree_hash(w / k) != h for k, h in before.items())
+        verdict = judge(c, rc, text, timed_out, lost)
+        lines = [l for l in text.splitlines() if l.strip()]
+        first = next((l for l in lines if l.startswith("error")), lines[0] if lines else "")[:160]
+        rows.append((c.name, verdict, dt, first))
+        print(f"{verdict:9} {dt:6.2f}s  {c.name}: {first}", flush=True)
+    tally = {}
+    for _, v, _, _ in rows:
+        tally[v] = tally.get(v, 0) + 1
+    bad = sum(tally.get(k, 0) for k in ["crash", "hang", "lost", "unclear", "setup-failed"])
+    summary = (f"{len(rows)} hostile inputs: {tally.get('clear', 0)} clear errors, "
+               f"{tally.get('accepted', 0)} accepted (valid), {tally.get('unclear', 0)} unclear, "
+               f"{tally.get('crash', 0)} crashes, {tally.get('hang', 0)} hangs, {tally.get('lost', 0)} data lost"
+               + (f", {tally['setup-failed']} setup failures" if "setup-failed" in tally else ""))
+    print("\n" + summary)
+    if a.report:
+        with open(a.report, "w") as f:
+            f.write(f"# Hostile-input corpus\n\n`{' '.join(sys.argv)}` with `{BIN}`\n\n{summary}\n\n")
+            f.write("| case | outcome | s | first line |\n| --- | --- | --- | --- |\n")
+            for n, v, dt, first in rows:
+                f.write(f"| {n} | {v} | {dt:.2f} | {first.replace('|', '/')} |\n")
+    sys.exit(1 if bad else 0)
+
+
+if __name__ == "__main__":
+    main()
