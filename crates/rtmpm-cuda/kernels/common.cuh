@@ -78,6 +78,7 @@ struct Ctx {
     unsigned* prank;          // per particle: rank in bucket
     unsigned* warps;          // 3 per warp: gblock, first, count
     unsigned* boundary;       // per gblock: 1 if a neighbour block is shared with another GPU
+    unsigned* shared_pblock;  // per pblock: 1 if it is shared with another GPU
     int n_cells[3];
     int wall_thickness;
     unsigned wall_cond[6];    // COND_* of x min, x max, y min, ...

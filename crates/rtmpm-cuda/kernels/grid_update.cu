@@ -127,11 +127,14 @@ __device__ vec3 shape_normal(const Ctx& c, const GpuCollider& col, vec3 x) {
 __device__ void grid_update_node(const Ctx& c, unsigned t);
 
 // Grid-stride over the nodes of the pblocks in use (launched with at most one wave of blocks).
-extern "C" __global__ void grid_update(Ctx c) {
+// `part`: 0 every pblock; several GPUs: 1 the pblocks no other GPU shares (run while the shared
+// ones are summed across GPUs), 2 the shared ones (after the sum).
+extern "C" __global__ void grid_update(Ctx c, unsigned part) {
     if (c.ctl[CTL_ERROR]) return;
     unsigned n_nodes = c.ctl[CTL_PBLOCKS] * 64u;
     if (c.grid_next && thread_index() == 0) c.ctl[CTL_P2G_PENDING] = 0;  // this step's P2G is done
     for (unsigned t = thread_index(); t < n_nodes; t += gridDim.x * blockDim.x) {
+        if (part && (c.shared_pblock[t >> 6] != 0) != (part == 2)) continue;
         grid_update_node(c, t);
         // G2P2G: clear the next step's grid, which the fused kernel scatters into.
         if (c.grid_next) {

@@ -82,6 +82,7 @@ pub fn allocate(
     let prank = zeros(n * 4, "alloc sort ranks")?;
     let warps = zeros(cap.warps * 12, "alloc warp list")?;
     let boundary = zeros(cap.gblocks * 4, "alloc boundary flags")?;
+    let shared_pblock = zeros(cap.pblocks * 4, "alloc shared-block flags")?;
     let grid_bytes = cap.pblocks * 64 * 4 * rb;
     // The classic MPM transfers keep a second value per node (force, v_old, MUSL re-map).
     let grid_aux = if scene.solver.transfer == Transfer::Mls {
@@ -167,6 +168,7 @@ pub fn allocate(
         prank,
         warps,
         boundary,
+        shared_pblock,
         n_cells: scene.n_cells().map(|c| c as i32),
         wall_thickness: w.thickness as i32,
         wall_cond: w.faces.map(|f| contract::condition(f.condition)),

@@ -4,12 +4,14 @@ use crate::contract::Ctx;
 use crate::kernels::{Kernel, Kernels};
 use cudarc::driver::{CudaStream, DriverError, PushKernelArg};
 
-/// Enqueue the merged grid update (velocity, gravity, walls, colliders).
-pub(crate) fn enqueue(k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), DriverError> {
+/// Enqueue the merged grid update (velocity, gravity, walls, colliders) of every pblock
+/// (`part` 0), or, several GPUs, of the pblocks no other GPU shares (1) or of the shared ones (2).
+pub(crate) fn enqueue(k: &Kernels, s: &CudaStream, c: &Ctx, part: u32) -> Result<(), DriverError> {
     // SAFETY: the kernel bounds-checks against the pblock count.
     unsafe {
         s.launch_builder(&k[Kernel::GridUpdate])
             .arg(c)
+            .arg(&part)
             .launch(k.wave(c.pblock_cap as usize * 64, 128))?
     };
     Ok(())

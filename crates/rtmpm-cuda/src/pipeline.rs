@@ -74,9 +74,9 @@ fn musl(c: &Ctx) -> bool {
 pub trait Exchange {
     /// After the rebuild: which blocks are shared (redone only when a GPU rebuilt).
     fn after_rebuild(&self, k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), SimError>;
-    /// P2G in two parts: the gblocks next to a shared block first (`part` 1), the exchange
-    /// started, then the others (`part` 2) while it runs. Else P2G of every gblock, then the
-    /// exchange.
+    /// Overlap the exchange with the work that does not need it: the grid update of the pblocks
+    /// no other GPU shares, and (separate P2G) the P2G of the gblocks next to no shared block.
+    /// Else P2G, the exchange, then the grid update, in sequence.
     fn overlap(&self) -> bool;
     /// Start the exchange (after the P2G of every block that touches a shared block).
     fn start(&self, k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), SimError>;
@@ -123,9 +123,10 @@ pub fn enqueue_until(
                 }
             }
             Stage::P2g(i) => match hooks.exchange() {
-                // Several GPUs (the warp scatter, one phase): the gblocks next to a shared block
-                // first, the exchange while the others run.
-                Some(x) if x.overlap() => {
+                // Several GPUs, separate P2G (the warp scatter, one phase): the gblocks next to a
+                // shared block first, the exchange while the others run. With G2P2G the P2G
+                // kernel runs only after a rebuild: one launch, the overlap is in the grid update.
+                Some(x) if x.overlap() && c.grid_next == 0 => {
                     plan.p2g.enqueue_part(k, s, c, 1).map_err(err("p2g"))?;
                     x.start(k, s, c)?;
                     plan.p2g.enqueue_part(k, s, c, 2).map_err(err("p2g"))?;
@@ -138,12 +139,20 @@ pub fn enqueue_until(
                 }
                 None => plan.p2g.enqueue_phase(i, k, s, c).map_err(err("p2g"))?,
             },
-            Stage::GridUpdate => {
-                if let Some(x) = hooks.exchange() {
+            Stage::GridUpdate => match hooks.exchange() {
+                // Several GPUs: the pblocks no other GPU shares while the shared ones are summed,
+                // then the shared ones.
+                Some(x) if x.overlap() => {
+                    grid_update::enqueue(k, s, c, 1).map_err(err("grid update"))?;
                     x.finish(k, s, c)?;
+                    grid_update::enqueue(k, s, c, 2).map_err(err("grid update"))?;
                 }
-                grid_update::enqueue(k, s, c).map_err(err("grid update"))?;
-            }
+                Some(x) => {
+                    x.finish(k, s, c)?;
+                    grid_update::enqueue(k, s, c, 0).map_err(err("grid update"))?;
+                }
+                None => grid_update::enqueue(k, s, c, 0).map_err(err("grid update"))?,
+            },
             Stage::MuslRemap => {
                 g2p::enqueue_velocity(k, s, c).map_err(err("g2p (MUSL velocity)"))?;
                 crate::p2g::enqueue_musl(k, s, c).map_err(err("p2g (MUSL re-map)"))?;

@@ -56,6 +56,7 @@ fn layouts<R: GpuReal>() -> Vec<Layout> {
                 prank,
                 warps,
                 boundary,
+                shared_pblock,
                 n_cells,
                 wall_thickness,
                 wall_cond,

@@ -90,6 +90,8 @@ pub struct Ctx {
     pub warps: u64,
     /// Per gblock: 1 when one of its 27 neighbours is shared with another GPU.
     pub boundary: u64,
+    /// Per pblock: 1 when it is shared with another GPU (its grid update waits for the sum).
+    pub shared_pblock: u64,
     /// Cells of the domain per axis.
     pub n_cells: [i32; 3],
     /// Wall thickness (cells).

@@ -66,7 +66,7 @@ pub(crate) fn enqueue_list(
         s.launch_builder(&k[Kernel::SbBoundary])
             .arg(c)
             .arg(sc)
-            .launch(k.wave(c.gblock_cap as usize, 256))?;
+            .launch(k.wave(c.pblock_cap.max(c.gblock_cap) as usize, 256))?;
     }
     Ok(())
 }
