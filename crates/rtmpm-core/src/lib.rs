@@ -7,7 +7,7 @@
 //! * [`transfer`]: the particle-grid transfer schemes (MLS/APIC, GIMP, linear MPM; USL/MUSL;
 //!   PIC/FLIP) selected by a scene's `[solver]` table.
 //! * [`material`]: one file per constitutive model (stress and return mapping).
-//! * [`grid`]: the sparse grid layout of seed 000 (4x4x4 blocks, 64-bit interleaved codes,
+//! * [`grid`]: the sparse grid layout of Fei, Huang & Gao, "Real-Time Simulation of MPM on Modern GPUs" (GTC 2022) (4x4x4 blocks, 64-bit interleaved codes,
 //!   block hash to dense ids, gblocks/pblocks with 3x3x3 neighbour lists).
 //! * [`particles`]: particle state, struct-of-arrays.
 //! * [`boundary`]: domain walls and colliders (signed distance fields, OBJ meshes).

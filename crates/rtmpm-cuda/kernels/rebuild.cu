@@ -1,4 +1,4 @@
-// Rebuild of the particle-to-block mapping (seed 000): block codes, GPU hash table (block code ->
+// Rebuild of the particle-to-block mapping (Fei, Huang & Gao, "Real-Time Simulation of MPM on Modern GPUs" (GTC 2022)): block codes, GPU hash table (block code ->
 // dense id), gblocks, pblocks with explicit 3x3x3 neighbour lists, complete block+cell counting
 // sort (histogram, scan, scatter) with physical reordering of the particle arrays, warp list.
 // Each phase is a device function `rb_X_body`, run either as its own kernel `rb_X` (launched every
@@ -237,7 +237,7 @@ extern "C" __global__ void grid_clear_aux(Ctx c) {
     GRID_STRIDE(t, c.ctl[CTL_PBLOCKS] * 64u * 4u) c.grid_aux[t] = 0;
 }
 
-// ---- The whole rebuild in ONE launch (`rebuild=fused`, the default): seed 000's "merge kernels"
+// ---- The whole rebuild in ONE launch (`rebuild=fused`, the default): Fei et al.'s "merge kernels"
 // applied to the rebuild. The kernels above become the phases of one persistent kernel, separated
 // by a grid-wide barrier; its grid is exactly the blocks that fit on the device at once (a
 // cooperative launch, so every block is resident and the barrier cannot deadlock). A step without

@@ -5,13 +5,13 @@
 /// P2G variant.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum P2gMode {
-    /// Warps of 32 particles, no shared memory (seed 000).
+    /// Warps of 32 particles, no shared memory (Fei, Huang & Gao, "Real-Time Simulation of MPM on Modern GPUs" (GTC 2022)).
     Warp,
     /// One CUDA block per gblock with a shared-memory node tile (earlier work), for ablation.
     Shared,
-    /// Gather through replicated node-to-particle reverse maps built with atomicAdd (seed 001).
+    /// Gather through replicated node-to-particle reverse maps built with atomicAdd (Chiang et al., "GPU Acceleration of the Generalized Interpolation Material Point Method" (SAAHPC 2009)).
     ReverseMap,
-    /// Gather through one sort per step of the particle-node contributions (seed 001).
+    /// Gather through one sort per step of the particle-node contributions (Chiang et al.).
     Sort,
 }
 
@@ -30,7 +30,7 @@ impl P2gMode {
 /// Several GPUs of one process: how the shared blocks are summed across GPUs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Transport {
-    /// Each GPU's kernel reads the peers' packed shared blocks through peer pointers (seed 000).
+    /// Each GPU's kernel reads the peers' packed shared blocks through peer pointers (Fei et al.).
     P2p,
     /// NCCL all-reduce.
     Nccl,

@@ -1,6 +1,6 @@
 //! 64-bit node codes: interleaved block code plus a 6-bit cell code.
 //!
-//! Seed 000: the code of node `(i, j, k)` is `(i20..i2, j20..j2, k20..k2)` followed by
+//! Fei, Huang & Gao, "Real-Time Simulation of MPM on Modern GPUs" (GTC 2022): the code of node `(i, j, k)` is `(i20..i2, j20..j2, k20..k2)` followed by
 //! `(i1, i0, j1, j0, k1, k0)`. We interleave the block bits (Morton order) so that sorting by code
 //! also sorts blocks along a space-filling curve: block coordinates may use 19 bits per axis.
 

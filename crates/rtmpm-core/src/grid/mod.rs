@@ -1,4 +1,4 @@
-//! The sparse grid layout of seed 000 ("Real-time MPM on modern GPUs").
+//! The sparse grid layout of Fei, Huang & Gao, "Real-Time Simulation of MPM on Modern GPUs" (GTC 2022).
 //!
 //! * Nodes are grouped in blocks of 4x4x4 ([`codes::BLOCK_SIZE`]); only blocks near particles
 //!   exist in memory.

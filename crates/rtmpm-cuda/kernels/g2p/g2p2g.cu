@@ -1,4 +1,5 @@
-// G2P2G: seed 000's "merge kernels" taken across the step boundary (the G2P2G of Wang et al.
+// G2P2G: the "merge kernels" of Fei, Huang & Gao ("Real-Time Simulation of MPM on Modern GPUs",
+// GTC 2022) taken across the step boundary (the G2P2G of Wang et al.
 // 2020). One pass over the particles does the G2P of step n from `grid` and, while the new state
 // is still in registers, the P2G of step n+1 into `grid_next` (cleared by this step's grid
 // update): the next step reads no particle for its P2G and launches no P2G kernel.

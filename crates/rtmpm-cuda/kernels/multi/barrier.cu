@@ -1,4 +1,4 @@
-// The inter-GPU barrier of seed 000 ("Implementation of the inter-GPU barrier": a spin lock on
+// The inter-GPU barrier of Fei, Huang & Gao, "Real-Time Simulation of MPM on Modern GPUs" (GTC 2022) ("Implementation of the inter-GPU barrier": a spin lock on
 // system-scope atomics), used by transport=p2p between the GPUs of one process.
 //
 // One counter in GPU 0's memory, reached by every GPU through peer access. Every GPU counts its own

@@ -1,4 +1,4 @@
-// Multi-GPU: reduce-sum of the grid blocks that several GPUs share (seed 000, "job splitting by
+// Multi-GPU: reduce-sum of the grid blocks that several GPUs share (Fei, Huang & Gao, "Real-Time Simulation of MPM on Modern GPUs" (GTC 2022), "job splitting by
 // particles": particles are split between GPUs, each GPU builds its own blocks, the blocks present
 // on several GPUs are summed after P2G, then every GPU runs the grid update and G2P alone).
 //

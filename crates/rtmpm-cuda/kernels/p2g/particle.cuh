@@ -1,5 +1,5 @@
 // The per-particle quantities of P2G, from ONE function for every P2G strategy: the scatter
-// kernels of p2g.cu and the gathers of p2g_reverse_map.cu and p2g_sort.cu (seed 001). A change of
+// kernels of p2g.cu and the gathers of p2g_reverse_map.cu and p2g_sort.cu (Chiang et al., "GPU Acceleration of the Generalized Interpolation Material Point Method" (SAAHPC 2009)). A change of
 // the shape function (weights at the 3x3x3 stencil) or of the stress term is made here once.
 //
 // MLS-MPM (Hu et al. 2018, eq. 16/29): node i of the stencil receives
@@ -101,7 +101,7 @@ __device__ __forceinline__ void p2g_node_value(const P2gParticle& q, int i, int 
     p2g_row_node_value(q, p2g_row_weight(q, i, j), p2g_row_momentum(q, i, j), k, val);
 }
 
-// ---- Gather strategies (seed 001): the particle pass computes every (particle, stencil node)
+// ---- Gather strategies (Chiang et al.): the particle pass computes every (particle, stencil node)
 // value with p2g_node_value and stores it at entry (i * 9 + j * 3 + k) * cap + p of an array of
 // 4 reals per entry (slot-major: the lanes of a warp store consecutive entries); the maps name
 // entries, and the gather of a node sums its entries.

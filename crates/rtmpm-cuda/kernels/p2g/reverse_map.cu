@@ -1,9 +1,9 @@
-// P2G as a gather through a node-to-particle reverse map with replicated maps (seed 001, section
+// P2G as a gather through a node-to-particle reverse map with replicated maps (Chiang et al., "GPU Acceleration of the Generalized Interpolation Material Point Method" (SAAHPC 2009), section
 // II: "we maintain a set of nine independent reverse maps to reduce the number of atomicAdd calls
 // to a single location"; the map stores each node's entries successively so that the gather's
 // reads are coalesced, their Figure 2).
 //
-// 1. p2g_rmap_build, one thread per particle (fused, seed 001's "kernel fusion"): the particle
+// 1. p2g_rmap_build, one thread per particle (fused, Chiang et al.'s "kernel fusion"): the particle
 //    quantities and its 27 node values (p2g_particle.cuh, the same functions as the scatter) go to
 //    the entry array, and the particle inserts each entry into map p % replicas of its node's
 //    column: slot = atomicAdd(count[map][node], 1). A full column sets ERR_P2G_MAP.

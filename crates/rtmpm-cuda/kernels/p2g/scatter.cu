@@ -1,6 +1,6 @@
 // P2G (MLS-MPM, Hu et al. 2018) with the Kirchhoff stress computed inline (merged kernel).
 // One warp per warp-list entry, 4 warps per CUDA block, no shared memory, no __syncthreads.
-// Mixed sorting (seed 000): the 32 particles of a warp are sorted by their current stencil key
+// Mixed sorting (Fei, Huang & Gao, "Real-Time Simulation of MPM on Modern GPUs" (GTC 2022)): the 32 particles of a warp are sorted by their current stencil key
 // (bitonic sort via __shfl_xor_sync), then lanes writing the same nodes are reduced with
 // segmented __shfl_down_sync sums (Gao et al. 2018) and only segment heads issue atomicAdd.
 // The per-particle quantities (stencil, weights, stress, affine momentum) come from p2g_particle.cuh,

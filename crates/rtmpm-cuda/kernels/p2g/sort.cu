@@ -1,4 +1,4 @@
-// P2G as a gather through a sort-based map (seed 001, section II: "the second GPU implementation
+// P2G as a gather through a sort-based map (Chiang et al., "GPU Acceleration of the Generalized Interpolation Material Point Method" (SAAHPC 2009), section II: "the second GPU implementation
 // conserves memory and avoids the potential bottleneck of atomicAdd, but requires one sort per
 // time step (of 2*number of particle contributions elements) and uncoalesced memory accesses during
 // the grid accumulation"). One step:

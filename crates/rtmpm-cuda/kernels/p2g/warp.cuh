@@ -1,4 +1,4 @@
-// The warp scatter of seed 000, shared by the P2G kernel (p2g.cu) and the fused G2P2G
+// The warp scatter of Fei, Huang & Gao, "Real-Time Simulation of MPM on Modern GPUs" (GTC 2022), shared by the P2G kernel (p2g.cu) and the fused G2P2G
 // (g2p2g.cu): the cheap in-warp cell sort of mixed sorting, the segmented warp reduction of lanes
 // that write the same nodes (Gao et al. 2018) and direct global atomics by segment heads.
 #pragma once
@@ -13,7 +13,7 @@ __device__ __forceinline__ void atomic_add_node(real* node, const real val[4]) {
 #endif
 }
 
-// Mixed sorting, the cheap part (seed 000): the key of a particle for the in-warp sort is the
+// Mixed sorting, the cheap part (Fei et al.): the key of a particle for the in-warp sort is the
 // neighbour slot of its stencil base's block and the base's cell code (lanes with equal keys
 // write the same 27 nodes); P2G_KEY_NONE for inactive lanes (sorted last).
 #define P2G_KEY_NONE 0xffffu

@@ -1,7 +1,7 @@
 //! The inter-GPU synchronisation of transport=p2p (the GPUs of one process), two kinds
 //! (`--cuda-options barrier=spin|events`):
 //!
-//! - spin (seed 000's spin-lock barrier): `kernels/multi/barrier.cu`, a one-thread kernel on every GPU
+//! - spin (the spin-lock barrier of Fei, Huang & Gao, "Real-Time Simulation of MPM on Modern GPUs" (GTC 2022)): `kernels/multi/barrier.cu`, a one-thread kernel on every GPU
 //!   that adds 1 to a counter in GPU 0's memory with a system-scope atomic and spins until every
 //!   GPU arrived. Everything stays on the device, so a step with barriers is captured in a CUDA
 //!   graph and replayed like a single-GPU step.

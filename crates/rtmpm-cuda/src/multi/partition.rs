@@ -1,4 +1,4 @@
-//! Assigning particles to GPUs (seed 000, "particles are assigned to different GPUs"): spatially
+//! Assigning particles to GPUs (Fei, Huang & Gao, "Real-Time Simulation of MPM on Modern GPUs" (GTC 2022), "particles are assigned to different GPUs"): spatially
 //! coherent slabs of equal particle count along the longest axis of the particles' bounding box,
 //! so that few grid blocks are shared. Deterministic: every process of a multi-process run
 //! computes the same partition from the same particles.

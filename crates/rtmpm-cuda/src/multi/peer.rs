@@ -1,4 +1,4 @@
-//! Peer access between the GPUs of one process (transport=p2p, seed 000's "in-kernel peer-to-peer
+//! Peer access between the GPUs of one process (transport=p2p, Fei, Huang & Gao, "Real-Time Simulation of MPM on Modern GPUs" (GTC 2022): "in-kernel peer-to-peer
 //! read/write operations"): whether every pair of GPUs can reach each other's memory
 //! (`cuDeviceCanAccessPeer`), and turning it on (`cuCtxEnablePeerAccess`). With unified addressing
 //! a device pointer of GPU j is then valid in GPU i's kernels as it is.
