@@ -17,6 +17,7 @@ for line in sys.stdin:
 '
 cp target/release/rtmpm .device/
 git rev-parse --short HEAD > .device/COMMIT
+pwd > .device/BUILD_DIR   # the test binaries find the repository through the path they were built in
 if [ -n "${BASE:-}" ]; then
   wt=target/base
   [ -d "$wt" ] || git worktree add --detach "$wt" "$BASE"

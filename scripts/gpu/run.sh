@@ -26,8 +26,9 @@ mkdir -p "$OUT"
 S="$OUT/summary.txt"
 say() { echo "$*" | tee -a "$S"; }
 say "$(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader | head -1) x$(nvidia-smi -L | wc -l); commit $(cat $D/COMMIT 2>/dev/null); base $(cat $D/BASE_COMMIT 2>/dev/null || echo none); $(date -u +%FT%TZ)"
-# The test binaries find the repository through the path they were built in (/work/main).
-mkdir -p /work && { [ -e /work/main ] || ln -sfn "$PWD" /work/main; }
+# The test binaries find the repository through the path they were built in (prepare.sh notes it).
+B=$(cat "$D/BUILD_DIR" 2>/dev/null || true)
+if [ -n "$B" ] && [ ! -e "$B" ]; then mkdir -p "$(dirname "$B")" && ln -sfn "$PWD" "$B"; fi
 mkdir -p target/release && cp "$D/rtmpm" target/release/rtmpm
 
 # test binary, args...: run it, one summary line with its result and failures.

@@ -163,7 +163,6 @@ pub fn preload_nvrtc() {
             candidates.push(p.into());
         }
         for p in [
-            "/work/.tools/cuda/nvidia/cu13/lib/libnvrtc.so.13",
             "/usr/local/cuda/lib64/libnvrtc.so.13",
             "/usr/local/cuda-13.0/lib64/libnvrtc.so.13",
             "/usr/lib/x86_64-linux-gnu/libnvrtc.so.13",
