@@ -1,6 +1,6 @@
 // Shared device structures of the rtmpm CUDA pipeline (Fei, Huang & Gao, "Real-Time Simulation of
 // MPM on Modern GPUs", GTC 2022). The constants come from the Rust contract (contract.cuh, generated
-// by src/contract.rs), and every struct here has a Rust twin there whose field offsets the end of
+// by src/contract/headers.rs), and every struct here has a Rust twin there whose field offsets the end of
 // the program asserts one by one.
 #pragma once
 #include "contract.cuh"

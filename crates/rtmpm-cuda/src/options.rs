@@ -45,7 +45,7 @@ pub enum BarrierKind {
     Events,
 }
 
-/// Ablation switches of the seed-000 principles. `Default` = all on.
+/// Ablation switches of the principles of Fei, Huang & Gao (GTC 2022). `Default` = all on.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CudaOptions {
     /// Rebuild the mapping only when a particle leaves its free zone (else every step).
@@ -78,8 +78,10 @@ pub struct CudaOptions {
     pub shared_capacity: Option<usize>,
     /// Several GPUs: re-partition the particles at a frame end when they have drifted.
     pub rebalance: bool,
-    /// Several GPUs: overlap the shared-block reduction with the P2G of the interior gblocks
-    /// (off: P2G of every particle, then the reduction).
+    /// Several GPUs: overlap the shared-block reduction with work that does not need it: the
+    /// P2G of the interior gblocks (separate P2G) and the grid update of the pblocks no other
+    /// GPU shares (off: P2G, the reduction, then the grid update). Measured on 2 H200s it gains
+    /// nothing measurable (docs/multi-gpu.md); on by default as it costs nothing either.
     pub overlap: bool,
     /// Several GPUs of one process: transport of the shared-block reduction (`None`: p2p when
     /// every pair of GPUs has peer access, else NCCL).
@@ -89,9 +91,10 @@ pub struct CudaOptions {
     /// The rebuild as one persistent kernel with grid-wide barriers (`rb_fused`, one launch per
     /// step) instead of fifteen kernels that return at once when nothing is rebuilt.
     pub fused_rebuild: bool,
-    /// G2P2G: the G2P of a step and the P2G of the next in one kernel (`kernels/g2p2g.cu`), the
-    /// P2G kernel running only after a rebuild. One GPU, MLS transfer, `p2g=warp`, the free zone
-    /// and mixed sorting only (not when every step rebuilds); elsewhere ignored.
+    /// G2P2G: the G2P of a step and the P2G of the next in one kernel (`kernels/g2p/g2p2g.cu`),
+    /// the P2G kernel running only after a rebuild. One or several GPUs; MLS transfer,
+    /// `p2g=warp`, the free zone and mixed sorting only (not when every step rebuilds);
+    /// elsewhere ignored.
     pub g2p2g: bool,
     /// Compile the kernels for the scene's material models only (a smaller material switch in
     /// the merged kernels) instead of every model of the registry. Off by default: measured on

@@ -11,9 +11,10 @@
 //!    its free zone; the grid clear ([`crate::rebuild`]);
 //! 2. **P2G**: mass, momentum and stress to the grid ([`crate::p2g`]); with G2P2G only after a
 //!    rebuild or a new dt, the previous step's fused kernel having scattered the particles;
-//!    *hook*: several GPUs sum the blocks they share (the P2G of the gblocks next to a shared
-//!    block first, the exchange while the others run);
-//! 3. **grid update**: velocities, gravity, walls, colliders ([`crate::grid_update`]);
+//!    *hook*: several GPUs sum the blocks they share (with the separate P2G, the gblocks next
+//!    to a shared block first, the exchange while the others run);
+//! 3. **grid update**: velocities, gravity, walls, colliders ([`crate::grid_update`]); several
+//!    GPUs update the pblocks no other GPU shares while the shared ones are summed, then those;
 //! 4. MUSL only: the re-map of the updated particle momenta ([`crate::g2p`], [`crate::p2g`],
 //!    [`crate::grid_update`]);
 //! 5. **G2P**: velocities, affine matrix, F, plasticity, advection; with G2P2G fused with the

@@ -1,4 +1,4 @@
-//! `rtmpm run` on several GPUs: `--gpus 2` and two processes meeting through a TCP rendezvous
+//! `rtmpm run` on several GPUs: `--gpus 2` and two processes meeting through a file rendezvous
 //! (one GPU each) agree with one GPU on every example scene. Needs 2 CUDA GPUs and NCCL; skips
 //! with a message otherwise. Errors of the multi-GPU options need no GPU.
 

@@ -7,10 +7,13 @@
 //!                 -> shared-block list and boundary gblocks (only when a GPU rebuilt)
 //!                 -> P2G of the boundary gblocks --event--+                           (start)
 //!                 -> P2G of the other gblocks             |   comm stream: pack shared blocks
-//!                                                         |   -> sum across GPUs -> unpack
+//!                 -> grid update, unshared pblocks        |   -> sum across GPUs -> unpack
 //!                 <--------------------------------event--+                          (finish)
-//!                 -> grid update -> G2P
+//!                 -> grid update, shared pblocks -> G2P (or G2P2G)
 //! ```
+//!
+//! With G2P2G the P2G of a step was done by the previous step's fused kernel (one launch after a
+//! rebuild), so only the grid update overlaps the sum. `overlap=off`: P2G, sum, grid update.
 //!
 //! The sums are NCCL all-reduces (transport=nccl), or (transport=p2p, one process) a barrier
 //! ([`super::barrier`]) and a kernel reading the other GPUs' buffers through peer pointers.
