@@ -18,6 +18,8 @@
 #   variants     A/B of compile-time defines: VARIANTS="label|binary|defines[|options] ..."
 #   multi        several GPUs: agreement tests in every mode, 2 NCCL processes, scaling
 #   python       the Python package's GPU tests (wheel in .device/wheels)
+#   long         the strong-scaling scene for 12 frames (0.24 s, past its 0.1 s duration) on one GPU, fused
+#                and unfused, and at dt/2: does the 12-frame blow-up seen on 2 GPUs happen on one?
 set -uo pipefail
 export NCCL_NVLS_ENABLE=0 TORCH_SYMM_MEM_DISABLE_MULTICAST=1 NVSHMEM_DISABLE_NVLS=1
 D=${D:-.device}
@@ -127,6 +129,16 @@ for suite in "$@"; do
       done
       wait
       say "strong 16.8M two NCCL processes: $(grep -hE 'throughput|^error' "$OUT/rank_0.log" "$OUT/rank_1.log" | tr -s ' ' | tr '\n' ' ')"
+      ;;
+    long)
+      sed 's/^dt = 1e-4/dt = 5e-5/' bench/strong_16m.toml > /tmp/strong_16m_half_dt.toml
+      for r in "default||bench/strong_16m.toml" "g2p2g=off|g2p2g=off|bench/strong_16m.toml" \
+               "dt=5e-5||/tmp/strong_16m_half_dt.toml"; do
+        IFS='|' read -r label opts scene <<< "$r"
+        x=$(timeout 240 "$D/rtmpm" run "$scene" --frames 12 --no-output ${opts:+--cuda-options "$opts"} 2>&1)
+        echo "== $label" >> "$OUT/long.log"; echo "$x" >> "$OUT/long.log"
+        say "strong 16.8M 12 frames 1 GPU $label: $(echo "$x" | grep -E 'throughput|^error|blew|exceeds' | head -3 | tr -s ' ' | tr '\n' ' ')"
+      done
       ;;
     python)
       if [ -d "$D/wheels" ]; then
