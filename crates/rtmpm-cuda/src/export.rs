@@ -36,9 +36,36 @@ impl DeviceParticles {
     }
 }
 
-/// Pinned host memory reused by [`CudaBackend::read_fields`].
+/// Memory reused by [`CudaBackend::read_fields`] and [`CudaBackend::read_vec3_ordered`]:
+/// pinned host memory, and the device array that the ordered export gathers into.
 #[derive(Default)]
-pub(crate) struct Staging(Option<PinnedHostSlice<u8>>);
+pub(crate) struct Staging {
+    pub(crate) pinned: Option<PinnedHostSlice<u8>>,
+    pub(crate) ordered: Option<cudarc::driver::CudaSlice<f32>>,
+    pub(crate) bad: Option<cudarc::driver::CudaSlice<u32>>,
+}
+
+impl CudaBackend {
+    /// Pinned host memory of at least `need` bytes (reused; grown when too small).
+    pub(crate) fn pinned(&mut self, need: usize) -> Result<&mut PinnedHostSlice<u8>, SimError> {
+        if self.staging.pinned.as_ref().is_none_or(|s| s.len() < need) {
+            self.staging.pinned = None;
+            // SAFETY: the memory is written by the copies before it is read. Plain page-locked
+            // memory (not write-combined: the host reads it).
+            let buf = unsafe {
+                self.stream
+                    .context()
+                    .alloc_pinned_with_flags::<u8>(need.max(1), 0)
+            }
+            .map_err(err("allocate pinned memory"))?;
+            self.staging.pinned = Some(buf);
+        }
+        self.staging
+            .pinned
+            .as_mut()
+            .ok_or_else(|| SimError::Backend("CUDA: no staging memory".into()))
+    }
+}
 
 impl CudaBackend {
     /// Where the particle state is on the device. Waits for the queued work first, so the
@@ -78,30 +105,23 @@ impl CudaBackend {
                 "CUDA: field index out of range (0..{NFIELDS})"
             )));
         }
-        if self.staging.0.as_ref().is_none_or(|s| s.len() < need) {
-            self.staging.0 = None;
-            // SAFETY: the memory is written by the copies below before it is read. Plain
-            // page-locked memory (not write-combined: the host reads it).
-            let buf = unsafe {
-                self.stream
-                    .context()
-                    .alloc_pinned_with_flags::<u8>(need.max(1), 0)
-            }
-            .map_err(err("allocate pinned memory"))?;
-            self.staging.0 = Some(buf);
-        }
-        let Some(staging) = self.staging.0.as_mut() else {
+        self.pinned(need)?;
+        let (stream, state) = (self.stream.clone(), &self.buffers.state);
+        let srcs: Vec<_> = fields
+            .iter()
+            .map(|&f| state.slice(f * cap * wb..f * cap * wb + row))
+            .collect();
+        let Some(staging) = self.staging.pinned.as_mut() else {
             return Err(SimError::Backend("CUDA: no staging memory".into()));
         };
         let all = staging.as_mut_slice().map_err(err("pinned memory"))?;
-        for (k, &f) in fields.iter().enumerate() {
-            let src = self.buffers.state.slice(f * cap * wb..f * cap * wb + row);
-            self.stream
-                .memcpy_dtoh(&src, &mut all[k * row..(k + 1) * row])
+        for (k, src) in srcs.iter().enumerate() {
+            stream
+                .memcpy_dtoh(src, &mut all[k * row..(k + 1) * row])
                 .map_err(err("read particle fields"))?;
         }
         // The copies into pinned memory are asynchronous: wait for them before the host reads.
-        self.stream.synchronize().map_err(err("synchronize"))?;
+        stream.synchronize().map_err(err("synchronize"))?;
         let all: &[u8] = all;
         Ok((0..fields.len())
             .map(|k| &all[k * row..(k + 1) * row])

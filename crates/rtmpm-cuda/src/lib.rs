@@ -66,6 +66,7 @@ pub mod compile;
 pub mod contract;
 pub mod encode;
 pub mod export;
+pub mod export_ordered;
 pub mod g2p;
 pub mod graph;
 pub mod grid_update;

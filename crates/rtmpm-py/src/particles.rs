@@ -8,12 +8,10 @@ use crate::simulation::{Inner, PySimulation};
 use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use rayon::prelude::*;
 use rtmpm_backends::AnyBackend;
 use rtmpm_core::math::{Mat3, Vec3};
 use rtmpm_core::sim::{Backend, SimError};
 use rtmpm_cuda::contract::{F_C, F_F, F_ID, F_MASS, F_MAT, F_PLASTIC, F_V, F_VOL0, F_X};
-use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 /// The particles of a :class:`rtmpm.Simulation`.
 ///
@@ -62,58 +60,14 @@ enum Vec3Field {
     V,
 }
 
-fn rows_f32(row: &[u8], wb: usize, i: usize) -> f32 {
-    if wb == 8 {
-        f64::from_le_bytes(row[8 * i..8 * i + 8].try_into().unwrap_or([0; 8])) as f32
-    } else {
-        f32::from_le_bytes(row[4 * i..4 * i + 4].try_into().unwrap_or([0; 4]))
-    }
-}
-
-/// Positions or velocities straight from the GPU: three field rows and the ids (pinned host
-/// memory), put back in original order by a parallel scatter.
+/// Positions or velocities straight from the GPU, in original order: the GPU gathers them into
+/// NumPy's layout and the array crosses the bus in chunks (`CudaBackend::read_vec3_ordered`).
 fn read_vec3_cuda(inner: &mut Inner, field: Vec3Field) -> Result<Option<Vec<f32>>, SimError> {
     let AnyBackend::Cuda(c) = inner.sim.backend.as_mut() else {
         return Ok(None);
     };
     let first = if field == Vec3Field::X { F_X } else { F_V };
-    let n = c.0.len();
-    let wb = if inner.sim.scene.precision == rtmpm_core::scene::Precision::F64 {
-        8
-    } else {
-        4
-    };
-    let rows = c.0.read_fields(&[first, first + 1, first + 2, F_ID])?;
-    let mut out = vec![0f32; 3 * n];
-    {
-        // SAFETY: AtomicU32 has the size and alignment of f32 (and u32); the atomics make
-        // concurrent stores to one element (only possible with duplicate ids) well defined.
-        let cells: &[AtomicU32] =
-            unsafe { &*(out.as_mut_slice() as *mut [f32] as *const [AtomicU32]) };
-        let bad = AtomicBool::new(false);
-        let ids = rows[3];
-        (0..n).into_par_iter().with_min_len(1 << 14).for_each(|i| {
-            let id = u32::from_le_bytes([
-                ids[i * wb],
-                ids[i * wb + 1],
-                ids[i * wb + 2],
-                ids[i * wb + 3],
-            ]) as usize;
-            if id >= n {
-                bad.store(true, Ordering::Relaxed);
-                return;
-            }
-            for k in 0..3 {
-                cells[3 * id + k].store(rows_f32(rows[k], wb, i).to_bits(), Ordering::Relaxed);
-            }
-        });
-        if bad.load(Ordering::Relaxed) {
-            return Err(SimError::Backend(
-                "CUDA: a particle's original index is out of range".into(),
-            ));
-        }
-    }
-    Ok(Some(out))
+    c.0.read_vec3_ordered(first).map(Some)
 }
 
 fn vec3s_to_array<'py>(py: Python<'py>, v: &[Vec3]) -> PyResult<Bound<'py, PyArray2<f32>>> {

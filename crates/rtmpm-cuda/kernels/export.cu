@@ -1,0 +1,17 @@
+// Particle fields in original order for other programs (the Python package's `particles.x` and
+// `.v`, host side in src/export.rs): the three words of field `first` of slot i go to
+// out[3 id + k] as float, id being the slot's original index (field F_ID), so the host copies one
+// array in NumPy's (n, 3) layout and scatters nothing. An id out of range sets *bad.
+#include "common.cuh"
+
+extern "C" __global__ void export_vec3(const real* __restrict__ s, unsigned cap, unsigned n, int first,
+                                       float* __restrict__ out, unsigned* __restrict__ bad) {
+    for (unsigned i = blockIdx.x * blockDim.x + threadIdx.x; i < n; i += gridDim.x * blockDim.x) {
+        unsigned id = state_bits(s[sidx(cap, F_ID, i)]);
+        if (id >= n) { atomicOr(bad, 1u); continue; }
+        unsigned long long o = 3ull * id;
+        out[o] = (float)s[sidx(cap, first, i)];
+        out[o + 1] = (float)s[sidx(cap, first + 1, i)];
+        out[o + 2] = (float)s[sidx(cap, first + 2, i)];
+    }
+}
