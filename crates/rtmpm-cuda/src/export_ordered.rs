@@ -17,6 +17,25 @@ impl CudaBackend {
     /// The three fields from `first` (`F_X` or `F_V`) of every particle, in original particle
     /// order, as `3 n` float32 (x0, y0, z0, x1, ...); f64 state is rounded to f32. Synchronises.
     pub fn read_vec3_ordered(&mut self, first: usize) -> Result<Vec<f32>, SimError> {
+        let mut out = vec![0f32; 3 * self.n];
+        self.read_vec3_ordered_into(first, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`CudaBackend::read_vec3_ordered`] into `out` (`3 n` floats), e.g. memory that is reused
+    /// between reads, so that no page of it is mapped during the copy.
+    pub fn read_vec3_ordered_into(
+        &mut self,
+        first: usize,
+        out: &mut [f32],
+    ) -> Result<(), SimError> {
+        if out.len() != 3 * self.n {
+            return Err(SimError::Backend(format!(
+                "CUDA: {} floats given for the 3 x {} of the export",
+                out.len(),
+                self.n
+            )));
+        }
         if first + 3 > NFIELDS {
             return Err(SimError::Backend(format!(
                 "CUDA: field index out of range (0..{NFIELDS})"
@@ -77,7 +96,6 @@ impl CudaBackend {
                 .map_err(err("read the export array"))?;
             events.push(stream.record_event(None).map_err(err("record an event"))?);
         }
-        let mut out = vec![0f32; len];
         for ((src, dst), ev) in host.chunks(CHUNK).zip(out.chunks_mut(CHUNK)).zip(&events) {
             ev.synchronize().map_err(err("wait for a chunk"))?;
             dst.par_chunks_mut(1 << 16)
@@ -94,6 +112,6 @@ impl CudaBackend {
                 "CUDA: a particle's original index is out of range".into(),
             ));
         }
-        Ok(out)
+        Ok(())
     }
 }

@@ -15,6 +15,7 @@ mod errors;
 mod frames;
 mod output;
 mod particles;
+mod pool;
 mod scene;
 mod simulation;
 

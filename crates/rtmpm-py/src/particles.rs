@@ -62,12 +62,15 @@ enum Vec3Field {
 
 /// Positions or velocities straight from the GPU, in original order: the GPU gathers them into
 /// NumPy's layout and the array crosses the bus in chunks (`CudaBackend::read_vec3_ordered`).
+/// The memory is a pooled buffer (`pool.rs`), mapped already when reused.
 fn read_vec3_cuda(inner: &mut Inner, field: Vec3Field) -> Result<Option<Vec<f32>>, SimError> {
     let AnyBackend::Cuda(c) = inner.sim.backend.as_mut() else {
         return Ok(None);
     };
     let first = if field == Vec3Field::X { F_X } else { F_V };
-    c.0.read_vec3_ordered(first).map(Some)
+    let mut buf = crate::pool::take(3 * c.0.len());
+    c.0.read_vec3_ordered_into(first, &mut buf)?;
+    Ok(Some(buf))
 }
 
 fn vec3s_to_array<'py>(py: Python<'py>, v: &[Vec3]) -> PyResult<Bound<'py, PyArray2<f32>>> {
@@ -100,8 +103,7 @@ impl PyParticles {
                 }))
             });
             if let Some(flat) = inner.settle(py, r)? {
-                let n = flat.len() / 3;
-                return PyArray1::from_vec(py, flat).reshape([n, 3]);
+                return crate::pool::vec3_array(py, flat);
             }
         }
         let p = inner.host(py)?;

@@ -141,3 +141,21 @@ def test_large_arrays_cross_in_chunks():
     for name in ("x", "v"):
         d = torch.from_dlpack(getattr(p, name + "_device")).cpu().numpy()
         assert np.array_equal(host_order(d, ids), getattr(p, name)), name
+
+
+def test_host_arrays_are_independent_when_their_memory_is_reused(sim):
+    # x and v from the GPU are backed by buffers that return to a pool when NumPy frees them.
+    a = sim.particles.x
+    b = sim.particles.x
+    assert not np.shares_memory(a, b)
+    a[:] = -1.0
+    assert np.array_equal(b, sim.particles.x) and (b != -1.0).all()
+    expect = b.copy()
+    del a, b
+    for _ in range(6):  # more reads than the pool keeps
+        x, v = sim.particles.x, sim.particles.v
+        assert np.array_equal(x, expect) and not np.shares_memory(x, v)
+    sim.step(2)
+    moved = sim.particles.x
+    assert not np.array_equal(moved, expect)
+    assert np.array_equal(moved, sim.particles.x)
