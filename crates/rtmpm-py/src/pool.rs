@@ -8,9 +8,10 @@ use numpy::ndarray::Array2;
 use pyo3::prelude::*;
 use std::sync::Mutex;
 
-/// Buffers kept for reuse, at most [`KEEP`].
+/// Buffers kept for reuse, at most [`KEEP`] of them and [`KEEP_BYTES`] in all.
 static POOL: Mutex<Vec<Vec<f32>>> = Mutex::new(Vec::new());
 const KEEP: usize = 4;
+const KEEP_BYTES: usize = 1 << 30;
 
 /// A buffer of `len` floats: a returned one of that length, else a new zeroed one.
 pub(crate) fn take(len: usize) -> Vec<f32> {
@@ -26,7 +27,9 @@ pub(crate) fn take(len: usize) -> Vec<f32> {
 
 fn give_back(v: Vec<f32>) {
     let mut pool = POOL.lock().unwrap_or_else(|e| e.into_inner());
-    if pool.len() < KEEP && !v.is_empty() {
+    let bytes = |v: &Vec<f32>| v.len() * 4;
+    let held: usize = pool.iter().map(bytes).sum();
+    if pool.len() < KEEP && !v.is_empty() && held + bytes(&v) <= KEEP_BYTES {
         pool.push(v);
     }
 }
