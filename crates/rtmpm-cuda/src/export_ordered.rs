@@ -10,8 +10,8 @@ use cudarc::driver::PushKernelArg;
 use rayon::prelude::*;
 use rtmpm_core::sim::SimError;
 
-/// Floats per chunk of the device-to-host copy (8 MiB).
-const CHUNK: usize = 1 << 21;
+/// Floats per chunk of the device-to-host copy (2 MiB): the last chunk's host copy is not hidden.
+const CHUNK: usize = 1 << 19;
 
 impl CudaBackend {
     /// The three fields from `first` (`F_X` or `F_V`) of every particle, in original particle
@@ -98,8 +98,8 @@ impl CudaBackend {
         }
         for ((src, dst), ev) in host.chunks(CHUNK).zip(out.chunks_mut(CHUNK)).zip(&events) {
             ev.synchronize().map_err(err("wait for a chunk"))?;
-            dst.par_chunks_mut(1 << 16)
-                .zip(src.par_chunks(1 << 16))
+            dst.par_chunks_mut(1 << 15)
+                .zip(src.par_chunks(1 << 15))
                 .for_each(|(d, s)| d.copy_from_slice(s));
         }
         // Read after the chunks: a copy into pageable memory waits for the whole stream.
