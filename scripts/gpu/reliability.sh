@@ -12,7 +12,8 @@ python3 scripts/hostile/run.py --rtmpm "$D/rtmpm" --backend cuda --work /tmp/hos
   --report "$OUT/hostile_cuda.md" > "$OUT/hostile_cuda.log" 2>&1
 echo "hostile corpus on cuda rc=$?: $(tail -1 "$OUT/hostile_cuda.log")"
 grep -E "^(crash|hang|lost|unclear)" "$OUT/hostile_cuda.log" | head -20
-# 1000^3 cells: the grid alone exceeds any GPU; refused by the estimate, with the sizes.
+# 7e9 particles (950^3 cells x 8): more than any GPU holds; refused by the estimate, with the sizes.
+# (A 1000^3-cell domain with a small body runs: the GPU grid holds the occupied blocks only.)
 cat > /tmp/too_big.toml <<'TOML'
 [domain]
 min = [0, 0, 0]
@@ -29,7 +30,7 @@ bulk_modulus = 1e5
 material = "w"
 shape = "box"
 min = [0.1, 0.1, 0.1]
-max = [0.3, 0.3, 0.3]
+max = [3.9, 3.9, 3.9]
 TOML
 "$D/rtmpm" run /tmp/too_big.toml --backend cuda --no-output > "$OUT/too_big.log" 2>&1
 echo "too big for the GPU rc=$? (expect 1): $(grep -m1 error "$OUT/too_big.log")"

@@ -590,8 +590,10 @@ def main():
             args = [a.backend if x == "cpu" and args[i - 1] == "--backend" else x for i, x in enumerate(args)]
         t = time.time()
         try:
+            # No address-space limit with CUDA: the driver reserves more virtual memory than the
+            # limit when it creates a context (CUDA_ERROR_OUT_OF_MEMORY before any allocation of ours).
             r = subprocess.run([BIN] + args, capture_output=True, stdin=subprocess.DEVNULL, timeout=a.timeout,
-                               preexec_fn=limit, env=env, cwd=w)
+                               preexec_fn=limit if a.backend == "cpu" else None, env=env, cwd=w)
             rc, text, timed_out = r.returncode, (r.stderr + r.stdout).decode(errors="replace"), False
         except subprocess.TimeoutExpired as e:
             rc, text, timed_out = None, ((e.stderr or b"") + (e.stdout or b"")).decode(errors="replace"), True
