@@ -219,6 +219,8 @@ impl CudaBackend {
             particles: n,
             real_bytes,
             grid_next: g2p2g,
+            // NaN speeds are left to the health check of the first step.
+            initial_speed: particles.v.iter().map(|v| v.length()).fold(0.0, f32::max),
         };
         let (buffers, ctx) =
             buffers::allocate(&stream, scene, &state, &cap, needs, &tables, &options)?;
