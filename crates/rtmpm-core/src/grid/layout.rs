@@ -316,31 +316,39 @@ impl BlockLayout {
         self.keys[p] as usize / BLOCK_NODES
     }
 
-    /// Memory indices of the 3x3x3 stencil starting at node `base`, for a particle of gblock `g`,
-    /// in the order `i * 9 + j * 3 + k`. Same result as [`BlockLayout::node_index`] per node, with
-    /// the block/cell split done once per axis.
+    /// Memory indices of the 3x3x3 stencil starting at node `base`, for a particle of gblock `g`
+    /// (so `base` lies in block `g`), in the order `i * 9 + j * 3 + k`. Same result as
+    /// [`BlockLayout::node_index`] per node: the stencil reaches blocks `g` and `g + 1` per axis
+    /// only, so 8 neighbour ids are read, and the block/cell split is done once per axis.
     #[inline]
     pub fn stencil_nodes(&self, g: usize, base: IVec3) -> [u32; 27] {
-        let corner = self.block_coords[g] << BLOCK_BITS;
-        let r = base - corner;
-        // Per axis and stencil node: neighbour-slot contribution and cell-code contribution.
-        let axis = |r: i32, slot_stride: i32, cell_shift: i32| -> [(i32, u32); 3] {
+        let r = base - (self.block_coords[g] << BLOCK_BITS);
+        debug_assert!(
+            r.min_element() >= 0 && r.max_element() < 4,
+            "base {base} outside gblock {g}"
+        );
+        // Per axis and stencil node: block step (0 or 1) and cell-code contribution.
+        let axis = |r: i32, cell_shift: i32| -> [(usize, u32); 3] {
             std::array::from_fn(|n| {
                 let rn = r + n as i32;
                 (
-                    ((rn >> BLOCK_BITS) + 1) * slot_stride,
+                    ((rn >> BLOCK_BITS) & 1) as usize,
                     ((rn & 3) << cell_shift) as u32,
                 )
             })
         };
-        let (ax, ay, az) = (axis(r.x, 9, 4), axis(r.y, 3, 2), axis(r.z, 1, 0));
+        let (ax, ay, az) = (axis(r.x, 4), axis(r.y, 2), axis(r.z, 0));
         let nb = &self.neighbors[g];
+        // First node of the 8 blocks (+0 or +1 per axis): neighbour slot (1 + step) per axis.
+        let first: [u32; 8] = std::array::from_fn(|b| {
+            let slot = neighbor_slot((b >> 2) as i32, (b >> 1 & 1) as i32, (b & 1) as i32);
+            nb[slot] * BLOCK_NODES as u32
+        });
         let mut out = [0u32; 27];
-        for (i, &(sx, cx)) in ax.iter().enumerate() {
-            for (j, &(sy, cy)) in ay.iter().enumerate() {
-                for (k, &(sz, cz)) in az.iter().enumerate() {
-                    let id = nb[(sx + sy + sz) as usize];
-                    out[i * 9 + j * 3 + k] = id * BLOCK_NODES as u32 + (cx | cy | cz);
+        for (i, &(bx, cx)) in ax.iter().enumerate() {
+            for (j, &(by, cy)) in ay.iter().enumerate() {
+                for (k, &(bz, cz)) in az.iter().enumerate() {
+                    out[i * 9 + j * 3 + k] = first[bx << 2 | by << 1 | bz] + (cx | cy | cz);
                 }
             }
         }
