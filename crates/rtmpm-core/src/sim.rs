@@ -129,6 +129,12 @@ pub trait Backend {
     fn stage_times(&self) -> Vec<(&'static str, f64)> {
         Vec::new()
     }
+    /// Bytes of the backend's own arrays, as (host, device): particle state, grid, layout and
+    /// scratch (capacities), for the bytes-per-particle figures of `rtmpm bench`. None where the
+    /// backend does not count them.
+    fn memory_bytes(&self) -> Option<(u64, u64)> {
+        None
+    }
     /// Called by [`Simulation`] after every frame (after the check): a place for work that may
     /// synchronise, e.g. rebalancing particles between GPUs.
     fn end_of_frame(&mut self) -> Result<(), SimError> {

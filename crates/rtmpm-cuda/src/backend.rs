@@ -443,4 +443,8 @@ impl Backend for CudaBackend {
         crate::state::unpack(&host, self.n, self.ctx.cap as usize, self.options.f64, out)
             .map_err(SimError::Backend)
     }
+
+    fn memory_bytes(&self) -> Option<(u64, u64)> {
+        Some((0, self.device_bytes() as u64))
+    }
 }

@@ -51,6 +51,22 @@ pub struct Buffers {
     _rest: Vec<CudaSlice<u8>>,
 }
 
+impl Buffers {
+    /// Bytes of every buffer (the device memory this GPU's pipeline allocated, P2G strategy's
+    /// extra buffers aside).
+    pub fn bytes(&self) -> usize {
+        self.state.num_bytes()
+            + self.block_coords.num_bytes()
+            + self.grid.num_bytes()
+            + self.grid_next.as_ref().map_or(0, |g| g.num_bytes())
+            + self.ctl.num_bytes()
+            + self.scalars.num_bytes()
+            + self.step.num_bytes()
+            + self.poses.num_bytes()
+            + self._rest.iter().map(|b| b.num_bytes()).sum::<usize>()
+    }
+}
+
 /// Allocate every buffer of a GPU for `cap`, upload the particle state (`state`: the particles
 /// packed by [`crate::state::pack`] with stride `needs.particles`, placed field by field into the
 /// arrays of stride `cap.particles`, so the host never holds the capacity's empty slots) and the
