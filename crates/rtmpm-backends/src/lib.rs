@@ -255,6 +255,9 @@ impl Backend for AnyBackend {
     fn end_of_frame(&mut self) -> Result<(), SimError> {
         self.as_dyn().end_of_frame()
     }
+    fn add_particles(&mut self, particles: &Particles) -> Result<(), SimError> {
+        self.as_dyn().add_particles(particles)
+    }
 }
 
 #[cfg(test)]

@@ -20,6 +20,7 @@
 
 pub mod boundary;
 pub mod cpu;
+pub mod emitter;
 pub mod grid;
 pub mod io;
 pub mod material;

@@ -42,6 +42,7 @@ fn scene(dx: f32) -> Scene {
         ],
         bodies: vec![],
         colliders: vec![],
+        emitters: vec![],
         walls: Walls::default(),
         output: OutputSettings {
             dir: "out".into(),

@@ -318,6 +318,23 @@ impl Backend for CpuBackend {
         true
     }
 
+    fn add_particles(&mut self, p: &sim::Particles) -> Result<(), SimError> {
+        // The next original indices; the next step's rebuild sorts them in.
+        let first = self.ids.len();
+        if first + p.len() > u32::MAX as usize {
+            return Err(SimError::Backend(format!(
+                "{} particles exceed the CPU backend's 2^32 - 1 (emitters): lower their rates",
+                first + p.len()
+            )));
+        }
+        let add = real::particles(p.clone());
+        let fastest = add.v.iter().map(|v| v.length()).fold(0.0, Real::max);
+        self.max_speed = self.max_speed.max(fastest);
+        self.particles.extend(&add);
+        self.ids.extend(first as u32..(first + p.len()) as u32);
+        Ok(())
+    }
+
     fn stage_times(&self) -> Vec<(&'static str, f64)> {
         ["rebuild", "p2g", "grid_update", "g2p"]
             .into_iter()

@@ -18,6 +18,8 @@ pub mod spans;
 mod tests;
 #[cfg(test)]
 mod tests_io;
+#[cfg(test)]
+mod tests_motion;
 mod validate;
 
 pub use budget::Budget;
@@ -274,6 +276,8 @@ pub struct Scene {
     pub materials: Vec<Material>,
     pub bodies: Vec<Body>,
     pub colliders: Vec<Collider>,
+    /// Particles that appear while the run goes on (`[[emitter]]`).
+    pub emitters: Vec<crate::emitter::Emitter>,
     pub walls: Walls,
     pub output: OutputSettings,
     /// `[render]` table (camera, image size, colouring).

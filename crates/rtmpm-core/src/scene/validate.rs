@@ -17,8 +17,12 @@ use std::sync::Arc;
 
 type R<T> = Result<T, SceneError>;
 
+#[path = "validate_emitter.rs"]
+mod emitters;
 #[path = "validate_io.rs"]
 mod io_fields;
+#[path = "validate_motion.rs"]
+mod motion;
 
 /// Grid cells of margin around a mesh's signed distance grid.
 const MESH_MARGIN: u32 = 3;
@@ -424,6 +428,23 @@ impl V<'_> {
             colliders.push(self.collider(i, c, base, dx)?);
         }
 
+        // Emitters (validate_emitter.rs).
+        let seed = raw.seed.unwrap_or(0);
+        let cx = emitters::EmitterContext {
+            materials: &materials,
+            base,
+            dx,
+            interior: (imin, imax),
+            duration,
+            seed,
+        };
+        let emitters = raw
+            .emitter
+            .iter()
+            .enumerate()
+            .map(|(i, e)| self.emitter(i, e, &cx))
+            .collect::<R<Vec<_>>>()?;
+
         // Output and surfaces (validate_io.rs).
         let output = self.output(
             raw.output.as_ref(),
@@ -446,10 +467,11 @@ impl V<'_> {
             materials,
             bodies,
             colliders,
+            emitters,
             walls,
             output,
             render,
-            seed: raw.seed.unwrap_or(0),
+            seed,
             solver,
             precision: raw
                 .solver
@@ -1000,6 +1022,10 @@ impl V<'_> {
             Some(p) => self.vec3(&f("pivot"), p)?,
             None => shape.center(),
         };
+        let keyframes = match &c.keyframes {
+            Some(k) => Some(self.keyframes(&prefix, c, k, pivot)?),
+            None => None,
+        };
         Ok(Collider {
             shape,
             rule: BoundaryRule {
@@ -1009,6 +1035,7 @@ impl V<'_> {
             velocity,
             angular_velocity,
             pivot,
+            keyframes,
         })
     }
 }
