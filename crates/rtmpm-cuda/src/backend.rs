@@ -84,7 +84,7 @@ pub struct CudaBackend {
     last_dt: Option<f32>,
     /// The step parameters and poses last uploaded, with `t` zeroed (see `upload_params`).
     last_params: Option<(Vec<u8>, ColliderPoses)>,
-    scene: Scene,
+    pub(crate) scene: Scene,
     pub(crate) n: usize,
     /// Pinned host memory of [`CudaBackend::read_fields`] (`export.rs`).
     pub(crate) staging: crate::export::Staging,
@@ -161,6 +161,7 @@ impl CudaBackend {
             ..options
         };
         check(scene, particles, part, &options)?;
+        crate::emit::check(scene, options.p2g)?;
         let tables = encode::tables(scene, options.f64)?;
 
         // The program, compiled for this GPU (or from the cache), and its kernels.
@@ -169,7 +170,9 @@ impl CudaBackend {
         let bases = capacity::bases(scene, particles);
         let mut layout = BlockLayout::default();
         layout.rebuild(&bases);
-        let cap = Capacity::plan(scene, n, part.capacity, &layout, &options);
+        // Room for every particle the emitters will add (crate::emit): nothing grows later.
+        let n_max = n.saturating_add(crate::emit::emitted_total(scene));
+        let cap = Capacity::plan(scene, n_max, part.capacity, &layout, &options);
 
         // Compiled for this GPU, the state's index width (64 bits past 2^32 words), and with
         // specialize=on the scene's models only (a smaller material switch).
@@ -431,6 +434,10 @@ impl Backend for CudaBackend {
             index: c[CTL_BAD_INDEX] as usize,
             reason,
         }))
+    }
+
+    fn add_particles(&mut self, particles: &Particles) -> Result<(), SimError> {
+        self.append_particles(particles)
     }
 
     fn read_particles(&mut self, out: &mut Particles) -> Result<(), SimError> {
