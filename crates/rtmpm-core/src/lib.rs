@@ -28,6 +28,7 @@ pub mod math;
 pub mod particles;
 pub mod real;
 pub mod render;
+pub mod rigid;
 pub mod scene;
 pub mod shape;
 pub mod sim;

@@ -106,6 +106,13 @@ fn check(
                 .into(),
         ));
     }
+    if !scene.rigid_bodies.is_empty() {
+        return Err(SimError::Backend(
+            "CUDA backend: the scene's [[rigid_body]] tables are coupled on the CPU backend \
+             only so far; run it with --backend cpu (built with the cargo feature `rigid`)"
+                .into(),
+        ));
+    }
     if particles.is_empty() {
         return Err(SimError::Backend(format!(
             "CUDA backend (device {}): no particles",

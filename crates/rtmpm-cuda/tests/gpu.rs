@@ -43,6 +43,7 @@ fn scene(dx: f32) -> Scene {
         bodies: vec![],
         colliders: vec![],
         emitters: vec![],
+        rigid_bodies: vec![],
         walls: Walls::default(),
         output: OutputSettings {
             dir: "out".into(),

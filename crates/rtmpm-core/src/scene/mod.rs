@@ -278,6 +278,8 @@ pub struct Scene {
     pub colliders: Vec<Collider>,
     /// Particles that appear while the run goes on (`[[emitter]]`).
     pub emitters: Vec<crate::emitter::Emitter>,
+    /// Rigid bodies coupled two ways to the material (`[[rigid_body]]`).
+    pub rigid_bodies: Vec<crate::rigid::RigidBodySpec>,
     pub walls: Walls,
     pub output: OutputSettings,
     /// `[render]` table (camera, image size, colouring).

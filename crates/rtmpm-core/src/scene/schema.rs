@@ -27,6 +27,8 @@ pub struct RawScene {
     pub collider: Vec<RawCollider>,
     #[serde(default)]
     pub emitter: Vec<RawEmitter>,
+    #[serde(default)]
+    pub rigid_body: Vec<RawRigidBody>,
     pub output: Option<RawOutput>,
     pub render: Option<RawRender>,
     pub solver: Option<RawSolver>,
@@ -374,6 +376,48 @@ impl RawEmitter {
             radius: self.radius,
             axis: self.axis,
             height: self.height,
+            ..Default::default()
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum RawRigidKind {
+    Dynamic,
+    Kinematic,
+    Fixed,
+}
+
+/// A `[[rigid_body]]` table: a rigid body the material pushes and is pushed by.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawRigidBody {
+    pub name: Option<String>,
+    pub shape: RawShape,
+    pub min: Option<V3>,
+    pub max: Option<V3>,
+    pub center: Option<V3>,
+    pub radius: Option<f32>,
+    #[serde(rename = "type")]
+    pub kind: Option<RawRigidKind>,
+    pub density: Option<f32>,
+    pub mass: Option<f32>,
+    /// Rotation vector (rad) about the centre.
+    pub rotation: Option<V3>,
+    pub velocity: Option<V3>,
+    pub angular_velocity: Option<V3>,
+    pub condition: Option<RawCondition>,
+    pub friction: Option<f32>,
+}
+
+impl RawRigidBody {
+    pub fn geometry(&self) -> RawGeometry {
+        RawGeometry {
+            min: self.min,
+            max: self.max,
+            center: self.center,
+            radius: self.radius,
             ..Default::default()
         }
     }

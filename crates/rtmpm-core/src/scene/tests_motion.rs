@@ -108,3 +108,60 @@ fn bad_keyframes_name_the_field_and_the_fix() {
     let e = parse(&BASE.replacen("{ t = 0.0, position", "{ t = 0.0, positon", 1)).unwrap_err();
     assert!(e.message.contains("positon"), "{e}");
 }
+
+const RIGID: &str = r#"[[rigid_body]]
+shape = "box"
+min = [0.6, 0.6, 0.6]
+max = [0.7, 0.7, 0.7]
+density = 500.0
+[[rigid_body]]
+shape = "sphere"
+center = [0.3, 0.75, 0.3]
+radius = 0.05
+mass = 2.0
+"#;
+
+#[test]
+fn rigid_bodies_are_read_and_bad_ones_refused() {
+    let text = format!("{BASE}{RIGID}");
+    let s = parse(&text).unwrap();
+    assert_eq!(s.rigid_bodies.len(), 2);
+    let b = &s.rigid_bodies[0];
+    assert!((b.mass - 500.0 * 0.001).abs() < 1e-6);
+    assert_eq!(b.position, Vec3::new(0.65, 0.65, 0.65));
+    assert_eq!(s.rigid_bodies[1].mass, 2.0);
+    let bad = |from: &str, to: &str, field: &str| {
+        assert!(text.contains(from), "{from}");
+        let e = parse(&text.replacen(from, to, 1)).expect_err(to);
+        assert_eq!(e.field.as_deref(), Some(field), "{e}");
+        assert!(e.hint.is_some() && e.line.is_some(), "{e}");
+    };
+    bad("density = 500.0\n", "", "rigid_body[0].density");
+    bad("density = 500.0", "density = -5.0", "rigid_body[0].density");
+    bad("mass = 2.0", "mass = 0.0", "rigid_body[1].mass");
+    bad(
+        "mass = 2.0",
+        "mass = 2.0\ndensity = 3.0",
+        "rigid_body[1].mass",
+    );
+    bad(
+        "max = [0.7, 0.7, 0.7]",
+        "max = [0.7, 0.99, 0.7]",
+        "rigid_body[0].shape",
+    );
+    bad(
+        "center = [0.3, 0.75, 0.3]",
+        "center = [0.65, 0.72, 0.65]",
+        "rigid_body[1]",
+    );
+    bad(
+        "shape = \"sphere\"\ncenter",
+        "shape = \"cylinder\"\ncenter",
+        "rigid_body[1].shape",
+    );
+    bad(
+        "density = 500.0",
+        "density = 500.0\ntype = \"fixed\"\nvelocity = [1.0, 0.0, 0.0]",
+        "rigid_body[0].velocity",
+    );
+}

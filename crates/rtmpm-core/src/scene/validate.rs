@@ -23,6 +23,8 @@ mod emitters;
 mod io_fields;
 #[path = "validate_motion.rs"]
 mod motion;
+#[path = "validate_rigid.rs"]
+mod rigid;
 
 /// Grid cells of margin around a mesh's signed distance grid.
 const MESH_MARGIN: u32 = 3;
@@ -445,6 +447,15 @@ impl V<'_> {
             .map(|(i, e)| self.emitter(i, e, &cx))
             .collect::<R<Vec<_>>>()?;
 
+        // Rigid bodies (validate_rigid.rs).
+        let rigid_bodies = raw
+            .rigid_body
+            .iter()
+            .enumerate()
+            .map(|(i, b)| self.rigid_body(i, b, base, dx, (imin, imax)))
+            .collect::<R<Vec<_>>>()?;
+        self.rigid_overlaps(&rigid_bodies)?;
+
         // Output and surfaces (validate_io.rs).
         let output = self.output(
             raw.output.as_ref(),
@@ -468,6 +479,7 @@ impl V<'_> {
             bodies,
             colliders,
             emitters,
+            rigid_bodies,
             walls,
             output,
             render,
