@@ -175,14 +175,16 @@ fn cuda_backend(
     // The budget's device estimate (rtmpm_core::scene::budget) against the GPU's memory,
     // before anything is allocated: a clear error with the sizes.
     let need = rtmpm_core::scene::Budget::estimate(scene, Some(1)).gpu_bytes;
+    let emitted = scene.emitters.iter().map(|e| e.total()).sum::<u64>();
     let have = info.memory as u64;
     if need > have {
         return Err(format!(
-            "the scene needs about {} of GPU memory for {} particles and its grid (an \
-             estimate), more than the {} of the {}; use fewer particles or a coarser dx, \
-             several GPUs (--gpus N), or --backend cpu",
+            "the scene needs about {} of GPU memory for {} particles (with the {} its emitters \
+             add) and its grid (an estimate), more than the {} of the {}; use fewer particles \
+             or a coarser dx, lower emitter rates, several GPUs (--gpus N), or --backend cpu",
             human_bytes(need),
-            particles.len(),
+            particles.len() as u64 + emitted,
+            emitted,
             human_bytes(have),
             info.name
         ));
@@ -257,6 +259,9 @@ impl Backend for AnyBackend {
     }
     fn memory_bytes(&self) -> Option<(u64, u64)> {
         self.as_dyn_ref().memory_bytes()
+    }
+    fn add_particles(&mut self, particles: &Particles) -> Result<(), SimError> {
+        self.as_dyn().add_particles(particles)
     }
 }
 

@@ -20,6 +20,7 @@
 
 pub mod boundary;
 pub mod cpu;
+pub mod emitter;
 pub mod grid;
 pub mod io;
 pub mod material;
@@ -27,6 +28,7 @@ pub mod math;
 pub mod particles;
 pub mod real;
 pub mod render;
+pub mod rigid;
 pub mod scene;
 pub mod shape;
 pub mod sim;

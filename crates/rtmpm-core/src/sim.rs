@@ -135,6 +135,17 @@ pub trait Backend {
     fn memory_bytes(&self) -> Option<(u64, u64)> {
         None
     }
+    /// Append particles that appear during the run (emitters, see [`crate::emitter`]), in the
+    /// interface's f32; they take the next original indices. Called by [`Simulation`] before
+    /// the step they appear in. A backend that cannot grow answers a clear error.
+    fn add_particles(&mut self, particles: &Particles) -> Result<(), SimError> {
+        let _ = particles;
+        Err(SimError::Backend(format!(
+            "the backend `{}` cannot add particles during a run, which the scene's [[emitter]] \
+             tables need: use the CPU or the single-GPU CUDA backend, or remove the emitters",
+            self.name()
+        )))
+    }
     /// Called by [`Simulation`] after every frame (after the check): a place for work that may
     /// synchronise, e.g. rebalancing particles between GPUs.
     fn end_of_frame(&mut self) -> Result<(), SimError> {
@@ -156,6 +167,9 @@ pub struct Simulation<B: Backend + ?Sized = dyn Backend> {
     /// Time step of the last step.
     pub last_dt: f32,
     max_sound_speed: f32,
+    /// Particles each emitter has emitted so far; set at the first step from the time then
+    /// (a resumed run starts with those of its checkpoint).
+    emitted: Option<Vec<u64>>,
 }
 
 impl Simulation {
@@ -182,6 +196,7 @@ impl<B: Backend + ?Sized> Simulation<B> {
             frame: 0,
             last_dt: 0.0,
             max_sound_speed,
+            emitted: None,
         }
     }
 
@@ -247,8 +262,9 @@ impl<B: Backend + ?Sized> Simulation<B> {
         }))
     }
 
-    /// One step of size `dt`.
+    /// One step of size `dt`; the emitters' particles due by its end appear first.
     pub fn step_once(&mut self, dt: f32) -> Result<(), SimError> {
+        self.emit(self.time + dt as f64)?;
         self.backend.step(dt, self.time as f32)?;
         self.time += dt as f64;
         self.step += 1;
@@ -309,6 +325,28 @@ impl<B: Backend + ?Sized> Simulation<B> {
         self.time = frame_end;
         self.finish_frame()?;
         Ok(true)
+    }
+
+    /// Hand the backend the particles the emitters emit by time `t_end`.
+    fn emit(&mut self, t_end: f64) -> Result<(), SimError> {
+        let emitters = &self.scene.emitters;
+        if emitters.is_empty() {
+            return Ok(());
+        }
+        let time = self.time;
+        let emitted = self
+            .emitted
+            .get_or_insert_with(|| emitters.iter().map(|e| e.count_at(time)).collect());
+        let p = crate::emitter::emit_between(emitters, &self.scene.materials, emitted, t_end);
+        if p.is_empty() {
+            return Ok(());
+        }
+        self.backend.add_particles(&p)
+    }
+
+    /// Particles emitted so far by each emitter of the scene (empty before the first step).
+    pub fn emitted(&self) -> &[u64] {
+        self.emitted.as_deref().unwrap_or(&[])
     }
 
     fn finish_frame(&mut self) -> Result<(), SimError> {

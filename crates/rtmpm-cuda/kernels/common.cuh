@@ -22,9 +22,7 @@ struct GpuCollider {
     unsigned cond;  // COND_*
     float friction;
     unsigned mesh_offset;
-    float velocity[3];
-    float angular_velocity[3];
-    float pivot[3];
+    float pivot[3];    // in the rest pose (velocities: ColliderPoses)
     float p[8];        // shape parameters in the rest pose
     unsigned dims[3];  // mesh: grid dims
     unsigned pad;
@@ -50,6 +48,8 @@ struct StepParams {
 struct ColliderPoses {
     float rot[RTMPM_MAX_COLLIDERS][9];  // rest -> world rotation at t (column-major)
     float pivot[RTMPM_MAX_COLLIDERS][3];
+    float velocity[RTMPM_MAX_COLLIDERS][3];  // of the pivot at t (constant or keyframed)
+    float omega[RTMPM_MAX_COLLIDERS][3];     // angular velocity at t (world frame)
 };
 
 // Constant for the life of the backend; passed by value to every kernel.

@@ -178,7 +178,7 @@ __device__ vec3 node_boundary(const Ctx& c, unsigned t, vec3 v) {
             vec3 xr = transpose(R) * (x - pt) + v3f(col.pivot);
             if (shape_distance(c, col, xr) > 0) continue;
             vec3 n = normalize_or_y(R * shape_normal(c, col, xr));
-            vec3 vc = v3f(col.velocity) + cross(v3f(col.angular_velocity), x - pt);
+            vec3 vc = v3f(pose.velocity[k]) + cross(v3f(pose.omega[k]), x - pt);
             v = vc + rule_apply(col.cond, col.friction, v - vc, n);
         }
     }

@@ -84,7 +84,7 @@ pub struct CudaBackend {
     last_dt: Option<f32>,
     /// The step parameters and poses last uploaded, with `t` zeroed (see `upload_params`).
     last_params: Option<(Vec<u8>, ColliderPoses)>,
-    scene: Scene,
+    pub(crate) scene: Scene,
     pub(crate) n: usize,
     /// Pinned host memory of [`CudaBackend::read_fields`] (`export.rs`).
     pub(crate) staging: crate::export::Staging,
@@ -103,6 +103,13 @@ fn check(
         return Err(SimError::Backend(
             "CUDA backend: p2g=shared is single precision only (a 12^3 tile of f64 nodes \
              exceeds the 48 KiB of static shared memory); use p2g=warp with f64"
+                .into(),
+        ));
+    }
+    if !scene.rigid_bodies.is_empty() {
+        return Err(SimError::Backend(
+            "CUDA backend: the scene's [[rigid_body]] tables are coupled on the CPU backend \
+             only so far; run it with --backend cpu (built with the cargo feature `rigid`)"
                 .into(),
         ));
     }
@@ -161,6 +168,7 @@ impl CudaBackend {
             ..options
         };
         check(scene, particles, part, &options)?;
+        crate::emit::check(scene, options.p2g)?;
         let tables = encode::tables(scene, options.f64)?;
 
         // The program, compiled for this GPU (or from the cache), and its kernels.
@@ -169,7 +177,9 @@ impl CudaBackend {
         let bases = capacity::bases(scene, particles);
         let mut layout = BlockLayout::default();
         layout.rebuild(&bases);
-        let cap = Capacity::plan(scene, n, part.capacity, &layout, &options);
+        // Room for every particle the emitters will add (crate::emit): nothing grows later.
+        let n_max = n.saturating_add(crate::emit::emitted_total(scene));
+        let cap = Capacity::plan(scene, n_max, part.capacity, &layout, &options);
 
         // Compiled for this GPU, the state's index width (64 bits past 2^32 words), and with
         // specialize=on the scene's models only (a smaller material switch).
@@ -433,6 +443,10 @@ impl Backend for CudaBackend {
             index: c[CTL_BAD_INDEX] as usize,
             reason,
         }))
+    }
+
+    fn add_particles(&mut self, particles: &Particles) -> Result<(), SimError> {
+        self.append_particles(particles)
     }
 
     fn read_particles(&mut self, out: &mut Particles) -> Result<(), SimError> {

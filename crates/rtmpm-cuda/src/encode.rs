@@ -9,7 +9,7 @@ use crate::contract::{
 use rtmpm_core::Scene;
 use rtmpm_core::boundary::Collider;
 use rtmpm_core::boundary::sdf::Shape;
-use rtmpm_core::math::{Mat3, Vec3};
+use rtmpm_core::math::Vec3;
 use rtmpm_core::sim::SimError;
 
 /// The read-only tables of a run, as copied to the device.
@@ -83,8 +83,6 @@ fn collider(c: &Collider, mesh: &mut Vec<f32>) -> GpuCollider {
         kind: contract::collider_kind(&c.shape),
         cond: contract::condition(c.rule.condition),
         friction: c.rule.friction,
-        velocity: c.velocity.to_array(),
-        angular_velocity: c.angular_velocity.to_array(),
         pivot: c.pivot.to_array(),
         ..Default::default()
     };
@@ -177,19 +175,16 @@ pub fn step_bytes(scene: &Scene, dt: f32, t: f32, f64: bool, without_t: bool) ->
     }
 }
 
-/// Every collider's pose at time `t`: rotation by `angular_velocity t` about the pivot, which
-/// moves with `velocity`.
+/// Every collider's pose and velocity at time `t`, as the CPU backend evaluates them
+/// (`Collider::rotation`, `pivot_at`, `motion_at`: constant velocities or keyframes).
 pub fn poses(scene: &Scene, t: f32) -> ColliderPoses {
     let mut p = ColliderPoses::default();
     for (k, c) in scene.colliders.iter().enumerate().take(MAX_COLLIDERS) {
-        let w = c.angular_velocity;
-        let r = if w.length() > 0.0 {
-            Mat3::from_axis_angle(w / w.length(), w.length() * t)
-        } else {
-            Mat3::IDENTITY
-        };
-        p.rot[k] = r.to_cols_array();
-        p.pivot[k] = (c.pivot + c.velocity * t).to_array();
+        p.rot[k] = c.rotation(t).to_cols_array();
+        p.pivot[k] = c.pivot_at(t).to_array();
+        let (v, w) = c.motion_at(t);
+        p.velocity[k] = v.to_array();
+        p.omega[k] = w.to_array();
     }
     p
 }
@@ -250,6 +245,27 @@ mod tests {
         for (k, c) in s.colliders.iter().enumerate() {
             let pivot = c.pivot + c.velocity * 0.25;
             assert_eq!(p.pivot[k], pivot.to_array());
+            assert_eq!(p.velocity[k], c.velocity.to_array());
+            assert_eq!(p.omega[k], c.angular_velocity.to_array());
         }
+    }
+
+    #[test]
+    fn keyframed_poses_and_velocities_are_the_cpu_ones() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/paddle.toml");
+        let s = Scene::from_file(&path).expect("paddle scene");
+        let c = &s.colliders[0];
+        assert!(c.keyframes.is_some());
+        for t in [0.0, 0.2, 0.7, 1.3, 2.5] {
+            let p = poses(&s, t);
+            assert_eq!(p.rot[0], c.rotation(t).to_cols_array());
+            assert_eq!(p.pivot[0], c.pivot_at(t).to_array());
+            let (v, w) = c.motion_at(t);
+            assert_eq!((p.velocity[0], p.omega[0]), (v.to_array(), w.to_array()));
+        }
+        // Lowering at 0.3 m/s, then turning at 2 pi rad/s about y.
+        assert!((poses(&s, 0.2).velocity[0][1] + 0.3).abs() < 1e-5);
+        assert!((poses(&s, 0.7).omega[0][1] - 2.0 * std::f32::consts::PI).abs() < 1e-4);
     }
 }

@@ -64,6 +64,7 @@ pub mod buffers;
 pub mod capacity;
 pub mod compile;
 pub mod contract;
+pub mod emit;
 pub mod encode;
 pub mod export;
 pub mod export_ordered;

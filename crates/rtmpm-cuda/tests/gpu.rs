@@ -42,6 +42,8 @@ fn scene(dx: f32) -> Scene {
         ],
         bodies: vec![],
         colliders: vec![],
+        emitters: vec![],
+        rigid_bodies: vec![],
         walls: Walls::default(),
         output: OutputSettings {
             dir: "out".into(),

@@ -38,4 +38,4 @@ pub mod sim {
 }
 
 pub use particles::Particles;
-pub use rtmpm_core::{grid, scene, transfer};
+pub use rtmpm_core::{grid, rigid, scene, transfer};

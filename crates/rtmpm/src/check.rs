@@ -44,6 +44,18 @@ pub fn check(path: &Path) -> Result<()> {
     }
     println!("  solver      {}", scene.solver.describe());
     println!("  colliders   {}", scene.colliders.len());
+    for e in &scene.emitters {
+        println!(
+            "  emitter     {} ({}): {} particles of {:.3e} kg from {} s to {} s ({:.1} per second)",
+            e.name,
+            scene.materials[e.material as usize].name,
+            e.total(),
+            e.particle_mass,
+            e.start,
+            e.stop,
+            e.rate
+        );
+    }
     println!("  particles   {}", per_material.iter().sum::<u64>());
     println!("  precision   {}", scene.precision.name());
     println!("{}", budget.describe());

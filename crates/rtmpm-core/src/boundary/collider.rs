@@ -1,14 +1,18 @@
-//! Colliders: analytic or mesh shapes moving with a linear and angular velocity.
+//! Colliders: analytic or mesh shapes moving with a constant linear and angular velocity, or
+//! along keyframes ([`Keyframes`]).
 
 use super::BoundaryRule;
+use super::keyframes::Keyframes;
 use super::sdf::Shape;
 use crate::math::{Mat3, Vec3};
 
 /// A rigid obstacle.
 ///
-/// At time `t` the collider has translated by `velocity * t` and rotated by the angle
-/// `|angular_velocity| t` about the axis `angular_velocity` around its moving pivot
-/// `pivot + velocity * t`.
+/// Without keyframes, at time `t` the collider has translated by `velocity * t` and rotated by
+/// the angle `|angular_velocity| t` about the axis `angular_velocity` around its moving pivot
+/// `pivot + velocity * t`. With keyframes, the rest shape is turned about `pivot` by the
+/// keyframed rotation and `pivot` is carried to the keyframed position (`velocity` and
+/// `angular_velocity` are then zero and unused).
 #[derive(Clone, Debug)]
 pub struct Collider {
     pub shape: Shape,
@@ -17,13 +21,27 @@ pub struct Collider {
     pub velocity: Vec3,
     /// Angular velocity (rad/s) about `pivot`.
     pub angular_velocity: Vec3,
-    /// Centre of rotation at t = 0 (moves with `velocity`).
+    /// Centre of rotation in the rest pose (at t = 0 without keyframes; moves with `velocity`).
     pub pivot: Vec3,
+    /// Keyframed motion, replacing `velocity` and `angular_velocity` when given.
+    pub keyframes: Option<Keyframes>,
 }
 
 impl Collider {
+    /// Linear velocity of the pivot and angular velocity (rad/s) at time `t`: the surface
+    /// velocity at world point `x` is `v + w x (x - pivot_at(t))`.
+    pub fn motion_at(&self, t: f32) -> (Vec3, Vec3) {
+        match &self.keyframes {
+            Some(k) => k.velocity(t),
+            None => (self.velocity, self.angular_velocity),
+        }
+    }
+
     /// Rotation of the collider at time `t` (rest frame to world).
     pub fn rotation(&self, t: f32) -> Mat3 {
+        if let Some(k) = &self.keyframes {
+            return k.rotation(t);
+        }
         let w = self.angular_velocity;
         let speed = w.length();
         if speed > 0.0 {
@@ -35,6 +53,9 @@ impl Collider {
 
     /// Position of the pivot at time `t`.
     pub fn pivot_at(&self, t: f32) -> Vec3 {
+        if let Some(k) = &self.keyframes {
+            return k.pose(t).0;
+        }
         self.pivot + self.velocity * t
     }
 
@@ -80,8 +101,8 @@ impl Collider {
         let n = (r * self.shape.normal(x_rest))
             .try_normalize()
             .unwrap_or(Vec3::Y);
-        let v = self.velocity + self.angular_velocity.cross(x - pivot_t);
-        Some((n, v))
+        let (v, w) = self.motion_at(t);
+        Some((n, v + w.cross(x - pivot_t)))
     }
 }
 
@@ -108,6 +129,7 @@ mod tests {
             velocity: Vec3::ZERO,
             angular_velocity: Vec3::ZERO,
             pivot: Vec3::ZERO,
+            keyframes: None,
         };
         assert!(c.query(Vec3::new(1.5, 0.0, 0.0), 0.0).is_none());
         let (n, v) = c.query(Vec3::new(0.5, 0.0, 0.0), 3.0).unwrap();
@@ -126,6 +148,7 @@ mod tests {
             velocity: Vec3::new(2.0, 0.0, 0.0),
             angular_velocity: Vec3::ZERO,
             pivot: Vec3::ZERO,
+            keyframes: None,
         };
         // At t = 1 the sphere is centred at (2, 0, 0).
         assert!(c.query(Vec3::ZERO, 1.0).is_none());
@@ -148,6 +171,7 @@ mod tests {
             velocity: Vec3::ZERO,
             angular_velocity: Vec3::new(0.0, 0.0, w),
             pivot: Vec3::ZERO,
+            keyframes: None,
         };
         let tip = Vec3::new(0.0, 0.95, 0.0);
         assert!(c.query(tip, 0.0).is_none());
@@ -172,6 +196,7 @@ mod tests {
             velocity: Vec3::new(0.0, 0.0, 1.0),
             angular_velocity: Vec3::new(0.0, std::f32::consts::PI, 0.0),
             pivot: Vec3::ZERO,
+            keyframes: None,
         };
         // At t = 1: pivot at (0,0,1), the sphere centre rotated by pi about y: (-1, 0, 1).
         let p = Vec3::new(-1.0, 0.0, 1.0);

@@ -3,11 +3,13 @@
 //! Both use one rule, [`BoundaryRule::apply`], on the velocity relative to the obstacle.
 
 pub mod collider;
+pub mod keyframes;
 pub mod mesh;
 pub mod rules;
 pub mod sdf;
 
 pub use collider::Collider;
+pub use keyframes::{Keyframe, Keyframes};
 pub use rules::{BoundaryRule, Walls};
 
 /// How the material interacts with an obstacle.

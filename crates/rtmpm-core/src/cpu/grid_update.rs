@@ -4,6 +4,7 @@ use super::{CpuBackend, GRID_PAD, StepConstants};
 use crate::grid::codes::{BLOCK_NODES, BLOCK_SIZE};
 use crate::math::{IVec3, Real, ToReal, Vec3};
 use crate::real;
+use crate::rigid::{BodyState, Exchange};
 use crate::transfer::Transfer;
 use rayon::prelude::*;
 
@@ -34,55 +35,119 @@ fn boundary(c: &StepConstants, idx: IVec3, mut v: Vec3, t: f32) -> Vec3 {
     v
 }
 
-/// Turn node momentum into velocity, add gravity, damp (settling) and apply boundary conditions. For the classic
-/// MPM transfers the internal force (times dt) comes from `grid_aux`, which then keeps the
-/// velocity before the update, `v_old = p / m` (no force, no boundary condition), for FLIP.
-pub fn grid_update(b: &mut CpuBackend, dt: Real, t: f32) {
+/// The rigid bodies' boundary rule on node velocity `v` (mass `m`, world position `xw`), and
+/// the reaction on each body added to `acc` (see [`crate::rigid`]: the boundary-rule form of
+/// the CPIC coupling of Hu et al. 2018). Geometry in f32, as the colliders'.
+#[inline]
+fn couple(
+    bodies: &[BodyState],
+    xw: Vec3,
+    m: Real,
+    mut v: Vec3,
+    g_dt: Vec3,
+    acc: &mut [Exchange],
+) -> Vec3 {
+    let x32 = real::vec3_to_f32(xw);
+    for (b, e) in bodies.iter().zip(acc.iter_mut()) {
+        let Some((n, vb)) = b.query(x32) else {
+            continue;
+        };
+        let (n, vb) = (real::vec3(n), real::vec3(vb));
+        let rule = crate::boundary::BoundaryRule {
+            condition: b.condition,
+            friction: real::real(b.friction),
+        };
+        let new = vb + rule.apply(v - vb, n);
+        if b.dynamic {
+            // The node's momentum change less the gravity it received this step: the weight of
+            // the material mass that the kernel spreads onto nodes inside the body (a shell about
+            // half a cell thick) is an artefact of the transfer, not a load on the body; its
+            // pressure on the body is in the internal forces.
+            let dp = (new - v + g_dt) * m;
+            let r = x32 - b.center;
+            e.add_reaction(
+                [r.x as f64, r.y as f64, r.z as f64],
+                [dp.x as f64, dp.y as f64, dp.z as f64],
+            );
+        }
+        v = new;
+    }
+    v
+}
+
+/// Turn node momentum into velocity, add gravity, damp (settling) and apply boundary conditions
+/// (walls, colliders, rigid bodies). For the classic MPM transfers the internal force (times dt)
+/// comes from `grid_aux`, which then keeps the velocity before the update, `v_old = p / m` (no
+/// force, no boundary condition), for FLIP. Returns the impulses the grid gave each rigid body,
+/// summed block by block in a fixed order (deterministic).
+pub fn grid_update(b: &mut CpuBackend, dt: Real, t: f32) -> Vec<Exchange> {
     let c = &b.consts;
     let damp = real::real(c.damping.factor(real::to_f32(dt), t));
     let coords = &b.layout.block_coords;
-    if c.solver.transfer == Transfer::Mls {
+    let bodies: &[BodyState] = b.rigid.as_ref().map_or(&[], |w| w.states());
+    let nb = bodies.len();
+    let node_x = |idx: IVec3| c.origin + idx.to_real() * c.dx;
+    let partial: Vec<Vec<Exchange>> = if c.solver.transfer == Transfer::Mls {
         b.grid
             .par_chunks_mut(BLOCK_NODES)
             .enumerate()
-            .for_each(|(id, block)| {
+            .map(|(id, block)| {
+                let mut acc = vec![Exchange::default(); nb];
                 let corner = coords[id] * BLOCK_SIZE;
                 for (cell, node) in block.iter_mut().enumerate() {
                     let m = node[0];
                     if m <= 0.0 {
                         continue;
                     }
+                    let idx = node_index(corner, cell);
                     let v = (Vec3::new(node[1], node[2], node[3]) / m + dt * c.gravity) * damp;
-                    let v = boundary(c, node_index(corner, cell), v, t);
+                    let mut v = boundary(c, idx, v, t);
+                    if nb > 0 {
+                        v = couple(bodies, node_x(idx), m, v, dt * c.gravity, &mut acc);
+                    }
                     node[1] = v.x;
                     node[2] = v.y;
                     node[3] = v.z;
                 }
-            });
-        return;
-    }
-    b.grid
-        .par_chunks_mut(BLOCK_NODES)
-        .zip(b.grid_aux.par_chunks_mut(BLOCK_NODES))
-        .enumerate()
-        .for_each(|(id, (block, aux))| {
-            let corner = coords[id] * BLOCK_SIZE;
-            for (cell, (node, a)) in block.iter_mut().zip(aux.iter_mut()).enumerate() {
-                let m = node[0];
-                if m <= 0.0 {
-                    continue;
+                acc
+            })
+            .collect()
+    } else {
+        b.grid
+            .par_chunks_mut(BLOCK_NODES)
+            .zip(b.grid_aux.par_chunks_mut(BLOCK_NODES))
+            .enumerate()
+            .map(|(id, (block, aux))| {
+                let mut acc = vec![Exchange::default(); nb];
+                let corner = coords[id] * BLOCK_SIZE;
+                for (cell, (node, a)) in block.iter_mut().zip(aux.iter_mut()).enumerate() {
+                    let m = node[0];
+                    if m <= 0.0 {
+                        continue;
+                    }
+                    let idx = node_index(corner, cell);
+                    let p = Vec3::new(node[1], node[2], node[3]);
+                    let v_old = p / m;
+                    // v_new = (p + dt f) / m + dt g, then the boundary conditions.
+                    let v = ((p + *a) / m + dt * c.gravity) * damp;
+                    let mut v = boundary(c, idx, v, t);
+                    if nb > 0 {
+                        v = couple(bodies, node_x(idx), m, v, dt * c.gravity, &mut acc);
+                    }
+                    node[1] = v.x;
+                    node[2] = v.y;
+                    node[3] = v.z;
+                    *a = v_old;
                 }
-                let p = Vec3::new(node[1], node[2], node[3]);
-                let v_old = p / m;
-                // v_new = (p + dt f) / m + dt g, then the boundary conditions.
-                let v = ((p + *a) / m + dt * c.gravity) * damp;
-                let v = boundary(c, node_index(corner, cell), v, t);
-                node[1] = v.x;
-                node[2] = v.y;
-                node[3] = v.z;
-                *a = v_old;
-            }
-        });
+                acc
+            })
+            .collect()
+    };
+    partial
+        .iter()
+        .fold(vec![Exchange::default(); nb], |sum, p| {
+            sum.iter().zip(p).map(|(a, b)| a.plus(b)).collect()
+        })
 }
 
 /// MUSL re-map: re-mapped momentum in `grid_aux` to velocity, with the same boundary conditions

@@ -119,6 +119,8 @@ pub struct CpuBackend {
     pool: Option<rayon::ThreadPool>,
     max_speed: Real,
     bad: Option<BadParticle>,
+    /// The rigid bodies coupled to the grid (`[[rigid_body]]`), if any.
+    pub rigid: Option<crate::rigid::RigidWorld>,
 }
 
 impl CpuBackend {
@@ -129,7 +131,17 @@ impl CpuBackend {
         particles: sim::Particles,
         threads: Option<usize>,
     ) -> Result<Self, SimError> {
-        Self::from_constants(StepConstants::from_scene(scene)?, particles, threads)
+        let mut b = Self::from_constants(StepConstants::from_scene(scene)?, particles, threads)?;
+        if !scene.rigid_bodies.is_empty() && scene.solver.update == Update::Musl {
+            return Err(SimError::Backend(
+                "rigid bodies are coupled in the grid update of USL steps: use [solver] update = \
+                 \"usl\" with [[rigid_body]] tables"
+                    .into(),
+            ));
+        }
+        b.rigid =
+            crate::rigid::RigidWorld::new(&scene.rigid_bodies, scene.gravity, scene.interior())?;
+        Ok(b)
     }
 
     /// A backend from explicit step constants (tests, benchmarks).
@@ -172,6 +184,7 @@ impl CpuBackend {
             pool,
             max_speed,
             bad: None,
+            rigid: None,
         })
     }
 
@@ -225,6 +238,30 @@ impl CpuBackend {
         Ok(())
     }
 
+    /// Give the rigid bodies the step's impulses and advance them by `dt` (their new pose is
+    /// the next step's boundary).
+    fn advance_bodies(&mut self, exchange: &[crate::rigid::Exchange], dt: Real) {
+        if let Some(w) = self.rigid.as_mut() {
+            w.advance(exchange, real::to_f32(dt));
+        }
+    }
+
+    /// Particles that crossed into a rigid body this step go back to its surface.
+    fn push_out_of_bodies(&mut self) {
+        let Some(w) = self.rigid.as_ref() else {
+            return;
+        };
+        let bodies = w.states();
+        use rayon::prelude::*;
+        self.particles.x.par_iter_mut().for_each(|x| {
+            for b in bodies {
+                if let Some(y) = b.push_out(real::vec3_to_f32(*x)) {
+                    *x = real::vec3(y);
+                }
+            }
+        });
+    }
+
     fn step_inner(&mut self, dt: Real, t: f32) {
         let t0 = std::time::Instant::now();
         rebuild::rebuild(self);
@@ -234,13 +271,15 @@ impl CpuBackend {
         if solver.transfer == Transfer::Mls {
             p2g::p2g(self, dt);
             t2 = std::time::Instant::now();
-            grid_update::grid_update(self, dt, t);
+            let exchange = grid_update::grid_update(self, dt, t);
+            self.advance_bodies(&exchange, dt);
             t3 = std::time::Instant::now();
             (max_speed, bad) = g2p::g2p(self, dt);
         } else {
             p2g::p2g_mpm(self, dt);
             t2 = std::time::Instant::now();
-            grid_update::grid_update(self, dt, t);
+            let exchange = grid_update::grid_update(self, dt, t);
+            self.advance_bodies(&exchange, dt);
             t3 = std::time::Instant::now();
             let musl = solver.update == Update::Musl;
             if musl {
@@ -252,6 +291,7 @@ impl CpuBackend {
             }
             (max_speed, bad) = g2p::g2p_mpm(self, dt, musl);
         }
+        self.push_out_of_bodies();
         let t4 = std::time::Instant::now();
         for (acc, (a, b)) in
             self.stage_seconds
@@ -353,6 +393,23 @@ impl Backend for CpuBackend {
             + self.colours.iter().map(cap).sum::<usize>()
             + self.layout.memory_bytes();
         Some((bytes as u64, 0))
+    }
+
+    fn add_particles(&mut self, p: &sim::Particles) -> Result<(), SimError> {
+        // The next original indices; the next step's rebuild sorts them in.
+        let first = self.ids.len();
+        if first + p.len() > u32::MAX as usize {
+            return Err(SimError::Backend(format!(
+                "{} particles exceed the CPU backend's 2^32 - 1 (emitters): lower their rates",
+                first + p.len()
+            )));
+        }
+        let add = real::particles(p.clone());
+        let fastest = add.v.iter().map(|v| v.length()).fold(0.0, Real::max);
+        self.max_speed = self.max_speed.max(fastest);
+        self.particles.extend(&add);
+        self.ids.extend(first as u32..(first + p.len()) as u32);
+        Ok(())
     }
 
     fn stage_times(&self) -> Vec<(&'static str, f64)> {

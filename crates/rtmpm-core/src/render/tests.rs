@@ -284,6 +284,7 @@ fn collider(shape: crate::boundary::sdf::Shape, velocity: Vec3) -> crate::bounda
         rule: Default::default(),
         velocity,
         angular_velocity: Vec3::ZERO,
+        keyframes: None,
     }
 }
 

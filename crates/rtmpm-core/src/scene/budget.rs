@@ -27,7 +27,7 @@ pub const WARN_FRAMES: u64 = 100_000;
 pub struct Budget {
     /// Estimated particles of each body (see [`sampling::estimate_body`]).
     pub body_particles: Vec<u64>,
-    /// Their sum.
+    /// Their sum, plus every particle the emitters add by the end of the run.
     pub particles: u64,
     /// Frames to simulate.
     pub frames: u64,
@@ -85,9 +85,14 @@ impl Budget {
         let body_particles: Vec<u64> = (0..scene.bodies.len())
             .map(|i| sampling::estimate_body(scene, i))
             .collect();
+        // The bodies' particles and every particle the emitters add by the end of the run.
+        let emitted = scene
+            .emitters
+            .iter()
+            .fold(0u64, |a, e| a.saturating_add(e.total()));
         let particles = body_particles
             .iter()
-            .fold(0u64, |a, &b| a.saturating_add(b));
+            .fold(emitted, |a, &b| a.saturating_add(b));
         let frames = frames.unwrap_or_else(|| scene.time.frames());
         let frame_time = 1.0 / scene.time.fps as f64;
         let (dt, dt_reason) = match scene.time.step {
@@ -210,8 +215,8 @@ impl Budget {
                     self.particles,
                     human_bytes(avail)
                 ),
-                fix: "use fewer particles: a larger dx, a lower particles_per_cell or count, or \
-                      smaller bodies"
+                fix: "use fewer particles: a larger dx, a lower particles_per_cell or count, \
+                      smaller bodies, or lower emitter rates"
                     .into(),
             });
         }

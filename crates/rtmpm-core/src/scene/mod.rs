@@ -18,6 +18,8 @@ pub mod spans;
 mod tests;
 #[cfg(test)]
 mod tests_io;
+#[cfg(test)]
+mod tests_motion;
 mod validate;
 
 pub use budget::Budget;
@@ -274,6 +276,10 @@ pub struct Scene {
     pub materials: Vec<Material>,
     pub bodies: Vec<Body>,
     pub colliders: Vec<Collider>,
+    /// Particles that appear while the run goes on (`[[emitter]]`).
+    pub emitters: Vec<crate::emitter::Emitter>,
+    /// Rigid bodies coupled two ways to the material (`[[rigid_body]]`).
+    pub rigid_bodies: Vec<crate::rigid::RigidBodySpec>,
     pub walls: Walls,
     pub output: OutputSettings,
     /// `[render]` table (camera, image size, colouring).

@@ -25,6 +25,10 @@ pub struct RawScene {
     pub body: Vec<RawBody>,
     #[serde(default)]
     pub collider: Vec<RawCollider>,
+    #[serde(default)]
+    pub emitter: Vec<RawEmitter>,
+    #[serde(default)]
+    pub rigid_body: Vec<RawRigidBody>,
     pub output: Option<RawOutput>,
     pub render: Option<RawRender>,
     pub solver: Option<RawSolver>,
@@ -239,6 +243,19 @@ pub struct RawCollider {
     pub velocity: Option<V3>,
     pub angular_velocity: Option<V3>,
     pub pivot: Option<V3>,
+    pub keyframes: Option<Vec<RawKeyframe>>,
+}
+
+/// One key of `collider.keyframes`: `{ t, position, rotation }`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawKeyframe {
+    /// Time (s).
+    pub t: f32,
+    /// World position of the collider's pivot (default: the pivot of the rest pose).
+    pub position: Option<V3>,
+    /// Rotation vector: axis times angle in radians (default: none).
+    pub rotation: Option<V3>,
 }
 
 impl RawBody {
@@ -325,4 +342,83 @@ pub struct RawRender {
     pub width: Option<u32>,
     pub height: Option<u32>,
     pub color_by: Option<String>,
+}
+
+/// An `[[emitter]]` table: particles that appear while the run goes on.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawEmitter {
+    pub name: Option<String>,
+    pub material: String,
+    pub shape: RawShape,
+    pub min: Option<V3>,
+    pub max: Option<V3>,
+    pub center: Option<V3>,
+    pub radius: Option<f32>,
+    pub axis: Option<V3>,
+    pub height: Option<f32>,
+    pub velocity: Option<V3>,
+    /// Particles per second.
+    pub rate: Option<f64>,
+    /// Volume per second (m^3/s).
+    pub volume_rate: Option<f64>,
+    pub start: Option<f64>,
+    pub stop: Option<f64>,
+    pub particles_per_cell: Option<u32>,
+}
+
+impl RawEmitter {
+    pub fn geometry(&self) -> RawGeometry {
+        RawGeometry {
+            min: self.min,
+            max: self.max,
+            center: self.center,
+            radius: self.radius,
+            axis: self.axis,
+            height: self.height,
+            ..Default::default()
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum RawRigidKind {
+    Dynamic,
+    Kinematic,
+    Fixed,
+}
+
+/// A `[[rigid_body]]` table: a rigid body the material pushes and is pushed by.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawRigidBody {
+    pub name: Option<String>,
+    pub shape: RawShape,
+    pub min: Option<V3>,
+    pub max: Option<V3>,
+    pub center: Option<V3>,
+    pub radius: Option<f32>,
+    #[serde(rename = "type")]
+    pub kind: Option<RawRigidKind>,
+    pub density: Option<f32>,
+    pub mass: Option<f32>,
+    /// Rotation vector (rad) about the centre.
+    pub rotation: Option<V3>,
+    pub velocity: Option<V3>,
+    pub angular_velocity: Option<V3>,
+    pub condition: Option<RawCondition>,
+    pub friction: Option<f32>,
+}
+
+impl RawRigidBody {
+    pub fn geometry(&self) -> RawGeometry {
+        RawGeometry {
+            min: self.min,
+            max: self.max,
+            center: self.center,
+            radius: self.radius,
+            ..Default::default()
+        }
+    }
 }

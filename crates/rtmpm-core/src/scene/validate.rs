@@ -17,8 +17,14 @@ use std::sync::Arc;
 
 type R<T> = Result<T, SceneError>;
 
+#[path = "validate_emitter.rs"]
+mod emitters;
 #[path = "validate_io.rs"]
 mod io_fields;
+#[path = "validate_motion.rs"]
+mod motion;
+#[path = "validate_rigid.rs"]
+mod rigid;
 
 /// Grid cells of margin around a mesh's signed distance grid.
 const MESH_MARGIN: u32 = 3;
@@ -424,6 +430,32 @@ impl V<'_> {
             colliders.push(self.collider(i, c, base, dx)?);
         }
 
+        // Emitters (validate_emitter.rs).
+        let seed = raw.seed.unwrap_or(0);
+        let cx = emitters::EmitterContext {
+            materials: &materials,
+            base,
+            dx,
+            interior: (imin, imax),
+            duration,
+            seed,
+        };
+        let emitters = raw
+            .emitter
+            .iter()
+            .enumerate()
+            .map(|(i, e)| self.emitter(i, e, &cx))
+            .collect::<R<Vec<_>>>()?;
+
+        // Rigid bodies (validate_rigid.rs).
+        let rigid_bodies = raw
+            .rigid_body
+            .iter()
+            .enumerate()
+            .map(|(i, b)| self.rigid_body(i, b, base, dx, (imin, imax)))
+            .collect::<R<Vec<_>>>()?;
+        self.rigid_overlaps(&rigid_bodies)?;
+
         // Output and surfaces (validate_io.rs).
         let output = self.output(
             raw.output.as_ref(),
@@ -446,10 +478,12 @@ impl V<'_> {
             materials,
             bodies,
             colliders,
+            emitters,
+            rigid_bodies,
             walls,
             output,
             render,
-            seed: raw.seed.unwrap_or(0),
+            seed,
             solver,
             precision: raw
                 .solver
@@ -1000,6 +1034,10 @@ impl V<'_> {
             Some(p) => self.vec3(&f("pivot"), p)?,
             None => shape.center(),
         };
+        let keyframes = match &c.keyframes {
+            Some(k) => Some(self.keyframes(&prefix, c, k, pivot)?),
+            None => None,
+        };
         Ok(Collider {
             shape,
             rule: BoundaryRule {
@@ -1009,6 +1047,7 @@ impl V<'_> {
             velocity,
             angular_velocity,
             pivot,
+            keyframes,
         })
     }
 }

@@ -91,22 +91,15 @@ fn layouts<R: GpuReal>() -> Vec<Layout> {
         ),
         layout!(StepParams<R>, "StepParams", [dt, t, gravity, damping]),
         layout!(MaterialGpu<R>, "MaterialGpu", [p, kind, pad]),
-        layout!(ColliderPoses, "ColliderPoses", [rot, pivot]),
+        layout!(
+            ColliderPoses,
+            "ColliderPoses",
+            [rot, pivot, velocity, omega]
+        ),
         layout!(
             GpuCollider,
             "GpuCollider",
-            [
-                kind,
-                cond,
-                friction,
-                mesh_offset,
-                velocity,
-                angular_velocity,
-                pivot,
-                p,
-                dims,
-                pad
-            ]
+            [kind, cond, friction, mesh_offset, pivot, p, dims, pad]
         ),
         layout!(
             SharedCtx,

@@ -208,6 +208,10 @@ pub struct ColliderPoses {
     pub rot: [[f32; 9]; MAX_COLLIDERS],
     /// Pivot at t.
     pub pivot: [[f32; 3]; MAX_COLLIDERS],
+    /// Linear velocity of the pivot at t (constant, or from the keyframes).
+    pub velocity: [[f32; 3]; MAX_COLLIDERS],
+    /// Angular velocity at t (rad/s, world frame).
+    pub omega: [[f32; 3]; MAX_COLLIDERS],
 }
 
 impl Default for ColliderPoses {
@@ -228,11 +232,7 @@ pub struct GpuCollider {
     pub friction: f32,
     /// Offset of the mesh SDF in the concatenated values.
     pub mesh_offset: u32,
-    /// Linear velocity.
-    pub velocity: [f32; 3],
-    /// Angular velocity.
-    pub angular_velocity: [f32; 3],
-    /// Pivot at t = 0.
+    /// Pivot in the rest pose (the velocities are in [`ColliderPoses`]).
     pub pivot: [f32; 3],
     /// Shape parameters in the rest pose.
     pub p: [f32; 8],

@@ -64,6 +64,13 @@ pub fn check_supported(scene: &Scene, options: &CudaOptions) -> Result<(), SimEr
             scene.solver.transfer.name()
         )));
     }
+    if !scene.emitters.is_empty() {
+        return Err(SimError::Backend(
+            "several GPUs cannot take the particles of the scene's [[emitter]] tables yet (the \
+             partition is fixed at the start); run it on one GPU (--gpus 1) or on the CPU"
+                .into(),
+        ));
+    }
     if options.f64 || scene.precision == rtmpm_core::scene::Precision::F64 {
         return Err(SimError::Backend(
             "several GPUs run in single precision only (the particle exchange at \

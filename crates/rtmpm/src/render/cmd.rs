@@ -236,6 +236,7 @@ fn bench(args: &RenderArgs) -> Result<()> {
             rule: Default::default(),
             velocity: Vec3::ZERO,
             angular_velocity: Vec3::ZERO,
+            keyframes: None,
         };
         with.colliders = vec![
             collider(Shape::HalfSpace {

@@ -1,0 +1,143 @@
+//! The rigid bodies in rapier3d: one dynamic, kinematic or fixed body per `[[rigid_body]]`
+//! with one collider of its shape, and the six faces of the domain minus the walls as fixed
+//! slabs, so bodies rest on the floor and bounce off each other.
+
+use super::{BodyState, Exchange, RigidBodySpec, RigidKind, RigidShape};
+use crate::sim::SimError;
+use rapier3d::prelude as rp;
+
+/// rapier3d's vectors (its own glam) from ours, and back.
+fn rv(v: glam::Vec3) -> rp::Vector {
+    rp::Vector::new(v.x, v.y, v.z)
+}
+fn gv(v: rp::Vector) -> glam::Vec3 {
+    glam::Vec3::new(v.x, v.y, v.z)
+}
+
+/// Thickness of the fixed slabs around the interior (m): thick enough that no body tunnels.
+const SLAB: f32 = 1.0;
+
+/// The bodies' rapier world.
+pub struct RigidWorld {
+    world: rp::PhysicsWorld,
+    handles: Vec<rp::RigidBodyHandle>,
+    specs: Vec<RigidBodySpec>,
+    states: Vec<BodyState>,
+}
+
+impl std::fmt::Debug for RigidWorld {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RigidWorld")
+            .field("states", &self.states)
+            .finish()
+    }
+}
+
+impl RigidWorld {
+    /// The world of `bodies` under `gravity`, boxed in by `interior` (the domain minus the
+    /// walls); `None` without bodies.
+    pub fn new(
+        bodies: &[RigidBodySpec],
+        gravity: glam::Vec3,
+        interior: (glam::Vec3, glam::Vec3),
+    ) -> Result<Option<RigidWorld>, SimError> {
+        if bodies.is_empty() {
+            return Ok(None);
+        }
+        let mut world = rp::PhysicsWorld::new();
+        world.gravity = rv(gravity);
+        let (lo, hi) = interior;
+        let mid = 0.5 * (lo + hi);
+        let half = 0.5 * (hi - lo) + glam::Vec3::splat(SLAB);
+        for axis in 0..3 {
+            for side in [-1.0f32, 1.0] {
+                let mut h = half;
+                h[axis] = 0.5 * SLAB;
+                let mut c = mid;
+                c[axis] = if side < 0.0 {
+                    lo[axis] - 0.5 * SLAB
+                } else {
+                    hi[axis] + 0.5 * SLAB
+                };
+                world.insert_collider(
+                    rp::ColliderBuilder::cuboid(h.x, h.y, h.z).translation(rv(c)),
+                    None,
+                );
+            }
+        }
+        let mut handles = Vec::new();
+        for b in bodies {
+            let builder = match b.kind {
+                RigidKind::Dynamic => rp::RigidBodyBuilder::dynamic(),
+                RigidKind::Kinematic => rp::RigidBodyBuilder::kinematic_velocity_based(),
+                RigidKind::Fixed => rp::RigidBodyBuilder::fixed(),
+            };
+            let (axis, angle) = b.rotation.to_axis_angle();
+            let body = builder
+                .translation(rv(b.position))
+                .rotation(rv(axis * angle))
+                .linvel(rv(b.velocity))
+                .angvel(rv(b.angular_velocity))
+                .can_sleep(false);
+            let collider = match b.shape {
+                RigidShape::Box { half_extents: h } => rp::ColliderBuilder::cuboid(h.x, h.y, h.z),
+                RigidShape::Sphere { radius } => rp::ColliderBuilder::ball(radius),
+            }
+            .mass(b.mass);
+            let (handle, _) = world.insert(body, collider);
+            handles.push(handle);
+        }
+        let mut w = RigidWorld {
+            world,
+            handles,
+            specs: bodies.to_vec(),
+            states: Vec::new(),
+        };
+        w.refresh();
+        Ok(Some(w))
+    }
+
+    fn refresh(&mut self) {
+        self.states = self
+            .handles
+            .iter()
+            .zip(&self.specs)
+            .map(|(&h, s)| {
+                let b = &self.world.bodies[h];
+                let q = b.rotation().to_array();
+                BodyState {
+                    shape: s.shape,
+                    rotation: glam::Mat3::from_quat(glam::Quat::from_array(q)),
+                    center: gv(b.center_of_mass()),
+                    velocity: gv(b.linvel()),
+                    angular_velocity: gv(b.angvel()),
+                    dynamic: s.kind == RigidKind::Dynamic,
+                    condition: s.condition,
+                    friction: s.friction,
+                }
+            })
+            .collect();
+    }
+
+    /// Every body's state at the current time.
+    pub fn states(&self) -> &[BodyState] {
+        &self.states
+    }
+
+    /// Give each dynamic body the impulses the grid gave it this step, then advance the world
+    /// by `dt` (gravity, contacts).
+    pub fn advance(&mut self, exchange: &[Exchange], dt: f32) {
+        for ((&h, s), e) in self.handles.iter().zip(&self.specs).zip(exchange) {
+            if s.kind != RigidKind::Dynamic {
+                continue;
+            }
+            let b = &mut self.world.bodies[h];
+            let f = |a: [f64; 3]| rp::Vector::new(a[0] as f32, a[1] as f32, a[2] as f32);
+            b.apply_impulse(f(e.impulse), true);
+            b.apply_torque_impulse(f(e.torque), true);
+        }
+        self.world.integration_parameters.dt = dt;
+        self.world.step();
+        self.refresh();
+    }
+}

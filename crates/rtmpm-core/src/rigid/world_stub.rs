@@ -1,0 +1,39 @@
+//! Without the cargo feature `rigid`: no rigid-body world; scenes with rigid bodies are refused.
+
+use super::{BodyState, Exchange, RigidBodySpec};
+use crate::sim::SimError;
+
+/// Stands for the rapier3d world of the feature `rigid`; never built.
+#[derive(Debug)]
+pub struct RigidWorld {
+    never: std::convert::Infallible,
+}
+
+impl RigidWorld {
+    /// `None` without bodies; an error naming the feature otherwise.
+    pub fn new(
+        bodies: &[RigidBodySpec],
+        _gravity: glam::Vec3,
+        _interior: (glam::Vec3, glam::Vec3),
+    ) -> Result<Option<RigidWorld>, SimError> {
+        if bodies.is_empty() {
+            return Ok(None);
+        }
+        Err(SimError::Backend(
+            "the scene has [[rigid_body]] tables, but this build has no rigid-body engine: \
+             build with the cargo feature `rigid` (rapier3d), e.g. \
+             `cargo build --release -p rtmpm --features rigid`"
+                .into(),
+        ))
+    }
+
+    /// Every body's state.
+    pub fn states(&self) -> &[BodyState] {
+        match self.never {}
+    }
+
+    /// Apply the step's exchanges and advance by `dt`.
+    pub fn advance(&mut self, _exchange: &[Exchange], _dt: f32) {
+        match self.never {}
+    }
+}

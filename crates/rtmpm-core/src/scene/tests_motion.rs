@@ -1,0 +1,167 @@
+//! Scene tests of prescribed motion: keyframed colliders.
+
+use super::*;
+
+const BASE: &str = r#"name = "t"
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [1.0, 1.0, 1.0]
+dx = 0.0625
+[time]
+duration = 1.0
+[[material]]
+name = "water"
+type = "fluid"
+density = 1000.0
+bulk_modulus = 1e5
+[[body]]
+material = "water"
+shape = "box"
+min = [0.25, 0.25, 0.25]
+max = [0.5, 0.5, 0.5]
+[[collider]]
+shape = "box"
+min = [0.4, 0.3, 0.45]
+max = [0.6, 0.7, 0.55]
+keyframes = [
+  { t = 0.0, position = [0.5, 0.5, 0.5] },
+  { t = 1.0, position = [0.5, 0.5, 0.6], rotation = [0.0, 1.0, 0.0] },
+  { t = 2.0, rotation = [0.0, 2.0, 0.0] },
+]
+"#;
+
+fn parse(text: &str) -> Result<Scene, SceneError> {
+    Scene::from_toml(text, "test.toml")
+}
+
+/// `BASE` with `from` replaced by `to` must fail on `field`, with a line and a fix.
+fn expect_err(from: &str, to: &str, field: &str) -> SceneError {
+    assert!(BASE.contains(from), "{from}");
+    let e = parse(&BASE.replacen(from, to, 1)).expect_err(&format!("{to} should fail"));
+    assert_eq!(e.field.as_deref(), Some(field), "{e}");
+    assert!(e.hint.is_some() && e.line.is_some(), "{e}");
+    e
+}
+
+#[test]
+fn keyframes_are_read_with_defaults() {
+    let s = parse(BASE).unwrap();
+    let c = &s.colliders[0];
+    let k = c.keyframes.as_ref().expect("keyframes");
+    assert_eq!(k.keys().len(), 3);
+    // A key without position keeps the rest pivot (the box centre).
+    assert_eq!(k.keys()[2].position, Vec3::new(0.5, 0.5, 0.5));
+    assert_eq!(c.pivot, Vec3::new(0.5, 0.5, 0.5));
+    // Half way through the first segment: 0.05 m along z, 0.5 rad about y.
+    assert!((c.pivot_at(0.5) - Vec3::new(0.5, 0.5, 0.55)).length() < 1e-6);
+    let (v, w) = c.motion_at(0.5);
+    assert!((v - Vec3::new(0.0, 0.0, 0.1)).length() < 1e-6, "{v}");
+    assert!((w - Vec3::new(0.0, 1.0, 0.0)).length() < 1e-5, "{w}");
+    // The collider's surface velocity at a point is v + w x (x - pivot(t)).
+    let x = c.pivot_at(0.5) + Vec3::new(0.05, 0.0, 0.0);
+    let (_, vc) = c.query(x, 0.5).expect("inside");
+    assert!((vc - (v + w.cross(Vec3::new(0.05, 0.0, 0.0)))).length() < 1e-6);
+    // After the last key it holds still.
+    assert_eq!(c.motion_at(3.0), (Vec3::ZERO, Vec3::ZERO));
+}
+
+#[test]
+fn bad_keyframes_name_the_field_and_the_fix() {
+    expect_err(
+        "{ t = 1.0, position",
+        "{ t = 0.0, position",
+        "collider[0].keyframes[1].t",
+    );
+    expect_err("{ t = 2.0,", "{ t = nan,", "collider[0].keyframes[2].t");
+    expect_err("{ t = 2.0,", "{ t = -2.0,", "collider[0].keyframes[2].t");
+    expect_err(
+        "position = [0.5, 0.5, 0.6]",
+        "position = [0.5, inf, 0.6]",
+        "collider[0].keyframes[1].position",
+    );
+    let e = expect_err(
+        "rotation = [0.0, 2.0, 0.0]",
+        "rotation = [0.0, 4.5, 0.0]",
+        "collider[0].keyframes[2].rotation",
+    );
+    assert!(e.message.contains("shorter arc"), "{e}");
+    let e = expect_err(
+        "keyframes = [",
+        "velocity = [1.0, 0.0, 0.0]\nkeyframes = [",
+        "collider[0].velocity",
+    );
+    assert!(e.to_string().contains("remove `velocity`"), "{e}");
+    expect_err(
+        "keyframes = [",
+        "angular_velocity = [1.0, 0.0, 0.0]\nkeyframes = [",
+        "collider[0].angular_velocity",
+    );
+    let empty = BASE.replacen(
+        "keyframes = [\n  { t = 0.0, position = [0.5, 0.5, 0.5] },\n  { t = 1.0, position = [0.5, 0.5, 0.6], rotation = [0.0, 1.0, 0.0] },\n  { t = 2.0, rotation = [0.0, 2.0, 0.0] },\n]",
+        "keyframes = []",
+        1,
+    );
+    assert_ne!(empty, BASE);
+    let e = parse(&empty).unwrap_err();
+    assert_eq!(e.field.as_deref(), Some("collider[0].keyframes"), "{e}");
+    // Unknown fields of a key are reported (typo of `position`).
+    let e = parse(&BASE.replacen("{ t = 0.0, position", "{ t = 0.0, positon", 1)).unwrap_err();
+    assert!(e.message.contains("positon"), "{e}");
+}
+
+const RIGID: &str = r#"[[rigid_body]]
+shape = "box"
+min = [0.6, 0.6, 0.6]
+max = [0.7, 0.7, 0.7]
+density = 500.0
+[[rigid_body]]
+shape = "sphere"
+center = [0.3, 0.75, 0.3]
+radius = 0.05
+mass = 2.0
+"#;
+
+#[test]
+fn rigid_bodies_are_read_and_bad_ones_refused() {
+    let text = format!("{BASE}{RIGID}");
+    let s = parse(&text).unwrap();
+    assert_eq!(s.rigid_bodies.len(), 2);
+    let b = &s.rigid_bodies[0];
+    assert!((b.mass - 500.0 * 0.001).abs() < 1e-6);
+    assert_eq!(b.position, Vec3::new(0.65, 0.65, 0.65));
+    assert_eq!(s.rigid_bodies[1].mass, 2.0);
+    let bad = |from: &str, to: &str, field: &str| {
+        assert!(text.contains(from), "{from}");
+        let e = parse(&text.replacen(from, to, 1)).expect_err(to);
+        assert_eq!(e.field.as_deref(), Some(field), "{e}");
+        assert!(e.hint.is_some() && e.line.is_some(), "{e}");
+    };
+    bad("density = 500.0\n", "", "rigid_body[0].density");
+    bad("density = 500.0", "density = -5.0", "rigid_body[0].density");
+    bad("mass = 2.0", "mass = 0.0", "rigid_body[1].mass");
+    bad(
+        "mass = 2.0",
+        "mass = 2.0\ndensity = 3.0",
+        "rigid_body[1].mass",
+    );
+    bad(
+        "max = [0.7, 0.7, 0.7]",
+        "max = [0.7, 0.99, 0.7]",
+        "rigid_body[0].shape",
+    );
+    bad(
+        "center = [0.3, 0.75, 0.3]",
+        "center = [0.65, 0.72, 0.65]",
+        "rigid_body[1]",
+    );
+    bad(
+        "shape = \"sphere\"\ncenter",
+        "shape = \"cylinder\"\ncenter",
+        "rigid_body[1].shape",
+    );
+    bad(
+        "density = 500.0",
+        "density = 500.0\ntype = \"fixed\"\nvelocity = [1.0, 0.0, 0.0]",
+        "rigid_body[0].velocity",
+    );
+}

@@ -1,0 +1,152 @@
+//! Validation of `[[rigid_body]]` tables.
+
+use super::super::sampling::BodyShape;
+use super::super::schema::*;
+use super::{R, V, fmt3};
+use crate::math::Vec3;
+use crate::rigid::{RigidBodySpec, RigidKind, RigidShape};
+use glam::Quat;
+use std::path::Path;
+
+impl V<'_> {
+    /// `rigid_body[i]`: a box or sphere inside the domain minus the walls, exactly one of
+    /// `density` and `mass` (> 0; a fixed body needs neither), finite pose and velocities.
+    pub(super) fn rigid_body(
+        &self,
+        i: usize,
+        b: &RawRigidBody,
+        base: &Path,
+        dx: f32,
+        interior: (Vec3, Vec3),
+    ) -> R<RigidBodySpec> {
+        let prefix = format!("rigid_body[{i}]");
+        let f = |n: &str| format!("{prefix}.{n}");
+        if !matches!(b.shape, RawShape::Box | RawShape::Sphere) {
+            return Err(self.err(
+                f("shape"),
+                format!("a rigid body cannot be a {} (yet)", b.shape.name()),
+                "use shape = \"box\" (min, max) or \"sphere\" (center, radius)",
+            ));
+        }
+        let (shape, position) = match self.body_shape(&prefix, b.shape, &b.geometry(), base, dx)? {
+            BodyShape::Box { min, max } => (
+                RigidShape::Box {
+                    half_extents: 0.5 * (max - min),
+                },
+                0.5 * (min + max),
+            ),
+            BodyShape::Sphere { center, radius } => (RigidShape::Sphere { radius }, center),
+            _ => unreachable!("box or sphere"),
+        };
+        let rotation = match b.rotation {
+            Some(r) => Quat::from_scaled_axis(self.vec3(&f("rotation"), r)?),
+            None => Quat::IDENTITY,
+        };
+        let kind = match b.kind.unwrap_or(RawRigidKind::Dynamic) {
+            RawRigidKind::Dynamic => RigidKind::Dynamic,
+            RawRigidKind::Kinematic => RigidKind::Kinematic,
+            RawRigidKind::Fixed => RigidKind::Fixed,
+        };
+        let volume = shape.volume();
+        let mass = match (b.density, b.mass) {
+            (Some(_), Some(_)) => {
+                return Err(self.err(
+                    f("mass"),
+                    "both density and mass are given",
+                    "keep density (kg/m^3) or mass (kg)",
+                ));
+            }
+            (Some(d), None) => self.positive(&f("density"), d, "density (kg/m^3)")? * volume,
+            (None, Some(m)) => self.positive(&f("mass"), m, "mass (kg)")?,
+            (None, None) if kind == RigidKind::Fixed => 1.0,
+            (None, None) => {
+                return Err(self.err(
+                    f("density"),
+                    "a dynamic or kinematic rigid body needs a density or a mass",
+                    "add density = <kg/m^3> (e.g. 500 floats on water) or mass = <kg>",
+                ));
+            }
+        };
+        let velocity = match b.velocity {
+            Some(v) => self.vec3(&f("velocity"), v)?,
+            None => Vec3::ZERO,
+        };
+        let angular_velocity = match b.angular_velocity {
+            Some(v) => self.vec3(&f("angular_velocity"), v)?,
+            None => Vec3::ZERO,
+        };
+        if kind == RigidKind::Fixed && (b.velocity.is_some() || b.angular_velocity.is_some()) {
+            return Err(self.err(
+                f(if b.velocity.is_some() { "velocity" } else { "angular_velocity" }),
+                "a fixed rigid body does not move",
+                "remove the velocity, or use type = \"kinematic\" (moves at its velocity) or \"dynamic\"",
+            ));
+        }
+        // Inside the domain minus the walls, in its initial pose.
+        let h = shape.world_half_extents(glam::Mat3::from_quat(rotation));
+        let (lo, hi) = (position - h, position + h);
+        let (imin, imax) = interior;
+        let tol = 1e-5 * (imax - imin).max_element();
+        if lo.cmplt(imin - tol).any() || hi.cmpgt(imax + tol).any() {
+            return Err(self.err(
+                f("shape"),
+                format!(
+                    "the rigid body spans {} .. {}, outside the domain or inside the walls",
+                    fmt3(lo),
+                    fmt3(hi)
+                ),
+                format!(
+                    "keep rigid bodies inside the box {} .. {} (the domain minus the walls)",
+                    fmt3(imin),
+                    fmt3(imax)
+                ),
+            ));
+        }
+        let condition = Self::condition(b.condition.unwrap_or(RawCondition::Slip));
+        let friction = self.non_negative(&f("friction"), b.friction.unwrap_or(0.0), "friction")?;
+        Ok(RigidBodySpec {
+            name: b.name.clone().unwrap_or_else(|| format!("rigid_body{i}")),
+            shape,
+            kind,
+            mass,
+            position,
+            rotation,
+            velocity,
+            angular_velocity,
+            condition,
+            friction,
+        })
+    }
+
+    /// Bodies must not overlap at the start (their axis-aligned bounds in the initial pose).
+    pub(super) fn rigid_overlaps(&self, bodies: &[RigidBodySpec]) -> R<()> {
+        let bounds: Vec<(Vec3, Vec3)> = bodies
+            .iter()
+            .map(|b| {
+                let h = b
+                    .shape
+                    .world_half_extents(glam::Mat3::from_quat(b.rotation));
+                (b.position - h, b.position + h)
+            })
+            .collect();
+        for j in 0..bodies.len() {
+            for i in 0..j {
+                let (a, b) = (bounds[i], bounds[j]);
+                if a.0.cmplt(b.1).all() && b.0.cmplt(a.1).all() {
+                    return Err(self.err(
+                        format!("rigid_body[{j}]"),
+                        format!(
+                            "rigid_body[{j}] overlaps rigid_body[{i}] at the start (their bounding boxes {} .. {} and {} .. {} intersect)",
+                            fmt3(b.0),
+                            fmt3(b.1),
+                            fmt3(a.0),
+                            fmt3(a.1)
+                        ),
+                        "move the bodies apart so that they do not touch at t = 0",
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+}
