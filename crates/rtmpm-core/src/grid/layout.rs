@@ -83,12 +83,6 @@ impl Clone for BlockLayout {
     }
 }
 
-/// Block code of the block holding node `b`.
-#[inline]
-fn code_of(b: IVec3) -> u64 {
-    block_code(block_of(b))
-}
-
 /// Chunk length of the parallel passes over `n` items: about 4 chunks per thread.
 fn chunk_len(n: usize) -> usize {
     n.div_ceil(4 * rayon::current_num_threads()).max(MIN_CHUNK)
@@ -157,12 +151,13 @@ impl BlockLayout {
             .zip(self.runs.par_iter_mut())
             .for_each(|(b, run)| {
                 run.clear();
-                let mut last = u64::MAX;
+                // Compare block coordinates (cheap); the code only where the block changes.
+                let mut last = None;
                 for &x in b {
-                    let code = code_of(x);
-                    if code != last {
-                        run.push(code);
-                        last = code;
+                    let block = block_of(x);
+                    if last != Some(block) {
+                        run.push(block_code(block));
+                        last = Some(block);
                     }
                 }
                 run.sort_unstable();
@@ -226,14 +221,14 @@ impl BlockLayout {
             .par_chunks(chunk)
             .zip(self.keys.par_chunks_mut(chunk))
             .for_each(|(b, keys)| {
-                let (mut last_code, mut g, mut run) = (u64::MAX, 0usize, 0u32);
+                let (mut last, mut g, mut run) = (None, 0usize, 0u32);
                 for (&x, key) in b.iter().zip(keys.iter_mut()) {
-                    let code = code_of(x);
-                    if code != last_code {
+                    let block = block_of(x);
+                    if last != Some(block) {
                         if run > 0 {
                             counts[g].fetch_add(run, Relaxed);
                         }
-                        (g, run, last_code) = (find(codes, code), 0, code);
+                        (g, run, last) = (find(codes, block_code(block)), 0, Some(block));
                     }
                     run += 1;
                     *key = g as u32 * BLOCK_NODES as u32 + cell_code(x.x, x.y, x.z) as u32;
