@@ -141,3 +141,59 @@ condition = "separate"
         "momentum {start} -> {total}"
     );
 }
+
+/// Sinking and floating: in one tank of water, a sphere of density 2,500 reaches the floor and
+/// one of 500 floats (its centre stays above the water's surface minus a radius).
+#[test]
+fn a_heavy_sphere_sinks_to_the_floor_and_a_light_one_floats() {
+    let text = r#"name = "spheres"
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [0.6, 0.6, 0.4]
+dx = 0.02
+[time]
+duration = 1.2
+fps = 10
+cfl = 0.4
+damping = 2.0
+[walls]
+condition = "slip"
+[[material]]
+name = "water"
+type = "fluid"
+density = 1000.0
+bulk_modulus = 2e4
+[[body]]
+material = "water"
+shape = "box"
+min = [0.06, 0.06, 0.06]
+max = [0.54, 0.26, 0.34]
+sampling = "regular"
+[[rigid_body]]
+shape = "sphere"
+center = [0.18, 0.31, 0.2]
+radius = 0.045
+density = 2500.0
+condition = "separate"
+[[rigid_body]]
+shape = "sphere"
+center = [0.42, 0.31, 0.2]
+radius = 0.045
+density = 500.0
+condition = "separate"
+"#;
+    let scene = Scene::from_toml(text, "spheres").unwrap_or_else(|e| panic!("{e}"));
+    let p = scene.sample_particles().expect("particles");
+    let backend = CpuBackend::new(&scene, p, None).expect("backend");
+    let mut sim = Simulation::<CpuBackend>::with_backend(scene, Box::new(backend));
+    for _ in 0..sim.scene.time.frames() {
+        sim.advance_frame().expect("stable");
+    }
+    let s = sim.backend.rigid.as_ref().expect("rigid world").states();
+    let (heavy, light) = (s[0].center.y, s[1].center.y);
+    println!("heavy sphere centre {heavy:.4} m, light {light:.4} m (floor 0.06, surface ~0.26)");
+    // On the floor (the domain minus the walls starts at 0.06): within a cell.
+    assert!(heavy - 0.045 < 0.06 + 0.02, "heavy sphere at {heavy}");
+    // Floating: half submerged puts the centre at the surface (~0.26); sinking would not.
+    assert!(light > 0.26 - 0.045, "light sphere at {light}");
+}
