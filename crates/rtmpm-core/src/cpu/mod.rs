@@ -358,6 +358,12 @@ impl Backend for CpuBackend {
         true
     }
 
+    fn rigid_bodies(&self) -> Vec<crate::rigid::BodyState> {
+        self.rigid
+            .as_ref()
+            .map_or_else(Vec::new, |w| w.states().to_vec())
+    }
+
     fn add_particles(&mut self, p: &sim::Particles) -> Result<(), SimError> {
         // The next original indices; the next step's rebuild sorts them in.
         let first = self.ids.len();
