@@ -8,7 +8,7 @@
 # Suites:
 #   tests        GPU tests (TESTS="test_gpu ..." to choose): kernels, P2G strategies, transfers, f64, the material check
 #                (every model on the GPU against Rust), the CPU/GPU agreement on every example
-#                scene, the CLI on the GPU
+#                scene, emitters and the keyframed paddle against the CPU (test_emitters), the CLI on the GPU
 #   validate     the validation suite at full resolution on the GPU (`rtmpm validate`)
 #   convergence  the convergence studies and the f64 validation cases
 #   bench        the claymore scenes (fluid 2M, jelly 2M, snow 1.33M) and a fluid block; with
@@ -64,7 +64,7 @@ for suite in "$@"; do
   say "== $suite"
   case "$suite" in
     tests)
-      for x in ${TESTS:-test_gpu test_materials test_agreement test_cli test_render_cli}; do t "$x"; done
+      for x in ${TESTS:-test_gpu test_materials test_agreement test_emitters test_cli test_render_cli}; do t "$x"; done
       ;;
     validate)
       timeout 500 "$D/rtmpm" validate --backend cuda --out "$OUT/validation" > "$OUT/validate.log" 2>&1

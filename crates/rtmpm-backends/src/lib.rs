@@ -263,6 +263,9 @@ impl Backend for AnyBackend {
     fn add_particles(&mut self, particles: &Particles) -> Result<(), SimError> {
         self.as_dyn().add_particles(particles)
     }
+    fn rigid_bodies(&self) -> Vec<rtmpm_core::rigid::BodyState> {
+        self.as_dyn_ref().rigid_bodies()
+    }
 }
 
 #[cfg(test)]

@@ -146,6 +146,11 @@ pub trait Backend {
             self.name()
         )))
     }
+    /// The rigid bodies' states (`[[rigid_body]]`) at the current time, where the backend
+    /// couples them (the CPU backend with the cargo feature `rigid`); empty otherwise.
+    fn rigid_bodies(&self) -> Vec<crate::rigid::BodyState> {
+        Vec::new()
+    }
     /// Called by [`Simulation`] after every frame (after the check): a place for work that may
     /// synchronise, e.g. rebalancing particles between GPUs.
     fn end_of_frame(&mut self) -> Result<(), SimError> {

@@ -45,9 +45,19 @@ condition = "separate"
     let p = scene.sample_particles().expect("particles");
     let backend = CpuBackend::new(&scene, p, None).expect("backend");
     let mut sim = Simulation::<CpuBackend>::with_backend(scene, Box::new(backend));
-    for _ in 0..sim.scene.time.frames() {
+    // The box bobs by a few mm: its height is averaged over the last half second.
+    let frames = sim.scene.time.frames();
+    let (mut sum, mut count) = (0.0, 0);
+    for f in 0..frames {
         sim.advance_frame().expect("stable");
+        if f + 10 >= frames {
+            sum += sim.backend.rigid.as_ref().expect("rigid world").states()[0]
+                .center
+                .y;
+            count += 1;
+        }
     }
+    let centre = sum / count as f32;
     let mut p = rtmpm_core::Particles::default();
     sim.backend.read_particles(&mut p).expect("read");
     // The free surface away from the box: the highest particles beyond 0.1 m of it, plus half
@@ -56,21 +66,29 @@ condition = "separate"
     let mut tops: Vec<f32> = p.x.iter().filter(|x| far(x)).map(|x| x.y).collect();
     tops.sort_by(|a, b| b.total_cmp(a));
     let surface = tops[tops.len() / 50] + 0.005;
-    let body = sim.backend.rigid.as_ref().expect("rigid world").states()[0];
-    let bottom = body.center.y - 0.05;
-    ((surface - bottom) / 0.1, body.center.y, surface)
+    let bottom = centre - 0.05;
+    ((surface - bottom) / 0.1, centre, surface)
 }
 
-/// Archimedes: the submerged fraction of the height equals the density ratio. Measured at
-/// dx = 0.02 m (the box is 5 cells high) after 1.5 s: 0.565 (the box still bobs by about
-/// +-0.005 m); issue 17 asks for 5 %, which this resolution does not reach: the tolerance
-/// here is 0.1 (a fifth of the expected 0.5), enough to fail a coupling that drops or doubles
-/// the buoyancy (it then sinks: fraction > 1, or rides on the surface: < 0.25).
+/// Archimedes: boxes of density 250, 500 and 750 on water float with the submerged fraction of
+/// their height equal to the density ratio within 5 % (issue 17). Measured at dx = 0.02 m (the
+/// box is 5 cells high), its height averaged over 1.0 .. 1.5 s (it still bobs by a few mm):
+/// 0.258, 0.517, 0.777 (+3.2 %, +3.4 %, +3.6 %). The CPU backend is deterministic (any thread
+/// count), so the margin to the bound is not noise.
 #[test]
-fn a_box_of_half_the_water_density_floats_half_submerged() {
-    let (frac, centre, surface) = float(500.0, 1.5);
-    println!("submerged fraction {frac:.3}, centre {centre:.4} m, surface {surface:.4} m");
-    assert!((frac - 0.5).abs() < 0.1, "submerged fraction {frac}");
+fn boxes_float_with_the_submerged_fraction_of_archimedes() {
+    for density in [250.0, 500.0, 750.0] {
+        let (frac, centre, surface) = float(density, 1.5);
+        let expect = density / 1000.0;
+        println!(
+            "density {density}: submerged fraction {frac:.3} (Archimedes {expect}), centre \
+             {centre:.4} m, surface {surface:.4} m"
+        );
+        assert!(
+            (frac / expect - 1.0).abs() < 0.05,
+            "density {density}: submerged fraction {frac}, expected {expect}"
+        );
+    }
 }
 
 /// Zero gravity, no walls reached: a jelly ball thrown at a free box. The grid gives the box
@@ -131,13 +149,77 @@ condition = "separate"
         body.velocity.as_dvec3() * box_mass,
         body.velocity
     );
+    // The elastic-collision estimate 2 m1 v / (m1 + m2) is an upper bound (the ball keeps some
+    // energy as vibration): measured 0.91 of it; issue 17 asks within 10 %.
+    let m1 = start.x / 2.0;
+    let elastic = 2.0 * m1 * 2.0 / (m1 + box_mass);
+    let ratio = body.velocity.x as f64 / elastic;
+    println!(
+        "box speed {:.4} m/s, elastic estimate {elastic:.4} m/s ({ratio:.3})",
+        body.velocity.x
+    );
     assert!(
-        body.velocity.x > 0.2,
-        "the box is pushed: {}",
-        body.velocity
+        (ratio - 1.0).abs() < 0.1,
+        "box speed {ratio} of the elastic estimate"
     );
     assert!(
         (total - start).length() < 0.01 * start.length(),
         "momentum {start} -> {total}"
     );
+}
+
+/// Sinking and floating: in one tank of water, a sphere of density 2,500 reaches the floor and
+/// one of 500 floats (its centre stays above the water's surface minus a radius).
+#[test]
+fn a_heavy_sphere_sinks_to_the_floor_and_a_light_one_floats() {
+    let text = r#"name = "spheres"
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [0.6, 0.6, 0.4]
+dx = 0.02
+[time]
+duration = 1.2
+fps = 10
+cfl = 0.4
+damping = 2.0
+[walls]
+condition = "slip"
+[[material]]
+name = "water"
+type = "fluid"
+density = 1000.0
+bulk_modulus = 2e4
+[[body]]
+material = "water"
+shape = "box"
+min = [0.06, 0.06, 0.06]
+max = [0.54, 0.26, 0.34]
+sampling = "regular"
+[[rigid_body]]
+shape = "sphere"
+center = [0.18, 0.31, 0.2]
+radius = 0.045
+density = 2500.0
+condition = "separate"
+[[rigid_body]]
+shape = "sphere"
+center = [0.42, 0.31, 0.2]
+radius = 0.045
+density = 500.0
+condition = "separate"
+"#;
+    let scene = Scene::from_toml(text, "spheres").unwrap_or_else(|e| panic!("{e}"));
+    let p = scene.sample_particles().expect("particles");
+    let backend = CpuBackend::new(&scene, p, None).expect("backend");
+    let mut sim = Simulation::<CpuBackend>::with_backend(scene, Box::new(backend));
+    for _ in 0..sim.scene.time.frames() {
+        sim.advance_frame().expect("stable");
+    }
+    let s = sim.backend.rigid.as_ref().expect("rigid world").states();
+    let (heavy, light) = (s[0].center.y, s[1].center.y);
+    println!("heavy sphere centre {heavy:.4} m, light {light:.4} m (floor 0.06, surface ~0.26)");
+    // On the floor (the domain minus the walls starts at 0.06): within a cell.
+    assert!(heavy - 0.045 < 0.06 + 0.02, "heavy sphere at {heavy}");
+    // Floating: half submerged puts the centre at the surface (~0.26); sinking would not.
+    assert!(light > 0.26 - 0.045, "light sphere at {light}");
 }

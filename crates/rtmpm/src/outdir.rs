@@ -59,7 +59,9 @@ pub fn classify(name: &str) -> Option<RunFile> {
         return Some(RunFile::Checkpoint(n));
     }
     match name {
-        "frames.pvd" | "surface.pvd" | "movie.gif" | "movie.mp4" | RUN_FILE => Some(RunFile::Other),
+        "frames.pvd" | "surface.pvd" | "movie.gif" | "movie.mp4" | "bodies.csv" | RUN_FILE => {
+            Some(RunFile::Other)
+        }
         _ => None,
     }
 }

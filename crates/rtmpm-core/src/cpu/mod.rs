@@ -246,22 +246,6 @@ impl CpuBackend {
         }
     }
 
-    /// Particles that crossed into a rigid body this step go back to its surface.
-    fn push_out_of_bodies(&mut self) {
-        let Some(w) = self.rigid.as_ref() else {
-            return;
-        };
-        let bodies = w.states();
-        use rayon::prelude::*;
-        self.particles.x.par_iter_mut().for_each(|x| {
-            for b in bodies {
-                if let Some(y) = b.push_out(real::vec3_to_f32(*x)) {
-                    *x = real::vec3(y);
-                }
-            }
-        });
-    }
-
     fn step_inner(&mut self, dt: Real, t: f32) {
         let t0 = std::time::Instant::now();
         rebuild::rebuild(self);
@@ -291,7 +275,6 @@ impl CpuBackend {
             }
             (max_speed, bad) = g2p::g2p_mpm(self, dt, musl);
         }
-        self.push_out_of_bodies();
         let t4 = std::time::Instant::now();
         for (acc, (a, b)) in
             self.stage_seconds
@@ -393,6 +376,12 @@ impl Backend for CpuBackend {
             + self.colours.iter().map(cap).sum::<usize>()
             + self.layout.memory_bytes();
         Some((bytes as u64, 0))
+    }
+
+    fn rigid_bodies(&self) -> Vec<crate::rigid::BodyState> {
+        self.rigid
+            .as_ref()
+            .map_or_else(Vec::new, |w| w.states().to_vec())
     }
 
     fn add_particles(&mut self, p: &sim::Particles) -> Result<(), SimError> {

@@ -7,8 +7,14 @@
 //! the body's velocity `v_b(x) = v + w x (x - c)` (the same rule as a collider's, on the
 //! velocity relative to the body), and the momentum the rule takes from the node,
 //! `dp_i = m_i (v_i' - v_i)`, goes to the body as the impulse `-sum dp_i` and the angular
-//! impulse `-sum (x_i - c) x dp_i` about its centre of mass `c`. Material plus bodies conserve
-//! momentum (up to gravity and the walls). The bodies move under gravity, these impulses and
+//! impulse `-sum (x_i - c) x dp_i` about its centre of mass `c`, less the gravity the node
+//! received in the step (the weight of the material that the transfer kernel spreads onto nodes
+//! inside the body, a shell about half a cell thick, is a discretisation artefact, not a load:
+//! with it a box of half the water's density sank). Material plus bodies conserve momentum (up
+//! to gravity and the walls). Particles are not kept out of a body: a few cross the surface
+//! when a body enters the material fast, and then ride with it (their nodes take the body's
+//! velocity), adding nothing to its load. Putting them back on the surface instead was tried and
+//! biased the floating depth (a box of density 500 floated 0.568 submerged against 0.517). The bodies move under gravity, these impulses and
 //! their contacts with each other and the walls in rapier3d (cargo feature `rigid`;
 //! [`RigidWorld`]); without the feature a scene with rigid bodies is refused when the backend is
 //! built. The CPU backend couples them (`cpu/grid_update.rs`); the CUDA backend refuses them.
@@ -135,21 +141,6 @@ impl BodyState {
             n,
             self.velocity + self.angular_velocity.cross(x - self.center),
         ))
-    }
-}
-
-impl BodyState {
-    /// If `x` is inside the body, the nearest point on its surface (along the outward normal at
-    /// `x`); the particle-side half of the coupling: a particle that crossed the surface in a
-    /// step (the grid rule acts on nodes, up to a cell from the surface) is put back on it.
-    pub fn push_out(&self, x: Vec3) -> Option<Vec3> {
-        let p = self.rotation.transpose() * (x - self.center);
-        let d = self.shape.distance(p);
-        if d >= 0.0 {
-            return None;
-        }
-        let n = self.rotation * self.shape.normal(p);
-        Some(x - d * n)
     }
 }
 

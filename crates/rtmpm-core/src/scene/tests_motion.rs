@@ -165,3 +165,19 @@ fn rigid_bodies_are_read_and_bad_ones_refused() {
         "rigid_body[0].velocity",
     );
 }
+
+#[test]
+fn rigid_example_scenes_validate() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/rigid");
+    let mut n = 0;
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().and_then(|e| e.to_str()) == Some("toml") {
+            let s = Scene::from_file(&path).unwrap_or_else(|e| panic!("{e}"));
+            assert!(!s.rigid_bodies.is_empty());
+            assert!(s.sample_particles().unwrap().len() > 5_000);
+            n += 1;
+        }
+    }
+    assert!(n >= 2, "{n} scenes");
+}
