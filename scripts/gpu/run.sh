@@ -18,6 +18,10 @@
 #   variants     A/B of compile-time defines: VARIANTS="label|binary|defines[|options] ..."
 #   multi        several GPUs: agreement tests in every mode, 2 NCCL processes, scaling
 #   python       the Python package's GPU tests (wheel in .device/wheels)
+#   cpu          the CPU backend on this machine's cores: `rtmpm bench --backend cpu --n 128` (524k
+#                particles) at --threads 1 2 4 8 16 (CPU_THREADS, CPU_N, CPU_STEPS to change), a table of
+#                M particle-steps/s and parallel efficiency; with .device/rtmpm_base, that build too;
+#                Taichi's mpm3d (bench/taichi_mpm3d.py) on the same scene when python3 imports taichi
 #   long         the strong-scaling scene for 12 frames (0.24 s, past its 0.1 s duration) on one GPU, fused
 #                and unfused, and at dt/2: does the 12-frame blow-up seen on 2 GPUs happen on one?
 set -uo pipefail
@@ -149,6 +153,43 @@ for suite in "$@"; do
         say "python rc=$?: $(tail -1 "$OUT/python.log")"
       else
         say "python: no wheel in $D/wheels"
+      fi
+      ;;
+    cpu)
+      # CPU backend scaling (issue 19): throughput at each thread count and the efficiency
+      # rate(T) / (T rate(1)). The warm-up is short: the first steps only sort the particles.
+      cores=$(nproc)
+      bins=rtmpm; [ -x "$D/rtmpm_base" ] && bins="rtmpm_base rtmpm"
+      say "$cores cores; fluid block n=${CPU_N:-128}, ${CPU_STEPS:-100} steps"
+      say "$(printf '%-11s %7s %10s %11s %10s  %s' binary threads ms/step 'M p-st/s' efficiency stages_ms)"
+      for bin in $bins; do
+        r1=""
+        for t in ${CPU_THREADS:-1 2 4 8 16}; do
+          if [ "$t" -gt "$cores" ]; then say "$bin threads=$t: skipped (only $cores cores)"; continue; fi
+          r=$(timeout 400 "$D/$bin" bench --backend cpu --n "${CPU_N:-128}" --steps "${CPU_STEPS:-100}" \
+            --warmup 5 --threads "$t" 2>&1)
+          echo "== $bin threads=$t" >> "$OUT/cpu.log"; echo "$r" >> "$OUT/cpu.log"
+          rate=$(echo "$r" | grep -m1 throughput | grep -oE '\(([0-9.e+]+) particle-steps/s\)' | grep -oE '[0-9.e+]+' | head -1)
+          ms=$(echo "$r" | grep -oE '\(([0-9.]+) ms/step\)' | head -1 | tr -d '()' | cut -d' ' -f1)
+          k=$(echo "$r" | grep -E '^\s+stage ' | awk '{printf "%s=%s ", $2, $3}')
+          mem=$(echo "$r" | grep -m1 'memory       host' | grep -oE 'host [0-9.]+ bytes/particle')
+          if [ -z "$rate" ]; then say "$bin threads=$t: no result: $(echo "$r" | grep -iE 'error' | head -1)"; continue; fi
+          [ -z "$r1" ] && [ "$t" = 1 ] && r1=$rate
+          eff=$(awk -v r="$rate" -v r1="${r1:-0}" -v t="$t" 'BEGIN { if (r1 > 0) printf "%.0f %%", 100 * r / (t * r1); else print "-" }')
+          say "$(printf '%-11s %7s %10s %11s %10s  %s %s' "$bin" "$t" "$ms" "$(awk -v r="$rate" 'BEGIN { printf "%.2f", r / 1e6 }')" "$eff" "$k" "$mem")"
+        done
+      done
+      if [ ! -f bench/taichi_mpm3d.py ]; then
+        say "taichi: skipped (no bench/taichi_mpm3d.py in this checkout)"
+      elif ! python3 -c 'import taichi' > /dev/null 2>&1; then
+        say "taichi: skipped (python3 cannot import taichi; carry the taichi==1.7.4 wheel and its needs in .whl, see bench/taichi_mpm3d.py)"
+      else
+        for t in ${CPU_THREADS:-1 2 4 8 16}; do
+          [ "$t" -gt "$cores" ] && continue
+          r=$(timeout 400 python3 bench/taichi_mpm3d.py --n "${CPU_N:-128}" --steps "${CPU_STEPS:-100}" --threads "$t" 2>&1)
+          echo "== taichi threads=$t" >> "$OUT/cpu.log"; echo "$r" >> "$OUT/cpu.log"
+          say "taichi mpm3d threads=$t: $(echo "$r" | grep -m1 -E 'throughput|Error' | tr -s ' ')"
+        done
       fi
       ;;
     *) say "unknown suite $suite" ;;

@@ -257,6 +257,9 @@ impl Backend for AnyBackend {
     fn end_of_frame(&mut self) -> Result<(), SimError> {
         self.as_dyn().end_of_frame()
     }
+    fn memory_bytes(&self) -> Option<(u64, u64)> {
+        self.as_dyn_ref().memory_bytes()
+    }
     fn add_particles(&mut self, particles: &Particles) -> Result<(), SimError> {
         self.as_dyn().add_particles(particles)
     }

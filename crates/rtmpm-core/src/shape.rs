@@ -99,14 +99,31 @@ impl Stencil {
     /// Stencil of a particle at grid coordinate `xg` (position in units of dx from the grid origin).
     #[inline]
     pub fn new(xg: Vec3) -> Stencil {
-        let base_f = (xg - 0.5).floor();
-        let fx = xg - base_f;
+        let base = Stencil::base_of(xg);
+        let fx = xg - base.to_real();
         Stencil {
-            base: base_f.as_ivec3(),
+            base,
             fx,
             w: [weights_1d(fx.x), weights_1d(fx.y), weights_1d(fx.z)],
             dw: [[0.0; 3]; 3],
         }
+    }
+
+    /// First node of the stencil of a particle at grid coordinate `xg`: `floor(xg - 0.5)`, with
+    /// the floor done by a cast and a compare (no libm call), the same value as the float floor
+    /// (also for NaN: 0, and saturated past the i32 range).
+    #[inline]
+    pub fn base_of(xg: Vec3) -> IVec3 {
+        #[inline]
+        fn floor(v: Real) -> i32 {
+            let t = v as i32;
+            if (t as Real) > v {
+                t.saturating_sub(1)
+            } else {
+                t
+            }
+        }
+        IVec3::new(floor(xg.x - 0.5), floor(xg.y - 0.5), floor(xg.z - 0.5))
     }
 
     /// Stencil of a particle at grid coordinate `xg` whose base node is already known

@@ -129,6 +129,12 @@ pub trait Backend {
     fn stage_times(&self) -> Vec<(&'static str, f64)> {
         Vec::new()
     }
+    /// Bytes of the backend's own arrays, as (host, device): particle state, grid, layout and
+    /// scratch (capacities), for the bytes-per-particle figures of `rtmpm bench`. None where the
+    /// backend does not count them.
+    fn memory_bytes(&self) -> Option<(u64, u64)> {
+        None
+    }
     /// Append particles that appear during the run (emitters, see [`crate::emitter`]), in the
     /// interface's f32; they take the next original indices. Called by [`Simulation`] before
     /// the step they appear in. A backend that cannot grow answers a clear error.

@@ -229,6 +229,8 @@ impl CudaBackend {
             particles: n,
             real_bytes,
             grid_next: g2p2g,
+            // NaN speeds are left to the health check of the first step.
+            initial_speed: particles.v.iter().map(|v| v.length()).fold(0.0, f32::max),
         };
         let (buffers, ctx) =
             buffers::allocate(&stream, scene, &state, &cap, needs, &tables, &options)?;
@@ -454,5 +456,9 @@ impl Backend for CudaBackend {
             .map_err(err("read particles"))?;
         crate::state::unpack(&host, self.n, self.ctx.cap as usize, self.options.f64, out)
             .map_err(SimError::Backend)
+    }
+
+    fn memory_bytes(&self) -> Option<(u64, u64)> {
+        Some((0, self.device_bytes() as u64))
     }
 }

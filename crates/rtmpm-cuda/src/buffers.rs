@@ -24,6 +24,9 @@ pub struct Needs {
     pub real_bytes: usize,
     /// G2P2G: a second grid.
     pub grid_next: bool,
+    /// Largest particle speed of the initial state (m/s): the CFL step of the first step, before
+    /// any G2P has measured it (else a huge initial velocity runs one step at `max_dt`).
+    pub initial_speed: f32,
 }
 
 /// The buffers of one GPU. The [`Ctx`] holds their device addresses; the slices keep them alive.
@@ -46,6 +49,22 @@ pub struct Buffers {
     pub poses: CudaSlice<u8>,
     /// Every other buffer (scratch, hash, lists, sort, tables).
     _rest: Vec<CudaSlice<u8>>,
+}
+
+impl Buffers {
+    /// Bytes of every buffer (the device memory this GPU's pipeline allocated, P2G strategy's
+    /// extra buffers aside).
+    pub fn bytes(&self) -> usize {
+        self.state.num_bytes()
+            + self.block_coords.num_bytes()
+            + self.grid.num_bytes()
+            + self.grid_next.as_ref().map_or(0, |g| g.num_bytes())
+            + self.ctl.num_bytes()
+            + self.scalars.num_bytes()
+            + self.step.num_bytes()
+            + self.poses.num_bytes()
+            + self._rest.iter().map(|b| b.num_bytes()).sum::<usize>()
+    }
 }
 
 /// Allocate every buffer of a GPU for `cap`, upload the particle state (`state`: the particles
@@ -131,6 +150,7 @@ pub fn allocate(
     ctl_host[contract::CTL_NEED_REBUILD] = 1; // rebuild at the first step
     ctl_host[CTL_P2G_PENDING] = 1;
     ctl_host[CTL_BAD_INDEX] = u32::MAX;
+    ctl_host[contract::CTL_MAX_SPEED] = needs.initial_speed.to_bits();
     let ctl = s
         .clone_htod(&ctl_host)
         .map_err(err("alloc control words"))?;

@@ -6,7 +6,7 @@
 use crate::backend::{CudaBackend, err};
 use crate::contract::*;
 use crate::kernels::Kernel;
-use cudarc::driver::PushKernelArg;
+use cudarc::driver::{CudaSlice, CudaStream, PinnedHostSlice, PushKernelArg};
 use rayon::prelude::*;
 use rtmpm_core::sim::SimError;
 
@@ -22,17 +22,47 @@ impl CudaBackend {
         Ok(out)
     }
 
-    /// [`CudaBackend::read_vec3_ordered`] into `out` (`3 n` floats), e.g. memory that is reused
-    /// between reads, so that no page of it is mapped during the copy.
-    pub fn read_vec3_ordered_into(
+    /// Page-locked host memory for `len` floats, for [`CudaBackend::read_vec3_ordered_pinned`]
+    /// (allocating it costs milliseconds: keep it for reuse).
+    pub fn host_buffer(&self, len: usize) -> Result<PinnedHostSlice<f32>, SimError> {
+        // SAFETY: the memory is written by the copy before it is read. Plain page-locked
+        // memory (not write-combined: the host reads it).
+        unsafe {
+            self.stream
+                .context()
+                .alloc_pinned_with_flags::<f32>(len.max(1), 0)
+        }
+        .map_err(err("allocate page-locked memory"))
+    }
+
+    /// [`CudaBackend::read_vec3_ordered`] straight into page-locked memory of `3 n` floats (from
+    /// [`CudaBackend::host_buffer`]): one copy at the bus's rate, no host copy.
+    pub fn read_vec3_ordered_pinned(
         &mut self,
         first: usize,
-        out: &mut [f32],
+        out: &mut PinnedHostSlice<f32>,
     ) -> Result<(), SimError> {
-        if out.len() != 3 * self.n {
+        self.gather_vec3(first, out.len())?;
+        let stream = self.stream.clone();
+        let (Some(ordered), Some(bad)) = (self.staging.ordered.as_ref(), self.staging.bad.as_ref())
+        else {
+            return Err(SimError::Backend("CUDA: no export memory".into()));
+        };
+        let len = 3 * self.n;
+        stream
+            .memcpy_dtoh(&ordered.slice(0..len), out)
+            .map_err(err("read the export array"))?;
+        check_flag(&stream, bad)?;
+        out.as_slice().map_err(err("wait for the export"))?;
+        Ok(())
+    }
+
+    /// The export kernel: the three fields from `first` of every particle into
+    /// `staging.ordered` in original order. `out_len` is the caller's buffer length (3 n).
+    fn gather_vec3(&mut self, first: usize, out_len: usize) -> Result<(), SimError> {
+        if out_len != 3 * self.n {
             return Err(SimError::Backend(format!(
-                "CUDA: {} floats given for the 3 x {} of the export",
-                out.len(),
+                "CUDA: {out_len} floats given for the 3 x {} of the export",
                 self.n
             )));
         }
@@ -58,13 +88,9 @@ impl CudaBackend {
                 .map_err(err("allocate the export flag"))?;
             self.staging.bad = Some(b);
         }
-        self.pinned(len * 4)?;
         let stream = self.stream.clone();
-        let (Some(ordered), Some(bad), Some(pinned)) = (
-            self.staging.ordered.as_mut(),
-            self.staging.bad.as_mut(),
-            self.staging.pinned.as_mut(),
-        ) else {
+        let (Some(ordered), Some(bad)) = (self.staging.ordered.as_mut(), self.staging.bad.as_mut())
+        else {
             return Err(SimError::Backend("CUDA: no export memory".into()));
         };
         stream
@@ -85,6 +111,27 @@ impl CudaBackend {
                 .launch(self.kernels.wave(n, 256))
         }
         .map_err(err("export kernel"))?;
+        Ok(())
+    }
+
+    /// [`CudaBackend::read_vec3_ordered`] into `out` (`3 n` floats), e.g. memory that is reused
+    /// between reads, so that no page of it is mapped during the copy.
+    pub fn read_vec3_ordered_into(
+        &mut self,
+        first: usize,
+        out: &mut [f32],
+    ) -> Result<(), SimError> {
+        self.gather_vec3(first, out.len())?;
+        let len = 3 * self.n;
+        self.pinned(len * 4)?;
+        let stream = self.stream.clone();
+        let (Some(ordered), Some(bad), Some(pinned)) = (
+            self.staging.ordered.as_ref(),
+            self.staging.bad.as_ref(),
+            self.staging.pinned.as_mut(),
+        ) else {
+            return Err(SimError::Backend("CUDA: no export memory".into()));
+        };
         let host = pinned.as_mut_slice().map_err(err("pinned memory"))?;
         let host: &mut [f32] = bytemuck::try_cast_slice_mut(&mut host[..len * 4])
             .map_err(|e| SimError::Backend(format!("CUDA: pinned memory alignment: {e}")))?;
@@ -102,16 +149,21 @@ impl CudaBackend {
                 .zip(src.par_chunks(1 << 15))
                 .for_each(|(d, s)| d.copy_from_slice(s));
         }
-        // Read after the chunks: a copy into pageable memory waits for the whole stream.
-        let mut flag = [0u32];
-        stream
-            .memcpy_dtoh(&*bad, &mut flag)
-            .map_err(err("read the export flag"))?;
-        if flag[0] != 0 {
-            return Err(SimError::Backend(
-                "CUDA: a particle's original index is out of range".into(),
-            ));
-        }
-        Ok(())
+        check_flag(&stream, bad)
     }
+}
+
+/// The export's error flag; read after the copies (a copy into pageable memory waits for the
+/// whole stream).
+fn check_flag(stream: &std::sync::Arc<CudaStream>, bad: &CudaSlice<u32>) -> Result<(), SimError> {
+    let mut flag = [0u32];
+    stream
+        .memcpy_dtoh(bad, &mut flag)
+        .map_err(err("read the export flag"))?;
+    if flag[0] != 0 {
+        return Err(SimError::Backend(
+            "CUDA: a particle's original index is out of range".into(),
+        ));
+    }
+    Ok(())
 }

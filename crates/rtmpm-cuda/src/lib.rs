@@ -82,6 +82,8 @@ pub mod state;
 
 pub use backend::CudaBackend;
 pub use bench::{KernelTimings, bench_kernels, measure_copy_bandwidth};
+/// Page-locked host memory (see [`CudaBackend::host_buffer`]).
+pub use cudarc::driver::PinnedHostSlice;
 pub use export::DeviceParticles;
 pub use multi::{MultiGpuBackend, NcclRankBackend, nccl, peer, rendezvous};
 pub use options::{BarrierKind, CudaOptions, P2gMode, Transport};

@@ -14,6 +14,12 @@ impl CudaBackend {
         self.p2g.memory()
     }
 
+    /// Bytes of every device allocation of this backend: the pipeline's buffers and the P2G
+    /// strategy's extra buffers (the compiled module and CUDA's own context memory aside).
+    pub fn device_bytes(&self) -> usize {
+        self.buffers.bytes() + self.p2g.memory().iter().map(|m| m.1).sum::<usize>()
+    }
+
     /// Bytes of the grid (nodes of every allocated pblock), for comparison with
     /// [`CudaBackend::p2g_memory`].
     pub fn grid_bytes(&self) -> usize {

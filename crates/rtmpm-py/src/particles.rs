@@ -61,16 +61,31 @@ enum Vec3Field {
 }
 
 /// Positions or velocities straight from the GPU, in original order: the GPU gathers them into
-/// NumPy's layout and the array crosses the bus in chunks (`CudaBackend::read_vec3_ordered`).
-/// The memory is a pooled buffer (`pool.rs`), mapped already when reused.
-fn read_vec3_cuda(inner: &mut Inner, field: Vec3Field) -> Result<Option<Vec<f32>>, SimError> {
+/// NumPy's layout and copies them into page-locked memory that becomes the array's
+/// (`CudaBackend::read_vec3_ordered_pinned`); past the page-locked limit of `pool.rs`, the array
+/// crosses in chunks into pageable memory (`CudaBackend::read_vec3_ordered_into`). Both kinds of
+/// memory are pooled (`pool.rs`).
+fn read_vec3_cuda(
+    inner: &mut Inner,
+    field: Vec3Field,
+) -> Result<Option<crate::pool::Buf>, SimError> {
+    use crate::pool::{Buf, Pinned};
     let AnyBackend::Cuda(c) = inner.sim.backend.as_mut() else {
         return Ok(None);
     };
     let first = if field == Vec3Field::X { F_X } else { F_V };
-    let mut buf = crate::pool::take(3 * c.0.len());
+    let len = 3 * c.0.len();
+    let pinned = match crate::pool::take_pinned(len) {
+        Some(p) => Some(p),
+        None => Pinned::new(len, || c.0.host_buffer(len))?,
+    };
+    if let Some(mut p) = pinned {
+        c.0.read_vec3_ordered_pinned(first, p.slice())?;
+        return Ok(Some(Buf::Pinned(p)));
+    }
+    let mut buf = crate::pool::take(len);
     c.0.read_vec3_ordered_into(first, &mut buf)?;
-    Ok(Some(buf))
+    Ok(Some(Buf::Host(buf)))
 }
 
 fn vec3s_to_array<'py>(py: Python<'py>, v: &[Vec3]) -> PyResult<Bound<'py, PyArray2<f32>>> {

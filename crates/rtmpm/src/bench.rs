@@ -180,7 +180,46 @@ pub fn bench(args: BenchArgs) -> Result<()> {
             1e3 * (total - b) / steps as f64
         );
     }
+    let arrays = sim.backend.memory_bytes().map(|m| m.0);
+    print_memory(n, arrays, None);
     Ok(())
+}
+
+/// Peak resident memory of this process (bytes): `VmHWM` of `/proc/self/status` (Linux).
+pub fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// The memory lines of a benchmark: bytes per particle on the host (peak resident memory of
+/// the process, and the backend's own arrays where it counts them) and on the device.
+fn print_memory(n: usize, host_arrays: Option<u64>, device: Option<u64>) {
+    let per = |bytes: u64| bytes as f64 / n.max(1) as f64;
+    if let Some(d) = device {
+        println!(
+            "  memory       device {:.1} bytes/particle ({:.1} MB: every allocation of the backend)",
+            per(d),
+            d as f64 / 1e6
+        );
+    }
+    match peak_rss_bytes() {
+        Some(h) => print!(
+            "  memory       host {:.1} bytes/particle (peak resident {:.1} MB, whole process)",
+            per(h),
+            h as f64 / 1e6
+        ),
+        None => print!("  memory       host: peak resident memory unknown (no /proc/self/status)"),
+    }
+    match host_arrays {
+        Some(a) => println!(
+            "; backend arrays {:.1} bytes/particle ({:.1} MB)",
+            per(a),
+            a as f64 / 1e6
+        ),
+        None => println!(),
+    }
 }
 
 /// CUDA: whole-run throughput (graph replay when enabled), then per-kernel event timing and the
@@ -266,6 +305,7 @@ fn bench_cuda(
         },
         b.grid_bytes() as f64 / 1e6
     );
+    print_memory(n, None, Some(b.device_bytes() as u64));
     if let Some(r) = b.reverse_map_size() {
         println!(
             "  reverse map  {} maps x {} entries per node, {} pblocks",

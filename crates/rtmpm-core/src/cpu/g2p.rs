@@ -9,10 +9,11 @@ use crate::sim::{BadParticle, check_particle};
 use rayon::prelude::*;
 
 /// Gather velocities back to the particles and advance them. Returns the largest particle speed
-/// and the lowest-index bad particle, if any.
+/// and the bad particle of lowest original index, if any (by original index: the same whatever
+/// the storage order).
 pub fn g2p(b: &mut CpuBackend, dt: Real) -> (Real, Option<BadParticle>) {
     let c = &b.consts;
-    let (layout, grid, bases) = (&b.layout, &b.grid, &b.bases);
+    let (layout, grid, bases, ids) = (&b.layout, &b.grid, &b.bases, &b.ids);
     let inv_d = inv_d(c.dx);
     let p = &mut b.particles;
     let materials = &p.material;
@@ -58,8 +59,10 @@ pub fn g2p(b: &mut CpuBackend, dt: Real) -> (Real, Option<BadParticle>) {
             // F^{n+1} = (I + dt C) F^n, then the plastic return mapping.
             let model = &c.materials[materials[pi] as usize].model;
             *f = model.project((Mat3::IDENTITY + new_c * dt) * *f, plastic, dt);
-            let bad =
-                check_particle(*x, new_v, dt, c.dx).map(|reason| BadParticle { index: pi, reason });
+            let bad = check_particle(*x, new_v, dt, c.dx).map(|reason| BadParticle {
+                index: ids[pi] as usize,
+                reason,
+            });
             let speed = if new_v.is_finite() {
                 new_v.length()
             } else {
@@ -92,6 +95,7 @@ pub fn g2p_mpm(b: &mut CpuBackend, dt: Real, musl: bool) -> (Real, Option<BadPar
     let c = &b.consts;
     let (layout, grid, aux, bases) = (&b.layout, &b.grid, &b.grid_aux, &b.bases);
     let (transfer, alpha) = (c.solver.transfer, real::real(c.solver.flip));
+    let ids = &b.ids;
     let p = &mut b.particles;
     let materials = &p.material;
     p.x.par_iter_mut()
@@ -129,8 +133,10 @@ pub fn g2p_mpm(b: &mut CpuBackend, dt: Real, musl: bool) -> (Real, Option<BadPar
             *x = (*x + dt * v_pic).clamp(c.domain_min, c.domain_max);
             let model = &c.materials[materials[pi] as usize].model;
             *f = model.project((Mat3::IDENTITY + l * dt) * *f, plastic, dt);
-            let bad =
-                check_particle(*x, *v, dt, c.dx).map(|reason| BadParticle { index: pi, reason });
+            let bad = check_particle(*x, *v, dt, c.dx).map(|reason| BadParticle {
+                index: ids[pi] as usize,
+                reason,
+            });
             let speed = if v.is_finite() { v.length() } else { 0.0 };
             (speed, bad)
         })

@@ -6,9 +6,10 @@
 //!
 //! One step is four stages, each in its own file (MUSL adds a re-map: `g2p_mpm_velocity`,
 //! `p2g_musl`, `grid_update_musl` before the final G2P):
-//! 1. [`rebuild`]: stencil base of every particle, block layout (hash, gblocks, pblocks,
-//!    3x3x3 neighbour lists) and the particle order (sorted by block, then cell). The CPU rebuilds
-//!    every step; the free zone that avoids it is a GPU optimisation.
+//! 1. [`rebuild`]: stencil base of every particle, block layout (sorted block codes, gblocks,
+//!    pblocks, 3x3x3 neighbour lists) and the particle order (sorted by block, then cell), all in
+//!    parallel. The CPU rebuilds every step (the free zone that avoids it is a GPU optimisation)
+//!    and re-sorts the particle storage every [`rebuild::RESORT_EVERY`] steps.
 //! 2. [`p2g`]: particle to grid, scattered block by block in 8 colour passes (no atomics).
 //! 3. [`grid_update`]: momentum to velocity, gravity, walls and colliders.
 //! 4. [`g2p`]: grid to particle, deformation update, plasticity, advection, health check.
@@ -80,6 +81,15 @@ impl StepConstants {
 /// Grid node: mass, then momentum (after P2G) or velocity (after the grid update).
 pub type Node = [Real; 4];
 
+/// Spare arrays of the storage re-sort: one per element type of the particle state.
+#[derive(Default)]
+struct Scratch {
+    vec3: Vec<Vec3>,
+    mat3: Vec<crate::math::Mat3>,
+    real: Vec<Real>,
+    word: Vec<u32>,
+}
+
 /// The CPU backend's state.
 pub struct CpuBackend {
     pub consts: StepConstants,
@@ -88,9 +98,10 @@ pub struct CpuBackend {
     pub particles: Particles,
     /// Original index of each stored particle.
     pub ids: Vec<u32>,
-    spare: Particles,
-    spare_ids: Vec<u32>,
-    spare_bases: Vec<IVec3>,
+    /// One spare array per element type, for re-sorting the storage.
+    scratch: Scratch,
+    /// Steps since the storage was last re-sorted ([`rebuild::RESORT_EVERY`]).
+    since_sort: u32,
     /// Block layout of the current step.
     pub layout: BlockLayout,
     /// Stencil base node of each particle (grid indices).
@@ -162,9 +173,8 @@ impl CpuBackend {
             consts,
             ids: (0..particles.len() as u32).collect(),
             particles,
-            spare: Particles::default(),
-            spare_ids: Vec::new(),
-            spare_bases: Vec::new(),
+            scratch: Scratch::default(),
+            since_sort: u32::MAX,
             layout: BlockLayout::default(),
             bases: Vec::new(),
             grid: Vec::new(),
@@ -212,6 +222,10 @@ impl CpuBackend {
             if let Some(v) = v {
                 self.particles.v[i] = real::vec3(v[id as usize]);
             }
+        }
+        // New positions: re-sort the storage at the next step.
+        if x.is_some() {
+            self.since_sort = u32::MAX;
         }
         if v.is_some() {
             self.max_speed = self
@@ -271,10 +285,7 @@ impl CpuBackend {
         }
         self.max_speed = max_speed;
         if self.bad.is_none() {
-            self.bad = bad.map(|b| BadParticle {
-                index: self.ids[b.index] as usize,
-                ..b
-            });
+            self.bad = bad;
         }
     }
 }
@@ -347,6 +358,32 @@ impl Backend for CpuBackend {
             .map_or_else(Vec::new, |w| w.states().to_vec())
     }
 
+    fn memory_bytes(&self) -> Option<(u64, u64)> {
+        fn cap<T>(v: &Vec<T>) -> usize {
+            v.capacity() * std::mem::size_of::<T>()
+        }
+        let (p, s) = (&self.particles, &self.scratch);
+        let bytes = cap(&p.x)
+            + cap(&p.v)
+            + cap(&p.c)
+            + cap(&p.f)
+            + cap(&p.plastic)
+            + cap(&p.mass)
+            + cap(&p.vol0)
+            + cap(&p.material)
+            + cap(&self.ids)
+            + cap(&s.vec3)
+            + cap(&s.mat3)
+            + cap(&s.real)
+            + cap(&s.word)
+            + cap(&self.bases)
+            + cap(&self.grid)
+            + cap(&self.grid_aux)
+            + self.colours.iter().map(cap).sum::<usize>()
+            + self.layout.memory_bytes();
+        Some((bytes as u64, 0))
+    }
+
     fn add_particles(&mut self, p: &sim::Particles) -> Result<(), SimError> {
         // The next original indices; the next step's rebuild sorts them in.
         let first = self.ids.len();
@@ -361,6 +398,9 @@ impl Backend for CpuBackend {
         self.max_speed = self.max_speed.max(fastest);
         self.particles.extend(&add);
         self.ids.extend(first as u32..(first + p.len()) as u32);
+        // Stored at the end: re-sort the storage at the next step (locality only; P2G's sum
+        // order comes from the layout, whatever the storage order).
+        self.since_sort = u32::MAX;
         Ok(())
     }
 

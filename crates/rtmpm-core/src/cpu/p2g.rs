@@ -37,11 +37,16 @@ impl<T> GridPtr<T> {
     }
 }
 
+/// `v` becomes `n` copies of `zero`, written in parallel (no allocation once the capacity is
+/// reached).
+fn zeroed<T: Copy + Send + Sync>(v: &mut Vec<T>, n: usize, zero: T) {
+    v.clear();
+    v.par_extend(rayon::iter::repeat_n(zero, n));
+}
+
 /// Scatter particle mass and momentum to the grid.
 pub fn p2g(b: &mut CpuBackend, dt: Real) {
-    let n_nodes = b.layout.node_count();
-    b.grid.clear();
-    b.grid.resize(n_nodes, [0.0; 4]);
+    zeroed(&mut b.grid, b.layout.node_count(), [0.0; 4]);
     let grid = GridPtr(b.grid.as_mut_ptr());
     let (c, p, layout, bases) = (&b.consts, &b.particles, &b.layout, &b.bases);
     let dx = c.dx;
@@ -86,10 +91,8 @@ pub fn p2g(b: &mut CpuBackend, dt: Real) {
 /// that the grid update can keep the velocity before the update for FLIP.
 pub fn p2g_mpm(b: &mut CpuBackend, dt: Real) {
     let n_nodes = b.layout.node_count();
-    b.grid.clear();
-    b.grid.resize(n_nodes, [0.0; 4]);
-    b.grid_aux.clear();
-    b.grid_aux.resize(n_nodes, Vec3::ZERO);
+    zeroed(&mut b.grid, n_nodes, [0.0; 4]);
+    zeroed(&mut b.grid_aux, n_nodes, Vec3::ZERO);
     let grid = GridPtr(b.grid.as_mut_ptr());
     let aux = GridPtr(b.grid_aux.as_mut_ptr());
     let (c, p, layout, bases) = (&b.consts, &b.particles, &b.layout, &b.bases);
@@ -134,8 +137,7 @@ pub fn p2g_mpm(b: &mut CpuBackend, dt: Real) {
 /// `grid_aux` (weights at the positions of the start of the step; node masses from [`p2g_mpm`]).
 pub fn p2g_musl(b: &mut CpuBackend) {
     let aux_len = b.grid_aux.len();
-    b.grid_aux.clear();
-    b.grid_aux.resize(aux_len, Vec3::ZERO);
+    zeroed(&mut b.grid_aux, aux_len, Vec3::ZERO);
     let aux = GridPtr(b.grid_aux.as_mut_ptr());
     let (c, p, layout, bases) = (&b.consts, &b.particles, &b.layout, &b.bases);
     let transfer = c.solver.transfer;

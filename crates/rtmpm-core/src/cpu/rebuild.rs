@@ -1,25 +1,31 @@
 //! Stage 1: particle stencil bases, block layout, and the particle storage order.
 //!
-//! Particles are stored sorted by (gblock, cell, original index), re-sorted at every rebuild
-//! (the CPU rebuilds every step). The order depends only on the particle state, so a run resumed
-//! from a checkpoint continues bit for bit, and P2G/G2P read particles in memory order.
+//! The layout is rebuilt every step (the CPU has no free zone), in parallel
+//! ([`crate::grid::BlockLayout::rebuild_with_ties`]): particles of each gblock listed by (cell,
+//! original index). That order fixes the order in which P2G sums each node's contributions, so
+//! the result depends only on the particle state, whatever the thread count and however the
+//! particles are stored. The storage itself is re-sorted into that order every [`RESORT_EVERY`]
+//! steps only, for locality: in between, particles move little, the stored order stays nearly
+//! sorted and P2G reads them through `layout.order`.
 
 use super::CpuBackend;
 use crate::shape::Stencil;
 use rayon::prelude::*;
 
-/// Recompute every particle's stencil base, the block layout, the storage order and the colour
-/// lists.
+/// Steps between two re-sorts of the particle storage (the first step always re-sorts).
+pub const RESORT_EVERY: u32 = 16;
+
+/// Recompute every particle's stencil base, the block layout, the colour lists and, every
+/// [`RESORT_EVERY`] steps, the storage order.
 pub fn rebuild(b: &mut CpuBackend) {
-    let c = &b.consts;
-    let (origin, inv_dx) = (c.origin, c.inv_dx);
-    b.particles
-        .x
-        .par_iter()
-        .map(|&x| Stencil::new((x - origin) * inv_dx).base)
-        .collect_into_vec(&mut b.bases);
+    compute_bases(b);
     b.layout.rebuild_with_ties(&b.bases, Some(&b.ids));
-    permute(b);
+    if b.since_sort >= RESORT_EVERY {
+        permute(b);
+        b.since_sort = 0;
+    } else {
+        b.since_sort += 1;
+    }
     for list in b.colours.iter_mut() {
         list.clear();
     }
@@ -30,30 +36,39 @@ pub fn rebuild(b: &mut CpuBackend) {
     }
 }
 
-/// Store the particles in the layout's order (a parallel gather into the spare buffers).
+/// Stencil base node of every stored particle.
+fn compute_bases(b: &mut CpuBackend) {
+    let (origin, inv_dx) = (b.consts.origin, b.consts.inv_dx);
+    b.particles
+        .x
+        .par_iter()
+        .map(|&x| Stencil::base_of((x - origin) * inv_dx))
+        .collect_into_vec(&mut b.bases);
+}
+
+/// `v = v[order]`, through `scratch` (which then holds the old array: one spare array per type).
+fn gather<T: Copy + Send + Sync>(v: &mut Vec<T>, order: &[u32], scratch: &mut Vec<T>) {
+    order
+        .par_iter()
+        .map(|&i| v[i as usize])
+        .collect_into_vec(scratch);
+    std::mem::swap(v, scratch);
+}
+
+/// Store the particles in the layout's order, one array after the other (each a parallel
+/// gather), then renumber the layout.
 fn permute(b: &mut CpuBackend) {
     let order = &b.layout.order;
-    let (src, dst) = (&b.particles, &mut b.spare);
-    fn gather<T: Copy + Send + Sync>(src: &[T], order: &[u32], dst: &mut Vec<T>) {
-        order
-            .par_iter()
-            .map(|&i| src[i as usize])
-            .collect_into_vec(dst);
-    }
-    rayon::scope(|s| {
-        s.spawn(|_| gather(&src.x, order, &mut dst.x));
-        s.spawn(|_| gather(&src.v, order, &mut dst.v));
-        s.spawn(|_| gather(&src.c, order, &mut dst.c));
-        s.spawn(|_| gather(&src.f, order, &mut dst.f));
-        s.spawn(|_| gather(&src.plastic, order, &mut dst.plastic));
-        s.spawn(|_| gather(&src.mass, order, &mut dst.mass));
-        s.spawn(|_| gather(&src.vol0, order, &mut dst.vol0));
-        s.spawn(|_| gather(&src.material, order, &mut dst.material));
-        s.spawn(|_| gather(&b.ids, order, &mut b.spare_ids));
-    });
-    std::mem::swap(&mut b.particles, &mut b.spare);
-    std::mem::swap(&mut b.ids, &mut b.spare_ids);
-    gather(&b.bases, order, &mut b.spare_bases);
-    std::mem::swap(&mut b.bases, &mut b.spare_bases);
+    let (p, s) = (&mut b.particles, &mut b.scratch);
+    gather(&mut p.x, order, &mut s.vec3);
+    gather(&mut p.v, order, &mut s.vec3);
+    gather(&mut p.c, order, &mut s.mat3);
+    gather(&mut p.f, order, &mut s.mat3);
+    gather(&mut p.plastic, order, &mut s.real);
+    gather(&mut p.mass, order, &mut s.real);
+    gather(&mut p.vol0, order, &mut s.real);
+    gather(&mut p.material, order, &mut s.word);
+    gather(&mut b.ids, order, &mut s.word);
     b.layout.adopt_order();
+    compute_bases(b);
 }

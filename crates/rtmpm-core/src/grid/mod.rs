@@ -4,7 +4,8 @@
 //!   exist in memory.
 //! * Each node has a 64-bit code: the interleaved block coordinates in the high bits (block code)
 //!   and `(i1 i0 j1 j0 k1 k0)` in the low 6 bits (cell code), see [`codes`].
-//! * A hash map turns a block code into a dense 32-bit id ([`layout::BlockLayout`]).
+//! * The sorted list of block codes turns a block code into a dense 32-bit id (binary search,
+//!   [`layout::BlockLayout`]; the CUDA backend keeps a hash table on the device).
 //! * Particle blocks are shifted by -0.5 dx from grid blocks: a particle belongs to the block of
 //!   its stencil's base node `floor(x / dx - 0.5)`.
 //! * gblocks are the blocks that hold particles; pblocks are the gblocks plus their 3x3x3

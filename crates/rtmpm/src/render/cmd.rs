@@ -1,0 +1,263 @@
+//! `rtmpm render OUTDIR`: PNG frames and movies from the PLY frames of a run, and
+//! `rtmpm render --bench`.
+
+use super::*;
+
+// ---------------------------------------------------------------- rtmpm render OUTDIR
+
+/// `rtmpm render`.
+#[derive(Args)]
+pub struct RenderArgs {
+    /// Folder with the `frame_NNNNN.ply` files of a run; PNGs and movies are written next to them.
+    pub outdir: Option<PathBuf>,
+    /// The run's scene file: exact domain, floor, material colours, fps and `[render]` settings
+    /// (default: framed from the particles' bounding box).
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Frames per second of the movies (default: the scene's fps, else 30).
+    #[arg(long)]
+    pub fps: Option<f32>,
+    /// Render a synthetic cloud of --bench-particles particles and report the time per frame.
+    #[arg(long)]
+    pub bench: bool,
+    /// Particles of --bench.
+    #[arg(long, default_value_t = 1_000_000)]
+    pub bench_particles: usize,
+    #[command(flatten)]
+    pub view: ViewArgs,
+}
+
+/// Frame files `frame_NNNNN.ply` in `dir`, sorted by number.
+pub fn ply_frames(dir: &Path) -> Result<Vec<(u64, PathBuf)>> {
+    let entries =
+        std::fs::read_dir(dir).with_context(|| format!("cannot read folder {}", dir.display()))?;
+    let mut frames = Vec::new();
+    for e in entries {
+        let e = e.with_context(|| format!("listing {}", dir.display()))?;
+        let name = e.file_name();
+        let Some(name) = name.to_str() else { continue };
+        if let Some(num) = name
+            .strip_prefix("frame_")
+            .and_then(|s| s.strip_suffix(".ply"))
+            .and_then(|s| s.parse::<u64>().ok())
+        {
+            frames.push((num, e.path()));
+        }
+    }
+    frames.sort();
+    Ok(frames)
+}
+
+pub fn render_cmd(args: RenderArgs) -> Result<()> {
+    if args.bench {
+        return bench(&args);
+    }
+    let Some(dir) = &args.outdir else {
+        bail!("no folder given: rtmpm render OUTDIR (or rtmpm render --bench)")
+    };
+    if let Some(fps) = args.fps
+        && !(fps.is_finite() && fps > 0.0)
+    {
+        bail!("--fps must be positive, got {fps}");
+    }
+    if !dir.is_dir() {
+        bail!(
+            "cannot read folder {}: it is not a folder (give the output folder of a run)",
+            dir.display()
+        );
+    }
+    // Images are written into the folder: not while a run writes into it.
+    let _lock = crate::outdir::OutDir::lock(dir, "rtmpm render")?;
+    let frames = ply_frames(dir)?;
+    if frames.is_empty() {
+        bail!(
+            "no frame_NNNNN.ply files in {} (run a scene with PLY output first: rtmpm run SCENE)",
+            dir.display()
+        );
+    }
+    let scene = match &args.scene {
+        Some(p) => Some(Scene::from_file(p)?),
+        None => None,
+    };
+    let color_by = args
+        .view
+        .color_by
+        .or(scene.as_ref().and_then(|s| s.render.color_by))
+        .unwrap_or_default();
+    // Fluids as surfaces: the scene says which materials, its particles their volume.
+    let surface_volume = match &scene {
+        Some(sc) if draws_surfaces(&args.view, sc) => {
+            Some(sc.output.surface.select(&sc.sample_particles()?).1)
+        }
+        _ => None,
+    };
+    // Only one run's frames make one movie: every frame must name the run of the first (the
+    // PLY comment rtmpm writes) and hold as many particles.
+    let first_run = std::cell::RefCell::new(None::<(u64, Option<String>, usize)>);
+    let read = |num: u64, path: &Path| -> Result<FrameJob> {
+        let d = read_ply(path).with_context(|| format!("reading {}", path.display()))?;
+        let run = d
+            .comments
+            .iter()
+            .find_map(|c| c.strip_prefix(crate::output::RUN_COMMENT_PREFIX))
+            .map(str::to_string);
+        let mut first = first_run.borrow_mut();
+        match &*first {
+            None => *first = Some((num, run, d.count)),
+            Some((f, r, count)) => {
+                if *r != run || *count != d.count {
+                    bail!(
+                        "{} holds frames of two runs: frame {f} ({}, {count} particles) and \
+                         frame {num} ({}, {} particles); a movie is made of one run\n  fix: \
+                         move one run's frame files to another folder (or rerun the scene with \
+                         --overwrite)",
+                        dir.display(),
+                        r.as_deref().unwrap_or("run unknown"),
+                        run.as_deref().unwrap_or("run unknown"),
+                        d.count
+                    );
+                }
+            }
+        }
+        let mut job = FrameJob::from_ply(num, &d, color_by, path)?;
+        if let (Some(vol), Some(sc)) = (surface_volume, &scene) {
+            job = job.with_surface(&sc.output.surface, vol, None);
+        }
+        // Frame n of a run is at time n / fps.
+        job.time = scene.as_ref().map(|s| num as f64 / s.time.fps as f64);
+        Ok(job)
+    };
+    let first = read(frames[0].0, &frames[0].1)?;
+    let radius = estimate_radius(&first.positions);
+    let (bounds, floor) = match &scene {
+        Some(s) => scene_bounds(s),
+        None => {
+            // Bounding box of the first and last frames.
+            let last = match frames.len() {
+                1 => None,
+                n => Some(read(frames[n - 1].0, &frames[n - 1].1)?),
+            };
+            let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+            for p in first
+                .positions
+                .iter()
+                .chain(last.iter().flat_map(|l| l.positions.iter()))
+                .filter(|p| p.is_finite())
+            {
+                lo = lo.min(*p);
+                hi = hi.max(*p);
+            }
+            if !lo.is_finite() {
+                (lo, hi) = (Vec3::ZERO, Vec3::ONE);
+            }
+            let pad = Vec3::splat(radius);
+            ((lo - pad, hi + pad), lo.y - radius)
+        }
+    };
+    let fps = args
+        .fps
+        .or(scene.as_ref().map(|s| s.time.fps))
+        .unwrap_or(30.0);
+    let opts = resolve(&args.view, scene.as_ref(), bounds, floor, radius)?;
+    eprintln!(
+        "rendering {} frames of {} at {}x{}, coloured by {}",
+        frames.len(),
+        dir.display(),
+        opts.width,
+        opts.height,
+        opts.color_by
+    );
+    let mut sink = Sink::new(opts, Some(dir.clone()), None, &args.view, fps)?;
+    sink.process(first)?;
+    for (num, path) in &frames[1..] {
+        sink.process(read(*num, path)?)?;
+    }
+    println!("{}", sink.finish(fps)?);
+    Ok(())
+}
+
+/// `rtmpm render --bench`: a block of particles (a dam-break column) on a regular lattice with
+/// three materials, rendered three times at the chosen size.
+fn bench(args: &RenderArgs) -> Result<()> {
+    let n = args.bench_particles.max(1);
+    let k = (n as f64).cbrt().ceil() as usize;
+    let h = 0.5 / k as f32;
+    let mut positions = Vec::with_capacity(k * k * k);
+    for i in 0..k {
+        for j in 0..k {
+            for l in 0..k {
+                if positions.len() < n {
+                    positions.push(
+                        Vec3::new(0.1, 0.1, 0.1)
+                            + (Vec3::new(i as f32, j as f32, l as f32) + 0.5) * h,
+                    );
+                }
+            }
+        }
+    }
+    let material: Vec<u32> = (0..positions.len())
+        .map(|i| (i * 3 / positions.len()) as u32)
+        .collect();
+    let field: Vec<f32> = positions.iter().map(|p| p.y).collect();
+    let (lo, hi) = (Vec3::ZERO, Vec3::new(1.0, 0.75, 0.7));
+    let opts = resolve(&args.view, None, (lo, hi), lo.y + 0.1, 0.6 * h)?;
+    let input = RenderInput {
+        positions: &positions,
+        material: &material,
+        field: Some(&field),
+        surface: None,
+    };
+    let time = |opts: &RenderOptions| -> Result<f64> {
+        render(&input, opts)?;
+        let reps = 3;
+        let t0 = Instant::now();
+        for _ in 0..reps {
+            render(&input, opts)?;
+        }
+        Ok(t0.elapsed().as_secs_f64() / reps as f64)
+    };
+    let dt = time(&opts)?;
+    println!(
+        "render bench: {} particles, {}x{}, coloured by {}, {} threads: {:.3} s per frame",
+        positions.len(),
+        opts.width,
+        opts.height,
+        opts.color_by,
+        rayon_threads(),
+        dt
+    );
+    // The same with three colliders (unless --no-colliders): a back wall (half-space), a
+    // sphere and a box beside the block.
+    if !args.view.no_colliders {
+        let mut with = opts.clone();
+        let collider = |shape: Shape| Collider {
+            pivot: shape.center(),
+            shape,
+            rule: Default::default(),
+            velocity: Vec3::ZERO,
+            angular_velocity: Vec3::ZERO,
+            keyframes: None,
+        };
+        with.colliders = vec![
+            collider(Shape::HalfSpace {
+                point: Vec3::new(0.0, 0.0, 0.05),
+                normal: Vec3::Z,
+            }),
+            collider(Shape::Sphere {
+                center: Vec3::new(0.8, 0.25, 0.35),
+                radius: 0.12,
+            }),
+            collider(Shape::Box {
+                center: Vec3::new(0.8, 0.2, 0.6),
+                half_extents: Vec3::new(0.1, 0.1, 0.05),
+            }),
+        ];
+        let dt = time(&with)?;
+        println!("render bench with 3 colliders (wall, sphere, box): {dt:.3} s per frame");
+    }
+    Ok(())
+}
+
+fn rayon_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
