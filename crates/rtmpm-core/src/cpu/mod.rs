@@ -398,6 +398,9 @@ impl Backend for CpuBackend {
         self.max_speed = self.max_speed.max(fastest);
         self.particles.extend(&add);
         self.ids.extend(first as u32..(first + p.len()) as u32);
+        // Stored at the end: re-sort the storage at the next step (locality only; P2G's sum
+        // order comes from the layout, whatever the storage order).
+        self.since_sort = u32::MAX;
         Ok(())
     }
 
