@@ -97,8 +97,9 @@ pub fn allocate(
     let neighbors = zeros(cap.gblocks * 27 * 4, "alloc neighbour lists")?;
     let hist = zeros(cap.buckets * 4, "alloc histogram")?;
     let scan_sums = zeros(cap.buckets.div_ceil(1024) * 4, "alloc scan")?;
-    let pkey = zeros(n * 4, "alloc sort keys")?;
-    let prank = zeros(n * 4, "alloc sort ranks")?;
+    // Sized to the capacity: emitters add particles up to it during the run.
+    let pkey = zeros(cap.particles * 4, "alloc sort keys")?;
+    let prank = zeros(cap.particles * 4, "alloc sort ranks")?;
     let warps = zeros(cap.warps * 12, "alloc warp list")?;
     let boundary = zeros(cap.gblocks * 4, "alloc boundary flags")?;
     let shared_pblock = zeros(cap.pblocks * 4, "alloc shared-block flags")?;

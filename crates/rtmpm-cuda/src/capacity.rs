@@ -56,9 +56,12 @@ impl Capacity {
             .map(|&c| (c as usize + 8).div_ceil(4) + 1)
             .product();
         let real_bytes = if options.f64 { 8 } else { 4 };
+        // Every capacity that scales with the particle count is planned for the state arrays'
+        // count (emitters add particles during the run), not the initial one.
+        let np = min_particles.max(n);
         let fits = domain_blocks * 64 * 4 * real_bytes <= GRID_BUDGET_BYTES;
         let gblocks = options.gblock_capacity.unwrap_or(if fits {
-            domain_blocks.min(n.max(64))
+            domain_blocks.min(np.max(64))
         } else {
             (8 * layout.gblock_count).max(64)
         });
@@ -68,11 +71,11 @@ impl Capacity {
             (8 * layout.pblock_count()).max(4 * gblocks).max(256)
         });
         Capacity {
-            particles: min_particles.max(n),
+            particles: np,
             gblocks,
             pblocks,
             hash: (2 * pblocks).next_power_of_two(),
-            warps: n.div_ceil(32) + gblocks + 1,
+            warps: np.div_ceil(32) + gblocks + 1,
             buckets: gblocks * 64 + 1,
         }
     }
