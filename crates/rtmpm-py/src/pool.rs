@@ -71,19 +71,14 @@ impl Buf {
 /// A pageable buffer of `len` floats: a returned one of that length, else a new zeroed one.
 pub(crate) fn take(len: usize) -> Vec<f32> {
     let mut pool = POOL.lock().unwrap_or_else(|e| e.into_inner());
-    match pool
+    let found = pool
         .iter()
-        .position(|b| matches!(b, Buf::Host(v) if v.len() == len))
-    {
-        Some(i) => match pool.swap_remove(i) {
-            Buf::Host(v) => v,
-            Buf::Pinned(_) => vec![0f32; len],
-        },
-        None => {
-            drop(pool);
-            vec![0f32; len]
-        }
+        .position(|b| matches!(b, Buf::Host(v) if v.len() == len));
+    if let Some(Buf::Host(v)) = found.map(|i| pool.swap_remove(i)) {
+        return v;
     }
+    drop(pool);
+    vec![0f32; len]
 }
 
 /// A returned page-locked buffer of `len` floats, if the pool holds one.
