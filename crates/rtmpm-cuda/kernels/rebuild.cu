@@ -1,6 +1,7 @@
 // Rebuild of the particle-to-block mapping (Fei, Huang & Gao, "Real-Time Simulation of MPM on Modern GPUs" (GTC 2022)): block codes, GPU hash table (block code ->
 // dense id), gblocks, pblocks with explicit 3x3x3 neighbour lists, complete block+cell counting
-// sort (histogram, scan, scatter) with physical reordering of the particle arrays, warp list.
+// sort (histogram, scan, ranks, then scatter and copy back a chunk of fields at a time) with
+// physical reordering of the particle arrays, warp list.
 // Each phase is a device function `rb_X_body`, run either as its own kernel `rb_X` (launched every
 // step, returning at once unless ctl[CTL_NEED_REBUILD] is set; a grid of at most one wave,
 // grid-stride loops) or, by default, as a phase of the single persistent kernel `rb_fused` at the
@@ -182,13 +183,15 @@ extern "C" __global__ void rb_scan_add(Ctx c) {
     rb_scan_add_body(c);
 }
 
-// Counting sort, 3: scatter every field to its sorted slot in the scratch arrays, and emit the
-// warp list (each warp: up to 32 consecutive particles of one gblock).
-__device__ __forceinline__ void rb_scatter_body(const Ctx& c) {
+// Counting sort, 3: the permutation, once: each particle's sorted slot (bucket start + rank),
+// written over its rank; and the warp list (each warp: up to 32 consecutive particles of one
+// gblock). The bucket keys live in the first scratch field (Ctx::pkey aliases it): they are read
+// here for the last time, before the scatter overwrites the scratch.
+__device__ __forceinline__ void rb_rank_body(const Ctx& c) {
     GRID_STRIDE(i, c.n) {
         unsigned key = c.pkey[i];
         unsigned dst = c.hist[key] + c.prank[i];
-        for (int f = 0; f < RTMPM_NFIELDS; ++f) c.scratch[sidx(c.cap, f, dst)] = c.state[sidx(c.cap, f, i)];
+        c.prank[i] = dst;
         unsigned g = key >> 6;
         unsigned start = c.hist[g * 64u];
         unsigned end = (g + 1 < c.ctl[CTL_GBLOCKS]) ? c.hist[(g + 1) * 64u] : c.n;
@@ -201,21 +204,35 @@ __device__ __forceinline__ void rb_scatter_body(const Ctx& c) {
         }
     }
 }
-extern "C" __global__ void rb_scatter(Ctx c) {
+extern "C" __global__ void rb_rank(Ctx c) {
     if (!NEED(c) || c.ctl[CTL_ERROR]) return;
-    rb_scatter_body(c);
+    rb_rank_body(c);
 }
 
-// Copy the sorted scratch back (the state pointer never changes, so a step can be captured in a
-// CUDA graph), and clear the rebuild flag.
-__device__ __forceinline__ void rb_copy_back_body(const Ctx& c) {
-    for (int f = 0; f < RTMPM_NFIELDS; ++f) {  // field by field: n * NFIELDS may pass 2^32
-        GRID_STRIDE(i, c.n) c.state[sidx(c.cap, f, i)] = c.scratch[sidx(c.cap, f, i)];
+// Counting sort, 4: the fields [f0, f1) (at most the scratch's fields) to their sorted slots in
+// the scratch, then copied back (the state pointer never changes, so a step can be captured in a
+// CUDA graph). The host runs the pairs over every chunk of fields, in order; the scratch holds
+// only one chunk, so memory per particle is NFIELDS + chunk words instead of 2 NFIELDS. Every
+// chunk moves the same words to the same slots as one pass over all fields would: the same result.
+__device__ __forceinline__ void rb_scatter_body(const Ctx& c, int f0, int f1) {
+    GRID_STRIDE(i, c.n) {
+        unsigned dst = c.prank[i];
+        for (int f = f0; f < f1; ++f) c.scratch[sidx(c.cap, f - f0, dst)] = c.state[sidx(c.cap, f, i)];
     }
 }
-extern "C" __global__ void rb_copy_back(Ctx c) {
+extern "C" __global__ void rb_scatter(Ctx c, int f0, int f1) {
     if (!NEED(c) || c.ctl[CTL_ERROR]) return;
-    rb_copy_back_body(c);
+    rb_scatter_body(c, f0, f1);
+}
+
+__device__ __forceinline__ void rb_copy_back_body(const Ctx& c, int f0, int f1) {
+    for (int f = f0; f < f1; ++f) {  // field by field: n * NFIELDS may pass 2^32
+        GRID_STRIDE(i, c.n) c.state[sidx(c.cap, f, i)] = c.scratch[sidx(c.cap, f - f0, i)];
+    }
+}
+extern "C" __global__ void rb_copy_back(Ctx c, int f0, int f1) {
+    if (!NEED(c) || c.ctl[CTL_ERROR]) return;
+    rb_copy_back_body(c, f0, f1);
 }
 
 extern "C" __global__ void rb_end(Ctx c) {
@@ -267,7 +284,8 @@ __device__ __forceinline__ void rb_grid_barrier(const Ctx& c) {
 
 __device__ __forceinline__ bool rb_error(const Ctx& c) { return ((volatile unsigned*)c.ctl)[CTL_ERROR] != 0; }
 
-extern "C" __global__ void __launch_bounds__(1024) rb_fused(Ctx c) {
+// `chunk`: the fields of the scratch (1 to RTMPM_NFIELDS), the fields permuted per pass.
+extern "C" __global__ void __launch_bounds__(1024) rb_fused(Ctx c, int chunk) {
     // Every block takes the same decision before anyone writes the flag (it is cleared only at the end).
     bool need = NEED(c) || c.always_rebuild;
     if (!need) {
@@ -305,11 +323,18 @@ extern "C" __global__ void __launch_bounds__(1024) rb_fused(Ctx c) {
     rb_grid_barrier(c);
     if (!err) rb_scan_add_body(c);
     rb_grid_barrier(c);
-    if (!err) rb_scatter_body(c);
+    if (!err) rb_rank_body(c);
     rb_grid_barrier(c);
     err = rb_error(c);
-    if (!err) rb_copy_back_body(c);
-    rb_grid_barrier(c);
+    // The fields, `chunk` at a time (the scratch's fields): scatter, barrier, copy back, barrier.
+    chunk = max(1, min(chunk, RTMPM_NFIELDS));  // uniform: every block meets the same barriers
+    for (int f0 = 0; f0 < RTMPM_NFIELDS; f0 += chunk) {
+        int f1 = min(f0 + chunk, RTMPM_NFIELDS);
+        if (!err) rb_scatter_body(c, f0, f1);
+        rb_grid_barrier(c);
+        if (!err) rb_copy_back_body(c, f0, f1);
+        rb_grid_barrier(c);
+    }
     if (thread_index() == 0) c.ctl[CTL_NEED_REBUILD] = 0;
     grid_clear_body(c);
 }

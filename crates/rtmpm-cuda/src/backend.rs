@@ -206,7 +206,12 @@ impl CudaBackend {
         let module = context
             .load_module(cudarc::nvrtc::Ptx::from_src(ptx))
             .map_err(err("load module"))?;
-        let kernels = Kernels::load(&module, info.sm_count, options.fused_rebuild)?;
+        let kernels = Kernels::load(
+            &module,
+            info.sm_count,
+            options.fused_rebuild,
+            options.sort_scratch_fields,
+        )?;
 
         // The particle state (a fluid's F packed as J^(1/3) I) and every buffer.
         let fluid: Vec<bool> = scene
