@@ -202,6 +202,9 @@ pub fn allocate(
         warps,
         boundary,
         shared_pblock,
+        // Set by the backend when the scene has rigid bodies (crate::rigid).
+        bodies: 0,
+        body_exchange: 0,
         n_cells: scene.n_cells().map(|c| c as i32),
         wall_thickness: w.thickness as i32,
         wall_cond: w.faces.map(|f| contract::condition(f.condition)),
@@ -218,7 +221,7 @@ pub fn allocate(
         transfer: scene.solver.transfer.code(),
         update: contract::update(scene.solver.update),
         always_rebuild: (!options.free_zone || !options.mixed_sort) as u32,
-        pad: 0,
+        n_bodies: 0,
     };
     debug_assert_eq!(state.len(), state_bytes);
     Ok((
