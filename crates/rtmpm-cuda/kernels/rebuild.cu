@@ -209,30 +209,48 @@ extern "C" __global__ void rb_rank(Ctx c) {
     rb_rank_body(c);
 }
 
-// Counting sort, 4: the fields [f0, f1) (at most the scratch's fields) to their sorted slots in
-// the scratch, then copied back (the state pointer never changes, so a step can be captured in a
-// CUDA graph). The host runs the pairs over every chunk of fields, in order; the scratch holds
+// Counting sort, 4: the fields of the mask `fields` (bit f: field f; at most the scratch's
+// fields) to their sorted slots in the scratch (the j-th field of the mask in scratch field j),
+// then copied back (the state pointer never changes, so a step can be captured in a CUDA graph).
+// The host runs the pairs over chunks of the fields the sort permutes, in order; the scratch holds
 // only one chunk, so memory per particle is NFIELDS + chunk words instead of 2 NFIELDS. Every
 // chunk moves the same words to the same slots as one pass over all fields would: the same result.
-__device__ __forceinline__ void rb_scatter_body(const Ctx& c, int f0, int f1) {
+// A field left out of every chunk holds the same value in every particle (the zero off-diagonal
+// words of F when every material is a fluid), so leaving it in place permutes it too.
+__device__ __forceinline__ void rb_scatter_body(const Ctx& c, unsigned fields) {
     GRID_STRIDE(i, c.n) {
         unsigned dst = c.prank[i];
-        for (int f = f0; f < f1; ++f) c.scratch[sidx(c.cap, f - f0, dst)] = c.state[sidx(c.cap, f, i)];
+        int j = 0;
+        for (unsigned m = fields; m; m &= m - 1, ++j)
+            c.scratch[sidx(c.cap, j, dst)] = c.state[sidx(c.cap, __ffs(m) - 1, i)];
     }
 }
-extern "C" __global__ void rb_scatter(Ctx c, int f0, int f1) {
+extern "C" __global__ void rb_scatter(Ctx c, unsigned fields) {
     if (!NEED(c) || c.ctl[CTL_ERROR]) return;
-    rb_scatter_body(c, f0, f1);
+    rb_scatter_body(c, fields);
 }
 
-__device__ __forceinline__ void rb_copy_back_body(const Ctx& c, int f0, int f1) {
-    for (int f = f0; f < f1; ++f) {  // field by field: n * NFIELDS may pass 2^32
-        GRID_STRIDE(i, c.n) c.state[sidx(c.cap, f, i)] = c.scratch[sidx(c.cap, f - f0, i)];
+__device__ __forceinline__ void rb_copy_back_body(const Ctx& c, unsigned fields) {
+    int j = 0;
+    for (unsigned m = fields; m; m &= m - 1, ++j) {  // field by field: n * NFIELDS may pass 2^32
+        int f = __ffs(m) - 1;
+        GRID_STRIDE(i, c.n) c.state[sidx(c.cap, f, i)] = c.scratch[sidx(c.cap, j, i)];
     }
 }
-extern "C" __global__ void rb_copy_back(Ctx c, int f0, int f1) {
+extern "C" __global__ void rb_copy_back(Ctx c, unsigned fields) {
     if (!NEED(c) || c.ctl[CTL_ERROR]) return;
-    rb_copy_back_body(c, f0, f1);
+    rb_copy_back_body(c, fields);
+}
+
+// The next chunk of the sort: the lowest `k` fields of `rest`, taken out of it.
+__device__ __forceinline__ unsigned rb_next_chunk(unsigned& rest, int k) {
+    unsigned chunk = 0;
+    for (int j = 0; j < k && rest; ++j) {
+        unsigned low = rest & (0u - rest);
+        chunk |= low;
+        rest &= ~low;
+    }
+    return chunk;
 }
 
 extern "C" __global__ void rb_end(Ctx c) {
@@ -284,8 +302,9 @@ __device__ __forceinline__ void rb_grid_barrier(const Ctx& c) {
 
 __device__ __forceinline__ bool rb_error(const Ctx& c) { return ((volatile unsigned*)c.ctl)[CTL_ERROR] != 0; }
 
-// `chunk`: the fields of the scratch (1 to RTMPM_NFIELDS), the fields permuted per pass.
-extern "C" __global__ void __launch_bounds__(1024) rb_fused(Ctx c, int chunk) {
+// `chunk`: the fields of the scratch (1 to RTMPM_NFIELDS), the fields permuted per pass;
+// `fields`: the mask of the fields the sort permutes (see rb_scatter_body).
+extern "C" __global__ void __launch_bounds__(1024) rb_fused(Ctx c, int chunk, unsigned fields) {
     // Every block takes the same decision before anyone writes the flag (it is cleared only at the end).
     bool need = NEED(c) || c.always_rebuild;
     if (!need) {
@@ -327,12 +346,14 @@ extern "C" __global__ void __launch_bounds__(1024) rb_fused(Ctx c, int chunk) {
     rb_grid_barrier(c);
     err = rb_error(c);
     // The fields, `chunk` at a time (the scratch's fields): scatter, barrier, copy back, barrier.
-    chunk = max(1, min(chunk, RTMPM_NFIELDS));  // uniform: every block meets the same barriers
-    for (int f0 = 0; f0 < RTMPM_NFIELDS; f0 += chunk) {
-        int f1 = min(f0 + chunk, RTMPM_NFIELDS);
-        if (!err) rb_scatter_body(c, f0, f1);
+    // Uniform: every block takes the same chunks and meets the same barriers.
+    chunk = max(1, min(chunk, RTMPM_NFIELDS));
+    unsigned rest = fields & ((1u << RTMPM_NFIELDS) - 1u);
+    while (rest) {
+        unsigned m = rb_next_chunk(rest, chunk);
+        if (!err) rb_scatter_body(c, m);
         rb_grid_barrier(c);
-        if (!err) rb_copy_back_body(c, f0, f1);
+        if (!err) rb_copy_back_body(c, m);
         rb_grid_barrier(c);
     }
     if (thread_index() == 0) c.ctl[CTL_NEED_REBUILD] = 0;

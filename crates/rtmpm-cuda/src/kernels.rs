@@ -20,6 +20,8 @@ pub struct Kernels {
     /// Fields of the rebuild's sort scratch ([`crate::CudaOptions::sort_scratch_fields`]): the
     /// state is permuted that many fields per pass.
     pub sort_fields: u32,
+    /// The fields the sort permutes (bit f: field f; [`crate::rebuild::sorted_fields`]).
+    pub sort_mask: u32,
 }
 
 impl Kernels {
@@ -44,6 +46,7 @@ impl Kernels {
             wave_threads: sm_count.max(1) as usize * 2048,
             rb_fused_grid: None,
             sort_fields: sort_fields.clamp(1, crate::contract::NFIELDS) as u32,
+            sort_mask: crate::rebuild::ALL_FIELDS,
         };
         if fused_rebuild {
             // A cooperative launch needs every block resident, so its grid barrier cannot deadlock.

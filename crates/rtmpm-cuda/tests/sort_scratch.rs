@@ -4,7 +4,7 @@
 //! --include-ignored`; each test skips with a message when no usable CUDA device is present.
 
 use rtmpm_core::boundary::Walls;
-use rtmpm_core::material::Material;
+use rtmpm_core::material::{Material, Model};
 use rtmpm_core::math::{Mat3, Vec3};
 use rtmpm_core::scene::{OutputSettings, StepMode, TimeSettings};
 use rtmpm_core::sim::Backend;
@@ -141,51 +141,76 @@ fn sorted_once(s: &Scene, p: &Particles, o: CudaOptions) -> Sorted {
     out
 }
 
-/// One rebuild of a scrambled block: for every K and both rebuild paths and precisions, every
-/// particle's 29 words are bit-identical to K = NFIELDS's (and the particles are sorted: each
-/// cell's particles in one run of slots).
+/// The rows of `NFIELDS` words of each particle as uploaded (`state::pack`), by original index.
+fn packed_rows(s: &Scene, p: &Particles, f64: bool) -> HashMap<u32, Vec<u8>> {
+    let rb = if f64 { 8 } else { 4 };
+    let fluid: Vec<bool> = s
+        .materials
+        .iter()
+        .map(|m| matches!(m.model, Model::Fluid(_)))
+        .collect();
+    let n = p.len();
+    let packed = rtmpm_cuda::state::pack(p, &fluid, f64, n, None).expect("pack");
+    (0..n)
+        .map(|i| {
+            let row = (0..NFIELDS)
+                .flat_map(|f| packed[(f * n + i) * rb..(f * n + i + 1) * rb].to_vec())
+                .collect();
+            (i as u32, row)
+        })
+        .collect()
+}
+
+/// One rebuild of a scrambled block, jelly and water (whose sort leaves F's zero off-diagonal
+/// words in place): for every K, both rebuild paths and both precisions, every particle's 29
+/// words are bit-identical to the words uploaded (so to K = NFIELDS's, the one pass over every
+/// field of before), and the particles are sorted: each cell's particles in one run of slots.
 #[test]
 #[ignore = "needs a CUDA GPU"]
 fn sort_scratch_fields_give_identical_state() {
     if !gpu() {
         return;
     }
-    let s = jelly_scene(1.0 / 32.0);
-    let p = scrambled_block(&s, Vec3::new(0.1, 0.1, 0.1), Vec3::new(0.4, 0.5, 0.45));
-    println!("{} particles", p.len());
-    for f64 in [false, true] {
-        for fused_rebuild in [true, false] {
-            let o = |k: usize| CudaOptions {
-                f64,
-                fused_rebuild,
-                sort_scratch_fields: k,
-                ..Default::default()
-            };
-            let full = sorted_once(&s, &p, o(NFIELDS));
-            assert_ne!(
-                full.order,
-                (0..p.len() as u32).collect::<Vec<_>>(),
-                "the sort changed nothing"
-            );
-            for k in [1, 2, 3, 4, 8, 28] {
-                let got = sorted_once(&s, &p, o(k));
-                assert_eq!(got.rows.len(), p.len());
-                for (id, row) in &full.rows {
-                    assert_eq!(
-                        got.rows.get(id),
-                        Some(row),
-                        "f64 {f64}, fused {fused_rebuild}, K = {k}: particle {id} differs"
+    for fluid in [false, true] {
+        let mut s = jelly_scene(1.0 / 32.0);
+        if fluid {
+            s.materials = vec![
+                Material::parse("water", 1000.0, "fluid", "bulk_modulus = 1e4").expect("water"),
+            ];
+        }
+        let p = scrambled_block(&s, Vec3::new(0.1, 0.1, 0.1), Vec3::new(0.4, 0.5, 0.45));
+        println!("{} particles, fluid {fluid}", p.len());
+        for f64 in [false, true] {
+            let want = packed_rows(&s, &p, f64);
+            for fused_rebuild in [true, false] {
+                for k in [1, 2, 3, 4, 8, 28, NFIELDS] {
+                    let o = CudaOptions {
+                        f64,
+                        fused_rebuild,
+                        sort_scratch_fields: k,
+                        ..Default::default()
+                    };
+                    let what = format!("fluid {fluid}, f64 {f64}, fused {fused_rebuild}, K = {k}");
+                    let got = sorted_once(&s, &p, o);
+                    assert_ne!(
+                        got.order,
+                        (0..p.len() as u32).collect::<Vec<_>>(),
+                        "{what}: the sort changed nothing"
                     );
-                }
-                // Sorted by cell: a cell's particles are consecutive.
-                let mut done = HashSet::new();
-                for w in got.cells.windows(2) {
-                    if w[0] != w[1] {
-                        assert!(done.insert(w[0]), "K = {k}: cell {:?} split", w[0]);
+                    assert_eq!(got.rows.len(), p.len());
+                    for (id, row) in &want {
+                        assert_eq!(got.rows.get(id), Some(row), "{what}: particle {id} differs");
                     }
+                    // Sorted by cell: a cell's particles are consecutive.
+                    let mut done = HashSet::new();
+                    for w in got.cells.windows(2) {
+                        if w[0] != w[1] {
+                            assert!(done.insert(w[0]), "{what}: cell {:?} split", w[0]);
+                        }
+                    }
+                    assert!(!done.contains(&got.cells[got.cells.len() - 1]));
+                    println!("{what}: identical");
                 }
-                assert!(!done.contains(&got.cells[got.cells.len() - 1]));
-                println!("f64 {f64}, fused {fused_rebuild}, K = {k}: identical");
             }
         }
     }
