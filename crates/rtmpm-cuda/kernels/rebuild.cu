@@ -115,7 +115,8 @@ extern "C" __global__ void rb_neighbor_lists(Ctx c) {
     rb_neighbor_lists_body(c);
 }
 
-// Counting sort, 1: histogram of (gblock, cell code) buckets; remember each particle's rank.
+// Counting sort, 1: histogram of (gblock, cell code) buckets; remember each particle's bucket
+// (pkey: the sort scratch's first field, unused until the scatter) and its rank.
 __device__ __forceinline__ void rb_histogram_body(const Ctx& c) {
     GRID_STRIDE(i, c.n) {
         int b[3], base[3];
