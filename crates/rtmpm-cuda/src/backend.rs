@@ -209,7 +209,12 @@ impl CudaBackend {
         let module = context
             .load_module(cudarc::nvrtc::Ptx::from_src(ptx))
             .map_err(err("load module"))?;
-        let kernels = Kernels::load(&module, info.sm_count, options.fused_rebuild)?;
+        let mut kernels = Kernels::load(
+            &module,
+            info.sm_count,
+            options.fused_rebuild,
+            options.sort_scratch_fields,
+        )?;
 
         // The particle state (a fluid's F packed as J^(1/3) I) and every buffer.
         let fluid: Vec<bool> = scene
@@ -217,6 +222,7 @@ impl CudaBackend {
             .iter()
             .map(|m| matches!(m.model, Model::Fluid(_)))
             .collect();
+        kernels.sort_mask = crate::rebuild::sorted_fields(fluid.iter().all(|f| *f));
         // Packed with stride n; buffers::allocate places each field at its stride-cap offset.
         let state = crate::state::pack(particles, &fluid, options.f64, n, part.ids.as_deref())
             .map_err(SimError::Backend)?;

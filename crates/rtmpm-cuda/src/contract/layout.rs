@@ -47,7 +47,8 @@ impl GpuReal for f64 {
 pub struct Ctx {
     /// `NFIELDS` reals per particle.
     pub state: u64,
-    /// The same size, for the rebuild's reordering.
+    /// The rebuild's sort scratch: `CudaOptions::sort_scratch_fields` reals per particle slot
+    /// (the state is permuted that many fields at a time).
     pub scratch: u64,
     /// 4 reals per node: mass, momentum (velocity after the grid update).
     pub grid: u64,
@@ -82,9 +83,9 @@ pub struct Ctx {
     pub hist: u64,
     /// Block sums of the scan.
     pub scan_sums: u64,
-    /// Per particle: its bucket.
+    /// Per particle: its bucket (the scratch's first field, free until the sort's scatter).
     pub pkey: u64,
-    /// Per particle: its rank in the bucket.
+    /// Per particle: its rank in the bucket, then its sorted slot.
     pub prank: u64,
     /// 3 words per warp: gblock, first particle, count.
     pub warps: u64,
