@@ -461,4 +461,12 @@ impl Backend for CudaBackend {
     fn memory_bytes(&self) -> Option<(u64, u64)> {
         Some((0, self.device_bytes() as u64))
     }
+
+    fn export_frame(&mut self, sink: &mut dyn rtmpm_core::sim::ChunkSink) -> Result<(), SimError> {
+        self.export_chunks(sink)
+    }
+
+    fn chunk_memory(&self, words: usize) -> Result<Box<dyn rtmpm_core::sim::HostBuffer>, SimError> {
+        Ok(Box::new(self.chunk_host_memory(words)?))
+    }
 }
