@@ -88,20 +88,20 @@ fn bodies<B: Backend + ?Sized>(
 
 /// Linear momentum of the particles, summed in f64.
 pub fn momentum(p: &Particles) -> DVec3 {
-    (0..p.len()).fold(DVec3::ZERO, |a, i| {
-        a + p.v[i].as_dvec3() * p.mass[i] as f64
-    })
+    (0..p.len()).fold(DVec3::ZERO, |a, i| a + p.v[i].as_dvec3() * p.mass[i] as f64)
 }
 
 /// A floating body, measured by [`float`].
 #[derive(Clone, Copy, Debug)]
 pub struct Floating {
-    /// Submerged fraction of the body's height.
+    /// Submerged fraction of the body's height (its height in its initial orientation).
     pub fraction: f64,
     /// The body's centre height (m), averaged over the last frames.
     pub centre: f64,
     /// The free surface's height away from the body (m).
     pub surface: f64,
+    /// How far the body has turned from its initial orientation at the end (degrees).
+    pub tilt_degrees: f64,
 }
 
 /// Frames over whose end the floating body's height is averaged.
@@ -109,13 +109,22 @@ const AVERAGE_FRAMES: u64 = 10;
 
 /// Run `sim` to the end of its scene and measure how deep its first rigid body floats: its
 /// centre height averaged over the last 10 frames, the free surface away from it (the 98th
-/// percentile of the heights of the particles more than 0.1 m from the body's bounds in x and
-/// z, plus half a particle spacing, `dx / 4` for 8 particles per cell) and the submerged
-/// fraction of its height. `each_frame(time, centre height)` is called after every frame.
+/// percentile of the heights of the particles more than 0.1 m in x or z from the body's
+/// bounds where it started, plus half a particle spacing, `dx / 4` for 8 particles per cell) and the submerged
+/// fraction of its height in its initial orientation (a box's height, a lying cylinder's
+/// diameter). `each_frame(time, centre height)` is called after every frame.
 pub fn float<B: Backend + ?Sized>(
     sim: &mut Simulation<B>,
     mut each_frame: impl FnMut(f64, f64),
 ) -> Result<Floating, CheckError> {
+    let spec = sim
+        .scene
+        .rigid_bodies
+        .first()
+        .ok_or_else(|| CheckError::Scene("the scene has no rigid body".into()))?
+        .clone();
+    let initial = glam::Mat3::from_quat(spec.rotation);
+    let half_height = spec.shape.world_half_extents(initial).y as f64;
     let frames = sim.scene.time.frames();
     let (mut sum, mut count) = (0.0f64, 0u32);
     let mut last = None;
@@ -131,10 +140,11 @@ pub fn float<B: Backend + ?Sized>(
     }
     let b = last.ok_or_else(|| CheckError::Scene("the scene has no frames".into()))?;
     let centre = sum / count as f64;
-    let half = b.shape.world_half_extents(b.rotation);
+    // Away from where the body was dropped (it drifts by millimetres).
+    let half = spec.shape.world_half_extents(initial);
     let mut p = Particles::default();
     sim.backend.read_particles(&mut p)?;
-    let (cx, cz) = (b.center.x, b.center.z);
+    let (cx, cz) = (spec.position.x, spec.position.z);
     let far = |x: &glam::Vec3| ((x.x - cx).abs() - half.x).max((x.z - cz).abs() - half.z) > 0.1;
     let mut tops: Vec<f32> = p.x.iter().filter(|x| far(x)).map(|x| x.y).collect();
     if tops.is_empty() {
@@ -144,11 +154,13 @@ pub fn float<B: Backend + ?Sized>(
     }
     tops.sort_by(|a, b| b.total_cmp(a));
     let surface = (tops[tops.len() / 50] + 0.25 * sim.scene.dx) as f64;
-    let bottom = centre - half.y as f64;
+    let bottom = centre - half_height;
+    let turn = glam::Quat::from_mat3(&(b.rotation * initial.transpose()));
     Ok(Floating {
-        fraction: (surface - bottom) / (2.0 * half.y as f64),
+        fraction: (surface - bottom) / (2.0 * half_height),
         centre,
         surface,
+        tilt_degrees: turn.to_axis_angle().1.to_degrees() as f64,
     })
 }
 

@@ -119,11 +119,13 @@ impl RigidShape {
                 radius,
                 half_height,
             } => {
-                // The half-height along the turned axis plus the radius of the caps' discs, as
-                // the colliders' cylinders are bounded.
-                let axis = r.y_axis;
-                let disc = (Vec3::ONE - axis * axis).max(Vec3::ZERO);
-                axis.abs() * half_height
+                // The half-height along the turned axis plus the radius of the caps' discs
+                // (their extent along world x is radius sqrt(a_y^2 + a_z^2), a the unit axis;
+                // summed this way, not as 1 - a_x^2, a lying cylinder's bound is exact).
+                let a = r.y_axis;
+                let a2 = a * a;
+                let disc = Vec3::new(a2.y + a2.z, a2.x + a2.z, a2.x + a2.y);
+                a.abs() * half_height
                     + Vec3::new(disc.x.sqrt(), disc.y.sqrt(), disc.z.sqrt()) * radius
             }
         }

@@ -192,7 +192,11 @@ fn rigid_cylinders_take_the_colliders_fields() {
     // The axis turns the body's local y (the cylinder's axis) onto x.
     assert!((b.rotation * Vec3::Y - Vec3::X).length() < 1e-6);
     // Without an axis it stands along y; a rotation turns it after the axis.
-    let s = parse(&format!("{BASE}{}", cyl.replace("axis = [1.0, 0.0, 0.0]\n", ""))).unwrap();
+    let s = parse(&format!(
+        "{BASE}{}",
+        cyl.replace("axis = [1.0, 0.0, 0.0]\n", "")
+    ))
+    .unwrap();
     assert_eq!(s.rigid_bodies[0].rotation, glam::Quat::IDENTITY);
     let turned = cyl.replace(
         "axis = [1.0, 0.0, 0.0]",
