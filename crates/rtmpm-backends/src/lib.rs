@@ -248,6 +248,12 @@ impl Backend for AnyBackend {
     fn read_particles(&mut self, out: &mut Particles) -> Result<(), SimError> {
         self.as_dyn().read_particles(out)
     }
+    fn export_frame(&mut self, sink: &mut dyn rtmpm_core::sim::ChunkSink) -> Result<(), SimError> {
+        self.as_dyn().export_frame(sink)
+    }
+    fn chunk_memory(&self, words: usize) -> Result<Box<dyn rtmpm_core::sim::HostBuffer>, SimError> {
+        self.as_dyn_ref().chunk_memory(words)
+    }
     fn cheap_check(&self) -> bool {
         self.as_dyn_ref().cheap_check()
     }
@@ -265,6 +271,12 @@ impl Backend for AnyBackend {
     }
     fn rigid_bodies(&self) -> Vec<rtmpm_core::rigid::BodyState> {
         self.as_dyn_ref().rigid_bodies()
+    }
+    fn rigid_poses(&self) -> Vec<rtmpm_core::rigid::BodyPose> {
+        self.as_dyn_ref().rigid_poses()
+    }
+    fn set_rigid_poses(&mut self, poses: &[rtmpm_core::rigid::BodyPose]) -> Result<(), SimError> {
+        self.as_dyn().set_rigid_poses(poses)
     }
 }
 

@@ -499,4 +499,12 @@ impl Backend for CudaBackend {
             .as_ref()
             .map_or_else(Vec::new, |b| b.states().to_vec())
     }
+
+    fn export_frame(&mut self, sink: &mut dyn rtmpm_core::sim::ChunkSink) -> Result<(), SimError> {
+        self.export_chunks(sink)
+    }
+
+    fn chunk_memory(&self, words: usize) -> Result<Box<dyn rtmpm_core::sim::HostBuffer>, SimError> {
+        Ok(Box::new(self.chunk_host_memory(words)?))
+    }
 }

@@ -2,8 +2,9 @@
 
 use crate::backend::{BackendKind, make_backend};
 use crate::outdir::{OutDir, scene_identity};
-use crate::output::FrameOutput;
+use crate::output::{FrameOutput, derived_fields};
 use crate::render::RunRenderer;
+use crate::stream::{FrameStreamer, StreamSettings};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -50,6 +51,18 @@ pub struct RunArgs {
     /// Write no frame files (for timing).
     #[arg(long)]
     pub no_output: bool,
+    /// Frames written in the background while the simulation steps on, when the frames are
+    /// PLY and BGEO only (0: the next step waits for each frame's files). Host memory: the
+    /// columns of about this many frames (32 bytes a particle for PLY, 40 for BGEO).
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub frames_in_flight: usize,
+    /// Particles per chunk when frames are streamed from the backend.
+    #[arg(long, value_name = "N", default_value_t = crate::stream::DEFAULT_CHUNK)]
+    pub frame_chunk: usize,
+    /// Write each frame from a whole copy of the particles, in this thread (as before frames
+    /// were streamed; the same files).
+    #[arg(long)]
+    pub whole_frames: bool,
     /// Remove the files of a previous run in the output folder first (frames, frames.pvd,
     /// checkpoints, movies; nothing else). Without it a folder holding another run is refused.
     #[arg(long)]
@@ -82,7 +95,13 @@ pub fn run(args: RunArgs) -> Result<()> {
             (
                 scene,
                 ckpt.particles,
-                Some((ckpt.time, ckpt.step, ckpt.frame, ckpt.scene_toml)),
+                Some((
+                    ckpt.time,
+                    ckpt.step,
+                    ckpt.frame,
+                    ckpt.scene_toml,
+                    ckpt.bodies,
+                )),
             )
         }
         None => {
@@ -93,7 +112,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         }
     };
     let scene_text = match (&resume_state, &args.scene) {
-        (Some((_, _, _, text)), _) => text.clone(),
+        (Some((_, _, _, text, _)), _) => text.clone(),
         (None, Some(path)) => read_text_bounded(path, SCENE_MAX_BYTES, "scene file")
             .with_context(|| format!("reading {}", path.display()))?,
         (None, None) => String::new(),
@@ -120,19 +139,12 @@ pub fn run(args: RunArgs) -> Result<()> {
         let folder = OutDir::lock(&out_dir, &format!("rtmpm run of `{}`", scene.name))?;
         match &resume_state {
             None => folder.start_fresh(&identity, args.overwrite)?,
-            Some((_, _, frame, _)) => folder.start_resume(&identity, *frame, args.overwrite)?,
+            Some((_, _, frame, _, _)) => folder.start_resume(&identity, *frame, args.overwrite)?,
         }
         Some(folder)
     } else {
         None
     };
-    if !scene.rigid_bodies.is_empty() && (resume_state.is_some() || args.checkpoint_every.is_some())
-    {
-        bail!(
-            "checkpoints do not hold the state of the scene's [[rigid_body]] tables yet: run it \
-             without --checkpoint-every / --resume"
-        );
-    }
     let particles = match resume_state {
         Some(_) => particles,
         None => scene.sample_particles()?,
@@ -154,7 +166,6 @@ pub fn run(args: RunArgs) -> Result<()> {
         args.multi
             .backend(mode, &scene, &particles, &args.cuda_options)?
     };
-    let collect = !args.no_output || args.render || args.preview.is_some();
     let mut sim = Simulation::new(scene, backend);
     // Entries of frames.pvd up to the checkpoint's own frame are kept: half a frame later.
     let resume_time = resume_state
@@ -170,10 +181,15 @@ pub fn run(args: RunArgs) -> Result<()> {
     } else {
         None
     };
-    if let Some((time, step, frame, _)) = &resume_state {
+    if let Some((time, step, frame, _, bodies)) = &resume_state {
         sim.time = *time;
         sim.step = *step;
         sim.frame = *frame;
+        // The rigid bodies' poses and velocities (the checkpoint holds one per body of its
+        // scene, checked above).
+        sim.backend
+            .set_rigid_poses(bodies)
+            .context("cannot restore the checkpoint's rigid bodies")?;
     }
     let total_frames = args.frames.unwrap_or_else(|| sim.scene.time.frames());
     eprintln!(
@@ -193,13 +209,49 @@ pub fn run(args: RunArgs) -> Result<()> {
         &out_dir,
         &sim.scene,
     );
-    let mut bodies = BodiesCsv::new(writes_frames, &out_dir, &sim)?;
+    let resumed_at = resume_state.as_ref().map(|r| r.2);
+    let mut bodies = BodiesCsv::new(writes_frames, &out_dir, &sim, resumed_at)?;
+    // PLY and BGEO frames stream from the backend in chunks, written in the background.
+    let mut streamer = match output.as_ref() {
+        Some(out)
+            if mode == crate::multi::Mode::Single
+                && !args.whole_frames
+                && !args.render
+                && args.preview.is_none()
+                && FrameOutput::streamable(&sim.scene) =>
+        {
+            let settings = StreamSettings {
+                chunk: args.frame_chunk,
+                frames_in_flight: args.frames_in_flight,
+                derived: derived_fields(&sim.scene),
+                models: sim
+                    .scene
+                    .materials
+                    .iter()
+                    .map(|m| m.model.clone())
+                    .collect(),
+            };
+            Some(FrameStreamer::new(
+                settings,
+                &out.stream_formats(&sim.scene),
+            )?)
+        }
+        _ => None,
+    };
+    let collect = (!args.no_output && streamer.is_none()) || args.render || args.preview.is_some();
     let mut host = Particles::default();
-    if sim.frame == 0 && collect {
-        sim.backend.read_particles(&mut host)?;
+    if sim.frame == 0 && (collect || streamer.is_some()) {
+        if collect {
+            sim.backend.read_particles(&mut host)?;
+        }
         let mut mesh = None;
         if let Some(out) = output.as_mut() {
-            mesh = out.write_frame(0, 0.0, &host, &sim.scene)?;
+            match streamer.as_mut() {
+                Some(s) => {
+                    s.write_frame(sim.backend.as_mut(), out.stream_files(0, &sim.scene), 0)?
+                }
+                None => mesh = out.write_frame(0, 0.0, &host, &sim.scene)?,
+            }
             bodies.write(0, 0.0, &sim)?;
         }
         if let Some(r) = renderer.as_mut() {
@@ -255,7 +307,13 @@ pub fn run(args: RunArgs) -> Result<()> {
         }
         let mut mesh = None;
         if let Some(out) = output.as_mut() {
-            mesh = out.write_frame(sim.frame, sim.time, &host, &sim.scene)?;
+            match streamer.as_mut() {
+                Some(s) => {
+                    let files = out.stream_files(sim.frame, &sim.scene);
+                    s.write_frame(sim.backend.as_mut(), files, sim.frame)?
+                }
+                None => mesh = out.write_frame(sim.frame, sim.time, &host, &sim.scene)?,
+            }
             bodies.write(sim.frame, sim.time, &sim)?;
         }
         if let Some(r) = renderer.as_mut() {
@@ -279,6 +337,7 @@ pub fn run(args: RunArgs) -> Result<()> {
                 time: sim.time,
                 step: sim.step,
                 frame: sim.frame,
+                bodies: sim.backend.rigid_poses(),
                 particles: host.clone(),
             };
             std::fs::create_dir_all(&out_dir)
@@ -289,6 +348,8 @@ pub fn run(args: RunArgs) -> Result<()> {
         }
     }
     bar.finish_and_clear();
+    // Every frame in flight written (or its error, naming the file).
+    let stream_stats = streamer.map(FrameStreamer::finish).transpose()?;
     let rendered = renderer.map(RunRenderer::finish).transpose()?.flatten();
     let wall = start.elapsed().as_secs_f64();
     let steps = sim.step - start_step;
@@ -319,6 +380,9 @@ pub fn run(args: RunArgs) -> Result<()> {
     );
     if let Some(out) = &output {
         println!("  output       {}", out.dir.display());
+    }
+    if let Some(s) = stream_stats {
+        println!("  frame files  {}", crate::stream::describe(&s));
     }
     if let Some(r) = rendered {
         println!("  render       {r}");
@@ -409,7 +473,14 @@ struct BodiesCsv {
 }
 
 impl BodiesCsv {
-    fn new(writes: bool, dir: &std::path::Path, sim: &Simulation) -> Result<BodiesCsv> {
+    /// The file, new; or, resuming at frame `resumed_at`, the rows of a previous run's file up
+    /// to that frame kept (the rows of later frames are written again).
+    fn new(
+        writes: bool,
+        dir: &std::path::Path,
+        sim: &Simulation,
+        resumed_at: Option<u64>,
+    ) -> Result<BodiesCsv> {
         let names: Vec<String> = sim
             .scene
             .rigid_bodies
@@ -423,11 +494,29 @@ impl BodiesCsv {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("cannot create output folder {}", dir.display()))?;
         let path = dir.join("bodies.csv");
+        let kept: Vec<String> = match resumed_at {
+            Some(at) => std::fs::read_to_string(&path)
+                .unwrap_or_default()
+                .lines()
+                .skip(1)
+                .filter(|l| {
+                    l.split(',')
+                        .next()
+                        .and_then(|f| f.parse::<u64>().ok())
+                        .is_some_and(|f| f <= at)
+                })
+                .map(str::to_string)
+                .collect(),
+            None => Vec::new(),
+        };
         let mut f = std::io::BufWriter::new(
             std::fs::File::create(&path)
                 .with_context(|| format!("cannot write {}", path.display()))?,
         );
         writeln!(f, "frame,time,body,x,y,z,qx,qy,qz,qw,vx,vy,vz,wx,wy,wz")?;
+        for l in kept {
+            writeln!(f, "{l}")?;
+        }
         Ok(BodiesCsv {
             file: Some(f),
             names,
