@@ -109,7 +109,7 @@ for suite in "$@"; do
       ;;
     ablation)
       for sc in fluid_dam_2m:10 jelly_drop_2m:5; do
-        for o in free_zone=off mixed_sort=off warp_reduce=off p2g=shared graph=off fast_math=off g2p2g=off rebuild=kernels; do
+        for o in free_zone=off mixed_sort=off warp_reduce=off p2g=shared graph=off fast_math=off g2p2g=off rebuild=kernels sort_fields=29 free_zone=off,sort_fields=29; do
           b "${sc%%:*} $o" rtmpm --scene "bench/${sc%%:*}.toml" --frames "${sc##*:}" --cuda-options "$o"
         done
       done
