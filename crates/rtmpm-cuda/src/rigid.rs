@@ -31,6 +31,15 @@ fn shape(s: &RigidShape) -> Shape {
             center: glam::Vec3::ZERO,
             radius,
         },
+        RigidShape::Cylinder {
+            radius,
+            half_height,
+        } => Shape::Cylinder {
+            center: glam::Vec3::ZERO,
+            axis: glam::Vec3::Y,
+            radius,
+            half_height,
+        },
     }
 }
 

@@ -271,8 +271,8 @@ impl StreamFile {
                         let mut o = Cursor(out);
                         for j in t * TASK..t * TASK + out_len(o.0.len(), rec) {
                             for r in [&x, &v] {
-                                for a in 0..3 {
-                                    o.put(&r[a][j].to_le_bytes());
+                                for c in r.iter() {
+                                    o.put(&c[j].to_le_bytes());
                                 }
                             }
                             o.put(&(mat[j] as i32).to_le_bytes());
@@ -296,12 +296,12 @@ impl StreamFile {
                     .for_each(|(t, out)| {
                         let mut o = Cursor(out);
                         for j in t * TASK..t * TASK + out_len(o.0.len(), rec) {
-                            for a in 0..3 {
-                                o.put(&x[a][j].to_be_bytes());
+                            for c in x.iter() {
+                                o.put(&c[j].to_be_bytes());
                             }
                             o.put(&1.0f32.to_be_bytes());
-                            for a in 0..3 {
-                                o.put(&v[a][j].to_be_bytes());
+                            for c in v.iter() {
+                                o.put(&c[j].to_be_bytes());
                             }
                             o.put(&((start + j) as i32).to_be_bytes());
                             o.put(&(mat[j] as i32).to_be_bytes());
