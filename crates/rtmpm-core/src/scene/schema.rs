@@ -376,7 +376,6 @@ impl RawEmitter {
             radius: self.radius,
             axis: self.axis,
             height: self.height,
-            file: self.file.clone(),
             ..Default::default()
         }
     }
