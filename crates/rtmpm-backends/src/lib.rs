@@ -248,6 +248,12 @@ impl Backend for AnyBackend {
     fn read_particles(&mut self, out: &mut Particles) -> Result<(), SimError> {
         self.as_dyn().read_particles(out)
     }
+    fn export_frame(&mut self, sink: &mut dyn rtmpm_core::sim::ChunkSink) -> Result<(), SimError> {
+        self.as_dyn().export_frame(sink)
+    }
+    fn chunk_memory(&self, words: usize) -> Result<Box<dyn rtmpm_core::sim::HostBuffer>, SimError> {
+        self.as_dyn_ref().chunk_memory(words)
+    }
     fn cheap_check(&self) -> bool {
         self.as_dyn_ref().cheap_check()
     }

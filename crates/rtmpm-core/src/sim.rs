@@ -4,6 +4,9 @@
 //! (fixed, or CFL-adaptive with a cap), lands every frame exactly on its time, and reports
 //! blow-ups with the particle, its material and advice.
 
+pub use crate::io::chunks::{
+    ChunkSink, FrameChunk, FrameColumns, HostBuffer, ParticleRow, fill_chunks, invert_ids,
+};
 use crate::math::Vec3;
 /// The particles of the backend interface: f32 whatever precision a backend computes in.
 pub use crate::particles::Particles;
@@ -150,6 +153,19 @@ pub trait Backend {
     /// couples them (the CPU backend with the cargo feature `rigid`); empty otherwise.
     fn rigid_bodies(&self) -> Vec<crate::rigid::BodyState> {
         Vec::new()
+    }
+    /// The columns `sink.columns()` of every particle in original order, chunk by chunk (see
+    /// [`crate::io::chunks`]): the frame writers' read, without the whole state on the host.
+    /// The default reads every particle ([`Backend::read_particles`]) and cuts that into chunks.
+    fn export_frame(&mut self, sink: &mut dyn ChunkSink) -> Result<(), SimError> {
+        let mut p = Particles::default();
+        self.read_particles(&mut p)?;
+        crate::io::chunks::export_particles(&p, sink)
+    }
+    /// Host memory of `words` 32-bit words for the chunks of [`Backend::export_frame`]
+    /// (page-locked on a GPU, for copies at the bus's full rate).
+    fn chunk_memory(&self, words: usize) -> Result<Box<dyn HostBuffer>, SimError> {
+        Ok(Box::new(vec![0u32; words]))
     }
     /// The rigid bodies' poses and velocities as the backend's rigid-body engine holds them
     /// (what a checkpoint stores); empty where [`Backend::rigid_bodies`] is.

@@ -15,3 +15,25 @@ extern "C" __global__ void export_vec3(const real* __restrict__ s, unsigned cap,
         out[o + 2] = (float)s[sidx(cap, first + 2, i)];
     }
 }
+
+// One chunk of a frame for the frame writers (host side in src/export_chunks.rs): the particles of
+// original index lo..lo+len. Slot i, of original index id in the chunk, writes word w (state field
+// fields[w]) at out[w * out_stride + id - lo]: the f32 bits of the field (an f64 state rounded to
+// nearest), or for the material id its integer bits. Every slot's id is read once per chunk; an id
+// out of range sets *bad.
+extern "C" __global__ void export_chunk(const real* __restrict__ s, unsigned cap, unsigned n, unsigned lo,
+                                        unsigned len, const int* __restrict__ fields, int nw,
+                                        unsigned* __restrict__ out, unsigned out_stride,
+                                        unsigned* __restrict__ bad) {
+    for (unsigned i = blockIdx.x * blockDim.x + threadIdx.x; i < n; i += gridDim.x * blockDim.x) {
+        unsigned id = state_bits(s[sidx(cap, F_ID, i)]);
+        if (id >= n) { atomicOr(bad, 1u); continue; }
+        unsigned j = id - lo;  // wraps above len when id < lo
+        if (j >= len) continue;
+        for (int w = 0; w < nw; ++w) {
+            int f = fields[w];
+            real v = s[sidx(cap, f, i)];
+            out[(unsigned long long)w * out_stride + j] = f == F_MAT ? state_bits(v) : __float_as_uint((float)v);
+        }
+    }
+}

@@ -67,6 +67,7 @@ pub mod contract;
 pub mod emit;
 pub mod encode;
 pub mod export;
+pub mod export_chunks;
 pub mod export_ordered;
 pub mod g2p;
 pub mod graph;
@@ -78,6 +79,7 @@ pub mod p2g;
 pub mod pipeline;
 pub mod readback;
 pub mod rebuild;
+pub mod rigid;
 pub mod state;
 
 pub use backend::CudaBackend;

@@ -47,6 +47,17 @@ pub struct BenchArgs {
     /// Several GPUs of this machine (CUDA; peer-to-peer or NCCL): also times the shared-block reduction.
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub gpus: usize,
+    /// After the timing, measure frame writing into this folder: the copy of a frame's columns
+    /// out of the backend (GB/s), encoding and writing the files (MB/s), and the step time with
+    /// a frame written in the background (one GPU or the CPU).
+    #[arg(long, value_name = "DIR")]
+    pub frame_write: Option<std::path::PathBuf>,
+    /// Formats of --frame-write: `ply`, `bgeo`, `bgeo.gz`, comma separated.
+    #[arg(long, value_name = "LIST", default_value = "ply")]
+    pub frame_formats: String,
+    /// Particles per chunk of --frame-write.
+    #[arg(long, value_name = "N", default_value_t = crate::stream::DEFAULT_CHUNK)]
+    pub frame_chunk: usize,
 }
 
 /// The fixed time step of the classic scene at resolution n.
@@ -182,6 +193,16 @@ pub fn bench(args: BenchArgs) -> Result<()> {
     }
     let arrays = sim.backend.memory_bytes().map(|m| m.0);
     print_memory(n, arrays, None);
+    if let Some(dir) = &args.frame_write {
+        crate::bench_frames::frame_write_bench(
+            sim.backend.as_mut(),
+            dt,
+            steps,
+            dir,
+            &args.frame_formats,
+            args.frame_chunk,
+        )?;
+    }
     Ok(())
 }
 
@@ -306,6 +327,12 @@ fn bench_cuda(
         b.grid_bytes() as f64 / 1e6
     );
     print_memory(n, None, Some(b.device_bytes() as u64));
+    let parts: Vec<String> = b
+        .memory_breakdown()
+        .iter()
+        .map(|(what, bytes)| format!("{what} {:.1}", *bytes as f64 / n.max(1) as f64))
+        .collect();
+    println!("  device       bytes/particle: {}", parts.join(", "));
     if let Some(r) = b.reverse_map_size() {
         println!(
             "  reverse map  {} maps x {} entries per node, {} pblocks",
@@ -317,6 +344,16 @@ fn bench_cuda(
         k.bytes_per_step as f64 / 1e6,
         100.0 * floor_ms / k.ms_per_step.max(1e-12)
     );
+    if let Some(dir) = &args.frame_write {
+        crate::bench_frames::frame_write_bench(
+            &mut b,
+            dt,
+            steps,
+            dir,
+            &args.frame_formats,
+            args.frame_chunk,
+        )?;
+    }
     Ok(())
 }
 

@@ -2,6 +2,7 @@
 
 mod backend;
 mod bench;
+mod bench_frames;
 mod budget;
 mod check;
 mod info;
@@ -11,6 +12,7 @@ mod outdir;
 mod output;
 mod render;
 mod run;
+mod stream;
 mod validate;
 
 use clap::{Parser, Subcommand};

@@ -1,6 +1,7 @@
 //! Per-frame output: PLY, VTK XML (.vtu + .pvd series), BGEO, USD, and fluid surface meshes.
 
 use anyhow::{Context, Result, bail};
+use rtmpm_core::io::stream::{Derived, StreamFormat};
 use rtmpm_core::io::vtu::PvdWriter;
 use rtmpm_core::io::{FrameFields, bgeo, ply, trimesh, usd, vtk_appended};
 use rtmpm_core::math::Vec3;
@@ -219,6 +220,50 @@ impl FrameOutput {
             Some(s) => s.write(frame, time, p).map(Some),
             None => Ok(None),
         }
+    }
+}
+
+impl FrameOutput {
+    /// True when every file of a frame can be streamed in chunks ([`crate::stream`]): the
+    /// particle formats PLY and BGEO only (VTU, USD and surfaces need the whole frame).
+    pub fn streamable(scene: &Scene) -> bool {
+        let o = &scene.output;
+        !o.vtu && !o.usda && !o.surface_formats.any()
+    }
+
+    /// The streamed formats of the scene, for [`crate::stream::FrameStreamer::new`].
+    pub fn stream_formats(&self, scene: &Scene) -> Vec<StreamFormat> {
+        self.stream_files(0, scene)
+            .into_iter()
+            .map(|f| f.1)
+            .collect()
+    }
+
+    /// The files of frame `frame` and their formats (the names [`FrameOutput::write_frame`]
+    /// writes).
+    pub fn stream_files(&self, frame: u64, scene: &Scene) -> Vec<(PathBuf, StreamFormat)> {
+        let o = &scene.output;
+        let path = |ext: &str| self.dir.join(format!("frame_{frame:05}.{ext}"));
+        let mut out = Vec::new();
+        if o.ply {
+            let comments = vec![self.run_comment.clone()];
+            out.push((path("ply"), StreamFormat::Ply { comments }));
+        }
+        if o.bgeo {
+            out.push((path("bgeo"), StreamFormat::Bgeo { gzip: false }));
+        }
+        if o.bgeo_gz {
+            out.push((path("bgeo.gz"), StreamFormat::Bgeo { gzip: true }));
+        }
+        out
+    }
+}
+
+/// The derived fields the scene's frames hold.
+pub fn derived_fields(scene: &Scene) -> Derived {
+    Derived {
+        jacobian: scene.output.jacobian,
+        stress: scene.output.stress,
     }
 }
 

@@ -2,8 +2,9 @@
 
 use crate::backend::{BackendKind, make_backend};
 use crate::outdir::{OutDir, scene_identity};
-use crate::output::FrameOutput;
+use crate::output::{FrameOutput, derived_fields};
 use crate::render::RunRenderer;
+use crate::stream::{FrameStreamer, StreamSettings};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -50,6 +51,18 @@ pub struct RunArgs {
     /// Write no frame files (for timing).
     #[arg(long)]
     pub no_output: bool,
+    /// Frames written in the background while the simulation steps on, when the frames are
+    /// PLY and BGEO only (0: the next step waits for each frame's files). Host memory: the
+    /// columns of about this many frames (32 bytes a particle for PLY, 40 for BGEO).
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub frames_in_flight: usize,
+    /// Particles per chunk when frames are streamed from the backend.
+    #[arg(long, value_name = "N", default_value_t = crate::stream::DEFAULT_CHUNK)]
+    pub frame_chunk: usize,
+    /// Write each frame from a whole copy of the particles, in this thread (as before frames
+    /// were streamed; the same files).
+    #[arg(long)]
+    pub whole_frames: bool,
     /// Remove the files of a previous run in the output folder first (frames, frames.pvd,
     /// checkpoints, movies; nothing else). Without it a folder holding another run is refused.
     #[arg(long)]
@@ -153,7 +166,6 @@ pub fn run(args: RunArgs) -> Result<()> {
         args.multi
             .backend(mode, &scene, &particles, &args.cuda_options)?
     };
-    let collect = !args.no_output || args.render || args.preview.is_some();
     let mut sim = Simulation::new(scene, backend);
     // Entries of frames.pvd up to the checkpoint's own frame are kept: half a frame later.
     let resume_time = resume_state
@@ -199,12 +211,47 @@ pub fn run(args: RunArgs) -> Result<()> {
     );
     let resumed_at = resume_state.as_ref().map(|r| r.2);
     let mut bodies = BodiesCsv::new(writes_frames, &out_dir, &sim, resumed_at)?;
+    // PLY and BGEO frames stream from the backend in chunks, written in the background.
+    let mut streamer = match output.as_ref() {
+        Some(out)
+            if mode == crate::multi::Mode::Single
+                && !args.whole_frames
+                && !args.render
+                && args.preview.is_none()
+                && FrameOutput::streamable(&sim.scene) =>
+        {
+            let settings = StreamSettings {
+                chunk: args.frame_chunk,
+                frames_in_flight: args.frames_in_flight,
+                derived: derived_fields(&sim.scene),
+                models: sim
+                    .scene
+                    .materials
+                    .iter()
+                    .map(|m| m.model.clone())
+                    .collect(),
+            };
+            Some(FrameStreamer::new(
+                settings,
+                &out.stream_formats(&sim.scene),
+            )?)
+        }
+        _ => None,
+    };
+    let collect = (!args.no_output && streamer.is_none()) || args.render || args.preview.is_some();
     let mut host = Particles::default();
-    if sim.frame == 0 && collect {
-        sim.backend.read_particles(&mut host)?;
+    if sim.frame == 0 && (collect || streamer.is_some()) {
+        if collect {
+            sim.backend.read_particles(&mut host)?;
+        }
         let mut mesh = None;
         if let Some(out) = output.as_mut() {
-            mesh = out.write_frame(0, 0.0, &host, &sim.scene)?;
+            match streamer.as_mut() {
+                Some(s) => {
+                    s.write_frame(sim.backend.as_mut(), out.stream_files(0, &sim.scene), 0)?
+                }
+                None => mesh = out.write_frame(0, 0.0, &host, &sim.scene)?,
+            }
             bodies.write(0, 0.0, &sim)?;
         }
         if let Some(r) = renderer.as_mut() {
@@ -260,7 +307,13 @@ pub fn run(args: RunArgs) -> Result<()> {
         }
         let mut mesh = None;
         if let Some(out) = output.as_mut() {
-            mesh = out.write_frame(sim.frame, sim.time, &host, &sim.scene)?;
+            match streamer.as_mut() {
+                Some(s) => {
+                    let files = out.stream_files(sim.frame, &sim.scene);
+                    s.write_frame(sim.backend.as_mut(), files, sim.frame)?
+                }
+                None => mesh = out.write_frame(sim.frame, sim.time, &host, &sim.scene)?,
+            }
             bodies.write(sim.frame, sim.time, &sim)?;
         }
         if let Some(r) = renderer.as_mut() {
@@ -305,6 +358,8 @@ pub fn run(args: RunArgs) -> Result<()> {
         }
     }
     bar.finish_and_clear();
+    // Every frame in flight written (or its error, naming the file).
+    let stream_stats = streamer.map(FrameStreamer::finish).transpose()?;
     let rendered = renderer.map(RunRenderer::finish).transpose()?.flatten();
     let wall = start.elapsed().as_secs_f64();
     let steps = sim.step - start_step;
@@ -335,6 +390,9 @@ pub fn run(args: RunArgs) -> Result<()> {
     );
     if let Some(out) = &output {
         println!("  output       {}", out.dir.display());
+    }
+    if let Some(s) = stream_stats {
+        println!("  frame files  {}", crate::stream::describe(&s));
     }
     if let Some(r) = rendered {
         println!("  render       {r}");

@@ -348,6 +348,26 @@ impl Backend for CpuBackend {
         Ok(())
     }
 
+    fn export_frame(&mut self, sink: &mut dyn sim::ChunkSink) -> Result<(), SimError> {
+        // Gathered chunk by chunk through the inverse of the storage order (4 bytes a particle)
+        // rather than a copy of every particle.
+        let slot = sim::invert_ids(&self.ids)?;
+        let p = &self.particles;
+        sim::fill_chunks(slot.len(), sink, |id| {
+            let i = slot[id] as usize;
+            sim::ParticleRow {
+                x: real::vec3_to_f32(p.x[i]).to_array(),
+                v: real::vec3_to_f32(p.v[i]).to_array(),
+                material: p.material[i],
+                plastic: real::to_f32(p.plastic[i]),
+                mass: real::to_f32(p.mass[i]),
+                vol0: real::to_f32(p.vol0[i]),
+                f: real::mat3_to_f32(p.f[i]).to_cols_array(),
+                c: real::mat3_to_f32(p.c[i]).to_cols_array(),
+            }
+        })
+    }
+
     fn cheap_check(&self) -> bool {
         true
     }

@@ -60,6 +60,54 @@ where
     result
 }
 
+/// A file being written under a temporary name (see [`write_atomic_with`]) when the writing
+/// cannot be one closure, e.g. a frame written chunk by chunk as the chunks arrive: `create`
+/// opens the temporary file, [`AtomicFile::commit`] syncs it and renames it to the final name,
+/// and dropping the guard uncommitted removes the temporary file.
+pub struct AtomicFile {
+    tmp: PathBuf,
+    path: PathBuf,
+    armed: bool,
+}
+
+impl AtomicFile {
+    /// Create the temporary file for `path` (parent folders are created).
+    pub fn create(path: &Path) -> io::Result<(AtomicFile, File)> {
+        create_parent(path)?;
+        let tmp = temp_path(path)?;
+        let file = File::create(&tmp)?;
+        let guard = AtomicFile {
+            tmp,
+            path: path.to_path_buf(),
+            armed: true,
+        };
+        Ok((guard, file))
+    }
+
+    /// The final name.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Sync `file` (the one [`AtomicFile::create`] returned, all data written) and rename it to
+    /// the final name; on error the temporary file is removed.
+    pub fn commit(mut self, file: File) -> io::Result<()> {
+        file.sync_data()?;
+        drop(file);
+        fs::rename(&self.tmp, &self.path)?;
+        self.armed = false;
+        Ok(())
+    }
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        if self.armed {
+            let _ = fs::remove_file(&self.tmp);
+        }
+    }
+}
+
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;

@@ -249,21 +249,8 @@ pub fn write_bgeo(
         });
     }
 
-    let mut header = Vec::new();
-    header.extend_from_slice(b"BgeoV");
-    let counts = [5, n_i32, 0, 0, 0, attrs.len() as i32, 0, 0, 0];
-    for c in counts {
-        header.extend_from_slice(&c.to_be_bytes());
-    }
-    for a in &attrs {
-        header.extend_from_slice(&(a.name.len() as u16).to_be_bytes());
-        header.extend_from_slice(a.name.as_bytes());
-        header.extend_from_slice(&(a.size as u16).to_be_bytes());
-        header.extend_from_slice(&a.ty.code().to_be_bytes());
-        for _ in 0..a.size {
-            header.extend_from_slice(&0i32.to_be_bytes());
-        }
-    }
+    let list: Vec<(&str, BgeoType, usize)> = attrs.iter().map(|a| (a.name, a.ty, a.size)).collect();
+    let header = frame_header(n_i32, &list);
 
     write_atomic_with(path, |w| {
         let body = |w: &mut dyn Write| -> io::Result<()> {
@@ -292,6 +279,29 @@ pub fn write_bgeo(
             body(w)
         }
     })
+}
+
+/// The header of a point file of `n` points with the point attributes `attrs` (name, type,
+/// components), see the module documentation (shared with the streamed writer of
+/// [`super::stream`]).
+pub(crate) fn frame_header(n_i32: i32, attrs: &[(&str, BgeoType, usize)]) -> Vec<u8> {
+    let mut header = Vec::new();
+    header.extend_from_slice(b"BgeoV");
+    let counts = [5, n_i32, 0, 0, 0, attrs.len() as i32, 0, 0, 0];
+    for c in counts {
+        header.extend_from_slice(&c.to_be_bytes());
+    }
+    for &(name, ty, size) in attrs {
+        header.extend_from_slice(&(name.len() as u16).to_be_bytes());
+        header.extend_from_slice(name.as_bytes());
+        header.extend_from_slice(&(size as u16).to_be_bytes());
+        header.extend_from_slice(&ty.code().to_be_bytes());
+        for _ in 0..size {
+            header.extend_from_slice(&0i32.to_be_bytes());
+        }
+    }
+
+    header
 }
 
 /// Read the points and point attributes of a classic BGEO file (plain, or gzip-compressed:

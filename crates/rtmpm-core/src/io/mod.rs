@@ -9,6 +9,8 @@
 //! * [`trimesh`]: surface meshes as OBJ, PLY and VTU.
 //! * [`points`]: particles in: the points of a PLY, VTU or BGEO file for a body.
 //! * [`usd`]: USD text files (`.usda`): particles as `Points`, surfaces as `Mesh`.
+//! * [`chunks`], [`stream`]: frames in chunks of particles, streamed to PLY and BGEO files
+//!   while the simulation goes on.
 //! * [`checkpoint`]: bit-exact binary checkpoints with a checksum.
 //! * [`limits`]: bounded reads (sizes checked before allocating) shared by every reader.
 //! * [`contents`]: checks of the values read (finite, positive, in range, inside the domain).
@@ -16,12 +18,16 @@
 pub mod atomic;
 pub mod bgeo;
 pub mod checkpoint;
+pub mod chunks;
 pub mod contents;
 #[cfg(all(test, feature = "interop"))]
 mod interop_tests;
 pub mod limits;
 pub mod ply;
 pub mod points;
+pub mod stream;
+#[cfg(test)]
+mod stream_tests;
 pub mod trimesh;
 pub mod usd;
 pub mod vtk_appended;
@@ -74,13 +80,24 @@ pub fn cauchy_stress(p: &crate::Particles, scene: &crate::Scene) -> Vec<[f32; 6]
     (0..p.len())
         .map(|i| {
             let model = &scene.materials[p.material[i] as usize].model;
-            let j = p.f[i].determinant();
-            let s = model.kirchhoff(p.f[i], p.plastic[i], p.c[i]) * (1.0 / j);
-            [
-                s.x_axis.x, s.y_axis.y, s.z_axis.z, s.y_axis.x, s.z_axis.y, s.z_axis.x,
-            ]
+            cauchy_stress_of(model, p.f[i], p.plastic[i], p.c[i])
         })
         .collect()
+}
+
+/// The Cauchy stress of one particle of material model `model`, `[xx, yy, zz, xy, yz, xz]`
+/// (Pa), see [`cauchy_stress`].
+pub fn cauchy_stress_of(
+    model: &crate::material::Model,
+    f: crate::math::Mat3,
+    plastic: f32,
+    c: crate::math::Mat3,
+) -> [f32; 6] {
+    let j = f.determinant();
+    let s = model.kirchhoff(f, plastic, c) * (1.0 / j);
+    [
+        s.x_axis.x, s.y_axis.y, s.z_axis.z, s.y_axis.x, s.z_axis.y, s.z_axis.x,
+    ]
 }
 
 /// Check that every array of `p` has `p.len()` entries (a malformed particle set would otherwise

@@ -137,27 +137,12 @@ pub fn write_ply_with_comments(
         ));
     }
 
-    let mut header = String::new();
-    header.push_str("ply\nformat binary_little_endian 1.0\n");
-    header.push_str("comment rtmpm particles\n");
-    for c in comments {
-        header.push_str(&format!("comment {c}\n"));
-    }
-    header.push_str(&format!("element vertex {n}\n"));
-    for p in ["x", "y", "z", "vx", "vy", "vz"] {
-        header.push_str(&format!("property float {p}\n"));
-    }
-    header.push_str("property int material\n");
-    header.push_str("property float plastic\n");
-    if fields.jacobian.is_some() {
-        header.push_str("property float J\n");
-    }
-    if fields.stress.is_some() {
-        for p in ["sxx", "syy", "szz", "sxy", "syz", "sxz"] {
-            header.push_str(&format!("property float {p}\n"));
-        }
-    }
-    header.push_str("end_header\n");
+    let header = frame_header(
+        n,
+        comments,
+        fields.jacobian.is_some(),
+        fields.stress.is_some(),
+    );
 
     write_atomic_with(path, |w| {
         w.write_all(header.as_bytes())?;
@@ -183,6 +168,33 @@ pub fn write_ply_with_comments(
         }
         Ok(())
     })
+}
+
+/// The header of a particle frame of `n` vertices (see [`write_ply_with_comments`]; shared with
+/// the streamed writer of [`super::stream`]).
+pub(crate) fn frame_header(n: usize, comments: &[&str], jacobian: bool, stress: bool) -> String {
+    let mut header = String::new();
+    header.push_str("ply\nformat binary_little_endian 1.0\n");
+    header.push_str("comment rtmpm particles\n");
+    for c in comments {
+        header.push_str(&format!("comment {c}\n"));
+    }
+    header.push_str(&format!("element vertex {n}\n"));
+    for p in ["x", "y", "z", "vx", "vy", "vz"] {
+        header.push_str(&format!("property float {p}\n"));
+    }
+    header.push_str("property int material\n");
+    header.push_str("property float plastic\n");
+    if jacobian {
+        header.push_str("property float J\n");
+    }
+    if stress {
+        for p in ["sxx", "syy", "szz", "sxy", "syz", "sxz"] {
+            header.push_str(&format!("property float {p}\n"));
+        }
+    }
+    header.push_str("end_header\n");
+    header
 }
 
 /// Scalar property types of PLY.

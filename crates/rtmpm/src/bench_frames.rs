@@ -1,0 +1,166 @@
+//! `rtmpm bench --frame-write DIR`: the cost of writing frames ([`crate::stream`]): the rate of
+//! the chunked copy of a frame's columns out of the backend (device to host on a GPU), the
+//! rate of encoding and writing the files (disk, synced), and the step time with and without a
+//! frame being written in the background.
+
+use crate::stream::{FrameStreamer, StreamSettings, StreamStats};
+use anyhow::{Result, bail};
+use rtmpm_core::io::chunks::{ChunkSink, FrameChunk, FrameColumns};
+use rtmpm_core::io::stream::{Derived, FrameFiles, StreamFormat};
+use rtmpm_core::sim::{Backend, SimError};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The formats of `--frame-formats`: `ply`, `bgeo`, `bgeo.gz`, comma separated.
+pub fn parse_formats(list: &str) -> Result<Vec<(String, StreamFormat)>> {
+    let mut out = Vec::new();
+    for f in list.split(',').map(str::trim).filter(|f| !f.is_empty()) {
+        let fmt = match f {
+            "ply" => StreamFormat::Ply { comments: vec![] },
+            "bgeo" => StreamFormat::Bgeo { gzip: false },
+            "bgeo.gz" => StreamFormat::Bgeo { gzip: true },
+            other => bail!("unknown frame format `{other}`: use ply, bgeo, bgeo.gz"),
+        };
+        out.push((f.to_string(), fmt));
+    }
+    if out.is_empty() {
+        bail!("--frame-formats names no format");
+    }
+    Ok(out)
+}
+
+/// Takes the chunks and gives them straight back: the copy alone.
+struct Discard {
+    cols: FrameColumns,
+    free: Vec<FrameChunk>,
+}
+
+impl ChunkSink for Discard {
+    fn columns(&self) -> FrameColumns {
+        self.cols
+    }
+    fn take(&mut self) -> Result<FrameChunk, SimError> {
+        self.free
+            .pop()
+            .ok_or_else(|| SimError::Backend("no free chunk".into()))
+    }
+    fn put(&mut self, chunk: FrameChunk) -> Result<(), SimError> {
+        self.free.push(chunk);
+        Ok(())
+    }
+}
+
+/// Run the frame-writing benchmark on `backend` (already warmed up) at time step `dt`: `steps`
+/// steps per timing, files into `dir`.
+pub fn frame_write_bench(
+    backend: &mut dyn Backend,
+    dt: f32,
+    steps: u64,
+    dir: &Path,
+    formats: &str,
+    chunk: usize,
+) -> Result<()> {
+    let formats = parse_formats(formats)?;
+    std::fs::create_dir_all(dir)?;
+    let n = backend.num_particles();
+    let fmts: Vec<StreamFormat> = formats.iter().map(|f| f.1.clone()).collect();
+    let cols = FrameFiles::columns(&fmts, Derived::default());
+    let frame_bytes = (n * cols.words() * 4) as f64;
+    let names: Vec<&str> = formats.iter().map(|f| f.0.as_str()).collect();
+    println!(
+        "  frame write  {} into {}: {n} particles, {} words each ({:.3} GB of columns), \
+         chunks of {chunk}",
+        names.join(" + "),
+        dir.display(),
+        cols.words(),
+        frame_bytes / 1e9
+    );
+    // 1. The copy alone, through two chunk buffers.
+    let cap = chunk.max(1).min(n.max(1));
+    let mut sink = Discard {
+        cols,
+        free: Vec::new(),
+    };
+    for _ in 0..2 {
+        sink.free.push(FrameChunk {
+            start: 0,
+            len: 0,
+            cap,
+            cols,
+            buf: backend.chunk_memory(cap * cols.words())?,
+        });
+    }
+    let mut best = f64::INFINITY;
+    for _ in 0..3 {
+        let t = Instant::now();
+        backend.export_frame(&mut sink)?;
+        best = best.min(t.elapsed().as_secs_f64());
+    }
+    drop(sink);
+    println!(
+        "    copy out   {:.2} GB/s ({:.1} ms a frame, best of 3; device to host on a GPU)",
+        frame_bytes / best / 1e9,
+        best * 1e3
+    );
+    // 2. Copy, encode and write, the step waiting for the files (two chunk buffers).
+    let files = |frame: u64| -> Vec<(PathBuf, StreamFormat)> {
+        formats
+            .iter()
+            .map(|(ext, f)| (dir.join(format!("frame_{frame:05}.{ext}")), f.clone()))
+            .collect()
+    };
+    let settings = |in_flight| StreamSettings {
+        chunk,
+        frames_in_flight: in_flight,
+        derived: Derived::default(),
+        models: Vec::new(),
+    };
+    let mut s = FrameStreamer::new(settings(0), &fmts)?;
+    let t = Instant::now();
+    s.write_frame(backend, files(0), 0)?;
+    let sync_wall = t.elapsed().as_secs_f64();
+    let st = s.finish()?;
+    println!(
+        "    write      {:.0} MB/s of file bytes ({:.3} GB in {:.2} s, encoded and written by the \
+         writer thread, synced); whole frame {:.2} s with the step waiting",
+        st.written_bytes as f64 / st.write_seconds.max(1e-9) / 1e6,
+        st.written_bytes as f64 / 1e9,
+        st.write_seconds,
+        sync_wall
+    );
+    // 3. Steps alone, then with a frame written in the background.
+    let mut t_sim = 0.0f32;
+    let mut run = |b: &mut dyn Backend| -> Result<f64> {
+        let t = Instant::now();
+        for _ in 0..steps {
+            b.step(dt, t_sim)?;
+            t_sim += dt;
+        }
+        if let Some(bad) = b.check()? {
+            bail!("the benchmark blew up (particle {})", bad.index);
+        }
+        Ok(t.elapsed().as_secs_f64())
+    };
+    let alone = run(backend)?;
+    let mut s = FrameStreamer::new(settings(1), &fmts)?;
+    let t = Instant::now();
+    s.write_frame(backend, files(1), 1)?;
+    let boundary = t.elapsed().as_secs_f64();
+    let with = run(backend)?;
+    let t = Instant::now();
+    let st: StreamStats = s.finish()?;
+    let tail = t.elapsed().as_secs_f64();
+    let ms = |s: f64| 1e3 * s / steps.max(1) as f64;
+    println!(
+        "    steps      {:.3} ms/step alone, {:.3} ms/step while a frame is written in the \
+         background ({:+.1} %); the frame boundary took {:.1} ms (copy), the writer {:.2} s, \
+         of which {:.2} s after the {steps} steps",
+        ms(alone),
+        ms(with),
+        100.0 * (with / alone.max(1e-12) - 1.0),
+        boundary * 1e3,
+        st.write_seconds,
+        tail
+    );
+    Ok(())
+}
