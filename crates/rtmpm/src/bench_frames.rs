@@ -59,6 +59,7 @@ pub fn frame_write_bench(
     dir: &Path,
     formats: &str,
     chunk: usize,
+    whole: bool,
 ) -> Result<()> {
     let formats = parse_formats(formats)?;
     std::fs::create_dir_all(dir)?;
@@ -128,6 +129,36 @@ pub fn frame_write_bench(
         st.write_seconds,
         sync_wall
     );
+    // 2b. The whole-frame path, for comparison: every field of every particle to the host,
+    // then each file written from it, in this thread.
+    if whole {
+        let t = Instant::now();
+        let mut p = rtmpm_core::Particles::default();
+        backend.read_particles(&mut p)?;
+        let read = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let mut bytes = 0;
+        for (ext, f) in &formats {
+            let path = dir.join(format!("whole_00000.{ext}"));
+            let none = rtmpm_core::io::FrameFields::default();
+            match f {
+                StreamFormat::Ply { .. } => rtmpm_core::io::ply::write_ply(&path, &p, &none)?,
+                StreamFormat::Bgeo { gzip } => {
+                    rtmpm_core::io::bgeo::write_bgeo(&path, &p, &none, *gzip)?
+                }
+            }
+            bytes += std::fs::metadata(&path)?.len();
+        }
+        let write = t.elapsed().as_secs_f64();
+        println!(
+            "    whole      before streaming: read_particles {:.1} ms (every field), files {:.2} s \
+             ({:.0} MB/s of file bytes on disk), {:.2} s with the step waiting",
+            read * 1e3,
+            write,
+            bytes as f64 / write.max(1e-9) / 1e6,
+            read + write
+        );
+    }
     // 3. Steps alone, then with a frame written in the background.
     let mut t_sim = 0.0f32;
     let mut run = |b: &mut dyn Backend| -> Result<f64> {
