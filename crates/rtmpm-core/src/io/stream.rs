@@ -286,10 +286,8 @@ impl StreamFile {
                     let mut o = Cursor(out);
                     for j in first..first + count {
                         if ply {
-                            for r in [&x, &v] {
-                                for a in 0..3 {
-                                    o.put(r[a][j].to_le_bytes());
-                                }
+                            for row in x.iter().chain(&v) {
+                                o.put(row[j].to_le_bytes());
                             }
                             o.put((mat[j] as i32).to_le_bytes());
                             o.put(plastic[0][j].to_le_bytes());
@@ -302,12 +300,12 @@ impl StreamFile {
                                 }
                             }
                         } else {
-                            for a in 0..3 {
-                                o.put(x[a][j].to_be_bytes());
+                            for row in &x {
+                                o.put(row[j].to_be_bytes());
                             }
                             o.put(1.0f32.to_be_bytes());
-                            for a in 0..3 {
-                                o.put(v[a][j].to_be_bytes());
+                            for row in &v {
+                                o.put(row[j].to_be_bytes());
                             }
                             o.put(((start + j) as i32).to_be_bytes());
                             o.put((mat[j] as i32).to_be_bytes());

@@ -243,7 +243,7 @@ fn errors_name_the_file_and_leave_nothing() {
     let good = d.path("frame_00002.ply");
     let files =
         FrameFiles::create(&[(good.clone(), fmt)], 3, Derived::default(), vec![]).expect("create");
-    let err = files.finish().err().expect("incomplete frame must fail");
+    let err = files.finish().expect_err("incomplete frame must fail");
     assert_eq!(err.0, good);
     assert!(err.1.to_string().contains("0 of 3"), "{}", err.1);
     let left: Vec<_> = fs::read_dir(&d.0)
