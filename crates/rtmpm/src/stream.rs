@@ -151,8 +151,11 @@ impl FrameStreamer {
 
     /// Buffers for frames of `n` particles: reallocated when `n` outgrows their capacity.
     fn ensure_pool(&mut self, backend: &dyn Backend, n: usize) -> Result<()> {
-        let cap = self.settings.chunk.max(1).min(n.max(1));
+        // Grown geometrically (emitters add particles every frame): few reallocations.
+        let chunk = self.settings.chunk.max(1);
+        let cap = chunk.min(n.max(1));
         if cap > self.cap {
+            let cap = chunk.min(cap.max(2 * self.cap));
             self.flush()?;
             while self.free_rx.try_recv().is_ok() {}
             self.free.clear();
