@@ -3,9 +3,15 @@
 # splashsurf_lib's BGEO reader).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# The command line that `cargo test --workspace` builds (test profile, opt-level 3, the same
+# features), so nothing compiles again after the test stage of CI: a `cargo run` would build the
+# workspace once more in the dev profile (minutes on 2 cores) and leave a slower binary for the
+# hostile-input corpus that runs target/debug/rtmpm next.
+cargo test --quiet --workspace --no-run
+rtmpm() { target/debug/rtmpm "$@"; }
 out=target/ci-out
 rm -rf "$out"
-cargo run --quiet -p rtmpm -- run scenes/elastic_cubes.toml --backend cpu --frames 2 --out "$out"
+rtmpm run scenes/elastic_cubes.toml --backend cpu --frames 2 --out "$out"
 venv=target/ci-tools/py
 if ! python3 -c "import meshio" 2>/dev/null; then
   python3 -m pip install --quiet --disable-pip-version-check --target "$venv" meshio
@@ -22,12 +28,12 @@ fi
 # splashsurf_lib's reader (an independent implementation) in the Rust interop test.
 fmt_out=target/ci-out-formats
 rm -rf "$fmt_out"
-cargo run --quiet -p rtmpm -- run scenes/splash_small.toml --backend cpu --frames 2 --out "$fmt_out"
+rtmpm run scenes/splash_small.toml --backend cpu --frames 2 --out "$fmt_out"
 python3 scripts/check_formats.py "$fmt_out"
 # `rtmpm mesh` on the run's PLY frames rebuilds the surfaces the run wrote.
 mesh_out=target/ci-out-mesh
 rm -rf "$mesh_out" && mkdir -p "$mesh_out" && cp "$fmt_out"/frame_*.ply "$mesh_out"/
-cargo run --quiet -p rtmpm -- mesh "$mesh_out" --scene scenes/splash_small.toml --formats obj
+rtmpm mesh "$mesh_out" --scene scenes/splash_small.toml --formats obj
 # (The same up to the order of parallel sums inside splashsurf: compared by triangle count,
 # bounding box and enclosed volume.)
 python3 scripts/check_formats.py --same-surfaces "$fmt_out" "$mesh_out"
@@ -37,5 +43,5 @@ RTMPM_INTEROP_DIR="$PWD/$fmt_out" cargo test --quiet -p rtmpm-core --features in
 # The quick cases; colliding_disks runs with the reference's transfer (linear-hat MPM, MUSL, FLIP;
 # about 10 s on 2 cores), granular_column with the plane-strain Drucker-Prager cone (about 60 s),
 # cohesive_column with non-associated Cam-clay (about 40 s).
-cargo run --quiet -p rtmpm -- validate --quick --backend cpu \
+rtmpm validate --quick --backend cpu \
   --case free_fall,hydrostatic_column,vibrating_bar,vibrating_bar_gimp,dam_break,colliding_disks,granular_column,cohesive_column

@@ -14,7 +14,7 @@ CARGO_PROFILE_DEV_OPT_LEVEL=3 "$venv/bin/maturin" build --profile dev -m crates/
 "$venv/bin/pip" install --quiet --disable-pip-version-check --no-deps target/ci-wheels/rtmpm-*.whl
 # The command line for the bit-for-bit tests (built by `cargo test`).
 export RTMPM_CLI=${RTMPM_CLI:-$PWD/target/debug/rtmpm}
-[ -x "$RTMPM_CLI" ] || cargo build -p rtmpm
+[ -x "$RTMPM_CLI" ] || cargo test --quiet --workspace --no-run
 # A test that hangs fails after 300 s with every thread's stack instead of stalling CI.
 "$venv/bin/python" -m pytest -q -p no:cacheprovider --timeout 300 crates/rtmpm-py/tests
 tmp=$(mktemp -d)

@@ -6,9 +6,10 @@
 # Usage: bash scripts/gpu/prepare.sh [BASE=<commit>]
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-cargo build --release -p rtmpm
+# With the rigid bodies (`[[rigid_body]]`, cargo feature `rigid`: rapier3d) so the GPU runs them.
+cargo build --release -p rtmpm --features rigid
 rm -rf .device && mkdir -p .device
-cargo test --release -p rtmpm-cuda -p rtmpm --no-run --message-format=json 2>/dev/null | python3 -c '
+cargo test --release -p rtmpm-cuda -p rtmpm --features rtmpm/rigid,rtmpm-cuda/rigid --no-run --message-format=json 2>/dev/null | python3 -c '
 import sys, json, shutil
 for line in sys.stdin:
     m = json.loads(line)

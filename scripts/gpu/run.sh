@@ -26,6 +26,7 @@
 #                whole-frame files), then `rtmpm bench --frame-write` on fluid 2M, 16.8M and the n = 584 block
 #                (49.8M): copy-out GB/s, write MB/s, step time with a frame written in the background
 #                (FRAME_DIR, default /tmp/frames: the files are removed after each timing)
+#   rigid        issue 17: dam break 2M with 10 floating crates vs 10 static ones, floating_box on CUDA
 #   long         the strong-scaling scene for 12 frames (0.24 s, past its 0.1 s duration) on one GPU, fused
 #                and unfused, and at dt/2: does the 12-frame blow-up seen on 2 GPUs happen on one?
 set -uo pipefail
@@ -68,7 +69,7 @@ for suite in "$@"; do
   say "== $suite"
   case "$suite" in
     tests)
-      for x in ${TESTS:-test_gpu test_materials test_agreement test_emitters test_cli test_render_cli}; do t "$x"; done
+      for x in ${TESTS:-test_gpu test_sort_scratch test_materials test_agreement test_emitters test_rigid test_cli test_render_cli}; do t "$x"; done
       ;;
     validate)
       timeout 500 "$D/rtmpm" validate --backend cuda --out "$OUT/validation" > "$OUT/validate.log" 2>&1
@@ -98,9 +99,21 @@ for suite in "$@"; do
       b "fluid block n=128" rtmpm --n 128 --steps 500
       b "musl scene (bench of MUSL)" rtmpm --scene validation/colliding_disks.toml --frames 2
       ;;
+    rigid)
+      # Issue 17: the 2M dam break with 10 two-way coupled crates against the same crates as static
+      # colliders, interleaved (REPS), then a run of the floating-box example scene.
+      for rep in $(seq 1 "${REPS:-2}"); do
+        b "dam 2M 10 static crates #$rep" rtmpm --scene bench/fluid_dam_2m_colliders.toml --frames 3
+        b "dam 2M 10 floating crates #$rep" rtmpm --scene bench/fluid_dam_2m_bodies.toml --frames 3
+      done
+      x=$(timeout 300 "$D/rtmpm" run scenes/rigid/floating_box.toml --backend cuda --frames 30 --out "$OUT/floating_box" 2>&1)
+      echo "$x" > "$OUT/floating_box.log"
+      say "floating_box 30 frames cuda: $(echo "$x" | grep -E 'throughput|^error' | head -2 | tr -s ' ' | tr '\n' ' ')"
+      tail -2 "$OUT/floating_box/bodies.csv" 2>/dev/null | tee -a "$S"
+      ;;
     ablation)
       for sc in fluid_dam_2m:10 jelly_drop_2m:5; do
-        for o in free_zone=off mixed_sort=off warp_reduce=off p2g=shared graph=off fast_math=off g2p2g=off rebuild=kernels; do
+        for o in free_zone=off mixed_sort=off warp_reduce=off p2g=shared graph=off fast_math=off g2p2g=off rebuild=kernels sort_fields=29 free_zone=off,sort_fields=29; do
           b "${sc%%:*} $o" rtmpm --scene "bench/${sc%%:*}.toml" --frames "${sc##*:}" --cuda-options "$o"
         done
       done

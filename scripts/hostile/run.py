@@ -136,6 +136,11 @@ class Case:
 GPU_VALID = ("45M-particle body", "five 40M-particle bodies", "random thin shape")
 
 
+def rigid_body_tail(tables):
+    """`[[rigid_body]]` tables appended to GOOD_SCENE (after its [render] table)."""
+    return "\n" + tables
+
+
 def write(p, data):
     p.parent.mkdir(parents=True, exist_ok=True)
     if isinstance(data, str):
@@ -266,6 +271,26 @@ def cases():
         "nested arrays": (GOOD_SCENE.replace("gravity = [0.0, -9.81, 0.0]", "gravity = [[0.0], -9.81, 0.0]"), [("gravity",)]),
         "10k materials": (GOOD_SCENE + "".join(f'[[material]]\nname = "m{i}"\ntype = "fluid"\ndensity = 1\nbulk_modulus = 1\n' for i in range(10000)), [],),
     }
+    # Rigid bodies (issue 17): checked by `rtmpm check` whatever the build's features.
+    rigid = '[[rigid_body]]\nshape = "box"\nmin = [0.3, 0.3, 0.3]\nmax = [0.36, 0.36, 0.36]\ndensity = 500.0\n'
+    for name, text, words in [
+        ("zero mass", rigid.replace("density = 500.0", "mass = 0.0"), ("rigid_body[0].mass",)),
+        ("negative density", rigid.replace("500.0", "-500.0"), ("rigid_body[0].density",)),
+        ("nan mass", rigid.replace("density = 500.0", "mass = nan"), ("rigid_body[0].mass",)),
+        ("density and mass", rigid.replace("500.0", "500.0\nmass = 1.0"), ("rigid_body[0].mass",)),
+        ("overlapping bodies", rigid + rigid.replace("0.3, 0.3, 0.3", "0.33, 0.33, 0.33").replace("0.36, 0.36, 0.36", "0.39, 0.39, 0.39"),
+         ("overlaps",)),
+        ("in the walls", rigid.replace("min = [0.3, 0.3, 0.3]", "min = [0.05, 0.3, 0.3]"), ("rigid_body[0].shape",)),
+        ("turned into the walls", rigid.replace("min = [0.3, 0.3, 0.3]", "min = [0.1, 0.3, 0.3]").replace(
+            "max = [0.36, 0.36, 0.36]", "max = [0.4, 0.36, 0.36]\nrotation = [0.0, 0.0, 1.0]"), ("rigid_body[0].shape",)),
+        ("cylinder without height", rigid.replace('"box"\nmin = [0.3, 0.3, 0.3]\nmax = [0.36, 0.36, 0.36]',
+                                                  '"cylinder"\ncenter = [0.3, 0.3, 0.3]\nradius = 0.03'), ("rigid_body[0].height",)),
+        ("mesh body", rigid.replace('"box"\nmin = [0.3, 0.3, 0.3]\nmax = [0.36, 0.36, 0.36]', '"mesh"\nfile = "m.obj"'),
+         ("rigid_body[0].shape",)),
+        ("fixed body with a velocity", rigid.replace("density = 500.0", 'type = "fixed"\nvelocity = [1.0, 0.0, 0.0]'),
+         ("rigid_body[0].velocity",)),
+    ]:
+        structural[f"rigid body: {name}"] = (GOOD_SCENE + rigid_body_tail(text), [words])
     structural["output dir climbs"] = (GOOD_SCENE + '', [("output.dir",)])
     for name, (text, words) in structural.items():
         if name == "output dir climbs":

@@ -272,6 +272,12 @@ impl Backend for AnyBackend {
     fn rigid_bodies(&self) -> Vec<rtmpm_core::rigid::BodyState> {
         self.as_dyn_ref().rigid_bodies()
     }
+    fn rigid_poses(&self) -> Vec<rtmpm_core::rigid::BodyPose> {
+        self.as_dyn_ref().rigid_poses()
+    }
+    fn set_rigid_poses(&mut self, poses: &[rtmpm_core::rigid::BodyPose]) -> Result<(), SimError> {
+        self.as_dyn().set_rigid_poses(poses)
+    }
 }
 
 #[cfg(test)]

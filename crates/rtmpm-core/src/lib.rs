@@ -17,8 +17,11 @@
 //! * [`io`]: PLY, VTK XML (.vtu/.pvd) and checkpoints, all written atomically.
 //! * [`surface`]: fluid surfaces as triangle meshes (reconstruction: cargo feature `surface`).
 //! * [`render`]: CPU particle renderer (shaded spheres, ground, shadows, colour bar), PNG/GIF.
+//! * [`rigid`], [`emitter`]: dynamic rigid bodies coupled to the grid, particle emitters;
+//!   [`checks`]: the measurements of their validation cases.
 
 pub mod boundary;
+pub mod checks;
 pub mod cpu;
 pub mod emitter;
 pub mod grid;

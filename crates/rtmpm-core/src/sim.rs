@@ -167,6 +167,23 @@ pub trait Backend {
     fn chunk_memory(&self, words: usize) -> Result<Box<dyn HostBuffer>, SimError> {
         Ok(Box::new(vec![0u32; words]))
     }
+    /// The rigid bodies' poses and velocities as the backend's rigid-body engine holds them
+    /// (what a checkpoint stores); empty where [`Backend::rigid_bodies`] is.
+    fn rigid_poses(&self) -> Vec<crate::rigid::BodyPose> {
+        Vec::new()
+    }
+    /// Put the rigid bodies at `poses` (from [`Backend::rigid_poses`], resuming a checkpoint).
+    /// A backend that couples no bodies accepts only none.
+    fn set_rigid_poses(&mut self, poses: &[crate::rigid::BodyPose]) -> Result<(), SimError> {
+        if poses.is_empty() {
+            return Ok(());
+        }
+        Err(SimError::Backend(format!(
+            "the backend `{}` cannot restore the {} rigid bodies of a checkpoint",
+            self.name(),
+            poses.len()
+        )))
+    }
     /// Called by [`Simulation`] after every frame (after the check): a place for work that may
     /// synchronise, e.g. rebalancing particles between GPUs.
     fn end_of_frame(&mut self) -> Result<(), SimError> {

@@ -114,6 +114,7 @@ proptest! {
             time,
             step,
             frame: step / 2,
+            bodies: Vec::new(),
             particles: p,
         };
         let path = temp_file("c.ckpt");

@@ -52,6 +52,16 @@ struct ColliderPoses {
     float omega[RTMPM_MAX_COLLIDERS][3];     // angular velocity at t (world frame)
 };
 
+// A rigid body at the step's time (rtmpm_core::rigid::BodyState; constant memory: body_at(c, b)):
+// its shape about the centre of mass as a collider shape (pivot 0) with its boundary rule.
+struct GpuBody {
+    GpuCollider shape;
+    float rot[9];  // rest -> world (column-major)
+    float center[3], velocity[3], omega[3];
+    float bound;   // radius of a sphere about the centre holding the body
+    unsigned dynamic;
+};
+
 // Constant for the life of the backend; passed by value to every kernel.
 struct Ctx {
     real* state;              // RTMPM_NFIELDS reals per particle (material and id: state_bits)
@@ -79,6 +89,9 @@ struct Ctx {
     unsigned* warps;          // 3 per warp: gblock, first, count
     unsigned* boundary;       // per gblock: 1 if a neighbour block is shared with another GPU
     unsigned* shared_pblock;  // per pblock: 1 if it is shared with another GPU
+    const GpuBody* bodies;    // global copy of c_bodies
+    double* body_exchange;    // rigid bodies: impulse, angular impulse (6 doubles) per body, in
+                              // BODY_EXCHANGE_SLOTS copies (grid_update.cu: couple_bodies)
     int n_cells[3];
     int wall_thickness;
     unsigned wall_cond[6];    // COND_* of x min, x max, y min, ...
@@ -86,7 +99,7 @@ struct Ctx {
     unsigned warp_reduce, warp_sort;
     unsigned transfer, update;  // TRANSFER_*, UPDATE_*
     unsigned always_rebuild;    // rebuild every step (free zone or mixed sorting off)
-    unsigned pad;
+    unsigned n_bodies;          // rigid bodies coupled in the grid update
 };
 
 // Read-only parameters in constant memory (the GPU MPM/GIMP port: "constant memory is used for
@@ -99,6 +112,7 @@ __constant__ StepParams c_step;
 __constant__ ColliderPoses c_poses;
 __constant__ MaterialGpu c_materials[RTMPM_MAX_MATERIALS];
 __constant__ GpuCollider c_colliders[RTMPM_MAX_COLLIDERS];
+__constant__ GpuBody c_bodies[RTMPM_MAX_BODIES];
 
 #ifdef RTMPM_PARAMS_GLOBAL
 #define RTMPM_PARAM(global, constant) (global)
@@ -113,6 +127,9 @@ __device__ __forceinline__ const MaterialGpu& material_at(const Ctx& c, unsigned
 }
 __device__ __forceinline__ const GpuCollider& collider_at(const Ctx& c, unsigned k) {
     return RTMPM_PARAM(c.colliders[k], c_colliders[k]);
+}
+__device__ __forceinline__ const GpuBody& body_at(const Ctx& c, unsigned b) {
+    return RTMPM_PARAM(c.bodies[b], c_bodies[b]);
 }
 
 __device__ __forceinline__ unsigned long long spread3(unsigned v) {

@@ -185,6 +185,40 @@ __device__ vec3 node_boundary(const Ctx& c, unsigned t, vec3 v) {
     return v;
 }
 
+// Rigid bodies (rtmpm_core::rigid; cpu/grid_update.rs: couple): a node inside a body takes the
+// body's velocity by its boundary rule, and the momentum the rule takes from the node, less the
+// gravity the node received this step, goes to the body as impulse and angular impulse about its
+// centre (the boundary-condition form of the CPIC coupling of Hu et al., "A Moving Least Squares
+// Material Point Method with Displacement Discontinuity and Two-Way Rigid Body Coupling", 2018).
+// The reactions are summed in f64 into copy blockIdx.x % BODY_EXCHANGE_SLOTS (crate::rigid).
+__device__ vec3 couple_bodies(const Ctx& c, vec3 x, real m, vec3 v, vec3 g_dt) {
+    for (unsigned b = 0; b < c.n_bodies; ++b) {
+        const GpuBody& body = body_at(c, b);
+        vec3 r = x - v3f(body.center);
+        if (dot(r, r) > (real)body.bound * (real)body.bound) continue;
+        mat3 R;
+        for (int q = 0; q < 9; ++q) R.m[q] = body.rot[q];
+        vec3 p = transpose(R) * r;
+        if (shape_distance(c, body.shape, p) > 0) continue;
+        vec3 n = normalize_or_y(R * shape_normal(c, body.shape, p));
+        vec3 vb = v3f(body.velocity) + cross(v3f(body.omega), r);
+        vec3 nv = vb + rule_apply(body.shape.cond, body.shape.friction, v - vb, n);
+        if (body.dynamic) {
+            vec3 dp = (nv - v + g_dt) * m;
+            vec3 t = cross(r, dp);
+            double* e = c.body_exchange + 6u * ((blockIdx.x % BODY_EXCHANGE_SLOTS) * c.n_bodies + b);
+            atomicAdd(e + 0, -(double)dp.x);
+            atomicAdd(e + 1, -(double)dp.y);
+            atomicAdd(e + 2, -(double)dp.z);
+            atomicAdd(e + 3, -(double)t.x);
+            atomicAdd(e + 4, -(double)t.y);
+            atomicAdd(e + 5, -(double)t.z);
+        }
+        v = nv;
+    }
+    return v;
+}
+
 // MLS: v = p / m + dt g. Classic MPM transfers: v = (p + dt f) / m + dt g with dt f from
 // grid_aux, which then keeps v_old = p / m (no force, no boundary condition) for FLIP.
 __device__ void grid_update_node(const Ctx& c, unsigned t) {
@@ -207,6 +241,15 @@ __device__ void grid_update_node(const Ctx& c, unsigned t) {
     }
     v = v * (real)sp.damping;  // settling damping (1 = off)
     v = node_boundary(c, t, v);
+    if (c.n_bodies) {
+        const Scalars& sc = scalars(c);
+        unsigned id = t >> 6, cell = t & 63u;
+        vec3 x = make_v3(sc.origin[0] + (c.block_coords[3 * id] * 4 + (int)(cell >> 4)) * sc.dx,
+                         sc.origin[1] + (c.block_coords[3 * id + 1] * 4 + (int)((cell >> 2) & 3u)) * sc.dx,
+                         sc.origin[2] + (c.block_coords[3 * id + 2] * 4 + (int)(cell & 3u)) * sc.dx);
+        vec3 g_dt = make_v3(sp.gravity[0], sp.gravity[1], sp.gravity[2]) * (real)sp.dt;
+        v = couple_bodies(c, x, m, v, g_dt);
+    }
     node[1] = v.x; node[2] = v.y; node[3] = v.z;
 }
 

@@ -1,6 +1,7 @@
 // Rebuild of the particle-to-block mapping (Fei, Huang & Gao, "Real-Time Simulation of MPM on Modern GPUs" (GTC 2022)): block codes, GPU hash table (block code ->
 // dense id), gblocks, pblocks with explicit 3x3x3 neighbour lists, complete block+cell counting
-// sort (histogram, scan, scatter) with physical reordering of the particle arrays, warp list.
+// sort (histogram, scan, ranks, then scatter and copy back a chunk of fields at a time) with
+// physical reordering of the particle arrays, warp list.
 // Each phase is a device function `rb_X_body`, run either as its own kernel `rb_X` (launched every
 // step, returning at once unless ctl[CTL_NEED_REBUILD] is set; a grid of at most one wave,
 // grid-stride loops) or, by default, as a phase of the single persistent kernel `rb_fused` at the
@@ -114,7 +115,8 @@ extern "C" __global__ void rb_neighbor_lists(Ctx c) {
     rb_neighbor_lists_body(c);
 }
 
-// Counting sort, 1: histogram of (gblock, cell code) buckets; remember each particle's rank.
+// Counting sort, 1: histogram of (gblock, cell code) buckets; remember each particle's bucket
+// (pkey: the sort scratch's first field, unused until the scatter) and its rank.
 __device__ __forceinline__ void rb_histogram_body(const Ctx& c) {
     GRID_STRIDE(i, c.n) {
         int b[3], base[3];
@@ -182,13 +184,15 @@ extern "C" __global__ void rb_scan_add(Ctx c) {
     rb_scan_add_body(c);
 }
 
-// Counting sort, 3: scatter every field to its sorted slot in the scratch arrays, and emit the
-// warp list (each warp: up to 32 consecutive particles of one gblock).
-__device__ __forceinline__ void rb_scatter_body(const Ctx& c) {
+// Counting sort, 3: the permutation, once: each particle's sorted slot (bucket start + rank),
+// written over its rank; and the warp list (each warp: up to 32 consecutive particles of one
+// gblock). The bucket keys live in the first scratch field (Ctx::pkey aliases it): they are read
+// here for the last time, before the scatter overwrites the scratch.
+__device__ __forceinline__ void rb_rank_body(const Ctx& c) {
     GRID_STRIDE(i, c.n) {
         unsigned key = c.pkey[i];
         unsigned dst = c.hist[key] + c.prank[i];
-        for (int f = 0; f < RTMPM_NFIELDS; ++f) c.scratch[sidx(c.cap, f, dst)] = c.state[sidx(c.cap, f, i)];
+        c.prank[i] = dst;
         unsigned g = key >> 6;
         unsigned start = c.hist[g * 64u];
         unsigned end = (g + 1 < c.ctl[CTL_GBLOCKS]) ? c.hist[(g + 1) * 64u] : c.n;
@@ -201,21 +205,53 @@ __device__ __forceinline__ void rb_scatter_body(const Ctx& c) {
         }
     }
 }
-extern "C" __global__ void rb_scatter(Ctx c) {
+extern "C" __global__ void rb_rank(Ctx c) {
     if (!NEED(c) || c.ctl[CTL_ERROR]) return;
-    rb_scatter_body(c);
+    rb_rank_body(c);
 }
 
-// Copy the sorted scratch back (the state pointer never changes, so a step can be captured in a
-// CUDA graph), and clear the rebuild flag.
-__device__ __forceinline__ void rb_copy_back_body(const Ctx& c) {
-    for (int f = 0; f < RTMPM_NFIELDS; ++f) {  // field by field: n * NFIELDS may pass 2^32
-        GRID_STRIDE(i, c.n) c.state[sidx(c.cap, f, i)] = c.scratch[sidx(c.cap, f, i)];
+// Counting sort, 4: the fields of the mask `fields` (bit f: field f; at most the scratch's
+// fields) to their sorted slots in the scratch (the j-th field of the mask in scratch field j),
+// then copied back (the state pointer never changes, so a step can be captured in a CUDA graph).
+// The host runs the pairs over chunks of the fields the sort permutes, in order; the scratch holds
+// only one chunk, so memory per particle is NFIELDS + chunk words instead of 2 NFIELDS. Every
+// chunk moves the same words to the same slots as one pass over all fields would: the same result.
+// A field left out of every chunk holds the same value in every particle (the zero off-diagonal
+// words of F when every material is a fluid), so leaving it in place permutes it too.
+__device__ __forceinline__ void rb_scatter_body(const Ctx& c, unsigned fields) {
+    GRID_STRIDE(i, c.n) {
+        unsigned dst = c.prank[i];
+        int j = 0;
+        for (unsigned m = fields; m; m &= m - 1, ++j)
+            c.scratch[sidx(c.cap, j, dst)] = c.state[sidx(c.cap, __ffs(m) - 1, i)];
     }
 }
-extern "C" __global__ void rb_copy_back(Ctx c) {
+extern "C" __global__ void rb_scatter(Ctx c, unsigned fields) {
     if (!NEED(c) || c.ctl[CTL_ERROR]) return;
-    rb_copy_back_body(c);
+    rb_scatter_body(c, fields);
+}
+
+__device__ __forceinline__ void rb_copy_back_body(const Ctx& c, unsigned fields) {
+    int j = 0;
+    for (unsigned m = fields; m; m &= m - 1, ++j) {  // field by field: n * NFIELDS may pass 2^32
+        int f = __ffs(m) - 1;
+        GRID_STRIDE(i, c.n) c.state[sidx(c.cap, f, i)] = c.scratch[sidx(c.cap, j, i)];
+    }
+}
+extern "C" __global__ void rb_copy_back(Ctx c, unsigned fields) {
+    if (!NEED(c) || c.ctl[CTL_ERROR]) return;
+    rb_copy_back_body(c, fields);
+}
+
+// The next chunk of the sort: the lowest `k` fields of `rest`, taken out of it.
+__device__ __forceinline__ unsigned rb_next_chunk(unsigned& rest, int k) {
+    unsigned chunk = 0;
+    for (int j = 0; j < k && rest; ++j) {
+        unsigned low = rest & (0u - rest);
+        chunk |= low;
+        rest &= ~low;
+    }
+    return chunk;
 }
 
 extern "C" __global__ void rb_end(Ctx c) {
@@ -267,7 +303,9 @@ __device__ __forceinline__ void rb_grid_barrier(const Ctx& c) {
 
 __device__ __forceinline__ bool rb_error(const Ctx& c) { return ((volatile unsigned*)c.ctl)[CTL_ERROR] != 0; }
 
-extern "C" __global__ void __launch_bounds__(1024) rb_fused(Ctx c) {
+// `chunk`: the fields of the scratch (1 to RTMPM_NFIELDS), the fields permuted per pass;
+// `fields`: the mask of the fields the sort permutes (see rb_scatter_body).
+extern "C" __global__ void __launch_bounds__(1024) rb_fused(Ctx c, int chunk, unsigned fields) {
     // Every block takes the same decision before anyone writes the flag (it is cleared only at the end).
     bool need = NEED(c) || c.always_rebuild;
     if (!need) {
@@ -305,11 +343,20 @@ extern "C" __global__ void __launch_bounds__(1024) rb_fused(Ctx c) {
     rb_grid_barrier(c);
     if (!err) rb_scan_add_body(c);
     rb_grid_barrier(c);
-    if (!err) rb_scatter_body(c);
+    if (!err) rb_rank_body(c);
     rb_grid_barrier(c);
     err = rb_error(c);
-    if (!err) rb_copy_back_body(c);
-    rb_grid_barrier(c);
+    // The fields, `chunk` at a time (the scratch's fields): scatter, barrier, copy back, barrier.
+    // Uniform: every block takes the same chunks and meets the same barriers.
+    chunk = max(1, min(chunk, RTMPM_NFIELDS));
+    unsigned rest = fields & ((1u << RTMPM_NFIELDS) - 1u);
+    while (rest) {
+        unsigned m = rb_next_chunk(rest, chunk);
+        if (!err) rb_scatter_body(c, m);
+        rb_grid_barrier(c);
+        if (!err) rb_copy_back_body(c, m);
+        rb_grid_barrier(c);
+    }
     if (thread_index() == 0) c.ctl[CTL_NEED_REBUILD] = 0;
     grid_clear_body(c);
 }

@@ -25,16 +25,17 @@ pub(crate) fn err(what: &str) -> impl Fn(cudarc::driver::DriverError) -> SimErro
 }
 
 /// The `__constant__` symbols the host writes (`kernels/common.cuh`).
-pub const CONSTANT_SYMBOLS: [&str; 5] = [
+pub const CONSTANT_SYMBOLS: [&str; 6] = [
     "c_scalars",
     "c_step",
     "c_poses",
     "c_materials",
     "c_colliders",
+    "c_bodies",
 ];
 
 /// Write `bytes` to the `__constant__` symbol `name` of the module (async on the stream).
-fn write_symbol(
+pub(crate) fn write_symbol(
     module: &Arc<CudaModule>,
     stream: &Arc<CudaStream>,
     name: &str,
@@ -90,6 +91,8 @@ pub struct CudaBackend {
     pub(crate) staging: crate::export::Staging,
     graphs: StepGraphs,
     device_name: String,
+    /// The rigid bodies coupled to the grid (`[[rigid_body]]`), if any.
+    bodies: Option<crate::rigid::Bodies>,
 }
 
 /// Checks before any GPU work: what the CUDA backend cannot run, as clear errors.
@@ -106,10 +109,10 @@ fn check(
                 .into(),
         ));
     }
-    if !scene.rigid_bodies.is_empty() {
+    if !scene.rigid_bodies.is_empty() && part.ids.is_some() {
         return Err(SimError::Backend(
-            "CUDA backend: the scene's [[rigid_body]] tables are coupled on the CPU backend \
-             only so far; run it with --backend cpu (built with the cargo feature `rigid`)"
+            "CUDA backend: the scene's [[rigid_body]] tables are coupled on one GPU only so \
+             far; run it with --gpus 1 (or on the CPU backend)"
                 .into(),
         ));
     }
@@ -206,7 +209,12 @@ impl CudaBackend {
         let module = context
             .load_module(cudarc::nvrtc::Ptx::from_src(ptx))
             .map_err(err("load module"))?;
-        let kernels = Kernels::load(&module, info.sm_count, options.fused_rebuild)?;
+        let mut kernels = Kernels::load(
+            &module,
+            info.sm_count,
+            options.fused_rebuild,
+            options.sort_scratch_fields,
+        )?;
 
         // The particle state (a fluid's F packed as J^(1/3) I) and every buffer.
         let fluid: Vec<bool> = scene
@@ -214,6 +222,7 @@ impl CudaBackend {
             .iter()
             .map(|m| matches!(m.model, Model::Fluid(_)))
             .collect();
+        kernels.sort_mask = crate::rebuild::sorted_fields(fluid.iter().all(|f| *f));
         // Packed with stride n; buffers::allocate places each field at its stride-cap offset.
         let state = crate::state::pack(particles, &fluid, options.f64, n, part.ids.as_deref())
             .map_err(SimError::Backend)?;
@@ -232,8 +241,12 @@ impl CudaBackend {
             // NaN speeds are left to the health check of the first step.
             initial_speed: particles.v.iter().map(|v| v.length()).fold(0.0, f32::max),
         };
-        let (buffers, ctx) =
+        let (buffers, mut ctx) =
             buffers::allocate(&stream, scene, &state, &cap, needs, &tables, &options)?;
+        let bodies = crate::rigid::Bodies::new(scene, &stream)?;
+        if let Some(b) = &bodies {
+            (ctx.bodies, ctx.body_exchange, ctx.n_bodies) = b.ctx_fields(&stream);
+        }
 
         // Read-only parameters in constant memory (kernels/common.cuh).
         write_symbol(&module, &stream, "c_scalars", &tables.scalars)?;
@@ -272,6 +285,7 @@ impl CudaBackend {
             staging: Default::default(),
             graphs: StepGraphs::default(),
             device_name: info.name,
+            bodies,
         })
     }
 
@@ -323,8 +337,26 @@ impl CudaBackend {
     }
 
     /// Enqueue one step with `hooks`, from the graph captured for this grid parity and dt when
-    /// `graph` (the modes that time stages or wait on the host run without).
+    /// `graph` (the modes that time stages or wait on the host run without). With rigid bodies
+    /// their states go up before the step and their impulses come back after it (a wait for the
+    /// step, [`crate::rigid`]).
     pub(crate) fn run_step(
+        &mut self,
+        dt: f32,
+        hooks: &mut dyn Hooks,
+        graph: bool,
+    ) -> Result<(), SimError> {
+        if let Some(b) = self.bodies.as_mut() {
+            b.upload(&self.module, &self.stream)?;
+        }
+        self.enqueue_graph_or_not(dt, hooks, graph)?;
+        if let Some(b) = self.bodies.as_mut() {
+            b.advance(&self.stream, dt)?;
+        }
+        Ok(())
+    }
+
+    fn enqueue_graph_or_not(
         &mut self,
         dt: f32,
         hooks: &mut dyn Hooks,
@@ -460,6 +492,12 @@ impl Backend for CudaBackend {
 
     fn memory_bytes(&self) -> Option<(u64, u64)> {
         Some((0, self.device_bytes() as u64))
+    }
+
+    fn rigid_bodies(&self) -> Vec<rtmpm_core::rigid::BodyState> {
+        self.bodies
+            .as_ref()
+            .map_or_else(Vec::new, |b| b.states().to_vec())
     }
 
     fn export_frame(&mut self, sink: &mut dyn rtmpm_core::sim::ChunkSink) -> Result<(), SimError> {

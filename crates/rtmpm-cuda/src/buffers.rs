@@ -2,7 +2,7 @@
 //! built (nothing is allocated inside a step), and the kernel context [`Ctx`] that points into
 //! it.
 
-use crate::capacity::Capacity;
+use crate::capacity::{BufferBytes, Capacity, GridCopies};
 use crate::contract::{self, CTL_BAD_INDEX, CTL_P2G_PENDING, CTL_WORDS, Ctx, NFIELDS};
 use cudarc::driver::{CudaSlice, CudaStream, DevicePtr, DriverError};
 use rtmpm_core::Scene;
@@ -49,6 +49,8 @@ pub struct Buffers {
     pub poses: CudaSlice<u8>,
     /// Every other buffer (scratch, hash, lists, sort, tables).
     _rest: Vec<CudaSlice<u8>>,
+    /// The planned bytes of each buffer (what was allocated, each at least 16 bytes).
+    pub planned: BufferBytes,
 }
 
 impl Buffers {
@@ -90,25 +92,35 @@ pub fn allocate(
         rest.push(b);
         Ok(p)
     };
-    let state_bytes = NFIELDS * cap.particles * rb;
-    let scratch = zeros(state_bytes, "alloc scratch")?;
+    let sizes = cap.bytes(
+        rb,
+        options.sort_scratch_fields,
+        GridCopies {
+            next: needs.grid_next,
+            aux: scene.solver.transfer != Transfer::Mls,
+        },
+    );
+    let state_bytes = sizes.state;
+    // The sort scratch: `sort_scratch_fields` fields, permuted a chunk at a time (rebuild.cu);
+    // its first field holds the sort keys between the histogram and the ranks (Ctx::pkey).
+    let scratch = zeros(sizes.scratch, "alloc sort scratch")?;
+    let pkey = scratch;
     let hash_keys = zeros(cap.hash * 8, "alloc hash")?;
     let hash_values = zeros(cap.hash * 4, "alloc hash")?;
-    let neighbors = zeros(cap.gblocks * 27 * 4, "alloc neighbour lists")?;
-    let hist = zeros(cap.buckets * 4, "alloc histogram")?;
-    let scan_sums = zeros(cap.buckets.div_ceil(1024) * 4, "alloc scan")?;
+    debug_assert_eq!(sizes.hash, cap.hash * 12);
+    let neighbors = zeros(sizes.neighbors, "alloc neighbour lists")?;
+    let hist = zeros(sizes.hist, "alloc histogram")?;
+    let scan_sums = zeros(sizes.scan_sums, "alloc scan")?;
     // Sized to the capacity: emitters add particles up to it during the run.
-    let pkey = zeros(cap.particles * 4, "alloc sort keys")?;
-    let prank = zeros(cap.particles * 4, "alloc sort ranks")?;
-    let warps = zeros(cap.warps * 12, "alloc warp list")?;
-    let boundary = zeros(cap.gblocks * 4, "alloc boundary flags")?;
-    let shared_pblock = zeros(cap.pblocks * 4, "alloc shared-block flags")?;
-    let grid_bytes = cap.pblocks * 64 * 4 * rb;
+    let prank = zeros(sizes.prank, "alloc sort ranks")?;
+    let warps = zeros(sizes.warps, "alloc warp list")?;
+    let boundary = zeros(sizes.boundary, "alloc boundary flags")?;
+    let shared_pblock = zeros(sizes.shared_pblock, "alloc shared-block flags")?;
     // The classic MPM transfers keep a second value per node (force, v_old, MUSL re-map).
-    let grid_aux = if scene.solver.transfer == Transfer::Mls {
+    let grid_aux = if sizes.grid_aux == 0 {
         0
     } else {
-        zeros(grid_bytes, "alloc second node values")?
+        zeros(sizes.grid_aux, "alloc second node values")?
     };
     let mut upload = |bytes: &[u8], what: &'static str| -> Result<u64, SimError> {
         let mut v = bytes.to_vec();
@@ -135,17 +147,17 @@ pub fn allocate(
         .map_err(err("upload particles"))?;
     }
     let state = state_buf;
-    let grid = s.alloc_zeros::<u8>(grid_bytes).map_err(err("alloc grid"))?;
+    let grid = s.alloc_zeros::<u8>(sizes.grid).map_err(err("alloc grid"))?;
     let grid_next = if needs.grid_next {
         Some(
-            s.alloc_zeros::<u8>(grid_bytes)
+            s.alloc_zeros::<u8>(sizes.grid_next)
                 .map_err(err("alloc second grid (G2P2G)"))?,
         )
     } else {
         None
     };
     let block_coords = s
-        .alloc_zeros::<u8>(cap.pblocks * 12)
+        .alloc_zeros::<u8>(sizes.block_coords)
         .map_err(err("alloc block coordinates"))?;
     let mut ctl_host = [0u32; CTL_WORDS];
     ctl_host[contract::CTL_NEED_REBUILD] = 1; // rebuild at the first step
@@ -190,6 +202,9 @@ pub fn allocate(
         warps,
         boundary,
         shared_pblock,
+        // Set by the backend when the scene has rigid bodies (crate::rigid).
+        bodies: 0,
+        body_exchange: 0,
         n_cells: scene.n_cells().map(|c| c as i32),
         wall_thickness: w.thickness as i32,
         wall_cond: w.faces.map(|f| contract::condition(f.condition)),
@@ -206,7 +221,7 @@ pub fn allocate(
         transfer: scene.solver.transfer.code(),
         update: contract::update(scene.solver.update),
         always_rebuild: (!options.free_zone || !options.mixed_sort) as u32,
-        pad: 0,
+        n_bodies: 0,
     };
     debug_assert_eq!(state.len(), state_bytes);
     Ok((
@@ -220,6 +235,7 @@ pub fn allocate(
             step,
             poses,
             _rest: rest,
+            planned: sizes,
         },
         ctx,
     ))

@@ -5,6 +5,7 @@
 //! error that names the option to raise.
 
 use crate::CudaOptions;
+use crate::contract::NFIELDS;
 use rtmpm_core::grid::BlockLayout;
 use rtmpm_core::math::IVec3;
 use rtmpm_core::{Particles, Scene};
@@ -27,6 +28,78 @@ pub struct Capacity {
     pub warps: usize,
     /// Buckets of the block+cell sort.
     pub buckets: usize,
+}
+
+/// Which optional grids a GPU allocates besides the grid.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GridCopies {
+    /// G2P2G: the grid of the next step.
+    pub next: bool,
+    /// Classic (non-MLS) transfers: a second value per node.
+    pub aux: bool,
+}
+
+/// Bytes of every device buffer of one GPU's pipeline, planned from its [`Capacity`]: what
+/// `buffers::allocate` allocates (each at least 16 bytes). `docs/memory.md` lists the formulas.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BufferBytes {
+    /// Particle state: `NFIELDS` reals per particle slot.
+    pub state: usize,
+    /// Sort scratch: `sort_scratch_fields` reals per particle slot (its first field also holds
+    /// the sort keys, so it is at least 4 bytes per slot).
+    pub scratch: usize,
+    /// Sort ranks, then sorted slots: 4 bytes per particle slot.
+    pub prank: usize,
+    /// Sort buckets: 4 bytes per bucket (64 per gblock, plus one).
+    pub hist: usize,
+    /// Block sums of the bucket scan.
+    pub scan_sums: usize,
+    /// Grid: 4 reals per node, 64 nodes per pblock.
+    pub grid: usize,
+    /// G2P2G's second grid (0 without).
+    pub grid_next: usize,
+    /// Classic transfers' second node values (0 for MLS).
+    pub grid_aux: usize,
+    /// Block hash: 8-byte key and 4-byte value per slot.
+    pub hash: usize,
+    /// 27 neighbour ids (4 bytes) per gblock.
+    pub neighbors: usize,
+    /// 3 ints per pblock.
+    pub block_coords: usize,
+    /// 3 words per warp.
+    pub warps: usize,
+    /// One word per gblock (several GPUs: next to a shared block).
+    pub boundary: usize,
+    /// One word per pblock (several GPUs: shared).
+    pub shared_pblock: usize,
+}
+
+impl BufferBytes {
+    /// Every buffer, in groups: (group, bytes): state, sort scratch, grid (every grid copy),
+    /// sort (ranks, buckets, scan), mapping (hash, neighbour lists, block coordinates, warp
+    /// list, sharing flags).
+    pub fn groups(&self) -> [(&'static str, usize); 5] {
+        [
+            ("state", self.state),
+            ("scratch", self.scratch),
+            ("grid", self.grid + self.grid_next + self.grid_aux),
+            ("sort", self.prank + self.hist + self.scan_sums),
+            (
+                "hash/lists",
+                self.hash
+                    + self.neighbors
+                    + self.block_coords
+                    + self.warps
+                    + self.boundary
+                    + self.shared_pblock,
+            ),
+        ]
+    }
+
+    /// Bytes of every buffer.
+    pub fn total(&self) -> usize {
+        self.groups().iter().map(|g| g.1).sum()
+    }
 }
 
 /// The stencil base node of every particle (grid coordinates, origin 4 cells below the domain).
@@ -77,6 +150,187 @@ impl Capacity {
             hash: (2 * pblocks).next_power_of_two(),
             warps: np.div_ceil(32) + gblocks + 1,
             buckets: gblocks * 64 + 1,
+        }
+    }
+
+    /// The bytes of every buffer for `real_bytes` per real (4 or 8), a sort scratch of
+    /// `sort_fields` fields (clamped to 1..=`NFIELDS`) and the optional grids `grids`.
+    pub fn bytes(&self, real_bytes: usize, sort_fields: usize, grids: GridCopies) -> BufferBytes {
+        let np = self.particles;
+        let grid = self.pblocks * 64 * 4 * real_bytes;
+        BufferBytes {
+            state: NFIELDS * np * real_bytes,
+            // The sort keys (4 bytes) live in its first field.
+            scratch: (sort_fields.clamp(1, NFIELDS) * real_bytes).max(4) * np,
+            prank: np * 4,
+            hist: self.buckets * 4,
+            scan_sums: self.buckets.div_ceil(1024) * 4,
+            grid,
+            grid_next: if grids.next { grid } else { 0 },
+            grid_aux: if grids.aux { grid } else { 0 },
+            hash: self.hash * 12,
+            neighbors: self.gblocks * 27 * 4,
+            block_coords: self.pblocks * 12,
+            warps: self.warps * 12,
+            boundary: self.gblocks * 4,
+            shared_pblock: self.pblocks * 4,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rtmpm_core::scene::Budget;
+
+    /// Water at dx = 1/512, 8 particles per cell (regular), in the unit cube with slip walls:
+    /// `boxes` boxes along x (min, max of each), the scenes of issue 19.
+    fn water(boxes: &[([f32; 3], [f32; 3])]) -> Scene {
+        water_at(512, boxes)
+    }
+
+    /// The same at dx = 1/`cells`.
+    fn water_at(cells: u32, boxes: &[([f32; 3], [f32; 3])]) -> Scene {
+        let mut text = format!(
+            "name = \"water\"\n[domain]\nmin = [0,0,0]\nmax = [1,1,1]\ndx = {}\n\
+             [time]\nduration = 0.01\nfps = 100\ndt = 1e-4\n\
+             [walls]\nthickness = 3\ncondition = \"slip\"\n\
+             [[material]]\nname = \"water\"\ntype = \"fluid\"\ndensity = 1000\n\
+             bulk_modulus = 4e4\ngamma = 7.15\n",
+            1.0 / cells as f64
+        );
+        for (lo, hi) in boxes {
+            text += &format!(
+                "[[body]]\nmaterial = \"water\"\nshape = \"box\"\nmin = {lo:?}\nmax = {hi:?}\n\
+                 sampling = \"regular\"\nparticles_per_cell = 8\n"
+            );
+        }
+        Scene::from_toml(&text, "<test>").expect("water scene")
+    }
+
+    /// The planned device bytes of `scene` (its precision, default options, G2P2G) with a
+    /// sort scratch of `fields` fields, and the estimate of its budget.
+    fn planned(scene: &Scene, fields: usize) -> (usize, BufferBytes, u64) {
+        let budget = Budget::estimate(scene, Some(1));
+        let n = budget.particles as usize;
+        let f64 = scene.precision == rtmpm_core::scene::Precision::F64;
+        let o = CudaOptions {
+            f64,
+            ..Default::default()
+        };
+        let cap = Capacity::plan(scene, n, n, &BlockLayout::default(), &o);
+        let grids = GridCopies {
+            next: true,
+            aux: false,
+        };
+        let rb = if f64 { 8 } else { 4 };
+        (n, cap.bytes(rb, fields, grids), budget.gpu_bytes)
+    }
+
+    #[test]
+    fn the_budget_covers_the_plan_in_f64() {
+        // dx = 1/256: the grid of the whole domain fits in GRID_BUDGET_BYTES in f64 (at 1/512
+        // it does not, the plan follows the initial layout and the budget, which counts every
+        // node of the domain, overestimates).
+        let mut scene = water_at(256, &[([0.1, 0.02, 0.25], [0.4, 0.485, 0.75])]);
+        scene.precision = rtmpm_core::scene::Precision::F64;
+        let (n, b, estimate) = planned(&scene, crate::options::DEFAULT_SORT_SCRATCH_FIELDS);
+        assert!(n > 9_000_000, "{n}");
+        assert_eq!((b.state, b.scratch, b.prank), (232 * n, 32 * n, 4 * n));
+        let plan = b.total() as f64;
+        assert!(
+            estimate as f64 >= plan && estimate as f64 <= 1.15 * plan,
+            "estimate {estimate} for a plan of {plan}"
+        );
+    }
+
+    #[test]
+    fn bytes_per_particle_of_the_big_water_scenes() {
+        // 125M: four boxes 0.125 m wide (issue 19's scene, measured 276 B/particle before).
+        let four: Vec<_> = (0..4)
+            .map(|i| {
+                let x = 0.125 + 0.125 * i as f32;
+                ([x, 0.02, 0.25], [x + 0.125, 0.485, 0.75])
+            })
+            .collect();
+        // About 500M: most of the floor, half the height, in 16 boxes (at most 50M per body).
+        let big: Vec<_> = (0..16)
+            .map(|i| {
+                let x = 0.01 + 0.06125 * i as f32;
+                ([x, 0.01, 0.01], [x + 0.06125, 0.495, 0.99])
+            })
+            .collect();
+        let default = crate::options::DEFAULT_SORT_SCRATCH_FIELDS;
+        // (scene, particle count, bytes per particle now, bound)
+        for (scene, particles, expect, new_bound) in [
+            (water(&four), 124_000_000..126_000_000, 181.2, 185.0),
+            (water(&big), 499_000_000..502_000_000, 147.6, 150.0),
+        ] {
+            let (n, now, estimate) = planned(&scene, default);
+            assert!(particles.contains(&n), "{n} particles");
+            // Before: a second full copy of the state as the sort's scratch, and the sort keys
+            // in their own array.
+            let (_, full, _) = planned(&scene, NFIELDS);
+            let before = full.total() + 4 * n;
+            let per = |b: usize| b as f64 / n as f64;
+            // Per particle: state 116, scratch 16, ranks 4, warp list 12/32 (+ gblocks).
+            assert_eq!(now.state, 116 * n);
+            assert_eq!(now.scratch, 16 * n);
+            assert_eq!(now.prank, 4 * n);
+            assert_eq!(full.scratch, 116 * n);
+            assert!(
+                per(now.total()) <= new_bound,
+                "{} B/particle",
+                per(now.total())
+            );
+            assert!(
+                (per(now.total()) - expect).abs() < 0.05,
+                "{}",
+                per(now.total())
+            );
+            assert!(
+                per(before) - per(now.total()) >= 104.0,
+                "{} -> {}",
+                per(before),
+                per(now.total())
+            );
+            // The budget's estimate (rtmpm check, the refusal before allocating) covers the
+            // plan, without refusing what fits by far.
+            let e = estimate as f64;
+            assert!(
+                e >= now.total() as f64 && e <= 1.15 * now.total() as f64,
+                "estimate {e:.3e} B for a plan of {:.3e} B",
+                now.total() as f64
+            );
+            eprintln!(
+                "{n} particles: {:.1} B/particle before, {:.1} now ({:?}), estimate {:.1}",
+                per(before),
+                per(now.total()),
+                now.groups()
+                    .map(|(g, b)| (g, (per(b) * 10.0).round() / 10.0)),
+                e / n as f64
+            );
+        }
+    }
+
+    #[test]
+    fn the_scratch_holds_the_sort_keys_in_every_precision() {
+        let cap = Capacity {
+            particles: 1000,
+            gblocks: 10,
+            pblocks: 20,
+            hash: 64,
+            warps: 50,
+            buckets: 641,
+        };
+        for rb in [4, 8] {
+            for k in [0, 1, 4, NFIELDS, 99] {
+                let b = cap.bytes(rb, k, GridCopies::default());
+                assert!(b.scratch >= 4 * cap.particles);
+                assert_eq!(b.scratch, k.clamp(1, NFIELDS) * rb * cap.particles);
+                assert_eq!(b.grid_next + b.grid_aux, 0);
+                assert_eq!(b.total(), b.groups().iter().map(|g| g.1).sum::<usize>());
+            }
         }
     }
 }

@@ -86,22 +86,29 @@ fn collider(c: &Collider, mesh: &mut Vec<f32>) -> GpuCollider {
         pivot: c.pivot.to_array(),
         ..Default::default()
     };
+    shape_params(&c.shape, &mut g, mesh);
+    g
+}
+
+/// The shape parameters of `shape` into `g.p` (and a mesh's grid into `mesh`), as
+/// `kernels/grid_update.cu: shape_distance` reads them.
+pub fn shape_params(shape: &Shape, g: &mut GpuCollider, mesh: &mut Vec<f32>) {
     let put =
         |g: &mut GpuCollider, at: usize, v: Vec3| g.p[at..at + 3].copy_from_slice(&v.to_array());
-    match &c.shape {
+    match shape {
         Shape::HalfSpace { point, normal } => {
-            put(&mut g, 0, *point);
-            put(&mut g, 3, *normal);
+            put(g, 0, *point);
+            put(g, 3, *normal);
         }
         Shape::Box {
             center,
             half_extents,
         } => {
-            put(&mut g, 0, *center);
-            put(&mut g, 3, *half_extents);
+            put(g, 0, *center);
+            put(g, 3, *half_extents);
         }
         Shape::Sphere { center, radius } => {
-            put(&mut g, 0, *center);
+            put(g, 0, *center);
             g.p[3] = *radius;
         }
         Shape::Cylinder {
@@ -110,20 +117,19 @@ fn collider(c: &Collider, mesh: &mut Vec<f32>) -> GpuCollider {
             radius,
             half_height,
         } => {
-            put(&mut g, 0, *center);
-            put(&mut g, 3, *axis);
+            put(g, 0, *center);
+            put(g, 3, *axis);
             g.p[6] = *radius;
             g.p[7] = *half_height;
         }
         Shape::Mesh(m) => {
-            put(&mut g, 0, m.origin);
+            put(g, 0, m.origin);
             g.p[3] = m.spacing;
             g.dims = m.dims;
             g.mesh_offset = mesh.len() as u32;
             mesh.extend_from_slice(&m.values);
         }
     }
-    g
 }
 
 /// The run's constants in precision `R`, computed in `R` from the scene's values as the CPU

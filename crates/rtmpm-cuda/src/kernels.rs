@@ -17,15 +17,21 @@ pub struct Kernels {
     /// The fused rebuild's grid (blocks of 1024 threads that fit on the device at once, for its
     /// cooperative launch); `None`: the rebuild runs as separate kernels (`rebuild=kernels`).
     pub rb_fused_grid: Option<u32>,
+    /// Fields of the rebuild's sort scratch ([`crate::CudaOptions::sort_scratch_fields`]): the
+    /// state is permuted that many fields per pass.
+    pub sort_fields: u32,
+    /// The fields the sort permutes (bit f: field f; [`crate::rebuild::sorted_fields`]).
+    pub sort_mask: u32,
 }
 
 impl Kernels {
     /// Load every kernel of `module`; `sm_count` sizes the waves, `fused_rebuild` asks for the
-    /// persistent rebuild kernel's grid.
+    /// persistent rebuild kernel's grid, `sort_fields` is the sort scratch's fields.
     pub(crate) fn load(
         module: &Arc<CudaModule>,
         sm_count: i32,
         fused_rebuild: bool,
+        sort_fields: usize,
     ) -> Result<Kernels, SimError> {
         let functions = Kernel::ALL
             .iter()
@@ -39,6 +45,8 @@ impl Kernels {
             functions,
             wave_threads: sm_count.max(1) as usize * 2048,
             rb_fused_grid: None,
+            sort_fields: sort_fields.clamp(1, crate::contract::NFIELDS) as u32,
+            sort_mask: crate::rebuild::ALL_FIELDS,
         };
         if fused_rebuild {
             // A cooperative launch needs every block resident, so its grid barrier cannot deadlock.

@@ -79,6 +79,7 @@ pub mod p2g;
 pub mod pipeline;
 pub mod readback;
 pub mod rebuild;
+pub mod rigid;
 pub mod state;
 
 pub use backend::CudaBackend;

@@ -101,7 +101,16 @@ pub struct CudaOptions {
     /// the H100 (bench/RESULTS.md) it made snow 2 % faster and jelly 8 % slower (ptxas gives the
     /// smaller G2P2G 96 registers and spills).
     pub specialize: bool,
+    /// Fields of the particle state that the rebuild's sort permutes per pass (1 to
+    /// `NFIELDS`): the scratch holds that many words per particle instead of a second copy of
+    /// the state. Fewer: less memory, more passes (two grid barriers each) when the mapping is
+    /// rebuilt. The result is the same for every value.
+    pub sort_scratch_fields: usize,
 }
+
+/// Default of [`CudaOptions::sort_scratch_fields`]: 4 words per particle of scratch instead of
+/// 29 (f32: 16 instead of 116 bytes), for 8 passes of the sort's scatter and copy back.
+pub const DEFAULT_SORT_SCRATCH_FIELDS: usize = 4;
 
 impl Default for CudaOptions {
     fn default() -> Self {
@@ -126,6 +135,7 @@ impl Default for CudaOptions {
             fused_rebuild: true,
             g2p2g: true,
             specialize: false,
+            sort_scratch_fields: DEFAULT_SORT_SCRATCH_FIELDS,
         }
     }
 }
@@ -135,7 +145,7 @@ impl std::str::FromStr for CudaOptions {
     /// Comma separated `key=value`: `free_zone`, `mixed_sort`, `warp_reduce`, `fast_math`,
     /// `graph`, `f64`, `rebalance`, `overlap`, `g2p2g`, `specialize` (on/off/true/false/1/0), `rebuild` (fused/kernels), `p2g`
     /// (warp/shared/reverse_map/sort), `transport` (p2p/nccl), `barrier` (spin/events), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
-    /// `rmap_pblocks`, `shared` (counts).
+    /// `rmap_pblocks`, `shared`, `sort_fields` (counts).
     fn from_str(s: &str) -> Result<Self, String> {
         let mut o = CudaOptions::default();
         for item in s.split(',').map(str::trim).filter(|t| !t.is_empty()) {
@@ -183,6 +193,16 @@ impl std::str::FromStr for CudaOptions {
                 "g2p2g" => o.g2p2g = b()?,
                 "specialize" => o.specialize = b()?,
                 "overlap" => o.overlap = b()?,
+                "sort_fields" => {
+                    let k = n()?;
+                    if !(1..=crate::contract::NFIELDS).contains(&k) {
+                        return Err(format!(
+                            "`{item}`: expected 1 to {} fields",
+                            crate::contract::NFIELDS
+                        ));
+                    }
+                    o.sort_scratch_fields = k;
+                }
                 "rebuild" => {
                     o.fused_rebuild = match v {
                         "fused" => true,
@@ -245,5 +265,10 @@ mod tests {
         assert!(!"g2p2g=off".parse::<CudaOptions>().unwrap().g2p2g);
         assert!(!CudaOptions::default().specialize);
         assert!("specialize=on".parse::<CudaOptions>().unwrap().specialize);
+        assert_eq!(CudaOptions::default().sort_scratch_fields, 4);
+        let o: CudaOptions = "sort_fields=29".parse().unwrap();
+        assert_eq!(o.sort_scratch_fields, crate::contract::NFIELDS);
+        assert!("sort_fields=0".parse::<CudaOptions>().is_err());
+        assert!("sort_fields=30".parse::<CudaOptions>().is_err());
     }
 }

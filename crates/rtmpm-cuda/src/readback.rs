@@ -20,6 +20,19 @@ impl CudaBackend {
         self.buffers.bytes() + self.p2g.memory().iter().map(|m| m.1).sum::<usize>()
     }
 
+    /// The device bytes of this backend by group: state, sort scratch, grid, sort, hash/lists
+    /// (planned by `Capacity::bytes`), then the P2G strategy's extra buffers ("p2g") and the
+    /// rest (tables, control words, parameters: "other"); the sum is [`Self::device_bytes`].
+    pub fn memory_breakdown(&self) -> Vec<(&'static str, usize)> {
+        let planned = self.buffers.planned;
+        let mut v = planned.groups().to_vec();
+        let p2g: usize = self.p2g.memory().iter().map(|m| m.1).sum();
+        v.push(("p2g", p2g));
+        let total = self.device_bytes();
+        v.push(("other", total.saturating_sub(planned.total() + p2g)));
+        v
+    }
+
     /// Bytes of the grid (nodes of every allocated pblock), for comparison with
     /// [`CudaBackend::p2g_memory`].
     pub fn grid_bytes(&self) -> usize {
@@ -144,6 +157,16 @@ impl CudaBackend {
             .clone_dtoh(&self.buffers.state)
             .map_err(err("read particles"))?;
         Ok(bytemuck::pod_collect_to_vec(&bytes))
+    }
+
+    /// The particle state arrays as stored, in either precision: the bytes of the `NFIELDS`
+    /// arrays (SoA, `real` words) and their stride (the particle capacity).
+    pub fn read_state_bytes(&mut self) -> Result<(Vec<u8>, usize), SimError> {
+        let bytes = self
+            .stream
+            .clone_dtoh(&self.buffers.state)
+            .map_err(err("read particles"))?;
+        Ok((bytes, self.ctx.cap as usize))
     }
 
     /// Number of rebuilds of the mapping so far.

@@ -269,6 +269,16 @@ impl PySimulation {
         inner.sim.time = ckpt.time;
         inner.sim.step = ckpt.step;
         inner.sim.frame = ckpt.frame;
+        inner
+            .sim
+            .backend
+            .set_rigid_poses(&ckpt.bodies)
+            .map_err(|e| {
+                crate::errors::RtmpmError::new_err(format!(
+                    "cannot resume from {}: {e}",
+                    path.display()
+                ))
+            })?;
         Ok(sim)
     }
 
@@ -459,7 +469,7 @@ impl PySimulation {
         }
     }
 
-    /// Write a checkpoint (the scene, time, step, frame and every particle; atomic). Resume with
+    /// Write a checkpoint (the scene, time, step, frame, every particle and rigid body; atomic). Resume with
     /// :meth:`Simulation.resume` or ``rtmpm run --resume``.
     fn checkpoint(&mut self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let inner = self.get();
@@ -471,6 +481,7 @@ impl PySimulation {
             time: inner.sim.time,
             step: inner.sim.step,
             frame: inner.sim.frame,
+            bodies: inner.sim.backend.rigid_poses(),
             particles,
         };
         py.detach(|| ckpt.save(&path)).map_err(|e| {

@@ -333,6 +333,12 @@ fn bench_cuda(
         b.grid_bytes() as f64 / 1e6
     );
     print_memory(n, None, Some(b.device_bytes() as u64));
+    let parts: Vec<String> = b
+        .memory_breakdown()
+        .iter()
+        .map(|(what, bytes)| format!("{what} {:.1}", *bytes as f64 / n.max(1) as f64))
+        .collect();
+    println!("  device       bytes/particle: {}", parts.join(", "));
     if let Some(r) = b.reverse_map_size() {
         println!(
             "  reverse map  {} maps x {} entries per node, {} pblocks",

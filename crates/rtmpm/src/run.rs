@@ -95,7 +95,13 @@ pub fn run(args: RunArgs) -> Result<()> {
             (
                 scene,
                 ckpt.particles,
-                Some((ckpt.time, ckpt.step, ckpt.frame, ckpt.scene_toml)),
+                Some((
+                    ckpt.time,
+                    ckpt.step,
+                    ckpt.frame,
+                    ckpt.scene_toml,
+                    ckpt.bodies,
+                )),
             )
         }
         None => {
@@ -106,7 +112,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         }
     };
     let scene_text = match (&resume_state, &args.scene) {
-        (Some((_, _, _, text)), _) => text.clone(),
+        (Some((_, _, _, text, _)), _) => text.clone(),
         (None, Some(path)) => read_text_bounded(path, SCENE_MAX_BYTES, "scene file")
             .with_context(|| format!("reading {}", path.display()))?,
         (None, None) => String::new(),
@@ -133,19 +139,12 @@ pub fn run(args: RunArgs) -> Result<()> {
         let folder = OutDir::lock(&out_dir, &format!("rtmpm run of `{}`", scene.name))?;
         match &resume_state {
             None => folder.start_fresh(&identity, args.overwrite)?,
-            Some((_, _, frame, _)) => folder.start_resume(&identity, *frame, args.overwrite)?,
+            Some((_, _, frame, _, _)) => folder.start_resume(&identity, *frame, args.overwrite)?,
         }
         Some(folder)
     } else {
         None
     };
-    if !scene.rigid_bodies.is_empty() && (resume_state.is_some() || args.checkpoint_every.is_some())
-    {
-        bail!(
-            "checkpoints do not hold the state of the scene's [[rigid_body]] tables yet: run it \
-             without --checkpoint-every / --resume"
-        );
-    }
     let particles = match resume_state {
         Some(_) => particles,
         None => scene.sample_particles()?,
@@ -182,10 +181,15 @@ pub fn run(args: RunArgs) -> Result<()> {
     } else {
         None
     };
-    if let Some((time, step, frame, _)) = &resume_state {
+    if let Some((time, step, frame, _, bodies)) = &resume_state {
         sim.time = *time;
         sim.step = *step;
         sim.frame = *frame;
+        // The rigid bodies' poses and velocities (the checkpoint holds one per body of its
+        // scene, checked above).
+        sim.backend
+            .set_rigid_poses(bodies)
+            .context("cannot restore the checkpoint's rigid bodies")?;
     }
     let total_frames = args.frames.unwrap_or_else(|| sim.scene.time.frames());
     eprintln!(
@@ -205,7 +209,8 @@ pub fn run(args: RunArgs) -> Result<()> {
         &out_dir,
         &sim.scene,
     );
-    let mut bodies = BodiesCsv::new(writes_frames, &out_dir, &sim)?;
+    let resumed_at = resume_state.as_ref().map(|r| r.2);
+    let mut bodies = BodiesCsv::new(writes_frames, &out_dir, &sim, resumed_at)?;
     // PLY and BGEO frames stream from the backend in chunks, written in the background.
     let mut streamer = match output.as_ref() {
         Some(out)
@@ -332,6 +337,7 @@ pub fn run(args: RunArgs) -> Result<()> {
                 time: sim.time,
                 step: sim.step,
                 frame: sim.frame,
+                bodies: sim.backend.rigid_poses(),
                 particles: host.clone(),
             };
             std::fs::create_dir_all(&out_dir)
@@ -467,7 +473,14 @@ struct BodiesCsv {
 }
 
 impl BodiesCsv {
-    fn new(writes: bool, dir: &std::path::Path, sim: &Simulation) -> Result<BodiesCsv> {
+    /// The file, new; or, resuming at frame `resumed_at`, the rows of a previous run's file up
+    /// to that frame kept (the rows of later frames are written again).
+    fn new(
+        writes: bool,
+        dir: &std::path::Path,
+        sim: &Simulation,
+        resumed_at: Option<u64>,
+    ) -> Result<BodiesCsv> {
         let names: Vec<String> = sim
             .scene
             .rigid_bodies
@@ -481,11 +494,29 @@ impl BodiesCsv {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("cannot create output folder {}", dir.display()))?;
         let path = dir.join("bodies.csv");
+        let kept: Vec<String> = match resumed_at {
+            Some(at) => std::fs::read_to_string(&path)
+                .unwrap_or_default()
+                .lines()
+                .skip(1)
+                .filter(|l| {
+                    l.split(',')
+                        .next()
+                        .and_then(|f| f.parse::<u64>().ok())
+                        .is_some_and(|f| f <= at)
+                })
+                .map(str::to_string)
+                .collect(),
+            None => Vec::new(),
+        };
         let mut f = std::io::BufWriter::new(
             std::fs::File::create(&path)
                 .with_context(|| format!("cannot write {}", path.display()))?,
         );
         writeln!(f, "frame,time,body,x,y,z,qx,qy,qz,qw,vx,vy,vz,wx,wy,wz")?;
+        for l in kept {
+            writeln!(f, "{l}")?;
+        }
         Ok(BodiesCsv {
             file: Some(f),
             names,

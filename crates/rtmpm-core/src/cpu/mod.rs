@@ -420,6 +420,21 @@ impl Backend for CpuBackend {
             .map_or_else(Vec::new, |w| w.states().to_vec())
     }
 
+    fn rigid_poses(&self) -> Vec<crate::rigid::BodyPose> {
+        self.rigid.as_ref().map_or_else(Vec::new, |w| w.poses())
+    }
+
+    fn set_rigid_poses(&mut self, poses: &[crate::rigid::BodyPose]) -> Result<(), SimError> {
+        match self.rigid.as_mut() {
+            Some(w) => w.set_poses(poses),
+            None if poses.is_empty() => Ok(()),
+            None => Err(SimError::Backend(format!(
+                "{} rigid-body states for a scene without rigid bodies",
+                poses.len()
+            ))),
+        }
+    }
+
     fn add_particles(&mut self, p: &sim::Particles) -> Result<(), SimError> {
         // The next original indices; the next step's rebuild sorts them in.
         let first = self.ids.len();

@@ -5,7 +5,7 @@
 //! ```text
 //! offset  size  content
 //! 0       8     magic b"RTMPMCKP"
-//! 8       4     format version (u32, currently 1)
+//! 8       4     format version (u32, currently 2; version 1 is read too)
 //! 12      4     reserved (0)
 //! 16      8     payload length P in bytes (u64)
 //! 24      P     payload
@@ -13,9 +13,16 @@
 //! ```
 //!
 //! Payload: `scene_toml` (u64 length + UTF-8), `scene_origin` (u64 length + UTF-8), `time`
-//! (f64 bits), `step` (u64), `frame` (u64), particle count `n` (u64), then the arrays in this
-//! order as raw little-endian f32/u32 bits: `x` (3n), `v` (3n), `c` (9n, column-major), `f`
-//! (9n, column-major), `plastic` (n), `mass` (n), `vol0` (n), `material` (n, u32).
+//! (f64 bits), `step` (u64), `frame` (u64), (version 2 only) the rigid-body count `b` (u64) and
+//! `b` times 13 f32 (position 3, rotation quaternion x y z w 4, velocity 3, angular velocity 3:
+//! [`BodyPose`], the bits rapier holds), then the particle count `n` (u64) and the arrays in
+//! this order as raw little-endian f32/u32 bits: `x` (3n), `v` (3n), `c` (9n, column-major),
+//! `f` (9n, column-major), `plastic` (n), `mass` (n), `vol0` (n), `material` (n, u32).
+//!
+//! The rigid bodies' poses and velocities are restored exactly; what the rigid-body engine
+//! keeps besides them (the contacts' cached impulses that warm-start its solver) is not
+//! stored, so bodies in contact with each other or the walls at the checkpoint continue
+//! slightly differently from an uninterrupted run ([`crate::rigid::RigidWorld::set_poses`]).
 
 use std::io::{self, Write};
 use std::path::Path;
@@ -25,11 +32,14 @@ use super::contents::{check_particle_values, check_particles_in_domain};
 use super::limits::{DATA_MAX_BYTES, read_bounded};
 use crate::Particles;
 use crate::math::{Mat3, Vec3};
+use crate::rigid::BodyPose;
 
 /// Magic bytes at the start of every checkpoint.
 pub const MAGIC: [u8; 8] = *b"RTMPMCKP";
 /// Current format version.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
+/// Words (f32) per rigid body in the payload.
+const WORDS_PER_BODY: usize = 13;
 const HEADER_LEN: usize = 24;
 const CHECKSUM_LEN: usize = 8;
 /// Bytes per particle in the payload: 3 + 3 + 9 + 9 + 4 four-byte words.
@@ -48,8 +58,21 @@ pub struct Checkpoint {
     pub step: u64,
     /// Number of output frames written.
     pub frame: u64,
+    /// The rigid bodies' poses and velocities, one per `[[rigid_body]]` in the scene's order
+    /// (empty without rigid bodies, and in version-1 files).
+    pub bodies: Vec<BodyPose>,
     /// The particle state.
     pub particles: Particles,
+}
+
+/// A body's 13 words in the file's order.
+fn body_words(b: &BodyPose) -> [f32; WORDS_PER_BODY] {
+    let mut w = [0.0; WORDS_PER_BODY];
+    w[0..3].copy_from_slice(&b.position.to_array());
+    w[3..7].copy_from_slice(&b.rotation.to_array());
+    w[7..10].copy_from_slice(&b.velocity.to_array());
+    w[10..13].copy_from_slice(&b.angular_velocity.to_array());
+    w
 }
 
 /// Errors of [`Checkpoint::load`] and [`Checkpoint::save`].
@@ -156,12 +179,20 @@ impl Checkpoint {
             + 8
             + self.scene_origin.len() as u64
             + 8 * 4
+            + 8
+            + (4 * WORDS_PER_BODY * self.bodies.len()) as u64
             + BYTES_PER_PARTICLE * self.particles.len() as u64
     }
 
     /// Write the checkpoint to `path` atomically (temporary file + rename).
     pub fn save(&self, path: &Path) -> Result<(), CheckpointError> {
         super::check_particles(&self.particles)?;
+        if let Some(i) = self.bodies.iter().position(|b| !b.is_valid()) {
+            return Err(CheckpointError::BadValue(format!(
+                "rigid body {i}: {:?} is not a finite pose",
+                self.bodies[i]
+            )));
+        }
         let p = &self.particles;
         write_atomic_with(path, |out| {
             let mut w = HashingWriter {
@@ -179,6 +210,8 @@ impl Checkpoint {
             w.write_all(&self.time.to_bits().to_le_bytes())?;
             w.write_all(&self.step.to_le_bytes())?;
             w.write_all(&self.frame.to_le_bytes())?;
+            w.write_all(&(self.bodies.len() as u64).to_le_bytes())?;
+            write_f32s(&mut w, self.bodies.iter().flat_map(body_words))?;
             w.write_all(&(p.len() as u64).to_le_bytes())?;
             write_f32s(&mut w, p.x.iter().flat_map(|x| x.to_array()))?;
             write_f32s(&mut w, p.v.iter().flat_map(|v| v.to_array()))?;
@@ -205,6 +238,13 @@ impl Checkpoint {
     /// positions inside the domain (within one cell). [`Checkpoint::from_bytes`] has already
     /// checked what does not depend on the scene.
     pub fn check_scene(&self, scene: &crate::Scene) -> Result<(), CheckpointError> {
+        if self.bodies.len() != scene.rigid_bodies.len() {
+            return Err(CheckpointError::BadValue(format!(
+                "the checkpoint holds {} rigid bodies, the scene has {} [[rigid_body]] tables",
+                self.bodies.len(),
+                scene.rigid_bodies.len()
+            )));
+        }
         check_particles_in_domain(
             &self.particles,
             scene.domain_min,
@@ -227,7 +267,7 @@ impl Checkpoint {
             });
         }
         let version = u32::from_le_bytes(bytes[8..12].try_into().unwrap());
-        if version != VERSION {
+        if version != VERSION && version != 1 {
             return Err(CheckpointError::UnsupportedVersion {
                 found: version,
                 expected: VERSION,
@@ -259,6 +299,32 @@ impl Checkpoint {
         let time = f64::from_bits(r.u64()?);
         let step = r.u64()?;
         let frame = r.u64()?;
+        let mut bodies = Vec::new();
+        if version >= 2 {
+            let count = r.u64()?;
+            let left = (r.bytes.len() - r.pos) as u64;
+            if count.saturating_mul((4 * WORDS_PER_BODY) as u64) > left {
+                return Err(CheckpointError::Malformed(format!(
+                    "{count} rigid bodies do not fit the {left} bytes left"
+                )));
+            }
+            let words = r.words(WORDS_PER_BODY * count as usize)?;
+            for (i, w) in words.chunks_exact(WORDS_PER_BODY).enumerate() {
+                let f = |k: usize| f32::from_bits(w[k]);
+                let b = BodyPose {
+                    position: Vec3::new(f(0), f(1), f(2)),
+                    rotation: glam::Quat::from_xyzw(f(3), f(4), f(5), f(6)),
+                    velocity: Vec3::new(f(7), f(8), f(9)),
+                    angular_velocity: Vec3::new(f(10), f(11), f(12)),
+                };
+                if !b.is_valid() {
+                    return Err(CheckpointError::BadValue(format!(
+                        "rigid body {i}: {b:?} is not a finite pose"
+                    )));
+                }
+                bodies.push(b);
+            }
+        }
         let n = r.u64()?;
         let remaining = (r.bytes.len() - r.pos) as u64;
         if n.checked_mul(BYTES_PER_PARTICLE) != Some(remaining) {
@@ -321,6 +387,7 @@ impl Checkpoint {
             time,
             step,
             frame,
+            bodies,
             particles,
         })
     }
@@ -365,223 +432,5 @@ impl Reader<'_> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::io::atomic::tests::TestDir;
-    use rand::{Rng, SeedableRng};
-    use rand_pcg::Pcg64;
-    use std::fs;
-
-    fn random_checkpoint(n: usize, seed: u64) -> Checkpoint {
-        let mut rng = Pcg64::seed_from_u64(seed);
-        let mut r = || rng.random_range(-1e3f32..1e3);
-        let mut p = Particles::default();
-        for _ in 0..n {
-            p.x.push(Vec3::new(r(), r(), r()));
-            p.v.push(Vec3::new(r(), r(), r()));
-            let mut m = [0f32; 9];
-            m.iter_mut().for_each(|a| *a = r());
-            p.c.push(Mat3::from_cols_array(&m));
-            m.iter_mut().for_each(|a| *a = r());
-            p.f.push(Mat3::from_cols_array(&m));
-            p.plastic.push(r());
-            p.mass.push(r().abs() + 1e-30);
-            p.vol0.push(r().abs() * 1e-9);
-            p.material.push((r().abs() * 1e6) as u32);
-        }
-        // A few special values that must survive bit-exactly.
-        if n > 2 {
-            p.x[0].x = -0.0;
-            p.v[1].y = f32::MIN_POSITIVE / 4.0; // subnormal
-            p.plastic[2] = f32::MAX;
-            p.material[2] = u32::MAX;
-        }
-        Checkpoint {
-            scene_toml: "[sim]\ndt = 1e-4 # é ünïcode\n".into(),
-            scene_origin: "/scenes/snow.toml".into(),
-            time: 0.1 + 0.2,
-            step: 123_456_789_012,
-            frame: 42,
-            particles: p,
-        }
-    }
-
-    #[test]
-    fn round_trip_bit_identical() {
-        let d = TestDir::new("ckpt");
-        let ck = random_checkpoint(1000, 7);
-        let path = d.path("ckpt/state.ckpt");
-        ck.save(&path).unwrap();
-        let back = Checkpoint::load(&path).unwrap();
-        assert_eq!(back, ck);
-        assert_eq!(back.time.to_bits(), ck.time.to_bits());
-        assert_eq!(back.particles.x[0].x.to_bits(), (-0.0f32).to_bits());
-        let bits = |p: &Particles| -> Vec<u32> {
-            p.c.iter()
-                .chain(&p.f)
-                .flat_map(|m| m.to_cols_array())
-                .map(f32::to_bits)
-                .collect()
-        };
-        assert_eq!(bits(&back.particles), bits(&ck.particles));
-        let size = fs::metadata(&path).unwrap().len();
-        assert_eq!(size, 32 + ck.payload_len());
-    }
-
-    #[test]
-    fn empty_round_trip() {
-        let d = TestDir::new("ckpt-empty");
-        let ck = Checkpoint {
-            scene_toml: String::new(),
-            scene_origin: String::new(),
-            time: 0.0,
-            step: 0,
-            frame: 0,
-            particles: Particles::default(),
-        };
-        let path = d.path("e.ckpt");
-        ck.save(&path).unwrap();
-        assert_eq!(Checkpoint::load(&path).unwrap(), ck);
-    }
-
-    #[test]
-    fn truncated_file_is_an_error() {
-        let d = TestDir::new("ckpt-trunc");
-        let path = d.path("t.ckpt");
-        random_checkpoint(50, 1).save(&path).unwrap();
-        let bytes = fs::read(&path).unwrap();
-        for len in [0, 4, 8, 20, 24, 100, bytes.len() / 2, bytes.len() - 1] {
-            let err = Checkpoint::from_bytes(&bytes[..len]).unwrap_err();
-            match (len, &err) {
-                (0..8, CheckpointError::BadMagic) => {}
-                (8.., CheckpointError::Truncated { found, .. }) => {
-                    assert_eq!(*found, len as u64)
-                }
-                _ => panic!("len {len}: unexpected {err:?}"),
-            }
-        }
-        fs::write(&path, &bytes[..bytes.len() - 9]).unwrap();
-        let err = Checkpoint::load(&path).unwrap_err();
-        assert!(err.to_string().contains("truncated"), "{err}");
-    }
-
-    #[test]
-    fn corrupt_and_foreign_files_are_errors() {
-        let d = TestDir::new("ckpt-bad");
-        let path = d.path("c.ckpt");
-        random_checkpoint(20, 2).save(&path).unwrap();
-        let bytes = fs::read(&path).unwrap();
-
-        // Flip one bit anywhere in the payload.
-        for at in [HEADER_LEN, HEADER_LEN + 50, bytes.len() - 20] {
-            let mut b = bytes.clone();
-            b[at] ^= 0x10;
-            assert!(matches!(
-                Checkpoint::from_bytes(&b),
-                Err(CheckpointError::ChecksumMismatch { .. })
-            ));
-        }
-
-        let mut b = bytes.clone();
-        b[..8].copy_from_slice(b"PLYPLYPL");
-        let err = Checkpoint::from_bytes(&b).unwrap_err();
-        assert!(matches!(err, CheckpointError::BadMagic));
-        assert!(err.to_string().contains("not an rtmpm checkpoint"));
-
-        let mut b = bytes.clone();
-        b[8..12].copy_from_slice(&99u32.to_le_bytes());
-        assert!(matches!(
-            Checkpoint::from_bytes(&b),
-            Err(CheckpointError::UnsupportedVersion { found: 99, .. })
-        ));
-
-        let mut b = bytes.clone();
-        b.push(0);
-        assert!(matches!(
-            Checkpoint::from_bytes(&b),
-            Err(CheckpointError::Truncated { .. })
-        ));
-
-        // A huge announced payload length must not allocate or panic.
-        let mut b = bytes.clone();
-        b[16..24].copy_from_slice(&u64::MAX.to_le_bytes());
-        assert!(matches!(
-            Checkpoint::from_bytes(&b),
-            Err(CheckpointError::Truncated { .. })
-        ));
-
-        assert!(matches!(
-            Checkpoint::load(&d.path("missing.ckpt")),
-            Err(CheckpointError::Io(_))
-        ));
-    }
-
-    /// Intact bytes (a valid checksum) around values that cannot be simulated are refused
-    /// with the particle and the value, never run.
-    #[test]
-    fn valid_checksum_bad_values_are_refused() {
-        let mut good = random_checkpoint(5, 3);
-        good.particles.material.iter_mut().for_each(|m| *m = 0);
-        good.particles.plastic[2] = 0.0;
-        let scene = crate::Scene::from_toml(
-            "[domain]\nmin = [-1000, -1000, -1000]\nmax = [1000, 1000, 1000]\ndx = 10\n\
-             [time]\nduration = 1\n[[material]]\nname = \"w\"\ntype = \"fluid\"\n\
-             density = 1000\nbulk_modulus = 1e5\n",
-            "<test>",
-        )
-        .unwrap();
-        let round = |ck: &Checkpoint| {
-            let d = TestDir::new("ckpt-values");
-            let path = d.path("v.ckpt");
-            ck.save(&path).unwrap();
-            Checkpoint::load(&path)
-        };
-        let back = round(&good).unwrap();
-        back.check_scene(&scene).unwrap();
-
-        type Edit = fn(&mut Checkpoint);
-        let cases: [(Edit, &str); 7] = [
-            (|c| c.particles.mass[1] = f32::NAN, "mass NaN"),
-            (|c| c.particles.mass[3] = -2.0, "mass -2"),
-            (
-                |c| c.particles.vol0[0] = f32::INFINITY,
-                "initial volume inf",
-            ),
-            (|c| c.particles.v[4].x = f32::NAN, "velocity"),
-            (|c| c.time = -1.0, "time -1"),
-            (|c| c.time = f64::INFINITY, "time inf"),
-            (|c| c.frame = c.step + 1, "frame"),
-        ];
-        for (edit, expect) in cases {
-            let mut ck = good.clone();
-            edit(&mut ck);
-            let e = round(&ck).unwrap_err();
-            assert!(matches!(e, CheckpointError::BadValue(_)), "{e:?}");
-            assert!(e.to_string().contains(expect), "{e} (expected {expect})");
-        }
-        // Scene-dependent values: checked by check_scene.
-        let mut ck = good.clone();
-        ck.particles.material[2] = 7;
-        let e = round(&ck).unwrap().check_scene(&scene).unwrap_err();
-        assert!(
-            e.to_string().contains("particle 2: material index 7"),
-            "{e}"
-        );
-        let mut ck = good.clone();
-        ck.particles.x[1].y = 1e9;
-        let e = round(&ck).unwrap().check_scene(&scene).unwrap_err();
-        assert!(e.to_string().contains("particle 1: position"), "{e}");
-    }
-
-    #[test]
-    fn fnv1a_reference_values() {
-        let h = |s: &[u8]| {
-            let mut f = Fnv1a64::default();
-            f.update(s);
-            f.finish()
-        };
-        assert_eq!(h(b""), 0xcbf29ce484222325);
-        assert_eq!(h(b"a"), 0xaf63dc4c8601ec8c);
-        assert_eq!(h(b"foobar"), 0x85944171f73967e8);
-    }
-}
+#[path = "checkpoint_tests.rs"]
+mod tests;

@@ -20,7 +20,7 @@
 //! built. The CPU backend couples them (`cpu/grid_update.rs`); the CUDA backend refuses them.
 
 use crate::boundary::Condition;
-use crate::boundary::sdf::{box_distance, sphere_distance};
+use crate::boundary::sdf::{box_distance, cylinder_distance, sphere_distance};
 use glam::{Mat3, Quat, Vec3};
 
 #[cfg(feature = "rigid")]
@@ -45,8 +45,17 @@ pub enum RigidKind {
 /// A body's shape about its centre, in its rest orientation.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum RigidShape {
-    Box { half_extents: Vec3 },
-    Sphere { radius: f32 },
+    Box {
+        half_extents: Vec3,
+    },
+    Sphere {
+        radius: f32,
+    },
+    /// A capped cylinder whose axis is the body's local y axis.
+    Cylinder {
+        radius: f32,
+        half_height: f32,
+    },
 }
 
 impl RigidShape {
@@ -57,6 +66,10 @@ impl RigidShape {
                 8.0 * half_extents.x * half_extents.y * half_extents.z
             }
             RigidShape::Sphere { radius } => 4.0 / 3.0 * std::f32::consts::PI * radius.powi(3),
+            RigidShape::Cylinder {
+                radius,
+                half_height,
+            } => std::f32::consts::PI * radius * radius * 2.0 * half_height,
         }
     }
 
@@ -65,6 +78,10 @@ impl RigidShape {
         match *self {
             RigidShape::Box { half_extents } => box_distance(p, Vec3::ZERO, half_extents),
             RigidShape::Sphere { radius } => sphere_distance(p, Vec3::ZERO, radius),
+            RigidShape::Cylinder {
+                radius,
+                half_height,
+            } => cylinder_distance(p, Vec3::ZERO, Vec3::Y, radius, half_height),
         }
     }
 
@@ -77,6 +94,16 @@ impl RigidShape {
             }
             .normal(p),
             RigidShape::Sphere { .. } => p.try_normalize().unwrap_or(Vec3::Y),
+            RigidShape::Cylinder {
+                radius,
+                half_height,
+            } => crate::boundary::sdf::Shape::Cylinder {
+                center: Vec3::ZERO,
+                axis: Vec3::Y,
+                radius,
+                half_height,
+            }
+            .normal(p),
         }
     }
 
@@ -88,6 +115,19 @@ impl RigidShape {
                 a * half_extents
             }
             RigidShape::Sphere { radius } => Vec3::splat(radius),
+            RigidShape::Cylinder {
+                radius,
+                half_height,
+            } => {
+                // The half-height along the turned axis plus the radius of the caps' discs
+                // (their extent along world x is radius sqrt(a_y^2 + a_z^2), a the unit axis;
+                // summed this way, not as 1 - a_x^2, a lying cylinder's bound is exact).
+                let a = r.y_axis;
+                let a2 = a * a;
+                let disc = Vec3::new(a2.y + a2.z, a2.x + a2.z, a2.x + a2.y);
+                a.abs() * half_height
+                    + Vec3::new(disc.x.sqrt(), disc.y.sqrt(), disc.z.sqrt()) * radius
+            }
         }
     }
 }
@@ -141,6 +181,30 @@ impl BodyState {
             n,
             self.velocity + self.angular_velocity.cross(x - self.center),
         ))
+    }
+}
+
+/// A body's pose and velocities as the rigid-body engine holds them, bit for bit: what a
+/// checkpoint stores to resume the bodies ([`RigidWorld::poses`], [`RigidWorld::set_poses`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BodyPose {
+    /// The body's origin (its centre) in the world (m).
+    pub position: Vec3,
+    /// Rest-to-world rotation (unit quaternion).
+    pub rotation: Quat,
+    pub velocity: Vec3,
+    pub angular_velocity: Vec3,
+}
+
+impl BodyPose {
+    /// True when every component is finite and the rotation is a unit quaternion (within
+    /// 1e-3).
+    pub fn is_valid(&self) -> bool {
+        self.position.is_finite()
+            && self.rotation.is_finite()
+            && (self.rotation.length() - 1.0).abs() < 1e-3
+            && self.velocity.is_finite()
+            && self.angular_velocity.is_finite()
     }
 }
 
@@ -205,6 +269,51 @@ mod tests {
             (v - (Vec3::X + Vec3::new(0.0, 0.9, 0.0))).length() < 1e-5,
             "{v}"
         );
+    }
+
+    #[test]
+    fn a_cylinder_lying_along_x_answers_like_the_colliders_cylinder() {
+        let shape = RigidShape::Cylinder {
+            radius: 0.5,
+            half_height: 1.0,
+        };
+        assert!((shape.volume() - std::f32::consts::PI * 0.25 * 2.0).abs() < 1e-6);
+        // Local y turned onto world x.
+        let rotation = Mat3::from_quat(Quat::from_rotation_arc(Vec3::Y, Vec3::X));
+        let h = shape.world_half_extents(rotation);
+        assert!((h - Vec3::new(1.0, 0.5, 0.5)).length() < 1e-5, "{h}");
+        let b = BodyState {
+            shape,
+            rotation,
+            center: Vec3::ZERO,
+            velocity: Vec3::ZERO,
+            angular_velocity: Vec3::ZERO,
+            dynamic: true,
+            condition: Condition::Slip,
+            friction: 0.0,
+        };
+        let collider = crate::boundary::sdf::Shape::Cylinder {
+            center: Vec3::ZERO,
+            axis: Vec3::X,
+            radius: 0.5,
+            half_height: 1.0,
+        };
+        for x in [
+            Vec3::new(0.9, 0.45, 0.0),
+            Vec3::new(0.2, -0.1, 0.3),
+            Vec3::new(-0.95, 0.0, 0.1),
+            Vec3::new(0.0, 0.0, -0.49),
+        ] {
+            let (n, _) = b.query(x).expect("inside");
+            assert!((n - collider.normal(x)).length() < 1e-5, "{x}: {n}");
+        }
+        assert!(b.query(Vec3::new(1.05, 0.0, 0.0)).is_none());
+        assert!(b.query(Vec3::new(0.0, 0.55, 0.0)).is_none());
+        // The round side is along y now, the caps along x.
+        let (n, _) = b.query(Vec3::new(0.0, 0.45, 0.0)).unwrap();
+        assert!((n - Vec3::Y).length() < 1e-5, "{n}");
+        let (n, _) = b.query(Vec3::new(-0.98, 0.0, 0.0)).unwrap();
+        assert!((n + Vec3::X).length() < 1e-5, "{n}");
     }
 
     #[test]

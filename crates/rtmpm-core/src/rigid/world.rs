@@ -2,7 +2,7 @@
 //! with one collider of its shape, and the six faces of the domain minus the walls as fixed
 //! slabs, so bodies rest on the floor and bounce off each other.
 
-use super::{BodyState, Exchange, RigidBodySpec, RigidKind, RigidShape};
+use super::{BodyPose, BodyState, Exchange, RigidBodySpec, RigidKind, RigidShape};
 use crate::sim::SimError;
 use rapier3d::prelude as rp;
 
@@ -82,6 +82,11 @@ impl RigidWorld {
             let collider = match b.shape {
                 RigidShape::Box { half_extents: h } => rp::ColliderBuilder::cuboid(h.x, h.y, h.z),
                 RigidShape::Sphere { radius } => rp::ColliderBuilder::ball(radius),
+                // rapier's cylinders are along their local y, as ours.
+                RigidShape::Cylinder {
+                    radius,
+                    half_height,
+                } => rp::ColliderBuilder::cylinder(half_height, radius),
             }
             .mass(b.mass);
             let (handle, _) = world.insert(body, collider);
@@ -122,6 +127,48 @@ impl RigidWorld {
     /// Every body's state at the current time.
     pub fn states(&self) -> &[BodyState] {
         &self.states
+    }
+
+    /// Every body's pose and velocities as rapier holds them (for checkpoints).
+    pub fn poses(&self) -> Vec<BodyPose> {
+        self.handles
+            .iter()
+            .map(|&h| {
+                let b = &self.world.bodies[h];
+                let q = b.rotation().to_array();
+                BodyPose {
+                    position: gv(b.translation()),
+                    rotation: glam::Quat::from_array(q),
+                    velocity: gv(b.linvel()),
+                    angular_velocity: gv(b.angvel()),
+                }
+            })
+            .collect()
+    }
+
+    /// Put every body at `poses` (one per body, in the scene's order, as [`RigidWorld::poses`]
+    /// gave them): resuming a checkpoint. What rapier keeps besides the bodies is not restored:
+    /// the contacts' cached impulses (the solver's warm start), which the next step rebuilds
+    /// from zero, so bodies in contact at the checkpoint continue slightly differently from an
+    /// uninterrupted run; bodies not touching anything continue identically.
+    pub fn set_poses(&mut self, poses: &[BodyPose]) -> Result<(), SimError> {
+        if poses.len() != self.handles.len() {
+            return Err(SimError::Backend(format!(
+                "{} rigid-body states for the scene's {} rigid bodies",
+                poses.len(),
+                self.handles.len()
+            )));
+        }
+        for (&h, p) in self.handles.iter().zip(poses) {
+            let b = &mut self.world.bodies[h];
+            let q = p.rotation.to_array();
+            b.set_translation(rv(p.position), true);
+            b.set_rotation(rp::Rotation::from_array(q), true);
+            b.set_linvel(rv(p.velocity), true);
+            b.set_angvel(rv(p.angular_velocity), true);
+        }
+        self.refresh();
+        Ok(())
     }
 
     /// Give each dynamic body the impulses the grid gave it this step, then advance the world

@@ -1,6 +1,6 @@
 //! Without the cargo feature `rigid`: no rigid-body world; scenes with rigid bodies are refused.
 
-use super::{BodyState, Exchange, RigidBodySpec};
+use super::{BodyPose, BodyState, Exchange, RigidBodySpec};
 use crate::sim::SimError;
 
 /// Stands for the rapier3d world of the feature `rigid`; never built.
@@ -29,6 +29,16 @@ impl RigidWorld {
 
     /// Every body's state.
     pub fn states(&self) -> &[BodyState] {
+        match self.never {}
+    }
+
+    /// Every body's pose and velocities.
+    pub fn poses(&self) -> Vec<BodyPose> {
+        match self.never {}
+    }
+
+    /// Put every body at `poses`.
+    pub fn set_poses(&mut self, _poses: &[BodyPose]) -> Result<(), SimError> {
         match self.never {}
     }
 

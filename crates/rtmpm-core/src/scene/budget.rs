@@ -11,8 +11,10 @@ use crate::io::limits::human_bytes;
 pub const HOST_BYTES_PER_PARTICLE_F32: u64 = 112 * 2 + 8 + 24 + 16 + 112;
 /// The same in f64 (the backend's state is twice as wide).
 pub const HOST_BYTES_PER_PARTICLE_F64: u64 = 224 * 2 + 8 + 24 + 16 + 112;
-/// Device bytes per particle of a CUDA run (state, sort keys and scratch; an estimate).
-pub const GPU_BYTES_PER_PARTICLE: u64 = 256;
+/// Device bytes per particle of a CUDA run in f32, twice that in f64: the CUDA backend's plan
+/// (`rtmpm-cuda` `Capacity::bytes`, docs/memory.md) rounded up: state 116, sort scratch 16 (the
+/// default 4 fields), sort ranks 4, warp list 0.4. The grid is counted per node of the domain.
+pub const GPU_BYTES_PER_PARTICLE: u64 = 140;
 /// More steps than this is refused: even at a microsecond a step it would take hours.
 pub const MAX_STEPS: u64 = 10_000_000_000;
 /// More frames than this is refused (that many files in one folder).

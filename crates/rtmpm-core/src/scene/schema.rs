@@ -399,6 +399,9 @@ pub struct RawRigidBody {
     pub max: Option<V3>,
     pub center: Option<V3>,
     pub radius: Option<f32>,
+    /// A cylinder's axis (default y) and height.
+    pub axis: Option<V3>,
+    pub height: Option<f32>,
     #[serde(rename = "type")]
     pub kind: Option<RawRigidKind>,
     pub density: Option<f32>,
@@ -418,6 +421,8 @@ impl RawRigidBody {
             max: self.max,
             center: self.center,
             radius: self.radius,
+            axis: self.axis,
+            height: self.height,
             ..Default::default()
         }
     }

@@ -156,13 +156,73 @@ fn rigid_bodies_are_read_and_bad_ones_refused() {
     );
     bad(
         "shape = \"sphere\"\ncenter",
-        "shape = \"cylinder\"\ncenter",
+        "shape = \"mesh\"\ncenter",
         "rigid_body[1].shape",
+    );
+    // A cylinder needs its height.
+    bad(
+        "shape = \"sphere\"\ncenter",
+        "shape = \"cylinder\"\ncenter",
+        "rigid_body[1].height",
     );
     bad(
         "density = 500.0",
         "density = 500.0\ntype = \"fixed\"\nvelocity = [1.0, 0.0, 0.0]",
         "rigid_body[0].velocity",
+    );
+    bad("mass = 2.0", "mass = -1.0", "rigid_body[1].mass");
+    bad("mass = 2.0", "mass = nan", "rigid_body[1].mass");
+}
+
+#[test]
+fn rigid_cylinders_take_the_colliders_fields() {
+    use crate::rigid::RigidShape;
+    let cyl = "[[rigid_body]]\nshape = \"cylinder\"\ncenter = [0.5, 0.5, 0.5]\nradius = 0.1\n\
+               height = 0.4\naxis = [1.0, 0.0, 0.0]\ndensity = 100.0\n";
+    let s = parse(&format!("{BASE}{cyl}")).unwrap();
+    let b = &s.rigid_bodies[0];
+    assert_eq!(
+        b.shape,
+        RigidShape::Cylinder {
+            radius: 0.1,
+            half_height: 0.2
+        }
+    );
+    assert!((b.mass - 100.0 * std::f32::consts::PI * 0.01 * 0.4).abs() < 1e-5);
+    // The axis turns the body's local y (the cylinder's axis) onto x.
+    assert!((b.rotation * Vec3::Y - Vec3::X).length() < 1e-6);
+    // Without an axis it stands along y; a rotation turns it after the axis.
+    let s = parse(&format!(
+        "{BASE}{}",
+        cyl.replace("axis = [1.0, 0.0, 0.0]\n", "")
+    ))
+    .unwrap();
+    assert_eq!(s.rigid_bodies[0].rotation, glam::Quat::IDENTITY);
+    let turned = cyl.replace(
+        "axis = [1.0, 0.0, 0.0]",
+        "axis = [1.0, 0.0, 0.0]\nrotation = [0.0, 1.5707964, 0.0]",
+    );
+    let s = parse(&format!("{BASE}{turned}")).unwrap();
+    assert!((s.rigid_bodies[0].rotation * Vec3::Y - Vec3::NEG_Z).length() < 1e-6);
+    let bad = |from: &str, to: &str, field: &str| {
+        assert!(cyl.contains(from), "{from}");
+        let e = parse(&format!("{BASE}{}", cyl.replacen(from, to, 1))).expect_err(to);
+        assert_eq!(e.field.as_deref(), Some(field), "{e}");
+        assert!(e.hint.is_some(), "{e}");
+    };
+    bad("height = 0.4", "height = 0.0", "rigid_body[0].height");
+    bad("radius = 0.1", "radius = -0.1", "rigid_body[0].radius");
+    bad(
+        "axis = [1.0, 0.0, 0.0]",
+        "axis = [0.0, 0.0, 0.0]",
+        "rigid_body[0].axis",
+    );
+    // Lying along x, 0.4 long: centred at x = 0.9 it reaches x = 1.1, beyond the interior
+    // (0.1875 .. 0.8125: three wall cells of 0.0625).
+    bad(
+        "center = [0.5, 0.5, 0.5]",
+        "center = [0.9, 0.5, 0.5]",
+        "rigid_body[0].shape",
     );
 }
 

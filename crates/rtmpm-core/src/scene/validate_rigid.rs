@@ -9,7 +9,7 @@ use glam::Quat;
 use std::path::Path;
 
 impl V<'_> {
-    /// `rigid_body[i]`: a box or sphere inside the domain minus the walls, exactly one of
+    /// `rigid_body[i]`: a box, sphere or cylinder inside the domain minus the walls, exactly one of
     /// `density` and `mass` (> 0; a fixed body needs neither), finite pose and velocities.
     pub(super) fn rigid_body(
         &self,
@@ -21,13 +21,20 @@ impl V<'_> {
     ) -> R<RigidBodySpec> {
         let prefix = format!("rigid_body[{i}]");
         let f = |n: &str| format!("{prefix}.{n}");
-        if !matches!(b.shape, RawShape::Box | RawShape::Sphere) {
+        if !matches!(
+            b.shape,
+            RawShape::Box | RawShape::Sphere | RawShape::Cylinder
+        ) {
             return Err(self.err(
                 f("shape"),
                 format!("a rigid body cannot be a {} (yet)", b.shape.name()),
-                "use shape = \"box\" (min, max) or \"sphere\" (center, radius)",
+                "use shape = \"box\" (min, max), \"sphere\" (center, radius) or \"cylinder\" \
+                 (center, radius, height, axis)",
             ));
         }
+        // A cylinder's `axis` turns its rest orientation (rapier's and ours: along local y);
+        // `rotation` then turns the body.
+        let mut rest = Quat::IDENTITY;
         let (shape, position) = match self.body_shape(&prefix, b.shape, &b.geometry(), base, dx)? {
             BodyShape::Box { min, max } => (
                 RigidShape::Box {
@@ -36,11 +43,26 @@ impl V<'_> {
                 0.5 * (min + max),
             ),
             BodyShape::Sphere { center, radius } => (RigidShape::Sphere { radius }, center),
-            _ => unreachable!("box or sphere"),
+            BodyShape::Cylinder {
+                center,
+                axis,
+                radius,
+                half_height,
+            } => {
+                rest = Quat::from_rotation_arc(Vec3::Y, axis);
+                (
+                    RigidShape::Cylinder {
+                        radius,
+                        half_height,
+                    },
+                    center,
+                )
+            }
+            _ => unreachable!("box, sphere or cylinder"),
         };
         let rotation = match b.rotation {
-            Some(r) => Quat::from_scaled_axis(self.vec3(&f("rotation"), r)?),
-            None => Quat::IDENTITY,
+            Some(r) => Quat::from_scaled_axis(self.vec3(&f("rotation"), r)?) * rest,
+            None => rest,
         };
         let kind = match b.kind.unwrap_or(RawRigidKind::Dynamic) {
             RawRigidKind::Dynamic => RigidKind::Dynamic,

@@ -57,6 +57,8 @@ fn layouts<R: GpuReal>() -> Vec<Layout> {
                 warps,
                 boundary,
                 shared_pblock,
+                bodies,
+                body_exchange,
                 n_cells,
                 wall_thickness,
                 wall_cond,
@@ -73,7 +75,7 @@ fn layouts<R: GpuReal>() -> Vec<Layout> {
                 transfer,
                 update,
                 always_rebuild,
-                pad
+                n_bodies
             ]
         ),
         layout!(
@@ -100,6 +102,11 @@ fn layouts<R: GpuReal>() -> Vec<Layout> {
             GpuCollider,
             "GpuCollider",
             [kind, cond, friction, mesh_offset, pivot, p, dims, pad]
+        ),
+        layout!(
+            GpuBody,
+            "GpuBody",
+            [shape, rot, center, velocity, omega, bound, dynamic]
         ),
         layout!(
             SharedCtx,
@@ -194,6 +201,8 @@ pub fn prelude() -> String {
         ("CTL_WORDS", CTL_WORDS),
         ("RTMPM_MAX_COLLIDERS", MAX_COLLIDERS),
         ("RTMPM_MAX_MATERIALS", MAX_MATERIALS),
+        ("RTMPM_MAX_BODIES", MAX_BODIES),
+        ("BODY_EXCHANGE_SLOTS", BODY_EXCHANGE_SLOTS),
         ("MATERIAL_PARAMS", MATERIAL_PARAMS),
         ("SB_MAX_GPUS", MAX_PEER_GPUS),
     ] {

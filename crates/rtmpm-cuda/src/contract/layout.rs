@@ -47,7 +47,8 @@ impl GpuReal for f64 {
 pub struct Ctx {
     /// `NFIELDS` reals per particle.
     pub state: u64,
-    /// The same size, for the rebuild's reordering.
+    /// The rebuild's sort scratch: `CudaOptions::sort_scratch_fields` reals per particle slot
+    /// (the state is permuted that many fields at a time).
     pub scratch: u64,
     /// 4 reals per node: mass, momentum (velocity after the grid update).
     pub grid: u64,
@@ -82,9 +83,9 @@ pub struct Ctx {
     pub hist: u64,
     /// Block sums of the scan.
     pub scan_sums: u64,
-    /// Per particle: its bucket.
+    /// Per particle: its bucket (the scratch's first field, free until the sort's scatter).
     pub pkey: u64,
-    /// Per particle: its rank in the bucket.
+    /// Per particle: its rank in the bucket, then its sorted slot.
     pub prank: u64,
     /// 3 words per warp: gblock, first particle, count.
     pub warps: u64,
@@ -92,6 +93,11 @@ pub struct Ctx {
     pub boundary: u64,
     /// Per pblock: 1 when it is shared with another GPU (its grid update waits for the sum).
     pub shared_pblock: u64,
+    /// Global copy of the rigid bodies' states (`c_bodies`, see `scalars`).
+    pub bodies: u64,
+    /// Rigid bodies: f64 impulse (3) and angular impulse (3) per body, in
+    /// `BODY_EXCHANGE_SLOTS` copies summed by the host (`crate::rigid`).
+    pub body_exchange: u64,
     /// Cells of the domain per axis.
     pub n_cells: [i32; 3],
     /// Wall thickness (cells).
@@ -124,8 +130,8 @@ pub struct Ctx {
     pub update: u32,
     /// Rebuild the mapping every step (free zone or mixed sorting off).
     pub always_rebuild: u32,
-    /// Padding to 8 bytes.
-    pub pad: u32,
+    /// Rigid bodies coupled in the grid update (`[[rigid_body]]`).
+    pub n_bodies: u32,
 }
 
 // SAFETY: Pod, passed by value with the C layout the kernels declare (checked by layout_asserts).
@@ -240,6 +246,28 @@ pub struct GpuCollider {
     pub dims: [u32; 3],
     /// Padding.
     pub pad: u32,
+}
+
+/// A rigid body at the step's time (constant memory `c_bodies`, written before every step):
+/// its shape about its centre of mass as a collider shape in the rest pose (pivot 0), its
+/// boundary rule, pose and velocities (`rtmpm_core::rigid::BodyState`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct GpuBody {
+    /// Shape (`kind`, `p`), boundary rule (`cond`, `friction`) in the body frame.
+    pub shape: GpuCollider,
+    /// Rest-to-world rotation, column-major.
+    pub rot: [f32; 9],
+    /// Centre of mass (m).
+    pub center: [f32; 3],
+    /// Linear velocity of the centre (m/s).
+    pub velocity: [f32; 3],
+    /// Angular velocity (rad/s, world frame).
+    pub omega: [f32; 3],
+    /// Radius of a sphere about the centre that holds the body (a quick rejection).
+    pub bound: f32,
+    /// 1 when the material's impulses move the body (its reactions are summed).
+    pub dynamic: u32,
 }
 
 /// Several GPUs: the buffers of the shared-block reduction (`kernels/multi/reduce_shared.cu`).

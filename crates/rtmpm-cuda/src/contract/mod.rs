@@ -113,6 +113,11 @@ pub const ERR_MAPPING: u32 = ERR_HASH | ERR_GBLOCKS | ERR_PBLOCKS | ERR_WARPS;
 pub const MAX_COLLIDERS: usize = 16;
 /// Materials a scene may have on the GPU (constant-memory table).
 pub const MAX_MATERIALS: usize = 64;
+/// Rigid bodies a scene may have on the GPU (constant-memory table).
+pub const MAX_BODIES: usize = 32;
+/// Copies of the rigid bodies' impulse sums (thread blocks add to copy `blockIdx.x % slots`, so
+/// fewer atomics meet on one address); the host sums them.
+pub const BODY_EXCHANGE_SLOTS: usize = 32;
 /// Most GPUs of transport=p2p.
 pub const MAX_PEER_GPUS: usize = 8;
 /// `real` parameters per material on the GPU (the largest model's).

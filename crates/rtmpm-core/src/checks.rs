@@ -1,0 +1,267 @@
+//! The measurements of issue 17's checks of rigid bodies and emitters, shared by `rtmpm
+//! validate` (cases `archimedes`, `sinking`, `rigid_momentum`, `emitter_mass`, any backend) and
+//! the cargo tests `tests/rigid.rs` and `tests/emitters.rs` (CPU). The scenes are the files
+//! `validation/{archimedes,sinking,rigid_momentum,emitter_mass}.toml`; [`edit_toml`] changes
+//! their resolution or a body's density. Every function runs a [`Simulation`] to the end of its
+//! scene and measures; the body states come from [`Backend::rigid_bodies`], so a backend that
+//! couples no bodies is caught ([`CheckError::NoBodies`]) rather than measured as if it did.
+
+use crate::Particles;
+use crate::sim::{Backend, SimError, Simulation};
+use glam::DVec3;
+
+/// Why a check could not measure.
+#[derive(Debug, thiserror::Error)]
+pub enum CheckError {
+    /// The simulation failed (a blow-up, or the backend refused the scene).
+    #[error(transparent)]
+    Sim(#[from] SimError),
+    /// The backend reports fewer rigid bodies than the scene has.
+    #[error(
+        "the backend `{backend}` reports {found} rigid bodies, the scene has {expected}: it does \
+         not couple [[rigid_body]] tables"
+    )]
+    NoBodies {
+        backend: String,
+        found: usize,
+        expected: usize,
+    },
+    /// The scene is not the one the check expects.
+    #[error("{0}")]
+    Scene(String),
+}
+
+/// The scene text `text` with `edits` applied: each a dotted path (`domain.dx`,
+/// `rigid_body.0.density`; numbers index arrays of tables) and the new value. Comments and the
+/// other lines are kept.
+pub fn edit_toml(text: &str, edits: &[(&str, toml_edit::Value)]) -> Result<String, String> {
+    let mut doc: toml_edit::DocumentMut = text.parse().map_err(|e| format!("{e}"))?;
+    for (path, value) in edits {
+        let mut item = doc.as_item_mut();
+        for seg in path.split('.') {
+            let next = match seg.parse::<usize>() {
+                Ok(i) => item.get_mut(i),
+                Err(_) => item.get_mut(seg),
+            };
+            item = next.ok_or_else(|| format!("`{path}`: no `{seg}` in the scene"))?;
+        }
+        *item = toml_edit::Item::Value(value.clone());
+    }
+    Ok(doc.to_string())
+}
+
+/// The scene text at `factor` times the resolution of `text`: `domain.dx` divided by `factor`
+/// and `walls.thickness` (3 cells when absent) multiplied by it, so the walls keep their
+/// thickness in metres and the material its place.
+pub fn refine(text: &str, factor: u32) -> Result<String, String> {
+    let doc: toml_edit::DocumentMut = text.parse().map_err(|e| format!("{e}"))?;
+    let dx = doc["domain"]["dx"]
+        .as_float()
+        .ok_or("the scene's domain.dx is not a number")?;
+    let thickness = doc
+        .get("walls")
+        .and_then(|w| w.get("thickness"))
+        .and_then(|t| t.as_integer())
+        .unwrap_or(3);
+    let mut text = edit_toml(text, &[("domain.dx", (dx / factor as f64).into())])?;
+    let mut doc: toml_edit::DocumentMut = text.parse().map_err(|e| format!("{e}"))?;
+    doc["walls"]["thickness"] = toml_edit::value(thickness * factor as i64);
+    text = doc.to_string();
+    Ok(text)
+}
+
+/// The body states after making sure the backend couples every body of the scene.
+fn bodies<B: Backend + ?Sized>(
+    sim: &Simulation<B>,
+) -> Result<Vec<crate::rigid::BodyState>, CheckError> {
+    let s = sim.backend.rigid_bodies();
+    let expected = sim.scene.rigid_bodies.len();
+    if s.len() != expected {
+        return Err(CheckError::NoBodies {
+            backend: sim.backend.name(),
+            found: s.len(),
+            expected,
+        });
+    }
+    Ok(s)
+}
+
+/// Linear momentum of the particles, summed in f64.
+pub fn momentum(p: &Particles) -> DVec3 {
+    (0..p.len()).fold(DVec3::ZERO, |a, i| a + p.v[i].as_dvec3() * p.mass[i] as f64)
+}
+
+/// A floating body, measured by [`float`].
+#[derive(Clone, Copy, Debug)]
+pub struct Floating {
+    /// Submerged fraction of the body's height (its height in its initial orientation).
+    pub fraction: f64,
+    /// The body's centre height (m), averaged over the last frames.
+    pub centre: f64,
+    /// The free surface's height away from the body (m).
+    pub surface: f64,
+    /// How far the body has turned from its initial orientation at the end (degrees).
+    pub tilt_degrees: f64,
+}
+
+/// Frames over whose end the floating body's height is averaged.
+const AVERAGE_FRAMES: u64 = 10;
+
+/// Run `sim` to the end of its scene and measure how deep its first rigid body floats: its
+/// centre height averaged over the last 10 frames, the free surface away from it (the 98th
+/// percentile of the heights of the particles more than 0.1 m in x or z from the body's
+/// bounds where it started, plus half a particle spacing, `dx / 4` for 8 particles per cell) and the submerged
+/// fraction of its height in its initial orientation (a box's height, a lying cylinder's
+/// diameter). `each_frame(time, centre height)` is called after every frame.
+pub fn float<B: Backend + ?Sized>(
+    sim: &mut Simulation<B>,
+    mut each_frame: impl FnMut(f64, f64),
+) -> Result<Floating, CheckError> {
+    let spec = sim
+        .scene
+        .rigid_bodies
+        .first()
+        .ok_or_else(|| CheckError::Scene("the scene has no rigid body".into()))?
+        .clone();
+    let initial = glam::Mat3::from_quat(spec.rotation);
+    let half_height = spec.shape.world_half_extents(initial).y as f64;
+    let frames = sim.scene.time.frames();
+    let (mut sum, mut count) = (0.0f64, 0u32);
+    let mut last = None;
+    for f in 0..frames {
+        sim.advance_frame()?;
+        let b = bodies(sim)?[0];
+        each_frame(sim.time, b.center.y as f64);
+        if f + AVERAGE_FRAMES >= frames {
+            sum += b.center.y as f64;
+            count += 1;
+        }
+        last = Some(b);
+    }
+    let b = last.ok_or_else(|| CheckError::Scene("the scene has no frames".into()))?;
+    let centre = sum / count as f64;
+    // Away from where the body was dropped (it drifts by millimetres).
+    let half = spec.shape.world_half_extents(initial);
+    let mut p = Particles::default();
+    sim.backend.read_particles(&mut p)?;
+    let (cx, cz) = (spec.position.x, spec.position.z);
+    let far = |x: &glam::Vec3| ((x.x - cx).abs() - half.x).max((x.z - cz).abs() - half.z) > 0.1;
+    let mut tops: Vec<f32> = p.x.iter().filter(|x| far(x)).map(|x| x.y).collect();
+    if tops.is_empty() {
+        return Err(CheckError::Scene(
+            "no material more than 0.1 m from the body to measure the surface".into(),
+        ));
+    }
+    tops.sort_by(|a, b| b.total_cmp(a));
+    let surface = (tops[tops.len() / 50] + 0.25 * sim.scene.dx) as f64;
+    let bottom = centre - half_height;
+    let turn = glam::Quat::from_mat3(&(b.rotation * initial.transpose()));
+    Ok(Floating {
+        fraction: (surface - bottom) / (2.0 * half_height),
+        centre,
+        surface,
+        tilt_degrees: turn.to_axis_angle().1.to_degrees() as f64,
+    })
+}
+
+/// Run `sim` to the end of its scene; the rigid bodies' final states.
+pub fn settle<B: Backend + ?Sized>(
+    sim: &mut Simulation<B>,
+) -> Result<Vec<crate::rigid::BodyState>, CheckError> {
+    for _ in 0..sim.scene.time.frames() {
+        sim.advance_frame()?;
+    }
+    bodies(sim)
+}
+
+/// The momentum exchange between a thrown body of material and one free rigid body, measured by
+/// [`collide`].
+#[derive(Clone, Copy, Debug)]
+pub struct Collision {
+    /// Momentum of the material at t = 0.
+    pub start: DVec3,
+    /// Momentum of the material at the end.
+    pub material: DVec3,
+    /// Momentum of the rigid body at the end.
+    pub body: DVec3,
+    /// The rigid body's final velocity along x (m/s).
+    pub body_speed: f64,
+    /// The elastic-collision estimate of that speed, `2 m1 v1 / (m1 + m2)` (m/s), with `m1` the
+    /// material's mass and `v1` its initial speed along x.
+    pub elastic: f64,
+}
+
+impl Collision {
+    /// |total momentum at the end - at the start| / |at the start|.
+    pub fn momentum_error(&self) -> f64 {
+        (self.material + self.body - self.start).length() / self.start.length()
+    }
+}
+
+/// Run `sim` (zero gravity, material thrown along +x at a free rigid body at rest) to the end
+/// of its scene and measure the momentum of material plus body.
+pub fn collide<B: Backend + ?Sized>(sim: &mut Simulation<B>) -> Result<Collision, CheckError> {
+    let mut p = Particles::default();
+    sim.backend.read_particles(&mut p)?;
+    let start = momentum(&p);
+    let m1: f64 = p.mass.iter().map(|&m| m as f64).sum();
+    let body_mass = sim
+        .scene
+        .rigid_bodies
+        .first()
+        .ok_or_else(|| CheckError::Scene("the scene has no rigid body".into()))?
+        .mass as f64;
+    let b = settle(sim)?[0];
+    sim.backend.read_particles(&mut p)?;
+    let v1 = start.x / m1;
+    Ok(Collision {
+        start,
+        material: momentum(&p),
+        body: b.velocity.as_dvec3() * body_mass,
+        body_speed: b.velocity.x as f64,
+        elastic: 2.0 * m1 * v1 / (m1 + body_mass),
+    })
+}
+
+/// The emitted mass against rate x t, measured by [`emission`].
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Emission {
+    /// Largest |emitted mass - rate x t x particle mass| over the frames, in particles.
+    pub worst_particles: f64,
+    /// Particles the first emitter emitted by the end.
+    pub emitted: u64,
+    /// Its rate times its emitting time, `rate (stop - start)`, when the run ends after `stop`.
+    pub expected: f64,
+}
+
+/// Run `sim` to the end of its scene and compare, after every frame, the mass of the first
+/// emitter's material (less its mass at t = 0) with `rate (min(t, stop) - start)` particles.
+pub fn emission<B: Backend + ?Sized>(sim: &mut Simulation<B>) -> Result<Emission, CheckError> {
+    let em = sim
+        .scene
+        .emitters
+        .first()
+        .ok_or_else(|| CheckError::Scene("the scene has no emitter".into()))?
+        .clone();
+    let m = em.particle_mass as f64;
+    let mut p = Particles::default();
+    let material_mass = |p: &Particles| -> f64 {
+        (0..p.len())
+            .filter(|&i| p.material[i] == em.material)
+            .map(|i| p.mass[i] as f64)
+            .sum()
+    };
+    sim.backend.read_particles(&mut p)?;
+    let base = material_mass(&p);
+    let mut out = Emission::default();
+    for _ in 0..sim.scene.time.frames() {
+        sim.advance_frame()?;
+        sim.backend.read_particles(&mut p)?;
+        let expect = em.rate * (sim.time.min(em.stop) - em.start).max(0.0) * m;
+        let got = material_mass(&p) - base;
+        out.worst_particles = out.worst_particles.max((got - expect).abs() / m);
+    }
+    out.emitted = sim.emitted().first().copied().unwrap_or(0);
+    out.expected = em.rate * (em.stop - em.start);
+    Ok(out)
+}

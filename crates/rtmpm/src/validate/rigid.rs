@@ -1,0 +1,184 @@
+//! The checks of issue 17 (rigid bodies two-way coupled to the material, emitters):
+//! `archimedes`, `sinking`, `rigid_momentum` (cargo feature `rigid`) and `emitter_mass`. The
+//! scenes are `validation/{archimedes,sinking,rigid_momentum,emitter_mass}.toml`; `--quick` runs
+//! them as they are (the resolution of the cargo tests `crates/rtmpm-core/tests/rigid.rs` and
+//! `emitters.rs`), the full run at half the grid spacing. The measurements are
+//! `rtmpm_core::checks`, shared with those tests.
+
+use super::{Ctx, Row, rel_pct};
+use anyhow::{Result, anyhow};
+use rtmpm_core::checks;
+use rtmpm_core::render::plot::{Plot, Series, Style};
+
+/// The rigid cases need the rigid-body engine (rapier3d), which this build may lack.
+pub const NEEDS_FEATURE: &str = "needs the rigid-body engine, which this build of rtmpm lacks: \
+     build it with the cargo feature `rigid` (`cargo build --release -p rtmpm --features rigid`, \
+     or `cargo run --release -p rtmpm --features rigid -- validate ...`)";
+
+/// True when this build simulates `[[rigid_body]]` tables.
+pub fn available() -> bool {
+    cfg!(feature = "rigid")
+}
+
+fn need_engine() -> Result<()> {
+    if available() {
+        Ok(())
+    } else {
+        Err(anyhow!("{NEEDS_FEATURE}"))
+    }
+}
+
+/// The scene text of `file` at the resolution of the run: as it is with `--quick`, else at half
+/// its grid spacing (walls kept as thick in metres).
+fn scene_text(ctx: &Ctx, file: &str) -> Result<String> {
+    let text = ctx.scene_text(file)?;
+    if ctx.args.quick {
+        Ok(text)
+    } else {
+        checks::refine(&text, 2).map_err(|e| anyhow!("{file}: {e}"))
+    }
+}
+
+/// Archimedes: boxes of density 250, 500 and 750 settle with the submerged fraction of their
+/// height equal to the density ratio within 5 %.
+pub fn archimedes(ctx: &Ctx) -> Result<Vec<Row>> {
+    need_engine()?;
+    let base = scene_text(ctx, "archimedes.toml")?;
+    let mut rows = Vec::new();
+    let mut series = Vec::new();
+    for (density, rgb) in [
+        (250.0, [220, 60, 40]),
+        (500.0, [40, 150, 60]),
+        (750.0, [40, 90, 220]),
+    ] {
+        let text = checks::edit_toml(&base, &[("rigid_body.0.density", density.into())])
+            .map_err(|e| anyhow!("archimedes.toml: {e}"))?;
+        let mut sim = ctx.simulation(&text, "archimedes.toml")?;
+        let dx = sim.scene.dx;
+        let mut heights = Vec::new();
+        let f = checks::float(&mut sim, |t, y| heights.push((t, y)))?;
+        let ratio = density / 1000.0;
+        rows.push(Row {
+            case: "archimedes".into(),
+            quantity: format!("submerged fraction, density {density}, dx = {dx}"),
+            reference: ratio,
+            simulated: f.fraction,
+            error: rel_pct(f.fraction, ratio),
+            tolerance: 5.0,
+            unit: "%",
+        });
+        series.push(Series {
+            label: format!("density {density}"),
+            points: heights,
+            rgb,
+            style: Style::Line,
+        });
+    }
+    ctx.plot(
+        "archimedes_heights",
+        Plot {
+            title: "Archimedes: centre height of boxes dropped on water".into(),
+            x_label: "t (s)".into(),
+            y_label: "centre height (m)".into(),
+            series,
+        },
+    );
+    Ok(rows)
+}
+
+/// Sinking: a sphere of density 2,500 reaches the floor, one of 500 floats.
+pub fn sinking(ctx: &Ctx) -> Result<Vec<Row>> {
+    need_engine()?;
+    let text = scene_text(ctx, "sinking.toml")?;
+    let mut sim = ctx.simulation(&text, "sinking.toml")?;
+    let dx = sim.scene.dx as f64;
+    let floor = sim.scene.interior().0.y as f64;
+    // The initial water surface: the top of the water body.
+    let mut p = rtmpm_core::Particles::default();
+    sim.backend.read_particles(&mut p)?;
+    let surface = p.x.iter().map(|x| x.y).fold(f32::MIN, f32::max) as f64 + 0.25 * dx;
+    let s = checks::settle(&mut sim)?;
+    let radius = |b: &rtmpm_core::rigid::BodyState| b.shape.world_half_extents(b.rotation).y as f64;
+    let gap = s[0].center.y as f64 - radius(&s[0]) - floor;
+    // Depth of the light sphere's bottom below the initial surface, over its diameter: 1 or
+    // more when fully submerged.
+    let light = (surface - (s[1].center.y as f64 - radius(&s[1]))) / (2.0 * radius(&s[1]));
+    Ok(vec![
+        Row {
+            case: "sinking".into(),
+            quantity: format!("density 2500: gap to the floor (m), dx = {dx}"),
+            reference: 0.0,
+            simulated: gap,
+            error: gap.abs(),
+            tolerance: dx,
+            unit: "m",
+        },
+        Row {
+            case: "sinking".into(),
+            quantity: "density 500: submerged fraction (< 1 floats)".into(),
+            reference: 0.5,
+            simulated: light,
+            error: light,
+            tolerance: 1.0,
+            unit: "",
+        },
+    ])
+}
+
+/// Momentum: a jelly ball hits a free box in zero gravity; momentum of material plus body
+/// conserved within 1 %, the box's speed the elastic estimate within 10 %.
+pub fn momentum(ctx: &Ctx) -> Result<Vec<Row>> {
+    need_engine()?;
+    let text = scene_text(ctx, "rigid_momentum.toml")?;
+    let mut sim = ctx.simulation(&text, "rigid_momentum.toml")?;
+    let dx = sim.scene.dx;
+    let c = checks::collide(&mut sim)?;
+    Ok(vec![
+        Row {
+            case: "rigid_momentum".into(),
+            quantity: format!("|p_end - p_start| / |p_start|, material + body, dx = {dx}"),
+            reference: 0.0,
+            simulated: 100.0 * c.momentum_error(),
+            error: 100.0 * c.momentum_error(),
+            tolerance: 1.0,
+            unit: "%",
+        },
+        Row {
+            case: "rigid_momentum".into(),
+            quantity: "box speed (m/s) vs elastic estimate".into(),
+            reference: c.elastic,
+            simulated: c.body_speed,
+            error: rel_pct(c.body_speed, c.elastic),
+            tolerance: 10.0,
+            unit: "%",
+        },
+    ])
+}
+
+/// Emitter: the emitted mass after t equals rate x t within one particle.
+pub fn emitter_mass(ctx: &Ctx) -> Result<Vec<Row>> {
+    let text = scene_text(ctx, "emitter_mass.toml")?;
+    let mut sim = ctx.simulation(&text, "emitter_mass.toml")?;
+    let dx = sim.scene.dx;
+    let e = checks::emission(&mut sim)?;
+    Ok(vec![
+        Row {
+            case: "emitter_mass".into(),
+            quantity: format!("max |emitted - rate t| (particles), dx = {dx}"),
+            reference: 0.0,
+            simulated: e.worst_particles,
+            error: e.worst_particles,
+            tolerance: 1.0,
+            unit: "",
+        },
+        Row {
+            case: "emitter_mass".into(),
+            quantity: "particles emitted in all".into(),
+            reference: e.expected,
+            simulated: e.emitted as f64,
+            error: (e.emitted as f64 - e.expected).abs(),
+            tolerance: 1.0,
+            unit: "",
+        },
+    ])
+}
