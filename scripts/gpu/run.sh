@@ -105,6 +105,7 @@ for suite in "$@"; do
       for rep in $(seq 1 "${REPS:-2}"); do
         b "dam 2M 10 static crates #$rep" rtmpm --scene bench/fluid_dam_2m_colliders.toml --frames 3
         b "dam 2M 10 floating crates #$rep" rtmpm --scene bench/fluid_dam_2m_bodies.toml --frames 3
+        b "dam 2M 10 floating, no overlap #$rep" rtmpm --scene bench/fluid_dam_2m_bodies.toml --frames 3 --cuda-options rigid_overlap=off
       done
       x=$(timeout 300 "$D/rtmpm" run scenes/rigid/floating_box.toml --backend cuda --frames 30 --out "$OUT/floating_box" 2>&1)
       echo "$x" > "$OUT/floating_box.log"
