@@ -48,6 +48,8 @@ pub struct Budget {
     /// Device memory of a CUDA run on one GPU (particles, and the grid of every block of the
     /// domain, which the backend allocates up front).
     pub gpu_bytes: u64,
+    /// The part of `host_bytes` that grows with each particle (bytes per particle).
+    pub host_bytes_per_particle: u64,
 }
 
 /// One problem with a budget: what, by how much, how to fix it.
@@ -188,6 +190,7 @@ impl Budget {
             output_bytes,
             host_bytes,
             gpu_bytes,
+            host_bytes_per_particle: per_host,
         }
     }
 
@@ -209,10 +212,16 @@ impl Budget {
                 .iter()
                 .enumerate()
                 .fold((0, 0), |a, (i, &n)| if n > a.1 { (i, n) } else { a });
+            // What fits: the memory left beside the grid, at this many bytes a particle.
+            let grid = self
+                .host_bytes
+                .saturating_sub(self.particles.saturating_mul(self.host_bytes_per_particle));
+            let fit = avail.saturating_sub(grid) / self.host_bytes_per_particle.max(1);
             out.push(BudgetIssue {
                 message: format!(
                     "the run needs about {} of memory for {} particles, more than the {} \
-                     available (the largest, body[{largest}], has {count})",
+                     available (the largest, body[{largest}], has {count}); about {fit} \
+                     particles fit",
                     human_bytes(self.host_bytes),
                     self.particles,
                     human_bytes(avail)
@@ -356,6 +365,15 @@ mod tests {
         let r = b.refusals(Some(1 << 30), None, true);
         assert_eq!(r.len(), 1, "{r:?}");
         assert!(r[0].message.contains("memory") && r[0].fix.contains("dx"));
+        // What fits: 1 GiB less the grid, at the bytes of a particle.
+        let grid = b.host_bytes - b.particles * HOST_BYTES_PER_PARTICLE_F32;
+        let fit = ((1u64 << 30) - grid) / HOST_BYTES_PER_PARTICLE_F32;
+        assert!(
+            r[0].message.contains(&format!("about {fit} particles fit")),
+            "{}",
+            r[0].message
+        );
+        assert!(fit > 1_000_000 && fit < b.particles, "{fit}");
     }
 
     #[test]
