@@ -22,6 +22,10 @@
 #                particles) at --threads 1 2 4 8 16 (CPU_THREADS, CPU_N, CPU_STEPS to change), a table of
 #                M particle-steps/s and parallel efficiency; with .device/rtmpm_base, that build too;
 #                Taichi's mpm3d (bench/taichi_mpm3d.py) on the same scene when python3 imports taichi
+#   frames       frame writing (issue 19 item 4): test_frames (streamed GPU frames byte-identical to the
+#                whole-frame files), then `rtmpm bench --frame-write` on fluid 2M, 16.8M and the n = 584 block
+#                (49.8M): copy-out GB/s, write MB/s, step time with a frame written in the background
+#                (FRAME_DIR, default /tmp/frames: the files are removed after each timing)
 #   rigid        issue 17: dam break 2M with 10 floating crates vs 10 static ones, floating_box on CUDA
 #   long         the strong-scaling scene for 12 frames (0.24 s, past its 0.1 s duration) on one GPU, fused
 #                and unfused, and at dt/2: does the 12-frame blow-up seen on 2 GPUs happen on one?
@@ -101,6 +105,7 @@ for suite in "$@"; do
       for rep in $(seq 1 "${REPS:-2}"); do
         b "dam 2M 10 static crates #$rep" rtmpm --scene bench/fluid_dam_2m_colliders.toml --frames 3
         b "dam 2M 10 floating crates #$rep" rtmpm --scene bench/fluid_dam_2m_bodies.toml --frames 3
+        b "dam 2M 10 floating, no overlap #$rep" rtmpm --scene bench/fluid_dam_2m_bodies.toml --frames 3 --cuda-options rigid_overlap=off
       done
       x=$(timeout 300 "$D/rtmpm" run scenes/rigid/floating_box.toml --backend cuda --frames 30 --out "$OUT/floating_box" 2>&1)
       echo "$x" > "$OUT/floating_box.log"
@@ -204,6 +209,18 @@ for suite in "$@"; do
           say "taichi mpm3d threads=$t: $(echo "$r" | grep -m1 -E 'throughput|Error' | tr -s ' ')"
         done
       fi
+      ;;
+    frames)
+      t test_frames
+      fd=${FRAME_DIR:-/tmp/frames}
+      for a in "--scene bench/fluid_dam_2m.toml --frames 2 --frame-formats ply,bgeo,bgeo.gz --frame-whole" \
+               "--scene bench/strong_16m.toml --frames 1 --frame-formats ply,bgeo --frame-whole" \
+               "--n 584 --steps 200 --frame-formats ply" \
+               "--n 584 --steps 200 --frame-formats ply --frame-chunk 4194304"; do
+        r=$(timeout 500 "$D/rtmpm" bench --backend cuda $a --frame-write "$fd" 2>&1)
+        echo "== rtmpm bench --backend cuda $a --frame-write $fd" >> "$OUT/frames.log"; echo "$r" >> "$OUT/frames.log"
+        say "frames $a:"; echo "$r" | grep -E "frame write|copy out|write  |whole  |steps  |^error" | tee -a "$S"
+      done
       ;;
     *) say "unknown suite $suite" ;;
   esac

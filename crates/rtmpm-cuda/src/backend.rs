@@ -243,7 +243,7 @@ impl CudaBackend {
         };
         let (buffers, mut ctx) =
             buffers::allocate(&stream, scene, &state, &cap, needs, &tables, &options)?;
-        let bodies = crate::rigid::Bodies::new(scene, &stream)?;
+        let bodies = crate::rigid::Bodies::new(scene, &stream, options.rigid_overlap)?;
         if let Some(b) = &bodies {
             (ctx.bodies, ctx.body_exchange, ctx.n_bodies) = b.ctx_fields(&stream);
         }
@@ -351,7 +351,7 @@ impl CudaBackend {
         }
         self.enqueue_graph_or_not(dt, hooks, graph)?;
         if let Some(b) = self.bodies.as_mut() {
-            b.advance(&self.stream, dt)?;
+            b.after_step(&self.stream, dt)?;
         }
         Ok(())
     }
@@ -498,6 +498,30 @@ impl Backend for CudaBackend {
         self.bodies
             .as_ref()
             .map_or_else(Vec::new, |b| b.states().to_vec())
+    }
+
+    fn rigid_poses(&self) -> Vec<rtmpm_core::rigid::BodyPose> {
+        self.bodies.as_ref().map_or_else(Vec::new, |b| b.poses())
+    }
+
+    fn set_rigid_poses(&mut self, poses: &[rtmpm_core::rigid::BodyPose]) -> Result<(), SimError> {
+        match self.bodies.as_mut() {
+            Some(b) => b.set_poses(poses),
+            None if poses.is_empty() => Ok(()),
+            None => Err(SimError::Backend(format!(
+                "{} rigid-body states for a scene without rigid bodies",
+                poses.len()
+            ))),
+        }
+    }
+
+    /// The bodies take the impulses of the frame's last step (with `rigid_overlap` they are
+    /// a step behind): at a frame's end they are where the CPU backend's would be.
+    fn end_of_frame(&mut self) -> Result<(), SimError> {
+        match self.bodies.as_mut() {
+            Some(b) => b.flush(),
+            None => Ok(()),
+        }
     }
 
     fn export_frame(&mut self, sink: &mut dyn rtmpm_core::sim::ChunkSink) -> Result<(), SimError> {

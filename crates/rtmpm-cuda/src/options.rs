@@ -106,6 +106,10 @@ pub struct CudaOptions {
     /// the state. Fewer: less memory, more passes (two grid barriers each) when the mapping is
     /// rebuilt. The result is the same for every value.
     pub sort_scratch_fields: usize,
+    /// Rigid bodies (`[[rigid_body]]`): move the bodies while the GPU runs the next step (the
+    /// bodies then see the material's impulses one step late) instead of waiting for every
+    /// step's impulses before the next step is queued (`crate::rigid`).
+    pub rigid_overlap: bool,
 }
 
 /// Default of [`CudaOptions::sort_scratch_fields`]: 4 words per particle of scratch instead of
@@ -136,6 +140,7 @@ impl Default for CudaOptions {
             g2p2g: true,
             specialize: false,
             sort_scratch_fields: DEFAULT_SORT_SCRATCH_FIELDS,
+            rigid_overlap: true,
         }
     }
 }
@@ -143,7 +148,7 @@ impl Default for CudaOptions {
 impl std::str::FromStr for CudaOptions {
     type Err = String;
     /// Comma separated `key=value`: `free_zone`, `mixed_sort`, `warp_reduce`, `fast_math`,
-    /// `graph`, `f64`, `rebalance`, `overlap`, `g2p2g`, `specialize` (on/off/true/false/1/0), `rebuild` (fused/kernels), `p2g`
+    /// `graph`, `f64`, `rebalance`, `overlap`, `g2p2g`, `rigid_overlap`, `specialize` (on/off/true/false/1/0), `rebuild` (fused/kernels), `p2g`
     /// (warp/shared/reverse_map/sort), `transport` (p2p/nccl), `barrier` (spin/events), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
     /// `rmap_pblocks`, `shared`, `sort_fields` (counts).
     fn from_str(s: &str) -> Result<Self, String> {
@@ -191,6 +196,7 @@ impl std::str::FromStr for CudaOptions {
                 "shared" => o.shared_capacity = Some(n()?),
                 "rebalance" => o.rebalance = b()?,
                 "g2p2g" => o.g2p2g = b()?,
+                "rigid_overlap" => o.rigid_overlap = b()?,
                 "specialize" => o.specialize = b()?,
                 "overlap" => o.overlap = b()?,
                 "sort_fields" => {

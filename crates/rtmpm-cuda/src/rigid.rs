@@ -3,13 +3,18 @@
 //! couples them (`kernels/grid_update.cu`: `couple_bodies`, the same rule as the CPU backend's
 //! `cpu/grid_update.rs`).
 //!
-//! Per step: the bodies' states at the step's time go to constant memory with the step
-//! parameters, the impulse sums are cleared; after the step the host reads the sums (one small
-//! copy and a wait for the step: the host round trip of the coupling), gives them to the bodies
-//! and advances the rapier world by dt. The step itself (its graph) is unchanged.
+//! Per step: the bodies' states go to constant memory with the step parameters; after the step
+//! its impulse sums are copied to page-locked memory and cleared. By default
+//! ([`crate::CudaOptions::rigid_overlap`]) the host then gives the bodies the sums of the step
+//! before (copied while this one runs) and advances the rapier world, so the GPU never waits
+//! for the host: the bodies see the material one step late (a pose lag of v dt, 0.1 mm at
+//! 1 m/s and dt = 1e-4 s), and every impulse is applied once, so momentum is conserved. With
+//! `rigid_overlap=off` the host waits for every step's sums before the next step: the CPU
+//! backend's order exactly, at the cost of a host round trip per step (bench/RESULTS.md). The
+//! step itself (its graph) is unchanged.
 
 use crate::contract::{BODY_EXCHANGE_SLOTS, GpuBody, GpuCollider, MAX_BODIES};
-use cudarc::driver::{CudaModule, CudaSlice, CudaStream, DevicePtr};
+use cudarc::driver::{CudaEvent, CudaModule, CudaSlice, CudaStream, DevicePtr, PinnedHostSlice};
 use rtmpm_core::Scene;
 use rtmpm_core::boundary::sdf::Shape;
 use rtmpm_core::rigid::{BodyState, Exchange, RigidShape, RigidWorld};
@@ -72,12 +77,24 @@ pub struct Bodies {
     states: CudaSlice<u8>,
     /// `BODY_EXCHANGE_SLOTS` x bodies x 6 f64 impulse sums (`Ctx::body_exchange`).
     exchange: CudaSlice<f64>,
+    /// Page-locked copies of the sums of the last two steps, each with the event after its copy.
+    host: [(PinnedHostSlice<f64>, CudaEvent); 2],
+    /// The copy the next step's sums go to.
+    next: usize,
+    /// A step whose sums the bodies have not taken yet: its copy and its dt.
+    pending: Option<(usize, f32)>,
+    /// See [`crate::CudaOptions::rigid_overlap`].
+    overlap: bool,
 }
 
 impl Bodies {
     /// The bodies of `scene` (`None` without any), their device buffers allocated on `stream`.
-    /// Refused with several GPUs (`multi`) and with the MUSL update, as on the CPU.
-    pub fn new(scene: &Scene, stream: &Arc<CudaStream>) -> Result<Option<Bodies>, SimError> {
+    /// Refused with the MUSL update, as on the CPU.
+    pub fn new(
+        scene: &Scene,
+        stream: &Arc<CudaStream>,
+        overlap: bool,
+    ) -> Result<Option<Bodies>, SimError> {
         if scene.rigid_bodies.is_empty() {
             return Ok(None);
         }
@@ -99,17 +116,29 @@ impl Bodies {
         else {
             return Ok(None);
         };
-        let n = scene.rigid_bodies.len();
+        let len = BODY_EXCHANGE_SLOTS * scene.rigid_bodies.len() * 6;
         let states = stream
             .alloc_zeros::<u8>(MAX_BODIES * std::mem::size_of::<GpuBody>())
             .map_err(err("alloc rigid bodies"))?;
         let exchange = stream
-            .alloc_zeros::<f64>(BODY_EXCHANGE_SLOTS * n * 6)
+            .alloc_zeros::<f64>(len)
             .map_err(err("alloc rigid-body impulses"))?;
+        let pinned = || -> Result<(PinnedHostSlice<f64>, CudaEvent), SimError> {
+            // SAFETY: each copy is written by a device copy before the host reads it (after
+            // its event).
+            let h = unsafe { stream.context().alloc_pinned_with_flags::<f64>(len, 0) }
+                .map_err(err("allocate page-locked memory"))?;
+            let e = stream.record_event(None).map_err(err("record an event"))?;
+            Ok((h, e))
+        };
         Ok(Some(Bodies {
             world,
             states,
             exchange,
+            host: [pinned()?, pinned()?],
+            next: 0,
+            pending: None,
+            overlap,
         }))
     }
 
@@ -125,8 +154,18 @@ impl Bodies {
         self.world.states()
     }
 
-    /// Before a step: the bodies' states to constant memory (and its global copy), the impulse
-    /// sums cleared.
+    /// Every body's pose and velocities (what a checkpoint stores).
+    pub fn poses(&self) -> Vec<rtmpm_core::rigid::BodyPose> {
+        self.world.poses()
+    }
+
+    /// Put the bodies at `poses` (resuming a checkpoint); impulses not yet taken are dropped.
+    pub fn set_poses(&mut self, poses: &[rtmpm_core::rigid::BodyPose]) -> Result<(), SimError> {
+        self.pending = None;
+        self.world.set_poses(poses)
+    }
+
+    /// Before a step: the bodies' states to constant memory (and its global copy).
     pub fn upload(
         &mut self,
         module: &Arc<CudaModule>,
@@ -137,19 +176,52 @@ impl Bodies {
         stream
             .memcpy_htod(bytes, &mut self.states.slice_mut(..bytes.len()))
             .map_err(err("upload rigid bodies"))?;
-        crate::backend::write_symbol(module, stream, "c_bodies", bytes)?;
-        stream
-            .memset_zeros(&mut self.exchange)
-            .map_err(err("clear rigid-body impulses"))
+        crate::backend::write_symbol(module, stream, "c_bodies", bytes)
     }
 
-    /// After a step of `dt`: read the impulse sums (waits for the step), give them to the
-    /// bodies and advance the rapier world.
-    pub fn advance(&mut self, stream: &Arc<CudaStream>, dt: f32) -> Result<(), SimError> {
-        let sums = stream
-            .clone_dtoh(&self.exchange)
+    /// After a step of `dt` was queued: its impulse sums are copied to the host and cleared
+    /// for the next step. Without overlap the host waits for them and moves the bodies now;
+    /// with overlap it moves them by the previous step's sums (already there while this step
+    /// runs), so the next step sees bodies one step late.
+    pub fn after_step(&mut self, stream: &Arc<CudaStream>, dt: f32) -> Result<(), SimError> {
+        let k = self.next;
+        let (host, event) = &mut self.host[k];
+        stream
+            .memcpy_dtoh(&self.exchange, host)
             .map_err(err("read rigid-body impulses"))?;
-        let ex = exchange_sums(&sums, self.world.states().len());
+        *event = stream.record_event(None).map_err(err("record an event"))?;
+        stream
+            .memset_zeros(&mut self.exchange)
+            .map_err(err("clear rigid-body impulses"))?;
+        self.next ^= 1;
+        if self.overlap {
+            let previous = self.pending.replace((k, dt));
+            if let Some((q, dt)) = previous {
+                self.apply(q, dt)?;
+            }
+            Ok(())
+        } else {
+            self.apply(k, dt)
+        }
+    }
+
+    /// Give the bodies the sums of a step that was queued and not yet taken (before the state
+    /// is read or stored: the end of a frame, a checkpoint).
+    pub fn flush(&mut self) -> Result<(), SimError> {
+        match self.pending.take() {
+            Some((q, dt)) => self.apply(q, dt),
+            None => Ok(()),
+        }
+    }
+
+    /// Wait for copy `k`, give its sums to the bodies and advance the world by `dt`.
+    fn apply(&mut self, k: usize, dt: f32) -> Result<(), SimError> {
+        let (host, event) = &self.host[k];
+        event
+            .synchronize()
+            .map_err(err("wait for rigid-body impulses"))?;
+        let sums = host.as_slice().map_err(err("page-locked memory"))?;
+        let ex = exchange_sums(sums, self.world.states().len());
         self.world.advance(&ex, dt);
         Ok(())
     }

@@ -105,7 +105,8 @@ fn a_box_of_half_the_density_of_water_floats_half_submerged_on_the_gpu() {
 
 /// Zero gravity: a jelly ball thrown at a free box on the GPU. Material plus box momentum is
 /// conserved within 1 % and the box moves at the elastic estimate within 10 % (issue 17), with
-/// G2P2G (default) and with the separate kernels, the graph on and off.
+/// G2P2G (default) and with the separate kernels, the graph on and off, the bodies moved while
+/// the next step runs (default) and after every step (`rigid_overlap=off`), f32 and f64.
 #[test]
 #[ignore = "needs a GPU"]
 fn momentum_of_material_plus_body_is_conserved_on_the_gpu() {
@@ -152,7 +153,13 @@ condition = "separate"
     let box_mass = 1000.0 * 0.16f64.powi(3);
     let m1 = start.x / 2.0;
     let elastic = 2.0 * m1 * 2.0 / (m1 + box_mass);
-    for options in ["", "g2p2g=off", "g2p2g=off,graph=off", "f64=on"] {
+    for options in [
+        "",
+        "rigid_overlap=off",
+        "g2p2g=off",
+        "g2p2g=off,graph=off",
+        "f64=on",
+    ] {
         let o: CudaOptions = options.parse().expect("options");
         let cuda = CudaBackend::new(&scene, &p0, o).expect("cuda");
         let mut sim = Simulation::new(scene.clone(), Box::new(cuda));

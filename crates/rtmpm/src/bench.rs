@@ -58,6 +58,11 @@ pub struct BenchArgs {
     /// Particles per chunk of --frame-write.
     #[arg(long, value_name = "N", default_value_t = crate::stream::DEFAULT_CHUNK)]
     pub frame_chunk: usize,
+    /// With --frame-write, also time the whole-frame path (every field of every particle read
+    /// to the host, then the files written in this thread): host memory for two copies of the
+    /// state.
+    #[arg(long)]
+    pub frame_whole: bool,
 }
 
 /// The fixed time step of the classic scene at resolution n.
@@ -207,6 +212,7 @@ pub fn bench(args: BenchArgs) -> Result<()> {
             dir,
             &args.frame_formats,
             args.frame_chunk,
+            args.frame_whole,
         )?;
     }
     Ok(())
@@ -365,6 +371,7 @@ fn bench_cuda(
             dir,
             &args.frame_formats,
             args.frame_chunk,
+            args.frame_whole,
         )?;
     }
     Ok(())

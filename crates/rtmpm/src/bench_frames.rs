@@ -1,7 +1,7 @@
 //! `rtmpm bench --frame-write DIR`: the cost of writing frames ([`crate::stream`]): the rate of
 //! the chunked copy of a frame's columns out of the backend (device to host on a GPU), the
 //! rate of encoding and writing the files (disk, synced), and the step time with and without a
-//! frame being written in the background.
+//! frame being written in the background. The files are removed after each timing.
 
 use crate::stream::{FrameStreamer, StreamSettings, StreamStats};
 use anyhow::{Result, bail};
@@ -59,6 +59,7 @@ pub fn frame_write_bench(
     dir: &Path,
     formats: &str,
     chunk: usize,
+    whole: bool,
 ) -> Result<()> {
     let formats = parse_formats(formats)?;
     std::fs::create_dir_all(dir)?;
@@ -120,14 +121,45 @@ pub fn frame_write_bench(
     s.write_frame(backend, files(0), 0)?;
     let sync_wall = t.elapsed().as_secs_f64();
     let st = s.finish()?;
+    // The files are not kept (a frame of 500M particles is 16 GB of PLY).
+    remove(&files(0));
     println!(
-        "    write      {:.0} MB/s of file bytes ({:.3} GB in {:.2} s, encoded and written by the \
-         writer thread, synced); whole frame {:.2} s with the step waiting",
+        "    write      {:.0} MB/s of file bytes before gzip ({:.3} GB in {:.2} s, encoded and \
+         written by the writer thread, synced); whole frame {:.2} s with the step waiting",
         st.written_bytes as f64 / st.write_seconds.max(1e-9) / 1e6,
         st.written_bytes as f64 / 1e9,
         st.write_seconds,
         sync_wall
     );
+    // 2b. The whole-frame path, for comparison: every field of every particle to the host,
+    // then each file written from it, in this thread.
+    if whole {
+        let t = Instant::now();
+        let mut p = rtmpm_core::Particles::default();
+        backend.read_particles(&mut p)?;
+        let read = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        for (ext, f) in &formats {
+            let path = dir.join(format!("whole_00000.{ext}"));
+            let none = rtmpm_core::io::FrameFields::default();
+            match f {
+                StreamFormat::Ply { .. } => rtmpm_core::io::ply::write_ply(&path, &p, &none)?,
+                StreamFormat::Bgeo { gzip } => {
+                    rtmpm_core::io::bgeo::write_bgeo(&path, &p, &none, *gzip)?
+                }
+            }
+            let _ = std::fs::remove_file(&path);
+        }
+        let write = t.elapsed().as_secs_f64();
+        println!(
+            "    whole      before streaming: read_particles {:.1} ms (every field), files {:.2} s \
+             ({:.0} MB/s of the same bytes before gzip), {:.2} s with the step waiting",
+            read * 1e3,
+            write,
+            st.written_bytes as f64 / write.max(1e-9) / 1e6,
+            read + write
+        );
+    }
     // 3. Steps alone, then with a frame written in the background.
     let mut t_sim = 0.0f32;
     let mut run = |b: &mut dyn Backend| -> Result<f64> {
@@ -150,6 +182,7 @@ pub fn frame_write_bench(
     let t = Instant::now();
     let st: StreamStats = s.finish()?;
     let tail = t.elapsed().as_secs_f64();
+    remove(&files(1));
     let ms = |s: f64| 1e3 * s / steps.max(1) as f64;
     println!(
         "    steps      {:.3} ms/step alone, {:.3} ms/step while a frame is written in the \
@@ -163,4 +196,10 @@ pub fn frame_write_bench(
         tail
     );
     Ok(())
+}
+
+fn remove(files: &[(PathBuf, StreamFormat)]) {
+    for (path, _) in files {
+        let _ = std::fs::remove_file(path);
+    }
 }

@@ -335,6 +335,16 @@ pub fn run(args: RunArgs) -> Result<()> {
             if !writer {
                 continue;
             }
+            let poses = sim.backend.rigid_poses();
+            if poses.len() != sim.scene.rigid_bodies.len() {
+                bail!(
+                    "the backend `{}` does not give the poses of the scene's {} rigid bodies, \
+                     which a checkpoint needs: run without --checkpoint-every, or on the CPU \
+                     backend",
+                    sim.backend.name(),
+                    sim.scene.rigid_bodies.len()
+                );
+            }
             let ckpt = Checkpoint {
                 scene_toml: scene_text.clone(),
                 scene_origin: sim
@@ -345,7 +355,7 @@ pub fn run(args: RunArgs) -> Result<()> {
                 time: sim.time,
                 step: sim.step,
                 frame: sim.frame,
-                bodies: sim.backend.rigid_poses(),
+                bodies: poses,
                 particles: host.clone(),
             };
             std::fs::create_dir_all(&out_dir)

@@ -47,8 +47,8 @@ pub struct StreamStats {
     pub copy_seconds: f64,
     /// Bytes written to the files (before gzip).
     pub written_bytes: u64,
-    /// Seconds of the writer thread encoding and writing, from a frame's first file created to
-    /// its last renamed.
+    /// Seconds of the writer thread creating, encoding, writing, syncing and renaming the files
+    /// (not its waits for chunks).
     pub write_seconds: f64,
     /// Seconds of the main thread waiting for the writer (frames or buffers in flight).
     pub wait_seconds: f64,
@@ -151,8 +151,11 @@ impl FrameStreamer {
 
     /// Buffers for frames of `n` particles: reallocated when `n` outgrows their capacity.
     fn ensure_pool(&mut self, backend: &dyn Backend, n: usize) -> Result<()> {
-        let cap = self.settings.chunk.max(1).min(n.max(1));
+        // Grown geometrically (emitters add particles every frame): few reallocations.
+        let chunk = self.settings.chunk.max(1);
+        let cap = chunk.min(n.max(1));
         if cap > self.cap {
+            let cap = chunk.min(cap.max(2 * self.cap));
             self.flush()?;
             while self.free_rx.try_recv().is_ok() {}
             self.free.clear();
@@ -311,29 +314,35 @@ fn writer(
     derived: Derived,
     models: Vec<Model>,
 ) {
-    let mut current: Option<(Result<FrameFiles>, Instant)> = None;
+    // The frame's files and the seconds spent on them (encoding, writing, syncing; not the
+    // waits for chunks).
+    let mut current: Option<(Result<FrameFiles>, f64)> = None;
     let named = |(path, e): (PathBuf, std::io::Error)| {
         anyhow!(e).context(format!("writing {}", path.display()))
     };
     for msg in rx {
+        let t = Instant::now();
+        let busy = || t.elapsed().as_secs_f64();
         match msg {
             Msg::Begin(files, n) => {
-                let t = Instant::now();
                 let ff = FrameFiles::create(&files, n, derived, models.clone()).map_err(named);
-                current = Some((ff, t));
+                current = Some((ff, busy()));
             }
             Msg::Chunk(chunk) => {
                 // After an error the frame's chunks are only given back.
                 current = match current.take() {
-                    Some((Ok(ff), t)) => Some((ff_write(ff, &chunk).map_err(named), t)),
+                    Some((Ok(ff), s)) => {
+                        let r = ff_write(ff, &chunk).map_err(named);
+                        Some((r, s + busy()))
+                    }
                     other => other,
                 };
                 let _ = free.send(chunk);
             }
             Msg::End => {
-                if let Some((ff, t)) = current.take() {
+                if let Some((ff, s)) = current.take() {
                     let r = ff.and_then(|ff| ff.finish().map_err(named));
-                    let _ = done.send(r.map(|bytes| (bytes, t.elapsed().as_secs_f64())));
+                    let _ = done.send(r.map(|bytes| (bytes, s + busy())));
                 }
             }
             Msg::Abort => {

@@ -114,3 +114,47 @@ fn a_writer_error_names_the_file_fails_the_run_and_leaves_no_partial_file() {
         assert!(out.join("frame_00002.ply").is_dir());
     }
 }
+
+/// Emitters add particles every frame (the chunk buffers grow): still the same files.
+#[test]
+fn frames_of_a_growing_particle_count_are_byte_identical() {
+    let dir = scratch("stream-emitters");
+    let scene = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../scenes/fountain.toml")
+        .display()
+        .to_string();
+    let run = |name: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let mut args = vec![
+            "run",
+            &scene,
+            "--backend",
+            "cpu",
+            "--frames",
+            "4",
+            "--out",
+            out.to_str().expect("path"),
+        ];
+        args.extend_from_slice(extra);
+        let o = rtmpm(&args);
+        assert!(o.status.success(), "{name}: {}", text(&o));
+        out
+    };
+    let whole = run("whole", &["--whole-frames"]);
+    let streamed = run("streamed", &["--frame-chunk", "1000"]);
+    let names = frame_files(&whole);
+    assert_eq!(names.len(), 5, "{names:?}");
+    let sizes: Vec<u64> = names
+        .iter()
+        .map(|n| fs::metadata(whole.join(n)).expect("size").len())
+        .collect();
+    assert!(sizes[4] > sizes[1], "the particle count grows: {sizes:?}");
+    assert_eq!(frame_files(&streamed), names);
+    for n in &names {
+        let (a, b) = (
+            fs::read(whole.join(n)).expect("a"),
+            fs::read(streamed.join(n)).expect("b"),
+        );
+        assert!(a == b, "{n} differs from the whole-frame writer's");
+    }
+}

@@ -353,18 +353,34 @@ impl Backend for CpuBackend {
         // rather than a copy of every particle.
         let slot = sim::invert_ids(&self.ids)?;
         let p = &self.particles;
-        sim::fill_chunks(slot.len(), sink, |id| {
+        sim::fill_chunks(slot.len(), sink, |id, cols| {
             let i = slot[id] as usize;
-            sim::ParticleRow {
+            let mut r = sim::ParticleRow {
                 x: real::vec3_to_f32(p.x[i]).to_array(),
-                v: real::vec3_to_f32(p.v[i]).to_array(),
-                material: p.material[i],
-                plastic: real::to_f32(p.plastic[i]),
-                mass: real::to_f32(p.mass[i]),
-                vol0: real::to_f32(p.vol0[i]),
-                f: real::mat3_to_f32(p.f[i]).to_cols_array(),
-                c: real::mat3_to_f32(p.c[i]).to_cols_array(),
+                ..Default::default()
+            };
+            if cols.v {
+                r.v = real::vec3_to_f32(p.v[i]).to_array();
             }
+            if cols.material {
+                r.material = p.material[i];
+            }
+            if cols.plastic {
+                r.plastic = real::to_f32(p.plastic[i]);
+            }
+            if cols.mass {
+                r.mass = real::to_f32(p.mass[i]);
+            }
+            if cols.vol0 {
+                r.vol0 = real::to_f32(p.vol0[i]);
+            }
+            if cols.f {
+                r.f = real::mat3_to_f32(p.f[i]).to_cols_array();
+            }
+            if cols.c {
+                r.c = real::mat3_to_f32(p.c[i]).to_cols_array();
+            }
+            r
         })
     }
 

@@ -223,12 +223,13 @@ pub struct ParticleRow {
     pub c: [f32; 9],
 }
 
-/// Fill chunks of `n` particles from `row(original index)`, in parallel, and give them to
-/// `sink` in order: the export of host-side backends.
+/// Fill chunks of `n` particles from `row(original index, columns)`, in parallel, and give
+/// them to `sink` in order: the export of host-side backends. `row` need only set the fields
+/// of the columns asked (the others are not read): each is a random access into storage order.
 pub fn fill_chunks(
     n: usize,
     sink: &mut dyn ChunkSink,
-    row: impl Fn(usize) -> ParticleRow + Sync,
+    row: impl Fn(usize, FrameColumns) -> ParticleRow + Sync,
 ) -> Result<(), SimError> {
     let cols = sink.columns();
     let layout = cols.layout();
@@ -259,7 +260,7 @@ pub fn fill_chunks(
             .for_each(|(t, mut rows)| {
                 let first = start + t * TASK;
                 for j in 0..rows[0].len() {
-                    let p = row(first + j);
+                    let p = row(first + j, cols);
                     let mut r = 0;
                     for col in &layout {
                         let mut put = |w: u32| {
@@ -299,7 +300,7 @@ pub fn export_particles(p: &Particles, sink: &mut dyn ChunkSink) -> Result<(), S
             "particle arrays of unequal lengths".into(),
         ));
     }
-    fill_chunks(p.len(), sink, |i| ParticleRow {
+    fill_chunks(p.len(), sink, |i, _| ParticleRow {
         x: p.x[i].to_array(),
         v: p.v[i].to_array(),
         material: p.material[i],

@@ -161,6 +161,9 @@ pub struct StreamFile {
 
 /// Particles encoded per parallel task.
 const TASK: usize = 1 << 14;
+/// Particles encoded before a write (4 MB of PLY records; the tests write chunks of several
+/// blocks).
+pub(crate) const BLOCK: usize = 1 << 17;
 
 impl StreamFile {
     /// Start the file at `path` (temporary name) for `n` particles: writes the header.
@@ -260,69 +263,70 @@ impl StreamFile {
             _ => return Err(invalid("stress missing for the chunk".into())),
         };
         let rec = self.record_bytes();
-        self.encoded.resize(chunk.len * rec, 0);
         let start = chunk.start;
-        match &self.format {
-            StreamFormat::Ply { .. } => {
-                self.encoded
-                    .par_chunks_mut(rec * TASK)
-                    .enumerate()
-                    .for_each(|(t, out)| {
-                        let mut o = Cursor(out);
-                        for j in t * TASK..t * TASK + out_len(o.0.len(), rec) {
-                            for r in [&x, &v] {
-                                for c in r.iter() {
-                                    o.put(&c[j].to_le_bytes());
-                                }
+        let (mass, vol0) = match self.format {
+            StreamFormat::Bgeo { .. } => (cols(Column::Mass)?, cols(Column::Vol0)?),
+            StreamFormat::Ply { .. } => (vec![], vec![]),
+        };
+        // Encoded a block at a time into a buffer reused for the whole file (a few MB, not
+        // the chunk's size), in parallel, then written.
+        let block = BLOCK.min(chunk.len);
+        if self.encoded.len() < block * rec {
+            self.encoded.resize(block * rec, 0);
+        }
+        for lo in (0..chunk.len).step_by(BLOCK.max(1)) {
+            let hi = (lo + BLOCK).min(chunk.len);
+            let buf = &mut self.encoded[..(hi - lo) * rec];
+            let ply = matches!(self.format, StreamFormat::Ply { .. });
+            buf.par_chunks_mut(rec * TASK)
+                .enumerate()
+                .for_each(|(t, out)| {
+                    let first = lo + t * TASK;
+                    let count = out.len() / rec;
+                    let mut o = Cursor(out);
+                    for j in first..first + count {
+                        if ply {
+                            for row in x.iter().chain(&v) {
+                                o.put(row[j].to_le_bytes());
                             }
-                            o.put(&(mat[j] as i32).to_le_bytes());
-                            o.put(&plastic[0][j].to_le_bytes());
+                            o.put((mat[j] as i32).to_le_bytes());
+                            o.put(plastic[0][j].to_le_bytes());
                             if let Some(jac) = jac {
-                                o.put(&jac[j].to_le_bytes());
+                                o.put(jac[j].to_le_bytes());
                             }
                             if let Some(s) = stress {
                                 for c in s[j] {
-                                    o.put(&c.to_le_bytes());
+                                    o.put(c.to_le_bytes());
                                 }
                             }
-                        }
-                    });
-            }
-            StreamFormat::Bgeo { .. } => {
-                let (mass, vol0) = (cols(Column::Mass)?, cols(Column::Vol0)?);
-                self.encoded
-                    .par_chunks_mut(rec * TASK)
-                    .enumerate()
-                    .for_each(|(t, out)| {
-                        let mut o = Cursor(out);
-                        for j in t * TASK..t * TASK + out_len(o.0.len(), rec) {
-                            for c in x.iter() {
-                                o.put(&c[j].to_be_bytes());
+                        } else {
+                            for row in &x {
+                                o.put(row[j].to_be_bytes());
                             }
-                            o.put(&1.0f32.to_be_bytes());
-                            for c in v.iter() {
-                                o.put(&c[j].to_be_bytes());
+                            o.put(1.0f32.to_be_bytes());
+                            for row in &v {
+                                o.put(row[j].to_be_bytes());
                             }
-                            o.put(&((start + j) as i32).to_be_bytes());
-                            o.put(&(mat[j] as i32).to_be_bytes());
-                            o.put(&plastic[0][j].to_be_bytes());
-                            o.put(&mass[0][j].to_be_bytes());
-                            o.put(&(0.5 * vol0[0][j].max(0.0).cbrt()).to_be_bytes());
+                            o.put(((start + j) as i32).to_be_bytes());
+                            o.put((mat[j] as i32).to_be_bytes());
+                            o.put(plastic[0][j].to_be_bytes());
+                            o.put(mass[0][j].to_be_bytes());
+                            o.put((0.5 * vol0[0][j].max(0.0).cbrt()).to_be_bytes());
                             if let Some(jac) = jac {
-                                o.put(&jac[j].to_be_bytes());
+                                o.put(jac[j].to_be_bytes());
                             }
                             if let Some(s) = stress {
                                 for c in symmetric_to_full(s[j]) {
-                                    o.put(&c.to_be_bytes());
+                                    o.put(c.to_be_bytes());
                                 }
                             }
                         }
-                    });
-            }
+                    }
+                });
+            self.sink.writer().write_all(buf)?;
+            self.bytes += buf.len() as u64;
         }
-        self.sink.writer().write_all(&self.encoded)?;
         self.written += chunk.len;
-        self.bytes += self.encoded.len() as u64;
         Ok(())
     }
 
@@ -379,18 +383,15 @@ fn bgeo_attributes(d: Derived) -> Vec<(&'static str, BgeoType, usize)> {
     a
 }
 
-/// Records in a piece of `bytes` bytes of records of `rec` bytes.
-fn out_len(bytes: usize, rec: usize) -> usize {
-    bytes / rec
-}
-
 /// Appends bytes to a pre-sized slice.
 struct Cursor<'a>(&'a mut [u8]);
 
 impl Cursor<'_> {
-    fn put(&mut self, b: &[u8]) {
-        let (head, tail) = std::mem::take(&mut self.0).split_at_mut(b.len());
-        head.copy_from_slice(b);
+    /// One 32-bit value (a fixed size, so the copy is a single store).
+    #[inline(always)]
+    fn put(&mut self, b: [u8; 4]) {
+        let (head, tail) = std::mem::take(&mut self.0).split_at_mut(4);
+        head.copy_from_slice(&b);
         self.0 = tail;
     }
 }

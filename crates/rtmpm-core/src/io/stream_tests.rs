@@ -252,3 +252,37 @@ fn errors_name_the_file_and_leave_nothing() {
         .collect();
     assert_eq!(left, vec![std::ffi::OsString::from("not_a_dir")]);
 }
+
+/// Chunks larger than the encoder's block (several blocks per chunk, a partial last block
+/// and chunk): still the same bytes.
+#[test]
+fn chunks_of_several_encoder_blocks_are_byte_identical() {
+    let d = TestDir::new("stream-blocks");
+    let (scene, _) = stepped_backend();
+    let n = 300_001;
+    assert!(200_000 > super::stream::BLOCK && n - 200_000 < super::stream::BLOCK);
+    let mut p = Particles::default();
+    for i in 0..n {
+        let f = i as f32;
+        p.push(
+            crate::math::Vec3::new(f * 1e-6, 0.5 - f * 1e-7, 0.25),
+            crate::math::Vec3::new(f, -1.0, 2.0 + f * 1e-3),
+            1.0 + f * 1e-6,
+            1e-6 * (1.0 + (i % 7) as f32),
+            (i % 3) as u32,
+            (i % 5) as f32 * 0.1,
+        );
+    }
+    let mut sink = VecSink {
+        cols: FrameColumns::all(),
+        cap: 200_000,
+        chunks: vec![],
+    };
+    export_particles(&p, &mut sink).expect("export");
+    assert_eq!(sink.chunks.len(), 2);
+    let derived = Derived {
+        jacobian: true,
+        stress: false,
+    };
+    compare(&d, "blocks", &scene, &p, derived, &sink.chunks);
+}

@@ -402,6 +402,8 @@ pub struct RawRigidBody {
     /// A cylinder's axis (default y) and height.
     pub axis: Option<V3>,
     pub height: Option<f32>,
+    /// Read only to refuse a mesh body with the reason (not a field of any body shape yet).
+    pub file: Option<String>,
     #[serde(rename = "type")]
     pub kind: Option<RawRigidKind>,
     pub density: Option<f32>,
@@ -423,6 +425,7 @@ impl RawRigidBody {
             radius: self.radius,
             axis: self.axis,
             height: self.height,
+            file: self.file.clone(),
             ..Default::default()
         }
     }

@@ -159,6 +159,12 @@ fn rigid_bodies_are_read_and_bad_ones_refused() {
         "shape = \"mesh\"\ncenter",
         "rigid_body[1].shape",
     );
+    // A mesh with its file: refused for its shape, not as an unknown field.
+    bad(
+        "shape = \"sphere\"\ncenter = [0.3, 0.75, 0.3]\nradius = 0.05",
+        "shape = \"mesh\"\nfile = \"boat.obj\"",
+        "rigid_body[1].shape",
+    );
     // A cylinder needs its height.
     bad(
         "shape = \"sphere\"\ncenter",

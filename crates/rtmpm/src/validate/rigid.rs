@@ -91,7 +91,8 @@ pub fn sinking(ctx: &Ctx) -> Result<Vec<Row>> {
     need_engine()?;
     let text = scene_text(ctx, "sinking.toml")?;
     let mut sim = ctx.simulation(&text, "sinking.toml")?;
-    let dx = sim.scene.dx as f64;
+    let dx32 = sim.scene.dx;
+    let dx = dx32 as f64;
     let floor = sim.scene.interior().0.y as f64;
     // The initial water surface: the top of the water body.
     let mut p = rtmpm_core::Particles::default();
@@ -106,7 +107,7 @@ pub fn sinking(ctx: &Ctx) -> Result<Vec<Row>> {
     Ok(vec![
         Row {
             case: "sinking".into(),
-            quantity: format!("density 2500: gap to the floor (m), dx = {dx}"),
+            quantity: format!("density 2500: gap to the floor (m), dx = {dx32}"),
             reference: 0.0,
             simulated: gap,
             error: gap.abs(),
