@@ -541,9 +541,9 @@ def cases():
 
     # 8. flags.
     for args, words in [
-        (["bench", "--n", "8", "--backend", "cpu"], ("20..=584",)),
-        (["bench", "--n", "0", "--backend", "cpu"], ("20..=584",)),
-        (["bench", "--n", "585", "--backend", "cpu"], ("20..=584",)),
+        (["bench", "--n", "8", "--backend", "cpu"], ("20..=1600",)),
+        (["bench", "--n", "0", "--backend", "cpu"], ("20..=1600",)),
+        (["bench", "--n", "1601", "--backend", "cpu"], ("20..=1600",)),
         (["bench", "--n", "99999999999", "--backend", "cpu"], ("--n",)),
         (["run", S, "--backend", "cpu", "--threads", "999999", "--no-output", "--frames", "1"], ("thread",)),
         (["run", S, "--backend", "cpu", "--frames", "-1"], ("-1",)),

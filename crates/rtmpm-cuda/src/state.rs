@@ -7,6 +7,7 @@
 //! upload widens exactly, the download rounds to nearest.
 
 use crate::contract::*;
+use rayon::prelude::*;
 use rtmpm_core::Particles;
 use rtmpm_core::math::{Mat3, Vec3};
 
@@ -16,7 +17,8 @@ trait Word: Copy + Default {
     fn from_f32(x: f32) -> Self;
     fn from_id(bits: u32) -> Self;
     fn read(bytes: &[u8]) -> Self;
-    fn write(self, out: &mut Vec<u8>);
+    /// Write the word's little-endian bytes at the start of `out`.
+    fn put(self, out: &mut [u8]);
     fn to_f32(self) -> f32;
     fn to_f64(self) -> f64;
     fn id(self) -> u32;
@@ -33,8 +35,8 @@ impl Word for f32 {
     fn read(b: &[u8]) -> Self {
         f32::from_le_bytes([b[0], b[1], b[2], b[3]])
     }
-    fn write(self, out: &mut Vec<u8>) {
-        out.extend_from_slice(&self.to_le_bytes());
+    fn put(self, out: &mut [u8]) {
+        out[..Self::BYTES].copy_from_slice(&self.to_le_bytes());
     }
     fn to_f32(self) -> f32 {
         self
@@ -58,8 +60,8 @@ impl Word for f64 {
     fn read(b: &[u8]) -> Self {
         f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]])
     }
-    fn write(self, out: &mut Vec<u8>) {
-        out.extend_from_slice(&self.to_le_bytes());
+    fn put(self, out: &mut [u8]) {
+        out[..Self::BYTES].copy_from_slice(&self.to_le_bytes());
     }
     fn to_f32(self) -> f32 {
         self as f32
@@ -97,6 +99,11 @@ pub fn pack(
     }
 }
 
+/// Particles a task of [`pack_words`] writes.
+const PACK_CHUNK: usize = 1 << 14;
+
+/// The image of [`pack`], written in parallel straight into the bytes it returns (one copy of
+/// the state, whose rows past `n` stay untouched zero pages until they are uploaded).
 fn pack_words<W: Word>(
     p: &Particles,
     fluid: &[bool],
@@ -108,37 +115,58 @@ fn pack_words<W: Word>(
     if ids.is_some_and(|ids| ids.len() != n) {
         return Err("CUDA backend: one id per particle".into());
     }
-    let mut host = vec![W::default(); NFIELDS * cap];
-    for i in 0..n {
-        let mut put = |f: usize, v: W| host[f * cap + i] = v;
-        for a in 0..3 {
-            put(F_X + a, W::from_f32(p.x[i][a]));
-            put(F_V + a, W::from_f32(p.v[i][a]));
-        }
-        let m = p.material[i];
-        let Some(&is_fluid) = fluid.get(m as usize) else {
-            return Err(format!("particle {i} has material {m} out of range"));
-        };
-        let f = if is_fluid {
-            Mat3::from_diagonal(Vec3::splat(p.f[i].determinant().cbrt()))
-        } else {
-            p.f[i]
-        };
-        let (c, fm) = (p.c[i].to_cols_array(), f.to_cols_array());
-        for e in 0..9 {
-            put(F_C + e, W::from_f32(c[e]));
-            put(F_F + e, W::from_f32(fm[e]));
-        }
-        put(F_PLASTIC, W::from_f32(p.plastic[i]));
-        put(F_MASS, W::from_f32(p.mass[i]));
-        put(F_VOL0, W::from_f32(p.vol0[i]));
-        put(F_MAT, W::from_id(m));
-        put(F_ID, W::from_id(ids.map_or(i as u32, |ids| ids[i])));
+    if let Some(i) = p
+        .material
+        .par_iter()
+        .position_first(|&m| fluid.get(m as usize).is_none())
+    {
+        return Err(format!(
+            "particle {i} has material {} out of range",
+            p.material[i]
+        ));
     }
-    let mut bytes = Vec::with_capacity(host.len() * W::BYTES);
-    for w in host {
-        w.write(&mut bytes);
+    let mut bytes = vec![0u8; NFIELDS * cap * W::BYTES];
+    if n == 0 {
+        return Ok(bytes);
     }
+    // Task c writes particles c * PACK_CHUNK.. of every field: its piece of each field's row.
+    let mut tasks: Vec<Vec<&mut [u8]>> = (0..n.div_ceil(PACK_CHUNK))
+        .map(|_| Vec::with_capacity(NFIELDS))
+        .collect();
+    for row in bytes.chunks_mut(cap * W::BYTES) {
+        let used = &mut row[..n * W::BYTES];
+        for (task, piece) in tasks.iter_mut().zip(used.chunks_mut(PACK_CHUNK * W::BYTES)) {
+            task.push(piece);
+        }
+    }
+    tasks.into_par_iter().enumerate().for_each(|(c, mut rows)| {
+        let first = c * PACK_CHUNK;
+        let last = (first + PACK_CHUNK).min(n);
+        for (k, i) in (first..last).enumerate() {
+            let mut put = |f: usize, v: W| v.put(&mut rows[f][k * W::BYTES..]);
+            for a in 0..3 {
+                put(F_X + a, W::from_f32(p.x[i][a]));
+                put(F_V + a, W::from_f32(p.v[i][a]));
+            }
+            let m = p.material[i];
+            // In range: checked above.
+            let f = if fluid[m as usize] {
+                Mat3::from_diagonal(Vec3::splat(p.f[i].determinant().cbrt()))
+            } else {
+                p.f[i]
+            };
+            let (c, fm) = (p.c[i].to_cols_array(), f.to_cols_array());
+            for e in 0..9 {
+                put(F_C + e, W::from_f32(c[e]));
+                put(F_F + e, W::from_f32(fm[e]));
+            }
+            put(F_PLASTIC, W::from_f32(p.plastic[i]));
+            put(F_MASS, W::from_f32(p.mass[i]));
+            put(F_VOL0, W::from_f32(p.vol0[i]));
+            put(F_MAT, W::from_id(m));
+            put(F_ID, W::from_id(ids.map_or(i as u32, |ids| ids[i])));
+        }
+    });
     Ok(bytes)
 }
 
@@ -253,6 +281,99 @@ fn x_v_words<W: Word>(bytes: &[u8], n: usize, cap: usize) -> Result<Vec<[[f64; 3
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The one-thread packing of before: word by word into a vector, then to bytes.
+    fn reference_pack<W: Word>(p: &Particles, fluid: &[bool], cap: usize, ids: &[u32]) -> Vec<u8> {
+        let mut host = vec![W::default(); NFIELDS * cap];
+        for i in 0..p.len() {
+            let mut put = |f: usize, v: W| host[f * cap + i] = v;
+            for a in 0..3 {
+                put(F_X + a, W::from_f32(p.x[i][a]));
+                put(F_V + a, W::from_f32(p.v[i][a]));
+            }
+            let m = p.material[i];
+            let f = if fluid[m as usize] {
+                Mat3::from_diagonal(Vec3::splat(p.f[i].determinant().cbrt()))
+            } else {
+                p.f[i]
+            };
+            let (c, fm) = (p.c[i].to_cols_array(), f.to_cols_array());
+            for e in 0..9 {
+                put(F_C + e, W::from_f32(c[e]));
+                put(F_F + e, W::from_f32(fm[e]));
+            }
+            put(F_PLASTIC, W::from_f32(p.plastic[i]));
+            put(F_MASS, W::from_f32(p.mass[i]));
+            put(F_VOL0, W::from_f32(p.vol0[i]));
+            put(F_MAT, W::from_id(m));
+            put(F_ID, W::from_id(ids[i]));
+        }
+        let mut bytes = vec![0u8; host.len() * W::BYTES];
+        for (w, out) in host.into_iter().zip(bytes.chunks_mut(W::BYTES)) {
+            w.put(out);
+        }
+        bytes
+    }
+
+    /// Several tasks' worth of particles (a partial last one), fluid and solid, a capacity past
+    /// the count and ids: the parallel image is the one-thread image byte for byte.
+    #[test]
+    fn the_parallel_pack_is_the_one_thread_pack() {
+        let n = 2 * PACK_CHUNK + 1234;
+        let mut p = Particles::default();
+        let mut ids = Vec::with_capacity(n);
+        for i in 0..n {
+            let t = i as f32;
+            p.push(
+                Vec3::new(t.sin(), t.cos(), 1e-3 * t),
+                Vec3::new(0.5 - t.cos(), 2.0, -t.sin()),
+                1e-3 + 1e-6 * t,
+                1e-6 * (1.0 + t.sin().abs()),
+                (i % 3) as u32,
+                0.25 * t.cos(),
+            );
+            p.f[i] = Mat3::from_cols_array(&[
+                1.0 + 1e-4 * t.sin(),
+                0.1,
+                0.0,
+                -0.1,
+                0.9,
+                0.3,
+                0.0,
+                0.0,
+                1.05,
+            ]);
+            p.c[i] = Mat3::from_cols_array(&std::array::from_fn(|e| (t + e as f32).sin()));
+            ids.push((n - 1 - i) as u32);
+        }
+        let fluid = [true, false, true];
+        for cap in [n, n + 77] {
+            let got = pack(&p, &fluid, false, cap, Some(&ids)).expect("pack");
+            assert!(
+                got == reference_pack::<f32>(&p, &fluid, cap, &ids),
+                "f32, cap {cap}"
+            );
+            let got = pack(&p, &fluid, true, cap, Some(&ids)).expect("pack");
+            assert!(
+                got == reference_pack::<f64>(&p, &fluid, cap, &ids),
+                "f64, cap {cap}"
+            );
+        }
+        // The first particle of a bad material is named, as before.
+        p.material[PACK_CHUNK + 5] = 7;
+        p.material[PACK_CHUNK + 9] = 9;
+        let e = pack(&p, &fluid, false, n, None).unwrap_err();
+        assert!(
+            e.contains(&format!("particle {} has material 7", PACK_CHUNK + 5)),
+            "{e}"
+        );
+        assert_eq!(
+            pack(&Particles::default(), &fluid, false, 3, None)
+                .expect("empty")
+                .len(),
+            NFIELDS * 3 * 4
+        );
+    }
 
     #[test]
     fn pack_unpack_round_trip_both_precisions() {

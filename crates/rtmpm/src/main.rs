@@ -12,6 +12,7 @@ mod outdir;
 mod output;
 mod render;
 mod run;
+mod setup;
 mod stream;
 mod validate;
 

@@ -145,12 +145,18 @@ pub fn run(args: RunArgs) -> Result<()> {
     } else {
         None
     };
+    let mut setup = crate::setup::SetupTimes::default();
     let particles = match resume_state {
         Some(_) => particles,
-        None => scene.sample_particles()?,
+        None => {
+            let (p, seconds) = crate::setup::sample(&scene)?;
+            setup.sample = seconds;
+            p
+        }
     };
     let n = particles.len();
     let mode = args.multi.mode()?;
+    let backend_start = Instant::now();
     let backend = if mode == crate::multi::Mode::Single {
         make_backend(
             args.backend,
@@ -166,6 +172,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         args.multi
             .backend(mode, &scene, &particles, &args.cuda_options)?
     };
+    setup.backend = backend_start.elapsed().as_secs_f64();
     let mut sim = Simulation::new(scene, backend);
     // Entries of frames.pvd up to the checkpoint's own frame are kept: half a frame later.
     let resume_time = resume_state
@@ -192,6 +199,7 @@ pub fn run(args: RunArgs) -> Result<()> {
             .context("cannot restore the checkpoint's rigid bodies")?;
     }
     let total_frames = args.frames.unwrap_or_else(|| sim.scene.time.frames());
+    eprintln!("set-up: {n} particles ready in {}", setup.describe());
     eprintln!(
         "running `{}`: {n} particles, {} frames on {}{}",
         sim.scene.name,

@@ -48,6 +48,8 @@ pub struct Budget {
     /// Device memory of a CUDA run on one GPU (particles, and the grid of every block of the
     /// domain, which the backend allocates up front).
     pub gpu_bytes: u64,
+    /// The part of `host_bytes` that grows with each particle (bytes per particle).
+    pub host_bytes_per_particle: u64,
 }
 
 /// One problem with a budget: what, by how much, how to fix it.
@@ -188,6 +190,7 @@ impl Budget {
             output_bytes,
             host_bytes,
             gpu_bytes,
+            host_bytes_per_particle: per_host,
         }
     }
 
@@ -209,10 +212,16 @@ impl Budget {
                 .iter()
                 .enumerate()
                 .fold((0, 0), |a, (i, &n)| if n > a.1 { (i, n) } else { a });
+            // What fits: the memory left beside the grid, at this many bytes a particle.
+            let grid = self
+                .host_bytes
+                .saturating_sub(self.particles.saturating_mul(self.host_bytes_per_particle));
+            let fit = avail.saturating_sub(grid) / self.host_bytes_per_particle.max(1);
             out.push(BudgetIssue {
                 message: format!(
                     "the run needs about {} of memory for {} particles, more than the {} \
-                     available (the largest, body[{largest}], has {count})",
+                     available (the largest, body[{largest}], has {count}); about {fit} \
+                     particles fit",
                     human_bytes(self.host_bytes),
                     self.particles,
                     human_bytes(avail)
@@ -344,8 +353,8 @@ mod tests {
         assert_eq!(b.output_bytes, (b.particles * 32 + 1024) * 11);
     }
 
-    /// Five bodies each under the per-body limit are refused as a whole when the memory is
-    /// not there, and the estimate does not sample anything (it is instant).
+    /// Five bodies are refused as a whole when the memory is not there (saying how many
+    /// particles fit), and the estimate does not sample anything (it is instant).
     #[test]
     fn five_huge_bodies_are_refused_without_sampling() {
         let s = scene("fps = 10", 5, 0.29);
@@ -356,6 +365,21 @@ mod tests {
         let r = b.refusals(Some(1 << 30), None, true);
         assert_eq!(r.len(), 1, "{r:?}");
         assert!(r[0].message.contains("memory") && r[0].fix.contains("dx"));
+        // What fits: the memory less the grid, at the bytes of a particle (here the grid alone
+        // is over 1 GiB: nothing fits).
+        assert!(
+            r[0].message.contains("about 0 particles fit"),
+            "{}",
+            r[0].message
+        );
+        let grid = b.host_bytes - b.particles * HOST_BYTES_PER_PARTICLE_F32;
+        let avail = grid + 1_000_000 * HOST_BYTES_PER_PARTICLE_F32 + 17;
+        let r = b.refusals(Some(avail), None, true);
+        assert!(
+            r[0].message.contains("about 1000000 particles fit"),
+            "{}",
+            r[0].message
+        );
     }
 
     #[test]

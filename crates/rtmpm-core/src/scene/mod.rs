@@ -10,6 +10,7 @@
 
 pub mod budget;
 pub mod error;
+mod fill;
 pub mod material;
 pub mod sampling;
 pub mod schema;
@@ -20,7 +21,10 @@ mod tests;
 mod tests_io;
 #[cfg(test)]
 mod tests_motion;
+#[cfg(test)]
+mod tests_sampling;
 mod validate;
+mod walk;
 
 pub use budget::Budget;
 pub use error::SceneError;
@@ -352,9 +356,19 @@ impl Scene {
         (self.domain_min + w, self.domain_max - w)
     }
 
-    /// Fill the bodies with particles (deterministic for a given seed).
+    /// Fill the bodies with particles (deterministic for a given seed, the same for any number of
+    /// threads).
     pub fn sample_particles(&self) -> Result<crate::Particles, SceneError> {
-        sampling::sample_scene(self).map_err(|mut e| {
+        self.sample_particles_with(&|_| {})
+    }
+
+    /// [`Scene::sample_particles`], telling `progress` how far it is (see
+    /// [`sampling::sample_scene_with`]).
+    pub fn sample_particles_with(
+        &self,
+        progress: &(dyn Fn(sampling::SampleProgress) + Sync),
+    ) -> Result<crate::Particles, SceneError> {
+        sampling::sample_scene_with(self, progress).map_err(|mut e| {
             // Sampling errors name the body; the scene file names where it is.
             if e.origin.is_empty()
                 && let Some(src) = &self.source

@@ -17,7 +17,8 @@
 //! (mesh: signed distance < 0). Velocities are `v0 + w x (x - c)` with `c` the centroid of the
 //! body's particles.
 
-use super::{Scene, SceneError};
+use super::walk::{self, Counter, Lattice, Mode, Walked};
+use super::{Scene, SceneError, fill};
 use crate::Particles;
 use crate::boundary::mesh::MeshSdf;
 use crate::boundary::sdf::{box_distance, cylinder_distance};
@@ -25,12 +26,9 @@ use crate::io::contents::check_particle_values;
 use crate::io::points::PointSet;
 use crate::material::Material;
 use crate::math::{Mat3, Vec3};
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rand_pcg::Pcg64;
 use std::sync::Arc;
-
-/// Most particles a single body may produce (guards against runaway memory use).
-pub const MAX_PARTICLES_PER_BODY: u64 = 50_000_000;
 
 /// Geometry of a body.
 #[derive(Clone, Debug)]
@@ -175,23 +173,13 @@ fn body_error(i: usize, message: String, hint: &str) -> SceneError {
 }
 
 /// Most random positions tried for one body (random sampling of a thin shape would otherwise
-/// run for hours before failing).
-pub const MAX_RANDOM_TRIES: u64 = 2_000_000_000;
+/// run for hours before failing); the walk is parallel, so this is minutes on many cores.
+pub const MAX_RANDOM_TRIES: u64 = 100_000_000_000;
 
-/// A particles body may hold at most [`MAX_PARTICLES_PER_BODY`] points.
-fn check_point_count(index: usize, n: usize, source: &std::path::Path) -> Result<(), SceneError> {
-    if n as u64 > MAX_PARTICLES_PER_BODY {
-        return Err(body_error(
-            index,
-            format!(
-                "{} holds {n} points, more than the {MAX_PARTICLES_PER_BODY} allowed per body",
-                source.display()
-            ),
-            "use a file with at most 50 million points per body",
-        ));
-    }
-    Ok(())
-}
+/// Most lattice points the walk of one body visits (its bounding box on the sub-cell lattice):
+/// a bound on the time of the walk, not on the particles (those are bounded by the memory budget,
+/// [`super::Budget`]).
+pub const MAX_LATTICE_POINTS: u64 = 1 << 40;
 
 /// Estimated particle count of body `index`, without sampling: `volume / h^3` for the lattice
 /// samplings (exact for boxes aligned with the lattice), the count for random sampling, the
@@ -221,35 +209,15 @@ pub fn estimate_body(scene: &Scene, index: usize) -> u64 {
     }
 }
 
-/// What to do with the particles of a body: keep them, count them, or stop at the first.
-enum Visit<'a> {
-    Keep(&'a mut Vec<Vec3>),
-    Count(&'a mut u64),
-    First(&'a mut bool),
-}
-
-impl Visit<'_> {
-    /// Record `x`; false when the walk can stop.
-    fn add(&mut self, x: Vec3) -> bool {
-        match self {
-            Visit::Keep(v) => {
-                v.push(x);
-                true
-            }
-            Visit::Count(n) => {
-                **n += 1;
-                true
-            }
-            Visit::First(f) => {
-                **f = true;
-                false
-            }
-        }
-    }
-}
-
-/// Walk the particle positions of body `index`; returns the volume of one particle.
-fn walk_body(scene: &Scene, index: usize, mut visit: Visit<'_>) -> Result<f32, SceneError> {
+/// Walk the particle positions of body `index` (in parallel, the same positions for any number
+/// of threads: see [`super::walk`]); returns them and the volume of one particle. `counter`
+/// hears of the work done.
+pub(crate) fn walk_body(
+    scene: &Scene,
+    index: usize,
+    mode: Mode,
+    counter: &Counter,
+) -> Result<(Walked, f32), SceneError> {
     let body = scene
         .bodies
         .get(index)
@@ -257,18 +225,27 @@ fn walk_body(scene: &Scene, index: usize, mut visit: Visit<'_>) -> Result<f32, S
     let dx = scene.dx;
     let shape = &body.shape;
     if let BodyShape::Particles { points, .. } = shape {
-        check_point_count(index, points.positions.len(), &points.source)?;
-        for &x in &points.positions {
-            if !visit.add(x) {
-                break;
-            }
-        }
+        let n = points.positions.len() as u64;
+        let walked = match mode {
+            Mode::Keep => Walked {
+                chunks: vec![points.positions.clone()],
+                count: n,
+            },
+            Mode::Count => Walked {
+                chunks: Vec::new(),
+                count: n,
+            },
+            Mode::First => Walked {
+                chunks: Vec::new(),
+                count: n.min(1),
+            },
+        };
         // Volumes differ per point (see `sample_points`); this is the default one.
-        return Ok(dx * dx * dx / body.particles_per_cell.max(1) as f32);
+        return Ok((walked, dx * dx * dx / body.particles_per_cell.max(1) as f32));
     }
     let (lo, hi) = shape.bounds();
     let seed = scene.seed ^ (index as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-    let mut rng = Pcg64::seed_from_u64(seed);
+    let rng = Pcg64::seed_from_u64(seed);
     match body.sampling {
         Sampling::Regular | Sampling::Jittered => {
             let n = per_axis(body.particles_per_cell);
@@ -277,53 +254,28 @@ fn walk_body(scene: &Scene, index: usize, mut visit: Visit<'_>) -> Result<f32, S
             let last = ((hi - scene.domain_min) / h).ceil();
             let count = (last - first + 1.0).max(Vec3::ZERO);
             let total = count.x as f64 * count.y as f64 * count.z as f64;
-            if !total.is_finite() || total > MAX_PARTICLES_PER_BODY as f64 {
+            if !total.is_finite() || total > MAX_LATTICE_POINTS as f64 {
                 return Err(body_error(
                     index,
                     format!(
-                        "the body would need about {total:.3e} lattice points, more than the \
-                         {MAX_PARTICLES_PER_BODY} allowed per body"
+                        "the body's bounding box holds about {total:.3e} lattice points, more \
+                         than the {MAX_LATTICE_POINTS:.3e} a walk may visit"
                     ),
                     "make the body smaller, dx larger, or particles_per_cell smaller",
                 ));
             }
-            let (i0, j0, k0) = (first.x as i64, first.y as i64, first.z as i64);
-            let (i1, j1, k1) = (last.x as i64, last.y as i64, last.z as i64);
-            let jitter = body.sampling == Sampling::Jittered;
-            for k in k0..=k1 {
-                for j in j0..=j1 {
-                    for i in i0..=i1 {
-                        let mut x = scene.domain_min
-                            + Vec3::new(i as f32 + 0.5, j as f32 + 0.5, k as f32 + 0.5) * h;
-                        if jitter {
-                            let r = Vec3::new(
-                                rng.random::<f32>() - 0.5,
-                                rng.random::<f32>() - 0.5,
-                                rng.random::<f32>() - 0.5,
-                            );
-                            x += r * h;
-                        }
-                        if shape.contains(x) && !visit.add(x) {
-                            return Ok(h * h * h);
-                        }
-                    }
-                }
-            }
-            Ok(h * h * h)
+            let lattice = Lattice {
+                origin: scene.domain_min,
+                h,
+                first: [first.x as i64, first.y as i64, first.z as i64],
+                count: [count.x as u64, count.y as u64, count.z as u64],
+                jitter: body.sampling == Sampling::Jittered,
+            };
+            Ok((lattice.walk(shape, &rng, mode, counter), h * h * h))
         }
         Sampling::Random => {
             let volume = shape.volume();
             let count = estimate_body(scene, index);
-            if count > MAX_PARTICLES_PER_BODY {
-                return Err(body_error(
-                    index,
-                    format!(
-                        "the body would hold {count} particles, more than the \
-                         {MAX_PARTICLES_PER_BODY} allowed per body"
-                    ),
-                    "lower count or particles_per_cell",
-                ));
-            }
             // Expected tries: count / (fraction of the bounding box inside the shape).
             let bbox = (hi - lo).max(Vec3::ZERO).element_product() as f64;
             let fill = if bbox > 0.0 {
@@ -344,94 +296,129 @@ fn walk_body(scene: &Scene, index: usize, mut visit: Visit<'_>) -> Result<f32, S
                 ));
             }
             let max_attempts = count.saturating_mul(1000).clamp(10_000, MAX_RANDOM_TRIES);
-            let mut attempts = 0u64;
-            let mut placed = 0u64;
-            while placed < count {
-                if attempts >= max_attempts {
-                    return Err(body_error(
-                        index,
-                        format!("placed only {placed} of {count} random particles"),
-                        "the shape is too thin for random sampling; use sampling = \"regular\"",
-                    ));
-                }
-                attempts += 1;
-                let r = Vec3::new(
-                    rng.random::<f32>(),
-                    rng.random::<f32>(),
-                    rng.random::<f32>(),
-                );
-                let x = lo + r * (hi - lo);
-                if shape.contains(x) {
-                    placed += 1;
-                    if !visit.add(x) {
-                        break;
-                    }
-                }
+            let walked = walk::random(
+                shape,
+                lo,
+                hi,
+                count,
+                fill,
+                max_attempts,
+                &rng,
+                mode,
+                counter,
+            );
+            let target = if mode == Mode::First {
+                count.min(1)
+            } else {
+                count
+            };
+            if walked.count < target {
+                return Err(body_error(
+                    index,
+                    format!("placed only {} of {count} random particles", walked.count),
+                    "the shape is too thin for random sampling; use sampling = \"regular\"",
+                ));
             }
-            Ok(if count > 0 {
+            let vol0 = if count > 0 {
                 volume / count as f32
             } else {
                 0.0
-            })
+            };
+            Ok((walked, vol0))
         }
     }
 }
 
 /// Number of particles body `index` gets, counted without storing them.
 pub fn count_body(scene: &Scene, index: usize) -> Result<u64, SceneError> {
-    let mut n = 0;
-    walk_body(scene, index, Visit::Count(&mut n))?;
-    Ok(n)
+    Ok(
+        walk_body(scene, index, Mode::Count, &Counter::new(&|_, _| {}))?
+            .0
+            .count,
+    )
 }
 
 /// True when body `index` gets no particle (stops at the first one; stores none).
 pub fn body_is_empty(scene: &Scene, index: usize) -> Result<bool, SceneError> {
-    let mut any = false;
-    walk_body(scene, index, Visit::First(&mut any))?;
-    Ok(!any)
+    Ok(
+        walk_body(scene, index, Mode::First, &Counter::new(&|_, _| {}))?
+            .0
+            .count
+            == 0,
+    )
 }
 
-/// Sample body `index` of the scene.
-pub fn sample_body(scene: &Scene, index: usize) -> Result<Particles, SceneError> {
+/// How far the sampling of a scene is: body `body` of `bodies`, `done` of about `total` units
+/// of work (lattice points visited, or random positions tried).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SampleProgress {
+    pub body: usize,
+    pub bodies: usize,
+    pub done: u64,
+    pub total: u64,
+}
+
+/// The material of body `index`, or the error naming it.
+fn body_material(scene: &Scene, index: usize) -> Result<&Material, SceneError> {
     let body = scene
         .bodies
         .get(index)
         .ok_or_else(|| body_error(index, "no such body".into(), "use an existing body index"))?;
-    let material = scene.materials.get(body.material as usize).ok_or_else(|| {
+    scene.materials.get(body.material as usize).ok_or_else(|| {
         body_error(
             index,
             format!("material index {} out of range", body.material),
             "fix the material",
         )
-    })?;
+    })
+}
+
+/// The positions (or, for a particles body, the whole particles) of body `index`.
+fn sample_positions(
+    scene: &Scene,
+    index: usize,
+    progress: &(dyn Fn(SampleProgress) + Sync),
+) -> Result<fill::Sampled, SceneError> {
+    let material = body_material(scene, index)?;
+    let body = &scene.bodies[index];
     if let BodyShape::Particles {
         points,
         file_velocity,
     } = &body.shape
     {
-        return sample_points(scene, index, material, points, *file_velocity);
+        let p = sample_points(scene, index, material, points, *file_velocity)?;
+        return Ok(fill::Sampled::Points(p));
     }
-    let mut positions = Vec::new();
-    let vol0 = walk_body(scene, index, Visit::Keep(&mut positions))?;
-    let plastic = material.model.initial_plastic();
-    let n = positions.len().max(1) as f32;
-    let centre = positions.iter().fold(Vec3::ZERO, |a, b| a + *b) / n;
-    let mass = material.density * vol0;
-    let c = spin_matrix(body.angular_velocity);
+    let bodies = scene.bodies.len();
+    let report = |done, total| {
+        progress(SampleProgress {
+            body: index,
+            bodies,
+            done,
+            total,
+        })
+    };
+    let (walked, vol0) = walk_body(scene, index, Mode::Keep, &Counter::new(&report))?;
+    Ok(fill::Sampled::Walked { walked, vol0 })
+}
+
+/// Sample body `index` of the scene.
+pub fn sample_body(scene: &Scene, index: usize) -> Result<Particles, SceneError> {
+    let sampled = sample_positions(scene, index, &|_| {})?;
     let mut out = Particles::default();
-    for x in positions {
-        let v = body.velocity + body.angular_velocity.cross(x - centre);
-        out.push(x, v, mass, vol0, body.material, plastic);
-        if let Some(last) = out.c.last_mut() {
-            *last = c;
-        }
-    }
+    fill::reserve(&mut out, sampled.len());
+    fill::append(
+        &mut out,
+        &scene.bodies[index],
+        body_material(scene, index)?,
+        sampled,
+    );
     Ok(out)
 }
 
 /// APIC: C is the velocity gradient of the initial field v0 + w x (x - c), the cross-product
 /// matrix of w (zero for a pure translation), so P2G carries the rotation from step 0.
-fn spin_matrix(w: Vec3) -> Mat3 {
+pub(crate) fn spin_matrix(w: Vec3) -> Mat3 {
     Mat3::from_cols(
         Vec3::new(0.0, w.z, -w.y),
         Vec3::new(-w.z, 0.0, w.x),
@@ -451,7 +438,6 @@ fn sample_points(
     points: &PointSet,
     file_velocity: bool,
 ) -> Result<Particles, SceneError> {
-    check_point_count(index, points.positions.len(), &points.source)?;
     let body = &scene.bodies[index];
     let plastic = material.model.initial_plastic();
     let n = points.positions.len();
@@ -495,28 +481,24 @@ fn sample_points(
 
 /// Sample every body of the scene, in order.
 pub fn sample_scene(scene: &Scene) -> Result<Particles, SceneError> {
-    let mut all = Particles::default();
-    for i in 0..scene.bodies.len() {
-        let p = sample_body(scene, i)?;
-        all.extend(&p);
-    }
-    Ok(all)
+    sample_scene_with(scene, &|_| {})
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_particles_body_over_the_limit_names_the_file() {
-        let file = std::path::Path::new("big.bgeo");
-        let max = MAX_PARTICLES_PER_BODY as usize;
-        assert!(check_point_count(3, max, file).is_ok());
-        let e = check_point_count(3, max + 1, file).unwrap_err();
-        assert_eq!(e.field.as_deref(), Some("body[3]"));
-        assert!(
-            e.message.contains("big.bgeo") && e.message.contains("50000001 points"),
-            "{e}"
-        );
+/// [`sample_scene`], telling `progress` how far it is (from several threads, often: it should
+/// only look at the clock before printing). Every body's positions are found first (12 bytes a
+/// particle), then the particles are written once, straight into their columns.
+pub fn sample_scene_with(
+    scene: &Scene,
+    progress: &(dyn Fn(SampleProgress) + Sync),
+) -> Result<Particles, SceneError> {
+    let mut sampled = Vec::with_capacity(scene.bodies.len());
+    for i in 0..scene.bodies.len() {
+        sampled.push(sample_positions(scene, i, progress)?);
     }
+    let mut all = Particles::default();
+    fill::reserve(&mut all, sampled.iter().map(|s| s.len()).sum());
+    for (i, s) in sampled.into_iter().enumerate() {
+        fill::append(&mut all, &scene.bodies[i], body_material(scene, i)?, s);
+    }
+    Ok(all)
 }

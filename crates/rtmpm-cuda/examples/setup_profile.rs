@@ -1,0 +1,82 @@
+//! Where the set-up of a scene goes on the host, phase by phase (no GPU needed): sampling the
+//! bodies, the CUDA backend's host work before its upload (stencil bases, block layout,
+//! capacity plan, state packing) and the CPU backend's construction, each with its wall time
+//! and the process's resident memory after it.
+//!
+//! `cargo run --release -p rtmpm-cuda --example setup_profile -- SCENE.toml [cpu] [cuda]`
+//! (both phases' groups by default; `RAYON_NUM_THREADS` sets the threads).
+
+use rtmpm_core::Scene;
+use rtmpm_core::grid::BlockLayout;
+use std::time::Instant;
+
+/// Resident memory now and at its peak (MB), from `/proc/self/status`.
+fn rss() -> (f64, f64) {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    let field = |name: &str| {
+        status
+            .lines()
+            .find(|l| l.starts_with(name))
+            .and_then(|l| l.split_whitespace().nth(1))
+            .and_then(|kb| kb.parse::<f64>().ok())
+            .map_or(f64::NAN, |kb| kb / 1e3)
+    };
+    (field("VmRSS:"), field("VmHWM:"))
+}
+
+fn phase(name: &str, start: Instant) {
+    let (now, peak) = rss();
+    println!(
+        "  {name:<22} {:>8.3} s   resident {now:>9.1} MB (peak {peak:.1} MB)",
+        start.elapsed().as_secs_f64()
+    );
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let path = args
+        .first()
+        .ok_or("usage: setup_profile SCENE.toml [cpu] [cuda]")?;
+    let want = |w: &str| args.len() < 2 || args.iter().any(|a| a == w);
+    let total = Instant::now();
+    let t = Instant::now();
+    let scene = Scene::from_file(std::path::Path::new(path))?;
+    phase("parse", t);
+    let t = Instant::now();
+    let particles = scene.sample_particles()?;
+    phase("sample", t);
+    let n = particles.len();
+    println!("  {n} particles, {} threads", rayon::current_num_threads());
+    if want("cuda") {
+        let t = Instant::now();
+        let bases = rtmpm_cuda::capacity::bases(&scene, &particles);
+        phase("cuda: bases", t);
+        let t = Instant::now();
+        let mut layout = BlockLayout::default();
+        layout.rebuild(&bases);
+        phase("cuda: layout", t);
+        let t = Instant::now();
+        let fluid: Vec<bool> = scene
+            .materials
+            .iter()
+            .map(|m| matches!(m.model, rtmpm_core::material::Model::Fluid(_)))
+            .collect();
+        let state = rtmpm_cuda::state::pack(&particles, &fluid, false, n, None)?;
+        phase("cuda: pack", t);
+        println!("  packed {:.1} MB", state.len() as f64 / 1e6);
+        drop((state, layout, bases));
+    }
+    if want("cpu") {
+        let t = Instant::now();
+        let b = rtmpm_core::cpu::CpuBackend::new(&scene, particles, None)?;
+        phase("cpu: backend", t);
+        drop(b);
+    }
+    let (_, peak) = rss();
+    println!(
+        "  total {:.3} s, peak resident {peak:.1} MB = {:.1} bytes/particle",
+        total.elapsed().as_secs_f64(),
+        peak * 1e6 / n.max(1) as f64
+    );
+    Ok(())
+}

@@ -1,0 +1,103 @@
+//! The set-up of a run before its first step: sampling the bodies (with progress lines on
+//! stderr, also when it is not a terminal) and building the backend, timed.
+
+use anyhow::Result;
+use rtmpm_core::scene::sampling::SampleProgress;
+use rtmpm_core::{Particles, Scene};
+use std::sync::Mutex;
+use std::time::Instant;
+
+/// Seconds between two progress lines of the set-up: `RTMPM_PROGRESS_SECONDS` (as for the
+/// steps), else 5.
+fn every() -> f64 {
+    std::env::var("RTMPM_PROGRESS_SECONDS")
+        .ok()
+        .and_then(|s| s.parse::<f64>().ok())
+        .filter(|s| s.is_finite() && *s >= 0.0)
+        .unwrap_or(5.0)
+}
+
+/// One progress line of the sampling.
+fn line(p: SampleProgress, elapsed: f64) -> String {
+    let pct = 100.0 * p.done as f64 / p.total.max(1) as f64;
+    format!(
+        "set-up: sampling body {} of {}: {:.0} % ({:.3e} of {:.3e} positions tried), {elapsed:.0} s",
+        p.body + 1,
+        p.bodies,
+        pct.min(100.0),
+        p.done as f64,
+        p.total as f64
+    )
+}
+
+/// The time the set-up took, phase by phase.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SetupTimes {
+    /// Sampling the bodies (s).
+    pub sample: f64,
+    /// Building the backend: for CUDA the host's packing, the upload, the kernels (s).
+    pub backend: f64,
+}
+
+impl SetupTimes {
+    /// The whole set-up (s).
+    pub fn total(&self) -> f64 {
+        self.sample + self.backend
+    }
+
+    /// "12.3 s (sampling 4.5 s, backend 7.8 s)".
+    pub fn describe(&self) -> String {
+        format!(
+            "{:.2} s (sampling {:.2} s, backend {:.2} s)",
+            self.total(),
+            self.sample,
+            self.backend
+        )
+    }
+}
+
+/// Sample the scene's bodies, printing a progress line every few seconds while it lasts and a
+/// summary when it took more than one such period; returns the particles and the seconds taken.
+pub fn sample(scene: &Scene) -> Result<(Particles, f64)> {
+    let start = Instant::now();
+    let every = every();
+    let last = Mutex::new(Instant::now());
+    let report = |p: SampleProgress| {
+        // Only one thread looks at the clock at a time; the others go on.
+        if let Ok(mut last) = last.try_lock()
+            && last.elapsed().as_secs_f64() >= every
+        {
+            *last = Instant::now();
+            eprintln!("{}", line(p, start.elapsed().as_secs_f64()));
+        }
+    };
+    let particles = scene.sample_particles_with(&report)?;
+    let seconds = start.elapsed().as_secs_f64();
+    if seconds >= every {
+        eprintln!(
+            "set-up: sampled {} particles in {seconds:.1} s",
+            particles.len()
+        );
+    }
+    Ok((particles, seconds))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_progress_line_says_body_share_and_time() {
+        let p = SampleProgress {
+            body: 1,
+            bodies: 4,
+            done: 250,
+            total: 1000,
+        };
+        let l = line(p, 12.4);
+        assert!(
+            l.contains("body 2 of 4") && l.contains("25 %") && l.ends_with("12 s"),
+            "{l}"
+        );
+    }
+}
