@@ -10,6 +10,7 @@ use crate::contract::*;
 use rayon::prelude::*;
 use rtmpm_core::Particles;
 use rtmpm_core::math::{Mat3, Vec3};
+use rtmpm_core::scene::sampling::{BodyPositions, SampledBody};
 
 /// One word of the device state.
 trait Word: Copy + Default {
@@ -99,11 +100,151 @@ pub fn pack(
     }
 }
 
-/// Particles a task of [`pack_words`] writes.
+/// Particles a task of the packing writes (at most).
 const PACK_CHUNK: usize = 1 << 14;
 
-/// The image of [`pack`], written in parallel straight into the bytes it returns (one copy of
-/// the state, whose rows past `n` stay untouched zero pages until they are uploaded).
+/// The values of one particle as they are packed (F already in its packed form).
+struct Packed {
+    x: Vec3,
+    v: Vec3,
+    c: Mat3,
+    f: Mat3,
+    plastic: f32,
+    mass: f32,
+    vol0: f32,
+    material: u32,
+}
+
+/// Where a task's particles come from: particles `start..` of a [`Particles`], or positions of
+/// a sampled body.
+enum Source<'a> {
+    Particles(&'a Particles, usize),
+    Shape(&'a BodyPositions, &'a [Vec3]),
+}
+
+/// A fluid particle's F in its packed form, J^(1/3) I; a solid's as it is.
+fn packed_f(f: Mat3, fluid: bool) -> Mat3 {
+    if fluid {
+        Mat3::from_diagonal(Vec3::splat(f.determinant().cbrt()))
+    } else {
+        f
+    }
+}
+
+/// The image of `n` particles with stride `cap`, written in parallel straight into the bytes it
+/// returns (one copy of the state, whose rows past `n` stay untouched zero pages until they are
+/// uploaded). `tasks` cover particles `0..n` in order, each with its source and length; the
+/// materials are in range of `fluid` (checked by the callers).
+fn write_image<W: Word>(
+    tasks: Vec<(Source, usize)>,
+    n: usize,
+    cap: usize,
+    fluid: &[bool],
+    ids: Option<&[u32]>,
+) -> Vec<u8> {
+    let mut bytes = vec![0u8; NFIELDS * cap * W::BYTES];
+    if n == 0 {
+        return bytes;
+    }
+    // Each task's piece of each field's row.
+    let mut pieces: Vec<Vec<&mut [u8]>> =
+        tasks.iter().map(|_| Vec::with_capacity(NFIELDS)).collect();
+    for row in bytes.chunks_mut(cap * W::BYTES) {
+        let mut rest = &mut row[..n * W::BYTES];
+        for ((_, len), task) in tasks.iter().zip(pieces.iter_mut()) {
+            let (piece, tail) = rest.split_at_mut(len * W::BYTES);
+            task.push(piece);
+            rest = tail;
+        }
+    }
+    let mut first = Vec::with_capacity(tasks.len());
+    let mut at = 0;
+    for (_, len) in &tasks {
+        first.push(at);
+        at += len;
+    }
+    tasks
+        .into_par_iter()
+        .zip(pieces)
+        .zip(first)
+        .for_each(|(((source, len), mut rows), first)| {
+            let mut write = |k: usize, q: Packed| {
+                let mut put = |f: usize, v: W| v.put(&mut rows[f][k * W::BYTES..]);
+                for a in 0..3 {
+                    put(F_X + a, W::from_f32(q.x[a]));
+                    put(F_V + a, W::from_f32(q.v[a]));
+                }
+                let (c, fm) = (q.c.to_cols_array(), q.f.to_cols_array());
+                for e in 0..9 {
+                    put(F_C + e, W::from_f32(c[e]));
+                    put(F_F + e, W::from_f32(fm[e]));
+                }
+                put(F_PLASTIC, W::from_f32(q.plastic));
+                put(F_MASS, W::from_f32(q.mass));
+                put(F_VOL0, W::from_f32(q.vol0));
+                put(F_MAT, W::from_id(q.material));
+                let i = first + k;
+                put(F_ID, W::from_id(ids.map_or(i as u32, |ids| ids[i])));
+            };
+            match source {
+                Source::Particles(p, start) => {
+                    for k in 0..len {
+                        let i = start + k;
+                        let m = p.material[i];
+                        write(
+                            k,
+                            Packed {
+                                x: p.x[i],
+                                v: p.v[i],
+                                c: p.c[i],
+                                f: packed_f(p.f[i], fluid[m as usize]),
+                                plastic: p.plastic[i],
+                                mass: p.mass[i],
+                                vol0: p.vol0[i],
+                                material: m,
+                            },
+                        );
+                    }
+                }
+                Source::Shape(b, xs) => {
+                    let f = packed_f(Mat3::IDENTITY, fluid[b.material as usize]);
+                    for (k, &x) in xs.iter().enumerate() {
+                        write(
+                            k,
+                            Packed {
+                                x,
+                                v: b.velocity_at(x),
+                                c: b.c,
+                                f,
+                                plastic: b.plastic,
+                                mass: b.mass,
+                                vol0: b.vol0,
+                                material: b.material,
+                            },
+                        );
+                    }
+                }
+            }
+        });
+    bytes
+}
+
+/// Tasks of [`write_image`] over particles `0..n` of `p`.
+fn particle_tasks(p: &Particles) -> Vec<(Source<'_>, usize)> {
+    (0..p.len())
+        .step_by(PACK_CHUNK)
+        .map(|s| (Source::Particles(p, s), PACK_CHUNK.min(p.len() - s)))
+        .collect()
+}
+
+/// The first particle whose material is not below `fluid.len()`.
+fn bad_material(p: &Particles, fluid: &[bool]) -> Option<usize> {
+    p.material
+        .par_iter()
+        .position_first(|&m| fluid.get(m as usize).is_none())
+}
+
+/// The image of [`pack`].
 fn pack_words<W: Word>(
     p: &Particles,
     fluid: &[bool],
@@ -115,59 +256,57 @@ fn pack_words<W: Word>(
     if ids.is_some_and(|ids| ids.len() != n) {
         return Err("CUDA backend: one id per particle".into());
     }
-    if let Some(i) = p
-        .material
-        .par_iter()
-        .position_first(|&m| fluid.get(m as usize).is_none())
-    {
+    if let Some(i) = bad_material(p, fluid) {
         return Err(format!(
             "particle {i} has material {} out of range",
             p.material[i]
         ));
     }
-    let mut bytes = vec![0u8; NFIELDS * cap * W::BYTES];
-    if n == 0 {
-        return Ok(bytes);
-    }
-    // Task c writes particles c * PACK_CHUNK.. of every field: its piece of each field's row.
-    let mut tasks: Vec<Vec<&mut [u8]>> = (0..n.div_ceil(PACK_CHUNK))
-        .map(|_| Vec::with_capacity(NFIELDS))
-        .collect();
-    for row in bytes.chunks_mut(cap * W::BYTES) {
-        let used = &mut row[..n * W::BYTES];
-        for (task, piece) in tasks.iter_mut().zip(used.chunks_mut(PACK_CHUNK * W::BYTES)) {
-            task.push(piece);
-        }
-    }
-    tasks.into_par_iter().enumerate().for_each(|(c, mut rows)| {
-        let first = c * PACK_CHUNK;
-        let last = (first + PACK_CHUNK).min(n);
-        for (k, i) in (first..last).enumerate() {
-            let mut put = |f: usize, v: W| v.put(&mut rows[f][k * W::BYTES..]);
-            for a in 0..3 {
-                put(F_X + a, W::from_f32(p.x[i][a]));
-                put(F_V + a, W::from_f32(p.v[i][a]));
+    Ok(write_image::<W>(particle_tasks(p), n, cap, fluid, ids))
+}
+
+/// The device image (stride: the particle count, ids `0..n`) of the particles of sampled bodies
+/// ([`rtmpm_core::scene::sampling::sample_bodies`]), written straight from their positions:
+/// byte for byte what [`pack`] makes of the [`Particles`] that
+/// [`rtmpm_core::Scene::sample_particles`] returns, without the host ever holding those (112
+/// bytes a particle): a backend built from it needs the image (116 bytes a particle in f32) and
+/// the positions (12) only.
+pub fn pack_bodies(bodies: &[SampledBody], fluid: &[bool], f64: bool) -> Result<Vec<u8>, String> {
+    let mut tasks = Vec::new();
+    let mut n = 0usize;
+    for body in bodies {
+        match body {
+            SampledBody::Points(p) => {
+                if let Some(i) = bad_material(p, fluid) {
+                    return Err(format!(
+                        "particle {} has material {} out of range",
+                        n + i,
+                        p.material[i]
+                    ));
+                }
+                tasks.extend(particle_tasks(p));
             }
-            let m = p.material[i];
-            // In range: checked above.
-            let f = if fluid[m as usize] {
-                Mat3::from_diagonal(Vec3::splat(p.f[i].determinant().cbrt()))
-            } else {
-                p.f[i]
-            };
-            let (c, fm) = (p.c[i].to_cols_array(), f.to_cols_array());
-            for e in 0..9 {
-                put(F_C + e, W::from_f32(c[e]));
-                put(F_F + e, W::from_f32(fm[e]));
+            SampledBody::Shape(b) => {
+                if b.count > 0 && fluid.get(b.material as usize).is_none() {
+                    return Err(format!(
+                        "particle {n} has material {} out of range",
+                        b.material
+                    ));
+                }
+                for chunk in &b.chunks {
+                    for xs in chunk.chunks(PACK_CHUNK) {
+                        tasks.push((Source::Shape(b, xs), xs.len()));
+                    }
+                }
             }
-            put(F_PLASTIC, W::from_f32(p.plastic[i]));
-            put(F_MASS, W::from_f32(p.mass[i]));
-            put(F_VOL0, W::from_f32(p.vol0[i]));
-            put(F_MAT, W::from_id(m));
-            put(F_ID, W::from_id(ids.map_or(i as u32, |ids| ids[i])));
         }
-    });
-    Ok(bytes)
+        n += body.len();
+    }
+    Ok(if f64 {
+        write_image::<f64>(tasks, n, n, fluid, None)
+    } else {
+        write_image::<f32>(tasks, n, n, fluid, None)
+    })
 }
 
 /// Particles in original order from the device image of `n` particles (stride `cap`).
@@ -373,6 +512,46 @@ mod tests {
                 .len(),
             NFIELDS * 3 * 4
         );
+    }
+
+    /// Packing the sampled bodies gives the image of packing the sampled particles, byte for
+    /// byte: shapes and samplings of every kind, fluid and solid, spinning, and a points body.
+    #[test]
+    fn packing_the_sampled_bodies_is_packing_their_particles() {
+        let dir = std::env::temp_dir().join(format!("rtmpm-pack-bodies-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("dir");
+        let mut ply = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\n\
+                        property float x\nproperty float y\nproperty float z\nend_header\n"
+            .to_vec();
+        for v in [0.2f32, 0.2, 0.2, 0.25, 0.2, 0.2, 0.2, 0.3, 0.25] {
+            ply.extend_from_slice(&v.to_le_bytes());
+        }
+        std::fs::write(dir.join("pts.ply"), ply).expect("ply");
+        let text = "seed = 3\n[domain]\nmin = [0, 0, 0]\nmax = [1, 1, 1]\ndx = 0.02\n\
+            [time]\nduration = 1\n\
+            [[material]]\nname = \"w\"\ntype = \"fluid\"\ndensity = 1000\nbulk_modulus = 1e5\n\
+            [[material]]\nname = \"s\"\ntype = \"snow\"\ndensity = 400\n\
+            youngs_modulus = 1.4e5\npoisson_ratio = 0.2\n\
+            [[body]]\nmaterial = \"s\"\nshape = \"sphere\"\ncenter = [0.3, 0.5, 0.5]\n\
+            radius = 0.2\nsampling = \"jittered\"\nangular_velocity = [0, 3, 1]\n\
+            [[body]]\nmaterial = \"w\"\nshape = \"box\"\nmin = [0.6, 0.1, 0.1]\n\
+            max = [0.9, 0.4, 0.5]\nsampling = \"regular\"\nvelocity = [0, -1, 0]\n\
+            [[body]]\nmaterial = \"w\"\nshape = \"particles\"\nfile = \"pts.ply\"\n\
+            [[body]]\nmaterial = \"s\"\nshape = \"cylinder\"\ncenter = [0.7, 0.7, 0.6]\n\
+            axis = [0, 1, 0]\nradius = 0.1\nheight = 0.2\nsampling = \"random\"\n";
+        let scene = rtmpm_core::Scene::from_toml_in(text, "pack", &dir).expect("scene");
+        let _ = std::fs::remove_dir_all(&dir);
+        let p = scene.sample_particles().expect("particles");
+        assert!(p.len() > 2 * PACK_CHUNK, "{}", p.len());
+        let bodies = rtmpm_core::scene::sampling::sample_bodies(&scene, &|_| {}).expect("bodies");
+        let fluid = [true, false];
+        for f64 in [false, true] {
+            let want = pack(&p, &fluid, f64, p.len(), None).expect("pack");
+            let got = pack_bodies(&bodies, &fluid, f64).expect("pack bodies");
+            assert!(got == want, "f64 = {f64}: the images differ");
+        }
+        let e = pack_bodies(&bodies, &[true], false).unwrap_err();
+        assert!(e.contains("particle 0 has material 1"), "{e}");
     }
 
     #[test]
