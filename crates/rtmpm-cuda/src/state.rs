@@ -309,6 +309,44 @@ pub fn pack_bodies(bodies: &[SampledBody], fluid: &[bool], f64: bool) -> Result<
     })
 }
 
+/// Every position of the sampled bodies, in order, in parallel (the particles' order of
+/// [`pack_bodies`]), each mapped by `f`: e.g. the stencil bases of `capacity::bases` without the
+/// particles.
+pub fn map_positions<T: Send>(
+    bodies: &[SampledBody],
+    f: impl Fn(Vec3) -> T + Sync + Send,
+) -> Vec<T> {
+    let mut out = Vec::with_capacity(bodies.iter().map(|b| b.len()).sum());
+    for body in bodies {
+        match body {
+            SampledBody::Points(p) => out.par_extend(p.x.par_iter().map(|&x| f(x))),
+            SampledBody::Shape(b) => {
+                for chunk in &b.chunks {
+                    out.par_extend(chunk.par_iter().map(|&x| f(x)));
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The largest initial speed of the sampled bodies' particles: what
+/// `particles.v.iter().map(|v| v.length()).fold(0.0, f32::max)` gives for their particles.
+pub fn max_speed(bodies: &[SampledBody]) -> f32 {
+    let speed = |v: Vec3| v.length();
+    bodies
+        .iter()
+        .map(|body| match body {
+            SampledBody::Points(p) => p.v.par_iter().map(|&v| speed(v)).reduce(|| 0.0, f32::max),
+            SampledBody::Shape(b) => b
+                .chunks
+                .par_iter()
+                .flat_map_iter(|c| c.iter().map(|&x| speed(b.velocity_at(x))))
+                .reduce(|| 0.0, f32::max),
+        })
+        .fold(0.0, f32::max)
+}
+
 /// Particles in original order from the device image of `n` particles (stride `cap`).
 pub fn unpack(
     bytes: &[u8],
@@ -550,6 +588,19 @@ mod tests {
             let got = pack_bodies(&bodies, &fluid, f64).expect("pack bodies");
             assert!(got == want, "f64 = {f64}: the images differ");
         }
+        // What the backend takes from the particles besides the image, from the bodies.
+        assert_eq!(
+            map_positions(&bodies, |x| x),
+            p.x,
+            "positions in the particles' order"
+        );
+        let want = crate::capacity::bases(&scene, &p);
+        let (dx, origin) = (scene.dx, scene.domain_min - 4.0 * scene.dx);
+        let got = map_positions(&bodies, |x| ((x - origin) / dx - 0.5).floor().as_ivec3());
+        assert_eq!(got, want);
+        let speed = p.v.iter().map(|v| v.length()).fold(0.0, f32::max);
+        assert!(speed > 0.5, "{speed}");
+        assert_eq!(max_speed(&bodies).to_bits(), speed.to_bits());
         let e = pack_bodies(&bodies, &[true], false).unwrap_err();
         assert!(e.contains("particle 0 has material 1"), "{e}");
     }
