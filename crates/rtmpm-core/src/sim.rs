@@ -165,7 +165,15 @@ pub trait Backend {
     /// Host memory of `words` 32-bit words for the chunks of [`Backend::export_frame`]
     /// (page-locked on a GPU, for copies at the bus's full rate).
     fn chunk_memory(&self, words: usize) -> Result<Box<dyn HostBuffer>, SimError> {
-        Ok(Box::new(vec![0u32; words]))
+        let mut v: Vec<u32> = Vec::new();
+        v.try_reserve_exact(words).map_err(|_| {
+            SimError::Backend(format!(
+                "cannot allocate {:.1} MB for frame chunks",
+                words as f64 * 4e-6
+            ))
+        })?;
+        v.resize(words, 0);
+        Ok(Box::new(v))
     }
     /// The rigid bodies' poses and velocities as the backend's rigid-body engine holds them
     /// (what a checkpoint stores); empty where [`Backend::rigid_bodies`] is.

@@ -120,8 +120,8 @@ min = [0.0, 0.0, 0.0]
 max = [1.0, 0.5, 0.5]
 dx = 0.025
 [time]
-duration = 0.3
-fps = 10
+duration = 0.25
+fps = 20
 cfl = 0.4
 [[material]]
 name = "jelly"

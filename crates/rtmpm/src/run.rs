@@ -222,7 +222,8 @@ pub fn run(args: RunArgs) -> Result<()> {
     // PLY and BGEO frames stream from the backend in chunks, written in the background.
     let mut streamer = match output.as_ref() {
         Some(out)
-            if mode == crate::multi::Mode::Single
+            // Not across processes: there every rank reads the particles (a collective).
+            if !matches!(mode, crate::multi::Mode::Rank { .. })
                 && !args.whole_frames
                 && !args.render
                 && args.preview.is_none()

@@ -79,6 +79,8 @@ pub struct FrameStreamer {
     cols: FrameColumns,
     in_flight: usize,
     stats: StreamStats,
+    /// Page-locked memory was refused once (said once).
+    warned: bool,
 }
 
 impl FrameStreamer {
@@ -105,6 +107,7 @@ impl FrameStreamer {
             cols,
             in_flight: 0,
             stats: StreamStats::default(),
+            warned: false,
         })
     }
 
@@ -166,9 +169,30 @@ impl FrameStreamer {
         let want = (self.settings.frames_in_flight * per_frame).max(2);
         let words = self.cap * self.cols.words();
         while self.allocated < want {
-            let buf = backend
-                .chunk_memory(words)
-                .map_err(|e| anyhow!("cannot allocate frame chunk memory: {e}"))?;
+            // Page-locked memory may be refused (hundreds of GB asked, or a limit): then plain
+            // memory, which a GPU copies into at a lower rate.
+            let buf = match backend.chunk_memory(words) {
+                Ok(b) => b,
+                Err(e) => {
+                    if !self.warned {
+                        eprintln!(
+                            "warning: frame chunks in plain memory ({e}): the copies from the \
+                             device are slower; --frame-chunk or --frames-in-flight 0 ask for less"
+                        );
+                        self.warned = true;
+                    }
+                    let mut v: Vec<u32> = Vec::new();
+                    v.try_reserve_exact(words).map_err(|_| {
+                        anyhow!(
+                            "cannot allocate {:.1} MB of frame chunk memory: lower \
+                             --frame-chunk or --frames-in-flight",
+                            words as f64 * 4e-6
+                        )
+                    })?;
+                    v.resize(words, 0);
+                    Box::new(v)
+                }
+            };
             self.free.push(FrameChunk {
                 start: 0,
                 len: 0,
