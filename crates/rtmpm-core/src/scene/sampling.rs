@@ -428,6 +428,17 @@ pub fn sample_bodies(
         .collect()
 }
 
+/// The particles of sampled bodies ([`sample_bodies`]), written once into their columns:
+/// `particles_of(sample_bodies(scene, ..)?)` is `scene.sample_particles()`.
+pub fn particles_of(bodies: Vec<SampledBody>) -> Particles {
+    let mut all = Particles::default();
+    fill::reserve(&mut all, bodies.iter().map(|s| s.len()).sum());
+    for s in bodies {
+        fill::append(&mut all, s);
+    }
+    all
+}
+
 /// Sample body `index` of the scene.
 pub fn sample_body(scene: &Scene, index: usize) -> Result<Particles, SceneError> {
     let sampled = sample_positions(scene, index, &|_| {})?;
@@ -512,11 +523,5 @@ pub fn sample_scene_with(
     scene: &Scene,
     progress: &(dyn Fn(SampleProgress) + Sync),
 ) -> Result<Particles, SceneError> {
-    let sampled = sample_bodies(scene, progress)?;
-    let mut all = Particles::default();
-    fill::reserve(&mut all, sampled.iter().map(|s| s.len()).sum());
-    for s in sampled {
-        fill::append(&mut all, s);
-    }
-    Ok(all)
+    Ok(particles_of(sample_bodies(scene, progress)?))
 }
