@@ -209,10 +209,7 @@ impl CudaBackend {
         // Capacities from the initial mapping.
         let bases = match initial {
             Initial::Particles(p) => capacity::bases(scene, p),
-            Initial::Bodies(b) => {
-                let (dx, origin) = (scene.dx, scene.domain_min - 4.0 * scene.dx);
-                crate::state::map_positions(b, |x| ((x - origin) / dx - 0.5).floor().as_ivec3())
-            }
+            Initial::Bodies(b) => crate::state::map_positions(b, capacity::base_of(scene)),
         };
         let mut layout = BlockLayout::default();
         layout.rebuild(&bases);

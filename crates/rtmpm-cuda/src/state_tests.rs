@@ -138,8 +138,7 @@ fn packing_the_sampled_bodies_is_packing_their_particles() {
         "positions in the particles' order"
     );
     let want = crate::capacity::bases(&scene, &p);
-    let (dx, origin) = (scene.dx, scene.domain_min - 4.0 * scene.dx);
-    let got = map_positions(&bodies, |x| ((x - origin) / dx - 0.5).floor().as_ivec3());
+    let got = map_positions(&bodies, crate::capacity::base_of(&scene));
     assert_eq!(got, want);
     let speed = p.v.iter().map(|v| v.length()).fold(0.0, f32::max);
     assert!(speed > 0.5, "{speed}");
