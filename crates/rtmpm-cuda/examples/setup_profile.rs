@@ -3,8 +3,11 @@
 //! capacity plan, state packing) and the CPU backend's construction, each with its wall time
 //! and the process's resident memory after it.
 //!
-//! `cargo run --release -p rtmpm-cuda --example setup_profile -- SCENE.toml [cpu] [cuda]`
-//! (both phases' groups by default; `RAYON_NUM_THREADS` sets the threads).
+//! `lean`: the CUDA image packed straight from the sampled positions (`state::pack_bodies`, no
+//! `Particles` on the host), with the stencil bases from the positions.
+//!
+//! `cargo run --release -p rtmpm-cuda --example setup_profile -- SCENE.toml [cpu|cuda|lean]`
+//! (cpu and cuda by default; `RAYON_NUM_THREADS` sets the threads).
 
 use rtmpm_core::Scene;
 use rtmpm_core::grid::BlockLayout;
@@ -37,11 +40,33 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let path = args
         .first()
         .ok_or("usage: setup_profile SCENE.toml [cpu] [cuda]")?;
-    let want = |w: &str| args.len() < 2 || args.iter().any(|a| a == w);
+    let want = |w: &str| (args.len() < 2 && w != "lean") || args.iter().any(|a| a == w);
     let total = Instant::now();
     let t = Instant::now();
     let scene = Scene::from_file(std::path::Path::new(path))?;
     phase("parse", t);
+    let fluid: Vec<bool> = scene
+        .materials
+        .iter()
+        .map(|m| matches!(m.model, rtmpm_core::material::Model::Fluid(_)))
+        .collect();
+    if want("lean") {
+        let t = Instant::now();
+        let bodies = rtmpm_core::scene::sampling::sample_bodies(&scene, &|_| {})?;
+        phase("lean: sample bodies", t);
+        let n: usize = bodies.iter().map(|b| b.len()).sum();
+        let t = Instant::now();
+        let state = rtmpm_cuda::state::pack_bodies(&bodies, &fluid, false)?;
+        phase("lean: pack bodies", t);
+        println!("  {n} particles, packed {:.1} MB", state.len() as f64 / 1e6);
+        let (_, peak) = rss();
+        println!(
+            "  total {:.3} s, peak resident {peak:.1} MB = {:.1} bytes/particle",
+            total.elapsed().as_secs_f64(),
+            peak * 1e6 / n.max(1) as f64
+        );
+        return Ok(());
+    }
     let t = Instant::now();
     let particles = scene.sample_particles()?;
     phase("sample", t);
@@ -56,11 +81,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         layout.rebuild(&bases);
         phase("cuda: layout", t);
         let t = Instant::now();
-        let fluid: Vec<bool> = scene
-            .materials
-            .iter()
-            .map(|m| matches!(m.model, rtmpm_core::material::Model::Fluid(_)))
-            .collect();
         let state = rtmpm_cuda::state::pack(&particles, &fluid, false, n, None)?;
         phase("cuda: pack", t);
         println!("  packed {:.1} MB", state.len() as f64 / 1e6);

@@ -15,6 +15,7 @@ use cudarc::driver::{CudaContext, CudaModule, CudaStream};
 use rtmpm_core::grid::BlockLayout;
 use rtmpm_core::material::Model;
 use rtmpm_core::scene::Precision;
+use rtmpm_core::scene::sampling::SampledBody;
 use rtmpm_core::sim::{Backend, BadParticle, BadReason, SimError};
 use rtmpm_core::transfer::Transfer;
 use rtmpm_core::{Particles, Scene};
@@ -65,6 +66,22 @@ pub struct Part {
     pub capacity: usize,
 }
 
+/// What a backend starts from: particles, or sampled bodies packed straight from their positions.
+#[derive(Clone, Copy)]
+enum Initial<'a> {
+    Particles(&'a Particles),
+    Bodies(&'a [SampledBody]),
+}
+
+impl Initial<'_> {
+    fn len(&self) -> usize {
+        match self {
+            Initial::Particles(p) => p.len(),
+            Initial::Bodies(b) => b.iter().map(|b| b.len()).sum(),
+        }
+    }
+}
+
 /// The CUDA backend (one GPU).
 pub struct CudaBackend {
     pub(crate) stream: Arc<CudaStream>,
@@ -96,12 +113,7 @@ pub struct CudaBackend {
 }
 
 /// Checks before any GPU work: what the CUDA backend cannot run, as clear errors.
-fn check(
-    scene: &Scene,
-    particles: &Particles,
-    part: &Part,
-    o: &CudaOptions,
-) -> Result<(), SimError> {
+fn check(scene: &Scene, n: usize, part: &Part, o: &CudaOptions) -> Result<(), SimError> {
     if o.f64 && o.p2g == P2gMode::Shared {
         return Err(SimError::Backend(
             "CUDA backend: p2g=shared is single precision only (a 12^3 tile of f64 nodes \
@@ -116,17 +128,13 @@ fn check(
                 .into(),
         ));
     }
-    if particles.is_empty() {
+    if n == 0 {
         return Err(SimError::Backend(format!(
             "CUDA backend (device {}): no particles",
             part.device
         )));
     }
-    if part
-        .ids
-        .as_ref()
-        .is_some_and(|ids| ids.len() != particles.len())
-    {
+    if part.ids.as_ref().is_some_and(|ids| ids.len() != n) {
         return Err(SimError::Backend(
             "CUDA backend: one id per particle".into(),
         ));
@@ -162,6 +170,28 @@ impl CudaBackend {
         part: &Part,
         options: CudaOptions,
     ) -> Result<CudaBackend, SimError> {
+        Self::build(scene, Initial::Particles(particles), part, options)
+    }
+
+    /// Upload the particles of sampled bodies
+    /// ([`rtmpm_core::scene::sampling::sample_bodies`]) to device 0, packed straight from their
+    /// positions: the same state as [`CudaBackend::new`] with `scene.sample_particles()`,
+    /// without the host holding those particles (issue 19: 129 instead of 254 bytes a particle
+    /// at the host's peak).
+    pub fn from_bodies(
+        scene: &Scene,
+        bodies: &[SampledBody],
+        options: CudaOptions,
+    ) -> Result<CudaBackend, SimError> {
+        Self::build(scene, Initial::Bodies(bodies), &Part::default(), options)
+    }
+
+    fn build(
+        scene: &Scene,
+        initial: Initial,
+        part: &Part,
+        options: CudaOptions,
+    ) -> Result<CudaBackend, SimError> {
         let info = crate::probe_device(part.device).map_err(|e| {
             SimError::Backend(format!("CUDA device {} unavailable: {e}", part.device))
         })?;
@@ -170,14 +200,17 @@ impl CudaBackend {
             f64: options.f64 || scene.precision == Precision::F64,
             ..options
         };
-        check(scene, particles, part, &options)?;
+        let n = initial.len();
+        check(scene, n, part, &options)?;
         crate::emit::check(scene, options.p2g)?;
         let tables = encode::tables(scene, options.f64)?;
 
         // The program, compiled for this GPU (or from the cache), and its kernels.
         // Capacities from the initial mapping.
-        let n = particles.len();
-        let bases = capacity::bases(scene, particles);
+        let bases = match initial {
+            Initial::Particles(p) => capacity::bases(scene, p),
+            Initial::Bodies(b) => crate::state::map_positions(b, capacity::base_of(scene)),
+        };
         let mut layout = BlockLayout::default();
         layout.rebuild(&bases);
         // Room for every particle the emitters will add (crate::emit): nothing grows later.
@@ -224,8 +257,13 @@ impl CudaBackend {
             .collect();
         kernels.sort_mask = crate::rebuild::sorted_fields(fluid.iter().all(|f| *f));
         // Packed with stride n; buffers::allocate places each field at its stride-cap offset.
-        let state = crate::state::pack(particles, &fluid, options.f64, n, part.ids.as_deref())
-            .map_err(SimError::Backend)?;
+        let state = match initial {
+            Initial::Particles(p) => {
+                crate::state::pack(p, &fluid, options.f64, n, part.ids.as_deref())
+            }
+            Initial::Bodies(b) => crate::state::pack_bodies(b, &fluid, options.f64),
+        }
+        .map_err(SimError::Backend)?;
         // G2P2G where it applies (see CudaOptions::g2p2g): not when every step rebuilds (the
         // fused scatter would always be redone).
         let g2p2g = options.g2p2g
@@ -239,7 +277,10 @@ impl CudaBackend {
             real_bytes,
             grid_next: g2p2g,
             // NaN speeds are left to the health check of the first step.
-            initial_speed: particles.v.iter().map(|v| v.length()).fold(0.0, f32::max),
+            initial_speed: match initial {
+                Initial::Particles(p) => p.v.iter().map(|v| v.length()).fold(0.0, f32::max),
+                Initial::Bodies(b) => crate::state::max_speed(b),
+            },
         };
         let (buffers, mut ctx) =
             buffers::allocate(&stream, scene, &state, &cap, needs, &tables, &options)?;

@@ -104,13 +104,16 @@ impl BufferBytes {
 
 /// The stencil base node of every particle (grid coordinates, origin 4 cells below the domain).
 pub fn bases(scene: &Scene, particles: &Particles) -> Vec<IVec3> {
+    use rayon::prelude::*;
+    let base = base_of(scene);
+    particles.x.par_iter().map(|&x| base(x)).collect()
+}
+
+/// The stencil base node of a particle at `x`, as [`bases`] computes it.
+pub fn base_of(scene: &Scene) -> impl Fn(rtmpm_core::math::Vec3) -> IVec3 + Sync + Send + use<> {
     let dx = scene.dx;
     let origin = scene.domain_min - 4.0 * dx;
-    particles
-        .x
-        .iter()
-        .map(|x| ((*x - origin) / dx - 0.5).floor().as_ivec3())
-        .collect()
+    move |x| ((x - origin) / dx - 0.5).floor().as_ivec3()
 }
 
 impl Capacity {

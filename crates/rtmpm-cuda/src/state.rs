@@ -10,6 +10,7 @@ use crate::contract::*;
 use rayon::prelude::*;
 use rtmpm_core::Particles;
 use rtmpm_core::math::{Mat3, Vec3};
+use rtmpm_core::scene::sampling::{BodyPositions, SampledBody};
 
 /// One word of the device state.
 trait Word: Copy + Default {
@@ -99,11 +100,158 @@ pub fn pack(
     }
 }
 
-/// Particles a task of [`pack_words`] writes.
+/// Particles a task of the packing writes (at most).
 const PACK_CHUNK: usize = 1 << 14;
 
-/// The image of [`pack`], written in parallel straight into the bytes it returns (one copy of
-/// the state, whose rows past `n` stay untouched zero pages until they are uploaded).
+/// The values of one particle as they are packed (F already in its packed form).
+struct Packed {
+    x: Vec3,
+    v: Vec3,
+    c: Mat3,
+    f: Mat3,
+    plastic: f32,
+    mass: f32,
+    vol0: f32,
+    material: u32,
+}
+
+/// Where a task's particles come from: particles `start..` of a [`Particles`], or positions of
+/// a sampled body.
+enum Source<'a> {
+    Particles(&'a Particles, usize),
+    Shape(&'a BodyPositions, &'a [Vec3]),
+}
+
+/// A fluid particle's F in its packed form, J^(1/3) I; a solid's as it is.
+fn packed_f(f: Mat3, fluid: bool) -> Mat3 {
+    if fluid {
+        Mat3::from_diagonal(Vec3::splat(f.determinant().cbrt()))
+    } else {
+        f
+    }
+}
+
+/// The image of `n` particles with stride `cap`, written in parallel straight into the bytes it
+/// returns (one copy of the state, whose rows past `n` stay untouched zero pages until they are
+/// uploaded). `tasks` cover particles `0..n` in order, each with its source and length; the
+/// materials are in range of `fluid` (checked by the callers).
+fn write_image<W: Word>(
+    tasks: Vec<(Source, usize)>,
+    n: usize,
+    cap: usize,
+    fluid: &[bool],
+    ids: Option<&[u32]>,
+) -> Vec<u8> {
+    let mut bytes = vec![0u8; NFIELDS * cap * W::BYTES];
+    if n == 0 {
+        return bytes;
+    }
+    // Each task's piece of each field's row.
+    let mut pieces: Vec<Vec<&mut [u8]>> =
+        tasks.iter().map(|_| Vec::with_capacity(NFIELDS)).collect();
+    for row in bytes.chunks_mut(cap * W::BYTES) {
+        let mut rest = &mut row[..n * W::BYTES];
+        for ((_, len), task) in tasks.iter().zip(pieces.iter_mut()) {
+            let (piece, tail) = rest.split_at_mut(len * W::BYTES);
+            task.push(piece);
+            rest = tail;
+        }
+    }
+    let mut first = Vec::with_capacity(tasks.len());
+    let mut at = 0;
+    for (_, len) in &tasks {
+        first.push(at);
+        at += len;
+    }
+    tasks
+        .into_par_iter()
+        .zip(pieces)
+        .zip(first)
+        .for_each(|(((source, len), mut rows), first)| match source {
+            Source::Particles(p, start) => {
+                for k in 0..len {
+                    let i = start + k;
+                    let m = p.material[i];
+                    let q = Packed {
+                        x: p.x[i],
+                        v: p.v[i],
+                        c: p.c[i],
+                        f: packed_f(p.f[i], fluid[m as usize]),
+                        plastic: p.plastic[i],
+                        mass: p.mass[i],
+                        vol0: p.vol0[i],
+                        material: m,
+                    };
+                    let mut put = |f: usize, v: W| v.put(&mut rows[f][k * W::BYTES..]);
+                    for a in 0..3 {
+                        put(F_X + a, W::from_f32(q.x[a]));
+                        put(F_V + a, W::from_f32(q.v[a]));
+                    }
+                    let (c, fm) = (q.c.to_cols_array(), q.f.to_cols_array());
+                    for e in 0..9 {
+                        put(F_C + e, W::from_f32(c[e]));
+                        put(F_F + e, W::from_f32(fm[e]));
+                    }
+                    put(F_PLASTIC, W::from_f32(q.plastic));
+                    put(F_MASS, W::from_f32(q.mass));
+                    put(F_VOL0, W::from_f32(q.vol0));
+                    put(F_MAT, W::from_id(q.material));
+                    put(
+                        F_ID,
+                        W::from_id(ids.map_or((first + k) as u32, |ids| ids[first + k])),
+                    );
+                }
+            }
+            // Field by field: 22 of the 29 fields are the body's constants (row fills).
+            Source::Shape(b, xs) => {
+                let fill = |row: &mut [u8], v: W| {
+                    let mut word = [0u8; 8];
+                    v.put(&mut word);
+                    for w in row.chunks_exact_mut(W::BYTES) {
+                        w.copy_from_slice(&word[..W::BYTES]);
+                    }
+                };
+                let f = packed_f(Mat3::IDENTITY, fluid[b.material as usize]);
+                let (c, fm) = (b.c.to_cols_array(), f.to_cols_array());
+                for e in 0..9 {
+                    fill(rows[F_C + e], W::from_f32(c[e]));
+                    fill(rows[F_F + e], W::from_f32(fm[e]));
+                }
+                fill(rows[F_PLASTIC], W::from_f32(b.plastic));
+                fill(rows[F_MASS], W::from_f32(b.mass));
+                fill(rows[F_VOL0], W::from_f32(b.vol0));
+                fill(rows[F_MAT], W::from_id(b.material));
+                for (k, &x) in xs.iter().enumerate() {
+                    let v = b.velocity_at(x);
+                    let at = k * W::BYTES;
+                    for a in 0..3 {
+                        W::from_f32(x[a]).put(&mut rows[F_X + a][at..]);
+                        W::from_f32(v[a]).put(&mut rows[F_V + a][at..]);
+                    }
+                    let i = first + k;
+                    W::from_id(ids.map_or(i as u32, |ids| ids[i])).put(&mut rows[F_ID][at..]);
+                }
+            }
+        });
+    bytes
+}
+
+/// Tasks of [`write_image`] over particles `0..n` of `p`.
+fn particle_tasks(p: &Particles) -> Vec<(Source<'_>, usize)> {
+    (0..p.len())
+        .step_by(PACK_CHUNK)
+        .map(|s| (Source::Particles(p, s), PACK_CHUNK.min(p.len() - s)))
+        .collect()
+}
+
+/// The first particle whose material is not below `fluid.len()`.
+fn bad_material(p: &Particles, fluid: &[bool]) -> Option<usize> {
+    p.material
+        .par_iter()
+        .position_first(|&m| fluid.get(m as usize).is_none())
+}
+
+/// The image of [`pack`].
 fn pack_words<W: Word>(
     p: &Particles,
     fluid: &[bool],
@@ -115,59 +263,95 @@ fn pack_words<W: Word>(
     if ids.is_some_and(|ids| ids.len() != n) {
         return Err("CUDA backend: one id per particle".into());
     }
-    if let Some(i) = p
-        .material
-        .par_iter()
-        .position_first(|&m| fluid.get(m as usize).is_none())
-    {
+    if let Some(i) = bad_material(p, fluid) {
         return Err(format!(
             "particle {i} has material {} out of range",
             p.material[i]
         ));
     }
-    let mut bytes = vec![0u8; NFIELDS * cap * W::BYTES];
-    if n == 0 {
-        return Ok(bytes);
+    Ok(write_image::<W>(particle_tasks(p), n, cap, fluid, ids))
+}
+
+/// The device image (stride: the particle count, ids `0..n`) of the particles of sampled bodies
+/// ([`rtmpm_core::scene::sampling::sample_bodies`]), written straight from their positions:
+/// byte for byte what [`pack`] makes of the [`Particles`] that
+/// [`rtmpm_core::Scene::sample_particles`] returns, without the host ever holding those (112
+/// bytes a particle): a backend built from it needs the image (116 bytes a particle in f32) and
+/// the positions (12) only.
+pub fn pack_bodies(bodies: &[SampledBody], fluid: &[bool], f64: bool) -> Result<Vec<u8>, String> {
+    let mut tasks = Vec::new();
+    let mut n = 0usize;
+    for body in bodies {
+        match body {
+            SampledBody::Points(p) => {
+                if let Some(i) = bad_material(p, fluid) {
+                    return Err(format!(
+                        "particle {} has material {} out of range",
+                        n + i,
+                        p.material[i]
+                    ));
+                }
+                tasks.extend(particle_tasks(p));
+            }
+            SampledBody::Shape(b) => {
+                if b.count > 0 && fluid.get(b.material as usize).is_none() {
+                    return Err(format!(
+                        "particle {n} has material {} out of range",
+                        b.material
+                    ));
+                }
+                for chunk in &b.chunks {
+                    for xs in chunk.chunks(PACK_CHUNK) {
+                        tasks.push((Source::Shape(b, xs), xs.len()));
+                    }
+                }
+            }
+        }
+        n += body.len();
     }
-    // Task c writes particles c * PACK_CHUNK.. of every field: its piece of each field's row.
-    let mut tasks: Vec<Vec<&mut [u8]>> = (0..n.div_ceil(PACK_CHUNK))
-        .map(|_| Vec::with_capacity(NFIELDS))
-        .collect();
-    for row in bytes.chunks_mut(cap * W::BYTES) {
-        let used = &mut row[..n * W::BYTES];
-        for (task, piece) in tasks.iter_mut().zip(used.chunks_mut(PACK_CHUNK * W::BYTES)) {
-            task.push(piece);
+    Ok(if f64 {
+        write_image::<f64>(tasks, n, n, fluid, None)
+    } else {
+        write_image::<f32>(tasks, n, n, fluid, None)
+    })
+}
+
+/// Every position of the sampled bodies, in order, in parallel (the particles' order of
+/// [`pack_bodies`]), each mapped by `f`: e.g. the stencil bases of `capacity::bases` without the
+/// particles.
+pub fn map_positions<T: Send>(
+    bodies: &[SampledBody],
+    f: impl Fn(Vec3) -> T + Sync + Send,
+) -> Vec<T> {
+    let mut out = Vec::with_capacity(bodies.iter().map(|b| b.len()).sum());
+    for body in bodies {
+        match body {
+            SampledBody::Points(p) => out.par_extend(p.x.par_iter().map(|&x| f(x))),
+            SampledBody::Shape(b) => {
+                for chunk in &b.chunks {
+                    out.par_extend(chunk.par_iter().map(|&x| f(x)));
+                }
+            }
         }
     }
-    tasks.into_par_iter().enumerate().for_each(|(c, mut rows)| {
-        let first = c * PACK_CHUNK;
-        let last = (first + PACK_CHUNK).min(n);
-        for (k, i) in (first..last).enumerate() {
-            let mut put = |f: usize, v: W| v.put(&mut rows[f][k * W::BYTES..]);
-            for a in 0..3 {
-                put(F_X + a, W::from_f32(p.x[i][a]));
-                put(F_V + a, W::from_f32(p.v[i][a]));
-            }
-            let m = p.material[i];
-            // In range: checked above.
-            let f = if fluid[m as usize] {
-                Mat3::from_diagonal(Vec3::splat(p.f[i].determinant().cbrt()))
-            } else {
-                p.f[i]
-            };
-            let (c, fm) = (p.c[i].to_cols_array(), f.to_cols_array());
-            for e in 0..9 {
-                put(F_C + e, W::from_f32(c[e]));
-                put(F_F + e, W::from_f32(fm[e]));
-            }
-            put(F_PLASTIC, W::from_f32(p.plastic[i]));
-            put(F_MASS, W::from_f32(p.mass[i]));
-            put(F_VOL0, W::from_f32(p.vol0[i]));
-            put(F_MAT, W::from_id(m));
-            put(F_ID, W::from_id(ids.map_or(i as u32, |ids| ids[i])));
-        }
-    });
-    Ok(bytes)
+    out
+}
+
+/// The largest initial speed of the sampled bodies' particles: what
+/// `particles.v.iter().map(|v| v.length()).fold(0.0, f32::max)` gives for their particles.
+pub fn max_speed(bodies: &[SampledBody]) -> f32 {
+    let speed = |v: Vec3| v.length();
+    bodies
+        .iter()
+        .map(|body| match body {
+            SampledBody::Points(p) => p.v.par_iter().map(|&v| speed(v)).reduce(|| 0.0, f32::max),
+            SampledBody::Shape(b) => b
+                .chunks
+                .par_iter()
+                .flat_map_iter(|c| c.iter().map(|&x| speed(b.velocity_at(x))))
+                .reduce(|| 0.0, f32::max),
+        })
+        .fold(0.0, f32::max)
 }
 
 /// Particles in original order from the device image of `n` particles (stride `cap`).
@@ -279,143 +463,5 @@ fn x_v_words<W: Word>(bytes: &[u8], n: usize, cap: usize) -> Result<Vec<[[f64; 3
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The one-thread packing of before: word by word into a vector, then to bytes.
-    fn reference_pack<W: Word>(p: &Particles, fluid: &[bool], cap: usize, ids: &[u32]) -> Vec<u8> {
-        let mut host = vec![W::default(); NFIELDS * cap];
-        for i in 0..p.len() {
-            let mut put = |f: usize, v: W| host[f * cap + i] = v;
-            for a in 0..3 {
-                put(F_X + a, W::from_f32(p.x[i][a]));
-                put(F_V + a, W::from_f32(p.v[i][a]));
-            }
-            let m = p.material[i];
-            let f = if fluid[m as usize] {
-                Mat3::from_diagonal(Vec3::splat(p.f[i].determinant().cbrt()))
-            } else {
-                p.f[i]
-            };
-            let (c, fm) = (p.c[i].to_cols_array(), f.to_cols_array());
-            for e in 0..9 {
-                put(F_C + e, W::from_f32(c[e]));
-                put(F_F + e, W::from_f32(fm[e]));
-            }
-            put(F_PLASTIC, W::from_f32(p.plastic[i]));
-            put(F_MASS, W::from_f32(p.mass[i]));
-            put(F_VOL0, W::from_f32(p.vol0[i]));
-            put(F_MAT, W::from_id(m));
-            put(F_ID, W::from_id(ids[i]));
-        }
-        let mut bytes = vec![0u8; host.len() * W::BYTES];
-        for (w, out) in host.into_iter().zip(bytes.chunks_mut(W::BYTES)) {
-            w.put(out);
-        }
-        bytes
-    }
-
-    /// Several tasks' worth of particles (a partial last one), fluid and solid, a capacity past
-    /// the count and ids: the parallel image is the one-thread image byte for byte.
-    #[test]
-    fn the_parallel_pack_is_the_one_thread_pack() {
-        let n = 2 * PACK_CHUNK + 1234;
-        let mut p = Particles::default();
-        let mut ids = Vec::with_capacity(n);
-        for i in 0..n {
-            let t = i as f32;
-            p.push(
-                Vec3::new(t.sin(), t.cos(), 1e-3 * t),
-                Vec3::new(0.5 - t.cos(), 2.0, -t.sin()),
-                1e-3 + 1e-6 * t,
-                1e-6 * (1.0 + t.sin().abs()),
-                (i % 3) as u32,
-                0.25 * t.cos(),
-            );
-            p.f[i] = Mat3::from_cols_array(&[
-                1.0 + 1e-4 * t.sin(),
-                0.1,
-                0.0,
-                -0.1,
-                0.9,
-                0.3,
-                0.0,
-                0.0,
-                1.05,
-            ]);
-            p.c[i] = Mat3::from_cols_array(&std::array::from_fn(|e| (t + e as f32).sin()));
-            ids.push((n - 1 - i) as u32);
-        }
-        let fluid = [true, false, true];
-        for cap in [n, n + 77] {
-            let got = pack(&p, &fluid, false, cap, Some(&ids)).expect("pack");
-            assert!(
-                got == reference_pack::<f32>(&p, &fluid, cap, &ids),
-                "f32, cap {cap}"
-            );
-            let got = pack(&p, &fluid, true, cap, Some(&ids)).expect("pack");
-            assert!(
-                got == reference_pack::<f64>(&p, &fluid, cap, &ids),
-                "f64, cap {cap}"
-            );
-        }
-        // The first particle of a bad material is named, as before.
-        p.material[PACK_CHUNK + 5] = 7;
-        p.material[PACK_CHUNK + 9] = 9;
-        let e = pack(&p, &fluid, false, n, None).unwrap_err();
-        assert!(
-            e.contains(&format!("particle {} has material 7", PACK_CHUNK + 5)),
-            "{e}"
-        );
-        assert_eq!(
-            pack(&Particles::default(), &fluid, false, 3, None)
-                .expect("empty")
-                .len(),
-            NFIELDS * 3 * 4
-        );
-    }
-
-    #[test]
-    fn pack_unpack_round_trip_both_precisions() {
-        let mut p = Particles::default();
-        for i in 0..5 {
-            let x = Vec3::new(0.1 * i as f32, 0.3, 1.0 / 3.0);
-            p.push(x, Vec3::new(1.5, -2.25, 0.1), 0.01, 1e-6, i % 2, 0.5);
-        }
-        p.f[3] = Mat3::from_cols_array(&[1.1, 0.2, 0.0, -0.1, 0.9, 0.3, 0.0, 0.0, 1.05]);
-        for f64 in [false, true] {
-            for cap in [5, 8] {
-                let bytes = pack(&p, &[false, false], f64, cap, None).expect("pack");
-                assert_eq!(bytes.len(), NFIELDS * cap * word_bytes(f64));
-                let mut q = Particles::default();
-                unpack(&bytes, 5, cap, f64, &mut q).expect("unpack");
-                assert_eq!(p, q, "f64 = {f64}, cap = {cap}");
-            }
-        }
-        assert!(pack(&p, &[false], true, 5, None).is_err());
-        assert!(pack(&p, &[false, false], false, 5, Some(&[0, 1])).is_err());
-        // Ids put each particle at its original index (reversed here).
-        let bytes = pack(&p, &[false, false], false, 6, Some(&[4, 3, 2, 1, 0])).expect("pack");
-        let mut q = Particles::default();
-        unpack(&bytes, 5, 6, false, &mut q).expect("unpack");
-        assert_eq!(q.x[0], p.x[4]);
-        assert_eq!(q.f[1], p.f[3]);
-    }
-
-    #[test]
-    fn a_fluid_particle_is_packed_as_j_to_the_third_times_identity() {
-        let mut p = Particles::default();
-        p.push(Vec3::ZERO, Vec3::ZERO, 0.01, 1e-6, 0, 0.0);
-        p.push(Vec3::ONE, Vec3::ZERO, 0.01, 1e-6, 1, 0.0);
-        let sheared = Mat3::from_cols_array(&[1.1, 0.2, 0.0, -0.1, 0.9, 0.3, 0.0, 0.0, 1.05]);
-        p.f[0] = sheared;
-        p.f[1] = sheared;
-        let bytes = pack(&p, &[true, false], false, 2, None).expect("pack");
-        let mut q = Particles::default();
-        unpack(&bytes, 2, 2, false, &mut q).expect("unpack");
-        let s = sheared.determinant().cbrt();
-        assert_eq!(q.f[0], Mat3::from_diagonal(Vec3::splat(s)));
-        assert!((q.f[0].determinant() - sheared.determinant()).abs() < 1e-6);
-        assert_eq!(q.f[1], sheared, "a solid keeps its F");
-    }
-}
+#[path = "state_tests.rs"]
+mod tests;

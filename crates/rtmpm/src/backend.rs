@@ -4,6 +4,7 @@
 use anyhow::{Result, anyhow};
 use clap::ValueEnum;
 use rtmpm_backends::BackendRequest;
+use rtmpm_core::scene::sampling::SampledBody;
 use rtmpm_core::sim::Backend;
 use rtmpm_core::{Particles, Scene};
 use rtmpm_cuda::CudaOptions;
@@ -44,6 +45,29 @@ pub fn make_backend(
         cuda: cuda.clone(),
     };
     let created = rtmpm_backends::create(&request, scene, particles).map_err(|e| anyhow!("{e}"))?;
+    if kind == BackendKind::Auto {
+        eprintln!("backend: {}", created.reason);
+    }
+    Ok(Box::new(created.backend))
+}
+
+/// [`make_backend`] from sampled bodies: one GPU packs them straight from their positions (see
+/// `rtmpm_backends::create_from_bodies`).
+pub fn make_backend_from_bodies(
+    kind: BackendKind,
+    scene: &Scene,
+    bodies: Vec<SampledBody>,
+    threads: Option<usize>,
+    cuda: &CudaOptions,
+) -> Result<Box<dyn Backend>> {
+    let request = BackendRequest {
+        kind: kind.into(),
+        threads,
+        gpus: 1,
+        cuda: cuda.clone(),
+    };
+    let created =
+        rtmpm_backends::create_from_bodies(&request, scene, bodies).map_err(|e| anyhow!("{e}"))?;
     if kind == BackendKind::Auto {
         eprintln!("backend: {}", created.reason);
     }

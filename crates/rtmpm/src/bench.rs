@@ -8,6 +8,7 @@ use crate::run::human_rate;
 use anyhow::{Result, bail};
 use clap::Args;
 use rtmpm_core::scene::StepMode;
+use rtmpm_core::scene::sampling::SampledBody;
 use rtmpm_core::sim::Simulation;
 use rtmpm_core::{Particles, Scene};
 use std::time::Instant;
@@ -136,28 +137,34 @@ pub fn bench(args: BenchArgs) -> Result<()> {
     };
     let per_frame = (1.0 / (scene.time.fps as f64 * dt as f64)).round() as u64;
     let steps = args.frames.map_or(args.steps, |f| f * per_frame);
+    let use_cuda = match args.backend {
+        BackendKind::Cpu => false,
+        BackendKind::Cuda => true,
+        BackendKind::Auto => rtmpm_cuda::probe().is_ok(),
+    };
+    // One GPU: the bodies are packed straight from their sampled positions (no particles on
+    // the host), so the host needs the CUDA estimate only.
+    let lean = use_cuda && args.gpus <= 1;
     // Memory first: a scene that cannot fit is refused before it is sampled.
-    crate::budget::enforce(&scene, Some(1), None)?;
+    crate::budget::enforce_for(&scene, Some(1), None, lean)?;
+    if lean {
+        let (bodies, sample_s) = crate::setup::sample_bodies(&scene)?;
+        let setup = crate::setup::SetupTimes {
+            sample: sample_s,
+            backend: 0.0,
+        };
+        print_header(&label, dt, steps, per_frame);
+        return bench_cuda(&args, &scene, &bodies, dt, steps, setup);
+    }
     let (particles, sample_s) = crate::setup::sample(&scene)?;
     let mut setup = crate::setup::SetupTimes {
         sample: sample_s,
         backend: 0.0,
     };
     let n = particles.len();
-    let use_cuda = match args.backend {
-        BackendKind::Cpu => false,
-        BackendKind::Cuda => true,
-        BackendKind::Auto => rtmpm_cuda::probe().is_ok(),
-    };
-    println!(
-        "benchmark: {label}, dt = {dt:e}, {steps} steps ({} frames of {per_frame})",
-        steps / per_frame.max(1)
-    );
-    if use_cuda && args.gpus > 1 {
-        return bench_multi_gpu(&args, &scene, &particles, dt, steps, setup);
-    }
+    print_header(&label, dt, steps, per_frame);
     if use_cuda {
-        return bench_cuda(&args, &scene, &particles, dt, steps, setup);
+        return bench_multi_gpu(&args, &scene, &particles, dt, steps, setup);
     }
     if args.gpus > 1 {
         bail!("--gpus {} needs the CUDA backend", args.gpus);
@@ -218,6 +225,14 @@ pub fn bench(args: BenchArgs) -> Result<()> {
     Ok(())
 }
 
+/// The first line of a benchmark's report.
+fn print_header(label: &str, dt: f32, steps: u64, per_frame: u64) {
+    println!(
+        "benchmark: {label}, dt = {dt:e}, {steps} steps ({} frames of {per_frame})",
+        steps / per_frame.max(1)
+    );
+}
+
 /// Peak resident memory of this process (bytes): `VmHWM` of `/proc/self/status` (Linux).
 pub fn peak_rss_bytes() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
@@ -260,16 +275,16 @@ fn print_memory(n: usize, host_arrays: Option<u64>, device: Option<u64>) {
 fn bench_cuda(
     args: &BenchArgs,
     scene: &Scene,
-    particles: &Particles,
+    bodies: &[SampledBody],
     dt: f32,
     steps: u64,
     mut setup: crate::setup::SetupTimes,
 ) -> Result<()> {
     use rtmpm_core::sim::Backend;
     rtmpm_cuda::probe().map_err(|e| anyhow::anyhow!("the CUDA backend is not usable here: {e}"))?;
-    let n = particles.len();
+    let n: usize = bodies.iter().map(|b| b.len()).sum();
     let t = Instant::now();
-    let mut b = rtmpm_cuda::CudaBackend::new(scene, particles, args.cuda_options.clone())?;
+    let mut b = rtmpm_cuda::CudaBackend::from_bodies(scene, bodies, args.cuda_options.clone())?;
     setup.backend = t.elapsed().as_secs_f64();
     for i in 0..args.warmup {
         b.step(dt, i as f32 * dt)?;

@@ -1,6 +1,6 @@
 //! `rtmpm run SCENE`: simulate frames with a progress bar, write output, checkpoints.
 
-use crate::backend::{BackendKind, make_backend};
+use crate::backend::{BackendKind, make_backend, make_backend_from_bodies};
 use crate::outdir::{OutDir, scene_identity};
 use crate::output::{FrameOutput, derived_fields};
 use crate::render::RunRenderer;
@@ -126,11 +126,18 @@ pub fn run(args: RunArgs) -> Result<()> {
     // points (a collective), so every rank must be given the same options.
     let writer = args.multi.writes_output();
     let writes_frames = writer && !args.no_output;
-    // The budget before anything is sampled or allocated: refused with numbers and a fix.
-    crate::budget::enforce(
+    let mode = args.multi.mode()?;
+    // A fresh run on one GPU (or `auto`) packs the bodies straight from their sampled positions.
+    let from_bodies = resume_state.is_none()
+        && mode == crate::multi::Mode::Single
+        && args.backend != BackendKind::Cpu;
+    // The budget before anything is sampled or allocated: refused with numbers and a fix (the
+    // host's bytes of a CUDA run packed from the positions when the CUDA backend is asked for).
+    crate::budget::enforce_for(
         &scene,
         args.frames,
         writes_frames.then_some(out_dir.as_path()),
+        from_bodies && args.backend == BackendKind::Cuda,
     )?;
     // The output folder: locked for this run, and holding no other run's files.
     let identity = scene_identity(&scene.name, &scene_text);
@@ -146,34 +153,36 @@ pub fn run(args: RunArgs) -> Result<()> {
         None
     };
     let mut setup = crate::setup::SetupTimes::default();
-    let particles = match resume_state {
-        Some(_) => particles,
-        None => {
-            let (p, seconds) = crate::setup::sample(&scene)?;
-            setup.sample = seconds;
-            p
-        }
-    };
-    let n = particles.len();
-    let mode = args.multi.mode()?;
-    let backend_start = Instant::now();
-    let backend = if mode == crate::multi::Mode::Single {
-        make_backend(
+    let (backend, n) = if from_bodies {
+        let (bodies, seconds) = crate::setup::sample_bodies(&scene)?;
+        setup.sample = seconds;
+        let n = bodies.iter().map(|b| b.len()).sum();
+        let start = Instant::now();
+        let backend = make_backend_from_bodies(
             args.backend,
             &scene,
-            particles,
+            bodies,
             args.threads,
             &args.cuda_options,
-        )?
+        )?;
+        setup.backend = start.elapsed().as_secs_f64();
+        (backend, n)
     } else {
-        if args.backend == BackendKind::Cpu {
-            bail!("--gpus and --rendezvous need the CUDA backend (not --backend cpu)");
-        }
-        args.multi
-            .backend(mode, &scene, &particles, &args.cuda_options)?
+        let particles = match resume_state {
+            Some(_) => particles,
+            None => {
+                let (p, seconds) = crate::setup::sample(&scene)?;
+                setup.sample = seconds;
+                p
+            }
+        };
+        let start = Instant::now();
+        let b = particle_backend(&args, mode, &scene, particles)?;
+        setup.backend = start.elapsed().as_secs_f64();
+        b
     };
-    setup.backend = backend_start.elapsed().as_secs_f64();
     let mut sim = Simulation::new(scene, backend);
+
     // Entries of frames.pvd up to the checkpoint's own frame are kept: half a frame later.
     let resume_time = resume_state
         .as_ref()
@@ -471,6 +480,33 @@ impl Progress {
             elapsed
         );
     }
+}
+
+/// The backend of a run that starts from particles (a checkpoint, the CPU, several GPUs) and
+/// their number.
+fn particle_backend(
+    args: &RunArgs,
+    mode: crate::multi::Mode,
+    scene: &Scene,
+    particles: Particles,
+) -> Result<(Box<dyn rtmpm_core::sim::Backend>, usize)> {
+    let n = particles.len();
+    let backend = if mode == crate::multi::Mode::Single {
+        make_backend(
+            args.backend,
+            scene,
+            particles,
+            args.threads,
+            &args.cuda_options,
+        )?
+    } else {
+        if args.backend == BackendKind::Cpu {
+            bail!("--gpus and --rendezvous need the CUDA backend (not --backend cpu)");
+        }
+        args.multi
+            .backend(mode, scene, &particles, &args.cuda_options)?
+    };
+    Ok((backend, n))
 }
 
 /// Particle-steps per second in human units.

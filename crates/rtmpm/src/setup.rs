@@ -2,7 +2,7 @@
 //! stderr, also when it is not a terminal) and building the backend, timed.
 
 use anyhow::Result;
-use rtmpm_core::scene::sampling::SampleProgress;
+use rtmpm_core::scene::sampling::{self, SampleProgress, SampledBody};
 use rtmpm_core::{Particles, Scene};
 use std::sync::Mutex;
 use std::time::Instant;
@@ -56,13 +56,10 @@ impl SetupTimes {
     }
 }
 
-/// Sample the scene's bodies, printing a progress line every few seconds while it lasts and a
-/// summary when it took more than one such period; returns the particles and the seconds taken.
-pub fn sample(scene: &Scene) -> Result<(Particles, f64)> {
-    let start = Instant::now();
-    let every = every();
+/// The progress reporter of a sampling started at `start`: a line every `every` seconds.
+fn reporter(start: Instant, every: f64) -> impl Fn(SampleProgress) + Sync {
     let last = Mutex::new(Instant::now());
-    let report = |p: SampleProgress| {
+    move |p: SampleProgress| {
         // Only one thread looks at the clock at a time; the others go on.
         if let Ok(mut last) = last.try_lock()
             && last.elapsed().as_secs_f64() >= every
@@ -70,8 +67,28 @@ pub fn sample(scene: &Scene) -> Result<(Particles, f64)> {
             *last = Instant::now();
             eprintln!("{}", line(p, start.elapsed().as_secs_f64()));
         }
-    };
-    let particles = scene.sample_particles_with(&report)?;
+    }
+}
+
+/// [`sample`], the bodies' positions only (for a backend that packs them itself).
+pub fn sample_bodies(scene: &Scene) -> Result<(Vec<SampledBody>, f64)> {
+    let start = Instant::now();
+    let every = every();
+    let bodies = sampling::sample_bodies(scene, &reporter(start, every))?;
+    let seconds = start.elapsed().as_secs_f64();
+    if seconds >= every {
+        let n: usize = bodies.iter().map(|b| b.len()).sum();
+        eprintln!("set-up: sampled {n} particles in {seconds:.1} s");
+    }
+    Ok((bodies, seconds))
+}
+
+/// Sample the scene's bodies, printing a progress line every few seconds while it lasts and a
+/// summary when it took more than one such period; returns the particles and the seconds taken.
+pub fn sample(scene: &Scene) -> Result<(Particles, f64)> {
+    let start = Instant::now();
+    let every = every();
+    let particles = scene.sample_particles_with(&reporter(start, every))?;
     let seconds = start.elapsed().as_secs_f64();
     if seconds >= every {
         eprintln!(

@@ -11,6 +11,13 @@ use crate::io::limits::human_bytes;
 pub const HOST_BYTES_PER_PARTICLE_F32: u64 = 112 * 2 + 8 + 24 + 16 + 112;
 /// The same in f64 (the backend's state is twice as wide).
 pub const HOST_BYTES_PER_PARTICLE_F64: u64 = 224 * 2 + 8 + 24 + 16 + 112;
+/// Host bytes per particle of a CUDA run whose state is packed straight from the sampled
+/// positions (`rtmpm-cuda` `state::pack_bodies`), in f32: the packed state (29 words, 116 B), the
+/// positions (12 B), the stencil bases (12 B) and the layout's order (4 B), rounded up. Measured:
+/// 129 bytes a particle at the peak for 8.4M particles (bench/RESULTS.md).
+pub const HOST_BYTES_PER_PARTICLE_CUDA_F32: u64 = 160;
+/// The same in f64 (the packed state is twice as wide).
+pub const HOST_BYTES_PER_PARTICLE_CUDA_F64: u64 = 280;
 /// Device bytes per particle of a CUDA run in f32, twice that in f64: the CUDA backend's plan
 /// (`rtmpm-cuda` `Capacity::bytes`, docs/memory.md) rounded up: state 116, sort scratch 16 (the
 /// default 4 fields), sort ranks 4, warp list 0.4. The grid is counted per node of the domain.
@@ -192,6 +199,17 @@ impl Budget {
             gpu_bytes,
             host_bytes_per_particle: per_host,
         }
+    }
+
+    /// The budget of a CUDA run packed straight from the sampled positions: the host holds
+    /// [`HOST_BYTES_PER_PARTICLE_CUDA_F32`] (or `_F64`) a particle and no grid.
+    pub fn for_cuda_host(mut self, precision: Precision) -> Budget {
+        self.host_bytes_per_particle = match precision {
+            Precision::F32 => HOST_BYTES_PER_PARTICLE_CUDA_F32,
+            Precision::F64 => HOST_BYTES_PER_PARTICLE_CUDA_F64,
+        };
+        self.host_bytes = self.particles.saturating_mul(self.host_bytes_per_particle);
+        self
     }
 
     /// What cannot fit: more host memory than `host_available`, more output than
@@ -380,6 +398,20 @@ mod tests {
             "{}",
             r[0].message
         );
+    }
+
+    /// A CUDA run packed from the positions needs far less host memory than a CPU run: the
+    /// scene a CPU run cannot fit in 1 GiB fits as a CUDA run.
+    #[test]
+    fn a_lean_cuda_run_counts_its_own_host_bytes() {
+        let b = Budget::estimate(&scene("fps = 10", 2, 0.12), None);
+        let avail = b.particles * 200;
+        assert!(!b.refusals(Some(avail), None, false).is_empty());
+        let c = b.clone().for_cuda_host(Precision::F32);
+        assert_eq!(c.host_bytes, b.particles * HOST_BYTES_PER_PARTICLE_CUDA_F32);
+        assert!(c.refusals(Some(avail), None, false).is_empty());
+        let d = b.for_cuda_host(Precision::F64);
+        assert_eq!(d.host_bytes_per_particle, HOST_BYTES_PER_PARTICLE_CUDA_F64);
     }
 
     #[test]

@@ -1,27 +1,73 @@
 //! The particles of sampled bodies, written once and in parallel straight into the columns of
 //! [`Particles`] (no per-particle pushes, no copy of a body's particles into the scene's).
 
-use super::Body;
-use super::walk::Walked;
 use crate::Particles;
-use crate::material::Material;
 use crate::math::{Mat3, Vec3};
 use rayon::iter::repeat_n;
 use rayon::prelude::*;
 
+/// The particles of a body of a shape before they are written: positions in walk order (the
+/// chunks concatenated) and what every particle of the body shares.
+#[derive(Debug)]
+pub struct BodyPositions {
+    /// The positions, in chunks (concatenated: the walk's order).
+    pub chunks: Vec<Vec<Vec3>>,
+    /// Their number.
+    pub count: usize,
+    /// Initial volume of each particle (m^3).
+    pub vol0: f32,
+    /// Mass of each particle (kg): density x `vol0`.
+    pub mass: f32,
+    /// Initial plastic state of the material.
+    pub plastic: f32,
+    /// Material index.
+    pub material: u32,
+    /// The body's `velocity`, `angular_velocity` and the centroid of its particles (summed in
+    /// order, in f32, as the one-thread sampler always did; zero where it cannot matter).
+    pub velocity: Vec3,
+    pub angular_velocity: Vec3,
+    pub centre: Vec3,
+    /// APIC `C` of every particle: the spin matrix of `angular_velocity`.
+    pub c: Mat3,
+}
+
+impl BodyPositions {
+    /// The initial velocity of the particle at `x`: `v0 + w x (x - c)`.
+    #[inline]
+    pub fn velocity_at(&self, x: Vec3) -> Vec3 {
+        self.velocity + self.angular_velocity.cross(x - self.centre)
+    }
+
+    /// The centroid for `velocity_at`: the f32 sum of the positions in order over their count,
+    /// or zero when the velocity is the same for every `x` (see [`velocity_is_uniform`]).
+    pub(crate) fn centroid(chunks: &[Vec<Vec3>], count: usize, v0: Vec3, w: Vec3) -> Vec3 {
+        if velocity_is_uniform(v0, w) {
+            Vec3::ZERO
+        } else {
+            chunks.iter().flatten().fold(Vec3::ZERO, |a, b| a + *b) / count.max(1) as f32
+        }
+    }
+}
+
 /// One body's sampling: the positions of a shape, or the particles of a points file.
-pub(crate) enum Sampled {
-    Walked { walked: Walked, vol0: f32 },
+#[derive(Debug)]
+pub enum SampledBody {
+    Shape(BodyPositions),
     Points(Particles),
 }
 
-impl Sampled {
+impl SampledBody {
     /// Particles of the body.
-    pub(crate) fn len(&self) -> usize {
+    pub fn len(&self) -> usize {
         match self {
-            Sampled::Walked { walked, .. } => walked.count as usize,
-            Sampled::Points(p) => p.len(),
+            SampledBody::Shape(b) => b.count,
+            SampledBody::Points(p) => p.len(),
         }
+    }
+
+    /// True when the body has no particle.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
     }
 }
 
@@ -49,13 +95,12 @@ fn velocity_is_uniform(v0: Vec3, w: Vec3) -> bool {
             .any(|c| *c == 0.0 && c.is_sign_negative())
 }
 
-/// Append the particles of `body` (material `material`) to `out`: positions in walk order,
-/// velocity `v0 + w x (x - c)` with `c` the centroid of the body's particles (summed in order,
-/// in f32, as the one-thread sampler always did), C the spin matrix of `w`, F the identity.
-pub(crate) fn append(out: &mut Particles, body: &Body, material: &Material, sampled: Sampled) {
-    let (walked, vol0) = match sampled {
-        Sampled::Walked { walked, vol0 } => (walked, vol0),
-        Sampled::Points(p) => {
+/// Append the particles of a sampled body to `out`: positions in walk order, velocity
+/// [`BodyPositions::velocity_at`], C the spin matrix, F the identity.
+pub(crate) fn append(out: &mut Particles, sampled: SampledBody) {
+    let b = match sampled {
+        SampledBody::Shape(b) => b,
+        SampledBody::Points(p) => {
             out.x.par_extend(p.x.into_par_iter());
             out.v.par_extend(p.v.into_par_iter());
             out.c.par_extend(p.c.into_par_iter());
@@ -67,39 +112,29 @@ pub(crate) fn append(out: &mut Particles, body: &Body, material: &Material, samp
             return;
         }
     };
-    let n = walked.count as usize;
+    let n = b.count;
     let start = out.x.len();
     // The positions, chunk by chunk into their places.
     out.x.par_extend(repeat_n(Vec3::ZERO, n));
     let mut rest = &mut out.x[start..];
-    let mut places = Vec::with_capacity(walked.chunks.len());
-    for c in &walked.chunks {
+    let mut places = Vec::with_capacity(b.chunks.len());
+    for c in &b.chunks {
         let (place, tail) = rest.split_at_mut(c.len());
         places.push(place);
         rest = tail;
     }
     places
         .into_par_iter()
-        .zip(walked.chunks.par_iter())
+        .zip(b.chunks.par_iter())
         .for_each(|(place, chunk)| place.copy_from_slice(chunk));
-    drop(walked);
     let xs = &out.x[start..];
-    let (v0, w) = (body.velocity, body.angular_velocity);
-    let centre = if velocity_is_uniform(v0, w) {
-        Vec3::ZERO
-    } else {
-        xs.iter().fold(Vec3::ZERO, |a, b| a + *b) / n.max(1) as f32
-    };
-    out.v
-        .par_extend(xs.par_iter().map(|&x| v0 + w.cross(x - centre)));
-    out.c
-        .par_extend(repeat_n(super::sampling::spin_matrix(w), n));
+    out.v.par_extend(xs.par_iter().map(|&x| b.velocity_at(x)));
+    out.c.par_extend(repeat_n(b.c, n));
     out.f.par_extend(repeat_n(Mat3::IDENTITY, n));
-    out.plastic
-        .par_extend(repeat_n(material.model.initial_plastic(), n));
-    out.mass.par_extend(repeat_n(material.density * vol0, n));
-    out.vol0.par_extend(repeat_n(vol0, n));
-    out.material.par_extend(repeat_n(body.material, n));
+    out.plastic.par_extend(repeat_n(b.plastic, n));
+    out.mass.par_extend(repeat_n(b.mass, n));
+    out.vol0.par_extend(repeat_n(b.vol0, n));
+    out.material.par_extend(repeat_n(b.material, n));
 }
 
 #[cfg(test)]

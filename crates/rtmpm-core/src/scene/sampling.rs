@@ -17,6 +17,7 @@
 //! (mesh: signed distance < 0). Velocities are `v0 + w x (x - c)` with `c` the centroid of the
 //! body's particles.
 
+pub use super::fill::{BodyPositions, SampledBody};
 use super::walk::{self, Counter, Lattice, Mode, Walked};
 use super::{Scene, SceneError, fill};
 use crate::Particles;
@@ -373,12 +374,13 @@ fn body_material(scene: &Scene, index: usize) -> Result<&Material, SceneError> {
     })
 }
 
-/// The positions (or, for a particles body, the whole particles) of body `index`.
-fn sample_positions(
+/// Body `index` sampled: its positions and shared values (or, for a particles body, its whole
+/// particles), before anything is written per particle.
+pub fn sample_positions(
     scene: &Scene,
     index: usize,
     progress: &(dyn Fn(SampleProgress) + Sync),
-) -> Result<fill::Sampled, SceneError> {
+) -> Result<SampledBody, SceneError> {
     let material = body_material(scene, index)?;
     let body = &scene.bodies[index];
     if let BodyShape::Particles {
@@ -387,7 +389,7 @@ fn sample_positions(
     } = &body.shape
     {
         let p = sample_points(scene, index, material, points, *file_velocity)?;
-        return Ok(fill::Sampled::Points(p));
+        return Ok(SampledBody::Points(p));
     }
     let bodies = scene.bodies.len();
     let report = |done, total| {
@@ -399,7 +401,42 @@ fn sample_positions(
         })
     };
     let (walked, vol0) = walk_body(scene, index, Mode::Keep, &Counter::new(&report))?;
-    Ok(fill::Sampled::Walked { walked, vol0 })
+    let count = walked.count as usize;
+    let (v0, w) = (body.velocity, body.angular_velocity);
+    Ok(SampledBody::Shape(BodyPositions {
+        centre: BodyPositions::centroid(&walked.chunks, count, v0, w),
+        chunks: walked.chunks,
+        count,
+        vol0,
+        mass: material.density * vol0,
+        plastic: material.model.initial_plastic(),
+        material: body.material,
+        velocity: v0,
+        angular_velocity: w,
+        c: spin_matrix(w),
+    }))
+}
+
+/// Every body of the scene sampled by [`sample_positions`], in order: 12 bytes a particle, from
+/// which the particles (or a backend's own image of them) are written in one pass.
+pub fn sample_bodies(
+    scene: &Scene,
+    progress: &(dyn Fn(SampleProgress) + Sync),
+) -> Result<Vec<SampledBody>, SceneError> {
+    (0..scene.bodies.len())
+        .map(|i| sample_positions(scene, i, progress))
+        .collect()
+}
+
+/// The particles of sampled bodies ([`sample_bodies`]), written once into their columns:
+/// `particles_of(sample_bodies(scene, ..)?)` is `scene.sample_particles()`.
+pub fn particles_of(bodies: Vec<SampledBody>) -> Particles {
+    let mut all = Particles::default();
+    fill::reserve(&mut all, bodies.iter().map(|s| s.len()).sum());
+    for s in bodies {
+        fill::append(&mut all, s);
+    }
+    all
 }
 
 /// Sample body `index` of the scene.
@@ -407,18 +444,13 @@ pub fn sample_body(scene: &Scene, index: usize) -> Result<Particles, SceneError>
     let sampled = sample_positions(scene, index, &|_| {})?;
     let mut out = Particles::default();
     fill::reserve(&mut out, sampled.len());
-    fill::append(
-        &mut out,
-        &scene.bodies[index],
-        body_material(scene, index)?,
-        sampled,
-    );
+    fill::append(&mut out, sampled);
     Ok(out)
 }
 
 /// APIC: C is the velocity gradient of the initial field v0 + w x (x - c), the cross-product
 /// matrix of w (zero for a pure translation), so P2G carries the rotation from step 0.
-pub(crate) fn spin_matrix(w: Vec3) -> Mat3 {
+fn spin_matrix(w: Vec3) -> Mat3 {
     Mat3::from_cols(
         Vec3::new(0.0, w.z, -w.y),
         Vec3::new(-w.z, 0.0, w.x),
@@ -491,14 +523,5 @@ pub fn sample_scene_with(
     scene: &Scene,
     progress: &(dyn Fn(SampleProgress) + Sync),
 ) -> Result<Particles, SceneError> {
-    let mut sampled = Vec::with_capacity(scene.bodies.len());
-    for i in 0..scene.bodies.len() {
-        sampled.push(sample_positions(scene, i, progress)?);
-    }
-    let mut all = Particles::default();
-    fill::reserve(&mut all, sampled.iter().map(|s| s.len()).sum());
-    for (i, s) in sampled.into_iter().enumerate() {
-        fill::append(&mut all, &scene.bodies[i], body_material(scene, i)?, s);
-    }
-    Ok(all)
+    Ok(particles_of(sample_bodies(scene, progress)?))
 }
