@@ -16,8 +16,7 @@
 use crate::contract::{BODY_EXCHANGE_SLOTS, GpuBody, GpuCollider, MAX_BODIES};
 use cudarc::driver::{CudaEvent, CudaModule, CudaSlice, CudaStream, DevicePtr, PinnedHostSlice};
 use rtmpm_core::Scene;
-use rtmpm_core::boundary::sdf::Shape;
-use rtmpm_core::rigid::{BodyState, Exchange, RigidShape, RigidWorld};
+use rtmpm_core::rigid::{BodyState, Exchange, RigidWorld};
 use rtmpm_core::sim::SimError;
 use std::sync::Arc;
 
@@ -25,32 +24,9 @@ fn err(what: &'static str) -> impl Fn(cudarc::driver::DriverError) -> SimError {
     move |e| SimError::Backend(format!("CUDA: {what}: {e:?}"))
 }
 
-/// A body's shape as the collider shape the kernels evaluate (rest pose, centre at 0).
-fn shape(s: &RigidShape) -> Shape {
-    match *s {
-        RigidShape::Box { half_extents } => Shape::Box {
-            center: glam::Vec3::ZERO,
-            half_extents,
-        },
-        RigidShape::Sphere { radius } => Shape::Sphere {
-            center: glam::Vec3::ZERO,
-            radius,
-        },
-        RigidShape::Cylinder {
-            radius,
-            half_height,
-        } => Shape::Cylinder {
-            center: glam::Vec3::ZERO,
-            axis: glam::Vec3::Y,
-            radius,
-            half_height,
-        },
-    }
-}
-
 /// The device record of a body's state.
 pub fn encode(b: &BodyState) -> GpuBody {
-    let s = shape(&b.shape);
+    let s = b.shape.sdf_shape();
     let mut col = GpuCollider {
         kind: crate::contract::collider_kind(&s),
         cond: crate::contract::condition(b.condition),
@@ -249,6 +225,7 @@ pub fn exchange_sums(sums: &[f64], bodies: usize) -> Vec<Exchange> {
 mod tests {
     use super::*;
     use rtmpm_core::boundary::Condition;
+    use rtmpm_core::rigid::RigidShape;
 
     #[test]
     fn the_slots_add_up_body_by_body() {

@@ -159,11 +159,16 @@ mod cmd;
 mod frame;
 
 pub use cmd::{RenderArgs, ply_frames, render_cmd};
+use frame::read_bodies_csv;
 pub use frame::{FrameJob, SurfaceJob};
 
 /// Where rendered frames go.
 struct Sink {
     opts: RenderOptions,
+    /// The scene's colliders (each frame adds its rigid bodies to them).
+    colliders: Vec<rtmpm_core::boundary::Collider>,
+    /// False with `--no-colliders`: neither colliders nor bodies are drawn.
+    draw_bodies: bool,
     /// Folder of `frame_NNNNN.png` (None: preview only).
     dir: Option<PathBuf>,
     preview: Option<PathBuf>,
@@ -189,6 +194,8 @@ impl Sink {
             _ => None,
         };
         Ok(Sink {
+            colliders: opts.colliders.clone(),
+            draw_bodies: !view.no_colliders,
             opts,
             dir,
             preview,
@@ -204,8 +211,12 @@ impl Sink {
             Some(t) => format!("FRAME {}  T = {:.3} S", job.frame, t),
             None => format!("FRAME {}", job.frame),
         });
-        // Moving colliders are posed at the frame's time.
+        // Moving colliders are posed at the frame's time; rigid bodies at this frame's poses.
         self.opts.time = job.time.unwrap_or(0.0) as f32;
+        if self.draw_bodies {
+            self.opts.colliders = self.colliders.clone();
+            self.opts.colliders.extend(job.bodies.iter().cloned());
+        }
         let t0 = Instant::now();
         let surface = match job.surface {
             SurfaceJob::None => None,
@@ -364,6 +375,7 @@ impl RunRenderer {
         p: &Particles,
         scene: &Scene,
         mesh: Option<TriMesh>,
+        bodies: &[rtmpm_core::rigid::BodyState],
     ) -> Result<()> {
         if let Some((view, dir, preview, fps)) = self.setup.take() {
             if self.surface_volume.is_some() {
@@ -392,7 +404,8 @@ impl RunRenderer {
                     .context("starting the render thread")?,
             );
         }
-        let mut job = FrameJob::from_particles(frame, time, p, scene, self.color_by);
+        let mut job =
+            FrameJob::from_particles(frame, time, p, scene, self.color_by).with_bodies(bodies);
         if let Some(vol) = self.surface_volume {
             job = job.with_surface(&scene.output.surface, vol, mesh);
         }

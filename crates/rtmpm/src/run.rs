@@ -273,7 +273,7 @@ pub fn run(args: RunArgs) -> Result<()> {
             bodies.write(0, 0.0, &sim)?;
         }
         if let Some(r) = renderer.as_mut() {
-            r.submit(0, 0.0, &host, &sim.scene, mesh)?;
+            r.submit(0, 0.0, &host, &sim.scene, mesh, &sim.backend.rigid_bodies())?;
         }
     }
 
@@ -335,7 +335,14 @@ pub fn run(args: RunArgs) -> Result<()> {
             bodies.write(sim.frame, sim.time, &sim)?;
         }
         if let Some(r) = renderer.as_mut() {
-            r.submit(sim.frame, sim.time, &host, &sim.scene, mesh)?;
+            r.submit(
+                sim.frame,
+                sim.time,
+                &host,
+                &sim.scene,
+                mesh,
+                &sim.backend.rigid_bodies(),
+            )?;
         }
         if args
             .checkpoint_every

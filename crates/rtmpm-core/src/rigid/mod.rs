@@ -107,6 +107,31 @@ impl RigidShape {
         }
     }
 
+    /// The shape as a collider shape about the origin of the body frame (the colliders' signed
+    /// distances evaluate it: the renderer, the GPU's coupling).
+    pub fn sdf_shape(&self) -> crate::boundary::sdf::Shape {
+        use crate::boundary::sdf::Shape;
+        match *self {
+            RigidShape::Box { half_extents } => Shape::Box {
+                center: Vec3::ZERO,
+                half_extents,
+            },
+            RigidShape::Sphere { radius } => Shape::Sphere {
+                center: Vec3::ZERO,
+                radius,
+            },
+            RigidShape::Cylinder {
+                radius,
+                half_height,
+            } => Shape::Cylinder {
+                center: Vec3::ZERO,
+                axis: Vec3::Y,
+                radius,
+                half_height,
+            },
+        }
+    }
+
     /// Half-extents of the axis-aligned box around the shape turned by `r`.
     pub fn world_half_extents(&self, r: Mat3) -> Vec3 {
         match *self {
@@ -168,6 +193,24 @@ pub struct BodyState {
 }
 
 impl BodyState {
+    /// The body at this instant as a motionless collider (one keyframe at its pose), for
+    /// pictures: the renderer draws colliders.
+    pub fn collider(&self) -> crate::boundary::Collider {
+        let key = crate::boundary::Keyframe {
+            t: 0.0,
+            position: self.center,
+            rotation: Quat::from_mat3(&self.rotation).normalize(),
+        };
+        crate::boundary::Collider {
+            shape: self.shape.sdf_shape(),
+            rule: crate::boundary::BoundaryRule::default(),
+            velocity: Vec3::ZERO,
+            angular_velocity: Vec3::ZERO,
+            pivot: Vec3::ZERO,
+            keyframes: crate::boundary::Keyframes::new(vec![key]).ok(),
+        }
+    }
+
     /// If `x` is inside the body, the outward unit normal and the body's velocity at `x`.
     pub fn query(&self, x: Vec3) -> Option<(Vec3, Vec3)> {
         let p = self.rotation.transpose() * (x - self.center);
@@ -314,6 +357,34 @@ mod tests {
         assert!((n - Vec3::Y).length() < 1e-5, "{n}");
         let (n, _) = b.query(Vec3::new(-0.98, 0.0, 0.0)).unwrap();
         assert!((n + Vec3::X).length() < 1e-5, "{n}");
+    }
+
+    #[test]
+    fn a_body_as_a_collider_has_the_body_s_pose() {
+        let b = BodyState {
+            shape: RigidShape::Box {
+                half_extents: Vec3::new(1.0, 0.25, 0.25),
+            },
+            rotation: Mat3::from_rotation_z(std::f32::consts::FRAC_PI_2),
+            center: Vec3::new(3.0, 2.0, 0.0),
+            velocity: Vec3::X,
+            angular_velocity: Vec3::ZERO,
+            dynamic: true,
+            condition: Condition::Slip,
+            friction: 0.0,
+        };
+        let c = b.collider();
+        // Turned to lie along y about (3, 2, 0): inside 0.9 m above the centre, outside 0.9 m
+        // to its side, and the same answers as the body's own query.
+        for (x, inside) in [
+            (Vec3::new(3.0, 2.9, 0.0), true),
+            (Vec3::new(3.9, 2.0, 0.0), false),
+            (Vec3::new(3.0, 1.2, 0.1), true),
+        ] {
+            assert_eq!(c.distance(x, 0.0) < 0.0, inside, "{x}");
+            assert_eq!(b.query(x).is_some(), inside, "{x}");
+        }
+        assert!((c.distance(Vec3::new(3.0, 2.0, 0.0), 1.0) + 0.25).abs() < 1e-5);
     }
 
     #[test]

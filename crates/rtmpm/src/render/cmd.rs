@@ -91,6 +91,13 @@ pub fn render_cmd(args: RenderArgs) -> Result<()> {
         }
         _ => None,
     };
+    // The rigid bodies at each frame (from the run's bodies.csv, with the scene's shapes).
+    let bodies = match &scene {
+        Some(sc) if !sc.rigid_bodies.is_empty() && dir.join("bodies.csv").is_file() => {
+            read_bodies_csv(&dir.join("bodies.csv"), sc)?
+        }
+        _ => Default::default(),
+    };
     // Only one run's frames make one movie: every frame must name the run of the first (the
     // PLY comment rtmpm writes) and hold as many particles.
     let first_run = std::cell::RefCell::new(None::<(u64, Option<String>, usize)>);
@@ -120,6 +127,9 @@ pub fn render_cmd(args: RenderArgs) -> Result<()> {
             }
         }
         let mut job = FrameJob::from_ply(num, &d, color_by, path)?;
+        if let Some(b) = bodies.get(&num) {
+            job = job.with_bodies(b);
+        }
         if let (Some(vol), Some(sc)) = (surface_volume, &scene) {
             job = job.with_surface(&sc.output.surface, vol, None);
         }

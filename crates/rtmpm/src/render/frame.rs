@@ -19,6 +19,8 @@ pub struct FrameJob {
     pub(super) material: Vec<u32>,
     pub(super) field: Option<Vec<f32>>,
     pub(super) surface: SurfaceJob,
+    /// The rigid bodies at this frame, as motionless colliders (drawn with the colliders).
+    pub(super) bodies: Vec<rtmpm_core::boundary::Collider>,
 }
 
 impl FrameJob {
@@ -90,7 +92,14 @@ impl FrameJob {
             material: p.material.clone(),
             field,
             surface: SurfaceJob::None,
+            bodies: Vec::new(),
         }
+    }
+
+    /// Draw the rigid bodies `bodies` (their states at this frame) too.
+    pub fn with_bodies(mut self, bodies: &[rtmpm_core::rigid::BodyState]) -> FrameJob {
+        self.bodies = bodies.iter().map(|b| b.collider()).collect();
+        self
     }
 
     /// From a PLY frame written by `rtmpm run`; a missing column is an error with a hint.
@@ -152,6 +161,99 @@ impl FrameJob {
             material,
             field,
             surface: SurfaceJob::None,
+            bodies: Vec::new(),
         })
+    }
+}
+
+/// The rigid bodies of every frame from a run's `bodies.csv` (written by `rtmpm run`: `frame,
+/// time, body, x, y, z, qx, qy, qz, qw, ...`, one row per body and frame, bodies in the scene's
+/// order), their shapes from `scene`. A bad row is an error naming the file and line.
+pub(super) fn read_bodies_csv(
+    path: &Path,
+    scene: &Scene,
+) -> Result<std::collections::HashMap<u64, Vec<rtmpm_core::rigid::BodyState>>> {
+    use rtmpm_core::rigid::{BodyState, RigidKind};
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let mut frames: std::collections::HashMap<u64, Vec<BodyState>> = Default::default();
+    for (i, line) in text.lines().enumerate().skip(1) {
+        let at = || format!("{}:{}", path.display(), i + 1);
+        if line.trim().is_empty() {
+            continue;
+        }
+        let cols: Vec<&str> = line.split(',').collect();
+        let num = |k: usize| -> Result<f32> {
+            cols.get(k)
+                .and_then(|c| c.trim().parse::<f32>().ok())
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| anyhow!("{}: column {} is not a number: {line}", at(), k + 1))
+        };
+        let frame: u64 = cols
+            .first()
+            .and_then(|c| c.trim().parse().ok())
+            .ok_or_else(|| anyhow!("{}: no frame number: {line}", at()))?;
+        let list = frames.entry(frame).or_default();
+        let Some(spec) = scene.rigid_bodies.get(list.len()) else {
+            bail!(
+                "{}: more bodies in frame {frame} than the scene's {} [[rigid_body]] tables\n  \
+                 fix: give the scene the run was made with (--scene)",
+                at(),
+                scene.rigid_bodies.len()
+            );
+        };
+        let q = glam::Quat::from_xyzw(num(6)?, num(7)?, num(8)?, num(9)?);
+        list.push(BodyState {
+            shape: spec.shape,
+            rotation: glam::Mat3::from_quat(q.normalize()),
+            center: Vec3::new(num(3)?, num(4)?, num(5)?),
+            velocity: Vec3::ZERO,
+            angular_velocity: Vec3::ZERO,
+            dynamic: spec.kind == RigidKind::Dynamic,
+            condition: spec.condition,
+            friction: spec.friction,
+        });
+    }
+    Ok(frames)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SCENE: &str = "[domain]\nmin = [0,0,0]\nmax = [1,1,1]\ndx = 0.05\n[time]\nduration = 0.1\n\
+        [[material]]\nname = \"w\"\ntype = \"fluid\"\ndensity = 1000.0\nbulk_modulus = 1e4\n\
+        [[body]]\nmaterial = \"w\"\nshape = \"box\"\nmin = [0.2, 0.2, 0.2]\nmax = [0.4, 0.4, 0.4]\n\
+        [[rigid_body]]\nshape = \"sphere\"\ncenter = [0.7, 0.5, 0.5]\nradius = 0.1\ndensity = 500.0\n";
+
+    #[test]
+    fn bodies_csv_gives_each_frame_its_poses_and_bad_rows_name_the_line() {
+        let scene = Scene::from_toml(SCENE, "s").expect("scene");
+        let dir = std::env::temp_dir().join(format!("rtmpm-bodies-csv-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("dir");
+        let path = dir.join("bodies.csv");
+        std::fs::write(
+            &path,
+            "frame,time,body,x,y,z,qx,qy,qz,qw,vx,vy,vz,wx,wy,wz\n\
+             0,0,\"b\",0.7,0.5,0.5,0,0,0,1,0,0,0,0,0,0\n\
+             1,0.1,\"b\",0.7,0.4,0.5,0,0,0.7071068,0.7071068,0,-1,0,0,0,0\n",
+        )
+        .expect("write");
+        let f = read_bodies_csv(&path, &scene).expect("read");
+        assert_eq!(f.len(), 2);
+        assert_eq!(f[&1][0].center, Vec3::new(0.7, 0.4, 0.5));
+        let turned = f[&1][0].rotation * Vec3::X;
+        assert!((turned - Vec3::Y).length() < 1e-5, "{turned}");
+        std::fs::write(&path, "frame,time,body,x\n3,0.3,\"b\",oops\n").expect("write");
+        let e = read_bodies_csv(&path, &scene)
+            .expect_err("bad row")
+            .to_string();
+        assert!(e.contains("bodies.csv:2"), "{e}");
+        std::fs::write(&path, "h\n0,0,b,0,0,0,0,0,0,1\n0,0,c,0,0,0,0,0,0,1\n").expect("write");
+        let e = read_bodies_csv(&path, &scene)
+            .expect_err("two bodies")
+            .to_string();
+        assert!(e.contains("more bodies") && e.contains(":3"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
