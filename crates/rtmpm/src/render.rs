@@ -378,14 +378,17 @@ impl RunRenderer {
         bodies: &[rtmpm_core::rigid::BodyState],
     ) -> Result<()> {
         if let Some((view, dir, preview, fps)) = self.setup.take() {
-            if self.surface_volume.is_some() {
-                self.surface_volume = Some(scene.output.surface.select(p).1);
-            }
             let mean_vol = p.vol0.iter().map(|&v| v as f64).sum::<f64>() / p.len().max(1) as f64;
             let radius = if mean_vol > 0.0 {
                 0.6 * (mean_vol as f32).cbrt()
             } else {
                 estimate_radius(&p.x)
+            };
+            // No particles yet (a scene that only emits): the splat of 8 particles a cell.
+            let radius = if radius > 0.0 {
+                radius
+            } else {
+                0.3 * scene.dx
             };
             let (bounds, floor) = scene_bounds(scene);
             let opts = resolve(&view, Some(scene), bounds, floor, radius)?;
@@ -404,9 +407,14 @@ impl RunRenderer {
                     .context("starting the render thread")?,
             );
         }
+        // The surface particles' volume, from the first frame that has any (a scene may only
+        // emit its fluid later).
+        if self.surface_volume == Some(0.0) {
+            self.surface_volume = Some(scene.output.surface.select(p).1);
+        }
         let mut job =
             FrameJob::from_particles(frame, time, p, scene, self.color_by).with_bodies(bodies);
-        if let Some(vol) = self.surface_volume {
+        if let Some(vol) = self.surface_volume.filter(|&v| v > 0.0) {
             job = job.with_surface(&scene.output.surface, vol, mesh);
         }
         let sent = self.tx.as_ref().is_some_and(|tx| tx.send(job).is_ok());
