@@ -385,11 +385,7 @@ impl RunRenderer {
                 estimate_radius(&p.x)
             };
             // No particles yet (a scene that only emits): the splat of 8 particles a cell.
-            let radius = if radius > 0.0 {
-                radius
-            } else {
-                0.3 * scene.dx
-            };
+            let radius = if radius > 0.0 { radius } else { 0.3 * scene.dx };
             let (bounds, floor) = scene_bounds(scene);
             let opts = resolve(&view, Some(scene), bounds, floor, radius)?;
             let mut sink = Sink::new(opts, dir, preview, &view, fps)?;
