@@ -5,7 +5,7 @@
 #![cfg(feature = "rigid")]
 
 use rtmpm_core::cpu::CpuBackend;
-use rtmpm_core::sim::{Backend, Simulation};
+use rtmpm_core::sim::Simulation;
 use rtmpm_core::{Particles, Scene};
 use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
 
