@@ -645,3 +645,52 @@ fn scene_render_table() {
         );
     }
 }
+
+#[test]
+fn a_rigid_body_is_drawn_at_its_pose() {
+    use crate::rigid::{BodyState, RigidShape};
+    // A thin bar (long along its own x) turned 90 degrees about z stands upright at x = 0.5,
+    // in front of blue particles: grey along its upright length, and not grey where the unturned
+    // bar reaches (x = 0.75).
+    let pos = cube(Vec3::new(0.55, 0.0, -0.7), 0.45, 8);
+    let mat = vec![0u32; pos.len()];
+    let body = BodyState {
+        shape: RigidShape::Box {
+            half_extents: Vec3::new(0.3, 0.05, 0.05),
+        },
+        rotation: glam::Mat3::from_rotation_z(std::f32::consts::FRAC_PI_2),
+        center: Vec3::new(0.5, 0.0, 0.0),
+        velocity: Vec3::ZERO,
+        angular_velocity: Vec3::ZERO,
+        dynamic: true,
+        condition: crate::boundary::Condition::Slip,
+        friction: 0.5,
+    };
+    let mut o = opts(160, 90);
+    o.floor = None;
+    o.colliders = vec![body.collider()];
+    let input = RenderInput {
+        positions: &pos,
+        material: &mat,
+        field: None,
+        surface: None,
+    };
+    let img = render(&input, &o).unwrap();
+    let v = o_view(160, 90);
+    let px = |p: Vec3| {
+        let (x, y, _) = v.project(p);
+        (x as u32, y as u32)
+    };
+    let (x, y) = px(Vec3::new(0.5, 0.2, 0.05));
+    assert!(is_collider_grey(img.pixel(x, y)), "{:?}", img.pixel(x, y));
+    let (x, y) = px(Vec3::new(0.75, 0.0, 0.05));
+    assert!(!is_collider_grey(img.pixel(x, y)), "{:?}", img.pixel(x, y));
+    // The same bar unturned covers that point.
+    let unturned = BodyState {
+        rotation: glam::Mat3::IDENTITY,
+        ..body
+    };
+    o.colliders = vec![unturned.collider()];
+    let img = render(&input, &o).unwrap();
+    assert!(is_collider_grey(img.pixel(x, y)), "{:?}", img.pixel(x, y));
+}
