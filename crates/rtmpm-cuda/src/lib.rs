@@ -62,6 +62,7 @@ pub mod backend;
 pub mod bench;
 pub mod buffers;
 pub mod capacity;
+pub mod codec;
 pub mod compile;
 pub mod contract;
 pub mod emit;
