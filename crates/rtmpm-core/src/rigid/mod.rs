@@ -17,11 +17,19 @@
 //! biased the floating depth (a box of density 500 floated 0.568 submerged against 0.517). The bodies move under gravity, these impulses and
 //! their contacts with each other and the walls in rapier3d (cargo feature `rigid`;
 //! [`RigidWorld`]); without the feature a scene with rigid bodies is refused when the backend is
-//! built. The CPU backend couples them (`cpu/grid_update.rs`); the CUDA backend refuses them.
+//! built. The CPU backend couples them (`cpu/grid_update.rs`), the CUDA backend too
+//! (`rtmpm-cuda/src/rigid.rs`). A body is a box, sphere, cylinder or closed triangle mesh
+//! ([`RigidMesh`]: its signed distance grid in the body frame, the mesh colliders' code).
 
 use crate::boundary::Condition;
 use crate::boundary::sdf::{box_distance, cylinder_distance, sphere_distance};
 use glam::{Mat3, Quat, Vec3};
+use std::sync::Arc;
+
+mod mesh;
+pub use mesh::{
+    MAX_BODY_TRIANGLES, MeshBodyError, RigidMesh, mass_properties as mesh_mass_properties,
+};
 
 #[cfg(feature = "rigid")]
 mod world;
@@ -43,7 +51,7 @@ pub enum RigidKind {
 }
 
 /// A body's shape about its centre, in its rest orientation.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum RigidShape {
     Box {
         half_extents: Vec3,
@@ -56,6 +64,8 @@ pub enum RigidShape {
         radius: f32,
         half_height: f32,
     },
+    /// A closed triangle mesh about its centre of mass.
+    Mesh(Arc<RigidMesh>),
 }
 
 impl RigidShape {
@@ -70,6 +80,7 @@ impl RigidShape {
                 radius,
                 half_height,
             } => std::f32::consts::PI * radius * radius * 2.0 * half_height,
+            RigidShape::Mesh(ref m) => m.volume,
         }
     }
 
@@ -82,6 +93,7 @@ impl RigidShape {
                 radius,
                 half_height,
             } => cylinder_distance(p, Vec3::ZERO, Vec3::Y, radius, half_height),
+            RigidShape::Mesh(ref m) => m.sdf.distance(p),
         }
     }
 
@@ -104,6 +116,7 @@ impl RigidShape {
                 half_height,
             }
             .normal(p),
+            RigidShape::Mesh(ref m) => m.sdf.normal(p),
         }
     }
 
@@ -129,6 +142,7 @@ impl RigidShape {
                 radius,
                 half_height,
             },
+            RigidShape::Mesh(ref m) => Shape::Mesh(m.sdf.clone()),
         }
     }
 
@@ -153,6 +167,7 @@ impl RigidShape {
                 a.abs() * half_height
                     + Vec3::new(disc.x.sqrt(), disc.y.sqrt(), disc.z.sqrt()) * radius
             }
+            RigidShape::Mesh(ref m) => m.world_half_extents(r),
         }
     }
 }
@@ -177,7 +192,7 @@ pub struct RigidBodySpec {
 }
 
 /// A body's state at the current time, as the grid update sees it.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct BodyState {
     pub shape: RigidShape,
     /// Rest-to-world rotation.
