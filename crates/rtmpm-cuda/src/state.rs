@@ -15,6 +15,7 @@ use rayon::prelude::*;
 use rtmpm_core::material::Model;
 use rtmpm_core::math::{Mat3, Vec3};
 use rtmpm_core::scene::sampling::{BodyPositions, SampledBody};
+use rtmpm_core::scene::{ParticleState, Precision};
 use rtmpm_core::{Particles, Scene};
 
 /// One word of the device state.
@@ -94,12 +95,15 @@ pub fn fluid_materials(scene: &Scene) -> Vec<bool> {
         .collect()
 }
 
-/// The state layout of a backend for `scene` with `options` (f64: `options.f64` already holds
-/// the scene's precision): [`StateLayout::Fluid`] when every material is a fluid (unless
-/// `fluid_state` is off), compact with `compact_state`. The compact state is single precision
-/// only: asked for in f64, an error.
+/// The state layout of a backend for `scene` with `options`: [`StateLayout::Fluid`] when every
+/// material is a fluid (unless `fluid_state` is off), compact with the scene's
+/// `[solver] particle_state = "compact"` or the option `compact_state` (`state=compact`). The
+/// compact state is single precision only: asked for in f64 (the scene's precision or the
+/// option), an error.
 pub fn layout_for(scene: &Scene, options: &CudaOptions) -> Result<StateLayout, String> {
-    if options.compact_state && options.f64 {
+    let compact = options.compact_state || scene.particle_state == ParticleState::Compact;
+    let f64 = options.f64 || scene.precision == Precision::F64;
+    if compact && f64 {
         return Err(
             "the compact particle state ([solver] particle_state = \"compact\") is \
                     single precision only: use particle_state = \"f32\" with f64"
@@ -107,11 +111,7 @@ pub fn layout_for(scene: &Scene, options: &CudaOptions) -> Result<StateLayout, S
         );
     }
     let all_fluid = fluid_materials(scene).iter().all(|f| *f);
-    Ok(StateLayout::choose(
-        all_fluid,
-        options.compact_state,
-        options.fluid_state,
-    ))
+    Ok(StateLayout::choose(all_fluid, compact, options.fluid_state))
 }
 
 /// The device image of `particles` (f64 words when `f64`), SoA with stride `cap` (at least the

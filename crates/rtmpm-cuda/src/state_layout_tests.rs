@@ -165,8 +165,18 @@ fn the_backend_chooses_the_layout_from_the_scene_and_options() {
     let o = CudaOptions::default();
     assert_eq!(layout_for(&w, &o), Ok(StateLayout::Fluid));
     assert_eq!(layout_for(&j, &o), Ok(StateLayout::Full));
+    // The scene's [solver] particle_state = "compact".
+    let with = |t: &str| format!("{t}[solver]\nparticle_state = \"compact\"\n");
+    let wc = Scene::from_toml(&with(water), "wc").expect("compact water");
+    let jc = Scene::from_toml(&with(&jelly), "jc").expect("compact jelly");
+    assert_eq!(layout_for(&wc, &o), Ok(StateLayout::CompactFluid));
+    assert_eq!(layout_for(&jc, &o), Ok(StateLayout::Compact));
+    let e = Scene::from_toml(&format!("{}precision = \"f64\"\n", with(water)), "f64")
+        .expect_err("compact f64");
+    assert!(e.to_string().contains("single precision only"), "{e}");
+    assert!(Scene::from_toml(&with(water).replace("compact", "f16"), "bad").is_err());
     // The budget (rtmpm-core, before any backend exists) counts the same words.
-    for scene in [&w, &j] {
+    for scene in [&w, &j, &wc, &jc] {
         assert_eq!(
             rtmpm_core::scene::budget::gpu_state_words(scene) as usize,
             layout_for(scene, &o).map(|l| l.words()).unwrap_or(0)

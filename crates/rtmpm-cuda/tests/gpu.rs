@@ -58,6 +58,7 @@ fn scene(dx: f32) -> Scene {
         seed: 0,
         solver: Default::default(),
         precision: Default::default(),
+        particle_state: Default::default(),
     }
 }
 

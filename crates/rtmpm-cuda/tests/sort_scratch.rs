@@ -62,6 +62,7 @@ fn jelly_scene(dx: f32) -> Scene {
         seed: 0,
         solver: Default::default(),
         precision: Default::default(),
+        particle_state: Default::default(),
     }
 }
 

@@ -26,13 +26,20 @@ pub const GPU_BYTES_PER_PARTICLE: u64 = 140;
 
 /// Words per particle of the CUDA backend's state for `scene` (`rtmpm-cuda`'s
 /// `StateLayout::choose` with the default options; a unit test there checks the two agree): 29,
-/// or 20 when every material is a fluid (F in one word, no plastic word).
+/// or 20 when every material is a fluid (F in one word, no plastic word); with
+/// `particle_state = "compact"` (v in 2 words, C in 5) 24 and 15.
 pub fn gpu_state_words(scene: &Scene) -> u64 {
     let all_fluid = scene
         .materials
         .iter()
         .all(|m| matches!(m.model, crate::material::Model::Fluid(_)));
-    if all_fluid { 20 } else { 29 }
+    let compact = scene.particle_state == super::ParticleState::Compact;
+    match (all_fluid, compact) {
+        (true, false) => 20,
+        (false, false) => 29,
+        (true, true) => 15,
+        (false, true) => 24,
+    }
 }
 
 /// Device bytes per particle of a CUDA run of `scene`: the state's words and 6 more (sort
