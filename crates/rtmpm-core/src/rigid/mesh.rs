@@ -35,8 +35,11 @@ pub enum MeshBodyError {
          the same direction)"
     )]
     NonManifold { a: String, b: String, faces: usize },
-    #[error("the mesh encloses no volume ({volume:.3e} m^3)")]
-    ZeroVolume { volume: f64 },
+    #[error(
+        "the mesh encloses no volume: {volume:.3e} m^3, against {bounds:.3e} m^3 for its \
+         bounding box (flat, degenerate, or a stray far vertex)"
+    )]
+    ZeroVolume { volume: f64, bounds: f64 },
     #[error(
         "the mesh's faces are wound inward (inverted normals): its enclosed volume is negative \
          ({volume:.3e} m^3)"
@@ -64,8 +67,8 @@ impl MeshBodyError {
                     .into()
             }
             MeshBodyError::ZeroVolume { .. } => {
-                "give a mesh that encloses a solid (not a flat or degenerate surface), or check \
-                 `scale`"
+                "give a mesh that encloses a solid (not a flat or degenerate surface, no vertex far \
+                 from the others), or check `scale`"
                     .into()
             }
             MeshBodyError::Inverted { .. } => {
@@ -275,9 +278,9 @@ impl RigidMesh {
         let (lo, hi) = mesh.bounds();
         let extent = (hi - lo).as_dvec3();
         // Zero (flat, degenerate) against the bounding box, within rounding.
-        let scale = extent.x.max(extent.y).max(extent.z);
-        if !(volume.abs() > 1e-6 * scale.powi(3)) {
-            return Err(MeshBodyError::ZeroVolume { volume });
+        let bounds = extent.x * extent.y * extent.z;
+        if volume.abs() <= 1e-6 * bounds || !volume.is_finite() {
+            return Err(MeshBodyError::ZeroVolume { volume, bounds });
         }
         if volume < 0.0 {
             return Err(MeshBodyError::Inverted { volume });
