@@ -365,6 +365,27 @@ mod tests {
         assert!(off < 1e-5 * expect.x, "off-diagonal {off}");
     }
 
+    /// The corner tetrahedron (0,0,0), (1,0,0), (0,1,0), (0,0,1), density 1: volume 1/6, centre
+    /// of mass (1/4, 1/4, 1/4), and about it I_xx = 1/30 - (1/6)(1/16 + 1/16) = 1/80 and
+    /// I_xy = -(1/120 - (1/6)(1/16)) = 1/480 (integrals of x^2 and x y over it: 1/60, 1/120).
+    #[test]
+    fn a_tetrahedron_has_its_analytic_centre_and_inertia_with_products() {
+        let t = TriMesh {
+            vertices: vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z],
+            triangles: vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+        };
+        let (v, com, i) = mass_properties(&t);
+        assert!((v - 1.0 / 6.0).abs() < 1e-12, "{v}");
+        assert!((com - DVec3::splat(0.25)).length() < 1e-12, "{com}");
+        for k in 0..3 {
+            assert!((i.col(k)[k] - 1.0 / 80.0).abs() < 1e-12, "{i}");
+            assert!((i.col(k)[(k + 1) % 3] - 1.0 / 480.0).abs() < 1e-12, "{i}");
+        }
+        let (b, c) = RigidMesh::new(&t, true, 0.05, 3).expect("a convex body");
+        assert!((c - Vec3::splat(0.25)).length() < 1e-6);
+        assert!((b.radius - Vec3::new(0.75, -0.25, -0.25).length()).abs() < 1e-6);
+    }
+
     #[test]
     fn a_box_body_is_centred_and_convex() {
         let (b, com) = RigidMesh::new(
