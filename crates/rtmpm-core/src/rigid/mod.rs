@@ -31,6 +31,9 @@ pub use mesh::{
     MAX_BODY_TRIANGLES, MeshBodyError, RigidMesh, mass_properties as mesh_mass_properties,
 };
 
+mod joint;
+pub use joint::{JointKind, JointSpec};
+
 #[cfg(feature = "rigid")]
 mod world;
 #[cfg(not(feature = "rigid"))]

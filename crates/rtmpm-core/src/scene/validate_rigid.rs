@@ -6,7 +6,7 @@ use super::MESH_MARGIN;
 use super::{R, V, fmt3};
 use crate::boundary::mesh::TriMesh;
 use crate::math::Vec3;
-use crate::rigid::{RigidBodySpec, RigidKind, RigidMesh, RigidShape};
+use crate::rigid::{JointSpec, RigidBodySpec, RigidKind, RigidMesh, RigidShape};
 use glam::Quat;
 use std::path::Path;
 use std::sync::Arc;
@@ -199,8 +199,14 @@ impl V<'_> {
         Ok((RigidShape::Mesh(Arc::new(m)), com))
     }
 
-    /// Bodies must not overlap at the start (their axis-aligned bounds in the initial pose).
-    pub(super) fn rigid_overlaps(&self, bodies: &[RigidBodySpec]) -> R<()> {
+    /// Bodies must not overlap at the start (their axis-aligned bounds in the initial pose),
+    /// unless a joint holds one to the other (rapier ignores contacts between jointed bodies).
+    pub(super) fn rigid_overlaps(&self, bodies: &[RigidBodySpec], joints: &[JointSpec]) -> R<()> {
+        let jointed = |i: usize, j: usize| {
+            joints
+                .iter()
+                .any(|k| (k.body, k.to) == (i, Some(j)) || (k.body, k.to) == (j, Some(i)))
+        };
         let bounds: Vec<(Vec3, Vec3)> = bodies
             .iter()
             .map(|b| {
@@ -213,7 +219,7 @@ impl V<'_> {
         for j in 0..bodies.len() {
             for i in 0..j {
                 let (a, b) = (bounds[i], bounds[j]);
-                if a.0.cmplt(b.1).all() && b.0.cmplt(a.1).all() {
+                if a.0.cmplt(b.1).all() && b.0.cmplt(a.1).all() && !jointed(i, j) {
                     return Err(self.err(
                         format!("rigid_body[{j}]"),
                         format!(
