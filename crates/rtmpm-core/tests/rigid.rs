@@ -347,3 +347,51 @@ fn a_cube_mesh_body_floats_like_the_box_body() {
     );
     assert!((meshed.fraction / 0.5 - 1.0).abs() < 0.05, "{meshed:?}");
 }
+
+/// A closed non-convex mesh body (the cube with its top dented in: a triangle-mesh collider in
+/// rapier, `convex` off) of density 2,500 replaces the heavy sphere of the sinking scene: it
+/// sinks through the water and rests on the floor (rapier's triangle-mesh contacts with the
+/// floor's slab): its lowest vertex within one cell above the floor (y = 0.06 m, the top of the
+/// wall band) and not more than half a cell into it.
+#[test]
+fn a_heavy_non_convex_mesh_body_sinks_to_the_floor() {
+    let dir = std::env::temp_dir().join(format!("rtmpm-mesh-body-dent-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let obj = dir.join("dent.obj");
+    std::fs::write(
+        &obj,
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\nv 0.5 0.6 0.5\n\
+         f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 4 1 5 8\n\
+         f 4 9 3\nf 3 9 7\nf 7 9 8\nf 8 9 4\n",
+    )
+    .expect("write the mesh");
+    let block = "shape = \"sphere\"\ncenter = [0.18, 0.31, 0.2]\nradius = 0.045";
+    assert!(SINKING.contains(block));
+    let text = SINKING.replacen(
+        block,
+        &format!(
+            "shape = \"mesh\"\nfile = \"{}\"\nscale = 0.09\ntranslate = [0.135, 0.265, 0.155]",
+            obj.display()
+        ),
+        1,
+    );
+    let mut sim = simulation(&text);
+    let rtmpm_core::rigid::RigidShape::Mesh(m) = sim.scene.rigid_bodies[0].shape.clone() else {
+        panic!("a mesh body")
+    };
+    assert!(!m.convex);
+    let s = checks::settle(&mut sim).expect("stable");
+    let lowest = m
+        .mesh
+        .vertices
+        .iter()
+        .map(|v| (s[0].rotation * *v + s[0].center).y)
+        .fold(f32::INFINITY, f32::min);
+    println!(
+        "dented cube: centre {}, lowest vertex {lowest:.4} m (floor 0.06)",
+        s[0].center
+    );
+    std::fs::remove_dir_all(&dir).ok();
+    assert!(lowest < 0.06 + 0.02, "not on the floor: {lowest}");
+    assert!(lowest > 0.06 - 0.01, "into the floor: {lowest}");
+}

@@ -43,7 +43,7 @@ pub fn encode(b: &BodyState, mesh_offset: u32) -> GpuBody {
         velocity: b.velocity.to_array(),
         omega: b.angular_velocity.to_array(),
         // The farthest point of the shape from its centre, and a little more for rounding.
-        bound: b.shape.world_half_extents(glam::Mat3::IDENTITY).length() * 1.001 + 1e-6,
+        bound: b.shape.bounding_radius() * 1.001 + 1e-6,
         dynamic: b.dynamic as u32,
     }
 }

@@ -35,8 +35,11 @@ pub enum MeshBodyError {
          the same direction)"
     )]
     NonManifold { a: String, b: String, faces: usize },
-    #[error("the mesh encloses no volume ({volume:.3e} m^3)")]
-    ZeroVolume { volume: f64 },
+    #[error(
+        "the mesh encloses no volume: {volume:.3e} m^3, against {bounds:.3e} m^3 for its \
+         bounding box (flat, degenerate, or a stray far vertex)"
+    )]
+    ZeroVolume { volume: f64, bounds: f64 },
     #[error(
         "the mesh's faces are wound inward (inverted normals): its enclosed volume is negative \
          ({volume:.3e} m^3)"
@@ -64,8 +67,8 @@ impl MeshBodyError {
                     .into()
             }
             MeshBodyError::ZeroVolume { .. } => {
-                "give a mesh that encloses a solid (not a flat or degenerate surface), or check \
-                 `scale`"
+                "give a mesh that encloses a solid (not a flat or degenerate surface, no vertex far \
+                 from the others), or check `scale`"
                     .into()
             }
             MeshBodyError::Inverted { .. } => {
@@ -275,9 +278,9 @@ impl RigidMesh {
         let (lo, hi) = mesh.bounds();
         let extent = (hi - lo).as_dvec3();
         // Zero (flat, degenerate) against the bounding box, within rounding.
-        let scale = extent.x.max(extent.y).max(extent.z);
-        if !(volume.abs() > 1e-6 * scale.powi(3)) {
-            return Err(MeshBodyError::ZeroVolume { volume });
+        let bounds = extent.x * extent.y * extent.z;
+        if volume.abs() <= 1e-6 * bounds || !volume.is_finite() {
+            return Err(MeshBodyError::ZeroVolume { volume, bounds });
         }
         if volume < 0.0 {
             return Err(MeshBodyError::Inverted { volume });
@@ -360,6 +363,27 @@ mod tests {
         }
         let off = i.x_axis.y.abs().max(i.x_axis.z.abs()).max(i.y_axis.z.abs());
         assert!(off < 1e-5 * expect.x, "off-diagonal {off}");
+    }
+
+    /// The corner tetrahedron (0,0,0), (1,0,0), (0,1,0), (0,0,1), density 1: volume 1/6, centre
+    /// of mass (1/4, 1/4, 1/4), and about it I_xx = 1/30 - (1/6)(1/16 + 1/16) = 1/80 and
+    /// I_xy = -(1/120 - (1/6)(1/16)) = 1/480 (integrals of x^2 and x y over it: 1/60, 1/120).
+    #[test]
+    fn a_tetrahedron_has_its_analytic_centre_and_inertia_with_products() {
+        let t = TriMesh {
+            vertices: vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z],
+            triangles: vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+        };
+        let (v, com, i) = mass_properties(&t);
+        assert!((v - 1.0 / 6.0).abs() < 1e-12, "{v}");
+        assert!((com - DVec3::splat(0.25)).length() < 1e-12, "{com}");
+        for k in 0..3 {
+            assert!((i.col(k)[k] - 1.0 / 80.0).abs() < 1e-12, "{i}");
+            assert!((i.col(k)[(k + 1) % 3] - 1.0 / 480.0).abs() < 1e-12, "{i}");
+        }
+        let (b, c) = RigidMesh::new(&t, true, 0.05, 3).expect("a convex body");
+        assert!((c - Vec3::splat(0.25)).length() < 1e-6);
+        assert!((b.radius - Vec3::new(0.75, -0.25, -0.25).length()).abs() < 1e-6);
     }
 
     #[test]

@@ -149,6 +149,15 @@ impl RigidShape {
         }
     }
 
+    /// Radius of a sphere about the centre that holds the shape (for a mesh, precomputed: its
+    /// farthest vertex).
+    pub fn bounding_radius(&self) -> f32 {
+        match self {
+            RigidShape::Mesh(m) => m.radius,
+            _ => self.world_half_extents(Mat3::IDENTITY).length(),
+        }
+    }
+
     /// Half-extents of the axis-aligned box around the shape turned by `r`.
     pub fn world_half_extents(&self, r: Mat3) -> Vec3 {
         match *self {

@@ -205,6 +205,39 @@ impl RigidWorld {
     }
 }
 
+/// The engine's collider of a mesh body: its convex hull (`convex = true`) or the triangle mesh,
+/// with the mass, centre of mass (the body's origin) and inertia tensor of the closed mesh's
+/// solid (rapier's own mass properties of a triangle mesh are not those of the solid).
+fn mesh_collider(
+    name: &str,
+    m: &super::RigidMesh,
+    mass: f32,
+) -> Result<rp::ColliderBuilder, SimError> {
+    let points: Vec<rp::Vector> = m.mesh.vertices.iter().map(|v| rv(*v)).collect();
+    let builder = if m.convex {
+        rp::ColliderBuilder::convex_hull(&points).ok_or_else(|| {
+            SimError::Backend(format!(
+                "rigid body `{name}`: no convex hull of its mesh (degenerate points)"
+            ))
+        })?
+    } else {
+        rp::ColliderBuilder::trimesh(points, m.mesh.triangles.clone()).map_err(|e| {
+            SimError::Backend(format!(
+                "rigid body `{name}`: its mesh is not a valid triangle mesh: {e}"
+            ))
+        })?
+    };
+    let inertia = m.unit_inertia * (mass / m.volume);
+    let inertia = rp::Matrix::from_cols_array(&inertia.to_cols_array());
+    Ok(
+        builder.mass_properties(rp::MassProperties::with_inertia_matrix(
+            rp::Vector::ZERO,
+            mass,
+            inertia,
+        )),
+    )
+}
+
 /// rapier's pose of a body placed at `position` turned by `rotation`.
 fn pose(position: glam::Vec3, rotation: glam::Quat) -> rp::Pose {
     rp::Pose::from_parts(rv(position), rp::Rotation::from_array(rotation.to_array()))
@@ -258,37 +291,4 @@ fn insert_joints(
         let h1 = j.to.map_or(ground, |b| handles[b]);
         world.insert_impulse_joint(h1, handles[j.body], builder.build());
     }
-}
-
-/// The engine's collider of a mesh body: its convex hull (`convex = true`) or the triangle mesh,
-/// with the mass, centre of mass (the body's origin) and inertia tensor of the closed mesh's
-/// solid (rapier's own mass properties of a triangle mesh are not those of the solid).
-fn mesh_collider(
-    name: &str,
-    m: &super::RigidMesh,
-    mass: f32,
-) -> Result<rp::ColliderBuilder, SimError> {
-    let points: Vec<rp::Vector> = m.mesh.vertices.iter().map(|v| rv(*v)).collect();
-    let builder = if m.convex {
-        rp::ColliderBuilder::convex_hull(&points).ok_or_else(|| {
-            SimError::Backend(format!(
-                "rigid body `{name}`: no convex hull of its mesh (degenerate points)"
-            ))
-        })?
-    } else {
-        rp::ColliderBuilder::trimesh(points, m.mesh.triangles.clone()).map_err(|e| {
-            SimError::Backend(format!(
-                "rigid body `{name}`: its mesh is not a valid triangle mesh: {e}"
-            ))
-        })?
-    };
-    let inertia = m.unit_inertia * (mass / m.volume);
-    let inertia = rp::Matrix::from_cols_array(&inertia.to_cols_array());
-    Ok(
-        builder.mass_properties(rp::MassProperties::with_inertia_matrix(
-            rp::Vector::ZERO,
-            mass,
-            inertia,
-        )),
-    )
 }

@@ -106,6 +106,13 @@ impl V<'_> {
                 ));
             }
         };
+        if !mass.is_finite() {
+            return Err(self.err(
+                f(if b.mass.is_some() { "mass" } else { "density" }),
+                format!("the body's mass {mass} kg (density x volume {volume} m^3) is not finite"),
+                "give a body of a sensible size (check the mesh's units and `scale`) and density",
+            ));
+        }
         let velocity = match b.velocity {
             Some(v) => self.vec3(&f("velocity"), v)?,
             None => Vec3::ZERO,
