@@ -65,6 +65,7 @@ fn scene(water: bool) -> Scene {
         colliders: vec![],
         emitters: vec![],
         rigid_bodies: vec![],
+        joints: vec![],
         walls: Walls::default(),
         output: OutputSettings {
             dir: "out".into(),
