@@ -10,7 +10,7 @@
 #                (every model on the GPU against Rust), the CPU/GPU agreement on every example
 #                scene, emitters and the keyframed paddle against the CPU (test_emitters), the CLI on the GPU
 #   validate     the validation suite at full resolution on the GPU (`rtmpm validate`)
-#   validate-compact  the same with [solver] particle_state = "compact" in every scene
+#   validate_compact  the same with the compact particle state (`--particle-state compact`)
 #   convergence  the convergence studies and the f64 validation cases
 #   bench        the claymore scenes (fluid 2M, jelly 2M, snow 1.33M) and a fluid block; with
 #                .device/rtmpm_base, A/B against that build, interleaved (REPS=2 by default);
@@ -77,23 +77,10 @@ for suite in "$@"; do
       say "validate --backend cuda rc=$?"
       grep -E "PASS|FAIL|passed" "$OUT/validate.log" | sed -E 's/ +/ /g' | tee -a "$S"
       ;;
-    validate-compact)
-      # The same suite with every scene's [solver] particle_state = "compact" (issue 19 item 1).
-      rm -rf "$OUT/compact-scenes" && cp -r validation "$OUT/compact-scenes"
-      python3 - "$OUT/compact-scenes" <<'PY'
-import pathlib, sys
-for p in pathlib.Path(sys.argv[1]).glob("*.toml"):
-    t = p.read_text()
-    if "[solver]" in t:
-        t = t.replace("[solver]", '[solver]\nparticle_state = "compact"', 1)
-    else:
-        t += '\n[solver]\nparticle_state = "compact"\n'
-    p.write_text(t)
-PY
-      timeout 500 "$D/rtmpm" validate --backend cuda --scenes "$OUT/compact-scenes" \
-        --out "$OUT/validation-compact" > "$OUT/validate-compact.log" 2>&1
-      say "validate --backend cuda, particle_state = compact rc=$?"
-      grep -E "PASS|FAIL|passed" "$OUT/validate-compact.log" | sed -E 's/ +/ /g' | tee -a "$S"
+    validate_compact)
+      timeout 500 "$D/rtmpm" validate --backend cuda --particle-state compact --out "$OUT/validation_compact" > "$OUT/validate_compact.log" 2>&1
+      say "validate --backend cuda --particle-state compact rc=$?"
+      grep -E "PASS|FAIL|passed" "$OUT/validate_compact.log" | sed -E 's/ +/ /g' | tee -a "$S"
       ;;
     convergence)
       timeout 400 "$D/rtmpm" validate --backend cuda --convergence \

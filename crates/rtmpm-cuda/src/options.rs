@@ -102,7 +102,7 @@ pub struct CudaOptions {
     /// smaller G2P2G 96 registers and spills).
     pub specialize: bool,
     /// Fields of the particle state that the rebuild's sort permutes per pass (1 to
-    /// `NFIELDS`): the scratch holds that many words per particle instead of a second copy of
+    /// the state layout's words): the scratch holds that many words per particle instead of a second copy of
     /// the state. Fewer: less memory, more passes (two grid barriers each) when the mapping is
     /// rebuilt. The result is the same for every value.
     pub sort_scratch_fields: usize,

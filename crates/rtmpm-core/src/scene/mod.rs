@@ -280,6 +280,19 @@ pub enum ParticleState {
     Compact,
 }
 
+impl std::str::FromStr for ParticleState {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "f32" => Ok(ParticleState::F32),
+            "compact" => Ok(ParticleState::Compact),
+            _ => Err(format!(
+                "unknown particle state `{s}`: expected f32 or compact"
+            )),
+        }
+    }
+}
+
 impl ParticleState {
     /// The name written in scene files: "f32" or "compact".
     pub fn name(self) -> &'static str {
