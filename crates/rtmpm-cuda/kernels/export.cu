@@ -1,7 +1,8 @@
 // Particle fields in original order for other programs (the Python package's `particles.x` and
-// `.v`, host side in src/export.rs): the three words of field `first` of slot i go to
-// out[3 id + k] as float (the velocity decoded in a compact layout), id being the slot's original index (field F_ID), so the host copies one
-// array in NumPy's (n, 3) layout and scatters nothing. An id out of range sets *bad.
+// `.v`, host side in src/export.rs): the three words of field `first` of slot i (F_X, or F_V: the
+// velocity, decoded in a compact layout) go to out[3 id + k] as float, id being the slot's original
+// index (field F_ID), so the host copies one array in NumPy's (n, 3) layout and scatters nothing.
+// An id out of range sets *bad.
 #include "common.cuh"
 
 extern "C" __global__ void export_vec3(const real* __restrict__ s, unsigned cap, unsigned n, int first,
