@@ -286,7 +286,12 @@ impl CudaBackend {
         };
         let (buffers, mut ctx) =
             buffers::allocate(&stream, scene, &state, &cap, needs, &tables, &options)?;
-        let bodies = crate::rigid::Bodies::new(scene, &stream, options.rigid_overlap)?;
+        let bodies = crate::rigid::Bodies::new(
+            scene,
+            &stream,
+            options.rigid_overlap,
+            tables.body_mesh.clone(),
+        )?;
         if let Some(b) = &bodies {
             (ctx.bodies, ctx.body_exchange, ctx.n_bodies) = b.ctx_fields(&stream);
         }

@@ -22,6 +22,8 @@ mod tests_io;
 #[cfg(test)]
 mod tests_motion;
 #[cfg(test)]
+mod tests_rigid_mesh;
+#[cfg(test)]
 mod tests_sampling;
 mod validate;
 mod walk;
