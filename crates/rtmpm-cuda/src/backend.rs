@@ -4,7 +4,7 @@
 
 use crate::capacity::{self, Capacity};
 use crate::compile::{KernelOptions, compile};
-use crate::contract::{CTL_P2G_PENDING, ColliderPoses, Ctx};
+use crate::contract::{CTL_P2G_PENDING, ColliderPoses, Ctx, StateLayout};
 use crate::encode::{self, Tables};
 use crate::graph::StepGraphs;
 use crate::kernels::Kernels;
@@ -13,7 +13,6 @@ use crate::pipeline::{self, Hooks, NoHooks, Stage, StepPlan};
 use crate::{CudaOptions, P2gMode, buffers};
 use cudarc::driver::{CudaContext, CudaModule, CudaStream};
 use rtmpm_core::grid::BlockLayout;
-use rtmpm_core::material::Model;
 use rtmpm_core::scene::Precision;
 use rtmpm_core::scene::sampling::SampledBody;
 use rtmpm_core::sim::{Backend, BadParticle, BadReason, SimError};
@@ -94,6 +93,8 @@ pub struct CudaBackend {
     pub(crate) buffers: buffers::Buffers,
     /// Every material is a fluid: G2P2G runs its fluid variant (`g2p2g_fluid`).
     pub(crate) all_fluid: bool,
+    /// Where each field of a particle is in the state arrays.
+    pub(crate) layout: StateLayout,
     /// G2P2G: which grid the coming step reads (0: `grid`, 1: `grid_next`).
     parity: usize,
     /// The grid the last step (or P2G) wrote, read back by [`CudaBackend::grid_nodes`].
@@ -202,6 +203,8 @@ impl CudaBackend {
         };
         let n = initial.len();
         check(scene, n, part, &options)?;
+        let state_layout = crate::state::layout_for(scene, &options)
+            .map_err(|e| SimError::Backend(format!("CUDA backend: {e}")))?;
         crate::emit::check(scene, options.p2g)?;
         let tables = encode::tables(scene, options.f64)?;
 
@@ -220,7 +223,8 @@ impl CudaBackend {
         // Compiled for this GPU, the state's index width (64 bits past 2^32 words), and with
         // specialize=on the scene's models only (a smaller material switch).
         let ptx = compile(&KernelOptions {
-            state64: crate::compile::state_needs_64_bits(cap.particles),
+            state64: crate::compile::state_needs_64_bits(state_layout.words(), cap.particles),
+            layout: state_layout,
             arch: info.compute_capability,
             fast_math: options.fast_math,
             f64: options.f64,
@@ -247,21 +251,18 @@ impl CudaBackend {
             info.sm_count,
             options.fused_rebuild,
             options.sort_scratch_fields,
+            state_layout,
         )?;
 
         // The particle state (a fluid's F packed as J^(1/3) I) and every buffer.
-        let fluid: Vec<bool> = scene
-            .materials
-            .iter()
-            .map(|m| matches!(m.model, Model::Fluid(_)))
-            .collect();
-        kernels.sort_mask = crate::rebuild::sorted_fields(fluid.iter().all(|f| *f));
+        let fluid = crate::state::fluid_materials(scene);
+        kernels.sort_mask = crate::rebuild::sorted_fields(state_layout, fluid.iter().all(|f| *f));
         // Packed with stride n; buffers::allocate places each field at its stride-cap offset.
         let state = match initial {
             Initial::Particles(p) => {
-                crate::state::pack(p, &fluid, options.f64, n, part.ids.as_deref())
+                crate::state::pack(p, &fluid, state_layout, options.f64, n, part.ids.as_deref())
             }
-            Initial::Bodies(b) => crate::state::pack_bodies(b, &fluid, options.f64),
+            Initial::Bodies(b) => crate::state::pack_bodies(b, &fluid, state_layout, options.f64),
         }
         .map_err(SimError::Backend)?;
         // G2P2G where it applies (see CudaOptions::g2p2g): not when every step rebuilds (the
@@ -275,6 +276,7 @@ impl CudaBackend {
         let needs = buffers::Needs {
             particles: n,
             real_bytes,
+            state_words: state_layout.words(),
             grid_next: g2p2g,
             // NaN speeds are left to the health check of the first step.
             initial_speed: match initial {
@@ -322,6 +324,7 @@ impl CudaBackend {
             module,
             buffers,
             all_fluid: fluid.iter().all(|f| *f),
+            layout: state_layout,
             parity: 0,
             last_grid: 0,
             last_dt: None,
@@ -333,6 +336,11 @@ impl CudaBackend {
             device_name: info.name,
             bodies,
         })
+    }
+
+    /// Where each field of a particle is in the state arrays.
+    pub fn state_layout(&self) -> StateLayout {
+        self.layout
     }
 
     /// True when G2P and the next step's P2G run as one kernel (see [`CudaOptions::g2p2g`]).
@@ -532,8 +540,15 @@ impl Backend for CudaBackend {
             .stream
             .clone_dtoh(&self.buffers.state)
             .map_err(err("read particles"))?;
-        crate::state::unpack(&host, self.n, self.ctx.cap as usize, self.options.f64, out)
-            .map_err(SimError::Backend)
+        crate::state::unpack(
+            &host,
+            self.n,
+            self.ctx.cap as usize,
+            self.layout,
+            self.options.f64,
+            out,
+        )
+        .map_err(SimError::Backend)
     }
 
     fn memory_bytes(&self) -> Option<(u64, u64)> {

@@ -59,6 +59,7 @@ pub struct RawSolver {
     pub update: Option<RawUpdate>,
     pub flip: Option<f32>,
     pub precision: Option<super::Precision>,
+    pub particle_state: Option<super::ParticleState>,
 }
 
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]

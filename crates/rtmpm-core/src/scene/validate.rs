@@ -499,7 +499,22 @@ impl V<'_> {
                 .as_ref()
                 .and_then(|s| s.precision)
                 .unwrap_or_default(),
+            particle_state: raw
+                .solver
+                .as_ref()
+                .and_then(|s| s.particle_state)
+                .unwrap_or_default(),
         };
+        if scene.particle_state == super::ParticleState::Compact
+            && scene.precision == super::Precision::F64
+        {
+            return Err(self.err(
+                "solver.particle_state",
+                "particle_state = \"compact\" is single precision only (it stores the velocity \
+                 and C in 32-bit shared-exponent words)",
+                "remove particle_state, or use precision = \"f32\"",
+            ));
+        }
         // Every body must produce particles (found without storing them: the first one is
         // enough; the size of the whole scene is checked by the budget, scene::budget).
         for i in 0..scene.bodies.len() {

@@ -170,17 +170,7 @@ pub fn prelude() -> String {
     let mut def = |name: &str, v: String| {
         let _ = writeln!(s, "#define {name} {v}");
     };
-    def("RTMPM_NFIELDS", NFIELDS.to_string());
     for (n, v) in [
-        ("F_X", F_X),
-        ("F_V", F_V),
-        ("F_C", F_C),
-        ("F_F", F_F),
-        ("F_PLASTIC", F_PLASTIC),
-        ("F_MASS", F_MASS),
-        ("F_VOL0", F_VOL0),
-        ("F_MAT", F_MAT),
-        ("F_ID", F_ID),
         ("CTL_NEED_REBUILD", CTL_NEED_REBUILD),
         ("CTL_GBLOCKS", CTL_GBLOCKS),
         ("CTL_PBLOCKS", CTL_PBLOCKS),
@@ -238,6 +228,7 @@ pub fn prelude() -> String {
     }
     def("UPDATE_USL", format!("{}u", update(Update::Usl)));
     def("UPDATE_MUSL", format!("{}u", update(Update::Musl)));
+    s.push_str(&StateLayout::prelude());
     s
 }
 

@@ -18,33 +18,15 @@ use rtmpm_core::transfer::Update;
 
 mod headers;
 mod layout;
+mod state_layout;
 
 pub use headers::{layout_asserts, material_registry, materials, prelude};
 pub use layout::*;
+pub use state_layout::{MAX_FIELDS, StateLayout};
 
 // ---------------------------------------------------------------------------------------------
-// Particle state: structure of arrays, field f of particle i at state[f * cap + i].
-
-/// Words per particle in the state arrays.
-pub const NFIELDS: usize = 29;
-/// Position (3 words).
-pub const F_X: usize = 0;
-/// Velocity (3).
-pub const F_V: usize = 3;
-/// APIC C (9, column-major).
-pub const F_C: usize = 6;
-/// Deformation gradient (9, column-major).
-pub const F_F: usize = 15;
-/// Plastic scalar.
-pub const F_PLASTIC: usize = 24;
-/// Mass.
-pub const F_MASS: usize = 25;
-/// Initial volume.
-pub const F_VOL0: usize = 26;
-/// Material id (integer bits in the low 32 bits of the word).
-pub const F_MAT: usize = 27;
-/// Original particle index (integer bits).
-pub const F_ID: usize = 28;
+// Particle state: structure of arrays, word w of particle i at state[w * cap + i]; the words of
+// each field are given by the backend's [`StateLayout`] (state_layout.rs).
 
 // ---------------------------------------------------------------------------------------------
 // Control words (u32, one array per GPU).
