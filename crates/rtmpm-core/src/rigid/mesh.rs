@@ -50,6 +50,8 @@ pub enum MeshBodyError {
          inward by {depth:.3e} m"
     )]
     NotConvex { a: String, b: String, depth: f32 },
+    #[error("convex = true, but the mesh is {parts} separate closed parts, not one convex solid")]
+    Disconnected { parts: usize },
 }
 
 impl MeshBodyError {
@@ -76,7 +78,7 @@ impl MeshBodyError {
                  (Blender: Mesh > Normals > Recalculate Outside)"
                     .into()
             }
-            MeshBodyError::NotConvex { .. } => {
+            MeshBodyError::NotConvex { .. } | MeshBodyError::Disconnected { .. } => {
                 "remove convex = true: a closed non-convex mesh gets a triangle-mesh collider in \
                  the rigid-body engine (the coupling with the material uses the mesh itself \
                  either way)"
@@ -220,6 +222,33 @@ fn check_closed(mesh: &TriMesh) -> Result<HashMap<(u32, u32), u32>, MeshBodyErro
     Ok(edges)
 }
 
+/// Number of connected parts of the mesh (faces joined by shared vertices).
+fn parts(mesh: &TriMesh) -> usize {
+    let mut parent: Vec<u32> = (0..mesh.vertices.len() as u32).collect();
+    fn root(p: &mut [u32], mut i: u32) -> u32 {
+        while p[i as usize] != i {
+            p[i as usize] = p[p[i as usize] as usize];
+            i = p[i as usize];
+        }
+        i
+    }
+    for t in &mesh.triangles {
+        for k in 1..3 {
+            let (a, b) = (root(&mut parent, t[0]), root(&mut parent, t[k]));
+            parent[a as usize] = b;
+        }
+    }
+    let mut used = vec![false; mesh.vertices.len()];
+    for t in &mesh.triangles {
+        for &i in t {
+            used[i as usize] = true;
+        }
+    }
+    (0..mesh.vertices.len() as u32)
+        .filter(|&i| used[i as usize] && root(&mut parent, i) == i)
+        .count()
+}
+
 /// For `convex = true`: every edge must be convex (the far vertex of each face lies on or
 /// behind the plane of its neighbour across the edge), within `1e-5` of the mesh's size. A
 /// closed, connected surface that is convex at every edge bounds a convex solid.
@@ -286,6 +315,10 @@ impl RigidMesh {
             return Err(MeshBodyError::Inverted { volume });
         }
         if convex {
+            let parts = parts(&mesh);
+            if parts > 1 {
+                return Err(MeshBodyError::Disconnected { parts });
+            }
             check_convex(&mesh, &edges)?;
         }
         let com = com.as_vec3();
@@ -476,6 +509,17 @@ mod tests {
         assert!(ok.volume < 1.0 && ok.volume > 0.8, "{}", ok.volume);
         let e = RigidMesh::new(&dent, true, 0.1, 3).unwrap_err();
         assert!(matches!(e, MeshBodyError::NotConvex { .. }), "{e}");
+        // Two separate cubes: closed, but not one convex solid.
+        let mut two = good.clone();
+        let n = two.vertices.len() as u32;
+        two.vertices
+            .extend(good.vertices.iter().map(|v| *v + Vec3::new(3.0, 0.0, 0.0)));
+        two.triangles
+            .extend(good.triangles.iter().map(|t| t.map(|i| i + n)));
+        let (pair, _) = RigidMesh::new(&two, false, 0.1, 3).expect("two cubes, not convex");
+        assert!((pair.volume - 2.0).abs() < 1e-5, "{}", pair.volume);
+        let e = RigidMesh::new(&two, true, 0.1, 3).unwrap_err();
+        assert_eq!(e, MeshBodyError::Disconnected { parts: 2 });
         // Too many triangles.
         let mut big = good.clone();
         big.triangles = vec![[0, 1, 2]; MAX_BODY_TRIANGLES + 1];
