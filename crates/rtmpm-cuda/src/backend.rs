@@ -110,6 +110,8 @@ pub struct CudaBackend {
     device_name: String,
     /// The rigid bodies coupled to the grid (`[[rigid_body]]`), if any.
     bodies: Option<crate::rigid::Bodies>,
+    /// Where the time of building this backend went.
+    setup: crate::fill::SetupPhases,
 }
 
 /// Checks before any GPU work: what the CUDA backend cannot run, as clear errors.
@@ -152,6 +154,15 @@ fn check(scene: &Scene, n: usize, part: &Part, o: &CudaOptions) -> Result<(), Si
     Ok(())
 }
 
+/// For each material of the scene: true for a fluid (whose F is packed as J^(1/3) I).
+fn fluid_flags(scene: &Scene) -> Vec<bool> {
+    scene
+        .materials
+        .iter()
+        .map(|m| matches!(m.model, Model::Fluid(_)))
+        .collect()
+}
+
 impl CudaBackend {
     /// Upload the scene and particles to CUDA device 0 and compile the kernels.
     pub fn new(
@@ -192,9 +203,12 @@ impl CudaBackend {
         part: &Part,
         options: CudaOptions,
     ) -> Result<CudaBackend, SimError> {
+        let t0 = std::time::Instant::now();
+        let mut setup = crate::fill::SetupPhases::default();
         let info = crate::probe_device(part.device).map_err(|e| {
             SimError::Backend(format!("CUDA device {} unavailable: {e}", part.device))
         })?;
+        setup.probe = t0.elapsed().as_secs_f64();
         // The scene's precision, or the `f64` switch: the whole pipeline in f64.
         let options = CudaOptions {
             f64: options.f64 || scene.precision == Precision::F64,
@@ -204,6 +218,15 @@ impl CudaBackend {
         check(scene, n, part, &options)?;
         crate::emit::check(scene, options.p2g)?;
         let tables = encode::tables(scene, options.f64)?;
+        // The device fill (sampled bodies only): the table's checks before any GPU work.
+        let device_fill = match initial {
+            Initial::Bodies(b) if options.device_fill => {
+                crate::fill::table(b, &fluid_flags(scene)).map_err(SimError::Backend)?;
+                true
+            }
+            _ => false,
+        };
+        let t = std::time::Instant::now();
 
         // The program, compiled for this GPU (or from the cache), and its kernels.
         // Capacities from the initial mapping.
@@ -216,6 +239,8 @@ impl CudaBackend {
         // Room for every particle the emitters will add (crate::emit): nothing grows later.
         let n_max = n.saturating_add(crate::emit::emitted_total(scene));
         let cap = Capacity::plan(scene, n_max, part.capacity, &layout, &options);
+        setup.layout = t.elapsed().as_secs_f64();
+        let t = std::time::Instant::now();
 
         // Compiled for this GPU, the state's index width (64 bits past 2^32 words), and with
         // specialize=on the scene's models only (a smaller material switch).
@@ -248,22 +273,28 @@ impl CudaBackend {
             options.fused_rebuild,
             options.sort_scratch_fields,
         )?;
+        setup.kernels = t.elapsed().as_secs_f64();
 
         // The particle state (a fluid's F packed as J^(1/3) I) and every buffer.
-        let fluid: Vec<bool> = scene
-            .materials
-            .iter()
-            .map(|m| matches!(m.model, Model::Fluid(_)))
-            .collect();
+        let fluid = fluid_flags(scene);
         kernels.sort_mask = crate::rebuild::sorted_fields(fluid.iter().all(|f| *f));
         // Packed with stride n; buffers::allocate places each field at its stride-cap offset.
+        // With the device fill nothing is packed: the state is written on the device below.
+        let t = std::time::Instant::now();
         let state = match initial {
-            Initial::Particles(p) => {
-                crate::state::pack(p, &fluid, options.f64, n, part.ids.as_deref())
-            }
-            Initial::Bodies(b) => crate::state::pack_bodies(b, &fluid, options.f64),
+            _ if device_fill => None,
+            Initial::Particles(p) => Some(crate::state::pack(
+                p,
+                &fluid,
+                options.f64,
+                n,
+                part.ids.as_deref(),
+            )),
+            Initial::Bodies(b) => Some(crate::state::pack_bodies(b, &fluid, options.f64)),
         }
+        .transpose()
         .map_err(SimError::Backend)?;
+        setup.pack = t.elapsed().as_secs_f64();
         // G2P2G where it applies (see CudaOptions::g2p2g): not when every step rebuilds (the
         // fused scatter would always be redone).
         let g2p2g = options.g2p2g
@@ -282,8 +313,31 @@ impl CudaBackend {
                 Initial::Bodies(b) => crate::state::max_speed(b),
             },
         };
-        let (buffers, mut ctx) =
-            buffers::allocate(&stream, scene, &state, &cap, needs, &tables, &options)?;
+        let t = std::time::Instant::now();
+        let (mut buffers, mut ctx) = buffers::allocate(
+            &stream,
+            scene,
+            state.as_deref(),
+            &cap,
+            needs,
+            &tables,
+            &options,
+        )?;
+        drop(state);
+        stream.synchronize().map_err(err("upload"))?;
+        setup.allocate = t.elapsed().as_secs_f64();
+        if let (true, Initial::Bodies(b)) = (device_fill, initial) {
+            let f = crate::fill::fill(
+                &stream,
+                &kernels,
+                &mut buffers.state,
+                cap.particles,
+                b,
+                &fluid,
+                options.f64,
+            )?;
+            (setup.fill, setup.fill_gather) = (f.total, f.gather);
+        }
         let bodies = crate::rigid::Bodies::new(scene, &stream, options.rigid_overlap)?;
         if let Some(b) = &bodies {
             (ctx.bodies, ctx.body_exchange, ctx.n_bodies) = b.ctx_fields(&stream);
@@ -327,7 +381,17 @@ impl CudaBackend {
             graphs: StepGraphs::default(),
             device_name: info.name,
             bodies,
+            setup: crate::fill::SetupPhases {
+                total: t0.elapsed().as_secs_f64(),
+                ..setup
+            },
         })
+    }
+
+    /// Where the time of building this backend went (probe, host layout, kernels, packing,
+    /// allocation and upload, device fill).
+    pub fn setup_phases(&self) -> crate::fill::SetupPhases {
+        self.setup
     }
 
     /// True when G2P and the next step's P2G run as one kernel (see [`CudaOptions::g2p2g`]).

@@ -69,6 +69,7 @@ pub mod encode;
 pub mod export;
 pub mod export_chunks;
 pub mod export_ordered;
+pub mod fill;
 pub mod g2p;
 pub mod graph;
 pub mod grid_update;

@@ -123,7 +123,7 @@ enum Source<'a> {
 }
 
 /// A fluid particle's F in its packed form, J^(1/3) I; a solid's as it is.
-fn packed_f(f: Mat3, fluid: bool) -> Mat3 {
+pub(crate) fn packed_f(f: Mat3, fluid: bool) -> Mat3 {
     if fluid {
         Mat3::from_diagonal(Vec3::splat(f.determinant().cbrt()))
     } else {

@@ -286,8 +286,15 @@ fn bench_cuda(
     let t = Instant::now();
     let mut b = rtmpm_cuda::CudaBackend::from_bodies(scene, bodies, args.cuda_options.clone())?;
     setup.backend = t.elapsed().as_secs_f64();
+    // The first step (waited for): it builds the first mapping and sort on the device.
+    let mut first_step = None;
     for i in 0..args.warmup {
+        let t = Instant::now();
         b.step(dt, i as f32 * dt)?;
+        if i == 0 {
+            b.check()?;
+            first_step = Some(t.elapsed().as_secs_f64());
+        }
     }
     b.check()?;
     let start = Instant::now();
@@ -302,9 +309,13 @@ fn bench_cuda(
     println!("  backend      {} [{:?}]", b.name(), args.cuda_options);
     println!("  particles    {n}");
     println!(
-        "  set-up       {} before the first step (backend: packing, upload, kernels)",
-        setup.describe()
+        "  set-up       {} before the first step (backend: {})",
+        setup.describe(),
+        b.setup_phases()
     );
+    if let Some(s) = first_step {
+        println!("  first step   {s:.2} s (the first mapping and sort, on the device)");
+    }
     println!("  steps        {steps} timed after {} warm-up", args.warmup);
     println!(
         "  wall time    {wall:.3} s ({:.4} ms/step)",

@@ -47,6 +47,35 @@ pub const F_MAT: usize = 27;
 pub const F_ID: usize = 28;
 
 // ---------------------------------------------------------------------------------------------
+// The body table of the device fill (`kernels/fill.cu`, `crate::fill`): one row of u32 words per
+// sampled body; reals as f32 bits.
+
+/// Words of one row of the fill table.
+pub const FILL_WORDS: usize = 36;
+/// First particle (slot and original index) of the body: low, then high 32 bits.
+pub const FT_START: usize = 0;
+/// Particles of the body: low, then high 32 bits.
+pub const FT_COUNT: usize = 2;
+/// Material index.
+pub const FT_MAT: usize = 4;
+/// Initial velocity v0 (3 f32).
+pub const FT_V0: usize = 5;
+/// Angular velocity w (3 f32).
+pub const FT_W: usize = 8;
+/// Centre c of the rotation (3 f32): v = v0 + w x (x - c).
+pub const FT_CENTRE: usize = 11;
+/// APIC C of every particle (9 f32, column-major).
+pub const FT_C: usize = 14;
+/// Packed deformation gradient of every particle (9 f32, column-major).
+pub const FT_F: usize = 23;
+/// Plastic scalar (f32).
+pub const FT_PLASTIC: usize = 32;
+/// Mass (f32).
+pub const FT_MASS: usize = 33;
+/// Initial volume (f32).
+pub const FT_VOL0: usize = 34;
+
+// ---------------------------------------------------------------------------------------------
 // Control words (u32, one array per GPU).
 
 /// Rebuild the mapping at the next step.

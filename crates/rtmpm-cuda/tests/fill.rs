@@ -1,0 +1,339 @@
+//! The device fill of the particle state (`rtmpm_cuda::fill`, `fill=device`, the default of
+//! `CudaBackend::from_bodies`) against the host packing (`fill=host`): the same state word for
+//! word, over the whole capacity (needs a GPU; skips with a message otherwise):
+//! `cargo test --release -p rtmpm-cuda --test fill -- --include-ignored --nocapture`.
+
+use rtmpm_core::Scene;
+use rtmpm_core::scene::sampling::{SampledBody, sample_bodies};
+use rtmpm_core::sim::Simulation;
+use rtmpm_cuda::contract::NFIELDS;
+use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
+use std::path::Path;
+
+fn gpu() -> bool {
+    match probe() {
+        Ok(_) => true,
+        Err(e) => {
+            println!("skipped: no usable CUDA GPU ({e})");
+            false
+        }
+    }
+}
+
+fn options(device_fill: bool) -> CudaOptions {
+    CudaOptions {
+        device_fill,
+        ..CudaOptions::default()
+    }
+}
+
+/// The scene `text` with `precision` ("f32"/"f64") in its `[solver]` table, read in `dir`.
+fn scene_in(text: &str, precision: &str, dir: &Path) -> Scene {
+    let text = format!("{text}\n[solver]\nprecision = \"{precision}\"\n");
+    Scene::from_toml_in(&text, "fill test", dir).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Build the backend of `bodies` with the device fill and with the host packing: the states are
+/// equal byte for byte (slots past the particles included: zero in both), and equal to the
+/// host's image `pack_bodies` at the particles. Returns the device-filled backend.
+fn same_state(label: &str, scene: &Scene, bodies: &[SampledBody]) -> CudaBackend {
+    let n: usize = bodies.iter().map(|b| b.len()).sum();
+    let mut dev = CudaBackend::from_bodies(scene, bodies, options(true)).expect("device fill");
+    let mut host = CudaBackend::from_bodies(scene, bodies, options(false)).expect("host pack");
+    let (a, b) = (
+        dev.state_bytes().expect("read"),
+        host.state_bytes().expect("read"),
+    );
+    assert_eq!(a.len(), b.len(), "{label}: state sizes");
+    assert_eq!(dev.capacity(), host.capacity(), "{label}: capacities");
+    let cap = dev.capacity();
+    let wb = a.len() / (NFIELDS * cap);
+    if let Some(i) = (0..a.len()).find(|&i| a[i] != b[i]) {
+        let (f, slot) = ((i / wb) / cap, (i / wb) % cap);
+        panic!(
+            "{label}: first difference in field {f}, slot {slot} of {n} (capacity {cap}): \
+             device {:?}, host {:?}",
+            &a[i / wb * wb..i / wb * wb + wb],
+            &b[i / wb * wb..i / wb * wb + wb]
+        );
+    }
+    // And the host image itself at the particles (stride n there).
+    let fluid: Vec<bool> = scene
+        .materials
+        .iter()
+        .map(|m| matches!(m.model, rtmpm_core::material::Model::Fluid(_)))
+        .collect();
+    let image = rtmpm_cuda::state::pack_bodies(bodies, &fluid, wb == 8).expect("pack");
+    for f in 0..NFIELDS {
+        assert!(
+            a[f * cap * wb..(f * cap + n) * wb] == image[f * n * wb..(f + 1) * n * wb],
+            "{label}: field {f} differs from pack_bodies"
+        );
+    }
+    assert!(n > 0, "{label}: no particles");
+    println!(
+        "{label}: {n} particles, capacity {cap}, {wb}-byte words: identical; set-up {}",
+        dev.setup_phases()
+    );
+    dev
+}
+
+fn check(label: &str, text: &str) {
+    let dir = std::env::temp_dir();
+    for precision in ["f32", "f64"] {
+        let scene = scene_in(text, precision, &dir);
+        let bodies = sample_bodies(&scene, &|_| {}).expect("sample");
+        same_state(&format!("{label} ({precision})"), &scene, &bodies);
+    }
+}
+
+const HEAD: &str = r#"
+name = "fill"
+seed = 7
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [1.0, 1.0, 1.0]
+dx = 0.03125
+[time]
+duration = 0.1
+fps = 30
+cfl = 0.4
+[[material]]
+name = "water"
+type = "fluid"
+density = 1000.0
+bulk_modulus = 4.0e4
+gamma = 7.15
+[[material]]
+name = "jelly"
+type = "neo_hookean"
+density = 1100.0
+youngs_modulus = 2.0e4
+poisson_ratio = 0.3
+[[material]]
+name = "sand"
+type = "drucker_prager"
+density = 1600.0
+youngs_modulus = 3.5e5
+poisson_ratio = 0.3
+friction_angle = 35.0
+"#;
+
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn device_fill_equals_host_pack_regular_water_box() {
+    if !gpu() {
+        return;
+    }
+    let body = r#"
+[[body]]
+material = "water"
+shape = "box"
+min = [0.1, 0.1, 0.1]
+max = [0.6, 0.5, 0.7]
+particles_per_cell = 8
+sampling = "regular"
+"#;
+    check("regular water box", &format!("{HEAD}{body}"));
+}
+
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn device_fill_equals_host_pack_jittered_sphere_and_random_cylinder() {
+    if !gpu() {
+        return;
+    }
+    let sphere = r#"
+[[body]]
+material = "jelly"
+shape = "sphere"
+center = [0.5, 0.5, 0.5]
+radius = 0.3
+particles_per_cell = 8
+sampling = "jittered"
+velocity = [0.3, -1.0, 0.0]
+"#;
+    check("jittered sphere", &format!("{HEAD}{sphere}"));
+    let cylinder = r#"
+[[body]]
+material = "sand"
+shape = "cylinder"
+center = [0.5, 0.5, 0.5]
+radius = 0.2
+height = 0.5
+axis = [1.0, 1.0, 0.0]
+particles_per_cell = 4
+sampling = "random"
+angular_velocity = [0.0, 3.0, -1.0]
+"#;
+    check("random cylinder", &format!("{HEAD}{cylinder}"));
+}
+
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn device_fill_equals_host_pack_two_bodies_with_velocity_and_spin() {
+    if !gpu() {
+        return;
+    }
+    let bodies = r#"
+[[body]]
+material = "water"
+shape = "box"
+min = [0.1, 0.1, 0.1]
+max = [0.45, 0.4, 0.9]
+particles_per_cell = 8
+sampling = "jittered"
+velocity = [1.0, -0.0, 0.25]
+angular_velocity = [2.0, 0.0, -5.0]
+[[body]]
+material = "jelly"
+shape = "sphere"
+center = [0.7, 0.6, 0.5]
+radius = 0.2
+particles_per_cell = 27
+sampling = "regular"
+velocity = [-2.0, 1.5, 0.0]
+angular_velocity = [0.5, 7.0, 1.0e-3]
+"#;
+    check("two bodies, spin", &format!("{HEAD}{bodies}"));
+}
+
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn device_fill_equals_host_pack_with_a_points_body() {
+    if !gpu() {
+        return;
+    }
+    // A binary PLY of 500 points between two bodies of shapes.
+    let dir = std::env::temp_dir().join(format!("rtmpm_fill_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let mut ply = b"ply\nformat binary_little_endian 1.0\nelement vertex 500\nproperty float x\n\
+property float y\nproperty float z\nend_header\n"
+        .to_vec();
+    for i in 0..500 {
+        let t = i as f32 * 0.01;
+        for v in [
+            0.3 + 0.2 * t.sin(),
+            0.5 + 0.1 * t.cos(),
+            0.2 + 0.0009 * i as f32,
+        ] {
+            ply.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    std::fs::write(dir.join("pts.ply"), ply).expect("write ply");
+    let text = format!(
+        "{HEAD}{}",
+        r#"
+[[body]]
+material = "jelly"
+shape = "box"
+min = [0.1, 0.1, 0.1]
+max = [0.3, 0.3, 0.3]
+particles_per_cell = 8
+velocity = [0.0, 0.0, 1.0]
+[[body]]
+material = "water"
+shape = "particles"
+file = "pts.ply"
+angular_velocity = [0.0, 1.0, 0.0]
+[[body]]
+material = "sand"
+shape = "sphere"
+center = [0.7, 0.7, 0.7]
+radius = 0.1
+particles_per_cell = 8
+angular_velocity = [1.0, 0.0, 0.0]
+"#
+    );
+    for precision in ["f32", "f64"] {
+        let scene = scene_in(&text, precision, &dir);
+        let bodies = sample_bodies(&scene, &|_| {}).expect("sample");
+        same_state(&format!("points body ({precision})"), &scene, &bodies);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Past one piece of the upload (4M particles): several pieces through the two page-locked
+/// buffers, and a body that starts inside the last piece of the one before.
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn device_fill_equals_host_pack_over_several_pieces() {
+    if !gpu() {
+        return;
+    }
+    let text = format!(
+        "{}{}",
+        HEAD.replace("dx = 0.03125", "dx = 0.0078125"),
+        r#"
+[[body]]
+material = "water"
+shape = "box"
+min = [0.05, 0.05, 0.05]
+max = [0.95, 0.7, 0.95]
+particles_per_cell = 8
+sampling = "regular"
+[[body]]
+material = "jelly"
+shape = "sphere"
+center = [0.5, 0.82, 0.5]
+radius = 0.1
+particles_per_cell = 8
+angular_velocity = [0.0, 0.0, 2.0]
+"#
+    );
+    let scene = scene_in(&text, "f32", &std::env::temp_dir());
+    let bodies = sample_bodies(&scene, &|_| {}).expect("sample");
+    let n: usize = bodies.iter().map(|b| b.len()).sum();
+    assert!(n > 2 * rtmpm_cuda::fill::PIECE, "{n} particles");
+    same_state("several pieces", &scene, &bodies);
+}
+
+/// Emitters' slots past the initial particles stay zero until they emit, and emitting works on a
+/// device-filled state: the fountain emits as many particles as with the host packing.
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn device_fill_keeps_emitter_slots_and_emits() {
+    if !gpu() {
+        return;
+    }
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/fountain.toml");
+    let scene = Scene::from_file(&path).unwrap_or_else(|e| panic!("{e}"));
+    let bodies = sample_bodies(&scene, &|_| {}).expect("sample");
+    let n0: usize = bodies.iter().map(|b| b.len()).sum();
+    let dev = same_state("fountain (emitter)", &scene, &bodies);
+    assert!(dev.capacity() > n0, "no emitter slots");
+    let host = CudaBackend::from_bodies(&scene, &bodies, options(false)).expect("host");
+    let mut a = Simulation::new(scene.clone(), Box::new(dev));
+    let mut b = Simulation::new(scene.clone(), Box::new(host));
+    for _ in 0..3 {
+        a.advance_frame().expect("device-filled frame");
+        b.advance_frame().expect("host-packed frame");
+    }
+    let (na, nb) = (a.backend.num_particles(), b.backend.num_particles());
+    assert!(na > n0, "nothing emitted ({na} of {n0})");
+    assert_eq!(na, nb, "emitted particles");
+}
+
+/// A scene with rigid bodies builds from a device-filled state and steps.
+#[cfg(feature = "rigid")]
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn device_fill_with_rigid_bodies() {
+    if !gpu() {
+        return;
+    }
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/rigid/floating_box.toml");
+    let scene = match Scene::from_file(&path) {
+        Ok(s) => s,
+        // Without the `rigid` feature the scene may be refused: nothing to test then.
+        Err(e) => {
+            println!("skipped: {e}");
+            return;
+        }
+    };
+    let bodies = sample_bodies(&scene, &|_| {}).expect("sample");
+    let dev = same_state("floating box (rigid)", &scene, &bodies);
+    let mut a = Simulation::new(scene.clone(), Box::new(dev));
+    a.advance_frame().expect("frame");
+    assert!(!a.backend.rigid_bodies().is_empty(), "no rigid body");
+}
