@@ -229,16 +229,31 @@ impl CudaBackend {
         let t = std::time::Instant::now();
 
         // The program, compiled for this GPU (or from the cache), and its kernels.
-        // Capacities from the initial mapping.
-        let bases = match initial {
-            Initial::Particles(p) => capacity::bases(scene, p),
-            Initial::Bodies(b) => crate::state::map_positions(b, capacity::base_of(scene)),
+        // Capacities from the initial mapping's block counts: the reverse map also needs every
+        // particle's stencil base (its load per node); the other strategies only the counts,
+        // found without a per-particle array on the host (the device builds the mapping).
+        let (bases, blocks) = if options.p2g == P2gMode::ReverseMap {
+            let bases = match initial {
+                Initial::Particles(p) => capacity::bases(scene, p),
+                Initial::Bodies(b) => crate::state::map_positions(b, capacity::base_of(scene)),
+            };
+            let mut layout = BlockLayout::default();
+            layout.rebuild(&bases);
+            let blocks = (layout.gblock_count, layout.pblock_count());
+            (bases, blocks)
+        } else {
+            let blocks = match initial {
+                Initial::Particles(p) => {
+                    let chunks: Vec<_> = p.x.chunks(1 << 16).collect();
+                    capacity::block_counts_of(scene, &chunks)
+                }
+                Initial::Bodies(b) => capacity::block_counts(scene, b),
+            };
+            (Vec::new(), blocks)
         };
-        let mut layout = BlockLayout::default();
-        layout.rebuild(&bases);
         // Room for every particle the emitters will add (crate::emit): nothing grows later.
         let n_max = n.saturating_add(crate::emit::emitted_total(scene));
-        let cap = Capacity::plan(scene, n_max, part.capacity, &layout, &options);
+        let cap = Capacity::plan_blocks(scene, n_max, part.capacity, blocks, &options);
         setup.layout = t.elapsed().as_secs_f64();
         let t = std::time::Instant::now();
 
@@ -353,15 +368,7 @@ impl CudaBackend {
             bytemuck::cast_slice(&tables.colliders),
         )?;
 
-        let p2g = P2gPlan::new(
-            &options,
-            &bases,
-            layout.pblock_count(),
-            &cap,
-            &stream,
-            &ctx,
-            real_bytes,
-        )?;
+        let p2g = P2gPlan::new(&options, &bases, blocks.1, &cap, &stream, &ctx, real_bytes)?;
         Ok(CudaBackend {
             stream,
             kernels,

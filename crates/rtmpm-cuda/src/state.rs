@@ -345,6 +345,14 @@ pub fn max_speed(bodies: &[SampledBody]) -> f32 {
         .iter()
         .map(|body| match body {
             SampledBody::Points(p) => p.v.par_iter().map(|&v| speed(v)).reduce(|| 0.0, f32::max),
+            // Without spin every particle moves at v0 (+-0 added: the same length).
+            SampledBody::Shape(b) if b.angular_velocity == Vec3::ZERO => {
+                if b.count > 0 {
+                    speed(b.velocity)
+                } else {
+                    0.0
+                }
+            }
             SampledBody::Shape(b) => b
                 .chunks
                 .par_iter()
