@@ -640,6 +640,10 @@ impl Backend for CudaBackend {
         self.export_chunks(sink)
     }
 
+    fn setup_details(&self) -> Option<String> {
+        Some(self.setup.to_string())
+    }
+
     fn chunk_memory(&self, words: usize) -> Result<Box<dyn rtmpm_core::sim::HostBuffer>, SimError> {
         Ok(Box::new(self.chunk_host_memory(words)?))
     }

@@ -209,7 +209,13 @@ pub fn run(args: RunArgs) -> Result<()> {
             .context("cannot restore the checkpoint's rigid bodies")?;
     }
     let total_frames = args.frames.unwrap_or_else(|| sim.scene.time.frames());
-    eprintln!("set-up: {n} particles ready in {}", setup.describe());
+    match sim.backend.setup_details() {
+        Some(d) => eprintln!(
+            "set-up: {n} particles ready in {} (backend: {d})",
+            setup.describe()
+        ),
+        None => eprintln!("set-up: {n} particles ready in {}", setup.describe()),
+    }
     eprintln!(
         "running `{}`: {n} particles, {} frames on {}{}",
         sim.scene.name,
