@@ -175,13 +175,23 @@ pub(crate) fn fill(
             .map(|_| stream.alloc_zeros::<f32>(words))
             .collect::<Result<Vec<_>, _>>()
             .map_err(err("device memory of the fill"))?;
+        // The backend's context tracks no events (one stream), so the page-locked buffers'
+        // own events are never recorded: the copy out of each buffer gets an event of ours,
+        // waited for before the buffer is written again.
+        let done = (0..2)
+            .map(|_| stream.context().new_event(None))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(err("fill events"))?;
         let cap32 = cap as u32;
         for (k, p) in pieces.iter().enumerate() {
             let SampledBody::Shape(b) = &bodies[p.body] else {
                 continue;
             };
             let (h, d) = (&mut host[k % 2], &mut dev[k % 2]);
-            // Waits for the copy of two pieces ago out of this buffer.
+            // The copy of two pieces ago out of this buffer is over.
+            done[k % 2]
+                .synchronize()
+                .map_err(err("wait for a fill copy"))?;
             let slice = h.as_mut_slice().map_err(err("page-locked fill buffer"))?;
             let g = std::time::Instant::now();
             gather(b, p.offset, p.len, slice);
@@ -189,6 +199,9 @@ pub(crate) fn fill(
             stream
                 .memcpy_htod(&*h, &mut *d)
                 .map_err(err("upload positions"))?;
+            done[k % 2]
+                .record(stream)
+                .map_err(err("record a fill copy"))?;
             let (body, offset, len) = (p.body as i32, p.offset as u64, p.len as u32);
             // SAFETY: the kernel reads 3 len floats of `d` and the table's row `body`, and
             // writes slots start + offset .. + len (below the particle count) of the state of
@@ -207,6 +220,8 @@ pub(crate) fn fill(
             }
             .map_err(err("fill kernel"))?;
         }
+        // The page-locked buffers are freed here: no copy may still read them.
+        stream.synchronize().map_err(err("fill"))?;
     }
     // Bodies from points files: packed on the host, rows copied into place.
     let wb = crate::state::word_bytes(f64);
