@@ -290,6 +290,14 @@ def cases():
          ("rigid_body[0].shape",)),
         ("fixed body with a velocity", rigid.replace("density = 500.0", 'type = "fixed"\nvelocity = [1.0, 0.0, 0.0]'),
          ("rigid_body[0].velocity",)),
+        ("joint to an unknown body", rigid + '[[joint]]\ntype = "spherical"\nbody = "nope"\nanchor = [0.3, 0.4, 0.3]\n',
+         ("joint[0].body",)),
+        ("joint to itself", rigid + '[[joint]]\ntype = "spherical"\nbody = 0\nto = 0\nanchor = [0.3, 0.4, 0.3]\n',
+         ("joint[0].to",)),
+        ("hinge without an axis", rigid + '[[joint]]\ntype = "revolute"\nbody = 0\nanchor = [0.3, 0.4, 0.3]\n',
+         ("joint[0].axis",)),
+        ("joint anchor outside", rigid + '[[joint]]\ntype = "spherical"\nbody = 0\nanchor = [0.3, 9.0, 0.3]\n',
+         ("joint[0].anchor",)),
     ]:
         structural[f"rigid body: {name}"] = (GOOD_SCENE + rigid_body_tail(text), [words])
     structural["output dir climbs"] = (GOOD_SCENE + '', [("output.dir",)])

@@ -88,7 +88,12 @@ impl Bodies {
                     .into(),
             ));
         }
-        let Some(world) = RigidWorld::new(&scene.rigid_bodies, scene.gravity, scene.interior())?
+        let Some(world) = RigidWorld::new(
+            &scene.rigid_bodies,
+            &scene.joints,
+            scene.gravity,
+            scene.interior(),
+        )?
         else {
             return Ok(None);
         };

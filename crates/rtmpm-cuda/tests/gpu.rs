@@ -44,6 +44,7 @@ fn scene(dx: f32) -> Scene {
         colliders: vec![],
         emitters: vec![],
         rigid_bodies: vec![],
+        joints: vec![],
         walls: Walls::default(),
         output: OutputSettings {
             dir: "out".into(),

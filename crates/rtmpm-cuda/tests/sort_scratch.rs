@@ -48,6 +48,7 @@ fn jelly_scene(dx: f32) -> Scene {
         colliders: vec![],
         emitters: vec![],
         rigid_bodies: vec![],
+        joints: vec![],
         walls: Walls::default(),
         output: OutputSettings {
             dir: "out".into(),

@@ -139,8 +139,12 @@ impl CpuBackend {
                     .into(),
             ));
         }
-        b.rigid =
-            crate::rigid::RigidWorld::new(&scene.rigid_bodies, scene.gravity, scene.interior())?;
+        b.rigid = crate::rigid::RigidWorld::new(
+            &scene.rigid_bodies,
+            &scene.joints,
+            scene.gravity,
+            scene.interior(),
+        )?;
         Ok(b)
     }
 

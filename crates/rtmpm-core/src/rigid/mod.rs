@@ -23,6 +23,9 @@ use crate::boundary::Condition;
 use crate::boundary::sdf::{box_distance, cylinder_distance, sphere_distance};
 use glam::{Mat3, Quat, Vec3};
 
+mod joint;
+pub use joint::{JointKind, JointSpec};
+
 #[cfg(feature = "rigid")]
 mod world;
 #[cfg(not(feature = "rigid"))]

@@ -2,7 +2,9 @@
 //! with one collider of its shape, and the six faces of the domain minus the walls as fixed
 //! slabs, so bodies rest on the floor and bounce off each other.
 
-use super::{BodyPose, BodyState, Exchange, RigidBodySpec, RigidKind, RigidShape};
+use super::{
+    BodyPose, BodyState, Exchange, JointKind, JointSpec, RigidBodySpec, RigidKind, RigidShape,
+};
 use crate::sim::SimError;
 use rapier3d::prelude as rp;
 
@@ -34,10 +36,11 @@ impl std::fmt::Debug for RigidWorld {
 }
 
 impl RigidWorld {
-    /// The world of `bodies` under `gravity`, boxed in by `interior` (the domain minus the
-    /// walls); `None` without bodies.
+    /// The world of `bodies` held by `joints` under `gravity`, boxed in by `interior` (the
+    /// domain minus the walls); `None` without bodies.
     pub fn new(
         bodies: &[RigidBodySpec],
+        joints: &[JointSpec],
         gravity: glam::Vec3,
         interior: (glam::Vec3, glam::Vec3),
     ) -> Result<Option<RigidWorld>, SimError> {
@@ -92,6 +95,7 @@ impl RigidWorld {
             let (handle, _) = world.insert(body, collider);
             handles.push(handle);
         }
+        insert_joints(&mut world, bodies, &handles, joints);
         let mut w = RigidWorld {
             world,
             handles,
@@ -186,5 +190,60 @@ impl RigidWorld {
         self.world.integration_parameters.dt = dt;
         self.world.step();
         self.refresh();
+    }
+}
+
+/// rapier's pose of a body placed at `position` turned by `rotation`.
+fn pose(position: glam::Vec3, rotation: glam::Quat) -> rp::Pose {
+    rp::Pose::from_parts(rv(position), rp::Rotation::from_array(rotation.to_array()))
+}
+
+/// Each joint as a rapier impulse joint. The joint's frame in the world at t = 0 has its origin
+/// at the anchor and its x axis along the hinge or slide axis (rapier's revolute joint turns
+/// about the frame's x, its prismatic joint slides along it); each body carries that frame in
+/// its own coordinates from then on. A joint to the world holds the body to a fixed body with no
+/// collider at the world's origin. Contacts between jointed bodies are off (rapier's default).
+fn insert_joints(
+    world: &mut rp::PhysicsWorld,
+    bodies: &[RigidBodySpec],
+    handles: &[rp::RigidBodyHandle],
+    joints: &[JointSpec],
+) {
+    if joints.is_empty() {
+        return;
+    }
+    let ground = world.insert_body(rp::RigidBodyBuilder::fixed());
+    for j in joints {
+        let axis = match j.kind {
+            JointKind::Revolute { axis, .. } | JointKind::Prismatic { axis, .. } => axis,
+            JointKind::Fixed | JointKind::Spherical => glam::Vec3::X,
+        };
+        let frame = (j.anchor, glam::Quat::from_rotation_arc(glam::Vec3::X, axis));
+        let local = |b: Option<usize>| {
+            let (p, q) = b.map_or((glam::Vec3::ZERO, glam::Quat::IDENTITY), |b| {
+                (bodies[b].position, bodies[b].rotation)
+            });
+            pose(q.inverse() * (frame.0 - p), q.inverse() * frame.1)
+        };
+        let (locked, limits) = match j.kind {
+            JointKind::Fixed => (rp::JointAxesMask::LOCKED_FIXED_AXES, None),
+            JointKind::Spherical => (rp::JointAxesMask::LOCKED_SPHERICAL_AXES, None),
+            JointKind::Revolute { limits, .. } => (
+                rp::JointAxesMask::LOCKED_REVOLUTE_AXES,
+                limits.map(|l| (rp::JointAxis::AngX, l)),
+            ),
+            JointKind::Prismatic { limits, .. } => (
+                rp::JointAxesMask::LOCKED_PRISMATIC_AXES,
+                limits.map(|l| (rp::JointAxis::LinX, l)),
+            ),
+        };
+        let mut builder = rp::GenericJointBuilder::new(locked)
+            .local_frame1(local(j.to))
+            .local_frame2(local(Some(j.body)));
+        if let Some((axis, l)) = limits {
+            builder = builder.limits(axis, l);
+        }
+        let h1 = j.to.map_or(ground, |b| handles[b]);
+        world.insert_impulse_joint(h1, handles[j.body], builder.build());
     }
 }

@@ -1,6 +1,6 @@
 //! Without the cargo feature `rigid`: no rigid-body world; scenes with rigid bodies are refused.
 
-use super::{BodyPose, BodyState, Exchange, RigidBodySpec};
+use super::{BodyPose, BodyState, Exchange, JointSpec, RigidBodySpec};
 use crate::sim::SimError;
 
 /// Stands for the rapier3d world of the feature `rigid`; never built.
@@ -13,6 +13,7 @@ impl RigidWorld {
     /// `None` without bodies; an error naming the feature otherwise.
     pub fn new(
         bodies: &[RigidBodySpec],
+        _joints: &[JointSpec],
         _gravity: glam::Vec3,
         _interior: (glam::Vec3, glam::Vec3),
     ) -> Result<Option<RigidWorld>, SimError> {

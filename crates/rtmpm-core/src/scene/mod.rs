@@ -284,6 +284,8 @@ pub struct Scene {
     pub emitters: Vec<crate::emitter::Emitter>,
     /// Rigid bodies coupled two ways to the material (`[[rigid_body]]`).
     pub rigid_bodies: Vec<crate::rigid::RigidBodySpec>,
+    /// Joints holding rigid bodies to the world or to each other (`[[joint]]`).
+    pub joints: Vec<crate::rigid::JointSpec>,
     pub walls: Walls,
     pub output: OutputSettings,
     /// `[render]` table (camera, image size, colouring).

@@ -29,6 +29,8 @@ pub struct RawScene {
     pub emitter: Vec<RawEmitter>,
     #[serde(default)]
     pub rigid_body: Vec<RawRigidBody>,
+    #[serde(default)]
+    pub joint: Vec<RawJoint>,
     pub output: Option<RawOutput>,
     pub render: Option<RawRender>,
     pub solver: Option<RawSolver>,
@@ -429,4 +431,40 @@ impl RawRigidBody {
             ..Default::default()
         }
     }
+}
+
+/// A rigid body named in a `[[joint]]`: its index in `[[rigid_body]]` or its `name`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+pub enum RawBodyRef {
+    Index(i64),
+    Name(String),
+}
+
+/// The kind of a `[[joint]]`.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum RawJointKind {
+    Fixed,
+    Spherical,
+    Revolute,
+    Prismatic,
+}
+
+/// A `[[joint]]` table: a rigid body held to the world or to another body.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawJoint {
+    #[serde(rename = "type")]
+    pub kind: RawJointKind,
+    /// The jointed body.
+    pub body: RawBodyRef,
+    /// The other body (absent: the world).
+    pub to: Option<RawBodyRef>,
+    /// World position of the joint at t = 0.
+    pub anchor: V3,
+    /// Hinge (revolute) or slide (prismatic) axis in the world at t = 0.
+    pub axis: Option<V3>,
+    /// Angle (rad, revolute) or distance (m, prismatic) limits.
+    pub limits: Option<[f32; 2]>,
 }

@@ -21,6 +21,8 @@ type R<T> = Result<T, SceneError>;
 mod emitters;
 #[path = "validate_io.rs"]
 mod io_fields;
+#[path = "validate_joint.rs"]
+mod joints;
 #[path = "validate_motion.rs"]
 mod motion;
 #[path = "validate_rigid.rs"]
@@ -454,7 +456,13 @@ impl V<'_> {
             .enumerate()
             .map(|(i, b)| self.rigid_body(i, b, base, dx, (imin, imax)))
             .collect::<R<Vec<_>>>()?;
-        self.rigid_overlaps(&rigid_bodies)?;
+        let joints = raw
+            .joint
+            .iter()
+            .enumerate()
+            .map(|(i, j)| self.joint(i, j, &rigid_bodies, (dmin, dmax)))
+            .collect::<R<Vec<_>>>()?;
+        self.rigid_overlaps(&rigid_bodies, &joints)?;
 
         // Output and surfaces (validate_io.rs).
         let output = self.output(
@@ -480,6 +488,7 @@ impl V<'_> {
             colliders,
             emitters,
             rigid_bodies,
+            joints,
             walls,
             output,
             render,

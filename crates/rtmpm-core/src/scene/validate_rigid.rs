@@ -4,7 +4,7 @@ use super::super::sampling::BodyShape;
 use super::super::schema::*;
 use super::{R, V, fmt3};
 use crate::math::Vec3;
-use crate::rigid::{RigidBodySpec, RigidKind, RigidShape};
+use crate::rigid::{JointSpec, RigidBodySpec, RigidKind, RigidShape};
 use glam::Quat;
 use std::path::Path;
 
@@ -140,8 +140,14 @@ impl V<'_> {
         })
     }
 
-    /// Bodies must not overlap at the start (their axis-aligned bounds in the initial pose).
-    pub(super) fn rigid_overlaps(&self, bodies: &[RigidBodySpec]) -> R<()> {
+    /// Bodies must not overlap at the start (their axis-aligned bounds in the initial pose),
+    /// unless a joint holds one to the other (rapier ignores contacts between jointed bodies).
+    pub(super) fn rigid_overlaps(&self, bodies: &[RigidBodySpec], joints: &[JointSpec]) -> R<()> {
+        let jointed = |i: usize, j: usize| {
+            joints
+                .iter()
+                .any(|k| (k.body, k.to) == (i, Some(j)) || (k.body, k.to) == (j, Some(i)))
+        };
         let bounds: Vec<(Vec3, Vec3)> = bodies
             .iter()
             .map(|b| {
@@ -154,7 +160,7 @@ impl V<'_> {
         for j in 0..bodies.len() {
             for i in 0..j {
                 let (a, b) = (bounds[i], bounds[j]);
-                if a.0.cmplt(b.1).all() && b.0.cmplt(a.1).all() {
+                if a.0.cmplt(b.1).all() && b.0.cmplt(a.1).all() && !jointed(i, j) {
                     return Err(self.err(
                         format!("rigid_body[{j}]"),
                         format!(
