@@ -241,6 +241,9 @@ impl CudaBackend {
             layout.rebuild(&bases);
             let blocks = (layout.gblock_count, layout.pblock_count());
             (bases, blocks)
+        } else if !Capacity::needs_block_counts(scene, &options) {
+            // The domain's grid fits: the capacities are the domain's.
+            (Vec::new(), (0, 0))
         } else {
             let blocks = match initial {
                 Initial::Particles(p) => {

@@ -174,6 +174,21 @@ pub fn block_counts_of(scene: &Scene, chunks: &[&[Vec3]]) -> (usize, usize) {
     (codes.len(), all.len())
 }
 
+/// Blocks of the whole domain (with the margin of the grid's origin).
+fn domain_blocks(scene: &Scene) -> usize {
+    scene
+        .n_cells()
+        .iter()
+        .map(|&c| (c as usize + 8).div_ceil(4) + 1)
+        .product()
+}
+
+/// True when the whole domain's grid, `real_bytes` a value, fits in [`GRID_BUDGET_BYTES`]: the
+/// capacities are then the domain's, whatever the particles.
+fn domain_grid_fits(scene: &Scene, real_bytes: usize) -> bool {
+    domain_blocks(scene) * 64 * 4 * real_bytes <= GRID_BUDGET_BYTES
+}
+
 impl Capacity {
     /// The capacities for `n` particles (state arrays of at least `min_particles`) whose initial
     /// mapping is `layout`, with the overrides of `options`.
@@ -188,6 +203,15 @@ impl Capacity {
         Self::plan_blocks(scene, n, min_particles, blocks, options)
     }
 
+    /// True when [`Capacity::plan_blocks`] reads the block counts: the whole domain's grid
+    /// exceeds [`GRID_BUDGET_BYTES`] and `options` does not set both capacities (else the
+    /// counts need not be found).
+    pub fn needs_block_counts(scene: &Scene, options: &CudaOptions) -> bool {
+        let real_bytes = if options.f64 { 8 } else { 4 };
+        !domain_grid_fits(scene, real_bytes)
+            && (options.gblock_capacity.is_none() || options.pblock_capacity.is_none())
+    }
+
     /// [`Capacity::plan`] from the initial mapping's (gblocks, pblocks) counts alone.
     pub fn plan_blocks(
         scene: &Scene,
@@ -196,16 +220,12 @@ impl Capacity {
         (gblock_count, pblock_count): (usize, usize),
         options: &CudaOptions,
     ) -> Capacity {
-        let domain_blocks: usize = scene
-            .n_cells()
-            .iter()
-            .map(|&c| (c as usize + 8).div_ceil(4) + 1)
-            .product();
+        let domain_blocks = domain_blocks(scene);
         let real_bytes = if options.f64 { 8 } else { 4 };
         // Every capacity that scales with the particle count is planned for the state arrays'
         // count (emitters add particles during the run), not the initial one.
         let np = min_particles.max(n);
-        let fits = domain_blocks * 64 * 4 * real_bytes <= GRID_BUDGET_BYTES;
+        let fits = domain_grid_fits(scene, real_bytes);
         let gblocks = options.gblock_capacity.unwrap_or(if fits {
             domain_blocks.min(np.max(64))
         } else {
@@ -439,5 +459,28 @@ mod tests {
         let got = block_counts(&scene, &bodies);
         assert_eq!(got, (layout.gblock_count, layout.pblock_count()));
         assert!(got.0 > 100 && got.1 > got.0, "{got:?}");
+    }
+
+    /// The block counts are found only where the plan reads them: a domain whose grid exceeds
+    /// the budget, without both capacities given.
+    #[test]
+    fn block_counts_only_when_the_domain_grid_does_not_fit() {
+        let small = water_at(512, &[([0.1, 0.1, 0.1], [0.2, 0.2, 0.2])]);
+        let big = water_at(1024, &[([0.1, 0.1, 0.1], [0.2, 0.2, 0.2])]);
+        let o = CudaOptions::default();
+        assert!(!Capacity::needs_block_counts(&small, &o));
+        assert!(Capacity::needs_block_counts(&big, &o));
+        let given = CudaOptions {
+            gblock_capacity: Some(100),
+            pblock_capacity: Some(1000),
+            ..CudaOptions::default()
+        };
+        assert!(!Capacity::needs_block_counts(&big, &given));
+        // Whatever the counts, the small domain's plan is the domain's.
+        let a = Capacity::plan_blocks(&small, 1000, 0, (0, 0), &o);
+        let b = Capacity::plan_blocks(&small, 1000, 0, (5, 50), &o);
+        assert_eq!(a, b);
+        let c = Capacity::plan_blocks(&big, 1000, 0, (5, 50), &o);
+        assert_ne!(c, Capacity::plan_blocks(&big, 1000, 0, (6, 60), &o));
     }
 }
