@@ -63,6 +63,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let t = Instant::now();
         let blocks = rtmpm_cuda::capacity::block_counts(&scene, &bodies);
         phase("device: block counts", t);
+        let needed = rtmpm_cuda::capacity::Capacity::needs_block_counts(
+            &scene,
+            &rtmpm_cuda::CudaOptions::default(),
+        );
+        println!(
+            "  (the backend counts blocks only when the domain's grid does not fit: {needed})"
+        );
         let t = Instant::now();
         let speed = rtmpm_cuda::state::max_speed(&bodies);
         phase("device: initial speed", t);

@@ -305,3 +305,30 @@ fn the_kernel_uses_the_contract_and_unfused_arithmetic() {
     assert!(prelude.contains(&format!("#define FT_VOL0 {FT_VOL0}")));
     const { assert!(FT_VOL0 < FILL_WORDS) };
 }
+
+/// The set-up line names every phase, and what no phase accounts for as "other".
+#[test]
+fn the_setup_phases_read_as_a_line() {
+    let p = SetupPhases {
+        probe: 0.1,
+        layout: 0.2,
+        kernels: 0.4,
+        pack: 0.0,
+        allocate: 0.3,
+        fill: 0.8,
+        fill_gather: 0.5,
+        total: 2.0,
+    };
+    let line = p.to_string();
+    for part in [
+        "probe 0.10 s",
+        "layout 0.20 s",
+        "kernels 0.40 s",
+        "pack 0.00 s",
+        "allocate+upload 0.30 s",
+        "device fill 0.80 s (gather 0.50 s)",
+        "other 0.20 s",
+    ] {
+        assert!(line.contains(part), "{part} in {line}");
+    }
+}
