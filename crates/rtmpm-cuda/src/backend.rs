@@ -2,7 +2,7 @@
 //! buffers, constants, P2G strategy); a step is [`crate::pipeline::enqueue_step`], replayed from
 //! a CUDA graph ([`crate::graph`]) while dt stays the same.
 
-use crate::capacity::{self, Capacity};
+use crate::capacity::Capacity;
 use crate::compile::{KernelOptions, compile};
 use crate::contract::{CTL_P2G_PENDING, ColliderPoses, Ctx};
 use crate::encode::{self, Tables};
@@ -10,10 +10,9 @@ use crate::graph::StepGraphs;
 use crate::kernels::Kernels;
 use crate::p2g::P2gPlan;
 use crate::pipeline::{self, Hooks, NoHooks, Stage, StepPlan};
+use crate::setup::Initial;
 use crate::{CudaOptions, P2gMode, buffers};
 use cudarc::driver::{CudaContext, CudaModule, CudaStream};
-use rtmpm_core::grid::BlockLayout;
-use rtmpm_core::material::Model;
 use rtmpm_core::scene::Precision;
 use rtmpm_core::scene::sampling::SampledBody;
 use rtmpm_core::sim::{Backend, BadParticle, BadReason, SimError};
@@ -66,22 +65,6 @@ pub struct Part {
     pub capacity: usize,
 }
 
-/// What a backend starts from: particles, or sampled bodies packed straight from their positions.
-#[derive(Clone, Copy)]
-enum Initial<'a> {
-    Particles(&'a Particles),
-    Bodies(&'a [SampledBody]),
-}
-
-impl Initial<'_> {
-    fn len(&self) -> usize {
-        match self {
-            Initial::Particles(p) => p.len(),
-            Initial::Bodies(b) => b.iter().map(|b| b.len()).sum(),
-        }
-    }
-}
-
 /// The CUDA backend (one GPU).
 pub struct CudaBackend {
     pub(crate) stream: Arc<CudaStream>,
@@ -111,7 +94,7 @@ pub struct CudaBackend {
     /// The rigid bodies coupled to the grid (`[[rigid_body]]`), if any.
     bodies: Option<crate::rigid::Bodies>,
     /// Where the time of building this backend went.
-    setup: crate::fill::SetupPhases,
+    setup: crate::setup::SetupPhases,
 }
 
 /// Checks before any GPU work: what the CUDA backend cannot run, as clear errors.
@@ -152,15 +135,6 @@ fn check(scene: &Scene, n: usize, part: &Part, o: &CudaOptions) -> Result<(), Si
         )));
     }
     Ok(())
-}
-
-/// For each material of the scene: true for a fluid (whose F is packed as J^(1/3) I).
-fn fluid_flags(scene: &Scene) -> Vec<bool> {
-    scene
-        .materials
-        .iter()
-        .map(|m| matches!(m.model, Model::Fluid(_)))
-        .collect()
 }
 
 impl CudaBackend {
@@ -204,7 +178,7 @@ impl CudaBackend {
         options: CudaOptions,
     ) -> Result<CudaBackend, SimError> {
         let t0 = std::time::Instant::now();
-        let mut setup = crate::fill::SetupPhases::default();
+        let mut setup = crate::setup::SetupPhases::default();
         let info = crate::probe_device(part.device).map_err(|e| {
             SimError::Backend(format!("CUDA device {} unavailable: {e}", part.device))
         })?;
@@ -221,7 +195,8 @@ impl CudaBackend {
         // The device fill (sampled bodies only): the table's checks before any GPU work.
         let device_fill = match initial {
             Initial::Bodies(b) if options.device_fill => {
-                crate::fill::table(b, &fluid_flags(scene)).map_err(SimError::Backend)?;
+                crate::fill::table(b, &crate::setup::fluid_flags(scene))
+                    .map_err(SimError::Backend)?;
                 true
             }
             _ => false,
@@ -229,31 +204,8 @@ impl CudaBackend {
         let t = std::time::Instant::now();
 
         // The program, compiled for this GPU (or from the cache), and its kernels.
-        // Capacities from the initial mapping's block counts: the reverse map also needs every
-        // particle's stencil base (its load per node); the other strategies only the counts,
-        // found without a per-particle array on the host (the device builds the mapping).
-        let (bases, blocks) = if options.p2g == P2gMode::ReverseMap {
-            let bases = match initial {
-                Initial::Particles(p) => capacity::bases(scene, p),
-                Initial::Bodies(b) => crate::state::map_positions(b, capacity::base_of(scene)),
-            };
-            let mut layout = BlockLayout::default();
-            layout.rebuild(&bases);
-            let blocks = (layout.gblock_count, layout.pblock_count());
-            (bases, blocks)
-        } else if !Capacity::needs_block_counts(scene, &options) {
-            // The domain's grid fits: the capacities are the domain's.
-            (Vec::new(), (0, 0))
-        } else {
-            let blocks = match initial {
-                Initial::Particles(p) => {
-                    let chunks: Vec<_> = p.x.chunks(1 << 16).collect();
-                    capacity::block_counts_of(scene, &chunks)
-                }
-                Initial::Bodies(b) => capacity::block_counts(scene, b),
-            };
-            (Vec::new(), blocks)
-        };
+        // Capacities from the initial mapping (crate::setup::initial_blocks).
+        let (bases, blocks) = crate::setup::initial_blocks(scene, initial, &options);
         // Room for every particle the emitters will add (crate::emit): nothing grows later.
         let n_max = n.saturating_add(crate::emit::emitted_total(scene));
         let cap = Capacity::plan_blocks(scene, n_max, part.capacity, blocks, &options);
@@ -294,7 +246,7 @@ impl CudaBackend {
         setup.kernels = t.elapsed().as_secs_f64();
 
         // The particle state (a fluid's F packed as J^(1/3) I) and every buffer.
-        let fluid = fluid_flags(scene);
+        let fluid = crate::setup::fluid_flags(scene);
         kernels.sort_mask = crate::rebuild::sorted_fields(fluid.iter().all(|f| *f));
         // Packed with stride n; buffers::allocate places each field at its stride-cap offset.
         // With the device fill nothing is packed: the state is written on the device below.
@@ -391,7 +343,7 @@ impl CudaBackend {
             graphs: StepGraphs::default(),
             device_name: info.name,
             bodies,
-            setup: crate::fill::SetupPhases {
+            setup: crate::setup::SetupPhases {
                 total: t0.elapsed().as_secs_f64(),
                 ..setup
             },
@@ -400,7 +352,7 @@ impl CudaBackend {
 
     /// Where the time of building this backend went (probe, host layout, kernels, packing,
     /// allocation and upload, device fill).
-    pub fn setup_phases(&self) -> crate::fill::SetupPhases {
+    pub fn setup_phases(&self) -> crate::setup::SetupPhases {
         self.setup
     }
 

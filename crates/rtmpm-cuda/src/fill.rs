@@ -249,48 +249,6 @@ pub(crate) fn fill(
     Ok(times)
 }
 
-/// Where the time of building a backend went (s): what bounds the set-up of a big scene.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct SetupPhases {
-    /// Probing the device.
-    pub probe: f64,
-    /// The initial mapping on the host (stencil bases, block layout) and the capacities.
-    pub layout: f64,
-    /// Compiling the kernels (or reading the cache), the context, loading the module.
-    pub kernels: f64,
-    /// Packing the state image on the host (0 with the device fill).
-    pub pack: f64,
-    /// Allocating the buffers, uploading the packed state (if any) and the tables.
-    pub allocate: f64,
-    /// The device fill ([`FillTimes::total`]; 0 when the host packed).
-    pub fill: f64,
-    /// Of which gathering positions into page-locked memory.
-    pub fill_gather: f64,
-    /// The whole build.
-    pub total: f64,
-}
-
-impl std::fmt::Display for SetupPhases {
-    /// "layout 1.20 s, kernels 0.41 s, pack 0.00 s, allocate+upload 0.30 s, device fill 0.80 s
-    /// (gather 0.50 s), other 0.05 s".
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let known = self.probe + self.layout + self.kernels + self.pack + self.allocate + self.fill;
-        write!(
-            f,
-            "probe {:.2} s, layout {:.2} s, kernels {:.2} s, pack {:.2} s, allocate+upload {:.2} s, \
-             device fill {:.2} s (gather {:.2} s), other {:.2} s",
-            self.probe,
-            self.layout,
-            self.kernels,
-            self.pack,
-            self.allocate,
-            self.fill,
-            self.fill_gather,
-            (self.total - known).max(0.0)
-        )
-    }
-}
-
 #[cfg(test)]
 #[path = "fill_tests.rs"]
 mod tests;

@@ -309,7 +309,7 @@ fn the_kernel_uses_the_contract_and_unfused_arithmetic() {
 /// The set-up line names every phase, and what no phase accounts for as "other".
 #[test]
 fn the_setup_phases_read_as_a_line() {
-    let p = SetupPhases {
+    let p = crate::setup::SetupPhases {
         probe: 0.1,
         layout: 0.2,
         kernels: 0.4,

@@ -81,6 +81,7 @@ pub mod pipeline;
 pub mod readback;
 pub mod rebuild;
 pub mod rigid;
+pub mod setup;
 pub mod state;
 
 pub use backend::CudaBackend;
