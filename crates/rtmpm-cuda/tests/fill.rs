@@ -119,13 +119,8 @@ poisson_ratio = 0.3
 friction_angle = 35.0
 "#;
 
-#[test]
-#[ignore = "needs a CUDA GPU"]
-fn device_fill_equals_host_pack_regular_water_box() {
-    if !gpu() {
-        return;
-    }
-    let body = r#"
+/// A water box on the regular lattice.
+const REGULAR_BOX: &str = r#"
 [[body]]
 material = "water"
 shape = "box"
@@ -134,16 +129,9 @@ max = [0.6, 0.5, 0.7]
 particles_per_cell = 8
 sampling = "regular"
 "#;
-    check("regular water box", &format!("{HEAD}{body}"));
-}
 
-#[test]
-#[ignore = "needs a CUDA GPU"]
-fn device_fill_equals_host_pack_jittered_sphere_and_random_cylinder() {
-    if !gpu() {
-        return;
-    }
-    let sphere = r#"
+/// A jelly sphere, jittered, moving.
+const SPHERE: &str = r#"
 [[body]]
 material = "jelly"
 shape = "sphere"
@@ -153,8 +141,9 @@ particles_per_cell = 8
 sampling = "jittered"
 velocity = [0.3, -1.0, 0.0]
 "#;
-    check("jittered sphere", &format!("{HEAD}{sphere}"));
-    let cylinder = r#"
+
+/// A sand cylinder on a slant, random, spinning.
+const CYLINDER: &str = r#"
 [[body]]
 material = "sand"
 shape = "cylinder"
@@ -166,16 +155,9 @@ particles_per_cell = 4
 sampling = "random"
 angular_velocity = [0.0, 3.0, -1.0]
 "#;
-    check("random cylinder", &format!("{HEAD}{cylinder}"));
-}
 
-#[test]
-#[ignore = "needs a CUDA GPU"]
-fn device_fill_equals_host_pack_two_bodies_with_velocity_and_spin() {
-    if !gpu() {
-        return;
-    }
-    let bodies = r#"
+/// Two bodies of two materials, each with its velocity and spin.
+const TWO_BODIES: &str = r#"
 [[body]]
 material = "water"
 shape = "box"
@@ -195,18 +177,12 @@ sampling = "regular"
 velocity = [-2.0, 1.5, 0.0]
 angular_velocity = [0.5, 7.0, 1.0e-3]
 "#;
-    check("two bodies, spin", &format!("{HEAD}{bodies}"));
-}
 
-#[test]
-#[ignore = "needs a CUDA GPU"]
-fn device_fill_equals_host_pack_with_a_points_body() {
-    if !gpu() {
-        return;
-    }
+/// A jelly box, a water body of 500 points (a binary PLY written into `dir`) and a sand
+/// sphere.
+fn points_scene(dir: &Path) -> String {
     // A binary PLY of 500 points between two bodies of shapes.
-    let dir = std::env::temp_dir().join(format!("rtmpm_fill_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
+    std::fs::create_dir_all(dir).expect("temp dir");
     let mut ply = b"ply\nformat binary_little_endian 1.0\nelement vertex 500\nproperty float x\n\
 property float y\nproperty float z\nend_header\n"
         .to_vec();
@@ -221,7 +197,7 @@ property float y\nproperty float z\nend_header\n"
         }
     }
     std::fs::write(dir.join("pts.ply"), ply).expect("write ply");
-    let text = format!(
+    format!(
         "{HEAD}{}",
         r#"
 [[body]]
@@ -244,24 +220,12 @@ radius = 0.1
 particles_per_cell = 8
 angular_velocity = [1.0, 0.0, 0.0]
 "#
-    );
-    for precision in ["f32", "f64"] {
-        let scene = scene_in(&text, precision, &dir);
-        let bodies = sample_bodies(&scene, &|_| {}).expect("sample");
-        same_state(&format!("points body ({precision})"), &scene, &bodies);
-    }
-    let _ = std::fs::remove_dir_all(&dir);
+    )
 }
 
-/// Past one piece of the upload (4M particles): several pieces through the two page-locked
-/// buffers, and a body that starts inside the last piece of the one before.
-#[test]
-#[ignore = "needs a CUDA GPU"]
-fn device_fill_equals_host_pack_over_several_pieces() {
-    if !gpu() {
-        return;
-    }
-    let text = format!(
+/// Over 8.4M particles at dx = 1/128: a water box and a spinning jelly sphere.
+fn pieces_scene() -> String {
+    format!(
         "{}{}",
         HEAD.replace("dx = 0.03125", "dx = 0.0078125"),
         r#"
@@ -280,7 +244,102 @@ radius = 0.1
 particles_per_cell = 8
 angular_velocity = [0.0, 0.0, 2.0]
 "#
-    );
+    )
+}
+
+/// Every scene of these tests parses and samples (on the CPU: a GPU run should not be the
+/// first to find a body inside the walls).
+#[test]
+fn the_test_scenes_are_valid() {
+    let dir = std::env::temp_dir().join(format!("rtmpm_fill_cpu_{}", std::process::id()));
+    let scenes = [
+        REGULAR_BOX.to_string(),
+        SPHERE.to_string(),
+        CYLINDER.to_string(),
+        TWO_BODIES.to_string(),
+    ]
+    .map(|b| format!("{HEAD}{b}"));
+    let points = points_scene(&dir);
+    for (k, text) in scenes.iter().chain([&points]).enumerate() {
+        for precision in ["f32", "f64"] {
+            let scene = scene_in(text, precision, &dir);
+            let bodies = sample_bodies(&scene, &|_| {}).expect("sample");
+            assert!(
+                bodies.iter().all(|b| !b.is_empty()),
+                "scene {k}: an empty body"
+            );
+        }
+    }
+    let scene = scene_in(&points, "f32", &dir);
+    let bodies = sample_bodies(&scene, &|_| {}).expect("sample");
+    assert!(matches!(bodies[1], SampledBody::Points(_)), "a points body");
+    let _ = std::fs::remove_dir_all(&dir);
+    let scene = scene_in(&pieces_scene(), "f32", &dir);
+    let bodies = sample_bodies(&scene, &|_| {}).expect("sample");
+    let n: usize = bodies.iter().map(|b| b.len()).sum();
+    assert!(n > 2 * rtmpm_cuda::fill::PIECE, "{n} particles");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/fountain.toml");
+    let scene = Scene::from_file(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert!(!scene.emitters.is_empty(), "the fountain emits");
+}
+
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn device_fill_equals_host_pack_regular_water_box() {
+    if !gpu() {
+        return;
+    }
+
+    check("regular water box", &format!("{HEAD}{REGULAR_BOX}"));
+}
+
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn device_fill_equals_host_pack_jittered_sphere_and_random_cylinder() {
+    if !gpu() {
+        return;
+    }
+
+    check("jittered sphere", &format!("{HEAD}{SPHERE}"));
+
+    check("random cylinder", &format!("{HEAD}{CYLINDER}"));
+}
+
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn device_fill_equals_host_pack_two_bodies_with_velocity_and_spin() {
+    if !gpu() {
+        return;
+    }
+
+    check("two bodies, spin", &format!("{HEAD}{TWO_BODIES}"));
+}
+
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn device_fill_equals_host_pack_with_a_points_body() {
+    if !gpu() {
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("rtmpm_fill_{}", std::process::id()));
+    let text = points_scene(&dir);
+    for precision in ["f32", "f64"] {
+        let scene = scene_in(&text, precision, &dir);
+        let bodies = sample_bodies(&scene, &|_| {}).expect("sample");
+        same_state(&format!("points body ({precision})"), &scene, &bodies);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Past two pieces of the upload (4M particles each): the two page-locked buffers used again,
+/// a short last piece, then a second body.
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn device_fill_equals_host_pack_over_several_pieces() {
+    if !gpu() {
+        return;
+    }
+    let text = pieces_scene();
     let scene = scene_in(&text, "f32", &std::env::temp_dir());
     let bodies = sample_bodies(&scene, &|_| {}).expect("sample");
     let n: usize = bodies.iter().map(|b| b.len()).sum();
