@@ -10,6 +10,7 @@
 #                (every model on the GPU against Rust), the CPU/GPU agreement on every example
 #                scene, emitters and the keyframed paddle against the CPU (test_emitters), the CLI on the GPU
 #   validate     the validation suite at full resolution on the GPU (`rtmpm validate`)
+#   validate_compact  the same with the compact particle state (`--particle-state compact`)
 #   convergence  the convergence studies and the f64 validation cases
 #   bench        the claymore scenes (fluid 2M, jelly 2M, snow 1.33M) and a fluid block; with
 #                .device/rtmpm_base, A/B against that build, interleaved (REPS=2 by default);
@@ -69,12 +70,17 @@ for suite in "$@"; do
   say "== $suite"
   case "$suite" in
     tests)
-      for x in ${TESTS:-test_gpu test_fill test_sort_scratch test_materials test_agreement test_emitters test_rigid test_cli test_render_cli}; do t "$x"; done
+      for x in ${TESTS:-test_gpu test_fill test_sort_scratch test_state_layout test_materials test_agreement test_emitters test_rigid test_cli test_render_cli}; do t "$x"; done
       ;;
     validate)
       timeout 500 "$D/rtmpm" validate --backend cuda --out "$OUT/validation" > "$OUT/validate.log" 2>&1
       say "validate --backend cuda rc=$?"
       grep -E "PASS|FAIL|passed" "$OUT/validate.log" | sed -E 's/ +/ /g' | tee -a "$S"
+      ;;
+    validate_compact)
+      timeout 500 "$D/rtmpm" validate --backend cuda --particle-state compact --out "$OUT/validation_compact" > "$OUT/validate_compact.log" 2>&1
+      say "validate --backend cuda --particle-state compact rc=$?"
+      grep -E "PASS|FAIL|passed" "$OUT/validate_compact.log" | sed -E 's/ +/ /g' | tee -a "$S"
       ;;
     convergence)
       timeout 400 "$D/rtmpm" validate --backend cuda --convergence \

@@ -286,8 +286,8 @@ def cases():
             "max = [0.36, 0.36, 0.36]", "max = [0.4, 0.36, 0.36]\nrotation = [0.0, 0.0, 1.0]"), ("rigid_body[0].shape",)),
         ("cylinder without height", rigid.replace('"box"\nmin = [0.3, 0.3, 0.3]\nmax = [0.36, 0.36, 0.36]',
                                                   '"cylinder"\ncenter = [0.3, 0.3, 0.3]\nradius = 0.03'), ("rigid_body[0].height",)),
-        ("mesh body", rigid.replace('"box"\nmin = [0.3, 0.3, 0.3]\nmax = [0.36, 0.36, 0.36]', '"mesh"\nfile = "m.obj"'),
-         ("rigid_body[0].shape",)),
+        ("mesh body without its file", rigid.replace('"box"\nmin = [0.3, 0.3, 0.3]\nmax = [0.36, 0.36, 0.36]', '"mesh"\nfile = "m.obj"'),
+         ("rigid_body[0].file",)),
         ("fixed body with a velocity", rigid.replace("density = 500.0", 'type = "fixed"\nvelocity = [1.0, 0.0, 0.0]'),
          ("rigid_body[0].velocity",)),
         ("joint to an unknown body", rigid + '[[joint]]\ntype = "spherical"\nbody = "nope"\nanchor = [0.3, 0.4, 0.3]\n',
@@ -369,6 +369,32 @@ def cases():
             if mesh == "bin.obj":
                 write(w / mesh, b"\xff\xfe" + cube.encode("utf-16-le"))
         out.append(Case(f"mesh: {name}", ["check", S], [words], setup=mk))
+
+    # 4a. mesh rigid bodies (`[[rigid_body]] shape = "mesh"`, issue 17): a body needs a closed,
+    # outward-wound mesh with a volume (and a convex one for convex = true), of a bounded size.
+    rigid_mesh = GOOD_SCENE + rigid_body_tail(
+        '[[rigid_body]]\nshape = "mesh"\nfile = "MESH"\nscale = 0.06\ntranslate = [0.3, 0.3, 0.3]\n'
+        'density = 500.0\nCONVEX\n')
+    faces = [l for l in cube.splitlines() if l.startswith("f ")]
+    verts = "".join(l + "\n" for l in cube.splitlines() if l.startswith("v "))
+    flipped = "".join("f " + " ".join(reversed(l.split()[1:])) + "\n" for l in faces)
+    dented = verts + "v 0.5 0.6 0.5\n" + "".join(l + "\n" for l in faces if l not in ("f 3 4 8", "f 3 8 7")) \
+        + "f 4 9 3\nf 3 9 7\nf 7 9 8\nf 8 9 4\n"
+    for name, mesh, text, convex, words in [
+        ("missing", "nope.obj", None, "", ("nope.obj",)),
+        ("open", "open.obj", verts + "".join(l + "\n" for l in faces[:-2]), "", ("not closed",)),
+        ("inverted normals", "inv.obj", verts + flipped, "", ("inverted",)),
+        ("zero volume", "flat.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 3 2\n", "", ("no volume",)),
+        ("non-manifold", "twice.obj", cube + faces[0] + "\n", "", ("not a manifold",)),
+        ("convex = true, not convex", "dent.obj", dented, "convex = true", ("not convex",)),
+        ("too many triangles", "big.obj", verts + "f 1 2 3\n" * 200_001, "", ("more than the",)),
+        ("huge coordinates", "huge.obj", cube.replace("v 1 1 1", "v 1e30 1 1"), "", ("rigid_body[0]",)),
+    ]:
+        def mk(w, mesh=mesh, text=text, convex=convex):
+            write(w / "scene.toml", rigid_mesh.replace("MESH", mesh).replace("CONVEX", convex))
+            if text is not None:
+                write(w / mesh, text)
+        out.append(Case(f"mesh rigid body: {name}", ["check", S], [("rigid_body[0]",), words], setup=mk))
 
     # 4b. particle files (`shape = "particles"`, issue 15): PLY, VTU, BGEO readers.
     pts_body = GOOD_SCENE.replace('shape = "sphere"\ncenter = [0.33, 0.2, 0.3]\nradius = 0.06',

@@ -130,7 +130,7 @@ pub fn float<B: Backend + ?Sized>(
     let mut last = None;
     for f in 0..frames {
         sim.advance_frame()?;
-        let b = bodies(sim)?[0];
+        let b = bodies(sim)?[0].clone();
         each_frame(sim.time, b.center.y as f64);
         if f + AVERAGE_FRAMES >= frames {
             sum += b.center.y as f64;
@@ -211,7 +211,7 @@ pub fn collide<B: Backend + ?Sized>(sim: &mut Simulation<B>) -> Result<Collision
         .first()
         .ok_or_else(|| CheckError::Scene("the scene has no rigid body".into()))?
         .mass as f64;
-    let b = settle(sim)?[0];
+    let b = settle(sim)?[0].clone();
     sim.backend.read_particles(&mut p)?;
     let v1 = start.x / m1;
     Ok(Collision {

@@ -129,7 +129,7 @@ axis = [0.0, 0.0, 1.0]
     let local = Vec3::new(-0.1, 0.0, 0.0); // the hinge point in the plate's frame
     let (mut off_axis, mut drift, mut turned) = (0.0f32, 0.0f32, 0.0f32);
     run(&mut w, 0.5, 1e-3, |_, w| {
-        let b = w.states()[0];
+        let b = w.states()[0].clone();
         off_axis = off_axis.max(b.angular_velocity.x.abs().max(b.angular_velocity.y.abs()));
         drift = drift.max((b.center + b.rotation * local - anchor).length());
         turned = turned.max(b.angular_velocity.z.abs());
@@ -165,7 +165,7 @@ limits = [-0.1, 0.0]
     let mut w = world(&s);
     let (mut side, mut spin) = (0.0f32, 0.0f32);
     run(&mut w, 1.0, 1e-3, |_, w| {
-        let b = w.states()[0];
+        let b = w.states()[0].clone();
         side = side.max((b.center.x - 0.5).abs().max((b.center.z - 0.5).abs()));
         spin = spin.max(b.angular_velocity.length());
     });
@@ -205,7 +205,7 @@ anchor = [0.5, 0.55, 0.5]
     let mut w = world(&s);
     let mut worst = 0.0f32;
     run(&mut w, 0.3, 1e-3, |_, w| {
-        let (a, b) = (w.states()[0], w.states()[1]);
+        let (a, b) = (w.states()[0].clone(), w.states()[1].clone());
         worst = worst.max(((b.center - a.center).length() - 0.1).abs());
     });
     println!("offset error {worst:.2e} m");

@@ -119,7 +119,7 @@ fn a_lying_cylinder_of_half_the_waters_density_floats_half_submerged() {
     let volume = std::f32::consts::PI * 0.05f32.powi(2) * 0.16;
     assert!((spec.mass - 500.0 * volume).abs() < 1e-6 * spec.mass);
     let f = checks::float(&mut sim, |_, _| {}).expect("stable");
-    let b = sim.backend.rigid.as_ref().expect("rigid world").states()[0];
+    let b = sim.backend.rigid.as_ref().expect("rigid world").states()[0].clone();
     println!(
         "cylinder: submerged fraction {:.3} (Archimedes 0.5), centre {:.4} m, surface {:.4} m, \
          axis {}",
@@ -228,4 +228,170 @@ fn a_resumed_body_resting_on_the_floor_continues_within_a_tenth_of_a_millimetre(
     );
     assert!(resumed[0].position.y < 0.06 + 0.045 + 0.02, "on the floor");
     assert!(d < 1e-4, "{d} m");
+}
+
+/// An OBJ of the unit cube `[0, 1]^3` (six outward quads), written to a fresh temporary folder;
+/// returns its path.
+fn cube_obj(tag: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("rtmpm-mesh-body-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let path = dir.join("cube.obj");
+    std::fs::write(
+        &path,
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
+         f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n",
+    )
+    .expect("write the cube");
+    path
+}
+
+/// The Archimedes scene with its box body (0.24 .. 0.36 x 0.27 .. 0.37 x 0.24 .. 0.36) given
+/// as the cube mesh scaled and translated onto the same box; `extra` lines added to the table.
+fn archimedes_with_mesh(obj: &std::path::Path, extra: &str) -> String {
+    let block = "shape = \"box\"\nmin = [0.24, 0.27, 0.24]\nmax = [0.36, 0.37, 0.36]";
+    assert!(ARCHIMEDES.contains(block));
+    ARCHIMEDES.replacen(
+        block,
+        &format!(
+            "shape = \"mesh\"\nfile = \"{}\"\nscale = [0.12, 0.1, 0.12]\n\
+             translate = [0.24, 0.27, 0.24]\n{extra}",
+            obj.display()
+        ),
+        1,
+    )
+}
+
+/// A convex mesh body of the box's shape has the box's mass, centre and inertia: the closed
+/// mesh's solid integrated exactly (rigid/mesh.rs), in the scene's spec and in rapier, against
+/// the analytic box (m = rho a b c, I = m (b^2 + c^2) / 12 ...), within f32 rounding (1e-5
+/// relative; rapier's principal moments 1e-4, see below). The triangle-mesh collider
+/// (convex = false) gets the same.
+#[test]
+fn a_convex_mesh_body_has_the_analytic_mass_and_inertia_of_its_box() {
+    let obj = cube_obj("mass");
+    let (a, b, c) = (0.12f32, 0.1f32, 0.12f32);
+    let mass = 500.0 * a * b * c;
+    let expect = [b * b + c * c, a * a + c * c, a * a + b * b].map(|s| mass * s / 12.0);
+    let mut sorted = expect;
+    sorted.sort_by(f32::total_cmp);
+    for convex in ["convex = true", "convex = false"] {
+        let sim = simulation(&archimedes_with_mesh(&obj, convex));
+        let spec = &sim.scene.rigid_bodies[0];
+        assert!(
+            (spec.mass - mass).abs() < 1e-5 * mass,
+            "{} vs {mass}",
+            spec.mass
+        );
+        assert!(
+            (spec.position - glam::Vec3::new(0.3, 0.32, 0.3)).length() < 1e-6,
+            "{}",
+            spec.position
+        );
+        let rigid_mesh = match &spec.shape {
+            rtmpm_core::rigid::RigidShape::Mesh(m) => m.clone(),
+            s => panic!("not a mesh: {s:?}"),
+        };
+        let i = rigid_mesh.unit_inertia * (spec.mass / rigid_mesh.volume);
+        for (k, e) in expect.iter().enumerate() {
+            assert!(
+                (i.col(k)[k] - e).abs() < 1e-5 * e,
+                "I[{k}] {} vs {e}",
+                i.col(k)[k]
+            );
+        }
+        let (m, p) = sim
+            .backend
+            .rigid
+            .as_ref()
+            .expect("rigid world")
+            .mass_properties(0)
+            .expect("body 0");
+        println!("{convex}: rapier mass {m} (box {mass}), inertia {p} (box {sorted:?})");
+        assert!((m - mass).abs() < 1e-5 * mass, "rapier mass {m}");
+        // rapier diagonalises the tensor in f32 (`MassProperties::with_inertia_matrix`, a
+        // symmetric eigen-decomposition; two equal moments here): measured 2.1e-5 relative,
+        // hence 1e-4 for rapier's principal moments (1e-5 for the tensor handed to it, above).
+        for k in 0..3 {
+            assert!((p[k] - sorted[k]).abs() < 1e-4 * sorted[k], "rapier I {p}");
+        }
+    }
+}
+
+/// The cube mesh body floats like the box body it replaces: the Archimedes scene at density
+/// 500 (quick resolution, dx = 0.02 m), the mesh body's floating height (averaged over the last
+/// frames, `checks::float`) within 2 mm (a tenth of a cell) of the box body's, and its
+/// submerged fraction within 5 % of 0.5. The coupling evaluates the mesh's distance grid
+/// (spacing dx / 2, trilinear) where the box body evaluates the exact box distance: the same
+/// faces, so the same floating up to the grid's rounding of the edges.
+#[test]
+fn a_cube_mesh_body_floats_like_the_box_body() {
+    let obj = cube_obj("float");
+    let boxed = checks::float(&mut simulation(ARCHIMEDES), |_, _| {}).expect("stable");
+    let meshed = checks::float(
+        &mut simulation(&archimedes_with_mesh(&obj, "convex = true")),
+        |_, _| {},
+    )
+    .expect("stable");
+    println!(
+        "box: centre {:.4} m, fraction {:.3}; mesh: centre {:.4} m, fraction {:.3}; {:.2} mm \
+         apart",
+        boxed.centre,
+        boxed.fraction,
+        meshed.centre,
+        meshed.fraction,
+        (meshed.centre - boxed.centre).abs() * 1e3
+    );
+    assert!(
+        (meshed.centre - boxed.centre).abs() < 0.002,
+        "mesh {meshed:?} vs box {boxed:?}"
+    );
+    assert!((meshed.fraction / 0.5 - 1.0).abs() < 0.05, "{meshed:?}");
+}
+
+/// A closed non-convex mesh body (the cube with its top dented in: a triangle-mesh collider in
+/// rapier, `convex` off) of density 2,500 replaces the heavy sphere of the sinking scene: it
+/// sinks through the water and rests on the floor (rapier's triangle-mesh contacts with the
+/// floor's slab): its lowest vertex within one cell above the floor (y = 0.06 m, the top of the
+/// wall band) and not more than half a cell into it.
+#[test]
+fn a_heavy_non_convex_mesh_body_sinks_to_the_floor() {
+    let dir = std::env::temp_dir().join(format!("rtmpm-mesh-body-dent-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let obj = dir.join("dent.obj");
+    std::fs::write(
+        &obj,
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\nv 0.5 0.6 0.5\n\
+         f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 4 1 5 8\n\
+         f 4 9 3\nf 3 9 7\nf 7 9 8\nf 8 9 4\n",
+    )
+    .expect("write the mesh");
+    let block = "shape = \"sphere\"\ncenter = [0.18, 0.31, 0.2]\nradius = 0.045";
+    assert!(SINKING.contains(block));
+    let text = SINKING.replacen(
+        block,
+        &format!(
+            "shape = \"mesh\"\nfile = \"{}\"\nscale = 0.09\ntranslate = [0.135, 0.265, 0.155]",
+            obj.display()
+        ),
+        1,
+    );
+    let mut sim = simulation(&text);
+    let rtmpm_core::rigid::RigidShape::Mesh(m) = sim.scene.rigid_bodies[0].shape.clone() else {
+        panic!("a mesh body")
+    };
+    assert!(!m.convex);
+    let s = checks::settle(&mut sim).expect("stable");
+    let lowest = m
+        .mesh
+        .vertices
+        .iter()
+        .map(|v| (s[0].rotation * *v + s[0].center).y)
+        .fold(f32::INFINITY, f32::min);
+    println!(
+        "dented cube: centre {}, lowest vertex {lowest:.4} m (floor 0.06)",
+        s[0].center
+    );
+    std::fs::remove_dir_all(&dir).ok();
+    assert!(lowest < 0.06 + 0.02, "not on the floor: {lowest}");
+    assert!(lowest > 0.06 - 0.01, "into the floor: {lowest}");
 }

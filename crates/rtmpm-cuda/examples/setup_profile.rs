@@ -50,11 +50,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let t = Instant::now();
     let scene = Scene::from_file(std::path::Path::new(path))?;
     phase("parse", t);
-    let fluid: Vec<bool> = scene
-        .materials
-        .iter()
-        .map(|m| matches!(m.model, rtmpm_core::material::Model::Fluid(_)))
-        .collect();
+    let fluid = rtmpm_cuda::state::fluid_materials(&scene);
+    let state_layout = rtmpm_cuda::state::layout_for(&scene, &rtmpm_cuda::CudaOptions::default())?;
     if want("device") {
         let t = Instant::now();
         let bodies = rtmpm_core::scene::sampling::sample_bodies(&scene, &|_| {})?;
@@ -74,7 +71,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let speed = rtmpm_cuda::state::max_speed(&bodies);
         phase("device: initial speed", t);
         let t = Instant::now();
-        let rows = rtmpm_cuda::fill::table(&bodies, &fluid)?;
+        let rows = rtmpm_cuda::fill::table(&bodies, &fluid, state_layout, false)?;
         phase("device: fill table", t);
         let t = Instant::now();
         let pieces = rtmpm_cuda::fill::pieces(&bodies, rtmpm_cuda::fill::PIECE);
@@ -105,7 +102,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         phase("lean: sample bodies", t);
         let n: usize = bodies.iter().map(|b| b.len()).sum();
         let t = Instant::now();
-        let state = rtmpm_cuda::state::pack_bodies(&bodies, &fluid, false)?;
+        let state = rtmpm_cuda::state::pack_bodies(&bodies, &fluid, state_layout, false)?;
         phase("lean: pack bodies", t);
         println!("  {n} particles, packed {:.1} MB", state.len() as f64 / 1e6);
         let (_, peak) = rss();
@@ -130,7 +127,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         layout.rebuild(&bases);
         phase("cuda: layout", t);
         let t = Instant::now();
-        let state = rtmpm_cuda::state::pack(&particles, &fluid, false, n, None)?;
+        let state = rtmpm_cuda::state::pack(&particles, &fluid, state_layout, false, n, None)?;
         phase("cuda: pack", t);
         println!("  packed {:.1} MB", state.len() as f64 / 1e6);
         drop((state, layout, bases));

@@ -180,23 +180,6 @@ __device__ __forceinline__ void store_m3(real* s, unsigned cap, int f, unsigned 
     for (int c = 0; c < 9; ++c) s[sidx(cap, f + c, i)] = m.m[c];
 }
 
-// The deformation gradient of particle i. A fluid's F is always J^(1/3) I (fluid_project; the
-// host uploads it in that form, src/state.rs), so the kernel variant for scenes that are all
-// fluid (ALL_FLUID in g2p/particle.cuh) reads one word of F and writes the three diagonal ones
-// (the zero off-diagonal words are never touched): 4 words moved for F per step instead of 18.
-__device__ __forceinline__ mat3 load_deformation(const real* s, unsigned cap, unsigned i, bool fluid) {
-    if (fluid) return mat3_diag(make_v3s(s[sidx(cap, F_F, i)]));
-    return load_m3(s, cap, F_F, i);
-}
-__device__ __forceinline__ void store_deformation(real* s, unsigned cap, unsigned i, const mat3& f, bool fluid) {
-    if (fluid) {
-        s[sidx(cap, F_F, i)] = f.m[0];
-        s[sidx(cap, F_F + 4, i)] = f.m[4];
-        s[sidx(cap, F_F + 8, i)] = f.m[8];
-    } else {
-        store_m3(s, cap, F_F, i, f);
-    }
-}
 // Integer field of the state (material id, original index): its bits in the low 32 bits of the word.
 __device__ __forceinline__ unsigned state_bits(real w) {
 #ifdef RTMPM_F64
@@ -205,6 +188,8 @@ __device__ __forceinline__ unsigned state_bits(real w) {
     return __float_as_uint(w);
 #endif
 }
+
+#include "state.cuh"
 
 // Grid coordinate, stencil base and fractional offset of a position (shape.rs).
 __device__ __forceinline__ void stencil_of(const Ctx& c, vec3 x, int base[3], real fx[3]) {

@@ -40,12 +40,23 @@ __device__ __forceinline__ real fill_bits(unsigned b) {
     return __uint_as_float(b);
 #endif
 }
-__device__ __forceinline__ real fill_table_word(const unsigned* t, int w) { return fill_word(__uint_as_float(t[w])); }
+// A word from its bits in the state's precision (an f32 word's in the low 32 bits).
+__device__ __forceinline__ real fill_raw(unsigned lo, unsigned hi) {
+#ifdef RTMPM_F64
+    return __longlong_as_double((long long)(((unsigned long long)hi << 32) | lo));
+#else
+    return __uint_as_float(lo);
+#endif
+}
 
 // Particles offset..offset+len of body `body` (table row), whose positions are xs[3k..3k+3]
 // (f32), into slots start+offset+k of the state (stride cap); their original index is their slot.
+// The layout's words: x at x_word.., the velocity at v_word.. (unless the row holds its words
+// among the constants, FT_V_CONST), the id at id_word; every other word is one of the row's
+// constants (FT_NCONST of them from FT_CONST: word, low bits, high bits).
 extern "C" __global__ void fill_body(real* __restrict__ s, unsigned cap, const unsigned* __restrict__ table, int body,
-                                     unsigned long long offset, unsigned len, const float* __restrict__ xs) {
+                                     unsigned long long offset, unsigned len, const float* __restrict__ xs, int x_word,
+                                     int v_word, int id_word) {
     const unsigned* t = table + (unsigned long long)body * FILL_WORDS;
     unsigned long long start = (unsigned long long)t[FT_START] | ((unsigned long long)t[FT_START + 1] << 32);
     float v0[3], w[3], c[3];
@@ -54,29 +65,28 @@ extern "C" __global__ void fill_body(real* __restrict__ s, unsigned cap, const u
         w[a] = __uint_as_float(t[FT_W + a]);
         c[a] = __uint_as_float(t[FT_CENTRE + a]);
     }
+    bool v_const = t[FT_V_CONST] != 0;
+    int nconst = (int)t[FT_NCONST];
     for (unsigned k = blockIdx.x * blockDim.x + threadIdx.x; k < len; k += gridDim.x * blockDim.x) {
         unsigned i = (unsigned)(start + offset + k);
-        float x[3], d[3];
+        float x[3];
         for (int a = 0; a < 3; ++a) {
             x[a] = xs[3ull * k + a];
-            d[a] = fill_sub(x[a], c[a]);
+            s[sidx(cap, x_word + a, i)] = fill_word(x[a]);
         }
-        // glam: w.cross(d) = (w.y d.z - d.y w.z, w.z d.x - d.z w.x, w.x d.y - d.x w.y).
-        float r[3] = {fill_sub(fill_mul(w[1], d[2]), fill_mul(d[1], w[2])),
-                      fill_sub(fill_mul(w[2], d[0]), fill_mul(d[2], w[0])),
-                      fill_sub(fill_mul(w[0], d[1]), fill_mul(d[0], w[1]))};
-        for (int a = 0; a < 3; ++a) {
-            s[sidx(cap, F_X + a, i)] = fill_word(x[a]);
-            s[sidx(cap, F_V + a, i)] = fill_word(fill_add(v0[a], r[a]));
+        if (!v_const) {
+            float d[3];
+            for (int a = 0; a < 3; ++a) d[a] = fill_sub(x[a], c[a]);
+            // glam: w.cross(d) = (w.y d.z - d.y w.z, w.z d.x - d.z w.x, w.x d.y - d.x w.y).
+            float r[3] = {fill_sub(fill_mul(w[1], d[2]), fill_mul(d[1], w[2])),
+                          fill_sub(fill_mul(w[2], d[0]), fill_mul(d[2], w[0])),
+                          fill_sub(fill_mul(w[0], d[1]), fill_mul(d[0], w[1]))};
+            for (int a = 0; a < 3; ++a) s[sidx(cap, v_word + a, i)] = fill_word(fill_add(v0[a], r[a]));
         }
-        for (int e = 0; e < 9; ++e) {
-            s[sidx(cap, F_C + e, i)] = fill_table_word(t, FT_C + e);
-            s[sidx(cap, F_F + e, i)] = fill_table_word(t, FT_F + e);
+        for (int e = 0; e < nconst; ++e) {
+            const unsigned* q = t + FT_CONST + 3 * e;
+            s[sidx(cap, (int)q[0], i)] = fill_raw(q[1], q[2]);
         }
-        s[sidx(cap, F_PLASTIC, i)] = fill_table_word(t, FT_PLASTIC);
-        s[sidx(cap, F_MASS, i)] = fill_table_word(t, FT_MASS);
-        s[sidx(cap, F_VOL0, i)] = fill_table_word(t, FT_VOL0);
-        s[sidx(cap, F_MAT, i)] = fill_bits(t[FT_MAT]);
-        s[sidx(cap, F_ID, i)] = fill_bits(i);
+        s[sidx(cap, id_word, i)] = fill_bits(i);
     }
 }

@@ -4,7 +4,7 @@
 
 use crate::capacity::Capacity;
 use crate::compile::{KernelOptions, compile};
-use crate::contract::{CTL_P2G_PENDING, ColliderPoses, Ctx};
+use crate::contract::{CTL_P2G_PENDING, ColliderPoses, Ctx, StateLayout};
 use crate::encode::{self, Tables};
 use crate::graph::StepGraphs;
 use crate::kernels::Kernels;
@@ -77,6 +77,8 @@ pub struct CudaBackend {
     pub(crate) buffers: buffers::Buffers,
     /// Every material is a fluid: G2P2G runs its fluid variant (`g2p2g_fluid`).
     pub(crate) all_fluid: bool,
+    /// Where each field of a particle is in the state arrays.
+    pub(crate) layout: StateLayout,
     /// G2P2G: which grid the coming step reads (0: `grid`, 1: `grid_next`).
     parity: usize,
     /// The grid the last step (or P2G) wrote, read back by [`CudaBackend::grid_nodes`].
@@ -190,14 +192,19 @@ impl CudaBackend {
         };
         let n = initial.len();
         check(scene, n, part, &options)?;
+        let state_layout = crate::state::layout_for(scene, &options)
+            .map_err(|e| SimError::Backend(format!("CUDA backend: {e}")))?;
         crate::emit::check(scene, options.p2g)?;
         let tables = encode::tables(scene, options.f64)?;
         // The device fill (sampled bodies only): the table's checks before any GPU work.
+        // (The compact layout's velocity words are encoded on the host: the device fills them
+        // for bodies whose particles all move alike, else the host packs.)
         let device_fill = match initial {
             Initial::Bodies(b) if options.device_fill => {
-                crate::fill::table(b, &crate::setup::fluid_flags(scene))
+                let fluid = crate::state::fluid_materials(scene);
+                crate::fill::table(b, &fluid, state_layout, options.f64)
                     .map_err(SimError::Backend)?;
-                true
+                crate::fill::supported(b, state_layout)
             }
             _ => false,
         };
@@ -215,7 +222,8 @@ impl CudaBackend {
         // Compiled for this GPU, the state's index width (64 bits past 2^32 words), and with
         // specialize=on the scene's models only (a smaller material switch).
         let ptx = compile(&KernelOptions {
-            state64: crate::compile::state_needs_64_bits(cap.particles),
+            state64: crate::compile::state_needs_64_bits(state_layout.words(), cap.particles),
+            layout: state_layout,
             arch: info.compute_capability,
             fast_math: options.fast_math,
             f64: options.f64,
@@ -242,12 +250,13 @@ impl CudaBackend {
             info.sm_count,
             options.fused_rebuild,
             options.sort_scratch_fields,
+            state_layout,
         )?;
         setup.kernels = t.elapsed().as_secs_f64();
 
         // The particle state (a fluid's F packed as J^(1/3) I) and every buffer.
-        let fluid = crate::setup::fluid_flags(scene);
-        kernels.sort_mask = crate::rebuild::sorted_fields(fluid.iter().all(|f| *f));
+        let fluid = crate::state::fluid_materials(scene);
+        kernels.sort_mask = crate::rebuild::sorted_fields(state_layout, fluid.iter().all(|f| *f));
         // Packed with stride n; buffers::allocate places each field at its stride-cap offset.
         // With the device fill nothing is packed: the state is written on the device below.
         let t = std::time::Instant::now();
@@ -256,11 +265,17 @@ impl CudaBackend {
             Initial::Particles(p) => Some(crate::state::pack(
                 p,
                 &fluid,
+                state_layout,
                 options.f64,
                 n,
                 part.ids.as_deref(),
             )),
-            Initial::Bodies(b) => Some(crate::state::pack_bodies(b, &fluid, options.f64)),
+            Initial::Bodies(b) => Some(crate::state::pack_bodies(
+                b,
+                &fluid,
+                state_layout,
+                options.f64,
+            )),
         }
         .transpose()
         .map_err(SimError::Backend)?;
@@ -276,6 +291,7 @@ impl CudaBackend {
         let needs = buffers::Needs {
             particles: n,
             real_bytes,
+            state_words: state_layout.words(),
             grid_next: g2p2g,
             // NaN speeds are left to the health check of the first step.
             initial_speed: match initial {
@@ -304,11 +320,17 @@ impl CudaBackend {
                 cap.particles,
                 b,
                 &fluid,
+                state_layout,
                 options.f64,
             )?;
             (setup.fill, setup.fill_gather) = (f.total, f.gather);
         }
-        let bodies = crate::rigid::Bodies::new(scene, &stream, options.rigid_overlap)?;
+        let bodies = crate::rigid::Bodies::new(
+            scene,
+            &stream,
+            options.rigid_overlap,
+            tables.body_mesh.clone(),
+        )?;
         if let Some(b) = &bodies {
             (ctx.bodies, ctx.body_exchange, ctx.n_bodies) = b.ctx_fields(&stream);
         }
@@ -333,6 +355,7 @@ impl CudaBackend {
             module,
             buffers,
             all_fluid: fluid.iter().all(|f| *f),
+            layout: state_layout,
             parity: 0,
             last_grid: 0,
             last_dt: None,
@@ -354,6 +377,11 @@ impl CudaBackend {
     /// allocation and upload, device fill).
     pub fn setup_phases(&self) -> crate::setup::SetupPhases {
         self.setup
+    }
+
+    /// Where each field of a particle is in the state arrays.
+    pub fn state_layout(&self) -> StateLayout {
+        self.layout
     }
 
     /// True when G2P and the next step's P2G run as one kernel (see [`CudaOptions::g2p2g`]).
@@ -553,8 +581,15 @@ impl Backend for CudaBackend {
             .stream
             .clone_dtoh(&self.buffers.state)
             .map_err(err("read particles"))?;
-        crate::state::unpack(&host, self.n, self.ctx.cap as usize, self.options.f64, out)
-            .map_err(SimError::Backend)
+        crate::state::unpack(
+            &host,
+            self.n,
+            self.ctx.cap as usize,
+            self.layout,
+            self.options.f64,
+            out,
+        )
+        .map_err(SimError::Backend)
     }
 
     fn memory_bytes(&self) -> Option<(u64, u64)> {

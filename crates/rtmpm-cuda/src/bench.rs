@@ -160,15 +160,22 @@ pub fn bench_kernels(
     let node_bytes = 4 * b.real_bytes() as u64;
     let nodes = pblocks as u64 * 64;
     t.g2p2g = b.g2p2g();
-    // Words per particle: P2G reads x, v, C, F, plastic, mass, vol0, material (28); G2P reads x,
-    // F, plastic, material, id (15) and writes x, v, C, F, plastic (25). G2P2G reads the G2P
-    // words, mass and vol0 (17) and writes 25. Grid: P2G's read-modify-write counted once, the
-    // update reads and writes, G2P reads; G2P2G also clears the second grid. Its fluid variant
-    // reads x, F's one word, material, mass, vol0 (7) and writes x, v, C, F's diagonal (18).
+    // Words per particle (the 29-word layout): P2G reads x, v, C, F, plastic, mass, vol0,
+    // material (28); G2P reads x, F, plastic, material, id (15) and writes x, v, C, F, plastic
+    // (25). G2P2G reads the G2P words, mass and vol0 (17) and writes 25. Grid: P2G's
+    // read-modify-write counted once, the update reads and writes, G2P reads; G2P2G also clears
+    // the second grid. Its fluid variant reads x, F's one word, material, mass, vol0 (7) and
+    // writes x, v, C, F's diagonal (18; F's one word in the fluid layout: 16). The layout's word
+    // counts of v, C, F and plastic replace 3, 9, 9 and 1.
+    let l = b.layout;
+    let (v, c, f) = (l.v_words() as u64, l.c_words() as u64, l.f_words() as u64);
+    let pl = u64::from(l.plastic().is_some());
+    let g2p_reads = 3 + f + pl + 2;
+    let g2p_writes = 3 + v + c + f + pl;
     let (particle_words, grid_passes) = match (t.g2p2g, b.all_fluid) {
-        (true, true) => (7 + 18, 5),
-        (true, false) => (17 + 25, 5),
-        (false, _) => (28 + 15 + 25, 4),
+        (true, true) => (7 + 3 + v + c + if l.fluid() { 1 } else { 3 }, 5),
+        (true, false) => (g2p_reads + 2 + g2p_writes, 5),
+        (false, _) => ((3 + v + c + f + pl + 3) + g2p_reads + g2p_writes, 4),
     };
     t.bytes_per_step = n * 4 * particle_words + nodes * node_bytes * grid_passes;
     Ok(t)

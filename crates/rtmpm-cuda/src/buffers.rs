@@ -3,7 +3,7 @@
 //! it.
 
 use crate::capacity::{BufferBytes, Capacity, GridCopies};
-use crate::contract::{self, CTL_BAD_INDEX, CTL_P2G_PENDING, CTL_WORDS, Ctx, NFIELDS};
+use crate::contract::{self, CTL_BAD_INDEX, CTL_P2G_PENDING, CTL_WORDS, Ctx};
 use cudarc::driver::{CudaSlice, CudaStream, DevicePtr, DriverError};
 use rtmpm_core::Scene;
 use rtmpm_core::sim::SimError;
@@ -22,6 +22,8 @@ pub struct Needs {
     pub particles: usize,
     /// Bytes per `real` (4, or 8 in f64).
     pub real_bytes: usize,
+    /// Words per particle of the state (`StateLayout::words`).
+    pub state_words: usize,
     /// G2P2G: a second grid.
     pub grid_next: bool,
     /// Largest particle speed of the initial state (m/s): the CFL step of the first step, before
@@ -95,6 +97,7 @@ pub fn allocate(
     };
     let sizes = cap.bytes(
         rb,
+        needs.state_words,
         options.sort_scratch_fields,
         GridCopies {
             next: needs.grid_next,
@@ -139,7 +142,7 @@ pub fn allocate(
         .alloc_zeros::<u8>(state_bytes)
         .map_err(err("alloc particle state"))?;
     let row = n * rb;
-    for f in 0..NFIELDS {
+    for f in 0..needs.state_words {
         let Some(state) = state else { break };
         let at = f * cap.particles * rb;
         s.memcpy_htod(

@@ -5,7 +5,6 @@
 //! error that names the option to raise.
 
 use crate::CudaOptions;
-use crate::contract::NFIELDS;
 use rtmpm_core::grid::BlockLayout;
 use rtmpm_core::math::{IVec3, Vec3};
 use rtmpm_core::scene::sampling::SampledBody;
@@ -44,7 +43,7 @@ pub struct GridCopies {
 /// `buffers::allocate` allocates (each at least 16 bytes). `docs/memory.md` lists the formulas.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct BufferBytes {
-    /// Particle state: `NFIELDS` reals per particle slot.
+    /// Particle state: the layout's words (`StateLayout::words`) per particle slot.
     pub state: usize,
     /// Sort scratch: `sort_scratch_fields` reals per particle slot (its first field also holds
     /// the sort keys, so it is at least 4 bytes per slot).
@@ -246,15 +245,22 @@ impl Capacity {
         }
     }
 
-    /// The bytes of every buffer for `real_bytes` per real (4 or 8), a sort scratch of
-    /// `sort_fields` fields (clamped to 1..=`NFIELDS`) and the optional grids `grids`.
-    pub fn bytes(&self, real_bytes: usize, sort_fields: usize, grids: GridCopies) -> BufferBytes {
+    /// The bytes of every buffer for `real_bytes` per real (4 or 8), a state of `words` words
+    /// per particle (`StateLayout::words`), a sort scratch of `sort_fields` fields (clamped to
+    /// 1..=`words`) and the optional grids `grids`.
+    pub fn bytes(
+        &self,
+        real_bytes: usize,
+        words: usize,
+        sort_fields: usize,
+        grids: GridCopies,
+    ) -> BufferBytes {
         let np = self.particles;
         let grid = self.pblocks * 64 * 4 * real_bytes;
         BufferBytes {
-            state: NFIELDS * np * real_bytes,
+            state: words * np * real_bytes,
             // The sort keys (4 bytes) live in its first field.
-            scratch: (sort_fields.clamp(1, NFIELDS) * real_bytes).max(4) * np,
+            scratch: (sort_fields.clamp(1, words.max(1)) * real_bytes).max(4) * np,
             prank: np * 4,
             hist: self.buckets * 4,
             scan_sums: self.buckets.div_ceil(1024) * 4,
@@ -301,23 +307,26 @@ mod tests {
         Scene::from_toml(&text, "<test>").expect("water scene")
     }
 
-    /// The planned device bytes of `scene` (its precision, default options, G2P2G) with a
-    /// sort scratch of `fields` fields, and the estimate of its budget.
-    fn planned(scene: &Scene, fields: usize) -> (usize, BufferBytes, u64) {
+    /// The planned device bytes of `scene` (its precision, options `o` otherwise, G2P2G) with
+    /// a sort scratch of `fields` fields, and the estimate of its budget.
+    fn planned_with(scene: &Scene, fields: usize, o: CudaOptions) -> (usize, BufferBytes, u64) {
         let budget = Budget::estimate(scene, Some(1));
         let n = budget.particles as usize;
         let f64 = scene.precision == rtmpm_core::scene::Precision::F64;
-        let o = CudaOptions {
-            f64,
-            ..Default::default()
-        };
+        let o = CudaOptions { f64, ..o };
+        let words = crate::state::layout_for(scene, &o).expect("layout").words();
         let cap = Capacity::plan(scene, n, n, &BlockLayout::default(), &o);
         let grids = GridCopies {
             next: true,
             aux: false,
         };
         let rb = if f64 { 8 } else { 4 };
-        (n, cap.bytes(rb, fields, grids), budget.gpu_bytes)
+        (n, cap.bytes(rb, words, fields, grids), budget.gpu_bytes)
+    }
+
+    /// [`planned_with`] the default options (the fluid layout for water).
+    fn planned(scene: &Scene, fields: usize) -> (usize, BufferBytes, u64) {
+        planned_with(scene, fields, CudaOptions::default())
     }
 
     #[test]
@@ -329,7 +338,8 @@ mod tests {
         scene.precision = rtmpm_core::scene::Precision::F64;
         let (n, b, estimate) = planned(&scene, crate::options::DEFAULT_SORT_SCRATCH_FIELDS);
         assert!(n > 9_000_000, "{n}");
-        assert_eq!((b.state, b.scratch, b.prank), (232 * n, 32 * n, 4 * n));
+        // The fluid layout: 20 words of 8 bytes.
+        assert_eq!((b.state, b.scratch, b.prank), (160 * n, 32 * n, 4 * n));
         let plan = b.total() as f64;
         assert!(
             estimate as f64 >= plan && estimate as f64 <= 1.15 * plan,
@@ -354,16 +364,35 @@ mod tests {
             })
             .collect();
         let default = crate::options::DEFAULT_SORT_SCRATCH_FIELDS;
-        // (scene, particle count, bytes per particle now, bound)
-        for (scene, particles, expect, new_bound) in [
-            (water(&four), 124_000_000..126_000_000, 181.2, 185.0),
-            (water(&big), 499_000_000..502_000_000, 147.6, 150.0),
+        let full_layout = CudaOptions {
+            fluid_state: false,
+            ..Default::default()
+        };
+        // (scene, particle count, bytes per particle in the 29-word layout, bound, in the
+        // 20-word fluid layout (the default for water), bound)
+        for (scene, particles, expect, new_bound, expect_fluid, fluid_bound) in [
+            (
+                water(&four),
+                124_000_000..126_000_000,
+                181.2,
+                185.0,
+                145.2,
+                148.0,
+            ),
+            (
+                water(&big),
+                499_000_000..502_000_000,
+                147.6,
+                150.0,
+                111.6,
+                114.0,
+            ),
         ] {
-            let (n, now, estimate) = planned(&scene, default);
+            let (n, now, _) = planned_with(&scene, default, full_layout.clone());
             assert!(particles.contains(&n), "{n} particles");
             // Before: a second full copy of the state as the sort's scratch, and the sort keys
             // in their own array.
-            let (_, full, _) = planned(&scene, NFIELDS);
+            let (_, full, _) = planned_with(&scene, 29, full_layout.clone());
             let before = full.total() + 4 * n;
             let per = |b: usize| b as f64 / n as f64;
             // Per particle: state 116, scratch 16, ranks 4, warp list 12/32 (+ gblocks).
@@ -387,20 +416,34 @@ mod tests {
                 per(before),
                 per(now.total())
             );
+            // The default for water: the fluid layout, 20 words (80 bytes) instead of 29.
+            let (n2, fluid, estimate) = planned(&scene, default);
+            assert_eq!(n2, n);
+            assert_eq!(fluid.state, 80 * n);
+            assert_eq!(fluid.scratch, 16 * n);
+            assert_eq!(fluid.total() + 36 * n, now.total());
+            assert!(
+                per(fluid.total()) <= fluid_bound
+                    && (per(fluid.total()) - expect_fluid).abs() < 0.05,
+                "{} B/particle",
+                per(fluid.total())
+            );
             // The budget's estimate (rtmpm check, the refusal before allocating) covers the
             // plan, without refusing what fits by far.
             let e = estimate as f64;
             assert!(
-                e >= now.total() as f64 && e <= 1.15 * now.total() as f64,
+                e >= fluid.total() as f64 && e <= 1.15 * fluid.total() as f64,
                 "estimate {e:.3e} B for a plan of {:.3e} B",
-                now.total() as f64
+                fluid.total() as f64
             );
             eprintln!(
-                "{n} particles: {:.1} B/particle before, {:.1} now ({:?}), estimate {:.1}",
+                "{n} particles: {:.1} B/particle before, {:.1} in 29 words ({:?}), {:.1} in the \
+                 fluid layout, estimate {:.1}",
                 per(before),
                 per(now.total()),
                 now.groups()
                     .map(|(g, b)| (g, (per(b) * 10.0).round() / 10.0)),
+                per(fluid.total()),
                 e / n as f64
             );
         }
@@ -417,10 +460,13 @@ mod tests {
             buckets: 641,
         };
         for rb in [4, 8] {
-            for k in [0, 1, 4, NFIELDS, 99] {
-                let b = cap.bytes(rb, k, GridCopies::default());
+            for k in [0, 1, 4, 29, 99] {
+                let b = cap.bytes(rb, 29, k, GridCopies::default());
                 assert!(b.scratch >= 4 * cap.particles);
-                assert_eq!(b.scratch, k.clamp(1, NFIELDS) * rb * cap.particles);
+                assert_eq!(b.scratch, k.clamp(1, 29) * rb * cap.particles);
+                let fluid = cap.bytes(rb, 20, k, GridCopies::default());
+                assert_eq!(fluid.state, 20 * rb * cap.particles);
+                assert_eq!(fluid.scratch, k.clamp(1, 20) * rb * cap.particles);
                 assert_eq!(b.grid_next + b.grid_aux, 0);
                 assert_eq!(b.total(), b.groups().iter().map(|g| g.1).sum::<usize>());
             }

@@ -23,12 +23,15 @@ pub struct KernelOptions {
     /// Index the state arrays in 64 bits (`RTMPM_STATE_64`): needed from 2^32 words on
     /// ([`state_needs_64_bits`]).
     pub state64: bool,
+    /// The particle state's layout (`-DRTMPM_STATE_LAYOUT`, left out for the default).
+    pub layout: contract::StateLayout,
 }
 
-/// True when state arrays of `capacity` particles hold 2^32 words or more: their indices
-/// (`field * capacity + slot`) need 64 bits (a capacity of 148.1M particles or more).
-pub fn state_needs_64_bits(capacity: usize) -> bool {
-    (crate::contract::NFIELDS as u64) * capacity as u64 >= 1 << 32
+/// True when state arrays of `capacity` particles of `words` words each hold 2^32 words or more:
+/// their indices (`field * capacity + slot`) need 64 bits (29 words: a capacity of 148.1M
+/// particles or more; 20 words: 214.7M).
+pub fn state_needs_64_bits(words: usize, capacity: usize) -> bool {
+    (words as u64) * capacity as u64 >= 1 << 32
 }
 
 impl KernelOptions {
@@ -40,6 +43,7 @@ impl KernelOptions {
             f64,
             materials: u32::MAX,
             state64: false,
+            layout: contract::StateLayout::Full,
         }
     }
 }
@@ -134,6 +138,9 @@ pub fn nvrtc_options(o: &KernelOptions) -> Vec<String> {
     }
     if o.state64 {
         v.push("-DRTMPM_STATE_64".into());
+    }
+    if o.layout != contract::StateLayout::Full {
+        v.push(format!("-DRTMPM_STATE_LAYOUT={}", o.layout.code()));
     }
     if o.materials != u32::MAX {
         v.push(format!("-DRTMPM_MATERIAL_MASK={:#x}u", o.materials));
@@ -321,15 +328,23 @@ mod tests {
             println!("skipped: libnvrtc.so.13 not found (pip install nvidia-cuda-nvrtc==13.0.*)");
             return;
         }
-        for (fast_math, f64, state64) in [
-            (true, false, false),
-            (false, false, false),
-            (true, true, false),
-            (false, true, false),
-            (true, false, true),
+        use crate::contract::StateLayout;
+        for (fast_math, f64, state64, layout) in [
+            (true, false, false, StateLayout::Full),
+            (false, false, false, StateLayout::Full),
+            (true, true, false, StateLayout::Full),
+            (false, true, false, StateLayout::Full),
+            (true, false, true, StateLayout::Full),
+            (true, false, false, StateLayout::Fluid),
+            (true, true, false, StateLayout::Fluid),
+            (true, false, true, StateLayout::Fluid),
+            (true, false, false, StateLayout::Compact),
+            (true, false, false, StateLayout::CompactFluid),
+            (false, false, true, StateLayout::CompactFluid),
         ] {
             let o = KernelOptions {
                 state64,
+                layout,
                 ..KernelOptions::all_models((9, 0), fast_math, f64)
             };
             let ptx = compile_fresh(&o).unwrap_or_else(|e| panic!("{o:?}: {e}"));
@@ -365,10 +380,14 @@ mod tests {
     #[test]
     fn state_indices_switch_to_64_bits_at_2_pow_32_words() {
         // 29 fields: 148,102,320 particles hold 4,294,967,280 words; one more passes 2^32.
-        assert_eq!(crate::contract::NFIELDS, 29);
-        assert!(!state_needs_64_bits(148_102_320));
-        assert!(state_needs_64_bits(148_102_321));
-        assert!(state_needs_64_bits(500_000_000));
+        assert!(!state_needs_64_bits(29, 148_102_320));
+        assert!(state_needs_64_bits(29, 148_102_321));
+        assert!(state_needs_64_bits(29, 500_000_000));
+        // 20 (fluid) and 15 (compact fluid) words.
+        assert!(!state_needs_64_bits(20, 214_748_364));
+        assert!(state_needs_64_bits(20, 214_748_365));
+        assert!(!state_needs_64_bits(15, 286_331_153));
+        assert!(state_needs_64_bits(15, 286_331_154));
         let o = KernelOptions {
             state64: true,
             ..KernelOptions::all_models((9, 0), true, false)

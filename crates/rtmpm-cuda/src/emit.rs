@@ -9,10 +9,9 @@
 //! emits (the packed bytes are freed on return), plus the re-capture of the step graph.
 
 use crate::backend::{CudaBackend, err};
-use crate::contract::{CTL_NEED_REBUILD, CTL_P2G_PENDING, NFIELDS};
+use crate::contract::{CTL_NEED_REBUILD, CTL_P2G_PENDING};
 use crate::options::P2gMode;
 use rtmpm_core::Scene;
-use rtmpm_core::material::Model;
 use rtmpm_core::sim::{Particles, SimError};
 
 /// Particles every emitter of `scene` emits over the run.
@@ -50,18 +49,14 @@ impl CudaBackend {
                 n + k
             )));
         }
-        let fluid: Vec<bool> = self
-            .scene
-            .materials
-            .iter()
-            .map(|m| matches!(m.model, Model::Fluid(_)))
-            .collect();
+        let fluid = crate::state::fluid_materials(&self.scene);
         let ids: Vec<u32> = (n as u32..(n + k) as u32).collect();
         let f64 = self.options.f64;
-        let packed =
-            crate::state::pack(p, &fluid, f64, k, Some(&ids)).map_err(SimError::Backend)?;
+        let words = self.layout.words();
+        let packed = crate::state::pack(p, &fluid, self.layout, f64, k, Some(&ids))
+            .map_err(SimError::Backend)?;
         let wb = crate::state::word_bytes(f64);
-        for (f, row) in packed.chunks_exact(k * wb).enumerate().take(NFIELDS) {
+        for (f, row) in packed.chunks_exact(k * wb).enumerate().take(words) {
             let at = (f * cap + n) * wb;
             let mut dst = self.buffers.state.slice_mut(at..at + k * wb);
             self.stream

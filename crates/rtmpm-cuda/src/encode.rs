@@ -20,19 +20,41 @@ pub struct Tables {
     pub materials: Vec<u8>,
     /// The colliders.
     pub colliders: Vec<GpuCollider>,
-    /// The values of the mesh colliders' distance grids.
+    /// The values of the mesh colliders' distance grids, then those of the mesh rigid bodies.
     pub mesh: Vec<f32>,
+    /// Where each rigid body's distance grid starts in `mesh` (0 for a body that is not a
+    /// mesh), in the scene's order.
+    pub body_mesh: Vec<u32>,
 }
 
 /// Every table of `scene` in the precision `f64` or f32.
 pub fn tables(scene: &Scene, f64: bool) -> Result<Tables, SimError> {
-    let (colliders, mesh) = colliders(scene)?;
+    let (colliders, mut mesh) = colliders(scene)?;
+    let body_mesh = body_meshes(scene, &mut mesh);
     Ok(Tables {
         scalars: scalars_bytes(scene, f64),
         materials: materials(scene, f64)?,
         colliders,
         mesh,
+        body_mesh,
     })
+}
+
+/// The distance grids of the mesh rigid bodies appended to `mesh` (the same table as the mesh
+/// colliders', read by the same `mesh_distance`); where each starts (0 for the other shapes).
+pub fn body_meshes(scene: &Scene, mesh: &mut Vec<f32>) -> Vec<u32> {
+    scene
+        .rigid_bodies
+        .iter()
+        .map(|b| match &b.shape {
+            rtmpm_core::rigid::RigidShape::Mesh(m) => {
+                let at = mesh.len() as u32;
+                mesh.extend_from_slice(&m.sdf.values);
+                at
+            }
+            _ => 0,
+        })
+        .collect()
 }
 
 /// The material table in the kernels' precision (`f64` or f32), as bytes.

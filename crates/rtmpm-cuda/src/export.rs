@@ -2,11 +2,12 @@
 //! (zero-copy export through DLPack / `__cuda_array_interface__` by the Python package), fast
 //! reads of single fields, and writes of positions and velocities between steps.
 //!
-//! Layout (see [`crate::state`]): one buffer, field `f` of the particle stored at slot `i` at
-//! word `f * stride + i`, a word being an f32 (an f64 with `precision = "f64"`); the material
-//! id and the original index are integer bits in the low 32 bits of their word. The slots are
-//! in the backend's storage order, which changes at every rebuild (particles are sorted by
-//! block and cell); field [`F_ID`] gives each slot's original particle index.
+//! Layout (see [`crate::state`]): one buffer, word `w` of the particle stored at slot `i` at
+//! `w * stride + i`, a word being an f32 (an f64 with `precision = "f64"`), each field at the
+//! words of the backend's [`StateLayout`] ([`DeviceParticles::layout`]); the material id and the
+//! original index are integer bits in the low 32 bits of their word. The slots are in the
+//! backend's storage order, which changes at every rebuild (particles are sorted by block and
+//! cell); the layout's `id()` word gives each slot's original particle index.
 
 use crate::backend::{CudaBackend, err};
 use crate::contract::*;
@@ -27,10 +28,12 @@ pub struct DeviceParticles {
     pub stride: usize,
     /// Bytes of one word: 4 (f32) or 8 (f64).
     pub word_bytes: usize,
+    /// Which words hold which field.
+    pub layout: StateLayout,
 }
 
 impl DeviceParticles {
-    /// Device address of field `field` (one of the `F_*` constants of [`crate::contract`]).
+    /// Device address of word `field` (a word of [`DeviceParticles::layout`]).
     pub fn field_ptr(&self, field: usize) -> u64 {
         self.ptr + (field * self.stride * self.word_bytes) as u64
     }
@@ -79,6 +82,7 @@ impl CudaBackend {
             n: self.n,
             stride: self.ctx.cap as usize,
             word_bytes: crate::state::word_bytes(self.options.f64),
+            layout: self.layout,
         })
     }
 
@@ -92,17 +96,18 @@ impl CudaBackend {
             .map_err(err("synchronize the context"))
     }
 
-    /// Copy the fields `fields` (`F_*` of [`crate::contract`]) of the `n` particles, in storage
-    /// order, to pinned host memory and return them as raw little-endian words (`n` words of
+    /// Copy the words `fields` (words of the backend's [`StateLayout`]) of the `n` particles,
+    /// in storage order, to pinned host memory and return them as raw little-endian words (`n` words of
     /// [`DeviceParticles::word_bytes`] each, one slice per field). Synchronises.
     pub fn read_fields(&mut self, fields: &[usize]) -> Result<Vec<&[u8]>, SimError> {
         let wb = crate::state::word_bytes(self.options.f64);
         let (n, cap) = (self.n, self.ctx.cap as usize);
         let row = n * wb;
         let need = row * fields.len();
-        if fields.iter().any(|&f| f >= NFIELDS) {
+        let words = self.layout.words();
+        if fields.iter().any(|&f| f >= words) {
             return Err(SimError::Backend(format!(
-                "CUDA: field index out of range (0..{NFIELDS})"
+                "CUDA: field index out of range (0..{words})"
             )));
         }
         self.pinned(need)?;
@@ -145,7 +150,7 @@ impl CudaBackend {
         }
         let wb = crate::state::word_bytes(self.options.f64);
         let ids: Vec<usize> = {
-            let id_row = self.read_fields(&[F_ID])?[0];
+            let id_row = self.read_fields(&[self.layout.id()])?[0];
             (0..n)
                 .map(|i| {
                     u32::from_le_bytes(id_row[i * wb..i * wb + 4].try_into().unwrap_or([0; 4]))
@@ -159,16 +164,30 @@ impl CudaBackend {
             ));
         }
         let cap = self.ctx.cap as usize;
-        for (first, values) in [(F_X, x), (F_V, v)] {
+        let l = self.layout;
+        for (first, values) in [(l.x(), x), (l.v(), v)] {
             let Some(values) = values else { continue };
             let mut rows = Vec::with_capacity(3 * n * wb);
-            for axis in [0usize, 1, 2] {
-                for &id in &ids {
-                    let c = values[id][axis];
-                    if wb == 8 {
-                        rows.extend_from_slice(&(c as f64).to_le_bytes());
-                    } else {
-                        rows.extend_from_slice(&c.to_le_bytes());
+            if first == l.v() && l.compact() {
+                // The velocity's two codec words (f32 state only).
+                let words: Vec<[u32; 2]> = ids
+                    .iter()
+                    .map(|&id| crate::codec::encode_v(values[id].to_array()))
+                    .collect();
+                for k in 0..2 {
+                    for w in &words {
+                        rows.extend_from_slice(&w[k].to_le_bytes());
+                    }
+                }
+            } else {
+                for axis in [0usize, 1, 2] {
+                    for &id in &ids {
+                        let c = values[id][axis];
+                        if wb == 8 {
+                            rows.extend_from_slice(&(c as f64).to_le_bytes());
+                        } else {
+                            rows.extend_from_slice(&c.to_le_bytes());
+                        }
                     }
                 }
             }

@@ -6,7 +6,7 @@
 //! the copy of the next chunk overlaps the encoding of this one.
 
 use crate::backend::{CudaBackend, err};
-use crate::contract::*;
+use crate::contract::StateLayout;
 use crate::kernels::Kernel;
 use cudarc::driver::{CudaSlice, PinnedHostSlice, PushKernelArg};
 use rtmpm_core::io::chunks::{ChunkSink, Column, FrameColumns, HostBuffer};
@@ -36,21 +36,38 @@ impl HostBuffer for PinnedWords {
     }
 }
 
-/// The state fields of the chunk's words, in [`FrameColumns::layout`] order.
-pub fn chunk_fields(cols: FrameColumns) -> Vec<i32> {
+/// Export code of an absent field (zeros: a fluid layout's plastic word); `EXPORT_ZERO` in
+/// `kernels/state.cuh`, like the three below.
+pub const EXPORT_ZERO: i32 = -1;
+/// Export code of component 0 of the decoded velocity (components 1, 2 follow).
+pub const EXPORT_V: i32 = -16;
+/// Export code of component 0 of the decoded C (column-major, 9).
+pub const EXPORT_C: i32 = -32;
+/// Export code of component 0 of the decoded F (column-major, 9).
+pub const EXPORT_F: i32 = -48;
+
+/// The export codes of the chunk's words (`export_word` in `kernels/state.cuh`), in
+/// [`FrameColumns::layout`] order: a state word of `l` (>= 0), or a component of a field that
+/// `l` does not store as plain words (decoded on the device).
+pub fn chunk_fields(cols: FrameColumns, l: StateLayout) -> Vec<i32> {
     let mut out = Vec::new();
     for c in cols.layout() {
-        let first = match c {
-            Column::X => F_X,
-            Column::V => F_V,
-            Column::Material => F_MAT,
-            Column::Plastic => F_PLASTIC,
-            Column::Mass => F_MASS,
-            Column::Vol0 => F_VOL0,
-            Column::F => F_F,
-            Column::C => F_C,
+        let words = |first: usize| (first..first + c.components()).map(|f| f as i32).collect();
+        let codes = |base: i32| (0..c.components() as i32).map(|k| base + k).collect();
+        let col: Vec<i32> = match c {
+            Column::X => words(l.x()),
+            Column::V if l.compact() => codes(EXPORT_V),
+            Column::V => words(l.v()),
+            Column::Material => words(l.material()),
+            Column::Plastic => l.plastic().map_or(vec![EXPORT_ZERO], words),
+            Column::Mass => words(l.mass()),
+            Column::Vol0 => words(l.vol0()),
+            Column::F if l.fluid() => codes(EXPORT_F),
+            Column::F => words(l.f()),
+            Column::C if l.compact() => codes(EXPORT_C),
+            Column::C => words(l.c()),
         };
-        out.extend((first..first + c.components()).map(|f| f as i32));
+        out.extend(col);
     }
     out
 }
@@ -83,7 +100,7 @@ impl CudaBackend {
         if n == 0 {
             return Ok(());
         }
-        let fields = chunk_fields(sink.columns());
+        let fields = chunk_fields(sink.columns(), self.layout);
         let nw = fields.len();
         let stream = self.stream.clone();
         let d_fields = stream
@@ -118,8 +135,8 @@ impl CudaBackend {
             };
             let (n32, lo, len32, nw32, stride) =
                 (n as u32, start as u32, len as u32, nw as i32, ccap as u32);
-            // SAFETY: the kernel reads slots 0..n of the state (stride cap), nw field indices
-            // below NFIELDS, and writes rows w < nw of `dev` (nw x ccap words) at columns < len
+            // SAFETY: the kernel reads slots 0..n of the state (stride cap), nw export codes
+            // (state words below the layout's, or decoded fields), and writes rows w < nw of `dev` (nw x ccap words) at columns < len
             // <= ccap.
             unsafe {
                 stream
@@ -184,32 +201,47 @@ mod tests {
             plastic: true,
             ..FrameColumns::default()
         };
+        // Today's 29-word layout.
         assert_eq!(
-            chunk_fields(ply),
-            vec![
-                F_X as i32,
-                F_X as i32 + 1,
-                F_X as i32 + 2,
-                F_V as i32,
-                F_V as i32 + 1,
-                F_V as i32 + 2,
-                F_MAT as i32,
-                F_PLASTIC as i32
-            ]
+            chunk_fields(ply, StateLayout::Full),
+            vec![0, 1, 2, 3, 4, 5, 27, 24]
         );
-        let all = chunk_fields(FrameColumns::all());
-        assert_eq!(all.len(), FrameColumns::all().words());
+        // The fluid layout: no plastic word (zeros), the material at 18.
         assert_eq!(
-            all[FrameColumns::all().row(Column::F).unwrap_or(0)],
-            F_F as i32
+            chunk_fields(ply, StateLayout::Fluid),
+            vec![0, 1, 2, 3, 4, 5, 18, EXPORT_ZERO]
         );
+        // Compact: the velocity decoded.
         assert_eq!(
-            all[FrameColumns::all().row(Column::C).unwrap_or(0)],
-            F_C as i32
+            chunk_fields(ply, StateLayout::Compact),
+            vec![0, 1, 2, EXPORT_V, EXPORT_V + 1, EXPORT_V + 2, 22, 19]
         );
-        assert!(
-            all.iter()
-                .all(|&f| (f as usize) < NFIELDS && f as usize != F_ID)
-        );
+        let all_cols = FrameColumns::all();
+        for l in StateLayout::ALL {
+            let all = chunk_fields(all_cols, l);
+            assert_eq!(all.len(), all_cols.words(), "{l:?}");
+            let f = all[all_cols.row(Column::F).unwrap_or(0)];
+            let c = all[all_cols.row(Column::C).unwrap_or(0)];
+            assert_eq!(f, if l.fluid() { EXPORT_F } else { l.f() as i32 });
+            assert_eq!(c, if l.compact() { EXPORT_C } else { l.c() as i32 });
+            assert!(
+                all.iter()
+                    .all(|&f| f < l.words() as i32 && f != l.id() as i32 && f >= EXPORT_F),
+                "{l:?}: {all:?}"
+            );
+        }
+        // The device's codes are these.
+        let state_cuh = include_str!("../kernels/state.cuh");
+        for (name, v) in [
+            ("EXPORT_ZERO", EXPORT_ZERO),
+            ("EXPORT_V", EXPORT_V),
+            ("EXPORT_C", EXPORT_C),
+            ("EXPORT_F", EXPORT_F),
+        ] {
+            assert!(
+                state_cuh.contains(&format!("#define {name} ({v})")),
+                "{name}"
+            );
+        }
     }
 }

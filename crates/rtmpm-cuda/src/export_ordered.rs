@@ -4,7 +4,6 @@
 //! pinned memory, each chunk copied out by several threads while the next one crosses the bus.
 
 use crate::backend::{CudaBackend, err};
-use crate::contract::*;
 use crate::kernels::Kernel;
 use cudarc::driver::{CudaSlice, CudaStream, PinnedHostSlice, PushKernelArg};
 use rayon::prelude::*;
@@ -14,8 +13,9 @@ use rtmpm_core::sim::SimError;
 const CHUNK: usize = 1 << 19;
 
 impl CudaBackend {
-    /// The three fields from `first` (`F_X` or `F_V`) of every particle, in original particle
-    /// order, as `3 n` float32 (x0, y0, z0, x1, ...); f64 state is rounded to f32. Synchronises.
+    /// The positions (`first` = the layout's `x()`) or velocities (`v()`, decoded in a compact
+    /// layout) of every particle, in original particle order, as `3 n` float32 (x0, y0, z0, x1,
+    /// ...); f64 state is rounded to f32. Synchronises.
     pub fn read_vec3_ordered(&mut self, first: usize) -> Result<Vec<f32>, SimError> {
         let mut out = vec![0f32; 3 * self.n];
         self.read_vec3_ordered_into(first, &mut out)?;
@@ -66,9 +66,11 @@ impl CudaBackend {
                 self.n
             )));
         }
-        if first + 3 > NFIELDS {
+        if first != self.layout.x() && first != self.layout.v() {
             return Err(SimError::Backend(format!(
-                "CUDA: field index out of range (0..{NFIELDS})"
+                "CUDA: word {first} is neither the positions ({}) nor the velocities ({})",
+                self.layout.x(),
+                self.layout.v()
             )));
         }
         let (n, cap) = (self.n, self.ctx.cap);

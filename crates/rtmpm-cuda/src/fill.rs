@@ -22,12 +22,42 @@ use std::sync::Arc;
 /// Particles of one piece of the upload (at most): 48 MB of positions per page-locked buffer.
 pub const PIECE: usize = 1 << 22;
 
+/// True when `v0 + w x (x - c)` is `v0` bit for bit for every finite `x` and `c` (as
+/// `rtmpm_core`'s sampler decides): `w` is zero and no component of `v0` is -0.
+pub fn velocity_is_uniform(v0: Vec3, w: Vec3) -> bool {
+    w == Vec3::ZERO
+        && !v0
+            .to_array()
+            .iter()
+            .any(|c| *c == 0.0 && c.is_sign_negative())
+}
+
+/// True when the device can fill the state of `bodies` in `layout`: the compact layout's
+/// velocity words are encoded on the host, so there every body of a shape must move as one
+/// (uniform velocity, no spin); the other layouts always.
+pub fn supported(bodies: &[SampledBody], layout: StateLayout) -> bool {
+    !layout.compact()
+        || bodies.iter().all(|b| match b {
+            SampledBody::Shape(b) => {
+                b.count == 0 || velocity_is_uniform(b.velocity, b.angular_velocity)
+            }
+            SampledBody::Points(_) => true,
+        })
+}
+
 /// The fill table: [`FILL_WORDS`] words per body, in body order (layout `FT_*` in
-/// [`crate::contract`]). A body's first particle is the sum of the counts before it. Rows of
-/// points bodies hold their range only (the device does not fill them). `fluid`: one entry per
-/// material; a body's material must be in range (else the error of
-/// [`crate::state::pack_bodies`]).
-pub fn table(bodies: &[SampledBody], fluid: &[bool]) -> Result<Vec<u32>, String> {
+/// [`crate::contract`]): the body's range (its first particle is the sum of the counts before
+/// it), v0, w and c of its velocity field, and the words every particle of it shares in
+/// `layout` and precision `f64` ([`crate::state::body_constant_words`]; in the compact layout
+/// the velocity's too). Rows of points bodies hold their range only (the device does not fill
+/// them). `fluid`: one entry per material; a body's material must be in range (else the error
+/// of [`crate::state::pack_bodies`]).
+pub fn table(
+    bodies: &[SampledBody],
+    fluid: &[bool],
+    layout: StateLayout,
+    f64: bool,
+) -> Result<Vec<u32>, String> {
     let mut rows = vec![0u32; FILL_WORDS * bodies.len()];
     let mut start = 0u64;
     for (body, row) in bodies.iter().zip(rows.chunks_exact_mut(FILL_WORDS)) {
@@ -47,35 +77,25 @@ pub fn table(bodies: &[SampledBody], fluid: &[bool]) -> Result<Vec<u32>, String>
                     ));
                 }
             };
-            shape_row(b, is_fluid, row);
+            for a in 0..3 {
+                row[FT_V0 + a] = b.velocity[a].to_bits();
+                row[FT_W + a] = b.angular_velocity[a].to_bits();
+                row[FT_CENTRE + a] = b.centre[a].to_bits();
+            }
+            let v_const = layout.compact();
+            row[FT_V_CONST] = v_const as u32;
+            let words = crate::state::body_constant_words(layout, f64, b, is_fluid, v_const);
+            row[FT_NCONST] = words.len() as u32;
+            for (k, (w, bits)) in words.into_iter().enumerate() {
+                let at = FT_CONST + 3 * k;
+                row[at] = w as u32;
+                row[at + 1] = bits as u32;
+                row[at + 2] = (bits >> 32) as u32;
+            }
         }
         start += count;
     }
     Ok(rows)
-}
-
-/// The shared values of a body of a shape, as [`crate::state`] packs them: C the body's spin
-/// matrix, F the identity in its packed form (a fluid's J^(1/3) I with J = 1), the body's
-/// plastic state, mass, volume and material.
-fn shape_row(b: &BodyPositions, fluid: bool, row: &mut [u32]) {
-    let put3 = |row: &mut [u32], at: usize, v: Vec3| {
-        for a in 0..3 {
-            row[at + a] = v[a].to_bits();
-        }
-    };
-    row[FT_MAT] = b.material;
-    put3(row, FT_V0, b.velocity);
-    put3(row, FT_W, b.angular_velocity);
-    put3(row, FT_CENTRE, b.centre);
-    let f = crate::state::packed_f(rtmpm_core::math::Mat3::IDENTITY, fluid);
-    let (c, f) = (b.c.to_cols_array(), f.to_cols_array());
-    for e in 0..9 {
-        row[FT_C + e] = c[e].to_bits();
-        row[FT_F + e] = f[e].to_bits();
-    }
-    row[FT_PLASTIC] = b.plastic.to_bits();
-    row[FT_MASS] = b.mass.to_bits();
-    row[FT_VOL0] = b.vol0.to_bits();
 }
 
 /// One piece of the upload: particles `offset..offset + len` of body `body` (a body of a shape).
@@ -148,6 +168,7 @@ pub struct FillTimes {
 /// Fill the state (stride `cap`, zero past the particles) with the particles of `bodies` on the
 /// device: `table_rows` from [`table`], the shapes' positions uploaded in [`pieces`], the points
 /// bodies packed on the host. Waits for the device before it returns.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn fill(
     stream: &Arc<CudaStream>,
     kernels: &Kernels,
@@ -155,11 +176,13 @@ pub(crate) fn fill(
     cap: usize,
     bodies: &[SampledBody],
     fluid: &[bool],
+    layout: StateLayout,
     f64: bool,
 ) -> Result<FillTimes, SimError> {
     let t0 = std::time::Instant::now();
     let mut times = FillTimes::default();
-    let rows = table(bodies, fluid).map_err(SimError::Backend)?;
+    let rows = table(bodies, fluid, layout, f64).map_err(SimError::Backend)?;
+    let (x_word, v_word, id_word) = (layout.x() as i32, layout.v() as i32, layout.id() as i32);
     let table_dev = stream.clone_htod(&rows).map_err(err("upload fill table"))?;
     let pieces = pieces(bodies, PIECE);
     let piece_max = pieces.iter().map(|p| p.len).max().unwrap_or(0);
@@ -205,7 +228,7 @@ pub(crate) fn fill(
             let (body, offset, len) = (p.body as i32, p.offset as u64, p.len as u32);
             // SAFETY: the kernel reads 3 len floats of `d` and the table's row `body`, and
             // writes slots start + offset .. + len (below the particle count) of the state of
-            // stride cap.
+            // stride cap, at the layout's words (below its count).
             unsafe {
                 stream
                     .launch_builder(&kernels[Kernel::FillBody])
@@ -216,6 +239,9 @@ pub(crate) fn fill(
                     .arg(&offset)
                     .arg(&len)
                     .arg(&*d)
+                    .arg(&x_word)
+                    .arg(&v_word)
+                    .arg(&id_word)
                     .launch(kernels.wave(p.len, 256))
             }
             .map_err(err("fill kernel"))?;
@@ -233,9 +259,9 @@ pub(crate) fn fill(
                 continue;
             }
             let ids: Vec<u32> = (start..start + k).map(|i| i as u32).collect();
-            let packed =
-                crate::state::pack(p, fluid, f64, k, Some(&ids)).map_err(SimError::Backend)?;
-            for (f, row) in packed.chunks_exact(k * wb).enumerate().take(NFIELDS) {
+            let packed = crate::state::pack(p, fluid, layout, f64, k, Some(&ids))
+                .map_err(SimError::Backend)?;
+            for (f, row) in packed.chunks_exact(k * wb).enumerate().take(layout.words()) {
                 let at = (f * cap + start) * wb;
                 stream
                     .memcpy_htod(row, &mut state.slice_mut(at..at + k * wb))

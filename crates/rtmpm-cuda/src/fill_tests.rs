@@ -66,40 +66,55 @@ fn bodies() -> (Scene, Vec<SampledBody>) {
 
 const FLUID: [bool; 2] = [true, false];
 
-/// The table rows hold each body's range and shared values.
+/// The table rows hold each body's range and velocity field, and with the kernel's own words
+/// (x, v unless constant, id) the constants cover every word of the layout once.
 #[test]
-fn the_table_holds_ranges_and_shared_values() {
+fn the_table_holds_ranges_and_every_word_once() {
     let (_, bodies) = bodies();
-    let rows = table(&bodies, &FLUID).expect("table");
-    assert_eq!(rows.len(), FILL_WORDS * bodies.len());
-    let mut start = 0u64;
-    for (body, row) in bodies.iter().zip(rows.chunks_exact(FILL_WORDS)) {
-        let SampledBody::Shape(b) = body else {
-            panic!("a shape")
-        };
-        let word64 = |at: usize| row[at] as u64 | (row[at + 1] as u64) << 32;
-        assert_eq!(word64(FT_START), start);
-        assert_eq!(word64(FT_COUNT), b.count as u64);
-        assert_eq!(row[FT_MAT], b.material);
-        let f = |at: usize| f32::from_bits(row[at]);
-        for a in 0..3 {
-            assert_eq!(row[FT_V0 + a], b.velocity[a].to_bits());
-            assert_eq!(row[FT_W + a], b.angular_velocity[a].to_bits());
-            assert_eq!(row[FT_CENTRE + a], b.centre[a].to_bits());
+    for (layout, f64) in [
+        (StateLayout::Full, false),
+        (StateLayout::Full, true),
+        (StateLayout::Compact, false),
+    ] {
+        let rows = table(&bodies, &FLUID, layout, f64).expect("table");
+        assert_eq!(rows.len(), FILL_WORDS * bodies.len());
+        let mut start = 0u64;
+        for (body, row) in bodies.iter().zip(rows.chunks_exact(FILL_WORDS)) {
+            let SampledBody::Shape(b) = body else {
+                panic!("a shape")
+            };
+            let word64 = |at: usize| row[at] as u64 | (row[at + 1] as u64) << 32;
+            assert_eq!(word64(FT_START), start);
+            assert_eq!(word64(FT_COUNT), b.count as u64);
+            for a in 0..3 {
+                assert_eq!(row[FT_V0 + a], b.velocity[a].to_bits());
+                assert_eq!(row[FT_W + a], b.angular_velocity[a].to_bits());
+                assert_eq!(row[FT_CENTRE + a], b.centre[a].to_bits());
+            }
+            let v_const = row[FT_V_CONST] == 1;
+            assert_eq!(v_const, layout.compact());
+            let mut seen = vec![0; layout.words()];
+            for a in 0..3 {
+                seen[layout.x() + a] += 1;
+            }
+            if !v_const {
+                (0..3).for_each(|a| seen[layout.v() + a] += 1);
+            }
+            seen[layout.id()] += 1;
+            for k in 0..row[FT_NCONST] as usize {
+                let w = row[FT_CONST + 3 * k] as usize;
+                seen[w] += 1;
+                if !f64 {
+                    assert_eq!(row[FT_CONST + 3 * k + 2], 0, "high bits of an f32 word");
+                }
+            }
+            assert!(seen.iter().all(|&c| c == 1), "{layout:?}: {seen:?}");
+            start += b.count as u64;
         }
-        let c: [f32; 9] = std::array::from_fn(|e| f(FT_C + e));
-        assert_eq!(Mat3::from_cols_array(&c), b.c);
-        let fm: [f32; 9] = std::array::from_fn(|e| f(FT_F + e));
-        assert_eq!(Mat3::from_cols_array(&fm), Mat3::IDENTITY);
-        assert_eq!(
-            (f(FT_PLASTIC), f(FT_MASS), f(FT_VOL0)),
-            (b.plastic, b.mass, b.vol0)
-        );
-        start += b.count as u64;
+        assert!(start > 1000, "{start} particles");
     }
-    assert!(start > 1000, "{start} particles");
     // A material out of range: the packing's error.
-    let e = table(&bodies, &[true]).expect_err("material 1 of 1");
+    let e = table(&bodies, &[true], StateLayout::Full, false).expect_err("material 1 of 1");
     assert!(e.contains("material 1 out of range"), "{e}");
 }
 
@@ -173,9 +188,14 @@ fn gather_copies_a_range_across_chunks() {
 }
 
 /// `fill_body` as written in `kernels/fill.cu`, operation for operation (f32, each rounded on
-/// its own, as the inline PTX does), into an image of stride `cap`.
-fn emulate<W: FromF32>(rows: &[u32], bodies: &[SampledBody], cap: usize) -> Vec<W> {
-    let mut s = vec![W::zero(); NFIELDS * cap];
+/// its own, as the inline PTX does), into an image of `layout` with stride `cap`.
+fn emulate<W: FromF32>(
+    rows: &[u32],
+    bodies: &[SampledBody],
+    layout: StateLayout,
+    cap: usize,
+) -> Vec<W> {
+    let mut s = vec![W::zero(); layout.words() * cap];
     for p in pieces(bodies, 1000) {
         let SampledBody::Shape(b) = &bodies[p.body] else {
             continue;
@@ -193,26 +213,26 @@ fn emulate<W: FromF32>(rows: &[u32], bodies: &[SampledBody], cap: usize) -> Vec<
         for k in 0..p.len {
             let i = (start + (p.offset + k) as u64) as usize;
             let x = [xs[3 * k], xs[3 * k + 1], xs[3 * k + 2]];
-            let d = [x[0] - c[0], x[1] - c[1], x[2] - c[2]];
-            let r = [
-                w[1] * d[2] - d[1] * w[2],
-                w[2] * d[0] - d[2] * w[0],
-                w[0] * d[1] - d[0] * w[1],
-            ];
             let mut put = |f: usize, v: W| s[f * cap + i] = v;
-            for a in 0..3 {
-                put(F_X + a, W::from(x[a]));
-                put(F_V + a, W::from(v0[a] + r[a]));
+            for (a, &xa) in x.iter().enumerate() {
+                put(layout.x() + a, W::from(xa));
             }
-            for e in 0..9 {
-                put(F_C + e, W::from(g(FT_C + e)));
-                put(F_F + e, W::from(g(FT_F + e)));
+            if t[FT_V_CONST] == 0 {
+                let d = [x[0] - c[0], x[1] - c[1], x[2] - c[2]];
+                let r = [
+                    w[1] * d[2] - d[1] * w[2],
+                    w[2] * d[0] - d[2] * w[0],
+                    w[0] * d[1] - d[0] * w[1],
+                ];
+                for a in 0..3 {
+                    put(layout.v() + a, W::from(v0[a] + r[a]));
+                }
             }
-            put(F_PLASTIC, W::from(g(FT_PLASTIC)));
-            put(F_MASS, W::from(g(FT_MASS)));
-            put(F_VOL0, W::from(g(FT_VOL0)));
-            put(F_MAT, W::bits(t[FT_MAT]));
-            put(F_ID, W::bits(i as u32));
+            for e in 0..t[FT_NCONST] as usize {
+                let q = &t[FT_CONST + 3 * e..FT_CONST + 3 * e + 3];
+                put(q[0] as usize, W::raw(q[1], q[2]));
+            }
+            put(layout.id(), W::bits(i as u32));
         }
     }
     s
@@ -223,6 +243,7 @@ trait FromF32: Copy {
     fn zero() -> Self;
     fn from(x: f32) -> Self;
     fn bits(b: u32) -> Self;
+    fn raw(lo: u32, hi: u32) -> Self;
     fn bytes(v: &[Self]) -> Vec<u8>;
 }
 
@@ -235,6 +256,9 @@ impl FromF32 for f32 {
     }
     fn bits(b: u32) -> Self {
         f32::from_bits(b)
+    }
+    fn raw(lo: u32, _hi: u32) -> Self {
+        f32::from_bits(lo)
     }
     fn bytes(v: &[Self]) -> Vec<u8> {
         v.iter().flat_map(|w| w.to_le_bytes()).collect()
@@ -251,29 +275,97 @@ impl FromF32 for f64 {
     fn bits(b: u32) -> Self {
         f64::from_bits(b as u64)
     }
+    fn raw(lo: u32, hi: u32) -> Self {
+        f64::from_bits(lo as u64 | (hi as u64) << 32)
+    }
     fn bytes(v: &[Self]) -> Vec<u8> {
         v.iter().flat_map(|w| w.to_le_bytes()).collect()
     }
 }
 
-/// The kernel's arithmetic on the table and the positions gives the host's image word for word,
-/// in f32 and in f64, for bodies with velocity and spin (the GPU test `tests/fill.rs` checks the
-/// kernel itself).
+/// The kernel's arithmetic on the table and the positions gives the host's image word for word
+/// in every state layout, f32 and (where the layout allows it) f64, for bodies with velocity and
+/// spin (the compact layouts: moving bodies without spin; the fluid layouts: water only). The GPU
+/// test `tests/fill.rs` checks the kernel itself.
 #[test]
 fn the_fill_arithmetic_is_the_host_packing() {
-    let (_, bodies) = bodies();
-    let rows = table(&bodies, &FLUID).expect("table");
-    let n: usize = bodies.iter().map(|b| b.len()).sum();
-    let host = crate::state::pack_bodies(&bodies, &FLUID, false).expect("pack");
-    assert!(
-        FromF32::bytes(&emulate::<f32>(&rows, &bodies, n)) == host,
-        "f32"
-    );
-    let host = crate::state::pack_bodies(&bodies, &FLUID, true).expect("pack");
-    assert!(
-        FromF32::bytes(&emulate::<f64>(&rows, &bodies, n)) == host,
-        "f64"
-    );
+    let (_, mixed) = bodies();
+    let water = |spin: bool| {
+        let text = SCENE
+            .replace("material = \"jelly\"", "material = \"water\"")
+            .replace(
+                "angular_velocity = [",
+                if spin { "angular_velocity = [" } else { "# [" },
+            );
+        let text = if spin {
+            text
+        } else {
+            text.replace("-0.0", "0.0")
+        };
+        let scene = Scene::from_toml(&text, "fill test").expect("scene");
+        sample_bodies(&scene, &|_| {}).expect("sample")
+    };
+    let still = {
+        // No spin, and +0 for the -0 (v0 + 0 would not be v0 bit for bit).
+        let text = SCENE
+            .replace("angular_velocity = [", "# [")
+            .replace("-0.0", "0.0");
+        let scene = Scene::from_toml(&text, "fill test").expect("scene");
+        sample_bodies(&scene, &|_| {}).expect("sample")
+    };
+    for layout in StateLayout::ALL {
+        let (bodies, fluid): (Vec<SampledBody>, &[bool]) = match (layout.fluid(), layout.compact())
+        {
+            (false, false) => (mixed.clone_shapes(), &FLUID),
+            (true, false) => (water(true), &[true, true]),
+            (false, true) => (still.clone_shapes(), &FLUID),
+            (true, true) => (water(false), &[true, true]),
+        };
+        assert!(supported(&bodies, layout), "{layout:?}");
+        let n: usize = bodies.iter().map(|b| b.len()).sum();
+        for f64 in [false, true] {
+            if f64 && layout.compact() {
+                continue;
+            }
+            let rows = table(&bodies, fluid, layout, f64).expect("table");
+            let host = crate::state::pack_bodies(&bodies, fluid, layout, f64).expect("pack");
+            let got = if f64 {
+                FromF32::bytes(&emulate::<f64>(&rows, &bodies, layout, n))
+            } else {
+                FromF32::bytes(&emulate::<f32>(&rows, &bodies, layout, n))
+            };
+            assert!(got == host, "{layout:?}, f64 = {f64}");
+        }
+    }
+    // Spinning bodies in a compact layout: the host packs them.
+    assert!(!supported(&mixed, StateLayout::Compact));
+}
+
+/// Copies of sampled bodies of shapes (tests only).
+trait CloneShapes {
+    fn clone_shapes(&self) -> Vec<SampledBody>;
+}
+
+impl CloneShapes for Vec<SampledBody> {
+    fn clone_shapes(&self) -> Vec<SampledBody> {
+        self.iter()
+            .map(|b| match b {
+                SampledBody::Shape(b) => SampledBody::Shape(BodyPositions {
+                    chunks: b.chunks.clone(),
+                    count: b.count,
+                    vol0: b.vol0,
+                    mass: b.mass,
+                    plastic: b.plastic,
+                    material: b.material,
+                    velocity: b.velocity,
+                    angular_velocity: b.angular_velocity,
+                    centre: b.centre,
+                    c: b.c,
+                }),
+                SampledBody::Points(_) => panic!("shapes only"),
+            })
+            .collect()
+    }
 }
 
 /// The kernel reads the table through the `FT_*` names of the generated header, and rounds every
@@ -289,9 +381,9 @@ fn the_kernel_uses_the_contract_and_unfused_arithmetic() {
         "FT_V0",
         "FT_W",
         "FT_CENTRE",
-        "FT_C",
-        "FT_F",
-        "FT_MAT",
+        "FT_V_CONST",
+        "FT_NCONST",
+        "FT_CONST",
         "FILL_WORDS",
     ] {
         assert!(src.contains(name), "{name}");
@@ -302,8 +394,8 @@ fn the_kernel_uses_the_contract_and_unfused_arithmetic() {
     assert!(!src.contains(".ftz"), "flushes subnormals");
     let prelude = crate::contract::prelude();
     assert!(prelude.contains(&format!("#define FILL_WORDS {FILL_WORDS}")));
-    assert!(prelude.contains(&format!("#define FT_VOL0 {FT_VOL0}")));
-    const { assert!(FT_VOL0 < FILL_WORDS) };
+    assert!(prelude.contains(&format!("#define FT_CONST {FT_CONST}")));
+    const { assert!(FT_NCONST < FT_CONST) };
 }
 
 /// The set-up line names every phase, and what no phase accounts for as "other".

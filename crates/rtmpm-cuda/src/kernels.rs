@@ -26,12 +26,14 @@ pub struct Kernels {
 
 impl Kernels {
     /// Load every kernel of `module`; `sm_count` sizes the waves, `fused_rebuild` asks for the
-    /// persistent rebuild kernel's grid, `sort_fields` is the sort scratch's fields.
+    /// persistent rebuild kernel's grid, `sort_fields` is the sort scratch's fields (at most the
+    /// `layout`'s words).
     pub(crate) fn load(
         module: &Arc<CudaModule>,
         sm_count: i32,
         fused_rebuild: bool,
         sort_fields: usize,
+        layout: crate::contract::StateLayout,
     ) -> Result<Kernels, SimError> {
         let functions = Kernel::ALL
             .iter()
@@ -45,8 +47,8 @@ impl Kernels {
             functions,
             wave_threads: sm_count.max(1) as usize * 2048,
             rb_fused_grid: None,
-            sort_fields: sort_fields.clamp(1, crate::contract::NFIELDS) as u32,
-            sort_mask: crate::rebuild::ALL_FIELDS,
+            sort_fields: sort_fields.clamp(1, layout.words()) as u32,
+            sort_mask: layout.all_words(),
         };
         if fused_rebuild {
             // A cooperative launch needs every block resident, so its grid barrier cannot deadlock.

@@ -40,9 +40,11 @@
 //! moves one word of F in and three out (a fluid's F is J^(1/3) I) and skips the material
 //! dispatch.
 //!
-//! Particle state: structure of arrays of `real` fields (f32, or f64 with `precision = "f64"`),
-//! field `f` of particle `i` at `state[f * capacity + i]` ([`contract`] lists the fields,
-//! [`state`] converts at upload and download); particles are physically reordered at every
+//! Particle state: structure of arrays of `real` words (f32, or f64 with `precision = "f64"`),
+//! word `w` of particle `i` at `state[w * capacity + i]`, each field at the words of the
+//! backend's [`contract::StateLayout`] (29 words; 20 when every material is a fluid; 24 and 15
+//! with the compact v and C of [`codec`]); [`state`] converts at upload and download; particles
+//! are physically reordered at every
 //! rebuild and carry their original index, [`CudaBackend`] returns them in original order.
 //! Grid nodes: 4 reals (mass, momentum/velocity) per node, 64 nodes per pblock.
 //!
@@ -62,6 +64,7 @@ pub mod backend;
 pub mod bench;
 pub mod buffers;
 pub mod capacity;
+pub mod codec;
 pub mod compile;
 pub mod contract;
 pub mod emit;

@@ -102,7 +102,7 @@ pub struct CudaOptions {
     /// smaller G2P2G 96 registers and spills).
     pub specialize: bool,
     /// Fields of the particle state that the rebuild's sort permutes per pass (1 to
-    /// `NFIELDS`): the scratch holds that many words per particle instead of a second copy of
+    /// the state layout's words): the scratch holds that many words per particle instead of a second copy of
     /// the state. Fewer: less memory, more passes (two grid barriers each) when the mapping is
     /// rebuilt. The result is the same for every value.
     pub sort_scratch_fields: usize,
@@ -115,6 +115,14 @@ pub struct CudaOptions {
     /// of the host packing the whole state image and uploading it (`fill=host`, kept for
     /// comparison). The state is the same word for word.
     pub device_fill: bool,
+    /// Scenes whose materials are all fluids keep the 20-word fluid state
+    /// ([`crate::contract::StateLayout::Fluid`]: F in one word, no plastic word) instead of
+    /// the 29-word one; the results are bit-identical. Off: the 29-word layout (for comparison).
+    pub fluid_state: bool,
+    /// The compact particle state (velocity and APIC C in shared-exponent words,
+    /// [`crate::codec`]; single precision only); also set by the scene's
+    /// `[solver] particle_state = "compact"`.
+    pub compact_state: bool,
 }
 
 /// Default of [`CudaOptions::sort_scratch_fields`]: 4 words per particle of scratch instead of
@@ -147,6 +155,8 @@ impl Default for CudaOptions {
             sort_scratch_fields: DEFAULT_SORT_SCRATCH_FIELDS,
             rigid_overlap: true,
             device_fill: true,
+            fluid_state: true,
+            compact_state: false,
         }
     }
 }
@@ -156,7 +166,8 @@ impl std::str::FromStr for CudaOptions {
     /// Comma separated `key=value`: `free_zone`, `mixed_sort`, `warp_reduce`, `fast_math`,
     /// `graph`, `f64`, `rebalance`, `overlap`, `g2p2g`, `rigid_overlap`, `specialize` (on/off/true/false/1/0), `rebuild` (fused/kernels), `fill` (device/host), `p2g`
     /// (warp/shared/reverse_map/sort), `transport` (p2p/nccl), `barrier` (spin/events), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
-    /// `rmap_pblocks`, `shared`, `sort_fields` (counts).
+    /// `rmap_pblocks`, `shared`, `sort_fields` (counts), `fluid_state` (on/off), `state`
+    /// (f32/compact).
     fn from_str(s: &str) -> Result<Self, String> {
         let mut o = CudaOptions::default();
         for item in s.split(',').map(str::trim).filter(|t| !t.is_empty()) {
@@ -205,12 +216,20 @@ impl std::str::FromStr for CudaOptions {
                 "rigid_overlap" => o.rigid_overlap = b()?,
                 "specialize" => o.specialize = b()?,
                 "overlap" => o.overlap = b()?,
+                "fluid_state" => o.fluid_state = b()?,
+                "state" => {
+                    o.compact_state = match v {
+                        "f32" => false,
+                        "compact" => true,
+                        _ => return Err(format!("`{item}`: expected f32 or compact")),
+                    }
+                }
                 "sort_fields" => {
                     let k = n()?;
-                    if !(1..=crate::contract::NFIELDS).contains(&k) {
+                    if !(1..=crate::contract::MAX_FIELDS).contains(&k) {
                         return Err(format!(
                             "`{item}`: expected 1 to {} fields",
-                            crate::contract::NFIELDS
+                            crate::contract::MAX_FIELDS
                         ));
                     }
                     o.sort_scratch_fields = k;
@@ -286,7 +305,11 @@ mod tests {
         assert!("specialize=on".parse::<CudaOptions>().unwrap().specialize);
         assert_eq!(CudaOptions::default().sort_scratch_fields, 4);
         let o: CudaOptions = "sort_fields=29".parse().unwrap();
-        assert_eq!(o.sort_scratch_fields, crate::contract::NFIELDS);
+        assert_eq!(o.sort_scratch_fields, crate::contract::MAX_FIELDS);
+        assert!(CudaOptions::default().fluid_state && !CudaOptions::default().compact_state);
+        let o: CudaOptions = "fluid_state=off,state=compact".parse().unwrap();
+        assert!(!o.fluid_state && o.compact_state);
+        assert!("state=f16".parse::<CudaOptions>().is_err());
         assert!("sort_fields=0".parse::<CudaOptions>().is_err());
         assert!("sort_fields=30".parse::<CudaOptions>().is_err());
         assert!(CudaOptions::default().device_fill);

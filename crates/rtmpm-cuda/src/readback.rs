@@ -154,8 +154,14 @@ impl CudaBackend {
             .stream
             .clone_dtoh(&self.buffers.state)
             .map_err(err("read particles"))?;
-        crate::state::unpack_x_v_f64(&host, self.n, self.ctx.cap as usize, self.options.f64)
-            .map_err(SimError::Backend)
+        crate::state::unpack_x_v_f64(
+            &host,
+            self.n,
+            self.ctx.cap as usize,
+            self.layout,
+            self.options.f64,
+        )
+        .map_err(SimError::Backend)
     }
 
     /// The particle state arrays as stored (SoA, stride = capacity). Single precision only (the
@@ -173,8 +179,8 @@ impl CudaBackend {
         Ok(bytemuck::pod_collect_to_vec(&bytes))
     }
 
-    /// The particle state arrays as stored, in either precision: the bytes of the `NFIELDS`
-    /// arrays (SoA, `real` words) and their stride (the particle capacity).
+    /// The particle state arrays as stored, in either precision: the bytes of the layout's
+    /// word arrays ([`CudaBackend::state_layout`]) (SoA, `real` words) and their stride (the particle capacity).
     pub fn read_state_bytes(&mut self) -> Result<(Vec<u8>, usize), SimError> {
         let bytes = self
             .stream
@@ -260,13 +266,15 @@ impl CudaBackend {
 /// Size every column of `out` for `n` particles (zeros); see [`crate::state::resize_particles`].
 pub use crate::state::resize_particles;
 
-/// Put the `n` particles of a single-precision state array (SoA with stride `cap`, as stored on
-/// one GPU) at their original index in `out` (already sized for every particle of the run).
+/// Put the `n` particles of a single-precision state array (SoA with stride `cap` in `layout`, as
+/// stored on one GPU) at their original index in `out` (already sized for every particle of the
+/// run).
 pub fn scatter_state(
     host: &[f32],
     n: usize,
     cap: usize,
+    layout: crate::contract::StateLayout,
     out: &mut rtmpm_core::Particles,
 ) -> Result<(), SimError> {
-    crate::state::scatter_f32(host, n, cap, out).map_err(SimError::Backend)
+    crate::state::scatter_f32(host, n, cap, layout, out).map_err(SimError::Backend)
 }

@@ -4,33 +4,32 @@
 //! phase kernels (a scatter and a copy back per chunk of `Kernels::sort_fields` fields), each
 //! returning at once when nothing is rebuilt.
 
-use crate::contract::{Ctx, F_F, NFIELDS};
+use crate::contract::{Ctx, MAX_FIELDS, StateLayout};
 use crate::kernels::{Kernel, Kernels, cfg};
 use cudarc::driver::{CudaStream, DriverError, LaunchConfig, PushKernelArg};
 
-/// Every field of the state (bit f: field f).
-pub const ALL_FIELDS: u32 = (1 << NFIELDS) - 1;
-
-/// The fields the sort permutes: every field, except, when every material is a fluid
-/// (`all_fluid`), the six off-diagonal words of F, which are then zero in every particle (a
-/// fluid's F is J^(1/3) I: `state::pack` writes it so, the kernels keep it so), so the sort moves
-/// 23 words per particle instead of 29 and the state is the same.
-pub fn sorted_fields(all_fluid: bool) -> u32 {
-    if !all_fluid {
-        return ALL_FIELDS;
+/// The words the sort permutes (bit w: word w of the `layout`): every word, except, when every
+/// material is a fluid (`all_fluid`) in a layout with nine words of F (`fluid_state=off`), the
+/// six off-diagonal words of F, which are then zero in every particle (a fluid's F is J^(1/3) I:
+/// `state::pack` writes it so, the kernels keep it so), so the sort moves 23 words per particle
+/// instead of 29 and the state is the same. A fluid layout has no such words.
+pub fn sorted_fields(layout: StateLayout, all_fluid: bool) -> u32 {
+    let all = layout.all_words();
+    if !all_fluid || layout.fluid() {
+        return all;
     }
     let off_diagonal = [1, 2, 3, 5, 6, 7]
         .iter()
-        .fold(0u32, |m, e| m | 1 << (F_F + e));
-    ALL_FIELDS & !off_diagonal
+        .fold(0u32, |m, e| m | 1 << (layout.f() + e));
+    all & !off_diagonal
 }
 
 /// The chunks of the fields of `mask` (bit f: field f) that the sort permutes one after the
 /// other with a scratch of `fields` fields: each the next (at most) `fields` fields of the mask,
 /// in order (the loop of `rb_fused`, kernels/rebuild.cu).
 pub fn chunks(fields: usize, mask: u32) -> Vec<u32> {
-    let k = fields.clamp(1, NFIELDS);
-    let mut rest = mask & ALL_FIELDS;
+    let k = fields.clamp(1, MAX_FIELDS);
+    let mut rest = mask;
     let mut out = Vec::new();
     while rest != 0 {
         let mut chunk = 0;
@@ -132,10 +131,34 @@ pub(crate) fn enqueue(k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), Driver
 mod tests {
     use super::*;
 
+    const NFIELDS: usize = MAX_FIELDS;
+    const ALL_FIELDS: u32 = (1 << NFIELDS) - 1;
+    fn sorted_full(all_fluid: bool) -> u32 {
+        sorted_fields(StateLayout::Full, all_fluid)
+    }
+
+    #[test]
+    fn every_layout_sorts_all_its_words_but_a_fluid_s_zeros() {
+        for l in StateLayout::ALL {
+            assert_eq!(sorted_fields(l, false), l.all_words());
+            let fluid = sorted_fields(l, true);
+            let expect = if l.fluid() { l.words() } else { l.words() - 6 };
+            assert_eq!(fluid.count_ones() as usize, expect, "{l:?}");
+            assert_eq!(fluid & !l.all_words(), 0);
+        }
+        // The fluid layout's 20 words: 5 chunks at K = 4 (the 29-word fluid sort: 6).
+        assert_eq!(chunks(4, sorted_fields(StateLayout::Fluid, true)).len(), 5);
+        assert_eq!(
+            chunks(4, sorted_fields(StateLayout::CompactFluid, true)).len(),
+            4
+        );
+    }
+
     #[test]
     fn the_chunks_cover_every_sorted_field_once_in_order() {
+        let f_f = StateLayout::Full.f();
         for all_fluid in [false, true] {
-            let mask = sorted_fields(all_fluid);
+            let mask = sorted_full(all_fluid);
             let fields: Vec<usize> = (0..NFIELDS).filter(|f| mask >> f & 1 == 1).collect();
             assert_eq!(fields.len(), if all_fluid { 23 } else { NFIELDS });
             for k in 1..=NFIELDS {
@@ -157,11 +180,11 @@ mod tests {
             }
         }
         assert_eq!(chunks(4, ALL_FIELDS).len(), 8);
-        assert_eq!(chunks(4, sorted_fields(true)).len(), 6);
+        assert_eq!(chunks(4, sorted_full(true)).len(), 6);
         assert_eq!(chunks(0, ALL_FIELDS).len(), NFIELDS);
         assert_eq!(chunks(99, ALL_FIELDS), vec![ALL_FIELDS]);
         // Position, velocity, C, F's diagonal, the scalars, the material and the id are sorted.
-        let fluid = sorted_fields(true);
+        let fluid = sorted_full(true);
         for f in [
             0,
             1,
@@ -171,9 +194,9 @@ mod tests {
             5,
             6,
             14,
-            F_F,
-            F_F + 4,
-            F_F + 8,
+            f_f,
+            f_f + 4,
+            f_f + 8,
             24,
             25,
             26,

@@ -24,8 +24,9 @@ fn err(what: &'static str) -> impl Fn(cudarc::driver::DriverError) -> SimError {
     move |e| SimError::Backend(format!("CUDA: {what}: {e:?}"))
 }
 
-/// The device record of a body's state.
-pub fn encode(b: &BodyState) -> GpuBody {
+/// The device record of a body's state; a mesh body's distance grid starts at `mesh_offset` in
+/// the mesh table (`encode::Tables::body_mesh`).
+pub fn encode(b: &BodyState, mesh_offset: u32) -> GpuBody {
     let s = b.shape.sdf_shape();
     let mut col = GpuCollider {
         kind: crate::contract::collider_kind(&s),
@@ -34,6 +35,7 @@ pub fn encode(b: &BodyState) -> GpuBody {
         ..Default::default()
     };
     crate::encode::shape_params(&s, &mut col, &mut Vec::new());
+    col.mesh_offset = mesh_offset;
     GpuBody {
         shape: col,
         rot: b.rotation.to_cols_array(),
@@ -41,7 +43,7 @@ pub fn encode(b: &BodyState) -> GpuBody {
         velocity: b.velocity.to_array(),
         omega: b.angular_velocity.to_array(),
         // The farthest point of the shape from its centre, and a little more for rounding.
-        bound: b.shape.world_half_extents(glam::Mat3::IDENTITY).length() * 1.001 + 1e-6,
+        bound: b.shape.bounding_radius() * 1.001 + 1e-6,
         dynamic: b.dynamic as u32,
     }
 }
@@ -61,15 +63,18 @@ pub struct Bodies {
     pending: Option<(usize, f32)>,
     /// See [`crate::CudaOptions::rigid_overlap`].
     overlap: bool,
+    /// Where each body's distance grid starts in the mesh table (mesh bodies).
+    mesh_offsets: Vec<u32>,
 }
 
 impl Bodies {
-    /// The bodies of `scene` (`None` without any), their device buffers allocated on `stream`.
-    /// Refused with the MUSL update, as on the CPU.
+    /// The bodies of `scene` (`None` without any), their device buffers allocated on `stream`;
+    /// `mesh_offsets`: `encode::Tables::body_mesh`. Refused with the MUSL update, as on the CPU.
     pub fn new(
         scene: &Scene,
         stream: &Arc<CudaStream>,
         overlap: bool,
+        mesh_offsets: Vec<u32>,
     ) -> Result<Option<Bodies>, SimError> {
         if scene.rigid_bodies.is_empty() {
             return Ok(None);
@@ -120,6 +125,7 @@ impl Bodies {
             next: 0,
             pending: None,
             overlap,
+            mesh_offsets,
         }))
     }
 
@@ -152,7 +158,13 @@ impl Bodies {
         module: &Arc<CudaModule>,
         stream: &Arc<CudaStream>,
     ) -> Result<(), SimError> {
-        let recs: Vec<GpuBody> = self.world.states().iter().map(encode).collect();
+        let recs: Vec<GpuBody> = self
+            .world
+            .states()
+            .iter()
+            .enumerate()
+            .map(|(i, b)| encode(b, self.mesh_offsets.get(i).copied().unwrap_or(0)))
+            .collect();
         let bytes: &[u8] = bytemuck::cast_slice(&recs);
         stream
             .memcpy_htod(bytes, &mut self.states.slice_mut(..bytes.len()))
@@ -230,6 +242,7 @@ pub fn exchange_sums(sums: &[f64], bodies: usize) -> Vec<Exchange> {
 mod tests {
     use super::*;
     use rtmpm_core::boundary::Condition;
+    use rtmpm_core::boundary::sdf::Shape;
     use rtmpm_core::rigid::RigidShape;
 
     #[test]
@@ -243,6 +256,79 @@ mod tests {
         assert_eq!(e[1].impulse, [0.0, 3.5, 0.0]);
         assert_eq!(e[0].torque, [0.0, 0.0, -3.0]);
         assert_eq!(e[0].impulse, [0.0; 3]);
+    }
+
+    /// A mesh body's distance grid goes to the mesh table after the mesh colliders' (and their
+    /// sentinel), and its record points there with the grid's origin, spacing and dims (the
+    /// body frame): what `mesh_distance` reads for colliders.
+    #[test]
+    fn a_mesh_body_is_encoded_as_a_mesh_grid_after_the_colliders_meshes() {
+        let dir = std::env::temp_dir().join(format!("rtmpm-cuda-mesh-body-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let obj = dir.join("cube.obj");
+        std::fs::write(
+            &obj,
+            "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
+             f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n",
+        )
+        .unwrap();
+        let text = format!(
+            "[domain]\nmin = [0,0,0]\nmax = [1,1,1]\ndx = 0.05\n[time]\nduration = 0.1\n\
+             [[material]]\nname = \"w\"\ntype = \"fluid\"\ndensity = 1000.0\n\
+             bulk_modulus = 1e4\n[[body]]\nmaterial = \"w\"\nshape = \"box\"\n\
+             min = [0.2, 0.2, 0.2]\nmax = [0.4, 0.4, 0.4]\n\
+             [[collider]]\nshape = \"mesh\"\nfile = \"{0}\"\nscale = 0.1\n\
+             translate = [0.7, 0.2, 0.2]\n\
+             [[rigid_body]]\nshape = \"sphere\"\ncenter = [0.3, 0.7, 0.3]\nradius = 0.1\n\
+             density = 500.0\n\
+             [[rigid_body]]\nshape = \"mesh\"\nfile = \"{0}\"\nscale = [0.2, 0.1, 0.2]\n\
+             translate = [0.6, 0.6, 0.6]\ndensity = 500.0\n",
+            obj.display()
+        );
+        let scene = rtmpm_core::Scene::from_toml(&text, "test").unwrap_or_else(|e| panic!("{e}"));
+        let t = crate::encode::tables(&scene, false).unwrap();
+        let Shape::Mesh(col) = &scene.colliders[0].shape else {
+            panic!("a mesh collider")
+        };
+        // Collider grid, sentinel, then the body's grid.
+        let at = col.values.len() as u32 + 1;
+        assert_eq!(t.body_mesh, vec![0, at]);
+        let RigidShape::Mesh(m) = &scene.rigid_bodies[1].shape else {
+            panic!("a mesh body")
+        };
+        assert_eq!(&t.mesh[at as usize..], &m.sdf.values[..]);
+        let b = BodyState {
+            shape: scene.rigid_bodies[1].shape.clone(),
+            rotation: glam::Mat3::IDENTITY,
+            center: scene.rigid_bodies[1].position,
+            velocity: glam::Vec3::ZERO,
+            angular_velocity: glam::Vec3::ZERO,
+            dynamic: true,
+            condition: Condition::Slip,
+            friction: 0.0,
+        };
+        assert!((b.center - glam::Vec3::new(0.7, 0.65, 0.7)).length() < 1e-5);
+        let g = encode(&b, at);
+        assert_eq!(
+            g.shape.kind,
+            crate::contract::collider_kind(&Shape::Mesh(m.sdf.clone()))
+        );
+        assert_eq!(g.shape.mesh_offset, at);
+        assert_eq!(g.shape.dims, m.sdf.dims);
+        assert_eq!(
+            &g.shape.p[..4],
+            &[
+                m.sdf.origin.x,
+                m.sdf.origin.y,
+                m.sdf.origin.z,
+                m.sdf.spacing
+            ]
+        );
+        // The body frame is about the centre of mass: the grid spans the box about 0.
+        assert!(m.sdf.origin.cmplt(glam::Vec3::new(-0.1, -0.05, -0.1)).all());
+        let corner = glam::Vec3::new(0.1, 0.05, 0.1).length();
+        assert!(g.bound >= corner && g.bound < corner * 1.01, "{}", g.bound);
+        std::fs::remove_dir_all(&dir).ok();
     }
 
     #[test]
@@ -259,7 +345,7 @@ mod tests {
             condition: Condition::Separate,
             friction: 0.25,
         };
-        let g = encode(&b);
+        let g = encode(&b, 0);
         assert_eq!(g.shape.kind, 1);
         assert_eq!(&g.shape.p[..6], &[0.0, 0.0, 0.0, 0.1, 0.2, 0.3]);
         assert_eq!(

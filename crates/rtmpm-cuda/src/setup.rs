@@ -7,7 +7,6 @@ use crate::capacity::{self, Capacity};
 use rtmpm_core::Particles;
 use rtmpm_core::Scene;
 use rtmpm_core::grid::BlockLayout;
-use rtmpm_core::material::Model;
 use rtmpm_core::math::IVec3;
 use rtmpm_core::scene::sampling::SampledBody;
 
@@ -25,15 +24,6 @@ impl Initial<'_> {
             Initial::Bodies(b) => b.iter().map(|b| b.len()).sum(),
         }
     }
-}
-
-/// For each material of the scene: true for a fluid (whose F is packed as J^(1/3) I).
-pub(crate) fn fluid_flags(scene: &Scene) -> Vec<bool> {
-    scene
-        .materials
-        .iter()
-        .map(|m| matches!(m.model, Model::Fluid(_)))
-        .collect()
 }
 
 /// The stencil bases of the initial particles (for `p2g=reverse_map` only; else empty) and the

@@ -1,16 +1,21 @@
 //! The particle state on the device, in the backend's precision: host upload and download.
 //!
-//! Structure of arrays of [`NFIELDS`] words per particle, field `f` of particle `i` at word
-//! `f * cap + i` (`cap`: the particle capacity, at least `n`). A word is an f32 (`real` = float) or an f64 (kernels compiled with `RTMPM_F64`);
-//! the material id and the original index are stored as integer bits in the low 32 bits of
-//! their word (`state_bits` in `kernels/common.cuh`). The [`Particles`] interface is f32: the
-//! upload widens exactly, the download rounds to nearest.
+//! Structure of arrays of [`StateLayout::words`] words per particle, word `w` of particle `i` at
+//! `w * cap + i` (`cap`: the particle capacity, at least `n`), each field where the backend's
+//! [`StateLayout`] puts it. A word is an f32 (`real` = float) or an f64 (kernels compiled with
+//! `RTMPM_F64`); the material id and the original index are stored as integer bits in the low 32
+//! bits of their word (`state_bits` in `kernels/common.cuh`), the compact layouts' v and C words
+//! as the bits of [`crate::codec`]'s formats. The [`Particles`] interface is f32: the upload
+//! widens exactly (compact: rounds v and C to their formats), the download rounds to nearest.
 
 use crate::contract::*;
+use crate::options::CudaOptions;
 use rayon::prelude::*;
-use rtmpm_core::Particles;
+use rtmpm_core::material::Model;
 use rtmpm_core::math::{Mat3, Vec3};
 use rtmpm_core::scene::sampling::{BodyPositions, SampledBody};
+use rtmpm_core::scene::{ParticleState, Precision};
+use rtmpm_core::{Particles, Scene};
 
 /// One word of the device state.
 trait Word: Copy + Default {
@@ -75,9 +80,41 @@ impl Word for f64 {
     }
 }
 
+#[path = "state_words.rs"]
+mod words;
+use words::*;
+
 /// Bytes of one state word.
 pub fn word_bytes(f64: bool) -> usize {
     if f64 { 8 } else { 4 }
+}
+
+/// True for each material of `scene` that is a fluid (whose F the state keeps as J^(1/3) I).
+pub fn fluid_materials(scene: &Scene) -> Vec<bool> {
+    scene
+        .materials
+        .iter()
+        .map(|m| matches!(m.model, Model::Fluid(_)))
+        .collect()
+}
+
+/// The state layout of a backend for `scene` with `options`: [`StateLayout::Fluid`] when every
+/// material is a fluid (unless `fluid_state` is off), compact with the scene's
+/// `[solver] particle_state = "compact"` or the option `compact_state` (`state=compact`). The
+/// compact state is single precision only: asked for in f64 (the scene's precision or the
+/// option), an error.
+pub fn layout_for(scene: &Scene, options: &CudaOptions) -> Result<StateLayout, String> {
+    let compact = options.compact_state || scene.particle_state == ParticleState::Compact;
+    let f64 = options.f64 || scene.precision == Precision::F64;
+    if compact && f64 {
+        return Err(
+            "the compact particle state ([solver] particle_state = \"compact\") is \
+                    single precision only: use particle_state = \"f32\" with f64"
+                .into(),
+        );
+    }
+    let all_fluid = fluid_materials(scene).iter().all(|f| *f);
+    Ok(StateLayout::choose(all_fluid, compact, options.fluid_state))
 }
 
 /// The device image of `particles` (f64 words when `f64`), SoA with stride `cap` (at least the
@@ -85,18 +122,21 @@ pub fn word_bytes(f64: bool) -> usize {
 /// (true for a fluid) and materials must be below its length. `ids`: the original index of each
 /// particle (one GPU of several), else 0..n. A fluid particle's F is written as J^(1/3) I with
 /// J = det F: the form the fluid's projection keeps it in (the same J, so the same stress), which
-/// the kernels rely on to read and write only its diagonal (`load_deformation` in common.cuh).
+/// the kernels rely on to read and write only its diagonal (`load_deformation` in state.cuh); a
+/// fluid layout keeps the one word J^(1/3) (every material must then be a fluid).
 pub fn pack(
     particles: &Particles,
     fluid: &[bool],
+    layout: StateLayout,
     f64: bool,
     cap: usize,
     ids: Option<&[u32]>,
 ) -> Result<Vec<u8>, String> {
+    check_layout(fluid, layout, f64)?;
     if f64 {
-        pack_words::<f64>(particles, fluid, cap, ids)
+        pack_words::<f64>(particles, fluid, layout, cap, ids)
     } else {
-        pack_words::<f32>(particles, fluid, cap, ids)
+        pack_words::<f32>(particles, fluid, layout, cap, ids)
     }
 }
 
@@ -122,6 +162,23 @@ enum Source<'a> {
     Shape(&'a BodyPositions, &'a [Vec3]),
 }
 
+/// The words every particle of the body `b` shares in `layout` ([`StateLayout`]) and precision
+/// (`f64`), as (state word, bits): what the device fill writes for each of them
+/// (`crate::fill`). `with_v`: the velocity's words too (v0; the body's particles move alike).
+pub fn body_constant_words(
+    layout: StateLayout,
+    f64: bool,
+    b: &BodyPositions,
+    fluid: bool,
+    with_v: bool,
+) -> Vec<(usize, u64)> {
+    if f64 {
+        body_words::<f64>(layout, b, fluid, with_v)
+    } else {
+        body_words::<f32>(layout, b, fluid, with_v)
+    }
+}
+
 /// A fluid particle's F in its packed form, J^(1/3) I; a solid's as it is.
 pub(crate) fn packed_f(f: Mat3, fluid: bool) -> Mat3 {
     if fluid {
@@ -140,15 +197,16 @@ fn write_image<W: Word>(
     n: usize,
     cap: usize,
     fluid: &[bool],
+    l: StateLayout,
     ids: Option<&[u32]>,
 ) -> Vec<u8> {
-    let mut bytes = vec![0u8; NFIELDS * cap * W::BYTES];
+    let words = l.words();
+    let mut bytes = vec![0u8; words * cap * W::BYTES];
     if n == 0 {
         return bytes;
     }
     // Each task's piece of each field's row.
-    let mut pieces: Vec<Vec<&mut [u8]>> =
-        tasks.iter().map(|_| Vec::with_capacity(NFIELDS)).collect();
+    let mut pieces: Vec<Vec<&mut [u8]>> = tasks.iter().map(|_| Vec::with_capacity(words)).collect();
     for row in bytes.chunks_mut(cap * W::BYTES) {
         let mut rest = &mut row[..n * W::BYTES];
         for ((_, len), task) in tasks.iter().zip(pieces.iter_mut()) {
@@ -184,25 +242,27 @@ fn write_image<W: Word>(
                     };
                     let mut put = |f: usize, v: W| v.put(&mut rows[f][k * W::BYTES..]);
                     for a in 0..3 {
-                        put(F_X + a, W::from_f32(q.x[a]));
-                        put(F_V + a, W::from_f32(q.v[a]));
+                        put(l.x() + a, W::from_f32(q.x[a]));
                     }
-                    let (c, fm) = (q.c.to_cols_array(), q.f.to_cols_array());
-                    for e in 0..9 {
-                        put(F_C + e, W::from_f32(c[e]));
-                        put(F_F + e, W::from_f32(fm[e]));
+                    let (v, nv) = v_words::<W>(l, q.v);
+                    let (c, nc) = c_words::<W>(l, q.c);
+                    let (fm, nf) = f_words::<W>(l, q.f);
+                    (0..nv).for_each(|e| put(l.v() + e, v[e]));
+                    (0..nc).for_each(|e| put(l.c() + e, c[e]));
+                    (0..nf).for_each(|e| put(l.f() + e, fm[e]));
+                    if let Some(pl) = l.plastic() {
+                        put(pl, W::from_f32(q.plastic));
                     }
-                    put(F_PLASTIC, W::from_f32(q.plastic));
-                    put(F_MASS, W::from_f32(q.mass));
-                    put(F_VOL0, W::from_f32(q.vol0));
-                    put(F_MAT, W::from_id(q.material));
+                    put(l.mass(), W::from_f32(q.mass));
+                    put(l.vol0(), W::from_f32(q.vol0));
+                    put(l.material(), W::from_id(q.material));
                     put(
-                        F_ID,
+                        l.id(),
                         W::from_id(ids.map_or((first + k) as u32, |ids| ids[first + k])),
                     );
                 }
             }
-            // Field by field: 22 of the 29 fields are the body's constants (row fills).
+            // Field by field: all but x, v and id are the body's constants (row fills).
             Source::Shape(b, xs) => {
                 let fill = |row: &mut [u8], v: W| {
                     let mut word = [0u8; 8];
@@ -212,24 +272,27 @@ fn write_image<W: Word>(
                     }
                 };
                 let f = packed_f(Mat3::IDENTITY, fluid[b.material as usize]);
-                let (c, fm) = (b.c.to_cols_array(), f.to_cols_array());
-                for e in 0..9 {
-                    fill(rows[F_C + e], W::from_f32(c[e]));
-                    fill(rows[F_F + e], W::from_f32(fm[e]));
+                let (c, nc) = c_words::<W>(l, b.c);
+                let (fm, nf) = f_words::<W>(l, f);
+                (0..nc).for_each(|e| fill(rows[l.c() + e], c[e]));
+                (0..nf).for_each(|e| fill(rows[l.f() + e], fm[e]));
+                if let Some(pl) = l.plastic() {
+                    fill(rows[pl], W::from_f32(b.plastic));
                 }
-                fill(rows[F_PLASTIC], W::from_f32(b.plastic));
-                fill(rows[F_MASS], W::from_f32(b.mass));
-                fill(rows[F_VOL0], W::from_f32(b.vol0));
-                fill(rows[F_MAT], W::from_id(b.material));
+                fill(rows[l.mass()], W::from_f32(b.mass));
+                fill(rows[l.vol0()], W::from_f32(b.vol0));
+                fill(rows[l.material()], W::from_id(b.material));
                 for (k, &x) in xs.iter().enumerate() {
-                    let v = b.velocity_at(x);
                     let at = k * W::BYTES;
                     for a in 0..3 {
-                        W::from_f32(x[a]).put(&mut rows[F_X + a][at..]);
-                        W::from_f32(v[a]).put(&mut rows[F_V + a][at..]);
+                        W::from_f32(x[a]).put(&mut rows[l.x() + a][at..]);
+                    }
+                    let (v, nv) = v_words::<W>(l, b.velocity_at(x));
+                    for (e, w) in v.iter().enumerate().take(nv) {
+                        w.put(&mut rows[l.v() + e][at..]);
                     }
                     let i = first + k;
-                    W::from_id(ids.map_or(i as u32, |ids| ids[i])).put(&mut rows[F_ID][at..]);
+                    W::from_id(ids.map_or(i as u32, |ids| ids[i])).put(&mut rows[l.id()][at..]);
                 }
             }
         });
@@ -255,6 +318,7 @@ fn bad_material(p: &Particles, fluid: &[bool]) -> Option<usize> {
 fn pack_words<W: Word>(
     p: &Particles,
     fluid: &[bool],
+    l: StateLayout,
     cap: usize,
     ids: Option<&[u32]>,
 ) -> Result<Vec<u8>, String> {
@@ -269,16 +333,22 @@ fn pack_words<W: Word>(
             p.material[i]
         ));
     }
-    Ok(write_image::<W>(particle_tasks(p), n, cap, fluid, ids))
+    Ok(write_image::<W>(particle_tasks(p), n, cap, fluid, l, ids))
 }
 
 /// The device image (stride: the particle count, ids `0..n`) of the particles of sampled bodies
 /// ([`rtmpm_core::scene::sampling::sample_bodies`]), written straight from their positions:
 /// byte for byte what [`pack`] makes of the [`Particles`] that
 /// [`rtmpm_core::Scene::sample_particles`] returns, without the host ever holding those (112
-/// bytes a particle): a backend built from it needs the image (116 bytes a particle in f32) and
-/// the positions (12) only.
-pub fn pack_bodies(bodies: &[SampledBody], fluid: &[bool], f64: bool) -> Result<Vec<u8>, String> {
+/// bytes a particle): a backend built from it needs the image (4 bytes a word: 116 bytes a
+/// particle in the 29-word f32 layout) and the positions (12) only.
+pub fn pack_bodies(
+    bodies: &[SampledBody],
+    fluid: &[bool],
+    layout: StateLayout,
+    f64: bool,
+) -> Result<Vec<u8>, String> {
+    check_layout(fluid, layout, f64)?;
     let mut tasks = Vec::new();
     let mut n = 0usize;
     for body in bodies {
@@ -310,9 +380,9 @@ pub fn pack_bodies(bodies: &[SampledBody], fluid: &[bool], f64: bool) -> Result<
         n += body.len();
     }
     Ok(if f64 {
-        write_image::<f64>(tasks, n, n, fluid, None)
+        write_image::<f64>(tasks, n, n, fluid, layout, None)
     } else {
-        write_image::<f32>(tasks, n, n, fluid, None)
+        write_image::<f32>(tasks, n, n, fluid, layout, None)
     })
 }
 
@@ -367,13 +437,14 @@ pub fn unpack(
     bytes: &[u8],
     n: usize,
     cap: usize,
+    layout: StateLayout,
     f64: bool,
     out: &mut Particles,
 ) -> Result<(), String> {
     if f64 {
-        unpack_words::<f64>(bytes, n, cap, out)
+        unpack_words::<f64>(bytes, n, cap, layout, out)
     } else {
-        unpack_words::<f32>(bytes, n, cap, out)
+        unpack_words::<f32>(bytes, n, cap, layout, out)
     }
 }
 
@@ -381,14 +452,20 @@ fn unpack_words<W: Word>(
     bytes: &[u8],
     n: usize,
     cap: usize,
+    l: StateLayout,
     out: &mut Particles,
 ) -> Result<(), String> {
-    if cap < n || bytes.len() < NFIELDS * cap * W::BYTES {
+    if cap < n || bytes.len() < l.words() * cap * W::BYTES {
         return Err(format!("CUDA: state of {} bytes is too short", bytes.len()));
     }
     *out = Particles::default();
     resize_particles(out, n);
-    scatter_words(|f, i| W::read(&bytes[(f * cap + i) * W::BYTES..]), n, out)
+    scatter_words(
+        |f, i| W::read(&bytes[(f * cap + i) * W::BYTES..]),
+        n,
+        l,
+        out,
+    )
 }
 
 /// Size every column of `out` for `n` particles (zeros).
@@ -405,11 +482,17 @@ pub fn resize_particles(out: &mut Particles, n: usize) {
 
 /// Put the `n` particles of a single-precision state image (SoA with stride `cap`, as stored on
 /// one GPU of several) at their original index in `out` (already sized for every particle).
-pub fn scatter_f32(host: &[f32], n: usize, cap: usize, out: &mut Particles) -> Result<(), String> {
-    if cap < n || host.len() < NFIELDS * cap {
+pub fn scatter_f32(
+    host: &[f32],
+    n: usize,
+    cap: usize,
+    layout: StateLayout,
+    out: &mut Particles,
+) -> Result<(), String> {
+    if cap < n || host.len() < layout.words() * cap {
         return Err(format!("CUDA: state of {} words is too short", host.len()));
     }
-    scatter_words(|f, i| host[f * cap + i], n, out)
+    scatter_words(|f, i| host[f * cap + i], n, layout, out)
 }
 
 /// Put `n` particles, read word by word with `g(field, particle)`, at their original index
@@ -417,23 +500,25 @@ pub fn scatter_f32(host: &[f32], n: usize, cap: usize, out: &mut Particles) -> R
 fn scatter_words<W: Word>(
     g: impl Fn(usize, usize) -> W,
     n: usize,
+    l: StateLayout,
     out: &mut Particles,
 ) -> Result<(), String> {
     let total = out.x.len();
     let r = |f: usize, i: usize| g(f, i).to_f32();
     for i in 0..n {
-        let id = g(F_ID, i).id() as usize;
+        let id = g(l.id(), i).id() as usize;
         if id >= total {
             return Err(format!("CUDA: corrupt particle id {id}"));
         }
-        out.x[id] = Vec3::new(r(F_X, i), r(F_X + 1, i), r(F_X + 2, i));
-        out.v[id] = Vec3::new(r(F_V, i), r(F_V + 1, i), r(F_V + 2, i));
-        out.c[id] = Mat3::from_cols_array(&std::array::from_fn(|e| r(F_C + e, i)));
-        out.f[id] = Mat3::from_cols_array(&std::array::from_fn(|e| r(F_F + e, i)));
-        out.plastic[id] = r(F_PLASTIC, i);
-        out.mass[id] = r(F_MASS, i);
-        out.vol0[id] = r(F_VOL0, i);
-        out.material[id] = g(F_MAT, i).id();
+        let x = l.x();
+        out.x[id] = Vec3::new(r(x, i), r(x + 1, i), r(x + 2, i));
+        out.v[id] = read_v(l, |k| g(l.v() + k, i));
+        out.c[id] = read_c(l, |k| g(l.c() + k, i));
+        out.f[id] = read_f(l, |k| g(l.f() + k, i));
+        out.plastic[id] = l.plastic().map_or(0.0, |p| r(p, i));
+        out.mass[id] = r(l.mass(), i);
+        out.vol0[id] = r(l.vol0(), i);
+        out.material[id] = g(l.material(), i).id();
     }
     Ok(())
 }
@@ -444,28 +529,34 @@ pub fn unpack_x_v_f64(
     bytes: &[u8],
     n: usize,
     cap: usize,
+    layout: StateLayout,
     f64: bool,
 ) -> Result<Vec<[[f64; 3]; 2]>, String> {
     if f64 {
-        x_v_words::<f64>(bytes, n, cap)
+        x_v_words::<f64>(bytes, n, cap, layout)
     } else {
-        x_v_words::<f32>(bytes, n, cap)
+        x_v_words::<f32>(bytes, n, cap, layout)
     }
 }
 
-fn x_v_words<W: Word>(bytes: &[u8], n: usize, cap: usize) -> Result<Vec<[[f64; 3]; 2]>, String> {
-    if cap < n || bytes.len() < NFIELDS * cap * W::BYTES {
+fn x_v_words<W: Word>(
+    bytes: &[u8],
+    n: usize,
+    cap: usize,
+    l: StateLayout,
+) -> Result<Vec<[[f64; 3]; 2]>, String> {
+    if cap < n || bytes.len() < l.words() * cap * W::BYTES {
         return Err(format!("CUDA: state of {} bytes is too short", bytes.len()));
     }
     let g = |f: usize, i: usize| W::read(&bytes[(f * cap + i) * W::BYTES..]);
     let v3 = |f: usize, i: usize| [g(f, i).to_f64(), g(f + 1, i).to_f64(), g(f + 2, i).to_f64()];
     let mut out = vec![[[0.0; 3]; 2]; n];
     for i in 0..n {
-        let id = g(F_ID, i).id() as usize;
+        let id = g(l.id(), i).id() as usize;
         if id >= n {
             return Err(format!("CUDA: corrupt particle id {id}"));
         }
-        out[id] = [v3(F_X, i), v3(F_V, i)];
+        out[id] = [v3(l.x(), i), read_v_f64(l, |k| g(l.v() + k, i))];
     }
     Ok(out)
 }

@@ -2,7 +2,20 @@
 
 use super::*;
 
-/// The one-thread packing of before: word by word into a vector, then to bytes.
+const NFIELDS: usize = 29;
+const F_X: usize = 0;
+const F_V: usize = 3;
+const F_C: usize = 6;
+const F_F: usize = 15;
+const F_PLASTIC: usize = 24;
+const F_MASS: usize = 25;
+const F_VOL0: usize = 26;
+const F_MAT: usize = 27;
+const F_ID: usize = 28;
+const FULL: StateLayout = StateLayout::Full;
+
+/// The one-thread packing of before (the 29-word layout with its constants of before): word by
+/// word into a vector, then to bytes.
 fn reference_pack<W: Word>(p: &Particles, fluid: &[bool], cap: usize, ids: &[u32]) -> Vec<u8> {
     let mut host = vec![W::default(); NFIELDS * cap];
     for i in 0..p.len() {
@@ -68,12 +81,12 @@ fn the_parallel_pack_is_the_one_thread_pack() {
     }
     let fluid = [true, false, true];
     for cap in [n, n + 77] {
-        let got = pack(&p, &fluid, false, cap, Some(&ids)).expect("pack");
+        let got = pack(&p, &fluid, FULL, false, cap, Some(&ids)).expect("pack");
         assert!(
             got == reference_pack::<f32>(&p, &fluid, cap, &ids),
             "f32, cap {cap}"
         );
-        let got = pack(&p, &fluid, true, cap, Some(&ids)).expect("pack");
+        let got = pack(&p, &fluid, FULL, true, cap, Some(&ids)).expect("pack");
         assert!(
             got == reference_pack::<f64>(&p, &fluid, cap, &ids),
             "f64, cap {cap}"
@@ -82,13 +95,13 @@ fn the_parallel_pack_is_the_one_thread_pack() {
     // The first particle of a bad material is named, as before.
     p.material[PACK_CHUNK + 5] = 7;
     p.material[PACK_CHUNK + 9] = 9;
-    let e = pack(&p, &fluid, false, n, None).unwrap_err();
+    let e = pack(&p, &fluid, FULL, false, n, None).unwrap_err();
     assert!(
         e.contains(&format!("particle {} has material 7", PACK_CHUNK + 5)),
         "{e}"
     );
     assert_eq!(
-        pack(&Particles::default(), &fluid, false, 3, None)
+        pack(&Particles::default(), &fluid, FULL, false, 3, None)
             .expect("empty")
             .len(),
         NFIELDS * 3 * 4
@@ -126,10 +139,16 @@ fn packing_the_sampled_bodies_is_packing_their_particles() {
     assert!(p.len() > 2 * PACK_CHUNK, "{}", p.len());
     let bodies = rtmpm_core::scene::sampling::sample_bodies(&scene, &|_| {}).expect("bodies");
     let fluid = [true, false];
-    for f64 in [false, true] {
-        let want = pack(&p, &fluid, f64, p.len(), None).expect("pack");
-        let got = pack_bodies(&bodies, &fluid, f64).expect("pack bodies");
-        assert!(got == want, "f64 = {f64}: the images differ");
+    for (l, f64) in [(FULL, false), (FULL, true), (StateLayout::Compact, false)] {
+        let want = pack(&p, &fluid, l, f64, p.len(), None).expect("pack");
+        let got = pack_bodies(&bodies, &fluid, l, f64).expect("pack bodies");
+        assert!(got == want, "{l:?}, f64 = {f64}: the images differ");
+    }
+    // The fluid layouts (every material taken for a fluid here).
+    for l in [StateLayout::Fluid, StateLayout::CompactFluid] {
+        let want = pack(&p, &[true, true], l, false, p.len(), None).expect("pack");
+        let got = pack_bodies(&bodies, &[true, true], l, false).expect("pack bodies");
+        assert!(got == want, "{l:?}: the images differ");
     }
     // What the backend takes from the particles besides the image, from the bodies.
     assert_eq!(
@@ -143,7 +162,7 @@ fn packing_the_sampled_bodies_is_packing_their_particles() {
     let speed = p.v.iter().map(|v| v.length()).fold(0.0, f32::max);
     assert!(speed > 0.5, "{speed}");
     assert_eq!(max_speed(&bodies).to_bits(), speed.to_bits());
-    let e = pack_bodies(&bodies, &[true], false).unwrap_err();
+    let e = pack_bodies(&bodies, &[true], FULL, false).unwrap_err();
     assert!(e.contains("particle 0 has material 1"), "{e}");
 }
 
@@ -157,19 +176,19 @@ fn pack_unpack_round_trip_both_precisions() {
     p.f[3] = Mat3::from_cols_array(&[1.1, 0.2, 0.0, -0.1, 0.9, 0.3, 0.0, 0.0, 1.05]);
     for f64 in [false, true] {
         for cap in [5, 8] {
-            let bytes = pack(&p, &[false, false], f64, cap, None).expect("pack");
+            let bytes = pack(&p, &[false, false], FULL, f64, cap, None).expect("pack");
             assert_eq!(bytes.len(), NFIELDS * cap * word_bytes(f64));
             let mut q = Particles::default();
-            unpack(&bytes, 5, cap, f64, &mut q).expect("unpack");
+            unpack(&bytes, 5, cap, FULL, f64, &mut q).expect("unpack");
             assert_eq!(p, q, "f64 = {f64}, cap = {cap}");
         }
     }
-    assert!(pack(&p, &[false], true, 5, None).is_err());
-    assert!(pack(&p, &[false, false], false, 5, Some(&[0, 1])).is_err());
+    assert!(pack(&p, &[false], FULL, true, 5, None).is_err());
+    assert!(pack(&p, &[false, false], FULL, false, 5, Some(&[0, 1])).is_err());
     // Ids put each particle at its original index (reversed here).
-    let bytes = pack(&p, &[false, false], false, 6, Some(&[4, 3, 2, 1, 0])).expect("pack");
+    let bytes = pack(&p, &[false, false], FULL, false, 6, Some(&[4, 3, 2, 1, 0])).expect("pack");
     let mut q = Particles::default();
-    unpack(&bytes, 5, 6, false, &mut q).expect("unpack");
+    unpack(&bytes, 5, 6, FULL, false, &mut q).expect("unpack");
     assert_eq!(q.x[0], p.x[4]);
     assert_eq!(q.f[1], p.f[3]);
 }
@@ -182,11 +201,14 @@ fn a_fluid_particle_is_packed_as_j_to_the_third_times_identity() {
     let sheared = Mat3::from_cols_array(&[1.1, 0.2, 0.0, -0.1, 0.9, 0.3, 0.0, 0.0, 1.05]);
     p.f[0] = sheared;
     p.f[1] = sheared;
-    let bytes = pack(&p, &[true, false], false, 2, None).expect("pack");
+    let bytes = pack(&p, &[true, false], FULL, false, 2, None).expect("pack");
     let mut q = Particles::default();
-    unpack(&bytes, 2, 2, false, &mut q).expect("unpack");
+    unpack(&bytes, 2, 2, FULL, false, &mut q).expect("unpack");
     let s = sheared.determinant().cbrt();
     assert_eq!(q.f[0], Mat3::from_diagonal(Vec3::splat(s)));
     assert!((q.f[0].determinant() - sheared.determinant()).abs() < 1e-6);
     assert_eq!(q.f[1], sheared, "a solid keeps its F");
 }
+
+#[path = "state_layout_tests.rs"]
+mod layouts;

@@ -58,6 +58,7 @@ fn scene(dx: f32) -> Scene {
         seed: 0,
         solver: Default::default(),
         precision: Default::default(),
+        particle_state: Default::default(),
     }
 }
 
@@ -467,7 +468,12 @@ fn state_arrays_past_two_to_the_32_words_index_in_64_bits() {
         return;
     }
     let big = 160_000_000;
-    assert!(rtmpm_cuda::compile::state_needs_64_bits(big));
+    // The 29-word layout (water would take the 20-word fluid layout, 3.2e9 words).
+    let options = CudaOptions {
+        fluid_state: false,
+        ..Default::default()
+    };
+    assert!(rtmpm_cuda::compile::state_needs_64_bits(29, big));
     let s = scene(1.0 / 32.0);
     let p = block(&s, Vec3::new(0.2, 0.2, 0.2), Vec3::new(0.5, 0.6, 0.5));
     let run = |capacity: usize| -> Particles {
@@ -475,7 +481,8 @@ fn state_arrays_past_two_to_the_32_words_index_in_64_bits() {
             capacity,
             ..Default::default()
         };
-        let mut b = CudaBackend::new_part(&s, &p, &part, CudaOptions::default()).expect("backend");
+        let mut b = CudaBackend::new_part(&s, &p, &part, options.clone()).expect("backend");
+        assert_eq!(b.state_layout().words(), 29);
         for i in 0..40 {
             b.step(2e-4, i as f32 * 2e-4).expect("step");
         }

@@ -1,7 +1,7 @@
 //! Rigid bodies coupled on the GPU (cargo feature `rigid`; needs a GPU, skips with a message
 //! otherwise): the scenes and measurements of the `archimedes` and `rigid_momentum` validation
 //! cases (`validation/*.toml`, `rtmpm_core::checks`, as the CPU's `rtmpm-core/tests/rigid.rs`)
-//! on CUDA, against the CPU backend in the same run:
+//! on CUDA (and the Archimedes box as a mesh body), against the CPU backend in the same run:
 //! `cargo test --release -p rtmpm-cuda --features rigid --test rigid -- --include-ignored --nocapture`.
 #![cfg(feature = "rigid")]
 
@@ -87,4 +87,52 @@ fn momentum_of_material_plus_body_is_conserved_on_the_gpu() {
         assert!((ratio - 1.0).abs() < 0.1, "[{options}] box speed {ratio}");
         assert!(c.momentum_error() < 0.01, "[{options}] {c:?}");
     }
+}
+
+/// The Archimedes box as a mesh body on the GPU: the cube OBJ (written here) scaled and
+/// translated onto the box of `validation/archimedes.toml`, density 500, convex. Its floating
+/// height on CUDA is within 2 mm (a tenth of a cell) of the CPU backend's on the same scene,
+/// and its submerged fraction within 5 % of 0.5: the GPU evaluates the body's distance grid
+/// with the mesh colliders' `mesh_distance`, the CPU with `MeshSdf::distance`.
+#[test]
+#[ignore = "needs a GPU"]
+fn a_cube_mesh_body_floats_on_the_gpu_as_on_the_cpu() {
+    if !gpu() {
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("rtmpm-gpu-mesh-body-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let obj = dir.join("cube.obj");
+    std::fs::write(
+        &obj,
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
+         f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n",
+    )
+    .expect("write the cube");
+    let block = "shape = \"box\"\nmin = [0.24, 0.27, 0.24]\nmax = [0.36, 0.37, 0.36]";
+    assert!(ARCHIMEDES.contains(block));
+    let text = ARCHIMEDES.replacen(
+        block,
+        &format!(
+            "shape = \"mesh\"\nfile = \"{}\"\nscale = [0.12, 0.1, 0.12]\n\
+             translate = [0.24, 0.27, 0.24]\nconvex = true",
+            obj.display()
+        ),
+        1,
+    );
+    let scene = Scene::from_toml(&text, "archimedes_mesh").unwrap_or_else(|e| panic!("{e}"));
+    assert!((scene.rigid_bodies[0].mass - 0.72).abs() < 1e-4);
+    let p0 = scene.sample_particles().expect("particles");
+    let cpu = CpuBackend::new(&scene, p0.clone(), None).expect("cpu");
+    let cuda = CudaBackend::new(&scene, &p0, CudaOptions::default()).expect("cuda");
+    let float = |sim: &mut Simulation| checks::float(sim, |_, _| {}).expect("floats");
+    let a = float(&mut Simulation::new(scene.clone(), Box::new(cpu)));
+    let b = float(&mut Simulation::new(scene.clone(), Box::new(cuda)));
+    println!("mesh body: cpu: {a:?}\ncuda: {b:?}");
+    std::fs::remove_dir_all(&dir).ok();
+    assert!((b.fraction / 0.5 - 1.0).abs() < 0.05, "{b:?}");
+    assert!(
+        (b.centre - a.centre).abs() < 0.002,
+        "cuda {b:?} vs cpu {a:?}"
+    );
 }

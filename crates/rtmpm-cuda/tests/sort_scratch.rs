@@ -1,15 +1,15 @@
 //! GPU tests of the rebuild's sort with a scratch of K fields (`sort_fields=K`, the state
-//! permuted K fields at a time): the same state as one pass over every field (K = NFIELDS), in
-//! both rebuild paths and both precisions. `cargo test -p rtmpm-cuda --test sort_scratch --
+//! permuted K fields at a time): the same state as one pass over every field (K = the layout's
+//! words), in both rebuild paths, both precisions and every state layout. `cargo test -p rtmpm-cuda --test sort_scratch --
 //! --include-ignored`; each test skips with a message when no usable CUDA device is present.
 
 use rtmpm_core::boundary::Walls;
-use rtmpm_core::material::{Material, Model};
+use rtmpm_core::material::Material;
 use rtmpm_core::math::{Mat3, Vec3};
 use rtmpm_core::scene::{OutputSettings, StepMode, TimeSettings};
 use rtmpm_core::sim::Backend;
 use rtmpm_core::{Particles, Scene};
-use rtmpm_cuda::contract::{F_ID, F_X, NFIELDS};
+use rtmpm_cuda::contract::StateLayout;
 use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
 use std::collections::{HashMap, HashSet};
 
@@ -62,6 +62,7 @@ fn jelly_scene(dx: f32) -> Scene {
         seed: 0,
         solver: Default::default(),
         precision: Default::default(),
+        particle_state: Default::default(),
     }
 }
 
@@ -99,7 +100,7 @@ fn scrambled_block(s: &Scene, lo: Vec3, hi: Vec3) -> Particles {
 }
 
 /// The state after the first rebuild (and a P2G, which leaves the particles alone): the rows of
-/// `NFIELDS` words of each particle by original index, the original indices in slot order, and
+/// the layout's words of each particle by original index, the original indices in slot order, and
 /// the word size.
 struct Sorted {
     rows: HashMap<u32, Vec<u8>>,
@@ -107,9 +108,11 @@ struct Sorted {
     cells: Vec<[i64; 3]>,
 }
 
-fn sorted_once(s: &Scene, p: &Particles, o: CudaOptions) -> Sorted {
+fn sorted_once(s: &Scene, p: &Particles, o: CudaOptions, layout: StateLayout) -> Sorted {
     let rb = if o.f64 { 8 } else { 4 };
     let mut b = CudaBackend::new(s, p, o).expect("backend");
+    assert_eq!(b.state_layout(), layout);
+    let (f_id, f_x, words) = (layout.id(), layout.x(), layout.words());
     b.run_p2g_only(1e-4).expect("rebuild and P2G");
     assert_eq!(b.rebuild_count().expect("rebuilds"), 1);
     assert_eq!(b.check().expect("check"), None);
@@ -129,32 +132,29 @@ fn sorted_once(s: &Scene, p: &Particles, o: CudaOptions) -> Sorted {
         cells: vec![],
     };
     for i in 0..p.len() {
-        let id = u32::from_le_bytes(word(F_ID, i)[..4].try_into().expect("4 bytes"));
-        let row: Vec<u8> = (0..NFIELDS).flat_map(|f| word(f, i).to_vec()).collect();
+        let id = u32::from_le_bytes(word(f_id, i)[..4].try_into().expect("4 bytes"));
+        let row: Vec<u8> = (0..words).flat_map(|f| word(f, i).to_vec()).collect();
         assert!(out.rows.insert(id, row).is_none(), "particle {id} twice");
         out.order.push(id);
         // The stencil base cell (the sort's key within a block).
         let origin = s.domain_min.x as f64 - 4.0 * s.dx as f64;
         out.cells.push(std::array::from_fn(|a| {
-            ((real(F_X + a, i) - origin) / s.dx as f64 - 0.5).floor() as i64
+            ((real(f_x + a, i) - origin) / s.dx as f64 - 0.5).floor() as i64
         }));
     }
     out
 }
 
-/// The rows of `NFIELDS` words of each particle as uploaded (`state::pack`), by original index.
-fn packed_rows(s: &Scene, p: &Particles, f64: bool) -> HashMap<u32, Vec<u8>> {
+/// The rows of the layout's words of each particle as uploaded (`state::pack`), by original
+/// index.
+fn packed_rows(s: &Scene, p: &Particles, f64: bool, l: StateLayout) -> HashMap<u32, Vec<u8>> {
     let rb = if f64 { 8 } else { 4 };
-    let fluid: Vec<bool> = s
-        .materials
-        .iter()
-        .map(|m| matches!(m.model, Model::Fluid(_)))
-        .collect();
+    let fluid = rtmpm_cuda::state::fluid_materials(s);
     let n = p.len();
-    let packed = rtmpm_cuda::state::pack(p, &fluid, f64, n, None).expect("pack");
+    let packed = rtmpm_cuda::state::pack(p, &fluid, l, f64, n, None).expect("pack");
     (0..n)
         .map(|i| {
-            let row = (0..NFIELDS)
+            let row = (0..l.words())
                 .flat_map(|f| packed[(f * n + i) * rb..(f * n + i + 1) * rb].to_vec())
                 .collect();
             (i as u32, row)
@@ -163,9 +163,11 @@ fn packed_rows(s: &Scene, p: &Particles, f64: bool) -> HashMap<u32, Vec<u8>> {
 }
 
 /// One rebuild of a scrambled block, jelly and water (whose sort leaves F's zero off-diagonal
-/// words in place): for every K, both rebuild paths and both precisions, every particle's 29
-/// words are bit-identical to the words uploaded (so to K = NFIELDS's, the one pass over every
-/// field of before), and the particles are sorted: each cell's particles in one run of slots.
+/// words in place in the 29-word layout): for every K, both rebuild paths, both precisions and
+/// every layout (water: 29 words with `fluid_state=off`, the 20-word fluid layout, compact; the
+/// compact layouts in f32 only), every particle's words are bit-identical to the words uploaded
+/// (so to K = words', the one pass over every field of before), and the particles are sorted:
+/// each cell's particles in one run of slots.
 #[test]
 #[ignore = "needs a CUDA GPU"]
 fn sort_scratch_fields_give_identical_state() {
@@ -181,18 +183,36 @@ fn sort_scratch_fields_give_identical_state() {
         }
         let p = scrambled_block(&s, Vec3::new(0.1, 0.1, 0.1), Vec3::new(0.4, 0.5, 0.45));
         println!("{} particles, fluid {fluid}", p.len());
-        for f64 in [false, true] {
-            let want = packed_rows(&s, &p, f64);
+        let layouts = if fluid {
+            vec![
+                StateLayout::Full,
+                StateLayout::Fluid,
+                StateLayout::CompactFluid,
+            ]
+        } else {
+            vec![StateLayout::Full, StateLayout::Compact]
+        };
+        for (f64, layout) in [false, true]
+            .into_iter()
+            .flat_map(|f| layouts.iter().map(move |l| (f, *l)))
+            .filter(|(f64, l)| !(*f64 && l.compact()))
+        {
+            let want = packed_rows(&s, &p, f64, layout);
+            let words = layout.words();
             for fused_rebuild in [true, false] {
-                for k in [1, 2, 3, 4, 8, 28, NFIELDS] {
+                for k in [1, 2, 3, 4, 8, 14, 19, 23, 28, 29] {
                     let o = CudaOptions {
                         f64,
                         fused_rebuild,
-                        sort_scratch_fields: k,
+                        sort_scratch_fields: k.min(words),
+                        fluid_state: layout.fluid(),
+                        compact_state: layout.compact(),
                         ..Default::default()
                     };
-                    let what = format!("fluid {fluid}, f64 {f64}, fused {fused_rebuild}, K = {k}");
-                    let got = sorted_once(&s, &p, o);
+                    let what = format!(
+                        "fluid {fluid}, f64 {f64}, {layout:?}, fused {fused_rebuild}, K = {k}"
+                    );
+                    let got = sorted_once(&s, &p, o, layout);
                     assert_ne!(
                         got.order,
                         (0..p.len() as u32).collect::<Vec<_>>(),
@@ -217,7 +237,7 @@ fn sort_scratch_fields_give_identical_state() {
     }
 }
 
-/// A rebuild every step (free zone off) for 50 steps: K = 1 and 4 agree with K = NFIELDS as
+/// A rebuild every step (free zone off) for 50 steps: K = 1 and 4 agree with K = 29 as
 /// the ablation switches do (P2G's atomic sums make runs differ in the last bits).
 #[test]
 #[ignore = "needs a CUDA GPU"]
@@ -246,7 +266,7 @@ fn sort_scratch_fields_agree_over_rebuild_heavy_runs() {
             b.read_particles(&mut out).expect("read");
             out
         };
-        let full = run(NFIELDS);
+        let full = run(29);
         for k in [1, 4] {
             let q = run(k);
             let worst = full

@@ -131,7 +131,7 @@ pub struct DeviceArray {
 }
 
 impl DeviceArray {
-    /// The view of field `field` (`F_*` of rtmpm_cuda::contract) with per-particle shape
+    /// The view of word `field` (of the state's `StateLayout`) with per-particle shape
     /// `inner` (`[]`, `[3]` or `[3, 3]` with components `field + 3 * col + row`).
     pub fn new(
         owner: Py<PyAny>,
@@ -354,10 +354,11 @@ pub fn _layout_view(
     if ndim != 1 || !contiguous || !(word_bytes == 4 || word_bytes == 8) {
         return Err(bad());
     }
-    if n > stride || len < rtmpm_cuda::contract::NFIELDS * stride {
+    let layout = rtmpm_cuda::contract::StateLayout::Full;
+    if n > stride || len < layout.words() * stride {
         return Err(bad());
     }
-    if field + inner.iter().product::<usize>() > rtmpm_cuda::contract::NFIELDS {
+    if field + inner.iter().product::<usize>() > layout.words() {
         return Err(pyo3::exceptions::PyValueError::new_err(
             "field out of range",
         ));
@@ -373,6 +374,7 @@ pub fn _layout_view(
         n,
         stride,
         word_bytes,
+        layout,
     };
     let elem = if int32 { Elem::Int32 } else { Elem::Real };
     let mut a = DeviceArray::new(state.clone().unbind(), &d, field, &inner, elem);

@@ -11,7 +11,7 @@ use pyo3::prelude::*;
 use rtmpm_backends::AnyBackend;
 use rtmpm_core::math::{Mat3, Vec3};
 use rtmpm_core::sim::{Backend, SimError};
-use rtmpm_cuda::contract::{F_C, F_F, F_ID, F_MASS, F_MAT, F_PLASTIC, F_V, F_VOL0, F_X};
+use rtmpm_cuda::contract::StateLayout;
 
 /// The particles of a :class:`rtmpm.Simulation`.
 ///
@@ -73,7 +73,8 @@ fn read_vec3_cuda(
     let AnyBackend::Cuda(c) = inner.sim.backend.as_mut() else {
         return Ok(None);
     };
-    let first = if field == Vec3Field::X { F_X } else { F_V };
+    let l = c.0.state_layout();
+    let first = if field == Vec3Field::X { l.x() } else { l.v() };
     let len = 3 * c.0.len();
     let pinned = match crate::pool::take_pinned(len) {
         Some(p) => Some(p),
@@ -316,64 +317,91 @@ impl PyParticles {
     /// Positions on the GPU, ``(n, 3)``, storage order (no copy; CUDA backend only).
     #[getter]
     fn x_device(&self, py: Python<'_>) -> PyResult<DeviceArray> {
-        self.device(py, F_X, &[3], Elem::Real)
+        self.device(py, "x_device", |l| Some(l.x()), &[3], Elem::Real)
     }
 
     /// Velocities on the GPU, ``(n, 3)``, storage order.
     #[getter]
     fn v_device(&self, py: Python<'_>) -> PyResult<DeviceArray> {
-        self.device(py, F_V, &[3], Elem::Real)
+        self.device(
+            py,
+            "v_device",
+            |l| (!l.compact()).then(|| l.v()),
+            &[3],
+            Elem::Real,
+        )
     }
 
     /// Deformation gradients on the GPU, ``(n, 3, 3)`` (``[i, row, col]``), storage order.
     #[getter(F_device)]
     fn f_device(&self, py: Python<'_>) -> PyResult<DeviceArray> {
-        self.device(py, F_F, &[3, 3], Elem::Real)
+        self.device(
+            py,
+            "F_device",
+            |l| (!l.fluid()).then(|| l.f()),
+            &[3, 3],
+            Elem::Real,
+        )
     }
 
     /// APIC matrices on the GPU, ``(n, 3, 3)`` (``[i, row, col]``), storage order.
     #[getter(C_device)]
     fn c_device(&self, py: Python<'_>) -> PyResult<DeviceArray> {
-        self.device(py, F_C, &[3, 3], Elem::Real)
+        self.device(
+            py,
+            "C_device",
+            |l| (!l.compact()).then(|| l.c()),
+            &[3, 3],
+            Elem::Real,
+        )
     }
 
     /// Material indices on the GPU, ``(n,)`` int32, storage order.
     #[getter]
     fn material_device(&self, py: Python<'_>) -> PyResult<DeviceArray> {
-        self.device(py, F_MAT, &[], Elem::Int32)
+        self.device(
+            py,
+            "material_device",
+            |l| Some(l.material()),
+            &[],
+            Elem::Int32,
+        )
     }
 
     /// Original particle index of each GPU slot, ``(n,)`` int32: ``x[id_device[j]]`` is
     /// ``x_device[j]``.
     #[getter]
     fn id_device(&self, py: Python<'_>) -> PyResult<DeviceArray> {
-        self.device(py, F_ID, &[], Elem::Int32)
+        self.device(py, "id_device", |l| Some(l.id()), &[], Elem::Int32)
     }
 
     /// Masses on the GPU, ``(n,)``, storage order.
     #[getter]
     fn mass_device(&self, py: Python<'_>) -> PyResult<DeviceArray> {
-        self.device(py, F_MASS, &[], Elem::Real)
+        self.device(py, "mass_device", |l| Some(l.mass()), &[], Elem::Real)
     }
 
     /// Initial volumes on the GPU, ``(n,)``, storage order.
     #[getter]
     fn vol0_device(&self, py: Python<'_>) -> PyResult<DeviceArray> {
-        self.device(py, F_VOL0, &[], Elem::Real)
+        self.device(py, "vol0_device", |l| Some(l.vol0()), &[], Elem::Real)
     }
 
     /// Plastic scalars on the GPU, ``(n,)``, storage order.
     #[getter]
     fn plastic_device(&self, py: Python<'_>) -> PyResult<DeviceArray> {
-        self.device(py, F_PLASTIC, &[], Elem::Real)
+        self.device(py, "plastic_device", |l| l.plastic(), &[], Elem::Real)
     }
 }
 
 impl PyParticles {
+    /// The view `name` of the word(s) `field` gives in the backend's state layout (`None`: the
+    /// layout does not keep that field as plain words).
     fn device(
         &self,
         py: Python<'_>,
-        field: usize,
+        name: &str,
+        field: impl Fn(StateLayout) -> Option<usize>,
         inner_shape: &[usize],
         elem: Elem,
     ) -> PyResult<DeviceArray> {
@@ -387,6 +415,15 @@ impl PyParticles {
             )));
         };
         let d = c.0.device_particles().map_err(|e| sim_error(py, &e))?;
+        let Some(field) = field(d.layout) else {
+            return Err(backend_error(format!(
+                "`{name}` is not in the GPU's particle state layout `{}` (the fluid layout keeps \
+                 F as the one word J^(1/3) and no plastic word; the compact one keeps v and C in \
+                 shared-exponent words): read the host array (without `_device`), or run with \
+                 cuda_options=\"fluid_state=off\" (fluids) and particle_state = \"f32\"",
+                d.layout.name()
+            )));
+        };
         inner.exported = true;
         Ok(DeviceArray::new(
             self.sim.clone_ref(py).into_any(),

@@ -159,3 +159,35 @@ def test_host_arrays_are_independent_when_their_memory_is_reused(sim):
     moved = sim.particles.x
     assert not np.array_equal(moved, expect)
     assert np.array_equal(moved, sim.particles.x)
+
+
+def test_device_views_follow_the_state_layout(small_path):
+    # Water: the 20-word fluid layout (F as the one word J^(1/3), no plastic word).
+    torch = pytest.importorskip("torch")
+    s = rtmpm.Simulation(small_path, backend="cuda")
+    s.run_frame()
+    p = s.particles
+    ids = torch.from_dlpack(p.id_device).cpu().numpy()
+    for name in ("x", "v", "C", "mass", "vol0"):
+        d = torch.from_dlpack(getattr(p, name + "_device")).cpu().numpy()
+        assert np.array_equal(host_order(d, ids), getattr(p, name)), name
+    for name in ("F_device", "plastic_device"):
+        with pytest.raises(rtmpm.BackendError, match="layout"):
+            getattr(p, name)
+    F = p.F
+    assert np.array_equal(F[:, 0, 1], np.zeros(len(F)))
+    assert np.array_equal(F[:, 0, 0], F[:, 2, 2])
+    # The 29-word layout on request: every view.
+    s29 = rtmpm.Simulation(small_path, backend="cuda", cuda_options="fluid_state=off")
+    s29.run_frame()
+    assert s29.particles.F_device is not None and s29.particles.plastic_device is not None
+    # Compact: v and C only through the host arrays.
+    text = small_path.read_text().replace("[output]", '[solver]\nparticle_state = "compact"\n[output]')
+    compact = small_path.with_name("compact.toml")
+    compact.write_text(text)
+    sc = rtmpm.Simulation(compact, backend="cuda")
+    sc.run_frame()
+    for name in ("v_device", "C_device", "F_device"):
+        with pytest.raises(rtmpm.BackendError, match="layout"):
+            getattr(sc.particles, name)
+    assert np.isfinite(sc.particles.v).all()

@@ -17,11 +17,19 @@
 //! biased the floating depth (a box of density 500 floated 0.568 submerged against 0.517). The bodies move under gravity, these impulses and
 //! their contacts with each other and the walls in rapier3d (cargo feature `rigid`;
 //! [`RigidWorld`]); without the feature a scene with rigid bodies is refused when the backend is
-//! built. The CPU backend couples them (`cpu/grid_update.rs`); the CUDA backend refuses them.
+//! built. The CPU backend couples them (`cpu/grid_update.rs`), the CUDA backend too
+//! (`rtmpm-cuda/src/rigid.rs`). A body is a box, sphere, cylinder or closed triangle mesh
+//! ([`RigidMesh`]: its signed distance grid in the body frame, the mesh colliders' code).
 
 use crate::boundary::Condition;
 use crate::boundary::sdf::{box_distance, cylinder_distance, sphere_distance};
 use glam::{Mat3, Quat, Vec3};
+use std::sync::Arc;
+
+mod mesh;
+pub use mesh::{
+    MAX_BODY_TRIANGLES, MeshBodyError, RigidMesh, mass_properties as mesh_mass_properties,
+};
 
 mod joint;
 pub use joint::{JointKind, JointSpec};
@@ -46,7 +54,7 @@ pub enum RigidKind {
 }
 
 /// A body's shape about its centre, in its rest orientation.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum RigidShape {
     Box {
         half_extents: Vec3,
@@ -59,6 +67,8 @@ pub enum RigidShape {
         radius: f32,
         half_height: f32,
     },
+    /// A closed triangle mesh about its centre of mass.
+    Mesh(Arc<RigidMesh>),
 }
 
 impl RigidShape {
@@ -73,6 +83,7 @@ impl RigidShape {
                 radius,
                 half_height,
             } => std::f32::consts::PI * radius * radius * 2.0 * half_height,
+            RigidShape::Mesh(ref m) => m.volume,
         }
     }
 
@@ -85,6 +96,7 @@ impl RigidShape {
                 radius,
                 half_height,
             } => cylinder_distance(p, Vec3::ZERO, Vec3::Y, radius, half_height),
+            RigidShape::Mesh(ref m) => m.sdf.distance(p),
         }
     }
 
@@ -107,6 +119,7 @@ impl RigidShape {
                 half_height,
             }
             .normal(p),
+            RigidShape::Mesh(ref m) => m.sdf.normal(p),
         }
     }
 
@@ -132,6 +145,16 @@ impl RigidShape {
                 radius,
                 half_height,
             },
+            RigidShape::Mesh(ref m) => Shape::Mesh(m.sdf.clone()),
+        }
+    }
+
+    /// Radius of a sphere about the centre that holds the shape (for a mesh, precomputed: its
+    /// farthest vertex).
+    pub fn bounding_radius(&self) -> f32 {
+        match self {
+            RigidShape::Mesh(m) => m.radius,
+            _ => self.world_half_extents(Mat3::IDENTITY).length(),
         }
     }
 
@@ -156,6 +179,7 @@ impl RigidShape {
                 a.abs() * half_height
                     + Vec3::new(disc.x.sqrt(), disc.y.sqrt(), disc.z.sqrt()) * radius
             }
+            RigidShape::Mesh(ref m) => m.world_half_extents(r),
         }
     }
 }
@@ -180,7 +204,7 @@ pub struct RigidBodySpec {
 }
 
 /// A body's state at the current time, as the grid update sees it.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct BodyState {
     pub shape: RigidShape,
     /// Rest-to-world rotation.

@@ -82,16 +82,18 @@ impl RigidWorld {
                 .linvel(rv(b.velocity))
                 .angvel(rv(b.angular_velocity))
                 .can_sleep(false);
-            let collider = match b.shape {
-                RigidShape::Box { half_extents: h } => rp::ColliderBuilder::cuboid(h.x, h.y, h.z),
-                RigidShape::Sphere { radius } => rp::ColliderBuilder::ball(radius),
+            let collider = match &b.shape {
+                RigidShape::Box { half_extents: h } => {
+                    rp::ColliderBuilder::cuboid(h.x, h.y, h.z).mass(b.mass)
+                }
+                RigidShape::Sphere { radius } => rp::ColliderBuilder::ball(*radius).mass(b.mass),
                 // rapier's cylinders are along their local y, as ours.
                 RigidShape::Cylinder {
                     radius,
                     half_height,
-                } => rp::ColliderBuilder::cylinder(half_height, radius),
-            }
-            .mass(b.mass);
+                } => rp::ColliderBuilder::cylinder(*half_height, *radius).mass(b.mass),
+                RigidShape::Mesh(m) => mesh_collider(&b.name, m, b.mass)?,
+            };
             let (handle, _) = world.insert(body, collider);
             handles.push(handle);
         }
@@ -115,7 +117,7 @@ impl RigidWorld {
                 let b = &self.world.bodies[h];
                 let q = b.rotation().to_array();
                 BodyState {
-                    shape: s.shape,
+                    shape: s.shape.clone(),
                     rotation: glam::Mat3::from_quat(glam::Quat::from_array(q)),
                     center: gv(b.center_of_mass()),
                     velocity: gv(b.linvel()),
@@ -126,6 +128,16 @@ impl RigidWorld {
                 }
             })
             .collect();
+    }
+
+    /// Mass (kg) and principal moments of inertia (kg m^2, ascending) of body `i` as the
+    /// engine holds them.
+    pub fn mass_properties(&self, i: usize) -> Option<(f32, glam::Vec3)> {
+        let b = &self.world.bodies[*self.handles.get(i)?];
+        let m = b.mass_properties().local_mprops;
+        let mut p = gv(m.principal_inertia()).to_array();
+        p.sort_by(f32::total_cmp);
+        Some((m.mass(), glam::Vec3::from_array(p)))
     }
 
     /// Every body's state at the current time.
@@ -191,6 +203,39 @@ impl RigidWorld {
         self.world.step();
         self.refresh();
     }
+}
+
+/// The engine's collider of a mesh body: its convex hull (`convex = true`) or the triangle mesh,
+/// with the mass, centre of mass (the body's origin) and inertia tensor of the closed mesh's
+/// solid (rapier's own mass properties of a triangle mesh are not those of the solid).
+fn mesh_collider(
+    name: &str,
+    m: &super::RigidMesh,
+    mass: f32,
+) -> Result<rp::ColliderBuilder, SimError> {
+    let points: Vec<rp::Vector> = m.mesh.vertices.iter().map(|v| rv(*v)).collect();
+    let builder = if m.convex {
+        rp::ColliderBuilder::convex_hull(&points).ok_or_else(|| {
+            SimError::Backend(format!(
+                "rigid body `{name}`: no convex hull of its mesh (degenerate points)"
+            ))
+        })?
+    } else {
+        rp::ColliderBuilder::trimesh(points, m.mesh.triangles.clone()).map_err(|e| {
+            SimError::Backend(format!(
+                "rigid body `{name}`: its mesh is not a valid triangle mesh: {e}"
+            ))
+        })?
+    };
+    let inertia = m.unit_inertia * (mass / m.volume);
+    let inertia = rp::Matrix::from_cols_array(&inertia.to_cols_array());
+    Ok(
+        builder.mass_properties(rp::MassProperties::with_inertia_matrix(
+            rp::Vector::ZERO,
+            mass,
+            inertia,
+        )),
+    )
 }
 
 /// rapier's pose of a body placed at `position` turned by `rotation`.

@@ -28,6 +28,11 @@ impl RigidWorld {
         ))
     }
 
+    /// Mass and principal moments of inertia of body `i`.
+    pub fn mass_properties(&self, _i: usize) -> Option<(f32, glam::Vec3)> {
+        match self.never {}
+    }
+
     /// Every body's state.
     pub fn states(&self) -> &[BodyState] {
         match self.never {}

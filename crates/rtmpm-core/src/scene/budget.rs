@@ -23,10 +23,40 @@ pub const HOST_BYTES_PER_PARTICLE_CUDA_F64: u64 = 280;
 /// and a margin for the walk's chunks, rounded up. Measured: 12.7 bytes a particle at the peak
 /// of the host's share for 26.3M particles (`setup_profile ... device`).
 pub const HOST_BYTES_PER_PARTICLE_CUDA_FILL: u64 = 16;
-/// Device bytes per particle of a CUDA run in f32, twice that in f64: the CUDA backend's plan
-/// (`rtmpm-cuda` `Capacity::bytes`, docs/memory.md) rounded up: state 116, sort scratch 16 (the
-/// default 4 fields), sort ranks 4, warp list 0.4. The grid is counted per node of the domain.
+/// Device bytes per particle of a CUDA run in f32 with the 29-word state, twice that in f64: the
+/// CUDA backend's plan (`rtmpm-cuda` `Capacity::bytes`, docs/memory.md) rounded up: state 116,
+/// sort scratch 16 (the default 4 fields), sort ranks 4, warp list 0.4. The grid is counted per
+/// node of the domain. Other state layouts: [`gpu_bytes_per_particle`].
 pub const GPU_BYTES_PER_PARTICLE: u64 = 140;
+
+/// Words per particle of the CUDA backend's state for `scene` (`rtmpm-cuda`'s
+/// `StateLayout::choose` with the default options; a unit test there checks the two agree): 29,
+/// or 20 when every material is a fluid (F in one word, no plastic word); with
+/// `particle_state = "compact"` (v in 2 words, C in 5) 24 and 15.
+pub fn gpu_state_words(scene: &Scene) -> u64 {
+    let all_fluid = scene
+        .materials
+        .iter()
+        .all(|m| matches!(m.model, crate::material::Model::Fluid(_)));
+    let compact = scene.particle_state == super::ParticleState::Compact;
+    match (all_fluid, compact) {
+        (true, false) => 20,
+        (false, false) => 29,
+        (true, true) => 15,
+        (false, true) => 24,
+    }
+}
+
+/// Device bytes per particle of a CUDA run of `scene`: the state's words and 6 more (sort
+/// scratch 4, ranks 1, warp list, rounded up), 4 bytes each in f32, 8 in f64 (29 words:
+/// [`GPU_BYTES_PER_PARTICLE`]).
+pub fn gpu_bytes_per_particle(scene: &Scene) -> u64 {
+    let real = match scene.precision {
+        Precision::F32 => 4,
+        Precision::F64 => 8,
+    };
+    real * (gpu_state_words(scene) + 6)
+}
 /// More steps than this is refused: even at a microsecond a step it would take hours.
 pub const MAX_STEPS: u64 = 10_000_000_000;
 /// More frames than this is refused (that many files in one folder).
@@ -190,7 +220,7 @@ impl Budget {
             .saturating_mul(per_host)
             .saturating_add(host_nodes.saturating_mul(node_bytes));
         let gpu_bytes = particles
-            .saturating_mul(GPU_BYTES_PER_PARTICLE * real / 4)
+            .saturating_mul(gpu_bytes_per_particle(scene))
             .saturating_add(domain_nodes.saturating_mul(2 * 4 * real + 16));
         Budget {
             body_particles,

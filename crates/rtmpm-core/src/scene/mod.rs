@@ -22,6 +22,8 @@ mod tests_io;
 #[cfg(test)]
 mod tests_motion;
 #[cfg(test)]
+mod tests_rigid_mesh;
+#[cfg(test)]
 mod tests_sampling;
 mod validate;
 mod walk;
@@ -265,6 +267,42 @@ impl std::str::FromStr for Precision {
     }
 }
 
+/// How the CUDA backend stores the particle state (`[solver] particle_state`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ParticleState {
+    /// Every field in f32 (or f64) words (the default).
+    #[default]
+    F32,
+    /// Velocity and APIC C in shared-exponent words (`rtmpm-cuda` `codec`: 2 and 5 words
+    /// instead of 3 and 9; single precision only). The CUDA backend's option; the CPU backend
+    /// keeps its f32 state and ignores it.
+    Compact,
+}
+
+impl std::str::FromStr for ParticleState {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "f32" => Ok(ParticleState::F32),
+            "compact" => Ok(ParticleState::Compact),
+            _ => Err(format!(
+                "unknown particle state `{s}`: expected f32 or compact"
+            )),
+        }
+    }
+}
+
+impl ParticleState {
+    /// The name written in scene files: "f32" or "compact".
+    pub fn name(self) -> &'static str {
+        match self {
+            ParticleState::F32 => "f32",
+            ParticleState::Compact => "compact",
+        }
+    }
+}
+
 /// A validated scene, identical for every backend.
 #[derive(Clone, Debug)]
 pub struct Scene {
@@ -296,6 +334,8 @@ pub struct Scene {
     pub solver: SolverSettings,
     /// Floating-point precision of the step (`[solver] precision`).
     pub precision: Precision,
+    /// The CUDA backend's particle state format (`[solver] particle_state`).
+    pub particle_state: ParticleState,
 }
 
 impl Scene {

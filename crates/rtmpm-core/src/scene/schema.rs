@@ -59,6 +59,7 @@ pub struct RawSolver {
     pub update: Option<RawUpdate>,
     pub flip: Option<f32>,
     pub precision: Option<super::Precision>,
+    pub particle_state: Option<super::ParticleState>,
 }
 
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
@@ -404,8 +405,13 @@ pub struct RawRigidBody {
     /// A cylinder's axis (default y) and height.
     pub axis: Option<V3>,
     pub height: Option<f32>,
-    /// Read only to refuse a mesh body with the reason (not a field of any body shape yet).
+    /// A mesh body's OBJ file (relative to the scene file), its scale about the file's origin
+    /// and translation (the mesh as placed in the world at t = 0).
     pub file: Option<String>,
+    pub scale: Option<RawScale>,
+    pub translate: Option<V3>,
+    /// A mesh body collides with other bodies and the walls as its convex hull.
+    pub convex: Option<bool>,
     #[serde(rename = "type")]
     pub kind: Option<RawRigidKind>,
     pub density: Option<f32>,
@@ -428,6 +434,8 @@ impl RawRigidBody {
             axis: self.axis,
             height: self.height,
             file: self.file.clone(),
+            scale: self.scale,
+            translate: self.translate,
             ..Default::default()
         }
     }

@@ -154,16 +154,17 @@ fn rigid_bodies_are_read_and_bad_ones_refused() {
         "center = [0.65, 0.72, 0.65]",
         "rigid_body[1]",
     );
+    // A mesh body takes file, scale and translate (tests_rigid_mesh.rs), not a centre.
     bad(
         "shape = \"sphere\"\ncenter",
         "shape = \"mesh\"\ncenter",
-        "rigid_body[1].shape",
+        "rigid_body[1].center",
     );
-    // A mesh with its file: refused for its shape, not as an unknown field.
+    // A missing mesh file is reported on `file`.
     bad(
         "shape = \"sphere\"\ncenter = [0.3, 0.75, 0.3]\nradius = 0.05",
-        "shape = \"mesh\"\nfile = \"boat.obj\"",
-        "rigid_body[1].shape",
+        "shape = \"mesh\"\nfile = \"no-such-boat.obj\"",
+        "rigid_body[1].file",
     );
     // A cylinder needs its height.
     bad(

@@ -29,7 +29,7 @@ mod motion;
 mod rigid;
 
 /// Grid cells of margin around a mesh's signed distance grid.
-const MESH_MARGIN: u32 = 3;
+pub(super) const MESH_MARGIN: u32 = 3;
 
 struct V<'a> {
     text: &'a str,
@@ -499,7 +499,22 @@ impl V<'_> {
                 .as_ref()
                 .and_then(|s| s.precision)
                 .unwrap_or_default(),
+            particle_state: raw
+                .solver
+                .as_ref()
+                .and_then(|s| s.particle_state)
+                .unwrap_or_default(),
         };
+        if scene.particle_state == super::ParticleState::Compact
+            && scene.precision == super::Precision::F64
+        {
+            return Err(self.err(
+                "solver.particle_state",
+                "particle_state = \"compact\" is single precision only (it stores the velocity \
+                 and C in 32-bit shared-exponent words)",
+                "remove particle_state, or use precision = \"f32\"",
+            ));
+        }
         // Every body must produce particles (found without storing them: the first one is
         // enough; the size of the whole scene is checked by the budget, scene::budget).
         for i in 0..scene.bodies.len() {
@@ -737,6 +752,19 @@ impl V<'_> {
     }
 
     fn mesh(&self, prefix: &str, g: &RawGeometry, base: &Path, dx: f32) -> R<Arc<MeshSdf>> {
+        let (path, scale, translate) = self.mesh_placement(prefix, g, base)?;
+        let sdf = MeshSdf::from_obj(&path, scale, translate, 0.5 * dx, MESH_MARGIN)
+            .map_err(|e| self.err(format!("{prefix}.file"), e.to_string(), "give a readable, closed OBJ mesh with triangles (paths are relative to the scene file)"))?;
+        Ok(Arc::new(sdf))
+    }
+
+    /// A mesh's `file` (joined to the scene's folder), `scale` and `translate`.
+    fn mesh_placement(
+        &self,
+        prefix: &str,
+        g: &RawGeometry,
+        base: &Path,
+    ) -> R<(std::path::PathBuf, Vec3, Vec3)> {
         let file = g.file.as_ref().ok_or_else(|| {
             self.err(
                 format!("{prefix}.file"),
@@ -760,10 +788,7 @@ impl V<'_> {
             Some(t) => self.vec3(&format!("{prefix}.translate"), t)?,
             None => Vec3::ZERO,
         };
-        let path = base.join(file);
-        let sdf = MeshSdf::from_obj(&path, scale, translate, 0.5 * dx, MESH_MARGIN)
-            .map_err(|e| self.err(format!("{prefix}.file"), e.to_string(), "give a readable, closed OBJ mesh with triangles (paths are relative to the scene file)"))?;
-        Ok(Arc::new(sdf))
+        Ok((base.join(file), scale, translate))
     }
 
     /// Check that only the parameters of `shape` are given.

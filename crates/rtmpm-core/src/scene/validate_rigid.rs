@@ -2,14 +2,17 @@
 
 use super::super::sampling::BodyShape;
 use super::super::schema::*;
+use super::MESH_MARGIN;
 use super::{R, V, fmt3};
+use crate::boundary::mesh::TriMesh;
 use crate::math::Vec3;
-use crate::rigid::{JointSpec, RigidBodySpec, RigidKind, RigidShape};
+use crate::rigid::{JointSpec, RigidBodySpec, RigidKind, RigidMesh, RigidShape};
 use glam::Quat;
 use std::path::Path;
+use std::sync::Arc;
 
 impl V<'_> {
-    /// `rigid_body[i]`: a box, sphere or cylinder inside the domain minus the walls, exactly one of
+    /// `rigid_body[i]`: a box, sphere, cylinder or closed mesh inside the domain minus the walls, exactly one of
     /// `density` and `mass` (> 0; a fixed body needs neither), finite pose and velocities.
     pub(super) fn rigid_body(
         &self,
@@ -23,42 +26,56 @@ impl V<'_> {
         let f = |n: &str| format!("{prefix}.{n}");
         if !matches!(
             b.shape,
-            RawShape::Box | RawShape::Sphere | RawShape::Cylinder
+            RawShape::Box | RawShape::Sphere | RawShape::Cylinder | RawShape::Mesh
         ) {
             return Err(self.err(
                 f("shape"),
-                format!("a rigid body cannot be a {} (yet)", b.shape.name()),
-                "use shape = \"box\" (min, max), \"sphere\" (center, radius) or \"cylinder\" \
-                 (center, radius, height, axis)",
+                format!("a rigid body cannot be a {}", b.shape.name()),
+                "use shape = \"box\" (min, max), \"sphere\" (center, radius), \"cylinder\" \
+                 (center, radius, height, axis) or \"mesh\" (file, scale, translate: a closed OBJ)",
+            ));
+        }
+        if b.convex.is_some() && b.shape != RawShape::Mesh {
+            return Err(self.err(
+                f("convex"),
+                format!(
+                    "`convex` is not a parameter of shape \"{}\"",
+                    b.shape.name()
+                ),
+                "remove it; only a mesh body takes convex = true (collide as its convex hull)",
             ));
         }
         // A cylinder's `axis` turns its rest orientation (rapier's and ours: along local y);
         // `rotation` then turns the body.
         let mut rest = Quat::IDENTITY;
-        let (shape, position) = match self.body_shape(&prefix, b.shape, &b.geometry(), base, dx)? {
-            BodyShape::Box { min, max } => (
-                RigidShape::Box {
-                    half_extents: 0.5 * (max - min),
-                },
-                0.5 * (min + max),
-            ),
-            BodyShape::Sphere { center, radius } => (RigidShape::Sphere { radius }, center),
-            BodyShape::Cylinder {
-                center,
-                axis,
-                radius,
-                half_height,
-            } => {
-                rest = Quat::from_rotation_arc(Vec3::Y, axis);
-                (
-                    RigidShape::Cylinder {
-                        radius,
-                        half_height,
+        let (shape, position) = if b.shape == RawShape::Mesh {
+            self.mesh_body(&prefix, b, base, dx)?
+        } else {
+            match self.body_shape(&prefix, b.shape, &b.geometry(), base, dx)? {
+                BodyShape::Box { min, max } => (
+                    RigidShape::Box {
+                        half_extents: 0.5 * (max - min),
                     },
+                    0.5 * (min + max),
+                ),
+                BodyShape::Sphere { center, radius } => (RigidShape::Sphere { radius }, center),
+                BodyShape::Cylinder {
                     center,
-                )
+                    axis,
+                    radius,
+                    half_height,
+                } => {
+                    rest = Quat::from_rotation_arc(Vec3::Y, axis);
+                    (
+                        RigidShape::Cylinder {
+                            radius,
+                            half_height,
+                        },
+                        center,
+                    )
+                }
+                _ => unreachable!("box, sphere or cylinder"),
             }
-            _ => unreachable!("box, sphere or cylinder"),
         };
         let rotation = match b.rotation {
             Some(r) => Quat::from_scaled_axis(self.vec3(&f("rotation"), r)?) * rest,
@@ -89,6 +106,13 @@ impl V<'_> {
                 ));
             }
         };
+        if !mass.is_finite() {
+            return Err(self.err(
+                f(if b.mass.is_some() { "mass" } else { "density" }),
+                format!("the body's mass {mass} kg (density x volume {volume} m^3) is not finite"),
+                "give a body of a sensible size (check the mesh's units and `scale`) and density",
+            ));
+        }
         let velocity = match b.velocity {
             Some(v) => self.vec3(&f("velocity"), v)?,
             None => Vec3::ZERO,
@@ -138,6 +162,41 @@ impl V<'_> {
             condition,
             friction,
         })
+    }
+
+    /// A mesh body: the closed mesh of `file` (scaled, translated) about its centre of mass,
+    /// which is the body's position.
+    fn mesh_body(
+        &self,
+        prefix: &str,
+        b: &RawRigidBody,
+        base: &Path,
+        dx: f32,
+    ) -> R<(RigidShape, Vec3)> {
+        let g = b.geometry();
+        self.shape_fields(prefix, RawShape::Mesh, &g)?;
+        let (path, scale, translate) = self.mesh_placement(prefix, &g, base)?;
+        let field = format!("{prefix}.file");
+        let mesh = TriMesh::load_obj(&path, scale, translate).map_err(|e| {
+            self.err(
+                &field,
+                e.to_string(),
+                format!(
+                    "give a readable OBJ file with triangles; the path is relative to the scene \
+                     file's folder ({})",
+                    base.display()
+                ),
+            )
+        })?;
+        let (m, com) = RigidMesh::new(&mesh, b.convex.unwrap_or(false), 0.5 * dx, MESH_MARGIN)
+            .map_err(|e| {
+                self.err(
+                    &field,
+                    format!("{} cannot be a rigid body: {e}", path.display()),
+                    e.fix(),
+                )
+            })?;
+        Ok((RigidShape::Mesh(Arc::new(m)), com))
     }
 
     /// Bodies must not overlap at the start (their axis-aligned bounds in the initial pose),

@@ -68,7 +68,7 @@ extern "C" __global__ void g2p_mpm(Ctx c) {
         if (lane >= count) continue;
         unsigned p = first + lane;
         vec3 x = load_v3(c.state, c.cap, F_X, p);
-        vec3 v = load_v3(c.state, c.cap, F_V, p);
+        vec3 v = load_vel(c.state, c.cap, p);
         G2pState st = g2p_load_state<false>(c, p);
         const int* bc; vec3 v_pic, dv; mat3 L;
         g2p_mpm_gather(c, g, x, &bc, &v_pic, &dv, &L, musl);
@@ -89,9 +89,9 @@ extern "C" __global__ void g2p_mpm_velocity(Ctx c) {
         if (lane >= count) continue;
         unsigned p = first + lane;
         vec3 x = load_v3(c.state, c.cap, F_X, p);
-        vec3 v = load_v3(c.state, c.cap, F_V, p);
+        vec3 v = load_vel(c.state, c.cap, p);
         const int* bc; vec3 v_pic, dv; mat3 L;
         g2p_mpm_gather(c, g, x, &bc, &v_pic, &dv, &L, false);
-        store_v3(c.state, c.cap, F_V, p, flip_blend(scalars(c).flip, v, v_pic, dv));
+        store_vel(c.state, c.cap, p, flip_blend(scalars(c).flip, v, v_pic, dv));
     }
 }

@@ -22,7 +22,7 @@ template <bool ALL_FLUID>
 __device__ __forceinline__ G2pState g2p_load_state(const Ctx& c, unsigned p) {
     G2pState s;
     s.F = load_deformation(c.state, c.cap, p, ALL_FLUID);
-    s.plastic = ALL_FLUID ? (real)0 : c.state[sidx(c.cap, F_PLASTIC, p)];
+    s.plastic = ALL_FLUID ? (real)0 : load_plastic(c.state, c.cap, p);
     s.material = state_bits(c.state[sidx(c.cap, F_MAT, p)]);
     s.id = ALL_FLUID ? 0u : state_bits(c.state[sidx(c.cap, F_ID, p)]);
     return s;
@@ -77,12 +77,13 @@ __device__ __forceinline__ G2pResult g2p_finish(const Ctx& c, const int* bc, uns
     for (int a = 0; a < 3; ++a) leave = leave || nb[a] < 4 * bc[a] - 4 || nb[a] > 4 * bc[a] + 5;
     if (leave) c.ctl[CTL_NEED_REBUILD] = 1;
     store_v3(c.state, c.cap, F_X, p, x);
-    store_v3(c.state, c.cap, F_V, p, v);
-    store_m3(c.state, c.cap, F_C, p, C);
+    // The compact state rounds v and C: the fused P2G uses what is stored, as a separate P2G would.
+    vec3 v_stored = store_vel(c.state, c.cap, p, v);
+    mat3 C_stored = store_affine(c.state, c.cap, p, C);
     store_deformation(c.state, c.cap, p, F, ALL_FLUID);
-    if (!ALL_FLUID) c.state[sidx(c.cap, F_PLASTIC, p)] = plastic;
+    if (!ALL_FLUID) store_plastic(c.state, c.cap, p, plastic);
     G2pResult r;
-    r.x = x; r.v = v; r.C = C; r.F = F; r.plastic = plastic;
+    r.x = x; r.v = v_stored; r.C = C_stored; r.F = F; r.plastic = plastic;
     r.leave = leave;
     r.speed = finite ? __float_as_uint((float)speed) : 0u;
     r.material = st.material;

@@ -57,8 +57,8 @@ __device__ __forceinline__ P2gParticle p2g_particle_of(const Ctx& c, vec3 x, rea
 // The same for particle p of the state array.
 __device__ __forceinline__ P2gParticle p2g_particle(const Ctx& c, unsigned p) {
     return p2g_particle_of<false>(c, load_v3(c.state, c.cap, F_X, p), c.state[sidx(c.cap, F_MASS, p)], c.state[sidx(c.cap, F_VOL0, p)],
-                                  load_v3(c.state, c.cap, F_V, p), load_m3(c.state, c.cap, F_C, p),
-                                  load_m3(c.state, c.cap, F_F, p), c.state[sidx(c.cap, F_PLASTIC, p)],
+                                  load_vel(c.state, c.cap, p), load_affine(c.state, c.cap, p),
+                                  load_deformation(c.state, c.cap, p, false), load_plastic(c.state, c.cap, p),
                                   state_bits(c.state[sidx(c.cap, F_MAT, p)]));
 }
 

@@ -108,11 +108,11 @@ extern "C" __global__ void p2g_mpm(Ctx c) {
         particle_stencil(c, load_v3(c.state, c.cap, F_X, p), base, fx, wt, dw);
         real m = c.state[sidx(c.cap, F_MASS, p)];
         real vol0 = c.state[sidx(c.cap, F_VOL0, p)];
-        vec3 mv = load_v3(c.state, c.cap, F_V, p) * m;
-        mat3 C = load_m3(c.state, c.cap, F_C, p);
-        mat3 F = load_m3(c.state, c.cap, F_F, p);
+        vec3 mv = load_vel(c.state, c.cap, p) * m;
+        mat3 C = load_affine(c.state, c.cap, p);
+        mat3 F = load_deformation(c.state, c.cap, p, false);
         const MaterialGpu& mat = material_at(c, state_bits(c.state[sidx(c.cap, F_MAT, p)]));
-        mat3 tau = material_kirchhoff(mat, F, c.state[sidx(c.cap, F_PLASTIC, p)], C);
+        mat3 tau = material_kirchhoff(mat, F, load_plastic(c.state, c.cap, p), C);
         // grad w in world units is shape_grad / dx.
         mat3 stress = tau * (-step_params(c).dt * vol0 * scalars(c).inv_dx);
         StencilIdx si = stencil_idx(c.block_coords + 3 * g, base);
@@ -144,7 +144,7 @@ extern "C" __global__ void p2g_musl(Ctx c) {
         unsigned p = first + lane;
         int base[3]; real fx[3]; real wt[3][3]; real dw[3][3];
         particle_stencil(c, load_v3(c.state, c.cap, F_X, p), base, fx, wt, dw);
-        vec3 mv = load_v3(c.state, c.cap, F_V, p) * (real)c.state[sidx(c.cap, F_MASS, p)];
+        vec3 mv = load_vel(c.state, c.cap, p) * (real)c.state[sidx(c.cap, F_MASS, p)];
         StencilIdx si = stencil_idx(c.block_coords + 3 * g, base);
         const unsigned* nbs = c.neighbors + 27 * g;
         for (int i = 0; i < 3; ++i)

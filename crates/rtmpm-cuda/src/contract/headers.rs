@@ -170,29 +170,16 @@ pub fn prelude() -> String {
     let mut def = |name: &str, v: String| {
         let _ = writeln!(s, "#define {name} {v}");
     };
-    def("RTMPM_NFIELDS", NFIELDS.to_string());
     for (n, v) in [
-        ("F_X", F_X),
-        ("F_V", F_V),
-        ("F_C", F_C),
-        ("F_F", F_F),
-        ("F_PLASTIC", F_PLASTIC),
-        ("F_MASS", F_MASS),
-        ("F_VOL0", F_VOL0),
-        ("F_MAT", F_MAT),
-        ("F_ID", F_ID),
         ("FILL_WORDS", FILL_WORDS),
         ("FT_START", FT_START),
         ("FT_COUNT", FT_COUNT),
-        ("FT_MAT", FT_MAT),
         ("FT_V0", FT_V0),
         ("FT_W", FT_W),
         ("FT_CENTRE", FT_CENTRE),
-        ("FT_C", FT_C),
-        ("FT_F", FT_F),
-        ("FT_PLASTIC", FT_PLASTIC),
-        ("FT_MASS", FT_MASS),
-        ("FT_VOL0", FT_VOL0),
+        ("FT_V_CONST", FT_V_CONST),
+        ("FT_NCONST", FT_NCONST),
+        ("FT_CONST", FT_CONST),
         ("CTL_NEED_REBUILD", CTL_NEED_REBUILD),
         ("CTL_GBLOCKS", CTL_GBLOCKS),
         ("CTL_PBLOCKS", CTL_PBLOCKS),
@@ -250,6 +237,7 @@ pub fn prelude() -> String {
     }
     def("UPDATE_USL", format!("{}u", update(Update::Usl)));
     def("UPDATE_MUSL", format!("{}u", update(Update::Musl)));
+    s.push_str(&StateLayout::prelude());
     s
 }
 

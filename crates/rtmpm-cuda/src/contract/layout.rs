@@ -45,7 +45,7 @@ impl GpuReal for f64 {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct Ctx {
-    /// `NFIELDS` reals per particle.
+    /// The state layout's words (`StateLayout::words`) per particle slot.
     pub state: u64,
     /// The rebuild's sort scratch: `CudaOptions::sort_scratch_fields` reals per particle slot
     /// (the state is permuted that many fields at a time).

@@ -18,62 +18,40 @@ use rtmpm_core::transfer::Update;
 
 mod headers;
 mod layout;
+mod state_layout;
 
 pub use headers::{layout_asserts, material_registry, materials, prelude};
 pub use layout::*;
+pub use state_layout::{MAX_FIELDS, StateLayout};
 
 // ---------------------------------------------------------------------------------------------
-// Particle state: structure of arrays, field f of particle i at state[f * cap + i].
-
-/// Words per particle in the state arrays.
-pub const NFIELDS: usize = 29;
-/// Position (3 words).
-pub const F_X: usize = 0;
-/// Velocity (3).
-pub const F_V: usize = 3;
-/// APIC C (9, column-major).
-pub const F_C: usize = 6;
-/// Deformation gradient (9, column-major).
-pub const F_F: usize = 15;
-/// Plastic scalar.
-pub const F_PLASTIC: usize = 24;
-/// Mass.
-pub const F_MASS: usize = 25;
-/// Initial volume.
-pub const F_VOL0: usize = 26;
-/// Material id (integer bits in the low 32 bits of the word).
-pub const F_MAT: usize = 27;
-/// Original particle index (integer bits).
-pub const F_ID: usize = 28;
+// Particle state: structure of arrays, word w of particle i at state[w * cap + i]; the words of
+// each field are given by the backend's [`StateLayout`] (state_layout.rs).
 
 // ---------------------------------------------------------------------------------------------
 // The body table of the device fill (`kernels/fill.cu`, `crate::fill`): one row of u32 words per
 // sampled body; reals as f32 bits.
 
 /// Words of one row of the fill table.
-pub const FILL_WORDS: usize = 36;
+pub const FILL_WORDS: usize = FT_CONST + 3 * MAX_FIELDS;
 /// First particle (slot and original index) of the body: low, then high 32 bits.
 pub const FT_START: usize = 0;
 /// Particles of the body: low, then high 32 bits.
 pub const FT_COUNT: usize = 2;
-/// Material index.
-pub const FT_MAT: usize = 4;
 /// Initial velocity v0 (3 f32).
-pub const FT_V0: usize = 5;
+pub const FT_V0: usize = 4;
 /// Angular velocity w (3 f32).
-pub const FT_W: usize = 8;
+pub const FT_W: usize = 7;
 /// Centre c of the rotation (3 f32): v = v0 + w x (x - c).
-pub const FT_CENTRE: usize = 11;
-/// APIC C of every particle (9 f32, column-major).
-pub const FT_C: usize = 14;
-/// Packed deformation gradient of every particle (9 f32, column-major).
-pub const FT_F: usize = 23;
-/// Plastic scalar (f32).
-pub const FT_PLASTIC: usize = 32;
-/// Mass (f32).
-pub const FT_MASS: usize = 33;
-/// Initial volume (f32).
-pub const FT_VOL0: usize = 34;
+pub const FT_CENTRE: usize = 10;
+/// 1: the velocity's words are among the constant words (every particle moves alike); 0: the
+/// kernel computes v (3 plain words).
+pub const FT_V_CONST: usize = 13;
+/// Number of constant words.
+pub const FT_NCONST: usize = 14;
+/// The constant words: (state word, low 32 bits, high 32 bits) each, the word's bits in the
+/// state's precision (an f32 word: the low bits).
+pub const FT_CONST: usize = 15;
 
 // ---------------------------------------------------------------------------------------------
 // Control words (u32, one array per GPU).

@@ -6,7 +6,7 @@ use super::partition::slabs;
 use super::plan::{check_supported, combine, dense_count, plan, shared_capacity, subset};
 use super::rank::{CommSource, GpuRank};
 use crate::backend::Part;
-use crate::contract::{CTL_BAD_INDEX, CTL_MAX_SPEED, CTL_SHARED, NFIELDS};
+use crate::contract::{CTL_BAD_INDEX, CTL_MAX_SPEED, CTL_SHARED};
 use crate::readback::{resize_particles, scatter_state};
 use crate::{CudaOptions, Transport};
 use rtmpm_core::sim::{Backend, BadParticle, SimError};
@@ -176,12 +176,13 @@ impl Backend for NcclRankBackend {
         let n = self.n;
         let r = self.r()?;
         let cap = r.b.ctx.cap as usize;
+        let layout = r.b.state_layout();
         let all = r.gather_state()?;
         *out = Particles::default();
         resize_particles(out, n);
-        let per = NFIELDS * cap;
+        let per = layout.words() * cap;
         for (k, &count) in counts.iter().enumerate() {
-            scatter_state(&all[k * per..(k + 1) * per], count, cap, out)?;
+            scatter_state(&all[k * per..(k + 1) * per], count, cap, layout, out)?;
         }
         Ok(())
     }

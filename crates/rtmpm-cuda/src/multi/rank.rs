@@ -6,7 +6,7 @@ use super::exchange::{ExchangeHooks, Exchanger, PeerExport};
 use super::nccl::{Communicator, DataType, UniqueId};
 use super::plan::check_supported;
 use crate::backend::{CudaBackend, Part, err};
-use crate::contract::{CTL_NEED_REBUILD, CTL_WORDS, NFIELDS};
+use crate::contract::{CTL_NEED_REBUILD, CTL_WORDS};
 use crate::{BarrierKind, CudaOptions};
 use cudarc::driver::{CudaSlice, DevicePtr};
 use rtmpm_core::sim::SimError;
@@ -228,14 +228,14 @@ impl GpuRank {
     /// Every rank's particle state arrays (all ranks must have the same capacity), through an
     /// NCCL all-gather (collective; synchronises).
     pub fn gather_state(&mut self) -> Result<Vec<f32>, SimError> {
-        let per = NFIELDS * self.b.ctx.cap as usize;
+        let per = self.b.state_layout().words() * self.b.ctx.cap as usize;
         let ranks = self.x.comm()?.ranks;
         let s = self.b.stream.clone();
         if self.state_all.is_none() {
             self.state_all = Some(s.alloc_zeros::<f32>(ranks * per).map_err(err("alloc"))?);
         }
         let all = self.state_all.as_ref().map_or(0, |a| a.device_ptr(&s).0);
-        // SAFETY: state holds NFIELDS * cap floats, all ranks times that.
+        // SAFETY: state holds words * cap floats, all ranks times that.
         unsafe {
             self.x
                 .comm()?

@@ -321,12 +321,13 @@ impl Backend for MultiGpuBackend {
     fn read_particles(&mut self, out: &mut Particles) -> Result<(), SimError> {
         let states = self.all(|_, r| {
             let r = rank(r)?;
-            Ok((r.b.read_state()?, r.b.len(), r.b.ctx.cap as usize))
+            let layout = r.b.state_layout();
+            Ok((r.b.read_state()?, r.b.len(), r.b.ctx.cap as usize, layout))
         })?;
         *out = Particles::default();
         resize_particles(out, self.n);
-        for (host, n, cap) in &states {
-            scatter_state(host, *n, *cap, out)?;
+        for (host, n, cap, layout) in &states {
+            scatter_state(host, *n, *cap, *layout, out)?;
         }
         Ok(())
     }

@@ -204,7 +204,7 @@ pub(super) fn read_bodies_csv(
         };
         let q = glam::Quat::from_xyzw(num(6)?, num(7)?, num(8)?, num(9)?);
         list.push(BodyState {
-            shape: spec.shape,
+            shape: spec.shape.clone(),
             rotation: glam::Mat3::from_quat(q.normalize()),
             center: Vec3::new(num(3)?, num(4)?, num(5)?),
             velocity: Vec3::ZERO,

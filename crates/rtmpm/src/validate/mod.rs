@@ -52,6 +52,10 @@ pub struct ValidateArgs {
     /// `[solver] precision`, else f32).
     #[arg(long, value_name = "f32|f64")]
     pub precision: Option<rtmpm_core::scene::Precision>,
+    /// The CUDA backend's particle state: f32 or compact (default: the scene's
+    /// `[solver] particle_state`, else f32; the CPU backend ignores it).
+    #[arg(long, value_name = "f32|compact")]
+    pub particle_state: Option<rtmpm_core::scene::ParticleState>,
 }
 
 /// One line of the table.
@@ -106,6 +110,9 @@ impl Ctx<'_> {
         if let Some(p) = self.args.precision {
             scene.precision = p;
         }
+        if let Some(s) = self.args.particle_state {
+            scene.particle_state = s;
+        }
         let particles = scene.sample_particles()?;
         let backend = make_backend(
             self.args.backend,
@@ -127,6 +134,9 @@ impl Ctx<'_> {
     ) -> Result<Simulation> {
         if let Some(p) = self.args.precision {
             scene.precision = p;
+        }
+        if let Some(s) = self.args.particle_state {
+            scene.particle_state = s;
         }
         each_frame(0.0, &particles);
         let backend = make_backend(

@@ -1,0 +1,90 @@
+// Shared-exponent codec of the compact particle state (twin of src/codec.rs, bit for bit when
+// denormals are not flushed): N signed B-bit mantissas q_i and one 8-bit exponent code, value
+// q_i 2^(e - B + 1). Velocity: N = 3, B = 18 in 2 words; APIC C: N = 9, B = 16 in 5 words. The
+// exponent e (the largest component < 2^e, at least B - 127, bumped once when the largest mantissa
+// rounds past 2^(B-1) - 1) is stored as e - (B - 127); code 255: a component was not finite
+// (every component decodes as NaN). Round to nearest even. Error of each component, finite input:
+// |x' - x| <= max(max_j |x_j| / (2^(B-1) - 1), 2^-126).
+// Pure float/integer code, no Ctx: compiled on its own by the codec test.
+#pragma once
+
+#define CODEC_NONFINITE 255u
+
+// 2^k for -126 <= k <= 127.
+__device__ __forceinline__ float codec_pow2(int k) { return __uint_as_float((unsigned)(k + 127) << 23); }
+
+// Encode n values (B-bit mantissas) into q[] and return the exponent code.
+template <int N, int B>
+__device__ __forceinline__ unsigned codec_encode(const float* x, int* q) {
+    const int qmax = (1 << (B - 1)) - 1, emin = B - 127;
+    float m = 0.0f;
+    bool finite = true;
+    for (int i = 0; i < N; ++i) {
+        finite = finite && isfinite(x[i]);
+        m = fmaxf(m, fabsf(x[i]));
+    }
+    if (!finite) {
+        for (int i = 0; i < N; ++i) q[i] = 0;
+        return CODEC_NONFINITE;
+    }
+    int e = max((int)((__float_as_uint(m) >> 23) & 0xffu) - 126, emin);
+    for (int pass = 0; pass < 2; ++pass) {
+        float s = codec_pow2(B - 1 - e);
+        int big = 0;
+        for (int i = 0; i < N; ++i) {
+            q[i] = (int)rintf(x[i] * s);
+            big = max(big, abs(q[i]));
+        }
+        if (big <= qmax) break;
+        if (pass == 1 || e >= 128) {  // only next to FLT_MAX: saturate
+            for (int i = 0; i < N; ++i) q[i] = max(-qmax, min(qmax, q[i]));
+            break;
+        }
+        ++e;
+    }
+    return (unsigned)(e - emin);
+}
+
+// The values of exponent code `code` and mantissas q[].
+template <int N, int B>
+__device__ __forceinline__ void codec_decode(unsigned code, const int* q, float* x) {
+    if (code == CODEC_NONFINITE) {
+        for (int i = 0; i < N; ++i) x[i] = __uint_as_float(0x7fc00000u);
+        return;
+    }
+    float s = codec_pow2((int)code - 126);  // 2^(e - B + 1), e = code + B - 127
+    for (int i = 0; i < N; ++i) x[i] = (float)q[i] * s;
+}
+
+// Velocity: 2 words, bits 0-7 the code, then three 18-bit mantissas (bits 8, 26, 44 of the 64).
+__device__ __forceinline__ void codec_encode_v(const float v[3], unsigned w[2]) {
+    int q[3];
+    unsigned long long b = codec_encode<3, 18>(v, q);
+    for (int i = 0; i < 3; ++i) b |= ((unsigned long long)(q[i] & 0x3ffff)) << (8 + 18 * i);
+    w[0] = (unsigned)b;
+    w[1] = (unsigned)(b >> 32);
+}
+__device__ __forceinline__ void codec_decode_v(const unsigned w[2], float v[3]) {
+    unsigned long long b = ((unsigned long long)w[1] << 32) | w[0];
+    int q[3];
+    for (int i = 0; i < 3; ++i) q[i] = (int)((long long)(b << (64 - 26 - 18 * i)) >> 46);
+    codec_decode<3, 18>((unsigned)(b & 0xffu), q, v);
+}
+
+// C: 5 words; word 0: the code (bits 0-7) and q0 (bits 16-31); word k = 1..4: q(2k-1) in bits 0-15,
+// q(2k) in bits 16-31 (16-bit two's complement).
+__device__ __forceinline__ void codec_encode_c(const float c[9], unsigned w[5]) {
+    int q[9];
+    unsigned code = codec_encode<9, 16>(c, q);
+    w[0] = code | ((unsigned)(q[0] & 0xffff) << 16);
+    for (int k = 1; k < 5; ++k) w[k] = (unsigned)(q[2 * k - 1] & 0xffff) | ((unsigned)(q[2 * k] & 0xffff) << 16);
+}
+__device__ __forceinline__ void codec_decode_c(const unsigned w[5], float c[9]) {
+    int q[9];
+    q[0] = (int)w[0] >> 16;
+    for (int k = 1; k < 5; ++k) {
+        q[2 * k - 1] = (int)(w[k] << 16) >> 16;
+        q[2 * k] = (int)w[k] >> 16;
+    }
+    codec_decode<9, 16>(w[0] & 0xffu, q, c);
+}
