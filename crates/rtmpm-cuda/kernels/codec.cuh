@@ -1,6 +1,6 @@
 // Shared-exponent codec of the compact particle state (twin of src/codec.rs, bit for bit when
 // denormals are not flushed): N signed B-bit mantissas q_i and one 8-bit exponent code, value
-// q_i 2^(e - B + 1). Velocity: N = 3, B = 18 in 2 words; APIC C: N = 9, B = 16 in 5 words. The
+// q_i 2^(e - B + 1). APIC C: N = 9, B = 16 in 5 words (the velocity stays f32: src/codec.rs). The
 // exponent e (the largest component < 2^e, at least B - 127, bumped once when the largest mantissa
 // rounds past 2^(B-1) - 1) is stored as e - (B - 127); code 255: a component was not finite
 // (every component decodes as NaN). Round to nearest even. Error of each component, finite input:
@@ -54,21 +54,6 @@ __device__ __forceinline__ void codec_decode(unsigned code, const int* q, float*
     }
     float s = codec_pow2((int)code - 126);  // 2^(e - B + 1), e = code + B - 127
     for (int i = 0; i < N; ++i) x[i] = (float)q[i] * s;
-}
-
-// Velocity: 2 words, bits 0-7 the code, then three 18-bit mantissas (bits 8, 26, 44 of the 64).
-__device__ __forceinline__ void codec_encode_v(const float v[3], unsigned w[2]) {
-    int q[3];
-    unsigned long long b = codec_encode<3, 18>(v, q);
-    for (int i = 0; i < 3; ++i) b |= ((unsigned long long)(q[i] & 0x3ffff)) << (8 + 18 * i);
-    w[0] = (unsigned)b;
-    w[1] = (unsigned)(b >> 32);
-}
-__device__ __forceinline__ void codec_decode_v(const unsigned w[2], float v[3]) {
-    unsigned long long b = ((unsigned long long)w[1] << 32) | w[0];
-    int q[3];
-    for (int i = 0; i < 3; ++i) q[i] = (int)((long long)(b << (64 - 26 - 18 * i)) >> 46);
-    codec_decode<3, 18>((unsigned)(b & 0xffu), q, v);
 }
 
 // C: 5 words; word 0: the code (bits 0-7) and q0 (bits 16-31); word k = 1..4: q(2k-1) in bits 0-15,

@@ -7,7 +7,7 @@
 // F is the one word J^(1/3) (F's diagonal), there is no plastic word. Storing F's diagonal value,
 // not J, keeps every kernel path bit-identical to the 29-word layout (the general kernel variants
 // also run fluid scenes when G2P2G is off) and costs no cube root on load.
-// RTMPM_STATE_COMPACT: v and C in the shared-exponent words of codec.cuh (f32 only).
+// RTMPM_STATE_COMPACT: C in the shared-exponent words of codec.cuh (f32 only).
 #pragma once
 #include "codec.cuh"
 
@@ -20,31 +20,12 @@ __device__ __forceinline__ void state_set_bits(real* s, unsigned cap, int f, uns
 }
 #endif
 
-// Velocity.
-__device__ __forceinline__ vec3 load_vel(const real* s, unsigned cap, unsigned i) {
-#if RTMPM_STATE_COMPACT
-    unsigned w[2] = {state_word_bits(s, cap, F_V, i), state_word_bits(s, cap, F_V + 1, i)};
-    float v[3];
-    codec_decode_v(w, v);
-    return make_v3(v[0], v[1], v[2]);
-#else
-    return load_v3(s, cap, F_V, i);
-#endif
-}
-// Store v; returns the velocity a load now gives (v rounded to the compact format).
+// Velocity: 3 reals in every layout (the compact state keeps v in f32: src/codec.rs says why).
+__device__ __forceinline__ vec3 load_vel(const real* s, unsigned cap, unsigned i) { return load_v3(s, cap, F_V, i); }
+// Store v; returns the velocity a load now gives.
 __device__ __forceinline__ vec3 store_vel(real* s, unsigned cap, unsigned i, vec3 v) {
-#if RTMPM_STATE_COMPACT
-    float a[3] = {v.x, v.y, v.z};
-    unsigned w[2];
-    codec_encode_v(a, w);
-    state_set_bits(s, cap, F_V, i, w[0]);
-    state_set_bits(s, cap, F_V + 1, i, w[1]);
-    codec_decode_v(w, a);
-    return make_v3(a[0], a[1], a[2]);
-#else
     store_v3(s, cap, F_V, i, v);
     return v;
-#endif
 }
 
 // APIC C (or the classic transfers' velocity gradient).
@@ -122,21 +103,15 @@ __device__ __forceinline__ void store_plastic(real* s, unsigned cap, unsigned i,
 
 // Export codes (src/export_chunks.rs: export_code): a word of a frame column. code >= 0: the
 // state word `code` as float bits (an f64 state rounded to nearest), or the material's integer
-// bits for F_MAT; code < 0: EXPORT_V + k, EXPORT_C + k or EXPORT_F + k for component k of the
-// decoded velocity, C or F, EXPORT_ZERO for an absent field (a fluid layout's plastic word).
+// bits for F_MAT; code < 0: EXPORT_C + k or EXPORT_F + k for component k of the decoded C or F,
+// EXPORT_ZERO for an absent field (a fluid layout's plastic word).
 #define EXPORT_ZERO (-1)
-#define EXPORT_V (-16)
 #define EXPORT_C (-32)
 #define EXPORT_F (-48)
 __device__ __forceinline__ unsigned export_word(const real* s, unsigned cap, unsigned i, int code) {
     if (code >= 0) {
         real v = s[sidx(cap, code, i)];
         return code == F_MAT ? state_bits(v) : __float_as_uint((float)v);
-    }
-    if (code >= EXPORT_V && code < EXPORT_V + 3) {
-        vec3 v = load_vel(s, cap, i);
-        int k = code - EXPORT_V;
-        return __float_as_uint((float)(k == 0 ? v.x : (k == 1 ? v.y : v.z)));
     }
     if (code >= EXPORT_C && code < EXPORT_C + 9) return __float_as_uint((float)load_affine(s, cap, i).m[code - EXPORT_C]);
     if (code >= EXPORT_F && code < EXPORT_F + 9) return __float_as_uint((float)load_deformation(s, cap, i, false).m[code - EXPORT_F]);

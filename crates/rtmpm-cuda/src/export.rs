@@ -168,26 +168,13 @@ impl CudaBackend {
         for (first, values) in [(l.x(), x), (l.v(), v)] {
             let Some(values) = values else { continue };
             let mut rows = Vec::with_capacity(3 * n * wb);
-            if first == l.v() && l.compact() {
-                // The velocity's two codec words (f32 state only).
-                let words: Vec<[u32; 2]> = ids
-                    .iter()
-                    .map(|&id| crate::codec::encode_v(values[id].to_array()))
-                    .collect();
-                for k in 0..2 {
-                    for w in &words {
-                        rows.extend_from_slice(&w[k].to_le_bytes());
-                    }
-                }
-            } else {
-                for axis in [0usize, 1, 2] {
-                    for &id in &ids {
-                        let c = values[id][axis];
-                        if wb == 8 {
-                            rows.extend_from_slice(&(c as f64).to_le_bytes());
-                        } else {
-                            rows.extend_from_slice(&c.to_le_bytes());
-                        }
+            for axis in [0usize, 1, 2] {
+                for &id in &ids {
+                    let c = values[id][axis];
+                    if wb == 8 {
+                        rows.extend_from_slice(&(c as f64).to_le_bytes());
+                    } else {
+                        rows.extend_from_slice(&c.to_le_bytes());
                     }
                 }
             }

@@ -39,8 +39,6 @@ impl HostBuffer for PinnedWords {
 /// Export code of an absent field (zeros: a fluid layout's plastic word); `EXPORT_ZERO` in
 /// `kernels/state.cuh`, like the three below.
 pub const EXPORT_ZERO: i32 = -1;
-/// Export code of component 0 of the decoded velocity (components 1, 2 follow).
-pub const EXPORT_V: i32 = -16;
 /// Export code of component 0 of the decoded C (column-major, 9).
 pub const EXPORT_C: i32 = -32;
 /// Export code of component 0 of the decoded F (column-major, 9).
@@ -56,7 +54,6 @@ pub fn chunk_fields(cols: FrameColumns, l: StateLayout) -> Vec<i32> {
         let codes = |base: i32| (0..c.components() as i32).map(|k| base + k).collect();
         let col: Vec<i32> = match c {
             Column::X => words(l.x()),
-            Column::V if l.compact() => codes(EXPORT_V),
             Column::V => words(l.v()),
             Column::Material => words(l.material()),
             Column::Plastic => l.plastic().map_or(vec![EXPORT_ZERO], words),
@@ -211,10 +208,10 @@ mod tests {
             chunk_fields(ply, StateLayout::Fluid),
             vec![0, 1, 2, 3, 4, 5, 18, EXPORT_ZERO]
         );
-        // Compact: the velocity decoded.
+        // Compact: the velocity in plain words (f32 in every layout), material at 23.
         assert_eq!(
             chunk_fields(ply, StateLayout::Compact),
-            vec![0, 1, 2, EXPORT_V, EXPORT_V + 1, EXPORT_V + 2, 22, 19]
+            vec![0, 1, 2, 3, 4, 5, 23, 20]
         );
         let all_cols = FrameColumns::all();
         for l in StateLayout::ALL {
@@ -234,7 +231,6 @@ mod tests {
         let state_cuh = include_str!("../kernels/state.cuh");
         for (name, v) in [
             ("EXPORT_ZERO", EXPORT_ZERO),
-            ("EXPORT_V", EXPORT_V),
             ("EXPORT_C", EXPORT_C),
             ("EXPORT_F", EXPORT_F),
         ] {

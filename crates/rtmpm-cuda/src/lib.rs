@@ -43,7 +43,7 @@
 //! Particle state: structure of arrays of `real` words (f32, or f64 with `precision = "f64"`),
 //! word `w` of particle `i` at `state[w * capacity + i]`, each field at the words of the
 //! backend's [`contract::StateLayout`] (29 words; 20 when every material is a fluid; 24 and 15
-//! with the compact v and C of [`codec`]); [`state`] converts at upload and download; particles
+//! with the compact C of [`codec`]); [`state`] converts at upload and download; particles
 //! are physically reordered at every
 //! rebuild and carry their original index, [`CudaBackend`] returns them in original order.
 //! Grid nodes: 4 reals (mass, momentum/velocity) per node, 64 nodes per pblock.

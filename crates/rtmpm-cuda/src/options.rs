@@ -119,7 +119,7 @@ pub struct CudaOptions {
     /// ([`crate::contract::StateLayout::Fluid`]: F in one word, no plastic word) instead of
     /// the 29-word one; the results are bit-identical. Off: the 29-word layout (for comparison).
     pub fluid_state: bool,
-    /// The compact particle state (velocity and APIC C in shared-exponent words,
+    /// The compact particle state (APIC C in shared-exponent words, the velocity f32;
     /// [`crate::codec`]; single precision only); also set by the scene's
     /// `[solver] particle_state = "compact"`.
     pub compact_state: bool,

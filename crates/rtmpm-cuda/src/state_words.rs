@@ -1,5 +1,5 @@
-//! The words of the fields that a layout keeps in other forms than plain reals (v and C in the
-//! compact formats, F in one word in a fluid layout), packed and read back.
+//! The words of the fields that a layout keeps in other forms than plain reals (C in the
+//! compact format, F in one word in a fluid layout), packed and read back.
 
 use super::Word;
 use crate::codec;
@@ -17,14 +17,9 @@ pub(super) fn check_layout(fluid: &[bool], layout: StateLayout, f64: bool) -> Re
     Ok(())
 }
 
-/// The words of a velocity in `l`, and how many there are.
-pub(super) fn v_words<W: Word>(l: StateLayout, v: Vec3) -> ([W; 3], usize) {
-    if l.compact() {
-        let w = codec::encode_v(v.to_array());
-        ([W::from_id(w[0]), W::from_id(w[1]), W::default()], 2)
-    } else {
-        (v.to_array().map(W::from_f32), 3)
-    }
+/// The words of a velocity (3 reals in every layout), and how many there are.
+pub(super) fn v_words<W: Word>(_l: StateLayout, v: Vec3) -> ([W; 3], usize) {
+    (v.to_array().map(W::from_f32), 3)
 }
 
 /// The words of C (column-major) in `l`, and how many there are.
@@ -48,21 +43,13 @@ pub(super) fn f_words<W: Word>(l: StateLayout, f: Mat3) -> ([W; 9], usize) {
 }
 
 /// The velocity from its words (`g(k)`: word k of the field).
-pub(super) fn read_v<W: Word>(l: StateLayout, g: impl Fn(usize) -> W) -> Vec3 {
-    if l.compact() {
-        Vec3::from_array(codec::decode_v([g(0).id(), g(1).id()]))
-    } else {
-        Vec3::new(g(0).to_f32(), g(1).to_f32(), g(2).to_f32())
-    }
+pub(super) fn read_v<W: Word>(_l: StateLayout, g: impl Fn(usize) -> W) -> Vec3 {
+    Vec3::new(g(0).to_f32(), g(1).to_f32(), g(2).to_f32())
 }
 
 /// The velocity from its words, unrounded (f64 words stay f64).
-pub(super) fn read_v_f64<W: Word>(l: StateLayout, g: impl Fn(usize) -> W) -> [f64; 3] {
-    if l.compact() {
-        read_v(l, g).to_array().map(|v| v as f64)
-    } else {
-        [g(0).to_f64(), g(1).to_f64(), g(2).to_f64()]
-    }
+pub(super) fn read_v_f64<W: Word>(_l: StateLayout, g: impl Fn(usize) -> W) -> [f64; 3] {
+    [g(0).to_f64(), g(1).to_f64(), g(2).to_f64()]
 }
 
 /// C from its words.

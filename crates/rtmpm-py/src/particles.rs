@@ -323,13 +323,7 @@ impl PyParticles {
     /// Velocities on the GPU, ``(n, 3)``, storage order.
     #[getter]
     fn v_device(&self, py: Python<'_>) -> PyResult<DeviceArray> {
-        self.device(
-            py,
-            "v_device",
-            |l| (!l.compact()).then(|| l.v()),
-            &[3],
-            Elem::Real,
-        )
+        self.device(py, "v_device", |l| Some(l.v()), &[3], Elem::Real)
     }
 
     /// Deformation gradients on the GPU, ``(n, 3, 3)`` (``[i, row, col]``), storage order.
@@ -418,7 +412,7 @@ impl PyParticles {
         let Some(field) = field(d.layout) else {
             return Err(backend_error(format!(
                 "`{name}` is not in the GPU's particle state layout `{}` (the fluid layout keeps \
-                 F as the one word J^(1/3) and no plastic word; the compact one keeps v and C in \
+                 F as the one word J^(1/3) and no plastic word; the compact one keeps C in \
                  shared-exponent words): read the host array (without `_device`), or run with \
                  cuda_options=\"fluid_state=off\" (fluids) and particle_state = \"f32\"",
                 d.layout.name()

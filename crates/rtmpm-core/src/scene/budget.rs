@@ -32,7 +32,7 @@ pub const GPU_BYTES_PER_PARTICLE: u64 = 140;
 /// Words per particle of the CUDA backend's state for `scene` (`rtmpm-cuda`'s
 /// `StateLayout::choose` with the default options; a unit test there checks the two agree): 29,
 /// or 20 when every material is a fluid (F in one word, no plastic word); with
-/// `particle_state = "compact"` (v in 2 words, C in 5) 24 and 15.
+/// `particle_state = "compact"` (C in 5 words) 25 and 16.
 pub fn gpu_state_words(scene: &Scene) -> u64 {
     let all_fluid = scene
         .materials
@@ -42,8 +42,8 @@ pub fn gpu_state_words(scene: &Scene) -> u64 {
     match (all_fluid, compact) {
         (true, false) => 20,
         (false, false) => 29,
-        (true, true) => 15,
-        (false, true) => 24,
+        (true, true) => 16,
+        (false, true) => 25,
     }
 }
 

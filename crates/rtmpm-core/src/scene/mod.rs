@@ -274,8 +274,8 @@ pub enum ParticleState {
     /// Every field in f32 (or f64) words (the default).
     #[default]
     F32,
-    /// Velocity and APIC C in shared-exponent words (`rtmpm-cuda` `codec`: 2 and 5 words
-    /// instead of 3 and 9; single precision only). The CUDA backend's option; the CPU backend
+    /// APIC C in shared-exponent words (`rtmpm-cuda` `codec`: 5 words instead of 9; the
+    /// velocity stays f32; single precision only). The CUDA backend's option; the CPU backend
     /// keeps its f32 state and ignores it.
     Compact,
 }

@@ -10,12 +10,13 @@
 //! |---|---|---|---|---|---|---|---|---|---|---|
 //! | `Full` | 0..3 | 3..6 | 6..15 | 15..24 | 24 | 25 | 26 | 27 | 28 | 29 |
 //! | `Fluid` | 0..3 | 3..6 | 6..15 | 15 (J^(1/3)) | - | 16 | 17 | 18 | 19 | 20 |
-//! | `Compact` | 0..3 | 3..5 (codec) | 5..10 (codec) | 10..19 | 19 | 20 | 21 | 22 | 23 | 24 |
-//! | `CompactFluid` | 0..3 | 3..5 (codec) | 5..10 (codec) | 10 (J^(1/3)) | - | 11 | 12 | 13 | 14 | 15 |
+//! | `Compact` | 0..3 | 3..6 | 6..11 (codec) | 11..20 | 20 | 21 | 22 | 23 | 24 | 25 |
+//! | `CompactFluid` | 0..3 | 3..6 | 6..11 (codec) | 11 (J^(1/3)) | - | 12 | 13 | 14 | 15 | 16 |
 //!
 //! `Fluid` layouts (every material a fluid, whose F is J^(1/3) I) keep F's diagonal value
-//! J^(1/3) in one word and no plastic word (a fluid has none). `Compact` layouts keep the
-//! velocity and APIC's C in the shared-exponent formats of [`crate::codec`] (f32 build only).
+//! J^(1/3) in one word and no plastic word (a fluid has none). `Compact` layouts keep APIC's C
+//! in the shared-exponent format of [`crate::codec`] (f32 build only; the velocity stays f32:
+//! the codec's module doc says why).
 
 /// Where a particle's fields are in the state arrays.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
@@ -25,9 +26,9 @@ pub enum StateLayout {
     Full,
     /// 20 words: scenes whose materials are all fluids (F in one word, no plastic word).
     Fluid,
-    /// 24 words: v in 2 words, C in 5 (shared-exponent codec), f32 only.
+    /// 25 words: C in 5 (shared-exponent codec), f32 only.
     Compact,
-    /// 15 words: `Fluid` and `Compact` together, f32 only.
+    /// 16 words: `Fluid` and `Compact` together, f32 only.
     CompactFluid,
 }
 
@@ -80,7 +81,7 @@ impl StateLayout {
         matches!(self, StateLayout::Fluid | StateLayout::CompactFluid)
     }
 
-    /// v and C are in the shared-exponent formats of [`crate::codec`] (f32 only).
+    /// C is in the shared-exponent format of [`crate::codec`] (f32 only).
     pub fn compact(self) -> bool {
         matches!(self, StateLayout::Compact | StateLayout::CompactFluid)
     }
@@ -100,9 +101,9 @@ impl StateLayout {
         3
     }
 
-    /// Words of the velocity: 3 reals, or 2 codec words.
+    /// Words of the velocity: 3 reals in every layout.
     pub fn v_words(self) -> usize {
-        if self.compact() { 2 } else { 3 }
+        3
     }
 
     /// APIC C: [`Self::c_words`] words from here (9 reals column-major, or 5 codec words).
@@ -212,8 +213,8 @@ mod tests {
         use StateLayout::*;
         assert_eq!(Full.words(), MAX_FIELDS);
         assert_eq!(Fluid.words(), 20);
-        assert_eq!(Compact.words(), 24);
-        assert_eq!(CompactFluid.words(), 15);
+        assert_eq!(Compact.words(), 25);
+        assert_eq!(CompactFluid.words(), 16);
         // Today's 29-word offsets.
         assert_eq!(
             (Full.x(), Full.v(), Full.c(), Full.f(), Full.plastic()),
@@ -228,10 +229,10 @@ mod tests {
             (15, None, 16, 19)
         );
         assert_eq!(
-            (Compact.c(), Compact.f(), Compact.plastic()),
-            (5, 10, Some(19))
+            (Compact.v(), Compact.c(), Compact.f(), Compact.plastic()),
+            (3, 6, 11, Some(20))
         );
-        assert_eq!((CompactFluid.f(), CompactFluid.mass()), (10, 11));
+        assert_eq!((CompactFluid.f(), CompactFluid.mass()), (11, 12));
         for l in StateLayout::ALL {
             // Every word belongs to exactly one field.
             let mut owner = vec![0; l.words()];
