@@ -51,9 +51,9 @@ __device__ __forceinline__ real fill_raw(unsigned lo, unsigned hi) {
 
 // Particles offset..offset+len of body `body` (table row), whose positions are xs[3k..3k+3]
 // (f32), into slots start+offset+k of the state (stride cap); their original index is their slot.
-// The layout's words: x at x_word.., the velocity at v_word.. (unless the row holds its words
-// among the constants, FT_V_CONST), the id at id_word; every other word is one of the row's
-// constants (FT_NCONST of them from FT_CONST: word, low bits, high bits).
+// The layout's words: x at x_word.., the velocity at v_word.. (3 reals in every layout), the id
+// at id_word; every other word is one of the row's constants (FT_NCONST of them from FT_CONST:
+// word, low bits, high bits).
 extern "C" __global__ void fill_body(real* __restrict__ s, unsigned cap, const unsigned* __restrict__ table, int body,
                                      unsigned long long offset, unsigned len, const float* __restrict__ xs, int x_word,
                                      int v_word, int id_word) {
@@ -65,7 +65,6 @@ extern "C" __global__ void fill_body(real* __restrict__ s, unsigned cap, const u
         w[a] = __uint_as_float(t[FT_W + a]);
         c[a] = __uint_as_float(t[FT_CENTRE + a]);
     }
-    bool v_const = t[FT_V_CONST] != 0;
     int nconst = (int)t[FT_NCONST];
     for (unsigned k = blockIdx.x * blockDim.x + threadIdx.x; k < len; k += gridDim.x * blockDim.x) {
         unsigned i = (unsigned)(start + offset + k);
@@ -74,15 +73,13 @@ extern "C" __global__ void fill_body(real* __restrict__ s, unsigned cap, const u
             x[a] = xs[3ull * k + a];
             s[sidx(cap, x_word + a, i)] = fill_word(x[a]);
         }
-        if (!v_const) {
-            float d[3];
-            for (int a = 0; a < 3; ++a) d[a] = fill_sub(x[a], c[a]);
-            // glam: w.cross(d) = (w.y d.z - d.y w.z, w.z d.x - d.z w.x, w.x d.y - d.x w.y).
-            float r[3] = {fill_sub(fill_mul(w[1], d[2]), fill_mul(d[1], w[2])),
-                          fill_sub(fill_mul(w[2], d[0]), fill_mul(d[2], w[0])),
-                          fill_sub(fill_mul(w[0], d[1]), fill_mul(d[0], w[1]))};
-            for (int a = 0; a < 3; ++a) s[sidx(cap, v_word + a, i)] = fill_word(fill_add(v0[a], r[a]));
-        }
+        float d[3];
+        for (int a = 0; a < 3; ++a) d[a] = fill_sub(x[a], c[a]);
+        // glam: w.cross(d) = (w.y d.z - d.y w.z, w.z d.x - d.z w.x, w.x d.y - d.x w.y).
+        float r[3] = {fill_sub(fill_mul(w[1], d[2]), fill_mul(d[1], w[2])),
+                      fill_sub(fill_mul(w[2], d[0]), fill_mul(d[2], w[0])),
+                      fill_sub(fill_mul(w[0], d[1]), fill_mul(d[0], w[1]))};
+        for (int a = 0; a < 3; ++a) s[sidx(cap, v_word + a, i)] = fill_word(fill_add(v0[a], r[a]));
         for (int e = 0; e < nconst; ++e) {
             const unsigned* q = t + FT_CONST + 3 * e;
             s[sidx(cap, (int)q[0], i)] = fill_raw(q[1], q[2]);

@@ -197,14 +197,12 @@ impl CudaBackend {
         crate::emit::check(scene, options.p2g)?;
         let tables = encode::tables(scene, options.f64)?;
         // The device fill (sampled bodies only): the table's checks before any GPU work.
-        // (The compact layout's velocity words are encoded on the host: the device fills them
-        // for bodies whose particles all move alike, else the host packs.)
         let device_fill = match initial {
             Initial::Bodies(b) if options.device_fill => {
                 let fluid = crate::state::fluid_materials(scene);
                 crate::fill::table(b, &fluid, state_layout, options.f64)
                     .map_err(SimError::Backend)?;
-                crate::fill::supported(b, state_layout)
+                true
             }
             _ => false,
         };

@@ -22,34 +22,11 @@ use std::sync::Arc;
 /// Particles of one piece of the upload (at most): 48 MB of positions per page-locked buffer.
 pub const PIECE: usize = 1 << 22;
 
-/// True when `v0 + w x (x - c)` is `v0` bit for bit for every finite `x` and `c` (as
-/// `rtmpm_core`'s sampler decides): `w` is zero and no component of `v0` is -0.
-pub fn velocity_is_uniform(v0: Vec3, w: Vec3) -> bool {
-    w == Vec3::ZERO
-        && !v0
-            .to_array()
-            .iter()
-            .any(|c| *c == 0.0 && c.is_sign_negative())
-}
-
-/// True when the device can fill the state of `bodies` in `layout`: the compact layout's
-/// velocity words are encoded on the host, so there every body of a shape must move as one
-/// (uniform velocity, no spin); the other layouts always.
-pub fn supported(bodies: &[SampledBody], layout: StateLayout) -> bool {
-    !layout.compact()
-        || bodies.iter().all(|b| match b {
-            SampledBody::Shape(b) => {
-                b.count == 0 || velocity_is_uniform(b.velocity, b.angular_velocity)
-            }
-            SampledBody::Points(_) => true,
-        })
-}
-
 /// The fill table: [`FILL_WORDS`] words per body, in body order (layout `FT_*` in
 /// [`crate::contract`]): the body's range (its first particle is the sum of the counts before
 /// it), v0, w and c of its velocity field, and the words every particle of it shares in
-/// `layout` and precision `f64` ([`crate::state::body_constant_words`]; in the compact layout
-/// the velocity's too). Rows of points bodies hold their range only (the device does not fill
+/// `layout` and precision `f64` ([`crate::state::body_constant_words`]: all but x, v and the
+/// id). Rows of points bodies hold their range only (the device does not fill
 /// them). `fluid`: one entry per material; a body's material must be in range (else the error
 /// of [`crate::state::pack_bodies`]).
 pub fn table(
@@ -82,9 +59,7 @@ pub fn table(
                 row[FT_W + a] = b.angular_velocity[a].to_bits();
                 row[FT_CENTRE + a] = b.centre[a].to_bits();
             }
-            let v_const = layout.compact();
-            row[FT_V_CONST] = v_const as u32;
-            let words = crate::state::body_constant_words(layout, f64, b, is_fluid, v_const);
+            let words = crate::state::body_constant_words(layout, f64, b, is_fluid);
             row[FT_NCONST] = words.len() as u32;
             for (k, (w, bits)) in words.into_iter().enumerate() {
                 let at = FT_CONST + 3 * k;

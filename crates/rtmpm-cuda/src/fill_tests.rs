@@ -91,15 +91,11 @@ fn the_table_holds_ranges_and_every_word_once() {
                 assert_eq!(row[FT_W + a], b.angular_velocity[a].to_bits());
                 assert_eq!(row[FT_CENTRE + a], b.centre[a].to_bits());
             }
-            let v_const = row[FT_V_CONST] == 1;
-            assert_eq!(v_const, layout.compact());
             let mut seen = vec![0; layout.words()];
             for a in 0..3 {
                 seen[layout.x() + a] += 1;
             }
-            if !v_const {
-                (0..3).for_each(|a| seen[layout.v() + a] += 1);
-            }
+            (0..3).for_each(|a| seen[layout.v() + a] += 1);
             seen[layout.id()] += 1;
             for k in 0..row[FT_NCONST] as usize {
                 let w = row[FT_CONST + 3 * k] as usize;
@@ -217,16 +213,14 @@ fn emulate<W: FromF32>(
             for (a, &xa) in x.iter().enumerate() {
                 put(layout.x() + a, W::from(xa));
             }
-            if t[FT_V_CONST] == 0 {
-                let d = [x[0] - c[0], x[1] - c[1], x[2] - c[2]];
-                let r = [
-                    w[1] * d[2] - d[1] * w[2],
-                    w[2] * d[0] - d[2] * w[0],
-                    w[0] * d[1] - d[0] * w[1],
-                ];
-                for a in 0..3 {
-                    put(layout.v() + a, W::from(v0[a] + r[a]));
-                }
+            let d = [x[0] - c[0], x[1] - c[1], x[2] - c[2]];
+            let r = [
+                w[1] * d[2] - d[1] * w[2],
+                w[2] * d[0] - d[2] * w[0],
+                w[0] * d[1] - d[0] * w[1],
+            ];
+            for a in 0..3 {
+                put(layout.v() + a, W::from(v0[a] + r[a]));
             }
             for e in 0..t[FT_NCONST] as usize {
                 let q = &t[FT_CONST + 3 * e..FT_CONST + 3 * e + 3];
@@ -285,86 +279,35 @@ impl FromF32 for f64 {
 
 /// The kernel's arithmetic on the table and the positions gives the host's image word for word
 /// in every state layout, f32 and (where the layout allows it) f64, for bodies with velocity and
-/// spin (the compact layouts: moving bodies without spin; the fluid layouts: water only). The GPU
-/// test `tests/fill.rs` checks the kernel itself.
+/// spin (the fluid layouts: water only). The GPU test `tests/fill.rs` checks the kernel itself.
 #[test]
 fn the_fill_arithmetic_is_the_host_packing() {
     let (_, mixed) = bodies();
-    let water = |spin: bool| {
-        let text = SCENE
-            .replace("material = \"jelly\"", "material = \"water\"")
-            .replace(
-                "angular_velocity = [",
-                if spin { "angular_velocity = [" } else { "# [" },
-            );
-        let text = if spin {
-            text
-        } else {
-            text.replace("-0.0", "0.0")
-        };
-        let scene = Scene::from_toml(&text, "fill test").expect("scene");
-        sample_bodies(&scene, &|_| {}).expect("sample")
-    };
-    let still = {
-        // No spin, and +0 for the -0 (v0 + 0 would not be v0 bit for bit).
-        let text = SCENE
-            .replace("angular_velocity = [", "# [")
-            .replace("-0.0", "0.0");
+    let water = {
+        let text = SCENE.replace("material = \"jelly\"", "material = \"water\"");
         let scene = Scene::from_toml(&text, "fill test").expect("scene");
         sample_bodies(&scene, &|_| {}).expect("sample")
     };
     for layout in StateLayout::ALL {
-        let (bodies, fluid): (Vec<SampledBody>, &[bool]) = match (layout.fluid(), layout.compact())
-        {
-            (false, false) => (mixed.clone_shapes(), &FLUID),
-            (true, false) => (water(true), &[true, true]),
-            (false, true) => (still.clone_shapes(), &FLUID),
-            (true, true) => (water(false), &[true, true]),
+        let (bodies, fluid): (&[SampledBody], &[bool]) = if layout.fluid() {
+            (&water, &[true, true])
+        } else {
+            (&mixed, &FLUID)
         };
-        assert!(supported(&bodies, layout), "{layout:?}");
         let n: usize = bodies.iter().map(|b| b.len()).sum();
         for f64 in [false, true] {
             if f64 && layout.compact() {
                 continue;
             }
-            let rows = table(&bodies, fluid, layout, f64).expect("table");
-            let host = crate::state::pack_bodies(&bodies, fluid, layout, f64).expect("pack");
+            let rows = table(bodies, fluid, layout, f64).expect("table");
+            let host = crate::state::pack_bodies(bodies, fluid, layout, f64).expect("pack");
             let got = if f64 {
-                FromF32::bytes(&emulate::<f64>(&rows, &bodies, layout, n))
+                FromF32::bytes(&emulate::<f64>(&rows, bodies, layout, n))
             } else {
-                FromF32::bytes(&emulate::<f32>(&rows, &bodies, layout, n))
+                FromF32::bytes(&emulate::<f32>(&rows, bodies, layout, n))
             };
             assert!(got == host, "{layout:?}, f64 = {f64}");
         }
-    }
-    // Spinning bodies in a compact layout: the host packs them.
-    assert!(!supported(&mixed, StateLayout::Compact));
-}
-
-/// Copies of sampled bodies of shapes (tests only).
-trait CloneShapes {
-    fn clone_shapes(&self) -> Vec<SampledBody>;
-}
-
-impl CloneShapes for Vec<SampledBody> {
-    fn clone_shapes(&self) -> Vec<SampledBody> {
-        self.iter()
-            .map(|b| match b {
-                SampledBody::Shape(b) => SampledBody::Shape(BodyPositions {
-                    chunks: b.chunks.clone(),
-                    count: b.count,
-                    vol0: b.vol0,
-                    mass: b.mass,
-                    plastic: b.plastic,
-                    material: b.material,
-                    velocity: b.velocity,
-                    angular_velocity: b.angular_velocity,
-                    centre: b.centre,
-                    c: b.c,
-                }),
-                SampledBody::Points(_) => panic!("shapes only"),
-            })
-            .collect()
     }
 }
 
@@ -381,7 +324,6 @@ fn the_kernel_uses_the_contract_and_unfused_arithmetic() {
         "FT_V0",
         "FT_W",
         "FT_CENTRE",
-        "FT_V_CONST",
         "FT_NCONST",
         "FT_CONST",
         "FILL_WORDS",

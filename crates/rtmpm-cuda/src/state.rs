@@ -164,18 +164,17 @@ enum Source<'a> {
 
 /// The words every particle of the body `b` shares in `layout` ([`StateLayout`]) and precision
 /// (`f64`), as (state word, bits): what the device fill writes for each of them
-/// (`crate::fill`). `with_v`: the velocity's words too (v0; the body's particles move alike).
+/// (`crate::fill`): all but x, v and the id.
 pub fn body_constant_words(
     layout: StateLayout,
     f64: bool,
     b: &BodyPositions,
     fluid: bool,
-    with_v: bool,
 ) -> Vec<(usize, u64)> {
     if f64 {
-        body_words::<f64>(layout, b, fluid, with_v)
+        body_words::<f64>(layout, b, fluid)
     } else {
-        body_words::<f32>(layout, b, fluid, with_v)
+        body_words::<f32>(layout, b, fluid)
     }
 }
 

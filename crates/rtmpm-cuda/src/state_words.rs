@@ -72,14 +72,12 @@ pub(super) fn read_f<W: Word>(l: StateLayout, g: impl Fn(usize) -> W) -> Mat3 {
 
 /// The words that every particle of a body of a shape shares in `l`, as (state word, bits of the
 /// word in the precision `W`: an f32 word's in the low 32 bits): C, F in its packed form
-/// (`fluid`: J^(1/3) I with J = 1), the plastic word, mass, volume, material, and with
-/// `with_v` the body's velocity v0 (right for every particle only when they all move alike).
-/// Exactly the words `write_image` writes for such a body.
+/// (`fluid`: J^(1/3) I with J = 1), the plastic word, mass, volume and material: exactly the
+/// words `write_image` writes for such a body besides x, v and the id.
 pub(super) fn body_words<W: Word>(
     l: StateLayout,
     b: &rtmpm_core::scene::sampling::BodyPositions,
     fluid: bool,
-    with_v: bool,
 ) -> Vec<(usize, u64)> {
     let bits = |w: W| {
         let mut out = [0u8; 8];
@@ -91,10 +89,6 @@ pub(super) fn body_words<W: Word>(
     let (f, nf) = f_words::<W>(l, super::packed_f(Mat3::IDENTITY, fluid));
     out.extend((0..nc).map(|e| (l.c() + e, bits(c[e]))));
     out.extend((0..nf).map(|e| (l.f() + e, bits(f[e]))));
-    if with_v {
-        let (v, nv) = v_words::<W>(l, b.velocity);
-        out.extend((0..nv).map(|e| (l.v() + e, bits(v[e]))));
-    }
     if let Some(pl) = l.plastic() {
         out.push((pl, bits(W::from_f32(b.plastic))));
     }

@@ -77,11 +77,9 @@ fn same_state(label: &str, scene: &Scene, bodies: &[SampledBody]) -> CudaBackend
         );
     }
     assert!(n > 0, "{label}: no particles");
-    assert_eq!(
+    assert!(
         dev.setup_phases().fill > 0.0,
-        rtmpm_cuda::fill::supported(bodies, layout),
-        "{label}: the device filled the state where it can (every layout but a compact one \
-         with spinning bodies)"
+        "{label}: the device filled the state"
     );
     println!(
         "{label}: {n} particles, {layout:?} layout, capacity {cap}, {wb}-byte words: identical \
@@ -329,19 +327,20 @@ fn device_fill_equals_host_pack_two_bodies_with_velocity_and_spin() {
     check("two bodies, spin", &format!("{HEAD}{TWO_BODIES}"));
 }
 
-/// The compact layouts: the velocity's encoded words are constants of bodies without spin.
+/// The compact layout (C encoded: a constant of each body) with bodies of two materials.
 #[test]
 #[ignore = "needs a CUDA GPU"]
 fn device_fill_equals_host_pack_in_the_compact_layout() {
     if !gpu() {
         return;
     }
-    let still = TWO_BODIES
-        .replace("angular_velocity", "# angular_velocity")
-        .replace("-0.0", "0.0");
-    let scene = scene_in(&format!("{HEAD}{still}"), "compact", &std::env::temp_dir());
+    let scene = scene_in(
+        &format!("{HEAD}{TWO_BODIES}"),
+        "compact",
+        &std::env::temp_dir(),
+    );
     let bodies = sample_bodies(&scene, &|_| {}).expect("sample");
-    let dev = same_state("two bodies without spin (compact)", &scene, &bodies);
+    let dev = same_state("two bodies (compact)", &scene, &bodies);
     assert!(dev.state_layout().compact());
 }
 

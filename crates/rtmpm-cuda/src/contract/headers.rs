@@ -177,7 +177,6 @@ pub fn prelude() -> String {
         ("FT_V0", FT_V0),
         ("FT_W", FT_W),
         ("FT_CENTRE", FT_CENTRE),
-        ("FT_V_CONST", FT_V_CONST),
         ("FT_NCONST", FT_NCONST),
         ("FT_CONST", FT_CONST),
         ("CTL_NEED_REBUILD", CTL_NEED_REBUILD),

@@ -44,14 +44,11 @@ pub const FT_V0: usize = 4;
 pub const FT_W: usize = 7;
 /// Centre c of the rotation (3 f32): v = v0 + w x (x - c).
 pub const FT_CENTRE: usize = 10;
-/// 1: the velocity's words are among the constant words (every particle moves alike); 0: the
-/// kernel computes v (3 plain words).
-pub const FT_V_CONST: usize = 13;
 /// Number of constant words.
-pub const FT_NCONST: usize = 14;
+pub const FT_NCONST: usize = 13;
 /// The constant words: (state word, low 32 bits, high 32 bits) each, the word's bits in the
 /// state's precision (an f32 word: the low bits).
-pub const FT_CONST: usize = 15;
+pub const FT_CONST: usize = 14;
 
 // ---------------------------------------------------------------------------------------------
 // Control words (u32, one array per GPU).
