@@ -70,7 +70,7 @@ for suite in "$@"; do
   say "== $suite"
   case "$suite" in
     tests)
-      for x in ${TESTS:-test_gpu test_sort_scratch test_state_layout test_materials test_agreement test_emitters test_rigid test_cli test_render_cli}; do t "$x"; done
+      for x in ${TESTS:-test_gpu test_fill test_sort_scratch test_state_layout test_materials test_agreement test_emitters test_rigid test_cli test_render_cli}; do t "$x"; done
       ;;
     validate)
       timeout 500 "$D/rtmpm" validate --backend cuda --out "$OUT/validation" > "$OUT/validate.log" 2>&1

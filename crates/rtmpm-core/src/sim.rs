@@ -175,6 +175,12 @@ pub trait Backend {
         v.resize(words, 0);
         Ok(Box::new(v))
     }
+    /// Where the time of building the backend went, phase by phase, in words (the CUDA
+    /// backend: probe, layout, kernels, packing, upload, device fill); `None` where it is not
+    /// broken down.
+    fn setup_details(&self) -> Option<String> {
+        None
+    }
     /// The rigid bodies' poses and velocities as the backend's rigid-body engine holds them
     /// (what a checkpoint stores); empty where [`Backend::rigid_bodies`] is.
     fn rigid_poses(&self) -> Vec<crate::rigid::BodyPose> {

@@ -6,7 +6,11 @@
 //! `lean`: the CUDA image packed straight from the sampled positions (`state::pack_bodies`, no
 //! `Particles` on the host), with the stencil bases from the positions.
 //!
-//! `cargo run --release -p rtmpm-cuda --example setup_profile -- SCENE.toml [cpu|cuda|lean]`
+//! `device`: the host's share of `CudaBackend::from_bodies` with the device fill (the default):
+//! the block counts from the positions, the initial speed, the fill table, and the gathering of
+//! every piece of positions into one reused buffer (the page-locked buffers' role).
+//!
+//! `cargo run --release -p rtmpm-cuda --example setup_profile -- SCENE.toml [cpu|cuda|lean|device]`
 //! (cpu and cuda by default; `RAYON_NUM_THREADS` sets the threads).
 
 use rtmpm_core::Scene;
@@ -40,13 +44,58 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let path = args
         .first()
         .ok_or("usage: setup_profile SCENE.toml [cpu] [cuda]")?;
-    let want = |w: &str| (args.len() < 2 && w != "lean") || args.iter().any(|a| a == w);
+    let want =
+        |w: &str| (args.len() < 2 && w != "lean" && w != "device") || args.iter().any(|a| a == w);
     let total = Instant::now();
     let t = Instant::now();
     let scene = Scene::from_file(std::path::Path::new(path))?;
     phase("parse", t);
     let fluid = rtmpm_cuda::state::fluid_materials(&scene);
     let state_layout = rtmpm_cuda::state::layout_for(&scene, &rtmpm_cuda::CudaOptions::default())?;
+    if want("device") {
+        let t = Instant::now();
+        let bodies = rtmpm_core::scene::sampling::sample_bodies(&scene, &|_| {})?;
+        phase("device: sample bodies", t);
+        let n: usize = bodies.iter().map(|b| b.len()).sum();
+        let t = Instant::now();
+        let blocks = rtmpm_cuda::capacity::block_counts(&scene, &bodies);
+        phase("device: block counts", t);
+        let needed = rtmpm_cuda::capacity::Capacity::needs_block_counts(
+            &scene,
+            &rtmpm_cuda::CudaOptions::default(),
+        );
+        println!(
+            "  (the backend counts blocks only when the domain's grid does not fit: {needed})"
+        );
+        let t = Instant::now();
+        let speed = rtmpm_cuda::state::max_speed(&bodies);
+        phase("device: initial speed", t);
+        let t = Instant::now();
+        let rows = rtmpm_cuda::fill::table(&bodies, &fluid, state_layout, false)?;
+        phase("device: fill table", t);
+        let t = Instant::now();
+        let pieces = rtmpm_cuda::fill::pieces(&bodies, rtmpm_cuda::fill::PIECE);
+        let most = pieces.iter().map(|p| p.len).max().unwrap_or(0);
+        let mut buf = vec![0f32; 3 * most];
+        for p in &pieces {
+            if let rtmpm_core::scene::sampling::SampledBody::Shape(b) = &bodies[p.body] {
+                rtmpm_cuda::fill::gather(b, p.offset, p.len, &mut buf);
+            }
+        }
+        phase("device: gather pieces", t);
+        println!(
+            "  {n} particles, {} pieces, blocks {blocks:?}, speed {speed}, table {} words",
+            pieces.len(),
+            rows.len()
+        );
+        let (_, peak) = rss();
+        println!(
+            "  total {:.3} s, peak resident {peak:.1} MB = {:.1} bytes/particle",
+            total.elapsed().as_secs_f64(),
+            peak * 1e6 / n.max(1) as f64
+        );
+        return Ok(());
+    }
     if want("lean") {
         let t = Instant::now();
         let bodies = rtmpm_core::scene::sampling::sample_bodies(&scene, &|_| {})?;

@@ -2,7 +2,7 @@
 //! buffers, constants, P2G strategy); a step is [`crate::pipeline::enqueue_step`], replayed from
 //! a CUDA graph ([`crate::graph`]) while dt stays the same.
 
-use crate::capacity::{self, Capacity};
+use crate::capacity::Capacity;
 use crate::compile::{KernelOptions, compile};
 use crate::contract::{CTL_P2G_PENDING, ColliderPoses, Ctx, StateLayout};
 use crate::encode::{self, Tables};
@@ -10,9 +10,9 @@ use crate::graph::StepGraphs;
 use crate::kernels::Kernels;
 use crate::p2g::P2gPlan;
 use crate::pipeline::{self, Hooks, NoHooks, Stage, StepPlan};
+use crate::setup::Initial;
 use crate::{CudaOptions, P2gMode, buffers};
 use cudarc::driver::{CudaContext, CudaModule, CudaStream};
-use rtmpm_core::grid::BlockLayout;
 use rtmpm_core::scene::Precision;
 use rtmpm_core::scene::sampling::SampledBody;
 use rtmpm_core::sim::{Backend, BadParticle, BadReason, SimError};
@@ -65,22 +65,6 @@ pub struct Part {
     pub capacity: usize,
 }
 
-/// What a backend starts from: particles, or sampled bodies packed straight from their positions.
-#[derive(Clone, Copy)]
-enum Initial<'a> {
-    Particles(&'a Particles),
-    Bodies(&'a [SampledBody]),
-}
-
-impl Initial<'_> {
-    fn len(&self) -> usize {
-        match self {
-            Initial::Particles(p) => p.len(),
-            Initial::Bodies(b) => b.iter().map(|b| b.len()).sum(),
-        }
-    }
-}
-
 /// The CUDA backend (one GPU).
 pub struct CudaBackend {
     pub(crate) stream: Arc<CudaStream>,
@@ -111,6 +95,8 @@ pub struct CudaBackend {
     device_name: String,
     /// The rigid bodies coupled to the grid (`[[rigid_body]]`), if any.
     bodies: Option<crate::rigid::Bodies>,
+    /// Where the time of building this backend went.
+    setup: crate::setup::SetupPhases,
 }
 
 /// Checks before any GPU work: what the CUDA backend cannot run, as clear errors.
@@ -193,9 +179,12 @@ impl CudaBackend {
         part: &Part,
         options: CudaOptions,
     ) -> Result<CudaBackend, SimError> {
+        let t0 = std::time::Instant::now();
+        let mut setup = crate::setup::SetupPhases::default();
         let info = crate::probe_device(part.device).map_err(|e| {
             SimError::Backend(format!("CUDA device {} unavailable: {e}", part.device))
         })?;
+        setup.probe = t0.elapsed().as_secs_f64();
         // The scene's precision, or the `f64` switch: the whole pipeline in f64.
         let options = CudaOptions {
             f64: options.f64 || scene.precision == Precision::F64,
@@ -207,18 +196,26 @@ impl CudaBackend {
             .map_err(|e| SimError::Backend(format!("CUDA backend: {e}")))?;
         crate::emit::check(scene, options.p2g)?;
         let tables = encode::tables(scene, options.f64)?;
+        // The device fill (sampled bodies only): the table's checks before any GPU work.
+        let device_fill = match initial {
+            Initial::Bodies(b) if options.device_fill => {
+                let fluid = crate::state::fluid_materials(scene);
+                crate::fill::table(b, &fluid, state_layout, options.f64)
+                    .map_err(SimError::Backend)?;
+                true
+            }
+            _ => false,
+        };
+        let t = std::time::Instant::now();
 
         // The program, compiled for this GPU (or from the cache), and its kernels.
-        // Capacities from the initial mapping.
-        let bases = match initial {
-            Initial::Particles(p) => capacity::bases(scene, p),
-            Initial::Bodies(b) => crate::state::map_positions(b, capacity::base_of(scene)),
-        };
-        let mut layout = BlockLayout::default();
-        layout.rebuild(&bases);
+        // Capacities from the initial mapping (crate::setup::initial_blocks).
+        let (bases, blocks) = crate::setup::initial_blocks(scene, initial, &options);
         // Room for every particle the emitters will add (crate::emit): nothing grows later.
         let n_max = n.saturating_add(crate::emit::emitted_total(scene));
-        let cap = Capacity::plan(scene, n_max, part.capacity, &layout, &options);
+        let cap = Capacity::plan_blocks(scene, n_max, part.capacity, blocks, &options);
+        setup.layout = t.elapsed().as_secs_f64();
+        let t = std::time::Instant::now();
 
         // Compiled for this GPU, the state's index width (64 bits past 2^32 words), and with
         // specialize=on the scene's models only (a smaller material switch).
@@ -253,18 +250,34 @@ impl CudaBackend {
             options.sort_scratch_fields,
             state_layout,
         )?;
+        setup.kernels = t.elapsed().as_secs_f64();
 
         // The particle state (a fluid's F packed as J^(1/3) I) and every buffer.
         let fluid = crate::state::fluid_materials(scene);
         kernels.sort_mask = crate::rebuild::sorted_fields(state_layout, fluid.iter().all(|f| *f));
         // Packed with stride n; buffers::allocate places each field at its stride-cap offset.
+        // With the device fill nothing is packed: the state is written on the device below.
+        let t = std::time::Instant::now();
         let state = match initial {
-            Initial::Particles(p) => {
-                crate::state::pack(p, &fluid, state_layout, options.f64, n, part.ids.as_deref())
-            }
-            Initial::Bodies(b) => crate::state::pack_bodies(b, &fluid, state_layout, options.f64),
+            _ if device_fill => None,
+            Initial::Particles(p) => Some(crate::state::pack(
+                p,
+                &fluid,
+                state_layout,
+                options.f64,
+                n,
+                part.ids.as_deref(),
+            )),
+            Initial::Bodies(b) => Some(crate::state::pack_bodies(
+                b,
+                &fluid,
+                state_layout,
+                options.f64,
+            )),
         }
+        .transpose()
         .map_err(SimError::Backend)?;
+        setup.pack = t.elapsed().as_secs_f64();
         // G2P2G where it applies (see CudaOptions::g2p2g): not when every step rebuilds (the
         // fused scatter would always be redone).
         let g2p2g = options.g2p2g
@@ -284,8 +297,32 @@ impl CudaBackend {
                 Initial::Bodies(b) => crate::state::max_speed(b),
             },
         };
-        let (buffers, mut ctx) =
-            buffers::allocate(&stream, scene, &state, &cap, needs, &tables, &options)?;
+        let t = std::time::Instant::now();
+        let (mut buffers, mut ctx) = buffers::allocate(
+            &stream,
+            scene,
+            state.as_deref(),
+            &cap,
+            needs,
+            &tables,
+            &options,
+        )?;
+        drop(state);
+        stream.synchronize().map_err(err("upload"))?;
+        setup.allocate = t.elapsed().as_secs_f64();
+        if let (true, Initial::Bodies(b)) = (device_fill, initial) {
+            let f = crate::fill::fill(
+                &stream,
+                &kernels,
+                &mut buffers.state,
+                cap.particles,
+                b,
+                &fluid,
+                state_layout,
+                options.f64,
+            )?;
+            (setup.fill, setup.fill_gather) = (f.total, f.gather);
+        }
         let bodies = crate::rigid::Bodies::new(
             scene,
             &stream,
@@ -306,15 +343,7 @@ impl CudaBackend {
             bytemuck::cast_slice(&tables.colliders),
         )?;
 
-        let p2g = P2gPlan::new(
-            &options,
-            &bases,
-            layout.pblock_count(),
-            &cap,
-            &stream,
-            &ctx,
-            real_bytes,
-        )?;
+        let p2g = P2gPlan::new(&options, &bases, blocks.1, &cap, &stream, &ctx, real_bytes)?;
         Ok(CudaBackend {
             stream,
             kernels,
@@ -335,7 +364,17 @@ impl CudaBackend {
             graphs: StepGraphs::default(),
             device_name: info.name,
             bodies,
+            setup: crate::setup::SetupPhases {
+                total: t0.elapsed().as_secs_f64(),
+                ..setup
+            },
         })
+    }
+
+    /// Where the time of building this backend went (probe, host layout, kernels, packing,
+    /// allocation and upload, device fill).
+    pub fn setup_phases(&self) -> crate::setup::SetupPhases {
+        self.setup
     }
 
     /// Where each field of a particle is in the state arrays.
@@ -587,6 +626,10 @@ impl Backend for CudaBackend {
 
     fn export_frame(&mut self, sink: &mut dyn rtmpm_core::sim::ChunkSink) -> Result<(), SimError> {
         self.export_chunks(sink)
+    }
+
+    fn setup_details(&self) -> Option<String> {
+        Some(self.setup.to_string())
     }
 
     fn chunk_memory(&self, words: usize) -> Result<Box<dyn rtmpm_core::sim::HostBuffer>, SimError> {

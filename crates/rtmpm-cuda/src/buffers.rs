@@ -73,12 +73,13 @@ impl Buffers {
 
 /// Allocate every buffer of a GPU for `cap`, upload the particle state (`state`: the particles
 /// packed by [`crate::state::pack`] with stride `needs.particles`, placed field by field into the
-/// arrays of stride `cap.particles`, so the host never holds the capacity's empty slots) and the
-/// scene's tables, and build the context.
+/// arrays of stride `cap.particles`, so the host never holds the capacity's empty slots; `None`:
+/// the state stays zero, for the device to fill, [`crate::fill`]) and the scene's tables, and
+/// build the context.
 pub fn allocate(
     stream: &Arc<CudaStream>,
     scene: &Scene,
-    state: &[u8],
+    state: Option<&[u8]>,
     cap: &Capacity,
     needs: Needs,
     tables: &crate::encode::Tables,
@@ -142,6 +143,7 @@ pub fn allocate(
         .map_err(err("alloc particle state"))?;
     let row = n * rb;
     for f in 0..needs.state_words {
+        let Some(state) = state else { break };
         let at = f * cap.particles * rb;
         s.memcpy_htod(
             &state[f * row..(f + 1) * row],

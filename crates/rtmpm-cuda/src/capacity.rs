@@ -6,7 +6,8 @@
 
 use crate::CudaOptions;
 use rtmpm_core::grid::BlockLayout;
-use rtmpm_core::math::IVec3;
+use rtmpm_core::math::{IVec3, Vec3};
+use rtmpm_core::scene::sampling::SampledBody;
 use rtmpm_core::{Particles, Scene};
 
 /// Largest grid allocated by default for the whole domain (bytes).
@@ -115,6 +116,78 @@ pub fn base_of(scene: &Scene) -> impl Fn(rtmpm_core::math::Vec3) -> IVec3 + Sync
     move |x| ((x - origin) / dx - 0.5).floor().as_ivec3()
 }
 
+/// The block counts of the initial mapping of sampled bodies: (gblocks, pblocks), what
+/// [`BlockLayout::rebuild`] counts from their stencil bases ([`base_of`]), without a per-particle
+/// array: each chunk of positions lists the blocks it sees, and the pblocks are the union of the
+/// gblocks' 3x3x3 neighbourhoods (a pass over the positions and a sort of block codes).
+pub fn block_counts(scene: &Scene, bodies: &[SampledBody]) -> (usize, usize) {
+    let mut chunks: Vec<&[Vec3]> = Vec::new();
+    for body in bodies {
+        match body {
+            SampledBody::Shape(b) => chunks.extend(b.chunks.iter().map(|c| c.as_slice())),
+            SampledBody::Points(p) => chunks.extend(p.x.chunks(1 << 16)),
+        }
+    }
+    block_counts_of(scene, &chunks)
+}
+
+/// [`block_counts`] of the particles at the positions `chunks` (concatenated), e.g.
+/// `particles.x.chunks(..)`.
+pub fn block_counts_of(scene: &Scene, chunks: &[&[Vec3]]) -> (usize, usize) {
+    use rayon::prelude::*;
+    use rtmpm_core::grid::codes::{block_code, decode_block};
+    use rtmpm_core::grid::layout::block_of;
+    let base = base_of(scene);
+    let mut codes: Vec<u64> = chunks
+        .par_iter()
+        .flat_map_iter(|xs| {
+            let mut run = Vec::new();
+            let mut last = None;
+            for &x in xs.iter() {
+                let b = block_of(base(x));
+                if last != Some(b) {
+                    run.push(block_code(b));
+                    last = Some(b);
+                }
+            }
+            run.sort_unstable();
+            run.dedup();
+            run
+        })
+        .collect();
+    codes.par_sort_unstable();
+    codes.dedup();
+    // As BlockLayout's neighbours: coordinates + offset in i32, then as u32.
+    let mut all: Vec<u64> = codes
+        .par_iter()
+        .flat_map_iter(|&code| {
+            let c = decode_block(code).map(|v| v as i32);
+            (0..27).map(move |s| {
+                let d = [s / 9 - 1, (s / 3) % 3 - 1, s % 3 - 1];
+                block_code(std::array::from_fn(|a| (c[a] + d[a]) as u32))
+            })
+        })
+        .collect();
+    all.par_sort_unstable();
+    all.dedup();
+    (codes.len(), all.len())
+}
+
+/// Blocks of the whole domain (with the margin of the grid's origin).
+fn domain_blocks(scene: &Scene) -> usize {
+    scene
+        .n_cells()
+        .iter()
+        .map(|&c| (c as usize + 8).div_ceil(4) + 1)
+        .product()
+}
+
+/// True when the whole domain's grid, `real_bytes` a value, fits in [`GRID_BUDGET_BYTES`]: the
+/// capacities are then the domain's, whatever the particles.
+fn domain_grid_fits(scene: &Scene, real_bytes: usize) -> bool {
+    domain_blocks(scene) * 64 * 4 * real_bytes <= GRID_BUDGET_BYTES
+}
+
 impl Capacity {
     /// The capacities for `n` particles (state arrays of at least `min_particles`) whose initial
     /// mapping is `layout`, with the overrides of `options`.
@@ -125,25 +198,42 @@ impl Capacity {
         layout: &BlockLayout,
         options: &CudaOptions,
     ) -> Capacity {
-        let domain_blocks: usize = scene
-            .n_cells()
-            .iter()
-            .map(|&c| (c as usize + 8).div_ceil(4) + 1)
-            .product();
+        let blocks = (layout.gblock_count, layout.pblock_count());
+        Self::plan_blocks(scene, n, min_particles, blocks, options)
+    }
+
+    /// True when [`Capacity::plan_blocks`] reads the block counts: the whole domain's grid
+    /// exceeds [`GRID_BUDGET_BYTES`] and `options` does not set both capacities (else the
+    /// counts need not be found).
+    pub fn needs_block_counts(scene: &Scene, options: &CudaOptions) -> bool {
+        let real_bytes = if options.f64 { 8 } else { 4 };
+        !domain_grid_fits(scene, real_bytes)
+            && (options.gblock_capacity.is_none() || options.pblock_capacity.is_none())
+    }
+
+    /// [`Capacity::plan`] from the initial mapping's (gblocks, pblocks) counts alone.
+    pub fn plan_blocks(
+        scene: &Scene,
+        n: usize,
+        min_particles: usize,
+        (gblock_count, pblock_count): (usize, usize),
+        options: &CudaOptions,
+    ) -> Capacity {
+        let domain_blocks = domain_blocks(scene);
         let real_bytes = if options.f64 { 8 } else { 4 };
         // Every capacity that scales with the particle count is planned for the state arrays'
         // count (emitters add particles during the run), not the initial one.
         let np = min_particles.max(n);
-        let fits = domain_blocks * 64 * 4 * real_bytes <= GRID_BUDGET_BYTES;
+        let fits = domain_grid_fits(scene, real_bytes);
         let gblocks = options.gblock_capacity.unwrap_or(if fits {
             domain_blocks.min(np.max(64))
         } else {
-            (8 * layout.gblock_count).max(64)
+            (8 * gblock_count).max(64)
         });
         let pblocks = options.pblock_capacity.unwrap_or(if fits {
             domain_blocks
         } else {
-            (8 * layout.pblock_count()).max(4 * gblocks).max(256)
+            (8 * pblock_count).max(4 * gblocks).max(256)
         });
         Capacity {
             particles: np,
@@ -381,5 +471,62 @@ mod tests {
                 assert_eq!(b.total(), b.groups().iter().map(|g| g.1).sum::<usize>());
             }
         }
+    }
+
+    /// The block counts found from the positions alone are the layout's, for bodies of shapes
+    /// (several chunks each), a body of points (from chunks of another size) and particles at
+    /// the domain's corner (blocks whose neighbours have negative coordinates).
+    #[test]
+    fn block_counts_are_the_layouts() {
+        use rtmpm_core::scene::sampling::sample_bodies;
+        let scene = water_at(
+            64,
+            &[
+                ([0.05, 0.05, 0.05], [0.3, 0.6, 0.4]),
+                ([0.5, 0.1, 0.5], [0.9, 0.3, 0.95]),
+            ],
+        );
+        let mut bodies = sample_bodies(&scene, &|_| {}).expect("sample");
+        let mut p = Particles::default();
+        for i in 0..200_000 {
+            let t = i as f32 * 1e-3;
+            let x = Vec3::new(
+                0.5 + 0.45 * t.sin(),
+                0.5 + 0.45 * (0.7 * t).cos(),
+                (t * 0.37).fract(),
+            );
+            p.push(x, Vec3::ZERO, 1.0, 1.0, 0, 0.0);
+        }
+        p.push(Vec3::ZERO, Vec3::ZERO, 1.0, 1.0, 0, 0.0);
+        bodies.insert(1, SampledBody::Points(p));
+        let bases = crate::state::map_positions(&bodies, base_of(&scene));
+        let mut layout = BlockLayout::default();
+        layout.rebuild(&bases);
+        let got = block_counts(&scene, &bodies);
+        assert_eq!(got, (layout.gblock_count, layout.pblock_count()));
+        assert!(got.0 > 100 && got.1 > got.0, "{got:?}");
+    }
+
+    /// The block counts are found only where the plan reads them: a domain whose grid exceeds
+    /// the budget, without both capacities given.
+    #[test]
+    fn block_counts_only_when_the_domain_grid_does_not_fit() {
+        let small = water_at(512, &[([0.1, 0.1, 0.1], [0.2, 0.2, 0.2])]);
+        let big = water_at(1024, &[([0.1, 0.1, 0.1], [0.2, 0.2, 0.2])]);
+        let o = CudaOptions::default();
+        assert!(!Capacity::needs_block_counts(&small, &o));
+        assert!(Capacity::needs_block_counts(&big, &o));
+        let given = CudaOptions {
+            gblock_capacity: Some(100),
+            pblock_capacity: Some(1000),
+            ..CudaOptions::default()
+        };
+        assert!(!Capacity::needs_block_counts(&big, &given));
+        // Whatever the counts, the small domain's plan is the domain's.
+        let a = Capacity::plan_blocks(&small, 1000, 0, (0, 0), &o);
+        let b = Capacity::plan_blocks(&small, 1000, 0, (5, 50), &o);
+        assert_eq!(a, b);
+        let c = Capacity::plan_blocks(&big, 1000, 0, (5, 50), &o);
+        assert_ne!(c, Capacity::plan_blocks(&big, 1000, 0, (6, 60), &o));
     }
 }

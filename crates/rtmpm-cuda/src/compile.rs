@@ -355,6 +355,18 @@ mod tests {
                     k.name()
                 );
             }
+            // The device fill rounds every operation on its own and keeps subnormals (the host
+            // packing's arithmetic, word for word: src/fill.rs), also under fast math.
+            let fill = ptx
+                .split(".entry fill_body(")
+                .nth(1)
+                .and_then(|s| s.split(".entry ").next())
+                .unwrap_or_default();
+            assert!(fill.contains("sub.rn.f32"), "{o:?}: fill_body");
+            assert!(
+                !fill.contains("fma") && !fill.contains(".ftz"),
+                "{o:?}: fill_body contracts or flushes"
+            );
             // Read-only parameters in constant memory, written by the host under these names.
             for sym in crate::backend::CONSTANT_SYMBOLS {
                 assert!(

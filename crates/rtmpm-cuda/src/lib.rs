@@ -72,6 +72,7 @@ pub mod encode;
 pub mod export;
 pub mod export_chunks;
 pub mod export_ordered;
+pub mod fill;
 pub mod g2p;
 pub mod graph;
 pub mod grid_update;
@@ -83,6 +84,7 @@ pub mod pipeline;
 pub mod readback;
 pub mod rebuild;
 pub mod rigid;
+pub mod setup;
 pub mod state;
 
 pub use backend::CudaBackend;

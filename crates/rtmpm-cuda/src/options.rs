@@ -110,6 +110,11 @@ pub struct CudaOptions {
     /// bodies then see the material's impulses one step late) instead of waiting for every
     /// step's impulses before the next step is queued (`crate::rigid`).
     pub rigid_overlap: bool,
+    /// A backend built from sampled bodies (`CudaBackend::from_bodies`): the device writes the
+    /// particle state from the uploaded positions and a per-body table (`crate::fill`) instead
+    /// of the host packing the whole state image and uploading it (`fill=host`, kept for
+    /// comparison). The state is the same word for word.
+    pub device_fill: bool,
     /// Scenes whose materials are all fluids keep the 20-word fluid state
     /// ([`crate::contract::StateLayout::Fluid`]: F in one word, no plastic word) instead of
     /// the 29-word one; the results are bit-identical. Off: the 29-word layout (for comparison).
@@ -149,6 +154,7 @@ impl Default for CudaOptions {
             specialize: false,
             sort_scratch_fields: DEFAULT_SORT_SCRATCH_FIELDS,
             rigid_overlap: true,
+            device_fill: true,
             fluid_state: true,
             compact_state: false,
         }
@@ -158,7 +164,7 @@ impl Default for CudaOptions {
 impl std::str::FromStr for CudaOptions {
     type Err = String;
     /// Comma separated `key=value`: `free_zone`, `mixed_sort`, `warp_reduce`, `fast_math`,
-    /// `graph`, `f64`, `rebalance`, `overlap`, `g2p2g`, `rigid_overlap`, `specialize` (on/off/true/false/1/0), `rebuild` (fused/kernels), `p2g`
+    /// `graph`, `f64`, `rebalance`, `overlap`, `g2p2g`, `rigid_overlap`, `specialize` (on/off/true/false/1/0), `rebuild` (fused/kernels), `fill` (device/host), `p2g`
     /// (warp/shared/reverse_map/sort), `transport` (p2p/nccl), `barrier` (spin/events), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
     /// `rmap_pblocks`, `shared`, `sort_fields` (counts), `fluid_state` (on/off), `state`
     /// (f32/compact).
@@ -227,6 +233,13 @@ impl std::str::FromStr for CudaOptions {
                         ));
                     }
                     o.sort_scratch_fields = k;
+                }
+                "fill" => {
+                    o.device_fill = match v {
+                        "device" => true,
+                        "host" => false,
+                        _ => return Err(format!("`{item}`: expected device or host")),
+                    }
                 }
                 "rebuild" => {
                     o.fused_rebuild = match v {
@@ -299,5 +312,9 @@ mod tests {
         assert!("state=f16".parse::<CudaOptions>().is_err());
         assert!("sort_fields=0".parse::<CudaOptions>().is_err());
         assert!("sort_fields=30".parse::<CudaOptions>().is_err());
+        assert!(CudaOptions::default().device_fill);
+        assert!(!"fill=host".parse::<CudaOptions>().unwrap().device_fill);
+        assert!("fill=device".parse::<CudaOptions>().unwrap().device_fill);
+        assert!("fill=gpu".parse::<CudaOptions>().is_err());
     }
 }

@@ -39,6 +39,20 @@ impl CudaBackend {
         self.ctx.pblock_cap as usize * 64 * 4 * self.real_bytes()
     }
 
+    /// The whole particle state as stored (every field at stride [`CudaBackend::capacity`], the
+    /// slots past the particles included), in the backend's precision: for tests that compare
+    /// states word for word.
+    pub fn state_bytes(&mut self) -> Result<Vec<u8>, SimError> {
+        self.stream
+            .clone_dtoh(&self.buffers.state)
+            .map_err(err("read the particle state"))
+    }
+
+    /// Particle capacity of the state arrays (the stride of a field; at least the count).
+    pub fn capacity(&self) -> usize {
+        self.ctx.cap as usize
+    }
+
     /// Bytes of one `real` (4, or 8 in f64).
     pub(crate) fn real_bytes(&self) -> usize {
         if self.options.f64 { 8 } else { 4 }

@@ -162,8 +162,24 @@ enum Source<'a> {
     Shape(&'a BodyPositions, &'a [Vec3]),
 }
 
+/// The words every particle of the body `b` shares in `layout` ([`StateLayout`]) and precision
+/// (`f64`), as (state word, bits): what the device fill writes for each of them
+/// (`crate::fill`): all but x, v and the id.
+pub fn body_constant_words(
+    layout: StateLayout,
+    f64: bool,
+    b: &BodyPositions,
+    fluid: bool,
+) -> Vec<(usize, u64)> {
+    if f64 {
+        body_words::<f64>(layout, b, fluid)
+    } else {
+        body_words::<f32>(layout, b, fluid)
+    }
+}
+
 /// A fluid particle's F in its packed form, J^(1/3) I; a solid's as it is.
-fn packed_f(f: Mat3, fluid: bool) -> Mat3 {
+pub(crate) fn packed_f(f: Mat3, fluid: bool) -> Mat3 {
     if fluid {
         Mat3::from_diagonal(Vec3::splat(f.determinant().cbrt()))
     } else {
@@ -398,6 +414,14 @@ pub fn max_speed(bodies: &[SampledBody]) -> f32 {
         .iter()
         .map(|body| match body {
             SampledBody::Points(p) => p.v.par_iter().map(|&v| speed(v)).reduce(|| 0.0, f32::max),
+            // Without spin every particle moves at v0 (+-0 added: the same length).
+            SampledBody::Shape(b) if b.angular_velocity == Vec3::ZERO => {
+                if b.count > 0 {
+                    speed(b.velocity)
+                } else {
+                    0.0
+                }
+            }
             SampledBody::Shape(b) => b
                 .chunks
                 .par_iter()

@@ -69,3 +69,31 @@ pub(super) fn read_f<W: Word>(l: StateLayout, g: impl Fn(usize) -> W) -> Mat3 {
         Mat3::from_cols_array(&std::array::from_fn(|e| g(e).to_f32()))
     }
 }
+
+/// The words that every particle of a body of a shape shares in `l`, as (state word, bits of the
+/// word in the precision `W`: an f32 word's in the low 32 bits): C, F in its packed form
+/// (`fluid`: J^(1/3) I with J = 1), the plastic word, mass, volume and material: exactly the
+/// words `write_image` writes for such a body besides x, v and the id.
+pub(super) fn body_words<W: Word>(
+    l: StateLayout,
+    b: &rtmpm_core::scene::sampling::BodyPositions,
+    fluid: bool,
+) -> Vec<(usize, u64)> {
+    let bits = |w: W| {
+        let mut out = [0u8; 8];
+        w.put(&mut out);
+        u64::from_le_bytes(out)
+    };
+    let mut out = Vec::new();
+    let (c, nc) = c_words::<W>(l, b.c);
+    let (f, nf) = f_words::<W>(l, super::packed_f(Mat3::IDENTITY, fluid));
+    out.extend((0..nc).map(|e| (l.c() + e, bits(c[e]))));
+    out.extend((0..nf).map(|e| (l.f() + e, bits(f[e]))));
+    if let Some(pl) = l.plastic() {
+        out.push((pl, bits(W::from_f32(b.plastic))));
+    }
+    out.push((l.mass(), bits(W::from_f32(b.mass))));
+    out.push((l.vol0(), bits(W::from_f32(b.vol0))));
+    out.push((l.material(), bits(W::from_id(b.material))));
+    out
+}

@@ -25,20 +25,21 @@ pub fn disk_available(dir: &Path) -> Option<u64> {
 /// warnings, and refuse (with the numbers and the fix) what cannot fit. `out` is the output
 /// folder, `None` when no frame files are written.
 pub fn enforce(scene: &Scene, frames: Option<u64>, out: Option<&Path>) -> Result<Budget> {
-    enforce_for(scene, frames, out, false)
+    enforce_for(scene, frames, out, None)
 }
 
-/// [`enforce`]; `cuda_lean`: the host's memory is that of a CUDA run whose state is packed
-/// straight from the sampled positions ([`Budget::for_cuda_host`]), not a CPU run's.
+/// [`enforce`]; `cuda_lean`: `Some(device_fill)` when the host's memory is that of a CUDA run
+/// built from the sampled positions ([`Budget::for_cuda_host`]: its state filled on the device,
+/// or packed on the host), not a CPU run's.
 pub fn enforce_for(
     scene: &Scene,
     frames: Option<u64>,
     out: Option<&Path>,
-    cuda_lean: bool,
+    cuda_lean: Option<bool>,
 ) -> Result<Budget> {
     let mut budget = Budget::estimate(scene, frames);
-    if cuda_lean {
-        budget = budget.for_cuda_host(scene.precision);
+    if let Some(device_fill) = cuda_lean {
+        budget = budget.for_cuda_host(scene.precision, device_fill);
     }
     for w in budget.warnings() {
         eprintln!("warning: {w}");

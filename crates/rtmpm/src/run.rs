@@ -132,12 +132,13 @@ pub fn run(args: RunArgs) -> Result<()> {
         && mode == crate::multi::Mode::Single
         && args.backend != BackendKind::Cpu;
     // The budget before anything is sampled or allocated: refused with numbers and a fix (the
-    // host's bytes of a CUDA run packed from the positions when the CUDA backend is asked for).
+    // host's bytes of a CUDA run built from the positions when the CUDA backend is asked for:
+    // the positions alone when the device fills the state, `fill=device`, the default).
     crate::budget::enforce_for(
         &scene,
         args.frames,
         writes_frames.then_some(out_dir.as_path()),
-        from_bodies && args.backend == BackendKind::Cuda,
+        (from_bodies && args.backend == BackendKind::Cuda).then_some(args.cuda_options.device_fill),
     )?;
     // The output folder: locked for this run, and holding no other run's files.
     let identity = scene_identity(&scene.name, &scene_text);
@@ -208,7 +209,13 @@ pub fn run(args: RunArgs) -> Result<()> {
             .context("cannot restore the checkpoint's rigid bodies")?;
     }
     let total_frames = args.frames.unwrap_or_else(|| sim.scene.time.frames());
-    eprintln!("set-up: {n} particles ready in {}", setup.describe());
+    match sim.backend.setup_details() {
+        Some(d) => eprintln!(
+            "set-up: {n} particles ready in {} (backend: {d})",
+            setup.describe()
+        ),
+        None => eprintln!("set-up: {n} particles ready in {}", setup.describe()),
+    }
     eprintln!(
         "running `{}`: {n} particles, {} frames on {}{}",
         sim.scene.name,

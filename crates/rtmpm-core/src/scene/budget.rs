@@ -18,6 +18,11 @@ pub const HOST_BYTES_PER_PARTICLE_F64: u64 = 224 * 2 + 8 + 24 + 16 + 112;
 pub const HOST_BYTES_PER_PARTICLE_CUDA_F32: u64 = 160;
 /// The same in f64 (the packed state is twice as wide).
 pub const HOST_BYTES_PER_PARTICLE_CUDA_F64: u64 = 280;
+/// Host bytes per particle of a CUDA run whose state the device fills from the uploaded
+/// positions (`rtmpm-cuda` `fill`, the default): the positions (12 B, f32 in either precision)
+/// and a margin for the walk's chunks, rounded up. Measured: 12.7 bytes a particle at the peak
+/// of the host's share for 26.3M particles (`setup_profile ... device`).
+pub const HOST_BYTES_PER_PARTICLE_CUDA_FILL: u64 = 16;
 /// Device bytes per particle of a CUDA run in f32 with the 29-word state, twice that in f64: the
 /// CUDA backend's plan (`rtmpm-cuda` `Capacity::bytes`, docs/memory.md) rounded up: state 116,
 /// sort scratch 16 (the default 4 fields), sort ranks 4, warp list 0.4. The grid is counted per
@@ -231,12 +236,15 @@ impl Budget {
         }
     }
 
-    /// The budget of a CUDA run packed straight from the sampled positions: the host holds
-    /// [`HOST_BYTES_PER_PARTICLE_CUDA_F32`] (or `_F64`) a particle and no grid.
-    pub fn for_cuda_host(mut self, precision: Precision) -> Budget {
-        self.host_bytes_per_particle = match precision {
-            Precision::F32 => HOST_BYTES_PER_PARTICLE_CUDA_F32,
-            Precision::F64 => HOST_BYTES_PER_PARTICLE_CUDA_F64,
+    /// The budget of a CUDA run built from the sampled positions: the host holds
+    /// [`HOST_BYTES_PER_PARTICLE_CUDA_FILL`] a particle when the device fills the state
+    /// (`device_fill`), else [`HOST_BYTES_PER_PARTICLE_CUDA_F32`] (or `_F64`) for the state it
+    /// packs, and no grid.
+    pub fn for_cuda_host(mut self, precision: Precision, device_fill: bool) -> Budget {
+        self.host_bytes_per_particle = match (device_fill, precision) {
+            (true, _) => HOST_BYTES_PER_PARTICLE_CUDA_FILL,
+            (false, Precision::F32) => HOST_BYTES_PER_PARTICLE_CUDA_F32,
+            (false, Precision::F64) => HOST_BYTES_PER_PARTICLE_CUDA_F64,
         };
         self.host_bytes = self.particles.saturating_mul(self.host_bytes_per_particle);
         self
@@ -437,11 +445,28 @@ mod tests {
         let b = Budget::estimate(&scene("fps = 10", 2, 0.12), None);
         let avail = b.particles * 200;
         assert!(!b.refusals(Some(avail), None, false).is_empty());
-        let c = b.clone().for_cuda_host(Precision::F32);
+        let c = b.clone().for_cuda_host(Precision::F32, false);
         assert_eq!(c.host_bytes, b.particles * HOST_BYTES_PER_PARTICLE_CUDA_F32);
         assert!(c.refusals(Some(avail), None, false).is_empty());
-        let d = b.for_cuda_host(Precision::F64);
+        let d = b.clone().for_cuda_host(Precision::F64, false);
         assert_eq!(d.host_bytes_per_particle, HOST_BYTES_PER_PARTICLE_CUDA_F64);
+        // Filled on the device: the positions only, in either precision; a host of 20 bytes a
+        // particle fits it, not the packing.
+        let avail = b.particles * 20;
+        for p in [Precision::F32, Precision::F64] {
+            let e = b.clone().for_cuda_host(p, true);
+            assert_eq!(
+                e.host_bytes,
+                b.particles * HOST_BYTES_PER_PARTICLE_CUDA_FILL
+            );
+            assert!(e.refusals(Some(avail), None, false).is_empty());
+            assert!(
+                !b.clone()
+                    .for_cuda_host(p, false)
+                    .refusals(Some(avail), None, false)
+                    .is_empty()
+            );
+        }
     }
 
     #[test]

@@ -171,6 +171,14 @@ pub fn prelude() -> String {
         let _ = writeln!(s, "#define {name} {v}");
     };
     for (n, v) in [
+        ("FILL_WORDS", FILL_WORDS),
+        ("FT_START", FT_START),
+        ("FT_COUNT", FT_COUNT),
+        ("FT_V0", FT_V0),
+        ("FT_W", FT_W),
+        ("FT_CENTRE", FT_CENTRE),
+        ("FT_NCONST", FT_NCONST),
+        ("FT_CONST", FT_CONST),
         ("CTL_NEED_REBUILD", CTL_NEED_REBUILD),
         ("CTL_GBLOCKS", CTL_GBLOCKS),
         ("CTL_PBLOCKS", CTL_PBLOCKS),

@@ -29,6 +29,28 @@ pub use state_layout::{MAX_FIELDS, StateLayout};
 // each field are given by the backend's [`StateLayout`] (state_layout.rs).
 
 // ---------------------------------------------------------------------------------------------
+// The body table of the device fill (`kernels/fill.cu`, `crate::fill`): one row of u32 words per
+// sampled body; reals as f32 bits.
+
+/// Words of one row of the fill table.
+pub const FILL_WORDS: usize = FT_CONST + 3 * MAX_FIELDS;
+/// First particle (slot and original index) of the body: low, then high 32 bits.
+pub const FT_START: usize = 0;
+/// Particles of the body: low, then high 32 bits.
+pub const FT_COUNT: usize = 2;
+/// Initial velocity v0 (3 f32).
+pub const FT_V0: usize = 4;
+/// Angular velocity w (3 f32).
+pub const FT_W: usize = 7;
+/// Centre c of the rotation (3 f32): v = v0 + w x (x - c).
+pub const FT_CENTRE: usize = 10;
+/// Number of constant words.
+pub const FT_NCONST: usize = 13;
+/// The constant words: (state word, low 32 bits, high 32 bits) each, the word's bits in the
+/// state's precision (an f32 word: the low bits).
+pub const FT_CONST: usize = 14;
+
+// ---------------------------------------------------------------------------------------------
 // Control words (u32, one array per GPU).
 
 /// Rebuild the mapping at the next step.
