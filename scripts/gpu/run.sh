@@ -27,6 +27,8 @@
 #                whole-frame files), then `rtmpm bench --frame-write` on fluid 2M, 16.8M and the n = 584 block
 #                (49.8M): copy-out GB/s, write MB/s, step time with a frame written in the background
 #                (FRAME_DIR, default /tmp/frames: the files are removed after each timing)
+#   scale        issue 19: big scenes under /usr/bin/time -v (SCALE_RUNS="scene|cuda-options ...", default
+#                water 500M with the device fill, then the host fill): set-up, throughput, bytes a particle
 #   rigid        issue 17: dam break 2M with 10 floating crates vs 10 static ones, floating_box on CUDA
 #   long         the strong-scaling scene for 12 frames (0.24 s, past its 0.1 s duration) on one GPU, fused
 #                and unfused, and at dt/2: does the 12-frame blow-up seen on 2 GPUs happen on one?
@@ -215,6 +217,19 @@ for suite in "$@"; do
           say "taichi mpm3d threads=$t: $(echo "$r" | grep -m1 -E 'throughput|Error' | tr -s ' ')"
         done
       fi
+      ;;
+    scale)
+      # Issue 19: the big scenes, one process each under /usr/bin/time -v (peak host memory),
+      # SCALE_RUNS="scene|cuda-options ..." (default: water 500M, device fill then host fill).
+      for r in ${SCALE_RUNS:-"bench/water_500m.toml|fill=device" "bench/water_500m.toml|fill=host"}; do
+        sc=${r%%|*}; opts=${r#*|}
+        x=$( { /usr/bin/time -v timeout 560 "$D/rtmpm" bench --backend cuda --scene "$sc" --frames 1 --warmup 2 \
+              ${opts:+--cuda-options "$opts"}; } 2>&1 )
+        echo "== $sc $opts" >> "$OUT/scale.log"; echo "$x" >> "$OUT/scale.log"
+        say "scale $sc ${opts}:"
+        echo "$x" | grep -E "particles|throughput|set-up|first step|memory  |^error|Maximum resident|Elapsed \(wall" \
+          | sed -E 's/^\s+//' | tee -a "$S"
+      done
       ;;
     frames)
       t test_frames
