@@ -215,6 +215,37 @@ impl CudaBackend {
         let n_max = n.saturating_add(crate::emit::emitted_total(scene));
         let cap = Capacity::plan_blocks(scene, n_max, part.capacity, blocks, &options);
         setup.layout = t.elapsed().as_secs_f64();
+        // G2P2G where it applies (see CudaOptions::g2p2g): not when every step rebuilds (the
+        // fused scatter would always be redone).
+        let g2p2g = options.g2p2g
+            && scene.solver.transfer == Transfer::Mls
+            && options.p2g == P2gMode::Warp
+            && options.free_zone
+            && options.mixed_sort;
+        let real_bytes = if options.f64 { 8 } else { 4 };
+        // The plan against the GPU's free memory, before anything is allocated or compiled.
+        let t = std::time::Instant::now();
+        let context = CudaContext::new(part.device).map_err(err("context"))?;
+        let planned = cap.bytes(
+            real_bytes,
+            state_layout.words(),
+            options.sort_scratch_fields,
+            crate::capacity::GridCopies {
+                next: g2p2g,
+                aux: scene.solver.transfer != Transfer::Mls,
+            },
+        );
+        let (free, _) = context.mem_get_info().map_err(err("memory info"))?;
+        let hint = match state_layout {
+            StateLayout::Compact | StateLayout::CompactFluid => "",
+            _ if options.f64 => ", f32 instead of f64",
+            _ => ", the compact state ([solver] particle_state = \"compact\")",
+        };
+        let gpu = format!("GPU {} ({})", part.device, info.name);
+        if let Some(why) = crate::capacity::refusal(&planned, cap.particles, free, &gpu, hint) {
+            return Err(SimError::Backend(why));
+        }
+        setup.probe += t.elapsed().as_secs_f64();
         let t = std::time::Instant::now();
 
         // Compiled for this GPU, the state's index width (64 bits past 2^32 words), and with
@@ -235,7 +266,6 @@ impl CudaBackend {
             },
         })
         .map_err(SimError::Backend)?;
-        let context = CudaContext::new(part.device).map_err(err("context"))?;
         // Single stream: no cross-stream event tracking (keeps launches capturable).
         // SAFETY: all our buffers are used on `stream` only.
         unsafe { context.disable_event_tracking() };
@@ -278,14 +308,6 @@ impl CudaBackend {
         .transpose()
         .map_err(SimError::Backend)?;
         setup.pack = t.elapsed().as_secs_f64();
-        // G2P2G where it applies (see CudaOptions::g2p2g): not when every step rebuilds (the
-        // fused scatter would always be redone).
-        let g2p2g = options.g2p2g
-            && scene.solver.transfer == Transfer::Mls
-            && options.p2g == P2gMode::Warp
-            && options.free_zone
-            && options.mixed_sort;
-        let real_bytes = if options.f64 { 8 } else { 4 };
         let needs = buffers::Needs {
             particles: n,
             real_bytes,

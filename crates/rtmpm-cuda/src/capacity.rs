@@ -102,6 +102,47 @@ impl BufferBytes {
     }
 }
 
+/// Device memory kept free besides the planned buffers: the context's own, the module, the
+/// tables, the P2G strategies' extras and the readback buffers (bytes).
+pub const DEVICE_RESERVE_BYTES: usize = 512 << 20;
+
+/// The refusal of a plan that does not fit the `free` bytes of a GPU, before anything is
+/// allocated (issue 19: "refused before any allocation, with the estimate and the largest size
+/// that fits"), or `None` when it fits with [`DEVICE_RESERVE_BYTES`] to spare. `bytes` is
+/// [`Capacity::bytes`] for `particles` particle slots; `gpu` names the device; `hint` is what
+/// else the user can change (the compact state, say). The particles that fit: the free bytes
+/// less the reserve and the plan's fixed part (grid, hash, lists), over its bytes a particle
+/// (state, sort scratch, ranks, warp list).
+pub fn refusal(
+    bytes: &BufferBytes,
+    particles: usize,
+    free: usize,
+    gpu: &str,
+    hint: &str,
+) -> Option<String> {
+    use rtmpm_core::io::limits::human_bytes;
+    let total = bytes.total();
+    if total.saturating_add(DEVICE_RESERVE_BYTES) <= free {
+        return None;
+    }
+    let per_particle = bytes.state + bytes.scratch + bytes.prank + bytes.warps;
+    let fixed = total - per_particle;
+    let per = per_particle as f64 / particles.max(1) as f64;
+    let room = free.saturating_sub(DEVICE_RESERVE_BYTES + fixed);
+    let fits = (room as f64 / per.max(1.0)).floor() as u64;
+    Some(format!(
+        "CUDA backend: the run needs {} of GPU memory on {gpu} ({per:.1} bytes a particle for \
+         {particles} particle slots, {} of grid, block hash and lists) and {} more for the \
+         context, kernels and tables; {} is free there. About {fits} particles fit \
+         (with this dx). Fix: use fewer particles (a coarser dx, a lower particles_per_cell, \
+         smaller bodies or emitter totals){hint}, several GPUs (--gpus N), or --backend cpu",
+        human_bytes(total as u64),
+        human_bytes(fixed as u64),
+        human_bytes(DEVICE_RESERVE_BYTES as u64),
+        human_bytes(free as u64),
+    ))
+}
+
 /// The stencil base node of every particle (grid coordinates, origin 4 cells below the domain).
 pub fn bases(scene: &Scene, particles: &Particles) -> Vec<IVec3> {
     use rayon::prelude::*;
@@ -447,6 +488,41 @@ mod tests {
                 e / n as f64
             );
         }
+    }
+
+    #[test]
+    fn a_plan_past_the_free_memory_is_refused_with_what_fits() {
+        let cap = Capacity {
+            particles: 1_000_000,
+            gblocks: 1000,
+            pblocks: 2000,
+            hash: 4096,
+            warps: 1_000_000 / 32 + 1001,
+            buckets: 64_001,
+        };
+        let b = cap.bytes(4, 20, 4, GridCopies::default());
+        let total = b.total();
+        // Fits with the reserve to spare; refused one byte short of it.
+        assert_eq!(refusal(&b, cap.particles, total + DEVICE_RESERVE_BYTES, "GPU 0", ""), None);
+        let why = refusal(&b, cap.particles, total + DEVICE_RESERVE_BYTES - 1, "GPU 0", "")
+            .expect("refused");
+        assert!(why.contains("GPU 0") && why.contains("--gpus N"), "{why}");
+        // The particles that fit: (free - reserve - fixed) / bytes a particle, here about half.
+        let per = (b.state + b.scratch + b.prank + b.warps) as f64 / cap.particles as f64;
+        let fixed = total - (b.state + b.scratch + b.prank + b.warps);
+        let free = DEVICE_RESERVE_BYTES + fixed + (per * 500_000.0) as usize;
+        let why = refusal(&b, cap.particles, free, "GPU 0", ", the compact state").expect("refused");
+        let fits: u64 = why
+            .split("About ")
+            .nth(1)
+            .and_then(|r| r.split(' ').next())
+            .and_then(|n| n.parse().ok())
+            .expect("a count");
+        assert!((499_990..=500_000).contains(&fits), "{fits}: {why}");
+        assert!(why.contains("the compact state"), "{why}");
+        // Nothing free: none fit, no underflow.
+        let why = refusal(&b, cap.particles, 0, "GPU 0", "").expect("refused");
+        assert!(why.contains("About 0 particles fit"), "{why}");
     }
 
     #[test]
