@@ -503,15 +503,25 @@ mod tests {
         let b = cap.bytes(4, 20, 4, GridCopies::default());
         let total = b.total();
         // Fits with the reserve to spare; refused one byte short of it.
-        assert_eq!(refusal(&b, cap.particles, total + DEVICE_RESERVE_BYTES, "GPU 0", ""), None);
-        let why = refusal(&b, cap.particles, total + DEVICE_RESERVE_BYTES - 1, "GPU 0", "")
-            .expect("refused");
+        assert_eq!(
+            refusal(&b, cap.particles, total + DEVICE_RESERVE_BYTES, "GPU 0", ""),
+            None
+        );
+        let why = refusal(
+            &b,
+            cap.particles,
+            total + DEVICE_RESERVE_BYTES - 1,
+            "GPU 0",
+            "",
+        )
+        .expect("refused");
         assert!(why.contains("GPU 0") && why.contains("--gpus N"), "{why}");
         // The particles that fit: (free - reserve - fixed) / bytes a particle, here about half.
         let per = (b.state + b.scratch + b.prank + b.warps) as f64 / cap.particles as f64;
         let fixed = total - (b.state + b.scratch + b.prank + b.warps);
         let free = DEVICE_RESERVE_BYTES + fixed + (per * 500_000.0) as usize;
-        let why = refusal(&b, cap.particles, free, "GPU 0", ", the compact state").expect("refused");
+        let why =
+            refusal(&b, cap.particles, free, "GPU 0", ", the compact state").expect("refused");
         let fits: u64 = why
             .split("About ")
             .nth(1)
