@@ -226,14 +226,13 @@ impl CudaBackend {
         // The plan against the GPU's free memory, before anything is allocated or compiled.
         let t = std::time::Instant::now();
         let context = CudaContext::new(part.device).map_err(err("context"))?;
-        let planned = cap.bytes(
+        let planned = buffers::sizes(
+            scene,
+            &cap,
             real_bytes,
             state_layout.words(),
-            options.sort_scratch_fields,
-            crate::capacity::GridCopies {
-                next: g2p2g,
-                aux: scene.solver.transfer != Transfer::Mls,
-            },
+            g2p2g,
+            &options,
         );
         let (free, _) = context.mem_get_info().map_err(err("memory info"))?;
         let hint = match state_layout {

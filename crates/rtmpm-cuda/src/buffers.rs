@@ -71,6 +71,28 @@ impl Buffers {
     }
 }
 
+/// The bytes of every buffer [`allocate`] allocates for `cap`: `real_bytes` per real, a state of
+/// `state_words` words, G2P2G's second grid when `grid_next` (the backend checks them against the
+/// GPU's free memory first).
+pub fn sizes(
+    scene: &Scene,
+    cap: &Capacity,
+    real_bytes: usize,
+    state_words: usize,
+    grid_next: bool,
+    options: &crate::CudaOptions,
+) -> BufferBytes {
+    cap.bytes(
+        real_bytes,
+        state_words,
+        options.sort_scratch_fields,
+        GridCopies {
+            next: grid_next,
+            aux: scene.solver.transfer != Transfer::Mls,
+        },
+    )
+}
+
 /// Allocate every buffer of a GPU for `cap`, upload the particle state (`state`: the particles
 /// packed by [`crate::state::pack`] with stride `needs.particles`, placed field by field into the
 /// arrays of stride `cap.particles`, so the host never holds the capacity's empty slots; `None`:
@@ -95,15 +117,7 @@ pub fn allocate(
         rest.push(b);
         Ok(p)
     };
-    let sizes = cap.bytes(
-        rb,
-        needs.state_words,
-        options.sort_scratch_fields,
-        GridCopies {
-            next: needs.grid_next,
-            aux: scene.solver.transfer != Transfer::Mls,
-        },
-    );
+    let sizes = sizes(scene, cap, rb, needs.state_words, needs.grid_next, options);
     let state_bytes = sizes.state;
     // The sort scratch: `sort_scratch_fields` fields, permuted a chunk at a time (rebuild.cu);
     // its first field holds the sort keys between the histogram and the ranks (Ctx::pkey).
