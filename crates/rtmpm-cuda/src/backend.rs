@@ -190,6 +190,18 @@ impl CudaBackend {
             f64: options.f64 || scene.precision == Precision::F64,
             ..options
         };
+        // Deferred bodies are drawn by the device fill; every other path walks them here.
+        let walked;
+        let initial = match initial {
+            Initial::Bodies(b)
+                if (!options.device_fill || options.p2g == P2gMode::ReverseMap)
+                    && b.iter().any(|b| matches!(b, SampledBody::Deferred(_))) =>
+            {
+                walked = crate::sample::walked(b);
+                Initial::Bodies(&walked)
+            }
+            other => other,
+        };
         let n = initial.len();
         check(scene, n, part, &options)?;
         let state_layout = crate::state::layout_for(scene, &options)
@@ -342,7 +354,7 @@ impl CudaBackend {
                 state_layout,
                 options.f64,
             )?;
-            (setup.fill, setup.fill_gather) = (f.total, f.gather);
+            (setup.fill, setup.fill_gather, setup.fill_count) = (f.total, f.gather, f.count);
         }
         let bodies = crate::rigid::Bodies::new(
             scene,

@@ -162,40 +162,68 @@ pub fn base_of(scene: &Scene) -> impl Fn(rtmpm_core::math::Vec3) -> IVec3 + Sync
 /// array: each chunk of positions lists the blocks it sees, and the pblocks are the union of the
 /// gblocks' 3x3x3 neighbourhoods (a pass over the positions and a sort of block codes).
 pub fn block_counts(scene: &Scene, bodies: &[SampledBody]) -> (usize, usize) {
-    let mut chunks: Vec<&[Vec3]> = Vec::new();
+    use rayon::prelude::*;
+    let base = base_of(scene);
+    let mut codes: Vec<u64> = Vec::new();
     for body in bodies {
         match body {
-            SampledBody::Shape(b) => chunks.extend(b.chunks.iter().map(|c| c.as_slice())),
-            SampledBody::Points(p) => chunks.extend(p.x.chunks(1 << 16)),
+            SampledBody::Shape(b) => codes.par_extend(
+                b.chunks
+                    .par_iter()
+                    .flat_map_iter(|c| chunk_blocks(&base, c)),
+            ),
+            SampledBody::Points(p) => codes.par_extend(
+                p.x.par_chunks(1 << 16)
+                    .flat_map_iter(|c| chunk_blocks(&base, c)),
+            ),
+            // Walked chunk by chunk on the host, no position kept.
+            SampledBody::Deferred(d) => {
+                for c in d.map_chunks(|c| chunk_blocks(&base, c)) {
+                    codes.extend(c);
+                }
+            }
         }
     }
-    block_counts_of(scene, &chunks)
+    count_blocks(codes)
 }
 
 /// [`block_counts`] of the particles at the positions `chunks` (concatenated), e.g.
 /// `particles.x.chunks(..)`.
 pub fn block_counts_of(scene: &Scene, chunks: &[&[Vec3]]) -> (usize, usize) {
     use rayon::prelude::*;
-    use rtmpm_core::grid::codes::{block_code, decode_block};
-    use rtmpm_core::grid::layout::block_of;
     let base = base_of(scene);
-    let mut codes: Vec<u64> = chunks
-        .par_iter()
-        .flat_map_iter(|xs| {
-            let mut run = Vec::new();
-            let mut last = None;
-            for &x in xs.iter() {
-                let b = block_of(base(x));
-                if last != Some(b) {
-                    run.push(block_code(b));
-                    last = Some(b);
-                }
-            }
-            run.sort_unstable();
-            run.dedup();
-            run
-        })
-        .collect();
+    count_blocks(
+        chunks
+            .par_iter()
+            .flat_map_iter(|xs| chunk_blocks(&base, xs))
+            .collect(),
+    )
+}
+
+/// The codes of the blocks that the positions `xs` fall in (stencil bases by `base`), sorted,
+/// each once.
+fn chunk_blocks(base: &(impl Fn(Vec3) -> IVec3 + Sync), xs: &[Vec3]) -> Vec<u64> {
+    use rtmpm_core::grid::codes::block_code;
+    use rtmpm_core::grid::layout::block_of;
+    let mut run = Vec::new();
+    let mut last = None;
+    for &x in xs {
+        let b = block_of(base(x));
+        if last != Some(b) {
+            run.push(block_code(b));
+            last = Some(b);
+        }
+    }
+    run.sort_unstable();
+    run.dedup();
+    run
+}
+
+/// (gblocks, pblocks) of the occupied blocks `codes` (in any order, repeated or not): the
+/// pblocks are the union of the gblocks' 3x3x3 neighbourhoods.
+fn count_blocks(mut codes: Vec<u64>) -> (usize, usize) {
+    use rayon::prelude::*;
+    use rtmpm_core::grid::codes::{block_code, decode_block};
     codes.par_sort_unstable();
     codes.dedup();
     // As BlockLayout's neighbours: coordinates + offset in i32, then as u32.

@@ -6,6 +6,9 @@
 //! [`crate::state::pack_bodies`] writes on the host. Bodies read from points files
 //! (`SampledBody::Points`) are packed on the host as before, and their rows copied into place.
 //!
+//! Deferred bodies ([`rtmpm_core::scene::deferred`]) upload nothing: their positions are drawn
+//! on the device into the same buffers ([`crate::sample`]).
+//!
 //! The host never holds the state image (116 bytes a particle in f32): the set-up of 500M
 //! particles no longer packs 58 GB on the host, and the host's peak is the positions.
 
@@ -43,7 +46,12 @@ pub fn table(
         row[FT_START + 1] = (start >> 32) as u32;
         row[FT_COUNT] = count as u32;
         row[FT_COUNT + 1] = (count >> 32) as u32;
-        if let SampledBody::Shape(b) = body {
+        let shared = match body {
+            SampledBody::Shape(b) => Some(b),
+            SampledBody::Deferred(d) => Some(&d.shared),
+            SampledBody::Points(_) => None,
+        };
+        if let Some(b) = shared {
             let is_fluid = match fluid.get(b.material as usize) {
                 Some(f) => *f,
                 None if b.count == 0 => false,
@@ -84,19 +92,21 @@ pub struct Piece {
     pub len: usize,
 }
 
-/// The pieces of the bodies of shapes, in order, each of at most `max` particles: every such
+/// The pieces of the bodies of shapes (deferred or not), in order, each of at most `max` particles: every such
 /// body cut into consecutive pieces (whatever the chunks of its walk), the last one shorter.
 pub fn pieces(bodies: &[SampledBody], max: usize) -> Vec<Piece> {
     let max = max.max(1);
     let mut out = Vec::new();
     for (body, b) in bodies.iter().enumerate() {
-        if let SampledBody::Shape(b) = b {
-            let mut offset = 0;
-            while offset < b.count {
-                let len = max.min(b.count - offset);
-                out.push(Piece { body, offset, len });
-                offset += len;
-            }
+        let count = match b {
+            SampledBody::Shape(_) | SampledBody::Deferred(_) => b.len(),
+            SampledBody::Points(_) => 0,
+        };
+        let mut offset = 0;
+        while offset < count {
+            let len = max.min(count - offset);
+            out.push(Piece { body, offset, len });
+            offset += len;
         }
     }
     out
@@ -136,6 +146,8 @@ pub fn gather(b: &BodyPositions, offset: usize, len: usize, out: &mut [f32]) {
 pub struct FillTimes {
     /// Gathering positions into page-locked memory (host, overlapped with the copies).
     pub gather: f64,
+    /// Counting the deferred bodies' rows on the device ([`crate::sample`], waited for).
+    pub count: f64,
     /// The whole fill: table, page-locked buffers, uploads, kernels, points bodies (waited for).
     pub total: f64,
 }
@@ -161,12 +173,33 @@ pub(crate) fn fill(
     let table_dev = stream.clone_htod(&rows).map_err(err("upload fill table"))?;
     let pieces = pieces(bodies, PIECE);
     let piece_max = pieces.iter().map(|p| p.len).max().unwrap_or(0);
+    // The deferred bodies' rows counted on the device (checked against the host's counts).
+    let t = std::time::Instant::now();
+    let counted = bodies
+        .iter()
+        .enumerate()
+        .map(|(i, b)| match b {
+            SampledBody::Deferred(d) => crate::sample::count(stream, kernels, d, i).map(Some),
+            _ => Ok(None),
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    times.count = t.elapsed().as_secs_f64();
+    let mut rows_scratch = None;
     if piece_max > 0 {
         let words = 3 * piece_max;
         // Write-combined page-locked memory: the host only writes it.
         // SAFETY: each buffer is written (gathered) before it is copied.
+        // (Drawn bodies need none.)
+        let host_words = if pieces
+            .iter()
+            .any(|p| matches!(bodies[p.body], SampledBody::Shape(_)))
+        {
+            words
+        } else {
+            1
+        };
         let mut host = (0..2)
-            .map(|_| unsafe { stream.context().alloc_pinned::<f32>(words) })
+            .map(|_| unsafe { stream.context().alloc_pinned::<f32>(host_words) })
             .collect::<Result<Vec<_>, _>>()
             .map_err(err("page-locked memory of the fill"))?;
         let mut dev = (0..2)
@@ -182,24 +215,36 @@ pub(crate) fn fill(
             .map_err(err("fill events"))?;
         let cap32 = cap as u32;
         for (k, p) in pieces.iter().enumerate() {
-            let SampledBody::Shape(b) = &bodies[p.body] else {
-                continue;
-            };
             let (h, d) = (&mut host[k % 2], &mut dev[k % 2]);
-            // The copy of two pieces ago out of this buffer is over.
-            done[k % 2]
-                .synchronize()
-                .map_err(err("wait for a fill copy"))?;
-            let slice = h.as_mut_slice().map_err(err("page-locked fill buffer"))?;
-            let g = std::time::Instant::now();
-            gather(b, p.offset, p.len, slice);
-            times.gather += g.elapsed().as_secs_f64();
-            stream
-                .memcpy_htod(&*h, &mut *d)
-                .map_err(err("upload positions"))?;
-            done[k % 2]
-                .record(stream)
-                .map_err(err("record a fill copy"))?;
+            match (&bodies[p.body], &counted[p.body]) {
+                // Drawn on the device: no host memory, no copy.
+                (SampledBody::Deferred(_), Some(c)) => crate::sample::draw(
+                    stream,
+                    kernels,
+                    c,
+                    p.offset as u64,
+                    p.len,
+                    d,
+                    &mut rows_scratch,
+                )?,
+                (SampledBody::Shape(b), _) => {
+                    // The copy of two pieces ago out of this buffer is over.
+                    done[k % 2]
+                        .synchronize()
+                        .map_err(err("wait for a fill copy"))?;
+                    let slice = h.as_mut_slice().map_err(err("page-locked fill buffer"))?;
+                    let g = std::time::Instant::now();
+                    gather(b, p.offset, p.len, slice);
+                    times.gather += g.elapsed().as_secs_f64();
+                    stream
+                        .memcpy_htod(&*h, &mut *d)
+                        .map_err(err("upload positions"))?;
+                    done[k % 2]
+                        .record(stream)
+                        .map_err(err("record a fill copy"))?;
+                }
+                _ => continue,
+            }
             let (body, offset, len) = (p.body as i32, p.offset as u64, p.len as u32);
             // SAFETY: the kernel reads 3 len floats of `d` and the table's row `body`, and
             // writes slots start + offset .. + len (below the particle count) of the state of

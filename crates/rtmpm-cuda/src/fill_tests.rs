@@ -351,6 +351,7 @@ fn the_setup_phases_read_as_a_line() {
         allocate: 0.3,
         fill: 0.8,
         fill_gather: 0.5,
+        fill_count: 0.01,
         total: 2.0,
     };
     let line = p.to_string();
@@ -360,7 +361,7 @@ fn the_setup_phases_read_as_a_line() {
         "kernels 0.40 s",
         "pack 0.00 s",
         "allocate+upload 0.30 s",
-        "device fill 0.80 s (gather 0.50 s)",
+        "device fill 0.80 s (gather 0.50 s, rows counted 0.01 s)",
         "other 0.20 s",
     ] {
         assert!(line.contains(part), "{part} in {line}");

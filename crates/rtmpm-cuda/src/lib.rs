@@ -84,6 +84,7 @@ pub mod pipeline;
 pub mod readback;
 pub mod rebuild;
 pub mod rigid;
+pub mod sample;
 pub mod setup;
 pub mod state;
 

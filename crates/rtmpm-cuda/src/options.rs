@@ -115,6 +115,11 @@ pub struct CudaOptions {
     /// of the host packing the whole state image and uploading it (`fill=host`, kept for
     /// comparison). The state is the same word for word.
     pub device_fill: bool,
+    /// With the device fill: boxes, spheres and cylinders sampled `regular` or `jittered` with a
+    /// uniform velocity are only counted on the host and their positions drawn on the device
+    /// (`crate::sample`; the same positions bit for bit), so the host holds no memory per
+    /// particle of theirs; `sample=host` walks and uploads them as before (for comparison).
+    pub device_sample: bool,
     /// Scenes whose materials are all fluids keep the 20-word fluid state
     /// ([`crate::contract::StateLayout::Fluid`]: F in one word, no plastic word) instead of
     /// the 29-word one; the results are bit-identical. Off: the 29-word layout (for comparison).
@@ -155,6 +160,7 @@ impl Default for CudaOptions {
             sort_scratch_fields: DEFAULT_SORT_SCRATCH_FIELDS,
             rigid_overlap: true,
             device_fill: true,
+            device_sample: true,
             fluid_state: true,
             compact_state: false,
         }
@@ -241,6 +247,13 @@ impl std::str::FromStr for CudaOptions {
                         _ => return Err(format!("`{item}`: expected device or host")),
                     }
                 }
+                "sample" => {
+                    o.device_sample = match v {
+                        "device" => true,
+                        "host" => false,
+                        _ => return Err(format!("`{item}`: expected device or host")),
+                    }
+                }
                 "rebuild" => {
                     o.fused_rebuild = match v {
                         "fused" => true,
@@ -315,6 +328,9 @@ mod tests {
         assert!(CudaOptions::default().device_fill);
         assert!(!"fill=host".parse::<CudaOptions>().unwrap().device_fill);
         assert!("fill=device".parse::<CudaOptions>().unwrap().device_fill);
+        assert!(CudaOptions::default().device_sample);
+        assert!(!"sample=host".parse::<CudaOptions>().unwrap().device_sample);
+        assert!("sample=bad".parse::<CudaOptions>().is_err());
         assert!("fill=gpu".parse::<CudaOptions>().is_err());
     }
 }

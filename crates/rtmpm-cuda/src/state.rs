@@ -375,6 +375,13 @@ pub fn pack_bodies(
                     }
                 }
             }
+            // The backend walks deferred bodies before it packs on the host (`sample::walked`).
+            SampledBody::Deferred(_) => {
+                return Err(format!(
+                    "particle {n}: a body whose positions were left to the device reached the \
+                     host packing"
+                ));
+            }
         }
         n += body.len();
     }
@@ -401,6 +408,11 @@ pub fn map_positions<T: Send>(
                     out.par_extend(chunk.par_iter().map(|&x| f(x)));
                 }
             }
+            SampledBody::Deferred(d) => {
+                for part in d.map_chunks(|c| c.iter().map(|&x| f(x)).collect::<Vec<T>>()) {
+                    out.extend(part);
+                }
+            }
         }
     }
     out
@@ -418,6 +430,14 @@ pub fn max_speed(bodies: &[SampledBody]) -> f32 {
             SampledBody::Shape(b) if b.angular_velocity == Vec3::ZERO => {
                 if b.count > 0 {
                     speed(b.velocity)
+                } else {
+                    0.0
+                }
+            }
+            // A deferred body's velocity is uniform.
+            SampledBody::Deferred(d) => {
+                if d.shared.count > 0 {
+                    speed(d.shared.velocity)
                 } else {
                     0.0
                 }

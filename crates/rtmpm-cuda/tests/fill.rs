@@ -4,6 +4,7 @@
 //! `cargo test --release -p rtmpm-cuda --test fill -- --include-ignored --nocapture`.
 
 use rtmpm_core::Scene;
+use rtmpm_core::scene::deferred::sample_bodies_deferred;
 use rtmpm_core::scene::sampling::{SampledBody, sample_bodies};
 use rtmpm_core::sim::Simulation;
 use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
@@ -74,6 +75,32 @@ fn same_state(label: &str, scene: &Scene, bodies: &[SampledBody]) -> CudaBackend
         assert!(
             a[f * cap * wb..(f * cap + n) * wb] == image[f * n * wb..(f + 1) * n * wb],
             "{label}: field {f} differs from pack_bodies"
+        );
+    }
+    // The same scene with the bodies the GPU can draw left to it (sample=device, the default):
+    // the same state again, byte for byte.
+    let deferred = sample_bodies_deferred(scene, &|_| {}).expect("sample");
+    let drawn = deferred
+        .iter()
+        .filter(|b| matches!(b, SampledBody::Deferred(_)))
+        .count();
+    if drawn > 0 {
+        let mut d = CudaBackend::from_bodies(scene, &deferred, options(true)).expect("drawn");
+        let c = d.state_bytes().expect("read");
+        assert_eq!(c.len(), b.len(), "{label}: state sizes (drawn)");
+        if let Some(i) = (0..c.len()).find(|&i| c[i] != b[i]) {
+            let (f, slot) = ((i / wb) / cap, (i / wb) % cap);
+            panic!(
+                "{label}: drawn on the device: first difference in field {f}, slot {slot} of \
+                 {n}: drawn {:?}, host {:?}",
+                &c[i / wb * wb..i / wb * wb + wb],
+                &b[i / wb * wb..i / wb * wb + wb]
+            );
+        }
+        println!(
+            "{label}: {drawn} of {} bodies drawn on the device: identical; set-up {}",
+            deferred.len(),
+            d.setup_phases()
         );
     }
     assert!(n > 0, "{label}: no particles");
@@ -166,6 +193,28 @@ axis = [1.0, 1.0, 0.0]
 particles_per_cell = 4
 sampling = "random"
 angular_velocity = [0.0, 3.0, -1.0]
+"#;
+
+/// A sand cylinder on a slant, jittered, moving (drawn on the device by default), and a jelly
+/// sphere whose surface passes through lattice points (regular).
+const DRAWN: &str = r#"
+[[body]]
+material = "sand"
+shape = "cylinder"
+center = [0.4, 0.45, 0.5]
+radius = 0.15
+height = 0.4
+axis = [0.48, 0.6, 0.64]
+particles_per_cell = 27
+sampling = "jittered"
+velocity = [0.0, -2.0, 0.5]
+[[body]]
+material = "jelly"
+shape = "sphere"
+center = [0.7109375, 0.7109375, 0.7109375]
+radius = 0.15625
+particles_per_cell = 8
+sampling = "regular"
 "#;
 
 /// Two bodies of two materials, each with its velocity and spin.
@@ -269,6 +318,7 @@ fn the_test_scenes_are_valid() {
         SPHERE.to_string(),
         CYLINDER.to_string(),
         TWO_BODIES.to_string(),
+        DRAWN.to_string(),
     ]
     .map(|b| format!("{HEAD}{b}"));
     let points = points_scene(&dir);
@@ -315,6 +365,24 @@ fn device_fill_equals_host_pack_jittered_sphere_and_random_cylinder() {
     check("jittered sphere", &format!("{HEAD}{SPHERE}"));
 
     check("random cylinder", &format!("{HEAD}{CYLINDER}"));
+}
+
+/// Bodies drawn on the device (a slanted jittered cylinder, a sphere through lattice points).
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn bodies_drawn_on_the_device_equal_the_host_s() {
+    if !gpu() {
+        return;
+    }
+    let scene = scene_in(&format!("{HEAD}{DRAWN}"), "f32", &std::env::temp_dir());
+    let deferred = sample_bodies_deferred(&scene, &|_| {}).expect("sample");
+    assert!(
+        deferred
+            .iter()
+            .all(|b| matches!(b, SampledBody::Deferred(_))),
+        "both drawn"
+    );
+    check("drawn bodies", &format!("{HEAD}{DRAWN}"));
 }
 
 #[test]

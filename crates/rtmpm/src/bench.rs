@@ -153,7 +153,9 @@ pub fn bench(args: BenchArgs) -> Result<()> {
         lean.then_some(args.cuda_options.device_fill),
     )?;
     if lean {
-        let (bodies, sample_s) = crate::setup::sample_bodies(&scene)?;
+        let o = &args.cuda_options;
+        let defer = o.device_fill && o.device_sample;
+        let (bodies, sample_s) = crate::setup::sample_bodies(&scene, defer)?;
         let setup = crate::setup::SetupTimes {
             sample: sample_s,
             backend: 0.0,

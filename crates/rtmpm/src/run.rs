@@ -155,7 +155,10 @@ pub fn run(args: RunArgs) -> Result<()> {
     };
     let mut setup = crate::setup::SetupTimes::default();
     let (backend, n) = if from_bodies {
-        let (bodies, seconds) = crate::setup::sample_bodies(&scene)?;
+        // Bodies the GPU can draw are only counted (a CPU fallback walks them again).
+        let o = &args.cuda_options;
+        let defer = o.device_fill && o.device_sample;
+        let (bodies, seconds) = crate::setup::sample_bodies(&scene, defer)?;
         setup.sample = seconds;
         let n = bodies.iter().map(|b| b.len()).sum();
         let start = Instant::now();

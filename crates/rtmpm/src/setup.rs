@@ -70,11 +70,18 @@ fn reporter(start: Instant, every: f64) -> impl Fn(SampleProgress) + Sync {
     }
 }
 
-/// [`sample`], the bodies' positions only (for a backend that packs them itself).
-pub fn sample_bodies(scene: &Scene) -> Result<(Vec<SampledBody>, f64)> {
+/// [`sample`], the bodies' positions only (for a backend that packs them itself); with `defer`
+/// the bodies a GPU can draw are only counted (`rtmpm_core::scene::deferred`: the host keeps
+/// none of their positions).
+pub fn sample_bodies(scene: &Scene, defer: bool) -> Result<(Vec<SampledBody>, f64)> {
     let start = Instant::now();
     let every = every();
-    let bodies = sampling::sample_bodies(scene, &reporter(start, every))?;
+    let report = reporter(start, every);
+    let bodies = if defer {
+        rtmpm_core::scene::deferred::sample_bodies_deferred(scene, &report)?
+    } else {
+        sampling::sample_bodies(scene, &report)?
+    };
     let seconds = start.elapsed().as_secs_f64();
     if seconds >= every {
         let n: usize = bodies.iter().map(|b| b.len()).sum();

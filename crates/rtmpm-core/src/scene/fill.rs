@@ -8,7 +8,7 @@ use rayon::prelude::*;
 
 /// The particles of a body of a shape before they are written: positions in walk order (the
 /// chunks concatenated) and what every particle of the body shares.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct BodyPositions {
     /// The positions, in chunks (concatenated: the walk's order).
     pub chunks: Vec<Vec<Vec3>>,
@@ -54,6 +54,8 @@ impl BodyPositions {
 pub enum SampledBody {
     Shape(BodyPositions),
     Points(Particles),
+    /// Counted, its positions left to the backend ([`super::deferred`]).
+    Deferred(super::deferred::DeferredBody),
 }
 
 impl SampledBody {
@@ -62,6 +64,7 @@ impl SampledBody {
         match self {
             SampledBody::Shape(b) => b.count,
             SampledBody::Points(p) => p.len(),
+            SampledBody::Deferred(d) => d.shared.count,
         }
     }
 
@@ -87,7 +90,7 @@ pub(crate) fn reserve(out: &mut Particles, n: usize) {
 /// True when `v0 + w x (x - c)` equals `v0` bit for bit for every finite `x` and `c`: `w` is
 /// zero (so the cross product is a signed zero) and no component of `v0` is -0 (which +0 would
 /// turn into +0).
-fn velocity_is_uniform(v0: Vec3, w: Vec3) -> bool {
+pub(crate) fn velocity_is_uniform(v0: Vec3, w: Vec3) -> bool {
     w == Vec3::ZERO
         && !v0
             .to_array()
@@ -100,6 +103,8 @@ fn velocity_is_uniform(v0: Vec3, w: Vec3) -> bool {
 pub(crate) fn append(out: &mut Particles, sampled: SampledBody) {
     let b = match sampled {
         SampledBody::Shape(b) => b,
+        // Walked here, on the host.
+        SampledBody::Deferred(d) => d.positions(),
         SampledBody::Points(p) => {
             out.x.par_extend(p.x.into_par_iter());
             out.v.par_extend(p.v.into_par_iter());

@@ -9,9 +9,11 @@
 #![allow(clippy::result_large_err)]
 
 pub mod budget;
+pub mod deferred;
 pub mod error;
 mod fill;
 pub mod material;
+pub mod pcg;
 pub mod sampling;
 pub mod schema;
 pub mod spans;

@@ -18,7 +18,8 @@
 //! body's particles.
 
 pub use super::fill::{BodyPositions, SampledBody};
-use super::walk::{self, Counter, Lattice, Mode, Walked};
+pub use super::walk::Lattice;
+use super::walk::{self, Counter, Mode, Walked};
 use super::{Scene, SceneError, fill};
 use crate::Particles;
 use crate::boundary::mesh::MeshSdf;
@@ -210,6 +211,45 @@ pub fn estimate_body(scene: &Scene, index: usize) -> u64 {
     }
 }
 
+/// The seed of body `index`'s random stream (`Pcg64::seed_from_u64`): the scene's seed and the
+/// body's index.
+pub(crate) fn body_seed(scene: &Scene, index: usize) -> u64 {
+    scene.seed ^ (index as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+}
+
+/// The sub-cell lattice that regular and jittered sampling walk for body `index`: its bounding
+/// box on the lattice of `n = round(cbrt(ppc))` points per axis and cell of the global grid.
+pub(crate) fn body_lattice(scene: &Scene, index: usize) -> Result<Lattice, SceneError> {
+    let body = scene
+        .bodies
+        .get(index)
+        .ok_or_else(|| body_error(index, "no such body".into(), "use an existing body index"))?;
+    let (lo, hi) = body.shape.bounds();
+    let n = per_axis(body.particles_per_cell);
+    let h = scene.dx / n as f32;
+    let first = ((lo - scene.domain_min) / h).floor();
+    let last = ((hi - scene.domain_min) / h).ceil();
+    let count = (last - first + 1.0).max(Vec3::ZERO);
+    let total = count.x as f64 * count.y as f64 * count.z as f64;
+    if !total.is_finite() || total > MAX_LATTICE_POINTS as f64 {
+        return Err(body_error(
+            index,
+            format!(
+                "the body's bounding box holds about {total:.3e} lattice points, more \
+                 than the {MAX_LATTICE_POINTS:.3e} a walk may visit"
+            ),
+            "make the body smaller, dx larger, or particles_per_cell smaller",
+        ));
+    }
+    Ok(Lattice {
+        origin: scene.domain_min,
+        h,
+        first: [first.x as i64, first.y as i64, first.z as i64],
+        count: [count.x as u64, count.y as u64, count.z as u64],
+        jitter: body.sampling == Sampling::Jittered,
+    })
+}
+
 /// Walk the particle positions of body `index` (in parallel, the same positions for any number
 /// of threads: see [`super::walk`]); returns them and the volume of one particle. `counter`
 /// hears of the work done.
@@ -245,33 +285,11 @@ pub(crate) fn walk_body(
         return Ok((walked, dx * dx * dx / body.particles_per_cell.max(1) as f32));
     }
     let (lo, hi) = shape.bounds();
-    let seed = scene.seed ^ (index as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-    let rng = Pcg64::seed_from_u64(seed);
+    let rng = Pcg64::seed_from_u64(body_seed(scene, index));
     match body.sampling {
         Sampling::Regular | Sampling::Jittered => {
-            let n = per_axis(body.particles_per_cell);
-            let h = dx / n as f32;
-            let first = ((lo - scene.domain_min) / h).floor();
-            let last = ((hi - scene.domain_min) / h).ceil();
-            let count = (last - first + 1.0).max(Vec3::ZERO);
-            let total = count.x as f64 * count.y as f64 * count.z as f64;
-            if !total.is_finite() || total > MAX_LATTICE_POINTS as f64 {
-                return Err(body_error(
-                    index,
-                    format!(
-                        "the body's bounding box holds about {total:.3e} lattice points, more \
-                         than the {MAX_LATTICE_POINTS:.3e} a walk may visit"
-                    ),
-                    "make the body smaller, dx larger, or particles_per_cell smaller",
-                ));
-            }
-            let lattice = Lattice {
-                origin: scene.domain_min,
-                h,
-                first: [first.x as i64, first.y as i64, first.z as i64],
-                count: [count.x as u64, count.y as u64, count.z as u64],
-                jitter: body.sampling == Sampling::Jittered,
-            };
+            let lattice = body_lattice(scene, index)?;
+            let h = lattice.h;
             Ok((lattice.walk(shape, &rng, mode, counter), h * h * h))
         }
         Sampling::Random => {
@@ -402,10 +420,30 @@ pub fn sample_positions(
     };
     let (walked, vol0) = walk_body(scene, index, Mode::Keep, &Counter::new(&report))?;
     let count = walked.count as usize;
+    Ok(SampledBody::Shape(shared_of(
+        scene,
+        index,
+        walked.chunks,
+        count,
+        vol0,
+    )?))
+}
+
+/// Body `index`'s walked positions `chunks` (`count` of them, each of volume `vol0`) with what
+/// every particle of the body shares.
+pub(crate) fn shared_of(
+    scene: &Scene,
+    index: usize,
+    chunks: Vec<Vec<Vec3>>,
+    count: usize,
+    vol0: f32,
+) -> Result<BodyPositions, SceneError> {
+    let material = body_material(scene, index)?;
+    let body = &scene.bodies[index];
     let (v0, w) = (body.velocity, body.angular_velocity);
-    Ok(SampledBody::Shape(BodyPositions {
-        centre: BodyPositions::centroid(&walked.chunks, count, v0, w),
-        chunks: walked.chunks,
+    Ok(BodyPositions {
+        centre: BodyPositions::centroid(&chunks, count, v0, w),
+        chunks,
         count,
         vol0,
         mass: material.density * vol0,
@@ -414,7 +452,7 @@ pub fn sample_positions(
         velocity: v0,
         angular_velocity: w,
         c: spin_matrix(w),
-    }))
+    })
 }
 
 /// Every body of the scene sampled by [`sample_positions`], in order: 12 bytes a particle, from

@@ -128,6 +128,39 @@ impl Lattice {
         }
     }
 
+    /// Rows of the lattice (`ny nz`; row `r` is `k = k0 + r / ny`, `j = j0 + r % ny`).
+    pub fn rows_count(&self) -> u64 {
+        self.count[1].saturating_mul(self.count[2])
+    }
+
+    /// `f` of the positions of every chunk of rows (as [`Lattice::walk`] cuts them), in walk
+    /// order; each chunk's positions are dropped once `f` has seen them.
+    pub fn map_chunks<T: Send>(
+        &self,
+        shape: &BodyShape,
+        rng: &Pcg64,
+        f: impl Fn(&[Vec3]) -> T + Sync + Send,
+    ) -> Vec<T> {
+        let nx = self.count[0];
+        let rows = self.rows_count();
+        if nx == 0 || rows == 0 {
+            return Vec::new();
+        }
+        let per_chunk = (LATTICE_CHUNK / nx).max(1);
+        (0..rows.div_ceil(per_chunk))
+            .into_par_iter()
+            .map(|c| {
+                let mut v = Vec::new();
+                let range = c * per_chunk..((c + 1) * per_chunk).min(rows);
+                self.rows(shape, rng, range, |x| {
+                    v.push(x);
+                    true
+                });
+                f(&v)
+            })
+            .collect()
+    }
+
     /// Walk the whole lattice in parallel chunks of rows.
     pub fn walk(&self, shape: &BodyShape, rng: &Pcg64, mode: Mode, counter: &Counter) -> Walked {
         let [nx, ny, nz] = self.count;

@@ -51,6 +51,38 @@ pub const FT_NCONST: usize = 13;
 pub const FT_CONST: usize = 14;
 
 // ---------------------------------------------------------------------------------------------
+// The recipe of a deferred body's walk (`kernels/sample.cu`, `crate::sample`): u32 words; reals
+// as f32 bits, 64- and 128-bit integers low word first.
+
+/// Words of one recipe.
+pub const SAMPLE_WORDS: usize = SP_PARAMS + 10;
+/// Origin of the lattice (3 f32): point (i, j, k) is `origin + (i + 1/2, j + 1/2, k + 1/2) h`.
+pub const SP_ORIGIN: usize = 0;
+/// Lattice spacing h (f32).
+pub const SP_H: usize = 3;
+/// First lattice index per axis (3 i64).
+pub const SP_FIRST: usize = 4;
+/// Points per row (along x, u64).
+pub const SP_NX: usize = 10;
+/// Rows per layer (along y, u64): row r is `j = r % ny`, `k = r / ny`.
+pub const SP_NY: usize = 12;
+/// 1: each point moved by a uniform jitter of its sub-cell (three draws of the stream).
+pub const SP_JITTER: usize = 14;
+/// The random stream's 128-bit state at the walk's first point.
+pub const SP_STATE: usize = 15;
+/// The stream's 128-bit (odd) increment.
+pub const SP_INC: usize = 19;
+/// The shape (`SAMPLE_BOX`, `SAMPLE_SPHERE`, `SAMPLE_CYLINDER`).
+pub const SP_SHAPE: usize = 23;
+/// The shape's parameters (f32): box min, max; sphere centre, radius; cylinder centre, unit
+/// axis, radius, half height.
+pub const SP_PARAMS: usize = 24;
+/// Shape codes of a recipe.
+pub const SAMPLE_BOX: u32 = 0;
+pub const SAMPLE_SPHERE: u32 = 1;
+pub const SAMPLE_CYLINDER: u32 = 2;
+
+// ---------------------------------------------------------------------------------------------
 // Control words (u32, one array per GPU).
 
 /// Rebuild the mapping at the next step.

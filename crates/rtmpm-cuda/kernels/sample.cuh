@@ -1,0 +1,181 @@
+// The walk of a deferred body, drawn on the device (host side: src/sample.rs): the positions the
+// host's walk finds (rtmpm-core/src/scene/walk.rs, `Lattice::rows`), in the same order, bit for
+// bit. Row r of the body's sub-cell lattice is (j, k) = (j0 + r % ny, k0 + r / ny); its points
+// are i = i0 .. i0 + nx, at origin + (i + 1/2, j + 1/2, k + 1/2) h, each moved (jittered
+// sampling) by (u - 1/2) h with three draws u of the body's PCG 128/64 stream (O'Neill 2014;
+// rtmpm-core/src/scene/pcg.rs), which a row starts 3 r nx draws in (Brown's jump, 1994); a point
+// is kept when it is inside the shape. Every f32 operation is rounded on its own as on the host
+// (never contracted into an fma, no flush to zero), so that --use_fast_math changes nothing.
+// This header compiles for the CPU too (scripts/check_sample_twin.sh, the unit test
+// `sample_tests::the_device_walk_compiled_for_the_cpu_is_the_host_walk`).
+#pragma once
+
+#if defined(__CUDACC__)
+#define SP_FN __device__ __forceinline__
+SP_FN float sp_add(float a, float b) { float r; asm("add.rn.f32 %0, %1, %2;" : "=f"(r) : "f"(a), "f"(b)); return r; }
+SP_FN float sp_sub(float a, float b) { float r; asm("sub.rn.f32 %0, %1, %2;" : "=f"(r) : "f"(a), "f"(b)); return r; }
+SP_FN float sp_mul(float a, float b) { float r; asm("mul.rn.f32 %0, %1, %2;" : "=f"(r) : "f"(a), "f"(b)); return r; }
+SP_FN float sp_sqrt(float a) { float r; asm("sqrt.rn.f32 %0, %1;" : "=f"(r) : "f"(a)); return r; }
+SP_FN float sp_max(float a, float b) { float r; asm("max.f32 %0, %1, %2;" : "=f"(r) : "f"(a), "f"(b)); return r; }
+SP_FN float sp_min(float a, float b) { float r; asm("min.f32 %0, %1, %2;" : "=f"(r) : "f"(a), "f"(b)); return r; }
+SP_FN float sp_abs(float a) { float r; asm("abs.f32 %0, %1;" : "=f"(r) : "f"(a)); return r; }
+SP_FN float sp_i2f(long long a) { float r; asm("cvt.rn.f32.s64 %0, %1;" : "=f"(r) : "l"(a)); return r; }
+SP_FN float sp_u2f(unsigned a) { float r; asm("cvt.rn.f32.u32 %0, %1;" : "=f"(r) : "r"(a)); return r; }
+SP_FN unsigned long long sp_mulhi(unsigned long long a, unsigned long long b) { return __umul64hi(a, b); }
+SP_FN float sp_bits(unsigned u) { return __uint_as_float(u); }
+#else
+// The CPU twin: compile with -ffp-contract=off (and without -ffast-math).
+#include <cmath>
+#include <cstring>
+#define SP_FN static inline
+SP_FN float sp_add(float a, float b) { return a + b; }
+SP_FN float sp_sub(float a, float b) { return a - b; }
+SP_FN float sp_mul(float a, float b) { return a * b; }
+SP_FN float sp_sqrt(float a) { return std::sqrt(a); }
+SP_FN float sp_max(float a, float b) { return std::fmax(a, b); }
+SP_FN float sp_min(float a, float b) { return std::fmin(a, b); }
+SP_FN float sp_abs(float a) { return std::fabs(a); }
+SP_FN float sp_i2f(long long a) { return (float)a; }
+SP_FN float sp_u2f(unsigned a) { return (float)a; }
+SP_FN unsigned long long sp_mulhi(unsigned long long a, unsigned long long b) {
+    return (unsigned long long)(((unsigned __int128)a * b) >> 64);
+}
+SP_FN float sp_bits(unsigned u) {
+    float f;
+    std::memcpy(&f, &u, 4);
+    return f;
+}
+#endif
+
+typedef unsigned long long sp_u64;
+
+// A 128-bit number, low and high words.
+struct SpU128 {
+    sp_u64 lo, hi;
+};
+SP_FN SpU128 sp_mul128(SpU128 a, SpU128 b) { return {a.lo * b.lo, sp_mulhi(a.lo, b.lo) + a.lo * b.hi + a.hi * b.lo}; }
+SP_FN SpU128 sp_add128(SpU128 a, SpU128 b) {
+    sp_u64 lo = a.lo + b.lo;
+    return {lo, a.hi + b.hi + (lo < a.lo ? 1ull : 0ull)};
+}
+
+// PCG 128/64 (XSL RR): the state and the increment of rand_pcg's Lcg128Xsl64.
+struct SpStream {
+    SpU128 state, inc;
+};
+SP_FN SpU128 sp_pcg_multiplier() { return {0x4385DF649FCCF645ull, 0x2360ED051FC65DA4ull}; }
+
+// Jump `delta` steps ahead: Brown, "Random number generation with arbitrary strides" (1994).
+SP_FN void sp_advance(SpStream& s, sp_u64 delta) {
+    SpU128 acc_mult = {1, 0}, acc_plus = {0, 0};
+    SpU128 cur_mult = sp_pcg_multiplier(), cur_plus = s.inc;
+    while (delta > 0) {
+        if (delta & 1) {
+            acc_mult = sp_mul128(acc_mult, cur_mult);
+            acc_plus = sp_add128(sp_mul128(acc_plus, cur_mult), cur_plus);
+        }
+        cur_plus = sp_mul128(sp_add128(cur_mult, {1, 0}), cur_plus);
+        cur_mult = sp_mul128(cur_mult, cur_mult);
+        delta >>= 1;
+    }
+    s.state = sp_add128(sp_mul128(acc_mult, s.state), acc_plus);
+}
+
+// Step, then the XSL RR output of the new state.
+SP_FN sp_u64 sp_next_u64(SpStream& s) {
+    s.state = sp_add128(sp_mul128(s.state, sp_pcg_multiplier()), s.inc);
+    unsigned rot = (unsigned)(s.state.hi >> 58);
+    sp_u64 xsl = s.state.hi ^ s.state.lo;
+    return rot == 0 ? xsl : (xsl >> rot) | (xsl << (64 - rot));
+}
+
+// rand 0.9's f32 in [0, 1): the top 24 of the low 32 bits, times 2^-24 (exact).
+SP_FN float sp_next_f32(SpStream& s) {
+    return sp_mul(sp_u2f((unsigned)sp_next_u64(s) >> 8), 1.0f / 16777216.0f);
+}
+
+// A recipe (the words SP_* of contract.cuh) as numbers.
+struct SpRecipe {
+    float origin[3], h;
+    long long first[3];
+    sp_u64 nx, ny;
+    int jitter;
+    SpStream rng;
+    unsigned shape;
+    float p[10];
+};
+
+SP_FN float sp_f32(const unsigned* w, int at) { return sp_bits(w[at]); }
+SP_FN sp_u64 sp_word64(const unsigned* w, int at) { return (sp_u64)w[at] | ((sp_u64)w[at + 1] << 32); }
+
+SP_FN SpRecipe sp_load(const unsigned* w) {
+    SpRecipe r;
+    for (int a = 0; a < 3; ++a) {
+        r.origin[a] = sp_f32(w, SP_ORIGIN + a);
+        r.first[a] = (long long)sp_word64(w, SP_FIRST + 2 * a);
+    }
+    r.h = sp_f32(w, SP_H);
+    r.nx = sp_word64(w, SP_NX);
+    r.ny = sp_word64(w, SP_NY);
+    r.jitter = (int)w[SP_JITTER];
+    r.rng.state = {sp_word64(w, SP_STATE), sp_word64(w, SP_STATE + 2)};
+    r.rng.inc = {sp_word64(w, SP_INC), sp_word64(w, SP_INC + 2)};
+    r.shape = w[SP_SHAPE];
+    for (int a = 0; a < 10; ++a) r.p[a] = sp_f32(w, SP_PARAMS + a);
+    return r;
+}
+
+// glam's Vec3::dot: (a.x b.x + a.y b.y) + a.z b.z.
+SP_FN float sp_dot(const float* a, const float* b) {
+    return sp_add(sp_add(sp_mul(a[0], b[0]), sp_mul(a[1], b[1])), sp_mul(a[2], b[2]));
+}
+
+// |x - c|^2 of a sphere's test (glam's length_squared).
+SP_FN float sp_sphere_d2(const float* c, const float* x) {
+    float d[3] = {sp_sub(x[0], c[0]), sp_sub(x[1], c[1]), sp_sub(x[2], c[2])};
+    return sp_dot(d, d);
+}
+
+// rtmpm-core/src/boundary/sdf.rs, cylinder_distance: centre c[0..3], unit axis c[3..6], radius
+// c[6], half height c[7].
+SP_FN float sp_cylinder_distance(const float* c, const float* x) {
+    float q[3] = {sp_sub(x[0], c[0]), sp_sub(x[1], c[1]), sp_sub(x[2], c[2])};
+    float h = sp_dot(q, c + 3);
+    float s[3] = {sp_sub(q[0], sp_mul(h, c[3])), sp_sub(q[1], sp_mul(h, c[4])), sp_sub(q[2], sp_mul(h, c[5]))};
+    float dr = sp_sub(sp_sqrt(sp_dot(s, s)), c[6]);
+    float dh = sp_sub(sp_abs(h), c[7]);
+    float ox = sp_max(dr, 0.0f), oy = sp_max(dh, 0.0f);
+    return sp_add(sp_sqrt(sp_add(sp_mul(ox, ox), sp_mul(oy, oy))), sp_min(sp_max(dr, dh), 0.0f));
+}
+
+// BodyShape::contains (rtmpm-core/src/scene/sampling.rs): a box or sphere includes its surface;
+// a cylinder keeps cylinder_distance <= 0.
+SP_FN bool sp_inside(const SpRecipe& R, const float* x) {
+    const float* p = R.p;
+    if (R.shape == SAMPLE_BOX) {
+        return x[0] >= p[0] && x[1] >= p[1] && x[2] >= p[2] && x[0] <= p[3] && x[1] <= p[4] && x[2] <= p[5];
+    }
+    if (R.shape == SAMPLE_SPHERE) return sp_sphere_d2(p, x) <= sp_mul(p[3], p[3]);
+    return sp_cylinder_distance(p, x) <= 0.0f;
+}
+
+// The points of row r inside the shape, in order: emit(x) for each.
+template <class Emit>
+SP_FN void sp_row(const SpRecipe& R, sp_u64 r, Emit emit) {
+    long long k = R.first[2] + (long long)(r / R.ny);
+    long long j = R.first[1] + (long long)(r % R.ny);
+    SpStream rng = R.rng;
+    if (R.jitter) sp_advance(rng, 3ull * r * R.nx);
+    float yk[2] = {sp_add(R.origin[1], sp_mul(sp_add(sp_i2f(j), 0.5f), R.h)),
+                   sp_add(R.origin[2], sp_mul(sp_add(sp_i2f(k), 0.5f), R.h))};
+    for (sp_u64 m = 0; m < R.nx; ++m) {
+        long long i = R.first[0] + (long long)m;
+        float x[3] = {sp_add(R.origin[0], sp_mul(sp_add(sp_i2f(i), 0.5f), R.h)), yk[0], yk[1]};
+        if (R.jitter) {
+            float u[3];
+            for (int a = 0; a < 3; ++a) u[a] = sp_sub(sp_next_f32(rng), 0.5f);
+            for (int a = 0; a < 3; ++a) x[a] = sp_add(x[a], sp_mul(u[a], R.h));
+        }
+        if (sp_inside(R, x)) emit(x);
+    }
+}
