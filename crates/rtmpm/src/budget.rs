@@ -28,18 +28,22 @@ pub fn enforce(scene: &Scene, frames: Option<u64>, out: Option<&Path>) -> Result
     enforce_for(scene, frames, out, None)
 }
 
-/// [`enforce`]; `cuda_lean`: `Some(device_fill)` when the host's memory is that of a CUDA run
+/// [`enforce`]; `cuda_lean`: the CUDA options when the host's memory is that of a CUDA run
 /// built from the sampled positions ([`Budget::for_cuda_host`]: its state filled on the device,
-/// or packed on the host), not a CPU run's.
+/// or packed on the host; with the device fill and `sample=device`, nothing for the bodies the
+/// device draws), not a CPU run's.
 pub fn enforce_for(
     scene: &Scene,
     frames: Option<u64>,
     out: Option<&Path>,
-    cuda_lean: Option<bool>,
+    cuda_lean: Option<&rtmpm_cuda::CudaOptions>,
 ) -> Result<Budget> {
     let mut budget = Budget::estimate(scene, frames);
-    if let Some(device_fill) = cuda_lean {
-        budget = budget.for_cuda_host(scene.precision, device_fill);
+    if let Some(o) = cuda_lean {
+        budget = budget.for_cuda_host(scene.precision, o.device_fill);
+        if o.device_fill && o.device_sample {
+            budget = budget.with_drawn_bodies(scene);
+        }
     }
     for w in budget.warnings() {
         eprintln!("warning: {w}");

@@ -138,7 +138,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         &scene,
         args.frames,
         writes_frames.then_some(out_dir.as_path()),
-        (from_bodies && args.backend == BackendKind::Cuda).then_some(args.cuda_options.device_fill),
+        (from_bodies && args.backend == BackendKind::Cuda).then_some(&args.cuda_options),
     )?;
     // The output folder: locked for this run, and holding no other run's files.
     let identity = scene_identity(&scene.name, &scene_text);

@@ -250,6 +250,22 @@ impl Budget {
         self
     }
 
+    /// [`Budget::for_cuda_host`] with the device fill when the device also draws the bodies it
+    /// can ([`super::deferred::can_defer`]): the host holds none of their particles.
+    pub fn with_drawn_bodies(mut self, scene: &super::Scene) -> Budget {
+        let drawn: u64 = self
+            .body_particles
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| super::deferred::can_defer(scene, *i))
+            .map(|(_, n)| *n)
+            .sum();
+        self.host_bytes = self
+            .host_bytes
+            .saturating_sub(drawn.saturating_mul(self.host_bytes_per_particle));
+        self
+    }
+
     /// What cannot fit: more host memory than `host_available`, more output than
     /// `disk_available` (both when known; `output` false for a run without frame files), or
     /// absurd step and frame counts.
@@ -467,6 +483,25 @@ mod tests {
                     .is_empty()
             );
         }
+    }
+
+    /// Bodies the device draws cost the host nothing a particle; a spinning one (drawn on the
+    /// host: its centroid) keeps its positions' bytes.
+    #[test]
+    fn bodies_drawn_on_the_device_cost_the_host_nothing() {
+        let s = scene("fps = 10", 2, 0.12);
+        let b = Budget::estimate(&s, None).for_cuda_host(Precision::F32, true);
+        assert!(b.host_bytes > 0);
+        let drawn = b.clone().with_drawn_bodies(&s);
+        assert_eq!(drawn.host_bytes, 0, "both spheres drawn");
+        let mut spin = s.clone();
+        spin.bodies[1].angular_velocity = crate::math::Vec3::Y;
+        let b = Budget::estimate(&spin, None).for_cuda_host(Precision::F32, true);
+        let kept = b.clone().with_drawn_bodies(&spin);
+        assert_eq!(
+            kept.host_bytes,
+            b.body_particles[1] * HOST_BYTES_PER_PARTICLE_CUDA_FILL
+        );
     }
 
     #[test]
