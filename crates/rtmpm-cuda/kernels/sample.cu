@@ -1,5 +1,6 @@
 // Deferred bodies drawn on the device (host side: src/sample.rs; the walk: sample.cuh). Two
-// passes over the rows of a body's lattice, one thread a row: `sample_count` counts each row's
+// passes over the rows of a body's walk (lattice rows, or SAMPLE_TRIES_PER_ROW random tries),
+// one thread a row (`sdf`: a mesh body's distances, else unused): `sample_count` counts each row's
 // points, the host sums the counts into each row's first particle, and `sample_write` writes the
 // positions of one piece of the body (particles lo .. lo + len) as 3 f32 each, which `fill_body`
 // (fill.cu) then turns into particles.
@@ -7,9 +8,9 @@
 #include "sample.cuh"
 
 // counts[t] = the points of row row0 + t inside the shape, for t < nrows.
-extern "C" __global__ void sample_count(const unsigned* __restrict__ recipe, unsigned long long row0, unsigned nrows,
-                                        unsigned long long* __restrict__ counts) {
-    const SpRecipe R = sp_load(recipe);
+extern "C" __global__ void sample_count(const unsigned* __restrict__ recipe, const float* __restrict__ sdf,
+                                        unsigned long long row0, unsigned nrows, unsigned long long* __restrict__ counts) {
+    const SpRecipe R = sp_load(recipe, sdf);
     for (unsigned t = blockIdx.x * blockDim.x + threadIdx.x; t < nrows; t += gridDim.x * blockDim.x) {
         unsigned long long n = 0;
         sp_row(R, row0 + t, [&](const float*) { ++n; });
@@ -19,10 +20,11 @@ extern "C" __global__ void sample_count(const unsigned* __restrict__ recipe, uns
 
 // The points of rows row0 .. row0 + nrows whose particle index (offsets[t]: the first of row
 // row0 + t, then one more per point) is in lo .. lo + len, into xs[3 (index - lo) ..].
-extern "C" __global__ void sample_write(const unsigned* __restrict__ recipe, unsigned long long row0, unsigned nrows,
+extern "C" __global__ void sample_write(const unsigned* __restrict__ recipe, const float* __restrict__ sdf,
+                                        unsigned long long row0, unsigned nrows,
                                         const unsigned long long* __restrict__ offsets, unsigned long long lo,
                                         unsigned len, float* __restrict__ xs) {
-    const SpRecipe R = sp_load(recipe);
+    const SpRecipe R = sp_load(recipe, sdf);
     const unsigned long long hi = lo + len;
     for (unsigned t = blockIdx.x * blockDim.x + threadIdx.x; t < nrows; t += gridDim.x * blockDim.x) {
         unsigned long long at = offsets[t];

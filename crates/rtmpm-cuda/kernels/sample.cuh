@@ -23,6 +23,9 @@ SP_FN float sp_i2f(long long a) { float r; asm("cvt.rn.f32.s64 %0, %1;" : "=f"(r
 SP_FN float sp_u2f(unsigned a) { float r; asm("cvt.rn.f32.u32 %0, %1;" : "=f"(r) : "r"(a)); return r; }
 SP_FN unsigned long long sp_mulhi(unsigned long long a, unsigned long long b) { return __umul64hi(a, b); }
 SP_FN float sp_bits(unsigned u) { return __uint_as_float(u); }
+SP_FN float sp_div(float a, float b) { float r; asm("div.rn.f32 %0, %1, %2;" : "=f"(r) : "f"(a), "f"(b)); return r; }
+SP_FN unsigned sp_u32_of(float f) { return __float_as_uint(f); }
+SP_FN float sp_floor(float a) { float r; asm("cvt.rmi.f32.f32 %0, %1;" : "=f"(r) : "f"(a)); return r; }
 #else
 // The CPU twin: compile with -ffp-contract=off (and without -ffast-math).
 #include <cmath>
@@ -45,6 +48,13 @@ SP_FN float sp_bits(unsigned u) {
     std::memcpy(&f, &u, 4);
     return f;
 }
+SP_FN float sp_div(float a, float b) { return a / b; }
+SP_FN unsigned sp_u32_of(float f) {
+    unsigned u;
+    std::memcpy(&u, &f, 4);
+    return u;
+}
+SP_FN float sp_floor(float a) { return std::floor(a); }
 #endif
 
 typedef unsigned long long sp_u64;
@@ -103,13 +113,22 @@ struct SpRecipe {
     SpStream rng;
     unsigned shape;
     float p[10];
+    unsigned kind;
+    float hi[3];
+    sp_u64 tries;
+    // A mesh's distances (x fastest), else null.
+    const float* sdf;
 };
 
 SP_FN float sp_f32(const unsigned* w, int at) { return sp_bits(w[at]); }
 SP_FN sp_u64 sp_word64(const unsigned* w, int at) { return (sp_u64)w[at] | ((sp_u64)w[at + 1] << 32); }
 
-SP_FN SpRecipe sp_load(const unsigned* w) {
+SP_FN SpRecipe sp_load(const unsigned* w, const float* sdf) {
     SpRecipe r;
+    r.sdf = sdf;
+    r.kind = w[SP_KIND];
+    for (int a = 0; a < 3; ++a) r.hi[a] = sp_f32(w, SP_HI + a);
+    r.tries = sp_word64(w, SP_TRIES);
     for (int a = 0; a < 3; ++a) {
         r.origin[a] = sp_f32(w, SP_ORIGIN + a);
         r.first[a] = (long long)sp_word64(w, SP_FIRST + 2 * a);
@@ -148,20 +167,80 @@ SP_FN float sp_cylinder_distance(const float* c, const float* x) {
     return sp_add(sp_sqrt(sp_add(sp_mul(ox, ox), sp_mul(oy, oy))), sp_min(sp_max(dr, dh), 0.0f));
 }
 
+// rtmpm-core/src/boundary/mesh.rs, MeshSdf::distance: trilinear in the grid (origin g[0..3],
+// spacing g[3], dims d), outside it the distance to the grid box plus the nearest value.
+SP_FN float sp_mesh_distance(const float* g, const unsigned* d, const float* values, const float* x) {
+    float clamped[3], off[3], base_f[3], frac[3];
+    unsigned base[3];
+    for (int a = 0; a < 3; ++a) {
+        float gmax = sp_add(g[a], sp_mul(sp_u2f(d[a] - 1), g[3]));
+        clamped[a] = sp_min(sp_max(x[a], g[a]), gmax);
+        off[a] = sp_sub(x[a], clamped[a]);
+    }
+    float outside = sp_sqrt(sp_dot(off, off));
+    for (int a = 0; a < 3; ++a) {
+        float ga = sp_div(sp_sub(clamped[a], g[a]), g[3]);
+        if (d[a] < 2) {
+            base[a] = 0;
+            frac[a] = 0.0f;
+            continue;
+        }
+        float fl = sp_max(sp_floor(ga), 0.0f);
+        unsigned b = (unsigned)fl;
+        base[a] = b < d[a] - 2 ? b : d[a] - 2;
+        base_f[a] = sp_u2f(base[a]);
+        float f = sp_sub(ga, base_f[a]);
+        frac[a] = f < 0.0f ? 0.0f : (f > 1.0f ? 1.0f : f);
+    }
+    float v = 0.0f;
+    for (int corner = 0; corner < 8; ++corner) {
+        unsigned ix[3];
+        float w = 1.0f;
+        for (int a = 0; a < 3; ++a) {
+            unsigned o = (corner >> a) & 1;
+            ix[a] = base[a] + o < d[a] - 1 ? base[a] + o : d[a] - 1;
+            w = sp_mul(w, o ? frac[a] : sp_sub(1.0f, frac[a]));
+        }
+        if (w != 0.0f) v = sp_add(v, sp_mul(w, values[ix[0] + (sp_u64)d[0] * (ix[1] + (sp_u64)d[1] * ix[2])]));
+    }
+    return sp_add(v, outside);
+}
+
 // BodyShape::contains (rtmpm-core/src/scene/sampling.rs): a box or sphere includes its surface;
-// a cylinder keeps cylinder_distance <= 0.
+// a cylinder keeps cylinder_distance <= 0, a mesh its signed distance < 0.
 SP_FN bool sp_inside(const SpRecipe& R, const float* x) {
     const float* p = R.p;
     if (R.shape == SAMPLE_BOX) {
         return x[0] >= p[0] && x[1] >= p[1] && x[2] >= p[2] && x[0] <= p[3] && x[1] <= p[4] && x[2] <= p[5];
     }
     if (R.shape == SAMPLE_SPHERE) return sp_sphere_d2(p, x) <= sp_mul(p[3], p[3]);
+    if (R.shape == SAMPLE_MESH) {
+        unsigned d[3];
+        for (int a = 0; a < 3; ++a) d[a] = sp_u32_of(p[4 + a]);
+        return sp_mesh_distance(p, d, R.sdf, x) < 0.0f;
+    }
     return sp_cylinder_distance(p, x) <= 0.0f;
 }
 
-// The points of row r inside the shape, in order: emit(x) for each.
+// The points of row r inside the shape, in order: emit(x) for each. Random tries
+// (rtmpm-core/src/scene/walk.rs, `RandomTries`): try t draws u (three f32 from 3 t draws in) and
+// tries x = lo + u (hi - lo).
 template <class Emit>
 SP_FN void sp_row(const SpRecipe& R, sp_u64 r, Emit emit) {
+    if (R.kind == SAMPLE_RANDOM) {
+        sp_u64 t0 = r * SAMPLE_TRIES_PER_ROW;
+        sp_u64 t1 = t0 + SAMPLE_TRIES_PER_ROW < R.tries ? t0 + SAMPLE_TRIES_PER_ROW : R.tries;
+        SpStream rng = R.rng;
+        sp_advance(rng, 3ull * t0);
+        float ext[3] = {sp_sub(R.hi[0], R.origin[0]), sp_sub(R.hi[1], R.origin[1]), sp_sub(R.hi[2], R.origin[2])};
+        for (sp_u64 t = t0; t < t1; ++t) {
+            float x[3];
+            for (int a = 0; a < 3; ++a) x[a] = sp_next_f32(rng);
+            for (int a = 0; a < 3; ++a) x[a] = sp_add(R.origin[a], sp_mul(x[a], ext[a]));
+            if (sp_inside(R, x)) emit(x);
+        }
+        return;
+    }
     long long k = R.first[2] + (long long)(r / R.ny);
     long long j = R.first[1] + (long long)(r % R.ny);
     SpStream rng = R.rng;

@@ -115,8 +115,8 @@ pub struct CudaOptions {
     /// of the host packing the whole state image and uploading it (`fill=host`, kept for
     /// comparison). The state is the same word for word.
     pub device_fill: bool,
-    /// With the device fill: boxes, spheres and cylinders sampled `regular` or `jittered` with a
-    /// uniform velocity are only counted on the host and their positions drawn on the device
+    /// With the device fill: bodies of shapes (box, sphere, cylinder, mesh; regular, jittered
+    /// or random) are only counted on the host and their positions drawn on the device
     /// (`crate::sample`; the same positions bit for bit), so the host holds no memory per
     /// particle of theirs; `sample=host` walks and uploads them as before (for comparison).
     pub device_sample: bool,

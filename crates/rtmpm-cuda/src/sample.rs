@@ -1,7 +1,8 @@
 //! Deferred bodies drawn on the device (issue 19, "start fast"; `kernels/sample.cu`): the host
 //! counted such a body's particles and kept none ([`rtmpm_core::scene::deferred`]); here the GPU
-//! walks the body's lattice row by row, one thread a row, and draws the positions the host's walk
-//! finds, bit for bit and in order (`kernels/sample.cuh`). `sample_count` counts each row's
+//! walks the body's lattice row by row (or its random tries, [`SAMPLE_TRIES_PER_ROW`] a row), one
+//! thread a row, and draws the positions the host's walk finds, bit for bit and in order
+//! (`kernels/sample.cuh`). `sample_count` counts each row's
 //! points, the host sums them into each row's first particle (and checks the total against its
 //! own count), and `sample_write` writes the positions of one piece of the body, which the device
 //! fill ([`crate::fill`]) turns into particles. The host then needs no memory per particle.
@@ -10,7 +11,7 @@ use crate::backend::err;
 use crate::contract::*;
 use crate::kernels::{Kernel, Kernels};
 use cudarc::driver::{CudaSlice, CudaStream, PushKernelArg};
-use rtmpm_core::scene::deferred::DeferredBody;
+use rtmpm_core::scene::deferred::{DeferredBody, DeferredWalk};
 use rtmpm_core::scene::sampling::{BodyShape, SampledBody};
 use rtmpm_core::sim::SimError;
 use std::sync::Arc;
@@ -18,37 +19,49 @@ use std::sync::Arc;
 /// Rows counted or drawn by one launch (at most).
 const ROW_BATCH: u64 = 1 << 20;
 
-/// The recipe of `d`'s walk as device words (layout `SP_*` in [`crate::contract`]); `None` for
-/// a shape the device does not draw.
-pub fn recipe(d: &DeferredBody) -> Option<Vec<u32>> {
+/// The recipe of `d`'s walk as device words (layout `SP_*` in [`crate::contract`]) and, for a
+/// mesh, its distance grid's values; `None` for a shape the device does not draw.
+pub fn recipe(d: &DeferredBody) -> Option<(Vec<u32>, Vec<f32>)> {
     let mut w = vec![0u32; SAMPLE_WORDS];
-    let l = &d.lattice;
-    for a in 0..3 {
-        w[SP_ORIGIN + a] = l.origin[a].to_bits();
-        w[SP_FIRST + 2 * a] = l.first[a] as u64 as u32;
-        w[SP_FIRST + 2 * a + 1] = ((l.first[a] as u64) >> 32) as u32;
-    }
-    w[SP_H] = l.h.to_bits();
     let put64 = |w: &mut [u32], at: usize, v: u64| {
         w[at] = v as u32;
         w[at + 1] = (v >> 32) as u32;
     };
-    put64(&mut w, SP_NX, l.count[0]);
-    put64(&mut w, SP_NY, l.count[1]);
-    w[SP_JITTER] = l.jitter as u32;
+    match &d.walk {
+        DeferredWalk::Lattice(l) => {
+            w[SP_KIND] = SAMPLE_LATTICE;
+            for a in 0..3 {
+                w[SP_ORIGIN + a] = l.origin[a].to_bits();
+                put64(&mut w, SP_FIRST + 2 * a, l.first[a] as u64);
+            }
+            w[SP_H] = l.h.to_bits();
+            put64(&mut w, SP_NX, l.count[0]);
+            put64(&mut w, SP_NY, l.count[1]);
+            w[SP_JITTER] = l.jitter as u32;
+        }
+        DeferredWalk::Random(r) => {
+            w[SP_KIND] = SAMPLE_RANDOM;
+            for a in 0..3 {
+                w[SP_ORIGIN + a] = r.lo[a].to_bits();
+                w[SP_HI + a] = r.hi[a].to_bits();
+            }
+            put64(&mut w, SP_TRIES, r.tries);
+        }
+    }
     let s = d.stream();
     for (at, v) in [(SP_STATE, s.state), (SP_INC, s.increment)] {
         put64(&mut w, at, v as u64);
         put64(&mut w, at + 2, (v >> 64) as u64);
     }
-    let (code, params): (u32, Vec<f32>) = match &d.shape {
+    let mut sdf = Vec::new();
+    let (code, params): (u32, Vec<u32>) = match &d.shape {
         BodyShape::Box { min, max } => (
             SAMPLE_BOX,
-            min.to_array().into_iter().chain(max.to_array()).collect(),
+            bits(min.to_array().into_iter().chain(max.to_array())),
         ),
         BodyShape::Sphere { center, radius } => (
             SAMPLE_SPHERE,
-            center.to_array().into_iter().chain([*radius]).collect(),
+            bits(center.to_array().into_iter().chain([*radius])),
         ),
         BodyShape::Cylinder {
             center,
@@ -57,20 +70,38 @@ pub fn recipe(d: &DeferredBody) -> Option<Vec<u32>> {
             half_height,
         } => (
             SAMPLE_CYLINDER,
-            center
-                .to_array()
-                .into_iter()
-                .chain(axis.to_array())
-                .chain([*radius, *half_height])
-                .collect(),
+            bits(
+                center
+                    .to_array()
+                    .into_iter()
+                    .chain(axis.to_array())
+                    .chain([*radius, *half_height]),
+            ),
         ),
-        _ => return None,
+        BodyShape::Mesh(m) => {
+            sdf = m.values.clone();
+            let mut p = bits(m.origin.to_array().into_iter().chain([m.spacing]));
+            p.extend(m.dims);
+            (SAMPLE_MESH, p)
+        }
+        BodyShape::Particles { .. } => return None,
     };
     w[SP_SHAPE] = code;
-    for (k, p) in params.into_iter().enumerate() {
-        w[SP_PARAMS + k] = p.to_bits();
+    w[SP_PARAMS..SP_PARAMS + params.len()].copy_from_slice(&params);
+    Some((w, sdf))
+}
+
+fn bits(v: impl Iterator<Item = f32>) -> Vec<u32> {
+    v.map(f32::to_bits).collect()
+}
+
+/// Rows of `d`'s walk on the device: the lattice's rows, or its random tries in rows of
+/// [`SAMPLE_TRIES_PER_ROW`].
+pub fn rows(d: &DeferredBody) -> u64 {
+    match &d.walk {
+        DeferredWalk::Lattice(l) => l.rows_count(),
+        DeferredWalk::Random(r) => r.tries.div_ceil(SAMPLE_TRIES_PER_ROW),
     }
-    Some(w)
 }
 
 /// `bodies` with every deferred body walked on the host (for the paths that need positions: the
@@ -90,6 +121,7 @@ pub fn walked(bodies: &[SampledBody]) -> Vec<SampledBody> {
 /// row (`rows + 1` entries, the last the body's count).
 pub(crate) struct Counted {
     recipe: CudaSlice<u32>,
+    sdf: CudaSlice<f32>,
     offsets: Vec<u64>,
 }
 
@@ -109,7 +141,7 @@ pub(crate) fn count(
     d: &DeferredBody,
     index: usize,
 ) -> Result<Counted, SimError> {
-    let words = recipe(d).ok_or_else(|| {
+    let (words, mut sdf) = recipe(d).ok_or_else(|| {
         SimError::Backend(format!(
             "body {index}: its shape cannot be drawn on the GPU (internal)"
         ))
@@ -117,7 +149,13 @@ pub(crate) fn count(
     let recipe = stream
         .clone_htod(&words)
         .map_err(err("upload a body's recipe"))?;
-    let rows = d.lattice.rows_count();
+    if sdf.is_empty() {
+        sdf.push(0.0);
+    }
+    let sdf = stream
+        .clone_htod(&sdf)
+        .map_err(err("upload a mesh body's distances"))?;
+    let rows = rows(d);
     let mut offsets = Vec::with_capacity(rows as usize + 1);
     offsets.push(0u64);
     let mut counts = stream
@@ -126,11 +164,13 @@ pub(crate) fn count(
     let mut row0 = 0u64;
     while row0 < rows {
         let n = ROW_BATCH.min(rows - row0) as u32;
-        // SAFETY: the kernel reads the recipe (SAMPLE_WORDS words) and writes counts[0..n].
+        // SAFETY: the kernel reads the recipe (SAMPLE_WORDS words), the mesh's distances (its
+        // dims' product, a mesh only) and writes counts[0..n].
         unsafe {
             stream
                 .launch_builder(&kernels[Kernel::SampleCount])
                 .arg(&recipe)
+                .arg(&sdf)
                 .arg(&row0)
                 .arg(&n)
                 .arg(&mut counts)
@@ -147,14 +187,18 @@ pub(crate) fn count(
         row0 += n as u64;
     }
     let drawn = *offsets.last().unwrap_or(&0);
-    if drawn != d.shared.count as u64 {
+    if drawn != d.accepted {
         return Err(SimError::Backend(format!(
-            "body {index}: the GPU's walk finds {drawn} particles where the host counted {}; \
+            "body {index}: the GPU's walk finds {drawn} particles where the host's found {}; \
              sample it on the host with --cuda-options sample=host (and report this)",
-            d.shared.count
+            d.accepted
         )));
     }
-    Ok(Counted { recipe, offsets })
+    Ok(Counted {
+        recipe,
+        sdf,
+        offsets,
+    })
 }
 
 /// Draw particles `lo .. lo + len` of a counted body into `out` (3 f32 each); `scratch` holds
@@ -193,6 +237,7 @@ pub(crate) fn draw(
             stream
                 .launch_builder(&kernels[Kernel::SampleWrite])
                 .arg(&c.recipe)
+                .arg(&c.sdf)
                 .arg(&row0)
                 .arg(&n32)
                 .arg(&*dev)

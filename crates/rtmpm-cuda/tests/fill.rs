@@ -195,9 +195,13 @@ sampling = "random"
 angular_velocity = [0.0, 3.0, -1.0]
 "#;
 
-/// A sand cylinder on a slant, jittered, moving (drawn on the device by default), and a jelly
-/// sphere whose surface passes through lattice points (regular).
-const DRAWN: &str = r#"
+/// Bodies drawn on the device by default: a sand cylinder on a slant, jittered, moving; a jelly
+/// sphere whose surface passes through lattice points (regular); a water mesh body, random and
+/// spinning.
+fn drawn() -> String {
+    let mesh = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/meshes/blob.obj");
+    format!(
+        r#"
 [[body]]
 material = "sand"
 shape = "cylinder"
@@ -215,7 +219,19 @@ center = [0.7109375, 0.7109375, 0.7109375]
 radius = 0.15625
 particles_per_cell = 8
 sampling = "regular"
-"#;
+[[body]]
+material = "water"
+shape = "mesh"
+file = "{}"
+scale = 0.12
+translate = [0.75, 0.3, 0.3]
+particles_per_cell = 8
+sampling = "random"
+angular_velocity = [0.0, 4.0, 0.0]
+"#,
+        mesh.display()
+    )
+}
 
 /// Two bodies of two materials, each with its velocity and spin.
 const TWO_BODIES: &str = r#"
@@ -318,7 +334,7 @@ fn the_test_scenes_are_valid() {
         SPHERE.to_string(),
         CYLINDER.to_string(),
         TWO_BODIES.to_string(),
-        DRAWN.to_string(),
+        drawn(),
     ]
     .map(|b| format!("{HEAD}{b}"));
     let points = points_scene(&dir);
@@ -367,14 +383,15 @@ fn device_fill_equals_host_pack_jittered_sphere_and_random_cylinder() {
     check("random cylinder", &format!("{HEAD}{CYLINDER}"));
 }
 
-/// Bodies drawn on the device (a slanted jittered cylinder, a sphere through lattice points).
+/// Bodies drawn on the device (a slanted jittered cylinder, a sphere through lattice points, a
+/// random spinning mesh body).
 #[test]
 #[ignore = "needs a CUDA GPU"]
 fn bodies_drawn_on_the_device_equal_the_host_s() {
     if !gpu() {
         return;
     }
-    let scene = scene_in(&format!("{HEAD}{DRAWN}"), "f32", &std::env::temp_dir());
+    let scene = scene_in(&format!("{HEAD}{}", drawn()), "f32", &std::env::temp_dir());
     let deferred = sample_bodies_deferred(&scene, &|_| {}).expect("sample");
     assert!(
         deferred
@@ -382,7 +399,7 @@ fn bodies_drawn_on_the_device_equal_the_host_s() {
             .all(|b| matches!(b, SampledBody::Deferred(_))),
         "both drawn"
     );
-    check("drawn bodies", &format!("{HEAD}{DRAWN}"));
+    check("drawn bodies", &format!("{HEAD}{}", drawn()));
 }
 
 #[test]

@@ -485,22 +485,37 @@ mod tests {
         }
     }
 
-    /// Bodies the device draws cost the host nothing a particle; a spinning one (drawn on the
-    /// host: its centroid) keeps its positions' bytes.
+    /// Bodies the device draws cost the host nothing a particle (spinning ones too); a points
+    /// file's particles are read on the host and keep their bytes.
     #[test]
     fn bodies_drawn_on_the_device_cost_the_host_nothing() {
-        let s = scene("fps = 10", 2, 0.12);
+        let mut s = scene("fps = 10", 2, 0.12);
+        s.bodies[1].angular_velocity = crate::math::Vec3::Y;
         let b = Budget::estimate(&s, None).for_cuda_host(Precision::F32, true);
         assert!(b.host_bytes > 0);
-        let drawn = b.clone().with_drawn_bodies(&s);
-        assert_eq!(drawn.host_bytes, 0, "both spheres drawn");
-        let mut spin = s.clone();
-        spin.bodies[1].angular_velocity = crate::math::Vec3::Y;
-        let b = Budget::estimate(&spin, None).for_cuda_host(Precision::F32, true);
-        let kept = b.clone().with_drawn_bodies(&spin);
+        assert_eq!(b.clone().with_drawn_bodies(&s).host_bytes, 0, "both drawn");
+        // A points body (a binary PLY of 3 points) beside a sphere.
+        let dir = std::env::temp_dir().join(format!("rtmpm-budget-drawn-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut ply = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n\
+property float y\nproperty float z\nend_header\n"
+            .to_vec();
+        for k in 0..9 {
+            ply.extend((1.0f32 + 0.1 * k as f32).to_le_bytes());
+        }
+        std::fs::write(dir.join("p.ply"), ply).unwrap();
+        let text = "[domain]\nmin = [0, 0, 0]\nmax = [4, 4, 4]\ndx = 0.01\n[time]\nduration = 1\n\
+             fps = 10\n[[material]]\nname = \"w\"\ntype = \"fluid\"\ndensity = 1000\n\
+             bulk_modulus = 1e5\n[[body]]\nmaterial = \"w\"\nshape = \"sphere\"\n\
+             center = [0.5, 2, 2]\nradius = 0.12\n[[body]]\nmaterial = \"w\"\n\
+             shape = \"particles\"\nfile = \"p.ply\"\n";
+        let s = Scene::from_toml_in(text, "budget", &dir).unwrap();
+        let _ = std::fs::remove_dir_all(&dir);
+        let b = Budget::estimate(&s, None).for_cuda_host(Precision::F32, true);
+        assert_eq!(b.body_particles[1], 3);
         assert_eq!(
-            kept.host_bytes,
-            b.body_particles[1] * HOST_BYTES_PER_PARTICLE_CUDA_FILL
+            b.with_drawn_bodies(&s).host_bytes,
+            3 * HOST_BYTES_PER_PARTICLE_CUDA_FILL
         );
     }
 

@@ -18,8 +18,8 @@
 //! body's particles.
 
 pub use super::fill::{BodyPositions, SampledBody};
-pub use super::walk::Lattice;
 use super::walk::{self, Counter, Mode, Walked};
+pub use super::walk::{Lattice, RandomTries};
 use super::{Scene, SceneError, fill};
 use crate::Particles;
 use crate::boundary::mesh::MeshSdf;
@@ -271,14 +271,15 @@ pub(crate) fn walk_body(
             Mode::Keep => Walked {
                 chunks: vec![points.positions.clone()],
                 count: n,
+                ..Walked::default()
             },
             Mode::Count => Walked {
-                chunks: Vec::new(),
                 count: n,
+                ..Walked::default()
             },
             Mode::First => Walked {
-                chunks: Vec::new(),
                 count: n.min(1),
+                ..Walked::default()
             },
         };
         // Volumes differ per point (see `sample_points`); this is the default one.

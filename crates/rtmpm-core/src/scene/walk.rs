@@ -42,6 +42,10 @@ pub enum Mode {
 pub struct Walked {
     pub chunks: Vec<Vec<Vec3>>,
     pub count: u64,
+    /// Random walks: the tries made (in whole batches) and the points accepted among them (at
+    /// least `count`: the last batch may find more than it keeps).
+    pub tries: u64,
+    pub accepted: u64,
 }
 
 /// Work done so far by a walk (lattice points visited or random tries) and the work expected,
@@ -133,32 +137,25 @@ impl Lattice {
         self.count[1].saturating_mul(self.count[2])
     }
 
-    /// `f` of the positions of every chunk of rows (as [`Lattice::walk`] cuts them), in walk
-    /// order; each chunk's positions are dropped once `f` has seen them.
-    pub fn map_chunks<T: Send>(
-        &self,
-        shape: &BodyShape,
-        rng: &Pcg64,
-        f: impl Fn(&[Vec3]) -> T + Sync + Send,
-    ) -> Vec<T> {
+    /// Chunks of rows of the walk (as [`Lattice::walk`] cuts them).
+    pub fn chunk_count(&self) -> u64 {
         let nx = self.count[0];
-        let rows = self.rows_count();
-        if nx == 0 || rows == 0 {
-            return Vec::new();
+        if nx == 0 {
+            return 0;
         }
-        let per_chunk = (LATTICE_CHUNK / nx).max(1);
-        (0..rows.div_ceil(per_chunk))
-            .into_par_iter()
-            .map(|c| {
-                let mut v = Vec::new();
-                let range = c * per_chunk..((c + 1) * per_chunk).min(rows);
-                self.rows(shape, rng, range, |x| {
-                    v.push(x);
-                    true
-                });
-                f(&v)
-            })
-            .collect()
+        self.rows_count().div_ceil((LATTICE_CHUNK / nx).max(1))
+    }
+
+    /// The positions of chunk `c` of the walk, in order.
+    pub fn chunk(&self, shape: &BodyShape, rng: &Pcg64, c: u64) -> Vec<Vec3> {
+        let per_chunk = (LATTICE_CHUNK / self.count[0].max(1)).max(1);
+        let range = c * per_chunk..((c + 1) * per_chunk).min(self.rows_count());
+        let mut v = Vec::new();
+        self.rows(shape, rng, range, |x| {
+            v.push(x);
+            true
+        });
+        v
     }
 
     /// Walk the whole lattice in parallel chunks of rows.
@@ -188,7 +185,11 @@ impl Lattice {
                     })
                     .collect();
                 let count = chunks.iter().map(|c| c.len() as u64).sum();
-                Walked { chunks, count }
+                Walked {
+                    chunks,
+                    count,
+                    ..Walked::default()
+                }
             }
             Mode::Count => {
                 let count = (0..chunks)
@@ -204,8 +205,8 @@ impl Lattice {
                     })
                     .sum();
                 Walked {
-                    chunks: Vec::new(),
                     count,
+                    ..Walked::default()
                 }
             }
             Mode::First => {
@@ -219,11 +220,73 @@ impl Lattice {
                     found
                 });
                 Walked {
-                    chunks: Vec::new(),
                     count: any as u64,
+                    ..Walked::default()
                 }
             }
         }
+    }
+}
+
+/// The tries of a random walk that placed `count` points in `tries` tries ([`random`]): its
+/// positions again, in chunks of [`TRY_CHUNK`] tries, without the batches.
+#[derive(Clone, Copy, Debug)]
+pub struct RandomTries {
+    pub lo: Vec3,
+    pub hi: Vec3,
+    pub tries: u64,
+    pub count: u64,
+}
+
+impl RandomTries {
+    /// Chunks of [`TRY_CHUNK`] tries.
+    pub fn chunk_count(&self) -> u64 {
+        self.tries.div_ceil(TRY_CHUNK)
+    }
+
+    /// The accepted points of chunk `c`'s tries, in order (all of them, past `count` too).
+    fn tries_of(&self, shape: &BodyShape, rng: &Pcg64, c: u64, mut f: impl FnMut(Vec3)) {
+        let t0 = c * TRY_CHUNK;
+        let t1 = (t0 + TRY_CHUNK).min(self.tries);
+        let mut r = rng.clone();
+        r.advance(3 * t0 as u128);
+        for _ in t0..t1 {
+            let u = Vec3::new(r.random::<f32>(), r.random::<f32>(), r.random::<f32>());
+            let x = self.lo + u * (self.hi - self.lo);
+            if shape.contains(x) {
+                f(x);
+            }
+        }
+    }
+
+    /// The index of each chunk's first accepted point (`chunk_count + 1` entries).
+    pub fn starts(&self, shape: &BodyShape, rng: &Pcg64) -> Vec<u64> {
+        let counts: Vec<u64> = (0..self.chunk_count())
+            .into_par_iter()
+            .map(|c| {
+                let mut n = 0;
+                self.tries_of(shape, rng, c, |_| n += 1);
+                n
+            })
+            .collect();
+        let mut starts = vec![0u64];
+        for n in counts {
+            starts.push(starts[starts.len() - 1] + n);
+        }
+        starts
+    }
+
+    /// The positions of chunk `c` (its first point's index `start`, from [`RandomTries::starts`])
+    /// that are among the walk's `count`.
+    pub fn chunk(&self, shape: &BodyShape, rng: &Pcg64, c: u64, start: u64) -> Vec<Vec3> {
+        let mut v = Vec::new();
+        let keep = self.count.saturating_sub(start) as usize;
+        self.tries_of(shape, rng, c, |x| {
+            if v.len() < keep {
+                v.push(x)
+            }
+        });
+        v
     }
 }
 
@@ -281,6 +344,8 @@ pub fn random(
             })
             .collect();
         tries += batch;
+        out.tries = tries;
+        out.accepted += results.iter().map(|r| r.0).sum::<u64>();
         for (n, mut v) in results {
             let left = target - out.count;
             if n >= left {

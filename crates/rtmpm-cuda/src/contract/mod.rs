@@ -55,7 +55,7 @@ pub const FT_CONST: usize = 14;
 // as f32 bits, 64- and 128-bit integers low word first.
 
 /// Words of one recipe.
-pub const SAMPLE_WORDS: usize = SP_PARAMS + 10;
+pub const SAMPLE_WORDS: usize = SP_TRIES + 2;
 /// Origin of the lattice (3 f32): point (i, j, k) is `origin + (i + 1/2, j + 1/2, k + 1/2) h`.
 pub const SP_ORIGIN: usize = 0;
 /// Lattice spacing h (f32).
@@ -75,12 +75,25 @@ pub const SP_INC: usize = 19;
 /// The shape (`SAMPLE_BOX`, `SAMPLE_SPHERE`, `SAMPLE_CYLINDER`).
 pub const SP_SHAPE: usize = 23;
 /// The shape's parameters (f32): box min, max; sphere centre, radius; cylinder centre, unit
-/// axis, radius, half height.
+/// axis, radius, half height; mesh: its distance grid's origin, spacing and dims (3 u32; the
+/// values in a buffer of their own).
 pub const SP_PARAMS: usize = 24;
+/// The walk (`SAMPLE_LATTICE`, `SAMPLE_RANDOM`).
+pub const SP_KIND: usize = SP_PARAMS + 10;
+/// Random tries: the box's upper corner (3 f32; `SP_ORIGIN` is the lower).
+pub const SP_HI: usize = SP_KIND + 1;
+/// Random tries: the tries (u64).
+pub const SP_TRIES: usize = SP_HI + 3;
 /// Shape codes of a recipe.
 pub const SAMPLE_BOX: u32 = 0;
 pub const SAMPLE_SPHERE: u32 = 1;
 pub const SAMPLE_CYLINDER: u32 = 2;
+pub const SAMPLE_MESH: u32 = 3;
+/// Walk codes of a recipe.
+pub const SAMPLE_LATTICE: u32 = 0;
+pub const SAMPLE_RANDOM: u32 = 1;
+/// Random tries a device row (one thread) makes.
+pub const SAMPLE_TRIES_PER_ROW: u64 = 64;
 
 // ---------------------------------------------------------------------------------------------
 // Control words (u32, one array per GPU).
