@@ -25,6 +25,20 @@ SP_FN unsigned long long sp_mulhi(unsigned long long a, unsigned long long b) { 
 SP_FN float sp_bits(unsigned u) { return __uint_as_float(u); }
 SP_FN float sp_div(float a, float b) { float r; asm("div.rn.f32 %0, %1, %2;" : "=f"(r) : "f"(a), "f"(b)); return r; }
 SP_FN unsigned sp_u32_of(float f) { return __float_as_uint(f); }
+// Comparisons and the float-to-integer conversion without the flush to zero that fast math gives
+// them (a subnormal is compared as itself, as on the host).
+#define SP_CMP(name, op)                                                                              \
+    SP_FN bool name(float a, float b) {                                                               \
+        unsigned r;                                                                                   \
+        asm("{ .reg .pred p; setp." op ".f32 p, %1, %2; selp.u32 %0, 1, 0, p; }" : "=r"(r) : "f"(a), "f"(b)); \
+        return r != 0;                                                                                \
+    }
+SP_CMP(sp_lt, "lt")
+SP_CMP(sp_le, "le")
+SP_CMP(sp_gt, "gt")
+SP_CMP(sp_ge, "ge")
+SP_CMP(sp_ne, "neu")
+SP_FN unsigned sp_f2u(float a) { unsigned r; asm("cvt.rzi.u32.f32 %0, %1;" : "=r"(r) : "f"(a)); return r; }
 SP_FN float sp_floor(float a) { float r; asm("cvt.rmi.f32.f32 %0, %1;" : "=f"(r) : "f"(a)); return r; }
 #else
 // The CPU twin: compile with -ffp-contract=off (and without -ffast-math).
@@ -49,6 +63,12 @@ SP_FN float sp_bits(unsigned u) {
     return f;
 }
 SP_FN float sp_div(float a, float b) { return a / b; }
+SP_FN bool sp_lt(float a, float b) { return a < b; }
+SP_FN bool sp_le(float a, float b) { return a <= b; }
+SP_FN bool sp_gt(float a, float b) { return a > b; }
+SP_FN bool sp_ge(float a, float b) { return a >= b; }
+SP_FN bool sp_ne(float a, float b) { return a != b; }
+SP_FN unsigned sp_f2u(float a) { return (unsigned)a; }
 SP_FN unsigned sp_u32_of(float f) {
     unsigned u;
     std::memcpy(&u, &f, 4);
@@ -186,11 +206,11 @@ SP_FN float sp_mesh_distance(const float* g, const unsigned* d, const float* val
             continue;
         }
         float fl = sp_max(sp_floor(ga), 0.0f);
-        unsigned b = (unsigned)fl;
+        unsigned b = sp_f2u(fl);
         base[a] = b < d[a] - 2 ? b : d[a] - 2;
         base_f[a] = sp_u2f(base[a]);
         float f = sp_sub(ga, base_f[a]);
-        frac[a] = f < 0.0f ? 0.0f : (f > 1.0f ? 1.0f : f);
+        frac[a] = sp_lt(f, 0.0f) ? 0.0f : (sp_gt(f, 1.0f) ? 1.0f : f);
     }
     float v = 0.0f;
     for (int corner = 0; corner < 8; ++corner) {
@@ -201,7 +221,7 @@ SP_FN float sp_mesh_distance(const float* g, const unsigned* d, const float* val
             ix[a] = base[a] + o < d[a] - 1 ? base[a] + o : d[a] - 1;
             w = sp_mul(w, o ? frac[a] : sp_sub(1.0f, frac[a]));
         }
-        if (w != 0.0f) v = sp_add(v, sp_mul(w, values[ix[0] + (sp_u64)d[0] * (ix[1] + (sp_u64)d[1] * ix[2])]));
+        if (sp_ne(w, 0.0f)) v = sp_add(v, sp_mul(w, values[ix[0] + (sp_u64)d[0] * (ix[1] + (sp_u64)d[1] * ix[2])]));
     }
     return sp_add(v, outside);
 }
@@ -211,15 +231,16 @@ SP_FN float sp_mesh_distance(const float* g, const unsigned* d, const float* val
 SP_FN bool sp_inside(const SpRecipe& R, const float* x) {
     const float* p = R.p;
     if (R.shape == SAMPLE_BOX) {
-        return x[0] >= p[0] && x[1] >= p[1] && x[2] >= p[2] && x[0] <= p[3] && x[1] <= p[4] && x[2] <= p[5];
+        return sp_ge(x[0], p[0]) && sp_ge(x[1], p[1]) && sp_ge(x[2], p[2]) && sp_le(x[0], p[3]) &&
+               sp_le(x[1], p[4]) && sp_le(x[2], p[5]);
     }
-    if (R.shape == SAMPLE_SPHERE) return sp_sphere_d2(p, x) <= sp_mul(p[3], p[3]);
+    if (R.shape == SAMPLE_SPHERE) return sp_le(sp_sphere_d2(p, x), sp_mul(p[3], p[3]));
     if (R.shape == SAMPLE_MESH) {
         unsigned d[3];
         for (int a = 0; a < 3; ++a) d[a] = sp_u32_of(p[4 + a]);
-        return sp_mesh_distance(p, d, R.sdf, x) < 0.0f;
+        return sp_lt(sp_mesh_distance(p, d, R.sdf, x), 0.0f);
     }
-    return sp_cylinder_distance(p, x) <= 0.0f;
+    return sp_le(sp_cylinder_distance(p, x), 0.0f);
 }
 
 // The points of row r inside the shape, in order: emit(x) for each. Random tries

@@ -329,7 +329,7 @@ mod tests {
             return;
         }
         use crate::contract::StateLayout;
-        for (fast_math, f64, state64, layout) in [
+        let variants = [
             (true, false, false, StateLayout::Full),
             (false, false, false, StateLayout::Full),
             (true, true, false, StateLayout::Full),
@@ -341,7 +341,23 @@ mod tests {
             (true, false, false, StateLayout::Compact),
             (true, false, false, StateLayout::CompactFluid),
             (false, false, true, StateLayout::CompactFluid),
-        ] {
+        ];
+        // The variants compile on every core at once (NVRTC compiles separate programs in
+        // parallel): the longest test of CI.
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+        std::thread::scope(|scope| {
+            for part in variants.chunks(variants.len().div_ceil(threads)) {
+                scope.spawn(move || part.iter().for_each(|&v| check_variant(v)));
+            }
+        });
+    }
+
+    /// One variant of [`every_kernel_compiles_with_nvrtc_for_sm90`]: every kernel in its PTX,
+    /// the device fill and the device's walk of bodies rounded op by op, the constant symbols.
+    fn check_variant(
+        (fast_math, f64, state64, layout): (bool, bool, bool, crate::contract::StateLayout),
+    ) {
+        {
             let o = KernelOptions {
                 state64,
                 layout,
@@ -367,6 +383,22 @@ mod tests {
                 !fill.contains("fma") && !fill.contains(".ftz"),
                 "{o:?}: fill_body contracts or flushes"
             );
+            // So does the device's walk of deferred bodies (kernels/sample.cuh: the host's walk,
+            // bit for bit).
+            for k in ["sample_count", "sample_write"] {
+                // The entry's body: up to its closing brace (device functions may follow).
+                let body = ptx
+                    .split(&format!(".entry {k}("))
+                    .nth(1)
+                    .and_then(|s| s.split("\n}\n").next())
+                    .unwrap_or_default();
+                assert!(body.contains("mul.rn.f32"), "{o:?}: {k}");
+                let bad: Vec<&str> = body
+                    .lines()
+                    .filter(|l| l.contains("fma") || l.contains(".ftz"))
+                    .collect();
+                assert!(bad.is_empty(), "{o:?}: {k} contracts or flushes: {bad:?}");
+            }
             // Read-only parameters in constant memory, written by the host under these names.
             for sym in crate::backend::CONSTANT_SYMBOLS {
                 assert!(
