@@ -19,14 +19,20 @@ fn simulation(text: &str) -> Simulation<CpuBackend> {
     Simulation::<CpuBackend>::with_backend(scene, Box::new(backend))
 }
 
-/// Archimedes: boxes of density 250, 500 and 750 on water float with the submerged fraction of
-/// their height equal to the density ratio within 5 % (issue 17). Measured at dx = 0.02 m (the
-/// box is 5 cells high), its height averaged over 1.0 .. 1.5 s (it still bobs by a few mm):
-/// 0.258, 0.517, 0.777 (+3.2 %, +3.4 %, +3.6 %). The CPU backend is deterministic (any thread
-/// count), so the margin to the bound is not noise.
+/// Archimedes: boxes of density 500 and 750 on water float with the submerged fraction of their
+/// height equal to the density ratio within 5 % (issue 17). Measured at dx = 0.02 m (the box is 5
+/// cells high), its height averaged over 1.0 .. 1.5 s (it still bobs by a few mm), against the
+/// open water's surface: 0.494 and 0.753 (-1.1 %, +0.3 %; over four alignments of the water
+/// surface with the grid at most 2.5 % and 2.9 % off). The CPU backend is deterministic (any
+/// thread count), so the margin to the bound is not noise. The density-250 box is not checked
+/// here: its draft of 2.5 cm is 1.25 cells at this resolution, and a node-based boundary places
+/// the box to about 0.1 to 0.2 dx, so it floats 0.9 to 17.6 % off over those alignments (-6.9 % in
+/// this scene); `rtmpm validate` checks it, with the others, at dx / 4 (validation/RESULTS.md,
+/// "Rigid bodies and emitters"). Until 2026-11-26 this test also passed the 250 box, with a
+/// surface measure (the 98th percentile of all heights) that the walls' rim of water raised.
 #[test]
 fn boxes_float_with_the_submerged_fraction_of_archimedes() {
-    for density in [250.0, 500.0, 750.0] {
+    for density in [500.0, 750.0] {
         let text =
             checks::edit_toml(ARCHIMEDES, &[("rigid_body.0.density", density.into())]).unwrap();
         let f = checks::float(&mut simulation(&text), |_, _| {}).expect("stable");
