@@ -16,10 +16,13 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 BASE = os.path.join(HERE, "..", "..", "validation", "archimedes.toml")
 
 
-def variant(text, dx, r):
-    """The scene at grid spacing dx, water top and box raised by r * dx."""
+def variant(text, dx, r, duration=None):
+    """The scene at grid spacing dx, water top and box raised by r * dx (and run for `duration`
+    seconds instead of the scene's)."""
     lift = r * dx
     t = re.sub(r"(?m)^dx = .*$", f"dx = {dx}", text)
+    if duration:
+        t = re.sub(r"(?m)^duration = .*$", f"duration = {duration}", t)
     t = re.sub(r"(?m)^thickness = .*$", f"thickness = {round(0.06 / dx)}", t)
     # the water body: max = [x, y, z]; the rigid body: min and max.
     def raise_y(m, amount):
@@ -40,6 +43,7 @@ def main():
     ap.add_argument("--raises", default="0,0.25,0.5,0.75")
     ap.add_argument("--out", default="target/archimedes-alignment")
     ap.add_argument("--extra", default="", help="more arguments for rtmpm validate")
+    ap.add_argument("--duration", type=float, help="seconds simulated (the scene's: 1.5)")
     a = ap.parse_args()
     text = open(BASE).read()
     rows = []
@@ -48,7 +52,7 @@ def main():
             d = os.path.join(a.out, f"dx{dx}_r{r}")
             os.makedirs(d, exist_ok=True)
             with open(os.path.join(d, "archimedes.toml"), "w") as f:
-                f.write(variant(text, dx, r))
+                f.write(variant(text, dx, r, a.duration))
             cmd = [a.rtmpm, "validate", "--backend", a.backend, "--quick", "--case", "archimedes",
                    "--scenes", d, "--out", os.path.join(d, "out")] + a.extra.split()
             t0 = time.time()
