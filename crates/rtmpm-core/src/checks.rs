@@ -108,10 +108,10 @@ pub struct Floating {
 const AVERAGE_FRAMES: u64 = 10;
 
 /// Run `sim` to the end of its scene and measure how deep its first rigid body floats: its
-/// centre height averaged over the last 10 frames, the free surface away from it
-/// ([`free_surface`] of the particles more than 0.1 m in x or z from the body's bounds where it
-/// started) and the submerged fraction of its height in its initial orientation (a box's height, a lying cylinder's
-/// diameter). `each_frame(time, centre height)` is called after every frame.
+/// centre height averaged over the last 10 frames, the free surface of the open water
+/// ([`free_surface`] over the columns 3 cells or more from the walls and from the body's
+/// footprint where it started) and the submerged fraction of its height in its initial
+/// orientation (a box's height, a lying cylinder's diameter). `each_frame(time, centre height)` is called after every frame.
 pub fn float<B: Backend + ?Sized>(
     sim: &mut Simulation<B>,
     mut each_frame: impl FnMut(f64, f64),
@@ -173,8 +173,7 @@ pub fn float<B: Backend + ?Sized>(
 
 /// The height of a resting free surface (m): the median over the columns of the grid (`dx` by
 /// `dx` in x and z) whose centre `(x, z)` passes `keep` of the highest particle in each, plus
-/// half a particle spacing (`dx / 4` at 8
-/// particles per cell). The median ignores drops and splashes; the highest particle of a column
+/// half a particle spacing (`dx / 4` at 8 particles per cell). The median ignores drops and splashes; the highest particle of a column
 /// is its top layer whatever the depth (a percentile of all the heights is not: the 98th falls
 /// below the top layer once the water holds more than 50 layers, 2.5 mm low at dx = 0.005 in
 /// the Archimedes scene). `None` without particles.

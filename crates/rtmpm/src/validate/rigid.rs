@@ -2,9 +2,8 @@
 //! `archimedes`, `sinking`, `rigid_momentum` (cargo feature `rigid`) and `emitter_mass`. The
 //! scenes are `validation/{archimedes,sinking,rigid_momentum,emitter_mass}.toml`; `--quick` runs
 //! them as they are (the resolution of the cargo tests `crates/rtmpm-core/tests/rigid.rs` and
-//! `emitters.rs`), the full run at half the grid spacing (archimedes at a quarter). The
-//! measurements are
-//! `rtmpm_core::checks`, shared with those tests.
+//! `emitters.rs`), the full run at half the grid spacing (archimedes at a quarter, for twice the
+//! time). The measurements are `rtmpm_core::checks`, shared with those tests.
 
 use super::{Ctx, Row, rel_pct};
 use anyhow::{Result, anyhow};
