@@ -38,9 +38,11 @@ rtmpm mesh "$mesh_out" --scene scenes/splash_small.toml --formats obj
 # (The same up to the order of parallel sums inside splashsurf: compared by triangle count,
 # bounding box and enclosed volume.)
 python3 scripts/check_formats.py --same-surfaces "$fmt_out" "$mesh_out"
-# (The workspace's lib tests with all its features, as the test stage built them: `-p rtmpm-core
-# --features interop` alone would compile rtmpm-core and splashsurf_lib again with other features.)
-RTMPM_INTEROP_DIR="$PWD/$fmt_out" cargo test --quiet --workspace --all-features --lib -- io::interop_tests --nocapture
+# (The test binaries of the test stage, the README's command, filtered: `-p rtmpm-core --features
+# interop` alone resolves other features for its dependencies (bytemuck, syn: the other members
+# add some) and compiles rtmpm-core and its dependencies again, minutes on 2 cores; `--tests`,
+# not `--lib`, which would also build the test harnesses of rtmpm-f64 and rtmpm-py (test = false).)
+RTMPM_INTEROP_DIR="$PWD/$fmt_out" cargo test --quiet --workspace --all-features --tests -- io::interop_tests --nocapture
 
 # The validation suite at its quick resolutions (issue 4): a failing case fails CI.
 # The quick cases; colliding_disks runs with the reference's transfer (linear-hat MPM, MUSL, FLIP;
