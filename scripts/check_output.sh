@@ -3,11 +3,12 @@
 # splashsurf_lib's BGEO reader).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-# The command line that `cargo test --workspace` builds (test profile, opt-level 3, the same
-# features), so nothing compiles again after the test stage of CI: a `cargo run` would build the
-# workspace once more in the dev profile (minutes on 2 cores) and leave a slower binary for the
-# hostile-input corpus that runs target/debug/rtmpm next.
-cargo test --quiet --workspace --no-run
+# The command line that `cargo test --workspace --all-features` builds (test profile, opt-level 3,
+# the same features: the README's test command), so nothing compiles again after the test stage of
+# CI: a `cargo run` would build the workspace once more in the dev profile (minutes on 2 cores) and
+# leave a slower binary for the hostile-input corpus that runs target/debug/rtmpm next. With
+# `rigid` (rapier3d), for the rigid-body validation cases below.
+cargo test --quiet --workspace --all-features --no-run
 rtmpm() { target/debug/rtmpm "$@"; }
 out=target/ci-out
 rm -rf "$out"
@@ -37,11 +38,17 @@ rtmpm mesh "$mesh_out" --scene scenes/splash_small.toml --formats obj
 # (The same up to the order of parallel sums inside splashsurf: compared by triangle count,
 # bounding box and enclosed volume.)
 python3 scripts/check_formats.py --same-surfaces "$fmt_out" "$mesh_out"
-RTMPM_INTEROP_DIR="$PWD/$fmt_out" cargo test --quiet -p rtmpm-core --features interop --lib io::interop_tests -- --nocapture
+# (The test binaries of the test stage, the README's command, filtered: `-p rtmpm-core --features
+# interop` alone resolves other features for its dependencies (bytemuck, syn: the other members
+# add some) and compiles rtmpm-core and its dependencies again, minutes on 2 cores; `--tests`,
+# not `--lib`, which would also build the test harnesses of rtmpm-f64 and rtmpm-py (test = false).)
+RTMPM_INTEROP_DIR="$PWD/$fmt_out" cargo test --quiet --workspace --all-features --tests -- io::interop_tests --nocapture
 
 # The validation suite at its quick resolutions (issue 4): a failing case fails CI.
 # The quick cases; colliding_disks runs with the reference's transfer (linear-hat MPM, MUSL, FLIP;
 # about 10 s on 2 cores), granular_column with the plane-strain Drucker-Prager cone (about 60 s),
-# cohesive_column with non-associated Cam-clay (about 40 s).
+# cohesive_column with non-associated Cam-clay (about 40 s); then the checks of issue 17: rigid
+# bodies coupled to the material (archimedes, sinking, rigid_momentum; the cargo feature `rigid`)
+# and emitters (emitter_mass).
 rtmpm validate --quick --backend cpu \
-  --case free_fall,hydrostatic_column,vibrating_bar,vibrating_bar_gimp,dam_break,colliding_disks,granular_column,cohesive_column
+  --case free_fall,hydrostatic_column,vibrating_bar,vibrating_bar_gimp,dam_break,colliding_disks,granular_column,cohesive_column,archimedes,sinking,rigid_momentum,emitter_mass

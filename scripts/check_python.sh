@@ -12,9 +12,9 @@ python3 -m venv "$venv"
 "$venv/bin/pip" install --quiet --disable-pip-version-check "maturin>=1.9,<2" "numpy>=1.21" "pytest>=7" "pytest-timeout>=2"
 CARGO_PROFILE_DEV_OPT_LEVEL=3 "$venv/bin/maturin" build --profile dev -m crates/rtmpm-py/Cargo.toml -o target/ci-wheels
 "$venv/bin/pip" install --quiet --disable-pip-version-check --no-deps target/ci-wheels/rtmpm-*.whl
-# The command line for the bit-for-bit tests (built by `cargo test`).
+# The command line for the bit-for-bit tests (built by `cargo test --workspace --all-features`).
 export RTMPM_CLI=${RTMPM_CLI:-$PWD/target/debug/rtmpm}
-[ -x "$RTMPM_CLI" ] || cargo test --quiet --workspace --no-run
+[ -x "$RTMPM_CLI" ] || cargo test --quiet --workspace --all-features --no-run
 # A test that hangs fails after 300 s with every thread's stack instead of stalling CI.
 "$venv/bin/python" -m pytest -q -p no:cacheprovider --timeout 300 crates/rtmpm-py/tests
 tmp=$(mktemp -d)
