@@ -48,7 +48,9 @@ RTMPM_INTEROP_DIR="$PWD/$fmt_out" cargo test --quiet --workspace --all-features 
 # The quick cases; colliding_disks runs with the reference's transfer (linear-hat MPM, MUSL, FLIP;
 # about 10 s on 2 cores), granular_column with the plane-strain Drucker-Prager cone (about 60 s),
 # cohesive_column with non-associated Cam-clay (about 40 s); then the checks of issue 17: rigid
-# bodies coupled to the material (archimedes, sinking, rigid_momentum; the cargo feature `rigid`)
-# and emitters (emitter_mass).
+# bodies coupled to the material (sinking, rigid_momentum; the cargo feature `rigid`) and emitters
+# (emitter_mass). Not archimedes: at its quick resolution the density-250 box's draft is 1.25
+# cells and misses the 5 % (validation/RESULTS.md); the cargo test tests/rigid.rs checks the 500
+# and 750 boxes at that resolution in the test stage, and the GPU all three at full resolution.
 rtmpm validate --quick --backend cpu \
-  --case free_fall,hydrostatic_column,vibrating_bar,vibrating_bar_gimp,dam_break,colliding_disks,granular_column,cohesive_column,archimedes,sinking,rigid_momentum,emitter_mass
+  --case free_fall,hydrostatic_column,vibrating_bar,vibrating_bar_gimp,dam_break,colliding_disks,granular_column,cohesive_column,sinking,rigid_momentum,emitter_mass
