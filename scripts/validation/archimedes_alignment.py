@@ -13,7 +13,7 @@ against the density ratios, then the mean and the spread over the raises.
 import argparse, os, re, subprocess, sys, time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-BASE = os.path.join(HERE, "..", "..", "validation", "archimedes.toml")
+BASE = os.environ.get("ARCH_BASE") or os.path.join(HERE, "..", "..", "validation", "archimedes.toml")
 
 
 def variant(text, dx, r, duration=None):
@@ -59,9 +59,15 @@ def main():
             p = subprocess.run(cmd, capture_output=True, text=True)
             with open(os.path.join(d, "validate.log"), "w") as f:
                 f.write(p.stdout + p.stderr)
-            fr = {}
+            fr, vol = {}, {}
             for m in re.finditer(r"submerged fraction, density (\d+), dx = \S+\s+[\d.]+\s+([\d.]+)", p.stdout):
                 fr[int(m.group(1))] = float(m.group(2))
+            for m in re.finditer(r"submerged volume fraction, density (\d+) \(mean tilt ([\d.]+) deg\)\s+[\d.]+\s+([\d.]+)", p.stdout):
+                vol[int(m.group(1))] = (float(m.group(3)), float(m.group(2)))
+            if vol:
+                print(f"dx {dx} raise {r}: volume fraction (mean tilt) "
+                      + " ".join(f"{k}: {v:.4f} ({100 * (v / (k / 1000) - 1):+.1f} %, {t:.1f} deg)"
+                                 for k, (v, t) in sorted(vol.items())), flush=True)
             print(f"dx {dx} raise {r}: rc {p.returncode} {time.time() - t0:.0f} s "
                   + " ".join(f"{k}: {v:.4f}" for k, v in sorted(fr.items())), flush=True)
             rows.append((dx, r, fr))
