@@ -54,7 +54,8 @@ const ARCHIMEDES_REFINE: u32 = 4;
 const ARCHIMEDES_FULL_DURATION: f64 = 3.0;
 
 /// Archimedes: boxes of density 250, 500 and 750 settle with the submerged fraction of their
-/// height equal to the density ratio within 5 %.
+/// height, and of their volume in their pose of each averaged frame, equal to the density ratio
+/// within 5 %.
 pub fn archimedes(ctx: &Ctx) -> Result<Vec<Row>> {
     need_engine()?;
     let mut base = scene_text(ctx, "archimedes.toml", ARCHIMEDES_REFINE)?;
