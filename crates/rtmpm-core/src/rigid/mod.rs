@@ -14,7 +14,12 @@
 //! to gravity and the walls). Particles are not kept out of a body: a few cross the surface
 //! when a body enters the material fast, and then ride with it (their nodes take the body's
 //! velocity), adding nothing to its load. Putting them back on the surface instead was tried and
-//! biased the floating depth (a box of density 500 floated 0.568 submerged against 0.517). The bodies move under gravity, these impulses and
+//! biased the floating depth (a box of density 500 floated 0.568 submerged against 0.517).
+//! Known limit: at rest a node of material carries `f = -m g`, so a body's load changes only when
+//! a plane of nodes enters or leaves it, and a floating body's rest locks onto node planes (its
+//! draft is right to about half a cell; validation/RESULTS.md, "Archimedes: tilt, the displaced
+//! volume ..."): a load continuous in the body's position needs CPIC's particle-side
+//! compatibility or a penalty force. The bodies move under gravity, these impulses and
 //! their contacts with each other and the walls in rapier3d (cargo feature `rigid`;
 //! [`RigidWorld`]); without the feature a scene with rigid bodies is refused when the backend is
 //! built. The CPU backend couples them (`cpu/grid_update.rs`), the CUDA backend too
