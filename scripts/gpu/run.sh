@@ -18,6 +18,7 @@
 #   ablation     the switches of the seed principles on the claymore scenes (--cuda-options)
 #   variants     A/B of compile-time defines: VARIANTS="label|binary|defines[|options] ..."
 #   multi        several GPUs: agreement tests in every mode, 2 NCCL processes, scaling
+#   multi4       the same on 4 GPUs: agreement at 2 and 4, strong and weak scaling at 1, 2, 4, 4 ranks
 #   python       the Python package's GPU tests (wheel in .device/wheels)
 #   cpu          the CPU backend on this machine's cores: `rtmpm bench --backend cpu --n 128` (524k
 #                particles) at --threads 1 2 4 8 16 (CPU_THREADS, CPU_N, CPU_STEPS to change), a table of
@@ -161,6 +162,29 @@ for suite in "$@"; do
       done
       wait
       say "strong 16.8M two NCCL processes: $(grep -hE 'throughput|^error' "$OUT/rank_0.log" "$OUT/rank_1.log" | tr -s ' ' | tr '\n' ' ')"
+      ;;
+    multi4)
+      # 4 GPUs (issue 7's 4-GPU part): the agreement tests at 2 and 4 GPUs (RTMPM_MULTI_GPU_COUNTS
+      # defaults to 2,4), strong scaling 16.8M on 1, 2, 4 GPUs, weak scaling 4.2M a GPU, and 4 NCCL
+      # processes against one process driving the 4 GPUs through NCCL (12 frames at dt = 5e-5).
+      t test_multi_gpu
+      t test_multi_gpu_cli
+      for g in 1 2 4; do b "strong 16.8M gpus=$g" rtmpm --scene bench/strong_16m.toml --frames 2 --gpus "$g"; done
+      b "strong 16.8M gpus=4 transport=nccl" rtmpm --scene bench/strong_16m.toml --frames 2 --gpus 4 --cuda-options transport=nccl
+      b "weak 4.2M gpus=1" rtmpm --scene bench/weak_4m_x1.toml --frames 4
+      b "weak 8.4M gpus=2" rtmpm --scene bench/weak_4m_x2.toml --frames 4 --gpus 2
+      b "weak 16.8M gpus=4" rtmpm --scene bench/weak_4m_x4.toml --frames 4 --gpus 4
+      sed 's/^dt = 1e-4/dt = 5e-5/' bench/strong_16m.toml > /tmp/strong_16m_half_dt.toml
+      r=$(timeout 200 "$D/rtmpm" run /tmp/strong_16m_half_dt.toml --frames 12 --no-output --gpus 4 --cuda-options transport=nccl 2>&1)
+      echo "$r" >> "$OUT/ranks4.log"
+      say "strong 16.8M one process x4, NCCL: $(echo "$r" | grep -E 'throughput|^error' | tr -s ' ')"
+      rm -f /tmp/rtmpm-rdv4
+      for rk in 0 1 2 3; do
+        timeout 200 "$D/rtmpm" run /tmp/strong_16m_half_dt.toml --frames 12 --no-output --rendezvous file:/tmp/rtmpm-rdv4 \
+          --nccl-ranks 4 --nccl-rank $rk > "$OUT/rank4_$rk.log" 2>&1 &
+      done
+      wait
+      say "strong 16.8M four NCCL processes: $(grep -hE 'throughput|^error' "$OUT"/rank4_*.log | tr -s ' ' | tr '\n' ' ')"
       ;;
     long)
       sed 's/^dt = 1e-4/dt = 5e-5/' bench/strong_16m.toml > /tmp/strong_16m_half_dt.toml
