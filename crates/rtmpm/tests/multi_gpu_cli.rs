@@ -88,18 +88,13 @@ fn two_gpus_and_two_processes_agree_with_one_gpu_on_every_example_scene() {
         let s = path.to_str().unwrap();
         let dir = scratch(&format!("mgpu_{name}"));
         let (one, two, ranks) = (dir.join("one"), dir.join("two"), dir.join("ranks"));
+        let two_gpus = || {
+            let out = two.to_str().unwrap();
+            run(&["run", s, "--gpus", "2", "--frames", &f, "--out", out])
+        };
         if !scene.emitters.is_empty() {
             // Several GPUs refuse [[emitter]] tables: a clear error and a failed exit.
-            let o = run(&[
-                "run",
-                s,
-                "--gpus",
-                "2",
-                "--frames",
-                &f,
-                "--out",
-                two.to_str().unwrap(),
-            ]);
+            let o = two_gpus();
             assert!(
                 !o.status.success(),
                 "{name}: --gpus 2 took emitters: {}",
@@ -120,16 +115,7 @@ fn two_gpus_and_two_processes_agree_with_one_gpu_on_every_example_scene() {
             one.to_str().unwrap(),
         ]);
         assert!(o.status.success(), "{}", text(&o));
-        let o = run(&[
-            "run",
-            s,
-            "--gpus",
-            "2",
-            "--frames",
-            &f,
-            "--out",
-            two.to_str().unwrap(),
-        ]);
+        let o = two_gpus();
         assert!(o.status.success(), "{}", text(&o));
         assert!(text(&o).contains("cuda x2"), "{}", text(&o));
         // The run summary says which transport summed the shared blocks, and why.
