@@ -13,7 +13,7 @@ against the density ratios, then the mean and the spread over the raises.
 import argparse, os, re, subprocess, sys, time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-BASE = os.environ.get("ARCH_BASE") or os.path.join(HERE, "..", "..", "validation", "archimedes.toml")
+BASE = os.path.join(HERE, "..", "..", "validation", "archimedes.toml")
 
 
 def variant(text, dx, r, duration=None):
@@ -38,6 +38,7 @@ def variant(text, dx, r, duration=None):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rtmpm", default="target/release/rtmpm")
+    ap.add_argument("--base", default=BASE, help="the scene to vary (validation/archimedes.toml)")
     ap.add_argument("--backend", default="cpu")
     ap.add_argument("--dx", default="0.02")
     ap.add_argument("--raises", default="0,0.25,0.5,0.75")
@@ -45,7 +46,7 @@ def main():
     ap.add_argument("--extra", default="", help="more arguments for rtmpm validate")
     ap.add_argument("--duration", type=float, help="seconds simulated (the scene's: 1.5)")
     a = ap.parse_args()
-    text = open(BASE).read()
+    text = open(a.base).read()
     rows = []
     for dx in [float(v) for v in a.dx.split(",")]:
         for r in [float(v) for v in a.raises.split(",")]:

@@ -167,8 +167,8 @@ pub fn float<B: Backend + ?Sized>(
     let initial = glam::Mat3::from_quat(spec.rotation);
     let half_height = spec.shape.world_half_extents(initial).y as f64;
     let frames = sim.scene.time.frames();
-    let (mut sum, mut count) = (0.0f64, 0u32);
     let mut last = None;
+    // Pose (centre, rotation, tilt) of each of the last frames, over which the measures average.
     let mut poses = Vec::new();
     let tilt = |b: &crate::rigid::BodyState| {
         let turn = glam::Quat::from_mat3(&(b.rotation * initial.transpose()));
@@ -179,14 +179,15 @@ pub fn float<B: Backend + ?Sized>(
         let b = bodies(sim)?[0].clone();
         each_frame(sim.time, b.center.y as f64);
         if f + AVERAGE_FRAMES >= frames {
-            sum += b.center.y as f64;
-            count += 1;
             poses.push((b.center, b.rotation, tilt(&b)));
         }
         last = Some(b);
     }
     let b = last.ok_or_else(|| CheckError::Scene("the scene has no frames".into()))?;
-    let centre = sum / count as f64;
+    let mean = |v: &dyn Fn(&(glam::Vec3, glam::Mat3, f64)) -> f64| {
+        poses.iter().map(v).sum::<f64>() / poses.len() as f64
+    };
+    let centre = mean(&|p| p.0.y as f64);
     // The open water: columns 3 cells or more from the walls and from the body's footprint where
     // it started (it drifts by millimetres). The node-based boundaries hold a rim of water up to
     // 0.3 dx higher within about 3 cells of them (measured in the Archimedes scene at dx = 0.02:
@@ -210,15 +211,10 @@ pub fn float<B: Backend + ?Sized>(
         )
     })?;
     let bottom = centre - half_height;
-    let n = poses.len().max(1) as f64;
     let volume_fraction = match spec.shape {
-        crate::rigid::RigidShape::Box { half_extents } => Some(
-            poses
-                .iter()
-                .map(|&(c, r, _)| box_submerged_fraction(half_extents, c, r, surface))
-                .sum::<f64>()
-                / n,
-        ),
+        crate::rigid::RigidShape::Box { half_extents } => Some(mean(&|&(c, r, _)| {
+            box_submerged_fraction(half_extents, c, r, surface)
+        })),
         _ => None,
     };
     Ok(Floating {
@@ -227,7 +223,7 @@ pub fn float<B: Backend + ?Sized>(
         surface,
         tilt_degrees: tilt(&b),
         volume_fraction,
-        mean_tilt_degrees: poses.iter().map(|p| p.2).sum::<f64>() / n,
+        mean_tilt_degrees: mean(&|p| p.2),
     })
 }
 
