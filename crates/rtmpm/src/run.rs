@@ -303,7 +303,12 @@ pub fn run(args: RunArgs) -> Result<()> {
     let start = Instant::now();
     let start_step = sim.step;
     let mut stopped_by_steps = false;
-    let mut progress = Progress::new(n, total_frames);
+    // Across processes every rank must take its steps in the same chunks: the health check at
+    // the end of a chunk is a collective, so a chunk sized by each rank's own clock would pair
+    // one rank's check with another's step and hang them (rank 0 alone writes the frames, so
+    // its clock differs).
+    let fixed_chunk = matches!(mode, crate::multi::Mode::Rank { .. }).then_some(RANK_CHUNK);
+    let mut progress = Progress::new(n, total_frames, fixed_chunk);
     while sim.frame < total_frames {
         let left = args
             .steps
@@ -437,6 +442,9 @@ pub fn run(args: RunArgs) -> Result<()> {
 
 /// Periodic progress lines on stderr when it is not a terminal (a log file, a pipe, a batch
 /// job), where the progress bar does not show: every `RTMPM_PROGRESS_SECONDS` (default 10).
+/// Steps between two health checks of a multi-process run (every rank the same).
+const RANK_CHUNK: u64 = 128;
+
 struct Progress {
     particles: usize,
     frames: u64,
@@ -444,10 +452,14 @@ struct Progress {
     started: Instant,
     last: Instant,
     chunk: u64,
+    /// The chunk never changes (multi-process runs).
+    fixed: bool,
 }
 
 impl Progress {
-    fn new(particles: usize, frames: u64) -> Progress {
+    /// `fixed_chunk`: steps per chunk whatever the clock says (multi-process runs); `None`
+    /// sizes the chunks by their wall time.
+    fn new(particles: usize, frames: u64, fixed_chunk: Option<u64>) -> Progress {
         use std::io::IsTerminal;
         let every = std::env::var("RTMPM_PROGRESS_SECONDS")
             .ok()
@@ -460,7 +472,8 @@ impl Progress {
             every: (!std::io::stderr().is_terminal()).then_some(every),
             started: Instant::now(),
             last: Instant::now(),
-            chunk: 1,
+            chunk: fixed_chunk.unwrap_or(1).max(1),
+            fixed: fixed_chunk.is_some(),
         }
     }
 
@@ -471,6 +484,9 @@ impl Progress {
 
     /// Grow the chunk while a chunk takes under a quarter of a second, shrink it above one.
     fn chunk_took(&mut self, seconds: f64) {
+        if self.fixed {
+            return;
+        }
         if seconds < 0.25 {
             self.chunk = (self.chunk * 2).min(1 << 16);
         } else if seconds > 1.0 {
@@ -611,5 +627,27 @@ impl BodiesCsv {
         }
         f.flush()?;
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Progress;
+
+    #[test]
+    fn a_fixed_chunk_ignores_the_clock_and_a_free_one_follows_it() {
+        // Multi-process runs: every rank must check health after the same steps.
+        let mut fixed = Progress::new(10, 1, Some(128));
+        for seconds in [0.0, 5.0, 0.01, 2.0] {
+            fixed.chunk_took(seconds);
+            assert_eq!(fixed.chunk(), 128);
+        }
+        let mut free = Progress::new(10, 1, None);
+        assert_eq!(free.chunk(), 1);
+        free.chunk_took(0.01);
+        free.chunk_took(0.01);
+        assert_eq!(free.chunk(), 4);
+        free.chunk_took(2.0);
+        assert_eq!(free.chunk(), 2);
     }
 }
