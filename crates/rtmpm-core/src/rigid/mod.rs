@@ -19,7 +19,8 @@
 //! a plane of nodes enters or leaves it, and a floating body's rest locks onto node planes (its
 //! draft is right to about half a cell; validation/RESULTS.md, "Archimedes: tilt, the displaced
 //! volume ..."): a load continuous in the body's position needs CPIC's particle-side
-//! compatibility or a penalty force. The bodies move under gravity, these impulses and
+//! compatibility or a penalty force (both tried on the CPU, not kept: the same file, "Three more
+//! coupling variants"). The bodies move under gravity, these impulses and
 //! their contacts with each other and the walls in rapier3d (cargo feature `rigid`;
 //! [`RigidWorld`]); without the feature a scene with rigid bodies is refused when the backend is
 //! built. The CPU backend couples them (`cpu/grid_update.rs`), the CUDA backend too
