@@ -4,7 +4,7 @@
 //! down, fixed dt.
 
 use crate::backend::{BackendKind, make_backend};
-use crate::run::human_rate;
+use crate::progress::human_rate;
 use anyhow::{Result, bail};
 use clap::Args;
 use rtmpm_core::scene::StepMode;

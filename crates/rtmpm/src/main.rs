@@ -10,6 +10,7 @@ mod mesh;
 mod multi;
 mod outdir;
 mod output;
+mod progress;
 mod render;
 mod run;
 mod setup;
