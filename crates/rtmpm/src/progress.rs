@@ -8,7 +8,9 @@ use std::time::Instant;
 pub const RANK_CHUNK: u64 = 128;
 
 /// Where a run stands: how many steps to take before looking at the clock again, and when the
-/// next progress line is due.
+/// next progress line is due. Periodic progress lines go to stderr when it is not a terminal (a
+/// log file, a pipe, a batch job), where the progress bar does not show: every
+/// `RTMPM_PROGRESS_SECONDS` (default 10).
 pub struct Progress {
     particles: usize,
     frames: u64,

@@ -441,8 +441,6 @@ pub fn run(args: RunArgs) -> Result<()> {
     Ok(())
 }
 
-/// Periodic progress lines on stderr when it is not a terminal (a log file, a pipe, a batch
-/// job), where the progress bar does not show: every `RTMPM_PROGRESS_SECONDS` (default 10).
 /// The backend of a run that starts from particles (a checkpoint, the CPU, several GPUs) and
 /// their number.
 fn particle_backend(
