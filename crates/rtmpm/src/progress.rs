@@ -60,6 +60,8 @@ impl Progress {
         }
     }
 
+    /// Print a progress line if one is due (stderr not a terminal, `every` seconds since the
+    /// last).
     pub fn tick(&mut self, sim: &Simulation, start_step: u64) {
         let Some(every) = self.every else { return };
         if self.last.elapsed().as_secs_f64() < every {
