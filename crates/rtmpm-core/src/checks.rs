@@ -94,16 +94,17 @@ pub fn momentum(p: &Particles) -> DVec3 {
 /// A floating body, measured by [`float`].
 #[derive(Clone, Copy, Debug)]
 pub struct Floating {
-    /// Submerged fraction of the body's height (its height in its initial orientation).
+    /// Submerged fraction of the body's height (its height in its initial orientation), below
+    /// the surface of each of the last frames, averaged.
     pub fraction: f64,
     /// The body's centre height (m), averaged over the last frames.
     pub centre: f64,
-    /// The free surface's height away from the body (m).
+    /// The free surface's height away from the body (m), averaged over the last frames.
     pub surface: f64,
     /// How far the body has turned from its initial orientation at the end (degrees).
     pub tilt_degrees: f64,
-    /// A box's submerged fraction of its volume below the surface, in the pose of each of the
-    /// last frames, averaged: Archimedes' displaced volume whatever the tilt (for an upright
+    /// A box's submerged fraction of its volume below the surface, in the pose and below the
+    /// surface of each of the last frames, averaged: Archimedes' displaced volume whatever the tilt (for an upright
     /// box it is [`Floating::fraction`]; a box tilted by `t` with its centre `h` above the
     /// surface has `h / cos t` where the fraction of height has `h`). `None` for other shapes.
     pub volume_fraction: Option<f64>,
@@ -149,11 +150,20 @@ pub fn box_submerged_fraction(
 /// Frames over whose end the floating body's height is averaged.
 const AVERAGE_FRAMES: u64 = 10;
 
-/// Run `sim` to the end of its scene and measure how deep its first rigid body floats: its
-/// centre height averaged over the last 10 frames, the free surface of the open water
+/// A floating body's pose and the open water's surface height (m) in one averaged frame.
+struct Pose {
+    center: glam::Vec3,
+    rotation: glam::Mat3,
+    tilt: f64,
+    surface: f64,
+}
+
+/// Run `sim` to the end of its scene and measure how deep its first rigid body floats, in each
+/// of the last 10 frames, averaged: its centre height, the free surface of the open water
 /// ([`free_surface`] over the columns 3 cells or more from the walls and from the body's
 /// footprint where it started) and the submerged fraction of its height in its initial
-/// orientation (a box's height, a lying cylinder's diameter). `each_frame(time, centre height)` is called after every frame.
+/// orientation (a box's height, a lying cylinder's diameter) below that frame's surface.
+/// `each_frame(time, centre height)` is called after every frame.
 pub fn float<B: Backend + ?Sized>(
     sim: &mut Simulation<B>,
     mut each_frame: impl FnMut(f64, f64),
@@ -167,34 +177,11 @@ pub fn float<B: Backend + ?Sized>(
     let initial = glam::Mat3::from_quat(spec.rotation);
     let half_height = spec.shape.world_half_extents(initial).y as f64;
     let frames = sim.scene.time.frames();
-    let mut last = None;
-    // Pose (centre, rotation, tilt) of each of the last frames, over which the measures average.
-    let mut poses = Vec::new();
-    let tilt = |b: &crate::rigid::BodyState| {
-        let turn = glam::Quat::from_mat3(&(b.rotation * initial.transpose()));
-        turn.to_axis_angle().1.to_degrees() as f64
-    };
-    for f in 0..frames {
-        sim.advance_frame()?;
-        let b = bodies(sim)?[0].clone();
-        each_frame(sim.time, b.center.y as f64);
-        if f + AVERAGE_FRAMES >= frames {
-            poses.push((b.center, b.rotation, tilt(&b)));
-        }
-        last = Some(b);
-    }
-    let b = last.ok_or_else(|| CheckError::Scene("the scene has no frames".into()))?;
-    let mean = |v: &dyn Fn(&(glam::Vec3, glam::Mat3, f64)) -> f64| {
-        poses.iter().map(v).sum::<f64>() / poses.len() as f64
-    };
-    let centre = mean(&|p| p.0.y as f64);
     // The open water: columns 3 cells or more from the walls and from the body's footprint where
     // it started (it drifts by millimetres). The node-based boundaries hold a rim of water up to
     // 0.3 dx higher within about 3 cells of them (measured in the Archimedes scene at dx = 0.02:
     // 6 mm at the walls), which is not the level whose pressure holds the body up.
     let half = spec.shape.world_half_extents(initial);
-    let mut p = Particles::default();
-    sim.backend.read_particles(&mut p)?;
     let dx = sim.scene.dx;
     let margin = 3.0 * dx;
     let walls = sim.scene.walls.thickness as f32 * dx + margin;
@@ -205,25 +192,55 @@ pub fn float<B: Backend + ?Sized>(
             && (lo.z..=hi.z).contains(&z)
             && ((x - cx).abs() - half.x).max((z - cz).abs() - half.z) >= margin
     };
-    let surface = free_surface(p.x.iter(), dx, open).ok_or_else(|| {
-        CheckError::Scene(
-            "no material 3 cells or more from the body and the walls to measure the surface".into(),
-        )
-    })?;
-    let bottom = centre - half_height;
+    let mut last = None;
+    // The body's pose and the open water's surface in each of the last frames, over which the
+    // measures average: the water and the body bob together (by about a millimetre at dx = 0.02,
+    // a twentieth of the light box's draft), so each frame's draft is taken against that frame's
+    // surface.
+    let mut poses = Vec::new();
+    let tilt = |b: &crate::rigid::BodyState| {
+        let turn = glam::Quat::from_mat3(&(b.rotation * initial.transpose()));
+        turn.to_axis_angle().1.to_degrees() as f64
+    };
+    let mut p = Particles::default();
+    for f in 0..frames {
+        sim.advance_frame()?;
+        let b = bodies(sim)?[0].clone();
+        each_frame(sim.time, b.center.y as f64);
+        if f + AVERAGE_FRAMES >= frames {
+            sim.backend.read_particles(&mut p)?;
+            let surface = free_surface(p.x.iter(), dx, open).ok_or_else(|| {
+                CheckError::Scene(
+                    "no material 3 cells or more from the body and the walls to measure the \
+                     surface"
+                        .into(),
+                )
+            })?;
+            poses.push(Pose {
+                center: b.center,
+                rotation: b.rotation,
+                tilt: tilt(&b),
+                surface,
+            });
+        }
+        last = Some(b);
+    }
+    let b = last.ok_or_else(|| CheckError::Scene("the scene has no frames".into()))?;
+    let mean = |v: &dyn Fn(&Pose) -> f64| poses.iter().map(v).sum::<f64>() / poses.len() as f64;
+    let draft = |q: &Pose| q.surface - (q.center.y as f64 - half_height);
     let volume_fraction = match spec.shape {
-        crate::rigid::RigidShape::Box { half_extents } => Some(mean(&|&(c, r, _)| {
-            box_submerged_fraction(half_extents, c, r, surface)
+        crate::rigid::RigidShape::Box { half_extents } => Some(mean(&|q| {
+            box_submerged_fraction(half_extents, q.center, q.rotation, q.surface)
         })),
         _ => None,
     };
     Ok(Floating {
-        fraction: (surface - bottom) / (2.0 * half_height),
-        centre,
-        surface,
+        fraction: mean(&draft) / (2.0 * half_height),
+        centre: mean(&|q| q.center.y as f64),
+        surface: mean(&|q| q.surface),
         tilt_degrees: tilt(&b),
         volume_fraction,
-        mean_tilt_degrees: mean(&|p| p.2),
+        mean_tilt_degrees: mean(&|q| q.tilt),
     })
 }
 

@@ -22,9 +22,10 @@ fn simulation(text: &str) -> Simulation<CpuBackend> {
 /// Archimedes: boxes of density 500 and 750 on water float with the submerged fraction of their
 /// height, and of their volume in the pose of each of the last frames, equal to the density
 /// ratio within 5 % (issue 17; the box rocks by about 12 degrees at this resolution, so the two
-/// differ: volume 0.494 and 0.758). Measured at dx = 0.02 m (the box is 5
-/// cells high), its height averaged over 1.0 .. 1.5 s (it still bobs by a few mm), against the
-/// open water's surface: 0.494 and 0.753 (-1.1 %, +0.3 %; over four alignments of the water
+/// differ: volume 0.491 and 0.761). Measured at dx = 0.02 m (the box is 5 cells high), its
+/// draft below the open water's surface in each frame from 1.0 to 1.5 s, averaged (the box and
+/// the water still bob by a few mm): 0.491 and 0.756 of its height (-1.8 %, +0.8 %; with the
+/// surface of the last frame alone, 0.494 and 0.753, and over four alignments of the water
 /// surface with the grid at most 2.5 % and 2.9 % off). The CPU backend is deterministic (any
 /// thread count), so the margin to the bound is not noise. The density-250 box is not checked
 /// here: its draft of 2.5 cm is 1.25 cells at this resolution, and a node-based boundary places
