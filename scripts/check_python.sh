@@ -2,17 +2,18 @@
 # The Python package in CI: build the wheel in a fresh virtual environment (maturin, from PyPI),
 # install it, run the pytest suite (crates/rtmpm-py/tests; the GPU tests skip without a GPU) and
 # two examples. The wheel is built with the dev profile at opt-level 3 and line tables only, the
-# settings of the test profile (Cargo.toml): the dependencies `cargo test` built with the same
-# features are reused (a release build would compile everything again). The workspace crates,
-# pyo3, numpy and the dependencies whose features differ compile again: the wheel has rtmpm-core's
-# default features, not the test stage's --all-features.
+# settings of the test profile (Cargo.toml), and with the features `rigid` and `interop`, which
+# give rtmpm-core and rtmpm-cuda the test stage's --all-features: the crates `cargo test` built are
+# reused (only the bindings, pyo3 and numpy compile; with the default features rtmpm-core and
+# rtmpm-cuda compiled again too, about a minute on 2 cores), and the wheel runs rigid bodies,
+# which the pytest suite then checks.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 venv=target/ci-python
 rm -rf "$venv" target/ci-wheels
 python3 -m venv "$venv"
 "$venv/bin/pip" install --quiet --disable-pip-version-check "maturin>=1.9,<2" "numpy>=1.21" "pytest>=7" "pytest-timeout>=2"
-CARGO_PROFILE_DEV_OPT_LEVEL=3 CARGO_PROFILE_DEV_DEBUG=line-tables-only "$venv/bin/maturin" build --profile dev -m crates/rtmpm-py/Cargo.toml -o target/ci-wheels
+CARGO_PROFILE_DEV_OPT_LEVEL=3 CARGO_PROFILE_DEV_DEBUG=line-tables-only "$venv/bin/maturin" build --profile dev -m crates/rtmpm-py/Cargo.toml --features rigid,interop -o target/ci-wheels
 "$venv/bin/pip" install --quiet --disable-pip-version-check --no-deps target/ci-wheels/rtmpm-*.whl
 # The command line for the bit-for-bit tests (built by `cargo test --workspace --all-features`).
 export RTMPM_CLI=${RTMPM_CLI:-$PWD/target/debug/rtmpm}

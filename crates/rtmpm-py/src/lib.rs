@@ -9,6 +9,7 @@
 //! * [`errors`]: the exceptions.
 
 mod backend;
+mod bodies;
 mod device;
 mod dict_toml;
 mod errors;
@@ -66,6 +67,10 @@ fn cuda_available() -> (bool, String) {
 fn _rtmpm(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add(
+        "features",
+        pyo3::types::PyTuple::new(py, bodies::features())?,
+    )?;
     m.add_class::<scene::PyScene>()?;
     m.add_class::<simulation::PySimulation>()?;
     m.add_class::<backend::BackendInfo>()?;

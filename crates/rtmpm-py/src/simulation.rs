@@ -11,6 +11,7 @@ use crate::frames::FrameIter;
 use crate::scene::{PyScene, scene_arg};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 use rtmpm_backends::{AnyBackend, BackendRequest};
 use rtmpm_core::Particles;
 use rtmpm_core::io::checkpoint::Checkpoint;
@@ -452,6 +453,16 @@ impl PySimulation {
     #[getter]
     fn precision(&mut self) -> &'static str {
         self.get().sim.scene.precision.name()
+    }
+
+    /// The rigid bodies (``[[rigid_body]]``, in file order) as of the last step: a list of dicts
+    /// with ``position`` (the body's centre, m), ``rotation`` (unit quaternion ``(x, y, z, w)``,
+    /// body to world), ``velocity`` (m/s) and ``angular_velocity`` (rad/s). Empty without
+    /// bodies; scenes with bodies need a module built with the ``rigid`` feature
+    /// (``rtmpm.features``).
+    #[getter]
+    fn rigid_bodies<'py>(&mut self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        crate::bodies::states(py, &self.get().sim.backend.rigid_poses())
     }
 
     /// Number of particles.

@@ -221,6 +221,37 @@ def test_checkpoint_of_a_dict_scene(tmp_path):
         rtmpm.Simulation.resume(tmp_path / "missing.ckpt")
 
 
+def test_rigid_bodies_fall_freely_or_need_the_rigid_feature():
+    """A box above the water falls freely for 0.05 s: velocity -g t, drop g t^2 / 2, no spin
+    (rapier3d integrates gravity exactly in velocity, to g t dt / 2 in position). A module built
+    without the `rigid` feature refuses the scene and names the feature."""
+    import copy
+
+    from conftest import SMALL_DICT
+
+    assert rtmpm.Simulation(SMALL_DICT, backend="cpu").rigid_bodies == []
+    scene = copy.deepcopy(SMALL_DICT)
+    scene["rigid_body"] = [
+        {"shape": "box", "min": [0.32, 0.32, 0.32], "max": [0.38, 0.38, 0.38], "density": 500.0}
+    ]
+    if "rigid" not in rtmpm.features:
+        with pytest.raises(rtmpm.RtmpmError, match="rigid"):
+            rtmpm.Simulation(scene, backend="cpu")
+        return
+    sim = rtmpm.Simulation(scene, backend="cpu")
+    (start,) = sim.rigid_bodies
+    assert start["position"] == pytest.approx((0.35, 0.35, 0.35))
+    assert start["rotation"] == pytest.approx((0.0, 0.0, 0.0, 1.0))
+    sim.step(100)
+    (b,) = sim.rigid_bodies
+    t, g = sim.time, 9.81
+    assert t == pytest.approx(0.05)
+    assert b["velocity"][1] == pytest.approx(-g * t, rel=1e-4)
+    assert start["position"][1] - b["position"][1] == pytest.approx(0.5 * g * t * t, abs=2e-4)
+    assert b["position"][0] == pytest.approx(0.35, abs=1e-6)
+    assert max(abs(w) for w in b["angular_velocity"]) < 1e-6
+
+
 def test_write_frame_ply_and_vtu(tmp_path, jelly_path):
     sim = rtmpm.Simulation(jelly_path, backend="cpu")
     sim.run_frame()

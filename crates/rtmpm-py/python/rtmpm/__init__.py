@@ -28,6 +28,7 @@ from ._rtmpm import (
     SimulationError,
     __version__,
     cuda_available,
+    features,
     read_ply,
 )
 
@@ -44,5 +45,6 @@ __all__ = [
     "SimulationError",
     "__version__",
     "cuda_available",
+    "features",
     "read_ply",
 ]
