@@ -3,6 +3,7 @@
 
 Usage: check_formats.py OUTDIR
        check_formats.py --same-surfaces DIR_A DIR_B
+       check_formats.py --bodies OUTDIR
 
 OUTDIR is the output folder of `rtmpm run` of a scene writing every format (e.g.
 scenes/splash_small.toml). Checks, for every frame:
@@ -17,6 +18,11 @@ scenes/splash_small.toml). Checks, for every frame:
   * frame_N.usda and surface_N.usda (when present): read by Pixar's USD library (usd-core):
     points, velocities, ids, material, J and the stress tensor equal the PLY's; the surface
     Mesh has the .vtu's vertices and triangles.
+With --bodies, OUTDIR is a run of a scene with rigid bodies writing USD frames
+(crates/rtmpm/tests/data/rigid_shapes.toml): in every frame_N.usda, each body of bodies.csv is an
+Xform /bodies/<name> whose local-to-world transform, as usd-core computes it, is the pose of that
+frame in bodies.csv (translation and rotation), holding a Cube, Sphere, Cylinder or Mesh prim
+"shape"; the world bounding box of a Cube, Sphere or Cylinder is centred on the body's position.
 The BGEO values themselves are compared with an independent reader in the Rust interop test
 (splashsurf_lib). Exits non-zero with a message on the first failure. Requires meshio, numpy, and usd-core for
 the .usda files.
@@ -131,9 +137,72 @@ def same_surfaces(a, b):
         print(f"ok {fb}: the same surface as {fa} ({len(tb)} triangles, {vb:.6g} m^3)")
 
 
+def prim_name(name, fallback, used):
+    """The USD writer's prim name for a body (rtmpm_core::io::usd::prim_name)."""
+    n = "".join(c if c.isascii() and c.isalnum() else "_" for c in name)
+    if n[:1].isdigit():
+        n = "_" + n
+    if not n or n in used:
+        n = fallback
+    used.append(n)
+    return n
+
+
+def check_bodies(out):
+    import csv
+
+    import numpy as np
+    from pxr import Usd, UsdGeom
+
+    rows = list(csv.DictReader(open(os.path.join(out, "bodies.csv"))))
+    frames = sorted(glob.glob(os.path.join(out, "frame_*.usda")))
+    if not frames or not rows:
+        fail(f"{out}: no frame_*.usda or no rows in bodies.csv")
+    checked = 0
+    for path in frames:
+        frame = int(os.path.basename(path)[len("frame_") : -len(".usda")])
+        stage = usd_stage(path)
+        cache = UsdGeom.BBoxCache(Usd.TimeCode.Default(), [UsdGeom.Tokens.default_])
+        used = []
+        for i, r in enumerate(x for x in rows if int(x["frame"]) == frame):
+            name = prim_name(r["body"], f"body_{i}", used)
+            prim = stage.GetPrimAtPath(f"/bodies/{name}")
+            if not prim:
+                fail(f"{path}: no prim /bodies/{name} for body {r['body']!r}")
+            m = UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(Usd.TimeCode.Default())
+            pos = np.array([float(r[k]) for k in "xyz"])
+            if not np.allclose(np.array(m.ExtractTranslation()), pos, rtol=0, atol=1e-6):
+                fail(f"{path}: /bodies/{name} is at {m.ExtractTranslation()}, bodies.csv says {pos}")
+            x, y, z, w = (float(r[k]) for k in ("qx", "qy", "qz", "qw"))
+            rot = np.array(
+                [
+                    [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                    [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                    [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+                ]
+            )
+            # USD multiplies row vectors (p' = p M): its rotation block is the transpose.
+            got = np.array(m.ExtractRotationMatrix())
+            if not np.allclose(got, rot.T, rtol=0, atol=1e-5):
+                fail(f"{path}: /bodies/{name} rotation {got.tolist()} is not bodies.csv's {rot.T.tolist()}")
+            shape = prim.GetChild("shape")
+            kind = shape.GetTypeName() if shape else None
+            if kind not in ("Cube", "Sphere", "Cylinder", "Mesh"):
+                fail(f"{path}: /bodies/{name}/shape is {kind}")
+            if kind != "Mesh":
+                centre = np.array(cache.ComputeWorldBound(shape).ComputeAlignedRange().GetMidpoint())
+                if not np.allclose(centre, pos, rtol=0, atol=1e-5):
+                    fail(f"{path}: /bodies/{name}/shape is centred on {centre}, not {pos}")
+            checked += 1
+    print(f"ok {out}: {checked} body poses in {len(frames)} USD frames match bodies.csv")
+
+
 def main():
     if len(sys.argv) == 4 and sys.argv[1] == "--same-surfaces":
         same_surfaces(sys.argv[2], sys.argv[3])
+        return
+    if len(sys.argv) == 3 and sys.argv[1] == "--bodies":
+        check_bodies(sys.argv[2])
         return
     if len(sys.argv) != 2:
         fail(__doc__)

@@ -38,6 +38,11 @@ rtmpm mesh "$mesh_out" --scene scenes/splash_small.toml --formats obj
 # (The same up to the order of parallel sums inside splashsurf: compared by triangle count,
 # bounding box and enclosed volume.)
 python3 scripts/check_formats.py --same-surfaces "$fmt_out" "$mesh_out"
+# Rigid bodies in the USD frames: a body of each shape, read back by usd-core against bodies.csv.
+rig_out=target/ci-out-rigid
+rm -rf "$rig_out"
+rtmpm run crates/rtmpm/tests/data/rigid_shapes.toml --backend cpu --frames 2 --out "$rig_out"
+python3 scripts/check_formats.py --bodies "$rig_out"
 # (The test binaries of the test stage, the README's command, filtered: `-p rtmpm-core --features
 # interop` alone resolves other features for its dependencies (bytemuck, syn: the other members
 # add some) and compiles rtmpm-core and its dependencies again, minutes on 2 cores; `--tests`,

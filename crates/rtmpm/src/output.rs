@@ -5,6 +5,7 @@ use rtmpm_core::io::stream::{Derived, StreamFormat};
 use rtmpm_core::io::vtu::PvdWriter;
 use rtmpm_core::io::{FrameFields, bgeo, ply, trimesh, usd, vtk_appended};
 use rtmpm_core::math::Vec3;
+use rtmpm_core::rigid::BodyPose;
 use rtmpm_core::scene::{MeshFormats, SurfaceSettings};
 use rtmpm_core::surface::{SurfaceParams, TriMesh};
 use rtmpm_core::{Particles, Scene};
@@ -173,12 +174,14 @@ impl FrameOutput {
         })
     }
 
-    /// Write frame `frame` at simulated `time`; returns the surface mesh when one was made.
+    /// Write frame `frame` at simulated `time` (the particles `p`, the rigid bodies of the scene
+    /// at their poses `bodies`); returns the surface mesh when one was made.
     pub fn write_frame(
         &mut self,
         frame: u64,
         time: f64,
         p: &Particles,
+        bodies: &[BodyPose],
         scene: &Scene,
     ) -> Result<Option<TriMesh>> {
         let stress = scene.output.stress.then(|| cauchy_stress(p, scene));
@@ -206,7 +209,18 @@ impl FrameOutput {
         }
         if o.usda {
             let path = path("usda");
-            usd::write_usda_points(&path, p, &fields)
+            let bodies: Vec<usd::UsdBody> = scene
+                .rigid_bodies
+                .iter()
+                .zip(bodies)
+                .map(|(spec, pose)| usd::UsdBody {
+                    name: &spec.name,
+                    shape: &spec.shape,
+                    position: pose.position,
+                    rotation: pose.rotation,
+                })
+                .collect();
+            usd::write_usda_frame(&path, p, &fields, &bodies)
                 .with_context(|| format!("writing {}", path.display()))?;
         }
         if let Some(pvd) = self.pvd.as_mut() {

@@ -279,7 +279,10 @@ pub fn run(args: RunArgs) -> Result<()> {
                 Some(s) => {
                     s.write_frame(sim.backend.as_mut(), out.stream_files(0, &sim.scene), 0)?
                 }
-                None => mesh = out.write_frame(0, 0.0, &host, &sim.scene)?,
+                None => {
+                    let bodies = sim.backend.rigid_poses();
+                    mesh = out.write_frame(0, 0.0, &host, &bodies, &sim.scene)?
+                }
             }
             bodies.write(0, 0.0, &sim)?;
         }
@@ -346,7 +349,10 @@ pub fn run(args: RunArgs) -> Result<()> {
                     let files = out.stream_files(sim.frame, &sim.scene);
                     s.write_frame(sim.backend.as_mut(), files, sim.frame)?
                 }
-                None => mesh = out.write_frame(sim.frame, sim.time, &host, &sim.scene)?,
+                None => {
+                    let bodies = sim.backend.rigid_poses();
+                    mesh = out.write_frame(sim.frame, sim.time, &host, &bodies, &sim.scene)?
+                }
             }
             bodies.write(sim.frame, sim.time, &sim)?;
         }

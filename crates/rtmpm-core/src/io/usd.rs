@@ -7,6 +7,11 @@
 //! (`matrix3d`, the Cauchy stress, Pa). `surface_NNNNN.usda` holds `/surface` (`UsdGeomMesh`):
 //! `points`, `faceVertexCounts`, `faceVertexIndices` and vertex `normals`. Both open in
 //! usdview, Houdini's Solaris, Blender's USD importer and Omniverse.
+//!
+//! A scene's rigid bodies (`[[rigid_body]]`) go into the frame file too, under `/bodies`: one
+//! `Xform` per body, named after it, posed by `xformOp:translate` (its centre of mass) and
+//! `xformOp:orient` (body to world), holding its shape in the body frame: a `Cube` scaled to the
+//! box, a `Sphere`, a `Cylinder` (axis y) or the `Mesh` of a mesh body.
 
 use std::io::{self, Write};
 use std::path::Path;
@@ -14,7 +19,9 @@ use std::path::Path;
 use super::FrameFields;
 use super::atomic::write_atomic_with;
 use crate::Particles;
+use crate::rigid::RigidShape;
 use crate::surface::TriMesh;
+use glam::{Quat, Vec3};
 
 /// A float as USD's text format reads it (`inf`, `-inf`, `nan` for the non-finite).
 fn num(x: f32) -> String {
@@ -63,8 +70,123 @@ fn header(w: &mut dyn Write, prim: &str) -> io::Result<()> {
 
 const VERTEX: &str = " (\n            interpolation = \"vertex\"\n        )";
 
+/// A rigid body of a frame file: its name (from the scene), shape (body frame) and pose.
+pub struct UsdBody<'a> {
+    pub name: &'a str,
+    pub shape: &'a RigidShape,
+    /// Centre of mass in the world (m).
+    pub position: Vec3,
+    /// Body to world.
+    pub rotation: Quat,
+}
+
 /// Write the particles as `/particles` (see the module documentation), atomically.
 pub fn write_usda_points(path: &Path, p: &Particles, fields: &FrameFields) -> io::Result<()> {
+    write_usda_frame(path, p, fields, &[])
+}
+
+/// A USD prim name from `name`: letters, digits and `_`, not starting with a digit (others
+/// become `_`); `fallback` when that leaves nothing or a name already in `used`.
+fn prim_name(name: &str, fallback: String, used: &mut Vec<String>) -> String {
+    let mut n: String = name
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+        .collect();
+    if n.starts_with(|c: char| c.is_ascii_digit()) {
+        n.insert(0, '_');
+    }
+    if n.is_empty() || used.contains(&n) {
+        n = fallback;
+    }
+    used.push(n.clone());
+    n
+}
+
+/// `/bodies`: an `Xform` per rigid body holding its shape (see the module documentation).
+fn write_bodies(w: &mut dyn Write, bodies: &[UsdBody]) -> io::Result<()> {
+    let v3 = |v: Vec3| format!("({}, {}, {})", num(v.x), num(v.y), num(v.z));
+    writeln!(w, "\ndef Xform \"bodies\"\n{{")?;
+    let mut used = Vec::new();
+    for (i, b) in bodies.iter().enumerate() {
+        let name = prim_name(b.name, format!("body_{i}"), &mut used);
+        let q = b.rotation;
+        writeln!(w, "    def Xform \"{name}\"\n    {{")?;
+        writeln!(w, "        double3 xformOp:translate = {}", v3(b.position))?;
+        writeln!(
+            w,
+            "        quatf xformOp:orient = ({}, {}, {}, {})",
+            num(q.w),
+            num(q.x),
+            num(q.y),
+            num(q.z)
+        )?;
+        writeln!(
+            w,
+            "        uniform token[] xformOpOrder = [\"xformOp:translate\", \"xformOp:orient\"]"
+        )?;
+        match b.shape {
+            RigidShape::Box { half_extents } => {
+                writeln!(w, "        def Cube \"shape\"\n        {{")?;
+                writeln!(w, "            double size = 2")?;
+                writeln!(
+                    w,
+                    "            float3 xformOp:scale = {}",
+                    v3(*half_extents)
+                )?;
+                writeln!(
+                    w,
+                    "            uniform token[] xformOpOrder = [\"xformOp:scale\"]"
+                )?;
+            }
+            RigidShape::Sphere { radius } => {
+                writeln!(w, "        def Sphere \"shape\"\n        {{")?;
+                writeln!(w, "            double radius = {}", num(*radius))?;
+            }
+            RigidShape::Cylinder {
+                radius,
+                half_height,
+            } => {
+                writeln!(w, "        def Cylinder \"shape\"\n        {{")?;
+                writeln!(w, "            uniform token axis = \"Y\"")?;
+                writeln!(w, "            double height = {}", num(2.0 * half_height))?;
+                writeln!(w, "            double radius = {}", num(*radius))?;
+            }
+            RigidShape::Mesh(m) => {
+                let mesh = &m.mesh;
+                let nt = mesh.triangles.len();
+                writeln!(w, "        def Mesh \"shape\"\n        {{")?;
+                writeln!(w, "            uniform token orientation = \"rightHanded\"")?;
+                writeln!(w, "            uniform token subdivisionScheme = \"none\"")?;
+                array(
+                    w,
+                    "point3f[] points",
+                    mesh.vertices.len(),
+                    |i| v3(mesh.vertices[i]),
+                    "",
+                )?;
+                array(w, "int[] faceVertexCounts", nt, |_| "3".into(), "")?;
+                array(
+                    w,
+                    "int[] faceVertexIndices",
+                    3 * nt,
+                    |k| mesh.triangles[k / 3][k % 3].to_string(),
+                    "",
+                )?;
+            }
+        }
+        writeln!(w, "        }}\n    }}")?;
+    }
+    writeln!(w, "}}")
+}
+
+/// Write the particles as `/particles` and the rigid bodies `bodies` under `/bodies` (see the
+/// module documentation), atomically.
+pub fn write_usda_frame(
+    path: &Path,
+    p: &Particles,
+    fields: &FrameFields,
+    bodies: &[UsdBody],
+) -> io::Result<()> {
     super::check_particles(p)?;
     let n = p.len();
     fields.check_len(n)?;
@@ -115,7 +237,11 @@ pub fn write_usda_points(path: &Path, p: &Particles, fields: &FrameFields) -> io
                 VERTEX,
             )?;
         }
-        writeln!(w, "}}")
+        writeln!(w, "}}")?;
+        if !bodies.is_empty() {
+            write_bodies(w, bodies)?;
+        }
+        Ok(())
     })
 }
 
@@ -196,6 +322,58 @@ mod tests {
         assert_eq!(v1, p.v[3].z);
         assert_eq!(num(f32::NAN), "nan");
         assert_eq!(num(f32::NEG_INFINITY), "-inf");
+    }
+
+    #[test]
+    fn rigid_bodies_are_xforms_named_after_them_with_the_quaternion_real_first() {
+        let d = TestDir::new("usda-bodies");
+        let (cube, ball) = (
+            RigidShape::Box {
+                half_extents: Vec3::new(0.5, 0.25, 0.125),
+            },
+            RigidShape::Sphere { radius: 0.75 },
+        );
+        let turn = Quat::from_rotation_y(0.5);
+        let bodies = [
+            UsdBody {
+                name: "log 1",
+                shape: &cube,
+                position: Vec3::new(1.0, 2.0, 3.0),
+                rotation: turn,
+            },
+            UsdBody {
+                name: "1st",
+                shape: &ball,
+                position: Vec3::ZERO,
+                rotation: Quat::IDENTITY,
+            },
+            UsdBody {
+                name: "log_1",
+                shape: &ball,
+                position: Vec3::ZERO,
+                rotation: Quat::IDENTITY,
+            },
+        ];
+        let path = d.path("b.usda");
+        write_usda_frame(&path, &sample(3), &FrameFields::default(), &bodies).unwrap();
+        let t = std::fs::read_to_string(&path).unwrap();
+        // Invalid characters become `_`, a leading digit gets one, a name taken falls back.
+        for name in ["log_1", "_1st", "body_2"] {
+            assert!(t.contains(&format!("def Xform \"{name}\"")), "{name}");
+        }
+        assert!(t.contains("double3 xformOp:translate = (1, 2, 3)"));
+        let orient = format!(
+            "quatf xformOp:orient = ({}, 0, {}, 0)",
+            num(turn.w),
+            num(turn.y)
+        );
+        assert!(t.contains(&orient), "{orient}");
+        assert!(t.contains("float3 xformOp:scale = (0.5, 0.25, 0.125)"));
+        assert!(t.contains("double radius = 0.75"));
+        assert_eq!(t.matches("def Sphere").count(), 2);
+        // Without bodies, no /bodies prim.
+        write_usda_points(&path, &sample(3), &FrameFields::default()).unwrap();
+        assert!(!std::fs::read_to_string(&path).unwrap().contains("bodies"));
     }
 
     #[test]
