@@ -22,6 +22,7 @@ pub mod image;
 mod mesh;
 pub mod plot;
 pub(crate) mod raster;
+mod shadow;
 #[cfg(test)]
 mod tests;
 #[cfg(test)]
@@ -36,6 +37,7 @@ use crate::math::Vec3;
 use colliders::{COLLIDER_COLOR, COLLIDER_ID, PosedCollider};
 use raster::{Splat, raster};
 use rayon::prelude::*;
+use shadow::{LIGHT, SHADOW_RES, ShadowMap};
 use std::fmt;
 use std::str::FromStr;
 
@@ -301,109 +303,6 @@ struct GTexel {
     u: f32,
     v: f32,
     id: u32,
-}
-
-/// Direction towards the light (normalised below).
-const LIGHT: Vec3 = Vec3::new(-0.45, 1.0, 0.55);
-/// Shadow map resolution.
-const SHADOW_RES: usize = 1024;
-
-/// An orthographic depth map seen from the light.
-struct ShadowMap {
-    origin: Vec3,
-    right: Vec3,
-    up: Vec3,
-    fwd: Vec3,
-    scale: f32,
-    depth: Vec<f32>,
-}
-
-impl ShadowMap {
-    fn build(input: &RenderInput, opts: &RenderOptions) -> ShadowMap {
-        let fwd = -LIGHT.normalize();
-        let right = fwd.cross(Vec3::Z).normalize();
-        let up = right.cross(fwd);
-        let (lo, hi) = opts.bounds;
-        let (mut u0, mut u1, mut v0, mut v1, mut d0) = (
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            f32::INFINITY,
-        );
-        for i in 0..8 {
-            let c = Vec3::new(
-                if i & 1 == 0 { lo.x } else { hi.x },
-                if i & 2 == 0 { lo.y } else { hi.y },
-                if i & 4 == 0 { lo.z } else { hi.z },
-            );
-            u0 = u0.min(c.dot(right));
-            u1 = u1.max(c.dot(right));
-            v0 = v0.min(c.dot(up));
-            v1 = v1.max(c.dot(up));
-            d0 = d0.min(c.dot(fwd));
-        }
-        let pad = 2.0 * opts.radius;
-        let origin = right * (u0 - pad) + up * (v1 + pad) + fwd * (d0 - pad);
-        let scale = SHADOW_RES as f32 / ((u1 - u0).max(v1 - v0) + 2.0 * pad).max(1e-6);
-        let wr = opts.radius;
-        let splats: Vec<Splat> = input
-            .positions
-            .par_iter()
-            .enumerate()
-            .filter(|(_, p)| p.is_finite())
-            .map(|(i, p)| {
-                let d = *p - origin;
-                Splat {
-                    x: d.dot(right) * scale,
-                    y: -d.dot(up) * scale,
-                    r: (wr * scale).max(0.75),
-                    z: d.dot(fwd),
-                    wr,
-                    id: i as u32,
-                }
-            })
-            .collect();
-        let mut depth = vec![f32::INFINITY; SHADOW_RES * SHADOW_RES];
-        raster(&splats, SHADOW_RES, SHADOW_RES, &mut depth, |t, s, u, v| {
-            let d = s.z - (1.0 - u * u - v * v).max(0.0).sqrt() * s.wr;
-            if d < *t {
-                *t = d;
-            }
-        });
-        ShadowMap {
-            origin,
-            right,
-            up,
-            fwd,
-            scale,
-            depth,
-        }
-    }
-
-    /// Fraction of light reaching `p` (0: in shadow), 3x3 percentage-closer filtered.
-    fn light(&self, p: Vec3, bias: f32) -> f32 {
-        let d = p - self.origin;
-        let x = d.dot(self.right) * self.scale;
-        let y = -d.dot(self.up) * self.scale;
-        let z = d.dot(self.fwd) - bias;
-        let (xi, yi) = (x.floor() as i64, y.floor() as i64);
-        let mut lit = 0.0;
-        for dy in -1..=1 {
-            for dx in -1..=1 {
-                let (sx, sy) = (xi + dx, yi + dy);
-                let occluded = sx >= 0
-                    && sy >= 0
-                    && (sx as usize) < SHADOW_RES
-                    && (sy as usize) < SHADOW_RES
-                    && self.depth[sy as usize * SHADOW_RES + sx as usize] < z;
-                if !occluded {
-                    lit += 1.0;
-                }
-            }
-        }
-        lit / 9.0
-    }
 }
 
 /// Render one frame.
