@@ -152,26 +152,8 @@ fn write_bodies(w: &mut dyn Write, bodies: &[UsdBody]) -> io::Result<()> {
                 writeln!(w, "            double radius = {}", num(*radius))?;
             }
             RigidShape::Mesh(m) => {
-                let mesh = &m.mesh;
-                let nt = mesh.triangles.len();
                 writeln!(w, "        def Mesh \"shape\"\n        {{")?;
-                writeln!(w, "            uniform token orientation = \"rightHanded\"")?;
-                writeln!(w, "            uniform token subdivisionScheme = \"none\"")?;
-                array(
-                    w,
-                    "point3f[] points",
-                    mesh.vertices.len(),
-                    |i| v3(mesh.vertices[i]),
-                    "",
-                )?;
-                array(w, "int[] faceVertexCounts", nt, |_| "3".into(), "")?;
-                array(
-                    w,
-                    "int[] faceVertexIndices",
-                    3 * nt,
-                    |k| mesh.triangles[k / 3][k % 3].to_string(),
-                    "",
-                )?;
+                mesh_triangles(w, &m.mesh.vertices, &m.mesh.triangles)?;
             }
         }
         writeln!(w, "        }}\n    }}")?;
@@ -245,32 +227,39 @@ pub fn write_usda_frame(
     })
 }
 
+/// The triangles of a `Mesh` prim: its orientation, no subdivision, `points`,
+/// `faceVertexCounts` and `faceVertexIndices`.
+fn mesh_triangles(w: &mut dyn Write, vertices: &[Vec3], triangles: &[[u32; 3]]) -> io::Result<()> {
+    let v3 = |v: Vec3| format!("({}, {}, {})", num(v.x), num(v.y), num(v.z));
+    let nt = triangles.len();
+    writeln!(w, "        uniform token orientation = \"rightHanded\"")?;
+    writeln!(w, "        uniform token subdivisionScheme = \"none\"")?;
+    array(
+        w,
+        "point3f[] points",
+        vertices.len(),
+        |i| v3(vertices[i]),
+        "",
+    )?;
+    array(w, "int[] faceVertexCounts", nt, |_| "3".into(), "")?;
+    array(
+        w,
+        "int[] faceVertexIndices",
+        3 * nt,
+        |k| triangles[k / 3][k % 3].to_string(),
+        "",
+    )
+}
+
 /// Write a surface mesh as `/surface` (see the module documentation), atomically.
 pub fn write_usda_mesh(path: &Path, mesh: &TriMesh) -> io::Result<()> {
     mesh.check()
         .map_err(|e| io::Error::new(io::ErrorKind::InvalidInput, format!("bad mesh: {e}")))?;
     let v3 = |v: crate::math::Vec3| format!("({}, {}, {})", num(v.x), num(v.y), num(v.z));
-    let nt = mesh.triangles.len();
     write_atomic_with(path, |w| {
         header(w, "surface")?;
         writeln!(w, "def Mesh \"surface\"\n{{")?;
-        writeln!(w, "        uniform token orientation = \"rightHanded\"")?;
-        writeln!(w, "        uniform token subdivisionScheme = \"none\"")?;
-        array(
-            w,
-            "point3f[] points",
-            mesh.vertices.len(),
-            |i| v3(mesh.vertices[i]),
-            "",
-        )?;
-        array(w, "int[] faceVertexCounts", nt, |_| "3".into(), "")?;
-        array(
-            w,
-            "int[] faceVertexIndices",
-            3 * nt,
-            |k| mesh.triangles[k / 3][k % 3].to_string(),
-            "",
-        )?;
+        mesh_triangles(w, &mesh.vertices, &mesh.triangles)?;
         if !mesh.normals.is_empty() {
             array(
                 w,
