@@ -103,10 +103,11 @@ pub struct Floating {
     pub surface: f64,
     /// How far the body has turned from its initial orientation at the end (degrees).
     pub tilt_degrees: f64,
-    /// A box's submerged fraction of its volume below the surface, in the pose and below the
-    /// surface of each of the last frames, averaged: Archimedes' displaced volume whatever the tilt (for an upright
-    /// box it is [`Floating::fraction`]; a box tilted by `t` with its centre `h` above the
-    /// surface has `h / cos t` where the fraction of height has `h`). `None` for other shapes.
+    /// A box's submerged fraction of its volume, in the pose and below the surface of each of
+    /// the last frames, averaged: Archimedes' displaced volume whatever the tilt (for an
+    /// upright box it is [`Floating::fraction`]; a box tilted by `t` with its centre `h` above
+    /// the surface has `h / cos t` where the fraction of height has `h`). `None` for other
+    /// shapes.
     pub volume_fraction: Option<f64>,
     /// The tilt from the initial orientation averaged over the last frames (degrees).
     pub mean_tilt_degrees: f64,
