@@ -104,6 +104,15 @@ impl PyScene {
         self.origin.clone()
     }
 
+    /// What the scene allows but probably gets wrong, one string each, as ``rtmpm check``
+    /// prints them (today: rigid bodies that can hang in a fluid they are denser than, see
+    /// docs/scene-format.md, "Resolution of rigid bodies"). A :class:`Simulation` of the scene
+    /// issues them as ``UserWarning``.
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.scene.warnings()
+    }
+
     /// Grid spacing (m).
     #[getter]
     fn dx(&self) -> f32 {

@@ -218,6 +218,16 @@ impl PySimulation {
         let req = request(backend, threads, gpus.unwrap_or(&one), cuda_options)?;
         let scene = scene_arg(py, scene)?;
         let s = &scene.get().scene;
+        // What `rtmpm run` prints as "warning:", as Python warnings.
+        for w in s.warnings() {
+            let text = std::ffi::CString::new(w).unwrap_or_default();
+            PyErr::warn(
+                py,
+                &py.get_type::<pyo3::exceptions::PyUserWarning>(),
+                &text,
+                1,
+            )?;
+        }
         let particles = s
             .sample_particles()
             .map_err(|e| crate::errors::scene_error(py, &e, scene.get().origin == "<dict>"))?;

@@ -252,6 +252,28 @@ def test_rigid_bodies_fall_freely_or_need_the_rigid_feature():
     assert max(abs(w) for w in b["angular_velocity"]) < 1e-6
 
 
+def test_a_body_that_can_hang_in_the_water_is_warned_about():
+    """A 6 cm box of density 1500 in water at dx = 3.125 cm weighs, beyond its buoyancy, as
+    much as a water layer 0.16 cells thick over its surface: the coupling's buoyancy, counted
+    in grid cells, can hold it (docs/scene-format.md, "Resolution of rigid bodies"). The scene
+    lists the warning and a simulation issues it; at density 500 (it floats) there is none."""
+    import copy
+
+    from conftest import SMALL_DICT
+
+    scene = copy.deepcopy(SMALL_DICT)
+    scene["rigid_body"] = [
+        {"shape": "box", "min": [0.32, 0.32, 0.32], "max": [0.38, 0.38, 0.38], "density": 500.0}
+    ]
+    assert rtmpm.Scene.from_dict(scene).warnings == []
+    scene["rigid_body"][0]["density"] = 1500.0
+    (w,) = rtmpm.Scene.from_dict(scene).warnings
+    assert w.startswith("rigid_body[0]") and "can hang in `water`" in w and "0.16 cells" in w
+    if "rigid" in rtmpm.features:
+        with pytest.warns(UserWarning, match="can hang in `water`"):
+            rtmpm.Simulation(scene, backend="cpu")
+
+
 def test_write_frame_ply_and_vtu(tmp_path, jelly_path):
     sim = rtmpm.Simulation(jelly_path, backend="cpu")
     sim.run_frame()

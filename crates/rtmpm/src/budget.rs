@@ -45,7 +45,7 @@ pub fn enforce_for(
             budget = budget.with_drawn_bodies(scene);
         }
     }
-    for w in budget.warnings() {
+    for w in budget.warnings().into_iter().chain(scene.warnings()) {
         eprintln!("warning: {w}");
     }
     let disk = out.and_then(disk_available);

@@ -114,6 +114,17 @@ impl TriMesh {
         Ok(mesh)
     }
 
+    /// Surface area: the sum of the triangles' areas.
+    pub fn area(&self) -> f32 {
+        self.triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| self.vertices[i as usize]);
+                0.5 * (b - a).cross(c - a).length()
+            })
+            .sum()
+    }
+
     /// Axis-aligned bounds of the vertices.
     pub fn bounds(&self) -> (Vec3, Vec3) {
         let mut lo = Vec3::splat(f32::INFINITY);

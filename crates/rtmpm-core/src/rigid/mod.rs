@@ -93,6 +93,20 @@ impl RigidShape {
         }
     }
 
+    /// Surface area (m^2).
+    pub fn area(&self) -> f32 {
+        use std::f32::consts::PI;
+        match *self {
+            RigidShape::Box { half_extents: h } => 8.0 * (h.x * h.y + h.y * h.z + h.z * h.x),
+            RigidShape::Sphere { radius } => 4.0 * PI * radius * radius,
+            RigidShape::Cylinder {
+                radius,
+                half_height,
+            } => 2.0 * PI * radius * (radius + 2.0 * half_height),
+            RigidShape::Mesh(ref m) => m.mesh.area(),
+        }
+    }
+
     /// Signed distance (negative inside) of the point `p` given in the body frame.
     pub fn distance(&self, p: Vec3) -> f32 {
         match *self {
@@ -207,6 +221,72 @@ pub struct RigidBodySpec {
     /// The boundary rule between the material and the body.
     pub condition: Condition,
     pub friction: f32,
+}
+
+/// The excess weight of a dynamic body denser than a fluid, as a layer of that fluid over the
+/// body's surface in cells, `(rho_b - rho_f) V / (rho_f A dx)`, below which the body can hang
+/// in the fluid or sink far too slowly. The material loads a body through the grid nodes inside
+/// it, so its buoyancy is counted in cells and jumps as node planes pass into it, and a body
+/// lighter in the fluid than about a quarter-cell layer over its surface can stop on a node
+/// plane. Measured on the 2-core CPU in water (`scripts/validation/small_bodies.py`,
+/// validation/RESULTS.md, "Small and near-neutral rigid bodies"): spheres that hung were at
+/// 0.25 or less, and every one still off the floor after 2 s at 0.375 or less; 0.4 was chosen
+/// after seeing those runs.
+pub const HANG_LAYER_CELLS: f32 = 0.4;
+
+/// A warning for each dynamic body that can hang in a fluid of the scene (`fluids`: each fluid
+/// material's name and density) it is denser than ([`HANG_LAYER_CELLS`]), with the grid
+/// spacing that would let it sink; empty when there is none.
+pub fn resolution_warnings(
+    bodies: &[RigidBodySpec],
+    fluids: &[(&str, f32)],
+    dx: f32,
+) -> Vec<String> {
+    let mut out = Vec::new();
+    for (i, b) in bodies.iter().enumerate() {
+        if b.kind != RigidKind::Dynamic {
+            continue;
+        }
+        let volume = b.shape.volume();
+        let density = b.mass / volume;
+        // The fluid it is least denser than decides.
+        let Some(&(fluid, rho)) = fluids
+            .iter()
+            .filter(|&&(_, rho)| density > rho)
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+        else {
+            continue;
+        };
+        // (rho_b - rho_f) V / (rho_f A): the fluid layer, in metres, the excess weight equals.
+        let layer = (density - rho) * volume / (rho * b.shape.area());
+        if layer >= HANG_LAYER_CELLS * dx {
+            continue;
+        }
+        out.push(format!(
+            "rigid_body[{i}] `{}` (density {}) can hang in `{fluid}` (density {}) or sink in it \
+             far too slowly: the material loads a body through the grid nodes inside it, so its \
+             buoyancy comes in whole cells, and its weight beyond its buoyancy is that of a \
+             layer of `{fluid}` only {:.2} cells thick over its surface (under {HANG_LAYER_CELLS}); \
+             use dx <= {} or a larger or denser body (docs/scene-format.md, \"Resolution of \
+             rigid bodies\")",
+            b.name,
+            sig3(density),
+            sig3(rho),
+            layer / dx,
+            sig3(layer / HANG_LAYER_CELLS)
+        ));
+    }
+    out
+}
+
+/// `x` to 3 significant digits, as `0.1` or `0.00125`.
+fn sig3(x: f32) -> f64 {
+    let x = x as f64;
+    if x == 0.0 || !x.is_finite() {
+        return x;
+    }
+    let scale = 10f64.powi(2 - x.abs().log10().floor() as i32);
+    (x * scale).round() / scale
 }
 
 /// A body's state at the current time, as the grid update sees it.

@@ -388,6 +388,21 @@ impl Scene {
         validate::parse(text, origin, base_dir, None)
     }
 
+    /// What this scene allows but probably gets wrong, one line each, for `rtmpm check` and
+    /// `rtmpm run` to print: today dynamic rigid bodies that can hang in a fluid they are
+    /// denser than ([`crate::rigid::resolution_warnings`]).
+    // `Real` is f64 in the f64 build of this crate.
+    #[allow(clippy::unnecessary_cast)]
+    pub fn warnings(&self) -> Vec<String> {
+        let fluids: Vec<(&str, f32)> = self
+            .materials
+            .iter()
+            .filter(|m| matches!(m.model, crate::material::Model::Fluid(_)))
+            .map(|m| (m.name.as_str(), m.density as f32))
+            .collect();
+        crate::rigid::resolution_warnings(&self.rigid_bodies, &fluids, self.dx)
+    }
+
     /// Number of cells along each axis.
     pub fn n_cells(&self) -> [u32; 3] {
         let n = (self.domain_max - self.domain_min) / self.dx;

@@ -234,6 +234,48 @@ fn rigid_cylinders_take_the_colliders_fields() {
 }
 
 #[test]
+fn bodies_that_can_hang_in_a_fluid_are_warned_about() {
+    // In water at dx = 0.0625: the box (0.1 m, V / A = 1/60 m) of density 500 floats, the
+    // sphere (radius 0.05 m, V / A = 1/60 m) of mass 2 kg (density 3820) sinks with an excess
+    // weight of a water layer 2.82 / 60 m = 0.75 cells thick over its surface.
+    let text = format!("{BASE}{RIGID}");
+    assert!(parse(&text).unwrap().warnings().is_empty());
+    // Density 1500: a layer of 0.5 / 60 m = 0.133 cells; 0.4 cells needs dx <= 0.0208 m.
+    let heavy_box = text.replacen("density = 500.0", "density = 1500.0", 1);
+    let w = parse(&heavy_box).unwrap().warnings();
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(
+        w[0].starts_with("rigid_body[0] `rigid_body0` (density 1500) can hang in `water`")
+            && w[0].contains("0.13 cells")
+            && w[0].contains("dx <= 0.0208"),
+        "{w:?}"
+    );
+    // Not a kinematic body (the material does not load it), nor at 3000 (0.53 cells).
+    let kinematic = heavy_box.replacen(
+        "density = 1500.0",
+        "density = 1500.0\ntype = \"kinematic\"",
+        1,
+    );
+    assert!(parse(&kinematic).unwrap().warnings().is_empty());
+    let heavier = text.replacen("density = 500.0", "density = 3000.0", 1);
+    assert!(parse(&heavier).unwrap().warnings().is_empty());
+    // A sphere given by its mass: density 1200 is 0.2 / 60 m = 0.053 cells.
+    let mass = 1200.0 * 4.0 / 3.0 * std::f32::consts::PI * 0.05f32.powi(3);
+    let w = parse(&text.replacen("mass = 2.0", &format!("mass = {mass}"), 1))
+        .unwrap()
+        .warnings();
+    assert!(w.len() == 1 && w[0].starts_with("rigid_body[1]"), "{w:?}");
+    // Only fluids count: the same body in a Drucker-Prager sand of density 1000 may rest in it.
+    let sand = heavy_box.replacen(
+        "type = \"fluid\"\ndensity = 1000.0\nbulk_modulus = 1e5",
+        "type = \"drucker_prager\"\ndensity = 1000.0\nyoungs_modulus = 1e5\npoisson_ratio = 0.3\nfriction_angle = 30.0",
+        1,
+    );
+    assert_ne!(sand, heavy_box);
+    assert!(parse(&sand).unwrap().warnings().is_empty());
+}
+
+#[test]
 fn rigid_example_scenes_validate() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/rigid");
     let mut n = 0;
