@@ -1,0 +1,103 @@
+//! Scene tests of the settings tables: `[time]` damping and `[solver]`, and tables that are
+//! missing, integers too big for their field and names that need escaping.
+
+use super::*;
+
+#[test]
+fn settling_damping() {
+    let s =
+        parse(&BASE.replacen("[time]", "[time]\ndamping = 20.0\ndamping_until = 0.5", 1)).unwrap();
+    let d = s.time.damping;
+    assert!((d.factor(1e-3, 0.1) - 0.98).abs() < 1e-6);
+    assert_eq!(d.factor(1e-3, 0.5), 1.0);
+    assert_eq!(parse(BASE).unwrap().time.damping.factor(1e-3, 0.0), 1.0);
+    parse_err(
+        &BASE.replacen("[time]", "[time]\ndamping = -1.0", 1),
+        "time.damping",
+    );
+}
+
+#[test]
+fn solver_table_defaults_and_values() {
+    use crate::transfer::{SolverSettings, Transfer, Update};
+    // No [solver]: MLS-MPM/APIC, exactly today's behaviour.
+    assert_eq!(parse(BASE).unwrap().solver, SolverSettings::default());
+    let with = |t: &str| parse(&format!("{BASE}[solver]\n{t}\n"));
+    let s = with("transfer = \"gimp\"").unwrap().solver;
+    assert_eq!(
+        (s.transfer, s.update, s.flip),
+        (Transfer::Gimp, Update::Usl, 1.0)
+    );
+    let s = with("transfer = \"mpm-linear\"\nupdate = \"musl\"\nflip = 0.25")
+        .unwrap()
+        .solver;
+    assert_eq!(
+        (s.transfer, s.update, s.flip),
+        (Transfer::MpmLinear, Update::Musl, 0.25)
+    );
+    assert_eq!(
+        with("transfer = \"mls\"").unwrap().solver.transfer,
+        Transfer::Mls
+    );
+}
+
+#[test]
+fn solver_table_errors_name_the_field_line_and_allowed_values() {
+    let with = |t: &str| {
+        let text = format!("{BASE}[solver]\n{t}\n");
+        let e = parse(&text).expect_err(t);
+        assert!(e.line.is_some() && e.hint.is_some(), "{e}");
+        (e, text)
+    };
+    let (e, text) = with("transfer = \"flip\"");
+    assert_eq!(e.line, Some(line_of(&text, "transfer = \"flip\"")), "{e}");
+    let msg = e.to_string();
+    for allowed in ["mls", "gimp", "mpm-linear"] {
+        assert!(msg.contains(allowed), "{msg}");
+    }
+    let (e, _) = with("transfer = \"gimp\"\nupdate = \"usf\"");
+    assert!(e.to_string().contains("musl"), "{e}");
+    let (e, text) = with("transfer = \"gimp\"\nflip = 1.5");
+    assert_eq!(e.field.as_deref(), Some("solver.flip"));
+    assert_eq!(e.line, Some(line_of(&text, "flip = 1.5")));
+    let (e, _) = with("flip = 0.5");
+    assert_eq!(
+        e.field.as_deref(),
+        Some("solver.flip"),
+        "flip with mls: {e}"
+    );
+    let (e, _) = with("update = \"musl\"");
+    assert_eq!(
+        e.field.as_deref(),
+        Some("solver.update"),
+        "musl with mls: {e}"
+    );
+    let (e, _) = with("transfer = \"gimp\"\nfip = 0.5");
+    assert!(e.to_string().contains("fip"), "{e}");
+}
+
+/// Messages for the hostile inputs of issue 18: the table that is missing, the field of an
+/// integer too large for 64 bits, a name that would climb out of `out/`.
+#[test]
+fn missing_tables_big_integers_and_escaping_names_are_named() {
+    let base = "[domain]\nmin = [0, 0, 0]\nmax = [1, 1, 1]\ndx = 0.1\n[time]\nduration = 1\n";
+    let e = Scene::from_toml("name = \"x\"\n[time]\nduration = 1\n", "s").unwrap_err();
+    assert_eq!(e.field.as_deref(), Some("domain"), "{e}");
+    assert!(e.hint.unwrap().contains("[domain]"));
+    let e = Scene::from_toml(
+        "[domain]\nmin = [0, 0, 0]\nmax = [1, 1, 1]\n[time]\nduration = 1\n",
+        "s",
+    )
+    .unwrap_err();
+    assert_eq!(e.field.as_deref(), Some("domain.dx"), "{e}");
+    let e = Scene::from_toml(&format!("seed = 123456789012345678901234\n{base}"), "s").unwrap_err();
+    assert_eq!(e.field.as_deref(), Some("seed"), "{e}");
+    assert!(e.hint.unwrap().contains("18446744073709551615"));
+    for name in ["../../evil", "a/b", "..", ".hidden", "", "a\u{7}b"] {
+        let e = Scene::from_toml(&format!("name = {name:?}\n{base}"), "s").unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("name"), "{name}: {e}");
+    }
+    let e = Scene::from_toml(&format!("{base}[output]\ndir = \"out/../../x\"\n"), "s").unwrap_err();
+    assert_eq!(e.field.as_deref(), Some("output.dir"), "{e}");
+    assert!(Scene::from_toml(&format!("name = \"ok-name_1\"\n{base}"), "s").is_ok());
+}
