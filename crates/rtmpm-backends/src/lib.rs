@@ -326,6 +326,9 @@ impl Backend for AnyBackend {
     fn rigid_poses(&self) -> Vec<rtmpm_core::rigid::BodyPose> {
         self.as_dyn_ref().rigid_poses()
     }
+    fn flush_rigid(&mut self) -> Result<(), SimError> {
+        self.as_dyn().flush_rigid()
+    }
     fn set_rigid_poses(&mut self, poses: &[rtmpm_core::rigid::BodyPose]) -> Result<(), SimError> {
         self.as_dyn().set_rigid_poses(poses)
     }

@@ -186,8 +186,16 @@ pub trait Backend {
     fn rigid_poses(&self) -> Vec<crate::rigid::BodyPose> {
         Vec::new()
     }
-    /// Put the rigid bodies at `poses` (from [`Backend::rigid_poses`], resuming a checkpoint).
-    /// A backend that couples no bodies accepts only none.
+    /// Give the rigid bodies every impulse the grid has sent them, so that
+    /// [`Backend::rigid_poses`] is their state at the current time: a backend that moves them
+    /// a step late (the CUDA backend's `rigid_overlap`) takes the last step's now. Others have
+    /// nothing to do.
+    fn flush_rigid(&mut self) -> Result<(), SimError> {
+        Ok(())
+    }
+    /// Put the rigid bodies at `poses` (from [`Backend::rigid_poses`]: resuming a checkpoint,
+    /// or a script moving them; call [`Backend::flush_rigid`] before reading the poses to
+    /// change). A backend that couples no bodies accepts only none.
     fn set_rigid_poses(&mut self, poses: &[crate::rigid::BodyPose]) -> Result<(), SimError> {
         if poses.is_empty() {
             return Ok(());

@@ -84,6 +84,13 @@ impl Backend for CudaBackend {
         self.bodies.as_ref().map_or_else(Vec::new, |b| b.poses())
     }
 
+    fn flush_rigid(&mut self) -> Result<(), SimError> {
+        match self.bodies.as_mut() {
+            Some(b) => b.flush(),
+            None => Ok(()),
+        }
+    }
+
     fn set_rigid_poses(&mut self, poses: &[rtmpm_core::rigid::BodyPose]) -> Result<(), SimError> {
         match self.bodies.as_mut() {
             Some(b) => b.set_poses(poses),
@@ -98,10 +105,7 @@ impl Backend for CudaBackend {
     /// The bodies take the impulses of the frame's last step (with `rigid_overlap` they are
     /// a step behind): at a frame's end they are where the CPU backend's would be.
     fn end_of_frame(&mut self) -> Result<(), SimError> {
-        match self.bodies.as_mut() {
-            Some(b) => b.flush(),
-            None => Ok(()),
-        }
+        self.flush_rigid()
     }
 
     fn export_frame(&mut self, sink: &mut dyn rtmpm_core::sim::ChunkSink) -> Result<(), SimError> {

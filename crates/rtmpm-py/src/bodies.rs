@@ -1,9 +1,15 @@
-//! Rigid bodies seen from Python: their states as dicts, and the cargo features the module was
-//! built with (`rtmpm.features`: `rigid` simulates `[[rigid_body]]` tables).
+//! Rigid bodies seen from Python: their states as dicts, a script moving them
+//! (`Simulation.set_rigid_body`), and the cargo features the module was built with
+//! (`rtmpm.features`: `rigid` simulates `[[rigid_body]]` tables).
 
+use crate::errors::sim_error;
+use crate::simulation::Inner;
+use pyo3::exceptions::{PyIndexError, PyKeyError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use rtmpm_core::rigid::BodyPose;
+use rtmpm_core::math::Vec3;
+use rtmpm_core::rigid::{BodyPose, RigidBodySpec, RigidKind};
+use rtmpm_core::sim::Backend;
 
 /// The optional cargo features of this build, by name.
 pub fn features() -> Vec<&'static str> {
@@ -31,4 +37,124 @@ pub fn states<'py>(py: Python<'py>, poses: &[BodyPose]) -> PyResult<Vec<Bound<'p
             Ok(d)
         })
         .collect()
+}
+
+/// The index among `specs` of `body`: an int (negative counts from the end) or a body's name.
+fn body_index(body: &Bound<'_, PyAny>, specs: &[RigidBodySpec]) -> PyResult<usize> {
+    if let Ok(name) = body.extract::<String>() {
+        return specs.iter().position(|s| s.name == name).ok_or_else(|| {
+            let names: Vec<&str> = specs.iter().map(|s| s.name.as_str()).collect();
+            PyKeyError::new_err(format!(
+                "no rigid body named `{name}`; the scene's are {names:?}"
+            ))
+        });
+    }
+    let i: i64 = body.extract().map_err(|_| {
+        PyTypeError::new_err("body: an int (its index in [[rigid_body]]) or a str (its name)")
+    })?;
+    let n = specs.len() as i64;
+    let j = if i < 0 { i + n } else { i };
+    if (0..n).contains(&j) {
+        Ok(j as usize)
+    } else {
+        Err(PyIndexError::new_err(format!(
+            "rigid body {i} does not exist: the scene has {n} rigid bodies"
+        )))
+    }
+}
+
+/// What `Simulation.set_rigid_body` changes; `None` keeps the body's own.
+pub struct BodyUpdate {
+    pub position: Option<[f32; 3]>,
+    pub rotation: Option<[f32; 4]>,
+    pub velocity: Option<[f32; 3]>,
+    pub angular_velocity: Option<[f32; 3]>,
+}
+
+impl BodyUpdate {
+    /// `pose` with the given fields of `spec`'s body changed: finite values, the centre inside
+    /// `interior` (the domain minus the walls), a non-zero quaternion (normalised), and no
+    /// velocities for a fixed body.
+    fn apply(
+        &self,
+        spec: &RigidBodySpec,
+        pose: &mut BodyPose,
+        interior: (Vec3, Vec3),
+    ) -> PyResult<()> {
+        let name = &spec.name;
+        let finite = |field: &str, v: &[f32]| {
+            if v.iter().all(|x| x.is_finite()) {
+                Ok(())
+            } else {
+                Err(PyValueError::new_err(format!(
+                    "rigid body `{name}`: {field} {v:?} is not finite"
+                )))
+            }
+        };
+        if let Some(p) = self.position {
+            finite("position", &p)?;
+            let p = Vec3::from_array(p);
+            let (lo, hi) = interior;
+            if p.cmplt(lo).any() || p.cmpgt(hi).any() {
+                return Err(PyValueError::new_err(format!(
+                    "rigid body `{name}`: position {p} is outside the domain minus the walls, \
+                     {lo} .. {hi}"
+                )));
+            }
+            pose.position = p;
+        }
+        if let Some(q) = self.rotation {
+            finite("rotation", &q)?;
+            let q = glam::Quat::from_array(q);
+            if q.length() < 1e-6 {
+                return Err(PyValueError::new_err(format!(
+                    "rigid body `{name}`: rotation {q} is not a rotation (a unit quaternion \
+                     [x, y, z, w], e.g. [0, 0, 0, 1])"
+                )));
+            }
+            pose.rotation = q.normalize();
+        }
+        for (field, value, target) in [
+            ("velocity", self.velocity, &mut pose.velocity),
+            (
+                "angular_velocity",
+                self.angular_velocity,
+                &mut pose.angular_velocity,
+            ),
+        ] {
+            let Some(v) = value else { continue };
+            finite(field, &v)?;
+            if spec.kind == RigidKind::Fixed && v != [0.0; 3] {
+                return Err(PyValueError::new_err(format!(
+                    "rigid body `{name}` is fixed and cannot be given a {field}: give it \
+                     type = \"kinematic\" (moved by its velocity) or \"dynamic\""
+                )));
+            }
+            *target = Vec3::from_array(v);
+        }
+        Ok(())
+    }
+}
+
+/// Set the fields of `update` on rigid body `body` of `inner`'s simulation, from the next step
+/// on: the bodies first take every impulse the grid has sent them, so the fields not given are
+/// the body's at the current time.
+pub fn set(
+    py: Python<'_>,
+    inner: &mut Inner,
+    body: &Bound<'_, PyAny>,
+    update: &BodyUpdate,
+) -> PyResult<()> {
+    inner.usable()?;
+    let sim = &mut inner.sim;
+    let i = body_index(body, &sim.scene.rigid_bodies)?;
+    sim.backend.flush_rigid().map_err(|e| sim_error(py, &e))?;
+    let mut poses = sim.backend.rigid_poses();
+    let pose = poses.get_mut(i).ok_or_else(|| {
+        PyIndexError::new_err(format!("rigid body {i}: the backend holds no state for it"))
+    })?;
+    update.apply(&sim.scene.rigid_bodies[i], pose, sim.scene.interior())?;
+    sim.backend
+        .set_rigid_poses(&poses)
+        .map_err(|e| sim_error(py, &e))
 }

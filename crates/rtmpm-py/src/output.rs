@@ -1,13 +1,17 @@
 //! Frame files and images of the particles in memory (`Simulation.write_frame`,
-//! `Simulation.render`), with rtmpm-core's writers and renderer.
+//! `Simulation.render`), with rtmpm-core's writers and renderer, and checkpoints
+//! (`Simulation.checkpoint`).
 
 use crate::errors::RtmpmError;
+use crate::simulation::Inner;
 use numpy::PyArray3;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use rtmpm_core::io::checkpoint::Checkpoint;
 use rtmpm_core::io::{FrameFields, cauchy_stress, ply, vtk_appended};
 use rtmpm_core::math::Vec3;
 use rtmpm_core::render::{Camera, ColorBy, RenderInput, RenderOptions, colormap, von_mises};
+use rtmpm_core::sim::Backend;
 use rtmpm_core::{Particles, Scene};
 use std::path::Path;
 
@@ -177,4 +181,28 @@ pub fn render<'py>(
     )
     .map_err(|e| RtmpmError::new_err(format!("rendering: {e}")))?;
     Ok(numpy::IntoPyArray::into_pyarray(arr, py))
+}
+
+/// Write a checkpoint of `inner`'s simulation to `path` (atomic): the scene, time, step,
+/// frame, every particle and rigid body, the bodies first taking every impulse the grid has sent
+/// them (the CUDA backend moves them a step late) so that they are at the particles' time.
+pub fn checkpoint(py: Python<'_>, inner: &mut Inner, path: &Path) -> PyResult<()> {
+    inner
+        .sim
+        .backend
+        .flush_rigid()
+        .map_err(|e| crate::errors::sim_error(py, &e))?;
+    let particles = inner.host(py)?.clone();
+    let scene = inner.scene.get();
+    let ckpt = Checkpoint {
+        scene_toml: scene.text.clone(),
+        scene_origin: scene.origin.clone(),
+        time: inner.sim.time,
+        step: inner.sim.step,
+        frame: inner.sim.frame,
+        bodies: inner.sim.backend.rigid_poses(),
+        particles,
+    };
+    py.detach(|| ckpt.save(path))
+        .map_err(|e| RtmpmError::new_err(format!("writing checkpoint {}: {e}", path.display())))
 }

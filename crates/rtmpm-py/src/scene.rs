@@ -41,6 +41,16 @@ impl PyScene {
     }
 }
 
+/// Issue the scene's warnings (what `rtmpm run` prints as "warning:") as `UserWarning`s.
+pub fn warn(py: Python<'_>, scene: &Scene) -> PyResult<()> {
+    for w in scene.warnings() {
+        let text = std::ffi::CString::new(w).unwrap_or_default();
+        let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
+        PyErr::warn(py, &category, &text, 1)?;
+    }
+    Ok(())
+}
+
 #[pymethods]
 impl PyScene {
     /// Read and validate a scene file (mesh paths are relative to the file's folder).

@@ -218,16 +218,7 @@ impl PySimulation {
         let req = request(backend, threads, gpus.unwrap_or(&one), cuda_options)?;
         let scene = scene_arg(py, scene)?;
         let s = &scene.get().scene;
-        // What `rtmpm run` prints as "warning:", as Python warnings.
-        for w in s.warnings() {
-            let text = std::ffi::CString::new(w).unwrap_or_default();
-            PyErr::warn(
-                py,
-                &py.get_type::<pyo3::exceptions::PyUserWarning>(),
-                &text,
-                1,
-            )?;
-        }
+        crate::scene::warn(py, s)?;
         let particles = s
             .sample_particles()
             .map_err(|e| crate::errors::scene_error(py, &e, scene.get().origin == "<dict>"))?;
@@ -472,7 +463,34 @@ impl PySimulation {
     /// (``rtmpm.features``).
     #[getter]
     fn rigid_bodies<'py>(&mut self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
-        crate::bodies::states(py, &self.get().sim.backend.rigid_poses())
+        let backend = &mut self.get().sim.backend;
+        backend.flush_rigid().map_err(|e| sim_error(py, &e))?;
+        crate::bodies::states(py, &backend.rigid_poses())
+    }
+
+    /// Move rigid body ``body`` (its index in ``[[rigid_body]]`` or its name) from the next step
+    /// on: any of ``position`` (its centre, m, inside the domain minus the walls), ``rotation``
+    /// (quaternion ``(x, y, z, w)``, normalised), ``velocity`` (m/s), ``angular_velocity``
+    /// (rad/s); what is not given stays. A kinematic body keeps the velocities it is given, a
+    /// dynamic one goes on from them, a fixed one takes only a pose. Bad values raise
+    /// ``ValueError``; an unknown body ``KeyError`` or ``IndexError``.
+    #[pyo3(signature = (body, *, position = None, rotation = None, velocity = None, angular_velocity = None))]
+    fn set_rigid_body(
+        &mut self,
+        py: Python<'_>,
+        body: &Bound<'_, PyAny>,
+        position: Option<[f32; 3]>,
+        rotation: Option<[f32; 4]>,
+        velocity: Option<[f32; 3]>,
+        angular_velocity: Option<[f32; 3]>,
+    ) -> PyResult<()> {
+        let update = crate::bodies::BodyUpdate {
+            position,
+            rotation,
+            velocity,
+            angular_velocity,
+        };
+        crate::bodies::set(py, self.get(), body, &update)
     }
 
     /// Number of particles.
@@ -493,24 +511,7 @@ impl PySimulation {
     /// Write a checkpoint (the scene, time, step, frame, every particle and rigid body; atomic). Resume with
     /// :meth:`Simulation.resume` or ``rtmpm run --resume``.
     fn checkpoint(&mut self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
-        let inner = self.get();
-        let particles = inner.host(py)?.clone();
-        let scene = inner.scene.get();
-        let ckpt = Checkpoint {
-            scene_toml: scene.text.clone(),
-            scene_origin: scene.origin.clone(),
-            time: inner.sim.time,
-            step: inner.sim.step,
-            frame: inner.sim.frame,
-            bodies: inner.sim.backend.rigid_poses(),
-            particles,
-        };
-        py.detach(|| ckpt.save(&path)).map_err(|e| {
-            crate::errors::RtmpmError::new_err(format!(
-                "writing checkpoint {}: {e}",
-                path.display()
-            ))
-        })
+        crate::output::checkpoint(py, self.get(), &path)
     }
 
     /// Write the particles as one frame file: ``format`` ``"ply"`` (binary PLY) or ``"vtu"``

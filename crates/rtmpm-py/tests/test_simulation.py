@@ -252,6 +252,62 @@ def test_rigid_bodies_fall_freely_or_need_the_rigid_feature():
     assert max(abs(w) for w in b["angular_velocity"]) < 1e-6
 
 
+def test_set_rigid_body_moves_bodies_and_checks_values():
+    """A script moves bodies between steps: a dynamic box given a position and a velocity goes
+    on from them under gravity (velocity (0.5, -g t, 0), x = 0.35 + 0.5 t after t = 0.01 s); a
+    kinematic sphere keeps the velocities it is given; a fixed box takes a pose but no
+    velocity. Bodies by index (negative from the end) or name; bad values are refused."""
+    import copy
+
+    from conftest import SMALL_DICT
+
+    if "rigid" not in rtmpm.features:
+        pytest.skip("the module was built without the `rigid` feature")
+    scene = copy.deepcopy(SMALL_DICT)
+    scene["rigid_body"] = [
+        {"name": "crate", "shape": "box", "min": [0.32] * 3, "max": [0.38] * 3, "density": 500.0},
+        {"name": "paddle", "shape": "sphere", "center": [0.15, 0.35, 0.15], "radius": 0.03,
+         "density": 500.0, "type": "kinematic"},
+        {"name": "post", "shape": "box", "min": [0.32, 0.1, 0.1], "max": [0.38, 0.16, 0.16],
+         "type": "fixed"},
+    ]
+    sim = rtmpm.Simulation(scene, backend="cpu")
+    sim.set_rigid_body("crate", position=(0.35, 0.36, 0.35), velocity=np.array([0.5, 0.0, 0.0]))
+    sim.set_rigid_body(1, velocity=(0.0, 0.0, 0.2), angular_velocity=[0.0, 1.0, 0.0])
+    sim.set_rigid_body(-1, position=(0.35, 0.15, 0.15), rotation=(0.0, 0.0, 0.0, 2.0))
+    crate, paddle, post = sim.rigid_bodies
+    assert crate["position"] == pytest.approx((0.35, 0.36, 0.35))
+    assert crate["velocity"] == pytest.approx((0.5, 0.0, 0.0))
+    assert post["position"] == pytest.approx((0.35, 0.15, 0.15))
+    assert post["rotation"] == pytest.approx((0.0, 0.0, 0.0, 1.0))
+    sim.step(20)
+    t, g = sim.time, 9.81
+    assert t == pytest.approx(0.01)
+    crate, paddle, post = sim.rigid_bodies
+    assert crate["velocity"] == pytest.approx((0.5, -g * t, 0.0), abs=1e-5)
+    assert crate["position"][0] == pytest.approx(0.35 + 0.5 * t, abs=1e-5)
+    assert paddle["velocity"] == pytest.approx((0.0, 0.0, 0.2), abs=1e-6)
+    assert paddle["angular_velocity"] == pytest.approx((0.0, 1.0, 0.0), abs=1e-6)
+    assert paddle["position"] == pytest.approx((0.15, 0.35, 0.15 + 0.2 * t), abs=1e-5)
+    assert post["position"] == pytest.approx((0.35, 0.15, 0.15))
+    with pytest.raises(KeyError, match="no rigid body named `boat`"):
+        sim.set_rigid_body("boat", position=(0.2, 0.2, 0.2))
+    with pytest.raises(IndexError, match="3 rigid bodies"):
+        sim.set_rigid_body(3, velocity=(0.0, 0.0, 0.0))
+    with pytest.raises(TypeError, match="index"):
+        sim.set_rigid_body(1.5, velocity=(0.0, 0.0, 0.0))
+    with pytest.raises(ValueError, match="fixed"):
+        sim.set_rigid_body("post", velocity=(1.0, 0.0, 0.0))
+    with pytest.raises(ValueError, match="outside the domain"):
+        sim.set_rigid_body("crate", position=(0.45, 0.3, 0.3))
+    with pytest.raises(ValueError, match="not finite"):
+        sim.set_rigid_body("crate", velocity=(float("nan"), 0.0, 0.0))
+    with pytest.raises(ValueError, match="not a rotation"):
+        sim.set_rigid_body("crate", rotation=(0.0, 0.0, 0.0, 0.0))
+    # Refused values change nothing.
+    assert sim.rigid_bodies[0] == crate
+
+
 def test_a_body_that_can_hang_in_the_water_is_warned_about():
     """A 6 cm box of density 1500 in water at dx = 3.125 cm weighs, beyond its buoyancy, as
     much as a water layer 0.16 cells thick over its surface: the coupling's buoyancy, counted
