@@ -72,9 +72,10 @@ pub struct BodyUpdate {
 }
 
 impl BodyUpdate {
-    /// `pose` with the given fields of `spec`'s body changed: finite values, the centre inside
-    /// `interior` (the domain minus the walls), a non-zero quaternion (normalised), and no
-    /// velocities for a fixed body.
+    /// `pose` with the given fields of `spec`'s body changed: finite values, the body's bounding
+    /// box in its new pose inside `interior` (the domain minus the walls), a non-zero
+    /// quaternion (normalised), and no velocities for a fixed body. On an error `pose` may be
+    /// half changed: the caller drops it.
     fn apply(
         &self,
         spec: &RigidBodySpec,
@@ -93,15 +94,7 @@ impl BodyUpdate {
         };
         if let Some(p) = self.position {
             finite("position", &p)?;
-            let p = Vec3::from_array(p);
-            let (lo, hi) = interior;
-            if p.cmplt(lo).any() || p.cmpgt(hi).any() {
-                return Err(PyValueError::new_err(format!(
-                    "rigid body `{name}`: position {p} is outside the domain minus the walls, \
-                     {lo} .. {hi}"
-                )));
-            }
-            pose.position = p;
+            pose.position = Vec3::from_array(p);
         }
         if let Some(q) = self.rotation {
             finite("rotation", &q)?;
@@ -113,6 +106,22 @@ impl BodyUpdate {
                 )));
             }
             pose.rotation = q.normalize();
+        }
+        if self.position.is_some() || self.rotation.is_some() {
+            // As at the start (the scene's check): the body's bounding box in its new pose
+            // inside the domain minus the walls, where the rigid-body engine keeps it.
+            let half = spec
+                .shape
+                .world_half_extents(glam::Mat3::from_quat(pose.rotation));
+            let (lo, hi) = interior;
+            let (a, b) = (pose.position - half, pose.position + half);
+            if a.cmplt(lo).any() || b.cmpgt(hi).any() {
+                return Err(PyValueError::new_err(format!(
+                    "rigid body `{name}` at {} would span {a} .. {b}, outside the domain minus \
+                     the walls, {lo} .. {hi}",
+                    pose.position
+                )));
+            }
         }
         for (field, value, target) in [
             ("velocity", self.velocity, &mut pose.velocity),

@@ -469,9 +469,9 @@ impl PySimulation {
     }
 
     /// Move rigid body ``body`` (its index in ``[[rigid_body]]`` or its name) from the next step
-    /// on: any of ``position`` (its centre, m, inside the domain minus the walls), ``rotation``
-    /// (quaternion ``(x, y, z, w)``, normalised), ``velocity`` (m/s), ``angular_velocity``
-    /// (rad/s); what is not given stays. A kinematic body keeps the velocities it is given, a
+    /// on: any of ``position`` (its centre, m), ``rotation`` (quaternion ``(x, y, z, w)``,
+    /// normalised), ``velocity`` (m/s), ``angular_velocity`` (rad/s); what is not given stays.
+    /// The body in its new pose must lie inside the domain minus the walls (its bounding box). A kinematic body keeps the velocities it is given, a
     /// dynamic one goes on from them, a fixed one takes only a pose. Bad values raise
     /// ``ValueError``; an unknown body ``KeyError`` or ``IndexError``.
     #[pyo3(signature = (body, *, position = None, rotation = None, velocity = None, angular_velocity = None))]

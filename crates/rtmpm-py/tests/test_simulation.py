@@ -300,6 +300,15 @@ def test_set_rigid_body_moves_bodies_and_checks_values():
         sim.set_rigid_body("post", velocity=(1.0, 0.0, 0.0))
     with pytest.raises(ValueError, match="outside the domain"):
         sim.set_rigid_body("crate", position=(0.45, 0.3, 0.3))
+    # The centre inside, the box (half-size 0.03) through the wall at 0.40625; turned by 45
+    # degrees about y, a box that fits upright does not either.
+    with pytest.raises(ValueError, match="outside the domain"):
+        sim.set_rigid_body("crate", position=(0.39, 0.3, 0.3))
+    sim.set_rigid_body("crate", position=(0.37, 0.3, 0.3))
+    s = math.sin(math.pi / 8)
+    with pytest.raises(ValueError, match="outside the domain"):
+        sim.set_rigid_body("crate", rotation=(0.0, s, 0.0, math.cos(math.pi / 8)))
+    sim.set_rigid_body("crate", position=crate["position"])
     with pytest.raises(ValueError, match="not finite"):
         sim.set_rigid_body("crate", velocity=(float("nan"), 0.0, 0.0))
     with pytest.raises(ValueError, match="not a rotation"):
