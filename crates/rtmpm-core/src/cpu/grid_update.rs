@@ -62,7 +62,11 @@ fn couple(
             // The node's momentum change less the gravity it received this step: the weight of
             // the material mass that the kernel spreads onto nodes inside the body (a shell about
             // half a cell thick) is an artefact of the transfer, not a load on the body; its
-            // pressure on the body is in the internal forces.
+            // pressure on the body is in the internal forces. On a slip face the rule holds up
+            // only the normal velocity, so this also lifts the body by the weight of the mass
+            // on the nodes just inside its side faces: at 5 cells per body height that lift
+            // makes up much of what the bottom face falls short of rho g d A (measured:
+            // validation/RESULTS.md, "Dithered node membership"; CUDA: grid_update.cu, the same).
             let dp = (new - v + g_dt) * m;
             let r = x32 - b.center;
             e.add_reaction(
