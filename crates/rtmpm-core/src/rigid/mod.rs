@@ -21,8 +21,9 @@
 //! volume ..."): a load continuous in the body's position needs CPIC's particle-side
 //! compatibility or a penalty force (both tried on the CPU, not kept: the same file, "Three more
 //! coupling variants"). Dithering which nodes count as inside removes most of the lock, but the
-//! bodies then float about 0.2 of a cell high (the same file, "Dithered node membership"). The bodies move under gravity, these impulses and
-//! their contacts with each other and the walls in rapier3d (cargo feature `rigid`;
+//! bodies then float about 0.2 of a cell high (the same file, "Dithered node membership"). The
+//! bodies move under gravity, these impulses and their contacts with each other and the walls
+//! in rapier3d (cargo feature `rigid`;
 //! [`RigidWorld`]); without the feature a scene with rigid bodies is refused when the backend is
 //! built. The CPU backend couples them (`cpu/grid_update.rs`), the CUDA backend too
 //! (`rtmpm-cuda/src/rigid.rs`). A body is a box, sphere, cylinder or closed triangle mesh
