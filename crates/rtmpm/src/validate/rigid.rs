@@ -74,8 +74,10 @@ pub fn archimedes(ctx: &Ctx) -> Result<Vec<Row>> {
             .map_err(|e| anyhow!("archimedes.toml: {e}"))?;
         let mut sim = ctx.simulation(&text, "archimedes.toml")?;
         let dx = sim.scene.dx;
-        let mut heights = Vec::new();
-        let f = checks::float(&mut sim, |t, y| heights.push((t, y)))?;
+        let mut submerged = Vec::new();
+        let f = checks::float(&mut sim, |m| {
+            submerged.push((m.time, m.volume_fraction.unwrap_or(m.fraction)))
+        })?;
         let ratio = density / 1000.0;
         rows.push(Row {
             case: "archimedes".into(),
@@ -103,19 +105,31 @@ pub fn archimedes(ctx: &Ctx) -> Result<Vec<Row>> {
                 unit: "%",
             });
         }
+        // Archimedes' answer, the density ratio, as a line over the run in a lighter shade of
+        // the run's colour.
+        let span = (
+            submerged.first().map_or(0.0, |p| p.0),
+            submerged.last().map_or(0.0, |p| p.0),
+        );
         series.push(Series {
             label: format!("density {density}"),
-            points: heights,
+            points: submerged,
             rgb,
+            style: Style::Line,
+        });
+        series.push(Series {
+            label: format!("Archimedes {ratio}"),
+            points: vec![(span.0, ratio), (span.1, ratio)],
+            rgb: rgb.map(|c| c / 2 + 128),
             style: Style::Line,
         });
     }
     ctx.plot(
-        "archimedes_heights",
+        "archimedes_submerged",
         Plot {
-            title: "Archimedes: centre height of boxes dropped on water".into(),
+            title: "Archimedes: submerged fraction of boxes dropped on water".into(),
             x_label: "t (s)".into(),
-            y_label: "centre height (m)".into(),
+            y_label: "submerged volume / volume".into(),
             series,
         },
     );
