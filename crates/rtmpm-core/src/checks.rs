@@ -113,22 +113,6 @@ pub struct Floating {
     pub mean_tilt_degrees: f64,
 }
 
-/// One frame of a floating body, as [`float`] hands it to its caller after every frame (the
-/// averages of [`Floating`] are over the last 10 of these).
-#[derive(Clone, Copy, Debug)]
-pub struct FloatFrame {
-    /// Simulated time at the end of the frame (s).
-    pub time: f64,
-    /// The body's centre height (m).
-    pub centre: f64,
-    /// The open water's surface height (m), [`free_surface`] away from the body and the walls.
-    pub surface: f64,
-    /// Submerged fraction of the body's height in its initial orientation.
-    pub fraction: f64,
-    /// A box's submerged fraction of its volume in this frame's pose; `None` for other shapes.
-    pub volume_fraction: Option<f64>,
-}
-
 /// The fraction of the volume of a box with half-extents `half`, centre `center` and
 /// body-to-world rotation `rotation`, that lies below the plane `y = surface`: the submerged
 /// length along the box's local y axis integrated over its local x-z face (a 256 x 256 midpoint
@@ -180,11 +164,10 @@ struct Pose {
 /// ([`free_surface`] over the columns 3 cells or more from the walls and from the body's
 /// footprint where it started) and the submerged fraction of its height in its initial
 /// orientation (a box's height, a lying cylinder's diameter) below that frame's surface.
-/// `each_frame` is called after every frame with that frame's measures (the surface is taken
-/// in every frame for it, not only in those averaged).
+/// `each_frame(time, centre height)` is called after every frame.
 pub fn float<B: Backend + ?Sized>(
     sim: &mut Simulation<B>,
-    mut each_frame: impl FnMut(&FloatFrame),
+    mut each_frame: impl FnMut(f64, f64),
 ) -> Result<Floating, CheckError> {
     let spec = sim
         .scene
@@ -221,52 +204,39 @@ pub fn float<B: Backend + ?Sized>(
         turn.to_axis_angle().1.to_degrees() as f64
     };
     let mut p = Particles::default();
-    let volume = |q: &Pose| match spec.shape {
-        crate::rigid::RigidShape::Box { half_extents } => Some(box_submerged_fraction(
-            half_extents,
-            q.center,
-            q.rotation,
-            q.surface,
-        )),
-        _ => None,
-    };
-    let fraction = |q: &Pose| (q.surface - (q.center.y as f64 - half_height)) / (2.0 * half_height);
     for f in 0..frames {
         sim.advance_frame()?;
         let b = bodies(sim)?[0].clone();
-        sim.backend.read_particles(&mut p)?;
-        let surface = free_surface(p.x.iter(), dx, open).ok_or_else(|| {
-            CheckError::Scene(
-                "no material 3 cells or more from the body and the walls to measure the surface"
-                    .into(),
-            )
-        })?;
-        let pose = Pose {
-            center: b.center,
-            rotation: b.rotation,
-            tilt: tilt(&b),
-            surface,
-        };
-        each_frame(&FloatFrame {
-            time: sim.time,
-            centre: b.center.y as f64,
-            surface,
-            fraction: fraction(&pose),
-            volume_fraction: volume(&pose),
-        });
+        each_frame(sim.time, b.center.y as f64);
         if f + AVERAGE_FRAMES >= frames {
-            poses.push(pose);
+            sim.backend.read_particles(&mut p)?;
+            let surface = free_surface(p.x.iter(), dx, open).ok_or_else(|| {
+                CheckError::Scene(
+                    "no material 3 cells or more from the body and the walls to measure the \
+                     surface"
+                        .into(),
+                )
+            })?;
+            poses.push(Pose {
+                center: b.center,
+                rotation: b.rotation,
+                tilt: tilt(&b),
+                surface,
+            });
         }
         last = Some(b);
     }
     let b = last.ok_or_else(|| CheckError::Scene("the scene has no frames".into()))?;
     let mean = |v: &dyn Fn(&Pose) -> f64| poses.iter().map(v).sum::<f64>() / poses.len() as f64;
+    let draft = |q: &Pose| q.surface - (q.center.y as f64 - half_height);
     let volume_fraction = match spec.shape {
-        crate::rigid::RigidShape::Box { .. } => Some(mean(&|q| volume(q).unwrap_or(f64::NAN))),
+        crate::rigid::RigidShape::Box { half_extents } => Some(mean(&|q| {
+            box_submerged_fraction(half_extents, q.center, q.rotation, q.surface)
+        })),
         _ => None,
     };
     Ok(Floating {
-        fraction: mean(&fraction),
+        fraction: mean(&draft) / (2.0 * half_height),
         centre: mean(&|q| q.center.y as f64),
         surface: mean(&|q| q.surface),
         tilt_degrees: tilt(&b),

@@ -38,7 +38,7 @@ fn boxes_float_with_the_submerged_fraction_of_archimedes() {
     for density in [500.0, 750.0] {
         let text =
             checks::edit_toml(ARCHIMEDES, &[("rigid_body.0.density", density.into())]).unwrap();
-        let f = checks::float(&mut simulation(&text), |_| {}).expect("stable");
+        let f = checks::float(&mut simulation(&text), |_, _| {}).expect("stable");
         let expect = density / 1000.0;
         let volume = f.volume_fraction.expect("a box");
         println!(
@@ -132,7 +132,7 @@ fn a_lying_cylinder_of_half_the_waters_density_floats_half_submerged() {
     let spec = &sim.scene.rigid_bodies[0];
     let volume = std::f32::consts::PI * 0.05f32.powi(2) * 0.16;
     assert!((spec.mass - 500.0 * volume).abs() < 1e-6 * spec.mass);
-    let f = checks::float(&mut sim, |_| {}).expect("stable");
+    let f = checks::float(&mut sim, |_, _| {}).expect("stable");
     let b = sim.backend.rigid.as_ref().expect("rigid world").states()[0].clone();
     println!(
         "cylinder: submerged fraction {:.3} (Archimedes 0.5), centre {:.4} m, surface {:.4} m, \
@@ -340,10 +340,10 @@ fn a_convex_mesh_body_has_the_analytic_mass_and_inertia_of_its_box() {
 #[test]
 fn a_cube_mesh_body_floats_like_the_box_body() {
     let obj = cube_obj("float");
-    let boxed = checks::float(&mut simulation(ARCHIMEDES), |_| {}).expect("stable");
+    let boxed = checks::float(&mut simulation(ARCHIMEDES), |_, _| {}).expect("stable");
     let meshed = checks::float(
         &mut simulation(&archimedes_with_mesh(&obj, "convex = true")),
-        |_| {},
+        |_, _| {},
     )
     .expect("stable");
     println!(

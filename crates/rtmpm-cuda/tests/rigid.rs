@@ -42,7 +42,7 @@ fn a_box_of_half_the_density_of_water_floats_half_submerged_on_the_gpu() {
     let p0 = scene.sample_particles().expect("particles");
     let cpu = CpuBackend::new(&scene, p0.clone(), None).expect("cpu");
     let cuda = CudaBackend::new(&scene, &p0, CudaOptions::default()).expect("cuda");
-    let float = |sim: &mut Simulation| checks::float(sim, |_| {}).expect("floats");
+    let float = |sim: &mut Simulation| checks::float(sim, |_, _| {}).expect("floats");
     let a = float(&mut Simulation::new(scene.clone(), Box::new(cpu)));
     let b = float(&mut Simulation::new(scene.clone(), Box::new(cuda)));
     println!("cpu: {a:?}\ncuda: {b:?}");
@@ -165,7 +165,7 @@ fn a_cube_mesh_body_floats_on_the_gpu_as_on_the_cpu() {
     let p0 = scene.sample_particles().expect("particles");
     let cpu = CpuBackend::new(&scene, p0.clone(), None).expect("cpu");
     let cuda = CudaBackend::new(&scene, &p0, CudaOptions::default()).expect("cuda");
-    let float = |sim: &mut Simulation| checks::float(sim, |_| {}).expect("floats");
+    let float = |sim: &mut Simulation| checks::float(sim, |_, _| {}).expect("floats");
     let a = float(&mut Simulation::new(scene.clone(), Box::new(cpu)));
     let b = float(&mut Simulation::new(scene.clone(), Box::new(cuda)));
     println!("mesh body: cpu: {a:?}\ncuda: {b:?}");

@@ -74,10 +74,9 @@ pub fn archimedes(ctx: &Ctx) -> Result<Vec<Row>> {
             .map_err(|e| anyhow!("archimedes.toml: {e}"))?;
         let mut sim = ctx.simulation(&text, "archimedes.toml")?;
         let dx = sim.scene.dx;
-        let mut submerged = Vec::new();
-        let f = checks::float(&mut sim, |m| {
-            submerged.push((m.time, m.volume_fraction.unwrap_or(m.fraction)))
-        })?;
+        let spec = sim.scene.rigid_bodies.first().cloned();
+        let mut heights = Vec::new();
+        let f = checks::float(&mut sim, |t, y| heights.push((t, y)))?;
         let ratio = density / 1000.0;
         rows.push(Row {
             case: "archimedes".into(),
@@ -105,31 +104,43 @@ pub fn archimedes(ctx: &Ctx) -> Result<Vec<Row>> {
                 unit: "%",
             });
         }
-        // Archimedes' answer, the density ratio, as a line over the run in a lighter shade of
-        // the run's colour.
-        let span = (
-            submerged.first().map_or(0.0, |p| p.0),
-            submerged.last().map_or(0.0, |p| p.0),
-        );
+        // Archimedes' answer as a centre height: an upright box of height h with the fraction
+        // `ratio` of it below the open water's surface (measured, averaged as the rows are)
+        // has its centre at surface - (ratio - 1/2) h; drawn over the run in a lighter shade of
+        // the run's colour. (Tilted by t, a box with the same displaced volume has its centre
+        // closer to the surface by the factor cos t: the 500 box, unstable upright, rests tilted
+        // with its centre at the surface either way.)
+        if let Some(spec) = spec {
+            let h = 2.0
+                * spec
+                    .shape
+                    .world_half_extents(glam::Mat3::from_quat(spec.rotation))
+                    .y;
+            let rest = f.surface - (ratio - 0.5) * h as f64;
+            let span = (
+                heights.first().map_or(0.0, |p| p.0),
+                heights.last().map_or(0.0, |p| p.0),
+            );
+            series.push(Series {
+                label: format!("Archimedes, {density}"),
+                points: vec![(span.0, rest), (span.1, rest)],
+                rgb: rgb.map(|c| c / 2 + 128),
+                style: Style::Line,
+            });
+        }
         series.push(Series {
             label: format!("density {density}"),
-            points: submerged,
+            points: heights,
             rgb,
-            style: Style::Line,
-        });
-        series.push(Series {
-            label: format!("Archimedes {ratio}"),
-            points: vec![(span.0, ratio), (span.1, ratio)],
-            rgb: rgb.map(|c| c / 2 + 128),
             style: Style::Line,
         });
     }
     ctx.plot(
-        "archimedes_submerged",
+        "archimedes_heights",
         Plot {
-            title: "Archimedes: submerged fraction of boxes dropped on water".into(),
+            title: "Archimedes: centre height of boxes dropped on water".into(),
             x_label: "t (s)".into(),
-            y_label: "submerged volume / volume".into(),
+            y_label: "centre height (m)".into(),
             series,
         },
     );
