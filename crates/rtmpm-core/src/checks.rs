@@ -111,6 +111,8 @@ pub struct Floating {
     pub volume_fraction: Option<f64>,
     /// The tilt from the initial orientation averaged over the last frames (degrees).
     pub mean_tilt_degrees: f64,
+    /// The body's height in its initial orientation (m), the one the fractions are of.
+    pub height: f64,
 }
 
 /// The fraction of the volume of a box with half-extents `half`, centre `center` and
@@ -242,6 +244,7 @@ pub fn float<B: Backend + ?Sized>(
         tilt_degrees: tilt(&b),
         volume_fraction,
         mean_tilt_degrees: mean(&|q| q.tilt),
+        height: 2.0 * half_height,
     })
 }
 

@@ -74,7 +74,6 @@ pub fn archimedes(ctx: &Ctx) -> Result<Vec<Row>> {
             .map_err(|e| anyhow!("archimedes.toml: {e}"))?;
         let mut sim = ctx.simulation(&text, "archimedes.toml")?;
         let dx = sim.scene.dx;
-        let spec = sim.scene.rigid_bodies.first().cloned();
         let mut heights = Vec::new();
         let f = checks::float(&mut sim, |t, y| heights.push((t, y)))?;
         let ratio = density / 1000.0;
@@ -110,24 +109,17 @@ pub fn archimedes(ctx: &Ctx) -> Result<Vec<Row>> {
         // the run's colour. (Tilted by t, a box with the same displaced volume has its centre
         // closer to the surface by the factor cos t: the 500 box, unstable upright, rests tilted
         // with its centre at the surface either way.)
-        if let Some(spec) = spec {
-            let h = 2.0
-                * spec
-                    .shape
-                    .world_half_extents(glam::Mat3::from_quat(spec.rotation))
-                    .y;
-            let rest = f.surface - (ratio - 0.5) * h as f64;
-            let span = (
-                heights.first().map_or(0.0, |p| p.0),
-                heights.last().map_or(0.0, |p| p.0),
-            );
-            series.push(Series {
-                label: format!("Archimedes, {density}"),
-                points: vec![(span.0, rest), (span.1, rest)],
-                rgb: rgb.map(|c| c / 2 + 128),
-                style: Style::Line,
-            });
-        }
+        let rest = f.surface - (ratio - 0.5) * f.height;
+        let span = (
+            heights.first().map_or(0.0, |p| p.0),
+            heights.last().map_or(0.0, |p| p.0),
+        );
+        series.push(Series {
+            label: format!("Archimedes, {density}"),
+            points: vec![(span.0, rest), (span.1, rest)],
+            rgb: rgb.map(|c| c / 2 + 128),
+            style: Style::Line,
+        });
         series.push(Series {
             label: format!("density {density}"),
             points: heights,
