@@ -6,8 +6,9 @@ use crate::capacity::Capacity;
 use crate::compile::{KernelOptions, compile};
 use crate::contract::{CTL_P2G_PENDING, ColliderPoses, Ctx, StateLayout};
 use crate::encode::{self, Tables};
+use crate::error::err;
 use crate::graph::StepGraphs;
-use crate::kernels::Kernels;
+use crate::kernels::{Kernels, write_symbol};
 use crate::p2g::P2gPlan;
 use crate::pipeline::{self, Hooks, NoHooks, Stage, StepPlan};
 use crate::setup::Initial;
@@ -22,40 +23,6 @@ use std::sync::Arc;
 
 #[path = "backend_sim.rs"]
 mod sim;
-
-pub(crate) fn err(what: &str) -> impl Fn(cudarc::driver::DriverError) -> SimError + '_ {
-    move |e| SimError::Backend(format!("CUDA: {what}: {e:?}"))
-}
-
-/// The `__constant__` symbols the host writes (`kernels/common.cuh`).
-pub const CONSTANT_SYMBOLS: [&str; 6] = [
-    "c_scalars",
-    "c_step",
-    "c_poses",
-    "c_materials",
-    "c_colliders",
-    "c_bodies",
-];
-
-/// Write `bytes` to the `__constant__` symbol `name` of the module (async on the stream).
-pub(crate) fn write_symbol(
-    module: &Arc<CudaModule>,
-    stream: &Arc<CudaStream>,
-    name: &str,
-    bytes: &[u8],
-) -> Result<(), SimError> {
-    if bytes.is_empty() {
-        return Ok(());
-    }
-    let mut sym = module
-        .get_global(name, stream)
-        .map_err(|e| SimError::Backend(format!("CUDA: constant symbol {name}: {e:?}")))?;
-    let len = bytes.len().min(sym.len());
-    let mut view = sym.slice_mut(..len);
-    stream
-        .memcpy_htod(&bytes[..len], &mut view)
-        .map_err(|e| SimError::Backend(format!("CUDA: write constant {name}: {e:?}")))
-}
 
 /// Where a [`CudaBackend`] runs and which particles it holds, when it is one GPU of several.
 #[derive(Clone, Debug, Default)]

@@ -3,6 +3,7 @@
 //! bandwidth reference.
 
 use crate::backend::CudaBackend;
+use crate::error::err;
 use crate::pipeline::{Hooks, Stage};
 use cudarc::driver::sys::CUevent_flags;
 use cudarc::driver::{CudaEvent, CudaStream};
@@ -41,10 +42,6 @@ pub struct KernelTimings {
     pub bytes_per_step: u64,
     /// G2P2G: `g2p_ms` is the fused kernel and `p2g_ms` the P2G that runs after rebuilds only.
     pub g2p2g: bool,
-}
-
-fn err(what: &'static str) -> impl Fn(cudarc::driver::DriverError) -> SimError {
-    move |e| SimError::Backend(format!("CUDA: {what}: {e:?}"))
 }
 
 /// The benchmark's hooks: an event after every stage of the step.

@@ -4,15 +4,12 @@
 
 use crate::capacity::{BufferBytes, Capacity, GridCopies};
 use crate::contract::{self, CTL_BAD_INDEX, CTL_P2G_PENDING, CTL_WORDS, Ctx};
-use cudarc::driver::{CudaSlice, CudaStream, DevicePtr, DriverError};
+use crate::error::err;
+use cudarc::driver::{CudaSlice, CudaStream, DevicePtr};
 use rtmpm_core::Scene;
 use rtmpm_core::sim::SimError;
 use rtmpm_core::transfer::Transfer;
 use std::sync::Arc;
-
-fn err(what: &'static str) -> impl Fn(DriverError) -> SimError {
-    move |e| SimError::Backend(format!("CUDA: {what}: {e:?}"))
-}
 
 /// What a GPU's buffers hold besides the capacities: its particle count, the precision and the
 /// optional buffers.

@@ -390,7 +390,7 @@ mod tests {
                 );
             }
             // Read-only parameters in constant memory, written by the host under these names.
-            for sym in crate::backend::CONSTANT_SYMBOLS {
+            for sym in crate::kernels::CONSTANT_SYMBOLS {
                 assert!(
                     ptx.contains(&format!(" .b8 {sym}[")),
                     "{o:?}: constant {sym} missing from PTX"

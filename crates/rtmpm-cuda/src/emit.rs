@@ -8,8 +8,9 @@
 //! Cost: one small host-to-device copy per field and a stream synchronisation per step that
 //! emits (the packed bytes are freed on return), plus the re-capture of the step graph.
 
-use crate::backend::{CudaBackend, err};
+use crate::backend::CudaBackend;
 use crate::contract::{CTL_NEED_REBUILD, CTL_P2G_PENDING};
+use crate::error::err;
 use crate::options::P2gMode;
 use rtmpm_core::Scene;
 use rtmpm_core::sim::{Particles, SimError};

@@ -9,8 +9,9 @@
 //! backend's storage order, which changes at every rebuild (particles are sorted by block and
 //! cell); the layout's `id()` word gives each slot's original particle index.
 
-use crate::backend::{CudaBackend, err};
+use crate::backend::CudaBackend;
 use crate::contract::*;
+use crate::error::err;
 use cudarc::driver::{DevicePtr, PinnedHostSlice};
 use rtmpm_core::math::Vec3;
 use rtmpm_core::sim::SimError;

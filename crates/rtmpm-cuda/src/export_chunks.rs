@@ -5,8 +5,9 @@
 //! memory from [`CudaBackend::chunk_host_memory`], which the sink then hands to a writer thread:
 //! the copy of the next chunk overlaps the encoding of this one.
 
-use crate::backend::{CudaBackend, err};
+use crate::backend::CudaBackend;
 use crate::contract::StateLayout;
+use crate::error::err;
 use crate::kernels::Kernel;
 use cudarc::driver::{CudaSlice, PinnedHostSlice, PushKernelArg};
 use rtmpm_core::io::chunks::{ChunkSink, Column, FrameColumns, HostBuffer};

@@ -3,7 +3,8 @@
 //! words at its original index (no host scatter); the array comes to the host in chunks through
 //! pinned memory, each chunk copied out by several threads while the next one crosses the bus.
 
-use crate::backend::{CudaBackend, err};
+use crate::backend::CudaBackend;
+use crate::error::err;
 use crate::kernels::Kernel;
 use cudarc::driver::{CudaSlice, CudaStream, PinnedHostSlice, PushKernelArg};
 use rayon::prelude::*;

@@ -12,8 +12,8 @@
 //! The host never holds the state image (116 bytes a particle in f32): the set-up of 500M
 //! particles no longer packs 58 GB on the host, and the host's peak is the positions.
 
-use crate::backend::err;
 use crate::contract::*;
+use crate::error::err;
 use crate::kernels::{Kernel, Kernels};
 use cudarc::driver::{CudaSlice, CudaStream, PushKernelArg};
 use rayon::prelude::*;

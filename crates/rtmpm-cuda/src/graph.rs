@@ -4,14 +4,11 @@
 //! when dt changes (the G2P2G parity and the scatter depend on it) and per grid parity with
 //! G2P2G (the two grids swap roles every step).
 
+use crate::error::err;
 use cudarc::driver::sys::{CUgraphInstantiate_flags, CUstreamCaptureMode};
 use cudarc::driver::{CudaGraph, CudaStream};
 use rtmpm_core::sim::SimError;
 use std::sync::Arc;
-
-fn err(what: &'static str) -> impl Fn(cudarc::driver::DriverError) -> SimError {
-    move |e| SimError::Backend(format!("CUDA: {what}: {e:?}"))
-}
 
 /// The captured steps of a backend: one per grid parity, each with the dt it was captured for.
 #[derive(Default)]

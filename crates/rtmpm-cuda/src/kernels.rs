@@ -1,8 +1,9 @@
 //! The kernels of the program, from one list: `build.rs` reads the `kernels/` folder and writes
 //! [`SOURCES`], [`UNITS`] and the [`Kernel`] enum (every `extern "C" __global__` function);
-//! [`Kernels`] loads every one of them by name, and launch code indexes it by [`Kernel`].
+//! [`Kernels`] loads every one of them by name, and launch code indexes it by [`Kernel`]. The
+//! module's `__constant__` symbols ([`CONSTANT_SYMBOLS`]) are written by [`write_symbol`].
 
-use cudarc::driver::{CudaFunction, CudaModule, LaunchConfig};
+use cudarc::driver::{CudaFunction, CudaModule, CudaStream, LaunchConfig};
 use rtmpm_core::sim::SimError;
 use std::sync::Arc;
 
@@ -81,6 +82,36 @@ pub(crate) fn cfg(n: usize, block: u32) -> LaunchConfig {
         block_dim: (block, 1, 1),
         shared_mem_bytes: 0,
     }
+}
+
+/// The `__constant__` symbols the host writes (`kernels/common.cuh`).
+pub const CONSTANT_SYMBOLS: [&str; 6] = [
+    "c_scalars",
+    "c_step",
+    "c_poses",
+    "c_materials",
+    "c_colliders",
+    "c_bodies",
+];
+
+/// Write `bytes` to the `__constant__` symbol `name` of the module (async on the stream).
+pub(crate) fn write_symbol(
+    module: &Arc<CudaModule>,
+    stream: &Arc<CudaStream>,
+    name: &str,
+    bytes: &[u8],
+) -> Result<(), SimError> {
+    if bytes.is_empty() {
+        return Ok(());
+    }
+    let mut sym = module
+        .get_global(name, stream)
+        .map_err(|e| SimError::Backend(format!("CUDA: constant symbol {name}: {e:?}")))?;
+    let len = bytes.len().min(sym.len());
+    let mut view = sym.slice_mut(..len);
+    stream
+        .memcpy_htod(&bytes[..len], &mut view)
+        .map_err(|e| SimError::Backend(format!("CUDA: write constant {name}: {e:?}")))
 }
 
 #[cfg(test)]

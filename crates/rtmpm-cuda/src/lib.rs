@@ -69,6 +69,7 @@ pub mod compile;
 pub mod contract;
 pub mod emit;
 pub mod encode;
+mod error;
 pub mod export;
 pub mod export_chunks;
 pub mod export_ordered;
@@ -92,11 +93,10 @@ pub use backend::CudaBackend;
 pub use bench::{KernelTimings, bench_kernels, measure_copy_bandwidth};
 /// Page-locked host memory (see [`CudaBackend::host_buffer`]).
 pub use cudarc::driver::PinnedHostSlice;
+pub use error::Unavailable;
 pub use export::DeviceParticles;
 pub use multi::{MultiGpuBackend, NcclRankBackend, nccl, peer, rendezvous};
 pub use options::{BarrierKind, CudaOptions, P2gMode, Transport};
-
-use std::fmt;
 
 /// What the device is.
 #[derive(Clone, Debug, PartialEq)]
@@ -112,37 +112,6 @@ pub struct DeviceInfo {
     /// Driver version, e.g. 13000.
     pub driver_version: i32,
 }
-
-/// Why CUDA cannot be used.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum Unavailable {
-    /// libcuda.so could not be loaded.
-    NoDriverLibrary,
-    /// libnvrtc.so.13 could not be loaded.
-    NoNvrtc,
-    /// The driver reports no device.
-    NoDevice,
-    /// A driver call failed.
-    Driver(String),
-}
-
-impl fmt::Display for Unavailable {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Unavailable::NoDriverLibrary => {
-                write!(f, "libcuda.so not found (no NVIDIA driver installed)")
-            }
-            Unavailable::NoNvrtc => write!(
-                f,
-                "libnvrtc.so.13 not found (pip install nvidia-cuda-nvrtc==13.0.*, set RTMPM_NVRTC_LIB or LD_LIBRARY_PATH)"
-            ),
-            Unavailable::NoDevice => write!(f, "no CUDA device found"),
-            Unavailable::Driver(m) => write!(f, "CUDA driver error: {m}"),
-        }
-    }
-}
-
-impl std::error::Error for Unavailable {}
 
 fn driver_present() -> bool {
     std::panic::catch_unwind(|| unsafe { cudarc::driver::sys::is_culib_present() }).unwrap_or(false)

@@ -21,10 +21,11 @@
 //!    next step's P2G ([`crate::g2p`]).
 
 use crate::contract::Ctx;
+use crate::error::err;
 use crate::kernels::Kernels;
 use crate::p2g::P2gPlan;
 use crate::{g2p, grid_update, rebuild};
-use cudarc::driver::{CudaStream, DriverError};
+use cudarc::driver::CudaStream;
 use rtmpm_core::sim::SimError;
 use rtmpm_core::transfer::{Transfer, Update};
 
@@ -100,10 +101,6 @@ pub trait Hooks {
 /// One GPU, no timing: no hooks.
 pub struct NoHooks;
 impl Hooks for NoHooks {}
-
-fn err(what: &'static str) -> impl Fn(DriverError) -> SimError {
-    move |e| SimError::Backend(format!("CUDA: {what}: {e:?}"))
-}
 
 /// Enqueue one step on `s` (parameters already uploaded), stopping after `last`.
 pub fn enqueue_until(

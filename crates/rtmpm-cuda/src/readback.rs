@@ -1,8 +1,9 @@
 //! What the host reads of a [`CudaBackend`] (each call synchronises): control words and the
 //! errors they report, the grid, the particle state, sizes.
 
-use crate::backend::{CudaBackend, err};
+use crate::backend::CudaBackend;
 use crate::contract::*;
+use crate::error::err;
 use crate::p2g::{P2gPlan, reverse_map::ReverseMapSize};
 use cudarc::driver::CudaSlice;
 use rtmpm_core::math::IVec3;

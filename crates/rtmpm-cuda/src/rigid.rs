@@ -14,15 +14,12 @@
 //! step itself (its graph) is unchanged.
 
 use crate::contract::{BODY_EXCHANGE_SLOTS, GpuBody, GpuCollider, MAX_BODIES};
+use crate::error::err;
 use cudarc::driver::{CudaEvent, CudaModule, CudaSlice, CudaStream, DevicePtr, PinnedHostSlice};
 use rtmpm_core::Scene;
 use rtmpm_core::rigid::{BodyState, Exchange, RigidWorld};
 use rtmpm_core::sim::SimError;
 use std::sync::Arc;
-
-fn err(what: &'static str) -> impl Fn(cudarc::driver::DriverError) -> SimError {
-    move |e| SimError::Backend(format!("CUDA: {what}: {e:?}"))
-}
 
 /// The device record of a body's state; a mesh body's distance grid starts at `mesh_offset` in
 /// the mesh table (`encode::Tables::body_mesh`).
@@ -169,7 +166,7 @@ impl Bodies {
         stream
             .memcpy_htod(bytes, &mut self.states.slice_mut(..bytes.len()))
             .map_err(err("upload rigid bodies"))?;
-        crate::backend::write_symbol(module, stream, "c_bodies", bytes)
+        crate::kernels::write_symbol(module, stream, "c_bodies", bytes)
     }
 
     /// After a step of `dt` was queued: its impulse sums are copied to the host and cleared

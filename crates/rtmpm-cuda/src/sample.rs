@@ -7,8 +7,8 @@
 //! own count), and `sample_write` writes the positions of one piece of the body, which the device
 //! fill ([`crate::fill`]) turns into particles. The host then needs no memory per particle.
 
-use crate::backend::err;
 use crate::contract::*;
+use crate::error::err;
 use crate::kernels::{Kernel, Kernels};
 use cudarc::driver::{CudaSlice, CudaStream, PushKernelArg};
 use rtmpm_core::scene::deferred::{DeferredBody, DeferredWalk};

@@ -34,8 +34,8 @@ use super::reduce_shared::{
     enqueue_list, enqueue_mask, enqueue_sum_peers,
 };
 use crate::BarrierKind;
-use crate::backend::err;
 use crate::contract::Ctx;
+use crate::error::err;
 use crate::kernels::Kernels;
 use crate::pipeline::{Exchange, Hooks};
 use cudarc::driver::{CudaEvent, CudaSlice, CudaStream, DevicePtr};
