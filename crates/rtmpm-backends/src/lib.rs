@@ -332,6 +332,19 @@ impl Backend for AnyBackend {
     fn set_rigid_poses(&mut self, poses: &[rtmpm_core::rigid::BodyPose]) -> Result<(), SimError> {
         self.as_dyn().set_rigid_poses(poses)
     }
+    fn render_view(
+        &mut self,
+        req: &rtmpm_core::sim::ViewRequest,
+        out: &mut rtmpm_core::render::Image,
+    ) -> Result<bool, SimError> {
+        self.as_dyn().render_view(req, out)
+    }
+    fn set_gravity(&mut self, gravity: rtmpm_core::math::Vec3) -> Result<(), SimError> {
+        self.as_dyn().set_gravity(gravity)
+    }
+    fn set_tool(&mut self, tool: Option<rtmpm_core::sim::Tool>) -> Result<(), SimError> {
+        self.as_dyn().set_tool(tool)
+    }
 }
 
 #[cfg(test)]
@@ -343,6 +356,49 @@ mod tests {
     fn backends_can_move_between_threads() {
         fn send<T: Send>() {}
         send::<AnyBackend>();
+    }
+
+    #[test]
+    fn steering_reaches_the_cpu_backend_inside() {
+        use rtmpm_core::sim::{Simulation, Tool, ToolShape};
+        let scene = Scene::from_toml(
+            "[domain]\nmin = [0,0,0]\nmax = [1,1,1]\ndx = 0.1\n[time]\nduration = 0.1\n\
+             [[material]]\nname = \"w\"\ntype = \"fluid\"\ndensity = 1000.0\nbulk_modulus = 1e4\n\
+             [[body]]\nmaterial = \"w\"\nshape = \"box\"\nmin = [0.3,0.3,0.3]\nmax = [0.5,0.5,0.5]\n",
+            "<test>",
+        )
+        .unwrap();
+        let p = scene.sample_particles().unwrap();
+        let req = BackendRequest {
+            kind: BackendKind::Cpu,
+            threads: Some(1),
+            ..Default::default()
+        };
+        let c = create(&req, &scene, p).unwrap();
+        let mut sim = Simulation::with_backend(scene.clone(), Box::new(c.backend));
+        let g = rtmpm_core::math::Vec3::new(0.0, 0.0, -3.0);
+        sim.set_gravity(g).unwrap();
+        assert_eq!(sim.scene.gravity, g);
+        assert!(sim.set_gravity(rtmpm_core::math::Vec3::NAN).is_err());
+        assert_eq!(sim.scene.gravity, g, "a refused gravity changes nothing");
+        let AnyBackend::Cpu(cpu) = sim.backend.as_ref() else {
+            panic!("a CPU backend");
+        };
+        assert_eq!(cpu.consts.gravity, g);
+        let tool = Tool {
+            shape: ToolShape::Sphere { radius: 0.1 },
+            center: rtmpm_core::math::Vec3::splat(0.5),
+            velocity: rtmpm_core::math::Vec3::X,
+        };
+        sim.backend.set_tool(Some(tool)).unwrap();
+        let AnyBackend::Cpu(cpu) = sim.backend.as_ref() else {
+            panic!("a CPU backend");
+        };
+        assert_eq!(cpu.consts.tool, Some(tool));
+        // The CPU backend does not draw: the caller uses the CPU renderer.
+        let req = rtmpm_core::sim::ViewRequest::framing(&scene, 32, 32, 0.01);
+        let mut img = rtmpm_core::render::Image::new(1, 1, [0; 3]);
+        assert!(!sim.backend.render_view(&req, &mut img).unwrap());
     }
 
     #[test]

@@ -4,6 +4,8 @@
 //! (fixed, or CFL-adaptive with a cap), lands every frame exactly on its time, and reports
 //! blow-ups with the particle, its material and advice.
 
+/// The user's tool of a live view ([`Backend::set_tool`]).
+pub use crate::boundary::{Tool, ToolShape};
 pub use crate::io::chunks::{
     ChunkSink, FrameChunk, FrameColumns, HostBuffer, ParticleRow, fill_chunks, invert_ids,
 };
@@ -12,6 +14,8 @@ use crate::math::Vec3;
 pub use crate::particles::Particles;
 /// The health check of one particle (in `particles.rs`, compiled in each precision).
 pub use crate::particles::{MAX_CELLS_PER_STEP, check_particle};
+/// What a live view asks a backend to draw ([`Backend::render_view`]).
+pub use crate::render::ViewRequest;
 use crate::scene::{Scene, StepMode};
 use std::fmt;
 
@@ -211,6 +215,39 @@ pub trait Backend {
     fn end_of_frame(&mut self) -> Result<(), SimError> {
         Ok(())
     }
+    /// Draw the current state as `req` asks into `out` (resized to `req.width` x
+    /// `req.height`, 8-bit RGB, top row first) from the backend's own arrays, the picture of
+    /// [`crate::render::render`] with [`ViewRequest::options`]. `Ok(false)`: this backend does
+    /// not draw; the caller reads the particles and uses the CPU renderer.
+    fn render_view(
+        &mut self,
+        req: &ViewRequest,
+        out: &mut crate::render::Image,
+    ) -> Result<bool, SimError> {
+        let _ = (req, out);
+        Ok(false)
+    }
+    /// Change gravity (m/s^2) from the next step on (the rigid bodies' too).
+    fn set_gravity(&mut self, gravity: Vec3) -> Result<(), SimError> {
+        let _ = gravity;
+        Err(SimError::Backend(format!(
+            "the backend `{}` cannot change gravity during a run: use the CPU or the \
+             single-GPU CUDA backend",
+            self.name()
+        )))
+    }
+    /// Put the user's tool (or none) into the grid update from the next step on: a moving
+    /// collider with the separating rule and no friction (see [`Tool`]). The backend holds it
+    /// at `tool.center`; the caller moves it between steps.
+    fn set_tool(&mut self, tool: Option<Tool>) -> Result<(), SimError> {
+        if tool.is_none() {
+            return Ok(());
+        }
+        Err(SimError::Backend(format!(
+            "the backend `{}` has no user tool: use the CPU or the single-GPU CUDA backend",
+            self.name()
+        )))
+    }
 }
 
 /// Drives a backend through frames of a scene. The backend is a `Box<dyn Backend>` by default;
@@ -258,6 +295,19 @@ impl<B: Backend + ?Sized> Simulation<B> {
             max_sound_speed,
             emitted: None,
         }
+    }
+
+    /// Change gravity from the next step on: the backend's and the scene's
+    /// ([`Backend::set_gravity`]); a non-finite vector is refused.
+    pub fn set_gravity(&mut self, gravity: Vec3) -> Result<(), SimError> {
+        if !gravity.is_finite() {
+            return Err(SimError::Backend(format!(
+                "gravity must be finite, got {gravity}"
+            )));
+        }
+        self.backend.set_gravity(gravity)?;
+        self.scene.gravity = gravity;
+        Ok(())
     }
 
     /// Duration of one frame (s).

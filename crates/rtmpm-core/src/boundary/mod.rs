@@ -7,10 +7,12 @@ pub mod keyframes;
 pub mod mesh;
 pub mod rules;
 pub mod sdf;
+pub mod tool;
 
 pub use collider::Collider;
 pub use keyframes::{Keyframe, Keyframes};
 pub use rules::{BoundaryRule, Walls};
+pub use tool::{Tool, ToolShape};
 
 /// How the material interacts with an obstacle.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

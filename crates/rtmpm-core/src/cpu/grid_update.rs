@@ -1,6 +1,7 @@
 //! Stage 3: grid velocities, gravity, domain walls and colliders.
 
 use super::{CpuBackend, GRID_PAD, StepConstants};
+use crate::boundary::BoundaryRule;
 use crate::grid::codes::{BLOCK_NODES, BLOCK_SIZE};
 use crate::math::{IVec3, Real, ToReal, Vec3};
 use crate::real;
@@ -19,17 +20,22 @@ fn node_index(corner: IVec3, cell: usize) -> IVec3 {
         )
 }
 
-/// Boundary conditions of node `idx` at time `t`: domain walls, then colliders.
+/// Boundary conditions of node `idx` at time `t`: domain walls, then colliders, then the
+/// user's tool (separating, no friction; geometry in f32 as the colliders').
 #[inline]
 fn boundary(c: &StepConstants, idx: IVec3, mut v: Vec3, t: f32) -> Vec3 {
     let rel = idx - IVec3::splat(GRID_PAD);
     v = c.walls.apply([rel.x, rel.y, rel.z], c.n_cells, v);
-    if !c.colliders.is_empty() {
+    if !c.colliders.is_empty() || c.tool.is_some() {
         let xw = c.origin + idx.to_real() * c.dx;
         for col in &c.colliders {
             if let Some((n, vc)) = col.query(xw, t) {
                 v = vc + col.rule.apply(v - vc, n);
             }
+        }
+        if let Some((n, vt)) = c.tool.and_then(|tool| tool.query(real::vec3_to_f32(xw))) {
+            let (n, vt) = (real::vec3(n).normalize_or(Vec3::Y), real::vec3(vt));
+            v = vt + BoundaryRule::default().apply(v - vt, n);
         }
     }
     v

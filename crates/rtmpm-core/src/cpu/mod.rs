@@ -20,6 +20,8 @@ pub mod p2g;
 pub mod rebuild;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_steer;
 
 use crate::Particles;
 use crate::boundary::{Collider, Walls};
@@ -52,6 +54,8 @@ pub struct StepConstants {
     /// Settling damping of the grid velocities.
     pub damping: crate::scene::Damping,
     pub colliders: Vec<Collider>,
+    /// The user's tool of a live view ([`Backend::set_tool`]), after the colliders.
+    pub tool: Option<sim::Tool>,
     pub materials: Vec<Material>,
     /// Particle-grid transfer (`[solver]`).
     pub solver: SolverSettings,
@@ -72,6 +76,7 @@ impl StepConstants {
             walls: real::walls(&scene.walls),
             damping: scene.time.damping,
             colliders: real::colliders(&scene.colliders),
+            tool: None,
             materials: real::materials(&scene.materials)?,
             solver: scene.solver,
         })
@@ -456,6 +461,27 @@ impl Backend for CpuBackend {
         // Stored at the end: re-sort the storage at the next step (locality only; P2G's sum
         // order comes from the layout, whatever the storage order).
         self.since_sort = u32::MAX;
+        Ok(())
+    }
+
+    fn set_gravity(&mut self, gravity: glam::Vec3) -> Result<(), SimError> {
+        if !gravity.is_finite() {
+            return Err(SimError::Backend(format!(
+                "gravity must be finite, got {gravity}"
+            )));
+        }
+        self.consts.gravity = real::vec3(gravity);
+        if let Some(w) = self.rigid.as_mut() {
+            w.set_gravity(gravity);
+        }
+        Ok(())
+    }
+
+    fn set_tool(&mut self, tool: Option<sim::Tool>) -> Result<(), SimError> {
+        if let Some(t) = &tool {
+            t.check().map_err(SimError::Backend)?;
+        }
+        self.consts.tool = tool;
         Ok(())
     }
 

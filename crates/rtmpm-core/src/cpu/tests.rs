@@ -7,7 +7,7 @@ use crate::math::Mat3;
 use crate::sim::Backend;
 use crate::transfer::{SolverSettings, Transfer, Update};
 
-fn consts(materials: Vec<Material>, walls: u32, gravity: Vec3) -> StepConstants {
+pub(super) fn consts(materials: Vec<Material>, walls: u32, gravity: Vec3) -> StepConstants {
     let dx = 1.0 / 32.0;
     StepConstants {
         dx,
@@ -26,12 +26,13 @@ fn consts(materials: Vec<Material>, walls: u32, gravity: Vec3) -> StepConstants 
         },
         damping: Default::default(),
         colliders: Vec::new(),
+        tool: None,
         materials,
         solver: Default::default(),
     }
 }
 
-fn jelly() -> Material {
+pub(super) fn jelly() -> Material {
     Material::parse("jelly", 1000.0, "fixed_corotated", "mu = 1e4\nlambda = 2e4")
         .expect("jelly parameters")
 }
@@ -47,7 +48,7 @@ fn water() -> Material {
 }
 
 /// A lattice block of particles, 2 per cell per axis, in [lo, hi].
-fn block(lo: Vec3, hi: Vec3, dx: f32, material: u32, density: f32) -> Particles {
+pub(super) fn block(lo: Vec3, hi: Vec3, dx: f32, material: u32, density: f32) -> Particles {
     let mut p = Particles::default();
     let h = dx / 2.0;
     let n = ((hi - lo) / h).round().as_ivec3();
@@ -62,7 +63,7 @@ fn block(lo: Vec3, hi: Vec3, dx: f32, material: u32, density: f32) -> Particles 
     p
 }
 
-fn read(b: &mut CpuBackend) -> Particles {
+pub(super) fn read(b: &mut CpuBackend) -> Particles {
     let mut p = Particles::default();
     b.read_particles(&mut p).expect("read");
     p

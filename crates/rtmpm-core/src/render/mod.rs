@@ -11,6 +11,8 @@
 //! * [`colormap`]: viridis and the material palette.
 //! * [`text`]: a built-in 5x7 bitmap font for labels.
 //! * [`image`]: RGB images, PNG encoding/decoding, resizing, GIF movies.
+//! * [`view`]: what a live view asks a backend to draw ([`ViewRequest`]), as options of this
+//!   renderer.
 //!
 //! [`render`] draws one frame from particle arrays in memory; callers that read PLY frames
 //! build the same [`RenderInput`] from the file's columns.
@@ -28,9 +30,11 @@ mod tests;
 #[cfg(test)]
 pub(crate) use tests::support as tests_support;
 pub mod text;
+pub mod view;
 
 pub use camera::Camera;
 pub use image::{GifMovie, Image};
+pub use view::{ViewRequest, particle_field};
 
 use crate::boundary::Collider;
 use crate::math::Vec3;

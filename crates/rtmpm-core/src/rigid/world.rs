@@ -130,6 +130,11 @@ impl RigidWorld {
             .collect();
     }
 
+    /// Change gravity from the next advance on.
+    pub fn set_gravity(&mut self, gravity: glam::Vec3) {
+        self.world.gravity = rv(gravity);
+    }
+
     /// Mass (kg) and principal moments of inertia (kg m^2, ascending) of body `i` as the
     /// engine holds them.
     pub fn mass_properties(&self, i: usize) -> Option<(f32, glam::Vec3)> {

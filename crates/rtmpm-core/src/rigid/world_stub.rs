@@ -28,6 +28,11 @@ impl RigidWorld {
         ))
     }
 
+    /// Change gravity from the next advance on.
+    pub fn set_gravity(&mut self, _gravity: glam::Vec3) {
+        match self.never {}
+    }
+
     /// Mass and principal moments of inertia of body `i`.
     pub fn mass_properties(&self, _i: usize) -> Option<(f32, glam::Vec3)> {
         match self.never {}

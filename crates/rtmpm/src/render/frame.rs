@@ -73,18 +73,7 @@ impl FrameJob {
         scene: &Scene,
         color_by: ColorBy,
     ) -> FrameJob {
-        let field = match color_by {
-            ColorBy::Material => None,
-            ColorBy::Speed => Some(p.v.iter().map(|v| v.length()).collect()),
-            ColorBy::J => Some(p.f.iter().map(|f| f.determinant()).collect()),
-            ColorBy::Plastic => Some(p.plastic.clone()),
-            ColorBy::Stress => Some(
-                crate::output::cauchy_stress(p, scene)
-                    .into_iter()
-                    .map(von_mises)
-                    .collect(),
-            ),
-        };
+        let field = rtmpm_core::render::particle_field(p, scene, color_by);
         FrameJob {
             frame,
             time: Some(time),
