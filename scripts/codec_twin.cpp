@@ -1,7 +1,7 @@
 // The compact state's device codec (crates/rtmpm-cuda/kernels/codec.cuh), compiled for the CPU:
 // codec_encode_c / codec_decode_c (the conversion-free path the kernels use) must give exactly
 // the words and values of the generic codec_encode<9, 16> / codec_decode<9, 16> (the twin of
-// src/codec.rs) on edge cases (zeros, denormals, FLT_MAX, NaN, inf, mantissas rounding past
+// src/state/codec/mod.rs) on edge cases (zeros, denormals, FLT_MAX, NaN, inf, mantissas rounding past
 // 2^15 - 1) and 2M random vectors of mixed scales. Run by scripts/check_codec_twin.sh (in CI);
 // the GPU test `the_device_codec_gives_the_host_codec_s_words` checks the same on a GPU.
 #include <cstdio>

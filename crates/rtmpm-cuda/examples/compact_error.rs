@@ -1,7 +1,7 @@
 //! The compact state's error, emulated on the CPU backend (no GPU): the scenes of
 //! `tests/state_layout.rs` (dense water and jelly blocks, spinning and falling, dx = 1/32, dt =
 //! 2e-4) stepped `steps` times in f32, and again with C rounded to the compact format
-//! (`rtmpm_cuda::codec`) after every step, as the GPU's compact state stores them. Prints the
+//! (`rtmpm_cuda::state::codec`) after every step, as the GPU's compact state stores them. Prints the
 //! largest and RMS distance between the two runs' positions, in cells.
 //!
 //! `cargo run -p rtmpm-cuda --example compact_error -- [steps]`
@@ -11,7 +11,7 @@ use rtmpm_core::Scene;
 use rtmpm_core::cpu::CpuBackend;
 use rtmpm_core::math::{Mat3, Vec3};
 use rtmpm_core::sim::Backend;
-use rtmpm_cuda::codec;
+use rtmpm_cuda::state::codec;
 
 fn scene(water: bool) -> Result<Scene, Box<dyn std::error::Error>> {
     let material = if water {

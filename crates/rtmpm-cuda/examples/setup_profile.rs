@@ -58,9 +58,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         phase("device: sample bodies", t);
         let n: usize = bodies.iter().map(|b| b.len()).sum();
         let t = Instant::now();
-        let blocks = rtmpm_cuda::capacity::block_counts(&scene, &bodies);
+        let blocks = rtmpm_cuda::setup::capacity::block_counts(&scene, &bodies);
         phase("device: block counts", t);
-        let needed = rtmpm_cuda::capacity::Capacity::needs_block_counts(
+        let needed = rtmpm_cuda::setup::capacity::Capacity::needs_block_counts(
             &scene,
             &rtmpm_cuda::CudaOptions::default(),
         );
@@ -71,15 +71,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let speed = rtmpm_cuda::state::max_speed(&bodies);
         phase("device: initial speed", t);
         let t = Instant::now();
-        let rows = rtmpm_cuda::fill::table(&bodies, &fluid, state_layout, false)?;
+        let rows = rtmpm_cuda::setup::fill::table(&bodies, &fluid, state_layout, false)?;
         phase("device: fill table", t);
         let t = Instant::now();
-        let pieces = rtmpm_cuda::fill::pieces(&bodies, rtmpm_cuda::fill::PIECE);
+        let pieces = rtmpm_cuda::setup::fill::pieces(&bodies, rtmpm_cuda::setup::fill::PIECE);
         let most = pieces.iter().map(|p| p.len).max().unwrap_or(0);
         let mut buf = vec![0f32; 3 * most];
         for p in &pieces {
             if let rtmpm_core::scene::sampling::SampledBody::Shape(b) = &bodies[p.body] {
-                rtmpm_cuda::fill::gather(b, p.offset, p.len, &mut buf);
+                rtmpm_cuda::setup::fill::gather(b, p.offset, p.len, &mut buf);
             }
         }
         phase("device: gather pieces", t);
@@ -120,7 +120,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("  {n} particles, {} threads", rayon::current_num_threads());
     if want("cuda") {
         let t = Instant::now();
-        let bases = rtmpm_cuda::capacity::bases(&scene, &particles);
+        let bases = rtmpm_cuda::setup::capacity::bases(&scene, &particles);
         phase("cuda: bases", t);
         let t = Instant::now();
         let mut layout = BlockLayout::default();

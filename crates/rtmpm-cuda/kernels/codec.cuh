@@ -1,6 +1,6 @@
-// Shared-exponent codec of the compact particle state (twin of src/codec.rs, bit for bit when
+// Shared-exponent codec of the compact particle state (twin of src/state/codec/mod.rs, bit for bit when
 // denormals are not flushed): N signed B-bit mantissas q_i and one 8-bit exponent code, value
-// q_i 2^(e - B + 1). APIC C: N = 9, B = 16 in 5 words (the velocity stays f32: src/codec.rs). The
+// q_i 2^(e - B + 1). APIC C: N = 9, B = 16 in 5 words (the velocity stays f32: src/state/codec/mod.rs). The
 // exponent e (the largest component < 2^e, at least B - 127, bumped once when the largest mantissa
 // rounds past 2^(B-1) - 1) is stored as e - (B - 127); code 255: a component was not finite
 // (every component decodes as NaN). Round to nearest even. Error of each component, finite input:

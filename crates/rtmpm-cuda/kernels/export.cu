@@ -1,5 +1,5 @@
 // Particle fields in original order for other programs (the Python package's `particles.x` and
-// `.v`, host side in src/export.rs): the three words of field `first` of slot i go to
+// `.v`, host side in src/export/mod.rs): the three words of field `first` of slot i go to
 // out[3 id + k] as float, id being the slot's original index (field F_ID), so the host copies one
 // array in NumPy's (n, 3) layout and scatters nothing. An id out of range sets *bad.
 #include "common.cuh"
@@ -17,7 +17,7 @@ extern "C" __global__ void export_vec3(const real* __restrict__ s, unsigned cap,
     }
 }
 
-// One chunk of a frame for the frame writers (host side in src/export_chunks.rs): the particles of
+// One chunk of a frame for the frame writers (host side in src/export/chunks.rs): the particles of
 // original index lo..lo+len. Slot i, of original index id in the chunk, writes word w (state field
 // fields[w], an export code of state.cuh: export_word) at out[w * out_stride + id - lo]: the f32
 // bits of the field (an f64 state rounded to nearest, C decoded in a compact layout), or for

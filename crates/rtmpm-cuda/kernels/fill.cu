@@ -1,4 +1,4 @@
-// The particle state of sampled bodies filled on the device (host side: src/fill.rs): the host
+// The particle state of sampled bodies filled on the device (host side: src/setup/fill/mod.rs): the host
 // uploads only the positions, a piece of one body at a time, and a table of what every particle
 // of a body shares (row layout FT_* in contract.cuh); each thread writes the 29 words of one
 // particle, word for word what the host packing writes (src/state.rs, pack_bodies). The velocity

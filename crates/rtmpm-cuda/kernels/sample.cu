@@ -1,4 +1,4 @@
-// Deferred bodies drawn on the device (host side: src/sample.rs; the walk: sample.cuh). Two
+// Deferred bodies drawn on the device (host side: src/setup/sample/mod.rs; the walk: sample.cuh). Two
 // passes over the rows of a body's walk (lattice rows, or SAMPLE_TRIES_PER_ROW random tries),
 // one thread a row (`sdf`: a mesh body's distances, else unused): `sample_count` counts each row's
 // points, the host sums the counts into each row's first particle, and `sample_write` writes the

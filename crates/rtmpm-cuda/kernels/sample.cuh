@@ -1,4 +1,4 @@
-// The walk of a deferred body, drawn on the device (host side: src/sample.rs): the positions the
+// The walk of a deferred body, drawn on the device (host side: src/setup/sample/mod.rs): the positions the
 // host's walk finds (rtmpm-core/src/scene/walk.rs, `Lattice::rows`), in the same order, bit for
 // bit. Row r of the body's sub-cell lattice is (j, k) = (j0 + r % ny, k0 + r / ny); its points
 // are i = i0 .. i0 + nx, at origin + (i + 1/2, j + 1/2, k + 1/2) h, each moved (jittered

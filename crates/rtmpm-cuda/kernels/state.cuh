@@ -20,7 +20,7 @@ __device__ __forceinline__ void state_set_bits(real* s, unsigned cap, int f, uns
 }
 #endif
 
-// Velocity: 3 reals in every layout (the compact state keeps v in f32: src/codec.rs says why).
+// Velocity: 3 reals in every layout (the compact state keeps v in f32: src/state/codec/mod.rs says why).
 __device__ __forceinline__ vec3 load_vel(const real* s, unsigned cap, unsigned i) { return load_v3(s, cap, F_V, i); }
 // Store v; returns the velocity a load now gives.
 __device__ __forceinline__ vec3 store_vel(real* s, unsigned cap, unsigned i, vec3 v) {
@@ -101,7 +101,7 @@ __device__ __forceinline__ void store_plastic(real* s, unsigned cap, unsigned i,
 #endif
 }
 
-// Export codes (src/export_chunks.rs: export_code): a word of a frame column. code >= 0: the
+// Export codes (src/export/chunks.rs: export_code): a word of a frame column. code >= 0: the
 // state word `code` as float bits (an f64 state rounded to nearest), or the material's integer
 // bits for F_MAT; code < 0: EXPORT_C + k or EXPORT_F + k for component k of the decoded C or F,
 // EXPORT_ZERO for an absent field (a fluid layout's plastic word).

@@ -400,7 +400,7 @@ mod tests {
                 return;
             }
             // The device fill rounds every operation on its own and keeps subnormals (the host
-            // packing's arithmetic, word for word: src/fill.rs), also under fast math.
+            // packing's arithmetic, word for word: src/setup/fill/mod.rs), also under fast math.
             let fill = ptx
                 .split(".entry fill_body(")
                 .nth(1)

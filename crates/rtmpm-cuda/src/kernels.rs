@@ -21,7 +21,7 @@ pub struct Kernels {
     /// Fields of the rebuild's sort scratch ([`crate::CudaOptions::sort_scratch_fields`]): the
     /// state is permuted that many fields per pass.
     pub sort_fields: u32,
-    /// The fields the sort permutes (bit f: field f; [`crate::rebuild::sorted_fields`]).
+    /// The fields the sort permutes (bit f: field f; [`crate::step::rebuild::sorted_fields`]).
     pub sort_mask: u32,
 }
 

@@ -61,36 +61,20 @@
 //! ([`contract::material_registry`]).
 
 pub mod backend;
-pub mod bench;
-pub mod buffers;
-pub mod capacity;
-pub mod codec;
 pub mod compile;
 pub mod contract;
-pub mod emit;
 pub mod encode;
 mod error;
 pub mod export;
-pub mod export_chunks;
-pub mod export_ordered;
-pub mod fill;
-pub mod g2p;
-pub mod graph;
-pub mod grid_update;
 pub mod kernels;
 pub mod multi;
 pub mod options;
-pub mod p2g;
-pub mod pipeline;
-pub mod readback;
-pub mod rebuild;
-pub mod rigid;
-pub mod sample;
 pub mod setup;
 pub mod state;
+pub mod step;
 
 pub use backend::CudaBackend;
-pub use bench::{KernelTimings, bench_kernels, measure_copy_bandwidth};
+pub use backend::bench::{KernelTimings, bench_kernels, measure_copy_bandwidth};
 /// Page-locked host memory (see [`CudaBackend::host_buffer`]).
 pub use cudarc::driver::PinnedHostSlice;
 pub use error::Unavailable;

@@ -108,16 +108,16 @@ pub struct CudaOptions {
     pub sort_scratch_fields: usize,
     /// Rigid bodies (`[[rigid_body]]`): move the bodies while the GPU runs the next step (the
     /// bodies then see the material's impulses one step late) instead of waiting for every
-    /// step's impulses before the next step is queued (`crate::rigid`).
+    /// step's impulses before the next step is queued (`crate::step::rigid`).
     pub rigid_overlap: bool,
     /// A backend built from sampled bodies (`CudaBackend::from_bodies`): the device writes the
-    /// particle state from the uploaded positions and a per-body table (`crate::fill`) instead
+    /// particle state from the uploaded positions and a per-body table (`crate::setup::fill`) instead
     /// of the host packing the whole state image and uploading it (`fill=host`, kept for
     /// comparison). The state is the same word for word.
     pub device_fill: bool,
     /// With the device fill: bodies of shapes (box, sphere, cylinder, mesh; regular, jittered
     /// or random) are only counted on the host and their positions drawn on the device
-    /// (`crate::sample`; the same positions bit for bit), so the host holds no memory per
+    /// (`crate::setup::sample`; the same positions bit for bit), so the host holds no memory per
     /// particle of theirs; `sample=host` walks and uploads them as before (for comparison).
     pub device_sample: bool,
     /// Scenes whose materials are all fluids keep the 20-word fluid state
@@ -125,7 +125,7 @@ pub struct CudaOptions {
     /// the 29-word one; the results are bit-identical. Off: the 29-word layout (for comparison).
     pub fluid_state: bool,
     /// The compact particle state (APIC C in shared-exponent words, the velocity f32;
-    /// [`crate::codec`]; single precision only); also set by the scene's
+    /// [`crate::state::codec`]; single precision only); also set by the scene's
     /// `[solver] particle_state = "compact"`.
     pub compact_state: bool,
 }
@@ -141,7 +141,7 @@ impl Default for CudaOptions {
             mixed_sort: true,
             warp_reduce: true,
             p2g: P2gMode::Warp,
-            rmap_replicas: crate::p2g::reverse_map::DEFAULT_REPLICAS,
+            rmap_replicas: crate::step::p2g::reverse_map::DEFAULT_REPLICAS,
             rmap_slots: None,
             rmap_pblocks: None,
             fast_math: true,

@@ -1,4 +1,4 @@
-//! The device fill of the particle state (`rtmpm_cuda::fill`, `fill=device`, the default of
+//! The device fill of the particle state (`rtmpm_cuda::setup::fill`, `fill=device`, the default of
 //! `CudaBackend::from_bodies`) against the host packing (`fill=host`): the same state word for
 //! word, over the whole capacity (needs a GPU; skips with a message otherwise):
 //! `cargo test --release -p rtmpm-cuda --test fill -- --include-ignored --nocapture`.
@@ -355,7 +355,7 @@ fn the_test_scenes_are_valid() {
     let scene = scene_in(&pieces_scene(), "f32", &dir);
     let bodies = sample_bodies(&scene, &|_| {}).expect("sample");
     let n: usize = bodies.iter().map(|b| b.len()).sum();
-    assert!(n > 2 * rtmpm_cuda::fill::PIECE, "{n} particles");
+    assert!(n > 2 * rtmpm_cuda::setup::fill::PIECE, "{n} particles");
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/fountain.toml");
     let scene = Scene::from_file(&path).unwrap_or_else(|e| panic!("{e}"));
     assert!(!scene.emitters.is_empty(), "the fountain emits");
@@ -457,7 +457,7 @@ fn device_fill_equals_host_pack_over_several_pieces() {
     let scene = scene_in(&text, "f32", &std::env::temp_dir());
     let bodies = sample_bodies(&scene, &|_| {}).expect("sample");
     let n: usize = bodies.iter().map(|b| b.len()).sum();
-    assert!(n > 2 * rtmpm_cuda::fill::PIECE, "{n} particles");
+    assert!(n > 2 * rtmpm_cuda::setup::fill::PIECE, "{n} particles");
     same_state("several pieces", &scene, &bodies);
 }
 

@@ -9,7 +9,7 @@
 //!    within the codec's bound, decoded on the device by the export kernel as on the host);
 //! 3. the compact state's positions after 100 steps stay within 0.01 dx of the f32 run (the
 //!    figure was fixed before any run; the test prints the measured distances);
-//! 4. the device codec (`kernels/codec.cuh`) gives the host codec's words (`src/codec.rs`).
+//! 4. the device codec (`kernels/codec.cuh`) gives the host codec's words (`src/state/codec/mod.rs`).
 //!
 //! `cargo test -p rtmpm-cuda --test state_layout -- --include-ignored`; the GPU tests skip with
 //! a message when no usable CUDA device is present.
@@ -21,9 +21,9 @@ use rtmpm_core::math::{Mat3, Vec3};
 use rtmpm_core::scene::{OutputSettings, ParticleState, StepMode, TimeSettings};
 use rtmpm_core::sim::Backend;
 use rtmpm_core::{Particles, Scene};
-use rtmpm_cuda::codec;
 use rtmpm_cuda::compile::{KernelOptions, compile_unit, nvrtc_available};
 use rtmpm_cuda::contract::StateLayout;
+use rtmpm_cuda::state::codec;
 use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
 
 fn gpu() -> bool {

@@ -2,7 +2,7 @@
 //! GPU backend the host only counts a body's particles, keeps none of them, and hands the GPU
 //! the recipe of the walk (the lattice or the random tries, the shape and the random stream),
 //! from which the GPU draws the very positions the host's walk finds, in the same order, bit for
-//! bit (`rtmpm-cuda/src/sample.rs`). Any other consumer walks the body on the host
+//! bit (`rtmpm-cuda/src/setup/sample/mod.rs`). Any other consumer walks the body on the host
 //! ([`DeferredBody::positions`]), so a deferred body is the same particles everywhere.
 //!
 //! Deferred: boxes, spheres, cylinders and meshes, sampled `regular`, `jittered` or `random`.

@@ -96,7 +96,7 @@ pub struct Ctx {
     /// Global copy of the rigid bodies' states (`c_bodies`, see `scalars`).
     pub bodies: u64,
     /// Rigid bodies: f64 impulse (3) and angular impulse (3) per body, in
-    /// `BODY_EXCHANGE_SLOTS` copies summed by the host (`crate::rigid`).
+    /// `BODY_EXCHANGE_SLOTS` copies summed by the host (`crate::step::rigid`).
     pub body_exchange: u64,
     /// Cells of the domain per axis.
     pub n_cells: [i32; 3],

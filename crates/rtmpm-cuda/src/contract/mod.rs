@@ -29,7 +29,7 @@ pub use state_layout::{MAX_FIELDS, StateLayout};
 // each field are given by the backend's [`StateLayout`] (state_layout.rs).
 
 // ---------------------------------------------------------------------------------------------
-// The body table of the device fill (`kernels/fill.cu`, `crate::fill`): one row of u32 words per
+// The body table of the device fill (`kernels/fill.cu`, `crate::setup::fill`): one row of u32 words per
 // sampled body; reals as f32 bits.
 
 /// Words of one row of the fill table.
@@ -51,7 +51,7 @@ pub const FT_NCONST: usize = 13;
 pub const FT_CONST: usize = 14;
 
 // ---------------------------------------------------------------------------------------------
-// The recipe of a deferred body's walk (`kernels/sample.cu`, `crate::sample`): u32 words; reals
+// The recipe of a deferred body's walk (`kernels/sample.cu`, `crate::setup::sample`): u32 words; reals
 // as f32 bits, 64- and 128-bit integers low word first.
 
 /// Words of one recipe.

@@ -15,7 +15,7 @@
 //!
 //! `Fluid` layouts (every material a fluid, whose F is J^(1/3) I) keep F's diagonal value
 //! J^(1/3) in one word and no plastic word (a fluid has none). `Compact` layouts keep APIC's C
-//! in the shared-exponent format of [`crate::codec`] (f32 build only; the velocity stays f32:
+//! in the shared-exponent format of [`crate::state::codec`] (f32 build only; the velocity stays f32:
 //! the codec's module doc says why).
 
 /// Where a particle's fields are in the state arrays.
@@ -81,7 +81,7 @@ impl StateLayout {
         matches!(self, StateLayout::Fluid | StateLayout::CompactFluid)
     }
 
-    /// C is in the shared-exponent format of [`crate::codec`] (f32 only).
+    /// C is in the shared-exponent format of [`crate::state::codec`] (f32 only).
     pub fn compact(self) -> bool {
         matches!(self, StateLayout::Compact | StateLayout::CompactFluid)
     }

@@ -1,5 +1,5 @@
 //! The exchange of shared grid blocks, the one thing several GPUs add to the step: the hook that
-//! [`crate::pipeline`] calls between P2G and the grid update ([`Exchanger`] implements
+//! [`crate::step`] calls between P2G and the grid update ([`Exchanger`] implements
 //! [`Exchange`]). On each GPU:
 //!
 //! ```text
@@ -37,7 +37,7 @@ use crate::BarrierKind;
 use crate::contract::Ctx;
 use crate::error::err;
 use crate::kernels::Kernels;
-use crate::pipeline::{Exchange, Hooks};
+use crate::step::{Exchange, Hooks};
 use cudarc::driver::{CudaEvent, CudaSlice, CudaStream, DevicePtr};
 use rtmpm_core::sim::SimError;
 use std::sync::Arc;

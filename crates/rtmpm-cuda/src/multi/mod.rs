@@ -1,6 +1,6 @@
 //! Several GPUs (Fei, Huang & Gao, "Real-Time Simulation of MPM on Modern GPUs", GTC 2022: job
 //! splitting by particles). Particles are assigned to GPUs in spatially coherent slabs
-//! ([`partition`]); every GPU runs the one step sequence ([`crate::pipeline`]) on its own
+//! ([`partition`]); every GPU runs the one step sequence ([`crate::step`]) on its own
 //! particles with its own block list; the only addition is the step's exchange hook
 //! ([`exchange`]): after P2G the grid blocks present on several GPUs are summed across GPUs
 //! ([`reduce_shared`]: NCCL all-reduce, or, between the GPUs of one process with peer access,

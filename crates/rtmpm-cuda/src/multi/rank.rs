@@ -59,7 +59,7 @@ impl GpuRank {
         check_supported(scene, &options)?;
         // With G2P2G (the default) the exchange sums what the previous step's fused kernel (or
         // this step's P2G, after a rebuild) scattered into this step's grid: it is the step's hook
-        // between P2G and the grid update either way (crate::pipeline).
+        // between P2G and the grid update either way (crate::step).
         let b = CudaBackend::new_part(scene, particles, part, options)?;
         b.stream
             .context()

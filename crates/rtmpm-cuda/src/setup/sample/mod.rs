@@ -5,7 +5,7 @@
 //! (`kernels/sample.cuh`). `sample_count` counts each row's
 //! points, the host sums them into each row's first particle (and checks the total against its
 //! own count), and `sample_write` writes the positions of one piece of the body, which the device
-//! fill ([`crate::fill`]) turns into particles. The host then needs no memory per particle.
+//! fill ([`crate::setup::fill`]) turns into particles. The host then needs no memory per particle.
 
 use crate::contract::*;
 use crate::error::err;
@@ -253,5 +253,4 @@ pub(crate) fn draw(
 }
 
 #[cfg(test)]
-#[path = "sample_tests.rs"]
 mod tests;

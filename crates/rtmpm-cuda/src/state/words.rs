@@ -2,8 +2,8 @@
 //! compact format, F in one word in a fluid layout), packed and read back.
 
 use super::Word;
-use crate::codec;
 use crate::contract::StateLayout;
+use crate::state::codec;
 use rtmpm_core::math::{Mat3, Vec3};
 
 /// A fluid layout holds fluids only; a compact one is single precision.

@@ -5,8 +5,10 @@
 //! [`StateLayout`] puts it. A word is an f32 (`real` = float) or an f64 (kernels compiled with
 //! `RTMPM_F64`); the material id and the original index are stored as integer bits in the low 32
 //! bits of their word (`state_bits` in `kernels/common.cuh`), the compact layouts' v and C words
-//! as the bits of [`crate::codec`]'s formats. The [`Particles`] interface is f32: the upload
+//! as the bits of [`crate::state::codec`]'s formats. The [`Particles`] interface is f32: the upload
 //! widens exactly (compact: rounds v and C to their formats), the download rounds to nearest.
+
+pub mod codec;
 
 use crate::contract::*;
 use crate::options::CudaOptions;
@@ -80,7 +82,6 @@ impl Word for f64 {
     }
 }
 
-#[path = "state_words.rs"]
 mod words;
 use words::*;
 
@@ -164,7 +165,7 @@ enum Source<'a> {
 
 /// The words every particle of the body `b` shares in `layout` ([`StateLayout`]) and precision
 /// (`f64`), as (state word, bits): what the device fill writes for each of them
-/// (`crate::fill`): all but x, v and the id.
+/// (`crate::setup::fill`): all but x, v and the id.
 pub fn body_constant_words(
     layout: StateLayout,
     f64: bool,
@@ -581,5 +582,4 @@ fn x_v_words<W: Word>(
 }
 
 #[cfg(test)]
-#[path = "state_tests.rs"]
 mod tests;

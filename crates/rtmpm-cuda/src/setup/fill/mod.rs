@@ -7,7 +7,7 @@
 //! (`SampledBody::Points`) are packed on the host as before, and their rows copied into place.
 //!
 //! Deferred bodies ([`rtmpm_core::scene::deferred`]) upload nothing: their positions are drawn
-//! on the device into the same buffers ([`crate::sample`]).
+//! on the device into the same buffers ([`crate::setup::sample`]).
 //!
 //! The host never holds the state image (116 bytes a particle in f32): the set-up of 500M
 //! particles no longer packs 58 GB on the host, and the host's peak is the positions.
@@ -146,7 +146,7 @@ pub fn gather(b: &BodyPositions, offset: usize, len: usize, out: &mut [f32]) {
 pub struct FillTimes {
     /// Gathering positions into page-locked memory (host, overlapped with the copies).
     pub gather: f64,
-    /// Counting the deferred bodies' rows on the device ([`crate::sample`], waited for).
+    /// Counting the deferred bodies' rows on the device ([`crate::setup::sample`], waited for).
     pub count: f64,
     /// The whole fill: table, page-locked buffers, uploads, kernels, points bodies (waited for).
     pub total: f64,
@@ -179,7 +179,9 @@ pub(crate) fn fill(
         .iter()
         .enumerate()
         .map(|(i, b)| match b {
-            SampledBody::Deferred(d) => crate::sample::count(stream, kernels, d, i).map(Some),
+            SampledBody::Deferred(d) => {
+                crate::setup::sample::count(stream, kernels, d, i).map(Some)
+            }
             _ => Ok(None),
         })
         .collect::<Result<Vec<_>, _>>()?;
@@ -218,7 +220,7 @@ pub(crate) fn fill(
             let (h, d) = (&mut host[k % 2], &mut dev[k % 2]);
             match (&bodies[p.body], &counted[p.body]) {
                 // Drawn on the device: no host memory, no copy.
-                (SampledBody::Deferred(_), Some(c)) => crate::sample::draw(
+                (SampledBody::Deferred(_), Some(c)) => crate::setup::sample::draw(
                     stream,
                     kernels,
                     c,
@@ -296,5 +298,4 @@ pub(crate) fn fill(
 }
 
 #[cfg(test)]
-#[path = "fill_tests.rs"]
 mod tests;

@@ -156,8 +156,8 @@ fn packing_the_sampled_bodies_is_packing_their_particles() {
         p.x,
         "positions in the particles' order"
     );
-    let want = crate::capacity::bases(&scene, &p);
-    let got = map_positions(&bodies, crate::capacity::base_of(&scene));
+    let want = crate::setup::capacity::bases(&scene, &p);
+    let got = map_positions(&bodies, crate::setup::capacity::base_of(&scene));
     assert_eq!(got, want);
     let speed = p.v.iter().map(|v| v.length()).fold(0.0, f32::max);
     assert!(speed > 0.5, "{speed}");
@@ -210,5 +210,4 @@ fn a_fluid_particle_is_packed_as_j_to_the_third_times_identity() {
     assert_eq!(q.f[1], sheared, "a solid keeps its F");
 }
 
-#[path = "state_layout_tests.rs"]
 mod layouts;

@@ -4,7 +4,7 @@
 use crate::backend::CudaBackend;
 use crate::contract::*;
 use crate::error::err;
-use crate::p2g::{P2gPlan, reverse_map::ReverseMapSize};
+use crate::step::p2g::{P2gPlan, reverse_map::ReverseMapSize};
 use cudarc::driver::CudaSlice;
 use rtmpm_core::math::IVec3;
 use rtmpm_core::sim::SimError;

@@ -108,5 +108,4 @@ pub fn round_c(c: [f32; 9]) -> [f32; 9] {
 }
 
 #[cfg(test)]
-#[path = "codec_tests.rs"]
 mod tests;

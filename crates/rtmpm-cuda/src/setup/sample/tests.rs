@@ -135,14 +135,14 @@ fn deferred_bodies_are_the_eager_bodies() {
     }
     // The host paths through a deferred body.
     assert_eq!(
-        crate::capacity::block_counts(&scene, &eager),
-        crate::capacity::block_counts(&scene, &deferred)
+        crate::setup::capacity::block_counts(&scene, &eager),
+        crate::setup::capacity::block_counts(&scene, &deferred)
     );
     assert_eq!(
         crate::state::max_speed(&eager),
         crate::state::max_speed(&deferred)
     );
-    let base = crate::capacity::base_of(&scene);
+    let base = crate::setup::capacity::base_of(&scene);
     assert_eq!(
         crate::state::map_positions(&eager, &base),
         crate::state::map_positions(&deferred, &base)
@@ -163,12 +163,12 @@ fn deferred_bodies_are_the_eager_bodies() {
     );
     // The device fill's table and pieces treat a deferred body as its eager twin.
     assert_eq!(
-        crate::fill::table(&eager, &fluid, layout, false),
-        crate::fill::table(&deferred, &fluid, layout, false)
+        crate::setup::fill::table(&eager, &fluid, layout, false),
+        crate::setup::fill::table(&deferred, &fluid, layout, false)
     );
     assert_eq!(
-        crate::fill::pieces(&eager, 1000),
-        crate::fill::pieces(&deferred, 1000)
+        crate::setup::fill::pieces(&eager, 1000),
+        crate::setup::fill::pieces(&deferred, 1000)
     );
 }
 

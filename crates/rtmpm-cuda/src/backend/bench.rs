@@ -1,10 +1,10 @@
 //! Timing of each stage of the step with CUDA events (the step of a run, through its one
-//! sequence, `crate::pipeline`, with an event after each stage), and a device-to-device copy
+//! sequence, `crate::step`, with an event after each stage), and a device-to-device copy
 //! bandwidth reference.
 
 use crate::backend::CudaBackend;
 use crate::error::err;
-use crate::pipeline::{Hooks, Stage};
+use crate::step::{Hooks, Stage};
 use cudarc::driver::sys::CUevent_flags;
 use cudarc::driver::{CudaEvent, CudaStream};
 use rtmpm_core::sim::SimError;
@@ -73,7 +73,7 @@ fn stage_name(s: Stage) -> &'static str {
 }
 
 /// Run `warmup` then `steps` steps of size `dt` without the graph, through the same step
-/// sequence as a run ([`crate::pipeline`]), timing each stage with events.
+/// sequence as a run ([`crate::step`]), timing each stage with events.
 pub fn bench_kernels(
     b: &mut CudaBackend,
     dt: f32,

@@ -1,9 +1,14 @@
 //! The set-up of a backend: what it starts from, the initial mapping's block counts, and where
 //! the time of building it went.
 
+pub mod buffers;
+pub mod capacity;
+pub mod fill;
+pub mod sample;
+
 use crate::CudaOptions;
 use crate::P2gMode;
-use crate::capacity::{self, Capacity};
+use capacity::Capacity;
 use rtmpm_core::Particles;
 use rtmpm_core::Scene;
 use rtmpm_core::grid::BlockLayout;
@@ -73,7 +78,7 @@ pub struct SetupPhases {
     pub pack: f64,
     /// Allocating the buffers, uploading the packed state (if any) and the tables.
     pub allocate: f64,
-    /// The device fill ([`crate::fill::FillTimes::total`]; 0 when the host packed).
+    /// The device fill ([`crate::setup::fill::FillTimes::total`]; 0 when the host packed).
     pub fill: f64,
     /// Of which gathering positions into page-locked memory.
     pub fill_gather: f64,

@@ -2,9 +2,9 @@
 //! built (nothing is allocated inside a step), and the kernel context [`Ctx`] that points into
 //! it.
 
-use crate::capacity::{BufferBytes, Capacity, GridCopies};
 use crate::contract::{self, CTL_BAD_INDEX, CTL_P2G_PENDING, CTL_WORDS, Ctx};
 use crate::error::err;
+use crate::setup::capacity::{BufferBytes, Capacity, GridCopies};
 use cudarc::driver::{CudaSlice, CudaStream, DevicePtr};
 use rtmpm_core::Scene;
 use rtmpm_core::sim::SimError;
@@ -93,7 +93,7 @@ pub fn sizes(
 /// Allocate every buffer of a GPU for `cap`, upload the particle state (`state`: the particles
 /// packed by [`crate::state::pack`] with stride `needs.particles`, placed field by field into the
 /// arrays of stride `cap.particles`, so the host never holds the capacity's empty slots; `None`:
-/// the state stays zero, for the device to fill, [`crate::fill`]) and the scene's tables, and
+/// the state stays zero, for the device to fill, [`crate::setup::fill`]) and the scene's tables, and
 /// build the context.
 pub fn allocate(
     stream: &Arc<CudaStream>,
@@ -218,7 +218,7 @@ pub fn allocate(
         warps,
         boundary,
         shared_pblock,
-        // Set by the backend when the scene has rigid bodies (crate::rigid).
+        // Set by the backend when the scene has rigid bodies (crate::step::rigid).
         bodies: 0,
         body_exchange: 0,
         n_cells: scene.n_cells().map(|c| c as i32),

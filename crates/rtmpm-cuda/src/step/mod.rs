@@ -1,30 +1,36 @@
 //! The step, written once. Every mode enqueues its steps through [`enqueue_step`]: one GPU
 //! ([`crate::CudaBackend`]), several GPUs of one process and one process per GPU
-//! ([`crate::multi`]), the benchmark ([`crate::bench`]) and `rtmpm validate`. The modes differ
+//! ([`crate::multi`]), the benchmark ([`crate::backend::bench`]) and `rtmpm validate`. The modes differ
 //! only by their [`Hooks`]: the exchange of the blocks shared with other GPUs between P2G and
 //! the grid update, and the timing events of the benchmark. Graph capture and replay of a step
-//! are in [`crate::graph`].
+//! are in [`crate::step::graph`].
 //!
 //! One step (Fei, Huang & Gao, "Real-Time Simulation of MPM on Modern GPUs", GTC 2022):
 //!
 //! 1. **rebuild** of the mapping (blocks, hash, neighbour lists, sort), only when a particle left
-//!    its free zone; the grid clear ([`crate::rebuild`]);
-//! 2. **P2G**: mass, momentum and stress to the grid ([`crate::p2g`]); with G2P2G only after a
+//!    its free zone; the grid clear ([`crate::step::rebuild`]);
+//! 2. **P2G**: mass, momentum and stress to the grid ([`crate::step::p2g`]); with G2P2G only after a
 //!    rebuild or a new dt, the previous step's fused kernel having scattered the particles;
 //!    *hook*: several GPUs sum the blocks they share (with the separate P2G, the gblocks next
 //!    to a shared block first, the exchange while the others run);
-//! 3. **grid update**: velocities, gravity, walls, colliders ([`crate::grid_update`]); several
+//! 3. **grid update**: velocities, gravity, walls, colliders ([`crate::step::grid_update`]); several
 //!    GPUs update the pblocks no other GPU shares while the shared ones are summed, then those;
-//! 4. MUSL only: the re-map of the updated particle momenta ([`crate::g2p`], [`crate::p2g`],
-//!    [`crate::grid_update`]);
+//! 4. MUSL only: the re-map of the updated particle momenta ([`crate::step::g2p`], [`crate::step::p2g`],
+//!    [`crate::step::grid_update`]);
 //! 5. **G2P**: velocities, affine matrix, F, plasticity, advection; with G2P2G fused with the
-//!    next step's P2G ([`crate::g2p`]).
+//!    next step's P2G ([`crate::step::g2p`]).
+
+pub mod g2p;
+pub mod graph;
+pub mod grid_update;
+pub mod p2g;
+pub mod rebuild;
+pub mod rigid;
 
 use crate::contract::Ctx;
 use crate::error::err;
 use crate::kernels::Kernels;
-use crate::p2g::P2gPlan;
-use crate::{g2p, grid_update, rebuild};
+use crate::step::p2g::P2gPlan;
 use cudarc::driver::CudaStream;
 use rtmpm_core::sim::SimError;
 use rtmpm_core::transfer::{Transfer, Update};
@@ -153,7 +159,7 @@ pub fn enqueue_until(
             },
             Stage::MuslRemap => {
                 g2p::enqueue_velocity(k, s, c).map_err(err("g2p (MUSL velocity)"))?;
-                crate::p2g::enqueue_musl(k, s, c).map_err(err("p2g (MUSL re-map)"))?;
+                crate::step::p2g::enqueue_musl(k, s, c).map_err(err("p2g (MUSL re-map)"))?;
                 grid_update::enqueue_musl(k, s, c).map_err(err("grid update (MUSL)"))?;
             }
             Stage::G2p => g2p::enqueue(k, s, c, plan.all_fluid).map_err(err("g2p"))?,

@@ -229,7 +229,7 @@ mod tests {
             );
         }
         // The device's codes are these.
-        let state_cuh = include_str!("../kernels/state.cuh");
+        let state_cuh = include_str!("../../kernels/state.cuh");
         for (name, v) in [
             ("EXPORT_ZERO", EXPORT_ZERO),
             ("EXPORT_C", EXPORT_C),

@@ -3,7 +3,7 @@
 //! bound and keep every other word.
 
 use super::*;
-use crate::codec;
+use crate::state::codec;
 
 /// Fluid and solid particles with every field set (fluid: F = J^(1/3) I after packing).
 fn particles(n: usize, materials: u32) -> Particles {

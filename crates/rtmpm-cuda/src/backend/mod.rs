@@ -1,18 +1,19 @@
 //! [`CudaBackend`]: one GPU. Building it is a list of steps (check, compile, capacities,
-//! buffers, constants, P2G strategy); a step is [`crate::pipeline::enqueue_step`], replayed from
-//! a CUDA graph ([`crate::graph`]) while dt stays the same.
+//! buffers, constants, P2G strategy); a step is [`crate::step::enqueue_step`], replayed from
+//! a CUDA graph ([`crate::step::graph`]) while dt stays the same.
 
-use crate::capacity::Capacity;
 use crate::compile::{KernelOptions, compile};
 use crate::contract::{CTL_P2G_PENDING, ColliderPoses, Ctx, StateLayout};
 use crate::encode::{self, Tables};
 use crate::error::err;
-use crate::graph::StepGraphs;
 use crate::kernels::{Kernels, write_symbol};
-use crate::p2g::P2gPlan;
-use crate::pipeline::{self, Hooks, NoHooks, Stage, StepPlan};
 use crate::setup::Initial;
-use crate::{CudaOptions, P2gMode, buffers};
+use crate::setup::buffers;
+use crate::setup::capacity::Capacity;
+use crate::step::graph::StepGraphs;
+use crate::step::p2g::P2gPlan;
+use crate::step::{Hooks, NoHooks, Stage, StepPlan};
+use crate::{CudaOptions, P2gMode};
 use cudarc::driver::{CudaContext, CudaModule, CudaStream};
 use rtmpm_core::scene::Precision;
 use rtmpm_core::scene::sampling::SampledBody;
@@ -21,7 +22,9 @@ use rtmpm_core::transfer::Transfer;
 use rtmpm_core::{Particles, Scene};
 use std::sync::Arc;
 
-#[path = "backend_sim.rs"]
+pub mod bench;
+pub mod emit;
+pub mod readback;
 mod sim;
 
 /// Where a [`CudaBackend`] runs and which particles it holds, when it is one GPU of several.
@@ -64,7 +67,7 @@ pub struct CudaBackend {
     graphs: StepGraphs,
     device_name: String,
     /// The rigid bodies coupled to the grid (`[[rigid_body]]`), if any.
-    bodies: Option<crate::rigid::Bodies>,
+    bodies: Option<crate::step::rigid::Bodies>,
     /// Where the time of building this backend went.
     setup: crate::setup::SetupPhases,
 }
@@ -167,7 +170,7 @@ impl CudaBackend {
                 if (!options.device_fill || options.p2g == P2gMode::ReverseMap)
                     && b.iter().any(|b| matches!(b, SampledBody::Deferred(_))) =>
             {
-                walked = crate::sample::walked(b);
+                walked = crate::setup::sample::walked(b);
                 Initial::Bodies(&walked)
             }
             other => other,
@@ -176,13 +179,13 @@ impl CudaBackend {
         check(scene, n, part, &options)?;
         let state_layout = crate::state::layout_for(scene, &options)
             .map_err(|e| SimError::Backend(format!("CUDA backend: {e}")))?;
-        crate::emit::check(scene, options.p2g)?;
+        crate::backend::emit::check(scene, options.p2g)?;
         let tables = encode::tables(scene, options.f64)?;
         // The device fill (sampled bodies only): the table's checks before any GPU work.
         let device_fill = match initial {
             Initial::Bodies(b) if options.device_fill => {
                 let fluid = crate::state::fluid_materials(scene);
-                crate::fill::table(b, &fluid, state_layout, options.f64)
+                crate::setup::fill::table(b, &fluid, state_layout, options.f64)
                     .map_err(SimError::Backend)?;
                 true
             }
@@ -193,8 +196,8 @@ impl CudaBackend {
         // The program, compiled for this GPU (or from the cache), and its kernels.
         // Capacities from the initial mapping (crate::setup::initial_blocks).
         let (bases, blocks) = crate::setup::initial_blocks(scene, initial, &options);
-        // Room for every particle the emitters will add (crate::emit): nothing grows later.
-        let n_max = n.saturating_add(crate::emit::emitted_total(scene));
+        // Room for every particle the emitters will add (crate::backend::emit): nothing grows later.
+        let n_max = n.saturating_add(crate::backend::emit::emitted_total(scene));
         let cap = Capacity::plan_blocks(scene, n_max, part.capacity, blocks, &options);
         setup.layout = t.elapsed().as_secs_f64();
         // G2P2G where it applies (see CudaOptions::g2p2g): not when every step rebuilds (the
@@ -223,7 +226,9 @@ impl CudaBackend {
             _ => ", the compact state ([solver] particle_state = \"compact\")",
         };
         let gpu = format!("GPU {} ({})", part.device, info.name);
-        if let Some(why) = crate::capacity::refusal(&planned, cap.particles, free, &gpu, hint) {
+        if let Some(why) =
+            crate::setup::capacity::refusal(&planned, cap.particles, free, &gpu, hint)
+        {
             return Err(SimError::Backend(why));
         }
         setup.probe += t.elapsed().as_secs_f64();
@@ -265,7 +270,8 @@ impl CudaBackend {
 
         // The particle state (a fluid's F packed as J^(1/3) I) and every buffer.
         let fluid = crate::state::fluid_materials(scene);
-        kernels.sort_mask = crate::rebuild::sorted_fields(state_layout, fluid.iter().all(|f| *f));
+        kernels.sort_mask =
+            crate::step::rebuild::sorted_fields(state_layout, fluid.iter().all(|f| *f));
         // Packed with stride n; buffers::allocate places each field at its stride-cap offset.
         // With the device fill nothing is packed: the state is written on the device below.
         let t = std::time::Instant::now();
@@ -314,7 +320,7 @@ impl CudaBackend {
         stream.synchronize().map_err(err("upload"))?;
         setup.allocate = t.elapsed().as_secs_f64();
         if let (true, Initial::Bodies(b)) = (device_fill, initial) {
-            let f = crate::fill::fill(
+            let f = crate::setup::fill::fill(
                 &stream,
                 &kernels,
                 &mut buffers.state,
@@ -326,7 +332,7 @@ impl CudaBackend {
             )?;
             (setup.fill, setup.fill_gather, setup.fill_count) = (f.total, f.gather, f.count);
         }
-        let bodies = crate::rigid::Bodies::new(
+        let bodies = crate::step::rigid::Bodies::new(
             scene,
             &stream,
             options.rigid_overlap,
@@ -414,7 +420,7 @@ impl CudaBackend {
 
     /// Enqueue one step with `hooks` (parameters already uploaded), up to `last`.
     pub(crate) fn enqueue(&self, hooks: &mut dyn Hooks, last: Stage) -> Result<(), SimError> {
-        pipeline::enqueue_until(
+        crate::step::enqueue_until(
             &self.kernels,
             &self.stream,
             &self.step_ctx(),
@@ -435,7 +441,7 @@ impl CudaBackend {
     /// Enqueue one step with `hooks`, from the graph captured for this grid parity and dt when
     /// `graph` (the modes that time stages or wait on the host run without). With rigid bodies
     /// their states go up before the step and their impulses come back after it (a wait for the
-    /// step, [`crate::rigid`]).
+    /// step, [`crate::step::rigid`]).
     pub(crate) fn run_step(
         &mut self,
         dt: f32,

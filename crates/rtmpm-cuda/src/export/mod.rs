@@ -9,6 +9,9 @@
 //! backend's storage order, which changes at every rebuild (particles are sorted by block and
 //! cell); the layout's `id()` word gives each slot's original particle index.
 
+pub mod chunks;
+pub mod ordered;
+
 use crate::backend::CudaBackend;
 use crate::contract::*;
 use crate::error::err;

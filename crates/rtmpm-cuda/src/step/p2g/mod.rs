@@ -15,9 +15,9 @@ pub mod scatter;
 pub mod sort;
 
 use crate::P2gMode;
-use crate::capacity::Capacity;
 use crate::contract::Ctx;
 use crate::kernels::{Kernel, Kernels};
+use crate::setup::capacity::Capacity;
 use cudarc::driver::{CudaStream, DriverError, PushKernelArg};
 use reverse_map::{ReverseMap, ReverseMapSize};
 use rtmpm_core::math::IVec3;

@@ -347,5 +347,4 @@ impl Capacity {
 }
 
 #[cfg(test)]
-#[path = "capacity_tests.rs"]
 mod tests;
