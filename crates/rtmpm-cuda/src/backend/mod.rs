@@ -1,31 +1,32 @@
-//! [`CudaBackend`]: one GPU. Building it is a list of steps (check, compile, capacities,
-//! buffers, constants, P2G strategy); a step is [`crate::step::enqueue_step`], replayed from
-//! a CUDA graph ([`crate::step::graph`]) while dt stays the same.
+//! [`CudaBackend`]: the CUDA backend on one GPU, and the simulation's [`Backend`] on it.
+//!
+//! Built in [`build`] (checks, the plan against the GPU's free memory, the program, the state
+//! and every buffer, the rigid bodies, the constants, the P2G strategy). A step uploads its
+//! parameters when they change and enqueues [`crate::step::enqueue_until`], replayed from a
+//! CUDA graph ([`crate::step::graph`]) while dt stays the same. What the host reads back is in
+//! [`readback`], the particles emitters add in [`emit`], per-stage timing in [`bench`]; the
+//! state for other libraries in [`crate::export`].
 
-use crate::compile::{KernelOptions, compile};
+use crate::CudaOptions;
 use crate::contract::{CTL_P2G_PENDING, ColliderPoses, Ctx, StateLayout};
 use crate::encode::{self, Tables};
 use crate::error::err;
 use crate::kernels::{Kernels, write_symbol};
-use crate::setup::Initial;
-use crate::setup::buffers;
-use crate::setup::capacity::Capacity;
+use crate::setup::{Initial, SetupPhases, buffers};
 use crate::step::graph::StepGraphs;
 use crate::step::p2g::P2gPlan;
+use crate::step::rigid::Bodies;
 use crate::step::{Hooks, NoHooks, Stage, StepPlan};
-use crate::{CudaOptions, P2gMode};
-use cudarc::driver::{CudaContext, CudaModule, CudaStream};
-use rtmpm_core::scene::Precision;
+use cudarc::driver::{CudaModule, CudaSlice, CudaStream, PinnedHostSlice};
 use rtmpm_core::scene::sampling::SampledBody;
 use rtmpm_core::sim::{Backend, BadParticle, BadReason, SimError};
-use rtmpm_core::transfer::Transfer;
 use rtmpm_core::{Particles, Scene};
 use std::sync::Arc;
 
 pub mod bench;
+mod build;
 pub mod emit;
 pub mod readback;
-mod sim;
 
 /// Where a [`CudaBackend`] runs and which particles it holds, when it is one GPU of several.
 #[derive(Clone, Debug, Default)]
@@ -62,54 +63,23 @@ pub struct CudaBackend {
     last_params: Option<(Vec<u8>, ColliderPoses)>,
     pub(crate) scene: Scene,
     pub(crate) n: usize,
-    /// Pinned host memory of [`CudaBackend::read_fields`] (`export.rs`).
-    pub(crate) staging: crate::export::Staging,
+    /// Memory reused by the reads of [`crate::export`].
+    pub(crate) staging: Staging,
     graphs: StepGraphs,
     device_name: String,
     /// The rigid bodies coupled to the grid (`[[rigid_body]]`), if any.
-    bodies: Option<crate::step::rigid::Bodies>,
+    bodies: Option<Bodies>,
     /// Where the time of building this backend went.
-    setup: crate::setup::SetupPhases,
+    setup: SetupPhases,
 }
 
-/// Checks before any GPU work: what the CUDA backend cannot run, as clear errors.
-fn check(scene: &Scene, n: usize, part: &Part, o: &CudaOptions) -> Result<(), SimError> {
-    if o.f64 && o.p2g == P2gMode::Shared {
-        return Err(SimError::Backend(
-            "CUDA backend: p2g=shared is single precision only (a 12^3 tile of f64 nodes \
-             exceeds the 48 KiB of static shared memory); use p2g=warp with f64"
-                .into(),
-        ));
-    }
-    if !scene.rigid_bodies.is_empty() && part.ids.is_some() {
-        return Err(SimError::Backend(
-            "CUDA backend: the scene's [[rigid_body]] tables are coupled on one GPU only so \
-             far; run it with --gpus 1 (or on the CPU backend)"
-                .into(),
-        ));
-    }
-    if n == 0 {
-        return Err(SimError::Backend(format!(
-            "CUDA backend (device {}): no particles",
-            part.device
-        )));
-    }
-    if part.ids.as_ref().is_some_and(|ids| ids.len() != n) {
-        return Err(SimError::Backend(
-            "CUDA backend: one id per particle".into(),
-        ));
-    }
-    if matches!(o.p2g, P2gMode::ReverseMap | P2gMode::Sort)
-        && scene.solver.transfer != Transfer::Mls
-    {
-        return Err(SimError::Backend(format!(
-            "CUDA backend: p2g={} gathers MLS-MPM contributions only; the scene's [solver] \
-             transfer is \"{}\": use p2g=warp (the default) or p2g=shared",
-            o.p2g.name(),
-            scene.solver.transfer.name()
-        )));
-    }
-    Ok(())
+/// Memory reused by [`CudaBackend::read_fields`] and [`CudaBackend::read_vec3_ordered`]:
+/// pinned host memory, and the device array that the ordered export gathers into.
+#[derive(Default)]
+pub(crate) struct Staging {
+    pub(crate) pinned: Option<PinnedHostSlice<u8>>,
+    pub(crate) ordered: Option<CudaSlice<f32>>,
+    pub(crate) bad: Option<CudaSlice<u32>>,
 }
 
 impl CudaBackend {
@@ -146,243 +116,9 @@ impl CudaBackend {
         Self::build(scene, Initial::Bodies(bodies), &Part::default(), options)
     }
 
-    fn build(
-        scene: &Scene,
-        initial: Initial,
-        part: &Part,
-        options: CudaOptions,
-    ) -> Result<CudaBackend, SimError> {
-        let t0 = std::time::Instant::now();
-        let mut setup = crate::setup::SetupPhases::default();
-        let info = crate::probe_device(part.device).map_err(|e| {
-            SimError::Backend(format!("CUDA device {} unavailable: {e}", part.device))
-        })?;
-        setup.probe = t0.elapsed().as_secs_f64();
-        // The scene's precision, or the `f64` switch: the whole pipeline in f64.
-        let options = CudaOptions {
-            f64: options.f64 || scene.precision == Precision::F64,
-            ..options
-        };
-        // Deferred bodies are drawn by the device fill; every other path walks them here.
-        let walked;
-        let initial = match initial {
-            Initial::Bodies(b)
-                if (!options.device_fill || options.p2g == P2gMode::ReverseMap)
-                    && b.iter().any(|b| matches!(b, SampledBody::Deferred(_))) =>
-            {
-                walked = crate::setup::sample::walked(b);
-                Initial::Bodies(&walked)
-            }
-            other => other,
-        };
-        let n = initial.len();
-        check(scene, n, part, &options)?;
-        let state_layout = crate::state::layout_for(scene, &options)
-            .map_err(|e| SimError::Backend(format!("CUDA backend: {e}")))?;
-        crate::backend::emit::check(scene, options.p2g)?;
-        let tables = encode::tables(scene, options.f64)?;
-        // The device fill (sampled bodies only): the table's checks before any GPU work.
-        let device_fill = match initial {
-            Initial::Bodies(b) if options.device_fill => {
-                let fluid = crate::state::fluid_materials(scene);
-                crate::setup::fill::table(b, &fluid, state_layout, options.f64)
-                    .map_err(SimError::Backend)?;
-                true
-            }
-            _ => false,
-        };
-        let t = std::time::Instant::now();
-
-        // The program, compiled for this GPU (or from the cache), and its kernels.
-        // Capacities from the initial mapping (crate::setup::initial_blocks).
-        let (bases, blocks) = crate::setup::initial_blocks(scene, initial, &options);
-        // Room for every particle the emitters will add (crate::backend::emit): nothing grows later.
-        let n_max = n.saturating_add(crate::backend::emit::emitted_total(scene));
-        let cap = Capacity::plan_blocks(scene, n_max, part.capacity, blocks, &options);
-        setup.layout = t.elapsed().as_secs_f64();
-        // G2P2G where it applies (see CudaOptions::g2p2g): not when every step rebuilds (the
-        // fused scatter would always be redone).
-        let g2p2g = options.g2p2g
-            && scene.solver.transfer == Transfer::Mls
-            && options.p2g == P2gMode::Warp
-            && options.free_zone
-            && options.mixed_sort;
-        let real_bytes = if options.f64 { 8 } else { 4 };
-        // The plan against the GPU's free memory, before anything is allocated or compiled.
-        let t = std::time::Instant::now();
-        let context = CudaContext::new(part.device).map_err(err("context"))?;
-        let planned = buffers::sizes(
-            scene,
-            &cap,
-            real_bytes,
-            state_layout.words(),
-            g2p2g,
-            &options,
-        );
-        let (free, _) = context.mem_get_info().map_err(err("memory info"))?;
-        let hint = match state_layout {
-            StateLayout::Compact | StateLayout::CompactFluid => "",
-            _ if options.f64 => ", f32 instead of f64",
-            _ => ", the compact state ([solver] particle_state = \"compact\")",
-        };
-        let gpu = format!("GPU {} ({})", part.device, info.name);
-        if let Some(why) =
-            crate::setup::capacity::refusal(&planned, cap.particles, free, &gpu, hint)
-        {
-            return Err(SimError::Backend(why));
-        }
-        setup.probe += t.elapsed().as_secs_f64();
-        let t = std::time::Instant::now();
-
-        // Compiled for this GPU, the state's index width (64 bits past 2^32 words), and with
-        // specialize=on the scene's models only (a smaller material switch).
-        let ptx = compile(&KernelOptions {
-            state64: crate::compile::state_needs_64_bits(state_layout.words(), cap.particles),
-            layout: state_layout,
-            arch: info.compute_capability,
-            fast_math: options.fast_math,
-            f64: options.f64,
-            materials: if options.specialize {
-                scene
-                    .materials
-                    .iter()
-                    .fold(0u32, |m, mat| m | 1 << mat.model.code())
-            } else {
-                u32::MAX
-            },
-        })
-        .map_err(SimError::Backend)?;
-        // Single stream: no cross-stream event tracking (keeps launches capturable).
-        // SAFETY: all our buffers are used on `stream` only.
-        unsafe { context.disable_event_tracking() };
-        let stream = context.new_stream().map_err(err("stream"))?;
-        let module = context
-            .load_module(cudarc::nvrtc::Ptx::from_src(ptx))
-            .map_err(err("load module"))?;
-        let mut kernels = Kernels::load(
-            &module,
-            info.sm_count,
-            options.fused_rebuild,
-            options.sort_scratch_fields,
-            state_layout,
-        )?;
-        setup.kernels = t.elapsed().as_secs_f64();
-
-        // The particle state (a fluid's F packed as J^(1/3) I) and every buffer.
-        let fluid = crate::state::fluid_materials(scene);
-        kernels.sort_mask =
-            crate::step::rebuild::sorted_fields(state_layout, fluid.iter().all(|f| *f));
-        // Packed with stride n; buffers::allocate places each field at its stride-cap offset.
-        // With the device fill nothing is packed: the state is written on the device below.
-        let t = std::time::Instant::now();
-        let state = match initial {
-            _ if device_fill => None,
-            Initial::Particles(p) => Some(crate::state::pack(
-                p,
-                &fluid,
-                state_layout,
-                options.f64,
-                n,
-                part.ids.as_deref(),
-            )),
-            Initial::Bodies(b) => Some(crate::state::pack_bodies(
-                b,
-                &fluid,
-                state_layout,
-                options.f64,
-            )),
-        }
-        .transpose()
-        .map_err(SimError::Backend)?;
-        setup.pack = t.elapsed().as_secs_f64();
-        let needs = buffers::Needs {
-            particles: n,
-            real_bytes,
-            state_words: state_layout.words(),
-            grid_next: g2p2g,
-            // NaN speeds are left to the health check of the first step.
-            initial_speed: match initial {
-                Initial::Particles(p) => p.v.iter().map(|v| v.length()).fold(0.0, f32::max),
-                Initial::Bodies(b) => crate::state::max_speed(b),
-            },
-        };
-        let t = std::time::Instant::now();
-        let (mut buffers, mut ctx) = buffers::allocate(
-            &stream,
-            scene,
-            state.as_deref(),
-            &cap,
-            needs,
-            &tables,
-            &options,
-        )?;
-        drop(state);
-        stream.synchronize().map_err(err("upload"))?;
-        setup.allocate = t.elapsed().as_secs_f64();
-        if let (true, Initial::Bodies(b)) = (device_fill, initial) {
-            let f = crate::setup::fill::fill(
-                &stream,
-                &kernels,
-                &mut buffers.state,
-                cap.particles,
-                b,
-                &fluid,
-                state_layout,
-                options.f64,
-            )?;
-            (setup.fill, setup.fill_gather, setup.fill_count) = (f.total, f.gather, f.count);
-        }
-        let bodies = crate::step::rigid::Bodies::new(
-            scene,
-            &stream,
-            options.rigid_overlap,
-            tables.body_mesh.clone(),
-        )?;
-        if let Some(b) = &bodies {
-            (ctx.bodies, ctx.body_exchange, ctx.n_bodies) = b.ctx_fields(&stream);
-        }
-
-        // Read-only parameters in constant memory (kernels/common.cuh).
-        write_symbol(&module, &stream, "c_scalars", &tables.scalars)?;
-        write_symbol(&module, &stream, "c_materials", &tables.materials)?;
-        write_symbol(
-            &module,
-            &stream,
-            "c_colliders",
-            bytemuck::cast_slice(&tables.colliders),
-        )?;
-
-        let p2g = P2gPlan::new(&options, &bases, blocks.1, &cap, &stream, &ctx, real_bytes)?;
-        Ok(CudaBackend {
-            stream,
-            kernels,
-            ctx,
-            options,
-            p2g,
-            module,
-            buffers,
-            all_fluid: fluid.iter().all(|f| *f),
-            layout: state_layout,
-            parity: 0,
-            last_grid: 0,
-            last_dt: None,
-            last_params: None,
-            scene: scene.clone(),
-            n,
-            staging: Default::default(),
-            graphs: StepGraphs::default(),
-            device_name: info.name,
-            bodies,
-            setup: crate::setup::SetupPhases {
-                total: t0.elapsed().as_secs_f64(),
-                ..setup
-            },
-        })
-    }
-
     /// Where the time of building this backend went (probe, host layout, kernels, packing,
     /// allocation and upload, device fill).
-    pub fn setup_phases(&self) -> crate::setup::SetupPhases {
+    pub fn setup_phases(&self) -> SetupPhases {
         self.setup
     }
 
@@ -529,5 +265,123 @@ impl CudaBackend {
     /// True when it holds no particle (never: construction refuses that).
     pub fn is_empty(&self) -> bool {
         self.n == 0
+    }
+}
+
+impl Backend for CudaBackend {
+    fn name(&self) -> String {
+        if self.options.f64 {
+            format!("cuda ({}, f64)", self.device_name)
+        } else {
+            format!("cuda ({})", self.device_name)
+        }
+    }
+
+    fn num_particles(&self) -> usize {
+        self.n
+    }
+
+    fn step(&mut self, dt: f32, t: f32) -> Result<(), SimError> {
+        self.upload_params(dt, t)?;
+        self.run_step(dt, &mut NoHooks, true)
+    }
+
+    fn max_speed(&mut self) -> Result<f32, SimError> {
+        let c = self.ctl_words()?;
+        self.error_check(&c)?;
+        Ok(f32::from_bits(c[crate::contract::CTL_MAX_SPEED]))
+    }
+
+    fn check(&mut self) -> Result<Option<BadParticle>, SimError> {
+        use crate::contract::{CTL_BAD_INDEX, CTL_BAD_REASON};
+        let c = self.ctl_words()?;
+        self.error_check(&c)?;
+        if c[CTL_BAD_INDEX] == u32::MAX {
+            return Ok(None);
+        }
+        let reset = [u32::MAX, 0];
+        let mut view = self.buffers.ctl.slice_mut(CTL_BAD_INDEX..CTL_BAD_INDEX + 2);
+        self.stream
+            .memcpy_htod(&reset, &mut view)
+            .map_err(err("reset bad particle"))?;
+        let reason = if c[CTL_BAD_REASON] == 1 {
+            BadReason::NonFinite
+        } else {
+            BadReason::TooFast
+        };
+        Ok(Some(BadParticle {
+            index: c[CTL_BAD_INDEX] as usize,
+            reason,
+        }))
+    }
+
+    fn add_particles(&mut self, particles: &Particles) -> Result<(), SimError> {
+        self.append_particles(particles)
+    }
+
+    fn read_particles(&mut self, out: &mut Particles) -> Result<(), SimError> {
+        let host = self
+            .stream
+            .clone_dtoh(&self.buffers.state)
+            .map_err(err("read particles"))?;
+        crate::state::unpack(
+            &host,
+            self.n,
+            self.ctx.cap as usize,
+            self.layout,
+            self.options.f64,
+            out,
+        )
+        .map_err(SimError::Backend)
+    }
+
+    fn memory_bytes(&self) -> Option<(u64, u64)> {
+        Some((0, self.device_bytes() as u64))
+    }
+
+    fn rigid_bodies(&self) -> Vec<rtmpm_core::rigid::BodyState> {
+        self.bodies
+            .as_ref()
+            .map_or_else(Vec::new, |b| b.states().to_vec())
+    }
+
+    fn rigid_poses(&self) -> Vec<rtmpm_core::rigid::BodyPose> {
+        self.bodies.as_ref().map_or_else(Vec::new, |b| b.poses())
+    }
+
+    fn flush_rigid(&mut self) -> Result<(), SimError> {
+        match self.bodies.as_mut() {
+            Some(b) => b.flush(),
+            None => Ok(()),
+        }
+    }
+
+    fn set_rigid_poses(&mut self, poses: &[rtmpm_core::rigid::BodyPose]) -> Result<(), SimError> {
+        match self.bodies.as_mut() {
+            Some(b) => b.set_poses(poses),
+            None if poses.is_empty() => Ok(()),
+            None => Err(SimError::Backend(format!(
+                "{} rigid-body states for a scene without rigid bodies",
+                poses.len()
+            ))),
+        }
+    }
+
+    /// The bodies take the impulses of the frame's last step (with `rigid_overlap` they are
+    /// a step behind): at a frame's end they are where the CPU backend's would be.
+    fn end_of_frame(&mut self) -> Result<(), SimError> {
+        self.flush_rigid()
+    }
+
+    fn export_frame(&mut self, sink: &mut dyn rtmpm_core::sim::ChunkSink) -> Result<(), SimError> {
+        self.export_chunks(sink)
+    }
+
+    fn setup_details(&self) -> Option<String> {
+        Some(self.setup.to_string())
+    }
+
+    fn chunk_memory(&self, words: usize) -> Result<Box<dyn rtmpm_core::sim::HostBuffer>, SimError> {
+        Ok(Box::new(self.chunk_host_memory(words)?))
     }
 }

@@ -43,15 +43,6 @@ impl DeviceParticles {
     }
 }
 
-/// Memory reused by [`CudaBackend::read_fields`] and [`CudaBackend::read_vec3_ordered`]:
-/// pinned host memory, and the device array that the ordered export gathers into.
-#[derive(Default)]
-pub(crate) struct Staging {
-    pub(crate) pinned: Option<PinnedHostSlice<u8>>,
-    pub(crate) ordered: Option<cudarc::driver::CudaSlice<f32>>,
-    pub(crate) bad: Option<cudarc::driver::CudaSlice<u32>>,
-}
-
 impl CudaBackend {
     /// Pinned host memory of at least `need` bytes (reused; grown when too small).
     pub(crate) fn pinned(&mut self, need: usize) -> Result<&mut PinnedHostSlice<u8>, SimError> {

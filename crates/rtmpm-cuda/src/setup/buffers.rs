@@ -93,8 +93,8 @@ pub fn sizes(
 /// Allocate every buffer of a GPU for `cap`, upload the particle state (`state`: the particles
 /// packed by [`crate::state::pack`] with stride `needs.particles`, placed field by field into the
 /// arrays of stride `cap.particles`, so the host never holds the capacity's empty slots; `None`:
-/// the state stays zero, for the device to fill, [`crate::setup::fill`]) and the scene's tables, and
-/// build the context.
+/// the state stays zero, for the device to fill, [`crate::setup::fill`]) and the scene's tables,
+/// and build the context.
 pub fn allocate(
     stream: &Arc<CudaStream>,
     scene: &Scene,
@@ -105,64 +105,17 @@ pub fn allocate(
     options: &crate::CudaOptions,
 ) -> Result<(Buffers, Ctx), SimError> {
     let s = stream;
-    let (n, rb) = (needs.particles, needs.real_bytes);
-    let ptr = |b: &CudaSlice<u8>| b.device_ptr(s).0;
+    let sizes = sizes(
+        scene,
+        cap,
+        needs.real_bytes,
+        needs.state_words,
+        needs.grid_next,
+        options,
+    );
     let mut rest = Vec::new();
-    let mut zeros = |len: usize, what: &'static str| -> Result<u64, SimError> {
-        let b = s.alloc_zeros::<u8>(len.max(16)).map_err(err(what))?;
-        let p = b.device_ptr(s).0;
-        rest.push(b);
-        Ok(p)
-    };
-    let sizes = sizes(scene, cap, rb, needs.state_words, needs.grid_next, options);
-    let state_bytes = sizes.state;
-    // The sort scratch: `sort_scratch_fields` fields, permuted a chunk at a time (rebuild.cu);
-    // its first field holds the sort keys between the histogram and the ranks (Ctx::pkey).
-    let scratch = zeros(sizes.scratch, "alloc sort scratch")?;
-    let pkey = scratch;
-    let hash_keys = zeros(cap.hash * 8, "alloc hash")?;
-    let hash_values = zeros(cap.hash * 4, "alloc hash")?;
-    debug_assert_eq!(sizes.hash, cap.hash * 12);
-    let neighbors = zeros(sizes.neighbors, "alloc neighbour lists")?;
-    let hist = zeros(sizes.hist, "alloc histogram")?;
-    let scan_sums = zeros(sizes.scan_sums, "alloc scan")?;
-    // Sized to the capacity: emitters add particles up to it during the run.
-    let prank = zeros(sizes.prank, "alloc sort ranks")?;
-    let warps = zeros(sizes.warps, "alloc warp list")?;
-    let boundary = zeros(sizes.boundary, "alloc boundary flags")?;
-    let shared_pblock = zeros(sizes.shared_pblock, "alloc shared-block flags")?;
-    // The classic MPM transfers keep a second value per node (force, v_old, MUSL re-map).
-    let grid_aux = if sizes.grid_aux == 0 {
-        0
-    } else {
-        zeros(sizes.grid_aux, "alloc second node values")?
-    };
-    let mut upload = |bytes: &[u8], what: &'static str| -> Result<u64, SimError> {
-        let mut v = bytes.to_vec();
-        v.resize(v.len().max(16), 0);
-        let b = s.clone_htod(&v).map_err(err(what))?;
-        let p = b.device_ptr(s).0;
-        rest.push(b);
-        Ok(p)
-    };
-    let materials = upload(&tables.materials, "upload materials")?;
-    let colliders = upload(bytemuck::cast_slice(&tables.colliders), "upload colliders")?;
-    let mesh_values = upload(bytemuck::cast_slice(&tables.mesh), "upload meshes")?;
-
-    let mut state_buf = s
-        .alloc_zeros::<u8>(state_bytes)
-        .map_err(err("alloc particle state"))?;
-    let row = n * rb;
-    for f in 0..needs.state_words {
-        let Some(state) = state else { break };
-        let at = f * cap.particles * rb;
-        s.memcpy_htod(
-            &state[f * row..(f + 1) * row],
-            &mut state_buf.slice_mut(at..at + row),
-        )
-        .map_err(err("upload particles"))?;
-    }
-    let state = state_buf;
+    let unnamed = Unnamed::allocate(s, cap, &sizes, tables, &mut rest)?;
+    let state = upload_state(s, state, cap, &sizes, needs)?;
     let grid = s.alloc_zeros::<u8>(sizes.grid).map_err(err("alloc grid"))?;
     let grid_next = if needs.grid_next {
         Some(
@@ -175,14 +128,7 @@ pub fn allocate(
     let block_coords = s
         .alloc_zeros::<u8>(sizes.block_coords)
         .map_err(err("alloc block coordinates"))?;
-    let mut ctl_host = [0u32; CTL_WORDS];
-    ctl_host[contract::CTL_NEED_REBUILD] = 1; // rebuild at the first step
-    ctl_host[CTL_P2G_PENDING] = 1;
-    ctl_host[CTL_BAD_INDEX] = u32::MAX;
-    ctl_host[contract::CTL_MAX_SPEED] = needs.initial_speed.to_bits();
-    let ctl = s
-        .clone_htod(&ctl_host)
-        .map_err(err("alloc control words"))?;
+    let ctl = control_words(s, needs)?;
     let scalars = s
         .clone_htod(&tables.scalars)
         .map_err(err("upload scalars"))?;
@@ -192,39 +138,192 @@ pub fn allocate(
     let poses = s
         .alloc_zeros::<u8>(std::mem::size_of::<contract::ColliderPoses>())
         .map_err(err("alloc collider poses"))?;
+    debug_assert_eq!(state.len(), sizes.state);
+    let buffers = Buffers {
+        state,
+        block_coords,
+        grid,
+        grid_next,
+        ctl,
+        scalars,
+        step,
+        poses,
+        _rest: rest,
+        planned: sizes,
+    };
+    let ctx = context(s, scene, cap, needs, options, tables, &unnamed, &buffers);
+    Ok((buffers, ctx))
+}
 
+/// The device addresses of the buffers that only the kernels use (the host keeps them alive in
+/// [`Buffers`]' `_rest`): the sort scratch, hash, lists, sort, flags, the second node values and
+/// the tables.
+struct Unnamed {
+    scratch: u64,
+    hash_keys: u64,
+    hash_values: u64,
+    neighbors: u64,
+    hist: u64,
+    scan_sums: u64,
+    prank: u64,
+    warps: u64,
+    boundary: u64,
+    shared_pblock: u64,
+    grid_aux: u64,
+    materials: u64,
+    colliders: u64,
+    mesh_values: u64,
+}
+
+impl Unnamed {
+    /// Allocate them (zeros) and upload the tables, each buffer pushed onto `rest`.
+    fn allocate(
+        s: &Arc<CudaStream>,
+        cap: &Capacity,
+        sizes: &BufferBytes,
+        tables: &crate::encode::Tables,
+        rest: &mut Vec<CudaSlice<u8>>,
+    ) -> Result<Unnamed, SimError> {
+        let mut zeros = |len: usize, what: &'static str| -> Result<u64, SimError> {
+            let b = s.alloc_zeros::<u8>(len.max(16)).map_err(err(what))?;
+            let p = b.device_ptr(s).0;
+            rest.push(b);
+            Ok(p)
+        };
+        // The sort scratch: `sort_scratch_fields` fields, permuted a chunk at a time (rebuild.cu);
+        // its first field holds the sort keys between the histogram and the ranks (Ctx::pkey).
+        let scratch = zeros(sizes.scratch, "alloc sort scratch")?;
+        let hash_keys = zeros(cap.hash * 8, "alloc hash")?;
+        let hash_values = zeros(cap.hash * 4, "alloc hash")?;
+        debug_assert_eq!(sizes.hash, cap.hash * 12);
+        let neighbors = zeros(sizes.neighbors, "alloc neighbour lists")?;
+        let hist = zeros(sizes.hist, "alloc histogram")?;
+        let scan_sums = zeros(sizes.scan_sums, "alloc scan")?;
+        // Sized to the capacity: emitters add particles up to it during the run.
+        let prank = zeros(sizes.prank, "alloc sort ranks")?;
+        let warps = zeros(sizes.warps, "alloc warp list")?;
+        let boundary = zeros(sizes.boundary, "alloc boundary flags")?;
+        let shared_pblock = zeros(sizes.shared_pblock, "alloc shared-block flags")?;
+        // The classic MPM transfers keep a second value per node (force, v_old, MUSL re-map).
+        let grid_aux = if sizes.grid_aux == 0 {
+            0
+        } else {
+            zeros(sizes.grid_aux, "alloc second node values")?
+        };
+        let mut upload = |bytes: &[u8], what: &'static str| -> Result<u64, SimError> {
+            let mut v = bytes.to_vec();
+            v.resize(v.len().max(16), 0);
+            let b = s.clone_htod(&v).map_err(err(what))?;
+            let p = b.device_ptr(s).0;
+            rest.push(b);
+            Ok(p)
+        };
+        let materials = upload(&tables.materials, "upload materials")?;
+        let colliders = upload(bytemuck::cast_slice(&tables.colliders), "upload colliders")?;
+        let mesh_values = upload(bytemuck::cast_slice(&tables.mesh), "upload meshes")?;
+        Ok(Unnamed {
+            scratch,
+            hash_keys,
+            hash_values,
+            neighbors,
+            hist,
+            scan_sums,
+            prank,
+            warps,
+            boundary,
+            shared_pblock,
+            grid_aux,
+            materials,
+            colliders,
+            mesh_values,
+        })
+    }
+}
+
+/// The state arrays (zeros), with the packed `state` (stride `needs.particles`) copied field by
+/// field to its offsets of stride `cap.particles`.
+fn upload_state(
+    s: &Arc<CudaStream>,
+    state: Option<&[u8]>,
+    cap: &Capacity,
+    sizes: &BufferBytes,
+    needs: Needs,
+) -> Result<CudaSlice<u8>, SimError> {
+    let rb = needs.real_bytes;
+    let mut state_buf = s
+        .alloc_zeros::<u8>(sizes.state)
+        .map_err(err("alloc particle state"))?;
+    let row = needs.particles * rb;
+    for f in 0..needs.state_words {
+        let Some(state) = state else { break };
+        let at = f * cap.particles * rb;
+        s.memcpy_htod(
+            &state[f * row..(f + 1) * row],
+            &mut state_buf.slice_mut(at..at + row),
+        )
+        .map_err(err("upload particles"))?;
+    }
+    Ok(state_buf)
+}
+
+/// The control words at the start: a rebuild and a P2G pending at the first step, no bad
+/// particle, and the initial speed.
+fn control_words(s: &Arc<CudaStream>, needs: Needs) -> Result<CudaSlice<u32>, SimError> {
+    let mut ctl_host = [0u32; CTL_WORDS];
+    ctl_host[contract::CTL_NEED_REBUILD] = 1; // rebuild at the first step
+    ctl_host[CTL_P2G_PENDING] = 1;
+    ctl_host[CTL_BAD_INDEX] = u32::MAX;
+    ctl_host[contract::CTL_MAX_SPEED] = needs.initial_speed.to_bits();
+    s.clone_htod(&ctl_host).map_err(err("alloc control words"))
+}
+
+/// The kernel context: every buffer's device address, the capacities, the scene's grid and
+/// walls, and the switches of `options`.
+#[allow(clippy::too_many_arguments)]
+fn context(
+    s: &Arc<CudaStream>,
+    scene: &Scene,
+    cap: &Capacity,
+    needs: Needs,
+    options: &crate::CudaOptions,
+    tables: &crate::encode::Tables,
+    u: &Unnamed,
+    b: &Buffers,
+) -> Ctx {
+    let ptr = |b: &CudaSlice<u8>| b.device_ptr(s).0;
     let w = &scene.walls;
-    let ctx = Ctx {
-        state: ptr(&state),
-        scratch,
-        grid: ptr(&grid),
-        grid_next: grid_next.as_ref().map_or(0, ptr),
-        grid_aux,
-        ctl: ctl.device_ptr(s).0,
-        scalars: ptr(&scalars),
-        step: ptr(&step),
-        poses: ptr(&poses),
-        materials,
-        colliders,
-        mesh_values,
-        hash_keys,
-        hash_values,
-        block_coords: ptr(&block_coords),
-        neighbors,
-        hist,
-        scan_sums,
-        pkey,
-        prank,
-        warps,
-        boundary,
-        shared_pblock,
+    Ctx {
+        state: ptr(&b.state),
+        scratch: u.scratch,
+        grid: ptr(&b.grid),
+        grid_next: b.grid_next.as_ref().map_or(0, ptr),
+        grid_aux: u.grid_aux,
+        ctl: b.ctl.device_ptr(s).0,
+        scalars: ptr(&b.scalars),
+        step: ptr(&b.step),
+        poses: ptr(&b.poses),
+        materials: u.materials,
+        colliders: u.colliders,
+        mesh_values: u.mesh_values,
+        hash_keys: u.hash_keys,
+        hash_values: u.hash_values,
+        block_coords: ptr(&b.block_coords),
+        neighbors: u.neighbors,
+        hist: u.hist,
+        scan_sums: u.scan_sums,
+        // The scratch's first field holds the sort keys (see `Unnamed::allocate`).
+        pkey: u.scratch,
+        prank: u.prank,
+        warps: u.warps,
+        boundary: u.boundary,
+        shared_pblock: u.shared_pblock,
         // Set by the backend when the scene has rigid bodies (crate::step::rigid).
         bodies: 0,
         body_exchange: 0,
         n_cells: scene.n_cells().map(|c| c as i32),
         wall_thickness: w.thickness as i32,
         wall_cond: w.faces.map(|f| contract::condition(f.condition)),
-        n: n as u32,
+        n: needs.particles as u32,
         cap: cap.particles as u32,
         gblock_cap: cap.gblocks as u32,
         pblock_cap: cap.pblocks as u32,
@@ -238,21 +337,5 @@ pub fn allocate(
         update: contract::update(scene.solver.update),
         always_rebuild: (!options.free_zone || !options.mixed_sort) as u32,
         n_bodies: 0,
-    };
-    debug_assert_eq!(state.len(), state_bytes);
-    Ok((
-        Buffers {
-            state,
-            block_coords,
-            grid,
-            grid_next,
-            ctl,
-            scalars,
-            step,
-            poses,
-            _rest: rest,
-            planned: sizes,
-        },
-        ctx,
-    ))
+    }
 }

@@ -1,6 +1,11 @@
 //! Tests of the packing of the device state (`state.rs`).
 
+use super::pack::PACK_CHUNK;
+use super::word::Word;
 use super::*;
+use crate::contract::*;
+use rtmpm_core::Particles;
+use rtmpm_core::math::{Mat3, Vec3};
 
 const NFIELDS: usize = 29;
 const F_X: usize = 0;

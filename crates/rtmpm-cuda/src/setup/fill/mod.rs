@@ -15,7 +15,7 @@
 use crate::contract::*;
 use crate::error::err;
 use crate::kernels::{Kernel, Kernels};
-use cudarc::driver::{CudaSlice, CudaStream, PushKernelArg};
+use cudarc::driver::{CudaEvent, CudaSlice, CudaStream, PinnedHostSlice, PushKernelArg};
 use rayon::prelude::*;
 use rtmpm_core::math::Vec3;
 use rtmpm_core::scene::sampling::{BodyPositions, SampledBody};
@@ -169,7 +169,6 @@ pub(crate) fn fill(
     let t0 = std::time::Instant::now();
     let mut times = FillTimes::default();
     let rows = table(bodies, fluid, layout, f64).map_err(SimError::Backend)?;
-    let (x_word, v_word, id_word) = (layout.x() as i32, layout.v() as i32, layout.id() as i32);
     let table_dev = stream.clone_htod(&rows).map_err(err("upload fill table"))?;
     let pieces = pieces(bodies, PIECE);
     let piece_max = pieces.iter().map(|p| p.len).max().unwrap_or(0);
@@ -186,38 +185,16 @@ pub(crate) fn fill(
         })
         .collect::<Result<Vec<_>, _>>()?;
     times.count = t.elapsed().as_secs_f64();
-    let mut rows_scratch = None;
     if piece_max > 0 {
-        let words = 3 * piece_max;
-        // Write-combined page-locked memory: the host only writes it.
-        // SAFETY: each buffer is written (gathered) before it is copied.
-        // (Drawn bodies need none.)
-        let host_words = if pieces
-            .iter()
-            .any(|p| matches!(bodies[p.body], SampledBody::Shape(_)))
-        {
-            words
-        } else {
-            1
+        let fill = FillBody {
+            table: &table_dev,
+            cap: cap as u32,
+            words: (layout.x() as i32, layout.v() as i32, layout.id() as i32),
         };
-        let mut host = (0..2)
-            .map(|_| unsafe { stream.context().alloc_pinned::<f32>(host_words) })
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(err("page-locked memory of the fill"))?;
-        let mut dev = (0..2)
-            .map(|_| stream.alloc_zeros::<f32>(words))
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(err("device memory of the fill"))?;
-        // The backend's context tracks no events (one stream), so the page-locked buffers'
-        // own events are never recorded: the copy out of each buffer gets an event of ours,
-        // waited for before the buffer is written again.
-        let done = (0..2)
-            .map(|_| stream.context().new_event(None))
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(err("fill events"))?;
-        let cap32 = cap as u32;
+        let mut buffers = PieceBuffers::new(stream, bodies, &pieces, piece_max)?;
+        let mut rows_scratch = None;
         for (k, p) in pieces.iter().enumerate() {
-            let (h, d) = (&mut host[k % 2], &mut dev[k % 2]);
+            let (h, d) = (&mut buffers.host[k % 2], &mut buffers.dev[k % 2]);
             match (&bodies[p.body], &counted[p.body]) {
                 // Drawn on the device: no host memory, no copy.
                 (SampledBody::Deferred(_), Some(c)) => crate::setup::sample::draw(
@@ -231,9 +208,8 @@ pub(crate) fn fill(
                 )?,
                 (SampledBody::Shape(b), _) => {
                     // The copy of two pieces ago out of this buffer is over.
-                    done[k % 2]
-                        .synchronize()
-                        .map_err(err("wait for a fill copy"))?;
+                    let done = &buffers.done[k % 2];
+                    done.synchronize().map_err(err("wait for a fill copy"))?;
                     let slice = h.as_mut_slice().map_err(err("page-locked fill buffer"))?;
                     let g = std::time::Instant::now();
                     gather(b, p.offset, p.len, slice);
@@ -241,37 +217,123 @@ pub(crate) fn fill(
                     stream
                         .memcpy_htod(&*h, &mut *d)
                         .map_err(err("upload positions"))?;
-                    done[k % 2]
-                        .record(stream)
-                        .map_err(err("record a fill copy"))?;
+                    done.record(stream).map_err(err("record a fill copy"))?;
                 }
                 _ => continue,
             }
-            let (body, offset, len) = (p.body as i32, p.offset as u64, p.len as u32);
-            // SAFETY: the kernel reads 3 len floats of `d` and the table's row `body`, and
-            // writes slots start + offset .. + len (below the particle count) of the state of
-            // stride cap, at the layout's words (below its count).
-            unsafe {
-                stream
-                    .launch_builder(&kernels[Kernel::FillBody])
-                    .arg(&mut *state)
-                    .arg(&cap32)
-                    .arg(&table_dev)
-                    .arg(&body)
-                    .arg(&offset)
-                    .arg(&len)
-                    .arg(&*d)
-                    .arg(&x_word)
-                    .arg(&v_word)
-                    .arg(&id_word)
-                    .launch(kernels.wave(p.len, 256))
-            }
-            .map_err(err("fill kernel"))?;
+            fill.launch(stream, kernels, state, p, d)?;
         }
         // The page-locked buffers are freed here: no copy may still read them.
         stream.synchronize().map_err(err("fill"))?;
     }
-    // Bodies from points files: packed on the host, rows copied into place.
+    copy_points_bodies(stream, state, cap, bodies, fluid, layout, f64)?;
+    stream.synchronize().map_err(err("fill"))?;
+    times.total = t0.elapsed().as_secs_f64();
+    Ok(times)
+}
+
+/// The positions of two pieces at a time: page-locked host buffers (gathered into by the host)
+/// and device buffers (read by `fill_body`), so that the copy of one piece overlaps the
+/// gathering of the next, and an event per pair that marks the end of its copy.
+struct PieceBuffers {
+    host: Vec<PinnedHostSlice<f32>>,
+    dev: Vec<CudaSlice<f32>>,
+    done: Vec<CudaEvent>,
+}
+
+impl PieceBuffers {
+    /// Buffers for pieces of up to `piece_max` particles (host memory only when a body of a shape
+    /// is uploaded: drawn bodies need none).
+    fn new(
+        stream: &Arc<CudaStream>,
+        bodies: &[SampledBody],
+        pieces: &[Piece],
+        piece_max: usize,
+    ) -> Result<PieceBuffers, SimError> {
+        let words = 3 * piece_max;
+        // Write-combined page-locked memory: the host only writes it.
+        // SAFETY: each buffer is written (gathered) before it is copied.
+        // (Drawn bodies need none.)
+        let host_words = if pieces
+            .iter()
+            .any(|p| matches!(bodies[p.body], SampledBody::Shape(_)))
+        {
+            words
+        } else {
+            1
+        };
+        let host = (0..2)
+            .map(|_| unsafe { stream.context().alloc_pinned::<f32>(host_words) })
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(err("page-locked memory of the fill"))?;
+        let dev = (0..2)
+            .map(|_| stream.alloc_zeros::<f32>(words))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(err("device memory of the fill"))?;
+        // The backend's context tracks no events (one stream), so the page-locked buffers'
+        // own events are never recorded: the copy out of each buffer gets an event of ours,
+        // waited for before the buffer is written again.
+        let done = (0..2)
+            .map(|_| stream.context().new_event(None))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(err("fill events"))?;
+        Ok(PieceBuffers { host, dev, done })
+    }
+}
+
+/// The launch of `fill_body` (`kernels/fill.cu`): the fill table on the device, the state's
+/// stride, and the layout's words of x, v and the id.
+struct FillBody<'a> {
+    table: &'a CudaSlice<u32>,
+    cap: u32,
+    words: (i32, i32, i32),
+}
+
+impl FillBody<'_> {
+    /// Write the particles of piece `p`, whose positions are in `d`, into `state`.
+    fn launch(
+        &self,
+        stream: &Arc<CudaStream>,
+        kernels: &Kernels,
+        state: &mut CudaSlice<u8>,
+        p: &Piece,
+        d: &CudaSlice<f32>,
+    ) -> Result<(), SimError> {
+        let (x_word, v_word, id_word) = self.words;
+        let (body, offset, len) = (p.body as i32, p.offset as u64, p.len as u32);
+        // SAFETY: the kernel reads 3 len floats of `d` and the table's row `body`, and
+        // writes slots start + offset .. + len (below the particle count) of the state of
+        // stride cap, at the layout's words (below its count).
+        unsafe {
+            stream
+                .launch_builder(&kernels[Kernel::FillBody])
+                .arg(&mut *state)
+                .arg(&self.cap)
+                .arg(self.table)
+                .arg(&body)
+                .arg(&offset)
+                .arg(&len)
+                .arg(d)
+                .arg(&x_word)
+                .arg(&v_word)
+                .arg(&id_word)
+                .launch(kernels.wave(p.len, 256))
+        }
+        .map_err(err("fill kernel"))?;
+        Ok(())
+    }
+}
+
+/// Bodies from points files: packed on the host, rows copied into place.
+fn copy_points_bodies(
+    stream: &Arc<CudaStream>,
+    state: &mut CudaSlice<u8>,
+    cap: usize,
+    bodies: &[SampledBody],
+    fluid: &[bool],
+    layout: StateLayout,
+    f64: bool,
+) -> Result<(), SimError> {
     let wb = crate::state::word_bytes(f64);
     let mut start = 0usize;
     for body in bodies {
@@ -292,9 +354,7 @@ pub(crate) fn fill(
         }
         start += body.len();
     }
-    stream.synchronize().map_err(err("fill"))?;
-    times.total = t0.elapsed().as_secs_f64();
-    Ok(times)
+    Ok(())
 }
 
 #[cfg(test)]

@@ -1,7 +1,7 @@
 //! The words of the fields that a layout keeps in other forms than plain reals (C in the
 //! compact format, F in one word in a fluid layout), packed and read back.
 
-use super::Word;
+use super::word::Word;
 use crate::contract::StateLayout;
 use crate::state::codec;
 use rtmpm_core::math::{Mat3, Vec3};
@@ -15,6 +15,15 @@ pub(super) fn check_layout(fluid: &[bool], layout: StateLayout, f64: bool) -> Re
         return Err("CUDA backend: the compact particle state is single precision only".into());
     }
     Ok(())
+}
+
+/// A fluid particle's F in its packed form, J^(1/3) I; a solid's as it is.
+pub(crate) fn packed_f(f: Mat3, fluid: bool) -> Mat3 {
+    if fluid {
+        Mat3::from_diagonal(Vec3::splat(f.determinant().cbrt()))
+    } else {
+        f
+    }
 }
 
 /// The words of a velocity (3 reals in every layout), and how many there are.
@@ -86,7 +95,7 @@ pub(super) fn body_words<W: Word>(
     };
     let mut out = Vec::new();
     let (c, nc) = c_words::<W>(l, b.c);
-    let (f, nf) = f_words::<W>(l, super::packed_f(Mat3::IDENTITY, fluid));
+    let (f, nf) = f_words::<W>(l, packed_f(Mat3::IDENTITY, fluid));
     out.extend((0..nc).map(|e| (l.c() + e, bits(c[e]))));
     out.extend((0..nf).map(|e| (l.f() + e, bits(f[e]))));
     if let Some(pl) = l.plastic() {

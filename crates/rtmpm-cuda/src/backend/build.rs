@@ -1,0 +1,427 @@
+//! Building a [`CudaBackend`], in the order it happens: the checks and the host's plan before
+//! any GPU work ([`Plan`]: precision, state layout, tables, capacities), the plan against the
+//! GPU's free memory, the program (compiled for this GPU, or from the cache), the particle state
+//! and every buffer (packed on the host, or filled on the device), the rigid bodies, the
+//! read-only parameters in constant memory and the P2G strategy. Each phase is timed into
+//! [`SetupPhases`].
+
+use super::{CudaBackend, Part};
+use crate::backend::emit;
+use crate::compile::{KernelOptions, compile, state_needs_64_bits};
+use crate::contract::{Ctx, StateLayout};
+use crate::encode::{self, Tables};
+use crate::error::err;
+use crate::kernels::{Kernels, write_symbol};
+use crate::setup::buffers::{self, Buffers};
+use crate::setup::capacity::{self, Capacity};
+use crate::setup::{Initial, SetupPhases, fill, initial_blocks, sample};
+use crate::step::graph::StepGraphs;
+use crate::step::p2g::P2gPlan;
+use crate::step::rebuild::sorted_fields;
+use crate::step::rigid::Bodies;
+use crate::{CudaOptions, DeviceInfo, P2gMode, state};
+use cudarc::driver::{CudaContext, CudaModule, CudaStream};
+use rtmpm_core::Scene;
+use rtmpm_core::math::IVec3;
+use rtmpm_core::scene::Precision;
+use rtmpm_core::scene::sampling::SampledBody;
+use rtmpm_core::sim::SimError;
+use rtmpm_core::transfer::Transfer;
+use std::sync::Arc;
+use std::time::Instant;
+
+impl CudaBackend {
+    /// Build the backend of one GPU (`part`) for `scene`, starting from `initial`.
+    pub(super) fn build(
+        scene: &Scene,
+        initial: Initial,
+        part: &Part,
+        options: CudaOptions,
+    ) -> Result<CudaBackend, SimError> {
+        let t0 = Instant::now();
+        let mut setup = SetupPhases::default();
+        let info = crate::probe_device(part.device).map_err(|e| {
+            SimError::Backend(format!("CUDA device {} unavailable: {e}", part.device))
+        })?;
+        setup.probe = t0.elapsed().as_secs_f64();
+        // The scene's precision, or the `f64` switch: the whole pipeline in f64.
+        let options = CudaOptions {
+            f64: options.f64 || scene.precision == Precision::F64,
+            ..options
+        };
+        // Deferred bodies are drawn by the device fill; every other path walks them here.
+        let walked = walked_on_the_host(initial, &options);
+        let initial = match &walked {
+            Some(w) => Initial::Bodies(w),
+            None => initial,
+        };
+        let plan = Plan::new(scene, initial, part, options, &mut setup)?;
+
+        // The plan against the GPU's free memory, before anything is allocated or compiled.
+        let t = Instant::now();
+        let context = CudaContext::new(part.device).map_err(err("context"))?;
+        plan.refuse_past_free_memory(scene, &context, part, &info)?;
+        setup.probe += t.elapsed().as_secs_f64();
+
+        let t = Instant::now();
+        let (stream, module, kernels) = plan.load_program(scene, &context, &info)?;
+        setup.kernels = t.elapsed().as_secs_f64();
+
+        let (buffers, mut ctx) =
+            plan.state_and_buffers(scene, initial, part, &stream, &kernels, &mut setup)?;
+        let bodies = Bodies::new(
+            scene,
+            &stream,
+            plan.options.rigid_overlap,
+            plan.tables.body_mesh.clone(),
+        )?;
+        if let Some(b) = &bodies {
+            (ctx.bodies, ctx.body_exchange, ctx.n_bodies) = b.ctx_fields(&stream);
+        }
+        write_constants(&module, &stream, &plan.tables)?;
+        let p2g = P2gPlan::new(
+            &plan.options,
+            &plan.bases,
+            plan.blocks.1,
+            &plan.cap,
+            &stream,
+            &ctx,
+            plan.real_bytes,
+        )?;
+        let all_fluid = plan.all_fluid();
+        Ok(CudaBackend {
+            stream,
+            kernels,
+            ctx,
+            options: plan.options,
+            p2g,
+            module,
+            buffers,
+            all_fluid,
+            layout: plan.layout,
+            parity: 0,
+            last_grid: 0,
+            last_dt: None,
+            last_params: None,
+            scene: scene.clone(),
+            n: plan.n,
+            staging: Default::default(),
+            graphs: StepGraphs::default(),
+            device_name: info.name,
+            bodies,
+            setup: SetupPhases {
+                total: t0.elapsed().as_secs_f64(),
+                ..setup
+            },
+        })
+    }
+}
+
+/// Checks before any GPU work: what the CUDA backend cannot run, as clear errors.
+fn check(scene: &Scene, n: usize, part: &Part, o: &CudaOptions) -> Result<(), SimError> {
+    if o.f64 && o.p2g == P2gMode::Shared {
+        return Err(SimError::Backend(
+            "CUDA backend: p2g=shared is single precision only (a 12^3 tile of f64 nodes \
+             exceeds the 48 KiB of static shared memory); use p2g=warp with f64"
+                .into(),
+        ));
+    }
+    if !scene.rigid_bodies.is_empty() && part.ids.is_some() {
+        return Err(SimError::Backend(
+            "CUDA backend: the scene's [[rigid_body]] tables are coupled on one GPU only so \
+             far; run it with --gpus 1 (or on the CPU backend)"
+                .into(),
+        ));
+    }
+    if n == 0 {
+        return Err(SimError::Backend(format!(
+            "CUDA backend (device {}): no particles",
+            part.device
+        )));
+    }
+    if part.ids.as_ref().is_some_and(|ids| ids.len() != n) {
+        return Err(SimError::Backend(
+            "CUDA backend: one id per particle".into(),
+        ));
+    }
+    if matches!(o.p2g, P2gMode::ReverseMap | P2gMode::Sort)
+        && scene.solver.transfer != Transfer::Mls
+    {
+        return Err(SimError::Backend(format!(
+            "CUDA backend: p2g={} gathers MLS-MPM contributions only; the scene's [solver] \
+             transfer is \"{}\": use p2g=warp (the default) or p2g=shared",
+            o.p2g.name(),
+            scene.solver.transfer.name()
+        )));
+    }
+    Ok(())
+}
+
+/// The bodies of `initial` with every deferred body walked on the host, when the host needs
+/// their positions (no device fill, or the reverse map's stencil bases); `None`: as they are.
+fn walked_on_the_host(initial: Initial, options: &CudaOptions) -> Option<Vec<SampledBody>> {
+    match initial {
+        Initial::Bodies(b)
+            if (!options.device_fill || options.p2g == P2gMode::ReverseMap)
+                && b.iter().any(|b| matches!(b, SampledBody::Deferred(_))) =>
+        {
+            Some(sample::walked(b))
+        }
+        _ => None,
+    }
+}
+
+/// What the host decides before any GPU work.
+struct Plan {
+    /// The options, in the scene's precision.
+    options: CudaOptions,
+    /// Particles at the start.
+    n: usize,
+    /// Where each field of a particle is in the state arrays.
+    layout: StateLayout,
+    /// The read-only tables (materials, colliders, meshes).
+    tables: Tables,
+    /// The state is filled on the device from the sampled bodies ([`crate::setup::fill`]).
+    device_fill: bool,
+    /// The initial particles' stencil bases (`p2g=reverse_map` only) and the initial
+    /// mapping's (gblocks, pblocks): [`initial_blocks`].
+    bases: Vec<IVec3>,
+    blocks: (usize, usize),
+    /// Every buffer's capacity.
+    cap: Capacity,
+    /// G2P and the next step's P2G run as one kernel (a second grid).
+    g2p2g: bool,
+    /// Bytes of a `real`: 4, or 8 in f64.
+    real_bytes: usize,
+    /// One entry per material: true for a fluid.
+    fluid: Vec<bool>,
+}
+
+impl Plan {
+    /// The checks, the state layout, the tables, and the capacities from the initial mapping
+    /// (timed as `setup.layout`).
+    fn new(
+        scene: &Scene,
+        initial: Initial,
+        part: &Part,
+        options: CudaOptions,
+        setup: &mut SetupPhases,
+    ) -> Result<Plan, SimError> {
+        let n = initial.len();
+        check(scene, n, part, &options)?;
+        let layout = state::layout_for(scene, &options)
+            .map_err(|e| SimError::Backend(format!("CUDA backend: {e}")))?;
+        emit::check(scene, options.p2g)?;
+        let tables = encode::tables(scene, options.f64)?;
+        let fluid = state::fluid_materials(scene);
+        // The device fill (sampled bodies only): the table's checks before any GPU work.
+        let device_fill = match initial {
+            Initial::Bodies(b) if options.device_fill => {
+                fill::table(b, &fluid, layout, options.f64).map_err(SimError::Backend)?;
+                true
+            }
+            _ => false,
+        };
+        let t = Instant::now();
+        // Capacities from the initial mapping.
+        let (bases, blocks) = initial_blocks(scene, initial, &options);
+        // Room for every particle the emitters will add (crate::backend::emit): nothing grows
+        // later.
+        let n_max = n.saturating_add(emit::emitted_total(scene));
+        let cap = Capacity::plan_blocks(scene, n_max, part.capacity, blocks, &options);
+        setup.layout = t.elapsed().as_secs_f64();
+        // G2P2G where it applies (see CudaOptions::g2p2g): not when every step rebuilds (the
+        // fused scatter would always be redone).
+        let g2p2g = options.g2p2g
+            && scene.solver.transfer == Transfer::Mls
+            && options.p2g == P2gMode::Warp
+            && options.free_zone
+            && options.mixed_sort;
+        let real_bytes = if options.f64 { 8 } else { 4 };
+        Ok(Plan {
+            options,
+            n,
+            layout,
+            tables,
+            device_fill,
+            bases,
+            blocks,
+            cap,
+            g2p2g,
+            real_bytes,
+            fluid,
+        })
+    }
+
+    /// Every material is a fluid.
+    fn all_fluid(&self) -> bool {
+        self.fluid.iter().all(|f| *f)
+    }
+
+    /// The planned buffers against the free memory of the GPU: a clear error, naming what
+    /// fits and what would make it fit, when they exceed it.
+    fn refuse_past_free_memory(
+        &self,
+        scene: &Scene,
+        context: &Arc<CudaContext>,
+        part: &Part,
+        info: &DeviceInfo,
+    ) -> Result<(), SimError> {
+        let planned = buffers::sizes(
+            scene,
+            &self.cap,
+            self.real_bytes,
+            self.layout.words(),
+            self.g2p2g,
+            &self.options,
+        );
+        let (free, _) = context.mem_get_info().map_err(err("memory info"))?;
+        let hint = match self.layout {
+            StateLayout::Compact | StateLayout::CompactFluid => "",
+            _ if self.options.f64 => ", f32 instead of f64",
+            _ => ", the compact state ([solver] particle_state = \"compact\")",
+        };
+        let gpu = format!("GPU {} ({})", part.device, info.name);
+        match capacity::refusal(&planned, self.cap.particles, free, &gpu, hint) {
+            Some(why) => Err(SimError::Backend(why)),
+            None => Ok(()),
+        }
+    }
+
+    /// The program, compiled for this GPU (or read from the cache), its module loaded on the
+    /// backend's one stream, and its kernels.
+    fn load_program(
+        &self,
+        scene: &Scene,
+        context: &Arc<CudaContext>,
+        info: &DeviceInfo,
+    ) -> Result<(Arc<CudaStream>, Arc<CudaModule>, Kernels), SimError> {
+        let o = &self.options;
+        // Compiled for this GPU, the state's index width (64 bits past 2^32 words), and with
+        // specialize=on the scene's models only (a smaller material switch).
+        let ptx = compile(&KernelOptions {
+            state64: state_needs_64_bits(self.layout.words(), self.cap.particles),
+            layout: self.layout,
+            arch: info.compute_capability,
+            fast_math: o.fast_math,
+            f64: o.f64,
+            materials: if o.specialize {
+                scene
+                    .materials
+                    .iter()
+                    .fold(0u32, |m, mat| m | 1 << mat.model.code())
+            } else {
+                u32::MAX
+            },
+        })
+        .map_err(SimError::Backend)?;
+        // Single stream: no cross-stream event tracking (keeps launches capturable).
+        // SAFETY: all our buffers are used on `stream` only.
+        unsafe { context.disable_event_tracking() };
+        let stream = context.new_stream().map_err(err("stream"))?;
+        let module = context
+            .load_module(cudarc::nvrtc::Ptx::from_src(ptx))
+            .map_err(err("load module"))?;
+        let mut kernels = Kernels::load(
+            &module,
+            info.sm_count,
+            o.fused_rebuild,
+            o.sort_scratch_fields,
+            self.layout,
+        )?;
+        kernels.sort_mask = sorted_fields(self.layout, self.all_fluid());
+        Ok((stream, module, kernels))
+    }
+
+    /// The particle state (a fluid's F packed as J^(1/3) I) and every buffer: the state packed
+    /// on the host and uploaded with the buffers, or, with the device fill, filled on the
+    /// device once they are allocated (timed as `setup.pack`, `allocate` and `fill`).
+    fn state_and_buffers(
+        &self,
+        scene: &Scene,
+        initial: Initial,
+        part: &Part,
+        stream: &Arc<CudaStream>,
+        kernels: &Kernels,
+        setup: &mut SetupPhases,
+    ) -> Result<(Buffers, Ctx), SimError> {
+        let t = Instant::now();
+        let state = self.pack(initial, part)?;
+        setup.pack = t.elapsed().as_secs_f64();
+        let needs = buffers::Needs {
+            particles: self.n,
+            real_bytes: self.real_bytes,
+            state_words: self.layout.words(),
+            grid_next: self.g2p2g,
+            // NaN speeds are left to the health check of the first step.
+            initial_speed: match initial {
+                Initial::Particles(p) => p.v.iter().map(|v| v.length()).fold(0.0, f32::max),
+                Initial::Bodies(b) => state::max_speed(b),
+            },
+        };
+        let t = Instant::now();
+        let (mut buffers, ctx) = buffers::allocate(
+            stream,
+            scene,
+            state.as_deref(),
+            &self.cap,
+            needs,
+            &self.tables,
+            &self.options,
+        )?;
+        drop(state);
+        stream.synchronize().map_err(err("upload"))?;
+        setup.allocate = t.elapsed().as_secs_f64();
+        if let (true, Initial::Bodies(b)) = (self.device_fill, initial) {
+            let f = fill::fill(
+                stream,
+                kernels,
+                &mut buffers.state,
+                self.cap.particles,
+                b,
+                &self.fluid,
+                self.layout,
+                self.options.f64,
+            )?;
+            (setup.fill, setup.fill_gather, setup.fill_count) = (f.total, f.gather, f.count);
+        }
+        Ok((buffers, ctx))
+    }
+
+    /// The state image packed on the host with stride n ([`buffers::allocate`] places each
+    /// field at its stride-cap offset); `None` with the device fill (nothing is packed: the
+    /// state is written on the device).
+    fn pack(&self, initial: Initial, part: &Part) -> Result<Option<Vec<u8>>, SimError> {
+        let (fluid, layout, f64) = (&self.fluid, self.layout, self.options.f64);
+        match initial {
+            _ if self.device_fill => None,
+            Initial::Particles(p) => Some(state::pack(
+                p,
+                fluid,
+                layout,
+                f64,
+                self.n,
+                part.ids.as_deref(),
+            )),
+            Initial::Bodies(b) => Some(state::pack_bodies(b, fluid, layout, f64)),
+        }
+        .transpose()
+        .map_err(SimError::Backend)
+    }
+}
+
+/// The read-only parameters in constant memory (`kernels/common.cuh`).
+fn write_constants(
+    module: &Arc<CudaModule>,
+    stream: &Arc<CudaStream>,
+    tables: &Tables,
+) -> Result<(), SimError> {
+    write_symbol(module, stream, "c_scalars", &tables.scalars)?;
+    write_symbol(module, stream, "c_materials", &tables.materials)?;
+    write_symbol(
+        module,
+        stream,
+        "c_colliders",
+        bytemuck::cast_slice(&tables.colliders),
+    )
+}
