@@ -17,6 +17,9 @@ for line in sys.stdin:
         shutil.copy(m["executable"], ".device/test_" + m["target"]["name"])
 '
 cp target/release/rtmpm .device/
+# The render stage's benchmark (the `view` suite).
+cargo build --release -p rtmpm-cuda --example render_bench
+cp target/release/examples/render_bench .device/
 git rev-parse --short HEAD > .device/COMMIT
 pwd > .device/BUILD_DIR   # the test binaries find the repository through the path they were built in
 if [ -n "${BASE:-}" ]; then
@@ -27,5 +30,5 @@ if [ -n "${BASE:-}" ]; then
   cp "$wt/target/release/rtmpm" .device/rtmpm_base
   git -C "$wt" rev-parse --short HEAD > .device/BASE_COMMIT
 fi
-strip .device/rtmpm* .device/test_* 2>/dev/null || true
+strip .device/rtmpm* .device/test_* .device/render_bench 2>/dev/null || true
 ls -la .device

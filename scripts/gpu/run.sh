@@ -31,6 +31,11 @@
 #   scale        issue 19: big scenes under /usr/bin/time -v (SCALE_RUNS="scene|cuda-options ...", default
 #                water 500M with the device fill, then the host fill): set-up, throughput, bytes a particle
 #   rigid        issue 17: dam break 2M with 10 floating crates vs 10 static ones, floating_box on CUDA
+#   view         a live view on the GPU: the render stage's time at 1280x720 for the dam break 2M and the
+#                snow 1.33M against the scene's compute per displayed frame (target: at most 10 %), the frame
+#                time with a picture drawn every frame against none (.device/render_bench; pictures in
+#                $OUT/logs.tgz); the GPU tests of the render stage and of steering are in `tests` (TESTS=
+#                "test_render test_steer")
 #   long         the strong-scaling scene for 12 frames (0.24 s, past its 0.1 s duration) on one GPU, fused
 #                and unfused, and at dt/2: does the 12-frame blow-up seen on 2 GPUs happen on one?
 set -uo pipefail
@@ -73,7 +78,11 @@ for suite in "$@"; do
   say "== $suite"
   case "$suite" in
     tests)
-      for x in ${TESTS:-test_gpu test_fill test_sort_scratch test_state_layout test_materials test_agreement test_emitters test_rigid test_cli test_render_cli}; do t "$x"; done
+      mkdir -p "$OUT/test_pictures"
+      for x in ${TESTS:-test_gpu test_fill test_sort_scratch test_state_layout test_materials test_agreement test_emitters test_rigid test_render test_steer test_cli test_render_cli}; do
+        RTMPM_TEST_OUT="$OUT/test_pictures" t "$x"
+      done
+      grep -hE "mean \|diff\||turned by|gpu \(|particles in the ball|mean velocity|vs cpu" "$OUT"/test_render.log "$OUT"/test_steer.log 2>/dev/null | tee -a "$S"
       ;;
     validate)
       timeout 500 "$D/rtmpm" validate --backend cuda --out "$OUT/validation" > "$OUT/validate.log" 2>&1
@@ -185,6 +194,18 @@ for suite in "$@"; do
       done
       wait
       say "strong 16.8M four NCCL processes: $(grep -hE 'throughput|^error' "$OUT"/rank4_*.log | tr -s ' ' | tr '\n' ' ')"
+      ;;
+    view)
+      # The render stage against the simulation (crates/rtmpm-cuda/examples/render_bench.rs): frames
+      # without pictures, pictures of that state (events: kernels, copy; host clock: the whole call),
+      # frames with a picture each. One summary line per scene and colour mode.
+      mkdir -p "$OUT/pictures"
+      for sc in fluid_dam_2m:10 snow_1m:20; do
+        r=$(RTMPM_BENCH_OUT="$OUT/pictures" timeout 300 "$D/render_bench" "bench/${sc%%:*}.toml" --frames "${sc##*:}" \
+            --size 1280x720 --reps 20 --color material,speed 2>&1)
+        echo "== render_bench ${sc%%:*}" >> "$OUT/view.log"; echo "$r" >> "$OUT/view.log"
+        echo "$r" | grep -E "^(render_bench|picture|frame|error)|particles" | tee -a "$S"
+      done
       ;;
     long)
       sed 's/^dt = 1e-4/dt = 5e-5/' bench/strong_16m.toml > /tmp/strong_16m_half_dt.toml

@@ -62,6 +62,14 @@ struct GpuBody {
     unsigned dynamic;
 };
 
+// The user's tool (a live view's drag; constant memory: tool_at(c)), written when it changes: a
+// separating collider moving at `velocity`, its shape in world coordinates (pivot 0, not rotated).
+struct GpuTool {
+    GpuCollider shape;
+    float velocity[3];
+    unsigned active;  // 0: no tool
+};
+
 // Constant for the life of the backend; passed by value to every kernel.
 struct Ctx {
     real* state;              // RTMPM_NFIELDS reals per particle (material and id: state_bits)
@@ -92,6 +100,7 @@ struct Ctx {
     const GpuBody* bodies;    // global copy of c_bodies
     double* body_exchange;    // rigid bodies: impulse, angular impulse (6 doubles) per body, in
                               // BODY_EXCHANGE_SLOTS copies (grid_update.cu: couple_bodies)
+    const GpuTool* tool;      // global copy of c_tool
     int n_cells[3];
     int wall_thickness;
     unsigned wall_cond[6];    // COND_* of x min, x max, y min, ...
@@ -113,6 +122,7 @@ __constant__ ColliderPoses c_poses;
 __constant__ MaterialGpu c_materials[RTMPM_MAX_MATERIALS];
 __constant__ GpuCollider c_colliders[RTMPM_MAX_COLLIDERS];
 __constant__ GpuBody c_bodies[RTMPM_MAX_BODIES];
+__constant__ GpuTool c_tool;
 
 #ifdef RTMPM_PARAMS_GLOBAL
 #define RTMPM_PARAM(global, constant) (global)
@@ -131,6 +141,7 @@ __device__ __forceinline__ const GpuCollider& collider_at(const Ctx& c, unsigned
 __device__ __forceinline__ const GpuBody& body_at(const Ctx& c, unsigned b) {
     return RTMPM_PARAM(c.bodies[b], c_bodies[b]);
 }
+__device__ __forceinline__ const GpuTool& tool_at(const Ctx& c) { return RTMPM_PARAM(*c.tool, c_tool); }
 
 __device__ __forceinline__ unsigned long long spread3(unsigned v) {
     unsigned long long x = v & 0x7ffffull;

@@ -1,5 +1,6 @@
 // Grid update (merged): momentum -> velocity, gravity, domain walls, colliders, in one kernel.
 #include "common.cuh"
+#include "sdf.cuh"
 
 // rtmpm_core::boundary::BoundaryRule::apply, literally. cond: COND_*.
 __device__ __forceinline__ vec3 rule_apply(unsigned cond, real friction, vec3 v, vec3 n) {
@@ -14,114 +15,6 @@ __device__ __forceinline__ vec3 rule_apply(unsigned cond, real friction, vec3 v,
         return vt * (reduced / vt_len);
     }
     return vt;
-}
-
-__device__ __forceinline__ vec3 normalize_or_y(vec3 v) {
-    real l = length(v);
-    if (l > 0 && isfinite(l)) return v * ((real)1 / l);
-    return make_v3(0, 1, 0);
-}
-__device__ __forceinline__ vec3 v3f(const float* p) { return make_v3(p[0], p[1], p[2]); }
-__device__ __forceinline__ real sgn1(real x) { return x < 0 ? (real)-1 : (real)1; }
-
-__device__ real mesh_distance(const Ctx& c, const GpuCollider& col, vec3 x) {
-    const float* vals = c.mesh_values + col.mesh_offset;
-    real o[3] = {col.p[0], col.p[1], col.p[2]};
-    real h = col.p[3];
-    real xs[3] = {x.x, x.y, x.z};
-    real out2 = 0;
-    int b[3]; real fr[3];
-    for (int a = 0; a < 3; ++a) {
-        int d = (int)col.dims[a];
-        real gmax = o[a] + (real)(d - 1) * h;
-        real cl = fmin(fmax(xs[a], o[a]), gmax);
-        out2 += (xs[a] - cl) * (xs[a] - cl);
-        real g = (cl - o[a]) / h;
-        if (d < 2) { b[a] = 0; fr[a] = 0; continue; }
-        int bb = (int)fmax(floor(g), (real)0);
-        bb = min(bb, d - 2);
-        b[a] = bb;
-        fr[a] = fmin(fmax(g - (real)bb, (real)0), (real)1);
-    }
-    real v = 0;
-    for (int corner = 0; corner < 8; ++corner) {
-        int ix[3]; real w = 1;
-        for (int a = 0; a < 3; ++a) {
-            int oa = (corner >> a) & 1;
-            ix[a] = min(b[a] + oa, (int)col.dims[a] - 1);
-            w *= oa ? fr[a] : (real)1 - fr[a];
-        }
-        v += w * vals[ix[0] + col.dims[0] * (ix[1] + col.dims[1] * ix[2])];
-    }
-    return v + sqrt(out2);
-}
-
-// Signed distance (negative inside) of the rest-pose shape (rtmpm_core::boundary::sdf::Shape).
-__device__ real shape_distance(const Ctx& c, const GpuCollider& col, vec3 x) {
-    const float* p = col.p;
-    switch (col.kind) {
-    case COLLIDER_HALF_SPACE: return dot(x - v3f(p), v3f(p + 3));
-    case COLLIDER_BOX: {
-        vec3 q = x - v3f(p);
-        q = make_v3(fabs(q.x) - p[3], fabs(q.y) - p[4], fabs(q.z) - p[5]);
-        vec3 qp = make_v3(fmax(q.x, (real)0), fmax(q.y, (real)0), fmax(q.z, (real)0));
-        return length(qp) + fmin(fmax(q.x, fmax(q.y, q.z)), (real)0);
-    }
-    case COLLIDER_SPHERE: return length(x - v3f(p)) - p[3];
-    case COLLIDER_CYLINDER: {
-        vec3 a = v3f(p + 3);
-        vec3 q = x - v3f(p);
-        real h = dot(q, a);
-        real r = length(q - a * h);
-        real dr = r - p[6], dh = fabs(h) - p[7];
-        real ox = fmax(dr, (real)0), oy = fmax(dh, (real)0);
-        return sqrt(ox * ox + oy * oy) + fmin(fmax(dr, dh), (real)0);
-    }
-    default: return mesh_distance(c, col, x);
-    }
-}
-
-__device__ vec3 shape_normal(const Ctx& c, const GpuCollider& col, vec3 x) {
-    const float* p = col.p;
-    switch (col.kind) {
-    case COLLIDER_HALF_SPACE: return v3f(p + 3);
-    case COLLIDER_BOX: {
-        vec3 d = x - v3f(p);
-        vec3 q = make_v3(fabs(d.x) - p[3], fabs(d.y) - p[4], fabs(d.z) - p[5]);
-        vec3 s = make_v3(sgn1(d.x), sgn1(d.y), sgn1(d.z));
-        if (fmax(q.x, fmax(q.y, q.z)) > 0)
-            return normalize_or_y(make_v3(fmax(q.x, (real)0) * s.x, fmax(q.y, (real)0) * s.y, fmax(q.z, (real)0) * s.z));
-        if (q.x >= q.y && q.x >= q.z) return make_v3(s.x, 0, 0);
-        if (q.y >= q.z) return make_v3(0, s.y, 0);
-        return make_v3(0, 0, s.z);
-    }
-    case COLLIDER_SPHERE: return normalize_or_y(x - v3f(p));
-    case COLLIDER_CYLINDER: {
-        vec3 a = v3f(p + 3);
-        vec3 q = x - v3f(p);
-        real h = dot(q, a);
-        vec3 radial = q - a * h;
-        real r = length(radial);
-        vec3 er;
-        if (r > 0) er = radial * ((real)1 / r);
-        else {
-            vec3 t = fabs(a.x) < (real)0.9 ? make_v3(1, 0, 0) : make_v3(0, 1, 0);
-            er = normalize_or_y(cross(a, t));
-        }
-        vec3 ea = h >= 0 ? a : a * (real)-1;
-        real dr = r - p[6], dh = fabs(h) - p[7];
-        if (dr > 0 && dh > 0) return normalize_or_y(er * dr + ea * dh);
-        if (dr > 0 || (dr <= 0 && dh <= 0 && dr >= dh)) return er;
-        return ea;
-    }
-    default: {
-        real e = (real)0.5 * p[3];
-        vec3 g = make_v3(mesh_distance(c, col, x + make_v3(e, 0, 0)) - mesh_distance(c, col, x - make_v3(e, 0, 0)),
-                         mesh_distance(c, col, x + make_v3(0, e, 0)) - mesh_distance(c, col, x - make_v3(0, e, 0)),
-                         mesh_distance(c, col, x + make_v3(0, 0, e)) - mesh_distance(c, col, x - make_v3(0, 0, e)));
-        return normalize_or_y(g);
-    }
-    }
 }
 
 __device__ void grid_update_node(const Ctx& c, unsigned t);
@@ -167,8 +60,10 @@ __device__ vec3 node_boundary(const Ctx& c, unsigned t, vec3 v) {
             v = rule_apply(c.wall_cond[2 * a + 1], sc.wall_friction[2 * a + 1], v, n);
         }
     }
-    // Colliders (rtmpm_core::boundary::Collider::query): v = vc + rule(v - vc, n).
-    if (c.n_colliders) {
+    // Colliders (rtmpm_core::boundary::Collider::query): v = vc + rule(v - vc, n), then the
+    // user's tool, the same way.
+    const GpuTool& tool = tool_at(c);
+    if (c.n_colliders || tool.active) {
         vec3 x = make_v3(sc.origin[0] + gi[0] * sc.dx, sc.origin[1] + gi[1] * sc.dx, sc.origin[2] + gi[2] * sc.dx);
         for (unsigned k = 0; k < c.n_colliders; ++k) {
             GpuCollider col = collider_at(c, k);
@@ -180,6 +75,11 @@ __device__ vec3 node_boundary(const Ctx& c, unsigned t, vec3 v) {
             vec3 n = normalize_or_y(R * shape_normal(c, col, xr));
             vec3 vc = v3f(pose.velocity[k]) + cross(v3f(pose.omega[k]), x - pt);
             v = vc + rule_apply(col.cond, col.friction, v - vc, n);
+        }
+        if (tool.active && shape_distance(c, tool.shape, x) <= 0) {
+            vec3 n = normalize_or_y(shape_normal(c, tool.shape, x));
+            vec3 vt = v3f(tool.velocity);
+            v = vt + rule_apply(tool.shape.cond, tool.shape.friction, v - vt, n);
         }
     }
     return v;

@@ -217,6 +217,28 @@ pub fn poses(scene: &Scene, t: f32) -> ColliderPoses {
     p
 }
 
+/// The user's tool as the grid update reads it (`kernels/grid_update.cu`: `node_boundary`): its
+/// world shape (a sphere or a box; pivot 0, not rotated) with the separating rule and no
+/// friction, moving at `velocity`; inactive for `None`.
+pub fn tool(tool: Option<(&Shape, Vec3)>) -> contract::GpuTool {
+    let Some((shape, velocity)) = tool else {
+        return contract::GpuTool::default();
+    };
+    let rule = rtmpm_core::boundary::BoundaryRule::default();
+    let mut g = GpuCollider {
+        kind: contract::collider_kind(shape),
+        cond: contract::condition(rule.condition),
+        friction: rule.friction,
+        ..Default::default()
+    };
+    shape_params(shape, &mut g, &mut Vec::new());
+    contract::GpuTool {
+        shape: g,
+        velocity: velocity.to_array(),
+        active: 1,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -264,6 +286,27 @@ mod tests {
         );
         let p = step_bytes(&s, 1e-4, 0.5, false, true);
         assert_eq!(p, step_bytes(&s, 1e-4, 0.0, false, false));
+    }
+
+    #[test]
+    fn the_tool_is_a_separating_frictionless_collider_or_nothing() {
+        let none = tool(None);
+        assert_eq!(none.active, 0);
+        let ball = Shape::Sphere {
+            center: Vec3::new(0.1, 0.2, 0.3),
+            radius: 0.05,
+        };
+        let t = tool(Some((&ball, Vec3::new(1.0, 0.0, -2.0))));
+        assert_eq!(t.active, 1);
+        assert_eq!(t.shape.kind, contract::collider_kind(&ball));
+        assert_eq!(
+            t.shape.cond,
+            contract::condition(rtmpm_core::boundary::Condition::Separate)
+        );
+        assert_eq!(t.shape.friction, 0.0);
+        assert_eq!(&t.shape.p[..4], &[0.1, 0.2, 0.3, 0.05]);
+        assert_eq!(t.shape.pivot, [0.0; 3]);
+        assert_eq!(t.velocity, [1.0, 0.0, -2.0]);
     }
 
     #[test]

@@ -85,13 +85,14 @@ pub(crate) fn cfg(n: usize, block: u32) -> LaunchConfig {
 }
 
 /// The `__constant__` symbols the host writes (`kernels/common.cuh`).
-pub const CONSTANT_SYMBOLS: [&str; 6] = [
+pub const CONSTANT_SYMBOLS: [&str; 7] = [
     "c_scalars",
     "c_step",
     "c_poses",
     "c_materials",
     "c_colliders",
     "c_bodies",
+    "c_tool",
 ];
 
 /// Write `bytes` to the `__constant__` symbol `name` of the module (async on the stream).

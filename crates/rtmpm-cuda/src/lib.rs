@@ -15,6 +15,8 @@
 //! * One GPU: [`CudaBackend`] ([`backend`]), built from [`capacity`], [`state`], [`encode`]
 //!   (scene to GPU parameters), [`buffers`]; read back by [`readback`]. Several GPUs: [`multi`].
 //! * Timing: [`bench`] (the run's step with an event after each stage).
+//! * A live view: [`view`] (the picture drawn from the state on the GPU, `kernels/render/`;
+//!   gravity and the user's tool changed between steps).
 //!
 //! # The step (all launches on one non-default stream, no host synchronisation)
 //! 1. **rebuild**, merged: one persistent kernel launched every step (`rb_fused`, cooperative,
@@ -72,6 +74,7 @@ pub mod options;
 pub mod setup;
 pub mod state;
 pub mod step;
+pub mod view;
 
 pub use backend::CudaBackend;
 pub use backend::bench::{KernelTimings, bench_kernels, measure_copy_bandwidth};

@@ -228,3 +228,100 @@ fn asking_for_more_gpus_than_present_is_a_clear_error() {
     println!("{msg}");
     assert!(msg.contains(&format!("{found} CUDA device")), "{msg}");
 }
+
+/// Steering on two GPUs (transport chosen by default): gravity changed mid-run on a falling
+/// jelly block gives the summed mean velocity to 1e-4 m/s, as on one GPU and the CPU
+/// (tests/steer.rs); a ball swept through a block of sand moves the material as on one GPU
+/// (centre of mass within 0.1 cell); a ball held in the sand, set once, still keeps the sand out
+/// of its core after a rebalance rebuilt the GPUs' ranks.
+#[test]
+#[ignore = "needs 2 CUDA GPUs"]
+fn steering_on_two_gpus_is_steering_on_one() {
+    use rtmpm_core::math::Vec3;
+    use rtmpm_core::sim::{Tool, ToolShape};
+    if !usable(2) {
+        return;
+    }
+    let jelly = Scene::from_toml(
+        "gravity = [0.0, -9.8, 0.0]\n[domain]\nmin = [0,0,0]\nmax = [1,1,1]\ndx = 0.03125\n\
+         [time]\nduration = 1.0\ndt = 1e-3\n[[material]]\nname = \"jelly\"\ntype = \"fixed_corotated\"\n\
+         density = 1000.0\nyoungs_modulus = 1e5\npoisson_ratio = 0.3\n[[body]]\nmaterial = \"jelly\"\n\
+         shape = \"box\"\nmin = [0.4, 0.6, 0.4]\nmax = [0.5, 0.7, 0.5]\n",
+        "<jelly>",
+    )
+    .expect("scene");
+    let p = jelly.sample_particles().expect("particles");
+    let mut m = MultiGpuBackend::new(&jelly, &p, 2, CudaOptions::default()).expect("2 GPUs");
+    let dt = 1e-3;
+    for s in 0..100 {
+        if s == 50 {
+            m.set_gravity(Vec3::new(2.0, 0.0, 0.0)).expect("gravity");
+        }
+        m.step(dt, s as f32 * dt).expect("step");
+    }
+    let q = read(&mut m);
+    let v = q.v.iter().copied().sum::<Vec3>() / q.len() as f32;
+    let expect = Vec3::new(0.1, -0.49, 0.0);
+    println!("2 GPUs, gravity changed: mean velocity {v} (expected {expect})");
+    assert!((v - expect).length() < 1e-4, "{v}");
+
+    let sand = Scene::from_toml(
+        "gravity = [0.0, -9.8, 0.0]\n[domain]\nmin = [0,0,0]\nmax = [1,1,1]\ndx = 0.03125\n\
+         [time]\nduration = 1.0\ndt = 2e-4\n[walls]\nthickness = 3\n[[material]]\nname = \"sand\"\n\
+         type = \"drucker_prager\"\ndensity = 1600.0\nyoungs_modulus = 3.5e5\npoisson_ratio = 0.3\n\
+         friction_angle = 35.0\n[[body]]\nmaterial = \"sand\"\nshape = \"box\"\n\
+         min = [0.35, 0.1, 0.35]\nmax = [0.65, 0.25, 0.65]\n",
+        "<sand>",
+    )
+    .expect("scene");
+    let p = sand.sample_particles().expect("particles");
+    let ball = |center: Vec3, velocity: Vec3| Tool {
+        shape: ToolShape::Sphere { radius: 0.06 },
+        center,
+        velocity,
+    };
+    let sweep = |b: &mut dyn Backend| {
+        let (v, mut c) = (Vec3::new(3.0, 0.0, 0.0), Vec3::new(0.28, 0.17, 0.5));
+        for s in 0..300 {
+            b.set_tool(Some(ball(c, v))).expect("tool");
+            b.step(2e-4, s as f32 * 2e-4).expect("step");
+            c += v * 2e-4;
+        }
+        read(b)
+    };
+    let mut one = CudaBackend::new(&sand, &p, CudaOptions::default()).expect("1 GPU");
+    let a = sweep(&mut one);
+    let mut two = MultiGpuBackend::new(&sand, &p, 2, CudaOptions::default()).expect("2 GPUs");
+    let b = sweep(&mut two);
+    let d = a.aggregate_difference(&b);
+    println!("tool swept, 2 GPUs vs 1: |d com| {:.3e} m", d.com);
+    assert!(d.com < 0.1 * sand.dx as f64, "{}", d.com);
+    // A ball held under the falling jelly block, set once before the first step; the ranks are
+    // rebuilt at step 100, before the block reaches it (about step 170): the block comes to rest
+    // on the ball (its lowest particle above the ball's centre), or falls past it without (CPU,
+    // one GPU's scene: lowest particle at y 0.485 with the ball, 0.158 without).
+    let center = Vec3::new(0.45, 0.4, 0.45);
+    let held = |tool: bool| {
+        let p = jelly.sample_particles().expect("particles");
+        let mut m = MultiGpuBackend::new(&jelly, &p, 2, CudaOptions::default()).expect("2 GPUs");
+        if tool {
+            m.set_tool(Some(ball(center, Vec3::ZERO))).expect("tool");
+        }
+        for s in 0..300 {
+            m.step(1e-3, s as f32 * 1e-3).expect("step");
+            if s == 100 {
+                m.rebalance_now().expect("rebalance");
+            }
+        }
+        let q = read(&mut m);
+        q.x.iter().map(|x| x.y).fold(f32::INFINITY, f32::min)
+    };
+    let (with, without) = (held(true), held(false));
+    println!(
+        "ball held through a rebalance: the block's lowest particle at y {with}, {without} without it"
+    );
+    assert!(
+        with > center.y && without < center.y - 0.06,
+        "{with} vs {without}"
+    );
+}

@@ -66,8 +66,9 @@ impl Camera {
         Ok(())
     }
 
-    /// The view for an image of `width` x `height` pixels.
-    pub(crate) fn view(&self, width: u32, height: u32) -> View {
+    /// The view for an image of `width` x `height` pixels (the GPU renderers take their camera
+    /// from it too).
+    pub fn view(&self, width: u32, height: u32) -> View {
         let fwd = (self.target - self.position).normalize_or(Vec3::NEG_Z);
         let mut right = fwd.cross(Vec3::Y);
         if right.length_squared() < 1e-8 {
@@ -91,13 +92,20 @@ impl Camera {
 
 /// A camera resolved for one image size: orthonormal basis and focal length in pixels.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct View {
+pub struct View {
+    /// Eye position (m).
     pub pos: Vec3,
+    /// Viewing direction (unit).
     pub fwd: Vec3,
+    /// Right of the image (unit).
     pub right: Vec3,
+    /// Up of the image (unit).
     pub up: Vec3,
+    /// Focal length (pixels).
     pub focal: f32,
+    /// Image centre (pixels).
     pub cx: f32,
+    /// See `cx`.
     pub cy: f32,
 }
 

@@ -16,7 +16,7 @@ use rayon::prelude::*;
 pub(crate) const COLLIDER_ID: u32 = u32::MAX;
 
 /// Grey of collider surfaces (0..1 RGB).
-pub(crate) const COLLIDER_COLOR: [f32; 3] = [0.58, 0.58, 0.6];
+pub const COLLIDER_COLOR: [f32; 3] = [0.58, 0.58, 0.6];
 
 /// Most sphere-tracing steps along one ray; a ray that has not converged by then (grazing a
 /// silhouette) misses.

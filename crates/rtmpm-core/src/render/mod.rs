@@ -32,16 +32,18 @@ pub(crate) use tests::support as tests_support;
 pub mod text;
 pub mod view;
 
-pub use camera::Camera;
+pub use camera::{Camera, View};
+pub use colliders::COLLIDER_COLOR;
 pub use image::{GifMovie, Image};
+pub use shadow::{LIGHT, SHADOW_RES, ShadowFrame};
 pub use view::{ViewRequest, particle_field};
 
 use crate::boundary::Collider;
 use crate::math::Vec3;
-use colliders::{COLLIDER_COLOR, COLLIDER_ID, PosedCollider};
+use colliders::{COLLIDER_ID, PosedCollider};
 use raster::{Splat, raster};
 use rayon::prelude::*;
-use shadow::{LIGHT, SHADOW_RES, ShadowMap};
+use shadow::ShadowMap;
 use std::fmt;
 use std::str::FromStr;
 
@@ -537,8 +539,9 @@ pub fn render(input: &RenderInput, opts: &RenderOptions) -> Result<Image, Render
     Ok(img)
 }
 
-/// Vertical viridis bar at the right edge, title above, max/mid/min labels to its left.
-fn draw_color_bar(img: &mut Image, title: &str, lo: f32, hi: f32, scale: u32) {
+/// Vertical viridis bar at the right edge, title above, max/mid/min labels to its left (what
+/// [`render`] draws when colouring by a field; the GPU renderers draw it with this too).
+pub fn draw_color_bar(img: &mut Image, title: &str, lo: f32, hi: f32, scale: u32) {
     let (w, h) = (img.width as i32, img.height as i32);
     let s = scale as i32;
     let margin = 10 * s;

@@ -6,27 +6,34 @@ use super::{RenderInput, RenderOptions};
 use crate::math::Vec3;
 use rayon::prelude::*;
 
-/// Direction towards the light (normalised below).
-pub(super) const LIGHT: Vec3 = Vec3::new(-0.45, 1.0, 0.55);
+/// Direction towards the light (normalised where it is used).
+pub const LIGHT: Vec3 = Vec3::new(-0.45, 1.0, 0.55);
 /// Shadow map resolution.
-pub(super) const SHADOW_RES: usize = 1024;
+pub const SHADOW_RES: usize = 1024;
 
-/// An orthographic depth map seen from the light.
-pub(super) struct ShadowMap {
-    pub(super) origin: Vec3,
-    pub(super) right: Vec3,
-    pub(super) up: Vec3,
-    pub(super) fwd: Vec3,
-    pub(super) scale: f32,
-    pub(super) depth: Vec<f32>,
+/// The light's orthographic view of a scene box: texel `(x, y)` of the shadow map looks along
+/// `fwd` from `origin + (right (x + 1/2) - up (y + 1/2)) / scale`, at depth `(p - origin) . fwd`.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadowFrame {
+    /// The corner of texel (0, 0) on the map's near plane.
+    pub origin: Vec3,
+    /// Image right (unit).
+    pub right: Vec3,
+    /// Image up (unit).
+    pub up: Vec3,
+    /// From the light (unit).
+    pub fwd: Vec3,
+    /// Texels per metre.
+    pub scale: f32,
 }
 
-impl ShadowMap {
-    pub(super) fn build(input: &RenderInput, opts: &RenderOptions) -> ShadowMap {
+impl ShadowFrame {
+    /// The frame that holds the box `bounds` (padded by two particle radii `radius`).
+    pub fn new(bounds: (Vec3, Vec3), radius: f32) -> ShadowFrame {
         let fwd = -LIGHT.normalize();
         let right = fwd.cross(Vec3::Z).normalize();
         let up = right.cross(fwd);
-        let (lo, hi) = opts.bounds;
+        let (lo, hi) = bounds;
         let (mut u0, mut u1, mut v0, mut v1, mut d0) = (
             f32::INFINITY,
             f32::NEG_INFINITY,
@@ -46,9 +53,36 @@ impl ShadowMap {
             v1 = v1.max(c.dot(up));
             d0 = d0.min(c.dot(fwd));
         }
-        let pad = 2.0 * opts.radius;
-        let origin = right * (u0 - pad) + up * (v1 + pad) + fwd * (d0 - pad);
-        let scale = SHADOW_RES as f32 / ((u1 - u0).max(v1 - v0) + 2.0 * pad).max(1e-6);
+        let pad = 2.0 * radius;
+        ShadowFrame {
+            origin: right * (u0 - pad) + up * (v1 + pad) + fwd * (d0 - pad),
+            right,
+            up,
+            fwd,
+            scale: SHADOW_RES as f32 / ((u1 - u0).max(v1 - v0) + 2.0 * pad).max(1e-6),
+        }
+    }
+}
+
+/// An orthographic depth map seen from the light.
+pub(super) struct ShadowMap {
+    pub(super) origin: Vec3,
+    pub(super) right: Vec3,
+    pub(super) up: Vec3,
+    pub(super) fwd: Vec3,
+    pub(super) scale: f32,
+    pub(super) depth: Vec<f32>,
+}
+
+impl ShadowMap {
+    pub(super) fn build(input: &RenderInput, opts: &RenderOptions) -> ShadowMap {
+        let ShadowFrame {
+            origin,
+            right,
+            up,
+            fwd,
+            scale,
+        } = ShadowFrame::new(opts.bounds, opts.radius);
         let wr = opts.radius;
         let splats: Vec<Splat> = input
             .positions

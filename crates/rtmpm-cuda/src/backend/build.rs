@@ -113,6 +113,8 @@ impl CudaBackend {
                 total: t0.elapsed().as_secs_f64(),
                 ..setup
             },
+            render: None,
+            tool: None,
         })
     }
 }

@@ -47,7 +47,7 @@ pub struct CudaBackend {
     pub(crate) options: CudaOptions,
     /// The P2G strategy and its buffers.
     pub(crate) p2g: P2gPlan,
-    module: Arc<CudaModule>,
+    pub(crate) module: Arc<CudaModule>,
     pub(crate) buffers: buffers::Buffers,
     /// Every material is a fluid: G2P2G runs its fluid variant (`g2p2g_fluid`).
     pub(crate) all_fluid: bool,
@@ -68,9 +68,13 @@ pub struct CudaBackend {
     graphs: StepGraphs,
     device_name: String,
     /// The rigid bodies coupled to the grid (`[[rigid_body]]`), if any.
-    bodies: Option<Bodies>,
+    pub(crate) bodies: Option<Bodies>,
     /// Where the time of building this backend went.
     setup: SetupPhases,
+    /// The render stage's buffers (a live view), allocated at the first picture.
+    pub(crate) render: Option<Box<RenderBuffers>>,
+    /// The user's tool (its world shape), see `view/steer.rs`.
+    pub(crate) tool: Option<rtmpm_core::boundary::sdf::Shape>,
 }
 
 /// Memory reused by [`CudaBackend::read_fields`] and [`CudaBackend::read_vec3_ordered`]:
@@ -80,6 +84,45 @@ pub(crate) struct Staging {
     pub(crate) pinned: Option<PinnedHostSlice<u8>>,
     pub(crate) ordered: Option<CudaSlice<f32>>,
     pub(crate) bad: Option<CudaSlice<u32>>,
+}
+
+/// The device buffers of the render stage (`view/render.rs`), allocated at the first picture and
+/// again when the image size changes.
+pub(crate) struct RenderBuffers {
+    pub(crate) width: u32,
+    pub(crate) height: u32,
+    /// A 64-bit depth key per pixel.
+    pub(crate) keys: CudaSlice<u64>,
+    /// RGB bytes (room for RGBA words).
+    pub(crate) image: CudaSlice<u8>,
+    /// The light's depth map.
+    pub(crate) shadow: CudaSlice<u32>,
+    /// The automatic range's words.
+    pub(crate) scratch: CudaSlice<u32>,
+    /// The picture's objects (colliders, bodies, tool).
+    pub(crate) objects: CudaSlice<u8>,
+    /// The palette (3 floats a material).
+    pub(crate) palette: CudaSlice<f32>,
+    /// f32 per particle slot (allocated the first time a picture is coloured by a field).
+    pub(crate) field: Option<CudaSlice<f32>>,
+    /// The image, for the host.
+    pub(crate) pinned: PinnedHostSlice<u8>,
+    /// The scene's mesh offsets: each collider's, each rigid body's.
+    pub(crate) collider_mesh: Vec<u32>,
+    pub(crate) body_mesh: Vec<u32>,
+}
+
+impl RenderBuffers {
+    /// Device bytes of the render stage.
+    pub(crate) fn bytes(&self) -> usize {
+        self.keys.num_bytes()
+            + self.image.num_bytes()
+            + self.shadow.num_bytes()
+            + self.scratch.num_bytes()
+            + self.objects.num_bytes()
+            + self.palette.num_bytes()
+            + self.field.as_ref().map_or(0, |f| f.num_bytes())
+    }
 }
 
 impl CudaBackend {
@@ -257,6 +300,11 @@ impl CudaBackend {
         self.enqueue(&mut NoHooks, last)
     }
 
+    /// The rigid bodies' states now (none without `[[rigid_body]]`).
+    pub fn rigid_body_states(&self) -> &[rtmpm_core::rigid::BodyState] {
+        self.bodies.as_ref().map_or(&[], |b| b.states())
+    }
+
     /// Number of particles on this GPU.
     pub fn len(&self) -> usize {
         self.n
@@ -379,6 +427,29 @@ impl Backend for CudaBackend {
 
     fn setup_details(&self) -> Option<String> {
         Some(self.setup.to_string())
+    }
+
+    /// The picture drawn on this GPU from its own arrays (`view/render.rs`): always drawn here.
+    fn render_view(
+        &mut self,
+        req: &rtmpm_core::sim::ViewRequest,
+        out: &mut rtmpm_core::render::Image,
+    ) -> Result<bool, SimError> {
+        req.check()
+            .map_err(|e| SimError::Backend(format!("live view: {e}")))?;
+        self.render_picture(&req.options(&self.scene), req.colliders, out)?;
+        Ok(true)
+    }
+
+    fn set_gravity(&mut self, gravity: rtmpm_core::math::Vec3) -> Result<(), SimError> {
+        self.set_gravity_vector(gravity)
+    }
+
+    fn set_tool(&mut self, tool: Option<rtmpm_core::sim::Tool>) -> Result<(), SimError> {
+        if let Some(t) = &tool {
+            t.check().map_err(SimError::Backend)?;
+        }
+        self.set_tool_shape(tool.map(|t| (t.sdf(), t.velocity)))
     }
 
     fn chunk_memory(&self, words: usize) -> Result<Box<dyn rtmpm_core::sim::HostBuffer>, SimError> {

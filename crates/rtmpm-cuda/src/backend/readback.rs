@@ -16,9 +16,12 @@ impl CudaBackend {
     }
 
     /// Bytes of every device allocation of this backend: the pipeline's buffers and the P2G
-    /// strategy's extra buffers (the compiled module and CUDA's own context memory aside).
+    /// strategy's extra buffers and, once a picture was drawn, the render stage's (the compiled
+    /// module and CUDA's own context memory aside).
     pub fn device_bytes(&self) -> usize {
-        self.buffers.bytes() + self.p2g.memory().iter().map(|m| m.1).sum::<usize>()
+        self.buffers.bytes()
+            + self.p2g.memory().iter().map(|m| m.1).sum::<usize>()
+            + self.render.as_ref().map_or(0, |r| r.bytes())
     }
 
     /// The device bytes of this backend by group: state, sort scratch, grid, sort, hash/lists

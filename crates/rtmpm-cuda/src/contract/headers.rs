@@ -1,6 +1,7 @@
 //! The device code generated from the contract: `contract.cuh` ([`prelude`]), the material
 //! registry ([`material_registry`]) and the layout checks ([`layout_asserts`]).
 
+use super::render::*;
 use super::*;
 use rtmpm_core::boundary::Condition;
 use rtmpm_core::material::Model;
@@ -59,6 +60,7 @@ fn layouts<R: GpuReal>() -> Vec<Layout> {
                 shared_pblock,
                 bodies,
                 body_exchange,
+                tool,
                 n_cells,
                 wall_thickness,
                 wall_cond,
@@ -107,6 +109,56 @@ fn layouts<R: GpuReal>() -> Vec<Layout> {
             GpuBody,
             "GpuBody",
             [shape, rot, center, velocity, omega, bound, dynamic]
+        ),
+        layout!(GpuTool, "GpuTool", [shape, velocity, active]),
+        layout!(
+            RenderParams,
+            "RenderParams",
+            [
+                keys,
+                image,
+                shadow,
+                field,
+                scratch,
+                objects,
+                palette,
+                eye,
+                fwd,
+                right,
+                up,
+                focal,
+                cx,
+                cy,
+                radius,
+                near,
+                eps1,
+                range,
+                floor_y,
+                bounds_lo,
+                bounds_hi,
+                light,
+                object_rgb,
+                shadow_origin,
+                shadow_right,
+                shadow_up,
+                shadow_fwd,
+                shadow_scale,
+                width,
+                height,
+                color_by,
+                auto_range,
+                floor,
+                shadows,
+                n_objects,
+                n_palette,
+                channels,
+                pad
+            ]
+        ),
+        layout!(
+            RenderObject,
+            "RenderObject",
+            [shape, rot, pivot, lo, hi, plane_p, plane_n, plane]
         ),
         layout!(
             SharedCtx,
@@ -224,6 +276,17 @@ pub fn prelude() -> String {
         ("BODY_EXCHANGE_SLOTS", BODY_EXCHANGE_SLOTS),
         ("MATERIAL_PARAMS", MATERIAL_PARAMS),
         ("SB_MAX_GPUS", MAX_PEER_GPUS),
+        ("RENDER_SHADOW_RES", RENDER_SHADOW_RES),
+        ("RENDER_BINS", RENDER_BINS),
+        ("RENDER_MAX_OBJECTS", RENDER_MAX_OBJECTS),
+        ("RS_MIN", RS_MIN),
+        ("RS_MAX", RS_MAX),
+        ("RS_LO", RS_LO),
+        ("RS_HI", RS_HI),
+        ("RS_PICK", RS_PICK),
+        ("RS_COARSE", RS_COARSE),
+        ("RS_FINE", RS_FINE),
+        ("RS_WORDS", RS_WORDS),
     ] {
         def(n, v.to_string());
     }
@@ -235,6 +298,7 @@ pub fn prelude() -> String {
         ("ERR_P2G_MAP", ERR_P2G_MAP),
         ("ERR_SHARED", ERR_SHARED),
         ("ERR_BARRIER", ERR_BARRIER),
+        ("RENDER_OBJECT_ID", RENDER_OBJECT_ID),
     ] {
         def(n, format!("{v}u"));
     }
@@ -254,6 +318,10 @@ pub fn prelude() -> String {
         ("TRANSFER_LINEAR", Transfer::MpmLinear),
     ] {
         def(n, format!("{}u", t.code()));
+    }
+    for c in rtmpm_core::render::ColorBy::ALL {
+        let name = format!("RENDER_COLOR_{}", c.name().to_ascii_uppercase());
+        def(&name, format!("{}u", color_code(c)));
     }
     def("UPDATE_USL", format!("{}u", update(Update::Usl)));
     def("UPDATE_MUSL", format!("{}u", update(Update::Musl)));

@@ -98,6 +98,8 @@ pub struct Ctx {
     /// Rigid bodies: f64 impulse (3) and angular impulse (3) per body, in
     /// `BODY_EXCHANGE_SLOTS` copies summed by the host (`crate::step::rigid`).
     pub body_exchange: u64,
+    /// Global copy of the user's tool (`c_tool`, see `scalars`).
+    pub tool: u64,
     /// Cells of the domain per axis.
     pub n_cells: [i32; 3],
     /// Wall thickness (cells).
@@ -268,6 +270,20 @@ pub struct GpuBody {
     pub bound: f32,
     /// 1 when the material's impulses move the body (its reactions are summed).
     pub dynamic: u32,
+}
+
+/// The user's tool (a live view's drag, `rtmpm_core::sim::Tool`; constant memory `c_tool`,
+/// written when it changes): a separating collider moving at `velocity`, its shape in world
+/// coordinates (pivot 0, not rotated), applied in the grid update after the scene's colliders.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct GpuTool {
+    /// Shape (`kind`: sphere or box, `p`), rule (`cond`: separate, `friction`).
+    pub shape: GpuCollider,
+    /// Velocity of the tool (m/s).
+    pub velocity: [f32; 3],
+    /// 1 when there is a tool (0: the grid update skips it).
+    pub active: u32,
 }
 
 /// Several GPUs: the buffers of the shared-block reduction (`kernels/multi/reduce_shared.cu`).

@@ -18,6 +18,7 @@ use rtmpm_core::transfer::Update;
 
 mod headers;
 mod layout;
+pub mod render;
 mod state_layout;
 
 pub use headers::{layout_asserts, material_registry, materials, prelude};

@@ -40,6 +40,8 @@ pub struct NcclRankBackend {
     d: usize,
     /// Rebalances done so far.
     pub rebalances: u32,
+    /// The user's tool (given again to a rank rebuilt by a rebalance).
+    tool: Option<rtmpm_core::sim::Tool>,
 }
 
 impl NcclRankBackend {
@@ -94,6 +96,7 @@ impl NcclRankBackend {
             shared_at_partition: 0,
             d: dense_count(scene),
             rebalances: 0,
+            tool: None,
         };
         b.load(
             particles,
@@ -120,14 +123,18 @@ impl NcclRankBackend {
             ids: Some(ids.clone()),
             capacity: part.max_len(),
         };
-        self.rank = Some(GpuRank::new(
+        let mut rank = GpuRank::new(
             &self.scene,
             &subset(particles, ids),
             &p,
             self.options.clone(),
             self.shared_cap,
             comm,
-        )?);
+        )?;
+        if self.tool.is_some() {
+            rank.b.set_tool(self.tool)?;
+        }
+        self.rank = Some(rank);
         Ok(())
     }
 
@@ -169,6 +176,20 @@ impl Backend for NcclRankBackend {
             r.b.check()?;
         }
         Ok(bad)
+    }
+
+    /// Gravity of this rank's GPU (every rank of the run is given the same).
+    fn set_gravity(&mut self, gravity: rtmpm_core::math::Vec3) -> Result<(), SimError> {
+        self.r()?.b.set_gravity(gravity)?;
+        self.scene.gravity = gravity;
+        Ok(())
+    }
+
+    /// The tool on this rank's GPU (every rank of the run is given the same).
+    fn set_tool(&mut self, tool: Option<rtmpm_core::sim::Tool>) -> Result<(), SimError> {
+        self.r()?.b.set_tool(tool)?;
+        self.tool = tool;
+        Ok(())
     }
 
     fn read_particles(&mut self, out: &mut Particles) -> Result<(), SimError> {

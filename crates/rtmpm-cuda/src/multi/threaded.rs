@@ -51,6 +51,8 @@ pub struct MultiGpuBackend {
     d: usize,
     /// Rebalances done so far.
     pub rebalances: u32,
+    /// The user's tool (given again to the ranks rebuilt by a rebalance).
+    tool: Option<rtmpm_core::sim::Tool>,
 }
 
 impl MultiGpuBackend {
@@ -117,6 +119,7 @@ impl MultiGpuBackend {
             shared_at_partition: 0,
             d: dense_count(scene),
             rebalances: 0,
+            tool: None,
         };
         for _ in 0..gpus {
             let (tx, rx) = mpsc::channel::<Job>();
@@ -225,6 +228,9 @@ impl MultiGpuBackend {
             *slot = Some(GpuRank::new(&scene, p, &part, options.clone(), cap, comm)?);
             Ok(())
         })?;
+        if let Some(t) = self.tool {
+            self.all(move |_, r| rank(r)?.b.set_tool(Some(t)))?;
+        }
         self.connect()
     }
 
@@ -316,6 +322,20 @@ impl Backend for MultiGpuBackend {
     fn check(&mut self) -> Result<Option<BadParticle>, SimError> {
         let bad = self.all(|_, r| rank(r)?.b.check())?;
         Ok(bad.into_iter().flatten().min_by_key(|b| b.index))
+    }
+
+    /// Gravity on every GPU.
+    fn set_gravity(&mut self, gravity: rtmpm_core::math::Vec3) -> Result<(), SimError> {
+        self.all(move |_, r| rank(r)?.b.set_gravity(gravity))?;
+        self.scene.gravity = gravity;
+        Ok(())
+    }
+
+    /// The tool on every GPU (each applies it to the grid nodes of its particles).
+    fn set_tool(&mut self, tool: Option<rtmpm_core::sim::Tool>) -> Result<(), SimError> {
+        self.all(move |_, r| rank(r)?.b.set_tool(tool))?;
+        self.tool = tool;
+        Ok(())
     }
 
     fn read_particles(&mut self, out: &mut Particles) -> Result<(), SimError> {

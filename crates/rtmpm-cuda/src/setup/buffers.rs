@@ -46,6 +46,8 @@ pub struct Buffers {
     pub step: CudaSlice<u8>,
     /// See `scalars`.
     pub poses: CudaSlice<u8>,
+    /// See `scalars` (the user's tool, [`contract::GpuTool`]).
+    pub tool: CudaSlice<u8>,
     /// Every other buffer (scratch, hash, lists, sort, tables).
     _rest: Vec<CudaSlice<u8>>,
     /// The planned bytes of each buffer (what was allocated, each at least 16 bytes).
@@ -64,6 +66,7 @@ impl Buffers {
             + self.scalars.num_bytes()
             + self.step.num_bytes()
             + self.poses.num_bytes()
+            + self.tool.num_bytes()
             + self._rest.iter().map(|b| b.num_bytes()).sum::<usize>()
     }
 }
@@ -138,6 +141,9 @@ pub fn allocate(
     let poses = s
         .alloc_zeros::<u8>(std::mem::size_of::<contract::ColliderPoses>())
         .map_err(err("alloc collider poses"))?;
+    let tool = s
+        .alloc_zeros::<u8>(std::mem::size_of::<contract::GpuTool>())
+        .map_err(err("alloc the tool"))?;
     debug_assert_eq!(state.len(), sizes.state);
     let buffers = Buffers {
         state,
@@ -148,6 +154,7 @@ pub fn allocate(
         scalars,
         step,
         poses,
+        tool,
         _rest: rest,
         planned: sizes,
     };
@@ -320,6 +327,7 @@ fn context(
         // Set by the backend when the scene has rigid bodies (crate::step::rigid).
         bodies: 0,
         body_exchange: 0,
+        tool: ptr(&b.tool),
         n_cells: scene.n_cells().map(|c| c as i32),
         wall_thickness: w.thickness as i32,
         wall_cond: w.faces.map(|f| contract::condition(f.condition)),

@@ -65,6 +65,11 @@ pub struct Bodies {
 }
 
 impl Bodies {
+    /// Gravity from the next advance of the bodies on.
+    pub fn set_gravity(&mut self, gravity: rtmpm_core::math::Vec3) {
+        self.world.set_gravity(gravity);
+    }
+
     /// The bodies of `scene` (`None` without any), their device buffers allocated on `stream`;
     /// `mesh_offsets`: `encode::Tables::body_mesh`. Refused with the MUSL update, as on the CPU.
     pub fn new(
