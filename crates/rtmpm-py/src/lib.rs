@@ -16,6 +16,7 @@ mod errors;
 mod frames;
 mod output;
 mod particles;
+mod picture;
 mod pool;
 mod scene;
 mod simulation;

@@ -558,9 +558,7 @@ impl PySimulation {
     ) -> PyResult<Bound<'py, numpy::PyArray3<u8>>> {
         let inner = self.get();
         let (frame, time) = (inner.sim.frame, inner.sim.time);
-        let scene = inner.sim.scene.clone();
-        let p = inner.host(py)?;
-        let view = crate::output::View {
+        let view = crate::picture::View {
             camera,
             target,
             size,
@@ -573,7 +571,47 @@ impl PySimulation {
             label: Some(label.unwrap_or_else(|| format!("FRAME {frame}  T = {time:.3} S"))),
             time: time as f32,
         };
-        crate::output::render(py, p, &scene, &view)
+        crate::picture::render(py, inner, &view)
+    }
+
+    /// The picture of :meth:`render` drawn by the backend's own renderer, the one of a live
+    /// view (:meth:`view`): on the CUDA backend by kernels reading the particle state on the
+    /// GPU (only the image comes back), elsewhere by the CPU renderer. Same arguments and
+    /// result as :meth:`render` (a NumPy ``uint8`` array of shape ``(height, width, 3)``);
+    /// the default ``radius`` comes from the scene (0.6 of its first body's particle spacing)
+    /// instead of the particles.
+    #[pyo3(signature = (camera = None, target = None, size = None, fov = None, color_by = None, range = None, radius = None, shadows = true, colliders = true, label = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn render_gpu<'py>(
+        &mut self,
+        py: Python<'py>,
+        camera: Option<[f32; 3]>,
+        target: Option<[f32; 3]>,
+        size: Option<(u32, u32)>,
+        fov: Option<f32>,
+        color_by: Option<&str>,
+        range: Option<(f32, f32)>,
+        radius: Option<f32>,
+        shadows: bool,
+        colliders: bool,
+        label: Option<String>,
+    ) -> PyResult<Bound<'py, numpy::PyArray3<u8>>> {
+        let inner = self.get();
+        let (frame, time) = (inner.sim.frame, inner.sim.time);
+        let view = crate::picture::View {
+            camera,
+            target,
+            size,
+            fov,
+            color_by,
+            range,
+            radius,
+            shadows,
+            colliders,
+            label: Some(label.unwrap_or_else(|| format!("FRAME {frame}  T = {time:.3} S"))),
+            time: time as f32,
+        };
+        crate::picture::render_gpu(py, inner, &view)
     }
 
     fn __repr__(&mut self) -> String {

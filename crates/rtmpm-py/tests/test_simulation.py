@@ -364,6 +364,24 @@ def test_render_returns_an_rgb_image(small_path):
         sim.render(color_by="temperature")
 
 
+def test_render_gpu_is_render_where_the_backend_does_not_draw(small_path):
+    """On the CPU backend render_gpu is the CPU renderer of the same request: the same picture
+    as render, byte for byte, in every colour mode (given the same radius)."""
+    sim = rtmpm.Simulation(small_path, backend="cpu")
+    sim.run_frame()
+    for color_by in ("material", "speed", "J", "stress", "plastic"):
+        a = sim.render(size=(160, 90), color_by=color_by, radius=0.01)
+        b = sim.render_gpu(size=(160, 90), color_by=color_by, radius=0.01)
+        assert b.shape == (90, 160, 3) and b.dtype == np.uint8
+        assert np.array_equal(a, b), color_by
+    # The default radius comes from the scene (0.6 of the spacing): that of render here.
+    assert np.array_equal(sim.render(size=(64, 36)), sim.render_gpu(size=(64, 36)))
+    with pytest.raises(ValueError, match="colouring"):
+        sim.render_gpu(color_by="temperature")
+    with pytest.raises(ValueError, match="out of range"):
+        sim.render_gpu(size=(8, 8))
+
+
 def test_precision_f64(small_path):
     sim = rtmpm.Simulation(small_path, backend="cpu", precision="f64")
     assert sim.precision == "f64" and "f64" in sim.backend.name
