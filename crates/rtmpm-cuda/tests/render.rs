@@ -18,7 +18,7 @@ use rtmpm_core::boundary::sdf::Shape;
 use rtmpm_core::boundary::{BoundaryRule, Collider};
 use rtmpm_core::math::Vec3;
 use rtmpm_core::render::{
-    self, Camera, ColorBy, Image, RenderInput, RenderOptions, colormap, field_range, von_mises,
+    self, Camera, ColorBy, Image, RenderInput, RenderOptions, colormap, field_range, particle_field,
 };
 use rtmpm_core::sim::{Backend, Simulation};
 use rtmpm_core::{Particles, Scene};
@@ -67,22 +67,6 @@ fn run(scene: &Scene, frames: u32) -> (Simulation<CudaBackend>, f32) {
     }
     let t = sim.time as f32;
     (sim, t)
-}
-
-/// The field of `color_by` per particle, as `rtmpm render` computes it.
-fn field(p: &Particles, scene: &Scene, color_by: ColorBy) -> Option<Vec<f32>> {
-    match color_by {
-        ColorBy::Material => None,
-        ColorBy::Speed => Some(p.v.iter().map(|v| v.length()).collect()),
-        ColorBy::J => Some(p.f.iter().map(|f| f.determinant()).collect()),
-        ColorBy::Plastic => Some(p.plastic.clone()),
-        ColorBy::Stress => Some(
-            rtmpm_core::io::cauchy_stress(p, scene)
-                .into_iter()
-                .map(von_mises)
-                .collect(),
-        ),
-    }
 }
 
 fn options(
@@ -141,7 +125,7 @@ fn save(name: &str, cpu: &Image, gpu: &Image) {
 
 /// The CPU renderer's picture of the particles `p` with `opts`.
 fn cpu_picture(p: &Particles, scene: &Scene, opts: &RenderOptions) -> Image {
-    let f = field(p, scene, opts.color_by);
+    let f = particle_field(p, scene, opts.color_by);
     let input = RenderInput {
         positions: &p.x,
         material: &p.material,
@@ -270,7 +254,7 @@ fn the_automatic_range_is_field_range() {
             .render_picture(&opts, false, &mut g)
             .expect("gpu render")
             .expect("a range");
-        let (clo, chi) = field_range(&field(&p, &scene, color_by).expect("field"));
+        let (clo, chi) = field_range(&particle_field(&p, &scene, color_by).expect("field"));
         // The fine bins are 1 / 2048^2 of the span wide; the field itself is computed in a
         // different order (a few ulps).
         let tol = 1e-5 * (chi - clo).abs().max(chi.abs()).max(1e-6);
