@@ -91,6 +91,14 @@ __device__ __forceinline__ f3 view_ray(const RenderParams& r, float x, float y) 
     return ld3(r.fwd) + ld3(r.right) * ((x - r.cx) / r.focal) - ld3(r.up) * ((y - r.cy) / r.focal);
 }
 
+// A particle's radius on screen (pixels) at view depth z: at least 0.6 pixel, as the CPU
+// renderer's; at most RENDER_MAX_SPLAT (a particle within a few radii of the eye, where one thread
+// would otherwise cover most of the picture: the CPU renderer draws it whole).
+#define RENDER_MAX_SPLAT 256.f
+__device__ __forceinline__ float splat_radius(const RenderParams& r, float z) {
+    return fminf(fmaxf(r.radius * r.focal / z, 0.6f), RENDER_MAX_SPLAT);
+}
+
 // The pixels a splat covers (raster.rs: the same rows, columns and test u^2 + v^2 < 1): for each,
 // visit(px, py, u, v). Rows y0..=y1 clipped to the image, columns x0..=x1.
 template <typename F>

@@ -51,7 +51,7 @@ __device__ f3 shade_surface(const Ctx& c, const RenderParams& r, int x, int y, f
         rim = 0.f;
     } else {
         f3 s = project(r, particle_x(c, id));
-        float rad = fmaxf(r.radius * r.focal / s.z, 0.6f);
+        float rad = splat_radius(r, s.z);
         u = ((float)x + 0.5f - s.x) / rad;
         v = ((float)y + 0.5f - s.y) / rad;
         base = particle_colour(c, r, id);

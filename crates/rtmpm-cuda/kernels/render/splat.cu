@@ -16,13 +16,13 @@ extern "C" __global__ void render_clear(RenderParams r) {
 }
 
 // Every particle in front of the near plane, as a sphere: each covered pixel keeps the smaller of
-// its key and (depth of the sphere's surface there << 32 | slot). A plain read first skips the
+// its key and (depth of the sphere's surface there << 32 | slot). One thread a particle. A plain read first skips the
 // atomic where the pixel already holds something nearer (most of a dense block's particles).
 extern "C" __global__ void render_splat(Ctx c, RenderParams r) {
     for (unsigned i = thread_index(); i < c.n; i += gridDim.x * blockDim.x) {
         f3 p = project(r, particle_x(c, i));
         if (!(p.z > r.near) || !isfinite(p.x) || !isfinite(p.y)) continue;
-        float rad = fmaxf(r.radius * r.focal / p.z, 0.6f);
+        float rad = splat_radius(r, p.z);
         splat_pixels(p.x, p.y, rad, r.width, r.height, [&](int x, int y, float u, float v) {
             float d = p.z - sqrtf(fmaxf(1.f - u * u - v * v, 0.f)) * r.radius;
             unsigned long long key = ((unsigned long long)order_bits(d) << 32) | i;
