@@ -16,7 +16,10 @@
 #                .device/rtmpm_base, A/B against that build, interleaved (REPS=2 by default);
 #                BENCH_RUNS="bin|cuda-options ..." sets the runs (default "rtmpm_base| rtmpm|")
 #   ablation     the switches of the seed principles on the claymore scenes (--cuda-options)
-#   variants     A/B of compile-time defines: VARIANTS="label|binary|defines[|options] ..."
+#   variants     A/B of compile-time defines: VARIANTS="label|binary|defines[|options] ..." (several
+#                defines in one entry separated by commas), interleaved REPS times (default 1)
+#   profile      Nsight Compute on the fused G2P2G kernel (one launch after 5): PROFILE_RUNS="label|binary|
+#                defines|scene ..." (default: the fluid dam 2M); the bound (issue, stalls, L1/L2, atomics)
 #   multi        several GPUs: agreement tests in every mode, 2 NCCL processes, scaling
 #   multi4       the same on 4 GPUs: agreement at 2 and 4, strong and weak scaling at 1, 2, 4, 4 ranks
 #   python       the Python package's GPU tests (wheel in .device/wheels)
@@ -140,12 +143,32 @@ for suite in "$@"; do
       done
       ;;
     variants)
-      for sc in $CLAYMORE; do
-        for v in ${VARIANTS:-}; do
-          IFS='|' read -r label bin defines opts <<< "$v"
-          RTMPM_KERNEL_DEFINES="$defines" b "${sc%%:*} $label" "$bin" --scene "bench/${sc%%:*}.toml" \
-            --frames "${sc##*:}" ${opts:+--cuda-options "$opts"}
+      for rep in $(seq 1 "${REPS:-1}"); do
+        for sc in ${VARIANT_SCENES:-$CLAYMORE}; do
+          for v in ${VARIANTS:-}; do
+            IFS='|' read -r label bin defines opts <<< "$v"
+            RTMPM_KERNEL_DEFINES="${defines//,/ }" b "${sc%%:*} $label" "$bin" --scene "bench/${sc%%:*}.toml" \
+              --frames "${sc##*:}" ${opts:+--cuda-options "$opts"}
+          done
         done
+      done
+      ;;
+    profile)
+      ncu=$(command -v ncu || ls /opt/nvidia/nsight-compute/*/ncu /usr/local/cuda/bin/ncu 2>/dev/null | head -1)
+      # The warp stall reasons by name, as this ncu spells them (cycles stalled per issued instruction).
+      stalls=$("$ncu" --query-metrics --chip gh100 2>/dev/null | awk '{print $1}' \
+        | grep -E '^smsp__average_warps_issue_stalled_[a-z_]+_per_issue_active$' | sed 's/$/.ratio/' | paste -sd, -)
+      extra=$("$ncu" --query-metrics --chip gh100 2>/dev/null | awk '{print $1}' \
+        | grep -xE 'lts__t_requests_op_red|lts__t_sectors_op_red|smsp__inst_executed|l1tex__data_pipe_lsu_wavefronts_mem_shared' \
+        | sed 's/$/.sum/' | paste -sd, -)
+      for r in ${PROFILE_RUNS:-"fluid|rtmpm||fluid_dam_2m"}; do
+        IFS='|' read -r label bin defines sc <<< "$r"
+        RTMPM_KERNEL_DEFINES="${defines//,/ }" timeout 300 "$ncu" --kernel-name regex:'^g2p2g' --launch-skip 5 \
+          --launch-count 1 --set full ${stalls:+--metrics "$stalls${extra:+,$extra}"} \
+          "$D/$bin" bench --backend cuda --scene "bench/$sc.toml" --steps 20 > "$OUT/ncu-$label.txt" 2>&1
+        say "ncu $label ($bin $defines, $sc) rc=$?"
+        grep -E "^  g2p2g|Duration|Compute \(SM\) Throughput|Memory Throughput|DRAM Throughput|L1/TEX Hit|L2 Hit|Issue Slots Busy|Issued Ipc Active|Executed Instructions  |Registers Per|Achieved Occupancy|Theoretical Occupancy|No Eligible|Warp Cycles Per Issued|SM Frequency|L1/TEX Cache Throughput|L2 Cache Throughput|issue_stalled|op_red|inst_executed.sum|mem_shared.sum|ERROR" \
+          "$OUT/ncu-$label.txt" | sed -E 's/ +/ /g' | awk '$NF != "0" && $NF != "0.00"' | tee -a "$S"
       done
       ;;
     multi)

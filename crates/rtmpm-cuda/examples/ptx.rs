@@ -1,7 +1,8 @@
 //! Print the PTX of the kernel program (NVRTC, no GPU needed), for register and spill reports
 //! with `ptxas -v` (scripts/kernel_report.sh).
 //!
-//! `cargo run -p rtmpm-cuda --example ptx -- [f64] [no_fast_math] [sm_90] [materials=0xMASK]`
+//! `cargo run -p rtmpm-cuda --example ptx -- [f64] [no_fast_math] [sm_90] [materials=0xMASK]
+//! [layout=N]` (N: the state layout's code, `StateLayout::code`: 1 is the 20-word fluid layout)
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -18,6 +19,14 @@ fn main() {
     );
     if let Some(m) = args.iter().find_map(|a| a.strip_prefix("materials=0x")) {
         o.materials = u32::from_str_radix(m, 16).unwrap_or(u32::MAX);
+    }
+    if let Some(code) = args.iter().find_map(|a| a.strip_prefix("layout=")) {
+        if let Some(l) = rtmpm_cuda::contract::StateLayout::ALL
+            .into_iter()
+            .find(|l| code.parse() == Ok(l.code()))
+        {
+            o.layout = l;
+        }
     }
     match rtmpm_cuda::compile::compile(&o) {
         Ok(ptx) => print!("{ptx}"),
