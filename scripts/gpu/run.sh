@@ -6,7 +6,7 @@
 #   bash scripts/gpu/run.sh SUITE [SUITE...]
 #
 # Suites:
-#   tests        GPU tests (TESTS="test_gpu ..." to choose): kernels, P2G strategies, transfers, f64, the material check
+#   tests        GPU tests (TESTS="test_gpu ..." to choose; TEST_TIMEOUT seconds each, 500): kernels, P2G strategies, transfers, f64, the material check
 #                (every model on the GPU against Rust), the CPU/GPU agreement on every example
 #                scene, emitters and the keyframed paddle against the CPU (test_emitters), the CLI on the GPU
 #   validate     the validation suite at full resolution on the GPU (`rtmpm validate`)
@@ -60,7 +60,7 @@ mkdir -p target/release && cp "$D/rtmpm" target/release/rtmpm
 t() {
   local name=$1; shift
   [ -x "$D/$name" ] || { say "$name: missing"; return; }
-  timeout 500 "$D/$name" --include-ignored --test-threads 1 "$@" > "$OUT/$name.log" 2>&1
+  timeout "${TEST_TIMEOUT:-500}" "$D/$name" --include-ignored --test-threads 1 "$@" > "$OUT/$name.log" 2>&1
   say "$name rc=$?: $(grep -E '^test result' "$OUT/$name.log" | tail -1)"
   grep -E "FAILED|panicked" "$OUT/$name.log" | head -8 | tee -a "$S"
 }
