@@ -20,32 +20,6 @@
 #define G2P2G_FLUID_MIN_BLOCKS 4
 #endif
 
-// RTMPM_G2P2G_PREFETCH (compile-time, off by default): a warp loads the warp-list entry and the
-// position, mass, volume and G2P state of its next iteration's particle before this iteration's
-// work, so that their memory latency overlaps it.
-#ifndef RTMPM_G2P2G_PREFETCH
-#define RTMPM_G2P2G_PREFETCH 0
-#endif
-
-// What one lane reads of its warp-list entry and particle before the G2P.
-struct G2p2gInput {
-    unsigned g, first, count;
-    vec3 x;
-    real m, vol0;
-    G2pState st;
-};
-template <bool ALL_FLUID>
-__device__ __forceinline__ void g2p2g_load(const Ctx& c, unsigned w, unsigned lane, G2p2gInput& in) {
-    in.g = c.warps[3 * w]; in.first = c.warps[3 * w + 1]; in.count = c.warps[3 * w + 2];
-    if (lane < in.count) {
-        unsigned p = in.first + lane;
-        in.x = load_v3(c.state, c.cap, F_X, p);
-        in.m = c.state[sidx(c.cap, F_MASS, p)];
-        in.vol0 = c.state[sidx(c.cap, F_VOL0, p)];
-        in.st = g2p_load_state<ALL_FLUID>(c, p);
-    }
-}
-
 // Warps loop over the warp list (grid-stride, launched with about one wave of blocks).
 template <bool ALL_FLUID>
 __device__ __forceinline__ void g2p2g_body(const Ctx& c) {
@@ -53,31 +27,16 @@ __device__ __forceinline__ void g2p2g_body(const Ctx& c) {
     unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
     unsigned lane = threadIdx.x & 31;
     unsigned speed = 0;
-#if RTMPM_G2P2G_PREFETCH
-    G2p2gInput next;
-    if ((thread_index() >> 5) < n_warps) g2p2g_load<ALL_FLUID>(c, thread_index() >> 5, lane, next);
-#endif
     for (unsigned w = thread_index() >> 5; w < n_warps; w += stride) {
-#if RTMPM_G2P2G_PREFETCH
-        G2p2gInput in = next;
-        if (w + stride < n_warps) g2p2g_load<ALL_FLUID>(c, w + stride, lane, next);
-        unsigned g = in.g, first = in.first, count = in.count;
-#else
         unsigned g = c.warps[3 * w], first = c.warps[3 * w + 1], count = c.warps[3 * w + 2];
-#endif
         // G2P of step n; the particle's P2G quantities of step n+1 from the new state.
         bool scatter = false;
         unsigned key = P2G_KEY_NONE;
         P2gParticle q = p2g_particle_zero();
         if (lane < count) {
             unsigned p = first + lane;
-#if RTMPM_G2P2G_PREFETCH
-            real m = in.m, vol0 = in.vol0;
-            G2pResult r = g2p_particle_at<ALL_FLUID>(c, g, p, in.x, in.st);
-#else
             real m = c.state[sidx(c.cap, F_MASS, p)], vol0 = c.state[sidx(c.cap, F_VOL0, p)];
             G2pResult r = g2p_particle<ALL_FLUID>(c, g, p);
-#endif
             speed = max(speed, r.speed);
             if (!r.leave) {
                 q = p2g_particle_of<ALL_FLUID>(c, r.x, m, vol0, r.v, r.C, r.F, r.plastic, r.material);
@@ -96,10 +55,7 @@ __device__ __forceinline__ void g2p2g_body(const Ctx& c) {
     report_max_speed(c, speed);
 }
 
-// Every scene (G2P2G_MIN_BLOCKS: a register budget for experiments; 0, the default, sets none).
-#ifndef G2P2G_MIN_BLOCKS
-#define G2P2G_MIN_BLOCKS 0
-#endif
-extern "C" __global__ void __launch_bounds__(128, G2P2G_MIN_BLOCKS) g2p2g(Ctx c) { g2p2g_body<false>(c); }
+// Every scene.
+extern "C" __global__ void __launch_bounds__(128) g2p2g(Ctx c) { g2p2g_body<false>(c); }
 // Scenes whose materials are all fluids (see ALL_FLUID in g2p_particle.cuh).
 extern "C" __global__ void __launch_bounds__(128, G2P2G_FLUID_MIN_BLOCKS) g2p2g_fluid(Ctx c) { g2p2g_body<true>(c); }

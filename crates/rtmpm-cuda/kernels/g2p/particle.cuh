@@ -92,10 +92,10 @@ __device__ __forceinline__ G2pResult g2p_finish(const Ctx& c, const int* bc, uns
 
 // MLS-MPM G2P of particle p of gblock g (Hu et al. 2018): gather of v and C from the grid, then
 // g2p_finish. The new state is stored and returned.
-// The same from the particle's position and state already loaded (the fused G2P2G may load them
-// an iteration ahead).
 template <bool ALL_FLUID>
-__device__ __forceinline__ G2pResult g2p_particle_at(const Ctx& c, unsigned g, unsigned p, vec3 x, const G2pState& st) {
+__device__ __forceinline__ G2pResult g2p_particle(const Ctx& c, unsigned g, unsigned p) {
+    vec3 x = load_v3(c.state, c.cap, F_X, p);
+    G2pState st = g2p_load_state<ALL_FLUID>(c, p);
     int base[3]; real fx[3]; real wt[3][3];
     stencil_of(c, x, base, fx);
     for (int a = 0; a < 3; ++a) weights_1d(fx[a], wt[a]);
@@ -142,10 +142,4 @@ __device__ __forceinline__ G2pResult g2p_particle_at(const Ctx& c, unsigned g, u
     real dt = step_params(c).dt;
     mat3 C = B * ((real)4 * sc.inv_dx * sc.inv_dx);
     return g2p_finish<ALL_FLUID>(c, bc, p, st, x + v * dt, v, C);
-}
-template <bool ALL_FLUID>
-__device__ __forceinline__ G2pResult g2p_particle(const Ctx& c, unsigned g, unsigned p) {
-    vec3 x = load_v3(c.state, c.cap, F_X, p);
-    G2pState st = g2p_load_state<ALL_FLUID>(c, p);
-    return g2p_particle_at<ALL_FLUID>(c, g, p, x, st);
 }
