@@ -20,13 +20,17 @@ fn main() {
     if let Some(m) = args.iter().find_map(|a| a.strip_prefix("materials=0x")) {
         o.materials = u32::from_str_radix(m, 16).unwrap_or(u32::MAX);
     }
-    if let Some(code) = args.iter().find_map(|a| a.strip_prefix("layout=")) {
-        if let Some(l) = rtmpm_cuda::contract::StateLayout::ALL
-            .into_iter()
-            .find(|l| code.parse() == Ok(l.code()))
-        {
-            o.layout = l;
-        }
+    // `layout=1`: the program of a scene in that state layout (`StateLayout::code`).
+    if let Some(l) = args
+        .iter()
+        .find_map(|a| a.strip_prefix("layout="))
+        .and_then(|code| {
+            rtmpm_cuda::contract::StateLayout::ALL
+                .into_iter()
+                .find(|l| code.parse() == Ok(l.code()))
+        })
+    {
+        o.layout = l;
     }
     match rtmpm_cuda::compile::compile(&o) {
         Ok(ptx) => print!("{ptx}"),

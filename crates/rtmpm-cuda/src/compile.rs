@@ -317,15 +317,34 @@ mod tests {
         r
     }
 
+    /// True when NVRTC can be loaded; else prints why the test is skipped (CI installs NVRTC and
+    /// sets RTMPM_REQUIRE_NVRTC=1: there a missing library fails).
+    fn nvrtc_or_skip() -> bool {
+        if nvrtc_available() {
+            return true;
+        }
+        assert!(
+            std::env::var_os("RTMPM_REQUIRE_NVRTC").is_none(),
+            "RTMPM_REQUIRE_NVRTC is set but libnvrtc.so.13 cannot be loaded"
+        );
+        println!("skipped: libnvrtc.so.13 not found (pip install nvidia-cuda-nvrtc==13.0.*)");
+        false
+    }
+
+    /// Every entry point of the Kernel enum is in `ptx` (`what` names the variant).
+    fn assert_every_kernel(ptx: &str, what: &str) {
+        for k in crate::kernels::Kernel::ALL {
+            assert!(
+                ptx.contains(&format!(".entry {}(", k.name())),
+                "{what}: {} missing from PTX",
+                k.name()
+            );
+        }
+    }
+
     #[test]
     fn every_kernel_compiles_with_nvrtc_for_sm90() {
-        if !nvrtc_available() {
-            // CI installs NVRTC and sets RTMPM_REQUIRE_NVRTC=1: there a missing library fails.
-            assert!(
-                std::env::var_os("RTMPM_REQUIRE_NVRTC").is_none(),
-                "RTMPM_REQUIRE_NVRTC is set but libnvrtc.so.13 cannot be loaded"
-            );
-            println!("skipped: libnvrtc.so.13 not found (pip install nvidia-cuda-nvrtc==13.0.*)");
+        if !nvrtc_or_skip() {
             return;
         }
         use crate::contract::StateLayout;
@@ -361,6 +380,26 @@ mod tests {
         });
     }
 
+    /// The unrolled rounds of the warp reduction (`-DRTMPM_P2G_REDUCE=1`, off by default, see
+    /// `kernels/p2g/warp.cuh`) compile in f32 and f64 with every kernel, so that turning them on
+    /// is a one-line change.
+    #[test]
+    fn the_unrolled_reduction_rounds_compile() {
+        if !nvrtc_or_skip() {
+            return;
+        }
+        for f64 in [false, true] {
+            let o = KernelOptions::all_models((9, 0), true, f64);
+            let mut opts = nvrtc_options(&o);
+            opts.push("-DRTMPM_P2G_REDUCE=1".into());
+            opts.push("--Ofast-compile=max".into());
+            let ptx = program_source(f64)
+                .and_then(|src| nvrtc(&src, "rtmpm_pipeline.cu", opts))
+                .unwrap_or_else(|e| panic!("f64 {f64}: {e}"));
+            assert_every_kernel(&ptx, &format!("f64 {f64}"));
+        }
+    }
+
     /// One variant of [`every_kernel_compiles_with_nvrtc_for_sm90`]: every kernel and the
     /// constant symbols in its PTX; `optimised`: compiled as the backend does, and the device
     /// fill and the device's walk of bodies rounded op by op.
@@ -382,13 +421,7 @@ mod tests {
                 program_source(o.f64).and_then(|src| nvrtc(&src, "rtmpm_pipeline.cu", opts))
             }
             .unwrap_or_else(|e| panic!("{o:?}: {e}"));
-            for k in crate::kernels::Kernel::ALL {
-                assert!(
-                    ptx.contains(&format!(".entry {}(", k.name())),
-                    "{o:?}: {} missing from PTX",
-                    k.name()
-                );
-            }
+            assert_every_kernel(&ptx, &format!("{o:?}"));
             // Read-only parameters in constant memory, written by the host under these names.
             for sym in crate::kernels::CONSTANT_SYMBOLS {
                 assert!(
