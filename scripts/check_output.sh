@@ -46,7 +46,7 @@ python3 scripts/check_formats.py --bodies "$rig_out"
 # (The test binaries of the test stage, the README's command, filtered: `-p rtmpm-core --features
 # interop` alone resolves other features for its dependencies (bytemuck, syn: the other members
 # add some) and compiles rtmpm-core and its dependencies again, minutes on 2 cores; `--tests`,
-# not `--lib`, which would also build the test harnesses of rtmpm-f64 and rtmpm-py (test = false).)
+# not `--lib`, which would also build the test harness of rtmpm-py (test = false).)
 RTMPM_INTEROP_DIR="$PWD/$fmt_out" cargo test --quiet --workspace --all-features --tests -- io::interop_tests --nocapture
 
 # The validation suite at its quick resolutions (issue 4): a failing case fails CI.

@@ -53,9 +53,9 @@ impl std::str::FromStr for BackendKind {
 /// Every backend [`create`] can build.
 pub enum AnyBackend {
     /// The CPU reference backend in f32.
-    Cpu(rtmpm_core::cpu::CpuBackend),
+    Cpu(rtmpm_cpu::CpuBackend),
     /// The CPU backend in f64 (`precision = "f64"`).
-    CpuF64(rtmpm_f64::cpu::CpuBackend),
+    CpuF64(rtmpm_cpu_f64::CpuBackend),
     /// One GPU.
     Cuda(CudaSend),
     /// Several GPUs of this process.
@@ -194,12 +194,10 @@ fn cpu_backend(
 ) -> Result<AnyBackend, String> {
     Ok(match scene.precision {
         Precision::F32 => AnyBackend::Cpu(
-            rtmpm_core::cpu::CpuBackend::new(scene, particles, threads)
-                .map_err(|e| e.to_string())?,
+            rtmpm_cpu::CpuBackend::new(scene, particles, threads).map_err(|e| e.to_string())?,
         ),
         Precision::F64 => AnyBackend::CpuF64(
-            rtmpm_f64::cpu::CpuBackend::new(scene, particles, threads)
-                .map_err(|e| e.to_string())?,
+            rtmpm_cpu_f64::CpuBackend::new(scene, particles, threads).map_err(|e| e.to_string())?,
         ),
     })
 }

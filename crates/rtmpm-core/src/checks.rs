@@ -6,9 +6,9 @@
 //! scene and measures; the body states come from [`Backend::rigid_bodies`], so a backend that
 //! couples no bodies is caught ([`CheckError::NoBodies`]) rather than measured as if it did.
 
-use crate::Particles;
 use crate::sim::{Backend, SimError, Simulation};
 use glam::DVec3;
+use rtmpm_physics::Particles;
 
 /// Why a check could not measure.
 #[derive(Debug, thiserror::Error)]

@@ -12,10 +12,10 @@
 //! emits before each step the particles due by its end and hands them to the backend
 //! ([`Backend::add_particles`](crate::sim::Backend::add_particles)).
 
-use crate::Particles;
-use crate::material::Material;
-use crate::math::Vec3;
 use crate::scene::sampling::BodyShape;
+use rtmpm_physics::Particles;
+use rtmpm_physics::material::Material;
+use rtmpm_physics::math::Vec3;
 
 /// Most particles one emitter may emit in a run.
 pub const MAX_PARTICLES_PER_EMITTER: u64 = 50_000_000;

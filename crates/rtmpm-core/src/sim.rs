@@ -9,14 +9,12 @@ pub use crate::boundary::{Tool, ToolShape};
 pub use crate::io::chunks::{
     ChunkSink, FrameChunk, FrameColumns, HostBuffer, ParticleRow, fill_chunks, invert_ids,
 };
-use crate::math::Vec3;
-/// The particles of the backend interface: f32 whatever precision a backend computes in.
-pub use crate::particles::Particles;
-/// The health check of one particle (in `particles.rs`, compiled in each precision).
-pub use crate::particles::{MAX_CELLS_PER_STEP, check_particle};
 /// What a live view asks a backend to draw ([`Backend::render_view`]).
 pub use crate::render::ViewRequest;
 use crate::scene::{Scene, StepMode};
+/// The particles of the backend interface: f32 whatever precision a backend computes in.
+pub use rtmpm_physics::Particles;
+use rtmpm_physics::math::Vec3;
 use std::fmt;
 
 /// Why a simulation stopped.
@@ -104,6 +102,10 @@ pub struct BadParticle {
     pub index: usize,
     pub reason: BadReason,
 }
+
+/// A particle moving more than this many cells in one step is taken as a blow-up
+/// ([`BadReason::TooFast`]).
+pub const MAX_CELLS_PER_STEP: f32 = 2.0;
 
 /// What was wrong with a [`BadParticle`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

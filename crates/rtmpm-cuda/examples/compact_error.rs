@@ -8,9 +8,9 @@
 
 use rtmpm_core::Particles;
 use rtmpm_core::Scene;
-use rtmpm_core::cpu::CpuBackend;
 use rtmpm_core::math::{Mat3, Vec3};
 use rtmpm_core::sim::Backend;
+use rtmpm_cpu::CpuBackend;
 use rtmpm_cuda::state::codec;
 
 fn scene(water: bool) -> Result<Scene, Box<dyn std::error::Error>> {

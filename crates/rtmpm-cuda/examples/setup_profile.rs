@@ -134,7 +134,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     if want("cpu") {
         let t = Instant::now();
-        let b = rtmpm_core::cpu::CpuBackend::new(&scene, particles, None)?;
+        let b = rtmpm_cpu::CpuBackend::new(&scene, particles, None)?;
         phase("cpu: backend", t);
         drop(b);
     }

@@ -1,4 +1,4 @@
-// 3x3 SVD and polar decomposition: line-for-line port of crates/rtmpm-core/src/svd.rs.
+// 3x3 SVD and polar decomposition: line-for-line port of crates/rtmpm-physics/src/svd.rs.
 // 1. one-sided (Hestenes) Jacobi on the columns of B = A V (at most SVD_MAX_SWEEPS cyclic sweeps,
 //    early exit after a sweep without rotation), 2. sort columns by decreasing norm (swap + negate
 //    to keep det V = +1), 3. Givens QR of B (McAdams et al. 2011): U = Q, sigma = diag(R), the sign

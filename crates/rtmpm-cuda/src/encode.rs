@@ -1,7 +1,7 @@
 //! The scene as GPU parameters, in the kernels' precision: the structs of [`crate::contract`]
 //! filled from a [`Scene`] and returned as the bytes that are copied to the device. Each
 //! material's parameters come from its own model (`Model::gpu_params`); in f64 from the model
-//! built in f64 (rtmpm-f64) from the scene's parameters, so the GPU's f64 materials are the CPU's.
+//! built in f64 (rtmpm-physics-f64) from the scene's parameters, so the GPU's f64 materials are the CPU's.
 
 use crate::contract::{
     self, ColliderPoses, GpuCollider, GpuReal, MAX_COLLIDERS, MAX_MATERIALS, Scalars, StepParams,
@@ -66,7 +66,8 @@ pub fn materials(scene: &Scene, f64: bool) -> Result<Vec<u8>, SimError> {
         )));
     }
     let bytes = if f64 {
-        let models = rtmpm_f64::real::materials(&scene.materials)?
+        let models = rtmpm_physics_f64::real::materials(&scene.materials)
+            .map_err(SimError::Backend)?
             .iter()
             .map(|m| (m.model.code(), m.model.gpu_params()))
             .collect::<Vec<_>>();

@@ -2,9 +2,9 @@
 //! with a message otherwise):
 //! `cargo test --release -p rtmpm-cuda --test emitters -- --include-ignored --nocapture`.
 
-use rtmpm_core::cpu::CpuBackend;
 use rtmpm_core::sim::Simulation;
 use rtmpm_core::{Particles, Scene};
+use rtmpm_cpu::CpuBackend;
 use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
 use std::path::Path;
 

@@ -1,6 +1,6 @@
 //! Every material model on the GPU against its Rust twin: the kernels' own stress and return map
 //! (`kernels/material/*.cuh`, through the generated dispatch) for random deformation gradients,
-//! velocity gradients and plastic states, compared with the f64 Rust models (rtmpm-f64) on the
+//! velocity gradients and plastic states, compared with the f64 Rust models (rtmpm-physics-f64) on the
 //! same inputs; and the 3x3 SVD on hard matrices. The device code is `kernels/material_check.cu`
 //! beside this file, compiled by NVRTC against the kernel headers like the pipeline: the compile
 //! runs wherever NVRTC is (CI), the comparison on a GPU
@@ -16,7 +16,7 @@ use rand::{Rng, SeedableRng};
 use rtmpm_core::material::MaterialParams;
 use rtmpm_cuda::compile::{KernelOptions, compile_unit, nvrtc_available};
 use rtmpm_cuda::contract::{MaterialGpu, materials};
-use rtmpm_f64::material::Material;
+use rtmpm_physics_f64::material::Material;
 
 const CHECK: &str = include_str!("kernels/material_check.cu");
 
@@ -423,7 +423,7 @@ fn the_svd_on_the_gpu_reconstructs_hard_matrices() {
             let rec =
                 maxabs(um * M3::from_diagonal(sg) * vm.transpose() - a) / maxabs(a).max(1e-30);
             let orth = maxabs(um.transpose() * um - M3::IDENTITY) + (vm.determinant() - 1.0).abs();
-            let (_, rs, _) = rtmpm_f64::svd::svd3(a);
+            let (_, rs, _) = rtmpm_physics_f64::svd::svd3(a);
             let sv = (sg - rs).abs().max_element() / rs.abs().max_element().max(1e-30);
             println!(
                 "{} matrix {i}: reconstruction {rec:.2e} orthogonality {orth:.2e} singular values vs Rust {sv:.2e}",

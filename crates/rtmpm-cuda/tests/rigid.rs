@@ -5,9 +5,9 @@
 //! `cargo test --release -p rtmpm-cuda --features rigid --test rigid -- --include-ignored --nocapture`.
 #![cfg(feature = "rigid")]
 
-use rtmpm_core::cpu::CpuBackend;
 use rtmpm_core::sim::Simulation;
 use rtmpm_core::{Scene, checks};
+use rtmpm_cpu::CpuBackend;
 use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
 
 /// A 0.12 x 0.1 x 0.12 m box of density 500 dropped onto 0.2 m of water (dx = 0.02 m).

@@ -5,10 +5,10 @@
 //! between steps; a step replayed from a CUDA graph must read the new values. Every test runs
 //! with the graphs on (the default) and off, and against the CPU backend on the same scene.
 
-use rtmpm_core::cpu::CpuBackend;
 use rtmpm_core::math::Vec3;
 use rtmpm_core::sim::{Backend, Tool, ToolShape};
 use rtmpm_core::{Particles, Scene};
+use rtmpm_cpu::CpuBackend;
 use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
 
 fn gpu() -> bool {

@@ -4,7 +4,7 @@
 use super::BoundaryRule;
 use super::keyframes::Keyframes;
 use super::sdf::Shape;
-use crate::math::{Mat3, Vec3};
+use rtmpm_physics::math::{Mat3, Vec3};
 
 /// A rigid obstacle.
 ///

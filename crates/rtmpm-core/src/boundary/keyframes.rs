@@ -10,8 +10,8 @@
 //! of `q_k` and `q_{k+1}`; so the velocity the boundary rule sees is exactly the derivative of
 //! the pose the collider has.
 
-use crate::math::Vec3;
 use glam::{Mat3, Quat};
+use rtmpm_physics::math::Vec3;
 
 /// One key: at time `t` the collider's pivot is at `position` and its rest shape is turned by
 /// `rotation` about the pivot.

@@ -12,7 +12,7 @@
 //! Queries interpolate trilinearly; normals are central differences of the interpolant; outside
 //! the grid the distance to the grid box is added to the value at the nearest grid point.
 
-use crate::math::Vec3;
+use rtmpm_physics::math::Vec3;
 use std::path::Path;
 
 /// A triangle mesh (positions and vertex-index triples).

@@ -1,7 +1,7 @@
 //! Signed distance functions of collider shapes (negative inside, outward normals).
 
 use super::mesh::MeshSdf;
-use crate::math::Vec3;
+use rtmpm_physics::math::Vec3;
 use std::sync::Arc;
 
 /// Collider shape in its rest pose; negative distance inside.

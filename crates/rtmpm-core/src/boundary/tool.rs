@@ -7,7 +7,7 @@
 //! caller moves it between steps (each call gives its new centre and the velocity it moves at).
 
 use super::sdf::Shape;
-use crate::math::Vec3;
+use rtmpm_physics::math::Vec3;
 
 /// The shape of a [`Tool`], centred on [`Tool::center`].
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -30,7 +30,7 @@ use std::path::Path;
 use super::FrameFields;
 use super::atomic::write_atomic_with;
 use super::limits::{DATA_MAX_BYTES, decompressed_limit, human_bytes, read_bounded};
-use crate::Particles;
+use rtmpm_physics::Particles;
 
 /// Errors of [`read_bgeo`].
 #[derive(Debug, thiserror::Error)]

@@ -1,6 +1,6 @@
 use super::*;
 use crate::io::atomic::tests::TestDir;
-use crate::math::Vec3;
+use rtmpm_physics::math::Vec3;
 use std::fs;
 
 pub(crate) fn sample(n: usize) -> Particles {

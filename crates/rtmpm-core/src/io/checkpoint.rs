@@ -30,9 +30,9 @@ use std::path::Path;
 use super::atomic::write_atomic_with;
 use super::contents::{check_particle_values, check_particles_in_domain};
 use super::limits::{DATA_MAX_BYTES, read_bounded};
-use crate::Particles;
-use crate::math::{Mat3, Vec3};
 use crate::rigid::BodyPose;
+use rtmpm_physics::Particles;
+use rtmpm_physics::math::{Mat3, Vec3};
 
 /// Magic bytes at the start of every checkpoint.
 pub const MAGIC: [u8; 8] = *b"RTMPMCKP";

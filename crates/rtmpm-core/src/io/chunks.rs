@@ -10,10 +10,10 @@
 //! f32 (f64 state rounded to nearest, as [`crate::sim::Backend::read_particles`] rounds it); the
 //! material column holds the index as an integer.
 
-use crate::Particles;
-use crate::math::{Mat3, Vec3};
 use crate::sim::SimError;
 use rayon::prelude::*;
+use rtmpm_physics::Particles;
+use rtmpm_physics::math::{Mat3, Vec3};
 
 /// A column of a frame chunk.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -2,8 +2,8 @@
 //! written): finite numbers, positive mass and volume, material indices in range, positions
 //! inside the domain. Used for checkpoints, and meant for every reader of particle data.
 
-use crate::Particles;
-use crate::math::Vec3;
+use rtmpm_physics::Particles;
+use rtmpm_physics::math::Vec3;
 
 /// A value read from a file that cannot be simulated: which particle, which quantity, why.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]

@@ -26,8 +26,6 @@ pub mod limits;
 pub mod ply;
 pub mod points;
 pub mod stream;
-#[cfg(test)]
-mod stream_tests;
 pub mod trimesh;
 pub mod usd;
 pub mod vtk_appended;
@@ -76,7 +74,7 @@ impl FrameFields<'_> {
 /// Cauchy stress `sigma = tau / J` per particle, `[xx, yy, zz, xy, yz, xz]` (Pa), from each
 /// particle's material model (the `stress` field of output frames; the renderer's von Mises
 /// colouring).
-pub fn cauchy_stress(p: &crate::Particles, scene: &crate::Scene) -> Vec<[f32; 6]> {
+pub fn cauchy_stress(p: &rtmpm_physics::Particles, scene: &crate::Scene) -> Vec<[f32; 6]> {
     (0..p.len())
         .map(|i| {
             let model = &scene.materials[p.material[i] as usize].model;
@@ -88,10 +86,10 @@ pub fn cauchy_stress(p: &crate::Particles, scene: &crate::Scene) -> Vec<[f32; 6]
 /// The Cauchy stress of one particle of material model `model`, `[xx, yy, zz, xy, yz, xz]`
 /// (Pa), see [`cauchy_stress`].
 pub fn cauchy_stress_of(
-    model: &crate::material::Model,
-    f: crate::math::Mat3,
+    model: &rtmpm_physics::material::Model,
+    f: rtmpm_physics::math::Mat3,
     plastic: f32,
-    c: crate::math::Mat3,
+    c: rtmpm_physics::math::Mat3,
 ) -> [f32; 6] {
     let j = f.determinant();
     let s = model.kirchhoff(f, plastic, c) * (1.0 / j);
@@ -102,7 +100,7 @@ pub fn cauchy_stress_of(
 
 /// Check that every array of `p` has `p.len()` entries (a malformed particle set would otherwise
 /// produce a file that lies about its size).
-pub(crate) fn check_particles(p: &crate::Particles) -> std::io::Result<()> {
+pub(crate) fn check_particles(p: &rtmpm_physics::Particles) -> std::io::Result<()> {
     let n = p.len();
     let lens = [
         ("v", p.v.len()),

@@ -24,7 +24,7 @@ use std::path::Path;
 use super::FrameFields;
 use super::atomic::write_atomic_with;
 use super::limits::{DATA_MAX_BYTES, read_bounded};
-use crate::Particles;
+use rtmpm_physics::Particles;
 
 /// Errors of [`read_ply`].
 #[derive(Debug, thiserror::Error)]

@@ -19,7 +19,7 @@ use super::bgeo::read_bgeo;
 use super::ply::{PlyColumn, read_ply};
 use super::vtk_appended::read_any_vtu;
 use super::vtu::{VtuData, VtuValues};
-use crate::math::Vec3;
+use rtmpm_physics::math::Vec3;
 
 /// The points of a particle file.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -165,7 +165,6 @@ fn check(s: &PointSet) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::Particles;
     use crate::io::FrameFields;
     use crate::io::atomic::tests::TestDir;
     use crate::io::bgeo::tests::sample;
@@ -173,6 +172,7 @@ mod tests {
     use crate::io::ply::write_ply;
     use crate::io::vtk_appended::write_particles_vtu;
     use crate::io::vtu::write_vtu;
+    use rtmpm_physics::Particles;
     use std::fs;
 
     #[test]

@@ -10,8 +10,8 @@
 use super::atomic::AtomicFile;
 use super::bgeo::{BgeoType, symmetric_to_full};
 use super::chunks::{Column, FrameChunk, FrameColumns};
-use crate::material::Model;
 use rayon::prelude::*;
+use rtmpm_physics::material::Model;
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -163,7 +163,7 @@ pub struct StreamFile {
 const TASK: usize = 1 << 14;
 /// Particles encoded before a write (4 MB of PLY records; the tests write chunks of several
 /// blocks).
-pub(crate) const BLOCK: usize = 1 << 17;
+pub const BLOCK: usize = 1 << 17;
 
 impl StreamFile {
     /// Start the file at `path` (temporary name) for `n` particles: writes the header.

@@ -125,7 +125,7 @@ mod tests {
     use crate::io::ply::{PlyColumn, read_ply};
     use crate::io::vtk_appended::read_any_vtu;
     use crate::io::vtu::VtuValues;
-    use crate::math::Vec3;
+    use rtmpm_physics::math::Vec3;
 
     /// A tetrahedron with outward triangles and per-vertex normals.
     pub(crate) fn tetra() -> TriMesh {

@@ -18,10 +18,10 @@ use std::path::Path;
 
 use super::FrameFields;
 use super::atomic::write_atomic_with;
-use crate::Particles;
 use crate::rigid::RigidShape;
 use crate::surface::TriMesh;
 use glam::{Quat, Vec3};
+use rtmpm_physics::Particles;
 
 /// A float as USD's text format reads it (`inf`, `-inf`, `nan` for the non-finite).
 fn num(x: f32) -> String {
@@ -172,7 +172,7 @@ pub fn write_usda_frame(
     super::check_particles(p)?;
     let n = p.len();
     fields.check_len(n)?;
-    let v3 = |v: crate::math::Vec3| format!("({}, {}, {})", num(v.x), num(v.y), num(v.z));
+    let v3 = |v: rtmpm_physics::math::Vec3| format!("({}, {}, {})", num(v.x), num(v.y), num(v.z));
     write_atomic_with(path, |w| {
         header(w, "particles")?;
         writeln!(w, "def Points \"particles\"\n{{")?;
@@ -255,7 +255,7 @@ fn mesh_triangles(w: &mut dyn Write, vertices: &[Vec3], triangles: &[[u32; 3]]) 
 pub fn write_usda_mesh(path: &Path, mesh: &TriMesh) -> io::Result<()> {
     mesh.check()
         .map_err(|e| io::Error::new(io::ErrorKind::InvalidInput, format!("bad mesh: {e}")))?;
-    let v3 = |v: crate::math::Vec3| format!("({}, {}, {})", num(v.x), num(v.y), num(v.z));
+    let v3 = |v: rtmpm_physics::math::Vec3| format!("({}, {}, {})", num(v.x), num(v.y), num(v.z));
     write_atomic_with(path, |w| {
         header(w, "surface")?;
         writeln!(w, "def Mesh \"surface\"\n{{")?;
@@ -294,7 +294,7 @@ mod tests {
         let t = std::fs::read_to_string(&path).unwrap();
         assert!(t.starts_with("#usda 1.0\n"));
         assert!(t.contains("def Points \"particles\""));
-        let v3 = |v: crate::math::Vec3| format!("({}, {}, {})", v.x, v.y, v.z);
+        let v3 = |v: rtmpm_physics::math::Vec3| format!("({}, {}, {})", v.x, v.y, v.z);
         assert!(t.contains(&format!(
             "point3f[] points = [{}, {}",
             v3(p.x[0]),
@@ -370,11 +370,11 @@ mod tests {
         let d = TestDir::new("usda-mesh");
         let mut m = TriMesh {
             vertices: vec![
-                crate::math::Vec3::ZERO,
-                crate::math::Vec3::X,
-                crate::math::Vec3::Y,
+                rtmpm_physics::math::Vec3::ZERO,
+                rtmpm_physics::math::Vec3::X,
+                rtmpm_physics::math::Vec3::Y,
             ],
-            normals: vec![crate::math::Vec3::Z; 3],
+            normals: vec![rtmpm_physics::math::Vec3::Z; 3],
             triangles: vec![[0, 1, 2]],
         };
         let path = d.path("s.usda");

@@ -23,7 +23,7 @@ use super::FrameFields;
 use super::atomic::write_atomic_with;
 use super::bgeo::symmetric_to_full;
 use super::vtu::{VtuData, VtuError};
-use crate::Particles;
+use rtmpm_physics::Particles;
 
 /// Uncompressed bytes per compressed block (ParaView's default).
 const BLOCK: usize = 32 * 1024;

@@ -19,7 +19,7 @@ use base64::write::EncoderWriter;
 use super::FrameFields;
 use super::atomic::{write_atomic, write_atomic_with};
 use super::limits::{DATA_MAX_BYTES, PVD_MAX_BYTES, read_text_bounded};
-use crate::Particles;
+use rtmpm_physics::Particles;
 
 /// Errors of [`read_vtu`] and [`PvdWriter::resume`].
 #[derive(Debug, thiserror::Error)]

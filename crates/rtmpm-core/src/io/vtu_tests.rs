@@ -1,7 +1,7 @@
 use super::*;
 use crate::io::atomic::tests::TestDir;
 use crate::io::ply::write_ply;
-use crate::math::Vec3;
+use rtmpm_physics::math::Vec3;
 
 fn sample(n: usize) -> Particles {
     let mut p = Particles::default();

@@ -1,6 +1,6 @@
 //! Pinhole camera: position, target, vertical field of view; automatic framing of a box.
 
-use crate::math::Vec3;
+use rtmpm_physics::math::Vec3;
 
 /// A perspective camera looking from `position` at `target`, world `+y` up.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -9,8 +9,8 @@ use super::camera::View;
 use super::{GTexel, SHADOW_RES, ShadowMap};
 use crate::boundary::Collider;
 use crate::boundary::sdf::{Shape, box_distance};
-use crate::math::Vec3;
 use rayon::prelude::*;
+use rtmpm_physics::math::Vec3;
 
 /// G-buffer id of a collider texel (particle ids are their indices, far below).
 pub(crate) const COLLIDER_ID: u32 = u32::MAX;

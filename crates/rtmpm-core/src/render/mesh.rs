@@ -6,9 +6,9 @@
 
 use super::camera::View;
 use super::{GTexel, SHADOW_RES, ShadowMap};
-use crate::math::Vec3;
 use crate::surface::TriMesh;
 use rayon::prelude::*;
+use rtmpm_physics::math::Vec3;
 
 /// G-buffer ids of mesh texels: `MESH_ID_BASE - material` (just below the colliders' id).
 pub(crate) const MESH_ID_BASE: u32 = u32::MAX - 1;

@@ -39,10 +39,10 @@ pub use shadow::{LIGHT, SHADOW_RES, ShadowFrame};
 pub use view::{ViewRequest, particle_field};
 
 use crate::boundary::Collider;
-use crate::math::Vec3;
 use colliders::{COLLIDER_ID, PosedCollider};
 use raster::{Splat, raster};
 use rayon::prelude::*;
+use rtmpm_physics::math::Vec3;
 use shadow::ShadowMap;
 use std::fmt;
 use std::str::FromStr;

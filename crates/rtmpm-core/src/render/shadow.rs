@@ -3,8 +3,8 @@
 
 use super::raster::{Splat, raster};
 use super::{RenderInput, RenderOptions};
-use crate::math::Vec3;
 use rayon::prelude::*;
+use rtmpm_physics::math::Vec3;
 
 /// Direction towards the light (normalised where it is used).
 pub const LIGHT: Vec3 = Vec3::new(-0.45, 1.0, 0.55);

@@ -127,7 +127,7 @@ pub fn particle_field(p: &Particles, scene: &Scene, color_by: ColorBy) -> Option
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::math::Vec3;
+    use rtmpm_physics::math::Vec3;
 
     fn scene() -> Scene {
         Scene::from_toml(

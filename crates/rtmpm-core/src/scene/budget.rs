@@ -37,7 +37,7 @@ pub fn gpu_state_words(scene: &Scene) -> u64 {
     let all_fluid = scene
         .materials
         .iter()
-        .all(|m| matches!(m.model, crate::material::Model::Fluid(_)));
+        .all(|m| matches!(m.model, rtmpm_physics::material::Model::Fluid(_)));
     let compact = scene.particle_state == super::ParticleState::Compact;
     match (all_fluid, compact) {
         (true, false) => 20,
@@ -490,7 +490,7 @@ mod tests {
     #[test]
     fn bodies_drawn_on_the_device_cost_the_host_nothing() {
         let mut s = scene("fps = 10", 2, 0.12);
-        s.bodies[1].angular_velocity = crate::math::Vec3::Y;
+        s.bodies[1].angular_velocity = rtmpm_physics::math::Vec3::Y;
         let b = Budget::estimate(&s, None).for_cuda_host(Precision::F32, true);
         assert!(b.host_bytes > 0);
         assert_eq!(b.clone().with_drawn_bodies(&s).host_bytes, 0, "both drawn");

@@ -15,10 +15,10 @@ use super::pcg::PcgStream;
 use super::sampling::{self, BodyShape, SampleProgress, Sampling};
 use super::walk::{Counter, Lattice, Mode, RandomTries};
 use super::{Scene, SceneError};
-use crate::math::Vec3;
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
+use rtmpm_physics::math::Vec3;
 
 /// The walk a deferred body's positions come from.
 #[derive(Clone, Debug)]

@@ -1,10 +1,10 @@
 //! The particles of sampled bodies, written once and in parallel straight into the columns of
 //! [`Particles`] (no per-particle pushes, no copy of a body's particles into the scene's).
 
-use crate::Particles;
-use crate::math::{Mat3, Vec3};
 use rayon::iter::repeat_n;
 use rayon::prelude::*;
+use rtmpm_physics::Particles;
+use rtmpm_physics::math::{Mat3, Vec3};
 
 /// The particles of a body of a shape before they are written: positions in walk order (the
 /// chunks concatenated) and what every particle of the body shares.

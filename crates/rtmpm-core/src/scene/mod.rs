@@ -12,7 +12,6 @@ pub mod budget;
 pub mod deferred;
 pub mod error;
 mod fill;
-pub mod material;
 pub mod pcg;
 pub mod sampling;
 pub mod schema;
@@ -36,10 +35,10 @@ pub use sampling::Sampling;
 pub use spans::span_of;
 
 use crate::boundary::{Collider, Walls};
-use crate::material::Material;
-use crate::math::Vec3;
 use crate::render::ColorBy;
-use crate::transfer::SolverSettings;
+use rtmpm_physics::material::Material;
+use rtmpm_physics::math::Vec3;
+use rtmpm_physics::transfer::SolverSettings;
 use std::path::{Path, PathBuf};
 
 /// How the time step is chosen.
@@ -189,7 +188,7 @@ impl SurfaceSettings {
     }
 
     /// Positions and mean initial volume of the particles that form the surface.
-    pub fn select(&self, p: &crate::Particles) -> (Vec<Vec3>, f32) {
+    pub fn select(&self, p: &rtmpm_physics::Particles) -> (Vec<Vec3>, f32) {
         let mut vol = 0.0f64;
         let xs: Vec<Vec3> = (0..p.len())
             .filter(|&i| self.materials.contains(&p.material[i]))
@@ -397,7 +396,7 @@ impl Scene {
         let fluids: Vec<(&str, f32)> = self
             .materials
             .iter()
-            .filter(|m| matches!(m.model, crate::material::Model::Fluid(_)))
+            .filter(|m| matches!(m.model, rtmpm_physics::material::Model::Fluid(_)))
             .map(|m| (m.name.as_str(), m.density as f32))
             .collect();
         crate::rigid::resolution_warnings(&self.rigid_bodies, &fluids, self.dx)
@@ -417,7 +416,7 @@ impl Scene {
 
     /// Fill the bodies with particles (deterministic for a given seed, the same for any number of
     /// threads).
-    pub fn sample_particles(&self) -> Result<crate::Particles, SceneError> {
+    pub fn sample_particles(&self) -> Result<rtmpm_physics::Particles, SceneError> {
         self.sample_particles_with(&|_| {})
     }
 
@@ -426,7 +425,7 @@ impl Scene {
     pub fn sample_particles_with(
         &self,
         progress: &(dyn Fn(sampling::SampleProgress) + Sync),
-    ) -> Result<crate::Particles, SceneError> {
+    ) -> Result<rtmpm_physics::Particles, SceneError> {
         sampling::sample_scene_with(self, progress).map_err(|mut e| {
             // Sampling errors name the body; the scene file names where it is.
             if e.origin.is_empty()

@@ -21,15 +21,15 @@ pub use super::fill::{BodyPositions, SampledBody};
 use super::walk::{self, Counter, Mode, Walked};
 pub use super::walk::{Lattice, RandomTries};
 use super::{Scene, SceneError, fill};
-use crate::Particles;
 use crate::boundary::mesh::MeshSdf;
 use crate::boundary::sdf::{box_distance, cylinder_distance};
 use crate::io::contents::check_particle_values;
 use crate::io::points::PointSet;
-use crate::material::Material;
-use crate::math::{Mat3, Vec3};
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
+use rtmpm_physics::Particles;
+use rtmpm_physics::material::Material;
+use rtmpm_physics::math::{Mat3, Vec3};
 use std::sync::Arc;
 
 /// Geometry of a body.

@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::boundary::Condition;
-use crate::material::{Cone, Eos, Model};
+use rtmpm_physics::material::{Cone, Eos, Model};
 
 #[path = "tests_settings.rs"]
 mod settings;

@@ -174,7 +174,7 @@ fn particles_body_from_frames() {
 #[test]
 fn particles_body_errors() {
     let d = TestDir::new("scene-particles-bad");
-    let mut p = crate::Particles::default();
+    let mut p = rtmpm_physics::Particles::default();
     p.push(Vec3::splat(0.5), Vec3::ZERO, 1.0, 1e-4, 0, 0.0);
     p.push(Vec3::splat(0.99), Vec3::ZERO, 1.0, 1e-4, 0, 0.0);
     write_ply(&d.path("out.ply"), &p, &FrameFields::default()).unwrap();

@@ -4,10 +4,10 @@
 
 use super::Scene;
 use super::sampling::{self, BodyShape, Sampling, per_axis};
-use crate::Particles;
-use crate::math::{Mat3, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
+use rtmpm_physics::Particles;
+use rtmpm_physics::math::{Mat3, Vec3};
 
 /// The one-thread sampler of before (positions of body `index`, the volume of one particle).
 fn reference_positions(scene: &Scene, index: usize) -> (Vec<Vec3>, f32) {

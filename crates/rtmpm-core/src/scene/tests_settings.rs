@@ -19,7 +19,7 @@ fn settling_damping() {
 
 #[test]
 fn solver_table_defaults_and_values() {
-    use crate::transfer::{SolverSettings, Transfer, Update};
+    use rtmpm_physics::transfer::{SolverSettings, Transfer, Update};
     // No [solver]: MLS-MPM/APIC, exactly today's behaviour.
     assert_eq!(parse(BASE).unwrap().solver, SolverSettings::default());
     let with = |t: &str| parse(&format!("{BASE}[solver]\n{t}\n"));

@@ -1,12 +1,12 @@
 //! Validation: raw serde structs -> [`Scene`], with field paths, positions and hints.
 
-use super::material::backticked;
 use super::sampling;
 use super::schema::*;
 use super::spans::{is_table, line_col, path_at, path_by_text, span_in_doc};
 use super::{Damping, Scene, SceneError, StepMode, TimeSettings};
-use crate::material::{Material, MaterialParams};
-use crate::math::Vec3;
+use rtmpm_physics::material::table::backticked;
+use rtmpm_physics::material::{Material, MaterialParams};
+use rtmpm_physics::math::Vec3;
 use std::path::{Path, PathBuf};
 
 type R<T> = Result<T, SceneError>;

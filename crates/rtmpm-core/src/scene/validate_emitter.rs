@@ -3,8 +3,8 @@
 use super::super::schema::*;
 use super::{R, V, fmt3};
 use crate::emitter::{Emitter, MAX_PARTICLES_PER_EMITTER};
-use crate::material::Material;
-use crate::math::Vec3;
+use rtmpm_physics::material::Material;
+use rtmpm_physics::math::Vec3;
 use std::path::Path;
 
 /// The scene-wide settings an emitter is checked against.

@@ -6,8 +6,8 @@ use super::super::schema::*;
 use super::super::{MeshFormats, OutputSettings, SurfaceSettings};
 use super::{R, V};
 use crate::io::points::read_points;
-use crate::material::{Material, Model};
-use crate::math::Vec3;
+use rtmpm_physics::material::{Material, Model};
+use rtmpm_physics::math::Vec3;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 

@@ -2,8 +2,8 @@
 
 use super::super::schema::*;
 use super::{R, V, fmt3};
-use crate::math::Vec3;
 use crate::rigid::{JointKind, JointSpec, RigidBodySpec, RigidKind};
+use rtmpm_physics::math::Vec3;
 
 impl V<'_> {
     /// `joint[i]`: `body` (and `to`, absent for the world) name existing rigid bodies by index

@@ -3,8 +3,8 @@
 use super::super::schema::*;
 use super::{R, V, fmt3};
 use crate::boundary::{Keyframe, Keyframes};
-use crate::math::Vec3;
 use glam::Quat;
+use rtmpm_physics::math::Vec3;
 
 impl V<'_> {
     /// `collider[i].keyframes`: at least one key, finite values, strictly increasing times,

@@ -5,9 +5,9 @@ use super::super::schema::*;
 use super::MESH_MARGIN;
 use super::{R, V, fmt3};
 use crate::boundary::mesh::TriMesh;
-use crate::math::Vec3;
 use crate::rigid::{JointSpec, RigidBodySpec, RigidKind, RigidMesh, RigidShape};
 use glam::Quat;
+use rtmpm_physics::math::Vec3;
 use std::path::Path;
 use std::sync::Arc;
 

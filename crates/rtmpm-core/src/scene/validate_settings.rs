@@ -4,9 +4,9 @@ use super::super::RenderSettings;
 use super::super::schema::*;
 use super::{R, V};
 use crate::boundary::{BoundaryRule, Condition, Walls};
-use crate::math::Vec3;
 use crate::render::ColorBy;
-use crate::transfer::{SolverSettings, Transfer, Update};
+use rtmpm_physics::math::Vec3;
+use rtmpm_physics::transfer::{SolverSettings, Transfer, Update};
 
 impl V<'_> {
     /// `[solver]`: defaults to MLS-MPM/APIC; `update` and `flip` only apply to the classic MPM

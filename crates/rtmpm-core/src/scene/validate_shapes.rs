@@ -8,8 +8,8 @@ use super::{MESH_MARGIN, R, V, fmt3};
 use crate::boundary::mesh::MeshSdf;
 use crate::boundary::sdf::Shape;
 use crate::boundary::{BoundaryRule, Collider};
-use crate::material::Material;
-use crate::math::Vec3;
+use rtmpm_physics::material::Material;
+use rtmpm_physics::math::Vec3;
 use std::path::Path;
 use std::sync::Arc;
 

@@ -13,10 +13,10 @@
 //!   the accepted points are concatenated in try order and the walk stops at the `count`-th.
 
 use super::sampling::BodyShape;
-use crate::math::Vec3;
 use rand::Rng;
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
+use rtmpm_physics::math::Vec3;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Lattice points a chunk of the lattice walk aims at (whole rows: at least one row); small in

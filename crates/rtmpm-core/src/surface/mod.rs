@@ -14,7 +14,7 @@ mod reconstruct;
 #[cfg(feature = "surface")]
 pub use reconstruct::reconstruct;
 
-use crate::math::Vec3;
+use rtmpm_physics::math::Vec3;
 
 /// True when this build can reconstruct surfaces (cargo feature `surface`).
 pub const AVAILABLE: bool = cfg!(feature = "surface");

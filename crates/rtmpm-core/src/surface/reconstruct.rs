@@ -1,7 +1,7 @@
 //! The reconstruction itself, through `splashsurf_lib` (cargo feature `surface`).
 
 use super::{SurfaceParams, TriMesh};
-use crate::math::Vec3;
+use rtmpm_physics::math::Vec3;
 use splashsurf_lib::mesh::Mesh3d;
 use splashsurf_lib::nalgebra::Vector3;
 use splashsurf_lib::{Parameters, postprocessing, reconstruct_surface};

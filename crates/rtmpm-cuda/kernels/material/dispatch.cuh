@@ -1,4 +1,4 @@
-// The materials of the kernels: every model of rtmpm-core's registry (crates/rtmpm-core/src/material),
+// The materials of the kernels: every model of rtmpm-physics's registry (crates/rtmpm-physics/src/material),
 // one file per model (material/<name>.cuh, a port of material/<name>.rs, formula by formula), with
 // the uniform interface
 //   <name>_kirchhoff(const <Name>Params& p, const mat3& f, real plastic, const mat3& c)  tau = P F^T

@@ -1,4 +1,4 @@
-// Drucker-Prager sand (Klar et al. 2016): port of crates/rtmpm-core/src/material/drucker_prager.rs.
+// Drucker-Prager sand (Klar et al. 2016): port of crates/rtmpm-physics/src/material/drucker_prager.rs.
 // alpha: the cone slope, from the model's one formula on the host (DruckerPrager::alpha).
 #pragma once
 #include "hencky.cuh"

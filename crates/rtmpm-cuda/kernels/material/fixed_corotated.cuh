@@ -1,4 +1,4 @@
-// FixedCorotated (Stomakhin et al. 2012): port of crates/rtmpm-core/src/material/fixed_corotated.rs.
+// FixedCorotated (Stomakhin et al. 2012): port of crates/rtmpm-physics/src/material/fixed_corotated.rs.
 #pragma once
 #include "../svd.cuh"
 

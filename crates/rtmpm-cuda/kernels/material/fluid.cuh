@@ -1,4 +1,4 @@
-// Weakly compressible fluid tracking only J = det F: port of crates/rtmpm-core/src/material/fluid.rs.
+// Weakly compressible fluid tracking only J = det F: port of crates/rtmpm-physics/src/material/fluid.rs.
 #pragma once
 #include "../math.cuh"
 

@@ -1,5 +1,5 @@
 // Hencky (logarithmic) strain: the St.Venant-Kirchhoff stress of the log-strain models and the one
-// return mapping they share (port of crates/rtmpm-core/src/material/hencky.rs; Klar et al. 2016,
+// return mapping they share (port of crates/rtmpm-physics/src/material/hencky.rs; Klar et al. 2016,
 // "Drucker-Prager elastoplasticity for sand animation", section 7.3).
 #pragma once
 #include "../svd.cuh"

@@ -1,4 +1,4 @@
-// Herschel-Bulkley viscoplastic fluid: port of crates/rtmpm-core/src/material/herschel_bulkley.rs
+// Herschel-Bulkley viscoplastic fluid: port of crates/rtmpm-physics/src/material/herschel_bulkley.rs
 // (the elastic-viscoplastic scheme of Yue et al. 2015 on the principal Hencky strain; the volume
 // as a weakly compressible fluid).
 #pragma once

@@ -1,4 +1,4 @@
-// Non-associated Cam-clay (Wolper et al. 2019, CD-MPM): port of crates/rtmpm-core/src/material/nacc.rs.
+// Non-associated Cam-clay (Wolper et al. 2019, CD-MPM): port of crates/rtmpm-physics/src/material/nacc.rs.
 // The plastic scalar is alpha, the log plastic volume change; p0 = kappa sinh(xi max(-alpha, 0)).
 #pragma once
 #include "hencky.cuh"

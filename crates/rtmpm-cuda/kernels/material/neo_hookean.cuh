@@ -1,4 +1,4 @@
-// Compressible NeoHookean: port of crates/rtmpm-core/src/material/neo_hookean.rs.
+// Compressible NeoHookean: port of crates/rtmpm-physics/src/material/neo_hookean.rs.
 #pragma once
 #include "../math.cuh"
 

@@ -1,4 +1,4 @@
-// Snow (Stomakhin et al. 2013): port of crates/rtmpm-core/src/material/snow.rs.
+// Snow (Stomakhin et al. 2013): port of crates/rtmpm-physics/src/material/snow.rs.
 #pragma once
 #include "fixed_corotated.cuh"
 

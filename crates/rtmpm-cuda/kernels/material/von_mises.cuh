@@ -1,5 +1,5 @@
 // von Mises (J2) with Hencky strain, radial return (Simo & Hughes box 3.1): port of
-// crates/rtmpm-core/src/material/von_mises.rs. Plastic scalar: equivalent plastic strain.
+// crates/rtmpm-physics/src/material/von_mises.rs. Plastic scalar: equivalent plastic strain.
 #pragma once
 #include "hencky.cuh"
 

@@ -1,0 +1,187 @@
+//! Stage 4: grid to particle (APIC, Jiang et al. 2015; MLS-MPM), deformation gradient update,
+//! plastic return mapping, advection and health check.
+
+use super::CpuBackend;
+use physics::math::{Mat3, Real, Vec3, outer};
+use physics::real;
+use physics::shape_function::{Stencil, flip_blend, inv_d};
+use rayon::prelude::*;
+use rtmpm_core::sim::{BadParticle, BadReason, MAX_CELLS_PER_STEP};
+
+/// Gather velocities back to the particles and advance them. Returns the largest particle speed
+/// and the bad particle of lowest original index, if any (by original index: the same whatever
+/// the storage order).
+pub fn g2p(b: &mut CpuBackend, dt: Real) -> (Real, Option<BadParticle>) {
+    let c = &b.consts;
+    let (layout, grid, bases, ids) = (&b.layout, &b.grid, &b.bases, &b.ids);
+    let inv_d = inv_d(c.dx);
+    let p = &mut b.particles;
+    let materials = &p.material;
+    p.x.par_iter_mut()
+        .zip(p.v.par_iter_mut())
+        .zip(p.c.par_iter_mut())
+        .zip(p.f.par_iter_mut())
+        .zip(p.plastic.par_iter_mut())
+        .enumerate()
+        .map(|(pi, ((((x, v), cp), f), plastic))| {
+            let s = Stencil::with_base((*x - c.origin) * c.inv_dx, bases[pi]);
+            let nodes = layout.stencil_nodes(layout.gblock_of(pi), s.base);
+            // v = sum w v_i and B = sum w v_i (i, j, k)^T, accumulated axis by axis; then
+            // C = D^-1 dx (B - v fx^T) = D^-1 sum w v_i (x_i - x_p)^T (APIC, Jiang et al. 2015).
+            let mut new_v = Vec3::ZERO;
+            let (mut b0, mut b1, mut b2) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
+            for i in 0..3 {
+                let (mut sum_i, mut b1_i, mut b2_i) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
+                for j in 0..3 {
+                    let wij = s.w[0][i] * s.w[1][j];
+                    let mut sum_j = Vec3::ZERO;
+                    let mut b2_j = Vec3::ZERO;
+                    for k in 0..3 {
+                        let n = grid[nodes[i * 9 + j * 3 + k] as usize];
+                        let wv = (wij * s.w[2][k]) * Vec3::new(n[1], n[2], n[3]);
+                        sum_j += wv;
+                        b2_j += k as Real * wv;
+                    }
+                    sum_i += sum_j;
+                    b1_i += j as Real * sum_j;
+                    b2_i += b2_j;
+                }
+                new_v += sum_i;
+                b0 += i as Real * sum_i;
+                b1 += b1_i;
+                b2 += b2_i;
+            }
+            let mut new_c = (Mat3::from_cols(b0, b1, b2) - outer(new_v, s.fx)) * c.dx;
+            new_c *= inv_d;
+            *v = new_v;
+            *cp = new_c;
+            *x = (*x + dt * new_v).clamp(c.domain_min, c.domain_max);
+            // F^{n+1} = (I + dt C) F^n, then the plastic return mapping.
+            let model = &c.materials[materials[pi] as usize].model;
+            *f = model.project((Mat3::IDENTITY + new_c * dt) * *f, plastic, dt);
+            let bad = check_particle(*x, new_v, dt, c.dx).map(|reason| BadParticle {
+                index: ids[pi] as usize,
+                reason,
+            });
+            let speed = if new_v.is_finite() {
+                new_v.length()
+            } else {
+                0.0
+            };
+            (speed, bad)
+        })
+        .reduce(|| (0.0, None), worst)
+}
+
+/// Health check of one particle after a step: a non-finite position or velocity, or a move of
+/// more than [`MAX_CELLS_PER_STEP`] cells in the step.
+#[inline]
+fn check_particle(x: Vec3, v: Vec3, dt: Real, dx: Real) -> Option<BadReason> {
+    if !(x.is_finite() && v.is_finite()) {
+        Some(BadReason::NonFinite)
+    } else if v.length() * dt > real::real(MAX_CELLS_PER_STEP) * dx {
+        Some(BadReason::TooFast)
+    } else {
+        None
+    }
+}
+
+/// Combine the (max speed, lowest-index bad particle) of two ranges of particles.
+fn worst(
+    (s1, b1): (Real, Option<BadParticle>),
+    (s2, b2): (Real, Option<BadParticle>),
+) -> (Real, Option<BadParticle>) {
+    let bad = match (b1, b2) {
+        (Some(a), Some(b)) => Some(if a.index <= b.index { a } else { b }),
+        (a, b) => a.or(b),
+    };
+    (s1.max(s2), bad)
+}
+
+/// G2P of the classic MPM transfers (uGIMP, linear hats). The grid holds `v_i` (after the
+/// update) and `grid_aux` `v_i_old` (USL) or the MUSL re-mapped velocities. Positions move with
+/// `v_PIC = sum_i w_ip v_i`; the velocity gradient `L_p = sum_i v_i (x) grad w_ip` (of the
+/// re-mapped velocities with MUSL) updates `F = (I + dt L) F` and is kept in the particle's `C`.
+/// With USL the particle velocity is the PIC/FLIP blend; with MUSL [`g2p_mpm_velocity`] has
+/// already set it.
+pub fn g2p_mpm(b: &mut CpuBackend, dt: Real, musl: bool) -> (Real, Option<BadParticle>) {
+    let c = &b.consts;
+    let (layout, grid, aux, bases) = (&b.layout, &b.grid, &b.grid_aux, &b.bases);
+    let (transfer, alpha) = (c.solver.transfer, real::real(c.solver.flip));
+    let ids = &b.ids;
+    let p = &mut b.particles;
+    let materials = &p.material;
+    p.x.par_iter_mut()
+        .zip(p.v.par_iter_mut())
+        .zip(p.c.par_iter_mut())
+        .zip(p.f.par_iter_mut())
+        .zip(p.plastic.par_iter_mut())
+        .enumerate()
+        .map(|(pi, ((((x, v), cp), f), plastic))| {
+            let s = Stencil::for_transfer(transfer, (*x - c.origin) * c.inv_dx, bases[pi]);
+            let nodes = layout.stencil_nodes(layout.gblock_of(pi), s.base);
+            let (mut v_pic, mut dv, mut l) = (Vec3::ZERO, Vec3::ZERO, Mat3::ZERO);
+            for i in 0..3 {
+                for j in 0..3 {
+                    for k in 0..3 {
+                        let idx = nodes[i * 9 + j * 3 + k] as usize;
+                        let n = grid[idx];
+                        let vi = Vec3::new(n[1], n[2], n[3]);
+                        let w = s.weight(i, j, k);
+                        v_pic += w * vi;
+                        let grad = s.grad(i, j, k) * c.inv_dx;
+                        if musl {
+                            l += outer(aux[idx], grad);
+                        } else {
+                            dv += w * (vi - aux[idx]);
+                            l += outer(vi, grad);
+                        }
+                    }
+                }
+            }
+            if !musl {
+                *v = flip_blend(alpha, *v, v_pic, dv);
+            }
+            *cp = l;
+            *x = (*x + dt * v_pic).clamp(c.domain_min, c.domain_max);
+            let model = &c.materials[materials[pi] as usize].model;
+            *f = model.project((Mat3::IDENTITY + l * dt) * *f, plastic, dt);
+            let bad = check_particle(*x, *v, dt, c.dx).map(|reason| BadParticle {
+                index: ids[pi] as usize,
+                reason,
+            });
+            let speed = if v.is_finite() { v.length() } else { 0.0 };
+            (speed, bad)
+        })
+        .reduce(|| (0.0, None), worst)
+}
+
+/// MUSL, first pass: the PIC/FLIP blend of the particle velocities only (positions and `F` wait
+/// for the re-map, [`g2p_mpm`] with `musl`).
+pub fn g2p_mpm_velocity(b: &mut CpuBackend) {
+    let c = &b.consts;
+    let (layout, grid, aux, bases) = (&b.layout, &b.grid, &b.grid_aux, &b.bases);
+    let (transfer, alpha) = (c.solver.transfer, real::real(c.solver.flip));
+    let p = &mut b.particles;
+    p.v.par_iter_mut()
+        .zip(p.x.par_iter())
+        .enumerate()
+        .for_each(|(pi, (v, x))| {
+            let s = Stencil::for_transfer(transfer, (*x - c.origin) * c.inv_dx, bases[pi]);
+            let nodes = layout.stencil_nodes(layout.gblock_of(pi), s.base);
+            let (mut v_pic, mut dv) = (Vec3::ZERO, Vec3::ZERO);
+            for i in 0..3 {
+                for j in 0..3 {
+                    for k in 0..3 {
+                        let idx = nodes[i * 9 + j * 3 + k] as usize;
+                        let n = grid[idx];
+                        let vi = Vec3::new(n[1], n[2], n[3]);
+                        let w = s.weight(i, j, k);
+                        v_pic += w * vi;
+                        dv += w * (vi - aux[idx]);
+                    }
+                }
+            }
+            *v = flip_blend(alpha, *v, v_pic, dv);
+        });
+}
