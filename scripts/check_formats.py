@@ -138,7 +138,7 @@ def same_surfaces(a, b):
 
 
 def prim_name(name, fallback, used):
-    """The USD writer's prim name for a body (rtmpm_core::io::usd::prim_name)."""
+    """The USD writer's prim name for a body (rtmpm_io::usd::prim_name)."""
     n = "".join(c if c.isascii() and c.isalnum() else "_" for c in name)
     if n[:1].isdigit():
         n = "_" + n

@@ -43,11 +43,11 @@ rig_out=target/ci-out-rigid
 rm -rf "$rig_out"
 rtmpm run crates/rtmpm/tests/data/rigid_shapes.toml --backend cpu --frames 2 --out "$rig_out"
 python3 scripts/check_formats.py --bodies "$rig_out"
-# (The test binaries of the test stage, the README's command, filtered: `-p rtmpm-core --features
+# (The test binaries of the test stage, the README's command, filtered: `-p rtmpm-io --features
 # interop` alone resolves other features for its dependencies (bytemuck, syn: the other members
-# add some) and compiles rtmpm-core and its dependencies again, minutes on 2 cores; `--tests`,
+# add some) and compiles rtmpm-io and its dependencies again, minutes on 2 cores; `--tests`,
 # not `--lib`, which would also build the test harness of rtmpm-py (test = false).)
-RTMPM_INTEROP_DIR="$PWD/$fmt_out" cargo test --quiet --workspace --all-features --tests -- io::interop_tests --nocapture
+RTMPM_INTEROP_DIR="$PWD/$fmt_out" cargo test --quiet --workspace --all-features --tests -- interop_tests --nocapture
 
 # The validation suite at its quick resolutions (issue 4): a failing case fails CI.
 # The quick cases; colliding_disks runs with the reference's transfer (linear-hat MPM, MUSL, FLIP;

@@ -3,9 +3,9 @@
 # install it, run the pytest suite (crates/rtmpm-py/tests; the GPU tests skip without a GPU) and
 # two examples. The wheel is built with the dev profile at opt-level 3 and line tables only, the
 # settings of the test profile (Cargo.toml), and with the features `rigid` and `interop`, which
-# give rtmpm-core and rtmpm-cuda the test stage's --all-features: the crates `cargo test` built are
-# reused (only the bindings, pyo3 and numpy compile; with the default features rtmpm-core and
-# rtmpm-cuda compiled again too, about a minute on 2 cores), and the wheel runs rigid bodies,
+# give rtmpm-rigid, rtmpm-io and rtmpm-cuda the test stage's --all-features: the crates `cargo test` built are
+# reused (only the bindings, pyo3 and numpy compile; with the default features those
+# crates compiled again too, about a minute on 2 cores), and the wheel runs rigid bodies,
 # which the pytest suite then checks.
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -11,7 +11,7 @@
 # libfuzzer-sys targets (`cargo fuzz run scene` works on nightly too) built here with those flags;
 # debug assertions and overflow checks are on, and libFuzzer's -malloc_limit_mb turns any huge
 # allocation into a failure, -timeout any hang. A failure prints the input and exits 1: add the
-# input as a regression test (see crates/rtmpm-core/tests/fuzz_regressions.rs).
+# input as a regression test (see crates/rtmpm-scene/tests/fuzz_regressions.rs).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 secs="${1:-15}"

@@ -7,8 +7,8 @@
 //! the domain.
 #![no_main]
 use libfuzzer_sys::fuzz_target;
-use rtmpm_core::io::checkpoint::{Checkpoint, Fnv1a64, MAGIC, VERSION};
-use rtmpm_core::Scene;
+use rtmpm_io::checkpoint::{Checkpoint, Fnv1a64, MAGIC, VERSION};
+use rtmpm_scene::Scene;
 use std::sync::OnceLock;
 
 fn scene() -> &'static Scene {
@@ -57,7 +57,7 @@ fuzz_target!(|data: &[u8]| {
         return;
     };
     assert!(ck.time.is_finite() && ck.time >= 0.0);
-    if ck.check_scene(scene()).is_ok() {
+    if scene().check_checkpoint(&ck).is_ok() {
         let p = &ck.particles;
         for i in 0..p.len() {
             assert!(p.mass[i] > 0.0 && p.vol0[i] > 0.0 && p.x[i].is_finite());

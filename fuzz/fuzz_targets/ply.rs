@@ -4,7 +4,7 @@
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    if let Ok(d) = rtmpm_core::io::ply::parse_ply(data) {
+    if let Ok(d) = rtmpm_io::ply::parse_ply(data) {
         for (_, c) in &d.columns {
             assert_eq!(c.len(), d.count);
         }

@@ -2,8 +2,7 @@
 //! a hang or a huge allocation; a valid scene's budget is computed.
 #![no_main]
 use libfuzzer_sys::fuzz_target;
-use rtmpm_core::Scene;
-use rtmpm_core::scene::Budget;
+use rtmpm_scene::{Scene, Budget};
 
 fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {

@@ -6,12 +6,12 @@
 //! `Box<dyn Backend>`, so that a caller can reach the backend's own methods (the CUDA backend's
 //! device pointers, the CPU backend's state setters) and move it across threads (it is `Send`).
 
-use rtmpm_core::io::limits::human_bytes;
-use rtmpm_core::scene::Precision;
-use rtmpm_core::scene::sampling::{self, SampledBody};
-use rtmpm_core::sim::{Backend, BadParticle, SimError};
-use rtmpm_core::{Particles, Scene};
 use rtmpm_cuda::CudaOptions;
+use rtmpm_io::limits::human_bytes;
+use rtmpm_physics::Particles;
+use rtmpm_scene::sampling::SampledBody;
+use rtmpm_scene::{Precision, Scene, sampling};
+use rtmpm_sim::{Backend, BadParticle, SimError};
 
 /// Which backend to run on.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -148,7 +148,7 @@ pub fn create(
     }
 }
 
-/// [`create`] from sampled bodies ([`rtmpm_core::scene::sampling::sample_bodies`]): one GPU
+/// [`create`] from sampled bodies ([`rtmpm_scene::sampling::sample_bodies`]): one GPU
 /// packs them straight from their positions, so the host never holds the particles (about 129
 /// instead of 254 bytes a particle at the host's peak); the CPU, several GPUs, and an `auto` that
 /// falls back to the CPU get the particles written from them (those of `scene.sample_particles()`).
@@ -221,9 +221,9 @@ fn cuda_backend_with(
     make: impl FnOnce() -> Result<rtmpm_cuda::CudaBackend, SimError>,
 ) -> Result<AnyBackend, String> {
     let info = rtmpm_cuda::probe().map_err(|e| e.to_string())?;
-    // The budget's device estimate (rtmpm_core::scene::budget) against the GPU's memory,
+    // The budget's device estimate (rtmpm_scene::budget) against the GPU's memory,
     // before anything is allocated: a clear error with the sizes.
-    let need = rtmpm_core::scene::Budget::estimate(scene, Some(1)).gpu_bytes;
+    let need = rtmpm_scene::Budget::estimate(scene, Some(1)).gpu_bytes;
     let emitted = scene.emitters.iter().map(|e| e.total()).sum::<u64>();
     let have = info.memory as u64;
     if need > have {
@@ -297,10 +297,13 @@ impl Backend for AnyBackend {
     fn read_particles(&mut self, out: &mut Particles) -> Result<(), SimError> {
         self.as_dyn().read_particles(out)
     }
-    fn export_frame(&mut self, sink: &mut dyn rtmpm_core::sim::ChunkSink) -> Result<(), SimError> {
+    fn export_frame(&mut self, sink: &mut dyn rtmpm_sim::ChunkSink) -> Result<(), SimError> {
         self.as_dyn().export_frame(sink)
     }
-    fn chunk_memory(&self, words: usize) -> Result<Box<dyn rtmpm_core::sim::HostBuffer>, SimError> {
+    fn chunk_memory(
+        &self,
+        words: usize,
+    ) -> Result<Box<dyn rtmpm_io::chunks::HostBuffer>, SimError> {
         self.as_dyn_ref().chunk_memory(words)
     }
     fn cheap_check(&self) -> bool {
@@ -318,29 +321,29 @@ impl Backend for AnyBackend {
     fn add_particles(&mut self, particles: &Particles) -> Result<(), SimError> {
         self.as_dyn().add_particles(particles)
     }
-    fn rigid_bodies(&self) -> Vec<rtmpm_core::rigid::BodyState> {
+    fn rigid_bodies(&self) -> Vec<rtmpm_rigid::BodyState> {
         self.as_dyn_ref().rigid_bodies()
     }
-    fn rigid_poses(&self) -> Vec<rtmpm_core::rigid::BodyPose> {
+    fn rigid_poses(&self) -> Vec<rtmpm_rigid::BodyPose> {
         self.as_dyn_ref().rigid_poses()
     }
     fn flush_rigid(&mut self) -> Result<(), SimError> {
         self.as_dyn().flush_rigid()
     }
-    fn set_rigid_poses(&mut self, poses: &[rtmpm_core::rigid::BodyPose]) -> Result<(), SimError> {
+    fn set_rigid_poses(&mut self, poses: &[rtmpm_rigid::BodyPose]) -> Result<(), SimError> {
         self.as_dyn().set_rigid_poses(poses)
     }
     fn render_view(
         &mut self,
-        req: &rtmpm_core::sim::ViewRequest,
-        out: &mut rtmpm_core::render::Image,
+        req: &rtmpm_render::ViewRequest,
+        out: &mut rtmpm_render::Image,
     ) -> Result<bool, SimError> {
         self.as_dyn().render_view(req, out)
     }
-    fn set_gravity(&mut self, gravity: rtmpm_core::math::Vec3) -> Result<(), SimError> {
+    fn set_gravity(&mut self, gravity: rtmpm_physics::math::Vec3) -> Result<(), SimError> {
         self.as_dyn().set_gravity(gravity)
     }
-    fn set_tool(&mut self, tool: Option<rtmpm_core::sim::Tool>) -> Result<(), SimError> {
+    fn set_tool(&mut self, tool: Option<rtmpm_geometry::Tool>) -> Result<(), SimError> {
         self.as_dyn().set_tool(tool)
     }
 }
@@ -358,7 +361,8 @@ mod tests {
 
     #[test]
     fn steering_reaches_the_cpu_backend_inside() {
-        use rtmpm_core::sim::{Simulation, Tool, ToolShape};
+        use rtmpm_driver::Simulation;
+        use rtmpm_geometry::{Tool, ToolShape};
         let scene = Scene::from_toml(
             "[domain]\nmin = [0,0,0]\nmax = [1,1,1]\ndx = 0.1\n[time]\nduration = 0.1\n\
              [[material]]\nname = \"w\"\ntype = \"fluid\"\ndensity = 1000.0\nbulk_modulus = 1e4\n\
@@ -374,10 +378,10 @@ mod tests {
         };
         let c = create(&req, &scene, p).unwrap();
         let mut sim = Simulation::with_backend(scene.clone(), Box::new(c.backend));
-        let g = rtmpm_core::math::Vec3::new(0.0, 0.0, -3.0);
+        let g = rtmpm_physics::math::Vec3::new(0.0, 0.0, -3.0);
         sim.set_gravity(g).unwrap();
         assert_eq!(sim.scene.gravity, g);
-        assert!(sim.set_gravity(rtmpm_core::math::Vec3::NAN).is_err());
+        assert!(sim.set_gravity(rtmpm_physics::math::Vec3::NAN).is_err());
         assert_eq!(sim.scene.gravity, g, "a refused gravity changes nothing");
         let AnyBackend::Cpu(cpu) = sim.backend.as_ref() else {
             panic!("a CPU backend");
@@ -385,8 +389,8 @@ mod tests {
         assert_eq!(cpu.consts.gravity, g);
         let tool = Tool {
             shape: ToolShape::Sphere { radius: 0.1 },
-            center: rtmpm_core::math::Vec3::splat(0.5),
-            velocity: rtmpm_core::math::Vec3::X,
+            center: rtmpm_physics::math::Vec3::splat(0.5),
+            velocity: rtmpm_physics::math::Vec3::X,
         };
         sim.backend.set_tool(Some(tool)).unwrap();
         let AnyBackend::Cpu(cpu) = sim.backend.as_ref() else {
@@ -394,8 +398,8 @@ mod tests {
         };
         assert_eq!(cpu.consts.tool, Some(tool));
         // The CPU backend does not draw: the caller uses the CPU renderer.
-        let req = rtmpm_core::sim::ViewRequest::framing(&scene, 32, 32, 0.01);
-        let mut img = rtmpm_core::render::Image::new(1, 1, [0; 3]);
+        let req = rtmpm_render::ViewRequest::framing(&scene, 32, 32, 0.01);
+        let mut img = rtmpm_render::Image::new(1, 1, [0; 3]);
         assert!(!sim.backend.render_view(&req, &mut img).unwrap());
     }
 

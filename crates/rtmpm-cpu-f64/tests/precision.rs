@@ -1,9 +1,8 @@
 //! Double vs single precision on the CPU: the f64 backend computes the same physics as the f32
 //! one (agreement within f32 rounding), and its state really is f64 (free fall exact to 1e-12).
 
-use rtmpm_core::Scene;
-use rtmpm_core::scene::Precision;
-use rtmpm_core::sim::Backend;
+use rtmpm_scene::{Precision, Scene};
+use rtmpm_sim::Backend;
 
 /// A small elastic block thrown up and sideways in a 1 m box: `vy0` up, 0.5 m/s along x.
 fn scene(extra: &str) -> Scene {
@@ -113,8 +112,8 @@ fn f64_agrees_with_f32() {
         b32.step(1e-3, n as f32 * 1e-3).expect("step");
     }
     let (mut a, mut b) = (
-        rtmpm_core::Particles::default(),
-        rtmpm_core::Particles::default(),
+        rtmpm_physics::Particles::default(),
+        rtmpm_physics::Particles::default(),
     );
     b64.read_particles(&mut a).expect("read");
     b32.read_particles(&mut b).expect("read");

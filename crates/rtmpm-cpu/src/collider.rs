@@ -12,12 +12,12 @@ pub struct Collider {
     /// The rule, in this precision.
     pub rule: BoundaryRule,
     /// The scene's collider.
-    pub geometry: rtmpm_core::boundary::Collider,
+    pub geometry: rtmpm_geometry::Collider,
 }
 
 impl Collider {
     /// The scene's collider `c`.
-    pub fn new(c: &rtmpm_core::boundary::Collider) -> Collider {
+    pub fn new(c: &rtmpm_geometry::Collider) -> Collider {
         Collider {
             rule: real::rule(&c.rule),
             geometry: c.clone(),
@@ -25,7 +25,7 @@ impl Collider {
     }
 
     /// At time `t`, if `x` is inside the collider, the outward unit normal and the collider's
-    /// velocity at `x` (see `rtmpm_core::boundary::Collider::query`). The node position goes in
+    /// velocity at `x` (see `rtmpm_geometry::Collider::query`). The node position goes in
     /// rounded to f32; in f64 the normal comes back renormalised.
     #[inline]
     pub fn query(&self, x: Vec3, t: f32) -> Option<(Vec3, Vec3)> {

@@ -6,7 +6,7 @@ use physics::math::{Mat3, Real, Vec3, outer};
 use physics::real;
 use physics::shape_function::{Stencil, flip_blend, inv_d};
 use rayon::prelude::*;
-use rtmpm_core::sim::{BadParticle, BadReason, MAX_CELLS_PER_STEP};
+use rtmpm_sim::{BadParticle, BadReason, MAX_CELLS_PER_STEP};
 
 /// Gather velocities back to the particles and advance them. Returns the largest particle speed
 /// and the bad particle of lowest original index, if any (by original index: the same whatever

@@ -7,7 +7,7 @@ use physics::math::{IVec3, Real, ToReal, Vec3};
 use physics::real;
 use physics::transfer::Transfer;
 use rayon::prelude::*;
-use rtmpm_core::rigid::{BodyState, Exchange};
+use rtmpm_rigid::{BodyState, Exchange};
 
 /// Grid index of node `cell` of the block at `corner` (inverse of cell_code: `(i1 i0 j1 j0 k1 k0)`).
 #[inline]
@@ -42,7 +42,7 @@ fn boundary(c: &StepConstants, idx: IVec3, mut v: Vec3, t: f32) -> Vec3 {
 }
 
 /// The rigid bodies' boundary rule on node velocity `v` (mass `m`, world position `xw`), and
-/// the reaction on each body added to `acc` (see [`rtmpm_core::rigid`]: the boundary-rule form of
+/// the reaction on each body added to `acc` (see [`rtmpm_rigid`]: the boundary-rule form of
 /// the CPIC coupling of Hu et al. 2018). Geometry in f32, as the colliders'.
 #[inline]
 fn couple(

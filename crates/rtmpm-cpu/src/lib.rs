@@ -32,15 +32,15 @@ mod tests;
 mod tests_steer;
 
 pub use collider::Collider;
-use physics::Particles;
 use physics::boundary::Walls;
 use physics::grid::BlockLayout;
 use physics::material::Material;
 use physics::math::{IVec3, Real, Vec3};
-use physics::real;
 use physics::transfer::{SolverSettings, Transfer, Update};
-use rtmpm_core::scene::Scene;
-use rtmpm_core::sim::{self, Backend, BadParticle, SimError};
+use physics::{Particles, real};
+use rtmpm_scene::Scene;
+use rtmpm_sim as sim;
+use rtmpm_sim::{Backend, BadParticle, SimError};
 
 /// Grid nodes of padding below the domain's min corner (one block), so indices stay non-negative.
 pub const GRID_PAD: i32 = 4;
@@ -61,10 +61,10 @@ pub struct StepConstants {
     pub gravity: Vec3,
     pub walls: Walls,
     /// Settling damping of the grid velocities.
-    pub damping: rtmpm_core::scene::Damping,
+    pub damping: rtmpm_scene::Damping,
     pub colliders: Vec<Collider>,
     /// The user's tool of a live view ([`Backend::set_tool`]), after the colliders.
-    pub tool: Option<sim::Tool>,
+    pub tool: Option<rtmpm_geometry::Tool>,
     pub materials: Vec<Material>,
     /// Particle-grid transfer (`[solver]`).
     pub solver: SolverSettings,
@@ -134,7 +134,7 @@ pub struct CpuBackend {
     max_speed: Real,
     bad: Option<BadParticle>,
     /// The rigid bodies coupled to the grid (`[[rigid_body]]`), if any.
-    pub rigid: Option<rtmpm_core::rigid::RigidWorld>,
+    pub rigid: Option<rtmpm_rigid::RigidWorld>,
 }
 
 impl CpuBackend {
@@ -153,12 +153,13 @@ impl CpuBackend {
                     .into(),
             ));
         }
-        b.rigid = rtmpm_core::rigid::RigidWorld::new(
+        b.rigid = rtmpm_rigid::RigidWorld::new(
             &scene.rigid_bodies,
             &scene.joints,
             scene.gravity,
             scene.interior(),
-        )?;
+        )
+        .map_err(SimError::Backend)?;
         Ok(b)
     }
 
@@ -258,7 +259,7 @@ impl CpuBackend {
 
     /// Give the rigid bodies the step's impulses and advance them by `dt` (their new pose is
     /// the next step's boundary).
-    fn advance_bodies(&mut self, exchange: &[rtmpm_core::rigid::Exchange], dt: Real) {
+    fn advance_bodies(&mut self, exchange: &[rtmpm_rigid::Exchange], dt: Real) {
         if let Some(w) = self.rigid.as_mut() {
             w.advance(exchange, real::to_f32(dt));
         }
@@ -373,7 +374,7 @@ impl Backend for CpuBackend {
         let p = &self.particles;
         sim::fill_chunks(slot.len(), sink, |id, cols| {
             let i = slot[id] as usize;
-            let mut r = sim::ParticleRow {
+            let mut r = rtmpm_io::chunks::ParticleRow {
                 x: real::vec3_to_f32(p.x[i]).to_array(),
                 ..Default::default()
             };
@@ -432,19 +433,19 @@ impl Backend for CpuBackend {
         Some((bytes as u64, 0))
     }
 
-    fn rigid_bodies(&self) -> Vec<rtmpm_core::rigid::BodyState> {
+    fn rigid_bodies(&self) -> Vec<rtmpm_rigid::BodyState> {
         self.rigid
             .as_ref()
             .map_or_else(Vec::new, |w| w.states().to_vec())
     }
 
-    fn rigid_poses(&self) -> Vec<rtmpm_core::rigid::BodyPose> {
+    fn rigid_poses(&self) -> Vec<rtmpm_rigid::BodyPose> {
         self.rigid.as_ref().map_or_else(Vec::new, |w| w.poses())
     }
 
-    fn set_rigid_poses(&mut self, poses: &[rtmpm_core::rigid::BodyPose]) -> Result<(), SimError> {
+    fn set_rigid_poses(&mut self, poses: &[rtmpm_rigid::BodyPose]) -> Result<(), SimError> {
         match self.rigid.as_mut() {
-            Some(w) => w.set_poses(poses),
+            Some(w) => w.set_poses(poses).map_err(SimError::Backend),
             None if poses.is_empty() => Ok(()),
             None => Err(SimError::Backend(format!(
                 "{} rigid-body states for a scene without rigid bodies",
@@ -486,7 +487,7 @@ impl Backend for CpuBackend {
         Ok(())
     }
 
-    fn set_tool(&mut self, tool: Option<sim::Tool>) -> Result<(), SimError> {
+    fn set_tool(&mut self, tool: Option<rtmpm_geometry::Tool>) -> Result<(), SimError> {
         if let Some(t) = &tool {
             t.check().map_err(SimError::Backend)?;
         }

@@ -5,7 +5,7 @@ use physics::boundary::{BoundaryRule, Condition};
 use physics::material::{FixedCorotated, Model};
 use physics::math::Mat3;
 use physics::transfer::{SolverSettings, Transfer, Update};
-use rtmpm_core::sim::Backend;
+use rtmpm_sim::Backend;
 
 pub(super) fn consts(materials: Vec<Material>, walls: u32, gravity: Vec3) -> StepConstants {
     let dx = 1.0 / 32.0;

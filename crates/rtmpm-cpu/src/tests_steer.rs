@@ -2,7 +2,8 @@
 
 use super::tests::{block, consts, jelly, read};
 use super::*;
-use rtmpm_core::sim::{Backend, Tool, ToolShape};
+use rtmpm_geometry::{Tool, ToolShape};
+use rtmpm_sim::Backend;
 
 fn sand() -> Material {
     Material::parse(

@@ -1,9 +1,9 @@
 //! Emitters in the CPU backend: the emitted mass after t equals rate x t within one particle,
 //! the particles appear with the emitter's velocity and material, and bad emitters are refused.
 
-use rtmpm_core::Scene;
-use rtmpm_core::sim::Simulation;
 use rtmpm_cpu::CpuBackend;
+use rtmpm_driver::Simulation;
+use rtmpm_scene::Scene;
 
 /// The scene of `rtmpm validate --case emitter_mass`.
 const FOUNTAIN: &str = include_str!("../../../validation/emitter_mass.toml");
@@ -18,12 +18,12 @@ fn simulation(text: &str) -> Simulation {
 #[test]
 fn emitted_mass_is_rate_times_time_within_one_particle() {
     let mut sim = simulation(FOUNTAIN);
-    let mut p = rtmpm_core::Particles::default();
+    let mut p = physics::Particles::default();
     sim.backend.read_particles(&mut p).expect("read");
     let body = p.len();
     let em = sim.scene.emitters[0].clone();
     // The sand's own mass stays; the water's mass grows as rate (t - start) while emitting.
-    let e = rtmpm_core::checks::emission(&mut sim).expect("stable");
+    let e = rtmpm_driver::checks::emission(&mut sim).expect("stable");
     println!("{e:?}");
     assert!(e.worst_particles <= 1.0 + 1e-6, "{e:?}");
     assert!((e.expected - 900.0).abs() < 1e-9, "{e:?}");

@@ -1,46 +1,15 @@
-//! The streamed frame writer (`rtmpm_core::io::stream`) against the whole-frame writers: the
+//! The streamed frame writer (`rtmpm_io::stream`) against the whole-frame writers: the
 //! same bytes, from the CPU backend's export and from particles on the host.
 
-use rtmpm_core::Scene;
-use rtmpm_core::io::FrameFields;
-use rtmpm_core::io::chunks::{ChunkSink, FrameChunk, FrameColumns, export_particles};
-use rtmpm_core::io::stream::{Derived, FrameFiles, StreamFormat};
-use rtmpm_core::sim::{Backend, Particles, SimError};
 use rtmpm_cpu::CpuBackend;
+use rtmpm_io::FrameFields;
+use rtmpm_io::chunks::{FrameChunk, FrameColumns};
+use rtmpm_io::stream::{Derived, FrameFiles, StreamFormat};
+use rtmpm_io::testing::TestDir;
+use rtmpm_scene::Scene;
+use rtmpm_sim::{Backend, ChunkSink, Particles, SimError, export_particles};
 use std::fs;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicU64, Ordering};
-
-/// A fresh, empty temporary folder for one test (removed on drop).
-struct TestDir(PathBuf);
-
-impl TestDir {
-    fn new(tag: &str) -> Self {
-        static COUNTER: AtomicU64 = AtomicU64::new(0);
-        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-        let dir = std::env::temp_dir().join(format!(
-            "rtmpm-cpu-test-{}-{}-{}",
-            tag,
-            std::process::id(),
-            n
-        ));
-        let _ = fs::remove_dir_all(&dir);
-        fs::create_dir_all(&dir).unwrap();
-        TestDir(dir)
-    }
-
-    fn path(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-}
-
-impl Drop for TestDir {
-    fn drop(&mut self) {
-        if std::env::var_os("RTMPM_KEEP_TEST_FILES").is_none() {
-            let _ = fs::remove_dir_all(&self.0);
-        }
-    }
-}
 
 /// Collects the chunks in memory, `cap` particles each.
 struct VecSink {
@@ -149,7 +118,7 @@ fn compare(
 ) {
     let stress = derived
         .stress
-        .then(|| rtmpm_core::io::cauchy_stress(p, scene));
+        .then(|| physics::material::cauchy_stress(p, &scene.materials));
     let jac = derived
         .jacobian
         .then(|| p.f.iter().map(|f| f.determinant()).collect::<Vec<f32>>());
@@ -168,15 +137,10 @@ fn compare(
     }
     ff.finish().expect("finish");
     let reference = |ext: &str| d.path(&format!("{tag}_ref.{ext}"));
-    rtmpm_core::io::ply::write_ply_with_comments(
-        &reference("ply"),
-        p,
-        &fields,
-        &["rtmpm-run test 1234"],
-    )
-    .expect("ply");
-    rtmpm_core::io::bgeo::write_bgeo(&reference("bgeo"), p, &fields, false).expect("bgeo");
-    rtmpm_core::io::bgeo::write_bgeo(&reference("bgeo.gz"), p, &fields, true).expect("bgeo.gz");
+    rtmpm_io::ply::write_ply_with_comments(&reference("ply"), p, &fields, &["rtmpm-run test 1234"])
+        .expect("ply");
+    rtmpm_io::bgeo::write_bgeo(&reference("bgeo"), p, &fields, false).expect("bgeo");
+    rtmpm_io::bgeo::write_bgeo(&reference("bgeo.gz"), p, &fields, true).expect("bgeo.gz");
     for (path, _) in &files {
         let ext = path
             .to_string_lossy()
@@ -298,7 +262,7 @@ fn chunks_of_several_encoder_blocks_are_byte_identical() {
     let d = TestDir::new("stream-blocks");
     let (scene, _) = stepped_backend();
     let n = 300_001;
-    assert!(200_000 > rtmpm_core::io::stream::BLOCK && n - 200_000 < rtmpm_core::io::stream::BLOCK);
+    assert!(200_000 > rtmpm_io::stream::BLOCK && n - 200_000 < rtmpm_io::stream::BLOCK);
     let mut p = Particles::default();
     for i in 0..n {
         let f = i as f32;

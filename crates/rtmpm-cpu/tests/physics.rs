@@ -1,8 +1,8 @@
 //! Whole-pipeline physics checks through the public API: scene text -> particles -> CPU steps.
 
-use rtmpm_core::Scene;
-use rtmpm_core::sim::Simulation;
 use rtmpm_cpu::CpuBackend;
+use rtmpm_driver::Simulation;
+use rtmpm_scene::Scene;
 
 /// An elastic column (E = 1 MPa, nu = 0, as cb-geo's hydrostatic column) in a slab with slip walls
 /// settles under gravity (settling damping: resting on the floor's wall plane, nothing else damps
@@ -46,7 +46,7 @@ sampling = "regular"
     for _ in 0..sim.scene.time.frames() {
         sim.advance_frame().expect("stable");
     }
-    let mut p = rtmpm_core::Particles::default();
+    let mut p = physics::Particles::default();
     sim.backend.read_particles(&mut p).expect("read");
     let model = &sim.scene.materials[0].model;
     let top = p.x.iter().map(|x| x.y).fold(f32::MIN, f32::max);
@@ -100,7 +100,7 @@ sampling = "regular"
 }
 
 /// Angular momentum `sum m (x - c) x v` of the particles about their centre of mass.
-fn angular_momentum(p: &rtmpm_core::Particles) -> [f64; 3] {
+fn angular_momentum(p: &physics::Particles) -> [f64; 3] {
     let c = p.center_of_mass();
     let mut l = [0.0f64; 3];
     for i in 0..p.len() {
@@ -150,14 +150,14 @@ sampling = "regular"
     let r = glam::Vec3::new(0.3, -0.7, 1.1);
     let w = glam::Vec3::new(1.0, 2.0, -3.0);
     assert!((p0.c[0] * r - w.cross(r)).length() < 1e-6);
-    let relative_loss = |p_start: rtmpm_core::Particles, steps: usize| -> f64 {
+    let relative_loss = |p_start: physics::Particles, steps: usize| -> f64 {
         let l0 = angular_momentum(&p_start);
         let mut b = CpuBackend::new(&scene, p_start, Some(1)).expect("backend");
-        use rtmpm_core::sim::Backend;
+        use rtmpm_sim::Backend;
         for s in 0..steps {
             b.step(1e-3, s as f32 * 1e-3).expect("step");
         }
-        let mut p = rtmpm_core::Particles::default();
+        let mut p = physics::Particles::default();
         b.read_particles(&mut p).expect("read");
         let l1 = angular_momentum(&p);
         let d =
@@ -212,7 +212,7 @@ velocity = [1e6, 0.0, 0.0]
     let t = std::time::Instant::now();
     let err = sim.advance_frame().expect_err("must stop");
     assert!(t.elapsed().as_secs_f64() < 5.0);
-    let rtmpm_core::sim::SimError::Stall(b) = &err else {
+    let rtmpm_sim::SimError::Stall(b) = &err else {
         panic!("{err}")
     };
     assert!((b.velocity.x - 1e6).abs() < 1.0, "{err}");
@@ -229,9 +229,6 @@ velocity = [1e6, 0.0, 0.0]
     let mut sim = Simulation::new(slow, Box::new(backend));
     // One step: the particles leave the domain at that speed; only the stall matters here.
     let r = sim.advance(1);
-    assert!(
-        !matches!(r, Err(rtmpm_core::sim::SimError::Stall(_))),
-        "{r:?}"
-    );
+    assert!(!matches!(r, Err(rtmpm_sim::SimError::Stall(_))), "{r:?}");
     assert_eq!(sim.step, 1);
 }

@@ -1,12 +1,11 @@
 //! Rigid bodies coupled two ways to the material on the CPU backend (cargo feature `rigid`):
 //! the checks of issue 17 at the quick resolution of `rtmpm validate`, on the same scenes
-//! (`validation/*.toml`) and measurements (`rtmpm_core::checks`).
+//! (`validation/*.toml`) and measurements (`rtmpm_driver::checks`).
 #![cfg(feature = "rigid")]
 
-use rtmpm_core::Scene;
-use rtmpm_core::checks;
-use rtmpm_core::sim::Simulation;
 use rtmpm_cpu::CpuBackend;
+use rtmpm_driver::{Simulation, checks};
+use rtmpm_scene::Scene;
 
 const ARCHIMEDES: &str = include_str!("../../../validation/archimedes.toml");
 const SINKING: &str = include_str!("../../../validation/sinking.toml");
@@ -155,18 +154,14 @@ fn resume_against_straight(
     text: &str,
     first: u64,
     then: u64,
-) -> (
-    Vec<rtmpm_core::rigid::BodyPose>,
-    Vec<rtmpm_core::rigid::BodyPose>,
-    bool,
-) {
-    use rtmpm_core::io::checkpoint::Checkpoint;
-    use rtmpm_core::sim::Backend;
+) -> (Vec<rtmpm_rigid::BodyPose>, Vec<rtmpm_rigid::BodyPose>, bool) {
+    use rtmpm_io::checkpoint::Checkpoint;
+    use rtmpm_sim::Backend;
     let mut straight = simulation(text);
     for _ in 0..first {
         straight.advance_frame().expect("stable");
     }
-    let mut p = rtmpm_core::Particles::default();
+    let mut p = physics::Particles::default();
     straight.backend.read_particles(&mut p).expect("read");
     let ck = Checkpoint {
         scene_toml: text.into(),
@@ -185,7 +180,9 @@ fn resume_against_straight(
     std::fs::remove_file(&path).ok();
     assert_eq!(back, ck);
     let scene = Scene::from_toml(&back.scene_toml, "test").expect("scene");
-    back.check_scene(&scene).expect("checkpoint fits its scene");
+    scene
+        .check_checkpoint(&back)
+        .expect("checkpoint fits its scene");
     let backend = CpuBackend::new(&scene, back.particles, None).expect("backend");
     let mut resumed = Simulation::<CpuBackend>::with_backend(scene, Box::new(backend));
     resumed.time = back.time;
@@ -200,10 +197,7 @@ fn resume_against_straight(
         straight.advance_frame().expect("stable");
         resumed.advance_frame().expect("stable");
     }
-    let (mut a, mut b) = (
-        rtmpm_core::Particles::default(),
-        rtmpm_core::Particles::default(),
-    );
+    let (mut a, mut b) = (physics::Particles::default(), physics::Particles::default());
     straight.backend.read_particles(&mut a).expect("read");
     resumed.backend.read_particles(&mut b).expect("read");
     let same = a.x == b.x && a.v == b.v && a.f == b.f;
@@ -302,7 +296,7 @@ fn a_convex_mesh_body_has_the_analytic_mass_and_inertia_of_its_box() {
             spec.position
         );
         let rigid_mesh = match &spec.shape {
-            rtmpm_core::rigid::RigidShape::Mesh(m) => m.clone(),
+            rtmpm_geometry::RigidShape::Mesh(m) => m.clone(),
             s => panic!("not a mesh: {s:?}"),
         };
         let i = rigid_mesh.unit_inertia * (spec.mass / rigid_mesh.volume);
@@ -390,7 +384,7 @@ fn a_heavy_non_convex_mesh_body_sinks_to_the_floor() {
         1,
     );
     let mut sim = simulation(&text);
-    let rtmpm_core::rigid::RigidShape::Mesh(m) = sim.scene.rigid_bodies[0].shape.clone() else {
+    let rtmpm_geometry::RigidShape::Mesh(m) = sim.scene.rigid_bodies[0].shape.clone() else {
         panic!("a mesh body")
     };
     assert!(!m.convex);

@@ -6,12 +6,12 @@
 //!
 //! `cargo run -p rtmpm-cuda --example compact_error -- [steps]`
 
-use rtmpm_core::Particles;
-use rtmpm_core::Scene;
-use rtmpm_core::math::{Mat3, Vec3};
-use rtmpm_core::sim::Backend;
 use rtmpm_cpu::CpuBackend;
 use rtmpm_cuda::state::codec;
+use rtmpm_physics::Particles;
+use rtmpm_physics::math::{Mat3, Vec3};
+use rtmpm_scene::Scene;
+use rtmpm_sim::Backend;
 
 fn scene(water: bool) -> Result<Scene, Box<dyn std::error::Error>> {
     let material = if water {

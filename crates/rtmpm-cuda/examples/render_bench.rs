@@ -13,10 +13,10 @@
 //! The last line sums it up: picture time as a share of the frame's compute (target: at most
 //! 10 %) and the frame time with the viewer on against off.
 
-use rtmpm_core::Scene;
-use rtmpm_core::render::{Camera, ColorBy, Image, RenderOptions, colormap, estimate_radius};
-use rtmpm_core::sim::Simulation;
 use rtmpm_cuda::{CudaBackend, CudaOptions};
+use rtmpm_driver::Simulation;
+use rtmpm_render::{Camera, Image, RenderOptions, colormap, estimate_radius};
+use rtmpm_scene::{ColorBy, Scene};
 use std::time::Instant;
 
 struct Args {

@@ -13,8 +13,8 @@
 //! `cargo run --release -p rtmpm-cuda --example setup_profile -- SCENE.toml [cpu|cuda|lean|device]`
 //! (cpu and cuda by default; `RAYON_NUM_THREADS` sets the threads).
 
-use rtmpm_core::Scene;
-use rtmpm_core::grid::BlockLayout;
+use rtmpm_physics::grid::BlockLayout;
+use rtmpm_scene::Scene;
 use std::time::Instant;
 
 /// Resident memory now and at its peak (MB), from `/proc/self/status`.
@@ -54,7 +54,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let state_layout = rtmpm_cuda::state::layout_for(&scene, &rtmpm_cuda::CudaOptions::default())?;
     if want("device") {
         let t = Instant::now();
-        let bodies = rtmpm_core::scene::sampling::sample_bodies(&scene, &|_| {})?;
+        let bodies = rtmpm_scene::sampling::sample_bodies(&scene, &|_| {})?;
         phase("device: sample bodies", t);
         let n: usize = bodies.iter().map(|b| b.len()).sum();
         let t = Instant::now();
@@ -78,7 +78,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let most = pieces.iter().map(|p| p.len).max().unwrap_or(0);
         let mut buf = vec![0f32; 3 * most];
         for p in &pieces {
-            if let rtmpm_core::scene::sampling::SampledBody::Shape(b) = &bodies[p.body] {
+            if let rtmpm_scene::sampling::SampledBody::Shape(b) = &bodies[p.body] {
                 rtmpm_cuda::setup::fill::gather(b, p.offset, p.len, &mut buf);
             }
         }
@@ -98,7 +98,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     if want("lean") {
         let t = Instant::now();
-        let bodies = rtmpm_core::scene::sampling::sample_bodies(&scene, &|_| {})?;
+        let bodies = rtmpm_scene::sampling::sample_bodies(&scene, &|_| {})?;
         phase("lean: sample bodies", t);
         let n: usize = bodies.iter().map(|b| b.len()).sum();
         let t = Instant::now();

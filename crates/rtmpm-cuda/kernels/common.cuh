@@ -52,7 +52,7 @@ struct ColliderPoses {
     float omega[RTMPM_MAX_COLLIDERS][3];     // angular velocity at t (world frame)
 };
 
-// A rigid body at the step's time (rtmpm_core::rigid::BodyState; constant memory: body_at(c, b)):
+// A rigid body at the step's time (rtmpm_rigid::BodyState; constant memory: body_at(c, b)):
 // its shape about the centre of mass as a collider shape (pivot 0) with its boundary rule.
 struct GpuBody {
     GpuCollider shape;
@@ -161,7 +161,7 @@ __device__ __forceinline__ unsigned compact3(unsigned long long c) {
     x = (x | (x >> 32)) & 0x7ffffull;
     return (unsigned)x;
 }
-// Block code as rtmpm_core::grid::codes::block_code.
+// Block code as rtmpm_physics::grid::codes::block_code.
 __device__ __forceinline__ unsigned long long block_code(int bi, int bj, int bk) {
     return (spread3((unsigned)bi) << 2) | (spread3((unsigned)bj) << 1) | spread3((unsigned)bk);
 }
@@ -215,13 +215,13 @@ __device__ __forceinline__ void stencil_of(const Ctx& c, vec3 x, int base[3], re
 // Stencil of a particle for the active transfer: base node, fractional offset, per-axis weights
 // w[axis][node] and derivatives d[axis][node] (d w / d fx). Weight of node (i, j, k):
 // w[0][i] w[1][j] w[2][k]; its gradient: shape_grad(w, d, i, j, k) * inv_dx. The per-(particle,
-// node) interface every P2G/G2P variant can use (rtmpm_core::shape::Stencil::for_transfer).
+// node) interface every P2G/G2P variant can use (rtmpm_physics::shape_function::Stencil::for_transfer).
 __device__ __forceinline__ void particle_stencil(const Ctx& c, vec3 x, int base[3], real fx[3], real w[3][3], real d[3][3]) {
     stencil_of(c, x, base, fx);
     for (int a = 0; a < 3; ++a) shape_1d(c.transfer, fx[a], w[a], d[a]);
 }
 
-// Node addressing of one particle's 3x3x3 stencil, split per axis once (rtmpm_core's
+// Node addressing of one particle's 3x3x3 stencil, split per axis once (rtmpm_physics's
 // BlockLayout::stencil_nodes): node (i, j, k) lives at
 // neighbors[27 g + slot[0][i] + slot[1][j] + slot[2][k]] * 64 + (cell[0][i] | cell[1][j] | cell[2][k]).
 struct StencilIdx { int slot[3][3]; unsigned cell[3][3]; };

@@ -2,7 +2,7 @@
 #include "common.cuh"
 #include "sdf.cuh"
 
-// rtmpm_core::boundary::BoundaryRule::apply, literally. cond: COND_*.
+// rtmpm_physics::boundary::BoundaryRule::apply, literally. cond: COND_*.
 __device__ __forceinline__ vec3 rule_apply(unsigned cond, real friction, vec3 v, vec3 n) {
     real vn = dot(v, n);
     if (cond == COND_STICKY) return make_v3(0, 0, 0);
@@ -48,7 +48,7 @@ __device__ vec3 node_boundary(const Ctx& c, unsigned t, vec3 v) {
     unsigned id = t >> 6, cell = t & 63u;
     int gi[3] = {c.block_coords[3 * id] * 4 + (int)(cell >> 4), c.block_coords[3 * id + 1] * 4 + (int)((cell >> 2) & 3u),
                  c.block_coords[3 * id + 2] * 4 + (int)(cell & 3u)};
-    // Walls (rtmpm_core::boundary::Walls::apply): index counted from the domain min = gi - 4.
+    // Walls (rtmpm_physics::boundary::Walls::apply): index counted from the domain min = gi - 4.
     for (int a = 0; a < 3; ++a) {
         int i = gi[a] - 4;
         vec3 n = make_v3(0, 0, 0);
@@ -60,7 +60,7 @@ __device__ vec3 node_boundary(const Ctx& c, unsigned t, vec3 v) {
             v = rule_apply(c.wall_cond[2 * a + 1], sc.wall_friction[2 * a + 1], v, n);
         }
     }
-    // Colliders (rtmpm_core::boundary::Collider::query): v = vc + rule(v - vc, n), then the
+    // Colliders (rtmpm_geometry::Collider::query): v = vc + rule(v - vc, n), then the
     // user's tool, the same way.
     const GpuTool& tool = tool_at(c);
     if (c.n_colliders || tool.active) {
@@ -85,7 +85,7 @@ __device__ vec3 node_boundary(const Ctx& c, unsigned t, vec3 v) {
     return v;
 }
 
-// Rigid bodies (rtmpm_core::rigid; cpu/grid_update.rs: couple): a node inside a body takes the
+// Rigid bodies (rtmpm_rigid; cpu/grid_update.rs: couple): a node inside a body takes the
 // body's velocity by its boundary rule, and the momentum the rule takes from the node, less the
 // gravity the node received this step, goes to the body as impulse and angular impulse about its
 // centre (the boundary-condition form of the CPIC coupling of Hu et al., "A Moving Least Squares

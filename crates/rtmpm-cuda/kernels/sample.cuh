@@ -1,9 +1,9 @@
 // The walk of a deferred body, drawn on the device (host side: src/setup/sample/mod.rs): the positions the
-// host's walk finds (rtmpm-core/src/scene/walk.rs, `Lattice::rows`), in the same order, bit for
+// host's walk finds (rtmpm-scene/src/walk.rs, `Lattice::rows`), in the same order, bit for
 // bit. Row r of the body's sub-cell lattice is (j, k) = (j0 + r % ny, k0 + r / ny); its points
 // are i = i0 .. i0 + nx, at origin + (i + 1/2, j + 1/2, k + 1/2) h, each moved (jittered
 // sampling) by (u - 1/2) h with three draws u of the body's PCG 128/64 stream (O'Neill 2014;
-// rtmpm-core/src/scene/pcg.rs), which a row starts 3 r nx draws in (Brown's jump, 1994); a point
+// rtmpm-scene/src/pcg.rs), which a row starts 3 r nx draws in (Brown's jump, 1994); a point
 // is kept when it is inside the shape. Every f32 operation is rounded on its own as on the host
 // (never contracted into an fma, no flush to zero), so that --use_fast_math changes nothing.
 // This header compiles for the CPU too (scripts/check_sample_twin.sh, the unit test
@@ -175,7 +175,7 @@ SP_FN float sp_sphere_d2(const float* c, const float* x) {
     return sp_dot(d, d);
 }
 
-// rtmpm-core/src/boundary/sdf.rs, cylinder_distance: centre c[0..3], unit axis c[3..6], radius
+// rtmpm-geometry/src/sdf.rs, cylinder_distance: centre c[0..3], unit axis c[3..6], radius
 // c[6], half height c[7].
 SP_FN float sp_cylinder_distance(const float* c, const float* x) {
     float q[3] = {sp_sub(x[0], c[0]), sp_sub(x[1], c[1]), sp_sub(x[2], c[2])};
@@ -187,7 +187,7 @@ SP_FN float sp_cylinder_distance(const float* c, const float* x) {
     return sp_add(sp_sqrt(sp_add(sp_mul(ox, ox), sp_mul(oy, oy))), sp_min(sp_max(dr, dh), 0.0f));
 }
 
-// rtmpm-core/src/boundary/mesh.rs, MeshSdf::distance: trilinear in the grid (origin g[0..3],
+// rtmpm-geometry/src/mesh/mod.rs, MeshSdf::distance: trilinear in the grid (origin g[0..3],
 // spacing g[3], dims d), outside it the distance to the grid box plus the nearest value.
 SP_FN float sp_mesh_distance(const float* g, const unsigned* d, const float* values, const float* x) {
     float clamped[3], off[3], base_f[3], frac[3];
@@ -226,7 +226,7 @@ SP_FN float sp_mesh_distance(const float* g, const unsigned* d, const float* val
     return sp_add(v, outside);
 }
 
-// BodyShape::contains (rtmpm-core/src/scene/sampling.rs): a box or sphere includes its surface;
+// BodyShape::contains (rtmpm-scene/src/sampling.rs): a box or sphere includes its surface;
 // a cylinder keeps cylinder_distance <= 0, a mesh its signed distance < 0.
 SP_FN bool sp_inside(const SpRecipe& R, const float* x) {
     const float* p = R.p;
@@ -244,7 +244,7 @@ SP_FN bool sp_inside(const SpRecipe& R, const float* x) {
 }
 
 // The points of row r inside the shape, in order: emit(x) for each. Random tries
-// (rtmpm-core/src/scene/walk.rs, `RandomTries`): try t draws u (three f32 from 3 t draws in) and
+// (rtmpm-scene/src/walk.rs, `RandomTries`): try t draws u (three f32 from 3 t draws in) and
 // tries x = lo + u (hi - lo).
 template <class Emit>
 SP_FN void sp_row(const SpRecipe& R, sp_u64 r, Emit emit) {

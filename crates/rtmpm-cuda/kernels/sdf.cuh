@@ -1,4 +1,4 @@
-// Signed distances and outward normals of the collider shapes (rtmpm_core::boundary::sdf::Shape,
+// Signed distances and outward normals of the collider shapes (rtmpm_geometry::sdf::Shape,
 // in the rest pose), read by the grid update (colliders, rigid bodies, the user's tool) and by the
 // render stage (render/objects.cu), which sphere-traces them.
 #pragma once
@@ -44,7 +44,7 @@ __device__ real mesh_distance(const Ctx& c, const GpuCollider& col, vec3 x) {
     return v + sqrt(out2);
 }
 
-// Signed distance (negative inside) of the rest-pose shape (rtmpm_core::boundary::sdf::Shape).
+// Signed distance (negative inside) of the rest-pose shape (rtmpm_geometry::sdf::Shape).
 __device__ real shape_distance(const Ctx& c, const GpuCollider& col, vec3 x) {
     const float* p = col.p;
     switch (col.kind) {

@@ -1,4 +1,4 @@
-// Shape functions of the transfers: the mirror of rtmpm_core::shape (and transfer::flip_blend),
+// Shape functions of the transfers: the mirror of rtmpm_physics::shape_function (and transfer::flip_blend),
 // formula by formula. Quadratic B-splines (MLS-MPM), uGIMP with particle half-size dx/4
 // (Bardenhagen & Kober 2004) and linear hats (Sulsky et al. 1994); every one is a tensor product
 // of 1D weights over the same 3x3x3 stencil (base = floor(xg - 0.5), fx = xg - base in [0.5, 1.5)).

@@ -18,7 +18,7 @@ pub struct KernelOptions {
     /// Define `RTMPM_F64` (double precision arithmetic in the kernels).
     pub f64: bool,
     /// The material models the program must handle: bit k for kind code k
-    /// (`rtmpm_core::material::Model::code`); `u32::MAX`: every model.
+    /// (`rtmpm_physics::material::Model::code`); `u32::MAX`: every model.
     pub materials: u32,
     /// Index the state arrays in 64 bits (`RTMPM_STATE_64`): needed from 2^32 words on
     /// ([`state_needs_64_bits`]).

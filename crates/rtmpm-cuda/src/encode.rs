@@ -6,11 +6,11 @@
 use crate::contract::{
     self, ColliderPoses, GpuCollider, GpuReal, MAX_COLLIDERS, MAX_MATERIALS, Scalars, StepParams,
 };
-use rtmpm_core::Scene;
-use rtmpm_core::boundary::Collider;
-use rtmpm_core::boundary::sdf::Shape;
-use rtmpm_core::math::Vec3;
-use rtmpm_core::sim::SimError;
+use rtmpm_geometry::Collider;
+use rtmpm_geometry::sdf::Shape;
+use rtmpm_physics::math::Vec3;
+use rtmpm_scene::Scene;
+use rtmpm_sim::SimError;
 
 /// The read-only tables of a run, as copied to the device.
 pub struct Tables {
@@ -47,7 +47,7 @@ pub fn body_meshes(scene: &Scene, mesh: &mut Vec<f32>) -> Vec<u32> {
         .rigid_bodies
         .iter()
         .map(|b| match &b.shape {
-            rtmpm_core::rigid::RigidShape::Mesh(m) => {
+            rtmpm_geometry::RigidShape::Mesh(m) => {
                 let at = mesh.len() as u32;
                 mesh.extend_from_slice(&m.sdf.values);
                 at
@@ -225,7 +225,7 @@ pub fn tool(tool: Option<(&Shape, Vec3)>) -> contract::GpuTool {
     let Some((shape, velocity)) = tool else {
         return contract::GpuTool::default();
     };
-    let rule = rtmpm_core::boundary::BoundaryRule::default();
+    let rule = rtmpm_physics::boundary::BoundaryRule::default();
     let mut g = GpuCollider {
         kind: contract::collider_kind(shape),
         cond: contract::condition(rule.condition),
@@ -302,7 +302,7 @@ mod tests {
         assert_eq!(t.shape.kind, contract::collider_kind(&ball));
         assert_eq!(
             t.shape.cond,
-            contract::condition(rtmpm_core::boundary::Condition::Separate)
+            contract::condition(rtmpm_physics::boundary::Condition::Separate)
         );
         assert_eq!(t.shape.friction, 0.0);
         assert_eq!(&t.shape.p[..4], &[0.1, 0.2, 0.3, 0.05]);

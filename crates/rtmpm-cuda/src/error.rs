@@ -2,7 +2,7 @@
 //! driver call as the simulation's [`SimError`] ([`err`]), naming what was being done.
 
 use cudarc::driver::DriverError;
-use rtmpm_core::sim::SimError;
+use rtmpm_sim::SimError;
 use std::fmt;
 
 /// A failed driver call while doing `what`, as a [`SimError::Backend`]: "CUDA: {what}: {error}".

@@ -4,7 +4,7 @@
 //! module's `__constant__` symbols ([`CONSTANT_SYMBOLS`]) are written by [`write_symbol`].
 
 use cudarc::driver::{CudaFunction, CudaModule, CudaStream, LaunchConfig};
-use rtmpm_core::sim::SimError;
+use rtmpm_sim::SimError;
 use std::sync::Arc;
 
 include!(concat!(env!("OUT_DIR"), "/kernel_list.rs"));

@@ -58,7 +58,7 @@
 //! contract is f64 (the host's twin is generic over the precision). Collider geometry stays f32,
 //! as on the CPU.
 //!
-//! Materials: every model of rtmpm-core's registry, ported formula by formula in
+//! Materials: every model of rtmpm-physics's registry, ported formula by formula in
 //! `kernels/material/<name>.cuh`, dispatched by the switch generated from the registry
 //! ([`contract::material_registry`]).
 

@@ -1,11 +1,13 @@
 //! CPU reference vs CUDA backend on every example scene (needs a GPU; skips with a message
 //! otherwise): `cargo test -p rtmpm-cuda --test agreement -- --include-ignored --nocapture`.
 
-use rtmpm_core::sim::{Backend, Simulation};
-use rtmpm_core::transfer::{SolverSettings, Transfer, Update};
-use rtmpm_core::{Particles, Scene};
 use rtmpm_cpu::CpuBackend;
 use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
+use rtmpm_driver::Simulation;
+use rtmpm_physics::Particles;
+use rtmpm_physics::transfer::{SolverSettings, Transfer, Update};
+use rtmpm_scene::Scene;
+use rtmpm_sim::Backend;
 use std::path::Path;
 
 fn scenes() -> Vec<std::path::PathBuf> {
@@ -161,7 +163,7 @@ fn cuda_f64_agrees_with_cpu_f64_on_every_example_scene() {
     let mut failures = Vec::new();
     for path in scenes() {
         let mut scene = Scene::from_file(&path).expect("scene");
-        scene.precision = rtmpm_core::scene::Precision::F64;
+        scene.precision = rtmpm_scene::Precision::F64;
         let p0 = scene.sample_particles().expect("particles");
         let mut cpu = rtmpm_cpu_f64::CpuBackend::new(&scene, p0.clone(), None).expect("cpu");
         let opts = CudaOptions {

@@ -2,10 +2,11 @@
 //! with a message otherwise):
 //! `cargo test --release -p rtmpm-cuda --test emitters -- --include-ignored --nocapture`.
 
-use rtmpm_core::sim::Simulation;
-use rtmpm_core::{Particles, Scene};
 use rtmpm_cpu::CpuBackend;
 use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
+use rtmpm_driver::Simulation;
+use rtmpm_physics::Particles;
+use rtmpm_scene::Scene;
 use std::path::Path;
 
 fn scene(name: &str) -> Scene {

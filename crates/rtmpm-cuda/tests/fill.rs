@@ -3,11 +3,11 @@
 //! word, over the whole capacity (needs a GPU; skips with a message otherwise):
 //! `cargo test --release -p rtmpm-cuda --test fill -- --include-ignored --nocapture`.
 
-use rtmpm_core::Scene;
-use rtmpm_core::scene::deferred::sample_bodies_deferred;
-use rtmpm_core::scene::sampling::{SampledBody, sample_bodies};
-use rtmpm_core::sim::Simulation;
 use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
+use rtmpm_driver::Simulation;
+use rtmpm_scene::Scene;
+use rtmpm_scene::deferred::sample_bodies_deferred;
+use rtmpm_scene::sampling::{SampledBody, sample_bodies};
 use std::path::Path;
 
 fn gpu() -> bool {
@@ -68,7 +68,7 @@ fn same_state(label: &str, scene: &Scene, bodies: &[SampledBody]) -> CudaBackend
     let fluid: Vec<bool> = scene
         .materials
         .iter()
-        .map(|m| matches!(m.model, rtmpm_core::material::Model::Fluid(_)))
+        .map(|m| matches!(m.model, rtmpm_physics::material::Model::Fluid(_)))
         .collect();
     let image = rtmpm_cuda::state::pack_bodies(bodies, &fluid, layout, wb == 8).expect("pack");
     for f in 0..layout.words() {

@@ -2,13 +2,15 @@
 //! same PLY, BGEO and BGEO.gz bytes for the same device state (needs a GPU; skips with a message
 //! otherwise): `cargo test --release -p rtmpm-cuda --test frames -- --include-ignored --nocapture`.
 
-use rtmpm_core::io::chunks::{ChunkSink, FrameChunk, FrameColumns};
-use rtmpm_core::io::stream::{Derived, FrameFiles, StreamFormat};
-use rtmpm_core::io::{FrameFields, bgeo, cauchy_stress, ply};
-use rtmpm_core::scene::Precision;
-use rtmpm_core::sim::{Backend, SimError, Simulation};
-use rtmpm_core::{Particles, Scene};
 use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
+use rtmpm_driver::Simulation;
+use rtmpm_io::chunks::{FrameChunk, FrameColumns};
+use rtmpm_io::stream::{Derived, FrameFiles, StreamFormat};
+use rtmpm_io::{FrameFields, bgeo, ply};
+use rtmpm_physics::Particles;
+use rtmpm_physics::material::cauchy_stress;
+use rtmpm_scene::{Precision, Scene};
+use rtmpm_sim::{Backend, ChunkSink, SimError};
 use std::path::{Path, PathBuf};
 
 /// Chunks of `cap` particles in the backend's own (page-locked) chunk memory, kept in order.
@@ -87,7 +89,7 @@ fn compare(dir: &Path, tag: &str, scene: &Scene, b: &mut CudaBackend, cap: usize
 
     let mut p = Particles::default();
     b.read_particles(&mut p).expect("read");
-    let stress = cauchy_stress(&p, scene);
+    let stress = cauchy_stress(&p, &scene.materials);
     let jac: Vec<f32> = p.f.iter().map(|f| f.determinant()).collect();
     let fields = FrameFields {
         stress: Some(&stress),

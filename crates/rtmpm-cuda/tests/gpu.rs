@@ -1,13 +1,13 @@
 //! GPU tests: `cargo test -p rtmpm-cuda -- --include-ignored`. Each skips with a message when no
 //! usable CUDA device is present.
 
-use rtmpm_core::boundary::Walls;
-use rtmpm_core::material::Material;
-use rtmpm_core::math::{IVec3, Mat3, Vec3};
-use rtmpm_core::scene::{OutputSettings, StepMode, TimeSettings};
-use rtmpm_core::sim::{Backend, SimError};
-use rtmpm_core::{Particles, Scene};
 use rtmpm_cuda::{CudaBackend, CudaOptions, P2gMode, probe};
+use rtmpm_physics::Particles;
+use rtmpm_physics::boundary::Walls;
+use rtmpm_physics::material::Material;
+use rtmpm_physics::math::{IVec3, Mat3, Vec3};
+use rtmpm_scene::{OutputSettings, Scene, StepMode, TimeSettings};
+use rtmpm_sim::{Backend, SimError};
 use std::collections::HashMap;
 
 fn gpu() -> bool {
@@ -428,7 +428,7 @@ fn bench_times_the_musl_step_of_a_musl_scene() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../../validation/colliding_disks.toml");
     let s = Scene::from_file(&path).expect("colliding disks scene");
-    assert_eq!(s.solver.update, rtmpm_core::transfer::Update::Musl);
+    assert_eq!(s.solver.update, rtmpm_physics::transfer::Update::Musl);
     let p = s.sample_particles().expect("particles");
     let mut b = CudaBackend::new(&s, &p, CudaOptions::default()).expect("backend");
     let t = rtmpm_cuda::bench_kernels(&mut b, 1e-3, 5, 20).expect("bench");

@@ -13,9 +13,9 @@
 
 use cudarc::driver::{CudaContext, LaunchConfig, PushKernelArg};
 use rand::{Rng, SeedableRng};
-use rtmpm_core::material::MaterialParams;
 use rtmpm_cuda::compile::{KernelOptions, compile_unit, nvrtc_available};
 use rtmpm_cuda::contract::{MaterialGpu, materials};
+use rtmpm_physics::material::MaterialParams;
 use rtmpm_physics_f64::material::Material;
 
 const CHECK: &str = include_str!("kernels/material_check.cu");
@@ -73,7 +73,7 @@ fn plastic_range(kind: &str) -> (f64, f64) {
 }
 
 fn every_model_is_checked() {
-    for m in rtmpm_core::material::Model::ALL {
+    for m in rtmpm_physics::material::Model::ALL {
         assert!(
             MATERIALS.iter().any(|(k, _)| *k == m.name),
             "add a {} material to the GPU check",

@@ -7,9 +7,11 @@
 //! transports and barriers compared, separated by `;` (default
 //! "transport=p2p,barrier=spin;transport=p2p,barrier=events;transport=nccl").
 
-use rtmpm_core::sim::{Backend, Simulation};
-use rtmpm_core::{Particles, Scene};
 use rtmpm_cuda::{CudaBackend, CudaOptions, MultiGpuBackend, Transport, device_count, nccl, peer};
+use rtmpm_driver::Simulation;
+use rtmpm_physics::Particles;
+use rtmpm_scene::Scene;
+use rtmpm_sim::Backend;
 use std::path::Path;
 
 fn scenes() -> Vec<std::path::PathBuf> {
@@ -237,8 +239,8 @@ fn asking_for_more_gpus_than_present_is_a_clear_error() {
 #[test]
 #[ignore = "needs 2 CUDA GPUs"]
 fn steering_on_two_gpus_is_steering_on_one() {
-    use rtmpm_core::math::Vec3;
-    use rtmpm_core::sim::{Tool, ToolShape};
+    use rtmpm_geometry::{Tool, ToolShape};
+    use rtmpm_physics::math::Vec3;
     if !usable(2) {
         return;
     }

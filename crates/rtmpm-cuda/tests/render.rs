@@ -14,16 +14,19 @@
 //! levels. A wrong camera, colour, light or depth test moves far more (checked by
 //! `a_shifted_camera_breaks_the_bound`).
 
-use rtmpm_core::boundary::sdf::Shape;
-use rtmpm_core::boundary::{BoundaryRule, Collider};
-use rtmpm_core::math::Vec3;
-use rtmpm_core::render::{
-    self, Camera, ColorBy, Image, RenderInput, RenderOptions, colormap, field_range, particle_field,
-};
-use rtmpm_core::sim::{Backend, Simulation};
-use rtmpm_core::{Particles, Scene};
 use rtmpm_cuda::view::render::tool_collider;
 use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
+use rtmpm_driver::Simulation;
+use rtmpm_geometry::Collider;
+use rtmpm_geometry::sdf::Shape;
+use rtmpm_physics::Particles;
+use rtmpm_physics::boundary::BoundaryRule;
+use rtmpm_physics::math::Vec3;
+use rtmpm_render::{
+    Camera, Image, RenderInput, RenderOptions, colormap, field_range, particle_field,
+};
+use rtmpm_scene::{ColorBy, Scene};
+use rtmpm_sim::Backend;
 
 fn gpu() -> bool {
     match probe() {
@@ -132,7 +135,7 @@ fn cpu_picture(p: &Particles, scene: &Scene, opts: &RenderOptions) -> Image {
         field: f.as_deref(),
         surface: None,
     };
-    render::render(&input, opts).expect("cpu render")
+    rtmpm_render::render(&input, opts).expect("cpu render")
 }
 
 /// Every colour mode, shadows on and off, colliders and the tool: within the bound.
@@ -174,7 +177,7 @@ fn the_gpu_picture_is_the_cpu_renderers() {
             100.0 * big
         );
         // Something is drawn: particles and objects cover a good part of the picture.
-        let sky = render::render(
+        let sky = rtmpm_render::render(
             &RenderInput {
                 positions: &[],
                 material: &[],
@@ -221,7 +224,7 @@ fn a_shifted_camera_breaks_the_bound() {
     };
     let d = turned.camera.target - turned.camera.position;
     turned.camera.target =
-        turned.camera.position + rtmpm_core::math::Mat3::from_rotation_y(2f32.to_radians()) * d;
+        turned.camera.position + rtmpm_physics::math::Mat3::from_rotation_y(2f32.to_radians()) * d;
     let c = cpu_picture(&p, &scene, &turned);
     let (mean, big) = difference(&c, &g);
     println!("turned by 2 degrees: mean {mean:.3}, share {big:.4}");

@@ -1,14 +1,14 @@
 //! Rigid bodies coupled on the GPU (cargo feature `rigid`; needs a GPU, skips with a message
 //! otherwise): the scenes and measurements of the `archimedes` and `rigid_momentum` validation
-//! cases (`validation/*.toml`, `rtmpm_core::checks`, as the CPU's `rtmpm-core/tests/rigid.rs`)
+//! cases (`validation/*.toml`, `rtmpm_driver::checks`, as the CPU's `rtmpm-cpu/tests/rigid.rs`)
 //! on CUDA (and the Archimedes box as a mesh body), against the CPU backend in the same run:
 //! `cargo test --release -p rtmpm-cuda --features rigid --test rigid -- --include-ignored --nocapture`.
 #![cfg(feature = "rigid")]
 
-use rtmpm_core::sim::Simulation;
-use rtmpm_core::{Scene, checks};
 use rtmpm_cpu::CpuBackend;
 use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
+use rtmpm_driver::{Simulation, checks};
+use rtmpm_scene::Scene;
 
 /// A 0.12 x 0.1 x 0.12 m box of density 500 dropped onto 0.2 m of water (dx = 0.02 m).
 const ARCHIMEDES: &str = include_str!("../../../validation/archimedes.toml");
@@ -118,7 +118,7 @@ fn bodies_read_and_put_back_after_every_step_keep_the_momentum_on_the_gpu() {
                 sim.backend.set_rigid_poses(&poses).expect("set");
             }
         }
-        let mut p = rtmpm_core::Particles::default();
+        let mut p = rtmpm_physics::Particles::default();
         sim.backend.read_particles(&mut p).expect("read");
         let body = sim.backend.rigid_poses()[0].velocity.as_dvec3() * mass;
         let error = (checks::momentum(&p) + body - start).length() / start.length();

@@ -3,14 +3,14 @@
 //! words), in both rebuild paths, both precisions and every state layout. `cargo test -p rtmpm-cuda --test sort_scratch --
 //! --include-ignored`; each test skips with a message when no usable CUDA device is present.
 
-use rtmpm_core::boundary::Walls;
-use rtmpm_core::material::Material;
-use rtmpm_core::math::{Mat3, Vec3};
-use rtmpm_core::scene::{OutputSettings, StepMode, TimeSettings};
-use rtmpm_core::sim::Backend;
-use rtmpm_core::{Particles, Scene};
 use rtmpm_cuda::contract::StateLayout;
 use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
+use rtmpm_physics::Particles;
+use rtmpm_physics::boundary::Walls;
+use rtmpm_physics::material::Material;
+use rtmpm_physics::math::{Mat3, Vec3};
+use rtmpm_scene::{OutputSettings, Scene, StepMode, TimeSettings};
+use rtmpm_sim::Backend;
 use std::collections::{HashMap, HashSet};
 
 fn gpu() -> bool {

@@ -15,16 +15,16 @@
 //! a message when no usable CUDA device is present.
 
 use cudarc::driver::{CudaContext, LaunchConfig, PushKernelArg};
-use rtmpm_core::boundary::Walls;
-use rtmpm_core::material::Material;
-use rtmpm_core::math::{Mat3, Vec3};
-use rtmpm_core::scene::{OutputSettings, ParticleState, StepMode, TimeSettings};
-use rtmpm_core::sim::Backend;
-use rtmpm_core::{Particles, Scene};
 use rtmpm_cuda::compile::{KernelOptions, compile_unit, nvrtc_available};
 use rtmpm_cuda::contract::StateLayout;
 use rtmpm_cuda::state::codec;
 use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
+use rtmpm_physics::Particles;
+use rtmpm_physics::boundary::Walls;
+use rtmpm_physics::material::Material;
+use rtmpm_physics::math::{Mat3, Vec3};
+use rtmpm_scene::{OutputSettings, ParticleState, Scene, StepMode, TimeSettings};
+use rtmpm_sim::Backend;
 
 fn gpu() -> bool {
     match probe() {

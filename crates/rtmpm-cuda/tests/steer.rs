@@ -5,11 +5,13 @@
 //! between steps; a step replayed from a CUDA graph must read the new values. Every test runs
 //! with the graphs on (the default) and off, and against the CPU backend on the same scene.
 
-use rtmpm_core::math::Vec3;
-use rtmpm_core::sim::{Backend, Tool, ToolShape};
-use rtmpm_core::{Particles, Scene};
 use rtmpm_cpu::CpuBackend;
 use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
+use rtmpm_geometry::{Tool, ToolShape};
+use rtmpm_physics::Particles;
+use rtmpm_physics::math::Vec3;
+use rtmpm_scene::Scene;
+use rtmpm_sim::Backend;
 
 fn gpu() -> bool {
     match probe() {

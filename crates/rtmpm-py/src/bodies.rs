@@ -7,9 +7,9 @@ use crate::simulation::Inner;
 use pyo3::exceptions::{PyIndexError, PyKeyError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use rtmpm_core::math::Vec3;
-use rtmpm_core::rigid::{BodyPose, RigidBodySpec, RigidKind};
-use rtmpm_core::sim::Backend;
+use rtmpm_physics::math::Vec3;
+use rtmpm_rigid::{BodyPose, RigidBodySpec, RigidKind};
+use rtmpm_sim::Backend;
 
 /// The optional cargo features of this build, by name.
 pub fn features() -> Vec<&'static str> {

@@ -5,8 +5,8 @@
 
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
-use rtmpm_core::scene::SceneError as RustSceneError;
-use rtmpm_core::sim::SimError;
+use rtmpm_scene::SceneError as RustSceneError;
+use rtmpm_sim::SimError;
 
 pyo3::create_exception!(
     rtmpm,

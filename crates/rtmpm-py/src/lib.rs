@@ -1,7 +1,7 @@
 //! rtmpm for Python: the `rtmpm._rtmpm` extension module (pyo3, stable ABI 3.9+), wrapped by
 //! the `rtmpm` package (`python/rtmpm/__init__.py`). Documentation: docs/python.md.
 //!
-//! * [`scene`]: `Scene` (file, TOML text or dict; rtmpm-core's validation and messages).
+//! * [`scene`]: `Scene` (file, TOML text or dict; rtmpm-scene's validation and messages).
 //! * [`simulation`]: `Simulation` (backend choice through rtmpm-backends, stepping with the
 //!   interpreter lock released and Ctrl-C checks, checkpoints, frames, rendering).
 //! * [`particles`]: `Particles` (NumPy arrays in original order, setters).
@@ -29,7 +29,7 @@ use std::path::PathBuf;
 /// as int64).
 #[pyfunction]
 fn read_ply<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
-    use rtmpm_core::io::ply::{PlyColumn, read_ply as read};
+    use rtmpm_io::ply::{PlyColumn, read_ply as read};
     let data = py
         .detach(|| read(&path))
         .map_err(|e| errors::RtmpmError::new_err(format!("{}: {e}", path.display())))?;

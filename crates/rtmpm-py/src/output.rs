@@ -1,14 +1,16 @@
-//! Frame files of the particles in memory (`Simulation.write_frame`), with rtmpm-core's
+//! Frame files of the particles in memory (`Simulation.write_frame`), with rtmpm-io's
 //! writers, and checkpoints (`Simulation.checkpoint`). Pictures are in `picture.rs`.
 
 use crate::errors::RtmpmError;
 use crate::simulation::Inner;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use rtmpm_core::io::checkpoint::Checkpoint;
-use rtmpm_core::io::{FrameFields, cauchy_stress, ply, vtk_appended};
-use rtmpm_core::sim::Backend;
-use rtmpm_core::{Particles, Scene};
+use rtmpm_io::checkpoint::Checkpoint;
+use rtmpm_io::{FrameFields, ply, vtk_appended};
+use rtmpm_physics::Particles;
+use rtmpm_physics::material::cauchy_stress;
+use rtmpm_scene::Scene;
+use rtmpm_sim::Backend;
 use std::path::Path;
 
 /// Write one frame file; see `Simulation.write_frame`.
@@ -44,7 +46,7 @@ pub fn write_frame(
         }
     }
     py.detach(|| {
-        let stress = stress.then(|| cauchy_stress(p, scene));
+        let stress = stress.then(|| cauchy_stress(p, &scene.materials));
         let jacobian = jacobian.then(|| p.f.iter().map(|f| f.determinant()).collect::<Vec<f32>>());
         let fields = FrameFields {
             stress: stress.as_deref(),

@@ -9,9 +9,9 @@ use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use rtmpm_backends::AnyBackend;
-use rtmpm_core::math::{Mat3, Vec3};
-use rtmpm_core::sim::{Backend, SimError};
 use rtmpm_cuda::contract::StateLayout;
+use rtmpm_physics::math::{Mat3, Vec3};
+use rtmpm_sim::{Backend, SimError};
 
 /// The particles of a :class:`rtmpm.Simulation`.
 ///

@@ -8,14 +8,15 @@ use crate::simulation::Inner;
 use numpy::PyArray3;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use rtmpm_core::math::Vec3;
-use rtmpm_core::render::text::draw_text;
-use rtmpm_core::render::{
-    Camera, ColorBy, Image, RenderInput, RenderOptions, ViewRequest, colormap, particle_field,
+use rtmpm_physics::Particles;
+use rtmpm_physics::math::Vec3;
+use rtmpm_render::text::draw_text;
+use rtmpm_render::{
+    Camera, Image, RenderInput, RenderOptions, ViewRequest, colormap, particle_field,
 };
-use rtmpm_core::scene::sampling::per_axis;
-use rtmpm_core::sim::Backend;
-use rtmpm_core::{Particles, Scene};
+use rtmpm_scene::sampling::per_axis;
+use rtmpm_scene::{ColorBy, Scene};
+use rtmpm_sim::Backend;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
 /// The arguments of `Simulation.render` and `Simulation.render_gpu`.
@@ -108,7 +109,7 @@ fn radius_of(p: &Particles) -> f32 {
     if mean_vol > 0.0 {
         0.6 * (mean_vol as f32).cbrt()
     } else {
-        rtmpm_core::render::estimate_radius(&p.x)
+        rtmpm_render::estimate_radius(&p.x)
     }
 }
 
@@ -134,11 +135,11 @@ fn cpu_picture(
     p: &Particles,
     scene: &Scene,
     mut opts: RenderOptions,
-    bodies: &[rtmpm_core::rigid::BodyState],
+    bodies: &[rtmpm_rigid::BodyState],
 ) -> Result<Image, String> {
     opts.colliders.extend(bodies.iter().map(|b| b.collider()));
     let field = particle_field(p, scene, opts.color_by);
-    rtmpm_core::render::render(
+    rtmpm_render::render(
         &RenderInput {
             positions: &p.x,
             material: &p.material,

@@ -4,8 +4,7 @@
 use crate::errors::scene_error;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use rtmpm_core::Scene;
-use rtmpm_core::scene::StepMode;
+use rtmpm_scene::{Scene, StepMode};
 use std::path::{Path, PathBuf};
 
 /// A validated scene.

@@ -4,10 +4,11 @@
 use anyhow::{Result, anyhow};
 use clap::ValueEnum;
 use rtmpm_backends::BackendRequest;
-use rtmpm_core::scene::sampling::SampledBody;
-use rtmpm_core::sim::Backend;
-use rtmpm_core::{Particles, Scene};
 use rtmpm_cuda::CudaOptions;
+use rtmpm_physics::Particles;
+use rtmpm_scene::Scene;
+use rtmpm_scene::sampling::SampledBody;
+use rtmpm_sim::Backend;
 
 /// Which backend to run on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]

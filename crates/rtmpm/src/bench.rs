@@ -7,10 +7,10 @@ use crate::backend::{BackendKind, make_backend};
 use crate::progress::human_rate;
 use anyhow::{Result, bail};
 use clap::Args;
-use rtmpm_core::scene::StepMode;
-use rtmpm_core::scene::sampling::SampledBody;
-use rtmpm_core::sim::Simulation;
-use rtmpm_core::{Particles, Scene};
+use rtmpm_driver::Simulation;
+use rtmpm_physics::Particles;
+use rtmpm_scene::sampling::SampledBody;
+use rtmpm_scene::{Scene, StepMode};
 use std::time::Instant;
 
 #[derive(Args)]
@@ -41,7 +41,7 @@ pub struct BenchArgs {
     /// Floating-point precision of the whole step: f32 or f64 (default: the scene's
     /// `[solver] precision`, else f32).
     #[arg(long, value_name = "f32|f64")]
-    pub precision: Option<rtmpm_core::scene::Precision>,
+    pub precision: Option<rtmpm_scene::Precision>,
     /// CPU worker threads (default: one per core).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -282,7 +282,7 @@ fn bench_cuda(
     steps: u64,
     mut setup: crate::setup::SetupTimes,
 ) -> Result<()> {
-    use rtmpm_core::sim::Backend;
+    use rtmpm_sim::Backend;
     rtmpm_cuda::probe().map_err(|e| anyhow::anyhow!("the CUDA backend is not usable here: {e}"))?;
     let n: usize = bodies.iter().map(|b| b.len()).sum();
     let t = Instant::now();
@@ -417,7 +417,7 @@ fn bench_multi_gpu(
     steps: u64,
     mut setup: crate::setup::SetupTimes,
 ) -> Result<()> {
-    use rtmpm_core::sim::Backend;
+    use rtmpm_sim::Backend;
     let n = particles.len();
     let t = Instant::now();
     let mut b =

@@ -5,9 +5,9 @@
 
 use crate::stream::{FrameStreamer, StreamSettings, StreamStats};
 use anyhow::{Result, bail};
-use rtmpm_core::io::chunks::{ChunkSink, FrameChunk, FrameColumns};
-use rtmpm_core::io::stream::{Derived, FrameFiles, StreamFormat};
-use rtmpm_core::sim::{Backend, SimError};
+use rtmpm_io::chunks::{FrameChunk, FrameColumns};
+use rtmpm_io::stream::{Derived, FrameFiles, StreamFormat};
+use rtmpm_sim::{Backend, ChunkSink, SimError};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -135,18 +135,16 @@ pub fn frame_write_bench(
     // then each file written from it, in this thread.
     if whole {
         let t = Instant::now();
-        let mut p = rtmpm_core::Particles::default();
+        let mut p = rtmpm_physics::Particles::default();
         backend.read_particles(&mut p)?;
         let read = t.elapsed().as_secs_f64();
         let t = Instant::now();
         for (ext, f) in &formats {
             let path = dir.join(format!("whole_00000.{ext}"));
-            let none = rtmpm_core::io::FrameFields::default();
+            let none = rtmpm_io::FrameFields::default();
             match f {
-                StreamFormat::Ply { .. } => rtmpm_core::io::ply::write_ply(&path, &p, &none)?,
-                StreamFormat::Bgeo { gzip } => {
-                    rtmpm_core::io::bgeo::write_bgeo(&path, &p, &none, *gzip)?
-                }
+                StreamFormat::Ply { .. } => rtmpm_io::ply::write_ply(&path, &p, &none)?,
+                StreamFormat::Bgeo { gzip } => rtmpm_io::bgeo::write_bgeo(&path, &p, &none, *gzip)?,
             }
             let _ = std::fs::remove_file(&path);
         }

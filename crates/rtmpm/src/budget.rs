@@ -1,10 +1,9 @@
-//! The run's budget on this machine: the estimate of `rtmpm_core::scene::budget` against the
+//! The run's budget on this machine: the estimate of `rtmpm_scene::budget` against the
 //! memory available and the free space of the output disk.
 
 use anyhow::{Result, bail};
-use rtmpm_core::Scene;
-use rtmpm_core::io::limits::host_memory_available;
-use rtmpm_core::scene::Budget;
+use rtmpm_io::limits::host_memory_available;
+use rtmpm_scene::{Budget, Scene};
 use std::path::Path;
 
 /// Free bytes (for an unprivileged user) of the file system holding `dir`, or of its nearest

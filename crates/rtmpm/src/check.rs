@@ -1,8 +1,7 @@
 //! `rtmpm check SCENE`: validate without running, and print the run's budget.
 
 use anyhow::Result;
-use rtmpm_core::Scene;
-use rtmpm_core::scene::sampling;
+use rtmpm_scene::{Scene, sampling};
 use std::path::Path;
 
 pub fn check(path: &Path) -> Result<()> {

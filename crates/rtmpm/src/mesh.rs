@@ -4,12 +4,11 @@
 use crate::output::write_mesh;
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use rtmpm_core::Scene;
-use rtmpm_core::io::ply::read_ply;
-use rtmpm_core::io::vtu::PvdWriter;
-use rtmpm_core::math::Vec3;
-use rtmpm_core::render::estimate_radius;
-use rtmpm_core::scene::{MeshFormats, SurfaceSettings};
+use rtmpm_io::ply::read_ply;
+use rtmpm_io::vtu::PvdWriter;
+use rtmpm_physics::math::Vec3;
+use rtmpm_render::estimate_radius;
+use rtmpm_scene::{MeshFormats, Scene, SurfaceSettings};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -63,7 +62,7 @@ fn formats(list: &[String]) -> Result<MeshFormats> {
 }
 
 pub fn mesh_cmd(args: MeshArgs) -> Result<()> {
-    if !rtmpm_core::surface::AVAILABLE {
+    if !rtmpm_geometry::surface::AVAILABLE {
         bail!("this rtmpm was built without fluid surfaces (cargo feature `surface`)");
     }
     if args.bench {

@@ -3,10 +3,11 @@
 
 use anyhow::{Result, bail};
 use clap::Args;
-use rtmpm_core::sim::Backend;
-use rtmpm_core::{Particles, Scene};
 use rtmpm_cuda::CudaOptions;
 use rtmpm_cuda::rendezvous::Rendezvous;
+use rtmpm_physics::Particles;
+use rtmpm_scene::Scene;
+use rtmpm_sim::Backend;
 
 /// Multi-GPU options of `rtmpm run`.
 #[derive(Args, Clone, Debug, Default)]

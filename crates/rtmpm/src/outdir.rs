@@ -6,7 +6,7 @@
 //! releases it when the process ends in any way (even SIGKILL), so a lock is never stale.
 
 use anyhow::{Context, Result, bail};
-use rtmpm_core::io::checkpoint::Fnv1a64;
+use rtmpm_io::checkpoint::Fnv1a64;
 use std::fs::{self, File, OpenOptions};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -66,7 +66,7 @@ pub fn classify(name: &str) -> Option<RunFile> {
     }
 }
 
-/// A temporary file of an atomic write (`.NAME.tmp-PID`, see `rtmpm_core::io::atomic`).
+/// A temporary file of an atomic write (`.NAME.tmp-PID`, see `rtmpm_io::atomic`).
 fn is_temp(name: &str) -> bool {
     name.starts_with('.')
         && name
@@ -162,13 +162,13 @@ impl OutDir {
     }
 
     fn marker(&self) -> Option<String> {
-        rtmpm_core::io::read_text_bounded(&self.dir.join(RUN_FILE), 4096, "run marker")
+        rtmpm_io::read_text_bounded(&self.dir.join(RUN_FILE), 4096, "run marker")
             .ok()
             .map(|s| s.trim().to_string())
     }
 
     fn write_marker(&self, identity: &str) -> Result<()> {
-        rtmpm_core::io::write_atomic(&self.dir.join(RUN_FILE), format!("{identity}\n").as_bytes())
+        rtmpm_io::write_atomic(&self.dir.join(RUN_FILE), format!("{identity}\n").as_bytes())
             .with_context(|| format!("writing {}", self.dir.join(RUN_FILE).display()))
     }
 
@@ -233,13 +233,13 @@ impl OutDir {
                 if !pvd.exists() {
                     continue;
                 }
-                let text = rtmpm_core::io::read_text_bounded(
+                let text = rtmpm_io::read_text_bounded(
                     &pvd,
-                    rtmpm_core::io::limits::PVD_MAX_BYTES,
+                    rtmpm_io::limits::PVD_MAX_BYTES,
                     "ParaView collection",
                 )
                 .map_err(anyhow::Error::from)
-                .and_then(|t| rtmpm_core::io::vtu::parse_pvd(&t).map_err(anyhow::Error::from));
+                .and_then(|t| rtmpm_io::vtu::parse_pvd(&t).map_err(anyhow::Error::from));
                 if let Err(e) = text {
                     bail!(
                         "cannot continue {}: {e:#} (the frames themselves are intact); move it \

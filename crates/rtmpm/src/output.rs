@@ -1,14 +1,14 @@
 //! Per-frame output: PLY, VTK XML (.vtu + .pvd series), BGEO, USD, and fluid surface meshes.
 
 use anyhow::{Context, Result, bail};
-use rtmpm_core::io::stream::{Derived, StreamFormat};
-use rtmpm_core::io::vtu::PvdWriter;
-use rtmpm_core::io::{FrameFields, bgeo, ply, trimesh, usd, vtk_appended};
-use rtmpm_core::math::Vec3;
-use rtmpm_core::rigid::BodyPose;
-use rtmpm_core::scene::{MeshFormats, SurfaceSettings};
-use rtmpm_core::surface::{SurfaceParams, TriMesh};
-use rtmpm_core::{Particles, Scene};
+use rtmpm_geometry::surface::{SurfaceParams, TriMesh};
+use rtmpm_io::stream::{Derived, StreamFormat};
+use rtmpm_io::vtu::PvdWriter;
+use rtmpm_io::{FrameFields, bgeo, ply, trimesh, usd, vtk_appended};
+use rtmpm_physics::Particles;
+use rtmpm_physics::math::Vec3;
+use rtmpm_rigid::BodyPose;
+use rtmpm_scene::{MeshFormats, Scene, SurfaceSettings};
 use std::path::{Path, PathBuf};
 
 /// Writes the frames of one run.
@@ -59,7 +59,7 @@ impl SurfaceOutput {
         compress: bool,
         resume_time: Option<f64>,
     ) -> Result<SurfaceOutput> {
-        if !rtmpm_core::surface::AVAILABLE {
+        if !rtmpm_geometry::surface::AVAILABLE {
             bail!(
                 "this rtmpm was built without fluid surfaces (cargo feature `surface`): rebuild with default features, or remove [output] surface"
             );
@@ -102,7 +102,7 @@ pub fn reconstruct(p: &Particles, settings: &SurfaceSettings) -> Result<TriMesh>
 pub fn reconstruct_points(xs: &[Vec3], params: &SurfaceParams) -> Result<TriMesh> {
     #[cfg(feature = "surface")]
     {
-        rtmpm_core::surface::reconstruct(xs, params).map_err(anyhow::Error::msg)
+        rtmpm_geometry::surface::reconstruct(xs, params).map_err(anyhow::Error::msg)
     }
     #[cfg(not(feature = "surface"))]
     {
@@ -184,7 +184,10 @@ impl FrameOutput {
         bodies: &[BodyPose],
         scene: &Scene,
     ) -> Result<Option<TriMesh>> {
-        let stress = scene.output.stress.then(|| cauchy_stress(p, scene));
+        let stress = scene
+            .output
+            .stress
+            .then(|| cauchy_stress(p, &scene.materials));
         let jacobian = scene
             .output
             .jacobian
@@ -281,5 +284,5 @@ pub fn derived_fields(scene: &Scene) -> Derived {
     }
 }
 
-/// Cauchy stress per particle (see [`rtmpm_core::io::cauchy_stress`]).
-pub use rtmpm_core::io::cauchy_stress;
+/// Cauchy stress per particle (see [`rtmpm_physics::material::cauchy_stress`]).
+pub use rtmpm_physics::material::cauchy_stress;

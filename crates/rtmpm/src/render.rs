@@ -5,17 +5,16 @@
 
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
-use rtmpm_core::boundary::Collider;
-use rtmpm_core::boundary::sdf::Shape;
-use rtmpm_core::io::ply::{PlyData, read_ply};
-use rtmpm_core::math::Vec3;
-use rtmpm_core::render::{
-    Camera, ColorBy, GifMovie, RenderInput, RenderOptions, colormap, estimate_radius, render,
-    von_mises,
+use rtmpm_geometry::Collider;
+use rtmpm_geometry::sdf::Shape;
+use rtmpm_geometry::surface::{SurfaceParams, TriMesh};
+use rtmpm_io::ply::{PlyData, read_ply};
+use rtmpm_physics::Particles;
+use rtmpm_physics::math::Vec3;
+use rtmpm_render::{
+    Camera, GifMovie, RenderInput, RenderOptions, colormap, estimate_radius, render, von_mises,
 };
-use rtmpm_core::scene::SurfaceSettings;
-use rtmpm_core::surface::{SurfaceParams, TriMesh};
-use rtmpm_core::{Particles, Scene};
+use rtmpm_scene::{ColorBy, Scene, SurfaceSettings};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{SyncSender, sync_channel};
 use std::thread::JoinHandle;
@@ -166,7 +165,7 @@ pub use frame::{FrameJob, SurfaceJob};
 struct Sink {
     opts: RenderOptions,
     /// The scene's colliders (each frame adds its rigid bodies to them).
-    colliders: Vec<rtmpm_core::boundary::Collider>,
+    colliders: Vec<rtmpm_geometry::Collider>,
     /// False with `--no-colliders`: neither colliders nor bodies are drawn.
     draw_bodies: bool,
     /// Folder of `frame_NNNNN.png` (None: preview only).
@@ -316,7 +315,9 @@ fn ffmpeg_mp4(dir: &Path, first: u64, fps: f32) -> Result<Option<PathBuf>> {
 
 /// Whether pictures of `scene` show its fluids as surfaces.
 fn draws_surfaces(view: &ViewArgs, scene: &Scene) -> bool {
-    rtmpm_core::surface::AVAILABLE && !view.particles && !scene.output.surface.materials.is_empty()
+    rtmpm_geometry::surface::AVAILABLE
+        && !view.particles
+        && !scene.output.surface.materials.is_empty()
 }
 
 /// Bounds (the box the particles live in) and ground height of a scene.
@@ -375,7 +376,7 @@ impl RunRenderer {
         p: &Particles,
         scene: &Scene,
         mesh: Option<TriMesh>,
-        bodies: &[rtmpm_core::rigid::BodyState],
+        bodies: &[rtmpm_rigid::BodyState],
     ) -> Result<()> {
         if let Some((view, dir, preview, fps)) = self.setup.take() {
             let mean_vol = p.vol0.iter().map(|&v| v as f64).sum::<f64>() / p.len().max(1) as f64;

@@ -9,10 +9,11 @@ use crate::stream::{FrameStreamer, StreamSettings};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use rtmpm_core::io::checkpoint::Checkpoint;
-use rtmpm_core::io::limits::{SCENE_MAX_BYTES, read_text_bounded};
-use rtmpm_core::sim::Simulation;
-use rtmpm_core::{Particles, Scene};
+use rtmpm_driver::Simulation;
+use rtmpm_io::checkpoint::Checkpoint;
+use rtmpm_io::limits::{SCENE_MAX_BYTES, read_text_bounded};
+use rtmpm_physics::Particles;
+use rtmpm_scene::Scene;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -48,7 +49,7 @@ pub struct RunArgs {
     /// Floating-point precision of the whole step: f32 or f64 (default: the scene's
     /// `[solver] precision`, else f32).
     #[arg(long, value_name = "f32|f64")]
-    pub precision: Option<rtmpm_core::scene::Precision>,
+    pub precision: Option<rtmpm_scene::Precision>,
     /// Write no frame files (for timing).
     #[arg(long)]
     pub no_output: bool,
@@ -91,7 +92,8 @@ pub fn run(args: RunArgs) -> Result<()> {
                 .parent()
                 .unwrap_or(Path::new(""));
             let scene = Scene::from_toml_in(&ckpt.scene_toml, &ckpt.scene_origin, base)?;
-            ckpt.check_scene(&scene)
+            scene
+                .check_checkpoint(&ckpt)
                 .with_context(|| format!("cannot resume from {}", ckpt_path.display()))?;
             (
                 scene,
@@ -454,7 +456,7 @@ fn particle_backend(
     mode: crate::multi::Mode,
     scene: &Scene,
     particles: Particles,
-) -> Result<(Box<dyn rtmpm_core::sim::Backend>, usize)> {
+) -> Result<(Box<dyn rtmpm_sim::Backend>, usize)> {
     let n = particles.len();
     let backend = if mode == crate::multi::Mode::Single {
         make_backend(

@@ -2,8 +2,9 @@
 //! stderr, also when it is not a terminal) and building the backend, timed.
 
 use anyhow::Result;
-use rtmpm_core::scene::sampling::{self, SampleProgress, SampledBody};
-use rtmpm_core::{Particles, Scene};
+use rtmpm_physics::Particles;
+use rtmpm_scene::sampling::{SampleProgress, SampledBody};
+use rtmpm_scene::{Scene, sampling};
 use std::sync::Mutex;
 use std::time::Instant;
 
@@ -71,14 +72,14 @@ fn reporter(start: Instant, every: f64) -> impl Fn(SampleProgress) + Sync {
 }
 
 /// [`sample`], the bodies' positions only (for a backend that packs them itself); with `defer`
-/// the bodies a GPU can draw are only counted (`rtmpm_core::scene::deferred`: the host keeps
+/// the bodies a GPU can draw are only counted (`rtmpm_scene::deferred`: the host keeps
 /// none of their positions).
 pub fn sample_bodies(scene: &Scene, defer: bool) -> Result<(Vec<SampledBody>, f64)> {
     let start = Instant::now();
     let every = every();
     let report = reporter(start, every);
     let bodies = if defer {
-        rtmpm_core::scene::deferred::sample_bodies_deferred(scene, &report)?
+        rtmpm_scene::deferred::sample_bodies_deferred(scene, &report)?
     } else {
         sampling::sample_bodies(scene, &report)?
     };

@@ -1,7 +1,7 @@
 //! Frames written in the background: at a frame boundary the backend copies the columns the
-//! formats need into host chunks ([`rtmpm_core::io::chunks`]; page-locked memory on a GPU), in
+//! formats need into host chunks ([`rtmpm_io::chunks`]; page-locked memory on a GPU), in
 //! original particle order, and a writer thread encodes and writes them
-//! ([`rtmpm_core::io::stream`]) while the simulation goes on.
+//! ([`rtmpm_io::stream`]) while the simulation goes on.
 //!
 //! Memory is bounded by a pool of chunk buffers: with `frames_in_flight = 0` two buffers (the
 //! copy of chunk k + 1 overlaps the writing of chunk k, and the step waits for the frame's
@@ -11,10 +11,10 @@
 //! [`FrameStreamer::finish`]; the file is then absent (temporary names, removed on error).
 
 use anyhow::{Context, Result, anyhow};
-use rtmpm_core::io::chunks::{ChunkSink, FrameChunk, FrameColumns};
-use rtmpm_core::io::stream::{Derived, FrameFiles, StreamFormat};
-use rtmpm_core::material::Model;
-use rtmpm_core::sim::{Backend, SimError};
+use rtmpm_io::chunks::{FrameChunk, FrameColumns};
+use rtmpm_io::stream::{Derived, FrameFiles, StreamFormat};
+use rtmpm_physics::material::Model;
+use rtmpm_sim::{Backend, ChunkSink, SimError};
 use std::path::PathBuf;
 use std::sync::mpsc::{Receiver, Sender, channel};
 use std::thread::JoinHandle;

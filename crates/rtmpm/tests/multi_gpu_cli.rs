@@ -4,9 +4,10 @@
 
 mod common;
 use common::{rtmpm, scratch, text};
-use rtmpm_core::io::ply::read_ply;
-use rtmpm_core::math::Vec3;
-use rtmpm_core::{Particles, Scene};
+use rtmpm_io::ply::read_ply;
+use rtmpm_physics::Particles;
+use rtmpm_physics::math::Vec3;
+use rtmpm_scene::Scene;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

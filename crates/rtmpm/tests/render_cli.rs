@@ -1,6 +1,6 @@
 //! End-to-end tests of `rtmpm render` and `rtmpm run --render / --preview`.
 
-use rtmpm_core::render::Image;
+use rtmpm_render::Image;
 mod common;
 
 use common::{data, rtmpm, scratch, text};

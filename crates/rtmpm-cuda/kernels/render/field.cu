@@ -1,5 +1,5 @@
 // The field a picture is coloured by, per particle, and its automatic range: the 1st and 99th
-// percentiles of the finite values (rtmpm_core::render::field_range), found without the host by
+// percentiles of the finite values (rtmpm_render::field_range), found without the host by
 // two histograms: one over [min, max], then one inside each of the two bins that hold the
 // percentiles, to 1/RENDER_BINS^2 of the field's span.
 #include "render.cuh"

@@ -1,7 +1,7 @@
 // The render stage of a live view (host side: src/render.rs): the particles drawn from the
 // simulation's own state arrays as shaded spheres, the colliders, rigid bodies and the user's tool
 // sphere-traced from their signed distances (sdf.cuh), a checkered floor and a sky, shaded as the
-// CPU renderer shades a frame (rtmpm_core::render: the same camera model, palette, viridis, light,
+// CPU renderer shades a frame (rtmpm_render: the same camera model, palette, viridis, light,
 // shadow map and depth darkening), so that the two pictures of one state agree.
 //
 // The passes, in stream order after the steps: clear; the field and its automatic range (colouring

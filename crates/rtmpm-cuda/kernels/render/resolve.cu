@@ -1,6 +1,6 @@
 // The resolve of the render stage: one thread a pixel shades what its key holds (a particle's
 // sphere, an object's surface, the floor or the sky) as the CPU renderer's shading pass does
-// (rtmpm_core::render::render: Lambert and ambient light, shadow, depth darkening from eight
+// (rtmpm_render::render: Lambert and ambient light, shadow, depth darkening from eight
 // neighbours, a rim light on spheres; checkered floor fading into the sky far from the scene).
 #include "render.cuh"
 

@@ -7,7 +7,7 @@ use crate::error::err;
 use crate::step::{Hooks, Stage};
 use cudarc::driver::sys::CUevent_flags;
 use cudarc::driver::{CudaEvent, CudaStream};
-use rtmpm_core::sim::SimError;
+use rtmpm_sim::SimError;
 
 /// Timings of the pipeline, averaged over the measured steps.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -80,7 +80,7 @@ pub fn bench_kernels(
     warmup: u32,
     steps: u32,
 ) -> Result<KernelTimings, SimError> {
-    use rtmpm_core::sim::Backend;
+    use rtmpm_sim::Backend;
     for i in 0..warmup {
         b.step(dt, i as f32 * dt)?;
     }

@@ -21,12 +21,11 @@ use crate::step::rebuild::sorted_fields;
 use crate::step::rigid::Bodies;
 use crate::{CudaOptions, DeviceInfo, P2gMode, state};
 use cudarc::driver::{CudaContext, CudaModule, CudaStream};
-use rtmpm_core::Scene;
-use rtmpm_core::math::IVec3;
-use rtmpm_core::scene::Precision;
-use rtmpm_core::scene::sampling::SampledBody;
-use rtmpm_core::sim::SimError;
-use rtmpm_core::transfer::Transfer;
+use rtmpm_physics::math::IVec3;
+use rtmpm_physics::transfer::Transfer;
+use rtmpm_scene::sampling::SampledBody;
+use rtmpm_scene::{Precision, Scene};
+use rtmpm_sim::SimError;
 use std::sync::Arc;
 use std::time::Instant;
 

@@ -1,4 +1,4 @@
-//! Particles that appear during a run (`[[emitter]]`, `rtmpm_core::emitter`): the state arrays
+//! Particles that appear during a run (`[[emitter]]`, `rtmpm_scene::emitter`): the state arrays
 //! are sized for the initial particles plus every emitter's total when the backend is built
 //! (`CudaBackend::new_part`), so emitting never reallocates. The host packs the new particles,
 //! copies them into the slots after the last particle, raises `n` and asks for a rebuild (and,
@@ -12,8 +12,8 @@ use crate::backend::CudaBackend;
 use crate::contract::{CTL_NEED_REBUILD, CTL_P2G_PENDING};
 use crate::error::err;
 use crate::options::P2gMode;
-use rtmpm_core::Scene;
-use rtmpm_core::sim::{Particles, SimError};
+use rtmpm_scene::Scene;
+use rtmpm_sim::{Particles, SimError};
 
 /// Particles every emitter of `scene` emits over the run.
 pub fn emitted_total(scene: &Scene) -> usize {

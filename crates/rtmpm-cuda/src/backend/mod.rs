@@ -18,9 +18,10 @@ use crate::step::p2g::P2gPlan;
 use crate::step::rigid::Bodies;
 use crate::step::{Hooks, NoHooks, Stage, StepPlan};
 use cudarc::driver::{CudaModule, CudaSlice, CudaStream, PinnedHostSlice};
-use rtmpm_core::scene::sampling::SampledBody;
-use rtmpm_core::sim::{Backend, BadParticle, BadReason, SimError};
-use rtmpm_core::{Particles, Scene};
+use rtmpm_physics::Particles;
+use rtmpm_scene::Scene;
+use rtmpm_scene::sampling::SampledBody;
+use rtmpm_sim::{Backend, BadParticle, BadReason, SimError};
 use std::sync::Arc;
 
 pub mod bench;
@@ -74,7 +75,7 @@ pub struct CudaBackend {
     /// The render stage's buffers (a live view), allocated at the first picture.
     pub(crate) render: Option<Box<RenderBuffers>>,
     /// The user's tool (its world shape), see `view/steer.rs`.
-    pub(crate) tool: Option<rtmpm_core::boundary::sdf::Shape>,
+    pub(crate) tool: Option<rtmpm_geometry::sdf::Shape>,
 }
 
 /// Memory reused by [`CudaBackend::read_fields`] and [`CudaBackend::read_vec3_ordered`]:
@@ -147,7 +148,7 @@ impl CudaBackend {
     }
 
     /// Upload the particles of sampled bodies
-    /// ([`rtmpm_core::scene::sampling::sample_bodies`]) to device 0, packed straight from their
+    /// ([`rtmpm_scene::sampling::sample_bodies`]) to device 0, packed straight from their
     /// positions: the same state as [`CudaBackend::new`] with `scene.sample_particles()`,
     /// without the host holding those particles (issue 19: 129 instead of 254 bytes a particle
     /// at the host's peak).
@@ -301,7 +302,7 @@ impl CudaBackend {
     }
 
     /// The rigid bodies' states now (none without `[[rigid_body]]`).
-    pub fn rigid_body_states(&self) -> &[rtmpm_core::rigid::BodyState] {
+    pub fn rigid_body_states(&self) -> &[rtmpm_rigid::BodyState] {
         self.bodies.as_ref().map_or(&[], |b| b.states())
     }
 
@@ -387,13 +388,13 @@ impl Backend for CudaBackend {
         Some((0, self.device_bytes() as u64))
     }
 
-    fn rigid_bodies(&self) -> Vec<rtmpm_core::rigid::BodyState> {
+    fn rigid_bodies(&self) -> Vec<rtmpm_rigid::BodyState> {
         self.bodies
             .as_ref()
             .map_or_else(Vec::new, |b| b.states().to_vec())
     }
 
-    fn rigid_poses(&self) -> Vec<rtmpm_core::rigid::BodyPose> {
+    fn rigid_poses(&self) -> Vec<rtmpm_rigid::BodyPose> {
         self.bodies.as_ref().map_or_else(Vec::new, |b| b.poses())
     }
 
@@ -404,7 +405,7 @@ impl Backend for CudaBackend {
         }
     }
 
-    fn set_rigid_poses(&mut self, poses: &[rtmpm_core::rigid::BodyPose]) -> Result<(), SimError> {
+    fn set_rigid_poses(&mut self, poses: &[rtmpm_rigid::BodyPose]) -> Result<(), SimError> {
         match self.bodies.as_mut() {
             Some(b) => b.set_poses(poses),
             None if poses.is_empty() => Ok(()),
@@ -421,7 +422,7 @@ impl Backend for CudaBackend {
         self.flush_rigid()
     }
 
-    fn export_frame(&mut self, sink: &mut dyn rtmpm_core::sim::ChunkSink) -> Result<(), SimError> {
+    fn export_frame(&mut self, sink: &mut dyn rtmpm_sim::ChunkSink) -> Result<(), SimError> {
         self.export_chunks(sink)
     }
 
@@ -432,8 +433,8 @@ impl Backend for CudaBackend {
     /// The picture drawn on this GPU from its own arrays (`view/render.rs`): always drawn here.
     fn render_view(
         &mut self,
-        req: &rtmpm_core::sim::ViewRequest,
-        out: &mut rtmpm_core::render::Image,
+        req: &rtmpm_render::ViewRequest,
+        out: &mut rtmpm_render::Image,
     ) -> Result<bool, SimError> {
         req.check()
             .map_err(|e| SimError::Backend(format!("live view: {e}")))?;
@@ -441,18 +442,21 @@ impl Backend for CudaBackend {
         Ok(true)
     }
 
-    fn set_gravity(&mut self, gravity: rtmpm_core::math::Vec3) -> Result<(), SimError> {
+    fn set_gravity(&mut self, gravity: rtmpm_physics::math::Vec3) -> Result<(), SimError> {
         self.set_gravity_vector(gravity)
     }
 
-    fn set_tool(&mut self, tool: Option<rtmpm_core::sim::Tool>) -> Result<(), SimError> {
+    fn set_tool(&mut self, tool: Option<rtmpm_geometry::Tool>) -> Result<(), SimError> {
         if let Some(t) = &tool {
             t.check().map_err(SimError::Backend)?;
         }
         self.set_tool_shape(tool.map(|t| (t.sdf(), t.velocity)))
     }
 
-    fn chunk_memory(&self, words: usize) -> Result<Box<dyn rtmpm_core::sim::HostBuffer>, SimError> {
+    fn chunk_memory(
+        &self,
+        words: usize,
+    ) -> Result<Box<dyn rtmpm_io::chunks::HostBuffer>, SimError> {
         Ok(Box::new(self.chunk_host_memory(words)?))
     }
 }

@@ -6,8 +6,8 @@ use crate::contract::*;
 use crate::error::err;
 use crate::step::p2g::{P2gPlan, reverse_map::ReverseMapSize};
 use cudarc::driver::CudaSlice;
-use rtmpm_core::math::IVec3;
-use rtmpm_core::sim::SimError;
+use rtmpm_physics::math::IVec3;
+use rtmpm_sim::SimError;
 
 impl CudaBackend {
     /// Extra device memory of the P2G strategy: (buffer, bytes); empty for the scatter.
@@ -278,7 +278,7 @@ pub fn scatter_state(
     n: usize,
     cap: usize,
     layout: crate::contract::StateLayout,
-    out: &mut rtmpm_core::Particles,
+    out: &mut rtmpm_physics::Particles,
 ) -> Result<(), SimError> {
     crate::state::scatter_f32(host, n, cap, layout, out).map_err(SimError::Backend)
 }

@@ -252,7 +252,7 @@ pub struct GpuCollider {
 
 /// A rigid body at the step's time (constant memory `c_bodies`, written before every step):
 /// its shape about its centre of mass as a collider shape in the rest pose (pivot 0), its
-/// boundary rule, pose and velocities (`rtmpm_core::rigid::BodyState`).
+/// boundary rule, pose and velocities (`rtmpm_rigid::BodyState`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct GpuBody {
@@ -272,7 +272,7 @@ pub struct GpuBody {
     pub dynamic: u32,
 }
 
-/// The user's tool (a live view's drag, `rtmpm_core::sim::Tool`; constant memory `c_tool`,
+/// The user's tool (a live view's drag, `rtmpm_geometry::Tool`; constant memory `c_tool`,
 /// written when it changes): a separating collider moving at `velocity`, its shape in world
 /// coordinates (pivot 0, not rotated), applied in the grid update after the scene's colliders.
 #[repr(C)]

@@ -12,9 +12,9 @@
 //! no precision. Every struct derives (or, for the generic ones, implements with a compile-time
 //! proof of no padding) `bytemuck::Pod`, so no padding byte is ever read.
 
-use rtmpm_core::boundary::Condition;
-use rtmpm_core::boundary::sdf::Shape;
-use rtmpm_core::transfer::Update;
+use rtmpm_geometry::sdf::Shape;
+use rtmpm_physics::boundary::Condition;
+use rtmpm_physics::transfer::Update;
 
 mod headers;
 mod layout;

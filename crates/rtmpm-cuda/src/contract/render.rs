@@ -33,9 +33,9 @@ pub const RS_FINE: usize = RS_COARSE + RENDER_BINS;
 /// Words of the scratch.
 pub const RS_WORDS: usize = RS_FINE + 2 * RENDER_BINS;
 
-/// Colour mode codes (`RenderParams::color_by`), in the order of `rtmpm_core::render::ColorBy::ALL`.
-pub fn color_code(c: rtmpm_core::render::ColorBy) -> u32 {
-    use rtmpm_core::render::ColorBy;
+/// Colour mode codes (`RenderParams::color_by`), in the order of `rtmpm_scene::ColorBy::ALL`.
+pub fn color_code(c: rtmpm_scene::ColorBy) -> u32 {
+    use rtmpm_scene::ColorBy;
     match c {
         ColorBy::Material => 0,
         ColorBy::Speed => 1,

@@ -1,5 +1,5 @@
 //! Host side of `export_chunk` (kernels/export.cu): a frame's columns in original particle order,
-//! chunk by chunk, for the streamed frame writers ([`rtmpm_core::io::chunks`]). Each chunk is
+//! chunk by chunk, for the streamed frame writers ([`rtmpm_io::chunks`]). Each chunk is
 //! gathered on the device into a scratch array of the chunk's size (every slot's original index
 //! is read once per chunk; no index array of the whole state) and copied into page-locked host
 //! memory from [`CudaBackend::chunk_host_memory`], which the sink then hands to a writer thread:
@@ -10,8 +10,8 @@ use crate::contract::StateLayout;
 use crate::error::err;
 use crate::kernels::Kernel;
 use cudarc::driver::{CudaSlice, PinnedHostSlice, PushKernelArg};
-use rtmpm_core::io::chunks::{ChunkSink, Column, FrameColumns, HostBuffer};
-use rtmpm_core::sim::SimError;
+use rtmpm_io::chunks::{Column, FrameColumns, HostBuffer};
+use rtmpm_sim::{ChunkSink, SimError};
 
 /// Page-locked host memory for frame chunks.
 pub struct PinnedWords {
@@ -91,7 +91,7 @@ impl CudaBackend {
         })
     }
 
-    /// [`rtmpm_core::sim::Backend::export_frame`]: chunk by chunk, gathered on the device and
+    /// [`rtmpm_sim::Backend::export_frame`]: chunk by chunk, gathered on the device and
     /// copied into the sink's (page-locked) chunks. Synchronises.
     pub fn export_chunks(&mut self, sink: &mut dyn ChunkSink) -> Result<(), SimError> {
         let n = self.n;

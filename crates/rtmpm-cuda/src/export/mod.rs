@@ -16,8 +16,8 @@ use crate::backend::CudaBackend;
 use crate::contract::*;
 use crate::error::err;
 use cudarc::driver::{DevicePtr, PinnedHostSlice};
-use rtmpm_core::math::Vec3;
-use rtmpm_core::sim::SimError;
+use rtmpm_physics::math::Vec3;
+use rtmpm_sim::SimError;
 
 /// Where the particle state of a [`CudaBackend`] is, for zero-copy views.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

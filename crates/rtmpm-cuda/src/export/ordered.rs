@@ -8,7 +8,7 @@ use crate::error::err;
 use crate::kernels::Kernel;
 use cudarc::driver::{CudaSlice, CudaStream, PinnedHostSlice, PushKernelArg};
 use rayon::prelude::*;
-use rtmpm_core::sim::SimError;
+use rtmpm_sim::SimError;
 
 /// Floats per chunk of the device-to-host copy (2 MiB): the last chunk's host copy is not hidden.
 const CHUNK: usize = 1 << 19;

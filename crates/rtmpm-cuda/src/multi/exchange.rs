@@ -39,7 +39,7 @@ use crate::error::err;
 use crate::kernels::Kernels;
 use crate::step::{Exchange, Hooks};
 use cudarc::driver::{CudaEvent, CudaSlice, CudaStream, DevicePtr};
-use rtmpm_core::sim::SimError;
+use rtmpm_sim::SimError;
 use std::sync::Arc;
 
 fn nccl_err(e: String) -> SimError {

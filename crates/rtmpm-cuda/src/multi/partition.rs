@@ -3,8 +3,8 @@
 //! so that few grid blocks are shared. Deterministic: every process of a multi-process run
 //! computes the same partition from the same particles.
 
-use rtmpm_core::Scene;
-use rtmpm_core::math::Vec3;
+use rtmpm_physics::math::Vec3;
+use rtmpm_scene::Scene;
 use std::collections::HashMap;
 
 /// The particles of each GPU (original indices, increasing) and the axis the slabs cut.

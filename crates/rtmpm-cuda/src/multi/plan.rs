@@ -8,9 +8,10 @@ use super::reduce_shared::dense_dims;
 use crate::backend::CudaBackend;
 use crate::contract::{CTL_BAD_INDEX, CTL_BAD_REASON, CTL_MAX_SPEED};
 use crate::{CudaOptions, P2gMode};
-use rtmpm_core::sim::{BadParticle, BadReason, SimError};
-use rtmpm_core::transfer::Transfer;
-use rtmpm_core::{Particles, Scene};
+use rtmpm_physics::Particles;
+use rtmpm_physics::transfer::Transfer;
+use rtmpm_scene::Scene;
+use rtmpm_sim::{BadParticle, BadReason, SimError};
 
 /// The particles of `idx`, in that order.
 pub fn subset(p: &Particles, idx: &[u32]) -> Particles {
@@ -71,7 +72,7 @@ pub fn check_supported(scene: &Scene, options: &CudaOptions) -> Result<(), SimEr
                 .into(),
         ));
     }
-    if options.f64 || scene.precision == rtmpm_core::scene::Precision::F64 {
+    if options.f64 || scene.precision == rtmpm_scene::Precision::F64 {
         return Err(SimError::Backend(
             "several GPUs run in single precision only (the particle exchange at \
              rebalancing moves f32 state); run f64 scenes on one GPU (--gpus 1)"
@@ -153,7 +154,7 @@ mod tests {
         gimp.solver.transfer = Transfer::Gimp;
         assert!(msg(check_supported(&gimp, &o)).contains("\"gimp\""));
         let mut double = scene;
-        double.precision = rtmpm_core::scene::Precision::F64;
+        double.precision = rtmpm_scene::Precision::F64;
         assert!(msg(check_supported(&double, &o)).contains("--gpus 1"));
     }
 
@@ -195,8 +196,8 @@ mod tests {
         let mut p = Particles::default();
         for i in 0..5 {
             p.push(
-                rtmpm_core::math::Vec3::splat(i as f32),
-                rtmpm_core::math::Vec3::ZERO,
+                rtmpm_physics::math::Vec3::splat(i as f32),
+                rtmpm_physics::math::Vec3::ZERO,
                 i as f32,
                 1.0,
                 i,

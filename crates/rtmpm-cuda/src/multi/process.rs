@@ -9,8 +9,9 @@ use crate::backend::Part;
 use crate::backend::readback::{resize_particles, scatter_state};
 use crate::contract::{CTL_BAD_INDEX, CTL_MAX_SPEED, CTL_SHARED};
 use crate::{CudaOptions, Transport};
-use rtmpm_core::sim::{Backend, BadParticle, SimError};
-use rtmpm_core::{Particles, Scene};
+use rtmpm_physics::Particles;
+use rtmpm_scene::Scene;
+use rtmpm_sim::{Backend, BadParticle, SimError};
 
 fn nccl_err(e: String) -> SimError {
     SimError::Backend(e)
@@ -41,7 +42,7 @@ pub struct NcclRankBackend {
     /// Rebalances done so far.
     pub rebalances: u32,
     /// The user's tool (given again to a rank rebuilt by a rebalance).
-    tool: Option<rtmpm_core::sim::Tool>,
+    tool: Option<rtmpm_geometry::Tool>,
 }
 
 impl NcclRankBackend {
@@ -179,14 +180,14 @@ impl Backend for NcclRankBackend {
     }
 
     /// Gravity of this rank's GPU (every rank of the run is given the same).
-    fn set_gravity(&mut self, gravity: rtmpm_core::math::Vec3) -> Result<(), SimError> {
+    fn set_gravity(&mut self, gravity: rtmpm_physics::math::Vec3) -> Result<(), SimError> {
         self.r()?.b.set_gravity(gravity)?;
         self.scene.gravity = gravity;
         Ok(())
     }
 
     /// The tool on this rank's GPU (every rank of the run is given the same).
-    fn set_tool(&mut self, tool: Option<rtmpm_core::sim::Tool>) -> Result<(), SimError> {
+    fn set_tool(&mut self, tool: Option<rtmpm_geometry::Tool>) -> Result<(), SimError> {
         self.r()?.b.set_tool(tool)?;
         self.tool = tool;
         Ok(())

@@ -10,8 +10,9 @@ use crate::contract::{CTL_NEED_REBUILD, CTL_WORDS};
 use crate::error::err;
 use crate::{BarrierKind, CudaOptions};
 use cudarc::driver::{CudaSlice, DevicePtr};
-use rtmpm_core::sim::SimError;
-use rtmpm_core::{Particles, Scene};
+use rtmpm_physics::Particles;
+use rtmpm_scene::Scene;
+use rtmpm_sim::SimError;
 use std::sync::Arc;
 
 fn nccl_err(e: String) -> SimError {

@@ -11,8 +11,9 @@ use crate::backend::Part;
 use crate::backend::readback::{resize_particles, scatter_state};
 use crate::contract::{CTL_MAX_SPEED, CTL_SHARED};
 use crate::{BarrierKind, CudaOptions, Transport};
-use rtmpm_core::sim::{Backend, BadParticle, SimError};
-use rtmpm_core::{Particles, Scene};
+use rtmpm_physics::Particles;
+use rtmpm_scene::Scene;
+use rtmpm_sim::{Backend, BadParticle, SimError};
 use std::sync::{Arc, mpsc};
 
 fn nccl_err(e: String) -> SimError {
@@ -52,7 +53,7 @@ pub struct MultiGpuBackend {
     /// Rebalances done so far.
     pub rebalances: u32,
     /// The user's tool (given again to the ranks rebuilt by a rebalance).
-    tool: Option<rtmpm_core::sim::Tool>,
+    tool: Option<rtmpm_geometry::Tool>,
 }
 
 impl MultiGpuBackend {
@@ -325,14 +326,14 @@ impl Backend for MultiGpuBackend {
     }
 
     /// Gravity on every GPU.
-    fn set_gravity(&mut self, gravity: rtmpm_core::math::Vec3) -> Result<(), SimError> {
+    fn set_gravity(&mut self, gravity: rtmpm_physics::math::Vec3) -> Result<(), SimError> {
         self.all(move |_, r| rank(r)?.b.set_gravity(gravity))?;
         self.scene.gravity = gravity;
         Ok(())
     }
 
     /// The tool on every GPU (each applies it to the grid nodes of its particles).
-    fn set_tool(&mut self, tool: Option<rtmpm_core::sim::Tool>) -> Result<(), SimError> {
+    fn set_tool(&mut self, tool: Option<rtmpm_geometry::Tool>) -> Result<(), SimError> {
         self.all(move |_, r| rank(r)?.b.set_tool(tool))?;
         self.tool = tool;
         Ok(())

@@ -6,9 +6,9 @@ use crate::contract::{self, CTL_BAD_INDEX, CTL_P2G_PENDING, CTL_WORDS, Ctx};
 use crate::error::err;
 use crate::setup::capacity::{BufferBytes, Capacity, GridCopies};
 use cudarc::driver::{CudaSlice, CudaStream, DevicePtr};
-use rtmpm_core::Scene;
-use rtmpm_core::sim::SimError;
-use rtmpm_core::transfer::Transfer;
+use rtmpm_physics::transfer::Transfer;
+use rtmpm_scene::Scene;
+use rtmpm_sim::SimError;
 use std::sync::Arc;
 
 /// What a GPU's buffers hold besides the capacities: its particle count, the precision and the

@@ -6,14 +6,13 @@ pub mod capacity;
 pub mod fill;
 pub mod sample;
 
-use crate::CudaOptions;
-use crate::P2gMode;
+use crate::{CudaOptions, P2gMode};
 use capacity::Capacity;
-use rtmpm_core::Particles;
-use rtmpm_core::Scene;
-use rtmpm_core::grid::BlockLayout;
-use rtmpm_core::math::IVec3;
-use rtmpm_core::scene::sampling::SampledBody;
+use rtmpm_physics::Particles;
+use rtmpm_physics::grid::BlockLayout;
+use rtmpm_physics::math::IVec3;
+use rtmpm_scene::Scene;
+use rtmpm_scene::sampling::SampledBody;
 
 /// What a backend starts from: particles, or sampled bodies packed straight from their positions.
 #[derive(Clone, Copy)]

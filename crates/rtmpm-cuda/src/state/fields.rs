@@ -4,7 +4,7 @@
 use super::word::Word;
 use crate::contract::StateLayout;
 use crate::state::codec;
-use rtmpm_core::math::{Mat3, Vec3};
+use rtmpm_physics::math::{Mat3, Vec3};
 
 /// A fluid layout holds fluids only; a compact one is single precision.
 pub(super) fn check_layout(fluid: &[bool], layout: StateLayout, f64: bool) -> Result<(), String> {
@@ -85,7 +85,7 @@ pub(super) fn read_f<W: Word>(l: StateLayout, g: impl Fn(usize) -> W) -> Mat3 {
 /// words `write_image` writes for such a body besides x, v and the id.
 pub(super) fn body_words<W: Word>(
     l: StateLayout,
-    b: &rtmpm_core::scene::sampling::BodyPositions,
+    b: &rtmpm_scene::sampling::BodyPositions,
     fluid: bool,
 ) -> Vec<(usize, u64)> {
     let bits = |w: W| {

@@ -27,9 +27,8 @@ pub use unpack::{resize_particles, scatter_f32, unpack, unpack_x_v_f64};
 
 use crate::contract::StateLayout;
 use crate::options::CudaOptions;
-use rtmpm_core::Scene;
-use rtmpm_core::material::Model;
-use rtmpm_core::scene::{ParticleState, Precision};
+use rtmpm_physics::material::Model;
+use rtmpm_scene::{ParticleState, Precision, Scene};
 
 /// Bytes of one state word.
 pub fn word_bytes(f64: bool) -> usize {

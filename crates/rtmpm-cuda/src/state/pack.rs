@@ -7,9 +7,9 @@ use super::fields::*;
 use super::word::Word;
 use crate::contract::StateLayout;
 use rayon::prelude::*;
-use rtmpm_core::Particles;
-use rtmpm_core::math::{Mat3, Vec3};
-use rtmpm_core::scene::sampling::{BodyPositions, SampledBody};
+use rtmpm_physics::Particles;
+use rtmpm_physics::math::{Mat3, Vec3};
+use rtmpm_scene::sampling::{BodyPositions, SampledBody};
 
 /// The device image of `particles` (f64 words when `f64`), SoA with stride `cap` (at least the
 /// particle count; the words past the particles are zero); `fluid` has one entry per material
@@ -221,9 +221,9 @@ fn pack_words<W: Word>(
 }
 
 /// The device image (stride: the particle count, ids `0..n`) of the particles of sampled bodies
-/// ([`rtmpm_core::scene::sampling::sample_bodies`]), written straight from their positions:
+/// ([`rtmpm_scene::sampling::sample_bodies`]), written straight from their positions:
 /// byte for byte what [`pack`] makes of the [`Particles`] that
-/// [`rtmpm_core::Scene::sample_particles`] returns, without the host ever holding those (112
+/// [`rtmpm_scene::Scene::sample_particles`] returns, without the host ever holding those (112
 /// bytes a particle): a backend built from it needs the image (4 bytes a word: 116 bytes a
 /// particle in the 29-word f32 layout) and the positions (12) only.
 pub fn pack_bodies(

@@ -4,8 +4,8 @@ use super::pack::PACK_CHUNK;
 use super::word::Word;
 use super::*;
 use crate::contract::*;
-use rtmpm_core::Particles;
-use rtmpm_core::math::{Mat3, Vec3};
+use rtmpm_physics::Particles;
+use rtmpm_physics::math::{Mat3, Vec3};
 
 const NFIELDS: usize = 29;
 const F_X: usize = 0;
@@ -138,11 +138,11 @@ fn packing_the_sampled_bodies_is_packing_their_particles() {
         [[body]]\nmaterial = \"w\"\nshape = \"particles\"\nfile = \"pts.ply\"\n\
         [[body]]\nmaterial = \"s\"\nshape = \"cylinder\"\ncenter = [0.7, 0.7, 0.6]\n\
         axis = [0, 1, 0]\nradius = 0.1\nheight = 0.2\nsampling = \"random\"\n";
-    let scene = rtmpm_core::Scene::from_toml_in(text, "pack", &dir).expect("scene");
+    let scene = rtmpm_scene::Scene::from_toml_in(text, "pack", &dir).expect("scene");
     let _ = std::fs::remove_dir_all(&dir);
     let p = scene.sample_particles().expect("particles");
     assert!(p.len() > 2 * PACK_CHUNK, "{}", p.len());
-    let bodies = rtmpm_core::scene::sampling::sample_bodies(&scene, &|_| {}).expect("bodies");
+    let bodies = rtmpm_scene::sampling::sample_bodies(&scene, &|_| {}).expect("bodies");
     let fluid = [true, false];
     for (l, f64) in [(FULL, false), (FULL, true), (StateLayout::Compact, false)] {
         let want = pack(&p, &fluid, l, f64, p.len(), None).expect("pack");

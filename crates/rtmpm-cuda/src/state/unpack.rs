@@ -5,8 +5,8 @@
 use super::fields::*;
 use super::word::Word;
 use crate::contract::StateLayout;
-use rtmpm_core::Particles;
-use rtmpm_core::math::{Mat3, Vec3};
+use rtmpm_physics::Particles;
+use rtmpm_physics::math::{Mat3, Vec3};
 
 /// Particles in original order from the device image of `n` particles (stride `cap`).
 pub fn unpack(

@@ -3,7 +3,7 @@
 use crate::contract::Ctx;
 use crate::kernels::{Kernel, Kernels};
 use cudarc::driver::{CudaStream, DriverError, PushKernelArg};
-use rtmpm_core::transfer::Transfer;
+use rtmpm_physics::transfer::Transfer;
 
 /// Enqueue the merged G2P (interpolation, F, plasticity, advection, free-zone and health checks):
 /// `g2p2g` with G2P2G (the next step's P2G in the same kernel), else `g2p` for MLS, `g2p_mpm`

@@ -7,7 +7,7 @@
 use crate::error::err;
 use cudarc::driver::sys::{CUgraphInstantiate_flags, CUstreamCaptureMode};
 use cudarc::driver::{CudaGraph, CudaStream};
-use rtmpm_core::sim::SimError;
+use rtmpm_sim::SimError;
 use std::sync::Arc;
 
 /// The captured steps of a backend: one per grid parity, each with the dt it was captured for.

@@ -32,8 +32,8 @@ use crate::error::err;
 use crate::kernels::Kernels;
 use crate::step::p2g::P2gPlan;
 use cudarc::driver::CudaStream;
-use rtmpm_core::sim::SimError;
-use rtmpm_core::transfer::{Transfer, Update};
+use rtmpm_physics::transfer::{Transfer, Update};
+use rtmpm_sim::SimError;
 
 /// A stage of the step, in order (each may be several kernels).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -1,5 +1,5 @@
 //! Rigid bodies on the GPU (`[[rigid_body]]`): the bodies move in rapier3d on the host
-//! ([`rtmpm_core::rigid::RigidWorld`], cargo feature `rigid` of rtmpm-core), the grid update
+//! ([`rtmpm_rigid::RigidWorld`], cargo feature `rigid` of rtmpm-rigid), the grid update
 //! couples them (`kernels/grid_update.cu`: `couple_bodies`, the same rule as the CPU backend's
 //! `cpu/grid_update.rs`).
 //!
@@ -16,9 +16,9 @@
 use crate::contract::{BODY_EXCHANGE_SLOTS, GpuBody, GpuCollider, MAX_BODIES};
 use crate::error::err;
 use cudarc::driver::{CudaEvent, CudaModule, CudaSlice, CudaStream, DevicePtr, PinnedHostSlice};
-use rtmpm_core::Scene;
-use rtmpm_core::rigid::{BodyState, Exchange, RigidWorld};
-use rtmpm_core::sim::SimError;
+use rtmpm_rigid::{BodyState, Exchange, RigidWorld};
+use rtmpm_scene::Scene;
+use rtmpm_sim::SimError;
 use std::sync::Arc;
 
 /// The device record of a body's state; a mesh body's distance grid starts at `mesh_offset` in
@@ -66,7 +66,7 @@ pub struct Bodies {
 
 impl Bodies {
     /// Gravity from the next advance of the bodies on.
-    pub fn set_gravity(&mut self, gravity: rtmpm_core::math::Vec3) {
+    pub fn set_gravity(&mut self, gravity: rtmpm_physics::math::Vec3) {
         self.world.set_gravity(gravity);
     }
 
@@ -88,7 +88,7 @@ impl Bodies {
                 scene.rigid_bodies.len()
             )));
         }
-        if scene.solver.update == rtmpm_core::transfer::Update::Musl {
+        if scene.solver.update == rtmpm_physics::transfer::Update::Musl {
             return Err(SimError::Backend(
                 "rigid bodies are coupled in the grid update of USL steps: use [solver] update \
                  = \"usl\" with [[rigid_body]] tables"
@@ -100,7 +100,8 @@ impl Bodies {
             &scene.joints,
             scene.gravity,
             scene.interior(),
-        )?
+        )
+        .map_err(SimError::Backend)?
         else {
             return Ok(None);
         };
@@ -144,14 +145,14 @@ impl Bodies {
     }
 
     /// Every body's pose and velocities (what a checkpoint stores).
-    pub fn poses(&self) -> Vec<rtmpm_core::rigid::BodyPose> {
+    pub fn poses(&self) -> Vec<rtmpm_rigid::BodyPose> {
         self.world.poses()
     }
 
     /// Put the bodies at `poses` (resuming a checkpoint); impulses not yet taken are dropped.
-    pub fn set_poses(&mut self, poses: &[rtmpm_core::rigid::BodyPose]) -> Result<(), SimError> {
+    pub fn set_poses(&mut self, poses: &[rtmpm_rigid::BodyPose]) -> Result<(), SimError> {
         self.pending = None;
-        self.world.set_poses(poses)
+        self.world.set_poses(poses).map_err(SimError::Backend)
     }
 
     /// Before a step: the bodies' states to constant memory (and its global copy).
@@ -243,9 +244,9 @@ pub fn exchange_sums(sums: &[f64], bodies: usize) -> Vec<Exchange> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rtmpm_core::boundary::Condition;
-    use rtmpm_core::boundary::sdf::Shape;
-    use rtmpm_core::rigid::RigidShape;
+    use rtmpm_geometry::RigidShape;
+    use rtmpm_geometry::sdf::Shape;
+    use rtmpm_physics::boundary::Condition;
 
     #[test]
     fn the_slots_add_up_body_by_body() {
@@ -287,7 +288,7 @@ mod tests {
              translate = [0.6, 0.6, 0.6]\ndensity = 500.0\n",
             obj.display()
         );
-        let scene = rtmpm_core::Scene::from_toml(&text, "test").unwrap_or_else(|e| panic!("{e}"));
+        let scene = rtmpm_scene::Scene::from_toml(&text, "test").unwrap_or_else(|e| panic!("{e}"));
         let t = crate::encode::tables(&scene, false).unwrap();
         let Shape::Mesh(col) = &scene.colliders[0].shape else {
             panic!("a mesh collider")

@@ -2,8 +2,8 @@
 //! the simulation's own state arrays, nothing of the particles copied to the host; only the
 //! finished image comes back (8-bit RGB, through page-locked memory).
 //!
-//! The picture is the CPU renderer's (`rtmpm_core::render::render`) for the same
-//! [`RenderOptions`]: the same camera ([`rtmpm_core::render::View`]), light and shadow map
+//! The picture is the CPU renderer's (`rtmpm_render::render`) for the same
+//! [`RenderOptions`]: the same camera ([`rtmpm_render::View`]), light and shadow map
 //! ([`ShadowFrame`]), palette and viridis, colour modes and automatic range (the 1st to 99th
 //! percentile), colliders (sphere-traced, clipped to the scene box), floor and sky; the colour
 //! bar and label are drawn on the host by the CPU renderer's own functions. The kernels, in
@@ -21,13 +21,13 @@ use crate::error::err;
 use crate::kernels::{Kernel, Kernels, cfg};
 use cudarc::driver::sys::CUevent_flags;
 use cudarc::driver::{CudaEvent, CudaStream, DevicePtr, DriverError, LaunchConfig, PushKernelArg};
-use rtmpm_core::boundary::sdf::Shape;
-use rtmpm_core::boundary::{BoundaryRule, Collider};
-use rtmpm_core::math::Vec3;
-use rtmpm_core::render::{
-    COLLIDER_COLOR, ColorBy, Image, LIGHT, RenderOptions, ShadowFrame, colormap,
-};
-use rtmpm_core::sim::SimError;
+use rtmpm_geometry::Collider;
+use rtmpm_geometry::sdf::Shape;
+use rtmpm_physics::boundary::BoundaryRule;
+use rtmpm_physics::math::Vec3;
+use rtmpm_render::{COLLIDER_COLOR, Image, LIGHT, RenderOptions, ShadowFrame, colormap};
+use rtmpm_scene::ColorBy;
+use rtmpm_sim::SimError;
 
 /// Largest side of a picture (pixels), as the CPU renderer's.
 pub const MAX_SIDE: u32 = 16384;
@@ -361,11 +361,11 @@ impl CudaBackend {
                 .unwrap_or((f32::from_bits(range[0]), f32::from_bits(range[1])))
         });
         if let Some((lo, hi)) = used {
-            rtmpm_core::render::draw_color_bar(out, opts.color_by.label(), lo, hi, scale);
+            rtmpm_render::draw_color_bar(out, opts.color_by.label(), lo, hi, scale);
         }
         if let Some(label) = &opts.label {
             let m = 6 * scale as i32;
-            rtmpm_core::render::text::draw_text(out, m, m, label, scale, [235, 235, 235]);
+            rtmpm_render::text::draw_text(out, m, m, label, scale, [235, 235, 235]);
         }
         Ok(used)
     }
@@ -476,8 +476,8 @@ fn no_buffers() -> SimError {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rtmpm_core::boundary::Condition;
-    use rtmpm_core::render::Camera;
+    use rtmpm_physics::boundary::Condition;
+    use rtmpm_render::Camera;
 
     fn opts() -> RenderOptions {
         let (lo, hi) = (Vec3::new(0.1, 0.1, 0.1), Vec3::new(0.9, 0.7, 0.9));
@@ -623,7 +623,7 @@ mod tests {
         )
         .unwrap();
         assert_eq!((t.pivot, t.shape.pivot), ([0.0; 3], [0.0; 3]));
-        assert_eq!(t.rot, rtmpm_core::math::Mat3::IDENTITY.to_cols_array());
+        assert_eq!(t.rot, rtmpm_physics::math::Mat3::IDENTITY.to_cols_array());
     }
 
     #[test]

@@ -6,9 +6,9 @@
 use crate::backend::CudaBackend;
 use crate::error::err;
 use crate::kernels::write_symbol;
-use rtmpm_core::boundary::sdf::Shape;
-use rtmpm_core::math::Vec3;
-use rtmpm_core::sim::SimError;
+use rtmpm_geometry::sdf::Shape;
+use rtmpm_physics::math::Vec3;
+use rtmpm_sim::SimError;
 
 impl CudaBackend {
     /// Gravity from the next step on: the step parameters (uploaded before the next step, as any

@@ -41,6 +41,7 @@ pub use params::{MaterialParams, ParamError};
 pub use snow::Snow;
 pub use von_mises::VonMises;
 
+use crate::Particles;
 use crate::math::{Mat3, Real};
 
 /// Lamé parameters `(mu, lambda)` from Young's modulus and Poisson's ratio.
@@ -231,4 +232,26 @@ impl Material {
     ) -> Result<Material, ParamError> {
         Material::new(name, density, MaterialParams::parse(kind, fields)?)
     }
+}
+
+/// Cauchy stress `sigma = tau / J` per particle, `[xx, yy, zz, xy, yz, xz]` (Pa), from each
+/// particle's material model in `materials` (the `stress` field of output frames; the
+/// renderer's von Mises colouring).
+pub fn cauchy_stress(p: &Particles, materials: &[Material]) -> Vec<[Real; 6]> {
+    (0..p.len())
+        .map(|i| {
+            let model = &materials[p.material[i] as usize].model;
+            cauchy_stress_of(model, p.f[i], p.plastic[i], p.c[i])
+        })
+        .collect()
+}
+
+/// The Cauchy stress of one particle of material model `model`, `[xx, yy, zz, xy, yz, xz]`
+/// (Pa), see [`cauchy_stress`].
+pub fn cauchy_stress_of(model: &Model, f: Mat3, plastic: Real, c: Mat3) -> [Real; 6] {
+    let j = f.determinant();
+    let s = model.kirchhoff(f, plastic, c) * (1.0 / j);
+    [
+        s.x_axis.x, s.y_axis.y, s.z_axis.z, s.y_axis.x, s.z_axis.y, s.z_axis.x,
+    ]
 }

@@ -20,7 +20,7 @@ pub struct FrameJob {
     pub(super) field: Option<Vec<f32>>,
     pub(super) surface: SurfaceJob,
     /// The rigid bodies at this frame, as motionless colliders (drawn with the colliders).
-    pub(super) bodies: Vec<rtmpm_core::boundary::Collider>,
+    pub(super) bodies: Vec<rtmpm_geometry::Collider>,
 }
 
 impl FrameJob {
@@ -73,7 +73,7 @@ impl FrameJob {
         scene: &Scene,
         color_by: ColorBy,
     ) -> FrameJob {
-        let field = rtmpm_core::render::particle_field(p, scene, color_by);
+        let field = rtmpm_render::particle_field(p, scene, color_by);
         FrameJob {
             frame,
             time: Some(time),
@@ -86,7 +86,7 @@ impl FrameJob {
     }
 
     /// Draw the rigid bodies `bodies` (their states at this frame) too.
-    pub fn with_bodies(mut self, bodies: &[rtmpm_core::rigid::BodyState]) -> FrameJob {
+    pub fn with_bodies(mut self, bodies: &[rtmpm_rigid::BodyState]) -> FrameJob {
         self.bodies = bodies.iter().map(|b| b.collider()).collect();
         self
     }
@@ -161,8 +161,8 @@ impl FrameJob {
 pub(super) fn read_bodies_csv(
     path: &Path,
     scene: &Scene,
-) -> Result<std::collections::HashMap<u64, Vec<rtmpm_core::rigid::BodyState>>> {
-    use rtmpm_core::rigid::{BodyState, RigidKind};
+) -> Result<std::collections::HashMap<u64, Vec<rtmpm_rigid::BodyState>>> {
+    use rtmpm_rigid::{BodyState, RigidKind};
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     let mut frames: std::collections::HashMap<u64, Vec<BodyState>> = Default::default();

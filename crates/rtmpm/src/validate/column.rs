@@ -6,10 +6,10 @@
 
 use super::{Ctx, Row};
 use anyhow::{Context, Result, bail, ensure};
-use rtmpm_core::material::Model;
-use rtmpm_core::math::Vec3;
-use rtmpm_core::render::plot::{Plot, Series, Style};
-use rtmpm_core::scene::sampling::BodyShape;
+use rtmpm_geometry::BodyShape;
+use rtmpm_physics::material::Model;
+use rtmpm_physics::math::Vec3;
+use rtmpm_render::plot::{Plot, Series, Style};
 
 /// A column stands: its final height is at least this fraction of its initial height (elastic
 /// compression under its weight is far smaller).

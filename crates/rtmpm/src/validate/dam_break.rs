@@ -2,7 +2,7 @@
 
 use super::{Ctx, Row};
 use anyhow::Result;
-use rtmpm_core::render::plot::{Plot, Series, Style};
+use rtmpm_render::plot::{Plot, Series, Style};
 
 /// Martin & Moyce's data as tabulated in REFERENCES.md: (T, Z).
 const DATA: [(f64, f64); 14] = [
@@ -44,9 +44,9 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
     if !ctx.args.quick {
         // Full resolution: half the spacing, the same tank and walls 3 cells thick.
         let dx = scene.dx / 2.0;
-        scene.domain_min = rtmpm_core::math::Vec3::splat(-3.0 * dx);
+        scene.domain_min = rtmpm_physics::math::Vec3::splat(-3.0 * dx);
         scene.domain_max =
-            rtmpm_core::math::Vec3::new(0.5 + 3.0 * dx, 0.25 + 3.0 * dx, 0.01 + 3.0 * dx);
+            rtmpm_physics::math::Vec3::new(0.5 + 3.0 * dx, 0.25 + 3.0 * dx, 0.01 + 3.0 * dx);
         scene.dx = dx;
     }
     let g = scene.gravity.length() as f64;

@@ -4,7 +4,7 @@
 use super::measure::Curve;
 use super::{Ctx, Row, rel_pct};
 use anyhow::Result;
-use rtmpm_core::render::plot::{Plot, Series, Style};
+use rtmpm_render::plot::{Plot, Series, Style};
 
 /// Slab thickness (m): energies are reported per unit thickness.
 const THICKNESS: f64 = 0.1;

@@ -2,7 +2,7 @@
 
 use super::{Ctx, Row};
 use anyhow::Result;
-use rtmpm_core::scene::StepMode;
+use rtmpm_scene::StepMode;
 
 pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
     let scene = ctx.scene("free_fall.toml")?;
@@ -20,8 +20,8 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
     for i in 0..p.len() {
         let exact = p0.x[i] + p0.v[i] * t32 + 0.5 * g * t32 * t32;
         worst = worst.max((p.x[i] - exact).length());
-        let df = p.f[i] - rtmpm_core::math::Mat3::IDENTITY;
-        worst_f = worst_f.max(rtmpm_core::math::norm2(df).sqrt());
+        let df = p.f[i] - rtmpm_physics::math::Mat3::IDENTITY;
+        worst_f = worst_f.max(rtmpm_physics::math::norm2(df).sqrt());
     }
     // Symplectic Euler lags the parabola by |g| t dt / 2; float round-off adds ~1e-6 m.
     let tol = 0.5 * g.length() * t32 * dt + 1e-5;

@@ -2,9 +2,9 @@
 
 use super::{Ctx, Row, rel_pct};
 use anyhow::{Result, ensure};
-use rtmpm_core::Scene;
-use rtmpm_core::math::Vec3;
-use rtmpm_core::render::plot::{Plot, Series, Style};
+use rtmpm_physics::math::Vec3;
+use rtmpm_render::plot::{Plot, Series, Style};
+use rtmpm_scene::Scene;
 
 /// Initial column length and height (m), as in validation/granular_column.toml.
 const L0: f64 = 0.1;
@@ -23,7 +23,7 @@ fn at_resolution(mut scene: Scene, dx: f32) -> Scene {
     scene.domain_max = Vec3::new(0.4 + t, 0.15 + t, depth + t);
     scene.dx = dx;
     for b in &mut scene.bodies {
-        if let rtmpm_core::scene::sampling::BodyShape::Box { max, .. } = &mut b.shape {
+        if let rtmpm_geometry::BodyShape::Box { max, .. } = &mut b.shape {
             max.z = depth;
         }
     }

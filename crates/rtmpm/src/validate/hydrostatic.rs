@@ -3,11 +3,11 @@
 use super::measure::{Curve, fit_line};
 use super::{Ctx, Row, observed_order, rel_pct};
 use anyhow::Result;
-use rtmpm_core::Scene;
-use rtmpm_core::math::Vec3;
-use rtmpm_core::render::plot::{Plot, Series, Style};
-use rtmpm_core::scene::sampling::BodyShape;
-use rtmpm_core::transfer::SolverSettings;
+use rtmpm_geometry::BodyShape;
+use rtmpm_physics::math::Vec3;
+use rtmpm_physics::transfer::SolverSettings;
+use rtmpm_render::plot::{Plot, Series, Style};
+use rtmpm_scene::Scene;
 
 /// Column height (m) and the exact base stress magnitude rho g H (Pa).
 const HEIGHT: f64 = 0.1;

@@ -16,9 +16,10 @@ mod slump;
 use crate::backend::{BackendKind, make_backend};
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use rtmpm_core::render::plot::Plot;
-use rtmpm_core::sim::Simulation;
-use rtmpm_core::{Particles, Scene};
+use rtmpm_driver::Simulation;
+use rtmpm_physics::Particles;
+use rtmpm_render::plot::Plot;
+use rtmpm_scene::Scene;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -51,11 +52,11 @@ pub struct ValidateArgs {
     /// Floating-point precision of the whole step: f32 or f64 (default: the scene's
     /// `[solver] precision`, else f32).
     #[arg(long, value_name = "f32|f64")]
-    pub precision: Option<rtmpm_core::scene::Precision>,
+    pub precision: Option<rtmpm_scene::Precision>,
     /// The CUDA backend's particle state: f32 or compact (default: the scene's
     /// `[solver] particle_state`, else f32; the CPU backend ignores it).
     #[arg(long, value_name = "f32|compact")]
-    pub particle_state: Option<rtmpm_core::scene::ParticleState>,
+    pub particle_state: Option<rtmpm_scene::ParticleState>,
 }
 
 /// One line of the table.
@@ -161,9 +162,9 @@ type Case = fn(&Ctx) -> Result<Vec<Row>>;
 
 /// The transfer of the `*_gimp` cases: uGIMP with MUSL and a pure FLIP velocity update, the
 /// energy-conserving classic scheme (Bardenhagen & Kober 2004; Sulsky et al. 1995).
-pub const GIMP: rtmpm_core::transfer::SolverSettings = rtmpm_core::transfer::SolverSettings {
-    transfer: rtmpm_core::transfer::Transfer::Gimp,
-    update: rtmpm_core::transfer::Update::Musl,
+pub const GIMP: rtmpm_physics::transfer::SolverSettings = rtmpm_physics::transfer::SolverSettings {
+    transfer: rtmpm_physics::transfer::Transfer::Gimp,
+    update: rtmpm_physics::transfer::Update::Musl,
     flip: 1.0,
 };
 

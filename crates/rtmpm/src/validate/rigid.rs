@@ -1,14 +1,14 @@
 //! The checks of issue 17 (rigid bodies two-way coupled to the material, emitters):
 //! `archimedes`, `sinking`, `rigid_momentum` (cargo feature `rigid`) and `emitter_mass`. The
 //! scenes are `validation/{archimedes,sinking,rigid_momentum,emitter_mass}.toml`; `--quick` runs
-//! them as they are (the resolution of the cargo tests `crates/rtmpm-core/tests/rigid.rs` and
+//! them as they are (the resolution of the cargo tests `crates/rtmpm-cpu/tests/rigid.rs` and
 //! `emitters.rs`), the full run at half the grid spacing (archimedes at a quarter, for twice the
-//! time). The measurements are `rtmpm_core::checks`, shared with those tests.
+//! time). The measurements are `rtmpm_driver::checks`, shared with those tests.
 
 use super::{Ctx, Row, rel_pct};
 use anyhow::{Result, anyhow};
-use rtmpm_core::checks;
-use rtmpm_core::render::plot::{Plot, Series, Style};
+use rtmpm_driver::checks;
+use rtmpm_render::plot::{Plot, Series, Style};
 
 /// The rigid cases need the rigid-body engine (rapier3d), which this build may lack.
 pub const NEEDS_FEATURE: &str = "needs the rigid-body engine, which this build of rtmpm lacks: \
@@ -148,11 +148,11 @@ pub fn sinking(ctx: &Ctx) -> Result<Vec<Row>> {
     let dx = dx32 as f64;
     let floor = sim.scene.interior().0.y as f64;
     // The initial water surface: the top of the water body.
-    let mut p = rtmpm_core::Particles::default();
+    let mut p = rtmpm_physics::Particles::default();
     sim.backend.read_particles(&mut p)?;
     let surface = p.x.iter().map(|x| x.y).fold(f32::MIN, f32::max) as f64 + 0.25 * dx;
     let s = checks::settle(&mut sim)?;
-    let radius = |b: &rtmpm_core::rigid::BodyState| b.shape.world_half_extents(b.rotation).y as f64;
+    let radius = |b: &rtmpm_rigid::BodyState| b.shape.world_half_extents(b.rotation).y as f64;
     let gap = s[0].center.y as f64 - radius(&s[0]) - floor;
     // Depth of the light sphere's bottom below the initial surface, over its diameter: 1 or
     // more when fully submerged.

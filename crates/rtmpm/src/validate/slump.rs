@@ -9,10 +9,10 @@
 
 use super::{Ctx, Row, rel_pct};
 use anyhow::{Context, Result, ensure};
-use rtmpm_core::Scene;
-use rtmpm_core::material::{Material, MaterialParams};
-use rtmpm_core::math::Vec3;
-use rtmpm_core::render::plot::{Plot, Series, Style};
+use rtmpm_physics::material::{Material, MaterialParams};
+use rtmpm_physics::math::Vec3;
+use rtmpm_render::plot::{Plot, Series, Style};
+use rtmpm_scene::Scene;
 
 /// Initial height (= diameter) of the cylinder (m), as in validation/slump.toml.
 const H: f64 = 0.1;

@@ -5,10 +5,11 @@
 //! error that names the option to raise.
 
 use crate::CudaOptions;
-use rtmpm_core::grid::BlockLayout;
-use rtmpm_core::math::{IVec3, Vec3};
-use rtmpm_core::scene::sampling::SampledBody;
-use rtmpm_core::{Particles, Scene};
+use rtmpm_physics::Particles;
+use rtmpm_physics::grid::BlockLayout;
+use rtmpm_physics::math::{IVec3, Vec3};
+use rtmpm_scene::Scene;
+use rtmpm_scene::sampling::SampledBody;
 
 /// Largest grid allocated by default for the whole domain (bytes).
 pub const GRID_BUDGET_BYTES: usize = 4 << 30;
@@ -120,7 +121,7 @@ pub fn refusal(
     gpu: &str,
     hint: &str,
 ) -> Option<String> {
-    use rtmpm_core::io::limits::human_bytes;
+    use rtmpm_io::limits::human_bytes;
     let total = bytes.total();
     if total.saturating_add(DEVICE_RESERVE_BYTES) <= free {
         return None;
@@ -151,7 +152,7 @@ pub fn bases(scene: &Scene, particles: &Particles) -> Vec<IVec3> {
 }
 
 /// The stencil base node of a particle at `x`, as [`bases`] computes it.
-pub fn base_of(scene: &Scene) -> impl Fn(rtmpm_core::math::Vec3) -> IVec3 + Sync + Send + use<> {
+pub fn base_of(scene: &Scene) -> impl Fn(rtmpm_physics::math::Vec3) -> IVec3 + Sync + Send + use<> {
     let dx = scene.dx;
     let origin = scene.domain_min - 4.0 * dx;
     move |x| ((x - origin) / dx - 0.5).floor().as_ivec3()
@@ -203,8 +204,8 @@ pub fn block_counts_of(scene: &Scene, chunks: &[&[Vec3]]) -> (usize, usize) {
 /// The codes of the blocks that the positions `xs` fall in (stencil bases by `base`), sorted,
 /// each once.
 fn chunk_blocks(base: &(impl Fn(Vec3) -> IVec3 + Sync), xs: &[Vec3]) -> Vec<u64> {
-    use rtmpm_core::grid::codes::block_code;
-    use rtmpm_core::grid::layout::block_of;
+    use rtmpm_physics::grid::codes::block_code;
+    use rtmpm_physics::grid::layout::block_of;
     let mut run = Vec::new();
     let mut last = None;
     for &x in xs {
@@ -223,7 +224,7 @@ fn chunk_blocks(base: &(impl Fn(Vec3) -> IVec3 + Sync), xs: &[Vec3]) -> Vec<u64>
 /// pblocks are the union of the gblocks' 3x3x3 neighbourhoods.
 fn count_blocks(mut codes: Vec<u64>) -> (usize, usize) {
     use rayon::prelude::*;
-    use rtmpm_core::grid::codes::{block_code, decode_block};
+    use rtmpm_physics::grid::codes::{block_code, decode_block};
     codes.par_sort_unstable();
     codes.dedup();
     // As BlockLayout's neighbours: coordinates + offset in i32, then as u32.

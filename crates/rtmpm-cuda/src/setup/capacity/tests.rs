@@ -1,7 +1,7 @@
 //! Unit tests of the buffer plan (`capacity.rs`): capacities, bytes a particle of the big
 //! scenes, the budget against the plan, the refusal past the free memory.
 use super::*;
-use rtmpm_core::scene::Budget;
+use rtmpm_scene::Budget;
 
 /// Water at dx = 1/512, 8 particles per cell (regular), in the unit cube with slip walls:
 /// `boxes` boxes along x (min, max of each), the scenes of issue 19.
@@ -33,7 +33,7 @@ fn water_at(cells: u32, boxes: &[([f32; 3], [f32; 3])]) -> Scene {
 fn planned_with(scene: &Scene, fields: usize, o: CudaOptions) -> (usize, BufferBytes, u64) {
     let budget = Budget::estimate(scene, Some(1));
     let n = budget.particles as usize;
-    let f64 = scene.precision == rtmpm_core::scene::Precision::F64;
+    let f64 = scene.precision == rtmpm_scene::Precision::F64;
     let o = CudaOptions { f64, ..o };
     let words = crate::state::layout_for(scene, &o).expect("layout").words();
     let cap = Capacity::plan(scene, n, n, &BlockLayout::default(), &o);
@@ -56,7 +56,7 @@ fn the_budget_covers_the_plan_in_f64() {
     // it does not, the plan follows the initial layout and the budget, which counts every
     // node of the domain, overestimates).
     let mut scene = water_at(256, &[([0.1, 0.02, 0.25], [0.4, 0.485, 0.75])]);
-    scene.precision = rtmpm_core::scene::Precision::F64;
+    scene.precision = rtmpm_scene::Precision::F64;
     let (n, b, estimate) = planned(&scene, crate::options::DEFAULT_SORT_SCRATCH_FIELDS);
     assert!(n > 9_000_000, "{n}");
     // The fluid layout: 20 words of 8 bytes.
@@ -242,7 +242,7 @@ fn the_scratch_holds_the_sort_keys_in_every_precision() {
 /// the domain's corner (blocks whose neighbours have negative coordinates).
 #[test]
 fn block_counts_are_the_layouts() {
-    use rtmpm_core::scene::sampling::sample_bodies;
+    use rtmpm_scene::sampling::sample_bodies;
     let scene = water_at(
         64,
         &[

@@ -6,7 +6,7 @@
 //! [`crate::state::pack_bodies`] writes on the host. Bodies read from points files
 //! (`SampledBody::Points`) are packed on the host as before, and their rows copied into place.
 //!
-//! Deferred bodies ([`rtmpm_core::scene::deferred`]) upload nothing: their positions are drawn
+//! Deferred bodies ([`rtmpm_scene::deferred`]) upload nothing: their positions are drawn
 //! on the device into the same buffers ([`crate::setup::sample`]).
 //!
 //! The host never holds the state image (116 bytes a particle in f32): the set-up of 500M
@@ -17,9 +17,9 @@ use crate::error::err;
 use crate::kernels::{Kernel, Kernels};
 use cudarc::driver::{CudaEvent, CudaSlice, CudaStream, PinnedHostSlice, PushKernelArg};
 use rayon::prelude::*;
-use rtmpm_core::math::Vec3;
-use rtmpm_core::scene::sampling::{BodyPositions, SampledBody};
-use rtmpm_core::sim::SimError;
+use rtmpm_physics::math::Vec3;
+use rtmpm_scene::sampling::{BodyPositions, SampledBody};
+use rtmpm_sim::SimError;
 use std::sync::Arc;
 
 /// Particles of one piece of the upload (at most): 48 MB of positions per page-locked buffer.

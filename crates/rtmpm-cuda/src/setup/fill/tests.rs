@@ -3,9 +3,9 @@
 
 use super::*;
 use crate::kernels::SOURCES;
-use rtmpm_core::Scene;
-use rtmpm_core::math::Mat3;
-use rtmpm_core::scene::sampling::sample_bodies;
+use rtmpm_physics::math::Mat3;
+use rtmpm_scene::Scene;
+use rtmpm_scene::sampling::sample_bodies;
 
 const SCENE: &str = r#"
 name = "fill"

@@ -1,5 +1,5 @@
 //! Deferred bodies drawn on the device (issue 19, "start fast"; `kernels/sample.cu`): the host
-//! counted such a body's particles and kept none ([`rtmpm_core::scene::deferred`]); here the GPU
+//! counted such a body's particles and kept none ([`rtmpm_scene::deferred`]); here the GPU
 //! walks the body's lattice row by row (or its random tries, [`SAMPLE_TRIES_PER_ROW`] a row), one
 //! thread a row, and draws the positions the host's walk finds, bit for bit and in order
 //! (`kernels/sample.cuh`). `sample_count` counts each row's
@@ -11,9 +11,10 @@ use crate::contract::*;
 use crate::error::err;
 use crate::kernels::{Kernel, Kernels};
 use cudarc::driver::{CudaSlice, CudaStream, PushKernelArg};
-use rtmpm_core::scene::deferred::{DeferredBody, DeferredWalk};
-use rtmpm_core::scene::sampling::{BodyShape, SampledBody};
-use rtmpm_core::sim::SimError;
+use rtmpm_geometry::BodyShape;
+use rtmpm_scene::deferred::{DeferredBody, DeferredWalk};
+use rtmpm_scene::sampling::SampledBody;
+use rtmpm_sim::SimError;
 use std::sync::Arc;
 
 /// Rows counted or drawn by one launch (at most).

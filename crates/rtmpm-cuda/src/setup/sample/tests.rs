@@ -4,9 +4,9 @@
 //! walked copy) gives what the eagerly sampled body gives.
 
 use super::*;
-use rtmpm_core::Scene;
-use rtmpm_core::scene::deferred::{can_defer, sample_bodies_deferred};
-use rtmpm_core::scene::sampling::{BodyPositions, sample_bodies};
+use rtmpm_scene::Scene;
+use rtmpm_scene::deferred::{can_defer, sample_bodies_deferred};
+use rtmpm_scene::sampling::{BodyPositions, sample_bodies};
 
 /// Bodies of every deferrable kind: regular and jittered; box, sphere and a tilted cylinder; off
 /// the lattice's alignment; one with a velocity (uniform: deferrable) and one with a spin (not).
@@ -358,8 +358,8 @@ int main() {
 #[test]
 fn the_device_shape_tests_compiled_for_the_cpu_are_the_host_s() {
     use rand::{Rng, SeedableRng};
-    use rtmpm_core::boundary::sdf::cylinder_distance;
-    use rtmpm_core::math::Vec3;
+    use rtmpm_geometry::sdf::cylinder_distance;
+    use rtmpm_physics::math::Vec3;
     let harness = r#"
 #include <cstdio>
 #include "contract.cuh"
@@ -425,8 +425,8 @@ int main() {
 #[test]
 fn the_device_mesh_distance_compiled_for_the_cpu_is_the_host_s() {
     use rand::{Rng, SeedableRng};
-    use rtmpm_core::boundary::mesh::MeshSdf;
-    use rtmpm_core::math::Vec3;
+    use rtmpm_geometry::mesh::MeshSdf;
+    use rtmpm_physics::math::Vec3;
     let harness = r#"
 #include <cstdio>
 #include <vector>

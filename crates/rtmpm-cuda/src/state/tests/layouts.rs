@@ -172,10 +172,10 @@ fn the_backend_chooses_the_layout_from_the_scene_and_options() {
         .expect_err("compact f64");
     assert!(e.to_string().contains("single precision only"), "{e}");
     assert!(Scene::from_toml(&with(water).replace("compact", "f16"), "bad").is_err());
-    // The budget (rtmpm-core, before any backend exists) counts the same words.
+    // The budget (rtmpm-scene, before any backend exists) counts the same words.
     for scene in [&w, &j, &wc, &jc] {
         assert_eq!(
-            rtmpm_core::scene::budget::gpu_state_words(scene) as usize,
+            rtmpm_scene::budget::gpu_state_words(scene) as usize,
             layout_for(scene, &o).map(|l| l.words()).unwrap_or(0)
         );
     }

@@ -20,8 +20,8 @@ use crate::kernels::{Kernel, Kernels};
 use crate::setup::capacity::Capacity;
 use cudarc::driver::{CudaStream, DriverError, PushKernelArg};
 use reverse_map::{ReverseMap, ReverseMapSize};
-use rtmpm_core::math::IVec3;
-use rtmpm_core::sim::SimError;
+use rtmpm_physics::math::IVec3;
+use rtmpm_sim::SimError;
 use sort::SortMap;
 use std::sync::Arc;
 

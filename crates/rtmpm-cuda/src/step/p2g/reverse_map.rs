@@ -6,8 +6,8 @@
 use crate::contract::{Ctx, RmapCtx};
 use crate::kernels::{Kernel, Kernels};
 use cudarc::driver::{CudaSlice, CudaStream, DevicePtr, DriverError, PushKernelArg};
-use rtmpm_core::math::IVec3;
-use rtmpm_core::sim::SimError;
+use rtmpm_physics::math::IVec3;
+use rtmpm_sim::SimError;
 use std::collections::HashMap;
 use std::sync::Arc;
 

@@ -5,7 +5,7 @@ use crate::P2gMode;
 use crate::contract::Ctx;
 use crate::kernels::{Kernel, Kernels};
 use cudarc::driver::{CudaStream, DriverError, LaunchConfig, PushKernelArg};
-use rtmpm_core::transfer::Transfer;
+use rtmpm_physics::transfer::Transfer;
 
 /// Enqueue the scatter P2G: for MLS the warp variant (4 warps per CUDA block) or the
 /// shared-memory ablation; for the classic MPM transfers `p2g_mpm` (whatever `mode`). `part`: 0

@@ -9,7 +9,7 @@ use super::reverse_map::entry_bytes;
 use crate::contract::{Ctx, SortCtx};
 use crate::kernels::{Kernel, Kernels, cfg};
 use cudarc::driver::{CudaSlice, CudaStream, DevicePtr, DriverError, PushKernelArg};
-use rtmpm_core::sim::SimError;
+use rtmpm_sim::SimError;
 use std::sync::Arc;
 
 /// Bits per radix pass (`SORT_BITS`).

@@ -1,0 +1,258 @@
+//! The driver of a run: [`Simulation`] steps a backend through the frames of a scene. It chooses
+//! the time steps (fixed, or CFL-adaptive with a cap), lands every frame exactly on its time,
+//! hands the backend the emitters' particles before the step they appear in, and reports
+//! blow-ups with the particle, its material and advice.
+
+use rtmpm_physics::math::Vec3;
+use rtmpm_scene::{Scene, StepMode};
+use rtmpm_sim::{Backend, BadReason, Blowup, MAX_CELLS_PER_STEP, Particles, SimError};
+
+/// Drives a backend through frames of a scene. The backend is a `Box<dyn Backend>` by default;
+/// a caller that needs the concrete type (or `Send`) names it, e.g. `Simulation<MyBackend>`.
+pub struct Simulation<B: Backend + ?Sized = dyn Backend> {
+    pub scene: Scene,
+    pub backend: Box<B>,
+    /// Simulated time (s).
+    pub time: f64,
+    /// Steps taken so far.
+    pub step: u64,
+    /// Frames completed so far.
+    pub frame: u64,
+    /// Time step of the last step.
+    pub last_dt: f32,
+    max_sound_speed: f32,
+    /// Particles each emitter has emitted so far; set at the first step from the time then
+    /// (a resumed run starts with those of its checkpoint).
+    emitted: Option<Vec<u64>>,
+}
+
+impl Simulation {
+    /// A simulation at time 0 (or at the given state when resuming).
+    pub fn new(scene: Scene, backend: Box<dyn Backend>) -> Simulation {
+        Simulation::with_backend(scene, backend)
+    }
+}
+
+impl<B: Backend + ?Sized> Simulation<B> {
+    /// A simulation of a backend of type `B` (see [`Simulation::new`] for the usual
+    /// `Box<dyn Backend>`).
+    pub fn with_backend(scene: Scene, backend: Box<B>) -> Simulation<B> {
+        let max_sound_speed = scene
+            .materials
+            .iter()
+            .map(|m| m.model.sound_speed(m.density))
+            .fold(0.0f32, f32::max);
+        Simulation {
+            scene,
+            backend,
+            time: 0.0,
+            step: 0,
+            frame: 0,
+            last_dt: 0.0,
+            max_sound_speed,
+            emitted: None,
+        }
+    }
+
+    /// Change gravity from the next step on: the backend's and the scene's
+    /// ([`Backend::set_gravity`]); a non-finite vector is refused.
+    pub fn set_gravity(&mut self, gravity: Vec3) -> Result<(), SimError> {
+        if !gravity.is_finite() {
+            return Err(SimError::Backend(format!(
+                "gravity must be finite, got {gravity}"
+            )));
+        }
+        self.backend.set_gravity(gravity)?;
+        self.scene.gravity = gravity;
+        Ok(())
+    }
+
+    /// Duration of one frame (s).
+    pub fn frame_duration(&self) -> f64 {
+        1.0 / self.scene.time.fps as f64
+    }
+
+    /// Time step for the next step, before clipping to the frame end.
+    pub fn next_dt(&mut self) -> Result<f32, SimError> {
+        Ok(match self.scene.time.step {
+            StepMode::Fixed { dt } => dt,
+            StepMode::Cfl {
+                cfl,
+                max_dt,
+                min_dt,
+            } => {
+                let speed = self.backend.max_speed()? + self.max_sound_speed;
+                let dt = if speed > 0.0 {
+                    (cfl * self.scene.dx / speed).min(max_dt)
+                } else {
+                    max_dt
+                };
+                // NaN speeds are the health check's (a blow-up); a finite collapse is a stall.
+                if dt < min_dt {
+                    return Err(self.stall(dt, min_dt));
+                }
+                dt
+            }
+        })
+    }
+
+    /// The error of a CFL step `dt` below `min_dt`, naming the fastest particle.
+    fn stall(&mut self, dt: f32, min_dt: f32) -> SimError {
+        let mut p = Particles::default();
+        if let Err(e) = self.backend.read_particles(&mut p) {
+            return e;
+        }
+        let (i, speed) =
+            p.v.iter()
+                .map(|v| v.length())
+                .enumerate()
+                .fold((0, f32::NEG_INFINITY), |a, b| if b.1 > a.1 { b } else { a });
+        let material = p
+            .material
+            .get(i)
+            .and_then(|&m| self.scene.materials.get(m as usize))
+            .map(|m| m.name.clone())
+            .unwrap_or_else(|| "?".into());
+        SimError::Stall(Box::new(Blowup {
+            step: self.step,
+            time: self.time,
+            particle: i,
+            position: p.x.get(i).copied().unwrap_or(Vec3::NAN),
+            velocity: p.v.get(i).copied().unwrap_or(Vec3::NAN),
+            material,
+            reason: format!(
+                "the CFL step is {dt:.3e} s, below time.min_dt = {min_dt:.3e} s (fastest \
+                 particle at {speed:.4e} m/s, sound speed {:.4e} m/s)",
+                self.max_sound_speed
+            ),
+            dt,
+        }))
+    }
+
+    /// One step of size `dt`; the emitters' particles due by its end appear first.
+    pub fn step_once(&mut self, dt: f32) -> Result<(), SimError> {
+        self.emit(self.time + dt as f64)?;
+        self.backend.step(dt, self.time as f32)?;
+        self.time += dt as f64;
+        self.step += 1;
+        self.last_dt = dt;
+        if self.backend.cheap_check() {
+            self.check()?;
+        }
+        Ok(())
+    }
+
+    /// Advance to the end of the next frame; returns the number of steps taken.
+    ///
+    /// With a fixed dt that divides the frame duration, exactly that many equal steps are taken;
+    /// otherwise the last step is shortened to land on the frame time.
+    pub fn advance_frame(&mut self) -> Result<u64, SimError> {
+        let start = self.step;
+        self.advance(u64::MAX)?;
+        Ok(self.step - start)
+    }
+
+    /// Advance towards the end of the current frame, taking at most `max_steps` steps. Returns
+    /// true when the frame was completed (then [`Simulation::frame`] has moved on).
+    pub fn advance(&mut self, max_steps: u64) -> Result<bool, SimError> {
+        let frame_start = self.frame as f64 * self.frame_duration();
+        let frame_end = (self.frame + 1) as f64 * self.frame_duration();
+        let mut taken = 0;
+        if let StepMode::Fixed { dt } = self.scene.time.step {
+            let per_frame = self.frame_duration() / dt as f64;
+            if (per_frame - per_frame.round()).abs() < 1e-6 * per_frame.max(1.0) {
+                // Whole number of equal steps per frame: count them, so time never drifts.
+                let per_frame = per_frame.round() as u64;
+                let done = ((self.time - frame_start) / dt as f64).round() as u64;
+                while done + taken < per_frame {
+                    if taken == max_steps {
+                        self.check()?;
+                        return Ok(false);
+                    }
+                    self.step_once(dt)?;
+                    taken += 1;
+                    self.time = frame_start + (done + taken) as f64 * dt as f64;
+                }
+                self.time = frame_end;
+                self.finish_frame()?;
+                return Ok(true);
+            }
+        }
+        let eps = 1e-9 * self.frame_duration();
+        while self.time < frame_end - eps {
+            if taken == max_steps {
+                self.check()?;
+                return Ok(false);
+            }
+            let dt = self.next_dt()?;
+            let remaining = (frame_end - self.time) as f32;
+            self.step_once(dt.min(remaining))?;
+            taken += 1;
+        }
+        self.time = frame_end;
+        self.finish_frame()?;
+        Ok(true)
+    }
+
+    /// Hand the backend the particles the emitters emit by time `t_end`.
+    fn emit(&mut self, t_end: f64) -> Result<(), SimError> {
+        let emitters = &self.scene.emitters;
+        if emitters.is_empty() {
+            return Ok(());
+        }
+        let time = self.time;
+        let emitted = self
+            .emitted
+            .get_or_insert_with(|| emitters.iter().map(|e| e.count_at(time)).collect());
+        let p = rtmpm_scene::emitter::emit_between(emitters, &self.scene.materials, emitted, t_end);
+        if p.is_empty() {
+            return Ok(());
+        }
+        self.backend.add_particles(&p)
+    }
+
+    /// Particles emitted so far by each emitter of the scene (empty before the first step).
+    pub fn emitted(&self) -> &[u64] {
+        self.emitted.as_deref().unwrap_or(&[])
+    }
+
+    fn finish_frame(&mut self) -> Result<(), SimError> {
+        self.frame += 1;
+        self.check()?;
+        self.backend.end_of_frame()
+    }
+
+    /// Check the backend for a bad particle and turn it into a [`SimError::Blowup`].
+    pub fn check(&mut self) -> Result<(), SimError> {
+        if let Some(bad) = self.backend.check()? {
+            let mut p = Particles::default();
+            self.backend.read_particles(&mut p)?;
+            let i = bad.index.min(p.len().saturating_sub(1));
+            let material = p
+                .material
+                .get(i)
+                .and_then(|&m| self.scene.materials.get(m as usize))
+                .map(|m| m.name.clone())
+                .unwrap_or_else(|| "?".into());
+            let reason = match bad.reason {
+                BadReason::NonFinite => {
+                    "position or velocity is not finite (NaN or infinity)".into()
+                }
+                BadReason::TooFast => format!(
+                    "speed exceeds {MAX_CELLS_PER_STEP} cells per step (|v| dt > {MAX_CELLS_PER_STEP} dx)"
+                ),
+            };
+            return Err(SimError::Blowup(Box::new(Blowup {
+                step: self.step,
+                time: self.time,
+                particle: bad.index,
+                position: p.x.get(i).copied().unwrap_or(Vec3::NAN),
+                velocity: p.v.get(i).copied().unwrap_or(Vec3::NAN),
+                material,
+                reason,
+                dt: self.last_dt,
+            })));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,361 @@
+//! Dynamic rigid bodies coupled two ways to the material (`[[rigid_body]]`).
+//!
+//! The coupling is the boundary-condition form of the compatible particle-in-cell (CPIC)
+//! coupling of Hu, Fang, Ge, Qu, Zhu, Pradhana & Jiang, "A Moving Least Squares Material Point
+//! Method with Displacement Discontinuity and Two-Way Rigid Body Coupling" (ACM TOG 37(4),
+//! SIGGRAPH 2018), section 5: every grid node inside a body takes, by the body's boundary rule,
+//! the body's velocity `v_b(x) = v + w x (x - c)` (the same rule as a collider's, on the
+//! velocity relative to the body), and the momentum the rule takes from the node,
+//! `dp_i = m_i (v_i' - v_i)`, goes to the body as the impulse `-sum dp_i` and the angular
+//! impulse `-sum (x_i - c) x dp_i` about its centre of mass `c`, less the gravity the node
+//! received in the step (the weight of the material that the transfer kernel spreads onto nodes
+//! inside the body, a shell about half a cell thick, is a discretisation artefact, not a load:
+//! with it a box of half the water's density sank). Material plus bodies conserve momentum (up
+//! to gravity and the walls). Particles are not kept out of a body: a few cross the surface
+//! when a body enters the material fast, and then ride with it (their nodes take the body's
+//! velocity), adding nothing to its load. Putting them back on the surface instead was tried and
+//! biased the floating depth (a box of density 500 floated 0.568 submerged against 0.517).
+//! Known limit: at rest a node of material carries `f = -m g`, so a body's load changes only when
+//! a plane of nodes enters or leaves it, and a floating body's rest locks onto node planes (its
+//! draft is right to about half a cell; validation/RESULTS.md, "Archimedes: tilt, the displaced
+//! volume ..."): a load continuous in the body's position needs CPIC's particle-side
+//! compatibility or a penalty force (both tried on the CPU, not kept: the same file, "Three more
+//! coupling variants"). Dithering which nodes count as inside removes most of the lock, but the
+//! bodies then float about 0.2 of a cell high (the same file, "Dithered node membership"). The
+//! bodies move under gravity, these impulses and their contacts with each other and the walls
+//! in rapier3d (cargo feature `rigid`;
+//! [`RigidWorld`]); without the feature a scene with rigid bodies is refused when the backend is
+//! built. The CPU backend couples them (`cpu/grid_update.rs`), the CUDA backend too
+//! (`rtmpm-cuda/src/rigid.rs`). A body is a box, sphere, cylinder or closed triangle mesh
+//! (`rtmpm_geometry::RigidMesh`: its signed distance grid in the body frame, the mesh colliders' code).
+
+use glam::{Mat3, Quat, Vec3};
+use rtmpm_geometry::RigidShape;
+use rtmpm_physics::boundary::Condition;
+
+mod joint;
+pub use joint::{JointKind, JointSpec};
+
+#[cfg(feature = "rigid")]
+mod world;
+#[cfg(not(feature = "rigid"))]
+#[path = "world_stub.rs"]
+mod world;
+pub use world::RigidWorld;
+
+/// How a body moves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RigidKind {
+    /// Moved by gravity, the material and contacts.
+    Dynamic,
+    /// Moves at its constant initial velocity and spin, pushing the material without being
+    /// pushed.
+    Kinematic,
+    /// Never moves.
+    Fixed,
+}
+
+/// A validated `[[rigid_body]]`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RigidBodySpec {
+    pub name: String,
+    pub shape: RigidShape,
+    pub kind: RigidKind,
+    /// Mass (kg), from `mass` or `density` x volume.
+    pub mass: f32,
+    /// Centre (m) at t = 0.
+    pub position: Vec3,
+    /// Orientation at t = 0.
+    pub rotation: Quat,
+    pub velocity: Vec3,
+    pub angular_velocity: Vec3,
+    /// The boundary rule between the material and the body.
+    pub condition: Condition,
+    pub friction: f32,
+}
+
+/// The excess weight of a dynamic body denser than a fluid, as a layer of that fluid over the
+/// body's surface in cells, `(rho_b - rho_f) V / (rho_f A dx)`, below which the body can hang
+/// in the fluid or sink far too slowly. The material loads a body through the grid nodes inside
+/// it, so its buoyancy is counted in cells and jumps as node planes pass into it, and a body
+/// lighter in the fluid than about a quarter-cell layer over its surface can stop on a node
+/// plane. Measured on the 2-core CPU in water (`scripts/validation/small_bodies.py`,
+/// validation/RESULTS.md, "Small and near-neutral rigid bodies"): spheres that hung were at
+/// 0.25 or less, and every one still off the floor after 2 s at 0.375 or less; 0.4 was chosen
+/// after seeing those runs.
+pub const HANG_LAYER_CELLS: f32 = 0.4;
+
+/// A warning for each dynamic body that can hang in a fluid of the scene (`fluids`: each fluid
+/// material's name and density) it is denser than ([`HANG_LAYER_CELLS`]), with the grid
+/// spacing that would let it sink; empty when there is none.
+pub fn resolution_warnings(
+    bodies: &[RigidBodySpec],
+    fluids: &[(&str, f32)],
+    dx: f32,
+) -> Vec<String> {
+    let mut out = Vec::new();
+    for (i, b) in bodies.iter().enumerate() {
+        if b.kind != RigidKind::Dynamic {
+            continue;
+        }
+        let volume = b.shape.volume();
+        let density = b.mass / volume;
+        // The fluid it is least denser than decides.
+        let Some(&(fluid, rho)) = fluids
+            .iter()
+            .filter(|&&(_, rho)| density > rho)
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+        else {
+            continue;
+        };
+        // (rho_b - rho_f) V / (rho_f A): the fluid layer, in metres, the excess weight equals.
+        let layer = (density - rho) * volume / (rho * b.shape.area());
+        if layer >= HANG_LAYER_CELLS * dx {
+            continue;
+        }
+        out.push(format!(
+            "rigid_body[{i}] `{}` (density {}) can hang in `{fluid}` (density {}) or sink in it \
+             far too slowly: the material loads a body through the grid nodes inside it, so its \
+             buoyancy comes in whole cells, and its weight beyond its buoyancy is that of a \
+             layer of `{fluid}` only {:.2} cells thick over its surface (under {HANG_LAYER_CELLS}); \
+             use dx <= {} or a larger or denser body (docs/scene-format.md, \"Resolution of \
+             rigid bodies\")",
+            b.name,
+            sig3(density),
+            sig3(rho),
+            layer / dx,
+            sig3(layer / HANG_LAYER_CELLS)
+        ));
+    }
+    out
+}
+
+/// `x` to 3 significant digits, as `0.1` or `0.00125`.
+fn sig3(x: f32) -> f64 {
+    let x = x as f64;
+    if x == 0.0 || !x.is_finite() {
+        return x;
+    }
+    let scale = 10f64.powi(2 - x.abs().log10().floor() as i32);
+    (x * scale).round() / scale
+}
+
+/// A body's state at the current time, as the grid update sees it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BodyState {
+    pub shape: RigidShape,
+    /// Rest-to-world rotation.
+    pub rotation: Mat3,
+    /// Centre of mass (m).
+    pub center: Vec3,
+    pub velocity: Vec3,
+    pub angular_velocity: Vec3,
+    /// True when the material's impulses move it.
+    pub dynamic: bool,
+    pub condition: Condition,
+    pub friction: f32,
+}
+
+impl BodyState {
+    /// The body at this instant as a motionless collider (one keyframe at its pose), for
+    /// pictures: the renderer draws colliders.
+    pub fn collider(&self) -> rtmpm_geometry::Collider {
+        let key = rtmpm_geometry::Keyframe {
+            t: 0.0,
+            position: self.center,
+            rotation: Quat::from_mat3(&self.rotation).normalize(),
+        };
+        rtmpm_geometry::Collider {
+            shape: self.shape.sdf_shape(),
+            rule: rtmpm_physics::boundary::BoundaryRule::default(),
+            velocity: Vec3::ZERO,
+            angular_velocity: Vec3::ZERO,
+            pivot: Vec3::ZERO,
+            keyframes: rtmpm_geometry::Keyframes::new(vec![key]).ok(),
+        }
+    }
+
+    /// If `x` is inside the body, the outward unit normal and the body's velocity at `x`.
+    pub fn query(&self, x: Vec3) -> Option<(Vec3, Vec3)> {
+        let p = self.rotation.transpose() * (x - self.center);
+        if self.shape.distance(p) > 0.0 {
+            return None;
+        }
+        let n = (self.rotation * self.shape.normal(p))
+            .try_normalize()
+            .unwrap_or(Vec3::Y);
+        Some((
+            n,
+            self.velocity + self.angular_velocity.cross(x - self.center),
+        ))
+    }
+}
+
+/// A body's pose and velocities as the rigid-body engine holds them, bit for bit: what a
+/// checkpoint stores to resume the bodies ([`RigidWorld::poses`], [`RigidWorld::set_poses`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BodyPose {
+    /// The body's origin (its centre) in the world (m).
+    pub position: Vec3,
+    /// Rest-to-world rotation (unit quaternion).
+    pub rotation: Quat,
+    pub velocity: Vec3,
+    pub angular_velocity: Vec3,
+}
+
+impl BodyPose {
+    /// True when every component is finite and the rotation is a unit quaternion (within
+    /// 1e-3).
+    pub fn is_valid(&self) -> bool {
+        self.position.is_finite()
+            && self.rotation.is_finite()
+            && (self.rotation.length() - 1.0).abs() < 1e-3
+            && self.velocity.is_finite()
+            && self.angular_velocity.is_finite()
+    }
+}
+
+/// The impulse and angular impulse (about the centre of mass) the grid gives one body in one
+/// step, summed in f64.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Exchange {
+    pub impulse: [f64; 3],
+    pub torque: [f64; 3],
+}
+
+impl Exchange {
+    /// Add the reaction of a node at offset `r` from the centre whose momentum changed by `dp`.
+    pub fn add_reaction(&mut self, r: [f64; 3], dp: [f64; 3]) {
+        for (j, d) in self.impulse.iter_mut().zip(dp) {
+            *j -= d;
+        }
+        let t = [
+            r[1] * dp[2] - r[2] * dp[1],
+            r[2] * dp[0] - r[0] * dp[2],
+            r[0] * dp[1] - r[1] * dp[0],
+        ];
+        for (l, t) in self.torque.iter_mut().zip(t) {
+            *l -= t;
+        }
+    }
+
+    /// Sum of two exchanges.
+    pub fn plus(mut self, o: &Exchange) -> Exchange {
+        for a in 0..3 {
+            self.impulse[a] += o.impulse[a];
+            self.torque[a] += o.torque[a];
+        }
+        self
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_turned_box_answers_inside_points_with_its_face_normal_and_velocity() {
+        let b = BodyState {
+            shape: RigidShape::Box {
+                half_extents: Vec3::new(1.0, 0.5, 0.5),
+            },
+            rotation: Mat3::from_rotation_z(std::f32::consts::FRAC_PI_2),
+            center: Vec3::new(1.0, 0.0, 0.0),
+            velocity: Vec3::X,
+            angular_velocity: Vec3::new(0.0, 0.0, 2.0),
+            dynamic: true,
+            condition: Condition::Slip,
+            friction: 0.0,
+        };
+        // Turned by 90 degrees about z: 1 m long along y now.
+        assert!(b.query(Vec3::new(1.0, 0.9, 0.0)).is_some());
+        assert!(b.query(Vec3::new(1.9, 0.0, 0.0)).is_none());
+        let (n, v) = b.query(Vec3::new(1.45, 0.0, 0.0)).unwrap();
+        assert!((n - Vec3::X).length() < 1e-5, "{n}");
+        assert!(
+            (v - (Vec3::X + Vec3::new(0.0, 0.9, 0.0))).length() < 1e-5,
+            "{v}"
+        );
+    }
+
+    #[test]
+    fn a_cylinder_lying_along_x_answers_like_the_colliders_cylinder() {
+        let shape = RigidShape::Cylinder {
+            radius: 0.5,
+            half_height: 1.0,
+        };
+        assert!((shape.volume() - std::f32::consts::PI * 0.25 * 2.0).abs() < 1e-6);
+        // Local y turned onto world x.
+        let rotation = Mat3::from_quat(Quat::from_rotation_arc(Vec3::Y, Vec3::X));
+        let h = shape.world_half_extents(rotation);
+        assert!((h - Vec3::new(1.0, 0.5, 0.5)).length() < 1e-5, "{h}");
+        let b = BodyState {
+            shape,
+            rotation,
+            center: Vec3::ZERO,
+            velocity: Vec3::ZERO,
+            angular_velocity: Vec3::ZERO,
+            dynamic: true,
+            condition: Condition::Slip,
+            friction: 0.0,
+        };
+        let collider = rtmpm_geometry::sdf::Shape::Cylinder {
+            center: Vec3::ZERO,
+            axis: Vec3::X,
+            radius: 0.5,
+            half_height: 1.0,
+        };
+        for x in [
+            Vec3::new(0.9, 0.45, 0.0),
+            Vec3::new(0.2, -0.1, 0.3),
+            Vec3::new(-0.95, 0.0, 0.1),
+            Vec3::new(0.0, 0.0, -0.49),
+        ] {
+            let (n, _) = b.query(x).expect("inside");
+            assert!((n - collider.normal(x)).length() < 1e-5, "{x}: {n}");
+        }
+        assert!(b.query(Vec3::new(1.05, 0.0, 0.0)).is_none());
+        assert!(b.query(Vec3::new(0.0, 0.55, 0.0)).is_none());
+        // The round side is along y now, the caps along x.
+        let (n, _) = b.query(Vec3::new(0.0, 0.45, 0.0)).unwrap();
+        assert!((n - Vec3::Y).length() < 1e-5, "{n}");
+        let (n, _) = b.query(Vec3::new(-0.98, 0.0, 0.0)).unwrap();
+        assert!((n + Vec3::X).length() < 1e-5, "{n}");
+    }
+
+    #[test]
+    fn a_body_as_a_collider_has_the_body_s_pose() {
+        let b = BodyState {
+            shape: RigidShape::Box {
+                half_extents: Vec3::new(1.0, 0.25, 0.25),
+            },
+            rotation: Mat3::from_rotation_z(std::f32::consts::FRAC_PI_2),
+            center: Vec3::new(3.0, 2.0, 0.0),
+            velocity: Vec3::X,
+            angular_velocity: Vec3::ZERO,
+            dynamic: true,
+            condition: Condition::Slip,
+            friction: 0.0,
+        };
+        let c = b.collider();
+        // Turned to lie along y about (3, 2, 0): inside 0.9 m above the centre, outside 0.9 m
+        // to its side, and the same answers as the body's own query.
+        for (x, inside) in [
+            (Vec3::new(3.0, 2.9, 0.0), true),
+            (Vec3::new(3.9, 2.0, 0.0), false),
+            (Vec3::new(3.0, 1.2, 0.1), true),
+        ] {
+            assert_eq!(c.distance(x, 0.0) < 0.0, inside, "{x}");
+            assert_eq!(b.query(x).is_some(), inside, "{x}");
+        }
+        assert!((c.distance(Vec3::new(3.0, 2.0, 0.0), 1.0) + 0.25).abs() < 1e-5);
+    }
+
+    #[test]
+    fn reactions_sum_to_the_opposite_momentum_and_its_moment() {
+        let mut e = Exchange::default();
+        e.add_reaction([1.0, 0.0, 0.0], [0.0, 2.0, 0.0]);
+        assert_eq!(e.impulse, [0.0, -2.0, 0.0]);
+        assert_eq!(e.torque, [0.0, 0.0, -2.0]);
+    }
+}

@@ -1,0 +1,294 @@
+//! The rigid bodies in rapier3d: one dynamic, kinematic or fixed body per `[[rigid_body]]`
+//! with one collider of its shape, and the six faces of the domain minus the walls as fixed
+//! slabs, so bodies rest on the floor and bounce off each other.
+
+use super::{
+    BodyPose, BodyState, Exchange, JointKind, JointSpec, RigidBodySpec, RigidKind, RigidShape,
+};
+use rapier3d::prelude as rp;
+
+/// rapier3d's vectors (its own glam) from ours, and back.
+fn rv(v: glam::Vec3) -> rp::Vector {
+    rp::Vector::new(v.x, v.y, v.z)
+}
+fn gv(v: rp::Vector) -> glam::Vec3 {
+    glam::Vec3::new(v.x, v.y, v.z)
+}
+
+/// Thickness of the fixed slabs around the interior (m): thick enough that no body tunnels.
+const SLAB: f32 = 1.0;
+
+/// The bodies' rapier world.
+pub struct RigidWorld {
+    world: rp::PhysicsWorld,
+    handles: Vec<rp::RigidBodyHandle>,
+    specs: Vec<RigidBodySpec>,
+    states: Vec<BodyState>,
+}
+
+impl std::fmt::Debug for RigidWorld {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RigidWorld")
+            .field("states", &self.states)
+            .finish()
+    }
+}
+
+impl RigidWorld {
+    /// The world of `bodies` held by `joints` under `gravity`, boxed in by `interior` (the
+    /// domain minus the walls); `None` without bodies.
+    pub fn new(
+        bodies: &[RigidBodySpec],
+        joints: &[JointSpec],
+        gravity: glam::Vec3,
+        interior: (glam::Vec3, glam::Vec3),
+    ) -> Result<Option<RigidWorld>, String> {
+        if bodies.is_empty() {
+            return Ok(None);
+        }
+        let mut world = rp::PhysicsWorld::new();
+        world.gravity = rv(gravity);
+        let (lo, hi) = interior;
+        let mid = 0.5 * (lo + hi);
+        let half = 0.5 * (hi - lo) + glam::Vec3::splat(SLAB);
+        for axis in 0..3 {
+            for side in [-1.0f32, 1.0] {
+                let mut h = half;
+                h[axis] = 0.5 * SLAB;
+                let mut c = mid;
+                c[axis] = if side < 0.0 {
+                    lo[axis] - 0.5 * SLAB
+                } else {
+                    hi[axis] + 0.5 * SLAB
+                };
+                world.insert_collider(
+                    rp::ColliderBuilder::cuboid(h.x, h.y, h.z).translation(rv(c)),
+                    None,
+                );
+            }
+        }
+        let mut handles = Vec::new();
+        for b in bodies {
+            let builder = match b.kind {
+                RigidKind::Dynamic => rp::RigidBodyBuilder::dynamic(),
+                RigidKind::Kinematic => rp::RigidBodyBuilder::kinematic_velocity_based(),
+                RigidKind::Fixed => rp::RigidBodyBuilder::fixed(),
+            };
+            let (axis, angle) = b.rotation.to_axis_angle();
+            let body = builder
+                .translation(rv(b.position))
+                .rotation(rv(axis * angle))
+                .linvel(rv(b.velocity))
+                .angvel(rv(b.angular_velocity))
+                .can_sleep(false);
+            let collider = match &b.shape {
+                RigidShape::Box { half_extents: h } => {
+                    rp::ColliderBuilder::cuboid(h.x, h.y, h.z).mass(b.mass)
+                }
+                RigidShape::Sphere { radius } => rp::ColliderBuilder::ball(*radius).mass(b.mass),
+                // rapier's cylinders are along their local y, as ours.
+                RigidShape::Cylinder {
+                    radius,
+                    half_height,
+                } => rp::ColliderBuilder::cylinder(*half_height, *radius).mass(b.mass),
+                RigidShape::Mesh(m) => mesh_collider(&b.name, m, b.mass)?,
+            };
+            let (handle, _) = world.insert(body, collider);
+            handles.push(handle);
+        }
+        insert_joints(&mut world, bodies, &handles, joints);
+        let mut w = RigidWorld {
+            world,
+            handles,
+            specs: bodies.to_vec(),
+            states: Vec::new(),
+        };
+        w.refresh();
+        Ok(Some(w))
+    }
+
+    fn refresh(&mut self) {
+        self.states = self
+            .handles
+            .iter()
+            .zip(&self.specs)
+            .map(|(&h, s)| {
+                let b = &self.world.bodies[h];
+                let q = b.rotation().to_array();
+                BodyState {
+                    shape: s.shape.clone(),
+                    rotation: glam::Mat3::from_quat(glam::Quat::from_array(q)),
+                    center: gv(b.center_of_mass()),
+                    velocity: gv(b.linvel()),
+                    angular_velocity: gv(b.angvel()),
+                    dynamic: s.kind == RigidKind::Dynamic,
+                    condition: s.condition,
+                    friction: s.friction,
+                }
+            })
+            .collect();
+    }
+
+    /// Change gravity from the next advance on.
+    pub fn set_gravity(&mut self, gravity: glam::Vec3) {
+        self.world.gravity = rv(gravity);
+    }
+
+    /// Mass (kg) and principal moments of inertia (kg m^2, ascending) of body `i` as the
+    /// engine holds them.
+    pub fn mass_properties(&self, i: usize) -> Option<(f32, glam::Vec3)> {
+        let b = &self.world.bodies[*self.handles.get(i)?];
+        let m = b.mass_properties().local_mprops;
+        let mut p = gv(m.principal_inertia()).to_array();
+        p.sort_by(f32::total_cmp);
+        Some((m.mass(), glam::Vec3::from_array(p)))
+    }
+
+    /// Every body's state at the current time.
+    pub fn states(&self) -> &[BodyState] {
+        &self.states
+    }
+
+    /// Every body's pose and velocities as rapier holds them (for checkpoints).
+    pub fn poses(&self) -> Vec<BodyPose> {
+        self.handles
+            .iter()
+            .map(|&h| {
+                let b = &self.world.bodies[h];
+                let q = b.rotation().to_array();
+                BodyPose {
+                    position: gv(b.translation()),
+                    rotation: glam::Quat::from_array(q),
+                    velocity: gv(b.linvel()),
+                    angular_velocity: gv(b.angvel()),
+                }
+            })
+            .collect()
+    }
+
+    /// Put every body at `poses` (one per body, in the scene's order, as [`RigidWorld::poses`]
+    /// gave them): resuming a checkpoint. What rapier keeps besides the bodies is not restored:
+    /// the contacts' cached impulses (the solver's warm start), which the next step rebuilds
+    /// from zero, so bodies in contact at the checkpoint continue slightly differently from an
+    /// uninterrupted run; bodies not touching anything continue identically.
+    pub fn set_poses(&mut self, poses: &[BodyPose]) -> Result<(), String> {
+        if poses.len() != self.handles.len() {
+            return Err(format!(
+                "{} rigid-body states for the scene's {} rigid bodies",
+                poses.len(),
+                self.handles.len()
+            ));
+        }
+        for (&h, p) in self.handles.iter().zip(poses) {
+            let b = &mut self.world.bodies[h];
+            let q = p.rotation.to_array();
+            b.set_translation(rv(p.position), true);
+            b.set_rotation(rp::Rotation::from_array(q), true);
+            b.set_linvel(rv(p.velocity), true);
+            b.set_angvel(rv(p.angular_velocity), true);
+        }
+        self.refresh();
+        Ok(())
+    }
+
+    /// Give each dynamic body the impulses the grid gave it this step, then advance the world
+    /// by `dt` (gravity, contacts).
+    pub fn advance(&mut self, exchange: &[Exchange], dt: f32) {
+        for ((&h, s), e) in self.handles.iter().zip(&self.specs).zip(exchange) {
+            if s.kind != RigidKind::Dynamic {
+                continue;
+            }
+            let b = &mut self.world.bodies[h];
+            let f = |a: [f64; 3]| rp::Vector::new(a[0] as f32, a[1] as f32, a[2] as f32);
+            b.apply_impulse(f(e.impulse), true);
+            b.apply_torque_impulse(f(e.torque), true);
+        }
+        self.world.integration_parameters.dt = dt;
+        self.world.step();
+        self.refresh();
+    }
+}
+
+/// The engine's collider of a mesh body: its convex hull (`convex = true`) or the triangle mesh,
+/// with the mass, centre of mass (the body's origin) and inertia tensor of the closed mesh's
+/// solid (rapier's own mass properties of a triangle mesh are not those of the solid).
+fn mesh_collider(
+    name: &str,
+    m: &rtmpm_geometry::RigidMesh,
+    mass: f32,
+) -> Result<rp::ColliderBuilder, String> {
+    let points: Vec<rp::Vector> = m.mesh.vertices.iter().map(|v| rv(*v)).collect();
+    let builder = if m.convex {
+        rp::ColliderBuilder::convex_hull(&points).ok_or_else(|| {
+            format!("rigid body `{name}`: no convex hull of its mesh (degenerate points)")
+        })?
+    } else {
+        rp::ColliderBuilder::trimesh(points, m.mesh.triangles.clone()).map_err(|e| {
+            format!("rigid body `{name}`: its mesh is not a valid triangle mesh: {e}")
+        })?
+    };
+    let inertia = m.unit_inertia * (mass / m.volume);
+    let inertia = rp::Matrix::from_cols_array(&inertia.to_cols_array());
+    Ok(
+        builder.mass_properties(rp::MassProperties::with_inertia_matrix(
+            rp::Vector::ZERO,
+            mass,
+            inertia,
+        )),
+    )
+}
+
+/// rapier's pose of a body placed at `position` turned by `rotation`.
+fn pose(position: glam::Vec3, rotation: glam::Quat) -> rp::Pose {
+    rp::Pose::from_parts(rv(position), rp::Rotation::from_array(rotation.to_array()))
+}
+
+/// Each joint as a rapier impulse joint. The joint's frame in the world at t = 0 has its origin
+/// at the anchor and its x axis along the hinge or slide axis (rapier's revolute joint turns
+/// about the frame's x, its prismatic joint slides along it); each body carries that frame in
+/// its own coordinates from then on. A joint to the world holds the body to a fixed body with no
+/// collider at the world's origin. Contacts between jointed bodies are off (rapier's default).
+fn insert_joints(
+    world: &mut rp::PhysicsWorld,
+    bodies: &[RigidBodySpec],
+    handles: &[rp::RigidBodyHandle],
+    joints: &[JointSpec],
+) {
+    if joints.is_empty() {
+        return;
+    }
+    let ground = world.insert_body(rp::RigidBodyBuilder::fixed());
+    for j in joints {
+        let axis = match j.kind {
+            JointKind::Revolute { axis, .. } | JointKind::Prismatic { axis, .. } => axis,
+            JointKind::Fixed | JointKind::Spherical => glam::Vec3::X,
+        };
+        let frame = (j.anchor, glam::Quat::from_rotation_arc(glam::Vec3::X, axis));
+        let local = |b: Option<usize>| {
+            let (p, q) = b.map_or((glam::Vec3::ZERO, glam::Quat::IDENTITY), |b| {
+                (bodies[b].position, bodies[b].rotation)
+            });
+            pose(q.inverse() * (frame.0 - p), q.inverse() * frame.1)
+        };
+        let (locked, limits) = match j.kind {
+            JointKind::Fixed => (rp::JointAxesMask::LOCKED_FIXED_AXES, None),
+            JointKind::Spherical => (rp::JointAxesMask::LOCKED_SPHERICAL_AXES, None),
+            JointKind::Revolute { limits, .. } => (
+                rp::JointAxesMask::LOCKED_REVOLUTE_AXES,
+                limits.map(|l| (rp::JointAxis::AngX, l)),
+            ),
+            JointKind::Prismatic { limits, .. } => (
+                rp::JointAxesMask::LOCKED_PRISMATIC_AXES,
+                limits.map(|l| (rp::JointAxis::LinX, l)),
+            ),
+        };
+        let mut builder = rp::GenericJointBuilder::new(locked)
+            .local_frame1(local(j.to))
+            .local_frame2(local(Some(j.body)));
+        if let Some((axis, l)) = limits {
+            builder = builder.limits(axis, l);
+        }
+        let h1 = j.to.map_or(ground, |b| handles[b]);
+        world.insert_impulse_joint(h1, handles[j.body], builder.build());
+    }
+}

@@ -1,0 +1,179 @@
+//! Validation of the scene's settings tables: `[solver]`, `[render]` and `[walls]`.
+
+use super::super::RenderSettings;
+use super::super::schema::*;
+use super::{R, V};
+use crate::ColorBy;
+use rtmpm_physics::boundary::{BoundaryRule, Condition, Walls};
+use rtmpm_physics::math::Vec3;
+use rtmpm_physics::transfer::{SolverSettings, Transfer, Update};
+
+impl V<'_> {
+    /// `[solver]`: defaults to MLS-MPM/APIC; `update` and `flip` only apply to the classic MPM
+    /// transfers (gimp, mpm-linear), whose defaults are USL and pure FLIP (flip = 1).
+    pub(super) fn solver(&self, s: Option<&RawSolver>) -> R<SolverSettings> {
+        let Some(s) = s else {
+            return Ok(SolverSettings::default());
+        };
+        let transfer = match s.transfer.unwrap_or(RawTransfer::Mls) {
+            RawTransfer::Mls => Transfer::Mls,
+            RawTransfer::Gimp => Transfer::Gimp,
+            RawTransfer::MpmLinear => Transfer::MpmLinear,
+        };
+        let update = match s.update.unwrap_or(RawUpdate::Usl) {
+            RawUpdate::Usl => Update::Usl,
+            RawUpdate::Musl => Update::Musl,
+        };
+        if transfer == Transfer::Mls {
+            if update == Update::Musl {
+                return Err(self.err(
+                    "solver.update",
+                    "update = \"musl\" needs a classic MPM transfer; MLS-MPM folds the stress into P2G (USL only)",
+                    "use transfer = \"gimp\" or \"mpm-linear\" with musl, or remove update",
+                ));
+            }
+            if s.flip.is_some() {
+                return Err(self.err(
+                    "solver.flip",
+                    "flip does not apply to transfer = \"mls\" (APIC keeps the affine velocity; it has no PIC/FLIP blend)",
+                    "remove flip, or use transfer = \"gimp\" or \"mpm-linear\"",
+                ));
+            }
+            return Ok(SolverSettings {
+                transfer,
+                update,
+                flip: 0.0,
+            });
+        }
+        let flip = match s.flip {
+            Some(f) => {
+                self.finite("solver.flip", f)?;
+                if !(0.0..=1.0).contains(&f) {
+                    return Err(self.err(
+                        "solver.flip",
+                        format!("flip must be in [0, 1], got {f}"),
+                        "use 0 for PIC, 1 for FLIP, or a blend such as 0.99",
+                    ));
+                }
+                f
+            }
+            None => 1.0,
+        };
+        Ok(SolverSettings {
+            transfer,
+            update,
+            flip,
+        })
+    }
+
+    pub(super) fn render(&self, r: Option<&RawRender>) -> R<RenderSettings> {
+        let Some(r) = r else {
+            return Ok(RenderSettings::default());
+        };
+        let camera = r
+            .camera
+            .map(|v| self.vec3("render.camera", v))
+            .transpose()?;
+        let target = r
+            .target
+            .map(|v| self.vec3("render.target", v))
+            .transpose()?;
+        if let (Some(c), Some(t)) = (camera, target)
+            && (c - t).length() <= 1e-9
+        {
+            return Err(self.err(
+                "render.target",
+                "the camera position and target coincide",
+                "move the camera away from the point it looks at",
+            ));
+        }
+        if let Some(fov) = r.fov {
+            self.finite("render.fov", fov)?;
+            if !(fov > 0.0 && fov < 180.0) {
+                return Err(self.err(
+                    "render.fov",
+                    format!("field of view must be in (0, 180) degrees, got {fov}"),
+                    "use e.g. fov = 40",
+                ));
+            }
+        }
+        for (field, v) in [("render.width", r.width), ("render.height", r.height)] {
+            if let Some(v) = v
+                && !(16..=8192).contains(&v)
+            {
+                return Err(self.err(
+                    field,
+                    format!("image size {v} is out of range"),
+                    "use 16 to 8192 pixels (default 1280x720)",
+                ));
+            }
+        }
+        let color_by = match &r.color_by {
+            None => None,
+            Some(c) => Some(
+                c.parse::<ColorBy>()
+                    .map_err(|e| self.err("render.color_by", e, "e.g. color_by = \"speed\""))?,
+            ),
+        };
+        Ok(RenderSettings {
+            camera,
+            target,
+            fov: r.fov,
+            width: r.width,
+            height: r.height,
+            color_by,
+        })
+    }
+
+    pub(super) fn condition(c: RawCondition) -> Condition {
+        match c {
+            RawCondition::Sticky => Condition::Sticky,
+            RawCondition::Slip => Condition::Slip,
+            RawCondition::Separate => Condition::Separate,
+        }
+    }
+
+    pub(super) fn walls(&self, w: Option<&RawWalls>, cells: Vec3) -> R<Walls> {
+        let default = RawWalls::default();
+        let w = w.unwrap_or(&default);
+        let thickness = w.thickness.unwrap_or(3);
+        let min_cells = cells.min_element().round() as u32;
+        // Nodes 0..=thickness and cells-thickness..=cells are wall nodes: keep one free plane.
+        if 2 * thickness + 2 > min_cells {
+            return Err(self.err(
+                "walls.thickness",
+                format!(
+                    "walls {thickness} cells thick leave no room in a domain {min_cells} cells wide"
+                ),
+                "use thinner walls or a larger domain",
+            ));
+        }
+        let condition = Self::condition(w.condition.unwrap_or(RawCondition::Separate));
+        let friction =
+            self.non_negative("walls.friction", w.friction.unwrap_or(0.0), "friction")?;
+        let rule = BoundaryRule {
+            condition,
+            friction,
+        };
+        let mut faces = [rule; 6];
+        if let Some(f) = &w.faces {
+            let list = [&f.x_min, &f.x_max, &f.y_min, &f.y_max, &f.z_min, &f.z_max];
+            let names = ["x_min", "x_max", "y_min", "y_max", "z_min", "z_max"];
+            for (k, face) in list.iter().enumerate() {
+                if let Some(face) = face {
+                    if let Some(c) = face.condition {
+                        faces[k].condition = Self::condition(c);
+                    }
+                    if let Some(fr) = face.friction {
+                        faces[k].friction = self.non_negative(
+                            &format!("walls.faces.{}.friction", names[k]),
+                            fr,
+                            "friction",
+                        )?;
+                    }
+                }
+            }
+        }
+        Ok(Walls { thickness, faces })
+    }
+}
