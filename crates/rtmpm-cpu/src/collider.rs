@@ -19,7 +19,7 @@ impl Collider {
     /// The scene's collider `c`.
     pub fn new(c: &rtmpm_geometry::Collider) -> Collider {
         Collider {
-            rule: real::rule(&c.rule),
+            rule: physics::convert::rule(&c.rule),
             geometry: c.clone(),
         }
     }

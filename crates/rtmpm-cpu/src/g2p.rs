@@ -1,7 +1,7 @@
 //! Stage 4: grid to particle (APIC, Jiang et al. 2015; MLS-MPM), deformation gradient update,
 //! plastic return mapping, advection and health check.
 
-use super::CpuBackend;
+use crate::state::CpuBackend;
 use physics::math::{Mat3, Real, Vec3, outer};
 use physics::real;
 use physics::shape_function::{Stencil, flip_blend, inv_d};

@@ -1,6 +1,6 @@
 //! Stage 3: grid velocities, gravity, domain walls and colliders.
 
-use super::{CpuBackend, GRID_PAD, StepConstants};
+use crate::state::{CpuBackend, GRID_PAD, StepConstants};
 use physics::boundary::BoundaryRule;
 use physics::grid::codes::{BLOCK_NODES, BLOCK_SIZE};
 use physics::math::{IVec3, Real, ToReal, Vec3};

@@ -7,7 +7,7 @@
 //! each gblock's particles in sorted order. Every node therefore sums its contributions in a
 //! fixed order, whatever the number of threads.
 
-use super::CpuBackend;
+use crate::state::CpuBackend;
 use physics::math::{Mat3, Real, Vec3};
 use physics::shape_function::{Stencil, inv_d};
 use rayon::prelude::*;

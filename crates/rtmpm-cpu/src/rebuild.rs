@@ -8,7 +8,7 @@
 //! steps only, for locality: in between, particles move little, the stored order stays nearly
 //! sorted and P2G reads them through `layout.order`.
 
-use super::CpuBackend;
+use crate::state::CpuBackend;
 use physics::shape_function::Stencil;
 use rayon::prelude::*;
 

@@ -66,7 +66,7 @@ pub fn materials(scene: &Scene, f64: bool) -> Result<Vec<u8>, SimError> {
         )));
     }
     let bytes = if f64 {
-        let models = rtmpm_physics_f64::real::materials(&scene.materials)
+        let models = rtmpm_physics_f64::convert::materials(&scene.materials)
             .map_err(SimError::Backend)?
             .iter()
             .map(|m| (m.model.code(), m.model.gpu_params()))

@@ -1,8 +1,8 @@
 //! The shape of a body of material (`[[body]]`, `[[emitter]]`): what the sampler fills with
 //! particles.
 
-use crate::PointSet;
 use crate::mesh::MeshSdf;
+use crate::points::PointSet;
 use crate::sdf::{box_distance, cylinder_distance};
 use glam::Vec3;
 use std::sync::Arc;

@@ -1,7 +1,7 @@
 //! A rigid body's shape about its centre of mass, in the body frame: box, sphere, cylinder or
 //! closed triangle mesh ([`RigidMesh`]).
 
-use crate::RigidMesh;
+use crate::rigid_mesh::RigidMesh;
 use crate::sdf::{Shape, box_distance, cylinder_distance, sphere_distance};
 use glam::{Mat3, Vec3};
 use std::sync::Arc;

@@ -27,9 +27,9 @@
 use std::io::{self, Read, Write};
 use std::path::Path;
 
-use super::FrameFields;
 use super::atomic::write_atomic_with;
 use super::limits::{DATA_MAX_BYTES, decompressed_limit, human_bytes, read_bounded};
+use crate::fields::FrameFields;
 use rtmpm_physics::Particles;
 
 /// Errors of [`read_bgeo`].
@@ -172,7 +172,7 @@ pub fn write_bgeo(
     fields: &FrameFields,
     gzip: bool,
 ) -> io::Result<()> {
-    super::check_particles(particles)?;
+    crate::contents::check_particles(particles)?;
     let n = particles.len();
     fields.check_len(n)?;
     let too_big = |what: &str| {

@@ -201,7 +201,7 @@ impl Checkpoint {
 
     /// Write the checkpoint to `path` atomically (temporary file + rename).
     pub fn save(&self, path: &Path) -> Result<(), CheckpointError> {
-        super::check_particles(&self.particles)?;
+        crate::contents::check_particles(&self.particles)?;
         if let Some(i) = self.bodies.iter().position(|b| !b.is_valid()) {
             return Err(CheckpointError::BadValue(format!(
                 "rigid body {i}: {:?} is not a finite pose",

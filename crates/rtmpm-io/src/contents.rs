@@ -22,7 +22,7 @@ fn bad(index: usize, message: String) -> Result<(), BadValue> {
 /// Values that make sense whatever the scene: every array as long as `x`; position, velocity,
 /// `C`, `F` and the plastic state finite; mass and initial volume finite and positive.
 pub fn check_particle_values(p: &Particles) -> Result<(), BadValue> {
-    super::check_particles(p).map_err(|e| BadValue {
+    check_particles(p).map_err(|e| BadValue {
         index: 0,
         message: e.to_string(),
     })?;
@@ -84,6 +84,30 @@ pub fn check_particles_in_domain(
                 i,
                 format!("position {x} is outside the domain {min} .. {max}"),
             );
+        }
+    }
+    Ok(())
+}
+
+/// Check that every array of `p` has `p.len()` entries (a malformed particle set would otherwise
+/// produce a file that lies about its size).
+pub fn check_particles(p: &rtmpm_physics::Particles) -> std::io::Result<()> {
+    let n = p.len();
+    let lens = [
+        ("v", p.v.len()),
+        ("c", p.c.len()),
+        ("f", p.f.len()),
+        ("plastic", p.plastic.len()),
+        ("mass", p.mass.len()),
+        ("vol0", p.vol0.len()),
+        ("material", p.material.len()),
+    ];
+    for (name, len) in lens {
+        if len != n {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                format!("particle array {name} has {len} entries, x has {n}"),
+            ));
         }
     }
     Ok(())

@@ -7,10 +7,10 @@
 //! With `RTMPM_INTEROP_DIR=DIR`, every `frame_*.bgeo(.gz)` in DIR (a run's output) is read too
 //! and compared with the run's PLY of the same frame.
 
-use super::FrameFields;
 use super::bgeo::tests::sample;
 use super::bgeo::{symmetric_to_full, write_bgeo};
 use super::ply::read_ply;
+use crate::fields::FrameFields;
 use crate::testing::TestDir;
 use splashsurf_lib::io::bgeo_format::{AttributeStorage, BgeoFile, load_bgeo_file};
 use std::path::Path;

@@ -21,6 +21,7 @@ pub mod bgeo;
 pub mod checkpoint;
 pub mod chunks;
 pub mod contents;
+pub mod fields;
 #[cfg(all(test, feature = "interop"))]
 mod interop_tests;
 pub mod limits;
@@ -38,63 +39,8 @@ pub mod vtu;
 pub use atomic::{write_atomic, write_atomic_with};
 pub use bgeo::{BgeoData, BgeoError, read_bgeo, write_bgeo};
 pub use checkpoint::{Checkpoint, CheckpointError};
-pub use contents::{BadValue, check_particle_values, check_particles_in_domain};
+pub use contents::{BadValue, check_particle_values, check_particles, check_particles_in_domain};
+pub use fields::FrameFields;
 pub use limits::{read_bounded, read_text_bounded};
 pub use ply::{PlyColumn, PlyData, PlyError, read_ply, write_ply, write_ply_with_comments};
 pub use vtu::{PvdWriter, VtuArray, VtuData, VtuError, VtuValues, read_vtu, write_vtu};
-
-/// Optional per-particle fields written next to the particle state in output frames. They are
-/// computed by the caller (e.g. from the material model); each slice, when present, must have
-/// one entry per particle.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct FrameFields<'a> {
-    /// Cauchy stress per particle, symmetric, stored as `[xx, yy, zz, xy, yz, xz]` (Pa).
-    pub stress: Option<&'a [[f32; 6]]>,
-    /// Volume ratio `J = det F` per particle.
-    pub jacobian: Option<&'a [f32]>,
-}
-
-impl FrameFields<'_> {
-    /// Check that every present field has `n` entries.
-    pub(crate) fn check_len(&self, n: usize) -> std::io::Result<()> {
-        let bad = |what: &str, len: usize| {
-            Err(std::io::Error::new(
-                std::io::ErrorKind::InvalidInput,
-                format!("{what} has {len} entries, expected {n} (one per particle)"),
-            ))
-        };
-        match self.stress {
-            Some(s) if s.len() != n => return bad("stress", s.len()),
-            _ => {}
-        }
-        match self.jacobian {
-            Some(j) if j.len() != n => return bad("jacobian", j.len()),
-            _ => {}
-        }
-        Ok(())
-    }
-}
-
-/// Check that every array of `p` has `p.len()` entries (a malformed particle set would otherwise
-/// produce a file that lies about its size).
-pub fn check_particles(p: &rtmpm_physics::Particles) -> std::io::Result<()> {
-    let n = p.len();
-    let lens = [
-        ("v", p.v.len()),
-        ("c", p.c.len()),
-        ("f", p.f.len()),
-        ("plastic", p.plastic.len()),
-        ("mass", p.mass.len()),
-        ("vol0", p.vol0.len()),
-        ("material", p.material.len()),
-    ];
-    for (name, len) in lens {
-        if len != n {
-            return Err(std::io::Error::new(
-                std::io::ErrorKind::InvalidInput,
-                format!("particle array {name} has {len} entries, x has {n}"),
-            ));
-        }
-    }
-    Ok(())
-}

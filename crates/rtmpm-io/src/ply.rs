@@ -21,9 +21,9 @@
 use std::io::{self, Write};
 use std::path::Path;
 
-use super::FrameFields;
 use super::atomic::write_atomic_with;
 use super::limits::{DATA_MAX_BYTES, read_bounded};
+use crate::fields::FrameFields;
 use rtmpm_physics::Particles;
 
 /// Errors of [`read_ply`].
@@ -121,7 +121,7 @@ pub fn write_ply_with_comments(
     fields: &FrameFields,
     comments: &[&str],
 ) -> io::Result<()> {
-    super::check_particles(particles)?;
+    crate::contents::check_particles(particles)?;
     if let Some(c) = comments.iter().find(|c| c.contains(['\n', '\r'])) {
         return Err(io::Error::new(
             io::ErrorKind::InvalidInput,

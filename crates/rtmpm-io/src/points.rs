@@ -151,9 +151,9 @@ fn check(s: &PointSet) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::FrameFields;
     use crate::bgeo::tests::sample;
     use crate::bgeo::write_bgeo;
+    use crate::fields::FrameFields;
     use crate::ply::write_ply;
     use crate::testing::TestDir;
     use crate::vtk_appended::write_particles_vtu;

@@ -16,8 +16,8 @@
 use std::io::{self, Write};
 use std::path::Path;
 
-use super::FrameFields;
 use super::atomic::write_atomic_with;
+use crate::fields::FrameFields;
 use glam::{Quat, Vec3};
 use rtmpm_geometry::RigidShape;
 use rtmpm_geometry::surface::TriMesh;
@@ -169,7 +169,7 @@ pub fn write_usda_frame(
     fields: &FrameFields,
     bodies: &[UsdBody],
 ) -> io::Result<()> {
-    super::check_particles(p)?;
+    crate::contents::check_particles(p)?;
     let n = p.len();
     fields.check_len(n)?;
     let v3 = |v: rtmpm_physics::math::Vec3| format!("({}, {}, {})", num(v.x), num(v.y), num(v.z));

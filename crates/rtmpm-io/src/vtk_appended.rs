@@ -19,10 +19,10 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
-use super::FrameFields;
 use super::atomic::write_atomic_with;
 use super::bgeo::symmetric_to_full;
 use super::vtu::{VtuData, VtuError};
+use crate::fields::FrameFields;
 use rtmpm_physics::Particles;
 
 /// Uncompressed bytes per compressed block (ParaView's default).
@@ -227,7 +227,7 @@ pub fn write_particles_vtu(
     fields: &FrameFields,
     compress: bool,
 ) -> io::Result<()> {
-    super::check_particles(p)?;
+    crate::contents::check_particles(p)?;
     let n = p.len();
     fields.check_len(n)?;
     if n > i32::MAX as usize || p.material.iter().any(|&m| m > i32::MAX as u32) {

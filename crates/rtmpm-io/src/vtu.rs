@@ -16,9 +16,9 @@ use base64::Engine;
 use base64::engine::general_purpose::STANDARD;
 use base64::write::EncoderWriter;
 
-use super::FrameFields;
 use super::atomic::{write_atomic, write_atomic_with};
 use super::limits::{DATA_MAX_BYTES, PVD_MAX_BYTES, read_text_bounded};
+use crate::fields::FrameFields;
 use rtmpm_physics::Particles;
 
 /// Errors of [`read_vtu`] and [`PvdWriter::resume`].
@@ -85,7 +85,7 @@ fn write_le<T: Copy, const N: usize>(
 /// Write `particles` (and the optional `fields`) as a VTK XML UnstructuredGrid at `path`,
 /// atomically. See the module documentation for the arrays.
 pub fn write_vtu(path: &Path, particles: &Particles, fields: &FrameFields) -> io::Result<()> {
-    super::check_particles(particles)?;
+    crate::contents::check_particles(particles)?;
     let n = particles.len();
     fields.check_len(n)?;
     write_atomic_with(path, |w| write_vtu_to(w, particles, fields))

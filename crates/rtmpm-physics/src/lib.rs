@@ -2,7 +2,8 @@
 //! scene format and of the compute backend.
 //!
 //! * [`real`]: the precision, [`real::Real`] (f32 here; the package `rtmpm-physics-f64` compiles
-//!   these same files with `Real = f64`), and the conversions from the f32 scene and interface.
+//!   these same files with `Real = f64`); [`convert`]: the f32 scene's and interface's values in
+//!   it.
 //! * [`math`], [`svd`]: small linear algebra and the 3x3 SVD / polar decomposition.
 //! * [`shape_function`]: the shape functions of the transfers (quadratic B-splines of MLS-MPM,
 //!   uGIMP, linear hats) on the 3x3x3 node stencil.
@@ -23,6 +24,7 @@
 #![cfg_attr(feature = "f64", allow(clippy::unnecessary_cast))]
 
 pub mod boundary;
+pub mod convert;
 #[cfg(not(feature = "f64"))]
 pub mod grid;
 pub mod material;

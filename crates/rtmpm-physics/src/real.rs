@@ -11,13 +11,6 @@ pub use glam::{DMat3 as Mat3, DVec3 as Vec3};
 #[cfg(not(feature = "f64"))]
 pub use glam::{Mat3, Vec3};
 
-#[cfg(not(feature = "f64"))]
-use crate as single;
-use crate::boundary::{BoundaryRule, Walls};
-use crate::material::Material;
-#[cfg(feature = "f64")]
-use rtmpm_physics as single;
-
 /// The floating-point type of every quantity the step computes.
 #[cfg(not(feature = "f64"))]
 pub type Real = f32;
@@ -93,53 +86,4 @@ pub fn mat3_to_f32(m: Mat3) -> glam::Mat3 {
     return m;
     #[cfg(feature = "f64")]
     return m.as_mat3();
-}
-
-/// The interface's particles (f32) in this precision.
-pub fn particles(p: single::Particles) -> crate::Particles {
-    #[cfg(not(feature = "f64"))]
-    return p;
-    #[cfg(feature = "f64")]
-    return crate::Particles {
-        x: p.x.iter().map(|&v| vec3(v)).collect(),
-        v: p.v.iter().map(|&v| vec3(v)).collect(),
-        c: p.c.iter().map(|&m| mat3(m)).collect(),
-        f: p.f.iter().map(|&m| mat3(m)).collect(),
-        plastic: p.plastic.iter().map(|&x| real(x)).collect(),
-        mass: p.mass.iter().map(|&x| real(x)).collect(),
-        vol0: p.vol0.iter().map(|&x| real(x)).collect(),
-        material: p.material,
-    };
-}
-
-/// The scene's materials in this precision: in f64 each model is built again from the
-/// parameters as written (`Material::params`) by the model files, so the f64 models are those
-/// of the scene text, not widened f32 models. The error names the material.
-pub fn materials(m: &[single::material::Material]) -> Result<Vec<Material>, String> {
-    #[cfg(not(feature = "f64"))]
-    return Ok(m.to_vec());
-    #[cfg(feature = "f64")]
-    return m
-        .iter()
-        .map(|m| {
-            Material::new(&m.name, real(m.density), m.params.clone())
-                .map_err(|e| format!("material `{}` in f64: {e}", m.name))
-        })
-        .collect();
-}
-
-/// A boundary rule of the scene in this precision.
-pub fn rule(r: &single::boundary::BoundaryRule) -> BoundaryRule {
-    BoundaryRule {
-        condition: r.condition,
-        friction: real(r.friction),
-    }
-}
-
-/// The scene's walls in this precision.
-pub fn walls(w: &single::boundary::Walls) -> Walls {
-    Walls {
-        thickness: w.thickness,
-        faces: w.faces.each_ref().map(rule),
-    }
 }

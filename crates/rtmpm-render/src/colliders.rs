@@ -5,8 +5,9 @@
 //! particle splats, so colliders and particles hide and shadow each other and are shaded by the
 //! same lights.
 
-use super::camera::View;
-use super::{GTexel, SHADOW_RES, ShadowMap};
+use crate::camera::View;
+use crate::gbuffer::GTexel;
+use crate::shadow::{SHADOW_RES, ShadowMap};
 use rayon::prelude::*;
 use rtmpm_geometry::Collider;
 use rtmpm_geometry::sdf::{Shape, box_distance};

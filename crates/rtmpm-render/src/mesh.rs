@@ -4,8 +4,9 @@
 //! shade and shadow exactly as everything else does. Parallel over bands of rows like
 //! [`super::raster`].
 
-use super::camera::View;
-use super::{GTexel, SHADOW_RES, ShadowMap};
+use crate::camera::View;
+use crate::gbuffer::GTexel;
+use crate::shadow::{SHADOW_RES, ShadowMap};
 use rayon::prelude::*;
 use rtmpm_geometry::surface::TriMesh;
 use rtmpm_physics::math::Vec3;
@@ -194,10 +195,11 @@ pub(crate) fn cast_shadows(mesh: &TriMesh, map: &mut ShadowMap) {
 
 #[cfg(test)]
 mod tests {
-    use super::super::tests_support::*;
-    use super::super::*;
     use super::{MESH_ID_BASE, mesh_material};
+    use crate::tests::support::*;
+    use crate::*;
     use rtmpm_geometry::surface::TriMesh;
+    use rtmpm_physics::math::Vec3;
 
     /// A UV sphere of radius `r` at `c`, outward triangles, exact normals.
     pub(crate) fn sphere(c: Vec3, r: f32, n: u32) -> TriMesh {

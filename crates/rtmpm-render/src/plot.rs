@@ -1,7 +1,7 @@
 //! Line charts for validation curves (simulated vs reference), drawn with the built-in font.
 
-use super::image::Image;
-use super::text::{draw_text, text_height, text_width};
+use crate::image::Image;
+use crate::text::{draw_text, text_height, text_width};
 
 /// How a series is drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -1,8 +1,8 @@
 //! The light's shadow map: an orthographic depth map of the particles (and colliders and
 //! surface meshes, which add themselves) seen from the light, for the renderer's shadows.
 
-use super::raster::{Splat, raster};
-use super::{RenderInput, RenderOptions};
+use crate::input::{RenderInput, RenderOptions};
+use crate::raster::{Splat, raster};
 use rayon::prelude::*;
 use rtmpm_physics::math::Vec3;
 

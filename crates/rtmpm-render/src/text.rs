@@ -1,7 +1,7 @@
 //! A tiny built-in 5x7 bitmap font for labels (colour-bar range, frame number). Lower-case
 //! letters are drawn as capitals; characters without a glyph are drawn as `?`.
 
-use super::Image;
+use crate::image::Image;
 
 /// Glyph rows (top to bottom), 5 bits each, most significant bit on the left.
 fn glyph(c: char) -> [u8; 7] {

@@ -1,8 +1,11 @@
 //! What a live view asks a backend to draw (`rtmpm_sim::Backend::render_view`), and the same
 //! request as options of this CPU renderer: one definition of the picture for every backend.
 
-use super::{Camera, ColorBy, RenderOptions, colormap, von_mises};
+use crate::camera::Camera;
+use crate::colormap;
+use crate::input::{RenderOptions, von_mises};
 use rtmpm_physics::Particles;
+use rtmpm_scene::ColorBy;
 use rtmpm_scene::Scene;
 
 /// What a live view asks a backend to draw (all in scene units). The picture is the one

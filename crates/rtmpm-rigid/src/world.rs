@@ -2,10 +2,11 @@
 //! with one collider of its shape, and the six faces of the domain minus the walls as fixed
 //! slabs, so bodies rest on the floor and bounce off each other.
 
-use super::{
-    BodyPose, BodyState, Exchange, JointKind, JointSpec, RigidBodySpec, RigidKind, RigidShape,
-};
+use crate::joint::{JointKind, JointSpec};
+use crate::spec::{RigidBodySpec, RigidKind};
+use crate::state::{BodyPose, BodyState, Exchange};
 use rapier3d::prelude as rp;
+use rtmpm_geometry::RigidShape;
 
 /// rapier3d's vectors (its own glam) from ours, and back.
 fn rv(v: glam::Vec3) -> rp::Vector {

@@ -1,6 +1,8 @@
 //! Without the cargo feature `rigid`: no rigid-body world; scenes with rigid bodies are refused.
 
-use super::{BodyPose, BodyState, Exchange, JointSpec, RigidBodySpec};
+use crate::joint::JointSpec;
+use crate::spec::RigidBodySpec;
+use crate::state::{BodyPose, BodyState, Exchange};
 
 /// Stands for the rapier3d world of the feature `rigid`; never built.
 #[derive(Debug)]

@@ -2,7 +2,9 @@
 //! frames, output bytes, host and GPU memory. `rtmpm check` prints it, `rtmpm run` refuses a
 //! run that cannot fit (with the numbers and the fix) and warns when steps or frames are absurd.
 
-use super::{Precision, Scene, StepMode, sampling};
+use crate::sampling;
+use crate::scene::Scene;
+use crate::settings::{ParticleState, Precision, StepMode};
 use rtmpm_io::limits::human_bytes;
 
 /// Host bytes per particle of a CPU run in f32: the particle state (112 B) twice (the backend
@@ -38,7 +40,7 @@ pub fn gpu_state_words(scene: &Scene) -> u64 {
         .materials
         .iter()
         .all(|m| matches!(m.model, rtmpm_physics::material::Model::Fluid(_)));
-    let compact = scene.particle_state == super::ParticleState::Compact;
+    let compact = scene.particle_state == ParticleState::Compact;
     match (all_fluid, compact) {
         (true, false) => 20,
         (false, false) => 29,
@@ -251,13 +253,13 @@ impl Budget {
     }
 
     /// [`Budget::for_cuda_host`] with the device fill when the device also draws the bodies it
-    /// can ([`super::deferred::can_defer`]): the host holds none of their particles.
-    pub fn with_drawn_bodies(mut self, scene: &super::Scene) -> Budget {
+    /// can ([`crate::deferred::can_defer`]): the host holds none of their particles.
+    pub fn with_drawn_bodies(mut self, scene: &Scene) -> Budget {
         let drawn: u64 = self
             .body_particles
             .iter()
             .enumerate()
-            .filter(|(i, _)| super::deferred::can_defer(scene, *i))
+            .filter(|(i, _)| crate::deferred::can_defer(scene, *i))
             .map(|(_, n)| *n)
             .sum();
         self.host_bytes = self

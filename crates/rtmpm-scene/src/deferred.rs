@@ -10,41 +10,18 @@
 //! order, a window of chunks at a time, as the eager sampler sums it. Points files are read on
 //! the host.
 
-use super::fill::{BodyPositions, SampledBody, velocity_is_uniform};
-use super::pcg::PcgStream;
-use super::sampling::{self, SampleProgress, Sampling};
-use super::walk::{Counter, Lattice, Mode, RandomTries};
-use super::{Scene, SceneError};
+use crate::body::{BodyPositions, SampledBody, velocity_is_uniform};
+pub use crate::body::{DeferredBody, DeferredWalk};
+use crate::error::SceneError;
+use crate::pcg::PcgStream;
+use crate::sampling::{self, SampleProgress, Sampling};
+use crate::scene::Scene;
+use crate::walk::{Counter, Mode, RandomTries};
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
 use rtmpm_geometry::BodyShape;
 use rtmpm_physics::math::Vec3;
-
-/// The walk a deferred body's positions come from.
-#[derive(Clone, Debug)]
-pub enum DeferredWalk {
-    /// The sub-cell lattice, row by row (x fastest, then y, then z).
-    Lattice(Lattice),
-    /// Uniform tries in the bounding box, in order, the first `count` accepted kept.
-    Random(RandomTries),
-}
-
-/// A body counted on the host, its positions left to be drawn.
-#[derive(Clone, Debug)]
-pub struct DeferredBody {
-    /// What every particle shares (`chunks` empty, `count` the body's particles).
-    pub shared: BodyPositions,
-    /// The walk.
-    pub walk: DeferredWalk,
-    /// The shape whose inside keeps a point.
-    pub shape: BodyShape,
-    /// The seed of the walk's random stream (`Pcg64::seed_from_u64`).
-    pub seed: u64,
-    /// The points the walk accepts in all: the count, or for random tries every point accepted
-    /// in the tries made (the last batch of the host's walk may accept more than it keeps).
-    pub accepted: u64,
-}
 
 impl DeferredBody {
     /// The walk's random stream as numbers (its state at the first point).

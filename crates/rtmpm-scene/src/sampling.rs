@@ -17,10 +17,13 @@
 //! (mesh: signed distance < 0). Velocities are `v0 + w x (x - c)` with `c` the centroid of the
 //! body's particles.
 
-pub use super::fill::{BodyPositions, SampledBody};
-use super::walk::{self, Counter, Mode, Walked};
-pub use super::walk::{Lattice, RandomTries};
-use super::{Scene, SceneError, fill};
+pub use crate::body::{BodyPositions, SampledBody};
+use crate::error::SceneError;
+use crate::fill;
+use crate::scene::Scene;
+pub use crate::settings::Sampling;
+use crate::walk::{self, Counter, Mode, Walked};
+pub use crate::walk::{Lattice, RandomTries};
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
 use rtmpm_geometry::{BodyShape, PointSet};
@@ -28,18 +31,6 @@ use rtmpm_io::contents::check_particle_values;
 use rtmpm_physics::Particles;
 use rtmpm_physics::material::Material;
 use rtmpm_physics::math::{Mat3, Vec3};
-
-/// How a body is filled.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum Sampling {
-    /// Sub-cell centres of the global grid.
-    Regular,
-    /// Sub-cell centres plus uniform jitter within the sub-cell.
-    #[default]
-    Jittered,
-    /// Uniformly random positions.
-    Random,
-}
 
 /// Particles per axis and cell for a particles-per-cell count: `round(cbrt(ppc))`, at least 1.
 pub fn per_axis(ppc: u32) -> u32 {
@@ -63,7 +54,7 @@ pub const MAX_RANDOM_TRIES: u64 = 100_000_000_000;
 
 /// Most lattice points the walk of one body visits (its bounding box on the sub-cell lattice):
 /// a bound on the time of the walk, not on the particles (those are bounded by the memory budget,
-/// [`super::Budget`]).
+/// [`crate::budget::Budget`]).
 pub const MAX_LATTICE_POINTS: u64 = 1 << 40;
 
 /// Estimated particle count of body `index`, without sampling: `volume / h^3` for the lattice
@@ -446,4 +437,29 @@ pub fn sample_scene_with(
     progress: &(dyn Fn(SampleProgress) + Sync),
 ) -> Result<Particles, SceneError> {
     Ok(particles_of(sample_bodies(scene, progress)?))
+}
+
+impl Scene {
+    /// Fill the bodies with particles (deterministic for a given seed, the same for any number of
+    /// threads).
+    pub fn sample_particles(&self) -> Result<rtmpm_physics::Particles, SceneError> {
+        self.sample_particles_with(&|_| {})
+    }
+
+    /// [`Scene::sample_particles`], telling `progress` how far it is (see
+    /// [`sample_scene_with`]).
+    pub fn sample_particles_with(
+        &self,
+        progress: &(dyn Fn(SampleProgress) + Sync),
+    ) -> Result<rtmpm_physics::Particles, SceneError> {
+        sample_scene_with(self, progress).map_err(|mut e| {
+            // Sampling errors name the body; the scene file names where it is.
+            if e.origin.is_empty()
+                && let Some(src) = &self.source
+            {
+                e.origin = src.display().to_string();
+            }
+            e
+        })
+    }
 }

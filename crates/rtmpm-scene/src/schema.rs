@@ -58,8 +58,8 @@ pub struct RawSolver {
     pub transfer: Option<RawTransfer>,
     pub update: Option<RawUpdate>,
     pub flip: Option<f32>,
-    pub precision: Option<super::Precision>,
-    pub particle_state: Option<super::ParticleState>,
+    pub precision: Option<crate::settings::Precision>,
+    pub particle_state: Option<crate::settings::ParticleState>,
 }
 
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]

@@ -1,13 +1,13 @@
-//! The chunk protocol of [`crate::Backend::export_frame`]: a sink hands out empty chunks
+//! The chunk protocol of [`crate::backend::Backend::export_frame`]: a sink hands out empty chunks
 //! ([`rtmpm_io::chunks::FrameChunk`]) and takes them back filled, and the fills of host-side
 //! backends.
 
-use crate::SimError;
+use crate::error::SimError;
 use rayon::prelude::*;
 use rtmpm_io::chunks::{Column, FrameChunk, FrameColumns, ParticleRow};
 use rtmpm_physics::Particles;
 
-/// Where [`crate::Backend::export_frame`] puts the chunks: it hands out empty chunks and
+/// Where [`crate::backend::Backend::export_frame`] puts the chunks: it hands out empty chunks and
 /// takes the filled ones (e.g. to a writer thread).
 pub trait ChunkSink {
     /// The columns wanted.
@@ -88,7 +88,7 @@ pub fn fill_chunks(
 }
 
 /// The chunks of particles already in original order on the host (the default export: after
-/// [`crate::Backend::read_particles`]).
+/// [`crate::backend::Backend::read_particles`]).
 pub fn export_particles(p: &Particles, sink: &mut dyn ChunkSink) -> Result<(), SimError> {
     if rtmpm_io::check_particles(p).is_err() {
         return Err(SimError::Backend(

@@ -1,6 +1,7 @@
 //! The reconstruction itself, through `splashsurf_lib` (cargo feature `surface`).
 
-use super::{SurfaceParams, TriMesh};
+use super::mesh::TriMesh;
+use super::params::SurfaceParams;
 use glam::Vec3;
 use splashsurf_lib::mesh::Mesh3d;
 use splashsurf_lib::nalgebra::Vector3;

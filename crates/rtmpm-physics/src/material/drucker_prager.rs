@@ -1,7 +1,7 @@
 //! Drucker-Prager sand, Klar et al. 2016 ("Drucker-Prager elastoplasticity for sand animation"):
 //! St.Venant-Kirchhoff elasticity with Hencky strain and a return mapping in log-strain space.
 
-use super::Constitutive;
+use super::constitutive::Constitutive;
 use super::hencky;
 use super::params::{self, Elasticity, ParamError};
 use crate::math::{Mat3, Real, Vec3};
@@ -71,7 +71,7 @@ impl DruckerPrager {
         cone: Cone,
         cohesion: Real,
     ) -> Self {
-        let (mu, lambda) = super::lame(youngs_modulus, poisson_ratio);
+        let (mu, lambda) = super::constitutive::lame(youngs_modulus, poisson_ratio);
         Self {
             mu,
             lambda,

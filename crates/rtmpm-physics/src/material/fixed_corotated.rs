@@ -1,7 +1,7 @@
 //! FixedCorotated hyperelasticity (Stomakhin et al. 2012, "Energetically consistent invertible
 //! elasticity").
 
-use super::Constitutive;
+use super::constitutive::Constitutive;
 use super::params::{Elasticity, ParamError};
 use crate::math::{Mat3, Real, Vec3};
 use crate::svd::polar;
@@ -27,7 +27,7 @@ pub fn fixed_corotated_kirchhoff(f: Mat3, mu: Real, lambda: Real) -> Mat3 {
 impl FixedCorotated {
     /// From Young's modulus (Pa) and Poisson's ratio.
     pub fn from_young_poisson(youngs_modulus: Real, poisson_ratio: Real) -> Self {
-        let (mu, lambda) = super::lame(youngs_modulus, poisson_ratio);
+        let (mu, lambda) = super::constitutive::lame(youngs_modulus, poisson_ratio);
         Self { mu, lambda }
     }
 }

@@ -1,6 +1,6 @@
 //! Weakly compressible fluid tracking only the volume ratio `J = det F`.
 
-use super::Constitutive;
+use super::constitutive::Constitutive;
 use super::params::{self, ParamError};
 use crate::math::{Mat3, Real, Vec3};
 use serde::Deserialize;

@@ -7,9 +7,10 @@
 //! ("Continuum foam: a material point method for shear-dependent flows", ACM TOG 34(5)), written
 //! on the principal Hencky strain like the other log-strain models ([`super::hencky`]).
 
+use super::constitutive::Constitutive;
 use super::fluid::{EosName, Fluid};
+use super::hencky;
 use super::params::{self, ParamError};
-use super::{Constitutive, hencky};
 use crate::math::{Mat3, Real, Vec3};
 use crate::svd::svd3;
 use serde::Deserialize;

@@ -9,8 +9,9 @@
 //! in principal Hencky strain (through [`super::hencky::return_map`]): beyond either tip to the
 //! tip (changing alpha by the plastic volume change), else `q` down to the ellipse at the same `p`.
 
+use super::constitutive::Constitutive;
+use super::hencky;
 use super::params::{self, Elasticity, ParamError};
-use super::{Constitutive, hencky};
 use crate::math::{Mat3, Real, Vec3};
 use serde::Deserialize;
 

@@ -1,6 +1,6 @@
 //! Compressible NeoHookean hyperelasticity (Bonet & Wood, "Nonlinear continuum mechanics", eq. 6.28).
 
-use super::Constitutive;
+use super::constitutive::Constitutive;
 use super::params::{Elasticity, ParamError};
 use crate::math::{Mat3, Real, Vec3};
 
@@ -20,7 +20,7 @@ pub struct NeoHookean {
 impl NeoHookean {
     /// From Young's modulus (Pa) and Poisson's ratio.
     pub fn from_young_poisson(youngs_modulus: Real, poisson_ratio: Real) -> Self {
-        let (mu, lambda) = super::lame(youngs_modulus, poisson_ratio);
+        let (mu, lambda) = super::constitutive::lame(youngs_modulus, poisson_ratio);
         Self { mu, lambda }
     }
 }

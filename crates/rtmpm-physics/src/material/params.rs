@@ -2,7 +2,7 @@
 //! elasticity pair of the solids. The parameters as written do not depend on the precision:
 //! [`MaterialParams`] (in `table.rs`).
 
-use super::ModelInfo;
+use super::constitutive::ModelInfo;
 pub use super::table::{MaterialParams, ParamError};
 use crate::math::Real;
 use serde::Deserialize;
@@ -114,7 +114,7 @@ impl Elasticity {
                         "use a value in (-1, 0.5), typically 0.2-0.4",
                     ));
                 }
-                Ok(super::lame(e, nu as Real))
+                Ok(super::constitutive::lame(e, nu as Real))
             }
             (None, None, Some(mu), Some(lambda)) => {
                 let mu_r = positive("mu", mu, "shear modulus mu (Pa)")?;

@@ -1,7 +1,7 @@
 //! Snow plasticity, Stomakhin et al. 2013 ("A material point method for snow simulation"):
 //! FixedCorotated elasticity hardened by `exp(xi (1 - Jp))` and singular-value clamping.
 
-use super::Constitutive;
+use super::constitutive::Constitutive;
 use super::fixed_corotated::fixed_corotated_kirchhoff;
 use super::params::{self, Elasticity, ParamError};
 use crate::math::{Mat3, Real, Vec3};
@@ -60,7 +60,7 @@ impl Snow {
     /// The paper's parameters (Stomakhin 2013, table 2, "reference"): E = 1.4e5 Pa, nu = 0.2,
     /// theta_c = 2.5e-2, theta_s = 7.5e-3, xi = 10.
     pub fn reference() -> Self {
-        let (mu, lambda) = super::lame(1.4e5, 0.2);
+        let (mu, lambda) = super::constitutive::lame(1.4e5, 0.2);
         Self {
             mu,
             lambda,

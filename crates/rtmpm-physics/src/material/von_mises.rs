@@ -2,7 +2,7 @@
 //! return in principal log-strain space (Simo & Hughes 1998, "Computational inelasticity",
 //! box 3.1; with Hencky strain as in Simo 1992).
 
-use super::Constitutive;
+use super::constitutive::Constitutive;
 use super::hencky;
 use super::params::{self, Elasticity, ParamError};
 use crate::math::{Mat3, Real, Vec3};
@@ -44,7 +44,7 @@ impl VonMises {
         yield_stress: Real,
         hardening: Real,
     ) -> Self {
-        let (mu, lambda) = super::lame(youngs_modulus, poisson_ratio);
+        let (mu, lambda) = super::constitutive::lame(youngs_modulus, poisson_ratio);
         Self {
             mu,
             lambda,

@@ -1,7 +1,7 @@
 //! Validation of `[[rigid_body]]` tables.
 
-use super::super::schema::*;
-use super::{MESH_MARGIN, R, V, fmt3};
+use super::core::{MESH_MARGIN, R, V, fmt3};
+use crate::schema::*;
 use glam::Quat;
 use rtmpm_geometry::{BodyShape, RigidMesh, RigidShape};
 use rtmpm_physics::math::Vec3;

@@ -1,7 +1,7 @@
 //! Validation of prescribed motion: the keyframes of a collider.
 
-use super::super::schema::*;
-use super::{R, V, fmt3};
+use super::core::{R, V, fmt3};
+use crate::schema::*;
 use glam::Quat;
 use rtmpm_geometry::{Keyframe, Keyframes};
 use rtmpm_physics::math::Vec3;

@@ -1,9 +1,13 @@
 //! Tests of the CPU reference backend on hand-built states.
 
-use super::*;
-use physics::boundary::{BoundaryRule, Condition};
-use physics::material::{FixedCorotated, Model};
-use physics::math::Mat3;
+mod steer;
+
+use crate::state::{CpuBackend, GRID_PAD, StepConstants};
+use crate::{p2g, rebuild};
+use physics::Particles;
+use physics::boundary::{BoundaryRule, Condition, Walls};
+use physics::material::{FixedCorotated, Material, Model};
+use physics::math::{IVec3, Mat3, Vec3};
 use physics::transfer::{SolverSettings, Transfer, Update};
 use rtmpm_sim::Backend;
 

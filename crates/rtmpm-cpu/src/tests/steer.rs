@@ -1,7 +1,10 @@
 //! Tests of steering a running CPU backend: the user's tool and gravity changed mid-run.
 
-use super::tests::{block, consts, jelly, read};
-use super::*;
+use super::{block, consts, jelly, read};
+use crate::state::CpuBackend;
+use physics::Particles;
+use physics::material::Material;
+use physics::math::Vec3;
 use rtmpm_geometry::{Tool, ToolShape};
 use rtmpm_sim::Backend;
 

@@ -1,8 +1,8 @@
 //! Validation of `[[emitter]]` tables.
 
-use super::super::schema::*;
-use super::{R, V, fmt3};
+use super::core::{R, V, fmt3};
 use crate::emitter::{Emitter, MAX_PARTICLES_PER_EMITTER};
+use crate::schema::*;
 use rtmpm_physics::material::Material;
 use rtmpm_physics::math::Vec3;
 use std::path::Path;

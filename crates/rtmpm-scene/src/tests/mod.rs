@@ -1,10 +1,15 @@
 //! Scene parsing, validation and sampling tests.
 
-use super::*;
+use crate::*;
 use rtmpm_physics::boundary::Condition;
 use rtmpm_physics::material::{Cone, Eos, Model};
+use rtmpm_physics::math::Vec3;
+use std::path::{Path, PathBuf};
 
-#[path = "tests_settings.rs"]
+mod io;
+mod motion;
+mod rigid_mesh;
+mod sampling;
 mod settings;
 
 fn scenes_dir() -> PathBuf {

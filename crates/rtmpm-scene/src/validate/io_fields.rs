@@ -1,9 +1,9 @@
 //! Validation of the file-related parts of a scene: `[output]`, `[surface]` and bodies made of
 //! the particles of a file (`shape = "particles"`).
 
-use super::super::schema::*;
-use super::super::{MeshFormats, OutputSettings, SurfaceSettings};
-use super::{R, V};
+use super::core::{R, V};
+use crate::schema::*;
+use crate::settings::{MeshFormats, OutputSettings, SurfaceSettings};
 use rtmpm_geometry::BodyShape;
 use rtmpm_io::points::read_points;
 use rtmpm_physics::material::{Material, Model};

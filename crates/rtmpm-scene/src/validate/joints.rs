@@ -1,7 +1,7 @@
 //! Validation of `[[joint]]` tables.
 
-use super::super::schema::*;
-use super::{R, V, fmt3};
+use super::core::{R, V, fmt3};
+use crate::schema::*;
 use rtmpm_physics::math::Vec3;
 use rtmpm_rigid::{JointKind, JointSpec, RigidBodySpec, RigidKind};
 

@@ -1,10 +1,11 @@
 //! Image-content tests of the renderer.
 
-use super::*;
-use rtmpm_io::testing::TestDir;
-
-#[path = "tests_colliders.rs"]
 mod colliders;
+
+use crate::*;
+use rtmpm_io::testing::TestDir;
+use rtmpm_physics::math::Vec3;
+use rtmpm_scene::ColorBy;
 
 /// A cube of `k^3` particles of side `size` centred at `c`.
 fn cube(c: Vec3, size: f32, k: usize) -> Vec<Vec3> {

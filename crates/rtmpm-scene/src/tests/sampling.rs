@@ -2,8 +2,8 @@
 //! arithmetic, as the reference): the same particles bit for bit, for every shape and sampling,
 //! on 1, 2 and 7 threads; and against stored hashes of the one-thread sampler's output.
 
-use super::Scene;
-use super::sampling::{self, Sampling, per_axis};
+use crate::Scene;
+use crate::sampling::{self, Sampling, per_axis};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use rtmpm_geometry::BodyShape;

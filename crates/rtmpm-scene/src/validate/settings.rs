@@ -1,9 +1,9 @@
 //! Validation of the scene's settings tables: `[solver]`, `[render]` and `[walls]`.
 
-use super::super::RenderSettings;
-use super::super::schema::*;
-use super::{R, V};
+use super::core::{R, V};
 use crate::ColorBy;
+use crate::render_settings::RenderSettings;
+use crate::schema::*;
 use rtmpm_physics::boundary::{BoundaryRule, Condition, Walls};
 use rtmpm_physics::math::Vec3;
 use rtmpm_physics::transfer::{SolverSettings, Transfer, Update};

@@ -1,10 +1,10 @@
 //! Validation of the geometry of bodies and colliders: shapes, meshes and their placement,
 //! sampling settings.
 
-use super::super::Body;
-use super::super::sampling::Sampling;
-use super::super::schema::*;
-use super::{MESH_MARGIN, R, V, fmt3};
+use super::core::{MESH_MARGIN, R, V, fmt3};
+use crate::scene::Body;
+use crate::schema::*;
+use crate::settings::Sampling;
 use rtmpm_geometry::mesh::MeshSdf;
 use rtmpm_geometry::sdf::Shape;
 use rtmpm_geometry::{BodyShape, Collider};

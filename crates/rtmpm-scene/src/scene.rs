@@ -1,0 +1,107 @@
+//! A validated scene ([`Scene`]) and its bodies.
+
+use crate::emitter::Emitter;
+use crate::render_settings::RenderSettings;
+use crate::settings::{OutputSettings, ParticleState, Precision, Sampling, TimeSettings};
+use rtmpm_geometry::Collider;
+use rtmpm_physics::boundary::Walls;
+use rtmpm_physics::material::Material;
+use rtmpm_physics::math::Vec3;
+use rtmpm_physics::transfer::SolverSettings;
+use std::path::PathBuf;
+
+/// A body of material to be filled with particles (kept for `rtmpm check` summaries).
+#[derive(Clone, Debug)]
+pub struct Body {
+    pub name: String,
+    pub material: u32,
+    pub shape: rtmpm_geometry::BodyShape,
+    /// Requested particles per cell (regular/jittered use `round(cbrt(ppc))^3`).
+    pub particles_per_cell: u32,
+    /// True for jittered sampling (kept for compatibility; see `sampling`).
+    pub jitter: bool,
+    pub sampling: Sampling,
+    /// Exact particle count for random sampling (else `ppc * volume / dx^3`).
+    pub count: Option<u64>,
+    pub velocity: Vec3,
+    pub angular_velocity: Vec3,
+}
+
+/// A validated scene, identical for every backend.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    pub name: String,
+    /// The file it came from, if any.
+    pub source: Option<PathBuf>,
+    pub domain_min: Vec3,
+    pub domain_max: Vec3,
+    /// Grid spacing (m).
+    pub dx: f32,
+    pub gravity: Vec3,
+    pub time: TimeSettings,
+    pub materials: Vec<Material>,
+    pub bodies: Vec<Body>,
+    pub colliders: Vec<Collider>,
+    /// Particles that appear while the run goes on (`[[emitter]]`).
+    pub emitters: Vec<Emitter>,
+    /// Rigid bodies coupled two ways to the material (`[[rigid_body]]`).
+    pub rigid_bodies: Vec<rtmpm_rigid::RigidBodySpec>,
+    /// Joints holding rigid bodies to the world or to each other (`[[joint]]`).
+    pub joints: Vec<rtmpm_rigid::JointSpec>,
+    pub walls: Walls,
+    pub output: OutputSettings,
+    /// `[render]` table (camera, image size, colouring).
+    pub render: RenderSettings,
+    /// Seed of the jittered sampling.
+    pub seed: u64,
+    /// `[solver]` table: particle-grid transfer, stress update, FLIP fraction.
+    pub solver: SolverSettings,
+    /// Floating-point precision of the step (`[solver] precision`).
+    pub precision: Precision,
+    /// The CUDA backend's particle state format (`[solver] particle_state`).
+    pub particle_state: ParticleState,
+}
+
+impl Scene {
+    /// What this scene allows but probably gets wrong, one line each, for `rtmpm check` and
+    /// `rtmpm run` to print: today dynamic rigid bodies that can hang in a fluid they are
+    /// denser than ([`rtmpm_rigid::resolution_warnings`]).
+    // `Real` is f64 in the f64 build of this crate.
+    #[allow(clippy::unnecessary_cast)]
+    pub fn warnings(&self) -> Vec<String> {
+        let fluids: Vec<(&str, f32)> = self
+            .materials
+            .iter()
+            .filter(|m| matches!(m.model, rtmpm_physics::material::Model::Fluid(_)))
+            .map(|m| (m.name.as_str(), m.density as f32))
+            .collect();
+        rtmpm_rigid::resolution_warnings(&self.rigid_bodies, &fluids, self.dx)
+    }
+
+    /// Check a checkpoint's state against this scene before resuming it (see
+    /// `Checkpoint::check_fits`).
+    pub fn check_checkpoint(
+        &self,
+        ckpt: &rtmpm_io::checkpoint::Checkpoint,
+    ) -> Result<(), rtmpm_io::checkpoint::CheckpointError> {
+        ckpt.check_fits(&rtmpm_io::checkpoint::ResumedScene {
+            domain_min: self.domain_min,
+            domain_max: self.domain_max,
+            dx: self.dx,
+            materials: self.materials.len(),
+            rigid_bodies: self.rigid_bodies.len(),
+        })
+    }
+
+    /// Number of cells along each axis.
+    pub fn n_cells(&self) -> [u32; 3] {
+        let n = (self.domain_max - self.domain_min) / self.dx;
+        [n.x.round() as u32, n.y.round() as u32, n.z.round() as u32]
+    }
+
+    /// The box bodies must lie in: the domain minus the walls.
+    pub fn interior(&self) -> (Vec3, Vec3) {
+        let w = self.walls.thickness as f32 * self.dx;
+        (self.domain_min + w, self.domain_max - w)
+    }
+}

@@ -1,0 +1,256 @@
+//! The validator ([`V`]): the scene text and its document, the error of a field with its
+//! position and hint, and the checks of single values every part of the validation uses.
+
+use crate::error::SceneError;
+use crate::schema::*;
+use crate::spans::{is_table, line_col, path_at, path_by_text, span_in_doc};
+use rtmpm_physics::material::table::backticked;
+use rtmpm_physics::material::{Material, MaterialParams};
+use rtmpm_physics::math::Vec3;
+
+pub(super) type R<T> = Result<T, SceneError>;
+
+/// Grid cells of margin around a mesh's signed distance grid.
+pub(super) const MESH_MARGIN: u32 = 3;
+
+pub(super) struct V<'a> {
+    pub(super) text: &'a str,
+    pub(super) origin: &'a str,
+    pub(super) doc: Option<toml_edit::Document<&'a str>>,
+}
+
+/// Convert a toml parse/deserialize error into a positioned [`SceneError`].
+pub(super) fn toml_error(text: &str, origin: &str, e: &toml::de::Error) -> SceneError {
+    let message = e.message().trim().to_string();
+    let offset = e.span().map(|s| s.start);
+    let (line, column) = match offset {
+        Some(o) => {
+            let (l, c) = line_col(text, o);
+            (Some(l), Some(c))
+        }
+        None => (None, None),
+    };
+    let doc = toml_edit::Document::parse(text).ok();
+    let at = match (&doc, offset) {
+        (Some(d), Some(o)) => path_at(d, o),
+        (None, Some(o)) => path_by_text(text, o),
+        _ => None,
+    };
+    let (field, hint) = if let Some(name) = backticked(&message, "unknown field ") {
+        let field = match &at {
+            Some(p) if p.ends_with(name) => p.clone(),
+            Some(p) => format!("{p}.{name}"),
+            None => name.to_string(),
+        };
+        (
+            Some(field),
+            "remove the field or fix its spelling (the fields are listed in docs/scene-format.md)"
+                .to_string(),
+        )
+    } else if let Some(name) = backticked(&message, "missing field ") {
+        // The error points into the table that lacks the field: name that table (the root
+        // when the position is on a plain key such as `name`).
+        let mut table = at.clone().unwrap_or_default();
+        if let Some(d) = &doc {
+            while !table.is_empty() && !is_table(d, &table) {
+                table = match table.rfind(['.', '[']) {
+                    Some(i) => table[..i].to_string(),
+                    None => String::new(),
+                };
+            }
+        }
+        let (field, hint) = if table.is_empty() {
+            (
+                name.to_string(),
+                format!("add the [{name}] table or `{name} = ...` (see docs/scene-format.md)"),
+            )
+        } else {
+            (
+                format!("{table}.{name}"),
+                "add the field; it has no default".to_string(),
+            )
+        };
+        (Some(field), hint)
+    } else if message.contains("unknown variant") {
+        (at, "use one of the listed values".to_string())
+    } else if let Some(ty) = integer_out_of_range(&message) {
+        (at, ty)
+    } else if doc.is_none() {
+        (at, "fix the TOML syntax at this position".to_string())
+    } else {
+        (
+            at,
+            "check the value's type: numbers without quotes, names in quotes, vectors as [x, y, z]"
+                .to_string(),
+        )
+    };
+    SceneError {
+        origin: origin.to_string(),
+        line,
+        column,
+        field,
+        message,
+        hint: Some(hint),
+    }
+}
+
+/// The fix for an integer too large (or negative) for its field, from serde's message
+/// (`invalid value: integer `-1`, expected u32`, `... as i128, expected u64`).
+fn integer_out_of_range(message: &str) -> Option<String> {
+    if !message.contains("integer") {
+        return None;
+    }
+    let ty = message.rsplit("expected ").next()?.trim();
+    let range = match ty {
+        "u32" => format!("0 to {}", u32::MAX),
+        "u64" => format!("0 to {}", u64::MAX),
+        "i64" => format!("{} to {}", i64::MIN, i64::MAX),
+        _ => return None,
+    };
+    Some(format!(
+        "the number is out of range for this field: use a whole number from {range}"
+    ))
+}
+
+pub(super) fn fmt3(v: Vec3) -> String {
+    format!("[{}, {}, {}]", v.x, v.y, v.z)
+}
+
+impl V<'_> {
+    pub(super) fn err(
+        &self,
+        field: impl Into<String>,
+        message: impl Into<String>,
+        hint: impl Into<String>,
+    ) -> SceneError {
+        let field = field.into();
+        let pos = self
+            .doc
+            .as_ref()
+            .and_then(|d| span_in_doc(d, &field))
+            .map(|o| line_col(self.text, o));
+        SceneError {
+            origin: self.origin.to_string(),
+            line: pos.map(|p| p.0),
+            column: pos.map(|p| p.1),
+            field: Some(field),
+            message: message.into(),
+            hint: Some(hint.into()),
+        }
+    }
+
+    pub(super) fn finite(&self, field: &str, x: f32) -> R<f32> {
+        if x.is_finite() {
+            Ok(x)
+        } else {
+            Err(self.err(
+                field,
+                format!("{x} is not a finite number"),
+                "write a finite number",
+            ))
+        }
+    }
+
+    pub(super) fn positive(&self, field: &str, x: f32, what: &str) -> R<f32> {
+        self.finite(field, x)?;
+        if x > 0.0 {
+            Ok(x)
+        } else {
+            Err(self.err(
+                field,
+                format!("{what} must be > 0, got {x}"),
+                format!("give a positive {what}"),
+            ))
+        }
+    }
+
+    pub(super) fn non_negative(&self, field: &str, x: f32, what: &str) -> R<f32> {
+        self.finite(field, x)?;
+        if x >= 0.0 {
+            Ok(x)
+        } else {
+            Err(self.err(
+                field,
+                format!("{what} must be >= 0, got {x}"),
+                format!("use 0 or a positive {what}"),
+            ))
+        }
+    }
+
+    pub(super) fn vec3(&self, field: &str, v: V3) -> R<Vec3> {
+        let x = Vec3::from_array(v);
+        if x.is_finite() {
+            Ok(x)
+        } else {
+            Err(self.err(
+                field,
+                format!("{} has a non-finite component", fmt3(x)),
+                "write finite numbers",
+            ))
+        }
+    }
+
+    pub(super) fn unit(&self, field: &str, v: V3, what: &str) -> R<Vec3> {
+        let x = self.vec3(field, v)?;
+        x.try_normalize()
+            .filter(|_| x.length() > 1e-12)
+            .ok_or_else(|| {
+                self.err(
+                    field,
+                    format!("the {what} {} has zero length", fmt3(x)),
+                    format!("give a nonzero {what}, e.g. [0, 1, 0]"),
+                )
+            })
+    }
+
+    /// The scene name names the output folder `out/<name>`: it must be one plain folder name
+    /// (no `/`, `\\`, `..`, control characters, not hidden), so it cannot write outside `out/`.
+    pub(super) fn file_name_ok(&self, name: &str, given: bool) -> R<()> {
+        let bad = if name.trim().is_empty() {
+            Some("is empty")
+        } else if name.contains(['/', '\\']) {
+            Some("contains a path separator")
+        } else if name.starts_with('.') {
+            Some("starts with `.` (a hidden folder, or `..` which climbs out of out/)")
+        } else if name.chars().any(char::is_control) {
+            Some("contains control characters")
+        } else if name.len() > 200 {
+            Some("is longer than 200 bytes")
+        } else {
+            None
+        };
+        match bad {
+            None => Ok(()),
+            Some(why) => Err(self.err(
+                if given { "name" } else { "<file name>" },
+                format!("the scene name {name:?} {why}; it names the output folder out/<name>"),
+                "use letters, digits, `-` and `_` (e.g. name = \"dam_break\"); choose the folder with [output] dir",
+            )),
+        }
+    }
+
+    pub(super) fn material(&self, i: usize, m: &RawMaterial) -> R<Material> {
+        let p = |f: &str| format!("material[{i}].{f}");
+        if m.name.trim().is_empty() {
+            return Err(self.err(
+                p("name"),
+                "the material name is empty",
+                "give the material a name, e.g. name = \"water\"",
+            ));
+        }
+        let density = self.positive(&p("density"), m.density, "density (kg/m^3)")?;
+        let params = MaterialParams {
+            kind: m.kind.clone(),
+            fields: m.fields.clone(),
+        };
+        // The model checks its own fields (material/<model>.rs).
+        Material::new(&m.name, density, params).map_err(|e| {
+            let field = if e.field.is_empty() {
+                "type"
+            } else {
+                e.field.as_str()
+            };
+            self.err(p(field), e.message, e.hint)
+        })
+    }
+}
