@@ -4,10 +4,10 @@
 //! down, fixed dt.
 
 use crate::backend::{BackendKind, make_backend};
-use crate::progress::human_rate;
 use anyhow::{Result, bail};
 use clap::Args;
 use rtmpm_driver::Simulation;
+use rtmpm_driver::progress::human_rate;
 use rtmpm_physics::Particles;
 use rtmpm_scene::sampling::SampledBody;
 use rtmpm_scene::{Scene, StepMode};
@@ -57,7 +57,7 @@ pub struct BenchArgs {
     #[arg(long, value_name = "LIST", default_value = "ply")]
     pub frame_formats: String,
     /// Particles per chunk of --frame-write.
-    #[arg(long, value_name = "N", default_value_t = crate::stream::DEFAULT_CHUNK)]
+    #[arg(long, value_name = "N", default_value_t = rtmpm_driver::stream::DEFAULT_CHUNK)]
     pub frame_chunk: usize,
     /// With --frame-write, also time the whole-frame path (every field of every particle read
     /// to the host, then the files written in this thread): host memory for two copies of the
@@ -150,16 +150,16 @@ pub fn bench(args: BenchArgs) -> Result<()> {
     if lean {
         let o = &args.cuda_options;
         let defer = o.device_fill && o.device_sample;
-        let (bodies, sample_s) = crate::setup::sample_bodies(&scene, defer)?;
-        let setup = crate::setup::SetupTimes {
+        let (bodies, sample_s) = rtmpm_driver::setup::sample_bodies(&scene, defer)?;
+        let setup = rtmpm_driver::setup::SetupTimes {
             sample: sample_s,
             backend: 0.0,
         };
         print_header(&label, dt, steps, per_frame);
         return bench_cuda(&args, &scene, bodies, dt, steps, setup);
     }
-    let (particles, sample_s) = crate::setup::sample(&scene)?;
-    let mut setup = crate::setup::SetupTimes {
+    let (particles, sample_s) = rtmpm_driver::setup::sample(&scene)?;
+    let mut setup = rtmpm_driver::setup::SetupTimes {
         sample: sample_s,
         backend: 0.0,
     };
@@ -280,7 +280,7 @@ fn bench_cuda(
     bodies: Vec<SampledBody>,
     dt: f32,
     steps: u64,
-    mut setup: crate::setup::SetupTimes,
+    mut setup: rtmpm_driver::setup::SetupTimes,
 ) -> Result<()> {
     use rtmpm_sim::Backend;
     rtmpm_cuda::probe().map_err(|e| anyhow::anyhow!("the CUDA backend is not usable here: {e}"))?;
@@ -415,7 +415,7 @@ fn bench_multi_gpu(
     particles: &Particles,
     dt: f32,
     steps: u64,
-    mut setup: crate::setup::SetupTimes,
+    mut setup: rtmpm_driver::setup::SetupTimes,
 ) -> Result<()> {
     use rtmpm_sim::Backend;
     let n = particles.len();

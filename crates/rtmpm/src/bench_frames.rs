@@ -1,10 +1,10 @@
-//! `rtmpm bench --frame-write DIR`: the cost of writing frames ([`crate::stream`]): the rate of
+//! `rtmpm bench --frame-write DIR`: the cost of writing frames ([`rtmpm_driver::stream`]): the rate of
 //! the chunked copy of a frame's columns out of the backend (device to host on a GPU), the
 //! rate of encoding and writing the files (disk, synced), and the step time with and without a
 //! frame being written in the background. The files are removed after each timing.
 
-use crate::stream::{FrameStreamer, StreamSettings, StreamStats};
 use anyhow::{Result, bail};
+use rtmpm_driver::stream::{FrameStreamer, StreamSettings, StreamStats};
 use rtmpm_io::chunks::{FrameChunk, FrameColumns};
 use rtmpm_io::stream::{Derived, FrameFiles, StreamFormat};
 use rtmpm_sim::{Backend, ChunkSink, SimError};

@@ -8,13 +8,8 @@ mod check;
 mod info;
 mod mesh;
 mod multi;
-mod outdir;
-mod output;
-mod progress;
 mod render;
 mod run;
-mod setup;
-mod stream;
 mod validate;
 
 use clap::{Parser, Subcommand};

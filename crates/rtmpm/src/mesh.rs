@@ -1,9 +1,9 @@
 //! `rtmpm mesh OUTDIR`: a fluid surface mesh per PLY frame of a finished run
 //! (`surface_NNNNN.obj/.ply/.vtu/.usda`, `surface.pvd`), and `rtmpm mesh --bench`.
 
-use crate::output::write_mesh;
 use anyhow::{Context, Result, bail};
 use clap::Args;
+use rtmpm_driver::output::write_mesh;
 use rtmpm_io::ply::read_ply;
 use rtmpm_io::vtu::PvdWriter;
 use rtmpm_physics::math::Vec3;
@@ -79,7 +79,7 @@ pub fn mesh_cmd(args: MeshArgs) -> Result<()> {
         );
     }
     // Meshes are written into the folder: not while a run writes into it.
-    let _lock = crate::outdir::OutDir::lock(dir, "rtmpm mesh")?;
+    let _lock = rtmpm_driver::outdir::OutDir::lock(dir, "rtmpm mesh")?;
     let frames = crate::render::ply_frames(dir)?;
     if frames.is_empty() {
         bail!(
@@ -115,7 +115,7 @@ pub fn mesh_cmd(args: MeshArgs) -> Result<()> {
     for (num, path) in &frames {
         let xs = selected(path, args.materials.is_some() || scene.is_some(), &settings)?;
         let vol = *volume.get_or_insert_with(|| (estimate_radius(&xs) / 0.6).powi(3));
-        let mesh = crate::output::reconstruct_points(&xs, &settings.params(vol))
+        let mesh = rtmpm_driver::output::reconstruct_points(&xs, &settings.params(vol))
             .with_context(|| format!("meshing {}", path.display()))?;
         write_mesh(dir, *num, &mesh, formats, !args.no_compress)?;
         if let Some(p) = pvd.as_mut() {
@@ -180,7 +180,7 @@ fn bench(n: usize) -> Result<()> {
     let params = SurfaceSettings::default().params(h * h * h);
     let run = || -> Result<(usize, f64)> {
         let t = Instant::now();
-        let m = crate::output::reconstruct_points(&xs, &params)?;
+        let m = rtmpm_driver::output::reconstruct_points(&xs, &params)?;
         Ok((m.triangles.len(), t.elapsed().as_secs_f64()))
     };
     run()?;

@@ -221,7 +221,7 @@ impl Sink {
             SurfaceJob::None => None,
             SurfaceJob::Ready(m, mat) => Some((m, mat)),
             SurfaceJob::Build(xs, params, mat) => {
-                Some((crate::output::reconstruct_points(&xs, &params)?, mat))
+                Some((rtmpm_driver::output::reconstruct_points(&xs, &params)?, mat))
             }
         };
         let img = render(

@@ -67,7 +67,7 @@ pub fn render_cmd(args: RenderArgs) -> Result<()> {
         );
     }
     // Images are written into the folder: not while a run writes into it.
-    let _lock = crate::outdir::OutDir::lock(dir, "rtmpm render")?;
+    let _lock = rtmpm_driver::outdir::OutDir::lock(dir, "rtmpm render")?;
     let frames = ply_frames(dir)?;
     if frames.is_empty() {
         bail!(
@@ -106,7 +106,7 @@ pub fn render_cmd(args: RenderArgs) -> Result<()> {
         let run = d
             .comments
             .iter()
-            .find_map(|c| c.strip_prefix(crate::output::RUN_COMMENT_PREFIX))
+            .find_map(|c| c.strip_prefix(rtmpm_driver::output::RUN_COMMENT_PREFIX))
             .map(str::to_string);
         let mut first = first_run.borrow_mut();
         match &*first {

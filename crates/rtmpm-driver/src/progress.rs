@@ -1,7 +1,7 @@
 //! Progress of `rtmpm run`: steps taken in chunks between looks at the clock, a line every few
 //! seconds when stderr is not a terminal, and particle-step rates in human units.
 
-use rtmpm_driver::Simulation;
+use crate::simulation::Simulation;
 use std::time::Instant;
 
 /// Steps between two health checks of a multi-process run (every rank the same).

@@ -1,0 +1,378 @@
+//! A run of a scene to its last frame: where it starts ([`RunStart`]: a scene file, or a
+//! checkpoint to resume), then [`Run::execute`]: the steps in chunks of about a second, every
+//! frame written (streamed from the backend in chunks, or from a whole copy of the particles),
+//! `bodies.csv`, checkpoints every few frames. What the caller shows while it runs (a progress
+//! bar, pictures) it does in [`RunHooks`].
+
+use crate::bodies_csv::BodiesCsv;
+use crate::output::{FrameOutput, derived_fields};
+use crate::progress::Progress;
+use crate::simulation::Simulation;
+use crate::stream::{FrameStreamer, StreamSettings, StreamStats};
+use anyhow::{Context, Result, bail};
+use rtmpm_geometry::surface::TriMesh;
+use rtmpm_io::checkpoint::Checkpoint;
+use rtmpm_io::limits::{SCENE_MAX_BYTES, read_text_bounded};
+use rtmpm_physics::Particles;
+use rtmpm_rigid::BodyPose;
+use rtmpm_scene::Scene;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Where a resumed run stands: the checkpoint's time, step, frame and rigid bodies.
+#[derive(Clone, Debug)]
+pub struct ResumeState {
+    /// Simulated time (s).
+    pub time: f64,
+    /// Steps taken.
+    pub step: u64,
+    /// Frames completed.
+    pub frame: u64,
+    /// The rigid bodies' poses and velocities.
+    pub bodies: Vec<BodyPose>,
+}
+
+/// The scene of a run and its initial state.
+pub struct RunStart {
+    /// The scene.
+    pub scene: Scene,
+    /// The scene's text (stored in checkpoints; empty when there is none).
+    pub scene_text: String,
+    /// The particles of a resumed run (empty for a fresh one: the scene's bodies are sampled).
+    pub particles: Particles,
+    /// Set when resuming a checkpoint.
+    pub resume: Option<ResumeState>,
+}
+
+impl RunStart {
+    /// The scene file `scene`, or the checkpoint `resume` (which holds its scene, checked
+    /// against the checkpoint's state).
+    pub fn load(scene: Option<&Path>, resume: Option<&Path>) -> Result<RunStart> {
+        if let Some(ckpt_path) = resume {
+            return Self::resume(ckpt_path);
+        }
+        let Some(path) = scene else {
+            bail!("no scene given: rtmpm run SCENE (or --resume CKPT)")
+        };
+        let scene = Scene::from_file(path)?;
+        let scene_text = read_text_bounded(path, SCENE_MAX_BYTES, "scene file")
+            .with_context(|| format!("reading {}", path.display()))?;
+        Ok(RunStart {
+            scene,
+            scene_text,
+            particles: Particles::default(),
+            resume: None,
+        })
+    }
+
+    /// The checkpoint `ckpt_path`: its scene, particles and state.
+    fn resume(ckpt_path: &Path) -> Result<RunStart> {
+        let ckpt = Checkpoint::load(ckpt_path)
+            .with_context(|| format!("cannot resume from {}", ckpt_path.display()))?;
+        let base = Path::new(&ckpt.scene_origin)
+            .parent()
+            .unwrap_or(Path::new(""));
+        let scene = Scene::from_toml_in(&ckpt.scene_toml, &ckpt.scene_origin, base)?;
+        scene
+            .check_checkpoint(&ckpt)
+            .with_context(|| format!("cannot resume from {}", ckpt_path.display()))?;
+        Ok(RunStart {
+            scene,
+            scene_text: ckpt.scene_toml,
+            particles: ckpt.particles,
+            resume: Some(ResumeState {
+                time: ckpt.time,
+                step: ckpt.step,
+                frame: ckpt.frame,
+                bodies: ckpt.bodies,
+            }),
+        })
+    }
+}
+
+/// How a run goes.
+#[derive(Clone, Debug)]
+pub struct RunOptions {
+    /// Frames to simulate to (default: the scene's duration x fps).
+    pub frames: Option<u64>,
+    /// Stop after this many steps (a partial last frame is not written).
+    pub steps: Option<u64>,
+    /// Write a checkpoint every this many frames.
+    pub checkpoint_every: Option<u64>,
+    /// The output folder.
+    pub out_dir: PathBuf,
+    /// This process writes the files (the only process, or rank 0 of several).
+    pub writer: bool,
+    /// Write the frame files (the scene's formats).
+    pub write_frames: bool,
+    /// Every process reads each frame's particles (the writer writes them; across processes
+    /// the read is a collective); false when no frame is written (`--no-output`).
+    pub read_frames: bool,
+    /// Stream PLY and BGEO frames from the backend in chunks when the scene's formats allow
+    /// (not across processes, where every rank reads the particles: a collective).
+    pub stream: bool,
+    /// Particles per streamed chunk.
+    pub frame_chunk: usize,
+    /// Frames written in the background while the simulation steps on.
+    pub frames_in_flight: usize,
+    /// The hooks want the particles of every frame on the host ([`RunHooks::frame_written`]).
+    pub collect: bool,
+    /// Steps per chunk whatever the clock says (multi-process runs: every rank the same).
+    pub fixed_chunk: Option<u64>,
+}
+
+/// What the caller does while a run goes on.
+pub trait RunHooks {
+    /// After every chunk of steps.
+    fn chunk_done(&mut self, _sim: &Simulation) {}
+    /// When a frame is complete, before its files are written; `rate` is the run's
+    /// particle-steps per second so far.
+    fn frame_done(&mut self, _sim: &Simulation, _rate: f64) {}
+    /// After the last frame, before the frames still being written are waited for.
+    fn run_done(&mut self) {}
+    /// After a frame's files are written (frame 0 of a fresh run too): the particles on the
+    /// host when [`RunOptions::collect`] asked for them (else empty), and the fluid surface
+    /// written with the frame, if any.
+    fn frame_written(
+        &mut self,
+        _sim: &Simulation,
+        _host: &Particles,
+        _surface: Option<TriMesh>,
+    ) -> Result<()> {
+        Ok(())
+    }
+}
+
+/// What a run did.
+#[derive(Debug)]
+pub struct RunStats {
+    /// Steps taken in this run.
+    pub steps: u64,
+    /// When the steps began (the run's wall time is from here).
+    pub started: Instant,
+    /// The run ended at `steps`, before its last frame.
+    pub stopped_by_steps: bool,
+    /// The streamed frame files, when frames were streamed.
+    pub stream: Option<StreamStats>,
+}
+
+/// A run: the simulation and where its frames go.
+pub struct Run {
+    /// The simulation.
+    pub sim: Simulation,
+    /// The frame files, when written.
+    pub output: Option<FrameOutput>,
+    streamer: Option<FrameStreamer>,
+    bodies: BodiesCsv,
+    options: RunOptions,
+    scene_text: String,
+    host: Particles,
+    particles: usize,
+}
+
+impl Run {
+    /// A run of `sim` with `particles` particles (at the state of `resume` when given: the
+    /// simulation's clock and rigid bodies are set here); `identity` names the run in the frame
+    /// files' comments.
+    pub fn new(
+        mut sim: Simulation,
+        particles: usize,
+        scene_text: String,
+        identity: &str,
+        resume: Option<&ResumeState>,
+        options: RunOptions,
+    ) -> Result<Run> {
+        // Entries of frames.pvd up to the checkpoint's own frame are kept: half a frame later.
+        let resume_time = resume.map(|r| r.time + 0.5 / sim.scene.time.fps as f64);
+        let output = if options.write_frames {
+            Some(FrameOutput::new(
+                &options.out_dir,
+                &sim.scene,
+                identity,
+                resume_time,
+            )?)
+        } else {
+            None
+        };
+        if let Some(r) = resume {
+            sim.time = r.time;
+            sim.step = r.step;
+            sim.frame = r.frame;
+            // The rigid bodies' poses and velocities (the checkpoint holds one per body of its
+            // scene, checked when it was loaded).
+            sim.backend
+                .set_rigid_poses(&r.bodies)
+                .context("cannot restore the checkpoint's rigid bodies")?;
+        }
+        let bodies = BodiesCsv::new(
+            options.write_frames,
+            &options.out_dir,
+            &sim,
+            resume.map(|r| r.frame),
+        )?;
+        let streamer = match output.as_ref() {
+            Some(out) if options.stream && FrameOutput::streamable(&sim.scene) => {
+                let settings = StreamSettings {
+                    chunk: options.frame_chunk,
+                    frames_in_flight: options.frames_in_flight,
+                    derived: derived_fields(&sim.scene),
+                    models: sim
+                        .scene
+                        .materials
+                        .iter()
+                        .map(|m| m.model.clone())
+                        .collect(),
+                };
+                Some(FrameStreamer::new(
+                    settings,
+                    &out.stream_formats(&sim.scene),
+                )?)
+            }
+            _ => None,
+        };
+        Ok(Run {
+            sim,
+            output,
+            streamer,
+            bodies,
+            options,
+            scene_text,
+            host: Particles::default(),
+            particles,
+        })
+    }
+
+    /// The frames the run goes to.
+    pub fn total_frames(&self) -> u64 {
+        self.options
+            .frames
+            .unwrap_or_else(|| self.sim.scene.time.frames())
+    }
+
+    /// Frames are read whole onto the host: for the files (when not streamed) or the hooks.
+    fn collects(&self) -> bool {
+        (self.options.read_frames && self.streamer.is_none()) || self.options.collect
+    }
+
+    /// Run to the last frame (or `steps`): frame 0 first when the run is fresh, then every
+    /// frame written as it completes, with checkpoints.
+    pub fn execute(&mut self, hooks: &mut dyn RunHooks) -> Result<RunStats> {
+        if self.sim.frame == 0 && (self.collects() || self.streamer.is_some()) {
+            self.write_frame(hooks)?;
+        }
+        let total_frames = self.total_frames();
+        let start = Instant::now();
+        let start_step = self.sim.step;
+        let mut stopped_by_steps = false;
+        let mut progress = Progress::new(self.particles, total_frames, self.options.fixed_chunk);
+        while self.sim.frame < total_frames {
+            let left = self.options.steps.map_or(u64::MAX, |max| {
+                max.saturating_sub(self.sim.step - start_step)
+            });
+            // Steps in chunks of about a second, so that progress shows inside long frames.
+            let chunk = progress.chunk();
+            let t0 = Instant::now();
+            let done = self.sim.advance(left.min(chunk))?;
+            progress.chunk_took(t0.elapsed().as_secs_f64());
+            progress.tick(&self.sim, start_step);
+            hooks.chunk_done(&self.sim);
+            if !done {
+                if self.sim.step - start_step >= self.options.steps.unwrap_or(u64::MAX) {
+                    stopped_by_steps = true;
+                    break;
+                }
+                continue;
+            }
+            let elapsed = start.elapsed().as_secs_f64();
+            let rate =
+                (self.sim.step - start_step) as f64 * self.particles as f64 / elapsed.max(1e-9);
+            hooks.frame_done(&self.sim, rate);
+            self.write_frame(hooks)?;
+            if self
+                .options
+                .checkpoint_every
+                .is_some_and(|every| every > 0 && self.sim.frame.is_multiple_of(every))
+            {
+                self.checkpoint()?;
+            }
+        }
+        hooks.run_done();
+        // Every frame in flight written (or its error, naming the file).
+        let stream = self
+            .streamer
+            .take()
+            .map(FrameStreamer::finish)
+            .transpose()?;
+        Ok(RunStats {
+            steps: self.sim.step - start_step,
+            started: start,
+            stopped_by_steps,
+            stream,
+        })
+    }
+
+    /// The current frame: its files (streamed from the backend, or written from the particles
+    /// read onto the host), its rows of `bodies.csv`, then the hooks.
+    fn write_frame(&mut self, hooks: &mut dyn RunHooks) -> Result<()> {
+        let collects = self.collects();
+        let sim = &mut self.sim;
+        if collects {
+            sim.backend.read_particles(&mut self.host)?;
+        }
+        let mut surface = None;
+        if let Some(out) = self.output.as_mut() {
+            match self.streamer.as_mut() {
+                Some(s) => {
+                    let files = out.stream_files(sim.frame, &sim.scene);
+                    s.write_frame(sim.backend.as_mut(), files, sim.frame)?
+                }
+                None => {
+                    let bodies = sim.backend.rigid_poses();
+                    surface =
+                        out.write_frame(sim.frame, sim.time, &self.host, &bodies, &sim.scene)?
+                }
+            }
+            self.bodies.write(sim.frame, sim.time, sim)?;
+        }
+        hooks.frame_written(sim, &self.host, surface)
+    }
+
+    /// A checkpoint of the current frame, `checkpoint_NNNNN.ckpt` in the output folder (by the
+    /// writing process; every process reads its particles, a collective across processes).
+    fn checkpoint(&mut self) -> Result<()> {
+        let sim = &mut self.sim;
+        sim.backend.read_particles(&mut self.host)?;
+        if !self.options.writer {
+            return Ok(());
+        }
+        let poses = sim.backend.rigid_poses();
+        if poses.len() != sim.scene.rigid_bodies.len() {
+            bail!(
+                "the backend `{}` does not give the poses of the scene's {} rigid bodies, \
+                 which a checkpoint needs: run without --checkpoint-every, or on the CPU \
+                 backend",
+                sim.backend.name(),
+                sim.scene.rigid_bodies.len()
+            );
+        }
+        let ckpt = Checkpoint {
+            scene_toml: self.scene_text.clone(),
+            scene_origin: sim
+                .scene
+                .source
+                .as_ref()
+                .map_or("<checkpoint>".into(), |p| p.display().to_string()),
+            time: sim.time,
+            step: sim.step,
+            frame: sim.frame,
+            bodies: poses,
+            particles: self.host.clone(),
+        };
+        let out_dir = &self.options.out_dir;
+        std::fs::create_dir_all(out_dir)
+            .with_context(|| format!("cannot create output folder {}", out_dir.display()))?;
+        let path = out_dir.join(format!("checkpoint_{:05}.ckpt", sim.frame));
+        ckpt.save(&path)
+            .with_context(|| format!("writing checkpoint {}", path.display()))
+    }
+}
