@@ -1,7 +1,7 @@
 // The particle state of sampled bodies filled on the device (host side: src/setup/fill/mod.rs): the host
 // uploads only the positions, a piece of one body at a time, and a table of what every particle
 // of a body shares (row layout FT_* in contract.cuh); each thread writes the 29 words of one
-// particle, word for word what the host packing writes (src/state.rs, pack_bodies). The velocity
+// particle, word for word what the host packing writes (src/state/pack.rs, pack_bodies). The velocity
 // v0 + w x (x - c) is computed in f32 with the host's operations in the host's order (glam's
 // Vec3::cross), each rounded on its own: inline PTX add/sub/mul with .rn, never contracted into
 // an fma, and without the flush-to-zero modifier, so that subnormals survive --use_fast_math as they do on the host.

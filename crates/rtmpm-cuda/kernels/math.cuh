@@ -1,5 +1,6 @@
 // Small vector/matrix types for the rtmpm kernels. Column-major like glam on the host:
-// m[c * 3 + r] is row r, column c. `real` is float unless RTMPM_F64 is defined (issue: double precision).
+// m[c * 3 + r] is row r, column c. `real` is float unless RTMPM_F64 is defined (double precision,
+// `[solver] precision = "f64"`).
 #pragma once
 
 #ifdef RTMPM_F64

@@ -7,7 +7,7 @@
 // is kept when it is inside the shape. Every f32 operation is rounded on its own as on the host
 // (never contracted into an fma, no flush to zero), so that --use_fast_math changes nothing.
 // This header compiles for the CPU too (scripts/check_sample_twin.sh, the unit test
-// `sample_tests::the_device_walk_compiled_for_the_cpu_is_the_host_walk`).
+// `setup::sample::tests::the_device_walk_compiled_for_the_cpu_is_the_host_walk`).
 #pragma once
 
 #if defined(__CUDACC__)

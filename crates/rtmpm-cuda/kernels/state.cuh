@@ -3,7 +3,7 @@
 // write the particle's fields through these only (x, mass, vol0, material and id are plain words
 // of every layout: load_v3 / sidx).
 //
-// RTMPM_STATE_FLUID (every material a fluid, whose F is J^(1/3) I: fluid_project, src/state.rs):
+// RTMPM_STATE_FLUID (every material a fluid, whose F is J^(1/3) I: fluid_project, src/state/fields.rs):
 // F is the one word J^(1/3) (F's diagonal), there is no plastic word. Storing F's diagonal value,
 // not J, keeps every kernel path bit-identical to the 29-word layout (the general kernel variants
 // also run fluid scenes when G2P2G is off) and costs no cube root on load.
@@ -56,7 +56,7 @@ __device__ __forceinline__ mat3 store_affine(real* s, unsigned cap, unsigned i, 
 }
 
 // The deformation gradient of particle i. A fluid's F is always J^(1/3) I (fluid_project; the
-// host uploads it in that form, src/state.rs), so the kernel variant for scenes that are all
+// host uploads it in that form, src/state/fields.rs), so the kernel variant for scenes that are all
 // fluid (ALL_FLUID in g2p/particle.cuh) reads one word of F and writes the three diagonal ones
 // (the zero off-diagonal words are never touched): 4 words moved for F per step instead of 18.
 // In a fluid layout F is that one word, for every variant.
@@ -101,7 +101,7 @@ __device__ __forceinline__ void store_plastic(real* s, unsigned cap, unsigned i,
 #endif
 }
 
-// Export codes (src/export/chunks.rs: export_code): a word of a frame column. code >= 0: the
+// Export codes (src/export/chunks.rs: chunk_fields): a word of a frame column. code >= 0: the
 // state word `code` as float bits (an f64 state rounded to nearest), or the material's integer
 // bits for F_MAT; code < 0: EXPORT_C + k or EXPORT_F + k for component k of the decoded C or F,
 // EXPORT_ZERO for an absent field (a fluid layout's plastic word).

@@ -5,17 +5,29 @@
 //! [`probe`] says why CUDA is unusable instead of panicking.
 //!
 //! # Where things are
-//! * The step, once: [`pipeline`] (rebuild, P2G, grid update, MUSL re-map, G2P; hooks for the
-//!   modes), captured and replayed by [`graph`]. Each stage is a host file next to its kernels:
-//!   [`rebuild`] + `kernels/rebuild.cu`, [`p2g`] + `kernels/p2g/`, [`grid_update`] +
-//!   `kernels/grid_update.cu`, [`g2p`] + `kernels/g2p/`.
-//! * The host/device contract, once: [`contract`] (constants, struct layouts, the generated
-//!   headers and layout checks); the kernel list, once: [`kernels`] (from `build.rs`); the
-//!   program: [`compile`] (NVRTC, PTX cache).
-//! * One GPU: [`CudaBackend`] ([`backend`]), built from [`capacity`], [`state`], [`encode`]
-//!   (scene to GPU parameters), [`buffers`]; read back by [`readback`]. Several GPUs: [`multi`].
-//! * Timing: [`bench`] (the run's step with an event after each stage).
-//! * A live view: [`view`] (the picture drawn from the state on the GPU, `kernels/render/`;
+//! Each folder holds one concept; a host file is named after the kernels it launches.
+//! * [`step`]: the step, once (rebuild, P2G, grid update, MUSL re-map, G2P; hooks for the
+//!   modes), captured and replayed by [`step::graph`]; one host file per stage next to its
+//!   kernels: [`step::rebuild`] + `kernels/rebuild.cu`, [`step::p2g`] + `kernels/p2g/`,
+//!   [`step::grid_update`] + `kernels/grid_update.cu`, [`step::g2p`] + `kernels/g2p/`; the rigid
+//!   bodies the grid update couples, [`step::rigid`].
+//! * [`contract`]: the host/device contract, once (constants, struct layouts, the generated
+//!   headers and layout checks); [`kernels`]: the kernel list, once (from `build.rs`), and the
+//!   constant symbols; [`compile`]: the program (NVRTC, PTX cache); [`encode`]: the scene as
+//!   GPU parameters; [`options`]: `--cuda-options`; [`Unavailable`] and the driver errors: one
+//!   error module.
+//! * [`setup`]: what a GPU is built from: the initial mapping, [`setup::capacity`],
+//!   [`setup::buffers`], the device fill ([`setup::fill`] + `kernels/fill.cu`) and the bodies
+//!   drawn on the GPU ([`setup::sample`] + `kernels/sample.cu`, `sample.cuh`).
+//! * [`state`]: the particle state's words, packed on the host and read back (`kernels/state.cuh`),
+//!   and the compact state's codec ([`state::codec`] + `kernels/codec.cuh`).
+//! * [`backend`]: [`CudaBackend`], one GPU: its build, its step, the simulation's `Backend`,
+//!   reads ([`backend::readback`]), emitted particles ([`backend::emit`]), per-stage timing
+//!   ([`backend::bench`]).
+//! * [`export`]: the state for other libraries (`kernels/export.cu`): zero-copy views, frame
+//!   chunks ([`export::chunks`]), positions in original order ([`export::ordered`]).
+//! * [`multi`]: several GPUs (`kernels/multi/`).
+//! * [`view`]: a live view (the picture drawn from the state on the GPU, `kernels/render/`;
 //!   gravity and the user's tool changed between steps).
 //!
 //! # The step (all launches on one non-default stream, no host synchronisation)
@@ -45,9 +57,9 @@
 //! Particle state: structure of arrays of `real` words (f32, or f64 with `precision = "f64"`),
 //! word `w` of particle `i` at `state[w * capacity + i]`, each field at the words of the
 //! backend's [`contract::StateLayout`] (29 words; 20 when every material is a fluid; 24 and 15
-//! with the compact C of [`codec`]); [`state`] converts at upload and download; particles
-//! are physically reordered at every
-//! rebuild and carry their original index, [`CudaBackend`] returns them in original order.
+//! with the compact C of [`state::codec`]); [`state`] converts at upload and download;
+//! particles are physically reordered at every rebuild and carry their original index,
+//! [`CudaBackend`] returns them in original order.
 //! Grid nodes: 4 reals (mass, momentum/velocity) per node, 64 nodes per pblock.
 //!
 //! Read-only parameters (scalars, step parameters, collider poses, materials, colliders) are

@@ -39,7 +39,8 @@ pub enum Transport {
 /// Several GPUs with `transport=p2p`: the inter-GPU synchronisation of a step.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum BarrierKind {
-    /// The seed's spin-lock barrier: a one-block kernel with system-scope atomics.
+    /// The spin-lock barrier of Fei, Huang & Gao (GTC 2022): a one-block kernel with
+    /// system-scope atomics.
     Spin,
     /// Events: every GPU's stream waits on the peers' events (no CUDA graph).
     Events,

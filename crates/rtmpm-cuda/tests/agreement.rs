@@ -230,8 +230,8 @@ fn cuda_f64_agrees_with_cpu_f64_on_every_example_scene() {
 /// The rigid-body example scenes (`scenes/rigid/`, cargo feature `rigid`): the CPU and the CUDA
 /// backend each run the scene's first 0.5 s (the drop and the impact, each with its own CFL
 /// steps); every frame each body's centre agrees within a quarter cell, and at the end the
-/// material's centre of mass within 0.1 cell (issue 17: the backends agree on every new
-/// example scene). The kinetic energies are printed, not compared: a body's impact splashes.
+/// material's centre of mass within 0.1 cell (the backends agree on every rigid-body example
+/// scene). The kinetic energies are printed, not compared: a body's impact splashes.
 #[cfg(feature = "rigid")]
 #[test]
 #[ignore = "needs a CUDA GPU"]

@@ -1,6 +1,7 @@
-//! Frames streamed from the GPU in chunks (issue 19 item 4) against the whole-frame path: the
-//! same PLY, BGEO and BGEO.gz bytes for the same device state (needs a GPU; skips with a message
-//! otherwise): `cargo test --release -p rtmpm-cuda --test frames -- --include-ignored --nocapture`.
+//! Frames streamed from the GPU in chunks (`Backend::export_frame`) against the whole-frame path:
+//! the same PLY, BGEO and BGEO.gz bytes for the same device state (needs a GPU; skips with a
+//! message otherwise): `cargo test --release -p rtmpm-cuda --test frames -- --include-ignored
+//! --nocapture`.
 
 use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
 use rtmpm_driver::Simulation;

@@ -460,7 +460,7 @@ fn bench_times_the_musl_step_of_a_musl_scene() {
 /// The state arrays past 2^32 words (capacity above 148.1M particles: their indices are 64-bit,
 /// `RTMPM_STATE_64`): a small scene stepped in arrays of 160M slots gives exactly what it gives in
 /// arrays sized to it. With 32-bit indices the fields past the boundary would alias others
-/// (the crash of a 187.6M-particle scene, issue 19). 37 GB of state and scratch on the GPU.
+/// (a 187.6M-particle scene crashed so). 37 GB of state and scratch on the GPU.
 #[test]
 #[ignore = "needs a CUDA GPU with 40 GB"]
 fn state_arrays_past_two_to_the_32_words_index_in_64_bits() {

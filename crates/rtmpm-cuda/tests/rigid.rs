@@ -26,7 +26,7 @@ fn gpu() -> bool {
 }
 
 /// Archimedes on the GPU: the box of density 500 floats with the submerged fraction of its
-/// height within 5 % of 0.5 (issue 17), and its floating height within 2 mm (a tenth of a
+/// height within 5 % of 0.5, and its floating height within 2 mm (a tenth of a
 /// cell) of the CPU backend's on the same scene.
 #[test]
 #[ignore = "needs a GPU"]
@@ -54,7 +54,7 @@ fn a_box_of_half_the_density_of_water_floats_half_submerged_on_the_gpu() {
 }
 
 /// Zero gravity: a jelly ball thrown at a free box on the GPU. Material plus box momentum is
-/// conserved within 1 % and the box moves at the elastic estimate within 10 % (issue 17), with
+/// conserved within 1 % and the box moves at the elastic estimate within 10 %, with
 /// G2P2G (default) and with the separate kernels, the graph on and off, the bodies moved while
 /// the next step runs (default) and after every step (`rigid_overlap=off`), f32 and f64.
 #[test]

@@ -1,4 +1,4 @@
-//! GPU tests of the particle state layouts (`contract::StateLayout`; issue 19 item 1):
+//! GPU tests of the particle state layouts (`contract::StateLayout`):
 //!
 //! 1. the 20-word fluid layout gives bit-identical particles to the 29-word layout (isolated
 //!    particles, whose grid nodes each get one particle's contribution, so P2G's atomic sums are

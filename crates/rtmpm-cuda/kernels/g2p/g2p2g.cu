@@ -4,7 +4,7 @@
 // is still in registers, the P2G of step n+1 into `grid_next` (cleared by this step's grid
 // update): the next step reads no particle for its P2G and launches no P2G kernel.
 //
-// The seed's caveat (G2P2G forbids changing the particles between G2P and P2G) meets the free
+// G2P2G's caveat (no particle may change between G2P and P2G, Fei, Huang & Gao) meets the free
 // zone here: a particle that leaves its free zone may no longer be covered by its gblock's 3x3x3
 // neighbourhood, so it is not scattered; it has set the rebuild flag, and the next step rebuilds
 // the mapping and redoes its P2G from the stored state (the P2G kernel runs only then, see

@@ -5,8 +5,8 @@
 // barrier calls (calls, in its own memory, incremented by the kernel itself, so a CUDA graph can
 // replay the kernel): at its g-th call a GPU adds 1 to the counter and spins until the counter
 // reaches g * n. No GPU passes call g before all n arrived at it (each has then added exactly g),
-// so the counter never needs a reset (the seed resets it from GPU 0 after a second round of
-// arrivals; the generation target makes that round unnecessary). 64 bits: no wrap in practice.
+// so the counter never needs a reset (the talk's kernel resets it from GPU 0 after a second round
+// of arrivals; the generation target makes that round unnecessary). 64 bits: no wrap in practice.
 //
 // __threadfence_system() before arriving makes this GPU's writes (the packed shared blocks, the
 // occupancy mask) visible to every GPU before any of them leaves the barrier; the one after the

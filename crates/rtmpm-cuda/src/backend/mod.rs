@@ -150,8 +150,8 @@ impl CudaBackend {
     /// Upload the particles of sampled bodies
     /// ([`rtmpm_scene::sampling::sample_bodies`]) to device 0, packed straight from their
     /// positions: the same state as [`CudaBackend::new`] with `scene.sample_particles()`,
-    /// without the host holding those particles (issue 19: 129 instead of 254 bytes a particle
-    /// at the host's peak).
+    /// without the host holding those particles (129 instead of 254 bytes a particle at the
+    /// host's peak).
     pub fn from_bodies(
         scene: &Scene,
         bodies: &[SampledBody],

@@ -331,7 +331,8 @@ pub struct PeerCtx {
 // SAFETY: Pod, passed by value with the C layout the kernels declare.
 unsafe impl cudarc::driver::DeviceRepr for PeerCtx {}
 
-/// The seed's spin-lock barrier between GPUs (`kernels/multi/barrier.cu`).
+/// The spin-lock barrier between GPUs of Fei, Huang & Gao, "Real-Time Simulation of MPM on
+/// Modern GPUs" (GTC 2022) (`kernels/multi/barrier.cu`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct SpinBarrier {

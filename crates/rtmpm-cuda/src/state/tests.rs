@@ -1,4 +1,4 @@
-//! Tests of the packing of the device state (`state.rs`).
+//! Tests of the packing of the device state (`state/pack.rs`, `state/unpack.rs`).
 
 use super::pack::PACK_CHUNK;
 use super::word::Word;

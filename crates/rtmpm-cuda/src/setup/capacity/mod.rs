@@ -108,9 +108,9 @@ impl BufferBytes {
 pub const DEVICE_RESERVE_BYTES: usize = 512 << 20;
 
 /// The refusal of a plan that does not fit the `free` bytes of a GPU, before anything is
-/// allocated (issue 19: "refused before any allocation, with the estimate and the largest size
-/// that fits"), or `None` when it fits with [`DEVICE_RESERVE_BYTES`] to spare. `bytes` is
-/// [`Capacity::bytes`] for `particles` particle slots; `gpu` names the device; `hint` is what
+/// allocated, with the estimate and the largest size that fits, or `None` when it fits with
+/// [`DEVICE_RESERVE_BYTES`] to spare. `bytes` is [`Capacity::bytes`] for `particles` particle
+/// slots; `gpu` names the device; `hint` is what
 /// else the user can change (the compact state, say). The particles that fit: the free bytes
 /// less the reserve and the plan's fixed part (grid, hash, lists), over its bytes a particle
 /// (state, sort scratch, ranks, warp list).

@@ -1,10 +1,10 @@
-//! Unit tests of the buffer plan (`capacity.rs`): capacities, bytes a particle of the big
+//! Unit tests of the buffer plan (`setup/capacity`): capacities, bytes a particle of the big
 //! scenes, the budget against the plan, the refusal past the free memory.
 use super::*;
 use rtmpm_scene::Budget;
 
 /// Water at dx = 1/512, 8 particles per cell (regular), in the unit cube with slip walls:
-/// `boxes` boxes along x (min, max of each), the scenes of issue 19.
+/// `boxes` boxes along x (min, max of each): the big scenes of `bench/RESULTS.md`.
 fn water(boxes: &[([f32; 3], [f32; 3])]) -> Scene {
     water_at(512, boxes)
 }
@@ -70,7 +70,8 @@ fn the_budget_covers_the_plan_in_f64() {
 
 #[test]
 fn bytes_per_particle_of_the_big_water_scenes() {
-    // 125M: four boxes 0.125 m wide (issue 19's scene, measured 276 B/particle before).
+    // 125M: four boxes 0.125 m wide (`bench/water_125m.toml`; 276 B/particle measured before
+    // this plan, bench/RESULTS.md).
     let four: Vec<_> = (0..4)
         .map(|i| {
             let x = 0.125 + 0.125 * i as f32;

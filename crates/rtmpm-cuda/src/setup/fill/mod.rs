@@ -1,7 +1,7 @@
-//! The particle state of sampled bodies, filled on the device (issue 19, "start fast"): the host
-//! uploads only the positions (12 bytes a particle, a piece at a time through two page-locked
-//! buffers, so the copy of one piece overlaps the gathering of the next) and a table of one row
-//! per body ([`table`]: its index range and what all its particles share), and `fill_body`
+//! The particle state of sampled bodies, filled on the device, so that a big scene starts fast: the
+//! host uploads only the positions (12 bytes a particle, a piece at a time through two page-locked
+//! buffers, so the copy of one piece overlaps the gathering of the next) and a table of one row per
+//! body ([`table`]: its index range and what all its particles share), and `fill_body`
 //! (`kernels/fill.cu`) writes every word of the state, word for word what
 //! [`crate::state::pack_bodies`] writes on the host. Bodies read from points files
 //! (`SampledBody::Points`) are packed on the host as before, and their rows copied into place.

@@ -1,4 +1,4 @@
-//! Tests of the device fill's host side (`fill.rs`): the table, the pieces, the gathering, and a
+//! Tests of the device fill's host side (`setup/fill`): the table, the pieces, the gathering, and a
 //! word-for-word emulation of `fill_body` (`kernels/fill.cu`) against the host packing.
 
 use super::*;

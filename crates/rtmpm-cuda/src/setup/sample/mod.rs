@@ -1,8 +1,8 @@
-//! Deferred bodies drawn on the device (issue 19, "start fast"; `kernels/sample.cu`): the host
-//! counted such a body's particles and kept none ([`rtmpm_scene::deferred`]); here the GPU
-//! walks the body's lattice row by row (or its random tries, [`SAMPLE_TRIES_PER_ROW`] a row), one
-//! thread a row, and draws the positions the host's walk finds, bit for bit and in order
-//! (`kernels/sample.cuh`). `sample_count` counts each row's
+//! Deferred bodies drawn on the device, so that a big scene starts fast (`kernels/sample.cu`):
+//! the host counted such a body's particles and kept none ([`rtmpm_scene::deferred`]);
+//! here the GPU walks the body's lattice row by row (or its random tries,
+//! [`SAMPLE_TRIES_PER_ROW`] a row), one thread a row, and draws the positions the host's walk
+//! finds, bit for bit and in order (`kernels/sample.cuh`). `sample_count` counts each row's
 //! points, the host sums them into each row's first particle (and checks the total against its
 //! own count), and `sample_write` writes the positions of one piece of the body, which the device
 //! fill ([`crate::setup::fill`]) turns into particles. The host then needs no memory per particle.
