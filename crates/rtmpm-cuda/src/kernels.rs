@@ -18,8 +18,9 @@ pub struct Kernels {
     /// The fused rebuild's grid (blocks of 1024 threads that fit on the device at once, for its
     /// cooperative launch); `None`: the rebuild runs as separate kernels (`rebuild=kernels`).
     pub rb_fused_grid: Option<u32>,
-    /// Fields of the rebuild's sort scratch ([`crate::CudaOptions::sort_scratch_fields`]): the
-    /// state is permuted that many fields per pass.
+    /// Fields of the rebuild's sort scratch
+    /// ([`crate::options::CudaOptions::sort_scratch_fields`]): the state is permuted that many
+    /// fields per pass.
     pub sort_fields: u32,
     /// The fields the sort permutes (bit f: field f; [`crate::step::rebuild::sorted_fields`]).
     pub sort_mask: u32,

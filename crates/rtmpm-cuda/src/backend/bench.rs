@@ -180,7 +180,7 @@ pub fn bench_kernels(
 
 /// Device-to-device copy bandwidth (GB/s, bytes read + written) of a 256 MiB buffer on device 0.
 pub fn measure_copy_bandwidth() -> Result<f64, SimError> {
-    crate::probe().map_err(|e| SimError::Backend(format!("CUDA unavailable: {e}")))?;
+    crate::probe::probe().map_err(|e| SimError::Backend(format!("CUDA unavailable: {e}")))?;
     let ctx = cudarc::driver::CudaContext::new(0).map_err(err("context"))?;
     let s = ctx.new_stream().map_err(err("stream"))?;
     let n = 64 << 20;

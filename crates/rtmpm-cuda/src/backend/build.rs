@@ -12,14 +12,16 @@ use crate::contract::{Ctx, StateLayout};
 use crate::encode::{self, Tables};
 use crate::error::err;
 use crate::kernels::{Kernels, write_symbol};
+use crate::options::{CudaOptions, P2gMode};
+use crate::probe::DeviceInfo;
 use crate::setup::buffers::{self, Buffers};
 use crate::setup::capacity::{self, Capacity};
 use crate::setup::{Initial, SetupPhases, fill, initial_blocks, sample};
+use crate::state;
 use crate::step::graph::StepGraphs;
 use crate::step::p2g::P2gPlan;
 use crate::step::rebuild::sorted_fields;
 use crate::step::rigid::Bodies;
-use crate::{CudaOptions, DeviceInfo, P2gMode, state};
 use cudarc::driver::{CudaContext, CudaModule, CudaStream};
 use rtmpm_physics::math::IVec3;
 use rtmpm_physics::transfer::Transfer;
@@ -39,7 +41,7 @@ impl CudaBackend {
     ) -> Result<CudaBackend, SimError> {
         let t0 = Instant::now();
         let mut setup = SetupPhases::default();
-        let info = crate::probe_device(part.device).map_err(|e| {
+        let info = crate::probe::probe_device(part.device).map_err(|e| {
             SimError::Backend(format!("CUDA device {} unavailable: {e}", part.device))
         })?;
         setup.probe = t0.elapsed().as_secs_f64();

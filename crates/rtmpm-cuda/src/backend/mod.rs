@@ -7,11 +7,11 @@
 //! [`readback`], the particles emitters add in [`emit`], per-stage timing in [`bench`]; the
 //! state for other libraries in [`crate::export`].
 
-use crate::CudaOptions;
 use crate::contract::{CTL_P2G_PENDING, ColliderPoses, Ctx, StateLayout};
 use crate::encode::{self, Tables};
 use crate::error::err;
 use crate::kernels::{Kernels, write_symbol};
+use crate::options::CudaOptions;
 use crate::setup::{Initial, SetupPhases, buffers};
 use crate::step::graph::StepGraphs;
 use crate::step::p2g::P2gPlan;

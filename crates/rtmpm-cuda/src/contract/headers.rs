@@ -1,8 +1,10 @@
 //! The device code generated from the contract: `contract.cuh` ([`prelude`]), the material
 //! registry ([`material_registry`]) and the layout checks ([`layout_asserts`]).
 
+use super::constants::*;
+use super::layout::*;
 use super::render::*;
-use super::*;
+use super::state_layout::StateLayout;
 use rtmpm_physics::boundary::Condition;
 use rtmpm_physics::material::Model;
 use rtmpm_physics::transfer::{Transfer, Update};

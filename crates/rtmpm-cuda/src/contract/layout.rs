@@ -1,7 +1,7 @@
 //! The structs copied to the GPU, each the twin of a C struct of the kernels (field offsets
 //! checked by [`super::layout_asserts`]).
 
-use super::{MATERIAL_PARAMS, MAX_COLLIDERS, MAX_PEER_GPUS};
+use super::constants::{MATERIAL_PARAMS, MAX_COLLIDERS, MAX_PEER_GPUS};
 use bytemuck::{Pod, Zeroable};
 use std::mem::size_of;
 

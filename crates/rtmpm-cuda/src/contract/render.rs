@@ -3,7 +3,8 @@
 //! value to every render kernel) and [`RenderObject`] (a collider, rigid body or the user's tool
 //! posed for the picture).
 
-use super::GpuCollider;
+use super::constants::{MAX_BODIES, MAX_COLLIDERS};
+use super::layout::GpuCollider;
 use bytemuck::{Pod, Zeroable};
 
 /// Side of the light's square shadow map, texels (the CPU renderer's `SHADOW_RES`).
@@ -13,7 +14,7 @@ pub const RENDER_BINS: usize = 2048;
 /// The G-buffer id of object `k` is `RENDER_OBJECT_ID + k` (particle ids are their slots, below).
 pub const RENDER_OBJECT_ID: u32 = 0xffff_ff00;
 /// Objects a picture may hold: every collider, every rigid body and the tool.
-pub const RENDER_MAX_OBJECTS: usize = super::MAX_COLLIDERS + super::MAX_BODIES + 1;
+pub const RENDER_MAX_OBJECTS: usize = MAX_COLLIDERS + MAX_BODIES + 1;
 
 /// Words of the range scratch (u32): the finite field values' minimum and maximum (order-preserving
 /// bits), the range found (f32 bits, `RS_LO`, `RS_HI`), the picked bins, then the histograms.

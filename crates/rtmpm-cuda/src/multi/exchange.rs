@@ -33,10 +33,10 @@ use super::reduce_shared::{
     MAX_PEER_GPUS, PeerCtx, SharedCtx, dense_dims, enqueue_copy, enqueue_counts_peers,
     enqueue_list, enqueue_mask, enqueue_sum_peers,
 };
-use crate::BarrierKind;
 use crate::contract::Ctx;
 use crate::error::err;
 use crate::kernels::Kernels;
+use crate::options::BarrierKind;
 use crate::step::{Exchange, Hooks};
 use cudarc::driver::{CudaEvent, CudaSlice, CudaStream, DevicePtr};
 use rtmpm_sim::SimError;

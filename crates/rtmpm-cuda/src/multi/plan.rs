@@ -7,7 +7,7 @@ use super::partition::{Partition, shared_blocks};
 use super::reduce_shared::dense_dims;
 use crate::backend::CudaBackend;
 use crate::contract::{CTL_BAD_INDEX, CTL_BAD_REASON, CTL_MAX_SPEED};
-use crate::{CudaOptions, P2gMode};
+use crate::options::{CudaOptions, P2gMode};
 use rtmpm_physics::Particles;
 use rtmpm_physics::transfer::Transfer;
 use rtmpm_scene::Scene;

@@ -8,7 +8,7 @@ use super::rank::{CommSource, GpuRank};
 use crate::backend::Part;
 use crate::backend::readback::{resize_particles, scatter_state};
 use crate::contract::{CTL_BAD_INDEX, CTL_MAX_SPEED, CTL_SHARED};
-use crate::{CudaOptions, Transport};
+use crate::options::{CudaOptions, Transport};
 use rtmpm_physics::Particles;
 use rtmpm_scene::Scene;
 use rtmpm_sim::{Backend, BadParticle, SimError};
@@ -72,7 +72,7 @@ impl NcclRankBackend {
         }
         let nccl = super::nccl::library()
             .map_err(|e| SimError::Backend(format!("multi-process runs need NCCL: {e}")))?;
-        let info = crate::probe_device(device)
+        let info = crate::probe::probe_device(device)
             .map_err(|e| SimError::Backend(format!("rank {me}: CUDA device {device}: {e}")))?;
         let id = if me == 0 {
             Some(nccl.unique_id().map_err(nccl_err)?.to_bytes())

@@ -8,7 +8,7 @@ use super::plan::check_supported;
 use crate::backend::{CudaBackend, Part};
 use crate::contract::{CTL_NEED_REBUILD, CTL_WORDS};
 use crate::error::err;
-use crate::{BarrierKind, CudaOptions};
+use crate::options::{BarrierKind, CudaOptions};
 use cudarc::driver::{CudaSlice, DevicePtr};
 use rtmpm_physics::Particles;
 use rtmpm_scene::Scene;

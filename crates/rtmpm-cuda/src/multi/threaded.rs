@@ -10,7 +10,7 @@ use super::reduce_shared::MAX_PEER_GPUS;
 use crate::backend::Part;
 use crate::backend::readback::{resize_particles, scatter_state};
 use crate::contract::{CTL_MAX_SPEED, CTL_SHARED};
-use crate::{BarrierKind, CudaOptions, Transport};
+use crate::options::{BarrierKind, CudaOptions, Transport};
 use rtmpm_physics::Particles;
 use rtmpm_scene::Scene;
 use rtmpm_sim::{Backend, BadParticle, SimError};
@@ -65,14 +65,14 @@ impl MultiGpuBackend {
         options: CudaOptions,
     ) -> Result<MultiGpuBackend, SimError> {
         check_supported(scene, &options)?;
-        let found = crate::device_count();
+        let found = crate::probe::device_count();
         if gpus < 1 || gpus > found {
             return Err(SimError::Backend(format!(
                 "--gpus {gpus}: {found} CUDA device(s) found{}",
                 if found == 0 {
                     format!(
                         " ({})",
-                        crate::probe()
+                        crate::probe::probe()
                             .err()
                             .map(|e| e.to_string())
                             .unwrap_or_default()
@@ -82,7 +82,7 @@ impl MultiGpuBackend {
                 }
             )));
         }
-        let info = crate::probe().map_err(|e| SimError::Backend(e.to_string()))?;
+        let info = crate::probe::probe().map_err(|e| SimError::Backend(e.to_string()))?;
         let (transport, why) = choose_transport(gpus, &options)?;
         let mut options = options;
         options.transport = Some(transport);

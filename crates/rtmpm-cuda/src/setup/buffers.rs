@@ -80,7 +80,7 @@ pub fn sizes(
     real_bytes: usize,
     state_words: usize,
     grid_next: bool,
-    options: &crate::CudaOptions,
+    options: &crate::options::CudaOptions,
 ) -> BufferBytes {
     cap.bytes(
         real_bytes,
@@ -105,7 +105,7 @@ pub fn allocate(
     cap: &Capacity,
     needs: Needs,
     tables: &crate::encode::Tables,
-    options: &crate::CudaOptions,
+    options: &crate::options::CudaOptions,
 ) -> Result<(Buffers, Ctx), SimError> {
     let s = stream;
     let sizes = sizes(
@@ -292,7 +292,7 @@ fn context(
     scene: &Scene,
     cap: &Capacity,
     needs: Needs,
-    options: &crate::CudaOptions,
+    options: &crate::options::CudaOptions,
     tables: &crate::encode::Tables,
     u: &Unnamed,
     b: &Buffers,

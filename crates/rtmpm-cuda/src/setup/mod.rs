@@ -6,7 +6,7 @@ pub mod capacity;
 pub mod fill;
 pub mod sample;
 
-use crate::{CudaOptions, P2gMode};
+use crate::options::{CudaOptions, P2gMode};
 use capacity::Capacity;
 use rtmpm_physics::Particles;
 use rtmpm_physics::grid::BlockLayout;

@@ -1,5 +1,5 @@
 //! The step, written once. Every mode enqueues its steps through [`enqueue_step`]: one GPU
-//! ([`crate::CudaBackend`]), several GPUs of one process and one process per GPU
+//! ([`crate::backend::CudaBackend`]), several GPUs of one process and one process per GPU
 //! ([`crate::multi`]), the benchmark ([`crate::backend::bench`]) and `rtmpm validate`. The modes differ
 //! only by their [`Hooks`]: the exchange of the blocks shared with other GPUs between P2G and
 //! the grid update, and the timing events of the benchmark. Graph capture and replay of a step

@@ -5,10 +5,10 @@
 //!
 //! Per step: the bodies' states go to constant memory with the step parameters; after the step
 //! its impulse sums are copied to page-locked memory and cleared. By default
-//! ([`crate::CudaOptions::rigid_overlap`]) the host then gives the bodies the sums of the step
-//! before (copied while this one runs) and advances the rapier world, so the GPU never waits
-//! for the host: the bodies see the material one step late (a pose lag of v dt, 0.1 mm at
-//! 1 m/s and dt = 1e-4 s), and every impulse is applied once, so momentum is conserved. With
+//! ([`crate::options::CudaOptions::rigid_overlap`]) the host then gives the bodies the sums of
+//! the step before (copied while this one runs) and advances the rapier world, so the GPU never
+//! waits for the host: the bodies see the material one step late (a pose lag of v dt, 0.1 mm
+//! at 1 m/s and dt = 1e-4 s), and every impulse is applied once, so momentum is conserved. With
 //! `rigid_overlap=off` the host waits for every step's sums before the next step: the CPU
 //! backend's order exactly, at the cost of a host round trip per step (bench/RESULTS.md). The
 //! step itself (its graph) is unchanged.
@@ -58,7 +58,7 @@ pub struct Bodies {
     next: usize,
     /// A step whose sums the bodies have not taken yet: its copy and its dt.
     pending: Option<(usize, f32)>,
-    /// See [`crate::CudaOptions::rigid_overlap`].
+    /// See [`crate::options::CudaOptions::rigid_overlap`].
     overlap: bool,
     /// Where each body's distance grid starts in the mesh table (mesh bodies).
     mesh_offsets: Vec<u32>,

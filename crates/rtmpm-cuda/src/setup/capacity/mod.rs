@@ -4,7 +4,7 @@
 //! [`GRID_BUDGET_BYTES`]; then 8x the initial layout, and an overflow stops the run with an
 //! error that names the option to raise.
 
-use crate::CudaOptions;
+use crate::options::CudaOptions;
 use rtmpm_physics::Particles;
 use rtmpm_physics::grid::BlockLayout;
 use rtmpm_physics::math::{IVec3, Vec3};

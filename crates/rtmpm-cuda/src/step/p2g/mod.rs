@@ -14,9 +14,9 @@ pub mod reverse_map;
 pub mod scatter;
 pub mod sort;
 
-use crate::P2gMode;
 use crate::contract::Ctx;
 use crate::kernels::{Kernel, Kernels};
+use crate::options::P2gMode;
 use crate::setup::capacity::Capacity;
 use cudarc::driver::{CudaStream, DriverError, PushKernelArg};
 use reverse_map::{ReverseMap, ReverseMapSize};
@@ -41,7 +41,7 @@ impl P2gPlan {
     /// The plan of `options.p2g`, its buffers allocated (`bases`: the particles' stencil bases;
     /// `initial_pblocks`: the pblocks of the initial mapping).
     pub(crate) fn new(
-        options: &crate::CudaOptions,
+        options: &crate::options::CudaOptions,
         bases: &[IVec3],
         initial_pblocks: usize,
         cap: &Capacity,

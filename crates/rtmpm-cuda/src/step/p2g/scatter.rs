@@ -1,9 +1,9 @@
 //! Host side of `kernels/p2g/scatter.cu`: the scatter P2G (warps with segmented reduction and
 //! atomics, or the shared-memory tile of the ablation) and that of the classic MPM transfers.
 
-use crate::P2gMode;
 use crate::contract::Ctx;
 use crate::kernels::{Kernel, Kernels};
+use crate::options::P2gMode;
 use cudarc::driver::{CudaStream, DriverError, LaunchConfig, PushKernelArg};
 use rtmpm_physics::transfer::Transfer;
 
