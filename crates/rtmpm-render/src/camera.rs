@@ -66,6 +66,19 @@ impl Camera {
         Ok(())
     }
 
+    /// The direction from the eye through pixel coordinates `(x, y)` (x right, y down, pixel
+    /// centres at +0.5) of a `width` x `height` image, scaled so that its component along the
+    /// viewing direction is 1: the point at view depth `z` on it is `position + ray * z`.
+    pub fn pixel_ray(&self, width: u32, height: u32, x: f32, y: f32) -> Vec3 {
+        self.view(width, height).ray(x, y)
+    }
+
+    /// Pixel coordinates (x right, y down) and view depth of the point `p` in a `width` x
+    /// `height` image (depth <= 0: behind the eye).
+    pub fn project(&self, width: u32, height: u32, p: Vec3) -> (f32, f32, f32) {
+        self.view(width, height).project(p)
+    }
+
     /// The view for an image of `width` x `height` pixels (the GPU renderers take their camera
     /// from it too).
     pub fn view(&self, width: u32, height: u32) -> View {

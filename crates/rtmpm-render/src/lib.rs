@@ -43,4 +43,4 @@ pub use frame::render;
 pub use image::{GifMovie, Image};
 pub use input::{RenderError, RenderInput, RenderOptions, estimate_radius, field_range, von_mises};
 pub use shadow::{LIGHT, SHADOW_RES, ShadowFrame};
-pub use view::{ViewRequest, particle_field};
+pub use view::{MAX_VIEW_SIDE, ViewRequest, particle_field};

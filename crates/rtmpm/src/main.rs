@@ -11,6 +11,7 @@ mod multi;
 mod render;
 mod run;
 mod validate;
+mod view;
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -42,6 +43,8 @@ enum Command {
     Mesh(mesh::MeshArgs),
     /// Benchmark: the classic MLS-MPM fluid block, particle-steps per second.
     Bench(bench::BenchArgs),
+    /// Run a scene and watch and steer it live: in a browser (--serve), or record the view.
+    View(Box<view::ViewArgs>),
 }
 
 fn main() -> ExitCode {
@@ -60,6 +63,7 @@ fn main() -> ExitCode {
         Command::Render(args) => render::render_cmd(args),
         Command::Mesh(args) => mesh::mesh_cmd(args),
         Command::Validate(args) => validate::validate(args),
+        Command::View(args) => view::view(*args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -67,7 +67,7 @@ pub struct ViewArgs {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Size(pub u32, pub u32);
 
-fn parse_size(s: &str) -> Result<Size, String> {
+pub(crate) fn parse_size(s: &str) -> Result<Size, String> {
     let bad = || format!("expected WIDTHxHEIGHT such as 1280x720, got `{s}`");
     let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
     let w: u32 = w.trim().parse().map_err(|_| bad())?;
@@ -80,7 +80,7 @@ fn parse_size(s: &str) -> Result<Size, String> {
     Ok(Size(w, h))
 }
 
-fn parse_floats(s: &str, n: usize) -> Result<Vec<f32>, String> {
+pub(crate) fn parse_floats(s: &str, n: usize) -> Result<Vec<f32>, String> {
     let v: Vec<f32> = s
         .split(',')
         .map(|x| x.trim().parse::<f32>())
@@ -94,12 +94,12 @@ fn parse_floats(s: &str, n: usize) -> Result<Vec<f32>, String> {
     Ok(v)
 }
 
-fn parse_vec3(s: &str) -> Result<Vec3, String> {
+pub(crate) fn parse_vec3(s: &str) -> Result<Vec3, String> {
     let v = parse_floats(s, 3)?;
     Ok(Vec3::new(v[0], v[1], v[2]))
 }
 
-fn parse_range(s: &str) -> Result<(f32, f32), String> {
+pub(crate) fn parse_range(s: &str) -> Result<(f32, f32), String> {
     let v = parse_floats(s, 2)?;
     if v[1] <= v[0] {
         return Err(format!("range `{s}`: hi must be above lo"));

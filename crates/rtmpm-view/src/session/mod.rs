@@ -1,0 +1,251 @@
+//! A live session: a simulation stepping on its own thread, commands in ([`Command`]) and
+//! frames out ([`FrameSlot`]), independent of the front-end (the browser stream, a window, a
+//! recording without either).
+//!
+//! The thread owns the [`Simulation`] (built there by the caller's factory, again on reset),
+//! so a backend that must stay on one thread may be used. Each turn of its loop takes the
+//! commands that came, advances the simulation by the [`Pace`] unless paused, draws the frame
+//! ([`crate::draw`]), publishes it (the slot keeps only the latest: a slow reader misses
+//! frames, the simulation never waits for one) and hands it to the recorder, which does get
+//! every frame. A blow-up stops the stepping and shows its message in the picture; reset
+//! starts again.
+
+mod live;
+mod rates;
+#[cfg(test)]
+mod tests;
+
+use crate::command::{Command, Pace};
+use crate::frame::FrameSlot;
+use crate::record::Recorder;
+use rtmpm_driver::Simulation;
+use rtmpm_geometry::ToolShape;
+use rtmpm_render::Camera;
+use rtmpm_scene::ColorBy;
+use std::sync::Arc;
+use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
+use std::thread::JoinHandle;
+
+/// Builds the simulation at its initial state: at the start and on every reset (called on the
+/// session's thread). Errors are messages for the user.
+pub type SimFactory = Box<dyn FnMut() -> Result<Simulation, String> + Send>;
+
+/// Commands waiting for the session at most; more are refused ([`SendError::Busy`]).
+pub const COMMAND_QUEUE: usize = 256;
+
+/// How a session starts.
+#[derive(Clone, Debug)]
+pub struct SessionOptions {
+    /// Image size (pixels).
+    pub width: u32,
+    pub height: u32,
+    pub color_by: ColorBy,
+    /// Fixed colour range of the field (None: per frame).
+    pub range: Option<(f32, f32)>,
+    /// Particle radius on screen (m); None: 0.6 of the particle spacing of the first body.
+    pub radius: Option<f32>,
+    /// The first camera; None: framing the domain.
+    pub camera: Option<Camera>,
+    pub pace: Pace,
+    /// Start paused.
+    pub paused: bool,
+    /// The tool's shape; None: a ball of an eighth of the domain's smallest side, at least
+    /// two cells.
+    pub tool: Option<ToolShape>,
+    /// End the session after this many simulated frames (a recording without a front-end).
+    pub max_frames: Option<u64>,
+    /// Draw the heads-up line into the picture.
+    pub hud: bool,
+    pub shadows: bool,
+}
+
+impl Default for SessionOptions {
+    fn default() -> Self {
+        SessionOptions {
+            width: 1280,
+            height: 720,
+            color_by: ColorBy::Material,
+            range: None,
+            radius: None,
+            camera: None,
+            pace: Pace::default(),
+            paused: false,
+            tool: None,
+            max_frames: None,
+            hud: true,
+            shadows: true,
+        }
+    }
+}
+
+/// Why a command was not taken.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SendError {
+    /// [`COMMAND_QUEUE`] commands are waiting.
+    Busy,
+    /// The session has ended.
+    Ended,
+}
+
+impl std::fmt::Display for SendError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            SendError::Busy => "the session is busy: command dropped (too many at once)",
+            SendError::Ended => "the session has ended",
+        })
+    }
+}
+
+/// Where a front-end sends commands; cheap to clone.
+#[derive(Clone)]
+pub struct Commands(SyncSender<Command>);
+
+impl Commands {
+    /// Queue a command without waiting.
+    pub fn send(&self, c: Command) -> Result<(), SendError> {
+        self.0.try_send(c).map_err(|e| match e {
+            TrySendError::Full(_) => SendError::Busy,
+            TrySendError::Disconnected(_) => SendError::Ended,
+        })
+    }
+}
+
+/// What a session did, when it ended.
+#[derive(Clone, Debug, Default)]
+pub struct Summary {
+    /// Pictures published.
+    pub displayed: u64,
+    /// Simulated frames and steps at the end (since the last reset).
+    pub frames: u64,
+    pub steps: u64,
+    /// Simulated time at the end (s).
+    pub time: f64,
+    /// The recording's summary line, or why it failed.
+    pub recording: Option<Result<String, String>>,
+    /// The blow-up the session ended with, if any.
+    pub error: Option<String>,
+}
+
+/// A running live session.
+pub struct Session {
+    commands: Commands,
+    frames: Arc<FrameSlot>,
+    thread: Option<JoinHandle<Summary>>,
+    /// What the front-ends show about the scene (name, materials).
+    pub info: SceneInfo,
+}
+
+/// The scene as front-ends describe it.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct SceneInfo {
+    pub name: String,
+    pub materials: Vec<String>,
+    pub backend: String,
+    pub fps: f32,
+    pub duration: f32,
+}
+
+impl Session {
+    /// Start a session: the thread builds the simulation with `factory` and draws the first
+    /// frame before this returns (an error of the factory is returned). `recorder` gets every
+    /// displayed frame.
+    pub fn start(
+        factory: SimFactory,
+        options: SessionOptions,
+        recorder: Option<Recorder>,
+    ) -> Result<Session, String> {
+        let (tx, rx) = sync_channel(COMMAND_QUEUE);
+        let frames = Arc::new(FrameSlot::default());
+        let (ready_tx, ready_rx) = sync_channel::<Result<SceneInfo, String>>(1);
+        let slot = frames.clone();
+        let thread = std::thread::Builder::new()
+            .name("live session".into())
+            .spawn(move || run(factory, options, recorder, rx, slot, ready_tx))
+            .map_err(|e| format!("cannot start the session's thread: {e}"))?;
+        match ready_rx.recv() {
+            Ok(Ok(info)) => Ok(Session {
+                commands: Commands(tx),
+                frames,
+                thread: Some(thread),
+                info,
+            }),
+            Ok(Err(e)) => {
+                let _ = thread.join();
+                Err(e)
+            }
+            Err(_) => Err(match thread.join() {
+                Err(_) => "the session's thread panicked while starting".into(),
+                Ok(_) => "the session's thread ended while starting".into(),
+            }),
+        }
+    }
+
+    /// Where to send commands.
+    pub fn commands(&self) -> Commands {
+        self.commands.clone()
+    }
+
+    /// Queue a command without waiting.
+    pub fn send(&self, c: Command) -> Result<(), SendError> {
+        self.commands.send(c)
+    }
+
+    /// The frames: the latest one, or wait for a newer one.
+    pub fn frames(&self) -> Arc<FrameSlot> {
+        self.frames.clone()
+    }
+
+    /// True once the session's thread has ended (Quit, the frame limit, a panic).
+    pub fn ended(&self) -> bool {
+        self.thread.as_ref().is_none_or(|t| t.is_finished())
+    }
+
+    /// End the session (if still running) and wait for it: the recording is written then.
+    pub fn finish(mut self) -> Result<Summary, String> {
+        let _ = self.commands.0.send(Command::Quit);
+        self.join()
+    }
+
+    fn join(&mut self) -> Result<Summary, String> {
+        match self.thread.take().map(|t| t.join()) {
+            Some(Ok(s)) => Ok(s),
+            Some(Err(_)) => Err("the session's thread panicked".into()),
+            None => Err("the session was already finished".into()),
+        }
+    }
+}
+
+impl Drop for Session {
+    fn drop(&mut self) {
+        if self.thread.is_some() {
+            let _ = self.commands.0.send(Command::Quit);
+            let _ = self.join();
+        }
+    }
+}
+
+/// The session's thread.
+fn run(
+    mut factory: SimFactory,
+    options: SessionOptions,
+    recorder: Option<Recorder>,
+    rx: Receiver<Command>,
+    slot: Arc<FrameSlot>,
+    ready: SyncSender<Result<SceneInfo, String>>,
+) -> Summary {
+    let sim = match factory() {
+        Ok(s) => s,
+        Err(e) => {
+            slot.close();
+            let _ = ready.send(Err(e));
+            return Summary::default();
+        }
+    };
+    let mut live = live::Live::new(sim, factory, options, recorder);
+    live.publish(&slot);
+    let _ = ready.send(Ok(live.info()));
+    drop(ready);
+    let summary = live.run(&rx, &slot);
+    slot.close();
+    summary
+}
