@@ -7,7 +7,8 @@
 //!   over.
 //! * The stream never holds the simulation up: frames reach the server through a slot that
 //!   keeps only the latest, and each client gets the latest when it is ready for one (a slow
-//!   client sees fewer frames; one that stops reading is dropped after [`SEND_TIMEOUT`]).
+//!   client sees fewer frames; one that stops reading is dropped after [`SEND_TIMEOUT`]); the
+//!   kernel queues at most [`UNSENT_BYTES`] unsent for a client, so what it gets is recent.
 //!   Memory stays bounded: one encoded frame, one in flight per client, [`MAX_CLIENTS`].
 //! * Client messages are at most [`protocol::MAX_MESSAGE_BYTES`]; a larger one closes the
 //!   connection (WebSocket code 1009), garbage is answered with an error message, and a
@@ -24,6 +25,7 @@ use axum::extract::ws::{CloseFrame, Message, Utf8Bytes, WebSocket, WebSocketUpgr
 use axum::http::StatusCode;
 use axum::response::{Html, IntoResponse, Response};
 use axum::routing::get;
+use axum::serve::ListenerExt;
 use encoder::Encoded;
 use futures_util::{SinkExt, StreamExt};
 use std::net::{IpAddr, Ipv4Addr, SocketAddr, TcpListener};
@@ -186,8 +188,9 @@ async fn run(
     listener
         .set_nonblocking(true)
         .map_err(|e| format!("cannot serve: {e}"))?;
-    let listener =
-        tokio::net::TcpListener::from_std(listener).map_err(|e| format!("cannot serve: {e}"))?;
+    let listener = tokio::net::TcpListener::from_std(listener)
+        .map_err(|e| format!("cannot serve: {e}"))?
+        .tap_io(short_queue);
     let mut ended = shared.frames.clone();
     let app = Router::new()
         .route("/", get(page))
@@ -206,6 +209,22 @@ async fn run(
         .with_graceful_shutdown(stop)
         .await
         .map_err(|e| format!("the server failed: {e}"))
+}
+
+/// Unsent bytes the kernel may queue for a client before a send waits (Linux).
+pub const UNSENT_BYTES: u32 = 32 * 1024;
+
+/// Keep the kernel's queue of a connection short: without it a slow client's socket buffer
+/// (tuned up to megabytes) would fill with old pictures, each reaching it ever later, and a send
+/// would wait for megabytes to drain. With at most [`UNSENT_BYTES`] unsent, the next send waits
+/// for the client, and the picture sent then is the latest.
+fn short_queue(tcp: &mut tokio::net::TcpStream) {
+    let _ = tcp.set_nodelay(true);
+    let sock = socket2::SockRef::from(&*tcp);
+    #[cfg(any(target_os = "linux", target_os = "android"))]
+    let _ = sock.set_tcp_notsent_lowat(UNSENT_BYTES);
+    #[cfg(not(any(target_os = "linux", target_os = "android")))]
+    let _ = sock.set_send_buffer_size(4 * UNSENT_BYTES as usize);
 }
 
 async fn page() -> Html<&'static str> {
