@@ -588,6 +588,13 @@ def cases():
         (["render", "{W}", "--size", "0x0"], ("size",)),
         (["render", "{W}", "--size", "100000x100000"], ("size",)),
         (["run"], ("no scene given",)),
+        (["view", S, "--backend", "cpu", "--serve", "nonsense"], ("HOST:PORT",)),
+        (["view", S, "--backend", "cpu", "--serve", "192.0.2.1:8080"], ("not an address",)),
+        (["view", S, "--backend", "cpu", "--record", "{W}/movie.avi"], (".gif or .mp4",)),
+        (["view", S, "--backend", "cpu", "--size", "99999x9", "--serve"], ("size",)),
+        (["view", S, "--backend", "cpu", "--threads", "999999", "--record", "{W}/m.gif",
+          "--frames", "1"], ("thread",)),
+        (["view", S, "--backend", "cpu"], ("--serve",)),
     ]:
         out.append(Case("flags: " + " ".join(a for a in args if "{W}" not in a), args, [words],
                         setup=lambda w: write(w / "scene.toml", GOOD_SCENE)))

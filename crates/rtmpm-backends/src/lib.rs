@@ -359,10 +359,8 @@ mod tests {
         send::<AnyBackend>();
     }
 
-    #[test]
-    fn steering_reaches_the_cpu_backend_inside() {
-        use rtmpm_driver::Simulation;
-        use rtmpm_geometry::{Tool, ToolShape};
+    /// A block of water in a unit box, and its particles.
+    fn water_block() -> (Scene, Particles) {
         let scene = Scene::from_toml(
             "[domain]\nmin = [0,0,0]\nmax = [1,1,1]\ndx = 0.1\n[time]\nduration = 0.1\n\
              [[material]]\nname = \"w\"\ntype = \"fluid\"\ndensity = 1000.0\nbulk_modulus = 1e4\n\
@@ -371,6 +369,14 @@ mod tests {
         )
         .unwrap();
         let p = scene.sample_particles().unwrap();
+        (scene, p)
+    }
+
+    #[test]
+    fn steering_reaches_the_cpu_backend_inside() {
+        use rtmpm_driver::Simulation;
+        use rtmpm_geometry::{Tool, ToolShape};
+        let (scene, p) = water_block();
         let req = BackendRequest {
             kind: BackendKind::Cpu,
             threads: Some(1),
@@ -407,14 +413,7 @@ mod tests {
     fn kinds_parse_and_cpu_is_built_with_its_reason() {
         assert_eq!("cuda".parse::<BackendKind>(), Ok(BackendKind::Cuda));
         assert!("gpu".parse::<BackendKind>().unwrap_err().contains("cpu"));
-        let scene = Scene::from_toml(
-            "[domain]\nmin = [0,0,0]\nmax = [1,1,1]\ndx = 0.1\n[time]\nduration = 0.1\n\
-             [[material]]\nname = \"w\"\ntype = \"fluid\"\ndensity = 1000.0\nbulk_modulus = 1e4\n\
-             [[body]]\nmaterial = \"w\"\nshape = \"box\"\nmin = [0.3,0.3,0.3]\nmax = [0.5,0.5,0.5]\n",
-            "<test>",
-        )
-        .unwrap();
-        let p = scene.sample_particles().unwrap();
+        let (scene, p) = water_block();
         let n = p.len();
         let req = BackendRequest {
             kind: BackendKind::Cpu,
