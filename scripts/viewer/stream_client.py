@@ -130,9 +130,11 @@ def main():
     ap.add_argument("--rss-every", type=float, default=10.0)
     ap.add_argument("--label", default="", help="a name for this measurement in the output")
     ap.add_argument("--orbit", type=int, default=0, help="pause, then time N redraws")
+    ap.add_argument("--timeout", type=float, default=120.0,
+                    help="give up when nothing comes for this long (s)")
     args = ap.parse_args()
     host, port = args.url.rsplit(":", 1)
-    ws = WebSocket(host, int(port), rcvbuf=16384 if args.slow else None)
+    ws = WebSocket(host, int(port), rcvbuf=16384 if args.slow else None, timeout=args.timeout)
     for c in args.send:
         ws.send_text(c)
     orbits = 0
