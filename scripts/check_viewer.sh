@@ -7,7 +7,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 rtmpm=${RTMPM:-target/debug/rtmpm}
-[ -x "$rtmpm" ] || cargo build --quiet -p rtmpm
+[ -n "${RTMPM:-}" ] || cargo build --quiet -p rtmpm
 if [ ! -x /usr/bin/chromium ]; then
   sudo_=""
   [ "$(id -u)" -eq 0 ] || sudo_="sudo"

@@ -52,7 +52,7 @@ def check(ok, what):
 
 
 # ---------------------------------------------------------------------------- the camera
-# The first camera of `rtmpm view` (rtmpm_core::render::Camera::framing on the domain's
+# The first camera of `rtmpm view` (rtmpm_render::Camera::framing on the domain's
 # interior), to aim the mouse at a point of the scene.
 
 

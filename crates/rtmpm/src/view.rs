@@ -205,7 +205,7 @@ pub fn view(args: ViewArgs) -> Result<()> {
     };
     let (lo, hi) = scene.interior();
     let Size(width, height) = args.size;
-    let most = rtmpm_core::render::MAX_VIEW_SIDE;
+    let most = rtmpm_render::MAX_VIEW_SIDE;
     if width > most || height > most {
         bail!("--size {width}x{height} is too large for a live view: at most {most} per side");
     }
