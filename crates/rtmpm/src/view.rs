@@ -164,7 +164,7 @@ fn factory(scene: Scene, args: &ViewArgs) -> SimFactory {
         let particles = match &kept {
             Some(p) => p.clone(),
             None => {
-                let (p, _) = crate::setup::sample(&scene).map_err(|e| format!("{e:#}"))?;
+                let (p, _) = rtmpm_driver::setup::sample(&scene).map_err(|e| format!("{e:#}"))?;
                 if resolved.is_none() && p.len() <= KEEP_FOR_RESET {
                     kept = Some(p.clone());
                 }
