@@ -1,7 +1,7 @@
 //! The session's state and loop: commands, stepping, drawing.
 
+use super::options::{SceneInfo, SessionOptions, SimFactory, Summary};
 use super::rates::Rates;
-use super::{SceneInfo, SessionOptions, SimFactory, Summary};
 use crate::camera::OrbitCamera;
 use crate::command::{Command, Pace, Throw};
 use crate::draw::{draw, draw_hud, draw_message};

@@ -1,10 +1,11 @@
 //! A live session on the CPU backend, driven by commands as a front-end drives it.
 
 use super::*;
-use crate::command::Throw;
+use crate::command::{Pace, Throw};
 use crate::frame::{Frame, Status};
 use glam::Vec3;
 use rtmpm_cpu::CpuBackend;
+use rtmpm_driver::Simulation;
 use rtmpm_scene::Scene;
 use std::time::{Duration, Instant};
 
