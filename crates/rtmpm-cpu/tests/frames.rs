@@ -4,6 +4,7 @@
 use rtmpm_cpu::CpuBackend;
 use rtmpm_io::FrameFields;
 use rtmpm_io::chunks::{FrameChunk, FrameColumns};
+use rtmpm_io::frame::Frame;
 use rtmpm_io::stream::{Derived, FrameFiles, StreamFormat};
 use rtmpm_io::testing::TestDir;
 use rtmpm_scene::Scene;
@@ -93,18 +94,21 @@ fn stepped_backend() -> (Scene, CpuBackend) {
     (scene, b)
 }
 
-fn formats() -> Vec<(&'static str, StreamFormat)> {
-    vec![
-        (
-            "ply",
-            StreamFormat::Ply {
-                comments: vec!["rtmpm-run test 1234".into()],
-            },
-        ),
-        ("bgeo", StreamFormat::Bgeo { gzip: false }),
-        ("bgeo.gz", StreamFormat::Bgeo { gzip: true }),
-    ]
+/// Every format of the registry that can be streamed (PLY, BGEO and BGEO.gz at least), with
+/// a run comment.
+fn formats() -> Vec<StreamFormat> {
+    let f: Vec<StreamFormat> = rtmpm_io::FRAME_FORMATS
+        .iter()
+        .filter_map(|f| StreamFormat::new(f, vec![COMMENT.into()]))
+        .collect();
+    let names: Vec<&str> = f.iter().map(|f| f.format.name).collect();
+    for name in ["ply", "bgeo", "bgeo.gz"] {
+        assert!(names.contains(&name), "{name} not streamable: {names:?}");
+    }
+    f
 }
+
+const COMMENT: &str = "rtmpm-run test 1234";
 
 /// Write `p` both ways with `derived` and compare the files byte for byte; `chunks` comes
 /// from `export`.
@@ -127,29 +131,34 @@ fn compare(
         jacobian: jac.as_deref(),
     };
     let models = scene.materials.iter().map(|m| m.model.clone()).collect();
-    let files: Vec<(PathBuf, StreamFormat)> = formats()
-        .into_iter()
-        .map(|(ext, f)| (d.path(&format!("{tag}_stream.{ext}")), f))
+    let formats = formats();
+    let files: Vec<(PathBuf, StreamFormat)> = formats
+        .iter()
+        .map(|f| {
+            let name = format!("{tag}_stream.{}", f.format.extension);
+            (d.path(&name), f.clone())
+        })
         .collect();
     let mut ff = FrameFiles::create(&files, p.len(), derived, models).expect("create");
     for c in chunks {
         ff.write_chunk(c).expect("chunk");
     }
     ff.finish().expect("finish");
-    let reference = |ext: &str| d.path(&format!("{tag}_ref.{ext}"));
-    rtmpm_io::ply::write_ply_with_comments(&reference("ply"), p, &fields, &["rtmpm-run test 1234"])
-        .expect("ply");
-    rtmpm_io::bgeo::write_bgeo(&reference("bgeo"), p, &fields, false).expect("bgeo");
-    rtmpm_io::bgeo::write_bgeo(&reference("bgeo.gz"), p, &fields, true).expect("bgeo.gz");
-    for (path, _) in &files {
-        let ext = path
-            .to_string_lossy()
-            .split_once('.')
-            .map(|(_, e)| e.to_string())
-            .unwrap_or_default();
+    // Each format's whole-frame writer, as the run writes frames without streaming.
+    let frame = Frame {
+        particles: p,
+        fields,
+        comments: &[COMMENT],
+        bodies: &[],
+        compress: true,
+    };
+    for ((path, _), f) in files.iter().zip(&formats) {
+        let ext = f.format.extension;
+        let reference = d.path(&format!("{tag}_ref.{ext}"));
+        (f.format.write)(&reference, &frame).expect("whole frame");
         let (a, b) = (
             fs::read(path).expect("read"),
-            fs::read(reference(&ext)).expect("read"),
+            fs::read(&reference).expect("read"),
         );
         assert!(a.len() > 100, "{ext}: {} bytes", a.len());
         assert!(
@@ -183,10 +192,7 @@ fn cpu_backend_frames_are_byte_identical() {
             },
         ),
     ] {
-        let cols = FrameFiles::columns(
-            &formats().into_iter().map(|f| f.1).collect::<Vec<_>>(),
-            derived,
-        );
+        let cols = FrameFiles::columns(&formats(), derived);
         let mut sink = VecSink {
             cols,
             cap: 1000,
@@ -236,7 +242,7 @@ fn errors_name_the_file_and_leave_nothing() {
     let blocker = d.path("not_a_dir");
     fs::write(&blocker, b"x").expect("write");
     let bad = blocker.join("frame_00001.ply");
-    let fmt = StreamFormat::Ply { comments: vec![] };
+    let fmt = StreamFormat::new(&rtmpm_io::ply::FORMAT, vec![]).expect("streamable");
     let err = FrameFiles::create(&[(bad.clone(), fmt.clone())], 3, Derived::default(), vec![])
         .err()
         .expect("must fail");

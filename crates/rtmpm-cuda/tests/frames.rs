@@ -39,16 +39,17 @@ impl ChunkSink for Keep {
 }
 
 fn formats() -> Vec<(&'static str, StreamFormat)> {
-    vec![
-        (
-            "ply",
-            StreamFormat::Ply {
-                comments: vec!["rtmpm-run gpu test".into()],
-            },
-        ),
-        ("bgeo", StreamFormat::Bgeo { gzip: false }),
-        ("bgeo.gz", StreamFormat::Bgeo { gzip: true }),
-    ]
+    ["ply", "bgeo", "bgeo.gz"]
+        .into_iter()
+        .map(|name| {
+            let format = rtmpm_io::frame_format(name).expect("a registered format");
+            let comments = vec!["rtmpm-run gpu test".into()];
+            (
+                name,
+                StreamFormat::new(format, comments).expect("streamable"),
+            )
+        })
+        .collect()
 }
 
 /// Export `b`'s state in chunks of `cap` and write it streamed; write `read_particles` whole;

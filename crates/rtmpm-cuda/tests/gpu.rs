@@ -48,8 +48,6 @@ fn scene(dx: f32) -> Scene {
         walls: Walls::default(),
         output: OutputSettings {
             dir: "out".into(),
-            ply: false,
-            vtu: false,
             stress: false,
             jacobian: false,
             ..Default::default()

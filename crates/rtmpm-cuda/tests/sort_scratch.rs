@@ -52,8 +52,6 @@ fn jelly_scene(dx: f32) -> Scene {
         walls: Walls::default(),
         output: OutputSettings {
             dir: "out".into(),
-            ply: false,
-            vtu: false,
             stress: false,
             jacobian: false,
             ..Default::default()

@@ -69,8 +69,6 @@ fn scene(water: bool) -> Scene {
         walls: Walls::default(),
         output: OutputSettings {
             dir: "out".into(),
-            ply: false,
-            vtu: false,
             stress: false,
             jacobian: false,
             ..Default::default()

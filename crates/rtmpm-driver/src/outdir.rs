@@ -27,8 +27,8 @@ pub fn scene_identity(name: &str, text: &str) -> String {
 /// What a run's file is, from its name.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RunFile {
-    /// `frame_NNNNN.ply|vtu|png|bgeo|bgeo.gz|usda` or `surface_NNNNN.obj|ply|vtu|usda`, with
-    /// its number.
+    /// `frame_NNNNN.EXT` (a frame format's extension, or `png`) or
+    /// `surface_NNNNN.obj|ply|vtu|usda`, with its number.
     Frame(u64),
     /// `checkpoint_NNNNN.ckpt`.
     Checkpoint(u64),
@@ -46,12 +46,13 @@ pub fn classify(name: &str) -> Option<RunFile> {
         }
         num.parse().ok()
     };
-    if let Some(n) = number(
-        name,
-        "frame_",
-        &["ply", "vtu", "png", "bgeo", "bgeo.gz", "usda"],
-    )
-    .or_else(|| number(name, "surface_", &["obj", "ply", "vtu", "usda"]))
+    let frame_exts: Vec<&str> = rtmpm_io::FRAME_FORMATS
+        .iter()
+        .map(|f| f.extension)
+        .chain(["png"])
+        .collect();
+    if let Some(n) = number(name, "frame_", &frame_exts)
+        .or_else(|| number(name, "surface_", &["obj", "ply", "vtu", "usda"]))
     {
         return Some(RunFile::Frame(n));
     }

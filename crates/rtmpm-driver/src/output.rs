@@ -1,10 +1,14 @@
-//! Per-frame output: PLY, VTK XML (.vtu + .pvd series), BGEO, USD, and fluid surface meshes.
+//! Per-frame output: a file per frame in each of the scene's formats (the registry
+//! [`rtmpm_io::FRAME_FORMATS`]: PLY, BGEO, USD, VTU with its `.pvd` series), and fluid surface
+//! meshes.
 
 use anyhow::{Context, Result, bail};
 use rtmpm_geometry::surface::{SurfaceParams, TriMesh};
+use rtmpm_io::FrameFields;
+use rtmpm_io::frame::{Frame, FrameBody, FrameFormat};
 use rtmpm_io::stream::{Derived, StreamFormat};
 use rtmpm_io::vtu::PvdWriter;
-use rtmpm_io::{FrameFields, bgeo, ply, trimesh, usd, vtk_appended};
+use rtmpm_io::{trimesh, usd};
 use rtmpm_physics::Particles;
 use rtmpm_physics::math::Vec3;
 use rtmpm_rigid::BodyPose;
@@ -151,7 +155,7 @@ impl FrameOutput {
     ) -> Result<FrameOutput> {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("cannot create output folder {}", dir.display()))?;
-        let pvd = match scene.output.vtu {
+        let pvd = match scene.output.formats.iter().any(|f| f.pvd) {
             true => Some(open_pvd(&dir.join("frames.pvd"), resume_time)?),
             false => None,
         };
@@ -184,54 +188,16 @@ impl FrameOutput {
         bodies: &[BodyPose],
         scene: &Scene,
     ) -> Result<Option<TriMesh>> {
-        let stress = scene
-            .output
-            .stress
-            .then(|| cauchy_stress(p, &scene.materials));
-        let jacobian = scene
-            .output
-            .jacobian
-            .then(|| p.f.iter().map(|f| f.determinant()).collect::<Vec<f32>>());
-        let fields = FrameFields {
-            stress: stress.as_deref(),
-            jacobian: jacobian.as_deref(),
-        };
-        let o = &scene.output;
-        let path = |ext: &str| self.dir.join(format!("frame_{frame:05}.{ext}"));
-        if o.ply {
-            let path = path("ply");
-            ply::write_ply_with_comments(&path, p, &fields, &[&self.run_comment])
-                .with_context(|| format!("writing {}", path.display()))?;
-        }
-        for (on, ext, gz) in [(o.bgeo, "bgeo", false), (o.bgeo_gz, "bgeo.gz", true)] {
-            if on {
-                let path = path(ext);
-                bgeo::write_bgeo(&path, p, &fields, gz)
-                    .with_context(|| format!("writing {}", path.display()))?;
-            }
-        }
-        if o.usda {
-            let path = path("usda");
-            let bodies: Vec<usd::UsdBody> = scene
-                .rigid_bodies
-                .iter()
-                .zip(bodies)
-                .map(|(spec, pose)| usd::UsdBody {
-                    name: &spec.name,
-                    shape: &spec.shape,
-                    position: pose.position,
-                    rotation: pose.rotation,
-                })
-                .collect();
-            usd::write_usda_frame(&path, p, &fields, &bodies)
-                .with_context(|| format!("writing {}", path.display()))?;
-        }
+        let files: Vec<(PathBuf, &FrameFormat)> = (scene.output.formats.iter())
+            .map(|f| (self.dir.join(f.file_name(frame)), *f))
+            .collect();
+        let derived = scene.output.derived();
+        write_frame_files(&files, p, bodies, scene, derived, &[&self.run_comment])?;
         if let Some(pvd) = self.pvd.as_mut() {
-            let name = format!("frame_{frame:05}.vtu");
-            let path = self.dir.join(&name);
-            vtk_appended::write_particles_vtu(&path, p, &fields, o.compress)
-                .with_context(|| format!("writing {}", path.display()))?;
-            pvd.add(time, &name).context("writing frames.pvd")?;
+            for (_, f) in files.iter().filter(|(_, f)| f.pvd) {
+                pvd.add(time, &f.file_name(frame))
+                    .context("writing frames.pvd")?;
+            }
         }
         match self.surfaces.as_mut() {
             Some(s) => s.write(frame, time, p).map(Some),
@@ -240,12 +206,60 @@ impl FrameOutput {
     }
 }
 
+/// Write one frame's files, each `(path, format)` of `files`: the particles `p` with the derived
+/// fields `derived` (computed once here), the scene's rigid bodies at their poses `poses`, the
+/// header comments `comments` (formats with comments). Each file is written atomically. `rtmpm
+/// run`'s frames ([`FrameOutput::write_frame`]) and Python's `Simulation.write_frame` are
+/// written here, so both write every format of [`rtmpm_io::FRAME_FORMATS`] the same way.
+pub fn write_frame_files(
+    files: &[(PathBuf, &FrameFormat)],
+    p: &Particles,
+    poses: &[BodyPose],
+    scene: &Scene,
+    derived: Derived,
+    comments: &[&str],
+) -> Result<()> {
+    let stress = derived.stress.then(|| cauchy_stress(p, &scene.materials));
+    let jacobian =
+        (derived.jacobian).then(|| p.f.iter().map(|f| f.determinant()).collect::<Vec<f32>>());
+    let bodies = frame_bodies(scene, poses);
+    let frame = Frame {
+        particles: p,
+        fields: FrameFields {
+            stress: stress.as_deref(),
+            jacobian: jacobian.as_deref(),
+        },
+        comments,
+        bodies: &bodies,
+        compress: scene.output.compress,
+    };
+    for (path, format) in files {
+        (format.write)(path, &frame).with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
+}
+
+/// The scene's rigid bodies at their poses `poses`, as frame files hold them.
+pub fn frame_bodies<'a>(scene: &'a Scene, poses: &[BodyPose]) -> Vec<FrameBody<'a>> {
+    scene
+        .rigid_bodies
+        .iter()
+        .zip(poses)
+        .map(|(spec, pose)| FrameBody {
+            name: &spec.name,
+            shape: &spec.shape,
+            position: pose.position,
+            rotation: pose.rotation,
+        })
+        .collect()
+}
+
 impl FrameOutput {
-    /// True when every file of a frame can be streamed in chunks ([`crate::stream`]): the
-    /// particle formats PLY and BGEO only (VTU, USD and surfaces need the whole frame).
+    /// True when every file of a frame can be streamed in chunks ([`crate::stream`]): formats
+    /// with a chunk encoder only (PLY and BGEO; VTU, USD and surfaces need the whole frame).
     pub fn streamable(scene: &Scene) -> bool {
         let o = &scene.output;
-        !o.vtu && !o.usda && !o.surface_formats.any()
+        o.formats.iter().all(|f| f.streamable()) && !o.surface_formats.any()
     }
 
     /// The streamed formats of the scene, for [`crate::stream::FrameStreamer::new`].
@@ -257,31 +271,23 @@ impl FrameOutput {
     }
 
     /// The files of frame `frame` and their formats (the names [`FrameOutput::write_frame`]
-    /// writes).
+    /// writes); the formats that cannot be streamed are left out.
     pub fn stream_files(&self, frame: u64, scene: &Scene) -> Vec<(PathBuf, StreamFormat)> {
-        let o = &scene.output;
-        let path = |ext: &str| self.dir.join(format!("frame_{frame:05}.{ext}"));
-        let mut out = Vec::new();
-        if o.ply {
-            let comments = vec![self.run_comment.clone()];
-            out.push((path("ply"), StreamFormat::Ply { comments }));
-        }
-        if o.bgeo {
-            out.push((path("bgeo"), StreamFormat::Bgeo { gzip: false }));
-        }
-        if o.bgeo_gz {
-            out.push((path("bgeo.gz"), StreamFormat::Bgeo { gzip: true }));
-        }
-        out
+        scene
+            .output
+            .formats
+            .iter()
+            .filter_map(|f| {
+                let format = StreamFormat::new(f, vec![self.run_comment.clone()])?;
+                Some((self.dir.join(f.file_name(frame)), format))
+            })
+            .collect()
     }
 }
 
 /// The derived fields the scene's frames hold.
 pub fn derived_fields(scene: &Scene) -> Derived {
-    Derived {
-        jacobian: scene.output.jacobian,
-        stress: scene.output.stress,
-    }
+    scene.output.derived()
 }
 
 /// Cauchy stress per particle (see [`rtmpm_physics::material::cauchy_stress`]).

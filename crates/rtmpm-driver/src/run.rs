@@ -123,8 +123,11 @@ pub struct RunOptions {
 
 /// What the caller does while a run goes on.
 pub trait RunHooks {
-    /// After every chunk of steps.
-    fn chunk_done(&mut self, _sim: &Simulation) {}
+    /// After every chunk of steps of [`Run::execute`] (and the frame it completed, if any);
+    /// an error stops the run.
+    fn chunk_done(&mut self, _sim: &Simulation) -> Result<()> {
+        Ok(())
+    }
     /// When a frame is complete, before its files are written; `rate` is the run's
     /// particle-steps per second so far.
     fn frame_done(&mut self, _sim: &Simulation, _rate: f64) {}
@@ -168,6 +171,9 @@ pub struct Run {
     scene_text: String,
     host: Particles,
     particles: usize,
+    /// When [`Run::begin`] was called, and the step count then.
+    started: Instant,
+    start_step: u64,
 }
 
 impl Run {
@@ -239,6 +245,8 @@ impl Run {
             scene_text,
             host: Particles::default(),
             particles,
+            started: Instant::now(),
+            start_step: 0,
         })
     }
 
@@ -254,58 +262,94 @@ impl Run {
         (self.options.read_frames && self.streamer.is_none()) || self.options.collect
     }
 
-    /// Run to the last frame (or `steps`): frame 0 first when the run is fresh, then every
-    /// frame written as it completes, with checkpoints.
-    pub fn execute(&mut self, hooks: &mut dyn RunHooks) -> Result<RunStats> {
+    /// The run has reached its last frame.
+    pub fn at_end(&self) -> bool {
+        self.sim.frame >= self.total_frames()
+    }
+
+    /// Start: frame 0's files when the run is fresh. Call once, before [`Run::advance`].
+    pub fn begin(&mut self, hooks: &mut dyn RunHooks) -> Result<()> {
         if self.sim.frame == 0 && (self.collects() || self.streamer.is_some()) {
             self.write_frame(hooks)?;
         }
-        let total_frames = self.total_frames();
-        let start = Instant::now();
-        let start_step = self.sim.step;
+        // The run's wall time and rate are from here.
+        self.started = Instant::now();
+        self.start_step = self.sim.step;
+        Ok(())
+    }
+
+    /// Take at most `max_steps` steps, stopping at the end of the current frame; when the frame
+    /// is complete, write it (and a checkpoint when one is due). Returns true when a frame was
+    /// completed. For a caller that paces the steps itself (a live view); [`Run::execute`]
+    /// calls it in chunks of about a second.
+    pub fn advance(&mut self, max_steps: u64, hooks: &mut dyn RunHooks) -> Result<bool> {
+        let done = self.sim.advance(max_steps)?;
+        if done {
+            self.frame_complete(hooks)?;
+        }
+        Ok(done)
+    }
+
+    /// The frame just completed: the hooks told, its files, a checkpoint when one is due.
+    fn frame_complete(&mut self, hooks: &mut dyn RunHooks) -> Result<()> {
+        let elapsed = self.started.elapsed().as_secs_f64();
+        let rate = self.steps() as f64 * self.particles as f64 / elapsed.max(1e-9);
+        hooks.frame_done(&self.sim, rate);
+        self.write_frame(hooks)?;
+        if self
+            .options
+            .checkpoint_every
+            .is_some_and(|every| every > 0 && self.sim.frame.is_multiple_of(every))
+        {
+            self.checkpoint()?;
+        }
+        Ok(())
+    }
+
+    /// Steps taken since [`Run::begin`].
+    pub fn steps(&self) -> u64 {
+        self.sim.step - self.start_step
+    }
+
+    /// End: every frame still being written waited for (or the error of one, naming the
+    /// file); the streamed files' totals.
+    pub fn finish(&mut self) -> Result<Option<StreamStats>> {
+        self.streamer.take().map(FrameStreamer::finish).transpose()
+    }
+
+    /// Run to the last frame (or [`RunOptions::steps`]): [`Run::begin`], [`Run::advance`] in
+    /// chunks of about a second (progress shows inside long frames), [`Run::finish`].
+    pub fn execute(&mut self, hooks: &mut dyn RunHooks) -> Result<RunStats> {
+        self.begin(hooks)?;
+        let max_steps = self.options.steps.unwrap_or(u64::MAX);
         let mut stopped_by_steps = false;
-        let mut progress = Progress::new(self.particles, total_frames, self.options.fixed_chunk);
-        while self.sim.frame < total_frames {
-            let left = self.options.steps.map_or(u64::MAX, |max| {
-                max.saturating_sub(self.sim.step - start_step)
-            });
+        let mut progress = Progress::new(
+            self.particles,
+            self.total_frames(),
+            self.options.fixed_chunk,
+        );
+        while !self.at_end() {
+            let left = max_steps.saturating_sub(self.steps());
             // Steps in chunks of about a second, so that progress shows inside long frames.
             let chunk = progress.chunk();
             let t0 = Instant::now();
             let done = self.sim.advance(left.min(chunk))?;
             progress.chunk_took(t0.elapsed().as_secs_f64());
-            progress.tick(&self.sim, start_step);
-            hooks.chunk_done(&self.sim);
-            if !done {
-                if self.sim.step - start_step >= self.options.steps.unwrap_or(u64::MAX) {
-                    stopped_by_steps = true;
-                    break;
-                }
-                continue;
+            progress.tick(&self.sim, self.start_step);
+            if done {
+                self.frame_complete(hooks)?;
             }
-            let elapsed = start.elapsed().as_secs_f64();
-            let rate =
-                (self.sim.step - start_step) as f64 * self.particles as f64 / elapsed.max(1e-9);
-            hooks.frame_done(&self.sim, rate);
-            self.write_frame(hooks)?;
-            if self
-                .options
-                .checkpoint_every
-                .is_some_and(|every| every > 0 && self.sim.frame.is_multiple_of(every))
-            {
-                self.checkpoint()?;
+            hooks.chunk_done(&self.sim)?;
+            if !done && self.steps() >= max_steps {
+                stopped_by_steps = true;
+                break;
             }
         }
         hooks.run_done();
-        // Every frame in flight written (or its error, naming the file).
-        let stream = self
-            .streamer
-            .take()
-            .map(FrameStreamer::finish)
-            .transpose()?;
+        let stream = self.finish()?;
         Ok(RunStats {
-            steps: self.sim.step - start_step,
-            started: start,
+            steps: self.steps(),
+            started: self.started,
             stopped_by_steps,
             stream,
         })

@@ -29,8 +29,130 @@ use std::path::Path;
 
 use super::atomic::write_atomic_with;
 use super::limits::{DATA_MAX_BYTES, decompressed_limit, human_bytes, read_bounded};
+use crate::chunks::FrameColumns;
 use crate::fields::FrameFields;
+use crate::frame::{ChunkEncoder, ChunkRows, Derived, FrameBytes, FrameFormat, Records};
 use rtmpm_physics::Particles;
+
+/// Bytes per particle of a BGEO frame: `P` (4), `v` (3), `id`, `material`, `plastic`, `mass`,
+/// `pscale`; `J`; the stress as a full 3x3.
+const BGEO_BYTES: FrameBytes = FrameBytes {
+    base: 48,
+    jacobian: 4,
+    stress: 36,
+};
+
+/// BGEO frames (`frame_NNNNN.bgeo`) for Houdini; written whole or in chunks.
+pub static FORMAT: FrameFormat = FrameFormat {
+    name: "bgeo",
+    extension: "bgeo",
+    about: "Houdini's classic binary geometry",
+    bytes: BGEO_BYTES,
+    write: |path, f| write_bgeo(path, f.particles, &f.fields, false),
+    pvd: false,
+    chunks: Some(&BgeoChunks { gzip: false }),
+};
+
+/// The same, gzip-compressed (`frame_NNNNN.bgeo.gz`).
+pub static FORMAT_GZ: FrameFormat = FrameFormat {
+    name: "bgeo.gz",
+    extension: "bgeo.gz",
+    about: "Houdini's classic binary geometry, gzip-compressed",
+    bytes: BGEO_BYTES,
+    write: |path, f| write_bgeo(path, f.particles, &f.fields, true),
+    pvd: false,
+    chunks: Some(&BgeoChunks { gzip: true }),
+};
+
+/// BGEO records chunk by chunk: the header of [`write_bgeo`], per particle the same big-endian
+/// values, the same end.
+struct BgeoChunks {
+    gzip: bool,
+}
+
+impl ChunkEncoder for BgeoChunks {
+    fn columns(&self, _derived: Derived) -> FrameColumns {
+        FrameColumns {
+            mass: true,
+            vol0: true,
+            ..FrameColumns::default()
+        }
+    }
+
+    fn header(&self, n: usize, derived: Derived, _comments: &[&str]) -> io::Result<Vec<u8>> {
+        let n_i32 = i32::try_from(n).map_err(|_| {
+            io::Error::new(
+                io::ErrorKind::InvalidInput,
+                "the particle count does not fit the BGEO format's 32-bit integers",
+            )
+        })?;
+        Ok(frame_header(n_i32, &frame_attributes(derived)))
+    }
+
+    fn record_bytes(&self, d: Derived) -> usize {
+        BGEO_BYTES.with(d) as usize
+    }
+
+    fn encode(&self, r: &ChunkRows, first: usize, count: usize, out: &mut [u8]) -> io::Result<()> {
+        let (Some(mass), Some(vol0)) = (r.mass, r.vol0) else {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                "frame chunk without masses or initial volumes (BGEO)",
+            ));
+        };
+        let mut o = Records(out);
+        for j in first..first + count {
+            for row in &r.x {
+                o.put(row[j].to_be_bytes());
+            }
+            o.put(1.0f32.to_be_bytes());
+            for row in &r.v {
+                o.put(row[j].to_be_bytes());
+            }
+            o.put(((r.start + j) as i32).to_be_bytes());
+            o.put((r.material[j] as i32).to_be_bytes());
+            o.put(r.plastic[j].to_be_bytes());
+            o.put(mass[j].to_be_bytes());
+            o.put((0.5 * vol0[j].max(0.0).cbrt()).to_be_bytes());
+            if let Some(jac) = r.jacobian {
+                o.put(jac[j].to_be_bytes());
+            }
+            if let Some(s) = r.stress {
+                for c in symmetric_to_full(s[j]) {
+                    o.put(c.to_be_bytes());
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn trailer(&self) -> &'static [u8] {
+        &[0x00, 0xff]
+    }
+
+    fn gzip(&self) -> bool {
+        self.gzip
+    }
+}
+
+/// The point attributes of a BGEO frame after `P` (as [`write_bgeo`] writes them).
+fn frame_attributes(d: Derived) -> Vec<(&'static str, BgeoType, usize)> {
+    let mut a = vec![
+        ("v", BgeoType::Vector, 3),
+        ("id", BgeoType::Int, 1),
+        ("material", BgeoType::Int, 1),
+        ("plastic", BgeoType::Float, 1),
+        ("mass", BgeoType::Float, 1),
+        ("pscale", BgeoType::Float, 1),
+    ];
+    if d.jacobian {
+        a.push(("J", BgeoType::Float, 1));
+    }
+    if d.stress {
+        a.push(("stress", BgeoType::Float, 9));
+    }
+    a
+}
 
 /// Errors of [`read_bgeo`].
 #[derive(Debug, thiserror::Error)]
@@ -282,9 +404,8 @@ pub fn write_bgeo(
 }
 
 /// The header of a point file of `n` points with the point attributes `attrs` (name, type,
-/// components), see the module documentation (shared with the streamed writer of
-/// [`super::stream`]).
-pub(crate) fn frame_header(n_i32: i32, attrs: &[(&str, BgeoType, usize)]) -> Vec<u8> {
+/// components), see the module documentation (shared with the chunk encoder).
+fn frame_header(n_i32: i32, attrs: &[(&str, BgeoType, usize)]) -> Vec<u8> {
     let mut header = Vec::new();
     header.extend_from_slice(b"BgeoV");
     let counts = [5, n_i32, 0, 0, 0, attrs.len() as i32, 0, 0, 0];

@@ -23,8 +23,70 @@ use std::path::Path;
 
 use super::atomic::write_atomic_with;
 use super::limits::{DATA_MAX_BYTES, read_bounded};
+use crate::chunks::FrameColumns;
 use crate::fields::FrameFields;
+use crate::frame::{ChunkEncoder, ChunkRows, Derived, FrameBytes, FrameFormat, Records};
 use rtmpm_physics::Particles;
+
+/// PLY frames (`frame_NNNNN.ply`), the default: read by ParaView, Houdini, Blender and `rtmpm
+/// render`; written whole or in chunks.
+pub static FORMAT: FrameFormat = FrameFormat {
+    name: "ply",
+    extension: "ply",
+    about: "binary PLY point cloud (ParaView, Houdini, Blender, rtmpm render)",
+    bytes: FrameBytes {
+        base: 32,
+        jacobian: 4,
+        stress: 24,
+    },
+    write: |path, f| write_ply_with_comments(path, f.particles, &f.fields, f.comments),
+    pvd: false,
+    chunks: Some(&PlyChunks),
+};
+
+/// PLY records chunk by chunk: the header of [`write_ply_with_comments`], then per particle
+/// the same little-endian values.
+struct PlyChunks;
+
+impl ChunkEncoder for PlyChunks {
+    fn columns(&self, _derived: Derived) -> FrameColumns {
+        FrameColumns::default()
+    }
+
+    fn header(&self, n: usize, derived: Derived, comments: &[&str]) -> io::Result<Vec<u8>> {
+        if let Some(c) = comments.iter().find(|c| c.contains(['\n', '\r'])) {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!("PLY comment {c:?} spans several lines"),
+            ));
+        }
+        Ok(frame_header(n, comments, derived.jacobian, derived.stress).into_bytes())
+    }
+
+    fn record_bytes(&self, d: Derived) -> usize {
+        32 + 4 * (d.jacobian as usize + if d.stress { 6 } else { 0 })
+    }
+
+    fn encode(&self, r: &ChunkRows, first: usize, count: usize, out: &mut [u8]) -> io::Result<()> {
+        let mut o = Records(out);
+        for j in first..first + count {
+            for row in r.x.iter().chain(&r.v) {
+                o.put(row[j].to_le_bytes());
+            }
+            o.put((r.material[j] as i32).to_le_bytes());
+            o.put(r.plastic[j].to_le_bytes());
+            if let Some(jac) = r.jacobian {
+                o.put(jac[j].to_le_bytes());
+            }
+            if let Some(s) = r.stress {
+                for c in s[j] {
+                    o.put(c.to_le_bytes());
+                }
+            }
+        }
+        Ok(())
+    }
+}
 
 /// Errors of [`read_ply`].
 #[derive(Debug, thiserror::Error)]
@@ -171,8 +233,8 @@ pub fn write_ply_with_comments(
 }
 
 /// The header of a particle frame of `n` vertices (see [`write_ply_with_comments`]; shared with
-/// the streamed writer of [`super::stream`]).
-pub(crate) fn frame_header(n: usize, comments: &[&str], jacobian: bool, stress: bool) -> String {
+/// the chunk encoder).
+fn frame_header(n: usize, comments: &[&str], jacobian: bool, stress: bool) -> String {
     let mut header = String::new();
     header.push_str("ply\nformat binary_little_endian 1.0\n");
     header.push_str("comment rtmpm particles\n");

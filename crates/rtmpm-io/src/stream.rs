@@ -8,39 +8,45 @@
 //! `F`, `C`, `plastic` and `material`, with the same f32 arithmetic as the whole-frame writers.
 
 use super::atomic::AtomicFile;
-use super::bgeo::{BgeoType, symmetric_to_full};
 use super::chunks::{Column, FrameChunk, FrameColumns};
+use crate::frame::{ChunkEncoder, ChunkRows, FrameFormat};
 use rayon::prelude::*;
 use rtmpm_physics::material::Model;
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-/// A particle file format that can be written in chunks.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum StreamFormat {
-    /// Binary PLY with these extra `comment` lines (see [`super::ply`]).
-    Ply {
-        /// One-line comments of the header.
-        comments: Vec<String>,
-    },
-    /// Classic BGEO (see [`super::bgeo`]), gzip-compressed when `gzip`.
-    Bgeo {
-        /// `.bgeo.gz`.
-        gzip: bool,
-    },
-}
+pub use crate::frame::Derived;
 
-/// The optional derived fields of a frame (the `[output]` switches `jacobian` and `stress`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Derived {
-    /// `J = det F` per particle.
-    pub jacobian: bool,
-    /// Cauchy stress per particle.
-    pub stress: bool,
+/// A frame file format that can be written in chunks: a format of [`crate::FRAME_FORMATS`]
+/// with a chunk encoder, and the comment lines of its header (for formats that have some).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct StreamFormat {
+    /// The format.
+    pub format: &'static FrameFormat,
+    /// One-line comments of the header (PLY; ignored by formats without comments).
+    pub comments: Vec<String>,
 }
 
 impl StreamFormat {
+    /// `format` with the header comments `comments`; `None` when the format cannot be written
+    /// in chunks.
+    pub fn new(format: &'static FrameFormat, comments: Vec<String>) -> Option<StreamFormat> {
+        format
+            .streamable()
+            .then_some(StreamFormat { format, comments })
+    }
+
+    /// The encoder (an error for a format without one).
+    fn encoder(&self) -> io::Result<&'static dyn ChunkEncoder> {
+        self.format.chunks.ok_or_else(|| {
+            invalid(format!(
+                "the {} format cannot be written in chunks",
+                self.format.name
+            ))
+        })
+    }
+
     /// The columns this format needs (with `derived`).
     pub fn columns(&self, derived: Derived) -> FrameColumns {
         let mut c = FrameColumns {
@@ -49,9 +55,8 @@ impl StreamFormat {
             plastic: true,
             ..FrameColumns::default()
         };
-        if matches!(self, StreamFormat::Bgeo { .. }) {
-            c.mass = true;
-            c.vol0 = true;
+        if let Ok(e) = self.encoder() {
+            c = c.union(e.columns(derived));
         }
         if derived.jacobian || derived.stress {
             c.f = true;
@@ -151,7 +156,7 @@ impl Sink {
 pub struct StreamFile {
     guard: AtomicFile,
     sink: Sink,
-    format: StreamFormat,
+    encoder: &'static dyn ChunkEncoder,
     derived: Derived,
     n: usize,
     written: usize,
@@ -173,39 +178,23 @@ impl StreamFile {
         n: usize,
         derived: Derived,
     ) -> io::Result<StreamFile> {
-        let header = match &format {
-            StreamFormat::Ply { comments } => {
-                if let Some(c) = comments.iter().find(|c| c.contains(['\n', '\r'])) {
-                    return Err(invalid(format!("PLY comment {c:?} spans several lines")));
-                }
-                let comments: Vec<&str> = comments.iter().map(String::as_str).collect();
-                super::ply::frame_header(n, &comments, derived.jacobian, derived.stress)
-                    .into_bytes()
-            }
-            StreamFormat::Bgeo { .. } => {
-                let too_big = |what: &str| {
-                    invalid(format!(
-                        "{what} does not fit the BGEO format's 32-bit integers"
-                    ))
-                };
-                let n_i32 = i32::try_from(n).map_err(|_| too_big("the particle count"))?;
-                super::bgeo::frame_header(n_i32, &bgeo_attributes(derived))
-            }
-        };
+        let encoder = format.encoder()?;
+        let comments: Vec<&str> = format.comments.iter().map(String::as_str).collect();
+        let header = encoder.header(n, derived, &comments)?;
         let (guard, file) = AtomicFile::create(path)?;
         let w = BufWriter::with_capacity(1 << 20, file);
-        let mut sink = match format {
-            StreamFormat::Bgeo { gzip: true } => Sink::Gz(flate2::write::GzEncoder::new(
+        let mut sink = match encoder.gzip() {
+            true => Sink::Gz(flate2::write::GzEncoder::new(
                 w,
                 flate2::Compression::fast(),
             )),
-            _ => Sink::Plain(w),
+            false => Sink::Plain(w),
         };
         sink.writer().write_all(&header)?;
         Ok(StreamFile {
             guard,
             sink,
-            format,
+            encoder,
             derived,
             n,
             written: 0,
@@ -236,23 +225,56 @@ impl StreamFile {
                 self.n
             )));
         }
+        let rows = self.rows(chunk, fields)?;
+        let rec = self.encoder.record_bytes(self.derived);
+        // Encoded a block at a time into a buffer reused for the whole file (a few MB, not
+        // the chunk's size), in parallel, then written.
+        let block = BLOCK.min(chunk.len);
+        if self.encoded.len() < block * rec {
+            self.encoded.resize(block * rec, 0);
+        }
+        let encoder = self.encoder;
+        for lo in (0..chunk.len).step_by(BLOCK.max(1)) {
+            let hi = (lo + BLOCK).min(chunk.len);
+            let buf = &mut self.encoded[..(hi - lo) * rec];
+            buf.par_chunks_mut(rec * TASK)
+                .enumerate()
+                .try_for_each(|(t, out)| {
+                    encoder.encode(&rows, lo + t * TASK, out.len() / rec, out)
+                })?;
+            self.sink.writer().write_all(buf)?;
+            self.bytes += buf.len() as u64;
+        }
+        self.written += chunk.len;
+        Ok(())
+    }
+
+    /// The columns of `chunk` and its derived `fields` as the encoder reads them.
+    fn rows<'a>(
+        &self,
+        chunk: &'a FrameChunk,
+        fields: &'a ChunkFields,
+    ) -> io::Result<ChunkRows<'a>> {
         let cols = |c: Column| {
             chunk
                 .column(c)
                 .ok_or_else(|| invalid(format!("frame chunk without the column {c:?}")))
         };
-        let (x, v, plastic) = (cols(Column::X)?, cols(Column::V)?, cols(Column::Plastic)?);
+        let three = |c: Column| -> io::Result<[&'a [f32]; 3]> {
+            let r = cols(c)?;
+            Ok([r[0], r[1], r[2]])
+        };
         let mat_row = chunk
             .cols
             .row(Column::Material)
             .ok_or_else(|| invalid("frame chunk without materials".into()))?;
-        let mat = chunk.row(mat_row);
-        if let Some(m) = mat.iter().find(|&&m| m > i32::MAX as u32) {
+        let material = chunk.row(mat_row);
+        if let Some(m) = material.iter().find(|&&m| m > i32::MAX as u32) {
             return Err(invalid(format!(
                 "material index {m} does not fit the file's 32-bit int"
             )));
         }
-        let jac = match (self.derived.jacobian, &fields.jacobian) {
+        let jacobian = match (self.derived.jacobian, &fields.jacobian) {
             (false, _) => None,
             (true, Some(j)) if j.len() == chunk.len => Some(j.as_slice()),
             _ => return Err(invalid("J missing for the chunk".into())),
@@ -262,83 +284,21 @@ impl StreamFile {
             (true, Some(s)) if s.len() == chunk.len => Some(s.as_slice()),
             _ => return Err(invalid("stress missing for the chunk".into())),
         };
-        let rec = self.record_bytes();
-        let start = chunk.start;
-        let (mass, vol0) = match self.format {
-            StreamFormat::Bgeo { .. } => (cols(Column::Mass)?, cols(Column::Vol0)?),
-            StreamFormat::Ply { .. } => (vec![], vec![]),
+        let wants = self.encoder.columns(self.derived);
+        let optional = |on: bool, c: Column| -> io::Result<Option<&'a [f32]>> {
+            Ok(if on { Some(cols(c)?[0]) } else { None })
         };
-        // Encoded a block at a time into a buffer reused for the whole file (a few MB, not
-        // the chunk's size), in parallel, then written.
-        let block = BLOCK.min(chunk.len);
-        if self.encoded.len() < block * rec {
-            self.encoded.resize(block * rec, 0);
-        }
-        for lo in (0..chunk.len).step_by(BLOCK.max(1)) {
-            let hi = (lo + BLOCK).min(chunk.len);
-            let buf = &mut self.encoded[..(hi - lo) * rec];
-            let ply = matches!(self.format, StreamFormat::Ply { .. });
-            buf.par_chunks_mut(rec * TASK)
-                .enumerate()
-                .for_each(|(t, out)| {
-                    let first = lo + t * TASK;
-                    let count = out.len() / rec;
-                    let mut o = Cursor(out);
-                    for j in first..first + count {
-                        if ply {
-                            for row in x.iter().chain(&v) {
-                                o.put(row[j].to_le_bytes());
-                            }
-                            o.put((mat[j] as i32).to_le_bytes());
-                            o.put(plastic[0][j].to_le_bytes());
-                            if let Some(jac) = jac {
-                                o.put(jac[j].to_le_bytes());
-                            }
-                            if let Some(s) = stress {
-                                for c in s[j] {
-                                    o.put(c.to_le_bytes());
-                                }
-                            }
-                        } else {
-                            for row in &x {
-                                o.put(row[j].to_be_bytes());
-                            }
-                            o.put(1.0f32.to_be_bytes());
-                            for row in &v {
-                                o.put(row[j].to_be_bytes());
-                            }
-                            o.put(((start + j) as i32).to_be_bytes());
-                            o.put((mat[j] as i32).to_be_bytes());
-                            o.put(plastic[0][j].to_be_bytes());
-                            o.put(mass[0][j].to_be_bytes());
-                            o.put((0.5 * vol0[0][j].max(0.0).cbrt()).to_be_bytes());
-                            if let Some(jac) = jac {
-                                o.put(jac[j].to_be_bytes());
-                            }
-                            if let Some(s) = stress {
-                                for c in symmetric_to_full(s[j]) {
-                                    o.put(c.to_be_bytes());
-                                }
-                            }
-                        }
-                    }
-                });
-            self.sink.writer().write_all(buf)?;
-            self.bytes += buf.len() as u64;
-        }
-        self.written += chunk.len;
-        Ok(())
-    }
-
-    /// Bytes of one particle's record.
-    fn record_bytes(&self) -> usize {
-        let d = self.derived;
-        let extra = 4 * (d.jacobian as usize + if d.stress { 6 } else { 0 });
-        match self.format {
-            StreamFormat::Ply { .. } => 32 + extra,
-            // P (4), v (3), id, material, plastic, mass, pscale; the stress is a full 3x3.
-            StreamFormat::Bgeo { .. } => 48 + extra + if d.stress { 12 } else { 0 },
-        }
+        Ok(ChunkRows {
+            start: chunk.start,
+            x: three(Column::X)?,
+            v: three(Column::V)?,
+            material,
+            plastic: cols(Column::Plastic)?[0],
+            mass: optional(wants.mass, Column::Mass)?,
+            vol0: optional(wants.vol0, Column::Vol0)?,
+            jacobian,
+            stress,
+        })
     }
 
     /// Complete the file: every particle must have been written; syncs and renames it.
@@ -350,10 +310,9 @@ impl StreamFile {
                 self.written, self.n
             )));
         }
-        if matches!(self.format, StreamFormat::Bgeo { .. }) {
-            self.sink.writer().write_all(&[0x00, 0xff])?;
-            self.bytes += 2;
-        }
+        let trailer = self.encoder.trailer();
+        self.sink.writer().write_all(trailer)?;
+        self.bytes += trailer.len() as u64;
         let w = match self.sink {
             Sink::Plain(w) => w,
             Sink::Gz(g) => g.finish()?,
@@ -361,38 +320,6 @@ impl StreamFile {
         let file = w.into_inner().map_err(|e| e.into_error())?;
         self.guard.commit(file)?;
         Ok(self.bytes)
-    }
-}
-
-/// The point attributes of a BGEO frame after `P` (as [`super::bgeo::write_bgeo`] writes them).
-fn bgeo_attributes(d: Derived) -> Vec<(&'static str, BgeoType, usize)> {
-    let mut a = vec![
-        ("v", BgeoType::Vector, 3),
-        ("id", BgeoType::Int, 1),
-        ("material", BgeoType::Int, 1),
-        ("plastic", BgeoType::Float, 1),
-        ("mass", BgeoType::Float, 1),
-        ("pscale", BgeoType::Float, 1),
-    ];
-    if d.jacobian {
-        a.push(("J", BgeoType::Float, 1));
-    }
-    if d.stress {
-        a.push(("stress", BgeoType::Float, 9));
-    }
-    a
-}
-
-/// Appends bytes to a pre-sized slice.
-struct Cursor<'a>(&'a mut [u8]);
-
-impl Cursor<'_> {
-    /// One 32-bit value (a fixed size, so the copy is a single store).
-    #[inline(always)]
-    fn put(&mut self, b: [u8; 4]) {
-        let (head, tail) = std::mem::take(&mut self.0).split_at_mut(4);
-        head.copy_from_slice(&b);
-        self.0 = tail;
     }
 }
 

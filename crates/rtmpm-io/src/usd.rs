@@ -18,7 +18,8 @@ use std::path::Path;
 
 use super::atomic::write_atomic_with;
 use crate::fields::FrameFields;
-use glam::{Quat, Vec3};
+use crate::frame::{FrameBytes, FrameFormat};
+use glam::Vec3;
 use rtmpm_geometry::RigidShape;
 use rtmpm_geometry::surface::TriMesh;
 use rtmpm_physics::Particles;
@@ -70,15 +71,23 @@ fn header(w: &mut dyn Write, prim: &str) -> io::Result<()> {
 
 const VERTEX: &str = " (\n            interpolation = \"vertex\"\n        )";
 
-/// A rigid body of a frame file: its name (from the scene), shape (body frame) and pose.
-pub struct UsdBody<'a> {
-    pub name: &'a str,
-    pub shape: &'a RigidShape,
-    /// Centre of mass in the world (m).
-    pub position: Vec3,
-    /// Body to world.
-    pub rotation: Quat,
-}
+/// A rigid body of a frame file (see [`FrameBody`]).
+pub use crate::frame::FrameBody as UsdBody;
+
+/// USD frames (`frame_NNNNN.usda`): the particles and the scene's rigid bodies; whole frames.
+pub static FORMAT: FrameFormat = FrameFormat {
+    name: "usda",
+    extension: "usda",
+    about: "USD text: particles and rigid bodies (usdview, Houdini Solaris, Blender, Omniverse)",
+    bytes: FrameBytes {
+        base: 140,
+        jacobian: 14,
+        stress: 140,
+    },
+    write: |path, f| write_usda_frame(path, f.particles, &f.fields, f.bodies),
+    pvd: false,
+    chunks: None,
+};
 
 /// Write the particles as `/particles` (see the module documentation), atomically.
 pub fn write_usda_points(path: &Path, p: &Particles, fields: &FrameFields) -> io::Result<()> {
@@ -278,6 +287,7 @@ mod tests {
     use super::*;
     use crate::bgeo::tests::sample;
     use crate::testing::TestDir;
+    use glam::Quat;
 
     #[test]
     fn points_file_holds_every_value_as_text() {

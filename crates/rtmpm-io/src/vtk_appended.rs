@@ -23,7 +23,24 @@ use super::atomic::write_atomic_with;
 use super::bgeo::symmetric_to_full;
 use super::vtu::{VtuData, VtuError};
 use crate::fields::FrameFields;
+use crate::frame::{FrameBytes, FrameFormat};
 use rtmpm_physics::Particles;
+
+/// VTU frames (`frame_NNNNN.vtu`, listed in `frames.pvd`) for ParaView; whole frames.
+pub static FORMAT: FrameFormat = FrameFormat {
+    name: "vtu",
+    extension: "vtu",
+    about: "VTK XML UnstructuredGrid with a .pvd time series (ParaView)",
+    // Uncompressed appended arrays: an upper bound of the zlib-compressed default.
+    bytes: FrameBytes {
+        base: 57,
+        jacobian: 4,
+        stress: 36,
+    },
+    write: |path, f| write_particles_vtu(path, f.particles, &f.fields, f.compress),
+    pvd: true,
+    chunks: None,
+};
 
 /// Uncompressed bytes per compressed block (ParaView's default).
 const BLOCK: usize = 32 * 1024;

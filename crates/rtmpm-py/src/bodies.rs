@@ -3,7 +3,7 @@
 //! (`rtmpm.features`: `rigid` simulates `[[rigid_body]]` tables).
 
 use crate::errors::sim_error;
-use crate::simulation::Inner;
+use crate::state::Inner;
 use pyo3::exceptions::{PyIndexError, PyKeyError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;

@@ -1,6 +1,6 @@
 //! `Simulation.frames()`: an iterator that runs a frame per step.
 
-use crate::simulation::PySimulation;
+use crate::state::PySimulation;
 use pyo3::prelude::*;
 
 /// The iterator of :meth:`Simulation.frames`.

@@ -2,8 +2,9 @@
 //! the `rtmpm` package (`python/rtmpm/__init__.py`). Documentation: docs/python.md.
 //!
 //! * [`scene`]: `Scene` (file, TOML text or dict; rtmpm-scene's validation and messages).
-//! * [`simulation`]: `Simulation` (backend choice through rtmpm-backends, stepping with the
-//!   interpreter lock released and Ctrl-C checks, checkpoints, frames, rendering).
+//! * [`state`]: the state behind a `Simulation`; [`simulation`]: its methods (backend choice
+//!   through rtmpm-backends, stepping with the interpreter lock released and Ctrl-C checks,
+//!   checkpoints, frames, rendering).
 //! * [`particles`]: `Particles` (NumPy arrays in original order, setters).
 //! * [`device`]: `DeviceArray` (zero-copy DLPack / CUDA Array Interface views on the GPU).
 //! * [`errors`]: the exceptions.
@@ -20,6 +21,7 @@ mod picture;
 mod pool;
 mod scene;
 mod simulation;
+mod state;
 
 use pyo3::prelude::*;
 use std::path::PathBuf;
@@ -72,8 +74,11 @@ fn _rtmpm(m: &Bound<'_, PyModule>) -> PyResult<()> {
         "features",
         pyo3::types::PyTuple::new(py, bodies::features())?,
     )?;
+    // The frame formats of `Simulation.write_frame` and `[output] formats`.
+    let formats = rtmpm_io::FRAME_FORMATS.iter().map(|f| f.name);
+    m.add("frame_formats", pyo3::types::PyTuple::new(py, formats)?)?;
     m.add_class::<scene::PyScene>()?;
-    m.add_class::<simulation::PySimulation>()?;
+    m.add_class::<state::PySimulation>()?;
     m.add_class::<backend::BackendInfo>()?;
     m.add_class::<frames::FrameIter>()?;
     m.add_class::<particles::PyParticles>()?;

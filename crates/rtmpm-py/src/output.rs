@@ -2,34 +2,46 @@
 //! writers, and checkpoints (`Simulation.checkpoint`). Pictures are in `picture.rs`.
 
 use crate::errors::RtmpmError;
-use crate::simulation::Inner;
+use crate::state::Inner;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use rtmpm_driver::output::write_frame_files;
 use rtmpm_io::checkpoint::Checkpoint;
-use rtmpm_io::{FrameFields, ply, vtk_appended};
+use rtmpm_io::frame::Derived;
 use rtmpm_physics::Particles;
-use rtmpm_physics::material::cauchy_stress;
+use rtmpm_rigid::BodyPose;
 use rtmpm_scene::Scene;
 use rtmpm_sim::Backend;
 use std::path::Path;
 
-/// Write one frame file; see `Simulation.write_frame`.
+/// Write one frame file in any format of the registry ([`rtmpm_io::FRAME_FORMATS`]), the
+/// rigid bodies at their poses `bodies`, through the driver's frame writer (as `rtmpm run`);
+/// see `Simulation.write_frame`.
 pub fn write_frame(
     py: Python<'_>,
     path: &Path,
     format: Option<&str>,
     fields: Option<Vec<String>>,
     p: &Particles,
+    bodies: &[BodyPose],
     scene: &Scene,
 ) -> PyResult<()> {
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
-    let format = format.unwrap_or(ext).to_ascii_lowercase();
-    if format != "ply" && format != "vtu" {
+    let file_name = path.file_name().and_then(|e| e.to_str()).unwrap_or("");
+    let found = match format {
+        Some(name) => rtmpm_io::frame_format(&name.to_ascii_lowercase()),
+        None => rtmpm_io::frame_format_of(&file_name.to_ascii_lowercase()),
+    };
+    let Some(format) = found else {
+        let what = match format {
+            Some(name) => format!("unknown frame format {name:?}"),
+            None => format!("no frame format has the extension of {file_name:?}"),
+        };
         return Err(PyValueError::new_err(format!(
-            "unknown frame format {format:?} for {}: use format=\"ply\" or \"vtu\" (or a .ply / .vtu file name)",
-            path.display()
+            "{what} for {}: use format= any of {} (or a file name with its extension)",
+            path.display(),
+            rtmpm_io::frame_format_names()
         )));
-    }
+    };
     let (mut stress, mut jacobian) = (scene.output.stress, scene.output.jacobian);
     if let Some(f) = fields {
         (stress, jacobian) = (false, false);
@@ -45,21 +57,10 @@ pub fn write_frame(
             }
         }
     }
-    py.detach(|| {
-        let stress = stress.then(|| cauchy_stress(p, &scene.materials));
-        let jacobian = jacobian.then(|| p.f.iter().map(|f| f.determinant()).collect::<Vec<f32>>());
-        let fields = FrameFields {
-            stress: stress.as_deref(),
-            jacobian: jacobian.as_deref(),
-        };
-        if format == "ply" {
-            ply::write_ply(path, p, &fields)
-        } else {
-            // The CLI's VTU: compressed appended arrays, 3x3 stress tensors.
-            vtk_appended::write_particles_vtu(path, p, &fields, scene.output.compress)
-        }
-    })
-    .map_err(|e| RtmpmError::new_err(format!("writing {}: {e}", path.display())))
+    let derived = Derived { stress, jacobian };
+    let files = [(path.to_path_buf(), format)];
+    py.detach(|| write_frame_files(&files, p, bodies, scene, derived, &[]))
+        .map_err(|e| RtmpmError::new_err(format!("{e:#}")))
 }
 
 /// Write a checkpoint of `inner`'s simulation to `path` (atomic): the scene, time, step,

@@ -4,7 +4,7 @@
 
 use crate::device::{DeviceArray, Elem};
 use crate::errors::{backend_error, sim_error};
-use crate::simulation::{Inner, PySimulation};
+use crate::state::{Inner, PySimulation};
 use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;

@@ -4,7 +4,7 @@
 //! renderer of the same request). Both take the same arguments and make the same picture.
 
 use crate::errors::RtmpmError;
-use crate::simulation::Inner;
+use crate::state::Inner;
 use numpy::PyArray3;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;

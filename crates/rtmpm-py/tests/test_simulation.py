@@ -353,6 +353,33 @@ def test_write_frame_ply_and_vtu(tmp_path, jelly_path):
         sim.write_frame(tmp_path / "f.txt")
 
 
+# The first bytes of a frame file of each format.
+MAGIC = {
+    "ply": b"ply\nformat binary_little_endian",
+    "bgeo": b"BgeoV",
+    "bgeo.gz": b"\x1f\x8b",
+    "usda": b"#usda 1.0",
+    "vtu": b"<?xml",
+}
+
+
+def test_write_frame_writes_every_format(tmp_path, jelly_path):
+    # Every format a scene can name in [output] formats, by name and by file extension.
+    assert set(rtmpm.frame_formats) == set(MAGIC)
+    sim = rtmpm.Simulation(jelly_path, backend="cpu")
+    sim.run_frame()
+    for name in rtmpm.frame_formats:
+        by_ext = tmp_path / f"a.{name}"
+        by_name = tmp_path / f"b_{name.replace('.', '_')}.bin"
+        sim.write_frame(by_ext, fields=["J"])
+        sim.write_frame(by_name, format=name.upper(), fields=["J"])
+        data = by_ext.read_bytes()
+        assert data.startswith(MAGIC[name]), name
+        assert data == by_name.read_bytes(), name
+    with pytest.raises(ValueError, match="unknown frame format"):
+        sim.write_frame(tmp_path / "c.ply", format="obj")
+
+
 def test_render_returns_an_rgb_image(small_path):
     sim = rtmpm.Simulation(small_path, backend="cpu")
     img = sim.render(size=(160, 90))

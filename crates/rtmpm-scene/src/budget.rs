@@ -109,22 +109,12 @@ impl std::fmt::Display for BudgetIssue {
     }
 }
 
-/// Bytes per particle of one frame, summed over the formats written: PLY 32 B (+ J 4 B, stress
-/// 24 B); VTU (appended arrays, uncompressed: an upper bound of the zlib-compressed default)
-/// 57 B (+ J 4 B, 3x3 stress 36 B); BGEO (`.bgeo` and `.bgeo.gz` alike) 48 B (+ 4 B, 36 B); USD
-/// text about 140 B (+ 14 B, 140 B). Surface meshes are not counted (their size depends on the
+/// Bytes per particle of one frame, summed over the formats written (each format's
+/// [`rtmpm_io::frame::FrameBytes`]). Surface meshes are not counted (their size depends on the
 /// flow).
 fn frame_bytes_per_particle(scene: &Scene) -> u64 {
     let o = &scene.output;
-    let (j, stress) = (o.jacobian as u64, o.stress as u64);
-    let ply = 32 + 4 * j + 24 * stress;
-    let vtu = 57 + 4 * j + 36 * stress;
-    let bgeo = 48 + 4 * j + 36 * stress;
-    let usda = 140 + 14 * j + 140 * stress;
-    o.ply as u64 * ply
-        + o.vtu as u64 * vtu
-        + (o.bgeo as u64 + o.bgeo_gz as u64) * bgeo
-        + o.usda as u64 * usda
+    o.formats.iter().map(|f| f.bytes.with(o.derived())).sum()
 }
 
 impl Budget {

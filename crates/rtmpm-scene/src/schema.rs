@@ -299,17 +299,6 @@ impl RawCollider {
 
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
 #[serde(rename_all = "snake_case")]
-pub enum RawFormat {
-    Ply,
-    Vtu,
-    Bgeo,
-    #[serde(rename = "bgeo.gz")]
-    BgeoGz,
-    Usda,
-}
-
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
 pub enum RawMeshFormat {
     Obj,
     Ply,
@@ -329,7 +318,8 @@ pub enum RawField {
 #[serde(deny_unknown_fields)]
 pub struct RawOutput {
     pub dir: Option<String>,
-    pub formats: Option<Vec<RawFormat>>,
+    /// Names of frame formats ([`rtmpm_io::FRAME_FORMATS`]).
+    pub formats: Option<Vec<String>>,
     pub fields: Option<Vec<RawField>>,
     pub surface: Option<Vec<RawMeshFormat>>,
     pub compress: Option<bool>,

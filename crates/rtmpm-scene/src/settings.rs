@@ -1,5 +1,6 @@
 //! The settings of a scene: time stepping, output, surfaces, precision and particle state.
 
+use rtmpm_io::frame::{Derived, FrameFormat};
 use rtmpm_physics::math::Vec3;
 use std::path::PathBuf;
 
@@ -68,14 +69,9 @@ impl TimeSettings {
 pub struct OutputSettings {
     /// Output folder (relative paths are relative to the working directory).
     pub dir: PathBuf,
-    pub ply: bool,
-    pub vtu: bool,
-    /// Houdini's classic `.bgeo` per frame.
-    pub bgeo: bool,
-    /// The same, gzip-compressed (`.bgeo.gz`).
-    pub bgeo_gz: bool,
-    /// USD text (`.usda`) per frame.
-    pub usda: bool,
+    /// The particle frame files written per frame, in the order of
+    /// [`rtmpm_io::FRAME_FORMATS`] (`[output] formats`); empty: none.
+    pub formats: Vec<&'static FrameFormat>,
     /// Also write the Cauchy stress per particle.
     pub stress: bool,
     /// Also write the volume ratio J per particle.
@@ -86,6 +82,21 @@ pub struct OutputSettings {
     pub surface_formats: MeshFormats,
     /// How surfaces are reconstructed (`[surface]`).
     pub surface: SurfaceSettings,
+}
+
+impl OutputSettings {
+    /// True when frames are written in the format named `name`.
+    pub fn writes(&self, name: &str) -> bool {
+        self.formats.iter().any(|f| f.name == name)
+    }
+
+    /// The derived fields the frames hold.
+    pub fn derived(&self) -> Derived {
+        Derived {
+            jacobian: self.jacobian,
+            stress: self.stress,
+        }
+    }
 }
 
 /// Which surface mesh files are written per frame.

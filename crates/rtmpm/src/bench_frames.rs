@@ -11,15 +11,21 @@ use rtmpm_sim::{Backend, ChunkSink, SimError};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// The formats of `--frame-formats`: `ply`, `bgeo`, `bgeo.gz`, comma separated.
+/// The formats of `--frame-formats`, comma separated: frame formats that can be streamed
+/// (`ply`, `bgeo`, `bgeo.gz`).
 pub fn parse_formats(list: &str) -> Result<Vec<(String, StreamFormat)>> {
     let mut out = Vec::new();
     for f in list.split(',').map(str::trim).filter(|f| !f.is_empty()) {
-        let fmt = match f {
-            "ply" => StreamFormat::Ply { comments: vec![] },
-            "bgeo" => StreamFormat::Bgeo { gzip: false },
-            "bgeo.gz" => StreamFormat::Bgeo { gzip: true },
-            other => bail!("unknown frame format `{other}`: use ply, bgeo, bgeo.gz"),
+        let streamable = || {
+            let names: Vec<&str> = rtmpm_io::FRAME_FORMATS
+                .iter()
+                .filter(|f| f.streamable())
+                .map(|f| f.name)
+                .collect();
+            names.join(", ")
+        };
+        let Some(fmt) = rtmpm_io::frame_format(f).and_then(|f| StreamFormat::new(f, vec![])) else {
+            bail!("unknown frame format `{f}`: use {}", streamable())
         };
         out.push((f.to_string(), fmt));
     }
@@ -107,7 +113,7 @@ pub fn frame_write_bench(
     let files = |frame: u64| -> Vec<(PathBuf, StreamFormat)> {
         formats
             .iter()
-            .map(|(ext, f)| (dir.join(format!("frame_{frame:05}.{ext}")), f.clone()))
+            .map(|(_, f)| (dir.join(f.format.file_name(frame)), f.clone()))
             .collect()
     };
     let settings = |in_flight| StreamSettings {
@@ -139,13 +145,16 @@ pub fn frame_write_bench(
         backend.read_particles(&mut p)?;
         let read = t.elapsed().as_secs_f64();
         let t = Instant::now();
-        for (ext, f) in &formats {
-            let path = dir.join(format!("whole_00000.{ext}"));
-            let none = rtmpm_io::FrameFields::default();
-            match f {
-                StreamFormat::Ply { .. } => rtmpm_io::ply::write_ply(&path, &p, &none)?,
-                StreamFormat::Bgeo { gzip } => rtmpm_io::bgeo::write_bgeo(&path, &p, &none, *gzip)?,
-            }
+        let frame = rtmpm_io::frame::Frame {
+            particles: &p,
+            fields: rtmpm_io::FrameFields::default(),
+            comments: &[],
+            bodies: &[],
+            compress: true,
+        };
+        for (_, f) in &formats {
+            let path = dir.join(format!("whole_00000.{}", f.format.extension));
+            (f.format.write)(&path, &frame)?;
             let _ = std::fs::remove_file(&path);
         }
         let write = t.elapsed().as_secs_f64();

@@ -29,6 +29,7 @@ from ._rtmpm import (
     __version__,
     cuda_available,
     features,
+    frame_formats,
     read_ply,
 )
 
@@ -46,5 +47,6 @@ __all__ = [
     "__version__",
     "cuda_available",
     "features",
+    "frame_formats",
     "read_ply",
 ]

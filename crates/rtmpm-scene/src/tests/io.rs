@@ -45,7 +45,11 @@ fn output_formats_and_surface_defaults() {
     );
     let s = parse_in(&d.0, &text).unwrap();
     let o = &s.output;
-    assert!(o.bgeo && o.bgeo_gz && o.vtu && !o.ply && !o.compress);
+    assert!(o.writes("bgeo") && o.writes("bgeo.gz") && o.writes("vtu"));
+    assert!(!o.writes("ply") && !o.compress);
+    // In the registry's order, whatever the order given.
+    let names: Vec<&str> = o.formats.iter().map(|f| f.name).collect();
+    assert_eq!(names, ["bgeo", "bgeo.gz", "vtu"]);
     assert_eq!(
         o.surface_formats,
         MeshFormats {
@@ -60,7 +64,24 @@ fn output_formats_and_surface_defaults() {
     assert_eq!(o.surface.smoothing_length, 2.0);
     // Defaults: PLY only, compressed VTU, no surfaces.
     let s = parse_in(&d.0, &format!("{SCENE}{}", box_body("jelly"))).unwrap();
-    assert!(s.output.ply && !s.output.bgeo && s.output.compress);
+    assert!(s.output.writes("ply") && !s.output.writes("bgeo") && s.output.compress);
+    assert_eq!(s.output.formats.len(), 1);
+    // An unknown format: the field, the name and the formats there are.
+    let e = parse_in(
+        &d.0,
+        &format!(
+            "{SCENE}{}[output]\nformats = [\"ply\", \"xyz\"]\n",
+            box_body("jelly")
+        ),
+    )
+    .unwrap_err();
+    assert_eq!(e.field.as_deref(), Some("output.formats"), "{e}");
+    assert!(e.message.contains("\"xyz\""), "{e}");
+    let hint = e.hint.clone().unwrap_or_default();
+    assert!(
+        hint.contains("\"usda\"") && hint.contains("\"bgeo.gz\""),
+        "{e}"
+    );
     assert!(!s.output.surface_formats.any());
 }
 

@@ -110,7 +110,7 @@ fn defaults() {
     assert_eq!(s.walls.thickness, 3);
     assert_eq!(s.walls.faces[0].condition, Condition::Separate);
     assert_eq!(s.output.dir, PathBuf::from("out/t"));
-    assert!(s.output.ply && !s.output.vtu);
+    assert!(s.output.writes("ply") && !s.output.writes("vtu"));
     assert_eq!(s.bodies[0].particles_per_cell, 8);
     assert_eq!(s.bodies[0].sampling, Sampling::Jittered);
     assert_eq!(s.n_cells(), [16, 16, 16]);

@@ -5,6 +5,7 @@ use super::core::{R, V};
 use crate::schema::*;
 use crate::settings::{MeshFormats, OutputSettings, SurfaceSettings};
 use rtmpm_geometry::BodyShape;
+use rtmpm_io::frame::FrameFormat;
 use rtmpm_io::points::read_points;
 use rtmpm_physics::material::{Material, Model};
 use rtmpm_physics::math::Vec3;
@@ -35,9 +36,10 @@ impl V<'_> {
                 "give a folder below the current one (e.g. \"out/my_run\") or an absolute path without `..`",
             ));
         }
-        let formats = out
+        let names = out
             .and_then(|o| o.formats.clone())
-            .unwrap_or_else(|| vec![RawFormat::Ply]);
+            .unwrap_or_else(|| vec!["ply".to_string()]);
+        let formats = self.frame_formats(&names)?;
         let fields = out.and_then(|o| o.fields.clone()).unwrap_or_default();
         let mesh = out.and_then(|o| o.surface.clone()).unwrap_or_default();
         let surface_formats = MeshFormats {
@@ -56,17 +58,29 @@ impl V<'_> {
         }
         Ok(OutputSettings {
             dir,
-            ply: formats.contains(&RawFormat::Ply),
-            vtu: formats.contains(&RawFormat::Vtu),
-            bgeo: formats.contains(&RawFormat::Bgeo),
-            bgeo_gz: formats.contains(&RawFormat::BgeoGz),
-            usda: formats.contains(&RawFormat::Usda),
+            formats,
             stress: fields.contains(&RawField::Stress),
             jacobian: fields.contains(&RawField::J),
             compress: out.and_then(|o| o.compress).unwrap_or(true),
             surface_formats,
             surface,
         })
+    }
+
+    /// The frame formats `names` (`[output] formats`), in the registry's order.
+    fn frame_formats(&self, names: &[String]) -> R<Vec<&'static FrameFormat>> {
+        if let Some(bad) = names.iter().find(|n| rtmpm_io::frame_format(n).is_none()) {
+            return Err(self.err(
+                "output.formats",
+                format!("unknown frame format {bad:?}"),
+                format!("use any of {}", rtmpm_io::frame_format_names()),
+            ));
+        }
+        Ok(rtmpm_io::FRAME_FORMATS
+            .iter()
+            .copied()
+            .filter(|f| names.iter().any(|n| n == f.name))
+            .collect())
     }
 
     fn surface(&self, s: Option<&RawSurface>, materials: &[Material]) -> R<SurfaceSettings> {
