@@ -38,7 +38,7 @@ enum Command {
     /// Run the validation cases against published results and print a table.
     Validate(validate::ValidateArgs),
     /// Render the PLY frames of a run to PNG images, movie.gif and (with ffmpeg) movie.mp4.
-    Render(render::RenderArgs),
+    Render(render::cmd::RenderArgs),
     /// Reconstruct a fluid surface mesh per PLY frame of a run (OBJ, PLY, VTU).
     Mesh(mesh::MeshArgs),
     /// Benchmark: the classic MLS-MPM fluid block, particle-steps per second.
@@ -60,7 +60,7 @@ fn main() -> ExitCode {
         Command::Info => info::info(),
         Command::Check { scene } => check::check(&scene),
         Command::Bench(args) => bench::bench(args),
-        Command::Render(args) => render::render_cmd(args),
+        Command::Render(args) => render::cmd::render_cmd(args),
         Command::Mesh(args) => mesh::mesh_cmd(args),
         Command::Validate(args) => validate::validate(args),
         Command::View(args) => view::view(*args),

@@ -80,7 +80,7 @@ pub fn mesh_cmd(args: MeshArgs) -> Result<()> {
     }
     // Meshes are written into the folder: not while a run writes into it.
     let _lock = rtmpm_driver::outdir::OutDir::lock(dir, "rtmpm mesh")?;
-    let frames = crate::render::ply_frames(dir)?;
+    let frames = crate::render::cmd::ply_frames(dir)?;
     if frames.is_empty() {
         bail!(
             "no frame_NNNNN.ply files in {} (run a scene with PLY output first)",

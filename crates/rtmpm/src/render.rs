@@ -7,14 +7,14 @@ use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use rtmpm_geometry::Collider;
 use rtmpm_geometry::sdf::Shape;
-use rtmpm_geometry::surface::{SurfaceParams, TriMesh};
-use rtmpm_io::ply::{PlyData, read_ply};
+use rtmpm_geometry::surface::TriMesh;
+use rtmpm_io::ply::read_ply;
 use rtmpm_physics::Particles;
 use rtmpm_physics::math::Vec3;
 use rtmpm_render::{
-    Camera, GifMovie, RenderInput, RenderOptions, colormap, estimate_radius, render, von_mises,
+    Camera, GifMovie, RenderInput, RenderOptions, colormap, estimate_radius, render,
 };
-use rtmpm_scene::{ColorBy, Scene, SurfaceSettings};
+use rtmpm_scene::{ColorBy, Scene};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{SyncSender, sync_channel};
 use std::thread::JoinHandle;
@@ -154,10 +154,9 @@ fn resolve(
     Ok(opts)
 }
 
-mod cmd;
+pub mod cmd;
 mod frame;
 
-pub use cmd::{RenderArgs, ply_frames, render_cmd};
 use frame::read_bodies_csv;
 pub use frame::{FrameJob, SurfaceJob};
 

@@ -1,7 +1,14 @@
 //! The particles of one frame as the render thread receives them: from memory or from a PLY
 //! frame, with the surface materials taken out of the splats.
 
-use super::*;
+use anyhow::{Context, Result, anyhow, bail};
+use rtmpm_geometry::surface::{SurfaceParams, TriMesh};
+use rtmpm_io::ply::PlyData;
+use rtmpm_physics::Particles;
+use rtmpm_physics::math::Vec3;
+use rtmpm_render::von_mises;
+use rtmpm_scene::{ColorBy, Scene, SurfaceSettings};
+use std::path::Path;
 
 /// The surface of a frame: none, ready, or to be reconstructed on the render thread from
 /// these positions.

@@ -1,7 +1,7 @@
 //! Case 1: axial vibration of a continuous elastic bar (exact, Bardenhagen 2002).
 
-use super::measure::{Curve, period_and_amplitude};
-use super::{Ctx, Row, observed_order, rel_pct};
+use super::case::{Ctx, Row};
+use super::measure::{Curve, observed_order, period_and_amplitude, rel_pct};
 use anyhow::Result;
 use rtmpm_geometry::BodyShape;
 use rtmpm_physics::math::Vec3;
@@ -61,9 +61,9 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
     run_with(ctx, "vibrating_bar", None)
 }
 
-/// The same bar with uGIMP ([`super::GIMP`]).
+/// The same bar with uGIMP ([`super::case::GIMP`]).
 pub fn run_gimp(ctx: &Ctx) -> Result<Vec<Row>> {
-    run_with(ctx, "vibrating_bar_gimp", Some(super::GIMP))
+    run_with(ctx, "vibrating_bar_gimp", Some(super::case::GIMP))
 }
 
 fn run_with(ctx: &Ctx, case: &str, solver: Option<SolverSettings>) -> Result<Vec<Row>> {

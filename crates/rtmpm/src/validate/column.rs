@@ -4,7 +4,7 @@
 //! yield surface (`Nacc::uniaxial_strength`; for a Mohr-Coulomb soil `q_u = 2 c tan(45 + phi/2)`,
 //! half the Rankine/Terzaghi height of a vertical cut, REFERENCES.md case 9): `H_c = q_u / (rho g)`.
 
-use super::{Ctx, Row};
+use super::case::{Ctx, Row};
 use anyhow::{Context, Result, bail, ensure};
 use rtmpm_geometry::BodyShape;
 use rtmpm_physics::material::Model;

@@ -1,6 +1,6 @@
 //! Case 3: dam break against Martin & Moyce 1952 (experiment): surge front Z(T).
 
-use super::{Ctx, Row};
+use super::case::{Ctx, Row};
 use anyhow::Result;
 use rtmpm_render::plot::{Plot, Series, Style};
 

@@ -1,6 +1,7 @@
 //! Case 6: granular column collapse against Lube 2005 / Lajeunesse 2005 runout scaling.
 
-use super::{Ctx, Row, rel_pct};
+use super::case::{Ctx, Row};
+use super::measure::rel_pct;
 use anyhow::{Result, ensure};
 use rtmpm_physics::math::Vec3;
 use rtmpm_render::plot::{Plot, Series, Style};

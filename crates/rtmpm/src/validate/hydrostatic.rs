@@ -1,7 +1,7 @@
 //! Case 2: hydrostatic column (exact): sigma_yy = -rho g d; cb-geo's explicit MPM for comparison.
 
-use super::measure::{Curve, fit_line};
-use super::{Ctx, Row, observed_order, rel_pct};
+use super::case::{Ctx, Row};
+use super::measure::{Curve, fit_line, observed_order, rel_pct};
 use anyhow::Result;
 use rtmpm_geometry::BodyShape;
 use rtmpm_physics::math::Vec3;
@@ -84,9 +84,9 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
     run_with(ctx, "hydrostatic_column", None)
 }
 
-/// The same column with uGIMP ([`super::GIMP`]).
+/// The same column with uGIMP ([`super::case::GIMP`]).
 pub fn run_gimp(ctx: &Ctx) -> Result<Vec<Row>> {
-    run_with(ctx, "hydrostatic_column_gimp", Some(super::GIMP))
+    run_with(ctx, "hydrostatic_column_gimp", Some(super::case::GIMP))
 }
 
 fn run_with(ctx: &Ctx, case: &str, solver: Option<SolverSettings>) -> Result<Vec<Row>> {

@@ -47,6 +47,19 @@ pub fn fit_line(x: &[f64], y: &[f64]) -> (f64, f64) {
     ((sy - b * sx) / n, b)
 }
 
+/// Observed order of convergence from errors at resolutions refined by `ratio` each time.
+pub fn observed_order(errors: &[f64], ratio: f64) -> Vec<f64> {
+    errors
+        .windows(2)
+        .map(|w| (w[0] / w[1]).ln() / ratio.ln())
+        .collect()
+}
+
+/// Relative error in percent.
+pub fn rel_pct(simulated: f64, reference: f64) -> f64 {
+    100.0 * (simulated - reference).abs() / reference.abs()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -5,7 +5,8 @@
 //! `emitters.rs`), the full run at half the grid spacing (archimedes at a quarter, for twice the
 //! time). The measurements are `rtmpm_driver::checks`, shared with those tests.
 
-use super::{Ctx, Row, rel_pct};
+use super::case::{Ctx, Row};
+use super::measure::rel_pct;
 use anyhow::{Result, anyhow};
 use rtmpm_driver::checks;
 use rtmpm_render::plot::{Plot, Series, Style};

@@ -7,7 +7,8 @@
 //! plotted). The analysis is quasi-static (the cylinder lifted slowly): the release is damped
 //! (settling damping, `validation/slump.toml`), else inertia adds slump.
 
-use super::{Ctx, Row, rel_pct};
+use super::case::{Ctx, Row};
+use super::measure::rel_pct;
 use anyhow::{Context, Result, ensure};
 use rtmpm_physics::material::{Material, MaterialParams};
 use rtmpm_physics::math::Vec3;
