@@ -184,8 +184,10 @@ fn the_gpu_picture_is_the_cpu_renderers() {
                 field: None,
                 surface: None,
             },
+            // Material colours: an empty frame has no field to colour by.
             &RenderOptions {
                 colliders: Vec::new(),
+                color_by: ColorBy::Material,
                 ..opts.clone()
             },
         )
