@@ -18,6 +18,9 @@
 #   ablation     the switches of the seed principles on the claymore scenes (--cuda-options)
 #   variants     A/B of compile-time defines: VARIANTS="label|binary|defines[|options] ..." (several
 #                defines in one entry separated by commas), interleaved REPS times (default 1)
+#   sanitize     compute-sanitizer (memcheck, then racecheck and synccheck) on short runs of the fused step: the
+#                elastic cubes example (general G2P2G) and a fluid block n = 64 (fluid G2P2G), 20 steps each, with
+#                RTMPM_KERNEL_DEFINES as set by the caller (SANITIZE_TOOLS to choose the tools)
 #   profile      Nsight Compute on the fused G2P2G kernel (one launch after 5): PROFILE_RUNS="label|binary|
 #                defines|scene ..." (default: the fluid dam 2M); the bound (issue, stalls, L1/L2, atomics)
 #   multi        several GPUs: agreement tests in every mode, 2 NCCL processes, scaling
@@ -169,6 +172,17 @@ for suite in "$@"; do
         say "ncu $label ($bin $defines, $sc) rc=$?"
         grep -E "^  g2p2g|Duration|Compute \(SM\) Throughput|Memory Throughput|DRAM Throughput|L1/TEX Hit|L2 Hit|Issue Slots Busy|Issued Ipc Active|Executed Instructions  |Registers Per|Achieved Occupancy|Theoretical Occupancy|No Eligible|Warp Cycles Per Issued|SM Frequency|L1/TEX Cache Throughput|L2 Cache Throughput|issue_stalled|op_red|inst_executed.sum|mem_shared.sum|ERROR" \
           "$OUT/ncu-$label.txt" | sed -E 's/ +/ /g' | awk '$NF != "0" && $NF != "0.00"' | tee -a "$S"
+      done
+      ;;
+    sanitize)
+      cs=$(command -v compute-sanitizer || ls /usr/local/cuda/bin/compute-sanitizer 2>/dev/null | head -1)
+      for tool in ${SANITIZE_TOOLS:-memcheck racecheck synccheck}; do
+        for a in "--scene scenes/elastic_cubes.toml --steps 20" "--n 64 --steps 20"; do
+          timeout 300 "$cs" --tool "$tool" --error-exitcode 9 "$D/rtmpm" bench --backend cuda $a \
+            > "$OUT/sanitize-$tool-$(echo "$a" | tr -c 'a-z0-9' _).log" 2>&1
+          rc=$?
+          say "compute-sanitizer $tool rtmpm bench $a rc=$rc: $(grep -hE 'ERROR SUMMARY|RACECHECK SUMMARY' "$OUT"/sanitize-$tool-$(echo "$a" | tr -c 'a-z0-9' _).log | tail -1)"
+        done
       done
       ;;
     multi)

@@ -2,7 +2,9 @@
 //! with `ptxas -v` (scripts/kernel_report.sh).
 //!
 //! `cargo run -p rtmpm-cuda --example ptx -- [f64] [no_fast_math] [sm_90] [materials=0xMASK]
-//! [layout=N]` (N: the state layout's code, `StateLayout::code`: 1 is the 20-word fluid layout)
+//! [layout=N] [lineinfo]` (N: the state layout's code, `StateLayout::code`: 1 is the 20-word fluid
+//! layout; `lineinfo`: NVRTC's `--generate-line-info`, so that `nvdisasm -g` names the source line
+//! of every SASS instruction; not cached, the same code otherwise)
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -32,11 +34,37 @@ fn main() {
     {
         o.layout = l;
     }
-    match rtmpm_cuda::compile::compile(&o) {
+    let ptx = if args.iter().any(|a| a == "lineinfo") {
+        with_line_info(&o)
+    } else {
+        rtmpm_cuda::compile::compile(&o)
+    };
+    match ptx {
         Ok(ptx) => print!("{ptx}"),
         Err(e) => {
             eprintln!("{e}");
             std::process::exit(1);
         }
+    }
+}
+
+/// The program's PTX with `.loc` line information (the backend's options plus
+/// `--generate-line-info`, which changes no instruction).
+fn with_line_info(o: &rtmpm_cuda::compile::KernelOptions) -> Result<String, String> {
+    use rtmpm_cuda::compile;
+    if !compile::nvrtc_available() {
+        return Err("libnvrtc.so.13 not found (RTMPM_NVRTC_LIB)".into());
+    }
+    let mut options = compile::nvrtc_options(o);
+    options.push("--generate-line-info".into());
+    let src = compile::program_source(o.f64)?;
+    let opts = cudarc::nvrtc::CompileOptions {
+        options,
+        name: Some("rtmpm_pipeline.cu".into()),
+        ..Default::default()
+    };
+    match cudarc::nvrtc::compile_ptx_with_opts(src, opts) {
+        Ok(p) => Ok(p.to_src()),
+        Err(e) => Err(format!("NVRTC: {e:?}")),
     }
 }

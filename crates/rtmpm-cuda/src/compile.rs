@@ -380,24 +380,52 @@ mod tests {
         });
     }
 
-    /// The unrolled rounds of the warp reduction (`-DRTMPM_P2G_REDUCE=1`, off by default, see
-    /// `kernels/p2g/warp.cuh`) compile in f32 and f64 with every kernel, so that turning them on
-    /// is a one-line change.
+    /// The compile-time variants of the fused step (`kernels/p2g/warp.cuh`,
+    /// `kernels/g2p/particle.cuh`; all off by default, which the test above compiles) compile in
+    /// f32 and f64 with every kernel, alone and together, so that turning one on is a one-line
+    /// change. Front end only (`--Ofast-compile=max`), on every core at once.
     #[test]
-    fn the_unrolled_reduction_rounds_compile() {
+    fn the_compile_time_kernel_variants_compile() {
         if !nvrtc_or_skip() {
             return;
         }
-        for f64 in [false, true] {
-            let o = KernelOptions::all_models((9, 0), true, f64);
-            let mut opts = nvrtc_options(&o);
-            opts.push("-DRTMPM_P2G_REDUCE=1".into());
-            opts.push("--Ofast-compile=max".into());
-            let ptx = program_source(f64)
-                .and_then(|src| nvrtc(&src, "rtmpm_pipeline.cu", opts))
-                .unwrap_or_else(|e| panic!("f64 {f64}: {e}"));
-            assert_every_kernel(&ptx, &format!("f64 {f64}"));
-        }
+        let variants: &[&[&str]] = &[
+            &["-DRTMPM_P2G_REDUCE=1"],
+            &["-DRTMPM_P2G_REDUCE=4"],
+            &["-DRTMPM_G2P_GATHER=1"],
+            &["-DRTMPM_P2G_NODES=1"],
+            &["-DRTMPM_P2G_ROUNDS_MAX=3"],
+            &["-DRTMPM_P2G_REDUCE=4", "-DRTMPM_P2G_ROUNDS_MAX=3"],
+            &["-DRTMPM_P2G_UNROLL=1"],
+            &[
+                "-DRTMPM_P2G_REDUCE=1",
+                "-DRTMPM_G2P_GATHER=1",
+                "-DRTMPM_P2G_NODES=1",
+            ],
+        ];
+        let jobs: Vec<(bool, &[&str])> = [false, true]
+            .into_iter()
+            .flat_map(|f64| variants.iter().map(move |d| (f64, *d)))
+            .collect();
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+        std::thread::scope(|scope| {
+            for t in 0..threads.min(jobs.len()) {
+                let jobs = &jobs;
+                scope.spawn(move || {
+                    for &(f64, defines) in jobs.iter().skip(t).step_by(threads) {
+                        let o = KernelOptions::all_models((9, 0), true, f64);
+                        let mut opts = nvrtc_options(&o);
+                        opts.extend(defines.iter().map(|d| d.to_string()));
+                        opts.push("--Ofast-compile=max".into());
+                        let what = format!("f64 {f64}, {defines:?}");
+                        let ptx = program_source(f64)
+                            .and_then(|src| nvrtc(&src, "rtmpm_pipeline.cu", opts))
+                            .unwrap_or_else(|e| panic!("{what}: {e}"));
+                        assert_every_kernel(&ptx, &what);
+                    }
+                });
+            }
+        });
     }
 
     /// One variant of [`every_kernel_compiles_with_nvrtc_for_sm90`]: every kernel and the

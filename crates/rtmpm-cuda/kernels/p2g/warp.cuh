@@ -10,8 +10,28 @@
 // copying them back for the next trip (12 moves a round). Measured on the H100 (bench/RESULTS.md,
 // "The fused kernel's warp reduction"): 1 is 5-8 % faster on the claymore scenes. Off until the
 // whole GPU validation has run with it (RTMPM_KERNEL_DEFINES=-DRTMPM_P2G_REDUCE=1).
+//
+// 4: the rounds' count fixed per warp: one copy of the row loop per count (0 to 5), picked by a
+// warp-uniform switch, its rounds unrolled with no test or divergence check between them.
 #ifndef RTMPM_P2G_REDUCE
 #define RTMPM_P2G_REDUCE 0
+#endif
+// At most 2^RTMPM_P2G_ROUNDS_MAX lanes summed by shuffles (default 5: a whole warp): a longer
+// segment is cut into pieces of that length whose first lanes each issue the atomics. Fewer
+// shuffle rounds for more atomics; the same sums in another order.
+#ifndef RTMPM_P2G_ROUNDS_MAX
+#define RTMPM_P2G_ROUNDS_MAX 5
+#endif
+// Node addresses of the scatter (compile-time, off by default): 0 each node's pblock id read from
+// the neighbour list at a computed address; 1 the stencil's eight pblocks read once
+// (stencil_blocks in common.cuh) and each node's id picked from them.
+#ifndef RTMPM_P2G_NODES
+#define RTMPM_P2G_NODES 0
+#endif
+// 1: the nine rows unrolled (compile-time i, j: no selects of the row's weights, pblocks and
+// cells; a larger kernel).
+#ifndef RTMPM_P2G_UNROLL
+#define RTMPM_P2G_UNROLL 0
 #endif
 
 // Add (mass, momentum) to a node: one 16-byte vector atomic on sm_90 (f32), else four.
@@ -54,6 +74,105 @@ __device__ __forceinline__ unsigned p2g_warp_sort(unsigned key, unsigned lane, b
     return kv & 31u;
 }
 
+// Addresses of the stencil nodes of the scatter, per row (i, j): node k of the row lives at
+// row_node(...) (memory index pblock id * 64 + cell).
+struct ScatterNodes {
+#if RTMPM_P2G_NODES == 1
+    StencilBlocks sb;
+#else
+    const unsigned* nbs;
+    int r0, r1, r2;  // base - 4 bc: the node offset from the gblock origin (r >> 2: its neighbour block)
+#endif
+};
+__device__ __forceinline__ ScatterNodes scatter_nodes(const Ctx& c, unsigned g, const int base[3]) {
+    ScatterNodes s;
+    const int* bc = c.block_coords + 3 * g;
+#if RTMPM_P2G_NODES == 1
+    s.sb = stencil_blocks(c.neighbors + 27 * g, bc, base);
+#else
+    s.r0 = base[0] - 4 * bc[0];
+    s.r1 = base[1] - 4 * bc[1];
+    s.r2 = base[2] - 4 * bc[2];
+    s.nbs = c.neighbors + 27 * g;
+#endif
+    return s;
+}
+// The row's part of the addresses: (slot, cell) of node (i, j, 0) as in stencil_idx, or the row's
+// two pblocks and cell bits.
+struct ScatterRow {
+#if RTMPM_P2G_NODES == 1
+    unsigned id[2];
+#else
+    int slot;
+#endif
+    unsigned cell;
+};
+__device__ __forceinline__ bool pick3b(const bool a[3], int i) { return i == 0 ? a[0] : (i == 1 ? a[1] : a[2]); }
+__device__ __forceinline__ unsigned pick3u(const unsigned a[3], int i) { return i == 0 ? a[0] : (i == 1 ? a[1] : a[2]); }
+__device__ __forceinline__ ScatterRow scatter_row(const ScatterNodes& s, int i, int j) {
+    ScatterRow r;
+#if RTMPM_P2G_NODES == 1
+    stencil_row_blocks(s.sb, pick3b(s.sb.hi[0], i), pick3b(s.sb.hi[1], j), r.id);
+    r.cell = pick3u(s.sb.cell[0], i) | pick3u(s.sb.cell[1], j);
+#else
+    int ri = s.r0 + i, rj = s.r1 + j;
+    r.slot = ((ri >> 2) + 1) * 9 + ((rj >> 2) + 1) * 3 + 1;
+    r.cell = (unsigned)(((ri & 3) << 4) | ((rj & 3) << 2));
+#endif
+    return r;
+}
+__device__ __forceinline__ unsigned scatter_node(const ScatterNodes& s, const ScatterRow& r, int k) {
+#if RTMPM_P2G_NODES == 1
+    return (s.sb.hi[2][k] ? r.id[1] : r.id[0]) * 64u + (r.cell | s.sb.cell[2][k]);
+#else
+    int rk = s.r2 + k;
+    return s.nbs[r.slot + (rk >> 2)] * 64u + (r.cell | (unsigned)(rk & 3));
+#endif
+}
+
+// The 27 nodes row by row: row (i, j) holds nodes k = 0, 1, 2, whose 12 values are reduced
+// together (one shuffle round serves three nodes), then added by the heads. ROUNDS >= 0: exactly
+// that many rounds (RTMPM_P2G_REDUCE 4); -1: up to the longest segment (max_seg).
+template <int ROUNDS>
+__device__ __forceinline__ void p2g_scatter_rows(const ScatterNodes& nodes, const P2gParticle& q, unsigned seg_len,
+                                                 unsigned max_seg, bool head, real* grid) {
+#if RTMPM_P2G_UNROLL
+#pragma unroll
+#endif
+    for (int i = 0; i < 3; ++i)
+#if RTMPM_P2G_UNROLL
+#pragma unroll
+#endif
+        for (int j = 0; j < 3; ++j) {
+            ScatterRow row = scatter_row(nodes, i, j);
+            real w_ij = p2g_row_weight(q, i, j);
+            vec3 mom_ij = p2g_row_momentum(q, i, j);
+            real val[3][4];
+#pragma unroll
+            for (int k = 0; k < 3; ++k) p2g_row_node_value(q, w_ij, mom_ij, k, val[k]);
+#if RTMPM_P2G_REDUCE == 1 || RTMPM_P2G_REDUCE == 4
+#pragma unroll
+            for (unsigned s = 1; s < (1u << RTMPM_P2G_ROUNDS_MAX); s <<= 1) {
+                if (ROUNDS >= 0 ? s >= (1u << (ROUNDS < 0 ? 0 : ROUNDS)) : s > max_seg) break;
+#else
+            for (unsigned s = 1; s <= max_seg; s <<= 1) {
+#endif
+                bool take = s <= seg_len;
+#pragma unroll
+                for (int k = 0; k < 3; ++k)
+#pragma unroll
+                    for (int e = 0; e < 4; ++e) {
+                        real o = __shfl_down_sync(0xffffffffu, val[k][e], s);
+                        if (take) val[k][e] += o;
+                    }
+            }
+            if (head) {
+#pragma unroll
+                for (int k = 0; k < 3; ++k) atomic_add_node(grid + 4u * scatter_node(nodes, row, k), val[k]);
+            }
+        }
+}
+
 // The scatter of one warp's particles (one per lane, in sorted order; q of an inactive lane is
 // p2g_particle_zero) into `grid`: segmented warp reduction (Gao et al. 2018), then global
 // atomics by segment heads. Every lane of the warp calls it.
@@ -74,48 +193,34 @@ __device__ __forceinline__ void p2g_scatter_warp(const Ctx& c, unsigned g, const
         unsigned end = rest ? (unsigned)(__ffs(rest) - 1) : 32u;
         seg_len = end - lane - 1;
         head = boundary && active;
+#if RTMPM_P2G_ROUNDS_MAX < 5
+        // Pieces of 2^RTMPM_P2G_ROUNDS_MAX lanes from the segment's start: their first lanes are heads.
+        unsigned start = 31u - (unsigned)__clz(mark & ((2u << lane) - 1u));
+        head = active && ((lane - start) & ((1u << RTMPM_P2G_ROUNDS_MAX) - 1u)) == 0;
+#endif
     }
     // Reduction rounds needed: up to the longest segment of this warp.
     unsigned max_seg = c.warp_reduce ? __reduce_max_sync(0xffffffffu, seg_len) : 0u;
-    // The 27 nodes row by row: row (i, j) holds nodes k = 0, 1, 2, whose 12 values are reduced
-    // together (one shuffle round serves three nodes). Addresses as in stencil_idx, per row:
-    // r = base - 4 bc is the node offset from the gblock origin, r >> 2 its neighbour block.
-    const int* bc = c.block_coords + 3 * g;
-    int r0 = base[0] - 4 * bc[0], r1 = base[1] - 4 * bc[1], r2 = base[2] - 4 * bc[2];
-    const unsigned* nbs = c.neighbors + 27 * g;
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) {
-            int ri = r0 + i, rj = r1 + j;
-            int slot_ij = ((ri >> 2) + 1) * 9 + ((rj >> 2) + 1) * 3 + 1;
-            unsigned cell_ij = (unsigned)(((ri & 3) << 4) | ((rj & 3) << 2));
-            real w_ij = p2g_row_weight(q, i, j);
-            vec3 mom_ij = p2g_row_momentum(q, i, j);
-            real val[3][4];
-#pragma unroll
-            for (int k = 0; k < 3; ++k) p2g_row_node_value(q, w_ij, mom_ij, k, val[k]);
-#if RTMPM_P2G_REDUCE == 1
-#pragma unroll
-            for (unsigned s = 1; s < 32; s <<= 1) {
-                if (s > max_seg) break;
-#else
-            for (unsigned s = 1; s <= max_seg; s <<= 1) {
+    ScatterNodes nodes = scatter_nodes(c, g, base);
+#if RTMPM_P2G_REDUCE == 4
+    // Rounds s = 1, 2, 4, ... up to the longest segment, at most RTMPM_P2G_ROUNDS_MAX.
+    int rounds = min(max_seg ? 32 - __clz(max_seg) : 0, RTMPM_P2G_ROUNDS_MAX);
+    switch (rounds) {
+        case 0: p2g_scatter_rows<0>(nodes, q, seg_len, max_seg, head, grid); break;
+        case 1: p2g_scatter_rows<1>(nodes, q, seg_len, max_seg, head, grid); break;
+        case 2: p2g_scatter_rows<2>(nodes, q, seg_len, max_seg, head, grid); break;
+#if RTMPM_P2G_ROUNDS_MAX > 2
+        case 3: p2g_scatter_rows<3>(nodes, q, seg_len, max_seg, head, grid); break;
 #endif
-                bool take = s <= seg_len;
-#pragma unroll
-                for (int k = 0; k < 3; ++k)
-#pragma unroll
-                    for (int e = 0; e < 4; ++e) {
-                        real o = __shfl_down_sync(0xffffffffu, val[k][e], s);
-                        if (take) val[k][e] += o;
-                    }
-            }
-            if (head) {
-#pragma unroll
-                for (int k = 0; k < 3; ++k) {
-                    int rk = r2 + k;
-                    unsigned node = nbs[slot_ij + (rk >> 2)] * 64u + (cell_ij | (unsigned)(rk & 3));
-                    atomic_add_node(grid + 4u * node, val[k]);
-                }
-            }
-        }
+#if RTMPM_P2G_ROUNDS_MAX > 3
+        case 4: p2g_scatter_rows<4>(nodes, q, seg_len, max_seg, head, grid); break;
+#endif
+        default: p2g_scatter_rows<RTMPM_P2G_ROUNDS_MAX>(nodes, q, seg_len, max_seg, head, grid); break;
+    }
+#else
+#if RTMPM_P2G_ROUNDS_MAX < 5
+    max_seg = min(max_seg, (1u << RTMPM_P2G_ROUNDS_MAX) - 1u);
+#endif
+    p2g_scatter_rows<-1>(nodes, q, seg_len, max_seg, head, grid);
+#endif
 }
