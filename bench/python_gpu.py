@@ -1,4 +1,4 @@
-"""Speed of rtmpm from Python on a GPU (issue 16), run by scripts/gpu/python.sh.
+"""Speed of rtmpm from Python on a GPU, run by scripts/gpu/python.sh.
 
 1. Stepping overhead: the 2M-particle dam break (bench/fluid_dam_2m.toml), one run_frame() call
    per frame, against `rtmpm run --no-output` on the same frames (its summary's wall time, which

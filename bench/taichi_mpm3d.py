@@ -1,8 +1,8 @@
 """Taichi's mpm3d (the MLS-MPM fluid of Taichi's examples, Hu et al. 2018) on the scene of
 `rtmpm bench` (the fluid block): n^3/4 particles at uniformly random positions in
 [0.15, 0.55]^3 of the unit cube, dx = 1/n, walls 3 cells thick, linear weakly compressible fluid
-(K = 400, density 1), gravity 9.8 down, rtmpm's fixed dt for n. The peer of the CPU backend
-(issue 19): run it with `--threads T` beside `rtmpm bench --backend cpu --n N --threads T`.
+(K = 400, density 1), gravity 9.8 down, rtmpm's fixed dt for n. The peer of the CPU backend:
+run it with `--threads T` beside `rtmpm bench --backend cpu --n N --threads T`.
 
 Needs taichi (tested with 1.7.4: `pip install taichi==1.7.4`). Prints one `throughput` line
 in rtmpm bench's units (particle-steps/s).

@@ -24,7 +24,7 @@ if ! python3 -c "import pxr" 2>/dev/null; then
   export PYTHONPATH="$PWD/$venv${PYTHONPATH:+:$PYTHONPATH}"
 fi
 
-# Every format (issue 15): a fluid scene writing PLY, compressed VTU, BGEO, BGEO.gz, USD and surface
+# Every format: a fluid scene writing PLY, compressed VTU, BGEO, BGEO.gz, USD and surface
 # meshes (OBJ, PLY, VTU, USD), read back by meshio, Python's gzip and usd-core, and its BGEO files by
 # splashsurf_lib's reader (an independent implementation) in the Rust interop test.
 fmt_out=target/ci-out-formats
@@ -49,10 +49,10 @@ python3 scripts/check_formats.py --bodies "$rig_out"
 # not `--lib`, which would also build the test harness of rtmpm-py (test = false).)
 RTMPM_INTEROP_DIR="$PWD/$fmt_out" cargo test --quiet --workspace --all-features --tests -- interop_tests --nocapture
 
-# The validation suite at its quick resolutions (issue 4): a failing case fails CI.
+# The validation suite at its quick resolutions: a failing case fails CI.
 # The quick cases; colliding_disks runs with the reference's transfer (linear-hat MPM, MUSL, FLIP;
 # about 10 s on 2 cores), granular_column with the plane-strain Drucker-Prager cone (about 60 s),
-# cohesive_column with non-associated Cam-clay (about 40 s); then the checks of issue 17: rigid
+# cohesive_column with non-associated Cam-clay (about 40 s); then the rigid-body and emitter checks: rigid
 # bodies coupled to the material (sinking, rigid_momentum; the cargo feature `rigid`) and emitters
 # (emitter_mass). Not archimedes: at its quick resolution the density-250 box's draft is 1.25
 # cells and misses the 5 % (validation/RESULTS.md); the cargo test tests/rigid.rs checks the 500

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 15: time the fluid surface reconstruction of a 1M-particle frame on the GPU machine's
+# Time the fluid surface reconstruction of a 1M-particle frame on the GPU machine's
 # CPU (no GPU used). Build here first: cargo build --release -p rtmpm (default features), carry
 # target/release/rtmpm. Prints one line per thread count; paste them into bench/RESULTS.md.
 set -euo pipefail

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# rtmpm's Python package on the GPU machine (issue 16).
+# rtmpm's Python package on the GPU machine.
 #
 # Here (CPU machine, Rust):   bash scripts/gpu/python.sh build   (after scripts/gpu/prepare.sh,
 #   which empties .device/) builds the release wheel into .device/wheels/ (also what the

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 18 on the GPU machine: the hostile-input corpus with the run cases on the CUDA backend,
+# The hostile-input corpus on the GPU machine, with the run cases on the CUDA backend,
 # and a scene larger than the GPU refused with the sizes before anything is allocated.
 # Needs .device/rtmpm from scripts/gpu/prepare.sh and python3; logs and the table go to $OUT.
 #

@@ -15,7 +15,7 @@
 #   bench        the claymore scenes (fluid 2M, jelly 2M, snow 1.33M) and a fluid block; with
 #                .device/rtmpm_base, A/B against that build, interleaved (REPS=2 by default);
 #                BENCH_RUNS="bin|cuda-options ..." sets the runs (default "rtmpm_base| rtmpm|")
-#   ablation     the switches of the seed principles on the claymore scenes (--cuda-options)
+#   ablation     the switches of the principles of Fei, Huang & Gao on the claymore scenes (--cuda-options)
 #   variants     A/B of compile-time defines: VARIANTS="label|binary|defines[|options] ..." (several
 #                defines in one entry separated by commas), interleaved REPS times (default 1)
 #   sanitize     compute-sanitizer (memcheck, then racecheck and synccheck) on short runs of the fused step: the
@@ -30,13 +30,13 @@
 #                particles) at --threads 1 2 4 8 16 (CPU_THREADS, CPU_N, CPU_STEPS to change), a table of
 #                M particle-steps/s and parallel efficiency; with .device/rtmpm_base, that build too;
 #                Taichi's mpm3d (bench/taichi_mpm3d.py) on the same scene when python3 imports taichi
-#   frames       frame writing (issue 19 item 4): test_frames (streamed GPU frames byte-identical to the
+#   frames       frame writing: test_frames (streamed GPU frames byte-identical to the
 #                whole-frame files), then `rtmpm bench --frame-write` on fluid 2M, 16.8M and the n = 584 block
 #                (49.8M): copy-out GB/s, write MB/s, step time with a frame written in the background
 #                (FRAME_DIR, default /tmp/frames: the files are removed after each timing)
-#   scale        issue 19: big scenes under /usr/bin/time -v (SCALE_RUNS="scene|cuda-options ...", default
+#   scale        big scenes under /usr/bin/time -v (SCALE_RUNS="scene|cuda-options ...", default
 #                water 500M with the device fill, then the host fill): set-up, throughput, bytes a particle
-#   rigid        issue 17: dam break 2M with 10 floating crates vs 10 static ones, floating_box on CUDA
+#   rigid        dam break 2M with 10 floating crates vs 10 static ones, floating_box on CUDA
 #   view         a live view on the GPU: the render stage's time at 1280x720 for the dam break 2M and the
 #                snow 1.33M against the scene's compute per displayed frame (target: at most 10 %), the frame
 #                time with a picture drawn every frame against none (.device/render_bench; pictures in
@@ -126,7 +126,7 @@ for suite in "$@"; do
       b "musl scene (bench of MUSL)" rtmpm --scene validation/colliding_disks.toml --frames 2
       ;;
     rigid)
-      # Issue 17: the 2M dam break with 10 two-way coupled crates against the same crates as static
+      # The 2M dam break with 10 two-way coupled crates against the same crates as static
       # colliders, interleaved (REPS), then a run of the floating-box example scene.
       for rep in $(seq 1 "${REPS:-2}"); do
         b "dam 2M 10 static crates #$rep" rtmpm --scene bench/fluid_dam_2m_colliders.toml --frames 3
@@ -212,7 +212,7 @@ for suite in "$@"; do
       say "strong 16.8M two NCCL processes: $(grep -hE 'throughput|^error' "$OUT/rank_0.log" "$OUT/rank_1.log" | tr -s ' ' | tr '\n' ' ')"
       ;;
     multi4)
-      # 4 GPUs (issue 7's 4-GPU part): the agreement tests at 2 and 4 GPUs (RTMPM_MULTI_GPU_COUNTS
+      # 4 GPUs: the agreement tests at 2 and 4 GPUs (RTMPM_MULTI_GPU_COUNTS
       # defaults to 2,4), strong scaling 16.8M on 1, 2, 4 GPUs, weak scaling 4.2M a GPU, and 4 NCCL
       # processes against one process driving the 4 GPUs through NCCL (12 frames at dt = 5e-5).
       t test_multi_gpu
@@ -308,7 +308,7 @@ for suite in "$@"; do
       fi
       ;;
     cpu)
-      # CPU backend scaling (issue 19): throughput at each thread count and the efficiency
+      # CPU backend scaling: throughput at each thread count and the efficiency
       # rate(T) / (T rate(1)). The warm-up is short: the first steps only sort the particles.
       cores=$(nproc)
       bins=rtmpm; [ -x "$D/rtmpm_base" ] && bins="rtmpm_base rtmpm"
@@ -345,7 +345,7 @@ for suite in "$@"; do
       fi
       ;;
     scale)
-      # Issue 19: the big scenes, one process each under /usr/bin/time -v (peak host memory),
+      # The big scenes, one process each under /usr/bin/time -v (peak host memory),
       # SCALE_RUNS="scene|cuda-options ..." (default: water 500M, device fill then host fill).
       for r in ${SCALE_RUNS:-"bench/water_500m.toml|fill=device" "bench/water_500m.toml|fill=host"}; do
         sc=${r%%|*}; opts=${r#*|}

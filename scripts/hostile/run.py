@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Hostile-input corpus for the rtmpm command line (issue 18), and a tally of the outcomes.
+"""Hostile-input corpus for the rtmpm command line, and a tally of the outcomes.
 
     python3 scripts/hostile/run.py [--rtmpm target/release/rtmpm] [--work DIR] [--timeout 60]
                                    [--report FILE.md] [--only SUBSTRING]
@@ -259,7 +259,7 @@ def cases():
         "dt and cfl": (GOOD_SCENE.replace("cfl = 0.4", "cfl = 0.4\ndt = 1e-4"), [("time.cfl", "time.dt")]),
         "min_dt above max_dt": (GOOD_SCENE.replace("cfl = 0.4", "cfl = 0.4\nmin_dt = 1"), [("min_dt",)]),
         "walls fill domain": (GOOD_SCENE.replace("thickness = 3", "thickness = 10"), [("walls.thickness",)]),
-        # No per-body particle limit since issue 19 (item 3): the memory check refuses it, naming the body.
+        # No per-body particle limit: the memory check refuses it, naming the body.
         "4096 cells, body too fine": (GOOD_SCENE.replace("dx = 0.03125", "dx = 0.0001220703125"), [("lattice points", "does not fit"), ("body[0]",)]),
         "dx above the domain": (GOOD_SCENE.replace("dx = 0.03125", "dx = 1.0"), [("domain.dx", "domain.max")]),
         "random thin shape": (GOOD_SCENE.replace("radius = 0.06", 'radius = 0.06\nsampling = "random"\ncount = 40000000'), [("body[1]",)]),
@@ -272,7 +272,7 @@ def cases():
         "nested arrays": (GOOD_SCENE.replace("gravity = [0.0, -9.81, 0.0]", "gravity = [[0.0], -9.81, 0.0]"), [("gravity",)]),
         "10k materials": (GOOD_SCENE + "".join(f'[[material]]\nname = "m{i}"\ntype = "fluid"\ndensity = 1\nbulk_modulus = 1\n' for i in range(10000)), [],),
     }
-    # Rigid bodies (issue 17): checked by `rtmpm check` whatever the build's features.
+    # Rigid bodies: checked by `rtmpm check` whatever the build's features.
     rigid = '[[rigid_body]]\nshape = "box"\nmin = [0.3, 0.3, 0.3]\nmax = [0.36, 0.36, 0.36]\ndensity = 500.0\n'
     for name, text, words in [
         ("zero mass", rigid.replace("density = 500.0", "mass = 0.0"), ("rigid_body[0].mass",)),
@@ -370,7 +370,7 @@ def cases():
                 write(w / mesh, b"\xff\xfe" + cube.encode("utf-16-le"))
         out.append(Case(f"mesh: {name}", ["check", S], [words], setup=mk))
 
-    # 4a. mesh rigid bodies (`[[rigid_body]] shape = "mesh"`, issue 17): a body needs a closed,
+    # 4a. mesh rigid bodies (`[[rigid_body]] shape = "mesh"`): a body needs a closed,
     # outward-wound mesh with a volume (and a convex one for convex = true), of a bounded size.
     rigid_mesh = GOOD_SCENE + rigid_body_tail(
         '[[rigid_body]]\nshape = "mesh"\nfile = "MESH"\nscale = 0.06\ntranslate = [0.3, 0.3, 0.3]\n'
@@ -396,7 +396,7 @@ def cases():
                 write(w / mesh, text)
         out.append(Case(f"mesh rigid body: {name}", ["check", S], [("rigid_body[0]",), words], setup=mk))
 
-    # 4b. particle files (`shape = "particles"`, issue 15): PLY, VTU, BGEO readers.
+    # 4b. particle files (`shape = "particles"`): PLY, VTU, BGEO readers.
     pts_body = GOOD_SCENE.replace('shape = "sphere"\ncenter = [0.33, 0.2, 0.3]\nradius = 0.06',
                                   'shape = "particles"\nfile = "PTS"')
 

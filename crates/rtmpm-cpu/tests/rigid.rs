@@ -1,5 +1,5 @@
 //! Rigid bodies coupled two ways to the material on the CPU backend (cargo feature `rigid`):
-//! the checks of issue 17 at the quick resolution of `rtmpm validate`, on the same scenes
+//! the rigid-body and emitter validation checks at the quick resolution of `rtmpm validate`, on the same scenes
 //! (`validation/*.toml`) and measurements (`rtmpm_driver::checks`).
 #![cfg(feature = "rigid")]
 
@@ -20,7 +20,7 @@ fn simulation(text: &str) -> Simulation<CpuBackend> {
 
 /// Archimedes: boxes of density 500 and 750 on water float with the submerged fraction of their
 /// height, and of their volume in the pose of each of the last frames, equal to the density
-/// ratio within 5 % (issue 17; the box rocks by about 12 degrees at this resolution, so the two
+/// ratio within 5 % (the tolerance of the validation case; the box rocks by about 12 degrees at this resolution, so the two
 /// differ: volume 0.491 and 0.761). Measured at dx = 0.02 m (the box is 5 cells high), its
 /// draft below the open water's surface in each frame from 1.0 to 1.5 s, averaged (the box and
 /// the water still bob by a few mm): 0.491 and 0.756 of its height (-1.8 %, +0.8 %; with the
@@ -74,7 +74,7 @@ fn momentum_of_material_plus_body_is_conserved() {
         c.body_speed / c.elastic
     );
     // The elastic-collision estimate 2 m1 v / (m1 + m2) is an upper bound (the ball keeps some
-    // energy as vibration): measured 0.91 of it; issue 17 asks within 10 %.
+    // energy as vibration): measured 0.91 of it; the validation case asks within 10 %.
     let ratio = c.body_speed / c.elastic;
     assert!(
         (ratio - 1.0).abs() < 0.1,

@@ -117,51 +117,11 @@ fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
     hay.windows(needle.len()).position(|w| w == needle)
 }
 
+/// Parse a VTU file of appended arrays: the XML header, the framing of the appended data, then
+/// the first piece's arrays read one by one and placed ([`read_array`], [`place`]).
 pub(super) fn parse_appended(bytes: &[u8]) -> Result<VtuData, VtuError> {
-    let app = find(bytes, b"<AppendedData")
-        .ok_or_else(|| bad("no <AppendedData> section (arrays are not appended)"))?;
-    let text = std::str::from_utf8(&bytes[..app])
-        .map_err(|_| bad("the XML before <AppendedData> is not UTF-8"))?;
-    let tag_end =
-        find(&bytes[app..], b">").ok_or_else(|| bad("unterminated <AppendedData> tag"))?;
-    let app_tag = std::str::from_utf8(&bytes[app..app + tag_end]).unwrap_or("");
-    match attr(app_tag, "encoding") {
-        Some("raw") => {}
-        other => {
-            return Err(bad(format!(
-                "AppendedData encoding {other:?} is not supported (only \"raw\")"
-            )));
-        }
-    }
-    let underscore = find(&bytes[app + tag_end..], b"_")
-        .ok_or_else(|| bad("no `_` marking the start of the appended data"))?;
-    let data = &bytes[app + tag_end + underscore + 1..];
-
-    let root = text
-        .find("<VTKFile")
-        .ok_or_else(|| bad("no <VTKFile> element"))?;
-    let root_tag = &text[root..root + text[root..].find('>').unwrap_or(0)];
-    if attr(root_tag, "type") != Some("UnstructuredGrid") {
-        return Err(bad("not an UnstructuredGrid file"));
-    }
-    if attr(root_tag, "byte_order") != Some("LittleEndian") {
-        return Err(bad("only byte_order=\"LittleEndian\" is supported"));
-    }
-    let word = match attr(root_tag, "header_type").unwrap_or("UInt32") {
-        "UInt32" => 4,
-        "UInt64" => 8,
-        other => return Err(bad(format!("header_type {other} is not supported"))),
-    };
-    let compressed = match attr(root_tag, "compressor") {
-        None => false,
-        Some("vtkZLibDataCompressor") => true,
-        Some(other) => {
-            return Err(bad(format!(
-                "compressor {other} is not supported (only vtkZLibDataCompressor)"
-            )));
-        }
-    };
-    let framing = Framing { word, compressed };
+    let (text, data) = split_appended(bytes)?;
+    let framing = framing_of(text)?;
     let piece = text
         .find("<Piece")
         .ok_or_else(|| bad("no <Piece> element"))?;
@@ -194,63 +154,8 @@ pub(super) fn parse_appended(bytes: &[u8]) -> Result<VtuData, VtuError> {
             | "/FieldData" => section = "",
             "/Piece" => break,
             "DataArray" if !section.is_empty() => {
-                let aname = attr(tag, "Name").map(xml_unescape).unwrap_or_default();
-                let what = format!("array `{aname}`");
-                if attr(tag, "format") != Some("appended") {
-                    return Err(bad(format!(
-                        "{what}: only format=\"appended\" arrays are read here"
-                    )));
-                }
-                let offset: usize = attr(tag, "offset")
-                    .and_then(|o| o.trim().parse().ok())
-                    .ok_or_else(|| bad(format!("{what}: no valid offset")))?;
-                let ty = attr(tag, "type").ok_or_else(|| bad(format!("{what}: no type")))?;
-                let ncomp: usize = match attr(tag, "NumberOfComponents") {
-                    Some(c) => c
-                        .trim()
-                        .parse()
-                        .ok()
-                        .filter(|&c| (1..=64).contains(&c))
-                        .ok_or_else(|| bad(format!("{what}: bad NumberOfComponents {c}")))?,
-                    None => 1,
-                };
-                let raw = framing.decode(data, offset, &what)?;
-                let values = parse_values(ty, &raw).map_err(|e| bad(format!("{what}: {e}")))?;
-                let array = VtuArray {
-                    name: aname,
-                    num_components: ncomp,
-                    values,
-                };
-                match section {
-                    "Points" => {
-                        let flat: Vec<f32> = match &array.values {
-                            VtuValues::Float32(v) => v.clone(),
-                            VtuValues::Float64(v) => v.iter().map(|&x| x as f32).collect(),
-                            _ => return Err(bad("Points must be Float32 or Float64")),
-                        };
-                        if ncomp != 3 || flat.len() != 3 * out.num_points {
-                            return Err(bad(format!(
-                                "Points has {} values, expected 3 x {}",
-                                flat.len(),
-                                out.num_points
-                            )));
-                        }
-                        out.points = flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-                        have_points = true;
-                    }
-                    "Cells" => out.cells.push(array),
-                    _ => {
-                        if array.values.len() != ncomp * out.num_points {
-                            return Err(bad(format!(
-                                "point array {} has {} values, expected {ncomp} x {}",
-                                array.name,
-                                array.values.len(),
-                                out.num_points
-                            )));
-                        }
-                        out.point_data.push(array);
-                    }
-                }
+                let array = read_array(tag, data, &framing)?;
+                have_points |= place(array, section, &mut out)?;
             }
             _ => {}
         }
@@ -259,4 +164,125 @@ pub(super) fn parse_appended(bytes: &[u8]) -> Result<VtuData, VtuError> {
         return Err(bad("missing <Points> array"));
     }
     Ok(out)
+}
+
+/// The XML before `<AppendedData>` and the appended bytes after its `_` marker (raw encoding
+/// only).
+fn split_appended(bytes: &[u8]) -> Result<(&str, &[u8]), VtuError> {
+    let app = find(bytes, b"<AppendedData")
+        .ok_or_else(|| bad("no <AppendedData> section (arrays are not appended)"))?;
+    let text = std::str::from_utf8(&bytes[..app])
+        .map_err(|_| bad("the XML before <AppendedData> is not UTF-8"))?;
+    let tag_end =
+        find(&bytes[app..], b">").ok_or_else(|| bad("unterminated <AppendedData> tag"))?;
+    let app_tag = std::str::from_utf8(&bytes[app..app + tag_end]).unwrap_or("");
+    match attr(app_tag, "encoding") {
+        Some("raw") => {}
+        other => {
+            return Err(bad(format!(
+                "AppendedData encoding {other:?} is not supported (only \"raw\")"
+            )));
+        }
+    }
+    let underscore = find(&bytes[app + tag_end..], b"_")
+        .ok_or_else(|| bad("no `_` marking the start of the appended data"))?;
+    Ok((text, &bytes[app + tag_end + underscore + 1..]))
+}
+
+/// The framing of the appended arrays from the `<VTKFile>` element: header word size and
+/// compression (an UnstructuredGrid, little-endian, zlib or uncompressed).
+fn framing_of(text: &str) -> Result<Framing, VtuError> {
+    let root = text
+        .find("<VTKFile")
+        .ok_or_else(|| bad("no <VTKFile> element"))?;
+    let root_tag = &text[root..root + text[root..].find('>').unwrap_or(0)];
+    if attr(root_tag, "type") != Some("UnstructuredGrid") {
+        return Err(bad("not an UnstructuredGrid file"));
+    }
+    if attr(root_tag, "byte_order") != Some("LittleEndian") {
+        return Err(bad("only byte_order=\"LittleEndian\" is supported"));
+    }
+    let word = match attr(root_tag, "header_type").unwrap_or("UInt32") {
+        "UInt32" => 4,
+        "UInt64" => 8,
+        other => return Err(bad(format!("header_type {other} is not supported"))),
+    };
+    let compressed = match attr(root_tag, "compressor") {
+        None => false,
+        Some("vtkZLibDataCompressor") => true,
+        Some(other) => {
+            return Err(bad(format!(
+                "compressor {other} is not supported (only vtkZLibDataCompressor)"
+            )));
+        }
+    };
+    Ok(Framing { word, compressed })
+}
+
+/// The array of a `<DataArray>` tag, its values decoded from the appended `data`.
+fn read_array(tag: &str, data: &[u8], framing: &Framing) -> Result<VtuArray, VtuError> {
+    let aname = attr(tag, "Name").map(xml_unescape).unwrap_or_default();
+    let what = format!("array `{aname}`");
+    if attr(tag, "format") != Some("appended") {
+        return Err(bad(format!(
+            "{what}: only format=\"appended\" arrays are read here"
+        )));
+    }
+    let offset: usize = attr(tag, "offset")
+        .and_then(|o| o.trim().parse().ok())
+        .ok_or_else(|| bad(format!("{what}: no valid offset")))?;
+    let ty = attr(tag, "type").ok_or_else(|| bad(format!("{what}: no type")))?;
+    let ncomp: usize = match attr(tag, "NumberOfComponents") {
+        Some(c) => c
+            .trim()
+            .parse()
+            .ok()
+            .filter(|&c| (1..=64).contains(&c))
+            .ok_or_else(|| bad(format!("{what}: bad NumberOfComponents {c}")))?,
+        None => 1,
+    };
+    let raw = framing.decode(data, offset, &what)?;
+    let values = parse_values(ty, &raw).map_err(|e| bad(format!("{what}: {e}")))?;
+    Ok(VtuArray {
+        name: aname,
+        num_components: ncomp,
+        values,
+    })
+}
+
+/// Put `array` of `section` (`Points`, `Cells` or `PointData`) into `out`, its size checked
+/// against the piece's; true when it was the points.
+fn place(array: VtuArray, section: &str, out: &mut VtuData) -> Result<bool, VtuError> {
+    let ncomp = array.num_components;
+    match section {
+        "Points" => {
+            let flat: Vec<f32> = match &array.values {
+                VtuValues::Float32(v) => v.clone(),
+                VtuValues::Float64(v) => v.iter().map(|&x| x as f32).collect(),
+                _ => return Err(bad("Points must be Float32 or Float64")),
+            };
+            if ncomp != 3 || flat.len() != 3 * out.num_points {
+                return Err(bad(format!(
+                    "Points has {} values, expected 3 x {}",
+                    flat.len(),
+                    out.num_points
+                )));
+            }
+            out.points = flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+            return Ok(true);
+        }
+        "Cells" => out.cells.push(array),
+        _ => {
+            if array.values.len() != ncomp * out.num_points {
+                return Err(bad(format!(
+                    "point array {} has {} values, expected {ncomp} x {}",
+                    array.name,
+                    array.values.len(),
+                    out.num_points
+                )));
+            }
+            out.point_data.push(array);
+        }
+    }
+    Ok(false)
 }

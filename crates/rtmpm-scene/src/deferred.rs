@@ -1,5 +1,5 @@
-//! Bodies whose particle positions are drawn where they are used (issue 19, "start fast"): for a
-//! GPU backend the host only counts a body's particles, keeps none of them, and hands the GPU
+//! Bodies whose particle positions are drawn where they are used, so that a large scene starts
+//! fast: for a GPU backend the host only counts a body's particles, keeps none of them, and hands the GPU
 //! the recipe of the walk (the lattice or the random tries, the shape and the random stream),
 //! from which the GPU draws the very positions the host's walk finds, in the same order, bit for
 //! bit (`rtmpm-cuda/src/setup/sample/mod.rs`). Any other consumer walks the body on the host

@@ -1,4 +1,4 @@
-//! The budget before the run (issue 18): `check` and `run` refuse what cannot fit, with the
+//! The budget before the run: `check` and `run` refuse what cannot fit, with the
 //! numbers and a fix, before sampling; absurd steps and frames are refused or warned about;
 //! progress lines appear when stderr is not a terminal.
 

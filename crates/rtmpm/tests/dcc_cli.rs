@@ -1,4 +1,4 @@
-//! End-to-end tests of issue 15 on the command line: BGEO frames, a run seeded from another
+//! End-to-end tests of the DCC file formats on the command line: BGEO frames, a run seeded from another
 //! run's frame, and clear errors for bad particle files and empty folders.
 
 mod common;
@@ -120,7 +120,7 @@ fn mesh_needs_frames() {
     );
 }
 
-/// Every file of issue 15's formats belongs to the folder's run (issue 18's output folders):
+/// Every file of every format (frames, surfaces, both `.pvd` collections) belongs to the folder's run:
 /// a resume continues `surface.pvd` and writes the later frames again, an unreadable
 /// `surface.pvd` stops the resume before anything is removed, and `--overwrite` removes BGEO,
 /// USD and surface files with the rest.

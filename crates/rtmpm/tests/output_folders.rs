@@ -1,4 +1,4 @@
-//! Output folders are protected (issue 18): one run at a time, one run per folder, nothing of
+//! Output folders are protected: one run at a time, one run per folder, nothing of
 //! another run lost or mixed, stale temporary files cleaned, `render` never mixes two runs.
 
 mod common;

@@ -1,4 +1,4 @@
-//! The command line with rigid bodies and emitters: `rtmpm validate` runs the checks of issue 17
+//! The command line with rigid bodies and emitters: `rtmpm validate` runs the rigid-body and emitter checks
 //! (or says which feature they need), and checkpoints resume the rigid bodies.
 
 mod common;

@@ -1,4 +1,4 @@
-//! Frames streamed from the backend and written in the background (issue 19 item 4): the same
+//! Frames streamed from the backend and written in the background: the same
 //! files as the whole-frame writer, and writer errors reported with the file, leaving nothing.
 
 mod common;

@@ -76,7 +76,7 @@ fn solver_table_errors_name_the_field_line_and_allowed_values() {
     assert!(e.to_string().contains("fip"), "{e}");
 }
 
-/// Messages for the hostile inputs of issue 18: the table that is missing, the field of an
+/// Messages for hostile inputs: the table that is missing, the field of an
 /// integer too large for 64 bits, a name that would climb out of `out/`.
 #[test]
 fn missing_tables_big_integers_and_escaping_names_are_named() {

@@ -1,4 +1,4 @@
-//! The checks of issue 17 (rigid bodies two-way coupled to the material, emitters):
+//! The validation checks of rigid bodies two-way coupled to the material, and of emitters:
 //! `archimedes`, `sinking`, `rigid_momentum` (cargo feature `rigid`) and `emitter_mass`. The
 //! scenes are `validation/{archimedes,sinking,rigid_momentum,emitter_mass}.toml`; `--quick` runs
 //! them as they are (the resolution of the cargo tests `crates/rtmpm-cpu/tests/rigid.rs` and
