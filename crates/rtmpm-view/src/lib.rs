@@ -7,6 +7,7 @@
 //! * [`camera`]: the orbit camera; [`steer`]: the tool's motion, picking, thrown balls;
 //!   [`draw`]: the picture (the backend's own, or the CPU renderer's), heads-up line and
 //!   blow-up message; [`record`]: GIF/MP4 recording of what was shown; [`jpeg`]: encoding.
+//! * `window` (feature `window`, default): the native window front-end (winit + softbuffer).
 //! * [`serve`]: the browser front-end: an HTTP server with the page and a WebSocket that
 //!   streams the frames as JPEG and takes the controls back.
 //!
@@ -22,6 +23,8 @@ pub mod record;
 pub mod serve;
 pub mod session;
 pub mod steer;
+#[cfg(feature = "window")]
+pub mod window;
 
 pub use command::{Command, Pace, Throw};
 pub use frame::{Frame, FrameSlot, Status};

@@ -20,10 +20,13 @@ const KEEP_FOR_RESET: usize = 20_000_000;
 
 #[derive(Args, Debug)]
 #[command(after_help = "\
-Controls (in the browser): left drag orbits, right drag (or Shift+drag) drags the tool
+With a display, the view opens in a window; --serve streams it to a browser instead.
+Controls (window and browser): left drag orbits, right drag (or Shift+drag) drags the tool
 through the material (the wheel pushes it deeper while held), middle drag (or Ctrl+drag)
 pans, the wheel zooms; Space pauses, S steps, R resets, - and + change the pace, C the
-colours, T throws a ball of the chosen material at the cursor; buttons set gravity.
+colours, T throws a ball of the chosen material at the cursor; buttons set gravity (in the
+window: 1 to 5 choose the colours, G steps through gravity presets, Home resets the camera,
+Q or Esc closes).
 
 Watch a run on a remote GPU server: start it there with --serve (it listens on
 127.0.0.1 only), then on your machine `ssh -L 8080:localhost:8080 gpu-host` and open
@@ -35,6 +38,9 @@ pub struct ViewArgs {
     /// only); then open http://ADDR/ in a browser.
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = DEFAULT_ADDR)]
     pub serve: Option<String>,
+    /// No window even where a display is present (with --record: record only).
+    #[arg(long)]
+    pub no_window: bool,
     /// Record what the view shows to FILE.gif or FILE.mp4 (MP4 through ffmpeg).
     #[arg(long, value_name = "FILE")]
     pub record: Option<PathBuf>,
@@ -112,15 +118,10 @@ fn parse_pace(s: &str) -> Result<Pace, String> {
 /// Where the view goes.
 enum Front {
     Browser(std::net::TcpListener),
+    /// A native window (a display is present).
+    Window,
     /// Only the recording.
     Recording,
-}
-
-/// True when a window could be opened here.
-fn display_present() -> bool {
-    ["DISPLAY", "WAYLAND_DISPLAY"]
-        .iter()
-        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()))
 }
 
 /// The front-end the flags ask for, or how to get one.
@@ -136,6 +137,9 @@ fn front(args: &ViewArgs) -> Result<Front> {
         }
         return Ok(Front::Browser(listener));
     }
+    if !args.no_window && rtmpm_view::window::display_present() {
+        return Ok(Front::Window);
+    }
     if args.record.is_some() {
         return Ok(Front::Recording);
     }
@@ -146,8 +150,8 @@ fn front(args: &ViewArgs) -> Result<Front> {
          http://localhost:8080/ there); or record it: `rtmpm view {scene} --record movie.mp4 \
          --frames 120`"
     );
-    if display_present() {
-        bail!("this build of rtmpm has no window front-end yet: {how}");
+    if args.no_window {
+        bail!("--no-window without --serve or --record shows nothing: {how}");
     }
     bail!("no display here (DISPLAY and WAYLAND_DISPLAY are not set), so no window can open: {how}")
 }
@@ -247,7 +251,13 @@ pub fn view(args: ViewArgs) -> Result<()> {
     let session = Session::start(factory(scene, &args), options, recorder)
         .map_err(|e| anyhow!(e))
         .context("cannot start the view")?;
-    match front {
+    let summary = match front {
+        Front::Window => {
+            let opts = rtmpm_view::window::WindowOptions {
+                title: format!("rtmpm view: {}", session.info.name),
+            };
+            rtmpm_view::window::run(session, opts).map_err(|e| anyhow!(e))?
+        }
         Front::Browser(listener) => {
             let addr = listener.local_addr().context("the server's address")?;
             eprintln!("view: open http://{addr}/ to watch and steer (Ctrl-C ends)");
@@ -257,14 +267,15 @@ pub fn view(args: ViewArgs) -> Result<()> {
             };
             rtmpm_view::serve::serve(listener, &session, &opts, rtmpm_view::serve::interrupted())
                 .map_err(|e| anyhow!(e))?;
+            session.finish().map_err(|e| anyhow!(e))?
         }
         Front::Recording => {
             eprintln!("view: recording (Ctrl-C ends)");
             rtmpm_view::serve::until_ended_or_interrupted(&session, Duration::from_millis(100))
                 .map_err(|e| anyhow!(e))?;
+            session.finish().map_err(|e| anyhow!(e))?
         }
-    }
-    let summary = session.finish().map_err(|e| anyhow!(e))?;
+    };
     eprintln!(
         "view: {} pictures shown, {} frames ({} steps, t = {:.4} s)",
         summary.displayed, summary.frames, summary.steps, summary.time
