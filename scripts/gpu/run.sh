@@ -25,7 +25,8 @@
 #                defines|scene ..." (default: the fluid dam 2M); the bound (issue, stalls, L1/L2, atomics)
 #   multi        several GPUs: agreement tests in every mode, 2 NCCL processes, scaling
 #   multi4       the same on 4 GPUs: agreement at 2 and 4, strong and weak scaling at 1, 2, 4, 4 ranks
-#   python       the Python package's GPU tests (wheel in .device/wheels)
+#   python       the Python package's tests on the GPU (wheel in .device/wheels; PY_K="view or render_gpu"
+#                picks tests as pytest -k does)
 #   cpu          the CPU backend on this machine's cores: `rtmpm bench --backend cpu --n 128` (524k
 #                particles) at --threads 1 2 4 8 16 (CPU_THREADS, CPU_N, CPU_STEPS to change), a table of
 #                M particle-steps/s and parallel efficiency; with .device/rtmpm_base, that build too;
@@ -41,9 +42,10 @@
 #                snow 1.33M against the scene's compute per displayed frame (target: at most 10 %), the frame
 #                time with a picture drawn every frame against none (.device/render_bench; pictures in
 #                $OUT/logs.tgz); then `rtmpm view --serve` on both, measured by a client on this machine:
-#                displayed fps, the session's steps/s against `rtmpm bench` (viewer on vs off), memory over
-#                STREAM_MEMORY_SECONDS (default 120) with a slow client. About 6 min. The GPU tests of the
-#                render stage and of steering are in `tests` (TESTS="test_render test_steer")
+#                displayed fps, the session's steps/s against `rtmpm bench` (viewer on vs off) for
+#                STREAM_SECONDS (default 15), memory over STREAM_MEMORY_SECONDS (default 60, sampled every
+#                5 s) with a slow client. About 2.5 min. The GPU tests of the render stage and of steering
+#                are in `tests` (TESTS="test_render test_steer")
 #   long         the strong-scaling scene for 12 frames (0.24 s, past its 0.1 s duration) on one GPU, fused
 #                and unfused, and at dt/2: does the 12-frame blow-up seen on 2 GPUs happen on one?
 set -uo pipefail
@@ -244,24 +246,26 @@ for suite in "$@"; do
             --size 1280x720 --reps 20 --color material,speed 2>&1)
         echo "== render_bench ${sc%%:*}" >> "$OUT/view.log"; echo "$r" >> "$OUT/view.log"
         echo "$r" | grep -E "^(render_bench|picture|frame|error)|particles" | tee -a "$S"
+        echo "$r" | grep -E "^render_bench " > "$OUT/view_${sc%%:*}_render.txt"
       done
       # The browser stream of `rtmpm view --serve` on CUDA, measured by a client on this machine
       # (scripts/viewer/stream_client.py, Python's standard library only): pictures received per
       # second, the session's draw and JPEG times, its steps/s against `rtmpm bench` of the same
       # scene (the simulation with the viewer on against off), and the server's memory (VmRSS;
-      # GPU memory from nvidia-smi) over STREAM_MEMORY_SECONDS (default 120) with a slow client.
+      # GPU memory from nvidia-smi) over STREAM_MEMORY_SECONDS (default 60) with a slow client.
       # The scenes run 60 s of simulated time here, so that the stream outlasts them.
       port=18080
       for sc in fluid_dam_2m snow_1m; do
         sed 's/^duration = .*/duration = 60.0/' "bench/$sc.toml" > "/tmp/view_$sc.toml"
         off=$(timeout 200 "$D/rtmpm" bench --backend cuda --scene "bench/$sc.toml" --frames 5 2>&1 \
               | grep -oE '\(([0-9.]+) ms/step\)' | head -1 | tr -d '()' | cut -d' ' -f1)
+        echo "$off" > "$OUT/view_${sc}_off.txt"
         for run in fast memory; do
           port=$((port + 1))
-          secs=${STREAM_SECONDS:-20}; slow=0
+          secs=${STREAM_SECONDS:-15}; slow=0
           if [ "$run" = memory ]; then
             [ "$sc" = snow_1m ] || continue
-            secs=${STREAM_MEMORY_SECONDS:-120}; slow=0.05
+            secs=${STREAM_MEMORY_SECONDS:-60}; slow=0.05
           fi
           "$D/rtmpm" view "/tmp/view_$sc.toml" --serve "127.0.0.1:$port" --backend cuda --size 1280x720 \
             > "$OUT/view_${sc}_$run.log" 2>&1 &
@@ -272,21 +276,23 @@ for suite in "$@"; do
             sleep 0.2
           done
           ( while kill -0 "$vpid" 2>/dev/null; do
-              nvidia-smi --query-compute-apps=pid,used_memory --format=csv,noheader 2>/dev/null | grep "^$vpid," ; sleep 10
+              nvidia-smi --query-compute-apps=pid,used_memory --format=csv,noheader 2>/dev/null | grep "^$vpid," ; sleep 5
             done ) > "$OUT/view_${sc}_${run}_gpu_memory.csv" &
           c=$(timeout $((secs + 60)) python3 scripts/viewer/stream_client.py --url "127.0.0.1:$port" \
-              --seconds "$secs" --slow "$slow" --rss-pid "$vpid" --rss-every 10 --label "$sc $run" 2>&1)
+              --seconds "$secs" --slow "$slow" --rss-pid "$vpid" --rss-every 5 --label "$sc $run" 2>&1)
           kill "$vpid" 2>/dev/null; wait "$vpid" 2>/dev/null
           echo "$c" > "$OUT/view_${sc}_${run}_client.log"
           echo "$c" | grep -vE '^\{' | tee -a "$S"
           gpu=$(awk -F', ' '{print $2}' "$OUT/view_${sc}_${run}_gpu_memory.csv" | tr '\n' ' ')
-          [ -n "$gpu" ] && say "  GPU memory of the server every 10 s: $gpu"
+          [ -n "$gpu" ] && say "  GPU memory of the server every 5 s: $gpu"
           sps=$(echo "$c" | grep -E '^\{' | python3 -c 'import json,sys; print(json.loads(sys.stdin.read())["steps_per_s"][0])' 2>/dev/null)
           if [ -n "$sps" ] && [ -n "$off" ]; then
             say "  $sc $run: viewer on $(awk -v s="$sps" 'BEGIN { if (s > 0) printf "%.4f", 1000 / s }') ms/step (session, median) against $off ms/step off (rtmpm bench): $(awk -v s="$sps" -v o="$off" 'BEGIN { if (s > 0) printf "%+.1f %%", 100 * (1000 / s / o - 1) }') (target: at most +10 %)"
           fi
         done
       done
+      # The short table of the suite, last (scripts/viewer/view_table.py says what each row is).
+      python3 scripts/viewer/view_table.py "$OUT" fluid_dam_2m snow_1m | tee -a "$S"
       ;;
     long)
       sed 's/^dt = 1e-4/dt = 5e-5/' bench/strong_16m.toml > /tmp/strong_16m_half_dt.toml
@@ -301,7 +307,7 @@ for suite in "$@"; do
     python)
       if [ -d "$D/wheels" ]; then
         python3 -m pip install -q --no-index --no-deps --target /tmp/site "$D"/wheels/*.whl && export PYTHONPATH=/tmp/site
-        PYTHONUNBUFFERED=1 timeout 500 python3 -m pytest -q crates/rtmpm-py/tests > "$OUT/python.log" 2>&1
+        PYTHONUNBUFFERED=1 timeout 500 python3 -m pytest -q crates/rtmpm-py/tests ${PY_K:+-k "$PY_K"} > "$OUT/python.log" 2>&1
         say "python rc=$?: $(tail -1 "$OUT/python.log")"
       else
         say "python: no wheel in $D/wheels"

@@ -161,6 +161,7 @@ def main():
             if m.get("type") == "status":
                 if args.orbit and not m["paused"]:
                     continue
+                m["_at"] = time.time()
                 statuses.append(m)
                 first_seq = m["seq"] if first_seq is None else first_seq
                 last_seq = m["seq"]
@@ -177,6 +178,13 @@ def main():
     # With --orbit, the first status is the paused picture that was already drawn.
     s = statuses[1:] if args.orbit else statuses
     drawn = (last_seq - first_seq + 1) if s else 0
+    # Simulated frames per second while this client listened (the frame counter of the first
+    # and last status it got, over the time between them), and how many of those frames the
+    # session drew and this client received: with a pace of one frame a picture, every
+    # simulated frame is shown when both are 1.
+    span = s[-1]["_at"] - s[0]["_at"] if len(s) > 1 else 0.0
+    sim_frames = s[-1]["frame"] - s[0]["frame"] if len(s) > 1 else 0
+    sim_fps = sim_frames / span if span > 0 else 0.0
     out = {
         "label": args.label,
         "seconds": round(wall, 2),
@@ -188,6 +196,9 @@ def main():
         "draw_ms": [round(x, 2) for x in med_max([x["render_ms"] for x in s])],
         "jpeg_ms": [round(x, 2) for x in med_max([x["encode_ms"] for x in s])],
         "session_fps": [round(x, 2) for x in med_max([x["fps"] for x in s])],
+        "sim_frames_per_s": round(sim_fps, 2),
+        "drawn_per_sim_frame": round((drawn - 1) / sim_frames, 3) if sim_frames > 0 else None,
+        "received_per_sim_frame": round((len(s) - 1) / sim_frames, 3) if sim_frames > 0 else None,
         "steps_per_s": [round(x, 1) for x in med_max([x["steps_per_s"] for x in s])],
         "particle_steps_per_s": [float(f"{x:.3g}") for x in
                                  med_max([x["particle_steps_per_s"] for x in s])],
@@ -205,7 +216,8 @@ def main():
           f"({out['pictures_per_s']}/s, {out['kib_per_picture']} KiB each; the session drew "
           f"{drawn}, {out['dropped_for_this_client']} not sent to this client), draw "
           f"{out['draw_ms'][0]} ms, JPEG {out['jpeg_ms'][0]} ms (median), "
-          f"{out['steps_per_s'][0]} steps/s", file=sys.stderr)
+          f"{out['steps_per_s'][0]} steps/s, {out['sim_frames_per_s']} simulated frames/s",
+          file=sys.stderr)
     if "rss_mib" in out:
         r = out["rss_mib"]
         print(f"{'':2}server memory: {r['first']} MiB at the start, {r['last']} MiB at the end, "

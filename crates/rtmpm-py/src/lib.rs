@@ -22,6 +22,7 @@ mod pool;
 mod scene;
 mod simulation;
 mod state;
+mod view;
 
 use pyo3::prelude::*;
 use std::path::PathBuf;
@@ -83,6 +84,7 @@ fn _rtmpm(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<frames::FrameIter>()?;
     m.add_class::<particles::PyParticles>()?;
     m.add_class::<device::DeviceArray>()?;
+    m.add_class::<view::LiveView>()?;
     m.add("RtmpmError", py.get_type::<errors::RtmpmError>())?;
     m.add("SceneError", py.get_type::<errors::SceneError>())?;
     m.add("SimulationError", py.get_type::<errors::SimulationError>())?;

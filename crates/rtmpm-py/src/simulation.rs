@@ -486,6 +486,43 @@ impl PySimulation {
         crate::picture::render_gpu(py, inner, &view)
     }
 
+    /// Watch and steer the simulation live, as ``rtmpm view`` does: in a window where there
+    /// is a display (blocks until it is closed, returns a summary dict: ``pictures``,
+    /// ``frames``, ``steps``, ``time``, ``error``), or in a browser (in a notebook, without a
+    /// display, or with ``serve=True`` / ``serve="HOST:PORT"``; default ``127.0.0.1:8080``):
+    /// returns a :class:`LiveView` at once, which a notebook shows as the page.
+    ///
+    /// The view runs a copy of the simulation from its state now, on the same backend (its
+    /// pictures drawn by the renderer of :meth:`render_gpu`: on CUDA on the GPU); this object
+    /// does not move on, and the view's reset goes back to this state. ``size``: the pictures'
+    /// ``(width, height)``; ``color_by``: the first colour mode; ``paused``: start paused;
+    /// ``frames``: end after that many simulated frames; ``shadows``: draw them. Controls:
+    /// docs/viewer.md.
+    #[pyo3(signature = (serve = None, size = (1280, 720), color_by = None, paused = false, frames = None, shadows = true))]
+    #[allow(clippy::too_many_arguments)] // Python's keyword arguments
+    fn view(
+        &mut self,
+        py: Python<'_>,
+        serve: Option<Bound<'_, PyAny>>,
+        size: (u32, u32),
+        color_by: Option<String>,
+        paused: bool,
+        frames: Option<u64>,
+        shadows: bool,
+    ) -> PyResult<Py<PyAny>> {
+        let inner = self.get();
+        inner.usable()?;
+        let args = crate::view::ViewArgs {
+            serve,
+            size,
+            color_by,
+            paused,
+            frames,
+            shadows,
+        };
+        crate::view::view(py, inner, args)
+    }
+
     fn __repr__(&mut self) -> String {
         let inner = self.get();
         format!(

@@ -2,6 +2,8 @@
 Array Interface (CuPy), host arrays and setters on the GPU. Skipped without a usable GPU; run on
 the GPU machine by scripts/gpu/python.sh."""
 
+import time
+
 import numpy as np
 import pytest
 
@@ -198,7 +200,8 @@ def test_render_gpu_draws_on_the_gpu_what_render_draws(sim):
     """render_gpu on CUDA (kernels reading the state on the GPU) against render (the CPU renderer
     from the particles read back): the bound of crates/rtmpm-cuda/tests/render.rs, at most 1 %
     of the pixels off by more than 32 levels in a channel and a mean difference of at most 1.5
-    levels, in every colour mode (the GPU's automatic range given to both)."""
+    levels, in every colour mode (each finds its own automatic range: the GPU's is within
+    1/2048^2 of the field's span of the CPU's, crates/rtmpm-cuda/tests/render.rs checks it)."""
     for color_by in ("material", "speed", "J", "stress", "plastic"):
         g = sim.render_gpu(size=(320, 180), color_by=color_by, radius=0.006, label="")
         assert g.shape == (180, 320, 3) and g.dtype == np.uint8
@@ -208,3 +211,25 @@ def test_render_gpu_draws_on_the_gpu_what_render_draws(sim):
         print(f"{color_by}: mean {mean:.3f}, share {share:.4f}")
         assert mean <= 1.5 and share <= 0.01, (color_by, mean, share)
         assert len(np.unique(g.reshape(-1, 3), axis=0)) > 20
+
+
+def test_view_draws_on_the_gpu(sim):
+    """Simulation.view() on CUDA: the live session's copy runs on the GPU and its pictures are
+    drawn there (the render stage); steering reaches it."""
+    view = sim.view(serve="127.0.0.1:0", size=(320, 180), paused=True)
+    try:
+        t0 = time.monotonic()
+        while view.status is None and time.monotonic() - t0 < 60:
+            time.sleep(0.05)
+        s = view.status
+        assert s is not None and s["backend"].startswith("cuda"), s
+        assert (s["width"], s["height"]) == (320, 180) and s["render_ms"] > 0
+        # Drawn on the GPU: the particles were not read back for the picture.
+        assert s["center_of_mass"] is None
+        view.send({"cmd": "resume"})
+        while view.status["frame"] < s["frame"] + 2 and time.monotonic() - t0 < 120:
+            time.sleep(0.05)
+        assert view.status["frame"] >= s["frame"] + 2
+    finally:
+        summary = view.stop()
+    assert summary["error"] is None and summary["pictures"] >= 3
