@@ -300,6 +300,32 @@ def cases():
          ("joint[0].anchor",)),
     ]:
         structural[f"rigid body: {name}"] = (GOOD_SCENE + rigid_body_tail(text), [words])
+    # Batches of worlds ([batch]): counts, sweeps of unknown or non-numeric fields, lists of
+    # the wrong length, values the scene refuses, more worlds than memory holds.
+    for name, tail, words in [
+        ("count 0", "[batch]\ncount = 0\n", ("batch.count", "at least one world")),
+        ("count negative", "[batch]\ncount = -4\n", ("batch.count", "at least one world")),
+        ("count not whole", "[batch]\ncount = 2.5\n", ("batch.count", "whole number")),
+        ("count text", '[batch]\ncount = "16"\n', ("batch.count", "whole number")),
+        ("count missing", "[batch]\n", ("batch.count", "needs `count`")),
+        ("count 10^12", "[batch]\ncount = 1000000000000\n", ("1000000000000",)),
+        ("more worlds than memory", "[batch]\ncount = 65536\n", ("worlds fit", "does not fit")),
+        ("unknown table", '[batch]\ncount = 2\n[batch.sweep]\n"materal[0].density" = [1, 2]\n',
+         ("unknown field", "materal")),
+        ("index past the end", '[batch]\ncount = 2\n[batch.sweep]\n"material[5].density" = [1, 2]\n',
+         ("has 2 entries",)),
+        ("misspelt field", '[batch]\ncount = 2\n[batch.sweep]\n"material[0].youngs_modulos" = [1e4, 2e4]\n',
+         ("youngs_modulos",)),
+        ("non-numeric field", '[batch]\ncount = 2\n[batch.sweep]\n"material[0].type" = [1, 2]\n',
+         ("only numbers",)),
+        ("list of the wrong length", '[batch]\ncount = 3\n[batch.sweep]\n"gravity[1]" = [-9.81, -1.62]\n',
+         ("2 values and the batch 3 worlds",)),
+        ("nan in a sweep", '[batch]\ncount = 2\n[batch.sweep]\n"gravity[1]" = [-9.81, nan]\n', ("finite",)),
+        ("value the scene refuses", '[batch]\ncount = 3\n[batch.sweep]\n"material[0].poisson_ratio" = { from = 0.1, to = 0.7 }\n',
+         ("world 2", "poisson_ratio")),
+        ("scalar for a vector", '[batch]\ncount = 2\n[batch.sweep]\n"gravity" = [1, 2]\n', ("vector of 3",)),
+    ]:
+        structural[f"batch: {name}"] = (GOOD_SCENE + "\n" + tail, [words])
     structural["output dir climbs"] = (GOOD_SCENE + '', [("output.dir",)])
     for name, (text, words) in structural.items():
         if name == "output dir climbs":

@@ -3,6 +3,8 @@
 //!
 //! * [`Simulation`]: steps a backend through the frames of a scene (time steps, frame landing,
 //!   emitters, blow-up reports).
+//! * [`batch`]: the worlds of a scene's `[batch]` run together, each isolated, a world that
+//!   blows up frozen while the others go on.
 //! * [`run`]: a run to its last frame ([`run::RunStart`] from a scene file or a checkpoint,
 //!   [`run::Run::execute`]): the steps in chunks, every frame written, checkpoints.
 //! * [`output`]: the frame files of the scene's formats and fluid surfaces; [`stream`]: PLY and
@@ -14,6 +16,7 @@
 //! * [`checks`]: the measurements of the validation cases (floating, settling and colliding
 //!   bodies, emitted mass).
 
+pub mod batch;
 pub mod bodies_csv;
 pub mod checks;
 pub mod outdir;

@@ -8,6 +8,7 @@
 // `SceneError` is deliberately rich (position, field, hint); it is only built on failure.
 #![allow(clippy::result_large_err)]
 
+pub mod batch;
 pub mod body;
 pub mod budget;
 pub mod deferred;
@@ -27,6 +28,7 @@ mod tests;
 mod validate;
 mod walk;
 
+pub use batch::BatchScene;
 pub use budget::Budget;
 pub use error::SceneError;
 pub use render_settings::{ColorBy, RenderSettings};

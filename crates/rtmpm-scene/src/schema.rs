@@ -35,6 +35,9 @@ pub struct RawScene {
     pub render: Option<RawRender>,
     pub solver: Option<RawSolver>,
     pub surface: Option<RawSurface>,
+    /// `[batch]`: many worlds from this scene, read by `crate::batch` (each world's scene is
+    /// this one with the sweeps' values).
+    pub batch: Option<toml::Value>,
 }
 
 /// `[surface]`: how fluid surfaces are reconstructed (`[output] surface`, `rtmpm mesh`,

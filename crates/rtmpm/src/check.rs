@@ -1,17 +1,21 @@
 //! `rtmpm check SCENE`: validate without running, and print the run's budget.
 
 use anyhow::Result;
-use rtmpm_scene::{Scene, sampling};
+use rtmpm_scene::sampling;
 use std::path::Path;
 
 pub fn check(path: &Path) -> Result<()> {
-    let scene = Scene::from_file(path)?;
+    let batch = crate::batch::load(path)?;
+    let scene = &batch.base;
     // The budget first: a scene that cannot fit is refused before anything is sampled.
-    let budget = crate::budget::enforce(&scene, None, Some(&scene.output.dir))?;
+    let budget = match batch.batch {
+        Some(_) => crate::batch::enforce(&batch, None, Some(&scene.output.dir))?,
+        None => crate::budget::enforce(scene, None, Some(&scene.output.dir))?,
+    };
     // Particles are counted, not stored, so `check` needs no memory for them.
     let mut per_material = vec![0u64; scene.materials.len()];
     for (i, b) in scene.bodies.iter().enumerate() {
-        per_material[b.material as usize] += sampling::count_body(&scene, i)?;
+        per_material[b.material as usize] += sampling::count_body(scene, i)?;
     }
     let [nx, ny, nz] = scene.n_cells();
     println!("{}: ok", path.display());
@@ -55,7 +59,15 @@ pub fn check(path: &Path) -> Result<()> {
             e.rate
         );
     }
-    println!("  particles   {}", per_material.iter().sum::<u64>());
+    if batch.batch.is_some() {
+        println!("{}", crate::batch::describe(&batch));
+        println!(
+            "  particles   {} a world (the file's scene, before the sweeps)",
+            per_material.iter().sum::<u64>()
+        );
+    } else {
+        println!("  particles   {}", per_material.iter().sum::<u64>());
+    }
     println!("  precision   {}", scene.precision.name());
     println!("{}", budget.describe());
     Ok(())

@@ -1,6 +1,7 @@
 //! `rtmpm`: run, check and benchmark Material Point Method scenes.
 
 mod backend;
+mod batch;
 mod bench;
 mod bench_frames;
 mod budget;

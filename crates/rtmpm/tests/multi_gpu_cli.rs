@@ -17,6 +17,8 @@ fn scenes() -> Vec<PathBuf> {
         .expect("scenes/")
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        // A batch of worlds ([batch]) runs on the CPU backend only.
+        .filter(|p| !std::fs::read_to_string(p).is_ok_and(|t| t.contains("\n[batch]")))
         .collect();
     v.sort();
     v

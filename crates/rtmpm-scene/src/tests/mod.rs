@@ -64,13 +64,17 @@ fn example_scenes_validate() {
         if path.extension().and_then(|e| e.to_str()) != Some("toml") {
             continue;
         }
-        let scene = Scene::from_file(&path).unwrap_or_else(|e| panic!("{e}"));
-        let p = scene.sample_particles().unwrap();
+        // Every world of a batch (`[batch]`), the scene alone otherwise.
+        let batch = crate::BatchScene::from_file(&path).unwrap_or_else(|e| panic!("{e}"));
+        let particles: usize = batch
+            .worlds
+            .iter()
+            .map(|s| s.sample_particles().unwrap().len())
+            .sum();
         assert!(
-            p.len() >= 5_000 && p.len() <= 150_000,
-            "{}: {} particles",
-            path.display(),
-            p.len()
+            (5_000..=150_000).contains(&particles),
+            "{}: {particles} particles",
+            path.display()
         );
         n += 1;
     }

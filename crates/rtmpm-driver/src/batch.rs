@@ -1,0 +1,271 @@
+//! Many worlds run together: the worlds of a scene's `[batch]` ([`rtmpm_scene::BatchScene`]),
+//! each a [`Simulation`] of its own (own particles, grid, colliders and rigid bodies, so no world
+//! can touch another's state), stepped frame by frame in lockstep. A world that blows up is
+//! reported and frozen at its last good frame; the others go on exactly as they would alone.
+//!
+//! Files: the output folder holds `batch.csv` (one row per world: its swept values and how it
+//! ended) and one folder per world, `world_000/`, `world_001/`, ..., each laid out as the folder
+//! of a single run (`frame_NNNNN.*`, `frames.pvd`), so that ParaView opens a world's
+//! `frames.pvd` and Houdini a world's `frame_$F5.bgeo` as they would any run.
+
+use crate::outdir::{OutDir, scene_identity};
+use crate::output::FrameOutput;
+use crate::simulation::Simulation;
+use anyhow::{Context, Result};
+use rtmpm_physics::Particles;
+use rtmpm_scene::{BatchScene, Scene};
+use rtmpm_sim::{Backend, SimError};
+use std::path::{Path, PathBuf};
+
+/// Where a world stands.
+#[derive(Clone, Debug, PartialEq)]
+pub enum WorldStatus {
+    /// Stepping on.
+    Running,
+    /// Stopped by a blow-up (or a stalled time step) during frame `frame + 1`: its state and
+    /// files stay those of frame `frame`.
+    Frozen {
+        /// The last frame completed (and written).
+        frame: u64,
+        /// What went wrong, as the single run would report it.
+        reason: String,
+    },
+}
+
+/// One world of a batch.
+pub struct World {
+    /// Its simulation.
+    pub sim: Simulation,
+    /// What sets it apart (`material[0].yield_stress = 150`).
+    pub label: String,
+    /// Running or frozen.
+    pub status: WorldStatus,
+    output: Option<FrameOutput>,
+    /// The particles at the last completed frame (what a frozen world keeps: the backend's
+    /// state after a failed step is the broken one).
+    kept: Particles,
+}
+
+/// The name of world `w`'s folder in a batch of `count` (`world_007`; zero-padded to the
+/// widest index, at least 3 digits, so that the folders sort in order).
+pub fn world_dir_name(w: usize, count: usize) -> String {
+    let width = count.saturating_sub(1).to_string().len().max(3);
+    format!("world_{w:0width$}")
+}
+
+/// A batch run: the worlds and where their frames go.
+pub struct BatchRun {
+    /// The worlds, in order.
+    pub worlds: Vec<World>,
+    /// The frames the run goes to.
+    pub frames: u64,
+    out: Option<OutDir>,
+}
+
+/// How a batch run goes.
+#[derive(Clone, Debug, Default)]
+pub struct BatchOptions {
+    /// Frames to simulate to (default: the scene's duration x fps).
+    pub frames: Option<u64>,
+    /// The output folder; `None` writes no files.
+    pub out_dir: Option<PathBuf>,
+    /// Remove the files of a previous run from the folders first (as `rtmpm run --overwrite`).
+    pub overwrite: bool,
+}
+
+impl BatchRun {
+    /// The worlds of `batch`, each on the backend `backend(scene, w)` builds (with its
+    /// particles); `text` is the scene file's text (it names the run in the output folders).
+    pub fn new(
+        batch: &BatchScene,
+        text: &str,
+        mut backend: impl FnMut(&Scene, usize) -> Result<Box<dyn Backend>>,
+        options: &BatchOptions,
+    ) -> Result<BatchRun> {
+        let count = batch.count();
+        let out = match &options.out_dir {
+            Some(dir) => {
+                let out = OutDir::lock(dir, "rtmpm run (batch)")?;
+                out.start_fresh(&scene_identity(&batch.base.name, text), options.overwrite)?;
+                Some(out)
+            }
+            None => None,
+        };
+        let mut worlds = Vec::with_capacity(count);
+        for (w, scene) in batch.worlds.iter().enumerate() {
+            let label = batch.label(w);
+            let output = match &out {
+                Some(o) => Some(world_output(
+                    &o.dir, w, count, scene, text, &label, options,
+                )?),
+                None => None,
+            };
+            let b = backend(scene, w).with_context(|| format!("world {w} ({label})"))?;
+            worlds.push(World {
+                sim: Simulation::new(scene.clone(), b),
+                label,
+                status: WorldStatus::Running,
+                output,
+                kept: Particles::default(),
+            });
+        }
+        let frames = options.frames.unwrap_or_else(|| batch.base.time.frames());
+        let run = BatchRun {
+            worlds,
+            frames,
+            out,
+        };
+        run.write_summary()?;
+        Ok(run)
+    }
+
+    /// Worlds still running.
+    pub fn running(&self) -> usize {
+        self.worlds
+            .iter()
+            .filter(|w| w.status == WorldStatus::Running)
+            .count()
+    }
+
+    /// The frame every running world has completed.
+    pub fn frame(&self) -> u64 {
+        self.worlds
+            .iter()
+            .filter(|w| w.status == WorldStatus::Running)
+            .map(|w| w.sim.frame)
+            .max()
+            .unwrap_or(self.frames)
+    }
+
+    /// Write frame 0 of every world (before the first step).
+    pub fn write_first_frame(&mut self) -> Result<()> {
+        for w in 0..self.worlds.len() {
+            self.write_frame(w)?;
+        }
+        Ok(())
+    }
+
+    /// Advance every running world by one frame and write it; a world whose step fails with a
+    /// blow-up or a stall is frozen at its last frame (returned, with its reason); an error of
+    /// the backend itself ends the run.
+    pub fn advance_frame(&mut self) -> Result<Vec<usize>> {
+        let mut frozen = Vec::new();
+        for w in 0..self.worlds.len() {
+            let world = &mut self.worlds[w];
+            if world.status != WorldStatus::Running {
+                continue;
+            }
+            match world.sim.advance_frame() {
+                Ok(_) => self.write_frame(w)?,
+                Err(e @ (SimError::Blowup(_) | SimError::Stall(_))) => {
+                    world.status = WorldStatus::Frozen {
+                        frame: world.sim.frame,
+                        reason: e.to_string(),
+                    };
+                    frozen.push(w);
+                }
+                Err(e) => {
+                    return Err(anyhow::Error::new(e))
+                        .with_context(|| format!("world {w} ({})", world.label));
+                }
+            }
+        }
+        if !frozen.is_empty() {
+            self.write_summary()?;
+        }
+        Ok(frozen)
+    }
+
+    /// Run every world to the last frame (frame 0 written first); `frame_done` is called after
+    /// each frame with the worlds frozen in it.
+    pub fn execute(&mut self, mut frame_done: impl FnMut(&BatchRun, &[usize])) -> Result<()> {
+        self.write_first_frame()?;
+        while self.running() > 0 && self.frame() < self.frames {
+            let frozen = self.advance_frame()?;
+            frame_done(self, &frozen);
+        }
+        self.write_summary()
+    }
+
+    /// World `w`'s current frame: read (kept in case it blows up later) and written.
+    fn write_frame(&mut self, w: usize) -> Result<()> {
+        let world = &mut self.worlds[w];
+        let sim = &mut world.sim;
+        sim.backend.read_particles(&mut world.kept)?;
+        if let Some(out) = world.output.as_mut() {
+            let bodies = sim.backend.rigid_poses();
+            out.write_frame(sim.frame, sim.time, &world.kept, &bodies, &sim.scene)?;
+        }
+        Ok(())
+    }
+
+    /// `batch.csv`: one row per world: its index, folder, swept values, and status.
+    fn write_summary(&self) -> Result<()> {
+        let Some(out) = &self.out else {
+            return Ok(());
+        };
+        let count = self.worlds.len();
+        let mut csv = String::from("world,folder,label,status,frames,steps\n");
+        for (w, world) in self.worlds.iter().enumerate() {
+            let (status, frame) = match &world.status {
+                WorldStatus::Running if world.sim.frame >= self.frames => {
+                    ("done".to_string(), world.sim.frame)
+                }
+                WorldStatus::Running => ("running".to_string(), world.sim.frame),
+                WorldStatus::Frozen { frame, reason } => {
+                    (format!("frozen: {}", reason.replace('\n', " ")), *frame)
+                }
+            };
+            csv.push_str(&format!(
+                "{w},{},{},{},{frame},{}\n",
+                world_dir_name(w, count),
+                quote(&world.label),
+                quote(&status),
+                world.sim.step
+            ));
+        }
+        let path = out.dir.join("batch.csv");
+        rtmpm_io::write_atomic(&path, csv.as_bytes())
+            .with_context(|| format!("writing {}", path.display()))
+    }
+}
+
+impl World {
+    /// The particles of the last completed frame (of the frame it froze at, for a frozen
+    /// world), as written to its files.
+    pub fn particles(&self) -> &Particles {
+        &self.kept
+    }
+}
+
+/// World `w`'s folder made ready for a fresh run (another run's files refused unless
+/// `overwrite`), and its frame files.
+fn world_output(
+    top: &Path,
+    w: usize,
+    count: usize,
+    scene: &Scene,
+    text: &str,
+    label: &str,
+    options: &BatchOptions,
+) -> Result<FrameOutput> {
+    let dir = top.join(world_dir_name(w, count));
+    let identity = scene_identity(
+        &format!("{} world {w}", scene.name),
+        &format!("{text}\n{label}"),
+    );
+    {
+        let lock = OutDir::lock(&dir, "rtmpm run (batch world)")?;
+        lock.start_fresh(&identity, options.overwrite)?;
+    }
+    FrameOutput::new(&dir, scene, &identity, None)
+}
+
+/// A CSV field, quoted when it holds a comma or a quote.
+fn quote(s: &str) -> String {
+    if s.contains([',', '"']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}

@@ -1,0 +1,172 @@
+//! Batches of worlds (`[batch]` in a scene) on the command line: loading with their budget
+//! checked against this machine first, and what `rtmpm check` prints of them.
+
+use anyhow::{Result, bail};
+use rtmpm_io::limits::host_memory_available;
+use rtmpm_scene::batch::{memory_refusal, scaled_budget};
+use rtmpm_scene::{BatchScene, Budget};
+use std::path::Path;
+
+/// True when the scene file `path` has a `[batch]` table (false when it cannot be read or
+/// parsed: loading it reports why).
+pub fn is_batch(path: &Path) -> bool {
+    rtmpm_io::limits::read_text_bounded(path, rtmpm_io::limits::SCENE_MAX_BYTES, "scene file")
+        .ok()
+        .and_then(|t| toml::from_str::<toml::Table>(&t).ok())
+        .is_some_and(|t| t.contains_key("batch"))
+}
+
+/// The scene file `path` as a batch of worlds. A batch whose memory (the file's scene times the
+/// count) cannot fit is refused with the numbers before its worlds are made.
+pub fn load(path: &Path) -> Result<BatchScene> {
+    BatchScene::from_file_checked(path, |base, batch| {
+        let estimate = scaled_budget(&Budget::estimate(base, None), batch.count);
+        match memory_refusal(&estimate, batch.count, host_memory_available()) {
+            Some(r) => Err(anyhow::anyhow!(
+                "the batch of scene `{}` does not fit this machine:\n{r}",
+                base.name
+            )),
+            None => Ok(()),
+        }
+    })
+}
+
+/// The budget of every world together (`frames` overriding the duration), its warnings, and
+/// the refusal of a batch that cannot fit: with the worlds, their memory and how many fit.
+pub fn enforce(b: &BatchScene, frames: Option<u64>, out: Option<&Path>) -> Result<Budget> {
+    let budget = b.budget(frames);
+    for w in budget.warnings().into_iter().chain(b.base.warnings()) {
+        eprintln!("warning: {w}");
+    }
+    let mut refusals: Vec<String> = b
+        .memory_refusal(&budget, host_memory_available())
+        .into_iter()
+        .collect();
+    // The other refusals (disk, steps, frames) as for one scene; memory is said above.
+    let disk = out.and_then(crate::budget::disk_available);
+    refusals.extend(
+        budget
+            .refusals(None, disk, out.is_some())
+            .iter()
+            .map(|r| r.to_string()),
+    );
+    if !refusals.is_empty() {
+        bail!(
+            "the batch of scene `{}` does not fit this machine:\n{}",
+            b.base.name,
+            refusals.join("\n")
+        );
+    }
+    Ok(budget)
+}
+
+/// The lines `rtmpm check` prints about a batch: the count and what each world sets (the first
+/// and last few of a long batch).
+pub fn describe(b: &BatchScene) -> String {
+    let n = b.count();
+    let mut out = format!("  batch       {n} worlds");
+    let shown: Vec<usize> = if n <= 8 {
+        (0..n).collect()
+    } else {
+        (0..4).chain(n - 4..n).collect()
+    };
+    for (k, &w) in shown.iter().enumerate() {
+        if k > 0 && w != shown[k - 1] + 1 {
+            out.push_str("\n              ...");
+        }
+        out.push_str(&format!("\n    world {w:<5} {}", b.label(w)));
+    }
+    out
+}
+
+/// Most worker threads a batch run starts (`--threads`), as for one CPU backend.
+const MAX_THREADS: usize = 1024;
+
+/// `rtmpm run` of a scene with `[batch]`: every world on the CPU backend, frame by frame, each
+/// world's frames in its folder (`docs/batch.md`), a line per frame and a summary at the end.
+pub fn run(args: &crate::run::RunArgs, path: &Path, b: &BatchScene) -> Result<()> {
+    use crate::backend::{BackendKind, make_backend};
+    use rtmpm_driver::batch::{BatchOptions, BatchRun, WorldStatus};
+    if args.backend == BackendKind::Cuda {
+        bail!(
+            "batches run on the CPU backend (all worlds in the same CUDA kernels is designed, \
+             not built: docs/batch.md)\n  fix: --backend cpu"
+        );
+    }
+    if !matches!(args.multi.mode()?, crate::multi::Mode::Single) {
+        bail!("a batch runs on the CPU backend: several GPUs or processes do not apply");
+    }
+    if args.render || args.preview.is_some() {
+        bail!(
+            "a batch run draws no pictures while it runs\n  fix: run it, then `rtmpm render \
+             OUT` pictures every frame of its worlds side by side"
+        );
+    }
+    if args.resume.is_some() || args.checkpoint_every.is_some() || args.precision.is_some() {
+        bail!(
+            "a batch run takes no --resume, --checkpoint-every or --precision (set [solver] \
+             precision in the scene)"
+        );
+    }
+    if let Some(n) = args.threads {
+        if n == 0 || n > MAX_THREADS {
+            bail!("--threads must be from 1 to {MAX_THREADS}, got {n}");
+        }
+        // One pool for every world (a pool per world would start count x n threads).
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+            .map_err(|e| anyhow::anyhow!("cannot start {n} worker threads: {e}"))?;
+    }
+    let out = (!args.no_output).then(|| args.out.clone().unwrap_or(b.base.output.dir.clone()));
+    enforce(b, args.frames, out.as_deref())?;
+    let text =
+        rtmpm_io::limits::read_text_bounded(path, rtmpm_io::limits::SCENE_MAX_BYTES, "scene file")?;
+    let options = BatchOptions {
+        frames: args.frames,
+        out_dir: out.clone(),
+        overwrite: args.overwrite,
+    };
+    eprintln!("batch: {} worlds on the CPU backend", b.count());
+    let start = std::time::Instant::now();
+    let cuda = rtmpm_cuda::CudaOptions::default();
+    let mut run = BatchRun::new(
+        b,
+        &text,
+        |scene, _| {
+            let (p, _) = rtmpm_driver::setup::sample(scene)?;
+            make_backend(BackendKind::Cpu, scene, p, None, &cuda)
+        },
+        &options,
+    )?;
+    let total = run.frames;
+    run.execute(|r, frozen| {
+        for &w in frozen {
+            if let WorldStatus::Frozen { reason, .. } = &r.worlds[w].status {
+                eprintln!("world {w} ({}) frozen: {reason}", r.worlds[w].label);
+            }
+        }
+        eprintln!(
+            "frame {}/{total}: {} of {} worlds running, {:.1} s",
+            r.frame(),
+            r.running(),
+            r.worlds.len(),
+            start.elapsed().as_secs_f64()
+        );
+    })?;
+    let frozen = run.worlds.len() - run.running();
+    println!(
+        "batch of {} worlds: {} frames in {:.1} s, {frozen} frozen{}",
+        run.worlds.len(),
+        total,
+        start.elapsed().as_secs_f64(),
+        match &out {
+            Some(d) => format!(
+                "; frames in {}/world_*/ (batch.csv lists them)",
+                d.display()
+            ),
+            None => String::new(),
+        }
+    );
+    Ok(())
+}
