@@ -128,3 +128,36 @@ fn a_world_that_blows_up_is_frozen_and_the_others_go_on_unchanged() {
         );
     }
 }
+
+#[test]
+fn a_world_reset_starts_again_and_the_others_go_on_unchanged() {
+    let text = SLUMP.replace("TIME", "cfl = 0.4")
+        + "[batch]\ncount = 3\n[batch.sweep]\n\"material[0].yield_stress\" = [20, 150, 600]\n";
+    let b = BatchScene::from_toml(&text, "wedge.toml").unwrap_or_else(|e| panic!("{e}"));
+    let mut r =
+        BatchRun::new(&b, &text, |s, _| backend(s), &BatchOptions::default()).expect("batch");
+    r.write_first_frame().expect("frame 0");
+    for _ in 0..2 {
+        assert!(r.advance_frame().expect("frame").is_empty());
+    }
+    r.reset_world(1, backend).expect("reset");
+    assert_eq!(r.worlds[1].sim.frame, 0);
+    assert_eq!(
+        r.worlds[1].particles().x,
+        b.worlds[1].sample_particles().expect("sample").x
+    );
+    for _ in 0..2 {
+        r.advance_frame().expect("frame");
+    }
+    // World 1 is two frames into its run again; the others four, as if nothing happened.
+    assert_eq!(bits(r.worlds[1].particles()), bits(&alone(&b.worlds[1], 2)));
+    for w in [0, 2] {
+        assert_eq!(r.worlds[w].sim.frame, 4);
+        assert_eq!(
+            bits(r.worlds[w].particles()),
+            bits(&alone(&b.worlds[w], 4)),
+            "world {w}"
+        );
+    }
+    assert!(r.reset_world(3, backend).is_err());
+}

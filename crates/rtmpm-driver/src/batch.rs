@@ -176,6 +176,29 @@ impl BatchRun {
         Ok(frozen)
     }
 
+    /// Put world `w` back to its initial state (time 0, frame 0, running), on the backend
+    /// `backend` builds for its scene as at the start; the other worlds are not touched. For
+    /// runs that write no files (a world's frames would start again over its folder's).
+    pub fn reset_world(
+        &mut self,
+        w: usize,
+        backend: impl FnOnce(&Scene) -> Result<Box<dyn Backend>>,
+    ) -> Result<()> {
+        if self.out.is_some() {
+            anyhow::bail!("a batch run that writes frame files cannot reset a world");
+        }
+        let count = self.worlds.len();
+        let world = self
+            .worlds
+            .get_mut(w)
+            .with_context(|| format!("no world {w}: the batch has {count} (0 to {})", count - 1))?;
+        let scene = world.sim.scene.clone();
+        let b = backend(&scene).with_context(|| format!("world {w} ({})", world.label))?;
+        world.sim = Simulation::new(scene, b);
+        world.status = WorldStatus::Running;
+        self.write_frame(w)
+    }
+
     /// Run every world to the last frame (frame 0 written first); `frame_done` is called after
     /// each frame with the worlds frozen in it.
     pub fn execute(&mut self, mut frame_done: impl FnMut(&BatchRun, &[usize])) -> Result<()> {

@@ -84,8 +84,12 @@ const MAX_THREADS: usize = 1024;
 
 /// `rtmpm run` of a scene with `[batch]`: every world on the CPU backend, frame by frame, each
 /// world's frames in its folder (`docs/batch.md`), a line per frame and a summary at the end.
-pub fn run(args: &crate::run::RunArgs, path: &Path, b: &BatchScene) -> Result<()> {
+pub fn run(args: &crate::run::RunArgs) -> Result<()> {
     use crate::backend::{BackendKind, make_backend};
+    let Some(path) = args.scene.as_deref() else {
+        bail!("no scene given: rtmpm run SCENE");
+    };
+    let b = &load(path)?;
     use rtmpm_driver::batch::{BatchOptions, BatchRun, WorldStatus};
     if args.backend == BackendKind::Cuda {
         bail!(

@@ -57,11 +57,15 @@ fn main() -> ExitCode {
     }
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Run(args) => run::run(*args),
+        // A scene with `[batch]`: its worlds run together.
+        Command::Run(args) => match args.scene.as_deref() {
+            Some(path) if batch::is_batch(path) => batch::run(&args),
+            _ => run::run(*args),
+        },
         Command::Info => info::info(),
         Command::Check { scene } => check::check(&scene),
         Command::Bench(args) => bench::bench(args),
-        Command::Render(args) => render::cmd::render_cmd(args),
+        Command::Render(args) => render::wedge::dispatch(args),
         Command::Mesh(args) => mesh::mesh_cmd(args),
         Command::Validate(args) => validate::validate(args),
         Command::View(args) => view::view(*args),

@@ -156,7 +156,7 @@ fn resolve(
 
 pub mod cmd;
 mod frame;
-mod wedge;
+pub mod wedge;
 
 use frame::read_bodies_csv;
 pub use frame::{FrameJob, SurfaceJob};

@@ -82,13 +82,6 @@ pub struct RunArgs {
 }
 
 pub fn run(args: RunArgs) -> Result<()> {
-    // A scene with `[batch]`: its worlds run together.
-    if let Some(path) = args.scene.as_deref()
-        && crate::batch::is_batch(path)
-    {
-        let b = crate::batch::load(path)?;
-        return crate::batch::run(&args, path, &b);
-    }
     let RunStart {
         mut scene,
         scene_text,

@@ -1,7 +1,8 @@
 //! [`BatchScene`]: a scene file read as the worlds of its `[batch]`, each validated, with the
 //! errors of a swept value placed at its sweep.
 
-use super::{Batch, BatchIssue, MAX_BATCH_TEXT_BYTES, path};
+use super::path;
+use super::sweep::{Batch, BatchIssue, MAX_BATCH_TEXT_BYTES};
 use crate::budget::Budget;
 use crate::error::SceneError;
 use crate::scene::Scene;

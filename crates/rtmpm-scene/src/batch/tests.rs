@@ -1,6 +1,6 @@
 //! `[batch]`: parsing, the expansion into world scenes, and the errors of bad batches.
 
-use super::*;
+use super::sweep::{Batch, MAX_WORLDS};
 use crate::scene::Scene;
 use crate::{BatchScene, SceneError};
 use rtmpm_physics::material::Model;

@@ -66,10 +66,6 @@ pub fn render_cmd(args: RenderArgs) -> Result<()> {
             dir.display()
         );
     }
-    // The folder of a batch run: every world side by side.
-    if dir.join("batch.csv").is_file() {
-        return super::wedge::render_wedge(&args, dir);
-    }
     // Images are written into the folder: not while a run writes into it.
     let _lock = rtmpm_driver::outdir::OutDir::lock(dir, "rtmpm render")?;
     let frames = ply_frames(dir)?;

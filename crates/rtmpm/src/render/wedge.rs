@@ -2,6 +2,7 @@
 //! every world side by side in a grid, each world's swept values written under it
 //! (`wedge_NNNNN.png`, `wedge.gif`). A frozen world shows its last frame, marked.
 
+use super::cmd::{RenderArgs, ply_frames, render_cmd};
 use super::*;
 use rtmpm_render::Image;
 use rtmpm_render::text::{draw_text, text_height, text_width};
@@ -92,8 +93,17 @@ fn grid(n: usize) -> (usize, usize) {
     (cols, n.div_ceil(cols))
 }
 
+/// `rtmpm render`: the wedge of a batch run's folder (it holds `batch.csv`), else the frames
+/// of a run ([`render_cmd`]).
+pub fn dispatch(args: RenderArgs) -> Result<()> {
+    match &args.outdir {
+        Some(dir) if !args.bench && dir.join("batch.csv").is_file() => render_wedge(&args, dir),
+        _ => render_cmd(args),
+    }
+}
+
 /// Render the wedge of the batch run in `dir`.
-pub fn render_wedge(args: &RenderArgs, dir: &Path) -> Result<()> {
+fn render_wedge(args: &RenderArgs, dir: &Path) -> Result<()> {
     let _lock = rtmpm_driver::outdir::OutDir::lock(dir, "rtmpm render")?;
     let worlds = read_batch_csv(dir)?;
     let frames: Vec<Vec<(u64, PathBuf)>> = worlds
