@@ -296,7 +296,7 @@ fn a_convex_mesh_body_has_the_analytic_mass_and_inertia_of_its_box() {
             spec.position
         );
         let rigid_mesh = match &spec.shape {
-            rtmpm_geometry::RigidShape::Mesh(m) => m.clone(),
+            rtmpm_geometry::Shape::Mesh(m) => m.solid.clone().expect("a solid"),
             s => panic!("not a mesh: {s:?}"),
         };
         let i = rigid_mesh.unit_inertia * (spec.mass / rigid_mesh.volume);
@@ -384,7 +384,9 @@ fn a_heavy_non_convex_mesh_body_sinks_to_the_floor() {
         1,
     );
     let mut sim = simulation(&text);
-    let rtmpm_geometry::RigidShape::Mesh(m) = sim.scene.rigid_bodies[0].shape.clone() else {
+    let rtmpm_geometry::Shape::Mesh(rtmpm_geometry::shape::Mesh { solid: Some(m), .. }) =
+        sim.scene.rigid_bodies[0].shape.clone()
+    else {
         panic!("a mesh body")
     };
     assert!(!m.convex);

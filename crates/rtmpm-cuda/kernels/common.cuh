@@ -18,12 +18,12 @@ struct MaterialGpu {
 };
 
 struct GpuCollider {
-    unsigned kind;  // COLLIDER_*
+    unsigned kind;  // SHAPE_* (geometry/registry.cuh)
     unsigned cond;  // COND_*
     float friction;
     unsigned mesh_offset;
     float pivot[3];    // in the rest pose (velocities: ColliderPoses)
-    float p[8];        // shape parameters in the rest pose
+    float p[8];        // shape parameters in the rest pose (geometry/<name>.cuh)
     unsigned dims[3];  // mesh: grid dims
     unsigned pad;
 };

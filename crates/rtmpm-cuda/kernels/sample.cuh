@@ -4,11 +4,13 @@
 // are i = i0 .. i0 + nx, at origin + (i + 1/2, j + 1/2, k + 1/2) h, each moved (jittered
 // sampling) by (u - 1/2) h with three draws u of the body's PCG 128/64 stream (O'Neill 2014;
 // rtmpm-scene/src/pcg.rs), which a row starts 3 r nx draws in (Brown's jump, 1994); a point
-// is kept when it is inside the shape. Every f32 operation is rounded on its own as on the host
-// (never contracted into an fma, no flush to zero), so that --use_fast_math changes nothing.
-// This header compiles for the CPU too (scripts/check_sample_twin.sh, the unit test
-// `setup::sample::tests::the_device_walk_compiled_for_the_cpu_is_the_host_walk`).
+// is kept when it is inside the shape (its own test, geometry/<name>.cuh, in SpArith). Every f32
+// operation is rounded on its own as on the host (never contracted into an fma, no flush to
+// zero), so that --use_fast_math changes nothing. This header compiles for the CPU too (the unit
+// tests of src/setup/sample/tests.rs: the walk, and every shape's distance, inside test and
+// normal, against the host's).
 #pragma once
+#include "geometry/registry.cuh"
 
 #if defined(__CUDACC__)
 #define SP_FN __device__ __forceinline__
@@ -131,8 +133,9 @@ struct SpRecipe {
     sp_u64 nx, ny;
     int jitter;
     SpStream rng;
-    unsigned shape;
-    float p[10];
+    unsigned shape;  // SHAPE_* (geometry/registry.cuh)
+    float p[8];
+    unsigned dims[3];
     unsigned kind;
     float hi[3];
     sp_u64 tries;
@@ -160,87 +163,42 @@ SP_FN SpRecipe sp_load(const unsigned* w, const float* sdf) {
     r.rng.state = {sp_word64(w, SP_STATE), sp_word64(w, SP_STATE + 2)};
     r.rng.inc = {sp_word64(w, SP_INC), sp_word64(w, SP_INC + 2)};
     r.shape = w[SP_SHAPE];
-    for (int a = 0; a < 10; ++a) r.p[a] = sp_f32(w, SP_PARAMS + a);
+    for (int a = 0; a < 8; ++a) r.p[a] = sp_f32(w, SP_PARAMS + a);
+    for (int a = 0; a < 3; ++a) r.dims[a] = w[SP_DIMS + a];
     return r;
 }
 
-// glam's Vec3::dot: (a.x b.x + a.y b.y) + a.z b.z.
-SP_FN float sp_dot(const float* a, const float* b) {
-    return sp_add(sp_add(sp_mul(a[0], b[0]), sp_mul(a[1], b[1])), sp_mul(a[2], b[2]));
-}
+// The sampler's arithmetic for the shapes' formulas (geometry/geometry.cuh): f32, each
+// operation rounded on its own as on the host.
+struct SpArith {
+    typedef float T;
+    static GEO_MEMBER float add(float a, float b) { return sp_add(a, b); }
+    static GEO_MEMBER float sub(float a, float b) { return sp_sub(a, b); }
+    static GEO_MEMBER float mul(float a, float b) { return sp_mul(a, b); }
+    static GEO_MEMBER float div(float a, float b) { return sp_div(a, b); }
+    static GEO_MEMBER float sqrt(float a) { return sp_sqrt(a); }
+    static GEO_MEMBER float abs(float a) { return sp_abs(a); }
+    static GEO_MEMBER float max(float a, float b) { return sp_max(a, b); }
+    static GEO_MEMBER float min(float a, float b) { return sp_min(a, b); }
+    static GEO_MEMBER float floor(float a) { return sp_floor(a); }
+    static GEO_MEMBER bool lt(float a, float b) { return sp_lt(a, b); }
+    static GEO_MEMBER bool le(float a, float b) { return sp_le(a, b); }
+    static GEO_MEMBER bool gt(float a, float b) { return sp_gt(a, b); }
+    static GEO_MEMBER bool ge(float a, float b) { return sp_ge(a, b); }
+    static GEO_MEMBER bool ne(float a, float b) { return sp_ne(a, b); }
+    static GEO_MEMBER float of(float a) { return a; }
+    static GEO_MEMBER float of_u(unsigned a) { return sp_u2f(a); }
+    static GEO_MEMBER unsigned to_u(float a) { return sp_f2u(a); }
+};
 
-// |x - c|^2 of a sphere's test (glam's length_squared).
-SP_FN float sp_sphere_d2(const float* c, const float* x) {
-    float d[3] = {sp_sub(x[0], c[0]), sp_sub(x[1], c[1]), sp_sub(x[2], c[2])};
-    return sp_dot(d, d);
-}
-
-// rtmpm-geometry/src/sdf.rs, cylinder_distance: centre c[0..3], unit axis c[3..6], radius
-// c[6], half height c[7].
-SP_FN float sp_cylinder_distance(const float* c, const float* x) {
-    float q[3] = {sp_sub(x[0], c[0]), sp_sub(x[1], c[1]), sp_sub(x[2], c[2])};
-    float h = sp_dot(q, c + 3);
-    float s[3] = {sp_sub(q[0], sp_mul(h, c[3])), sp_sub(q[1], sp_mul(h, c[4])), sp_sub(q[2], sp_mul(h, c[5]))};
-    float dr = sp_sub(sp_sqrt(sp_dot(s, s)), c[6]);
-    float dh = sp_sub(sp_abs(h), c[7]);
-    float ox = sp_max(dr, 0.0f), oy = sp_max(dh, 0.0f);
-    return sp_add(sp_sqrt(sp_add(sp_mul(ox, ox), sp_mul(oy, oy))), sp_min(sp_max(dr, dh), 0.0f));
-}
-
-// rtmpm-geometry/src/mesh/mod.rs, MeshSdf::distance: trilinear in the grid (origin g[0..3],
-// spacing g[3], dims d), outside it the distance to the grid box plus the nearest value.
-SP_FN float sp_mesh_distance(const float* g, const unsigned* d, const float* values, const float* x) {
-    float clamped[3], off[3], base_f[3], frac[3];
-    unsigned base[3];
-    for (int a = 0; a < 3; ++a) {
-        float gmax = sp_add(g[a], sp_mul(sp_u2f(d[a] - 1), g[3]));
-        clamped[a] = sp_min(sp_max(x[a], g[a]), gmax);
-        off[a] = sp_sub(x[a], clamped[a]);
-    }
-    float outside = sp_sqrt(sp_dot(off, off));
-    for (int a = 0; a < 3; ++a) {
-        float ga = sp_div(sp_sub(clamped[a], g[a]), g[3]);
-        if (d[a] < 2) {
-            base[a] = 0;
-            frac[a] = 0.0f;
-            continue;
-        }
-        float fl = sp_max(sp_floor(ga), 0.0f);
-        unsigned b = sp_f2u(fl);
-        base[a] = b < d[a] - 2 ? b : d[a] - 2;
-        base_f[a] = sp_u2f(base[a]);
-        float f = sp_sub(ga, base_f[a]);
-        frac[a] = sp_lt(f, 0.0f) ? 0.0f : (sp_gt(f, 1.0f) ? 1.0f : f);
-    }
-    float v = 0.0f;
-    for (int corner = 0; corner < 8; ++corner) {
-        unsigned ix[3];
-        float w = 1.0f;
-        for (int a = 0; a < 3; ++a) {
-            unsigned o = (corner >> a) & 1;
-            ix[a] = base[a] + o < d[a] - 1 ? base[a] + o : d[a] - 1;
-            w = sp_mul(w, o ? frac[a] : sp_sub(1.0f, frac[a]));
-        }
-        if (sp_ne(w, 0.0f)) v = sp_add(v, sp_mul(w, values[ix[0] + (sp_u64)d[0] * (ix[1] + (sp_u64)d[1] * ix[2])]));
-    }
-    return sp_add(v, outside);
-}
-
-// BodyShape::contains (rtmpm-scene/src/sampling.rs): a box or sphere includes its surface;
-// a cylinder keeps cylinder_distance <= 0, a mesh its signed distance < 0.
+// Shape::contains (rtmpm-geometry/src/shape/<name>.rs) of the recipe's shape, with the host's
+// rounding: the shape's own test (geometry/<name>.cuh).
 SP_FN bool sp_inside(const SpRecipe& R, const float* x) {
-    const float* p = R.p;
-    if (R.shape == SAMPLE_BOX) {
-        return sp_ge(x[0], p[0]) && sp_ge(x[1], p[1]) && sp_ge(x[2], p[2]) && sp_le(x[0], p[3]) &&
-               sp_le(x[1], p[4]) && sp_le(x[2], p[5]);
-    }
-    if (R.shape == SAMPLE_SPHERE) return sp_le(sp_sphere_d2(p, x), sp_mul(p[3], p[3]));
-    if (R.shape == SAMPLE_MESH) {
-        unsigned d[3];
-        for (int a = 0; a < 3; ++a) d[a] = sp_u32_of(p[4 + a]);
-        return sp_lt(sp_mesh_distance(p, d, R.sdf, x), 0.0f);
-    }
-    return sp_le(sp_cylinder_distance(p, x), 0.0f);
+    GeoShape g;
+    g.p = R.p;
+    g.dims = R.dims;
+    g.values = R.sdf;
+    return shape_contains_of<SpArith>(R.shape, g, x);
 }
 
 // The points of row r inside the shape, in order: emit(x) for each. Random tries

@@ -53,6 +53,7 @@ fn source(name: &str) -> Option<Cow<'static, str>> {
     match name {
         "contract.cuh" => Some(contract::prelude().into()),
         "material/registry.cuh" => Some(contract::material_registry().into()),
+        "geometry/registry.cuh" => Some(contract::shape_registry().into()),
         _ => SOURCES
             .iter()
             .find(|(n, _)| *n == name)

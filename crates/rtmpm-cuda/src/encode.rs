@@ -7,7 +7,7 @@ use crate::contract::{
     self, ColliderPoses, GpuCollider, GpuReal, MAX_COLLIDERS, MAX_MATERIALS, Scalars, StepParams,
 };
 use rtmpm_geometry::Collider;
-use rtmpm_geometry::sdf::Shape;
+use rtmpm_geometry::Shape;
 use rtmpm_physics::math::Vec3;
 use rtmpm_scene::Scene;
 use rtmpm_sim::SimError;
@@ -47,7 +47,7 @@ pub fn body_meshes(scene: &Scene, mesh: &mut Vec<f32>) -> Vec<u32> {
         .rigid_bodies
         .iter()
         .map(|b| match &b.shape {
-            rtmpm_geometry::RigidShape::Mesh(m) => {
+            Shape::Mesh(m) => {
                 let at = mesh.len() as u32;
                 mesh.extend_from_slice(&m.sdf.values);
                 at
@@ -109,50 +109,23 @@ fn collider(c: &Collider, mesh: &mut Vec<f32>) -> GpuCollider {
         pivot: c.pivot.to_array(),
         ..Default::default()
     };
-    shape_params(&c.shape, &mut g, mesh);
+    shape_params(&c.shape, &mut g);
+    let values = c.shape.gpu().values;
+    if !values.is_empty() {
+        g.mesh_offset = mesh.len() as u32;
+        mesh.extend_from_slice(values);
+    }
     g
 }
 
-/// The shape parameters of `shape` into `g.p` (and a mesh's grid into `mesh`), as
-/// `kernels/grid_update.cu: shape_distance` reads them.
-pub fn shape_params(shape: &Shape, g: &mut GpuCollider, mesh: &mut Vec<f32>) {
-    let put =
-        |g: &mut GpuCollider, at: usize, v: Vec3| g.p[at..at + 3].copy_from_slice(&v.to_array());
-    match shape {
-        Shape::HalfSpace { point, normal } => {
-            put(g, 0, *point);
-            put(g, 3, *normal);
-        }
-        Shape::Box {
-            center,
-            half_extents,
-        } => {
-            put(g, 0, *center);
-            put(g, 3, *half_extents);
-        }
-        Shape::Sphere { center, radius } => {
-            put(g, 0, *center);
-            g.p[3] = *radius;
-        }
-        Shape::Cylinder {
-            center,
-            axis,
-            radius,
-            half_height,
-        } => {
-            put(g, 0, *center);
-            put(g, 3, *axis);
-            g.p[6] = *radius;
-            g.p[7] = *half_height;
-        }
-        Shape::Mesh(m) => {
-            put(g, 0, m.origin);
-            g.p[3] = m.spacing;
-            g.dims = m.dims;
-            g.mesh_offset = mesh.len() as u32;
-            mesh.extend_from_slice(&m.values);
-        }
-    }
+/// The shape's kind and parameters into `g` ([`Shape::gpu`]), as its device twin
+/// (`kernels/geometry/<name>.cuh`) reads them; a mesh's grid dimensions (its values are in the
+/// mesh table, at `g.mesh_offset`).
+pub fn shape_params(shape: &Shape, g: &mut GpuCollider) {
+    let p = shape.gpu();
+    g.kind = shape.code();
+    g.p = p.p;
+    g.dims = p.dims;
 }
 
 /// The run's constants in precision `R`, computed in `R` from the scene's values as the CPU
@@ -232,7 +205,7 @@ pub fn tool(tool: Option<(&Shape, Vec3)>) -> contract::GpuTool {
         friction: rule.friction,
         ..Default::default()
     };
-    shape_params(shape, &mut g, &mut Vec::new());
+    shape_params(shape, &mut g);
     contract::GpuTool {
         shape: g,
         velocity: velocity.to_array(),
@@ -293,10 +266,10 @@ mod tests {
     fn the_tool_is_a_separating_frictionless_collider_or_nothing() {
         let none = tool(None);
         assert_eq!(none.active, 0);
-        let ball = Shape::Sphere {
+        let ball = Shape::Sphere(rtmpm_geometry::shape::Sphere {
             center: Vec3::new(0.1, 0.2, 0.3),
             radius: 0.05,
-        };
+        });
         let t = tool(Some((&ball, Vec3::new(1.0, 0.0, -2.0))));
         assert_eq!(t.active, 1);
         assert_eq!(t.shape.kind, contract::collider_kind(&ball));

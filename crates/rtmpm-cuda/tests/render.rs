@@ -18,7 +18,7 @@ use rtmpm_cuda::view::render::tool_collider;
 use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
 use rtmpm_driver::Simulation;
 use rtmpm_geometry::Collider;
-use rtmpm_geometry::sdf::Shape;
+use rtmpm_geometry::Shape;
 use rtmpm_physics::Particles;
 use rtmpm_physics::boundary::BoundaryRule;
 use rtmpm_physics::math::Vec3;
@@ -47,10 +47,10 @@ fn scene() -> Scene {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/mixed.toml");
     let mut s = Scene::from_file(&path).expect("mixed scene");
     s.colliders.push(Collider {
-        shape: Shape::HalfSpace {
+        shape: Shape::HalfSpace(rtmpm_geometry::shape::HalfSpace {
             point: Vec3::new(0.9, 0.1, 0.1),
             normal: Vec3::new(-1.0, 1.0, 1.0).normalize(),
-        },
+        }),
         rule: BoundaryRule::default(),
         velocity: Vec3::ZERO,
         angular_velocity: Vec3::ZERO,
@@ -147,10 +147,10 @@ fn the_gpu_picture_is_the_cpu_renderers() {
     }
     let scene = scene();
     let (mut sim, t) = run(&scene, 8);
-    let tool = Shape::Sphere {
+    let tool = Shape::Sphere(rtmpm_geometry::shape::Sphere {
         center: Vec3::new(0.3, 0.5, 0.5),
         radius: 0.06,
-    };
+    });
     sim.backend
         .set_tool_shape(Some((tool.clone(), Vec3::ZERO)))
         .expect("tool");

@@ -179,13 +179,13 @@ pub fn float<B: Backend + ?Sized>(
         .ok_or_else(|| CheckError::Scene("the scene has no rigid body".into()))?
         .clone();
     let initial = glam::Mat3::from_quat(spec.rotation);
-    let half_height = spec.shape.world_half_extents(initial).y as f64;
+    let half_height = spec.shape.half_extents(initial).y as f64;
     let frames = sim.scene.time.frames();
     // The open water: columns 3 cells or more from the walls and from the body's footprint where
     // it started (it drifts by millimetres). The node-based boundaries hold a rim of water up to
     // 0.3 dx higher within about 3 cells of them (measured in the Archimedes scene at dx = 0.02:
     // 6 mm at the walls), which is not the level whose pressure holds the body up.
-    let half = spec.shape.world_half_extents(initial);
+    let half = spec.shape.half_extents(initial);
     let dx = sim.scene.dx;
     let margin = 3.0 * dx;
     let walls = sim.scene.walls.thickness as f32 * dx + margin;
@@ -233,8 +233,8 @@ pub fn float<B: Backend + ?Sized>(
     let mean = |v: &dyn Fn(&Pose) -> f64| poses.iter().map(v).sum::<f64>() / poses.len() as f64;
     let draft = |q: &Pose| q.surface - (q.center.y as f64 - half_height);
     let volume_fraction = match spec.shape {
-        rtmpm_geometry::RigidShape::Box { half_extents } => Some(mean(&|q| {
-            box_submerged_fraction(half_extents, q.center, q.rotation, q.surface)
+        rtmpm_geometry::Shape::Box(c) => Some(mean(&|q| {
+            box_submerged_fraction(c.half_size(), q.center, q.rotation, q.surface)
         })),
         _ => None,
     };

@@ -2,7 +2,7 @@
 //! along keyframes ([`Keyframes`]).
 
 use super::keyframes::Keyframes;
-use super::sdf::Shape;
+use super::shape::Shape;
 use glam::{Mat3, Vec3};
 use rtmpm_physics::boundary::BoundaryRule;
 
@@ -71,10 +71,10 @@ impl Collider {
         self.rotation(t) * (x_rest - self.pivot) + self.pivot_at(t)
     }
 
-    /// Axis-aligned world bounds at time `t` (the posed corners of [`Shape::bounds`]); `None`
-    /// for a half-space.
+    /// Axis-aligned world bounds at time `t` (the posed corners of
+    /// [`Shape::distance_bounds`]); `None` for a half-space.
     pub fn bounds(&self, t: f32) -> Option<(Vec3, Vec3)> {
-        let (lo, hi) = self.shape.bounds()?;
+        let (lo, hi) = self.shape.finite_bounds()?;
         let (mut wlo, mut whi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
         for i in 0..8 {
             let c = Vec3::new(
@@ -109,6 +109,7 @@ impl Collider {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::shape::{Cuboid, Sphere};
     use rtmpm_physics::boundary::Condition;
 
     fn rule() -> BoundaryRule {
@@ -121,10 +122,10 @@ mod tests {
     #[test]
     fn static_sphere() {
         let c = Collider {
-            shape: Shape::Sphere {
+            shape: Shape::Sphere(Sphere {
                 center: Vec3::ZERO,
                 radius: 1.0,
-            },
+            }),
             rule: rule(),
             velocity: Vec3::ZERO,
             angular_velocity: Vec3::ZERO,
@@ -140,10 +141,10 @@ mod tests {
     #[test]
     fn moving_sphere() {
         let c = Collider {
-            shape: Shape::Sphere {
+            shape: Shape::Sphere(Sphere {
                 center: Vec3::ZERO,
                 radius: 1.0,
-            },
+            }),
             rule: rule(),
             velocity: Vec3::new(2.0, 0.0, 0.0),
             angular_velocity: Vec3::ZERO,
@@ -163,10 +164,7 @@ mod tests {
         // A thin paddle along x, spinning about z at pi/2 rad/s around the origin.
         let w = std::f32::consts::FRAC_PI_2;
         let c = Collider {
-            shape: Shape::Box {
-                center: Vec3::ZERO,
-                half_extents: Vec3::new(1.0, 0.1, 0.1),
-            },
+            shape: Shape::Box(Cuboid::centred(Vec3::ZERO, Vec3::new(1.0, 0.1, 0.1))),
             rule: rule(),
             velocity: Vec3::ZERO,
             angular_velocity: Vec3::new(0.0, 0.0, w),
@@ -188,10 +186,10 @@ mod tests {
     #[test]
     fn rotating_and_translating_pivot() {
         let c = Collider {
-            shape: Shape::Sphere {
+            shape: Shape::Sphere(Sphere {
                 center: Vec3::new(1.0, 0.0, 0.0),
                 radius: 0.25,
-            },
+            }),
             rule: rule(),
             velocity: Vec3::new(0.0, 0.0, 1.0),
             angular_velocity: Vec3::new(0.0, std::f32::consts::PI, 0.0),

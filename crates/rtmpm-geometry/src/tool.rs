@@ -6,7 +6,7 @@
 //! relative to the tool, that goes into the tool. The backend holds it where it was put; the
 //! caller moves it between steps (each call gives its new centre and the velocity it moves at).
 
-use super::sdf::Shape;
+use super::shape::{Cuboid, Shape, Sphere};
 use glam::Vec3;
 
 /// The shape of a [`Tool`], centred on [`Tool::center`].
@@ -29,17 +29,14 @@ pub struct Tool {
 }
 
 impl Tool {
-    /// Its shape in world coordinates, as a collider shape.
+    /// Its shape in world coordinates.
     pub fn sdf(&self) -> Shape {
         match self.shape {
-            ToolShape::Sphere { radius } => Shape::Sphere {
+            ToolShape::Sphere { radius } => Shape::Sphere(Sphere {
                 center: self.center,
                 radius,
-            },
-            ToolShape::Box { half } => Shape::Box {
-                center: self.center,
-                half_extents: half,
-            },
+            }),
+            ToolShape::Box { half } => Shape::Box(Cuboid::centred(self.center, half)),
         }
     }
 

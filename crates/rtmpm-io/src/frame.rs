@@ -8,7 +8,7 @@
 use crate::chunks::FrameColumns;
 use crate::fields::FrameFields;
 use glam::{Quat, Vec3};
-use rtmpm_geometry::RigidShape;
+use rtmpm_geometry::Shape;
 use rtmpm_physics::Particles;
 use std::io;
 use std::path::Path;
@@ -27,7 +27,7 @@ pub struct FrameBody<'a> {
     /// The body's name in the scene.
     pub name: &'a str,
     /// Its shape, in the body frame.
-    pub shape: &'a RigidShape,
+    pub shape: &'a Shape,
     /// Centre of mass in the world (m).
     pub position: Vec3,
     /// Body to world.

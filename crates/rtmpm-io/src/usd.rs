@@ -20,22 +20,9 @@ use super::atomic::write_atomic_with;
 use crate::fields::FrameFields;
 use crate::frame::{FrameBytes, FrameFormat};
 use glam::Vec3;
-use rtmpm_geometry::RigidShape;
+use rtmpm_geometry::shape::{UsdPrim, usd_number as num};
 use rtmpm_geometry::surface::TriMesh;
 use rtmpm_physics::Particles;
-
-/// A float as USD's text format reads it (`inf`, `-inf`, `nan` for the non-finite).
-fn num(x: f32) -> String {
-    if x.is_finite() {
-        format!("{x}")
-    } else if x.is_nan() {
-        "nan".into()
-    } else if x > 0.0 {
-        "inf".into()
-    } else {
-        "-inf".into()
-    }
-}
 
 /// Write `name = [v0, v1, ...]` with `f(i)` giving item `i`'s text, 8 items a line.
 fn array(
@@ -133,37 +120,19 @@ fn write_bodies(w: &mut dyn Write, bodies: &[UsdBody]) -> io::Result<()> {
             w,
             "        uniform token[] xformOpOrder = [\"xformOp:translate\", \"xformOp:orient\"]"
         )?;
-        match b.shape {
-            RigidShape::Box { half_extents } => {
-                writeln!(w, "        def Cube \"shape\"\n        {{")?;
-                writeln!(w, "            double size = 2")?;
-                writeln!(
-                    w,
-                    "            float3 xformOp:scale = {}",
-                    v3(*half_extents)
-                )?;
-                writeln!(
-                    w,
-                    "            uniform token[] xformOpOrder = [\"xformOp:scale\"]"
-                )?;
+        match b.shape.usd() {
+            Some(UsdPrim::Schema { schema, attributes }) => {
+                writeln!(w, "        def {schema} \"shape\"\n        {{")?;
+                for a in attributes {
+                    writeln!(w, "            {a}")?;
+                }
             }
-            RigidShape::Sphere { radius } => {
-                writeln!(w, "        def Sphere \"shape\"\n        {{")?;
-                writeln!(w, "            double radius = {}", num(*radius))?;
-            }
-            RigidShape::Cylinder {
-                radius,
-                half_height,
-            } => {
-                writeln!(w, "        def Cylinder \"shape\"\n        {{")?;
-                writeln!(w, "            uniform token axis = \"Y\"")?;
-                writeln!(w, "            double height = {}", num(2.0 * half_height))?;
-                writeln!(w, "            double radius = {}", num(*radius))?;
-            }
-            RigidShape::Mesh(m) => {
+            Some(UsdPrim::Mesh(m)) => {
                 writeln!(w, "        def Mesh \"shape\"\n        {{")?;
-                mesh_triangles(w, &m.mesh.vertices, &m.mesh.triangles)?;
+                mesh_triangles(w, &m.vertices, &m.triangles)?;
             }
+            // A shape without a primitive: the body's pose alone.
+            None => writeln!(w, "        def Xform \"shape\"\n        {{")?,
         }
         writeln!(w, "        }}\n    }}")?;
     }
@@ -288,6 +257,7 @@ mod tests {
     use crate::bgeo::tests::sample;
     use crate::testing::TestDir;
     use glam::Quat;
+    use rtmpm_geometry::Shape;
 
     #[test]
     fn points_file_holds_every_value_as_text() {
@@ -327,10 +297,14 @@ mod tests {
     fn rigid_bodies_are_xforms_named_after_them_with_the_quaternion_real_first() {
         let d = TestDir::new("usda-bodies");
         let (cube, ball) = (
-            RigidShape::Box {
-                half_extents: Vec3::new(0.5, 0.25, 0.125),
-            },
-            RigidShape::Sphere { radius: 0.75 },
+            Shape::Box(rtmpm_geometry::shape::Cuboid::centred(
+                Vec3::ZERO,
+                Vec3::new(0.5, 0.25, 0.125),
+            )),
+            Shape::Sphere(rtmpm_geometry::shape::Sphere {
+                center: Vec3::ZERO,
+                radius: 0.75,
+            }),
         );
         let turn = Quat::from_rotation_y(0.5);
         let bodies = [

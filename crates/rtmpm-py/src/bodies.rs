@@ -112,7 +112,7 @@ impl BodyUpdate {
             // inside the domain minus the walls, where the rigid-body engine keeps it.
             let half = spec
                 .shape
-                .world_half_extents(glam::Mat3::from_quat(pose.rotation));
+                .half_extents(glam::Mat3::from_quat(pose.rotation));
             let (lo, hi) = interior;
             let (a, b) = (pose.position - half, pose.position + half);
             if a.cmplt(lo).any() || b.cmpgt(hi).any() {

@@ -10,7 +10,8 @@ use crate::gbuffer::GTexel;
 use crate::shadow::{SHADOW_RES, ShadowMap};
 use rayon::prelude::*;
 use rtmpm_geometry::Collider;
-use rtmpm_geometry::sdf::{Shape, box_distance};
+use rtmpm_geometry::Shape;
+use rtmpm_geometry::shape::box_distance;
 use rtmpm_physics::math::Vec3;
 
 /// G-buffer id of a collider texel (particle ids are their indices, far below).
@@ -49,9 +50,9 @@ impl<'a> PosedCollider<'a> {
             return None;
         }
         let plane = match collider.shape {
-            Shape::HalfSpace { point, normal } => Some((
-                collider.to_world(point, time),
-                (collider.rotation(time) * normal).normalize_or(normal),
+            Shape::HalfSpace(h) => Some((
+                collider.to_world(h.point, time),
+                (collider.rotation(time) * h.normal).normalize_or(h.normal),
             )),
             _ => None,
         };

@@ -1,7 +1,7 @@
 //! A validated `[[rigid_body]]`, and the resolution a dynamic body needs in a fluid.
 
 use glam::{Quat, Vec3};
-use rtmpm_geometry::RigidShape;
+use rtmpm_geometry::Shape;
 use rtmpm_physics::boundary::Condition;
 
 /// How a body moves.
@@ -20,7 +20,8 @@ pub enum RigidKind {
 #[derive(Clone, Debug, PartialEq)]
 pub struct RigidBodySpec {
     pub name: String,
-    pub shape: RigidShape,
+    /// The shape in the body frame (about the centre of mass, in the rest orientation).
+    pub shape: Shape,
     pub kind: RigidKind,
     /// Mass (kg), from `mass` or `density` x volume.
     pub mass: f32,

@@ -2,13 +2,14 @@
 //! the impulses the grid gives it in a step.
 
 use glam::{Mat3, Quat, Vec3};
-use rtmpm_geometry::RigidShape;
+use rtmpm_geometry::Shape;
 use rtmpm_physics::boundary::Condition;
 
 /// A body's state at the current time, as the grid update sees it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BodyState {
-    pub shape: RigidShape,
+    /// The shape in the body frame.
+    pub shape: Shape,
     /// Rest-to-world rotation.
     pub rotation: Mat3,
     /// Centre of mass (m).
@@ -31,7 +32,7 @@ impl BodyState {
             rotation: Quat::from_mat3(&self.rotation).normalize(),
         };
         rtmpm_geometry::Collider {
-            shape: self.shape.sdf_shape(),
+            shape: self.shape.clone(),
             rule: rtmpm_physics::boundary::BoundaryRule::default(),
             velocity: Vec3::ZERO,
             angular_velocity: Vec3::ZERO,
@@ -117,13 +118,12 @@ impl Exchange {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rtmpm_geometry::shape::{Cuboid, Cylinder};
 
     #[test]
     fn a_turned_box_answers_inside_points_with_its_face_normal_and_velocity() {
         let b = BodyState {
-            shape: RigidShape::Box {
-                half_extents: Vec3::new(1.0, 0.5, 0.5),
-            },
+            shape: Shape::Box(Cuboid::centred(Vec3::ZERO, Vec3::new(1.0, 0.5, 0.5))),
             rotation: Mat3::from_rotation_z(std::f32::consts::FRAC_PI_2),
             center: Vec3::new(1.0, 0.0, 0.0),
             velocity: Vec3::X,
@@ -145,14 +145,16 @@ mod tests {
 
     #[test]
     fn a_cylinder_lying_along_x_answers_like_the_colliders_cylinder() {
-        let shape = RigidShape::Cylinder {
+        let shape = Shape::Cylinder(Cylinder {
+            center: Vec3::ZERO,
+            axis: Vec3::Y,
             radius: 0.5,
             half_height: 1.0,
-        };
+        });
         assert!((shape.volume() - std::f32::consts::PI * 0.25 * 2.0).abs() < 1e-6);
         // Local y turned onto world x.
         let rotation = Mat3::from_quat(Quat::from_rotation_arc(Vec3::Y, Vec3::X));
-        let h = shape.world_half_extents(rotation);
+        let h = shape.half_extents(rotation);
         assert!((h - Vec3::new(1.0, 0.5, 0.5)).length() < 1e-5, "{h}");
         let b = BodyState {
             shape,
@@ -164,12 +166,12 @@ mod tests {
             condition: Condition::Slip,
             friction: 0.0,
         };
-        let collider = rtmpm_geometry::sdf::Shape::Cylinder {
+        let collider = Shape::Cylinder(Cylinder {
             center: Vec3::ZERO,
             axis: Vec3::X,
             radius: 0.5,
             half_height: 1.0,
-        };
+        });
         for x in [
             Vec3::new(0.9, 0.45, 0.0),
             Vec3::new(0.2, -0.1, 0.3),
@@ -191,9 +193,7 @@ mod tests {
     #[test]
     fn a_body_as_a_collider_has_the_body_s_pose() {
         let b = BodyState {
-            shape: RigidShape::Box {
-                half_extents: Vec3::new(1.0, 0.25, 0.25),
-            },
+            shape: Shape::Box(Cuboid::centred(Vec3::ZERO, Vec3::new(1.0, 0.25, 0.25))),
             rotation: Mat3::from_rotation_z(std::f32::consts::FRAC_PI_2),
             center: Vec3::new(3.0, 2.0, 0.0),
             velocity: Vec3::X,

@@ -6,7 +6,7 @@ use crate::joint::{JointKind, JointSpec};
 use crate::spec::{RigidBodySpec, RigidKind};
 use crate::state::{BodyPose, BodyState, Exchange};
 use rapier3d::prelude as rp;
-use rtmpm_geometry::RigidShape;
+use rtmpm_geometry::Shape;
 
 /// rapier3d's vectors (its own glam) from ours, and back.
 fn rv(v: glam::Vec3) -> rp::Vector {
@@ -82,18 +82,7 @@ impl RigidWorld {
                 .linvel(rv(b.velocity))
                 .angvel(rv(b.angular_velocity))
                 .can_sleep(false);
-            let collider = match &b.shape {
-                RigidShape::Box { half_extents: h } => {
-                    rp::ColliderBuilder::cuboid(h.x, h.y, h.z).mass(b.mass)
-                }
-                RigidShape::Sphere { radius } => rp::ColliderBuilder::ball(*radius).mass(b.mass),
-                // rapier's cylinders are along their local y, as ours.
-                RigidShape::Cylinder {
-                    radius,
-                    half_height,
-                } => rp::ColliderBuilder::cylinder(*half_height, *radius).mass(b.mass),
-                RigidShape::Mesh(m) => mesh_collider(&b.name, m, b.mass)?,
-            };
+            let collider = collider(b)?;
             let (handle, _) = world.insert(body, collider);
             handles.push(handle);
         }
@@ -208,6 +197,35 @@ impl RigidWorld {
         self.world.step();
         self.refresh();
     }
+}
+
+/// The engine's collider of body `b`: its shape (in the body frame) with its mass.
+fn collider(b: &RigidBodySpec) -> Result<rp::ColliderBuilder, String> {
+    Ok(match &b.shape {
+        Shape::Box(c) => {
+            let h = c.half_size();
+            rp::ColliderBuilder::cuboid(h.x, h.y, h.z).mass(b.mass)
+        }
+        Shape::Sphere(s) => rp::ColliderBuilder::ball(s.radius).mass(b.mass),
+        // rapier's cylinders are along their local y, as ours in the body frame.
+        Shape::Cylinder(c) => rp::ColliderBuilder::cylinder(c.half_height, c.radius).mass(b.mass),
+        Shape::Mesh(m) => match &m.solid {
+            Some(solid) => mesh_collider(&b.name, solid, b.mass)?,
+            None => {
+                return Err(format!(
+                    "rigid body `{}`: its mesh is not a closed solid",
+                    b.name
+                ));
+            }
+        },
+        s @ (Shape::HalfSpace(_) | Shape::Particles(_)) => {
+            return Err(format!(
+                "rigid body `{}`: {} cannot be a rigid body",
+                b.name,
+                s.info().noun
+            ));
+        }
+    })
 }
 
 /// The engine's collider of a mesh body: its convex hull (`convex = true`) or the triangle mesh,

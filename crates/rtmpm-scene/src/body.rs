@@ -3,7 +3,7 @@
 //! drawn where it is used ([`DeferredBody`]).
 
 use crate::walk::{Lattice, RandomTries};
-use rtmpm_geometry::BodyShape;
+use rtmpm_geometry::Shape;
 use rtmpm_physics::Particles;
 use rtmpm_physics::math::{Mat3, Vec3};
 
@@ -92,7 +92,7 @@ pub struct DeferredBody {
     /// The walk.
     pub walk: DeferredWalk,
     /// The shape whose inside keeps a point.
-    pub shape: BodyShape,
+    pub shape: Shape,
     /// The seed of the walk's random stream (`Pcg64::seed_from_u64`).
     pub seed: u64,
     /// The points the walk accepts in all: the count, or for random tries every point accepted

@@ -150,12 +150,10 @@ impl Budget {
                         let mut s = b.velocity.length() as f64
                             + b.angular_velocity.length() as f64 * (hi - lo).length() as f64;
                         // A body made of a file's points may move with the file's velocities.
-                        if let rtmpm_geometry::BodyShape::Particles {
-                            points,
-                            file_velocity: true,
-                        } = &b.shape
+                        if let (rtmpm_geometry::Shape::Particles(p), true) =
+                            (&b.shape, b.file_velocity)
                         {
-                            let fastest = points.velocities.iter().flatten().map(|v| v.length());
+                            let fastest = p.points.velocities.iter().flatten().map(|v| v.length());
                             s = s.max(fastest.fold(0.0f32, f32::max) as f64);
                         }
                         (s, i)

@@ -20,7 +20,6 @@ use crate::walk::{Counter, Mode, RandomTries};
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
-use rtmpm_geometry::BodyShape;
 use rtmpm_physics::math::Vec3;
 
 impl DeferredBody {
@@ -91,17 +90,13 @@ impl DeferredBody {
     }
 }
 
-/// True when body `index` can be deferred: any shape but a points file.
+/// True when body `index` can be deferred: a shape the device samples (any but a points
+/// file: `ShapeInfo::device`).
 pub fn can_defer(scene: &Scene, index: usize) -> bool {
-    scene.bodies.get(index).is_some_and(|b| {
-        matches!(
-            b.shape,
-            BodyShape::Box { .. }
-                | BodyShape::Sphere { .. }
-                | BodyShape::Cylinder { .. }
-                | BodyShape::Mesh(_)
-        )
-    })
+    scene
+        .bodies
+        .get(index)
+        .is_some_and(|b| b.shape.info().device)
 }
 
 /// Every body of the scene, in order: those [`can_defer`] allows counted and deferred (the host

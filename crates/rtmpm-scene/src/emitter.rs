@@ -12,7 +12,7 @@
 //! emits before each step the particles due by its end and hands them to the backend
 //! (`rtmpm_sim::Backend::add_particles`).
 
-use rtmpm_geometry::BodyShape;
+use rtmpm_geometry::Shape;
 use rtmpm_physics::Particles;
 use rtmpm_physics::material::Material;
 use rtmpm_physics::math::Vec3;
@@ -27,7 +27,7 @@ pub struct Emitter {
     /// Material index.
     pub material: u32,
     /// Box, sphere or cylinder (inside the domain minus the walls).
-    pub shape: BodyShape,
+    pub shape: Shape,
     /// Velocity of the emitted particles (m/s).
     pub velocity: Vec3,
     /// Particles per second.
@@ -63,7 +63,7 @@ fn unit(h: u64) -> f32 {
 impl Emitter {
     /// The sub-cell centres of the lattice of spacing `spacing` inside `shape`, shuffled with
     /// `seed` (Fisher-Yates).
-    pub fn lattice(shape: &BodyShape, spacing: f32, seed: u64) -> Vec<Vec3> {
+    pub fn lattice(shape: &Shape, spacing: f32, seed: u64) -> Vec<Vec3> {
         let (lo, hi) = shape.bounds();
         // Whole sub-cells (a size within 1e-4 sub-cell of a whole number is that number).
         let n = ((hi - lo) / spacing - 1e-4)
@@ -156,10 +156,10 @@ mod tests {
     use super::*;
 
     fn emitter(rate: f64) -> Emitter {
-        let shape = BodyShape::Box {
+        let shape = Shape::Box(rtmpm_geometry::shape::Cuboid {
             min: Vec3::new(0.4, 0.1, 0.4),
             max: Vec3::new(0.6, 0.2, 0.6),
-        };
+        });
         let spacing = 0.025;
         Emitter {
             name: "e".into(),

@@ -26,7 +26,7 @@ use crate::walk::{self, Counter, Mode, Walked};
 pub use crate::walk::{Lattice, RandomTries};
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
-use rtmpm_geometry::{BodyShape, PointSet};
+use rtmpm_geometry::{PointSet, Shape};
 use rtmpm_io::contents::check_particle_values;
 use rtmpm_physics::Particles;
 use rtmpm_physics::material::Material;
@@ -64,8 +64,8 @@ pub fn estimate_body(scene: &Scene, index: usize) -> u64 {
     let Some(body) = scene.bodies.get(index) else {
         return 0;
     };
-    if let BodyShape::Particles { points, .. } = &body.shape {
-        return points.positions.len() as u64;
+    if let Shape::Particles(p) = &body.shape {
+        return p.points.positions.len() as u64;
     }
     let volume = body.shape.volume().max(0.0) as f64;
     let est = match body.sampling {
@@ -139,11 +139,11 @@ pub(crate) fn walk_body(
         .ok_or_else(|| body_error(index, "no such body".into(), "use an existing body index"))?;
     let dx = scene.dx;
     let shape = &body.shape;
-    if let BodyShape::Particles { points, .. } = shape {
-        let n = points.positions.len() as u64;
+    if let Shape::Particles(p) = shape {
+        let n = p.points.positions.len() as u64;
         let walked = match mode {
             Mode::Keep => Walked {
-                chunks: vec![points.positions.clone()],
+                chunks: vec![p.points.positions.clone()],
                 count: n,
                 ..Walked::default()
             },
@@ -276,12 +276,8 @@ pub fn sample_positions(
 ) -> Result<SampledBody, SceneError> {
     let material = body_material(scene, index)?;
     let body = &scene.bodies[index];
-    if let BodyShape::Particles {
-        points,
-        file_velocity,
-    } = &body.shape
-    {
-        let p = sample_points(scene, index, material, points, *file_velocity)?;
+    if let Shape::Particles(p) = &body.shape {
+        let p = sample_points(scene, index, material, &p.points, body.file_velocity)?;
         return Ok(SampledBody::Points(p));
     }
     let bodies = scene.bodies.len();

@@ -15,7 +15,7 @@ use std::path::PathBuf;
 pub struct Body {
     pub name: String,
     pub material: u32,
-    pub shape: rtmpm_geometry::BodyShape,
+    pub shape: rtmpm_geometry::Shape,
     /// Requested particles per cell (regular/jittered use `round(cbrt(ppc))^3`).
     pub particles_per_cell: u32,
     /// True for jittered sampling (kept for compatibility; see `sampling`).
@@ -25,6 +25,9 @@ pub struct Body {
     pub count: Option<u64>,
     pub velocity: Vec3,
     pub angular_velocity: Vec3,
+    /// A body made of a file's particles keeps the file's velocities (it gives neither
+    /// `velocity` nor `angular_velocity`).
+    pub file_velocity: bool,
 }
 
 /// A validated scene, identical for every backend.

@@ -4,7 +4,8 @@
 //! Optional fields are `Option` so that the validator can tell "absent" (use the default)
 //! from "given" (check it, and reject it where it does not apply).
 
-use serde::Deserialize;
+use rtmpm_geometry::{Shape, ShapeInfo};
+use serde::{Deserialize, Deserializer, de};
 
 /// A 3-vector written as `[x, y, z]`.
 pub type V3 = [f32; 3];
@@ -150,27 +151,41 @@ pub struct RawMaterial {
     pub fields: toml::Table,
 }
 
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
-pub enum RawShape {
-    HalfSpace,
-    Box,
-    Sphere,
-    Cylinder,
-    Mesh,
-    Particles,
-}
+/// A table's `shape = "..."`: a shape of the registry ([`Shape::ALL`], its index there), read
+/// from its name (an unknown name is serde's "unknown variant" error, listing the names).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RawShape(pub usize);
 
 impl RawShape {
+    /// The shape named `name`.
+    pub fn named(name: &str) -> Option<RawShape> {
+        Shape::code_of(name).map(|k| RawShape(k as usize))
+    }
+
+    /// What the registry knows of it.
+    pub fn info(self) -> &'static ShapeInfo {
+        &Shape::ALL[self.0]
+    }
+
+    /// Its name in scene files.
     pub fn name(self) -> &'static str {
-        match self {
-            RawShape::HalfSpace => "half_space",
-            RawShape::Box => "box",
-            RawShape::Sphere => "sphere",
-            RawShape::Cylinder => "cylinder",
-            RawShape::Mesh => "mesh",
-            RawShape::Particles => "particles",
+        self.info().name
+    }
+}
+
+impl<'de> Deserialize<'de> for RawShape {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<RawShape, D::Error> {
+        struct Name;
+        impl de::Visitor<'_> for Name {
+            type Value = RawShape;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a shape name")
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> Result<RawShape, E> {
+                RawShape::named(v).ok_or_else(|| E::unknown_variant(v, Shape::NAMES))
+            }
         }
+        d.deserialize_str(Name)
     }
 }
 
@@ -190,67 +205,110 @@ pub enum RawScale {
     PerAxis(V3),
 }
 
-/// Shape parameters shared by bodies and colliders.
-#[derive(Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RawGeometry {
-    pub min: Option<V3>,
-    pub max: Option<V3>,
-    pub center: Option<V3>,
-    pub radius: Option<f32>,
-    pub axis: Option<V3>,
-    pub height: Option<f32>,
-    pub file: Option<String>,
-    pub scale: Option<RawScale>,
-    pub translate: Option<V3>,
-    pub point: Option<V3>,
-    pub normal: Option<V3>,
+/// The geometry fields of every shape, listed once: `$then!` receives them as
+/// `[name: type, ...]` (each optional in a table), followed by `$rest`.
+macro_rules! with_geometry_fields {
+    ($then:ident! { $($rest:tt)* }) => {
+        $then! {
+            [
+                min: V3,
+                max: V3,
+                center: V3,
+                radius: f32,
+                axis: V3,
+                height: f32,
+                file: String,
+                scale: RawScale,
+                translate: V3,
+                point: V3,
+                normal: V3
+            ]
+            $($rest)*
+        }
+    };
 }
 
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RawBody {
-    pub name: Option<String>,
-    pub material: String,
-    pub shape: RawShape,
-    pub min: Option<V3>,
-    pub max: Option<V3>,
-    pub center: Option<V3>,
-    pub radius: Option<f32>,
-    pub axis: Option<V3>,
-    pub height: Option<f32>,
-    pub file: Option<String>,
-    pub scale: Option<RawScale>,
-    pub translate: Option<V3>,
-    pub particles_per_cell: Option<u32>,
-    pub sampling: Option<RawSampling>,
-    pub count: Option<u64>,
-    pub velocity: Option<V3>,
-    pub angular_velocity: Option<V3>,
+/// [`RawGeometry`] from the geometry fields.
+macro_rules! geometry_struct {
+    ([$($g:ident: $gt:ty),*]) => {
+        /// A table's shape and geometry fields as written: the fields of every shape, of which a
+        /// table may give only its shape's (`rtmpm_geometry::shape::ShapeKind::FIELDS`; the
+        /// validator says which field does not belong).
+        #[derive(Clone, Debug)]
+        pub struct RawGeometry {
+            pub shape: RawShape,
+            $(pub $g: Option<$gt>,)*
+        }
+
+        impl RawGeometry {
+            /// The geometry fields given, in the order of their list.
+            pub fn given(&self) -> Vec<&'static str> {
+                let mut v = Vec::new();
+                $(if self.$g.is_some() {
+                    v.push(stringify!($g));
+                })*
+                v
+            }
+        }
+    };
 }
 
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RawCollider {
-    pub shape: RawShape,
-    pub min: Option<V3>,
-    pub max: Option<V3>,
-    pub center: Option<V3>,
-    pub radius: Option<f32>,
-    pub axis: Option<V3>,
-    pub height: Option<f32>,
-    pub file: Option<String>,
-    pub scale: Option<RawScale>,
-    pub translate: Option<V3>,
-    pub point: Option<V3>,
-    pub normal: Option<V3>,
-    pub condition: Option<RawCondition>,
-    pub friction: Option<f32>,
-    pub velocity: Option<V3>,
-    pub angular_velocity: Option<V3>,
-    pub pivot: Option<V3>,
-    pub keyframes: Option<Vec<RawKeyframe>>,
+with_geometry_fields!(geometry_struct! {});
+
+/// A table with a shape: `shape` and every geometry field ([`RawGeometry`]), then its own
+/// fields.
+macro_rules! shaped_table {
+    (
+        [$($g:ident: $gt:ty),*]
+        $(#[$m:meta])*
+        pub struct $name:ident { $($(#[$fm:meta])* pub $f:ident: $ft:ty,)* }
+    ) => {
+        $(#[$m])*
+        #[derive(Debug, Deserialize)]
+        #[serde(deny_unknown_fields)]
+        pub struct $name {
+            /// The shape.
+            pub shape: RawShape,
+            $(#[doc = "A geometry field ([`RawGeometry`])."] pub $g: Option<$gt>,)*
+            $($(#[$fm])* pub $f: $ft,)*
+        }
+
+        impl $name {
+            /// The table's shape and geometry fields.
+            pub fn geometry(&self) -> RawGeometry {
+                RawGeometry {
+                    shape: self.shape,
+                    $($g: self.$g.clone(),)*
+                }
+            }
+        }
+    };
 }
+
+with_geometry_fields!(shaped_table! {
+    /// A `[[body]]` table: material that fills its shape at the start.
+    pub struct RawBody {
+        pub name: Option<String>,
+        pub material: String,
+        pub particles_per_cell: Option<u32>,
+        pub sampling: Option<RawSampling>,
+        pub count: Option<u64>,
+        pub velocity: Option<V3>,
+        pub angular_velocity: Option<V3>,
+    }
+});
+
+with_geometry_fields!(shaped_table! {
+    /// A `[[collider]]` table: an obstacle, its boundary rule and its motion.
+    pub struct RawCollider {
+        pub condition: Option<RawCondition>,
+        pub friction: Option<f32>,
+        pub velocity: Option<V3>,
+        pub angular_velocity: Option<V3>,
+        pub pivot: Option<V3>,
+        pub keyframes: Option<Vec<RawKeyframe>>,
+    }
+});
 
 /// One key of `collider.keyframes`: `{ t, position, rotation }`.
 #[derive(Debug, Deserialize)]
@@ -262,42 +320,6 @@ pub struct RawKeyframe {
     pub position: Option<V3>,
     /// Rotation vector: axis times angle in radians (default: none).
     pub rotation: Option<V3>,
-}
-
-impl RawBody {
-    pub fn geometry(&self) -> RawGeometry {
-        RawGeometry {
-            min: self.min,
-            max: self.max,
-            center: self.center,
-            radius: self.radius,
-            axis: self.axis,
-            height: self.height,
-            file: self.file.clone(),
-            scale: self.scale,
-            translate: self.translate,
-            point: None,
-            normal: None,
-        }
-    }
-}
-
-impl RawCollider {
-    pub fn geometry(&self) -> RawGeometry {
-        RawGeometry {
-            min: self.min,
-            max: self.max,
-            center: self.center,
-            radius: self.radius,
-            axis: self.axis,
-            height: self.height,
-            file: self.file.clone(),
-            scale: self.scale,
-            translate: self.translate,
-            point: self.point,
-            normal: self.normal,
-        }
-    }
 }
 
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
@@ -340,42 +362,21 @@ pub struct RawRender {
     pub color_by: Option<String>,
 }
 
-/// An `[[emitter]]` table: particles that appear while the run goes on.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RawEmitter {
-    pub name: Option<String>,
-    pub material: String,
-    pub shape: RawShape,
-    pub min: Option<V3>,
-    pub max: Option<V3>,
-    pub center: Option<V3>,
-    pub radius: Option<f32>,
-    pub axis: Option<V3>,
-    pub height: Option<f32>,
-    pub velocity: Option<V3>,
-    /// Particles per second.
-    pub rate: Option<f64>,
-    /// Volume per second (m^3/s).
-    pub volume_rate: Option<f64>,
-    pub start: Option<f64>,
-    pub stop: Option<f64>,
-    pub particles_per_cell: Option<u32>,
-}
-
-impl RawEmitter {
-    pub fn geometry(&self) -> RawGeometry {
-        RawGeometry {
-            min: self.min,
-            max: self.max,
-            center: self.center,
-            radius: self.radius,
-            axis: self.axis,
-            height: self.height,
-            ..Default::default()
-        }
+with_geometry_fields!(shaped_table! {
+    /// An `[[emitter]]` table: particles that appear while the run goes on.
+    pub struct RawEmitter {
+        pub name: Option<String>,
+        pub material: String,
+        pub velocity: Option<V3>,
+        /// Particles per second.
+        pub rate: Option<f64>,
+        /// Volume per second (m^3/s).
+        pub volume_rate: Option<f64>,
+        pub start: Option<f64>,
+        pub stop: Option<f64>,
+        pub particles_per_cell: Option<u32>,
     }
-}
+});
 
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
 #[serde(rename_all = "snake_case")]
@@ -385,54 +386,27 @@ pub enum RawRigidKind {
     Fixed,
 }
 
-/// A `[[rigid_body]]` table: a rigid body the material pushes and is pushed by.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RawRigidBody {
-    pub name: Option<String>,
-    pub shape: RawShape,
-    pub min: Option<V3>,
-    pub max: Option<V3>,
-    pub center: Option<V3>,
-    pub radius: Option<f32>,
-    /// A cylinder's axis (default y) and height.
-    pub axis: Option<V3>,
-    pub height: Option<f32>,
-    /// A mesh body's OBJ file (relative to the scene file), its scale about the file's origin
-    /// and translation (the mesh as placed in the world at t = 0).
-    pub file: Option<String>,
-    pub scale: Option<RawScale>,
-    pub translate: Option<V3>,
-    /// A mesh body collides with other bodies and the walls as its convex hull.
-    pub convex: Option<bool>,
-    #[serde(rename = "type")]
-    pub kind: Option<RawRigidKind>,
-    pub density: Option<f32>,
-    pub mass: Option<f32>,
-    /// Rotation vector (rad) about the centre.
-    pub rotation: Option<V3>,
-    pub velocity: Option<V3>,
-    pub angular_velocity: Option<V3>,
-    pub condition: Option<RawCondition>,
-    pub friction: Option<f32>,
-}
-
-impl RawRigidBody {
-    pub fn geometry(&self) -> RawGeometry {
-        RawGeometry {
-            min: self.min,
-            max: self.max,
-            center: self.center,
-            radius: self.radius,
-            axis: self.axis,
-            height: self.height,
-            file: self.file.clone(),
-            scale: self.scale,
-            translate: self.translate,
-            ..Default::default()
-        }
+with_geometry_fields!(shaped_table! {
+    /// A `[[rigid_body]]` table: a rigid body the material pushes and is pushed by. A
+    /// cylinder's `axis` defaults to y; a mesh body's OBJ file (relative to the scene file) is
+    /// placed by its scale about the file's origin and its translation (the mesh as placed in
+    /// the world at t = 0).
+    pub struct RawRigidBody {
+        pub name: Option<String>,
+        /// A mesh body collides with other bodies and the walls as its convex hull.
+        pub convex: Option<bool>,
+        #[serde(rename = "type")]
+        pub kind: Option<RawRigidKind>,
+        pub density: Option<f32>,
+        pub mass: Option<f32>,
+        /// Rotation vector (rad) about the centre.
+        pub rotation: Option<V3>,
+        pub velocity: Option<V3>,
+        pub angular_velocity: Option<V3>,
+        pub condition: Option<RawCondition>,
+        pub friction: Option<f32>,
     }
-}
+});
 
 /// A rigid body named in a `[[joint]]`: its index in `[[rigid_body]]` or its `name`.
 #[derive(Debug, Clone, Deserialize)]

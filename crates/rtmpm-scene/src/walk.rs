@@ -15,7 +15,7 @@
 use rand::Rng;
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
-use rtmpm_geometry::BodyShape;
+use rtmpm_geometry::Shape;
 use rtmpm_physics::math::Vec3;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -100,7 +100,7 @@ impl Lattice {
     /// every point inside `shape` until it returns false.
     fn rows(
         &self,
-        shape: &BodyShape,
+        shape: &Shape,
         rng: &Pcg64,
         rows: std::ops::Range<u64>,
         mut add: impl FnMut(Vec3) -> bool,
@@ -147,7 +147,7 @@ impl Lattice {
     }
 
     /// The positions of chunk `c` of the walk, in order.
-    pub fn chunk(&self, shape: &BodyShape, rng: &Pcg64, c: u64) -> Vec<Vec3> {
+    pub fn chunk(&self, shape: &Shape, rng: &Pcg64, c: u64) -> Vec<Vec3> {
         let per_chunk = (LATTICE_CHUNK / self.count[0].max(1)).max(1);
         let range = c * per_chunk..((c + 1) * per_chunk).min(self.rows_count());
         let mut v = Vec::new();
@@ -159,7 +159,7 @@ impl Lattice {
     }
 
     /// Walk the whole lattice in parallel chunks of rows.
-    pub fn walk(&self, shape: &BodyShape, rng: &Pcg64, mode: Mode, counter: &Counter) -> Walked {
+    pub fn walk(&self, shape: &Shape, rng: &Pcg64, mode: Mode, counter: &Counter) -> Walked {
         let [nx, ny, nz] = self.count;
         if nx == 0 || ny == 0 || nz == 0 {
             return Walked::default();
@@ -245,7 +245,7 @@ impl RandomTries {
     }
 
     /// The accepted points of chunk `c`'s tries, in order (all of them, past `count` too).
-    fn tries_of(&self, shape: &BodyShape, rng: &Pcg64, c: u64, mut f: impl FnMut(Vec3)) {
+    fn tries_of(&self, shape: &Shape, rng: &Pcg64, c: u64, mut f: impl FnMut(Vec3)) {
         let t0 = c * TRY_CHUNK;
         let t1 = (t0 + TRY_CHUNK).min(self.tries);
         let mut r = rng.clone();
@@ -260,7 +260,7 @@ impl RandomTries {
     }
 
     /// The index of each chunk's first accepted point (`chunk_count + 1` entries).
-    pub fn starts(&self, shape: &BodyShape, rng: &Pcg64) -> Vec<u64> {
+    pub fn starts(&self, shape: &Shape, rng: &Pcg64) -> Vec<u64> {
         let counts: Vec<u64> = (0..self.chunk_count())
             .into_par_iter()
             .map(|c| {
@@ -278,7 +278,7 @@ impl RandomTries {
 
     /// The positions of chunk `c` (its first point's index `start`, from [`RandomTries::starts`])
     /// that are among the walk's `count`.
-    pub fn chunk(&self, shape: &BodyShape, rng: &Pcg64, c: u64, start: u64) -> Vec<Vec3> {
+    pub fn chunk(&self, shape: &Shape, rng: &Pcg64, c: u64, start: u64) -> Vec<Vec3> {
         let mut v = Vec::new();
         let keep = self.count.saturating_sub(start) as usize;
         self.tries_of(shape, rng, c, |x| {
@@ -295,7 +295,7 @@ impl RandomTries {
 /// points and how many were placed (fewer than the target only when the tries ran out).
 #[allow(clippy::too_many_arguments)]
 pub fn random(
-    shape: &BodyShape,
+    shape: &Shape,
     lo: Vec3,
     hi: Vec3,
     count: u64,

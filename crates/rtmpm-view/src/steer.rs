@@ -2,7 +2,8 @@
 //! balls of material thrown into the scene ([`ball`]).
 
 use glam::Vec3;
-use rtmpm_geometry::BodyShape;
+use rtmpm_geometry::Shape;
+use rtmpm_geometry::shape::Sphere;
 use rtmpm_geometry::{Tool, ToolShape};
 use rtmpm_physics::Particles;
 use rtmpm_render::Camera;
@@ -241,7 +242,7 @@ pub fn ball(
              {MAX_BALL_PARTICLES}: throw a smaller one"
         ));
     }
-    let shape = BodyShape::Sphere { center, radius };
+    let shape = Shape::Sphere(Sphere { center, radius });
     let cells = Emitter::lattice(&shape, spacing, seed);
     let n = cells.len() as u64;
     let e = Emitter {

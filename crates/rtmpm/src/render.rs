@@ -6,7 +6,7 @@
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use rtmpm_geometry::Collider;
-use rtmpm_geometry::sdf::Shape;
+use rtmpm_geometry::Shape;
 use rtmpm_geometry::surface::TriMesh;
 use rtmpm_io::ply::read_ply;
 use rtmpm_physics::Particles;

@@ -75,7 +75,7 @@ pub struct CudaBackend {
     /// The render stage's buffers (a live view), allocated at the first picture.
     pub(crate) render: Option<Box<RenderBuffers>>,
     /// The user's tool (its world shape), see `view/steer.rs`.
-    pub(crate) tool: Option<rtmpm_geometry::sdf::Shape>,
+    pub(crate) tool: Option<rtmpm_geometry::Shape>,
 }
 
 /// Memory reused by [`CudaBackend::read_fields`] and [`CudaBackend::read_vec3_ordered`]:

@@ -3,7 +3,7 @@
 //! (emitted into `contract.cuh` by [`super::prelude`]).
 
 use super::state_layout::MAX_FIELDS;
-use rtmpm_geometry::sdf::Shape;
+use rtmpm_geometry::Shape;
 use rtmpm_physics::boundary::Condition;
 use rtmpm_physics::transfer::Update;
 
@@ -55,23 +55,18 @@ pub const SP_JITTER: usize = 14;
 pub const SP_STATE: usize = 15;
 /// The stream's 128-bit (odd) increment.
 pub const SP_INC: usize = 19;
-/// The shape (`SAMPLE_BOX`, `SAMPLE_SPHERE`, `SAMPLE_CYLINDER`).
+/// The shape's kind code ([`rtmpm_geometry::Shape::code`]; `SHAPE_*` in the kernels).
 pub const SP_SHAPE: usize = 23;
-/// The shape's parameters (f32): box min, max; sphere centre, radius; cylinder centre, unit
-/// axis, radius, half height; mesh: its distance grid's origin, spacing and dims (3 u32; the
-/// values in a buffer of their own).
+/// The shape's parameters (8 f32, [`rtmpm_geometry::shape::ShapeKind::gpu`]).
 pub const SP_PARAMS: usize = 24;
+/// A mesh's distance grid dimensions (3 u32; its values in a buffer of their own).
+pub const SP_DIMS: usize = SP_PARAMS + 8;
 /// The walk (`SAMPLE_LATTICE`, `SAMPLE_RANDOM`).
-pub const SP_KIND: usize = SP_PARAMS + 10;
+pub const SP_KIND: usize = SP_DIMS + 3;
 /// Random tries: the box's upper corner (3 f32; `SP_ORIGIN` is the lower).
 pub const SP_HI: usize = SP_KIND + 1;
 /// Random tries: the tries (u64).
 pub const SP_TRIES: usize = SP_HI + 3;
-/// Shape codes of a recipe.
-pub const SAMPLE_BOX: u32 = 0;
-pub const SAMPLE_SPHERE: u32 = 1;
-pub const SAMPLE_CYLINDER: u32 = 2;
-pub const SAMPLE_MESH: u32 = 3;
 /// Walk codes of a recipe.
 pub const SAMPLE_LATTICE: u32 = 0;
 pub const SAMPLE_RANDOM: u32 = 1;
@@ -155,17 +150,10 @@ pub const MAX_PEER_GPUS: usize = 8;
 /// `real` parameters per material on the GPU (the largest model's).
 pub const MATERIAL_PARAMS: usize = 8;
 
-/// Collider shape codes (`GpuCollider::kind`).
+/// Collider shape codes (`GpuCollider::kind`): the shape's registry code ([`Shape::code`]).
 pub fn collider_kind(s: &Shape) -> u32 {
-    match s {
-        Shape::HalfSpace { .. } => 0,
-        Shape::Box { .. } => 1,
-        Shape::Sphere { .. } => 2,
-        Shape::Cylinder { .. } => 3,
-        Shape::Mesh(_) => 4,
-    }
+    s.code()
 }
-pub(crate) const COLLIDER_KINDS: [&str; 5] = ["HALF_SPACE", "BOX", "SPHERE", "CYLINDER", "MESH"];
 
 /// Boundary condition codes (walls and colliders).
 pub fn condition(c: Condition) -> u32 {

@@ -19,6 +19,6 @@ pub mod render;
 mod state_layout;
 
 pub use constants::*;
-pub use headers::{layout_asserts, material_registry, materials, prelude};
+pub use headers::{layout_asserts, material_registry, materials, prelude, shape_registry};
 pub use layout::*;
 pub use state_layout::{MAX_FIELDS, StateLayout};

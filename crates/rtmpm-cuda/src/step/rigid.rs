@@ -24,14 +24,14 @@ use std::sync::Arc;
 /// The device record of a body's state; a mesh body's distance grid starts at `mesh_offset` in
 /// the mesh table (`encode::Tables::body_mesh`).
 pub fn encode(b: &BodyState, mesh_offset: u32) -> GpuBody {
-    let s = b.shape.sdf_shape();
+    let s = &b.shape;
     let mut col = GpuCollider {
-        kind: crate::contract::collider_kind(&s),
+        kind: crate::contract::collider_kind(s),
         cond: crate::contract::condition(b.condition),
         friction: b.friction,
         ..Default::default()
     };
-    crate::encode::shape_params(&s, &mut col, &mut Vec::new());
+    crate::encode::shape_params(s, &mut col);
     col.mesh_offset = mesh_offset;
     GpuBody {
         shape: col,
@@ -244,8 +244,7 @@ pub fn exchange_sums(sums: &[f64], bodies: usize) -> Vec<Exchange> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rtmpm_geometry::RigidShape;
-    use rtmpm_geometry::sdf::Shape;
+    use rtmpm_geometry::Shape;
     use rtmpm_physics::boundary::Condition;
 
     #[test]
@@ -294,9 +293,9 @@ mod tests {
             panic!("a mesh collider")
         };
         // Collider grid, sentinel, then the body's grid.
-        let at = col.values.len() as u32 + 1;
+        let at = col.sdf.values.len() as u32 + 1;
         assert_eq!(t.body_mesh, vec![0, at]);
-        let RigidShape::Mesh(m) = &scene.rigid_bodies[1].shape else {
+        let Shape::Mesh(m) = &scene.rigid_bodies[1].shape else {
             panic!("a mesh body")
         };
         assert_eq!(&t.mesh[at as usize..], &m.sdf.values[..]);
@@ -314,7 +313,7 @@ mod tests {
         let g = encode(&b, at);
         assert_eq!(
             g.shape.kind,
-            crate::contract::collider_kind(&Shape::Mesh(m.sdf.clone()))
+            crate::contract::collider_kind(&scene.rigid_bodies[1].shape)
         );
         assert_eq!(g.shape.mesh_offset, at);
         assert_eq!(g.shape.dims, m.sdf.dims);
@@ -337,9 +336,10 @@ mod tests {
     #[test]
     fn a_body_is_encoded_as_its_collider_shape_about_its_centre() {
         let b = BodyState {
-            shape: RigidShape::Box {
-                half_extents: glam::Vec3::new(0.1, 0.2, 0.3),
-            },
+            shape: Shape::Box(rtmpm_geometry::shape::Cuboid::centred(
+                glam::Vec3::ZERO,
+                glam::Vec3::new(0.1, 0.2, 0.3),
+            )),
             rotation: glam::Mat3::from_rotation_z(0.5),
             center: glam::Vec3::new(1.0, 2.0, 3.0),
             velocity: glam::Vec3::X,
@@ -349,8 +349,9 @@ mod tests {
             friction: 0.25,
         };
         let g = encode(&b, 0);
-        assert_eq!(g.shape.kind, 1);
-        assert_eq!(&g.shape.p[..6], &[0.0, 0.0, 0.0, 0.1, 0.2, 0.3]);
+        assert_eq!(g.shape.kind, Shape::code_of("box").expect("a box"));
+        // Its min and max in the body frame (kernels/geometry/box.cuh).
+        assert_eq!(&g.shape.p[..6], &[-0.1, -0.2, -0.3, 0.1, 0.2, 0.3]);
         assert_eq!(
             g.shape.cond,
             crate::contract::condition(Condition::Separate)

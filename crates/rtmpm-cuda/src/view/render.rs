@@ -22,7 +22,7 @@ use crate::kernels::{Kernel, Kernels, cfg};
 use cudarc::driver::sys::CUevent_flags;
 use cudarc::driver::{CudaEvent, CudaStream, DevicePtr, DriverError, LaunchConfig, PushKernelArg};
 use rtmpm_geometry::Collider;
-use rtmpm_geometry::sdf::Shape;
+use rtmpm_geometry::Shape;
 use rtmpm_physics::boundary::BoundaryRule;
 use rtmpm_physics::math::Vec3;
 use rtmpm_render::{COLLIDER_COLOR, Image, LIGHT, RenderOptions, ShadowFrame, colormap};
@@ -121,22 +121,17 @@ pub fn collider_object(
         pivot: c.pivot.to_array(),
         ..Default::default()
     };
-    match &c.shape {
-        // The grid's values are in the backend's table already.
-        Shape::Mesh(m) => {
-            shape.p[..3].copy_from_slice(&m.origin.to_array());
-            shape.p[3] = m.spacing;
-            shape.dims = m.dims;
-            shape.mesh_offset = mesh_offset;
-        }
-        s => crate::encode::shape_params(s, &mut shape, &mut Vec::new()),
+    // A mesh's grid values are in the backend's table already, at `mesh_offset`.
+    crate::encode::shape_params(&c.shape, &mut shape);
+    if let Shape::Mesh(_) = c.shape {
+        shape.mesh_offset = mesh_offset;
     }
     let rot = c.rotation(t);
     let (plane, plane_p, plane_n) = match c.shape {
-        Shape::HalfSpace { point, normal } => (
+        Shape::HalfSpace(h) => (
             1,
-            c.to_world(point, t).to_array(),
-            (rot * normal).normalize_or(normal).to_array(),
+            c.to_world(h.point, t).to_array(),
+            (rot * h.normal).normalize_or(h.normal).to_array(),
         ),
         _ => (0, [0.0; 3], [0.0; 3]),
     };
@@ -586,10 +581,10 @@ mod tests {
     #[test]
     fn objects_are_posed_at_the_time_clipped_to_the_box_and_padded() {
         let clip = (Vec3::ZERO, Vec3::ONE);
-        let ball = collider(Shape::Sphere {
+        let ball = collider(Shape::Sphere(rtmpm_geometry::shape::Sphere {
             center: Vec3::new(0.3, 0.3, 0.3),
             radius: 0.1,
-        });
+        }));
         let o = collider_object(&ball, 0, 0.2, clip).unwrap();
         // Moved by 0.1 along x at t = 0.2.
         assert_eq!(o.pivot, [0.4, 0.3, 0.3]);
@@ -601,10 +596,10 @@ mod tests {
         // Out of the box: not drawn.
         assert!(collider_object(&ball, 0, 10.0, clip).is_none());
         // A half-space: its plane in the world, bounded by the box.
-        let floor = collider(Shape::HalfSpace {
+        let floor = collider(Shape::HalfSpace(rtmpm_geometry::shape::HalfSpace {
             point: Vec3::new(0.3, 0.2, 0.3),
             normal: Vec3::Y,
-        });
+        }));
         let o = collider_object(&floor, 0, 0.0, clip).unwrap();
         assert_eq!(
             (o.plane, o.plane_p, o.plane_n),
@@ -613,10 +608,10 @@ mod tests {
         assert!(o.lo[1] < 0.0 && o.hi[1] > 1.0);
         // The tool: a motionless world shape.
         let t = collider_object(
-            &tool_collider(Shape::Box {
-                center: Vec3::splat(0.5),
-                half_extents: Vec3::splat(0.1),
-            }),
+            &tool_collider(Shape::Box(rtmpm_geometry::shape::Cuboid::centred(
+                Vec3::splat(0.5),
+                Vec3::splat(0.1),
+            ))),
             0,
             3.0,
             clip,

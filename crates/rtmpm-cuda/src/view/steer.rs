@@ -6,7 +6,7 @@
 use crate::backend::CudaBackend;
 use crate::error::err;
 use crate::kernels::write_symbol;
-use rtmpm_geometry::sdf::Shape;
+use rtmpm_geometry::Shape;
 use rtmpm_physics::math::Vec3;
 use rtmpm_sim::SimError;
 
@@ -31,7 +31,7 @@ impl CudaBackend {
     /// grid update after the scene's colliders.
     pub fn set_tool_shape(&mut self, tool: Option<(Shape, Vec3)>) -> Result<(), SimError> {
         if let Some((shape, velocity)) = &tool {
-            if !matches!(shape, Shape::Sphere { .. } | Shape::Box { .. }) {
+            if !matches!(shape, Shape::Sphere(_) | Shape::Box(_)) {
                 return Err(SimError::Backend(
                     "the tool is a sphere or a box".to_string(),
                 ));

@@ -189,7 +189,7 @@ pub fn closest_point_on_triangle(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
 }
 
 /// A signed distance field sampled on a regular grid around a closed triangle mesh.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct MeshSdf {
     /// Position of grid point (0, 0, 0).
     pub origin: Vec3,

@@ -1,5 +1,5 @@
 use super::*;
-use crate::sdf::box_distance;
+use crate::shape::box_distance;
 use std::path::Path;
 
 fn cube_obj() -> String {

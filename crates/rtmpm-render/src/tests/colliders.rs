@@ -2,7 +2,7 @@
 
 use super::*;
 
-fn collider(shape: rtmpm_geometry::sdf::Shape, velocity: Vec3) -> rtmpm_geometry::Collider {
+fn collider(shape: rtmpm_geometry::Shape, velocity: Vec3) -> rtmpm_geometry::Collider {
     rtmpm_geometry::Collider {
         pivot: shape.center(),
         shape,
@@ -21,7 +21,7 @@ fn is_collider_grey(p: [u8; 3]) -> bool {
 
 #[test]
 fn colliders_are_drawn_hide_particles_and_can_be_hidden() {
-    use rtmpm_geometry::sdf::Shape;
+    use rtmpm_geometry::Shape;
     // Front camera at z = 3 looking at the origin (160x90, fov 40: 1 m at the origin is ~41
     // pixels). A sphere collider right of the centre with blue particles behind it, a red
     // cube left of the centre in front of a box collider, and a half-space floor (y < -0.5),
@@ -36,24 +36,24 @@ fn colliders_are_drawn_hide_particles_and_can_be_hidden() {
     o.floor = None;
     o.colliders = vec![
         collider(
-            Shape::Sphere {
+            Shape::Sphere(rtmpm_geometry::shape::Sphere {
                 center: Vec3::new(0.55, 0.0, 0.0),
                 radius: 0.3,
-            },
+            }),
             Vec3::ZERO,
         ),
         collider(
-            Shape::Box {
-                center: Vec3::new(-0.55, 0.0, -0.2),
-                half_extents: Vec3::splat(0.3),
-            },
+            Shape::Box(rtmpm_geometry::shape::Cuboid::centred(
+                Vec3::new(-0.55, 0.0, -0.2),
+                Vec3::splat(0.3),
+            )),
             Vec3::ZERO,
         ),
         collider(
-            Shape::HalfSpace {
+            Shape::HalfSpace(rtmpm_geometry::shape::HalfSpace {
                 point: Vec3::new(0.0, -0.5, 0.0),
                 normal: Vec3::Y,
-            },
+            }),
             Vec3::ZERO,
         ),
     ];
@@ -121,10 +121,10 @@ fn colliders_are_drawn_hide_particles_and_can_be_hidden() {
 
     // A moving sphere is drawn where it is at the frame's time.
     o.colliders = vec![collider(
-        Shape::Sphere {
+        Shape::Sphere(rtmpm_geometry::shape::Sphere {
             center: Vec3::new(-0.5, 0.0, 0.0),
             radius: 0.2,
-        },
+        }),
         Vec3::new(1.0, 0.0, 0.0),
     )];
     o.time = 1.0;
@@ -146,7 +146,7 @@ fn colliders_are_drawn_hide_particles_and_can_be_hidden() {
 
 #[test]
 fn colliders_cast_shadows() {
-    use rtmpm_geometry::sdf::Shape;
+    use rtmpm_geometry::Shape;
     // A sphere collider above the ground, seen from above: it darkens the ground (no particles).
     let pos = [Vec3::new(0.9, -0.75, 0.9)];
     let mat = [4u32];
@@ -159,10 +159,10 @@ fn colliders_cast_shadows() {
         fov_deg: 60.0,
     };
     o.colliders = vec![collider(
-        Shape::Sphere {
+        Shape::Sphere(rtmpm_geometry::shape::Sphere {
             center: Vec3::ZERO,
             radius: 0.25,
-        },
+        }),
         Vec3::ZERO,
     )];
     let input = RenderInput {
@@ -193,7 +193,7 @@ fn colliders_cast_shadows() {
 
 #[test]
 fn a_rigid_body_is_drawn_at_its_pose() {
-    use rtmpm_geometry::RigidShape;
+    use rtmpm_geometry::Shape;
     use rtmpm_rigid::BodyState;
     // A thin bar (long along its own x) turned 90 degrees about z stands upright at x = 0.5,
     // in front of blue particles: grey along its upright length, and not grey where the unturned
@@ -201,9 +201,10 @@ fn a_rigid_body_is_drawn_at_its_pose() {
     let pos = cube(Vec3::new(0.55, 0.0, -0.7), 0.45, 8);
     let mat = vec![0u32; pos.len()];
     let body = BodyState {
-        shape: RigidShape::Box {
-            half_extents: Vec3::new(0.3, 0.05, 0.05),
-        },
+        shape: Shape::Box(rtmpm_geometry::shape::Cuboid::centred(
+            glam::Vec3::ZERO,
+            Vec3::new(0.3, 0.05, 0.05),
+        )),
         rotation: glam::Mat3::from_rotation_z(std::f32::consts::FRAC_PI_2),
         center: Vec3::new(0.5, 0.0, 0.0),
         velocity: Vec3::ZERO,

@@ -343,7 +343,7 @@ fn colliders() {
     let s = parse(&text).unwrap();
     assert_eq!(s.colliders.len(), 2);
     assert!(
-        matches!(s.colliders[0].shape, rtmpm_geometry::sdf::Shape::HalfSpace { normal, .. } if normal == Vec3::Y)
+        matches!(s.colliders[0].shape, rtmpm_geometry::Shape::HalfSpace(h) if h.normal == Vec3::Y)
     );
     assert!((s.colliders[1].pivot - Vec3::new(0.7, 0.3, 0.3)).length() < 1e-6);
     let bad = text.replacen("normal = [0.0, 2.0, 0.0]", "normal = [0.0, 0.0, 0.0]", 1);

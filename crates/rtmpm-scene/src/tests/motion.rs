@@ -183,17 +183,20 @@ fn rigid_bodies_are_read_and_bad_ones_refused() {
 
 #[test]
 fn rigid_cylinders_take_the_colliders_fields() {
-    use rtmpm_geometry::RigidShape;
+    use rtmpm_geometry::Shape;
+    use rtmpm_geometry::shape::Cylinder;
     let cyl = "[[rigid_body]]\nshape = \"cylinder\"\ncenter = [0.5, 0.5, 0.5]\nradius = 0.1\n\
                height = 0.4\naxis = [1.0, 0.0, 0.0]\ndensity = 100.0\n";
     let s = parse(&format!("{BASE}{cyl}")).unwrap();
     let b = &s.rigid_bodies[0];
     assert_eq!(
         b.shape,
-        RigidShape::Cylinder {
+        Shape::Cylinder(Cylinder {
+            center: Vec3::ZERO,
+            axis: Vec3::Y,
             radius: 0.1,
             half_height: 0.2
-        }
+        })
     );
     assert!((b.mass - 100.0 * std::f32::consts::PI * 0.01 * 0.4).abs() < 1e-5);
     // The axis turns the body's local y (the cylinder's axis) onto x.

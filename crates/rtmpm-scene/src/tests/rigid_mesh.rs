@@ -2,7 +2,7 @@
 //! centre of mass, and bad meshes refused on `file` with the reason and a fix.
 
 use super::*;
-use rtmpm_geometry::RigidShape;
+use rtmpm_geometry::Shape;
 use std::path::{Path, PathBuf};
 
 const BASE: &str = r#"name = "t"
@@ -78,17 +78,17 @@ fn a_cube_mesh_body_is_placed_at_its_centre_of_mass_with_the_box_s_mass() {
         b.position
     );
     assert!((b.mass - 500.0 * 0.008).abs() < 1e-5 * b.mass, "{}", b.mass);
-    let RigidShape::Mesh(m) = &b.shape else {
+    let Shape::Mesh(m) = &b.shape else {
         panic!("a mesh")
     };
-    assert!(m.convex);
+    assert!(m.solid.as_ref().is_some_and(|s| s.convex));
     // Centred: the body's shape answers like the box about the origin (near the faces, where
     // the interpolated grid is exact; deep inside it rounds the box's medial kinks by O(h)).
     assert!(b.shape.distance(Vec3::ZERO) < -0.05);
     let top = b.shape.distance(Vec3::new(0.02, 0.09, 0.01));
     assert!((top + 0.01).abs() < 1e-3, "{top}");
     assert!(b.shape.distance(Vec3::new(0.0, 0.12, 0.0)) > 0.0);
-    assert!((b.shape.world_half_extents(glam::Mat3::IDENTITY) - Vec3::splat(0.1)).length() < 1e-6);
+    assert!((b.shape.half_extents(glam::Mat3::IDENTITY) - Vec3::splat(0.1)).length() < 1e-6);
     // A rotation turns it about its centre: by 0.7 rad about y its corners reach 0.7 + 0.141
     // on x, inside the walls' 0.8125 no more (3 cells of 0.0625 m).
     let turned = format!("{}rotation = [0.0, 0.7, 0.0]\n", scene(&cube, ""));

@@ -6,7 +6,7 @@ use crate::Scene;
 use crate::sampling::{self, Sampling, per_axis};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
-use rtmpm_geometry::BodyShape;
+use rtmpm_geometry::Shape;
 use rtmpm_physics::Particles;
 use rtmpm_physics::math::{Mat3, Vec3};
 
@@ -225,5 +225,5 @@ fn a_body_past_the_old_per_body_limit_is_counted() {
     assert!(est > 50_000_000, "{est}");
     let n = sampling::count_body(&s, 0).expect("count");
     assert!((n as f64 / est as f64 - 1.0).abs() < 1e-3, "{n} vs {est}");
-    assert!(matches!(s.bodies[0].shape, BodyShape::Sphere { .. }));
+    assert!(matches!(s.bodies[0].shape, Shape::Sphere(_)));
 }

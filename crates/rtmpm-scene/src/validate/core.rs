@@ -10,9 +10,6 @@ use rtmpm_physics::math::Vec3;
 
 pub(super) type R<T> = Result<T, SceneError>;
 
-/// Grid cells of margin around a mesh's signed distance grid.
-pub(super) const MESH_MARGIN: u32 = 3;
-
 pub(super) struct V<'a> {
     pub(super) text: &'a str,
     pub(super) origin: &'a str,
@@ -112,9 +109,7 @@ fn integer_out_of_range(message: &str) -> Option<String> {
     ))
 }
 
-pub(super) fn fmt3(v: Vec3) -> String {
-    format!("[{}, {}, {}]", v.x, v.y, v.z)
-}
+pub(super) use rtmpm_geometry::shape::fmt3;
 
 impl V<'_> {
     pub(super) fn err(

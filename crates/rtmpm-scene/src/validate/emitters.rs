@@ -1,8 +1,9 @@
 //! Validation of `[[emitter]]` tables.
 
-use super::core::{R, V, fmt3};
+use super::core::{R, V};
 use crate::emitter::{Emitter, MAX_PARTICLES_PER_EMITTER};
-use crate::schema::*;
+use crate::schema::RawEmitter;
+use rtmpm_geometry::Use;
 use rtmpm_physics::material::Material;
 use rtmpm_physics::math::Vec3;
 use std::path::Path;
@@ -25,55 +26,9 @@ impl V<'_> {
     pub(super) fn emitter(&self, i: usize, e: &RawEmitter, cx: &EmitterContext<'_>) -> R<Emitter> {
         let prefix = format!("emitter[{i}]");
         let f = |n: &str| format!("{prefix}.{n}");
-        let material = cx
-            .materials
-            .iter()
-            .position(|m| m.name == e.material)
-            .ok_or_else(|| {
-                let known: Vec<String> = cx
-                    .materials
-                    .iter()
-                    .map(|m| format!("{:?}", m.name))
-                    .collect();
-                self.err(
-                    f("material"),
-                    format!("unknown material {:?}", e.material),
-                    if known.is_empty() {
-                        "define it in a [[material]] table".to_string()
-                    } else {
-                        format!("use one of: {}", known.join(", "))
-                    },
-                )
-            })?;
-        if !matches!(
-            e.shape,
-            RawShape::Box | RawShape::Sphere | RawShape::Cylinder
-        ) {
-            return Err(self.err(
-                f("shape"),
-                format!("an emitter cannot be a {}", e.shape.name()),
-                "use shape = \"box\", \"sphere\" or \"cylinder\"",
-            ));
-        }
-        let shape = self.body_shape(&prefix, e.shape, &e.geometry(), cx.base, cx.dx)?;
-        let (lo, hi) = shape.bounds();
-        let (imin, imax) = cx.interior;
-        let tol = 1e-5 * (imax - imin).max_element();
-        if lo.cmplt(imin - tol).any() || hi.cmpgt(imax + tol).any() {
-            return Err(self.err(
-                f("shape"),
-                format!(
-                    "the emitter spans {} .. {}, outside the domain or inside the walls",
-                    fmt3(lo),
-                    fmt3(hi)
-                ),
-                format!(
-                    "keep emitters inside the box {} .. {} (the domain minus the walls)",
-                    fmt3(imin),
-                    fmt3(imax)
-                ),
-            ));
-        }
+        let material = self.material_index(&prefix, &e.material, cx.materials)?;
+        let shape = self.shape(&prefix, &e.geometry(), Use::Emitter, cx.base, cx.dx)?;
+        self.inside_interior(&prefix, "emitter", shape.bounds(), cx.interior)?;
         let ppc = e.particles_per_cell.unwrap_or(8);
         if ppc == 0 {
             return Err(self.err(

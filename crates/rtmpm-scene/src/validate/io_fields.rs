@@ -1,16 +1,11 @@
-//! Validation of the file-related parts of a scene: `[output]`, `[surface]` and bodies made of
-//! the particles of a file (`shape = "particles"`).
+//! Validation of the file-related parts of a scene: `[output]` and `[surface]`.
 
 use super::core::{R, V};
 use crate::schema::*;
 use crate::settings::{MeshFormats, OutputSettings, SurfaceSettings};
-use rtmpm_geometry::BodyShape;
 use rtmpm_io::frame::FrameFormat;
-use rtmpm_io::points::read_points;
 use rtmpm_physics::material::{Material, Model};
-use rtmpm_physics::math::Vec3;
-use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::path::PathBuf;
 
 impl V<'_> {
     /// `[output]` and `[surface]`.
@@ -153,76 +148,6 @@ impl V<'_> {
             threshold,
             smoothing_iters: s.smoothing_iters.unwrap_or(d.smoothing_iters),
             normal_smoothing_iters: s.normal_smoothing_iters.unwrap_or(d.normal_smoothing_iters),
-        })
-    }
-
-    /// A body made of the points of a file (`shape = "particles"`).
-    pub(super) fn particles_shape(&self, prefix: &str, b: &RawBody, base: &Path) -> R<BodyShape> {
-        let f = |n: &str| format!("{prefix}.{n}");
-        let g = b.geometry();
-        self.shape_fields(prefix, RawShape::Particles, &g)?;
-        for (field, given) in [
-            ("sampling", b.sampling.is_some()),
-            ("count", b.count.is_some()),
-        ] {
-            if given {
-                return Err(self.err(
-                    f(field),
-                    format!("`{field}` does not apply to a body made of a file's particles"),
-                    "remove it: the particles are the file's points",
-                ));
-            }
-        }
-        let file = g.file.as_ref().ok_or_else(|| {
-            self.err(
-                f("file"),
-                "a particles body needs a file",
-                "add file = \"x.ply\" (or .vtu, .bgeo, .bgeo.gz), relative to the scene file",
-            )
-        })?;
-        let mut points = read_points(&base.join(file)).map_err(|e| {
-            self.err(
-                f("file"),
-                e.to_string(),
-                "give a readable PLY, VTU or BGEO file of points (e.g. a frame of an earlier run)",
-            )
-        })?;
-        if points.positions.is_empty() {
-            return Err(self.err(
-                f("file"),
-                format!("{} holds no points", points.source.display()),
-                "use a file with at least one point",
-            ));
-        }
-        let scale = match g.scale {
-            None => Vec3::ONE,
-            Some(RawScale::Uniform(s)) => Vec3::splat(s),
-            Some(RawScale::PerAxis(s)) => Vec3::from_array(s),
-        };
-        if !scale.is_finite() || scale.min_element() <= 0.0 {
-            return Err(self.err(
-                f("scale"),
-                "scale factors must be positive",
-                "use positive scale factors",
-            ));
-        }
-        let translate = match g.translate {
-            Some(t) => self.vec3(&f("translate"), t)?,
-            None => Vec3::ZERO,
-        };
-        if scale != Vec3::ONE || translate != Vec3::ZERO {
-            for p in &mut points.positions {
-                *p = *p * scale + translate;
-            }
-            // Volumes scale with the product of the factors; masses stay.
-            if let Some(v) = &mut points.volumes {
-                let k = scale.element_product();
-                v.iter_mut().for_each(|x| *x *= k);
-            }
-        }
-        Ok(BodyShape::Particles {
-            points: Arc::new(points),
-            file_velocity: b.velocity.is_none() && b.angular_velocity.is_none(),
         })
     }
 }

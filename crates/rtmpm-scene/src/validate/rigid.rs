@@ -1,13 +1,14 @@
 //! Validation of `[[rigid_body]]` tables.
 
-use super::core::{MESH_MARGIN, R, V, fmt3};
+use super::core::{R, V, fmt3};
+use super::shapes::Fields;
 use crate::schema::*;
 use glam::Quat;
-use rtmpm_geometry::{BodyShape, RigidMesh, RigidShape};
+use rtmpm_geometry::shape::{Mesh, ShapeKind};
+use rtmpm_geometry::{Shape, Use};
 use rtmpm_physics::math::Vec3;
 use rtmpm_rigid::{JointSpec, RigidBodySpec, RigidKind};
 use std::path::Path;
-use std::sync::Arc;
 
 impl V<'_> {
     /// `rigid_body[i]`: a box, sphere, cylinder or closed mesh inside the domain minus the walls, exactly one of
@@ -22,18 +23,8 @@ impl V<'_> {
     ) -> R<RigidBodySpec> {
         let prefix = format!("rigid_body[{i}]");
         let f = |n: &str| format!("{prefix}.{n}");
-        if !matches!(
-            b.shape,
-            RawShape::Box | RawShape::Sphere | RawShape::Cylinder | RawShape::Mesh
-        ) {
-            return Err(self.err(
-                f("shape"),
-                format!("a rigid body cannot be a {}", b.shape.name()),
-                "use shape = \"box\" (min, max), \"sphere\" (center, radius), \"cylinder\" \
-                 (center, radius, height, axis) or \"mesh\" (file, scale, translate: a closed OBJ)",
-            ));
-        }
-        if b.convex.is_some() && b.shape != RawShape::Mesh {
+        self.shape_use(&prefix, b.shape, Use::RigidBody)?;
+        if b.convex.is_some() && b.shape.name() != Mesh::NAME {
             return Err(self.err(
                 f("convex"),
                 format!(
@@ -43,38 +34,20 @@ impl V<'_> {
                 "remove it; only a mesh body takes convex = true (collide as its convex hull)",
             ));
         }
-        // A cylinder's `axis` turns its rest orientation (rapier's and ours: along local y);
-        // `rotation` then turns the body.
-        let mut rest = Quat::IDENTITY;
-        let (shape, position) = if b.shape == RawShape::Mesh {
-            self.mesh_body(&prefix, b, base, dx)?
-        } else {
-            match self.body_shape(&prefix, b.shape, &b.geometry(), base, dx)? {
-                BodyShape::Box { min, max } => (
-                    RigidShape::Box {
-                        half_extents: 0.5 * (max - min),
-                    },
-                    0.5 * (min + max),
-                ),
-                BodyShape::Sphere { center, radius } => (RigidShape::Sphere { radius }, center),
-                BodyShape::Cylinder {
-                    center,
-                    axis,
-                    radius,
-                    half_height,
-                } => {
-                    rest = Quat::from_rotation_arc(Vec3::Y, axis);
-                    (
-                        RigidShape::Cylinder {
-                            radius,
-                            half_height,
-                        },
-                        center,
-                    )
-                }
-                _ => unreachable!("box, sphere or cylinder"),
-            }
+        let g = b.geometry();
+        self.shape_fields(&prefix, &g)?;
+        // The shape about its centre: a cylinder's `axis` turns its rest orientation (rapier's
+        // and ours: along local y); `rotation` then turns the body.
+        let fields = Fields {
+            v: self,
+            prefix: &prefix,
+            g: &g,
+            use_: Use::RigidBody,
+            base,
+            dx,
+            convex: b.convex.unwrap_or(false),
         };
+        let (shape, position, rest) = Shape::read_body(g.shape.0, &fields)?;
         let rotation = match b.rotation {
             Some(r) => Quat::from_scaled_axis(self.vec3(&f("rotation"), r)?) * rest,
             None => rest,
@@ -127,25 +100,13 @@ impl V<'_> {
             ));
         }
         // Inside the domain minus the walls, in its initial pose.
-        let h = shape.world_half_extents(glam::Mat3::from_quat(rotation));
-        let (lo, hi) = (position - h, position + h);
-        let (imin, imax) = interior;
-        let tol = 1e-5 * (imax - imin).max_element();
-        if lo.cmplt(imin - tol).any() || hi.cmpgt(imax + tol).any() {
-            return Err(self.err(
-                f("shape"),
-                format!(
-                    "the rigid body spans {} .. {}, outside the domain or inside the walls",
-                    fmt3(lo),
-                    fmt3(hi)
-                ),
-                format!(
-                    "keep rigid bodies inside the box {} .. {} (the domain minus the walls)",
-                    fmt3(imin),
-                    fmt3(imax)
-                ),
-            ));
-        }
+        let h = shape.half_extents(glam::Mat3::from_quat(rotation));
+        self.inside_interior(
+            &prefix,
+            "rigid body",
+            (position - h, position + h),
+            interior,
+        )?;
         let condition = Self::condition(b.condition.unwrap_or(RawCondition::Slip));
         let friction = self.non_negative(&f("friction"), b.friction.unwrap_or(0.0), "friction")?;
         Ok(RigidBodySpec {
@@ -162,41 +123,6 @@ impl V<'_> {
         })
     }
 
-    /// A mesh body: the closed mesh of `file` (scaled, translated) about its centre of mass,
-    /// which is the body's position.
-    fn mesh_body(
-        &self,
-        prefix: &str,
-        b: &RawRigidBody,
-        base: &Path,
-        dx: f32,
-    ) -> R<(RigidShape, Vec3)> {
-        let g = b.geometry();
-        self.shape_fields(prefix, RawShape::Mesh, &g)?;
-        let (path, scale, translate) = self.mesh_placement(prefix, &g, base)?;
-        let field = format!("{prefix}.file");
-        let mesh = rtmpm_io::obj::read_obj(&path, scale, translate).map_err(|e| {
-            self.err(
-                &field,
-                e.to_string(),
-                format!(
-                    "give a readable OBJ file with triangles; the path is relative to the scene \
-                     file's folder ({})",
-                    base.display()
-                ),
-            )
-        })?;
-        let (m, com) = RigidMesh::new(&mesh, b.convex.unwrap_or(false), 0.5 * dx, MESH_MARGIN)
-            .map_err(|e| {
-                self.err(
-                    &field,
-                    format!("{} cannot be a rigid body: {e}", path.display()),
-                    e.fix(),
-                )
-            })?;
-        Ok((RigidShape::Mesh(Arc::new(m)), com))
-    }
-
     /// Bodies must not overlap at the start (their axis-aligned bounds in the initial pose),
     /// unless a joint holds one to the other (rapier ignores contacts between jointed bodies).
     pub(super) fn rigid_overlaps(&self, bodies: &[RigidBodySpec], joints: &[JointSpec]) -> R<()> {
@@ -208,9 +134,7 @@ impl V<'_> {
         let bounds: Vec<(Vec3, Vec3)> = bodies
             .iter()
             .map(|b| {
-                let h = b
-                    .shape
-                    .world_half_extents(glam::Mat3::from_quat(b.rotation));
+                let h = b.shape.half_extents(glam::Mat3::from_quat(b.rotation));
                 (b.position - h, b.position + h)
             })
             .collect();

@@ -1,193 +1,294 @@
-//! Validation of the geometry of bodies and colliders: shapes, meshes and their placement,
-//! sampling settings.
+//! Validation of the shapes of bodies, colliders, emitters and rigid bodies: where a shape may
+//! be used, which fields it takes, its fields read by the shape itself
+//! (`rtmpm_geometry::shape`, through [`Fields`]), meshes and particle files; and the bodies and
+//! colliders themselves.
 
-use super::core::{MESH_MARGIN, R, V, fmt3};
+use super::core::{R, V, fmt3};
+use crate::error::SceneError;
 use crate::scene::Body;
 use crate::schema::*;
 use crate::settings::Sampling;
-use rtmpm_geometry::mesh::MeshSdf;
-use rtmpm_geometry::sdf::Shape;
-use rtmpm_geometry::{BodyShape, Collider};
+use rtmpm_geometry::mesh::TriMesh;
+use rtmpm_geometry::shape::{Points, ShapeFields, ShapeKind, allowed_for};
+use rtmpm_geometry::{Collider, PointSet, Shape, Use};
 use rtmpm_io::obj::read_obj;
+use rtmpm_io::points::read_points;
 use rtmpm_physics::boundary::BoundaryRule;
 use rtmpm_physics::material::Material;
 use rtmpm_physics::math::Vec3;
-use std::path::Path;
-use std::sync::Arc;
+use std::path::{Path, PathBuf};
 
-impl V<'_> {
-    pub(super) fn mesh(
-        &self,
-        prefix: &str,
-        g: &RawGeometry,
-        base: &Path,
-        dx: f32,
-    ) -> R<Arc<MeshSdf>> {
-        let (path, scale, translate) = self.mesh_placement(prefix, g, base)?;
-        let sdf = read_obj(&path, scale, translate)
-            .map(|mesh| MeshSdf::build(&mesh, 0.5 * dx, MESH_MARGIN))
-            .map_err(|e| self.err(format!("{prefix}.file"), e.to_string(), "give a readable, closed OBJ mesh with triangles (paths are relative to the scene file)"))?;
-        Ok(Arc::new(sdf))
+/// The geometry fields of table `prefix` (`body[2]`) as a shape reads them.
+pub(super) struct Fields<'a, 'v> {
+    pub v: &'a V<'v>,
+    pub prefix: &'a str,
+    pub g: &'a RawGeometry,
+    pub use_: Use,
+    /// The scene file's folder (files are relative to it).
+    pub base: &'a Path,
+    pub dx: f32,
+    /// A rigid body's `convex`.
+    pub convex: bool,
+}
+
+impl Fields<'_, '_> {
+    fn path(&self, name: &str) -> String {
+        format!("{}.{name}", self.prefix)
     }
 
-    /// A mesh's `file` (joined to the scene's folder), `scale` and `translate`.
-    pub(super) fn mesh_placement(
-        &self,
-        prefix: &str,
-        g: &RawGeometry,
-        base: &Path,
-    ) -> R<(std::path::PathBuf, Vec3, Vec3)> {
-        let file = g.file.as_ref().ok_or_else(|| {
-            self.err(
-                format!("{prefix}.file"),
-                "a mesh needs a file",
-                "add file = \"meshes/x.obj\" (relative to the scene file)",
-            )
-        })?;
-        let scale = match g.scale {
+    /// `scale` (one factor or three, positive) and `translate`.
+    fn placement(&self, scale_message: impl Fn(Vec3) -> String) -> R<(Vec3, Vec3)> {
+        let scale = match self.g.scale {
             None => Vec3::ONE,
             Some(RawScale::Uniform(s)) => Vec3::splat(s),
             Some(RawScale::PerAxis(s)) => Vec3::from_array(s),
         };
         if !scale.is_finite() || scale.min_element() <= 0.0 {
-            return Err(self.err(
-                format!("{prefix}.scale"),
-                format!("scale {} must be positive", fmt3(scale)),
+            return Err(self.v.err(
+                self.path("scale"),
+                scale_message(scale),
                 "use positive scale factors",
             ));
         }
-        let translate = match g.translate {
-            Some(t) => self.vec3(&format!("{prefix}.translate"), t)?,
+        let translate = match self.g.translate {
+            Some(t) => self.v.vec3(&self.path("translate"), t)?,
             None => Vec3::ZERO,
         };
-        Ok((base.join(file), scale, translate))
+        Ok((scale, translate))
+    }
+}
+
+impl ShapeFields for Fields<'_, '_> {
+    type Error = SceneError;
+
+    fn vector(&self, name: &str) -> Option<[f32; 3]> {
+        match name {
+            "min" => self.g.min,
+            "max" => self.g.max,
+            "center" => self.g.center,
+            "axis" => self.g.axis,
+            "translate" => self.g.translate,
+            "point" => self.g.point,
+            "normal" => self.g.normal,
+            _ => None,
+        }
     }
 
-    /// Check that only the parameters of `shape` are given.
-    pub(super) fn shape_fields(&self, prefix: &str, shape: RawShape, g: &RawGeometry) -> R<()> {
-        let allowed: &[&str] = match shape {
-            RawShape::HalfSpace => &["point", "normal"],
-            RawShape::Box => &["min", "max"],
-            RawShape::Sphere => &["center", "radius"],
-            RawShape::Cylinder => &["center", "axis", "radius", "height"],
-            RawShape::Mesh | RawShape::Particles => &["file", "scale", "translate"],
-        };
-        let given = [
-            ("min", g.min.is_some()),
-            ("max", g.max.is_some()),
-            ("center", g.center.is_some()),
-            ("radius", g.radius.is_some()),
-            ("axis", g.axis.is_some()),
-            ("height", g.height.is_some()),
-            ("file", g.file.is_some()),
-            ("scale", g.scale.is_some()),
-            ("translate", g.translate.is_some()),
-            ("point", g.point.is_some()),
-            ("normal", g.normal.is_some()),
-        ];
-        for (f, is) in given {
-            if is && !allowed.contains(&f) {
-                return Err(self.err(
-                    format!("{prefix}.{f}"),
-                    format!("`{f}` is not a parameter of shape \"{}\"", shape.name()),
-                    format!("remove it; this shape takes: {}", allowed.join(", ")),
-                ));
+    fn number(&self, name: &str) -> Option<f32> {
+        match name {
+            "radius" => self.g.radius,
+            "height" => self.g.height,
+            _ => None,
+        }
+    }
+
+    fn missing(&self, name: &str) -> SceneError {
+        self.v.err(
+            self.path(name),
+            format!("shape \"{}\" needs `{name}`", self.g.shape.name()),
+            format!("add {name}"),
+        )
+    }
+
+    fn error(&self, name: &str, message: String, hint: String) -> SceneError {
+        self.v.err(self.path(name), message, hint)
+    }
+
+    fn finite3(&self, name: &str, v: [f32; 3]) -> R<Vec3> {
+        self.v.vec3(&self.path(name), v)
+    }
+
+    fn positive(&self, name: &str, x: f32, what: &str) -> R<f32> {
+        self.v.positive(&self.path(name), x, what)
+    }
+
+    fn unit(&self, name: &str, v: [f32; 3], what: &str) -> R<Vec3> {
+        self.v.unit(&self.path(name), v, what)
+    }
+
+    fn dx(&self) -> f32 {
+        self.dx
+    }
+
+    fn convex(&self) -> bool {
+        self.convex
+    }
+
+    /// `file` (joined to the scene's folder), placed by `scale` and `translate`.
+    fn mesh_file(&self) -> R<(TriMesh, PathBuf)> {
+        let file = self.g.file.as_ref().ok_or_else(|| {
+            self.v.err(
+                self.path("file"),
+                "a mesh needs a file",
+                "add file = \"meshes/x.obj\" (relative to the scene file)",
+            )
+        })?;
+        let (scale, translate) =
+            self.placement(|s| format!("scale {} must be positive", fmt3(s)))?;
+        let path = self.base.join(file);
+        let hint = match self.use_ {
+            Use::RigidBody => format!(
+                "give a readable OBJ file with triangles; the path is relative to the scene \
+                 file's folder ({})",
+                self.base.display()
+            ),
+            _ => {
+                "give a readable, closed OBJ mesh with triangles (paths are relative to the scene \
+                  file)"
+                    .to_string()
             }
+        };
+        let mesh = read_obj(&path, scale, translate)
+            .map_err(|e| self.v.err(self.path("file"), e.to_string(), hint))?;
+        Ok((mesh, path))
+    }
+
+    /// `file`'s points (not empty), placed by `scale` and `translate` (volumes scaled, masses
+    /// kept).
+    fn points_file(&self) -> R<PointSet> {
+        let file = self.g.file.as_ref().ok_or_else(|| {
+            self.v.err(
+                self.path("file"),
+                "a particles body needs a file",
+                "add file = \"x.ply\" (or .vtu, .bgeo, .bgeo.gz), relative to the scene file",
+            )
+        })?;
+        let mut points = read_points(&self.base.join(file)).map_err(|e| {
+            self.v.err(
+                self.path("file"),
+                e.to_string(),
+                "give a readable PLY, VTU or BGEO file of points (e.g. a frame of an earlier run)",
+            )
+        })?;
+        if points.positions.is_empty() {
+            return Err(self.v.err(
+                self.path("file"),
+                format!("{} holds no points", points.source.display()),
+                "use a file with at least one point",
+            ));
+        }
+        let (scale, translate) = self.placement(|_| "scale factors must be positive".into())?;
+        if scale != Vec3::ONE || translate != Vec3::ZERO {
+            for p in &mut points.positions {
+                *p = *p * scale + translate;
+            }
+            // Volumes scale with the product of the factors; masses stay.
+            if let Some(v) = &mut points.volumes {
+                let k = scale.element_product();
+                v.iter_mut().for_each(|x| *x *= k);
+            }
+        }
+        Ok(points)
+    }
+}
+
+impl V<'_> {
+    /// The shape of table `prefix` may be used for `u`: a clear refusal naming the shapes
+    /// that may.
+    pub(super) fn shape_use(&self, prefix: &str, shape: RawShape, u: Use) -> R<()> {
+        match shape.info().refused(u) {
+            None => Ok(()),
+            Some(message) => Err(self.err(
+                format!("{prefix}.shape"),
+                message,
+                format!("use shape = {}", allowed_for(u)),
+            )),
+        }
+    }
+
+    /// Only the fields of the table's shape are given.
+    pub(super) fn shape_fields(&self, prefix: &str, g: &RawGeometry) -> R<()> {
+        let info = g.shape.info();
+        match g.given().into_iter().find(|f| !info.fields.contains(f)) {
+            None => Ok(()),
+            Some(f) => Err(self.err(
+                format!("{prefix}.{f}"),
+                format!("`{f}` is not a parameter of shape \"{}\"", info.name),
+                format!("remove it; this shape takes: {}", info.fields.join(", ")),
+            )),
+        }
+    }
+
+    /// The shape of table `prefix` of use `u`, checked and read (`base`: the scene's folder;
+    /// `dx`: the grid spacing).
+    pub(super) fn shape(
+        &self,
+        prefix: &str,
+        g: &RawGeometry,
+        u: Use,
+        base: &Path,
+        dx: f32,
+    ) -> R<Shape> {
+        self.shape_use(prefix, g.shape, u)?;
+        self.shape_fields(prefix, g)?;
+        self.read_shape(prefix, g, u, base, dx)
+    }
+
+    /// The shape of table `prefix`, read (its use and fields checked).
+    fn read_shape(&self, prefix: &str, g: &RawGeometry, u: Use, base: &Path, dx: f32) -> R<Shape> {
+        let fields = Fields {
+            v: self,
+            prefix,
+            g,
+            use_: u,
+            base,
+            dx,
+            convex: false,
+        };
+        Shape::read(g.shape.0, &fields, u)
+    }
+
+    /// The bounds `lo .. hi` of `what` (`the body`) of table `prefix` lie inside the domain
+    /// minus the walls, `interior` (within 1e-5 of its size).
+    pub(super) fn inside_interior(
+        &self,
+        prefix: &str,
+        what: &str,
+        (lo, hi): (Vec3, Vec3),
+        (imin, imax): (Vec3, Vec3),
+    ) -> R<()> {
+        let tol = 1e-5 * (imax - imin).max_element();
+        if lo.cmplt(imin - tol).any() || hi.cmpgt(imax + tol).any() {
+            return Err(self.err(
+                format!("{prefix}.shape"),
+                format!(
+                    "the {what} spans {} .. {}, outside the domain or inside the walls",
+                    fmt3(lo),
+                    fmt3(hi)
+                ),
+                format!(
+                    "keep {what}s inside the box {} .. {} (the domain minus the walls)",
+                    fmt3(imin),
+                    fmt3(imax)
+                ),
+            ));
         }
         Ok(())
     }
 
-    pub(super) fn need<T: Copy>(
+    /// The material named `name` of table `prefix`, as its index.
+    pub(super) fn material_index(
         &self,
         prefix: &str,
-        f: &str,
-        x: Option<T>,
-        shape: RawShape,
-    ) -> R<T> {
-        x.ok_or_else(|| {
-            self.err(
-                format!("{prefix}.{f}"),
-                format!("shape \"{}\" needs `{f}`", shape.name()),
-                format!("add {f}"),
-            )
-        })
-    }
-
-    /// Analytic body shapes, or a mesh.
-    pub(super) fn body_shape(
-        &self,
-        prefix: &str,
-        shape: RawShape,
-        g: &RawGeometry,
-        base: &Path,
-        dx: f32,
-    ) -> R<BodyShape> {
-        self.shape_fields(prefix, shape, g)?;
-        let f = |n: &str| format!("{prefix}.{n}");
-        Ok(match shape {
-            RawShape::Box => {
-                let min = self.vec3(&f("min"), self.need(prefix, "min", g.min, shape)?)?;
-                let max = self.vec3(&f("max"), self.need(prefix, "max", g.max, shape)?)?;
-                if !max.cmpgt(min).all() {
-                    return Err(self.err(
-                        f("max"),
-                        format!(
-                            "box max {} is not above min {} on every axis",
-                            fmt3(max),
-                            fmt3(min)
-                        ),
-                        "make every component of max larger than min",
-                    ));
-                }
-                BodyShape::Box { min, max }
-            }
-            RawShape::Sphere => {
-                let center =
-                    self.vec3(&f("center"), self.need(prefix, "center", g.center, shape)?)?;
-                let radius = self.positive(
-                    &f("radius"),
-                    self.need(prefix, "radius", g.radius, shape)?,
-                    "radius",
-                )?;
-                BodyShape::Sphere { center, radius }
-            }
-            RawShape::Cylinder => {
-                let center =
-                    self.vec3(&f("center"), self.need(prefix, "center", g.center, shape)?)?;
-                let axis = self.unit(&f("axis"), g.axis.unwrap_or([0.0, 1.0, 0.0]), "axis")?;
-                let radius = self.positive(
-                    &f("radius"),
-                    self.need(prefix, "radius", g.radius, shape)?,
-                    "radius",
-                )?;
-                let height = self.positive(
-                    &f("height"),
-                    self.need(prefix, "height", g.height, shape)?,
-                    "height",
-                )?;
-                BodyShape::Cylinder {
-                    center,
-                    axis,
-                    radius,
-                    half_height: 0.5 * height,
-                }
-            }
-            RawShape::Mesh => BodyShape::Mesh(self.mesh(prefix, g, base, dx)?),
-            RawShape::Particles => {
-                return Err(self.err(
-                    f("shape"),
-                    "only a body can be made of particles",
-                    "use box, sphere, cylinder, mesh or half_space for a collider",
-                ));
-            }
-            RawShape::HalfSpace => {
-                return Err(self.err(
-                    f("shape"),
-                    "a body cannot be a half-space (it is infinite)",
-                    "use box, sphere, cylinder or mesh",
-                ));
-            }
-        })
+        name: &str,
+        materials: &[Material],
+    ) -> R<usize> {
+        materials
+            .iter()
+            .position(|m| m.name == name)
+            .ok_or_else(|| {
+                let known: Vec<String> =
+                    materials.iter().map(|m| format!("{:?}", m.name)).collect();
+                self.err(
+                    format!("{prefix}.material"),
+                    format!("unknown material {name:?}"),
+                    if known.is_empty() {
+                        "define it in a [[material]] table".to_string()
+                    } else {
+                        format!("use one of: {}", known.join(", "))
+                    },
+                )
+            })
     }
 
     pub(super) fn body(
@@ -201,44 +302,15 @@ impl V<'_> {
     ) -> R<Body> {
         let prefix = format!("body[{i}]");
         let f = |n: &str| format!("{prefix}.{n}");
-        let material = materials
-            .iter()
-            .position(|m| m.name == b.material)
-            .ok_or_else(|| {
-                let known: Vec<String> =
-                    materials.iter().map(|m| format!("{:?}", m.name)).collect();
-                self.err(
-                    f("material"),
-                    format!("unknown material {:?}", b.material),
-                    if known.is_empty() {
-                        "define it in a [[material]] table".to_string()
-                    } else {
-                        format!("use one of: {}", known.join(", "))
-                    },
-                )
-            })? as u32;
-        let shape = match b.shape {
-            RawShape::Particles => self.particles_shape(&prefix, b, base)?,
-            s => self.body_shape(&prefix, s, &b.geometry(), base, dx)?,
-        };
-        let (lo, hi) = shape.bounds();
-        let (imin, imax) = interior;
-        let tol = 1e-5 * (imax - imin).max_element();
-        if lo.cmplt(imin - tol).any() || hi.cmpgt(imax + tol).any() {
-            return Err(self.err(
-                f("shape"),
-                format!(
-                    "the body spans {} .. {}, outside the domain or inside the walls",
-                    fmt3(lo),
-                    fmt3(hi)
-                ),
-                format!(
-                    "keep bodies inside the box {} .. {} (the domain minus the walls)",
-                    fmt3(imin),
-                    fmt3(imax)
-                ),
-            ));
+        let material = self.material_index(&prefix, &b.material, materials)? as u32;
+        let g = b.geometry();
+        self.shape_use(&prefix, b.shape, Use::Body)?;
+        self.shape_fields(&prefix, &g)?;
+        if b.shape.name() == Points::NAME {
+            self.not_for_points(&prefix, b)?;
         }
+        let shape = self.read_shape(&prefix, &g, Use::Body, base, dx)?;
+        self.inside_interior(&prefix, "body", shape.bounds(), interior)?;
         let ppc = b.particles_per_cell.unwrap_or(8);
         if ppc == 0 {
             return Err(self.err(
@@ -286,52 +358,31 @@ impl V<'_> {
             count: b.count,
             velocity,
             angular_velocity,
+            file_velocity: b.velocity.is_none() && b.angular_velocity.is_none(),
         })
+    }
+
+    /// A body made of a file's particles is not sampled: `sampling` and `count` do not apply.
+    fn not_for_points(&self, prefix: &str, b: &RawBody) -> R<()> {
+        for (field, given) in [
+            ("sampling", b.sampling.is_some()),
+            ("count", b.count.is_some()),
+        ] {
+            if given {
+                return Err(self.err(
+                    format!("{prefix}.{field}"),
+                    format!("`{field}` does not apply to a body made of a file's particles"),
+                    "remove it: the particles are the file's points",
+                ));
+            }
+        }
+        Ok(())
     }
 
     pub(super) fn collider(&self, i: usize, c: &RawCollider, base: &Path, dx: f32) -> R<Collider> {
         let prefix = format!("collider[{i}]");
         let f = |n: &str| format!("{prefix}.{n}");
-        let g = c.geometry();
-        let shape = match c.shape {
-            RawShape::HalfSpace => {
-                self.shape_fields(&prefix, c.shape, &g)?;
-                let point =
-                    self.vec3(&f("point"), self.need(&prefix, "point", g.point, c.shape)?)?;
-                let normal = self.unit(
-                    &f("normal"),
-                    self.need(&prefix, "normal", g.normal, c.shape)?,
-                    "normal",
-                )?;
-                Shape::HalfSpace { point, normal }
-            }
-            s => match self.body_shape(&prefix, s, &g, base, dx)? {
-                BodyShape::Box { min, max } => Shape::Box {
-                    center: 0.5 * (min + max),
-                    half_extents: 0.5 * (max - min),
-                },
-                BodyShape::Sphere { center, radius } => Shape::Sphere { center, radius },
-                BodyShape::Cylinder {
-                    center,
-                    axis,
-                    radius,
-                    half_height,
-                } => Shape::Cylinder {
-                    center,
-                    axis,
-                    radius,
-                    half_height,
-                },
-                BodyShape::Mesh(m) => Shape::Mesh(m),
-                BodyShape::Particles { .. } => {
-                    return Err(self.err(
-                        f("shape"),
-                        "only a body can be made of particles",
-                        "use box, sphere, cylinder, mesh or half_space",
-                    ));
-                }
-            },
-        };
+        let shape = self.shape(&prefix, &c.geometry(), Use::Collider, base, dx)?;
         let condition = Self::condition(c.condition.unwrap_or(RawCondition::Slip));
         let friction = self.non_negative(&f("friction"), c.friction.unwrap_or(0.0), "friction")?;
         let velocity = match c.velocity {

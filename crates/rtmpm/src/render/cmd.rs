@@ -249,18 +249,18 @@ fn bench(args: &RenderArgs) -> Result<()> {
             keyframes: None,
         };
         with.colliders = vec![
-            collider(Shape::HalfSpace {
+            collider(Shape::HalfSpace(rtmpm_geometry::shape::HalfSpace {
                 point: Vec3::new(0.0, 0.0, 0.05),
                 normal: Vec3::Z,
-            }),
-            collider(Shape::Sphere {
+            })),
+            collider(Shape::Sphere(rtmpm_geometry::shape::Sphere {
                 center: Vec3::new(0.8, 0.25, 0.35),
                 radius: 0.12,
-            }),
-            collider(Shape::Box {
-                center: Vec3::new(0.8, 0.2, 0.6),
-                half_extents: Vec3::new(0.1, 0.1, 0.05),
-            }),
+            })),
+            collider(Shape::Box(rtmpm_geometry::shape::Cuboid::centred(
+                Vec3::new(0.8, 0.2, 0.6),
+                Vec3::new(0.1, 0.1, 0.05),
+            ))),
         ];
         let dt = time(&with)?;
         println!("render bench with 3 colliders (wall, sphere, box): {dt:.3} s per frame");

@@ -3,7 +3,7 @@
 use super::case::{Ctx, Row};
 use super::measure::{Curve, observed_order, period_and_amplitude, rel_pct};
 use anyhow::Result;
-use rtmpm_geometry::BodyShape;
+use rtmpm_geometry::Shape;
 use rtmpm_physics::math::Vec3;
 use rtmpm_physics::transfer::SolverSettings;
 use rtmpm_render::plot::{Plot, Series, Style};
@@ -15,7 +15,8 @@ const V0: f64 = 0.1;
 
 /// The scene with `cells` cells along the bar (walls 3 cells thick, the same bar).
 fn at_resolution(mut scene: Scene, cells: u32) -> Scene {
-    let BodyShape::Box { max, .. } = scene.bodies[0].shape.clone() else {
+    let Shape::Box(rtmpm_geometry::shape::Cuboid { max, .. }) = scene.bodies[0].shape.clone()
+    else {
         return scene;
     };
     let dx = (L / cells as f64) as f32;

@@ -6,7 +6,8 @@
 
 use super::case::{Ctx, Row};
 use anyhow::{Context, Result, bail, ensure};
-use rtmpm_geometry::BodyShape;
+use rtmpm_geometry::Shape;
+use rtmpm_geometry::shape::Cuboid;
 use rtmpm_physics::material::Model;
 use rtmpm_physics::math::Vec3;
 use rtmpm_render::plot::{Plot, Series, Style};
@@ -31,7 +32,7 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
         .bodies
         .iter()
         .map(|b| match b.shape {
-            BodyShape::Box { min, max } => Ok((0.5 * (min.x + max.x), (max.y - min.y) as f64)),
+            Shape::Box(Cuboid { min, max }) => Ok((0.5 * (min.x + max.x), (max.y - min.y) as f64)),
             _ => bail!("cohesive_column.toml: the columns must be boxes"),
         })
         .collect::<Result<_>>()?;

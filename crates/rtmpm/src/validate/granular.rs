@@ -24,8 +24,8 @@ fn at_resolution(mut scene: Scene, dx: f32) -> Scene {
     scene.domain_max = Vec3::new(0.4 + t, 0.15 + t, depth + t);
     scene.dx = dx;
     for b in &mut scene.bodies {
-        if let rtmpm_geometry::BodyShape::Box { max, .. } = &mut b.shape {
-            max.z = depth;
+        if let rtmpm_geometry::Shape::Box(c) = &mut b.shape {
+            c.max.z = depth;
         }
     }
     scene

@@ -3,7 +3,8 @@
 use super::case::{Ctx, Row};
 use super::measure::{Curve, fit_line, observed_order, rel_pct};
 use anyhow::Result;
-use rtmpm_geometry::BodyShape;
+use rtmpm_geometry::Shape;
+use rtmpm_geometry::shape::Cuboid;
 use rtmpm_physics::math::Vec3;
 use rtmpm_physics::transfer::SolverSettings;
 use rtmpm_render::plot::{Plot, Series, Style};
@@ -14,7 +15,7 @@ const HEIGHT: f64 = 0.1;
 
 /// The scene at grid spacing `dx`: walls stay 3 cells thick around the same column.
 fn at_resolution(mut scene: Scene, dx: f32) -> Scene {
-    let BodyShape::Box { min, max } = scene.bodies[0].shape.clone() else {
+    let Shape::Box(Cuboid { min, max }) = scene.bodies[0].shape.clone() else {
         return scene;
     };
     let t = scene.walls.thickness as f32 * dx;
@@ -40,7 +41,7 @@ fn measure(ctx: &Ctx, dx: f32, solver: Option<SolverSettings>) -> Result<(f64, f
     }
     let rho = scene.materials[0].density as f64;
     let g = scene.gravity.length() as f64;
-    let BodyShape::Box { min, .. } = scene.bodies[0].shape.clone() else {
+    let Shape::Box(Cuboid { min, .. }) = scene.bodies[0].shape.clone() else {
         anyhow::bail!("box column expected")
     };
     let p0 = scene.sample_particles()?;

@@ -153,7 +153,7 @@ pub fn sinking(ctx: &Ctx) -> Result<Vec<Row>> {
     sim.backend.read_particles(&mut p)?;
     let surface = p.x.iter().map(|x| x.y).fold(f32::MIN, f32::max) as f64 + 0.25 * dx;
     let s = checks::settle(&mut sim)?;
-    let radius = |b: &rtmpm_rigid::BodyState| b.shape.world_half_extents(b.rotation).y as f64;
+    let radius = |b: &rtmpm_rigid::BodyState| b.shape.half_extents(b.rotation).y as f64;
     let gap = s[0].center.y as f64 - radius(&s[0]) - floor;
     // Depth of the light sphere's bottom below the initial surface, over its diameter: 1 or
     // more when fully submerged.

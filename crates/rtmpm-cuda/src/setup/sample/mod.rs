@@ -11,7 +11,7 @@ use crate::contract::*;
 use crate::error::err;
 use crate::kernels::{Kernel, Kernels};
 use cudarc::driver::{CudaSlice, CudaStream, PushKernelArg};
-use rtmpm_geometry::BodyShape;
+use rtmpm_geometry::Use;
 use rtmpm_scene::deferred::{DeferredBody, DeferredWalk};
 use rtmpm_scene::sampling::SampledBody;
 use rtmpm_sim::SimError;
@@ -54,46 +54,17 @@ pub fn recipe(d: &DeferredBody) -> Option<(Vec<u32>, Vec<f32>)> {
         put64(&mut w, at, v as u64);
         put64(&mut w, at + 2, (v >> 64) as u64);
     }
-    let mut sdf = Vec::new();
-    let (code, params): (u32, Vec<u32>) = match &d.shape {
-        BodyShape::Box { min, max } => (
-            SAMPLE_BOX,
-            bits(min.to_array().into_iter().chain(max.to_array())),
-        ),
-        BodyShape::Sphere { center, radius } => (
-            SAMPLE_SPHERE,
-            bits(center.to_array().into_iter().chain([*radius])),
-        ),
-        BodyShape::Cylinder {
-            center,
-            axis,
-            radius,
-            half_height,
-        } => (
-            SAMPLE_CYLINDER,
-            bits(
-                center
-                    .to_array()
-                    .into_iter()
-                    .chain(axis.to_array())
-                    .chain([*radius, *half_height]),
-            ),
-        ),
-        BodyShape::Mesh(m) => {
-            sdf = m.values.clone();
-            let mut p = bits(m.origin.to_array().into_iter().chain([m.spacing]));
-            p.extend(m.dims);
-            (SAMPLE_MESH, p)
-        }
-        BodyShape::Particles { .. } => return None,
-    };
-    w[SP_SHAPE] = code;
-    w[SP_PARAMS..SP_PARAMS + params.len()].copy_from_slice(&params);
-    Some((w, sdf))
-}
-
-fn bits(v: impl Iterator<Item = f32>) -> Vec<u32> {
-    v.map(f32::to_bits).collect()
+    let info = d.shape.info();
+    if !(info.device && info.allows(Use::Body)) {
+        return None;
+    }
+    let g = d.shape.gpu();
+    w[SP_SHAPE] = d.shape.code();
+    for (k, v) in g.p.iter().enumerate() {
+        w[SP_PARAMS + k] = v.to_bits();
+    }
+    w[SP_DIMS..SP_DIMS + 3].copy_from_slice(&g.dims);
+    Some((w, g.values.to_vec()))
 }
 
 /// Rows of `d`'s walk on the device: the lattice's rows, or its random tries in rows of

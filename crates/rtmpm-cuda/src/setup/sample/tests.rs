@@ -239,6 +239,12 @@ fn compile_twin(name: &str, harness: &str) -> Option<std::path::PathBuf> {
     let dir = std::env::temp_dir().join(format!("rtmpm-sample-twin-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     std::fs::write(dir.join("contract.cuh"), crate::contract::prelude()).expect("header");
+    std::fs::create_dir_all(dir.join("geometry")).expect("temp dir");
+    std::fs::write(
+        dir.join("geometry/registry.cuh"),
+        crate::contract::shape_registry(),
+    )
+    .expect("header");
     let src = dir.join(format!("{name}.cpp"));
     std::fs::write(&src, harness).expect("harness");
     let exe = dir.join(name);
@@ -248,6 +254,8 @@ fn compile_twin(name: &str, harness: &str) -> Option<std::path::PathBuf> {
         .arg(&kernels)
         .arg("-I")
         .arg(&dir)
+        .arg("-I")
+        .arg(kernels.join("geometry"))
         .arg(&src)
         .arg("-o")
         .arg(&exe)
@@ -352,80 +360,18 @@ int main() {
     assert_eq!(checked, 11);
 }
 
-/// The kernels' sphere and cylinder tests compiled for the CPU give the host's values bit for
-/// bit (`(x - c).length_squared()`, `cylinder_distance`) at random points about random
-/// cylinders: an operation in another order or contracted would differ in the last bits.
+/// Every shape with a device twin (`kernels/geometry/<name>.cuh`, dispatched by the generated
+/// `geometry/registry.cuh`), compiled for the CPU in the sampler's arithmetic, gives the host's
+/// signed distance, inside test and normal (`rtmpm_geometry::Shape`) bit for bit at random
+/// points about random shapes (and mesh grids with random values, inside and outside the
+/// grid): an operation in another order, contracted, or a parameter read from another word
+/// would differ in the last bits.
 #[test]
-fn the_device_shape_tests_compiled_for_the_cpu_are_the_host_s() {
+fn every_device_shape_compiled_for_the_cpu_is_the_host_s() {
     use rand::{Rng, SeedableRng};
-    use rtmpm_geometry::sdf::cylinder_distance;
-    use rtmpm_physics::math::Vec3;
-    let harness = r#"
-#include <cstdio>
-#include "contract.cuh"
-#include "sample.cuh"
-int main() {
-    unsigned w[11];
-    while (true) {
-        for (int i = 0; i < 11; ++i) if (scanf("%u", &w[i]) != 1) return 0;
-        float c[8], x[3];
-        memcpy(c, w, 32);
-        memcpy(x, w + 8, 12);
-        float d2 = sp_sphere_d2(c, x), cd = sp_cylinder_distance(c, x);
-        unsigned b[2];
-        memcpy(b, &d2, 4);
-        memcpy(b + 1, &cd, 4);
-        printf("%u %u\n", b[0], b[1]);
-    }
-}
-"#;
-    let Some(exe) = compile_twin("shapes", harness) else {
-        return;
-    };
-    let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
-    let mut v = |s: f32| Vec3::new(rng.random(), rng.random(), rng.random()) * s;
-    let mut cases = Vec::new();
-    for _ in 0..20_000 {
-        let c = v(1.0);
-        let axis = (v(2.0) - Vec3::ONE).normalize_or(Vec3::Y);
-        let (r, hh) = (0.05 + v(0.3).x, 0.05 + v(0.3).y);
-        let x = c + (v(2.0) - Vec3::ONE) * 0.5;
-        cases.push((c, axis, r, hh, x));
-    }
-    let input: String = cases
-        .iter()
-        .map(|(c, a, r, hh, x)| {
-            let f = c
-                .to_array()
-                .into_iter()
-                .chain(a.to_array())
-                .chain([*r, *hh])
-                .chain(x.to_array());
-            f.map(|v| format!("{} ", v.to_bits())).collect::<String>()
-        })
-        .collect();
-    let device = run_twin(&exe, &input);
-    assert_eq!(device.len(), cases.len());
-    for ((c, a, r, hh, x), d) in cases.iter().zip(&device) {
-        assert_eq!(
-            d[0] as u32,
-            (*x - *c).length_squared().to_bits(),
-            "sphere at {x}"
-        );
-        assert_eq!(
-            d[1] as u32,
-            cylinder_distance(*x, *c, *a, *r, *hh).to_bits(),
-            "cylinder at {x}"
-        );
-    }
-}
-
-/// The kernels' mesh distance compiled for the CPU gives `MeshSdf::distance` bit for bit, inside
-/// the distance grid (trilinear) and outside it, on grids with random values.
-#[test]
-fn the_device_mesh_distance_compiled_for_the_cpu_is_the_host_s() {
-    use rand::{Rng, SeedableRng};
+    use rtmpm_geometry::Shape;
     use rtmpm_geometry::mesh::MeshSdf;
+    use rtmpm_geometry::shape::{Cuboid, Cylinder, HalfSpace, Mesh, Sphere};
     use rtmpm_physics::math::Vec3;
     let harness = r#"
 #include <cstdio>
@@ -433,69 +379,128 @@ fn the_device_mesh_distance_compiled_for_the_cpu_is_the_host_s() {
 #include "contract.cuh"
 #include "sample.cuh"
 int main() {
-    unsigned g[4], d[3];
-    for (int i = 0; i < 4; ++i) if (scanf("%u", &g[i]) != 1) return 2;
-    for (int i = 0; i < 3; ++i) if (scanf("%u", &d[i]) != 1) return 2;
-    float gf[4];
-    for (int i = 0; i < 4; ++i) gf[i] = sp_bits(g[i]);
-    std::vector<float> v((size_t)d[0] * d[1] * d[2]);
-    for (auto& x : v) { unsigned b; if (scanf("%u", &b) != 1) return 2; x = sp_bits(b); }
-    unsigned p[3];
-    while (scanf("%u %u %u", &p[0], &p[1], &p[2]) == 3) {
-        float x[3] = {sp_bits(p[0]), sp_bits(p[1]), sp_bits(p[2])};
-        printf("%u\n", sp_u32_of(sp_mesh_distance(gf, d, v.data(), x)));
+    unsigned kind, pw[8], dims[3];
+    unsigned long long nv, np;
+    while (scanf("%u", &kind) == 1) {
+        for (int i = 0; i < 8; ++i) if (scanf("%u", &pw[i]) != 1) return 2;
+        for (int i = 0; i < 3; ++i) if (scanf("%u", &dims[i]) != 1) return 2;
+        if (scanf("%llu", &nv) != 1) return 2;
+        std::vector<float> v(nv + 1);
+        for (unsigned long long i = 0; i < nv; ++i) {
+            unsigned b;
+            if (scanf("%u", &b) != 1) return 2;
+            v[i] = sp_bits(b);
+        }
+        float p[8];
+        for (int i = 0; i < 8; ++i) p[i] = sp_bits(pw[i]);
+        GeoShape g;
+        g.p = p;
+        g.dims = dims;
+        g.values = v.data();
+        if (scanf("%llu", &np) != 1) return 2;
+        for (unsigned long long i = 0; i < np; ++i) {
+            unsigned b[3];
+            if (scanf("%u %u %u", &b[0], &b[1], &b[2]) != 3) return 2;
+            float x[3] = {sp_bits(b[0]), sp_bits(b[1]), sp_bits(b[2])}, n[3];
+            float d = shape_distance_of<SpArith>(kind, g, x);
+            bool in = shape_contains_of<SpArith>(kind, g, x);
+            shape_normal_of<SpArith>(kind, g, x, n);
+            printf("%u %u %u %u %u\n", sp_u32_of(d), in ? 1u : 0u, sp_u32_of(n[0]), sp_u32_of(n[1]),
+                   sp_u32_of(n[2]));
+        }
     }
     return 0;
 }
 "#;
-    let Some(exe) = compile_twin("mesh", harness) else {
+    let Some(exe) = compile_twin("shapes", harness) else {
         return;
     };
-    let mut rng = rand_pcg::Pcg64::seed_from_u64(9);
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+    let mut v = |s: f32| Vec3::new(rng.random(), rng.random(), rng.random()) * s;
+    let mut shapes = Vec::new();
+    for _ in 0..40 {
+        let c = v(1.0);
+        let dir = (v(2.0) - Vec3::ONE).normalize_or(Vec3::Y);
+        let (r, hh) = (0.05 + v(0.3).x, 0.05 + v(0.3).y);
+        shapes.push(Shape::HalfSpace(HalfSpace {
+            point: c,
+            normal: dir,
+        }));
+        shapes.push(Shape::Box(Cuboid {
+            min: c - v(0.3) - 0.01,
+            max: c + v(0.3) + 0.01,
+        }));
+        shapes.push(Shape::Sphere(Sphere {
+            center: c,
+            radius: r,
+        }));
+        shapes.push(Shape::Cylinder(Cylinder {
+            center: c,
+            axis: dir,
+            radius: r,
+            half_height: hh,
+        }));
+    }
     for dims in [[7u32, 5, 6], [1, 4, 3], [2, 2, 9]] {
         let n = (dims[0] * dims[1] * dims[2]) as usize;
+        let values = (0..n).map(|_| v(1.0).x - 0.4).collect();
         let sdf = MeshSdf {
             origin: Vec3::new(0.13, -0.2, 0.41),
             spacing: 0.037,
             dims,
-            values: (0..n).map(|_| rng.random::<f32>() - 0.4).collect(),
+            values,
             mesh_min: Vec3::ZERO,
             mesh_max: Vec3::ONE,
         };
-        let mut input = String::new();
-        for v in sdf.origin.to_array().into_iter().chain([sdf.spacing]) {
-            input.push_str(&format!("{} ", v.to_bits()));
-        }
-        for d in dims {
-            input.push_str(&format!("{d} "));
-        }
-        for v in &sdf.values {
-            input.push_str(&format!("{} ", v.to_bits()));
-        }
-        let lo = sdf.origin - 0.05;
-        let hi = sdf.grid_max() + 0.05;
-        let points: Vec<Vec3> = (0..20_000)
-            .map(|_| {
-                let u = Vec3::new(rng.random(), rng.random(), rng.random());
-                lo + u * (hi - lo)
-            })
-            .collect();
-        for p in &points {
+        shapes.push(Shape::Mesh(Mesh {
+            sdf: std::sync::Arc::new(sdf),
+            solid: None,
+        }));
+    }
+    let mut input = String::new();
+    let mut points = Vec::new();
+    for s in &shapes {
+        let g = s.gpu();
+        input.push_str(&format!("{} ", s.code()));
+        input.extend(g.p.iter().map(|x| format!("{} ", x.to_bits())));
+        input.extend(g.dims.iter().map(|d| format!("{d} ")));
+        input.push_str(&format!("{} ", g.values.len()));
+        input.extend(g.values.iter().map(|x| format!("{} ", x.to_bits())));
+        let (lo, hi) = match s.finite_bounds() {
+            Some((lo, hi)) => (lo - 0.05, hi + 0.05),
+            None => (s.center() - 0.5, s.center() + 0.5),
+        };
+        let at: Vec<Vec3> = (0..2000).map(|_| lo + v(1.0) * (hi - lo)).collect();
+        input.push_str(&format!("{}\n", at.len()));
+        for p in &at {
             input.push_str(&format!(
                 "{} {} {}\n",
                 p.x.to_bits(),
                 p.y.to_bits(),
                 p.z.to_bits()
             ));
+            points.push((s, *p));
         }
-        let device = run_twin(&exe, &input);
-        assert_eq!(device.len(), points.len());
-        for (p, d) in points.iter().zip(&device) {
-            assert_eq!(
-                d[0] as u32,
-                sdf.distance(*p).to_bits(),
-                "dims {dims:?} at {p}"
-            );
+    }
+    let device = run_twin(&exe, &input);
+    assert_eq!(device.len(), points.len());
+    let mut inside = vec![0usize; Shape::ALL.len()];
+    for ((s, x), d) in points.iter().zip(&device) {
+        let what = format!("{} at {x}", s.name());
+        assert_eq!(d[0] as u32, s.distance(*x).to_bits(), "distance of {what}");
+        assert_eq!(d[1] == 1, s.contains(*x), "inside test of {what}");
+        let n = s.normal(*x);
+        assert_eq!(
+            [d[2] as u32, d[3] as u32, d[4] as u32],
+            n.to_array().map(f32::to_bits),
+            "normal of {what}"
+        );
+        inside[s.code() as usize] += s.contains(*x) as usize;
+    }
+    // Every shape with a device twin was met, with points inside and outside.
+    for (k, info) in Shape::ALL.iter().enumerate() {
+        if info.device {
+            assert!(inside[k] > 0, "no point inside a {}", info.name);
         }
     }
 }
