@@ -1,6 +1,8 @@
 //! An axis-aligned box (`shape = "box"`).
 
-use super::{GpuParams, ShapeFields, ShapeKind, UsdPrim, Use, box_distance, fmt3, usd_number};
+use super::kind::{
+    GpuParams, ShapeFields, ShapeKind, UsdPrim, Use, box_distance, fmt3, usd_number,
+};
 use glam::{Mat3, Quat, Vec3};
 
 /// The box `min .. max` (in a rigid body's frame: `-h .. h`). Its signed distance is taken

@@ -1,6 +1,6 @@
 //! A capped cylinder (`shape = "cylinder"`).
 
-use super::{
+use super::kind::{
     GpuParams, ShapeFields, ShapeKind, UsdPrim, Use, any_perpendicular, cylinder_distance,
     usd_number,
 };

@@ -1,6 +1,6 @@
 //! A half-space: the points behind a plane (`shape = "half_space"`, colliders only).
 
-use super::{GpuParams, ShapeFields, ShapeKind, UsdPrim, Use};
+use super::kind::{GpuParams, ShapeFields, ShapeKind, UsdPrim, Use};
 use glam::{Mat3, Quat, Vec3};
 
 /// Points `x` with `(x - point) . normal < 0` are inside; `normal` is a unit vector.

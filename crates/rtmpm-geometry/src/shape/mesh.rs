@@ -1,7 +1,7 @@
 //! A triangle mesh from an OBJ file (`shape = "mesh"`): its signed distance grid, and for a
 //! rigid body the closed solid with its mass properties.
 
-use super::{GpuParams, ShapeFields, ShapeKind, UsdPrim, Use};
+use super::kind::{GpuParams, ShapeFields, ShapeKind, UsdPrim, Use};
 use crate::mesh::MeshSdf;
 use crate::rigid_mesh::RigidMesh;
 use glam::{Mat3, Quat, Vec3};

@@ -1,7 +1,7 @@
 //! The points of a particle file (`shape = "particles"`, bodies only): a body that starts as
 //! a file's particles.
 
-use super::{GpuParams, ShapeFields, ShapeKind, UsdPrim, Use};
+use super::kind::{GpuParams, ShapeFields, ShapeKind, UsdPrim, Use};
 use crate::points::PointSet;
 use glam::{Mat3, Quat, Vec3};
 use std::sync::Arc;

@@ -2,7 +2,8 @@
 //! `shape/mod.rs`, gives the [`Shape`] enum and its dispatch, the scene's `shape = "..."`
 //! names, the uses each allows and the GPU kind codes.
 
-use super::{Shape, ShapeInfo};
+use super::Shape;
+use super::kind::ShapeInfo;
 use glam::Vec3;
 
 /// The registry: the enum of shapes and its dispatch, from one list of `Variant(Type)`; the

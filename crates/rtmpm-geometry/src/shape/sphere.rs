@@ -1,6 +1,6 @@
 //! A ball (`shape = "sphere"`).
 
-use super::{GpuParams, ShapeFields, ShapeKind, UsdPrim, Use, usd_number};
+use super::kind::{GpuParams, ShapeFields, ShapeKind, UsdPrim, Use, usd_number};
 use glam::{Mat3, Quat, Vec3};
 
 /// The ball of this centre and radius.
