@@ -19,7 +19,7 @@
 #   variants     A/B of compile-time defines: VARIANTS="label|binary|defines[|options] ..." (several
 #                defines in one entry separated by commas), interleaved REPS times (default 1)
 #   sanitize     compute-sanitizer (memcheck, then racecheck and synccheck) on short runs of the fused step: the
-#                elastic cubes example (general G2P2G) and a fluid block n = 64 (fluid G2P2G), 20 steps each, with
+#                snow 1.33M (general G2P2G; a bench scene: bench needs a fixed dt) and a fluid block n = 64 (fluid G2P2G), 20 steps each, with
 #                RTMPM_KERNEL_DEFINES as set by the caller (SANITIZE_TOOLS to choose the tools)
 #   profile      Nsight Compute on the fused G2P2G kernel (one launch after 5): PROFILE_RUNS="label|binary|
 #                defines|scene ..." (default: the fluid dam 2M); the bound (issue, stalls, L1/L2, atomics)
@@ -179,7 +179,7 @@ for suite in "$@"; do
     sanitize)
       cs=$(command -v compute-sanitizer || ls /usr/local/cuda/bin/compute-sanitizer 2>/dev/null | head -1)
       for tool in ${SANITIZE_TOOLS:-memcheck racecheck synccheck}; do
-        for a in "--scene scenes/elastic_cubes.toml --steps 20" "--n 64 --steps 20"; do
+        for a in "--scene bench/snow_1m.toml --steps 20" "--n 64 --steps 20"; do
           timeout 300 "$cs" --tool "$tool" --error-exitcode 9 "$D/rtmpm" bench --backend cuda $a \
             > "$OUT/sanitize-$tool-$(echo "$a" | tr -c 'a-z0-9' _).log" 2>&1
           rc=$?

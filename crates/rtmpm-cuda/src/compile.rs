@@ -382,7 +382,8 @@ mod tests {
     }
 
     /// The compile-time variants of the fused step (`kernels/p2g/warp.cuh`,
-    /// `kernels/g2p/particle.cuh`; all off by default, which the test above compiles) compile in
+    /// `kernels/g2p/particle.cuh`; the defaults, which the test above compiles, are
+    /// RTMPM_P2G_REDUCE=1, RTMPM_G2P_GATHER=1, RTMPM_P2G_NODES=1) compile in
     /// f32 and f64 with every kernel, alone and together, so that turning one on is a one-line
     /// change. Front end only (`--Ofast-compile=max`), on every core at once.
     #[test]
@@ -391,17 +392,18 @@ mod tests {
             return;
         }
         let variants: &[&[&str]] = &[
-            &["-DRTMPM_P2G_REDUCE=1"],
+            &["-DRTMPM_P2G_REDUCE=0"],
             &["-DRTMPM_P2G_REDUCE=4"],
-            &["-DRTMPM_G2P_GATHER=1"],
-            &["-DRTMPM_P2G_NODES=1"],
+            &["-DRTMPM_G2P_GATHER=0"],
+            &["-DRTMPM_P2G_NODES=0"],
             &["-DRTMPM_P2G_ROUNDS_MAX=3"],
             &["-DRTMPM_P2G_REDUCE=4", "-DRTMPM_P2G_ROUNDS_MAX=3"],
             &["-DRTMPM_P2G_UNROLL=1"],
+            // The node-by-node step as it was before the three became the default.
             &[
-                "-DRTMPM_P2G_REDUCE=1",
-                "-DRTMPM_G2P_GATHER=1",
-                "-DRTMPM_P2G_NODES=1",
+                "-DRTMPM_P2G_REDUCE=0",
+                "-DRTMPM_G2P_GATHER=0",
+                "-DRTMPM_P2G_NODES=0",
             ],
         ];
         let jobs: Vec<(bool, &[&str])> = [false, true]

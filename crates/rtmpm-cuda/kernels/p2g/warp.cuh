@@ -4,17 +4,17 @@
 #pragma once
 #include "particle.cuh"
 
-// The shuffle rounds of the segmented reduction (compile-time, off by default): 0 a loop up to the
+// The shuffle rounds of the segmented reduction (compile-time, default 1): 0 a loop up to the
 // warp's longest segment; 1 the five possible rounds unrolled, each skipped past that length. Same
 // arithmetic in the same order; unrolled, ptxas keeps the 12 values of a row in place instead of
-// copying them back for the next trip (12 moves a round). Measured on the H100 (bench/RESULTS.md,
-// "The fused kernel's warp reduction"): 1 is 5-8 % faster on the claymore scenes. Off until the
-// whole GPU validation has run with it (RTMPM_KERNEL_DEFINES=-DRTMPM_P2G_REDUCE=1).
+// copying them back for the next trip (12 moves a round). Measured (bench/RESULTS.md): 1 is 5-8 %
+// faster than 0 on the claymore scenes on the H100 and the H200; the GPU tests and the whole
+// validation pass with it (and with RTMPM_G2P_GATHER=1, RTMPM_P2G_NODES=1) on the H200.
 //
 // 4: the rounds' count fixed per warp: one copy of the row loop per count (0 to 5), picked by a
 // warp-uniform switch, its rounds unrolled with no test or divergence check between them.
 #ifndef RTMPM_P2G_REDUCE
-#define RTMPM_P2G_REDUCE 0
+#define RTMPM_P2G_REDUCE 1
 #endif
 // At most 2^RTMPM_P2G_ROUNDS_MAX lanes summed by shuffles (default 5: a whole warp): a longer
 // segment is cut into pieces of that length whose first lanes each issue the atomics. Fewer
@@ -22,11 +22,11 @@
 #ifndef RTMPM_P2G_ROUNDS_MAX
 #define RTMPM_P2G_ROUNDS_MAX 5
 #endif
-// Node addresses of the scatter (compile-time, off by default): 0 each node's pblock id read from
+// Node addresses of the scatter (compile-time, default 1): 0 each node's pblock id read from
 // the neighbour list at a computed address; 1 the stencil's eight pblocks read once
 // (stencil_blocks in common.cuh) and each node's id picked from them.
 #ifndef RTMPM_P2G_NODES
-#define RTMPM_P2G_NODES 0
+#define RTMPM_P2G_NODES 1
 #endif
 // 1: the nine rows unrolled (compile-time i, j: no selects of the row's weights, pblocks and
 // cells; a larger kernel).
