@@ -170,6 +170,7 @@ fn resume_against_straight(
         step: straight.step,
         frame: straight.frame,
         bodies: straight.backend.rigid_poses(),
+        files: Vec::new(),
         particles: p,
     };
     let dir = std::env::temp_dir().join(format!("rtmpm-rigid-ckpt-{}", std::process::id()));

@@ -57,6 +57,7 @@ fn scene(dx: f32) -> Scene {
         solver: Default::default(),
         precision: Default::default(),
         particle_state: Default::default(),
+        files: Vec::new(),
     }
 }
 

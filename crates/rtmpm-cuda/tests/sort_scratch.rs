@@ -61,6 +61,7 @@ fn jelly_scene(dx: f32) -> Scene {
         solver: Default::default(),
         precision: Default::default(),
         particle_state: Default::default(),
+        files: Vec::new(),
     }
 }
 

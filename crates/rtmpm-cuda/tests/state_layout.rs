@@ -78,6 +78,7 @@ fn scene(water: bool) -> Scene {
         solver: Default::default(),
         precision: Default::default(),
         particle_state: Default::default(),
+        files: Vec::new(),
     }
 }
 

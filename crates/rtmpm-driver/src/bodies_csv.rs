@@ -1,7 +1,10 @@
 //! `bodies.csv`: the rigid bodies' poses and velocities at every frame of a run.
 
 use crate::simulation::Simulation;
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
+use rtmpm_io::signature::BODIES_CSV_HEADER;
+use rtmpm_scene::Scene;
+use std::path::Path;
 
 /// `bodies.csv` in the output folder: the pose and velocities of every rigid body at every
 /// frame (`[[rigid_body]]`; nothing when the scene has none).
@@ -10,15 +13,29 @@ pub struct BodiesCsv {
     names: Vec<String>,
 }
 
+/// The rows of a previous run's `bodies.csv` that a run resumed at `frame` keeps
+/// ([`KeptRows::read`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct KeptRows {
+    /// The checkpoint's frame.
+    pub frame: u64,
+    /// The rows of frames up to `frame`, checked.
+    pub rows: Vec<String>,
+    /// The file lacks (some of) the rows of `frame` itself: they are written again from the
+    /// restored poses.
+    pub rewrite: bool,
+}
+
 impl BodiesCsv {
     /// The file, new (none when `writes` is false or the scene has no rigid bodies); or,
-    /// resuming at frame `resumed_at`, the rows of a previous run's file up to that frame kept
-    /// (the rows of later frames are written again).
+    /// resumed, the rows a previous run wrote up to the checkpoint's frame as
+    /// [`KeptRows::read`] checked them, with the row of that frame written again from the
+    /// restored poses when the file lacked it (later frames are written again).
     pub fn new(
         writes: bool,
-        dir: &std::path::Path,
+        dir: &Path,
         sim: &Simulation,
-        resumed_at: Option<u64>,
+        resumed: Option<KeptRows>,
     ) -> Result<BodiesCsv> {
         let names: Vec<String> = sim
             .scene
@@ -29,37 +46,31 @@ impl BodiesCsv {
         if !writes || names.is_empty() {
             return Ok(BodiesCsv { file: None, names });
         }
-        use std::io::Write;
         std::fs::create_dir_all(dir)
             .with_context(|| format!("cannot create output folder {}", dir.display()))?;
         let path = dir.join("bodies.csv");
-        let kept: Vec<String> = match resumed_at {
-            Some(at) => std::fs::read_to_string(&path)
-                .unwrap_or_default()
-                .lines()
-                .skip(1)
-                .filter(|l| {
-                    l.split(',')
-                        .next()
-                        .and_then(|f| f.parse::<u64>().ok())
-                        .is_some_and(|f| f <= at)
-                })
-                .map(str::to_string)
-                .collect(),
-            None => Vec::new(),
-        };
-        let mut f = std::io::BufWriter::new(
-            std::fs::File::create(&path)
+        let kept = resumed.unwrap_or_default();
+        let mut text = format!("{BODIES_CSV_HEADER}\n");
+        for l in &kept.rows {
+            text.push_str(l);
+            text.push('\n');
+        }
+        rtmpm_io::write_atomic(&path, text.as_bytes())
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        let f = std::io::BufWriter::new(
+            std::fs::OpenOptions::new()
+                .append(true)
+                .open(&path)
                 .with_context(|| format!("cannot write {}", path.display()))?,
         );
-        writeln!(f, "frame,time,body,x,y,z,qx,qy,qz,qw,vx,vy,vz,wx,wy,wz")?;
-        for l in kept {
-            writeln!(f, "{l}")?;
-        }
-        Ok(BodiesCsv {
+        let mut csv = BodiesCsv {
             file: Some(f),
             names,
-        })
+        };
+        if kept.rewrite {
+            csv.write(kept.frame, sim.time, sim)?;
+        }
+        Ok(csv)
     }
 
     /// The rows of frame `frame` at `time`.
@@ -79,5 +90,217 @@ impl BodiesCsv {
         }
         f.flush()?;
         Ok(())
+    }
+}
+
+impl KeptRows {
+    /// The rows of `bodies.csv` at `path` a run resumed at frame `at` keeps (every row of
+    /// frames up to `at`), and whether the row of frame `at` itself must be written again (from
+    /// the checkpoint's poses). A file that is not rtmpm's, or has a row that cannot be read, is
+    /// kept and refuses the resume; missing rows are a warning naming the frames.
+    pub fn read(path: &Path, scene: &Scene, at: u64) -> Result<KeptRows> {
+        let names: Vec<String> = scene
+            .rigid_bodies
+            .iter()
+            .map(|b| format!("{:?}", b.name))
+            .collect();
+        let text = match std::fs::read(path) {
+            Ok(bytes) => String::from_utf8(bytes).map_err(|_| {
+                anyhow::anyhow!(
+                    "{} is not UTF-8 text; it is kept\n  fix: move it away, and the resumed run \
+                     starts a new one",
+                    path.display()
+                )
+            })?,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                eprintln!(
+                    "warning: {} is missing: the resumed run writes the rows from frame {at} on \
+                     (those of frames 0 to {} are not in it)",
+                    path.display(),
+                    at.saturating_sub(1)
+                );
+                return Ok(KeptRows {
+                    frame: at,
+                    rows: Vec::new(),
+                    rewrite: true,
+                });
+            }
+            Err(e) => return Err(e).with_context(|| format!("cannot read {}", path.display())),
+        };
+        let mut lines = text.lines().enumerate();
+        if lines.next().map(|(_, l)| l) != Some(BODIES_CSV_HEADER) {
+            bail!(
+                "{} does not start with rtmpm's header ({BODIES_CSV_HEADER}): it is not the file of \
+                 this run, and it is kept\n  fix: move it away, and the resumed run starts a new one",
+                path.display()
+            );
+        }
+        // The rows of frames 0..=at, checked: 16 columns, the frame's bodies in the scene's order.
+        let mut kept = Vec::new();
+        let mut per_frame: Vec<usize> = vec![0; (at as usize).saturating_add(1).min(1 << 24)];
+        for (i, line) in lines {
+            if line.trim().is_empty() {
+                continue;
+            }
+            let cols: Vec<&str> = line.split(',').collect();
+            let bad = |why: &str| {
+                anyhow::anyhow!(
+                    "{}:{}: {why}: {line}\n  the file is kept; fix or remove the line, or move the \
+                     file away (the resumed run then starts a new one)",
+                    path.display(),
+                    i + 1
+                )
+            };
+            if cols.len() != 16 {
+                return Err(bad(&format!("{} columns, not 16", cols.len())));
+            }
+            let frame: u64 = cols[0].parse().map_err(|_| bad("no frame number"))?;
+            if frame > at {
+                continue; // written again by the resumed run
+            }
+            if cols[1..]
+                .iter()
+                .enumerate()
+                .any(|(k, c)| k != 1 && c.parse::<f64>().is_err())
+            {
+                return Err(bad("a column that is not a number"));
+            }
+            let slot = per_frame.get_mut(frame as usize);
+            let k = slot.as_deref().copied().unwrap_or(0);
+            if names.get(k).map(String::as_str) != Some(cols[2]) {
+                return Err(bad(&format!(
+                    "frame {frame} names body {} where the scene's body {k} is {}",
+                    cols[2],
+                    names.get(k).map_or("none (too many rows)", String::as_str)
+                )));
+            }
+            if let Some(s) = slot {
+                *s += 1;
+            }
+            kept.push(line.to_string());
+        }
+        let incomplete: Vec<u64> = (0..=at)
+            .filter(|&f| per_frame.get(f as usize).is_some_and(|&n| n != names.len()))
+            .collect();
+        let rewrite_last = incomplete.last() == Some(&at);
+        if rewrite_last {
+            // The checkpoint's own frame is written again from its poses.
+            kept.retain(|l| l.split(',').next() != Some(at.to_string().as_str()));
+        }
+        let lost: Vec<u64> = incomplete.into_iter().filter(|&f| f != at).collect();
+        if !lost.is_empty() {
+            eprintln!(
+                "warning: {} lacks the rows of some bodies at frames {}: they cannot be rebuilt \
+                 (the checkpoint holds frame {at} only); the other rows are kept",
+                path.display(),
+                ranges(&lost)
+            );
+        }
+        Ok(KeptRows {
+            frame: at,
+            rows: kept,
+            rewrite: rewrite_last,
+        })
+    }
+}
+
+/// `0..3, 7, 9..12`.
+fn ranges(v: &[u64]) -> String {
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < v.len() {
+        let mut j = i;
+        while j + 1 < v.len() && v[j + 1] == v[j] + 1 {
+            j += 1;
+        }
+        out.push(if i == j {
+            v[i].to_string()
+        } else {
+            format!("{}..{}", v[i], v[j])
+        });
+        i = j + 1;
+    }
+    out.join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene() -> Scene {
+        Scene::from_toml(
+            "[domain]\nmin = [0, 0, 0]\nmax = [1, 1, 1]\ndx = 0.1\n[time]\nduration = 1\n\
+             [[rigid_body]]\nname = \"a\"\nshape = \"sphere\"\ncenter = [0.5, 0.5, 0.5]\n\
+             radius = 0.1\ndensity = 500\n",
+            "resume",
+        )
+        .unwrap()
+    }
+
+    fn row(frame: u64, name: &str) -> String {
+        format!("{frame},0,\"{name}\",0.5,0.5,0.5,0,0,0,1,0,0,0,0,0,0")
+    }
+
+    fn write(rows: &[String]) -> (std::path::PathBuf, std::path::PathBuf) {
+        let dir = std::env::temp_dir().join(format!(
+            "rtmpm-bodies-csv-{}-{}",
+            std::process::id(),
+            rows.len()
+        ));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("bodies.csv");
+        let mut t = format!("{BODIES_CSV_HEADER}\n");
+        for r in rows {
+            t.push_str(r);
+            t.push('\n');
+        }
+        std::fs::write(&p, t).unwrap();
+        (dir, p)
+    }
+
+    #[test]
+    fn rows_up_to_the_checkpoint_are_checked() {
+        let s = scene();
+        let (dir, p) = write(&[row(0, "a"), row(1, "a"), row(2, "a"), row(3, "a")]);
+        let KeptRows {
+            rows: kept,
+            rewrite: again,
+            ..
+        } = KeptRows::read(&p, &s, 2).unwrap();
+        assert_eq!((kept.len(), again), (3, false));
+        // Frame 2 missing: written again from the checkpoint.
+        let (dir2, p2) = write(&[row(0, "a"), row(1, "a")]);
+        assert_eq!(
+            KeptRows::read(&p2, &s, 2).unwrap(),
+            KeptRows {
+                frame: 2,
+                rows: vec![row(0, "a"), row(1, "a")],
+                rewrite: true
+            }
+        );
+        // Another body's name, or a broken row: refused.
+        let (dir3, p3) = write(&[row(0, "b")]);
+        let e = KeptRows::read(&p3, &s, 2).unwrap_err().to_string();
+        assert!(e.contains("bodies.csv:2") && e.contains("\"b\""), "{e}");
+        let _ = std::fs::write(&p3, "x,y\n");
+        assert!(
+            KeptRows::read(&p3, &s, 2)
+                .unwrap_err()
+                .to_string()
+                .contains("header")
+        );
+        // Missing file: started again.
+        assert_eq!(
+            KeptRows::read(&dir3.join("none.csv"), &s, 2).unwrap(),
+            KeptRows {
+                frame: 2,
+                rows: vec![],
+                rewrite: true
+            }
+        );
+        for d in [dir, dir2, dir3] {
+            let _ = std::fs::remove_dir_all(d);
+        }
+        assert_eq!(ranges(&[0, 1, 2, 5, 7, 8]), "0..2, 5, 7..8");
     }
 }

@@ -10,7 +10,7 @@
 //! * [`output`]: the frame files of the scene's formats and fluid surfaces; [`stream`]: PLY and
 //!   BGEO frames streamed from the backend in chunks and written in the background;
 //!   [`outdir`]: the output folder (locked, holding one run); [`bodies_csv`]: the rigid
-//!   bodies per frame.
+//!   bodies per frame; [`resume`]: a checkpoint read and checked to resume from.
 //! * [`setup`]: sampling the scene's bodies with progress lines; [`progress`]: step chunks,
 //!   progress lines, rates.
 //! * [`checks`]: the measurements of the validation cases (floating, settling and colliding
@@ -22,6 +22,7 @@ pub mod checks;
 pub mod outdir;
 pub mod output;
 pub mod progress;
+pub mod resume;
 pub mod run;
 pub mod setup;
 mod simulation;

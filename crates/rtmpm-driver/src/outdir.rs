@@ -7,6 +7,7 @@
 
 use anyhow::{Context, Result, bail};
 use rtmpm_io::checkpoint::Fnv1a64;
+use rtmpm_io::signature::{Signature, signature_of_file};
 use std::fs::{self, File, OpenOptions};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -173,28 +174,89 @@ impl OutDir {
             .with_context(|| format!("writing {}", self.dir.join(RUN_FILE).display()))
     }
 
+    /// The files of this folder with rtmpm's names, split into those rtmpm can prove it wrote
+    /// (see [`OutDir::proven`]) and the others.
+    fn sort_files(&self, pick: impl Fn(RunFile) -> bool) -> Result<(Vec<String>, Vec<String>)> {
+        let has_marker = self.dir.join(RUN_FILE).is_file();
+        let (mut ours, mut others) = (Vec::new(), Vec::new());
+        for (name, kind) in self.run_files()? {
+            if !pick(kind) {
+                continue;
+            }
+            if self.proven(&name, has_marker) {
+                ours.push(name);
+            } else {
+                others.push(name);
+            }
+        }
+        Ok((ours, others))
+    }
+
+    /// True when rtmpm can prove it wrote `name`: the run marker itself, a regular file
+    /// carrying rtmpm's signature (`rtmpm_io::signature`), or a file of a format that
+    /// carries none (BGEO, MP4) in a folder holding a run marker (`has_marker`).
+    fn proven(&self, name: &str, has_marker: bool) -> bool {
+        let path = self.dir.join(name);
+        let is_file = fs::symlink_metadata(&path).is_ok_and(|m| m.is_file());
+        if !is_file {
+            return false;
+        }
+        if name == RUN_FILE {
+            return true;
+        }
+        match signature_of_file(&path) {
+            Ok(Signature::Rtmpm) => true,
+            Ok(Signature::Unsigned) => has_marker,
+            Ok(Signature::Absent) | Err(_) => false,
+        }
+    }
+
+    /// Remove the files `names` of this folder.
+    fn remove(&self, names: &[String]) -> Result<usize> {
+        for name in names {
+            let path = self.dir.join(name);
+            fs::remove_file(&path).with_context(|| format!("cannot remove {}", path.display()))?;
+        }
+        Ok(names.len())
+    }
+
     /// Prepare the folder for a fresh run of the scene `identity`: a folder holding another
-    /// run's files is refused unless `overwrite`, which removes them (and only them) first.
+    /// run's files is refused unless `overwrite`, which removes them first, and only those rtmpm
+    /// can prove it wrote; files with rtmpm's names that it cannot prove it wrote are never
+    /// removed (the run is refused while they are there).
     pub fn start_fresh(&self, identity: &str, overwrite: bool) -> Result<()> {
-        let files = self.run_files()?;
-        if !files.is_empty() {
+        let (ours, others) = self.sort_files(|_| true)?;
+        if !others.is_empty() {
+            bail!(
+                "output folder {} holds {} with rtmpm's names that rtmpm cannot prove it wrote \
+                 (no rtmpm signature in them): {}; they are kept, and a run here would replace \
+                 them.\n  fix: move them away or remove them yourself, or choose another folder \
+                 with --out",
+                self.dir.display(),
+                files(others.len()),
+                list_names(&others)
+            );
+        }
+        if !ours.is_empty() {
             if !overwrite {
                 bail!(
-                    "output folder {} already holds the files of a run ({}: {} file(s), e.g. \
-                     {}); they are kept.\n  fix: rerun with --overwrite to remove them first, \
-                     choose another folder with --out, or continue that run with --resume \
+                    "output folder {} already holds the files of a run ({}): {}: {}; they are \
+                     kept.\n  fix: rerun with --overwrite to remove them first, choose another \
+                     folder with --out, or continue that run with --resume \
                      {}/checkpoint_NNNNN.ckpt",
                     self.dir.display(),
                     self.marker().unwrap_or_else(|| "scene unknown".into()),
-                    files.len(),
-                    files[0].0,
+                    files(ours.len()),
+                    list_names(&ours),
                     self.dir.display()
                 );
             }
-            let n = self.remove_where(|name| classify(name).is_some())?;
+            let n = self.remove(&ours)?;
             eprintln!(
-                "--overwrite: removed {n} file(s) of the previous run in {}",
-                self.dir.display()
+                "--overwrite: removed {} of the previous run in {}: {}",
+                files(n),
+                self.dir.display(),
+                list_names(&ours)
             );
         }
         self.write_marker(identity)
@@ -202,30 +264,46 @@ impl OutDir {
 
     /// Prepare the folder for resuming the run `identity` after frame `frame`: a folder
     /// holding another scene's run is refused unless `overwrite` (which removes its frames,
-    /// not its checkpoints); frames after `frame` are removed (the resumed run writes them
-    /// again).
+    /// not its checkpoints, and only files rtmpm can prove it wrote); frames after `frame` are
+    /// removed (the resumed run writes them again). Files with rtmpm's names it cannot prove
+    /// it wrote, among those it would remove or write, refuse the resume.
     pub fn start_resume(&self, identity: &str, frame: u64, overwrite: bool) -> Result<()> {
-        let files = self.run_files()?;
+        let files_here = self.run_files()?;
         let foreign = match self.marker() {
             Some(m) => m != identity,
-            None => !files.is_empty(),
+            None => !files_here.is_empty(),
         };
-        if foreign && !files.is_empty() {
+        if foreign && !files_here.is_empty() {
+            let (ours, others) =
+                self.sort_files(|k| matches!(k, RunFile::Frame(_) | RunFile::Other))?;
             if !overwrite {
                 bail!(
                     "output folder {} holds the files of another run ({}), not of the \
                      checkpoint's scene ({identity}); they are kept.\n  fix: choose another \
-                     folder with --out, or rerun with --overwrite to remove its frames first",
+                     folder with --out, or rerun with --overwrite to remove its frames first \
+                     ({}: {})",
                     self.dir.display(),
-                    self.marker().unwrap_or_else(|| "scene unknown".into())
+                    self.marker().unwrap_or_else(|| "scene unknown".into()),
+                    files(ours.len()),
+                    list_names(&ours)
                 );
             }
-            let n = self.remove_where(|name| {
-                matches!(classify(name), Some(RunFile::Frame(_) | RunFile::Other))
-            })?;
+            if !others.is_empty() {
+                bail!(
+                    "output folder {} holds {} with rtmpm's names that rtmpm cannot prove it \
+                     wrote: {}; they are kept.\n  fix: move them away, or choose another folder \
+                     with --out",
+                    self.dir.display(),
+                    files(others.len()),
+                    list_names(&others)
+                );
+            }
+            let n = self.remove(&ours)?;
             eprintln!(
-                "--overwrite: removed {n} file(s) of the previous run in {}",
-                self.dir.display()
+                "--overwrite: removed {} of the previous run in {}: {}",
+                files(n),
+                self.dir.display(),
+                list_names(&ours)
             );
         } else {
             // frames.pvd and surface.pvd are continued by the run: one that cannot be read
@@ -249,19 +327,88 @@ impl OutDir {
                     );
                 }
             }
-            let n = self.remove_where(
-                |name| matches!(classify(name), Some(RunFile::Frame(f)) if f > frame),
-            )?;
+            let (later, others) =
+                self.sort_files(|k| matches!(k, RunFile::Frame(f) if f > frame))?;
+            if !others.is_empty() {
+                bail!(
+                    "output folder {} holds {} after frame {frame} with rtmpm's names that \
+                     rtmpm cannot prove it wrote: {}; the resumed run would replace them, so \
+                     they are kept and the run is refused.\n  fix: move them away, or choose \
+                     another folder with --out",
+                    self.dir.display(),
+                    files(others.len()),
+                    list_names(&others)
+                );
+            }
+            let n = self.remove(&later)?;
             if n > 0 {
                 eprintln!(
-                    "removed {n} frame file(s) after frame {frame} in {} (the resumed run \
-                     writes them again)",
-                    self.dir.display()
+                    "removed {} after frame {frame} in {} (the resumed run writes them again): \
+                     {}",
+                    files(n),
+                    self.dir.display(),
+                    list_names(&later)
                 );
             }
         }
         self.write_marker(identity)
     }
+}
+
+/// "1 file" or "N files".
+fn files(n: usize) -> String {
+    if n == 1 {
+        "1 file".into()
+    } else {
+        format!("{n} files")
+    }
+}
+
+/// Every name of `names` (rtmpm's names), runs of consecutive frame numbers written as one
+/// range: `frame_00000.ply .. frame_00120.ply (121 files), checkpoint_00010.ckpt, frames.pvd`.
+pub fn list_names(names: &[String]) -> String {
+    // (prefix, extension) -> numbers; the other names as they are.
+    let mut numbered: Vec<((String, String), Vec<u64>)> = Vec::new();
+    let mut plain = Vec::new();
+    for name in names {
+        let split = name.split_once('.').and_then(|(stem, ext)| {
+            let digits = stem.len() - stem.trim_end_matches(|c: char| c.is_ascii_digit()).len();
+            let (prefix, num) = stem.split_at(stem.len() - digits);
+            (digits == 5 && prefix.ends_with('_'))
+                .then(|| num.parse::<u64>().ok().map(|n| (prefix, ext, n)))
+                .flatten()
+        });
+        match split {
+            Some((prefix, ext, n)) => {
+                let key = (prefix.to_string(), ext.to_string());
+                match numbered.iter_mut().find(|(k, _)| *k == key) {
+                    Some((_, v)) => v.push(n),
+                    None => numbered.push((key, vec![n])),
+                }
+            }
+            None => plain.push(name.clone()),
+        }
+    }
+    let mut parts = Vec::new();
+    for ((prefix, ext), mut nums) in numbered {
+        nums.sort_unstable();
+        let name = |n: u64| format!("{prefix}{n:05}.{ext}");
+        let mut i = 0;
+        while i < nums.len() {
+            let mut j = i;
+            while j + 1 < nums.len() && nums[j + 1] == nums[j] + 1 {
+                j += 1;
+            }
+            parts.push(match j - i {
+                0 => name(nums[i]),
+                1 => format!("{}, {}", name(nums[i]), name(nums[j])),
+                k => format!("{} .. {} ({} files)", name(nums[i]), name(nums[j]), k + 1),
+            });
+            i = j + 1;
+        }
+    }
+    parts.extend(plain);
+    parts.join(", ")
 }
 
 #[cfg(test)]

@@ -28,6 +28,39 @@ pub struct FrameOutput {
 /// The PLY comment that names the run a frame belongs to.
 pub const RUN_COMMENT_PREFIX: &str = "rtmpm-run ";
 
+/// Frames read from one folder belong to one run: every frame names the run of the first (the
+/// PLY comment rtmpm writes); frames that name no run must hold as many particles as the first
+/// (a run's count changes only with emitters, and its frames name the run).
+#[derive(Default)]
+pub struct OneRun {
+    first: Option<(u64, Option<String>, usize)>,
+}
+
+impl OneRun {
+    /// Check frame `num` of `dir` with PLY `comments` and `count` particles against the first.
+    pub fn check(&mut self, dir: &Path, num: u64, comments: &[String], count: usize) -> Result<()> {
+        let run = comments
+            .iter()
+            .find_map(|c| c.strip_prefix(RUN_COMMENT_PREFIX))
+            .map(str::to_string);
+        let Some((f, r, n)) = &self.first else {
+            self.first = Some((num, run, count));
+            return Ok(());
+        };
+        if *r != run || (run.is_none() && *n != count) {
+            bail!(
+                "{} holds frames of two runs: frame {f} ({}, {n} particles) and frame {num} ({}, \
+                 {count} particles); the frames of one run go together\n  fix: move one run's \
+                 frame files to another folder (or rerun the scene with --overwrite)",
+                dir.display(),
+                r.as_deref().unwrap_or("run unknown"),
+                run.as_deref().unwrap_or("run unknown"),
+            );
+        }
+        Ok(())
+    }
+}
+
 /// A fresh `.pvd` collection at `path`, or, when `resume_time` is given, the existing one
 /// continued (entries before that time kept; an unreadable one is an error, never silently
 /// replaced).
@@ -106,7 +139,8 @@ pub fn reconstruct(p: &Particles, settings: &SurfaceSettings) -> Result<TriMesh>
 pub fn reconstruct_points(xs: &[Vec3], params: &SurfaceParams) -> Result<TriMesh> {
     #[cfg(feature = "surface")]
     {
-        rtmpm_geometry::surface::reconstruct(xs, params).map_err(anyhow::Error::msg)
+        rtmpm_geometry::surface::reconstruct(xs, params, rtmpm_io::limits::host_memory_available())
+            .map_err(anyhow::Error::msg)
     }
     #[cfg(not(feature = "surface"))]
     {
@@ -260,6 +294,22 @@ impl FrameOutput {
     pub fn streamable(scene: &Scene) -> bool {
         let o = &scene.output;
         o.formats.iter().all(|f| f.streamable()) && !o.surface_formats.any()
+    }
+
+    /// The columns the streamed formats of `scene` copy from the backend (what a frame
+    /// buffer holds per particle).
+    pub fn stream_columns(scene: &Scene) -> rtmpm_io::chunks::FrameColumns {
+        let o = &scene.output;
+        let mut formats = Vec::new();
+        if o.ply {
+            formats.push(StreamFormat::Ply {
+                comments: Vec::new(),
+            });
+        }
+        if o.bgeo || o.bgeo_gz {
+            formats.push(StreamFormat::Bgeo { gzip: o.bgeo_gz });
+        }
+        rtmpm_io::stream::FrameFiles::columns(&formats, derived_fields(scene))
     }
 
     /// The streamed formats of the scene, for [`crate::stream::FrameStreamer::new`].

@@ -4,9 +4,10 @@
 //! `bodies.csv`, checkpoints every few frames. What the caller shows while it runs (a progress
 //! bar, pictures) it does in [`RunHooks`].
 
-use crate::bodies_csv::BodiesCsv;
+use crate::bodies_csv::{BodiesCsv, KeptRows};
 use crate::output::{FrameOutput, derived_fields};
 use crate::progress::Progress;
+pub use crate::resume::ResumeState;
 use crate::simulation::Simulation;
 use crate::stream::{FrameStreamer, StreamSettings, StreamStats};
 use anyhow::{Context, Result, bail};
@@ -14,23 +15,9 @@ use rtmpm_geometry::surface::TriMesh;
 use rtmpm_io::checkpoint::Checkpoint;
 use rtmpm_io::limits::{SCENE_MAX_BYTES, read_text_bounded};
 use rtmpm_physics::Particles;
-use rtmpm_rigid::BodyPose;
 use rtmpm_scene::Scene;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-
-/// Where a resumed run stands: the checkpoint's time, step, frame and rigid bodies.
-#[derive(Clone, Debug)]
-pub struct ResumeState {
-    /// Simulated time (s).
-    pub time: f64,
-    /// Steps taken.
-    pub step: u64,
-    /// Frames completed.
-    pub frame: u64,
-    /// The rigid bodies' poses and velocities.
-    pub bodies: Vec<BodyPose>,
-}
 
 /// The scene of a run and its initial state.
 pub struct RunStart {
@@ -65,28 +52,32 @@ impl RunStart {
         })
     }
 
-    /// The checkpoint `ckpt_path`: its scene, particles and state.
+    /// The checkpoint `ckpt_path`: its scene, particles and state, checked
+    /// ([`crate::resume::load`]).
     fn resume(ckpt_path: &Path) -> Result<RunStart> {
-        let ckpt = Checkpoint::load(ckpt_path)
-            .with_context(|| format!("cannot resume from {}", ckpt_path.display()))?;
-        let base = Path::new(&ckpt.scene_origin)
-            .parent()
-            .unwrap_or(Path::new(""));
-        let scene = Scene::from_toml_in(&ckpt.scene_toml, &ckpt.scene_origin, base)?;
-        scene
-            .check_checkpoint(&ckpt)
-            .with_context(|| format!("cannot resume from {}", ckpt_path.display()))?;
+        let loaded = crate::resume::load(ckpt_path)?;
         Ok(RunStart {
-            scene,
-            scene_text: ckpt.scene_toml,
-            particles: ckpt.particles,
-            resume: Some(ResumeState {
-                time: ckpt.time,
-                step: ckpt.step,
-                frame: ckpt.frame,
-                bodies: ckpt.bodies,
-            }),
+            scene: loaded.scene,
+            scene_text: loaded.scene_text,
+            particles: loaded.particles,
+            resume: Some(loaded.state),
         })
+    }
+
+    /// A resumed run's rows of `dir/bodies.csv` ([`KeptRows::read`]), checked now: before
+    /// anything in the output folder changes. Nothing to do for a fresh run or a scene without
+    /// rigid bodies.
+    pub fn check_bodies_csv(&mut self, dir: &Path) -> Result<()> {
+        if let Some(r) = self.resume.as_mut()
+            && !self.scene.rigid_bodies.is_empty()
+        {
+            r.bodies_csv = Some(KeptRows::read(
+                &dir.join("bodies.csv"),
+                &self.scene,
+                r.frame,
+            )?);
+        }
+        Ok(())
     }
 }
 
@@ -210,12 +201,21 @@ impl Run {
                 .set_rigid_poses(&r.bodies)
                 .context("cannot restore the checkpoint's rigid bodies")?;
         }
-        let bodies = BodiesCsv::new(
-            options.write_frames,
-            &options.out_dir,
-            &sim,
-            resume.map(|r| r.frame),
-        )?;
+        // A resumed run's rows of bodies.csv: as checked by the caller, else read now.
+        let kept = match resume {
+            Some(r) if options.write_frames && !sim.scene.rigid_bodies.is_empty() => {
+                match &r.bodies_csv {
+                    Some(k) => Some(k.clone()),
+                    None => Some(KeptRows::read(
+                        &options.out_dir.join("bodies.csv"),
+                        &sim.scene,
+                        r.frame,
+                    )?),
+                }
+            }
+            _ => None,
+        };
+        let bodies = BodiesCsv::new(options.write_frames, &options.out_dir, &sim, kept)?;
         let streamer = match output.as_ref() {
             Some(out) if options.stream && FrameOutput::streamable(&sim.scene) => {
                 let settings = StreamSettings {
@@ -410,6 +410,7 @@ impl Run {
             step: sim.step,
             frame: sim.frame,
             bodies: poses,
+            files: sim.scene.file_hashes(),
             particles: self.host.clone(),
         };
         let out_dir = &self.options.out_dir;

@@ -4,7 +4,7 @@
 //! blow-ups with the particle, its material and advice.
 
 use rtmpm_physics::math::Vec3;
-use rtmpm_scene::{Scene, StepMode};
+use rtmpm_scene::{Scene, StepMode, speeds};
 use rtmpm_sim::{Backend, BadReason, Blowup, MAX_CELLS_PER_STEP, Particles, SimError};
 
 /// Drives a backend through frames of a scene. The backend is a `Box<dyn Backend>` by default;
@@ -81,12 +81,17 @@ impl<B: Backend + ?Sized> Simulation<B> {
                 max_dt,
                 min_dt,
             } => {
-                let speed = self.backend.max_speed()? + self.max_sound_speed;
+                // The fastest particle or boundary (colliders, rigid bodies, emitters: the
+                // material they meet takes their speed within the step), and gravity's bound.
+                let particles = self.backend.max_speed()?;
+                let boundary = self.fastest_boundary().map_or(0.0, |b| b.speed as f32);
+                let speed = particles.max(boundary) + self.max_sound_speed;
                 let dt = if speed > 0.0 {
                     (cfl * self.scene.dx / speed).min(max_dt)
                 } else {
                     max_dt
                 };
+                let dt = dt.min(speeds::gravity_dt(self.scene.gravity, self.scene.dx, cfl));
                 // NaN speeds are the health check's (a blow-up); a finite collapse is a stall.
                 if dt < min_dt {
                     return Err(self.stall(dt, min_dt));
@@ -126,7 +131,104 @@ impl<B: Backend + ?Sized> Simulation<B> {
                 self.max_sound_speed
             ),
             dt,
+            advice: self.stall_advice(dt, speed),
         }))
+    }
+
+    /// The fastest boundary or emitter now ([`speeds::fastest_boundary`]).
+    fn fastest_boundary(&self) -> Option<speeds::SpeedSource> {
+        if self.scene.colliders.is_empty()
+            && self.scene.rigid_bodies.is_empty()
+            && self.scene.emitters.is_empty()
+        {
+            return None;
+        }
+        speeds::fastest_boundary(&self.scene, self.time, &self.backend.rigid_bodies())
+    }
+
+    /// What made the CFL step collapse to `dt` when it is not the fastest particle (at
+    /// `particle_speed`): a boundary or emitter faster than it, or gravity's bound.
+    fn stall_advice(&self, dt: f32, particle_speed: f32) -> Option<String> {
+        let cfl = match self.scene.time.step {
+            StepMode::Cfl { cfl, .. } => cfl,
+            StepMode::Fixed { .. } => return None,
+        };
+        let g = self.scene.gravity.length();
+        if dt >= speeds::gravity_dt(self.scene.gravity, self.scene.dx, cfl) * 0.999 {
+            return Some(format!(
+                "gravity ({g:.4e} m/s^2) asks for steps of at most sqrt(cfl dx / |g|) = {dt:.3e} s \
+                 (so that a step adds less than a cell to a fall): lower `gravity` (Earth's is \
+                 9.81 m/s^2); or, if it is intended, lower `time.min_dt`"
+            ));
+        }
+        let b = self.fastest_boundary()?;
+        (b.speed as f32 > particle_speed).then(|| {
+            format!(
+                "{} moves at {:.4e} m/s, and the step follows it so that the material it meets \
+                 moves less than a cell per step: lower `{}`; or, if the speed is intended, lower \
+                 `time.min_dt`",
+                b.what, b.speed, b.field
+            )
+        })
+    }
+
+    /// The cause of a blow-up at step size `dt` of the particle at `x`, when something the step
+    /// does not follow moves faster than a cell per step (a fixed `time.dt`, or a step capped
+    /// by `time.max_dt` above what the boundaries allow), or an emitter near it piles its
+    /// particles up; `None` leaves the generic advice (the step or the stiffness).
+    fn blame(&self, dt: f32, x: Vec3) -> Option<String> {
+        let dx = self.scene.dx;
+        let fix = |field: &str, speed: f64| {
+            format!(
+                "lower `{field}`, or the time step to at most {:.3e} s (a cell per step: \
+                 `time.dt`, or `time.max_dt` with `time.cfl`)",
+                dx as f64 / speed
+            )
+        };
+        if let Some(b) = self.fastest_boundary()
+            && b.speed * dt as f64 > dx as f64
+        {
+            return Some(format!(
+                "{} moves at {:.4e} m/s, {:.1} cells in a step of {dt:.3e} s: the material it \
+                 meets is flung faster than the step follows; {}",
+                b.what,
+                b.speed,
+                b.speed * dt as f64 / dx as f64,
+                fix(&b.field, b.speed)
+            ));
+        }
+        // Gravity: the speed of a fall since the start (at most across the domain).
+        let fall =
+            (self.scene.gravity.length() as f64 * self.time).min(speeds::fall_speed(&self.scene));
+        if fall * dt as f64 > MAX_CELLS_PER_STEP as f64 * dx as f64 {
+            return Some(format!(
+                "gravity ({:.4e} m/s^2) makes a fall of {:.4e} m/s by now, {:.1} cells in a step \
+                 of {dt:.3e} s; {}",
+                self.scene.gravity.length(),
+                fall,
+                fall * dt as f64 / dx as f64,
+                fix("gravity", fall)
+            ));
+        }
+        let near = |e: &rtmpm_scene::emitter::Emitter| {
+            let (lo, hi) = e.shape.bounds();
+            x.cmpge(lo - 2.0 * dx).all() && x.cmple(hi + 2.0 * dx).all()
+        };
+        let (i, e) = self
+            .scene
+            .emitters
+            .iter()
+            .enumerate()
+            .find(|(_, e)| e.piles_up() && near(e))?;
+        Some(format!(
+            "emitter[{i}] `{}` emits {:.4e} particles per second, but at its velocity only about \
+             {:.4e} per second leave it: they pile up in it, are compressed and burst out; lower \
+             `emitter[{i}].rate` (or volume_rate to its flux, cross-section x speed), or raise its \
+             velocity",
+            e.name,
+            e.rate,
+            e.outflow()
+        ))
     }
 
     /// One step of size `dt`; the emitters' particles due by its end appear first.
@@ -251,6 +353,7 @@ impl<B: Backend + ?Sized> Simulation<B> {
                 material,
                 reason,
                 dt: self.last_dt,
+                advice: self.blame(self.last_dt, p.x.get(i).copied().unwrap_or(Vec3::NAN)),
             })));
         }
         Ok(())

@@ -48,9 +48,14 @@ impl Tool {
             ToolShape::Box { half } => half.is_finite() && half.min_element() > 0.0,
         };
         if !size_ok {
+            let size = match self.shape {
+                ToolShape::Sphere { radius } => format!("radius {radius}"),
+                ToolShape::Box { half } => {
+                    format!("half extents ({}, {}, {})", half.x, half.y, half.z)
+                }
+            };
             return Err(format!(
-                "the tool's size must be positive and finite, got {:?}",
-                self.shape
+                "the tool's size must be positive and finite, got {size}"
             ));
         }
         if !self.center.is_finite() || !self.velocity.is_finite() {

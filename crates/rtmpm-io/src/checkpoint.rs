@@ -5,7 +5,7 @@
 //! ```text
 //! offset  size  content
 //! 0       8     magic b"RTMPMCKP"
-//! 8       4     format version (u32, currently 2; version 1 is read too)
+//! 8       4     format version (u32, currently 3; versions 1 and 2 are read too)
 //! 12      4     reserved (0)
 //! 16      8     payload length P in bytes (u64)
 //! 24      P     payload
@@ -13,9 +13,11 @@
 //! ```
 //!
 //! Payload: `scene_toml` (u64 length + UTF-8), `scene_origin` (u64 length + UTF-8), `time`
-//! (f64 bits), `step` (u64), `frame` (u64), (version 2 only) the rigid-body count `b` (u64) and
-//! `b` times 13 f32 (position 3, rotation quaternion x y z w 4, velocity 3, angular velocity 3:
-//! [`BodyPose`], the bits rapier holds), then the particle count `n` (u64) and the arrays in
+//! (f64 bits), `step` (u64), `frame` (u64), (version 2 and later) the rigid-body count `b` (u64)
+//! and `b` times 13 f32 (position 3, rotation quaternion x y z w 4, velocity 3, angular velocity
+//! 3: [`BodyPose`], the bits rapier holds), (version 3) the count `k` (u64) of the files the
+//! scene read and `k` times [`FileHash`] (its field and path, each a u64 length + UTF-8, and the
+//! FNV-1a 64 hash of its bytes, u64), then the particle count `n` (u64) and the arrays in
 //! this order as raw little-endian f32/u32 bits: `x` (3n), `v` (3n), `c` (9n, column-major),
 //! `f` (9n, column-major), `plastic` (n), `mass` (n), `vol0` (n), `material` (n, u32).
 //!
@@ -37,7 +39,7 @@ use rtmpm_rigid::BodyPose;
 /// Magic bytes at the start of every checkpoint.
 pub const MAGIC: [u8; 8] = *b"RTMPMCKP";
 /// Current format version.
-pub const VERSION: u32 = 2;
+pub const VERSION: u32 = 3;
 /// Words (f32) per rigid body in the payload.
 const WORDS_PER_BODY: usize = 13;
 const HEADER_LEN: usize = 24;
@@ -61,8 +63,22 @@ pub struct Checkpoint {
     /// The rigid bodies' poses and velocities, one per `[[rigid_body]]` in the scene's order
     /// (empty without rigid bodies, and in version-1 files).
     pub bodies: Vec<BodyPose>,
+    /// The files the scene read and their hashes when the run started (empty in files of
+    /// versions 1 and 2).
+    pub files: Vec<FileHash>,
     /// The particle state.
     pub particles: Particles,
+}
+
+/// A file a checkpoint's scene read (a mesh, a particle file), as the run found it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FileHash {
+    /// The scene field naming it, e.g. `collider[0].file`.
+    pub field: String,
+    /// Its path as the scene resolved it.
+    pub path: String,
+    /// FNV-1a 64 of its bytes.
+    pub hash: u64,
 }
 
 /// A body's 13 words in the file's order.
@@ -76,7 +92,7 @@ fn body_words(b: &BodyPose) -> [f32; WORDS_PER_BODY] {
 }
 
 /// What of the scene a checkpoint resumes its state must fit ([`Checkpoint::check_fits`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct ResumedScene {
     /// The domain's min corner (m).
     pub domain_min: Vec3,
@@ -86,8 +102,8 @@ pub struct ResumedScene {
     pub dx: f32,
     /// Number of materials.
     pub materials: usize,
-    /// Number of rigid bodies.
-    pub rigid_bodies: usize,
+    /// The names of the rigid bodies, in the scene's order.
+    pub rigid_bodies: Vec<String>,
 }
 
 /// Errors of [`Checkpoint::load`] and [`Checkpoint::save`].
@@ -100,7 +116,7 @@ pub enum CheckpointError {
     #[error("not an rtmpm checkpoint (bad magic bytes)")]
     BadMagic,
     /// The file was written by an incompatible version.
-    #[error("unsupported checkpoint version {found} (this build reads version {expected})")]
+    #[error("unsupported checkpoint version {found} (this build reads versions 1 to {expected})")]
     UnsupportedVersion {
         /// Version in the file.
         found: u32,
@@ -196,16 +212,26 @@ impl Checkpoint {
             + 8 * 4
             + 8
             + (4 * WORDS_PER_BODY * self.bodies.len()) as u64
+            + 8
+            + self
+                .files
+                .iter()
+                .map(|f| 8 + f.field.len() as u64 + 8 + f.path.len() as u64 + 8)
+                .sum::<u64>()
             + BYTES_PER_PARTICLE * self.particles.len() as u64
     }
 
     /// Write the checkpoint to `path` atomically (temporary file + rename).
     pub fn save(&self, path: &Path) -> Result<(), CheckpointError> {
         crate::contents::check_particles(&self.particles)?;
-        if let Some(i) = self.bodies.iter().position(|b| !b.is_valid()) {
+        if let Some((i, why)) = self
+            .bodies
+            .iter()
+            .enumerate()
+            .find_map(|(i, b)| b.problem().map(|w| (i, w)))
+        {
             return Err(CheckpointError::BadValue(format!(
-                "rigid body {i}: {:?} is not a finite pose",
-                self.bodies[i]
+                "rigid body {i} (rigid_body[{i}] of the scene): {why}"
             )));
         }
         let p = &self.particles;
@@ -227,6 +253,14 @@ impl Checkpoint {
             w.write_all(&self.frame.to_le_bytes())?;
             w.write_all(&(self.bodies.len() as u64).to_le_bytes())?;
             write_f32s(&mut w, self.bodies.iter().flat_map(body_words))?;
+            w.write_all(&(self.files.len() as u64).to_le_bytes())?;
+            for f in &self.files {
+                for s in [&f.field, &f.path] {
+                    w.write_all(&(s.len() as u64).to_le_bytes())?;
+                    w.write_all(s.as_bytes())?;
+                }
+                w.write_all(&f.hash.to_le_bytes())?;
+            }
             w.write_all(&(p.len() as u64).to_le_bytes())?;
             write_f32s(&mut w, p.x.iter().flat_map(|x| x.to_array()))?;
             write_f32s(&mut w, p.v.iter().flat_map(|v| v.to_array()))?;
@@ -253,12 +287,32 @@ impl Checkpoint {
     /// material indices in range, positions inside the domain (within one cell).
     /// [`Checkpoint::from_bytes`] has already checked what does not depend on the scene.
     pub fn check_fits(&self, scene: &ResumedScene) -> Result<(), CheckpointError> {
-        if self.bodies.len() != scene.rigid_bodies {
+        if self.bodies.len() != scene.rigid_bodies.len() {
             return Err(CheckpointError::BadValue(format!(
                 "the checkpoint holds {} rigid bodies, the scene has {} [[rigid_body]] tables",
                 self.bodies.len(),
-                scene.rigid_bodies
+                scene.rigid_bodies.len()
             )));
+        }
+        // A body's centre within a cell of the domain (the walls keep bodies inside it).
+        let (lo, hi) = (scene.domain_min - scene.dx, scene.domain_max + scene.dx);
+        for (i, (b, spec)) in self.bodies.iter().zip(&scene.rigid_bodies).enumerate() {
+            let p = b.position;
+            if p.cmplt(lo).any() || p.cmpgt(hi).any() {
+                return Err(CheckpointError::BadValue(format!(
+                    "rigid_body[{i}] `{spec}` is at ({}, {}, {}), outside the scene's domain \
+                     ({}, {}, {}) .. ({}, {}, {})",
+                    p.x,
+                    p.y,
+                    p.z,
+                    scene.domain_min.x,
+                    scene.domain_min.y,
+                    scene.domain_min.z,
+                    scene.domain_max.x,
+                    scene.domain_max.y,
+                    scene.domain_max.z
+                )));
+            }
         }
         check_particles_in_domain(
             &self.particles,
@@ -282,7 +336,7 @@ impl Checkpoint {
             });
         }
         let version = u32::from_le_bytes(bytes[8..12].try_into().unwrap());
-        if version != VERSION && version != 1 {
+        if !(1..=VERSION).contains(&version) {
             return Err(CheckpointError::UnsupportedVersion {
                 found: version,
                 expected: VERSION,
@@ -332,12 +386,29 @@ impl Checkpoint {
                     velocity: Vec3::new(f(7), f(8), f(9)),
                     angular_velocity: Vec3::new(f(10), f(11), f(12)),
                 };
-                if !b.is_valid() {
+                if let Some(why) = b.problem() {
                     return Err(CheckpointError::BadValue(format!(
-                        "rigid body {i}: {b:?} is not a finite pose"
+                        "rigid body {i} (rigid_body[{i}] of the scene): {why}"
                     )));
                 }
                 bodies.push(b);
+            }
+        }
+        let mut files = Vec::new();
+        if version >= 3 {
+            let count = r.u64()?;
+            // At least 24 bytes each (two lengths and the hash).
+            let left = (r.bytes.len() - r.pos) as u64;
+            if count.saturating_mul(24) > left {
+                return Err(CheckpointError::Malformed(format!(
+                    "{count} file hashes do not fit the {left} bytes left"
+                )));
+            }
+            for _ in 0..count {
+                let field = r.string("file field")?;
+                let path = r.string("file path")?;
+                let hash = r.u64()?;
+                files.push(FileHash { field, path, hash });
             }
         }
         let n = r.u64()?;
@@ -403,6 +474,7 @@ impl Checkpoint {
             step,
             frame,
             bodies,
+            files,
             particles,
         })
     }

@@ -12,7 +12,7 @@ const SCENE: ResumedScene = ResumedScene {
     domain_max: Vec3::splat(1000.0),
     dx: 10.0,
     materials: 1,
-    rigid_bodies: 0,
+    rigid_bodies: Vec::new(),
 };
 
 fn random_checkpoint(n: usize, seed: u64) -> Checkpoint {
@@ -54,6 +54,7 @@ fn random_checkpoint(n: usize, seed: u64) -> Checkpoint {
         step: 123_456_789_012,
         frame: 42,
         bodies,
+        files: Vec::new(),
         particles: p,
     }
 }
@@ -90,6 +91,7 @@ fn empty_round_trip() {
         step: 0,
         frame: 0,
         bodies: Vec::new(),
+        files: Vec::new(),
         particles: Particles::default(),
     };
     let path = d.path("e.ckpt");

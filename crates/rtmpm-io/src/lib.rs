@@ -31,6 +31,7 @@ pub mod limits;
 pub mod obj;
 pub mod ply;
 pub mod points;
+pub mod signature;
 pub mod stream;
 #[cfg(any(test, feature = "testing"))]
 pub mod testing;

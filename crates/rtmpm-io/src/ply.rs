@@ -442,6 +442,7 @@ pub fn read_ply(path: &Path) -> Result<PlyData, PlyError> {
 pub fn parse_ply(bytes: &[u8]) -> Result<PlyData, PlyError> {
     let (elements, comments, mut pos) = parse_header(bytes)?;
     let truncated = || malformed("body is shorter than the header announces (truncated file?)");
+    let mut vertices: Option<(PlyData, usize)> = None;
     for el in &elements {
         let remaining = (bytes.len() - pos) as u64;
         // Every record holds at least the scalars and the list counts: a count that cannot fit
@@ -523,13 +524,43 @@ pub fn parse_ply(bytes: &[u8]) -> Result<PlyData, PlyError> {
             }
         }
         debug_assert!(stride > 0);
-        return Ok(PlyData {
-            count: el.count,
-            columns: cols.into_iter().map(|(n, _, c)| (n, c)).collect(),
-            comments,
-        });
+        if vertices.is_some() {
+            return Err(malformed("two `vertex` elements"));
+        }
+        vertices = Some((
+            PlyData {
+                count: el.count,
+                columns: cols.into_iter().map(|(n, _, c)| (n, c)).collect(),
+                comments: comments.clone(),
+            },
+            stride,
+        ));
     }
-    Err(malformed("no `vertex` element"))
+    let Some((data, stride)) = vertices else {
+        return Err(malformed("no `vertex` element"));
+    };
+    // Every byte is the header's: more data than it announces means its counts are wrong (or
+    // the file is not what it says), and the particles read would not be the file's.
+    let extra = bytes.len() - pos;
+    if extra > 0 {
+        let only_vertices = elements.len() == 1;
+        return Err(malformed(if only_vertices {
+            format!(
+                "{extra} bytes after the {} vertices the header announces (`element vertex {}`): \
+                 the data holds about {} vertices of {stride} bytes; the header's count does not \
+                 match the data",
+                data.count,
+                data.count,
+                data.count as u64 + (extra / stride) as u64
+            )
+        } else {
+            format!(
+                "{extra} bytes after the elements the header announces: its element counts do \
+                 not match the data"
+            )
+        }));
+    }
+    Ok(data)
 }
 
 #[cfg(test)]

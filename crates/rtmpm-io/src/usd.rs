@@ -49,6 +49,7 @@ fn array(
 fn header(w: &mut dyn Write, prim: &str) -> io::Result<()> {
     writeln!(w, "#usda 1.0")?;
     writeln!(w, "(")?;
+    writeln!(w, "    doc = \"{}\"", super::signature::USD_DOC)?;
     writeln!(w, "    defaultPrim = \"{prim}\"")?;
     writeln!(w, "    metersPerUnit = 1")?;
     writeln!(w, "    upAxis = \"Y\"")?;

@@ -190,6 +190,8 @@ pub fn write_unstructured(
 
     let mut xml = String::new();
     xml.push_str("<?xml version=\"1.0\"?>\n");
+    xml.push_str(super::signature::XML_COMMENT);
+    xml.push('\n');
     xml.push_str("<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\"");
     if compress {
         xml.push_str(" compressor=\"vtkZLibDataCompressor\"");

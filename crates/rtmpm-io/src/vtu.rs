@@ -99,6 +99,7 @@ fn write_vtu_to(
     let n = p.len();
     let f32le = |x: f32| x.to_le_bytes();
     writeln!(w, "<?xml version=\"1.0\"?>")?;
+    writeln!(w, "{}", super::signature::XML_COMMENT)?;
     writeln!(
         w,
         "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">"
@@ -543,6 +544,8 @@ impl PvdWriter {
     fn write(&self) -> io::Result<()> {
         let mut s = String::new();
         s.push_str("<?xml version=\"1.0\"?>\n");
+        s.push_str(super::signature::XML_COMMENT);
+        s.push('\n');
         s.push_str("<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">\n");
         s.push_str("  <Collection>\n");
         for (t, f) in &self.entries {

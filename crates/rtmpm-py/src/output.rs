@@ -81,6 +81,7 @@ pub fn checkpoint(py: Python<'_>, inner: &mut Inner, path: &Path) -> PyResult<()
         step: inner.sim.step,
         frame: inner.sim.frame,
         bodies: inner.sim.backend.rigid_poses(),
+        files: inner.sim.scene.file_hashes(),
         particles,
     };
     py.detach(|| ckpt.save(path))

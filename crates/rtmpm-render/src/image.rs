@@ -90,6 +90,9 @@ impl Image {
             enc.set_color(png::ColorType::Rgb);
             enc.set_depth(png::BitDepth::Eight);
             enc.set_compression(png::Compression::Fast);
+            let (key, text) = rtmpm_io::signature::PNG_TEXT;
+            enc.add_text_chunk(key.into(), text.into())
+                .map_err(io::Error::other)?;
             let mut w = enc.write_header().map_err(io::Error::other)?;
             w.write_image_data(&self.rgb).map_err(io::Error::other)?;
             w.finish().map_err(io::Error::other)?;
@@ -157,6 +160,9 @@ impl GifMovie {
             .map_err(io::Error::other)?;
         encoder
             .set_repeat(gif::Repeat::Infinite)
+            .map_err(io::Error::other)?;
+        encoder
+            .write_raw_extension(gif::AnyExtension(0xFE), &[rtmpm_io::signature::GIF_COMMENT])
             .map_err(io::Error::other)?;
         let fps = if fps.is_finite() && fps > 0.0 {
             fps

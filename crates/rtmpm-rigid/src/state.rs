@@ -79,6 +79,31 @@ impl BodyPose {
             && self.velocity.is_finite()
             && self.angular_velocity.is_finite()
     }
+
+    /// What makes the pose invalid, in words (`None` when [`BodyPose::is_valid`]).
+    pub fn problem(&self) -> Option<String> {
+        let v3 = |v: Vec3| format!("({}, {}, {})", v.x, v.y, v.z);
+        if !self.position.is_finite() {
+            return Some(format!("its position {} is not finite", v3(self.position)));
+        }
+        if !self.rotation.is_finite() || (self.rotation.length() - 1.0).abs() >= 1e-3 {
+            let q = self.rotation;
+            return Some(format!(
+                "its rotation quaternion ({}, {}, {}, {}) is not a finite unit quaternion",
+                q.x, q.y, q.z, q.w
+            ));
+        }
+        if !self.velocity.is_finite() {
+            return Some(format!("its velocity {} is not finite", v3(self.velocity)));
+        }
+        if !self.angular_velocity.is_finite() {
+            return Some(format!(
+                "its angular velocity {} is not finite",
+                v3(self.angular_velocity)
+            ));
+        }
+        None
+    }
 }
 
 /// The impulse and angular impulse (about the centre of mass) the grid gives one body in one

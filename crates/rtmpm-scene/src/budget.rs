@@ -84,6 +84,14 @@ pub struct Budget {
     pub dt: f64,
     /// What sets that step, e.g. "the sound speed 3.2e3 m/s of material `steel`".
     pub dt_reason: String,
+    /// How to take fewer steps, given what sets the step.
+    pub dt_fix: String,
+    /// The CFL step's floor `time.min_dt` (s): a run whose step falls below it stops there.
+    pub min_dt: Option<f64>,
+    /// Particles each emitter adds by the end of the run.
+    pub emitter_particles: Vec<u64>,
+    /// Particles of the checkpoint a resumed run starts from (0 for a fresh run).
+    pub resumed_particles: u64,
     /// Bytes of frame files written (every particle format asked, every frame including
     /// frame 0; surface meshes not counted).
     pub output_bytes: u64,
@@ -94,6 +102,15 @@ pub struct Budget {
     pub gpu_bytes: u64,
     /// The part of `host_bytes` that grows with each particle (bytes per particle).
     pub host_bytes_per_particle: u64,
+}
+
+/// A count for a message: the number, or "more than 1.8e19" where an estimate saturated.
+pub fn count(n: u64) -> String {
+    if n == u64::MAX {
+        format!("more than {:.1e}", u64::MAX as f64)
+    } else {
+        n.to_string()
+    }
 }
 
 /// One problem with a budget: what, by how much, how to fix it.
@@ -117,68 +134,106 @@ fn frame_bytes_per_particle(scene: &Scene) -> u64 {
     o.formats.iter().map(|f| f.bytes.with(o.derived())).sum()
 }
 
+/// The CFL step of `scene` and what sets it: `max_dt`, or `cfl dx / (c + s)` with `c` the
+/// largest sound speed of its materials and `s` the fastest of its speed sources (bodies,
+/// emitters, colliders, rigid bodies, a fall across the domain: [`Scene::speed_sources`]), or
+/// gravity's own bound ([`super::speeds::gravity_dt`]), whichever is smallest.
+fn cfl_step(scene: &Scene, cfl: f32, max_dt: f32) -> (f64, String, String) {
+    let (sound, material) = scene
+        .materials
+        .iter()
+        .map(|m| (m.model.sound_speed(m.density) as f64, m.name.as_str()))
+        .fold((0.0, ""), |a, b| if b.0 > a.0 { b } else { a });
+    let source = scene.fastest_source();
+    let speed = source.as_ref().map_or(0.0, |s| s.speed);
+    let cfl_dt = cfl as f64 * scene.dx as f64 / (sound + speed);
+    let gravity_dt = super::speeds::gravity_dt(scene.gravity, scene.dx, cfl) as f64;
+    let shorter = "or a shorter time.duration";
+    if gravity_dt < cfl_dt.min(max_dt as f64) {
+        let g = scene.gravity.length();
+        return (
+            gravity_dt,
+            format!(
+                "gravity {g:.3e} m/s^2: |g| dt^2 <= cfl dx, so that a step adds less than a \
+                 cell to a fall"
+            ),
+            format!("lower `gravity` (|g| = {g:.3e} m/s^2; Earth's is 9.81) {shorter}"),
+        );
+    }
+    if cfl_dt.is_nan() || cfl_dt >= max_dt as f64 {
+        return (
+            max_dt as f64,
+            "time.max_dt".to_string(),
+            format!("raise time.max_dt {shorter}"),
+        );
+    }
+    match source {
+        Some(s) if s.speed > sound => (
+            cfl_dt,
+            format!(
+                "the CFL condition at the speed {:.3e} m/s of {} (`{}`)",
+                s.speed, s.what, s.field
+            ),
+            format!(
+                "lower `{}` ({} moves at {:.3e} m/s, {:.0} times the fastest sound speed) {shorter}",
+                s.field,
+                s.what,
+                s.speed,
+                s.speed / sound.max(1e-30)
+            ),
+        ),
+        _ => (
+            cfl_dt,
+            format!(
+                "the CFL condition at the sound speed {sound:.3e} m/s of material `{material}` \
+                 (set by its stiffness and density)"
+            ),
+            format!(
+                "use a softer material `{material}` (a lower youngs_modulus or bulk_modulus), a \
+                 larger dx {shorter}"
+            ),
+        ),
+    }
+}
+
 impl Budget {
     /// Estimate the budget of `scene`; `frames` overrides the scene's duration x fps.
     pub fn estimate(scene: &Scene, frames: Option<u64>) -> Budget {
         let body_particles: Vec<u64> = (0..scene.bodies.len())
             .map(|i| sampling::estimate_body(scene, i))
             .collect();
+        Self::estimate_from(scene, frames, body_particles, 0)
+    }
+
+    /// The budget of a run resumed from a checkpoint of `particles` particles (which replace
+    /// the bodies'; the emitters' totals are added, an upper bound of what they still emit).
+    pub fn estimate_resumed(scene: &Scene, frames: Option<u64>, particles: u64) -> Budget {
+        Self::estimate_from(scene, frames, Vec::new(), particles)
+    }
+
+    fn estimate_from(
+        scene: &Scene,
+        frames: Option<u64>,
+        body_particles: Vec<u64>,
+        resumed_particles: u64,
+    ) -> Budget {
         // The bodies' particles and every particle the emitters add by the end of the run.
-        let emitted = scene
-            .emitters
+        let emitter_particles: Vec<u64> = scene.emitters.iter().map(|e| e.total()).collect();
+        let emitted = emitter_particles
             .iter()
-            .fold(0u64, |a, e| a.saturating_add(e.total()));
+            .fold(resumed_particles, |a, &e| a.saturating_add(e));
         let particles = body_particles
             .iter()
             .fold(emitted, |a, &b| a.saturating_add(b));
         let frames = frames.unwrap_or_else(|| scene.time.frames());
         let frame_time = 1.0 / scene.time.fps as f64;
-        let (dt, dt_reason) = match scene.time.step {
-            StepMode::Fixed { dt } => (dt as f64, "the fixed time.dt".to_string()),
-            StepMode::Cfl { cfl, max_dt, .. } => {
-                let (sound, material) = scene
-                    .materials
-                    .iter()
-                    .map(|m| (m.model.sound_speed(m.density) as f64, m.name.as_str()))
-                    .fold((0.0, ""), |a, b| if b.0 > a.0 { b } else { a });
-                let (speed, body) = scene
-                    .bodies
-                    .iter()
-                    .enumerate()
-                    .map(|(i, b)| {
-                        let (lo, hi) = b.shape.bounds();
-                        let mut s = b.velocity.length() as f64
-                            + b.angular_velocity.length() as f64 * (hi - lo).length() as f64;
-                        // A body made of a file's points may move with the file's velocities.
-                        if let (rtmpm_geometry::Shape::Particles(p), true) =
-                            (&b.shape, b.file_velocity)
-                        {
-                            let fastest = p.points.velocities.iter().flatten().map(|v| v.length());
-                            s = s.max(fastest.fold(0.0f32, f32::max) as f64);
-                        }
-                        (s, i)
-                    })
-                    .fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a });
-                let cfl_dt = cfl as f64 * scene.dx as f64 / (sound + speed);
-                if cfl_dt.is_nan() || cfl_dt >= max_dt as f64 {
-                    (max_dt as f64, "time.max_dt".to_string())
-                } else if speed > sound {
-                    (
-                        cfl_dt,
-                        format!(
-                            "the CFL condition at the initial speed {speed:.3e} m/s of body[{body}]"
-                        ),
-                    )
-                } else {
-                    (
-                        cfl_dt,
-                        format!(
-                            "the CFL condition at the sound speed {sound:.3e} m/s of material \
-                             `{material}` (set by its stiffness and density)"
-                        ),
-                    )
-                }
-            }
+        let (dt, dt_reason, dt_fix) = match scene.time.step {
+            StepMode::Fixed { dt } => (
+                dt as f64,
+                "the fixed time.dt".to_string(),
+                "use a larger time.dt or a shorter time.duration".to_string(),
+            ),
+            StepMode::Cfl { cfl, max_dt, .. } => cfl_step(scene, cfl, max_dt),
         };
         let per_frame = (frame_time / dt).ceil().max(1.0);
         let steps_f = per_frame * frames as f64;
@@ -219,6 +274,13 @@ impl Budget {
             steps,
             dt,
             dt_reason,
+            dt_fix,
+            min_dt: match scene.time.step {
+                StepMode::Cfl { min_dt, .. } => Some(min_dt as f64),
+                StepMode::Fixed { .. } => None,
+            },
+            emitter_particles,
+            resumed_particles,
             output_bytes,
             host_bytes,
             gpu_bytes,
@@ -269,11 +331,21 @@ impl Budget {
         if let Some(avail) = host_available
             && self.host_bytes > avail
         {
-            let (largest, count) = self
+            let bodies = self
                 .body_particles
                 .iter()
                 .enumerate()
-                .fold((0, 0), |a, (i, &n)| if n > a.1 { (i, n) } else { a });
+                .map(|(i, &n)| (format!("body[{i}]"), n));
+            let emitters = self
+                .emitter_particles
+                .iter()
+                .enumerate()
+                .map(|(i, &n)| (format!("emitter[{i}]"), n));
+            let resumed = std::iter::once(("the checkpoint".to_string(), self.resumed_particles));
+            let (largest, in_largest) = bodies
+                .chain(emitters)
+                .chain(resumed)
+                .fold((String::new(), 0), |a, b| if b.1 > a.1 { b } else { a });
             // What fits: the memory left beside the grid, at this many bytes a particle.
             let grid = self
                 .host_bytes
@@ -282,10 +354,10 @@ impl Budget {
             out.push(BudgetIssue {
                 message: format!(
                     "the run needs about {} of memory for {} particles, more than the {} \
-                     available (the largest, body[{largest}], has {count}); about {fit} \
-                     particles fit",
+                     available (the largest, {largest}, has {in_largest}); about {fit} particles \
+                     fit",
                     human_bytes(self.host_bytes),
-                    self.particles,
+                    count(self.particles),
                     human_bytes(avail)
                 ),
                 fix: "use fewer particles: a larger dx, a lower particles_per_cell or count, \
@@ -302,8 +374,8 @@ impl Budget {
                     "the frames would take about {} ({} frames of {} particles), more than the \
                      {} free on the output disk",
                     human_bytes(self.output_bytes),
-                    self.frames.saturating_add(1),
-                    self.particles,
+                    count(self.frames.saturating_add(1)),
+                    count(self.particles),
                     human_bytes(avail)
                 ),
                 fix: "write fewer frames (a lower time.fps or --frames N), only one format \
@@ -320,6 +392,21 @@ impl Budget {
                 fix: "lower time.fps or time.duration, or give --frames N".into(),
             });
         }
+        if let Some(min_dt) = self.min_dt
+            && self.dt < min_dt
+        {
+            out.push(BudgetIssue {
+                message: format!(
+                    "the step the scene needs, {:.2e} s ({}), is below time.min_dt = {min_dt:.2e} \
+                     s: the run would stop at its first step",
+                    self.dt, self.dt_reason
+                ),
+                fix: format!(
+                    "{}; or, if the speed is intended, lower time.min_dt",
+                    self.dt_fix
+                ),
+            });
+        }
         if self.steps > MAX_STEPS {
             out.push(BudgetIssue {
                 message: format!(
@@ -327,10 +414,7 @@ impl Budget {
                      (it would not end)",
                     self.steps as f64, self.dt, self.dt_reason, MAX_STEPS as f64
                 ),
-                fix: "use a larger time.dt, a softer material (a lower youngs_modulus or \
-                      bulk_modulus), slower bodies (velocity, angular_velocity), or a shorter \
-                      time.duration"
-                    .into(),
+                fix: self.dt_fix.clone(),
             });
         }
         out
@@ -366,9 +450,9 @@ impl Budget {
             "  budget      {} particles (estimated), {} frames, about {} steps of {:.2e} s\n  \
              output      about {} of frame files\n  memory      about {} on the host (cpu), {} \
              on one GPU (cuda)",
-            self.particles,
-            self.frames,
-            self.steps,
+            count(self.particles),
+            count(self.frames),
+            count(self.steps),
             self.dt,
             human_bytes(self.output_bytes),
             human_bytes(self.host_bytes),

@@ -19,6 +19,8 @@ use rtmpm_physics::math::Vec3;
 
 /// Most particles one emitter may emit in a run.
 pub const MAX_PARTICLES_PER_EMITTER: u64 = 50_000_000;
+/// Most lattice sub-cells one emitter may list ([`Emitter::lattice`], 12 bytes each).
+pub const MAX_EMITTER_SUB_CELLS: u64 = 1 << 24;
 
 /// A validated emitter.
 #[derive(Clone, Debug)]
@@ -61,8 +63,16 @@ fn unit(h: u64) -> f32 {
 }
 
 impl Emitter {
+    /// Sub-cells of the lattice of spacing `spacing` over the bounding box of `shape` (what
+    /// [`Emitter::lattice`] visits), as an f64 that cannot overflow.
+    pub fn lattice_size(shape: &Shape, spacing: f32) -> f64 {
+        let (lo, hi) = shape.bounds();
+        let n = ((hi - lo) / spacing - 1e-4).ceil().max(Vec3::ONE);
+        n.x as f64 * n.y as f64 * n.z as f64
+    }
+
     /// The sub-cell centres of the lattice of spacing `spacing` inside `shape`, shuffled with
-    /// `seed` (Fisher-Yates).
+    /// `seed` (Fisher-Yates). The caller bounds [`Emitter::lattice_size`] first.
     pub fn lattice(shape: &Shape, spacing: f32, seed: u64) -> Vec<Vec3> {
         let (lo, hi) = shape.bounds();
         // Whole sub-cells (a size within 1e-4 sub-cell of a whole number is that number).
@@ -103,6 +113,41 @@ impl Emitter {
     /// Particles emitted over the whole run.
     pub fn total(&self) -> u64 {
         (self.rate * (self.stop - self.start)).max(0.0).floor() as u64
+    }
+
+    /// Area (m^2) of the emitter's shape seen along its velocity: the cross-section its
+    /// particles leave through (0 without a velocity).
+    pub fn cross_section(&self) -> f64 {
+        let Some(d) = self.velocity.as_dvec3().try_normalize() else {
+            return 0.0;
+        };
+        match &self.shape {
+            Shape::Box(c) => {
+                let e = (c.max - c.min).as_dvec3();
+                d.x.abs() * e.y * e.z + d.y.abs() * e.x * e.z + d.z.abs() * e.x * e.y
+            }
+            Shape::Sphere(s) => std::f64::consts::PI * (s.radius as f64).powi(2),
+            Shape::Cylinder(c) => {
+                let (r, h) = (c.radius as f64, 2.0 * c.half_height as f64);
+                let cos = d.dot(c.axis.as_dvec3()).abs();
+                std::f64::consts::PI * r * r * cos + 2.0 * r * h * (1.0 - cos * cos).max(0.0).sqrt()
+            }
+            // Not an emitter's shape.
+            Shape::HalfSpace(_) | Shape::Mesh(_) | Shape::Particles(_) => 0.0,
+        }
+    }
+
+    /// Particles per second that can leave the emitter at its velocity, one per sub-cell of
+    /// its cross-section: `A |v| / spacing^3`.
+    pub fn outflow(&self) -> f64 {
+        self.cross_section() * self.velocity.length() as f64 / (self.spacing as f64).powi(3)
+    }
+
+    /// True when the emitter emits faster than its particles leave it (by more than a quarter),
+    /// and more particles in all than its sub-cells hold: they pile up inside it, are
+    /// compressed and burst out (a dense cluster).
+    pub fn piles_up(&self) -> bool {
+        self.total() > self.cells.len() as u64 && self.rate > 1.25 * self.outflow()
     }
 
     /// Position of particle `j`.

@@ -14,6 +14,7 @@ pub mod budget;
 pub mod deferred;
 pub mod emitter;
 pub mod error;
+pub mod files;
 mod fill;
 mod load;
 pub mod pcg;
@@ -23,10 +24,12 @@ mod scene;
 pub mod schema;
 pub mod settings;
 pub mod spans;
+pub mod speeds;
 #[cfg(test)]
 mod tests;
 mod validate;
 mod walk;
+mod warnings;
 
 pub use batch::BatchScene;
 pub use budget::Budget;

@@ -52,4 +52,16 @@ impl Scene {
     pub fn from_toml_in(text: &str, origin: &str, base_dir: &Path) -> Result<Scene, SceneError> {
         validate::parse(text, origin, base_dir, None)
     }
+
+    /// The scene a checkpoint holds (its text, `origin` naming the checkpoint in messages, mesh
+    /// paths relative to `base_dir`): as [`Scene::from_toml_in`], except that a body's mesh or
+    /// particle file may be gone (its particles are in the checkpoint; the body then has no
+    /// shape to sample, and its [`crate::files::SceneFile`] no hash).
+    pub fn from_checkpoint_text(
+        text: &str,
+        origin: &str,
+        base_dir: &Path,
+    ) -> Result<Scene, SceneError> {
+        validate::parse_resumed(text, origin, base_dir)
+    }
 }

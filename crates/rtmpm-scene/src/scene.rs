@@ -63,12 +63,15 @@ pub struct Scene {
     pub precision: Precision,
     /// The CUDA backend's particle state format (`[solver] particle_state`).
     pub particle_state: ParticleState,
+    /// The files the scene read (meshes, particle files) and their hashes.
+    pub files: Vec<crate::files::SceneFile>,
 }
 
 impl Scene {
     /// What this scene allows but probably gets wrong, one line each, for `rtmpm check` and
-    /// `rtmpm run` to print: today dynamic rigid bodies that can hang in a fluid they are
-    /// denser than ([`rtmpm_rigid::resolution_warnings`]).
+    /// `rtmpm run` to print: dynamic rigid bodies that can hang in a fluid they are denser than
+    /// ([`rtmpm_rigid::resolution_warnings`]), emitters that emit nothing or pile up, rigid
+    /// bodies thinner than a cell or leaving the domain, boundaries faster than a fixed step.
     // `Real` is f64 in the f64 build of this crate.
     #[allow(clippy::unnecessary_cast)]
     pub fn warnings(&self) -> Vec<String> {
@@ -78,7 +81,23 @@ impl Scene {
             .filter(|m| matches!(m.model, rtmpm_physics::material::Model::Fluid(_)))
             .map(|m| (m.name.as_str(), m.density as f32))
             .collect();
-        rtmpm_rigid::resolution_warnings(&self.rigid_bodies, &fluids, self.dx)
+        let mut out = rtmpm_rigid::resolution_warnings(&self.rigid_bodies, &fluids, self.dx);
+        out.extend(crate::warnings::scene_warnings(self));
+        out
+    }
+
+    /// The files the scene read with their hashes, as a checkpoint stores them.
+    pub fn file_hashes(&self) -> Vec<rtmpm_io::checkpoint::FileHash> {
+        self.files
+            .iter()
+            .filter_map(|f| {
+                Some(rtmpm_io::checkpoint::FileHash {
+                    field: f.field.clone(),
+                    path: f.path.display().to_string(),
+                    hash: f.hash?,
+                })
+            })
+            .collect()
     }
 
     /// Check a checkpoint's state against this scene before resuming it (see
@@ -92,7 +111,7 @@ impl Scene {
             domain_max: self.domain_max,
             dx: self.dx,
             materials: self.materials.len(),
-            rigid_bodies: self.rigid_bodies.len(),
+            rigid_bodies: self.rigid_bodies.iter().map(|b| b.name.clone()).collect(),
         })
     }
 

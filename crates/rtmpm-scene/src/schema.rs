@@ -440,6 +440,7 @@ pub struct RawJoint {
     pub anchor: V3,
     /// Hinge (revolute) or slide (prismatic) axis in the world at t = 0.
     pub axis: Option<V3>,
-    /// Angle (rad, revolute) or distance (m, prismatic) limits.
-    pub limits: Option<[f32; 2]>,
+    /// Angle (rad, revolute) or distance (m, prismatic) limits: `[lower, upper]` (a list, so
+    /// that a third value is refused rather than dropped).
+    pub limits: Option<Vec<f32>>,
 }

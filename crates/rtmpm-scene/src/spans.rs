@@ -194,6 +194,55 @@ pub fn is_table(doc: &Doc<'_>, path: &str) -> bool {
     matches!(node, Node::Table(_) | Node::Inline(_))
 }
 
+/// The numbers written at `path` (one for a number, each number of an array of numbers),
+/// exactly as the text gives them (before they are narrowed to the field's type); empty when
+/// the path does not name a number or an array of them.
+pub fn numbers_at(doc: &Doc<'_>, path: &str) -> Vec<f64> {
+    fn number(v: &Value) -> Option<f64> {
+        match v {
+            Value::Float(f) => Some(*f.value()),
+            Value::Integer(i) => Some(*i.value() as f64),
+            _ => None,
+        }
+    }
+    let mut item: Option<&Value> = None;
+    let mut node = Node::Table(doc.as_table());
+    for seg in parse_path(path) {
+        let value = match (seg, node) {
+            (Seg::Key(k), Node::Table(t)) => match t.get(k) {
+                Some(Item::Value(v)) => Some(v),
+                Some(i) => {
+                    node = node_of_item(i);
+                    item = None;
+                    continue;
+                }
+                None => return Vec::new(),
+            },
+            (Seg::Key(k), Node::Inline(t)) => t.get(k),
+            (Seg::Index(i), Node::Aot(a)) => match a.get(i) {
+                Some(t) => {
+                    node = Node::Table(t);
+                    item = None;
+                    continue;
+                }
+                None => return Vec::new(),
+            },
+            (Seg::Index(i), Node::Array(a)) => a.get(i),
+            _ => return Vec::new(),
+        };
+        let Some(v) = value else {
+            return Vec::new();
+        };
+        node = node_of_value(v);
+        item = Some(v);
+    }
+    match item {
+        Some(Value::Array(a)) => a.iter().filter_map(number).collect(),
+        Some(v) => number(v).into_iter().collect(),
+        None => Vec::new(),
+    }
+}
+
 /// The field at byte `offset` read from the text alone, for text that `toml_edit` cannot parse
 /// (e.g. an integer beyond 64 bits): the key before `=` on that line, under the last table
 /// header above it (`[[body]]` headers counted, giving `body[2].count`).
@@ -298,6 +347,17 @@ mod tests {
         assert_eq!(line_col("ab\ncd", 4), (2, 2));
         assert!(is_table(&doc, "") && is_table(&doc, "material[1]") && is_table(&doc, "domain"));
         assert!(!is_table(&doc, "name") && !is_table(&doc, "domain.dx"));
+    }
+
+    #[test]
+    fn numbers_as_written() {
+        let t = "g = [0, -1e300, 2]\n[[m]]\nx = 1e-50\n[[m]]\nk = { a = [1.5] }\n";
+        let doc = Doc::parse(t).unwrap();
+        assert_eq!(numbers_at(&doc, "g"), vec![0.0, -1e300, 2.0]);
+        assert_eq!(numbers_at(&doc, "g[1]"), vec![-1e300]);
+        assert_eq!(numbers_at(&doc, "m[0].x"), vec![1e-50]);
+        assert_eq!(numbers_at(&doc, "m[1].k.a"), vec![1.5]);
+        assert!(numbers_at(&doc, "m[1]").is_empty() && numbers_at(&doc, "nope").is_empty());
     }
 
     #[test]

@@ -116,6 +116,7 @@ proptest! {
             step,
             frame: step / 2,
             bodies: Vec::new(),
+            files: Vec::new(),
             particles: p,
         };
         let path = temp_file("c.ckpt");

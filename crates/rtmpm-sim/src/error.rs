@@ -29,6 +29,9 @@ pub struct Blowup {
     pub reason: String,
     /// The time step in use.
     pub dt: f32,
+    /// What to change when the cause is known (a collider, rigid body, emitter or gravity
+    /// beyond what the step follows); `None`: the generic advice.
+    pub advice: Option<String>,
 }
 
 impl fmt::Display for SimError {
@@ -40,10 +43,7 @@ impl fmt::Display for SimError {
                 "the time step collapsed at step {} (t = {:.6} s): {}\n  \
                  fastest: particle {} of material `{}` at ({:.4}, {:.4}, {:.4}), velocity \
                  ({:.4e}, {:.4e}, {:.4e})\n  \
-                 advice: this speed is far above the material's sound speed (a blow-up under way, \
-                 or an initial velocity too large): lower the body's velocity, use a fixed \
-                 `time.dt` or a softer material; or, if the speed is intended, lower \
-                 `time.min_dt`",
+                 advice: {}",
                 b.step,
                 b.time,
                 b.reason,
@@ -54,14 +54,19 @@ impl fmt::Display for SimError {
                 b.position.z,
                 b.velocity.x,
                 b.velocity.y,
-                b.velocity.z
+                b.velocity.z,
+                b.advice.as_deref().unwrap_or(
+                    "this speed is far above the material's sound speed (a blow-up under way, \
+                     or an initial velocity too large): lower the body's velocity, use a fixed \
+                     `time.dt` or a softer material; or, if the speed is intended, lower \
+                     `time.min_dt`"
+                )
             ),
             SimError::Blowup(b) => write!(
                 f,
                 "simulation blew up at step {} (t = {:.6} s, dt = {:.3e} s): particle {} of material `{}`: {}\n  \
                  position ({:.4}, {:.4}, {:.4}), velocity ({:.4e}, {:.4e}, {:.4e})\n  \
-                 advice: use a smaller time step (lower `time.dt`, or `time.cfl` / `time.max_dt`), \
-                 or a softer material (lower stiffness) at this resolution",
+                 advice: {}",
                 b.step,
                 b.time,
                 b.dt,
@@ -73,7 +78,11 @@ impl fmt::Display for SimError {
                 b.position.z,
                 b.velocity.x,
                 b.velocity.y,
-                b.velocity.z
+                b.velocity.z,
+                b.advice.as_deref().unwrap_or(
+                    "use a smaller time step (lower `time.dt`, or `time.cfl` / `time.max_dt`), \
+                     or a softer material (lower stiffness) at this resolution"
+                )
             ),
         }
     }

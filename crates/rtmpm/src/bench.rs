@@ -146,7 +146,14 @@ pub fn bench(args: BenchArgs) -> Result<()> {
     // the host), so the host needs the CUDA estimate only.
     let lean = use_cuda && args.gpus <= 1;
     // Memory first: a scene that cannot fit is refused before it is sampled.
-    crate::budget::enforce_for(&scene, Some(1), None, lean.then_some(&args.cuda_options))?;
+    crate::budget::enforce_for(
+        &scene,
+        Some(1),
+        None,
+        lean.then_some(&args.cuda_options),
+        None,
+        None,
+    )?;
     if lean {
         let o = &args.cuda_options;
         let defer = o.device_fill && o.device_sample;

@@ -1,7 +1,7 @@
 //! `rtmpm check SCENE`: validate without running, and print the run's budget.
 
 use anyhow::Result;
-use rtmpm_scene::sampling;
+use rtmpm_scene::{StepMode, sampling};
 use std::path::Path;
 
 pub fn check(path: &Path) -> Result<()> {
@@ -31,11 +31,11 @@ pub fn check(path: &Path) -> Result<()> {
         scene.dx
     );
     println!(
-        "  time        {} s at {} fps ({} frames), step {:?}",
+        "  time        {} s at {} fps ({} frames), {}",
         scene.time.duration,
         scene.time.fps,
         scene.time.frames(),
-        scene.time.step
+        step(&scene.time.step)
     );
     for (m, n) in scene.materials.iter().zip(&per_material) {
         println!(
@@ -54,8 +54,8 @@ pub fn check(path: &Path) -> Result<()> {
             scene.materials[e.material as usize].name,
             e.total(),
             e.particle_mass,
-            e.start,
-            e.stop,
+            e.start as f32,
+            e.stop as f32,
             e.rate
         );
     }
@@ -71,4 +71,16 @@ pub fn check(path: &Path) -> Result<()> {
     println!("  precision   {}", scene.precision.name());
     println!("{}", budget.describe());
     Ok(())
+}
+
+/// The time step as the scene file writes it.
+fn step(s: &StepMode) -> String {
+    match *s {
+        StepMode::Fixed { dt } => format!("fixed step dt = {dt} s"),
+        StepMode::Cfl {
+            cfl,
+            max_dt,
+            min_dt,
+        } => format!("CFL step, cfl = {cfl}, max_dt = {max_dt} s, min_dt = {min_dt:.3e} s"),
+    }
 }

@@ -93,6 +93,22 @@ pub fn mesh_cmd(args: MeshArgs) -> Result<()> {
         .map(|s| s.output.surface.clone())
         .unwrap_or_default();
     if let Some(m) = &args.materials {
+        if let (Some(sc), Some(&bad)) = (
+            &scene,
+            m.iter()
+                .find(|&&i| i as usize >= scene.as_ref().map_or(0, |s| s.materials.len())),
+        ) {
+            let names: Vec<String> = sc
+                .materials
+                .iter()
+                .enumerate()
+                .map(|(i, m)| format!("{i} ({})", m.name))
+                .collect();
+            bail!(
+                "--materials {bad}: the scene has no material {bad}; its materials are {}",
+                names.join(", ")
+            );
+        }
         settings.materials = m.clone();
     }
     // Mean particle volume: from the scene's particles, else from the first frame's spacing.
@@ -112,8 +128,31 @@ pub fn mesh_cmd(args: MeshArgs) -> Result<()> {
     };
     let t0 = Instant::now();
     let mut volume = volume;
+    let mut one_run = rtmpm_driver::output::OneRun::default();
+    let mut said_empty = false;
     for (num, path) in &frames {
-        let xs = selected(path, args.materials.is_some() || scene.is_some(), &settings)?;
+        let frame = selected(path, args.materials.is_some() || scene.is_some(), &settings)?;
+        one_run.check(dir, *num, &frame.comments, frame.count)?;
+        if frame.non_finite > 0 {
+            eprintln!(
+                "warning: {}: {} particle(s) with a non-finite position (NaN or infinity) left \
+                 out of the surface; the run that wrote it blew up",
+                path.display(),
+                frame.non_finite
+            );
+        }
+        if frame.positions.is_empty() && frame.count > 0 && !said_empty {
+            said_empty = true;
+            eprintln!(
+                "warning: {}: no particle of the materials meshed ({:?}); the frame's materials \
+                 are {:?}: its surface is empty (choose them with --materials or [surface] \
+                 materials)",
+                path.display(),
+                settings.materials,
+                frame.materials
+            );
+        }
+        let xs = frame.positions;
         let vol = *volume.get_or_insert_with(|| (estimate_radius(&xs) / 0.6).powi(3));
         let mesh = rtmpm_driver::output::reconstruct_points(&xs, &settings.params(vol))
             .with_context(|| format!("meshing {}", path.display()))?;
@@ -138,9 +177,20 @@ pub fn mesh_cmd(args: MeshArgs) -> Result<()> {
     Ok(())
 }
 
-/// Positions of the particles of the chosen materials in a PLY frame (all when `filter` is
-/// false).
-fn selected(path: &Path, filter: bool, s: &SurfaceSettings) -> Result<Vec<Vec3>> {
+/// What [`selected`] reads of a PLY frame.
+struct Frame {
+    /// Finite positions of the particles of the chosen materials.
+    positions: Vec<Vec3>,
+    /// Chosen particles left out for a non-finite position.
+    non_finite: usize,
+    /// Particles of the frame, its PLY comments and the material indices it holds.
+    count: usize,
+    comments: Vec<String>,
+    materials: Vec<i64>,
+}
+
+/// The particles of the chosen materials in a PLY frame (all when `filter` is false).
+fn selected(path: &Path, filter: bool, s: &SurfaceSettings) -> Result<Frame> {
     let d = read_ply(path).with_context(|| format!("reading {}", path.display()))?;
     let col = |n: &str| {
         d.f32(n)
@@ -154,21 +204,55 @@ fn selected(path: &Path, filter: bool, s: &SurfaceSettings) -> Result<Vec<Vec3>>
             path.display()
         );
     }
-    Ok((0..d.count)
+    let mut materials: Vec<i64> = mat.map(|m| m.to_vec()).unwrap_or_default();
+    materials.sort_unstable();
+    materials.dedup();
+    let chosen = (0..d.count)
         .filter(|&i| !filter || mat.is_some_and(|m| s.materials.contains(&(m[i] as u32))))
-        .map(|i| Vec3::new(x[i], y[i], z[i]))
-        .collect())
+        .map(|i| Vec3::new(x[i], y[i], z[i]));
+    let (positions, bad): (Vec<Vec3>, Vec<Vec3>) = chosen.partition(|p| p.is_finite());
+    Ok(Frame {
+        positions,
+        non_finite: bad.len(),
+        count: d.count,
+        comments: d.comments.clone(),
+        materials,
+    })
 }
 
 /// A dam-break fluid block of about `n` particles (8 per cell, jittered), meshed three times.
 fn bench(n: usize) -> Result<()> {
     use rand::{Rng, SeedableRng};
-    let n = n.max(8);
+    if n < 8 {
+        bail!("--bench-particles {n}: the bench block needs at least 8 particles");
+    }
+    // The block's positions and its reconstruction (about 80 neighbours a particle at 8 a
+    // cell), refused with the numbers when they cannot fit.
+    let per_particle = 12 + rtmpm_geometry::surface::memory::BYTES_PER_PARTICLE + 80 * 10;
+    let bytes = (n as u64).saturating_mul(per_particle);
+    if let Some(avail) = rtmpm_io::limits::host_memory_available()
+        && bytes > avail
+    {
+        bail!(
+            "--bench-particles {n}: meshing {n} particles needs about {} of memory, more than \
+             the {} available; about {} particles fit\n  fix: give fewer --bench-particles \
+             (the default is 1000000)",
+            rtmpm_io::limits::human_bytes(bytes),
+            rtmpm_io::limits::human_bytes(avail),
+            avail / per_particle
+        );
+    }
     // A block 2 x 1 x 1 of k x k/2 x k/2 sub-cells.
-    let k = ((4 * n) as f64).cbrt().round() as usize;
+    let k = (4.0 * n as f64).cbrt().round() as usize;
     let h = 1.0 / k as f32;
     let mut rng = rand_pcg::Pcg64::seed_from_u64(1);
-    let mut xs = Vec::with_capacity(k * k * k / 4);
+    let mut xs = Vec::new();
+    xs.try_reserve_exact(k * k * k / 4).map_err(|_| {
+        anyhow::anyhow!(
+            "cannot allocate the {} positions of --bench-particles {n}",
+            k * k * k / 4
+        )
+    })?;
     for i in 0..k {
         for j in 0..k / 2 {
             for l in 0..k / 2 {

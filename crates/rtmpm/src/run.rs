@@ -7,6 +7,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use rtmpm_driver::Simulation;
 use rtmpm_driver::outdir::{OutDir, scene_identity};
+use rtmpm_driver::output::FrameOutput;
 use rtmpm_driver::progress::{RANK_CHUNK, human_rate};
 use rtmpm_driver::run::{Run, RunHooks, RunOptions, RunStart, RunStats};
 use rtmpm_driver::setup::SetupTimes;
@@ -82,33 +83,40 @@ pub struct RunArgs {
 }
 
 pub fn run(args: RunArgs) -> Result<()> {
-    let RunStart {
-        mut scene,
-        scene_text,
-        particles,
-        resume,
-    } = RunStart::load(args.scene.as_deref(), args.resume.as_deref())?;
+    let mut start = RunStart::load(args.scene.as_deref(), args.resume.as_deref())?;
     if let Some(p) = args.precision {
-        scene.precision = p;
+        start.scene.precision = p;
     }
-    let out_dir = args.out.clone().unwrap_or_else(|| scene.output.dir.clone());
+    let out_dir = args
+        .out
+        .clone()
+        .unwrap_or_else(|| start.scene.output.dir.clone());
     // Multi-process runs: rank 0 writes the files; every rank gathers the particles at the same
     // points (a collective), so every rank must be given the same options.
     let writer = args.multi.writes_output();
     let writes_frames = writer && !args.no_output;
     let mode = args.multi.mode()?;
     // A fresh run on one GPU (or `auto`) packs the bodies straight from their sampled positions.
-    let from_bodies =
-        resume.is_none() && mode == crate::multi::Mode::Single && args.backend != BackendKind::Cpu;
-    // The budget before anything is sampled or allocated: refused with numbers and a fix (the
-    // host's bytes of a CUDA run built from the positions when the CUDA backend is asked for:
-    // the positions alone when the device fills the state, `fill=device`, the default).
-    crate::budget::enforce_for(
-        &scene,
-        args.frames,
-        writes_frames.then_some(out_dir.as_path()),
-        (from_bodies && args.backend == BackendKind::Cuda).then_some(&args.cuda_options),
-    )?;
+    let from_bodies = start.resume.is_none()
+        && mode == crate::multi::Mode::Single
+        && args.backend != BackendKind::Cpu;
+    // PLY and BGEO frames stream from the backend in chunks, written in the background;
+    // not across processes: there every rank reads the particles (a collective).
+    let stream = !matches!(mode, crate::multi::Mode::Rank { .. })
+        && !args.whole_frames
+        && !args.render
+        && args.preview.is_none();
+    enforce_budget(&args, &start, &out_dir, writes_frames, stream, from_bodies)?;
+    // A resumed run's rows of bodies.csv, checked before anything in the folder changes.
+    if writes_frames {
+        start.check_bodies_csv(&out_dir)?;
+    }
+    let RunStart {
+        scene,
+        scene_text,
+        particles,
+        resume,
+    } = start;
     // The output folder: locked for this run, and holding no other run's files.
     let identity = scene_identity(&scene.name, &scene_text);
     // Held (the lock) until the run ends.
@@ -147,12 +155,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         writer,
         write_frames: writes_frames,
         read_frames: !args.no_output,
-        // PLY and BGEO frames stream from the backend in chunks, written in the background;
-        // not across processes: there every rank reads the particles (a collective).
-        stream: !matches!(mode, crate::multi::Mode::Rank { .. })
-            && !args.whole_frames
-            && !args.render
-            && args.preview.is_none(),
+        stream,
         frame_chunk: args.frame_chunk,
         frames_in_flight: args.frames_in_flight,
         collect: args.render || args.preview.is_some(),
@@ -182,6 +185,44 @@ pub fn run(args: RunArgs) -> Result<()> {
         .transpose()?
         .flatten();
     summary(&run, n, &stats, rendered);
+    Ok(())
+}
+
+/// The budget before anything is sampled or allocated: refused with numbers and a fix (the
+/// host's bytes of a CUDA run built from the positions when the CUDA backend is asked for: the
+/// positions alone when the device fills the state, `fill=device`, the default), with the
+/// background frame writer's buffers when frames are streamed, and a resumed run's particles.
+fn enforce_budget(
+    args: &RunArgs,
+    start: &RunStart,
+    out_dir: &std::path::Path,
+    writes_frames: bool,
+    stream: bool,
+    from_bodies: bool,
+) -> Result<()> {
+    if args.frame_chunk == 0 {
+        bail!(
+            "--frame-chunk 0: a chunk holds at least one particle (the default is {})",
+            rtmpm_driver::stream::DEFAULT_CHUNK
+        );
+    }
+    let scene = &start.scene;
+    // The background frame writer's buffers (PLY and BGEO frames, streamed from the backend).
+    let buffers = (writes_frames && stream && FrameOutput::streamable(scene)).then(|| {
+        crate::budget::FrameBuffers {
+            frames_in_flight: args.frames_in_flight,
+            chunk: args.frame_chunk,
+            bytes_per_particle: 4 * FrameOutput::stream_columns(scene).words() as u64,
+        }
+    });
+    crate::budget::enforce_for(
+        scene,
+        args.frames,
+        writes_frames.then_some(out_dir),
+        (from_bodies && args.backend == BackendKind::Cuda).then_some(&args.cuda_options),
+        buffers,
+        start.resume.as_ref().map(|_| start.particles.len() as u64),
+    )?;
     Ok(())
 }
 

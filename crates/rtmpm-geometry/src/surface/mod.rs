@@ -9,6 +9,7 @@
 //! themselves smoothed. Without the feature, [`TriMesh`] and the writers still exist (the
 //! renderer draws meshes either way) and [`AVAILABLE`] is false.
 
+pub mod memory;
 mod mesh;
 mod params;
 #[cfg(feature = "surface")]

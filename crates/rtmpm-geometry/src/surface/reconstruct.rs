@@ -8,8 +8,14 @@ use splashsurf_lib::nalgebra::Vector3;
 use splashsurf_lib::{Parameters, postprocessing, reconstruct_surface};
 
 /// Reconstruct the surface around `positions` (non-finite positions are skipped). Returns an
-/// empty mesh for fewer than one particle; errors carry splashsurf's message.
-pub fn reconstruct(positions: &[Vec3], params: &SurfaceParams) -> Result<TriMesh, String> {
+/// empty mesh for fewer than one particle; errors carry splashsurf's message. `available`:
+/// the memory the reconstruction may take (`None`: unknown); input that needs more (a dense
+/// cluster of particles, [`super::memory`]) is refused before it starts.
+pub fn reconstruct(
+    positions: &[Vec3],
+    params: &SurfaceParams,
+    available: Option<u64>,
+) -> Result<TriMesh, String> {
     params.check()?;
     let pts: Vec<Vector3<f32>> = positions
         .iter()
@@ -20,7 +26,10 @@ pub fn reconstruct(positions: &[Vec3], params: &SurfaceParams) -> Result<TriMesh
         return Ok(TriMesh::default());
     }
     let r = params.particle_radius;
-    let mut sp = Parameters::new(r, 2.0 * params.smoothing_length * r, params.cube_size * r);
+    let support = 2.0 * params.smoothing_length * r;
+    // Dense clusters would ask splashsurf for n^2 neighbour entries: refused before it starts.
+    super::memory::estimate(positions, support).check(pts.len(), available)?;
+    let mut sp = Parameters::new(r, support, params.cube_size * r);
     sp.iso_surface_threshold = params.threshold;
     let recon = reconstruct_surface::<i64, f32>(&pts, &sp)
         .map_err(|e| format!("surface reconstruction failed: {e:#}"))?;
@@ -106,7 +115,7 @@ mod tests {
         let r_ball = 0.1;
         let pts = ball(r_ball, h);
         let params = SurfaceParams::for_volume(h * h * h);
-        let m = reconstruct(&pts, &params).unwrap();
+        let m = reconstruct(&pts, &params, None).unwrap();
         m.check().unwrap();
         assert!(m.triangles.len() > 1000, "{} triangles", m.triangles.len());
         assert_eq!(m.normals.len(), m.vertices.len());
@@ -132,10 +141,10 @@ mod tests {
     #[test]
     fn empty_input_and_bad_params() {
         let p = SurfaceParams::for_volume(1e-6);
-        assert!(reconstruct(&[], &p).unwrap().is_empty());
-        assert!(reconstruct(&[Vec3::NAN], &p).unwrap().is_empty());
+        assert!(reconstruct(&[], &p, None).unwrap().is_empty());
+        assert!(reconstruct(&[Vec3::NAN], &p, None).unwrap().is_empty());
         let mut bad = p;
         bad.threshold = 1.5;
-        assert!(reconstruct(&[Vec3::ZERO], &bad).is_err());
+        assert!(reconstruct(&[Vec3::ZERO], &bad, None).is_err());
     }
 }

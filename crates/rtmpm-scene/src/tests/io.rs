@@ -261,17 +261,17 @@ fn particles_body_estimate_count_and_budget() {
         (b.body_particles.as_slice(), b.particles),
         (&[n as u64][..], n as u64)
     );
-    assert!(!b.dt_reason.contains("initial speed"), "{}", b.dt_reason);
+    assert!(!b.dt_reason.contains("body[0]"), "{}", b.dt_reason);
     // 1000 m/s in the file, far above the jelly's sound speed: it sets the step.
     let fast = parse_in(&d.0, &body("fast.ply")).unwrap();
     let b = Budget::estimate(&fast, Some(1));
-    assert!(b.dt_reason.contains("initial speed"), "{}", b.dt_reason);
+    assert!(b.dt_reason.contains("`body[0].file`"), "{}", b.dt_reason);
     assert!(b.dt < 0.4 * 0.0625 / 1000.0, "{}", b.dt);
     // The body's own velocity replaces the file's: the budget no longer sees 1000 m/s.
     let mut text = body("fast.ply");
     text.push_str("velocity = [0.0, 0.0, 0.0]\n");
     let b = Budget::estimate(&parse_in(&d.0, &text).unwrap(), Some(1));
-    assert!(!b.dt_reason.contains("initial speed"), "{}", b.dt_reason);
+    assert!(!b.dt_reason.contains("body[0]"), "{}", b.dt_reason);
 }
 
 /// The particles made from a file go through the value checks of `io::contents`: a volume

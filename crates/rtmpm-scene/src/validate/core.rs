@@ -3,10 +3,11 @@
 
 use crate::error::SceneError;
 use crate::schema::*;
-use crate::spans::{is_table, line_col, path_at, path_by_text, span_in_doc};
+use crate::spans::{is_table, line_col, numbers_at, path_at, path_by_text, span_in_doc};
 use rtmpm_physics::material::table::backticked;
 use rtmpm_physics::material::{Material, MaterialParams};
 use rtmpm_physics::math::Vec3;
+use std::path::Path;
 
 pub(super) type R<T> = Result<T, SceneError>;
 
@@ -14,6 +15,10 @@ pub(super) struct V<'a> {
     pub(super) text: &'a str,
     pub(super) origin: &'a str,
     pub(super) doc: Option<toml_edit::Document<&'a str>>,
+    /// Parsing a checkpoint's scene: a body's file may be gone.
+    pub(super) resumed: bool,
+    /// The files read so far, with their hashes.
+    pub(super) files: std::cell::RefCell<Vec<crate::files::SceneFile>>,
 }
 
 /// Convert a toml parse/deserialize error into a positioned [`SceneError`].
@@ -112,6 +117,67 @@ fn integer_out_of_range(message: &str) -> Option<String> {
 pub(super) use rtmpm_geometry::shape::fmt3;
 
 impl V<'_> {
+    /// Record that the scene read `path` for `field` (its hash: the bytes now).
+    pub(super) fn read_file(&self, field: &str, path: &Path) {
+        let hash = crate::files::hash_file(path).ok();
+        self.files.borrow_mut().push(crate::files::SceneFile {
+            field: field.to_string(),
+            path: path.to_path_buf(),
+            hash,
+        });
+    }
+
+    /// In a checkpoint's scene, a body's file that is gone: recorded without a hash; the
+    /// caller gives the body no shape to sample.
+    pub(super) fn resumed_without(&self, field: &str, path: &Path) -> bool {
+        if !self.resumed || path.exists() {
+            return false;
+        }
+        self.files.borrow_mut().push(crate::files::SceneFile {
+            field: field.to_string(),
+            path: path.to_path_buf(),
+            hash: None,
+        });
+        true
+    }
+
+    /// The error of a number the text gives that a 32-bit float cannot hold: beyond about
+    /// 3.4e38 (it reads as infinity) or, not zero, below about 1.4e-45 (it reads as 0). `None`
+    /// when the numbers written at `field` fit.
+    pub(super) fn f32_range_error(&self, field: &str) -> Option<SceneError> {
+        let doc = self.doc.as_ref()?;
+        let numbers = numbers_at(doc, field);
+        if let Some(x) = numbers
+            .iter()
+            .find(|x| x.is_finite() && x.abs() > f32::MAX as f64)
+        {
+            return Some(self.err(
+                field,
+                format!(
+                    "{x:e} is too large for a 32-bit float (the largest is about 3.4e38): it \
+                     would read as infinity"
+                ),
+                "write a value within +-3.4e38; check its units (values of a scene are in SI \
+                 units: m, s, kg, Pa)",
+            ));
+        }
+        if let Some(x) = numbers
+            .iter()
+            .find(|x| **x != 0.0 && x.abs() < f32::from_bits(1) as f64)
+        {
+            return Some(self.err(
+                field,
+                format!(
+                    "{x:e} is too small for a 32-bit float (the smallest is about 1.4e-45): it \
+                     would read as 0"
+                ),
+                "write 0 or a value of at least 1.4e-45 in size; check its units (values of a \
+                 scene are in SI units: m, s, kg, Pa)",
+            ));
+        }
+        None
+    }
+
     pub(super) fn err(
         &self,
         field: impl Into<String>,
@@ -137,6 +203,8 @@ impl V<'_> {
     pub(super) fn finite(&self, field: &str, x: f32) -> R<f32> {
         if x.is_finite() {
             Ok(x)
+        } else if let Some(e) = self.f32_range_error(field) {
+            Err(e)
         } else {
             Err(self.err(
                 field,
@@ -150,11 +218,13 @@ impl V<'_> {
         self.finite(field, x)?;
         if x > 0.0 {
             Ok(x)
+        } else if let Some(e) = self.f32_range_error(field) {
+            Err(e)
         } else {
             Err(self.err(
                 field,
                 format!("{what} must be > 0, got {x}"),
-                format!("give a positive {what}"),
+                format!("give a positive value of {what}"),
             ))
         }
     }
@@ -176,6 +246,8 @@ impl V<'_> {
         let x = Vec3::from_array(v);
         if x.is_finite() {
             Ok(x)
+        } else if let Some(e) = self.f32_range_error(field) {
+            Err(e)
         } else {
             Err(self.err(
                 field,
@@ -245,7 +317,9 @@ impl V<'_> {
             } else {
                 e.field.as_str()
             };
-            self.err(p(field), e.message, e.hint)
+            // A value beyond f32 reads as infinity (or 0) before the model sees it.
+            self.f32_range_error(&p(field))
+                .unwrap_or_else(|| self.err(p(field), e.message, e.hint))
         })
     }
 }

@@ -1,7 +1,7 @@
 //! Validation of `[[emitter]]` tables.
 
 use super::core::{R, V};
-use crate::emitter::{Emitter, MAX_PARTICLES_PER_EMITTER};
+use crate::emitter::{Emitter, MAX_EMITTER_SUB_CELLS, MAX_PARTICLES_PER_EMITTER};
 use crate::schema::RawEmitter;
 use rtmpm_geometry::Use;
 use rtmpm_physics::material::Material;
@@ -39,6 +39,45 @@ impl V<'_> {
         }
         let per_axis = (ppc as f32).cbrt().round().max(1.0);
         let spacing = cx.dx / per_axis;
+        // Each particle appears in a sub-cell of the lattice: a shape thinner than a sub-cell
+        // along an axis would emit particles outside itself.
+        let (lo, hi) = shape.bounds();
+        let extent = hi - lo;
+        if let Some(a) = (0..3).find(|&a| extent[a] < spacing * (1.0 - 1e-4)) {
+            return Err(self.err(
+                f("shape"),
+                format!(
+                    "the emitter is {} m across along axis {a}, less than its particle spacing \
+                     {spacing} m (dx / round(cbrt(particles_per_cell))): its particles would \
+                     appear outside it",
+                    extent[a]
+                ),
+                format!(
+                    "make the emitter at least {spacing} m across along every axis (a few \
+                     spacings for a jet), or raise particles_per_cell"
+                ),
+            ));
+        }
+        // The emitter keeps one position per sub-cell of its shape: bounded before they are
+        // listed.
+        let sub_cells = Emitter::lattice_size(&shape, spacing);
+        if sub_cells > MAX_EMITTER_SUB_CELLS as f64 {
+            return Err(self.err(
+                f(if e.particles_per_cell.is_some() {
+                    "particles_per_cell"
+                } else {
+                    "shape"
+                }),
+                format!(
+                    "the emitter's shape holds about {sub_cells:.3e} sub-cells of spacing \
+                     {spacing:e} m (dx / round(cbrt(particles_per_cell))), more than the \
+                     {MAX_EMITTER_SUB_CELLS} an emitter may list ({} of memory)",
+                    rtmpm_io::limits::human_bytes((sub_cells * 12.0).min(u64::MAX as f64) as u64)
+                ),
+                "make the emitter smaller, dx larger, or particles_per_cell smaller (8: 2 per \
+                 axis, 27: 3 per axis)",
+            ));
+        }
         let volume = (spacing as f64).powi(3);
         let rate = match (e.rate, e.volume_rate) {
             (Some(_), Some(_)) => {
@@ -72,8 +111,49 @@ impl V<'_> {
         if stop <= start {
             return Err(self.err(
                 f(if e.stop.is_some() { "stop" } else { "start" }),
-                format!("the emitter stops at {stop} s, not after it starts ({start} s)"),
+                format!(
+                    "the emitter stops at {} s, not after it starts ({} s)",
+                    seconds(stop),
+                    seconds(start)
+                ),
                 "make stop later than start (stop defaults to time.duration)",
+            ));
+        }
+        // The particles of the whole emission, before anything is listed (an f64: a huge
+        // rate must not wrap or saturate into a plausible count).
+        let total = rate * (stop - start);
+        let rate_field = f(if e.rate.is_some() {
+            "rate"
+        } else {
+            "volume_rate"
+        });
+        if total < 1.0 {
+            return Err(self.err(
+                &rate_field,
+                format!(
+                    "the emitter would emit no particle: {rate:.3e} particles per second from \
+                     {} s to {} s is {total:.3e} particles",
+                    seconds(start),
+                    seconds(stop)
+                ),
+                format!(
+                    "raise the rate to at least {:.3e} particles per second (or volume_rate to \
+                     {:.3e} m^3/s; one particle is {volume:.3e} m^3), or emit for longer",
+                    1.0 / (stop - start),
+                    volume / (stop - start)
+                ),
+            ));
+        }
+        if total > MAX_PARTICLES_PER_EMITTER as f64 {
+            return Err(self.err(
+                &rate_field,
+                format!(
+                    "the emitter would emit about {total:.3e} particles from {} s to {} s, \
+                     more than the {MAX_PARTICLES_PER_EMITTER} an emitter may",
+                    seconds(start),
+                    seconds(stop)
+                ),
+                "lower the rate, shorten start..stop, or lower particles_per_cell",
             ));
         }
         let velocity = match e.velocity {
@@ -107,16 +187,6 @@ impl V<'_> {
             cells,
             seed,
         };
-        if em.total() > MAX_PARTICLES_PER_EMITTER {
-            return Err(self.err(
-                f(if e.rate.is_some() { "rate" } else { "volume_rate" }),
-                format!(
-                    "the emitter would emit {} particles from {start} s to {stop} s, more than the {MAX_PARTICLES_PER_EMITTER} an emitter may",
-                    em.total()
-                ),
-                "lower the rate, shorten start..stop, or lower particles_per_cell",
-            ));
-        }
         Ok(em)
     }
 
@@ -128,8 +198,21 @@ impl V<'_> {
             Err(self.err(
                 field,
                 format!("{what} must be a finite number > 0, got {x}"),
-                format!("give a positive {what}"),
+                format!("give a positive value of {what}"),
             ))
         }
+    }
+}
+
+/// Seconds as the scene file would write them: `0.05`, not the f32-to-f64 `0.05000000074505806`.
+pub(super) fn seconds(t: f64) -> String {
+    if t != 0.0 && !(1e-4..1e6).contains(&t.abs()) {
+        return format!("{t:e}");
+    }
+    let short = (t as f32) as f64;
+    if short == t || (t - short).abs() <= 1e-7 * t.abs() {
+        format!("{}", t as f32)
+    } else {
+        format!("{t}")
     }
 }

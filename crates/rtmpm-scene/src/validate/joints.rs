@@ -76,8 +76,19 @@ impl V<'_> {
                 (None, false) => Ok(None),
             }
         };
-        let limits = match j.limits {
-            Some([a, b]) => {
+        let limits = match j.limits.as_deref() {
+            Some(l) if l.len() != 2 => {
+                return Err(self.err(
+                    f("limits"),
+                    format!(
+                        "limits has {} values; a joint's limits are two, [lower, upper]",
+                        l.len()
+                    ),
+                    "write limits = [lower, upper] (rad for a revolute joint, m for a prismatic \
+                     one)",
+                ));
+            }
+            Some(&[a, b]) => {
                 if !matches!(j.kind, RawJointKind::Revolute | RawJointKind::Prismatic) {
                     return Err(self.err(
                         f("limits"),
@@ -95,7 +106,7 @@ impl V<'_> {
                 }
                 Some([a, b])
             }
-            None => None,
+            _ => None,
         };
         let kind = match j.kind {
             RawJointKind::Fixed => {

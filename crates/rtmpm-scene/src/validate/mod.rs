@@ -24,11 +24,28 @@ use std::path::{Path, PathBuf};
 
 /// Parse and validate scene text.
 pub(super) fn parse(text: &str, origin: &str, base: &Path, stem: Option<&str>) -> R<Scene> {
+    parse_with(text, origin, base, stem, false)
+}
+
+/// Parse and validate a checkpoint's scene text (see [`Scene::from_checkpoint_text`]).
+pub(super) fn parse_resumed(text: &str, origin: &str, base: &Path) -> R<Scene> {
+    parse_with(text, origin, base, None, true)
+}
+
+fn parse_with(
+    text: &str,
+    origin: &str,
+    base: &Path,
+    stem: Option<&str>,
+    resumed: bool,
+) -> R<Scene> {
     let raw: RawScene = toml::from_str(text).map_err(|e| toml_error(text, origin, &e))?;
     let v = V {
         text,
         origin,
         doc: toml_edit::Document::parse(text).ok(),
+        resumed,
+        files: Default::default(),
     };
     v.resolve(raw, base, stem)
 }
@@ -94,6 +111,7 @@ impl V<'_> {
             .enumerate()
             .map(|(i, b)| self.rigid_body(i, b, base, dx, (imin, imax)))
             .collect::<R<Vec<_>>>()?;
+        self.rigid_names(&rigid_bodies)?;
         let joints = raw
             .joint
             .iter()
@@ -142,6 +160,7 @@ impl V<'_> {
                 .as_ref()
                 .and_then(|s| s.particle_state)
                 .unwrap_or_default(),
+            files: self.files.take(),
         };
         self.check_scene(&scene)?;
         Ok(scene)
@@ -178,6 +197,10 @@ impl V<'_> {
         // Every body must produce particles (found without storing them: the first one is
         // enough; the size of the whole scene is checked by the budget, scene::budget).
         for i in 0..scene.bodies.len() {
+            if self.resumed {
+                // The particles are the checkpoint's; a body's file may be gone.
+                break;
+            }
             let empty = sampling::body_is_empty(scene, i).map_err(|e| {
                 self.err(format!("body[{i}]"), e.message, e.hint.unwrap_or_default())
             })?;

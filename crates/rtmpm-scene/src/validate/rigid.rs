@@ -10,6 +10,13 @@ use rtmpm_physics::math::Vec3;
 use rtmpm_rigid::{JointSpec, RigidBodySpec, RigidKind};
 use std::path::Path;
 
+/// Most density (kg/m^3) a moving rigid body may have: 44 times the densest element. rapier3d
+/// stops moving bodies far heavier (a box of density 1e25 hung still under gravity; 1e22 fell).
+pub const MAX_RIGID_DENSITY: f64 = 1e6;
+/// Most speed (m/s) of a rigid body: rapier3d caps a body's speed at this (its default
+/// `normalized_max_linear_velocity` for a length unit of 1 m).
+pub const MAX_RIGID_SPEED: f32 = 400.0;
+
 impl V<'_> {
     /// `rigid_body[i]`: a box, sphere, cylinder or closed mesh inside the domain minus the walls, exactly one of
     /// `density` and `mass` (> 0; a fixed body needs neither), finite pose and velocities.
@@ -77,17 +84,45 @@ impl V<'_> {
                 ));
             }
         };
+        let mass_field = f(if b.mass.is_some() { "mass" } else { "density" });
         if !mass.is_finite() {
             return Err(self.err(
-                f(if b.mass.is_some() { "mass" } else { "density" }),
+                &mass_field,
                 format!("the body's mass {mass} kg (density x volume {volume} m^3) is not finite"),
                 "give a body of a sensible size (check the mesh's units and `scale`) and density",
+            ));
+        }
+        let density = mass as f64 / volume as f64;
+        if kind != RigidKind::Fixed && density > MAX_RIGID_DENSITY {
+            return Err(self.err(
+                &mass_field,
+                format!(
+                    "the body's density {density:.3e} kg/m^3 (mass {mass:.3e} kg over a volume of \
+                     {volume:.3e} m^3) is above the {MAX_RIGID_DENSITY:e} kg/m^3 a rigid body may \
+                     have (the densest element is 2.26e4; the rigid-body solver stops moving far \
+                     heavier bodies)"
+                ),
+                "give a real density (or a mass that fits the body's volume); for a body the \
+                 material cannot move use type = \"kinematic\" (moves at its velocity) or \
+                 \"fixed\"",
             ));
         }
         let velocity = match b.velocity {
             Some(v) => self.vec3(&f("velocity"), v)?,
             None => Vec3::ZERO,
         };
+        let speed = velocity.as_dvec3().length();
+        if speed > MAX_RIGID_SPEED as f64 {
+            return Err(self.err(
+                f("velocity"),
+                format!(
+                    "the body's speed {speed:.4e} m/s is above the {MAX_RIGID_SPEED} m/s the \
+                     rigid-body solver (rapier3d) lets a body move at: it would be slowed to that \
+                     speed"
+                ),
+                format!("give a speed of at most {MAX_RIGID_SPEED} m/s"),
+            ));
+        }
         let angular_velocity = match b.angular_velocity {
             Some(v) => self.vec3(&f("angular_velocity"), v)?,
             None => Vec3::ZERO,
@@ -121,6 +156,38 @@ impl V<'_> {
             condition,
             friction,
         })
+    }
+
+    /// Rigid bodies have unique names: joints name them, `bodies.csv` rows carry them.
+    pub(super) fn rigid_names(&self, bodies: &[RigidBodySpec]) -> R<()> {
+        for (j, b) in bodies.iter().enumerate() {
+            if b.name.is_empty()
+                || b.name.contains([',', '"', '\\'])
+                || b.name.chars().any(char::is_control)
+            {
+                return Err(self.err(
+                    format!("rigid_body[{j}].name"),
+                    format!(
+                        "the name {:?} is empty or holds a comma, a quote, a backslash or a \
+                         control character; bodies.csv writes it in a column",
+                        b.name
+                    ),
+                    "use letters, digits, spaces, `-` and `_` (e.g. name = \"flap\")",
+                ));
+            }
+            if let Some(i) = bodies[..j].iter().position(|a| a.name == b.name) {
+                return Err(self.err(
+                    format!("rigid_body[{j}].name"),
+                    format!(
+                        "rigid_body[{j}] is named \"{}\" like rigid_body[{i}]: joints and the rows \
+                         of bodies.csv name bodies, so a name must be unique",
+                        b.name
+                    ),
+                    "give every [[rigid_body]] its own name",
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// Bodies must not overlap at the start (their axis-aligned bounds in the initial pose),

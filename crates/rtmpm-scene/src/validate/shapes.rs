@@ -9,7 +9,7 @@ use crate::scene::Body;
 use crate::schema::*;
 use crate::settings::Sampling;
 use rtmpm_geometry::mesh::TriMesh;
-use rtmpm_geometry::shape::{Points, ShapeFields, ShapeKind, allowed_for};
+use rtmpm_geometry::shape::{Mesh, Points, ShapeFields, ShapeKind, allowed_for};
 use rtmpm_geometry::{Collider, PointSet, Shape, Use};
 use rtmpm_io::obj::read_obj;
 use rtmpm_io::points::read_points;
@@ -140,6 +140,7 @@ impl ShapeFields for Fields<'_, '_> {
         };
         let mesh = read_obj(&path, scale, translate)
             .map_err(|e| self.v.err(self.path("file"), e.to_string(), hint))?;
+        self.v.read_file(&self.path("file"), &path);
         Ok((mesh, path))
     }
 
@@ -160,6 +161,7 @@ impl ShapeFields for Fields<'_, '_> {
                 "give a readable PLY, VTU or BGEO file of points (e.g. a frame of an earlier run)",
             )
         })?;
+        self.v.read_file(&self.path("file"), &self.base.join(file));
         if points.positions.is_empty() {
             return Err(self.v.err(
                 self.path("file"),
@@ -309,7 +311,19 @@ impl V<'_> {
         if b.shape.name() == Points::NAME {
             self.not_for_points(&prefix, b)?;
         }
-        let shape = self.read_shape(&prefix, &g, Use::Body, base, dx)?;
+        // A checkpoint's scene whose body file is gone: the body's particles are the
+        // checkpoint's, and it has no shape to sample.
+        let gone = [Points::NAME, Mesh::NAME].contains(&b.shape.name())
+            && g.file
+                .as_ref()
+                .is_some_and(|file| self.resumed_without(&f("file"), &base.join(file)));
+        let shape = if gone {
+            Shape::Particles(Points {
+                points: Default::default(),
+            })
+        } else {
+            self.read_shape(&prefix, &g, Use::Body, base, dx)?
+        };
         self.inside_interior(&prefix, "body", shape.bounds(), interior)?;
         let ppc = b.particles_per_cell.unwrap_or(8);
         if ppc == 0 {

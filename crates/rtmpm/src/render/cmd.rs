@@ -98,34 +98,11 @@ pub fn render_cmd(args: RenderArgs) -> Result<()> {
         }
         _ => Default::default(),
     };
-    // Only one run's frames make one movie: every frame must name the run of the first (the
-    // PLY comment rtmpm writes) and hold as many particles.
-    let first_run = std::cell::RefCell::new(None::<(u64, Option<String>, usize)>);
+    // Only one run's frames make one movie (`OneRun`).
+    let one_run = std::cell::RefCell::new(rtmpm_driver::output::OneRun::default());
     let read = |num: u64, path: &Path| -> Result<FrameJob> {
         let d = read_ply(path).with_context(|| format!("reading {}", path.display()))?;
-        let run = d
-            .comments
-            .iter()
-            .find_map(|c| c.strip_prefix(rtmpm_driver::output::RUN_COMMENT_PREFIX))
-            .map(str::to_string);
-        let mut first = first_run.borrow_mut();
-        match &*first {
-            None => *first = Some((num, run, d.count)),
-            Some((f, r, count)) => {
-                if *r != run || *count != d.count {
-                    bail!(
-                        "{} holds frames of two runs: frame {f} ({}, {count} particles) and \
-                         frame {num} ({}, {} particles); a movie is made of one run\n  fix: \
-                         move one run's frame files to another folder (or rerun the scene with \
-                         --overwrite)",
-                        dir.display(),
-                        r.as_deref().unwrap_or("run unknown"),
-                        run.as_deref().unwrap_or("run unknown"),
-                        d.count
-                    );
-                }
-            }
-        }
+        one_run.borrow_mut().check(dir, num, &d.comments, d.count)?;
         let mut job = FrameJob::from_ply(num, &d, color_by, path)?;
         if let Some(b) = bodies.get(&num) {
             job = job.with_bodies(b);
