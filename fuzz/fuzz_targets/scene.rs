@@ -1,5 +1,6 @@
 //! Scene parser and validator: any text gives a scene or a positioned error, never a panic,
-//! a hang or a huge allocation; a valid scene's budget is computed.
+//! a hang or a huge allocation; a valid scene's budget and warnings (every velocity source of
+//! the step: colliders, keyframes, rigid bodies, emitters, gravity) are computed.
 #![no_main]
 use libfuzzer_sys::fuzz_target;
 use rtmpm_scene::{Scene, Budget};
@@ -12,6 +13,7 @@ fuzz_target!(|data: &[u8]| {
         Ok(scene) => {
             let b = Budget::estimate(&scene, None);
             let _ = b.refusals(Some(1 << 34), Some(1 << 40), true);
+            let _ = scene.warnings();
         }
         Err(e) => {
             // A clear error says where: a line or a field.

@@ -12,6 +12,9 @@ address-space limit (ulimit -v 8 GiB: a huge allocation aborts), and classified:
             file, a particle, the fix), no panic
   unclear   non-zero exit without the expected words
   accepted  exit 0 for an input the case allows to run (e.g. a large but valid value)
+  warned    exit 0 for an input that is legal but probably wrong, with a `warning:` line that
+            names what the case expects
+  silent    exit 0 for such an input without that warning
   crash     a panic, an abort, a signal
   hang      killed at the time limit
   lost      files that must survive (another run's frames, a collection) changed or vanished
@@ -120,11 +123,14 @@ def scene_with(slot_line, value):
 
 
 class Case:
-    def __init__(self, name, args, expect, may_accept=False, setup=None, keep=(), stdin=None):
+    def __init__(self, name, args, expect, may_accept=False, setup=None, keep=(), stdin=None,
+                 warn=False):
         self.name = name          # short id
         self.args = args          # argv after the binary; "{W}" is the case's work folder
         self.expect = expect      # words a clear error must contain (any one of each tuple)
         self.may_accept = may_accept
+        # Legal but probably wrong: exit 0 with a `warning:` line holding the expected words.
+        self.warn = warn
         self.setup = setup        # fn(work_dir) run first
         self.keep = keep          # paths (relative to work) that must not change
         # Too big for the CPU machine's budget but a valid scene for an 80 GB GPU: with a GPU
@@ -224,9 +230,9 @@ def cases():
     # ... and a run of those values that a check accepts is done by the 'run' cases below.
     for field, line, v, words in [
         ("body[0].velocity", "velocity = [0.5, 0.0, 0.0]", "[1e6, 0, 0]", ("time step collapsed", "min_dt")),
-        ("body[0].velocity", "velocity = [0.5, 0.0, 0.0]", "[1e30, 0, 0]", ("time step collapsed", "blew up", "initial speed")),
-        ("body[0].angular_velocity", "angular_velocity = [0.0, 1.0, 0.0]", "[0, 1e7, 0]", ("time step collapsed", "blew up")),
-        ("gravity", "gravity = [0.0, -9.81, 0.0]", "[0, -1e30, 0]", ("blew up", "time step collapsed")),
+        ("body[0].velocity", "velocity = [0.5, 0.0, 0.0]", "[1e30, 0, 0]", ("time step collapsed", "blew up", "initial speed", "lower `body[0].velocity`")),
+        ("body[0].angular_velocity", "angular_velocity = [0.0, 1.0, 0.0]", "[0, 1e7, 0]", ("time step collapsed", "blew up", "lower `body[0].angular_velocity`")),
+        ("gravity", "gravity = [0.0, -9.81, 0.0]", "[0, -1e30, 0]", ("blew up", "time step collapsed", "lower `gravity`")),
         ("material[0].youngs_modulus", "youngs_modulus = 2.0e4", "1e38", ("time step collapsed", "blew up", "min_dt", "does not fit")),
         ("time.max_dt", "max_dt = 2e-3", "1e-12", ("steps",)),
     ]:
@@ -600,6 +606,10 @@ def cases():
     out.append(Case("folder: render two runs' frames", ["render", "{W}/out", "--no-movie", "--size", "64x36"],
                     [("two runs",)], setup=mixed))
 
+    # 9. the newer features: rigid bodies, joints, emitters, moving colliders, 32-bit values, particle
+    # files, output folders, resume with bodies and files, `mesh`, the flags that size buffers.
+    out.extend(newer_feature_cases(S, run, rigid))
+
     # 8. flags.
     for args, words in [
         (["bench", "--n", "8", "--backend", "cpu"], ("20..=1600",)),
@@ -627,6 +637,158 @@ def cases():
     return out
 
 
+def newer_feature_cases(S, run, rigid):
+    """Section 9 of the corpus: the features added after the first hostile-input pass."""
+    out = []
+    box = '"box"\nmin = [0.3, 0.3, 0.3]\nmax = [0.36, 0.36, 0.36]'
+    emitter = ('[[emitter]]\nmaterial = "water"\nshape = "box"\nmin = [0.27, 0.1, 0.27]\n'
+               'max = [0.33, 0.125, 0.33]\nvelocity = [0.0, 2.0, 0.0]\nrate = 2000.0\n')
+    fixed_dt = GOOD_SCENE.replace("cfl = 0.4\nmax_dt = 2e-3", "dt = 1e-3")
+    for name, text, words, warn in [
+        ("rigid body at 1e6 m/s", GOOD_SCENE + rigid_body_tail(rigid.replace("density = 500.0", "density = 500.0\nvelocity = [1e6, 0.0, 0.0]")),
+         [("rigid_body[0].velocity",), ("400",)], False),
+        ("rigid body of density 1e30", GOOD_SCENE + rigid_body_tail(rigid.replace("500.0", "1e30")),
+         [("rigid_body[0].density",)], False),
+        ("rigid body spinning at 1e9 rad/s", GOOD_SCENE + rigid_body_tail(rigid.replace("density = 500.0", "density = 500.0\nangular_velocity = [0.0, 1e9, 0.0]")),
+         [("rigid_body[0].angular_velocity",)], False),
+        ("two rigid bodies of one name", GOOD_SCENE + rigid_body_tail(
+            rigid.replace("density", 'name = "a"\ndensity') + rigid.replace("0.3, 0.3, 0.3", "0.2, 0.3, 0.3").replace(
+                "0.36, 0.36, 0.36", "0.26, 0.36, 0.36").replace("density", 'name = "a"\ndensity')),
+         [("rigid_body[1].name",), ("unique",)], False),
+        ("rigid body name with a comma", GOOD_SCENE + rigid_body_tail(rigid.replace("density", 'name = "a,b"\ndensity')),
+         [("rigid_body[0].name",)], False),
+        ("rigid body thinner than a cell", GOOD_SCENE + rigid_body_tail(rigid.replace("max = [0.36, 0.36, 0.36]", "max = [0.36, 0.301, 0.36]")),
+         [("rigid_body[0]",), ("thick",)], True),
+        ("half-space rigid body", GOOD_SCENE + rigid_body_tail(rigid.replace(box, '"half_space"\npoint = [0.0, 0.1, 0.0]\nnormal = [0.0, 1.0, 0.0]')),
+         [("rigid_body[0]",), ("half_space",)], False),
+        ("joint limits of three values", GOOD_SCENE + rigid_body_tail(
+            rigid + '[[joint]]\ntype = "revolute"\nbody = 0\nanchor = [0.3, 0.36, 0.3]\naxis = [0.0, 0.0, 1.0]\nlimits = [0.0, 1.0, 2.0]\n'),
+         [("joint[0].limits",)], False),
+        ("revolute limits beyond pi", GOOD_SCENE + rigid_body_tail(
+            rigid + '[[joint]]\ntype = "revolute"\nbody = 0\nanchor = [0.3, 0.36, 0.3]\naxis = [0.0, 0.0, 1.0]\nlimits = [-10.0, 10.0]\n'),
+         [("joint[0]",), ("pi",)], True),
+        ("emitter of 1e-9 particles a second", GOOD_SCENE + rigid_body_tail(emitter.replace("2000.0", "1e-9")),
+         [("emitter[0].rate",), ("no particle",)], False),
+        ("emitter starting after the run", GOOD_SCENE + rigid_body_tail(emitter + "start = 10.0\nstop = 11.0\n"),
+         [("emitter[0]",), ("emits nothing",)], True),
+        ("emitter thinner than a particle", GOOD_SCENE + rigid_body_tail(emitter.replace("max = [0.33, 0.125, 0.33]", "max = [0.33, 0.101, 0.33]")),
+         [("emitter[0].shape",)], False),
+        ("mesh emitter", GOOD_SCENE + rigid_body_tail(emitter.replace('"box"\nmin = [0.27, 0.1, 0.27]\nmax = [0.33, 0.125, 0.33]', '"mesh"\nfile = "m.obj"')),
+         [("emitter[0]",), ("mesh", "shape")], False),
+        ("emitter piling its particles up", GOOD_SCENE + rigid_body_tail(emitter.replace("2000.0", "1e7")),
+         [("emitter[0]",), ("pile up",)], True),
+        ("collider outrunning a fixed step", fixed_dt + rigid_body_tail(
+            '[[collider]]\nshape = "sphere"\ncenter = [0.3, 0.3, 0.3]\nradius = 0.03\nvelocity = [100.0, 0.0, 0.0]\n'),
+         [("collider[1]",), ("cells per step",)], True),
+        ("gravity of 1e5 m/s^2", GOOD_SCENE.replace("gravity = [0.0, -9.81, 0.0]", "gravity = [0.0, -1e5, 0.0]"),
+         [("gravity",), ("Earth",)], True),
+        ("Young's modulus 1e300", GOOD_SCENE.replace("youngs_modulus = 2.0e4", "youngs_modulus = 1e300"),
+         [("material[0].youngs_modulus",), ("32-bit float",)], False),
+        ("density 1e-50", GOOD_SCENE.replace("density = 1000.0\nyoungs", "density = 1e-50\nyoungs"),
+         [("material[0].density",), ("32-bit float", "positive")], False),
+    ]:
+        out.append(Case(f"newer: {name}", ["check", S], words, warn=warn,
+                        setup=lambda w, t=text: write(w / "scene.toml", t)))
+
+    # A particle file whose data is longer than its header says.
+    pts = GOOD_SCENE.replace('shape = "sphere"\ncenter = [0.33, 0.2, 0.3]\nradius = 0.06',
+                             'shape = "particles"\nfile = "p.ply"')
+    three = b"".join(struct.pack("<3f", 0.3 + 0.01 * i, 0.2, 0.3) for i in range(3))
+    out.append(Case("newer: PLY particles beyond the header's count", ["check", S],
+                    [("p.ply",), ("header announces",)],
+                    setup=lambda w: (write(w / "scene.toml", pts),
+                                     write(w / "p.ply", ply_bytes(["element vertex 2"] + [f"property float {c}" for c in "xyz"], three)))))
+
+    # Flags that size buffers.
+    for args, words in [
+        (run + ["--frame-chunk", "0"], ("--frame-chunk",)),
+        (run + ["--frames-in-flight", "1000000000", "--frame-chunk", "100000000"], ("--frames-in-flight",)),
+        (run + ["--whole-frames", "--frames-in-flight", "1000000000"], ()),
+        (["mesh", "{W}", "--bench", "--bench-particles", "100000000000"], ("--bench-particles",)),
+        (["mesh", "{W}", "--bench", "--bench-particles", "3"], ("--bench-particles",)),
+    ]:
+        # PLY frames only: streamed from the backend through the frame writer's buffers.
+        ply_only = GOOD_SCENE.replace('formats = ["ply", "vtu"]', 'formats = ["ply"]')
+        out.append(Case("newer flags: " + " ".join(a for a in args if "{W}" not in a), args, [words],
+                        may_accept=not words, setup=lambda w, t=ply_only: write(w / "scene.toml", t)))
+
+    # --overwrite in a folder that rtmpm never wrote: the user's files that merely match its names
+    # are kept, and the refusal names every one of them.
+    def users_folder(w):
+        write(w / "scene.toml", GOOD_SCENE)
+        write(w / "out" / "frame_00000.ply", "my own file")
+        write(w / "out" / "frame_00001.vtu", "mine too")
+        write(w / "out" / "frames.pvd", "and this")
+    for flag in ([], ["--overwrite"]):
+        out.append(Case("newer folder: a user's files with rtmpm's names" + (" and --overwrite" if flag else ""),
+                        run + flag, [("frame_00000.ply",), ("frame_00001.vtu",), ("frames.pvd",)],
+                        setup=users_folder, keep=["out"]))
+
+    # Resume: files changed since the checkpoint, bodies.csv, a particles body without its file.
+    cube = ("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n"
+            "f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 2 3 7\nf 2 7 6\nf 3 4 8\nf 3 8 7\nf 4 1 5\nf 4 5 8\n")
+    mesh_collider = GOOD_SCENE + rigid_body_tail(
+        '[[collider]]\nshape = "mesh"\nfile = "m.obj"\nscale = 0.05\ntranslate = [0.3, 0.3, 0.3]\n')
+    ckpt = ["run", "--resume", "{W}/out/checkpoint_00001.ckpt", "--backend", "cpu", "--out", "{W}/out"]
+
+    def first_run(w, scene, frames="1"):
+        write(w / "scene.toml", scene)
+        r = subprocess.run([BIN, "run", str(w / "scene.toml"), "--backend", "cpu", "--out", str(w / "out"),
+                            "--frames", frames, "--checkpoint-every", "1"], capture_output=True, stdin=subprocess.DEVNULL)
+        assert r.returncode == 0, r.stderr
+
+    def edited_mesh(w):
+        write(w / "m.obj", cube)
+        first_run(w, mesh_collider)
+        write(w / "m.obj", cube.replace("v 1 1 1", "v 1.2 1 1"))
+    out.append(Case("newer resume: a collider's mesh edited since the checkpoint", ckpt,
+                    [("m.obj",), ("changed since the checkpoint",)], setup=edited_mesh, keep=["out"]))
+
+    def gone_seed(w):
+        write(w / "p.ply", ply_bytes(["element vertex 3"] + [f"property float {c}" for c in "xyz"], three))
+        first_run(w, pts)
+        (w / "p.ply").unlink()
+    out.append(Case("newer resume: a particles body whose file is gone", ckpt + ["--frames", "2"],
+                    [()], may_accept=True, setup=gone_seed))
+
+    rigid_scene = GOOD_SCENE + rigid_body_tail(rigid.replace("density", 'name = "crate"\ndensity'))
+
+    def broken_rows(w):
+        first_run(w, rigid_scene, frames="2")
+        lines = (w / "out" / "bodies.csv").read_text().splitlines()
+        lines[1] = lines[1].replace('"crate"', '"other"')
+        write(w / "out" / "bodies.csv", "\n".join(lines) + "\n")
+    out.append(Case("newer resume: bodies.csv naming another body", ckpt, [("bodies.csv:2",)],
+                    setup=broken_rows, keep=["out/bodies.csv"]))
+
+    def lost_rows(w):
+        first_run(w, rigid_scene, frames="2")
+        write(w / "out" / "bodies.csv", "frame,time,body,x,y,z,qx,qy,qz,qw,vx,vy,vz,wx,wy,wz\n")
+    out.append(Case("newer resume: bodies.csv without its rows", ckpt, [("bodies.csv",), ("frames 0",)],
+                    warn=True, setup=lost_rows))
+
+    # `rtmpm mesh` on frames of two runs, and on a frame with NaN positions.
+    def two_runs(w):
+        other = GOOD_SCENE.replace("radius = 0.06", "radius = 0.07")
+        for name, text in [("a", GOOD_SCENE), ("b", other)]:
+            write(w / f"{name}.toml", text)
+            subprocess.run([BIN, "run", str(w / f"{name}.toml"), "--backend", "cpu", "--out", str(w / name),
+                            "--frames", "1"], capture_output=True, stdin=subprocess.DEVNULL)
+        (w / "frames").mkdir()
+        shutil.copy(w / "a" / "frame_00000.ply", w / "frames" / "frame_00000.ply")
+        shutil.copy(w / "b" / "frame_00001.ply", w / "frames" / "frame_00001.ply")
+    out.append(Case("newer mesh: frames of two runs", ["mesh", "{W}/frames"], [("two runs",)], setup=two_runs))
+    nan_pts = b"".join(struct.pack("<3f", *p) for p in [(0.3, 0.2, 0.3), (float("nan"), 0.2, 0.3)])
+    out.append(Case("newer mesh: a frame with a NaN position", ["mesh", "{W}/frames"], [("non-finite",)], warn=True,
+                    setup=lambda w: write(w / "frames" / "frame_00000.ply",
+                                          ply_bytes(["element vertex 2"] + [f"property float {c}" for c in "xyz"], nan_pts))))
+    dense = b"".join(struct.pack("<3f", 0.3, 0.2, 0.3) for _ in range(100_000))
+    out.append(Case("newer mesh: 100k coincident particles", ["mesh", "{W}/frames"], [()], may_accept=True,
+                    setup=lambda w: write(w / "frames" / "frame_00000.ply",
+                                          ply_bytes(["element vertex 100000"] + [f"property float {c}" for c in "xyz"], dense))))
+    return out
+
+
 # ---------------------------------------------------------------- running and judging
 
 LONG = []
@@ -644,6 +806,10 @@ def judge(case, rc, text, timed_out, lost):
         return "lost"
     if rc < 0 or rc in (101, 134, 137, 139) or "panicked" in text or "memory allocation of" in text:
         return "crash"
+    if rc == 0 and case.warn:
+        warnings = "\n".join(l for l in text.splitlines() if l.startswith("warning"))
+        ok = all(not words or any(w in warnings for w in words) for words in case.expect)
+        return "warned" if warnings and ok else "silent"
     if rc == 0:
         return "accepted" if case.may_accept else "unclear"
     if not any(l.startswith("error") for l in text.splitlines()):
@@ -717,8 +883,9 @@ def main():
     tally = {}
     for _, v, _, _ in rows:
         tally[v] = tally.get(v, 0) + 1
-    bad = sum(tally.get(k, 0) for k in ["crash", "hang", "lost", "unclear", "setup-failed"])
+    bad = sum(tally.get(k, 0) for k in ["crash", "hang", "lost", "unclear", "silent", "setup-failed"])
     summary = (f"{len(rows)} hostile inputs: {tally.get('clear', 0)} clear errors, "
+               f"{tally.get('warned', 0)} warned, {tally.get('silent', 0)} silent, "
                f"{tally.get('accepted', 0)} accepted (valid), {tally.get('unclear', 0)} unclear, "
                f"{tally.get('crash', 0)} crashes, {tally.get('hang', 0)} hangs, {tally.get('lost', 0)} data lost"
                + (f", {tally['setup-failed']} setup failures" if "setup-failed" in tally else "")

@@ -153,7 +153,7 @@ impl<B: Backend + ?Sized> Simulation<B> {
             StepMode::Cfl { cfl, .. } => cfl,
             StepMode::Fixed { .. } => return None,
         };
-        let g = self.scene.gravity.length();
+        let g = speeds::norm(self.scene.gravity);
         if dt >= speeds::gravity_dt(self.scene.gravity, self.scene.dx, cfl) * 0.999 {
             return Some(format!(
                 "gravity ({g:.4e} m/s^2) asks for steps of at most sqrt(cfl dx / |g|) = {dt:.3e} s \
@@ -199,12 +199,12 @@ impl<B: Backend + ?Sized> Simulation<B> {
         }
         // Gravity: the speed of a fall since the start (at most across the domain).
         let fall =
-            (self.scene.gravity.length() as f64 * self.time).min(speeds::fall_speed(&self.scene));
+            (speeds::norm(self.scene.gravity) * self.time).min(speeds::fall_speed(&self.scene));
         if fall * dt as f64 > MAX_CELLS_PER_STEP as f64 * dx as f64 {
             return Some(format!(
                 "gravity ({:.4e} m/s^2) makes a fall of {:.4e} m/s by now, {:.1} cells in a step \
                  of {dt:.3e} s; {}",
-                self.scene.gravity.length(),
+                speeds::norm(self.scene.gravity),
                 fall,
                 fall * dt as f64 / dx as f64,
                 fix("gravity", fall)

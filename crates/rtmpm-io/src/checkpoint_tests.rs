@@ -99,26 +99,75 @@ fn empty_round_trip() {
     assert_eq!(Checkpoint::load(&path).unwrap(), ck);
 }
 
-/// Files of version 1 (no rigid bodies) are still read.
+/// Files of versions 1 (no rigid bodies) and 2 (no file hashes) are still read.
 #[test]
-fn version_1_files_are_read_without_bodies() {
+fn version_1_and_2_files_are_read() {
     let mut ck = random_checkpoint(30, 4);
     ck.bodies.clear();
     let d = TestDir::new("ckpt-v1");
-    let path = d.path("v2.ckpt");
+    let path = d.path("v3.ckpt");
     ck.save(&path).unwrap();
-    let v2 = fs::read(&path).unwrap();
-    // Version 1: the same without the body count after the frame, and its own checksum.
+    let v3 = fs::read(&path).unwrap();
+    // After the frame: the body count (0) then the file count (0) of version 3.
     let at = HEADER_LEN + 16 + ck.scene_toml.len() + ck.scene_origin.len() + 24;
-    assert_eq!(v2[at..at + 8], 0u64.to_le_bytes());
-    let mut v1 = [&v2[..at], &v2[at + 8..v2.len() - CHECKSUM_LEN]].concat();
-    v1[8..12].copy_from_slice(&1u32.to_le_bytes());
-    let len = (v1.len() - HEADER_LEN) as u64;
-    v1[16..24].copy_from_slice(&len.to_le_bytes());
+    assert_eq!(v3[at..at + 16], [0u8; 16]);
+    // Version 1: without both counts; version 2: without the file count; each with its own
+    // checksum.
+    for (version, cut) in [(1u32, at..at + 16), (2, at + 8..at + 16)] {
+        let mut old = [&v3[..cut.start], &v3[cut.end..v3.len() - CHECKSUM_LEN]].concat();
+        old[8..12].copy_from_slice(&version.to_le_bytes());
+        let len = (old.len() - HEADER_LEN) as u64;
+        old[16..24].copy_from_slice(&len.to_le_bytes());
+        let mut h = Fnv1a64::default();
+        h.update(&old);
+        old.extend_from_slice(&h.finish().to_le_bytes());
+        assert_eq!(
+            Checkpoint::from_bytes(&old).unwrap(),
+            ck,
+            "version {version}"
+        );
+    }
+}
+
+/// The hashes of the scene's files survive the round trip; a count the bytes cannot hold is
+/// refused.
+#[test]
+fn file_hashes_round_trip() {
+    let mut ck = random_checkpoint(5, 7);
+    ck.files = vec![
+        FileHash {
+            field: "collider[0].file".into(),
+            path: "meshes/bowl.obj".into(),
+            hash: 0x0123_4567_89ab_cdef,
+        },
+        FileHash {
+            field: "body[1].file".into(),
+            path: String::new(),
+            hash: u64::MAX,
+        },
+    ];
+    let d = TestDir::new("ckpt-files");
+    let path = d.path("f.ckpt");
+    ck.save(&path).unwrap();
+    assert_eq!(Checkpoint::load(&path).unwrap(), ck);
+    // The file count patched to 2^40, the checksum made valid again: refused, no allocation.
+    let mut bytes = fs::read(&path).unwrap();
+    let at = HEADER_LEN
+        + 16
+        + ck.scene_toml.len()
+        + ck.scene_origin.len()
+        + 24
+        + 8
+        + 4 * 13 * ck.bodies.len();
+    assert_eq!(bytes[at..at + 8], 2u64.to_le_bytes());
+    bytes[at..at + 8].copy_from_slice(&(1u64 << 40).to_le_bytes());
+    let body = bytes.len() - CHECKSUM_LEN;
     let mut h = Fnv1a64::default();
-    h.update(&v1);
-    v1.extend_from_slice(&h.finish().to_le_bytes());
-    assert_eq!(Checkpoint::from_bytes(&v1).unwrap(), ck);
+    h.update(&bytes[..body]);
+    let sum = h.finish().to_le_bytes();
+    bytes[body..].copy_from_slice(&sum);
+    let e = Checkpoint::from_bytes(&bytes).unwrap_err().to_string();
+    assert!(e.contains("file hashes do not fit"), "{e}");
 }
 
 /// Bodies survive bit for bit; a count that the bytes cannot hold, or a pose that is not

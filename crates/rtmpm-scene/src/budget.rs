@@ -150,7 +150,7 @@ fn cfl_step(scene: &Scene, cfl: f32, max_dt: f32) -> (f64, String, String) {
     let gravity_dt = super::speeds::gravity_dt(scene.gravity, scene.dx, cfl) as f64;
     let shorter = "or a shorter time.duration";
     if gravity_dt < cfl_dt.min(max_dt as f64) {
-        let g = scene.gravity.length();
+        let g = super::speeds::norm(scene.gravity);
         return (
             gravity_dt,
             format!(

@@ -28,6 +28,12 @@ pub struct SpeedSource {
     pub speed: f64,
 }
 
+/// The length of `v` computed in f64: the length of a vector of f32 components up to about
+/// 3.4e38 (whose square overflows f32 from about 1.8e19 on) is finite.
+pub fn norm(v: Vec3) -> f64 {
+    v.as_dvec3().length()
+}
+
 /// Largest distance from `pivot` to a point of `bounds` (`None`: unbounded, a half-space) that
 /// lies in the domain `(lo, hi)`, bounded by the farthest corner of the domain.
 fn reach(pivot: Vec3, bounds: Option<(Vec3, Vec3)>, domain: (Vec3, Vec3)) -> f32 {
@@ -45,11 +51,11 @@ fn reach(pivot: Vec3, bounds: Option<(Vec3, Vec3)>, domain: (Vec3, Vec3)) -> f32
 /// Speed (m/s) of the fastest point of collider `c` at time `t` within `domain`.
 pub fn collider_speed(c: &Collider, t: f32, domain: (Vec3, Vec3)) -> f32 {
     let (v, w) = c.motion_at(t);
-    let spin = w.length();
+    let spin = norm(w);
     if spin == 0.0 {
-        return v.length();
+        return norm(v) as f32;
     }
-    v.length() + spin * reach(c.pivot_at(t), c.bounds(t), domain)
+    (norm(v) + spin * reach(c.pivot_at(t), c.bounds(t), domain) as f64) as f32
 }
 
 /// The largest [`collider_speed`] over the run: the constant motion's, or that of the fastest
@@ -70,18 +76,18 @@ pub fn collider_peak_speed(c: &Collider, domain: (Vec3, Vec3)) -> f32 {
 /// `v` and spinning at `w`; the spin counts at least a cell `dx` from the centre (the nodes
 /// that take the body's velocity).
 pub fn rigid_speed(shape: &Shape, rotation: Mat3, v: Vec3, w: Vec3, dx: f32) -> f32 {
-    let spin = w.length();
+    let spin = norm(w);
     if spin == 0.0 {
-        return v.length();
+        return norm(v) as f32;
     }
-    v.length() + spin * shape.half_extents(rotation).length().max(dx)
+    (norm(v) + spin * shape.half_extents(rotation).length().max(dx) as f64) as f32
 }
 
 /// The largest step (s) gravity `g` allows: `|g| dt^2 <= cfl dx` (infinite without gravity).
 pub fn gravity_dt(g: Vec3, dx: f32, cfl: f32) -> f32 {
-    let a = g.length();
+    let a = norm(g);
     if a > 0.0 {
-        (cfl * dx / a).sqrt()
+        (cfl as f64 * dx as f64 / a).sqrt() as f32
     } else {
         f32::INFINITY
     }
@@ -104,11 +110,10 @@ pub fn fall_speed(scene: &Scene) -> f64 {
 /// of its bounding box, or its file's velocities.
 fn body_speed(b: &crate::Body) -> f64 {
     let (lo, hi) = b.shape.bounds();
-    let mut s =
-        b.velocity.length() as f64 + b.angular_velocity.length() as f64 * (hi - lo).length() as f64;
+    let mut s = norm(b.velocity) + norm(b.angular_velocity) * norm(hi - lo);
     if let (Shape::Particles(p), true) = (&b.shape, b.file_velocity) {
-        let fastest = p.points.velocities.iter().flatten().map(|v| v.length());
-        s = s.max(fastest.fold(0.0f32, f32::max) as f64);
+        let fastest = p.points.velocities.iter().flatten().map(|&v| norm(v));
+        s = s.max(fastest.fold(0.0, f64::max));
     }
     s
 }
@@ -153,7 +158,7 @@ impl Scene {
             push(
                 format!("emitter[{i}] `{}`", e.name),
                 format!("emitter[{i}].velocity"),
-                e.velocity.length() as f64,
+                norm(e.velocity),
             );
         }
         for (i, c) in self.colliders.iter().enumerate() {

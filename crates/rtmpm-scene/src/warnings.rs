@@ -15,12 +15,12 @@ pub(super) fn scene_warnings(scene: &Scene) -> Vec<String> {
     rigid_bodies(scene, &mut out);
     joints(scene, &mut out);
     fixed_step(scene, &mut out);
-    let g = scene.gravity.length();
-    if g > 100.0 * EARTH_GRAVITY {
+    let g = crate::speeds::norm(scene.gravity);
+    if g > 100.0 * EARTH_GRAVITY as f64 {
         out.push(format!(
             "gravity is {g:.4e} m/s^2, {:.0} times Earth's ({EARTH_GRAVITY}): check its units \
              (m/s^2)",
-            g / EARTH_GRAVITY
+            g / EARTH_GRAVITY as f64
         ));
     }
     out

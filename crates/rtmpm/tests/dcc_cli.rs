@@ -181,6 +181,20 @@ fn bgeo_usd_and_surface_files_belong_to_the_folders_run() {
     fs::write(&scene_path, plain).unwrap();
     let o = run(&["--frames", "1"]);
     assert!(!o.status.success(), "{}", text(&o));
+    // The surface.pvd made garbage above carries no rtmpm signature: --overwrite keeps it and
+    // refuses, naming it, until it is moved away.
+    let o = run(&["--frames", "1", "--overwrite"]);
+    assert!(!o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains("surface.pvd") && text(&o).contains("cannot prove it wrote"),
+        "{}",
+        text(&o)
+    );
+    assert_eq!(
+        fs::read_to_string(out.join("surface.pvd")).unwrap(),
+        "garbage"
+    );
+    fs::remove_file(out.join("surface.pvd")).unwrap();
     let o = run(&["--frames", "1", "--overwrite"]);
     assert!(o.status.success(), "{}", text(&o));
     let left: Vec<String> = fs::read_dir(&out)

@@ -83,12 +83,14 @@ fn streamed_frames_are_byte_identical_to_whole_frames() {
     }
 }
 
+/// A folder where a frame file goes (frame 2's PLY) is not a file rtmpm wrote: the run is
+/// refused before anything is written, naming it, and the folder is kept (with --overwrite too,
+/// and whether frames are written in the background or not).
 #[test]
-fn a_writer_error_names_the_file_fails_the_run_and_leaves_no_partial_file() {
+fn a_folder_in_place_of_a_frame_file_refuses_the_run_before_it_writes() {
     let dir = scratch("stream-error");
     let scene = scene(&dir);
     let out = dir.join("out");
-    // Frame 2's PLY cannot be put in place: a folder holds its name.
     fs::create_dir_all(out.join("frame_00002.ply")).expect("dir");
     fs::write(out.join("frame_00002.ply").join("keep"), "x").expect("file");
     for in_flight in ["0", "1"] {
@@ -107,11 +109,16 @@ fn a_writer_error_names_the_file_fails_the_run_and_leaves_no_partial_file() {
         ]);
         let msg = text(&o);
         assert!(!o.status.success(), "{msg}");
-        assert!(msg.contains("frame_00002.ply"), "{msg}");
+        assert!(
+            msg.contains("frame_00002.ply") && msg.contains("cannot prove it wrote"),
+            "{msg}"
+        );
         assert!(leftovers(&out).is_empty(), "{:?}", leftovers(&out));
-        // Frames before the error are complete; frame 2's other files are not left half-written.
-        assert!(out.join("frame_00001.bgeo").is_file());
-        assert!(out.join("frame_00002.ply").is_dir());
+        assert!(!out.join("frame_00000.ply").exists(), "{msg}");
+        assert_eq!(
+            fs::read_to_string(out.join("frame_00002.ply").join("keep")).expect("kept"),
+            "x"
+        );
     }
 }
 

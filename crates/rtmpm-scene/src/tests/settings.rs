@@ -101,3 +101,35 @@ fn missing_tables_big_integers_and_escaping_names_are_named() {
     assert_eq!(e.field.as_deref(), Some("output.dir"), "{e}");
     assert!(Scene::from_toml(&format!("name = \"ok-name_1\"\n{base}"), "s").is_ok());
 }
+
+/// A field of a shape that the table does not allow (a half-space rigid body, a mesh emitter)
+/// is reported as the shape not allowed there, with the table's shapes; an unknown field of an
+/// allowed shape stays an unknown field.
+#[test]
+fn a_shape_the_table_does_not_allow_is_named() {
+    let e = parse(&format!(
+        "{BASE}[[rigid_body]]\nshape = \"half_space\"\npoint = [0.0, 0.1, 0.0]\nnormal = [0.0, 1.0, \
+         0.0]\ndensity = 500.0\n"
+    ))
+    .unwrap_err();
+    assert_eq!(e.field.as_deref(), Some("rigid_body[0].shape"), "{e}");
+    let text = e.to_string();
+    assert!(
+        text.contains("shape = \"half_space\" is not allowed in [[rigid_body]]")
+            && text.contains("box, sphere, cylinder, mesh"),
+        "{text}"
+    );
+    let e = parse(&format!(
+        "{BASE}[[emitter]]\nmaterial = \"jelly\"\nshape = \"mesh\"\nfile = \"m.obj\"\nrate = 10.0\n"
+    ))
+    .unwrap_err();
+    assert_eq!(e.field.as_deref(), Some("emitter[0].shape"), "{e}");
+    assert!(e.to_string().contains("box, sphere, cylinder"), "{e}");
+    let e = parse(&format!(
+        "{BASE}[[rigid_body]]\nshape = \"box\"\nmin = [0.6, 0.6, 0.6]\nmax = [0.7, 0.7, 0.7]\n\
+         density = 500.0\nnormal = [0.0, 1.0, 0.0]\n"
+    ))
+    .unwrap_err();
+    assert_eq!(e.field.as_deref(), Some("rigid_body[0].normal"), "{e}");
+    assert!(e.to_string().contains("unknown field"), "{e}");
+}

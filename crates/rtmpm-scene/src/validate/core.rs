@@ -21,6 +21,51 @@ pub(super) struct V<'a> {
     pub(super) files: std::cell::RefCell<Vec<crate::files::SceneFile>>,
 }
 
+/// The shapes each table of shapes allows.
+const TABLE_SHAPES: [(&str, &[&str]); 4] = [
+    ("body", &["box", "sphere", "cylinder", "mesh", "particles"]),
+    (
+        "collider",
+        &["half_space", "box", "sphere", "cylinder", "mesh"],
+    ),
+    ("emitter", &["box", "sphere", "cylinder"]),
+    ("rigid_body", &["box", "sphere", "cylinder", "mesh"]),
+];
+
+/// For the unknown field `field` (e.g. `rigid_body[0].normal`) of a `[[body]]`, `[[collider]]`,
+/// `[[emitter]]` or `[[rigid_body]]` table whose `shape` that table does not allow: the shape's
+/// field, the message and the fix.
+fn shape_not_allowed(
+    doc: &toml_edit::Document<&str>,
+    field: &str,
+    name: &str,
+) -> Option<(String, String, String)> {
+    let (table, _) = field.rsplit_once('.')?;
+    let (kind, index) = table.split_once('[')?;
+    let i: usize = index.strip_suffix(']')?.parse().ok()?;
+    let (_, allowed) = TABLE_SHAPES.iter().find(|(k, _)| *k == kind)?;
+    let shape = doc
+        .get(kind)?
+        .as_array_of_tables()?
+        .get(i)?
+        .get("shape")?
+        .as_str()?;
+    if allowed.contains(&shape) {
+        return None;
+    }
+    Some((
+        format!("{table}.shape"),
+        format!(
+            "shape = \"{shape}\" is not allowed in [[{kind}]] (`{name}` is a field of that \
+             shape)"
+        ),
+        format!(
+            "give {table} one of the shapes of [[{kind}]]: {}",
+            allowed.join(", ")
+        ),
+    ))
+}
+
 /// Convert a toml parse/deserialize error into a positioned [`SceneError`].
 pub(super) fn toml_error(text: &str, origin: &str, e: &toml::de::Error) -> SceneError {
     let message = e.message().trim().to_string();
@@ -44,6 +89,21 @@ pub(super) fn toml_error(text: &str, origin: &str, e: &toml::de::Error) -> Scene
             Some(p) => format!("{p}.{name}"),
             None => name.to_string(),
         };
+        // A field of a shape this table does not allow (a half-space rigid body, a mesh
+        // emitter): the shape is the error.
+        if let Some((shape_field, message, hint)) = doc
+            .as_ref()
+            .and_then(|d| shape_not_allowed(d, &field, name))
+        {
+            return SceneError {
+                origin: origin.to_string(),
+                line,
+                column,
+                field: Some(shape_field),
+                message,
+                hint: Some(hint),
+            };
+        }
         (
             Some(field),
             "remove the field or fix its spelling (the fields are listed in docs/scene-format.md)"
