@@ -68,24 +68,6 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// What this scene allows but probably gets wrong, one line each, for `rtmpm check` and
-    /// `rtmpm run` to print: dynamic rigid bodies that can hang in a fluid they are denser than
-    /// ([`rtmpm_rigid::resolution_warnings`]), emitters that emit nothing or pile up, rigid
-    /// bodies thinner than a cell or leaving the domain, boundaries faster than a fixed step.
-    // `Real` is f64 in the f64 build of this crate.
-    #[allow(clippy::unnecessary_cast)]
-    pub fn warnings(&self) -> Vec<String> {
-        let fluids: Vec<(&str, f32)> = self
-            .materials
-            .iter()
-            .filter(|m| matches!(m.model, rtmpm_physics::material::Model::Fluid(_)))
-            .map(|m| (m.name.as_str(), m.density as f32))
-            .collect();
-        let mut out = rtmpm_rigid::resolution_warnings(&self.rigid_bodies, &fluids, self.dx);
-        out.extend(crate::warnings::scene_warnings(self));
-        out
-    }
-
     /// The files the scene read with their hashes, as a checkpoint stores them.
     pub fn file_hashes(&self) -> Vec<rtmpm_io::checkpoint::FileHash> {
         self.files

@@ -11,7 +11,7 @@
 //! falling that far reaches), and as its own bound on the step, `|g| dt^2 <= cfl dx` (the
 //! displacement it adds in one step within a fraction of a cell).
 
-use crate::Scene;
+use crate::scene::{Body, Scene};
 use glam::Mat3;
 use rtmpm_geometry::{Collider, Shape};
 use rtmpm_physics::math::Vec3;
@@ -108,7 +108,7 @@ pub fn fall_speed(scene: &Scene) -> f64 {
 
 /// Largest initial speed (m/s) of a body's particles: its velocity, its spin times the extent
 /// of its bounding box, or its file's velocities.
-fn body_speed(b: &crate::Body) -> f64 {
+fn body_speed(b: &Body) -> f64 {
     let (lo, hi) = b.shape.bounds();
     let mut s = norm(b.velocity) + norm(b.angular_velocity) * norm(hi - lo);
     if let (Shape::Particles(p), true) = (&b.shape, b.file_velocity) {

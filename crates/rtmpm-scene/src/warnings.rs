@@ -1,15 +1,35 @@
 //! What a scene allows but probably gets wrong: legal values that do nothing, or that the run
 //! cannot follow. `rtmpm check`, `rtmpm run` and Python print them ([`Scene::warnings`]).
 
-use crate::Scene;
+use crate::scene::Scene;
 use crate::settings::StepMode;
 use glam::Mat3;
 use rtmpm_rigid::{JointKind, RigidKind};
 use std::f32::consts::PI;
 
+impl Scene {
+    /// What this scene allows but probably gets wrong, one line each, for `rtmpm check` and
+    /// `rtmpm run` to print: dynamic rigid bodies that can hang in a fluid they are denser than
+    /// ([`rtmpm_rigid::resolution_warnings`]), emitters that emit nothing or pile up, rigid
+    /// bodies thinner than a cell or leaving the domain, boundaries faster than a fixed step.
+    // `Real` is f64 in the f64 build of this crate.
+    #[allow(clippy::unnecessary_cast)]
+    pub fn warnings(&self) -> Vec<String> {
+        let fluids: Vec<(&str, f32)> = self
+            .materials
+            .iter()
+            .filter(|m| matches!(m.model, rtmpm_physics::material::Model::Fluid(_)))
+            .map(|m| (m.name.as_str(), m.density as f32))
+            .collect();
+        let mut out = rtmpm_rigid::resolution_warnings(&self.rigid_bodies, &fluids, self.dx);
+        out.extend(scene_warnings(self));
+        out
+    }
+}
+
 /// Every warning of `scene` besides the rigid bodies' resolution
-/// ([`crate::rigid::resolution_warnings`]), one line each, naming the field and the fix.
-pub(super) fn scene_warnings(scene: &Scene) -> Vec<String> {
+/// ([`rtmpm_rigid::resolution_warnings`]), one line each, naming the field and the fix.
+fn scene_warnings(scene: &Scene) -> Vec<String> {
     let mut out = Vec::new();
     emitters(scene, &mut out);
     rigid_bodies(scene, &mut out);
@@ -139,7 +159,7 @@ fn fixed_step(scene: &Scene, out: &mut Vec<String>) {
 
 #[cfg(test)]
 mod tests {
-    use crate::Scene;
+    use crate::scene::Scene;
 
     fn scene(time: &str, extra: &str) -> Scene {
         let text = format!(
