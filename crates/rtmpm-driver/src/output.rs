@@ -299,16 +299,12 @@ impl FrameOutput {
     /// The columns the streamed formats of `scene` copy from the backend (what a frame
     /// buffer holds per particle).
     pub fn stream_columns(scene: &Scene) -> rtmpm_io::chunks::FrameColumns {
-        let o = &scene.output;
-        let mut formats = Vec::new();
-        if o.ply {
-            formats.push(StreamFormat::Ply {
-                comments: Vec::new(),
-            });
-        }
-        if o.bgeo || o.bgeo_gz {
-            formats.push(StreamFormat::Bgeo { gzip: o.bgeo_gz });
-        }
+        let formats: Vec<StreamFormat> = scene
+            .output
+            .formats
+            .iter()
+            .filter_map(|f| StreamFormat::new(f, Vec::new()))
+            .collect();
         rtmpm_io::stream::FrameFiles::columns(&formats, derived_fields(scene))
     }
 
