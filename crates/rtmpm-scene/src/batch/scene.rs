@@ -252,6 +252,10 @@ fn sum_budgets(each: &[Budget]) -> Budget {
         steps: 0,
         dt: 0.0,
         dt_reason: String::new(),
+        dt_fix: String::new(),
+        min_dt: None,
+        emitter_particles: Vec::new(),
+        resumed_particles: 0,
         output_bytes: 0,
         host_bytes: 0,
         gpu_bytes: 0,
@@ -270,6 +274,8 @@ fn sum_budgets(each: &[Budget]) -> Budget {
             total.steps = b.steps;
             total.dt = b.dt;
             total.dt_reason = b.dt_reason.clone();
+            total.dt_fix = b.dt_fix.clone();
+            total.min_dt = b.min_dt;
         }
     }
     total
