@@ -143,7 +143,9 @@ impl Scene {
             let field = match &b.shape {
                 Shape::Particles(_)
                     if b.file_velocity
-                        && b.velocity == Vec3::ZERO && b.angular_velocity == Vec3::ZERO => {
+                        && b.velocity == Vec3::ZERO
+                        && b.angular_velocity == Vec3::ZERO =>
+                {
                     format!("body[{i}].file")
                 }
                 _ => motion_field(
