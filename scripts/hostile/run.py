@@ -660,7 +660,7 @@ def newer_feature_cases(S, run, rigid):
         ("rigid body thinner than a cell", GOOD_SCENE + rigid_body_tail(rigid.replace("max = [0.36, 0.36, 0.36]", "max = [0.36, 0.301, 0.36]")),
          [("rigid_body[0]",), ("thick",)], True),
         ("half-space rigid body", GOOD_SCENE + rigid_body_tail(rigid.replace(box, '"half_space"\npoint = [0.0, 0.1, 0.0]\nnormal = [0.0, 1.0, 0.0]')),
-         [("rigid_body[0]",), ("half_space",)], False),
+         [("rigid_body[0]",), ("half_space", "half-space")], False),
         ("joint limits of three values", GOOD_SCENE + rigid_body_tail(
             rigid + '[[joint]]\ntype = "revolute"\nbody = 0\nanchor = [0.3, 0.36, 0.3]\naxis = [0.0, 0.0, 1.0]\nlimits = [0.0, 1.0, 2.0]\n'),
          [("joint[0].limits",)], False),
@@ -849,6 +849,7 @@ def main():
                 c.setup(w)
         except Exception as e:  # a setup failure is a bug of this script, not of rtmpm
             rows.append((c.name, "setup-failed", 0, f"{e}"))
+            print(f"{'setup-failed':9} {0:6.2f}s  {c.name}: {e}", flush=True)
             continue
         before = {k: tree_hash(w / k) for k in c.keep}
         args = [s.replace("{W}", str(w)) for s in c.args]
