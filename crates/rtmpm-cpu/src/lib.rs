@@ -27,9 +27,9 @@ pub mod p2g;
 pub mod rebuild;
 mod state;
 mod step;
-// Written for f32 (step constants and particles built by hand); the f64 package is checked
-// against this one by its tests/precision.rs.
-#[cfg(all(test, not(feature = "f64")))]
+// Run in both precisions (`cargo test -p rtmpm-cpu -p rtmpm-cpu-f64`; CI checks it test by test,
+// scripts/check_f64_tests.py).
+#[cfg(test)]
 mod tests;
 
 pub use collider::Collider;

@@ -1,26 +1,35 @@
-//! Tests of the CPU reference backend on hand-built states.
+//! Tests of the CPU reference backend on hand-built states. They run in both precisions: the
+//! package `rtmpm-cpu` compiles them with `Real = f32`, `rtmpm-cpu-f64` with `Real = f64`. The
+//! particles go in and come out through the backend interface, in f32 ([`Particles`], glam's
+//! `Vec3`/`Mat3`), whatever the precision of the step; what a test reads of the backend's own
+//! state (grid nodes, the particles in storage) is in [`Real`].
 
 mod steer;
 
 use crate::state::{CpuBackend, GRID_PAD, StepConstants};
 use crate::{p2g, rebuild};
-use physics::Particles;
+use glam::{IVec3, Mat3, Vec3};
 use physics::boundary::{BoundaryRule, Condition, Walls};
 use physics::material::{FixedCorotated, Material, Model};
-use physics::math::{IVec3, Mat3, Vec3};
+use physics::math::Real;
+use physics::real::{self, ToReal};
 use physics::transfer::{SolverSettings, Transfer, Update};
-use rtmpm_sim::Backend;
+use rtmpm_sim::{Backend, Particles};
 
+/// Grid spacing of every test scene (m): the unit cube in 32 cells.
+pub(super) const DX: f32 = 1.0 / 32.0;
+
+/// The step constants of the unit cube at [`DX`] with `walls` cells of separating walls.
 pub(super) fn consts(materials: Vec<Material>, walls: u32, gravity: Vec3) -> StepConstants {
-    let dx = 1.0 / 32.0;
+    let dx = real::real(DX);
     StepConstants {
         dx,
         inv_dx: 1.0 / dx,
-        origin: Vec3::splat(-(GRID_PAD as f32) * dx),
-        domain_min: Vec3::ZERO,
-        domain_max: Vec3::ONE,
+        origin: real::vec3(grid_origin()),
+        domain_min: real::vec3(Vec3::ZERO),
+        domain_max: real::vec3(Vec3::ONE),
         n_cells: [32; 3],
-        gravity,
+        gravity: real::vec3(gravity),
         walls: Walls {
             thickness: walls,
             faces: [BoundaryRule {
@@ -34,6 +43,16 @@ pub(super) fn consts(materials: Vec<Material>, walls: u32, gravity: Vec3) -> Ste
         materials,
         solver: Default::default(),
     }
+}
+
+/// World position of grid node (0, 0, 0) in the scenes of [`consts`], in f32.
+fn grid_origin() -> Vec3 {
+    Vec3::splat(-(GRID_PAD as f32) * DX)
+}
+
+/// Frobenius norm of an f32 matrix.
+fn norm(m: Mat3) -> f32 {
+    m.to_cols_array().iter().map(|x| x * x).sum::<f32>().sqrt()
 }
 
 pub(super) fn jelly() -> Material {
@@ -99,7 +118,7 @@ fn scrambled(mut p: Particles) -> Particles {
 fn p2g_conserves_mass_linear_and_angular_momentum() {
     let c = consts(vec![jelly()], 0, Vec3::ZERO);
     let dx = c.dx;
-    let p = scrambled(block(Vec3::splat(0.3), Vec3::splat(0.5), dx, 0, 1000.0));
+    let p = scrambled(block(Vec3::splat(0.3), Vec3::splat(0.5), DX, 0, 1000.0));
     let mut b = CpuBackend::from_constants(c, p.clone(), Some(2)).expect("backend");
     rebuild::rebuild(&mut b);
     p2g::p2g(&mut b, 1e-4);
@@ -113,9 +132,9 @@ fn p2g_conserves_mass_linear_and_angular_momentum() {
                     (cell >> 2 & 3) as i32,
                     (cell & 3) as i32,
                 );
-            let xi = b.consts.origin + idx.as_vec3() * dx;
+            let xi = b.consts.origin + idx.to_real() * dx;
             gm += n[0] as f64;
-            let mom = Vec3::new(n[1], n[2], n[3]);
+            let mom = physics::math::Vec3::new(n[1], n[2], n[3]);
             let l = xi.cross(mom);
             for a in 0..3 {
                 gp[a] += mom[a] as f64;
@@ -127,7 +146,7 @@ fn p2g_conserves_mass_linear_and_angular_momentum() {
     let pp = p.momentum();
     // Particle angular momentum with the APIC term (Jiang et al. 2015, eq. 15):
     // L = sum x_p x m_p v_p + m_p D : eps(C), D = dx^2/4 I for quadratic B-splines.
-    let d = dx * dx / 4.0;
+    let d = DX * DX / 4.0;
     let mut pl = [0.0f64; 3];
     for i in 0..p.len() {
         let m = p.mass[i];
@@ -169,7 +188,7 @@ fn rigid_rotation_is_transferred_exactly() {
     // APIC keeps affine velocity fields: a rigidly spinning body (v = w x r, C = [w]x) comes back
     // unchanged after P2G + G2P with no forces.
     let c = consts(vec![jelly()], 0, Vec3::ZERO);
-    let mut p = block(Vec3::splat(0.4), Vec3::splat(0.6), c.dx, 0, 1000.0);
+    let mut p = block(Vec3::splat(0.4), Vec3::splat(0.6), DX, 0, 1000.0);
     let w = Vec3::new(0.3, -0.5, 0.8);
     let centre = Vec3::splat(0.5);
     let wx = Mat3::from_cols(
@@ -191,11 +210,7 @@ fn rigid_rotation_is_transferred_exactly() {
             "v of particle {i}"
         );
         let dc = after.c[i] - before.c[i];
-        assert!(
-            physics::math::norm2(dc).sqrt() < 1e-3,
-            "C of particle {i}: {:?}",
-            after.c[i]
-        );
+        assert!(norm(dc) < 1e-3, "C of particle {i}: {:?}", after.c[i]);
     }
 }
 
@@ -206,7 +221,7 @@ fn free_fall_matches_x0_minus_half_g_t_squared() {
     let p = block(
         Vec3::new(0.4, 0.7, 0.4),
         Vec3::new(0.5, 0.8, 0.5),
-        c.dx,
+        DX,
         0,
         1000.0,
     );
@@ -230,25 +245,23 @@ fn free_fall_matches_x0_minus_half_g_t_squared() {
         );
         assert!((p.v[i] - g * t).length() < 1e-3, "velocity {}", p.v[i]);
         let df = p.f[i] - Mat3::IDENTITY;
-        assert!(
-            physics::math::norm2(df).sqrt() < 1e-4,
-            "no deformation in free fall"
-        );
+        assert!(norm(df) < 1e-4, "no deformation in free fall");
     }
 }
 
-fn dam(threads: usize) -> Particles {
+/// Water and a jelly block in a walled box after 40 steps on `threads` threads.
+fn dam(threads: usize) -> CpuBackend {
     dam_with(threads, SolverSettings::default())
 }
 
-fn dam_with(threads: usize, solver: SolverSettings) -> Particles {
+fn dam_with(threads: usize, solver: SolverSettings) -> CpuBackend {
     let mut c = consts(vec![water(), jelly()], 3, Vec3::new(0.0, -9.8, 0.0));
     c.solver = solver;
-    let mut p = block(Vec3::splat(0.1), Vec3::new(0.4, 0.6, 0.5), c.dx, 0, 1000.0);
+    let mut p = block(Vec3::splat(0.1), Vec3::new(0.4, 0.6, 0.5), DX, 0, 1000.0);
     p.extend(&block(
         Vec3::new(0.6, 0.1, 0.3),
         Vec3::new(0.8, 0.3, 0.5),
-        c.dx,
+        DX,
         1,
         1000.0,
     ));
@@ -256,23 +269,30 @@ fn dam_with(threads: usize, solver: SolverSettings) -> Particles {
     for s in 0..40 {
         b.step(2e-4, s as f32 * 2e-4).expect("step");
     }
-    read(&mut b)
+    b
 }
 
-/// Raw bits of a particle state, for bit-for-bit comparisons.
-fn bits(p: &Particles) -> Vec<u32> {
-    p.x.iter()
-        .flat_map(|v| v.to_array())
-        .chain(p.v.iter().flat_map(|v| v.to_array()))
-        .chain(p.c.iter().flat_map(|m| m.to_cols_array()))
-        .chain(p.f.iter().flat_map(|m| m.to_cols_array()))
-        .map(f32::to_bits)
+/// Raw bits of the backend's particle state in its precision (x, v, C, F), in original order,
+/// for bit-for-bit comparisons.
+fn bits(b: &CpuBackend) -> Vec<u64> {
+    let mut order: Vec<usize> = (0..b.ids.len()).collect();
+    order.sort_by_key(|&i| b.ids[i]);
+    let p = &b.particles;
+    let words = |i: usize| {
+        let vectors = [p.x[i], p.v[i]].into_iter().flat_map(|v| v.to_array());
+        let matrices = [p.c[i], p.f[i]].into_iter().flat_map(|m| m.to_cols_array());
+        vectors.chain(matrices).collect::<Vec<Real>>()
+    };
+    order
+        .into_iter()
+        .flat_map(words)
+        .map(|x| x.to_bits() as u64)
         .collect()
 }
 
 #[test]
 fn deterministic_across_thread_counts() {
-    let one = dam(1);
+    let mut one = dam(1);
     for threads in [2, 3] {
         let many = dam(threads);
         // Bit for bit: compare the raw bits, not within a tolerance.
@@ -282,7 +302,7 @@ fn deterministic_across_thread_counts() {
         );
     }
     assert!(
-        one.v.iter().any(|v| v.length() > 0.01),
+        read(&mut one).v.iter().any(|v| v.length() > 0.01),
         "the scene actually moved"
     );
 }
@@ -290,7 +310,7 @@ fn deterministic_across_thread_counts() {
 #[test]
 fn blowup_is_reported_with_the_particle() {
     let c = consts(vec![jelly()], 3, Vec3::ZERO);
-    let mut p = block(Vec3::splat(0.4), Vec3::splat(0.5), c.dx, 0, 1000.0);
+    let mut p = block(Vec3::splat(0.4), Vec3::splat(0.5), DX, 0, 1000.0);
     p.v[5] = Vec3::new(f32::NAN, 0.0, 0.0);
     let mut b = CpuBackend::from_constants(c, p, Some(1)).expect("backend");
     b.step(1e-4, 0.0).expect("step");
@@ -321,12 +341,12 @@ fn classic_transfers_are_deterministic_across_thread_counts() {
         solver(Transfer::Gimp, Update::Musl, 0.9),
         solver(Transfer::MpmLinear, Update::Usl, 1.0),
     ] {
-        let one = dam_with(1, s);
+        let mut one = dam_with(1, s);
         assert!(
             bits(&one) == bits(&dam_with(3, s)),
             "{s:?}: 3 threads differ"
         );
-        assert!(one.v.iter().any(|v| v.length() > 0.01), "moved");
+        assert!(read(&mut one).v.iter().any(|v| v.length() > 0.01), "moved");
         // And they are not the MLS transfer.
         assert!(bits(&one) != bits(&dam(1)));
     }
@@ -340,7 +360,7 @@ fn classic_p2g_conserves_momentum_and_internal_forces_balance() {
         let mut c = consts(vec![jelly()], 0, Vec3::ZERO);
         c.solver = solver(t, Update::Usl, 1.0);
         let dx = c.dx;
-        let p = scrambled(block(Vec3::splat(0.3), Vec3::splat(0.5), dx, 0, 1000.0));
+        let p = scrambled(block(Vec3::splat(0.3), Vec3::splat(0.5), DX, 0, 1000.0));
         let mut b = CpuBackend::from_constants(c, p.clone(), Some(2)).expect("backend");
         rebuild::rebuild(&mut b);
         p2g::p2g_mpm(&mut b, 1e-3);
@@ -354,7 +374,7 @@ fn classic_p2g_conserves_momentum_and_internal_forces_balance() {
                         (cell >> 2 & 3) as i32,
                         (cell & 3) as i32,
                     );
-                let xi = b.consts.origin + idx.as_vec3() * dx;
+                let xi = b.consts.origin + idx.to_real() * dx;
                 let a = b.grid_aux[id * 64 + cell];
                 let moment = xi.cross(a);
                 gm += n[0] as f64;
@@ -397,7 +417,7 @@ fn spinning_energy_ratios(s: SolverSettings, stiff: bool, steps: usize) -> (f64,
     }
     c.solver = s;
     let model = c.materials[0].model.clone();
-    let mut p = block(Vec3::splat(0.4), Vec3::splat(0.6), c.dx, 0, 1000.0);
+    let mut p = block(Vec3::splat(0.4), Vec3::splat(0.6), DX, 0, 1000.0);
     let w = Vec3::new(0.0, 0.0, 2.0);
     for i in 0..p.len() {
         p.v[i] = w.cross(p.x[i] - Vec3::splat(0.5));
@@ -416,7 +436,10 @@ fn spinning_energy_ratios(s: SolverSettings, stiff: bool, steps: usize) -> (f64,
     }
     let p = read(&mut b);
     let strain: f64 = (0..p.len())
-        .map(|i| p.vol0[i] as f64 * model.energy_density(p.f[i]).expect("elastic") as f64)
+        .map(|i| {
+            let psi = model.energy_density(real::mat3(p.f[i])).expect("elastic");
+            p.vol0[i] as f64 * psi as f64
+        })
         .sum();
     (ke(&p) / ke0, (ke(&p) + strain) / ke0)
 }
@@ -458,9 +481,9 @@ fn musl_removes_the_small_mass_node_velocity_of_usl() {
         let mut c = consts(vec![jelly()], 0, Vec3::ZERO);
         c.solver = solver(Transfer::MpmLinear, u, 1.0);
         let mut p = Particles::default();
-        let h = c.dx;
+        let h = DX;
         let xg = Vec3::new(10.999, 10.5, 10.5); // grid coordinate: fx.x = 0.999 - 0.5 + 0.5
-        let x = c.origin + xg * h;
+        let x = grid_origin() + xg * h;
         p.push(
             x,
             Vec3::ZERO,
@@ -476,7 +499,7 @@ fn musl_removes_the_small_mass_node_velocity_of_usl() {
     };
     let f0 = Mat3::from_diagonal(Vec3::new(1.01, 1.0, 1.0));
     let (usl, musl) = (run(Update::Usl), run(Update::Musl));
-    let d = |f: Mat3| physics::math::norm2(f - f0).sqrt();
+    let d = |f: Mat3| norm(f - f0);
     assert!(d(musl) < 1e-6, "MUSL changed F: {musl:?}");
     assert!(d(usl) > 1e-3, "USL kept F: {usl:?}");
 }

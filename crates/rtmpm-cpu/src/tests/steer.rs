@@ -1,12 +1,11 @@
 //! Tests of steering a running CPU backend: the user's tool and gravity changed mid-run.
 
-use super::{block, consts, jelly, read};
+use super::{DX, block, consts, jelly, read};
 use crate::state::CpuBackend;
-use physics::Particles;
+use glam::Vec3;
 use physics::material::Material;
-use physics::math::Vec3;
 use rtmpm_geometry::{Tool, ToolShape};
-use rtmpm_sim::Backend;
+use rtmpm_sim::{Backend, Particles};
 
 fn sand() -> Material {
     Material::parse(
@@ -26,7 +25,7 @@ fn sweep(with_tool: bool, velocity: Vec3, start: Vec3) -> (Particles, Vec3) {
     let p = block(
         Vec3::new(0.35, 0.1, 0.35),
         Vec3::new(0.65, 0.25, 0.65),
-        c.dx,
+        DX,
         0,
         1600.0,
     );
@@ -69,7 +68,7 @@ fn a_ball_tool_pushed_through_sand_clears_its_path_and_pushes_the_sand() {
     // The ball ends 0.18 m deep in the block. The rule acts on grid nodes, so sand stays
     // out of the ball less a cell (measured at this spacing: 0 particles with the tool, 26
     // without); within half a cell of its surface some remain (10 against 97 without).
-    let dx = 1.0 / 32.0;
+    let dx = DX;
     let (core_free, core_pushed) = (
         inside(&free, end, 0.06 - dx),
         inside(&pushed, end, 0.06 - dx),
@@ -110,7 +109,7 @@ fn gravity_changed_mid_run_changes_the_fall() {
     let p = block(
         Vec3::new(0.4, 0.6, 0.4),
         Vec3::new(0.5, 0.7, 0.5),
-        c.dx,
+        DX,
         0,
         1000.0,
     );
@@ -130,7 +129,7 @@ fn gravity_changed_mid_run_changes_the_fall() {
 #[test]
 fn bad_tools_and_gravity_are_refused_and_no_tool_clears_it() {
     let c = consts(vec![jelly()], 3, Vec3::ZERO);
-    let p = block(Vec3::splat(0.4), Vec3::splat(0.5), c.dx, 0, 1000.0);
+    let p = block(Vec3::splat(0.4), Vec3::splat(0.5), DX, 0, 1000.0);
     let mut b = CpuBackend::from_constants(c, p, Some(1)).expect("backend");
     let e = b.set_gravity(Vec3::new(0.0, f32::NAN, 0.0)).unwrap_err();
     assert!(e.to_string().contains("finite"), "{e}");
