@@ -598,5 +598,4 @@ fn parse_bgeo(bytes: &[u8]) -> Result<BgeoData, BgeoError> {
 }
 
 #[cfg(test)]
-#[path = "bgeo_tests.rs"]
 pub(crate) mod tests;

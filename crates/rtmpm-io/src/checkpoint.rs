@@ -519,5 +519,4 @@ impl Reader<'_> {
 }
 
 #[cfg(test)]
-#[path = "checkpoint_tests.rs"]
 mod tests;

@@ -564,5 +564,4 @@ pub fn parse_ply(bytes: &[u8]) -> Result<PlyData, PlyError> {
 }
 
 #[cfg(test)]
-#[path = "ply_tests.rs"]
 mod tests;

@@ -286,12 +286,10 @@ pub fn write_particles_vtu(
     )
 }
 
-#[path = "vtk_appended_read.rs"]
 mod read;
 pub use read::read_appended_vtu;
 
 #[cfg(test)]
-#[path = "vtk_appended_tests.rs"]
 mod tests;
 
 /// Read a `.vtu` file whether its arrays are appended (this module's format, ParaView's

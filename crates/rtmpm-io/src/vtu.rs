@@ -585,5 +585,4 @@ pub fn parse_pvd(text: &str) -> Result<Vec<(f64, String)>, VtuError> {
 }
 
 #[cfg(test)]
-#[path = "vtu_tests.rs"]
 mod tests;
