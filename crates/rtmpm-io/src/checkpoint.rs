@@ -326,41 +326,9 @@ impl Checkpoint {
 
     /// Decode a checkpoint from its file content.
     pub fn from_bytes(bytes: &[u8]) -> Result<Checkpoint, CheckpointError> {
-        if bytes.len() < MAGIC.len() || bytes[..MAGIC.len()] != MAGIC {
-            return Err(CheckpointError::BadMagic);
-        }
-        if bytes.len() < HEADER_LEN {
-            return Err(CheckpointError::Truncated {
-                expected: (HEADER_LEN + CHECKSUM_LEN) as u64,
-                found: bytes.len() as u64,
-            });
-        }
-        let version = u32::from_le_bytes(bytes[8..12].try_into().unwrap());
-        if !(1..=VERSION).contains(&version) {
-            return Err(CheckpointError::UnsupportedVersion {
-                found: version,
-                expected: VERSION,
-            });
-        }
-        let payload_len = u64::from_le_bytes(bytes[16..24].try_into().unwrap());
-        let expected = payload_len.saturating_add((HEADER_LEN + CHECKSUM_LEN) as u64);
-        if bytes.len() as u64 != expected {
-            return Err(CheckpointError::Truncated {
-                expected,
-                found: bytes.len() as u64,
-            });
-        }
-        let body_end = bytes.len() - CHECKSUM_LEN;
-        let stored = u64::from_le_bytes(bytes[body_end..].try_into().unwrap());
-        let mut h = Fnv1a64::default();
-        h.update(&bytes[..body_end]);
-        let computed = h.finish();
-        if stored != computed {
-            return Err(CheckpointError::ChecksumMismatch { stored, computed });
-        }
-
+        let (version, payload) = verified_payload(bytes)?;
         let mut r = Reader {
-            bytes: &bytes[HEADER_LEN..body_end],
+            bytes: payload,
             pos: 0,
         };
         let scene_toml = r.string("scene_toml")?;
@@ -368,84 +336,17 @@ impl Checkpoint {
         let time = f64::from_bits(r.u64()?);
         let step = r.u64()?;
         let frame = r.u64()?;
-        let mut bodies = Vec::new();
-        if version >= 2 {
-            let count = r.u64()?;
-            let left = (r.bytes.len() - r.pos) as u64;
-            if count.saturating_mul((4 * WORDS_PER_BODY) as u64) > left {
-                return Err(CheckpointError::Malformed(format!(
-                    "{count} rigid bodies do not fit the {left} bytes left"
-                )));
-            }
-            let words = r.words(WORDS_PER_BODY * count as usize)?;
-            for (i, w) in words.chunks_exact(WORDS_PER_BODY).enumerate() {
-                let f = |k: usize| f32::from_bits(w[k]);
-                let b = BodyPose {
-                    position: Vec3::new(f(0), f(1), f(2)),
-                    rotation: glam::Quat::from_xyzw(f(3), f(4), f(5), f(6)),
-                    velocity: Vec3::new(f(7), f(8), f(9)),
-                    angular_velocity: Vec3::new(f(10), f(11), f(12)),
-                };
-                if let Some(why) = b.problem() {
-                    return Err(CheckpointError::BadValue(format!(
-                        "rigid body {i} (rigid_body[{i}] of the scene): {why}"
-                    )));
-                }
-                bodies.push(b);
-            }
-        }
-        let mut files = Vec::new();
-        if version >= 3 {
-            let count = r.u64()?;
-            // At least 24 bytes each (two lengths and the hash).
-            let left = (r.bytes.len() - r.pos) as u64;
-            if count.saturating_mul(24) > left {
-                return Err(CheckpointError::Malformed(format!(
-                    "{count} file hashes do not fit the {left} bytes left"
-                )));
-            }
-            for _ in 0..count {
-                let field = r.string("file field")?;
-                let path = r.string("file path")?;
-                let hash = r.u64()?;
-                files.push(FileHash { field, path, hash });
-            }
-        }
-        let n = r.u64()?;
-        let remaining = (r.bytes.len() - r.pos) as u64;
-        if n.checked_mul(BYTES_PER_PARTICLE) != Some(remaining) {
-            return Err(CheckpointError::Malformed(format!(
-                "{n} particles do not match the {remaining} bytes of particle data"
-            )));
-        }
-        let n = n as usize;
-        let x = r.words(3 * n)?;
-        let v = r.words(3 * n)?;
-        let c = r.words(9 * n)?;
-        let f = r.words(9 * n)?;
-        let vec3 = |w: Vec<u32>| -> Vec<Vec3> {
-            w.chunks_exact(3)
-                .map(|c| {
-                    Vec3::new(
-                        f32::from_bits(c[0]),
-                        f32::from_bits(c[1]),
-                        f32::from_bits(c[2]),
-                    )
-                })
-                .collect()
+        let bodies = if version >= 2 {
+            r.bodies()?
+        } else {
+            Vec::new()
         };
-        let mat3 = |w: Vec<u32>| -> Vec<Mat3> {
-            w.chunks_exact(9)
-                .map(|c| {
-                    let mut a = [0f32; 9];
-                    for (d, s) in a.iter_mut().zip(c) {
-                        *d = f32::from_bits(*s);
-                    }
-                    Mat3::from_cols_array(&a)
-                })
-                .collect()
+        let files = if version >= 3 {
+            r.file_hashes()?
+        } else {
+            Vec::new()
         };
-        let floats = |w: Vec<u32>| -> Vec<f32> { w.into_iter().map(f32::from_bits).collect() };
+        let particles = r.particles()?;
         if !(time.is_finite() && time >= 0.0) {
             return Err(CheckpointError::BadValue(format!(
                 "the time {time} is not a finite number >= 0"
@@ -456,16 +357,6 @@ impl Checkpoint {
                 "frame {frame} is after step {step} (every frame takes at least one step)"
             )));
         }
-        let particles = Particles {
-            x: vec3(x),
-            v: vec3(v),
-            c: mat3(c),
-            f: mat3(f),
-            plastic: floats(r.words(n)?),
-            mass: floats(r.words(n)?),
-            vol0: floats(r.words(n)?),
-            material: r.words(n)?,
-        };
         check_particle_values(&particles).map_err(|e| CheckpointError::BadValue(e.to_string()))?;
         Ok(Checkpoint {
             scene_toml,
@@ -478,6 +369,44 @@ impl Checkpoint {
             particles,
         })
     }
+}
+
+/// The version and the payload of a checkpoint file's content, after its framing is checked:
+/// the magic bytes, a version this build reads, the length the header gives and the checksum.
+fn verified_payload(bytes: &[u8]) -> Result<(u32, &[u8]), CheckpointError> {
+    if bytes.len() < MAGIC.len() || bytes[..MAGIC.len()] != MAGIC {
+        return Err(CheckpointError::BadMagic);
+    }
+    if bytes.len() < HEADER_LEN {
+        return Err(CheckpointError::Truncated {
+            expected: (HEADER_LEN + CHECKSUM_LEN) as u64,
+            found: bytes.len() as u64,
+        });
+    }
+    let version = u32::from_le_bytes(bytes[8..12].try_into().unwrap());
+    if !(1..=VERSION).contains(&version) {
+        return Err(CheckpointError::UnsupportedVersion {
+            found: version,
+            expected: VERSION,
+        });
+    }
+    let payload_len = u64::from_le_bytes(bytes[16..24].try_into().unwrap());
+    let expected = payload_len.saturating_add((HEADER_LEN + CHECKSUM_LEN) as u64);
+    if bytes.len() as u64 != expected {
+        return Err(CheckpointError::Truncated {
+            expected,
+            found: bytes.len() as u64,
+        });
+    }
+    let body_end = bytes.len() - CHECKSUM_LEN;
+    let stored = u64::from_le_bytes(bytes[body_end..].try_into().unwrap());
+    let mut h = Fnv1a64::default();
+    h.update(&bytes[..body_end]);
+    let computed = h.finish();
+    if stored != computed {
+        return Err(CheckpointError::ChecksumMismatch { stored, computed });
+    }
+    Ok((version, &bytes[HEADER_LEN..body_end]))
 }
 
 /// Bounds-checked little-endian reader over the payload.
@@ -515,6 +444,103 @@ impl Reader<'_> {
         Ok(b.chunks_exact(4)
             .map(|c| u32::from_le_bytes(c.try_into().unwrap()))
             .collect())
+    }
+
+    /// The rigid bodies' poses (version 2 on): a count, then [`WORDS_PER_BODY`] words each;
+    /// every pose checked.
+    fn bodies(&mut self) -> Result<Vec<BodyPose>, CheckpointError> {
+        let count = self.u64()?;
+        let left = (self.bytes.len() - self.pos) as u64;
+        if count.saturating_mul((4 * WORDS_PER_BODY) as u64) > left {
+            return Err(CheckpointError::Malformed(format!(
+                "{count} rigid bodies do not fit the {left} bytes left"
+            )));
+        }
+        let words = self.words(WORDS_PER_BODY * count as usize)?;
+        let mut bodies = Vec::new();
+        for (i, w) in words.chunks_exact(WORDS_PER_BODY).enumerate() {
+            let f = |k: usize| f32::from_bits(w[k]);
+            let b = BodyPose {
+                position: Vec3::new(f(0), f(1), f(2)),
+                rotation: glam::Quat::from_xyzw(f(3), f(4), f(5), f(6)),
+                velocity: Vec3::new(f(7), f(8), f(9)),
+                angular_velocity: Vec3::new(f(10), f(11), f(12)),
+            };
+            if let Some(why) = b.problem() {
+                return Err(CheckpointError::BadValue(format!(
+                    "rigid body {i} (rigid_body[{i}] of the scene): {why}"
+                )));
+            }
+            bodies.push(b);
+        }
+        Ok(bodies)
+    }
+
+    /// The hashes of the files the scene read (version 3 on): a count, then the field, the path
+    /// and the hash of each.
+    fn file_hashes(&mut self) -> Result<Vec<FileHash>, CheckpointError> {
+        let count = self.u64()?;
+        // At least 24 bytes each (two lengths and the hash).
+        let left = (self.bytes.len() - self.pos) as u64;
+        if count.saturating_mul(24) > left {
+            return Err(CheckpointError::Malformed(format!(
+                "{count} file hashes do not fit the {left} bytes left"
+            )));
+        }
+        let mut files = Vec::new();
+        for _ in 0..count {
+            let field = self.string("file field")?;
+            let path = self.string("file path")?;
+            let hash = self.u64()?;
+            files.push(FileHash { field, path, hash });
+        }
+        Ok(files)
+    }
+
+    /// The particles, which fill the rest of the payload: a count, then each field's column
+    /// (x, v, C, F, plastic, mass, vol0, material) as f32 bits or integers.
+    fn particles(&mut self) -> Result<Particles, CheckpointError> {
+        let n = self.u64()?;
+        let remaining = (self.bytes.len() - self.pos) as u64;
+        if n.checked_mul(BYTES_PER_PARTICLE) != Some(remaining) {
+            return Err(CheckpointError::Malformed(format!(
+                "{n} particles do not match the {remaining} bytes of particle data"
+            )));
+        }
+        let n = n as usize;
+        let vec3 = |w: Vec<u32>| -> Vec<Vec3> {
+            w.chunks_exact(3)
+                .map(|c| {
+                    Vec3::new(
+                        f32::from_bits(c[0]),
+                        f32::from_bits(c[1]),
+                        f32::from_bits(c[2]),
+                    )
+                })
+                .collect()
+        };
+        let mat3 = |w: Vec<u32>| -> Vec<Mat3> {
+            w.chunks_exact(9)
+                .map(|c| {
+                    let mut a = [0f32; 9];
+                    for (d, s) in a.iter_mut().zip(c) {
+                        *d = f32::from_bits(*s);
+                    }
+                    Mat3::from_cols_array(&a)
+                })
+                .collect()
+        };
+        let floats = |w: Vec<u32>| -> Vec<f32> { w.into_iter().map(f32::from_bits).collect() };
+        Ok(Particles {
+            x: vec3(self.words(3 * n)?),
+            v: vec3(self.words(3 * n)?),
+            c: mat3(self.words(9 * n)?),
+            f: mat3(self.words(9 * n)?),
+            plastic: floats(self.words(n)?),
+            mass: floats(self.words(n)?),
+            vol0: floats(self.words(n)?),
+            material: self.words(n)?,
+        })
     }
 }
 

@@ -211,172 +211,10 @@ impl MeshSdf {
     pub fn build(mesh: &TriMesh, spacing: f32, margin: u32) -> MeshSdf {
         let (lo, hi) = mesh.bounds();
         let extent = (hi - lo).max(Vec3::splat(1e-6));
-        let margin = margin.max(1);
-        let mut h = if spacing.is_finite() && spacing > 0.0 {
-            spacing
-        } else {
-            extent.max_element() / 32.0
-        };
-        let max_cells = (MAX_DIM - 1 - 2 * margin) as f32;
-        h = h.max(extent.max_element() / max_cells);
-        let origin = lo - Vec3::splat(margin as f32 * h);
-        let dims = [0, 1, 2].map(|a| ((extent[a] / h).ceil() as u32 + 1 + 2 * margin).min(MAX_DIM));
-        let [nx, ny, nz] = dims.map(|d| d as usize);
-        let n = nx * ny * nz;
-        let idx = |i: usize, j: usize, k: usize| i + nx * (j + ny * k);
-        let pos =
-            |i: usize, j: usize, k: usize| origin + Vec3::new(i as f32, j as f32, k as f32) * h;
-
-        let mut dist = vec![f32::INFINITY; n];
-        let mut closest = vec![u32::MAX; n];
-
-        // 1. Narrow band of exact distances.
-        let band = 2.0 * h;
-        let to_index = |x: f32, a: usize, up: bool| -> usize {
-            let g = (x - origin[a]) / h;
-            let g = if up { g.ceil() } else { g.floor() };
-            (g.max(0.0) as usize).min(dims[a] as usize - 1)
-        };
-        for t in 0..mesh.triangles.len() {
-            let (a, b, c) = mesh.tri(t);
-            let tlo = a.min(b).min(c) - Vec3::splat(band);
-            let thi = a.max(b).max(c) + Vec3::splat(band);
-            let (i0, i1) = (to_index(tlo.x, 0, false), to_index(thi.x, 0, true));
-            let (j0, j1) = (to_index(tlo.y, 1, false), to_index(thi.y, 1, true));
-            let (k0, k1) = (to_index(tlo.z, 2, false), to_index(thi.z, 2, true));
-            for k in k0..=k1 {
-                for j in j0..=j1 {
-                    for i in i0..=i1 {
-                        let p = pos(i, j, k);
-                        let d = (p - closest_point_on_triangle(p, a, b, c)).length();
-                        let id = idx(i, j, k);
-                        if d < dist[id] {
-                            dist[id] = d;
-                            closest[id] = t as u32;
-                        }
-                    }
-                }
-            }
-        }
-
-        // 2. Propagate the closest triangle by sweeping in the 8 diagonal directions, twice.
-        for _ in 0..2 {
-            for dir in 0..8 {
-                let di: isize = if dir & 1 == 0 { 1 } else { -1 };
-                let dj: isize = if dir & 2 == 0 { 1 } else { -1 };
-                let dk: isize = if dir & 4 == 0 { 1 } else { -1 };
-                let range = |d: isize, len: usize| -> Vec<usize> {
-                    if d > 0 {
-                        (1..len).collect()
-                    } else {
-                        (0..len.saturating_sub(1)).rev().collect()
-                    }
-                };
-                let (ri, rj, rk) = (range(di, nx), range(dj, ny), range(dk, nz));
-                for &k in &rk {
-                    for &j in &rj {
-                        for &i in &ri {
-                            let p = pos(i, j, k);
-                            let id = idx(i, j, k);
-                            let (pi, pj, pk) = (
-                                (i as isize - di) as usize,
-                                (j as isize - dj) as usize,
-                                (k as isize - dk) as usize,
-                            );
-                            let neighbours = [
-                                idx(pi, j, k),
-                                idx(i, pj, k),
-                                idx(pi, pj, k),
-                                idx(i, j, pk),
-                                idx(pi, j, pk),
-                                idx(i, pj, pk),
-                                idx(pi, pj, pk),
-                            ];
-                            for nb in neighbours {
-                                let t = closest[nb];
-                                if t != u32::MAX && t != closest[id] {
-                                    let (a, b, c) = mesh.tri(t as usize);
-                                    let d = (p - closest_point_on_triangle(p, a, b, c)).length();
-                                    if d < dist[id] {
-                                        dist[id] = d;
-                                        closest[id] = t;
-                                    }
-                                }
-                            }
-                        }
-                    }
-                }
-            }
-        }
-
-        // 3. Sign: ray parity along each axis, majority vote.
-        let mut votes = vec![0u8; n];
-        for axis in 0..3 {
-            let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
-            let (nb, nc, na) = (dims[b] as usize, dims[c] as usize, dims[axis] as usize);
-            // Tiny fixed perturbation of the rays so they do not pass exactly through edges.
-            let eps_b = 1.234_567e-4 * h as f64;
-            let eps_c = 7.654_321e-5 * h as f64;
-            let mut hits: Vec<Vec<f64>> = vec![Vec::new(); nb * nc];
-            for t in 0..mesh.triangles.len() {
-                let (p0, p1, p2) = mesh.tri(t);
-                let v = [p0, p1, p2].map(|p| [p[axis] as f64, p[b] as f64, p[c] as f64]);
-                let lo_b = v.iter().map(|p| p[1]).fold(f64::INFINITY, f64::min);
-                let hi_b = v.iter().map(|p| p[1]).fold(f64::NEG_INFINITY, f64::max);
-                let lo_c = v.iter().map(|p| p[2]).fold(f64::INFINITY, f64::min);
-                let hi_c = v.iter().map(|p| p[2]).fold(f64::NEG_INFINITY, f64::max);
-                let gb = |x: f64, up: bool| {
-                    let g = (x - origin[b] as f64) / h as f64;
-                    let g = if up { g.ceil() } else { g.floor() };
-                    (g.max(0.0) as usize).min(nb - 1)
-                };
-                let gc = |x: f64, up: bool| {
-                    let g = (x - origin[c] as f64) / h as f64;
-                    let g = if up { g.ceil() } else { g.floor() };
-                    (g.max(0.0) as usize).min(nc - 1)
-                };
-                for jc in gc(lo_c, false)..=gc(hi_c, true) {
-                    let qc = origin[c] as f64 + jc as f64 * h as f64 + eps_c;
-                    for jb in gb(lo_b, false)..=gb(hi_b, true) {
-                        let qb = origin[b] as f64 + jb as f64 * h as f64 + eps_b;
-                        // 2D barycentric coordinates of (qb, qc) in the projected triangle.
-                        let w0 = orient(v[1][1], v[1][2], v[2][1], v[2][2], qb, qc);
-                        let w1 = orient(v[2][1], v[2][2], v[0][1], v[0][2], qb, qc);
-                        let w2 = orient(v[0][1], v[0][2], v[1][1], v[1][2], qb, qc);
-                        let inside = (w0 >= 0.0 && w1 >= 0.0 && w2 >= 0.0)
-                            || (w0 <= 0.0 && w1 <= 0.0 && w2 <= 0.0);
-                        let sum = w0 + w1 + w2;
-                        if inside && sum != 0.0 {
-                            let s = (w0 * v[0][0] + w1 * v[1][0] + w2 * v[2][0]) / sum;
-                            hits[jb + nb * jc].push(s);
-                        }
-                    }
-                }
-            }
-            for jc in 0..nc {
-                for jb in 0..nb {
-                    let line = &mut hits[jb + nb * jc];
-                    if line.is_empty() {
-                        continue;
-                    }
-                    line.sort_by(f64::total_cmp);
-                    let mut crossed = 0usize;
-                    for ia in 0..na {
-                        let x = origin[axis] as f64 + ia as f64 * h as f64;
-                        while crossed < line.len() && line[crossed] < x {
-                            crossed += 1;
-                        }
-                        if crossed % 2 == 1 {
-                            let mut g = [0usize; 3];
-                            g[axis] = ia;
-                            g[b] = jb;
-                            g[c] = jc;
-                            votes[idx(g[0], g[1], g[2])] += 1;
-                        }
-                    }
-                }
-            }
-        }
+        let lattice = Lattice::around(lo, extent, spacing, margin);
+        let (mut dist, mut closest) = lattice.narrow_band(mesh);
+        lattice.propagate(mesh, &mut dist, &mut closest);
+        let votes = lattice.inside_votes(mesh);
         let values = dist
             .iter()
             .zip(&votes)
@@ -386,9 +224,9 @@ impl MeshSdf {
             })
             .collect();
         MeshSdf {
-            origin,
-            spacing: h,
-            dims,
+            origin: lattice.origin,
+            spacing: lattice.h,
+            dims: lattice.dims,
             values,
             mesh_min: lo,
             mesh_max: hi,
@@ -477,6 +315,251 @@ impl MeshSdf {
             }
         }
         count as f32 * self.spacing.powi(3)
+    }
+}
+
+/// The grid points of a [`MeshSdf`] being built: `dims` points `h` apart from `origin`, x
+/// fastest.
+struct Lattice {
+    origin: Vec3,
+    h: f32,
+    dims: [u32; 3],
+}
+
+impl Lattice {
+    /// The grid around a mesh whose bounds start at `lo` and span `extent`: `margin` (at least
+    /// one) points beyond them on every side, at `spacing` (a 32nd of the largest extent when it
+    /// is not a positive number) or coarser where [`MAX_DIM`] points would not reach.
+    fn around(lo: Vec3, extent: Vec3, spacing: f32, margin: u32) -> Lattice {
+        let margin = margin.max(1);
+        let mut h = if spacing.is_finite() && spacing > 0.0 {
+            spacing
+        } else {
+            extent.max_element() / 32.0
+        };
+        let max_cells = (MAX_DIM - 1 - 2 * margin) as f32;
+        h = h.max(extent.max_element() / max_cells);
+        let origin = lo - Vec3::splat(margin as f32 * h);
+        let dims = [0, 1, 2].map(|a| ((extent[a] / h).ceil() as u32 + 1 + 2 * margin).min(MAX_DIM));
+        Lattice { origin, h, dims }
+    }
+
+    /// Number of grid points.
+    fn len(&self) -> usize {
+        self.dims.iter().map(|&d| d as usize).product()
+    }
+
+    /// Storage index of point (i, j, k).
+    fn idx(&self, i: usize, j: usize, k: usize) -> usize {
+        let [nx, ny, _] = self.dims.map(|d| d as usize);
+        i + nx * (j + ny * k)
+    }
+
+    /// Position of point (i, j, k).
+    fn pos(&self, i: usize, j: usize, k: usize) -> Vec3 {
+        self.origin + Vec3::new(i as f32, j as f32, k as f32) * self.h
+    }
+
+    /// The point index along axis `a` at or below (`up`: at or above) coordinate `x`, clamped to
+    /// the grid.
+    fn to_index(&self, x: f32, a: usize, up: bool) -> usize {
+        let g = (x - self.origin[a]) / self.h;
+        let g = if up { g.ceil() } else { g.floor() };
+        (g.max(0.0) as usize).min(self.dims[a] as usize - 1)
+    }
+
+    /// Step 1: exact distances within two cells of every triangle, and the closest triangle of
+    /// each point reached (`u32::MAX` elsewhere, where the distance is infinite).
+    fn narrow_band(&self, mesh: &TriMesh) -> (Vec<f32>, Vec<u32>) {
+        let n = self.len();
+        let mut dist = vec![f32::INFINITY; n];
+        let mut closest = vec![u32::MAX; n];
+        let band = 2.0 * self.h;
+        for t in 0..mesh.triangles.len() {
+            let (a, b, c) = mesh.tri(t);
+            let tlo = a.min(b).min(c) - Vec3::splat(band);
+            let thi = a.max(b).max(c) + Vec3::splat(band);
+            let (i0, i1) = (
+                self.to_index(tlo.x, 0, false),
+                self.to_index(thi.x, 0, true),
+            );
+            let (j0, j1) = (
+                self.to_index(tlo.y, 1, false),
+                self.to_index(thi.y, 1, true),
+            );
+            let (k0, k1) = (
+                self.to_index(tlo.z, 2, false),
+                self.to_index(thi.z, 2, true),
+            );
+            for k in k0..=k1 {
+                for j in j0..=j1 {
+                    for i in i0..=i1 {
+                        let p = self.pos(i, j, k);
+                        let d = (p - closest_point_on_triangle(p, a, b, c)).length();
+                        let id = self.idx(i, j, k);
+                        if d < dist[id] {
+                            dist[id] = d;
+                            closest[id] = t as u32;
+                        }
+                    }
+                }
+            }
+        }
+        (dist, closest)
+    }
+
+    /// Step 2: the closest triangle handed on to the neighbours by sweeping in the 8 diagonal
+    /// directions, twice; a point takes a neighbour's triangle when it is nearer.
+    fn propagate(&self, mesh: &TriMesh, dist: &mut [f32], closest: &mut [u32]) {
+        let [nx, ny, nz] = self.dims.map(|d| d as usize);
+        for _ in 0..2 {
+            for dir in 0..8 {
+                let di: isize = if dir & 1 == 0 { 1 } else { -1 };
+                let dj: isize = if dir & 2 == 0 { 1 } else { -1 };
+                let dk: isize = if dir & 4 == 0 { 1 } else { -1 };
+                let range = |d: isize, len: usize| -> Vec<usize> {
+                    if d > 0 {
+                        (1..len).collect()
+                    } else {
+                        (0..len.saturating_sub(1)).rev().collect()
+                    }
+                };
+                let (ri, rj, rk) = (range(di, nx), range(dj, ny), range(dk, nz));
+                for &k in &rk {
+                    for &j in &rj {
+                        for &i in &ri {
+                            let behind = (
+                                (i as isize - di) as usize,
+                                (j as isize - dj) as usize,
+                                (k as isize - dk) as usize,
+                            );
+                            self.take_nearer(mesh, (i, j, k), behind, dist, closest);
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Point `(i, j, k)` takes the closest triangle of any of its 7 neighbours towards `behind`
+    /// (the point one step back along the sweep) when that triangle is nearer than its own.
+    fn take_nearer(
+        &self,
+        mesh: &TriMesh,
+        (i, j, k): (usize, usize, usize),
+        (pi, pj, pk): (usize, usize, usize),
+        dist: &mut [f32],
+        closest: &mut [u32],
+    ) {
+        let p = self.pos(i, j, k);
+        let id = self.idx(i, j, k);
+        let neighbours = [
+            self.idx(pi, j, k),
+            self.idx(i, pj, k),
+            self.idx(pi, pj, k),
+            self.idx(i, j, pk),
+            self.idx(pi, j, pk),
+            self.idx(i, pj, pk),
+            self.idx(pi, pj, pk),
+        ];
+        for nb in neighbours {
+            let t = closest[nb];
+            if t != u32::MAX && t != closest[id] {
+                let (a, b, c) = mesh.tri(t as usize);
+                let d = (p - closest_point_on_triangle(p, a, b, c)).length();
+                if d < dist[id] {
+                    dist[id] = d;
+                    closest[id] = t;
+                }
+            }
+        }
+    }
+
+    /// Step 3: for every point, along how many of the three axes a ray from it has crossed the
+    /// mesh an odd number of times (inside by majority: 2 or 3).
+    fn inside_votes(&self, mesh: &TriMesh) -> Vec<u8> {
+        let mut votes = vec![0u8; self.len()];
+        for axis in 0..3 {
+            let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
+            let (nb, nc, na) = (
+                self.dims[b] as usize,
+                self.dims[c] as usize,
+                self.dims[axis] as usize,
+            );
+            let hits = self.ray_hits(mesh, axis);
+            for jc in 0..nc {
+                for jb in 0..nb {
+                    let line = &hits[jb + nb * jc];
+                    let mut crossed = 0usize;
+                    for ia in 0..na {
+                        let x = self.origin[axis] as f64 + ia as f64 * self.h as f64;
+                        while crossed < line.len() && line[crossed] < x {
+                            crossed += 1;
+                        }
+                        if crossed % 2 == 1 {
+                            let mut g = [0usize; 3];
+                            g[axis] = ia;
+                            g[b] = jb;
+                            g[c] = jc;
+                            votes[self.idx(g[0], g[1], g[2])] += 1;
+                        }
+                    }
+                }
+            }
+        }
+        votes
+    }
+
+    /// Where the rays along `axis` through the grid's lines (slightly perturbed so that they do
+    /// not pass exactly through edges) cross the mesh: per line (the other two axes' indices
+    /// `jb + nb * jc`), the crossing coordinates along `axis`, sorted.
+    fn ray_hits(&self, mesh: &TriMesh, axis: usize) -> Vec<Vec<f64>> {
+        let (origin, h) = (self.origin, self.h);
+        let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
+        let (nb, nc) = (self.dims[b] as usize, self.dims[c] as usize);
+        // Tiny fixed perturbation of the rays so they do not pass exactly through edges.
+        let eps_b = 1.234_567e-4 * h as f64;
+        let eps_c = 7.654_321e-5 * h as f64;
+        let mut hits: Vec<Vec<f64>> = vec![Vec::new(); nb * nc];
+        for t in 0..mesh.triangles.len() {
+            let (p0, p1, p2) = mesh.tri(t);
+            let v = [p0, p1, p2].map(|p| [p[axis] as f64, p[b] as f64, p[c] as f64]);
+            let lo_b = v.iter().map(|p| p[1]).fold(f64::INFINITY, f64::min);
+            let hi_b = v.iter().map(|p| p[1]).fold(f64::NEG_INFINITY, f64::max);
+            let lo_c = v.iter().map(|p| p[2]).fold(f64::INFINITY, f64::min);
+            let hi_c = v.iter().map(|p| p[2]).fold(f64::NEG_INFINITY, f64::max);
+            let gb = |x: f64, up: bool| {
+                let g = (x - origin[b] as f64) / h as f64;
+                let g = if up { g.ceil() } else { g.floor() };
+                (g.max(0.0) as usize).min(nb - 1)
+            };
+            let gc = |x: f64, up: bool| {
+                let g = (x - origin[c] as f64) / h as f64;
+                let g = if up { g.ceil() } else { g.floor() };
+                (g.max(0.0) as usize).min(nc - 1)
+            };
+            for jc in gc(lo_c, false)..=gc(hi_c, true) {
+                let qc = origin[c] as f64 + jc as f64 * h as f64 + eps_c;
+                for jb in gb(lo_b, false)..=gb(hi_b, true) {
+                    let qb = origin[b] as f64 + jb as f64 * h as f64 + eps_b;
+                    // 2D barycentric coordinates of (qb, qc) in the projected triangle.
+                    let w0 = orient(v[1][1], v[1][2], v[2][1], v[2][2], qb, qc);
+                    let w1 = orient(v[2][1], v[2][2], v[0][1], v[0][2], qb, qc);
+                    let w2 = orient(v[0][1], v[0][2], v[1][1], v[1][2], qb, qc);
+                    let inside = (w0 >= 0.0 && w1 >= 0.0 && w2 >= 0.0)
+                        || (w0 <= 0.0 && w1 <= 0.0 && w2 <= 0.0);
+                    let sum = w0 + w1 + w2;
+                    if inside && sum != 0.0 {
+                        let s = (w0 * v[0][0] + w1 * v[1][0] + w2 * v[2][0]) / sum;
+                        hits[jb + nb * jc].push(s);
+                    }
+                }
+            }
+        }
+        for line in &mut hits {
+            line.sort_by(f64::total_cmp);
+        }
+        hits
     }
 }
 
