@@ -141,10 +141,18 @@ impl BlockLayout {
     /// indices) instead of by storage index, so that the order is a function of the particle
     /// state alone, whatever order they are stored in.
     pub fn rebuild_with_ties(&mut self, bases: &[IVec3], ids: Option<&[u32]>) {
+        let chunk = chunk_len(bases.len());
+        self.find_gblocks(bases, chunk);
+        self.add_pblocks();
+        self.key_and_count_particles(bases, chunk);
+        self.order_particles(chunk, ids);
+    }
+
+    /// Step 1 of a rebuild, gblocks: the distinct block codes of `bases`, sorted. Each chunk
+    /// lists the codes it sees (few runs: particles are stored sorted by block); the merged
+    /// list is sorted.
+    fn find_gblocks(&mut self, bases: &[IVec3], chunk: usize) {
         let n = bases.len();
-        let chunk = chunk_len(n);
-        // 1. gblocks: the distinct block codes, sorted. Each chunk lists the codes it sees (few
-        //    runs: particles are stored sorted by block); the merged list is sorted.
         self.runs.resize_with(n.div_ceil(chunk), Vec::new);
         bases
             .par_chunks(chunk)
@@ -166,8 +174,12 @@ impl BlockLayout {
         merge_runs(&mut self.runs, &mut self.codes);
         let g_count = self.codes.len();
         self.gblock_count = g_count;
+    }
 
-        // 2. pblocks: the gblocks' neighbours that are not gblocks, sorted, after the gblocks.
+    /// Step 2 of a rebuild, pblocks: the gblocks' neighbours that are not gblocks, sorted, after
+    /// the gblocks; the coordinates of every pblock and the 27 neighbours of every gblock.
+    fn add_pblocks(&mut self) {
+        let g_count = self.gblock_count;
         let g_chunk = g_count.div_ceil(4 * rayon::current_num_threads()).max(64);
         self.runs.resize_with(g_count.div_ceil(g_chunk), Vec::new);
         let codes = &self.codes;
@@ -211,8 +223,13 @@ impl BlockLayout {
                     };
                 });
             });
+    }
 
-        // 3. Particles: key (gblock, cell) of each, counted per gblock.
+    /// Step 3 of a rebuild, particles: the key (gblock, cell) of each, counted per gblock; the
+    /// start of each gblock's range, and the counters set to the next free slot of each.
+    fn key_and_count_particles(&mut self, bases: &[IVec3], chunk: usize) {
+        let (n, g_count) = (bases.len(), self.gblock_count);
+        let codes = &self.codes;
         self.keys.resize(n, 0);
         self.counts.resize_with(g_count, || AtomicU32::new(0));
         self.counts.par_iter().for_each(|c| c.store(0, Relaxed));
@@ -246,9 +263,14 @@ impl BlockLayout {
             sum += c.swap(sum, Relaxed);
         }
         self.particle_start.push(sum);
+    }
 
-        // 4. Scatter each particle into its gblock's range (in an order that depends on timing),
-        //    then sort every range by (cell, tie): a total order, so the result does not.
+    /// Step 4 of a rebuild: scatter each particle into its gblock's range (in an order that
+    /// depends on timing), then sort every range by (cell, tie): a total order, so the result
+    /// does not.
+    fn order_particles(&mut self, chunk: usize, ids: Option<&[u32]>) {
+        let (n, g_count) = (self.keys.len(), self.gblock_count);
+        let counts = &self.counts;
         self.scratch.resize(n, 0);
         self.order.resize(n, 0);
         let keys = &self.keys;
