@@ -3,7 +3,7 @@
 use super::core::{R, V};
 use crate::emitter::{Emitter, MAX_EMITTER_SUB_CELLS, MAX_PARTICLES_PER_EMITTER};
 use crate::schema::RawEmitter;
-use rtmpm_geometry::Use;
+use rtmpm_geometry::{Shape, Use};
 use rtmpm_physics::material::Material;
 use rtmpm_physics::math::Vec3;
 use std::path::Path;
@@ -29,6 +29,50 @@ impl V<'_> {
         let material = self.material_index(&prefix, &e.material, cx.materials)?;
         let shape = self.shape(&prefix, &e.geometry(), Use::Emitter, cx.base, cx.dx)?;
         self.inside_interior(&prefix, "emitter", shape.bounds(), cx.interior)?;
+        let spacing = self.emitter_spacing(&prefix, e, &shape, cx.dx)?;
+        let volume = (spacing as f64).powi(3);
+        let rate = self.emission_rate(&prefix, e, volume)?;
+        let (start, stop) = self.emission_window(&prefix, e, cx.duration)?;
+        self.emission_total(&prefix, e, rate, (start, stop), volume)?;
+        let velocity = match e.velocity {
+            Some(v) => self.vec3(&f("velocity"), v)?,
+            None => Vec3::ZERO,
+        };
+        let seed = cx
+            .seed
+            .wrapping_mul(0x9e37_79b9_7f4a_7c15)
+            .wrapping_add(i as u64 + 1);
+        let cells = Emitter::lattice(&shape, spacing, seed);
+        if cells.is_empty() {
+            return Err(self.err(
+                f("shape"),
+                "the emitter's shape holds no particle position",
+                format!(
+                    "make it larger than the particle spacing {spacing} m (dx / round(cbrt(particles_per_cell)))"
+                ),
+            ));
+        }
+        let em = Emitter {
+            name: e.name.clone().unwrap_or_else(|| format!("emitter{i}")),
+            material: material as u32,
+            shape,
+            velocity,
+            rate,
+            start,
+            stop,
+            spacing,
+            particle_mass: cx.materials[material].density * volume as f32,
+            cells,
+            seed,
+        };
+        Ok(em)
+    }
+
+    /// The particle spacing of emitter `e` of `shape`: `dx / round(cbrt(particles_per_cell))`,
+    /// refused where the shape is thinner than a spacing along an axis or holds more sub-cells
+    /// than an emitter may list.
+    fn emitter_spacing(&self, prefix: &str, e: &RawEmitter, shape: &Shape, dx: f32) -> R<f32> {
+        let f = |n: &str| format!("{prefix}.{n}");
         let ppc = e.particles_per_cell.unwrap_or(8);
         if ppc == 0 {
             return Err(self.err(
@@ -38,7 +82,7 @@ impl V<'_> {
             ));
         }
         let per_axis = (ppc as f32).cbrt().round().max(1.0);
-        let spacing = cx.dx / per_axis;
+        let spacing = dx / per_axis;
         // Each particle appears in a sub-cell of the lattice: a shape thinner than a sub-cell
         // along an axis would emit particles outside itself.
         let (lo, hi) = shape.bounds();
@@ -60,7 +104,7 @@ impl V<'_> {
         }
         // The emitter keeps one position per sub-cell of its shape: bounded before they are
         // listed.
-        let sub_cells = Emitter::lattice_size(&shape, spacing);
+        let sub_cells = Emitter::lattice_size(shape, spacing);
         if sub_cells > MAX_EMITTER_SUB_CELLS as f64 {
             return Err(self.err(
                 f(if e.particles_per_cell.is_some() {
@@ -78,7 +122,13 @@ impl V<'_> {
                  axis, 27: 3 per axis)",
             ));
         }
-        let volume = (spacing as f64).powi(3);
+        Ok(spacing)
+    }
+
+    /// The emitter's rate in particles per second: exactly one of `rate` and `volume_rate`
+    /// (over `volume`, a particle's volume).
+    fn emission_rate(&self, prefix: &str, e: &RawEmitter, volume: f64) -> R<f64> {
+        let f = |n: &str| format!("{prefix}.{n}");
         let rate = match (e.rate, e.volume_rate) {
             (Some(_), Some(_)) => {
                 return Err(self.err(
@@ -99,6 +149,12 @@ impl V<'_> {
             (Some(r), None) => self.rate(&f("rate"), r, "rate (particles/s)")?,
             (None, Some(v)) => self.rate(&f("volume_rate"), v, "volume_rate (m^3/s)")? / volume,
         };
+        Ok(rate)
+    }
+
+    /// The emitter's `(start, stop)`: `0 <= start < stop`, stop defaulting to `duration`.
+    fn emission_window(&self, prefix: &str, e: &RawEmitter, duration: f32) -> R<(f64, f64)> {
+        let f = |n: &str| format!("{prefix}.{n}");
         let start = match e.start {
             Some(0.0) => 0.0,
             Some(s) => self.rate(&f("start"), s, "start time (s)")?,
@@ -106,7 +162,7 @@ impl V<'_> {
         };
         let stop = match e.stop {
             Some(s) => self.rate(&f("stop"), s, "stop time (s)")?,
-            None => cx.duration as f64,
+            None => duration as f64,
         };
         if stop <= start {
             return Err(self.err(
@@ -119,6 +175,20 @@ impl V<'_> {
                 "make stop later than start (stop defaults to time.duration)",
             ));
         }
+        Ok((start, stop))
+    }
+
+    /// The emitter emits at least one particle and at most [`MAX_PARTICLES_PER_EMITTER`] from
+    /// `start` to `stop` at `rate`.
+    fn emission_total(
+        &self,
+        prefix: &str,
+        e: &RawEmitter,
+        rate: f64,
+        (start, stop): (f64, f64),
+        volume: f64,
+    ) -> R<()> {
+        let f = |n: &str| format!("{prefix}.{n}");
         // The particles of the whole emission, before anything is listed (an f64: a huge
         // rate must not wrap or saturate into a plausible count).
         let total = rate * (stop - start);
@@ -156,38 +226,7 @@ impl V<'_> {
                 "lower the rate, shorten start..stop, or lower particles_per_cell",
             ));
         }
-        let velocity = match e.velocity {
-            Some(v) => self.vec3(&f("velocity"), v)?,
-            None => Vec3::ZERO,
-        };
-        let seed = cx
-            .seed
-            .wrapping_mul(0x9e37_79b9_7f4a_7c15)
-            .wrapping_add(i as u64 + 1);
-        let cells = Emitter::lattice(&shape, spacing, seed);
-        if cells.is_empty() {
-            return Err(self.err(
-                f("shape"),
-                "the emitter's shape holds no particle position",
-                format!(
-                    "make it larger than the particle spacing {spacing} m (dx / round(cbrt(particles_per_cell)))"
-                ),
-            ));
-        }
-        let em = Emitter {
-            name: e.name.clone().unwrap_or_else(|| format!("emitter{i}")),
-            material: material as u32,
-            shape,
-            velocity,
-            rate,
-            start,
-            stop,
-            spacing,
-            particle_mass: cx.materials[material].density * volume as f32,
-            cells,
-            seed,
-        };
-        Ok(em)
+        Ok(())
     }
 
     /// A positive finite f64.

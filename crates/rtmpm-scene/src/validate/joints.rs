@@ -51,31 +51,67 @@ impl V<'_> {
                 ),
             ));
         }
-        let axis = |needed: bool| -> R<Option<Vec3>> {
-            match (j.axis, needed) {
-                (Some(a), true) => {
-                    let a = self.vec3(&f("axis"), a)?;
-                    a.try_normalize().map(Some).ok_or_else(|| {
-                        self.err(
-                            f("axis"),
-                            "the axis is zero",
-                            "give the hinge or slide direction, e.g. axis = [0, 0, 1]",
-                        )
-                    })
-                }
-                (None, true) => Err(self.err(
-                    f("axis"),
-                    format!("a {:?} joint needs an axis", j.kind).to_lowercase(),
-                    "add axis = [x, y, z] (the hinge or slide direction in the world at t = 0)",
-                )),
-                (Some(_), false) => Err(self.err(
-                    f("axis"),
-                    format!("a {:?} joint has no axis", j.kind).to_lowercase(),
-                    "remove axis, or use type = \"revolute\" or \"prismatic\"",
-                )),
-                (None, false) => Ok(None),
+        let limits = self.joint_limits(i, j)?;
+        let axis = |needed: bool| self.joint_axis(i, j, needed);
+        let kind = match j.kind {
+            RawJointKind::Fixed => {
+                axis(false)?;
+                JointKind::Fixed
             }
+            RawJointKind::Spherical => {
+                axis(false)?;
+                JointKind::Spherical
+            }
+            RawJointKind::Revolute => JointKind::Revolute {
+                axis: axis(true)?.unwrap_or(Vec3::Z),
+                limits,
+            },
+            RawJointKind::Prismatic => JointKind::Prismatic {
+                axis: axis(true)?.unwrap_or(Vec3::X),
+                limits,
+            },
         };
+        Ok(JointSpec {
+            kind,
+            body,
+            to,
+            anchor,
+        })
+    }
+
+    /// The joint's unit axis: given and non-zero where `needed` (a revolute or prismatic
+    /// joint), absent otherwise.
+    fn joint_axis(&self, i: usize, j: &RawJoint, needed: bool) -> R<Option<Vec3>> {
+        let f = |n: &str| format!("joint[{i}].{n}");
+        match (j.axis, needed) {
+            (Some(a), true) => {
+                let a = self.vec3(&f("axis"), a)?;
+                a.try_normalize().map(Some).ok_or_else(|| {
+                    self.err(
+                        f("axis"),
+                        "the axis is zero",
+                        "give the hinge or slide direction, e.g. axis = [0, 0, 1]",
+                    )
+                })
+            }
+            (None, true) => Err(self.err(
+                f("axis"),
+                format!("a {:?} joint needs an axis", j.kind).to_lowercase(),
+                "add axis = [x, y, z] (the hinge or slide direction in the world at t = 0)",
+            )),
+            (Some(_), false) => Err(self.err(
+                f("axis"),
+                format!("a {:?} joint has no axis", j.kind).to_lowercase(),
+                "remove axis, or use type = \"revolute\" or \"prismatic\"",
+            )),
+            (None, false) => Ok(None),
+        }
+    }
+
+    /// The joint's `limits = [lo, hi]`: two finite values, lo <= hi, only on a revolute or
+    /// prismatic joint.
+    fn joint_limits(&self, i: usize, j: &RawJoint) -> R<Option<[f32; 2]>> {
+        let f = |n: &str| format!("joint[{i}].{n}");
         let limits = match j.limits.as_deref() {
             Some(l) if l.len() != 2 => {
                 return Err(self.err(
@@ -108,30 +144,7 @@ impl V<'_> {
             }
             _ => None,
         };
-        let kind = match j.kind {
-            RawJointKind::Fixed => {
-                axis(false)?;
-                JointKind::Fixed
-            }
-            RawJointKind::Spherical => {
-                axis(false)?;
-                JointKind::Spherical
-            }
-            RawJointKind::Revolute => JointKind::Revolute {
-                axis: axis(true)?.unwrap_or(Vec3::Z),
-                limits,
-            },
-            RawJointKind::Prismatic => JointKind::Prismatic {
-                axis: axis(true)?.unwrap_or(Vec3::X),
-                limits,
-            },
-        };
-        Ok(JointSpec {
-            kind,
-            body,
-            to,
-            anchor,
-        })
+        Ok(limits)
     }
 
     fn body_ref(&self, field: &str, r: &RawBodyRef, bodies: &[RigidBodySpec]) -> R<usize> {

@@ -64,7 +64,36 @@ impl V<'_> {
             RawRigidKind::Kinematic => RigidKind::Kinematic,
             RawRigidKind::Fixed => RigidKind::Fixed,
         };
-        let volume = shape.volume();
+        let mass = self.rigid_mass(&prefix, b, kind, shape.volume())?;
+        let (velocity, angular_velocity) = self.rigid_velocities(&prefix, b, kind)?;
+        // Inside the domain minus the walls, in its initial pose.
+        let h = shape.half_extents(glam::Mat3::from_quat(rotation));
+        self.inside_interior(
+            &prefix,
+            "rigid body",
+            (position - h, position + h),
+            interior,
+        )?;
+        let condition = Self::condition(b.condition.unwrap_or(RawCondition::Slip));
+        let friction = self.non_negative(&f("friction"), b.friction.unwrap_or(0.0), "friction")?;
+        Ok(RigidBodySpec {
+            name: b.name.clone().unwrap_or_else(|| format!("rigid_body{i}")),
+            shape,
+            kind,
+            mass,
+            position,
+            rotation,
+            velocity,
+            angular_velocity,
+            condition,
+            friction,
+        })
+    }
+
+    /// The body's mass (kg) from exactly one of `density` and `mass` (a fixed body needs
+    /// neither): finite, and a moving body's density at most [`MAX_RIGID_DENSITY`].
+    fn rigid_mass(&self, prefix: &str, b: &RawRigidBody, kind: RigidKind, volume: f32) -> R<f32> {
+        let f = |n: &str| format!("{prefix}.{n}");
         let mass = match (b.density, b.mass) {
             (Some(_), Some(_)) => {
                 return Err(self.err(
@@ -107,6 +136,13 @@ impl V<'_> {
                  \"fixed\"",
             ));
         }
+        Ok(mass)
+    }
+
+    /// The body's initial velocity and angular velocity: finite, at most [`MAX_RIGID_SPEED`],
+    /// and none for a fixed body.
+    fn rigid_velocities(&self, prefix: &str, b: &RawRigidBody, kind: RigidKind) -> R<(Vec3, Vec3)> {
+        let f = |n: &str| format!("{prefix}.{n}");
         let velocity = match b.velocity {
             Some(v) => self.vec3(&f("velocity"), v)?,
             None => Vec3::ZERO,
@@ -134,28 +170,7 @@ impl V<'_> {
                 "remove the velocity, or use type = \"kinematic\" (moves at its velocity) or \"dynamic\"",
             ));
         }
-        // Inside the domain minus the walls, in its initial pose.
-        let h = shape.half_extents(glam::Mat3::from_quat(rotation));
-        self.inside_interior(
-            &prefix,
-            "rigid body",
-            (position - h, position + h),
-            interior,
-        )?;
-        let condition = Self::condition(b.condition.unwrap_or(RawCondition::Slip));
-        let friction = self.non_negative(&f("friction"), b.friction.unwrap_or(0.0), "friction")?;
-        Ok(RigidBodySpec {
-            name: b.name.clone().unwrap_or_else(|| format!("rigid_body{i}")),
-            shape,
-            kind,
-            mass,
-            position,
-            rotation,
-            velocity,
-            angular_velocity,
-            condition,
-            friction,
-        })
+        Ok((velocity, angular_velocity))
     }
 
     /// Rigid bodies have unique names: joints name them, `bodies.csv` rows carry them.
