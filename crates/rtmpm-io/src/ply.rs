@@ -441,100 +441,30 @@ pub fn read_ply(path: &Path) -> Result<PlyData, PlyError> {
 /// the body the header announces, which must be present in `bytes`.
 pub fn parse_ply(bytes: &[u8]) -> Result<PlyData, PlyError> {
     let (elements, comments, mut pos) = parse_header(bytes)?;
-    let truncated = || malformed("body is shorter than the header announces (truncated file?)");
     let mut vertices: Option<(PlyData, usize)> = None;
     for el in &elements {
         let remaining = (bytes.len() - pos) as u64;
         // Every record holds at least the scalars and the list counts: a count that cannot fit
         // in the rest of the file is refused before any loop or allocation.
-        let min_record: u64 = el
-            .props
-            .iter()
-            .map(|p| match p {
-                Property::Scalar { ty, .. } => ty.size() as u64,
-                Property::List { count, .. } => count.size() as u64,
-            })
-            .sum();
+        let min_record = el.min_record_bytes();
         if (el.count as u64)
             .checked_mul(min_record)
             .is_none_or(|b| b > remaining)
         {
             return Err(truncated());
         }
-        let is_vertex = el.name == "vertex";
-        if !is_vertex {
-            if min_record == 0 {
-                continue; // nothing stored per record
-            }
-            // Skip this element, record by record (list lengths vary).
-            for _ in 0..el.count {
-                for p in &el.props {
-                    let size = match p {
-                        Property::Scalar { ty, .. } => ty.size(),
-                        Property::List { count, item } => {
-                            let b = bytes.get(pos..pos + count.size()).ok_or_else(truncated)?;
-                            let k = count.read_int(b);
-                            if k < 0 {
-                                return Err(malformed("negative list length"));
-                            }
-                            (k as usize)
-                                .checked_mul(item.size())
-                                .and_then(|s| s.checked_add(count.size()))
-                                .ok_or_else(truncated)?
-                        }
-                    };
-                    pos = pos
-                        .checked_add(size)
-                        .filter(|&p| p <= bytes.len())
-                        .ok_or_else(truncated)?;
-                }
+        if el.name != "vertex" {
+            if min_record > 0 {
+                pos = el.skip(bytes, pos)?;
             }
             continue;
         }
-        let mut stride = 0usize;
-        let mut types = Vec::new();
-        for p in &el.props {
-            match p {
-                Property::Scalar { name, ty } => {
-                    stride += ty.size();
-                    types.push((name.clone(), *ty));
-                }
-                Property::List { .. } => {
-                    return Err(malformed("list properties in `vertex` are not supported"));
-                }
-            }
-        }
-        if types.is_empty() {
-            return Err(malformed("the `vertex` element has no properties"));
-        }
-        // Checked above: stride * count fits in the rest of the file.
-        let mut cols: Vec<(String, ScalarType, PlyColumn)> = types
-            .into_iter()
-            .map(|(n, ty)| (n, ty, ty.empty_column(el.count)))
-            .collect();
-        for _ in 0..el.count {
-            for (_, ty, col) in cols.iter_mut() {
-                let b = &bytes[pos..pos + ty.size()];
-                match col {
-                    PlyColumn::Float(v) => v.push(f32::from_le_bytes(b.try_into().unwrap())),
-                    PlyColumn::Double(v) => v.push(f64::from_le_bytes(b.try_into().unwrap())),
-                    PlyColumn::Int(v) => v.push(ty.read_int(b)),
-                }
-                pos += ty.size();
-            }
-        }
-        debug_assert!(stride > 0);
+        let (data, stride, end) = el.read_vertices(bytes, pos, &comments)?;
+        pos = end;
         if vertices.is_some() {
             return Err(malformed("two `vertex` elements"));
         }
-        vertices = Some((
-            PlyData {
-                count: el.count,
-                columns: cols.into_iter().map(|(n, _, c)| (n, c)).collect(),
-                comments: comments.clone(),
-            },
-            stride,
-        ));
+        vertices = Some((data, stride));
     }
     let Some((data, stride)) = vertices else {
         return Err(malformed("no `vertex` element"));
@@ -561,6 +491,101 @@ pub fn parse_ply(bytes: &[u8]) -> Result<PlyData, PlyError> {
         }));
     }
     Ok(data)
+}
+
+/// The error of a body shorter than its header announces.
+fn truncated() -> PlyError {
+    malformed("body is shorter than the header announces (truncated file?)")
+}
+
+impl Element {
+    /// The fewest bytes a record of this element holds: its scalars and its lists' counts.
+    fn min_record_bytes(&self) -> u64 {
+        self.props
+            .iter()
+            .map(|p| match p {
+                Property::Scalar { ty, .. } => ty.size() as u64,
+                Property::List { count, .. } => count.size() as u64,
+            })
+            .sum()
+    }
+
+    /// Where this element's records, which start at `pos`, end: skipped record by record (list
+    /// lengths vary).
+    fn skip(&self, bytes: &[u8], mut pos: usize) -> Result<usize, PlyError> {
+        for _ in 0..self.count {
+            for p in &self.props {
+                let size = match p {
+                    Property::Scalar { ty, .. } => ty.size(),
+                    Property::List { count, item } => {
+                        let b = bytes.get(pos..pos + count.size()).ok_or_else(truncated)?;
+                        let k = count.read_int(b);
+                        if k < 0 {
+                            return Err(malformed("negative list length"));
+                        }
+                        (k as usize)
+                            .checked_mul(item.size())
+                            .and_then(|s| s.checked_add(count.size()))
+                            .ok_or_else(truncated)?
+                    }
+                };
+                pos = pos
+                    .checked_add(size)
+                    .filter(|&p| p <= bytes.len())
+                    .ok_or_else(truncated)?;
+            }
+        }
+        Ok(pos)
+    }
+
+    /// The `vertex` element's records from `pos` (which the caller checked fit in `bytes`), as
+    /// columns: the data, the bytes of a record and where the records end. Scalars only.
+    fn read_vertices(
+        &self,
+        bytes: &[u8],
+        mut pos: usize,
+        comments: &[String],
+    ) -> Result<(PlyData, usize, usize), PlyError> {
+        let mut stride = 0usize;
+        let mut types = Vec::new();
+        for p in &self.props {
+            match p {
+                Property::Scalar { name, ty } => {
+                    stride += ty.size();
+                    types.push((name.clone(), *ty));
+                }
+                Property::List { .. } => {
+                    return Err(malformed("list properties in `vertex` are not supported"));
+                }
+            }
+        }
+        if types.is_empty() {
+            return Err(malformed("the `vertex` element has no properties"));
+        }
+        // Checked by the caller: stride * count fits in the rest of the file.
+        let mut cols: Vec<(String, ScalarType, PlyColumn)> = types
+            .into_iter()
+            .map(|(n, ty)| (n, ty, ty.empty_column(self.count)))
+            .collect();
+        for _ in 0..self.count {
+            for (_, ty, col) in cols.iter_mut() {
+                let b = &bytes[pos..pos + ty.size()];
+                match col {
+                    PlyColumn::Float(v) => v.push(f32::from_le_bytes(b.try_into().unwrap())),
+                    PlyColumn::Double(v) => v.push(f64::from_le_bytes(b.try_into().unwrap())),
+                    PlyColumn::Int(v) => v.push(ty.read_int(b)),
+                }
+                pos += ty.size();
+            }
+        }
+        debug_assert!(stride > 0);
+        let data = PlyData {
+            count: self.count,
+            columns: cols.into_iter().map(|(n, _, c)| (n, c)).collect(),
+            comments: comments.to_vec(),
+        };
+        Ok((data, stride, pos))
+    }
 }
 
 #[cfg(test)]

@@ -346,44 +346,8 @@ pub fn read_vtu(path: &Path) -> Result<VtuData, VtuError> {
 /// Decode the text of a `.vtu` file (see [`read_vtu`]). Never panics; allocates no more than
 /// the decoded arrays, whose sizes are bounded by the text.
 pub fn parse_vtu(text: &str) -> Result<VtuData, VtuError> {
-    let root_start = text
-        .find("<VTKFile")
-        .ok_or_else(|| format_err("no <VTKFile> element"))?;
-    let root_tag = &text[root_start..root_start + text[root_start..].find('>').unwrap_or(0)];
-    if attr(root_tag, "type") != Some("UnstructuredGrid") {
-        return Err(format_err("not an UnstructuredGrid file"));
-    }
-    if attr(root_tag, "byte_order") != Some("LittleEndian") {
-        return Err(format_err("only byte_order=\"LittleEndian\" is supported"));
-    }
-    if attr(root_tag, "header_type") != Some("UInt64") {
-        return Err(format_err("only header_type=\"UInt64\" is supported"));
-    }
-    if attr(root_tag, "compressor").is_some() {
-        return Err(format_err("compressed files are not supported"));
-    }
-    let piece_start = text
-        .find("<Piece")
-        .ok_or_else(|| format_err("no <Piece> element"))?;
-    let piece_tag = &text[piece_start..piece_start + text[piece_start..].find('>').unwrap_or(0)];
-    let count = |name: &str| -> Result<usize, VtuError> {
-        attr(piece_tag, name)
-            .and_then(|v| v.trim().parse().ok())
-            .ok_or_else(|| format_err(format!("<Piece> has no valid {name}")))
-    };
-    let mut out = VtuData {
-        num_points: count("NumberOfPoints")?,
-        num_cells: count("NumberOfCells")?,
-        ..Default::default()
-    };
-
-    #[derive(PartialEq)]
-    enum Section {
-        None,
-        Points,
-        Cells,
-        PointData,
-    }
+    check_root(text)?;
+    let (piece_start, mut out) = piece(text)?;
     let mut section = Section::None;
     let mut pos = piece_start;
     while let Some(off) = text[pos..].find('<') {
@@ -415,59 +379,7 @@ pub fn parse_vtu(text: &str) -> Result<VtuData, VtuError> {
                 if section == Section::None {
                     continue;
                 }
-                if attr(tag, "format") != Some("binary") {
-                    return Err(format_err(
-                        "only format=\"binary\" DataArrays are supported",
-                    ));
-                }
-                let ty = attr(tag, "type").ok_or_else(|| format_err("DataArray without type"))?;
-                let name = attr(tag, "Name").map(xml_unescape).unwrap_or_default();
-                let num_components = match attr(tag, "NumberOfComponents") {
-                    Some(c) => c
-                        .trim()
-                        .parse()
-                        .map_err(|_| format_err(format!("bad NumberOfComponents {c}")))?,
-                    None => 1,
-                };
-                let values = parse_values(ty, &decode_binary(body)?)?;
-                let array = VtuArray {
-                    name,
-                    num_components,
-                    values,
-                };
-                match section {
-                    Section::Points => {
-                        let VtuValues::Float32(v) = &array.values else {
-                            return Err(format_err("Points must be Float32"));
-                        };
-                        if array.num_components != 3
-                            || Some(v.len()) != out.num_points.checked_mul(3)
-                        {
-                            return Err(format_err(format!(
-                                "Points has {} values, expected 3 x {}",
-                                v.len(),
-                                out.num_points
-                            )));
-                        }
-                        out.points = v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-                    }
-                    Section::Cells => out.cells.push(array),
-                    Section::PointData => {
-                        if Some(array.values.len())
-                            != array.num_components.checked_mul(out.num_points)
-                        {
-                            return Err(format_err(format!(
-                                "point array {} has {} values, expected {} x {}",
-                                array.name,
-                                array.values.len(),
-                                array.num_components,
-                                out.num_points
-                            )));
-                        }
-                        out.point_data.push(array);
-                    }
-                    Section::None => unreachable!(),
-                }
+                out.place(&section, data_array(tag, body)?)?;
             }
             _ => {}
         }
@@ -476,6 +388,119 @@ pub fn parse_vtu(text: &str) -> Result<VtuData, VtuError> {
         return Err(format_err("missing <Points> array"));
     }
     Ok(out)
+}
+
+/// The part of a `<Piece>` that a `DataArray` belongs to.
+#[derive(PartialEq)]
+enum Section {
+    None,
+    Points,
+    Cells,
+    PointData,
+}
+
+/// The `<VTKFile>` element is one this reader decodes: an uncompressed little-endian
+/// UnstructuredGrid with 64-bit headers.
+fn check_root(text: &str) -> Result<(), VtuError> {
+    let root_start = text
+        .find("<VTKFile")
+        .ok_or_else(|| format_err("no <VTKFile> element"))?;
+    let root_tag = &text[root_start..root_start + text[root_start..].find('>').unwrap_or(0)];
+    if attr(root_tag, "type") != Some("UnstructuredGrid") {
+        return Err(format_err("not an UnstructuredGrid file"));
+    }
+    if attr(root_tag, "byte_order") != Some("LittleEndian") {
+        return Err(format_err("only byte_order=\"LittleEndian\" is supported"));
+    }
+    if attr(root_tag, "header_type") != Some("UInt64") {
+        return Err(format_err("only header_type=\"UInt64\" is supported"));
+    }
+    if attr(root_tag, "compressor").is_some() {
+        return Err(format_err("compressed files are not supported"));
+    }
+    Ok(())
+}
+
+/// Where the `<Piece>` element starts, and the data with its point and cell counts.
+fn piece(text: &str) -> Result<(usize, VtuData), VtuError> {
+    let piece_start = text
+        .find("<Piece")
+        .ok_or_else(|| format_err("no <Piece> element"))?;
+    let piece_tag = &text[piece_start..piece_start + text[piece_start..].find('>').unwrap_or(0)];
+    let count = |name: &str| -> Result<usize, VtuError> {
+        attr(piece_tag, name)
+            .and_then(|v| v.trim().parse().ok())
+            .ok_or_else(|| format_err(format!("<Piece> has no valid {name}")))
+    };
+    let out = VtuData {
+        num_points: count("NumberOfPoints")?,
+        num_cells: count("NumberOfCells")?,
+        ..Default::default()
+    };
+    Ok((piece_start, out))
+}
+
+/// A binary `DataArray` element: its tag's attributes (`tag`, without the brackets) and its
+/// base64 `body`.
+fn data_array(tag: &str, body: &str) -> Result<VtuArray, VtuError> {
+    if attr(tag, "format") != Some("binary") {
+        return Err(format_err(
+            "only format=\"binary\" DataArrays are supported",
+        ));
+    }
+    let ty = attr(tag, "type").ok_or_else(|| format_err("DataArray without type"))?;
+    let name = attr(tag, "Name").map(xml_unescape).unwrap_or_default();
+    let num_components = match attr(tag, "NumberOfComponents") {
+        Some(c) => c
+            .trim()
+            .parse()
+            .map_err(|_| format_err(format!("bad NumberOfComponents {c}")))?,
+        None => 1,
+    };
+    let values = parse_values(ty, &decode_binary(body)?)?;
+    Ok(VtuArray {
+        name,
+        num_components,
+        values,
+    })
+}
+
+impl VtuData {
+    /// Put an array of `section` in its place: the points (three Float32 per point), a cell
+    /// array, or a point array (its components times the point count).
+    fn place(&mut self, section: &Section, array: VtuArray) -> Result<(), VtuError> {
+        match section {
+            Section::Points => {
+                let VtuValues::Float32(v) = &array.values else {
+                    return Err(format_err("Points must be Float32"));
+                };
+                if array.num_components != 3 || Some(v.len()) != self.num_points.checked_mul(3) {
+                    return Err(format_err(format!(
+                        "Points has {} values, expected 3 x {}",
+                        v.len(),
+                        self.num_points
+                    )));
+                }
+                self.points = v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+            }
+            Section::Cells => self.cells.push(array),
+            Section::PointData => {
+                if Some(array.values.len()) != array.num_components.checked_mul(self.num_points) {
+                    return Err(format_err(format!(
+                        "point array {} has {} values, expected {} x {}",
+                        array.name,
+                        array.values.len(),
+                        array.num_components,
+                        self.num_points
+                    )));
+                }
+                self.point_data.push(array);
+            }
+            // Arrays outside the three sections are skipped before they are decoded.
+            Section::None => {}
+        }
+        Ok(())
+    }
 }
 
 /// A ParaView `.pvd` collection listing one file per output frame with its time.
