@@ -113,21 +113,7 @@ count = {count}
 }
 
 pub fn bench(args: BenchArgs) -> Result<()> {
-    let (scene, label) = match &args.scene {
-        Some(path) => (Scene::from_file(path)?, format!("scene {}", path.display())),
-        None => {
-            if !(20..=1600).contains(&args.n) {
-                bail!(
-                    "--n {} is out of range: use 20..=1600 (below 20 the walls, 3 cells thick, \
-                     reach into the fluid block at 0.15; 1600 is already 1.0e9 particles)",
-                    args.n
-                );
-            }
-            let text = fluid_block_scene(args.n);
-            let label = format!("MLS-MPM fluid block, n = {} (dx = 1/{})", args.n, args.n);
-            (Scene::from_toml(&text, "<bench fluid block>")?, label)
-        }
-    };
+    let (scene, label) = bench_scene(&args)?;
     let mut scene = scene;
     if let Some(p) = args.precision {
         scene.precision = p;
@@ -232,6 +218,26 @@ pub fn bench(args: BenchArgs) -> Result<()> {
         )?;
     }
     Ok(())
+}
+
+/// The benchmark's scene and its name in the report: the scene file given, else the fluid
+/// block of side `--n` cells.
+fn bench_scene(args: &BenchArgs) -> Result<(Scene, String)> {
+    Ok(match &args.scene {
+        Some(path) => (Scene::from_file(path)?, format!("scene {}", path.display())),
+        None => {
+            if !(20..=1600).contains(&args.n) {
+                bail!(
+                    "--n {} is out of range: use 20..=1600 (below 20 the walls, 3 cells thick, \
+                     reach into the fluid block at 0.15; 1600 is already 1.0e9 particles)",
+                    args.n
+                );
+            }
+            let text = fluid_block_scene(args.n);
+            let label = format!("MLS-MPM fluid block, n = {} (dx = 1/{})", args.n, args.n);
+            (Scene::from_toml(&text, "<bench fluid block>")?, label)
+        }
+    })
 }
 
 /// The first line of a benchmark's report.
@@ -339,6 +345,30 @@ fn bench_cuda(
     let k = rtmpm_cuda::bench_kernels(&mut b, dt, 0, steps.min(400) as u32)?;
     let bw = rtmpm_cuda::measure_copy_bandwidth()?;
     let floor_ms = k.bytes_per_step as f64 / (bw * 1e9) * 1e3;
+    print_kernel_stages(&k);
+    print_device_memory(args, &b, &k, n);
+    println!(
+        "  bandwidth    {:.1} MB/step must move; copy bandwidth {bw:.0} GB/s -> floor {floor_ms:.4} ms/step = {:.0} % of the evented step",
+        k.bytes_per_step as f64 / 1e6,
+        100.0 * floor_ms / k.ms_per_step.max(1e-12)
+    );
+    if let Some(dir) = &args.frame_write {
+        crate::bench_frames::frame_write_bench(
+            &mut b,
+            dt,
+            steps,
+            dir,
+            &args.frame_formats,
+            args.frame_chunk,
+            args.frame_whole,
+        )?;
+    }
+    Ok(())
+}
+
+/// The evented time of each stage of the step, in the order the step ran them (the MUSL
+/// re-map only on MUSL scenes), and of P2G's phases where it has several.
+fn print_kernel_stages(k: &rtmpm_cuda::KernelTimings) {
     println!(
         "  kernels      (CUDA events, {} steps, {} rebuilds)",
         k.steps, k.rebuilds
@@ -365,6 +395,16 @@ fn bench_cuda(
         }
     }
     println!("    step         {:.4} ms/step", k.ms_per_step);
+}
+
+/// The CUDA backend's memory: P2G's extra arrays and the grid, the device's bytes per particle
+/// by array, the reverse map's size.
+fn print_device_memory(
+    args: &BenchArgs,
+    b: &rtmpm_cuda::CudaBackend,
+    k: &rtmpm_cuda::KernelTimings,
+    n: usize,
+) {
     let extra: usize = k.p2g_memory.iter().map(|m| m.1).sum();
     let parts: Vec<String> = k
         .p2g_memory
@@ -395,23 +435,6 @@ fn bench_cuda(
             r.replicas, r.slots, r.pblocks
         );
     }
-    println!(
-        "  bandwidth    {:.1} MB/step must move; copy bandwidth {bw:.0} GB/s -> floor {floor_ms:.4} ms/step = {:.0} % of the evented step",
-        k.bytes_per_step as f64 / 1e6,
-        100.0 * floor_ms / k.ms_per_step.max(1e-12)
-    );
-    if let Some(dir) = &args.frame_write {
-        crate::bench_frames::frame_write_bench(
-            &mut b,
-            dt,
-            steps,
-            dir,
-            &args.frame_formats,
-            args.frame_chunk,
-            args.frame_whole,
-        )?;
-    }
-    Ok(())
 }
 
 /// Several GPUs: whole-run throughput (graph replay), then up to 200 steps with events around the

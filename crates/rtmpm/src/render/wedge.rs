@@ -144,44 +144,16 @@ fn render_wedge(args: &RenderArgs, dir: &Path) -> Result<()> {
     let radius = estimate_radius(&first[0].positions);
     let (bounds, floor) = match &scene {
         Some(s) => scene_bounds(s),
-        None => {
-            let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-            for p in first
-                .iter()
-                .flat_map(|j| &j.positions)
-                .filter(|p| p.is_finite())
-            {
-                lo = lo.min(*p);
-                hi = hi.max(*p);
-            }
-            if !lo.is_finite() {
-                (lo, hi) = (Vec3::ZERO, Vec3::ONE);
-            }
-            // Room to slump and spread: twice the widest extent around the bodies.
-            let c = 0.5 * (lo + hi);
-            let half = Vec3::splat((hi - lo).max_element()) + Vec3::splat(radius);
-            (
-                (
-                    Vec3::new(c.x - half.x, lo.y - radius, c.z - half.z),
-                    c + half,
-                ),
-                lo.y - radius,
-            )
-        }
+        None => bounds_around(&first, radius),
     };
-    let (cols, rows) = grid(worlds.len());
-    // Tiles: the image's width (default 1280) over the columns, 16:9, a caption strip below.
-    let width = args.view.size.map_or(1280, |s| s.0).max(64 * cols as u32);
-    let tile_w = width / cols as u32;
-    let tile_h = (tile_w * 9 / 16).max(16);
-    // Captions twice the font's size where the longest fits in a tile.
-    let longest_caption = worlds
-        .iter()
-        .map(|w| text_width(&caption(&w.label), 2))
-        .max()
-        .unwrap_or(0);
-    let scale = if longest_caption + 8 <= tile_w { 2 } else { 1 };
-    let strip = text_height(scale) + 6 * scale;
+    let tiles = Tiles::of(args, &worlds);
+    let (cols, rows, tile_w, tile_h, strip) = (
+        tiles.cols,
+        tiles.rows,
+        tiles.tile_w,
+        tiles.tile_h,
+        tiles.strip,
+    );
     let mut view = args.view.clone();
     view.size = Some(Size(tile_w, tile_h));
     let mut opts = resolve(&view, scene.as_ref(), bounds, floor, radius)?;
@@ -224,25 +196,12 @@ fn render_wedge(args: &RenderArgs, dir: &Path) -> Result<()> {
                 &opts,
             )
             .with_context(|| format!("rendering {}", path.display()))?;
-            let (x0, y0) = (
-                (w % cols) as u32 * tile_w,
-                (w / cols) as u32 * (tile_h + strip),
-            );
-            blit(&mut img, &tile, x0, y0);
             let stopped = frames[w].get(k).is_none() || (world.frozen && k + 1 >= frames[w].len());
             let mut text = caption(&world.label);
             if stopped && world.frozen {
                 text = format!("{text} (FROZEN)");
             }
-            let tx = x0 as i32 + (tile_w as i32 - text_width(&text, scale) as i32).max(0) / 2;
-            draw_text(
-                &mut img,
-                tx,
-                (y0 + tile_h + 3 * scale) as i32,
-                &text,
-                scale,
-                [235, 235, 235],
-            );
+            tiles.place(&mut img, w, &tile, &text);
         }
         let path = dir.join(format!("wedge_{num:05}.png"));
         img.write_png(&path)
@@ -251,9 +210,15 @@ fn render_wedge(args: &RenderArgs, dir: &Path) -> Result<()> {
             g.add(&img).context("adding a frame to the GIF")?;
         }
     }
+    finish_movie(gif, dir, numbers, worlds.len())
+}
+
+/// Write the wedge's GIF (where one is made) into `dir`, and say what was written: `numbers`
+/// pictures of `worlds` worlds.
+fn finish_movie(gif: Option<GifMovie>, dir: &Path, numbers: usize, worlds: usize) -> Result<()> {
     let mut summary = format!(
         "{numbers} wedge pictures of {} worlds: {}/wedge_NNNNN.png",
-        worlds.len(),
+        worlds,
         dir.display()
     );
     if let Some(g) = gif {
@@ -264,6 +229,86 @@ fn render_wedge(args: &RenderArgs, dir: &Path) -> Result<()> {
     }
     println!("{summary}");
     Ok(())
+}
+
+/// The camera's box when there is no scene: twice the widest extent of the first frames'
+/// particles around them (room to slump and spread), and the floor under them.
+fn bounds_around(first: &[FrameJob], radius: f32) -> ((Vec3, Vec3), f32) {
+    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+    for p in first
+        .iter()
+        .flat_map(|j| &j.positions)
+        .filter(|p| p.is_finite())
+    {
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+    }
+    if !lo.is_finite() {
+        (lo, hi) = (Vec3::ZERO, Vec3::ONE);
+    }
+    // Room to slump and spread: twice the widest extent around the bodies.
+    let c = 0.5 * (lo + hi);
+    let half = Vec3::splat((hi - lo).max_element()) + Vec3::splat(radius);
+    (
+        (
+            Vec3::new(c.x - half.x, lo.y - radius, c.z - half.z),
+            c + half,
+        ),
+        lo.y - radius,
+    )
+}
+
+/// The wedge picture's grid: `cols` x `rows` tiles of `tile_w` x `tile_h` pixels, each with a
+/// caption strip of `strip` pixels below it, written at `scale` times the font's size.
+struct Tiles {
+    cols: usize,
+    rows: usize,
+    tile_w: u32,
+    tile_h: u32,
+    scale: u32,
+    strip: u32,
+}
+
+impl Tiles {
+    /// The grid of `worlds`: the image's width (default 1280) over the columns, 16:9 tiles,
+    /// captions twice the font's size where the longest fits in a tile.
+    fn of(args: &RenderArgs, worlds: &[WorldRow]) -> Tiles {
+        let (cols, rows) = grid(worlds.len());
+        // Tiles: the image's width (default 1280) over the columns, 16:9, a caption strip below.
+        let width = args.view.size.map_or(1280, |s| s.0).max(64 * cols as u32);
+        let tile_w = width / cols as u32;
+        let tile_h = (tile_w * 9 / 16).max(16);
+        // Captions twice the font's size where the longest fits in a tile.
+        let longest_caption = worlds
+            .iter()
+            .map(|w| text_width(&caption(&w.label), 2))
+            .max()
+            .unwrap_or(0);
+        let scale = if longest_caption + 8 <= tile_w { 2 } else { 1 };
+        let strip = text_height(scale) + 6 * scale;
+        Tiles {
+            cols,
+            rows,
+            tile_w,
+            tile_h,
+            scale,
+            strip,
+        }
+    }
+
+    /// Copy world `w`'s picture `tile` into its place in `img`, with its caption `text`
+    /// centred in the strip below it.
+    fn place(&self, img: &mut Image, w: usize, tile: &Image, text: &str) {
+        let (tile_w, tile_h, scale) = (self.tile_w, self.tile_h, self.scale);
+        let (x0, y0) = (
+            (w % self.cols) as u32 * tile_w,
+            (w / self.cols) as u32 * (tile_h + self.strip),
+        );
+        blit(img, tile, x0, y0);
+        let tx = x0 as i32 + (tile_w as i32 - text_width(text, scale) as i32).max(0) / 2;
+        let ty = (y0 + tile_h + 3 * scale) as i32;
+        draw_text(img, tx, ty, text, scale, [235, 235, 235]);
+    }
 }
 
 /// Copy `tile` into `img` with its top-left corner at `(x0, y0)` (clipped).
