@@ -178,17 +178,38 @@ typedef unsigned state_index_t;
 #endif
 __device__ __forceinline__ state_index_t sidx(unsigned cap, int f, unsigned i) { return (state_index_t)f * cap + i; }
 
+// Loads and stores of the particle state's words (compile-time RTMPM_STATE_STREAM, default 0):
+// 0 plain; 1 with the streaming cache hint (ld.global.cs / st.global.cs: evict first), since
+// a step reads and writes each word once and the grid's nodes are what the caches should keep.
+#ifndef RTMPM_STATE_STREAM
+#define RTMPM_STATE_STREAM 0
+#endif
+__device__ __forceinline__ real state_ld(const real* s, state_index_t w) {
+#if RTMPM_STATE_STREAM
+    return __ldcs(s + w);
+#else
+    return s[w];
+#endif
+}
+__device__ __forceinline__ void state_st(real* s, state_index_t w, real v) {
+#if RTMPM_STATE_STREAM
+    __stcs(s + w, v);
+#else
+    s[w] = v;
+#endif
+}
+
 __device__ __forceinline__ vec3 load_v3(const real* s, unsigned cap, int f, unsigned i) {
-    return make_v3(s[sidx(cap, f, i)], s[sidx(cap, f + 1, i)], s[sidx(cap, f + 2, i)]);
+    return make_v3(state_ld(s, sidx(cap, f, i)), state_ld(s, sidx(cap, f + 1, i)), state_ld(s, sidx(cap, f + 2, i)));
 }
 __device__ __forceinline__ void store_v3(real* s, unsigned cap, int f, unsigned i, vec3 v) {
-    s[sidx(cap, f, i)] = v.x; s[sidx(cap, f + 1, i)] = v.y; s[sidx(cap, f + 2, i)] = v.z;
+    state_st(s, sidx(cap, f, i), v.x); state_st(s, sidx(cap, f + 1, i), v.y); state_st(s, sidx(cap, f + 2, i), v.z);
 }
 __device__ __forceinline__ mat3 load_m3(const real* s, unsigned cap, int f, unsigned i) {
-    mat3 m; for (int c = 0; c < 9; ++c) m.m[c] = s[sidx(cap, f + c, i)]; return m;
+    mat3 m; for (int c = 0; c < 9; ++c) m.m[c] = state_ld(s, sidx(cap, f + c, i)); return m;
 }
 __device__ __forceinline__ void store_m3(real* s, unsigned cap, int f, unsigned i, const mat3& m) {
-    for (int c = 0; c < 9; ++c) s[sidx(cap, f + c, i)] = m.m[c];
+    for (int c = 0; c < 9; ++c) state_st(s, sidx(cap, f + c, i), m.m[c]);
 }
 
 // Integer field of the state (material id, original index): its bits in the low 32 bits of the word.

@@ -12,11 +12,11 @@
 #include "codec.cuh"
 
 __device__ __forceinline__ unsigned state_word_bits(const real* s, unsigned cap, int f, unsigned i) {
-    return state_bits(s[sidx(cap, f, i)]);
+    return state_bits(state_ld(s, sidx(cap, f, i)));
 }
 #if RTMPM_STATE_COMPACT
 __device__ __forceinline__ void state_set_bits(real* s, unsigned cap, int f, unsigned i, unsigned b) {
-    s[sidx(cap, f, i)] = __uint_as_float(b);
+    state_st(s, sidx(cap, f, i), __uint_as_float(b));
 }
 #endif
 
@@ -63,21 +63,21 @@ __device__ __forceinline__ mat3 store_affine(real* s, unsigned cap, unsigned i, 
 __device__ __forceinline__ mat3 load_deformation(const real* s, unsigned cap, unsigned i, bool fluid) {
 #if RTMPM_STATE_FLUID
     (void)fluid;
-    return mat3_diag(make_v3s(s[sidx(cap, F_F, i)]));
+    return mat3_diag(make_v3s(state_ld(s, sidx(cap, F_F, i))));
 #else
-    if (fluid) return mat3_diag(make_v3s(s[sidx(cap, F_F, i)]));
+    if (fluid) return mat3_diag(make_v3s(state_ld(s, sidx(cap, F_F, i))));
     return load_m3(s, cap, F_F, i);
 #endif
 }
 __device__ __forceinline__ void store_deformation(real* s, unsigned cap, unsigned i, const mat3& f, bool fluid) {
 #if RTMPM_STATE_FLUID
     (void)fluid;
-    s[sidx(cap, F_F, i)] = f.m[0];
+    state_st(s, sidx(cap, F_F, i), f.m[0]);
 #else
     if (fluid) {
-        s[sidx(cap, F_F, i)] = f.m[0];
-        s[sidx(cap, F_F + 4, i)] = f.m[4];
-        s[sidx(cap, F_F + 8, i)] = f.m[8];
+        state_st(s, sidx(cap, F_F, i), f.m[0]);
+        state_st(s, sidx(cap, F_F + 4, i), f.m[4]);
+        state_st(s, sidx(cap, F_F + 8, i), f.m[8]);
     } else {
         store_m3(s, cap, F_F, i, f);
     }
@@ -90,14 +90,14 @@ __device__ __forceinline__ real load_plastic(const real* s, unsigned cap, unsign
     (void)s; (void)cap; (void)i;
     return (real)0;
 #else
-    return s[sidx(cap, F_PLASTIC, i)];
+    return state_ld(s, sidx(cap, F_PLASTIC, i));
 #endif
 }
 __device__ __forceinline__ void store_plastic(real* s, unsigned cap, unsigned i, real p) {
 #if RTMPM_STATE_FLUID
     (void)s; (void)cap; (void)i; (void)p;
 #else
-    s[sidx(cap, F_PLASTIC, i)] = p;
+    state_st(s, sidx(cap, F_PLASTIC, i), p);
 #endif
 }
 

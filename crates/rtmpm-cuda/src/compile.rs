@@ -399,6 +399,8 @@ mod tests {
             &["-DRTMPM_P2G_ROUNDS_MAX=3"],
             &["-DRTMPM_P2G_REDUCE=4", "-DRTMPM_P2G_ROUNDS_MAX=3"],
             &["-DRTMPM_P2G_UNROLL=1"],
+            &["-DRTMPM_STATE_STREAM=1"],
+            &["-DG2P2G_MIN_BLOCKS=5", "-DG2P2G_FLUID_MIN_BLOCKS=5"],
             // The node-by-node step as it was before the three became the default.
             &[
                 "-DRTMPM_P2G_REDUCE=0",

@@ -18,6 +18,12 @@ pub struct Kernels {
     /// The fused rebuild's grid (blocks of 1024 threads that fit on the device at once, for its
     /// cooperative launch); `None`: the rebuild runs as separate kernels (`rebuild=kernels`).
     pub rb_fused_grid: Option<u32>,
+    /// Blocks of 128 threads of the fused G2P2G kernels (`g2p2g`, `g2p2g_fluid`) that are
+    /// resident on the device at once, when `RTMPM_G2P2G_GRID=resident` asks for a grid of that
+    /// size (every block loops over the warp list until it ends: no partly filled last round of
+    /// blocks when the blocks per SM do not divide the wave); `None`: one wave of threads
+    /// ([`Kernels::wave`]), the default.
+    pub g2p2g_resident: Option<[u32; 2]>,
     /// Fields of the rebuild's sort scratch
     /// ([`crate::options::CudaOptions::sort_scratch_fields`]): the state is permuted that many
     /// fields per pass.
@@ -49,6 +55,7 @@ impl Kernels {
             functions,
             wave_threads: sm_count.max(1) as usize * 2048,
             rb_fused_grid: None,
+            g2p2g_resident: None,
             sort_fields: sort_fields.clamp(1, layout.words()) as u32,
             sort_mask: layout.all_words(),
         };
@@ -58,6 +65,16 @@ impl Kernels {
                 .occupancy_max_active_blocks_per_multiprocessor(1024, 0, None)
                 .map_err(|e| SimError::Backend(format!("CUDA: occupancy of rb_fused: {e:?}")))?;
             k.rb_fused_grid = Some(per_sm * sm_count.max(1) as u32).filter(|&g| g > 0);
+        }
+        if std::env::var("RTMPM_G2P2G_GRID").is_ok_and(|v| v == "resident") {
+            let resident = |f: Kernel| {
+                k[f].occupancy_max_active_blocks_per_multiprocessor(128, 0, None)
+                    .map(|per_sm| per_sm * sm_count.max(1) as u32)
+                    .map_err(|e| {
+                        SimError::Backend(format!("CUDA: occupancy of {}: {e:?}", f.name()))
+                    })
+            };
+            k.g2p2g_resident = Some([resident(Kernel::G2p2g)?, resident(Kernel::G2p2gFluid)?]);
         }
         Ok(k)
     }

@@ -19,6 +19,12 @@
 #ifndef G2P2G_FLUID_MIN_BLOCKS
 #define G2P2G_FLUID_MIN_BLOCKS 4
 #endif
+// Experiment: -DG2P2G_MIN_BLOCKS=N gives the general kernel a minimum-blocks hint (none by default).
+#ifdef G2P2G_MIN_BLOCKS
+#define G2P2G_BOUNDS 128, G2P2G_MIN_BLOCKS
+#else
+#define G2P2G_BOUNDS 128
+#endif
 
 // Warps loop over the warp list (grid-stride, launched with about one wave of blocks).
 template <bool ALL_FLUID>
@@ -35,7 +41,7 @@ __device__ __forceinline__ void g2p2g_body(const Ctx& c) {
         P2gParticle q = p2g_particle_zero();
         if (lane < count) {
             unsigned p = first + lane;
-            real m = c.state[sidx(c.cap, F_MASS, p)], vol0 = c.state[sidx(c.cap, F_VOL0, p)];
+            real m = state_ld(c.state, sidx(c.cap, F_MASS, p)), vol0 = state_ld(c.state, sidx(c.cap, F_VOL0, p));
             G2pResult r = g2p_particle<ALL_FLUID>(c, g, p);
             speed = max(speed, r.speed);
             if (!r.leave) {
@@ -56,6 +62,6 @@ __device__ __forceinline__ void g2p2g_body(const Ctx& c) {
 }
 
 // Every scene.
-extern "C" __global__ void __launch_bounds__(128) g2p2g(Ctx c) { g2p2g_body<false>(c); }
+extern "C" __global__ void __launch_bounds__(G2P2G_BOUNDS) g2p2g(Ctx c) { g2p2g_body<false>(c); }
 // Scenes whose materials are all fluids (see ALL_FLUID in g2p_particle.cuh).
 extern "C" __global__ void __launch_bounds__(128, G2P2G_FLUID_MIN_BLOCKS) g2p2g_fluid(Ctx c) { g2p2g_body<true>(c); }

@@ -23,8 +23,8 @@ __device__ __forceinline__ G2pState g2p_load_state(const Ctx& c, unsigned p) {
     G2pState s;
     s.F = load_deformation(c.state, c.cap, p, ALL_FLUID);
     s.plastic = ALL_FLUID ? (real)0 : load_plastic(c.state, c.cap, p);
-    s.material = state_bits(c.state[sidx(c.cap, F_MAT, p)]);
-    s.id = ALL_FLUID ? 0u : state_bits(c.state[sidx(c.cap, F_ID, p)]);
+    s.material = state_bits(state_ld(c.state, sidx(c.cap, F_MAT, p)));
+    s.id = ALL_FLUID ? 0u : state_bits(state_ld(c.state, sidx(c.cap, F_ID, p)));
     return s;
 }
 
@@ -63,7 +63,7 @@ __device__ __forceinline__ G2pResult g2p_finish(const Ctx& c, const int* bc, uns
     bool finite = isfinite(x.x) && isfinite(x.y) && isfinite(x.z) && isfinite(v.x) && isfinite(v.y) && isfinite(v.z);
     const Scalars& sc = scalars(c);
     if (!finite || speed * dt > (real)2 * sc.dx) {
-        unsigned id = ALL_FLUID ? state_bits(c.state[sidx(c.cap, F_ID, p)]) : st.id;
+        unsigned id = ALL_FLUID ? state_bits(state_ld(c.state, sidx(c.cap, F_ID, p))) : st.id;
         unsigned prev = atomicMin(&c.ctl[CTL_BAD_INDEX], id);
         if (prev > id) atomicExch(&c.ctl[CTL_BAD_REASON], finite ? 2u : 1u);
     }

@@ -24,12 +24,17 @@ pub(crate) fn enqueue(
     } else {
         Kernel::G2pMpm
     };
-    // SAFETY: the kernel bounds-checks against the warp count.
-    unsafe {
-        s.launch_builder(&k[f])
-            .arg(c)
-            .launch(k.wave(c.warp_cap as usize * 32, 128))?
+    let threads = c.warp_cap as usize * 32;
+    let launch = match (f, k.g2p2g_resident) {
+        (Kernel::G2p2g, Some([blocks, _])) | (Kernel::G2p2gFluid, Some([_, blocks]))
+            if blocks > 0 =>
+        {
+            crate::kernels::cfg(threads.min(blocks as usize * 128), 128)
+        }
+        _ => k.wave(threads, 128),
     };
+    // SAFETY: the kernel bounds-checks against the warp count (grid-stride over the warp list).
+    unsafe { s.launch_builder(&k[f]).arg(c).launch(launch)? };
     Ok(())
 }
 
