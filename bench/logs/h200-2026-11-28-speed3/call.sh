@@ -53,6 +53,7 @@ fi
 for d in $R/prof $R/var $R/t_* $R/val $R/san; do [ -d $d ] || continue; echo "==== $(basename $d)"; grep -vE "^(NVIDIA|== )" $d/summary.txt 2>/dev/null | grep -vE "^\s*$" | tail -70; done
 cat $R/times.txt
 } > $R/report.txt
-(cd $R && tar czf logs.tgz --exclude='*.png' --exclude='*.vtu' --exclude='*.vtk' --exclude=report.txt --exclude=logs.tgz . 2>/dev/null)
+# (each suite packs its own logs into its folder's logs.tgz: keep those, archive outside $R first)
+(cd $R && tar czf /tmp/all-logs.tgz --exclude='*.png' --exclude='*.vtu' --exclude='*.vtk' --exclude=report.txt . 2>/dev/null && mv /tmp/all-logs.tgz logs.tgz)
 (cd $R && find . -mindepth 1 -maxdepth 1 ! -name report.txt ! -name logs.tgz -exec rm -rf {} +)
 cat $R/report.txt
