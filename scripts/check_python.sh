@@ -26,3 +26,4 @@ trap 'rm -rf "$tmp"' EXIT
 "$venv/bin/python" examples/python/dam_break_energy.py --frames 2 --out "$tmp/energy.png"
 "$venv/bin/python" examples/python/floating_box_track.py --frames 2 --out "$tmp/box.csv"
 "$venv/bin/python" examples/python/scripted_spoon.py --frames 3 --out "$tmp/spoon.csv"
+"$venv/bin/python" examples/python/batch_push.py --worlds 2 --frames 2 --out "$tmp/push.csv"

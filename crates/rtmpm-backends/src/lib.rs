@@ -330,6 +330,9 @@ impl Backend for AnyBackend {
     fn flush_rigid(&mut self) -> Result<(), SimError> {
         self.as_dyn().flush_rigid()
     }
+    fn rigid_loads(&self) -> Option<Vec<rtmpm_rigid::BodyLoad>> {
+        self.as_dyn_ref().rigid_loads()
+    }
     fn set_rigid_poses(&mut self, poses: &[rtmpm_rigid::BodyPose]) -> Result<(), SimError> {
         self.as_dyn().set_rigid_poses(poses)
     }

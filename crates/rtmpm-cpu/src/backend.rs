@@ -140,6 +140,16 @@ impl Backend for CpuBackend {
         self.rigid.as_ref().map_or_else(Vec::new, |w| w.poses())
     }
 
+    fn rigid_loads(&self) -> Option<Vec<rtmpm_rigid::BodyLoad>> {
+        let n = self.rigid.as_ref().map_or(0, |w| w.states().len());
+        let (exchange, dt) = &self.last_exchange;
+        if exchange.len() != n {
+            // Before the first step: no load yet.
+            return Some(vec![rtmpm_rigid::BodyLoad::default(); n]);
+        }
+        Some(exchange.iter().map(|e| e.load(*dt)).collect())
+    }
+
     fn set_rigid_poses(&mut self, poses: &[rtmpm_rigid::BodyPose]) -> Result<(), SimError> {
         match self.rigid.as_mut() {
             Some(w) => w.set_poses(poses).map_err(SimError::Backend),

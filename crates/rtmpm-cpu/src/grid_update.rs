@@ -64,22 +64,22 @@ fn couple(
             friction: real::real(b.friction),
         };
         let new = vb + rule.apply(v - vb, n);
-        if b.dynamic {
-            // The node's momentum change less the gravity it received this step: the weight of
-            // the material mass that the kernel spreads onto nodes inside the body (a shell about
-            // half a cell thick) is an artefact of the transfer, not a load on the body; its
-            // pressure on the body is in the internal forces. On a slip face the rule holds up
-            // only the normal velocity, so this also lifts the body by the weight of the mass
-            // on the nodes just inside its side faces: at 5 cells per body height that lift
-            // makes up much of what the bottom face falls short of rho g d A (measured:
-            // validation/RESULTS.md, "Dithered node membership"; CUDA: grid_update.cu, the same).
-            let dp = (new - v + g_dt) * m;
-            let r = x32 - b.center;
-            e.add_reaction(
-                [r.x as f64, r.y as f64, r.z as f64],
-                [dp.x as f64, dp.y as f64, dp.z as f64],
-            );
-        }
+        // The node's momentum change less the gravity it received this step: the weight of
+        // the material mass that the kernel spreads onto nodes inside the body (a shell about
+        // half a cell thick) is an artefact of the transfer, not a load on the body; its
+        // pressure on the body is in the internal forces. On a slip face the rule holds up
+        // only the normal velocity, so this also lifts the body by the weight of the mass
+        // on the nodes just inside its side faces: at 5 cells per body height that lift
+        // makes up much of what the bottom face falls short of rho g d A (measured:
+        // validation/RESULTS.md, "Dithered node membership"; CUDA: grid_update.cu, the same).
+        // Summed for every body: only a dynamic one is moved by it (RigidWorld::advance), a
+        // kinematic or fixed one reports it as its load (Backend::rigid_loads).
+        let dp = (new - v + g_dt) * m;
+        let r = x32 - b.center;
+        e.add_reaction(
+            [r.x as f64, r.y as f64, r.z as f64],
+            [dp.x as f64, dp.y as f64, dp.z as f64],
+        );
         v = new;
     }
     v

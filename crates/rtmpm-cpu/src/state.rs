@@ -105,6 +105,8 @@ pub struct CpuBackend {
     pub(crate) bad: Option<BadParticle>,
     /// The rigid bodies coupled to the grid (`[[rigid_body]]`), if any.
     pub rigid: Option<rtmpm_rigid::RigidWorld>,
+    /// What the grid gave each rigid body in the last step, and that step's dt (s).
+    pub(crate) last_exchange: (Vec<rtmpm_rigid::Exchange>, f64),
 }
 
 impl CpuBackend {
@@ -174,6 +176,7 @@ impl CpuBackend {
             max_speed,
             bad: None,
             rigid: None,
+            last_exchange: (Vec::new(), 0.0),
         })
     }
 

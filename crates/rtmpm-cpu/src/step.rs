@@ -10,10 +10,11 @@ use physics::transfer::{Transfer, Update};
 impl CpuBackend {
     /// Give the rigid bodies the step's impulses and advance them by `dt` (their new pose is
     /// the next step's boundary).
-    fn advance_bodies(&mut self, exchange: &[rtmpm_rigid::Exchange], dt: Real) {
+    fn advance_bodies(&mut self, exchange: Vec<rtmpm_rigid::Exchange>, dt: Real) {
         if let Some(w) = self.rigid.as_mut() {
-            w.advance(exchange, real::to_f32(dt));
+            w.advance(&exchange, real::to_f32(dt));
         }
+        self.last_exchange = (exchange, real::to_f32(dt) as f64);
     }
 
     pub(crate) fn step_inner(&mut self, dt: Real, t: f32) {
@@ -26,14 +27,14 @@ impl CpuBackend {
             p2g::p2g(self, dt);
             t2 = std::time::Instant::now();
             let exchange = grid_update::grid_update(self, dt, t);
-            self.advance_bodies(&exchange, dt);
+            self.advance_bodies(exchange, dt);
             t3 = std::time::Instant::now();
             (max_speed, bad) = g2p::g2p(self, dt);
         } else {
             p2g::p2g_mpm(self, dt);
             t2 = std::time::Instant::now();
             let exchange = grid_update::grid_update(self, dt, t);
-            self.advance_bodies(&exchange, dt);
+            self.advance_bodies(exchange, dt);
             t3 = std::time::Instant::now();
             let musl = solver.update == Update::Musl;
             if musl {

@@ -149,14 +149,39 @@ impl BatchRun {
     /// blow-up or a stall is frozen at its last frame (returned, with its reason); an error of
     /// the backend itself ends the run.
     pub fn advance_frame(&mut self) -> Result<Vec<usize>> {
+        self.advance_each(|sim| sim.advance_frame().map(drop))
+    }
+
+    /// Advance every running world by `steps` steps of its own time step (crossing frame ends as
+    /// `rtmpm run --steps` does), for runs that write no files (a file is a whole frame's);
+    /// blow-ups freeze a world as in [`BatchRun::advance_frame`], at the state of the last call.
+    pub fn advance_steps(&mut self, steps: u64) -> Result<Vec<usize>> {
+        if self.out.is_some() {
+            anyhow::bail!("a batch run that writes frame files advances by whole frames");
+        }
+        self.advance_each(|sim| {
+            let target = sim.step + steps;
+            while sim.step < target {
+                sim.advance(target - sim.step)?;
+            }
+            Ok(())
+        })
+    }
+
+    /// Advance every running world with `advance`, then read (and write) its state; a world
+    /// whose `advance` fails with a blow-up or a stall is frozen.
+    fn advance_each(
+        &mut self,
+        mut advance: impl FnMut(&mut Simulation) -> Result<(), SimError>,
+    ) -> Result<Vec<usize>> {
         let mut frozen = Vec::new();
         for w in 0..self.worlds.len() {
             let world = &mut self.worlds[w];
             if world.status != WorldStatus::Running {
                 continue;
             }
-            match world.sim.advance_frame() {
-                Ok(_) => self.write_frame(w)?,
+            match advance(&mut world.sim) {
+                Ok(()) => self.write_frame(w)?,
                 Err(e @ (SimError::Blowup(_) | SimError::Stall(_))) => {
                     world.status = WorldStatus::Frozen {
                         frame: world.sim.frame,

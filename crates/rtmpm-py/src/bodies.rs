@@ -7,8 +7,9 @@ use crate::state::Inner;
 use pyo3::exceptions::{PyIndexError, PyKeyError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use rtmpm_driver::Simulation;
 use rtmpm_physics::math::Vec3;
-use rtmpm_rigid::{BodyPose, RigidBodySpec, RigidKind};
+use rtmpm_rigid::{BodyLoad, BodyPose, RigidBodySpec, RigidKind};
 use rtmpm_sim::Backend;
 
 /// The optional cargo features of this build, by name.
@@ -24,23 +25,34 @@ pub fn features() -> Vec<&'static str> {
 }
 
 /// Each body's state as a dict: `position` (its centre, m), `rotation` (unit quaternion
-/// `(x, y, z, w)`, body to world), `velocity` (m/s) and `angular_velocity` (rad/s).
-pub fn states<'py>(py: Python<'py>, poses: &[BodyPose]) -> PyResult<Vec<Bound<'py, PyDict>>> {
+/// `(x, y, z, w)`, body to world), `velocity` (m/s) and `angular_velocity` (rad/s); with
+/// `loads` (where the backend reports them) also `force` (N) and `torque` (N m) the material put
+/// on it over the last step.
+pub fn states<'py>(
+    py: Python<'py>,
+    poses: &[BodyPose],
+    loads: Option<Vec<BodyLoad>>,
+) -> PyResult<Vec<Bound<'py, PyDict>>> {
     poses
         .iter()
-        .map(|b| {
+        .enumerate()
+        .map(|(i, b)| {
             let d = PyDict::new(py);
             d.set_item("position", b.position.to_array())?;
             d.set_item("rotation", b.rotation.to_array())?;
             d.set_item("velocity", b.velocity.to_array())?;
             d.set_item("angular_velocity", b.angular_velocity.to_array())?;
+            if let Some(l) = loads.as_ref().and_then(|l| l.get(i)) {
+                d.set_item("force", l.force)?;
+                d.set_item("torque", l.torque)?;
+            }
             Ok(d)
         })
         .collect()
 }
 
 /// The index among `specs` of `body`: an int (negative counts from the end) or a body's name.
-fn body_index(body: &Bound<'_, PyAny>, specs: &[RigidBodySpec]) -> PyResult<usize> {
+pub fn body_index(body: &Bound<'_, PyAny>, specs: &[RigidBodySpec]) -> PyResult<usize> {
     if let Ok(name) = body.extract::<String>() {
         return specs.iter().position(|s| s.name == name).ok_or_else(|| {
             let names: Vec<&str> = specs.iter().map(|s| s.name.as_str()).collect();
@@ -155,8 +167,17 @@ pub fn set(
     update: &BodyUpdate,
 ) -> PyResult<()> {
     inner.usable()?;
-    let sim = &mut inner.sim;
-    let i = body_index(body, &sim.scene.rigid_bodies)?;
+    let i = body_index(body, &inner.sim.scene.rigid_bodies)?;
+    set_body(py, &mut inner.sim, i, update)
+}
+
+/// [`set`] on rigid body `i` of any simulation (a world of a batch too).
+pub fn set_body<B: Backend + ?Sized>(
+    py: Python<'_>,
+    sim: &mut Simulation<B>,
+    i: usize,
+    update: &BodyUpdate,
+) -> PyResult<()> {
     sim.backend.flush_rigid().map_err(|e| sim_error(py, &e))?;
     let mut poses = sim.backend.rigid_poses();
     let pose = poses.get_mut(i).ok_or_else(|| {

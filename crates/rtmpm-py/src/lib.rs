@@ -5,11 +5,13 @@
 //! * [`state`]: the state behind a `Simulation`; [`simulation`]: its methods (backend choice
 //!   through rtmpm-backends, stepping with the interpreter lock released and Ctrl-C checks,
 //!   checkpoints, frames, rendering).
+//! * [`batch`]: `BatchSimulation`, many worlds of a scene stepped together.
 //! * [`particles`]: `Particles` (NumPy arrays in original order, setters).
 //! * [`device`]: `DeviceArray` (zero-copy DLPack / CUDA Array Interface views on the GPU).
 //! * [`errors`]: the exceptions.
 
 mod backend;
+mod batch;
 mod bodies;
 mod device;
 mod dict_toml;
@@ -80,6 +82,7 @@ fn _rtmpm(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("frame_formats", pyo3::types::PyTuple::new(py, formats)?)?;
     m.add_class::<scene::PyScene>()?;
     m.add_class::<state::PySimulation>()?;
+    m.add_class::<batch::PyBatch>()?;
     m.add_class::<backend::BackendInfo>()?;
     m.add_class::<frames::FrameIter>()?;
     m.add_class::<particles::PyParticles>()?;

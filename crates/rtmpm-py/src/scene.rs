@@ -4,7 +4,7 @@
 use crate::errors::scene_error;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use rtmpm_scene::{Scene, StepMode};
+use rtmpm_scene::{BatchScene, Scene, StepMode};
 use std::path::{Path, PathBuf};
 
 /// A validated scene.
@@ -19,6 +19,9 @@ pub struct PyScene {
     pub text: String,
     /// Where it came from: a path, "<string>" or "<dict>".
     pub origin: String,
+    /// The worlds of the scene's `[batch]` (`None` without one): a `Simulation` of it is a
+    /// batch (`crate::batch`).
+    pub batch: Option<BatchScene>,
 }
 
 impl PyScene {
@@ -30,13 +33,19 @@ impl PyScene {
         base: &Path,
         from_dict: bool,
     ) -> PyResult<PyScene> {
-        let scene = Scene::from_toml_in(&text, &origin, base)
+        let b = BatchScene::from_toml_in(&text, &origin, base)
             .map_err(|e| scene_error(py, &e, from_dict))?;
-        Ok(PyScene {
-            scene,
+        Ok(PyScene::of(b, text, origin))
+    }
+
+    /// The scene of `b` (its file's scene, and its worlds when it has a `[batch]`).
+    fn of(b: BatchScene, text: String, origin: String) -> PyScene {
+        PyScene {
+            scene: b.base.clone(),
+            batch: b.batch.is_some().then_some(b),
             text,
             origin,
-        })
+        }
     }
 }
 
@@ -57,16 +66,12 @@ impl PyScene {
     /// Raises :class:`rtmpm.SceneError` when the file cannot be read or is invalid.
     #[staticmethod]
     fn load(py: Python<'_>, path: PathBuf) -> PyResult<PyScene> {
-        let scene = Scene::from_file(&path).map_err(|e| scene_error(py, &e, false))?;
+        let b = BatchScene::from_file(&path).map_err(|e| scene_error(py, &e, false))?;
         // from_file succeeded, so the file was readable a moment ago.
         let text = std::fs::read_to_string(&path).map_err(|e| {
             crate::errors::SceneError::new_err(format!("{}: cannot read: {e}", path.display()))
         })?;
-        Ok(PyScene {
-            scene,
-            text,
-            origin: path.display().to_string(),
-        })
+        Ok(PyScene::of(b, text, path.display().to_string()))
     }
 
     /// Parse and validate scene text (TOML). Mesh paths are relative to ``base_dir`` (default:
@@ -120,6 +125,24 @@ impl PyScene {
     #[getter]
     fn warnings(&self) -> Vec<String> {
         self.scene.warnings()
+    }
+
+    /// The number of worlds of the scene's ``[batch]``, or ``None`` without one. A
+    /// :class:`Simulation` of a scene with ``[batch]`` is a :class:`BatchSimulation` of its
+    /// worlds (docs/batch.md); the other properties are those of the scene as written.
+    #[getter]
+    fn batch(&self) -> Option<usize> {
+        self.batch.as_ref().map(BatchScene::count)
+    }
+
+    /// What sets each world of ``[batch]`` apart (``"material[0].yield_stress = 150"``); empty
+    /// without ``[batch]``.
+    #[getter]
+    fn batch_labels(&self) -> Vec<String> {
+        match &self.batch {
+            Some(b) => (0..b.count()).map(|w| b.label(w)).collect(),
+            None => Vec::new(),
+        }
     }
 
     /// Grid spacing (m).

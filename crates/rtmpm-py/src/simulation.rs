@@ -327,14 +327,16 @@ impl PySimulation {
 
     /// The rigid bodies (``[[rigid_body]]``, in file order) as of the last step: a list of dicts
     /// with ``position`` (the body's centre, m), ``rotation`` (unit quaternion ``(x, y, z, w)``,
-    /// body to world), ``velocity`` (m/s) and ``angular_velocity`` (rad/s). Empty without
+    /// body to world), ``velocity`` (m/s) and ``angular_velocity`` (rad/s); on the CPU backend also
+    /// ``force`` (N) and ``torque`` (N m, about its centre of mass) the material put on it over
+    /// the last step, for a kinematic or fixed body too. Empty without
     /// bodies; scenes with bodies need a module built with the ``rigid`` feature
     /// (``rtmpm.features``).
     #[getter]
     fn rigid_bodies<'py>(&mut self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
         let backend = &mut self.get().sim.backend;
         backend.flush_rigid().map_err(|e| sim_error(py, &e))?;
-        crate::bodies::states(py, &backend.rigid_poses())
+        crate::bodies::states(py, &backend.rigid_poses(), backend.rigid_loads())
     }
 
     /// Move rigid body ``body`` (its index in ``[[rigid_body]]`` or its name) from the next step

@@ -132,7 +132,7 @@ impl Inner {
 ///
 /// The particles are in :attr:`particles`; :meth:`step`, :meth:`run_frame`, :meth:`advance`,
 /// :meth:`frames` and :meth:`run` move the simulation on.
-#[pyclass(name = "Simulation", module = "rtmpm")]
+#[pyclass(name = "Simulation", module = "rtmpm", subclass)]
 pub struct PySimulation {
     pub inner: Mutex<Inner>,
 }

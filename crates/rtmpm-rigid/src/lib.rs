@@ -39,7 +39,7 @@ mod world_stub;
 
 pub use joint::{JointKind, JointSpec};
 pub use spec::{HANG_LAYER_CELLS, RigidBodySpec, RigidKind, resolution_warnings};
-pub use state::{BodyPose, BodyState, Exchange};
+pub use state::{BodyLoad, BodyPose, BodyState, Exchange};
 #[cfg(feature = "rigid")]
 pub use world::RigidWorld;
 #[cfg(not(feature = "rigid"))]

@@ -138,6 +138,26 @@ impl Exchange {
         }
         self
     }
+
+    /// The mean force and torque of this exchange over a step of `dt` seconds.
+    pub fn load(&self, dt: f64) -> BodyLoad {
+        let per = |a: [f64; 3]| a.map(|c| if dt > 0.0 { c / dt } else { 0.0 });
+        BodyLoad {
+            force: per(self.impulse),
+            torque: per(self.torque),
+        }
+    }
+}
+
+/// The load the material puts on a body over one step: the impulse and angular impulse of its
+/// [`Exchange`] divided by the step's dt. For every kind of body (a kinematic or fixed body is
+/// not moved by it, but the material pushes on it all the same: the force on a robot's tool).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BodyLoad {
+    /// Force on the body (N).
+    pub force: [f64; 3],
+    /// Torque about its centre of mass (N m).
+    pub torque: [f64; 3],
 }
 
 #[cfg(test)]

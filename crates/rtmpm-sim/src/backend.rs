@@ -7,7 +7,7 @@ use rtmpm_io::chunks::HostBuffer;
 use rtmpm_physics::Particles;
 use rtmpm_physics::math::Vec3;
 use rtmpm_render::{Image, ViewRequest};
-use rtmpm_rigid::{BodyPose, BodyState};
+use rtmpm_rigid::{BodyLoad, BodyPose, BodyState};
 
 /// A compute backend: CPU reference or CUDA.
 pub trait Backend {
@@ -86,6 +86,12 @@ pub trait Backend {
     /// (what a checkpoint stores); empty where [`Backend::rigid_bodies`] is.
     fn rigid_poses(&self) -> Vec<BodyPose> {
         Vec::new()
+    }
+    /// The load (force and torque) the material put on each rigid body over the last step, in
+    /// the order of [`Backend::rigid_poses`], for every kind of body (a kinematic tool's too);
+    /// zeros before the first step. `None`: this backend does not report loads.
+    fn rigid_loads(&self) -> Option<Vec<BodyLoad>> {
+        None
     }
     /// Give the rigid bodies every impulse the grid has sent them, so that
     /// [`Backend::rigid_poses`] is their state at the current time: a backend that moves them

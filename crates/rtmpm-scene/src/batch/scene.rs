@@ -36,21 +36,8 @@ impl BatchScene {
         path: &Path,
         check: impl FnOnce(&Scene, &Batch) -> Result<(), E>,
     ) -> Result<BatchScene, E> {
-        let base = Scene::from_file(path)?;
+        let (base, text) = Scene::read_file(path)?;
         let origin = path.display().to_string();
-        let text = rtmpm_io::limits::read_text_bounded(
-            path,
-            rtmpm_io::limits::SCENE_MAX_BYTES,
-            "scene file",
-        )
-        .map_err(|e| SceneError {
-            origin: origin.clone(),
-            line: None,
-            column: None,
-            field: None,
-            message: format!("cannot read the scene file: {e}"),
-            hint: Some("check that the file is not being rewritten".into()),
-        })?;
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let stem = path.file_stem().and_then(|s| s.to_str());
         let Some((batch, table)) = read_batch(&text, &origin)? else {
@@ -74,7 +61,7 @@ impl BatchScene {
         origin: &str,
         base_dir: &Path,
     ) -> Result<BatchScene, SceneError> {
-        let base = Scene::from_toml_in(text, origin, base_dir)?;
+        let base = validate::parse(text, origin, base_dir, None)?;
         let Some((batch, table)) = read_batch(text, origin)? else {
             return Ok(BatchScene::single(base));
         };

@@ -287,3 +287,35 @@ fn the_budget_sums_the_worlds() {
     );
     assert!(b.memory_refusal(&five, Some(five.host_bytes)).is_none());
 }
+
+#[test]
+fn one_scene_of_a_batch_file_is_refused_with_the_batch_api() {
+    let text = format!("{BASE}\n[batch]\ncount = 4\n");
+    let e = Scene::from_toml(&text, "wedge.toml").unwrap_err();
+    assert_eq!(e.field.as_deref(), Some("batch"));
+    assert_eq!(e.line, Some(BASE.lines().count() + 2), "{e}");
+    assert!(e.message.contains("a [batch] of 4 worlds"), "{e}");
+    assert!(
+        e.hint
+            .as_deref()
+            .unwrap_or("")
+            .contains("BatchScene::from_file"),
+        "{e}"
+    );
+    // From a file too; the batch readers take it.
+    let dir = std::env::temp_dir().join(format!("rtmpm-batch-refusal-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("wedge.toml");
+    std::fs::write(&path, &text).unwrap();
+    let e = Scene::from_file(&path).unwrap_err();
+    assert!(e.message.contains("a [batch] of 4 worlds"), "{e}");
+    assert_eq!(BatchScene::from_file(&path).unwrap().count(), 4);
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert_eq!(
+        BatchScene::from_toml(&text, "wedge.toml").unwrap().count(),
+        4
+    );
+    // A scene that only names a batch elsewhere is one scene.
+    let named = BASE.replace("name = \"slump\"", "name = \"batch\"");
+    assert!(Scene::from_toml(&named, "s.toml").is_ok());
+}

@@ -123,7 +123,8 @@ fn render_wedge(args: &RenderArgs, dir: &Path) -> Result<()> {
         .cloned()
         .unwrap_or_default();
     let scene = match &args.scene {
-        Some(p) => Some(Scene::from_file(p)?),
+        // A batch's scene file gives its scene as written (the worlds' common settings).
+        Some(p) => Some(rtmpm_scene::BatchScene::from_file(p)?.base),
         None => None,
     };
     let color_by = args
