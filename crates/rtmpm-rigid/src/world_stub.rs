@@ -22,9 +22,10 @@ impl RigidWorld {
             return Ok(None);
         }
         Err(
-            "the scene has [[rigid_body]] tables, but this build has no rigid-body engine: \
-             build with the cargo feature `rigid` (rapier3d), e.g. \
-             `cargo build --release -p rtmpm --features rigid`"
+            "the scene has [[rigid_body]] tables, but this build has no rigid-body engine \
+             (it was built without the cargo feature `rigid`, rapier3d, which the default \
+             features include): build with the default features, e.g. `cargo build --release`, \
+             or add `--features rigid`"
                 .into(),
         )
     }

@@ -11,6 +11,7 @@
 pub mod batch;
 pub mod body;
 pub mod budget;
+pub mod contact;
 pub mod deferred;
 pub mod emitter;
 pub mod error;

@@ -11,7 +11,9 @@ impl Scene {
     /// What this scene allows but probably gets wrong, one line each, for `rtmpm check` and
     /// `rtmpm run` to print: dynamic rigid bodies that can hang in a fluid they are denser than
     /// ([`rtmpm_rigid::resolution_warnings`]), emitters that emit nothing or pile up, rigid
-    /// bodies thinner than a cell or leaving the domain, boundaries faster than a fixed step.
+    /// bodies thinner than a cell or leaving the domain, boundaries faster than a fixed step,
+    /// material that starts in contact with a slip or sticky wall, collider or rigid body above
+    /// it ([`crate::contact::hanging_warnings`]).
     // `Real` is f64 in the f64 build of this crate.
     #[allow(clippy::unnecessary_cast)]
     pub fn warnings(&self) -> Vec<String> {
@@ -23,6 +25,7 @@ impl Scene {
             .collect();
         let mut out = rtmpm_rigid::resolution_warnings(&self.rigid_bodies, &fluids, self.dx);
         out.extend(scene_warnings(self));
+        out.extend(crate::contact::hanging_warnings(self));
         out
     }
 }

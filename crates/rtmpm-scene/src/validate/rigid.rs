@@ -74,7 +74,7 @@ impl V<'_> {
             (position - h, position + h),
             interior,
         )?;
-        let condition = Self::condition(b.condition.unwrap_or(RawCondition::Slip));
+        let condition = Self::condition(b.condition.unwrap_or(Self::DEFAULT_CONDITION));
         let friction = self.non_negative(&f("friction"), b.friction.unwrap_or(0.0), "friction")?;
         Ok(RigidBodySpec {
             name: b.name.clone().unwrap_or_else(|| format!("rigid_body{i}")),

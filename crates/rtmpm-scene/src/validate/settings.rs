@@ -125,6 +125,11 @@ impl V<'_> {
         })
     }
 
+    /// The rule of a wall, collider or rigid body that gives none: separating, so material
+    /// pushes against an obstacle but can always leave it (a slip or sticky ceiling, or the
+    /// underside of a slip body, would hold material that touches it from below).
+    pub(super) const DEFAULT_CONDITION: RawCondition = RawCondition::Separate;
+
     pub(super) fn condition(c: RawCondition) -> Condition {
         match c {
             RawCondition::Sticky => Condition::Sticky,
@@ -148,7 +153,7 @@ impl V<'_> {
                 "use thinner walls or a larger domain",
             ));
         }
-        let condition = Self::condition(w.condition.unwrap_or(RawCondition::Separate));
+        let condition = Self::condition(w.condition.unwrap_or(Self::DEFAULT_CONDITION));
         let friction =
             self.non_negative("walls.friction", w.friction.unwrap_or(0.0), "friction")?;
         let rule = BoundaryRule {

@@ -397,7 +397,7 @@ impl V<'_> {
         let prefix = format!("collider[{i}]");
         let f = |n: &str| format!("{prefix}.{n}");
         let shape = self.shape(&prefix, &c.geometry(), Use::Collider, base, dx)?;
-        let condition = Self::condition(c.condition.unwrap_or(RawCondition::Slip));
+        let condition = Self::condition(c.condition.unwrap_or(Self::DEFAULT_CONDITION));
         let friction = self.non_negative(&f("friction"), c.friction.unwrap_or(0.0), "friction")?;
         let velocity = match c.velocity {
             Some(v) => self.vec3(&f("velocity"), v)?,

@@ -12,9 +12,10 @@ use rtmpm_driver::checks;
 use rtmpm_render::plot::{Plot, Series, Style};
 
 /// The rigid cases need the rigid-body engine (rapier3d), which this build may lack.
-pub const NEEDS_FEATURE: &str = "needs the rigid-body engine, which this build of rtmpm lacks: \
-     build it with the cargo feature `rigid` (`cargo build --release -p rtmpm --features rigid`, \
-     or `cargo run --release -p rtmpm --features rigid -- validate ...`)";
+pub const NEEDS_FEATURE: &str = "needs the rigid-body engine, which this build of rtmpm lacks \
+     (built without the cargo feature `rigid`, which the default features include): build it \
+     with the default features (`cargo build --release`, or `cargo run --release -- validate \
+     ...`), or add `--features rigid`";
 
 /// True when this build simulates `[[rigid_body]]` tables.
 pub fn available() -> bool {
