@@ -35,6 +35,9 @@
 #                whole-frame files), then `rtmpm bench --frame-write` on fluid 2M, 16.8M and the n = 584 block
 #                (49.8M): copy-out GB/s, write MB/s, step time with a frame written in the background
 #                (FRAME_DIR, default /tmp/frames: the files are removed after each timing)
+#   read         the read of every particle onto the host (`read_particles`: pooled page-locked memory,
+#                unpacked by every core) on the fluid dam 2M after a frame: ms and GB/s (test_frames
+#                gpu_read_particles_time), then test_frames whole (its files are written from that read)
 #   scale        big scenes under /usr/bin/time -v (SCALE_RUNS="scene|cuda-options ...", default
 #                water 500M with the device fill, then the host fill): set-up, throughput, bytes a particle
 #   rigid        dam break 2M with 10 floating crates vs 10 static ones, floating_box on CUDA
@@ -374,6 +377,12 @@ for suite in "$@"; do
         echo "== rtmpm bench --backend cuda $a --frame-write $fd" >> "$OUT/frames.log"; echo "$r" >> "$OUT/frames.log"
         say "frames $a:"; echo "$r" | grep -E "frame write|copy out|write  |whole  |steps  |^error" | tee -a "$S"
       done
+      ;;
+    read)
+      t test_frames gpu_read_particles_time --nocapture
+      grep -E "^read_particles|skipped" "$OUT/test_frames.log" | tee -a "$S"
+      mv "$OUT/test_frames.log" "$OUT/test_frames_read.log"
+      t test_frames
       ;;
     *) say "unknown suite $suite" ;;
   esac

@@ -55,14 +55,17 @@ pub fn g2p(b: &mut CpuBackend, dt: Real) -> (Real, Option<BadParticle>) {
             new_c *= inv_d;
             *v = new_v;
             *cp = new_c;
-            *x = (*x + dt * new_v).clamp(c.domain_min, c.domain_max);
             // F^{n+1} = (I + dt C) F^n, then the plastic return mapping.
             let model = &c.materials[materials[pi] as usize].model;
             *f = model.project((Mat3::IDENTITY + new_c * dt) * *f, plastic, dt);
-            let bad = check_particle(*x, new_v, dt, c.dx).map(|reason| BadParticle {
+            // Checked before the clamp, which turns a NaN position into the domain's corner.
+            let moved = *x + dt * new_v;
+            let bad = check_particle(moved, new_v, f, dt, c.dx).map(|reason| BadParticle {
                 index: ids[pi] as usize,
                 reason,
+                seen: Some((real::vec3_to_f32(moved), real::vec3_to_f32(new_v))),
             });
+            *x = moved.clamp(c.domain_min, c.domain_max);
             let speed = if new_v.is_finite() {
                 new_v.length()
             } else {
@@ -73,11 +76,12 @@ pub fn g2p(b: &mut CpuBackend, dt: Real) -> (Real, Option<BadParticle>) {
         .reduce(|| (0.0, None), worst)
 }
 
-/// Health check of one particle after a step: a non-finite position or velocity, or a move of
-/// more than [`MAX_CELLS_PER_STEP`] cells in the step.
+/// Health check of one particle after a step: a non-finite position (before the clamp to the
+/// domain), velocity or deformation gradient, or a move of more than [`MAX_CELLS_PER_STEP`]
+/// cells in the step.
 #[inline]
-fn check_particle(x: Vec3, v: Vec3, dt: Real, dx: Real) -> Option<BadReason> {
-    if !(x.is_finite() && v.is_finite()) {
+fn check_particle(x: Vec3, v: Vec3, f: &Mat3, dt: Real, dx: Real) -> Option<BadReason> {
+    if !(x.is_finite() && v.is_finite() && f.is_finite()) {
         Some(BadReason::NonFinite)
     } else if v.length() * dt > real::real(MAX_CELLS_PER_STEP) * dx {
         Some(BadReason::TooFast)
@@ -143,13 +147,15 @@ pub fn g2p_mpm(b: &mut CpuBackend, dt: Real, musl: bool) -> (Real, Option<BadPar
                 *v = flip_blend(alpha, *v, v_pic, dv);
             }
             *cp = l;
-            *x = (*x + dt * v_pic).clamp(c.domain_min, c.domain_max);
             let model = &c.materials[materials[pi] as usize].model;
             *f = model.project((Mat3::IDENTITY + l * dt) * *f, plastic, dt);
-            let bad = check_particle(*x, *v, dt, c.dx).map(|reason| BadParticle {
+            let moved = *x + dt * v_pic;
+            let bad = check_particle(moved, *v, f, dt, c.dx).map(|reason| BadParticle {
                 index: ids[pi] as usize,
                 reason,
+                seen: Some((real::vec3_to_f32(moved), real::vec3_to_f32(*v))),
             });
+            *x = moved.clamp(c.domain_min, c.domain_max);
             let speed = if v.is_finite() { v.length() } else { 0.0 };
             (speed, bad)
         })

@@ -187,45 +187,34 @@ impl CpuBackend {
             .map_or_else(rayon::current_num_threads, |p| p.current_num_threads())
     }
 
-    /// Overwrite the positions and/or the velocities of every particle, given in original order
-    /// in the interface's f32 (widened exactly in f64), keeping the rest of each particle's
-    /// state. The next step rebuilds the layout from the new positions (the CPU rebuilds every
-    /// step); the CFL speed is taken from the new velocities.
-    pub fn set_x_v(
-        &mut self,
-        x: Option<&[glam::Vec3]>,
-        v: Option<&[glam::Vec3]>,
-    ) -> Result<(), SimError> {
-        let n = self.particles.len();
-        for (what, a) in [("positions", x), ("velocities", v)] {
-            if let Some(a) = a
-                && a.len() != n
-            {
-                return Err(SimError::Backend(format!(
-                    "{} {what} given for {n} particles",
-                    a.len()
-                )));
-            }
-        }
+    /// Overwrite the columns `edit` gives (positions, velocities, APIC's C, F) of every
+    /// particle, given in original order in the interface's f32 (widened exactly in f64),
+    /// keeping the rest of each particle's state. The next step rebuilds the layout from new
+    /// positions (the CPU rebuilds every step); the CFL speed is taken from new velocities.
+    pub fn set_fields(&mut self, edit: &sim::ParticleEdit) -> Result<(), SimError> {
+        edit.check_lengths(self.particles.len())?;
+        let p = &mut self.particles;
         for (i, &id) in self.ids.iter().enumerate() {
-            if let Some(x) = x {
-                self.particles.x[i] = real::vec3(x[id as usize]);
+            let id = id as usize;
+            if let Some(x) = edit.x {
+                p.x[i] = real::vec3(x[id]);
             }
-            if let Some(v) = v {
-                self.particles.v[i] = real::vec3(v[id as usize]);
+            if let Some(v) = edit.v {
+                p.v[i] = real::vec3(v[id]);
+            }
+            if let Some(c) = edit.c {
+                p.c[i] = real::mat3(c[id]);
+            }
+            if let Some(f) = edit.f {
+                p.f[i] = real::mat3(f[id]);
             }
         }
         // New positions: re-sort the storage at the next step.
-        if x.is_some() {
+        if edit.x.is_some() {
             self.since_sort = u32::MAX;
         }
-        if v.is_some() {
-            self.max_speed = self
-                .particles
-                .v
-                .iter()
-                .map(|v| v.length())
-                .fold(0.0, Real::max);
+        if edit.v.is_some() {
+            self.max_speed = p.v.iter().map(|v| v.length()).fold(0.0, Real::max);
         }
         Ok(())
     }

@@ -140,3 +140,49 @@ fn gpu_frames_streamed_in_chunks_are_byte_identical() {
         }
     }
 }
+
+/// The read of every particle onto the host (`read_particles`: each state word's `n` words
+/// into pooled page-locked memory, unpacked by every core) on the fluid dam of 2M particles
+/// after a frame (slots sorted): its time, the first read (the pinned memory allocated) apart.
+/// Prints the figure; the files of `gpu_frames_streamed_in_chunks_are_byte_identical` check
+/// its values (the whole-frame files are written from it).
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn gpu_read_particles_time() {
+    if let Err(e) = probe() {
+        println!("skipped: no usable CUDA GPU ({e})");
+        return;
+    }
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../bench/fluid_dam_2m.toml");
+    let scene = Scene::from_file(&path).unwrap_or_else(|e| panic!("{e}"));
+    let p0 = scene.sample_particles().expect("particles");
+    let gpu = CudaBackend::new(&scene, &p0, CudaOptions::default()).expect("cuda");
+    let mut sim = Simulation::with_backend(scene, Box::new(gpu));
+    sim.advance_frame().expect("frame");
+    let b = sim.backend.as_mut();
+    let n = b.num_particles();
+    let state = b.device_particles().expect("state");
+    let bytes = (n * state.layout.words() * state.word_bytes) as f64;
+    let mut p = Particles::default();
+    let t = std::time::Instant::now();
+    b.read_particles(&mut p).expect("read");
+    let first = t.elapsed().as_secs_f64();
+    let reps = 5;
+    let t = std::time::Instant::now();
+    for _ in 0..reps {
+        b.read_particles(&mut p).expect("read");
+    }
+    let each = t.elapsed().as_secs_f64() / reps as f64;
+    assert_eq!(p.len(), n);
+    assert!(p.x.iter().all(|x| x.is_finite()));
+    assert_eq!(p.mass.iter().filter(|&&m| m > 0.0).count(), n);
+    println!(
+        "read_particles: {n} particles ({:.0} MB of state) in {:.1} ms ({:.2} GB/s; the first \
+         read, allocating the pinned memory, {:.1} ms), {} threads",
+        bytes / 1e6,
+        each * 1e3,
+        bytes / each / 1e9,
+        first * 1e3,
+        rayon::current_num_threads()
+    );
+}

@@ -336,9 +336,21 @@ impl<B: Backend + ?Sized> Simulation<B> {
                 .and_then(|&m| self.scene.materials.get(m as usize))
                 .map(|m| m.name.clone())
                 .unwrap_or_else(|| "?".into());
+            // What the health check saw, else the state as stored (a non-finite position is
+            // stored clamped to the domain: said so rather than shown as a real place).
+            let (position, velocity) = bad.seen.unwrap_or((
+                p.x.get(i).copied().unwrap_or(Vec3::NAN),
+                p.v.get(i).copied().unwrap_or(Vec3::NAN),
+            ));
             let reason = match bad.reason {
+                BadReason::NonFinite if bad.seen.is_none() && position.is_finite() => {
+                    "position, velocity or deformation gradient is not finite (NaN or infinity; \
+                     the position shown is where the step clamped it, at the domain's edge)"
+                        .into()
+                }
                 BadReason::NonFinite => {
-                    "position or velocity is not finite (NaN or infinity)".into()
+                    "position, velocity or deformation gradient is not finite (NaN or infinity)"
+                        .into()
                 }
                 BadReason::TooFast => format!(
                     "speed exceeds {MAX_CELLS_PER_STEP} cells per step (|v| dt > {MAX_CELLS_PER_STEP} dx)"
@@ -348,12 +360,12 @@ impl<B: Backend + ?Sized> Simulation<B> {
                 step: self.step,
                 time: self.time,
                 particle: bad.index,
-                position: p.x.get(i).copied().unwrap_or(Vec3::NAN),
-                velocity: p.v.get(i).copied().unwrap_or(Vec3::NAN),
+                position,
+                velocity,
                 material,
                 reason,
                 dt: self.last_dt,
-                advice: self.blame(self.last_dt, p.x.get(i).copied().unwrap_or(Vec3::NAN)),
+                advice: self.blame(self.last_dt, p.x.get(i).copied().unwrap_or(position)),
             })));
         }
         Ok(())

@@ -1,5 +1,5 @@
 //! `rtmpm.Particles`: the particle state of a simulation as NumPy arrays (copies, in original
-//! order) with setters for positions and velocities, and, on the CUDA backend, zero-copy
+//! order) with setters for positions, velocities, C and F, and, on the CUDA backend, zero-copy
 //! device arrays (see [`crate::device`]).
 
 use crate::device::{DeviceArray, Elem};
@@ -11,7 +11,7 @@ use pyo3::prelude::*;
 use rtmpm_backends::AnyBackend;
 use rtmpm_cuda::contract::StateLayout;
 use rtmpm_physics::math::{Mat3, Vec3};
-use rtmpm_sim::{Backend, SimError};
+use rtmpm_sim::{Backend, ParticleEdit, SimError};
 
 /// The particles of a :class:`rtmpm.Simulation`.
 ///
@@ -20,7 +20,7 @@ use rtmpm_sim::{Backend, SimError};
 /// :attr:`id` is ``arange(n)``.
 ///
 /// **Host arrays** (NumPy, fresh copies each access; assigning to an array's elements does not
-/// change the simulation, assigning to :attr:`x` or :attr:`v` does):
+/// change the simulation, assigning to :attr:`x`, :attr:`v`, :attr:`C` or :attr:`F` does):
 ///
 /// ========== ============== ========== ==============================================
 /// name       shape          dtype      meaning
@@ -136,24 +136,7 @@ impl PyParticles {
         let inner = s.get();
         inner.usable()?;
         let n = inner.sim.backend.num_particles();
-        let np = py.import("numpy")?;
-        let arr = np.call_method1("asarray", (value,))?;
-        let kind: String = arr.getattr("dtype")?.getattr("kind")?.extract()?;
-        if kind != "f" {
-            let dtype = arr.getattr("dtype")?.str()?.to_string();
-            return Err(PyTypeError::new_err(format!(
-                "{what}: expected a float array (float32 or float64), got dtype {dtype}"
-            )));
-        }
-        let shape: Vec<usize> = arr.getattr("shape")?.extract()?;
-        if shape != [n, 3] {
-            return Err(PyValueError::new_err(format!(
-                "{what}: expected shape ({n}, 3), got {shape:?}"
-            )));
-        }
-        let arr = np.call_method1("ascontiguousarray", (arr, "float32"))?;
-        let arr = arr.cast::<PyArray2<f32>>()?.readonly();
-        let flat = arr.as_slice()?;
+        let flat = float_rows(py, value, what, &[n, 3])?;
         let vals: Vec<Vec3> = flat.chunks_exact(3).map(Vec3::from_slice).collect();
         if let Some(i) = vals.iter().position(|v| !v.is_finite()) {
             return Err(PyValueError::new_err(format!(
@@ -175,33 +158,144 @@ impl PyParticles {
                 )));
             }
         }
-        let (x, v) = match field {
-            Vec3Field::X => (Some(vals.as_slice()), None),
-            Vec3Field::V => (None, Some(vals.as_slice())),
+        let edit = match field {
+            Vec3Field::X => ParticleEdit {
+                x: Some(&vals),
+                ..Default::default()
+            },
+            Vec3Field::V => ParticleEdit {
+                v: Some(&vals),
+                ..Default::default()
+            },
         };
-        apply_x_v(py, inner, x, v)
+        apply_edit(py, inner, &edit)
+    }
+
+    /// Set every particle's C (`f` false) or F (`f` true) from an `(n, 3, 3)` float array
+    /// (`[i, row, col]`), checked: finite, and for F a positive determinant; a fluid particle's
+    /// F is kept as `J^(1/3) I` (only its volume ratio `J = det F` acts).
+    fn set_mat3(&self, py: Python<'_>, value: &Bound<'_, PyAny>, f: bool) -> PyResult<()> {
+        let what = if f {
+            "deformation gradients (F)"
+        } else {
+            "affine matrices (C)"
+        };
+        let mut s = self.sim.bind(py).borrow_mut();
+        let inner = s.get();
+        inner.usable()?;
+        let n = inner.sim.backend.num_particles();
+        let flat = float_rows(py, value, what, &[n, 3, 3])?;
+        // NumPy rows to glam's columns.
+        let mut vals: Vec<Mat3> = flat
+            .chunks_exact(9)
+            .map(|m| Mat3::from_cols_array(&std::array::from_fn(|k| m[k])).transpose())
+            .collect();
+        if let Some(i) = vals.iter().position(|m| !m.is_finite()) {
+            return Err(PyValueError::new_err(format!(
+                "{what}: particle {i} is not finite: {:?}",
+                rows_of(vals[i])
+            )));
+        }
+        if f {
+            if let Some(i) = vals.iter().position(|m| {
+                m.determinant().partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)
+            }) {
+                return Err(PyValueError::new_err(format!(
+                    "{what}: particle {i} has det F = {:e} (F = {:?}); a deformation gradient \
+                     must have a positive determinant (0 or less is a particle flattened or \
+                     turned inside out)",
+                    vals[i].determinant(),
+                    rows_of(vals[i])
+                )));
+            }
+            let fluid = fluid_materials(&inner.sim.scene);
+            let host = inner.host(py)?;
+            for (m, &mat) in vals.iter_mut().zip(&host.material) {
+                if fluid.get(mat as usize).copied().unwrap_or(false) {
+                    *m = Mat3::from_diagonal(Vec3::splat(m.determinant().cbrt()));
+                }
+            }
+        }
+        let edit = if f {
+            ParticleEdit {
+                f: Some(&vals),
+                ..Default::default()
+            }
+        } else {
+            ParticleEdit {
+                c: Some(&vals),
+                ..Default::default()
+            }
+        };
+        apply_edit(py, inner, &edit)
     }
 }
 
-/// Give new positions/velocities to the backend (several GPUs: a new backend from the host
-/// state).
-fn apply_x_v(
+/// True for each material of `scene` that is a fluid.
+fn fluid_materials(scene: &rtmpm_scene::Scene) -> Vec<bool> {
+    scene
+        .materials
+        .iter()
+        .map(|m| matches!(m.model, rtmpm_physics::material::Model::Fluid(_)))
+        .collect()
+}
+
+/// A 3x3 matrix as its rows, for messages.
+fn rows_of(m: Mat3) -> [[f32; 3]; 3] {
+    let t = m.transpose().to_cols_array_2d();
+    [t[0], t[1], t[2]]
+}
+
+/// `value` as a float32 array of `shape`, flat in C order: an error naming `what` for another
+/// dtype kind than float or another shape.
+fn float_rows(
     py: Python<'_>,
-    inner: &mut Inner,
-    x: Option<&[Vec3]>,
-    v: Option<&[Vec3]>,
-) -> PyResult<()> {
+    value: &Bound<'_, PyAny>,
+    what: &str,
+    shape: &[usize],
+) -> PyResult<Vec<f32>> {
+    let np = py.import("numpy")?;
+    let arr = np.call_method1("asarray", (value,))?;
+    let kind: String = arr.getattr("dtype")?.getattr("kind")?.extract()?;
+    if kind != "f" {
+        let dtype = arr.getattr("dtype")?.str()?.to_string();
+        return Err(PyTypeError::new_err(format!(
+            "{what}: expected a float array (float32 or float64), got dtype {dtype}"
+        )));
+    }
+    let got: Vec<usize> = arr.getattr("shape")?.extract()?;
+    if got != shape {
+        let want: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
+        return Err(PyValueError::new_err(format!(
+            "{what}: expected shape ({}), got {got:?}",
+            want.join(", ")
+        )));
+    }
+    let flat = np
+        .call_method1("ascontiguousarray", (arr, "float32"))?
+        .call_method1("reshape", (-1,))?;
+    let flat = flat.cast::<PyArray1<f32>>()?.readonly();
+    Ok(flat.as_slice()?.to_vec())
+}
+
+/// Give new columns of the particles to the backend (several GPUs: a new backend from the
+/// host state with them).
+fn apply_edit(py: Python<'_>, inner: &mut Inner, edit: &ParticleEdit) -> PyResult<()> {
     let r: Result<(), SimError> = match inner.sim.backend.as_mut() {
-        AnyBackend::Cpu(b) => b.set_x_v(x, v),
-        AnyBackend::CpuF64(b) => b.set_x_v(x, v),
-        AnyBackend::Cuda(c) => c.0.write_x_v(x, v),
+        AnyBackend::Cpu(b) => b.set_fields(edit),
+        AnyBackend::CpuF64(b) => b.set_fields(edit),
+        AnyBackend::Cuda(c) => c.0.write_fields(edit),
         AnyBackend::MultiGpu(_) => {
             let mut p = inner.host(py)?.clone();
-            if let Some(x) = x {
-                p.x.copy_from_slice(x);
+            for (dst, src) in [(&mut p.x, edit.x), (&mut p.v, edit.v)] {
+                if let Some(src) = src {
+                    dst.copy_from_slice(src);
+                }
             }
-            if let Some(v) = v {
-                p.v.copy_from_slice(v);
+            for (dst, src) in [(&mut p.c, edit.c), (&mut p.f, edit.f)] {
+                if let Some(src) = src {
+                    dst.copy_from_slice(src);
+                }
             }
             let created = rtmpm_backends::create(&inner.request, &inner.sim.scene, p)
                 .map_err(backend_error)?;
@@ -249,18 +343,34 @@ impl PyParticles {
         self.set_vec3(py, value, Vec3Field::V)
     }
 
-    /// Deformation gradients, ``(n, 3, 3)`` float32, ``F[i, row, col]``.
+    /// Deformation gradients, ``(n, 3, 3)`` float32, ``F[i, row, col]``. Assign an
+    /// ``(n, 3, 3)`` float array to set them (finite, each with a positive determinant; a fluid
+    /// particle keeps only ``J = det F``, as ``J^(1/3) I``).
     #[getter(F)]
     fn f<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray3<f32>>> {
         let mut s = self.sim.bind(py).borrow_mut();
         mat3s_to_array(py, &s.get().host(py)?.f)
     }
 
-    /// APIC affine matrices, ``(n, 3, 3)`` float32, ``C[i, row, col]``.
+    #[setter(F)]
+    fn set_f(&self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        self.set_mat3(py, value, true)
+    }
+
+    /// APIC affine matrices, ``(n, 3, 3)`` float32, ``C[i, row, col]``. Assign an
+    /// ``(n, 3, 3)`` float array (finite) to set them: with a new velocity field ``v(x)``, set
+    /// ``C`` to its gradient ``dv_i/dx_j`` (e.g. ``[w]x``, the cross-product matrix of ``w``,
+    /// for a spin ``w``), as the scene's ``angular_velocity`` does; a velocity field set
+    /// without its ``C`` loses its rotation into ``C`` at the first step.
     #[getter(C)]
     fn c<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray3<f32>>> {
         let mut s = self.sim.bind(py).borrow_mut();
         mat3s_to_array(py, &s.get().host(py)?.c)
+    }
+
+    #[setter(C)]
+    fn set_c(&self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        self.set_mat3(py, value, false)
     }
 
     /// Volume ratios ``det F``, ``(n,)`` float32.

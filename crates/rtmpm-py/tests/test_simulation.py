@@ -195,6 +195,100 @@ def test_setters_check_shape_dtype_and_values(small_path):
     assert np.all(p.v == 0)
 
 
+def test_c_and_f_setters_check_shape_and_values(small_path, jelly_path):
+    sim = rtmpm.Simulation(jelly_path, backend="cpu")
+    p = sim.particles
+    n = len(p)
+    with pytest.raises(ValueError, match=rf"shape \({n}, 3, 3\)"):
+        p.C = np.zeros((n, 3), np.float32)
+    with pytest.raises(TypeError, match="float"):
+        p.F = np.zeros((n, 3, 3), np.int32)
+    c = np.zeros((n, 3, 3), np.float32)
+    c[4, 2, 1] = np.inf
+    with pytest.raises(ValueError, match="particle 4 is not finite"):
+        p.C = c
+    f = np.broadcast_to(np.eye(3, dtype=np.float32), (n, 3, 3)).copy()
+    f[9] = np.diag([1.0, -1.0, 1.0])
+    with pytest.raises(ValueError, match="particle 9 has det F = -1"):
+        p.F = f
+    f[9] = np.diag([1.0, 0.0, 1.0])
+    with pytest.raises(ValueError, match="positive determinant"):
+        p.F = f
+    # Nothing was changed by the refused assignments.
+    assert np.all(p.C == 0) and np.all(p.F == np.eye(3, dtype=np.float32))
+    # A solid keeps the F it is given, row by row ([i, row, col]); C as given.
+    f[9] = [[1.1, 0.2, 0.0], [0.0, 0.95, 0.0], [0.05, 0.0, 1.0]]
+    p.F = f
+    assert np.array_equal(p.F, f)
+    c[4] = [[0.0, -2.0, 0.0], [2.0, 0.0, 0.0], [0.0, 0.0, 0.5]]
+    p.C = c
+    assert np.array_equal(p.C, c)
+    # A fluid keeps only J = det F, as J^(1/3) I (what its step projects F to).
+    water = rtmpm.Simulation(small_path, backend="cpu")
+    m = len(water.particles)
+    f = np.broadcast_to(np.diag([1.1, 1.0, 1.0]).astype(np.float32), (m, 3, 3))
+    water.particles.F = f
+    assert np.allclose(water.particles.F, np.cbrt(1.1) * np.eye(3), rtol=1e-6)
+
+
+SPIN = """
+name = "spin"
+gravity = [0.0, 0.0, 0.0]
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [0.5, 0.5, 0.5]
+dx = 0.03125
+[time]
+duration = 0.1
+fps = 50
+dt = 2e-4
+[[material]]
+name = "jelly"
+type = "neo_hookean"
+density = 1000.0
+youngs_modulus = 1e5
+poisson_ratio = 0.3
+[[body]]
+material = "jelly"
+shape = "sphere"
+center = [0.25, 0.25, 0.25]
+radius = 0.1
+"""
+
+
+def test_a_spin_set_from_python_with_its_c_keeps_its_angular_momentum(tmp_path):
+    """A jelly ball in zero gravity, spun at 5 rad/s from Python: with C set to the velocity
+    field's gradient ([w]x) the particles' angular momentum sum m (x - c) x v survives the first
+    step (APIC carries an affine field exactly); with v alone, part of it goes into C."""
+    path = tmp_path / "spin.toml"
+    path.write_text(SPIN)
+    w = np.array([0.0, 0.0, 5.0])
+
+    def angular_momentum(sim):
+        p = sim.particles
+        x, v, m = p.x.astype(np.float64), p.v.astype(np.float64), p.mass.astype(np.float64)
+        c = (m[:, None] * x).sum(0) / m.sum()
+        return (m[:, None] * np.cross(x - c, v)).sum(0)[2]
+
+    def first_step_loss(with_c):
+        sim = rtmpm.Simulation(str(path), backend="cpu")
+        p = sim.particles
+        x, m = p.x.astype(np.float64), p.mass.astype(np.float64)
+        c = (m[:, None] * x).sum(0) / m.sum()
+        p.v = np.cross(w, x - c)
+        if with_c:
+            skew = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+            p.C = np.broadcast_to(skew, (len(p), 3, 3))
+        before = angular_momentum(sim)
+        sim.step(1)
+        return 1.0 - angular_momentum(sim) / before
+
+    with_c, without_c = first_step_loss(True), first_step_loss(False)
+    print(f"angular momentum lost at the first step: {with_c:.2e} with C, {without_c:.2e} without")
+    assert abs(with_c) < 1e-3, with_c
+    assert without_c > 1e-2, without_c
+
+
 def test_checkpoint_round_trip_is_bit_exact(tmp_path, jelly_path):
     sim = rtmpm.Simulation(jelly_path, backend="cpu")
     sim.run_frame()
@@ -337,6 +431,26 @@ def test_a_body_that_can_hang_in_the_water_is_warned_about():
     if "rigid" in rtmpm.features:
         with pytest.warns(UserWarning, match="can hang in `water`"):
             rtmpm.Simulation(scene, backend="cpu")
+
+
+def test_material_touching_a_slip_ceiling_is_warned_about():
+    """A water box up to the ceiling's node plane (0.5 - 3 cells = 0.40625) hangs from a slip
+    ceiling (slip removes the normal velocity both ways): the scene warns and names the face to
+    make separating. Under the default walls (separating), or 2 cells lower, it does not."""
+    import copy
+
+    from conftest import SMALL_DICT
+
+    scene = copy.deepcopy(SMALL_DICT)
+    del scene["walls"]["condition"]
+    scene["body"][0]["max"] = [0.3, 0.40625, 0.3]
+    assert rtmpm.Scene.from_dict(scene).warnings == []
+    scene["walls"]["condition"] = "slip"
+    (w,) = rtmpm.Scene.from_dict(scene).warnings
+    assert w.startswith("body[0]") and 'the y_max wall (condition "slip")' in w, w
+    assert "hangs from it" in w and "[walls.faces.y_max]" in w, w
+    scene["body"][0]["max"] = [0.3, 0.40625 - 2 * 0.03125, 0.3]
+    assert rtmpm.Scene.from_dict(scene).warnings == []
 
 
 def test_write_frame_ply_and_vtu(tmp_path, jelly_path):

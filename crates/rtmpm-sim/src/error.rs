@@ -94,8 +94,13 @@ impl std::error::Error for SimError {}
 /// [`MAX_CELLS_PER_STEP`] cells per step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BadParticle {
+    /// Its original index.
     pub index: usize,
     pub reason: BadReason,
+    /// The position and velocity the health check saw, before the step clamped the position to
+    /// the domain (a NaN position is stored clamped): `None` when the backend does not keep
+    /// them (the state read afterwards is reported then).
+    pub seen: Option<(Vec3, Vec3)>,
 }
 
 /// A particle moving more than this many cells in one step is taken as a blow-up
@@ -105,6 +110,7 @@ pub const MAX_CELLS_PER_STEP: f32 = 2.0;
 /// What was wrong with a [`BadParticle`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum BadReason {
+    /// A position, velocity or deformation gradient that is NaN or infinite.
     NonFinite,
     TooFast,
 }

@@ -64,8 +64,10 @@ __device__ __forceinline__ G2pResult g2p_finish(const Ctx& c, const int* bc, uns
     const Scalars& sc = scalars(c);
     if (!finite || speed * dt > (real)2 * sc.dx) {
         unsigned id = ALL_FLUID ? state_bits(state_ld(c.state, sidx(c.cap, F_ID, p))) : st.id;
-        unsigned prev = atomicMin(&c.ctl[CTL_BAD_INDEX], id);
-        if (prev > id) atomicExch(&c.ctl[CTL_BAD_REASON], finite ? 2u : 1u);
+        // The reason in the key's low bit (0: not finite, 1: too fast), so that one atomic keeps
+        // the lowest id with its own reason (a second word written after the minimum could pair
+        // one particle's index with another's reason).
+        atomicMin(&c.ctl[CTL_BAD_INDEX], (id << 1) | (finite ? 1u : 0u));
     }
     x.x = fmin(fmax(x.x, sc.domain_min[0]), sc.domain_max[0]);
     x.y = fmin(fmax(x.y, sc.domain_min[1]), sc.domain_max[1]);

@@ -120,6 +120,10 @@ impl CudaBackend {
     }
 }
 
+/// More particles than the CUDA backend indexes: the health check's control word holds
+/// `index << 1 | reason` below `u32::MAX` ([`crate::contract::bad_particle`]).
+const MAX_CUDA_PARTICLES: usize = (1 << 31) - 1;
+
 /// Checks before any GPU work: what the CUDA backend cannot run, as clear errors.
 fn check(scene: &Scene, n: usize, part: &Part, o: &CudaOptions) -> Result<(), SimError> {
     if o.f64 && o.p2g == P2gMode::Shared {
@@ -140,6 +144,13 @@ fn check(scene: &Scene, n: usize, part: &Part, o: &CudaOptions) -> Result<(), Si
         return Err(SimError::Backend(format!(
             "CUDA backend (device {}): no particles",
             part.device
+        )));
+    }
+    if n >= MAX_CUDA_PARTICLES {
+        return Err(SimError::Backend(format!(
+            "CUDA backend: {n} particles, more than the {} it indexes (the health check keeps \
+             a particle's index in 31 bits); use a larger dx or fewer particles per cell",
+            MAX_CUDA_PARTICLES - 1
         )));
     }
     if part.ids.as_ref().is_some_and(|ids| ids.len() != n) {

@@ -21,7 +21,7 @@ use cudarc::driver::{CudaModule, CudaSlice, CudaStream, PinnedHostSlice};
 use rtmpm_physics::Particles;
 use rtmpm_scene::Scene;
 use rtmpm_scene::sampling::SampledBody;
-use rtmpm_sim::{Backend, BadParticle, BadReason, SimError};
+use rtmpm_sim::{Backend, BadParticle, SimError};
 use std::sync::Arc;
 
 pub mod bench;
@@ -342,46 +342,32 @@ impl Backend for CudaBackend {
     }
 
     fn check(&mut self) -> Result<Option<BadParticle>, SimError> {
-        use crate::contract::{CTL_BAD_INDEX, CTL_BAD_REASON};
+        use crate::contract::{CTL_BAD_INDEX, bad_particle};
         let c = self.ctl_words()?;
         self.error_check(&c)?;
-        if c[CTL_BAD_INDEX] == u32::MAX {
+        let Some(bad) = bad_particle(c[CTL_BAD_INDEX]) else {
             return Ok(None);
-        }
+        };
         let reset = [u32::MAX, 0];
         let mut view = self.buffers.ctl.slice_mut(CTL_BAD_INDEX..CTL_BAD_INDEX + 2);
         self.stream
             .memcpy_htod(&reset, &mut view)
             .map_err(err("reset bad particle"))?;
-        let reason = if c[CTL_BAD_REASON] == 1 {
-            BadReason::NonFinite
-        } else {
-            BadReason::TooFast
-        };
-        Ok(Some(BadParticle {
-            index: c[CTL_BAD_INDEX] as usize,
-            reason,
-        }))
+        Ok(Some(bad))
     }
 
     fn add_particles(&mut self, particles: &Particles) -> Result<(), SimError> {
         self.append_particles(particles)
     }
 
+    /// The `n` words of every state word copied into the pooled pinned memory (one copy per
+    /// word, at the bus's page-locked rate; the `cap - n` free slots are not read), then
+    /// unpacked to original order by every core ([`crate::state::unpack_rows`]).
     fn read_particles(&mut self, out: &mut Particles) -> Result<(), SimError> {
-        let host = self
-            .stream
-            .clone_dtoh(&self.buffers.state)
-            .map_err(err("read particles"))?;
-        crate::state::unpack(
-            &host,
-            self.n,
-            self.ctx.cap as usize,
-            self.layout,
-            self.options.f64,
-            out,
-        )
-        .map_err(SimError::Backend)
+        let (n, layout, f64) = (self.n, self.layout, self.options.f64);
+        let words: Vec<usize> = (0..layout.words()).collect();
+        let rows = self.read_fields(&words)?;
+        crate::state::unpack_rows(&rows, n, layout, f64, out).map_err(SimError::Backend)
     }
 
     fn memory_bytes(&self) -> Option<(u64, u64)> {

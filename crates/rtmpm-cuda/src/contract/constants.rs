@@ -84,10 +84,25 @@ pub const CTL_GBLOCKS: usize = 1;
 pub const CTL_PBLOCKS: usize = 2;
 /// Error bits (`ERR_*`).
 pub const CTL_ERROR: usize = 3;
-/// First bad particle (original index; `u32::MAX`: none).
+/// First bad particle: `original index << 1 | reason` (reason 0: not finite, 1: too fast;
+/// `u32::MAX`: none), see [`bad_particle`].
 pub const CTL_BAD_INDEX: usize = 4;
-/// Its reason: 1 non-finite, 2 too fast.
+/// Unused (reset with [`CTL_BAD_INDEX`]): the reason is in that word's low bit.
 pub const CTL_BAD_REASON: usize = 5;
+
+/// The bad particle of the health check's control word [`CTL_BAD_INDEX`], as the kernels
+/// write it (`atomicMin` of `id << 1 | reason`: the lowest id and its own reason).
+pub fn bad_particle(word: u32) -> Option<rtmpm_sim::BadParticle> {
+    (word != u32::MAX).then_some(rtmpm_sim::BadParticle {
+        index: (word >> 1) as usize,
+        reason: if word & 1 == 0 {
+            rtmpm_sim::BadReason::NonFinite
+        } else {
+            rtmpm_sim::BadReason::TooFast
+        },
+        seen: None,
+    })
+}
 /// Max speed of the step (f32 bits).
 pub const CTL_MAX_SPEED: usize = 6;
 /// Rebuilds so far.
@@ -169,5 +184,28 @@ pub fn update(u: Update) -> u32 {
     match u {
         Update::Usl => 0,
         Update::Musl => 1,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rtmpm_sim::BadReason;
+
+    /// The key the kernels' `atomicMin` keeps: the lowest index wins whatever the reasons, and
+    /// its own reason comes back with it; `u32::MAX` is none.
+    #[test]
+    fn the_bad_particle_word_keeps_the_lowest_index_with_its_reason() {
+        let key = |id: u32, finite: bool| (id << 1) | u32::from(finite);
+        let words = [key(7, true), key(3, false), key(5, true), key(3, true)];
+        let first = bad_particle(words.into_iter().fold(u32::MAX, u32::min)).expect("bad");
+        assert_eq!((first.index, first.reason), (3, BadReason::NonFinite));
+        let fast = bad_particle(key(1_000_000_000, true)).expect("bad");
+        assert_eq!(
+            (fast.index, fast.reason),
+            (1_000_000_000, BadReason::TooFast)
+        );
+        assert!(fast.seen.is_none());
+        assert!(bad_particle(u32::MAX).is_none());
     }
 }

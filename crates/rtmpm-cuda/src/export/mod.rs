@@ -1,6 +1,6 @@
 //! The particle state of a [`CudaBackend`] for other libraries: where it lives on the device
 //! (zero-copy export through DLPack / `__cuda_array_interface__` by the Python package), fast
-//! reads of single fields, and writes of positions and velocities between steps.
+//! reads of single fields, and writes of positions, velocities, C and F between steps.
 //!
 //! Layout (see [`crate::state`]): one buffer, word `w` of the particle stored at slot `i` at
 //! `w * stride + i`, a word being an f32 (an f64 with `precision = "f64"`), each field at the
@@ -16,8 +16,7 @@ use crate::backend::CudaBackend;
 use crate::contract::*;
 use crate::error::err;
 use cudarc::driver::{DevicePtr, PinnedHostSlice};
-use rtmpm_physics::math::Vec3;
-use rtmpm_sim::SimError;
+use rtmpm_sim::{ParticleEdit, SimError};
 
 /// Where the particle state of a [`CudaBackend`] is, for zero-copy views.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -128,64 +127,44 @@ impl CudaBackend {
             .collect())
     }
 
-    /// Overwrite the positions and/or velocities of every particle (original order, f32,
-    /// widened exactly in f64), keeping the rest of each particle's state; the next step
-    /// rebuilds the mapping (and, with G2P2G, redoes its P2G) from them. Synchronises.
-    pub fn write_x_v(&mut self, x: Option<&[Vec3]>, v: Option<&[Vec3]>) -> Result<(), SimError> {
+    /// Overwrite the columns `edit` gives (positions, velocities, APIC's C, F; original order,
+    /// f32, widened exactly in f64; C rounded to the compact format in a compact layout, a
+    /// fluid's F kept as J^(1/3) I) of every particle, keeping the rest of each particle's
+    /// state; the next step rebuilds the mapping (and, with G2P2G, redoes its P2G) from them.
+    /// Synchronises.
+    pub fn write_fields(&mut self, edit: &ParticleEdit) -> Result<(), SimError> {
         let n = self.n;
-        for (what, a) in [("positions", x), ("velocities", v)] {
-            if let Some(a) = a
-                && a.len() != n
-            {
-                return Err(SimError::Backend(format!(
-                    "{} {what} given for {n} particles",
-                    a.len()
-                )));
-            }
+        edit.check_lengths(n)?;
+        if edit.is_empty() {
+            return Ok(());
         }
         let wb = crate::state::word_bytes(self.options.f64);
-        let ids: Vec<usize> = {
-            let id_row = self.read_fields(&[self.layout.id()])?[0];
-            (0..n)
-                .map(|i| {
-                    u32::from_le_bytes(id_row[i * wb..i * wb + 4].try_into().unwrap_or([0; 4]))
-                        as usize
-                })
-                .collect()
-        };
-        if ids.iter().any(|&id| id >= n) {
-            return Err(SimError::Backend(
-                "CUDA: a particle's original index is out of range".into(),
-            ));
-        }
-        let cap = self.ctx.cap as usize;
         let l = self.layout;
-        for (first, values) in [(l.x(), x), (l.v(), v)] {
-            let Some(values) = values else { continue };
-            let mut rows = Vec::with_capacity(3 * n * wb);
-            for axis in [0usize, 1, 2] {
-                for &id in &ids {
-                    let c = values[id][axis];
-                    if wb == 8 {
-                        rows.extend_from_slice(&(c as f64).to_le_bytes());
-                    } else {
-                        rows.extend_from_slice(&c.to_le_bytes());
-                    }
-                }
-            }
-            for (a, row) in rows.chunks_exact(n * wb).enumerate() {
-                let at = (first + a) * cap * wb;
-                let mut dst = self.buffers.state.slice_mut(at..at + n * wb);
-                self.stream
-                    .memcpy_htod(row, &mut dst)
-                    .map_err(err("write particle fields"))?;
-            }
+        let (ids, material): (Vec<usize>, Vec<u32>) = {
+            let rows = self.read_fields(&[l.id(), l.material()])?;
+            let word = |row: &[u8], i: usize| {
+                u32::from_le_bytes(row[i * wb..i * wb + 4].try_into().unwrap_or([0; 4]))
+            };
+            (0..n)
+                .map(|i| (word(rows[0], i) as usize, word(rows[1], i)))
+                .unzip()
+        };
+        let fluid = crate::state::fluid_materials(&self.scene);
+        let rows = crate::state::edit_rows(edit, &ids, &material, &fluid, l, self.options.f64)
+            .map_err(SimError::Backend)?;
+        let cap = self.ctx.cap as usize;
+        for (word, row) in &rows {
+            let at = word * cap * wb;
+            let mut dst = self.buffers.state.slice_mut(at..at + n * wb);
+            self.stream
+                .memcpy_htod(row.as_slice(), &mut dst)
+                .map_err(err("write particle fields"))?;
         }
         self.set_ctl_word(CTL_NEED_REBUILD, 1)?;
         if self.g2p2g() {
             self.set_ctl_word(CTL_P2G_PENDING, 1)?;
         }
-        if let Some(v) = v {
+        if let Some(v) = edit.v {
             let max = v.iter().map(|v| v.length()).fold(0.0f32, f32::max);
             self.set_ctl_word(CTL_MAX_SPEED, max.to_bits())?;
         }

@@ -6,12 +6,12 @@
 use super::partition::{Partition, shared_blocks};
 use super::reduce_shared::dense_dims;
 use crate::backend::CudaBackend;
-use crate::contract::{CTL_BAD_INDEX, CTL_BAD_REASON, CTL_MAX_SPEED};
+use crate::contract::{CTL_BAD_INDEX, CTL_MAX_SPEED, bad_particle};
 use crate::options::{CudaOptions, P2gMode};
 use rtmpm_physics::Particles;
 use rtmpm_physics::transfer::Transfer;
 use rtmpm_scene::Scene;
-use rtmpm_sim::{BadParticle, BadReason, SimError};
+use rtmpm_sim::{BadParticle, SimError};
 
 /// The particles of `idx`, in that order.
 pub fn subset(p: &Particles, idx: &[u32]) -> Particles {
@@ -92,16 +92,10 @@ pub(crate) fn combine(
     for c in ctls {
         b.error_check(c)?;
         speed = speed.max(f32::from_bits(c[CTL_MAX_SPEED]));
-        let i = c[CTL_BAD_INDEX];
-        if i != u32::MAX && bad.is_none_or(|b| (i as usize) < b.index) {
-            bad = Some(BadParticle {
-                index: i as usize,
-                reason: if c[CTL_BAD_REASON] == 1 {
-                    BadReason::NonFinite
-                } else {
-                    BadReason::TooFast
-                },
-            });
+        if let Some(b) = bad_particle(c[CTL_BAD_INDEX])
+            && bad.is_none_or(|first| b.index < first.index)
+        {
+            bad = Some(b);
         }
     }
     Ok((speed, bad))

@@ -14,16 +14,19 @@
 //!   in a fluid layout), written and read back;
 //! * [`pack`]: the image of the particles, packed on the host;
 //! * [`unpack`]: the particles back from an image, in original order;
+//! * [`edit`]: the words that new positions, velocities, C or F of the particles write;
 //! * [`codec`]: the shared-exponent codec of the compact state.
 
 pub mod codec;
+mod edit;
 mod fields;
 mod pack;
 mod unpack;
 mod word;
 
+pub use edit::edit_rows;
 pub use pack::{body_constant_words, map_positions, max_speed, pack, pack_bodies};
-pub use unpack::{resize_particles, scatter_f32, unpack, unpack_x_v_f64};
+pub use unpack::{resize_particles, scatter_f32, unpack, unpack_rows, unpack_x_v_f64};
 
 use crate::contract::StateLayout;
 use crate::options::CudaOptions;

@@ -200,3 +200,60 @@ fn the_backend_chooses_the_layout_from_the_scene_and_options() {
     .unwrap_err();
     assert!(e.contains("single precision only"), "{e}");
 }
+
+/// The rows of the first `n` slots of every word of an image with stride `cap`, as the read of
+/// all particles copies them.
+fn rows_of(bytes: &[u8], n: usize, cap: usize, words: usize, wb: usize) -> Vec<&[u8]> {
+    (0..words)
+        .map(|w| &bytes[w * cap * wb..(w * cap + n) * wb])
+        .collect()
+}
+
+/// The parallel unpack of the rows of every word (what `read_particles` copies) gives the
+/// particles the one-thread unpack of the whole image gives, in every layout and precision,
+/// with shuffled ids, a capacity past the count and several tasks' worth of particles; an id
+/// held twice or out of range is an error.
+#[test]
+fn the_parallel_unpack_of_the_rows_is_the_unpack_of_the_image() {
+    let n = 40_000 + 17;
+    let cap = n + 300;
+    // A permutation: slot i holds original particle (i * 7919) mod n (7919 is prime, n is not a
+    // multiple of it).
+    let ids: Vec<u32> = (0..n).map(|i| ((i * 7919) % n) as u32).collect();
+    for (layout, fluid, f64) in [
+        (StateLayout::Full, false, false),
+        (StateLayout::Full, false, true),
+        (StateLayout::Fluid, true, false),
+        (StateLayout::Fluid, true, true),
+        (StateLayout::Compact, false, false),
+        (StateLayout::CompactFluid, true, false),
+    ] {
+        let p = particles(n, 2);
+        let bytes = pack(&p, &[fluid, fluid], layout, f64, cap, Some(&ids)).expect("pack");
+        let wb = word_bytes(f64);
+        let mut whole = Particles::default();
+        unpack(&bytes, n, cap, layout, f64, &mut whole).expect("unpack");
+        let mut par = Particles::default();
+        let rows = rows_of(&bytes, n, cap, layout.words(), wb);
+        unpack_rows(&rows, n, layout, f64, &mut par).expect("unpack_rows");
+        assert!(par == whole, "{layout:?}, f64 = {f64}");
+        // Slot i held particle i with id ids[i]: it comes back at ids[i] (positions exact in
+        // every layout).
+        for i in [1, 2, n / 2, n - 1] {
+            assert_eq!(par.x[ids[i] as usize], p.x[i], "{layout:?}, slot {i}");
+            assert_eq!(par.mass[ids[i] as usize], p.mass[i], "{layout:?}, slot {i}");
+        }
+    }
+    // Slot 1 given slot 0's id: refused.
+    let p = particles(4, 1);
+    let bytes = pack(&p, &[false], FULL, false, 4, Some(&[0, 0, 2, 3])).expect("pack");
+    let rows = rows_of(&bytes, 4, 4, FULL.words(), 4);
+    let e = unpack_rows(&rows, 4, FULL, false, &mut Particles::default()).unwrap_err();
+    assert!(e.contains("id 0 held by two slots"), "{e}");
+    let bytes = pack(&p, &[false], FULL, false, 4, Some(&[0, 9, 2, 3])).expect("pack");
+    let rows = rows_of(&bytes, 4, 4, FULL.words(), 4);
+    let e = unpack_rows(&rows, 4, FULL, false, &mut Particles::default()).unwrap_err();
+    assert!(e.contains("corrupt particle id 9"), "{e}");
+    // Too few rows.
+    assert!(unpack_rows(&rows[..3], 4, FULL, false, &mut Particles::default()).is_err());
+}
