@@ -1,7 +1,7 @@
 //! New values for some columns of every particle between steps ([`ParticleEdit`]): what the
 //! Python package's setters hand to a backend.
 
-use crate::SimError;
+use crate::error::SimError;
 use rtmpm_physics::math::{Mat3, Vec3};
 
 /// Columns to overwrite, each with one value per particle in original order (f32, widened
