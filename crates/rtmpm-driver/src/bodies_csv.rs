@@ -4,6 +4,7 @@ use crate::simulation::Simulation;
 use anyhow::{Context, Result, bail};
 use rtmpm_io::signature::BODIES_CSV_HEADER;
 use rtmpm_scene::Scene;
+use std::collections::BTreeMap;
 use std::path::Path;
 
 /// `bodies.csv` in the output folder: the pose and velocities of every rigid body at every
@@ -137,7 +138,9 @@ impl KeptRows {
         }
         // The rows of frames 0..=at, checked: 16 columns, the frame's bodies in the scene's order.
         let mut kept = Vec::new();
-        let mut per_frame: Vec<usize> = vec![0; (at as usize).saturating_add(1).min(1 << 24)];
+        // Rows counted per frame, for the frames that have rows only: the checkpoint's frame
+        // number sizes nothing and bounds no loop.
+        let mut per_frame: BTreeMap<u64, usize> = BTreeMap::new();
         for (i, line) in lines {
             if line.trim().is_empty() {
                 continue;
@@ -165,8 +168,8 @@ impl KeptRows {
             {
                 return Err(bad("a column that is not a number"));
             }
-            let slot = per_frame.get_mut(frame as usize);
-            let k = slot.as_deref().copied().unwrap_or(0);
+            let slot = per_frame.entry(frame).or_insert(0);
+            let k = *slot;
             if names.get(k).map(String::as_str) != Some(cols[2]) {
                 return Err(bad(&format!(
                     "frame {frame} names body {} where the scene's body {k} is {}",
@@ -174,20 +177,15 @@ impl KeptRows {
                     names.get(k).map_or("none (too many rows)", String::as_str)
                 )));
             }
-            if let Some(s) = slot {
-                *s += 1;
-            }
+            *slot += 1;
             kept.push(line.to_string());
         }
-        let incomplete: Vec<u64> = (0..=at)
-            .filter(|&f| per_frame.get(f as usize).is_some_and(|&n| n != names.len()))
-            .collect();
-        let rewrite_last = incomplete.last() == Some(&at);
+        let rewrite_last = per_frame.get(&at) != Some(&names.len());
         if rewrite_last {
             // The checkpoint's own frame is written again from its poses.
             kept.retain(|l| l.split(',').next() != Some(at.to_string().as_str()));
         }
-        let lost: Vec<u64> = incomplete.into_iter().filter(|&f| f != at).collect();
+        let lost = incomplete_before(&per_frame, at, names.len());
         if !lost.is_empty() {
             eprintln!(
                 "warning: {} lacks the rows of some bodies at frames {}: they cannot be rebuilt \
@@ -204,23 +202,44 @@ impl KeptRows {
     }
 }
 
-/// `0..3, 7, 9..12`.
-fn ranges(v: &[u64]) -> String {
-    let mut out = Vec::new();
-    let mut i = 0;
-    while i < v.len() {
-        let mut j = i;
-        while j + 1 < v.len() && v[j + 1] == v[j] + 1 {
-            j += 1;
+/// The frames before `at` whose rows are missing or incomplete (`per_frame`: rows per frame
+/// that has any; `n`: bodies per frame), as spans of consecutive frames, found from the frames
+/// with rows (the gaps between them are spans too), so a large `at` costs nothing.
+fn incomplete_before(per_frame: &BTreeMap<u64, usize>, at: u64, n: usize) -> Vec<(u64, u64)> {
+    let mut spans: Vec<(u64, u64)> = Vec::new();
+    let mut add = |a: u64, b: u64| match spans.last_mut() {
+        Some(last) if last.1 + 1 == a => last.1 = b,
+        _ => spans.push((a, b)),
+    };
+    let mut next = 0;
+    for (&f, &rows) in per_frame.range(..at) {
+        if f > next {
+            add(next, f - 1);
         }
-        out.push(if i == j {
-            v[i].to_string()
-        } else {
-            format!("{}..{}", v[i], v[j])
-        });
-        i = j + 1;
+        if rows != n {
+            add(f, f);
+        }
+        next = f + 1;
     }
-    out.join(", ")
+    if next < at {
+        add(next, at - 1);
+    }
+    spans
+}
+
+/// `0..3, 7, 9..12`.
+fn ranges(spans: &[(u64, u64)]) -> String {
+    spans
+        .iter()
+        .map(|&(a, b)| {
+            if a == b {
+                a.to_string()
+            } else {
+                format!("{a}..{b}")
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 #[cfg(test)]
@@ -301,6 +320,46 @@ mod tests {
         for d in [dir, dir2, dir3] {
             let _ = std::fs::remove_dir_all(d);
         }
-        assert_eq!(ranges(&[0, 1, 2, 5, 7, 8]), "0..2, 5, 7..8");
+    }
+
+    /// The frames lost before the checkpoint's: gaps and frames with too few rows, merged into
+    /// spans, from the frames that have rows only.
+    #[test]
+    fn incomplete_frames_are_spans() {
+        let per_frame = BTreeMap::from([(1, 2), (2, 1), (3, 2), (6, 2), (9, 2)]);
+        let lost = incomplete_before(&per_frame, 9, 2);
+        assert_eq!(lost, vec![(0, 0), (2, 2), (4, 5), (7, 8)]);
+        assert_eq!(ranges(&lost), "0, 2, 4..5, 7..8");
+        assert!(incomplete_before(&BTreeMap::from([(0, 2)]), 1, 2).is_empty());
+        assert_eq!(
+            incomplete_before(&BTreeMap::new(), u64::MAX, 2),
+            vec![(0, u64::MAX - 1)]
+        );
+    }
+
+    /// A checkpoint's frame number bounds no loop and sizes nothing: a frame of 10^15 (a
+    /// checkpoint with a valid checksum can hold any) is read at once, its rows kept, the frames
+    /// after them named as lost in one span (before, the frames 0..=at were walked one by one:
+    /// a hang).
+    #[test]
+    fn a_huge_checkpoint_frame_does_not_hang() {
+        let s = scene();
+        let (dir, p) = write(&[
+            row(0, "a"),
+            row(1, "a"),
+            row(2, "a"),
+            row(3, "a"),
+            row(4, "a"),
+        ]);
+        let at = 1_000_000_000_000_000;
+        let kept = KeptRows::read(&p, &s, at).unwrap();
+        assert_eq!((kept.rows.len(), kept.rewrite), (5, true));
+        let lost = incomplete_before(
+            &BTreeMap::from([(0, 1), (1, 1), (2, 1), (3, 1), (4, 1)]),
+            at,
+            1,
+        );
+        assert_eq!(lost, vec![(5, at - 1)]);
+        let _ = std::fs::remove_dir_all(dir);
     }
 }
