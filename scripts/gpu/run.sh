@@ -49,6 +49,9 @@
 #                STREAM_SECONDS (default 15), memory over STREAM_MEMORY_SECONDS (default 60, sampled every
 #                5 s) with a slow client. About 2.5 min. The GPU tests of the render stage and of steering
 #                are in `tests` (TESTS="test_render test_steer")
+#   batch        many worlds in the same kernels: tests/batch.rs (16 wedge worlds vs 16 separate runs, a
+#                reset and a blown-up world beside others, refusals) and its benchmark (1,024 sand beds of
+#                9,408 particles: batched vs one scene of as many particles vs worlds one after another)
 #   long         the strong-scaling scene for 12 frames (0.24 s, past its 0.1 s duration) on one GPU, fused
 #                and unfused, and at dt/2: does the 12-frame blow-up seen on 2 GPUs happen on one?
 set -uo pipefail
@@ -383,6 +386,18 @@ for suite in "$@"; do
       grep -E "^read_particles|skipped" "$OUT/test_frames.log" | tee -a "$S"
       mv "$OUT/test_frames.log" "$OUT/test_frames_read.log"
       t test_frames
+      ;;
+    batch)
+      # Many worlds in the same kernels (rtmpm_cuda::batch): isolation, reset and blow-up checks
+      # against separate CUDA runs (tests/batch.rs), then the benchmark: BATCH_WORLDS (1024) sand
+      # beds of 9,408 particles batched vs one scene of as many particles vs BATCH_ALONE (16)
+      # worlds one after another, extrapolated.
+      t test_batch --nocapture --skip batch_benchmark
+      timeout "${TEST_TIMEOUT:-500}" "$D/test_batch" --include-ignored --test-threads 1 --nocapture --exact batch_benchmark \
+        > "$OUT/batch_bench.log" 2>&1
+      say "batch_benchmark rc=$?"
+      grep -hoE "BENCH.*|panicked.*" "$OUT/batch_bench.log" | tee -a "$S"
+      grep -hE "^world|^blow-up|refused in" "$OUT/test_batch.log" | head -40 | tee -a "$S"
       ;;
     *) say "unknown suite $suite" ;;
   esac

@@ -133,7 +133,11 @@ __device__ __forceinline__ const Scalars& scalars(const Ctx& c) { return RTMPM_P
 __device__ __forceinline__ const StepParams& step_params(const Ctx& c) { return RTMPM_PARAM(*c.step, c_step); }
 __device__ __forceinline__ const ColliderPoses& poses(const Ctx& c) { return RTMPM_PARAM(*c.poses, c_poses); }
 __device__ __forceinline__ const MaterialGpu& material_at(const Ctx& c, unsigned id) {
+#ifdef RTMPM_BATCH
+    return c.materials[id];  // a row per world and material: more than constant memory holds
+#else
     return RTMPM_PARAM(c.materials[id], c_materials[id]);
+#endif
 }
 __device__ __forceinline__ const GpuCollider& collider_at(const Ctx& c, unsigned k) {
     return RTMPM_PARAM(c.colliders[k], c_colliders[k]);
@@ -224,8 +228,33 @@ __device__ __forceinline__ unsigned state_bits(real w) {
 
 #include "state.cuh"
 
-// Grid coordinate, stencil base and fractional offset of a position (shape.rs).
-__device__ __forceinline__ void stencil_of(const Ctx& c, vec3 x, int base[3], real fx[3]) {
+// Many worlds in one set of arrays (-DRTMPM_BATCH; crate::batch): particles keep their world's
+// coordinates, world w's grid lies w stride + origin cells along x from the grid's origin (its
+// own blocks and block codes, a gap to the next world's), and a particle's world is its
+// material row / the materials of a world. Without RTMPM_BATCH a particle's world is 0 and
+// nothing is read for it: the kernels of one world are unchanged.
+#ifdef RTMPM_BATCH
+struct BatchParams {
+    unsigned worlds, materials, stride, origin;
+    const real* gravity;  // 3 per world
+};
+static_assert(sizeof(BatchParams) == 24, "BatchParams: crate::batch::BatchParams");
+__constant__ BatchParams c_batch;
+__device__ __forceinline__ unsigned material_world(unsigned material) { return material / c_batch.materials; }
+__device__ __forceinline__ unsigned particle_world(const Ctx& c, unsigned p) {
+    return material_world(state_bits(c.state[sidx(c.cap, F_MAT, p)]));
+}
+// The world of a node from its x grid index (each world's nodes lie in its stripe).
+__device__ __forceinline__ unsigned node_world(int gi_x) { return (unsigned)gi_x / c_batch.stride; }
+__device__ __forceinline__ int world_cells(unsigned world) { return (int)(world * c_batch.stride + c_batch.origin); }
+#else
+#define material_world(material) 0u
+#define particle_world(c, p) 0u
+#endif
+
+// Grid coordinate, stencil base and fractional offset of a position (shape.rs) of a particle of
+// world `world` (RTMPM_BATCH; else 0).
+__device__ __forceinline__ void stencil_of(const Ctx& c, vec3 x, unsigned world, int base[3], real fx[3]) {
     const Scalars& sc = scalars(c);
     real xg[3] = {(x.x - sc.origin[0]) * sc.inv_dx, (x.y - sc.origin[1]) * sc.inv_dx, (x.z - sc.origin[2]) * sc.inv_dx};
     for (int a = 0; a < 3; ++a) {
@@ -233,13 +262,17 @@ __device__ __forceinline__ void stencil_of(const Ctx& c, vec3 x, int base[3], re
         base[a] = (int)b;
         fx[a] = xg[a] - b;
     }
+#ifdef RTMPM_BATCH
+    base[0] += world_cells(world);
+#endif
 }
 // Stencil of a particle for the active transfer: base node, fractional offset, per-axis weights
 // w[axis][node] and derivatives d[axis][node] (d w / d fx). Weight of node (i, j, k):
 // w[0][i] w[1][j] w[2][k]; its gradient: shape_grad(w, d, i, j, k) * inv_dx. The per-(particle,
 // node) interface every P2G/G2P variant can use (rtmpm_physics::shape_function::Stencil::for_transfer).
-__device__ __forceinline__ void particle_stencil(const Ctx& c, vec3 x, int base[3], real fx[3], real w[3][3], real d[3][3]) {
-    stencil_of(c, x, base, fx);
+__device__ __forceinline__ void particle_stencil(const Ctx& c, vec3 x, unsigned world, int base[3], real fx[3], real w[3][3],
+                                                 real d[3][3]) {
+    stencil_of(c, x, world, base, fx);
     for (int a = 0; a < 3; ++a) shape_1d(c.transfer, fx[a], w[a], d[a]);
 }
 

@@ -48,6 +48,9 @@ __device__ vec3 node_boundary(const Ctx& c, unsigned t, vec3 v) {
     unsigned id = t >> 6, cell = t & 63u;
     int gi[3] = {c.block_coords[3 * id] * 4 + (int)(cell >> 4), c.block_coords[3 * id + 1] * 4 + (int)((cell >> 2) & 3u),
                  c.block_coords[3 * id + 2] * 4 + (int)(cell & 3u)};
+#ifdef RTMPM_BATCH
+    gi[0] -= world_cells(node_world(gi[0]));  // in the node's world's own grid
+#endif
     // Walls (rtmpm_physics::boundary::Walls::apply): index counted from the domain min = gi - 4.
     for (int a = 0; a < 3; ++a) {
         int i = gi[a] - 4;
@@ -126,16 +129,21 @@ __device__ void grid_update_node(const Ctx& c, unsigned t) {
     real m = node[0];
     if (!(m > 0)) return;
     const StepParams& sp = step_params(c);
+#ifdef RTMPM_BATCH
+    const real* gravity = c_batch.gravity + 3 * node_world(c.block_coords[3 * (t >> 6)] * 4);
+#else
+    const real* gravity = sp.gravity;
+#endif
     real inv_m = (real)1 / m;
     vec3 v;
     if (c.transfer == TRANSFER_MLS) {
-        v = make_v3(node[1] * inv_m + sp.dt * sp.gravity[0], node[2] * inv_m + sp.dt * sp.gravity[1],
-                    node[3] * inv_m + sp.dt * sp.gravity[2]);
+        v = make_v3(node[1] * inv_m + sp.dt * gravity[0], node[2] * inv_m + sp.dt * gravity[1],
+                    node[3] * inv_m + sp.dt * gravity[2]);
     } else {
         real* aux = c.grid_aux + 4u * t;
         vec3 p = make_v3(node[1], node[2], node[3]);
         vec3 f = make_v3(aux[1], aux[2], aux[3]);
-        v = (p + f) * inv_m + make_v3(sp.gravity[0], sp.gravity[1], sp.gravity[2]) * (real)sp.dt;
+        v = (p + f) * inv_m + make_v3(gravity[0], gravity[1], gravity[2]) * (real)sp.dt;
         vec3 v_old = p * inv_m;
         aux[1] = v_old.x; aux[2] = v_old.y; aux[3] = v_old.z;
     }
@@ -147,7 +155,7 @@ __device__ void grid_update_node(const Ctx& c, unsigned t) {
         vec3 x = make_v3(sc.origin[0] + (c.block_coords[3 * id] * 4 + (int)(cell >> 4)) * sc.dx,
                          sc.origin[1] + (c.block_coords[3 * id + 1] * 4 + (int)((cell >> 2) & 3u)) * sc.dx,
                          sc.origin[2] + (c.block_coords[3 * id + 2] * 4 + (int)(cell & 3u)) * sc.dx);
-        vec3 g_dt = make_v3(sp.gravity[0], sp.gravity[1], sp.gravity[2]) * (real)sp.dt;
+        vec3 g_dt = make_v3(gravity[0], gravity[1], gravity[2]) * (real)sp.dt;
         v = couple_bodies(c, x, m, v, g_dt);
     }
     node[1] = v.x; node[2] = v.y; node[3] = v.z;

@@ -45,7 +45,7 @@ extern "C" __global__ void rb_clear(Ctx c) {
 __device__ __forceinline__ void particle_block(const Ctx& c, unsigned i, int b[3], int base[3]) {
     vec3 x = load_v3(c.state, c.cap, F_X, i);
     real fx[3];
-    stencil_of(c, x, base, fx);
+    stencil_of(c, x, particle_world(c, i), base, fx);
     for (int a = 0; a < 3; ++a) b[a] = base[a] >> 2;
 }
 

@@ -25,6 +25,9 @@ pub struct KernelOptions {
     pub state64: bool,
     /// The particle state's layout (`-DRTMPM_STATE_LAYOUT`, left out for the default).
     pub layout: contract::StateLayout,
+    /// Many worlds in one set of arrays (`-DRTMPM_BATCH`, [`crate::batch`]); off: the kernels
+    /// of one world, unchanged.
+    pub batch: bool,
 }
 
 /// True when state arrays of `capacity` particles of `words` words each hold 2^32 words or more:
@@ -44,6 +47,7 @@ impl KernelOptions {
             materials: u32::MAX,
             state64: false,
             layout: contract::StateLayout::Full,
+            batch: false,
         }
     }
 }
@@ -145,6 +149,9 @@ pub fn nvrtc_options(o: &KernelOptions) -> Vec<String> {
     }
     if o.materials != u32::MAX {
         v.push(format!("-DRTMPM_MATERIAL_MASK={:#x}u", o.materials));
+    }
+    if o.batch {
+        v.push("-DRTMPM_BATCH".into());
     }
     // Tuning experiments: extra `-DNAME=VALUE` flags, e.g. "-DG2P_MIN_BLOCKS=6" (part of the
     // cache key like every other option).
@@ -401,6 +408,8 @@ mod tests {
             &["-DRTMPM_P2G_UNROLL=1"],
             &["-DRTMPM_STATE_STREAM=1"],
             &["-DG2P2G_MIN_BLOCKS=5", "-DG2P2G_FLUID_MIN_BLOCKS=5"],
+            // Many worlds in one set of arrays (crate::batch).
+            &["-DRTMPM_BATCH"],
             // The node-by-node step as it was before the three became the default.
             &[
                 "-DRTMPM_P2G_REDUCE=0",

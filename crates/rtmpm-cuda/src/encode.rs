@@ -40,6 +40,20 @@ pub fn tables(scene: &Scene, f64: bool) -> Result<Tables, SimError> {
     })
 }
 
+/// [`tables`] of the merged scene of a batch of worlds ([`crate::batch`]): one material row
+/// per world and material, read from global memory, so any number of them.
+pub fn batch_tables(scene: &Scene, f64: bool) -> Result<Tables, SimError> {
+    let (colliders, mut mesh) = colliders(scene)?;
+    let body_mesh = body_meshes(scene, &mut mesh);
+    Ok(Tables {
+        scalars: scalars_bytes(scene, f64),
+        materials: material_rows(scene, f64)?,
+        colliders,
+        mesh,
+        body_mesh,
+    })
+}
+
 /// The distance grids of the mesh rigid bodies appended to `mesh` (the same table as the mesh
 /// colliders', read by the same `mesh_distance`); where each starts (0 for the other shapes).
 pub fn body_meshes(scene: &Scene, mesh: &mut Vec<f32>) -> Vec<u32> {
@@ -65,6 +79,11 @@ pub fn materials(scene: &Scene, f64: bool) -> Result<Vec<u8>, SimError> {
             scene.materials.len()
         )));
     }
+    material_rows(scene, f64)
+}
+
+/// The material table without the constant memory's limit on its rows.
+fn material_rows(scene: &Scene, f64: bool) -> Result<Vec<u8>, SimError> {
     let bytes = if f64 {
         let models = rtmpm_physics_f64::convert::materials(&scene.materials)
             .map_err(SimError::Backend)?

@@ -75,6 +75,7 @@
 //! ([`contract::material_registry`]).
 
 pub mod backend;
+pub mod batch;
 pub mod compile;
 pub mod contract;
 pub mod encode;

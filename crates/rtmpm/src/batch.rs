@@ -93,8 +93,9 @@ pub fn run(args: &crate::run::RunArgs) -> Result<()> {
     use rtmpm_driver::batch::{BatchOptions, BatchRun, WorldStatus};
     if args.backend == BackendKind::Cuda {
         bail!(
-            "batches run on the CPU backend (all worlds in the same CUDA kernels is designed, \
-             not built: docs/batch.md)\n  fix: --backend cpu"
+            "rtmpm run steps batches on the CPU backend (the worlds in the same CUDA kernels \
+             exist as the Rust API rtmpm_cuda::batch::CudaBatch, not yet behind rtmpm run: \
+             docs/batch.md)\n  fix: --backend cpu"
         );
     }
     if !matches!(args.multi.mode()?, crate::multi::Mode::Single) {

@@ -22,10 +22,10 @@ extern "C" __global__ void __launch_bounds__(128, G2P_MIN_BLOCKS) g2p(Ctx c) {
 // Interpolation of the classic MPM transfers at one particle (cpu/g2p.rs: g2p_mpm): v_pic =
 // sum w v_i, the FLIP increment dv = sum w (v_i - v_old_i) (USL: grid_aux = v_old) and the
 // velocity gradient L = sum v_i (x) grad w (MUSL: of the re-mapped velocities in grid_aux).
-__device__ __forceinline__ void g2p_mpm_gather(const Ctx& c, unsigned g, vec3 x, const int** bc_out,
+__device__ __forceinline__ void g2p_mpm_gather(const Ctx& c, unsigned g, vec3 x, unsigned world, const int** bc_out,
                                                vec3* v_pic, vec3* dv, mat3* L, bool musl_gradient) {
     int base[3]; real fx[3]; real wt[3][3]; real dw[3][3];
-    particle_stencil(c, x, base, fx, wt, dw);
+    particle_stencil(c, x, world, base, fx, wt, dw);
     const int* bc = c.block_coords + 3 * g;
     *bc_out = bc;
     const unsigned* nbs = c.neighbors + 27 * g;
@@ -71,7 +71,7 @@ extern "C" __global__ void g2p_mpm(Ctx c) {
         vec3 v = load_vel(c.state, c.cap, p);
         G2pState st = g2p_load_state<false>(c, p);
         const int* bc; vec3 v_pic, dv; mat3 L;
-        g2p_mpm_gather(c, g, x, &bc, &v_pic, &dv, &L, musl);
+        g2p_mpm_gather(c, g, x, material_world(st.material), &bc, &v_pic, &dv, &L, musl);
         if (!musl) v = flip_blend(scalars(c).flip, v, v_pic, dv);
         speed = max(speed, g2p_finish<false>(c, bc, p, st, x + v_pic * step_params(c).dt, v, L).speed);
     }
@@ -91,7 +91,7 @@ extern "C" __global__ void g2p_mpm_velocity(Ctx c) {
         vec3 x = load_v3(c.state, c.cap, F_X, p);
         vec3 v = load_vel(c.state, c.cap, p);
         const int* bc; vec3 v_pic, dv; mat3 L;
-        g2p_mpm_gather(c, g, x, &bc, &v_pic, &dv, &L, false);
+        g2p_mpm_gather(c, g, x, particle_world(c, p), &bc, &v_pic, &dv, &L, false);
         store_vel(c.state, c.cap, p, flip_blend(scalars(c).flip, v, v_pic, dv));
     }
 }

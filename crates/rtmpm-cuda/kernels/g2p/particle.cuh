@@ -74,7 +74,7 @@ __device__ __forceinline__ G2pResult g2p_finish(const Ctx& c, const int* bc, uns
     x.z = fmin(fmax(x.z, sc.domain_min[2]), sc.domain_max[2]);
     // Free zone: the 3x3x3 neighbourhood of gblock B covers the stencil iff base in [4B-4, 4B+5].
     int nb[3]; real nfx[3];
-    stencil_of(c, x, nb, nfx);
+    stencil_of(c, x, material_world(st.material), nb, nfx);
     bool leave = !finite;
     for (int a = 0; a < 3; ++a) leave = leave || nb[a] < 4 * bc[a] - 4 || nb[a] > 4 * bc[a] + 5;
     if (leave) c.ctl[CTL_NEED_REBUILD] = 1;
@@ -192,7 +192,7 @@ __device__ __forceinline__ G2pResult g2p_particle(const Ctx& c, unsigned g, unsi
     vec3 x = load_v3(c.state, c.cap, F_X, p);
     G2pState st = g2p_load_state<ALL_FLUID>(c, p);
     int base[3]; real fx[3]; real wt[3][3];
-    stencil_of(c, x, base, fx);
+    stencil_of(c, x, material_world(st.material), base, fx);
     for (int a = 0; a < 3; ++a) weights_1d(fx[a], wt[a]);
     const int* bc = c.block_coords + 3 * g;
     vec3 v;

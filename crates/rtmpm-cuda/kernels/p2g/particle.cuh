@@ -41,7 +41,7 @@ __device__ __forceinline__ P2gParticle p2g_particle_of(const Ctx& c, vec3 x, rea
                                                        const mat3& F, real plastic, unsigned material) {
     P2gParticle q;
     real fx[3];
-    stencil_of(c, x, q.base, fx);
+    stencil_of(c, x, material_world(material), q.base, fx);
     for (int a = 0; a < 3; ++a) weights_1d(fx[a], q.w[a]);
     q.m = m;
     const MaterialGpu& mat = material_at(c, material);

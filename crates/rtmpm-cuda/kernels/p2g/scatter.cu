@@ -43,7 +43,7 @@ extern "C" __global__ void __launch_bounds__(128, P2G_MIN_BLOCKS) p2g(Ctx c, uns
             unsigned key = P2G_KEY_NONE;
             if (active) {
                 int base[3]; real fx[3];
-                stencil_of(c, load_v3(c.state, c.cap, F_X, first + lane), base, fx);
+                stencil_of(c, load_v3(c.state, c.cap, F_X, first + lane), particle_world(c, first + lane), base, fx);
                 key = p2g_sort_key(c, g, base);
             }
             src = p2g_warp_sort(key, lane, &active);
@@ -105,7 +105,7 @@ extern "C" __global__ void p2g_mpm(Ctx c) {
         if (lane >= count) continue;
         unsigned p = first + lane;
         int base[3]; real fx[3]; real wt[3][3]; real dw[3][3];
-        particle_stencil(c, load_v3(c.state, c.cap, F_X, p), base, fx, wt, dw);
+        particle_stencil(c, load_v3(c.state, c.cap, F_X, p), particle_world(c, p), base, fx, wt, dw);
         real m = c.state[sidx(c.cap, F_MASS, p)];
         real vol0 = c.state[sidx(c.cap, F_VOL0, p)];
         vec3 mv = load_vel(c.state, c.cap, p) * m;
@@ -143,7 +143,7 @@ extern "C" __global__ void p2g_musl(Ctx c) {
         if (lane >= count) continue;
         unsigned p = first + lane;
         int base[3]; real fx[3]; real wt[3][3]; real dw[3][3];
-        particle_stencil(c, load_v3(c.state, c.cap, F_X, p), base, fx, wt, dw);
+        particle_stencil(c, load_v3(c.state, c.cap, F_X, p), particle_world(c, p), base, fx, wt, dw);
         vec3 mv = load_vel(c.state, c.cap, p) * (real)c.state[sidx(c.cap, F_MASS, p)];
         StencilIdx si = stencil_idx(c.block_coords + 3 * g, base);
         const unsigned* nbs = c.neighbors + 27 * g;

@@ -39,6 +39,18 @@ impl CudaBackend {
         part: &Part,
         options: CudaOptions,
     ) -> Result<CudaBackend, SimError> {
+        Self::build_for(scene, initial, part, options, false)
+    }
+
+    /// [`CudaBackend::build`]; `batch`: the merged scene of a batch of worlds
+    /// ([`crate::batch`]): the kernels compiled with `RTMPM_BATCH`, any number of materials.
+    pub(crate) fn build_for(
+        scene: &Scene,
+        initial: Initial,
+        part: &Part,
+        options: CudaOptions,
+        batch: bool,
+    ) -> Result<CudaBackend, SimError> {
         let t0 = Instant::now();
         let mut setup = SetupPhases::default();
         let info = crate::probe::probe_device(part.device).map_err(|e| {
@@ -56,7 +68,7 @@ impl CudaBackend {
             Some(w) => Initial::Bodies(w),
             None => initial,
         };
-        let plan = Plan::new(scene, initial, part, options, &mut setup)?;
+        let plan = Plan::new(scene, initial, part, options, batch, &mut setup)?;
 
         // The plan against the GPU's free memory, before anything is allocated or compiled.
         let t = Instant::now();
@@ -209,6 +221,8 @@ struct Plan {
     real_bytes: usize,
     /// One entry per material: true for a fluid.
     fluid: Vec<bool>,
+    /// The merged scene of a batch of worlds (`RTMPM_BATCH`).
+    batch: bool,
 }
 
 impl Plan {
@@ -219,6 +233,7 @@ impl Plan {
         initial: Initial,
         part: &Part,
         options: CudaOptions,
+        batch: bool,
         setup: &mut SetupPhases,
     ) -> Result<Plan, SimError> {
         let n = initial.len();
@@ -226,7 +241,11 @@ impl Plan {
         let layout = state::layout_for(scene, &options)
             .map_err(|e| SimError::Backend(format!("CUDA backend: {e}")))?;
         emit::check(scene, options.p2g)?;
-        let tables = encode::tables(scene, options.f64)?;
+        let tables = if batch {
+            encode::batch_tables(scene, options.f64)?
+        } else {
+            encode::tables(scene, options.f64)?
+        };
         let fluid = state::fluid_materials(scene);
         // The device fill (sampled bodies only): the table's checks before any GPU work.
         let device_fill = match initial {
@@ -264,6 +283,7 @@ impl Plan {
             g2p2g,
             real_bytes,
             fluid,
+            batch,
         })
     }
 
@@ -327,6 +347,7 @@ impl Plan {
             } else {
                 u32::MAX
             },
+            batch: self.batch,
         })
         .map_err(SimError::Backend)?;
         // Single stream: no cross-stream event tracking (keeps launches capturable).

@@ -1,0 +1,443 @@
+//! Many worlds in the same kernels ([`CudaBatch`]): the worlds of a batch (`[batch]`,
+//! `rtmpm_scene::BatchScene`) share one set of device arrays and one launch per stage, each
+//! world isolated in the sparse grid.
+//!
+//! Layout. Particles keep their positions in their world's own coordinates; world `w`'s grid
+//! lies `w * stride + WORLD_ORIGIN_CELLS` cells along x from the grid's origin, so its block
+//! coordinates (and the 64-bit block codes made of them) are its own: the stencil of a particle
+//! of world `w` (`stencil_of` in `kernels/common.cuh`) is shifted by that many cells, and
+//! `stride` leaves a gap of at least [`WORLD_GAP_CELLS`] cells past every node a world can
+//! touch (its domain, the 4-cell margin, the free zone's neighbour blocks), so no world reaches
+//! another's nodes. A particle's world is its material row divided by the materials of a world
+//! (row `w * m + k` is material `k` of world `w`): each world has its own material parameters,
+//! read from global memory. The grid update finds a node's world from its x block coordinate and
+//! applies gravity from a per-world table, the domain walls and the colliders in the world's own
+//! coordinates (`kernels/grid_update.cu`).
+//!
+//! The kernels of one world are compiled without `RTMPM_BATCH` and are unchanged by all this
+//! (their PTX is the same); a batch compiles its own program with it.
+//!
+//! What a batch shares: the time step (the caller's; one `dt` for every world), the colliders
+//! (the same in every world: checked), the domain and grid spacing. Not yet: rigid bodies,
+//! emitters, per-world collider poses.
+
+use crate::backend::{CudaBackend, Part};
+use crate::contract::{CTL_NEED_REBUILD, CTL_P2G_PENDING};
+use crate::error::err;
+use crate::kernels::Kernel;
+use crate::options::{CudaOptions, P2gMode};
+use crate::setup::Initial;
+use crate::setup::capacity::Capacity;
+use cudarc::driver::{CudaSlice, DevicePtr, PushKernelArg};
+use rtmpm_physics::Particles;
+use rtmpm_physics::math::Vec3;
+use rtmpm_scene::Scene;
+use rtmpm_sim::{Backend, BadParticle, SimError};
+
+/// Cells from the start of a world's stripe of the grid to its grid origin.
+pub const WORLD_ORIGIN_CELLS: usize = 8;
+/// Cells at least between the last node a world can touch and the first of the next world.
+pub const WORLD_GAP_CELLS: usize = 5;
+/// Cells along x the block codes can address (19 bits of block coordinate, 4 cells a block).
+pub const MAX_GRID_CELLS_X: usize = 4 << 19;
+
+/// The parameters of a batch in constant memory (`c_batch`, `kernels/common.cuh`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct BatchParams {
+    /// Worlds.
+    pub worlds: u32,
+    /// Materials of one world (rows `w * materials ..` of the table are world `w`'s).
+    pub materials: u32,
+    /// Cells along x from one world's grid to the next.
+    pub stride: u32,
+    /// Cells from a world's stripe start to its grid origin ([`WORLD_ORIGIN_CELLS`]).
+    pub origin: u32,
+    /// Device address of the gravity table: 3 reals per world.
+    pub gravity: u64,
+}
+
+/// Cells along x from one world's grid to the next, for worlds of `n_cells_x` cells: a world's
+/// nodes lie from 4 cells below its domain (the grid's margin; the neighbour blocks of the free
+/// zone reach one block further) to 11 past it (stencil, block rounding, neighbour block), so
+/// they fill `[WORLD_ORIGIN_CELLS - 4, WORLD_ORIGIN_CELLS + n_cells_x + 11]` of its stripe.
+pub fn world_stride(n_cells_x: usize) -> usize {
+    (WORLD_ORIGIN_CELLS + n_cells_x + 12 + WORLD_GAP_CELLS).div_ceil(4) * 4
+}
+
+/// The worlds of a batch on one GPU, stepped together.
+pub struct CudaBatch {
+    backend: CudaBackend,
+    /// First particle (original index) of each world, and the total at the end.
+    offsets: Vec<usize>,
+    /// Materials of one world.
+    materials: usize,
+    /// The per-world gravity table (kept alive: `c_batch` points into it).
+    gravity: CudaSlice<u8>,
+    params: BatchParams,
+}
+
+impl CudaBatch {
+    /// The worlds `worlds` (the scenes of a batch, e.g. `BatchScene::worlds`) with their
+    /// initial particles, on CUDA device 0. Refused before anything is allocated: worlds that
+    /// differ in what they must share, a batch whose grid the block codes cannot address, a
+    /// batch larger than the GPU's free memory (with the numbers).
+    pub fn new(
+        worlds: &[Scene],
+        particles: &[Particles],
+        options: CudaOptions,
+    ) -> Result<CudaBatch, SimError> {
+        check_worlds(worlds, particles)?;
+        if matches!(options.p2g, P2gMode::ReverseMap | P2gMode::Sort) {
+            return Err(SimError::Backend(format!(
+                "CUDA batch: p2g={} is planned from one world's grid; a batch runs p2g=warp \
+                 (the default) or p2g=shared",
+                options.p2g.name()
+            )));
+        }
+        let base = &worlds[0];
+        let m = base.materials.len();
+        let stride = world_stride(base.n_cells()[0] as usize);
+        check_grid_reach(worlds.len(), stride, base.n_cells()[0] as usize)?;
+        let mut merged = base.clone();
+        merged.materials = worlds.iter().flat_map(|s| s.materials.clone()).collect();
+        // The step's gravity bound (rtmpm-driver's CFL) is the strongest world's.
+        merged.gravity = worlds.iter().map(|s| s.gravity).fold(Vec3::ZERO, |a, g| {
+            if g.length() > a.length() { g } else { a }
+        });
+        let mut all = Particles::default();
+        let mut offsets = vec![0];
+        for (w, p) in particles.iter().enumerate() {
+            let first = all.len();
+            all.extend(p);
+            for k in &mut all.material[first..] {
+                *k += (w * m) as u32;
+            }
+            offsets.push(all.len());
+        }
+        let options = batch_capacities(worlds, particles, options);
+        let (g, p) = (
+            options.gblock_capacity.unwrap_or(0),
+            options.pblock_capacity.unwrap_or(0),
+        );
+        let backend = CudaBackend::build_for(
+            &merged,
+            Initial::Particles(&all),
+            &Part::default(),
+            options,
+            true,
+        )
+        .map_err(|e| match e {
+            SimError::Backend(why) if why.contains("of GPU memory") => SimError::Backend(format!(
+                "CUDA batch of {} worlds ({} particles; {g} gblocks and {p} pblocks of grid, \
+                 the worlds' own summed): {why}\n  fix for a batch: fewer worlds (the grid grows \
+                 with each world's domain: a smaller domain or a coarser dx per world)",
+                worlds.len(),
+                all.len(),
+            )),
+            e => e,
+        })?;
+        drop(all);
+        let real_bytes = if backend.options.f64 { 8 } else { 4 };
+        let mut table = Vec::with_capacity(worlds.len() * 3 * real_bytes);
+        for s in worlds {
+            for a in 0..3 {
+                if real_bytes == 8 {
+                    table.extend_from_slice(&(s.gravity[a] as f64).to_le_bytes());
+                } else {
+                    table.extend_from_slice(&s.gravity[a].to_le_bytes());
+                }
+            }
+        }
+        let gravity = backend
+            .stream
+            .clone_htod(&table)
+            .map_err(err("upload the worlds' gravity"))?;
+        let params = BatchParams {
+            worlds: worlds.len() as u32,
+            materials: m as u32,
+            stride: stride as u32,
+            origin: WORLD_ORIGIN_CELLS as u32,
+            gravity: gravity.device_ptr(&backend.stream).0,
+        };
+        crate::kernels::write_symbol(
+            &backend.module,
+            &backend.stream,
+            "c_batch",
+            bytemuck::bytes_of(&params),
+        )?;
+        Ok(CudaBatch {
+            backend,
+            offsets,
+            materials: m,
+            gravity,
+            params,
+        })
+    }
+
+    /// Worlds.
+    pub fn worlds(&self) -> usize {
+        self.offsets.len() - 1
+    }
+
+    /// The parameters the kernels read.
+    pub fn params(&self) -> BatchParams {
+        self.params
+    }
+
+    /// The one backend that holds every world (for its timing and memory figures).
+    pub fn backend(&mut self) -> &mut CudaBackend {
+        &mut self.backend
+    }
+
+    /// Bytes of the gravity table.
+    pub fn gravity_bytes(&self) -> usize {
+        self.gravity.len()
+    }
+
+    /// One step of `dt` for every world at time `t`.
+    pub fn step(&mut self, dt: f32, t: f32) -> Result<(), SimError> {
+        self.backend.step(dt, t)
+    }
+
+    /// Every world's particles, in their own coordinates and material indices.
+    pub fn read_worlds(&mut self) -> Result<Vec<Particles>, SimError> {
+        let mut all = Particles::default();
+        self.backend.read_particles(&mut all)?;
+        Ok((0..self.worlds()).map(|w| self.world_of(&all, w)).collect())
+    }
+
+    fn world_of(&self, all: &Particles, w: usize) -> Particles {
+        let r = self.offsets[w]..self.offsets[w + 1];
+        let k0 = (w * self.materials) as u32;
+        Particles {
+            x: all.x[r.clone()].to_vec(),
+            v: all.v[r.clone()].to_vec(),
+            c: all.c[r.clone()].to_vec(),
+            f: all.f[r.clone()].to_vec(),
+            plastic: all.plastic[r.clone()].to_vec(),
+            mass: all.mass[r.clone()].to_vec(),
+            vol0: all.vol0[r.clone()].to_vec(),
+            material: all.material[r].iter().map(|k| k - k0).collect(),
+        }
+    }
+
+    /// The world of particle `index` (original order) and its index in that world.
+    pub fn world_of_particle(&self, index: usize) -> Option<(usize, usize)> {
+        let w = self
+            .offsets
+            .partition_point(|&o| o <= index)
+            .checked_sub(1)?;
+        (w < self.worlds()).then(|| (w, index - self.offsets[w]))
+    }
+
+    /// The first world with a bad particle (non-finite, or faster than two cells a step) since
+    /// the last call, and that particle in its world; `None`: every world is healthy.
+    pub fn bad_world(&mut self) -> Result<Option<(usize, BadParticle)>, SimError> {
+        Ok(self.backend.check()?.and_then(|b| {
+            self.world_of_particle(b.index).map(|(w, i)| {
+                (
+                    w,
+                    BadParticle {
+                        index: i,
+                        reason: b.reason,
+                    },
+                )
+            })
+        }))
+    }
+}
+
+impl CudaBatch {
+    /// Put world `w`'s particles to `particles` (its initial ones for a reset, or any state of
+    /// as many particles, in its own material indices), the other worlds untouched: the state
+    /// words of its slots are overwritten (`batch_put_world`, `kernels/batch.cu`) and the next
+    /// step rebuilds the mapping and redoes its P2G.
+    pub fn put_world(&mut self, w: usize, particles: &Particles) -> Result<(), SimError> {
+        if w >= self.worlds() {
+            return Err(SimError::Backend(format!(
+                "CUDA batch: no world {w} (the batch has {})",
+                self.worlds()
+            )));
+        }
+        let (first, count) = (self.offsets[w], self.offsets[w + 1] - self.offsets[w]);
+        if particles.len() != count {
+            return Err(SimError::Backend(format!(
+                "CUDA batch: world {w} has {count} particles, {} given",
+                particles.len()
+            )));
+        }
+        if let Some(k) = particles
+            .material
+            .iter()
+            .find(|&&k| k as usize >= self.materials)
+        {
+            return Err(SimError::Backend(format!(
+                "CUDA batch: world {w}: material {k}, a world has {}",
+                self.materials
+            )));
+        }
+        let mut p = particles.clone();
+        for k in &mut p.material {
+            *k += (w * self.materials) as u32;
+        }
+        let b = &mut self.backend;
+        let fluid = crate::state::fluid_materials(&b.scene);
+        let bytes = crate::state::pack(&p, &fluid, b.layout, b.options.f64, count, None)
+            .map_err(SimError::Backend)?;
+        let src = b.stream.clone_htod(&bytes).map_err(err("upload a world"))?;
+        let (first, count32) = (first as u32, count as u32);
+        // SAFETY: the kernel reads `src` below `count` particles of the state's words and writes
+        // the state's slots below n.
+        unsafe {
+            b.stream
+                .launch_builder(&b.kernels[Kernel::BatchPutWorld])
+                .arg(&b.ctx)
+                .arg(&src)
+                .arg(&first)
+                .arg(&count32)
+                .launch(b.kernels.wave(b.n, 256))
+        }
+        .map_err(err("put a world"))?;
+        b.set_ctl_word(CTL_NEED_REBUILD, 1)?;
+        if b.g2p2g() {
+            b.set_ctl_word(CTL_P2G_PENDING, 1)?;
+        }
+        b.stream.synchronize().map_err(err("put a world"))
+    }
+}
+
+/// What every world of a batch on the GPU must share, checked before any GPU work.
+fn check_worlds(worlds: &[Scene], particles: &[Particles]) -> Result<(), SimError> {
+    let refuse = |why: String| Err(SimError::Backend(format!("CUDA batch: {why}")));
+    let Some(base) = worlds.first() else {
+        return refuse("no worlds (a batch needs at least one)".into());
+    };
+    if particles.len() != worlds.len() {
+        return refuse(format!(
+            "{} worlds but {} particle sets",
+            worlds.len(),
+            particles.len()
+        ));
+    }
+    let shared = |s: &Scene| {
+        format!(
+            "{:?}",
+            (
+                s.domain_min,
+                s.domain_max,
+                s.dx,
+                &s.colliders,
+                &s.walls,
+                &s.solver,
+                s.precision,
+                s.particle_state,
+                s.materials.len(),
+            )
+        )
+    };
+    let want = shared(base);
+    for (w, s) in worlds.iter().enumerate() {
+        if !s.rigid_bodies.is_empty() || !s.emitters.is_empty() {
+            return refuse(format!(
+                "world {w} has rigid bodies or emitters: the GPU batch runs worlds of \
+                 material, colliders and walls only so far (fix: --backend cpu)"
+            ));
+        }
+        if shared(s) != want {
+            return refuse(format!(
+                "world {w} differs from world 0 in its domain, grid spacing, colliders, walls, \
+                 solver or number of materials: on the GPU the worlds share those and differ in \
+                 material values and gravity only so far (fix: --backend cpu)"
+            ));
+        }
+        if particles[w].is_empty() {
+            return refuse(format!("world {w} has no particles"));
+        }
+        if let Some(k) = particles[w]
+            .material
+            .iter()
+            .find(|&&k| k as usize >= base.materials.len())
+        {
+            return refuse(format!(
+                "world {w}: a particle of material {k}, the scene has {}",
+                base.materials.len()
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The worlds lie side by side along x in the block coordinates: refused when the last one's
+/// nodes lie past what the 64-bit block code addresses.
+fn check_grid_reach(worlds: usize, stride: usize, n_cells_x: usize) -> Result<(), SimError> {
+    let reach = (worlds - 1)
+        .saturating_mul(stride)
+        .saturating_add(WORLD_ORIGIN_CELLS + n_cells_x + 12);
+    if reach > MAX_GRID_CELLS_X {
+        let fit = (MAX_GRID_CELLS_X - WORLD_ORIGIN_CELLS - n_cells_x - 12) / stride + 1;
+        return Err(SimError::Backend(format!(
+            "CUDA batch: {worlds} worlds of {n_cells_x} cells along x take {stride} cells each \
+             side by side, {reach} cells; the 64-bit block codes address {MAX_GRID_CELLS_X}: at \
+             most {fit} worlds of this domain (fix: fewer worlds, or a coarser dx)"
+        )));
+    }
+    Ok(())
+}
+
+/// The options with the block capacities of the worlds summed (each world's planned from its
+/// own initial mapping, as a single run's: the worlds' blocks are disjoint), unless given.
+fn batch_capacities(
+    worlds: &[Scene],
+    particles: &[Particles],
+    options: CudaOptions,
+) -> CudaOptions {
+    let (mut g, mut p) = (0usize, 0usize);
+    for (s, x) in worlds.iter().zip(particles) {
+        let (_, blocks) = crate::setup::initial_blocks(s, Initial::Particles(x), &options);
+        let c = Capacity::plan_blocks(s, x.len(), 0, blocks, &options);
+        g = g.saturating_add(c.gblocks);
+        p = p.saturating_add(c.pblocks);
+    }
+    CudaOptions {
+        gblock_capacity: options.gblock_capacity.or(Some(g)),
+        pblock_capacity: options.pblock_capacity.or(Some(p)),
+        ..options
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_world_stride_leaves_the_gap_past_every_node_a_world_touches() {
+        for n in [1usize, 7, 16, 32, 63, 64, 100, 1000] {
+            let s = world_stride(n);
+            assert_eq!(s % 4, 0, "stride {s} is whole blocks");
+            // The last node a world can touch, from its stripe's start, then the next world's
+            // first (WORLD_ORIGIN_CELLS - 4 into its stripe).
+            let last = WORLD_ORIGIN_CELLS + n + 11;
+            let next_first = s + WORLD_ORIGIN_CELLS - 4;
+            assert!(next_first - last > WORLD_GAP_CELLS, "n = {n}, stride {s}");
+            assert!(last < s, "n = {n}: a world's nodes stay in its stripe");
+        }
+    }
+
+    #[test]
+    fn too_many_worlds_for_the_block_codes_are_refused_with_the_numbers() {
+        let s = world_stride(32);
+        assert!(check_grid_reach(1024, s, 32).is_ok());
+        let e = check_grid_reach(100_000, s, 32).unwrap_err().to_string();
+        assert!(e.contains("100000 worlds"), "{e}");
+        assert!(e.contains("2097152"), "{e}");
+        let fit: usize = e
+            .split("at most ")
+            .nth(1)
+            .and_then(|t| t.split(' ').next())
+            .and_then(|t| t.parse().ok())
+            .expect("the count that fits");
+        assert!(check_grid_reach(fit, s, 32).is_ok());
+        assert!(check_grid_reach(fit + 1, s, 32).is_err());
+    }
+}

@@ -1,0 +1,476 @@
+//! Batches of worlds in the same CUDA kernels (`rtmpm_cuda::batch::CudaBatch`) against the
+//! same worlds run one by one on the CUDA backend (needs a GPU; skips with a message otherwise):
+//! `cargo test --release -p rtmpm-cuda --test batch -- --include-ignored --nocapture`.
+//! The benchmark (`batch_benchmark`, ignored) prints particle-steps/s of a batch of sand beds,
+//! of one scene with as many particles and of the worlds one after another.
+
+use rtmpm_cuda::batch::CudaBatch;
+use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
+use rtmpm_physics::Particles;
+use rtmpm_physics::math::Vec3;
+use rtmpm_scene::{BatchScene, Scene};
+use rtmpm_sim::Backend;
+use std::path::Path;
+use std::time::Instant;
+
+fn gpu() -> bool {
+    match probe() {
+        Ok(_) => true,
+        Err(e) => {
+            println!("skipped: no usable CUDA GPU ({e})");
+            false
+        }
+    }
+}
+
+/// Precise math, as the agreement tests compare.
+fn precise() -> CudaOptions {
+    CudaOptions {
+        fast_math: false,
+        ..CudaOptions::default()
+    }
+}
+
+/// The wedge example's 16 worlds (yield stress 25..1600 Pa), each with its own gravity too
+/// (strength 0.6..1.35 g, and a sideways pull of -1, 0 or +1 m/s^2 along x).
+fn wedge_worlds(count: usize) -> Vec<Scene> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/wedge_slump.toml");
+    let b = BatchScene::from_file(&path).expect("wedge_slump.toml");
+    b.worlds
+        .into_iter()
+        .take(count)
+        .enumerate()
+        .map(|(w, mut s)| {
+            s.gravity = Vec3::new((w % 3) as f32 - 1.0, -9.81 * (0.6 + 0.05 * w as f32), 0.0);
+            s
+        })
+        .collect()
+}
+
+fn read(b: &mut dyn Backend) -> Particles {
+    let mut p = Particles::default();
+    b.read_particles(&mut p).expect("read particles");
+    p
+}
+
+fn max_diff(a: &Particles, b: &Particles) -> (f32, f32) {
+    assert_eq!(a.len(), b.len());
+    let mut dx = 0.0f32;
+    let mut dv = 0.0f32;
+    for i in 0..a.len() {
+        dx = dx.max((a.x[i] - b.x[i]).length());
+        dv = dv.max((a.v[i] - b.v[i]).length());
+    }
+    (dx, dv)
+}
+
+fn bit_identical(a: &Particles, b: &Particles) -> bool {
+    let bits = |p: &Particles| {
+        p.x.iter()
+            .chain(&p.v)
+            .flat_map(|v| v.to_array())
+            .map(f32::to_bits)
+            .collect::<Vec<_>>()
+    };
+    bits(a) == bits(b)
+}
+
+/// The agreement test's tolerances (tests/agreement.rs) between a world of the batch and its
+/// separate run: after one step every particle (|dx| <= 1e-5 dx + 1e-6, |dv| <= 1e-3 of the
+/// speed scale); after `steps` the centre of mass within 0.1 cell, kinetic energy within 2 %,
+/// bounding box within a cell.
+fn agrees(
+    what: &str,
+    one_step: Option<(&Particles, &Particles)>,
+    a: &Particles,
+    b: &Particles,
+    dx: f32,
+) -> Vec<String> {
+    let mut failures = Vec::new();
+    if let Some((a1, b1)) = one_step {
+        let vscale = a1.v.iter().map(|v| v.length()).fold(1e-3f32, f32::max);
+        let (wx, wv) = max_diff(a1, b1);
+        if wx > 1e-5 * dx.max(1e-3) + 1e-6 || wv > 1e-3 * vscale {
+            failures.push(format!(
+                "{what}: first step differs: |dx| {wx:.3e}, |dv| {wv:.3e}"
+            ));
+        }
+    }
+    let d = a.aggregate_difference(b);
+    let (wx, wv) = max_diff(a, b);
+    let dxd = dx as f64;
+    println!(
+        "{what}: |d com| {:.3e} m ({:.4} dx), KE {:.4e} vs {:.4e} ({:.3} %), |d bbox| {:.2} dx, max particle |dx| {wx:.3e} m |dv| {wv:.3e} m/s",
+        d.com,
+        d.com / dxd,
+        a.kinetic_energy(),
+        b.kinetic_energy(),
+        100.0 * d.kinetic,
+        d.bbox / dxd
+    );
+    if d.com > 0.1 * dxd || d.kinetic > 0.02 || d.bbox > dxd {
+        failures.push(format!("{what}: aggregates differ"));
+    }
+    failures
+}
+
+const DT: f32 = 1e-3;
+
+/// Isolation: 16 worlds with different yield stress and gravity in one batch give, world by
+/// world, the particles of 16 separate CUDA runs (the agreement test's tolerances), while the
+/// worlds differ from each other by far more than that.
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn a_batch_gives_each_world_its_separate_run() {
+    if !gpu() {
+        return;
+    }
+    let steps: usize = std::env::var("BATCH_TEST_STEPS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(200);
+    let worlds = wedge_worlds(16);
+    let p0: Vec<Particles> = worlds
+        .iter()
+        .map(|s| s.sample_particles().expect("particles"))
+        .collect();
+    let mut batch = CudaBatch::new(&worlds, &p0, precise()).expect("batch");
+    let mut single: Vec<CudaBackend> = worlds
+        .iter()
+        .zip(&p0)
+        .map(|(s, p)| CudaBackend::new(s, p, precise()).expect("world"))
+        .collect();
+    batch.step(DT, 0.0).expect("batch step");
+    for b in &mut single {
+        b.step(DT, 0.0).expect("step");
+    }
+    let first_batch = batch.read_worlds().expect("read");
+    let first_single: Vec<Particles> = single.iter_mut().map(|b| read(b)).collect();
+    for s in 1..steps {
+        let t = s as f32 * DT;
+        batch.step(DT, t).expect("batch step");
+        for b in &mut single {
+            b.step(DT, t).expect("step");
+        }
+    }
+    assert!(
+        batch.bad_world().expect("check").is_none(),
+        "a world blew up"
+    );
+    let got = batch.read_worlds().expect("read");
+    let mut failures = Vec::new();
+    for w in 0..worlds.len() {
+        let want = read(&mut single[w]);
+        failures.extend(agrees(
+            &format!("world {w:2} after {steps} steps"),
+            Some((&first_batch[w], &first_single[w])),
+            &got[w],
+            &want,
+            worlds[w].dx,
+        ));
+    }
+    // The test can tell worlds apart: the first and last world end far apart.
+    let d = got[0].aggregate_difference(&got[15]);
+    println!(
+        "world 0 vs world 15: |d com| {:.3e} m ({:.2} dx)",
+        d.com,
+        d.com / worlds[0].dx as f64
+    );
+    assert!(
+        d.com > worlds[0].dx as f64,
+        "the worlds do not differ: the check could not see a mix-up"
+    );
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// A reset world (put back to its initial particles mid-run) goes on as a fresh run of its own,
+/// and the other worlds as in the same batch without the reset; a world that blows up (gravity
+/// of 10^7 m/s^2) is reported as that world, and the others still agree with their separate runs.
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn a_reset_or_blown_up_world_leaves_the_others_as_they_were() {
+    if !gpu() {
+        return;
+    }
+    let worlds = wedge_worlds(4);
+    let p0: Vec<Particles> = worlds
+        .iter()
+        .map(|s| s.sample_particles().expect("particles"))
+        .collect();
+    let run = |reset_at: Option<usize>, steps: usize| {
+        let mut b = CudaBatch::new(&worlds, &p0, precise()).expect("batch");
+        for s in 0..steps {
+            if reset_at == Some(s) {
+                b.put_world(1, &p0[1]).expect("reset world 1");
+            }
+            b.step(DT, s as f32 * DT).expect("step");
+        }
+        b.read_worlds().expect("read")
+    };
+    let plain = run(None, 100);
+    let again = run(None, 100);
+    let reset = run(Some(50), 100);
+    let alone_50 = {
+        let mut b = CudaBackend::new(&worlds[1], &p0[1], precise()).expect("world 1");
+        for s in 0..50 {
+            b.step(DT, s as f32 * DT).expect("step");
+        }
+        read(&mut b)
+    };
+    let mut failures = Vec::new();
+    let dx = worlds[0].dx;
+    for w in [0, 2, 3] {
+        println!(
+            "world {w}: bit-identical to the batch without the reset: {}; two runs of the same batch bit-identical: {}",
+            bit_identical(&reset[w], &plain[w]),
+            bit_identical(&again[w], &plain[w])
+        );
+        failures.extend(agrees(
+            &format!("world {w} beside a reset"),
+            None,
+            &reset[w],
+            &plain[w],
+            dx,
+        ));
+    }
+    // World 1 after its reset at step 50 and 50 more steps: a 50-step run of its own.
+    failures.extend(agrees(
+        "world 1 reset at 50, 50 steps on",
+        None,
+        &reset[1],
+        &alone_50,
+        dx,
+    ));
+    let d = reset[1].aggregate_difference(&plain[1]);
+    assert!(
+        d.com > 0.1 * dx as f64,
+        "the reset changed nothing: |d com| {:.3e}",
+        d.com
+    );
+
+    // Blow-up: world 2's gravity 10^7 m/s^2.
+    let mut bad = worlds.clone();
+    bad[2].gravity = Vec3::new(0.0, -1e7, 0.0);
+    let mut b = CudaBatch::new(&bad, &p0, precise()).expect("batch");
+    let mut reported = None;
+    for s in 0..100 {
+        b.step(DT, s as f32 * DT).expect("step");
+        if let Some((w, p)) = b.bad_world().expect("check") {
+            reported.get_or_insert((s, w, p.index));
+            assert_eq!(
+                w, 2,
+                "the blow-up reported in world {w}, particle {}",
+                p.index
+            );
+        }
+    }
+    let (s, w, i) = reported.expect("world 2 blew up and was reported");
+    println!("blow-up: world {w} particle {i} reported at step {s}");
+    let got = b.read_worlds().expect("read");
+    for w in [0, 1, 3] {
+        failures.extend(agrees(
+            &format!("world {w} beside a blow-up"),
+            None,
+            &got[w],
+            &plain[w],
+            dx,
+        ));
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// Worlds that cannot share the arrays, and a batch larger than the GPU, are refused before
+/// anything is allocated, with the numbers.
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn a_batch_the_gpu_cannot_hold_is_refused_with_the_numbers() {
+    if !gpu() {
+        return;
+    }
+    let mut worlds = wedge_worlds(2);
+    let p0: Vec<Particles> = worlds
+        .iter()
+        .map(|s| s.sample_particles().expect("particles"))
+        .collect();
+    worlds[1].dx *= 0.5;
+    let e = CudaBatch::new(&worlds, &p0, precise())
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(e.contains("world 1 differs"), "{e}");
+    // 8,000 worlds of a 4 m x 4 m floor (160 x 160 cells of grid each): far past the GPU's memory.
+    let text = r#"
+name = "wide"
+[time]
+duration = 0.1
+fps = 10
+dt = 1e-3
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [4.0, 0.3, 4.0]
+dx = 0.025
+[[material]]
+name = "sand"
+type = "drucker_prager"
+density = 1600.0
+youngs_modulus = 3.5e5
+poisson_ratio = 0.3
+friction_angle = 35.0
+[[body]]
+material = "sand"
+shape = "box"
+min = [1.9, 0.1, 1.9]
+max = [2.0, 0.15, 2.0]
+particles_per_cell = 1
+"#;
+    let one = Scene::from_toml(text, "wide").expect("scene");
+    let p = one.sample_particles().expect("particles");
+    let n = 8000;
+    let t = Instant::now();
+    let e = CudaBatch::new(&vec![one; n], &vec![p; n], CudaOptions::default())
+        .err()
+        .expect("refused")
+        .to_string();
+    println!("refused in {:.1} s: {e}", t.elapsed().as_secs_f64());
+    assert!(
+        e.contains("CUDA batch of 8000 worlds") && e.contains("GiB") && e.contains("free"),
+        "{e}"
+    );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Benchmark.
+
+/// A small sand bed: 14 x 6 x 14 cells of sand at 8 particles a cell (9,408 particles) dropped
+/// 3 cells onto a sticky floor in a 32 x 20 x 32-cell box (dx = 1/64 m), fixed dt.
+fn sand_bed(half: f32) -> String {
+    let lo = 0.25 - half;
+    let hi = 0.25 + half;
+    let (dmin, dmax) = (0.0, 0.5 + 2.0 * (half - 0.109375).max(0.0));
+    let shift = (dmax - 0.5) / 2.0;
+    format!(
+        r#"
+name = "sand_bed"
+seed = 1
+[domain]
+min = [{dmin}, 0.0, {dmin}]
+max = [{dmax}, 0.3125, {dmax}]
+dx = 0.015625
+[time]
+duration = 1.0
+fps = 50
+dt = 2.5e-4
+[walls]
+condition = "slip"
+faces.y_min = {{ condition = "sticky" }}
+[[material]]
+name = "sand"
+type = "drucker_prager"
+density = 1600.0
+youngs_modulus = 3.5e5
+poisson_ratio = 0.3
+friction_angle = 35.0
+[[body]]
+material = "sand"
+shape = "box"
+min = [{a}, 0.09375, {a}]
+max = [{b}, 0.1875, {b}]
+particles_per_cell = 8
+sampling = "regular"
+"#,
+        a = lo + shift,
+        b = hi + shift
+    )
+}
+
+/// Seconds of `steps` steps of `b` after 20 steps of warm-up, the GPU's work included (the
+/// control words read back at the end wait for it).
+fn time_steps(b: &mut dyn Backend, steps: usize) -> f64 {
+    let dt = 2.5e-4;
+    for s in 0..20 {
+        b.step(dt, s as f32 * dt).expect("step");
+    }
+    b.max_speed().expect("sync");
+    let t = Instant::now();
+    for s in 20..20 + steps {
+        b.step(dt, s as f32 * dt).expect("step");
+    }
+    b.max_speed().expect("sync");
+    t.elapsed().as_secs_f64()
+}
+
+/// `BATCH_WORLDS` (1024) sand beds of 9,408 particles: particle-steps/s batched, as one scene
+/// of as many particles, and one after another (`BATCH_ALONE` worlds, 16, extrapolated).
+#[test]
+#[ignore = "needs a CUDA GPU; a benchmark"]
+fn batch_benchmark() {
+    if !gpu() {
+        return;
+    }
+    let env = |k: &str, d: usize| {
+        std::env::var(k)
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(d)
+    };
+    let (n_worlds, steps, alone) = (
+        env("BATCH_WORLDS", 1024),
+        env("BATCH_STEPS", 200),
+        env("BATCH_ALONE", 16),
+    );
+    let world = Scene::from_toml(&sand_bed(0.109375), "sand_bed").expect("sand bed");
+    let p = world.sample_particles().expect("particles");
+    let per = p.len();
+    let t = Instant::now();
+    let mut batch = CudaBatch::new(
+        &vec![world.clone(); n_worlds],
+        &vec![p.clone(); n_worlds],
+        CudaOptions::default(),
+    )
+    .expect("batch");
+    let setup = t.elapsed().as_secs_f64();
+    let secs = time_steps(batch.backend(), steps);
+    let total = (n_worlds * per) as f64;
+    let batched = total * steps as f64 / secs;
+    assert!(batch.bad_world().expect("check").is_none());
+    drop(batch);
+
+    // One scene of as many particles: a bed sqrt(n_worlds) times as wide each way.
+    let half = 0.109375 * (n_worlds as f32).sqrt();
+    let big = Scene::from_toml(&sand_bed(half), "sand_bed_big").expect("big bed");
+    let bp = big.sample_particles().expect("particles");
+    let mut one = CudaBackend::new(&big, &bp, CudaOptions::default()).expect("big scene");
+    let big_secs = time_steps(&mut one, steps);
+    let big_rate = bp.len() as f64 * steps as f64 / big_secs;
+    drop(one);
+
+    // One after another: `alone` worlds, each its own backend (its set-up not counted).
+    let mut alone_secs = 0.0;
+    for _ in 0..alone {
+        let mut b = CudaBackend::new(&world, &p, CudaOptions::default()).expect("world");
+        alone_secs += time_steps(&mut b, steps);
+    }
+    let alone_rate = (alone * per) as f64 * steps as f64 / alone_secs;
+    println!("BENCH worlds {n_worlds} x {per} particles, {steps} steps, batch set-up {setup:.1} s");
+    println!(
+        "BENCH batched        {:>8.1} M particle-steps/s ({:.3} ms/step)",
+        batched / 1e6,
+        1e3 * secs / steps as f64
+    );
+    println!(
+        "BENCH one big scene  {:>8.1} M particle-steps/s ({} particles, {:.3} ms/step)",
+        big_rate / 1e6,
+        bp.len(),
+        1e3 * big_secs / steps as f64
+    );
+    println!(
+        "BENCH one by one     {:>8.1} M particle-steps/s ({alone} worlds timed, extrapolated to {n_worlds}: {:.1} s a world-run of {steps} steps x {n_worlds})",
+        alone_rate / 1e6,
+        alone_secs / alone as f64 * n_worlds as f64
+    );
+    println!(
+        "BENCH batched / big scene {:.1} % (target >= 60 %), batched / one by one {:.1}x (target >= 20x)",
+        100.0 * batched / big_rate,
+        batched / alone_rate
+    );
+}
