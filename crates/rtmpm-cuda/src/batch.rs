@@ -241,6 +241,7 @@ impl CudaBatch {
                     BadParticle {
                         index: i,
                         reason: b.reason,
+                        seen: b.seen,
                     },
                 )
             })
