@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Coverage-guided fuzzing of rtmpm's readers with libFuzzer, on stable Rust.
 #
-#   scripts/fuzz.sh [SECONDS_PER_TARGET] [TARGET...]     (default: 15 s each; targets: scene ply vtu checkpoint)
+#   scripts/fuzz.sh [SECONDS_PER_TARGET] [TARGET...]     (default: 15 s each; targets: scene ply vtu checkpoint bgeo resume)
 #
 # FUZZ_JOBS=N runs N targets at once (default: one per core; each target fuzzes on one core).
 #
@@ -17,7 +17,7 @@ cd "$(dirname "$0")/.."
 secs="${1:-15}"
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(scene ply vtu checkpoint)
+[ ${#targets[@]} -gt 0 ] || targets=(scene ply vtu checkpoint bgeo resume)
 
 host="$(rustc -vV | sed -n 's/^host: //p')"
 export CARGO_TARGET_DIR="$PWD/target/fuzz"
