@@ -16,6 +16,9 @@ fn scenes() -> Vec<std::path::PathBuf> {
         .expect("scenes/")
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        // A batch of worlds ([batch]) is many scenes, not one: its worlds against separate
+        // CUDA runs are tests/batch.rs.
+        .filter(|p| !std::fs::read_to_string(p).is_ok_and(|t| t.contains("\n[batch]")))
         .collect();
     v.sort();
     v
