@@ -22,7 +22,7 @@ fn scenes() -> Vec<std::path::PathBuf> {
         .filter(|p| p.extension().is_some_and(|e| e == "toml"))
         // A batch of worlds ([batch]) is many scenes, not one: its worlds against separate
         // CUDA runs are tests/batch.rs.
-        .filter(|p| !std::fs::read_to_string(p).is_ok_and(|t| t.contains("\n[batch]")))
+        .filter(|p| !rtmpm_scene::BatchScene::from_file(p).is_ok_and(|b| b.batch.is_some()))
         .collect();
     v.sort();
     v

@@ -18,7 +18,7 @@ fn scenes() -> Vec<PathBuf> {
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|e| e == "toml"))
         // A batch of worlds ([batch]) runs on the CPU backend only.
-        .filter(|p| !std::fs::read_to_string(p).is_ok_and(|t| t.contains("\n[batch]")))
+        .filter(|p| !rtmpm_scene::BatchScene::from_file(p).is_ok_and(|b| b.batch.is_some()))
         .collect();
     v.sort();
     v
