@@ -38,7 +38,10 @@ work=$(mktemp -d)
 n=97
 while [ -e "/tmp/.X11-unix/X$n" ] || [ -e "/tmp/.X$n-lock" ]; do n=$((n + 1)); done
 export DISPLAY=":$n"
-Xvfb "$DISPLAY" -screen 0 1024x768x24 -nolisten tcp > "$work/xvfb.log" 2>&1 &
+# -noreset: an X server resets when its last client disconnects, and a client connecting during
+# the reset is refused ("Failed to open connection to X server"); the polling below connects and
+# disconnects many times while rtmpm is still starting.
+Xvfb "$DISPLAY" -screen 0 1024x768x24 -nolisten tcp -noreset > "$work/xvfb.log" 2>&1 &
 xvfb=$!
 view=""
 cleanup() {
@@ -47,8 +50,14 @@ cleanup() {
   rm -rf "$work"
 }
 trap cleanup EXIT
-for _ in $(seq 100); do [ -e "/tmp/.X11-unix/X$n" ] && break; sleep 0.1; done
-[ -e "/tmp/.X11-unix/X$n" ] || { cat "$work/xvfb.log"; echo "FAIL: Xvfb did not start"; exit 1; }
+# Ready when it answers a client (its socket file appears before it has set up its screen).
+ready=0
+for _ in $(seq 200); do
+  kill -0 "$xvfb" 2>/dev/null || break
+  xdpyinfo > /dev/null 2>&1 && { ready=1; break; }
+  sleep 0.1
+done
+[ "$ready" -eq 1 ] || { cat "$work/xvfb.log"; echo "FAIL: Xvfb did not start"; exit 1; }
 
 "$rtmpm" view scenes/sandbox.toml --backend cpu --threads 2 --size 400x300 > "$work/view.log" 2>&1 &
 view=$!
@@ -62,6 +71,7 @@ for _ in $(seq 600); do
 done
 if [ -z "$id" ]; then
   cat "$work/view.log"
+  echo "-- Xvfb's log:"; cat "$work/xvfb.log"
   echo "FAIL: no window appeared"
   exit 1
 fi

@@ -127,6 +127,16 @@ def test_view_without_a_display_asks_for_the_browser(sim, monkeypatch):
         sim.view(serve=False)
 
 
+def x_server_answers(display):
+    """Whether the X server on `display` answers a client (its socket file appears before it
+    has set up its screen); xdpyinfo where installed, else the socket file alone."""
+    if shutil.which("xdpyinfo") is None:
+        return os.path.exists(f"/tmp/.X11-unix/X{display.lstrip(':')}")
+    env = dict(os.environ, DISPLAY=display)
+    return subprocess.run(["xdpyinfo"], env=env, stdout=subprocess.DEVNULL,
+                          stderr=subprocess.DEVNULL).returncode == 0
+
+
 @pytest.fixture
 def xvfb(monkeypatch):
     """An X server without a screen on a free display number, as DISPLAY."""
@@ -136,12 +146,12 @@ def xvfb(monkeypatch):
     while os.path.exists(f"/tmp/.X11-unix/X{n}") or os.path.exists(f"/tmp/.X{n}-lock"):
         n += 1
     proc = subprocess.Popen(
-        ["Xvfb", f":{n}", "-screen", "0", "640x480x24", "-nolisten", "tcp"],
+        ["Xvfb", f":{n}", "-screen", "0", "640x480x24", "-nolisten", "tcp", "-noreset"],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
     try:
-        wait_for(lambda: os.path.exists(f"/tmp/.X11-unix/X{n}"), 20, "Xvfb")
+        wait_for(lambda: x_server_answers(f":{n}"), 20, "Xvfb")
         monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
         monkeypatch.setenv("DISPLAY", f":{n}")
         yield f":{n}"
