@@ -1,0 +1,140 @@
+//! `rtmpm.BatchSimulation`: many worlds of one scene stepped together (rtmpm-driver's
+//! [`BatchRun`]), read and steered world by world from Python: particle arrays of every world
+//! at once, resets of chosen worlds, kinematic rigid bodies (tools, pushers) posed per world,
+//! the load the material puts on them, and each world's status (a world that blows up is
+//! frozen, the others go on). `rtmpm.Simulation(scene, batch=N)` (or a scene with `[batch]`)
+//! returns one (python/rtmpm/__init__.py). Documentation: docs/batch.md, docs/python.md.
+
+mod arrays;
+mod create;
+mod reset;
+mod rigid;
+mod status;
+mod step;
+
+use crate::errors::{SimulationError, internal_error};
+use crate::scene::PyScene;
+use pyo3::exceptions::{PyIndexError, PyValueError};
+use pyo3::prelude::*;
+use rtmpm_backends::BackendRequest;
+use rtmpm_driver::batch::BatchRun;
+use rtmpm_physics::Particles;
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::sync::Mutex;
+
+/// The batch run, movable to the thread that steps it with the interpreter lock released.
+struct Worlds(BatchRun);
+
+// SAFETY: `BatchRun` holds each world's backend as a `Box<dyn Backend>`, which is not `Send`
+// by its type. Every backend this module puts in one is an `rtmpm_backends::AnyBackend`
+// (`make_backend`, the only constructor used by `BatchSimulation::new` and `reset`), which is
+// `Send` (rtmpm-backends states why for its CUDA variant). The rest of the run (scenes, frame
+// outputs, which this module never opens) is plain data. The run is used by one thread at a
+// time (`&mut self`).
+unsafe impl Send for Worlds {}
+
+impl Worlds {
+    fn get(&mut self) -> &mut BatchRun {
+        &mut self.0
+    }
+}
+
+/// Many worlds of one scene, stepped together.
+///
+/// ``rtmpm.Simulation(scene, batch=N)`` makes ``N`` copies of ``scene``; a scene with
+/// ``[batch]`` (docs/batch.md) makes its worlds, each with its swept values (``batch`` may then
+/// be left out, or must equal its ``count``). Each world is a simulation of its own (own
+/// particles, grid, colliders and rigid bodies: no world can touch another's state) on the CPU
+/// backend, the same results bit for bit as a separate :class:`Simulation` of its scene.
+///
+/// Arrays: :attr:`x`, :attr:`v`, :attr:`mass`, :attr:`material` are shaped ``(N, n, ...)``
+/// when every world has ``n`` particles (:attr:`uniform`), else flat (all worlds' particles one
+/// after another) with world ``w``'s at ``offsets[w]:offsets[w + 1]``. A world that blows up is
+/// frozen at its last good state (:attr:`status` says why); the others go on; :meth:`reset`
+/// starts chosen worlds again.
+#[pyclass(name = "BatchSimulation", module = "rtmpm")]
+pub struct PyBatch {
+    run: Mutex<Worlds>,
+    scene: Py<PyScene>,
+    request: BackendRequest,
+    reason: String,
+    /// Each world's particles at time 0 (what a reset starts from).
+    initial: Vec<Particles>,
+    /// Set after a panic: the state may be inconsistent.
+    broken: Option<String>,
+}
+
+/// A Python error from a batch run's error (`anyhow`, with its context).
+fn run_error(e: anyhow::Error) -> PyErr {
+    SimulationError::new_err(format!("{e:#}"))
+}
+
+impl PyBatch {
+    /// Run `work` on the worlds with the interpreter lock released, panics caught (the batch is
+    /// then marked broken); returns the worlds frozen.
+    fn drive(
+        &mut self,
+        py: Python<'_>,
+        work: impl FnOnce(&mut BatchRun) -> anyhow::Result<Vec<usize>> + Send,
+    ) -> PyResult<Vec<usize>> {
+        self.usable()?;
+        let run = match self.run.get_mut() {
+            Ok(r) => r,
+            Err(poisoned) => poisoned.into_inner(),
+        };
+        match py.detach(|| catch_unwind(AssertUnwindSafe(|| work(run.get())))) {
+            Ok(r) => r.map_err(run_error),
+            Err(payload) => {
+                let err = internal_error(payload.as_ref());
+                self.broken = Some(err.to_string());
+                Err(err)
+            }
+        }
+    }
+
+    /// The run (no locking: `&mut self` is exclusive already).
+    fn r(&mut self) -> &mut BatchRun {
+        match self.run.get_mut() {
+            Ok(r) => r.get(),
+            Err(poisoned) => poisoned.into_inner().get(),
+        }
+    }
+
+    fn usable(&self) -> PyResult<()> {
+        match &self.broken {
+            Some(why) => Err(SimulationError::new_err(format!(
+                "this batch stopped after an internal error ({why}); create a new one"
+            ))),
+            None => Ok(()),
+        }
+    }
+
+    fn count(&mut self) -> usize {
+        self.r().worlds.len()
+    }
+
+    /// World indices from Python (`None`: every world; negative counts from the end).
+    fn world_list(&mut self, worlds: Option<Vec<i64>>) -> PyResult<Vec<usize>> {
+        let n = self.count();
+        let Some(list) = worlds else {
+            return Ok((0..n).collect());
+        };
+        let mut seen = vec![false; n];
+        list.into_iter()
+            .map(|w| {
+                let i = if w < 0 { w + n as i64 } else { w };
+                if !(0..n as i64).contains(&i) {
+                    return Err(PyIndexError::new_err(format!(
+                        "world {w} does not exist: the batch has {n} worlds (0 to {})",
+                        n - 1
+                    )));
+                }
+                let i = i as usize;
+                if std::mem::replace(&mut seen[i], true) {
+                    return Err(PyValueError::new_err(format!("world {w} is listed twice")));
+                }
+                Ok(i)
+            })
+            .collect()
+    }
+}

@@ -1,0 +1,109 @@
+//! Resets: chosen worlds back to time 0, from their initial state or from given positions
+//! and velocities.
+
+use super::PyBatch;
+use super::arrays::f32_array;
+use super::create::make_backend;
+use numpy::PyUntypedArrayMethods;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use rtmpm_physics::Particles;
+use rtmpm_physics::math::Vec3;
+
+impl PyBatch {
+    /// World `w`'s particles at time 0, with `x` / `v` (rows of `n` x 3) replacing theirs.
+    fn start_state(
+        &mut self,
+        w: usize,
+        x: Option<&[f32]>,
+        v: Option<&[f32]>,
+    ) -> PyResult<Particles> {
+        let mut p = self.initial[w].clone();
+        for (name, given, target) in [("x", x, &mut p.x), ("v", v, &mut p.v)] {
+            let Some(rows) = given else { continue };
+            for (i, r) in rows.chunks_exact(3).enumerate() {
+                let r = Vec3::new(r[0], r[1], r[2]);
+                if !r.is_finite() {
+                    return Err(PyValueError::new_err(format!(
+                        "{name} of world {w}, particle {i}: {r} is not finite"
+                    )));
+                }
+                target[i] = r;
+            }
+        }
+        Ok(p)
+    }
+}
+
+/// `value` (an array of `k x n x 3` or, for one world, `n x 3` numbers) split into the rows of
+/// the `k` worlds `worlds` with `counts[w]` particles each.
+fn split_rows(
+    name: &str,
+    value: Option<Bound<'_, PyAny>>,
+    worlds: &[usize],
+    counts: &[usize],
+) -> PyResult<Option<Vec<Vec<f32>>>> {
+    let Some(a) = value else { return Ok(None) };
+    let a = f32_array(name, &a)?;
+    let shape = a.shape().to_vec();
+    let data: Vec<f32> = a.as_array().iter().copied().collect();
+    let wanted: Vec<usize> = worlds.iter().map(|&w| counts[w]).collect();
+    let fits = match shape.as_slice() {
+        [k, n, 3] => *k == worlds.len() && wanted.iter().all(|c| c == n),
+        [total, 3] => *total == wanted.iter().sum::<usize>(),
+        _ => false,
+    };
+    if !fits {
+        return Err(PyValueError::new_err(format!(
+            "{name} has shape {shape:?}: the {} worlds reset hold {wanted:?} particles, so give \
+             ({}, n, 3) when they all hold n, or their rows one world after another, ({}, 3)",
+            worlds.len(),
+            worlds.len(),
+            wanted.iter().sum::<usize>()
+        )));
+    }
+    let mut rows = Vec::with_capacity(worlds.len());
+    let mut at = 0;
+    for n in wanted {
+        rows.push(data[at..at + 3 * n].to_vec());
+        at += 3 * n;
+    }
+    Ok(Some(rows))
+}
+
+#[pymethods]
+impl PyBatch {
+    /// Put worlds ``worlds`` (default: all) back to time 0: to their initial state, or with
+    /// positions ``x`` and/or velocities ``v`` given (``(k, n, 3)`` when the ``k`` worlds hold
+    /// ``n`` particles each, or their rows one world after another; the other fields, and
+    /// what is not given, as at time 0). The other worlds are not touched. A frozen world runs
+    /// again.
+    #[pyo3(signature = (worlds = None, *, x = None, v = None))]
+    fn reset(
+        &mut self,
+        py: Python<'_>,
+        worlds: Option<Vec<i64>>,
+        x: Option<Bound<'_, PyAny>>,
+        v: Option<Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        self.usable()?;
+        let list = self.world_list(worlds)?;
+        let counts: Vec<usize> = self.initial.iter().map(Particles::len).collect();
+        let xs = split_rows("x", x, &list, &counts)?;
+        let vs = split_rows("v", v, &list, &counts)?;
+        let mut starts = Vec::with_capacity(list.len());
+        for (k, &w) in list.iter().enumerate() {
+            let x = xs.as_ref().map(|r| r[k].as_slice());
+            let v = vs.as_ref().map(|r| r[k].as_slice());
+            starts.push(self.start_state(w, x, v)?);
+        }
+        let req = self.request.clone();
+        self.drive(py, move |run| {
+            for (w, p) in list.into_iter().zip(starts) {
+                run.reset_world(w, |scene| make_backend(&req, scene, p))?;
+            }
+            Ok(Vec::new())
+        })?;
+        Ok(())
+    }
+}

@@ -1,0 +1,152 @@
+//! Rigid bodies per world: kinematic bodies (tools, pushers) posed world by world, their
+//! states, and the force and torque the material puts on them.
+
+use super::PyBatch;
+use super::arrays::f32_array;
+use crate::bodies::{BodyUpdate, body_index, set_body};
+use crate::errors::BackendError;
+use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyIndexError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use rtmpm_driver::batch::WorldStatus;
+
+/// A per-world vector argument: one value for every world listed, or one row per world.
+fn per_world<const K: usize>(
+    name: &str,
+    value: Option<Bound<'_, PyAny>>,
+    k: usize,
+) -> PyResult<Option<Vec<[f32; K]>>> {
+    let Some(a) = value else { return Ok(None) };
+    let a = f32_array(name, &a)?;
+    let shape = a.shape().to_vec();
+    let data: Vec<f32> = a.as_array().iter().copied().collect();
+    let rows: Vec<[f32; K]> = data
+        .chunks_exact(K)
+        .map(|c| std::array::from_fn(|i| c[i]))
+        .collect();
+    match shape.as_slice() {
+        [n] if *n == K => Ok(Some(vec![rows[0]; k])),
+        [r, n] if *n == K && *r == k => Ok(Some(rows)),
+        _ => Err(PyValueError::new_err(format!(
+            "{name} has shape {shape:?}: give ({K},) for every world listed, or ({k}, {K}), one \
+             row per world"
+        ))),
+    }
+}
+
+#[pymethods]
+impl PyBatch {
+    /// Pose rigid body ``body`` (its index in ``[[rigid_body]]`` or its name) in worlds
+    /// ``worlds`` (default: all) from the next step on, as :meth:`Simulation.set_rigid_body`
+    /// does in one: ``position`` (m), ``rotation`` (quaternion ``(x, y, z, w)``), ``velocity``
+    /// (m/s), ``angular_velocity`` (rad/s), each one value for every world listed (shape
+    /// ``(3,)``, ``(4,)``) or one row per world (``(k, 3)``, ``(k, 4)``). A kinematic body (a
+    /// tool, a pusher) moves at the velocity given. Bad values raise ``ValueError`` naming the
+    /// world; the worlds before it are already set.
+    #[pyo3(signature = (body, *, worlds = None, position = None, rotation = None, velocity = None, angular_velocity = None))]
+    #[allow(clippy::too_many_arguments)] // Python's keyword arguments
+    fn set_rigid_body(
+        &mut self,
+        py: Python<'_>,
+        body: &Bound<'_, PyAny>,
+        worlds: Option<Vec<i64>>,
+        position: Option<Bound<'_, PyAny>>,
+        rotation: Option<Bound<'_, PyAny>>,
+        velocity: Option<Bound<'_, PyAny>>,
+        angular_velocity: Option<Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        self.usable()?;
+        let list = self.world_list(worlds)?;
+        let k = list.len();
+        let position = per_world::<3>("position", position, k)?;
+        let rotation = per_world::<4>("rotation", rotation, k)?;
+        let velocity = per_world::<3>("velocity", velocity, k)?;
+        let angular = per_world::<3>("angular_velocity", angular_velocity, k)?;
+        for (j, &w) in list.iter().enumerate() {
+            let sim = &mut self.r().worlds[w].sim;
+            let i = body_index(body, &sim.scene.rigid_bodies)?;
+            let update = BodyUpdate {
+                position: position.as_ref().map(|p| p[j]),
+                rotation: rotation.as_ref().map(|p| p[j]),
+                velocity: velocity.as_ref().map(|p| p[j]),
+                angular_velocity: angular.as_ref().map(|p| p[j]),
+            };
+            set_body(py, sim, i, &update).map_err(|e| {
+                let msg = format!("world {w}: {}", e.value(py));
+                PyErr::from_type(e.get_type(py), msg)
+            })?;
+        }
+        Ok(())
+    }
+
+    /// World ``world``'s rigid bodies as :attr:`Simulation.rigid_bodies` gives them (dicts of
+    /// ``position``, ``rotation``, ``velocity``, ``angular_velocity``).
+    fn rigid_bodies<'py>(
+        &mut self,
+        py: Python<'py>,
+        world: i64,
+    ) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        let w = self.world_list(Some(vec![world]))?[0];
+        let backend = &mut self.r().worlds[w].sim.backend;
+        backend
+            .flush_rigid()
+            .map_err(|e| crate::errors::sim_error(py, &e))?;
+        crate::bodies::states(py, &backend.rigid_poses(), backend.rigid_loads())
+    }
+
+    /// ``(N, 3)`` float64 array: the force (N) the material put on rigid body ``body`` (index or
+    /// name) in each world over its last step, for every kind of body (a kinematic tool's too):
+    /// the momentum the grid's nodes lost to the body's boundary condition divided by dt, less
+    /// the gravity on those nodes (rtmpm-rigid's exchange). Zero before a world's first step;
+    /// NaN for a frozen world.
+    fn rigid_force<'py>(
+        &mut self,
+        py: Python<'py>,
+        body: &Bound<'_, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        self.loads(py, body, |l| l.force)
+    }
+
+    /// ``(N, 3)`` float64 array: the torque (N m) about rigid body ``body``'s centre of mass,
+    /// as :meth:`rigid_force`.
+    fn rigid_torque<'py>(
+        &mut self,
+        py: Python<'py>,
+        body: &Bound<'_, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        self.loads(py, body, |l| l.torque)
+    }
+}
+
+impl PyBatch {
+    /// One load component of `body` in every world, `(N, 3)`.
+    fn loads<'py>(
+        &mut self,
+        py: Python<'py>,
+        body: &Bound<'_, PyAny>,
+        part: impl Fn(&rtmpm_rigid::BodyLoad) -> [f64; 3],
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let mut flat = Vec::with_capacity(3 * self.count());
+        for world in &self.r().worlds {
+            let i = body_index(body, &world.sim.scene.rigid_bodies)?;
+            if world.status != WorldStatus::Running {
+                flat.extend([f64::NAN; 3]);
+                continue;
+            }
+            let loads = world.sim.backend.rigid_loads().ok_or_else(|| {
+                BackendError::new_err(format!(
+                    "the backend `{}` does not report the loads on rigid bodies",
+                    world.sim.backend.name()
+                ))
+            })?;
+            let l = loads.get(i).ok_or_else(|| {
+                PyIndexError::new_err(format!("rigid body {i}: the backend holds no state for it"))
+            })?;
+            flat.extend(part(l));
+        }
+        Ok(PyArray1::from_vec(py, flat)
+            .reshape([self.count(), 3])?
+            .into_any())
+    }
+}

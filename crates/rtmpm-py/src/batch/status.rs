@@ -1,0 +1,133 @@
+//! What the worlds are: their number, labels, scene and backend, each world's state (running
+//! or frozen, and why), time, frames and steps.
+
+use super::PyBatch;
+use crate::backend::BackendInfo;
+use crate::scene::PyScene;
+use numpy::PyArray1;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use rtmpm_driver::batch::WorldStatus;
+
+#[pymethods]
+impl PyBatch {
+    /// Number of worlds.
+    fn __len__(&mut self) -> usize {
+        self.count()
+    }
+
+    /// Number of worlds.
+    #[getter]
+    fn worlds(&mut self) -> usize {
+        self.count()
+    }
+
+    /// What sets each world apart (``"material[0].yield_stress = 150"``, or ``"world 3"``).
+    #[getter]
+    fn labels(&mut self) -> Vec<String> {
+        self.r().worlds.iter().map(|w| w.label.clone()).collect()
+    }
+
+    /// The scene (:class:`rtmpm.Scene`) the worlds come from.
+    #[getter]
+    fn scene(&mut self, py: Python<'_>) -> Py<PyScene> {
+        self.scene.clone_ref(py)
+    }
+
+    /// The backend of the worlds and why (:class:`rtmpm.BackendInfo`).
+    #[getter]
+    fn backend(&mut self) -> BackendInfo {
+        let name = self
+            .r()
+            .worlds
+            .first()
+            .map(|w| w.sim.backend.name())
+            .unwrap_or_default();
+        BackendInfo {
+            kind: "cpu".into(),
+            name,
+            reason: self.reason.clone(),
+        }
+    }
+
+    /// Each world's state: a dict with ``world``, ``state`` (``"running"`` or ``"frozen"``),
+    /// ``frame`` (frames completed; for a frozen world the one it keeps), ``steps`` and
+    /// ``reason`` (why it froze, ``None`` while running).
+    #[getter]
+    fn status<'py>(&mut self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        self.r()
+            .worlds
+            .iter()
+            .enumerate()
+            .map(|(i, w)| {
+                let d = PyDict::new(py);
+                d.set_item("world", i)?;
+                match &w.status {
+                    WorldStatus::Running => {
+                        d.set_item("state", "running")?;
+                        d.set_item("frame", w.sim.frame)?;
+                        d.set_item("reason", py.None())?;
+                    }
+                    WorldStatus::Frozen { frame, reason } => {
+                        d.set_item("state", "frozen")?;
+                        d.set_item("frame", *frame)?;
+                        d.set_item("reason", reason)?;
+                    }
+                }
+                d.set_item("steps", w.sim.step)?;
+                Ok(d)
+            })
+            .collect()
+    }
+
+    /// ``(N,)`` bool array: True where a world is running, False where it is frozen.
+    #[getter]
+    fn running<'py>(&mut self, py: Python<'py>) -> Bound<'py, PyArray1<bool>> {
+        let r = self.r().worlds.iter();
+        PyArray1::from_vec(py, r.map(|w| w.status == WorldStatus::Running).collect())
+    }
+
+    /// ``(N,)`` float64 array: each world's simulated time (s).
+    #[getter]
+    fn time<'py>(&mut self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_vec(py, self.r().worlds.iter().map(|w| w.sim.time).collect())
+    }
+
+    /// ``(N,)`` uint64 array: frames each world has completed.
+    #[getter]
+    fn frame<'py>(&mut self, py: Python<'py>) -> Bound<'py, PyArray1<u64>> {
+        PyArray1::from_vec(py, self.r().worlds.iter().map(|w| w.sim.frame).collect())
+    }
+
+    /// ``(N,)`` uint64 array: steps each world has taken.
+    #[getter]
+    fn steps<'py>(&mut self, py: Python<'py>) -> Bound<'py, PyArray1<u64>> {
+        PyArray1::from_vec(py, self.r().worlds.iter().map(|w| w.sim.step).collect())
+    }
+
+    /// Not supported: a batch writes no checkpoints yet (nor does ``rtmpm run`` of a batch,
+    /// which refuses ``--checkpoint-every`` and ``--resume``). Raises :class:`rtmpm.RtmpmError`
+    /// saying so; :meth:`reset` with given ``x`` and ``v`` restarts chosen worlds from a state
+    /// kept in Python.
+    #[pyo3(signature = (*_args, **_kwargs))]
+    fn checkpoint(
+        &self,
+        _args: &Bound<'_, pyo3::types::PyTuple>,
+        _kwargs: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<()> {
+        Err(crate::errors::RtmpmError::new_err(
+            "checkpoints of a batch are not supported: keep the worlds' arrays (x, v) and \
+             restart worlds from them with reset(worlds, x=..., v=...), or checkpoint a world \
+             run as its own rtmpm.Simulation",
+        ))
+    }
+
+    fn __repr__(&mut self) -> String {
+        let frozen = self.count() - self.r().running();
+        let (worlds, particles) = (self.count(), self.counts().iter().sum::<usize>());
+        format!(
+            "BatchSimulation(scene={:?}, worlds={worlds}, frozen={frozen}, particles={particles})",
+            self.scene.get().scene.name,
+        )
+    }
+}

@@ -1,0 +1,36 @@
+//! Stepping the worlds: steps, a frame, or frames, every running world at once.
+
+use super::PyBatch;
+use pyo3::prelude::*;
+
+#[pymethods]
+impl PyBatch {
+    /// Take ``n`` steps in every running world, each of its own time step (frames end on their
+    /// times as with ``rtmpm run``). Returns the worlds frozen by a blow-up during the call.
+    #[pyo3(signature = (n = 1))]
+    fn step(&mut self, py: Python<'_>, n: u64) -> PyResult<Vec<usize>> {
+        self.drive(py, |run| run.advance_steps(n))
+    }
+
+    /// Simulate every running world to the end of its current frame (exactly as one call of
+    /// :meth:`Simulation.run_frame` per world). Returns the worlds frozen during the call.
+    fn run_frame(&mut self, py: Python<'_>) -> PyResult<Vec<usize>> {
+        self.drive(py, |run| run.advance_frame())
+    }
+
+    /// Run ``frames`` frames in every running world (default: to the end of the scene's
+    /// duration), checking for Ctrl-C between frames. Returns the worlds frozen during the run.
+    #[pyo3(signature = (frames = None))]
+    fn run(&mut self, py: Python<'_>, frames: Option<u64>) -> PyResult<Vec<usize>> {
+        let count = frames.unwrap_or_else(|| {
+            let max = self.r().worlds.iter().map(|w| w.sim.frame).max();
+            self.r().frames.saturating_sub(max.unwrap_or(0))
+        });
+        let mut frozen = Vec::new();
+        for _ in 0..count {
+            frozen.extend(self.drive(py, |run| run.advance_frame())?);
+            py.check_signals()?;
+        }
+        Ok(frozen)
+    }
+}
