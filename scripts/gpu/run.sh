@@ -45,10 +45,16 @@
 #                snow 1.33M against the scene's compute per displayed frame (target: at most 10 %), the frame
 #                time with a picture drawn every frame against none (.device/render_bench; pictures in
 #                $OUT/logs.tgz); then `rtmpm view --serve` on both, measured by a client on this machine:
-#                displayed fps, the session's steps/s against `rtmpm bench` (viewer on vs off) for
-#                STREAM_SECONDS (default 15), memory over STREAM_MEMORY_SECONDS (default 60, sampled every
-#                5 s) with a slow client. About 2.5 min. The GPU tests of the render stage and of steering
-#                are in `tests` (TESTS="test_render test_steer")
+#                the step time with the view on against `rtmpm bench` over the same frames (2..N) of the
+#                same scene, without a client, with one, and with one but no overlap of pictures and steps
+#                (scripts/viewer/view_cost.sh; VIEW_FRAMES, default "fluid_dam_2m:40 snow_1m:400"), the
+#                host's time per picture and the stream's fps. About 3 min. The GPU tests of the render
+#                stage and of steering are in `tests` (TESTS="test_render test_steer")
+#   view-soak    memory over a long stream: the snow 1.33M streamed to a client on this machine for
+#                VIEW_SOAK_SECONDS (default 600; a device call lasts at most 600 s, so 500 fits one),
+#                host and GPU memory of the server at the start, middle and end (every VIEW_SOAK_EVERY s);
+#                the view's default (pictures not overlapped with the steps on CUDA), RTMPM_VIEW_OVERLAP=1
+#                in the environment for the overlap
 #   batch        many worlds in the same kernels: tests/batch.rs (16 wedge worlds vs 16 separate runs, a
 #                reset and a blown-up world beside others, refusals) and its benchmark (1,024 sand beds of
 #                9,408 particles: batched vs one scene of as many particles vs worlds one after another)
@@ -254,51 +260,28 @@ for suite in "$@"; do
         echo "$r" | grep -E "^(render_bench|picture|frame|error)|particles" | tee -a "$S"
         echo "$r" | grep -E "^render_bench " > "$OUT/view_${sc%%:*}_render.txt"
       done
-      # The browser stream of `rtmpm view --serve` on CUDA, measured by a client on this machine
-      # (scripts/viewer/stream_client.py, Python's standard library only): pictures received per
-      # second, the session's draw and JPEG times, its steps/s against `rtmpm bench` of the same
-      # scene (the simulation with the viewer on against off), and the server's memory (VmRSS;
-      # GPU memory from nvidia-smi) over STREAM_MEMORY_SECONDS (default 60) with a slow client.
-      # The scenes run 60 s of simulated time here, so that the stream outlasts them.
-      port=18080
-      for sc in fluid_dam_2m snow_1m; do
-        sed 's/^duration = .*/duration = 60.0/' "bench/$sc.toml" > "/tmp/view_$sc.toml"
-        off=$(timeout 200 "$D/rtmpm" bench --backend cuda --scene "bench/$sc.toml" --frames 5 2>&1 \
-              | grep -oE '\(([0-9.]+) ms/step\)' | head -1 | tr -d '()' | cut -d' ' -f1)
-        echo "$off" > "$OUT/view_${sc}_off.txt"
-        for run in fast memory; do
-          port=$((port + 1))
-          secs=${STREAM_SECONDS:-15}; slow=0
-          if [ "$run" = memory ]; then
-            [ "$sc" = snow_1m ] || continue
-            secs=${STREAM_MEMORY_SECONDS:-60}; slow=0.05
-          fi
-          "$D/rtmpm" view "/tmp/view_$sc.toml" --serve "127.0.0.1:$port" --backend cuda --size 1280x720 \
-            > "$OUT/view_${sc}_$run.log" 2>&1 &
-          vpid=$!
-          for _ in $(seq 600); do
-            (exec 3<>"/dev/tcp/127.0.0.1/$port") 2>/dev/null && break
-            kill -0 "$vpid" 2>/dev/null || break
-            sleep 0.2
-          done
-          ( while kill -0 "$vpid" 2>/dev/null; do
-              nvidia-smi --query-compute-apps=pid,used_memory --format=csv,noheader 2>/dev/null | grep "^$vpid," ; sleep 5
-            done ) > "$OUT/view_${sc}_${run}_gpu_memory.csv" &
-          c=$(timeout $((secs + 60)) python3 scripts/viewer/stream_client.py --url "127.0.0.1:$port" \
-              --seconds "$secs" --slow "$slow" --rss-pid "$vpid" --rss-every 5 --label "$sc $run" 2>&1)
-          kill "$vpid" 2>/dev/null; wait "$vpid" 2>/dev/null
-          echo "$c" > "$OUT/view_${sc}_${run}_client.log"
-          echo "$c" | grep -vE '^\{' | tee -a "$S"
-          gpu=$(awk -F', ' '{print $2}' "$OUT/view_${sc}_${run}_gpu_memory.csv" | tr '\n' ' ')
-          [ -n "$gpu" ] && say "  GPU memory of the server every 5 s: $gpu"
-          sps=$(echo "$c" | grep -E '^\{' | python3 -c 'import json,sys; print(json.loads(sys.stdin.read())["steps_per_s"][0])' 2>/dev/null)
-          if [ -n "$sps" ] && [ -n "$off" ]; then
-            say "  $sc $run: viewer on $(awk -v s="$sps" 'BEGIN { if (s > 0) printf "%.4f", 1000 / s }') ms/step (session, median) against $off ms/step off (rtmpm bench): $(awk -v s="$sps" -v o="$off" 'BEGIN { if (s > 0) printf "%+.1f %%", 100 * (1000 / s / o - 1) }') (target: at most +10 %)"
-          fi
-        done
+      # The simulation's step time with the view on against off, like for like
+      # (scripts/viewer/view_cost.sh): the same scene, frames 2..N, dt and steps a frame, one
+      # binary: `rtmpm bench` (off); `rtmpm view --serve` to frame N without a client, with
+      # scripts/viewer/stream_client.py watching (every picture encoded and sent; its pictures/s,
+      # draw and JPEG times), and with a client but pictures not overlapped with the steps
+      # (RTMPM_VIEW_OVERLAP=0, the loop before). VIEW_FRAMES="scene:N ..." to change.
+      port=18180
+      for sf in ${VIEW_FRAMES:-fluid_dam_2m:40 snow_1m:400}; do
+        bash scripts/viewer/view_cost.sh "$D/rtmpm" cuda "bench/${sf%%:*}.toml" "${sf##*:}" "$OUT" "$port" 1280x720 \
+          | tee -a "$S"
+        grep -vE '^\{' "$OUT/view_${sf%%:*}_client_client.log" 2>/dev/null | tee -a "$S"
+        port=$((port + 10))
       done
       # The short table of the suite, last (scripts/viewer/view_table.py says what each row is).
       python3 scripts/viewer/view_table.py "$OUT" fluid_dam_2m snow_1m | tee -a "$S"
+      ;;
+    view-soak)
+      # Memory over a long stream (scripts/viewer/view_soak.sh): the snow 1.33M streamed at
+      # 1280x720 to a client on this machine for VIEW_SOAK_SECONDS (default 600), the server's
+      # host (VmRSS) and GPU memory sampled every VIEW_SOAK_EVERY s (30): start, middle, end.
+      bash scripts/viewer/view_soak.sh "$D/rtmpm" cuda bench/snow_1m.toml "${VIEW_SOAK_SECONDS:-600}" \
+        "$OUT" "${VIEW_SOAK_EVERY:-30}" 18300 1280x720 | tee -a "$S"
       ;;
     long)
       sed 's/^dt = 1e-4/dt = 5e-5/' bench/strong_16m.toml > /tmp/strong_16m_half_dt.toml

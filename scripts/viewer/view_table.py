@@ -5,18 +5,19 @@ for each scene, against the targets of the live view (docs/viewer.md). Standard 
     view_table.py OUT SCENE [SCENE...]
 
 For each SCENE it reads, in OUT (files the suite wrote; a missing one leaves its rows blank):
-  view_SCENE_render.txt       the last line of render_bench (`render_bench NAME: n=... frame_off_ms=...`)
-  view_SCENE_off.txt          ms/step of `rtmpm bench` on the same scene (the viewer off)
-  view_SCENE_fast_client.log  scripts/viewer/stream_client.py's JSON line, a fast client
-  view_SCENE_memory_client.log   the same, a slow client over a longer time (memory)
-  view_SCENE_memory_gpu_memory.csv  nvidia-smi's `pid, used_memory` samples of the server
+  view_SCENE_render.txt        the last line of render_bench (`render_bench NAME: n=... frame_off_ms=...`)
+  view_SCENE_steps.txt         scripts/viewer/view_cost.sh's runs over the same frames 2..N:
+                               `off ms_per_step=...` (rtmpm bench), `noclient|client|nooverlap
+                               ms_per_step=... view_timing ...` (rtmpm view --serve to frame N)
+  view_SCENE_client_client.log scripts/viewer/stream_client.py's JSON line of the client run
 
 Rows: the simulation's frame time without pictures; the render stage's picture (kernels and
 copy, CUDA events) as a share of it (target: at most 10 %); the frame time with a picture every
 frame; the stream's simulated frames/s, pictures received/s and pictures per simulated frame
 (target: every frame shown, so 1.0, at >= 60 fps where the simulation runs that fast); the
-session's draw and JPEG times per picture; the step time with the viewer on (the session's
-steps/s) against off (target: at most +10 %); the server's memory over the slow client's run.
+session's draw and JPEG times per picture; the step time with the view on against `rtmpm
+bench` over the same frames (target: at most +10 % with a client watching), without a client,
+and without the overlap of pictures and steps; where the host's time per picture went.
 """
 
 import json
@@ -55,32 +56,63 @@ def render_line(text):
     return out
 
 
-def gpu_memory(path):
-    mib = []
-    for line in (read(path) or "").splitlines():
-        m = re.search(r",\s*([0-9.]+)\s*MiB", line)
-        if m:
-            mib.append(float(m.group(1)))
-    return mib
+def steps_runs(text):
+    """{label: {key: value}} of view_cost.sh's lines (`LABEL key=value ...`)."""
+    runs = {}
+    for line in (text or "").splitlines():
+        parts = line.split()
+        if not parts:
+            continue
+        kv = {}
+        for k, v in re.findall(r"(\w+)=([-0-9.e+]+|nan)", line):
+            try:
+                kv[k] = float(v)
+            except ValueError:
+                pass
+        runs[parts[0]] = kv
+    return runs
 
 
 def fmt(x, spec=".2f", unit=""):
     return "-" if x is None else f"{x:{spec}}{unit}"
 
 
+def step_rows(c, runs):
+    """The view on against off over the same frames, and the host's time per picture."""
+    off = runs.get("off", {}).get("ms_per_step")
+    if off is None or off != off:
+        off = None
+    c["frames timed (steps)"] = fmt(runs.get("off", {}).get("steps"), ".0f")
+    c["bench ms/step (view off)"] = fmt(off, ".4f")
+    for label, row in [("noclient", "view, no client"), ("client", "view + client (<=+10%)"),
+                       ("nooverlap", "view + client, no overlap")]:
+        ms = runs.get(label, {}).get("ms_per_step")
+        if ms is None or ms != ms:
+            continue
+        vs = "" if off is None else f" ({100 * (ms / off - 1):+.1f} %)"
+        c[row + " ms/step"] = f"{ms:.4f}{vs}"
+    t = runs.get("client", {})
+    if "begin_ms" in t:
+        c["stepping (ms/step, client)"] = fmt(t.get("step_ms_per_step"), ".4f")
+        c["picture begin/finish/publish ms"] = (
+            f"{t['begin_ms']:.2f}/{t['finish_ms']:.2f}/{t['present_ms']:.2f}")
+        c["pictures overlapped"] = f"{t.get('overlapped', 0):.0f}/{t.get('pictures', 0):.0f}"
+
+
 def column(out, sc):
     r = render_line(read(os.path.join(out, f"view_{sc}_render.txt")))
-    off_text = (read(os.path.join(out, f"view_{sc}_off.txt")) or "").strip()
-    off = float(off_text) if re.fullmatch(r"[0-9.]+", off_text) else None
-    fast = client(os.path.join(out, f"view_{sc}_fast_client.log"))
-    mem = client(os.path.join(out, f"view_{sc}_memory_client.log"))
-    gpu = gpu_memory(os.path.join(out, f"view_{sc}_memory_gpu_memory.csv"))
+    fast = client(os.path.join(out, f"view_{sc}_client_client.log"))
+    runs = steps_runs(read(os.path.join(out, f"view_{sc}_steps.txt")))
     c = {}
     c["particles"] = fmt(r.get("n"), ".0f")
     c["frame off (ms)"] = fmt(r.get("frame_off_ms"), ".2f")
     pic = next((v for k, v in r.items() if k.startswith("picture_") and k.endswith("_ms")), None)
     share = r.get("share_of_frame")
     c["picture 1280x720 (ms)"] = fmt(pic, ".3f")
+    m = re.search(r"kernels ([0-9.]+) copy ([0-9.]+)",
+                  read(os.path.join(out, f"view_{sc}_render.txt")) or "")
+    if m:
+        c["render / readback (events, ms)"] = f"{float(m.group(1)):.3f} / {float(m.group(2)):.3f}"
     c["picture / frame (<=10%)"] = fmt(share, ".1f", " %")
     on = r.get("frame_on_ms")
     cost = r.get("viewer_cost")
@@ -91,17 +123,7 @@ def column(out, sc):
         c["drawn / sim frame (1.0)"] = fmt(fast.get("drawn_per_sim_frame"), ".3f")
         c["received / sim frame"] = fmt(fast.get("received_per_sim_frame"), ".3f")
         c["draw + JPEG (ms)"] = f"{fast['draw_ms'][0]:.2f} + {fast['jpeg_ms'][0]:.2f}"
-        sps = fast["steps_per_s"][0]
-        step_on = 1000.0 / sps if sps and sps > 0 else None
-        c["step on / off (ms)"] = f"{fmt(step_on, '.4f')} / {fmt(off, '.4f')}"
-        c["viewer on (<=+10%)"] = ("-" if step_on is None or off is None
-                                   else f"{100 * (step_on / off - 1):+.1f} %")
-    if mem and "rss_mib" in mem:
-        m = mem["rss_mib"]
-        c[f"host MiB over {mem['seconds']:.0f} s"] = f"{m['first']:.0f} > {m['last']:.0f} (max {m['max']:.0f})"
-        c["slow client: got / drawn"] = f"{mem['pictures']} / {mem['session_pictures']}"
-    if gpu:
-        c["GPU MiB (first > last)"] = f"{gpu[0]:.0f} > {gpu[-1]:.0f} (max {max(gpu):.0f})"
+    step_rows(c, runs)
     return c
 
 

@@ -343,6 +343,12 @@ impl Backend for AnyBackend {
     ) -> Result<bool, SimError> {
         self.as_dyn().render_view(req, out)
     }
+    fn begin_view(&mut self, req: &rtmpm_render::ViewRequest) -> Result<bool, SimError> {
+        self.as_dyn().begin_view(req)
+    }
+    fn finish_view(&mut self, out: &mut rtmpm_render::Image) -> Result<(), SimError> {
+        self.as_dyn().finish_view(out)
+    }
     fn set_gravity(&mut self, gravity: rtmpm_physics::math::Vec3) -> Result<(), SimError> {
         self.as_dyn().set_gravity(gravity)
     }

@@ -16,6 +16,7 @@ use rtmpm_io::checkpoint::Checkpoint;
 use rtmpm_io::limits::{SCENE_MAX_BYTES, read_text_bounded};
 use rtmpm_physics::Particles;
 use rtmpm_scene::Scene;
+use rtmpm_sim::Backend;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -124,6 +125,10 @@ pub trait RunHooks {
     fn frame_done(&mut self, _sim: &Simulation, _rate: f64) {}
     /// After the last frame, before the frames still being written are waited for.
     fn run_done(&mut self) {}
+    /// Once the steps of a [`Run::advance`] are queued, before the host first waits for the
+    /// device ([`Simulation::advance_with`]): host work done here overlaps the steps (a live
+    /// view finishes its last picture with the backend).
+    fn steps_queued(&mut self, _backend: &mut dyn Backend) {}
     /// After a frame's files are written (frame 0 of a fresh run too): the particles on the
     /// host when [`RunOptions::collect`] asked for them (else empty), and the fluid surface
     /// written with the frame, if any.
@@ -283,7 +288,9 @@ impl Run {
     /// completed. For a caller that paces the steps itself (a live view); [`Run::execute`]
     /// calls it in chunks of about a second.
     pub fn advance(&mut self, max_steps: u64, hooks: &mut dyn RunHooks) -> Result<bool> {
-        let done = self.sim.advance(max_steps)?;
+        let done = self
+            .sim
+            .advance_with(max_steps, &mut |b| hooks.steps_queued(b))?;
         if done {
             self.frame_complete(hooks)?;
         }

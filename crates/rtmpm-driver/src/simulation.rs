@@ -257,6 +257,26 @@ impl<B: Backend + ?Sized> Simulation<B> {
     /// Advance towards the end of the current frame, taking at most `max_steps` steps. Returns
     /// true when the frame was completed (then [`Simulation::frame`] has moved on).
     pub fn advance(&mut self, max_steps: u64) -> Result<bool, SimError> {
+        self.advance_with(max_steps, &mut |_| {})
+    }
+
+    /// [`Simulation::advance`], calling `queued` once with the backend when the steps are
+    /// queued, before the host first waits for the device: before the check that ends the call
+    /// (fixed steps), or before the second step's size is read (CFL steps read the fastest
+    /// particle). A caller does its own host work there while the device steps (a live view
+    /// finishes its last picture). Not called when a step fails.
+    pub fn advance_with(
+        &mut self,
+        max_steps: u64,
+        queued: &mut dyn FnMut(&mut B),
+    ) -> Result<bool, SimError> {
+        let mut called = false;
+        let mut once = |b: &mut B| {
+            if !called {
+                called = true;
+                queued(b);
+            }
+        };
         let frame_start = self.frame as f64 * self.frame_duration();
         let frame_end = (self.frame + 1) as f64 * self.frame_duration();
         let mut taken = 0;
@@ -268,6 +288,7 @@ impl<B: Backend + ?Sized> Simulation<B> {
                 let done = ((self.time - frame_start) / dt as f64).round() as u64;
                 while done + taken < per_frame {
                     if taken == max_steps {
+                        once(&mut self.backend);
                         self.check()?;
                         return Ok(false);
                     }
@@ -276,6 +297,7 @@ impl<B: Backend + ?Sized> Simulation<B> {
                     self.time = frame_start + (done + taken) as f64 * dt as f64;
                 }
                 self.time = frame_end;
+                once(&mut self.backend);
                 self.finish_frame()?;
                 return Ok(true);
             }
@@ -283,8 +305,12 @@ impl<B: Backend + ?Sized> Simulation<B> {
         let eps = 1e-9 * self.frame_duration();
         while self.time < frame_end - eps {
             if taken == max_steps {
+                once(&mut self.backend);
                 self.check()?;
                 return Ok(false);
+            }
+            if taken > 0 {
+                once(&mut self.backend);
             }
             let dt = self.next_dt()?;
             let remaining = (frame_end - self.time) as f32;
@@ -292,6 +318,7 @@ impl<B: Backend + ?Sized> Simulation<B> {
             taken += 1;
         }
         self.time = frame_end;
+        once(&mut self.backend);
         self.finish_frame()?;
         Ok(true)
     }

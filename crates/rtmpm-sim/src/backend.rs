@@ -126,6 +126,25 @@ pub trait Backend {
         let _ = (req, out);
         Ok(false)
     }
+    /// Begin the picture of the current state that [`Backend::render_view`] would draw, to be
+    /// collected by [`Backend::finish_view`]: a backend that draws on a device queues the
+    /// picture and its copy to the host and returns at once, so that the caller can queue the
+    /// next steps before it waits for the picture (a live view keeps the device busy while the
+    /// host finishes the last picture). `Ok(false)`: not begun (the caller uses
+    /// [`Backend::render_view`], or the CPU renderer).
+    fn begin_view(&mut self, req: &ViewRequest) -> Result<bool, SimError> {
+        let _ = req;
+        Ok(false)
+    }
+    /// The picture begun by [`Backend::begin_view`] into `out` (as [`Backend::render_view`]
+    /// fills it): waits for that picture only, not for steps queued after it.
+    fn finish_view(&mut self, out: &mut Image) -> Result<(), SimError> {
+        let _ = out;
+        Err(SimError::Backend(format!(
+            "the backend `{}` has no picture begun to finish",
+            self.name()
+        )))
+    }
     /// Change gravity (m/s^2) from the next step on (the rigid bodies' too).
     fn set_gravity(&mut self, gravity: Vec3) -> Result<(), SimError> {
         let _ = gravity;

@@ -29,4 +29,4 @@ pub mod window;
 pub use command::{Command, Pace, Throw};
 pub use frame::{Frame, FrameSlot, Status};
 pub use record::Recorder;
-pub use session::{Commands, SceneInfo, Session, SessionOptions, SimFactory, Summary};
+pub use session::{Commands, SceneInfo, Session, SessionOptions, SimFactory, Summary, Timing};

@@ -247,6 +247,11 @@ pub fn view(args: ViewArgs) -> Result<()> {
         max_frames: args.frames,
         hud: !args.no_hud,
         shadows: !args.no_shadows,
+        // RTMPM_VIEW_OVERLAP=0: each picture drawn and published before the next step (the
+        // view's cost measured both ways in one binary). The CUDA backend begins pictures to
+        // overlap only with RTMPM_VIEW_OVERLAP=1 (rtmpm_cuda::backend::view_overlap: not yet run
+        // on a GPU); the CPU backend draws on the host.
+        overlap: std::env::var("RTMPM_VIEW_OVERLAP").map_or(true, |v| v.trim() != "0"),
     };
     let session = Session::start(factory(scene, &args), options, recorder)
         .map_err(|e| anyhow!(e))
@@ -280,6 +285,16 @@ pub fn view(args: ViewArgs) -> Result<()> {
         "view: {} pictures shown, {} frames ({} steps, t = {:.4} s)",
         summary.displayed, summary.frames, summary.steps, summary.time
     );
+    let t = &summary.timing;
+    if t.steps > 0 {
+        eprintln!(
+            "view: after the first frame, {} steps in {:.3} s: {:.4} ms/step with the view on",
+            t.steps,
+            t.wall_s,
+            t.ms_per_step()
+        );
+        eprintln!("{}", t.line());
+    }
     if let Some(e) = &summary.error {
         eprintln!("view: the simulation stopped: {e}");
     }

@@ -108,9 +108,25 @@ pub(crate) struct RenderBuffers {
     pub(crate) field: Option<CudaSlice<f32>>,
     /// The image, for the host.
     pub(crate) pinned: PinnedHostSlice<u8>,
+    /// The range found (f32 bits), for the host.
+    pub(crate) range: PinnedHostSlice<u32>,
+    /// Recorded after a picture's copies ([`CudaBackend::begin_picture`]).
+    pub(crate) done: cudarc::driver::CudaEvent,
+    /// The picture begun and not yet collected.
+    pub(crate) pending: Option<PendingPicture>,
     /// The scene's mesh offsets: each collider's, each rigid body's.
     pub(crate) collider_mesh: Vec<u32>,
     pub(crate) body_mesh: Vec<u32>,
+}
+
+/// What [`CudaBackend::finish_picture`] needs of a picture begun: its size and colouring.
+pub(crate) struct PendingPicture {
+    pub(crate) width: u32,
+    pub(crate) height: u32,
+    pub(crate) color_by: rtmpm_scene::ColorBy,
+    pub(crate) range: Option<(f32, f32)>,
+    pub(crate) auto_range: bool,
+    pub(crate) label: Option<String>,
 }
 
 impl RenderBuffers {
@@ -317,6 +333,15 @@ impl CudaBackend {
     }
 }
 
+/// Pictures of a live view collected while the next steps run (`RTMPM_VIEW_OVERLAP=1`; off by
+/// default). The overlap (a picture queued with an event, the next steps queued behind it, the
+/// host waiting for that event only) has not yet run on a GPU, so the CUDA backend keeps it off
+/// until it has; the CPU backend draws on the host and never overlaps.
+pub fn view_overlap() -> bool {
+    static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *ON.get_or_init(|| std::env::var("RTMPM_VIEW_OVERLAP").is_ok_and(|v| v.trim() == "1"))
+}
+
 impl Backend for CudaBackend {
     fn name(&self) -> String {
         if self.options.f64 {
@@ -426,6 +451,24 @@ impl Backend for CudaBackend {
             .map_err(|e| SimError::Backend(format!("live view: {e}")))?;
         self.render_picture(&req.options(&self.scene), req.colliders, out)?;
         Ok(true)
+    }
+
+    /// The picture queued after the steps so far ([`CudaBackend::begin_picture`]), only where
+    /// `RTMPM_VIEW_OVERLAP=1` ([`view_overlap`]); otherwise not begun (`Ok(false)`), and a live
+    /// view draws each picture with [`Backend::render_view`], waiting for it before the next
+    /// steps.
+    fn begin_view(&mut self, req: &rtmpm_render::ViewRequest) -> Result<bool, SimError> {
+        if !view_overlap() {
+            return Ok(false);
+        }
+        req.check()
+            .map_err(|e| SimError::Backend(format!("live view: {e}")))?;
+        self.begin_picture(&req.options(&self.scene), req.colliders, None)?;
+        Ok(true)
+    }
+
+    fn finish_view(&mut self, out: &mut rtmpm_render::Image) -> Result<(), SimError> {
+        self.finish_picture(out).map(|_| ())
     }
 
     fn set_gravity(&mut self, gravity: rtmpm_physics::math::Vec3) -> Result<(), SimError> {

@@ -11,7 +11,7 @@
 //! field); the shadow map; the splat of every particle into 64-bit depth keys (atomicMin of
 //! depth << 32 | slot); the objects traced into the same keys; the resolve, one thread a pixel.
 
-use crate::backend::{CudaBackend, RenderBuffers};
+use crate::backend::{CudaBackend, PendingPicture, RenderBuffers};
 use crate::contract::render::{
     RENDER_MAX_OBJECTS, RENDER_OBJECT_ID, RENDER_SHADOW_RES, RS_HI, RS_LO, RS_WORDS, RenderObject,
     RenderParams, color_code,
@@ -168,6 +168,13 @@ impl RenderBuffers {
         // SAFETY: written by the copies before the host reads it; plain page-locked memory.
         let pinned = unsafe { s.context().alloc_pinned_with_flags::<u8>(3 * pixels, 0) }
             .map_err(err("allocate pinned memory"))?;
+        // SAFETY: as above (the range found, two f32 words as bits).
+        let range = unsafe { s.context().alloc_pinned_with_flags::<u32>(2, 0) }
+            .map_err(err("allocate pinned memory"))?;
+        let done = s
+            .context()
+            .new_event(Some(CUevent_flags::CU_EVENT_DISABLE_TIMING))
+            .map_err(err("event"))?;
         Ok(RenderBuffers {
             width,
             height,
@@ -189,6 +196,9 @@ impl RenderBuffers {
                 .map_err(err("alloc palette"))?,
             field: None,
             pinned,
+            range,
+            done,
+            pending: None,
             collider_mesh: tables.colliders.iter().map(|c| c.mesh_offset).collect(),
             body_mesh: tables.body_mesh,
         })
@@ -326,6 +336,21 @@ impl CudaBackend {
         out: &mut Image,
         events: Option<&[CudaEvent; 3]>,
     ) -> Result<Option<(f32, f32)>, SimError> {
+        self.begin_picture(opts, objects, events)?;
+        // The whole stream waited for, as before pictures could be begun and collected later.
+        self.stream.synchronize().map_err(err("render"))?;
+        self.finish_picture(out)
+    }
+
+    /// Queue the picture of `opts` (as [`Self::render_picture`] draws it) and its copy, with the
+    /// range found, to page-locked memory, then an event; returns without waiting, so that more
+    /// work (the next steps) can be queued before [`Self::finish_picture`] collects it.
+    pub fn begin_picture(
+        &mut self,
+        opts: &RenderOptions,
+        objects: bool,
+        events: Option<&[CudaEvent; 3]>,
+    ) -> Result<(), SimError> {
         let mut r = params(opts).map_err(|e| SimError::Backend(format!("render: {e}")))?;
         if self.ctx.cap >= RENDER_OBJECT_ID {
             return Err(SimError::Backend(format!(
@@ -336,29 +361,54 @@ impl CudaBackend {
         let objects = self.render_objects(opts, objects)?;
         self.enqueue_picture(&mut r, opts, &objects, events)?;
         let b = self.render.as_mut().ok_or_else(no_buffers)?;
-        // The range found (a copy to pageable memory: it waits for the kernels).
-        let mut range = [0u32; 2];
-        if r.auto_range != 0 {
+        let auto_range = r.auto_range != 0;
+        if auto_range {
+            let host = b.range.as_mut_slice().map_err(err("pinned memory"))?;
             self.stream
-                .memcpy_dtoh(&b.scratch.slice(RS_LO..RS_HI + 1), &mut range)
+                .memcpy_dtoh(&b.scratch.slice(RS_LO..RS_HI + 1), &mut host[..2])
                 .map_err(err("read the range"))?;
         }
-        self.stream.synchronize().map_err(err("render"))?;
+        b.done
+            .record(&self.stream)
+            .map_err(err("record an event"))?;
+        b.pending = Some(PendingPicture {
+            width: r.width,
+            height: r.height,
+            color_by: opts.color_by,
+            range: opts.range,
+            auto_range,
+            label: opts.label.clone(),
+        });
+        Ok(())
+    }
+
+    /// The picture queued by [`Self::begin_picture`] into `out` (resized to it), its colour bar
+    /// and label drawn: waits for that picture's copy only, not for work queued after it.
+    /// Returns the colour range used when colouring by a field.
+    pub fn finish_picture(&mut self, out: &mut Image) -> Result<Option<(f32, f32)>, SimError> {
+        let b = self.render.as_mut().ok_or_else(no_buffers)?;
+        let p = b.pending.take().ok_or_else(|| {
+            SimError::Backend("CUDA render: no picture begun to finish".to_string())
+        })?;
+        b.done.synchronize().map_err(err("render"))?;
         let host = b.pinned.as_slice().map_err(err("pinned memory"))?;
-        let n = 3 * r.width as usize * r.height as usize;
-        if out.width != r.width || out.height != r.height || out.rgb.len() != n {
-            *out = Image::new(r.width, r.height, [0, 0, 0]);
+        let n = 3 * p.width as usize * p.height as usize;
+        if out.width != p.width || out.height != p.height || out.rgb.len() != n {
+            *out = Image::new(p.width, p.height, [0, 0, 0]);
         }
         out.rgb.copy_from_slice(&host[..n]);
-        let scale = (opts.height / 360).max(1);
-        let used = (opts.color_by != ColorBy::Material).then(|| {
-            opts.range
-                .unwrap_or((f32::from_bits(range[0]), f32::from_bits(range[1])))
-        });
+        let found = if p.auto_range {
+            let r = b.range.as_slice().map_err(err("pinned memory"))?;
+            (f32::from_bits(r[0]), f32::from_bits(r[1]))
+        } else {
+            (0.0, 0.0)
+        };
+        let scale = (p.height / 360).max(1);
+        let used = (p.color_by != ColorBy::Material).then(|| p.range.unwrap_or(found));
         if let Some((lo, hi)) = used {
-            rtmpm_render::draw_color_bar(out, opts.color_by.label(), lo, hi, scale);
+            rtmpm_render::draw_color_bar(out, p.color_by.label(), lo, hi, scale);
         }
-        if let Some(label) = &opts.label {
+        if let Some(label) = &p.label {
             let m = 6 * scale as i32;
             rtmpm_render::text::draw_text(out, m, m, label, scale, [235, 235, 235]);
         }

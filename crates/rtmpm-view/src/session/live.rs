@@ -1,15 +1,16 @@
 //! The session's state and loop: commands, stepping, drawing.
 
 use super::options::{SceneInfo, SessionOptions, SimFactory, Summary};
-use super::rates::Rates;
+use super::present::Present;
 use crate::camera::OrbitCamera;
 use crate::command::{Command, Pace, Throw};
-use crate::draw::{draw, draw_hud, draw_message};
-use crate::frame::{Frame, FrameSlot, Status};
+use crate::draw::draw;
+use crate::frame::{FrameSlot, Status};
 use crate::record::Recorder;
 use crate::steer::{ToolDrag, ball, pick_depth, ray_enters_box};
 use glam::Vec3;
 use rtmpm_driver::Simulation;
+use rtmpm_driver::run::{Run, RunOptions};
 use rtmpm_geometry::{Tool, ToolShape};
 use rtmpm_physics::Particles;
 use rtmpm_render::{Camera, Image, MAX_VIEW_SIDE, ViewRequest};
@@ -17,7 +18,6 @@ use rtmpm_scene::ColorBy;
 use rtmpm_scene::Scene;
 use rtmpm_scene::sampling::per_axis;
 use rtmpm_scene::settings::StepMode;
-use rtmpm_sim::SimError;
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
@@ -29,9 +29,10 @@ const MIN_SIDE: u32 = 16;
 /// The tool moves at most this fraction of a cell per step.
 const TOOL_CELLS_PER_STEP: f32 = 0.3;
 
-/// A live simulation and everything about how it is shown.
+/// A live simulation (driven through the run driver's [`Run`], as `rtmpm run` drives one) and
+/// everything about how it is shown.
 pub(super) struct Live {
-    sim: Simulation,
+    run: Run,
     factory: SimFactory,
     opts: SessionOptions,
     orbit: OrbitCamera,
@@ -56,11 +57,11 @@ pub(super) struct Live {
     fresh: bool,
     /// Something shown changed since the last picture.
     dirty: bool,
-    seq: u64,
     throws: u64,
-    rates: Rates,
-    recorder: Option<Recorder>,
-    recording_error: Option<String>,
+    /// The pictures: published, in flight, timed.
+    present: Present,
+    /// When the timing began (the end of the first simulated frame).
+    timed_from: Option<Instant>,
 }
 
 impl Live {
@@ -69,7 +70,8 @@ impl Live {
         factory: SimFactory,
         mut opts: SessionOptions,
         recorder: Option<Recorder>,
-    ) -> Live {
+        slot: Arc<FrameSlot>,
+    ) -> Result<Live, String> {
         opts.width = opts.width.clamp(MIN_SIDE, MAX_VIEW_SIDE);
         opts.height = opts.height.clamp(MIN_SIDE, MAX_VIEW_SIDE);
         let scene = &sim.scene;
@@ -86,7 +88,9 @@ impl Live {
         let shape = opts.tool.unwrap_or(ToolShape::Sphere {
             radius: ((hi - lo).min_element() / 8.0).max(2.0 * scene.dx),
         });
-        Live {
+        Ok(Live {
+            present: Present::new(slot, recorder, opts.hud),
+            timed_from: None,
             orbit: OrbitCamera::from_camera(camera),
             radius,
             pace: opts.pace,
@@ -102,33 +106,31 @@ impl Live {
             particles: Particles::default(),
             fresh: false,
             dirty: true,
-            seq: 0,
             throws: 0,
-            rates: Rates::default(),
-            recorder,
-            recording_error: None,
-            sim,
+            run: run_of(sim)?,
             factory,
             opts,
-        }
+        })
     }
 
     pub(super) fn info(&self) -> SceneInfo {
-        let s = &self.sim.scene;
+        let s = &self.run.sim.scene;
         SceneInfo {
             name: s.name.clone(),
             materials: s.materials.iter().map(|m| m.name.clone()).collect(),
-            backend: self.sim.backend.name(),
+            backend: self.run.sim.backend.name(),
             fps: s.time.fps,
             duration: s.time.duration,
         }
     }
 
     /// The loop: until Quit, the frame limit or the front-ends have all gone.
-    pub(super) fn run(mut self, rx: &Receiver<Command>, slot: &FrameSlot) -> Summary {
+    pub(super) fn run(mut self, rx: &Receiver<Command>) -> Summary {
         'session: loop {
             let idle = self.paused || self.error.is_some();
             if idle && !self.dirty {
+                // The last picture is shown while idle.
+                self.collect();
                 match rx.recv_timeout(IDLE_WAIT) {
                     Ok(Command::Quit) | Err(RecvTimeoutError::Disconnected) => break 'session,
                     Ok(c) => self.apply(c),
@@ -146,50 +148,55 @@ impl Live {
                 self.stepped(r);
             }
             if self.dirty {
-                self.publish(slot);
+                self.publish();
             }
             if self
                 .opts
                 .max_frames
-                .is_some_and(|n| self.sim.frame >= n || self.error.is_some())
+                .is_some_and(|n| self.run.sim.frame >= n || self.error.is_some())
             {
                 break;
             }
         }
+        self.collect();
         self.summary()
     }
 
-    fn summary(self) -> Summary {
-        let recording = match (self.recorder, self.recording_error) {
-            (_, Some(e)) => Some(Err(e)),
-            (Some(r), None) => Some(r.finish()),
-            (None, None) => None,
-        };
+    fn summary(mut self) -> Summary {
+        let mut timing = self.present.timing.clone();
+        timing.wall_s = self.timed_from.map_or(0.0, |t| t.elapsed().as_secs_f64());
+        let sim = &self.run.sim;
+        let (frames, steps, time) = (sim.frame, sim.step, sim.time);
+        let error = self.error.take();
         Summary {
-            displayed: self.seq,
-            frames: self.sim.frame,
-            steps: self.sim.step,
-            time: self.sim.time,
-            recording,
-            error: self.error,
+            displayed: self.present.seq,
+            frames,
+            steps,
+            time,
+            recording: self.present.finish_recording(),
+            error,
+            timing,
         }
     }
 
     /// The outcome of stepping: an error stops the stepping and is shown.
-    fn stepped(&mut self, r: Result<(), SimError>) {
+    fn stepped(&mut self, r: Result<(), String>) {
         self.dirty = true;
         self.fresh = false;
+        if let Some(e) = self.present.failed.take() {
+            self.error.get_or_insert(e);
+        }
         if let Err(e) = r {
-            self.error = Some(e.to_string());
+            self.error = Some(e);
             return;
         }
-        let end = self.sim.scene.time.duration as f64;
-        if !self.ended && self.sim.time >= end - 1e-9 * end.max(1.0) {
+        let end = self.run.sim.scene.time.duration as f64;
+        if !self.ended && self.run.sim.time >= end - 1e-9 * end.max(1.0) {
             self.ended = true;
             self.paused = true;
             self.message = Some(format!(
                 "end of the scene at t = {:.3} s: paused (resume to go on, or reset)",
-                self.sim.time
+                self.run.sim.time
             ));
         }
     }
@@ -251,9 +258,10 @@ impl Live {
     }
 
     fn reset(&mut self) {
-        match (self.factory)() {
-            Ok(sim) => {
-                self.sim = sim;
+        self.collect();
+        match (self.factory)().and_then(run_of) {
+            Ok(run) => {
+                self.run = run;
                 self.error = None;
                 self.ended = false;
                 self.tool.release();
@@ -288,10 +296,17 @@ impl Live {
     fn grab(&mut self, x: f32, y: f32) {
         let (eye, ray) = self.ray(x, y);
         let cam = self.orbit.camera();
-        if !self.fresh && self.sim.backend.read_particles(&mut self.particles).is_ok() {
+        if !self.fresh
+            && self
+                .run
+                .sim
+                .backend
+                .read_particles(&mut self.particles)
+                .is_ok()
+        {
             self.fresh = true;
         }
-        let reach = self.sim.scene.dx;
+        let reach = self.run.sim.scene.dx;
         let fwd = (cam.target - cam.position).normalize_or(Vec3::NEG_Z);
         let depth = pick_depth(&self.particles.x, &cam, ray, reach)
             .unwrap_or_else(|| (cam.target - cam.position).dot(fwd));
@@ -312,7 +327,7 @@ impl Live {
     }
 
     fn set_gravity(&mut self, g: Vec3) {
-        self.message = Some(match self.sim.set_gravity(g) {
+        self.message = Some(match self.run.sim.set_gravity(g) {
             Ok(()) => format!("gravity ({:.3}, {:.3}, {:.3}) m/s^2", g.x, g.y, g.z),
             Err(e) => e.to_string(),
         });
@@ -321,7 +336,7 @@ impl Live {
     /// Throw a ball through pixel `(t.x, t.y)`: it starts where the ray enters the domain's
     /// interior (less the ball) and flies along the ray.
     fn throw(&mut self, t: &Throw) {
-        let scene = &self.sim.scene;
+        let scene = &self.run.sim.scene;
         let (lo, hi) = scene.interior();
         let side = (hi - lo).min_element();
         let radius = t.radius.unwrap_or((side / 10.0).max(2.0 * scene.dx));
@@ -340,7 +355,7 @@ impl Live {
         };
         self.message = Some(match made {
             Err(e) => e,
-            Ok(p) => match self.sim.backend.add_particles(&p) {
+            Ok(p) => match self.run.sim.backend.add_particles(&p) {
                 Ok(()) => {
                     self.fresh = false;
                     format!(
@@ -358,10 +373,10 @@ impl Live {
 
     /// The time step to plan with: the last one, else the scene's.
     fn dt_estimate(&self) -> f32 {
-        if self.sim.last_dt > 0.0 {
-            return self.sim.last_dt;
+        if self.run.sim.last_dt > 0.0 {
+            return self.run.sim.last_dt;
         }
-        match self.sim.scene.time.step {
+        match self.run.sim.scene.time.step {
             StepMode::Fixed { dt } => dt,
             StepMode::Cfl { max_dt, .. } => max_dt,
         }
@@ -374,14 +389,14 @@ impl Live {
         } else {
             self.dt_estimate()
         };
-        TOOL_CELLS_PER_STEP * self.sim.scene.dx / dt.max(1e-12)
+        TOOL_CELLS_PER_STEP * self.run.sim.scene.dx / dt.max(1e-12)
     }
 
     /// Advance by the pace; the held tool is aimed over the time it covers.
-    fn advance(&mut self) -> Result<(), SimError> {
-        let fd = self.sim.frame_duration();
+    fn advance(&mut self) -> Result<(), String> {
+        let fd = self.run.sim.frame_duration();
         let duration = match self.pace {
-            Pace::Frames(k) => (self.sim.frame + k as u64) as f64 * fd - self.sim.time,
+            Pace::Frames(k) => (self.run.sim.frame + k as u64) as f64 * fd - self.run.sim.time,
             Pace::Steps(n) => n as f64 * self.dt_estimate() as f64,
         };
         let limit = self.tool_speed_limit();
@@ -398,7 +413,7 @@ impl Live {
     }
 
     /// Take `n` steps (fewer only if the simulation stops taking any).
-    fn steps(&mut self, n: u64) -> Result<u64, SimError> {
+    fn steps(&mut self, n: u64) -> Result<u64, String> {
         let mut left = n;
         while left > 0 {
             let (taken, _) = self.chunk(left)?;
@@ -411,26 +426,46 @@ impl Live {
     }
 
     /// At most `max` steps, up to the end of the current frame; one step while the tool
-    /// moves (it moves between steps). Returns the steps taken and whether a frame ended.
-    fn chunk(&mut self, max: u64) -> Result<(u64, bool), SimError> {
+    /// moves (it moves between steps). A picture in flight is collected once the steps are
+    /// queued. Returns the steps taken and whether a frame ended.
+    fn chunk(&mut self, max: u64) -> Result<(u64, bool), String> {
         let moving = self.tool.moving();
         let tool = self.tool.tool();
         if tool != self.sent_tool {
-            self.sim.backend.set_tool(tool)?;
+            self.run
+                .sim
+                .backend
+                .set_tool(tool)
+                .map_err(|e| e.to_string())?;
             self.sent_tool = tool;
         }
-        let (s0, t0) = (self.sim.step, self.sim.time);
-        let done = self.sim.advance(if moving { 1 } else { max })?;
-        let taken = self.sim.step - s0;
-        if self.first_dt == 0.0 && self.sim.last_dt > 0.0 {
-            self.first_dt = self.sim.last_dt;
+        let (s0, t0) = (self.run.sim.step, self.run.sim.time);
+        let clock = Instant::now();
+        let r = self
+            .run
+            .advance(if moving { 1 } else { max }, &mut self.present);
+        self.present.timing.step_s += clock.elapsed().as_secs_f64();
+        // A picture still in flight (a step failed before the steps were all queued).
+        self.collect();
+        let done = r.map_err(|e| format!("{e:#}"))?;
+        let taken = self.run.sim.step - s0;
+        if self.first_dt == 0.0 && self.run.sim.last_dt > 0.0 {
+            self.first_dt = self.run.sim.last_dt;
         }
-        self.tool.advance(self.sim.time - t0);
-        self.rates
-            .stepped(taken, self.sim.backend.num_particles() as u64);
+        self.tool.advance(self.run.sim.time - t0);
+        self.present
+            .rates
+            .stepped(taken, self.run.sim.backend.num_particles() as u64);
+        self.present.timing.steps += taken;
         if done {
-            self.steps_per_frame = (self.sim.step - self.frame_start_step).max(1);
-            self.frame_start_step = self.sim.step;
+            self.steps_per_frame = (self.run.sim.step - self.frame_start_step).max(1);
+            self.frame_start_step = self.run.sim.step;
+            self.present.timing.frames += 1;
+            if self.timed_from.is_none() {
+                // Timed from here: the first frame built the backend's first mapping.
+                self.timed_from = Some(Instant::now());
+                self.present.timing = Default::default();
+            }
         }
         Ok((taken, done))
     }
@@ -448,19 +483,55 @@ impl Live {
             colliders: true,
             floor: true,
             shadows: self.opts.shadows,
-            time: self.sim.time as f32,
+            time: self.run.sim.time as f32,
         }
     }
 
-    /// Draw, publish and record the current state.
-    pub(super) fn publish(&mut self, slot: &FrameSlot) {
-        let t0 = Instant::now();
+    /// Collect the picture in flight, if any, and publish it.
+    pub(super) fn collect(&mut self) {
+        if self.present.pending() {
+            self.present.finish(self.run.sim.backend.as_mut());
+            if let Some(e) = self.present.failed.take() {
+                self.error.get_or_insert(e);
+            }
+        }
+    }
+
+    /// Draw the current state and publish it: begun on the backend and collected once the
+    /// next steps are queued (or before anything else is shown), or drawn and published now.
+    pub(super) fn publish(&mut self) {
+        self.collect();
+        self.dirty = false;
         let req = self.request();
+        if self.opts.overlap && self.error.is_none() && !self.paused {
+            let t0 = Instant::now();
+            match self.run.sim.backend.begin_view(&req) {
+                Ok(true) => {
+                    let status = self.status(&req, None);
+                    let status = self.present.next_status(status);
+                    let ms = t0.elapsed().as_secs_f64() * 1e3;
+                    self.present.timing.begin_s += ms * 1e-3;
+                    self.present.began(status, ms);
+                    return;
+                }
+                Ok(false) => {}
+                Err(e) => {
+                    self.error
+                        .get_or_insert(format!("cannot draw the view: {e}"));
+                }
+            }
+        }
+        self.publish_now(&req);
+    }
+
+    /// Draw `req` at once and publish it.
+    fn publish_now(&mut self, req: &ViewRequest) {
+        let t0 = Instant::now();
         let tool = self.tool.tool();
-        let (mut image, com) = match draw(
-            self.sim.backend.as_mut(),
-            &self.sim.scene,
-            &req,
+        let (image, com) = match draw(
+            self.run.sim.backend.as_mut(),
+            &self.run.sim.scene,
+            req,
             tool.as_ref(),
             &mut self.particles,
         ) {
@@ -476,63 +547,36 @@ impl Live {
             }
         };
         let render_ms = t0.elapsed().as_secs_f64() * 1e3;
-        self.seq += 1;
-        let (steps_per_s, particle_steps_per_s, fps) = self.rates.sample(Instant::now(), self.seq);
-        let status = Status {
-            seq: self.seq,
-            time: self.sim.time,
-            frame: self.sim.frame,
-            step: self.sim.step,
-            particles: self.sim.backend.num_particles() as u64,
-            steps_per_s,
-            particle_steps_per_s,
-            fps,
-            render_ms,
+        self.present.timing.draw_s += render_ms * 1e-3;
+        let mut status = self.status(req, com);
+        status.render_ms = render_ms;
+        let status = self.present.next_status(status);
+        self.present.show(image, status);
+    }
+
+    /// The status of the current state as `req` shows it (numbered and rated by
+    /// [`Present::next_status`]).
+    fn status(&self, req: &ViewRequest, com: Option<[f64; 3]>) -> Status {
+        let sim = &self.run.sim;
+        Status {
+            time: sim.time,
+            frame: sim.frame,
+            step: sim.step,
+            particles: sim.backend.num_particles() as u64,
             paused: self.paused,
             pace: self.pace.to_string(),
             color_by: self.opts.color_by.name().to_string(),
-            gravity: self.sim.scene.gravity.to_array(),
+            gravity: sim.scene.gravity.to_array(),
             center_of_mass: com.filter(|c| c.iter().all(|x| x.is_finite())),
-            tool: tool.map(|t| t.center.to_array()),
-            backend: self.sim.backend.name(),
+            tool: self.tool.tool().map(|t| t.center.to_array()),
+            backend: sim.backend.name(),
             width: req.width,
             height: req.height,
             error: self.error.clone(),
             message: self.message.clone(),
-        };
-        if self.opts.hud {
-            draw_hud(&mut image, &hud_line(&status));
+            ..Default::default()
         }
-        if let Some(e) = &self.error {
-            draw_message(&mut image, e);
-        }
-        let frame = Arc::new(Frame { image, status });
-        slot.publish(frame.clone());
-        if let Some(r) = &self.recorder
-            && let Err(e) = r.add(frame)
-        {
-            self.recording_error = Some(e);
-            self.recorder = None;
-        }
-        self.dirty = false;
     }
-}
-
-/// The heads-up line: time, frame, particles, rates (parts separated by two spaces).
-pub(crate) fn hud_line(s: &Status) -> String {
-    let mut parts = vec![
-        format!("T {:.3} S", s.time),
-        format!("FRAME {}", s.frame),
-        format!("{} PARTICLES", s.particles),
-        format!("{:.0} STEPS/S", s.steps_per_s),
-        format!("{:.2E} PARTICLE-STEPS/S", s.particle_steps_per_s),
-        format!("{:.1} FPS", s.fps),
-        format!("PACE {}", s.pace.to_uppercase()),
-    ];
-    if s.paused {
-        parts.push("PAUSED".into());
-    }
-    parts.join("  ")
 }
 
 /// Splat radius from the scene: 0.6 of the first body's particle spacing (8 per cell when
@@ -541,3 +585,31 @@ fn default_radius(scene: &Scene) -> f32 {
     let ppc = scene.bodies.first().map_or(8, |b| b.particles_per_cell);
     0.6 * scene.dx / per_axis(ppc) as f32
 }
+
+/// A simulation as the run driver drives it, writing nothing (a live view shows it instead).
+fn run_of(sim: Simulation) -> Result<Run, String> {
+    let particles = sim.backend.num_particles();
+    let options = RunOptions {
+        frames: None,
+        steps: None,
+        checkpoint_every: None,
+        out_dir: std::path::PathBuf::new(),
+        writer: false,
+        write_frames: false,
+        read_frames: false,
+        stream: false,
+        frame_chunk: rtmpm_driver::stream::DEFAULT_CHUNK,
+        frames_in_flight: 1,
+        collect: false,
+        fixed_chunk: None,
+    };
+    let mut run = Run::new(sim, particles, String::new(), "rtmpm view", None, options)
+        .map_err(|e| format!("{e:#}"))?;
+    run.begin(&mut NoHooks).map_err(|e| format!("{e:#}"))?;
+    Ok(run)
+}
+
+/// Hooks that do nothing.
+struct NoHooks;
+
+impl rtmpm_driver::run::RunHooks for NoHooks {}

@@ -12,6 +12,7 @@
 
 mod live;
 mod options;
+mod present;
 mod rates;
 #[cfg(test)]
 mod tests;
@@ -19,7 +20,7 @@ mod tests;
 use crate::command::Command;
 use crate::frame::FrameSlot;
 use crate::record::Recorder;
-pub use options::{SceneInfo, SessionOptions, SimFactory, Summary};
+pub use options::{SceneInfo, SessionOptions, SimFactory, Summary, Timing};
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 use std::thread::JoinHandle;
@@ -164,11 +165,20 @@ fn run(
             return Summary::default();
         }
     };
-    let mut live = live::Live::new(sim, factory, options, recorder);
-    live.publish(&slot);
+    let mut live = match live::Live::new(sim, factory, options, recorder, slot.clone()) {
+        Ok(l) => l,
+        Err(e) => {
+            slot.close();
+            let _ = ready.send(Err(e));
+            return Summary::default();
+        }
+    };
+    // The first picture is published before the session starts.
+    live.publish();
+    live.collect();
     let _ = ready.send(Ok(live.info()));
     drop(ready);
-    let summary = live.run(&rx, &slot);
+    let summary = live.run(&rx);
     slot.close();
     summary
 }

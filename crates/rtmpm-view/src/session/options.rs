@@ -35,6 +35,10 @@ pub struct SessionOptions {
     /// Draw the heads-up line into the picture.
     pub hud: bool,
     pub shadows: bool,
+    /// Collect a picture drawn on a device while the next frame's steps run
+    /// ([`rtmpm_sim::Backend::begin_view`]); false: draw and publish each picture before the
+    /// next step (the A/B of the view's cost).
+    pub overlap: bool,
 }
 
 impl Default for SessionOptions {
@@ -52,6 +56,7 @@ impl Default for SessionOptions {
             max_frames: None,
             hud: true,
             shadows: true,
+            overlap: true,
         }
     }
 }
@@ -80,4 +85,60 @@ pub struct Summary {
     pub recording: Option<Result<String, String>>,
     /// The blow-up the session ended with, if any.
     pub error: Option<String>,
+    /// Where the time went after the first simulated frame.
+    pub timing: Timing,
+}
+
+/// Where a session's wall-clock time went (host clocks), counted from the end of its first
+/// simulated frame (which builds the backend's first mapping) to its end.
+#[derive(Clone, Debug, Default)]
+pub struct Timing {
+    /// Wall-clock seconds.
+    pub wall_s: f64,
+    /// Steps taken and the seconds of the calls that took them: queueing the steps, waiting
+    /// for them at each frame's end, and the pictures collected meanwhile (`finish_s` of those).
+    pub steps: u64,
+    pub step_s: f64,
+    /// Simulated frames completed.
+    pub frames: u64,
+    /// Pictures published; seconds beginning pictures on the backend (queueing them), drawing
+    /// pictures at once (the CPU renderer, or without overlap), collecting begun pictures (the
+    /// wait for the picture and its copy, the copy into the image), and the heads-up line,
+    /// slot and recorder.
+    pub pictures: u64,
+    pub begin_s: f64,
+    pub draw_s: f64,
+    pub finish_s: f64,
+    pub present_s: f64,
+    /// Pictures collected while the next steps ran on the device.
+    pub overlapped: u64,
+}
+
+impl Timing {
+    /// Milliseconds per step of the whole loop (the simulation with the view on).
+    pub fn ms_per_step(&self) -> f64 {
+        1e3 * self.wall_s / self.steps.max(1) as f64
+    }
+
+    /// One line for logs and benchmarks: `view_timing key=value ...` (times in ms, per step or
+    /// per picture).
+    pub fn line(&self) -> String {
+        let per = |s: f64, n: u64| 1e3 * s / n.max(1) as f64;
+        format!(
+            "view_timing wall_s={:.3} steps={} frames={} pictures={} overlapped={} \
+             ms_per_step={:.4} step_ms_per_step={:.4} begin_ms={:.3} draw_ms={:.3} \
+             finish_ms={:.3} present_ms={:.3}",
+            self.wall_s,
+            self.steps,
+            self.frames,
+            self.pictures,
+            self.overlapped,
+            self.ms_per_step(),
+            per(self.step_s, self.steps),
+            per(self.begin_s, self.pictures),
+            per(self.draw_s, self.pictures),
+            per(self.finish_s, self.pictures),
+            per(self.present_s, self.pictures),
+        )
+    }
 }

@@ -272,3 +272,127 @@ fn a_session_with_a_frame_limit_records_every_frame_and_ends() {
     assert!(line.contains("7 frames"), "{line}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// A CPU backend that "draws on a device": a picture begun is a flat grey of the step count
+/// then (collected later), and every call is logged.
+struct Deferred {
+    inner: CpuBackend,
+    steps: u64,
+    begun: Option<(u32, u32, u8)>,
+    log: Arc<std::sync::Mutex<Vec<&'static str>>>,
+}
+
+impl rtmpm_sim::Backend for Deferred {
+    fn name(&self) -> String {
+        "deferred".into()
+    }
+    fn num_particles(&self) -> usize {
+        self.inner.num_particles()
+    }
+    fn step(&mut self, dt: f32, t: f32) -> Result<(), rtmpm_sim::SimError> {
+        self.log.lock().unwrap().push("step");
+        self.steps += 1;
+        self.inner.step(dt, t)
+    }
+    fn max_speed(&mut self) -> Result<f32, rtmpm_sim::SimError> {
+        self.inner.max_speed()
+    }
+    fn check(&mut self) -> Result<Option<rtmpm_sim::BadParticle>, rtmpm_sim::SimError> {
+        self.inner.check()
+    }
+    fn read_particles(
+        &mut self,
+        out: &mut rtmpm_physics::Particles,
+    ) -> Result<(), rtmpm_sim::SimError> {
+        self.inner.read_particles(out)
+    }
+    fn begin_view(&mut self, req: &rtmpm_render::ViewRequest) -> Result<bool, rtmpm_sim::SimError> {
+        self.log.lock().unwrap().push("begin");
+        self.begun = Some((req.width, req.height, self.steps as u8));
+        Ok(true)
+    }
+    fn finish_view(&mut self, out: &mut rtmpm_render::Image) -> Result<(), rtmpm_sim::SimError> {
+        self.log.lock().unwrap().push("finish");
+        let (w, h, v) = self.begun.take().expect("a picture begun");
+        *out = rtmpm_render::Image::new(w, h, [v; 3]);
+        Ok(())
+    }
+}
+
+fn deferred(log: Arc<std::sync::Mutex<Vec<&'static str>>>) -> SimFactory {
+    Box::new(move || {
+        let scene = Scene::from_toml(SCENE, "<test>").map_err(|e| e.to_string())?;
+        let p = scene.sample_particles().map_err(|e| e.to_string())?;
+        let inner = CpuBackend::new(&scene, p, Some(1)).map_err(|e| e.to_string())?;
+        let b = Deferred {
+            inner,
+            steps: 0,
+            begun: None,
+            log: log.clone(),
+        };
+        Ok(Simulation::new(scene, Box::new(b)))
+    })
+}
+
+/// Runs 6 frames; returns the calls and the pictures published (status, first pixel).
+fn run_deferred(overlap: bool) -> (Vec<&'static str>, Vec<(Status, u8)>) {
+    let log = Arc::new(std::sync::Mutex::new(Vec::new()));
+    let opts = SessionOptions {
+        max_frames: Some(6),
+        hud: false,
+        overlap,
+        ..small(false)
+    };
+    let s = Session::start(deferred(log.clone()), opts, None).expect("session");
+    let slot = s.frames();
+    let mut shown = Vec::new();
+    let mut seen = 0;
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(60) {
+        match slot.wait_newer(seen, Duration::from_millis(100)) {
+            Ok(Some(f)) => {
+                seen = f.status.seq;
+                shown.push((f.status.clone(), f.image.rgb[0]));
+            }
+            Ok(None) => {}
+            Err(_) => break,
+        }
+    }
+    let sum = s.finish().unwrap();
+    assert_eq!(sum.frames, 6);
+    assert_eq!(sum.displayed, 7, "the first picture and one a frame");
+    assert_eq!(sum.timing.steps, 5 * 20, "timed after the first frame");
+    let calls = log.lock().unwrap().clone();
+    (calls, shown)
+}
+
+#[test]
+fn a_picture_begun_is_collected_once_the_next_frames_steps_are_queued() {
+    let (calls, shown) = run_deferred(true);
+    // The first picture at once; then each frame's picture is begun after its 20 steps and
+    // collected after the next frame's 20 steps were queued (the last at the end).
+    let mut expect = vec!["begin", "finish"];
+    for k in 0..6 {
+        expect.extend(std::iter::repeat_n("step", 20));
+        if k > 0 {
+            expect.push("finish");
+        }
+        expect.push("begin");
+    }
+    expect.push("finish");
+    assert_eq!(calls, expect);
+    // Every picture shows the state it was begun at: its status's step count (the slot keeps
+    // the latest only, so a reader may miss some).
+    assert!(shown.len() >= 2, "{}", shown.len());
+    for (st, px) in &shown {
+        assert_eq!(*px as u64, st.step, "{st:?}");
+        assert_eq!(st.step, 20 * st.frame);
+    }
+}
+
+#[test]
+fn without_overlap_each_picture_is_drawn_before_the_next_step() {
+    let (calls, _) = run_deferred(false);
+    assert!(calls.iter().all(|&c| c == "step"), "no picture begun");
+    assert_eq!(calls.len(), 6 * 20);
+}
