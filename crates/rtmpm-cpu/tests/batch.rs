@@ -161,3 +161,57 @@ fn a_world_reset_starts_again_and_the_others_go_on_unchanged() {
     }
     assert!(r.reset_world(3, backend).is_err());
 }
+
+#[test]
+fn a_resumed_batch_goes_on_bit_for_bit_as_the_run_that_saved_it() {
+    // A CFL step (the clock matters) and a world that blows up: its frozen state and status
+    // are saved and resumed too.
+    let text = SLUMP.replace("TIME", "cfl = 0.4\nmax_dt = 1e-3")
+        + "[batch]\ncount = 3\n[batch.sweep]\n\"material[0].yield_stress\" = [20, 150, 600]\n\
+           \"body[0].velocity\" = [[0, 0, 0], [1e5, 0, 0], [0, 0.5, 0]]\n";
+    let b = BatchScene::from_toml(&text, "wedge.toml").unwrap_or_else(|e| panic!("{e}"));
+    let options = BatchOptions::default();
+    let mut r = BatchRun::new(&b, &text, |s, _| backend(s), &options).expect("batch");
+    r.write_first_frame().expect("frame 0");
+    for _ in 0..2 {
+        r.advance_frame().expect("frame");
+    }
+    r.advance_steps(7).expect("steps");
+    assert!(matches!(r.worlds[1].status, WorldStatus::Frozen { .. }));
+    let dir = std::env::temp_dir().join(format!("rtmpm-batch-ckpt-{}", std::process::id()));
+    r.checkpoint(&dir, &text, "wedge.toml").expect("checkpoint");
+    for _ in 0..2 {
+        r.advance_frame().expect("frame");
+    }
+    let cpu = |s: &Scene, _: usize, p: Particles| -> anyhow::Result<Box<dyn Backend>> {
+        Ok(Box::new(CpuBackend::new(s, p, None)?))
+    };
+    let mut resumed = BatchRun::resume(&b, &text, &dir, cpu, &options).expect("resume");
+    for _ in 0..2 {
+        resumed.advance_frame().expect("frame");
+    }
+    for (w, (a, c)) in r.worlds.iter().zip(&resumed.worlds).enumerate() {
+        assert_eq!(a.status, c.status, "world {w}");
+        assert_eq!(
+            (a.sim.step, a.sim.frame),
+            (c.sim.step, c.sim.frame),
+            "world {w}"
+        );
+        assert_eq!(a.sim.time.to_bits(), c.sim.time.to_bits(), "world {w}");
+        assert!(a.particles().len() > 300);
+        assert_eq!(bits(a.particles()), bits(c.particles()), "world {w}");
+    }
+    assert_eq!(r.worlds[0].sim.frame, 4);
+    // Another scene text, or another batch, is refused with the reason.
+    let other = text.replace("consistency = 10.0", "consistency = 11.0");
+    let ob = BatchScene::from_toml(&other, "wedge.toml").unwrap_or_else(|e| panic!("{e}"));
+    let e = BatchRun::resume(&ob, &other, &dir, cpu, &options)
+        .err()
+        .expect("refused");
+    assert!(format!("{e:#}").contains("another scene text"), "{e:#}");
+    let e = BatchRun::resume(&b, &text, &dir.join("missing"), cpu, &options)
+        .err()
+        .expect("refused");
+    assert!(format!("{e:#}").contains("no batch checkpoint"), "{e:#}");
+    std::fs::remove_dir_all(&dir).expect("remove the checkpoint this test wrote");
+}

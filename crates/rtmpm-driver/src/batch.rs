@@ -8,6 +8,8 @@
 //! of a single run (`frame_NNNNN.*`, `frames.pvd`), so that ParaView opens a world's
 //! `frames.pvd` and Houdini a world's `frame_$F5.bgeo` as they would any run.
 
+pub mod checkpoint;
+
 use crate::outdir::{OutDir, scene_identity};
 use crate::output::FrameOutput;
 use crate::simulation::Simulation;

@@ -2,6 +2,8 @@
 every world bit for bit its own separate Simulation on the CPU, resets and blow-ups that leave
 the other worlds bit-identical, per-world rigid-body poses and loads, and clear errors."""
 
+import pathlib
+
 import numpy as np
 import pytest
 
@@ -215,8 +217,8 @@ def test_bad_input_gives_clear_errors():
         sim.reset([1], v=bad)
     with pytest.raises(IndexError, match="rigid body"):
         sim.set_rigid_body(0, velocity=[0, 0, 0])
-    with pytest.raises(rtmpm.RtmpmError, match="checkpoints of a batch are not supported"):
-        sim.checkpoint("batch.ckpt")
+    with pytest.raises(rtmpm.RtmpmError, match="holds files but no batch checkpoint"):
+        sim.checkpoint(pathlib.Path(__file__).parent)
     # Nothing was changed by the refused calls.
     assert list(sim.steps) == [0, 0]
 
@@ -280,3 +282,29 @@ def test_a_tool_posed_per_world_feels_the_sand_it_pushes():
         sim.set_rigid_body("tool", velocity=[0.0, 1.0])
     with pytest.raises(KeyError, match="no rigid body named `spoon`"):
         sim.rigid_force("spoon")
+
+
+@pytest.mark.skipif("rigid" not in rtmpm.features, reason="module built without the rigid feature")
+def test_a_resumed_batch_goes_on_bit_for_bit(tmp_path):
+    scene = rtmpm.Scene.from_toml(TOOL_SCENE)
+    sim = rtmpm.Simulation(scene, batch=3, backend="cpu")
+    # Each world's tool at its own height and speed: the poses are part of the checkpoint.
+    sim.set_rigid_body("tool", position=[[0.2, 0.27, 0.2], [0.2, 0.19, 0.2], [0.2, 0.2, 0.2]],
+                       velocity=[[0, 0, 0], [0, -0.2, 0], [0, -0.4, 0]])
+    sim.step(13)
+    sim.reset([2])
+    sim.step(5)
+    sim.checkpoint(tmp_path / "ckpt")
+    assert sorted(p.name for p in (tmp_path / "ckpt").iterdir()) == [
+        "batch.toml", "world_000.ckpt", "world_001.ckpt", "world_002.ckpt"]
+    sim.step(20)
+    again = rtmpm.BatchSimulation.resume(tmp_path / "ckpt", scene, batch=3, backend="cpu")
+    assert list(again.steps) == [18, 18, 5]
+    again.step(20)
+    assert list(again.steps) == list(sim.steps)
+    assert again.x.tobytes() == sim.x.tobytes()
+    assert again.v.tobytes() == sim.v.tobytes()
+    assert again.rigid_force("tool").tobytes() == sim.rigid_force("tool").tobytes()
+    assert np.any(again.rigid_force("tool")[1] != 0.0), "the tool pressed into the sand"
+    with pytest.raises(rtmpm.RtmpmError, match="it holds 3 worlds, the batch has 2"):
+        rtmpm.BatchSimulation.resume(tmp_path / "ckpt", scene, batch=2, backend="cpu")

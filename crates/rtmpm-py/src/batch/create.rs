@@ -4,7 +4,7 @@
 
 use super::{PyBatch, Worlds};
 use crate::backend::request;
-use crate::errors::{BackendError, SceneError, internal_error, scene_error};
+use crate::errors::{BackendError, RtmpmError, SceneError, internal_error, scene_error};
 use crate::scene::{PyScene, scene_arg};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -15,6 +15,7 @@ use rtmpm_scene::batch::{MAX_WORLDS, memory_refusal, scaled_budget};
 use rtmpm_scene::{BatchScene, Budget, Precision, Scene};
 use rtmpm_sim::Backend;
 use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::PathBuf;
 use std::sync::Mutex;
 
 /// The worlds asked for: the scene's `[batch]` or `n` copies of the scene, in `precision`.
@@ -106,22 +107,34 @@ pub(super) fn make_backend(
     Ok(Box::new(created.backend))
 }
 
-#[pymethods]
-impl PyBatch {
-    #[new]
-    #[pyo3(signature = (scene, batch = None, backend = "auto", precision = None, threads = None, gpus = None, cuda_options = None))]
-    #[allow(clippy::too_many_arguments)] // Python's keyword arguments
+/// What a batch is made from: the worlds, their backend and initial particles.
+struct Start {
+    request: BackendRequest,
+    reason: String,
+    scene: Py<PyScene>,
+    worlds: BatchScene,
+    initial: Vec<Particles>,
+}
+
+/// The constructor's backend arguments: `backend`, `threads`, `gpus`, `cuda_options`.
+type BackendArgs<'a, 'py> = (
+    &'a str,
+    Option<usize>,
+    Option<&'a Bound<'py, PyAny>>,
+    Option<&'a str>,
+);
+
+impl Start {
+    /// The worlds of `scene` (`batch` copies or its `[batch]`), checked, and every world's
+    /// particles at time 0 (what a reset starts from).
     fn new(
         py: Python<'_>,
         scene: &Bound<'_, PyAny>,
         batch: Option<i64>,
-        backend: &str,
         precision: Option<&str>,
-        threads: Option<usize>,
-        gpus: Option<&Bound<'_, PyAny>>,
-        cuda_options: Option<&str>,
-    ) -> PyResult<PyBatch> {
-        let (req, reason) = batch_request(py, backend, threads, gpus, cuda_options)?;
+        (backend, threads, gpus, cuda_options): BackendArgs<'_, '_>,
+    ) -> PyResult<Start> {
+        let (request, reason) = batch_request(py, backend, threads, gpus, cuda_options)?;
         let scene = scene_arg(py, scene)?;
         let s = scene.get();
         crate::scene::warn(py, &s.scene)?;
@@ -140,28 +153,104 @@ impl PyBatch {
             }
             initial.push(p);
         }
-        let options = BatchOptions::default();
-        let built = py.detach(|| {
-            catch_unwind(AssertUnwindSafe(|| {
-                BatchRun::new(
-                    &worlds,
-                    &s.text,
-                    |scene, w| make_backend(&req, scene, initial[w].clone()),
-                    &options,
-                )
-                .and_then(|mut run| run.write_first_frame().map(|_| Worlds(run)))
-            }))
-        });
+        Ok(Start {
+            request,
+            reason,
+            scene,
+            worlds,
+            initial,
+        })
+    }
+
+    /// The batch `build` makes (with the interpreter lock released, panics caught).
+    fn finish(
+        self,
+        py: Python<'_>,
+        build: impl FnOnce(&Start) -> anyhow::Result<BatchRun> + Send,
+        error: fn(String) -> PyErr,
+    ) -> PyResult<PyBatch> {
+        let me = &self;
+        let built = py.detach(|| catch_unwind(AssertUnwindSafe(|| build(me).map(Worlds))));
         let run = built
             .map_err(|p| internal_error(p.as_ref()))?
-            .map_err(|e| BackendError::new_err(format!("{e:#}")))?;
+            .map_err(|e| error(format!("{e:#}")))?;
         Ok(PyBatch {
             run: Mutex::new(run),
-            scene,
-            request: req,
-            reason,
-            initial,
+            scene: self.scene,
+            request: self.request,
+            reason: self.reason,
+            initial: self.initial,
             broken: None,
         })
+    }
+}
+
+#[pymethods]
+impl PyBatch {
+    #[new]
+    #[pyo3(signature = (scene, batch = None, backend = "auto", precision = None, threads = None, gpus = None, cuda_options = None))]
+    #[allow(clippy::too_many_arguments)] // Python's keyword arguments
+    fn new(
+        py: Python<'_>,
+        scene: &Bound<'_, PyAny>,
+        batch: Option<i64>,
+        backend: &str,
+        precision: Option<&str>,
+        threads: Option<usize>,
+        gpus: Option<&Bound<'_, PyAny>>,
+        cuda_options: Option<&str>,
+    ) -> PyResult<PyBatch> {
+        let args = (backend, threads, gpus, cuda_options);
+        let start = Start::new(py, scene, batch, precision, args)?;
+        start.finish(
+            py,
+            |s| {
+                BatchRun::new(
+                    &s.worlds,
+                    &s.scene.get().text,
+                    |scene, w| make_backend(&s.request, scene, s.initial[w].clone()),
+                    &BatchOptions::default(),
+                )
+                .and_then(|mut run| run.write_first_frame().map(|_| run))
+            },
+            BackendError::new_err,
+        )
+    }
+
+    /// Continue a batch from the checkpoint folder ``path`` written by :meth:`checkpoint`:
+    /// ``scene`` and ``batch`` as given to the batch that wrote it (the checkpoint is refused
+    /// when they make other worlds, or the scene's text differs), the backend arguments those of
+    /// the constructor. Every world takes up its clock, particles, rigid bodies and status (a
+    /// frozen world stays frozen); on the CPU the batch then goes on bit for bit as the one
+    /// that wrote it. :meth:`reset` still starts a world from its scene's time 0.
+    #[staticmethod]
+    #[pyo3(signature = (path, scene, batch = None, backend = "auto", precision = None, threads = None, gpus = None, cuda_options = None))]
+    #[allow(clippy::too_many_arguments)] // Python's keyword arguments
+    fn resume(
+        py: Python<'_>,
+        path: PathBuf,
+        scene: &Bound<'_, PyAny>,
+        batch: Option<i64>,
+        backend: &str,
+        precision: Option<&str>,
+        threads: Option<usize>,
+        gpus: Option<&Bound<'_, PyAny>>,
+        cuda_options: Option<&str>,
+    ) -> PyResult<PyBatch> {
+        let args = (backend, threads, gpus, cuda_options);
+        let start = Start::new(py, scene, batch, precision, args)?;
+        start.finish(
+            py,
+            |s| {
+                BatchRun::resume(
+                    &s.worlds,
+                    &s.scene.get().text,
+                    &path,
+                    |scene, _, p| make_backend(&s.request, scene, p),
+                    &BatchOptions::default(),
+                )
+            },
+            RtmpmError::new_err,
+        )
     }
 }

@@ -2,10 +2,11 @@
 //! [`BatchRun`]), read and steered world by world from Python: particle arrays of every world
 //! at once, resets of chosen worlds, kinematic rigid bodies (tools, pushers) posed per world,
 //! the load the material puts on them, and each world's status (a world that blows up is
-//! frozen, the others go on). `rtmpm.Simulation(scene, batch=N)` (or a scene with `[batch]`)
+//! frozen, the others go on), and checkpoints of them all. `rtmpm.Simulation(scene, batch=N)` (or a scene with `[batch]`)
 //! returns one (python/rtmpm/__init__.py). Documentation: docs/batch.md, docs/python.md.
 
 mod arrays;
+mod checkpoint;
 mod create;
 mod reset;
 mod rigid;

@@ -105,23 +105,6 @@ impl PyBatch {
         PyArray1::from_vec(py, self.r().worlds.iter().map(|w| w.sim.step).collect())
     }
 
-    /// Not supported: a batch writes no checkpoints yet (nor does ``rtmpm run`` of a batch,
-    /// which refuses ``--checkpoint-every`` and ``--resume``). Raises :class:`rtmpm.RtmpmError`
-    /// saying so; :meth:`reset` with given ``x`` and ``v`` restarts chosen worlds from a state
-    /// kept in Python.
-    #[pyo3(signature = (*_args, **_kwargs))]
-    fn checkpoint(
-        &self,
-        _args: &Bound<'_, pyo3::types::PyTuple>,
-        _kwargs: Option<&Bound<'_, PyDict>>,
-    ) -> PyResult<()> {
-        Err(crate::errors::RtmpmError::new_err(
-            "checkpoints of a batch are not supported: keep the worlds' arrays (x, v) and \
-             restart worlds from them with reset(worlds, x=..., v=...), or checkpoint a world \
-             run as its own rtmpm.Simulation",
-        ))
-    }
-
     fn __repr__(&mut self) -> String {
         let frozen = self.count() - self.r().running();
         let (worlds, particles) = (self.count(), self.counts().iter().sum::<usize>());
