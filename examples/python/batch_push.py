@@ -2,6 +2,7 @@
 
     python examples/python/batch_push.py                      # 8 beds, 0.5 s
     python examples/python/batch_push.py --worlds 3 --frames 4 --out /tmp/push.csv
+    python examples/python/batch_push.py --plot batch_push.png    # + the forces plotted
 
 One scene (a dict) with a ``[batch]`` of N worlds: each a bed of sand whose friction angle is
 swept from 20 to 45 degrees, and a kinematic box, the tool, above it. Every step the script
@@ -11,7 +12,7 @@ sideways at 0.25 m/s. After each frame it reads the force the sand puts on the t
 world (``BatchSimulation.rigid_force``, an ``(N, 3)`` array). Each CSV row is a frame's time, a
 world, its friction angle, the tool's depth and the force (N): the steeper the friction angle,
 the harder the sand resists the drag. Needs a module built with the ``rigid`` feature
-(docs/python.md).
+(docs/python.md); ``--plot`` needs matplotlib.
 """
 
 import argparse
@@ -61,6 +62,7 @@ def main():
     ap.add_argument("--worlds", type=int, default=8, help="sand beds (default 8)")
     ap.add_argument("--frames", type=int, default=25, help="frames of 20 ms (default 25)")
     ap.add_argument("--out", type=pathlib.Path, default=pathlib.Path("batch_push.csv"))
+    ap.add_argument("--plot", type=pathlib.Path, help="also plot the drag force per world (PNG; needs matplotlib)")
     a = ap.parse_args()
     if "rigid" not in rtmpm.features:
         sys.exit("this example needs rtmpm built with the `rigid` feature (docs/python.md)")
@@ -89,6 +91,33 @@ def main():
         out.writerow(["time", "world", "friction_angle", "depth", "fx", "fy", "fz"])
         out.writerows(rows)
     print(f"wrote {a.out} ({len(rows)} rows)")
+    if a.plot:
+        plot(rows, angles, a.plot)
+
+
+def plot(rows, angles, path):
+    """The drag force (-fx) on the tool against time, one line per world."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("matplotlib not installed: no plot")
+        return
+    fig, ax = plt.subplots(figsize=(6.4, 3.6), dpi=100)
+    cmap = plt.get_cmap("viridis")
+    for w, angle in enumerate(angles):
+        mine = [r for r in rows if r[1] == w]
+        ax.plot([float(r[0]) for r in mine], [-float(r[4]) for r in mine],
+                color=cmap(w / max(1, len(angles) - 1)), label=f"{angle:.1f} deg")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("drag force on the tool (N)")
+    ax.set_title(f"{len(angles)} sand beds at once: friction angle swept")
+    ax.legend(fontsize=7, ncol=2, title="friction angle", title_fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path)
+    print(f"plot written to {path}")
 
 
 if __name__ == "__main__":
