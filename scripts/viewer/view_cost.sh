@@ -68,7 +68,8 @@ view_run() {
   while kill -0 "$vpid" 2>/dev/null && [ $t -lt 6000 ]; do sleep 0.1; t=$((t + 1)); done
   kill -INT "$vpid" 2>/dev/null; wait "$vpid" 2>/dev/null
   local line; line=$(grep -E '^view_timing ' "$log" | tail -1)
-  local ms; ms=$(echo "$line" | sed -nE 's/.*ms_per_step=([0-9.]+).*/\1/p')
+  # The loop's wall time per step (` ms_per_step=`, not `step_ms_per_step=`: the step calls alone).
+  local ms; ms=$(echo "$line" | sed -nE 's/.* ms_per_step=([0-9.]+).*/\1/p')
   echo "$label ms_per_step=${ms:-nan} $line" >> "$steps"
   local vs=""
   [ -n "$ms" ] && [ -n "$off" ] && vs=$(awk -v a="$ms" -v b="$off" 'BEGIN { printf " (%+.1f %% against off)", 100 * (a / b - 1) }')
