@@ -124,6 +124,7 @@ impl Backend for CpuBackend {
             + cap(&s.word)
             + cap(&self.bases)
             + cap(&self.grid)
+            + cap(&self.grid_dual)
             + cap(&self.grid_aux)
             + self.colours.iter().map(cap).sum::<usize>()
             + self.layout.memory_bytes();

@@ -2,7 +2,8 @@
 //! plastic return mapping, advection and health check.
 
 use crate::state::CpuBackend;
-use physics::math::{Mat3, Real, Vec3, outer};
+use physics::compact_kernel::CkStencil;
+use physics::math::{Mat3, Real, ToReal, Vec3, outer};
 use physics::real;
 use physics::shape_function::{Stencil, flip_blend, inv_d};
 use rayon::prelude::*;
@@ -59,6 +60,64 @@ pub fn g2p(b: &mut CpuBackend, dt: Real) -> (Real, Option<BadParticle>) {
             let model = &c.materials[materials[pi] as usize].model;
             *f = model.project((Mat3::IDENTITY + new_c * dt) * *f, plastic, dt);
             // Checked before the clamp, which turns a NaN position into the domain's corner.
+            let moved = *x + dt * new_v;
+            let bad = check_particle(moved, new_v, f, dt, c.dx).map(|reason| BadParticle {
+                index: ids[pi] as usize,
+                reason,
+                seen: Some((real::vec3_to_f32(moved), real::vec3_to_f32(new_v))),
+            });
+            *x = moved.clamp(c.domain_min, c.domain_max);
+            let speed = if new_v.is_finite() {
+                new_v.length()
+            } else {
+                0.0
+            };
+            (speed, bad)
+        })
+        .reduce(|| (0.0, None), worst)
+}
+
+/// G2P of CK-MPM (Liu, Wang & Li, "CK-MPM: A Compact-Kernel Material Point Method"): the mean
+/// of the two staggered grids' interpolations `v_p = 1/2 sum_g sum_i w_ip v_i`, APIC's
+/// `C_p = (1/2 sum_g sum_i w_ip v_i (x_i - x_p)^T) D_p^-1` over both grids
+/// ([`physics::compact_kernel`]), then `F`, the return mapping and advection as in [`g2p`].
+pub fn g2p_ck(b: &mut CpuBackend, dt: Real) -> (Real, Option<BadParticle>) {
+    let c = &b.consts;
+    let (layout, bases, ids) = (&b.layout, &b.bases, &b.ids);
+    let grids = [&b.grid, &b.grid_dual];
+    let p = &mut b.particles;
+    let materials = &p.material;
+    p.x.par_iter_mut()
+        .zip(p.v.par_iter_mut())
+        .zip(p.c.par_iter_mut())
+        .zip(p.f.par_iter_mut())
+        .zip(p.plastic.par_iter_mut())
+        .enumerate()
+        .map(|(pi, ((((x, v), cp), f), plastic))| {
+            let base = bases[pi];
+            let s = CkStencil::new((*x - c.origin) * c.inv_dx - base.to_real());
+            let nodes = layout.stencil_nodes(layout.gblock_of(pi), base);
+            // Sums over both grids; B in cells (x_i - x_p = dx dpos).
+            let (mut sum_v, mut sum_b) = (Vec3::ZERO, Mat3::ZERO);
+            for (stencil, grid) in s.grids.iter().zip(grids) {
+                for i in 0..2 {
+                    for j in 0..2 {
+                        for k in 0..2 {
+                            let n = grid[nodes[stencil.stencil_index(i, j, k)] as usize];
+                            let wv = stencil.weight(i, j, k) * Vec3::new(n[1], n[2], n[3]);
+                            sum_v += wv;
+                            sum_b += outer(wv, stencil.dpos(i, j, k));
+                        }
+                    }
+                }
+            }
+            let new_v = 0.5 * sum_v;
+            // C = (1/2 B dx) (D dx^2)^-1 with B, D in cells.
+            let new_c = sum_b * s.inv_moment() * (0.5 * c.inv_dx);
+            *v = new_v;
+            *cp = new_c;
+            let model = &c.materials[materials[pi] as usize].model;
+            *f = model.project((Mat3::IDENTITY + new_c * dt) * *f, plastic, dt);
             let moved = *x + dt * new_v;
             let bad = check_particle(moved, new_v, f, dt, c.dx).map(|reason| BadParticle {
                 index: ids[pi] as usize,

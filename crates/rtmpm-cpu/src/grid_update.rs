@@ -1,6 +1,6 @@
 //! Stage 3: grid velocities, gravity, domain walls and colliders.
 
-use crate::state::{CpuBackend, GRID_PAD, StepConstants};
+use crate::state::{CpuBackend, GRID_PAD, Node, StepConstants};
 use physics::boundary::BoundaryRule;
 use physics::grid::codes::{BLOCK_NODES, BLOCK_SIZE};
 use physics::math::{IVec3, Real, ToReal, Vec3};
@@ -21,13 +21,17 @@ fn node_index(corner: IVec3, cell: usize) -> IVec3 {
 }
 
 /// Boundary conditions of node `idx` at time `t`: domain walls, then colliders, then the
-/// user's tool (separating, no friction; geometry in f32 as the colliders').
+/// user's tool (separating, no friction; geometry in f32 as the colliders'). `shift` (cells) is
+/// the offset of the node's grid from the MLS-MPM grid: 0, or CK-MPM's `-1/4` / `+1/4`
+/// ([`physics::compact_kernel::GRID_SHIFT`]); colliders and the tool see the node's true
+/// position, the walls its integer index (so each CK-MPM grid's wall layer sits a quarter cell
+/// from the B-spline grid's, the two grids' layers on either side of it).
 #[inline]
-fn boundary(c: &StepConstants, idx: IVec3, mut v: Vec3, t: f32) -> Vec3 {
+fn boundary(c: &StepConstants, idx: IVec3, shift: Real, mut v: Vec3, t: f32) -> Vec3 {
     let rel = idx - IVec3::splat(GRID_PAD);
     v = c.walls.apply([rel.x, rel.y, rel.z], c.n_cells, v);
     if !c.colliders.is_empty() || c.tool.is_some() {
-        let xw = c.origin + idx.to_real() * c.dx;
+        let xw = c.origin + (idx.to_real() + Vec3::splat(shift)) * c.dx;
         for col in &c.colliders {
             if let Some((n, vc)) = col.query(xw, t) {
                 v = vc + col.rule.apply(v - vc, n);
@@ -98,30 +102,12 @@ pub fn grid_update(b: &mut CpuBackend, dt: Real, t: f32) -> Vec<Exchange> {
     let nb = bodies.len();
     let node_x = |idx: IVec3| c.origin + idx.to_real() * c.dx;
     let partial: Vec<Vec<Exchange>> = if c.solver.transfer == Transfer::Mls {
-        b.grid
-            .par_chunks_mut(BLOCK_NODES)
-            .enumerate()
-            .map(|(id, block)| {
-                let mut acc = vec![Exchange::default(); nb];
-                let corner = coords[id] * BLOCK_SIZE;
-                for (cell, node) in block.iter_mut().enumerate() {
-                    let m = node[0];
-                    if m <= 0.0 {
-                        continue;
-                    }
-                    let idx = node_index(corner, cell);
-                    let v = (Vec3::new(node[1], node[2], node[3]) / m + dt * c.gravity) * damp;
-                    let mut v = boundary(c, idx, v, t);
-                    if nb > 0 {
-                        v = couple(bodies, node_x(idx), m, v, dt * c.gravity, &mut acc);
-                    }
-                    node[1] = v.x;
-                    node[2] = v.y;
-                    node[3] = v.z;
-                }
-                acc
-            })
-            .collect()
+        update_apic(&mut b.grid, coords, c, bodies, 0.0, (dt, damp, t))
+    } else if c.solver.transfer == Transfer::CkMpm {
+        // No rigid bodies (refused by `CpuBackend::new`): each grid carries the full mass.
+        let [s0, s1] = physics::compact_kernel::GRID_SHIFT;
+        update_apic(&mut b.grid, coords, c, &[], s0, (dt, damp, t));
+        update_apic(&mut b.grid_dual, coords, c, &[], s1, (dt, damp, t))
     } else {
         b.grid
             .par_chunks_mut(BLOCK_NODES)
@@ -140,7 +126,7 @@ pub fn grid_update(b: &mut CpuBackend, dt: Real, t: f32) -> Vec<Exchange> {
                     let v_old = p / m;
                     // v_new = (p + dt f) / m + dt g, then the boundary conditions.
                     let v = ((p + *a) / m + dt * c.gravity) * damp;
-                    let mut v = boundary(c, idx, v, t);
+                    let mut v = boundary(c, idx, 0.0, v, t);
                     if nb > 0 {
                         v = couple(bodies, node_x(idx), m, v, dt * c.gravity, &mut acc);
                     }
@@ -160,6 +146,44 @@ pub fn grid_update(b: &mut CpuBackend, dt: Real, t: f32) -> Vec<Exchange> {
         })
 }
 
+/// The grid update of the MLS-MPM/APIC transfers on one grid (`shift`: see [`boundary`]):
+/// momentum to velocity, gravity, damping, boundary conditions, rigid bodies. Returns each
+/// block's impulses on the bodies.
+fn update_apic(
+    grid: &mut [Node],
+    coords: &[IVec3],
+    c: &StepConstants,
+    bodies: &[BodyState],
+    shift: Real,
+    (dt, damp, t): (Real, Real, f32),
+) -> Vec<Vec<Exchange>> {
+    let nb = bodies.len();
+    grid.par_chunks_mut(BLOCK_NODES)
+        .enumerate()
+        .map(|(id, block)| {
+            let mut acc = vec![Exchange::default(); nb];
+            let corner = coords[id] * BLOCK_SIZE;
+            for (cell, node) in block.iter_mut().enumerate() {
+                let m = node[0];
+                if m <= 0.0 {
+                    continue;
+                }
+                let idx = node_index(corner, cell);
+                let v = (Vec3::new(node[1], node[2], node[3]) / m + dt * c.gravity) * damp;
+                let mut v = boundary(c, idx, shift, v, t);
+                if nb > 0 {
+                    let xw = c.origin + (idx.to_real() + Vec3::splat(shift)) * c.dx;
+                    v = couple(bodies, xw, m, v, dt * c.gravity, &mut acc);
+                }
+                node[1] = v.x;
+                node[2] = v.y;
+                node[3] = v.z;
+            }
+            acc
+        })
+        .collect()
+}
+
 /// MUSL re-map: re-mapped momentum in `grid_aux` to velocity, with the same boundary conditions
 /// (gravity is already in the particle velocities).
 pub fn grid_update_musl(b: &mut CpuBackend, t: f32) {
@@ -176,7 +200,7 @@ pub fn grid_update_musl(b: &mut CpuBackend, t: f32) {
                 if m <= 0.0 {
                     continue;
                 }
-                *a = boundary(c, node_index(corner, cell), *a / m, t);
+                *a = boundary(c, node_index(corner, cell), 0.0, *a / m, t);
             }
         });
 }

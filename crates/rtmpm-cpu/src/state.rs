@@ -6,7 +6,7 @@ use physics::boundary::Walls;
 use physics::grid::BlockLayout;
 use physics::material::Material;
 use physics::math::{IVec3, Real, Vec3};
-use physics::transfer::{SolverSettings, Update};
+use physics::transfer::{SolverSettings, Transfer, Update};
 use physics::{Particles, real};
 use rtmpm_scene::Scene;
 use rtmpm_sim as sim;
@@ -92,6 +92,9 @@ pub struct CpuBackend {
     pub bases: Vec<IVec3>,
     /// Node storage, 64 nodes per pblock.
     pub grid: Vec<Node>,
+    /// CK-MPM's second grid (nodes a quarter cell above the B-spline grid's, `grid` holding the
+    /// one a quarter cell below), in `grid`'s layout; empty for the other transfers.
+    pub grid_dual: Vec<Node>,
     /// Second value per node, used by the classic MPM transfers only (empty for MLS): the
     /// internal force times dt after P2G, the velocity before the update (`v_old`, for FLIP) after
     /// the grid update, and the re-mapped velocity after the MUSL re-map.
@@ -122,6 +125,13 @@ impl CpuBackend {
             return Err(SimError::Backend(
                 "rigid bodies are coupled in the grid update of USL steps: use [solver] update = \
                  \"usl\" with [[rigid_body]] tables"
+                    .into(),
+            ));
+        }
+        if !scene.rigid_bodies.is_empty() && scene.solver.transfer == Transfer::CkMpm {
+            return Err(SimError::Backend(
+                "rigid bodies are not coupled to CK-MPM's two grids yet: use [solver] transfer = \
+                 \"mls\" (the default) with [[rigid_body]] tables"
                     .into(),
             ));
         }
@@ -169,6 +179,7 @@ impl CpuBackend {
             layout: BlockLayout::default(),
             bases: Vec::new(),
             grid: Vec::new(),
+            grid_dual: Vec::new(),
             grid_aux: Vec::new(),
             colours: Default::default(),
             stage_seconds: [0.0; 4],

@@ -23,7 +23,14 @@ impl CpuBackend {
         let t1 = std::time::Instant::now();
         let solver = self.consts.solver;
         let (max_speed, bad, t2, t3);
-        if solver.transfer == Transfer::Mls {
+        if solver.transfer == Transfer::CkMpm {
+            p2g::p2g_ck(self, dt);
+            t2 = std::time::Instant::now();
+            let exchange = grid_update::grid_update(self, dt, t);
+            self.advance_bodies(exchange, dt);
+            t3 = std::time::Instant::now();
+            (max_speed, bad) = g2p::g2p_ck(self, dt);
+        } else if solver.transfer == Transfer::Mls {
             p2g::p2g(self, dt);
             t2 = std::time::Instant::now();
             let exchange = grid_update::grid_update(self, dt, t);

@@ -6,7 +6,8 @@
 //!   it.
 //! * [`math`], [`svd`]: small linear algebra and the 3x3 SVD / polar decomposition.
 //! * [`shape_function`]: the shape functions of the transfers (quadratic B-splines of MLS-MPM,
-//!   uGIMP, linear hats) on the 3x3x3 node stencil.
+//!   uGIMP, linear hats) on the 3x3x3 node stencil; [`compact_kernel`]: the compact kernel of
+//!   CK-MPM on two staggered grids (2x2x2 nodes each).
 //! * [`transfer`]: the particle-grid transfer schemes (MLS/APIC, GIMP, linear MPM; USL/MUSL;
 //!   PIC/FLIP) selected by a scene's `[solver]` table.
 //! * [`material`]: one file per constitutive model (stress and return mapping) and the registry.
@@ -24,6 +25,7 @@
 #![cfg_attr(feature = "f64", allow(clippy::unnecessary_cast))]
 
 pub mod boundary;
+pub mod compact_kernel;
 pub mod convert;
 #[cfg(not(feature = "f64"))]
 pub mod grid;

@@ -70,7 +70,8 @@ pub fn linear_1d(r: Real) -> (Real, Real) {
 #[inline]
 pub fn shape_1d(transfer: Transfer, fx: Real) -> ([Real; 3], [Real; 3]) {
     match transfer {
-        Transfer::Mls => (weights_1d(fx), dweights_1d(fx)),
+        // CK-MPM's stencils are in `compact_kernel`; it shares the B-spline's base and layout.
+        Transfer::Mls | Transfer::CkMpm => (weights_1d(fx), dweights_1d(fx)),
         Transfer::Gimp => {
             let (a, b, c) = (gimp_1d(fx), gimp_1d(fx - 1.0), gimp_1d(fx - 2.0));
             ([a.0, b.0, c.0], [a.1, b.1, c.1])

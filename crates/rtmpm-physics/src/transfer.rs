@@ -8,6 +8,9 @@
 //!   particle domain of 2 x 2 x 2 particles per cell), so that its support stays inside the same
 //!   3x3x3 node stencil as the quadratic B-spline.
 //! * [`Transfer::MpmLinear`]: classic MPM with linear hat functions (Sulsky et al. 1994).
+//! * [`Transfer::CkMpm`] (experimental, CPU only): the compact C2 kernel on two staggered grids
+//!   with MLS-MPM/APIC (Liu, Wang & Li, "CK-MPM: A Compact-Kernel Material Point Method", ACM TOG
+//!   2025); see [`crate::compact_kernel`].
 //!
 //! Gimp and MpmLinear are the classic explicit MPM transfers: P2G of mass, momentum and internal
 //! force `f_i = -sum_p V0_p tau_p grad w_ip`, a PIC/FLIP blend of the particle velocity, the
@@ -24,6 +27,9 @@ pub enum Transfer {
     Gimp,
     /// Classic MPM, linear hat functions, PIC/FLIP velocity update.
     MpmLinear,
+    /// CK-MPM: the compact kernel on two staggered grids, MLS-MPM/APIC (experimental; CPU
+    /// backend only).
+    CkMpm,
 }
 
 impl Transfer {
@@ -33,16 +39,25 @@ impl Transfer {
             Transfer::Mls => "mls",
             Transfer::Gimp => "gimp",
             Transfer::MpmLinear => "mpm-linear",
+            Transfer::CkMpm => "ck-mpm",
         }
     }
 
-    /// Code passed to the CUDA kernels (`TRANSFER_*` in `kernels/shape.cuh`).
+    /// Code passed to the CUDA kernels (`TRANSFER_*` in `kernels/shape.cuh`; the CUDA backend
+    /// refuses [`Transfer::CkMpm`], which has no kernel yet).
     pub fn code(self) -> u32 {
         match self {
             Transfer::Mls => 0,
             Transfer::Gimp => 1,
             Transfer::MpmLinear => 2,
+            Transfer::CkMpm => 3,
         }
+    }
+
+    /// Whether the transfer is MLS-MPM/APIC (stress folded into P2G, no PIC/FLIP blend, USL
+    /// only): [`Transfer::Mls`] and [`Transfer::CkMpm`].
+    pub fn is_apic(self) -> bool {
+        matches!(self, Transfer::Mls | Transfer::CkMpm)
     }
 }
 
@@ -72,10 +87,11 @@ impl Update {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SolverSettings {
     pub transfer: Transfer,
-    /// Ignored (always USL) for [`Transfer::Mls`].
+    /// Ignored (always USL) for [`Transfer::Mls`] and [`Transfer::CkMpm`].
     pub update: Update,
     /// FLIP fraction alpha of the particle velocity update
-    /// `v_p = (1 - alpha) v_PIC + alpha (v_p + sum_i w_ip (v_i - v_i_old))`; 0 for MLS.
+    /// `v_p = (1 - alpha) v_PIC + alpha (v_p + sum_i w_ip (v_i - v_i_old))`; 0 for MLS and
+    /// CK-MPM.
     pub flip: f32,
 }
 
@@ -95,6 +111,7 @@ impl SolverSettings {
     pub fn describe(&self) -> String {
         match self.transfer {
             Transfer::Mls => "mls (APIC)".into(),
+            Transfer::CkMpm => "ck-mpm (APIC, dual grid)".into(),
             t => format!("{}, {}, flip {}", t.name(), self.update.name(), self.flip),
         }
     }

@@ -74,6 +74,8 @@ pub enum RawTransfer {
     Gimp,
     #[serde(rename = "mpm-linear")]
     MpmLinear,
+    #[serde(rename = "ck-mpm")]
+    CkMpm,
 }
 
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]

@@ -4,6 +4,7 @@
 //! `Vec3`/`Mat3`), whatever the precision of the step; what a test reads of the backend's own
 //! state (grid nodes, the particles in storage) is in [`Real`].
 
+mod ck;
 mod steer;
 
 use crate::state::{CpuBackend, GRID_PAD, StepConstants};

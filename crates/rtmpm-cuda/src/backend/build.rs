@@ -138,6 +138,13 @@ const MAX_CUDA_PARTICLES: usize = (1 << 31) - 1;
 
 /// Checks before any GPU work: what the CUDA backend cannot run, as clear errors.
 fn check(scene: &Scene, n: usize, part: &Part, o: &CudaOptions) -> Result<(), SimError> {
+    if scene.solver.transfer == Transfer::CkMpm {
+        return Err(SimError::Backend(
+            "CUDA backend: [solver] transfer = \"ck-mpm\" (experimental) runs on the CPU backend \
+             only so far; use --backend cpu, or transfer = \"mls\" (the default) on the GPU"
+                .into(),
+        ));
+    }
     if o.f64 && o.p2g == P2gMode::Shared {
         return Err(SimError::Backend(
             "CUDA backend: p2g=shared is single precision only (a 12^3 tile of f64 nodes \

@@ -19,23 +19,30 @@ impl V<'_> {
             RawTransfer::Mls => Transfer::Mls,
             RawTransfer::Gimp => Transfer::Gimp,
             RawTransfer::MpmLinear => Transfer::MpmLinear,
+            RawTransfer::CkMpm => Transfer::CkMpm,
         };
         let update = match s.update.unwrap_or(RawUpdate::Usl) {
             RawUpdate::Usl => Update::Usl,
             RawUpdate::Musl => Update::Musl,
         };
-        if transfer == Transfer::Mls {
+        if transfer.is_apic() {
             if update == Update::Musl {
                 return Err(self.err(
                     "solver.update",
-                    "update = \"musl\" needs a classic MPM transfer; MLS-MPM folds the stress into P2G (USL only)",
+                    format!(
+                        "update = \"musl\" needs a classic MPM transfer; transfer = \"{}\" (MLS-MPM) folds the stress into P2G (USL only)",
+                        transfer.name()
+                    ),
                     "use transfer = \"gimp\" or \"mpm-linear\" with musl, or remove update",
                 ));
             }
             if s.flip.is_some() {
                 return Err(self.err(
                     "solver.flip",
-                    "flip does not apply to transfer = \"mls\" (APIC keeps the affine velocity; it has no PIC/FLIP blend)",
+                    format!(
+                        "flip does not apply to transfer = \"{}\" (APIC keeps the affine velocity; it has no PIC/FLIP blend)",
+                        transfer.name()
+                    ),
                     "remove flip, or use transfer = \"gimp\" or \"mpm-linear\"",
                 ));
             }

@@ -67,6 +67,11 @@ pub fn run_gimp(ctx: &Ctx) -> Result<Vec<Row>> {
     run_with(ctx, "vibrating_bar_gimp", Some(super::case::GIMP))
 }
 
+/// The same bar with CK-MPM ([`super::case::CK`]; experimental, CPU backend only).
+pub fn run_ck(ctx: &Ctx) -> Result<Vec<Row>> {
+    run_with(ctx, "vibrating_bar_ck", Some(super::case::CK))
+}
+
 fn run_with(ctx: &Ctx, case: &str, solver: Option<SolverSettings>) -> Result<Vec<Row>> {
     // 14 cells (the reference's typical run) loses 2.2 % of the amplitude to APIC dissipation over
     // 3 periods (see the convergence study); 28 cells is within 0.3 %.

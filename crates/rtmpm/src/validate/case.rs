@@ -161,6 +161,14 @@ impl Ctx<'_> {
     }
 }
 
+/// The transfer of the `*_ck` cases: CK-MPM (Liu, Wang & Li, "CK-MPM: A Compact-Kernel Material
+/// Point Method"), MLS-MPM/APIC on two staggered grids; experimental, CPU backend only.
+pub const CK: rtmpm_physics::transfer::SolverSettings = rtmpm_physics::transfer::SolverSettings {
+    transfer: rtmpm_physics::transfer::Transfer::CkMpm,
+    update: rtmpm_physics::transfer::Update::Usl,
+    flip: 0.0,
+};
+
 /// The transfer of the `*_gimp` cases: uGIMP with MUSL and a pure FLIP velocity update, the
 /// energy-conserving classic scheme (Bardenhagen & Kober 2004; Sulsky et al. 1995).
 pub const GIMP: rtmpm_physics::transfer::SolverSettings = rtmpm_physics::transfer::SolverSettings {

@@ -4,6 +4,7 @@ use super::case::{Ctx, Row};
 use super::measure::rel_pct;
 use anyhow::{Result, ensure};
 use rtmpm_physics::math::Vec3;
+use rtmpm_physics::transfer::SolverSettings;
 use rtmpm_render::plot::{Plot, Series, Style};
 use rtmpm_scene::Scene;
 
@@ -43,8 +44,11 @@ fn deposit_tip(x: &[f32], gap: f32) -> f32 {
 }
 
 /// Final particle positions of the collapse at grid spacing `dx`.
-fn collapse(ctx: &Ctx, dx: f32) -> Result<Vec<Vec3>> {
-    let scene = at_resolution(ctx.scene("granular_column.toml")?, dx);
+fn collapse(ctx: &Ctx, dx: f32, solver: Option<SolverSettings>) -> Result<Vec<Vec3>> {
+    let mut scene = at_resolution(ctx.scene("granular_column.toml")?, dx);
+    if let Some(s) = solver {
+        scene.solver = s;
+    }
     let p0 = scene.sample_particles()?;
     let mut last = None;
     ctx.run(scene, p0, |_, p| last = Some(p.clone()))?;
@@ -66,10 +70,20 @@ fn runouts(x: &[Vec3], dx: f32) -> (f64, f64) {
     ((p98 - L0) / L0, (tip - L0) / L0)
 }
 
+/// The collapse with the scene's transfer (MLS-MPM/APIC).
 pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
+    run_with(ctx, "granular_column", None)
+}
+
+/// The same collapse with CK-MPM ([`super::case::CK`]; experimental, CPU backend only).
+pub fn run_ck(ctx: &Ctx) -> Result<Vec<Row>> {
+    run_with(ctx, "granular_column_ck", Some(super::case::CK))
+}
+
+fn run_with(ctx: &Ctx, case: &str, solver: Option<SolverSettings>) -> Result<Vec<Row>> {
     // Quick: h = L0/20 (the scene file); full: h = L0/40.
     let dx = if ctx.args.quick { 0.005 } else { 0.0025 };
-    let x = collapse(ctx, dx)?;
+    let x = collapse(ctx, dx, solver)?;
     let (p98, tip) = runouts(&x, dx);
     let a = H0 / L0;
     // Small-a law (L_inf - L0) / L0 = lambda1 a: Lube 1.2, Lajeunesse 1.8; their mean.
@@ -91,7 +105,7 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
         .map(|v| (v.x as f64, v.y as f64))
         .collect();
     ctx.plot(
-        "granular_column_deposit",
+        &format!("{case}_deposit"),
         Plot {
             title: format!(
                 "Granular column collapse, a = {a}: deposit (h = L0/{:.0})",
@@ -118,7 +132,7 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
         },
     );
     let row = |what: &str, simulated: f64| Row {
-        case: "granular_column".into(),
+        case: case.into(),
         quantity: format!("runout (L - L0)/L0, {what}, h = L0/{:.0}", L0 / dx as f64),
         reference,
         simulated,
@@ -130,7 +144,7 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
     let rows = vec![row("98th pct", p98), row("deposit tip", tip)];
     if ctx.args.convergence {
         for h in [0.01f32, 0.005, 0.0025] {
-            let (p98, tip) = runouts(&collapse(ctx, h)?, h);
+            let (p98, tip) = runouts(&collapse(ctx, h, solver)?, h);
             println!(
                 "convergence granular_column: h = L0/{:.0}: runout 98th pct {p98:.3}, tip {tip:.3}",
                 L0 / h as f64

@@ -90,6 +90,11 @@ pub fn run_gimp(ctx: &Ctx) -> Result<Vec<Row>> {
     run_with(ctx, "hydrostatic_column_gimp", Some(super::case::GIMP))
 }
 
+/// The same column with CK-MPM ([`super::case::CK`]; experimental, CPU backend only).
+pub fn run_ck(ctx: &Ctx) -> Result<Vec<Row>> {
+    run_with(ctx, "hydrostatic_column_ck", Some(super::case::CK))
+}
+
 fn run_with(ctx: &Ctx, case: &str, solver: Option<SolverSettings>) -> Result<Vec<Row>> {
     let dx = if ctx.args.quick { 0.01 } else { 0.005 };
     let (slope, base, rho_g, layers) = measure(ctx, dx, solver)?;

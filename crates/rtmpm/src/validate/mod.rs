@@ -38,6 +38,15 @@ const CASES: &[(&str, Case)] = &[
     ("emitter_mass", rigid::emitter_mass),
 ];
 
+/// The cases of the experimental CK-MPM transfer (CPU backend only): run only when named
+/// (`--case vibrating_bar_ck`), never by default.
+const CK_CASES: &[(&str, Case)] = &[
+    ("hydrostatic_column_ck", hydrostatic::run_ck),
+    ("vibrating_bar_ck", bar::run_ck),
+    ("dam_break_ck", dam_break::run_ck),
+    ("granular_column_ck", granular::run_ck),
+];
+
 /// The cases that need the cargo feature `rigid`.
 const RIGID_CASES: &[&str] = &["archimedes", "sinking", "rigid_momentum"];
 
@@ -49,14 +58,19 @@ pub fn validate(args: ValidateArgs) -> Result<()> {
         );
     }
     for name in &args.case {
-        if !CASES.iter().any(|(n, _)| n == name) {
-            let names: Vec<_> = CASES.iter().map(|(n, _)| *n).collect();
+        if !CASES.iter().chain(CK_CASES).any(|(n, _)| n == name) {
+            let names: Vec<_> = CASES.iter().chain(CK_CASES).map(|(n, _)| *n).collect();
             bail!("unknown case `{name}`; cases: {}", names.join(", "));
         }
     }
     let selected: Vec<&(&str, Case)> = CASES
         .iter()
         .filter(|(n, _)| args.case.is_empty() || args.case.iter().any(|c| c == n))
+        .chain(
+            CK_CASES
+                .iter()
+                .filter(|(n, _)| args.case.iter().any(|c| c == n)),
+        )
         .collect();
     let ctx = Ctx::new(&args);
     let mut rows = Vec::new();

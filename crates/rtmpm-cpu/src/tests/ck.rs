@@ -1,0 +1,196 @@
+//! CK-MPM on the CPU backend (Liu, Wang & Li, "CK-MPM: A Compact-Kernel Material Point
+//! Method"): conservation in P2G over the two staggered grids, exact transfer of a rigid
+//! rotation, free fall, free flight of a stressed body, determinism.
+
+use super::*;
+use physics::compact_kernel::GRID_SHIFT;
+
+fn ck() -> SolverSettings {
+    solver(Transfer::CkMpm, Update::Usl, 0.0)
+}
+
+/// Totals over both grids after P2G: mass, momentum, angular momentum about the origin (nodes
+/// at their staggered positions).
+fn grid_totals(b: &CpuBackend) -> (f64, [f64; 3], [f64; 3]) {
+    let (mut gm, mut gp, mut gl) = (0.0f64, [0.0f64; 3], [0.0f64; 3]);
+    for (grid, shift) in [(&b.grid, GRID_SHIFT[0]), (&b.grid_dual, GRID_SHIFT[1])] {
+        for (id, blk) in grid.chunks(64).enumerate() {
+            for (cell, n) in blk.iter().enumerate() {
+                let idx = b.layout.block_coords[id] * 4
+                    + IVec3::new(
+                        (cell >> 4) as i32,
+                        (cell >> 2 & 3) as i32,
+                        (cell & 3) as i32,
+                    );
+                let xi = b.consts.origin
+                    + (idx.to_real() + physics::math::Vec3::splat(shift)) * b.consts.dx;
+                let mom = physics::math::Vec3::new(n[1], n[2], n[3]);
+                let l = xi.cross(mom);
+                gm += n[0] as f64;
+                for a in 0..3 {
+                    gp[a] += mom[a] as f64;
+                    gl[a] += l[a] as f64;
+                }
+            }
+        }
+    }
+    (gm, gp, gl)
+}
+
+#[test]
+fn ck_p2g_conserves_mass_momentum_and_internal_forces_balance() {
+    // Each grid receives the whole particle: twice the mass and momentum over both. The
+    // internal forces sum to zero (the grids' first moments cancel) and have no moment
+    // (force -V0 tau D^-1 (x_i - x_p) w_ip with tau symmetric): with and without a time step
+    // (dt = 0: no force) the totals agree.
+    let mut c = consts(vec![jelly()], 0, Vec3::ZERO);
+    c.solver = ck();
+    let p = scrambled(block(Vec3::splat(0.3), Vec3::splat(0.5), DX, 0, 1000.0));
+    let mut b = CpuBackend::from_constants(c, p.clone(), Some(2)).expect("backend");
+    rebuild::rebuild(&mut b);
+    p2g::p2g_ck(&mut b, 0.0);
+    let (m0, p0, l0) = grid_totals(&b);
+    p2g::p2g_ck(&mut b, 1e-3);
+    let (m1, p1, l1) = grid_totals(&b);
+    let (pm, pp) = (p.total_mass(), p.momentum());
+    assert!((m0 - 2.0 * pm).abs() < 1e-5 * pm, "mass {m0} vs 2 x {pm}");
+    assert_eq!(m0, m1);
+    // Size of the force impulses, to scale the tolerances: the node momentum change.
+    let mut fmag = 0.0f64;
+    b.grid
+        .iter()
+        .chain(&b.grid_dual)
+        .for_each(|n| fmag += (n[1].abs() + n[2].abs() + n[3].abs()) as f64);
+    let (mut with_dt, mut without) = (b.grid.clone(), b.grid_dual.clone());
+    p2g::p2g_ck(&mut b, 0.0);
+    with_dt.iter_mut().zip(&b.grid).for_each(|(a, n)| {
+        for k in 1..4 {
+            a[k] -= n[k];
+        }
+    });
+    without.iter_mut().zip(&b.grid_dual).for_each(|(a, n)| {
+        for k in 1..4 {
+            a[k] -= n[k];
+        }
+    });
+    let impulse: f64 = with_dt
+        .iter()
+        .chain(&without)
+        .map(|a| (a[1].abs() + a[2].abs() + a[3].abs()) as f64)
+        .sum();
+    assert!(
+        impulse > 1e-3 * fmag,
+        "the stressed block has internal forces"
+    );
+    let lever = (DX as f64) * impulse;
+    for k in 0..3 {
+        assert!(
+            (p0[k] - 2.0 * pp[k]).abs() < 1e-5 * pm,
+            "momentum {k}: {} vs 2 x {}",
+            p0[k],
+            pp[k]
+        );
+        assert!(
+            (p1[k] - p0[k]).abs() < 1e-5 * impulse,
+            "sum of forces {k}: {}",
+            p1[k] - p0[k]
+        );
+        assert!(
+            (l1[k] - l0[k]).abs() < 1e-4 * lever,
+            "moment of forces {k}: {} (lever x impulse {lever})",
+            l1[k] - l0[k]
+        );
+    }
+}
+
+#[test]
+fn ck_transfers_a_rigid_rotation_exactly() {
+    // The mean of the two grids' interpolations is exact for affine fields, and C is their
+    // least-squares fit: v = w x r, C = [w]x come back unchanged with no forces.
+    let mut c = consts(vec![jelly()], 0, Vec3::ZERO);
+    c.solver = ck();
+    let mut p = block(Vec3::splat(0.4), Vec3::splat(0.6), DX, 0, 1000.0);
+    let w = Vec3::new(0.3, -0.5, 0.8);
+    let wx = Mat3::from_cols(
+        Vec3::new(0.0, w.z, -w.y),
+        Vec3::new(-w.z, 0.0, w.x),
+        Vec3::new(w.y, -w.x, 0.0),
+    );
+    for i in 0..p.len() {
+        p.v[i] = w.cross(p.x[i] - Vec3::splat(0.5));
+        p.c[i] = wx;
+    }
+    let before = p.clone();
+    let mut b = CpuBackend::from_constants(c, p, Some(1)).expect("backend");
+    b.step(1e-6, 0.0).expect("step");
+    let after = read(&mut b);
+    for i in 0..before.len() {
+        let dv = (after.v[i] - before.v[i]).length();
+        assert!(dv < 1e-4, "v of particle {i}: {dv}");
+        let dc = norm(after.c[i] - before.c[i]);
+        assert!(dc < 1e-3, "C of particle {i}: {:?}", after.c[i]);
+    }
+}
+
+#[test]
+fn ck_free_fall_matches_x0_minus_half_g_t_squared() {
+    let g = Vec3::new(0.0, -9.8, 0.0);
+    let mut c = consts(vec![jelly()], 0, g);
+    c.solver = ck();
+    let lo = Vec3::new(0.4, 0.7, 0.4);
+    let p = block(lo, lo + Vec3::splat(0.1), DX, 0, 1000.0);
+    let x0 = p.x.clone();
+    let mut b = CpuBackend::from_constants(c, p, None).expect("backend");
+    let (dt, n) = (1e-3, 200);
+    for s in 0..n {
+        b.step(dt, s as f32 * dt).expect("step");
+    }
+    let t = n as f32 * dt;
+    let p = read(&mut b);
+    let tol = 0.5 * 9.8 * t * dt + 1e-5;
+    for (i, &x0) in x0.iter().enumerate() {
+        let exact = x0 + 0.5 * g * t * t;
+        assert!((p.x[i] - exact).length() <= tol, "particle {i}: {}", p.x[i]);
+        assert!((p.v[i] - g * t).length() < 1e-3, "velocity {}", p.v[i]);
+        assert!(norm(p.f[i] - Mat3::IDENTITY) < 1e-4, "no deformation");
+    }
+}
+
+#[test]
+fn ck_free_flight_of_a_stressed_body_conserves_momentum() {
+    // A jelly block with random velocities, affine matrices and strains, no gravity, no walls:
+    // over 50 steps its total momentum stays as it was (the grids' forces sum to zero; G2P
+    // halves the two grids' sum), and it does not blow up.
+    let mut c = consts(vec![jelly()], 0, Vec3::ZERO);
+    c.solver = ck();
+    let mut p = scrambled(block(Vec3::splat(0.4), Vec3::splat(0.6), DX, 0, 1000.0));
+    for v in &mut p.v {
+        *v *= 0.1;
+    }
+    let (m, p0) = (p.total_mass(), p.momentum());
+    let mut b = CpuBackend::from_constants(c, p, Some(2)).expect("backend");
+    for s in 0..50 {
+        b.step(2e-4, s as f32 * 2e-4).expect("step");
+    }
+    let p1 = read(&mut b).momentum();
+    for k in 0..3 {
+        // |v| ~ 0.1: 1e-4 of m |v|.
+        assert!(
+            (p1[k] - p0[k]).abs() < 1e-5 * m,
+            "momentum {k}: {} -> {}",
+            p0[k],
+            p1[k]
+        );
+    }
+}
+
+#[test]
+fn ck_is_deterministic_across_thread_counts() {
+    let one = dam_with(1, ck());
+    for threads in [2, 3] {
+        assert!(
+            bits(&one) == bits(&dam_with(threads, ck())),
+            "{threads} threads"
+        );
+    }
+}
