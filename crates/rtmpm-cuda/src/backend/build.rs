@@ -467,3 +467,31 @@ fn write_constants(
         bytemuck::cast_slice(&tables.colliders),
     )
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ck_mpm_is_refused_before_any_gpu_work() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../validation/free_fall.toml"
+        );
+        let mut scene = Scene::from_file(std::path::Path::new(path)).expect("scene");
+        let part = Part {
+            device: 0,
+            ids: None,
+            capacity: 0,
+        };
+        let o = CudaOptions::default();
+        assert!(check(&scene, 10, &part, &o).is_ok());
+        scene.solver.transfer = Transfer::CkMpm;
+        let e = check(&scene, 10, &part, &o).expect_err("ck-mpm has no CUDA kernel");
+        let msg = e.to_string();
+        assert!(
+            msg.contains("ck-mpm") && msg.contains("--backend cpu"),
+            "{msg}"
+        );
+    }
+}

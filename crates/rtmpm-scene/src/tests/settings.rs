@@ -39,6 +39,11 @@ fn solver_table_defaults_and_values() {
         with("transfer = \"mls\"").unwrap().solver.transfer,
         Transfer::Mls
     );
+    let s = with("transfer = \"ck-mpm\"").unwrap().solver;
+    assert_eq!(
+        (s.transfer, s.update, s.flip),
+        (Transfer::CkMpm, Update::Usl, 0.0)
+    );
 }
 
 #[test]
@@ -52,7 +57,7 @@ fn solver_table_errors_name_the_field_line_and_allowed_values() {
     let (e, text) = with("transfer = \"flip\"");
     assert_eq!(e.line, Some(line_of(&text, "transfer = \"flip\"")), "{e}");
     let msg = e.to_string();
-    for allowed in ["mls", "gimp", "mpm-linear"] {
+    for allowed in ["mls", "gimp", "mpm-linear", "ck-mpm"] {
         assert!(msg.contains(allowed), "{msg}");
     }
     let (e, _) = with("transfer = \"gimp\"\nupdate = \"usf\"");
@@ -72,6 +77,12 @@ fn solver_table_errors_name_the_field_line_and_allowed_values() {
         Some("solver.update"),
         "musl with mls: {e}"
     );
+    // CK-MPM is MLS-MPM/APIC on two grids: no MUSL, no FLIP blend.
+    let (e, _) = with("transfer = \"ck-mpm\"\nupdate = \"musl\"");
+    assert_eq!(e.field.as_deref(), Some("solver.update"), "{e}");
+    assert!(e.to_string().contains("ck-mpm"), "{e}");
+    let (e, _) = with("transfer = \"ck-mpm\"\nflip = 0.5");
+    assert_eq!(e.field.as_deref(), Some("solver.flip"), "{e}");
     let (e, _) = with("transfer = \"gimp\"\nfip = 0.5");
     assert!(e.to_string().contains("fip"), "{e}");
 }

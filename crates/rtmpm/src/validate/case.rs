@@ -19,7 +19,9 @@ pub struct ValidateArgs {
     /// Run only these cases, comma separated (free_fall, hydrostatic_column,
     /// hydrostatic_column_gimp, vibrating_bar, vibrating_bar_gimp, dam_break, colliding_disks,
     /// granular_column, slump, cohesive_column, archimedes, sinking, rigid_momentum,
-    /// emitter_mass; the rigid-body ones need the cargo feature `rigid`).
+    /// emitter_mass; the rigid-body ones need the cargo feature `rigid`). Only when named: the
+    /// experimental CK-MPM cases hydrostatic_column_ck, vibrating_bar_ck, dam_break_ck,
+    /// granular_column_ck (CPU backend only).
     #[arg(long, value_delimiter = ',')]
     pub case: Vec<String>,
     /// Coarse resolutions that finish in a few minutes on 2 CPU cores (what CI runs).
