@@ -211,3 +211,79 @@ fn precision_flag_selects_the_f64_backend() {
     assert!(!bad.status.success());
     assert!(text(&bad).contains("expected f32 or f64"), "{}", text(&bad));
 }
+
+#[test]
+fn bench_on_the_cpu_reports_its_measurements() {
+    let dir = scratch("bench-cpu");
+    let frames = dir.join("frames");
+    let o = rtmpm(&[
+        "bench",
+        "--backend",
+        "cpu",
+        "--n",
+        "20",
+        "--steps",
+        "4",
+        "--warmup",
+        "1",
+        "--frame-write",
+        frames.to_str().unwrap(),
+    ]);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+    let lines: Vec<&str> = stdout.lines().collect();
+    // The report's lines, in order: n = 20 gives 20^3 / 4 particles.
+    let want = [
+        "benchmark: MLS-MPM fluid block, n = 20 (dx = 1/20), dt = 2e-4, 4 steps",
+        "  backend      cpu",
+        "  particles    2000",
+        "  set-up       ",
+        "  steps        4 timed after 1 warm-up",
+        "  wall time    ",
+        "  throughput   ",
+        "  stage        rebuild",
+        "  stage        p2g",
+        "  stage        grid_update",
+        "  stage        g2p",
+        "  memory       host ",
+        "  frame write  ply into ",
+        "    copy out   ",
+        "    write      ",
+        "    steps      ",
+    ];
+    let mut at = 0;
+    for w in want {
+        let Some(i) = lines[at..].iter().position(|l| l.starts_with(w)) else {
+            panic!("no line `{w}` after line {at} in:\n{t}");
+        };
+        at += i + 1;
+    }
+    // The throughput is the particles' steps over the wall time it printed.
+    let number = |prefix: &str, unit: &str| -> f64 {
+        let l = lines.iter().find(|l| l.starts_with(prefix)).unwrap();
+        let s = l.rsplit_once('(').unwrap().1;
+        s.split(unit).next().unwrap().trim().parse().unwrap()
+    };
+    let ms = number("  wall time", "ms/step");
+    let rate = number("  throughput", "particle-steps/s");
+    let expect = 2000.0 / (ms * 1e-3);
+    assert!(
+        (rate / expect - 1.0).abs() < 0.01,
+        "{rate} vs 2000 particles / {ms} ms\n{t}"
+    );
+
+    // Bad requests are refused with the reason.
+    let o = rtmpm(&["bench", "--backend", "cpu", "--n", "10"]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("--n 10 is out of range"), "{}", text(&o));
+    let o = rtmpm(&[
+        "bench",
+        "--backend",
+        "cpu",
+        "--scene",
+        &data("small_drop.toml"),
+    ]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("fixed time step"), "{}", text(&o));
+}

@@ -1,6 +1,7 @@
 //! End-to-end tests of `rtmpm render` and `rtmpm run --render / --preview`.
 
 use rtmpm_render::Image;
+use rtmpm_render::text::{text_height, text_width};
 mod common;
 
 use common::{data, rtmpm, scratch, text};
@@ -158,4 +159,97 @@ fn render_bench_reports_time() {
     ]);
     assert!(o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("s per frame"), "{}", text(&o));
+}
+
+/// The rectangle `(x0, y0, w, h)` of `img` as RGB rows.
+fn region(img: &Image, (x0, y0, w, h): (u32, u32, u32, u32)) -> Vec<[u8; 3]> {
+    (y0..y0 + h)
+        .flat_map(|y| (x0..x0 + w).map(move |x| (x, y)))
+        .map(|(x, y)| img.pixel(x, y))
+        .collect()
+}
+
+#[test]
+fn render_of_a_batch_is_a_grid_of_worlds_with_captions() {
+    let dir = scratch("render-wedge");
+    let out = dir.join("out");
+    let o = rtmpm(&[
+        "run",
+        &data("tiny_wedge.toml"),
+        "--backend",
+        "cpu",
+        "--out",
+        out.to_str().unwrap(),
+        "--frames",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(out.join("batch.csv").is_file(), "{}", text(&o));
+    let o = rtmpm(&["render", out.to_str().unwrap(), "--size", "320x180"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains("wedge of 4 worlds (2 x 2)"),
+        "{}",
+        text(&o)
+    );
+    // Frames 0 and 1, one picture each, and the movie of both.
+    assert!(!out.join("wedge_00002.png").exists());
+    assert_eq!(gif_frames(&out.join("wedge.gif")), 2);
+    let img = png(&out.join("wedge_00001.png"));
+
+    // 4 worlds: 2 x 2 tiles of 320 / 2 = 160 x 90 (16:9), each with a caption strip below it,
+    // its text at twice the font's size where the longest caption fits in a tile, else once.
+    let captions = [
+        "center[0] = 0.14",
+        "center[0] = 0.21",
+        "center[0] = 0.29",
+        "center[0] = 0.36",
+    ];
+    let (cols, rows, tile_w, tile_h) = (2u32, 2u32, 160u32, 90u32);
+    let longest = captions.iter().map(|c| text_width(c, 2)).max().unwrap();
+    let scale = if longest + 8 <= tile_w { 2 } else { 1 };
+    let strip = text_height(scale) + 6 * scale;
+    assert_eq!(
+        (img.width, img.height),
+        (cols * tile_w, rows * (tile_h + strip))
+    );
+
+    let background = [24, 24, 28];
+    let mut tiles = Vec::new();
+    for (w, caption) in captions.iter().enumerate() {
+        let (x0, y0) = (
+            (w as u32 % cols) * tile_w,
+            (w as u32 / cols) * (tile_h + strip),
+        );
+        let tile = region(&img, (x0, y0, tile_w, tile_h));
+        // A picture, not the background.
+        assert!(
+            tile.iter().any(|p| *p != background),
+            "world {w}: blank tile"
+        );
+        // The caption: light pixels in the strip below the tile, within the caption's width
+        // centred under it, and nothing drawn left of it (the text's dark outline reaches one
+        // pixel out).
+        let cw = text_width(caption, scale);
+        let cx = x0 + (tile_w - cw) / 2;
+        let inside = region(&img, (cx, y0 + tile_h, cw, strip));
+        let lit = inside.iter().filter(|p| p.iter().all(|&c| c > 200)).count();
+        assert!(lit >= 4 * caption.len(), "world {w}: {lit} caption pixels");
+        let left = region(&img, (x0, y0 + tile_h, cx - 1 - x0, strip));
+        assert!(
+            left.iter().all(|p| *p == background),
+            "world {w}: stray pixels left of the caption"
+        );
+        tiles.push(tile);
+    }
+    // Each world's ball is placed elsewhere: no two tiles are the same picture.
+    for (a, ta) in tiles.iter().enumerate() {
+        for (b, tb) in tiles.iter().enumerate().skip(a + 1) {
+            let differ = ta.iter().zip(tb).filter(|(p, q)| p != q).count();
+            assert!(
+                differ > 50,
+                "worlds {a} and {b} differ in {differ} pixels only"
+            );
+        }
+    }
 }
