@@ -3,9 +3,9 @@
 //!
 //! * [`ply`]: binary little-endian PLY point clouds (one vertex per particle).
 //! * [`bgeo`]: Houdini's classic binary geometry (`.bgeo`, `.bgeo.gz`) with point attributes.
-//! * [`vtu`]: VTK XML UnstructuredGrid (`.vtu`, base64 binary) and `.pvd` collections.
-//! * [`vtk_appended`]: ParaView-grade `.vtu` (zlib-compressed appended arrays, 3x3 stress
-//!   tensors), also for surface meshes.
+//! * [`vtu`]: VTK XML UnstructuredGrid (`.vtu`) for ParaView: one writer (appended arrays,
+//!   zlib-compressed or raw, or inline base64; 3x3 stress tensors), used for particle frames and
+//!   surface meshes, its readers, and `.pvd` collections.
 //! * [`trimesh`]: surface meshes as OBJ, PLY and VTU.
 //! * [`points`]: particles in: the points of a PLY, VTU or BGEO file for a body.
 //! * [`obj`]: triangle meshes in: OBJ files.
@@ -37,7 +37,6 @@ pub mod stream;
 pub mod testing;
 pub mod trimesh;
 pub mod usd;
-pub mod vtk_appended;
 pub mod vtu;
 
 pub use atomic::{write_atomic, write_atomic_with};
@@ -47,7 +46,10 @@ pub use contents::{BadValue, check_particle_values, check_particles, check_parti
 pub use fields::FrameFields;
 pub use limits::{read_bounded, read_text_bounded};
 pub use ply::{PlyColumn, PlyData, PlyError, read_ply, write_ply, write_ply_with_comments};
-pub use vtu::{PvdWriter, VtuArray, VtuData, VtuError, VtuValues, read_vtu, write_vtu};
+pub use vtu::{
+    Encoding, PvdWriter, VtuArray, VtuData, VtuError, VtuValues, read_any_vtu, read_vtu,
+    write_particles_vtu,
+};
 
 use frame::FrameFormat;
 
@@ -58,7 +60,7 @@ pub static FRAME_FORMATS: &[&FrameFormat] = &[
     &bgeo::FORMAT,
     &bgeo::FORMAT_GZ,
     &usd::FORMAT,
-    &vtk_appended::FORMAT,
+    &vtu::FORMAT,
 ];
 
 /// The frame format named `name` (`[output] formats`).

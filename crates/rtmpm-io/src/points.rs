@@ -17,8 +17,7 @@ use std::path::Path;
 
 use super::bgeo::read_bgeo;
 use super::ply::{PlyColumn, read_ply};
-use super::vtk_appended::read_any_vtu;
-use super::vtu::{VtuData, VtuValues};
+use super::vtu::{VtuData, VtuValues, read_any_vtu};
 use rtmpm_geometry::PointSet;
 use rtmpm_physics::math::Vec3;
 
@@ -156,8 +155,7 @@ mod tests {
     use crate::fields::FrameFields;
     use crate::ply::write_ply;
     use crate::testing::TestDir;
-    use crate::vtk_appended::write_particles_vtu;
-    use crate::vtu::write_vtu;
+    use crate::vtu::{Encoding, write_particles_vtu};
     use rtmpm_physics::Particles;
     use std::fs;
 
@@ -167,8 +165,8 @@ mod tests {
         let p: Particles = sample(50);
         let f = FrameFields::default();
         write_ply(&d.path("a.ply"), &p, &f).unwrap();
-        write_vtu(&d.path("inline.vtu"), &p, &f).unwrap();
-        write_particles_vtu(&d.path("c.vtu"), &p, &f, true).unwrap();
+        write_particles_vtu(&d.path("inline.vtu"), &p, &f, Encoding::Inline).unwrap();
+        write_particles_vtu(&d.path("c.vtu"), &p, &f, Encoding::Zlib).unwrap();
         write_bgeo(&d.path("b.bgeo"), &p, &f, false).unwrap();
         write_bgeo(&d.path("b.bgeo.gz"), &p, &f, true).unwrap();
         for name in ["a.ply", "inline.vtu", "c.vtu", "b.bgeo", "b.bgeo.gz"] {

@@ -13,7 +13,7 @@ use std::io::{self, Write};
 use std::path::Path;
 
 use super::atomic::write_atomic_with;
-use super::vtk_appended::{CellKind, OutArray, write_unstructured};
+use super::vtu::{CellKind, Encoding, OutArray, write_unstructured};
 use rtmpm_geometry::surface::TriMesh;
 
 fn checked(mesh: &TriMesh) -> io::Result<()> {
@@ -114,7 +114,7 @@ pub fn write_mesh_vtu(path: &Path, mesh: &TriMesh, compress: bool) -> io::Result
         &mesh.triangles,
         &arrays,
         &active,
-        compress,
+        Encoding::appended(compress),
     )
 }
 
@@ -123,8 +123,8 @@ mod tests {
     use super::*;
     use crate::ply::{PlyColumn, read_ply};
     use crate::testing::TestDir;
-    use crate::vtk_appended::read_any_vtu;
     use crate::vtu::VtuValues;
+    use crate::vtu::read_any_vtu;
     use rtmpm_physics::math::Vec3;
 
     /// A tetrahedron with outward triangles and per-vertex normals.

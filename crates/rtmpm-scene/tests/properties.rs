@@ -140,7 +140,8 @@ proptest! {
         flips in prop::collection::vec((any::<usize>(), 1u8..=127), 0..6),
     ) {
         let path = temp_file("v.vtu");
-        vtu::write_vtu(&path, &p, &FrameFields::default()).unwrap();
+        vtu::write_particles_vtu(&path, &p, &FrameFields::default(), vtu::Encoding::Inline)
+            .unwrap();
         let text = std::fs::read(&path).unwrap();
         std::fs::remove_file(&path).unwrap();
         let d = vtu::parse_vtu(std::str::from_utf8(&text).unwrap()).unwrap();

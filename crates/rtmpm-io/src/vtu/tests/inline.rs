@@ -1,4 +1,17 @@
-use super::*;
+use crate::bgeo::symmetric_to_full;
+use crate::fields::FrameFields;
+use crate::vtu::inline::decode_binary;
+use crate::vtu::*;
+use base64::Engine;
+use base64::engine::general_purpose::STANDARD;
+use rtmpm_physics::Particles;
+use std::fs;
+use std::path::{Path, PathBuf};
+
+/// The inline form of the one writer (the form [`read_vtu`] reads).
+fn write_vtu(path: &Path, p: &Particles, fields: &FrameFields) -> std::io::Result<()> {
+    write_particles_vtu(path, p, fields, Encoding::Inline)
+}
 use crate::ply::write_ply;
 use crate::testing::TestDir;
 use rtmpm_physics::math::Vec3;
@@ -49,7 +62,9 @@ fn round_trip_points_and_point_data() {
     let names: Vec<&str> = r.point_data.iter().map(|a| a.name.as_str()).collect();
     assert_eq!(
         names,
-        ["velocity", "material", "plastic", "mass", "J", "stress"]
+        [
+            "velocity", "material", "id", "plastic", "mass", "J", "stress"
+        ]
     );
 
     let vel = r.point_array("velocity").unwrap();
@@ -68,8 +83,8 @@ fn round_trip_points_and_point_data() {
     assert_eq!(f32s(r.point_array("mass").unwrap()), p.mass.as_slice());
     assert_eq!(f32s(r.point_array("J").unwrap()), j.as_slice());
     let st = r.point_array("stress").unwrap();
-    assert_eq!(st.num_components, 6);
-    let flat: Vec<f32> = s.iter().flatten().copied().collect();
+    assert_eq!(st.num_components, 9);
+    let flat: Vec<f32> = s.iter().flat_map(|s| symmetric_to_full(*s)).collect();
     assert_eq!(f32s(st), flat.as_slice());
 
     // Cells: one vertex per particle.
@@ -85,7 +100,7 @@ fn minimal_fields_and_empty() {
     let path = d.path("a.vtu");
     write_vtu(&path, &sample(2), &FrameFields::default()).unwrap();
     let r = read_vtu(&path).unwrap();
-    assert_eq!(r.point_data.len(), 4);
+    assert_eq!(r.point_data.len(), 5);
     assert!(r.point_array("stress").is_none());
 
     write_vtu(&path, &Particles::default(), &FrameFields::default()).unwrap();

@@ -3,8 +3,8 @@
 use std::io::Read;
 use std::path::Path;
 
+use super::data::{VtuArray, VtuData, VtuError, VtuValues, attr, parse_values, xml_unescape};
 use crate::limits::{DATA_MAX_BYTES, decompressed_limit, read_bounded};
-use crate::vtu::{VtuArray, VtuData, VtuError, VtuValues, attr, parse_values, xml_unescape};
 
 fn bad(msg: impl Into<String>) -> VtuError {
     VtuError::Format(msg.into())

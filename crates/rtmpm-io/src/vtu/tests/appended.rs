@@ -1,8 +1,12 @@
-use super::read::parse_appended;
-use super::*;
+use crate::bgeo::symmetric_to_full;
 use crate::bgeo::tests::sample;
+use crate::fields::FrameFields;
 use crate::testing::TestDir;
+use crate::vtu::appended::parse_appended;
+use crate::vtu::*;
 use crate::vtu::{VtuArray, VtuValues};
+use rtmpm_physics::Particles;
+use std::fs;
 
 fn f32s(a: &VtuArray) -> &[f32] {
     match &a.values {
@@ -27,7 +31,7 @@ fn particle_frame_round_trip_compressed_and_raw() {
     };
     for compress in [true, false] {
         let path = d.path(&format!("f{compress}.vtu"));
-        write_particles_vtu(&path, &p, &fields, compress).unwrap();
+        write_particles_vtu(&path, &p, &fields, Encoding::appended(compress)).unwrap();
         let text = fs::read(&path).unwrap();
         let head = String::from_utf8_lossy(&text[..2000.min(text.len())]).into_owned();
         assert_eq!(head.contains("vtkZLibDataCompressor"), compress);
@@ -79,7 +83,13 @@ fn particle_frame_round_trip_compressed_and_raw() {
 fn empty_frame_and_triangles() {
     let d = TestDir::new("vtk-app-tri");
     let path = d.path("e.vtu");
-    write_particles_vtu(&path, &Particles::default(), &FrameFields::default(), true).unwrap();
+    write_particles_vtu(
+        &path,
+        &Particles::default(),
+        &FrameFields::default(),
+        Encoding::Zlib,
+    )
+    .unwrap();
     let r = read_any_vtu(&path).unwrap();
     assert_eq!(r.num_points, 0);
     let path = d.path("t.vtu");
@@ -90,23 +100,29 @@ fn empty_frame_and_triangles() {
         [0.0, 0.0, 1.0],
     ];
     let tris = [[0, 2, 1], [0, 1, 3]];
-    let normals = OutArray::f32("Normals", 3, (0..12).map(|i| i as f32));
-    write_unstructured(
-        &path,
-        &pts,
-        CellKind::Triangles,
-        &tris,
-        &[normals],
-        &[("Normals", "Normals")],
-        true,
-    )
-    .unwrap();
-    let r = read_any_vtu(&path).unwrap();
-    assert_eq!((r.num_points, r.num_cells), (4, 2));
-    let conn = r.cells.iter().find(|a| a.name == "connectivity").unwrap();
-    assert_eq!(conn.values, VtuValues::Int64(vec![0, 2, 1, 0, 1, 3]));
-    let off = r.cells.iter().find(|a| a.name == "offsets").unwrap();
-    assert_eq!(off.values, VtuValues::Int64(vec![3, 6]));
+    // Every encoding of the one writer reads back the same.
+    for encoding in [Encoding::Zlib, Encoding::Raw, Encoding::Inline] {
+        let normals = OutArray::f32("Normals", 3, (0..12).map(|i| i as f32));
+        write_unstructured(
+            &path,
+            &pts,
+            CellKind::Triangles,
+            &tris,
+            &[normals],
+            &[("Normals", "Normals")],
+            encoding,
+        )
+        .unwrap();
+        let r = read_any_vtu(&path).unwrap();
+        assert_eq!((r.num_points, r.num_cells), (4, 2), "{encoding:?}");
+        assert_eq!(r.points, pts, "{encoding:?}");
+        let conn = r.cells.iter().find(|a| a.name == "connectivity").unwrap();
+        assert_eq!(conn.values, VtuValues::Int64(vec![0, 2, 1, 0, 1, 3]));
+        let off = r.cells.iter().find(|a| a.name == "offsets").unwrap();
+        assert_eq!(off.values, VtuValues::Int64(vec![3, 6]));
+        let normals = r.point_array("Normals").unwrap();
+        assert_eq!(f32s(normals), (0..12).map(|i| i as f32).collect::<Vec<_>>());
+    }
     // A wrong array length is refused before anything is written.
     let short = OutArray::f32("x", 1, [1.0].into_iter());
     assert!(
@@ -117,7 +133,7 @@ fn empty_frame_and_triangles() {
             &[],
             &[short],
             &[],
-            false
+            Encoding::Raw
         )
         .is_err()
     );
@@ -128,7 +144,13 @@ fn empty_frame_and_triangles() {
 fn corrupt_files_give_errors() {
     let d = TestDir::new("vtk-app-bad");
     let path = d.path("f.vtu");
-    write_particles_vtu(&path, &sample(3000), &FrameFields::default(), true).unwrap();
+    write_particles_vtu(
+        &path,
+        &sample(3000),
+        &FrameFields::default(),
+        Encoding::Zlib,
+    )
+    .unwrap();
     let good = fs::read(&path).unwrap();
     let err = |b: &[u8]| parse_appended(b).unwrap_err().to_string();
     // Truncated anywhere in the binary part.
