@@ -133,6 +133,9 @@ class Case:
         self.warn = warn
         self.setup = setup        # fn(work_dir) run first
         self.keep = keep          # paths (relative to work) that must not change
+        # fn(argv, work_dir, env, timeout) -> (rc, text, timed_out, verdict or None): runs the
+        # case itself (a client talking to a live server); a verdict given overrides judge().
+        self.runner = None
         # Too big for the CPU machine's budget but a valid scene for an 80 GB GPU: with a GPU
         # backend `check` may accept it, and its run (minutes of set-up) is not started.
         self.gpu_valid = any(k in name for k in GPU_VALID)
@@ -330,6 +333,46 @@ def cases():
         ("value the scene refuses", '[batch]\ncount = 3\n[batch.sweep]\n"material[0].poisson_ratio" = { from = 0.1, to = 0.7 }\n',
          ("world 2", "poisson_ratio")),
         ("scalar for a vector", '[batch]\ncount = 2\n[batch.sweep]\n"gravity" = [1, 2]\n', ("vector of 3",)),
+        ("one field swept twice", '[batch]\ncount = 2\n[batch.sweep]\n"gravity[1]" = [-1, -2]\n'
+         'gravity = [[0, -1, 0], [0, -2, 0]]\n', ("sets the same field",)),
+        ("sweep of the frame rate", '[batch]\ncount = 2\n[batch.sweep]\n"time.fps" = [40, 80]\n',
+         ("`time.fps` is the same in every world",)),
+        ("sweep of the duration", '[batch]\ncount = 2\n[batch.sweep]\n"time.duration" = [0.05, 0.5]\n',
+         ("`time.duration` is the same in every world",)),
+        ("whole number past f64", '[batch]\ncount = 2\n[batch.sweep]\n"seed" = [1, 1e21]\n',
+         ("world 1 would get 1e21",)),
+        ("range past f32", '[batch]\ncount = 2\n[batch.sweep]\n"material[0].density" = { from = 1, to = 1e40 }\n',
+         ("density = 1e40",)),
+        ("range from NaN", '[batch]\ncount = 2\n[batch.sweep]\n"gravity[1]" = { from = nan, to = 1 }\n',
+         ("finite",)),
+        ("log range through 0", '[batch]\ncount = 3\n[batch.sweep]\n"material[0].density" = { from = 0, to = 10, spacing = "log" }\n',
+         ("above 0",)),
+        ("unknown spacing", '[batch]\ncount = 3\n[batch.sweep]\n"material[0].density" = { from = 1, to = 10, spacing = "cubic" }\n',
+         ("spacing",)),
+        ("range with a step", '[batch]\ncount = 3\n[batch.sweep]\n"material[0].density" = { from = 1, to = 10, step = 2 }\n',
+         ("unknown field `step`",)),
+        ("negative index", '[batch]\ncount = 2\n[batch.sweep]\n"material[-1].density" = [1, 2]\n', ("not an index",)),
+        ("index past u64", '[batch]\ncount = 2\n[batch.sweep]\n"material[99999999999999999999].density" = [1, 2]\n',
+         ("not an index",)),
+        ("empty path", '[batch]\ncount = 2\n[batch.sweep]\n"" = [1, 2]\n', ("the path is empty",)),
+        ("component of a component", '[batch]\ncount = 2\n[batch.sweep]\n"gravity[1][0]" = [1, 2]\n',
+         ("is not a list",)),
+        ("text field", '[batch]\ncount = 2\n[batch.sweep]\n"name" = [1, 2]\n', ("only numbers",)),
+        ("sweep of [batch]", '[batch]\ncount = 2\n[batch.sweep]\n"batch.count" = [1, 2]\n', ("cannot be swept",)),
+        ("array of [[batch]]", '[[batch]]\ncount = 2\n', ("must be a table",)),
+        ("count 65537", '[batch]\ncount = 65537\n', ("65536",)),
+        ("a sweep that is a boolean", '[batch]\ncount = 2\n[batch.sweep]\n"gravity[1]" = true\n', ("a list or a range",)),
+        ("vectors of two lengths", '[batch]\ncount = 2\n[batch.sweep]\n"gravity" = [[0, -9.8, 0], [0, 1]]\n',
+         ("same shape",)),
+        ("gravity of 1e30 in one world", '[batch]\ncount = 2\n[batch.sweep]\n"gravity" = [[0, -9.8, 0], [0, 1e30, 0]]\n',
+         ("world 1 of 2, gravity = [0, 1e30, 0]",)),
+        ("a time step of 1e-12 in one world", '[batch]\ncount = 2\n[batch.sweep]\n"time.max_dt" = [1e-3, 1e-12]\n',
+         ("world 1 of 2, time.max_dt = 1e-12",)),
+        ("a world's domain that loses its body", '[batch]\ncount = 2\n[batch.sweep]\n"domain.dx" = [0.03125, 0.0625]\n',
+         ("world 1 (domain.dx = 0.0625)",)),
+        ("a world's domain inverted", '[batch]\ncount = 2\n[batch.sweep]\n"domain.max[0]" = [0.5, -1]\n',
+         ("world 1", "domain.max")),
+        ("60000 copies of a long file", '[batch]\ncount = 60000\n' + "#" * 8000 + "\n", ("of scene text",)),
     ]:
         structural[f"batch: {name}"] = (GOOD_SCENE + "\n" + tail, [words])
     structural["output dir climbs"] = (GOOD_SCENE + '', [("output.dir",)])
@@ -609,6 +652,9 @@ def cases():
     # 9. the newer features: rigid bodies, joints, emitters, moving colliders, 32-bit values, particle
     # files, output folders, resume with bodies and files, `mesh`, the flags that size buffers.
     out.extend(newer_feature_cases(S, run, rigid))
+    # 10. batch files run and rendered, and the live view's flags.
+    out.extend(batch_run_and_view_cases(S))
+    out.extend(live_view_cases(S))
 
     # 8. flags.
     for args, words in [
@@ -635,6 +681,285 @@ def cases():
         out.append(Case("flags: " + " ".join(a for a in args if "{W}" not in a), args, [words],
                         setup=lambda w: write(w / "scene.toml", GOOD_SCENE)))
     return out
+
+
+BATCH_TAIL = '\n[batch]\ncount = 3\n[batch.sweep]\n"gravity[1]" = [-9.81, -1.62, -20.0]\n'
+
+
+def batch_run_and_view_cases(S):
+    """Section 10: `rtmpm run`, `render` and `mesh` of batch files and folders, and `view` flags."""
+    out = []
+    batch = GOOD_SCENE.replace('formats = ["ply", "vtu"]', 'formats = ["ply"]') + BATCH_TAIL
+    run = ["run", S, "--backend", "cpu", "--out", "{W}/out"]
+
+    def scene(w, text=batch):
+        write(w / "scene.toml", text)
+
+    def ran(w):
+        scene(w)
+        r = subprocess.run([BIN] + [a.replace("{W}", str(w)) for a in run], capture_output=True,
+                           stdin=subprocess.DEVNULL)
+        assert r.returncode == 0, r.stderr
+
+    for name, args, words in [
+        ("--steps", run + ["--steps", "5"], ("--steps 5", "--frames N")),
+        ("--backend cuda", ["run", S, "--backend", "cuda", "--no-output"], ("--backend cpu",)),
+        ("--render", run + ["--render"], ("draws no pictures",)),
+        ("--preview", run + ["--preview", "{W}/p.png"], ("draws no pictures",)),
+        ("--checkpoint-every", run + ["--checkpoint-every", "1"], ("--checkpoint-every",)),
+        ("--threads 0", run + ["--threads", "0"], ("--threads",)),
+        ("--frames 10^11", ["run", S, "--backend", "cpu", "--no-output", "--frames", "100000000000"],
+         ("more than the",)),
+    ]:
+        out.append(Case(f"batch run: {name}", args, [words], setup=scene))
+    # A batch folder run again: refused with the fix, and no resume advised (a batch writes no
+    # checkpoint); a world's folder as --out of the batch.
+    out.append(Case("batch run: into its own used folder", run, [("already holds", "--overwrite")],
+                    setup=ran, keep=["out"]))
+    out.append(Case("batch run: into a world's folder of an earlier batch",
+                    ["run", S, "--backend", "cpu", "--out", "{W}/out/world_000"],
+                    [("already holds",)], setup=ran, keep=["out"]))
+    out.append(Case("batch run: one world frozen by a blow-up, the others run", run, [()], may_accept=True,
+                    setup=lambda w: scene(w, batch.replace('[-9.81, -1.62, -20.0]', '[-9.81, -1.62, -3e5]'))))
+    out.append(Case("batch: view of a batch file", ["view", S, "--backend", "cpu", "--record", "{W}/m.gif",
+                    "--frames", "1"], [("[batch]",), ("rtmpm run",)], setup=scene))
+    out.append(Case("batch: mesh of a batch folder", ["mesh", "{W}/out"], [("batch run",), ("world_000",)],
+                    setup=ran))
+
+    # Hand-edited batch.csv files given to `render`.
+    def csv(rows, header="world,folder,label,status,frames,steps"):
+        def mk(w):
+            ran(w)
+            write(w / "out" / "batch.csv", "\n".join([header] + rows) + "\n")
+        return mk
+    for name, mk, words in [
+        ("200k worlds listed", csv([f'{i},world_000,"g = {i}",done,2,10' for i in range(200_000)]),
+         ("more than the 8192",)),
+        ("a folder outside", csv(['0,../../etc,"x",done,2,10']), ("not a folder of",)),
+        ("a missing folder", csv(['0,world_999,"x",done,2,10']), ("world_999",)),
+        ("too few columns", csv(["0,world_000"]), ("batch.csv:2",)),
+        ("no worlds", csv([]), ("lists no world",)),
+        ("binary garbage", lambda w: (ran(w), write(w / "out" / "batch.csv", bytes(range(256)) * 8)), ("batch.csv",)),
+    ]:
+        out.append(Case(f"batch render: batch.csv with {name}", ["render", "{W}/out", "--no-movie", "--size", "64x36"],
+                        [words], setup=mk))
+
+    # `rtmpm view` flags: addresses, sizes, recordings, radius, colour range.
+    view = ["view", S, "--backend", "cpu", "--no-window"]
+    for args, words in [
+        (["--serve", "127.0.0.1:99999"], ("HOST:PORT",)),
+        (["--serve", "127.0.0.1:-1"], ("HOST:PORT",)),
+        (["--serve", ":8080"], ("HOST:PORT",)),
+        (["--serve", "[::1]:8080x"], ("HOST:PORT",)),
+        (["--serve", "localhost:"], ("HOST:PORT",)),
+        (["--record", "{W}/m.gif", "--size", "7x5"], ("16 to 8192",)),
+        (["--record", "{W}/m.gif", "--size", "99999999999x2"], ("WIDTHxHEIGHT",)),
+        (["--record", "{W}/m.gif", "--size", "64x36x2"], ("WIDTHxHEIGHT",)),
+        (["--record", "{W}/m.gif", "--range", "nan,1"], ("finite",)),
+        (["--record", "{W}/m.gif", "--range", "1,0"], ("hi must be above lo",)),
+        (["--record", "{W}/m.gif", "--radius=-1"], ("--radius",)),
+        (["--record", "{W}/m.gif", "--radius", "nan"], ("--radius",)),
+        (["--record", "{W}/m.gif", "--radius", "1e30", "--frames", "1"], ("--radius 1e30 m is larger than the domain",)),
+        (["--record", "/dev/null"], (".gif or .mp4",)),
+        (["--record", "{W}/.gif"], (".gif or .mp4",)),
+        (["--record", "{W}/nope/m.gif"], ("does not exist",)),
+        (["--record", "{W}/m.gif", "--frames", "0"], ("--frames",)),
+        (["--record", "{W}/m.gif", "--frames", "99999999999999"], ("more than the",)),
+    ]:
+        out.append(Case("view flags: " + " ".join(a for a in args if "{W}" not in a), view + args, [words],
+                        setup=lambda w: write(w / "scene.toml", GOOD_SCENE)))
+    # A recording's name taken by a folder, and by the user's own file: kept, refused at once.
+    out.append(Case("view flags: --record onto a folder, with --overwrite",
+                    view + ["--record", "{W}/m.gif", "--overwrite", "--frames", "1"], [("it is a folder",)],
+                    setup=lambda w: (write(w / "scene.toml", GOOD_SCENE), (w / "m.gif").mkdir()), keep=["m.gif"]))
+    out.append(Case("view flags: --record onto a user's file", view + ["--record", "{W}/mine.gif", "--frames", "1"],
+                    [("exists", "--overwrite")],
+                    setup=lambda w: (write(w / "scene.toml", GOOD_SCENE), write(w / "mine.gif", "mine")),
+                    keep=["mine.gif"]))
+    return out
+
+
+# ---------------------------------------------------------------- the live view's WebSocket
+
+def ws_connect(port):
+    """A WebSocket to the live view's /ws (the handshake by hand: no package needed)."""
+    import base64
+    import socket
+    sock = socket.create_connection(("127.0.0.1", port), timeout=10)
+    key = base64.b64encode(os.urandom(16)).decode()
+    sock.sendall((f"GET /ws HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
+                  f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n").encode())
+    head = b""
+    while b"\r\n\r\n" not in head:
+        chunk = sock.recv(1)
+        if not chunk:
+            raise ConnectionError("closed during the handshake")
+        head += chunk
+    if b" 101 " not in head.split(b"\r\n")[0]:
+        raise ConnectionError(head.decode(errors="replace").splitlines()[0])
+    return sock
+
+
+def ws_send(sock, payload, opcode=1):
+    mask = os.urandom(4)
+    n = len(payload)
+    head = bytes([0x80 | opcode])
+    if n < 126:
+        head += bytes([0x80 | n])
+    elif n < 65536:
+        head += bytes([0x80 | 126]) + struct.pack(">H", n)
+    else:
+        head += bytes([0x80 | 127]) + struct.pack(">Q", n)
+    sock.sendall(head + mask + bytes(b ^ mask[i % 4] for i, b in enumerate(payload)))
+
+
+def ws_frames(sock, seconds):
+    """(opcode, payload) of the server's frames for `seconds` (or until it closes)."""
+    end = time.time() + seconds
+    buf = b""
+    out = []
+    while time.time() < end:
+        sock.settimeout(max(0.01, end - time.time()))
+        try:
+            chunk = sock.recv(1 << 16)
+        except (TimeoutError, OSError):
+            break
+        if not chunk:
+            out.append((8, b""))
+            break
+        buf += chunk
+        while len(buf) >= 2:
+            n, at = buf[1] & 0x7F, 2
+            if n == 126:
+                if len(buf) < 4:
+                    break
+                n, at = struct.unpack(">H", buf[2:4])[0], 4
+            elif n == 127:
+                if len(buf) < 10:
+                    break
+                n, at = struct.unpack(">Q", buf[2:10])[0], 10
+            if len(buf) < at + n:
+                break
+            out.append((buf[0] & 0x0F, buf[at:at + n]))
+            buf = buf[at + n:]
+    return out
+
+
+# (name, payload, words one of which the error reply or the close reason must hold; None: a
+# valid command at the edge of its range, taken without an error)
+WS_MESSAGES = [
+    ("garbage", b"\x00\xffnot json at all", ("UTF-8",)),
+    ("garbage UTF-8", "\x00\u00ffnot json at all".encode(), ("cannot read",)),
+    ("a JSON list", b"[1, 2, 3]", ("cannot read",)),
+    ("an unknown command", b'{"cmd": "explode"}', ("cannot read",)),
+    ("a drag at NaN", b'{"cmd": "tool_move", "x": NaN, "y": 1}', ("cannot read",)),
+    ("a drag at 1e39", b'{"cmd": "tool_move", "x": 1e39, "y": 1}', ("finite", "cannot read")),
+    ("a drag at a text", b'{"cmd": "tool_start", "x": "left", "y": 1}', ("cannot read",)),
+    ("gravity of 1e30", b'{"cmd": "gravity", "value": [0, -1e30, 0]}', ("gravity",)),
+    ("gravity of two numbers", b'{"cmd": "gravity", "value": [0, -9.81]}', ("cannot read",)),
+    ("gravity of null", b'{"cmd": "gravity", "value": null}', ("cannot read",)),
+    ("a zoom of -1", b'{"cmd": "zoom", "factor": -1}', ("zoom",)),
+    ("a resize to 2^32", b'{"cmd": "resize", "width": 4294967296, "height": 10}', ("cannot read",)),
+    ("a resize to 1x1", b'{"cmd": "resize", "width": 1, "height": 1}', ("out of range",)),
+    ("a pace of 2^32-1 steps", b'{"cmd": "pace", "steps": 4294967295}', ("pace",)),
+    ("a tool of -1 m", b'{"cmd": "tool_shape", "shape": "sphere", "size": -1}', ("positive",)),
+    ("a ball of an unknown material", b'{"cmd": "throw", "x": 1, "y": 1, "material": "lava"}', ("no material",)),
+    ("a ball at 1e6 m/s", b'{"cmd": "throw", "x": 1, "y": 1, "speed": 1e6}', ("ball speed",)),
+    ("a colouring of 3000 letters", b'{"cmd": "color_by", "value": "' + b"x" * 3000 + b'"}', ("unknown colouring",)),
+    ("JSON nested 1500 deep", b"[" * 1500 + b"]" * 1500, ("cannot read",)),
+    ("a binary message", b"\x89PNG", ("binary messages",)),
+    ("a message of 1 MB", b"x" * (1 << 20), ("closing", "too long", "size")),
+    ("gravity of 1e4 (the largest taken)", b'{"cmd": "gravity", "value": [0, -1e4, 0]}', None),
+    ("a tool of 1e4 m dragged", b'{"cmd": "tool_shape", "shape": "box", "size": 1e4}', None),
+    ("... started", b'{"cmd": "tool_start", "x": 640, "y": 360}', None),
+    ("... moved by 1e5 pixels", b'{"cmd": "tool_move", "x": 100000, "y": -100000}', None),
+]
+
+
+def ws_said(opcode, payload):
+    """What a server frame says back to a command: an error message's text, a close frame's
+    reason; nothing for pictures, status and role messages."""
+    import json
+    if opcode == 8:
+        return "closed: " + payload[2:].decode(errors="replace")
+    if opcode != 1:
+        return ""
+    try:
+        m = json.loads(payload)
+    except ValueError:
+        return payload.decode(errors="replace")
+    return m.get("message", "") if isinstance(m, dict) and m.get("type") == "error" else ""
+
+
+def live_view_runner(argv, w, env, timeout):
+    """Start `rtmpm view --serve 127.0.0.1:0`, send each of WS_MESSAGES on a connection of its own,
+    then check that the view still serves and advances, and end it with Ctrl-C."""
+    import signal
+    p = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                         env=env, cwd=w, preexec_fn=limit)
+    log = []
+    port = None
+    start = time.time()
+    while port is None and time.time() - start < timeout:
+        line = p.stdout.readline().decode(errors="replace")
+        if not line:
+            break
+        log.append(line.rstrip())
+        m = re.search(r"http://127\.0\.0\.1:(\d+)/", line)
+        if m:
+            port = int(m.group(1))
+    problems = []
+    if port is None:
+        p.kill()
+        rest = p.communicate()[0].decode(errors="replace")
+        return p.returncode, "\n".join(log) + rest, False, None
+    for name, payload, words in WS_MESSAGES:
+        try:
+            sock = ws_connect(port)
+            ws_frames(sock, 0.3)  # hello, role, the first pictures
+            ws_send(sock, payload, opcode=2 if name == "a binary message" else 1)
+            replies = ws_frames(sock, 1.0)
+            sock.close()
+        except Exception as e:  # the server refused or died
+            problems.append(f"{name}: {e}")
+            continue
+        said = " ".join(ws_said(op, pl) for op, pl in replies)
+        if words is None and said.strip():
+            problems.append(f"{name}: refused: {said[:200]}")
+        elif words is not None and not any(x in said for x in words):
+            problems.append(f"{name}: no error naming {words}, got: {said[:200] or 'nothing'}")
+        else:
+            log.append(f"error: {name}: {said[:150]}" if words else f"{name}: taken")
+    alive = p.poll() is None
+    if alive:
+        try:
+            import urllib.request
+            status = urllib.request.urlopen(f"http://127.0.0.1:{port}/status", timeout=10).read()
+            log.append(f"status after: {status[:150]!r}")
+        except Exception as e:
+            problems.append(f"/status after the messages: {e}")
+        p.send_signal(signal.SIGINT)
+    try:
+        rest = p.communicate(timeout=30)[0].decode(errors="replace")
+        timed_out = False
+    except subprocess.TimeoutExpired:
+        p.kill()
+        rest = p.communicate()[0].decode(errors="replace")
+        timed_out = True
+    text = "\n".join(log) + "\n" + rest + "".join(f"\nproblem: {x}" for x in problems)
+    if timed_out or not alive or "panicked" in text:
+        return p.returncode, text, timed_out, None
+    return p.returncode, text, False, ("unclear" if problems else "clear")
+
+
+def live_view_cases(S):
+    """The live view's WebSocket messages: garbage, huge, wrong types, out-of-range values."""
+    c = Case("view websocket: 21 hostile messages and 4 at the edge of their range, then /status",
+             ["view", S, "--backend", "cpu", "--threads", "1", "--no-window", "--serve", "127.0.0.1:0",
+              "--frames", "1000000"], [()],
+             setup=lambda w: write(w / "scene.toml", GOOD_SCENE.replace("duration = 0.05", "duration = 1000.0")))
+    c.runner = live_view_runner
+    return [c]
 
 
 def newer_feature_cases(S, run, rigid):
@@ -862,6 +1187,15 @@ def main():
         if a.backend != "cpu" and "--threads" not in args:
             args = [a.backend if x == "cpu" and args[i - 1] == "--backend" else x for i, x in enumerate(args)]
         t = time.time()
+        if c.runner:
+            rc, text, timed_out, verdict = c.runner([BIN] + args, w, env, a.timeout)
+            dt = time.time() - t
+            verdict = verdict or judge(c, rc, text, timed_out, False)
+            lines = [l for l in text.splitlines() if l.strip()]
+            first = next((l for l in lines if l.startswith("error")), lines[0] if lines else "")[:160]
+            rows.append((c.name, verdict, dt, first))
+            print(f"{verdict:9} {dt:6.2f}s  {c.name}: {first}", flush=True)
+            continue
         try:
             # No address-space limit with CUDA: the driver reserves more virtual memory than the
             # limit when it creates a context (CUDA_ERROR_OUT_OF_MEMORY before any allocation of ours).

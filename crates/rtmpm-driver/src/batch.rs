@@ -162,7 +162,7 @@ impl BatchRun {
             anyhow::bail!("a batch run that writes frame files advances by whole frames");
         }
         self.advance_each(|sim| {
-            let target = sim.step + steps;
+            let target = sim.step.saturating_add(steps);
             while sim.step < target {
                 sim.advance(target - sim.step)?;
             }

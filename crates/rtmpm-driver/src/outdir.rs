@@ -239,16 +239,23 @@ impl OutDir {
         }
         if !ours.is_empty() {
             if !overwrite {
+                // Resuming is advice only where there is a checkpoint to resume from.
+                let resume = if ours.iter().any(|n| n.starts_with("checkpoint_")) {
+                    format!(
+                        ", or continue that run with --resume {}/checkpoint_NNNNN.ckpt",
+                        self.dir.display()
+                    )
+                } else {
+                    String::new()
+                };
                 bail!(
                     "output folder {} already holds the files of a run ({}): {}: {}; they are \
-                     kept.\n  fix: rerun with --overwrite to remove them first, choose another \
-                     folder with --out, or continue that run with --resume \
-                     {}/checkpoint_NNNNN.ckpt",
+                     kept.\n  fix: rerun with --overwrite to remove them first, or choose \
+                     another folder with --out{resume}",
                     self.dir.display(),
                     self.marker().unwrap_or_else(|| "scene unknown".into()),
                     files(ours.len()),
                     list_names(&ours),
-                    self.dir.display()
                 );
             }
             let n = self.remove(&ours)?;

@@ -159,7 +159,7 @@ impl PySimulation {
     fn step(&mut self, py: Python<'_>, n: u64) -> PyResult<u64> {
         let inner = self.get();
         let start = inner.sim.step;
-        let target = start + n;
+        let target = start.saturating_add(n);
         inner.drive(py, |sim, chunk| {
             let k = chunk.min(target - sim.step);
             step_n(sim, k)?;

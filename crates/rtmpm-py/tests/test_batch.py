@@ -223,6 +223,36 @@ def test_bad_input_gives_clear_errors():
     assert list(sim.steps) == [0, 0]
 
 
+def test_hostile_batch_input_is_refused_and_changes_nothing():
+    scene = rtmpm.Scene.from_toml(world_text())
+    sim = rtmpm.Simulation(scene, batch=2, backend="cpu")
+    n = int(sim.num_particles[0])
+    # A reset to positions outside the domain names the world and the particle.
+    far = np.full((2, n, 3), 0.25, np.float32)
+    far[1, 3] = [0.25, 7.0, 0.25]
+    with pytest.raises(ValueError, match=r"x of world 1, particle 3: .* is outside the domain"):
+        sim.reset(x=far)
+    with pytest.raises(IndexError, match="world -3 does not exist"):
+        sim.reset([-3])
+    with pytest.raises(ValueError, match="x: not an array of numbers"):
+        sim.reset([0], x="garbage")
+    with pytest.raises(ValueError, match=r"v has shape \[2, 1, 3, 3\]"):
+        sim.reset(v=np.zeros((2, 1, 3, 3), np.float32))
+    # Step counts that are not a count of steps.
+    with pytest.raises(OverflowError):
+        sim.step(-1)
+    with pytest.raises(OverflowError):
+        sim.step(2**64)
+    with pytest.raises(TypeError):
+        sim.step(1.5)
+    assert list(sim.steps) == [0, 0]
+    # A batch file sweeping what the worlds share (the frame rate) is refused, naming it.
+    with pytest.raises(rtmpm.SceneError, match=r"`time.fps` is the same in every world"):
+        rtmpm.Scene.from_toml(sweep_text('"time.fps" = [10, 20, 40]'))
+    with pytest.raises(rtmpm.SceneError, match="sets the same field"):
+        rtmpm.Scene.from_toml(sweep_text('"gravity[1]" = [-1, -2, -3]\ngravity = [[0, -1, 0], [0, -2, 0], [0, -3, 0]]'))
+
+
 # A sand bed and a kinematic box (the tool) above it.
 TOOL_SCENE = """
 name = "push"
@@ -282,6 +312,15 @@ def test_a_tool_posed_per_world_feels_the_sand_it_pushes():
         sim.set_rigid_body("tool", velocity=[0.0, 1.0])
     with pytest.raises(KeyError, match="no rigid body named `spoon`"):
         sim.rigid_force("spoon")
+    # Hostile poses: NaN, a huge angular velocity, a world index past the end.
+    with pytest.raises(ValueError, match="world 0: rigid body `tool`: rotation .* is not finite"):
+        sim.set_rigid_body("tool", worlds=[0], rotation=[np.nan, 0.0, 0.0, 1.0])
+    with pytest.raises(ValueError, match="world 2: rigid body `tool`: angular_velocity"):
+        sim.set_rigid_body("tool", worlds=[2], angular_velocity=[0.0, np.inf, 0.0])
+    with pytest.raises(IndexError, match="world 3 does not exist: the batch has 3 worlds"):
+        sim.set_rigid_body("tool", worlds=[3], position=[0.2, 0.27, 0.2])
+    with pytest.raises(IndexError, match="world 9 does not exist"):
+        sim.rigid_bodies(9)
 
 
 @pytest.mark.skipif("rigid" not in rtmpm.features, reason="module built without the rigid feature")

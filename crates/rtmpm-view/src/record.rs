@@ -79,6 +79,21 @@ impl Recorder {
                 dir.display()
             ));
         }
+        // Only a file is replaced: a folder, a device or a pipe of that name is refused before
+        // the run (its recording could not be moved there at the end).
+        if let Ok(meta) = std::fs::metadata(path)
+            && !meta.is_file()
+        {
+            return Err(format!(
+                "cannot record to `{}`: it is a {}, not a file: give a new file's name",
+                path.display(),
+                if meta.is_dir() {
+                    "folder"
+                } else {
+                    "device, pipe or other special file"
+                }
+            ));
+        }
         if path.exists() && !overwrite {
             return Err(format!(
                 "`{}` exists: choose another file for --record, or add --overwrite to replace it",
@@ -295,6 +310,18 @@ mod tests {
             std::env::temp_dir().join(format!("rtmpm-view-record-{}-{name}", std::process::id()));
         std::fs::create_dir_all(&d).unwrap();
         d
+    }
+
+    #[test]
+    fn a_folder_of_the_recordings_name_is_refused_before_the_run_even_with_overwrite() {
+        let d = scratch("folder");
+        let path = d.join("movie.gif");
+        std::fs::create_dir_all(&path).unwrap();
+        for overwrite in [false, true] {
+            let e = Recorder::start(&path, 10.0, overwrite).err().unwrap();
+            assert!(e.contains("it is a folder"), "{e}");
+        }
+        assert!(path.is_dir());
     }
 
     #[test]

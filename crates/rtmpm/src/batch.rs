@@ -52,12 +52,34 @@ pub fn enforce(b: &BatchScene, frames: Option<u64>, out: Option<&Path>) -> Resul
     );
     if !refusals.is_empty() {
         bail!(
-            "the batch of scene `{}` does not fit this machine:\n{}",
+            "the batch of scene `{}` does not fit this machine:\n{}{}",
             b.base.name,
-            refusals.join("\n")
+            refusals.join("\n"),
+            worst_world(b, frames)
         );
     }
     Ok(budget)
+}
+
+/// The first world whose own steps or frames cannot run (a swept value too fast or a step
+/// too short), as a line naming it and its swept values; empty when no single world is refused.
+fn worst_world(b: &BatchScene, frames: Option<u64>) -> String {
+    (0..b.count())
+        .find(|&w| {
+            !Budget::estimate(&b.worlds[w], frames)
+                .refusals(None, None, false)
+                .is_empty()
+        })
+        .filter(|_| b.batch.is_some())
+        .map(|w| {
+            format!(
+                "\n(world {w} of {}, {}: its own steps do not fit; the other worlds' values are \
+                 in `rtmpm check`)",
+                b.count(),
+                b.label(w)
+            )
+        })
+        .unwrap_or_default()
 }
 
 /// The lines `rtmpm check` prints about a batch: the count and what each world sets (the first
@@ -105,6 +127,13 @@ pub fn run(args: &crate::run::RunArgs) -> Result<()> {
         bail!(
             "a batch run draws no pictures while it runs\n  fix: run it, then `rtmpm render \
              OUT` pictures every frame of its worlds side by side"
+        );
+    }
+    if let Some(n) = args.steps {
+        bail!(
+            "--steps {n}: a batch run advances its worlds by whole frames, each world at its own \
+             time step, so a count of steps means a different time in each world\n  fix: give \
+             --frames N (or, from Python, BatchSimulation.step(n) steps every world n times)"
         );
     }
     if args.resume.is_some() || args.checkpoint_every.is_some() || args.precision.is_some() {

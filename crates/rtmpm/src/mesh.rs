@@ -81,6 +81,15 @@ pub fn mesh_cmd(args: MeshArgs) -> Result<()> {
     // Meshes are written into the folder: not while a run writes into it.
     let _lock = rtmpm_driver::outdir::OutDir::lock(dir, "rtmpm mesh")?;
     let frames = crate::render::cmd::ply_frames(dir)?;
+    if frames.is_empty() && dir.join("batch.csv").is_file() {
+        bail!(
+            "{} is the folder of a batch run: its worlds' frames are in its world_NNN folders \
+             (batch.csv lists them)\n  fix: rtmpm mesh {}",
+            dir.display(),
+            dir.join(rtmpm_driver::batch::world_dir_name(0, 2))
+                .display()
+        );
+    }
     if frames.is_empty() {
         bail!(
             "no frame_NNNNN.ply files in {} (run a scene with PLY output first)",

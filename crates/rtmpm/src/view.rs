@@ -234,6 +234,16 @@ pub fn view(args: ViewArgs) -> Result<()> {
     {
         bail!("--radius must be a positive length, got {r}");
     }
+    if let Some(r) = args.radius
+        && r > (hi - lo).max_element()
+    {
+        bail!(
+            "--radius {r:e} m is larger than the domain's interior ({} m across): every particle \
+             would cover the picture\n  fix: a radius of about the particle spacing (leave \
+             --radius out for 0.6 of it)",
+            (hi - lo).max_element()
+        );
+    }
     let options = SessionOptions {
         width,
         height,

@@ -19,6 +19,10 @@ impl PyBatch {
         v: Option<&[f32]>,
     ) -> PyResult<Particles> {
         let mut p = self.initial[w].clone();
+        let (lo, hi) = {
+            let scene = &self.r().worlds[w].sim.scene;
+            (scene.domain_min, scene.domain_max)
+        };
         for (name, given, target) in [("x", x, &mut p.x), ("v", v, &mut p.v)] {
             let Some(rows) = given else { continue };
             for (i, r) in rows.chunks_exact(3).enumerate() {
@@ -26,6 +30,11 @@ impl PyBatch {
                 if !r.is_finite() {
                     return Err(PyValueError::new_err(format!(
                         "{name} of world {w}, particle {i}: {r} is not finite"
+                    )));
+                }
+                if name == "x" && (r.cmplt(lo).any() || r.cmpgt(hi).any()) {
+                    return Err(PyValueError::new_err(format!(
+                        "x of world {w}, particle {i}: {r} is outside the domain [{lo}, {hi}]"
                     )));
                 }
                 target[i] = r;

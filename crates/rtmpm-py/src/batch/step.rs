@@ -9,7 +9,21 @@ impl PyBatch {
     /// times as with ``rtmpm run``). Returns the worlds frozen by a blow-up during the call.
     #[pyo3(signature = (n = 1))]
     fn step(&mut self, py: Python<'_>, n: u64) -> PyResult<Vec<usize>> {
-        self.drive(py, |run| run.advance_steps(n))
+        // In chunks that grow while they take less than a tenth of a second, with Ctrl-C
+        // checked between them: a huge `n` can be interrupted.
+        let (mut left, mut chunk) = (n, 1u64);
+        let mut frozen = Vec::new();
+        while left > 0 && self.r().running() > 0 {
+            let k = chunk.min(left);
+            let t0 = std::time::Instant::now();
+            frozen.extend(self.drive(py, |run| run.advance_steps(k))?);
+            left -= k;
+            if t0.elapsed().as_secs_f64() < 0.1 {
+                chunk = (chunk * 2).min(1 << 20);
+            }
+            py.check_signals()?;
+        }
+        Ok(frozen)
     }
 
     /// Simulate every running world to the end of its current frame (exactly as one call of

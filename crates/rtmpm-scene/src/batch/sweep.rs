@@ -11,6 +11,10 @@ pub const MAX_WORLDS: usize = 1 << 16;
 /// count), so that a small file cannot ask for millions of copies of itself.
 pub const MAX_BATCH_TEXT_BYTES: usize = 256 << 20;
 
+/// Largest whole number a sweep writes into an integer field: every whole number up to it is
+/// exact in the f64 the sweep's values are (2^53 is about 9.007e15).
+const MAX_EXACT_INTEGER: f64 = 9.0e15;
+
 /// The scene's gravity when the file gives none (m/s^2), written into the worlds' tables so that
 /// its components can be swept.
 const DEFAULT_GRAVITY: [f64; 3] = [0.0, -9.81, 0.0];
@@ -106,7 +110,7 @@ impl Batch {
             }
         }
         let count = count(table.get("count"))?;
-        let sweeps = match table.get("sweep") {
+        let sweeps: Vec<Sweep> = match table.get("sweep") {
             None => Vec::new(),
             Some(Value::Table(t)) => t
                 .iter()
@@ -121,6 +125,7 @@ impl Batch {
                 ));
             }
         };
+        refuse_overlaps(&sweeps)?;
         Ok(Batch { count, sweeps })
     }
 
@@ -164,6 +169,32 @@ impl Batch {
             .join(", ")
     }
 }
+
+/// Two sweeps of which one sets a part of the other (`gravity` and `gravity[1]`, or the same
+/// field written twice): the later would silently replace the earlier's values.
+fn refuse_overlaps(sweeps: &[Sweep]) -> Result<(), BatchIssue> {
+    for (i, a) in sweeps.iter().enumerate() {
+        for b in &sweeps[i + 1..] {
+            let n = a.segs.len().min(b.segs.len());
+            if a.segs[..n] == b.segs[..n] {
+                return Err(BatchIssue::of_sweep(
+                    &b.path,
+                    format!(
+                        "it sets the same field as the sweep \"{}\": one would replace the \
+                         other's values",
+                        a.path
+                    ),
+                    "sweep each field once: either the whole vector or its components",
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Fields a batch's worlds share, because the worlds advance frame by frame together: the
+/// frame rate and the duration (the number of frames) are the file's.
+const SHARED_FIELDS: [&str; 2] = ["fps", "duration"];
 
 fn count(raw: Option<&Value>) -> Result<usize, BatchIssue> {
     const FIX: &str = "give the number of worlds, a whole number from 1, e.g. `count = 16`";
@@ -230,6 +261,20 @@ impl Sweep {
                 "sweep a field of the scene",
             ));
         }
+        if let [Seg::Key(t), Seg::Key(f), ..] = segs.as_slice()
+            && t == "time"
+            && SHARED_FIELDS.contains(&f.as_str())
+        {
+            return Err(BatchIssue::of_sweep(
+                path,
+                format!(
+                    "`time.{f}` is the same in every world: the worlds of a batch advance frame \
+                     by frame together, so they share the frame rate and the number of frames"
+                ),
+                "set time.fps and time.duration once in the file (the time step fields, \
+                 time.max_dt, time.cfl, time.dt, can be swept), or write one scene file per value",
+            ));
+        }
         let values = match spec {
             Value::Array(list) => list_values(path, list, count)?,
             Value::Table(range) => range_values(path, range, count)?,
@@ -290,6 +335,17 @@ impl Sweep {
                         "give whole numbers (a range whose step is whole, or a list)",
                     ));
                 }
+                if let Some((w, x)) = self.first_beyond(MAX_EXACT_INTEGER) {
+                    return Err(BatchIssue::of_sweep(
+                        &self.path,
+                        format!(
+                            "the field is a whole number and world {w} would get {x:e}, beyond \
+                             the {MAX_EXACT_INTEGER:e} up to which a sweep holds whole numbers \
+                             exactly"
+                        ),
+                        "give whole numbers within +-9.0e15",
+                    ));
+                }
                 Ok(Kind::Integer)
             }
             Value::Float(_) => Ok(Kind::Float),
@@ -326,6 +382,13 @@ impl Sweep {
         }
     }
 
+    fn first_beyond(&self, max: f64) -> Option<(usize, f64)> {
+        self.values
+            .iter()
+            .enumerate()
+            .find_map(|(w, v)| v.iter().find(|x| x.abs() > max).map(|&x| (w, x)))
+    }
+
     fn first_fraction(&self) -> Option<(usize, f64)> {
         self.values
             .iter()
@@ -336,7 +399,7 @@ impl Sweep {
     /// World `w`'s value as the scene table holds it.
     fn value_of(&self, w: usize, kind: Kind) -> Value {
         let number = |x: f64| {
-            let whole = x.fract() == 0.0 && x.abs() < 9.0e15;
+            let whole = x.fract() == 0.0 && x.abs() <= MAX_EXACT_INTEGER;
             match kind {
                 Kind::Integer => Value::Integer(x as i64),
                 Kind::Absent if whole => Value::Integer(x as i64),
@@ -355,7 +418,20 @@ impl Sweep {
     /// `[0, -1.62, 0]`.
     pub fn format_value(&self, w: usize) -> String {
         let v = &self.values[w];
-        let f = |x: &f64| format!("{}", significant(*x, 4) as f32);
+        // Through f32 for short decimals (0.3, not 0.30000000000000004); very large or small
+        // magnitudes in exponent form (1e30, 1e-12); beyond f32's range (a value the scene
+        // then refuses) the value as given, never `inf`.
+        let f = |x: &f64| {
+            let r = significant(*x, 4);
+            let a = r.abs();
+            if a > f32::MAX as f64 {
+                format!("{x:e}")
+            } else if a == 0.0 || (1e-4..1e7).contains(&a) {
+                format!("{}", r as f32)
+            } else {
+                format!("{:e}", r as f32)
+            }
+        };
         if self.vector {
             format!("[{}]", v.iter().map(f).collect::<Vec<_>>().join(", "))
         } else {

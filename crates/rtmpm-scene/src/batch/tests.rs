@@ -319,3 +319,53 @@ fn one_scene_of_a_batch_file_is_refused_with_the_batch_api() {
     let named = BASE.replace("name = \"slump\"", "name = \"batch\"");
     assert!(Scene::from_toml(&named, "s.toml").is_ok());
 }
+
+#[test]
+fn sweeps_of_one_field_twice_are_refused() {
+    let e = error(
+        "[batch]\ncount = 2\n[batch.sweep]\n\"gravity[1]\" = [-1, -2]\ngravity = [[0, -1, 0], [0, -3, 0]]\n",
+    );
+    assert!(
+        e.contains("sets the same field as the sweep") && e.contains("gravity[1]"),
+        "{e}"
+    );
+    // Two components of one vector are two fields.
+    let b = batch(
+        "[batch]\ncount = 2\n[batch.sweep]\n\"gravity[0]\" = [1, 2]\n\"gravity[1]\" = [-1, -2]\n",
+    )
+    .unwrap();
+    assert_eq!(b.worlds[1].gravity.to_array(), [2.0, -2.0, 0.0]);
+}
+
+#[test]
+fn the_frame_rate_and_duration_are_the_files() {
+    for field in ["time.fps", "time.duration"] {
+        let e = error(&format!(
+            "[batch]\ncount = 2\n[batch.sweep]\n\"{field}\" = [10, 20]\n"
+        ));
+        assert!(
+            e.contains(&format!("`{field}` is the same in every world")) && e.contains("fix:"),
+            "{e}"
+        );
+    }
+    // A time step field differs per world.
+    let b = batch("[batch]\ncount = 2\n[batch.sweep]\n\"time.max_dt\" = [1e-3, 2e-3]\n").unwrap();
+    assert_eq!(b.count(), 2);
+}
+
+#[test]
+fn whole_numbers_beyond_exact_f64_and_labels_beyond_f32() {
+    let e =
+        error("[batch]\ncount = 2\n[batch.sweep]\n\"body[0].particles_per_cell\" = [8, 1e21]\n");
+    assert!(e.contains("world 1 would get 1e21"), "{e}");
+    // A value past f32's range is labelled as written, not as `inf`.
+    let e = error("[batch]\ncount = 2\n[batch.sweep]\n\"material[0].density\" = [1000, 1e40]\n");
+    assert!(
+        e.contains("material[0].density = 1e40") && !e.contains("inf)"),
+        "{e}"
+    );
+    let b = batch("[batch]\ncount = 2\n[batch.sweep]\n\"time.max_dt\" = [1e-12, 2e-3]\n\"gravity[1]\" = [-3e9, -9.81]\n")
+        .unwrap();
+    assert_eq!(b.label(0), "time.max_dt = 1e-12, gravity[1] = -3e9");
+    assert_eq!(b.label(1), "time.max_dt = 0.002, gravity[1] = -9.81");
+}

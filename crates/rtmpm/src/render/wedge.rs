@@ -7,6 +7,10 @@ use super::*;
 use rtmpm_render::Image;
 use rtmpm_render::text::{draw_text, text_height, text_width};
 
+/// Largest side of a wedge picture (pixels), as for `--size`: a grid of more worlds than tiles
+/// of 64 pixels fit is refused.
+const MAX_WEDGE_SIDE: u32 = 8192;
+
 /// One world of the batch, as `batch.csv` lists it.
 struct WorldRow {
     folder: PathBuf,
@@ -106,6 +110,8 @@ pub fn dispatch(args: RenderArgs) -> Result<()> {
 fn render_wedge(args: &RenderArgs, dir: &Path) -> Result<()> {
     let _lock = rtmpm_driver::outdir::OutDir::lock(dir, "rtmpm render")?;
     let worlds = read_batch_csv(dir)?;
+    // The picture's size first: before the worlds' frames are listed and read.
+    let tiles = Tiles::of(args, &worlds)?;
     let frames: Vec<Vec<(u64, PathBuf)>> = worlds
         .iter()
         .map(|w| ply_frames(&w.folder))
@@ -147,7 +153,6 @@ fn render_wedge(args: &RenderArgs, dir: &Path) -> Result<()> {
         Some(s) => scene_bounds(s),
         None => bounds_around(&first, radius),
     };
-    let tiles = Tiles::of(args, &worlds);
     let (cols, rows, tile_w, tile_h, strip) = (
         tiles.cols,
         tiles.rows,
@@ -273,7 +278,7 @@ struct Tiles {
 impl Tiles {
     /// The grid of `worlds`: the image's width (default 1280) over the columns, 16:9 tiles,
     /// captions twice the font's size where the longest fits in a tile.
-    fn of(args: &RenderArgs, worlds: &[WorldRow]) -> Tiles {
+    fn of(args: &RenderArgs, worlds: &[WorldRow]) -> Result<Tiles> {
         let (cols, rows) = grid(worlds.len());
         // Tiles: the image's width (default 1280) over the columns, 16:9, a caption strip below.
         let width = args.view.size.map_or(1280, |s| s.0).max(64 * cols as u32);
@@ -287,14 +292,23 @@ impl Tiles {
             .unwrap_or(0);
         let scale = if longest_caption + 8 <= tile_w { 2 } else { 1 };
         let strip = text_height(scale) + 6 * scale;
-        Tiles {
+        let height = (tile_h + strip) as u64 * rows as u64;
+        if width > MAX_WEDGE_SIDE || height > MAX_WEDGE_SIDE as u64 {
+            bail!(
+                "{} worlds make a grid of {cols} x {rows} tiles, a picture of {width}x{height} \
+                 pixels, more than the {MAX_WEDGE_SIDE} a side a picture may have\n  fix: render \
+                 one world's folder (rtmpm render OUT/world_NNN) or a batch of fewer worlds",
+                worlds.len()
+            );
+        }
+        Ok(Tiles {
             cols,
             rows,
             tile_w,
             tile_h,
             scale,
             strip,
-        }
+        })
     }
 
     /// Copy world `w`'s picture `tile` into its place in `img`, with its caption `text`
