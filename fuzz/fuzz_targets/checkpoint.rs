@@ -1,10 +1,11 @@
 //! Checkpoint reader. The input becomes a checkpoint's payload wrapped in a valid header and
 //! checksum (random bytes would almost never pass the checksum), so the fuzzer explores the
 //! decoding and the value checks behind it: when the first byte is even, the input is the
-//! payload as is (lengths and counts fuzzed too); when odd, the rest is the time, step, frame
-//! and particle bytes of a payload whose strings and count are made consistent. Whatever decodes is checked against a
-//! scene, and must then be safe to simulate: finite, positive mass, materials in range, inside
-//! the domain.
+//! payload as is (lengths and counts fuzzed too); when odd, the rest fills a payload of the
+//! current format (version 3) whose lengths and counts are made consistent: time, step, frame,
+//! 0 to 3 rigid-body poses, 0 to 2 file hashes (field, path, hash) and the particles. Whatever
+//! decodes is checked against a scene, and must then be safe to simulate: finite, positive
+//! mass, materials in range, inside the domain.
 #![no_main]
 use libfuzzer_sys::fuzz_target;
 use rtmpm_io::checkpoint::{Checkpoint, Fnv1a64, MAGIC, VERSION};
@@ -23,6 +24,40 @@ fn scene() -> &'static Scene {
     })
 }
 
+/// A version-3 payload from `rest`: its first byte picks the counts of bodies (0 to 3) and file
+/// hashes (0 to 2); then 24 bytes of time, step and frame, 52 bytes per body pose (13 f32), 8
+/// bytes per file hash, and whole particles of 112 bytes from what is left.
+fn structured_payload(rest: &[u8]) -> Vec<u8> {
+    let (&counts, rest) = rest.split_first().unwrap_or((&0, &[]));
+    let (bodies, files) = (usize::from(counts % 4), usize::from((counts / 4) % 3));
+    let mut input = rest.iter().copied();
+    let mut take = |n: usize| -> Vec<u8> { (0..n).map(|_| input.next().unwrap_or(0)).collect() };
+    let mut p = Vec::with_capacity(rest.len() + 128);
+    p.extend_from_slice(&0u64.to_le_bytes()); // scene_toml: empty
+    p.extend_from_slice(&0u64.to_le_bytes()); // scene_origin: empty
+    p.extend_from_slice(&take(24)); // time, step, frame
+    p.extend_from_slice(&(bodies as u64).to_le_bytes());
+    for _ in 0..bodies {
+        p.extend_from_slice(&take(52));
+    }
+    p.extend_from_slice(&(files as u64).to_le_bytes());
+    for (field, path) in [("body[0].file", "m.obj"), ("collider[0].file", "../x.ply")]
+        .into_iter()
+        .take(files)
+    {
+        for text in [field, path] {
+            p.extend_from_slice(&(text.len() as u64).to_le_bytes());
+            p.extend_from_slice(text.as_bytes());
+        }
+        p.extend_from_slice(&take(8));
+    }
+    let particles = take(rest.len().saturating_sub(24 + 52 * bodies + 8 * files));
+    let n = particles.len() / 112;
+    p.extend_from_slice(&(n as u64).to_le_bytes());
+    p.extend_from_slice(&particles[..n * 112]);
+    p
+}
+
 fuzz_target!(|data: &[u8]| {
     let Some((&mode, rest)) = data.split_first() else {
         return;
@@ -31,17 +66,7 @@ fuzz_target!(|data: &[u8]| {
     let payload = if mode % 2 == 0 {
         rest
     } else {
-        let (head, particles) = rest.split_at(rest.len().min(24));
-        let n = particles.len() / 112;
-        let mut p = Vec::with_capacity(rest.len() + 24);
-        p.extend_from_slice(&0u64.to_le_bytes()); // scene_toml: empty
-        p.extend_from_slice(&0u64.to_le_bytes()); // scene_origin: empty
-        let mut h = [0u8; 24];
-        h[..head.len()].copy_from_slice(head);
-        p.extend_from_slice(&h); // time, step, frame
-        p.extend_from_slice(&(n as u64).to_le_bytes());
-        p.extend_from_slice(&particles[..n * 112]);
-        structured = p;
+        structured = structured_payload(rest);
         &structured
     };
     let mut bytes = Vec::with_capacity(payload.len() + 32);
