@@ -11,11 +11,16 @@ second time with `Real = f64` (`[lib] path`). This fails unless
     they do not depend on the precision and the f64 build uses the f32 package's), and at least
     one ran;
   * rtmpm-cpu-f64's tests/precision.rs ran tests (the f64 step against the f32 one and an exact
-    free fall) and they passed.
+    free fall) and they passed;
+  * every integration test file of rtmpm-cpu (crates/rtmpm-cpu/tests/NAME.rs, which rtmpm-cpu-f64
+    compiles again as the test target NAME_f64) ran in f64 the same tests as in f32, at least
+    one, and they passed (a test that does not hold in f64 is ignored there by the source,
+    `cfg_attr(feature = "f64", ignore = "why")`, and listed as ignored).
 So a crate that silently stops running its tests in f64 (`test = false`, a `cfg` that leaves a
 module's tests out, a missing workspace member) fails CI.
 """
 
+import os
 import re
 import sys
 
@@ -26,17 +31,20 @@ PAIRS = (
     ("rtmpm_physics", "rtmpm_physics_f64", ("grid::", "transfer::")),
     ("rtmpm_cpu", "rtmpm_cpu_f64", ()),
 )
+# rtmpm-cpu's integration test files (NAME.rs: the f32 target NAME, the f64 target NAME_f64).
+CPU_TESTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "crates", "rtmpm-cpu", "tests")
 RUNNING = re.compile(r"^\s*Running (.+?) \(.*/deps/([A-Za-z0-9_]+)-[0-9a-f]+(?:\.exe)?\)")
 TEST = re.compile(r"^test (\S+) \.\.\. (\w+)")
 
 
 def sections(lines):
-    """{(source, binary): {test: outcome}} of a cargo test log."""
+    """{(source, binary, k): {test: outcome}} of a cargo test log (k: the run's place in the log;
+    two crates may each have a test binary of the same source and name)."""
     out, current = {}, None
     for line in lines:
         m = RUNNING.match(line)
         if m:
-            current = out.setdefault((m.group(1), m.group(2)), {})
+            current = out.setdefault((m.group(1), m.group(2), len(out)), {})
             continue
         if line.lstrip().startswith("Doc-tests "):
             current = None
@@ -48,7 +56,7 @@ def sections(lines):
 
 
 def tests_of(secs, binary, source=None):
-    found = [t for (src, b), t in secs.items() if b == binary and (source is None or src.endswith(source))]
+    found = [t for (src, b, _), t in secs.items() if b == binary and (source is None or src.endswith(source))]
     return found[0] if found else None
 
 
@@ -68,7 +76,34 @@ def compare(secs, f32_bin, f64_bin, f32_only):
     return None, f"{f32_bin} {len(f32)} unit tests, {f64_bin} {len(f64)}{except_}"
 
 
-def main(path):
+def integration_names(folder=CPU_TESTS):
+    """The integration test files of rtmpm-cpu, without `.rs`."""
+    return sorted(f[:-3] for f in os.listdir(folder) if f.endswith(".rs"))
+
+
+def compare_integration(secs, name):
+    """(problem or None, summary): did rtmpm-cpu's tests/NAME.rs run in f64 (NAME_f64) the tests
+    it ran in f32, and pass? Other crates may have a tests/NAME.rs of their own: the f32 run is
+    the one whose tests are the f64 run's."""
+    f64 = tests_of(secs, f"{name}_f64", f"rtmpm-cpu/tests/{name}.rs")
+    if not f64:
+        return f"rtmpm-cpu tests/{name}.rs ran no tests in f64 (test target {name}_f64)", None
+    # A test may be ignored in f64 only, with its reason in the source (`cfg_attr(feature =
+    # "f64", ignore = "...")`): it is listed, not run.
+    failed = sorted(t for t, r in f64.items() if r not in ("ok", "ignored"))
+    if failed or all(r == "ignored" for r in f64.values()):
+        return f"rtmpm-cpu tests/{name}.rs failed or did not run in f64: {failed[:5]}", None
+    f32_runs = [t for (src, b, _), t in secs.items() if b == name and src == f"tests/{name}.rs"]
+    if not any(set(t) == set(f64) for t in f32_runs):
+        seen = [sorted(set(t) ^ set(f64))[:5] for t in f32_runs]
+        return (f"rtmpm-cpu tests/{name}.rs: the f64 run's tests differ from every f32 run's "
+                f"({len(f32_runs)} runs; tests in one only: {seen})"), None
+    ignored = sorted(t for t, r in f64.items() if r == "ignored")
+    also = f" ({len(ignored)} ignored in f64: {', '.join(ignored)})" if ignored else ""
+    return None, f"rtmpm-cpu tests/{name}.rs {len(f64)} tests in f32 and f64{also}"
+
+
+def main(path, integration=None):
     with open(path, encoding="utf-8", errors="replace") as f:
         secs = sections(f)
     ok = True
@@ -91,6 +126,12 @@ def main(path):
         fail(f"rtmpm-cpu-f64 tests/precision.rs: {cpu}")
     else:
         print(f"check_f64_tests: rtmpm-cpu-f64 tests/precision.rs {len(cpu)} tests: ok")
+    for name in integration_names() if integration is None else integration:
+        problem, summary = compare_integration(secs, name)
+        if problem:
+            fail(problem)
+        else:
+            print(f"check_f64_tests: {summary}: ok")
     return ok
 
 
@@ -100,16 +141,24 @@ def self_test():
     import os
     import tempfile
 
-    def log(cpu_f64_tests, cpu_f64_outcome="ok"):
+    def log(cpu_f64_tests, cpu_f64_outcome="ok", drop_f64=(), flow_f64=("a", "b")):
         lines = []
         for binary, source, tests, outcome in (
+            ("flow", "tests/flow.rs", ["gpu_only"], "ok"),  # another crate's tests/flow.rs
+            ("flow", "tests/flow.rs", ["a", "b"], "ok"),
+            ("flow_f64", "../rtmpm-cpu/tests/flow.rs", list(flow_f64), "ok"),
+            ("jet", "tests/jet.rs", ["c"], "ok"),
+            ("jet_f64", "../rtmpm-cpu/tests/jet.rs", ["c"], "ok"),
             ("rtmpm_physics", "src/lib.rs", ["svd::tests::a", "grid::codes::tests::b"], "ok"),
             ("rtmpm_physics_f64", "../rtmpm-physics/src/lib.rs", ["svd::tests::a"], "ok"),
             ("rtmpm_cpu", "src/lib.rs", ["tests::a", "tests::steer::b"], "ok"),
             ("rtmpm_cpu_f64", "../rtmpm-cpu/src/lib.rs", cpu_f64_tests, cpu_f64_outcome),
             ("precision", "tests/precision.rs", ["f64_agrees"], "ok"),
         ):
-            lines.append(f"     Running unittests {source} (target/debug/deps/{binary}-0123abcd)")
+            if binary in drop_f64:
+                continue
+            kind = "unittests " if source.endswith("src/lib.rs") else ""
+            lines.append(f"     Running {kind}{source} (target/debug/deps/{binary}-0123abcd)")
             lines += [f"test {t} ... {outcome}" for t in tests]
         return "\n".join(lines) + "\n"
 
@@ -117,7 +166,7 @@ def self_test():
         with tempfile.NamedTemporaryFile("w", suffix=".log", delete=False) as f:
             f.write(text)
         try:
-            return main(f.name)
+            return main(f.name, integration=["flow", "jet"])
         finally:
             os.unlink(f.name)
 
@@ -126,6 +175,9 @@ def self_test():
     assert not passes(log(["tests::a"])), "a test of rtmpm-cpu missing in f64 must fail"
     assert not passes(log([])), "no f64 unit tests must fail"
     assert not passes(log(both, "FAILED")), "a test failed in f64 must fail"
+    assert not passes(log(both, drop_f64=("jet_f64",))), "an integration test file not run in f64 must fail"
+    assert not passes(log(both, flow_f64=("a",))), "an integration test not run in f64 must fail"
+    assert integration_names(), "rtmpm-cpu has integration tests"
     print("check_f64_tests: self-test ok")
     return True
 

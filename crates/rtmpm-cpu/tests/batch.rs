@@ -1,8 +1,10 @@
 //! Batches of worlds on the CPU backend: every world gives, bit for bit, the particles of its
 //! own separate run, and a world that blows up is frozen while the others go on unchanged.
 
-use physics::Particles;
-use rtmpm_cpu::CpuBackend;
+use rtmpm_sim::Particles;
+mod common;
+
+use common::cpu::CpuBackend;
 use rtmpm_driver::Simulation;
 use rtmpm_driver::batch::{BatchOptions, BatchRun, WorldStatus};
 use rtmpm_scene::{BatchScene, Scene};
@@ -163,6 +165,11 @@ fn a_world_reset_starts_again_and_the_others_go_on_unchanged() {
 }
 
 #[test]
+#[cfg_attr(
+    feature = "f64",
+    ignore = "a checkpoint holds the particles' f32 interface state: an f64 run resumes from it \
+              rounded, not bit for bit"
+)]
 fn a_resumed_batch_goes_on_bit_for_bit_as_the_run_that_saved_it() {
     // A CFL step (the clock matters) and a world that blows up: its frozen state and status
     // are saved and resumed too.

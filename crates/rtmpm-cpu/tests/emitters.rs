@@ -1,7 +1,9 @@
 //! Emitters in the CPU backend: the emitted mass after t equals rate x t within one particle,
 //! the particles appear with the emitter's velocity and material, and bad emitters are refused.
 
-use rtmpm_cpu::CpuBackend;
+mod common;
+
+use common::cpu::CpuBackend;
 use rtmpm_driver::Simulation;
 use rtmpm_scene::Scene;
 
@@ -18,7 +20,7 @@ fn simulation(text: &str) -> Simulation {
 #[test]
 fn emitted_mass_is_rate_times_time_within_one_particle() {
     let mut sim = simulation(FOUNTAIN);
-    let mut p = physics::Particles::default();
+    let mut p = rtmpm_sim::Particles::default();
     sim.backend.read_particles(&mut p).expect("read");
     let body = p.len();
     let em = sim.scene.emitters[0].clone();

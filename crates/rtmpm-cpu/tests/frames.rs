@@ -1,7 +1,9 @@
 //! The streamed frame writer (`rtmpm_io::stream`) against the whole-frame writers: the
 //! same bytes, from the CPU backend's export and from particles on the host.
 
-use rtmpm_cpu::CpuBackend;
+mod common;
+
+use common::cpu::CpuBackend;
 use rtmpm_io::FrameFields;
 use rtmpm_io::chunks::{FrameChunk, FrameColumns};
 use rtmpm_io::frame::Frame;
@@ -122,7 +124,7 @@ fn compare(
 ) {
     let stress = derived
         .stress
-        .then(|| physics::material::cauchy_stress(p, &scene.materials));
+        .then(|| common::physics32::material::cauchy_stress(p, &scene.materials));
     let jac = derived
         .jacobian
         .then(|| p.f.iter().map(|f| f.determinant()).collect::<Vec<f32>>());

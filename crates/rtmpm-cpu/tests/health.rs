@@ -3,7 +3,9 @@
 //! NaN deformation gradient alone is caught too.
 
 use glam::{Mat3, Vec3};
-use rtmpm_cpu::CpuBackend;
+mod common;
+
+use common::cpu::CpuBackend;
 use rtmpm_driver::Simulation;
 use rtmpm_scene::Scene;
 use rtmpm_sim::{ParticleEdit, SimError};
@@ -42,7 +44,7 @@ fn simulation() -> Simulation<CpuBackend> {
 /// The blow-up of one step after `edit` changed particle `k`.
 fn blowup_after(edit: impl Fn(usize, &mut [Vec3], &mut [Mat3])) -> rtmpm_sim::Blowup {
     let mut sim = simulation();
-    let mut p = physics::Particles::default();
+    let mut p = rtmpm_sim::Particles::default();
     rtmpm_sim::Backend::read_particles(sim.backend.as_mut(), &mut p).expect("read");
     let (mut v, mut f) = (p.v.clone(), p.f.clone());
     edit(17, &mut v, &mut f);

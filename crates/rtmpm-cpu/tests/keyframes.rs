@@ -2,7 +2,9 @@
 //! material exactly as the collider with that constant velocity does, and a keyframed paddle
 //! drags the fluid it sweeps at the keyframes' speed.
 
-use rtmpm_cpu::CpuBackend;
+mod common;
+
+use common::cpu::CpuBackend;
 use rtmpm_driver::Simulation;
 use rtmpm_scene::Scene;
 
@@ -37,19 +39,19 @@ max = [0.6, 0.8, 0.7]
 condition = "sticky"
 "#;
 
-fn run(motion: &str) -> physics::Particles {
+fn run(motion: &str) -> rtmpm_sim::Particles {
     let text = format!("{BASE}{motion}\n");
     let scene = Scene::from_toml(&text, "k").unwrap_or_else(|e| panic!("{e}"));
     let p = scene.sample_particles().expect("particles");
     let backend = CpuBackend::new(&scene, p, Some(1)).expect("backend");
     let mut sim = Simulation::new(scene, Box::new(backend));
     sim.advance_frame().expect("stable");
-    let mut out = physics::Particles::default();
+    let mut out = rtmpm_sim::Particles::default();
     sim.backend.read_particles(&mut out).expect("read");
     out
 }
 
-fn max_difference(a: &physics::Particles, b: &physics::Particles) -> f32 {
+fn max_difference(a: &rtmpm_sim::Particles, b: &rtmpm_sim::Particles) -> f32 {
     a.x.iter()
         .zip(&b.x)
         .map(|(p, q)| (*p - *q).length())
@@ -91,11 +93,11 @@ fn a_keyed_paddle_drags_the_material_at_the_keys_speed() {
     // with it at 1 m/s.
     let mut n = 0;
     for (x, v) in p.x.iter().zip(&p.v) {
-        let rel = *x - physics::math::Vec3::new(0.5, 0.5, 0.6);
+        let rel = *x - glam::Vec3::new(0.5, 0.5, 0.6);
         if rel.x.abs() < 0.02 && rel.y.abs() < 0.2 && rel.z.abs() < 0.1 {
             n += 1;
             assert!(
-                (*v - physics::math::Vec3::Z).length() < 1e-3,
+                (*v - glam::Vec3::Z).length() < 1e-3,
                 "particle at {x} moves at {v}"
             );
         }

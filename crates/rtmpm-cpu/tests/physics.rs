@@ -1,6 +1,8 @@
 //! Whole-pipeline physics checks through the public API: scene text -> particles -> CPU steps.
 
-use rtmpm_cpu::CpuBackend;
+mod common;
+
+use common::cpu::CpuBackend;
 use rtmpm_driver::Simulation;
 use rtmpm_scene::Scene;
 
@@ -46,7 +48,7 @@ sampling = "regular"
     for _ in 0..sim.scene.time.frames() {
         sim.advance_frame().expect("stable");
     }
-    let mut p = physics::Particles::default();
+    let mut p = rtmpm_sim::Particles::default();
     sim.backend.read_particles(&mut p).expect("read");
     let model = &sim.scene.materials[0].model;
     let top = p.x.iter().map(|x| x.y).fold(f32::MIN, f32::max);
@@ -100,7 +102,7 @@ sampling = "regular"
 }
 
 /// Angular momentum `sum m (x - c) x v` of the particles about their centre of mass.
-fn angular_momentum(p: &physics::Particles) -> [f64; 3] {
+fn angular_momentum(p: &rtmpm_sim::Particles) -> [f64; 3] {
     let c = p.center_of_mass();
     let mut l = [0.0f64; 3];
     for i in 0..p.len() {
@@ -150,14 +152,14 @@ sampling = "regular"
     let r = glam::Vec3::new(0.3, -0.7, 1.1);
     let w = glam::Vec3::new(1.0, 2.0, -3.0);
     assert!((p0.c[0] * r - w.cross(r)).length() < 1e-6);
-    let relative_loss = |p_start: physics::Particles, steps: usize| -> f64 {
+    let relative_loss = |p_start: rtmpm_sim::Particles, steps: usize| -> f64 {
         let l0 = angular_momentum(&p_start);
         let mut b = CpuBackend::new(&scene, p_start, Some(1)).expect("backend");
         use rtmpm_sim::Backend;
         for s in 0..steps {
             b.step(1e-3, s as f32 * 1e-3).expect("step");
         }
-        let mut p = physics::Particles::default();
+        let mut p = rtmpm_sim::Particles::default();
         b.read_particles(&mut p).expect("read");
         let l1 = angular_momentum(&p);
         let d =

@@ -3,7 +3,9 @@
 //! (`validation/*.toml`) and measurements (`rtmpm_driver::checks`).
 #![cfg(feature = "rigid")]
 
-use rtmpm_cpu::CpuBackend;
+mod common;
+
+use common::cpu::CpuBackend;
 use rtmpm_driver::{Simulation, checks};
 use rtmpm_scene::Scene;
 
@@ -161,7 +163,7 @@ fn resume_against_straight(
     for _ in 0..first {
         straight.advance_frame().expect("stable");
     }
-    let mut p = physics::Particles::default();
+    let mut p = rtmpm_sim::Particles::default();
     straight.backend.read_particles(&mut p).expect("read");
     let ck = Checkpoint {
         scene_toml: text.into(),
@@ -198,7 +200,10 @@ fn resume_against_straight(
         straight.advance_frame().expect("stable");
         resumed.advance_frame().expect("stable");
     }
-    let (mut a, mut b) = (physics::Particles::default(), physics::Particles::default());
+    let (mut a, mut b) = (
+        rtmpm_sim::Particles::default(),
+        rtmpm_sim::Particles::default(),
+    );
     straight.backend.read_particles(&mut a).expect("read");
     resumed.backend.read_particles(&mut b).expect("read");
     let same = a.x == b.x && a.v == b.v && a.f == b.f;
@@ -214,6 +219,11 @@ fn resume_against_straight(
 /// for bit, bodies and particles (the CPU backend and rapier are deterministic, and a body
 /// without contacts has no solver state besides its pose and velocities).
 #[test]
+#[cfg_attr(
+    feature = "f64",
+    ignore = "a checkpoint holds the particles' f32 interface state: an f64 run resumes from it \
+              rounded, not bit for bit"
+)]
 fn a_resumed_floating_box_continues_bit_for_bit() {
     let (resumed, straight, same) = resume_against_straight(ARCHIMEDES, 6, 4);
     println!("resumed {resumed:?}\nstraight {straight:?}");
