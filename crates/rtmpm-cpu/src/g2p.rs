@@ -1,7 +1,7 @@
 //! Stage 4: grid to particle (APIC, Jiang et al. 2015; MLS-MPM), deformation gradient update,
 //! plastic return mapping, advection and health check.
 
-use crate::state::CpuBackend;
+use crate::state::{CpuBackend, StepConstants};
 use physics::compact_kernel::CkStencil;
 use physics::math::{Mat3, Real, ToReal, Vec3, outer};
 use physics::real;
@@ -56,23 +56,13 @@ pub fn g2p(b: &mut CpuBackend, dt: Real) -> (Real, Option<BadParticle>) {
             new_c *= inv_d;
             *v = new_v;
             *cp = new_c;
-            // F^{n+1} = (I + dt C) F^n, then the plastic return mapping.
-            let model = &c.materials[materials[pi] as usize].model;
-            *f = model.project((Mat3::IDENTITY + new_c * dt) * *f, plastic, dt);
-            // Checked before the clamp, which turns a NaN position into the domain's corner.
-            let moved = *x + dt * new_v;
-            let bad = check_particle(moved, new_v, f, dt, c.dx).map(|reason| BadParticle {
-                index: ids[pi] as usize,
-                reason,
-                seen: Some((real::vec3_to_f32(moved), real::vec3_to_f32(new_v))),
-            });
-            *x = moved.clamp(c.domain_min, c.domain_max);
-            let speed = if new_v.is_finite() {
-                new_v.length()
-            } else {
-                0.0
+            let motion = Motion {
+                l: new_c,
+                v_move: new_v,
+                v: new_v,
+                dt,
             };
-            (speed, bad)
+            finish_particle(c, materials[pi] as usize, ids[pi], (x, f, plastic), motion)
         })
         .reduce(|| (0.0, None), worst)
 }
@@ -116,23 +106,49 @@ pub fn g2p_ck(b: &mut CpuBackend, dt: Real) -> (Real, Option<BadParticle>) {
             let new_c = sum_b * s.inv_moment() * (0.5 * c.inv_dx);
             *v = new_v;
             *cp = new_c;
-            let model = &c.materials[materials[pi] as usize].model;
-            *f = model.project((Mat3::IDENTITY + new_c * dt) * *f, plastic, dt);
-            let moved = *x + dt * new_v;
-            let bad = check_particle(moved, new_v, f, dt, c.dx).map(|reason| BadParticle {
-                index: ids[pi] as usize,
-                reason,
-                seen: Some((real::vec3_to_f32(moved), real::vec3_to_f32(new_v))),
-            });
-            *x = moved.clamp(c.domain_min, c.domain_max);
-            let speed = if new_v.is_finite() {
-                new_v.length()
-            } else {
-                0.0
+            let motion = Motion {
+                l: new_c,
+                v_move: new_v,
+                v: new_v,
+                dt,
             };
-            (speed, bad)
+            finish_particle(c, materials[pi] as usize, ids[pi], (x, f, plastic), motion)
         })
         .reduce(|| (0.0, None), worst)
+}
+
+/// How a particle moves in a step, from the grid: the velocity gradient `L` (the affine `C` of
+/// APIC/MLS-MPM), the velocity that advects it and the velocity it keeps (the same except for
+/// the PIC/FLIP blend of the classic transfers), and the time step.
+struct Motion {
+    l: Mat3,
+    v_move: Vec3,
+    v: Vec3,
+    dt: Real,
+}
+
+/// The end of G2P, the same for every transfer: `F^{n+1} = (I + dt L) F^n` then the material's
+/// plastic return mapping, the health check of the moved particle (before the clamp, which
+/// turns a NaN position into the domain's corner), and advection `x += dt v_move` clamped to
+/// the domain. Returns the kept velocity's speed (0 when not finite) and the particle's problem.
+fn finish_particle(
+    c: &StepConstants,
+    material: usize,
+    id: u32,
+    (x, f, plastic): (&mut Vec3, &mut Mat3, &mut Real),
+    m: Motion,
+) -> (Real, Option<BadParticle>) {
+    let model = &c.materials[material].model;
+    *f = model.project((Mat3::IDENTITY + m.l * m.dt) * *f, plastic, m.dt);
+    let moved = *x + m.dt * m.v_move;
+    let bad = check_particle(moved, m.v, f, m.dt, c.dx).map(|reason| BadParticle {
+        index: id as usize,
+        reason,
+        seen: Some((real::vec3_to_f32(moved), real::vec3_to_f32(m.v))),
+    });
+    *x = moved.clamp(c.domain_min, c.domain_max);
+    let speed = if m.v.is_finite() { m.v.length() } else { 0.0 };
+    (speed, bad)
 }
 
 /// Health check of one particle after a step: a non-finite position (before the clamp to the
@@ -206,17 +222,13 @@ pub fn g2p_mpm(b: &mut CpuBackend, dt: Real, musl: bool) -> (Real, Option<BadPar
                 *v = flip_blend(alpha, *v, v_pic, dv);
             }
             *cp = l;
-            let model = &c.materials[materials[pi] as usize].model;
-            *f = model.project((Mat3::IDENTITY + l * dt) * *f, plastic, dt);
-            let moved = *x + dt * v_pic;
-            let bad = check_particle(moved, *v, f, dt, c.dx).map(|reason| BadParticle {
-                index: ids[pi] as usize,
-                reason,
-                seen: Some((real::vec3_to_f32(moved), real::vec3_to_f32(*v))),
-            });
-            *x = moved.clamp(c.domain_min, c.domain_max);
-            let speed = if v.is_finite() { v.length() } else { 0.0 };
-            (speed, bad)
+            let motion = Motion {
+                l,
+                v_move: v_pic,
+                v: *v,
+                dt,
+            };
+            finish_particle(c, materials[pi] as usize, ids[pi], (x, f, plastic), motion)
         })
         .reduce(|| (0.0, None), worst)
 }
