@@ -68,8 +68,11 @@ def compare(secs, f32_bin, f64_bin, f32_only):
         return f"no unit tests of {f32_bin if f32 is None else f64_bin}", None
     wanted = {t for t in f32 if not t.startswith(f32_only)}
     missing = sorted(wanted - set(f64))
-    failed = sorted(t for t, r in f64.items() if r != "ok")
-    if missing or failed or not f64:
+    # A test the source ignores in both precisions (`#[ignore]`, e.g. an exploratory printout)
+    # is the same in both; one ignored in f64 only is not.
+    failed = sorted(t for t, r in f64.items()
+                    if r != "ok" and not (r == "ignored" and f32.get(t) == "ignored"))
+    if missing or failed or not any(r == "ok" for r in f64.values()):
         return (f"{f64_bin}: {len(missing)} tests not run in f64 ({', '.join(missing[:5])}), "
                 f"failed: {failed[:5]}"), None
     except_ = f" (all but the {len(f32) - len(wanted)} of {', '.join(f32_only)})" if f32_only else ""
@@ -141,7 +144,9 @@ def self_test():
     import os
     import tempfile
 
-    def log(cpu_f64_tests, cpu_f64_outcome="ok", drop_f64=(), flow_f64=("a", "b")):
+    def log(cpu_f64_tests, cpu_f64_outcome="ok", drop_f64=(), flow_f64=("a", "b"), ignored=()):
+        """`ignored`: the unit-test binaries (of rtmpm_cpu, rtmpm_cpu_f64) that list one more
+        test, `tests::slow`, as ignored."""
         lines = []
         for binary, source, tests, outcome in (
             ("flow", "tests/flow.rs", ["gpu_only"], "ok"),  # another crate's tests/flow.rs
@@ -160,6 +165,8 @@ def self_test():
             kind = "unittests " if source.endswith("src/lib.rs") else ""
             lines.append(f"     Running {kind}{source} (target/debug/deps/{binary}-0123abcd)")
             lines += [f"test {t} ... {outcome}" for t in tests]
+            if binary in ignored:
+                lines.append("test tests::slow ... ignored, exploratory")
         return "\n".join(lines) + "\n"
 
     def passes(text):
@@ -175,6 +182,9 @@ def self_test():
     assert not passes(log(["tests::a"])), "a test of rtmpm-cpu missing in f64 must fail"
     assert not passes(log([])), "no f64 unit tests must fail"
     assert not passes(log(both, "FAILED")), "a test failed in f64 must fail"
+    assert passes(log(both, ignored=("rtmpm_cpu", "rtmpm_cpu_f64"))), "ignored in both passes"
+    assert not passes(log(both, ignored=("rtmpm_cpu_f64",))), "ignored in f64 only must fail"
+    assert not passes(log(both, "ignored")), "every f64 unit test ignored must fail"
     assert not passes(log(both, drop_f64=("jet_f64",))), "an integration test file not run in f64 must fail"
     assert not passes(log(both, flow_f64=("a",))), "an integration test not run in f64 must fail"
     assert integration_names(), "rtmpm-cpu has integration tests"
