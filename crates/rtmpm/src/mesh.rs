@@ -80,87 +80,27 @@ pub fn mesh_cmd(args: MeshArgs) -> Result<()> {
     }
     // Meshes are written into the folder: not while a run writes into it.
     let _lock = rtmpm_driver::outdir::OutDir::lock(dir, "rtmpm mesh")?;
-    let frames = crate::render::cmd::ply_frames(dir)?;
-    if frames.is_empty() && dir.join("batch.csv").is_file() {
-        bail!(
-            "{} is the folder of a batch run: its worlds' frames are in its world_NNN folders \
-             (batch.csv lists them)\n  fix: rtmpm mesh {}",
-            dir.display(),
-            dir.join(rtmpm_driver::batch::world_dir_name(0, 2))
-                .display()
-        );
-    }
-    if frames.is_empty() {
-        bail!(
-            "no frame_NNNNN.ply files in {} (run a scene with PLY output first)",
-            dir.display()
-        );
-    }
+    let frames = run_frames(dir)?;
     let scene = args.scene.as_deref().map(Scene::from_file).transpose()?;
-    let mut settings = scene
-        .as_ref()
-        .map(|s| s.output.surface.clone())
-        .unwrap_or_default();
-    if let Some(m) = &args.materials {
-        if let (Some(sc), Some(&bad)) = (
-            &scene,
-            m.iter()
-                .find(|&&i| i as usize >= scene.as_ref().map_or(0, |s| s.materials.len())),
-        ) {
-            let names: Vec<String> = sc
-                .materials
-                .iter()
-                .enumerate()
-                .map(|(i, m)| format!("{i} ({})", m.name))
-                .collect();
-            bail!(
-                "--materials {bad}: the scene has no material {bad}; its materials are {}",
-                names.join(", ")
-            );
-        }
-        settings.materials = m.clone();
-    }
+    let settings = surface_settings(scene.as_ref(), args.materials.as_deref())?;
     // Mean particle volume: from the scene's particles, else from the first frame's spacing.
-    let volume = match &scene {
+    let mut volume = match &scene {
         Some(s) => Some(settings.select(&s.sample_particles()?).1),
         None => None,
     };
-    if scene.is_some() && settings.materials.is_empty() {
-        bail!(
-            "the scene has no fluid material: name the materials with --materials or [surface] materials"
-        );
-    }
     let fps = scene.as_ref().map_or(30.0, |s| s.time.fps as f64);
     let mut pvd = match formats.vtu {
         true => Some(PvdWriter::new(dir.join("surface.pvd")).context("writing surface.pvd")?),
         false => None,
     };
     let t0 = Instant::now();
-    let mut volume = volume;
     let mut one_run = rtmpm_driver::output::OneRun::default();
     let mut said_empty = false;
+    let filter = args.materials.is_some() || scene.is_some();
     for (num, path) in &frames {
-        let frame = selected(path, args.materials.is_some() || scene.is_some(), &settings)?;
+        let frame = selected(path, filter, &settings)?;
         one_run.check(dir, *num, &frame.comments, frame.count)?;
-        if frame.non_finite > 0 {
-            eprintln!(
-                "warning: {}: {} particle(s) with a non-finite position (NaN or infinity) left \
-                 out of the surface; the run that wrote it blew up",
-                path.display(),
-                frame.non_finite
-            );
-        }
-        if frame.positions.is_empty() && frame.count > 0 && !said_empty {
-            said_empty = true;
-            eprintln!(
-                "warning: {}: no particle of the materials meshed ({:?}); the frame's materials \
-                 are {:?}: its surface is empty (choose them with --materials or [surface] \
-                 materials)",
-                path.display(),
-                settings.materials,
-                frame.materials
-            );
-        }
+        warn_about_frame(path, &frame, &settings, &mut said_empty);
         let xs = frame.positions;
         let vol = *volume.get_or_insert_with(|| (estimate_radius(&xs) / 0.6).powi(3));
         let mesh = rtmpm_driver::output::reconstruct_points(&xs, &settings.params(vol))
@@ -184,6 +124,81 @@ pub fn mesh_cmd(args: MeshArgs) -> Result<()> {
         t0.elapsed().as_secs_f64() / frames.len() as f64
     );
     Ok(())
+}
+
+/// The `frame_NNNNN.ply` files of a run's folder, in order; an error that says what to give
+/// instead when there are none (the folder of a batch run holds its worlds' folders).
+fn run_frames(dir: &Path) -> Result<Vec<(u64, PathBuf)>> {
+    let frames = crate::render::cmd::ply_frames(dir)?;
+    if frames.is_empty() && dir.join("batch.csv").is_file() {
+        bail!(
+            "{} is the folder of a batch run: its worlds' frames are in its world_NNN folders \
+             (batch.csv lists them)\n  fix: rtmpm mesh {}",
+            dir.display(),
+            dir.join(rtmpm_driver::batch::world_dir_name(0, 2))
+                .display()
+        );
+    }
+    if frames.is_empty() {
+        bail!(
+            "no frame_NNNNN.ply files in {} (run a scene with PLY output first)",
+            dir.display()
+        );
+    }
+    Ok(frames)
+}
+
+/// The surface settings: the scene's `[surface]` (defaults without a scene), with the
+/// materials of `--materials` when given, each checked against the scene's materials.
+fn surface_settings(scene: Option<&Scene>, materials: Option<&[u32]>) -> Result<SurfaceSettings> {
+    let mut settings = scene.map(|s| s.output.surface.clone()).unwrap_or_default();
+    if let Some(m) = materials {
+        if let Some(sc) = scene
+            && let Some(&bad) = m.iter().find(|&&i| i as usize >= sc.materials.len())
+        {
+            let names: Vec<String> = sc
+                .materials
+                .iter()
+                .enumerate()
+                .map(|(i, m)| format!("{i} ({})", m.name))
+                .collect();
+            bail!(
+                "--materials {bad}: the scene has no material {bad}; its materials are {}",
+                names.join(", ")
+            );
+        }
+        settings.materials = m.to_vec();
+    }
+    if scene.is_some() && settings.materials.is_empty() {
+        bail!(
+            "the scene has no fluid material: name the materials with --materials or [surface] materials"
+        );
+    }
+    Ok(settings)
+}
+
+/// Warnings about a frame read for meshing: particles left out for a non-finite position,
+/// and (once a run) a frame with particles none of which is of the meshed materials.
+fn warn_about_frame(path: &Path, frame: &Frame, settings: &SurfaceSettings, said_empty: &mut bool) {
+    if frame.non_finite > 0 {
+        eprintln!(
+            "warning: {}: {} particle(s) with a non-finite position (NaN or infinity) left \
+             out of the surface; the run that wrote it blew up",
+            path.display(),
+            frame.non_finite
+        );
+    }
+    if frame.positions.is_empty() && frame.count > 0 && !*said_empty {
+        *said_empty = true;
+        eprintln!(
+            "warning: {}: no particle of the materials meshed ({:?}); the frame's materials \
+             are {:?}: its surface is empty (choose them with --materials or [surface] \
+             materials)",
+            path.display(),
+            settings.materials,
+            frame.materials
+        );
+    }
 }
 
 /// What [`selected`] reads of a PLY frame.

@@ -207,43 +207,8 @@ pub fn view(args: ViewArgs) -> Result<()> {
         }
         None => None,
     };
-    let (lo, hi) = scene.interior();
     let Size(width, height) = args.size;
-    let most = rtmpm_render::MAX_VIEW_SIDE;
-    if width > most || height > most {
-        bail!("--size {width}x{height} is too large for a live view: at most {most} per side");
-    }
-    let camera = {
-        let mut c = Camera::framing(
-            lo,
-            hi,
-            width as f32 / height as f32,
-            args.fov.unwrap_or(Camera::DEFAULT_FOV),
-        );
-        if let Some(t) = args.target {
-            c.target = t;
-        }
-        if let Some(p) = args.camera {
-            c.position = p;
-        }
-        c.check().map_err(|e| anyhow!("bad camera: {e}"))?;
-        c
-    };
-    if let Some(r) = args.radius
-        && !(r.is_finite() && r > 0.0)
-    {
-        bail!("--radius must be a positive length, got {r}");
-    }
-    if let Some(r) = args.radius
-        && r > (hi - lo).max_element()
-    {
-        bail!(
-            "--radius {r:e} m is larger than the domain's interior ({} m across): every particle \
-             would cover the picture\n  fix: a radius of about the particle spacing (leave \
-             --radius out for 0.6 of it)",
-            (hi - lo).max_element()
-        );
-    }
+    let camera = picture_camera(&args, &scene)?;
     let options = SessionOptions {
         width,
         height,
@@ -291,6 +256,55 @@ pub fn view(args: ViewArgs) -> Result<()> {
             session.finish().map_err(|e| anyhow!(e))?
         }
     };
+    report(&summary)
+}
+
+/// The live view's camera, framing the scene's interior (or where `--camera` and `--target`
+/// put it), once the picture's `--size` and `--radius` are checked.
+fn picture_camera(args: &ViewArgs, scene: &Scene) -> Result<Camera> {
+    let (lo, hi) = scene.interior();
+    let Size(width, height) = args.size;
+    let most = rtmpm_render::MAX_VIEW_SIDE;
+    if width > most || height > most {
+        bail!("--size {width}x{height} is too large for a live view: at most {most} per side");
+    }
+    let camera = {
+        let mut c = Camera::framing(
+            lo,
+            hi,
+            width as f32 / height as f32,
+            args.fov.unwrap_or(Camera::DEFAULT_FOV),
+        );
+        if let Some(t) = args.target {
+            c.target = t;
+        }
+        if let Some(p) = args.camera {
+            c.position = p;
+        }
+        c.check().map_err(|e| anyhow!("bad camera: {e}"))?;
+        c
+    };
+    if let Some(r) = args.radius
+        && !(r.is_finite() && r > 0.0)
+    {
+        bail!("--radius must be a positive length, got {r}");
+    }
+    if let Some(r) = args.radius
+        && r > (hi - lo).max_element()
+    {
+        bail!(
+            "--radius {r:e} m is larger than the domain's interior ({} m across): every particle \
+             would cover the picture\n  fix: a radius of about the particle spacing (leave \
+             --radius out for 0.6 of it)",
+            (hi - lo).max_element()
+        );
+    }
+    Ok(camera)
+}
+
+/// The session's summary on stderr: pictures, frames, the step time with the view on, why the
+/// simulation stopped, and the recording (an error when it failed).
+fn report(summary: &rtmpm_view::Summary) -> Result<()> {
     eprintln!(
         "view: {} pictures shown, {} frames ({} steps, t = {:.4} s)",
         summary.displayed, summary.frames, summary.steps, summary.time
@@ -308,7 +322,7 @@ pub fn view(args: ViewArgs) -> Result<()> {
     if let Some(e) = &summary.error {
         eprintln!("view: the simulation stopped: {e}");
     }
-    match summary.recording {
+    match &summary.recording {
         Some(Ok(line)) => eprintln!("view: recorded {line}"),
         Some(Err(e)) => bail!("{e}"),
         None => {}
