@@ -622,7 +622,7 @@ def test_the_interpreter_runs_other_threads_while_stepping(small_path):
 
 def period_and_amplitude(t, y):
     """Period (twice the mean spacing of zero crossings) and mean peak |y| between crossings,
-    as `rtmpm validate` measures them (crates/rtmpm/src/validate/measure.rs)."""
+    as `rtmpm validate` measures them (crates/rtmpm-validate/src/measure.rs)."""
     t, y = np.asarray(t), np.asarray(y)
     cross = []
     for i in range(1, len(y)):

@@ -40,6 +40,8 @@ mod world_stub;
 pub use joint::{JointKind, JointSpec};
 pub use spec::{HANG_LAYER_CELLS, RigidBodySpec, RigidKind, resolution_warnings};
 pub use state::{BodyLoad, BodyPose, BodyState, Exchange};
+/// True when this build simulates rigid bodies (the cargo feature `rigid`: rapier3d).
+pub const AVAILABLE: bool = cfg!(feature = "rigid");
 #[cfg(feature = "rigid")]
 pub use world::RigidWorld;
 #[cfg(not(feature = "rigid"))]

@@ -5,8 +5,8 @@
 //! `emitters.rs`), the full run at half the grid spacing (archimedes at a quarter, for twice the
 //! time). The measurements are `rtmpm_driver::checks`, shared with those tests.
 
-use super::case::{Ctx, Row};
-use super::measure::rel_pct;
+use crate::case::{Ctx, Row};
+use crate::measure::rel_pct;
 use anyhow::{Result, anyhow};
 use rtmpm_driver::checks;
 use rtmpm_render::plot::{Plot, Series, Style};
@@ -19,7 +19,7 @@ pub const NEEDS_FEATURE: &str = "needs the rigid-body engine, which this build o
 
 /// True when this build simulates `[[rigid_body]]` tables.
 pub fn available() -> bool {
-    cfg!(feature = "rigid")
+    rtmpm_rigid::AVAILABLE
 }
 
 fn need_engine() -> Result<()> {
@@ -34,7 +34,7 @@ fn need_engine() -> Result<()> {
 /// grid spacing divided by `refine` (walls kept as thick in metres).
 fn scene_text(ctx: &Ctx, file: &str, refine: u32) -> Result<String> {
     let text = ctx.scene_text(file)?;
-    if ctx.args.quick {
+    if ctx.options.quick {
         Ok(text)
     } else {
         checks::refine(&text, refine).map_err(|e| anyhow!("{file}: {e}"))
@@ -61,7 +61,7 @@ const ARCHIMEDES_FULL_DURATION: f64 = 3.0;
 pub fn archimedes(ctx: &Ctx) -> Result<Vec<Row>> {
     need_engine()?;
     let mut base = scene_text(ctx, "archimedes.toml", ARCHIMEDES_REFINE)?;
-    if !ctx.args.quick {
+    if !ctx.options.quick {
         base = checks::edit_toml(&base, &[("time.duration", ARCHIMEDES_FULL_DURATION.into())])
             .map_err(|e| anyhow!("archimedes.toml: {e}"))?;
     }

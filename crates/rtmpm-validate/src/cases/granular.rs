@@ -1,7 +1,7 @@
 //! Case 6: granular column collapse against Lube 2005 / Lajeunesse 2005 runout scaling.
 
-use super::case::{Ctx, Row};
-use super::measure::rel_pct;
+use crate::case::{Ctx, Row};
+use crate::measure::rel_pct;
 use anyhow::{Result, ensure};
 use rtmpm_physics::math::Vec3;
 use rtmpm_physics::transfer::SolverSettings;
@@ -75,14 +75,14 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
     run_with(ctx, "granular_column", None)
 }
 
-/// The same collapse with CK-MPM ([`super::case::CK`]; experimental, CPU backend only).
+/// The same collapse with CK-MPM ([`crate::case::CK`]; experimental, CPU backend only).
 pub fn run_ck(ctx: &Ctx) -> Result<Vec<Row>> {
-    run_with(ctx, "granular_column_ck", Some(super::case::CK))
+    run_with(ctx, "granular_column_ck", Some(crate::case::CK))
 }
 
 fn run_with(ctx: &Ctx, case: &str, solver: Option<SolverSettings>) -> Result<Vec<Row>> {
     // Quick: h = L0/20 (the scene file); full: h = L0/40.
-    let dx = if ctx.args.quick { 0.005 } else { 0.0025 };
+    let dx = if ctx.options.quick { 0.005 } else { 0.0025 };
     let x = collapse(ctx, dx, solver)?;
     let (p98, tip) = runouts(&x, dx);
     let a = H0 / L0;
@@ -142,7 +142,7 @@ fn run_with(ctx: &Ctx, case: &str, solver: Option<SolverSettings>) -> Result<Vec
         unit: "%",
     };
     let rows = vec![row("98th pct", p98), row("deposit tip", tip)];
-    if ctx.args.convergence {
+    if ctx.options.convergence {
         for h in [0.01f32, 0.005, 0.0025] {
             let (p98, tip) = runouts(&collapse(ctx, h, solver)?, h);
             println!(

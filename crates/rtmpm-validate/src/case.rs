@@ -1,59 +1,59 @@
-//! What a validation case gets and gives: the command line ([`ValidateArgs`]), the context
-//! that loads and runs its scenes ([`Ctx`]), the rows of the table ([`Row`]) and the transfer of
-//! the `*_gimp` cases ([`GIMP`]).
+//! What a validation case gets and gives: the options of a validation run ([`Options`]), the
+//! context that loads and runs its scenes ([`Ctx`]), the rows of the table ([`Row`]) and the
+//! transfers of the `*_gimp` and `*_ck` cases ([`GIMP`], [`CK`]).
 
-use crate::backend::{BackendKind, make_backend};
-use anyhow::{Context, Result};
-use clap::Args;
+use anyhow::{Context, Result, anyhow};
+use rtmpm_backends::{BackendKind, BackendRequest};
 use rtmpm_driver::Simulation;
 use rtmpm_physics::Particles;
 use rtmpm_render::plot::Plot;
 use rtmpm_scene::Scene;
 use std::path::PathBuf;
 
-#[derive(Args)]
-pub struct ValidateArgs {
-    /// Backend.
-    #[arg(long, value_enum, default_value_t = BackendKind::Auto)]
+/// How to run the validation cases: the backend, the resolution and where the scenes are.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// Backend (`Auto`: CUDA when a GPU is usable, else the CPU; the choice is printed).
     pub backend: BackendKind,
-    /// Run only these cases, comma separated (free_fall, hydrostatic_column,
-    /// hydrostatic_column_gimp, vibrating_bar, vibrating_bar_gimp, dam_break, colliding_disks,
-    /// granular_column, slump, cohesive_column, archimedes, sinking, rigid_momentum,
-    /// emitter_mass; the rigid-body ones need the cargo feature `rigid`). Only when named: the
-    /// experimental CK-MPM cases hydrostatic_column_ck, vibrating_bar_ck, dam_break_ck,
-    /// granular_column_ck (CPU backend only).
-    #[arg(long, value_delimiter = ',')]
-    pub case: Vec<String>,
     /// Coarse resolutions that finish in a few minutes on 2 CPU cores (what CI runs).
-    #[arg(long)]
     pub quick: bool,
     /// Also run the convergence studies (three resolutions, observed order).
-    #[arg(long)]
     pub convergence: bool,
-    /// Folder of the validation scenes.
-    #[arg(long, default_value = "validation")]
+    /// Folder of the validation scenes (`validation/` of the repository).
     pub scenes: PathBuf,
-    /// Where the plots go.
-    #[arg(long, default_value = "out/validation")]
-    pub out: PathBuf,
     /// CPU worker threads (default: one per core).
-    #[arg(long)]
     pub threads: Option<usize>,
-    /// Floating-point precision of the whole step: f32 or f64 (default: the scene's
-    /// `[solver] precision`, else f32).
-    #[arg(long, value_name = "f32|f64")]
+    /// Floating-point precision of the whole step (default: the scene's `[solver] precision`).
     pub precision: Option<rtmpm_scene::Precision>,
-    /// The CUDA backend's particle state: f32 or compact (default: the scene's
-    /// `[solver] particle_state`, else f32; the CPU backend ignores it).
-    #[arg(long, value_name = "f32|compact")]
+    /// The CUDA backend's particle state (default: the scene's `[solver] particle_state`).
     pub particle_state: Option<rtmpm_scene::ParticleState>,
 }
 
-/// One line of the table.
+impl Default for Options {
+    /// Every case at full resolution on the best backend, scenes in `validation/`.
+    fn default() -> Options {
+        Options {
+            backend: BackendKind::Auto,
+            quick: false,
+            convergence: false,
+            scenes: PathBuf::from("validation"),
+            threads: None,
+            precision: None,
+            particle_state: None,
+        }
+    }
+}
+
+/// One line of the table: a measured quantity of a case against its reference.
+#[derive(Clone, Debug)]
 pub struct Row {
+    /// The case's name (`free_fall`, ...).
     pub case: String,
+    /// What was measured, with the resolution where it matters.
     pub quantity: String,
+    /// The reference value (analytic solution or experiment).
     pub reference: f64,
+    /// The simulated value.
     pub simulated: f64,
     /// Error in the unit the tolerance is stated in.
     pub error: f64,
@@ -63,29 +63,31 @@ pub struct Row {
 }
 
 impl Row {
+    /// True when the error is finite and within the tolerance.
     pub fn pass(&self) -> bool {
         self.error.is_finite() && self.error <= self.tolerance
     }
 }
 
-/// What a case needs from the command line, and the plots it produces.
+/// What a case needs from the options, and the plots it produces.
 pub struct Ctx<'a> {
-    pub args: &'a ValidateArgs,
+    /// The options of the run.
+    pub options: &'a Options,
     plots: std::cell::RefCell<Vec<(String, Plot)>>,
 }
 
 impl<'a> Ctx<'a> {
-    /// The context of a validation run with the command line `args`, no plots yet.
-    pub fn new(args: &'a ValidateArgs) -> Ctx<'a> {
+    /// The context of a validation run with `options`, no plots yet.
+    pub fn new(options: &'a Options) -> Ctx<'a> {
         Ctx {
-            args,
+            options,
             plots: Default::default(),
         }
     }
 
-    /// The plots kept so far, in the order kept.
-    pub fn plots(&self) -> std::cell::Ref<'_, Vec<(String, Plot)>> {
-        self.plots.borrow()
+    /// The plots kept, in the order kept, taken out of the context.
+    pub fn take_plots(&self) -> Vec<(String, Plot)> {
+        self.plots.take()
     }
 }
 
@@ -97,13 +99,13 @@ impl Ctx<'_> {
 
     /// Load a validation scene.
     pub fn scene(&self, file: &str) -> Result<Scene> {
-        let path = self.args.scenes.join(file);
+        let path = self.options.scenes.join(file);
         Scene::from_file(&path).with_context(|| format!("validation scene {}", path.display()))
     }
 
     /// The text of a validation scene.
     pub fn scene_text(&self, file: &str) -> Result<String> {
-        let path = self.args.scenes.join(file);
+        let path = self.options.scenes.join(file);
         std::fs::read_to_string(&path)
             .with_context(|| format!("validation scene {}", path.display()))
     }
@@ -111,23 +113,34 @@ impl Ctx<'_> {
     /// A simulation at t = 0 of the scene `text` (named `origin` in messages), its particles
     /// sampled, on the backend and in the precision of the command line.
     pub fn simulation(&self, text: &str, origin: &str) -> Result<Simulation> {
-        let mut scene = Scene::from_toml_in(text, origin, &self.args.scenes)
+        let mut scene = Scene::from_toml_in(text, origin, &self.options.scenes)
             .with_context(|| format!("validation scene {origin}"))?;
-        if let Some(p) = self.args.precision {
+        if let Some(p) = self.options.precision {
             scene.precision = p;
         }
-        if let Some(s) = self.args.particle_state {
+        if let Some(s) = self.options.particle_state {
             scene.particle_state = s;
         }
         let particles = scene.sample_particles()?;
-        let backend = make_backend(
-            self.args.backend,
-            &scene,
-            particles,
-            self.args.threads,
-            &rtmpm_cuda::CudaOptions::default(),
-        )?;
+        let backend = self.backend(&scene, particles)?;
         Ok(Simulation::new(scene, backend))
+    }
+
+    /// The backend of the options for `scene` (in its precision), with `particles`; says which
+    /// one `Auto` picked and why.
+    fn backend(&self, scene: &Scene, particles: Particles) -> Result<Box<dyn rtmpm_sim::Backend>> {
+        let request = BackendRequest {
+            kind: self.options.backend,
+            threads: self.options.threads,
+            gpus: 1,
+            cuda: rtmpm_cuda::CudaOptions::default(),
+        };
+        let created =
+            rtmpm_backends::create(&request, scene, particles).map_err(|e| anyhow!("{e}"))?;
+        if self.options.backend == BackendKind::Auto {
+            eprintln!("backend: {}", created.reason);
+        }
+        Ok(Box::new(created.backend))
     }
 
     /// Run `scene` from `particles`, calling `each_frame(time, particles)` after every frame
@@ -138,20 +151,14 @@ impl Ctx<'_> {
         particles: Particles,
         mut each_frame: impl FnMut(f64, &Particles),
     ) -> Result<Simulation> {
-        if let Some(p) = self.args.precision {
+        if let Some(p) = self.options.precision {
             scene.precision = p;
         }
-        if let Some(s) = self.args.particle_state {
+        if let Some(s) = self.options.particle_state {
             scene.particle_state = s;
         }
         each_frame(0.0, &particles);
-        let backend = make_backend(
-            self.args.backend,
-            &scene,
-            particles,
-            self.args.threads,
-            &rtmpm_cuda::CudaOptions::default(),
-        )?;
+        let backend = self.backend(&scene, particles)?;
         let mut sim = Simulation::new(scene, backend);
         let mut host = Particles::default();
         for _ in 0..sim.scene.time.frames() {

@@ -7,8 +7,8 @@
 //! plotted). The analysis is quasi-static (the cylinder lifted slowly): the release is damped
 //! (settling damping, `validation/slump.toml`), else inertia adds slump.
 
-use super::case::{Ctx, Row};
-use super::measure::rel_pct;
+use crate::case::{Ctx, Row};
+use crate::measure::rel_pct;
 use anyhow::{Context, Result, ensure};
 use rtmpm_physics::material::{Material, MaterialParams};
 use rtmpm_physics::math::Vec3;
@@ -116,7 +116,7 @@ fn slump(ctx: &Ctx, dx: f32, tau: f64) -> Result<(f64, Vec<(f64, f64)>)> {
 pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
     // Full resolution only: at h = H/12 the slump is not resolved (s' = 0.28 against 0.39 at
     // tau' = 0.15, validation/RESULTS.md), and h = H/24 takes minutes on two CPU cores.
-    if ctx.args.quick {
+    if ctx.options.quick {
         eprintln!(
             "validate: slump runs at full resolution only (h = H/24; run it without --quick)"
         );

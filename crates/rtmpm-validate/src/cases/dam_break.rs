@@ -1,6 +1,6 @@
 //! Case 3: dam break against Martin & Moyce 1952 (experiment): surge front Z(T).
 
-use super::case::{Ctx, Row};
+use crate::case::{Ctx, Row};
 use anyhow::Result;
 use rtmpm_physics::transfer::SolverSettings;
 use rtmpm_render::plot::{Plot, Series, Style};
@@ -45,9 +45,9 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
     run_with(ctx, "dam_break", None)
 }
 
-/// The same dam break with CK-MPM ([`super::case::CK`]; experimental, CPU backend only).
+/// The same dam break with CK-MPM ([`crate::case::CK`]; experimental, CPU backend only).
 pub fn run_ck(ctx: &Ctx) -> Result<Vec<Row>> {
-    run_with(ctx, "dam_break_ck", Some(super::case::CK))
+    run_with(ctx, "dam_break_ck", Some(crate::case::CK))
 }
 
 fn run_with(ctx: &Ctx, case: &str, solver: Option<SolverSettings>) -> Result<Vec<Row>> {
@@ -55,7 +55,7 @@ fn run_with(ctx: &Ctx, case: &str, solver: Option<SolverSettings>) -> Result<Vec
     if let Some(s) = solver {
         scene.solver = s;
     }
-    if !ctx.args.quick {
+    if !ctx.options.quick {
         // Full resolution: half the spacing, the same tank and walls 3 cells thick.
         let dx = scene.dx / 2.0;
         scene.domain_min = rtmpm_physics::math::Vec3::splat(-3.0 * dx);

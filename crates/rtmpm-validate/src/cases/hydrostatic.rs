@@ -1,7 +1,7 @@
 //! Case 2: hydrostatic column (exact): sigma_yy = -rho g d; cb-geo's explicit MPM for comparison.
 
-use super::case::{Ctx, Row};
-use super::measure::{Curve, fit_line, observed_order, rel_pct};
+use crate::case::{Ctx, Row};
+use crate::measure::{Curve, fit_line, observed_order, rel_pct};
 use anyhow::Result;
 use rtmpm_geometry::Shape;
 use rtmpm_geometry::shape::Cuboid;
@@ -85,18 +85,18 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
     run_with(ctx, "hydrostatic_column", None)
 }
 
-/// The same column with uGIMP ([`super::case::GIMP`]).
+/// The same column with uGIMP ([`crate::case::GIMP`]).
 pub fn run_gimp(ctx: &Ctx) -> Result<Vec<Row>> {
-    run_with(ctx, "hydrostatic_column_gimp", Some(super::case::GIMP))
+    run_with(ctx, "hydrostatic_column_gimp", Some(crate::case::GIMP))
 }
 
-/// The same column with CK-MPM ([`super::case::CK`]; experimental, CPU backend only).
+/// The same column with CK-MPM ([`crate::case::CK`]; experimental, CPU backend only).
 pub fn run_ck(ctx: &Ctx) -> Result<Vec<Row>> {
-    run_with(ctx, "hydrostatic_column_ck", Some(super::case::CK))
+    run_with(ctx, "hydrostatic_column_ck", Some(crate::case::CK))
 }
 
 fn run_with(ctx: &Ctx, case: &str, solver: Option<SolverSettings>) -> Result<Vec<Row>> {
-    let dx = if ctx.args.quick { 0.01 } else { 0.005 };
+    let dx = if ctx.options.quick { 0.01 } else { 0.005 };
     let (slope, base, rho_g, layers) = measure(ctx, dx, solver)?;
     let transfer = match solver {
         Some(s) => s,
@@ -147,7 +147,7 @@ fn run_with(ctx: &Ctx, case: &str, solver: Option<SolverSettings>) -> Result<Vec
             unit: "%",
         },
     ];
-    if ctx.args.convergence {
+    if ctx.options.convergence {
         let hs = [0.02f32, 0.01, 0.005];
         let mut errs = Vec::new();
         for &h in &hs {

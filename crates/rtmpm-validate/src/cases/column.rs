@@ -4,7 +4,7 @@
 //! yield surface (`Nacc::uniaxial_strength`; for a Mohr-Coulomb soil `q_u = 2 c tan(45 + phi/2)`,
 //! half the Rankine/Terzaghi height of a vertical cut, REFERENCES.md case 9): `H_c = q_u / (rho g)`.
 
-use super::case::{Ctx, Row};
+use crate::case::{Ctx, Row};
 use anyhow::{Context, Result, bail, ensure};
 use rtmpm_geometry::Shape;
 use rtmpm_geometry::shape::Cuboid;
@@ -36,7 +36,7 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
             _ => bail!("cohesive_column.toml: the columns must be boxes"),
         })
         .collect::<Result<_>>()?;
-    if !ctx.args.quick {
+    if !ctx.options.quick {
         // Full: a finer grid, the same columns and domain interior.
         let dx = 0.5 * scene.dx;
         let t = scene.walls.thickness as f32;

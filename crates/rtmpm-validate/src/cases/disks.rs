@@ -1,8 +1,8 @@
 //! Case 5: two colliding elastic disks (Sulsky, Chen & Schreyer 1994): energy behaviour, with the
 //! reference's transfer (linear-hat MPM, MUSL, FLIP; the scene's `[solver]` table).
 
-use super::case::{Ctx, Row};
-use super::measure::{Curve, rel_pct};
+use crate::case::{Ctx, Row};
+use crate::measure::{Curve, rel_pct};
 use anyhow::Result;
 use rtmpm_render::plot::{Plot, Series, Style};
 

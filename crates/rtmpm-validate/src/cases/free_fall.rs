@@ -1,6 +1,6 @@
 //! Case 4: free fall (exact): x = x0 + v0 t - g t^2 / 2 for every particle.
 
-use super::case::{Ctx, Row};
+use crate::case::{Ctx, Row};
 use anyhow::Result;
 use rtmpm_scene::StepMode;
 

@@ -1,7 +1,7 @@
 //! Case 1: axial vibration of a continuous elastic bar (exact, Bardenhagen 2002).
 
-use super::case::{Ctx, Row};
-use super::measure::{Curve, observed_order, period_and_amplitude, rel_pct};
+use crate::case::{Ctx, Row};
+use crate::measure::{Curve, observed_order, period_and_amplitude, rel_pct};
 use anyhow::Result;
 use rtmpm_geometry::Shape;
 use rtmpm_physics::math::Vec3;
@@ -62,20 +62,20 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
     run_with(ctx, "vibrating_bar", None)
 }
 
-/// The same bar with uGIMP ([`super::case::GIMP`]).
+/// The same bar with uGIMP ([`crate::case::GIMP`]).
 pub fn run_gimp(ctx: &Ctx) -> Result<Vec<Row>> {
-    run_with(ctx, "vibrating_bar_gimp", Some(super::case::GIMP))
+    run_with(ctx, "vibrating_bar_gimp", Some(crate::case::GIMP))
 }
 
-/// The same bar with CK-MPM ([`super::case::CK`]; experimental, CPU backend only).
+/// The same bar with CK-MPM ([`crate::case::CK`]; experimental, CPU backend only).
 pub fn run_ck(ctx: &Ctx) -> Result<Vec<Row>> {
-    run_with(ctx, "vibrating_bar_ck", Some(super::case::CK))
+    run_with(ctx, "vibrating_bar_ck", Some(crate::case::CK))
 }
 
 fn run_with(ctx: &Ctx, case: &str, solver: Option<SolverSettings>) -> Result<Vec<Row>> {
     // 14 cells (the reference's typical run) loses 2.2 % of the amplitude to APIC dissipation over
     // 3 periods (see the convergence study); 28 cells is within 0.3 %.
-    let cells = if ctx.args.quick { 28 } else { 56 };
+    let cells = if ctx.options.quick { 28 } else { 56 };
     let (period, amplitude, samples) = measure(ctx, cells, solver)?;
     let w1 = PI / (2.0 * L) * (100.0f64 / 1.0).sqrt();
     let (p_ref, a_ref) = (2.0 * PI / w1, 2.0 * V0 / PI);
@@ -130,7 +130,7 @@ fn run_with(ctx: &Ctx, case: &str, solver: Option<SolverSettings>) -> Result<Vec
             unit: "%",
         },
     ];
-    if ctx.args.convergence {
+    if ctx.options.convergence {
         let mut errs = Vec::new();
         for c in [14u32, 28, 56] {
             let (p, a, _) = measure(ctx, c, solver)?;
