@@ -8,6 +8,7 @@
 //! * [`batch`]: `BatchSimulation`, many worlds of a scene stepped together.
 //! * [`particles`]: `Particles` (NumPy arrays in original order, setters).
 //! * [`device`]: `DeviceArray` (zero-copy DLPack / CUDA Array Interface views on the GPU).
+//! * [`validate`]: `rtmpm.validate()`, the published validation cases.
 //! * [`errors`]: the exceptions.
 
 mod backend;
@@ -24,6 +25,7 @@ mod pool;
 mod scene;
 mod simulation;
 mod state;
+mod validate;
 mod view;
 
 use pyo3::prelude::*;
@@ -95,5 +97,7 @@ fn _rtmpm(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(read_ply, m)?)?;
     m.add_function(wrap_pyfunction!(cuda_available, m)?)?;
     m.add_function(wrap_pyfunction!(device::_layout_view, m)?)?;
+    m.add_function(wrap_pyfunction!(validate::validate, m)?)?;
+    m.add_function(wrap_pyfunction!(validate::validation_cases, m)?)?;
     Ok(())
 }

@@ -34,6 +34,8 @@ from ._rtmpm import (
     features,
     frame_formats,
     read_ply,
+    validate,
+    validation_cases,
 )
 
 
@@ -78,4 +80,6 @@ __all__ = [
     "features",
     "frame_formats",
     "read_ply",
+    "validate",
+    "validation_cases",
 ]
