@@ -597,6 +597,12 @@ def cases():
             write(w / "frames" / "frame_00000.ply", data)
         out.append(Case(f"ply: {name}", ["render", "{W}/frames", "--size", "64x36", "--no-movie"],
                         [words] if words else [()], may_accept=not words, setup=mk))
+    # A radius wider than the particles' extent: each sphere would cover the picture (hours).
+    for r in ["1e30", "50"]:
+        out.append(Case(f"ply: render --radius {r}",
+                        ["render", "{W}/frames", "--size", "64x36", "--no-movie", "--radius", r],
+                        [("--radius", "larger than")],
+                        setup=lambda w: write(w / "frames" / "frame_00000.ply", good_ply())))
     out.append(Case("ply: frame is a link to /dev/zero", ["render", "{W}/frames", "--no-movie"],
                     [("not a regular file",)],
                     setup=lambda w: ((w / "frames").mkdir(), os.symlink("/dev/zero", w / "frames" / "frame_00000.ply"))))

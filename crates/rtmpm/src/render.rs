@@ -137,6 +137,16 @@ fn resolve(
     if !(radius.is_finite() && radius > 0.0) {
         bail!("--radius must be a positive length, got {radius}");
     }
+    // A sphere wider than everything drawn covers the whole picture: every particle would be
+    // drawn over every pixel (hours for a large frame), and the picture shows nothing.
+    let across = (bounds.1 - bounds.0).max_element();
+    if view.radius.is_some() && across.is_finite() && radius > across {
+        bail!(
+            "--radius {radius:e} m is larger than the particles' extent ({across} m across): \
+             every particle would cover the picture\n  fix: a radius of about the particle \
+             spacing (leave --radius out to take it from the spacing)"
+        );
+    }
     let mut opts = RenderOptions::new(bounds.0, bounds.1, radius);
     opts.width = width;
     opts.height = height;
