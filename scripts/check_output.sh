@@ -57,5 +57,7 @@ RTMPM_INTEROP_DIR="$PWD/$fmt_out" cargo test --quiet --workspace --all-features 
 # (emitter_mass). Not archimedes: at its quick resolution the density-250 box's draft is 1.25
 # cells and misses the 5 % (validation/RESULTS.md); the cargo test tests/rigid.rs checks the 500
 # and 750 boxes at that resolution in the test stage, and the GPU all three at full resolution.
+# vibrating_bar_ck: the experimental CK-MPM transfer (CPU only) on the bar, whose fixed end is a
+# sticky plane through a node plane: it fails when a boundary holds only one of its two grids.
 rtmpm validate --quick --backend cpu \
-  --case free_fall,hydrostatic_column,vibrating_bar,vibrating_bar_gimp,dam_break,colliding_disks,granular_column,cohesive_column,sinking,rigid_momentum,emitter_mass
+  --case free_fall,hydrostatic_column,vibrating_bar,vibrating_bar_gimp,vibrating_bar_ck,dam_break,colliding_disks,granular_column,cohesive_column,sinking,rigid_momentum,emitter_mass
