@@ -115,15 +115,20 @@ impl Ctx<'_> {
     pub fn simulation(&self, text: &str, origin: &str) -> Result<Simulation> {
         let mut scene = Scene::from_toml_in(text, origin, &self.options.scenes)
             .with_context(|| format!("validation scene {origin}"))?;
+        self.override_solver(&mut scene);
+        let particles = scene.sample_particles()?;
+        let backend = self.backend(&scene, particles)?;
+        Ok(Simulation::new(scene, backend))
+    }
+
+    /// The options' precision and particle state, where given, in place of the scene's.
+    fn override_solver(&self, scene: &mut Scene) {
         if let Some(p) = self.options.precision {
             scene.precision = p;
         }
         if let Some(s) = self.options.particle_state {
             scene.particle_state = s;
         }
-        let particles = scene.sample_particles()?;
-        let backend = self.backend(&scene, particles)?;
-        Ok(Simulation::new(scene, backend))
     }
 
     /// The backend of the options for `scene` (in its precision), with `particles`; says which
@@ -151,12 +156,7 @@ impl Ctx<'_> {
         particles: Particles,
         mut each_frame: impl FnMut(f64, &Particles),
     ) -> Result<Simulation> {
-        if let Some(p) = self.options.precision {
-            scene.precision = p;
-        }
-        if let Some(s) = self.options.particle_state {
-            scene.particle_state = s;
-        }
+        self.override_solver(&mut scene);
         each_frame(0.0, &particles);
         let backend = self.backend(&scene, particles)?;
         let mut sim = Simulation::new(scene, backend);

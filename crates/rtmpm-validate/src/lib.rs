@@ -162,10 +162,9 @@ pub fn run(cases: &[String], options: &Options) -> Result<Report> {
     };
     for (name, case) in selected {
         if RIGID_CASES.contains(name) && !rigid::available() && cases.is_empty() {
-            eprintln!("validate: {name} skipped: it {}", rigid::NEEDS_FEATURE);
-            report
-                .skipped
-                .push((name.to_string(), format!("it {}", rigid::NEEDS_FEATURE)));
+            let why = format!("it {}", rigid::NEEDS_FEATURE);
+            eprintln!("validate: {name} skipped: {why}");
+            report.skipped.push((name.to_string(), why));
             continue;
         }
         let start = Instant::now();
