@@ -32,7 +32,7 @@ use cudarc::driver::{CudaSlice, DevicePtr, PushKernelArg};
 use rtmpm_physics::Particles;
 use rtmpm_physics::math::Vec3;
 use rtmpm_scene::Scene;
-use rtmpm_sim::{Backend, BadParticle, SimError};
+use rtmpm_sim::{Backend, BadParticle, SimError, Worlds};
 
 /// Cells from the start of a world's stripe of the grid to its grid origin.
 pub const WORLD_ORIGIN_CELLS: usize = 8;
@@ -185,6 +185,13 @@ impl CudaBatch {
         self.params
     }
 
+    /// The scene the kernels run: world 0's, with every world's materials (rows `w *
+    /// materials ..` are world `w`'s) and the strongest world's gravity (what bounds the
+    /// shared time step).
+    pub fn scene(&self) -> &Scene {
+        &self.backend.scene
+    }
+
     /// The one backend that holds every world (for its timing and memory figures).
     pub fn backend(&mut self) -> &mut CudaBackend {
         &mut self.backend
@@ -305,6 +312,73 @@ impl CudaBatch {
             b.set_ctl_word(CTL_P2G_PENDING, 1)?;
         }
         b.stream.synchronize().map_err(err("put a world"))
+    }
+}
+
+/// The batch as one backend: every world stepped by the same launches (one `dt` for all), its
+/// health check over every world (the bad particle's index is over all worlds:
+/// [`Worlds::world_of_particle`] says whose), its particles all worlds' in order.
+impl Backend for CudaBatch {
+    fn name(&self) -> String {
+        format!("{}, {} worlds", self.backend.name(), self.worlds())
+    }
+
+    fn num_particles(&self) -> usize {
+        self.backend.num_particles()
+    }
+
+    fn step(&mut self, dt: f32, t: f32) -> Result<(), SimError> {
+        self.backend.step(dt, t)
+    }
+
+    fn max_speed(&mut self) -> Result<f32, SimError> {
+        self.backend.max_speed()
+    }
+
+    fn check(&mut self) -> Result<Option<BadParticle>, SimError> {
+        self.backend.check()
+    }
+
+    fn read_particles(&mut self, out: &mut Particles) -> Result<(), SimError> {
+        self.backend.read_particles(out)
+    }
+
+    fn cheap_check(&self) -> bool {
+        self.backend.cheap_check()
+    }
+
+    fn stage_times(&self) -> Vec<(&'static str, f64)> {
+        self.backend.stage_times()
+    }
+
+    fn memory_bytes(&self) -> Option<(u64, u64)> {
+        self.backend.memory_bytes()
+    }
+
+    fn setup_details(&self) -> Option<String> {
+        self.backend.setup_details()
+    }
+
+    fn end_of_frame(&mut self) -> Result<(), SimError> {
+        self.backend.end_of_frame()
+    }
+}
+
+impl Worlds for CudaBatch {
+    fn worlds(&self) -> usize {
+        CudaBatch::worlds(self)
+    }
+
+    fn read_worlds(&mut self) -> Result<Vec<Particles>, SimError> {
+        CudaBatch::read_worlds(self)
+    }
+
+    fn put_world(&mut self, w: usize, particles: &Particles) -> Result<(), SimError> {
+        CudaBatch::put_world(self, w, particles)
+    }
+
+    fn world_of_particle(&self, index: usize) -> Option<(usize, usize)> {
+        CudaBatch::world_of_particle(self, index)
     }
 }
 

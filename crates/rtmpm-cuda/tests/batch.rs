@@ -341,6 +341,97 @@ particles_per_cell = 1
 // ---------------------------------------------------------------------------------------------
 // Benchmark.
 
+/// The frame-by-frame driver of a GPU batch (`rtmpm run --backend cuda` of a batch:
+/// `rtmpm_driver::batch::lockstep`): four wedge worlds at a fixed step, each with its own
+/// gravity, give world by world their separate CUDA runs (the agreement test's aggregate
+/// tolerances) after 3 frames; then a world given a body speed of 10^5 m/s is frozen at frame 0
+/// with a blow-up, the frame is stepped again without it, and the others still agree.
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn the_lockstep_driver_runs_a_gpu_batch_and_freezes_a_blown_up_world() {
+    use rtmpm_driver::Simulation;
+    use rtmpm_driver::batch::lockstep::LockstepRun;
+    use rtmpm_driver::batch::{BatchOptions, WorldStatus};
+    if !gpu() {
+        return;
+    }
+    let fixed = |mut s: Scene| {
+        s.time.step = rtmpm_scene::StepMode::Fixed { dt: DT };
+        s
+    };
+    let lockstep = |blow_up: Option<usize>| {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/wedge_slump.toml");
+        let mut b = BatchScene::from_file(&path).expect("wedge_slump.toml");
+        b.worlds = wedge_worlds(4).into_iter().map(fixed).collect();
+        let p0: Vec<Particles> = b
+            .worlds
+            .iter()
+            .enumerate()
+            .map(|(w, s)| {
+                let mut p = s.sample_particles().expect("particles");
+                if Some(w) == blow_up {
+                    p.v.iter_mut().for_each(|v| *v = Vec3::new(1e5, 0.0, 0.0));
+                }
+                p
+            })
+            .collect();
+        let batch = CudaBatch::new(&b.worlds, &p0, precise()).expect("batch");
+        let scene = batch.scene().clone();
+        let options = BatchOptions {
+            frames: Some(3),
+            ..BatchOptions::default()
+        };
+        let mut r =
+            LockstepRun::new(&b, "wedge", scene, Box::new(batch), &options).expect("lockstep run");
+        r.execute(|_, _| {}).expect("run");
+        (b, r)
+    };
+    let alone = |s: &Scene| {
+        let p = s.sample_particles().expect("particles");
+        let b = CudaBackend::new(s, &p, precise()).expect("world");
+        let mut sim = Simulation::with_backend(s.clone(), Box::new(b));
+        for _ in 0..3 {
+            sim.advance_frame().expect("stable");
+        }
+        read(sim.backend.as_mut())
+    };
+    let mut failures = Vec::new();
+    let (b, r) = lockstep(None);
+    assert_eq!((r.sim.frame, r.running()), (3, 4));
+    let separate: Vec<Particles> = b.worlds.iter().map(alone).collect();
+    for (w, want) in separate.iter().enumerate() {
+        failures.extend(agrees(
+            &format!("lockstep world {w} after 3 frames"),
+            None,
+            r.worlds[w].particles(),
+            want,
+            b.worlds[w].dx,
+        ));
+    }
+    let (_, r) = lockstep(Some(2));
+    match &r.worlds[2].status {
+        WorldStatus::Frozen { frame, reason } => {
+            assert_eq!(*frame, 0, "{reason}");
+            assert!(
+                reason.contains("blew up") || reason.contains("time step"),
+                "{reason}"
+            );
+        }
+        other => panic!("world 2 should be frozen: {other:?}"),
+    }
+    for w in [0, 1, 3] {
+        assert_eq!(r.worlds[w].status, WorldStatus::Running);
+        failures.extend(agrees(
+            &format!("lockstep world {w} beside a frozen one"),
+            None,
+            r.worlds[w].particles(),
+            &separate[w],
+            b.worlds[w].dx,
+        ));
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
 /// A small sand bed: 14 x 6 x 14 cells of sand at 8 particles a cell (9,408 particles) dropped
 /// 3 cells onto a sticky floor in a 32 x 20 x 32-cell box (dx = 1/64 m), fixed dt.
 fn sand_bed(half: f32) -> String {

@@ -9,6 +9,7 @@
 //! `frames.pvd` and Houdini a world's `frame_$F5.bgeo` as they would any run.
 
 pub mod checkpoint;
+pub mod lockstep;
 
 use crate::outdir::{OutDir, scene_identity};
 use crate::output::FrameOutput;
@@ -255,29 +256,50 @@ impl BatchRun {
             return Ok(());
         };
         let count = self.worlds.len();
-        let mut csv = String::from("world,folder,label,status,frames,steps\n");
+        let mut csv = String::from(SUMMARY_HEADER);
         for (w, world) in self.worlds.iter().enumerate() {
-            let (status, frame) = match &world.status {
-                WorldStatus::Running if world.sim.frame >= self.frames => {
-                    ("done".to_string(), world.sim.frame)
-                }
-                WorldStatus::Running => ("running".to_string(), world.sim.frame),
-                WorldStatus::Frozen { frame, reason } => {
-                    (format!("frozen: {}", reason.replace('\n', " ")), *frame)
-                }
-            };
-            csv.push_str(&format!(
-                "{w},{},{},{},{frame},{}\n",
-                world_dir_name(w, count),
-                quote(&world.label),
-                quote(&status),
-                world.sim.step
+            csv.push_str(&summary_row(
+                w,
+                count,
+                &world.label,
+                &world.status,
+                (world.sim.frame, self.frames),
+                world.sim.step,
             ));
         }
         let path = out.dir.join("batch.csv");
         rtmpm_io::write_atomic(&path, csv.as_bytes())
             .with_context(|| format!("writing {}", path.display()))
     }
+}
+
+/// The header of `batch.csv`.
+const SUMMARY_HEADER: &str = "world,folder,label,status,frames,steps\n";
+
+/// World `w`'s row of `batch.csv` (of `count` worlds): index, folder, label, status (`done`,
+/// `running` or `frozen: why`), the frames it completed (`frames.0` while running, of
+/// `frames.1` in all; a frozen world's last) and the steps taken.
+fn summary_row(
+    w: usize,
+    count: usize,
+    label: &str,
+    status: &WorldStatus,
+    frames: (u64, u64),
+    steps: u64,
+) -> String {
+    let (status, frame) = match status {
+        WorldStatus::Running if frames.0 >= frames.1 => ("done".to_string(), frames.0),
+        WorldStatus::Running => ("running".to_string(), frames.0),
+        WorldStatus::Frozen { frame, reason } => {
+            (format!("frozen: {}", reason.replace('\n', " ")), *frame)
+        }
+    };
+    format!(
+        "{w},{},{},{},{frame},{steps}\n",
+        world_dir_name(w, count),
+        quote(label),
+        quote(&status)
+    )
 }
 
 impl World {

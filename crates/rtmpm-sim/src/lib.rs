@@ -8,6 +8,7 @@ pub mod backend;
 pub mod chunks;
 pub mod edit;
 pub mod error;
+pub mod worlds;
 
 pub use backend::Backend;
 pub use chunks::{ChunkSink, export_particles, fill_chunks, invert_ids};
@@ -15,3 +16,4 @@ pub use edit::ParticleEdit;
 pub use error::{BadParticle, BadReason, Blowup, MAX_CELLS_PER_STEP, SimError};
 /// The particles of the backend interface: f32 whatever precision a backend computes in.
 pub use rtmpm_physics::Particles;
+pub use worlds::Worlds;

@@ -7,6 +7,8 @@ use rtmpm_scene::batch::{memory_refusal, scaled_budget};
 use rtmpm_scene::{BatchScene, Budget};
 use std::path::Path;
 
+mod gpu;
+
 /// True when the scene file `path` has a `[batch]` table (false when it cannot be read or
 /// parsed: loading it reports why).
 pub fn is_batch(path: &Path) -> bool {
@@ -113,15 +115,12 @@ pub fn run(args: &crate::run::RunArgs) -> Result<()> {
     };
     let b = &load(path)?;
     use rtmpm_driver::batch::{BatchOptions, BatchRun, WorldStatus};
-    if args.backend == BackendKind::Cuda {
-        bail!(
-            "rtmpm run steps batches on the CPU backend (the worlds in the same CUDA kernels \
-             exist as the Rust API rtmpm_cuda::batch::CudaBatch, not yet behind rtmpm run: \
-             docs/batch.md)\n  fix: --backend cpu"
-        );
-    }
     if !matches!(args.multi.mode()?, crate::multi::Mode::Single) {
-        bail!("a batch runs on the CPU backend: several GPUs or processes do not apply");
+        bail!(
+            "a batch runs on one GPU or on the CPU backend: several GPUs or processes do not \
+             apply\n  fix: leave out --gpus/--ranks (on one GPU every world runs in the same \
+             kernels)"
+        );
     }
     if args.render || args.preview.is_some() {
         bail!(
@@ -161,8 +160,11 @@ pub fn run(args: &crate::run::RunArgs) -> Result<()> {
         out_dir: out.clone(),
         overwrite: args.overwrite,
     };
-    eprintln!("batch: {} worlds on the CPU backend", b.count());
     let start = std::time::Instant::now();
+    if args.backend == BackendKind::Cuda {
+        return gpu::run(b, &text, &options, &args.cuda_options, start);
+    }
+    eprintln!("batch: {} worlds on the CPU backend", b.count());
     let cuda = rtmpm_cuda::CudaOptions::default();
     let mut run = BatchRun::new(
         b,
