@@ -51,10 +51,10 @@
 #                host's time per picture and the stream's fps. About 3 min. The GPU tests of the render
 #                stage and of steering are in `tests` (TESTS="test_render test_steer")
 #   view-soak    memory over a long stream: the snow 1.33M streamed to a client on this machine for
-#                VIEW_SOAK_SECONDS (default 600; a device call lasts at most 600 s, so 500 fits one),
+#                VIEW_SOAK_SECONDS (default 600; a device call lasts at most 600 s, so 540 fits one),
 #                host and GPU memory of the server at the start, middle and end (every VIEW_SOAK_EVERY s);
-#                the view's default (pictures not overlapped with the steps on CUDA), RTMPM_VIEW_OVERLAP=1
-#                in the environment for the overlap
+#                the view's default (pictures overlapped with the steps), RTMPM_VIEW_OVERLAP=0 in the
+#                environment for the loop without
 #   batch        many worlds in the same kernels: tests/batch.rs (16 wedge worlds vs 16 separate runs, a
 #                reset and a blown-up world beside others, refusals) and its benchmark (1,024 sand beds of
 #                9,408 particles: batched vs one scene of as many particles vs worlds one after another)

@@ -5,8 +5,8 @@
 #   off         rtmpm bench --scene SCENE --warmup <one frame> --frames N-1
 #   no client   rtmpm view SCENE --serve --frames N (a picture every frame, nobody watching:
 #               nothing is JPEG-encoded), with RTMPM_VIEW_OVERLAP=1 (pictures collected while the
-#               next frame's steps run; the CUDA backend does that only when asked, see
-#               docs/viewer.md)
+#               next frame's steps run: the default, docs/viewer.md; set here so that an older
+#               binary, which overlapped only when asked, is measured the same way)
 #   client      the same with scripts/viewer/stream_client.py watching (every picture encoded
 #               and sent); it starts paused and the client resumes it
 #   no overlap  the client run with RTMPM_VIEW_OVERLAP=0: each picture drawn and published

@@ -407,7 +407,8 @@ mod tests {
             &["-DRTMPM_P2G_REDUCE=4", "-DRTMPM_P2G_ROUNDS_MAX=3"],
             &["-DRTMPM_P2G_UNROLL=1"],
             &["-DRTMPM_STATE_STREAM=1"],
-            &["-DG2P2G_MIN_BLOCKS=5", "-DG2P2G_FLUID_MIN_BLOCKS=5"],
+            // The fused kernels' register bounds before 96 registers became the default.
+            &["-DG2P2G_MIN_BLOCKS=0", "-DG2P2G_FLUID_MIN_BLOCKS=4"],
             // Many worlds in one set of arrays (crate::batch).
             &["-DRTMPM_BATCH"],
             // The node-by-node step as it was before the three became the default.

@@ -19,10 +19,10 @@ pub struct Kernels {
     /// cooperative launch); `None`: the rebuild runs as separate kernels (`rebuild=kernels`).
     pub rb_fused_grid: Option<u32>,
     /// Blocks of 128 threads of the fused G2P2G kernels (`g2p2g`, `g2p2g_fluid`) that are
-    /// resident on the device at once, when `RTMPM_G2P2G_GRID=resident` asks for a grid of that
-    /// size (every block loops over the warp list until it ends: no partly filled last round of
-    /// blocks when the blocks per SM do not divide the wave); `None`: one wave of threads
-    /// ([`Kernels::wave`]), the default.
+    /// resident on the device at once: their grid (every block loops over the warp list until
+    /// it ends: no partly filled last round of blocks when the blocks per SM do not divide the
+    /// wave); `None` with `RTMPM_G2P2G_GRID=wave`: one wave of threads ([`Kernels::wave`]), as
+    /// before the resident grid became the default.
     pub g2p2g_resident: Option<[u32; 2]>,
     /// Fields of the rebuild's sort scratch
     /// ([`crate::options::CudaOptions::sort_scratch_fields`]): the state is permuted that many
@@ -66,7 +66,7 @@ impl Kernels {
                 .map_err(|e| SimError::Backend(format!("CUDA: occupancy of rb_fused: {e:?}")))?;
             k.rb_fused_grid = Some(per_sm * sm_count.max(1) as u32).filter(|&g| g > 0);
         }
-        if std::env::var("RTMPM_G2P2G_GRID").is_ok_and(|v| v == "resident") {
+        if std::env::var("RTMPM_G2P2G_GRID").map_or(true, |v| v.trim() != "wave") {
             let resident = |f: Kernel| {
                 k[f].occupancy_max_active_blocks_per_multiprocessor(128, 0, None)
                     .map(|per_sm| per_sm * sm_count.max(1) as u32)

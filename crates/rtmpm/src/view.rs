@@ -223,9 +223,8 @@ pub fn view(args: ViewArgs) -> Result<()> {
         hud: !args.no_hud,
         shadows: !args.no_shadows,
         // RTMPM_VIEW_OVERLAP=0: each picture drawn and published before the next step (the
-        // view's cost measured both ways in one binary). The CUDA backend begins pictures to
-        // overlap only with RTMPM_VIEW_OVERLAP=1 (rtmpm_cuda::backend::view_overlap: not yet run
-        // on a GPU); the CPU backend draws on the host.
+        // view's cost measured both ways in one binary; rtmpm_cuda::backend::view_overlap);
+        // the CPU backend draws on the host.
         overlap: std::env::var("RTMPM_VIEW_OVERLAP").map_or(true, |v| v.trim() != "0"),
     };
     let session = Session::start(factory(scene, &args), options, recorder)

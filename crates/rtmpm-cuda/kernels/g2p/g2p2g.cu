@@ -12,18 +12,19 @@
 #include "particle.cuh"
 #include "../p2g/warp.cuh"
 
-// Register budgets, measured (bench/RESULTS.md): the general kernel as ptxas picks it (128
-// registers; a minimum-blocks hint, even of 1, changes its choices and cost jelly 8 %); the fluid
-// variant with at least 4 resident blocks (128 registers; left alone it takes 168 and runs 8 %
-// slower, at 5 blocks it spills).
+// Register budgets, measured on an H200 (bench/RESULTS.md, "Occupancy"): both fused kernels held
+// to 5 resident blocks of 128 threads a SM (96 registers, 24-48 bytes of spills with ptxas 13.0)
+// and launched as the blocks resident at once (crates/rtmpm-cuda/src/kernels.rs) ran the claymore
+// scenes 5-9 % faster than ptxas's own choice for the general kernel (128 registers; a hint of 1
+// to 4 cost jelly 8 %) with 4 blocks for the fluid one. -DG2P2G_MIN_BLOCKS=0 leaves the general
+// kernel to ptxas, -DG2P2G_FLUID_MIN_BLOCKS=4 restores the fluid kernel's earlier bound.
 #ifndef G2P2G_FLUID_MIN_BLOCKS
-#define G2P2G_FLUID_MIN_BLOCKS 4
+#define G2P2G_FLUID_MIN_BLOCKS 5
 #endif
-// -DG2P2G_MIN_BLOCKS=N: a minimum-blocks hint for the general kernel (none by default). With 5 for
-// both kernels (96 registers, a few spills) and the resident grid (RTMPM_G2P2G_GRID=resident) the
-// claymore scenes ran 5-7 % faster on the H200 (bench/RESULTS.md); off until the whole GPU test set
-// has passed with it.
-#ifdef G2P2G_MIN_BLOCKS
+#ifndef G2P2G_MIN_BLOCKS
+#define G2P2G_MIN_BLOCKS 5
+#endif
+#if G2P2G_MIN_BLOCKS > 0
 #define G2P2G_BOUNDS 128, G2P2G_MIN_BLOCKS
 #else
 #define G2P2G_BOUNDS 128
