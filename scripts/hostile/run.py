@@ -661,6 +661,12 @@ def cases():
     # 10. batch files run and rendered, and the live view's flags.
     out.extend(batch_run_and_view_cases(S))
     out.extend(live_view_cases(S))
+    # 11. CK-MPM with the other features, batch sweeps that break one world, the picture
+    # commands' numbers, and blow-ups from a keyframed collider or an emitter within one step.
+    out.extend(ck_mpm_cases(S))
+    out.extend(batch_sweep_cases(S))
+    out.extend(picture_flag_cases(S))
+    out.extend(step_budget_cases(S))
 
     # 8. flags.
     for args, words in [
@@ -782,6 +788,203 @@ def batch_run_and_view_cases(S):
                     [("exists", "--overwrite")],
                     setup=lambda w: (write(w / "scene.toml", GOOD_SCENE), write(w / "mine.gif", "mine")),
                     keep=["mine.gif"]))
+    return out
+
+
+CK = '\n[solver]\ntransfer = "ck-mpm"\n'
+RIGID_BOX = '[[rigid_body]]\nshape = "box"\nmin = [0.3, 0.3, 0.3]\nmax = [0.36, 0.36, 0.36]\ndensity = 500.0\n'
+
+
+def ck_mpm_cases(S):
+    """Section 11a: CK-MPM (`transfer = "ck-mpm"`) with the options of the classic transfers,
+    rigid bodies, emitters, batches, particle files, keyframes, the CUDA backend, and the resume
+    of a checkpoint written with another transfer."""
+    out = []
+    ck = GOOD_SCENE + CK
+    run = ["run", S, "--backend", "cpu", "--out", "{W}/out"]
+    for name, text, words in [
+        ("update = musl", ck + 'update = "musl"\n', [("solver.update",), ("ck-mpm",)]),
+        ("flip = 0.5", ck + "flip = 0.5\n", [("solver.flip",), ("ck-mpm",)]),
+        ("flip = 0", ck + "flip = 0.0\n", [("solver.flip",)]),
+        ("a rigid body", ck + RIGID_BOX, [("solver.transfer",), ("rigid_body[0]",)]),
+        ("(gimp, musl) a rigid body", GOOD_SCENE + '\n[solver]\ntransfer = "gimp"\nupdate = "musl"\n' + RIGID_BOX,
+         [("solver.update",), ("rigid_body[0]",)]),
+    ]:
+        out.append(Case(f"ck-mpm: {name}", ["check", S], words,
+                        setup=lambda w, t=text: write(w / "scene.toml", t)))
+    out.append(Case("ck-mpm: a rigid body (run)", run + ["--frames", "1", "--no-output"],
+                    [("solver.transfer",), ("rigid_body[0]",)],
+                    setup=lambda w: write(w / "scene.toml", ck + RIGID_BOX)))
+    emitter = ('[[emitter]]\nmaterial = "water"\nshape = "box"\nmin = [0.27, 0.1, 0.27]\n'
+               'max = [0.33, 0.125, 0.33]\nvelocity = [0.0, 2.0, 0.0]\nrate = 2000.0\n')
+    keyed = ('[[collider]]\nshape = "sphere"\ncenter = [0.4, 0.3, 0.4]\nradius = 0.03\n'
+             'keyframes = [{ t = 0.0 }, { t = 0.05, position = [0.4, 0.3, 0.3] }]\n')
+    pts = ck.replace('shape = "sphere"\ncenter = [0.33, 0.2, 0.3]\nradius = 0.06',
+                     'shape = "particles"\nfile = "p.ply"')
+    three = b"".join(struct.pack("<3f", 0.3 + 0.01 * i, 0.2, 0.3) for i in range(3))
+    for name, text, files in [
+        ("an emitter", ck + emitter, {}),
+        ("a batch", ck.replace('formats = ["ply", "vtu"]', 'formats = ["ply"]') + BATCH_TAIL, {}),
+        ("a particle file", pts,
+         {"p.ply": ply_bytes(["element vertex 3"] + [f"property float {c}" for c in "xyz"], three)}),
+        ("a keyframed collider", ck + keyed, {}),
+    ]:
+        def mk(w, text=text, files=files):
+            write(w / "scene.toml", text)
+            for f, data in files.items():
+                write(w / f, data)
+        out.append(Case(f"ck-mpm: a run with {name}", run, [()], may_accept=True, setup=mk))
+    out.append(Case("ck-mpm: --backend cuda", ["run", S, "--backend", "cuda", "--no-output"],
+                    [("--backend cpu",)], setup=lambda w: write(w / "scene.toml", ck)))
+
+    # A checkpoint of an MLS run resumed with the scene file edited to CK-MPM: the checkpoint's
+    # scene runs on, so the edit would be ignored without a word.
+    def mls_run(w, then):
+        write(w / "scene.toml", GOOD_SCENE)
+        r = subprocess.run([BIN, "run", str(w / "scene.toml"), "--backend", "cpu", "--out", str(w / "out"),
+                            "--frames", "1", "--checkpoint-every", "1"], capture_output=True,
+                           stdin=subprocess.DEVNULL)
+        assert r.returncode == 0, r.stderr
+        write(w / "scene.toml", then)
+    resume = ["run", S, "--resume", "{W}/out/checkpoint_00001.ckpt", "--backend", "cpu", "--out", "{W}/out"]
+    out.append(Case("ck-mpm: resume of an MLS checkpoint with the scene edited to ck-mpm", resume,
+                    [("scene.toml:",), ("differs from the scene stored in the checkpoint",)],
+                    setup=lambda w: mls_run(w, ck), keep=["out"]))
+    out.append(Case("ck-mpm: resume with the checkpoint's own scene file", resume + ["--frames", "2"],
+                    [()], may_accept=True, setup=lambda w: mls_run(w, GOOD_SCENE)))
+    return out
+
+
+def batch_sweep_cases(S):
+    """Section 11b: sweeps that break one world (a negative modulus, infinities, a density
+    whose sound speed overflows), huge counts, fields the file leaves out."""
+    out = []
+    for name, tail, words in [
+        ("a range to a negative Young's modulus", '[batch]\ncount = 3\n[batch.sweep]\n'
+         '"material[0].youngs_modulus" = { from = -1e4, to = 2e4 }\n', [("world 0",), ("-10000",), ("youngs_modulus",)]),
+        ("a list ending in a negative Young's modulus", '[batch]\ncount = 3\n[batch.sweep]\n'
+         '"material[0].youngs_modulus" = [2e4, 2e4, -5]\n', [("world 2",), ("-5",)]),
+        ("gravity of -inf in one world", '[batch]\ncount = 2\n[batch.sweep]\n"gravity[1]" = [-9.81, -inf]\n',
+         [("world 1",), ("finite",)]),
+        ("gravity of -1e30 in one world", '[batch]\ncount = 2\n[batch.sweep]\n"gravity[1]" = [-9.81, -1e30]\n',
+         [("world 1",), ("gravity",)]),
+        ("a range to inf", '[batch]\ncount = 2\n[batch.sweep]\n"gravity[1]" = { from = -9.81, to = inf }\n',
+         [("`to`",), ("finite",)]),
+        ("count 1e9 (integer)", "[batch]\ncount = 1000000000\n", [("1000000000",), ("65536",)]),
+        ("count 1e9 (float)", "[batch]\ncount = 1e9\n", [("batch.count",), ("whole number",)]),
+        ("a log range of densities down to 1e-45", '[batch]\ncount = 3\n[batch.sweep]\n'
+         '"material[0].density" = { from = 1e-45, to = 1, spacing = "log" }\n', [("world 0",), ("material[0].density",)]),
+        ("a density whose sound speed overflows f32", '[batch]\ncount = 2\n[batch.sweep]\n'
+         '"material[0].density" = [1000, 1e-38]\n', [("world 1",), ("sound speed",)]),
+        ("a number for a text field the file leaves out", '[batch]\ncount = 2\n[batch.sweep]\n'
+         '"walls.condition" = [1, 2]\n', [("world 0 (walls.condition = 1) is refused",)]),
+        ("a count for a lattice body", '[batch]\ncount = 2\n[batch.sweep]\n"body[0].count" = [1, 2]\n',
+         [("world 0",), ("random",)]),
+        ("a field of a table the file lacks", '[batch]\ncount = 2\n[batch.sweep]\n"solver.flip" = [0.1, 0.2]\n',
+         [("no `solver`",)]),
+        ("time.dt in a CFL scene", '[batch]\ncount = 2\n[batch.sweep]\n"time.dt" = [1e-3, 2e-3]\n',
+         [("world 0",), ("time.cfl",)]),
+    ]:
+        out.append(Case(f"batch sweep: {name}", ["check", S], words,
+                        setup=lambda w, t=GOOD_SCENE + "\n" + tail: write(w / "scene.toml", t)))
+    out.append(Case("scene: density 1e-38 (sound speed past f32)", ["check", S],
+                    [("material[0].density",), ("sound speed",)],
+                    setup=lambda w: write(w / "scene.toml", GOOD_SCENE.replace(
+                        "density = 1000.0\nyoungs", "density = 1e-38\nyoungs"))))
+    return out
+
+
+def picture_flag_cases(S):
+    """Section 11c: the numbers of `render`, `view`, `mesh` and `run --threads` not tried
+    before: frame rates a movie cannot have, fields of view of 0 and 180, cameras so far that
+    nothing shows, a paused or over-long recording without a front-end, zero threads."""
+    out = []
+    ply_scene = GOOD_SCENE.replace('formats = ["ply", "vtu"]', 'formats = ["ply"]')
+
+    def ran(w):
+        write(w / "scene.toml", ply_scene)
+        r = subprocess.run([BIN, "run", str(w / "scene.toml"), "--backend", "cpu", "--out", str(w / "out")],
+                           capture_output=True, stdin=subprocess.DEVNULL)
+        assert r.returncode == 0, r.stderr
+    render = ["render", "{W}/out", "--size", "64x36"]
+    for args, words, kind in [
+        (["--fps", "1e30"], [("--fps",), ("out of range",)], "error"),
+        (["--fps", "1e-30"], [("--fps",), ("out of range",)], "error"),
+        (["--fps", "0"], [("--fps",)], "error"),
+        (["--fps=-1"], [("--fps",)], "error"),
+        (["--fps", "60"], [("--fps 60",), ("50 frames",)], "warn"),
+        (["--fov", "0"], [("--fov",), ("field of view",)], "error"),
+        (["--fov", "nan"], [("--fov",), ("field of view",)], "error"),
+        (["--fov", "180"], [("--fov",), ("field of view",)], "error"),
+        (["--camera", "1e30,0,0"], [("--camera",), ("too far apart", "would show nothing")], "error"),
+        (["--camera", "1e6,0,0"], [("--camera",), ("would show nothing",)], "error"),
+        (["--target", "1e30,1e30,1e30"], [("--target",), ("too far apart",)], "error"),
+        (["--target", "inf,0,0"], [("--target",)], "error"),
+        (["--radius", "0"], [("--radius",)], "error"),
+        (["--radius", "nan"], [("--radius",)], "error"),
+        (["--radius=-1"], [("--radius",)], "error"),
+        (["--radius", "1e-30", "--no-movie"], [()], "accept"),
+        (["--gif-size", "8x8"], [("--gif-size",)], "error"),
+        (["--range", "0,1e39"], [("--range",)], "error"),
+    ]:
+        out.append(Case("render flags: " + " ".join(args), render + args, words, warn=kind == "warn",
+                        may_accept=kind == "accept", setup=ran))
+    for args, words in [
+        (["--bench", "--bench-particles", "99999999999"], [("--bench-particles",), ("particles fit",)]),
+        (["--bench", "--bench-particles", "0"], [("--bench-particles",)]),
+    ]:
+        out.append(Case("render flags: " + " ".join(args), ["render"] + args, words))
+    view = ["view", S, "--backend", "cpu", "--no-window", "--record", "{W}/m.gif", "--size", "64x36"]
+    for args, words, accept in [
+        (["--fov", "0", "--frames", "1"], [("--fov",), ("field of view",)], False),
+        (["--fov", "179.99", "--frames", "1"], [("field of view",), ("would show nothing",)], False),
+        (["--camera", "1e30,0,0", "--frames", "1"], [("--camera",), ("too far apart", "would show nothing")], False),
+        (["--target", "1e30,1e30,1e30", "--frames", "1"], [("too far apart",)], False),
+        (["--paused", "--frames", "2"], [("--paused",)], False),
+        (["--threads", "0", "--frames", "1"], [("--threads",)], False),
+        (["--pace", "frames:0"], [("frames:N",)], False),
+        (["--quality", "0"], [("--quality",)], False),
+        (["--quality", "1e30"], [("--quality",)], False),
+        # Past the scene's 2 frames, and without --frames: both end (a view pauses at the end).
+        (["--frames", "3"], [()], True),
+        ([], [()], True),
+    ]:
+        out.append(Case("view flags (recording): " + (" ".join(args) or "no --frames"), view + args, words,
+                        may_accept=accept, setup=lambda w: write(w / "scene.toml", GOOD_SCENE)))
+    out.append(Case("flags: run --threads 0", ["run", S, "--backend", "cpu", "--no-output", "--threads", "0"],
+                    [("--threads",)], setup=lambda w: write(w / "scene.toml", GOOD_SCENE)))
+    for args, words, warn in [
+        (["--materials=-1"], [("--materials",)], False),
+        (["--materials", "4294967296"], [("--materials",)], False),
+        (["--materials", "7"], [("no particle of the materials meshed",)], True),
+    ]:
+        out.append(Case("mesh flags: " + " ".join(args), ["mesh", "{W}/out"] + args, words, warn=warn,
+                        setup=ran))
+    return out
+
+
+def step_budget_cases(S):
+    """Section 11d: blow-ups caused by a keyframed collider or an emitter whose fast part ends
+    within the failed step (the advice must name it, not the time step), and a keyframed
+    segment that CFL steps would have passed over unseen."""
+    out = []
+    fixed = GOOD_SCENE.replace("cfl = 0.4\nmax_dt = 2e-3", "dt = 1e-3")
+
+    def keyed(keys):
+        return ('[[collider]]\nshape = "sphere"\ncenter = [0.19, 0.26, 0.19]\nradius = 0.04\nkeyframes = ['
+                + ", ".join(f"{{ t = {t}, position = [{x}, 0.26, 0.19] }}" for t, x in keys) + "]\n")
+    jet = ('[[emitter]]\nmaterial = "water"\nshape = "box"\nmin = [0.27, 0.1, 0.27]\nmax = [0.33, 0.125, 0.33]\n'
+           'velocity = [0.0, 500.0, 0.0]\nrate = 200000.0\nstart = 0.02\nstop = 0.0205\n')
+    run = ["run", S, "--backend", "cpu", "--no-output"]
+    for name, text, words, accept in [
+        ("a keyframed collider at 400 m/s for half a fixed step", fixed + keyed([(0, 0.19), (0.02, 0.19), (0.0205, 0.39)]),
+         [("blew up",), ("collider[1].keyframes",)], False),
+        ("an emitter at 500 m/s stopping within a fixed step", fixed + jet, [("blew up",), ("emitter[0].velocity",)], False),
+        ("a keyframed collider at 400 m/s between two CFL steps", GOOD_SCENE.replace("max_dt = 2e-3", "max_dt = 1e-2")
+         + keyed([(0, 0.19), (0.02, 0.19), (0.0205, 0.39)]), [()], True),
+    ]:
+        out.append(Case(f"step budget: {name}", run, words, may_accept=accept,
+                        setup=lambda w, t=text: write(w / "scene.toml", t)))
     return out
 
 

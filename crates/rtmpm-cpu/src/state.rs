@@ -152,18 +152,22 @@ impl CpuBackend {
         threads: Option<usize>,
     ) -> Result<Self, SimError> {
         if let Some(n) = threads
-            && n > MAX_THREADS
+            && (n == 0 || n > MAX_THREADS)
         {
+            let what = if n == 0 {
+                "0 CPU threads cannot step".to_string()
+            } else {
+                format!("{n} CPU threads is more than the {MAX_THREADS} allowed")
+            };
             return Err(SimError::Backend(format!(
-                "{n} CPU threads is more than the {MAX_THREADS} allowed; give --threads 1 to \
-                 {MAX_THREADS} (default: one per core)"
+                "{what}; give --threads 1 to {MAX_THREADS} (or leave it out: one per core)"
             )));
         }
         let particles = physics::convert::particles(particles);
         let pool = match threads {
             Some(n) => Some(
                 rayon::ThreadPoolBuilder::new()
-                    .num_threads(n.max(1))
+                    .num_threads(n)
                     .build()
                     .map_err(|e| SimError::Backend(format!("cannot start {n} CPU threads: {e}")))?,
             ),

@@ -104,3 +104,69 @@ fn a_keyed_paddle_drags_the_material_at_the_keys_speed() {
     }
     assert!(n > 10, "{n} particles in the paddle");
 }
+
+#[test]
+fn a_fast_keyed_segment_between_two_cfl_steps_is_followed() {
+    // CFL steps (about 2.4 ms for the goo's sound speed) and a paddle that holds still, moves
+    // 0.05 m along z in 1 ms (50 m/s) from t = 0.031, then holds: a step from before the key
+    // to after the segment saw the paddle still at its start and then found it moved, having
+    // passed through the material unseen. The step ends at the key and follows the segment,
+    // so the material in the sticky paddle moves with it.
+    let text = BASE.replace("dt = 1e-3", "cfl = 0.4\nmax_dt = 5e-3")
+        + "keyframes = [{ t = 0.0 }, { t = 0.031 }, { t = 0.032, position = [0.5, 0.5, 0.55] }]\n";
+    let scene = Scene::from_toml(&text, "k").unwrap_or_else(|e| panic!("{e}"));
+    let p = scene.sample_particles().expect("particles");
+    let centre =
+        p.x.iter()
+            .position(|x| (*x - glam::Vec3::splat(0.5)).length() < 0.03)
+            .expect("a particle near the centre");
+    let z0 = p.x[centre].z;
+    let backend = CpuBackend::new(&scene, p, Some(1)).expect("backend");
+    let mut sim = Simulation::new(scene, Box::new(backend));
+    let mut fastest = 0.0f32;
+    while sim.time < 0.04 {
+        let dt = sim.next_dt().expect("a step");
+        let (t0, t1) = (sim.time, sim.time + dt as f64);
+        // The part of the step within the segment moves the paddle 50 m/s x that time.
+        let inside = (t1.min(0.032) - t0.max(0.031)).max(0.0) as f32;
+        fastest = fastest.max(50.0 * inside);
+        sim.step_once(dt).expect("stable");
+    }
+    // No step lets the paddle move more than the CFL fraction of a cell unseen.
+    assert!(
+        fastest <= 0.4 * 0.0625 + 1e-6,
+        "{fastest} m unseen in a step"
+    );
+    let mut out = rtmpm_sim::Particles::default();
+    sim.backend.read_particles(&mut out).expect("read");
+    // It moves with the paddle: 0.05 m, and at most one step's motion more (the step that
+    // holds the segment's end moves the material at the segment's speed throughout: at most
+    // the CFL fraction of a cell, 0.025 m). A paddle passed over unseen leaves it still.
+    let dz = out.x[centre].z - z0;
+    assert!(
+        dz > 0.04 && dz < 0.05 + 0.4 * 0.0625,
+        "the centre moved {dz} m along z"
+    );
+}
+
+#[test]
+fn a_blow_up_from_a_keyed_segment_within_the_failed_step_blames_the_collider() {
+    // Fixed steps of 1 ms; the paddle jumps 0.1 m in the first 0.3 ms of the step from
+    // t = 0.03 (333 m/s: 5 cells in the step) and holds still by the step's end. The material
+    // it drags is flung faster than 2 cells per step: the advice names the keyframes that did
+    // it, not the time step or the material's stiffness.
+    let text = format!(
+        "{BASE}keyframes = [{{ t = 0.0 }}, {{ t = 0.03 }}, \
+         {{ t = 0.0303, position = [0.5, 0.5, 0.6] }}]\n"
+    );
+    let scene = Scene::from_toml(&text, "k").unwrap_or_else(|e| panic!("{e}"));
+    let p = scene.sample_particles().expect("particles");
+    let backend = CpuBackend::new(&scene, p, Some(1)).expect("backend");
+    let mut sim = Simulation::new(scene, Box::new(backend));
+    let e = sim.advance_frame().expect_err("a blow-up").to_string();
+    assert!(
+        e.contains("blew up") && e.contains("collider[0].keyframes"),
+        "{e}"
+    );
+    assert!(!e.contains("softer material"), "{e}");
+}

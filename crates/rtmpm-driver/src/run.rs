@@ -34,10 +34,18 @@ pub struct RunStart {
 
 impl RunStart {
     /// The scene file `scene`, or the checkpoint `resume` (which holds its scene, checked
-    /// against the checkpoint's state).
+    /// against the checkpoint's state). A scene file given with a checkpoint must be the scene
+    /// the checkpoint holds: a resumed run continues that scene, and an edited file (another
+    /// transfer, material or collider) would otherwise be ignored without a word.
     pub fn load(scene: Option<&Path>, resume: Option<&Path>) -> Result<RunStart> {
         if let Some(ckpt_path) = resume {
-            return Self::resume(ckpt_path);
+            let start = Self::resume(ckpt_path)?;
+            if let Some(path) = scene {
+                let text = read_text_bounded(path, SCENE_MAX_BYTES, "scene file")
+                    .with_context(|| format!("reading {}", path.display()))?;
+                same_scene(path, &text, ckpt_path, &start.scene_text)?;
+            }
+            return Ok(start);
         }
         let Some(path) = scene else {
             bail!("no scene given: rtmpm run SCENE (or --resume CKPT)")
@@ -80,6 +88,42 @@ impl RunStart {
         }
         Ok(())
     }
+}
+
+/// Refuse a scene file `path` (text `given`) that differs from the scene `stored` in the
+/// checkpoint `ckpt`, naming the first line that differs (line endings and trailing spaces
+/// aside).
+fn same_scene(path: &Path, given: &str, ckpt: &Path, stored: &str) -> Result<()> {
+    let lines = |t: &str| -> Vec<String> {
+        let mut v: Vec<String> = t.lines().map(|l| l.trim_end().to_string()).collect();
+        while v.last().is_some_and(|l| l.is_empty()) {
+            v.pop();
+        }
+        v
+    };
+    let (a, b) = (lines(given), lines(stored));
+    if a == b {
+        return Ok(());
+    }
+    let i = a.iter().zip(&b).take_while(|(x, y)| x == y).count();
+    let show = |v: &[String]| {
+        v.get(i)
+            .map_or_else(|| "(the end of the file)".into(), |l| format!("`{l}`"))
+    };
+    bail!(
+        "{}:{}: the scene file differs from the scene stored in the checkpoint {} (its line {} \
+         is {}, the checkpoint's {}); a resumed run continues the checkpoint's scene, so the \
+         file's changes would be ignored\n  fix: leave the scene file out (`rtmpm run --resume \
+         {}`), or run the edited scene afresh (`rtmpm run {}`)",
+        path.display(),
+        i + 1,
+        ckpt.display(),
+        i + 1,
+        show(&a),
+        show(&b),
+        ckpt.display(),
+        path.display()
+    )
 }
 
 /// How a run goes.

@@ -21,6 +21,9 @@ pub struct Simulation<B: Backend + ?Sized = dyn Backend> {
     /// Time step of the last step.
     pub last_dt: f32,
     max_sound_speed: f32,
+    /// Simulated time of the last health check that passed (the blow-up a check finds
+    /// happened after it).
+    checked_time: f64,
     /// Particles each emitter has emitted so far; set at the first step from the time then
     /// (a resumed run starts with those of its checkpoint).
     emitted: Option<Vec<u64>>,
@@ -50,6 +53,7 @@ impl<B: Backend + ?Sized> Simulation<B> {
             frame: 0,
             last_dt: 0.0,
             max_sound_speed,
+            checked_time: 0.0,
             emitted: None,
         }
     }
@@ -84,19 +88,27 @@ impl<B: Backend + ?Sized> Simulation<B> {
                 // The fastest particle or boundary (colliders, rigid bodies, emitters: the
                 // material they meet takes their speed within the step), and gravity's bound.
                 let particles = self.backend.max_speed()?;
-                let boundary = self.fastest_boundary().map_or(0.0, |b| b.speed as f32);
-                let speed = particles.max(boundary) + self.max_sound_speed;
-                let dt = if speed > 0.0 {
-                    (cfl * self.scene.dx / speed).min(max_dt)
-                } else {
-                    max_dt
+                let now = (self.time, self.time);
+                let boundary = self.fastest_boundary(now).map_or(0.0, |b| b.speed as f32);
+                let (dx, sound) = (self.scene.dx, self.max_sound_speed);
+                let gravity_dt = speeds::gravity_dt(self.scene.gravity, dx, cfl);
+                let step_for = |boundary: f32| {
+                    let speed = particles.max(boundary) + sound;
+                    let dt = if speed > 0.0 {
+                        (cfl * dx / speed).min(max_dt)
+                    } else {
+                        max_dt
+                    };
+                    dt.min(gravity_dt)
                 };
-                let dt = dt.min(speeds::gravity_dt(self.scene.gravity, self.scene.dx, cfl));
+                let dt = step_for(boundary);
                 // NaN speeds are the health check's (a blow-up); a finite collapse is a stall.
                 if dt < min_dt {
                     return Err(self.stall(dt, min_dt));
                 }
-                dt
+                // A faster keyframed segment starting within the step: the step ends there
+                // (or follows it), so that the collider never moves unseen.
+                speeds::keyframe_step(&self.scene, self.time, dt, step_for)
             }
         })
     }
@@ -135,15 +147,15 @@ impl<B: Backend + ?Sized> Simulation<B> {
         }))
     }
 
-    /// The fastest boundary or emitter now ([`speeds::fastest_boundary`]).
-    fn fastest_boundary(&self) -> Option<speeds::SpeedSource> {
+    /// The fastest boundary or emitter over the times `window` ([`speeds::fastest_boundary`]).
+    fn fastest_boundary(&self, window: (f64, f64)) -> Option<speeds::SpeedSource> {
         if self.scene.colliders.is_empty()
             && self.scene.rigid_bodies.is_empty()
             && self.scene.emitters.is_empty()
         {
             return None;
         }
-        speeds::fastest_boundary(&self.scene, self.time, &self.backend.rigid_bodies())
+        speeds::fastest_boundary(&self.scene, window, &self.backend.rigid_bodies())
     }
 
     /// What made the CFL step collapse to `dt` when it is not the fastest particle (at
@@ -161,7 +173,7 @@ impl<B: Backend + ?Sized> Simulation<B> {
                  9.81 m/s^2); or, if it is intended, lower `time.min_dt`"
             ));
         }
-        let b = self.fastest_boundary()?;
+        let b = self.fastest_boundary((self.time, self.time))?;
         (b.speed as f32 > particle_speed).then(|| {
             format!(
                 "{} moves at {:.4e} m/s, and the step follows it so that the material it meets \
@@ -185,7 +197,11 @@ impl<B: Backend + ?Sized> Simulation<B> {
                 dx as f64 / speed
             )
         };
-        if let Some(b) = self.fastest_boundary()
+        // Over the steps since the last check that passed (within this frame; at least the
+        // last step): a keyframed segment or an emitter may have ended in them.
+        let since = self.checked_time.max(self.time - self.frame_duration());
+        let since = since.min(self.time - dt as f64);
+        if let Some(b) = self.fastest_boundary((since, self.time))
             && b.speed * dt as f64 > dx as f64
         {
             return Some(format!(
@@ -395,6 +411,7 @@ impl<B: Backend + ?Sized> Simulation<B> {
                 advice: self.blame(self.last_dt, p.x.get(i).copied().unwrap_or(position)),
             })));
         }
+        self.checked_time = self.time;
         Ok(())
     }
 }

@@ -49,21 +49,44 @@ impl Camera {
         }
     }
 
-    /// Check the camera: finite, position != target, fov in (0, 180). Returns a message.
+    /// Check the camera: fov in (0, 180), finite, position != target. Returns a message.
     pub fn check(&self) -> Result<(), String> {
-        if !self.position.is_finite() || !self.target.is_finite() || !self.fov_deg.is_finite() {
-            return Err("camera position, target and fov must be finite".into());
-        }
-        if (self.target - self.position).length() <= 1e-9 {
-            return Err("the camera position and target coincide".into());
-        }
+        // First: a camera framed with a fov of 0 has an infinite position.
         if !(self.fov_deg > 0.0 && self.fov_deg < 180.0) {
             return Err(format!(
                 "field of view must be in (0, 180) degrees, got {}",
                 self.fov_deg
             ));
         }
+        if !self.position.is_finite() || !self.target.is_finite() {
+            return Err("camera position and target must be finite".into());
+        }
+        let d = (self.target - self.position).length();
+        if !d.is_finite() {
+            return Err(format!(
+                "the camera position {} and target {} are too far apart: their distance \
+                 overflows a 32-bit float",
+                self.position, self.target
+            ));
+        }
+        if d <= 1e-9 {
+            return Err("the camera position and target coincide".into());
+        }
         Ok(())
+    }
+
+    /// About how many pixels of a picture `height` pixels high the box `[min, max]` spans: its
+    /// diagonal over its nearest distance from the eye, times the focal length (infinite with
+    /// the eye inside it; 0 when too far for f32).
+    pub fn pixels_across(&self, min: Vec3, max: Vec3, height: u32) -> f32 {
+        let nearest = self.position.clamp(min, max);
+        let d = (self.position.as_dvec3() - nearest.as_dvec3()).length();
+        if d == 0.0 {
+            return f32::INFINITY;
+        }
+        let diag = (max - min).as_dvec3().length();
+        let focal = self.view(height, height).focal as f64;
+        (diag / d * focal) as f32
     }
 
     /// The direction from the eye through pixel coordinates `(x, y)` (x right, y down, pixel

@@ -189,8 +189,8 @@ fn cfl_step(scene: &Scene, cfl: f32, max_dt: f32) -> (f64, String, String) {
                  (set by its stiffness and density)"
             ),
             format!(
-                "use a softer material `{material}` (a lower youngs_modulus or bulk_modulus), a \
-                 larger dx {shorter}"
+                "use a softer or denser material `{material}` (a lower youngs_modulus or \
+                 bulk_modulus, or a higher density), a larger dx {shorter}"
             ),
         ),
     }

@@ -58,6 +58,49 @@ pub fn collider_speed(c: &Collider, t: f32, domain: (Vec3, Vec3)) -> f32 {
     (norm(v) + spin * reach(c.pivot_at(t), c.bounds(t), domain) as f64) as f32
 }
 
+/// Speed (m/s) of the fastest point of collider `c` at any time of `[t0, t1]`: its motion at
+/// `t0` and that of each keyframed segment that starts within the interval (a segment's
+/// velocity is constant).
+pub fn collider_speed_within(c: &Collider, t0: f32, t1: f32, domain: (Vec3, Vec3)) -> f32 {
+    let mut s = collider_speed(c, t0, domain);
+    if let Some(k) = &c.keyframes {
+        let keys = k.keys();
+        let first = keys.partition_point(|key| key.t <= t0);
+        for key in keys[first..].iter().take_while(|key| key.t < t1) {
+            s = s.max(collider_speed(c, key.t, domain));
+        }
+    }
+    s
+}
+
+/// The step from time `t`, at most `dt`, that no keyframed collider outruns: a collider whose
+/// next segment (from a key at `t_k` within the step) is faster than the step follows would
+/// move unseen through the material for the rest of the step (the boundary is applied with
+/// the motion at the step's start). For each such key the step ends at `t_k`, or is
+/// `step_for(the segment's speed)` when that is longer (a key closer than that step).
+pub fn keyframe_step(scene: &Scene, t: f64, dt: f32, step_for: impl Fn(f32) -> f32) -> f32 {
+    let domain = (scene.domain_min, scene.domain_max);
+    let mut out = dt;
+    for c in &scene.colliders {
+        let Some(k) = &c.keyframes else {
+            continue;
+        };
+        let keys = k.keys();
+        let first = keys.partition_point(|key| key.t as f64 <= t);
+        for key in &keys[first..] {
+            let to_key = (key.t as f64 - t) as f32;
+            if to_key >= out {
+                break;
+            }
+            let fast = step_for(collider_speed(c, key.t, domain));
+            if fast < out {
+                out = to_key.max(fast);
+            }
+        }
+    }
+    out
+}
+
 /// The largest [`collider_speed`] over the run: the constant motion's, or that of the fastest
 /// keyframed segment.
 pub fn collider_peak_speed(c: &Collider, domain: (Vec3, Vec3)) -> f32 {
@@ -208,9 +251,14 @@ impl Scene {
     }
 }
 
-/// The fastest boundary or emitter at time `t` of a run: the colliders' motion at `t`, the
-/// rigid bodies' `states`, and the emitters still emitting. `None` when nothing moves.
-pub fn fastest_boundary(scene: &Scene, t: f64, states: &[BodyState]) -> Option<SpeedSource> {
+/// The fastest boundary or emitter over the times `[t0, t1]` of a run (`t0 = t1`: at that
+/// time): the colliders' motion ([`collider_speed_within`]), the rigid bodies' `states`, and
+/// the emitters still emitting at `t0`. `None` when nothing moves.
+pub fn fastest_boundary(
+    scene: &Scene,
+    (t0, t1): (f64, f64),
+    states: &[BodyState],
+) -> Option<SpeedSource> {
     let domain = (scene.domain_min, scene.domain_max);
     let mut best: Option<SpeedSource> = None;
     let mut consider = |what: &dyn Fn() -> (String, String), speed: f32| {
@@ -231,7 +279,7 @@ pub fn fastest_boundary(scene: &Scene, t: f64, states: &[BodyState]) -> Option<S
         };
         consider(
             &|| (format!("collider[{i}]"), format!("collider[{i}].{field}")),
-            collider_speed(c, t as f32, domain),
+            collider_speed_within(c, t0 as f32, t1 as f32, domain),
         );
     }
     for (i, b) in states.iter().enumerate() {
@@ -253,7 +301,7 @@ pub fn fastest_boundary(scene: &Scene, t: f64, states: &[BodyState]) -> Option<S
         );
     }
     for (i, e) in scene.emitters.iter().enumerate() {
-        if t < e.stop {
+        if t0 < e.stop {
             consider(
                 &|| {
                     (
@@ -323,5 +371,44 @@ mod tests {
         let dt = gravity_dt(Vec3::new(0.0, -1e6, 0.0), 0.01, 0.4);
         assert!((1e6 * dt * dt - 0.004).abs() < 1e-6);
         assert_eq!(gravity_dt(Vec3::ZERO, 0.01, 0.4), f32::INFINITY);
+    }
+
+    #[test]
+    fn a_faster_keyframed_segment_within_a_step_ends_the_step_at_its_key() {
+        // Still until t = 0.031, then 0.05 m in 1 ms (50 m/s), then still.
+        let s = scene(
+            "[[collider]]\nshape = \"box\"\nmin = [0.4, 0.2, 0.3]\nmax = [0.6, 0.8, 0.7]\n\
+             keyframes = [{ t = 0.0, position = [0.5, 0.5, 0.5] }, \
+             { t = 0.031, position = [0.5, 0.5, 0.5] }, \
+             { t = 0.032, position = [0.5, 0.5, 0.55] }]\n",
+        );
+        let c = &s.colliders[0];
+        let domain = (s.domain_min, s.domain_max);
+        // The step of a speed: 0.4 dx / v, at most 2.4 ms.
+        let step_for = |v: f32| {
+            if v > 0.0 {
+                (0.02 / v).min(2.4e-3)
+            } else {
+                2.4e-3
+            }
+        };
+        // A step from 0.029 would pass over the whole segment: it ends at the key.
+        let dt = keyframe_step(&s, 0.029, 2.4e-3, step_for);
+        assert!((dt - 2e-3).abs() < 1e-7, "{dt}");
+        // A key closer than the fast segment's step: that step (4e-4 s) from now.
+        let dt = keyframe_step(&s, 0.03099, 2.4e-3, step_for);
+        assert!((dt - 4e-4).abs() < 1e-9, "{dt}");
+        // Within the segment, and after it (a slower segment ahead): unchanged.
+        assert_eq!(keyframe_step(&s, 0.0312, 4e-4, step_for), 4e-4);
+        assert_eq!(keyframe_step(&s, 0.0325, 2.4e-3, step_for), 2.4e-3);
+        // The speed over an interval holds the segments that start in it.
+        assert_eq!(collider_speed_within(c, 0.0307, 0.0309, domain), 0.0);
+        assert!((collider_speed_within(c, 0.0307, 0.0331, domain) - 50.0).abs() < 0.01);
+        let over = |t0, t1| fastest_boundary(&s, (t0, t1), &[]).map(|b| b.field);
+        assert_eq!(over(0.0325, 0.0325), None);
+        assert_eq!(
+            over(0.0305, 0.0325).as_deref(),
+            Some("collider[0].keyframes")
+        );
     }
 }

@@ -107,6 +107,37 @@ pub(crate) fn parse_range(s: &str) -> Result<(f32, f32), String> {
     Ok((v[0], v[1]))
 }
 
+/// Where a picture's camera comes from, for its errors.
+pub(crate) const CAMERA_FIELDS: &str = "--camera, --target, --fov or the scene's [render]";
+
+/// Refuse a camera so far from the box `bounds` (what it is to show: `what`) that the box would
+/// span less than a pixel of a picture `height` pixels high: every picture would be empty.
+pub(crate) fn check_camera_sees(
+    camera: &Camera,
+    bounds: (Vec3, Vec3),
+    height: u32,
+    what: &str,
+) -> Result<()> {
+    let pixels = camera.pixels_across(bounds.0, bounds.1, height);
+    if pixels < 1.0 {
+        let p = camera.position;
+        let centre = 0.5 * (bounds.0 + bounds.1);
+        bail!(
+            "the camera at ({}, {}, {}) ({CAMERA_FIELDS}) is {:.3e} m from {what} ({:.3} m \
+             across): with a field of view of {} degrees they would span {pixels:.1e} pixels of \
+             the {height}-pixel-high picture, which would show nothing\n  fix: move the camera \
+             closer or narrow the field of view, or leave --camera and --fov out to frame them",
+            p.x,
+            p.y,
+            p.z,
+            (p.as_dvec3() - centre.as_dvec3()).length(),
+            (bounds.1 - bounds.0).length(),
+            camera.fov_deg
+        );
+    }
+    Ok(())
+}
+
 /// Resolve the render options: flags, then the scene's `[render]`, then defaults. `bounds` is
 /// the box the particles live in, `floor` the ground height.
 fn resolve(
@@ -132,7 +163,10 @@ fn resolve(
     if let Some(c) = view.camera.or(sr.camera) {
         camera.position = c;
     }
-    camera.check().map_err(|e| anyhow!("bad camera: {e}"))?;
+    camera
+        .check()
+        .map_err(|e| anyhow!("bad camera ({CAMERA_FIELDS}): {e}"))?;
+    check_camera_sees(&camera, bounds, height, "the particles")?;
     let radius = view.radius.unwrap_or(radius);
     if !(radius.is_finite() && radius > 0.0) {
         bail!("--radius must be a positive length, got {radius}");

@@ -19,7 +19,7 @@ use std::time::Instant;
 
 #[derive(Args)]
 pub struct RunArgs {
-    /// Scene file (TOML). Optional with --resume (the checkpoint holds its scene).
+    /// Scene file (TOML). Optional with --resume (the checkpoint holds its scene; a file given with it must be that scene)
     pub scene: Option<PathBuf>,
     /// Backend.
     #[arg(long, value_enum, default_value_t = BackendKind::Auto)]

@@ -201,6 +201,20 @@ pub fn view(args: ViewArgs) -> Result<()> {
     let scene = Scene::from_file(&args.scene)?;
     crate::budget::enforce(&scene, args.frames, None)?;
     let front = front(&args)?;
+    // A recording without a window or a server: nothing can resume a pause, so it runs to its
+    // --frames, else to the scene's end (where a view pauses), then ends.
+    let headless = matches!(front, Front::Recording);
+    if headless && args.paused {
+        bail!(
+            "--paused with a recording and no window or --serve: nothing could resume it, and \
+             the recording would wait for ever\n  fix: leave --paused out, or add --serve to \
+             steer it from a browser"
+        );
+    }
+    let max_frames = match args.frames {
+        None if headless => Some(scene.time.frames()),
+        n => n,
+    };
     let recorder = match &args.record {
         Some(path) => {
             Some(Recorder::start(path, scene.time.fps, args.overwrite).map_err(|e| anyhow!(e))?)
@@ -219,7 +233,7 @@ pub fn view(args: ViewArgs) -> Result<()> {
         pace: args.pace.unwrap_or_default(),
         paused: args.paused,
         tool: None,
-        max_frames: args.frames,
+        max_frames,
         hud: !args.no_hud,
         shadows: !args.no_shadows,
         // RTMPM_VIEW_OVERLAP=0: each picture drawn and published before the next step (the
@@ -249,7 +263,10 @@ pub fn view(args: ViewArgs) -> Result<()> {
             session.finish().map_err(|e| anyhow!(e))?
         }
         Front::Recording => {
-            eprintln!("view: recording (Ctrl-C ends)");
+            eprintln!(
+                "view: recording {} frames (Ctrl-C ends sooner)",
+                max_frames.unwrap_or(0)
+            );
             rtmpm_view::serve::until_ended_or_interrupted(&session, Duration::from_millis(100))
                 .map_err(|e| anyhow!(e))?;
             session.finish().map_err(|e| anyhow!(e))?
@@ -280,7 +297,9 @@ fn picture_camera(args: &ViewArgs, scene: &Scene) -> Result<Camera> {
         if let Some(p) = args.camera {
             c.position = p;
         }
-        c.check().map_err(|e| anyhow!("bad camera: {e}"))?;
+        c.check()
+            .map_err(|e| anyhow!("bad camera ({}): {e}", crate::render::CAMERA_FIELDS))?;
+        crate::render::check_camera_sees(&c, (lo, hi), height, "the scene's domain")?;
         c
     };
     if let Some(r) = args.radius

@@ -185,6 +185,76 @@ fn ck_free_flight_of_a_stressed_body_conserves_momentum() {
     }
 }
 
+/// Velocities of the nodes with mass of one grid (`grid` or `grid_dual`) whose B-spline index
+/// along x is `ix`.
+fn node_velocities_at_x(b: &CpuBackend, grid: &[crate::state::Node], ix: i32) -> Vec<Vec3> {
+    let mut out = Vec::new();
+    for (id, blk) in grid.chunks(64).enumerate() {
+        for (cell, n) in blk.iter().enumerate() {
+            let i = b.layout.block_coords[id].x * 4 + (cell >> 4) as i32;
+            if i == ix && n[0] > 0.0 {
+                out.push(real::vec3_to_f32(physics::math::Vec3::new(
+                    n[1], n[2], n[3],
+                )));
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn ck_sticky_plane_on_a_node_plane_holds_both_grids() {
+    // A sticky static half-space x <= 0.25 whose surface is the B-spline grid's node plane
+    // i = 8 (cells from the domain's min corner): CK-MPM's two grids have their nodes of that
+    // index a quarter cell either side of the plane, and both must be held, as a wall through
+    // that plane holds them (tested at their true positions, grid 1's node is outside the
+    // half-space and stayed free: a bar fixed at its end moved). The next plane, outside for
+    // both grids, keeps the material's velocity.
+    let mut c = consts(vec![jelly()], 0, Vec3::ZERO);
+    c.solver = ck();
+    let plane = 8.0 * DX;
+    let mut g = rtmpm_geometry::Collider {
+        shape: rtmpm_geometry::Shape::HalfSpace(rtmpm_geometry::shape::HalfSpace {
+            point: Vec3::new(plane, 0.0, 0.0),
+            normal: Vec3::X,
+        }),
+        rule: Default::default(),
+        velocity: Vec3::ZERO,
+        angular_velocity: Vec3::ZERO,
+        pivot: Vec3::ZERO,
+        keyframes: None,
+    };
+    g.rule.condition = Condition::Sticky;
+    c.colliders.push(crate::collider::Collider::new(&g));
+    let lo = Vec3::new(plane - 2.0 * DX, 0.4, 0.4);
+    let mut p = block(lo, Vec3::new(plane + 4.0 * DX, 0.6, 0.6), DX, 0, 1000.0);
+    let v0 = Vec3::new(-1.0, 0.5, 0.25);
+    p.v.iter_mut().for_each(|v| *v = v0);
+    let mut b = CpuBackend::from_constants(c, p, Some(1)).expect("backend");
+    rebuild::rebuild(&mut b);
+    p2g::p2g_ck(&mut b, 1e-4);
+    crate::grid_update::grid_update(&mut b, 1e-4, 0.0);
+    let on = GRID_PAD + 8;
+    for (name, grid) in [("grid 0", &b.grid), ("grid 1", &b.grid_dual)] {
+        let held = node_velocities_at_x(&b, grid, on);
+        assert!(!held.is_empty(), "{name}: no node with mass on the plane");
+        for v in &held {
+            assert_eq!(*v, Vec3::ZERO, "{name}: a node on the plane moves");
+        }
+        let free = node_velocities_at_x(&b, grid, on + 1);
+        assert!(
+            !free.is_empty(),
+            "{name}: no node with mass beside the plane"
+        );
+        for v in &free {
+            assert!(
+                (*v - v0).length() < 1e-4,
+                "{name}: a node beside the plane: {v}"
+            );
+        }
+    }
+}
+
 #[test]
 fn ck_is_deterministic_across_thread_counts() {
     let one = dam_with(1, ck());

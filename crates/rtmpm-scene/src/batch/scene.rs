@@ -318,10 +318,12 @@ fn world_error(
         Some(f) => format!("field `{f}`: {}", e.message),
         None => e.message.clone(),
     };
-    // A field the file leaves out, refused as soon as it is written: a misspelt name.
+    // A field the file leaves out, refused as soon as it is written as an unknown name: a
+    // misspelt one. (A field the scene knows, refused for its type or a rule, is the world's.)
     let unknown = blamed.is_some_and(|s| {
         e.field.as_deref() == Some(s.path.as_str())
             && path::lookup(file, &s.segs) == path::Target::Absent
+            && (e.message.contains("unknown field") || e.message.contains("is not a parameter"))
     });
     let message = if unknown {
         format!("no such field in the scene: {inner}")

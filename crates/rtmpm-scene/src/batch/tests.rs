@@ -222,6 +222,13 @@ fn unknown_and_non_numeric_fields_are_refused() {
         e.contains("no such field") && e.contains("yield_stres"),
         "{e}"
     );
+    // A field the scene knows but the file leaves out, refused for its type: the world's
+    // error with the scene's reason, not "no such field".
+    let e = error("[batch]\ncount = 2\n[batch.sweep]\n\"body[0].sampling\" = [1, 2]\n");
+    assert!(
+        !e.contains("no such field") && e.contains("world 0 (body[0].sampling = 1) is refused"),
+        "{e}"
+    );
     let e = error("[batch]\ncount = 2\n[batch.sweep]\n\"material[0].type\" = [1, 2]\n");
     assert!(
         e.contains("only numbers can be swept") && e.contains("herschel_bulkley"),

@@ -87,6 +87,36 @@ fn solver_table_errors_name_the_field_line_and_allowed_values() {
     assert!(e.to_string().contains("fip"), "{e}");
 }
 
+/// Rigid bodies with a transfer that does not couple them (CK-MPM's two grids, MUSL's second
+/// grid update): refused by the scene, naming the solver field, its line and the body, not
+/// accepted by `rtmpm check` and then refused by the backend.
+#[test]
+fn rigid_bodies_with_ck_mpm_or_musl_are_refused_naming_the_solver_field() {
+    let body = "[[rigid_body]]\nname = \"crate\"\nshape = \"box\"\nmin = [0.6, 0.6, 0.6]\n\
+                max = [0.7, 0.7, 0.7]\ndensity = 500.0\n";
+    for (solver, field, line) in [
+        (
+            "transfer = \"ck-mpm\"",
+            "solver.transfer",
+            "transfer = \"ck-mpm\"",
+        ),
+        (
+            "transfer = \"gimp\"\nupdate = \"musl\"",
+            "solver.update",
+            "update = \"musl\"",
+        ),
+    ] {
+        let text = format!("{BASE}[solver]\n{solver}\n{body}");
+        let e = parse(&text).expect_err(solver);
+        assert_eq!(e.field.as_deref(), Some(field), "{e}");
+        assert_eq!(e.line, Some(line_of(&text, line)), "{e}");
+        assert!(e.to_string().contains("rigid_body[0] `crate`"), "{e}");
+        // The same transfer without bodies, and the bodies with the default transfer, are taken.
+        parse(&format!("{BASE}[solver]\n{solver}\n")).expect(solver);
+    }
+    parse(&format!("{BASE}{body}")).expect("rigid bodies with mls");
+}
+
 /// Messages for hostile inputs: the table that is missing, the field of an
 /// integer too large for 64 bits, a name that would climb out of `out/`.
 #[test]

@@ -371,7 +371,7 @@ impl V<'_> {
             fields: m.fields.clone(),
         };
         // The model checks its own fields (material/<model>.rs).
-        Material::new(&m.name, density, params).map_err(|e| {
+        let mat = Material::new(&m.name, density, params).map_err(|e| {
             let field = if e.field.is_empty() {
                 "type"
             } else {
@@ -380,6 +380,19 @@ impl V<'_> {
             // A value beyond f32 reads as infinity (or 0) before the model sees it.
             self.f32_range_error(&p(field))
                 .unwrap_or_else(|| self.err(p(field), e.message, e.hint))
-        })
+        })?;
+        // Stiffness over density beyond a 32-bit float: an infinite sound speed, a step of 0 s.
+        if !mat.model.sound_speed(density).is_finite() {
+            return Err(self.err(
+                p("density"),
+                format!(
+                    "density {density:e} kg/m^3 is too small for the material's stiffness: its \
+                     sound speed (stiffness over density) overflows a 32-bit float, so no time \
+                     step can follow it"
+                ),
+                "give the density in kg/m^3 (water 1000, steel 7850), or a lower stiffness",
+            ));
+        }
+        Ok(mat)
     }
 }

@@ -130,6 +130,7 @@ impl V<'_> {
 
         let render = self.render(raw.render.as_ref())?;
         let solver = self.solver(raw.solver.as_ref())?;
+        self.solver_couples(&solver, &rigid_bodies)?;
 
         let scene = Scene {
             name,

@@ -73,6 +73,46 @@ impl V<'_> {
         })
     }
 
+    /// Rigid bodies are coupled in the grid update of a USL step on one grid: MUSL's second
+    /// grid update and CK-MPM's two grids (each carrying the whole mass) do not couple them.
+    /// Refused here, naming the solver field and the first body, rather than by the backend.
+    pub(super) fn solver_couples(
+        &self,
+        s: &SolverSettings,
+        bodies: &[rtmpm_rigid::RigidBodySpec],
+    ) -> R<()> {
+        let Some(first) = bodies.first() else {
+            return Ok(());
+        };
+        let body = match bodies.len() {
+            1 => format!("rigid_body[0] `{}`", first.name),
+            n => format!("rigid_body[0] `{}` and {} more", first.name, n - 1),
+        };
+        if s.transfer == Transfer::CkMpm {
+            return Err(self.err(
+                "solver.transfer",
+                format!(
+                    "transfer = \"ck-mpm\" does not couple rigid bodies ({body}): each of \
+                     CK-MPM's two grids carries the whole mass, which the coupling does not \
+                     account for yet"
+                ),
+                "use transfer = \"mls\" (the default) with [[rigid_body]] tables, or turn the \
+                 bodies into [[collider]] tables (moving obstacles, not pushed back)",
+            ));
+        }
+        if s.update == Update::Musl {
+            return Err(self.err(
+                "solver.update",
+                format!(
+                    "update = \"musl\" does not couple rigid bodies ({body}): they are \
+                     coupled in the grid update of a USL step"
+                ),
+                "remove update (usl, the default) with [[rigid_body]] tables",
+            ));
+        }
+        Ok(())
+    }
+
     pub(super) fn render(&self, r: Option<&RawRender>) -> R<RenderSettings> {
         let Some(r) = r else {
             return Ok(RenderSettings::default());

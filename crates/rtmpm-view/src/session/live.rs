@@ -127,6 +127,11 @@ impl Live {
     /// The loop: until Quit, the frame limit or the front-ends have all gone.
     pub(super) fn run(mut self, rx: &Receiver<Command>) -> Summary {
         'session: loop {
+            // First: an error before the loop (the first picture could not be drawn) idles
+            // below, waiting for commands that a recording without a front-end never sends.
+            if self.limit_reached() {
+                break;
+            }
             let idle = self.paused || self.error.is_some();
             if idle && !self.dirty {
                 // The last picture is shown while idle.
@@ -150,16 +155,17 @@ impl Live {
             if self.dirty {
                 self.publish();
             }
-            if self
-                .opts
-                .max_frames
-                .is_some_and(|n| self.run.sim.frame >= n || self.error.is_some())
-            {
-                break;
-            }
         }
         self.collect();
         self.summary()
+    }
+
+    /// A session of `max_frames` frames (a recording without a front-end) has them, or has
+    /// stopped on an error.
+    fn limit_reached(&self) -> bool {
+        self.opts
+            .max_frames
+            .is_some_and(|n| self.run.sim.frame >= n || self.error.is_some())
     }
 
     fn summary(mut self) -> Summary {
@@ -190,8 +196,13 @@ impl Live {
             self.error = Some(e);
             return;
         }
+        // A session of `max_frames` frames ends there, past the scene's end too (as `rtmpm run
+        // --frames N`): no pause that nothing would resume.
         let end = self.run.sim.scene.time.duration as f64;
-        if !self.ended && self.run.sim.time >= end - 1e-9 * end.max(1.0) {
+        if !self.ended
+            && self.opts.max_frames.is_none()
+            && self.run.sim.time >= end - 1e-9 * end.max(1.0)
+        {
             self.ended = true;
             self.paused = true;
             self.message = Some(format!(

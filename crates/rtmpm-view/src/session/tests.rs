@@ -396,3 +396,56 @@ fn without_overlap_each_picture_is_drawn_before_the_next_step() {
     assert!(calls.iter().all(|&c| c == "step"), "no picture begun");
     assert_eq!(calls.len(), 6 * 20);
 }
+
+#[test]
+fn a_session_with_a_frame_limit_ends_when_its_first_picture_cannot_be_drawn() {
+    // A camera the drawing refuses (its target so far that the distance overflows f32): the
+    // first picture fails before the loop, and the session (a recording without a front-end:
+    // nobody can send it a command) ends with the error instead of waiting idle for ever.
+    let camera = rtmpm_render::Camera {
+        position: Vec3::new(0.5, 0.5, 3.0),
+        target: Vec3::splat(1e30),
+        fov_deg: 40.0,
+    };
+    let opts = SessionOptions {
+        max_frames: Some(3),
+        camera: Some(camera),
+        ..small(false)
+    };
+    let s = Session::start(factory(SCENE), opts, None).expect("session");
+    let start = Instant::now();
+    while !s.ended() && start.elapsed() < Duration::from_secs(30) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(
+        s.ended(),
+        "the session still waits 30 s after its picture failed"
+    );
+    let sum = s.finish().unwrap();
+    let e = sum.error.expect("the drawing error");
+    assert!(e.contains("cannot draw the view"), "{e}");
+}
+
+#[test]
+fn a_session_with_a_frame_limit_past_the_scenes_end_runs_to_it() {
+    // The scene lasts 2 frames; 4 asked for (as `rtmpm run --frames 4` runs them). A session
+    // without a limit pauses at the scene's end; one with a limit must not: nothing would
+    // resume it.
+    const SHORT: &str = "[domain]\nmin = [0,0,0]\nmax = [1,1,1]\ndx = 0.05\n\
+        [time]\nduration = 0.04\nfps = 50\ndt = 1e-3\n\
+        [[material]]\nname = \"water\"\ntype = \"fluid\"\ndensity = 1000.0\nbulk_modulus = 1e4\n\
+        [[body]]\nmaterial = \"water\"\nshape = \"box\"\nmin = [0.3,0.15,0.3]\nmax = [0.7,0.4,0.7]\n";
+    let opts = SessionOptions {
+        max_frames: Some(4),
+        ..small(false)
+    };
+    let s = Session::start(factory(SHORT), opts, None).expect("session");
+    let start = Instant::now();
+    while !s.ended() && start.elapsed() < Duration::from_secs(30) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(s.ended(), "the session paused at the scene's end");
+    let sum = s.finish().unwrap();
+    assert_eq!(sum.frames, 4);
+    assert!(sum.error.is_none(), "{:?}", sum.error);
+}

@@ -21,7 +21,7 @@ pub struct RenderArgs {
     #[arg(long)]
     pub bench: bool,
     /// Particles of --bench.
-    #[arg(long, default_value_t = 1_000_000)]
+    #[arg(long, default_value_t = BENCH_PARTICLES)]
     pub bench_particles: usize,
     #[command(flatten)]
     pub view: ViewArgs,
@@ -48,6 +48,36 @@ pub fn ply_frames(dir: &Path) -> Result<Vec<(u64, PathBuf)>> {
     Ok(frames)
 }
 
+/// The particles of `rtmpm render --bench` unless `--bench-particles` says otherwise.
+const BENCH_PARTICLES: usize = 1_000_000;
+
+/// The frame rates a movie of `rtmpm render --fps` may have (frames a second).
+const MOVIE_FPS: (f32, f32) = (0.01, 1000.0);
+
+/// `--fps`: a frame rate a movie can have; a warning above the GIF's 50.
+fn check_fps(fps: f32, no_movie: bool) -> Result<()> {
+    if !(fps.is_finite() && fps > 0.0) {
+        bail!("--fps must be positive, got {fps}");
+    }
+    // A GIF frame lasts 0.02 to 655.35 s (whole centiseconds); an MP4 at 1e30 frames a
+    // second, or one frame in 1e30 s, is no movie either.
+    if !(MOVIE_FPS.0..=MOVIE_FPS.1).contains(&fps) {
+        bail!(
+            "--fps {fps:e} is out of range: a movie plays {} to {} frames a second\n  fix: \
+             give the frames per second of the movie (leave --fps out for the scene's fps)",
+            MOVIE_FPS.0,
+            MOVIE_FPS.1
+        );
+    }
+    if fps > 50.0 && !no_movie {
+        eprintln!(
+            "warning: --fps {fps}: movie.gif plays at most 50 frames a second (GIF delays \
+             are whole centiseconds, at least 2); movie.mp4, when written, keeps {fps}"
+        );
+    }
+    Ok(())
+}
+
 pub fn render_cmd(args: RenderArgs) -> Result<()> {
     if args.bench {
         return bench(&args);
@@ -55,10 +85,8 @@ pub fn render_cmd(args: RenderArgs) -> Result<()> {
     let Some(dir) = &args.outdir else {
         bail!("no folder given: rtmpm render OUTDIR (or rtmpm render --bench)")
     };
-    if let Some(fps) = args.fps
-        && !(fps.is_finite() && fps > 0.0)
-    {
-        bail!("--fps must be positive, got {fps}");
+    if let Some(fps) = args.fps {
+        check_fps(fps, args.view.no_movie)?;
     }
     if !dir.is_dir() {
         bail!(
@@ -167,10 +195,34 @@ pub fn render_cmd(args: RenderArgs) -> Result<()> {
 /// `rtmpm render --bench`: a block of particles (a dam-break column) on a regular lattice with
 /// three materials, rendered three times at the chosen size.
 fn bench(args: &RenderArgs) -> Result<()> {
-    let n = args.bench_particles.max(1);
+    let n = args.bench_particles;
+    if n == 0 {
+        bail!("--bench-particles 0: the bench block needs at least 1 particle");
+    }
+    // The block's positions, materials and field, and what a frame adds per particle (the
+    // field's copy for its range, the shadow map's points): refused with the numbers when
+    // they cannot fit, not aborted by a failed allocation.
+    const PER_PARTICLE: u64 = 64;
+    let bytes = (n as u64).saturating_mul(PER_PARTICLE);
+    if let Some(avail) = rtmpm_io::limits::host_memory_available()
+        && bytes > avail
+    {
+        bail!(
+            "--bench-particles {n}: rendering {n} particles needs about {} of memory, more than \
+             the {} available; about {} particles fit\n  fix: give fewer --bench-particles \
+             (the default is {})",
+            rtmpm_io::limits::human_bytes(bytes),
+            rtmpm_io::limits::human_bytes(avail),
+            avail / PER_PARTICLE,
+            BENCH_PARTICLES
+        );
+    }
     let k = (n as f64).cbrt().ceil() as usize;
     let h = 0.5 / k as f32;
-    let mut positions = Vec::with_capacity(k * k * k);
+    let mut positions = Vec::new();
+    positions.try_reserve_exact(n).map_err(|_| {
+        anyhow::anyhow!("cannot allocate the {n} positions of --bench-particles {n}")
+    })?;
     for i in 0..k {
         for j in 0..k {
             for l in 0..k {
