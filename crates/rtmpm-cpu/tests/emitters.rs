@@ -100,3 +100,24 @@ fn volume_rate_and_bad_emitters() {
         "emitter[0].shape",
     );
 }
+
+#[test]
+fn a_blow_up_from_an_emitter_that_stopped_within_the_failed_step_blames_the_emitter() {
+    // Fixed steps of 1 ms; a jet at 500 m/s (8 cells a step) emits from t = 0.02 to 0.0205,
+    // within one step: its particles are flung faster than 2 cells a step. At the step's end
+    // the emitter has stopped; the advice still names it, not the time step or a stiffness.
+    let text = "[domain]\nmin = [0, 0, 0]\nmax = [1, 1, 1]\ndx = 0.0625\n\
+        [time]\nduration = 0.05\nfps = 20\ndt = 1e-3\n\
+        [[material]]\nname = \"water\"\ntype = \"fluid\"\ndensity = 1000.0\nbulk_modulus = 1e5\n\
+        [[emitter]]\nname = \"jet\"\nmaterial = \"water\"\nshape = \"box\"\n\
+        min = [0.45, 0.2, 0.45]\nmax = [0.55, 0.3, 0.55]\nvelocity = [0.0, 500.0, 0.0]\n\
+        rate = 200000.0\nstart = 0.02\nstop = 0.0205\n";
+    let mut sim = simulation(text);
+    let e = sim.advance_frame().expect_err("a blow-up").to_string();
+    assert!(
+        e.contains("blew up")
+            && e.contains("emitter[0] `jet`")
+            && e.contains("emitter[0].velocity"),
+        "{e}"
+    );
+}

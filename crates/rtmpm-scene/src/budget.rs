@@ -256,10 +256,12 @@ impl Budget {
             Precision::F64 => 8,
         };
         // Grid nodes: the CPU allocates the touched blocks (at most 27 nodes per particle), the
-        // GPU every block of the domain; 4 values a node and a second array of 3.
+        // GPU every block of the domain; 4 values a node and a second array of 3 (CK-MPM, CPU
+        // only: a second grid of 4 values a node).
         let [nx, ny, nz] = scene.n_cells();
         let domain_nodes = (nx as u64 + 9) * (ny as u64 + 9) * (nz as u64 + 9);
-        let node_bytes = 7 * real;
+        let ck = scene.solver.transfer == rtmpm_physics::transfer::Transfer::CkMpm;
+        let node_bytes = if ck { 8 } else { 7 } * real;
         let host_nodes = domain_nodes.min(particles.saturating_mul(27));
         let host_bytes = particles
             .saturating_mul(per_host)
