@@ -21,8 +21,9 @@ pub struct Kernels {
     /// Blocks of 128 threads of the fused G2P2G kernels (`g2p2g`, `g2p2g_fluid`) that are
     /// resident on the device at once: their grid (every block loops over the warp list until
     /// it ends: no partly filled last round of blocks when the blocks per SM do not divide the
-    /// wave); `None` with `RTMPM_G2P2G_GRID=wave`: one wave of threads ([`Kernels::wave`]), as
-    /// before the resident grid became the default.
+    /// wave), the default in f32 (`RTMPM_G2P2G_GRID=resident` asks for it in f64, whose
+    /// register bounds it was not timed with); `None`: one wave of threads ([`Kernels::wave`]),
+    /// in f64 or with `RTMPM_G2P2G_GRID=wave`.
     pub g2p2g_resident: Option<[u32; 2]>,
     /// Fields of the rebuild's sort scratch
     /// ([`crate::options::CudaOptions::sort_scratch_fields`]): the state is permuted that many
@@ -35,13 +36,15 @@ pub struct Kernels {
 impl Kernels {
     /// Load every kernel of `module`; `sm_count` sizes the waves, `fused_rebuild` asks for the
     /// persistent rebuild kernel's grid, `sort_fields` is the sort scratch's fields (at most the
-    /// `layout`'s words).
+    /// `layout`'s words), `f64` says the module is double precision (its fused kernels keep one
+    /// wave of threads unless asked: [`Kernels::g2p2g_resident`]).
     pub(crate) fn load(
         module: &Arc<CudaModule>,
         sm_count: i32,
         fused_rebuild: bool,
         sort_fields: usize,
         layout: crate::contract::StateLayout,
+        f64: bool,
     ) -> Result<Kernels, SimError> {
         let functions = Kernel::ALL
             .iter()
@@ -66,7 +69,8 @@ impl Kernels {
                 .map_err(|e| SimError::Backend(format!("CUDA: occupancy of rb_fused: {e:?}")))?;
             k.rb_fused_grid = Some(per_sm * sm_count.max(1) as u32).filter(|&g| g > 0);
         }
-        if std::env::var("RTMPM_G2P2G_GRID").map_or(true, |v| v.trim() != "wave") {
+        let grid = std::env::var("RTMPM_G2P2G_GRID").unwrap_or_default();
+        if grid.trim() == "resident" || (grid.trim() != "wave" && !f64) {
             let resident = |f: Kernel| {
                 k[f].occupancy_max_active_blocks_per_multiprocessor(128, 0, None)
                     .map(|per_sm| per_sm * sm_count.max(1) as u32)

@@ -12,17 +12,26 @@
 #include "particle.cuh"
 #include "../p2g/warp.cuh"
 
-// Register budgets, measured on an H200 (bench/RESULTS.md, "Occupancy"): both fused kernels held
-// to 5 resident blocks of 128 threads a SM (96 registers, 24-48 bytes of spills with ptxas 13.0)
-// and launched as the blocks resident at once (crates/rtmpm-cuda/src/kernels.rs) ran the claymore
-// scenes 5-9 % faster than ptxas's own choice for the general kernel (128 registers; a hint of 1
-// to 4 cost jelly 8 %) with 4 blocks for the fluid one. -DG2P2G_MIN_BLOCKS=0 leaves the general
-// kernel to ptxas, -DG2P2G_FLUID_MIN_BLOCKS=4 restores the fluid kernel's earlier bound.
+// Register budgets, measured on an H200 (bench/RESULTS.md, "Occupancy"): in f32 both fused
+// kernels held to 5 resident blocks of 128 threads a SM (96 registers, 24-48 bytes of spills with
+// ptxas 13.0) and launched as the blocks resident at once (crates/rtmpm-cuda/src/kernels.rs) ran
+// the claymore scenes 5-8 % faster than ptxas's own choice for the general kernel (128
+// registers; a hint of 1 to 4 cost jelly 8 %) with 4 blocks for the fluid one. In f64 the same
+// bounds made the step 18-33 % slower (its doubles spill), so f64 keeps the earlier ones.
+// -DG2P2G_MIN_BLOCKS=0 leaves the general kernel to ptxas, -DG2P2G_FLUID_MIN_BLOCKS=N sets the
+// fluid kernel's bound.
+#ifdef RTMPM_F64
+#define G2P2G_DEFAULT_MIN_BLOCKS 0
+#define G2P2G_DEFAULT_FLUID_MIN_BLOCKS 4
+#else
+#define G2P2G_DEFAULT_MIN_BLOCKS 5
+#define G2P2G_DEFAULT_FLUID_MIN_BLOCKS 5
+#endif
 #ifndef G2P2G_FLUID_MIN_BLOCKS
-#define G2P2G_FLUID_MIN_BLOCKS 5
+#define G2P2G_FLUID_MIN_BLOCKS G2P2G_DEFAULT_FLUID_MIN_BLOCKS
 #endif
 #ifndef G2P2G_MIN_BLOCKS
-#define G2P2G_MIN_BLOCKS 5
+#define G2P2G_MIN_BLOCKS G2P2G_DEFAULT_MIN_BLOCKS
 #endif
 #if G2P2G_MIN_BLOCKS > 0
 #define G2P2G_BOUNDS 128, G2P2G_MIN_BLOCKS

@@ -370,6 +370,7 @@ impl Plan {
             o.fused_rebuild,
             o.sort_scratch_fields,
             self.layout,
+            o.f64,
         )?;
         kernels.sort_mask = sorted_fields(self.layout, self.all_fluid());
         Ok((stream, module, kernels))
