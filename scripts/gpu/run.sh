@@ -10,6 +10,11 @@
 #                (every model on the GPU against Rust), the CPU/GPU agreement on every example
 #                scene, emitters and the keyframed paddle against the CPU (test_emitters), the CLI on the GPU
 #   validate     the validation suite at full resolution on the GPU (`rtmpm validate`)
+#   ck           CK-MPM on the GPU: test_agreement's cuda_agrees_with_cpu_with_ck_mpm (f32 and f64
+#                against the CPU reference), then the four *_ck validation cases at full resolution, in
+#                f32 and (vibrating_bar_ck) f64; then ms/step of the fluid dam 2M and the jelly 2M with
+#                MLS-MPM (fused G2P2G, and g2p2g=off) and with CK-MPM (the same scene, [solver] transfer
+#                = "ck-mpm", an unfused step)
 #   validate_compact  the same with the compact particle state (`--particle-state compact`)
 #   convergence  the convergence studies and the f64 validation cases
 #   bench        the claymore scenes (fluid 2M, jelly 2M, snow 1.33M) and a fluid block; with
@@ -110,6 +115,26 @@ for suite in "$@"; do
       timeout 500 "$D/rtmpm" validate --backend cuda --out "$OUT/validation" > "$OUT/validate.log" 2>&1
       say "validate --backend cuda rc=$?"
       grep -E "PASS|FAIL|passed" "$OUT/validate.log" | sed -E 's/ +/ /g' | tee -a "$S"
+      ;;
+    ck)
+      t test_agreement cuda_agrees_with_cpu_with_ck_mpm --nocapture
+      grep -E "ck-mpm" "$OUT/test_agreement.log" | tee -a "$S"
+      timeout 400 "$D/rtmpm" validate --backend cuda \
+        --case hydrostatic_column_ck,vibrating_bar_ck,dam_break_ck,granular_column_ck \
+        --out "$OUT/validation_ck" > "$OUT/validate_ck.log" 2>&1
+      say "validate --backend cuda (CK-MPM) rc=$?"
+      grep -E "PASS|FAIL|passed|broken|refuse" "$OUT/validate_ck.log" | sed -E 's/ +/ /g' | tee -a "$S"
+      timeout 150 "$D/rtmpm" validate --backend cuda --precision f64 --case vibrating_bar_ck \
+        --out "$OUT/validation_ck_f64" > "$OUT/validate_ck_f64.log" 2>&1
+      say "validate --backend cuda --precision f64 (CK-MPM) rc=$?"
+      grep -E "PASS|FAIL|passed|broken|refuse" "$OUT/validate_ck_f64.log" | sed -E 's/ +/ /g' | tee -a "$S"
+      for sc in fluid_dam_2m jelly_drop_2m; do
+        cp "bench/$sc.toml" "$OUT/${sc}_ck.toml"
+        printf '\n[solver]\ntransfer = "ck-mpm"\n' >> "$OUT/${sc}_ck.toml"
+        b "$sc MLS-MPM" rtmpm --scene "bench/$sc.toml" --frames 5
+        b "$sc MLS-MPM g2p2g=off" rtmpm --scene "bench/$sc.toml" --frames 5 --cuda-options g2p2g=off
+        b "$sc CK-MPM" rtmpm --scene "$OUT/${sc}_ck.toml" --frames 5
+      done
       ;;
     validate_compact)
       timeout 500 "$D/rtmpm" validate --backend cuda --particle-state compact --out "$OUT/validation_compact" > "$OUT/validate_compact.log" 2>&1

@@ -77,8 +77,9 @@ struct Ctx {
     real* grid;               // 4 reals per node: mass, momentum (velocity after grid update)
     real* grid_next;          // G2P2G (g2p/g2p2g.cu): the grid the fused kernel scatters the next
                               // step into (null: G2P and P2G are separate kernels)
-    real* grid_aux;           // classic MPM transfers only (else null), 4 reals per node: unused,
-                              // dt f_i after P2G, v_old after the grid update, MUSL re-mapped v
+    real* grid_aux;           // classic MPM transfers and CK-MPM (else null), 4 reals per node:
+                              // unused, dt f_i after P2G, v_old after the grid update, MUSL
+                              // re-mapped v; CK-MPM: the nodes of its second grid (as grid's)
     unsigned* ctl;
     const Scalars* scalars;   // global copies of the constant-memory parameters
     const StepParams* step;   // (read with -DRTMPM_PARAMS_GLOBAL)

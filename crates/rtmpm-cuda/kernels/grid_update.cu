@@ -122,31 +122,19 @@ __device__ vec3 couple_bodies(const Ctx& c, vec3 x, real m, vec3 v, vec3 g_dt) {
     return v;
 }
 
-// MLS: v = p / m + dt g. Classic MPM transfers: v = (p + dt f) / m + dt g with dt f from
-// grid_aux, which then keeps v_old = p / m (no force, no boundary condition) for FLIP.
-__device__ void grid_update_node(const Ctx& c, unsigned t) {
-    real* node = c.grid + 4u * t;
-    real m = node[0];
-    if (!(m > 0)) return;
-    const StepParams& sp = step_params(c);
+// The gravity of node t: the scene's, or in a batch its world's.
+__device__ __forceinline__ const real* node_gravity(const Ctx& c, unsigned t) {
 #ifdef RTMPM_BATCH
-    const real* gravity = c_batch.gravity + 3 * node_world(c.block_coords[3 * (t >> 6)] * 4);
+    return c_batch.gravity + 3 * node_world(c.block_coords[3 * (t >> 6)] * 4);
 #else
-    const real* gravity = sp.gravity;
+    return step_params(c).gravity;
 #endif
-    real inv_m = (real)1 / m;
-    vec3 v;
-    if (c.transfer == TRANSFER_MLS) {
-        v = make_v3(node[1] * inv_m + sp.dt * gravity[0], node[2] * inv_m + sp.dt * gravity[1],
-                    node[3] * inv_m + sp.dt * gravity[2]);
-    } else {
-        real* aux = c.grid_aux + 4u * t;
-        vec3 p = make_v3(node[1], node[2], node[3]);
-        vec3 f = make_v3(aux[1], aux[2], aux[3]);
-        v = (p + f) * inv_m + make_v3(gravity[0], gravity[1], gravity[2]) * (real)sp.dt;
-        vec3 v_old = p * inv_m;
-        aux[1] = v_old.x; aux[2] = v_old.y; aux[3] = v_old.z;
-    }
+}
+
+// The end of every node update: settling damping, the boundary conditions at the node's B-spline
+// grid position, the rigid bodies, and the new velocity stored in `node` (its 4 values).
+__device__ __forceinline__ void grid_node_finish(const Ctx& c, real* node, unsigned t, real m, vec3 v, const real* gravity) {
+    const StepParams& sp = step_params(c);
     v = v * (real)sp.damping;  // settling damping (1 = off)
     v = node_boundary(c, t, v);
     if (c.n_bodies) {
@@ -159,6 +147,48 @@ __device__ void grid_update_node(const Ctx& c, unsigned t) {
         v = couple_bodies(c, x, m, v, g_dt);
     }
     node[1] = v.x; node[2] = v.y; node[3] = v.z;
+}
+
+// The MLS-MPM/APIC update of node t of one grid (`node`: its 4 values; cpu/grid_update.rs:
+// update_apic): v = p / m + dt g, then grid_node_finish.
+__device__ __forceinline__ void grid_update_apic(const Ctx& c, real* node, unsigned t) {
+    real m = node[0];
+    if (!(m > 0)) return;
+    real dt = step_params(c).dt;
+    const real* gravity = node_gravity(c, t);
+    real inv_m = (real)1 / m;
+    vec3 v = make_v3(node[1] * inv_m + dt * gravity[0], node[2] * inv_m + dt * gravity[1], node[3] * inv_m + dt * gravity[2]);
+    grid_node_finish(c, node, t, m, v, gravity);
+}
+
+// MLS: grid_update_apic. CK-MPM (Liu, Wang & Li, "CK-MPM: A Compact-Kernel Material Point
+// Method", ACM TOG 2025): grid_update_apic on each of its two grids (grid 0 in grid, grid 1 in
+// grid_aux), both tested against the boundaries at node t's B-spline position, so that a boundary
+// holds the nodes of both grids on either side of it (no rigid bodies: refused with CK-MPM).
+// Classic MPM transfers: v = (p + dt f) / m + dt g with dt f from grid_aux, which then keeps
+// v_old = p / m (no force, no boundary condition) for FLIP.
+__device__ void grid_update_node(const Ctx& c, unsigned t) {
+    if (c.transfer == TRANSFER_MLS) {
+        grid_update_apic(c, c.grid + 4u * t, t);
+        return;
+    }
+    if (c.transfer == TRANSFER_CK) {
+        grid_update_apic(c, c.grid + 4u * t, t);
+        grid_update_apic(c, c.grid_aux + 4u * t, t);
+        return;
+    }
+    real* node = c.grid + 4u * t;
+    real m = node[0];
+    if (!(m > 0)) return;
+    const real* gravity = node_gravity(c, t);
+    real inv_m = (real)1 / m;
+    real* aux = c.grid_aux + 4u * t;
+    vec3 p = make_v3(node[1], node[2], node[3]);
+    vec3 f = make_v3(aux[1], aux[2], aux[3]);
+    vec3 v = (p + f) * inv_m + make_v3(gravity[0], gravity[1], gravity[2]) * (real)step_params(c).dt;
+    vec3 v_old = p * inv_m;
+    aux[1] = v_old.x; aux[2] = v_old.y; aux[3] = v_old.z;
+    grid_node_finish(c, node, t, m, v, gravity);
 }
 
 // MUSL re-map (cpu/grid_update.rs: grid_update_musl): re-mapped momentum in grid_aux to

@@ -61,6 +61,19 @@ __device__ __forceinline__ mat3 outer(vec3 a, vec3 b) {
     return c;
 }
 
+// Inverse of a (glam's Mat3::inverse, the same operations): the cofactor columns over the
+// determinant, transposed. a must be invertible.
+__device__ __forceinline__ mat3 inverse(const mat3& a) {
+    vec3 x = make_v3(a.m[0], a.m[1], a.m[2]), y = make_v3(a.m[3], a.m[4], a.m[5]), z = make_v3(a.m[6], a.m[7], a.m[8]);
+    vec3 t0 = cross(y, z), t1 = cross(z, x), t2 = cross(x, y);
+    real inv_det = (real)1 / dot(z, t2);
+    mat3 r;
+    r.m[0] = t0.x * inv_det; r.m[1] = t0.y * inv_det; r.m[2] = t0.z * inv_det;
+    r.m[3] = t1.x * inv_det; r.m[4] = t1.y * inv_det; r.m[5] = t1.z * inv_det;
+    r.m[6] = t2.x * inv_det; r.m[7] = t2.y * inv_det; r.m[8] = t2.z * inv_det;
+    return transpose(r);
+}
+
 // ---- helpers added for svd.cuh / material/*.cuh ----
 __device__ __forceinline__ vec3 operator-(vec3 a) { return make_v3(-a.x, -a.y, -a.z); }
 __device__ __forceinline__ vec3 make_v3s(real s) { return make_v3(s, s, s); }

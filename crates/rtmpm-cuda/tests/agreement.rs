@@ -159,73 +159,110 @@ fn cuda_f64_agrees_with_cpu_f64_on_every_example_scene() {
         println!("skipped: no usable CUDA GPU ({e})");
         return;
     }
-    let steps: usize = std::env::var("RTMPM_AGREEMENT_STEPS")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(300);
     let mut failures = Vec::new();
     for path in scenes() {
-        let mut scene = Scene::from_file(&path).expect("scene");
-        scene.precision = rtmpm_scene::Precision::F64;
-        let p0 = scene.sample_particles().expect("particles");
-        let mut cpu = rtmpm_cpu_f64::CpuBackend::new(&scene, p0.clone(), None).expect("cpu");
-        let opts = CudaOptions {
-            fast_math: false,
-            ..CudaOptions::default()
-        };
-        let mut gpu = CudaBackend::new(&scene, &p0, opts).expect("cuda backend");
-        assert!(gpu.name().contains("f64"), "{}", gpu.name());
-        let mut sim = Simulation::new(
-            scene.clone(),
-            Box::new(CpuBackend::new(&scene, p0.clone(), Some(1)).expect("cpu")),
-        );
-        let dt = sim.next_dt().expect("dt");
-        let dx = scene.dx;
-        cpu.step(dt, 0.0).expect("cpu step");
-        gpu.step(dt, 0.0).expect("gpu step");
-        // Compare the f64 states themselves, not through the f32 interface.
-        let a = &cpu.particles;
-        let b = gpu.read_x_v_f64().expect("read");
-        let mut worst_x = 0.0f64;
-        let mut worst_v = 0.0f64;
-        for (i, &id) in cpu.ids.iter().enumerate() {
-            let [bx, bv] = b[id as usize].map(glam::DVec3::from_array);
-            worst_x = worst_x.max((a.x[i] - bx).length());
-            worst_v = worst_v.max((a.v[i] - bv).length());
-        }
-        let vscale = a.v.iter().map(|v| v.length()).fold(1e-3, f64::max);
+        let scene = Scene::from_file(&path).expect("scene");
         let name = path.file_name().unwrap().to_string_lossy().to_string();
-        println!(
-            "{name} (f64): 1 step, dt {dt:.3e}: max |dx| {worst_x:.3e} m, max |dv| {worst_v:.3e} m/s (v scale {vscale:.3e})"
-        );
-        let (tol_x, tol_v) = if scene.colliders.is_empty() {
-            (1e-9 * dx as f64, 1e-9 * vscale)
-        } else {
-            (1e-5 * (dx as f64).max(1e-3) + 1e-6, 1e-3 * vscale)
+        failures.extend(compare_f64(&name, scene, steps()));
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// [`cuda_f64_agrees_with_cpu_f64_on_every_example_scene`] for one scene (run in f64).
+fn compare_f64(name: &str, mut scene: Scene, steps: usize) -> Vec<String> {
+    let mut failures = Vec::new();
+    scene.precision = rtmpm_scene::Precision::F64;
+    let p0 = scene.sample_particles().expect("particles");
+    let mut cpu = rtmpm_cpu_f64::CpuBackend::new(&scene, p0.clone(), None).expect("cpu");
+    let opts = CudaOptions {
+        fast_math: false,
+        ..CudaOptions::default()
+    };
+    let mut gpu = CudaBackend::new(&scene, &p0, opts).expect("cuda backend");
+    assert!(gpu.name().contains("f64"), "{}", gpu.name());
+    let mut sim = Simulation::new(
+        scene.clone(),
+        Box::new(CpuBackend::new(&scene, p0.clone(), Some(1)).expect("cpu")),
+    );
+    let dt = sim.next_dt().expect("dt");
+    let dx = scene.dx;
+    cpu.step(dt, 0.0).expect("cpu step");
+    gpu.step(dt, 0.0).expect("gpu step");
+    // Compare the f64 states themselves, not through the f32 interface.
+    let a = &cpu.particles;
+    let b = gpu.read_x_v_f64().expect("read");
+    let mut worst_x = 0.0f64;
+    let mut worst_v = 0.0f64;
+    for (i, &id) in cpu.ids.iter().enumerate() {
+        let [bx, bv] = b[id as usize].map(glam::DVec3::from_array);
+        worst_x = worst_x.max((a.x[i] - bx).length());
+        worst_v = worst_v.max((a.v[i] - bv).length());
+    }
+    let vscale = a.v.iter().map(|v| v.length()).fold(1e-3, f64::max);
+    println!(
+        "{name} (f64): 1 step, dt {dt:.3e}: max |dx| {worst_x:.3e} m, max |dv| {worst_v:.3e} m/s (v scale {vscale:.3e})"
+    );
+    let (tol_x, tol_v) = if scene.colliders.is_empty() {
+        (1e-9 * dx as f64, 1e-9 * vscale)
+    } else {
+        (1e-5 * (dx as f64).max(1e-3) + 1e-6, 1e-3 * vscale)
+    };
+    if worst_x > tol_x || worst_v > tol_v {
+        failures.push(format!(
+            "{name}: first step differs: |dx| {worst_x:.3e}, |dv| {worst_v:.3e}"
+        ));
+    }
+    for s in 1..steps {
+        cpu.step(dt, s as f32 * dt).expect("cpu step");
+        gpu.step(dt, s as f32 * dt).expect("gpu step");
+    }
+    assert!(gpu.check().expect("check").is_none(), "{name}: GPU blow-up");
+    let (a, b) = (read(&mut cpu), read(&mut gpu));
+    let d = a.aggregate_difference(&b);
+    println!(
+        "{name} (f64): {steps} steps: |d com| {:.3e} m ({:.3} dx), KE cpu {:.4e} gpu {:.4e} ({:.2} %)",
+        d.com,
+        d.com / dx as f64,
+        a.kinetic_energy(),
+        b.kinetic_energy(),
+        100.0 * d.kinetic
+    );
+    if d.com > 0.1 * dx as f64 || d.kinetic > 0.02 {
+        failures.push(format!("{name}: aggregates differ after {steps} steps"));
+    }
+    failures
+}
+
+/// CK-MPM (`[solver] transfer = "ck-mpm"`: the compact kernel on two staggered grids, Liu, Wang &
+/// Li 2025) on example scenes without rigid bodies: an elastic one, a fluid one, and two with
+/// colliders (a static rough plane under snow, a keyframed paddle in a Herschel-Bulkley fluid),
+/// with the tolerances of the tests above: in f32 (the CPU reference in f32) and in f64 (against
+/// the f64 CPU backend, to f64 rounding after one step where there is no collider).
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn cuda_agrees_with_cpu_with_ck_mpm() {
+    if let Err(e) = probe() {
+        println!("skipped: no usable CUDA GPU ({e})");
+        return;
+    }
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    let mut failures = Vec::new();
+    for file in [
+        "elastic_cubes.toml",
+        "dam_break.toml",
+        "snowball_small.toml",
+        "paddle.toml",
+    ] {
+        let mut scene = Scene::from_file(&dir.join(file)).expect("scene");
+        assert!(scene.rigid_bodies.is_empty(), "{file}");
+        scene.solver = SolverSettings {
+            transfer: Transfer::CkMpm,
+            update: Update::Usl,
+            flip: 0.0,
         };
-        if worst_x > tol_x || worst_v > tol_v {
-            failures.push(format!(
-                "{name}: first step differs: |dx| {worst_x:.3e}, |dv| {worst_v:.3e}"
-            ));
-        }
-        for s in 1..steps {
-            cpu.step(dt, s as f32 * dt).expect("cpu step");
-            gpu.step(dt, s as f32 * dt).expect("gpu step");
-        }
-        assert!(gpu.check().expect("check").is_none(), "{name}: GPU blow-up");
-        let (a, b) = (read(&mut cpu), read(&mut gpu));
-        let d = a.aggregate_difference(&b);
-        println!(
-            "{name} (f64): {steps} steps: |d com| {:.3e} m ({:.3} dx), KE cpu {:.4e} gpu {:.4e} ({:.2} %)",
-            d.com,
-            d.com / dx as f64,
-            a.kinetic_energy(),
-            b.kinetic_energy(),
-            100.0 * d.kinetic
-        );
-        if d.com > 0.1 * dx as f64 || d.kinetic > 0.02 {
-            failures.push(format!("{name}: aggregates differ after {steps} steps"));
-        }
+        let name = format!("{file} ({})", scene.solver.describe());
+        failures.extend(compare(&name, &scene, steps()));
+        failures.extend(compare_f64(&name, scene, steps()));
     }
     assert!(failures.is_empty(), "{failures:#?}");
 }

@@ -8,9 +8,9 @@
 //!   particle domain of 2 x 2 x 2 particles per cell), so that its support stays inside the same
 //!   3x3x3 node stencil as the quadratic B-spline.
 //! * [`Transfer::MpmLinear`]: classic MPM with linear hat functions (Sulsky et al. 1994).
-//! * [`Transfer::CkMpm`] (experimental, CPU only): the compact C2 kernel on two staggered grids
-//!   with MLS-MPM/APIC (Liu, Wang & Li, "CK-MPM: A Compact-Kernel Material Point Method", ACM TOG
-//!   2025); see [`crate::compact_kernel`].
+//! * [`Transfer::CkMpm`] (experimental; the CUDA backend on one GPU only): the compact C2 kernel
+//!   on two staggered grids with MLS-MPM/APIC (Liu, Wang & Li, "CK-MPM: A Compact-Kernel Material
+//!   Point Method", ACM TOG 2025); see [`crate::compact_kernel`].
 //!
 //! Gimp and MpmLinear are the classic explicit MPM transfers: P2G of mass, momentum and internal
 //! force `f_i = -sum_p V0_p tau_p grad w_ip`, a PIC/FLIP blend of the particle velocity, the
@@ -27,8 +27,8 @@ pub enum Transfer {
     Gimp,
     /// Classic MPM, linear hat functions, PIC/FLIP velocity update.
     MpmLinear,
-    /// CK-MPM: the compact kernel on two staggered grids, MLS-MPM/APIC (experimental; CPU
-    /// backend only).
+    /// CK-MPM: the compact kernel on two staggered grids, MLS-MPM/APIC (experimental; the CUDA
+    /// backend runs it on one GPU only).
     CkMpm,
 }
 
@@ -43,8 +43,7 @@ impl Transfer {
         }
     }
 
-    /// Code passed to the CUDA kernels (`TRANSFER_*` in `kernels/shape.cuh`; the CUDA backend
-    /// refuses [`Transfer::CkMpm`], which has no kernel yet).
+    /// Code passed to the CUDA kernels (`TRANSFER_*` of the generated `contract.cuh`).
     pub fn code(self) -> u32 {
         match self {
             Transfer::Mls => 0,

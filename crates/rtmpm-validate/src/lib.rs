@@ -44,8 +44,8 @@ const CASES: &[(&str, Case)] = &[
     ("emitter_mass", rigid::emitter_mass),
 ];
 
-/// The cases of the experimental CK-MPM transfer (CPU backend only): run only when named
-/// (`--case vibrating_bar_ck`), never by default.
+/// The cases of the experimental CK-MPM transfer (either backend; CUDA on one GPU): run only
+/// when named (`--case vibrating_bar_ck`), never by default.
 const CK_CASES: &[(&str, Case)] = &[
     ("hydrostatic_column_ck", hydrostatic::run_ck),
     ("vibrating_bar_ck", bar::run_ck),

@@ -138,13 +138,6 @@ const MAX_CUDA_PARTICLES: usize = (1 << 31) - 1;
 
 /// Checks before any GPU work: what the CUDA backend cannot run, as clear errors.
 fn check(scene: &Scene, n: usize, part: &Part, o: &CudaOptions) -> Result<(), SimError> {
-    if scene.solver.transfer == Transfer::CkMpm {
-        return Err(SimError::Backend(
-            "CUDA backend: [solver] transfer = \"ck-mpm\" (experimental) runs on the CPU backend \
-             only so far; use --backend cpu, or transfer = \"mls\" (the default) on the GPU"
-                .into(),
-        ));
-    }
     if o.f64 && o.p2g == P2gMode::Shared {
         return Err(SimError::Backend(
             "CUDA backend: p2g=shared is single precision only (a 12^3 tile of f64 nodes \
@@ -188,6 +181,30 @@ fn check(scene: &Scene, n: usize, part: &Part, o: &CudaOptions) -> Result<(), Si
         )));
     }
     Ok(())
+}
+
+/// What the CUDA backend's CK-MPM (`[solver] transfer = "ck-mpm"`, one GPU: the two grids'
+/// kernels `p2g_ck`, the grid update, `g2p_ck`) does not run yet, as clear errors: rigid bodies
+/// (the CPU backend refuses them too), several GPUs and a batch of worlds.
+fn check_ck_mpm(scene: &Scene, part: &Part, batch: bool) -> Result<(), SimError> {
+    if scene.solver.transfer != Transfer::CkMpm {
+        return Ok(());
+    }
+    let what = if !scene.rigid_bodies.is_empty() {
+        "does not couple [[rigid_body]] tables to its two grids yet; use transfer = \"mls\" (the \
+         default) with rigid bodies"
+    } else if part.ids.is_some() {
+        "runs on one GPU only so far; use --gpus 1 (or transfer = \"mls\", the default, on \
+         several GPUs)"
+    } else if batch {
+        "runs one world per GPU only so far; run the batch with --backend cpu (or transfer = \
+         \"mls\", the default)"
+    } else {
+        return Ok(());
+    };
+    Err(SimError::Backend(format!(
+        "CUDA backend: [solver] transfer = \"ck-mpm\" {what}"
+    )))
 }
 
 /// The bodies of `initial` with every deferred body walked on the host, when the host needs
@@ -245,6 +262,7 @@ impl Plan {
     ) -> Result<Plan, SimError> {
         let n = initial.len();
         check(scene, n, part, &options)?;
+        check_ck_mpm(scene, part, batch)?;
         let layout = state::layout_for(scene, &options)
             .map_err(|e| SimError::Backend(format!("CUDA backend: {e}")))?;
         emit::check(scene, options.p2g)?;
@@ -473,25 +491,76 @@ fn write_constants(
 mod tests {
     use super::*;
 
-    #[test]
-    fn ck_mpm_is_refused_before_any_gpu_work() {
+    fn free_fall() -> Scene {
         let path = concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/../../validation/free_fall.toml"
         );
-        let mut scene = Scene::from_file(std::path::Path::new(path)).expect("scene");
-        let part = Part {
+        Scene::from_file(std::path::Path::new(path)).expect("scene")
+    }
+
+    fn one_gpu() -> Part {
+        Part {
             device: 0,
             ids: None,
             capacity: 0,
-        };
-        let o = CudaOptions::default();
-        assert!(check(&scene, 10, &part, &o).is_ok());
+        }
+    }
+
+    #[test]
+    fn ck_mpm_runs_on_one_gpu_and_refuses_what_it_does_not_support() {
+        let mut scene = free_fall();
         scene.solver.transfer = Transfer::CkMpm;
-        let e = check(&scene, 10, &part, &o).expect_err("ck-mpm has no CUDA kernel");
-        let msg = e.to_string();
+        let o = CudaOptions::default();
+        assert!(check(&scene, 10, &one_gpu(), &o).is_ok());
+        assert!(check_ck_mpm(&scene, &one_gpu(), false).is_ok());
+        // Several GPUs, a batch of worlds: refused with the fix.
+        let several = Part {
+            ids: Some((0..10).collect()),
+            ..one_gpu()
+        };
+        let msg = check_ck_mpm(&scene, &several, false)
+            .expect_err("ck-mpm on several GPUs")
+            .to_string();
+        assert!(msg.contains("ck-mpm") && msg.contains("--gpus 1"), "{msg}");
+        let msg = check_ck_mpm(&scene, &one_gpu(), true)
+            .expect_err("ck-mpm batch")
+            .to_string();
         assert!(
             msg.contains("ck-mpm") && msg.contains("--backend cpu"),
+            "{msg}"
+        );
+        // The gathers of p2g= collect MLS-MPM contributions only.
+        for p2g in [P2gMode::ReverseMap, P2gMode::Sort] {
+            let o = CudaOptions {
+                p2g,
+                ..CudaOptions::default()
+            };
+            let msg = check(&scene, 10, &one_gpu(), &o)
+                .expect_err("gather with ck-mpm")
+                .to_string();
+            assert!(msg.contains("ck-mpm") && msg.contains("p2g=warp"), "{msg}");
+        }
+        // The other transfers are not concerned.
+        scene.solver.transfer = Transfer::Mls;
+        assert!(check_ck_mpm(&scene, &several, true).is_ok());
+    }
+
+    #[cfg(feature = "rigid")]
+    #[test]
+    fn ck_mpm_refuses_rigid_bodies() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../validation/archimedes.toml"
+        );
+        let mut scene = Scene::from_file(std::path::Path::new(path)).expect("scene");
+        assert!(!scene.rigid_bodies.is_empty());
+        scene.solver.transfer = Transfer::CkMpm;
+        let msg = check_ck_mpm(&scene, &one_gpu(), false)
+            .expect_err("ck-mpm with rigid bodies")
+            .to_string();
+        assert!(
+            msg.contains("ck-mpm") && msg.contains("rigid_body") && msg.contains("\"mls\""),
             "{msg}"
         );
     }

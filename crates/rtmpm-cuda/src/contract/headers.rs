@@ -312,6 +312,7 @@ pub fn prelude() -> String {
         ("TRANSFER_MLS", Transfer::Mls),
         ("TRANSFER_GIMP", Transfer::Gimp),
         ("TRANSFER_LINEAR", Transfer::MpmLinear),
+        ("TRANSFER_CK", Transfer::CkMpm),
     ] {
         def(n, format!("{}u", t.code()));
     }

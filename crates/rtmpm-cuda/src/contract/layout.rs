@@ -54,8 +54,9 @@ pub struct Ctx {
     pub grid: u64,
     /// G2P2G: the grid the fused kernel scatters the next step into (0: no G2P2G).
     pub grid_next: u64,
-    /// Classic MPM transfers (0 for MLS): 4 reals per node: unused, dt f_i after P2G, v_old
-    /// after the grid update, MUSL re-mapped v.
+    /// Classic MPM transfers and CK-MPM (0 for MLS): 4 reals per node: unused, dt f_i after
+    /// P2G, v_old after the grid update, MUSL re-mapped v; CK-MPM: its second grid's nodes
+    /// (mass, momentum, then velocity).
     pub grid_aux: u64,
     /// `CTL_WORDS` control words.
     pub ctl: u64,

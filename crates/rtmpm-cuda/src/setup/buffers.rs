@@ -211,7 +211,8 @@ impl Unnamed {
         let warps = zeros(sizes.warps, "alloc warp list")?;
         let boundary = zeros(sizes.boundary, "alloc boundary flags")?;
         let shared_pblock = zeros(sizes.shared_pblock, "alloc shared-block flags")?;
-        // The classic MPM transfers keep a second value per node (force, v_old, MUSL re-map).
+        // The classic MPM transfers keep a second value per node (force, v_old, MUSL re-map),
+        // CK-MPM its second grid.
         let grid_aux = if sizes.grid_aux == 0 {
             0
         } else {

@@ -6,8 +6,8 @@ use cudarc::driver::{CudaStream, DriverError, PushKernelArg};
 use rtmpm_physics::transfer::Transfer;
 
 /// Enqueue the merged G2P (interpolation, F, plasticity, advection, free-zone and health checks):
-/// `g2p2g` with G2P2G (the next step's P2G in the same kernel), else `g2p` for MLS, `g2p_mpm`
-/// for the classic MPM transfers. `all_fluid`: every material is a fluid (G2P2G then runs
+/// `g2p2g` with G2P2G (the next step's P2G in the same kernel), else `g2p` for MLS, `g2p_ck` for
+/// CK-MPM (from its two grids), `g2p_mpm` for the classic MPM transfers. `all_fluid`: every material is a fluid (G2P2G then runs
 /// `g2p2g_fluid`, which moves one word of F in and three out).
 pub(crate) fn enqueue(
     k: &Kernels,
@@ -21,6 +21,8 @@ pub(crate) fn enqueue(
         Kernel::G2p2g
     } else if c.transfer == Transfer::Mls.code() {
         Kernel::G2p
+    } else if c.transfer == Transfer::CkMpm.code() {
+        Kernel::G2pCk
     } else {
         Kernel::G2pMpm
     };

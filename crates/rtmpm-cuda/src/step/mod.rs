@@ -72,9 +72,11 @@ impl StepPlan<'_> {
     }
 }
 
-/// True for the MUSL stress update of the classic transfers.
+/// True for the MUSL stress update of the classic transfers (MLS-MPM and CK-MPM are USL only).
 fn musl(c: &Ctx) -> bool {
-    c.transfer != Transfer::Mls.code() && c.update == crate::contract::update(Update::Musl)
+    c.transfer != Transfer::Mls.code()
+        && c.transfer != Transfer::CkMpm.code()
+        && c.update == crate::contract::update(Update::Musl)
 }
 
 /// Several GPUs: the sum of the grid blocks a GPU shares with the others, between P2G and the

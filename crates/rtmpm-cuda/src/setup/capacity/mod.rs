@@ -36,7 +36,7 @@ pub struct Capacity {
 pub struct GridCopies {
     /// G2P2G: the grid of the next step.
     pub next: bool,
-    /// Classic (non-MLS) transfers: a second value per node.
+    /// Classic (non-MLS) transfers: a second value per node; CK-MPM: its second grid.
     pub aux: bool,
 }
 
@@ -59,7 +59,7 @@ pub struct BufferBytes {
     pub grid: usize,
     /// G2P2G's second grid (0 without).
     pub grid_next: usize,
-    /// Classic transfers' second node values (0 for MLS).
+    /// Classic transfers' second node values, CK-MPM's second grid (0 for MLS).
     pub grid_aux: usize,
     /// Block hash: 8-byte key and 4-byte value per slot.
     pub hash: usize,

@@ -8,8 +8,9 @@ use cudarc::driver::{CudaStream, DriverError, LaunchConfig, PushKernelArg};
 use rtmpm_physics::transfer::Transfer;
 
 /// Enqueue the scatter P2G: for MLS the warp variant (4 warps per CUDA block) or the
-/// shared-memory ablation; for the classic MPM transfers `p2g_mpm` (whatever `mode`). `part`: 0
-/// every particle; several GPUs (MLS only): 1 the gblocks next to a shared block, 2 the others.
+/// shared-memory ablation; for CK-MPM `p2g_ck` into its two grids, for the classic MPM transfers
+/// `p2g_mpm` (both whatever `mode`). `part`: 0 every particle; several GPUs (MLS only): 1 the
+/// gblocks next to a shared block, 2 the others.
 pub(crate) fn enqueue(
     k: &Kernels,
     s: &CudaStream,
@@ -20,6 +21,10 @@ pub(crate) fn enqueue(
     let wave = k.wave(c.warp_cap as usize * 32, 128);
     // SAFETY: the kernels bounds-check against the device counters and capacities.
     unsafe {
+        if c.transfer == Transfer::CkMpm.code() {
+            s.launch_builder(&k[Kernel::P2gCk]).arg(c).launch(wave)?;
+            return Ok(());
+        }
         if c.transfer != Transfer::Mls.code() {
             s.launch_builder(&k[Kernel::P2gMpm]).arg(c).launch(wave)?;
             return Ok(());
