@@ -834,8 +834,10 @@ def ck_mpm_cases(S):
             for f, data in files.items():
                 write(w / f, data)
         out.append(Case(f"ck-mpm: a run with {name}", run, [()], may_accept=True, setup=mk))
-    out.append(Case("ck-mpm: --backend cuda", ["run", S, "--backend", "cuda", "--no-output"],
-                    [("--backend cpu",)], setup=lambda w: write(w / "scene.toml", ck)))
+    # One GPU runs it (or, without a GPU, the CUDA backend's own error); several GPUs refuse it
+    # before any GPU work.
+    out.append(Case("ck-mpm: --backend cuda --gpus 2", ["run", S, "--backend", "cuda", "--gpus", "2", "--no-output"],
+                    [("--gpus 1",), ("second grid",)], setup=lambda w: write(w / "scene.toml", ck)))
 
     # A checkpoint of an MLS run resumed with the scene file edited to CK-MPM: the checkpoint's
     # scene runs on, so the edit would be ignored without a word.

@@ -58,10 +58,14 @@ pub fn check_supported(scene: &Scene, options: &CudaOptions) -> Result<(), SimEr
         ));
     }
     if scene.solver.transfer != Transfer::Mls {
+        let what = if scene.solver.transfer == Transfer::CkMpm {
+            "its second grid is"
+        } else {
+            "its per-node force and FLIP velocity are"
+        };
         return Err(SimError::Backend(format!(
-            "several GPUs run MLS-MPM only: the scene's [solver] transfer is \"{}\" (its \
-             per-node force and FLIP velocity are not summed across GPUs yet); run it on one \
-             GPU (--gpus 1) or on the CPU",
+            "several GPUs run MLS-MPM only: the scene's [solver] transfer is \"{}\" ({what} \
+             not summed across GPUs yet); run it on one GPU (--gpus 1) or on the CPU",
             scene.solver.transfer.name()
         )));
     }
@@ -147,6 +151,13 @@ mod tests {
         let mut gimp = scene.clone();
         gimp.solver.transfer = Transfer::Gimp;
         assert!(msg(check_supported(&gimp, &o)).contains("\"gimp\""));
+        let mut ck = scene.clone();
+        ck.solver.transfer = Transfer::CkMpm;
+        let m = msg(check_supported(&ck, &o));
+        assert!(
+            m.contains("\"ck-mpm\"") && m.contains("second grid") && m.contains("--gpus 1"),
+            "{m}"
+        );
         let mut double = scene;
         double.precision = rtmpm_scene::Precision::F64;
         assert!(msg(check_supported(&double, &o)).contains("--gpus 1"));
