@@ -928,6 +928,8 @@ def picture_flag_cases(S):
         (["--radius", "1e-30", "--no-movie"], [()], "accept"),
         (["--gif-size", "8x8"], [("--gif-size",)], "error"),
         (["--range", "0,1e39"], [("--range",)], "error"),
+        (["--range", "0,1", "--no-movie"], [("--range",), ("coloured by material",)], "warn"),
+        (["--gif-size", "64x36", "--no-movie"], [("--gif-size",), ("--no-movie",)], "warn"),
     ]:
         out.append(Case("render flags: " + " ".join(args), render + args, words, warn=kind == "warn",
                         may_accept=kind == "accept", setup=ran))
@@ -955,6 +957,20 @@ def picture_flag_cases(S):
                         may_accept=accept, setup=lambda w: write(w / "scene.toml", GOOD_SCENE)))
     out.append(Case("flags: run --threads 0", ["run", S, "--backend", "cpu", "--no-output", "--threads", "0"],
                     [("--threads",)], setup=lambda w: write(w / "scene.toml", GOOD_SCENE)))
+    fixed = GOOD_SCENE.replace("cfl = 0.4\nmax_dt = 2e-3", "dt = 1e-3")
+    # --cuda-options on the CPU backend (`--threads` keeps these on the CPU when the corpus runs
+    # its cases on a GPU backend).
+    for args, words, kind in [
+        (["run", S, "--backend", "cpu", "--out", "{W}/out", "--checkpoint-every", "0"], [("--checkpoint-every",)], "error"),
+        (["run", S, "--backend", "cpu", "--threads", "2", "--no-output", "--cuda-options", "p2g=shared"],
+         [("--cuda-options",), ("ignores them",)], "warn"),
+        (["bench", "--backend", "cpu", "--threads", "2", "--scene", S, "--frames", "1", "--cuda-options",
+          "warp_reduce=off"], [("--cuda-options",), ("ignores them",)], "warn"),
+        (["run", S, "--backend", "cpu", "--no-output", "--steps", "0"], [()], "accept"),
+    ]:
+        out.append(Case("flags: " + " ".join(a for a in args if "{W}" not in a), args, words,
+                        warn=kind == "warn", may_accept=kind == "accept",
+                        setup=lambda w: write(w / "scene.toml", fixed)))
     for args, words, warn in [
         (["--materials=-1"], [("--materials",)], False),
         (["--materials", "4294967296"], [("--materials",)], False),

@@ -164,6 +164,12 @@ pub fn bench(args: BenchArgs) -> Result<()> {
     if args.gpus > 1 {
         bail!("--gpus {} needs the CUDA backend", args.gpus);
     }
+    if args.cuda_options != rtmpm_cuda::CudaOptions::default() {
+        eprintln!(
+            "warning: --cuda-options are switches of the CUDA backend; this benchmark runs on \
+             the CPU backend, which ignores them"
+        );
+    }
     let t = Instant::now();
     let backend = make_backend(
         BackendKind::Cpu,

@@ -187,6 +187,15 @@ fn resolve(
     opts.camera = camera;
     opts.color_by = view.color_by.or(sr.color_by).unwrap_or_default();
     opts.range = view.range;
+    if view.range.is_some() && opts.color_by == ColorBy::Material {
+        eprintln!(
+            "warning: --range is the colour range of a field (--color-by speed, J, stress or \
+             plastic); these pictures are coloured by material, which ignores it"
+        );
+    }
+    if view.no_movie && view.gif_size.is_some() {
+        eprintln!("warning: --gif-size sizes movie.gif, which --no-movie leaves out");
+    }
     opts.floor = Some(floor);
     opts.shadows = !view.no_shadows;
     if let Some(s) = scene {

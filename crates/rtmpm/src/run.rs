@@ -83,6 +83,12 @@ pub struct RunArgs {
 }
 
 pub fn run(args: RunArgs) -> Result<()> {
+    if args.checkpoint_every == Some(0) {
+        bail!(
+            "--checkpoint-every 0 would write no checkpoint\n  fix: give --checkpoint-every N \
+             (a checkpoint every N frames, N from 1), or leave it out"
+        );
+    }
     let mut start = RunStart::load(args.scene.as_deref(), args.resume.as_deref())?;
     if let Some(p) = args.precision {
         start.scene.precision = p;
@@ -147,6 +153,14 @@ pub fn run(args: RunArgs) -> Result<()> {
         setup.backend = start.elapsed().as_secs_f64();
         b
     };
+    if backend.name().starts_with("cpu") && args.cuda_options != rtmpm_cuda::CudaOptions::default()
+    {
+        eprintln!(
+            "warning: --cuda-options are switches of the CUDA backend; the run is on `{}`, which \
+             ignores them",
+            backend.name()
+        );
+    }
     let options = RunOptions {
         frames: args.frames,
         steps: args.steps,
