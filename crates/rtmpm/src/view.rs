@@ -47,7 +47,7 @@ pub struct ViewArgs {
     /// Replace the --record file if it exists.
     #[arg(long)]
     pub overwrite: bool,
-    /// End after this many simulated frames (default: run until stopped with Ctrl-C).
+    /// End after this many simulated frames (default: run until stopped with Ctrl-C; a recording without a window or --serve: the scene's duration x fps)
     #[arg(long, value_name = "N")]
     pub frames: Option<u64>,
     /// Backend.
