@@ -287,3 +287,46 @@ fn bench_on_the_cpu_reports_its_measurements() {
     assert!(!o.status.success());
     assert!(text(&o).contains("fixed time step"), "{}", text(&o));
 }
+
+#[test]
+fn a_batch_run_refuses_checkpoint_flags_and_names_the_route_that_works() {
+    let dir = scratch("batch_flags");
+    for (flags, want) in [
+        (
+            vec!["--checkpoint-every", "2"],
+            [
+                "--checkpoint-every: rtmpm run does not checkpoint a batch",
+                "BatchSimulation.checkpoint(path)",
+            ],
+        ),
+        (
+            vec!["--resume", "x.ckpt"],
+            [
+                "--resume: rtmpm run does not checkpoint a batch",
+                "BatchRun::checkpoint",
+            ],
+        ),
+        (
+            vec!["--precision", "f64"],
+            [
+                "a batch takes its precision from the scene",
+                "precision = \"f64\"",
+            ],
+        ),
+    ] {
+        let mut args = vec!["run", "--backend", "cpu", "--out", dir.to_str().unwrap()];
+        let scene = data("tiny_wedge.toml");
+        args.insert(1, &scene);
+        args.extend(flags.iter().copied());
+        let o = rtmpm(&args);
+        let t = text(&o);
+        assert!(!o.status.success(), "{flags:?} accepted:\n{t}");
+        for w in want {
+            assert!(t.contains(w), "{flags:?}: no `{w}` in:\n{t}");
+        }
+        assert!(
+            !dir.join("batch.csv").exists(),
+            "{flags:?} wrote files before refusing"
+        );
+    }
+}
