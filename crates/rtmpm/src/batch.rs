@@ -103,17 +103,6 @@ pub fn describe(b: &BatchScene) -> String {
     out
 }
 
-/// The checkpoint flag given to a batch run, as written on the command line.
-fn checkpoint_flag(args: &crate::run::RunArgs) -> Option<&'static str> {
-    if args.resume.is_some() {
-        Some("--resume")
-    } else if args.checkpoint_every.is_some() {
-        Some("--checkpoint-every")
-    } else {
-        None
-    }
-}
-
 /// Most worker threads a batch run starts (`--threads`), as for one CPU backend.
 const MAX_THREADS: usize = 1024;
 
@@ -146,20 +135,10 @@ pub fn run(args: &crate::run::RunArgs) -> Result<()> {
              --frames N (or, from Python, BatchSimulation.step(n) steps every world n times)"
         );
     }
-    if let Some(flag) = checkpoint_flag(args) {
+    if args.resume.is_some() || args.checkpoint_every.is_some() || args.precision.is_some() {
         bail!(
-            "{flag}: rtmpm run does not checkpoint a batch (its worlds' frame folders could not \
-             be taken up where they stopped)\n  fix: run the batch without {flag}; to checkpoint \
-             and resume a batch, drive it without frame files from Python \
-             (BatchSimulation.checkpoint(path), BatchSimulation.resume(path, scene, batch=N)) or \
-             Rust (rtmpm_driver::batch::BatchRun::checkpoint / resume): docs/batch.md"
-        );
-    }
-    if let Some(p) = args.precision {
-        bail!(
-            "--precision {0}: a batch takes its precision from the scene\n  fix: set \
-             [solver] precision = \"{0}\" in the scene file",
-            p.name()
+            "a batch run takes no --resume, --checkpoint-every or --precision (set [solver] \
+             precision in the scene)"
         );
     }
     if let Some(n) = args.threads {
