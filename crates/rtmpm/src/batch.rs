@@ -103,6 +103,32 @@ pub fn describe(b: &BatchScene) -> String {
     out
 }
 
+/// `--resume` and `--checkpoint-every` of a batch: refused, naming what does checkpoint a batch
+/// today (`BatchRun::checkpoint` / `resume`, from Rust or Python, for a batch that writes no
+/// frame files).
+fn refuse_checkpoints(args: &crate::run::RunArgs) -> Result<()> {
+    const ROUTE: &str = "checkpoints of a batch are written and resumed from Python \
+        (`sim.checkpoint(DIR)` of a `BatchSimulation`, then `BatchSimulation.resume(DIR, SCENE)`) \
+        or Rust (`rtmpm_driver::batch::BatchRun::checkpoint` and `BatchRun::resume`), for a \
+        batch that writes no frame files (docs/batch.md, \"Checkpoints\")";
+    if let Some(ckpt) = &args.resume {
+        bail!(
+            "--resume {}: `rtmpm run` does not resume a batch yet (its worlds' frame folders \
+             would have to be taken up where they stopped)\n  fix: {ROUTE}; or run the batch \
+             again from its start without --resume",
+            ckpt.display()
+        );
+    }
+    if let Some(n) = args.checkpoint_every {
+        bail!(
+            "--checkpoint-every {n}: `rtmpm run` does not write checkpoints of a batch yet (its \
+             worlds' frame folders could not be taken up again)\n  fix: {ROUTE}; or leave out \
+             --checkpoint-every"
+        );
+    }
+    Ok(())
+}
+
 /// Most worker threads a batch run starts (`--threads`), as for one CPU backend.
 const MAX_THREADS: usize = 1024;
 
@@ -135,10 +161,12 @@ pub fn run(args: &crate::run::RunArgs) -> Result<()> {
              --frames N (or, from Python, BatchSimulation.step(n) steps every world n times)"
         );
     }
-    if args.resume.is_some() || args.checkpoint_every.is_some() || args.precision.is_some() {
+    refuse_checkpoints(args)?;
+    if let Some(p) = args.precision {
         bail!(
-            "a batch run takes no --resume, --checkpoint-every or --precision (set [solver] \
-             precision in the scene)"
+            "--precision {p}: a batch run takes its precision from the scene\n  fix: set \
+             `precision = \"{p}\"` in the scene's [solver] table (every world runs at it)",
+            p = p.name()
         );
     }
     if let Some(n) = args.threads {
