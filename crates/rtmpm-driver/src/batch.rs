@@ -56,6 +56,12 @@ pub fn world_dir_name(w: usize, count: usize) -> String {
     format!("world_{w:0width$}")
 }
 
+/// The folder of a batch checkpoint of frame `frame` in a batch run's output folder
+/// (`checkpoint_00020`).
+pub fn checkpoint_dir_name(frame: u64) -> String {
+    format!("checkpoint_{frame:05}")
+}
+
 /// A batch run: the worlds and where their frames go.
 pub struct BatchRun {
     /// The worlds, in order.
@@ -63,6 +69,8 @@ pub struct BatchRun {
     /// The frames the run goes to.
     pub frames: u64,
     out: Option<OutDir>,
+    /// Taken up from a checkpoint (its current frame's files are already written).
+    resumed: bool,
 }
 
 /// How a batch run goes.
@@ -82,14 +90,34 @@ impl BatchRun {
     pub fn new(
         batch: &BatchScene,
         text: &str,
+        backend: impl FnMut(&Scene, usize) -> Result<Box<dyn Backend>>,
+        options: &BatchOptions,
+    ) -> Result<BatchRun> {
+        Self::build(batch, text, backend, options, None)
+    }
+
+    /// [`BatchRun::new`], or, with `resumed` (each world's frame and time in a checkpoint), a
+    /// run whose folders are taken up after those frames (later frames removed, `frames.pvd`
+    /// kept up to them) rather than started afresh.
+    fn build(
+        batch: &BatchScene,
+        text: &str,
         mut backend: impl FnMut(&Scene, usize) -> Result<Box<dyn Backend>>,
         options: &BatchOptions,
+        resumed: Option<&[(u64, f64)]>,
     ) -> Result<BatchRun> {
         let count = batch.count();
         let out = match &options.out_dir {
             Some(dir) => {
                 let out = OutDir::lock(dir, "rtmpm run (batch)")?;
-                out.start_fresh(&scene_identity(&batch.base.name, text), options.overwrite)?;
+                let identity = scene_identity(&batch.base.name, text);
+                match resumed {
+                    Some(r) => {
+                        let last = r.iter().map(|s| s.0).max().unwrap_or(0);
+                        out.start_resume(&identity, last, options.overwrite)?
+                    }
+                    None => out.start_fresh(&identity, options.overwrite)?,
+                }
                 Some(out)
             }
             None => None,
@@ -99,7 +127,12 @@ impl BatchRun {
             let label = batch.label(w);
             let output = match &out {
                 Some(o) => Some(world_output(
-                    &o.dir, w, count, scene, text, &label, options,
+                    &o.dir,
+                    (w, count),
+                    scene,
+                    (text, &label),
+                    options,
+                    resumed.map(|r| r[w]),
                 )?),
                 None => None,
             };
@@ -117,6 +150,7 @@ impl BatchRun {
             worlds,
             frames,
             out,
+            resumed: resumed.is_some(),
         };
         run.write_summary()?;
         Ok(run)
@@ -229,11 +263,39 @@ impl BatchRun {
 
     /// Run every world to the last frame (frame 0 written first); `frame_done` is called after
     /// each frame with the worlds frozen in it.
-    pub fn execute(&mut self, mut frame_done: impl FnMut(&BatchRun, &[usize])) -> Result<()> {
-        self.write_first_frame()?;
+    pub fn execute(&mut self, frame_done: impl FnMut(&BatchRun, &[usize])) -> Result<()> {
+        self.execute_checkpointed(None, frame_done)
+    }
+
+    /// [`BatchRun::execute`], with a checkpoint of every world ([`BatchRun::checkpoint`]) into
+    /// the output folder's `checkpoint_NNNNN/` ([`checkpoint_dir_name`]) after every frame
+    /// that is a multiple of `every.0`; `every.1` is the scene file's text and `every.2` where
+    /// it came from, as stored with each world. A resumed run starts at its checkpoint's frame
+    /// (whose files are already written).
+    pub fn execute_checkpointed(
+        &mut self,
+        every: Option<(u64, &str, &str)>,
+        mut frame_done: impl FnMut(&BatchRun, &[usize]),
+    ) -> Result<()> {
+        if !self.resumed {
+            self.write_first_frame()?;
+        }
         while self.running() > 0 && self.frame() < self.frames {
             let frozen = self.advance_frame()?;
             frame_done(self, &frozen);
+            let frame = self.frame();
+            if let Some((k, text, origin)) = every
+                && k > 0
+                && frame.is_multiple_of(k)
+            {
+                let Some(out) = &self.out else {
+                    anyhow::bail!(
+                        "checkpoints of a batch run go into its output folder: it has none"
+                    );
+                };
+                let dir = out.dir.join(checkpoint_dir_name(frame));
+                self.checkpoint(&dir, text, origin)?;
+            }
         }
         self.write_summary()
     }
@@ -312,14 +374,17 @@ impl World {
 
 /// World `w`'s folder made ready for a fresh run (another run's files refused unless
 /// `overwrite`), and its frame files.
+/// World `w` of `count`'s folder, for the scene file's text `text.0` and the world's label
+/// `text.1`, made ready for a fresh run (another run's files refused unless `overwrite`), or,
+/// with `resumed` (the frame and time of its checkpoint), taken up after that frame; and its
+/// frame files.
 fn world_output(
     top: &Path,
-    w: usize,
-    count: usize,
+    (w, count): (usize, usize),
     scene: &Scene,
-    text: &str,
-    label: &str,
+    (text, label): (&str, &str),
     options: &BatchOptions,
+    resumed: Option<(u64, f64)>,
 ) -> Result<FrameOutput> {
     let dir = top.join(world_dir_name(w, count));
     let identity = scene_identity(
@@ -328,9 +393,14 @@ fn world_output(
     );
     {
         let lock = OutDir::lock(&dir, "rtmpm run (batch world)")?;
-        lock.start_fresh(&identity, options.overwrite)?;
+        match resumed {
+            Some((frame, _)) => lock.start_resume(&identity, frame, options.overwrite)?,
+            None => lock.start_fresh(&identity, options.overwrite)?,
+        }
     }
-    FrameOutput::new(&dir, scene, &identity, None)
+    // frames.pvd keeps its entries up to the checkpoint's frame: half a frame later.
+    let keep_to = resumed.map(|(_, t)| t + 0.5 / scene.time.fps as f64);
+    FrameOutput::new(&dir, scene, &identity, keep_to)
 }
 
 /// A CSV field, quoted when it holds a comma or a quote.

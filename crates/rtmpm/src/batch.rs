@@ -103,30 +103,52 @@ pub fn describe(b: &BatchScene) -> String {
     out
 }
 
-/// `--resume` and `--checkpoint-every` of a batch: refused, naming what does checkpoint a batch
-/// today (`BatchRun::checkpoint` / `resume`, from Rust or Python, for a batch that writes no
-/// frame files).
-fn refuse_checkpoints(args: &crate::run::RunArgs) -> Result<()> {
-    const ROUTE: &str = "checkpoints of a batch are written and resumed from Python \
-        (`sim.checkpoint(DIR)` of a `BatchSimulation`, then `BatchSimulation.resume(DIR, SCENE)`) \
-        or Rust (`rtmpm_driver::batch::BatchRun::checkpoint` and `BatchRun::resume`), for a \
-        batch that writes no frame files (docs/batch.md, \"Checkpoints\")";
-    if let Some(ckpt) = &args.resume {
+/// `--resume` and `--checkpoint-every` of a batch: refused where they cannot work (on the GPU,
+/// checkpoints without an output folder), before anything is made.
+fn check_checkpoint_flags(args: &crate::run::RunArgs) -> Result<()> {
+    use crate::backend::BackendKind;
+    let flag = match (&args.resume, args.checkpoint_every) {
+        (Some(_), _) => "--resume",
+        (None, Some(_)) => "--checkpoint-every",
+        (None, None) => return Ok(()),
+    };
+    if args.checkpoint_every == Some(0) {
         bail!(
-            "--resume {}: `rtmpm run` does not resume a batch yet (its worlds' frame folders \
-             would have to be taken up where they stopped)\n  fix: {ROUTE}; or run the batch \
-             again from its start without --resume",
-            ckpt.display()
+            "--checkpoint-every 0 would write no checkpoint\n  fix: give --checkpoint-every N \
+             (a checkpoint every N frames, N from 1), or leave it out"
         );
     }
-    if let Some(n) = args.checkpoint_every {
+    if args.backend == BackendKind::Cuda {
         bail!(
-            "--checkpoint-every {n}: `rtmpm run` does not write checkpoints of a batch yet (its \
-             worlds' frame folders could not be taken up again)\n  fix: {ROUTE}; or leave out \
-             --checkpoint-every"
+            "{flag}: checkpoints of a batch on the GPU are not supported yet (the worlds in the \
+             same kernels are not saved and put back)\n  fix: --backend cpu checkpoints and \
+             resumes a batch (bit for bit), or run it on the GPU without {flag}"
+        );
+    }
+    if args.checkpoint_every.is_some() && args.no_output {
+        bail!(
+            "--checkpoint-every with --no-output: a batch's checkpoints go into its output \
+             folder (OUT/checkpoint_NNNNN/)\n  fix: leave out --no-output, or --checkpoint-every"
         );
     }
     Ok(())
+}
+
+/// `rtmpm run --resume DIR` without a scene file, where `DIR` is a batch checkpoint (a folder
+/// with `batch.toml`): refused with the fix (a batch is resumed with its scene file, from which
+/// its worlds are made again).
+pub fn refuse_resume_without_scene(dir: &Path) -> Result<()> {
+    bail!(
+        "--resume {0}: a batch checkpoint is resumed with the batch's scene file (its worlds are \
+         made again from it and checked against the checkpoint)\n  fix: rtmpm run SCENE --resume \
+         {0}",
+        dir.display()
+    )
+}
+
+/// True when `dir` is a batch checkpoint's folder.
+pub fn is_checkpoint(dir: &Path) -> bool {
+    dir.join(rtmpm_driver::batch::checkpoint::TABLE).is_file()
 }
 
 /// Most worker threads a batch run starts (`--threads`), as for one CPU backend.
@@ -161,7 +183,7 @@ pub fn run(args: &crate::run::RunArgs) -> Result<()> {
              --frames N (or, from Python, BatchSimulation.step(n) steps every world n times)"
         );
     }
-    refuse_checkpoints(args)?;
+    check_checkpoint_flags(args)?;
     if let Some(p) = args.precision {
         bail!(
             "--precision {p}: a batch run takes its precision from the scene\n  fix: set \
@@ -194,17 +216,33 @@ pub fn run(args: &crate::run::RunArgs) -> Result<()> {
     }
     eprintln!("batch: {} worlds on the CPU backend", b.count());
     let cuda = rtmpm_cuda::CudaOptions::default();
-    let mut run = BatchRun::new(
-        b,
-        &text,
-        |scene, _| {
-            let (p, _) = rtmpm_driver::setup::sample(scene)?;
-            make_backend(BackendKind::Cpu, scene, p, None, &cuda)
-        },
-        &options,
-    )?;
+    let mut run = match &args.resume {
+        Some(dir) => {
+            eprintln!("resuming the batch from {}", dir.display());
+            BatchRun::resume(
+                b,
+                &text,
+                dir,
+                |scene, _, p| make_backend(BackendKind::Cpu, scene, p, None, &cuda),
+                &options,
+            )?
+        }
+        None => BatchRun::new(
+            b,
+            &text,
+            |scene, _| {
+                let (p, _) = rtmpm_driver::setup::sample(scene)?;
+                make_backend(BackendKind::Cpu, scene, p, None, &cuda)
+            },
+            &options,
+        )?,
+    };
     let total = run.frames;
-    run.execute(|r, frozen| {
+    let origin = path.display().to_string();
+    let every = args
+        .checkpoint_every
+        .map(|k| (k, text.as_str(), origin.as_str()));
+    run.execute_checkpointed(every, |r, frozen| {
         for &w in frozen {
             if let WorldStatus::Frozen { reason, .. } = &r.worlds[w].status {
                 eprintln!("world {w} ({}) frozen: {reason}", r.worlds[w].label);

@@ -60,6 +60,10 @@ fn main() -> ExitCode {
         // A scene with `[batch]`: its worlds run together.
         Command::Run(args) => match args.scene.as_deref() {
             Some(path) if batch::is_batch(path) => batch::run(&args),
+            None if args.resume.as_deref().is_some_and(batch::is_checkpoint) => args
+                .resume
+                .as_deref()
+                .map_or(Ok(()), batch::refuse_resume_without_scene),
             _ => run::run(*args),
         },
         Command::Info => info::info(),

@@ -36,10 +36,12 @@ pub struct RunArgs {
     /// CPU worker threads (default: one per core).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Write a checkpoint every N frames.
+    /// Write a checkpoint every N frames: OUT/checkpoint_NNNNN.ckpt (of a batch scene: the
+    /// folder OUT/checkpoint_NNNNN/, every world; CPU backend).
     #[arg(long, value_name = "N")]
     pub checkpoint_every: Option<u64>,
-    /// Continue from a checkpoint written by --checkpoint-every.
+    /// Continue from a checkpoint written by --checkpoint-every (of a batch: its
+    /// checkpoint_NNNNN folder, with the batch's scene file: `rtmpm run SCENE --resume DIR`).
     #[arg(long, value_name = "CKPT")]
     pub resume: Option<PathBuf>,
     /// CUDA backend switches, e.g. `free_zone=off,warp_reduce=off,graph=off`; P2G strategy

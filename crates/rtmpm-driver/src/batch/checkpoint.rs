@@ -3,10 +3,10 @@
 //! `world_000.ckpt`, ... (the single run's format, `rtmpm_io::checkpoint`: the scene file's
 //! text, the world's clock, rigid bodies and particles; a frozen world's the last good state it
 //! keeps). [`BatchRun::resume`] puts every world back as it was: on the CPU backend a resumed
-//! batch goes on bit for bit as the run that wrote the checkpoint.
-//!
-//! Not supported: a batch that writes frame files (its worlds' folders would have to be taken
-//! up where they stopped, which [`BatchRun`] does not do), so both refuse one.
+//! batch goes on bit for bit as the run that wrote the checkpoint. A batch that writes frame
+//! files takes its worlds' folders up after the checkpoint's frames (as a resumed single run
+//! does: later frames removed, `frames.pvd` kept up to them); `rtmpm run --checkpoint-every`
+//! writes its checkpoints into `OUT/checkpoint_NNNNN/`.
 
 use super::{BatchOptions, BatchRun, WorldStatus, world_dir_name};
 use anyhow::{Context, Result, bail};
@@ -31,12 +31,6 @@ impl BatchRun {
     /// than a batch checkpoint's is refused): `text` is the batch scene file's text and
     /// `origin` where it came from, both stored with each world.
     pub fn checkpoint(&mut self, dir: &Path, text: &str, origin: &str) -> Result<()> {
-        if self.out.is_some() {
-            bail!(
-                "checkpoints of a batch that writes frame files are not supported: run it \
-                 without an output folder (its worlds' folders could not be taken up again)"
-            );
-        }
         prepare_dir(dir)?;
         let count = self.worlds.len();
         let mut rows = ArrayOfTables::new();
@@ -89,8 +83,10 @@ impl BatchRun {
     /// The batch `batch` (read from the scene file whose text is `text`) at the state saved in
     /// the folder `dir` by [`BatchRun::checkpoint`]: each world on the backend
     /// `backend(scene, w, particles)` builds from its saved particles, with its clock, rigid
-    /// bodies and status. Refused with the reason when the checkpoint was written from another
-    /// scene text, for another count or other worlds (labels), or with frame files.
+    /// bodies and status; with an output folder, each world's folder is taken up after its
+    /// checkpoint's frame. Refused with the reason and the fix, before any folder changes, when
+    /// the checkpoint was written from another scene text, for another count or other worlds
+    /// (labels), or cannot be read.
     pub fn resume(
         batch: &BatchScene,
         text: &str,
@@ -99,30 +95,33 @@ impl BatchRun {
         options: &BatchOptions,
     ) -> Result<BatchRun> {
         let at = || format!("cannot resume the batch from {}", dir.display());
-        if options.out_dir.is_some() {
-            bail!(
-                "{}: resuming a batch that writes frame files is not supported (run it without \
-                 an output folder)",
-                at()
-            );
-        }
         let rows = read_table(dir).with_context(at)?;
         if rows.len() != batch.count() {
             bail!(
-                "{}: it holds {} worlds, the batch has {}",
+                "{}: it holds {} worlds, the batch has {} ({TABLE}: count = {})\n  fix: resume \
+                 it with the scene file (and batch count) it was written from",
                 at(),
                 rows.len(),
-                batch.count()
+                batch.count(),
+                rows.len()
             );
         }
         let mut saved = Vec::with_capacity(rows.len());
         for (w, row) in rows.iter().enumerate() {
             let path = dir.join(format!("{}.ckpt", world_dir_name(w, rows.len())));
-            let ckpt = Checkpoint::load(&path).with_context(at)?;
+            let ckpt = match Checkpoint::load(&path) {
+                Ok(c) => c,
+                Err(e) => bail!(
+                    "{}: {}: {e}\n  fix: resume from another (earlier) checkpoint folder, or run \
+                     the batch again from its start",
+                    at(),
+                    path.display()
+                ),
+            };
             if ckpt.scene_toml != text {
                 bail!(
-                    "{}: {} was written from another scene text (from {}): resume it with the \
-                     scene file it was written from",
+                    "{}: {} was written from another scene text (from {})\n  fix: resume it \
+                     with the scene file it was written from, unchanged",
                     at(),
                     path.display(),
                     ckpt.scene_origin
@@ -130,7 +129,8 @@ impl BatchRun {
             }
             if row.label != batch.label(w) {
                 bail!(
-                    "{}: its world {w} is `{}`, the batch's is `{}`",
+                    "{}: {TABLE}: world {w} is `{}`, the batch's is `{}`\n  fix: resume it with \
+                     the scene file (and batch) it was written from",
                     at(),
                     row.label,
                     batch.label(w)
@@ -145,7 +145,8 @@ impl BatchRun {
             .iter_mut()
             .map(|c| Some(std::mem::take(&mut c.particles)))
             .collect();
-        let mut run = BatchRun::new(
+        let states: Vec<(u64, f64)> = saved.iter().map(|c| (c.frame, c.time)).collect();
+        let mut run = BatchRun::build(
             batch,
             text,
             |scene, w| {
@@ -153,6 +154,7 @@ impl BatchRun {
                 backend(scene, w, p)
             },
             options,
+            Some(&states),
         )?;
         for (w, (ckpt, row)) in saved.into_iter().zip(rows).enumerate() {
             let world = &mut run.worlds[w];
@@ -207,6 +209,14 @@ fn row_table(file: &str, label: &str, status: &WorldStatus) -> Table {
 /// The rows of the table in `dir`.
 fn read_table(dir: &Path) -> Result<Vec<Row>> {
     let path = dir.join(TABLE);
+    if dir.is_file() {
+        bail!(
+            "{} is not a folder: a batch checkpoint is a folder holding {TABLE} and one \
+             world_NNN.ckpt per world\n  fix: give OUT/checkpoint_NNNNN (written by `rtmpm run \
+             --checkpoint-every`) or the folder given to BatchSimulation.checkpoint",
+            dir.display()
+        );
+    }
     let text = rtmpm_io::limits::read_text_bounded(
         &path,
         rtmpm_io::limits::SCENE_MAX_BYTES,

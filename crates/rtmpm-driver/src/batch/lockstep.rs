@@ -83,7 +83,14 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         for (w, s) in batch.worlds.iter().enumerate() {
             let label = batch.label(w);
             let output = match &out {
-                Some(o) => Some(world_output(&o.dir, w, count, s, text, &label, options)?),
+                Some(o) => Some(world_output(
+                    &o.dir,
+                    (w, count),
+                    s,
+                    (text, &label),
+                    options,
+                    None,
+                )?),
                 None => None,
             };
             worlds.push(LockWorld {
