@@ -718,13 +718,19 @@ def batch_run_and_view_cases(S):
         ("--backend cuda", ["run", S, "--backend", "cuda", "--no-output"], ("--backend cpu",)),
         ("--render", run + ["--render"], ("draws no pictures",)),
         ("--preview", run + ["--preview", "{W}/p.png"], ("draws no pictures",)),
-        ("--checkpoint-every", run + ["--checkpoint-every", "1"], ("--checkpoint-every",)),
+        ("--checkpoint-every 0", run + ["--checkpoint-every", "0"], ("--checkpoint-every N",)),
+        ("--checkpoint-every with --no-output",
+         ["run", S, "--backend", "cpu", "--no-output", "--checkpoint-every", "1"], ("--no-output",)),
+        ("--resume of a file, not a batch checkpoint folder", run + ["--resume", "{W}/scene.toml"],
+         ("not a folder",)),
+        ("--resume on the GPU", ["run", S, "--backend", "cuda", "--no-output", "--resume", "{W}/ck"],
+         ("--backend cpu",)),
         ("--threads 0", run + ["--threads", "0"], ("--threads",)),
         ("--frames 10^11", ["run", S, "--backend", "cpu", "--no-output", "--frames", "100000000000"],
          ("more than the",)),
     ]:
         out.append(Case(f"batch run: {name}", args, [words], setup=scene))
-    # A batch folder run again: refused with the fix, and no resume advised (a batch writes no
+    # A batch folder run again: refused with the fix (no resume advised: this batch wrote no
     # checkpoint); a world's folder as --out of the batch.
     out.append(Case("batch run: into its own used folder", run, [("already holds", "--overwrite")],
                     setup=ran, keep=["out"]))

@@ -146,6 +146,22 @@ pub fn refuse_resume_without_scene(dir: &Path) -> Result<()> {
     )
 }
 
+/// The batch checkpoint of the latest frame in the output folder `out`, if any.
+fn last_checkpoint(out: &Path) -> Option<std::path::PathBuf> {
+    let mut dirs: Vec<std::path::PathBuf> = std::fs::read_dir(out)
+        .ok()?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with("checkpoint_"))
+                && is_checkpoint(p)
+        })
+        .collect();
+    dirs.sort();
+    dirs.pop()
+}
+
 /// True when `dir` is a batch checkpoint's folder.
 pub fn is_checkpoint(dir: &Path) -> bool {
     dir.join(rtmpm_driver::batch::checkpoint::TABLE).is_file()
@@ -235,7 +251,16 @@ pub fn run(args: &crate::run::RunArgs) -> Result<()> {
                 make_backend(BackendKind::Cpu, scene, p, None, &cuda)
             },
             &options,
-        )?,
+        )
+        .map_err(|e| match out.as_deref().and_then(last_checkpoint) {
+            Some(ckpt) if !args.overwrite => e.context(format!(
+                "the folder holds checkpoints of a batch: continue it with `rtmpm run {} \
+                 --resume {}`",
+                path.display(),
+                ckpt.display()
+            )),
+            _ => e,
+        })?,
     };
     let total = run.frames;
     let origin = path.display().to_string();

@@ -125,6 +125,21 @@ fn a_batch_checkpoint_of_another_batch_or_damaged_is_refused_with_the_fix() {
     run_ok(&scene, &out, &["--frames", "1", "--checkpoint-every", "1"]);
     let ckpt = out.join("checkpoint_00001");
     let ck = ckpt.to_str().unwrap();
+    // The folder run again afresh: refused, and the resume advised.
+    let o = rtmpm(&[
+        "run",
+        &scene,
+        "--backend",
+        "cpu",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        text(&o).contains("--overwrite") && text(&o).contains(&format!("--resume {ck}")),
+        "{}",
+        text(&o)
+    );
     let resume = |scene: &str, ckpt: &str, extra: &[&str]| {
         let o2 = dir.join("o2");
         let mut args = vec![
