@@ -55,9 +55,19 @@ pub fn start(
     tx: watch::Sender<Option<Arc<Encoded>>>,
     quality: u8,
 ) -> std::io::Result<Vec<JoinHandle<()>>> {
+    start_threads(slot, tx, quality, encoder_threads())
+}
+
+/// [`start`] with `threads` encoder threads.
+fn start_threads(
+    slot: Arc<FrameSlot>,
+    tx: watch::Sender<Option<Arc<Encoded>>>,
+    quality: u8,
+    threads: usize,
+) -> std::io::Result<Vec<JoinHandle<()>>> {
     let tx = Arc::new(tx);
     let claimed = Arc::new(AtomicU64::new(0));
-    (0..encoder_threads())
+    (0..threads.max(1))
         .map(|i| {
             let (slot, tx, claimed) = (slot.clone(), tx.clone(), claimed.clone());
             std::thread::Builder::new()
@@ -97,21 +107,105 @@ fn run(
             match encode_jpeg(&f.image, quality) {
                 Ok(jpeg) => {
                     let ms = t0.elapsed().as_secs_f64() * 1e3;
-                    let e = Arc::new(Encoded {
-                        seq: f.status.seq,
-                        status: status_message(&f, jpeg.len(), ms),
-                        jpeg: Bytes::from(jpeg),
-                    });
-                    tx.send_if_modified(|cur| {
-                        let newer = cur.as_ref().is_none_or(|c| c.seq < e.seq);
-                        if newer {
-                            *cur = Some(e);
-                        }
-                        newer
-                    });
+                    publish_newer(
+                        tx,
+                        Encoded {
+                            seq: f.status.seq,
+                            status: status_message(&f, jpeg.len(), ms),
+                            jpeg: Bytes::from(jpeg),
+                        },
+                    );
                 }
                 Err(e) => eprintln!("view: frame {} not streamed: {e}", f.status.seq),
             }
         }
+    }
+}
+
+/// Publish `e` unless a newer frame has been published (another encoder finished a later frame
+/// first); true when published.
+fn publish_newer(tx: &watch::Sender<Option<Arc<Encoded>>>, e: Encoded) -> bool {
+    tx.send_if_modified(|cur| {
+        let newer = cur.as_ref().is_none_or(|c| c.seq < e.seq);
+        if newer {
+            *cur = Some(Arc::new(e));
+        }
+        newer
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Status;
+    use rtmpm_render::Image;
+
+    #[test]
+    fn an_older_frame_finished_late_is_not_published_over_a_newer_one() {
+        let (tx, rx) = watch::channel(None);
+        let e = |seq| Encoded {
+            seq,
+            status: String::new(),
+            jpeg: Bytes::new(),
+        };
+        assert!(publish_newer(&tx, e(5)));
+        assert!(!publish_newer(&tx, e(3)));
+        assert!(!publish_newer(&tx, e(5)));
+        assert_eq!(rx.borrow().as_ref().map(|c| c.seq), Some(5));
+        assert!(publish_newer(&tx, e(6)));
+        assert_eq!(rx.borrow().as_ref().map(|c| c.seq), Some(6));
+    }
+
+    /// Two encoders on frames published faster than one encodes them: every frame is encoded
+    /// at most once, the published sequence only goes forward, and the last frame is published.
+    #[test]
+    fn two_encoders_publish_frames_in_order_and_the_last_one() {
+        let slot = Arc::new(FrameSlot::default());
+        // The server's receiver and a client's: the encoders encode only while a client watches.
+        let (tx, server) = watch::channel(None);
+        let mut rx = server.clone();
+        let threads = start_threads(slot.clone(), tx, 80, 2).expect("encoders");
+        let last = 60u64;
+        let publisher = {
+            let slot = slot.clone();
+            std::thread::spawn(move || {
+                for seq in 1..=last {
+                    let status = Status {
+                        seq,
+                        ..Status::default()
+                    };
+                    let image = Image::new(320, 180, [(seq % 256) as u8, 40, 90]);
+                    slot.publish(Arc::new(Frame { image, status }));
+                    std::thread::sleep(Duration::from_millis(1));
+                }
+            })
+        };
+        let mut seen = Vec::new();
+        let t0 = Instant::now();
+        while seen.last() != Some(&last) && t0.elapsed() < Duration::from_secs(20) {
+            if rx.has_changed().unwrap_or(false) {
+                if let Some(e) = rx.borrow_and_update().as_ref() {
+                    assert!(!e.jpeg.is_empty());
+                    seen.push(e.seq);
+                }
+            } else {
+                std::thread::sleep(Duration::from_millis(1));
+            }
+        }
+        publisher.join().expect("publisher");
+        slot.close();
+        drop((rx, server));
+        for t in threads {
+            t.join().expect("encoder");
+        }
+        assert_eq!(
+            seen.last(),
+            Some(&last),
+            "the last frame was published: {seen:?}"
+        );
+        assert!(
+            seen.windows(2).all(|w| w[0] < w[1]),
+            "out of order: {seen:?}"
+        );
     }
 }
