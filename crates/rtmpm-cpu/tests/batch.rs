@@ -4,6 +4,7 @@
 use rtmpm_sim::Particles;
 mod common;
 
+use common::bits;
 use common::cpu::CpuBackend;
 use rtmpm_driver::Simulation;
 use rtmpm_driver::batch::{BatchOptions, BatchRun, WorldStatus};
@@ -53,19 +54,6 @@ fn alone(scene: &Scene, frames: u64) -> Particles {
     let mut p = Particles::default();
     sim.backend.read_particles(&mut p).expect("read");
     p
-}
-
-/// The state of every particle as bits.
-fn bits(p: &Particles) -> Vec<u32> {
-    let mut out = Vec::new();
-    for i in 0..p.len() {
-        out.extend(p.x[i].to_array().map(f32::to_bits));
-        out.extend(p.v[i].to_array().map(f32::to_bits));
-        out.extend(p.f[i].to_cols_array().map(f32::to_bits));
-        out.extend(p.c[i].to_cols_array().map(f32::to_bits));
-        out.push(p.plastic[i].to_bits());
-    }
-    out
 }
 
 fn run(text: &str, frames: u64) -> (BatchScene, BatchRun) {
