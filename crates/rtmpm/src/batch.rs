@@ -170,15 +170,8 @@ pub fn is_checkpoint(dir: &Path) -> bool {
 /// Most worker threads a batch run starts (`--threads`), as for one CPU backend.
 const MAX_THREADS: usize = 1024;
 
-/// `rtmpm run` of a scene with `[batch]`: every world on the CPU backend, frame by frame, each
-/// world's frames in its folder (`docs/batch.md`), a line per frame and a summary at the end.
-pub fn run(args: &crate::run::RunArgs) -> Result<()> {
-    use crate::backend::{BackendKind, make_backend};
-    let Some(path) = args.scene.as_deref() else {
-        bail!("no scene given: rtmpm run SCENE");
-    };
-    let b = &load(path)?;
-    use rtmpm_driver::batch::{BatchOptions, BatchRun, WorldStatus};
+/// The flags of `rtmpm run` that a batch does not take, refused each with its fix.
+fn check_flags(args: &crate::run::RunArgs) -> Result<()> {
     if !matches!(args.multi.mode()?, crate::multi::Mode::Single) {
         bail!(
             "a batch runs on one GPU or on the CPU backend: several GPUs or processes do not \
@@ -207,6 +200,19 @@ pub fn run(args: &crate::run::RunArgs) -> Result<()> {
             p = p.name()
         );
     }
+    Ok(())
+}
+
+/// `rtmpm run` of a scene with `[batch]`: every world on the CPU backend, frame by frame, each
+/// world's frames in its folder (`docs/batch.md`), a line per frame and a summary at the end.
+pub fn run(args: &crate::run::RunArgs) -> Result<()> {
+    use crate::backend::{BackendKind, make_backend};
+    let Some(path) = args.scene.as_deref() else {
+        bail!("no scene given: rtmpm run SCENE");
+    };
+    let b = &load(path)?;
+    use rtmpm_driver::batch::{BatchOptions, BatchRun, WorldStatus};
+    check_flags(args)?;
     if let Some(n) = args.threads {
         if n == 0 || n > MAX_THREADS {
             bail!("--threads must be from 1 to {MAX_THREADS}, got {n}");
