@@ -107,21 +107,8 @@ impl BatchRun {
         resumed: Option<&[(u64, f64)]>,
     ) -> Result<BatchRun> {
         let count = batch.count();
-        let out = match &options.out_dir {
-            Some(dir) => {
-                let out = OutDir::lock(dir, "rtmpm run (batch)")?;
-                let identity = scene_identity(&batch.base.name, text);
-                match resumed {
-                    Some(r) => {
-                        let last = r.iter().map(|s| s.0).max().unwrap_or(0);
-                        out.start_resume(&identity, last, options.overwrite)?
-                    }
-                    None => out.start_fresh(&identity, options.overwrite)?,
-                }
-                Some(out)
-            }
-            None => None,
-        };
+        let last = resumed.map(|r| r.iter().map(|s| s.0).max().unwrap_or(0));
+        let out = open_out(batch, text, options, last)?;
         let mut worlds = Vec::with_capacity(count);
         for (w, scene) in batch.worlds.iter().enumerate() {
             let label = batch.label(w);
@@ -370,6 +357,26 @@ impl World {
     pub fn particles(&self) -> &Particles {
         &self.kept
     }
+}
+
+/// The batch's output folder, when `options` names one, locked and made ready: for a fresh run,
+/// or, with `resumed_to` (the last frame a checkpoint holds), taken up after that frame.
+fn open_out(
+    batch: &BatchScene,
+    text: &str,
+    options: &BatchOptions,
+    resumed_to: Option<u64>,
+) -> Result<Option<OutDir>> {
+    let Some(dir) = &options.out_dir else {
+        return Ok(None);
+    };
+    let out = OutDir::lock(dir, "rtmpm run (batch)")?;
+    let identity = scene_identity(&batch.base.name, text);
+    match resumed_to {
+        Some(last) => out.start_resume(&identity, last, options.overwrite)?,
+        None => out.start_fresh(&identity, options.overwrite)?,
+    }
+    Ok(Some(out))
 }
 
 /// World `w`'s folder made ready for a fresh run (another run's files refused unless

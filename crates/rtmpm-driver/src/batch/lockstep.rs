@@ -9,8 +9,8 @@
 //! at rest, unstressed: it can neither bound the time step nor blow up again), and the frame
 //! is run again. Its files stay those of its last frame; the others go on.
 
-use super::{BatchOptions, WorldStatus, summary_row, world_output};
-use crate::outdir::{OutDir, scene_identity};
+use super::{BatchOptions, WorldStatus, open_out, summary_row, world_output};
+use crate::outdir::OutDir;
 use crate::output::FrameOutput;
 use crate::simulation::Simulation;
 use anyhow::{Context, Result, bail};
@@ -71,14 +71,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
                 backend.worlds()
             );
         }
-        let out = match &options.out_dir {
-            Some(dir) => {
-                let out = OutDir::lock(dir, "rtmpm run (batch)")?;
-                out.start_fresh(&scene_identity(&batch.base.name, text), options.overwrite)?;
-                Some(out)
-            }
-            None => None,
-        };
+        let out = open_out(batch, text, options, None)?;
         let mut worlds = Vec::with_capacity(count);
         for (w, s) in batch.worlds.iter().enumerate() {
             let label = batch.label(w);
