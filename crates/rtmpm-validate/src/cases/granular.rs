@@ -2,7 +2,7 @@
 
 use crate::case::{Ctx, Row};
 use crate::measure::rel_pct;
-use anyhow::{Result, ensure};
+use anyhow::Result;
 use rtmpm_physics::math::Vec3;
 use rtmpm_physics::transfer::SolverSettings;
 use rtmpm_render::plot::{Plot, Series, Style};
@@ -43,6 +43,13 @@ fn deposit_tip(x: &[f32], gap: f32) -> f32 {
     x[k]
 }
 
+/// The fastest particle's speed (m/s) and how many particles move faster than [`AT_REST`].
+fn motion(p: &rtmpm_physics::particles::Particles) -> (f32, usize) {
+    let speeds = p.v.iter().map(|v| v.length());
+    let fastest = speeds.clone().fold(0.0f32, f32::max);
+    (fastest, speeds.filter(|&s| s >= AT_REST).count())
+}
+
 /// Final particle positions of the collapse at grid spacing `dx`.
 fn collapse(ctx: &Ctx, dx: f32, solver: Option<SolverSettings>) -> Result<Vec<Vec3>> {
     let mut scene = at_resolution(ctx.scene("granular_column.toml")?, dx);
@@ -51,13 +58,31 @@ fn collapse(ctx: &Ctx, dx: f32, solver: Option<SolverSettings>) -> Result<Vec<Ve
     }
     let p0 = scene.sample_particles()?;
     let mut last = None;
-    ctx.run(scene, p0, |_, p| last = Some(p.clone()))?;
+    // (time, fastest speed, particles not at rest) of every frame: the history a deposit that
+    // does not come to rest is reported with (settling late, or a few particles that never stop).
+    let mut history = Vec::new();
+    ctx.run(scene, p0, |t, p| {
+        let (fastest, moving) = motion(p);
+        history.push((t, fastest, moving));
+        last = Some(p.clone());
+    })?;
     let p = last.expect("frames");
-    let fastest = p.v.iter().map(|v| v.length()).fold(0.0f32, f32::max);
-    ensure!(
-        fastest < AT_REST,
-        "the deposit still moves at the end ({fastest} m/s at dx = {dx}): lengthen [time] duration"
-    );
+    let (fastest, moving) = motion(&p);
+    if fastest >= AT_REST {
+        let stride = history.len().div_ceil(8).max(1);
+        let trace: Vec<String> = history
+            .iter()
+            .step_by(stride)
+            .chain(history.last())
+            .map(|(t, f, m)| format!("t {t:.2} s: {f:.3} m/s, {m} moving"))
+            .collect();
+        anyhow::bail!(
+            "the deposit still moves at the end ({fastest} m/s at dx = {dx}; {moving} of {} \
+             particles faster than {AT_REST} m/s; {}): lengthen [time] duration",
+            p.len(),
+            trace.join("; ")
+        );
+    }
     Ok(p.x)
 }
 
