@@ -171,7 +171,7 @@ impl Ctx<'_> {
 }
 
 /// The transfer of the `*_ck` cases: CK-MPM (Liu, Wang & Li, "CK-MPM: A Compact-Kernel Material
-/// Point Method"), MLS-MPM/APIC on two staggered grids; experimental, CPU backend only.
+/// Point Method"), MLS-MPM/APIC on two staggered grids; experimental; the CPU backend and the CUDA backend on one GPU.
 pub const CK: rtmpm_physics::transfer::SolverSettings = rtmpm_physics::transfer::SolverSettings {
     transfer: rtmpm_physics::transfer::Transfer::CkMpm,
     update: rtmpm_physics::transfer::Update::Usl,

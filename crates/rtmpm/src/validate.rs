@@ -17,7 +17,7 @@ pub struct ValidateArgs {
     /// granular_column, slump, cohesive_column, archimedes, sinking, rigid_momentum,
     /// emitter_mass; the rigid-body ones need the cargo feature `rigid`). Only when named: the
     /// experimental CK-MPM cases hydrostatic_column_ck, vibrating_bar_ck, dam_break_ck,
-    /// granular_column_ck (CPU backend only).
+    /// granular_column_ck (the CPU backend, or CUDA on one GPU).
     #[arg(long, value_delimiter = ',')]
     pub case: Vec<String>,
     /// Coarse resolutions that finish in a few minutes on 2 CPU cores (what CI runs).

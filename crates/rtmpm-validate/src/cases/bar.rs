@@ -67,7 +67,7 @@ pub fn run_gimp(ctx: &Ctx) -> Result<Vec<Row>> {
     run_with(ctx, "vibrating_bar_gimp", Some(crate::case::GIMP))
 }
 
-/// The same bar with CK-MPM ([`crate::case::CK`]; experimental, CPU backend only).
+/// The same bar with CK-MPM ([`crate::case::CK`]; experimental; CPU, or CUDA on one GPU).
 pub fn run_ck(ctx: &Ctx) -> Result<Vec<Row>> {
     run_with(ctx, "vibrating_bar_ck", Some(crate::case::CK))
 }

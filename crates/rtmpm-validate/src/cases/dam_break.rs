@@ -45,7 +45,7 @@ pub fn run(ctx: &Ctx) -> Result<Vec<Row>> {
     run_with(ctx, "dam_break", None)
 }
 
-/// The same dam break with CK-MPM ([`crate::case::CK`]; experimental, CPU backend only).
+/// The same dam break with CK-MPM ([`crate::case::CK`]; experimental; CPU, or CUDA on one GPU).
 pub fn run_ck(ctx: &Ctx) -> Result<Vec<Row>> {
     run_with(ctx, "dam_break_ck", Some(crate::case::CK))
 }

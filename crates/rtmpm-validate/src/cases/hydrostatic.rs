@@ -90,7 +90,7 @@ pub fn run_gimp(ctx: &Ctx) -> Result<Vec<Row>> {
     run_with(ctx, "hydrostatic_column_gimp", Some(crate::case::GIMP))
 }
 
-/// The same column with CK-MPM ([`crate::case::CK`]; experimental, CPU backend only).
+/// The same column with CK-MPM ([`crate::case::CK`]; experimental; CPU, or CUDA on one GPU).
 pub fn run_ck(ctx: &Ctx) -> Result<Vec<Row>> {
     run_with(ctx, "hydrostatic_column_ck", Some(crate::case::CK))
 }
