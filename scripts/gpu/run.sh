@@ -30,6 +30,12 @@
 #                defines|scene ..." (default: the fluid dam 2M); the bound (issue, stalls, L1/L2, atomics)
 #   multi        several GPUs: agreement tests in every mode, 2 NCCL processes, scaling
 #   multi4       the same on 4 GPUs: agreement at 2 and 4, strong and weak scaling at 1, 2, 4, 4 ranks
+#   multi1       the multi-GPU code on ONE GPU: test_multi_gpu with two ranks on device 0
+#                (RTMPM_MULTI_GPU_DEVICES=0,0, the CUDA option devices=0:0; transport=p2p with the events
+#                barrier, the spin barrier and NCCL checked to be refused there): every example scene,
+#                steering, the rigid scenes (scenes/rigid/*) and the bad-particle report against one GPU;
+#                then `rtmpm run scenes/rigid/floating_box.toml` for 30 frames on 1 GPU and on 2 ranks of it
+#                (last rows of both bodies.csv). About 2-4 min.
 #   python       the Python package's tests on the GPU (wheel in .device/wheels; PY_K="view or render_gpu"
 #                picks tests as pytest -k does)
 #   cpu          the CPU backend on this machine's cores: `rtmpm bench --backend cpu --n 128` (524k
@@ -249,6 +255,18 @@ for suite in "$@"; do
       done
       wait
       say "strong 16.8M two NCCL processes: $(grep -hE 'throughput|^error' "$OUT/rank_0.log" "$OUT/rank_1.log" | tr -s ' ' | tr '\n' ' ')"
+      ;;
+    multi1)
+      RTMPM_MULTI_GPU_DEVICES=0,0 t test_multi_gpu --nocapture
+      grep -hE "^test |refused with ranks|rigid-body runs|: body [0-9]|particles: \||GPU: particle|runs of several GPUs" \
+        "$OUT/test_multi_gpu.log" | head -80 | tee -a "$S"
+      for g in 1 2; do
+        o=""; [ "$g" = 2 ] && o="--gpus 2 --cuda-options devices=0:0"
+        x=$(timeout 300 "$D/rtmpm" run scenes/rigid/floating_box.toml --backend cuda --frames 30 $o --out "$OUT/floating_box_$g" 2>&1)
+        echo "$x" > "$OUT/floating_box_$g.log"
+        say "floating_box 30 frames, ranks=$g: $(echo "$x" | grep -E 'backend|throughput|^error' | head -3 | tr -s ' ' | tr '\n' ' ')"
+        tail -1 "$OUT/floating_box_$g/bodies.csv" 2>/dev/null | tee -a "$S"
+      done
       ;;
     multi4)
       # 4 GPUs: the agreement tests at 2 and 4 GPUs (RTMPM_MULTI_GPU_COUNTS

@@ -97,7 +97,7 @@ struct Ctx {
     unsigned* prank;          // per particle: rank in bucket
     unsigned* warps;          // 3 per warp: gblock, first, count
     unsigned* boundary;       // per gblock: 1 if a neighbour block is shared with another GPU
-    unsigned* shared_pblock;  // per pblock: 1 if it is shared with another GPU
+    unsigned* shared_pblock;  // per pblock: the GPUs holding it if several do, else 0
     const GpuBody* bodies;    // global copy of c_bodies
     double* body_exchange;    // rigid bodies: impulse, angular impulse (6 doubles) per body, in
                               // BODY_EXCHANGE_SLOTS copies (grid_update.cu: couple_bodies)

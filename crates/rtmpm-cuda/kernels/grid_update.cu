@@ -94,7 +94,10 @@ __device__ vec3 node_boundary(const Ctx& c, unsigned t, vec3 v) {
 // centre (the boundary-condition form of the CPIC coupling of Hu et al., "A Moving Least Squares
 // Material Point Method with Displacement Discontinuity and Two-Way Rigid Body Coupling", 2018).
 // The reactions are summed in f64 into copy blockIdx.x % BODY_EXCHANGE_SLOTS (crate::rigid).
-__device__ vec3 couple_bodies(const Ctx& c, vec3 x, real m, vec3 v, vec3 g_dt) {
+// Several GPUs: a node of a pblock that k GPUs hold has the same summed mass and momentum on
+// each of them after the shared-block reduction, so each adds 1/k of its reaction (`share`) and
+// the host's sum over the GPUs counts it once.
+__device__ vec3 couple_bodies(const Ctx& c, vec3 x, real m, vec3 v, vec3 g_dt, double share) {
     for (unsigned b = 0; b < c.n_bodies; ++b) {
         const GpuBody& body = body_at(c, b);
         vec3 r = x - v3f(body.center);
@@ -110,12 +113,12 @@ __device__ vec3 couple_bodies(const Ctx& c, vec3 x, real m, vec3 v, vec3 g_dt) {
             vec3 dp = (nv - v + g_dt) * m;
             vec3 t = cross(r, dp);
             double* e = c.body_exchange + 6u * ((blockIdx.x % BODY_EXCHANGE_SLOTS) * c.n_bodies + b);
-            atomicAdd(e + 0, -(double)dp.x);
-            atomicAdd(e + 1, -(double)dp.y);
-            atomicAdd(e + 2, -(double)dp.z);
-            atomicAdd(e + 3, -(double)t.x);
-            atomicAdd(e + 4, -(double)t.y);
-            atomicAdd(e + 5, -(double)t.z);
+            atomicAdd(e + 0, -(double)dp.x * share);
+            atomicAdd(e + 1, -(double)dp.y * share);
+            atomicAdd(e + 2, -(double)dp.z * share);
+            atomicAdd(e + 3, -(double)t.x * share);
+            atomicAdd(e + 4, -(double)t.y * share);
+            atomicAdd(e + 5, -(double)t.z * share);
         }
         v = nv;
     }
@@ -144,7 +147,10 @@ __device__ __forceinline__ void grid_node_finish(const Ctx& c, real* node, unsig
                          sc.origin[1] + (c.block_coords[3 * id + 1] * 4 + (int)((cell >> 2) & 3u)) * sc.dx,
                          sc.origin[2] + (c.block_coords[3 * id + 2] * 4 + (int)(cell & 3u)) * sc.dx);
         vec3 g_dt = make_v3(gravity[0], gravity[1], gravity[2]) * (real)sp.dt;
-        v = couple_bodies(c, x, m, v, g_dt);
+        // One GPU: shared_pblock is all zeros (only sb_boundary writes it).
+        unsigned holders = c.shared_pblock ? c.shared_pblock[id] : 0u;
+        double share = holders >= 2 ? 1.0 / (double)holders : 1.0;
+        v = couple_bodies(c, x, m, v, g_dt, share);
     }
     node[1] = v.x; node[2] = v.y; node[3] = v.z;
 }

@@ -89,6 +89,12 @@ pub struct CudaOptions {
     pub transport: Option<Transport>,
     /// Several GPUs with `transport=p2p`: the synchronisation (`None`: spin).
     pub barrier: Option<BarrierKind>,
+    /// Several GPUs of one process: the CUDA device of each rank (`devices=0:1`; `None`: rank i
+    /// on device i). A device may be named more than once, to run the multi-GPU code on fewer
+    /// GPUs (tests on one GPU: `devices=0:0`); ranks sharing a device run transport=p2p with
+    /// the events barrier only (the spin kernels of two ranks on one device could wait on
+    /// each other forever, and NCCL refuses two ranks on one device).
+    pub devices: Option<Vec<usize>>,
     /// The rebuild as one persistent kernel with grid-wide barriers (`rb_fused`, one launch per
     /// step) instead of fifteen kernels that return at once when nothing is rebuilt.
     pub fused_rebuild: bool,
@@ -155,6 +161,7 @@ impl Default for CudaOptions {
             overlap: true,
             transport: None,
             barrier: None,
+            devices: None,
             fused_rebuild: true,
             g2p2g: true,
             specialize: false,
@@ -172,7 +179,8 @@ impl std::str::FromStr for CudaOptions {
     type Err = String;
     /// Comma separated `key=value`: `free_zone`, `mixed_sort`, `warp_reduce`, `fast_math`,
     /// `graph`, `f64`, `rebalance`, `overlap`, `g2p2g`, `rigid_overlap`, `specialize` (on/off/true/false/1/0), `rebuild` (fused/kernels), `fill` (device/host), `p2g`
-    /// (warp/shared/reverse_map/sort), `transport` (p2p/nccl), `barrier` (spin/events), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
+    /// (warp/shared/reverse_map/sort), `transport` (p2p/nccl), `barrier` (spin/events), `devices`
+    /// (ordinals separated by `:`), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
     /// `rmap_pblocks`, `shared`, `sort_fields` (counts), `fluid_state` (on/off), `state`
     /// (f32/compact).
     fn from_str(s: &str) -> Result<Self, String> {
@@ -276,6 +284,16 @@ impl std::str::FromStr for CudaOptions {
                         _ => return Err(format!("`{item}`: expected spin or events")),
                     })
                 }
+                "devices" => {
+                    let d = v
+                        .split(':')
+                        .map(|x| x.trim().parse::<usize>())
+                        .collect::<Result<Vec<_>, _>>()
+                        .map_err(|e| {
+                            format!("`{item}`: expected device ordinals separated by `:` ({e})")
+                        })?;
+                    o.devices = Some(d);
+                }
                 _ => return Err(format!("unknown CUDA option `{k}`")),
             }
         }
@@ -333,5 +351,16 @@ mod tests {
         assert!(!"sample=host".parse::<CudaOptions>().unwrap().device_sample);
         assert!("sample=bad".parse::<CudaOptions>().is_err());
         assert!("fill=gpu".parse::<CudaOptions>().is_err());
+        assert_eq!(CudaOptions::default().devices, None);
+        let o: CudaOptions = "devices=0:0,transport=p2p".parse().unwrap();
+        assert_eq!(o.devices, Some(vec![0, 0]));
+        assert_eq!(o.transport, Some(Transport::P2p));
+        assert_eq!(
+            "devices=3".parse::<CudaOptions>().unwrap().devices,
+            Some(vec![3])
+        );
+        let e = "devices=0:x".parse::<CudaOptions>().unwrap_err();
+        assert!(e.contains("ordinals separated by `:`"), "{e}");
+        assert!("devices=".parse::<CudaOptions>().is_err());
     }
 }

@@ -6,6 +6,10 @@
 //! `RTMPM_MULTI_GPU_OPTIONS` the CUDA options (e.g. "graph=off"), `RTMPM_MULTI_GPU_MODES` the
 //! transports and barriers compared, separated by `;` (default
 //! "transport=p2p,barrier=spin;transport=p2p,barrier=events;transport=nccl").
+//! `RTMPM_MULTI_GPU_DEVICES` (e.g. "0,0") puts the ranks on the devices listed (the CUDA option
+//! `devices=0:0`), so that the tests of several GPUs run as several ranks on one GPU: the
+//! counts are then the list's length, and the modes that cannot share a device (the spin
+//! barrier, NCCL) are checked to be refused with a clear error instead of run.
 
 use rtmpm_cuda::{CudaBackend, CudaOptions, MultiGpuBackend, Transport, device_count, nccl, peer};
 use rtmpm_driver::Simulation;
@@ -13,6 +17,43 @@ use rtmpm_physics::Particles;
 use rtmpm_scene::Scene;
 use rtmpm_sim::Backend;
 use std::path::Path;
+
+/// `RTMPM_MULTI_GPU_DEVICES`: the device of each rank, when set.
+fn env_devices() -> Option<Vec<usize>> {
+    let v = std::env::var("RTMPM_MULTI_GPU_DEVICES").ok()?;
+    let d: Vec<usize> = v
+        .split(',')
+        .map(|x| {
+            x.trim()
+                .parse()
+                .expect("RTMPM_MULTI_GPU_DEVICES: ordinals, e.g. 0,0")
+        })
+        .collect();
+    assert!(d.len() >= 2, "RTMPM_MULTI_GPU_DEVICES: at least two ranks");
+    Some(d)
+}
+
+/// `o` with the ranks of a run of `gpus` on the devices of `RTMPM_MULTI_GPU_DEVICES` (cycled),
+/// when set.
+fn on_devices(gpus: usize, o: CudaOptions) -> CudaOptions {
+    match env_devices() {
+        Some(d) => CudaOptions {
+            devices: Some((0..gpus).map(|i| d[i % d.len()]).collect()),
+            ..o
+        },
+        None => o,
+    }
+}
+
+/// Options of `text` for a run of `gpus` ranks (see [`on_devices`]).
+fn options(gpus: usize, text: &str) -> CudaOptions {
+    on_devices(gpus, text.parse().expect("CUDA options"))
+}
+
+/// True when two ranks share a device (`RTMPM_MULTI_GPU_DEVICES`).
+fn ranks_share_a_device() -> bool {
+    env_devices().is_some_and(|d| (1..d.len()).any(|i| d[..i].contains(&d[i])))
+}
 
 fn scenes() -> Vec<std::path::PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
@@ -36,22 +77,48 @@ fn read(b: &mut dyn Backend) -> Particles {
 
 fn usable(gpus: usize) -> bool {
     let found = device_count();
-    if found < gpus {
-        println!("skipped: {gpus} CUDA GPUs needed, {found} found");
+    let needed = match env_devices() {
+        Some(d) => d.iter().max().map_or(0, |m| m + 1),
+        None => gpus,
+    };
+    if found < needed {
+        println!("skipped: {needed} CUDA GPUs needed, {found} found");
         return false;
     }
     true
 }
 
-/// Whether `mode` (e.g. "transport=nccl") can run on `gpus` GPUs here; prints why not.
-fn mode_usable(mode: &str, gpus: usize) -> bool {
+/// Whether `mode` (e.g. "transport=nccl") can run on `gpus` GPUs here; prints why not. Ranks
+/// sharing a device: the spin barrier and NCCL must be refused with a clear error (checked
+/// here on `scene`), and are not run.
+fn mode_usable(mode: &str, gpus: usize, scene: &Scene, p: &Particles) -> bool {
+    if ranks_share_a_device() && (mode.contains("barrier=spin") || mode.contains("nccl")) {
+        let e = MultiGpuBackend::new(scene, p, gpus, options(gpus, mode))
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        let want = if mode.contains("nccl") {
+            "NCCL refuses two ranks on one device"
+        } else {
+            "use barrier=events"
+        };
+        assert!(
+            e.contains(want),
+            "{mode} with ranks sharing a device: {e:?}"
+        );
+        println!("{mode} x{gpus}: refused with ranks sharing a device, as it must be: {e}");
+        return false;
+    }
     if mode.contains("transport=nccl") {
         if let Err(e) = nccl::library() {
             println!("skipped {mode}: NCCL not usable ({e})");
             return false;
         }
     } else if mode.contains("transport=p2p") {
-        match peer::first_pair_without_access(gpus) {
+        let devices = options(gpus, "")
+            .devices
+            .unwrap_or_else(|| (0..gpus).collect());
+        match peer::first_pair_without_access_among(&devices) {
             Ok(None) => {}
             Ok(Some((i, j))) => {
                 println!("skipped {mode} x{gpus}: GPU {i} has no peer access to GPU {j}");
@@ -80,12 +147,15 @@ fn several_gpus_agree_with_one_on_every_example_scene() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(300);
-    let counts: Vec<usize> = std::env::var("RTMPM_MULTI_GPU_COUNTS")
-        .unwrap_or_else(|_| "2,4".into())
-        .split(',')
-        .filter_map(|s| s.trim().parse().ok())
-        .filter(|&n| n >= 2 && n <= device_count())
-        .collect();
+    let counts: Vec<usize> = match env_devices() {
+        Some(d) => vec![d.len()],
+        None => std::env::var("RTMPM_MULTI_GPU_COUNTS")
+            .unwrap_or_else(|_| "2,4".into())
+            .split(',')
+            .filter_map(|s| s.trim().parse().ok())
+            .filter(|&n| n >= 2 && n <= device_count())
+            .collect(),
+    };
     let modes: Vec<String> = std::env::var("RTMPM_MULTI_GPU_MODES")
         .unwrap_or_else(|_| {
             "transport=p2p,barrier=spin;transport=p2p,barrier=events;transport=nccl".into()
@@ -103,7 +173,7 @@ fn several_gpus_agree_with_one_on_every_example_scene() {
         if !scene.emitters.is_empty() {
             // Several GPUs refuse [[emitter]] tables (multi/plan.rs: the partition is fixed at
             // the start): a clear error before any GPU work, not a run to compare.
-            match MultiGpuBackend::new(&scene, &p0, 2, CudaOptions::default()) {
+            match MultiGpuBackend::new(&scene, &p0, 2, options(2, "")) {
                 Ok(_) => failures.push(format!("{name}: several GPUs took a scene with emitters")),
                 Err(e) => {
                     assert!(e.to_string().contains("[[emitter]]"), "{name}: {e}");
@@ -127,10 +197,10 @@ fn several_gpus_agree_with_one_on_every_example_scene() {
             .iter()
             .flat_map(|g| modes.iter().map(move |m| (g, m)))
         {
-            if !mode_usable(mode, gpus) {
+            if !mode_usable(mode, gpus, &scene, &p0) {
                 continue;
             }
-            let mopts: CudaOptions = format!("{base},{mode}").parse().expect("mode");
+            let mopts = options(gpus, &format!("{base},{mode}"));
             let mut many = MultiGpuBackend::new(&scene, &p0, gpus, mopts.clone()).expect("N GPUs");
             // The backend runs the transport asked for.
             let want = if mode.contains("transport=nccl") {
@@ -202,7 +272,7 @@ fn barrier_with_nccl_is_a_clear_error() {
     )
     .unwrap();
     let p = scene.sample_particles().unwrap();
-    let o: CudaOptions = "transport=nccl,barrier=spin".parse().unwrap();
+    let o = options(2, "transport=nccl,barrier=spin");
     let e = MultiGpuBackend::new(&scene, &p, 2, o)
         .err()
         .expect("an error")
@@ -256,7 +326,7 @@ fn steering_on_two_gpus_is_steering_on_one() {
     )
     .expect("scene");
     let p = jelly.sample_particles().expect("particles");
-    let mut m = MultiGpuBackend::new(&jelly, &p, 2, CudaOptions::default()).expect("2 GPUs");
+    let mut m = MultiGpuBackend::new(&jelly, &p, 2, options(2, "")).expect("2 GPUs");
     let dt = 1e-3;
     for s in 0..100 {
         if s == 50 {
@@ -296,7 +366,7 @@ fn steering_on_two_gpus_is_steering_on_one() {
     };
     let mut one = CudaBackend::new(&sand, &p, CudaOptions::default()).expect("1 GPU");
     let a = sweep(&mut one);
-    let mut two = MultiGpuBackend::new(&sand, &p, 2, CudaOptions::default()).expect("2 GPUs");
+    let mut two = MultiGpuBackend::new(&sand, &p, 2, options(2, "")).expect("2 GPUs");
     let b = sweep(&mut two);
     let d = a.aggregate_difference(&b);
     println!("tool swept, 2 GPUs vs 1: |d com| {:.3e} m", d.com);
@@ -308,7 +378,7 @@ fn steering_on_two_gpus_is_steering_on_one() {
     let center = Vec3::new(0.45, 0.4, 0.45);
     let held = |tool: bool| {
         let p = jelly.sample_particles().expect("particles");
-        let mut m = MultiGpuBackend::new(&jelly, &p, 2, CudaOptions::default()).expect("2 GPUs");
+        let mut m = MultiGpuBackend::new(&jelly, &p, 2, options(2, "")).expect("2 GPUs");
         if tool {
             m.set_tool(Some(ball(center, Vec3::ZERO))).expect("tool");
         }
@@ -329,4 +399,274 @@ fn steering_on_two_gpus_is_steering_on_one() {
         with > center.y && without < center.y - 0.06,
         "{with} vs {without}"
     );
+}
+
+/// The GPU count of the tests below: 2, or the ranks of `RTMPM_MULTI_GPU_DEVICES`.
+fn ranks() -> usize {
+    env_devices().map_or(2, |d| d.len())
+}
+
+/// The modes the tests below compare: the p2p barriers and NCCL (those that cannot share a
+/// device are checked to be refused there, [`mode_usable`]).
+const MODES: [&str; 3] = [
+    "transport=p2p,barrier=spin",
+    "transport=p2p,barrier=events",
+    "transport=nccl",
+];
+
+/// The first GPU's slab of the partition: (axis, the largest coordinate of its particles).
+#[cfg(feature = "rigid")]
+fn first_cut(p: &Particles, gpus: usize) -> (usize, f32) {
+    let part = rtmpm_cuda::multi::partition::slabs(&p.x, gpus);
+    let cut = part.parts[0]
+        .iter()
+        .map(|&i| p.x[i as usize][part.axis])
+        .fold(f32::NEG_INFINITY, f32::max);
+    (part.axis, cut)
+}
+
+/// Rigid bodies on several GPUs (cargo feature `rigid`): every scene of `scenes/rigid/` for
+/// `RTMPM_MULTI_GPU_RIGID_SECONDS` of simulated time (default 0.5 s: the ball falls into the
+/// sand, the dam breaks onto the gate and the floating bodies) at a fixed dt (0.8 of the
+/// scene's first CFL step), frame ends as in a run, and a re-partition halfway, on 2 GPUs (or
+/// ranks) against one GPU; heavy_ball also with `rigid_overlap=off`. Every body's position
+/// within 0.1 dx and its rotation within 0.1 dx at its farthest point (the tolerance of
+/// tests/rigid.rs for one GPU against the CPU: the floating height within a tenth of a cell);
+/// its velocity and angular velocity within 2 % of the largest the body reached in the one-GPU
+/// run (the kinetic-energy tolerance of the agreement test) plus 1 mm/s (0.01 rad/s); the
+/// particles' aggregates within the agreement test's tolerances. heavy_ball's ball starts over
+/// the cut between the first two GPUs' slabs (checked), so it lands on blocks both GPUs hold:
+/// with their nodes' reactions counted on both, its impulse from them would double.
+#[cfg(feature = "rigid")]
+#[test]
+#[ignore = "needs 2 CUDA GPUs (or RTMPM_MULTI_GPU_DEVICES=0,0)"]
+fn several_gpus_agree_with_one_on_the_rigid_scenes() {
+    if !usable(2) {
+        return;
+    }
+    let gpus = ranks();
+    let seconds: f32 = std::env::var("RTMPM_MULTI_GPU_RIGID_SECONDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0.5);
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/rigid");
+    let mut paths: Vec<_> = std::fs::read_dir(dir)
+        .expect("scenes/rigid/")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    paths.sort();
+    let (mut failures, mut across, mut ran) = (Vec::new(), Vec::new(), 0);
+    for path in paths {
+        let name = path.file_stem().unwrap().to_string_lossy().to_string();
+        let scene = Scene::from_file(&path).expect("scene");
+        let p0 = scene.sample_particles().expect("particles");
+        let dx = scene.dx;
+        let (axis, cut) = first_cut(&p0, gpus);
+        for b in &scene.rigid_bodies {
+            if (b.position[axis] - cut).abs() < b.shape.bounding_radius() {
+                across.push(name.clone());
+            }
+        }
+        let dt = {
+            let one = CudaBackend::new(&scene, &p0, CudaOptions::default()).expect("1 GPU");
+            0.8 * Simulation::new(scene.clone(), Box::new(one))
+                .next_dt()
+                .expect("dt")
+        };
+        let steps = (seconds / dt).ceil() as usize;
+        let per_frame = ((1.0 / scene.time.fps) / dt).round().max(1.0) as usize;
+        let variants: &[&str] = if name == "heavy_ball" {
+            &["", "rigid_overlap=off"]
+        } else {
+            &[""]
+        };
+        for (variant, mode) in variants
+            .iter()
+            .flat_map(|v| MODES.iter().map(move |m| (*v, *m)))
+        {
+            if !mode_usable(mode, gpus, &scene, &p0) {
+                continue;
+            }
+            ran += 1;
+            let label = format!(
+                "{name} [{variant}{}{mode}] x{gpus}",
+                if variant.is_empty() { "" } else { "," }
+            );
+            let mut one =
+                CudaBackend::new(&scene, &p0, variant.parse().expect("options")).expect("1 GPU");
+            let mut many = MultiGpuBackend::new(
+                &scene,
+                &p0,
+                gpus,
+                options(gpus, &format!("{variant},{mode}")),
+            )
+            .expect("N GPUs");
+            let mut peak = vec![(0f32, 0f32); scene.rigid_bodies.len()];
+            for s in 0..steps {
+                if s == steps / 2 {
+                    many.rebalance_now().expect("rebalance");
+                }
+                let t = s as f32 * dt;
+                one.step(dt, t).expect("step");
+                many.step(dt, t).expect("step");
+                if (s + 1) % per_frame == 0 || s + 1 == steps {
+                    one.end_of_frame().expect("frame end");
+                    many.end_of_frame().expect("frame end");
+                    for (k, b) in one.rigid_poses().iter().enumerate() {
+                        peak[k].0 = peak[k].0.max(b.velocity.length());
+                        peak[k].1 = peak[k].1.max(b.angular_velocity.length());
+                    }
+                }
+            }
+            assert!(
+                one.check().expect("check").is_none(),
+                "{label}: 1 GPU blew up"
+            );
+            assert!(many.check().expect("check").is_none(), "{label}: blow-up");
+            let (a, b) = (one.rigid_poses(), many.rigid_poses());
+            assert_eq!(a.len(), b.len(), "{label}");
+            for (k, (pa, pb)) in a.iter().zip(&b).enumerate() {
+                let r = scene.rigid_bodies[k].shape.bounding_radius();
+                let dpos = (pa.position - pb.position).length();
+                let drot = pa.rotation.angle_between(pb.rotation) * r;
+                let dv = (pa.velocity - pb.velocity).length();
+                let dw = (pa.angular_velocity - pb.angular_velocity).length();
+                let (vmax, wmax) = peak[k];
+                println!(
+                    "{label}: body {k} after {steps} steps of {dt:.3e} s: |d position| {:.4} dx, \
+                     rotation {:.4} dx at its farthest point, |d v| {dv:.3e} m/s (peak {vmax:.3}), \
+                     |d omega| {dw:.3e} rad/s (peak {wmax:.3}); 1 GPU at {}, v {}",
+                    dpos / dx,
+                    drot / dx,
+                    pa.position,
+                    pa.velocity
+                );
+                if dpos > 0.1 * dx
+                    || drot > 0.1 * dx
+                    || dv > 0.02 * vmax + 1e-3
+                    || dw > 0.02 * wmax + 1e-2
+                {
+                    failures.push(format!("{label}: body {k} differs"));
+                }
+            }
+            if name == "heavy_ball" {
+                assert!(peak[0].0 > 0.5, "{label}: the ball never fell ({peak:?})");
+            }
+            let (pa, pb) = (read(&mut one), read(&mut many));
+            let d = pa.aggregate_difference(&pb);
+            let dxf = dx as f64;
+            println!(
+                "{label}: particles: |d com| {:.4} dx, d KE {:.3} %, |d bbox| {:.3} dx, {} rebalance(s)",
+                d.com / dxf,
+                100.0 * d.kinetic,
+                d.bbox / dxf,
+                many.rebalances
+            );
+            if d.com > 0.1 * dxf || d.kinetic > 0.02 || d.bbox > dxf {
+                failures.push(format!("{label}: particle aggregates differ"));
+            }
+        }
+    }
+    println!("{ran} rigid-body runs compared; bodies across the first cut in: {across:?}");
+    assert!(ran > 0, "no mode could run");
+    assert!(
+        across.iter().any(|n| n == "heavy_ball"),
+        "heavy_ball's ball no longer starts over the cut: {across:?}"
+    );
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// The health check on several GPUs reports a bad particle as one GPU does (the blow-up error
+/// of `rtmpm_driver::Simulation::check`: particle, reason, material, position, velocity), on
+/// the dam break: a NaN velocity given to the last GPU's particle farthest from the first cut
+/// (reported from that GPU: every particle it spoils is that GPU's); then also an absurd
+/// speed (1e6 m/s) given to the first GPU's particle farthest from it (two GPUs each report
+/// their first bad particle; the merge keeps the lowest index, with its own reason, as the one
+/// GPU's single report does).
+#[test]
+#[ignore = "needs 2 CUDA GPUs (or RTMPM_MULTI_GPU_DEVICES=0,0)"]
+fn a_bad_particle_on_any_gpu_is_reported_as_on_one() {
+    use rtmpm_physics::math::Vec3;
+    use rtmpm_sim::{Blowup, SimError};
+    if !usable(2) {
+        return;
+    }
+    let gpus = ranks();
+    let scene = Scene::from_file(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/dam_break.toml"),
+    )
+    .expect("scene");
+    let p0 = scene.sample_particles().expect("particles");
+    let part = rtmpm_cuda::multi::partition::slabs(&p0.x, gpus);
+    let along = |i: &&u32| p0.x[**i as usize][part.axis];
+    let last = *part.parts[gpus - 1]
+        .iter()
+        .max_by(|a, b| along(a).total_cmp(&along(b)))
+        .expect("particles on the last GPU");
+    let first = *part.parts[0]
+        .iter()
+        .min_by(|a, b| along(a).total_cmp(&along(b)))
+        .expect("particles on the first GPU");
+    let dt = {
+        let one = CudaBackend::new(&scene, &p0, CudaOptions::default()).expect("1 GPU");
+        Simulation::new(scene.clone(), Box::new(one))
+            .next_dt()
+            .expect("dt")
+    };
+    let nan = Vec3::splat(f32::NAN);
+    let cases = [
+        ("NaN on the last GPU", vec![(last, nan)]),
+        (
+            "NaN on the last GPU, too fast on the first",
+            vec![(last, nan), (first, Vec3::new(1e6, 0.0, 0.0))],
+        ),
+    ];
+    let report = |b: Box<dyn Backend>| -> Blowup {
+        let mut sim = Simulation::new(scene.clone(), b);
+        sim.backend.step(dt, 0.0).expect("step");
+        match sim.check() {
+            Err(SimError::Blowup(b)) => *b,
+            other => panic!("a blow-up expected, got {other:?}"),
+        }
+    };
+    let same = |a: Vec3, b: Vec3| {
+        (0..3).all(|k| {
+            (a[k].is_nan() && b[k].is_nan()) || (a[k] - b[k]).abs() <= 1e-3 * a[k].abs().max(1.0)
+        })
+    };
+    for mode in MODES {
+        if !mode_usable(mode, gpus, &scene, &p0) {
+            continue;
+        }
+        for (what, edits) in &cases {
+            let mut p = p0.clone();
+            for &(i, v) in edits {
+                p.v[i as usize] = v;
+            }
+            let a = report(Box::new(
+                CudaBackend::new(&scene, &p, CudaOptions::default()).expect("1 GPU"),
+            ));
+            let b = report(Box::new(
+                MultiGpuBackend::new(&scene, &p, gpus, options(gpus, mode)).expect("N GPUs"),
+            ));
+            let on = part
+                .parts
+                .iter()
+                .position(|q| q.contains(&(b.particle as u32)));
+            println!(
+                "{what} [{mode}] x{gpus}: 1 GPU: particle {} ({}); {gpus} GPUs: particle {} on GPU \
+                 {on:?} ({})",
+                a.particle, a.reason, b.particle, b.reason
+            );
+            assert_eq!(a.particle, b.particle, "{what} [{mode}]");
+            assert_eq!(a.reason, b.reason, "{what} [{mode}]");
+            assert_eq!(a.material, b.material, "{what} [{mode}]");
+            assert!(same(a.position, b.position), "{what}: {a:?} vs {b:?}");
+            assert!(same(a.velocity, b.velocity), "{what}: {a:?} vs {b:?}");
+            if edits.len() == 1 {
+                assert_eq!(on, Some(gpus - 1), "{what}: reported from the last GPU");
+            }
+        }
+    }
 }

@@ -115,15 +115,18 @@ extern "C" __global__ void sb_list(Ctx c, SharedCtx s) {
     }
 }
 
-// A gblock is a boundary gblock when one of its 27 neighbours is shared; a pblock is flagged when
-// it is shared itself (its grid update waits for the sum, grid_update.cu).
+// A gblock is a boundary gblock when one of its 27 neighbours is shared; a pblock shared itself
+// gets the number of GPUs that hold it (its grid update waits for the sum, and its share of a
+// rigid body's impulse is 1 / that number on each of them, grid_update.cu: couple_bodies), 0
+// otherwise.
 extern "C" __global__ void sb_boundary(Ctx c, SharedCtx s) {
     if (!sb_any_rebuilt(s)) return;
     unsigned np = min(c.ctl[CTL_PBLOCKS], c.pblock_cap);
     SB_GRID_STRIDE(p, np) {
         const int* bc = c.block_coords + 3 * p;
         unsigned di = sb_dense(s, sb_sign19(bc[0]), sb_sign19(bc[1]), sb_sign19(bc[2]));
-        c.shared_pblock[p] = di != EMPTY_ID && s.counts[di] >= 2;
+        unsigned holders = di != EMPTY_ID ? s.counts[di] : 0u;
+        c.shared_pblock[p] = holders >= 2 ? holders : 0u;
     }
     unsigned ng = min(c.ctl[CTL_GBLOCKS], c.gblock_cap);
     SB_GRID_STRIDE(g, ng) {

@@ -21,7 +21,7 @@ use crate::state;
 use crate::step::graph::StepGraphs;
 use crate::step::p2g::P2gPlan;
 use crate::step::rebuild::sorted_fields;
-use crate::step::rigid::Bodies;
+use crate::step::rigid::{Bodies, BodyLink};
 use cudarc::driver::{CudaContext, CudaModule, CudaStream};
 use rtmpm_physics::math::IVec3;
 use rtmpm_physics::transfer::Transfer;
@@ -82,14 +82,28 @@ impl CudaBackend {
 
         let (buffers, mut ctx) =
             plan.state_and_buffers(scene, initial, part, &stream, &kernels, &mut setup)?;
-        let bodies = Bodies::new(
-            scene,
-            &stream,
-            plan.options.rigid_overlap,
-            plan.tables.body_mesh.clone(),
-        )?;
+        // One GPU moves its bodies itself; a GPU of several (`part.ids`) only couples them:
+        // they move in the one rapier world of the multi-GPU backend (crate::multi::threaded).
+        let (bodies, body_link) = if part.ids.is_none() {
+            let b = Bodies::new(
+                scene,
+                &stream,
+                plan.options.rigid_overlap,
+                plan.tables.body_mesh.clone(),
+            )?;
+            (b, None)
+        } else if scene.rigid_bodies.is_empty() {
+            (None, None)
+        } else {
+            let n = scene.rigid_bodies.len();
+            let link = BodyLink::new(&stream, n, plan.tables.body_mesh.clone())?;
+            (None, Some(link))
+        };
         if let Some(b) = &bodies {
             (ctx.bodies, ctx.body_exchange, ctx.n_bodies) = b.ctx_fields(&stream);
+        }
+        if let Some(l) = &body_link {
+            (ctx.bodies, ctx.body_exchange, ctx.n_bodies) = l.ctx_fields(&stream);
         }
         write_constants(&module, &stream, &plan.tables)?;
         let p2g = P2gPlan::new(
@@ -122,6 +136,7 @@ impl CudaBackend {
             graphs: StepGraphs::default(),
             device_name: info.name,
             bodies,
+            body_link,
             setup: SetupPhases {
                 total: t0.elapsed().as_secs_f64(),
                 ..setup
@@ -142,13 +157,6 @@ fn check(scene: &Scene, n: usize, part: &Part, o: &CudaOptions) -> Result<(), Si
         return Err(SimError::Backend(
             "CUDA backend: p2g=shared is single precision only (a 12^3 tile of f64 nodes \
              exceeds the 48 KiB of static shared memory); use p2g=warp with f64"
-                .into(),
-        ));
-    }
-    if !scene.rigid_bodies.is_empty() && part.ids.is_some() {
-        return Err(SimError::Backend(
-            "CUDA backend: the scene's [[rigid_body]] tables are coupled on one GPU only so \
-             far; run it with --gpus 1 (or on the CPU backend)"
                 .into(),
         ));
     }

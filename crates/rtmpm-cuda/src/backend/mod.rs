@@ -70,6 +70,9 @@ pub struct CudaBackend {
     device_name: String,
     /// The rigid bodies coupled to the grid (`[[rigid_body]]`), if any.
     pub(crate) bodies: Option<Bodies>,
+    /// A GPU of several with rigid bodies: the device side of their coupling (the bodies move
+    /// in the multi-GPU backend's world, which drives it, `crate::multi::rank`).
+    pub(crate) body_link: Option<crate::step::rigid::BodyLink>,
     /// Where the time of building this backend went.
     setup: SetupPhases,
     /// The render stage's buffers (a live view), allocated at the first picture.
@@ -358,6 +361,13 @@ impl Backend for CudaBackend {
     }
 
     fn step(&mut self, dt: f32, t: f32) -> Result<(), SimError> {
+        if self.body_link.is_some() {
+            return Err(SimError::Backend(
+                "this GPU holds one part of a multi-GPU run with rigid bodies, which move in \
+                 the multi-GPU backend: step that backend (MultiGpuBackend)"
+                    .into(),
+            ));
+        }
         self.upload_params(dt, t)?;
         self.run_step(dt, &mut NoHooks, true)
     }

@@ -28,6 +28,7 @@ pub mod process;
 pub mod rank;
 pub mod reduce_shared;
 pub mod rendezvous;
+pub(crate) mod rigid;
 pub mod threaded;
 
 pub use plan::{check_supported, subset};

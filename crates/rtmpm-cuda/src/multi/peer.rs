@@ -8,26 +8,34 @@ use cudarc::driver::sys;
 /// The first pair (i, j) of GPUs 0..gpus where GPU i cannot access GPU j's memory, or `None` when
 /// every pair can. `Err` when the driver cannot be asked.
 pub fn first_pair_without_access(gpus: usize) -> Result<Option<(usize, usize)>, String> {
-    first_pair_without(gpus, None)
+    first_pair_without(&(0..gpus).collect::<Vec<_>>(), None)
 }
 
-/// The first pair (i, j) where GPU i has no native atomics on GPU j's memory (the spin barrier
+/// [`first_pair_without_access`] among the devices `devices` (ordinals; a device named twice
+/// needs no peer access to itself).
+pub fn first_pair_without_access_among(
+    devices: &[usize],
+) -> Result<Option<(usize, usize)>, String> {
+    first_pair_without(devices, None)
+}
+
+/// The first pair (i, j) of `devices` where GPU i has no native atomics on GPU j's memory (the spin barrier
 /// adds to a counter in GPU 0's memory), or `None` when every pair has them.
-pub fn first_pair_without_atomics(gpus: usize) -> Result<Option<(usize, usize)>, String> {
+pub fn first_pair_without_atomics(devices: &[usize]) -> Result<Option<(usize, usize)>, String> {
     first_pair_without(
-        gpus,
+        devices,
         Some(sys::CUdevice_P2PAttribute::CU_DEVICE_P2P_ATTRIBUTE_NATIVE_ATOMIC_SUPPORTED),
     )
 }
 
 fn first_pair_without(
-    gpus: usize,
+    devices: &[usize],
     attribute: Option<sys::CUdevice_P2PAttribute>,
 ) -> Result<Option<(usize, usize)>, String> {
     // Initialises the driver (cuInit) if no context exists yet.
     let n = cudarc::driver::CudaContext::device_count().map_err(|e| format!("{e:?}"))? as usize;
-    if gpus > n {
-        return Err(format!("{gpus} GPUs asked, {n} found"));
+    if let Some(&d) = devices.iter().find(|&&d| d >= n) {
+        return Err(format!("GPU {d} asked, {n} found"));
     }
     let dev = |i: usize| -> Result<sys::CUdevice, String> {
         let mut d: sys::CUdevice = 0;
@@ -37,8 +45,8 @@ fn first_pair_without(
             .map_err(|e| format!("cuDeviceGet({i}): {e:?}"))?;
         Ok(d)
     };
-    for i in 0..gpus {
-        for j in 0..gpus {
+    for &i in devices {
+        for &j in devices {
             if i == j {
                 continue;
             }

@@ -63,10 +63,21 @@ impl NcclRankBackend {
                 "--nccl-rank {me} must be below --nccl-ranks {ranks}"
             )));
         }
-        if options.transport == Some(Transport::P2p) || options.barrier.is_some() {
+        if options.transport == Some(Transport::P2p)
+            || options.barrier.is_some()
+            || options.devices.is_some()
+        {
             return Err(SimError::Backend(
-                "transport=p2p and barrier= need the GPUs in one process (--gpus N); runs of \
-                 several processes use NCCL"
+                "transport=p2p, barrier= and devices= need the GPUs in one process (--gpus N); runs \
+                 of several processes use NCCL, one device each"
+                    .into(),
+            ));
+        }
+        if !scene.rigid_bodies.is_empty() {
+            return Err(SimError::Backend(
+                "runs of one process per GPU do not couple [[rigid_body]] tables yet (their \
+                 rapier world lives in one process); run them with --gpus N (several GPUs of \
+                 one process), on one GPU or on the CPU"
                     .into(),
             ));
         }

@@ -11,6 +11,7 @@ use crate::error::err;
 use crate::options::{BarrierKind, CudaOptions};
 use cudarc::driver::{CudaSlice, DevicePtr};
 use rtmpm_physics::Particles;
+use rtmpm_rigid::{BodyState, Exchange};
 use rtmpm_scene::Scene;
 use rtmpm_sim::SimError;
 use std::sync::Arc;
@@ -45,6 +46,11 @@ pub struct GpuRank {
     eager_steps: u32,
     ctl_all: Option<CudaSlice<u32>>,
     state_all: Option<CudaSlice<f32>>,
+    /// Rigid bodies: their states for the coming steps (the same on every GPU,
+    /// [`GpuRank::set_body_states`]).
+    body_states: Vec<BodyState>,
+    /// Rigid bodies: the host copy that the last step's impulse sums go to.
+    body_copy: Option<usize>,
 }
 
 impl GpuRank {
@@ -87,6 +93,8 @@ impl GpuRank {
             eager_steps: 0,
             ctl_all: None,
             state_all: None,
+            body_states: Vec::new(),
+            body_copy: None,
         };
         r.set_shared_capacity(shared_cap)?;
         Ok(r)
@@ -164,22 +172,27 @@ impl GpuRank {
         s.context().bind_to_thread().map_err(err("bind"))?;
         let own = s.context().ordinal();
         for (j, e) in all.iter().enumerate() {
-            if j != me {
+            // Ranks on this GPU (`devices=`) share its context: nothing to enable.
+            if j != me && e.device != own {
                 super::peer::enable(e.ctx)
                     .map_err(|m| SimError::Backend(format!("GPU {me} -> GPU {j}: {m}")))?;
             }
         }
         // The peers read this GPU's pool allocations (mask, pack buffer, barrier counter).
-        let peers: Vec<usize> = all
+        let mut peers: Vec<usize> = all
             .iter()
             .filter(|e| e.device != own)
             .map(|e| e.device)
             .collect();
+        peers.sort_unstable();
+        peers.dedup();
         super::peer::grant_pool_access(own, &peers).map_err(SimError::Backend)?;
         self.x.connect(&s, me, all, host)
     }
 
-    /// Enqueue one step (replaying the captured graph while dt stays the same).
+    /// Enqueue one step (replaying the captured graph while dt stays the same). With rigid
+    /// bodies: the states last given ([`GpuRank::set_body_states`]) go up before it, and its
+    /// impulse sums are copied to the host after it ([`GpuRank::body_sums`]).
     pub fn step(&mut self, dt: f32, t: f32) -> Result<(), SimError> {
         self.b
             .stream
@@ -187,6 +200,16 @@ impl GpuRank {
             .bind_to_thread()
             .map_err(err("bind"))?;
         self.b.upload_params(dt, t)?;
+        if let Some(link) = self.b.body_link.as_mut() {
+            if self.body_states.len() != self.b.ctx.n_bodies as usize {
+                return Err(SimError::Backend(format!(
+                    "GPU rank: {} rigid-body states for {} bodies",
+                    self.body_states.len(),
+                    self.b.ctx.n_bodies
+                )));
+            }
+            link.upload(&self.b.module, &self.b.stream, &self.body_states)?;
+        }
         // Events barrier: no graph (the waits must bind to the peers' records of this step).
         let graph =
             !self.x.uses_event_barrier() && self.x.timing.is_none() && self.eager_steps >= 2;
@@ -194,7 +217,31 @@ impl GpuRank {
             self.eager_steps += 1;
         }
         let GpuRank { b, x, .. } = self;
-        b.run_step(dt, &mut ExchangeHooks(x), graph)
+        b.run_step(dt, &mut ExchangeHooks(x), graph)?;
+        if let Some(link) = self.b.body_link.as_mut() {
+            self.body_copy = Some(link.queue_sums(&self.b.stream)?);
+        }
+        Ok(())
+    }
+
+    /// Rigid bodies: their states at the time of the coming steps.
+    pub fn set_body_states(&mut self, states: &[BodyState]) {
+        self.body_states.clear();
+        self.body_states.extend_from_slice(states);
+    }
+
+    /// Rigid bodies: the host copy that the last step's impulse sums went to (`None` without
+    /// bodies, or before the first step).
+    pub fn body_copy(&self) -> Option<usize> {
+        self.body_copy
+    }
+
+    /// Rigid bodies: the impulse sums of this GPU's nodes in host copy `k` (waits for them).
+    pub fn body_sums(&self, k: usize) -> Result<Vec<Exchange>, SimError> {
+        match &self.b.body_link {
+            Some(link) => link.sums(k),
+            None => Ok(Vec::new()),
+        }
     }
 
     /// This GPU's control words (synchronises).

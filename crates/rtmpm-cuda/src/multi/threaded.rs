@@ -7,6 +7,7 @@ use super::partition::slabs;
 use super::plan::{check_supported, dense_count, plan, shared_capacity, subset};
 use super::rank::{CommSource, GpuRank};
 use super::reduce_shared::MAX_PEER_GPUS;
+use super::rigid::SharedBodies;
 use crate::backend::Part;
 use crate::backend::readback::{resize_particles, scatter_state};
 use crate::contract::{CTL_MAX_SPEED, CTL_SHARED};
@@ -43,6 +44,8 @@ pub struct MultiGpuBackend {
     scene: Scene,
     options: CudaOptions,
     transport: Transport,
+    /// The CUDA device of each rank.
+    devices: Vec<usize>,
     /// Events barrier: where the worker threads meet.
     host: Arc<HostBarrier>,
     n: usize,
@@ -54,6 +57,8 @@ pub struct MultiGpuBackend {
     pub rebalances: u32,
     /// The user's tool (given again to the ranks rebuilt by a rebalance).
     tool: Option<rtmpm_geometry::Tool>,
+    /// Rigid bodies (`[[rigid_body]]`): their one world ([`super::rigid`]).
+    bodies: Option<SharedBodies>,
 }
 
 impl MultiGpuBackend {
@@ -65,30 +70,27 @@ impl MultiGpuBackend {
         options: CudaOptions,
     ) -> Result<MultiGpuBackend, SimError> {
         check_supported(scene, &options)?;
-        let found = crate::probe::device_count();
-        if gpus < 1 || gpus > found {
-            return Err(SimError::Backend(format!(
-                "--gpus {gpus}: {found} CUDA device(s) found{}",
-                if found == 0 {
-                    format!(
-                        " ({})",
-                        crate::probe::probe()
-                            .err()
-                            .map(|e| e.to_string())
-                            .unwrap_or_default()
-                    )
-                } else {
-                    String::new()
-                }
-            )));
-        }
+        let devices = rank_devices(gpus, &options)?;
+        // The bodies' world before any GPU work (its refusals are clear errors).
+        let bodies = SharedBodies::new(scene, &options)?;
         let info = crate::probe::probe().map_err(|e| SimError::Backend(e.to_string()))?;
-        let (transport, why) = choose_transport(gpus, &options)?;
+        let (transport, why) = choose_transport(&devices, &options)?;
         let mut options = options;
         options.transport = Some(transport);
         if transport == Transport::P2p {
-            options.barrier = Some(choose_barrier(gpus, &options)?);
+            options.barrier = Some(choose_barrier(&devices, &options)?);
         }
+        let on = match &options.devices {
+            Some(_) => format!(
+                " on devices {}",
+                devices
+                    .iter()
+                    .map(usize::to_string)
+                    .collect::<Vec<_>>()
+                    .join(":")
+            ),
+            None => String::new(),
+        };
         let (id, what) = match transport {
             Transport::Nccl => {
                 let nccl = super::nccl::library().map_err(|e| {
@@ -113,14 +115,16 @@ impl MultiGpuBackend {
             scene: scene.clone(),
             options: options.clone(),
             transport,
+            devices,
             host: Arc::new(HostBarrier::new(gpus)),
             n: particles.len(),
-            name: format!("cuda x{gpus} ({}, {what})", info.name),
+            name: format!("cuda x{gpus}{on} ({}, {what})", info.name),
             shared_cap: 0,
             shared_at_partition: 0,
             d: dense_count(scene),
             rebalances: 0,
             tool: None,
+            bodies,
         };
         for _ in 0..gpus {
             let (tx, rx) = mpsc::channel::<Job>();
@@ -210,10 +214,11 @@ impl MultiGpuBackend {
         );
         let (scene, options, cap) = (self.scene.clone(), self.options.clone(), self.shared_cap);
         let p2p = self.transport == Transport::P2p;
+        let devices = self.devices.clone();
         self.all(move |i, slot| {
             let (p, ids) = &subsets[i];
             let part = Part {
-                device: i,
+                device: devices[i],
                 ids: Some(ids.clone()),
                 capacity: 0,
             };
@@ -237,6 +242,8 @@ impl MultiGpuBackend {
 
     /// Re-partition the particles now (gather, split, rebuild every GPU's rank; synchronises).
     pub fn rebalance_now(&mut self) -> Result<(), SimError> {
+        // The bodies take the sums held by the ranks about to be rebuilt.
+        self.flush_rigid()?;
         let speed = self
             .ctls()?
             .iter()
@@ -248,6 +255,37 @@ impl MultiGpuBackend {
         self.load(&all, None)?;
         self.all(move |_, r| rank(r)?.b.set_ctl_word(CTL_MAX_SPEED, speed))?;
         self.rebalances += 1;
+        Ok(())
+    }
+
+    /// Enqueue one step on every GPU, with the bodies' states of now; the bodies then take the
+    /// sums of this step (without overlap) or of the one before ([`super::rigid`]).
+    fn step_ranks(&mut self, dt: f32, t: f32) -> Result<(), SimError> {
+        let states = self.bodies.as_ref().map(|b| Arc::new(b.states().to_vec()));
+        let copies = self.all(move |_, r| {
+            let r = rank(r)?;
+            if let Some(s) = &states {
+                r.set_body_states(s);
+            }
+            r.step(dt, t)?;
+            Ok(r.body_copy())
+        })?;
+        let due = match (self.bodies.as_mut(), copies.first().copied().flatten()) {
+            (Some(b), Some(k)) => b.queued(k, dt),
+            _ => None,
+        };
+        match due {
+            Some((k, dt)) => self.advance_bodies(k, dt),
+            None => Ok(()),
+        }
+    }
+
+    /// Give the bodies every GPU's sums of host copy `k` and advance them by `dt`.
+    fn advance_bodies(&mut self, k: usize, dt: f32) -> Result<(), SimError> {
+        let per_rank = self.all(move |_, r| rank(r)?.body_sums(k))?;
+        if let Some(b) = self.bodies.as_mut() {
+            b.advance(&per_rank, dt);
+        }
         Ok(())
     }
 
@@ -274,7 +312,7 @@ impl MultiGpuBackend {
         let start = std::time::Instant::now();
         for i in 0..steps {
             let t = t0 + i as f32 * dt;
-            self.all(move |_, r| rank(r)?.step(dt, t))?;
+            self.step_ranks(dt, t)?;
             let ms = self.all(|_, r| rank(r)?.last_reduce_ms())?;
             reduce += ms.into_iter().fold(0.0, f64::max);
         }
@@ -311,8 +349,7 @@ impl Backend for MultiGpuBackend {
     }
 
     fn step(&mut self, dt: f32, t: f32) -> Result<(), SimError> {
-        self.all(move |_, r| rank(r)?.step(dt, t))?;
-        Ok(())
+        self.step_ranks(dt, t)
     }
 
     fn max_speed(&mut self) -> Result<f32, SimError> {
@@ -325,11 +362,42 @@ impl Backend for MultiGpuBackend {
         Ok(bad.into_iter().flatten().min_by_key(|b| b.index))
     }
 
-    /// Gravity on every GPU.
+    /// Gravity on every GPU (and the rigid bodies').
     fn set_gravity(&mut self, gravity: rtmpm_physics::math::Vec3) -> Result<(), SimError> {
         self.all(move |_, r| rank(r)?.b.set_gravity(gravity))?;
+        if let Some(b) = self.bodies.as_mut() {
+            b.set_gravity(gravity);
+        }
         self.scene.gravity = gravity;
         Ok(())
+    }
+
+    fn rigid_bodies(&self) -> Vec<rtmpm_rigid::BodyState> {
+        self.bodies
+            .as_ref()
+            .map_or_else(Vec::new, |b| b.states().to_vec())
+    }
+
+    fn rigid_poses(&self) -> Vec<rtmpm_rigid::BodyPose> {
+        self.bodies.as_ref().map_or_else(Vec::new, |b| b.poses())
+    }
+
+    fn flush_rigid(&mut self) -> Result<(), SimError> {
+        match self.bodies.as_mut().and_then(|b| b.take_pending()) {
+            Some((k, dt)) => self.advance_bodies(k, dt),
+            None => Ok(()),
+        }
+    }
+
+    fn set_rigid_poses(&mut self, poses: &[rtmpm_rigid::BodyPose]) -> Result<(), SimError> {
+        match self.bodies.as_mut() {
+            Some(b) => b.set_poses(poses),
+            None if poses.is_empty() => Ok(()),
+            None => Err(SimError::Backend(format!(
+                "{} rigid-body states for a scene without rigid bodies",
+                poses.len()
+            ))),
+        }
     }
 
     /// The tool on every GPU (each applies it to the grid nodes of its particles).
@@ -353,7 +421,10 @@ impl Backend for MultiGpuBackend {
         Ok(())
     }
 
+    /// The bodies take the impulses of the frame's last step (as on one GPU), then the
+    /// reduction grows or the particles are re-partitioned where the plan says so.
     fn end_of_frame(&mut self) -> Result<(), SimError> {
+        self.flush_rigid()?;
         let c = self.ctls()?;
         let shared = c[0][CTL_SHARED] as usize;
         let p = plan(
@@ -375,10 +446,88 @@ impl Backend for MultiGpuBackend {
     }
 }
 
-/// The transport of a run of `gpus` GPUs in one process, and why: the one asked for, else p2p
-/// when every pair of GPUs has peer access (and there are at most [`MAX_PEER_GPUS`]), else NCCL.
-fn choose_transport(gpus: usize, o: &CudaOptions) -> Result<(Transport, String), SimError> {
-    let missing = super::peer::first_pair_without_access(gpus)
+/// The CUDA device of each of `gpus` ranks: `devices=` of the options, else 0..gpus; every one
+/// present.
+fn rank_devices(gpus: usize, o: &CudaOptions) -> Result<Vec<usize>, SimError> {
+    let found = crate::probe::device_count();
+    let why = || {
+        if found == 0 {
+            format!(
+                " ({})",
+                crate::probe::probe()
+                    .err()
+                    .map(|e| e.to_string())
+                    .unwrap_or_default()
+            )
+        } else {
+            String::new()
+        }
+    };
+    let devices = match &o.devices {
+        None => {
+            if gpus < 1 || gpus > found {
+                return Err(SimError::Backend(format!(
+                    "--gpus {gpus}: {found} CUDA device(s) found{}",
+                    why()
+                )));
+            }
+            (0..gpus).collect()
+        }
+        Some(d) => {
+            if d.len() != gpus {
+                return Err(SimError::Backend(format!(
+                    "devices= names {} device(s) for {gpus} GPU ranks (--gpus {gpus}): name \
+                     one device per rank",
+                    d.len()
+                )));
+            }
+            if let Some(bad) = d.iter().find(|&&x| x >= found) {
+                return Err(SimError::Backend(format!(
+                    "devices=: CUDA device {bad} asked, {found} CUDA device(s) found{}",
+                    why()
+                )));
+            }
+            d.clone()
+        }
+    };
+    Ok(devices)
+}
+
+/// Two ranks on one device (`devices=`), as (first rank, second rank, device).
+fn shared_device(devices: &[usize]) -> Option<(usize, usize, usize)> {
+    (0..devices.len())
+        .flat_map(|i| (i + 1..devices.len()).map(move |j| (i, j)))
+        .find(|&(i, j)| devices[i] == devices[j])
+        .map(|(i, j)| (i, j, devices[i]))
+}
+
+/// The transport of a run of GPU ranks on `devices` in one process, and why: the one asked
+/// for, else p2p when every pair of GPUs has peer access (and there are at most
+/// [`MAX_PEER_GPUS`]), else NCCL. Ranks sharing a device run p2p only.
+fn choose_transport(devices: &[usize], o: &CudaOptions) -> Result<(Transport, String), SimError> {
+    let gpus = devices.len();
+    if o.transport == Some(Transport::Nccl) && o.barrier.is_some() {
+        return Err(SimError::Backend(
+            "barrier= applies to transport=p2p only (NCCL synchronises the GPUs itself)".into(),
+        ));
+    }
+    // NCCL refuses two ranks on one device.
+    let shared = shared_device(devices);
+    if let (Some(Transport::Nccl), Some((i, j, d))) = (o.transport, shared) {
+        return Err(SimError::Backend(format!(
+            "transport=nccl: ranks {i} and {j} are both on CUDA device {d} (devices=), and NCCL \
+             refuses two ranks on one device; use transport=p2p (with barrier=events) or one \
+             device per rank"
+        )));
+    }
+    let p2p = o.transport == Some(Transport::P2p) || (o.transport.is_none() && shared.is_some());
+    if p2p && gpus > MAX_PEER_GPUS {
+        return Err(SimError::Backend(format!(
+            "transport=p2p handles at most {MAX_PEER_GPUS} GPUs; use transport=nccl (one device \
+             per rank)"
+        )));
+    }
+    let missing = super::peer::first_pair_without_access_among(devices)
         .map_err(|e| SimError::Backend(format!("peer access query: {e}")))?;
     let chosen = match (o.transport, missing) {
         (Some(Transport::P2p), Some((i, j))) => {
@@ -387,12 +536,17 @@ fn choose_transport(gpus: usize, o: &CudaOptions) -> Result<(Transport, String),
                  transport=nccl (or leave transport= out)"
             )));
         }
-        (Some(Transport::P2p), None) if gpus > MAX_PEER_GPUS => {
+        (None, Some((i, j))) if shared.is_some() => {
             return Err(SimError::Backend(format!(
-                "transport=p2p handles at most {MAX_PEER_GPUS} GPUs; use transport=nccl"
+                "devices=: ranks that share a device run transport=p2p, but GPU {i} has no \
+                 peer access to GPU {j}'s memory; name one device per rank"
             )));
         }
         (Some(t), _) => (t, "asked for".to_string()),
+        (None, _) if shared.is_some() => (
+            Transport::P2p,
+            "default: ranks share a device (devices=)".to_string(),
+        ),
         (None, Some((i, j))) => (
             Transport::Nccl,
             format!("default: GPU {i} has no peer access to GPU {j}"),
@@ -415,9 +569,21 @@ fn choose_transport(gpus: usize, o: &CudaOptions) -> Result<(Transport, String),
 }
 
 /// The barrier of transport=p2p: the one asked for, else spin (it needs native atomics between
-/// every pair of GPUs; without them the default is events).
-fn choose_barrier(gpus: usize, o: &CudaOptions) -> Result<BarrierKind, SimError> {
-    let missing = super::peer::first_pair_without_atomics(gpus)
+/// every pair of GPUs; without them the default is events). Ranks sharing a device: events only
+/// (the one-thread spin kernels of two ranks on one device may not run at the same time, and
+/// the one that runs would then wait for the other forever).
+fn choose_barrier(devices: &[usize], o: &CudaOptions) -> Result<BarrierKind, SimError> {
+    if let Some((i, j, d)) = shared_device(devices) {
+        return match o.barrier {
+            Some(BarrierKind::Spin) => Err(SimError::Backend(format!(
+                "barrier=spin: ranks {i} and {j} are both on CUDA device {d} (devices=), where \
+                 their spin kernels could wait on each other forever; use barrier=events (the \
+                 default there)"
+            ))),
+            _ => Ok(BarrierKind::Events),
+        };
+    }
+    let missing = super::peer::first_pair_without_atomics(devices)
         .map_err(|e| SimError::Backend(format!("peer atomics query: {e}")))?;
     match (o.barrier, missing) {
         (Some(BarrierKind::Spin), Some((i, j))) => Err(SimError::Backend(format!(
@@ -426,5 +592,78 @@ fn choose_barrier(gpus: usize, o: &CudaOptions) -> Result<BarrierKind, SimError>
         (Some(b), _) => Ok(b),
         (None, Some(_)) => Ok(BarrierKind::Events),
         (None, None) => Ok(BarrierKind::Spin),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn o(text: &str) -> CudaOptions {
+        text.parse().expect("options")
+    }
+
+    fn msg<T: std::fmt::Debug>(r: Result<T, SimError>) -> String {
+        r.err().map(|e| e.to_string()).unwrap_or_default()
+    }
+
+    #[test]
+    fn ranks_sharing_a_device_are_found() {
+        assert_eq!(shared_device(&[0, 1]), None);
+        assert_eq!(shared_device(&[0, 0]), Some((0, 1, 0)));
+        assert_eq!(shared_device(&[1, 0, 2, 0]), Some((1, 3, 0)));
+    }
+
+    /// Ranks on one device (`devices=`): NCCL and the spin barrier are clear errors, the events
+    /// barrier is the default; these decisions need no GPU.
+    #[test]
+    fn ranks_sharing_a_device_run_p2p_with_the_events_barrier_only() {
+        let e = msg(choose_transport(&[0, 0], &o("transport=nccl,devices=0:0")));
+        assert!(
+            e.contains("NCCL refuses two ranks on one device") && e.contains("transport=p2p"),
+            "{e}"
+        );
+        // barrier= with NCCL is named first (the option pair is wrong on any devices).
+        let e = msg(choose_transport(
+            &[0, 0],
+            &o("transport=nccl,barrier=events"),
+        ));
+        assert!(e.contains("barrier= applies to transport=p2p only"), "{e}");
+        let e = msg(choose_barrier(&[0, 0], &o("barrier=spin")));
+        assert!(
+            e.contains("ranks 0 and 1 are both on CUDA device 0") && e.contains("barrier=events"),
+            "{e}"
+        );
+        assert_eq!(
+            choose_barrier(&[0, 0], &o("")).ok(),
+            Some(BarrierKind::Events)
+        );
+        assert_eq!(
+            choose_barrier(&[1, 1], &o("barrier=events")).ok(),
+            Some(BarrierKind::Events)
+        );
+        let many = [0; MAX_PEER_GPUS + 1];
+        let e = msg(choose_transport(&many, &o("")));
+        assert!(e.contains(&format!("at most {MAX_PEER_GPUS} GPUs")), "{e}");
+    }
+
+    #[test]
+    fn devices_name_one_present_device_per_rank() {
+        let e = msg(rank_devices(2, &o("devices=0:0:0")));
+        assert!(e.contains("names 3 device(s) for 2 GPU ranks"), "{e}");
+        let found = crate::probe::device_count();
+        let e = msg(rank_devices(2, &o(&format!("devices=0:{found}"))));
+        assert!(
+            e.contains(&format!(
+                "CUDA device {found} asked, {found} CUDA device(s) found"
+            )),
+            "{e}"
+        );
+        if found == 0 {
+            let e = msg(rank_devices(2, &o("")));
+            assert!(e.contains("--gpus 2: 0 CUDA device(s) found"), "{e}");
+        } else {
+            assert_eq!(rank_devices(1, &o("devices=0")).ok(), Some(vec![0]));
+        }
     }
 }

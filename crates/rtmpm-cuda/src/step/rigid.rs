@@ -45,9 +45,11 @@ pub fn encode(b: &BodyState, mesh_offset: u32) -> GpuBody {
     }
 }
 
-/// The rigid bodies of a GPU run: their rapier world and the device buffers of the coupling.
-pub struct Bodies {
-    world: RigidWorld,
+/// The device side of the coupling on one GPU: the bodies' states the grid update reads and
+/// the impulse sums it writes, with their page-locked copies on the host. One GPU has one
+/// inside its [`Bodies`]; each GPU of several has its own, and the bodies move in the one
+/// rapier world of the multi-GPU backend (`crate::multi::threaded`).
+pub struct BodyLink {
     /// Global copy of `c_bodies` (`Ctx::bodies`): `MAX_BODIES` [`GpuBody`] records.
     states: CudaSlice<u8>,
     /// `BODY_EXCHANGE_SLOTS` x bodies x 6 f64 impulse sums (`Ctx::body_exchange`).
@@ -56,12 +58,112 @@ pub struct Bodies {
     host: [(PinnedHostSlice<f64>, CudaEvent); 2],
     /// The copy the next step's sums go to.
     next: usize,
+    /// Bodies.
+    n: usize,
+    /// Where each body's distance grid starts in the mesh table (mesh bodies).
+    mesh_offsets: Vec<u32>,
+}
+
+impl BodyLink {
+    /// The buffers of `n` bodies (at most [`MAX_BODIES`]) on `stream`; `mesh_offsets`:
+    /// `encode::Tables::body_mesh`.
+    pub fn new(
+        stream: &Arc<CudaStream>,
+        n: usize,
+        mesh_offsets: Vec<u32>,
+    ) -> Result<BodyLink, SimError> {
+        if n > MAX_BODIES {
+            return Err(SimError::Backend(format!(
+                "CUDA backend: at most {MAX_BODIES} rigid bodies (the scene has {n}); merge \
+                 bodies or run on the CPU backend"
+            )));
+        }
+        let len = BODY_EXCHANGE_SLOTS * n * 6;
+        let states = stream
+            .alloc_zeros::<u8>(MAX_BODIES * std::mem::size_of::<GpuBody>())
+            .map_err(err("alloc rigid bodies"))?;
+        let exchange = stream
+            .alloc_zeros::<f64>(len)
+            .map_err(err("alloc rigid-body impulses"))?;
+        let pinned = || -> Result<(PinnedHostSlice<f64>, CudaEvent), SimError> {
+            // SAFETY: each copy is written by a device copy before the host reads it (after
+            // its event).
+            let h = unsafe { stream.context().alloc_pinned_with_flags::<f64>(len, 0) }
+                .map_err(err("allocate page-locked memory"))?;
+            let e = stream.record_event(None).map_err(err("record an event"))?;
+            Ok((h, e))
+        };
+        Ok(BodyLink {
+            states,
+            exchange,
+            host: [pinned()?, pinned()?],
+            next: 0,
+            n,
+            mesh_offsets,
+        })
+    }
+
+    /// Device addresses for [`crate::contract::Ctx`]: (bodies, impulse sums, count).
+    pub fn ctx_fields(&self, stream: &Arc<CudaStream>) -> (u64, u64, u32) {
+        let (a, _) = self.states.device_ptr(stream);
+        let (b, _) = self.exchange.device_ptr(stream);
+        (a, b, self.n as u32)
+    }
+
+    /// Before a step: `states` to constant memory (and its global copy).
+    pub fn upload(
+        &mut self,
+        module: &Arc<CudaModule>,
+        stream: &Arc<CudaStream>,
+        states: &[BodyState],
+    ) -> Result<(), SimError> {
+        let recs: Vec<GpuBody> = states
+            .iter()
+            .enumerate()
+            .map(|(i, b)| encode(b, self.mesh_offsets.get(i).copied().unwrap_or(0)))
+            .collect();
+        let bytes: &[u8] = bytemuck::cast_slice(&recs);
+        stream
+            .memcpy_htod(bytes, &mut self.states.slice_mut(..bytes.len()))
+            .map_err(err("upload rigid bodies"))?;
+        crate::kernels::write_symbol(module, stream, "c_bodies", bytes)
+    }
+
+    /// After a step was queued: its impulse sums are copied to the host and cleared for the
+    /// next step. Returns the copy they go to (for [`BodyLink::sums`]).
+    pub fn queue_sums(&mut self, stream: &Arc<CudaStream>) -> Result<usize, SimError> {
+        let k = self.next;
+        let (host, event) = &mut self.host[k];
+        stream
+            .memcpy_dtoh(&self.exchange, host)
+            .map_err(err("read rigid-body impulses"))?;
+        *event = stream.record_event(None).map_err(err("record an event"))?;
+        stream
+            .memset_zeros(&mut self.exchange)
+            .map_err(err("clear rigid-body impulses"))?;
+        self.next ^= 1;
+        Ok(k)
+    }
+
+    /// Wait for copy `k` and add up its slots, body by body.
+    pub fn sums(&self, k: usize) -> Result<Vec<Exchange>, SimError> {
+        let (host, event) = &self.host[k & 1];
+        event
+            .synchronize()
+            .map_err(err("wait for rigid-body impulses"))?;
+        let sums = host.as_slice().map_err(err("page-locked memory"))?;
+        Ok(exchange_sums(sums, self.n))
+    }
+}
+
+/// The rigid bodies of a GPU run: their rapier world and the device side of the coupling.
+pub struct Bodies {
+    world: RigidWorld,
+    link: BodyLink,
     /// A step whose sums the bodies have not taken yet: its copy and its dt.
     pending: Option<(usize, f32)>,
     /// See [`crate::options::CudaOptions::rigid_overlap`].
     overlap: bool,
-    /// Where each body's distance grid starts in the mesh table (mesh bodies).
-    mesh_offsets: Vec<u32>,
 }
 
 impl Bodies {
@@ -78,65 +180,21 @@ impl Bodies {
         overlap: bool,
         mesh_offsets: Vec<u32>,
     ) -> Result<Option<Bodies>, SimError> {
-        if scene.rigid_bodies.is_empty() {
-            return Ok(None);
-        }
-        if scene.rigid_bodies.len() > MAX_BODIES {
-            return Err(SimError::Backend(format!(
-                "CUDA backend: at most {MAX_BODIES} rigid bodies (the scene has {}); merge \
-                 bodies or run on the CPU backend",
-                scene.rigid_bodies.len()
-            )));
-        }
-        if scene.solver.update == rtmpm_physics::transfer::Update::Musl {
-            return Err(SimError::Backend(
-                "rigid bodies are coupled in the grid update of USL steps: use [solver] update \
-                 = \"usl\" with [[rigid_body]] tables"
-                    .into(),
-            ));
-        }
-        let Some(world) = RigidWorld::new(
-            &scene.rigid_bodies,
-            &scene.joints,
-            scene.gravity,
-            scene.interior(),
-        )
-        .map_err(SimError::Backend)?
-        else {
+        let Some(world) = world(scene)? else {
             return Ok(None);
         };
-        let len = BODY_EXCHANGE_SLOTS * scene.rigid_bodies.len() * 6;
-        let states = stream
-            .alloc_zeros::<u8>(MAX_BODIES * std::mem::size_of::<GpuBody>())
-            .map_err(err("alloc rigid bodies"))?;
-        let exchange = stream
-            .alloc_zeros::<f64>(len)
-            .map_err(err("alloc rigid-body impulses"))?;
-        let pinned = || -> Result<(PinnedHostSlice<f64>, CudaEvent), SimError> {
-            // SAFETY: each copy is written by a device copy before the host reads it (after
-            // its event).
-            let h = unsafe { stream.context().alloc_pinned_with_flags::<f64>(len, 0) }
-                .map_err(err("allocate page-locked memory"))?;
-            let e = stream.record_event(None).map_err(err("record an event"))?;
-            Ok((h, e))
-        };
+        let link = BodyLink::new(stream, scene.rigid_bodies.len(), mesh_offsets)?;
         Ok(Some(Bodies {
             world,
-            states,
-            exchange,
-            host: [pinned()?, pinned()?],
-            next: 0,
+            link,
             pending: None,
             overlap,
-            mesh_offsets,
         }))
     }
 
     /// Device addresses for [`crate::contract::Ctx`]: (bodies, impulse sums, count).
     pub fn ctx_fields(&self, stream: &Arc<CudaStream>) -> (u64, u64, u32) {
-        let (a, _) = self.states.device_ptr(stream);
-        let (b, _) = self.exchange.device_ptr(stream);
-        (a, b, self.world.states().len() as u32)
+        self.link.ctx_fields(stream)
     }
 
     /// The bodies' states at the current time.
@@ -161,18 +219,7 @@ impl Bodies {
         module: &Arc<CudaModule>,
         stream: &Arc<CudaStream>,
     ) -> Result<(), SimError> {
-        let recs: Vec<GpuBody> = self
-            .world
-            .states()
-            .iter()
-            .enumerate()
-            .map(|(i, b)| encode(b, self.mesh_offsets.get(i).copied().unwrap_or(0)))
-            .collect();
-        let bytes: &[u8] = bytemuck::cast_slice(&recs);
-        stream
-            .memcpy_htod(bytes, &mut self.states.slice_mut(..bytes.len()))
-            .map_err(err("upload rigid bodies"))?;
-        crate::kernels::write_symbol(module, stream, "c_bodies", bytes)
+        self.link.upload(module, stream, self.world.states())
     }
 
     /// After a step of `dt` was queued: its impulse sums are copied to the host and cleared
@@ -180,24 +227,15 @@ impl Bodies {
     /// with overlap it moves them by the previous step's sums (already there while this step
     /// runs), so the next step sees bodies one step late.
     pub fn after_step(&mut self, stream: &Arc<CudaStream>, dt: f32) -> Result<(), SimError> {
-        let k = self.next;
-        let (host, event) = &mut self.host[k];
-        stream
-            .memcpy_dtoh(&self.exchange, host)
-            .map_err(err("read rigid-body impulses"))?;
-        *event = stream.record_event(None).map_err(err("record an event"))?;
-        stream
-            .memset_zeros(&mut self.exchange)
-            .map_err(err("clear rigid-body impulses"))?;
-        self.next ^= 1;
-        if self.overlap {
-            let previous = self.pending.replace((k, dt));
-            if let Some((q, dt)) = previous {
-                self.apply(q, dt)?;
-            }
-            Ok(())
+        let k = self.link.queue_sums(stream)?;
+        let due = if self.overlap {
+            self.pending.replace((k, dt))
         } else {
-            self.apply(k, dt)
+            Some((k, dt))
+        };
+        match due {
+            Some((q, dt)) => self.apply(q, dt),
+            None => Ok(()),
         }
     }
 
@@ -212,15 +250,39 @@ impl Bodies {
 
     /// Wait for copy `k`, give its sums to the bodies and advance the world by `dt`.
     fn apply(&mut self, k: usize, dt: f32) -> Result<(), SimError> {
-        let (host, event) = &self.host[k];
-        event
-            .synchronize()
-            .map_err(err("wait for rigid-body impulses"))?;
-        let sums = host.as_slice().map_err(err("page-locked memory"))?;
-        let ex = exchange_sums(sums, self.world.states().len());
+        let ex = self.link.sums(k)?;
         self.world.advance(&ex, dt);
         Ok(())
     }
+}
+
+/// The rapier world of the scene's bodies (`None` without any). Refused with more bodies than
+/// the GPU's table holds, and with the MUSL update, as on the CPU.
+pub fn world(scene: &Scene) -> Result<Option<RigidWorld>, SimError> {
+    if scene.rigid_bodies.is_empty() {
+        return Ok(None);
+    }
+    if scene.rigid_bodies.len() > MAX_BODIES {
+        return Err(SimError::Backend(format!(
+            "CUDA backend: at most {MAX_BODIES} rigid bodies (the scene has {}); merge bodies \
+             or run on the CPU backend",
+            scene.rigid_bodies.len()
+        )));
+    }
+    if scene.solver.update == rtmpm_physics::transfer::Update::Musl {
+        return Err(SimError::Backend(
+            "rigid bodies are coupled in the grid update of USL steps: use [solver] update = \
+             \"usl\" with [[rigid_body]] tables"
+                .into(),
+        ));
+    }
+    RigidWorld::new(
+        &scene.rigid_bodies,
+        &scene.joints,
+        scene.gravity,
+        scene.interior(),
+    )
+    .map_err(SimError::Backend)
 }
 
 /// The impulse sums of every body from the `BODY_EXCHANGE_SLOTS` copies (slot-major: slot,
