@@ -120,6 +120,28 @@ fn a_world_that_blows_up_is_frozen_and_the_others_go_on_unchanged() {
 }
 
 #[test]
+fn progress_inside_a_frame_counts_the_running_worlds() {
+    // World 1 blows up in the first frame: that frame reports 3 worlds, the next two report 2.
+    let text = SLUMP.replace("TIME", "dt = 1e-3")
+        + "[batch]\ncount = 3\n[batch.sweep]\n\"body[0].velocity\" = [[0, 0, 0], [1e5, 0, 0], [0, 0.5, 0]]\n";
+    let b = BatchScene::from_toml(&text, "wedge.toml").unwrap_or_else(|e| panic!("{e}"));
+    let options = BatchOptions {
+        frames: Some(3),
+        ..BatchOptions::default()
+    };
+    let mut r = BatchRun::new(&b, &text, |s, _| backend(s), &options).expect("batch");
+    let seen = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+    let log = seen.clone();
+    r.on_world_done(move |done, of| log.lock().expect("log").push((done, of)));
+    r.execute(|_, _| {}).expect("run");
+    let seen = seen.lock().expect("log").clone();
+    assert_eq!(
+        seen,
+        [(1, 3), (2, 3), (3, 3), (1, 2), (2, 2), (1, 2), (2, 2)]
+    );
+}
+
+#[test]
 fn a_world_reset_starts_again_and_the_others_go_on_unchanged() {
     let text = SLUMP.replace("TIME", "cfl = 0.4")
         + "[batch]\ncount = 3\n[batch.sweep]\n\"material[0].yield_stress\" = [20, 150, 600]\n";

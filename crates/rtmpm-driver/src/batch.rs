@@ -71,7 +71,12 @@ pub struct BatchRun {
     out: Option<OutDir>,
     /// Taken up from a checkpoint (its current frame's files are already written).
     resumed: bool,
+    /// Called after each world has advanced inside a frame ([`BatchRun::on_world_done`]).
+    world_done: Option<WorldDone>,
 }
+
+/// A callback with (worlds advanced so far, worlds running at the start) inside a frame.
+type WorldDone = Box<dyn FnMut(usize, usize) + Send>;
 
 /// How a batch run goes.
 #[derive(Clone, Debug, Default)]
@@ -138,9 +143,16 @@ impl BatchRun {
             frames,
             out,
             resumed: resumed.is_some(),
+            world_done: None,
         };
         run.write_summary()?;
         Ok(run)
+    }
+
+    /// Call `f(done, of)` after each world has advanced inside a frame: `done` worlds of the
+    /// `of` running at the frame's start (progress inside the long frames of many worlds).
+    pub fn on_world_done(&mut self, f: impl FnMut(usize, usize) + Send + 'static) {
+        self.world_done = Some(Box::new(f));
     }
 
     /// Worlds still running.
@@ -199,6 +211,7 @@ impl BatchRun {
         mut advance: impl FnMut(&mut Simulation) -> Result<(), SimError>,
     ) -> Result<Vec<usize>> {
         let mut frozen = Vec::new();
+        let (mut done, of) = (0, self.running());
         for w in 0..self.worlds.len() {
             let world = &mut self.worlds[w];
             if world.status != WorldStatus::Running {
@@ -217,6 +230,10 @@ impl BatchRun {
                     return Err(anyhow::Error::new(e))
                         .with_context(|| format!("world {w} ({})", world.label));
                 }
+            }
+            done += 1;
+            if let Some(f) = self.world_done.as_mut() {
+                f(done, of);
             }
         }
         if !frozen.is_empty() {

@@ -269,6 +269,7 @@ pub fn run(args: &crate::run::RunArgs) -> Result<()> {
         })?,
     };
     let total = run.frames;
+    run.on_world_done(world_progress(start));
     let origin = path.display().to_string();
     let every = args
         .checkpoint_every
@@ -302,4 +303,19 @@ pub fn run(args: &crate::run::RunArgs) -> Result<()> {
         }
     );
     Ok(())
+}
+
+/// Progress inside a frame of many worlds: a line at most every 2 s while its worlds advance
+/// (the frame's own line follows when it is done).
+fn world_progress(start: std::time::Instant) -> impl FnMut(usize, usize) + Send + 'static {
+    let mut last = std::time::Instant::now();
+    move |done, of| {
+        if done < of && last.elapsed().as_secs_f64() >= 2.0 {
+            last = std::time::Instant::now();
+            eprintln!(
+                "  {done} of {of} worlds advanced this frame, {:.1} s",
+                start.elapsed().as_secs_f64()
+            );
+        }
+    }
 }

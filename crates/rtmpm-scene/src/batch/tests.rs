@@ -2,7 +2,7 @@
 
 use super::sweep::{Batch, MAX_WORLDS};
 use crate::scene::Scene;
-use crate::{BatchScene, SceneError};
+use crate::{BatchScene, Budget, SceneError};
 use rtmpm_physics::material::Model;
 
 /// A small slump: one Herschel-Bulkley column.
@@ -293,6 +293,21 @@ fn the_budget_sums_the_worlds() {
         "{refusal}"
     );
     assert!(b.memory_refusal(&five, Some(five.host_bytes)).is_none());
+}
+
+#[test]
+fn each_world_counts_its_fixed_host_memory() {
+    // A world's own state (scene, simulation, backend, output) is tens of KiB beside its
+    // particles and grid: it decides the memory of a batch of tiny worlds.
+    let b = batch("[batch]\ncount = 16\n").unwrap();
+    let each = Budget::estimate(&b.worlds[0], None);
+    let all = b.budget(None);
+    assert_eq!(
+        all.host_bytes,
+        16 * (each.host_bytes + super::scene::HOST_BYTES_PER_WORLD)
+    );
+    let scaled = super::scaled_budget(&each, 16);
+    assert_eq!(scaled.host_bytes, all.host_bytes);
 }
 
 #[test]
