@@ -14,7 +14,12 @@
 #                against the CPU reference), then the four *_ck validation cases at full resolution, in
 #                f32 and (vibrating_bar_ck) f64; then ms/step of the fluid dam 2M and the jelly 2M with
 #                MLS-MPM (fused G2P2G, and g2p2g=off) and with CK-MPM (the same scene, [solver] transfer
-#                = "ck-mpm", an unfused step)
+#                = "ck-mpm", an unfused step) with each CK-MPM P2G kernel (ck_p2g=direct, the default,
+#                and ck_p2g=warp, the warp reduction); the agreement test runs both kernels
+#   ck_speed     the CK-MPM kernel variants only (about 5 min): the agreement test with the new ones
+#                (RTMPM_CK_AGREEMENT, from CK_AGREEMENT, default "ck_p2g=warp"), then the benchmarks
+#                of `ck` (CK_VARIANTS: the --cuda-options of each CK-MPM line, default
+#                "ck_p2g=direct ck_p2g=warp")
 #   validate_compact  the same with the compact particle state (`--particle-state compact`)
 #   convergence  the convergence studies and the f64 validation cases
 #   bench        the claymore scenes (fluid 2M, jelly 2M, snow 1.33M) and a fluid block; with
@@ -107,6 +112,20 @@ b() {
 
 CLAYMORE="fluid_dam_2m:10 jelly_drop_2m:5 snow_1m:20"
 
+# The fluid dam 2M and the jelly 2M with MLS-MPM (fused G2P2G, and g2p2g=off) and with CK-MPM (the
+# same scene, [solver] transfer = "ck-mpm") with each of its P2G kernels (ck_p2g=direct, warp).
+ck_bench() {
+  for sc in fluid_dam_2m jelly_drop_2m; do
+    cp "bench/$sc.toml" "$OUT/${sc}_ck.toml"
+    printf '\n[solver]\ntransfer = "ck-mpm"\n' >> "$OUT/${sc}_ck.toml"
+    b "$sc MLS-MPM" rtmpm --scene "bench/$sc.toml" --frames 5
+    b "$sc MLS-MPM g2p2g=off" rtmpm --scene "bench/$sc.toml" --frames 5 --cuda-options g2p2g=off
+    for v in ${CK_VARIANTS:-ck_p2g=direct ck_p2g=warp}; do
+      b "$sc CK-MPM $v" rtmpm --scene "$OUT/${sc}_ck.toml" --frames 5 --cuda-options "$v"
+    done
+  done
+}
+
 for suite in "$@"; do
   say "== $suite"
   case "$suite" in
@@ -134,13 +153,12 @@ for suite in "$@"; do
         --out "$OUT/validation_ck_f64" > "$OUT/validate_ck_f64.log" 2>&1
       say "validate --backend cuda --precision f64 (CK-MPM) rc=$?"
       grep -E "PASS|FAIL|passed|broken|refuse" "$OUT/validate_ck_f64.log" | sed -E 's/ +/ /g' | tee -a "$S"
-      for sc in fluid_dam_2m jelly_drop_2m; do
-        cp "bench/$sc.toml" "$OUT/${sc}_ck.toml"
-        printf '\n[solver]\ntransfer = "ck-mpm"\n' >> "$OUT/${sc}_ck.toml"
-        b "$sc MLS-MPM" rtmpm --scene "bench/$sc.toml" --frames 5
-        b "$sc MLS-MPM g2p2g=off" rtmpm --scene "bench/$sc.toml" --frames 5 --cuda-options g2p2g=off
-        b "$sc CK-MPM" rtmpm --scene "$OUT/${sc}_ck.toml" --frames 5
-      done
+      ck_bench
+      ;;
+    ck_speed)
+      RTMPM_CK_AGREEMENT="${CK_AGREEMENT:-ck_p2g=warp}" t test_agreement cuda_agrees_with_cpu_with_ck_mpm --nocapture
+      grep -E "ck-mpm" "$OUT/test_agreement.log" | tee -a "$S"
+      ck_bench
       ;;
     validate_compact)
       timeout 500 "$D/rtmpm" validate --backend cuda --particle-state compact --out "$OUT/validation_compact" > "$OUT/validate_compact.log" 2>&1

@@ -27,6 +27,27 @@ impl P2gMode {
     }
 }
 
+/// CK-MPM's P2G kernel (`[solver] transfer = "ck-mpm"`; `kernels/p2g/ck.cu`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CkP2g {
+    /// `p2g_ck`: one lane per particle, 16 direct global atomics a particle (the default).
+    Direct,
+    /// `p2g_ck_warp`: per grid, the in-warp sort, segmented warp reduction and one lane's atomics
+    /// per segment of the MLS-MPM scatter (Fei, Huang & Gao, "Real-Time Simulation of MPM on
+    /// Modern GPUs", GTC 2022).
+    Warp,
+}
+
+impl CkP2g {
+    /// The name used by `--cuda-options ck_p2g=NAME`.
+    pub fn name(self) -> &'static str {
+        match self {
+            CkP2g::Direct => "direct",
+            CkP2g::Warp => "warp",
+        }
+    }
+}
+
 /// Several GPUs of one process: how the shared blocks are summed across GPUs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Transport {
@@ -57,6 +78,8 @@ pub struct CudaOptions {
     pub warp_reduce: bool,
     /// P2G variant.
     pub p2g: P2gMode,
+    /// CK-MPM's P2G kernel (whatever `p2g`, which names the MLS-MPM variants).
+    pub ck_p2g: CkP2g,
     /// `p2g=reverse_map`: number of replicated maps (the paper's nine by default).
     pub rmap_replicas: usize,
     /// `p2g=reverse_map`: entries per node and map; `None`: twice the initial largest node load.
@@ -148,6 +171,7 @@ impl Default for CudaOptions {
             mixed_sort: true,
             warp_reduce: true,
             p2g: P2gMode::Warp,
+            ck_p2g: CkP2g::Direct,
             rmap_replicas: crate::step::p2g::reverse_map::DEFAULT_REPLICAS,
             rmap_slots: None,
             rmap_pblocks: None,
@@ -179,7 +203,7 @@ impl std::str::FromStr for CudaOptions {
     type Err = String;
     /// Comma separated `key=value`: `free_zone`, `mixed_sort`, `warp_reduce`, `fast_math`,
     /// `graph`, `f64`, `rebalance`, `overlap`, `g2p2g`, `rigid_overlap`, `specialize` (on/off/true/false/1/0), `rebuild` (fused/kernels), `fill` (device/host), `p2g`
-    /// (warp/shared/reverse_map/sort), `transport` (p2p/nccl), `barrier` (spin/events), `devices`
+    /// (warp/shared/reverse_map/sort), `ck_p2g` (direct/warp), `transport` (p2p/nccl), `barrier` (spin/events), `devices`
     /// (ordinals separated by `:`), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
     /// `rmap_pblocks`, `shared`, `sort_fields` (counts), `fluid_state` (on/off), `state`
     /// (f32/compact).
@@ -215,6 +239,9 @@ impl std::str::FromStr for CudaOptions {
                         }
                     }
                 }
+                "ck_p2g" => {
+                    o.ck_p2g = choice(item, v, &[("direct", CkP2g::Direct), ("warp", CkP2g::Warp)])?
+                }
                 "gblocks" => o.gblock_capacity = Some(n()?),
                 "pblocks" => o.pblock_capacity = Some(n()?),
                 "rmap_replicas" => {
@@ -249,26 +276,12 @@ impl std::str::FromStr for CudaOptions {
                     }
                     o.sort_scratch_fields = k;
                 }
-                "fill" => {
-                    o.device_fill = match v {
-                        "device" => true,
-                        "host" => false,
-                        _ => return Err(format!("`{item}`: expected device or host")),
-                    }
-                }
+                "fill" => o.device_fill = choice(item, v, &[("device", true), ("host", false)])?,
                 "sample" => {
-                    o.device_sample = match v {
-                        "device" => true,
-                        "host" => false,
-                        _ => return Err(format!("`{item}`: expected device or host")),
-                    }
+                    o.device_sample = choice(item, v, &[("device", true), ("host", false)])?
                 }
                 "rebuild" => {
-                    o.fused_rebuild = match v {
-                        "fused" => true,
-                        "kernels" => false,
-                        _ => return Err(format!("`{item}`: expected fused or kernels")),
-                    }
+                    o.fused_rebuild = choice(item, v, &[("fused", true), ("kernels", false)])?
                 }
                 "transport" => {
                     o.transport = Some(match v {
@@ -301,6 +314,20 @@ impl std::str::FromStr for CudaOptions {
     }
 }
 
+/// The value of `names` called `v` (the option `item`), or an error that lists the names.
+fn choice<T: Copy>(item: &str, v: &str, names: &[(&str, T)]) -> Result<T, String> {
+    if let Some((_, t)) = names.iter().find(|(n, _)| *n == v) {
+        return Ok(*t);
+    }
+    let list: Vec<&str> = names.iter().map(|(n, _)| *n).collect();
+    Err(match list.split_last() {
+        Some((last, rest)) if !rest.is_empty() => {
+            format!("`{item}`: expected {} or {last}", rest.join(", "))
+        }
+        _ => format!("`{item}`: expected {}", list.join("")),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -317,6 +344,22 @@ mod tests {
         let o: CudaOptions = "p2g=sort".parse().unwrap();
         assert_eq!(o.p2g, P2gMode::Sort);
         assert!("p2g=gather".parse::<CudaOptions>().is_err());
+        assert_eq!(CudaOptions::default().ck_p2g, CkP2g::Direct);
+        let o: CudaOptions = "ck_p2g=warp".parse().unwrap();
+        assert_eq!((o.ck_p2g, o.p2g), (CkP2g::Warp, P2gMode::Warp));
+        assert_eq!(o.ck_p2g.name(), "warp");
+        assert_eq!(
+            "ck_p2g=direct".parse::<CudaOptions>().unwrap().ck_p2g,
+            CkP2g::Direct
+        );
+        let e = "ck_p2g=shared".parse::<CudaOptions>().unwrap_err();
+        assert_eq!(e, "`ck_p2g=shared`: expected direct or warp");
+        let e = "rebuild=maybe".parse::<CudaOptions>().unwrap_err();
+        assert_eq!(e, "`rebuild=maybe`: expected fused or kernels");
+        assert_eq!(
+            choice("k=x", "x", &[("a", 1), ("b", 2), ("c", 3)]).unwrap_err(),
+            "`k=x`: expected a, b or c"
+        );
         assert!("rmap_replicas=0".parse::<CudaOptions>().is_err());
         let o: CudaOptions = "transport=p2p,barrier=events".parse().unwrap();
         assert_eq!(o.transport, Some(Transport::P2p));

@@ -33,14 +33,23 @@ fn read(b: &mut dyn Backend) -> Particles {
 /// After one step every particle agrees within float tolerance; after `steps` steps the aggregate
 /// quantities agree within the stated tolerances. Returns the failures.
 fn compare(name: &str, scene: &Scene, steps: usize) -> Vec<String> {
+    compare_with(name, scene, steps, "")
+}
+
+/// The CUDA options of a comparison: precise math (for the per-particle comparison) and `extra`
+/// (`--cuda-options` syntax).
+fn options(extra: &str) -> CudaOptions {
+    format!("fast_math=off,{extra}")
+        .parse()
+        .unwrap_or_else(|e| panic!("CUDA options `{extra}`: {e}"))
+}
+
+/// [`compare`] with the CUDA options `extra` (`--cuda-options` syntax) beside precise math.
+fn compare_with(name: &str, scene: &Scene, steps: usize, extra: &str) -> Vec<String> {
     let mut failures = Vec::new();
     let p0 = scene.sample_particles().expect("particles");
     let mut cpu = CpuBackend::new(scene, p0.clone(), None).expect("cpu");
-    // Precise math on the GPU for the per-particle comparison.
-    let opts = CudaOptions {
-        fast_math: false,
-        ..CudaOptions::default()
-    };
+    let opts = options(extra);
     let mut gpu = CudaBackend::new(scene, &p0, opts).expect("cuda backend");
     // One dt for both (the CFL step of the initial state), so that they see the same steps.
     let mut sim = Simulation::new(
@@ -169,15 +178,17 @@ fn cuda_f64_agrees_with_cpu_f64_on_every_example_scene() {
 }
 
 /// [`cuda_f64_agrees_with_cpu_f64_on_every_example_scene`] for one scene (run in f64).
-fn compare_f64(name: &str, mut scene: Scene, steps: usize) -> Vec<String> {
+fn compare_f64(name: &str, scene: Scene, steps: usize) -> Vec<String> {
+    compare_f64_with(name, scene, steps, "")
+}
+
+/// [`compare_f64`] with the CUDA options `extra` (`--cuda-options` syntax) beside precise math.
+fn compare_f64_with(name: &str, mut scene: Scene, steps: usize, extra: &str) -> Vec<String> {
     let mut failures = Vec::new();
     scene.precision = rtmpm_scene::Precision::F64;
     let p0 = scene.sample_particles().expect("particles");
     let mut cpu = rtmpm_cpu_f64::CpuBackend::new(&scene, p0.clone(), None).expect("cpu");
-    let opts = CudaOptions {
-        fast_math: false,
-        ..CudaOptions::default()
-    };
+    let opts = options(extra);
     let mut gpu = CudaBackend::new(&scene, &p0, opts).expect("cuda backend");
     assert!(gpu.name().contains("f64"), "{}", gpu.name());
     let mut sim = Simulation::new(
@@ -237,7 +248,8 @@ fn compare_f64(name: &str, mut scene: Scene, steps: usize) -> Vec<String> {
 /// Li 2025) on example scenes without rigid bodies: an elastic one, a fluid one, and two with
 /// colliders (a static rough plane under snow, a keyframed paddle in a Herschel-Bulkley fluid),
 /// with the tolerances of the tests above: in f32 (the CPU reference in f32) and in f64 (against
-/// the f64 CPU backend, to f64 rounding after one step where there is no collider).
+/// the f64 CPU backend, to f64 rounding after one step where there is no collider). Every CK-MPM
+/// kernel variant of the CUDA backend ([`ck_variants`]) is run.
 #[test]
 #[ignore = "needs a CUDA GPU"]
 fn cuda_agrees_with_cpu_with_ck_mpm() {
@@ -247,24 +259,37 @@ fn cuda_agrees_with_cpu_with_ck_mpm() {
     }
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
     let mut failures = Vec::new();
-    for file in [
-        "elastic_cubes.toml",
-        "dam_break.toml",
-        "snowball_small.toml",
-        "paddle.toml",
-    ] {
-        let mut scene = Scene::from_file(&dir.join(file)).expect("scene");
-        assert!(scene.rigid_bodies.is_empty(), "{file}");
-        scene.solver = SolverSettings {
-            transfer: Transfer::CkMpm,
-            update: Update::Usl,
-            flip: 0.0,
-        };
-        let name = format!("{file} ({})", scene.solver.describe());
-        failures.extend(compare(&name, &scene, steps()));
-        failures.extend(compare_f64(&name, scene, steps()));
+    for extra in ck_variants() {
+        for file in [
+            "elastic_cubes.toml",
+            "dam_break.toml",
+            "snowball_small.toml",
+            "paddle.toml",
+        ] {
+            let mut scene = Scene::from_file(&dir.join(file)).expect("scene");
+            assert!(scene.rigid_bodies.is_empty(), "{file}");
+            scene.solver = SolverSettings {
+                transfer: Transfer::CkMpm,
+                update: Update::Usl,
+                flip: 0.0,
+            };
+            let name = format!("{file} ({}) [{extra}]", scene.solver.describe());
+            failures.extend(compare_with(&name, &scene, steps(), &extra));
+            failures.extend(compare_f64_with(&name, scene, steps(), &extra));
+        }
     }
     assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// The CUDA options of the CK-MPM kernel variants the agreement test runs: each P2G kernel
+/// (`ck_p2g=direct`, the default, and `ck_p2g=warp`, the warp reduction). `RTMPM_CK_AGREEMENT`
+/// (option strings separated by `;`) runs those instead, e.g. the GPU suite's `ck_speed` with
+/// the new kernels only.
+fn ck_variants() -> Vec<String> {
+    match std::env::var("RTMPM_CK_AGREEMENT") {
+        Ok(v) if !v.trim().is_empty() => v.split(';').map(|s| s.trim().to_string()).collect(),
+        _ => vec!["ck_p2g=direct".into(), "ck_p2g=warp".into()],
+    }
 }
 
 /// The rigid-body example scenes (`scenes/rigid/`, cargo feature `rigid`): the CPU and the CUDA

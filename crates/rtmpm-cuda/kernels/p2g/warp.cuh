@@ -173,13 +173,16 @@ __device__ __forceinline__ void p2g_scatter_rows(const ScatterNodes& nodes, cons
         }
 }
 
-// The scatter of one warp's particles (one per lane, in sorted order; q of an inactive lane is
-// p2g_particle_zero) into `grid`: segmented warp reduction (Gao et al. 2018), then global
-// atomics by segment heads. Every lane of the warp calls it.
-__device__ __forceinline__ void p2g_scatter_warp(const Ctx& c, unsigned g, const P2gParticle& q, bool active, unsigned lane,
-                                                 real* grid) {
-    const int* base = q.base;
-    // Segments: lanes with equal stencil base (after the sort they are adjacent).
+// The segments of the warp's reduction: runs of adjacent active lanes with the same stencil base
+// (after the sort, lanes with equal bases are adjacent). seg_len: the lanes after this one in its
+// segment; max_seg: the longest seg_len of the warp (the shuffle rounds it needs); head: this
+// lane issues the segment's atomics. Without the warp reduction every active lane is a head of
+// a segment of one. Every lane of the warp calls it.
+struct WarpSegments {
+    unsigned seg_len, max_seg;
+    bool head;
+};
+__device__ __forceinline__ WarpSegments warp_segments(const Ctx& c, const int base[3], bool active, unsigned lane) {
     unsigned seg_len = 0;
     bool head = active;
     if (c.warp_reduce) {
@@ -201,6 +204,22 @@ __device__ __forceinline__ void p2g_scatter_warp(const Ctx& c, unsigned g, const
     }
     // Reduction rounds needed: up to the longest segment of this warp.
     unsigned max_seg = c.warp_reduce ? __reduce_max_sync(0xffffffffu, seg_len) : 0u;
+    WarpSegments s;
+    s.seg_len = seg_len;
+    s.max_seg = max_seg;
+    s.head = head;
+    return s;
+}
+
+// The scatter of one warp's particles (one per lane, in sorted order; q of an inactive lane is
+// p2g_particle_zero) into `grid`: segmented warp reduction (Gao et al. 2018), then global
+// atomics by segment heads. Every lane of the warp calls it.
+__device__ __forceinline__ void p2g_scatter_warp(const Ctx& c, unsigned g, const P2gParticle& q, bool active, unsigned lane,
+                                                 real* grid) {
+    const int* base = q.base;
+    WarpSegments seg = warp_segments(c, base, active, lane);
+    unsigned seg_len = seg.seg_len, max_seg = seg.max_seg;
+    bool head = seg.head;
     ScatterNodes nodes = scatter_nodes(c, g, base);
 #if RTMPM_P2G_REDUCE == 4
     // Rounds s = 1, 2, 4, ... up to the longest segment, at most RTMPM_P2G_ROUNDS_MAX.

@@ -192,7 +192,7 @@ mod tests {
     #[test]
     fn a_musl_step_has_the_remap_and_every_other_step_does_not() {
         let plan = StepPlan {
-            p2g: &P2gPlan::Warp,
+            p2g: &P2gPlan::Warp(crate::options::CkP2g::Direct),
             all_fluid: false,
         };
         let mls = Ctx::default();

@@ -16,7 +16,7 @@ pub mod sort;
 
 use crate::contract::Ctx;
 use crate::kernels::{Kernel, Kernels};
-use crate::options::P2gMode;
+use crate::options::{CkP2g, P2gMode};
 use crate::setup::capacity::Capacity;
 use cudarc::driver::{CudaStream, DriverError, PushKernelArg};
 use reverse_map::{ReverseMap, ReverseMapSize};
@@ -25,12 +25,13 @@ use rtmpm_sim::SimError;
 use sort::SortMap;
 use std::sync::Arc;
 
-/// The P2G strategy of a backend, with the device buffers of the gather strategies.
+/// The P2G strategy of a backend, with the device buffers of the gather strategies. The
+/// scatters name CK-MPM's P2G kernel too (the gathers take MLS-MPM contributions only).
 pub enum P2gPlan {
     /// Scatter with warp-level reduction and global atomics.
-    Warp,
+    Warp(CkP2g),
     /// Scatter into a shared-memory tile per gblock (ablation).
-    Shared,
+    Shared(CkP2g),
     /// Gather through replicated node-to-particle reverse maps.
     ReverseMap(ReverseMap),
     /// Gather through a per-step sort of the particle-node contributions.
@@ -50,8 +51,8 @@ impl P2gPlan {
         real_bytes: usize,
     ) -> Result<P2gPlan, SimError> {
         Ok(match options.p2g {
-            P2gMode::Warp => P2gPlan::Warp,
-            P2gMode::Shared => P2gPlan::Shared,
+            P2gMode::Warp => P2gPlan::Warp(options.ck_p2g),
+            P2gMode::Shared => P2gPlan::Shared(options.ck_p2g),
             P2gMode::ReverseMap => {
                 let mut size = ReverseMapSize::for_particles(
                     bases,
@@ -74,8 +75,8 @@ impl P2gPlan {
     /// The mode this plan implements.
     pub fn mode(&self) -> P2gMode {
         match self {
-            P2gPlan::Warp => P2gMode::Warp,
-            P2gPlan::Shared => P2gMode::Shared,
+            P2gPlan::Warp(_) => P2gMode::Warp,
+            P2gPlan::Shared(_) => P2gMode::Shared,
             P2gPlan::ReverseMap(_) => P2gMode::ReverseMap,
             P2gPlan::Sort(_) => P2gMode::Sort,
         }
@@ -85,8 +86,8 @@ impl P2gPlan {
     /// benchmark).
     pub fn phases(&self) -> &'static [&'static str] {
         match self {
-            P2gPlan::Warp => &["scatter"],
-            P2gPlan::Shared => &["scatter_shared"],
+            P2gPlan::Warp(_) => &["scatter"],
+            P2gPlan::Shared(_) => &["scatter_shared"],
             P2gPlan::ReverseMap(_) => ReverseMap::PHASES,
             P2gPlan::Sort(_) => SortMap::PHASES,
         }
@@ -101,7 +102,9 @@ impl P2gPlan {
         c: &Ctx,
     ) -> Result<(), DriverError> {
         match self {
-            P2gPlan::Warp | P2gPlan::Shared => scatter::enqueue(k, s, c, self.mode(), 0),
+            P2gPlan::Warp(ck) | P2gPlan::Shared(ck) => {
+                scatter::enqueue(k, s, c, self.mode(), *ck, 0)
+            }
             P2gPlan::ReverseMap(r) => r.enqueue_phase(i, k, s, c),
             P2gPlan::Sort(m) => m.enqueue_phase(i, k, s, c),
         }
@@ -116,13 +119,21 @@ impl P2gPlan {
         c: &Ctx,
         part: u32,
     ) -> Result<(), DriverError> {
-        scatter::enqueue(k, s, c, self.mode(), part)
+        scatter::enqueue(k, s, c, self.mode(), self.ck_p2g(), part)
+    }
+
+    /// CK-MPM's P2G kernel of a scatter plan (direct for the gathers, which refuse CK-MPM).
+    pub fn ck_p2g(&self) -> CkP2g {
+        match self {
+            P2gPlan::Warp(ck) | P2gPlan::Shared(ck) => *ck,
+            P2gPlan::ReverseMap(_) | P2gPlan::Sort(_) => CkP2g::Direct,
+        }
     }
 
     /// Device buffers this strategy adds to the pipeline: (what, bytes).
     pub fn memory(&self) -> Vec<(&'static str, usize)> {
         match self {
-            P2gPlan::Warp | P2gPlan::Shared => Vec::new(),
+            P2gPlan::Warp(_) | P2gPlan::Shared(_) => Vec::new(),
             P2gPlan::ReverseMap(r) => r.memory.clone(),
             P2gPlan::Sort(m) => m.memory.clone(),
         }

@@ -3,26 +3,32 @@
 
 use crate::contract::Ctx;
 use crate::kernels::{Kernel, Kernels};
-use crate::options::P2gMode;
+use crate::options::{CkP2g, P2gMode};
 use cudarc::driver::{CudaStream, DriverError, LaunchConfig, PushKernelArg};
 use rtmpm_physics::transfer::Transfer;
 
 /// Enqueue the scatter P2G: for MLS the warp variant (4 warps per CUDA block) or the
-/// shared-memory ablation; for CK-MPM `p2g_ck` into its two grids, for the classic MPM transfers
-/// `p2g_mpm` (both whatever `mode`). `part`: 0 every particle; several GPUs (MLS only): 1 the
+/// shared-memory ablation; for CK-MPM `p2g_ck` (direct atomics) or `p2g_ck_warp` (warp
+/// reduction) into its two grids as `ck` says, for the classic MPM transfers `p2g_mpm` (both
+/// whatever `mode`). `part`: 0 every particle; several GPUs (MLS only): 1 the
 /// gblocks next to a shared block, 2 the others.
 pub(crate) fn enqueue(
     k: &Kernels,
     s: &CudaStream,
     c: &Ctx,
     mode: P2gMode,
+    ck: CkP2g,
     part: u32,
 ) -> Result<(), DriverError> {
     let wave = k.wave(c.warp_cap as usize * 32, 128);
     // SAFETY: the kernels bounds-check against the device counters and capacities.
     unsafe {
         if c.transfer == Transfer::CkMpm.code() {
-            s.launch_builder(&k[Kernel::P2gCk]).arg(c).launch(wave)?;
+            let f = match ck {
+                CkP2g::Direct => Kernel::P2gCk,
+                CkP2g::Warp => Kernel::P2gCkWarp,
+            };
+            s.launch_builder(&k[f]).arg(c).launch(wave)?;
             return Ok(());
         }
         if c.transfer != Transfer::Mls.code() {
