@@ -14,12 +14,13 @@
 #                against the CPU reference), then the four *_ck validation cases at full resolution, in
 #                f32 and (vibrating_bar_ck) f64; then ms/step of the fluid dam 2M and the jelly 2M with
 #                MLS-MPM (fused G2P2G, and g2p2g=off) and with CK-MPM (the same scene, [solver] transfer
-#                = "ck-mpm", an unfused step) with each CK-MPM P2G kernel (ck_p2g=direct, the default,
-#                and ck_p2g=warp, the warp reduction); the agreement test runs both kernels
-#   ck_speed     the CK-MPM kernel variants only (about 5 min): the agreement test with the new ones
-#                (RTMPM_CK_AGREEMENT, from CK_AGREEMENT, default "ck_p2g=warp"), then the benchmarks
-#                of `ck` (CK_VARIANTS: the --cuda-options of each CK-MPM line, default
-#                "ck_p2g=direct ck_p2g=warp")
+#                = "ck-mpm") with each CK-MPM P2G kernel (ck_p2g=direct, the default, ck_p2g=warp, the
+#                warp reduction, ck_p2g=fused, G2P2G); the agreement test with the default kernel
+#                (CK_AGREEMENT="ck_p2g=direct;ck_p2g=warp;ck_p2g=fused" for all, about 3 min each)
+#   ck_speed     the CK-MPM kernel variants only: the benchmarks of `ck` (about 3 min; CK_VARIANTS: the
+#                --cuda-options of each CK-MPM line, default "ck_p2g=direct ck_p2g=warp ck_p2g=fused"),
+#                then the agreement test with the new kernels only (about 3 min a variant;
+#                RTMPM_CK_AGREEMENT from CK_AGREEMENT, default "ck_p2g=warp;ck_p2g=fused")
 #   validate_compact  the same with the compact particle state (`--particle-state compact`)
 #   convergence  the convergence studies and the f64 validation cases
 #   bench        the claymore scenes (fluid 2M, jelly 2M, snow 1.33M) and a fluid block; with
@@ -113,14 +114,14 @@ b() {
 CLAYMORE="fluid_dam_2m:10 jelly_drop_2m:5 snow_1m:20"
 
 # The fluid dam 2M and the jelly 2M with MLS-MPM (fused G2P2G, and g2p2g=off) and with CK-MPM (the
-# same scene, [solver] transfer = "ck-mpm") with each of its P2G kernels (ck_p2g=direct, warp).
+# same scene, [solver] transfer = "ck-mpm") with each of its P2G kernels (CK_VARIANTS).
 ck_bench() {
   for sc in fluid_dam_2m jelly_drop_2m; do
     cp "bench/$sc.toml" "$OUT/${sc}_ck.toml"
     printf '\n[solver]\ntransfer = "ck-mpm"\n' >> "$OUT/${sc}_ck.toml"
     b "$sc MLS-MPM" rtmpm --scene "bench/$sc.toml" --frames 5
     b "$sc MLS-MPM g2p2g=off" rtmpm --scene "bench/$sc.toml" --frames 5 --cuda-options g2p2g=off
-    for v in ${CK_VARIANTS:-ck_p2g=direct ck_p2g=warp}; do
+    for v in ${CK_VARIANTS:-ck_p2g=direct ck_p2g=warp ck_p2g=fused}; do
       b "$sc CK-MPM $v" rtmpm --scene "$OUT/${sc}_ck.toml" --frames 5 --cuda-options "$v"
     done
   done
@@ -142,7 +143,7 @@ for suite in "$@"; do
       grep -E "PASS|FAIL|passed" "$OUT/validate.log" | sed -E 's/ +/ /g' | tee -a "$S"
       ;;
     ck)
-      t test_agreement cuda_agrees_with_cpu_with_ck_mpm --nocapture
+      RTMPM_CK_AGREEMENT="${CK_AGREEMENT:-ck_p2g=direct}" t test_agreement cuda_agrees_with_cpu_with_ck_mpm --nocapture
       grep -E "ck-mpm" "$OUT/test_agreement.log" | tee -a "$S"
       timeout 400 "$D/rtmpm" validate --backend cuda \
         --case hydrostatic_column_ck,vibrating_bar_ck,dam_break_ck,granular_column_ck \
@@ -156,9 +157,9 @@ for suite in "$@"; do
       ck_bench
       ;;
     ck_speed)
-      RTMPM_CK_AGREEMENT="${CK_AGREEMENT:-ck_p2g=warp}" t test_agreement cuda_agrees_with_cpu_with_ck_mpm --nocapture
-      grep -E "ck-mpm" "$OUT/test_agreement.log" | tee -a "$S"
       ck_bench
+      RTMPM_CK_AGREEMENT="${CK_AGREEMENT:-ck_p2g=warp;ck_p2g=fused}" t test_agreement cuda_agrees_with_cpu_with_ck_mpm --nocapture
+      grep -E "ck-mpm" "$OUT/test_agreement.log" | tee -a "$S"
       ;;
     validate_compact)
       timeout 500 "$D/rtmpm" validate --backend cuda --particle-state compact --out "$OUT/validation_compact" > "$OUT/validate_compact.log" 2>&1

@@ -80,6 +80,7 @@ struct Ctx {
     real* grid_aux;           // classic MPM transfers and CK-MPM (else null), 4 reals per node:
                               // unused, dt f_i after P2G, v_old after the grid update, MUSL
                               // re-mapped v; CK-MPM: the nodes of its second grid (as grid's)
+    real* grid_aux_next;      // CK-MPM with G2P2G (g2p/ck.cu): the second grid of the next step
     unsigned* ctl;
     const Scalars* scalars;   // global copies of the constant-memory parameters
     const StepParams* step;   // (read with -DRTMPM_PARAMS_GLOBAL)

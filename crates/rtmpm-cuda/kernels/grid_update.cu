@@ -19,6 +19,15 @@ __device__ __forceinline__ vec3 rule_apply(unsigned cond, real friction, vec3 v,
 
 __device__ void grid_update_node(const Ctx& c, unsigned t);
 
+// Zero node t of a grid of 4 reals per node.
+__device__ __forceinline__ void clear_node(real* grid, unsigned t) {
+#ifdef RTMPM_F64
+    for (int e = 0; e < 4; ++e) grid[4u * t + e] = 0;
+#else
+    reinterpret_cast<float4*>(grid)[t] = make_float4(0.f, 0.f, 0.f, 0.f);
+#endif
+}
+
 // Grid-stride over the nodes of the pblocks in use (launched with at most one wave of blocks).
 // `part`: 0 every pblock; several GPUs: 1 the pblocks no other GPU shares (run while the shared
 // ones are summed across GPUs), 2 the shared ones (after the sum).
@@ -29,14 +38,9 @@ extern "C" __global__ void grid_update(Ctx c, unsigned part) {
     for (unsigned t = thread_index(); t < n_nodes; t += gridDim.x * blockDim.x) {
         if (part && (c.shared_pblock[t >> 6] != 0) != (part == 2)) continue;
         grid_update_node(c, t);
-        // G2P2G: clear the next step's grid, which the fused kernel scatters into.
-        if (c.grid_next) {
-#ifdef RTMPM_F64
-            for (int e = 0; e < 4; ++e) c.grid_next[4u * t + e] = 0;
-#else
-            reinterpret_cast<float4*>(c.grid_next)[t] = make_float4(0.f, 0.f, 0.f, 0.f);
-#endif
-        }
+        // G2P2G: clear the next step's grid (CK-MPM: grids), which the fused kernel scatters into.
+        if (c.grid_next) clear_node(c.grid_next, t);
+        if (c.grid_aux_next) clear_node(c.grid_aux_next, t);
     }
 }
 

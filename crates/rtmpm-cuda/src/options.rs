@@ -36,6 +36,11 @@ pub enum CkP2g {
     /// per segment of the MLS-MPM scatter (Fei, Huang & Gao, "Real-Time Simulation of MPM on
     /// Modern GPUs", GTC 2022).
     Warp,
+    /// G2P2G for CK-MPM (`g2p2g_ck`): the G2P of a step from both grids and, from the new
+    /// state in registers, the warp scatter of `p2g_ck_warp` into both grids of the next step;
+    /// `p2g_ck_warp` then runs only after a rebuild or a new dt. Where G2P2G does not apply
+    /// ([`CudaOptions::g2p2g`] off, no free zone or mixed sorting) it is `Warp`.
+    Fused,
 }
 
 impl CkP2g {
@@ -44,6 +49,7 @@ impl CkP2g {
         match self {
             CkP2g::Direct => "direct",
             CkP2g::Warp => "warp",
+            CkP2g::Fused => "fused",
         }
     }
 }
@@ -122,9 +128,9 @@ pub struct CudaOptions {
     /// step) instead of fifteen kernels that return at once when nothing is rebuilt.
     pub fused_rebuild: bool,
     /// G2P2G: the G2P of a step and the P2G of the next in one kernel (`kernels/g2p/g2p2g.cu`),
-    /// the P2G kernel running only after a rebuild. One or several GPUs; MLS transfer,
-    /// `p2g=warp`, the free zone and mixed sorting only (not when every step rebuilds);
-    /// elsewhere ignored.
+    /// the P2G kernel running only after a rebuild. One or several GPUs; MLS transfer (CK-MPM:
+    /// with `ck_p2g=fused`), `p2g=warp`, the free zone and mixed sorting only (not when every
+    /// step rebuilds); elsewhere ignored.
     pub g2p2g: bool,
     /// Compile the kernels for the scene's material models only (a smaller material switch in
     /// the merged kernels) instead of every model of the registry. Off by default: measured on
@@ -203,7 +209,7 @@ impl std::str::FromStr for CudaOptions {
     type Err = String;
     /// Comma separated `key=value`: `free_zone`, `mixed_sort`, `warp_reduce`, `fast_math`,
     /// `graph`, `f64`, `rebalance`, `overlap`, `g2p2g`, `rigid_overlap`, `specialize` (on/off/true/false/1/0), `rebuild` (fused/kernels), `fill` (device/host), `p2g`
-    /// (warp/shared/reverse_map/sort), `ck_p2g` (direct/warp), `transport` (p2p/nccl), `barrier` (spin/events), `devices`
+    /// (warp/shared/reverse_map/sort), `ck_p2g` (direct/warp/fused), `transport` (p2p/nccl), `barrier` (spin/events), `devices`
     /// (ordinals separated by `:`), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
     /// `rmap_pblocks`, `shared`, `sort_fields` (counts), `fluid_state` (on/off), `state`
     /// (f32/compact).
@@ -240,7 +246,15 @@ impl std::str::FromStr for CudaOptions {
                     }
                 }
                 "ck_p2g" => {
-                    o.ck_p2g = choice(item, v, &[("direct", CkP2g::Direct), ("warp", CkP2g::Warp)])?
+                    o.ck_p2g = choice(
+                        item,
+                        v,
+                        &[
+                            ("direct", CkP2g::Direct),
+                            ("warp", CkP2g::Warp),
+                            ("fused", CkP2g::Fused),
+                        ],
+                    )?
                 }
                 "gblocks" => o.gblock_capacity = Some(n()?),
                 "pblocks" => o.pblock_capacity = Some(n()?),
@@ -353,7 +367,11 @@ mod tests {
             CkP2g::Direct
         );
         let e = "ck_p2g=shared".parse::<CudaOptions>().unwrap_err();
-        assert_eq!(e, "`ck_p2g=shared`: expected direct or warp");
+        assert_eq!(e, "`ck_p2g=shared`: expected direct, warp or fused");
+        assert_eq!(
+            "ck_p2g=fused".parse::<CudaOptions>().unwrap().ck_p2g,
+            CkP2g::Fused
+        );
         let e = "rebuild=maybe".parse::<CudaOptions>().unwrap_err();
         assert_eq!(e, "`rebuild=maybe`: expected fused or kernels");
         assert_eq!(

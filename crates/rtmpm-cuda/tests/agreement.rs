@@ -50,7 +50,11 @@ fn compare_with(name: &str, scene: &Scene, steps: usize, extra: &str) -> Vec<Str
     let p0 = scene.sample_particles().expect("particles");
     let mut cpu = CpuBackend::new(scene, p0.clone(), None).expect("cpu");
     let opts = options(extra);
+    let fused_ck = opts.ck_p2g == rtmpm_cuda::CkP2g::Fused;
     let mut gpu = CudaBackend::new(scene, &p0, opts).expect("cuda backend");
+    if fused_ck {
+        assert!(gpu.g2p2g(), "{name}: ck_p2g=fused without G2P2G");
+    }
     // One dt for both (the CFL step of the initial state), so that they see the same steps.
     let mut sim = Simulation::new(
         scene.clone(),
@@ -189,7 +193,11 @@ fn compare_f64_with(name: &str, mut scene: Scene, steps: usize, extra: &str) -> 
     let p0 = scene.sample_particles().expect("particles");
     let mut cpu = rtmpm_cpu_f64::CpuBackend::new(&scene, p0.clone(), None).expect("cpu");
     let opts = options(extra);
+    let fused_ck = opts.ck_p2g == rtmpm_cuda::CkP2g::Fused;
     let mut gpu = CudaBackend::new(&scene, &p0, opts).expect("cuda backend");
+    if fused_ck {
+        assert!(gpu.g2p2g(), "{name}: ck_p2g=fused without G2P2G");
+    }
     assert!(gpu.name().contains("f64"), "{}", gpu.name());
     let mut sim = Simulation::new(
         scene.clone(),
@@ -282,13 +290,18 @@ fn cuda_agrees_with_cpu_with_ck_mpm() {
 }
 
 /// The CUDA options of the CK-MPM kernel variants the agreement test runs: each P2G kernel
-/// (`ck_p2g=direct`, the default, and `ck_p2g=warp`, the warp reduction). `RTMPM_CK_AGREEMENT`
-/// (option strings separated by `;`) runs those instead, e.g. the GPU suite's `ck_speed` with
-/// the new kernels only.
+/// (`ck_p2g=direct`, the default, `ck_p2g=warp`, the warp reduction, and `ck_p2g=fused`, the
+/// G2P2G of CK-MPM, whose backend must then run G2P2G). `RTMPM_CK_AGREEMENT` (option strings
+/// separated by `;`) runs those instead, e.g. the GPU suite's `ck_speed` with the new kernels
+/// only.
 fn ck_variants() -> Vec<String> {
     match std::env::var("RTMPM_CK_AGREEMENT") {
         Ok(v) if !v.trim().is_empty() => v.split(';').map(|s| s.trim().to_string()).collect(),
-        _ => vec!["ck_p2g=direct".into(), "ck_p2g=warp".into()],
+        _ => vec![
+            "ck_p2g=direct".into(),
+            "ck_p2g=warp".into(),
+            "ck_p2g=fused".into(),
+        ],
     }
 }
 

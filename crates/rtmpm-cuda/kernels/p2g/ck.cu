@@ -7,7 +7,7 @@
 #include "ck_scatter.cuh"
 
 extern "C" __global__ void p2g_ck(Ctx c) {
-    if (c.ctl[CTL_ERROR]) return;
+    if (c.ctl[CTL_ERROR] || !grid_needs_p2g(c)) return;
     unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
     unsigned lane = threadIdx.x & 31;
     for (unsigned w = thread_index() >> 5; w < n_warps; w += stride) {
@@ -38,8 +38,11 @@ extern "C" __global__ void p2g_ck(Ctx c) {
 
 // Warps loop over the warp list (grid-stride, launched with about one wave of blocks); both
 // grids' contributions of a particle are computed once, then each grid's are sorted and scattered.
+// With G2P2G (ck_p2g=fused; g2p/ck.cu: g2p2g_ck) the previous step's fused kernel has already
+// scattered the particles, and this kernel only runs after a rebuild or when the host asks
+// (grid_needs_p2g: always without G2P2G).
 extern "C" __global__ void __launch_bounds__(128) p2g_ck_warp(Ctx c) {
-    if (c.ctl[CTL_ERROR]) return;
+    if (c.ctl[CTL_ERROR] || !grid_needs_p2g(c)) return;
     unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
     unsigned lane = threadIdx.x & 31;
     for (unsigned w = thread_index() >> 5; w < n_warps; w += stride) {

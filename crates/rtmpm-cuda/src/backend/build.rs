@@ -12,7 +12,7 @@ use crate::contract::{Ctx, StateLayout};
 use crate::encode::{self, Tables};
 use crate::error::err;
 use crate::kernels::{Kernels, write_symbol};
-use crate::options::{CudaOptions, P2gMode};
+use crate::options::{CkP2g, CudaOptions, P2gMode};
 use crate::probe::DeviceInfo;
 use crate::setup::buffers::{self, Buffers};
 use crate::setup::capacity::{self, Capacity};
@@ -296,10 +296,12 @@ impl Plan {
         let n_max = n.saturating_add(emit::emitted_total(scene));
         let cap = Capacity::plan_blocks(scene, n_max, part.capacity, blocks, &options);
         setup.layout = t.elapsed().as_secs_f64();
-        // G2P2G where it applies (see CudaOptions::g2p2g): not when every step rebuilds (the
+        // G2P2G where it applies (see CudaOptions::g2p2g; CK-MPM with ck_p2g=fused only): not
+        // when every step rebuilds (the
         // fused scatter would always be redone).
         let g2p2g = options.g2p2g
-            && scene.solver.transfer == Transfer::Mls
+            && (scene.solver.transfer == Transfer::Mls
+                || (scene.solver.transfer == Transfer::CkMpm && options.ck_p2g == CkP2g::Fused))
             && options.p2g == P2gMode::Warp
             && options.free_zone
             && options.mixed_sort;

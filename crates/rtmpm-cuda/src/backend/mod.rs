@@ -205,6 +205,7 @@ impl CudaBackend {
         let mut c = self.ctx;
         if self.parity == 1 {
             std::mem::swap(&mut c.grid, &mut c.grid_next);
+            std::mem::swap(&mut c.grid_aux, &mut c.grid_aux_next);
         }
         c
     }

@@ -42,6 +42,7 @@ fn layouts<R: GpuReal>() -> Vec<Layout> {
                 grid,
                 grid_next,
                 grid_aux,
+                grid_aux_next,
                 ctl,
                 scalars,
                 step,

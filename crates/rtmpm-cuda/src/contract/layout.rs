@@ -58,6 +58,9 @@ pub struct Ctx {
     /// P2G, v_old after the grid update, MUSL re-mapped v; CK-MPM: its second grid's nodes
     /// (mass, momentum, then velocity).
     pub grid_aux: u64,
+    /// CK-MPM with G2P2G: the second grid the fused kernel scatters the next step into (in the
+    /// allocation of `grid_next`, after its first grid; 0 otherwise).
+    pub grid_aux_next: u64,
     /// `CTL_WORDS` control words.
     pub ctl: u64,
     /// Global copies of the constant-memory parameters (read with `-DRTMPM_PARAMS_GLOBAL`).

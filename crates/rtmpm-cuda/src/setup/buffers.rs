@@ -306,6 +306,11 @@ fn context(
         grid: ptr(&b.grid),
         grid_next: b.grid_next.as_ref().map_or(0, ptr),
         grid_aux: u.grid_aux,
+        // CK-MPM with G2P2G: the next step's second grid follows its first in grid_next.
+        grid_aux_next: match &b.grid_next {
+            Some(g) if u.grid_aux != 0 => ptr(g) + b.planned.grid as u64,
+            _ => 0,
+        },
         ctl: b.ctl.device_ptr(s).0,
         scalars: ptr(&b.scalars),
         step: ptr(&b.step),

@@ -6,8 +6,8 @@ use cudarc::driver::{CudaStream, DriverError, PushKernelArg};
 use rtmpm_physics::transfer::Transfer;
 
 /// Enqueue the merged G2P (interpolation, F, plasticity, advection, free-zone and health checks):
-/// `g2p2g` with G2P2G (the next step's P2G in the same kernel), else `g2p` for MLS, `g2p_ck` for
-/// CK-MPM (from its two grids), `g2p_mpm` for the classic MPM transfers. `all_fluid`: every material is a fluid (G2P2G then runs
+/// `g2p2g` with G2P2G (the next step's P2G in the same kernel; `g2p2g_ck` for CK-MPM), else `g2p`
+/// for MLS, `g2p_ck` for CK-MPM (from its two grids), `g2p_mpm` for the classic MPM transfers. `all_fluid`: every material is a fluid (G2P2G then runs
 /// `g2p2g_fluid`, which moves one word of F in and three out).
 pub(crate) fn enqueue(
     k: &Kernels,
@@ -15,7 +15,9 @@ pub(crate) fn enqueue(
     c: &Ctx,
     all_fluid: bool,
 ) -> Result<(), DriverError> {
-    let f = if c.grid_next != 0 && all_fluid {
+    let f = if c.grid_next != 0 && c.transfer == Transfer::CkMpm.code() {
+        Kernel::G2p2gCk
+    } else if c.grid_next != 0 && all_fluid {
         Kernel::G2p2gFluid
     } else if c.grid_next != 0 {
         Kernel::G2p2g

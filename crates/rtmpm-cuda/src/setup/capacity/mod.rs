@@ -34,7 +34,7 @@ pub struct Capacity {
 /// Which optional grids a GPU allocates besides the grid.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct GridCopies {
-    /// G2P2G: the grid of the next step.
+    /// G2P2G: the grid of the next step (and, with `aux`, its second grid).
     pub next: bool,
     /// Classic (non-MLS) transfers: a second value per node; CK-MPM: its second grid.
     pub aux: bool,
@@ -57,7 +57,7 @@ pub struct BufferBytes {
     pub scan_sums: usize,
     /// Grid: 4 reals per node, 64 nodes per pblock.
     pub grid: usize,
-    /// G2P2G's second grid (0 without).
+    /// G2P2G's grid of the next step (0 without; CK-MPM: its two grids, one after the other).
     pub grid_next: usize,
     /// Classic transfers' second node values, CK-MPM's second grid (0 for MLS).
     pub grid_aux: usize,
@@ -335,7 +335,12 @@ impl Capacity {
             hist: self.buckets * 4,
             scan_sums: self.buckets.div_ceil(1024) * 4,
             grid,
-            grid_next: if grids.next { grid } else { 0 },
+            // With a second grid (CK-MPM) the next step's two grids, one after the other.
+            grid_next: if grids.next {
+                grid * (1 + grids.aux as usize)
+            } else {
+                0
+            },
             grid_aux: if grids.aux { grid } else { 0 },
             hash: self.hash * 12,
             neighbors: self.gblocks * 27 * 4,

@@ -9,7 +9,7 @@ use rtmpm_physics::transfer::Transfer;
 
 /// Enqueue the scatter P2G: for MLS the warp variant (4 warps per CUDA block) or the
 /// shared-memory ablation; for CK-MPM `p2g_ck` (direct atomics) or `p2g_ck_warp` (warp
-/// reduction) into its two grids as `ck` says, for the classic MPM transfers `p2g_mpm` (both
+/// reduction; also with G2P2G, after a rebuild) into its two grids as `ck` says, for the classic MPM transfers `p2g_mpm` (both
 /// whatever `mode`). `part`: 0 every particle; several GPUs (MLS only): 1 the
 /// gblocks next to a shared block, 2 the others.
 pub(crate) fn enqueue(
@@ -26,7 +26,7 @@ pub(crate) fn enqueue(
         if c.transfer == Transfer::CkMpm.code() {
             let f = match ck {
                 CkP2g::Direct => Kernel::P2gCk,
-                CkP2g::Warp => Kernel::P2gCkWarp,
+                CkP2g::Warp | CkP2g::Fused => Kernel::P2gCkWarp,
             };
             s.launch_builder(&k[f]).arg(c).launch(wave)?;
             return Ok(());
