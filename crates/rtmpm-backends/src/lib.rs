@@ -6,6 +6,8 @@
 //! `Box<dyn Backend>`, so that a caller can reach the backend's own methods (the CUDA backend's
 //! device pointers, the CPU backend's state setters) and move it across threads (it is `Send`).
 
+pub mod batch;
+
 use rtmpm_cuda::CudaOptions;
 use rtmpm_io::limits::human_bytes;
 use rtmpm_physics::Particles;

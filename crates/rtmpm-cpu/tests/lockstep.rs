@@ -260,3 +260,131 @@ fn the_output_folder_holds_each_world_and_a_frozen_world_stops_at_its_frame() {
     assert_eq!(files("world_002").len(), 3);
     std::fs::remove_dir_all(&dir).expect("clean up");
 }
+
+/// A lockstep run of `text` without files, its state read at the start (as Python's batch).
+fn unwritten(text: &str) -> (BatchScene, LockstepRun<SideBySide>) {
+    let b = BatchScene::from_toml(text, "wedge.toml").unwrap_or_else(|e| panic!("{e}"));
+    let backend = Box::new(SideBySide::new(&b.worlds));
+    let options = BatchOptions::default();
+    let mut r = LockstepRun::new(&b, text, b.worlds[0].clone(), backend, &options).expect("batch");
+    r.write_first_frame().expect("read");
+    (b, r)
+}
+
+/// World `scene` run alone for `steps` steps.
+fn alone_steps(scene: &Scene, steps: u64) -> Particles {
+    let p = scene.sample_particles().expect("sample");
+    let b = CpuBackend::new(scene, p, None).expect("cpu");
+    let mut sim = Simulation::new(scene.clone(), Box::new(b));
+    while sim.step < steps {
+        sim.advance(steps - sim.step).expect("stable");
+    }
+    let mut p = Particles::default();
+    sim.backend.read_particles(&mut p).expect("read");
+    p
+}
+
+#[test]
+fn steps_cross_frame_ends_and_each_world_is_its_separate_run() {
+    let (b, mut r) = unwritten(SLUMP);
+    // 70 steps of 1 ms: a frame (50 steps) and 20 more, in two calls.
+    assert!(r.advance_steps(33).expect("steps").is_empty());
+    assert!(r.advance_steps(37).expect("steps").is_empty());
+    assert_eq!((r.sim.step, r.sim.frame), (70, 1));
+    for (w, world) in r.worlds.iter().enumerate() {
+        assert_eq!((world.steps(), world.frame()), (70, 1));
+        // 20 steps of the f32 dt (1e-3 + 4.7e-11) past the frame's end at 0.05 s.
+        assert!((world.time() - 0.07).abs() < 1e-8, "{}", world.time());
+        assert_eq!(
+            bits(world.particles()),
+            bits(&alone_steps(&b.worlds[w], 70)),
+            "world {w}"
+        );
+    }
+}
+
+#[test]
+fn a_world_that_blows_up_within_steps_is_frozen_and_the_others_go_on() {
+    let text = SLUMP.replace(
+        "\"material[0].yield_stress\" = [20, 150, 600]",
+        "\"body[0].velocity\" = [[0, 0, 0], [1e5, 0, 0], [0, 0.5, 0]]",
+    );
+    let (b, mut r) = unwritten(&text);
+    assert_eq!(r.advance_steps(10).expect("steps"), [1]);
+    assert!(matches!(r.worlds[1].status, WorldStatus::Frozen { .. }));
+    assert_eq!(r.worlds[1].steps(), 0, "kept at its last good state");
+    for w in [0, 2] {
+        assert_eq!(r.worlds[w].steps(), 10);
+        let separate = alone_steps(&b.worlds[w], 10);
+        assert_eq!(bits(r.worlds[w].particles()), bits(&separate), "world {w}");
+    }
+}
+
+#[test]
+fn a_reset_world_starts_its_clock_again_and_the_others_are_untouched() {
+    let (b, mut r) = unwritten(SLUMP);
+    for _ in 0..2 {
+        assert!(r.advance_frame().expect("frame").is_empty());
+    }
+    let start = b.worlds[1].sample_particles().expect("sample");
+    r.reset_worlds(vec![(1, start.clone())]).expect("reset");
+    assert_eq!(bits(r.worlds[1].particles()), bits(&start));
+    assert_eq!((r.worlds[1].frame(), r.worlds[1].steps()), (0, 0));
+    for _ in 0..2 {
+        assert!(r.advance_frame().expect("frame").is_empty());
+    }
+    let w1 = &r.worlds[1];
+    assert_eq!((w1.frame(), w1.steps()), (2, 100));
+    assert!((w1.time() - 0.1).abs() < 1e-9, "{}", w1.time());
+    // Static walls: the reset world, stepped at later times, is its separate run of 2 frames.
+    assert_eq!(bits(w1.particles()), bits(&alone(&b.worlds[1], 2)));
+    for w in [0, 2] {
+        assert_eq!(r.worlds[w].frame(), 4);
+        assert_eq!(
+            bits(r.worlds[w].particles()),
+            bits(&alone(&b.worlds[w], 4)),
+            "world {w} was touched by world 1's reset"
+        );
+    }
+    // Resetting every world puts the shared clock back to 0.
+    let starts = (0..3)
+        .map(|w| (w, b.worlds[w].sample_particles().expect("sample")))
+        .collect();
+    r.reset_worlds(starts).expect("reset all");
+    assert_eq!((r.sim.time, r.sim.step, r.sim.frame), (0.0, 0, 0));
+    assert!(r.advance_frame().expect("frame").is_empty());
+    for w in 0..3 {
+        assert_eq!(bits(r.worlds[w].particles()), bits(&alone(&b.worlds[w], 1)));
+    }
+}
+
+#[test]
+fn resets_that_cannot_work_are_refused_before_any_world_changes() {
+    // A collider moving with the shared clock: a partial reset is refused, naming it.
+    let text = SLUMP.replace(
+        "[batch]",
+        "[[collider]]\nshape = \"box\"\nmin = [0.0, 0.0, 0.0]\nmax = [0.1, 0.5, 0.5]\n\
+         velocity = [0.1, 0.0, 0.0]\n[batch]",
+    );
+    let (b, mut r) = unwritten(&text);
+    assert!(r.advance_frame().expect("frame").is_empty());
+    let before = bits(r.worlds[1].particles());
+    let start = |w: usize| b.worlds[w].sample_particles().expect("sample");
+    let e = r.reset_worlds(vec![(1, start(1))]).unwrap_err().to_string();
+    assert!(
+        e.contains("collider 0 moves") && e.contains("reset every world"),
+        "{e}"
+    );
+    assert_eq!(bits(r.worlds[1].particles()), before);
+    assert_eq!(r.worlds[1].frame(), 1);
+    let e = r.reset_worlds(vec![(5, start(0))]).unwrap_err().to_string();
+    assert!(e.contains("no world 5: the batch has 3"), "{e}");
+    let mut short = start(0);
+    short.x.truncate(10);
+    let e = r.reset_worlds(vec![(0, short)]).unwrap_err().to_string();
+    assert!(e.contains("world 0 has") && e.contains("10 given"), "{e}");
+    // Every world at once: the clock goes back to 0, so the collider is where it started.
+    r.reset_worlds((0..3).map(|w| (w, start(w))).collect())
+        .expect("reset all");
+    assert_eq!(r.sim.step, 0);
+}

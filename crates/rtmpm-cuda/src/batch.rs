@@ -87,18 +87,15 @@ impl CudaBatch {
         particles: &[Particles],
         options: CudaOptions,
     ) -> Result<CudaBatch, SimError> {
-        check_worlds(worlds, particles)?;
-        if matches!(options.p2g, P2gMode::ReverseMap | P2gMode::Sort) {
+        if let Some(why) = unsupported(worlds, &options) {
             return Err(SimError::Backend(format!(
-                "CUDA batch: p2g={} is planned from one world's grid; a batch runs p2g=warp \
-                 (the default) or p2g=shared",
-                options.p2g.name()
+                "CUDA batch: {why} (fix: --backend cpu)"
             )));
         }
+        check_particles(worlds, particles)?;
         let base = &worlds[0];
         let m = base.materials.len();
         let stride = world_stride(base.n_cells()[0] as usize);
-        check_grid_reach(worlds.len(), stride, base.n_cells()[0] as usize)?;
         let mut merged = base.clone();
         merged.materials = worlds.iter().flat_map(|s| s.materials.clone()).collect();
         // The step's gravity bound (rtmpm-driver's CFL) is the strongest world's.
@@ -382,17 +379,18 @@ impl Worlds for CudaBatch {
     }
 }
 
-/// What every world of a batch on the GPU must share, checked before any GPU work.
-fn check_worlds(worlds: &[Scene], particles: &[Particles]) -> Result<(), SimError> {
-    let refuse = |why: String| Err(SimError::Backend(format!("CUDA batch: {why}")));
+/// Why the worlds `worlds` cannot run together on the GPU with `options` (what the batch does
+/// not support, in words, without the fix), or `None`: a pure function of the scenes and
+/// options, checked before any GPU work (and by `--backend auto` to choose a batch's backend).
+pub fn unsupported(worlds: &[Scene], options: &CudaOptions) -> Option<String> {
     let Some(base) = worlds.first() else {
-        return refuse("no worlds (a batch needs at least one)".into());
+        return Some("no worlds (a batch needs at least one)".into());
     };
-    if particles.len() != worlds.len() {
-        return refuse(format!(
-            "{} worlds but {} particle sets",
-            worlds.len(),
-            particles.len()
+    if matches!(options.p2g, P2gMode::ReverseMap | P2gMode::Sort) {
+        return Some(format!(
+            "p2g={} is planned from one world's grid; a batch runs p2g=warp (the default) or \
+             p2g=shared",
+            options.p2g.name()
         ));
     }
     let shared = |s: &Scene| {
@@ -414,29 +412,46 @@ fn check_worlds(worlds: &[Scene], particles: &[Particles]) -> Result<(), SimErro
     let want = shared(base);
     for (w, s) in worlds.iter().enumerate() {
         if !s.rigid_bodies.is_empty() || !s.emitters.is_empty() {
-            return refuse(format!(
+            return Some(format!(
                 "world {w} has rigid bodies or emitters: the GPU batch runs worlds of \
-                 material, colliders and walls only so far (fix: --backend cpu)"
+                 material, colliders and walls only so far"
             ));
         }
         if shared(s) != want {
-            return refuse(format!(
+            return Some(format!(
                 "world {w} differs from world 0 in its domain, grid spacing, colliders, walls, \
                  solver or number of materials: on the GPU the worlds share those and differ in \
-                 material values and gravity only so far (fix: --backend cpu)"
+                 material values and gravity only so far"
             ));
         }
-        if particles[w].is_empty() {
+    }
+    let n_cells_x = base.n_cells()[0] as usize;
+    grid_reach_refusal(worlds.len(), world_stride(n_cells_x), n_cells_x)
+}
+
+/// The worlds' initial particles against their scenes (one set per world, none empty, their
+/// materials the world's).
+fn check_particles(worlds: &[Scene], particles: &[Particles]) -> Result<(), SimError> {
+    let refuse = |why: String| Err(SimError::Backend(format!("CUDA batch: {why}")));
+    if particles.len() != worlds.len() {
+        return refuse(format!(
+            "{} worlds but {} particle sets",
+            worlds.len(),
+            particles.len()
+        ));
+    }
+    for (w, (s, p)) in worlds.iter().zip(particles).enumerate() {
+        if p.is_empty() {
             return refuse(format!("world {w} has no particles"));
         }
-        if let Some(k) = particles[w]
+        if let Some(k) = p
             .material
             .iter()
-            .find(|&&k| k as usize >= base.materials.len())
+            .find(|&&k| k as usize >= s.materials.len())
         {
             return refuse(format!(
                 "world {w}: a particle of material {k}, the scene has {}",
-                base.materials.len()
+                s.materials.len()
             ));
         }
     }
@@ -445,19 +460,20 @@ fn check_worlds(worlds: &[Scene], particles: &[Particles]) -> Result<(), SimErro
 
 /// The worlds lie side by side along x in the block coordinates: refused when the last one's
 /// nodes lie past what the 64-bit block code addresses.
-fn check_grid_reach(worlds: usize, stride: usize, n_cells_x: usize) -> Result<(), SimError> {
-    let reach = (worlds - 1)
+fn grid_reach_refusal(worlds: usize, stride: usize, n_cells_x: usize) -> Option<String> {
+    let reach = worlds
+        .saturating_sub(1)
         .saturating_mul(stride)
         .saturating_add(WORLD_ORIGIN_CELLS + n_cells_x + 12);
     if reach > MAX_GRID_CELLS_X {
-        let fit = (MAX_GRID_CELLS_X - WORLD_ORIGIN_CELLS - n_cells_x - 12) / stride + 1;
-        return Err(SimError::Backend(format!(
-            "CUDA batch: {worlds} worlds of {n_cells_x} cells along x take {stride} cells each \
-             side by side, {reach} cells; the 64-bit block codes address {MAX_GRID_CELLS_X}: at \
-             most {fit} worlds of this domain (fix: fewer worlds, or a coarser dx)"
-        )));
+        let fit = MAX_GRID_CELLS_X.saturating_sub(WORLD_ORIGIN_CELLS + n_cells_x + 12) / stride + 1;
+        return Some(format!(
+            "{worlds} worlds of {n_cells_x} cells along x take {stride} cells each side by side, \
+             {reach} cells; the 64-bit block codes address {MAX_GRID_CELLS_X}: at most {fit} \
+             worlds of this domain (or fewer cells: a coarser dx)"
+        ));
     }
-    Ok(())
+    None
 }
 
 /// The options with the block capacities of the worlds summed (each world's planned from its
@@ -502,8 +518,8 @@ mod tests {
     #[test]
     fn too_many_worlds_for_the_block_codes_are_refused_with_the_numbers() {
         let s = world_stride(32);
-        assert!(check_grid_reach(1024, s, 32).is_ok());
-        let e = check_grid_reach(100_000, s, 32).unwrap_err().to_string();
+        assert!(grid_reach_refusal(1024, s, 32).is_none());
+        let e = grid_reach_refusal(100_000, s, 32).expect("refused");
         assert!(e.contains("100000 worlds"), "{e}");
         assert!(e.contains("2097152"), "{e}");
         let fit: usize = e
@@ -512,7 +528,7 @@ mod tests {
             .and_then(|t| t.split(' ').next())
             .and_then(|t| t.parse().ok())
             .expect("the count that fits");
-        assert!(check_grid_reach(fit, s, 32).is_ok());
-        assert!(check_grid_reach(fit + 1, s, 32).is_err());
+        assert!(grid_reach_refusal(fit, s, 32).is_none());
+        assert!(grid_reach_refusal(fit + 1, s, 32).is_some());
     }
 }

@@ -90,7 +90,7 @@ def test_batch_n_copies_a_plain_scene_and_steps_every_world():
     sim = rtmpm.Simulation(rtmpm.Scene.from_toml(world_text()), batch=4, backend="cpu")
     assert isinstance(sim, rtmpm.BatchSimulation)
     assert sim.labels == ["world 0", "world 1", "world 2", "world 3"]
-    assert "batches run on the CPU" in sim.backend.reason
+    assert sim.backend.kind == "cpu" and sim.backend.reason == "cpu (asked for)"
     assert sim.step(5) == []
     assert list(sim.steps) == [5] * 4
     np.testing.assert_allclose(sim.time, 5e-3)
@@ -197,8 +197,8 @@ def test_bad_input_gives_clear_errors():
         rtmpm.Simulation(scene, batch=70000, backend="cpu")
     with pytest.raises(ValueError, match="count = 3"):
         rtmpm.Simulation(rtmpm.Scene.from_toml(sweep_text('"gravity[1]" = [-9.81, -5, -1]')), batch=2)
-    with pytest.raises(rtmpm.BackendError, match="CPU backend"):
-        rtmpm.Simulation(scene, batch=2, backend="cuda")
+    with pytest.raises(rtmpm.BackendError, match="gpus=2: a batch runs on one GPU"):
+        rtmpm.Simulation(scene, batch=2, backend="cuda", gpus=2)
     with pytest.raises(ValueError, match="threads"):
         rtmpm.Simulation(scene, batch=2, backend="cpu", threads=2)
     sim = rtmpm.Simulation(scene, batch=2, backend="cpu")
@@ -347,3 +347,42 @@ def test_a_resumed_batch_goes_on_bit_for_bit(tmp_path):
     assert np.any(again.rigid_force("tool")[1] != 0.0), "the tool pressed into the sand"
     with pytest.raises(rtmpm.RtmpmError, match="it holds 3 worlds, the batch has 2"):
         rtmpm.BatchSimulation.resume(tmp_path / "ckpt", scene, batch=2, backend="cpu")
+
+
+GPU_OK, GPU_WHY = rtmpm.cuda_available()
+
+
+@pytest.mark.skipif(GPU_OK, reason="a usable GPU is here: tests/test_batch_gpu.py runs the batch on it")
+def test_without_a_gpu_auto_runs_a_batch_on_the_cpu_and_cuda_says_why_not():
+    scene = rtmpm.Scene.from_toml(world_text())
+    sim = rtmpm.Simulation(scene, batch=2)
+    assert sim.backend.kind == "cpu"
+    assert sim.backend.reason.startswith("auto -> cpu (CUDA not usable: "), sim.backend.reason
+    with pytest.raises(rtmpm.BackendError, match=r"the CUDA backend is not usable here: (.|\n)*backend=\"cpu\""):
+        rtmpm.Simulation(scene, batch=2, backend="cuda")
+    # Whatever the batch holds, the missing GPU is the reason given.
+    if "rigid" in rtmpm.features:
+        tool = rtmpm.Simulation(rtmpm.Scene.from_toml(TOOL_SCENE), batch=2)
+        assert "CUDA not usable" in tool.backend.reason
+
+
+@pytest.mark.skipif("rigid" not in rtmpm.features, reason="module built without the rigid feature")
+def test_auto_runs_on_the_cpu_what_the_gpu_batch_does_not_do(tmp_path):
+    # Rigid bodies: the GPU batch does not run them, so auto runs the CPU on any machine.
+    sim = rtmpm.Simulation(rtmpm.Scene.from_toml(TOOL_SCENE), batch=2)
+    assert sim.backend.kind == "cpu"
+    if GPU_OK:
+        assert "the GPU batch cannot run it: world 0 has rigid bodies" in sim.backend.reason
+        with pytest.raises(rtmpm.BackendError, match="cannot run on the GPU: world 0 has rigid bodies"):
+            rtmpm.Simulation(rtmpm.Scene.from_toml(TOOL_SCENE), batch=2, backend="cuda")
+    # A resume: checkpoints of the GPU batch are not built, so auto resumes on the CPU.
+    scene = rtmpm.Scene.from_toml(world_text())
+    first = rtmpm.Simulation(scene, batch=2, backend="cpu")
+    first.step(3)
+    first.checkpoint(tmp_path / "ckpt")
+    again = rtmpm.BatchSimulation.resume(tmp_path / "ckpt", scene, batch=2)
+    assert again.backend.kind == "cpu" and list(again.steps) == [3, 3]
+    if GPU_OK:
+        assert "resuming a checkpoint" in again.backend.reason
+    with pytest.raises(rtmpm.BackendError, match="resuming a checkpoint" if GPU_OK else "not usable here"):
+        rtmpm.BatchSimulation.resume(tmp_path / "ckpt", scene, batch=2, backend="cuda")

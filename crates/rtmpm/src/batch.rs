@@ -203,8 +203,38 @@ fn check_flags(args: &crate::run::RunArgs) -> Result<()> {
     Ok(())
 }
 
-/// `rtmpm run` of a scene with `[batch]`: every world on the CPU backend, frame by frame, each
-/// world's frames in its folder (`docs/batch.md`), a line per frame and a summary at the end.
+/// The backend of a batch run (`rtmpm_backends::batch::choose_for`): `--backend auto` picks
+/// the GPU when one is usable and the batch uses only what the GPU batch supports, else the
+/// CPU with a one-line note of why; `--backend cuda` where the GPU batch cannot run is refused
+/// with the reason.
+fn choose_backend(
+    args: &crate::run::RunArgs,
+    b: &BatchScene,
+) -> Result<crate::backend::BackendKind> {
+    use crate::backend::BackendKind;
+    let lacks = (args.resume.is_some() || args.checkpoint_every.is_some()).then(|| {
+        "checkpoints (--checkpoint-every, --resume) are not built for the GPU batch yet".to_string()
+    });
+    let choice = rtmpm_backends::batch::choose_for(
+        args.backend.into(),
+        &b.worlds,
+        &args.cuda_options,
+        lacks,
+    )
+    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    if args.backend == BackendKind::Auto {
+        eprintln!("backend: {}", choice.reason);
+    }
+    Ok(match choice.kind {
+        rtmpm_backends::BackendKind::Cuda => BackendKind::Cuda,
+        _ => BackendKind::Cpu,
+    })
+}
+
+/// `rtmpm run` of a scene with `[batch]`: every world on the CPU backend, frame by frame, or
+/// every world in the same kernels on one GPU (`--backend cuda`, or `auto` with a GPU that
+/// runs the batch), each world's frames in its folder (`docs/batch.md`), a line per frame and
+/// a summary at the end.
 pub fn run(args: &crate::run::RunArgs) -> Result<()> {
     use crate::backend::{BackendKind, make_backend};
     let Some(path) = args.scene.as_deref() else {
@@ -233,7 +263,7 @@ pub fn run(args: &crate::run::RunArgs) -> Result<()> {
         overwrite: args.overwrite,
     };
     let start = std::time::Instant::now();
-    if args.backend == BackendKind::Cuda {
+    if choose_backend(args, b)? == BackendKind::Cuda {
         return gpu::run(b, &text, &options, &args.cuda_options, start);
     }
     eprintln!("batch: {} worlds on the CPU backend", b.count());

@@ -262,3 +262,57 @@ fn a_batch_checkpoint_of_another_batch_or_damaged_is_refused_with_the_fix() {
         text(&o)
     );
 }
+
+/// `--backend auto` (the default) of a batch: on a machine without a usable GPU it runs the
+/// CPU backend and says why in one line; the same frames as `--backend cpu`.
+#[test]
+fn auto_runs_a_batch_on_the_cpu_without_a_gpu_and_says_why() {
+    if rtmpm_cuda::probe().is_ok() {
+        println!("skipped: a usable GPU is here (auto would run the batch on it)");
+        return;
+    }
+    let dir = scratch("batch-auto");
+    let scene = data("tiny_wedge.toml");
+    let auto_out = dir.join("auto");
+    let o = rtmpm(&[
+        "run",
+        &scene,
+        "--frames",
+        "1",
+        "--out",
+        auto_out.to_str().unwrap(),
+    ]);
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    let notes: Vec<&str> = t.lines().filter(|l| l.starts_with("backend: ")).collect();
+    assert_eq!(notes.len(), 1, "{t}");
+    assert!(
+        notes[0].starts_with("backend: auto -> cpu (CUDA not usable: "),
+        "{t}"
+    );
+    assert!(t.contains("worlds on the CPU backend"), "{t}");
+    let cpu_out = dir.join("cpu");
+    let c = run_ok(&scene, &cpu_out, &["--frames", "1"]);
+    assert!(!c.contains("backend: "), "--backend cpu needs no note: {c}");
+    let strip = |d: &Path| {
+        files(d)
+            .into_iter()
+            .filter(|(k, _)| k.ends_with(".ply"))
+            .collect::<BTreeMap<_, _>>()
+    };
+    let frames = strip(&auto_out);
+    assert_eq!(frames.len(), 8, "{:?}", frames.keys());
+    assert_eq!(
+        frames,
+        strip(&cpu_out),
+        "auto's frames are the CPU backend's"
+    );
+    // --backend cuda says why it cannot, and names the CPU backend.
+    let o = rtmpm(&["run", &scene, "--backend", "cuda", "--no-output"]);
+    assert!(!o.status.success());
+    let t = text(&o);
+    assert!(
+        t.contains("the CUDA backend is not usable here") && t.contains("--backend cpu"),
+        "{t}"
+    );
+}

@@ -8,6 +8,10 @@
 //! put back to its state at that frame, the frozen one parked (its particles where they were,
 //! at rest, unstressed: it can neither bound the time step nor blow up again), and the frame
 //! is run again. Its files stay those of its last frame; the others go on.
+//!
+//! A run without files (Python's `BatchSimulation` on the GPU) also advances by steps
+//! ([`LockstepRun::advance_steps`]) and resets chosen worlds ([`LockstepRun::reset_worlds`]):
+//! the worlds share one clock, so a world's time, steps and frames count from its last reset.
 
 use super::{BatchOptions, WorldStatus, open_out, summary_row, world_output};
 use crate::outdir::OutDir;
@@ -30,14 +34,46 @@ pub struct LockWorld {
     output: Option<FrameOutput>,
     /// Its particles at the last completed frame (of the frame it froze at, once frozen).
     kept: Particles,
-    /// Steps to that frame.
-    steps: u64,
+    /// The shared clock at that state.
+    at: Clock,
+    /// The shared clock at the world's time 0 (its last reset; zero without one).
+    origin: Clock,
+}
+
+/// A reading of the shared clock: time (s), steps, frames.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Clock {
+    time: f64,
+    step: u64,
+    frame: u64,
 }
 
 impl LockWorld {
-    /// The particles of the last completed frame (as written to its files).
+    /// The particles of the last completed frame (as written to its files), or of the end of
+    /// the last [`LockstepRun::advance_steps`].
     pub fn particles(&self) -> &Particles {
         &self.kept
+    }
+
+    /// Its own scene (its swept values).
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// The world's time (s) at that state, from its last reset.
+    pub fn time(&self) -> f64 {
+        self.at.time - self.origin.time
+    }
+
+    /// Steps the world has taken to that state, from its last reset.
+    pub fn steps(&self) -> u64 {
+        self.at.step - self.origin.step
+    }
+
+    /// Frames the world has completed to that state, from its last reset (the shared clock's
+    /// frames: a world reset within a frame counts that frame when the others end it).
+    pub fn frame(&self) -> u64 {
+        self.at.frame - self.origin.frame
     }
 }
 
@@ -92,7 +128,8 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
                 scene: s.clone(),
                 output,
                 kept: Particles::default(),
-                steps: 0,
+                at: Clock::default(),
+                origin: Clock::default(),
             });
         }
         let run = LockstepRun {
@@ -113,6 +150,12 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             .count()
     }
 
+    /// Read every world's state at the start (and write frame 0 of each, with an output
+    /// folder): what a blown-up world is put back to.
+    pub fn write_first_frame(&mut self) -> Result<()> {
+        self.read_and_write_frame()
+    }
+
     /// Run every world to the last frame (frame 0 written first); `frame_done` is called after
     /// each frame with the worlds frozen in it.
     pub fn execute(&mut self, mut frame_done: impl FnMut(&Self, &[usize])) -> Result<()> {
@@ -128,17 +171,43 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
     /// is frozen at its last frame (returned) and the frame run again without it; an error of
     /// the backend itself ends the run.
     pub fn advance_frame(&mut self) -> Result<Vec<usize>> {
-        let (time, step, frame) = (self.sim.time, self.sim.step, self.sim.frame);
+        self.advance_by(|sim| sim.advance_frame().map(drop))
+    }
+
+    /// Advance every running world by `steps` steps of the shared time step (crossing frame
+    /// ends as `rtmpm run --steps` does), for runs that write no files (a file is a whole
+    /// frame's); a world that blows up or stalls is frozen at its state of the last call and
+    /// the steps taken again without it.
+    pub fn advance_steps(&mut self, steps: u64) -> Result<Vec<usize>> {
+        if self.out.is_some() {
+            bail!("a batch run that writes frame files advances by whole frames");
+        }
+        self.advance_by(|sim| {
+            let target = sim.step.saturating_add(steps);
+            while sim.step < target {
+                sim.advance(target - sim.step)?;
+            }
+            Ok(())
+        })
+    }
+
+    /// Advance with `advance` from the last state read; a blow-up or stall freezes its world,
+    /// puts every world back to that state and advances again; then read (and write) it.
+    fn advance_by(
+        &mut self,
+        mut advance: impl FnMut(&mut Simulation<B>) -> Result<(), SimError>,
+    ) -> Result<Vec<usize>> {
+        let clock = self.clock();
         let mut frozen = Vec::new();
         loop {
-            let e = match self.sim.advance_frame() {
-                Ok(_) => break,
+            let e = match advance(&mut self.sim) {
+                Ok(()) => break,
                 Err(e @ (SimError::Blowup(_) | SimError::Stall(_))) => e,
                 Err(e) => return Err(e.into()),
             };
-            let w = self.freeze(&e, frame)?;
+            let w = self.freeze(&e, clock.frame)?;
             frozen.push(w);
-            self.rewind(time, step, frame)?;
+            self.rewind(clock)?;
             if self.running() == 0 {
                 break;
             }
@@ -150,6 +219,68 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             self.write_summary()?;
         }
         Ok(frozen)
+    }
+
+    /// Put each world `w` of `starts` to its particles `p` (its initial ones, or any state of as
+    /// many particles) at its time 0, running again (a frozen one too); the other worlds are not
+    /// touched. For runs that write no files. The worlds share one clock: when every world is
+    /// reset it goes back to 0; otherwise the reset worlds count their time from now, refused
+    /// when the scene's colliders move with the clock (a reset world would meet them where they
+    /// are now, not where they were at time 0). Checked before any world changes.
+    pub fn reset_worlds(&mut self, starts: Vec<(usize, Particles)>) -> Result<()> {
+        if self.out.is_some() {
+            bail!("a batch run that writes frame files cannot reset a world");
+        }
+        let count = self.worlds.len();
+        let mut listed = vec![false; count];
+        for (w, p) in &starts {
+            let Some(world) = self.worlds.get(*w) else {
+                bail!("no world {w}: the batch has {count} (0 to {})", count - 1);
+            };
+            if p.len() != world.kept.len() {
+                bail!(
+                    "world {w} has {} particles, {} given",
+                    world.kept.len(),
+                    p.len()
+                );
+            }
+            listed[*w] = true;
+        }
+        let all = listed.iter().all(|&l| l);
+        if !all && let Some(k) = moving_collider(&self.sim.scene) {
+            bail!(
+                "resetting some worlds of a batch whose worlds share one clock (all worlds in the \
+                 same kernels): collider {k} moves with that clock, so a reset world would meet \
+                 it where it is now (t = {:.6} s), not where it was at time 0\n  fix: reset every \
+                 world at once (the clock goes back to 0), or run the batch on the CPU backend \
+                 (each world has its own clock)",
+                self.sim.time
+            );
+        }
+        if all {
+            (self.sim.time, self.sim.step, self.sim.frame) = (0.0, 0, 0);
+        }
+        let now = self.clock();
+        for (w, p) in starts {
+            self.sim
+                .backend
+                .put_world(w, &p)
+                .with_context(|| format!("resetting world {w}"))?;
+            let world = &mut self.worlds[w];
+            world.kept = p;
+            world.status = WorldStatus::Running;
+            (world.at, world.origin) = (now, now);
+        }
+        Ok(())
+    }
+
+    /// The shared clock now.
+    fn clock(&self) -> Clock {
+        Clock {
+            time: self.sim.time,
+            step: self.sim.step,
+            frame: self.sim.frame,
+        }
     }
 
     /// Freeze the world of the particle `e` names at `frame`, its last; an error that names no particle of a running
@@ -173,7 +304,8 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
 
     /// Every world back to its particles of the last frame (a frozen one parked), and the clock
     /// back to that frame.
-    fn rewind(&mut self, time: f64, step: u64, frame: u64) -> Result<()> {
+    fn rewind(&mut self, clock: Clock) -> Result<()> {
+        let frame = clock.frame;
         for (w, world) in self.worlds.iter().enumerate() {
             let p = match world.status {
                 WorldStatus::Running => world.kept.clone(),
@@ -184,22 +316,22 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
                 .put_world(w, &p)
                 .with_context(|| format!("putting world {w} back to frame {frame}"))?;
         }
-        (self.sim.time, self.sim.step, self.sim.frame) = (time, step, frame);
+        (self.sim.time, self.sim.step, self.sim.frame) = (clock.time, clock.step, clock.frame);
         Ok(())
     }
 
     /// Read every world; keep and write the running ones' frame.
     fn read_and_write_frame(&mut self) -> Result<()> {
         let all = self.sim.backend.read_worlds()?;
-        let (frame, time, steps) = (self.sim.frame, self.sim.time, self.sim.step);
+        let now = self.clock();
         for (world, p) in self.worlds.iter_mut().zip(all) {
             if world.status != WorldStatus::Running {
                 continue;
             }
             world.kept = p;
-            world.steps = steps;
+            world.at = now;
             if let Some(out) = world.output.as_mut() {
-                out.write_frame(frame, time, &world.kept, &[], &world.scene)?;
+                out.write_frame(now.frame, now.time, &world.kept, &[], &world.scene)?;
             }
         }
         Ok(())
@@ -219,13 +351,23 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
                 &world.label,
                 &world.status,
                 (self.sim.frame, self.frames),
-                world.steps,
+                world.steps(),
             ));
         }
         let path = out.dir.join("batch.csv");
         rtmpm_io::write_atomic(&path, csv.as_bytes())
             .with_context(|| format!("writing {}", path.display()))
     }
+}
+
+/// The first collider of `scene` that moves with time (a velocity, an angular velocity or
+/// keyframes), if any.
+fn moving_collider(scene: &Scene) -> Option<usize> {
+    scene.colliders.iter().position(|c| {
+        c.keyframes.is_some()
+            || c.velocity != rtmpm_physics::math::Vec3::ZERO
+            || c.angular_velocity != rtmpm_physics::math::Vec3::ZERO
+    })
 }
 
 /// A frozen world's particles as it is left in the backend: where they were at its last frame,

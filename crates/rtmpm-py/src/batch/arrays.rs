@@ -10,11 +10,8 @@ use rtmpm_physics::Particles;
 impl PyBatch {
     /// Particle counts of the worlds.
     pub(super) fn counts(&mut self) -> Vec<usize> {
-        self.r()
-            .worlds
-            .iter()
-            .map(|w| w.particles().len())
-            .collect()
+        let r = self.r();
+        (0..r.count()).map(|w| r.particles(w).len()).collect()
     }
 
     /// Every world's `field` one after another, shaped `(N, n, *shape)` when all worlds have
@@ -27,8 +24,9 @@ impl PyBatch {
     ) -> PyResult<Bound<'py, PyAny>> {
         let counts = self.counts();
         let mut flat = Vec::new();
-        for w in &self.r().worlds {
-            flat.extend(field(w.particles()));
+        let r = self.r();
+        for w in 0..r.count() {
+            flat.extend(field(r.particles(w)));
         }
         let a = PyArray1::from_vec(py, flat);
         let mut dims: Vec<usize> = match counts.first() {

@@ -13,10 +13,13 @@ impl PyBatch {
     /// frame, particles, rigid bodies; a frozen world's last good state). Continue with
     /// :meth:`BatchSimulation.resume`.
     fn checkpoint(&mut self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        self.each("checkpoint")?;
         let s = self.scene.get();
         let (text, origin) = (s.text.clone(), s.origin.clone());
         self.drive(py, move |run| {
-            run.checkpoint(&path, &text, &origin)?;
+            if let super::Run::Each(run) = run {
+                run.checkpoint(&path, &text, &origin)?;
+            }
             Ok(Vec::new())
         })?;
         Ok(())

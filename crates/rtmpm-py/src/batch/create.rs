@@ -2,13 +2,16 @@
 //! memory check before any particle is made, the backend the worlds run on, and
 //! `BatchSimulation(...)` itself.
 
-use super::{PyBatch, Worlds};
+use super::{PyBatch, Run, Worlds};
 use crate::backend::request;
 use crate::errors::{BackendError, RtmpmError, SceneError, internal_error, scene_error};
 use crate::scene::{PyScene, scene_arg};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use rtmpm_backends::batch::{BatchChoice, choose_for};
 use rtmpm_backends::{BackendKind, BackendRequest};
+use rtmpm_cuda::batch::CudaBatch;
+use rtmpm_driver::batch::lockstep::LockstepRun;
 use rtmpm_driver::batch::{BatchOptions, BatchRun};
 use rtmpm_physics::Particles;
 use rtmpm_scene::batch::{MAX_WORLDS, memory_refusal, scaled_budget};
@@ -69,15 +72,15 @@ fn refuse_memory(budget: &Budget, count: usize) -> PyResult<()> {
     }
 }
 
-/// The backend a batch runs on: the CPU (the worlds of a batch in the same CUDA kernels are
-/// not built yet), with the reason.
+/// The backend request of the constructor's arguments for a batch: one GPU at most, no
+/// `threads` (the worlds share the process's worker threads).
 fn batch_request(
     py: Python<'_>,
     backend: &str,
     threads: Option<usize>,
     gpus: Option<&Bound<'_, PyAny>>,
     cuda_options: Option<&str>,
-) -> PyResult<(BackendRequest, String)> {
+) -> PyResult<BackendRequest> {
     if threads.is_some() {
         return Err(PyValueError::new_err(
             "threads: the worlds of a batch share the process's worker threads (one per core); \
@@ -85,16 +88,57 @@ fn batch_request(
         ));
     }
     let one = 1usize.into_pyobject(py)?.into_any();
-    let mut req = request(backend, None, gpus.unwrap_or(&one), cuda_options)?;
-    if req.gpus > 1 || req.kind == BackendKind::Cuda {
-        return Err(BackendError::new_err(
-            "a batch runs on the CPU backend (its worlds in the same CUDA kernels are not built \
-             yet): use backend=\"cpu\" or \"auto\", one GPU",
-        ));
+    let req = request(backend, None, gpus.unwrap_or(&one), cuda_options)?;
+    if req.gpus > 1 {
+        return Err(BackendError::new_err(format!(
+            "gpus={}: a batch runs on one GPU (every world in the same kernels) or on the CPU \
+             backend; leave gpus out",
+            req.gpus
+        )));
     }
-    let reason = format!("{} -> cpu (batches run on the CPU backend)", backend);
-    req.kind = BackendKind::Cpu;
-    Ok((req, reason))
+    Ok(req)
+}
+
+/// The worlds of a batch on one GPU, every world in the same kernels, their state at the start
+/// read.
+fn lockstep_run(s: &Start) -> anyhow::Result<Run> {
+    let batch = CudaBatch::new(&s.worlds.worlds, &s.initial, s.request.cuda.clone())
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let scene = batch.scene().clone();
+    let text = &s.scene.get().text;
+    let options = BatchOptions::default();
+    let mut run = LockstepRun::new(&s.worlds, text, scene, Box::new(batch), &options)?;
+    run.write_first_frame()?;
+    Ok(Run::Lockstep(Box::new(run)))
+}
+
+/// The worlds on the backend chosen: on the GPU when chosen, falling back to the CPU backend
+/// (the reason updated) when `auto` chose a GPU that cannot make them (its memory, say).
+fn new_run(s: &mut Start) -> anyhow::Result<Run> {
+    if s.choice.kind == BackendKind::Cuda {
+        match lockstep_run(s) {
+            Ok(run) => return Ok(run),
+            Err(e) if s.request.kind == BackendKind::Auto => {
+                s.choice = BatchChoice {
+                    kind: BackendKind::Cpu,
+                    reason: format!("auto -> cpu (the GPU batch could not be made: {e:#})"),
+                };
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    let cpu = BackendRequest {
+        kind: BackendKind::Cpu,
+        ..s.request.clone()
+    };
+    let mut run = BatchRun::new(
+        &s.worlds,
+        &s.scene.get().text,
+        |scene, w| make_backend(&cpu, scene, s.initial[w].clone()),
+        &BatchOptions::default(),
+    )?;
+    run.write_first_frame()?;
+    Ok(Run::Each(run))
 }
 
 /// A world's backend from its particles.
@@ -110,7 +154,7 @@ pub(super) fn make_backend(
 /// What a batch is made from: the worlds, their backend and initial particles.
 struct Start {
     request: BackendRequest,
-    reason: String,
+    choice: BatchChoice,
     scene: Py<PyScene>,
     worlds: BatchScene,
     initial: Vec<Particles>,
@@ -125,20 +169,24 @@ type BackendArgs<'a, 'py> = (
 );
 
 impl Start {
-    /// The worlds of `scene` (`batch` copies or its `[batch]`), checked, and every world's
-    /// particles at time 0 (what a reset starts from).
+    /// The worlds of `scene` (`batch` copies or its `[batch]`), checked, the backend they run
+    /// on (`gpu_lacks`: what the caller needs that the GPU batch does not do), and every
+    /// world's particles at time 0 (what a reset starts from).
     fn new(
         py: Python<'_>,
         scene: &Bound<'_, PyAny>,
-        batch: Option<i64>,
-        precision: Option<&str>,
+        (batch, precision): (Option<i64>, Option<&str>),
         (backend, threads, gpus, cuda_options): BackendArgs<'_, '_>,
+        gpu_lacks: Option<String>,
     ) -> PyResult<Start> {
-        let (request, reason) = batch_request(py, backend, threads, gpus, cuda_options)?;
+        let request = batch_request(py, backend, threads, gpus, cuda_options)?;
         let scene = scene_arg(py, scene)?;
         let s = scene.get();
         crate::scene::warn(py, &s.scene)?;
         let worlds = worlds_of(s, batch, precision)?;
+        let choice = py
+            .detach(|| choose_for(request.kind, &worlds.worlds, &request.cuda, gpu_lacks))
+            .map_err(BackendError::new_err)?;
         let from_dict = s.origin == "<dict>";
         let mut initial = Vec::with_capacity(worlds.count());
         for (w, ws) in worlds.worlds.iter().enumerate() {
@@ -155,7 +203,7 @@ impl Start {
         }
         Ok(Start {
             request,
-            reason,
+            choice,
             scene,
             worlds,
             initial,
@@ -164,21 +212,26 @@ impl Start {
 
     /// The batch `build` makes (with the interpreter lock released, panics caught).
     fn finish(
-        self,
+        mut self,
         py: Python<'_>,
-        build: impl FnOnce(&Start) -> anyhow::Result<BatchRun> + Send,
+        build: impl FnOnce(&mut Start) -> anyhow::Result<Run> + Send,
         error: fn(String) -> PyErr,
     ) -> PyResult<PyBatch> {
-        let me = &self;
+        let me = &mut self;
         let built = py.detach(|| catch_unwind(AssertUnwindSafe(|| build(me).map(Worlds))));
         let run = built
             .map_err(|p| internal_error(p.as_ref()))?
             .map_err(|e| error(format!("{e:#}")))?;
+        // What a reset on the CPU builds a world's backend with: the backend chosen.
+        let request = BackendRequest {
+            kind: self.choice.kind,
+            ..self.request
+        };
         Ok(PyBatch {
             run: Mutex::new(run),
             scene: self.scene,
-            request: self.request,
-            reason: self.reason,
+            request,
+            reason: self.choice.reason,
             initial: self.initial,
             broken: None,
         })
@@ -201,20 +254,8 @@ impl PyBatch {
         cuda_options: Option<&str>,
     ) -> PyResult<PyBatch> {
         let args = (backend, threads, gpus, cuda_options);
-        let start = Start::new(py, scene, batch, precision, args)?;
-        start.finish(
-            py,
-            |s| {
-                BatchRun::new(
-                    &s.worlds,
-                    &s.scene.get().text,
-                    |scene, w| make_backend(&s.request, scene, s.initial[w].clone()),
-                    &BatchOptions::default(),
-                )
-                .and_then(|mut run| run.write_first_frame().map(|_| run))
-            },
-            BackendError::new_err,
-        )
+        let start = Start::new(py, scene, (batch, precision), args, None)?;
+        start.finish(py, new_run, BackendError::new_err)
     }
 
     /// Continue a batch from the checkpoint folder ``path`` written by :meth:`checkpoint`:
@@ -238,17 +279,23 @@ impl PyBatch {
         cuda_options: Option<&str>,
     ) -> PyResult<PyBatch> {
         let args = (backend, threads, gpus, cuda_options);
-        let start = Start::new(py, scene, batch, precision, args)?;
+        let lacks = "resuming a checkpoint (not built for the GPU batch yet)";
+        let start = Start::new(py, scene, (batch, precision), args, Some(lacks.into()))?;
         start.finish(
             py,
             |s| {
+                let cpu = BackendRequest {
+                    kind: BackendKind::Cpu,
+                    ..s.request.clone()
+                };
                 BatchRun::resume(
                     &s.worlds,
                     &s.scene.get().text,
                     &path,
-                    |scene, _, p| make_backend(&s.request, scene, p),
+                    |scene, _, p| make_backend(&cpu, scene, p),
                     &BatchOptions::default(),
                 )
+                .map(Run::Each)
             },
             RtmpmError::new_err,
         )

@@ -1,5 +1,6 @@
 //! `rtmpm.BatchSimulation`: many worlds of one scene stepped together (rtmpm-driver's
-//! [`BatchRun`]), read and steered world by world from Python: particle arrays of every world
+//! [`BatchRun`] on the CPU backend, its `LockstepRun` over rtmpm-cuda's `CudaBatch` on one GPU:
+//! [`run::Run`]), read and steered world by world from Python: particle arrays of every world
 //! at once, resets of chosen worlds, kinematic rigid bodies (tools, pushers) posed per world,
 //! the load the material puts on them, and each world's status (a world that blows up is
 //! frozen, the others go on), and checkpoints of them all. `rtmpm.Simulation(scene, batch=N)` (or a scene with `[batch]`)
@@ -10,6 +11,7 @@ mod checkpoint;
 mod create;
 mod reset;
 mod rigid;
+mod run;
 mod status;
 mod step;
 
@@ -20,22 +22,26 @@ use pyo3::prelude::*;
 use rtmpm_backends::BackendRequest;
 use rtmpm_driver::batch::BatchRun;
 use rtmpm_physics::Particles;
+use run::Run;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::Mutex;
 
 /// The batch run, movable to the thread that steps it with the interpreter lock released.
-struct Worlds(BatchRun);
+struct Worlds(Run);
 
-// SAFETY: `BatchRun` holds each world's backend as a `Box<dyn Backend>`, which is not `Send`
-// by its type. Every backend this module puts in one is an `rtmpm_backends::AnyBackend`
-// (`make_backend`, the only constructor used by `BatchSimulation::new` and `reset`), which is
-// `Send` (rtmpm-backends states why for its CUDA variant). The rest of the run (scenes, frame
-// outputs, which this module never opens) is plain data. The run is used by one thread at a
-// time (`&mut self`).
+// SAFETY: on the CPU, `BatchRun` holds each world's backend as a `Box<dyn Backend>`, which is
+// not `Send` by its type. Every backend this module puts in one is an
+// `rtmpm_backends::AnyBackend` (`make_backend`, the only constructor used by
+// `BatchSimulation::new` and `reset`), which is `Send` (rtmpm-backends states why for its CUDA
+// variant). On the GPU, the `LockstepRun` holds a `CudaBatch`, whose only part that is not
+// `Send` is its `CudaBackend`'s CUDA graph: `rtmpm_backends::CudaSend` states why that backend
+// may move between threads (driver handles are not tied to a thread; cudarc binds the context
+// before each use). The rest of the run (scenes, frame outputs, which this module never opens)
+// is plain data. The run is used by one thread at a time (`&mut self`).
 unsafe impl Send for Worlds {}
 
 impl Worlds {
-    fn get(&mut self) -> &mut BatchRun {
+    fn get(&mut self) -> &mut Run {
         &mut self.0
     }
 }
@@ -44,9 +50,14 @@ impl Worlds {
 ///
 /// ``rtmpm.Simulation(scene, batch=N)`` makes ``N`` copies of ``scene``; a scene with
 /// ``[batch]`` (docs/batch.md) makes its worlds, each with its swept values (``batch`` may then
-/// be left out, or must equal its ``count``). Each world is a simulation of its own (own
-/// particles, grid, colliders and rigid bodies: no world can touch another's state) on the CPU
-/// backend, the same results bit for bit as a separate :class:`Simulation` of its scene.
+/// be left out, or must equal its ``count``). On the CPU backend each world is a simulation of
+/// its own (own particles, grid, colliders and rigid bodies: no world can touch another's
+/// state), the same results bit for bit as a separate :class:`Simulation` of its scene. On one
+/// GPU (``backend="cuda"``, or ``"auto"`` with a usable GPU and a batch it supports) every
+/// world runs in the same CUDA kernels, each isolated in the grid, at one time step for all
+/// worlds (the smallest any world needs); a world's time, frames and steps count from its last
+/// reset. What the GPU batch does not do (rigid bodies, emitters, worlds that differ in domain
+/// or colliders, checkpoints) raises an error naming it and ``backend="cpu"``.
 ///
 /// Arrays: :attr:`x`, :attr:`v`, :attr:`mass`, :attr:`material` are shaped ``(N, n, ...)``
 /// when every world has ``n`` particles (:attr:`uniform`), else flat (all worlds' particles one
@@ -76,7 +87,7 @@ impl PyBatch {
     fn drive(
         &mut self,
         py: Python<'_>,
-        work: impl FnOnce(&mut BatchRun) -> anyhow::Result<Vec<usize>> + Send,
+        work: impl FnOnce(&mut Run) -> anyhow::Result<Vec<usize>> + Send,
     ) -> PyResult<Vec<usize>> {
         self.usable()?;
         let run = match self.run.get_mut() {
@@ -94,10 +105,22 @@ impl PyBatch {
     }
 
     /// The run (no locking: `&mut self` is exclusive already).
-    fn r(&mut self) -> &mut BatchRun {
+    fn r(&mut self) -> &mut Run {
         match self.run.get_mut() {
             Ok(r) => r.get(),
             Err(poisoned) => poisoned.into_inner().get(),
+        }
+    }
+
+    /// The run on the CPU backend, for what only it does (`what`: the method); on the GPU an
+    /// error naming it and the backend that does it.
+    fn each(&mut self, what: &str) -> PyResult<&mut BatchRun> {
+        match self.r() {
+            Run::Each(r) => Ok(r),
+            Run::Lockstep(_) => Err(crate::errors::BackendError::new_err(format!(
+                "BatchSimulation.{what}: not available for a batch on the GPU (every world in \
+                 the same CUDA kernels); create the batch with backend=\"cpu\" for it"
+            ))),
         }
     }
 
@@ -111,7 +134,7 @@ impl PyBatch {
     }
 
     fn count(&mut self) -> usize {
-        self.r().worlds.len()
+        self.r().count()
     }
 
     /// World indices from Python (`None`: every world; negative counts from the end).

@@ -1,9 +1,9 @@
 //! Resets: chosen worlds back to time 0, from their initial state or from given positions
 //! and velocities.
 
-use super::PyBatch;
 use super::arrays::f32_array;
 use super::create::make_backend;
+use super::{PyBatch, Run};
 use numpy::PyUntypedArrayMethods;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -20,7 +20,7 @@ impl PyBatch {
     ) -> PyResult<Particles> {
         let mut p = self.initial[w].clone();
         let (lo, hi) = {
-            let scene = &self.r().worlds[w].sim.scene;
+            let scene = self.r().scene(w);
             (scene.domain_min, scene.domain_max)
         };
         for (name, given, target) in [("x", x, &mut p.x), ("v", v, &mut p.v)] {
@@ -86,7 +86,9 @@ impl PyBatch {
     /// positions ``x`` and/or velocities ``v`` given (``(k, n, 3)`` when the ``k`` worlds hold
     /// ``n`` particles each, or their rows one world after another; the other fields, and
     /// what is not given, as at time 0). The other worlds are not touched. A frozen world runs
-    /// again.
+    /// again. On the GPU the worlds share one clock: resetting every world puts it back to 0;
+    /// resetting some starts their time, frames and steps from now, refused (before any world
+    /// changes) when the scene's colliders move with the clock.
     #[pyo3(signature = (worlds = None, *, x = None, v = None))]
     fn reset(
         &mut self,
@@ -108,8 +110,13 @@ impl PyBatch {
         }
         let req = self.request.clone();
         self.drive(py, move |run| {
-            for (w, p) in list.into_iter().zip(starts) {
-                run.reset_world(w, |scene| make_backend(&req, scene, p))?;
+            match run {
+                Run::Each(run) => {
+                    for (w, p) in list.into_iter().zip(starts) {
+                        run.reset_world(w, |scene| make_backend(&req, scene, p))?;
+                    }
+                }
+                Run::Lockstep(run) => run.reset_worlds(list.into_iter().zip(starts).collect())?,
             }
             Ok(Vec::new())
         })?;

@@ -57,6 +57,7 @@ impl PyBatch {
         angular_velocity: Option<Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         self.usable()?;
+        self.each("set_rigid_body")?;
         let list = self.world_list(worlds)?;
         let k = list.len();
         let position = per_world::<3>("position", position, k)?;
@@ -64,7 +65,7 @@ impl PyBatch {
         let velocity = per_world::<3>("velocity", velocity, k)?;
         let angular = per_world::<3>("angular_velocity", angular_velocity, k)?;
         for (j, &w) in list.iter().enumerate() {
-            let sim = &mut self.r().worlds[w].sim;
+            let sim = &mut self.each("set_rigid_body")?.worlds[w].sim;
             let i = body_index(body, &sim.scene.rigid_bodies)?;
             let update = BodyUpdate {
                 position: position.as_ref().map(|p| p[j]),
@@ -88,7 +89,7 @@ impl PyBatch {
         world: i64,
     ) -> PyResult<Vec<Bound<'py, PyDict>>> {
         let w = self.world_list(Some(vec![world]))?[0];
-        let backend = &mut self.r().worlds[w].sim.backend;
+        let backend = &mut self.each("rigid_bodies")?.worlds[w].sim.backend;
         backend
             .flush_rigid()
             .map_err(|e| crate::errors::sim_error(py, &e))?;
@@ -105,7 +106,7 @@ impl PyBatch {
         py: Python<'py>,
         body: &Bound<'_, PyAny>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        self.loads(py, body, |l| l.force)
+        self.loads(py, "rigid_force", body, |l| l.force)
     }
 
     /// ``(N, 3)`` float64 array: the torque (N m) about rigid body ``body``'s centre of mass,
@@ -115,7 +116,7 @@ impl PyBatch {
         py: Python<'py>,
         body: &Bound<'_, PyAny>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        self.loads(py, body, |l| l.torque)
+        self.loads(py, "rigid_torque", body, |l| l.torque)
     }
 }
 
@@ -124,11 +125,12 @@ impl PyBatch {
     fn loads<'py>(
         &mut self,
         py: Python<'py>,
+        what: &str,
         body: &Bound<'_, PyAny>,
         part: impl Fn(&rtmpm_rigid::BodyLoad) -> [f64; 3],
     ) -> PyResult<Bound<'py, PyAny>> {
         let mut flat = Vec::with_capacity(3 * self.count());
-        for world in &self.r().worlds {
+        for world in &self.each(what)?.worlds {
             let i = body_index(body, &world.sim.scene.rigid_bodies)?;
             if world.status != WorldStatus::Running {
                 flat.extend([f64::NAN; 3]);

@@ -25,7 +25,8 @@ impl PyBatch {
     /// What sets each world apart (``"material[0].yield_stress = 150"``, or ``"world 3"``).
     #[getter]
     fn labels(&mut self) -> Vec<String> {
-        self.r().worlds.iter().map(|w| w.label.clone()).collect()
+        let r = self.r();
+        (0..r.count()).map(|w| r.label(w).to_string()).collect()
     }
 
     /// The scene (:class:`rtmpm.Scene`) the worlds come from.
@@ -37,14 +38,10 @@ impl PyBatch {
     /// The backend of the worlds and why (:class:`rtmpm.BackendInfo`).
     #[getter]
     fn backend(&mut self) -> BackendInfo {
-        let name = self
-            .r()
-            .worlds
-            .first()
-            .map(|w| w.sim.backend.name())
-            .unwrap_or_default();
+        let r = self.r();
+        let (kind, name) = (r.kind().to_string(), r.backend_name());
         BackendInfo {
-            kind: "cpu".into(),
+            kind,
             name,
             reason: self.reason.clone(),
         }
@@ -52,29 +49,30 @@ impl PyBatch {
 
     /// Each world's state: a dict with ``world``, ``state`` (``"running"`` or ``"frozen"``),
     /// ``frame`` (frames completed; for a frozen world the one it keeps), ``steps`` and
-    /// ``reason`` (why it froze, ``None`` while running).
+    /// ``reason`` (why it froze, ``None`` while running). On the GPU a world's frames and steps
+    /// count from its last reset.
     #[getter]
     fn status<'py>(&mut self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
-        self.r()
-            .worlds
-            .iter()
-            .enumerate()
-            .map(|(i, w)| {
+        let r = self.r();
+        (0..r.count())
+            .map(|w| {
                 let d = PyDict::new(py);
-                d.set_item("world", i)?;
-                match &w.status {
-                    WorldStatus::Running => {
+                d.set_item("world", w)?;
+                let (_, frame, steps) = r.clock(w);
+                match (r.status(w), r.kind()) {
+                    (WorldStatus::Running, _) => {
                         d.set_item("state", "running")?;
-                        d.set_item("frame", w.sim.frame)?;
+                        d.set_item("frame", frame)?;
                         d.set_item("reason", py.None())?;
                     }
-                    WorldStatus::Frozen { frame, reason } => {
+                    (WorldStatus::Frozen { frame: at, reason }, kind) => {
                         d.set_item("state", "frozen")?;
-                        d.set_item("frame", *frame)?;
+                        // On the GPU the status holds the shared clock's frame.
+                        d.set_item("frame", if kind == "cpu" { *at } else { frame })?;
                         d.set_item("reason", reason)?;
                     }
                 }
-                d.set_item("steps", w.sim.step)?;
+                d.set_item("steps", steps)?;
                 Ok(d)
             })
             .collect()
@@ -83,26 +81,30 @@ impl PyBatch {
     /// ``(N,)`` bool array: True where a world is running, False where it is frozen.
     #[getter]
     fn running<'py>(&mut self, py: Python<'py>) -> Bound<'py, PyArray1<bool>> {
-        let r = self.r().worlds.iter();
-        PyArray1::from_vec(py, r.map(|w| w.status == WorldStatus::Running).collect())
+        let r = self.r();
+        let running = (0..r.count()).map(|w| *r.status(w) == WorldStatus::Running);
+        PyArray1::from_vec(py, running.collect())
     }
 
     /// ``(N,)`` float64 array: each world's simulated time (s).
     #[getter]
     fn time<'py>(&mut self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        PyArray1::from_vec(py, self.r().worlds.iter().map(|w| w.sim.time).collect())
+        let r = self.r();
+        PyArray1::from_vec(py, (0..r.count()).map(|w| r.clock(w).0).collect())
     }
 
     /// ``(N,)`` uint64 array: frames each world has completed.
     #[getter]
     fn frame<'py>(&mut self, py: Python<'py>) -> Bound<'py, PyArray1<u64>> {
-        PyArray1::from_vec(py, self.r().worlds.iter().map(|w| w.sim.frame).collect())
+        let r = self.r();
+        PyArray1::from_vec(py, (0..r.count()).map(|w| r.clock(w).1).collect())
     }
 
     /// ``(N,)`` uint64 array: steps each world has taken.
     #[getter]
     fn steps<'py>(&mut self, py: Python<'py>) -> Bound<'py, PyArray1<u64>> {
-        PyArray1::from_vec(py, self.r().worlds.iter().map(|w| w.sim.step).collect())
+        let r = self.r();
+        PyArray1::from_vec(py, (0..r.count()).map(|w| r.clock(w).2).collect())
     }
 
     fn __repr__(&mut self) -> String {

@@ -5,8 +5,9 @@ use pyo3::prelude::*;
 
 #[pymethods]
 impl PyBatch {
-    /// Take ``n`` steps in every running world, each of its own time step (frames end on their
-    /// times as with ``rtmpm run``). Returns the worlds frozen by a blow-up during the call.
+    /// Take ``n`` steps in every running world, each of its own time step (on the GPU: the one
+    /// step of every world; frames end on their times as with ``rtmpm run``). Returns the
+    /// worlds frozen by a blow-up during the call.
     #[pyo3(signature = (n = 1))]
     fn step(&mut self, py: Python<'_>, n: u64) -> PyResult<Vec<usize>> {
         // In chunks that grow while they take less than a tenth of a second, with Ctrl-C
@@ -26,8 +27,9 @@ impl PyBatch {
         Ok(frozen)
     }
 
-    /// Simulate every running world to the end of its current frame (exactly as one call of
-    /// :meth:`Simulation.run_frame` per world). Returns the worlds frozen during the call.
+    /// Simulate every running world to the end of its current frame (on the CPU exactly as one
+    /// call of :meth:`Simulation.run_frame` per world; on the GPU to the end of the shared
+    /// clock's frame). Returns the worlds frozen during the call.
     fn run_frame(&mut self, py: Python<'_>) -> PyResult<Vec<usize>> {
         self.drive(py, |run| run.advance_frame())
     }
@@ -36,10 +38,7 @@ impl PyBatch {
     /// duration), checking for Ctrl-C between frames. Returns the worlds frozen during the run.
     #[pyo3(signature = (frames = None))]
     fn run(&mut self, py: Python<'_>, frames: Option<u64>) -> PyResult<Vec<usize>> {
-        let count = frames.unwrap_or_else(|| {
-            let max = self.r().worlds.iter().map(|w| w.sim.frame).max();
-            self.r().frames.saturating_sub(max.unwrap_or(0))
-        });
+        let count = frames.unwrap_or_else(|| self.r().frames_left());
         let mut frozen = Vec::new();
         for _ in 0..count {
             frozen.extend(self.drive(py, |run| run.advance_frame())?);

@@ -1,0 +1,132 @@
+//! The worlds as they run: on the CPU backend each world is a simulation of its own
+//! (rtmpm-driver's `BatchRun`); on one GPU every world is in the same kernels
+//! (rtmpm-cuda's `CudaBatch`), stepped together at one time step by rtmpm-driver's
+//! `LockstepRun`. What `BatchSimulation` reads and does, for either.
+
+use anyhow::Result;
+use rtmpm_cuda::batch::CudaBatch;
+use rtmpm_driver::batch::lockstep::LockstepRun;
+use rtmpm_driver::batch::{BatchRun, WorldStatus};
+use rtmpm_physics::Particles;
+use rtmpm_scene::Scene;
+use rtmpm_sim::Backend;
+
+/// A batch's worlds, on the CPU backend or on one GPU.
+pub(super) enum Run {
+    /// Each world its own simulation on the CPU backend.
+    Each(BatchRun),
+    /// Every world in the same CUDA kernels, one clock and time step for all.
+    Lockstep(Box<LockstepRun<CudaBatch>>),
+}
+
+impl Run {
+    /// Number of worlds.
+    pub fn count(&self) -> usize {
+        match self {
+            Run::Each(r) => r.worlds.len(),
+            Run::Lockstep(r) => r.worlds.len(),
+        }
+    }
+
+    /// "cpu" or "cuda".
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Run::Each(_) => "cpu",
+            Run::Lockstep(_) => "cuda",
+        }
+    }
+
+    /// The backend's name (world 0's on the CPU).
+    pub fn backend_name(&self) -> String {
+        match self {
+            Run::Each(r) => r
+                .worlds
+                .first()
+                .map(|w| w.sim.backend.name())
+                .unwrap_or_default(),
+            Run::Lockstep(r) => r.sim.backend.name(),
+        }
+    }
+
+    /// What sets world `w` apart.
+    pub fn label(&self, w: usize) -> &str {
+        match self {
+            Run::Each(r) => &r.worlds[w].label,
+            Run::Lockstep(r) => &r.worlds[w].label,
+        }
+    }
+
+    /// World `w`'s status.
+    pub fn status(&self, w: usize) -> &WorldStatus {
+        match self {
+            Run::Each(r) => &r.worlds[w].status,
+            Run::Lockstep(r) => &r.worlds[w].status,
+        }
+    }
+
+    /// World `w`'s particles after the last call (a frozen world's last good state).
+    pub fn particles(&self, w: usize) -> &Particles {
+        match self {
+            Run::Each(r) => r.worlds[w].particles(),
+            Run::Lockstep(r) => r.worlds[w].particles(),
+        }
+    }
+
+    /// World `w`'s scene.
+    pub fn scene(&self, w: usize) -> &Scene {
+        match self {
+            Run::Each(r) => &r.worlds[w].sim.scene,
+            Run::Lockstep(r) => r.worlds[w].scene(),
+        }
+    }
+
+    /// World `w`'s time (s), frames completed and steps taken (on the GPU: from its last reset).
+    pub fn clock(&self, w: usize) -> (f64, u64, u64) {
+        match self {
+            Run::Each(r) => {
+                let s = &r.worlds[w].sim;
+                (s.time, s.frame, s.step)
+            }
+            Run::Lockstep(r) => {
+                let x = &r.worlds[w];
+                (x.time(), x.frame(), x.steps())
+            }
+        }
+    }
+
+    /// Worlds still running.
+    pub fn running(&self) -> usize {
+        match self {
+            Run::Each(r) => r.running(),
+            Run::Lockstep(r) => r.running(),
+        }
+    }
+
+    /// Frames left to the end of the scene's duration (of the furthest world on the CPU; of
+    /// the shared clock on the GPU).
+    pub fn frames_left(&self) -> u64 {
+        match self {
+            Run::Each(r) => {
+                let max = r.worlds.iter().map(|w| w.sim.frame).max();
+                r.frames.saturating_sub(max.unwrap_or(0))
+            }
+            Run::Lockstep(r) => r.frames.saturating_sub(r.sim.frame),
+        }
+    }
+
+    /// Every running world to the end of its current frame; the worlds frozen.
+    pub fn advance_frame(&mut self) -> Result<Vec<usize>> {
+        match self {
+            Run::Each(r) => r.advance_frame(),
+            Run::Lockstep(r) => r.advance_frame(),
+        }
+    }
+
+    /// Every running world `steps` steps on; the worlds frozen.
+    pub fn advance_steps(&mut self, steps: u64) -> Result<Vec<usize>> {
+        match self {
+            Run::Each(r) => r.advance_steps(steps),
+            Run::Lockstep(r) => r.advance_steps(steps),
+        }
+    }
+}

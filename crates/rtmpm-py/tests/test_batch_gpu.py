@@ -1,0 +1,132 @@
+"""Batches of worlds on one GPU from Python (BatchSimulation(scene, backend="cuda"): every world
+in the same CUDA kernels, rtmpm_cuda::batch::CudaBatch, stepped together by rtmpm-driver's
+LockstepRun): each world agrees with its separate CUDA run (the agreement test's aggregate
+tolerances: CUDA atomics are not bit-reproducible), resets and blow-ups leave the other worlds
+as without them, and what the GPU batch does not do raises an error naming it. Skipped without
+a usable GPU; run on the GPU machine by scripts/gpu/python.sh."""
+
+import numpy as np
+import pytest
+
+import rtmpm
+from test_batch import TOOL_SCENE, YIELDS, sweep_text, world_text
+
+ok, why = rtmpm.cuda_available()
+pytestmark = pytest.mark.skipif(not ok, reason=f"no usable GPU: {why}")
+
+DX = 0.03125  # the slump's cell (test_batch.SLUMP)
+
+
+def alone_cuda(text, frames):
+    """x, v of a separate CUDA Simulation of `text` after `frames` frames."""
+    sim = rtmpm.Simulation(rtmpm.Scene.from_toml(text), backend="cuda")
+    for _ in range(frames):
+        sim.run_frame()
+    return sim.particles.x.copy(), sim.particles.v.copy()
+
+
+def agree(what, x, v, xa, va):
+    """The agreement test's aggregate tolerances (crates/rtmpm-cuda/tests/agreement.rs, as
+    crates/rtmpm-cuda/tests/batch.rs compares a batch's world with its separate run): centre of
+    mass within 0.1 cell, kinetic energy (equal masses) within 2 %, bounding box within a cell."""
+    assert x.shape == xa.shape, what
+    com = np.linalg.norm(x.mean(0) - xa.mean(0))
+    ke, kea = (v.astype(np.float64) ** 2).sum(), (va.astype(np.float64) ** 2).sum()
+    box = max(np.abs(x.min(0) - xa.min(0)).max(), np.abs(x.max(0) - xa.max(0)).max())
+    print(f"{what}: |d com| {com / DX:.4f} dx, KE {ke:.4e} vs {kea:.4e}, |d bbox| {box / DX:.3f} dx")
+    assert com <= 0.1 * DX, f"{what}: centre of mass {com / DX:.3f} cells away"
+    assert abs(ke - kea) <= 0.02 * max(kea, 1e-12), f"{what}: kinetic energy {ke} vs {kea}"
+    assert box <= DX, f"{what}: bounding box {box / DX:.3f} cells away"
+
+
+def test_the_worlds_run_in_the_same_kernels_and_agree_with_their_separate_runs():
+    scene = rtmpm.Scene.from_toml(sweep_text('"material[0].yield_stress" = [100, 250, 600]'))
+    sim = rtmpm.Simulation(scene, backend="cuda")
+    assert isinstance(sim, rtmpm.BatchSimulation)
+    assert sim.backend.kind == "cuda" and "same kernels" in sim.backend.reason, sim.backend.reason
+    assert "3 worlds" in sim.backend.name
+    auto = rtmpm.Simulation(scene)
+    assert auto.backend.kind == "cuda" and auto.backend.reason.startswith("auto -> "), auto.backend.reason
+    x0 = sim.x.copy()
+    n = int(sim.num_particles[0])
+    assert x0.shape == (3, n, 3) and sim.uniform and sim.material.shape == (3, n)
+    assert sim.run(3) == []
+    assert list(sim.frame) == [3, 3, 3] and list(sim.steps) == [150, 150, 150]
+    np.testing.assert_allclose(sim.time, 0.15)
+    x, v = sim.x, sim.v
+    for w, y in enumerate(YIELDS):
+        xa, va = alone_cuda(world_text(y), 3)
+        agree(f"world {w}", x[w], v[w], xa, va)
+    assert not np.allclose(x[0], x[2]), "the sweep reaches the worlds"
+    assert sim.step(7) == [] and list(sim.steps) == [157] * 3
+
+
+def test_a_reset_world_starts_again_and_the_others_go_on():
+    scene = rtmpm.Scene.from_toml(sweep_text('"material[0].yield_stress" = [100, 250, 600]'))
+    sim = rtmpm.Simulation(scene, backend="cuda")
+    x0 = sim.x.copy()
+    sim.run(2)
+    sim.reset([1])
+    assert list(sim.frame) == [2, 0, 2] and sim.time[1] == 0.0 and list(sim.steps) == [100, 0, 100]
+    np.testing.assert_array_equal(sim.x[1], x0[1])
+    sim.run(2)
+    assert list(sim.frame) == [4, 2, 4]
+    x, v = sim.x, sim.v
+    for w, frames in [(0, 4), (1, 2), (2, 4)]:
+        xa, va = alone_cuda(world_text(YIELDS[w]), frames)
+        agree(f"world {w} after world 1's reset", x[w], v[w], xa, va)
+    # A reset to given positions, then every world reset: the clock starts again.
+    moved = x0[2].copy()
+    moved[:, 0] += 0.05
+    sim.reset([2], x=moved[None])
+    np.testing.assert_array_equal(sim.x[2], moved)
+    sim.reset()
+    assert list(sim.steps) == [0, 0, 0]
+    np.testing.assert_array_equal(sim.x, x0)
+
+
+def test_a_world_that_blows_up_is_frozen_and_the_others_go_on():
+    text = sweep_text('"body[0].velocity" = [[0, 0, 0], [1e5, 0, 0], [0, 0.5, 0]]')
+    sim = rtmpm.Simulation(rtmpm.Scene.from_toml(text), backend="cuda")
+    x0 = sim.x.copy()
+    assert sim.run(2) == [1]
+    st = sim.status[1]
+    assert st["state"] == "frozen" and st["frame"] == 0 and st["reason"], st
+    assert list(sim.running) == [True, False, True]
+    np.testing.assert_array_equal(sim.x[1], x0[1])
+    x, v = sim.x, sim.v
+    for w, vel in [(0, (0, 0, 0)), (2, (0, 0.5, 0))]:
+        xa, va = alone_cuda(world_text(velocity=vel), 2)
+        agree(f"world {w} beside a frozen one", x[w], v[w], xa, va)
+    sim.reset([1], v=np.zeros_like(x0[1]))
+    assert list(sim.running) == [True, True, True]
+    assert sim.step(1) == []
+
+
+def test_what_the_gpu_batch_does_not_do_raises_naming_it_and_the_cpu(tmp_path):
+    sim = rtmpm.Simulation(rtmpm.Scene.from_toml(world_text()), batch=2, backend="cuda")
+    for call in (lambda: sim.checkpoint(tmp_path / "c"),
+                 lambda: sim.set_rigid_body(0, velocity=[0, 0, 0]),
+                 lambda: sim.rigid_force(0),
+                 lambda: sim.rigid_bodies(0)):
+        with pytest.raises(rtmpm.BackendError, match=r"not available for a batch on the GPU.*backend=\"cpu\""):
+            call()
+    assert not (tmp_path / "c").exists()
+    if "rigid" in rtmpm.features:
+        with pytest.raises(rtmpm.BackendError, match="cannot run on the GPU: world 0 has rigid bodies"):
+            rtmpm.Simulation(rtmpm.Scene.from_toml(TOOL_SCENE), batch=2, backend="cuda")
+    # Worlds of different sizes (the same domain): flat arrays, as on the CPU.
+    text = sweep_text('"body[0].max" = [[0.3, 0.25, 0.3], [0.3, 0.3, 0.3], [0.35, 0.25, 0.3]]')
+    ragged = rtmpm.Simulation(rtmpm.Scene.from_toml(text), backend="cuda")
+    assert not ragged.uniform and ragged.x.shape == (int(ragged.num_particles.sum()), 3)
+    # A collider moving with the shared clock: only every world at once is reset.
+    moving = world_text() + (
+        "[[collider]]\nshape = \"box\"\nmin = [0.0, 0.0, 0.0]\nmax = [0.1, 0.5, 0.5]\n"
+        "velocity = [0.1, 0.0, 0.0]\n")
+    sim = rtmpm.Simulation(rtmpm.Scene.from_toml(moving), batch=2, backend="cuda")
+    sim.run(1)
+    with pytest.raises(rtmpm.SimulationError, match="collider 0 moves"):
+        sim.reset([0])
+    assert list(sim.frame) == [1, 1]
+    sim.reset()
+    assert list(sim.steps) == [0, 0]
