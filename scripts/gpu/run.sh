@@ -73,7 +73,8 @@
 #                the view's default (pictures overlapped with the steps), RTMPM_VIEW_OVERLAP=0 in the
 #                environment for the loop without
 #   batch        many worlds in the same kernels: tests/batch.rs (16 wedge worlds vs 16 separate runs, a
-#                reset and a blown-up world beside others, refusals) and its benchmark (1,024 sand beds of
+#                reset and a blown-up world beside others, refusals, the lockstep driver, a checkpointed
+#                batch resumed against the uninterrupted one) and its benchmark (1,024 sand beds of
 #                9,408 particles: batched vs one scene of as many particles vs worlds one after another)
 #   long         the strong-scaling scene for 12 frames (0.24 s, past its 0.1 s duration) on one GPU, fused
 #                and unfused, and at dt/2: does the 12-frame blow-up seen on 2 GPUs happen on one?
@@ -442,7 +443,7 @@ for suite in "$@"; do
         > "$OUT/batch_bench.log" 2>&1
       say "batch_benchmark rc=$?"
       grep -hoE "BENCH.*|panicked.*" "$OUT/batch_bench.log" | tee -a "$S"
-      grep -hE "^world|^blow-up|refused in" "$OUT/test_batch.log" | head -40 | tee -a "$S"
+      grep -hE "^world|^lockstep|^resumed|^blow-up|refused in" "$OUT/test_batch.log" | head -48 | tee -a "$S"
       ;;
     *) say "unknown suite $suite" ;;
   esac

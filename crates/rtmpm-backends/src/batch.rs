@@ -59,13 +59,11 @@ pub fn choose(
 
 /// [`choose`] for the worlds `worlds` with the CUDA options `cuda`: the GPU probed (unless the
 /// CPU is asked for), the batch checked against what the GPU batch supports
-/// (`rtmpm_cuda::batch::unsupported`) and against `also` (what the caller needs that the GPU
-/// batch does not do, e.g. checkpoints).
+/// (`rtmpm_cuda::batch::unsupported`).
 pub fn choose_for(
     kind: BackendKind,
     worlds: &[Scene],
     cuda: &CudaOptions,
-    also: Option<String>,
 ) -> Result<BatchChoice, String> {
     if kind == BackendKind::Cpu {
         return choose(kind, Err("not probed"), None);
@@ -73,7 +71,7 @@ pub fn choose_for(
     let gpu = rtmpm_cuda::probe()
         .map(|i| i.name)
         .map_err(|e| e.to_string());
-    let support = rtmpm_cuda::batch::unsupported(worlds, cuda).or(also);
+    let support = rtmpm_cuda::batch::unsupported(worlds, cuda);
     choose(
         kind,
         gpu.as_deref().map_err(String::as_str),
@@ -169,14 +167,12 @@ mod tests {
         let sort: CudaOptions = "p2g=sort".parse().unwrap();
         let why = rtmpm_cuda::batch::unsupported(std::slice::from_ref(&plain), &sort).unwrap();
         assert!(why.contains("p2g=sort"), "{why}");
-        // Whatever the caller adds (here: checkpoints) counts as lacking too, on the CPU
-        // machine the probe fails first for auto: the CPU with the probe's reason.
-        let c = choose_for(
-            BackendKind::Auto,
-            &[plain],
-            &opts,
-            Some("checkpoints".into()),
-        );
-        assert_eq!(c.unwrap().kind, BackendKind::Cpu);
+        // The probe decides between them for a batch the GPU runs.
+        let c = choose_for(BackendKind::Auto, &[plain], &opts).unwrap();
+        let want = match rtmpm_cuda::probe() {
+            Ok(_) => BackendKind::Cuda,
+            Err(_) => BackendKind::Cpu,
+        };
+        assert_eq!(c.kind, want, "{}", c.reason);
     }
 }

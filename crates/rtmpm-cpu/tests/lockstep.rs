@@ -56,9 +56,19 @@ struct SideBySide {
 
 impl SideBySide {
     fn new(scenes: &[Scene]) -> SideBySide {
+        let p: Vec<Particles> = scenes
+            .iter()
+            .map(|s| s.sample_particles().expect("sample"))
+            .collect();
+        SideBySide::from_particles(scenes, &p)
+    }
+
+    /// The worlds `scenes` with their particles `p` (a resumed batch's).
+    fn from_particles(scenes: &[Scene], p: &[Particles]) -> SideBySide {
         let worlds = scenes
             .iter()
-            .map(|s| CpuBackend::new(s, s.sample_particles().expect("sample"), None).expect("cpu"))
+            .zip(p)
+            .map(|(s, p)| CpuBackend::new(s, p.clone(), None).expect("cpu"))
             .collect();
         SideBySide {
             scenes: scenes.to_vec(),
@@ -387,4 +397,146 @@ fn resets_that_cannot_work_are_refused_before_any_world_changes() {
     r.reset_worlds((0..3).map(|w| (w, start(w))).collect())
         .expect("reset all");
     assert_eq!(r.sim.step, 0);
+}
+
+/// Every file under `dir` (relative path, bytes), the run locks aside.
+fn files_under(dir: &std::path::Path) -> std::collections::BTreeMap<String, Vec<u8>> {
+    let mut out = std::collections::BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).expect("read folder").flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if !p.ends_with(".rtmpm-run") && !p.to_string_lossy().contains(".lock") {
+                let rel = p.strip_prefix(dir).expect("under").display().to_string();
+                out.insert(rel, std::fs::read(&p).expect("read file"));
+            }
+        }
+    }
+    out
+}
+
+#[test]
+#[cfg_attr(
+    feature = "f64",
+    ignore = "a checkpoint holds the particles' f32 interface state: an f64 run resumes from it \
+              rounded, not bit for bit"
+)]
+fn a_resumed_lockstep_batch_equals_the_uninterrupted_one_bit_for_bit() {
+    // World 1 blows up in frame 1 and stays frozen through the checkpoint and the resume.
+    let text = SLUMP.replace(
+        "\"material[0].yield_stress\" = [20, 150, 600]",
+        "\"body[0].velocity\" = [[0, 0, 0], [1e5, 0, 0], [0, 0.5, 0]]",
+    );
+    let b = BatchScene::from_toml(&text, "wedge.toml").unwrap_or_else(|e| panic!("{e}"));
+    let top = std::env::temp_dir().join(format!("rtmpm-lockstep-ckpt-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&top);
+    let options = |dir: &str, frames: u64| BatchOptions {
+        frames: Some(frames),
+        out_dir: Some(top.join(dir)),
+        overwrite: false,
+    };
+    let every = Some((2, text.as_str(), "wedge.toml"));
+    let fresh = |dir: &str, frames: u64| {
+        let backend = Box::new(SideBySide::new(&b.worlds));
+        let mut r = LockstepRun::new(
+            &b,
+            &text,
+            b.worlds[0].clone(),
+            backend,
+            &options(dir, frames),
+        )
+        .expect("batch");
+        r.execute_checkpointed(every, |_, _| {}).expect("run");
+        r
+    };
+    let whole = fresh("whole", 4);
+    assert_eq!((whole.sim.frame, whole.running()), (4, 2));
+    drop(fresh("cut", 2));
+    let ckpt = top.join("cut").join("checkpoint_00002");
+    assert!(ckpt.join("batch.toml").is_file() && ckpt.join("world_002.ckpt").is_file());
+    let mut again = LockstepRun::resume(
+        &b,
+        &text,
+        &ckpt,
+        |p| {
+            let s = SideBySide::from_particles(&b.worlds, p);
+            Ok((b.worlds[0].clone(), Box::new(s)))
+        },
+        &options("cut", 4),
+    )
+    .expect("resume");
+    assert_eq!((again.sim.frame, again.sim.step), (2, 100));
+    assert!(matches!(
+        again.worlds[1].status,
+        WorldStatus::Frozen { frame: 0, .. }
+    ));
+    again
+        .execute_checkpointed(every, |_, _| {})
+        .expect("run on");
+    for w in 0..3 {
+        assert_eq!(
+            bits(again.worlds[w].particles()),
+            bits(whole.worlds[w].particles()),
+            "world {w}"
+        );
+    }
+    let (a, c) = (
+        files_under(&top.join("whole")),
+        files_under(&top.join("cut")),
+    );
+    assert_eq!(a.keys().collect::<Vec<_>>(), c.keys().collect::<Vec<_>>());
+    assert!(
+        a.contains_key("checkpoint_00004/world_000.ckpt"),
+        "{:?}",
+        a.keys()
+    );
+    for (k, v) in &a {
+        assert!(
+            c[k] == *v,
+            "{k} differs between the resumed and the uninterrupted run"
+        );
+    }
+    // A checkpoint whose running worlds are at different times cannot share one clock.
+    let mut split = LockstepRun::resume(
+        &b,
+        &text,
+        &ckpt,
+        |p| {
+            Ok((
+                b.worlds[0].clone(),
+                Box::new(SideBySide::from_particles(&b.worlds, p)),
+            ))
+        },
+        &BatchOptions::default(),
+    )
+    .expect("resume without files");
+    split.write_first_frame().expect("read");
+    let start = b.worlds[0].sample_particles().expect("sample");
+    split.reset_worlds(vec![(0, start)]).expect("reset world 0");
+    let odd = top.join("odd");
+    split
+        .checkpoint(&odd, &text, "wedge.toml")
+        .expect("checkpoint");
+    let e = LockstepRun::resume(
+        &b,
+        &text,
+        &odd,
+        |p| {
+            Ok((
+                b.worlds[0].clone(),
+                Box::new(SideBySide::from_particles(&b.worlds, p)),
+            ))
+        },
+        &BatchOptions::default(),
+    )
+    .err()
+    .expect("refused")
+    .to_string();
+    assert!(
+        e.contains("different times") && e.contains("--backend cpu"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&top).expect("clean up");
 }

@@ -375,14 +375,15 @@ def test_auto_runs_on_the_cpu_what_the_gpu_batch_does_not_do(tmp_path):
         assert "the GPU batch cannot run it: world 0 has rigid bodies" in sim.backend.reason
         with pytest.raises(rtmpm.BackendError, match="cannot run on the GPU: world 0 has rigid bodies"):
             rtmpm.Simulation(rtmpm.Scene.from_toml(TOOL_SCENE), batch=2, backend="cuda")
-    # A resume: checkpoints of the GPU batch are not built, so auto resumes on the CPU.
+    # A resume: auto resumes a CPU batch's checkpoint on the GPU when there is one.
     scene = rtmpm.Scene.from_toml(world_text())
     first = rtmpm.Simulation(scene, batch=2, backend="cpu")
     first.step(3)
     first.checkpoint(tmp_path / "ckpt")
     again = rtmpm.BatchSimulation.resume(tmp_path / "ckpt", scene, batch=2)
-    assert again.backend.kind == "cpu" and list(again.steps) == [3, 3]
-    if GPU_OK:
-        assert "resuming a checkpoint" in again.backend.reason
-    with pytest.raises(rtmpm.BackendError, match="resuming a checkpoint" if GPU_OK else "not usable here"):
-        rtmpm.BatchSimulation.resume(tmp_path / "ckpt", scene, batch=2, backend="cuda")
+    assert again.backend.kind == ("cuda" if GPU_OK else "cpu"), again.backend.reason
+    assert list(again.steps) == [3, 3]
+    assert again.x.tobytes() == first.x.tobytes(), "the saved state, as it was"
+    if not GPU_OK:
+        with pytest.raises(rtmpm.BackendError, match="not usable here"):
+            rtmpm.BatchSimulation.resume(tmp_path / "ckpt", scene, batch=2, backend="cuda")

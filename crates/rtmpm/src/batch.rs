@@ -103,26 +103,13 @@ pub fn describe(b: &BatchScene) -> String {
     out
 }
 
-/// `--resume` and `--checkpoint-every` of a batch: refused where they cannot work (on the GPU,
-/// checkpoints without an output folder), before anything is made.
+/// `--resume` and `--checkpoint-every` of a batch: refused where they cannot work (no
+/// checkpoint at all, checkpoints without an output folder), before anything is made.
 fn check_checkpoint_flags(args: &crate::run::RunArgs) -> Result<()> {
-    use crate::backend::BackendKind;
-    let flag = match (&args.resume, args.checkpoint_every) {
-        (Some(_), _) => "--resume",
-        (None, Some(_)) => "--checkpoint-every",
-        (None, None) => return Ok(()),
-    };
     if args.checkpoint_every == Some(0) {
         bail!(
             "--checkpoint-every 0 would write no checkpoint\n  fix: give --checkpoint-every N \
              (a checkpoint every N frames, N from 1), or leave it out"
-        );
-    }
-    if args.backend == BackendKind::Cuda {
-        bail!(
-            "{flag}: checkpoints of a batch on the GPU are not supported yet (the worlds in the \
-             same kernels are not saved and put back)\n  fix: --backend cpu checkpoints and \
-             resumes a batch (bit for bit), or run it on the GPU without {flag}"
         );
     }
     if args.checkpoint_every.is_some() && args.no_output {
@@ -212,16 +199,9 @@ fn choose_backend(
     b: &BatchScene,
 ) -> Result<crate::backend::BackendKind> {
     use crate::backend::BackendKind;
-    let lacks = (args.resume.is_some() || args.checkpoint_every.is_some()).then(|| {
-        "checkpoints (--checkpoint-every, --resume) are not built for the GPU batch yet".to_string()
-    });
-    let choice = rtmpm_backends::batch::choose_for(
-        args.backend.into(),
-        &b.worlds,
-        &args.cuda_options,
-        lacks,
-    )
-    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let choice =
+        rtmpm_backends::batch::choose_for(args.backend.into(), &b.worlds, &args.cuda_options)
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
     if args.backend == BackendKind::Auto {
         eprintln!("backend: {}", choice.reason);
     }
@@ -263,8 +243,16 @@ pub fn run(args: &crate::run::RunArgs) -> Result<()> {
         overwrite: args.overwrite,
     };
     let start = std::time::Instant::now();
+    let origin = path.display().to_string();
+    let every = args
+        .checkpoint_every
+        .map(|k| (k, text.as_str(), origin.as_str()));
     if choose_backend(args, b)? == BackendKind::Cuda {
-        return gpu::run(b, &text, &options, &args.cuda_options, start);
+        let ckpt = gpu::Checkpoints {
+            resume: args.resume.as_deref(),
+            every,
+        };
+        return gpu::run(b, &text, &options, &args.cuda_options, (start, ckpt));
     }
     eprintln!("batch: {} worlds on the CPU backend", b.count());
     let cuda = rtmpm_cuda::CudaOptions::default();
@@ -300,10 +288,6 @@ pub fn run(args: &crate::run::RunArgs) -> Result<()> {
     };
     let total = run.frames;
     run.on_world_done(world_progress(start));
-    let origin = path.display().to_string();
-    let every = args
-        .checkpoint_every
-        .map(|k| (k, text.as_str(), origin.as_str()));
     run.execute_checkpointed(every, |r, frozen| {
         for &w in frozen {
             if let WorldStatus::Frozen { reason, .. } = &r.worlds[w].status {

@@ -37,7 +37,7 @@ pub struct RunArgs {
     #[arg(long)]
     pub threads: Option<usize>,
     /// Write a checkpoint every N frames: OUT/checkpoint_NNNNN.ckpt (of a batch scene: the
-    /// folder OUT/checkpoint_NNNNN/, every world; CPU backend).
+    /// folder OUT/checkpoint_NNNNN/, every world).
     #[arg(long, value_name = "N")]
     pub checkpoint_every: Option<u64>,
     /// Continue from a checkpoint written by --checkpoint-every (of a batch: its

@@ -225,7 +225,7 @@ fn a_batch_checkpoint_of_another_batch_or_damaged_is_refused_with_the_fix() {
         t.contains("not a folder") && t.contains("checkpoint_NNNNN"),
         "{t}"
     );
-    // On the GPU: refused before anything runs.
+    // --backend cuda without a usable GPU: refused before anything runs, naming the CPU.
     let o = rtmpm(&[
         "run",
         &scene,

@@ -32,9 +32,8 @@ impl BatchRun {
     /// `origin` where it came from, both stored with each world.
     pub fn checkpoint(&mut self, dir: &Path, text: &str, origin: &str) -> Result<()> {
         prepare_dir(dir)?;
-        let count = self.worlds.len();
-        let mut rows = ArrayOfTables::new();
-        for (w, world) in self.worlds.iter_mut().enumerate() {
+        let mut saved = Vec::with_capacity(self.worlds.len());
+        for world in self.worlds.iter_mut() {
             let sim = &mut world.sim;
             let particles = match world.status {
                 WorldStatus::Running => {
@@ -65,19 +64,13 @@ impl BatchRun {
                 files: sim.scene.file_hashes(),
                 particles,
             };
-            let file = format!("{}.ckpt", world_dir_name(w, count));
-            let path = dir.join(&file);
-            ckpt.save(&path)
-                .with_context(|| format!("writing {}", path.display()))?;
-            rows.push(row_table(&file, &world.label, &world.status));
+            saved.push(Saved {
+                label: world.label.clone(),
+                status: world.status.clone(),
+                ckpt,
+            });
         }
-        let mut doc = DocumentMut::new();
-        doc["format"] = value("rtmpm batch checkpoint 1");
-        doc["count"] = value(count as i64);
-        doc["world"] = toml_edit::Item::ArrayOfTables(rows);
-        let path = dir.join(TABLE);
-        rtmpm_io::write_atomic(&path, doc.to_string().as_bytes())
-            .with_context(|| format!("writing {}", path.display()))
+        write_folder(dir, &saved)
     }
 
     /// The batch `batch` (read from the scene file whose text is `text`) at the state saved in
@@ -94,58 +87,12 @@ impl BatchRun {
         mut backend: impl FnMut(&Scene, usize, Particles) -> Result<Box<dyn Backend>>,
         options: &BatchOptions,
     ) -> Result<BatchRun> {
-        let at = || format!("cannot resume the batch from {}", dir.display());
-        let rows = read_table(dir).with_context(at)?;
-        if rows.len() != batch.count() {
-            bail!(
-                "{}: it holds {} worlds, the batch has {} ({TABLE}: count = {})\n  fix: resume \
-                 it with the scene file (and batch count) it was written from",
-                at(),
-                rows.len(),
-                batch.count(),
-                rows.len()
-            );
-        }
-        let mut saved = Vec::with_capacity(rows.len());
-        for (w, row) in rows.iter().enumerate() {
-            let path = dir.join(format!("{}.ckpt", world_dir_name(w, rows.len())));
-            let ckpt = match Checkpoint::load(&path) {
-                Ok(c) => c,
-                Err(e) => bail!(
-                    "{}: {}: {e}\n  fix: resume from another (earlier) checkpoint folder, or run \
-                     the batch again from its start",
-                    at(),
-                    path.display()
-                ),
-            };
-            if ckpt.scene_toml != text {
-                bail!(
-                    "{}: {} was written from another scene text (from {})\n  fix: resume it \
-                     with the scene file it was written from, unchanged",
-                    at(),
-                    path.display(),
-                    ckpt.scene_origin
-                );
-            }
-            if row.label != batch.label(w) {
-                bail!(
-                    "{}: {TABLE}: world {w} is `{}`, the batch's is `{}`\n  fix: resume it with \
-                     the scene file (and batch) it was written from",
-                    at(),
-                    row.label,
-                    batch.label(w)
-                );
-            }
-            batch.worlds[w]
-                .check_checkpoint(&ckpt)
-                .with_context(|| format!("{}: {}", at(), path.display()))?;
-            saved.push(ckpt);
-        }
+        let mut saved = read_folder(batch, text, dir)?;
         let mut particles: Vec<Option<Particles>> = saved
             .iter_mut()
-            .map(|c| Some(std::mem::take(&mut c.particles)))
+            .map(|s| Some(std::mem::take(&mut s.ckpt.particles)))
             .collect();
-        let states: Vec<(u64, f64)> = saved.iter().map(|c| (c.frame, c.time)).collect();
+        let states: Vec<(u64, f64)> = saved.iter().map(|s| (s.ckpt.frame, s.ckpt.time)).collect();
         let mut run = BatchRun::build(
             batch,
             text,
@@ -156,25 +103,117 @@ impl BatchRun {
             options,
             Some(&states),
         )?;
-        for (w, (ckpt, row)) in saved.into_iter().zip(rows).enumerate() {
+        for (w, s) in saved.into_iter().enumerate() {
             let world = &mut run.worlds[w];
-            world.sim.time = ckpt.time;
-            world.sim.step = ckpt.step;
-            world.sim.frame = ckpt.frame;
+            world.sim.time = s.ckpt.time;
+            world.sim.step = s.ckpt.step;
+            world.sim.frame = s.ckpt.frame;
             world
                 .sim
                 .backend
-                .set_rigid_poses(&ckpt.bodies)
+                .set_rigid_poses(&s.ckpt.bodies)
                 .with_context(|| format!("world {w}: cannot restore its rigid bodies"))?;
             world.sim.backend.read_particles(&mut world.kept)?;
-            world.status = row.status;
+            world.status = s.status;
         }
         Ok(run)
     }
 }
 
+/// A world as a checkpoint folder holds it: its row of the table and its checkpoint.
+pub(super) struct Saved {
+    /// What sets it apart.
+    pub label: String,
+    /// Running or frozen.
+    pub status: WorldStatus,
+    /// Its clock, rigid bodies and particles (a frozen world's last good state).
+    pub ckpt: Checkpoint,
+}
+
+/// Write the worlds `saved` into the folder `dir` (made ready by [`prepare_dir`]): one
+/// `world_NNN.ckpt` each, then the table.
+pub(super) fn write_folder(dir: &Path, saved: &[Saved]) -> Result<()> {
+    let count = saved.len();
+    let mut rows = ArrayOfTables::new();
+    for (w, s) in saved.iter().enumerate() {
+        let file = format!("{}.ckpt", world_dir_name(w, count));
+        let path = dir.join(&file);
+        s.ckpt
+            .save(&path)
+            .with_context(|| format!("writing {}", path.display()))?;
+        rows.push(row_table(&file, &s.label, &s.status));
+    }
+    let mut doc = DocumentMut::new();
+    doc["format"] = value("rtmpm batch checkpoint 1");
+    doc["count"] = value(count as i64);
+    doc["world"] = toml_edit::Item::ArrayOfTables(rows);
+    let path = dir.join(TABLE);
+    rtmpm_io::write_atomic(&path, doc.to_string().as_bytes())
+        .with_context(|| format!("writing {}", path.display()))
+}
+
+/// The worlds saved in the folder `dir`, checked against the batch `batch` (read from the
+/// scene file whose text is `text`): refused with the reason and the fix when the checkpoint
+/// was written from another scene text, for another count or other worlds (labels), or cannot
+/// be read.
+pub(super) fn read_folder(batch: &BatchScene, text: &str, dir: &Path) -> Result<Vec<Saved>> {
+    let at = || format!("cannot resume the batch from {}", dir.display());
+    let rows = read_table(dir).with_context(at)?;
+    if rows.len() != batch.count() {
+        bail!(
+            "{}: it holds {} worlds, the batch has {} ({TABLE}: count = {})\n  fix: resume \
+             it with the scene file (and batch count) it was written from",
+            at(),
+            rows.len(),
+            batch.count(),
+            rows.len()
+        );
+    }
+    let mut saved = Vec::with_capacity(rows.len());
+    let count = rows.len();
+    for (w, row) in rows.into_iter().enumerate() {
+        let path = dir.join(format!("{}.ckpt", world_dir_name(w, count)));
+        let ckpt = match Checkpoint::load(&path) {
+            Ok(c) => c,
+            Err(e) => bail!(
+                "{}: {}: {e}\n  fix: resume from another (earlier) checkpoint folder, or run \
+                 the batch again from its start",
+                at(),
+                path.display()
+            ),
+        };
+        if ckpt.scene_toml != text {
+            bail!(
+                "{}: {} was written from another scene text (from {})\n  fix: resume it \
+                 with the scene file it was written from, unchanged",
+                at(),
+                path.display(),
+                ckpt.scene_origin
+            );
+        }
+        if row.label != batch.label(w) {
+            bail!(
+                "{}: {TABLE}: world {w} is `{}`, the batch's is `{}`\n  fix: resume it with \
+                 the scene file (and batch) it was written from",
+                at(),
+                row.label,
+                batch.label(w)
+            );
+        }
+        batch.worlds[w]
+            .check_checkpoint(&ckpt)
+            .with_context(|| format!("{}: {}", at(), path.display()))?;
+        saved.push(Saved {
+            label: row.label,
+            status: row.status,
+            ckpt,
+        });
+    }
+    Ok(saved)
+}
+
 /// The folder made ready: created, or refused when it holds files but no batch checkpoint.
-fn prepare_dir(dir: &Path) -> Result<()> {
+pub(super) fn prepare_dir(dir: &Path) -> Result<()> {
     if dir.is_dir() && !dir.join(TABLE).is_file() {
         let mut entries =
             std::fs::read_dir(dir).with_context(|| format!("cannot read {}", dir.display()))?;

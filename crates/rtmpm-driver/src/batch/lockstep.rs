@@ -13,7 +13,9 @@
 //! ([`LockstepRun::advance_steps`]) and resets chosen worlds ([`LockstepRun::reset_worlds`]):
 //! the worlds share one clock, so a world's time, steps and frames count from its last reset.
 
-use super::{BatchOptions, WorldStatus, open_out, summary_row, world_output};
+mod checkpoint;
+
+use super::{BatchOptions, WorldStatus, checkpoint_dir_name, open_out, summary_row, world_output};
 use crate::outdir::OutDir;
 use crate::output::FrameOutput;
 use crate::simulation::Simulation;
@@ -87,6 +89,8 @@ pub struct LockstepRun<B: Worlds + ?Sized> {
     /// The frames the run goes to.
     pub frames: u64,
     out: Option<OutDir>,
+    /// Taken up from a checkpoint (its current frame's files are already written).
+    resumed: bool,
 }
 
 impl<B: Worlds + ?Sized> LockstepRun<B> {
@@ -100,6 +104,18 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         backend: Box<B>,
         options: &BatchOptions,
     ) -> Result<LockstepRun<B>> {
+        Self::build(batch, text, (scene, backend), options, None)
+    }
+
+    /// [`LockstepRun::new`], or, with `resumed` (each world's frame and time in a checkpoint),
+    /// a run whose folders are taken up after those frames rather than started afresh.
+    fn build(
+        batch: &BatchScene,
+        text: &str,
+        (scene, backend): (Scene, Box<B>),
+        options: &BatchOptions,
+        resumed: Option<&[(u64, f64)]>,
+    ) -> Result<LockstepRun<B>> {
         let count = batch.count();
         if backend.worlds() != count {
             bail!(
@@ -107,7 +123,8 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
                 backend.worlds()
             );
         }
-        let out = open_out(batch, text, options, None)?;
+        let last = resumed.map(|r| r.iter().map(|s| s.0).max().unwrap_or(0));
+        let out = open_out(batch, text, options, last)?;
         let mut worlds = Vec::with_capacity(count);
         for (w, s) in batch.worlds.iter().enumerate() {
             let label = batch.label(w);
@@ -118,7 +135,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
                     s,
                     (text, &label),
                     options,
-                    None,
+                    resumed.map(|r| r[w]),
                 )?),
                 None => None,
             };
@@ -137,6 +154,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             worlds,
             frames: options.frames.unwrap_or_else(|| batch.base.time.frames()),
             out,
+            resumed: resumed.is_some(),
         };
         run.write_summary()?;
         Ok(run)
@@ -158,11 +176,37 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
 
     /// Run every world to the last frame (frame 0 written first); `frame_done` is called after
     /// each frame with the worlds frozen in it.
-    pub fn execute(&mut self, mut frame_done: impl FnMut(&Self, &[usize])) -> Result<()> {
-        self.read_and_write_frame()?;
+    pub fn execute(&mut self, frame_done: impl FnMut(&Self, &[usize])) -> Result<()> {
+        self.execute_checkpointed(None, frame_done)
+    }
+
+    /// [`LockstepRun::execute`], with a checkpoint of every world
+    /// ([`LockstepRun::checkpoint`]) into the output folder's `checkpoint_NNNNN/` after every
+    /// frame that is a multiple of `every.0`; `every.1` is the scene file's text and `every.2`
+    /// where it came from. A resumed run starts at its checkpoint's frame (whose files are
+    /// already written).
+    pub fn execute_checkpointed(
+        &mut self,
+        every: Option<(u64, &str, &str)>,
+        mut frame_done: impl FnMut(&Self, &[usize]),
+    ) -> Result<()> {
+        if !self.resumed {
+            self.read_and_write_frame()?;
+        }
         while self.running() > 0 && self.sim.frame < self.frames {
             let frozen = self.advance_frame()?;
             frame_done(self, &frozen);
+            let frame = self.sim.frame;
+            if let Some((k, text, origin)) = every
+                && k > 0
+                && frame.is_multiple_of(k)
+            {
+                let Some(out) = &self.out else {
+                    bail!("checkpoints of a batch run go into its output folder: it has none");
+                };
+                let dir = out.dir.join(checkpoint_dir_name(frame));
+                self.checkpoint(&dir, text, origin)?;
+            }
         }
         self.write_summary()
     }

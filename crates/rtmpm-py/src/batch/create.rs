@@ -141,6 +141,30 @@ fn new_run(s: &mut Start) -> anyhow::Result<Run> {
     Ok(Run::Each(run))
 }
 
+/// The worlds taken up from the checkpoint folder `path`, on the backend chosen (on the GPU
+/// every world in the same kernels at the checkpoint's shared clock).
+fn resumed_run(s: &mut Start, path: &std::path::Path) -> anyhow::Result<Run> {
+    let text = &s.scene.get().text;
+    let options = BatchOptions::default();
+    if s.choice.kind == BackendKind::Cuda {
+        let make = |p: &[Particles]| {
+            let batch = CudaBatch::new(&s.worlds.worlds, p, s.request.cuda.clone())
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
+            Ok((batch.scene().clone(), Box::new(batch)))
+        };
+        let run = LockstepRun::resume(&s.worlds, text, path, make, &options)?;
+        return Ok(Run::Lockstep(Box::new(run)));
+    }
+    let cpu = BackendRequest {
+        kind: BackendKind::Cpu,
+        ..s.request.clone()
+    };
+    let make = |scene: &Scene, _, p| make_backend(&cpu, scene, p);
+    Ok(Run::Each(BatchRun::resume(
+        &s.worlds, text, path, make, &options,
+    )?))
+}
+
 /// A world's backend from its particles.
 pub(super) fn make_backend(
     req: &BackendRequest,
@@ -170,14 +194,12 @@ type BackendArgs<'a, 'py> = (
 
 impl Start {
     /// The worlds of `scene` (`batch` copies or its `[batch]`), checked, the backend they run
-    /// on (`gpu_lacks`: what the caller needs that the GPU batch does not do), and every
-    /// world's particles at time 0 (what a reset starts from).
+    /// on, and every world's particles at time 0 (what a reset starts from).
     fn new(
         py: Python<'_>,
         scene: &Bound<'_, PyAny>,
         (batch, precision): (Option<i64>, Option<&str>),
         (backend, threads, gpus, cuda_options): BackendArgs<'_, '_>,
-        gpu_lacks: Option<String>,
     ) -> PyResult<Start> {
         let request = batch_request(py, backend, threads, gpus, cuda_options)?;
         let scene = scene_arg(py, scene)?;
@@ -185,7 +207,7 @@ impl Start {
         crate::scene::warn(py, &s.scene)?;
         let worlds = worlds_of(s, batch, precision)?;
         let choice = py
-            .detach(|| choose_for(request.kind, &worlds.worlds, &request.cuda, gpu_lacks))
+            .detach(|| choose_for(request.kind, &worlds.worlds, &request.cuda))
             .map_err(BackendError::new_err)?;
         let from_dict = s.origin == "<dict>";
         let mut initial = Vec::with_capacity(worlds.count());
@@ -254,7 +276,7 @@ impl PyBatch {
         cuda_options: Option<&str>,
     ) -> PyResult<PyBatch> {
         let args = (backend, threads, gpus, cuda_options);
-        let start = Start::new(py, scene, (batch, precision), args, None)?;
+        let start = Start::new(py, scene, (batch, precision), args)?;
         start.finish(py, new_run, BackendError::new_err)
     }
 
@@ -263,7 +285,8 @@ impl PyBatch {
     /// when they make other worlds, or the scene's text differs), the backend arguments those of
     /// the constructor. Every world takes up its clock, particles, rigid bodies and status (a
     /// frozen world stays frozen); on the CPU the batch then goes on bit for bit as the one
-    /// that wrote it. :meth:`reset` still starts a world from its scene's time 0.
+    /// that wrote it, on the GPU within what its atomic sums allow (a GPU batch resumes worlds
+    /// at one clock: a checkpoint of worlds reset at different times is refused). :meth:`reset` still starts a world from its scene's time 0.
     #[staticmethod]
     #[pyo3(signature = (path, scene, batch = None, backend = "auto", precision = None, threads = None, gpus = None, cuda_options = None))]
     #[allow(clippy::too_many_arguments)] // Python's keyword arguments
@@ -279,25 +302,7 @@ impl PyBatch {
         cuda_options: Option<&str>,
     ) -> PyResult<PyBatch> {
         let args = (backend, threads, gpus, cuda_options);
-        let lacks = "resuming a checkpoint (not built for the GPU batch yet)";
-        let start = Start::new(py, scene, (batch, precision), args, Some(lacks.into()))?;
-        start.finish(
-            py,
-            |s| {
-                let cpu = BackendRequest {
-                    kind: BackendKind::Cpu,
-                    ..s.request.clone()
-                };
-                BatchRun::resume(
-                    &s.worlds,
-                    &s.scene.get().text,
-                    &path,
-                    |scene, _, p| make_backend(&cpu, scene, p),
-                    &BatchOptions::default(),
-                )
-                .map(Run::Each)
-            },
-            RtmpmError::new_err,
-        )
+        let start = Start::new(py, scene, (batch, precision), args)?;
+        start.finish(py, |s| resumed_run(s, &path), RtmpmError::new_err)
     }
 }

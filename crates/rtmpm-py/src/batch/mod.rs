@@ -57,7 +57,7 @@ impl Worlds {
 /// world runs in the same CUDA kernels, each isolated in the grid, at one time step for all
 /// worlds (the smallest any world needs); a world's time, frames and steps count from its last
 /// reset. What the GPU batch does not do (rigid bodies, emitters, worlds that differ in domain
-/// or colliders, checkpoints) raises an error naming it and ``backend="cpu"``.
+/// or colliders) raises an error naming it and ``backend="cpu"``.
 ///
 /// Arrays: :attr:`x`, :attr:`v`, :attr:`mass`, :attr:`material` are shaped ``(N, n, ...)``
 /// when every world has ``n`` particles (:attr:`uniform`), else flat (all worlds' particles one
