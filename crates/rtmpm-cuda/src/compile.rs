@@ -443,6 +443,56 @@ mod tests {
         });
     }
 
+    /// The kernels that scatter (mass, momentum) into grid nodes through `atomic_add_node`
+    /// (`kernels/p2g/warp.cuh`; a node's four reals lie side by side, 16-byte aligned).
+    const NODE_SCATTER_KERNELS: [&str; 5] = ["p2g", "g2p2g", "g2p2g_fluid", "p2g_mpm", "p2g_musl"];
+
+    /// The atomic adds of kernel `k` in optimised PTX: (16-byte vector adds of f32, scalar adds of
+    /// `real`), global or generic.
+    fn node_atomics(ptx: &str, k: &str, real: &str) -> (usize, usize) {
+        let body = ptx
+            .split(&format!(".entry {k}("))
+            .nth(1)
+            .and_then(|s| s.split("\n}\n").next())
+            .unwrap_or_default();
+        let ops = |suffix: &str| {
+            body.lines()
+                .map(str::trim_start)
+                .filter(|op| {
+                    (op.starts_with("atom.") || op.starts_with("red."))
+                        && op
+                            .split_whitespace()
+                            .next()
+                            .is_some_and(|o| o.ends_with(suffix))
+                })
+                .count()
+        };
+        (ops(".add.v4.f32"), ops(&format!(".add.{real}")))
+    }
+
+    /// Before Hopper (sm_80) every kernel compiles and the node scatter is four scalar atomics:
+    /// the 16-byte vector atomic add exists from sm_90 on. Front end only: there the node
+    /// function stays a call (its loop of four too), so its body is read.
+    #[test]
+    fn every_kernel_compiles_for_sm80_with_scalar_node_atomics() {
+        if !nvrtc_or_skip() {
+            return;
+        }
+        let mut opts = nvrtc_options(&KernelOptions::all_models((8, 0), true, false));
+        opts.push("--Ofast-compile=max".into());
+        let ptx = program_source(false)
+            .and_then(|src| nvrtc(&src, "rtmpm_pipeline.cu", opts))
+            .unwrap_or_else(|e| panic!("sm_80: {e}"));
+        assert_every_kernel(&ptx, "sm_80");
+        assert!(!ptx.contains("atomicAddP6float4") && !ptx.contains(".add.v4.f32"));
+        let node = ptx
+            .split(".func _Z15atomic_add_nodePfPKf(")
+            .nth(1)
+            .and_then(|s| s.split("\n}\n").next())
+            .unwrap_or_default();
+        assert!(node.contains("_Z9atomicAddPff"), "{node}");
+    }
+
     /// One variant of [`every_kernel_compiles_with_nvrtc_for_sm90`]: every kernel and the
     /// constant symbols in its PTX; `optimised`: compiled as the backend does, and the device
     /// fill and the device's walk of bodies rounded op by op.
@@ -474,6 +524,18 @@ mod tests {
             }
             if !optimised {
                 return;
+            }
+            // The node scatter: one 16-byte vector atomic a node in f32 on sm_90 (ptxas 13.0
+            // assembles it as one `REDG.E.ADD.F32x4`), four scalar ones in f64.
+            let real = if f64 { "f64" } else { "f32" };
+            for k in NODE_SCATTER_KERNELS {
+                let (v4, scalar) = node_atomics(&ptx, k, real);
+                let ok = if f64 {
+                    v4 == 0 && scalar > 0
+                } else {
+                    v4 > 0 && scalar == 0
+                };
+                assert!(ok, "{o:?}: {k}: {v4} vector atomics, {scalar} scalar");
             }
             // The device fill rounds every operation on its own and keeps subnormals (the host
             // packing's arithmetic, word for word: src/setup/fill/mod.rs), also under fast math.
