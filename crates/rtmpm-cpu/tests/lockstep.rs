@@ -456,17 +456,16 @@ fn a_resumed_lockstep_batch_equals_the_uninterrupted_one_bit_for_bit() {
     drop(fresh("cut", 2));
     let ckpt = top.join("cut").join("checkpoint_00002");
     assert!(ckpt.join("batch.toml").is_file() && ckpt.join("world_002.ckpt").is_file());
-    let mut again = LockstepRun::resume(
-        &b,
-        &text,
-        &ckpt,
-        |p| {
-            let s = SideBySide::from_particles(&b.worlds, p);
-            Ok((b.worlds[0].clone(), Box::new(s)))
-        },
-        &options("cut", 4),
-    )
-    .expect("resume");
+    let resume = |dir: &std::path::Path, options: &BatchOptions| {
+        let side = |p: &[Particles]| {
+            Ok((
+                b.worlds[0].clone(),
+                Box::new(SideBySide::from_particles(&b.worlds, p)),
+            ))
+        };
+        LockstepRun::resume(&b, &text, dir, side, options)
+    };
+    let mut again = resume(&ckpt, &options("cut", 4)).expect("resume");
     assert_eq!((again.sim.frame, again.sim.step), (2, 100));
     assert!(matches!(
         again.worlds[1].status,
@@ -499,19 +498,7 @@ fn a_resumed_lockstep_batch_equals_the_uninterrupted_one_bit_for_bit() {
         );
     }
     // A checkpoint whose running worlds are at different times cannot share one clock.
-    let mut split = LockstepRun::resume(
-        &b,
-        &text,
-        &ckpt,
-        |p| {
-            Ok((
-                b.worlds[0].clone(),
-                Box::new(SideBySide::from_particles(&b.worlds, p)),
-            ))
-        },
-        &BatchOptions::default(),
-    )
-    .expect("resume without files");
+    let mut split = resume(&ckpt, &BatchOptions::default()).expect("resume without files");
     split.write_first_frame().expect("read");
     let start = b.worlds[0].sample_particles().expect("sample");
     split.reset_worlds(vec![(0, start)]).expect("reset world 0");
@@ -519,21 +506,10 @@ fn a_resumed_lockstep_batch_equals_the_uninterrupted_one_bit_for_bit() {
     split
         .checkpoint(&odd, &text, "wedge.toml")
         .expect("checkpoint");
-    let e = LockstepRun::resume(
-        &b,
-        &text,
-        &odd,
-        |p| {
-            Ok((
-                b.worlds[0].clone(),
-                Box::new(SideBySide::from_particles(&b.worlds, p)),
-            ))
-        },
-        &BatchOptions::default(),
-    )
-    .err()
-    .expect("refused")
-    .to_string();
+    let e = resume(&odd, &BatchOptions::default())
+        .err()
+        .expect("refused")
+        .to_string();
     assert!(
         e.contains("different times") && e.contains("--backend cpu"),
         "{e}"

@@ -287,17 +287,9 @@ impl BatchRun {
         while self.running() > 0 && self.frame() < self.frames {
             let frozen = self.advance_frame()?;
             frame_done(self, &frozen);
-            let frame = self.frame();
-            if let Some((k, text, origin)) = every
-                && k > 0
-                && frame.is_multiple_of(k)
+            if let Some((dir, text, origin)) =
+                checkpoint_due(self.out.as_ref(), every, self.frame())?
             {
-                let Some(out) = &self.out else {
-                    anyhow::bail!(
-                        "checkpoints of a batch run go into its output folder: it has none"
-                    );
-                };
-                let dir = out.dir.join(checkpoint_dir_name(frame));
                 self.checkpoint(&dir, text, origin)?;
             }
         }
@@ -337,6 +329,30 @@ impl BatchRun {
         rtmpm_io::write_atomic(&path, csv.as_bytes())
             .with_context(|| format!("writing {}", path.display()))
     }
+}
+
+/// The checkpoint folder due after frame `frame` of a run writing into `out` with a checkpoint
+/// every `every.0` frames (`every.1`, `every.2`: the scene file's text and where it came from,
+/// handed back with it), if one is due.
+fn checkpoint_due<'a>(
+    out: Option<&OutDir>,
+    every: Option<(u64, &'a str, &'a str)>,
+    frame: u64,
+) -> Result<Option<(PathBuf, &'a str, &'a str)>> {
+    let Some((k, text, origin)) = every else {
+        return Ok(None);
+    };
+    if k == 0 || !frame.is_multiple_of(k) {
+        return Ok(None);
+    }
+    let Some(out) = out else {
+        anyhow::bail!("checkpoints of a batch run go into its output folder: it has none");
+    };
+    Ok(Some((
+        out.dir.join(checkpoint_dir_name(frame)),
+        text,
+        origin,
+    )))
 }
 
 /// The header of `batch.csv`.

@@ -15,7 +15,7 @@
 
 mod checkpoint;
 
-use super::{BatchOptions, WorldStatus, checkpoint_dir_name, open_out, summary_row, world_output};
+use super::{BatchOptions, WorldStatus, checkpoint_due, open_out, summary_row, world_output};
 use crate::outdir::OutDir;
 use crate::output::FrameOutput;
 use crate::simulation::Simulation;
@@ -196,15 +196,9 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         while self.running() > 0 && self.sim.frame < self.frames {
             let frozen = self.advance_frame()?;
             frame_done(self, &frozen);
-            let frame = self.sim.frame;
-            if let Some((k, text, origin)) = every
-                && k > 0
-                && frame.is_multiple_of(k)
+            if let Some((dir, text, origin)) =
+                checkpoint_due(self.out.as_ref(), every, self.sim.frame)?
             {
-                let Some(out) = &self.out else {
-                    bail!("checkpoints of a batch run go into its output folder: it has none");
-                };
-                let dir = out.dir.join(checkpoint_dir_name(frame));
                 self.checkpoint(&dir, text, origin)?;
             }
         }
