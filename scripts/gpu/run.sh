@@ -444,6 +444,16 @@ for suite in "$@"; do
       say "batch_benchmark rc=$?"
       grep -hoE "BENCH.*|panicked.*" "$OUT/batch_bench.log" | tee -a "$S"
       grep -hE "^world|^lockstep|^resumed|^blow-up|refused in" "$OUT/test_batch.log" | head -48 | tee -a "$S"
+      # The CLI: --backend auto runs the wedge on the GPU (its one-line note), 4 frames with a
+      # checkpoint every 2, against a run cut at frame 2 and resumed from its checkpoint_00002:
+      # the same files (names) in both folders. Frames stay in a scratch folder, not in $OUT.
+      wd=$(mktemp -d)
+      timeout 120 "$D/rtmpm" run scenes/wedge_slump.toml --frames 4 --checkpoint-every 2 --out "$wd/whole" > "$OUT/wedge_cli.log" 2>&1
+      say "wedge auto rc=$?: $(grep -m1 '^backend:' "$OUT/wedge_cli.log")"
+      timeout 120 "$D/rtmpm" run scenes/wedge_slump.toml --frames 2 --checkpoint-every 2 --out "$wd/cut" >> "$OUT/wedge_cli.log" 2>&1 &&
+        timeout 120 "$D/rtmpm" run scenes/wedge_slump.toml --frames 4 --resume "$wd/cut/checkpoint_00002" --out "$wd/cut" >> "$OUT/wedge_cli.log" 2>&1
+      say "wedge resumed rc=$?: files $(cd "$wd/whole" && find . -type f ! -name '.rtmpm*' | sort | md5sum | cut -c1-8) (uninterrupted) vs $(cd "$wd/cut" && find . -type f ! -name '.rtmpm*' | sort | md5sum | cut -c1-8) (resumed); $(grep -c '^batch of 16 worlds on the GPU' "$OUT/wedge_cli.log") of 3 runs on the GPU"
+      rm -rf "$wd"
       ;;
     *) say "unknown suite $suite" ;;
   esac

@@ -723,8 +723,10 @@ def batch_run_and_view_cases(S):
          ["run", S, "--backend", "cpu", "--no-output", "--checkpoint-every", "1"], ("--no-output",)),
         ("--resume of a file, not a batch checkpoint folder", run + ["--resume", "{W}/scene.toml"],
          ("not a folder",)),
-        ("--resume on the GPU", ["run", S, "--backend", "cuda", "--no-output", "--resume", "{W}/ck"],
-         ("--backend cpu",)),
+        # Without a GPU: the CUDA backend's refusal; with one: the missing checkpoint folder.
+        ("--resume of a missing checkpoint on the GPU",
+         ["run", S, "--backend", "cuda", "--no-output", "--resume", "{W}/ck"],
+         ("--backend cpu", "no batch checkpoint")),
         ("--threads 0", run + ["--threads", "0"], ("--threads",)),
         ("--frames 10^11", ["run", S, "--backend", "cpu", "--no-output", "--frames", "100000000000"],
          ("more than the",)),
