@@ -321,7 +321,20 @@ fn a_world_that_blows_up_within_steps_is_frozen_and_the_others_go_on() {
     );
     let (b, mut r) = unwritten(&text);
     assert_eq!(r.advance_steps(10).expect("steps"), [1]);
-    assert!(matches!(r.worlds[1].status, WorldStatus::Frozen { .. }));
+    let WorldStatus::Frozen { reason, .. } = &r.worlds[1].status else {
+        panic!("world 1 should be frozen");
+    };
+    // The particle is named by its index in world 1 (world 0, before it, holds as many: an
+    // index over all worlds would be at least that count).
+    let n = r.worlds[1].particles().len();
+    let named: usize = reason
+        .split("particle ")
+        .nth(1)
+        .and_then(|t| t.split(' ').next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("no particle in {reason}"));
+    assert_eq!(r.worlds[0].particles().len(), n);
+    assert!(named < n, "{reason}");
     assert_eq!(r.worlds[1].steps(), 0, "kept at its last good state");
     for w in [0, 2] {
         assert_eq!(r.worlds[w].steps(), 10);

@@ -23,7 +23,7 @@ use anyhow::{Context, Result, bail};
 use rtmpm_physics::Particles;
 use rtmpm_physics::math::Mat3;
 use rtmpm_scene::{BatchScene, Scene};
-use rtmpm_sim::{SimError, Worlds};
+use rtmpm_sim::{Blowup, SimError, Worlds};
 
 /// One world of a lockstep batch: what sets it apart, where it stands, its files.
 pub struct LockWorld {
@@ -328,14 +328,30 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             SimError::Blowup(b) | SimError::Stall(b) => b.particle,
             _ => unreachable!("only blow-ups and stalls freeze a world"),
         };
-        let world = self.sim.backend.world_of_particle(particle).map(|(w, _)| w);
-        let Some(w) = world.filter(|&w| self.worlds[w].status == WorldStatus::Running) else {
+        let found = self.sim.backend.world_of_particle(particle);
+        let Some((w, i)) = found.filter(|&(w, _)| self.worlds[w].status == WorldStatus::Running)
+        else {
             return Err(anyhow::anyhow!("{e}"))
                 .context("a batch's step failed and no running world can be frozen for it");
         };
+        // Said as the world's own run would say it: its particle, its step and time.
+        let origin = self.worlds[w].origin;
+        let own = |b: &Blowup| {
+            Box::new(Blowup {
+                particle: i,
+                step: b.step - origin.step,
+                time: b.time - origin.time,
+                ..b.clone()
+            })
+        };
+        let reason = match e {
+            SimError::Blowup(b) => SimError::Blowup(own(b)),
+            SimError::Stall(b) => SimError::Stall(own(b)),
+            other => other.clone(),
+        };
         self.worlds[w].status = WorldStatus::Frozen {
             frame,
-            reason: e.to_string(),
+            reason: reason.to_string(),
         };
         Ok(w)
     }
