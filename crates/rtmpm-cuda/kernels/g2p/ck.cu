@@ -23,19 +23,24 @@ __device__ __forceinline__ G2pResult g2p_ck_particle(const Ctx& c, unsigned g, u
     stencil_of(c, x, material_world(st.material), base, fx);
     CkGrid s[2] = {ck_grid(fx, 0), ck_grid(fx, 1)};
     const int* bc = c.block_coords + 3 * g;
-    StencilIdx si = stencil_idx(bc, base);
     const unsigned* nbs = c.neighbors + 27 * g;
-    // Sums over both grids; B in cells (x_i - x_p = dx dpos).
+    // Sums over both grids; B in cells (x_i - x_p = dx dpos). Each grid's nodes are addressed from
+    // its first node (compile-time indices into the addressing, which stays in registers).
     vec3 sum_v = make_v3(0, 0, 0);
     mat3 sum_b = mat3_zero();
+#pragma unroll
     for (int q = 0; q < 2; ++q) {
         const CkGrid& sq = s[q];
         const real* grid = q == 0 ? c.grid : c.grid_aux;
+        int first[3] = {base[0] + sq.offset[0], base[1] + sq.offset[1], base[2] + sq.offset[2]};
+        StencilIdx si = stencil_idx(bc, first);
+#pragma unroll
         for (int i = 0; i < 2; ++i)
+#pragma unroll
             for (int j = 0; j < 2; ++j)
+#pragma unroll
                 for (int k = 0; k < 2; ++k) {
-                    int a = sq.offset[0] + i, b = sq.offset[1] + j, e = sq.offset[2] + k;
-                    vec3 wv = ck_node_velocity(grid, stencil_node(si, nbs, a, b, e)) * ck_weight(sq, i, j, k);
+                    vec3 wv = ck_node_velocity(grid, stencil_node(si, nbs, i, j, k)) * ck_weight(sq, i, j, k);
                     sum_v = sum_v + wv;
                     sum_b = sum_b + outer(wv, ck_dpos(sq, i, j, k));
                 }

@@ -152,12 +152,10 @@ __device__ __forceinline__ void ck_scatter_warp(const Ctx& c, unsigned g, const 
 // ck_scatter_warp. Every lane of the warp calls it.
 __device__ __forceinline__ void ck_scatter_sorted(const Ctx& c, unsigned g, const CkScatter& q, bool active, unsigned lane,
                                                   real* grid) {
+    CkScatter r = q;
     if (c.warp_sort) {
         unsigned src = p2g_warp_sort(active ? p2g_sort_key(c, g, q.base) : P2G_KEY_NONE, lane, &active);
-        if (__any_sync(0xffffffffu, src != lane)) {
-            ck_scatter_warp(c, g, ck_scatter_from_lane(q, src), active, lane, grid);
-            return;
-        }
+        if (__any_sync(0xffffffffu, src != lane)) r = ck_scatter_from_lane(q, src);
     }
-    ck_scatter_warp(c, g, q, active, lane, grid);
+    ck_scatter_warp(c, g, r, active, lane, grid);
 }
