@@ -445,7 +445,16 @@ mod tests {
 
     /// The kernels that scatter (mass, momentum) into grid nodes through `atomic_add_node`
     /// (`kernels/p2g/warp.cuh`; a node's four reals lie side by side, 16-byte aligned).
-    const NODE_SCATTER_KERNELS: [&str; 5] = ["p2g", "g2p2g", "g2p2g_fluid", "p2g_mpm", "p2g_musl"];
+    const NODE_SCATTER_KERNELS: [&str; 8] = [
+        "p2g",
+        "g2p2g",
+        "g2p2g_fluid",
+        "p2g_mpm",
+        "p2g_musl",
+        "p2g_ck",
+        "p2g_ck_warp",
+        "g2p2g_ck",
+    ];
 
     /// The atomic adds of kernel `k` in optimised PTX: (16-byte vector adds of f32, scalar adds of
     /// `real`), global or generic.
