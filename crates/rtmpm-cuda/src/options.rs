@@ -30,9 +30,9 @@ impl P2gMode {
 /// CK-MPM's P2G kernel (`[solver] transfer = "ck-mpm"`; `kernels/p2g/ck.cu`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum CkP2g {
-    /// `p2g_ck`: one lane per particle, 16 direct global atomics a particle (the default).
+    /// `p2g_ck`: one lane per particle, 16 direct global atomics a particle.
     Direct,
-    /// `p2g_ck_warp`: per grid, the in-warp sort, segmented warp reduction and one lane's atomics
+    /// `p2g_ck_warp` (the default): per grid, the in-warp sort, segmented warp reduction and one lane's atomics
     /// per segment of the MLS-MPM scatter (Fei, Huang & Gao, "Real-Time Simulation of MPM on
     /// Modern GPUs", GTC 2022).
     Warp,
@@ -177,7 +177,7 @@ impl Default for CudaOptions {
             mixed_sort: true,
             warp_reduce: true,
             p2g: P2gMode::Warp,
-            ck_p2g: CkP2g::Direct,
+            ck_p2g: CkP2g::Warp,
             rmap_replicas: crate::step::p2g::reverse_map::DEFAULT_REPLICAS,
             rmap_slots: None,
             rmap_pblocks: None,
@@ -358,7 +358,7 @@ mod tests {
         let o: CudaOptions = "p2g=sort".parse().unwrap();
         assert_eq!(o.p2g, P2gMode::Sort);
         assert!("p2g=gather".parse::<CudaOptions>().is_err());
-        assert_eq!(CudaOptions::default().ck_p2g, CkP2g::Direct);
+        assert_eq!(CudaOptions::default().ck_p2g, CkP2g::Warp);
         let o: CudaOptions = "ck_p2g=warp".parse().unwrap();
         assert_eq!((o.ck_p2g, o.p2g), (CkP2g::Warp, P2gMode::Warp));
         assert_eq!(o.ck_p2g.name(), "warp");
