@@ -217,9 +217,7 @@ fn make_worlds(
 /// [`HOST_BYTES_PER_WORLD`]).
 pub fn scaled_budget(one: &Budget, count: usize) -> Budget {
     let n = count as u64;
-    let one = with_world_overhead(one.clone(), 1);
-    let one = &one;
-    Budget {
+    let all = Budget {
         body_particles: one
             .body_particles
             .iter()
@@ -230,7 +228,8 @@ pub fn scaled_budget(one: &Budget, count: usize) -> Budget {
         host_bytes: one.host_bytes.saturating_mul(n),
         gpu_bytes: one.gpu_bytes.saturating_mul(n),
         ..one.clone()
-    }
+    };
+    with_world_overhead(all, count)
 }
 
 /// Host memory of each world of a batch beyond its particles and grid nodes (its scene, its
