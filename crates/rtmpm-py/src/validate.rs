@@ -108,6 +108,7 @@ fn options(
         threads,
         precision,
         particle_state: None,
+        cuda: defaults.cuda,
     })
 }
 

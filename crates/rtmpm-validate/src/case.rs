@@ -27,6 +27,8 @@ pub struct Options {
     pub precision: Option<rtmpm_scene::Precision>,
     /// The CUDA backend's particle state (default: the scene's `[solver] particle_state`).
     pub particle_state: Option<rtmpm_scene::ParticleState>,
+    /// CUDA backend switches (`--cuda-options`), e.g. `ck_p2g=fused`; the CPU backend ignores them.
+    pub cuda: rtmpm_cuda::CudaOptions,
 }
 
 impl Default for Options {
@@ -40,6 +42,7 @@ impl Default for Options {
             threads: None,
             precision: None,
             particle_state: None,
+            cuda: rtmpm_cuda::CudaOptions::default(),
         }
     }
 }
@@ -138,7 +141,7 @@ impl Ctx<'_> {
             kind: self.options.backend,
             threads: self.options.threads,
             gpus: 1,
-            cuda: rtmpm_cuda::CudaOptions::default(),
+            cuda: self.options.cuda.clone(),
         };
         let created =
             rtmpm_backends::create(&request, scene, particles).map_err(|e| anyhow!("{e}"))?;

@@ -43,11 +43,21 @@ pub struct ValidateArgs {
     /// `[solver] particle_state`, else f32; the CPU backend ignores it).
     #[arg(long, value_name = "f32|compact")]
     pub particle_state: Option<rtmpm_scene::ParticleState>,
+    /// CUDA backend switches for every case, as `rtmpm run --cuda-options` (e.g. `ck_p2g=fused` to
+    /// validate CK-MPM's fused G2P2G); refused with the CPU backend.
+    #[arg(long, value_name = "LIST", default_value = "")]
+    pub cuda_options: rtmpm_cuda::CudaOptions,
 }
 
 /// Run the cases, print the table, the plots' paths and the cases that could not run; an
 /// error when a check failed or a case could not run.
 pub fn validate(args: ValidateArgs) -> Result<()> {
+    if args.backend == BackendKind::Cpu && args.cuda_options != rtmpm_cuda::CudaOptions::default() {
+        bail!(
+            "--cuda-options are switches of the CUDA backend and this validation runs on the CPU \
+             backend: drop --cuda-options or use --backend cuda"
+        );
+    }
     let options = rtmpm_validate::Options {
         backend: args.backend.into(),
         quick: args.quick,
@@ -56,6 +66,7 @@ pub fn validate(args: ValidateArgs) -> Result<()> {
         threads: args.threads,
         precision: args.precision,
         particle_state: args.particle_state,
+        cuda: args.cuda_options,
     };
     let report = rtmpm_validate::run(&args.case, &options)?;
     print!("{}", report.table());
