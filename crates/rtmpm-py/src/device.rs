@@ -107,14 +107,17 @@ unsafe extern "C" fn capsule_destructor(capsule: *mut ffi::PyObject) {
     }
 }
 
-/// A strided view of GPU memory owned by a :class:`rtmpm.Simulation` (no copy).
+/// A strided view of GPU memory owned by a :class:`rtmpm.Simulation` or a
+/// :class:`rtmpm.BatchSimulation` (no copy).
 ///
 /// Use ``torch.from_dlpack(a)``, ``cupy.from_dlpack(a)`` or ``cupy.asarray(a)``. Attributes:
 /// ``shape``, ``dtype`` (``"float32"``, ``"float64"`` or ``"int32"``), ``strides`` (in bytes,
 /// like NumPy), ``ptr`` (device address of element 0), ``device`` (CUDA ordinal).
 ///
-/// The arrays of one field are not contiguous: component ``k`` of every particle is contiguous
-/// (structure of arrays), so ``x_device`` has strides ``(itemsize, capacity * itemsize)``.
+/// The arrays of a simulation's state are not contiguous: component ``k`` of every particle is
+/// contiguous (structure of arrays), so ``x_device`` has strides ``(itemsize, capacity *
+/// itemsize)``. A batch's ``x_device`` and ``v_device`` (gathered in original order) are
+/// C-contiguous.
 #[pyclass(name = "DeviceArray", module = "rtmpm", frozen)]
 pub struct DeviceArray {
     owner: Py<PyAny>,
@@ -167,6 +170,32 @@ impl DeviceArray {
             code,
             bits,
             device: d.device as i32,
+            device_type: KDL_CUDA,
+        }
+    }
+
+    /// A C-contiguous float32 view of `shape` at device address `ptr` on CUDA device `device`
+    /// (memory that `owner` keeps alive and never moves, e.g. a GPU batch's gathered
+    /// positions, `batch/device.rs`).
+    pub fn contiguous_f32(
+        owner: Py<PyAny>,
+        ptr: u64,
+        device: usize,
+        shape: &[usize],
+    ) -> DeviceArray {
+        let mut strides = vec![1i64; shape.len()];
+        for k in (0..shape.len().saturating_sub(1)).rev() {
+            strides[k] = strides[k + 1] * shape[k + 1] as i64;
+        }
+        DeviceArray {
+            owner,
+            base: ptr,
+            offset: 0,
+            shape: shape.iter().map(|&d| d as i64).collect(),
+            strides,
+            code: KDL_FLOAT,
+            bits: 32,
+            device: device as i32,
             device_type: KDL_CUDA,
         }
     }

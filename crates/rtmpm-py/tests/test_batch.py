@@ -387,3 +387,12 @@ def test_auto_runs_on_the_cpu_what_the_gpu_batch_does_not_do(tmp_path):
     if not GPU_OK:
         with pytest.raises(rtmpm.BackendError, match="not usable here"):
             rtmpm.BatchSimulation.resume(tmp_path / "ckpt", scene, batch=2, backend="cuda")
+
+
+def test_device_arrays_of_a_cpu_batch_are_refused_naming_the_cuda_backend():
+    sim = rtmpm.Simulation(rtmpm.Scene.from_toml(world_text()), batch=2, backend="cpu")
+    for call in (lambda: sim.x_device, lambda: sim.v_device, lambda: sim.storage_device("x")):
+        with pytest.raises(rtmpm.BackendError, match=r"CPU backend: create it with backend=\"cuda\""):
+            call()
+    # Nothing changed: the batch still steps and reads.
+    assert sim.step(1) == [] and sim.x.shape[0] == 2

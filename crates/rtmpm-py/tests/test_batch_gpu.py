@@ -157,3 +157,140 @@ def test_a_resumed_gpu_batch_goes_on_as_the_uninterrupted_one(tmp_path):
     sim.checkpoint(tmp_path / "odd")
     with pytest.raises(rtmpm.RtmpmError, match="different times"):
         rtmpm.BatchSimulation.resume(tmp_path / "odd", scene, backend="cuda")
+
+
+# ---- Device arrays of a GPU batch (x_device, v_device: gathered; storage_device: no copy) ----
+
+def torch_or_skip():
+    torch = pytest.importorskip("torch")
+    if not torch.cuda.is_available():
+        pytest.skip("PyTorch without CUDA")
+    return torch
+
+
+def test_gathered_device_arrays_are_the_host_arrays_and_follow_the_batch():
+    torch = torch_or_skip()
+    scene = rtmpm.Scene.from_toml(sweep_text('"material[0].yield_stress" = [100, 250, 600]'))
+    sim = rtmpm.Simulation(scene, backend="cuda")
+    n = int(sim.num_particles[0])
+    xd = sim.x_device
+    assert xd.shape == [3, n, 3] and xd.dtype == "float32" and xd.strides == [12 * n, 12, 4]
+    x = torch.from_dlpack(xd)
+    v = torch.from_dlpack(sim.v_device)
+    assert x.is_cuda and x.shape == (3, n, 3) and x.is_contiguous() and x.data_ptr() == xd.ptr
+    np.testing.assert_array_equal(x.cpu().numpy(), sim.x)
+    np.testing.assert_array_equal(v.cpu().numpy(), sim.v)
+    # Tensors made once follow the batch: after steps and a reset they hold the new host arrays,
+    # in the same memory.
+    sim.run(2)
+    assert sim.x_device.ptr == xd.ptr
+    np.testing.assert_array_equal(x.cpu().numpy(), sim.x)
+    np.testing.assert_array_equal(v.cpu().numpy(), sim.v)
+    assert not np.array_equal(x[0].cpu().numpy(), x[2].cpu().numpy()), "the worlds differ"
+    x0 = x.clone()
+    sim.step(3)
+    np.testing.assert_array_equal(x.cpu().numpy(), sim.x)
+    assert not torch.equal(x, x0), "the view moved on with the steps"
+    sim.reset([1])
+    np.testing.assert_array_equal(x.cpu().numpy(), sim.x)
+    np.testing.assert_array_equal(v.cpu().numpy(), sim.v)
+    # Each world in its own coordinates: inside its own domain (the scene's, [0, 0.5]^3).
+    assert float(x.min()) >= 0.0 and float(x.max()) <= 0.5
+
+
+def test_gathered_device_arrays_of_ragged_worlds_are_cut_by_the_offsets():
+    torch = torch_or_skip()
+    text = sweep_text('"body[0].max" = [[0.3, 0.25, 0.3], [0.3, 0.3, 0.3], [0.35, 0.25, 0.3]]')
+    sim = rtmpm.Simulation(rtmpm.Scene.from_toml(text), backend="cuda")
+    assert not sim.uniform
+    off = sim.offsets
+    total = int(off[-1])
+    counts = sim.num_particles
+    assert len(set(int(c) for c in counts)) == 3, "three different sizes"
+    x = torch.from_dlpack(sim.x_device)
+    v = torch.from_dlpack(sim.v_device)
+    assert x.shape == (total, 3) and v.shape == (total, 3)
+    # At time 0 each world's rows are its own body in its own coordinates: world 1's is the
+    # tall one (to y = 0.3 m), world 2's the wide one (to x = 0.35 m).
+    for w in range(3):
+        rows = slice(int(off[w]), int(off[w + 1]))
+        top = x[rows].max(0).values.cpu().numpy()
+        assert (top[1] > 0.26) == (w == 1) and (top[0] > 0.31) == (w == 2), f"world {w}: {top}"
+        assert float(x[rows, 0].min()) >= 0.19, f"world {w} lies in its own coordinates"
+    sim.run(1)
+    host_x, host_v = sim.x, sim.v
+    np.testing.assert_array_equal(x.cpu().numpy(), host_x)
+    for w in range(3):
+        rows = slice(int(off[w]), int(off[w + 1]))
+        np.testing.assert_array_equal(x[rows].cpu().numpy(), host_x[rows], err_msg=f"world {w}")
+        np.testing.assert_array_equal(v[rows].cpu().numpy(), host_v[rows], err_msg=f"world {w}")
+
+
+def test_storage_views_are_the_batchs_own_memory_and_map_to_worlds():
+    torch = torch_or_skip()
+    scene = rtmpm.Scene.from_toml(sweep_text('"material[0].yield_stress" = [100, 250, 600]'))
+    sim = rtmpm.Simulation(scene, backend="cuda")
+    sim.run(1)
+    n = int(sim.num_particles[0])
+    total = 3 * n
+    xs = sim.storage_device("x")
+    assert xs.shape == [total, 3]
+    x = torch.from_dlpack(xs)
+    assert x.data_ptr() == xs.ptr  # no copy: the batch's state buffer
+    ids = torch.from_dlpack(sim.storage_device("id")).cpu().numpy()
+    assert sorted(ids.tolist()) == list(range(total))
+    # Every world shares one buffer: the x rows of id's original order are the flat host x.
+    flat_x = sim.x.reshape(-1, 3)
+    out = np.empty_like(flat_x)
+    out[ids] = x.cpu().numpy()
+    np.testing.assert_array_equal(out, flat_x)
+    vs = torch.from_dlpack(sim.storage_device("v")).cpu().numpy()
+    out[ids] = vs
+    np.testing.assert_array_equal(out, sim.v.reshape(-1, 3))
+    # The per-world offsets: slot j's world from its id and from its material row agree.
+    m = len(scene.materials)
+    mat = torch.from_dlpack(sim.storage_device("material")).cpu().numpy()
+    world_of_id = np.searchsorted(sim.offsets, ids, side="right") - 1
+    np.testing.assert_array_equal(world_of_id, mat // m)
+    np.testing.assert_array_equal(mat % m, sim.material.reshape(-1)[ids])
+    # The worlds interleave in storage (sorted by grid block): why x_device is a gather.
+    print("storage order's world changes:", int((np.diff(world_of_id) != 0).sum()))
+    mass = torch.from_dlpack(sim.storage_device("mass")).cpu().numpy()
+    np.testing.assert_array_equal(mass, sim.mass.reshape(-1)[ids])
+    with pytest.raises(ValueError, match="no such field"):
+        sim.storage_device("pressure")
+
+
+def test_device_arrays_keep_the_batch_alive_and_cupy_reads_them():
+    torch = torch_or_skip()
+    sim = rtmpm.Simulation(rtmpm.Scene.from_toml(world_text()), batch=2, backend="cuda")
+    sim.step(2)
+    expect = sim.x.copy()
+    x = torch.from_dlpack(sim.x_device)
+    del sim
+    import gc
+
+    gc.collect()
+    np.testing.assert_array_equal(x.cpu().numpy(), expect)
+    cupy = pytest.importorskip("cupy")
+    sim = rtmpm.Simulation(rtmpm.Scene.from_toml(world_text()), batch=2, backend="cuda")
+    xd = sim.x_device
+    cai = xd.__cuda_array_interface__
+    assert cai["version"] == 3 and cai["typestr"] == "<f4" and cai["shape"] == tuple(xd.shape)
+    c = cupy.asarray(xd)
+    assert c.data.ptr == xd.ptr
+    np.testing.assert_array_equal(cupy.asnumpy(c), sim.x)
+
+
+def test_a_frozen_worlds_device_rows_are_its_host_rows():
+    torch = torch_or_skip()
+    text = sweep_text('"body[0].velocity" = [[0, 0, 0], [1e5, 0, 0], [0, 0.5, 0]]')
+    sim = rtmpm.Simulation(rtmpm.Scene.from_toml(text), backend="cuda")
+    x = torch.from_dlpack(sim.x_device)
+    v = torch.from_dlpack(sim.v_device)
+    assert sim.run(2) == [1]
+    # World 1 froze at its start: the GPU holds it parked (at rest), the arrays its last good
+    # state, as the host arrays.
+    np.testing.assert_array_equal(v.cpu().numpy(), sim.v)
+    np.testing.assert_array_equal(x.cpu().numpy(), sim.x)
+    assert float(v[1, :, 0].max()) > 1e4

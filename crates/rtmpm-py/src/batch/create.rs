@@ -256,6 +256,7 @@ impl Start {
             reason: self.choice.reason,
             initial: self.initial,
             broken: None,
+            device: Default::default(),
         })
     }
 }

@@ -3,12 +3,15 @@
 //! [`run::Run`]), read and steered world by world from Python: particle arrays of every world
 //! at once, resets of chosen worlds, kinematic rigid bodies (tools, pushers) posed per world,
 //! the load the material puts on them, and each world's status (a world that blows up is
-//! frozen, the others go on), and checkpoints of them all. `rtmpm.Simulation(scene, batch=N)` (or a scene with `[batch]`)
-//! returns one (python/rtmpm/__init__.py). Documentation: docs/batch.md, docs/python.md.
+//! frozen, the others go on), checkpoints of them all, and on the GPU the particles on the
+//! device for PyTorch and CuPy ([`device`]). `rtmpm.Simulation(scene, batch=N)` (or a scene
+//! with `[batch]`) returns one (python/rtmpm/__init__.py). Documentation: docs/batch.md,
+//! docs/python.md.
 
 mod arrays;
 mod checkpoint;
 mod create;
+mod device;
 mod reset;
 mod rigid;
 mod run;
@@ -61,7 +64,9 @@ impl Worlds {
 ///
 /// Arrays: :attr:`x`, :attr:`v`, :attr:`mass`, :attr:`material` are shaped ``(N, n, ...)``
 /// when every world has ``n`` particles (:attr:`uniform`), else flat (all worlds' particles one
-/// after another) with world ``w``'s at ``offsets[w]:offsets[w + 1]``. A world that blows up is
+/// after another) with world ``w``'s at ``offsets[w]:offsets[w + 1]``. On the GPU,
+/// :attr:`x_device` and :attr:`v_device` are the same on the device (for PyTorch, CuPy), and
+/// :meth:`storage_device` views the batch's own state. A world that blows up is
 /// frozen at its last good state (:attr:`status` says why); the others go on; :meth:`reset`
 /// starts chosen worlds again.
 #[pyclass(name = "BatchSimulation", module = "rtmpm")]
@@ -74,6 +79,8 @@ pub struct PyBatch {
     initial: Vec<Particles>,
     /// Set after a panic: the state may be inconsistent.
     broken: Option<String>,
+    /// The device arrays of a GPU batch (`x_device`, `v_device`), refreshed after every call.
+    device: device::Gathered,
 }
 
 /// A Python error from a batch run's error (`anyhow`, with its context).
@@ -83,7 +90,9 @@ fn run_error(e: anyhow::Error) -> PyErr {
 
 impl PyBatch {
     /// Run `work` on the worlds with the interpreter lock released, panics caught (the batch is
-    /// then marked broken); returns the worlds frozen.
+    /// then marked broken); returns the worlds frozen. On the GPU, once a device array was
+    /// handed out, the call first waits for the device's other streams, and the gathered device
+    /// arrays are filled again after it.
     fn drive(
         &mut self,
         py: Python<'_>,
@@ -94,7 +103,14 @@ impl PyBatch {
             Ok(r) => r,
             Err(poisoned) => poisoned.into_inner(),
         };
-        match py.detach(|| catch_unwind(AssertUnwindSafe(|| work(run.get())))) {
+        let device = &mut self.device;
+        let call = |run: &mut Run| -> anyhow::Result<Vec<usize>> {
+            device.before_call(run)?;
+            let frozen = work(run)?;
+            device.after_call(run)?;
+            Ok(frozen)
+        };
+        match py.detach(|| catch_unwind(AssertUnwindSafe(|| call(run.get())))) {
             Ok(r) => r.map_err(run_error),
             Err(payload) => {
                 let err = internal_error(payload.as_ref());
