@@ -3,6 +3,7 @@
     python examples/python/batch_push.py                      # 8 beds, 0.5 s
     python examples/python/batch_push.py --worlds 3 --frames 4 --out /tmp/push.csv
     python examples/python/batch_push.py --plot batch_push.png    # + the forces plotted
+    python examples/python/batch_push.py --backend cuda          # every bed in the same GPU kernels
 
 One scene (a dict) with a ``[batch]`` of N worlds: each a bed of sand whose friction angle is
 swept from 20 to 45 degrees, and a kinematic box, the tool, above it. Every step the script
@@ -11,8 +12,10 @@ world), as a robot's controller would: it presses down at 0.25 m/s to 5 cm deep,
 sideways at 0.25 m/s. After each frame it reads the force the sand puts on the tool in every
 world (``BatchSimulation.rigid_force``, an ``(N, 3)`` array). Each CSV row is a frame's time, a
 world, its friction angle, the tool's depth and the force (N): the steeper the friction angle,
-the harder the sand resists the drag. Needs a module built with the ``rigid`` feature
-(docs/python.md); ``--plot`` needs matplotlib.
+the harder the sand resists the drag. ``--backend``: ``cpu`` (each bed a simulation of its
+own), ``cuda`` (every bed in the same GPU kernels, each with its own tool pose and force) or
+``auto`` (the default: the GPU when one is usable). Needs a module built with the ``rigid``
+feature (docs/python.md); ``--plot`` needs matplotlib.
 """
 
 import argparse
@@ -63,10 +66,12 @@ def main():
     ap.add_argument("--frames", type=int, default=25, help="frames of 20 ms (default 25)")
     ap.add_argument("--out", type=pathlib.Path, default=pathlib.Path("batch_push.csv"))
     ap.add_argument("--plot", type=pathlib.Path, help="also plot the drag force per world (PNG; needs matplotlib)")
+    ap.add_argument("--backend", default="auto", choices=["auto", "cpu", "cuda"],
+                    help="cpu, cuda (every world in the same GPU kernels) or auto (default)")
     a = ap.parse_args()
     if "rigid" not in rtmpm.features:
         sys.exit("this example needs rtmpm built with the `rigid` feature (docs/python.md)")
-    sim = rtmpm.Simulation(scene(a.worlds, a.frames / 50.0), backend="cpu")
+    sim = rtmpm.Simulation(scene(a.worlds, a.frames / 50.0), backend=a.backend)
     angles = [float(label.split("=")[1]) for label in sim.labels]
     print(f"{len(sim)} sand beds of {int(sim.num_particles[0])} particles; {sim.backend}")
     rows = []

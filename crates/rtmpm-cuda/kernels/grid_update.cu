@@ -129,6 +129,41 @@ __device__ vec3 couple_bodies(const Ctx& c, vec3 x, real m, vec3 v, vec3 g_dt, d
     return v;
 }
 
+#ifdef RTMPM_BATCH
+// couple_bodies for world `world` of a batch (crate::batch::bodies): x in the world's own
+// coordinates, its bodies at rows world * n_bodies .. of the per-world table (global memory:
+// more than constant memory holds), and the reaction summed for every body, dynamic or not (a
+// kinematic or fixed body reports it as its load, as the CPU backend's couple does), into the
+// sums of row world * n_bodies + b of worlds * n_bodies bodies per copy.
+__device__ vec3 couple_world_bodies(const Ctx& c, unsigned world, vec3 x, real m, vec3 v, vec3 g_dt) {
+    unsigned rows = c_batch.worlds * c.n_bodies;
+    for (unsigned b = 0; b < c.n_bodies; ++b) {
+        unsigned row = world * c.n_bodies + b;
+        const GpuBody& body = c.bodies[row];
+        vec3 r = x - v3f(body.center);
+        if (dot(r, r) > (real)body.bound * (real)body.bound) continue;
+        mat3 R;
+        for (int q = 0; q < 9; ++q) R.m[q] = body.rot[q];
+        vec3 p = transpose(R) * r;
+        if (shape_distance(c, body.shape, p) > 0) continue;
+        vec3 n = normalize_or_y(R * shape_normal(c, body.shape, p));
+        vec3 vb = v3f(body.velocity) + cross(v3f(body.omega), r);
+        vec3 nv = vb + rule_apply(body.shape.cond, body.shape.friction, v - vb, n);
+        vec3 dp = (nv - v + g_dt) * m;
+        vec3 t = cross(r, dp);
+        double* e = c.body_exchange + 6u * ((blockIdx.x % BODY_EXCHANGE_SLOTS) * rows + row);
+        atomicAdd(e + 0, -(double)dp.x);
+        atomicAdd(e + 1, -(double)dp.y);
+        atomicAdd(e + 2, -(double)dp.z);
+        atomicAdd(e + 3, -(double)t.x);
+        atomicAdd(e + 4, -(double)t.y);
+        atomicAdd(e + 5, -(double)t.z);
+        v = nv;
+    }
+    return v;
+}
+#endif
+
 // The gravity of node t: the scene's, or in a batch its world's.
 __device__ __forceinline__ const real* node_gravity(const Ctx& c, unsigned t) {
 #ifdef RTMPM_BATCH
@@ -144,6 +179,20 @@ __device__ __forceinline__ void grid_node_finish(const Ctx& c, real* node, unsig
     const StepParams& sp = step_params(c);
     v = v * (real)sp.damping;  // settling damping (1 = off)
     v = node_boundary(c, t, v);
+#ifdef RTMPM_BATCH
+    if (c.n_bodies) {
+        // The node in its world's own coordinates, coupled to that world's bodies.
+        const Scalars& sc = scalars(c);
+        unsigned id = t >> 6, cell = t & 63u;
+        int gx = c.block_coords[3 * id] * 4 + (int)(cell >> 4);
+        unsigned world = node_world(gx);
+        gx -= world_cells(world);
+        vec3 x = make_v3(sc.origin[0] + gx * sc.dx, sc.origin[1] + (c.block_coords[3 * id + 1] * 4 + (int)((cell >> 2) & 3u)) * sc.dx,
+                         sc.origin[2] + (c.block_coords[3 * id + 2] * 4 + (int)(cell & 3u)) * sc.dx);
+        vec3 g_dt = make_v3(gravity[0], gravity[1], gravity[2]) * (real)sp.dt;
+        v = couple_world_bodies(c, world, x, m, v, g_dt);
+    }
+#else
     if (c.n_bodies) {
         const Scalars& sc = scalars(c);
         unsigned id = t >> 6, cell = t & 63u;
@@ -156,6 +205,7 @@ __device__ __forceinline__ void grid_node_finish(const Ctx& c, real* node, unsig
         double share = holders >= 2 ? 1.0 / (double)holders : 1.0;
         v = couple_bodies(c, x, m, v, g_dt, share);
     }
+#endif
     node[1] = v.x; node[2] = v.y; node[3] = v.z;
 }
 

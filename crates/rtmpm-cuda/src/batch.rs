@@ -17,9 +17,16 @@
 //! The kernels of one world are compiled without `RTMPM_BATCH` and are unchanged by all this
 //! (their PTX is the same); a batch compiles its own program with it.
 //!
+//! Rigid bodies ([`bodies`]): each world has its own rapier world on the host and its own rows of
+//! a per-world body table on the device; the grid update couples a node to its world's bodies
+//! only (in the world's coordinates) and sums the reaction of every body, dynamic or not, per
+//! world and body: the loads of [`Worlds::world_rigid_loads`], and what moves a dynamic body.
+//!
 //! What a batch shares: the time step (the caller's; one `dt` for every world), the colliders
-//! (the same in every world: checked), the domain and grid spacing. Not yet: rigid bodies,
-//! emitters, per-world collider poses.
+//! (the same in every world: checked), the domain and grid spacing, the number of rigid bodies
+//! (and a mesh body's mesh). Not yet: emitters, per-world collider poses.
+
+mod bodies;
 
 use crate::backend::{CudaBackend, Part};
 use crate::contract::{CTL_NEED_REBUILD, CTL_P2G_PENDING};
@@ -31,6 +38,8 @@ use crate::setup::capacity::Capacity;
 use cudarc::driver::{CudaSlice, DevicePtr, PushKernelArg};
 use rtmpm_physics::Particles;
 use rtmpm_physics::math::Vec3;
+use rtmpm_physics::transfer::{Transfer, Update};
+use rtmpm_rigid::{BodyLoad, BodyPose, BodyState};
 use rtmpm_scene::Scene;
 use rtmpm_sim::{Backend, BadParticle, SimError, Worlds};
 
@@ -75,6 +84,8 @@ pub struct CudaBatch {
     /// The per-world gravity table (kept alive: `c_batch` points into it).
     gravity: CudaSlice<u8>,
     params: BatchParams,
+    /// Every world's rigid bodies, if the worlds have any.
+    bodies: Option<bodies::WorldBodies>,
 }
 
 impl CudaBatch {
@@ -117,7 +128,7 @@ impl CudaBatch {
             options.gblock_capacity.unwrap_or(0),
             options.pblock_capacity.unwrap_or(0),
         );
-        let backend = CudaBackend::build_for(
+        let mut backend = CudaBackend::build_for(
             &merged,
             Initial::Particles(&all),
             &Part::default(),
@@ -135,6 +146,7 @@ impl CudaBatch {
             e => e,
         })?;
         drop(all);
+        let bodies = world_bodies(&mut backend, worlds)?;
         let real_bytes = if backend.options.f64 { 8 } else { 4 };
         let mut table = Vec::with_capacity(worlds.len() * 3 * real_bytes);
         for s in worlds {
@@ -169,6 +181,7 @@ impl CudaBatch {
             materials: m,
             gravity,
             params,
+            bodies,
         })
     }
 
@@ -199,9 +212,57 @@ impl CudaBatch {
         self.gravity.len()
     }
 
-    /// One step of `dt` for every world at time `t`.
+    /// One step of `dt` for every world at time `t`: every world's rigid bodies go to the
+    /// device before it, and advance by it after (their sums read back).
     pub fn step(&mut self, dt: f32, t: f32) -> Result<(), SimError> {
-        self.backend.step(dt, t)
+        let stream = self.backend.stream.clone();
+        if let Some(b) = self.bodies.as_mut() {
+            b.upload(&stream)?;
+        }
+        self.backend.step(dt, t)?;
+        match self.bodies.as_mut() {
+            Some(b) => b.after_step(&stream, dt),
+            None => Ok(()),
+        }
+    }
+
+    /// Rigid bodies of one world (every world has as many).
+    pub fn bodies_per_world(&self) -> usize {
+        self.bodies.as_ref().map_or(0, |b| b.per_world())
+    }
+
+    /// World `w`'s rigid bodies' poses and velocities (empty without bodies).
+    pub fn world_poses(&self, w: usize) -> Vec<BodyPose> {
+        self.bodies.as_ref().map_or_else(Vec::new, |b| b.poses(w))
+    }
+
+    /// Put world `w`'s rigid bodies at `poses` from the next step on (a tool posed by a
+    /// script, a reset, a rewind); the other worlds' bodies are not touched.
+    pub fn set_world_poses(&mut self, w: usize, poses: &[BodyPose]) -> Result<(), SimError> {
+        match self.bodies.as_mut() {
+            Some(b) => b.set_poses(w, poses),
+            None if poses.is_empty() => Ok(()),
+            None => Err(SimError::Backend(format!(
+                "CUDA batch: {} rigid-body poses for world {w}, whose scene has no rigid bodies",
+                poses.len()
+            ))),
+        }
+    }
+
+    /// The force and torque the material put on each of world `w`'s rigid bodies over the
+    /// last step (zeros before the first), for every kind of body (the CPU backend's
+    /// `rigid_loads`); waits for the last step.
+    pub fn world_loads(&self, w: usize) -> Result<Vec<BodyLoad>, SimError> {
+        if w >= self.worlds() {
+            return Err(SimError::Backend(format!(
+                "CUDA batch: no world {w} (the batch has {})",
+                self.worlds()
+            )));
+        }
+        match self.bodies.as_ref() {
+            Some(b) => b.loads(w),
+            None => Ok(Vec::new()),
+        }
     }
 
     /// Every world's particles, in their own coordinates and material indices.
@@ -325,7 +386,12 @@ impl Backend for CudaBatch {
     }
 
     fn step(&mut self, dt: f32, t: f32) -> Result<(), SimError> {
-        self.backend.step(dt, t)
+        CudaBatch::step(self, dt, t)
+    }
+
+    /// Every world's bodies, world by world (the driver's CFL bound counts their speeds).
+    fn rigid_bodies(&self) -> Vec<BodyState> {
+        self.bodies.as_ref().map_or_else(Vec::new, |b| b.states())
     }
 
     fn max_speed(&mut self) -> Result<f32, SimError> {
@@ -377,6 +443,38 @@ impl Worlds for CudaBatch {
     fn world_of_particle(&self, index: usize) -> Option<(usize, usize)> {
         CudaBatch::world_of_particle(self, index)
     }
+
+    fn world_rigid_poses(&self, w: usize) -> Vec<BodyPose> {
+        self.world_poses(w)
+    }
+
+    fn set_world_rigid_poses(&mut self, w: usize, poses: &[BodyPose]) -> Result<(), SimError> {
+        self.set_world_poses(w, poses)
+    }
+
+    fn world_rigid_loads(&self, w: usize) -> Result<Option<Vec<BodyLoad>>, SimError> {
+        self.world_loads(w).map(Some)
+    }
+}
+
+/// The worlds' rigid bodies on `backend` (built for the merged scene, world 0's bodies): the
+/// single run's bodies it made are dropped (their mesh offsets kept: the mesh table is world
+/// 0's, which every world shares) and every world's take their place in the kernels' `Ctx`.
+fn world_bodies(
+    backend: &mut CudaBackend,
+    worlds: &[Scene],
+) -> Result<Option<bodies::WorldBodies>, SimError> {
+    let Some(single) = backend.bodies.take() else {
+        return Ok(None);
+    };
+    let mesh_offsets = single.mesh_offsets();
+    drop(single);
+    let made = bodies::WorldBodies::new(worlds, &backend.stream, mesh_offsets)?;
+    if let Some(b) = &made {
+        let c = &mut backend.ctx;
+        (c.bodies, c.body_exchange, c.n_bodies) = b.ctx_fields(&backend.stream);
+    }
+    Ok(made)
 }
 
 /// Why the worlds `worlds` cannot run together on the GPU with `options` (what the batch does
@@ -410,11 +508,14 @@ pub fn unsupported(worlds: &[Scene], options: &CudaOptions) -> Option<String> {
         )
     };
     let want = shared(base);
+    if let Some(why) = rigid_refusal(worlds) {
+        return Some(why);
+    }
     for (w, s) in worlds.iter().enumerate() {
-        if !s.rigid_bodies.is_empty() || !s.emitters.is_empty() {
+        if !s.emitters.is_empty() {
             return Some(format!(
-                "world {w} has rigid bodies or emitters: the GPU batch runs worlds of \
-                 material, colliders and walls only so far"
+                "world {w} has emitters: the GPU batch runs worlds of material, colliders, \
+                 walls and rigid bodies only so far"
             ));
         }
         if shared(s) != want {
@@ -427,6 +528,59 @@ pub fn unsupported(worlds: &[Scene], options: &CudaOptions) -> Option<String> {
     }
     let n_cells_x = base.n_cells()[0] as usize;
     grid_reach_refusal(worlds.len(), world_stride(n_cells_x), n_cells_x)
+}
+
+/// Why the worlds' rigid bodies cannot run in a GPU batch, or `None`: every world has as many
+/// (they may differ in anything else: kind, pose, velocity, shape, boundary rule), a mesh body
+/// has world 0's mesh (the mesh table is shared), at most `MAX_BODIES` a world, a USL step of
+/// the MLS or classic transfers (as a single run), and a build with the rigid-body engine.
+fn rigid_refusal(worlds: &[Scene]) -> Option<String> {
+    let base = worlds.first()?;
+    let n = base.rigid_bodies.len();
+    for (w, s) in worlds.iter().enumerate() {
+        if s.rigid_bodies.len() != n {
+            return Some(format!(
+                "world {w} has {} rigid bodies and world 0 has {n}: on the GPU every world has \
+                 the same number (they may differ in kind, pose, velocity, shape and boundary \
+                 rule)",
+                s.rigid_bodies.len()
+            ));
+        }
+        for (i, (b, b0)) in s.rigid_bodies.iter().zip(&base.rigid_bodies).enumerate() {
+            let mesh =
+                |b: &rtmpm_rigid::RigidBodySpec| matches!(b.shape, rtmpm_geometry::Shape::Mesh(_));
+            if (mesh(b) || mesh(b0)) && b.shape != b0.shape {
+                return Some(format!(
+                    "rigid body {i} of world {w} is a mesh other than world 0's: on the GPU \
+                     every world's mesh bodies share world 0's meshes"
+                ));
+            }
+        }
+    }
+    if n == 0 {
+        return None;
+    }
+    if !cfg!(feature = "rigid") {
+        return Some(
+            "the worlds have rigid bodies and this build has no rigid-body engine (the cargo \
+             feature `rigid`)"
+                .into(),
+        );
+    }
+    if n > crate::contract::MAX_BODIES {
+        return Some(format!(
+            "the worlds have {n} rigid bodies each; at most {} a world",
+            crate::contract::MAX_BODIES
+        ));
+    }
+    if base.solver.update == Update::Musl || base.solver.transfer == Transfer::CkMpm {
+        return Some(
+            "rigid bodies are coupled in the grid update of USL steps of the MLS or classic \
+             transfers ([solver] update = \"usl\", transfer other than \"ck-mpm\")"
+                .into(),
+        );
+    }
+    None
 }
 
 /// The worlds' initial particles against their scenes (one set per world, none empty, their

@@ -88,7 +88,7 @@ impl BodyUpdate {
     /// box in its new pose inside `interior` (the domain minus the walls), a non-zero
     /// quaternion (normalised), and no velocities for a fixed body. On an error `pose` may be
     /// half changed: the caller drops it.
-    fn apply(
+    pub(crate) fn apply(
         &self,
         spec: &RigidBodySpec,
         pose: &mut BodyPose,

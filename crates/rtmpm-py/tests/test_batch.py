@@ -368,13 +368,19 @@ def test_without_a_gpu_auto_runs_a_batch_on_the_cpu_and_cuda_says_why_not():
 
 @pytest.mark.skipif("rigid" not in rtmpm.features, reason="module built without the rigid feature")
 def test_auto_runs_on_the_cpu_what_the_gpu_batch_does_not_do(tmp_path):
-    # Rigid bodies: the GPU batch does not run them, so auto runs the CPU on any machine.
-    sim = rtmpm.Simulation(rtmpm.Scene.from_toml(TOOL_SCENE), batch=2)
+    # Emitters: the GPU batch does not run them, so auto runs the CPU on any machine.
+    emitting = rtmpm.Scene.from_toml(world_text() + (
+        "[[emitter]]\nmaterial = \"mud\"\nshape = \"box\"\nmin = [0.2, 0.35, 0.2]\n"
+        "max = [0.25, 0.37, 0.25]\nvelocity = [0.0, -1.0, 0.0]\nvolume_rate = 1e-4\n"))
+    sim = rtmpm.Simulation(emitting, batch=2)
     assert sim.backend.kind == "cpu"
     if GPU_OK:
-        assert "the GPU batch cannot run it: world 0 has rigid bodies" in sim.backend.reason
-        with pytest.raises(rtmpm.BackendError, match="cannot run on the GPU: world 0 has rigid bodies"):
-            rtmpm.Simulation(rtmpm.Scene.from_toml(TOOL_SCENE), batch=2, backend="cuda")
+        assert "the GPU batch cannot run it: world 0 has emitters" in sim.backend.reason
+        with pytest.raises(rtmpm.BackendError, match="cannot run on the GPU: world 0 has emitters"):
+            rtmpm.Simulation(emitting, batch=2, backend="cuda")
+    # Rigid bodies (a tool in every world) run on the GPU batch: auto picks it when there is one.
+    tool = rtmpm.Simulation(rtmpm.Scene.from_toml(TOOL_SCENE), batch=2)
+    assert tool.backend.kind == ("cuda" if GPU_OK else "cpu"), tool.backend.reason
     # A resume: auto resumes a CPU batch's checkpoint on the GPU when there is one.
     scene = rtmpm.Scene.from_toml(world_text())
     first = rtmpm.Simulation(scene, batch=2, backend="cpu")

@@ -5,6 +5,7 @@
 use crate::backend::Backend;
 use crate::error::SimError;
 use rtmpm_physics::Particles;
+use rtmpm_rigid::{BodyLoad, BodyPose};
 
 /// A backend holding several independent worlds: particles of world `w` never touch another
 /// world's grid, each world keeps its own coordinates and material indices.
@@ -23,4 +24,33 @@ pub trait Worlds: Backend {
     /// [`crate::BadParticle::index`] and [`crate::Blowup::particle`] give it) and its index in
     /// that world.
     fn world_of_particle(&self, index: usize) -> Option<(usize, usize)>;
+
+    /// World `w`'s rigid bodies' poses and velocities now (one per `[[rigid_body]]` of its
+    /// scene, in order), as [`Backend::rigid_poses`] gives a single run's; empty where the
+    /// backend holds none.
+    fn world_rigid_poses(&self, _w: usize) -> Vec<BodyPose> {
+        Vec::new()
+    }
+
+    /// Put world `w`'s rigid bodies at `poses` (from [`Worlds::world_rigid_poses`]: a script
+    /// posing a tool, a reset, a rewind), from the next step on; the other worlds' are not
+    /// touched. A backend that holds no bodies accepts only none.
+    fn set_world_rigid_poses(&mut self, w: usize, poses: &[BodyPose]) -> Result<(), SimError> {
+        if poses.is_empty() {
+            return Ok(());
+        }
+        Err(SimError::Backend(format!(
+            "the backend `{}` holds no rigid bodies for world {w} ({} poses given)",
+            self.name(),
+            poses.len()
+        )))
+    }
+
+    /// The load (force and torque) the material put on each of world `w`'s rigid bodies over
+    /// the last step, as [`Backend::rigid_loads`] gives a single run's (zeros before the first
+    /// step); `None`: this backend does not report loads. An error: the backend failed while
+    /// reading them (e.g. waiting for the step that made them).
+    fn world_rigid_loads(&self, _w: usize) -> Result<Option<Vec<BodyLoad>>, SimError> {
+        Ok(None)
+    }
 }

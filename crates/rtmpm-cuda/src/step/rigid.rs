@@ -202,6 +202,11 @@ impl Bodies {
         self.world.states()
     }
 
+    /// Where each body's distance grid starts in the mesh table (`encode::Tables::body_mesh`).
+    pub fn mesh_offsets(&self) -> Vec<u32> {
+        self.link.mesh_offsets.clone()
+    }
+
     /// Every body's pose and velocities (what a checkpoint stores).
     pub fn poses(&self) -> Vec<rtmpm_rigid::BodyPose> {
         self.world.poses()

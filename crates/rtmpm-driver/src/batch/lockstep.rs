@@ -12,6 +12,11 @@
 //! A run without files (Python's `BatchSimulation` on the GPU) also advances by steps
 //! ([`LockstepRun::advance_steps`]) and resets chosen worlds ([`LockstepRun::reset_worlds`]):
 //! the worlds share one clock, so a world's time, steps and frames count from its last reset.
+//!
+//! Rigid bodies: each world's are the backend's ([`Worlds::world_rigid_poses`]); the driver
+//! keeps them with the world's particles (at the start of each advance, and at each state read)
+//! and puts them back with them: a rewind puts every world's bodies back (a frozen world's
+//! parked, at rest where they were), a reset puts a world's back to their poses at its start.
 
 mod checkpoint;
 
@@ -21,7 +26,8 @@ use crate::output::FrameOutput;
 use crate::simulation::Simulation;
 use anyhow::{Context, Result, bail};
 use rtmpm_physics::Particles;
-use rtmpm_physics::math::Mat3;
+use rtmpm_physics::math::{Mat3, Vec3};
+use rtmpm_rigid::BodyPose;
 use rtmpm_scene::{BatchScene, Scene};
 use rtmpm_sim::{Blowup, SimError, Worlds};
 
@@ -36,6 +42,10 @@ pub struct LockWorld {
     output: Option<FrameOutput>,
     /// Its particles at the last completed frame (of the frame it froze at, once frozen).
     kept: Particles,
+    /// Its rigid bodies with `kept` (as the last advance began, or at the last state read).
+    bodies: Vec<BodyPose>,
+    /// Its rigid bodies at its time 0 (what a reset puts back).
+    start_bodies: Vec<BodyPose>,
     /// The shared clock at that state.
     at: Clock,
     /// The shared clock at the world's time 0 (its last reset; zero without one).
@@ -55,6 +65,12 @@ impl LockWorld {
     /// the last [`LockstepRun::advance_steps`].
     pub fn particles(&self) -> &Particles {
         &self.kept
+    }
+
+    /// Its rigid bodies' poses and velocities with [`LockWorld::particles`] (empty without
+    /// rigid bodies).
+    pub fn bodies(&self) -> &[BodyPose] {
+        &self.bodies
     }
 
     /// Its own scene (its swept values).
@@ -139,12 +155,15 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
                 )?),
                 None => None,
             };
+            let start_bodies = backend.world_rigid_poses(w);
             worlds.push(LockWorld {
                 label,
                 status: WorldStatus::Running,
                 scene: s.clone(),
                 output,
                 kept: Particles::default(),
+                bodies: start_bodies.clone(),
+                start_bodies,
                 at: Clock::default(),
                 origin: Clock::default(),
             });
@@ -236,6 +255,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         mut advance: impl FnMut(&mut Simulation<B>) -> Result<(), SimError>,
     ) -> Result<Vec<usize>> {
         let clock = self.clock();
+        self.keep_bodies()?;
         let mut frozen = Vec::new();
         loop {
             let e = match advance(&mut self.sim) {
@@ -304,10 +324,36 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
                 .backend
                 .put_world(w, &p)
                 .with_context(|| format!("resetting world {w}"))?;
+            let start = self.worlds[w].start_bodies.clone();
+            self.sim
+                .backend
+                .set_world_rigid_poses(w, &start)
+                .with_context(|| format!("resetting world {w}'s rigid bodies"))?;
             let world = &mut self.worlds[w];
+            world.bodies = start;
             world.kept = p;
             world.status = WorldStatus::Running;
             (world.at, world.origin) = (now, now);
+        }
+        Ok(())
+    }
+
+    /// As an advance begins: keep each running world's bodies as they are now (a script may
+    /// have posed them since the last read), what a rewind puts back; a frozen world's are
+    /// parked again (a script posing every world's tool does not move a frozen world's).
+    fn keep_bodies(&mut self) -> Result<()> {
+        for (w, world) in self.worlds.iter_mut().enumerate() {
+            if world.bodies.is_empty() {
+                continue;
+            }
+            if world.status == WorldStatus::Running {
+                world.bodies = self.sim.backend.world_rigid_poses(w);
+            } else {
+                self.sim
+                    .backend
+                    .set_world_rigid_poses(w, &parked_bodies(&world.bodies))
+                    .with_context(|| format!("parking frozen world {w}'s rigid bodies"))?;
+            }
         }
         Ok(())
     }
@@ -361,14 +407,20 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
     fn rewind(&mut self, clock: Clock) -> Result<()> {
         let frame = clock.frame;
         for (w, world) in self.worlds.iter().enumerate() {
-            let p = match world.status {
-                WorldStatus::Running => world.kept.clone(),
-                WorldStatus::Frozen { .. } => parked(&world.kept),
+            let (p, bodies) = match world.status {
+                WorldStatus::Running => (world.kept.clone(), world.bodies.clone()),
+                WorldStatus::Frozen { .. } => (parked(&world.kept), parked_bodies(&world.bodies)),
             };
             self.sim
                 .backend
                 .put_world(w, &p)
                 .with_context(|| format!("putting world {w} back to frame {frame}"))?;
+            self.sim
+                .backend
+                .set_world_rigid_poses(w, &bodies)
+                .with_context(|| {
+                    format!("putting world {w}'s rigid bodies back to frame {frame}")
+                })?;
         }
         (self.sim.time, self.sim.step, self.sim.frame) = (clock.time, clock.step, clock.frame);
         Ok(())
@@ -378,14 +430,21 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
     fn read_and_write_frame(&mut self) -> Result<()> {
         let all = self.sim.backend.read_worlds()?;
         let now = self.clock();
-        for (world, p) in self.worlds.iter_mut().zip(all) {
+        for (w, (world, p)) in self.worlds.iter_mut().zip(all).enumerate() {
             if world.status != WorldStatus::Running {
                 continue;
             }
             world.kept = p;
+            world.bodies = self.sim.backend.world_rigid_poses(w);
             world.at = now;
             if let Some(out) = world.output.as_mut() {
-                out.write_frame(now.frame, now.time, &world.kept, &[], &world.scene)?;
+                out.write_frame(
+                    now.frame,
+                    now.time,
+                    &world.kept,
+                    &world.bodies,
+                    &world.scene,
+                )?;
             }
         }
         Ok(())
@@ -433,6 +492,17 @@ fn parked(kept: &Particles) -> Particles {
     p.c.iter_mut().for_each(|c| *c = Mat3::ZERO);
     p.f.iter_mut().for_each(|f| *f = Mat3::IDENTITY);
     p
+}
+
+/// A frozen world's rigid bodies as it is left in the backend: where they were, at rest.
+fn parked_bodies(kept: &[BodyPose]) -> Vec<BodyPose> {
+    kept.iter()
+        .map(|b| BodyPose {
+            velocity: Vec3::ZERO,
+            angular_velocity: Vec3::ZERO,
+            ..*b
+        })
+        .collect()
 }
 
 #[cfg(test)]

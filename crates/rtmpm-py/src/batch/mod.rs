@@ -1,5 +1,5 @@
 //! `rtmpm.BatchSimulation`: many worlds of one scene stepped together (rtmpm-driver's
-//! [`BatchRun`] on the CPU backend, its `LockstepRun` over rtmpm-cuda's `CudaBatch` on one GPU:
+//! [`rtmpm_driver::batch::BatchRun`] on the CPU backend, its `LockstepRun` over rtmpm-cuda's `CudaBatch` on one GPU:
 //! [`run::Run`]), read and steered world by world from Python: particle arrays of every world
 //! at once, resets of chosen worlds, kinematic rigid bodies (tools, pushers) posed per world,
 //! the load the material puts on them, and each world's status (a world that blows up is
@@ -23,7 +23,6 @@ use crate::scene::PyScene;
 use pyo3::exceptions::{PyIndexError, PyValueError};
 use pyo3::prelude::*;
 use rtmpm_backends::BackendRequest;
-use rtmpm_driver::batch::BatchRun;
 use rtmpm_physics::Particles;
 use run::Run;
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -59,8 +58,9 @@ impl Worlds {
 /// GPU (``backend="cuda"``, or ``"auto"`` with a usable GPU and a batch it supports) every
 /// world runs in the same CUDA kernels, each isolated in the grid, at one time step for all
 /// worlds (the smallest any world needs); a world's time, frames and steps count from its last
-/// reset. What the GPU batch does not do (rigid bodies, emitters, worlds that differ in domain
-/// or colliders) raises an error naming it and ``backend="cpu"``.
+/// reset; each world's rigid bodies are its own there too. What the GPU batch does not do
+/// (emitters, worlds that differ in domain, colliders or number of rigid bodies) raises an
+/// error naming it and ``backend="cpu"``.
 ///
 /// Arrays: :attr:`x`, :attr:`v`, :attr:`mass`, :attr:`material` are shaped ``(N, n, ...)``
 /// when every world has ``n`` particles (:attr:`uniform`), else flat (all worlds' particles one
@@ -125,18 +125,6 @@ impl PyBatch {
         match self.run.get_mut() {
             Ok(r) => r.get(),
             Err(poisoned) => poisoned.into_inner().get(),
-        }
-    }
-
-    /// The run on the CPU backend, for what only it does (`what`: the method); on the GPU an
-    /// error naming it and the backend that does it.
-    fn each(&mut self, what: &str) -> PyResult<&mut BatchRun> {
-        match self.r() {
-            Run::Each(r) => Ok(r),
-            Run::Lockstep(_) => Err(crate::errors::BackendError::new_err(format!(
-                "BatchSimulation.{what}: not available for a batch on the GPU (every world in \
-                 the same CUDA kernels); create the batch with backend=\"cpu\" for it"
-            ))),
         }
     }
 

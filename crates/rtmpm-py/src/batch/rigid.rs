@@ -1,15 +1,22 @@
 //! Rigid bodies per world: kinematic bodies (tools, pushers) posed world by world, their
-//! states, and the force and torque the material puts on them.
+//! states, and the force and torque the material puts on them; on the CPU backend through each
+//! world's own simulation, on the GPU through the batch's per-world bodies
+//! (`rtmpm_sim::Worlds::world_rigid_poses` and the rest).
 
 use super::PyBatch;
 use super::arrays::f32_array;
+use super::run::Run;
 use crate::bodies::{BodyUpdate, body_index, set_body};
-use crate::errors::BackendError;
+use crate::errors::{BackendError, sim_error};
 use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyIndexError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use rtmpm_cuda::batch::CudaBatch;
 use rtmpm_driver::batch::WorldStatus;
+use rtmpm_driver::batch::lockstep::LockstepRun;
+use rtmpm_rigid::BodyLoad;
+use rtmpm_sim::Worlds;
 
 /// A per-world vector argument: one value for every world listed, or one row per world.
 fn per_world<const K: usize>(
@@ -57,7 +64,6 @@ impl PyBatch {
         angular_velocity: Option<Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         self.usable()?;
-        self.each("set_rigid_body")?;
         let list = self.world_list(worlds)?;
         let k = list.len();
         let position = per_world::<3>("position", position, k)?;
@@ -65,15 +71,24 @@ impl PyBatch {
         let velocity = per_world::<3>("velocity", velocity, k)?;
         let angular = per_world::<3>("angular_velocity", angular_velocity, k)?;
         for (j, &w) in list.iter().enumerate() {
-            let sim = &mut self.each("set_rigid_body")?.worlds[w].sim;
-            let i = body_index(body, &sim.scene.rigid_bodies)?;
             let update = BodyUpdate {
                 position: position.as_ref().map(|p| p[j]),
                 rotation: rotation.as_ref().map(|p| p[j]),
                 velocity: velocity.as_ref().map(|p| p[j]),
                 angular_velocity: angular.as_ref().map(|p| p[j]),
             };
-            set_body(py, sim, i, &update).map_err(|e| {
+            let done = match self.r() {
+                Run::Each(r) => {
+                    let sim = &mut r.worlds[w].sim;
+                    let i = body_index(body, &sim.scene.rigid_bodies)?;
+                    set_body(py, sim, i, &update)
+                }
+                Run::Lockstep(r) => {
+                    let i = body_index(body, &r.worlds[w].scene().rigid_bodies)?;
+                    pose_world(py, r, w, i, &update)
+                }
+            };
+            done.map_err(|e| {
                 let msg = format!("world {w}: {}", e.value(py));
                 PyErr::from_type(e.get_type(py), msg)
             })?;
@@ -89,11 +104,18 @@ impl PyBatch {
         world: i64,
     ) -> PyResult<Vec<Bound<'py, PyDict>>> {
         let w = self.world_list(Some(vec![world]))?[0];
-        let backend = &mut self.each("rigid_bodies")?.worlds[w].sim.backend;
-        backend
-            .flush_rigid()
-            .map_err(|e| crate::errors::sim_error(py, &e))?;
-        crate::bodies::states(py, &backend.rigid_poses(), backend.rigid_loads())
+        match self.r() {
+            Run::Each(r) => {
+                let backend = &mut r.worlds[w].sim.backend;
+                backend.flush_rigid().map_err(|e| sim_error(py, &e))?;
+                crate::bodies::states(py, &backend.rigid_poses(), backend.rigid_loads())
+            }
+            Run::Lockstep(r) => {
+                let b = &r.sim.backend;
+                let loads = b.world_rigid_loads(w).map_err(|e| sim_error(py, &e))?;
+                crate::bodies::states(py, &b.world_rigid_poses(w), loads)
+            }
+        }
     }
 
     /// ``(N, 3)`` float64 array: the force (N) the material put on rigid body ``body`` (index or
@@ -129,26 +151,60 @@ impl PyBatch {
         body: &Bound<'_, PyAny>,
         part: impl Fn(&rtmpm_rigid::BodyLoad) -> [f64; 3],
     ) -> PyResult<Bound<'py, PyAny>> {
-        let mut flat = Vec::with_capacity(3 * self.count());
-        for world in &self.each(what)?.worlds {
-            let i = body_index(body, &world.sim.scene.rigid_bodies)?;
-            if world.status != WorldStatus::Running {
+        let count = self.count();
+        let mut flat = Vec::with_capacity(3 * count);
+        for w in 0..count {
+            let run = self.r();
+            let specs = &run.scene(w).rigid_bodies;
+            let i = body_index(body, specs)?;
+            if *run.status(w) != WorldStatus::Running {
                 flat.extend([f64::NAN; 3]);
                 continue;
             }
-            let loads = world.sim.backend.rigid_loads().ok_or_else(|| {
+            let (loads, backend) = match run {
+                Run::Each(r) => {
+                    let b = &r.worlds[w].sim.backend;
+                    (b.rigid_loads(), b.name())
+                }
+                Run::Lockstep(r) => {
+                    let b = &r.sim.backend;
+                    let loads = b.world_rigid_loads(w).map_err(|e| sim_error(py, &e))?;
+                    (loads, rtmpm_sim::Backend::name(b.as_ref()))
+                }
+            };
+            let loads = loads.ok_or_else(|| {
                 BackendError::new_err(format!(
-                    "the backend `{}` does not report the loads on rigid bodies",
-                    world.sim.backend.name()
+                    "BatchSimulation.{what}: the backend `{backend}` does not report the loads \
+                     on rigid bodies"
                 ))
             })?;
-            let l = loads.get(i).ok_or_else(|| {
+            let l: &BodyLoad = loads.get(i).ok_or_else(|| {
                 PyIndexError::new_err(format!("rigid body {i}: the backend holds no state for it"))
             })?;
             flat.extend(part(l));
         }
-        Ok(PyArray1::from_vec(py, flat)
-            .reshape([self.count(), 3])?
-            .into_any())
+        Ok(PyArray1::from_vec(py, flat).reshape([count, 3])?.into_any())
     }
+}
+
+/// Set the fields of `update` on rigid body `i` of world `w` of a GPU batch from the next step
+/// on (the checks of `Simulation.set_rigid_body`; the batch moves bodies a step at a time, so
+/// the fields not given are the body's now).
+fn pose_world(
+    py: Python<'_>,
+    run: &mut LockstepRun<CudaBatch>,
+    w: usize,
+    i: usize,
+    update: &BodyUpdate,
+) -> PyResult<()> {
+    let mut poses = run.sim.backend.world_rigid_poses(w);
+    let pose = poses.get_mut(i).ok_or_else(|| {
+        PyIndexError::new_err(format!("rigid body {i}: the backend holds no state for it"))
+    })?;
+    let scene = run.worlds[w].scene();
+    update.apply(&scene.rigid_bodies[i], pose, scene.interior())?;
+    run.sim
+        .backend
+        .set_world_rigid_poses(w, &poses)
+        .map_err(|e| sim_error(py, &e))
 }

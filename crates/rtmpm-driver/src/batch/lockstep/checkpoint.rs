@@ -6,10 +6,10 @@
 //! resumed run goes on bit for bit as the one that wrote the checkpoint
 //! (`crates/rtmpm-cpu/tests/lockstep.rs`); on the GPU within what its atomic sums allow.
 
-use super::{Clock, LockstepRun, parked};
+use super::{Clock, LockstepRun, parked, parked_bodies};
 use crate::batch::checkpoint::{Saved, prepare_dir, read_folder, write_folder};
 use crate::batch::{BatchOptions, WorldStatus};
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use rtmpm_io::checkpoint::Checkpoint;
 use rtmpm_physics::Particles;
 use rtmpm_scene::{BatchScene, Scene};
@@ -22,10 +22,12 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
     /// `origin` where it came from, both stored with each world.
     pub fn checkpoint(&mut self, dir: &Path, text: &str, origin: &str) -> Result<()> {
         prepare_dir(dir)?;
+        let backend = &self.sim.backend;
         let saved: Vec<Saved> = self
             .worlds
             .iter()
-            .map(|world| Saved {
+            .enumerate()
+            .map(|(w, world)| Saved {
                 label: world.label.clone(),
                 status: world.status.clone(),
                 ckpt: Checkpoint {
@@ -34,7 +36,12 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
                     time: world.time(),
                     step: world.steps(),
                     frame: world.frame(),
-                    bodies: Vec::new(),
+                    // A running world's bodies now (posed since its last step too); a
+                    // frozen world's as it froze.
+                    bodies: match world.status {
+                        WorldStatus::Running => backend.world_rigid_poses(w),
+                        WorldStatus::Frozen { .. } => world.bodies.clone(),
+                    },
                     files: world.scene.file_hashes(),
                     // A running world's state now; a frozen world's last good one.
                     particles: world.kept.clone(),
@@ -60,13 +67,6 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
     ) -> Result<LockstepRun<B>> {
         let saved = read_folder(batch, text, dir)?;
         let clock = shared_clock(&saved, dir)?;
-        if let Some(w) = saved.iter().position(|s| !s.ckpt.bodies.is_empty()) {
-            bail!(
-                "cannot resume the batch from {}: world {w} has rigid bodies, which worlds in \
-                 one backend do not run\n  fix: resume it on the CPU backend (--backend cpu)",
-                dir.display()
-            );
-        }
         let particles: Vec<Particles> = saved
             .iter()
             .map(|s| match s.status {
@@ -79,7 +79,26 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         let states: Vec<(u64, f64)> = saved.iter().map(|s| (s.ckpt.frame, s.ckpt.time)).collect();
         let mut run = Self::build(batch, text, made, options, Some(&states))?;
         (run.sim.time, run.sim.step, run.sim.frame) = (clock.time, clock.step, clock.frame);
-        for (world, s) in run.worlds.iter_mut().zip(saved) {
+        for (w, (world, s)) in run.worlds.iter_mut().zip(saved).enumerate() {
+            // Its rigid bodies as saved (a frozen world's parked, as its particles).
+            let bodies = match s.status {
+                WorldStatus::Running => s.ckpt.bodies.clone(),
+                WorldStatus::Frozen { .. } => parked_bodies(&s.ckpt.bodies),
+            };
+            if bodies.len() != world.start_bodies.len() {
+                bail!(
+                    "cannot resume the batch from {}: world {w}'s checkpoint holds {} rigid \
+                     bodies, its scene has {}",
+                    dir.display(),
+                    bodies.len(),
+                    world.start_bodies.len()
+                );
+            }
+            run.sim
+                .backend
+                .set_world_rigid_poses(w, &bodies)
+                .with_context(|| format!("resuming world {w}'s rigid bodies"))?;
+            world.bodies = s.ckpt.bodies.clone();
             world.at = Clock {
                 time: s.ckpt.time,
                 step: s.ckpt.step,

@@ -1,0 +1,313 @@
+//! Rigid bodies in a GPU batch ([`super::CudaBatch`]): one rapier world per world on the host
+//! ([`RigidWorld`], as each world of a CPU batch has its own), every world's bodies in one table
+//! on the device (row `w * per + b`: body `b` of world `w`), which the grid update couples to
+//! that world's nodes only (`kernels/grid_update.cu`: `couple_world_bodies`), and the reaction of
+//! every body of every world summed per row, read back after each step.
+//!
+//! Per step: every world's body states go to the table (one copy), the step runs, its sums are
+//! copied to page-locked memory and cleared. With a dynamic body in any world the host waits for
+//! the sums and advances each world's rapier world by its own (the order of
+//! `rigid_overlap=off` in a single run: the CPU backend's); with kinematic and fixed bodies only,
+//! which no sum moves, the worlds advance at once and the sums are waited for only when a load
+//! is read ([`WorldBodies::loads`]).
+
+use crate::contract::{BODY_EXCHANGE_SLOTS, GpuBody};
+use crate::error::err;
+use cudarc::driver::{CudaEvent, CudaSlice, CudaStream, DevicePtr, PinnedHostSlice};
+use rtmpm_rigid::{BodyLoad, BodyPose, BodyState, Exchange, RigidKind, RigidWorld};
+use rtmpm_scene::Scene;
+use rtmpm_sim::SimError;
+use std::sync::Arc;
+
+/// Every world's rigid bodies: their rapier worlds and the device side of their coupling.
+pub(crate) struct WorldBodies {
+    /// One rapier world per world, in order.
+    worlds: Vec<RigidWorld>,
+    /// Bodies of one world.
+    per: usize,
+    /// `worlds x per` [`GpuBody`] records (`Ctx::bodies` in a batch).
+    table: CudaSlice<u8>,
+    /// `BODY_EXCHANGE_SLOTS` x `worlds x per` rows x 6 f64 sums (`Ctx::body_exchange`).
+    exchange: CudaSlice<f64>,
+    /// The page-locked copy of the last step's sums, and the event after its copy.
+    host: PinnedHostSlice<f64>,
+    done: CudaEvent,
+    /// Where each body's distance grid starts in the mesh table (world 0's mesh bodies, which
+    /// every world shares: `super::unsupported`).
+    mesh_offsets: Vec<u32>,
+    /// Some world has a dynamic body (the host waits for every step's sums).
+    dynamic: bool,
+    /// The dt of the step whose sums `host` holds; `None` before the first step.
+    last_dt: Option<f32>,
+}
+
+impl WorldBodies {
+    /// The bodies of the worlds `worlds` (`None` when they have none; every world has as many,
+    /// `super::unsupported`), their buffers allocated on `stream`; `mesh_offsets`: where each
+    /// body's distance grid starts in the mesh table (`encode::Tables::body_mesh`).
+    pub fn new(
+        worlds: &[Scene],
+        stream: &Arc<CudaStream>,
+        mesh_offsets: Vec<u32>,
+    ) -> Result<Option<WorldBodies>, SimError> {
+        let per = worlds.first().map_or(0, |s| s.rigid_bodies.len());
+        if per == 0 {
+            return Ok(None);
+        }
+        let mut rapier = Vec::with_capacity(worlds.len());
+        for (w, s) in worlds.iter().enumerate() {
+            let world = crate::step::rigid::world(s)
+                .map_err(|e| SimError::Backend(format!("CUDA batch: world {w}: {e}")))?
+                .ok_or_else(|| {
+                    SimError::Backend(format!("CUDA batch: world {w} has no rigid bodies"))
+                })?;
+            rapier.push(world);
+        }
+        let rows = worlds.len() * per;
+        let table = stream
+            .alloc_zeros::<u8>(rows * std::mem::size_of::<GpuBody>())
+            .map_err(err("alloc the worlds' rigid bodies"))?;
+        let len = BODY_EXCHANGE_SLOTS * rows * 6;
+        let exchange = stream
+            .alloc_zeros::<f64>(len)
+            .map_err(err("alloc the worlds' rigid-body impulses"))?;
+        // SAFETY: the copy is written by a device copy before the host reads it (after `done`).
+        let host = unsafe { stream.context().alloc_pinned_with_flags::<f64>(len, 0) }
+            .map_err(err("allocate page-locked memory"))?;
+        let done = stream.record_event(None).map_err(err("record an event"))?;
+        let dynamic = worlds
+            .iter()
+            .flat_map(|s| &s.rigid_bodies)
+            .any(|b| b.kind == RigidKind::Dynamic);
+        Ok(Some(WorldBodies {
+            worlds: rapier,
+            per,
+            table,
+            exchange,
+            host,
+            done,
+            mesh_offsets,
+            dynamic,
+            last_dt: None,
+        }))
+    }
+
+    /// Device addresses for [`crate::contract::Ctx`]: (the table, the sums, bodies of a world).
+    pub fn ctx_fields(&self, stream: &Arc<CudaStream>) -> (u64, u64, u32) {
+        let (a, _) = self.table.device_ptr(stream);
+        let (b, _) = self.exchange.device_ptr(stream);
+        (a, b, self.per as u32)
+    }
+
+    /// Before a step: every world's body states to the table.
+    pub fn upload(&mut self, stream: &Arc<CudaStream>) -> Result<(), SimError> {
+        let recs: Vec<GpuBody> = self
+            .worlds
+            .iter()
+            .flat_map(|w| w.states().iter().enumerate())
+            .map(|(i, b)| {
+                let mesh = self.mesh_offsets.get(i).copied().unwrap_or(0);
+                crate::step::rigid::encode(b, mesh)
+            })
+            .collect();
+        let bytes: &[u8] = bytemuck::cast_slice(&recs);
+        stream
+            .memcpy_htod(bytes, &mut self.table.slice_mut(..bytes.len()))
+            .map_err(err("upload the worlds' rigid bodies"))
+    }
+
+    /// After a step of `dt` was queued: its sums are copied to the host and cleared, and every
+    /// world's bodies advance by `dt` (with a dynamic body, by their world's sums, waited for).
+    pub fn after_step(&mut self, stream: &Arc<CudaStream>, dt: f32) -> Result<(), SimError> {
+        stream
+            .memcpy_dtoh(&self.exchange, &mut self.host)
+            .map_err(err("read the worlds' rigid-body impulses"))?;
+        self.done = stream.record_event(None).map_err(err("record an event"))?;
+        stream
+            .memset_zeros(&mut self.exchange)
+            .map_err(err("clear the worlds' rigid-body impulses"))?;
+        self.last_dt = Some(dt);
+        if !self.dynamic {
+            let none = vec![Exchange::default(); self.per];
+            self.worlds.iter_mut().for_each(|w| w.advance(&none, dt));
+            return Ok(());
+        }
+        let (rows, per) = (self.worlds.len() * self.per, self.per);
+        let each: Vec<Vec<Exchange>> = {
+            let sums = self.wait()?;
+            (0..self.worlds.len())
+                .map(|w| row_sums(sums, rows, w * per, per))
+                .collect()
+        };
+        for (world, ex) in self.worlds.iter_mut().zip(&each) {
+            world.advance(ex, dt);
+        }
+        Ok(())
+    }
+
+    /// Wait for the last step's sums and give them.
+    fn wait(&self) -> Result<&[f64], SimError> {
+        self.done
+            .synchronize()
+            .map_err(err("wait for the worlds' rigid-body impulses"))?;
+        self.host.as_slice().map_err(err("page-locked memory"))
+    }
+
+    /// The load the material put on each of world `w`'s bodies over the last step (zeros
+    /// before the first): its sums over that step's dt, as the CPU backend's
+    /// `Backend::rigid_loads`.
+    pub fn loads(&self, w: usize) -> Result<Vec<BodyLoad>, SimError> {
+        let Some(dt) = self.last_dt else {
+            return Ok(vec![BodyLoad::default(); self.per]);
+        };
+        let rows = self.worlds.len() * self.per;
+        let sums = row_sums(self.wait()?, rows, w * self.per, self.per);
+        Ok(sums.iter().map(|e| e.load(dt as f64)).collect())
+    }
+
+    /// Every world's body states, world by world (what bounds the shared time step).
+    pub fn states(&self) -> Vec<BodyState> {
+        self.worlds
+            .iter()
+            .flat_map(|w| w.states().iter().cloned())
+            .collect()
+    }
+
+    /// World `w`'s bodies' poses and velocities.
+    pub fn poses(&self, w: usize) -> Vec<BodyPose> {
+        self.worlds.get(w).map_or_else(Vec::new, |r| r.poses())
+    }
+
+    /// Put world `w`'s bodies at `poses` (one per body).
+    pub fn set_poses(&mut self, w: usize, poses: &[BodyPose]) -> Result<(), SimError> {
+        let count = self.worlds.len();
+        let world = self.worlds.get_mut(w).ok_or_else(|| {
+            SimError::Backend(format!("CUDA batch: no world {w} (the batch has {count})"))
+        })?;
+        world
+            .set_poses(poses)
+            .map_err(|e| SimError::Backend(format!("CUDA batch: world {w}: {e}")))
+    }
+
+    /// Bodies of one world.
+    pub fn per_world(&self) -> usize {
+        self.per
+    }
+}
+
+/// The sums of rows `first .. first + count` of `rows` per copy, over the
+/// `BODY_EXCHANGE_SLOTS` copies (slot-major: slot, row, 6 values), added in slot order.
+pub fn row_sums(sums: &[f64], rows: usize, first: usize, count: usize) -> Vec<Exchange> {
+    let mut out = vec![Exchange::default(); count];
+    for slot in 0..BODY_EXCHANGE_SLOTS {
+        for (b, e) in out.iter_mut().enumerate() {
+            let at = 6 * (slot * rows + first + b);
+            let Some(v) = sums.get(at..at + 6) else {
+                continue;
+            };
+            for a in 0..3 {
+                e.impulse[a] += v[a];
+                e.torque[a] += v[3 + a];
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::CudaOptions;
+
+    /// A jelly block and `extra` (rigid bodies, emitters, a solver table).
+    fn scene(extra: &str) -> Scene {
+        let text = format!(
+            "[domain]\nmin = [0,0,0]\nmax = [0.4,0.4,0.4]\ndx = 0.02\n[time]\nduration = 0.1\n\
+             [[material]]\nname = \"j\"\ntype = \"fixed_corotated\"\ndensity = 1000.0\n\
+             youngs_modulus = 1e5\npoisson_ratio = 0.3\n[[body]]\nmaterial = \"j\"\n\
+             shape = \"box\"\nmin = [0.1, 0.06, 0.1]\nmax = [0.3, 0.18, 0.3]\n{extra}"
+        );
+        Scene::from_toml(&text, "test").unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    fn tool(y: f32, kind: &str) -> String {
+        format!(
+            "[[rigid_body]]\nshape = \"box\"\nmin = [0.17, {y}, 0.17]\nmax = [0.23, {}, 0.23]\n\
+             density = 1000.0\ntype = \"{kind}\"\n",
+            y + 0.06
+        )
+    }
+
+    /// Worlds with rigid bodies run on the GPU batch (with the rigid-body engine) when each
+    /// has as many, whatever their kind and pose; refused, with the reason, when the counts
+    /// differ, with emitters, and with MUSL steps.
+    #[test]
+    fn worlds_with_as_many_rigid_bodies_run_and_the_rest_is_refused_with_the_reason() {
+        let o = CudaOptions::default();
+        let worlds = [
+            scene(&tool(0.2, "kinematic")),
+            scene(&tool(0.25, "dynamic")),
+            scene(&tool(0.24, "fixed")),
+        ];
+        let verdict = crate::batch::unsupported(&worlds, &o);
+        if cfg!(feature = "rigid") {
+            assert_eq!(verdict, None);
+        } else {
+            let why = verdict.expect("refused without the engine");
+            assert!(why.contains("cargo feature `rigid`"), "{why}");
+        }
+        let uneven = [
+            scene(&tool(0.2, "kinematic")),
+            scene(&format!(
+                "{}{}",
+                tool(0.2, "kinematic"),
+                tool(0.27, "dynamic")
+            )),
+        ];
+        let why = crate::batch::unsupported(&uneven, &o).expect("refused");
+        assert!(
+            why.contains("world 1 has 2 rigid bodies and world 0 has 1"),
+            "{why}"
+        );
+        let emitter = "[[emitter]]\nmaterial = \"j\"\nshape = \"box\"\n\
+                       min = [0.2, 0.3, 0.2]\nmax = [0.22, 0.32, 0.22]\n\
+                       velocity = [0.0, -1.0, 0.0]\nvolume_rate = 1e-5\n";
+        let why = crate::batch::unsupported(&[scene(""), scene(emitter)], &o).expect("refused");
+        assert!(why.contains("world 1 has emitters"), "{why}");
+        if cfg!(feature = "rigid") {
+            // The scene file refuses MUSL with rigid bodies; the batch refuses it all the same.
+            let mut musl = scene(&tool(0.2, "kinematic"));
+            musl.solver.update = rtmpm_physics::transfer::Update::Musl;
+            let why = crate::batch::unsupported(&[musl.clone(), musl], &o).expect("refused");
+            assert!(why.contains("USL steps"), "{why}");
+        }
+    }
+
+    /// Rows of one world are summed over the copies, the other worlds' rows left out: world 1
+    /// of 3 with 2 bodies each is rows 2 and 3 of 6; the single run's sums
+    /// (`step::rigid::exchange_sums`) are the case of one world.
+    #[test]
+    fn a_worlds_rows_are_summed_over_the_copies_and_no_other_rows() {
+        let rows = 6;
+        let mut sums = vec![0.0; BODY_EXCHANGE_SLOTS * rows * 6];
+        let put = |s: &mut Vec<f64>, slot: usize, row: usize, k: usize, v: f64| {
+            s[6 * (slot * rows + row) + k] = v;
+        };
+        put(&mut sums, 0, 2, 1, 1.5); // world 1 body 0, impulse y
+        put(&mut sums, 31, 2, 1, 2.0);
+        put(&mut sums, 7, 3, 5, -3.0); // world 1 body 1, torque z
+        put(&mut sums, 3, 1, 0, 100.0); // world 0 body 1: not world 1's
+        put(&mut sums, 3, 4, 0, 100.0); // world 2 body 0: not world 1's
+        let e = row_sums(&sums, rows, 2, 2);
+        assert_eq!(e[0].impulse, [0.0, 3.5, 0.0]);
+        assert_eq!(e[0].torque, [0.0; 3]);
+        assert_eq!(e[1].torque, [0.0, 0.0, -3.0]);
+        assert_eq!(e[1].impulse, [0.0; 3]);
+        let w0 = row_sums(&sums, rows, 0, 2);
+        assert_eq!(w0[1].impulse, [100.0, 0.0, 0.0]);
+        // One world: the single run's sums.
+        let one = row_sums(&sums[..BODY_EXCHANGE_SLOTS * 6 * 6], 6, 0, 6);
+        let single = crate::step::rigid::exchange_sums(&sums, 6);
+        assert_eq!(one, single);
+    }
+}
