@@ -14,8 +14,8 @@
 #                against the CPU reference), then the four *_ck validation cases at full resolution, in
 #                f32 and (vibrating_bar_ck) f64; then ms/step of the fluid dam 2M and the jelly 2M with
 #                MLS-MPM (fused G2P2G, and g2p2g=off) and with CK-MPM (the same scene, [solver] transfer
-#                = "ck-mpm") with each CK-MPM P2G kernel (ck_p2g=direct, ck_p2g=warp, the default and the
-#                warp reduction, ck_p2g=fused, G2P2G); the agreement test with the default kernel
+#                = "ck-mpm") with each CK-MPM P2G kernel (ck_p2g=direct, ck_p2g=warp, the warp
+#                reduction, ck_p2g=fused, G2P2G and the default); the agreement test with the default kernel
 #                (CK_AGREEMENT="ck_p2g=direct;ck_p2g=warp;ck_p2g=fused" for all, about 3 min each)
 #   ck_speed     the CK-MPM kernel variants only: the benchmarks of `ck` (about 3 min; CK_VARIANTS: the
 #                --cuda-options of each CK-MPM line, default "ck_p2g=direct ck_p2g=warp ck_p2g=fused"),
@@ -144,7 +144,7 @@ for suite in "$@"; do
       grep -E "PASS|FAIL|passed" "$OUT/validate.log" | sed -E 's/ +/ /g' | tee -a "$S"
       ;;
     ck)
-      RTMPM_CK_AGREEMENT="${CK_AGREEMENT:-ck_p2g=warp}" t test_agreement cuda_agrees_with_cpu_with_ck_mpm --nocapture
+      RTMPM_CK_AGREEMENT="${CK_AGREEMENT:-ck_p2g=fused}" t test_agreement cuda_agrees_with_cpu_with_ck_mpm --nocapture
       grep -E "ck-mpm" "$OUT/test_agreement.log" | tee -a "$S"
       timeout 400 "$D/rtmpm" validate --backend cuda \
         --case hydrostatic_column_ck,vibrating_bar_ck,dam_break_ck,granular_column_ck \

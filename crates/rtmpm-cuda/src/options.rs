@@ -32,11 +32,11 @@ impl P2gMode {
 pub enum CkP2g {
     /// `p2g_ck`: one lane per particle, 16 direct global atomics a particle.
     Direct,
-    /// `p2g_ck_warp` (the default): per grid, the in-warp sort, segmented warp reduction and one lane's atomics
+    /// `p2g_ck_warp`: per grid, the in-warp sort, segmented warp reduction and one lane's atomics
     /// per segment of the MLS-MPM scatter (Fei, Huang & Gao, "Real-Time Simulation of MPM on
     /// Modern GPUs", GTC 2022).
     Warp,
-    /// G2P2G for CK-MPM (`g2p2g_ck`): the G2P of a step from both grids and, from the new
+    /// G2P2G for CK-MPM (`g2p2g_ck`, the default): the G2P of a step from both grids and, from the new
     /// state in registers, the warp scatter of `p2g_ck_warp` into both grids of the next step;
     /// `p2g_ck_warp` then runs only after a rebuild or a new dt. Where G2P2G does not apply
     /// ([`CudaOptions::g2p2g`] off, no free zone or mixed sorting) it is `Warp`.
@@ -129,7 +129,7 @@ pub struct CudaOptions {
     pub fused_rebuild: bool,
     /// G2P2G: the G2P of a step and the P2G of the next in one kernel (`kernels/g2p/g2p2g.cu`),
     /// the P2G kernel running only after a rebuild. One or several GPUs; MLS transfer (CK-MPM:
-    /// with `ck_p2g=fused`), `p2g=warp`, the free zone and mixed sorting only (not when every
+    /// with `ck_p2g=fused`, its default), `p2g=warp`, the free zone and mixed sorting only (not when every
     /// step rebuilds); elsewhere ignored.
     pub g2p2g: bool,
     /// Compile the kernels for the scene's material models only (a smaller material switch in
@@ -177,7 +177,7 @@ impl Default for CudaOptions {
             mixed_sort: true,
             warp_reduce: true,
             p2g: P2gMode::Warp,
-            ck_p2g: CkP2g::Warp,
+            ck_p2g: CkP2g::Fused,
             rmap_replicas: crate::step::p2g::reverse_map::DEFAULT_REPLICAS,
             rmap_slots: None,
             rmap_pblocks: None,
@@ -358,7 +358,7 @@ mod tests {
         let o: CudaOptions = "p2g=sort".parse().unwrap();
         assert_eq!(o.p2g, P2gMode::Sort);
         assert!("p2g=gather".parse::<CudaOptions>().is_err());
-        assert_eq!(CudaOptions::default().ck_p2g, CkP2g::Warp);
+        assert_eq!(CudaOptions::default().ck_p2g, CkP2g::Fused);
         let o: CudaOptions = "ck_p2g=warp".parse().unwrap();
         assert_eq!((o.ck_p2g, o.p2g), (CkP2g::Warp, P2gMode::Warp));
         assert_eq!(o.ck_p2g.name(), "warp");

@@ -290,9 +290,8 @@ fn cuda_agrees_with_cpu_with_ck_mpm() {
 }
 
 /// The CUDA options of the CK-MPM kernel variants the agreement test runs: each P2G kernel
-/// (`ck_p2g=direct`, direct atomics, `ck_p2g=warp`, the warp reduction and the default, and
-/// `ck_p2g=fused`, the
-/// G2P2G of CK-MPM, whose backend must then run G2P2G). `RTMPM_CK_AGREEMENT` (option strings
+/// (`ck_p2g=direct`, direct atomics, `ck_p2g=warp`, the warp reduction, and `ck_p2g=fused`, the
+/// G2P2G of CK-MPM and the default, whose backend must then run G2P2G). `RTMPM_CK_AGREEMENT` (option strings
 /// separated by `;`) runs those instead, e.g. the GPU suite's `ck_speed` with the new kernels
 /// only.
 fn ck_variants() -> Vec<String> {

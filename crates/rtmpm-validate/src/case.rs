@@ -27,7 +27,7 @@ pub struct Options {
     pub precision: Option<rtmpm_scene::Precision>,
     /// The CUDA backend's particle state (default: the scene's `[solver] particle_state`).
     pub particle_state: Option<rtmpm_scene::ParticleState>,
-    /// CUDA backend switches (`--cuda-options`), e.g. `ck_p2g=fused`; the CPU backend ignores them.
+    /// CUDA backend switches (`--cuda-options`), e.g. `ck_p2g=warp`; the CPU backend ignores them.
     pub cuda: rtmpm_cuda::CudaOptions,
 }
 

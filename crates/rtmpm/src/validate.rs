@@ -43,8 +43,8 @@ pub struct ValidateArgs {
     /// `[solver] particle_state`, else f32; the CPU backend ignores it).
     #[arg(long, value_name = "f32|compact")]
     pub particle_state: Option<rtmpm_scene::ParticleState>,
-    /// CUDA backend switches for every case, as `rtmpm run --cuda-options` (e.g. `ck_p2g=fused` to
-    /// validate CK-MPM's fused G2P2G); refused with the CPU backend.
+    /// CUDA backend switches for every case, as `rtmpm run --cuda-options` (e.g. `ck_p2g=warp` to
+    /// validate CK-MPM's unfused kernels); refused with the CPU backend.
     #[arg(long, value_name = "LIST", default_value = "")]
     pub cuda_options: rtmpm_cuda::CudaOptions,
 }
