@@ -15,6 +15,15 @@ const BYTES_PER_NEIGHBOUR: f64 = 10.0;
 /// uniform block, where the neighbours are about 60 % of the peak).
 pub const BYTES_PER_PARTICLE: u64 = 400;
 
+/// How many times the neighbour entries of a fluid at rest of as many particles a
+/// reconstruction may ask for. The work grows with the entries: a cluster of `k` particles
+/// within one support adds `k^2` of them, and 100,000 coincident particles take splashsurf many
+/// more than a minute on 16 cores where memory allows them at all. Material packed to `c` times
+/// its rest density has `c` times the rest figure, and no material of a run that went well is
+/// packed 20 times; a cluster must hold about `sqrt(19 * 77 n)` particles at one point to pass
+/// it (38,000 in a scene of a million).
+pub const MOST_NEIGHBOURS_OVER_REST: f64 = 20.0;
+
 /// The estimate for one set of positions.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SurfaceMemory {
@@ -79,7 +88,46 @@ pub fn estimate(positions: &[Vec3], support: f32) -> SurfaceMemory {
     }
 }
 
+/// Neighbour entries a particle has in a fluid at rest, counted as [`estimate`] counts them:
+/// particles of radius `particle_radius` (the radius of a sphere of the particle's volume)
+/// fill a cell of edge `support` with `support^3 / V` of them, each with the cell's others and
+/// the support sphere's share of the 26 cells around.
+pub fn rest_neighbours(particle_radius: f32, support: f32) -> f64 {
+    let v = 4.0 / 3.0 * std::f64::consts::PI * (particle_radius as f64).powi(3);
+    let per_cell = (support as f64).powi(3) / v.max(f64::MIN_POSITIVE);
+    let near = 4.0 / 3.0 * std::f64::consts::PI / 27.0;
+    per_cell * (1.0 + near * 26.0)
+}
+
 impl SurfaceMemory {
+    /// An error when the neighbour entries are more than [`MOST_NEIGHBOURS_OVER_REST`] times
+    /// those of `n` particles of a fluid at rest (`rest_per_particle`, [`rest_neighbours`]),
+    /// naming the densest cell: the reconstruction would run for minutes or hours, whatever the
+    /// memory.
+    pub fn check_work(&self, n: usize, rest_per_particle: f64) -> Result<(), String> {
+        let rest = n as f64 * rest_per_particle;
+        if self.neighbours <= MOST_NEIGHBOURS_OVER_REST * rest {
+            return Ok(());
+        }
+        let (k, c) = self.densest;
+        Err(format!(
+            "the surface of {n} particles would need about {:.3e} neighbour entries, {:.0} times \
+             the {:.3e} of a fluid at rest of as many particles (at most {} times is meshed): {k} \
+             particles lie within one kernel support around ({:.4}, {:.4}, {:.4}), where a fluid at \
+             rest has about {:.0} (a blow-up or an emitter that piles its particles up leaves such \
+             clusters); fix the run that made them, or mesh fewer particles (--materials, \
+             [surface] materials)",
+            self.neighbours,
+            self.neighbours / rest.max(f64::MIN_POSITIVE),
+            rest,
+            MOST_NEIGHBOURS_OVER_REST,
+            c.x,
+            c.y,
+            c.z,
+            rest_per_particle / (1.0 + 4.0 / 3.0 * std::f64::consts::PI / 27.0 * 26.0),
+        ))
+    }
+
     /// An error when the estimate is above `available` bytes (`None`: unknown, not checked),
     /// naming the densest cell.
     pub fn check(&self, n: usize, available: Option<u64>) -> Result<(), String> {
@@ -124,6 +172,64 @@ mod tests {
             "{e}"
         );
         assert!(m.check(pts.len(), None).is_ok());
+        // Whatever the memory: far more work than a fluid at rest (support 4 particle radii).
+        let e = m
+            .check_work(pts.len(), rest_neighbours(0.0025, 0.01))
+            .unwrap_err();
+        assert!(
+            e.contains("100000 particles lie within one kernel support"),
+            "{e}"
+        );
+        assert!(e.contains("times the"), "{e}");
+    }
+
+    #[test]
+    fn a_fluid_at_rest_has_its_rest_neighbours() {
+        // Particles of radius r on a lattice of their volume's spacing ((4/3 pi)^(1/3) r), a
+        // support of 4 r: the estimate per interior particle is near rest_neighbours, so the
+        // work check passes, also with a cluster of a hundredth of its particles added at one
+        // point; with a quarter of them there, it does not.
+        let r = 0.01f32;
+        let spacing = (4.0 / 3.0 * std::f32::consts::PI).cbrt() * r;
+        let k = 40;
+        let mut pts = Vec::new();
+        for i in 0..k {
+            for j in 0..k {
+                for l in 0..k {
+                    pts.push(Vec3::new(i as f32, j as f32, l as f32) * spacing);
+                }
+            }
+        }
+        let support = 4.0 * r;
+        let rest = rest_neighbours(r, support);
+        assert!((70.0..85.0).contains(&rest), "{rest}");
+        let m = estimate(&pts, support);
+        let per_point = m.neighbours / pts.len() as f64;
+        assert!(
+            per_point < 1.25 * rest && per_point > 0.5 * rest,
+            "{per_point} vs {rest}"
+        );
+        assert!(m.check_work(pts.len(), rest).is_ok());
+        let n = pts.len();
+        let mut small = pts.clone();
+        small.extend(std::iter::repeat_n(Vec3::splat(0.2), n / 100));
+        assert!(
+            estimate(&small, support)
+                .check_work(small.len(), rest)
+                .is_ok()
+        );
+        pts.extend(std::iter::repeat_n(Vec3::splat(0.2), n / 4));
+        let m = estimate(&pts, support);
+        let e = m.check_work(pts.len(), rest).unwrap_err();
+        // The cluster's cell: its 16,000 and the few lattice points that share it.
+        assert!((16_000..16_100).contains(&m.densest.0), "{:?}", m.densest);
+        assert!(
+            e.contains(&format!(
+                "{} particles lie within one kernel support",
+                m.densest.0
+            )),
+            "{e}"
+        );
     }
 
     #[test]

@@ -27,8 +27,11 @@ pub fn reconstruct(
     }
     let r = params.particle_radius;
     let support = 2.0 * params.smoothing_length * r;
-    // Dense clusters would ask splashsurf for n^2 neighbour entries: refused before it starts.
-    super::memory::estimate(positions, support).check(pts.len(), available)?;
+    // Dense clusters would ask splashsurf for n^2 neighbour entries: refused before it starts,
+    // for the work they make (any machine) and for the memory (this machine).
+    let needs = super::memory::estimate(positions, support);
+    needs.check_work(pts.len(), super::memory::rest_neighbours(r, support))?;
+    needs.check(pts.len(), available)?;
     let mut sp = Parameters::new(r, support, params.cube_size * r);
     sp.iso_surface_threshold = params.threshold;
     let recon = reconstruct_surface::<i64, f32>(&pts, &sp)
