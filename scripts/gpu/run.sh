@@ -35,6 +35,12 @@
 #   profile      Nsight Compute on the fused G2P2G kernel (one launch after 5): PROFILE_RUNS="label|binary|
 #                defines|scene ..." (default: the fluid dam 2M); the bound (issue, stalls, L1/L2, atomics)
 #   multi        several GPUs: agreement tests in every mode, 2 NCCL processes, scaling
+#   multi_rigid  rigid bodies with one process per GPU (2 GPUs and NCCL; skipped with fewer): test_multi_gpu's
+#                nccl_ranks_agree_with_one_gpu_on_the_rigid_scenes (two NCCL ranks in two threads, every
+#                scenes/rigid/ scene 0.5 s at a fixed dt, a re-partition halfway, against one GPU; the ranks'
+#                bodies equal bit for bit) and test_multi_gpu_cli's two_processes_agree_with_one_gpu_on_the_rigid_scenes
+#                (`rtmpm run --rendezvous` in two processes against one GPU, bodies.csv and the last frame).
+#                Both are also part of `multi`
 #   multi4       the same on 4 GPUs: agreement at 2 and 4, strong and weak scaling at 1, 2, 4, 4 ranks
 #   multi1       the multi-GPU code on ONE GPU: test_multi_gpu with two ranks on device 0
 #                (RTMPM_MULTI_GPU_DEVICES=0,0, the CUDA option devices=0:0; transport=p2p with the events
@@ -287,6 +293,12 @@ for suite in "$@"; do
         say "floating_box 30 frames, ranks=$g: $(echo "$x" | grep -E 'backend|throughput|^error' | head -3 | tr -s ' ' | tr '\n' ' ')"
         tail -1 "$OUT/floating_box_$g/bodies.csv" 2>/dev/null | tee -a "$S"
       done
+      ;;
+    multi_rigid)
+      t test_multi_gpu nccl_ranks_agree_with_one_gpu_on_the_rigid_scenes --nocapture
+      grep -hE "^test |skipped|: body [0-9]|particles: \||runs of 2 NCCL ranks" "$OUT/test_multi_gpu.log" | head -60 | tee -a "$S"
+      t test_multi_gpu_cli two_processes_agree_with_one_gpu_on_the_rigid_scenes --nocapture
+      grep -hE "^test |skipped|2 processes: body|2 processes: \|d com" "$OUT/test_multi_gpu_cli.log" | head -40 | tee -a "$S"
       ;;
     multi4)
       # 4 GPUs: the agreement tests at 2 and 4 GPUs (RTMPM_MULTI_GPU_COUNTS

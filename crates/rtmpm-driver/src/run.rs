@@ -472,3 +472,137 @@ impl Run {
             .with_context(|| format!("writing checkpoint {}", path.display()))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rtmpm_rigid::{BodyPose, BodyState};
+    use rtmpm_sim::{BadParticle, SimError};
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicU32, Ordering};
+
+    /// A backend whose particles and one rigid body stay where the scene put them; it counts
+    /// the reads of the particles (a collective across processes).
+    struct Still {
+        p: Particles,
+        body: BodyState,
+        reads: Arc<AtomicU32>,
+    }
+
+    impl Backend for Still {
+        fn name(&self) -> String {
+            "still".into()
+        }
+        fn num_particles(&self) -> usize {
+            self.p.len()
+        }
+        fn step(&mut self, _dt: f32, _t: f32) -> Result<(), SimError> {
+            Ok(())
+        }
+        fn max_speed(&mut self) -> Result<f32, SimError> {
+            Ok(0.0)
+        }
+        fn check(&mut self) -> Result<Option<BadParticle>, SimError> {
+            Ok(None)
+        }
+        fn read_particles(&mut self, out: &mut Particles) -> Result<(), SimError> {
+            self.reads.fetch_add(1, Ordering::SeqCst);
+            *out = self.p.clone();
+            Ok(())
+        }
+        fn rigid_bodies(&self) -> Vec<BodyState> {
+            vec![self.body.clone()]
+        }
+        fn rigid_poses(&self) -> Vec<BodyPose> {
+            vec![BodyPose {
+                position: self.body.center,
+                rotation: glam::Quat::IDENTITY,
+                velocity: self.body.velocity,
+                angular_velocity: self.body.angular_velocity,
+            }]
+        }
+    }
+
+    /// The processes of a multi-process run: rank 0 writes (`writer`) the frames, bodies.csv
+    /// and checkpoints; another rank (`rtmpm run` gives it `writer: false`) writes nothing in
+    /// its folder, yet reads the particles at the same points as rank 0 (every frame and
+    /// checkpoint: a collective, which every rank must call alike).
+    #[test]
+    fn only_the_writing_process_writes_bodies_csv_and_every_one_reads_alike() {
+        let text = "name = \"ranks\"\n[domain]\nmin = [0, 0, 0]\nmax = [1, 1, 1]\ndx = 0.05\n\
+                    [time]\nduration = 0.2\nfps = 10\ndt = 0.01\n\
+                    [[material]]\nname = \"w\"\ntype = \"fluid\"\ndensity = 1000.0\n\
+                    bulk_modulus = 1e4\n[[body]]\nmaterial = \"w\"\nshape = \"box\"\n\
+                    min = [0.3, 0.3, 0.3]\nmax = [0.45, 0.45, 0.45]\n\
+                    [[rigid_body]]\nname = \"ball\"\nshape = \"sphere\"\n\
+                    center = [0.65, 0.65, 0.65]\nradius = 0.08\ndensity = 500\n\
+                    [output]\nformats = [\"ply\"]\n";
+        let scene = Scene::from_toml(text, "ranks").unwrap_or_else(|e| panic!("{e}"));
+        let root = std::env::temp_dir().join(format!("rtmpm-run-ranks-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        let mut reads = Vec::new();
+        for (rank, writer) in [(0, true), (1, false)] {
+            let p = scene.sample_particles().expect("particles");
+            let n = p.len();
+            let body = BodyState {
+                shape: scene.rigid_bodies[0].shape.clone(),
+                rotation: glam::Mat3::IDENTITY,
+                center: scene.rigid_bodies[0].position,
+                velocity: glam::Vec3::ZERO,
+                angular_velocity: glam::Vec3::ZERO,
+                dynamic: true,
+                condition: rtmpm_physics::boundary::Condition::Slip,
+                friction: 0.0,
+            };
+            let count = Arc::new(AtomicU32::new(0));
+            let backend = Still {
+                p,
+                body,
+                reads: count.clone(),
+            };
+            let out_dir = root.join(format!("rank{rank}"));
+            // As `rtmpm run --rendezvous` sets them for this rank.
+            let options = RunOptions {
+                frames: None,
+                steps: None,
+                checkpoint_every: Some(1),
+                out_dir: out_dir.clone(),
+                writer,
+                write_frames: writer,
+                read_frames: true,
+                stream: false,
+                frame_chunk: 1 << 16,
+                frames_in_flight: 1,
+                collect: false,
+                fixed_chunk: Some(128),
+            };
+            let sim = Simulation::new(scene.clone(), Box::new(backend));
+            let mut run = Run::new(sim, n, text.into(), "ranks", None, options).expect("run");
+            struct Quiet;
+            impl RunHooks for Quiet {}
+            run.execute(&mut Quiet).expect("the run");
+            assert_eq!(run.sim.frame, 2);
+            reads.push(count.load(Ordering::SeqCst));
+            let files: Vec<String> = std::fs::read_dir(&out_dir)
+                .map(|d| {
+                    d.filter_map(|e| e.ok())
+                        .map(|e| e.file_name().to_string_lossy().into_owned())
+                        .collect()
+                })
+                .unwrap_or_default();
+            if writer {
+                let csv = std::fs::read_to_string(out_dir.join("bodies.csv")).expect("bodies.csv");
+                // The header and a row per frame (0, 1, 2).
+                assert_eq!(csv.lines().count(), 4, "{csv}");
+                for f in ["frame_00002.ply", "checkpoint_00002.ckpt"] {
+                    assert!(files.iter().any(|x| x == f), "{f} missing: {files:?}");
+                }
+            } else {
+                assert!(files.is_empty(), "rank {rank} wrote {files:?}");
+            }
+        }
+        // Frames 0, 1, 2 and the checkpoints of frames 1 and 2, on both ranks.
+        assert_eq!(reads, vec![5, 5]);
+        let _ = std::fs::remove_dir_all(&root);
+    }
+}

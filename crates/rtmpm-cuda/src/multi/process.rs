@@ -1,10 +1,13 @@
 //! One process per GPU, on any number of machines ([`NcclRankBackend`]), meeting through a
-//! [`super::rendezvous::Rendezvous`]; the GPUs sum their shared blocks through NCCL.
+//! [`super::rendezvous::Rendezvous`]; the GPUs sum their shared blocks through NCCL. Rigid
+//! bodies: the same rapier world in every process, advanced by the impulse sums of every
+//! process's GPU, summed through NCCL with a check that the worlds agree ([`super::rigid`]).
 
 use super::nccl::UniqueId;
 use super::partition::slabs;
 use super::plan::{check_supported, combine, dense_count, plan, shared_capacity, subset};
 use super::rank::{CommSource, GpuRank};
+use super::rigid::RankBodies;
 use crate::backend::Part;
 use crate::backend::readback::{resize_particles, scatter_state};
 use crate::contract::{CTL_BAD_INDEX, CTL_MAX_SPEED, CTL_SHARED};
@@ -43,6 +46,8 @@ pub struct NcclRankBackend {
     pub rebalances: u32,
     /// The user's tool (given again to a rank rebuilt by a rebalance).
     tool: Option<rtmpm_geometry::Tool>,
+    /// Rigid bodies (`[[rigid_body]]`): this process's copy of the run's one world.
+    bodies: Option<RankBodies>,
 }
 
 impl NcclRankBackend {
@@ -73,14 +78,8 @@ impl NcclRankBackend {
                     .into(),
             ));
         }
-        if !scene.rigid_bodies.is_empty() {
-            return Err(SimError::Backend(
-                "runs of one process per GPU do not couple [[rigid_body]] tables yet (their \
-                 rapier world lives in one process); run them with --gpus N (several GPUs of \
-                 one process), on one GPU or on the CPU"
-                    .into(),
-            ));
-        }
+        // The bodies' world before any GPU work (its refusals are clear errors).
+        let bodies = RankBodies::new(scene, &options, ranks)?;
         let nccl = super::nccl::library()
             .map_err(|e| SimError::Backend(format!("multi-process runs need NCCL: {e}")))?;
         let info = crate::probe::probe_device(device)
@@ -109,6 +108,7 @@ impl NcclRankBackend {
             d: dense_count(scene),
             rebalances: 0,
             tool: None,
+            bodies,
         };
         b.load(
             particles,
@@ -158,6 +158,36 @@ impl NcclRankBackend {
     pub fn rank(&self) -> usize {
         self.me
     }
+
+    /// Re-partition the particles now (collective: every process calls it at the same point;
+    /// gathers every particle, re-splits them and rebuilds this process's rank; synchronises).
+    /// The bodies first take the sums the old rank holds.
+    pub fn rebalance_now(&mut self) -> Result<(), SimError> {
+        self.flush_rigid()?;
+        let c = self.r()?.ctl()?;
+        let speed = f32::from_bits(c[CTL_MAX_SPEED]);
+        let speed = self.max_speed()?.max(speed);
+        let mut all = Particles::default();
+        self.read_particles(&mut all)?;
+        let old = self.rank.take();
+        let comm = old
+            .and_then(GpuRank::into_comm)
+            .ok_or_else(|| SimError::Backend("no communicator".into()))?;
+        self.load(&all, CommSource::Existing(comm))?;
+        self.r()?.b.set_ctl_word(CTL_MAX_SPEED, speed.to_bits())?;
+        self.rebalances += 1;
+        Ok(())
+    }
+
+    /// Give the bodies the run's sums of host copy `k` (summed over the processes) and advance
+    /// them by `dt`, after the check that every process coupled the same states.
+    fn take_bodies(&mut self, k: usize, dt: f32) -> Result<(), SimError> {
+        let copy = rank(&mut self.rank)?.body_copy_words(k)?;
+        match self.bodies.as_mut() {
+            Some(b) => b.take(k, dt, &copy),
+            None => Ok(()),
+        }
+    }
 }
 
 impl Backend for NcclRankBackend {
@@ -169,8 +199,23 @@ impl Backend for NcclRankBackend {
         self.n
     }
 
+    /// One step; with rigid bodies, the world's states of now go up with it and its impulse
+    /// sums (summed over the processes on the device) are taken now or, with
+    /// `rigid_overlap`, at the next step ([`super::rigid::RankBodies`]).
     fn step(&mut self, dt: f32, t: f32) -> Result<(), SimError> {
-        self.r()?.step(dt, t)
+        let r = rank(&mut self.rank)?;
+        let Some(bodies) = self.bodies.as_mut() else {
+            return r.step(dt, t);
+        };
+        let (states, check) = bodies.coming();
+        r.set_body_states(states);
+        r.set_body_check(check);
+        r.step(dt, t)?;
+        let due = r.body_copy().and_then(|k| bodies.queued(k, dt));
+        match due {
+            Some((k, dt)) => self.take_bodies(k, dt),
+            None => Ok(()),
+        }
     }
 
     fn max_speed(&mut self) -> Result<f32, SimError> {
@@ -190,11 +235,46 @@ impl Backend for NcclRankBackend {
         Ok(bad)
     }
 
-    /// Gravity of this rank's GPU (every rank of the run is given the same).
+    /// Gravity of this rank's GPU and of the bodies (every rank of the run is given the same).
     fn set_gravity(&mut self, gravity: rtmpm_physics::math::Vec3) -> Result<(), SimError> {
         self.r()?.b.set_gravity(gravity)?;
+        if let Some(b) = self.bodies.as_mut() {
+            b.shared().set_gravity(gravity);
+        }
         self.scene.gravity = gravity;
         Ok(())
+    }
+
+    fn rigid_bodies(&self) -> Vec<rtmpm_rigid::BodyState> {
+        self.bodies
+            .as_ref()
+            .map_or_else(Vec::new, |b| b.states().to_vec())
+    }
+
+    fn rigid_poses(&self) -> Vec<rtmpm_rigid::BodyPose> {
+        self.bodies.as_ref().map_or_else(Vec::new, |b| b.poses())
+    }
+
+    /// The sums still pending (`rigid_overlap`): already summed over the processes on the
+    /// device, so this only waits for this process's copy (every process must still call it at
+    /// the same points, as the driver does: their worlds must take the same steps).
+    fn flush_rigid(&mut self) -> Result<(), SimError> {
+        match self.bodies.as_mut().and_then(RankBodies::take_pending) {
+            Some((k, dt)) => self.take_bodies(k, dt),
+            None => Ok(()),
+        }
+    }
+
+    /// The bodies at `poses` (every process is given the same: a checkpoint every one reads).
+    fn set_rigid_poses(&mut self, poses: &[rtmpm_rigid::BodyPose]) -> Result<(), SimError> {
+        match self.bodies.as_mut() {
+            Some(b) => b.shared().set_poses(poses),
+            None if poses.is_empty() => Ok(()),
+            None => Err(SimError::Backend(format!(
+                "{} rigid-body states for a scene without rigid bodies",
+                poses.len()
+            ))),
+        }
     }
 
     /// The tool on this rank's GPU (every rank of the run is given the same).
@@ -220,7 +300,10 @@ impl Backend for NcclRankBackend {
         Ok(())
     }
 
+    /// The bodies take the impulses of the frame's last step (as on one GPU), then the
+    /// reduction grows or the particles are re-partitioned where the plan says so.
     fn end_of_frame(&mut self) -> Result<(), SimError> {
+        self.flush_rigid()?;
         let c = self.r()?.ctl()?;
         let shared = c[CTL_SHARED] as usize;
         let p = plan(
@@ -232,17 +315,7 @@ impl Backend for NcclRankBackend {
             &self.options,
         );
         if p.rebalance {
-            let speed = f32::from_bits(c[CTL_MAX_SPEED]);
-            let speed = self.max_speed()?.max(speed);
-            let mut all = Particles::default();
-            self.read_particles(&mut all)?;
-            let old = self.rank.take();
-            let comm = old
-                .and_then(GpuRank::into_comm)
-                .ok_or_else(|| SimError::Backend("no communicator".into()))?;
-            self.load(&all, CommSource::Existing(comm))?;
-            self.r()?.b.set_ctl_word(CTL_MAX_SPEED, speed.to_bits())?;
-            self.rebalances += 1;
+            self.rebalance_now()?;
         } else if let Some(cap) = p.grow_to {
             self.shared_cap = cap;
             self.r()?.set_shared_capacity(cap)?;

@@ -3,12 +3,13 @@
 
 use super::barrier::HostBarrier;
 use super::exchange::{ExchangeHooks, Exchanger, PeerExport};
-use super::nccl::{Communicator, DataType, UniqueId};
+use super::nccl::{Communicator, DataType, RedOp, UniqueId};
 use super::plan::check_supported;
 use crate::backend::{CudaBackend, Part};
 use crate::contract::{CTL_NEED_REBUILD, CTL_WORDS};
 use crate::error::err;
 use crate::options::{BarrierKind, CudaOptions};
+use crate::step::rigid::CHECK_WORDS;
 use cudarc::driver::{CudaSlice, DevicePtr};
 use rtmpm_physics::Particles;
 use rtmpm_rigid::{BodyState, Exchange};
@@ -51,6 +52,9 @@ pub struct GpuRank {
     body_states: Vec<BodyState>,
     /// Rigid bodies: the host copy that the last step's impulse sums go to.
     body_copy: Option<usize>,
+    /// Rigid bodies in a run of several processes: the check of this process's world
+    /// ([`GpuRank::set_body_check`]); the impulse sums are then summed across the processes.
+    body_check: Option<[f64; CHECK_WORDS]>,
 }
 
 impl GpuRank {
@@ -95,6 +99,7 @@ impl GpuRank {
             state_all: None,
             body_states: Vec::new(),
             body_copy: None,
+            body_check: None,
         };
         r.set_shared_capacity(shared_cap)?;
         Ok(r)
@@ -192,7 +197,9 @@ impl GpuRank {
 
     /// Enqueue one step (replaying the captured graph while dt stays the same). With rigid
     /// bodies: the states last given ([`GpuRank::set_body_states`]) go up before it, and its
-    /// impulse sums are copied to the host after it ([`GpuRank::body_sums`]).
+    /// impulse sums are copied to the host after it ([`GpuRank::body_sums`]); with a check
+    /// given ([`GpuRank::set_body_check`]) they are first summed over every rank of the
+    /// communicator, check included (an NCCL all-reduce on the stream, after the step's graph).
     pub fn step(&mut self, dt: f32, t: f32) -> Result<(), SimError> {
         self.b
             .stream
@@ -219,9 +226,38 @@ impl GpuRank {
         let GpuRank { b, x, .. } = self;
         b.run_step(dt, &mut ExchangeHooks(x), graph)?;
         if let Some(link) = self.b.body_link.as_mut() {
+            if let Some(words) = &self.body_check {
+                let s = &self.b.stream;
+                link.write_check(s, words)?;
+                let (_, sums, _) = link.ctx_fields(s);
+                // SAFETY: the impulse buffer holds `link.words()` f64 on this rank's GPU and
+                // lives as long as the rank; in place, enqueued on the rank's stream after the
+                // step (every rank enqueues it at the same point: one per step).
+                unsafe {
+                    self.x.comm()?.all_reduce(
+                        sums,
+                        sums,
+                        link.words(),
+                        DataType::F64,
+                        RedOp::Sum,
+                        s.cu_stream(),
+                    )
+                }
+                .map_err(nccl_err)?;
+            }
             self.body_copy = Some(link.queue_sums(&self.b.stream)?);
         }
         Ok(())
+    }
+
+    /// Rigid bodies in a run of several processes (one rank per process): from the next step
+    /// on, `words` (the check of this process's rapier world, `crate::multi::rigid`) go after
+    /// the step's impulse sums, and sums and check are summed over every rank of the
+    /// communicator before they are copied to the host: every rank's copy then holds the
+    /// whole run's sums ([`GpuRank::body_copy_words`]). Not for several GPUs of one process,
+    /// whose host adds the ranks' sums itself.
+    pub fn set_body_check(&mut self, words: [f64; CHECK_WORDS]) {
+        self.body_check = Some(words);
     }
 
     /// Rigid bodies: their states at the time of the coming steps.
@@ -240,6 +276,15 @@ impl GpuRank {
     pub fn body_sums(&self, k: usize) -> Result<Vec<Exchange>, SimError> {
         match &self.b.body_link {
             Some(link) => link.sums(k),
+            None => Ok(Vec::new()),
+        }
+    }
+
+    /// Rigid bodies: host copy `k` whole (waits for it): the impulse sums' slots, then the
+    /// check (`crate::step::rigid::BodyLink::copy`); empty without bodies.
+    pub fn body_copy_words(&self, k: usize) -> Result<Vec<f64>, SimError> {
+        match &self.b.body_link {
+            Some(link) => Ok(link.copy(k)?.to_vec()),
             None => Ok(Vec::new()),
         }
     }

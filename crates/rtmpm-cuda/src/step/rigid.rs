@@ -45,6 +45,12 @@ pub fn encode(b: &BodyState, mesh_offset: u32) -> GpuBody {
     }
 }
 
+/// Words after the `BODY_EXCHANGE_SLOTS` x bodies x 6 impulse sums of [`BodyLink`]'s buffer and
+/// of each of its host copies, which no kernel writes: zero on one GPU and in one process; in a
+/// run of several processes each process puts the check of its rapier world there before the
+/// buffer is summed across the processes (`crate::multi::rigid`).
+pub const CHECK_WORDS: usize = 8;
+
 /// The device side of the coupling on one GPU: the bodies' states the grid update reads and
 /// the impulse sums it writes, with their page-locked copies on the host. One GPU has one
 /// inside its [`Bodies`]; each GPU of several has its own, and the bodies move in the one
@@ -52,7 +58,8 @@ pub fn encode(b: &BodyState, mesh_offset: u32) -> GpuBody {
 pub struct BodyLink {
     /// Global copy of `c_bodies` (`Ctx::bodies`): `MAX_BODIES` [`GpuBody`] records.
     states: CudaSlice<u8>,
-    /// `BODY_EXCHANGE_SLOTS` x bodies x 6 f64 impulse sums (`Ctx::body_exchange`).
+    /// `BODY_EXCHANGE_SLOTS` x bodies x 6 f64 impulse sums (`Ctx::body_exchange`), then
+    /// [`CHECK_WORDS`].
     exchange: CudaSlice<f64>,
     /// Page-locked copies of the sums of the last two steps, each with the event after its copy.
     host: [(PinnedHostSlice<f64>, CudaEvent); 2],
@@ -78,7 +85,7 @@ impl BodyLink {
                  bodies or run on the CPU backend"
             )));
         }
-        let len = BODY_EXCHANGE_SLOTS * n * 6;
+        let len = BODY_EXCHANGE_SLOTS * n * 6 + CHECK_WORDS;
         let states = stream
             .alloc_zeros::<u8>(MAX_BODIES * std::mem::size_of::<GpuBody>())
             .map_err(err("alloc rigid bodies"))?;
@@ -108,6 +115,25 @@ impl BodyLink {
         let (a, _) = self.states.device_ptr(stream);
         let (b, _) = self.exchange.device_ptr(stream);
         (a, b, self.n as u32)
+    }
+
+    /// Words of the impulse buffer and of each host copy: the sums' slots, then
+    /// [`CHECK_WORDS`].
+    pub fn words(&self) -> usize {
+        BODY_EXCHANGE_SLOTS * self.n * 6 + CHECK_WORDS
+    }
+
+    /// Put `words` in the [`CHECK_WORDS`] after the sums (on `stream`, after the step's
+    /// kernels; the sums' copy to the host clears them with the sums).
+    pub fn write_check(
+        &mut self,
+        stream: &Arc<CudaStream>,
+        words: &[f64; CHECK_WORDS],
+    ) -> Result<(), SimError> {
+        let at = self.words() - CHECK_WORDS;
+        stream
+            .memcpy_htod(&words[..], &mut self.exchange.slice_mut(at..))
+            .map_err(err("upload the rigid-body check"))
     }
 
     /// Before a step: `states` to constant memory (and its global copy).
@@ -147,12 +173,16 @@ impl BodyLink {
 
     /// Wait for copy `k` and add up its slots, body by body.
     pub fn sums(&self, k: usize) -> Result<Vec<Exchange>, SimError> {
+        Ok(exchange_sums(self.copy(k)?, self.n))
+    }
+
+    /// Wait for copy `k`: its [`BodyLink::words`] words (the sums' slots, then the check).
+    pub fn copy(&self, k: usize) -> Result<&[f64], SimError> {
         let (host, event) = &self.host[k & 1];
         event
             .synchronize()
             .map_err(err("wait for rigid-body impulses"))?;
-        let sums = host.as_slice().map_err(err("page-locked memory"))?;
-        Ok(exchange_sums(sums, self.n))
+        host.as_slice().map_err(err("page-locked memory"))
     }
 }
 
@@ -291,7 +321,8 @@ pub fn world(scene: &Scene) -> Result<Option<RigidWorld>, SimError> {
 }
 
 /// The impulse sums of every body from the `BODY_EXCHANGE_SLOTS` copies (slot-major: slot,
-/// body, 6 values), added in slot order (the same sum for the same copies).
+/// body, 6 values), added in slot order (the same sum for the same copies); the
+/// [`CHECK_WORDS`] after the slots are not sums and are left out.
 pub fn exchange_sums(sums: &[f64], bodies: usize) -> Vec<Exchange> {
     let mut out = vec![Exchange::default(); bodies];
     for slot in sums
@@ -325,6 +356,21 @@ mod tests {
         assert_eq!(e[1].impulse, [0.0, 3.5, 0.0]);
         assert_eq!(e[0].torque, [0.0, 0.0, -3.0]);
         assert_eq!(e[0].impulse, [0.0; 3]);
+    }
+
+    /// The check words after the slots (a buffer of [`BodyLink::words`]) are no impulse, even
+    /// for one body, whose 6 values are fewer than the check's words.
+    #[test]
+    fn the_check_words_after_the_slots_are_no_impulse() {
+        for bodies in [1, 2, 5] {
+            let slots = BODY_EXCHANGE_SLOTS * bodies * 6;
+            let mut sums = vec![1.0; slots + CHECK_WORDS];
+            sums[slots..].fill(1e9);
+            for e in exchange_sums(&sums, bodies) {
+                assert_eq!(e.impulse, [BODY_EXCHANGE_SLOTS as f64; 3], "{bodies}");
+                assert_eq!(e.torque, [BODY_EXCHANGE_SLOTS as f64; 3], "{bodies}");
+            }
+        }
     }
 
     /// A mesh body's distance grid goes to the mesh table after the mesh colliders' (and their
