@@ -259,7 +259,7 @@ impl V<'_> {
                     fmt3(hi)
                 ),
                 format!(
-                    "keep {what}s inside the box {} .. {} (the domain minus the walls)",
+                    "keep each {what} inside the box {} .. {} (the domain minus the walls)",
                     fmt3(imin),
                     fmt3(imax)
                 ),
