@@ -2,8 +2,10 @@
 in the same CUDA kernels, rtmpm_cuda::batch::CudaBatch, stepped together by rtmpm-driver's
 LockstepRun): each world agrees with its separate CUDA run (the agreement test's aggregate
 tolerances: CUDA atomics are not bit-reproducible), resets and blow-ups leave the other worlds
-as without them, and what the GPU batch does not do raises an error naming it. Skipped without
-a usable GPU; run on the GPU machine by scripts/gpu/python.sh."""
+as without them, what the GPU batch does not do raises an error naming it, and the particles
+reach PyTorch and CuPy on the device (x_device / v_device equal to the host arrays, ragged worlds
+by their offsets, storage views of the batch's own memory). Skipped without a usable GPU; run on
+the GPU machine by scripts/gpu/python.sh."""
 
 import csv
 import pathlib
