@@ -239,8 +239,12 @@ __device__ __forceinline__ unsigned state_bits(real w) {
 struct BatchParams {
     unsigned worlds, materials, stride, origin;
     const real* gravity;  // 3 per world
+    // Worlds with colliders of their own (static ones: crate::batch::colliders): n_colliders
+    // records and one pose per world; null: every world's are the scene's (c_colliders, c_poses).
+    const GpuCollider* colliders;
+    const ColliderPoses* poses;
 };
-static_assert(sizeof(BatchParams) == 24, "BatchParams: crate::batch::BatchParams");
+static_assert(sizeof(BatchParams) == 40, "BatchParams: crate::batch::BatchParams");
 __constant__ BatchParams c_batch;
 __device__ __forceinline__ unsigned material_world(unsigned material) { return material / c_batch.materials; }
 __device__ __forceinline__ unsigned particle_world(const Ctx& c, unsigned p) {

@@ -48,12 +48,17 @@ extern "C" __global__ void grid_update(Ctx c, unsigned part) {
 // boundary).
 __device__ vec3 node_boundary(const Ctx& c, unsigned t, vec3 v) {
     const Scalars& sc = scalars(c);
+#ifndef RTMPM_BATCH
     const ColliderPoses& pose = poses(c);
+#endif
     unsigned id = t >> 6, cell = t & 63u;
     int gi[3] = {c.block_coords[3 * id] * 4 + (int)(cell >> 4), c.block_coords[3 * id + 1] * 4 + (int)((cell >> 2) & 3u),
                  c.block_coords[3 * id + 2] * 4 + (int)(cell & 3u)};
 #ifdef RTMPM_BATCH
-    gi[0] -= world_cells(node_world(gi[0]));  // in the node's world's own grid
+    unsigned world = node_world(gi[0]);
+    gi[0] -= world_cells(world);  // in the node's world's own grid
+    // The world's own colliders and poses, or the scene's shared by every world.
+    const ColliderPoses& pose = c_batch.poses ? c_batch.poses[world] : poses(c);
 #endif
     // Walls (rtmpm_physics::boundary::Walls::apply): index counted from the domain min = gi - 4.
     for (int a = 0; a < 3; ++a) {
@@ -73,7 +78,11 @@ __device__ vec3 node_boundary(const Ctx& c, unsigned t, vec3 v) {
     if (c.n_colliders || tool.active) {
         vec3 x = make_v3(sc.origin[0] + gi[0] * sc.dx, sc.origin[1] + gi[1] * sc.dx, sc.origin[2] + gi[2] * sc.dx);
         for (unsigned k = 0; k < c.n_colliders; ++k) {
+#ifdef RTMPM_BATCH
+            GpuCollider col = c_batch.colliders ? c_batch.colliders[world * c.n_colliders + k] : collider_at(c, k);
+#else
             GpuCollider col = collider_at(c, k);
+#endif
             mat3 R;
             for (int q = 0; q < 9; ++q) R.m[q] = pose.rot[k][q];
             vec3 pt = v3f(pose.pivot[k]);

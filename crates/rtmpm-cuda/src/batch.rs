@@ -22,11 +22,16 @@
 //! only (in the world's coordinates) and sums the reaction of every body, dynamic or not, per
 //! world and body: the loads of [`Worlds::world_rigid_loads`], and what moves a dynamic body.
 //!
-//! What a batch shares: the time step (the caller's; one `dt` for every world), the colliders
-//! (the same in every world: checked), the domain and grid spacing, the number of rigid bodies
-//! (and a mesh body's mesh). Not yet: emitters, per-world collider poses.
+//! Colliders ([`colliders`]): the scene's, shared by every world, or, when the worlds' static
+//! colliders differ (place, size, turn, boundary rule), each world's own records and poses in
+//! per-world tables that the grid update reads by the node's world.
+//!
+//! What a batch shares: the time step (the caller's; one `dt` for every world), the domain and
+//! grid spacing, the walls and solver, the number of colliders and rigid bodies (and a mesh's
+//! mesh), the moving colliders. Not yet: emitters, moving colliders that differ between worlds.
 
 mod bodies;
+mod colliders;
 
 use crate::backend::{CudaBackend, Part};
 use crate::contract::{CTL_NEED_REBUILD, CTL_P2G_PENDING};
@@ -64,6 +69,11 @@ pub struct BatchParams {
     pub origin: u32,
     /// Device address of the gravity table: 3 reals per world.
     pub gravity: u64,
+    /// Device address of the worlds' own collider records (`worlds x n_colliders`), or 0: the
+    /// scene's serve every world.
+    pub colliders: u64,
+    /// Device address of the worlds' own collider poses (one `ColliderPoses` per world), or 0.
+    pub poses: u64,
 }
 
 /// Cells along x from one world's grid to the next, for worlds of `n_cells_x` cells: a world's
@@ -86,6 +96,8 @@ pub struct CudaBatch {
     params: BatchParams,
     /// Every world's rigid bodies, if the worlds have any.
     bodies: Option<bodies::WorldBodies>,
+    /// The worlds' own colliders, when they differ (kept alive: `c_batch` points into them).
+    colliders: Option<colliders::WorldColliders>,
 }
 
 impl CudaBatch {
@@ -147,6 +159,10 @@ impl CudaBatch {
         })?;
         drop(all);
         let bodies = world_bodies(&mut backend, worlds)?;
+        let colliders = colliders::WorldColliders::new(worlds, &backend.stream)?;
+        let (own_colliders, own_poses) = colliders
+            .as_ref()
+            .map_or((0, 0), |c| c.pointers(&backend.stream));
         let real_bytes = if backend.options.f64 { 8 } else { 4 };
         let mut table = Vec::with_capacity(worlds.len() * 3 * real_bytes);
         for s in worlds {
@@ -168,6 +184,8 @@ impl CudaBatch {
             stride: stride as u32,
             origin: WORLD_ORIGIN_CELLS as u32,
             gravity: gravity.device_ptr(&backend.stream).0,
+            colliders: own_colliders,
+            poses: own_poses,
         };
         crate::kernels::write_symbol(
             &backend.module,
@@ -182,6 +200,7 @@ impl CudaBatch {
             gravity,
             params,
             bodies,
+            colliders,
         })
     }
 
@@ -210,6 +229,11 @@ impl CudaBatch {
     /// Bytes of the gravity table.
     pub fn gravity_bytes(&self) -> usize {
         self.gravity.len()
+    }
+
+    /// Bytes of the worlds' own collider tables (0 when the worlds share the scene's).
+    pub fn collider_bytes(&self) -> usize {
+        self.colliders.as_ref().map_or(0, |c| c.bytes())
     }
 
     /// One step of `dt` for every world at time `t`: every world's rigid bodies go to the
@@ -498,7 +522,6 @@ pub fn unsupported(worlds: &[Scene], options: &CudaOptions) -> Option<String> {
                 s.domain_min,
                 s.domain_max,
                 s.dx,
-                &s.colliders,
                 &s.walls,
                 &s.solver,
                 s.precision,
@@ -508,7 +531,7 @@ pub fn unsupported(worlds: &[Scene], options: &CudaOptions) -> Option<String> {
         )
     };
     let want = shared(base);
-    if let Some(why) = rigid_refusal(worlds) {
+    if let Some(why) = rigid_refusal(worlds).or_else(|| colliders::refusal(worlds)) {
         return Some(why);
     }
     for (w, s) in worlds.iter().enumerate() {
@@ -520,9 +543,9 @@ pub fn unsupported(worlds: &[Scene], options: &CudaOptions) -> Option<String> {
         }
         if shared(s) != want {
             return Some(format!(
-                "world {w} differs from world 0 in its domain, grid spacing, colliders, walls, \
-                 solver or number of materials: on the GPU the worlds share those and differ in \
-                 material values and gravity only so far"
+                "world {w} differs from world 0 in its domain, grid spacing, walls, solver or \
+                 number of materials: on the GPU the worlds share those (they may differ in \
+                 material values, gravity, static colliders and rigid bodies)"
             ));
         }
     }

@@ -158,10 +158,10 @@ fn diff(a: [f64; 3], b: [f64; 3]) -> f64 {
 #[test]
 #[ignore = "needs a CUDA GPU"]
 fn kinematic_tools_posed_per_world_agree_with_separate_runs_and_the_cpu_load() {
+    let worlds: Vec<Scene> = (0..4).map(tool_world).collect();
     if !gpu() {
         return;
     }
-    let worlds: Vec<Scene> = (0..4).map(tool_world).collect();
     let p0: Vec<Particles> = worlds
         .iter()
         .map(|s| s.sample_particles().expect("particles"))
@@ -262,28 +262,28 @@ fn kinematic_tools_posed_per_world_agree_with_separate_runs_and_the_cpu_load() {
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
-/// World `w`'s dynamic ball: 3 cm radius, density 300 .. 2000, dropped from 4 cm above the
-/// jelly.
+/// World `w`'s dynamic ball: 3 cm radius, density 300, 1000 or 8000 (steel), dropped from 5 mm
+/// above the jelly.
 fn ball_world(w: usize) -> Scene {
-    let density = [300.0, 800.0, 2000.0][w];
+    let density = [300.0, 1000.0, 8000.0][w];
     jelly_with(&format!(
-        "shape = \"sphere\"\ncenter = [0.2, 0.25, 0.2]\nradius = 0.03\ntype = \"dynamic\"\n\
+        "shape = \"sphere\"\ncenter = [0.2, 0.215, 0.2]\nradius = 0.03\ntype = \"dynamic\"\n\
          density = {density}\ncondition = \"separate\"\n"
     ))
 }
 
 /// Three worlds with a dynamic ball of its own density dropped onto its jelly, each ball moved
-/// by its own rapier world with its own world's sums: after 500 steps (0.1 s: the balls fall
-/// 4 cm in about 90 ms and meet the jelly) each world's particles agree with its separate CUDA
-/// run (aggregate tolerances) and its ball is within a tenth of a cell (2 mm) of that run's;
-/// the heaviest ball ends lower than the lightest by more than that. About 5 s on an H200.
+/// by its own rapier world with its own world's sums: after 500 steps (0.1 s: the balls meet
+/// the jelly after about 30 ms) each world's particles agree with its separate CUDA run
+/// (aggregate tolerances) and its ball is within a tenth of a cell (2 mm) of that run's; the
+/// heaviest ball ends lower than the lightest by more than that. About 5 s on an H200.
 #[test]
 #[ignore = "needs a CUDA GPU"]
 fn dynamic_bodies_move_by_their_own_worlds_material() {
+    let worlds: Vec<Scene> = (0..3).map(ball_world).collect();
     if !gpu() {
         return;
     }
-    let worlds: Vec<Scene> = (0..3).map(ball_world).collect();
     let p0: Vec<Particles> = worlds
         .iter()
         .map(|s| s.sample_particles().expect("particles"))
@@ -337,10 +337,10 @@ fn dynamic_bodies_move_by_their_own_worlds_material() {
 fn the_lockstep_driver_puts_a_reset_worlds_tool_back() {
     use rtmpm_driver::batch::lockstep::LockstepRun;
     use rtmpm_driver::batch::{BatchOptions, WorldStatus};
+    let worlds: Vec<Scene> = (0..3).map(tool_world).collect();
     if !gpu() {
         return;
     }
-    let worlds: Vec<Scene> = (0..3).map(tool_world).collect();
     let mut p0: Vec<Particles> = worlds
         .iter()
         .map(|s| s.sample_particles().expect("particles"))
