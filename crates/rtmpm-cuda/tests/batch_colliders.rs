@@ -91,7 +91,10 @@ fn worlds_with_their_own_obstacles_agree_with_their_separate_runs() {
         .map(|s| s.sample_particles().expect("particles"))
         .collect();
     let mut batch = CudaBatch::new(&worlds, &p0, options.clone()).expect("batch");
-    assert!(batch.collider_bytes() > 0, "the worlds read tables of their own");
+    assert!(
+        batch.collider_bytes() > 0,
+        "the worlds read tables of their own"
+    );
     let mut single: Vec<CudaBackend> = worlds
         .iter()
         .zip(&p0)
