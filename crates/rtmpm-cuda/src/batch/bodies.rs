@@ -14,6 +14,7 @@
 use crate::contract::{BODY_EXCHANGE_SLOTS, GpuBody};
 use crate::error::err;
 use cudarc::driver::{CudaEvent, CudaSlice, CudaStream, DevicePtr, PinnedHostSlice};
+use rayon::prelude::*;
 use rtmpm_rigid::{BodyLoad, BodyPose, BodyState, Exchange, RigidKind, RigidWorld};
 use rtmpm_scene::Scene;
 use rtmpm_sim::SimError;
@@ -127,9 +128,13 @@ impl WorldBodies {
             .memset_zeros(&mut self.exchange)
             .map_err(err("clear the worlds' rigid-body impulses"))?;
         self.last_dt = Some(dt);
+        // The worlds advance on every core (each world is independent: the same results in
+        // any order).
         if !self.dynamic {
             let none = vec![Exchange::default(); self.per];
-            self.worlds.iter_mut().for_each(|w| w.advance(&none, dt));
+            self.worlds
+                .par_iter_mut()
+                .for_each(|w| w.advance(&none, dt));
             return Ok(());
         }
         let (rows, per) = (self.worlds.len() * self.per, self.per);
@@ -139,9 +144,10 @@ impl WorldBodies {
                 .map(|w| row_sums(sums, rows, w * per, per))
                 .collect()
         };
-        for (world, ex) in self.worlds.iter_mut().zip(&each) {
-            world.advance(ex, dt);
-        }
+        self.worlds
+            .par_iter_mut()
+            .zip(&each)
+            .for_each(|(world, ex)| world.advance(ex, dt));
         Ok(())
     }
 
