@@ -2,7 +2,8 @@
 # Registers, stack frame and spills of every kernel, without a GPU: the PTX that NVRTC makes
 # (crates/rtmpm-cuda/examples/ptx.rs) assembled by ptxas -v for sm_90. NVRTC and ptxas come
 # from the PyPI wheels nvidia-cuda-nvrtc / nvidia-cuda-nvcc 13.0 (installed into target/ci-tools).
-# Usage: bash scripts/kernel_report.sh [f64] [no_fast_math] [layout=N] (N: StateLayout::code; 1 = fluid)
+# Usage: bash scripts/kernel_report.sh [f64] [no_fast_math] [layout=N] [ck_bound=N] [cluster=K]
+# (layout N: StateLayout::code, 1 = fluid; ck_bound, cluster: the CUDA options of those names)
 # (RTMPM_KERNEL_DEFINES, e.g. "-DRTMPM_P2G_REDUCE=1", reaches the compile as in the backend)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -28,8 +29,10 @@ for line in open(sys.argv[1]):
     m = re.search(r"Used (\d+) registers", line)
     if m and cur:
         rows.setdefault(cur, {})["regs"] = m.group(1)
-print(f"{'kernel':26} {'regs':>5} {'stack':>6} {'spill st':>9} {'spill ld':>9}")
+        m = re.search(r"(\d+) bytes smem", line)
+        rows[cur]["smem"] = m.group(1) if m else "0"
+print(f"{'kernel':26} {'regs':>5} {'stack':>6} {'spill st':>9} {'spill ld':>9} {'smem':>6}")
 for k in sorted(rows):
     r = rows[k]; st = r.get("stack", ("?", "?", "?"))
-    print(f"{k:26} {r.get('regs', '?'):>5} {st[0]:>6} {st[1]:>9} {st[2]:>9}")
+    print(f"{k:26} {r.get('regs', '?'):>5} {st[0]:>6} {st[1]:>9} {st[2]:>9} {r.get('smem', '?'):>6}")
 PY

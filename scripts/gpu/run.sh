@@ -21,6 +21,17 @@
 #                --cuda-options of each CK-MPM line, default "ck_p2g=direct ck_p2g=warp ck_p2g=fused"),
 #                then the agreement test with the new kernels only (about 3 min a variant;
 #                RTMPM_CK_AGREEMENT from CK_AGREEMENT, default "ck_p2g=warp;ck_p2g=fused")
+#   kernel_ab    the kernel switches of the CUDA options in one binary, interleaved REPS times (default
+#                1; about 4-5 min with the first compile of each variant): MLS-MPM's fused step with
+#                thread-block clusters (cluster=2, cluster=4: sm_90 and later) against the default, and
+#                CK-MPM's kernels with an occupancy bound (ck_bound=N: N blocks of 128 a SM) and the
+#                resident grid (ck_grid=resident) against ck_p2g=fused / ck_p2g=warp as they are, on
+#                the fluid dam 2M and the jelly 2M; a table of ms/step last (KERNEL_AB_MLS,
+#                KERNEL_AB_CK: the --cuda-options of each line, "-" for none)
+#   kernel_agree the agreement tests with those switches: every example scene in f32 and f64 with
+#                cluster=4 (RTMPM_AGREEMENT_OPTIONS; KERNEL_AGREE_CLUSTER="cluster=2 cluster=4" for both),
+#                then CK-MPM with ck_p2g=fused,ck_bound=5,ck_grid=resident (RTMPM_CK_AGREEMENT;
+#                KERNEL_AGREE_CK to change)
 #   validate_compact  the same with the compact particle state (`--particle-state compact`)
 #   convergence  the convergence studies and the f64 validation cases
 #   bench        the claymore scenes (fluid 2M, jelly 2M, snow 1.33M) and a fluid block; with
@@ -114,6 +125,7 @@ b() {
   local ms; ms=$(echo "$r" | grep -oE '\(([0-9.]+) ms/step\)' | head -1 | tr -d '()' | cut -d' ' -f1)
   local tp; tp=$(echo "$r" | grep -m1 "throughput" | sed -E 's/.*throughput +//; s/ \(.*//')
   local k; k=$(echo "$r" | grep -E '^\s+(rebuild|p2g|grid_update|musl_remap|g2p|g2p2g) ' | awk '{printf "%s=%s ", $1, $2}')
+  B_MS=${ms:-?}
   local e; e=$(echo "$r" | grep -iE '^error' | head -1)
   printf '%-30s %-11s %9s ms/step %-22s %s%s\n' "$label" "$bin" "$ms" "$tp" "$k" "$e" | tee -a "$S"
 }
@@ -132,6 +144,51 @@ ck_bench() {
       b "$sc CK-MPM $v" rtmpm --scene "$OUT/${sc}_ck.toml" --frames 5 --cuda-options "$v"
     done
   done
+}
+
+# The kernel switches of the CUDA options on the fluid dam 2M and the jelly 2M (suite kernel_ab):
+# MLS-MPM lines on the scenes as they are, CK-MPM lines on the same scenes with [solver] transfer =
+# "ck-mpm"; one row per line and scene, then a table of ms/step (one column per repetition).
+kernel_ab() {
+  local mls=${KERNEL_AB_MLS:-"- cluster=2 cluster=4"}
+  local ck=${KERNEL_AB_CK:-"ck_p2g=fused ck_p2g=fused,ck_grid=resident ck_p2g=fused,ck_bound=5 ck_p2g=fused,ck_bound=5,ck_grid=resident ck_p2g=fused,ck_bound=6,ck_grid=resident ck_p2g=warp ck_p2g=warp,ck_bound=5"}
+  local table="$OUT/kernel_ab_table.txt" sc v o label
+  : > "$table"
+  for sc in fluid_dam_2m jelly_drop_2m; do
+    cp "bench/$sc.toml" "$OUT/${sc}_ck.toml"
+    printf '\n[solver]\ntransfer = "ck-mpm"\n' >> "$OUT/${sc}_ck.toml"
+  done
+  for rep in $(seq 1 "${REPS:-1}"); do
+    for sc in fluid_dam_2m jelly_drop_2m; do
+      for v in $mls; do
+        o=${v#-}; label="MLS ${o:-default}"
+        b "$sc $label" rtmpm --scene "bench/$sc.toml" --frames 5 ${o:+--cuda-options "$o"}
+        echo "$sc|$label|$B_MS" >> "$table"
+      done
+      for v in $ck; do
+        o=${v#-}; label="CK ${o:-default}"
+        b "$sc $label" rtmpm --scene "$OUT/${sc}_ck.toml" --frames 5 ${o:+--cuda-options "$o"}
+        echo "$sc|$label|$B_MS" >> "$table"
+      done
+    done
+  done
+  say "ms/step (whole run, graph replay; one figure per repetition):"
+  python3 - "$table" <<'PY' | tee -a "$S"
+import sys
+rows, order = {}, []
+for line in open(sys.argv[1]):
+    sc, label, ms = line.rstrip("\n").split("|")
+    if label not in rows:
+        rows[label] = {}
+        order.append(label)
+    rows[label].setdefault(sc, []).append(ms)
+print(f"| {'variant':45} | {'fluid dam 2M':18} | {'jelly drop 2M':18} |")
+print(f"| {'-' * 45} | {'-' * 18} | {'-' * 18} |")
+for label in order:
+    r = rows[label]
+    cell = lambda sc: ", ".join(r.get(sc, ["-"]))
+    print(f"| {label:45} | {cell('fluid_dam_2m'):18} | {cell('jelly_drop_2m'):18} |")
+PY
 }
 
 for suite in "$@"; do
@@ -166,6 +223,20 @@ for suite in "$@"; do
     ck_speed)
       ck_bench
       RTMPM_CK_AGREEMENT="${CK_AGREEMENT:-ck_p2g=warp;ck_p2g=fused}" t test_agreement cuda_agrees_with_cpu_with_ck_mpm --nocapture
+      grep -E "ck-mpm" "$OUT/test_agreement.log" | tee -a "$S"
+      ;;
+    kernel_ab)
+      kernel_ab
+      ;;
+    kernel_agree)
+      for o in ${KERNEL_AGREE_CLUSTER:-cluster=4}; do
+        say "test_agreement, the example scenes in f32 and f64 with $o:"
+        RTMPM_AGREEMENT_OPTIONS="$o" t test_agreement every_example_scene --nocapture
+        cp "$OUT/test_agreement.log" "$OUT/test_agreement_$o.log"
+      done
+      say "test_agreement, CK-MPM with ${KERNEL_AGREE_CK:-ck_p2g=fused,ck_bound=5,ck_grid=resident}:"
+      RTMPM_CK_AGREEMENT="${KERNEL_AGREE_CK:-ck_p2g=fused,ck_bound=5,ck_grid=resident}" \
+        t test_agreement cuda_agrees_with_cpu_with_ck_mpm --nocapture
       grep -E "ck-mpm" "$OUT/test_agreement.log" | tee -a "$S"
       ;;
     validate_compact)

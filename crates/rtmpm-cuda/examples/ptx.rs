@@ -2,9 +2,11 @@
 //! with `ptxas -v` (scripts/kernel_report.sh).
 //!
 //! `cargo run -p rtmpm-cuda --example ptx -- [f64] [no_fast_math] [sm_90] [materials=0xMASK]
-//! [layout=N] [lineinfo]` (N: the state layout's code, `StateLayout::code`: 1 is the 20-word fluid
-//! layout; `lineinfo`: NVRTC's `--generate-line-info`, so that `nvdisasm -g` names the source line
-//! of every SASS instruction; not cached, the same code otherwise)
+//! [layout=N] [ck_bound=N] [cluster=K] [lineinfo]` (N: the state layout's code, `StateLayout::code`:
+//! 1 is the 20-word fluid layout; `ck_bound=N` and `cluster=K`: the CUDA options of the same names
+//! (`CudaOptions::ck_min_blocks`, `CudaOptions::cluster`); `lineinfo`: NVRTC's
+//! `--generate-line-info`, so that `nvdisasm -g` names the source line of every SASS instruction;
+//! not cached, the same code otherwise)
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -34,6 +36,14 @@ fn main() {
     {
         o.layout = l;
     }
+    // `ck_bound=5`, `cluster=2`: the kernels of those CUDA options.
+    let number = |key: &str| {
+        args.iter()
+            .find_map(|a| a.strip_prefix(key))
+            .and_then(|v| v.parse::<u32>().ok())
+    };
+    o.ck_min_blocks = number("ck_bound=").unwrap_or(0);
+    o.cluster = number("cluster=").unwrap_or(0);
     let ptx = if args.iter().any(|a| a == "lineinfo") {
         with_line_info(&o)
     } else {

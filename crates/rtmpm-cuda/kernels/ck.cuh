@@ -7,6 +7,15 @@
 #pragma once
 #include "math.cuh"
 
+// Occupancy bound of CK-MPM's warp-scatter kernels (g2p2g_ck, p2g_ck_warp), set by the CUDA option
+// ck_bound=N (-DCK_MIN_BLOCKS=N): N resident blocks of 128 threads a SM, at most 65536 / (128 N)
+// registers a thread. Left out (the default): ptxas's own choice (128 registers for g2p2g_ck).
+#if defined(CK_MIN_BLOCKS) && CK_MIN_BLOCKS > 0
+#define CK_BOUNDS 128, CK_MIN_BLOCKS
+#else
+#define CK_BOUNDS 128
+#endif
+
 // Offset of grid g's nodes from the B-spline grid's, in cells (compact_kernel.rs: GRID_SHIFT).
 __device__ __forceinline__ real ck_shift(int g) { return g == 0 ? (real)-0.25 : (real)0.25; }
 

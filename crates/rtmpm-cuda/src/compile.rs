@@ -28,6 +28,13 @@ pub struct KernelOptions {
     /// Many worlds in one set of arrays (`-DRTMPM_BATCH`, [`crate::batch`]); off: the kernels
     /// of one world, unchanged.
     pub batch: bool,
+    /// CK-MPM's warp-scatter kernels held to this many blocks of 128 threads a SM
+    /// (`-DCK_MIN_BLOCKS`, [`crate::CudaOptions::ck_min_blocks`]); 0: no bound (left out).
+    pub ck_min_blocks: u32,
+    /// MLS-MPM's fused kernels in thread-block clusters of this many blocks
+    /// (`-DRTMPM_P2G_CLUSTER`, [`crate::CudaOptions::cluster`]); 0 or 1: off (left out). Passed
+    /// for compute capability 9.0 or later only: before Hopper the kernels stay unchanged.
+    pub cluster: u32,
 }
 
 /// True when state arrays of `capacity` particles of `words` words each hold 2^32 words or more:
@@ -48,6 +55,8 @@ impl KernelOptions {
             state64: false,
             layout: contract::StateLayout::Full,
             batch: false,
+            ck_min_blocks: 0,
+            cluster: 0,
         }
     }
 }
@@ -152,6 +161,12 @@ pub fn nvrtc_options(o: &KernelOptions) -> Vec<String> {
     }
     if o.batch {
         v.push("-DRTMPM_BATCH".into());
+    }
+    if o.ck_min_blocks > 0 {
+        v.push(format!("-DCK_MIN_BLOCKS={}", o.ck_min_blocks));
+    }
+    if o.cluster > 1 && o.arch.0 >= 9 {
+        v.push(format!("-DRTMPM_P2G_CLUSTER={}", o.cluster));
     }
     // Tuning experiments: extra `-DNAME=VALUE` flags, e.g. "-DG2P_MIN_BLOCKS=6" (part of the
     // cache key like every other option).
@@ -441,6 +456,116 @@ mod tests {
                 });
             }
         });
+    }
+
+    /// The CUDA options that select kernel variants at compile time: `ck_bound=N` reaches every
+    /// architecture, `cluster=K` only sm_90 and later (the kernels before Hopper stay as they
+    /// are; the backend refuses the option there).
+    #[test]
+    fn the_ck_bound_and_cluster_options_become_defines() {
+        let mut o = KernelOptions::all_models((9, 0), true, false);
+        let base = nvrtc_options(&o);
+        assert!(
+            !base
+                .iter()
+                .any(|d| d.contains("CK_MIN_BLOCKS") || d.contains("CLUSTER"))
+        );
+        o.ck_min_blocks = 5;
+        o.cluster = 2;
+        let v = nvrtc_options(&o);
+        assert!(v.contains(&"-DCK_MIN_BLOCKS=5".to_string()), "{v:?}");
+        assert!(v.contains(&"-DRTMPM_P2G_CLUSTER=2".to_string()), "{v:?}");
+        o.arch = (8, 0);
+        let v = nvrtc_options(&o);
+        assert!(v.contains(&"-DCK_MIN_BLOCKS=5".to_string()), "{v:?}");
+        assert!(!v.iter().any(|d| d.contains("CLUSTER")), "{v:?}");
+        o.arch = (9, 0);
+        o.cluster = 1;
+        assert!(!nvrtc_options(&o).iter().any(|d| d.contains("CLUSTER")));
+    }
+
+    /// The entry directives and the body of kernel `k` in `ptx` (up to its closing brace).
+    fn entry<'a>(ptx: &'a str, k: &str) -> &'a str {
+        ptx.split(&format!(".entry {k}("))
+            .nth(1)
+            .and_then(|s| s.split("\n}\n").next())
+            .unwrap_or_default()
+    }
+
+    /// The kernels of `ck_bound=N` and `cluster=K` compile with NVRTC (front end only, on every
+    /// core at once): for sm_90, f32 and f64, CK-MPM's warp-scatter kernels carry the bound
+    /// (`.minnctapersm N`) and MLS-MPM's fused kernels the cluster size (`.reqnctapercluster`),
+    /// their scatter reduces into distributed shared memory (`red.shared::cluster`) between
+    /// cluster barriers, with the global vector atomic kept for the nodes outside the tile and
+    /// the tile's flush; for sm_80 (where `cluster` is dropped) every kernel compiles without
+    /// clusters.
+    #[test]
+    fn the_ck_bound_and_cluster_kernels_compile() {
+        if !nvrtc_or_skip() {
+            return;
+        }
+        // (arch, f64, ck_bound, cluster)
+        let jobs: &[((i32, i32), bool, u32, u32)] = &[
+            ((9, 0), false, 5, 0),
+            ((9, 0), false, 6, 0),
+            ((9, 0), true, 5, 0),
+            ((9, 0), false, 0, 2),
+            ((9, 0), false, 0, 4),
+            ((9, 0), true, 0, 2),
+            ((8, 0), false, 5, 2),
+        ];
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+        std::thread::scope(|scope| {
+            for t in 0..threads.min(jobs.len()) {
+                scope.spawn(move || {
+                    for &(arch, f64, bound, cluster) in jobs.iter().skip(t).step_by(threads) {
+                        let o = KernelOptions {
+                            ck_min_blocks: bound,
+                            cluster,
+                            ..KernelOptions::all_models(arch, true, f64)
+                        };
+                        let mut opts = nvrtc_options(&o);
+                        opts.push("--Ofast-compile=max".into());
+                        let what = format!("{o:?}");
+                        let ptx = program_source(f64)
+                            .and_then(|src| nvrtc(&src, "rtmpm_pipeline.cu", opts))
+                            .unwrap_or_else(|e| panic!("{what}: {e}"));
+                        assert_every_kernel(&ptx, &what);
+                        check_bound_and_cluster(&ptx, &o, &what);
+                    }
+                });
+            }
+        });
+    }
+
+    /// The PTX checks of [`the_ck_bound_and_cluster_kernels_compile`].
+    fn check_bound_and_cluster(ptx: &str, o: &KernelOptions, what: &str) {
+        for k in ["g2p2g_ck", "p2g_ck_warp"] {
+            let bound = format!(".minnctapersm {}", o.ck_min_blocks);
+            assert_eq!(
+                entry(ptx, k).contains(&bound),
+                o.ck_min_blocks > 0,
+                "{what}: {k}"
+            );
+        }
+        let clustered = o.cluster > 1 && o.arch.0 >= 9;
+        for k in ["g2p2g", "g2p2g_fluid"] {
+            let dims = format!(".reqnctapercluster {}, 1, 1", o.cluster);
+            assert_eq!(entry(ptx, k).contains(&dims), clustered, "{what}: {k}");
+        }
+        for op in [
+            "red.shared::cluster.add",
+            "barrier.cluster.arrive",
+            "mapa.shared::cluster",
+        ] {
+            assert_eq!(ptx.contains(op), clustered, "{what}: {op}");
+        }
+        // Every other kernel unclustered.
+        assert_eq!(
+            ptx.matches(".reqnctapercluster").count(),
+            if clustered { 2 } else { 0 },
+            "{what}"
+        );
     }
 
     /// The kernels that scatter (mass, momentum) into grid nodes through `atomic_add_node`

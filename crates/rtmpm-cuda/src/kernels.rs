@@ -25,6 +25,13 @@ pub struct Kernels {
     /// register bounds it was not timed with); `None`: one wave of threads ([`Kernels::wave`]),
     /// in f64 or with `RTMPM_G2P2G_GRID=wave`.
     pub g2p2g_resident: Option<[u32; 2]>,
+    /// Blocks of 128 threads of CK-MPM's fused kernel `g2p2g_ck` resident at once, its grid
+    /// with `ck_grid=resident` ([`crate::CudaOptions::ck_resident_grid`]); `None`: one wave of
+    /// threads, as before.
+    pub g2p2g_ck_resident: Option<u32>,
+    /// Blocks in a thread-block cluster of the fused MLS-MPM kernels (1: no clusters; 2 or 4
+    /// with `cluster=`, [`crate::CudaOptions::cluster`]): their grids are a multiple of it.
+    pub cluster: u32,
     /// Fields of the rebuild's sort scratch
     /// ([`crate::options::CudaOptions::sort_scratch_fields`]): the state is permuted that many
     /// fields per pass.
@@ -34,17 +41,18 @@ pub struct Kernels {
 }
 
 impl Kernels {
-    /// Load every kernel of `module`; `sm_count` sizes the waves, `fused_rebuild` asks for the
-    /// persistent rebuild kernel's grid, `sort_fields` is the sort scratch's fields (at most the
-    /// `layout`'s words), `f64` says the module is double precision (its fused kernels keep one
-    /// wave of threads unless asked: [`Kernels::g2p2g_resident`]).
+    /// Load every kernel of `module`; `sm_count` sizes the waves; from the options `o`:
+    /// `fused_rebuild` asks for the persistent rebuild kernel's grid, `sort_scratch_fields` is
+    /// the sort scratch's fields (at most the `layout`'s words), `f64` says the module is double
+    /// precision (its fused kernels keep one wave of threads unless asked:
+    /// [`Kernels::g2p2g_resident`]), `ck_resident_grid` asks for the resident grid of
+    /// `g2p2g_ck` and `cluster` is the fused MLS-MPM kernels' cluster size (their grids a
+    /// multiple of it).
     pub(crate) fn load(
         module: &Arc<CudaModule>,
         sm_count: i32,
-        fused_rebuild: bool,
-        sort_fields: usize,
+        o: &crate::options::CudaOptions,
         layout: crate::contract::StateLayout,
-        f64: bool,
     ) -> Result<Kernels, SimError> {
         let functions = Kernel::ALL
             .iter()
@@ -59,26 +67,33 @@ impl Kernels {
             wave_threads: sm_count.max(1) as usize * 2048,
             rb_fused_grid: None,
             g2p2g_resident: None,
-            sort_fields: sort_fields.clamp(1, layout.words()) as u32,
+            g2p2g_ck_resident: None,
+            cluster: o.cluster.max(1),
+            sort_fields: o.sort_scratch_fields.clamp(1, layout.words()) as u32,
             sort_mask: layout.all_words(),
         };
-        if fused_rebuild {
+        if o.fused_rebuild {
             // A cooperative launch needs every block resident, so its grid barrier cannot deadlock.
             let per_sm = k[Kernel::RbFused]
                 .occupancy_max_active_blocks_per_multiprocessor(1024, 0, None)
                 .map_err(|e| SimError::Backend(format!("CUDA: occupancy of rb_fused: {e:?}")))?;
             k.rb_fused_grid = Some(per_sm * sm_count.max(1) as u32).filter(|&g| g > 0);
         }
+        let resident = |k: &Kernels, f: Kernel| {
+            k[f].occupancy_max_active_blocks_per_multiprocessor(128, 0, None)
+                .map(|per_sm| per_sm * sm_count.max(1) as u32)
+                .map_err(|e| SimError::Backend(format!("CUDA: occupancy of {}: {e:?}", f.name())))
+        };
         let grid = std::env::var("RTMPM_G2P2G_GRID").unwrap_or_default();
-        if grid.trim() == "resident" || (grid.trim() != "wave" && !f64) {
-            let resident = |f: Kernel| {
-                k[f].occupancy_max_active_blocks_per_multiprocessor(128, 0, None)
-                    .map(|per_sm| per_sm * sm_count.max(1) as u32)
-                    .map_err(|e| {
-                        SimError::Backend(format!("CUDA: occupancy of {}: {e:?}", f.name()))
-                    })
-            };
-            k.g2p2g_resident = Some([resident(Kernel::G2p2g)?, resident(Kernel::G2p2gFluid)?]);
+        if grid.trim() == "resident" || (grid.trim() != "wave" && !o.f64) {
+            // In clusters: whole clusters only (every block of a cluster is resident with it).
+            let whole = |blocks: u32| blocks / k.cluster * k.cluster;
+            let general = whole(resident(&k, Kernel::G2p2g)?);
+            let fluid = whole(resident(&k, Kernel::G2p2gFluid)?);
+            k.g2p2g_resident = Some([general, fluid]);
+        }
+        if o.ck_resident_grid {
+            k.g2p2g_ck_resident = Some(resident(&k, Kernel::G2p2gCk)?);
         }
         Ok(k)
     }

@@ -86,6 +86,21 @@ pub struct CudaOptions {
     pub p2g: P2gMode,
     /// CK-MPM's P2G kernel (whatever `p2g`, which names the MLS-MPM variants).
     pub ck_p2g: CkP2g,
+    /// CK-MPM's warp-scatter kernels (`g2p2g_ck`, `p2g_ck_warp`) held to this many resident
+    /// blocks of 128 threads a SM (`__launch_bounds__(128, N)`: at most 65536 / (128 N)
+    /// registers a thread; `ck_bound=N`); 0 (the default): ptxas's own choice, as before. An
+    /// experiment for the speed A/B (bench/RESULTS.md), not tuned.
+    pub ck_min_blocks: u32,
+    /// CK-MPM's fused kernel `g2p2g_ck` launched as the blocks resident at once (occupancy
+    /// API), each looping over the warp list, instead of one wave of 2048 threads a SM
+    /// (`ck_grid=resident|wave`; default wave, as before).
+    pub ck_resident_grid: bool,
+    /// MLS-MPM's fused kernels (`g2p2g`, `g2p2g_fluid`) in thread-block clusters of this many
+    /// blocks (`cluster=2|4`, or `on` for 2; 0 or 1: off, the default): the scatter of a
+    /// cluster's warps into the nodes of one gblock summed in distributed shared memory before
+    /// one global atomic a node (`kernels/p2g/cluster.cuh`). Compute capability 9.0 or later
+    /// only (the backend refuses it before Hopper). An experiment for the speed A/B.
+    pub cluster: u32,
     /// `p2g=reverse_map`: number of replicated maps (the paper's nine by default).
     pub rmap_replicas: usize,
     /// `p2g=reverse_map`: entries per node and map; `None`: twice the initial largest node load.
@@ -178,6 +193,9 @@ impl Default for CudaOptions {
             warp_reduce: true,
             p2g: P2gMode::Warp,
             ck_p2g: CkP2g::Fused,
+            ck_min_blocks: 0,
+            ck_resident_grid: false,
+            cluster: 0,
             rmap_replicas: crate::step::p2g::reverse_map::DEFAULT_REPLICAS,
             rmap_slots: None,
             rmap_pblocks: None,
@@ -209,7 +227,8 @@ impl std::str::FromStr for CudaOptions {
     type Err = String;
     /// Comma separated `key=value`: `free_zone`, `mixed_sort`, `warp_reduce`, `fast_math`,
     /// `graph`, `f64`, `rebalance`, `overlap`, `g2p2g`, `rigid_overlap`, `specialize` (on/off/true/false/1/0), `rebuild` (fused/kernels), `fill` (device/host), `p2g`
-    /// (warp/shared/reverse_map/sort), `ck_p2g` (direct/warp/fused), `transport` (p2p/nccl), `barrier` (spin/events), `devices`
+    /// (warp/shared/reverse_map/sort), `ck_p2g` (direct/warp/fused), `ck_bound` (0 to 16 blocks),
+    /// `ck_grid` (wave/resident), `cluster` (off/on/1/2/4), `transport` (p2p/nccl), `barrier` (spin/events), `devices`
     /// (ordinals separated by `:`), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
     /// `rmap_pblocks`, `shared`, `sort_fields` (counts), `fluid_state` (on/off), `state`
     /// (f32/compact).
@@ -254,6 +273,24 @@ impl std::str::FromStr for CudaOptions {
                             ("warp", CkP2g::Warp),
                             ("fused", CkP2g::Fused),
                         ],
+                    )?
+                }
+                "ck_bound" => {
+                    o.ck_min_blocks = n()? as u32;
+                    if o.ck_min_blocks > 16 {
+                        return Err(format!(
+                            "`{item}`: expected 0 (no bound) to 16 blocks of 128 threads a SM"
+                        ));
+                    }
+                }
+                "ck_grid" => {
+                    o.ck_resident_grid = choice(item, v, &[("wave", false), ("resident", true)])?
+                }
+                "cluster" => {
+                    o.cluster = choice(
+                        item,
+                        v,
+                        &[("off", 0), ("on", 2), ("1", 0), ("2", 2), ("4", 4)],
                     )?
                 }
                 "gblocks" => o.gblock_capacity = Some(n()?),
@@ -423,5 +460,23 @@ mod tests {
         let e = "devices=0:x".parse::<CudaOptions>().unwrap_err();
         assert!(e.contains("ordinals separated by `:`"), "{e}");
         assert!("devices=".parse::<CudaOptions>().is_err());
+        let d = CudaOptions::default();
+        assert_eq!(
+            (d.ck_min_blocks, d.ck_resident_grid, d.cluster),
+            (0, false, 0)
+        );
+        let o: CudaOptions = "ck_bound=5,ck_grid=resident,cluster=4".parse().unwrap();
+        assert_eq!(
+            (o.ck_min_blocks, o.ck_resident_grid, o.cluster),
+            (5, true, 4)
+        );
+        assert_eq!("cluster=on".parse::<CudaOptions>().unwrap().cluster, 2);
+        assert_eq!("cluster=off".parse::<CudaOptions>().unwrap().cluster, 0);
+        assert_eq!(
+            "cluster=3".parse::<CudaOptions>().unwrap_err(),
+            "`cluster=3`: expected off, on, 1, 2 or 4"
+        );
+        assert!("ck_bound=17".parse::<CudaOptions>().is_err());
+        assert!("ck_grid=big".parse::<CudaOptions>().is_err());
     }
 }

@@ -31,9 +31,21 @@ fn read(b: &mut dyn Backend) -> Particles {
 }
 
 /// After one step every particle agrees within float tolerance; after `steps` steps the aggregate
-/// quantities agree within the stated tolerances. Returns the failures.
+/// quantities agree within the stated tolerances. Returns the failures. The CUDA options are
+/// [`extra_options`].
 fn compare(name: &str, scene: &Scene, steps: usize) -> Vec<String> {
-    compare_with(name, scene, steps, "")
+    compare_with(name, scene, steps, &extra_options())
+}
+
+/// CUDA options (`--cuda-options` syntax) for the tests of every example scene, f32 and f64:
+/// `RTMPM_AGREEMENT_OPTIONS`, e.g. `cluster=2` for the cluster variant of the fused kernels;
+/// none by default.
+fn extra_options() -> String {
+    let o = std::env::var("RTMPM_AGREEMENT_OPTIONS").unwrap_or_default();
+    if !o.trim().is_empty() {
+        println!("CUDA options of the comparison: {o}");
+    }
+    o
 }
 
 /// The CUDA options of a comparison: precise math (for the per-particle comparison) and `extra`
@@ -183,7 +195,7 @@ fn cuda_f64_agrees_with_cpu_f64_on_every_example_scene() {
 
 /// [`cuda_f64_agrees_with_cpu_f64_on_every_example_scene`] for one scene (run in f64).
 fn compare_f64(name: &str, scene: Scene, steps: usize) -> Vec<String> {
-    compare_f64_with(name, scene, steps, "")
+    compare_f64_with(name, scene, steps, &extra_options())
 }
 
 /// [`compare_f64`] with the CUDA options `extra` (`--cuda-options` syntax) beside precise math.

@@ -68,8 +68,9 @@ extern "C" __global__ void g2p_ck(Ctx c) {
 // (c.grid_next, c.grid_aux_next; cleared by this step's grid update) with the warp scatter of
 // p2g_ck_warp. A particle that left its free zone is not scattered (it has set the rebuild flag;
 // the next step rebuilds and redoes the P2G from the stored state). Warps loop over the warp list
-// (grid-stride, launched with about one wave of blocks).
-extern "C" __global__ void __launch_bounds__(128) g2p2g_ck(Ctx c) {
+// (grid-stride, launched with about one wave of blocks, or with ck_grid=resident the blocks resident
+// at once). Register bound: CK_BOUNDS (ck.cuh, the CUDA option ck_bound=N; none by default).
+extern "C" __global__ void __launch_bounds__(CK_BOUNDS) g2p2g_ck(Ctx c) {
     if (c.ctl[CTL_ERROR]) return;
     unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
     unsigned lane = threadIdx.x & 31;

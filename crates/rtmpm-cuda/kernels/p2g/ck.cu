@@ -41,7 +41,7 @@ extern "C" __global__ void p2g_ck(Ctx c) {
 // With G2P2G (ck_p2g=fused; g2p/ck.cu: g2p2g_ck) the previous step's fused kernel has already
 // scattered the particles, and this kernel only runs after a rebuild or when the host asks
 // (grid_needs_p2g: always without G2P2G).
-extern "C" __global__ void __launch_bounds__(128) p2g_ck_warp(Ctx c) {
+extern "C" __global__ void __launch_bounds__(CK_BOUNDS) p2g_ck_warp(Ctx c) {
     if (c.ctl[CTL_ERROR] || !grid_needs_p2g(c)) return;
     unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
     unsigned lane = threadIdx.x & 31;

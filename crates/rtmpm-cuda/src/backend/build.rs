@@ -366,6 +366,13 @@ impl Plan {
         info: &DeviceInfo,
     ) -> Result<(Arc<CudaStream>, Arc<CudaModule>, Kernels), SimError> {
         let o = &self.options;
+        if o.cluster > 1 && info.compute_capability.0 < 9 {
+            return Err(SimError::Backend(format!(
+                "CUDA option cluster={}: thread-block clusters need compute capability 9.0 or later, \
+                 and this GPU ({}) has {}.{}; leave the option out (or cluster=off)",
+                o.cluster, info.name, info.compute_capability.0, info.compute_capability.1
+            )));
+        }
         // Compiled for this GPU, the state's index width (64 bits past 2^32 words), and with
         // specialize=on the scene's models only (a smaller material switch).
         let ptx = compile(&KernelOptions {
@@ -383,6 +390,8 @@ impl Plan {
                 u32::MAX
             },
             batch: self.batch,
+            ck_min_blocks: o.ck_min_blocks,
+            cluster: o.cluster,
         })
         .map_err(SimError::Backend)?;
         // Single stream: no cross-stream event tracking (keeps launches capturable).
@@ -392,14 +401,7 @@ impl Plan {
         let module = context
             .load_module(cudarc::nvrtc::Ptx::from_src(ptx))
             .map_err(err("load module"))?;
-        let mut kernels = Kernels::load(
-            &module,
-            info.sm_count,
-            o.fused_rebuild,
-            o.sort_scratch_fields,
-            self.layout,
-            o.f64,
-        )?;
+        let mut kernels = Kernels::load(&module, info.sm_count, o, self.layout)?;
         kernels.sort_mask = sorted_fields(self.layout, self.all_fluid());
         Ok((stream, module, kernels))
     }

@@ -29,14 +29,21 @@ pub(crate) fn enqueue(
         Kernel::G2pMpm
     };
     let threads = c.warp_cap as usize * 32;
-    let launch = match (f, k.g2p2g_resident) {
-        (Kernel::G2p2g, Some([blocks, _])) | (Kernel::G2p2gFluid, Some([_, blocks]))
+    let mut launch = match (f, k.g2p2g_resident, k.g2p2g_ck_resident) {
+        (Kernel::G2p2g, Some([blocks, _]), _)
+        | (Kernel::G2p2gFluid, Some([_, blocks]), _)
+        | (Kernel::G2p2gCk, _, Some(blocks))
             if blocks > 0 =>
         {
             crate::kernels::cfg(threads.min(blocks as usize * 128), 128)
         }
         _ => k.wave(threads, 128),
     };
+    if matches!(f, Kernel::G2p2g | Kernel::G2p2gFluid) && k.cluster > 1 {
+        // Thread-block clusters (cluster=): whole clusters (the kernel's warps past the list's
+        // end take part in the cluster's barriers only).
+        launch.grid_dim.0 = launch.grid_dim.0.div_ceil(k.cluster) * k.cluster;
+    }
     // SAFETY: the kernel bounds-checks against the warp count (grid-stride over the warp list).
     unsafe { s.launch_builder(&k[f]).arg(c).launch(launch)? };
     Ok(())
