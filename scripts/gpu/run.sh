@@ -22,7 +22,7 @@
 #                then the agreement test with the new kernels only (about 3 min a variant;
 #                RTMPM_CK_AGREEMENT from CK_AGREEMENT, default "ck_p2g=warp;ck_p2g=fused")
 #   kernel_ab    the kernel switches of the CUDA options in one binary, interleaved REPS times (default
-#                1; about 4-5 min with the first compile of each variant): MLS-MPM's fused step with
+#                1; about 5 min, not timed: the first compile of each variant and 20 runs): MLS-MPM's fused step with
 #                thread-block clusters (cluster=2, cluster=4: sm_90 and later) against the default, and
 #                CK-MPM's kernels with an occupancy bound (ck_bound=N: N blocks of 128 a SM) and the
 #                resident grid (ck_grid=resident) against ck_p2g=fused / ck_p2g=warp as they are, on
