@@ -27,6 +27,10 @@ impl P2gMode {
     }
 }
 
+/// Replicated reverse maps of `p2g=reverse_map` by default (Chiang et al.: "we maintain a set of
+/// nine independent reverse maps").
+pub const DEFAULT_RMAP_REPLICAS: usize = 9;
+
 /// CK-MPM's P2G kernel (`[solver] transfer = "ck-mpm"`; `kernels/p2g/ck.cu`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum CkP2g {
@@ -196,7 +200,7 @@ impl Default for CudaOptions {
             ck_min_blocks: 0,
             ck_resident_grid: false,
             cluster: 0,
-            rmap_replicas: crate::step::p2g::reverse_map::DEFAULT_REPLICAS,
+            rmap_replicas: DEFAULT_RMAP_REPLICAS,
             rmap_slots: None,
             rmap_pblocks: None,
             fast_math: true,

@@ -13,7 +13,7 @@
 //! * `storage_device(name)`: views of the batch's own state buffer (no copy at all), in the
 //!   GPU's storage order, as `Simulation.particles.x_device` and the others.
 
-use super::{PyBatch, Run};
+use super::{Gathered, PyBatch, Run};
 use crate::device::{DeviceArray, Elem};
 use crate::errors::{backend_error, sim_error};
 use pyo3::exceptions::PyValueError;
@@ -30,16 +30,6 @@ use rtmpm_sim::SimError;
 enum Field {
     X,
     V,
-}
-
-/// The batch's gathered device arrays (allocated at their first read) and whether any device
-/// array was handed out.
-#[derive(Default)]
-pub(super) struct Gathered {
-    x: Option<OrderedDeviceVec3>,
-    v: Option<OrderedDeviceVec3>,
-    /// A view was handed out: readers on other streams may be at work when a call starts.
-    exported: bool,
 }
 
 impl Gathered {

@@ -48,6 +48,16 @@ impl Worlds {
     }
 }
 
+/// The batch's gathered device arrays (allocated at their first read) and whether any device
+/// array was handed out; its methods are in `device.rs`.
+#[derive(Default)]
+struct Gathered {
+    x: Option<rtmpm_cuda::export::ordered::OrderedDeviceVec3>,
+    v: Option<rtmpm_cuda::export::ordered::OrderedDeviceVec3>,
+    /// A view was handed out: readers on other streams may be at work when a call starts.
+    exported: bool,
+}
+
 /// Many worlds of one scene, stepped together.
 ///
 /// ``rtmpm.Simulation(scene, batch=N)`` makes ``N`` copies of ``scene``; a scene with
@@ -80,7 +90,7 @@ pub struct PyBatch {
     /// Set after a panic: the state may be inconsistent.
     broken: Option<String>,
     /// The device arrays of a GPU batch (`x_device`, `v_device`), refreshed after every call.
-    device: device::Gathered,
+    device: Gathered,
 }
 
 /// A Python error from a batch run's error (`anyhow`, with its context).

@@ -11,9 +11,6 @@ use rtmpm_sim::SimError;
 use std::collections::HashMap;
 use std::sync::Arc;
 
-/// Replicated maps of the paper ("we maintain a set of nine independent reverse maps").
-pub const DEFAULT_REPLICAS: usize = 9;
-
 /// Bytes of the entry array of the gather strategies: 27 (particle, node) values of 4 reals per
 /// particle (`kernels/p2g/particle.cuh`).
 pub(crate) fn entry_bytes(cap: usize, real_bytes: usize) -> usize {
