@@ -660,10 +660,15 @@ fn each_worlds_tool_goes_with_its_particles_through_a_rewind_and_a_reset() {
     assert!(r.advance_steps(10).expect("steps").is_empty());
     assert!(again.advance_steps(10).expect("steps").is_empty());
     for w in [0, 2] {
-        assert_eq!(
-            bits(again.worlds[w].particles()),
-            bits(r.worlds[w].particles())
-        );
+        // As for a_resumed_lockstep_batch_equals_the_uninterrupted_one_bit_for_bit: a checkpoint
+        // holds the particles' f32 interface state, so an f64 run resumes from it rounded; its
+        // particles are compared bit for bit in f32 builds only (the tools' poses in both).
+        if cfg!(not(feature = "f64")) {
+            assert_eq!(
+                bits(again.worlds[w].particles()),
+                bits(r.worlds[w].particles())
+            );
+        }
         let want = r.sim.backend.world_rigid_poses(w);
         assert_eq!(again.sim.backend.world_rigid_poses(w), want, "world {w}");
     }
