@@ -1436,7 +1436,9 @@ def main():
             dt = time.time() - t
             verdict = verdict or judge(c, rc, text, timed_out, False)
             lines = [l for l in text.splitlines() if l.strip()]
-            first = next((l for l in lines if l.startswith("error")), lines[0] if lines else "")[:160]
+            # An unclear live-view case names what went wrong (its first problem), not its first error.
+            said = [l for l in lines if l.startswith("problem:")] if verdict == "unclear" else []
+            first = (said or [next((l for l in lines if l.startswith("error")), lines[0] if lines else "")])[0][:160]
             rows.append((c.name, verdict, dt, first))
             print(f"{verdict:9} {dt:6.2f}s  {c.name}: {first}", flush=True)
             continue
