@@ -106,68 +106,56 @@ __device__ vec3 node_boundary(const Ctx& c, unsigned t, vec3 v) {
 // gravity the node received this step, goes to the body as impulse and angular impulse about its
 // centre (the boundary-condition form of the CPIC coupling of Hu et al., "A Moving Least Squares
 // Material Point Method with Displacement Discontinuity and Two-Way Rigid Body Coupling", 2018).
-// The reactions are summed in f64 into copy blockIdx.x % BODY_EXCHANGE_SLOTS (crate::rigid).
-// Several GPUs: a node of a pblock that k GPUs hold has the same summed mass and momentum on
-// each of them after the shared-block reduction, so each adds 1/k of its reaction (`share`) and
-// the host's sum over the GPUs counts it once.
-__device__ vec3 couple_bodies(const Ctx& c, vec3 x, real m, vec3 v, vec3 g_dt, double share) {
-    for (unsigned b = 0; b < c.n_bodies; ++b) {
-        const GpuBody& body = body_at(c, b);
-        vec3 r = x - v3f(body.center);
-        if (dot(r, r) > (real)body.bound * (real)body.bound) continue;
-        mat3 R;
-        for (int q = 0; q < 9; ++q) R.m[q] = body.rot[q];
-        vec3 p = transpose(R) * r;
-        if (shape_distance(c, body.shape, p) > 0) continue;
-        vec3 n = normalize_or_y(R * shape_normal(c, body.shape, p));
-        vec3 vb = v3f(body.velocity) + cross(v3f(body.omega), r);
-        vec3 nv = vb + rule_apply(body.shape.cond, body.shape.friction, v - vb, n);
-        if (body.dynamic) {
-            vec3 dp = (nv - v + g_dt) * m;
-            vec3 t = cross(r, dp);
-            double* e = c.body_exchange + 6u * ((blockIdx.x % BODY_EXCHANGE_SLOTS) * c.n_bodies + b);
-            atomicAdd(e + 0, -(double)dp.x * share);
-            atomicAdd(e + 1, -(double)dp.y * share);
-            atomicAdd(e + 2, -(double)dp.z * share);
-            atomicAdd(e + 3, -(double)t.x * share);
-            atomicAdd(e + 4, -(double)t.y * share);
-            atomicAdd(e + 5, -(double)t.z * share);
-        }
-        v = nv;
-    }
-    return v;
+// The reaction is summed for every body, dynamic or not: a dynamic body is moved by it, a
+// kinematic or fixed one reports it as its load (the force on a robot's tool; Backend::rigid_loads,
+// as the CPU backend's couple does). `e`: the body's 6 f64 sums in this block's copy
+// (blockIdx.x % BODY_EXCHANGE_SLOTS, crate::step::rigid); `share`: the part of the reaction this
+// GPU adds (below). Node x, mass m, velocity v; returns the velocity after the body's rule.
+__device__ __forceinline__ vec3 couple_body(const Ctx& c, const GpuBody& body, double* e, vec3 x, real m, vec3 v, vec3 g_dt,
+                                            double share) {
+    vec3 r = x - v3f(body.center);
+    if (dot(r, r) > (real)body.bound * (real)body.bound) return v;
+    mat3 R;
+    for (int q = 0; q < 9; ++q) R.m[q] = body.rot[q];
+    vec3 p = transpose(R) * r;
+    if (shape_distance(c, body.shape, p) > 0) return v;
+    vec3 n = normalize_or_y(R * shape_normal(c, body.shape, p));
+    vec3 vb = v3f(body.velocity) + cross(v3f(body.omega), r);
+    vec3 nv = vb + rule_apply(body.shape.cond, body.shape.friction, v - vb, n);
+    vec3 dp = (nv - v + g_dt) * m;
+    vec3 t = cross(r, dp);
+    atomicAdd(e + 0, -(double)dp.x * share);
+    atomicAdd(e + 1, -(double)dp.y * share);
+    atomicAdd(e + 2, -(double)dp.z * share);
+    atomicAdd(e + 3, -(double)t.x * share);
+    atomicAdd(e + 4, -(double)t.y * share);
+    atomicAdd(e + 5, -(double)t.z * share);
+    return nv;
 }
 
 #ifdef RTMPM_BATCH
-// couple_bodies for world `world` of a batch (crate::batch::bodies): x in the world's own
-// coordinates, its bodies at rows world * n_bodies .. of the per-world table (global memory:
-// more than constant memory holds), and the reaction summed for every body, dynamic or not (a
-// kinematic or fixed body reports it as its load, as the CPU backend's couple does), into the
-// sums of row world * n_bodies + b of worlds * n_bodies bodies per copy.
+// couple_body for every body of world `world` of a batch (crate::batch::bodies): x in the
+// world's own coordinates, its bodies at rows world * n_bodies .. of the per-world table (global
+// memory: more than constant memory holds), summed into row world * n_bodies + b of
+// worlds * n_bodies bodies per copy. One GPU: every node counts in full.
 __device__ vec3 couple_world_bodies(const Ctx& c, unsigned world, vec3 x, real m, vec3 v, vec3 g_dt) {
     unsigned rows = c_batch.worlds * c.n_bodies;
     for (unsigned b = 0; b < c.n_bodies; ++b) {
         unsigned row = world * c.n_bodies + b;
-        const GpuBody& body = c.bodies[row];
-        vec3 r = x - v3f(body.center);
-        if (dot(r, r) > (real)body.bound * (real)body.bound) continue;
-        mat3 R;
-        for (int q = 0; q < 9; ++q) R.m[q] = body.rot[q];
-        vec3 p = transpose(R) * r;
-        if (shape_distance(c, body.shape, p) > 0) continue;
-        vec3 n = normalize_or_y(R * shape_normal(c, body.shape, p));
-        vec3 vb = v3f(body.velocity) + cross(v3f(body.omega), r);
-        vec3 nv = vb + rule_apply(body.shape.cond, body.shape.friction, v - vb, n);
-        vec3 dp = (nv - v + g_dt) * m;
-        vec3 t = cross(r, dp);
         double* e = c.body_exchange + 6u * ((blockIdx.x % BODY_EXCHANGE_SLOTS) * rows + row);
-        atomicAdd(e + 0, -(double)dp.x);
-        atomicAdd(e + 1, -(double)dp.y);
-        atomicAdd(e + 2, -(double)dp.z);
-        atomicAdd(e + 3, -(double)t.x);
-        atomicAdd(e + 4, -(double)t.y);
-        atomicAdd(e + 5, -(double)t.z);
-        v = nv;
+        v = couple_body(c, c.bodies[row], e, x, m, v, g_dt, 1.0);
+    }
+    return v;
+}
+#else
+// couple_body for every body of a single run (constant memory: body_at). Several GPUs: a node
+// of a pblock that k GPUs hold has the same summed mass and momentum on each of them after the
+// shared-block reduction, so each adds 1/k of its reaction (`share`) and the host's sum over
+// the GPUs counts it once.
+__device__ vec3 couple_bodies(const Ctx& c, vec3 x, real m, vec3 v, vec3 g_dt, double share) {
+    for (unsigned b = 0; b < c.n_bodies; ++b) {
+        double* e = c.body_exchange + 6u * ((blockIdx.x % BODY_EXCHANGE_SLOTS) * c.n_bodies + b);
+        v = couple_body(c, body_at(c, b), e, x, m, v, g_dt, share);
     }
     return v;
 }

@@ -2,7 +2,7 @@
 //! `rigid`; needs a GPU, skips with a message otherwise): every world's bodies in the same
 //! kernels, each coupled to its own world's nodes only, against the same worlds run one by one
 //! on the CUDA backend (particles and body poses) and on the CPU backend (the load on a
-//! kinematic tool, which a single CUDA run does not report):
+//! kinematic tool; a single CUDA run's against the CPU's is `tests/rigid.rs`):
 //! `cargo test --release -p rtmpm-cuda --features rigid --test batch_rigid -- --include-ignored --nocapture`.
 #![cfg(feature = "rigid")]
 

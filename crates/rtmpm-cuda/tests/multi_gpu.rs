@@ -18,6 +18,9 @@ use rtmpm_scene::Scene;
 use rtmpm_sim::Backend;
 use std::path::Path;
 
+#[cfg(feature = "rigid")]
+mod loads;
+
 /// `RTMPM_MULTI_GPU_DEVICES`: the device of each rank, when set.
 fn env_devices() -> Option<Vec<usize>> {
     let v = std::env::var("RTMPM_MULTI_GPU_DEVICES").ok()?;
@@ -754,6 +757,133 @@ fn nccl_ranks_agree_with_one_gpu_on_the_rigid_scenes() {
     }
     println!("{ran} rigid-body runs of 2 NCCL ranks compared");
     assert!(ran > 0, "no scene ran");
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// The scene of `tests/loads/mod.rs` with its tool over the cut between the first two GPUs'
+/// slabs of a run of `gpus` (checked: the slabs cut the bed along x), and its particles: the
+/// tool's nodes lie in pblocks both GPUs hold, whose reactions each GPU adds a share of.
+#[cfg(feature = "rigid")]
+fn tool_over_the_cut(gpus: usize) -> (Scene, Particles) {
+    let p0 = loads::sand_and_tool(0.25)
+        .sample_particles()
+        .expect("particles");
+    let (axis, cut) = first_cut(&p0, gpus);
+    assert_eq!(axis, 0, "the slabs cut the bed along x");
+    let scene = loads::sand_and_tool(cut);
+    let p = scene.sample_particles().expect("particles");
+    assert!(p.x == p0.x, "the tool's place changed the particles");
+    println!("the tool's centre at x = {cut} m, on the first cut");
+    (scene, p)
+}
+
+/// Loads on several GPUs of one process (`MultiGpuBackend`, cargo feature `rigid`): the
+/// kinematic tool of `tests/loads/mod.rs`, pressed into sand over the cut between the first two
+/// GPUs' slabs, reports the load one GPU reports: the mean force and torque over the last 200 of
+/// 800 steps within the tolerance of `tests/rigid.rs`'s one GPU against the CPU (the force
+/// within 5 % of its size, the torque within 5 % of its size plus 1e-4 N m), in every mode
+/// (`MODES`; those that cannot share a device are checked to be refused there), with the bodies
+/// moved a step late (the default) and after every step. A kinematic body's reaction not summed
+/// would report zero; a shared node counted on both GPUs, up to twice the load. About 20 s on
+/// two ranks of an H200.
+#[cfg(feature = "rigid")]
+#[test]
+#[ignore = "needs 2 CUDA GPUs (or RTMPM_MULTI_GPU_DEVICES=0,0)"]
+fn several_gpus_report_a_kinematic_tools_load_as_one() {
+    if !usable(2) {
+        return;
+    }
+    let gpus = ranks();
+    let (scene, p0) = tool_over_the_cut(gpus);
+    let (mut failures, mut ran) = (Vec::new(), 0);
+    for variant in ["", "rigid_overlap=off"] {
+        let mut one =
+            CudaBackend::new(&scene, &p0, variant.parse().expect("options")).expect("1 GPU");
+        let want = loads::push(&mut one);
+        loads::assert_the_sand_pushes_back(&want);
+        drop(one);
+        for mode in MODES {
+            if !mode_usable(mode, gpus, &scene, &p0) {
+                continue;
+            }
+            ran += 1;
+            let o = options(gpus, &format!("{variant},{mode}"));
+            let mut many = MultiGpuBackend::new(&scene, &p0, gpus, o).expect("N GPUs");
+            let got = loads::push(&mut many);
+            let label = format!("[{variant},{mode}] x{gpus} (1 GPU: the reference)");
+            failures.extend(loads::differ(&label, &got, &want));
+        }
+    }
+    assert!(ran > 0, "no mode could run");
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// Loads in a run of one process per GPU (`NcclRankBackend`, `rtmpm run --rendezvous`; cargo
+/// feature `rigid`), its two ranks run by two threads on devices 0 and 1 as in
+/// [`nccl_ranks_agree_with_one_gpu_on_the_rigid_scenes`]: the kinematic tool of
+/// [`several_gpus_report_a_kinematic_tools_load_as_one`] over the cut reports, in both ranks,
+/// the same mean load bit for bit (the impulse sums of both GPUs, summed by the all-reduce, with
+/// the kinematic body's among them), within that test's tolerance of one GPU's, with the bodies
+/// moved a step late and after every step. Needs 2 GPUs and NCCL. About 10 s on two H200s.
+#[cfg(feature = "rigid")]
+#[test]
+#[ignore = "needs 2 CUDA GPUs and NCCL"]
+fn nccl_ranks_report_a_kinematic_tools_load_as_one_gpu() {
+    use rtmpm_cuda::NcclRankBackend;
+    use rtmpm_cuda::rendezvous::Rendezvous;
+    let found = device_count();
+    if found < 2 {
+        println!(
+            "skipped: 2 CUDA GPUs needed (NCCL refuses two ranks on one device), {found} found"
+        );
+        return;
+    }
+    if let Err(e) = nccl::library() {
+        println!("skipped: NCCL not usable ({e})");
+        return;
+    }
+    let (scene, p0) = tool_over_the_cut(2);
+    let mut failures = Vec::new();
+    for (v, variant) in ["", "rigid_overlap=off"].iter().enumerate() {
+        let o: CudaOptions = variant.parse().expect("options");
+        let mut one = CudaBackend::new(&scene, &p0, o.clone()).expect("1 GPU");
+        let want = loads::push(&mut one);
+        loads::assert_the_sand_pushes_back(&want);
+        drop(one);
+        let file =
+            std::env::temp_dir().join(format!("rtmpm-loads-ranks-{}-{v}.id", std::process::id()));
+        let _ = std::fs::remove_file(&file);
+        let rdv: Rendezvous = format!("file:{}", file.display()).parse().expect("file:");
+        let run = |me: usize| -> loads::Mean {
+            let mut b = NcclRankBackend::new(&scene, &p0, me, 2, me, &rdv, o.clone())
+                .unwrap_or_else(|e| panic!("rank {me}: {e}"));
+            loads::push(&mut b)
+        };
+        let run = &run;
+        let means: Vec<loads::Mean> = std::thread::scope(|threads| {
+            let ranks: Vec<_> = (0..2).map(|me| threads.spawn(move || run(me))).collect();
+            ranks
+                .into_iter()
+                .map(|h| h.join().expect("rank thread"))
+                .collect()
+        });
+        let label = format!("[{variant}] 2 NCCL ranks");
+        assert_eq!(
+            means[0].force(),
+            means[1].force(),
+            "{label}: the ranks' forces"
+        );
+        assert_eq!(
+            means[0].torque(),
+            means[1].torque(),
+            "{label}: the ranks' torques"
+        );
+        failures.extend(loads::differ(
+            &format!("{label} (1 GPU: the reference)"),
+            &means[0],
+            &want,
+        ));
+    }
     assert!(failures.is_empty(), "{failures:#?}");
 }
 

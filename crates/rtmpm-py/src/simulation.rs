@@ -327,9 +327,9 @@ impl PySimulation {
 
     /// The rigid bodies (``[[rigid_body]]``, in file order) as of the last step: a list of dicts
     /// with ``position`` (the body's centre, m), ``rotation`` (unit quaternion ``(x, y, z, w)``,
-    /// body to world), ``velocity`` (m/s) and ``angular_velocity`` (rad/s); on the CPU backend also
-    /// ``force`` (N) and ``torque`` (N m, about its centre of mass) the material put on it over
-    /// the last step, for a kinematic or fixed body too. Empty without
+    /// body to world), ``velocity`` (m/s) and ``angular_velocity`` (rad/s); on the CPU and CUDA
+    /// backends (one GPU or several) also ``force`` (N) and ``torque`` (N m, about its centre of
+    /// mass) the material put on it over the last step, for a kinematic or fixed body too. Empty without
     /// bodies; scenes with bodies need a module built with the ``rigid`` feature
     /// (``rtmpm.features``).
     #[getter]

@@ -320,7 +320,7 @@ def test_a_tool_posed_per_world_on_the_gpu_feels_what_the_cpu_batch_feels():
     agree with its separate CUDA run posed the same way (the aggregate tolerances; the run's
     bodies moved by each step before the next, rigid_overlap=off, as the batch moves them), its
     tool is where that run's is, and the mean force on it over the last 10 of 40 steps is within
-    10 % of the CPU batch's (the sand's load, which a single CUDA run does not report). A few
+    10 % of the CPU batch's (the sand's load). A few
     seconds on an H200."""
     scene = rtmpm.Scene.from_toml(TOOL_SCENE)
     poses = [[0.2, 0.27, 0.2], [0.2, 0.19, 0.2], [0.2, 0.19, 0.2]]

@@ -233,3 +233,31 @@ def test_view_draws_on_the_gpu(sim):
     finally:
         summary = view.stop()
     assert summary["error"] is None and summary["pictures"] >= 3
+
+
+@pytest.mark.skipif("rigid" not in rtmpm.features, reason="module built without the rigid feature")
+def test_a_single_gpu_run_reports_a_kinematic_tools_load_as_the_cpu():
+    """A single CUDA Simulation reports the load on a kinematic tool (``rigid_bodies``' ``force``
+    and ``torque``), as the CPU backend does: zero before a step, and the mean force on the tool
+    pressed into sand at 0.4 m/s over the last 10 of 40 steps within 10 % of the CPU's (the
+    tolerance of test_batch_gpu.py's tools). A few seconds on an H200."""
+    from test_batch import TOOL_SCENE
+
+    scene = rtmpm.Scene.from_toml(TOOL_SCENE)
+    means = {}
+    for backend in ("cuda", "cpu"):
+        sim = rtmpm.Simulation(scene, backend=backend)
+        assert sim.backend.kind == backend, sim.backend.reason
+        body = sim.rigid_bodies[0]
+        assert list(body["force"]) == [0.0] * 3 and list(body["torque"]) == [0.0] * 3, body
+        sim.set_rigid_body("tool", position=[0.2, 0.19, 0.2], velocity=[0.0, -0.4, 0.0])
+        sim.step(30)
+        total = np.zeros(3)
+        for _ in range(10):
+            sim.step()
+            total += sim.rigid_bodies[0]["force"]
+        means[backend] = total / 10
+    f, fc = means["cuda"], means["cpu"]
+    print(f"mean force on the tool (N): GPU {f.tolist()}, CPU {fc.tolist()}")
+    assert fc[1] > 0.0, f"the sand pushes the tool up: {fc}"
+    assert np.linalg.norm(f - fc) <= 0.1 * np.linalg.norm(fc), f"GPU {f} vs CPU {fc}"

@@ -15,7 +15,7 @@ use crate::options::CudaOptions;
 use crate::setup::{Initial, SetupPhases, buffers};
 use crate::step::graph::StepGraphs;
 use crate::step::p2g::P2gPlan;
-use crate::step::rigid::Bodies;
+use crate::step::rigid::{Bodies, loads_of, poses_of, set_poses_of, states_of};
 use crate::step::{Hooks, NoHooks, Stage, StepPlan};
 use cudarc::driver::{CudaModule, CudaSlice, CudaStream, PinnedHostSlice};
 use rtmpm_physics::Particles;
@@ -413,13 +413,18 @@ impl Backend for CudaBackend {
     }
 
     fn rigid_bodies(&self) -> Vec<rtmpm_rigid::BodyState> {
-        self.bodies
-            .as_ref()
-            .map_or_else(Vec::new, |b| b.states().to_vec())
+        states_of(self.bodies.as_ref())
     }
 
     fn rigid_poses(&self) -> Vec<rtmpm_rigid::BodyPose> {
-        self.bodies.as_ref().map_or_else(Vec::new, |b| b.poses())
+        poses_of(self.bodies.as_ref())
+    }
+
+    /// Every body's load over the last step the bodies took (kinematic and fixed bodies too;
+    /// with `rigid_overlap`, the last step's after [`Backend::flush_rigid`]:
+    /// [`crate::step::rigid::LastLoads`]).
+    fn rigid_loads(&self) -> Option<Vec<rtmpm_rigid::BodyLoad>> {
+        loads_of(self.bodies.as_ref())
     }
 
     fn flush_rigid(&mut self) -> Result<(), SimError> {
@@ -430,14 +435,7 @@ impl Backend for CudaBackend {
     }
 
     fn set_rigid_poses(&mut self, poses: &[rtmpm_rigid::BodyPose]) -> Result<(), SimError> {
-        match self.bodies.as_mut() {
-            Some(b) => b.set_poses(poses),
-            None if poses.is_empty() => Ok(()),
-            None => Err(SimError::Backend(format!(
-                "{} rigid-body states for a scene without rigid bodies",
-                poses.len()
-            ))),
-        }
+        set_poses_of(self.bodies.as_mut(), poses)
     }
 
     /// The bodies take the impulses of the frame's last step (with `rigid_overlap` they are

@@ -12,6 +12,7 @@ use crate::backend::Part;
 use crate::backend::readback::{resize_particles, scatter_state};
 use crate::contract::{CTL_BAD_INDEX, CTL_MAX_SPEED, CTL_SHARED};
 use crate::options::{CudaOptions, Transport};
+use crate::step::rigid::{loads_of, poses_of, set_poses_of, states_of};
 use rtmpm_physics::Particles;
 use rtmpm_scene::Scene;
 use rtmpm_sim::{Backend, BadParticle, SimError};
@@ -246,13 +247,18 @@ impl Backend for NcclRankBackend {
     }
 
     fn rigid_bodies(&self) -> Vec<rtmpm_rigid::BodyState> {
-        self.bodies
-            .as_ref()
-            .map_or_else(Vec::new, |b| b.states().to_vec())
+        states_of(self.bodies.as_ref())
     }
 
     fn rigid_poses(&self) -> Vec<rtmpm_rigid::BodyPose> {
-        self.bodies.as_ref().map_or_else(Vec::new, |b| b.poses())
+        poses_of(self.bodies.as_ref())
+    }
+
+    /// Every body's load over the last step the bodies took, summed over the GPUs (kinematic
+    /// and fixed bodies too; with `rigid_overlap`, the last step's after
+    /// [`Backend::flush_rigid`]), as on one GPU.
+    fn rigid_loads(&self) -> Option<Vec<rtmpm_rigid::BodyLoad>> {
+        loads_of(self.bodies.as_ref())
     }
 
     /// The sums still pending (`rigid_overlap`): already summed over the processes on the
@@ -267,14 +273,7 @@ impl Backend for NcclRankBackend {
 
     /// The bodies at `poses` (every process is given the same: a checkpoint every one reads).
     fn set_rigid_poses(&mut self, poses: &[rtmpm_rigid::BodyPose]) -> Result<(), SimError> {
-        match self.bodies.as_mut() {
-            Some(b) => b.shared().set_poses(poses),
-            None if poses.is_empty() => Ok(()),
-            None => Err(SimError::Backend(format!(
-                "{} rigid-body states for a scene without rigid bodies",
-                poses.len()
-            ))),
-        }
+        set_poses_of(self.bodies.as_mut(), poses)
     }
 
     /// The tool on this rank's GPU (every rank of the run is given the same).

@@ -6,7 +6,10 @@
 //! ([`sum_over_ranks`]) counts every node once. The host advances the world once with that sum,
 //! and every GPU gets the same poses before its next step. With
 //! [`crate::options::CudaOptions::rigid_overlap`] the world advances by a step's sums while the
-//! GPUs run the next one, as on one GPU (`crate::step::rigid`).
+//! GPUs run the next one, as on one GPU (`crate::step::rigid`). The sums the world takes are
+//! also every body's load, kinematic and fixed bodies' too (their reactions are summed like a
+//! dynamic body's, in the same buffer): [`SharedBodies::advance`] keeps them for
+//! `Backend::rigid_loads` ([`LastLoads`]).
 //!
 //! One process per GPU ([`RankBodies`], `crate::multi::process`): every process holds the same
 //! rapier world (the same scene, built and advanced in the same order) and its GPU's sums are
@@ -16,12 +19,13 @@
 //! each process puts a hash of the body states its GPU coupled in the step ([`state_hash`]) in
 //! the words after them ([`check_words`]); from their sum alone every process decides whether
 //! all hashes were equal ([`ranks_agree`]), so every process stops at the same step with the
-//! same error when the worlds differ.
+//! same error when the worlds differ. Every process reports the same loads: those of the
+//! summed buffer.
 
 use crate::contract::BODY_EXCHANGE_SLOTS;
 use crate::options::CudaOptions;
-use crate::step::rigid::{CHECK_WORDS, exchange_sums};
-use rtmpm_rigid::{BodyPose, BodyState, Exchange, RigidWorld};
+use crate::step::rigid::{CHECK_WORDS, HeldBodies, LastLoads, exchange_sums};
+use rtmpm_rigid::{BodyLoad, BodyPose, BodyState, Exchange, RigidWorld};
 use rtmpm_scene::Scene;
 use rtmpm_sim::SimError;
 
@@ -32,6 +36,8 @@ pub(crate) struct SharedBodies {
     /// its dt.
     pending: Option<(usize, f32)>,
     overlap: bool,
+    /// The sums of the last step the world took, over every GPU (the loads).
+    last: LastLoads,
 }
 
 impl SharedBodies {
@@ -41,23 +47,8 @@ impl SharedBodies {
             world,
             pending: None,
             overlap: o.rigid_overlap,
+            last: LastLoads::default(),
         }))
-    }
-
-    /// The states every GPU couples in the coming step.
-    pub(crate) fn states(&self) -> &[BodyState] {
-        self.world.states()
-    }
-
-    /// Every body's pose and velocities.
-    pub(crate) fn poses(&self) -> Vec<BodyPose> {
-        self.world.poses()
-    }
-
-    /// Put the bodies at `poses`; sums not yet taken are dropped.
-    pub(crate) fn set_poses(&mut self, poses: &[BodyPose]) -> Result<(), SimError> {
-        self.pending = None;
-        self.world.set_poses(poses).map_err(SimError::Backend)
     }
 
     /// Gravity from the next advance on.
@@ -80,10 +71,33 @@ impl SharedBodies {
         self.pending.take()
     }
 
-    /// Advance the world by `dt` with every GPU's sums of one step (in rank order).
+    /// Advance the world by `dt` with every GPU's sums of one step (in rank order); their
+    /// total is every body's load over that step.
     pub(crate) fn advance(&mut self, per_rank: &[Vec<Exchange>], dt: f32) {
         let total = sum_over_ranks(per_rank, self.world.states().len());
         self.world.advance(&total, dt);
+        self.last.record(total, dt);
+    }
+}
+
+impl HeldBodies for SharedBodies {
+    /// The states every GPU couples in the coming step.
+    fn states(&self) -> &[BodyState] {
+        self.world.states()
+    }
+
+    fn poses(&self) -> Vec<BodyPose> {
+        self.world.poses()
+    }
+
+    fn loads(&self) -> Vec<BodyLoad> {
+        self.last.loads(self.world.states().len())
+    }
+
+    /// Sums not yet taken are dropped.
+    fn set_poses(&mut self, poses: &[BodyPose]) -> Result<(), SimError> {
+        self.pending = None;
+        self.world.set_poses(poses).map_err(SimError::Backend)
     }
 }
 
@@ -192,16 +206,6 @@ impl RankBodies {
         &mut self.bodies
     }
 
-    /// The bodies' states at the current time.
-    pub(crate) fn states(&self) -> &[BodyState] {
-        self.bodies.states()
-    }
-
-    /// Every body's pose and velocities.
-    pub(crate) fn poses(&self) -> Vec<BodyPose> {
-        self.bodies.poses()
-    }
-
     /// The states the GPU couples in the coming step and the check words of them.
     pub(crate) fn coming(&mut self) -> (&[BodyState], [f64; CHECK_WORDS]) {
         let states = self.bodies.states();
@@ -250,6 +254,28 @@ impl RankBodies {
         let sums = exchange_sums(&copy[..at], n);
         self.bodies.advance(&[sums], dt);
         Ok(())
+    }
+}
+
+/// The run's one world, as every process holds it.
+impl HeldBodies for RankBodies {
+    fn states(&self) -> &[BodyState] {
+        self.bodies.states()
+    }
+
+    fn poses(&self) -> Vec<BodyPose> {
+        self.bodies.poses()
+    }
+
+    /// The loads of the sums summed over the processes: the same in every process.
+    fn loads(&self) -> Vec<BodyLoad> {
+        self.bodies.loads()
+    }
+
+    /// Every process is given the same (a checkpoint every one reads); sums not yet taken are
+    /// dropped.
+    fn set_poses(&mut self, poses: &[BodyPose]) -> Result<(), SimError> {
+        self.bodies.set_poses(poses)
     }
 }
 
@@ -491,6 +517,104 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A kinematic tool and a dynamic ball above water.
+    #[cfg(feature = "rigid")]
+    fn tool_scene() -> Scene {
+        Scene::from_toml(
+            "[domain]\nmin = [0, 0, 0]\nmax = [1, 1, 1]\ndx = 0.05\n[time]\nduration = 1\n\
+             [[material]]\nname = \"w\"\ntype = \"fluid\"\ndensity = 1000.0\n\
+             bulk_modulus = 1e4\n[[body]]\nmaterial = \"w\"\nshape = \"box\"\n\
+             min = [0.2, 0.2, 0.2]\nmax = [0.4, 0.4, 0.4]\n\
+             [[rigid_body]]\nname = \"tool\"\nshape = \"box\"\nmin = [0.4, 0.5, 0.4]\n\
+             max = [0.6, 0.6, 0.6]\ndensity = 500\ntype = \"kinematic\"\n\
+             velocity = [0.0, -0.5, 0.0]\n\
+             [[rigid_body]]\nname = \"ball\"\nshape = \"sphere\"\ncenter = [0.25, 0.7, 0.7]\n\
+             radius = 0.1\ndensity = 800\n",
+            "tool",
+        )
+        .unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// Several GPUs of one process: the world takes the sum of every GPU's sums, and that sum
+    /// over the step's dt is every body's load, the kinematic tool's too, which the sums do
+    /// not move (it goes where a world given no sums puts it); zeros before the first step;
+    /// the ball, dynamic, is moved by them.
+    #[cfg(feature = "rigid")]
+    #[test]
+    fn the_gpus_summed_sums_are_every_bodys_load() {
+        use crate::step::rigid::HeldBodies;
+        let scene = tool_scene();
+        let o = CudaOptions::default();
+        let mut b = SharedBodies::new(&scene, &o)
+            .expect("bodies")
+            .expect("some");
+        let mut alone = SharedBodies::new(&scene, &o)
+            .expect("bodies")
+            .expect("some");
+        assert_eq!(b.loads(), vec![BodyLoad::default(); 2]);
+        let e = |i: f64, t: f64| Exchange {
+            impulse: [0.0, i, 0.5 * i],
+            torque: [t, 0.0, 0.0],
+        };
+        let dt = 1e-3_f32;
+        // Two GPUs, each with a share of both bodies' reactions.
+        let per_rank = vec![
+            vec![e(0.25, 0.01), e(0.5, 0.0)],
+            vec![e(0.75, 0.03), e(0.25, 0.0)],
+        ];
+        b.advance(&per_rank, dt);
+        alone.advance(&[vec![Exchange::default(); 2]], dt);
+        let l = b.loads();
+        let dt = dt as f64;
+        let near = |a: [f64; 3], w: [f64; 3]| a.iter().zip(w).all(|(x, y)| (x - y).abs() < 1e-9);
+        assert!(near(l[0].force, [0.0, 1.0 / dt, 0.5 / dt]), "{l:?}");
+        assert!(near(l[0].torque, [0.04 / dt, 0.0, 0.0]), "{l:?}");
+        assert!(near(l[1].force, [0.0, 0.75 / dt, 0.375 / dt]), "{l:?}");
+        assert_eq!(
+            b.poses()[0],
+            alone.poses()[0],
+            "the tool is not moved by its load"
+        );
+        assert!(
+            b.poses()[1].velocity.y > alone.poses()[1].velocity.y,
+            "the ball is pushed up by its impulse"
+        );
+    }
+
+    /// One process per GPU: every process reports the same loads, those of the copy summed
+    /// over the processes (the kinematic tool's with the ball's).
+    #[cfg(feature = "rigid")]
+    #[test]
+    fn every_process_reports_the_loads_of_the_summed_sums() {
+        use crate::step::rigid::HeldBodies;
+        let scene = tool_scene();
+        let o: CudaOptions = "rigid_overlap=off".parse().expect("options");
+        let mut procs: Vec<RankBodies> = (0..2)
+            .map(|_| {
+                RankBodies::new(&scene, &o, 2)
+                    .expect("bodies")
+                    .expect("some")
+            })
+            .collect();
+        let mut copies = [Vec::new(), Vec::new()];
+        // Each GPU pushes the tool (body 0) up: word 1 of body 0 in every slot.
+        let push = |r: usize, i: usize| {
+            if i % 12 == 1 {
+                1e-6 * (r + 1) as f64
+            } else {
+                0.0
+            }
+        };
+        let res = step(&mut procs, &mut copies, 0, push);
+        assert!(res.iter().all(Result::is_ok), "{res:?}");
+        let (a, b) = (procs[0].loads(), procs[1].loads());
+        assert_eq!(a, b, "the processes' loads");
+        // The step's dt, 1e-3 in f32.
+        let want = 3e-6 * BODY_EXCHANGE_SLOTS as f64 / (1e-3_f32 as f64);
+        assert!((a[0].force[1] - want).abs() < 1e-9 * want, "{a:?}");
+        assert_eq!(a[1], BodyLoad::default(), "{a:?}");
     }
 
     #[test]

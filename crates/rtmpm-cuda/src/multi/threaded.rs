@@ -12,6 +12,7 @@ use crate::backend::Part;
 use crate::backend::readback::{resize_particles, scatter_state};
 use crate::contract::{CTL_MAX_SPEED, CTL_SHARED};
 use crate::options::{BarrierKind, CudaOptions, Transport};
+use crate::step::rigid::{HeldBodies, loads_of, poses_of, set_poses_of, states_of};
 use rtmpm_physics::Particles;
 use rtmpm_scene::Scene;
 use rtmpm_sim::{Backend, BadParticle, SimError};
@@ -373,13 +374,18 @@ impl Backend for MultiGpuBackend {
     }
 
     fn rigid_bodies(&self) -> Vec<rtmpm_rigid::BodyState> {
-        self.bodies
-            .as_ref()
-            .map_or_else(Vec::new, |b| b.states().to_vec())
+        states_of(self.bodies.as_ref())
     }
 
     fn rigid_poses(&self) -> Vec<rtmpm_rigid::BodyPose> {
-        self.bodies.as_ref().map_or_else(Vec::new, |b| b.poses())
+        poses_of(self.bodies.as_ref())
+    }
+
+    /// Every body's load over the last step the bodies took, summed over the GPUs (kinematic
+    /// and fixed bodies too; with `rigid_overlap`, the last step's after
+    /// [`Backend::flush_rigid`]), as on one GPU.
+    fn rigid_loads(&self) -> Option<Vec<rtmpm_rigid::BodyLoad>> {
+        loads_of(self.bodies.as_ref())
     }
 
     fn flush_rigid(&mut self) -> Result<(), SimError> {
@@ -390,14 +396,7 @@ impl Backend for MultiGpuBackend {
     }
 
     fn set_rigid_poses(&mut self, poses: &[rtmpm_rigid::BodyPose]) -> Result<(), SimError> {
-        match self.bodies.as_mut() {
-            Some(b) => b.set_poses(poses),
-            None if poses.is_empty() => Ok(()),
-            None => Err(SimError::Backend(format!(
-                "{} rigid-body states for a scene without rigid bodies",
-                poses.len()
-            ))),
-        }
+        set_poses_of(self.bodies.as_mut(), poses)
     }
 
     /// The tool on every GPU (each applies it to the grid nodes of its particles).

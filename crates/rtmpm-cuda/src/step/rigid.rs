@@ -1,7 +1,9 @@
 //! Rigid bodies on the GPU (`[[rigid_body]]`): the bodies move in rapier3d on the host
 //! ([`rtmpm_rigid::RigidWorld`], cargo feature `rigid` of rtmpm-rigid), the grid update
-//! couples them (`kernels/grid_update.cu`: `couple_bodies`, the same rule as the CPU backend's
-//! `cpu/grid_update.rs`).
+//! couples them (`kernels/grid_update.cu`: `couple_bodies`, each body by `couple_body`, the same
+//! rule as the CPU backend's `cpu/grid_update.rs`) and sums the reaction of every body, dynamic,
+//! kinematic or fixed: the sums move a dynamic body, and divided by the step's dt they are the
+//! load every body reports ([`LastLoads`], `Backend::rigid_loads`).
 //!
 //! Per step: the bodies' states go to constant memory with the step parameters; after the step
 //! its impulse sums are copied to page-locked memory and cleared. By default
@@ -16,7 +18,7 @@
 use crate::contract::{BODY_EXCHANGE_SLOTS, GpuBody, GpuCollider, MAX_BODIES};
 use crate::error::err;
 use cudarc::driver::{CudaEvent, CudaModule, CudaSlice, CudaStream, DevicePtr, PinnedHostSlice};
-use rtmpm_rigid::{BodyState, Exchange, RigidWorld};
+use rtmpm_rigid::{BodyLoad, BodyPose, BodyState, Exchange, RigidWorld};
 use rtmpm_scene::Scene;
 use rtmpm_sim::SimError;
 use std::sync::Arc;
@@ -194,6 +196,8 @@ pub struct Bodies {
     pending: Option<(usize, f32)>,
     /// See [`crate::options::CudaOptions::rigid_overlap`].
     overlap: bool,
+    /// The sums of the last step the bodies took (the loads).
+    last: LastLoads,
 }
 
 impl Bodies {
@@ -219,6 +223,7 @@ impl Bodies {
             link,
             pending: None,
             overlap,
+            last: LastLoads::default(),
         }))
     }
 
@@ -235,17 +240,6 @@ impl Bodies {
     /// Where each body's distance grid starts in the mesh table (`encode::Tables::body_mesh`).
     pub fn mesh_offsets(&self) -> Vec<u32> {
         self.link.mesh_offsets.clone()
-    }
-
-    /// Every body's pose and velocities (what a checkpoint stores).
-    pub fn poses(&self) -> Vec<rtmpm_rigid::BodyPose> {
-        self.world.poses()
-    }
-
-    /// Put the bodies at `poses` (resuming a checkpoint); impulses not yet taken are dropped.
-    pub fn set_poses(&mut self, poses: &[rtmpm_rigid::BodyPose]) -> Result<(), SimError> {
-        self.pending = None;
-        self.world.set_poses(poses).map_err(SimError::Backend)
     }
 
     /// Before a step: the bodies' states to constant memory (and its global copy).
@@ -287,7 +281,102 @@ impl Bodies {
     fn apply(&mut self, k: usize, dt: f32) -> Result<(), SimError> {
         let ex = self.link.sums(k)?;
         self.world.advance(&ex, dt);
+        self.last.record(ex, dt);
         Ok(())
+    }
+}
+
+impl HeldBodies for Bodies {
+    fn states(&self) -> &[BodyState] {
+        self.world.states()
+    }
+
+    fn poses(&self) -> Vec<BodyPose> {
+        self.world.poses()
+    }
+
+    fn loads(&self) -> Vec<BodyLoad> {
+        self.last.loads(self.world.states().len())
+    }
+
+    /// Impulses not yet taken are dropped.
+    fn set_poses(&mut self, poses: &[BodyPose]) -> Result<(), SimError> {
+        self.pending = None;
+        self.world.set_poses(poses).map_err(SimError::Backend)
+    }
+}
+
+/// The impulse sums of the last step whose sums the bodies took, and that step's dt: divided by
+/// dt, the load (force, and torque about the centre of mass) the material put on each body,
+/// dynamic, kinematic or fixed, as the CPU backend reports it (`Backend::rigid_loads`). With
+/// [`crate::options::CudaOptions::rigid_overlap`] the bodies take a step's sums during the next
+/// step, so the last step's load is there after `Backend::flush_rigid` (which Python's
+/// `rigid_bodies` and every frame end call).
+#[derive(Clone, Debug, Default)]
+pub struct LastLoads {
+    last: Option<(Vec<Exchange>, f32)>,
+}
+
+impl LastLoads {
+    /// The bodies took `sums` of a step of `dt` (summed over every GPU of a run).
+    pub fn record(&mut self, sums: Vec<Exchange>, dt: f32) {
+        self.last = Some((sums, dt));
+    }
+
+    /// Each of `bodies` bodies' load over the last step taken: zeros before the first.
+    pub fn loads(&self, bodies: usize) -> Vec<BodyLoad> {
+        match &self.last {
+            Some((sums, dt)) if sums.len() == bodies => {
+                sums.iter().map(|e| e.load(*dt as f64)).collect()
+            }
+            _ => vec![BodyLoad::default(); bodies],
+        }
+    }
+}
+
+/// The rigid bodies as a backend holds them (one GPU's [`Bodies`], the multi-GPU backends'
+/// world): what the `Backend` methods of the bodies read and set, through [`states_of`],
+/// [`poses_of`], [`loads_of`] and [`set_poses_of`].
+pub(crate) trait HeldBodies {
+    /// The bodies' states at the current time.
+    fn states(&self) -> &[BodyState];
+    /// Every body's pose and velocities (what a checkpoint stores).
+    fn poses(&self) -> Vec<BodyPose>;
+    /// Every body's load over the last step taken ([`LastLoads`]).
+    fn loads(&self) -> Vec<BodyLoad>;
+    /// Put the bodies at `poses` (resuming a checkpoint, a script moving them).
+    fn set_poses(&mut self, poses: &[BodyPose]) -> Result<(), SimError>;
+}
+
+/// `Backend::rigid_bodies` of a backend holding `bodies` (none without `[[rigid_body]]`).
+pub(crate) fn states_of<B: HeldBodies>(bodies: Option<&B>) -> Vec<BodyState> {
+    bodies.map_or_else(Vec::new, |b| b.states().to_vec())
+}
+
+/// `Backend::rigid_poses` of a backend holding `bodies`.
+pub(crate) fn poses_of<B: HeldBodies>(bodies: Option<&B>) -> Vec<BodyPose> {
+    bodies.map_or_else(Vec::new, HeldBodies::poses)
+}
+
+/// `Backend::rigid_loads` of a backend holding `bodies`: every body's, for every kind of body
+/// (none without bodies, as on the CPU).
+pub(crate) fn loads_of<B: HeldBodies>(bodies: Option<&B>) -> Option<Vec<BodyLoad>> {
+    Some(bodies.map_or_else(Vec::new, HeldBodies::loads))
+}
+
+/// `Backend::set_rigid_poses` of a backend holding `bodies`: poses for a scene without bodies
+/// are refused (none are accepted).
+pub(crate) fn set_poses_of<B: HeldBodies>(
+    bodies: Option<&mut B>,
+    poses: &[BodyPose],
+) -> Result<(), SimError> {
+    match bodies {
+        Some(b) => b.set_poses(poses),
+        None if poses.is_empty() => Ok(()),
+        None => Err(SimError::Backend(format!(
+            "{} rigid-body states for a scene without rigid bodies",
+            poses.len()
+        ))),
     }
 }
 
@@ -344,6 +433,54 @@ mod tests {
     use super::*;
     use rtmpm_geometry::Shape;
     use rtmpm_physics::boundary::Condition;
+
+    /// The loads are the last step's sums over its dt, body by body; zeros before any step
+    /// (and for a count of bodies the sums do not have).
+    #[test]
+    fn the_loads_are_the_last_sums_over_their_dt() {
+        let mut last = LastLoads::default();
+        assert_eq!(last.loads(2), vec![BodyLoad::default(); 2]);
+        let e = |i: f64, t: f64| Exchange {
+            impulse: [i, -2.0 * i, 0.0],
+            torque: [0.0, 0.0, t],
+        };
+        last.record(vec![e(1e-3, 0.0), e(0.0, 5e-4)], 1e-3);
+        last.record(vec![e(2e-3, 1e-4), e(-1e-3, 0.0)], 5e-4);
+        let l = last.loads(2);
+        // dt = 5e-4 in f32: within 1e-7 of it.
+        let near = |a: [f64; 3], b: [f64; 3]| {
+            a.iter()
+                .zip(b)
+                .all(|(x, y)| (x - y).abs() <= 1e-6 * y.abs())
+        };
+        assert!(near(l[0].force, [4.0, -8.0, 0.0]), "{l:?}");
+        assert!(near(l[0].torque, [0.0, 0.0, 0.2]), "{l:?}");
+        assert!(near(l[1].force, [-2.0, 4.0, 0.0]), "{l:?}");
+        assert!(near(l[1].torque, [0.0; 3]), "{l:?}");
+        assert_eq!(last.loads(3), vec![BodyLoad::default(); 3]);
+    }
+
+    /// A backend without bodies reports no loads (an empty list, as the CPU backend) and
+    /// accepts no poses but none, with the count in the error.
+    #[test]
+    fn a_backend_without_bodies_has_no_loads_and_takes_no_poses() {
+        let none: Option<&mut Bodies> = None;
+        assert_eq!(loads_of::<Bodies>(None), Some(Vec::new()));
+        assert!(states_of::<Bodies>(None).is_empty() && poses_of::<Bodies>(None).is_empty());
+        assert!(set_poses_of(none, &[]).is_ok());
+        let pose = BodyPose {
+            position: glam::Vec3::ONE,
+            rotation: glam::Quat::IDENTITY,
+            velocity: glam::Vec3::ZERO,
+            angular_velocity: glam::Vec3::ZERO,
+        };
+        let e = set_poses_of::<Bodies>(None, &[pose, pose]).expect_err("refused");
+        assert!(
+            e.to_string()
+                .contains("2 rigid-body states for a scene without rigid bodies"),
+            "{e}"
+        );
+    }
 
     #[test]
     fn the_slots_add_up_body_by_body() {
