@@ -59,7 +59,7 @@ struct GpuBody {
     float rot[9];  // rest -> world (column-major)
     float center[3], velocity[3], omega[3];
     float bound;   // radius of a sphere about the centre holding the body
-    unsigned dynamic;
+    unsigned dynamic;  // moved by its impulses (host side; every body's reaction is summed)
 };
 
 // The user's tool (a live view's drag; constant memory: tool_at(c)), written when it changes: a

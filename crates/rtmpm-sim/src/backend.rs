@@ -89,7 +89,9 @@ pub trait Backend {
     }
     /// The load (force and torque) the material put on each rigid body over the last step, in
     /// the order of [`Backend::rigid_poses`], for every kind of body (a kinematic tool's too);
-    /// zeros before the first step. `None`: this backend does not report loads.
+    /// zeros before the first step. A backend that gives the bodies a step's impulses a step
+    /// late (the CUDA backend's `rigid_overlap`) reports the last step's after
+    /// [`Backend::flush_rigid`]. `None`: this backend does not report loads.
     fn rigid_loads(&self) -> Option<Vec<BodyLoad>> {
         None
     }

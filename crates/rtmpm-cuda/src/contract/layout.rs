@@ -272,7 +272,9 @@ pub struct GpuBody {
     pub omega: [f32; 3],
     /// Radius of a sphere about the centre that holds the body (a quick rejection).
     pub bound: f32,
-    /// 1 when the material's impulses move the body (its reactions are summed).
+    /// 1 when the material's impulses move the body (in the host's rapier world). The kernels
+    /// do not read it: they sum every body's reaction, a kinematic or fixed body's being its
+    /// load (`kernels/grid_update.cu`: `couple_body`).
     pub dynamic: u32,
 }
 
