@@ -22,11 +22,15 @@ not timed), ``--per-call`` steps per Python call:
           PyTorch with CUDA
 
 Every mode does the same physics work (a reset world starts again from time 0 with as many
-particles), so time / bare is the Python loop's overhead: the calls, the resets' uploads, and
-each call's read-back of every world's particles to the host (what a world that blows up is
-put back to, and what ``x`` / ``v`` return). Wall seconds (the GPU's work included: every
-call ends with that read-back), min / median / max over the repeats, modes interleaved; the
-issue's bound is loop / bare at most 1.10. Prints a table; ``--json`` writes every timing.
+particles), so time / bare is the Python loop's overhead: the calls, the resets' uploads, the
+poses, and each driver call's rewind point (a device-to-device copy of the particle state as
+the call begins; since that point is on the device, a call reads nothing back to the host:
+``x`` / ``v`` read the worlds when asked for, which no mode here does). ``step`` remembers its
+chunk of steps between calls, so ``bare``'s one call of ``--steps`` is a few driver calls and a
+call of ``k`` steps is one, once learnt. Wall seconds (the GPU's work included: every call ends
+by reading the control words, which waits for its steps), min / median / max over the repeats,
+modes interleaved; the issue's bound is loop / bare at most 1.10. Prints a table; ``--json``
+writes every timing.
 """
 
 import argparse

@@ -2,7 +2,9 @@
 //! one time step for all, as the GPU runs a batch) on a backend of CPU worlds side by side: at a
 //! fixed step every world gives, bit for bit, its separate run; a world that blows up is frozen
 //! at its last frame, the frame is run again from there, and the others end as if it had never
-//! been there; the output folders hold each world's frames and `batch.csv`.
+//! been there; the output folders hold each world's frames and `batch.csv`. A backend that
+//! keeps its own rewind point (as the GPU does on the device) is read only when its particles
+//! are needed, and rewinds to that point bit for bit as the host's copy does.
 
 use rtmpm_sim::Particles;
 mod common;
@@ -52,6 +54,16 @@ count = 3
 struct SideBySide {
     scenes: Vec<Scene>,
     worlds: Vec<CpuBackend>,
+    /// Keep the rewind point itself ([`Worlds::save_point`], as the GPU batch does on the
+    /// device), in `point`; otherwise the driver keeps it on the host (the trait's default).
+    keeps_point: bool,
+    point: Vec<Particles>,
+    /// Calls of [`Worlds::read_worlds`] (the driver reading every world to the host).
+    reads: usize,
+    /// Steps taken (counted over rewinds), and `(w, k)`: every particle of world `w` set to
+    /// 10^5 m/s before step `k` (it blows up in that step), once.
+    steps: usize,
+    poison: Option<(usize, usize)>,
 }
 
 impl SideBySide {
@@ -73,7 +85,23 @@ impl SideBySide {
         SideBySide {
             scenes: scenes.to_vec(),
             worlds,
+            keeps_point: false,
+            point: Vec::new(),
+            reads: 0,
+            steps: 0,
+            poison: None,
         }
+    }
+
+    /// Every world's particles (not counted in `reads`).
+    fn read_all(&mut self) -> Result<Vec<Particles>, SimError> {
+        self.worlds
+            .iter_mut()
+            .map(|b| {
+                let mut p = Particles::default();
+                b.read_particles(&mut p).map(|()| p)
+            })
+            .collect()
     }
 
     /// First particle (over all worlds) of each world, and the total.
@@ -96,6 +124,17 @@ impl Backend for SideBySide {
     }
 
     fn step(&mut self, dt: f32, t: f32) -> Result<(), SimError> {
+        if let Some((w, k)) = self.poison
+            && k == self.steps
+        {
+            let mut p = Particles::default();
+            self.worlds[w].read_particles(&mut p)?;
+            p.v.iter_mut()
+                .for_each(|v| *v = glam::Vec3::new(1e5, 0.0, 0.0));
+            self.put_world(w, &p)?;
+            self.poison = None;
+        }
+        self.steps += 1;
         self.worlds.iter_mut().try_for_each(|b| b.step(dt, t))
     }
 
@@ -120,7 +159,7 @@ impl Backend for SideBySide {
 
     fn read_particles(&mut self, out: &mut Particles) -> Result<(), SimError> {
         *out = Particles::default();
-        for p in self.read_worlds()? {
+        for p in self.read_all()? {
             out.extend(&p);
         }
         Ok(())
@@ -137,13 +176,24 @@ impl Worlds for SideBySide {
     }
 
     fn read_worlds(&mut self) -> Result<Vec<Particles>, SimError> {
-        self.worlds
-            .iter_mut()
-            .map(|b| {
-                let mut p = Particles::default();
-                b.read_particles(&mut p).map(|()| p)
-            })
-            .collect()
+        self.reads += 1;
+        self.read_all()
+    }
+
+    fn save_point(&mut self) -> Result<bool, SimError> {
+        if self.keeps_point {
+            self.point = self.read_all()?;
+        }
+        Ok(self.keeps_point)
+    }
+
+    fn restore_point(&mut self) -> Result<(), SimError> {
+        let point = std::mem::take(&mut self.point);
+        for (w, p) in point.iter().enumerate() {
+            self.put_world(w, p)?;
+        }
+        self.point = point;
+        Ok(())
     }
 
     fn put_world(&mut self, w: usize, particles: &Particles) -> Result<(), SimError> {
@@ -289,8 +339,14 @@ fn the_output_folder_holds_each_world_and_a_frozen_world_stops_at_its_frame() {
 
 /// A lockstep run of `text` without files, its state read at the start (as Python's batch).
 fn unwritten(text: &str) -> (BatchScene, LockstepRun<SideBySide>) {
+    unwritten_keeping(text, false)
+}
+
+/// [`unwritten`], on a backend that keeps its rewind point itself when `keeps_point`.
+fn unwritten_keeping(text: &str, keeps_point: bool) -> (BatchScene, LockstepRun<SideBySide>) {
     let b = BatchScene::from_toml(text, "wedge.toml").unwrap_or_else(|e| panic!("{e}"));
-    let backend = Box::new(SideBySide::new(&b.worlds));
+    let mut backend = Box::new(SideBySide::new(&b.worlds));
+    backend.keeps_point = keeps_point;
     let options = BatchOptions::default();
     let mut r = LockstepRun::new(&b, text, b.worlds[0].clone(), backend, &options).expect("batch");
     r.write_first_frame().expect("read");
@@ -426,6 +482,127 @@ fn resets_that_cannot_work_are_refused_before_any_world_changes() {
     r.reset_worlds((0..3).map(|w| (w, start(w))).collect())
         .expect("reset all");
     assert_eq!(r.sim.step, 0);
+}
+
+#[test]
+fn a_backend_keeping_its_rewind_point_is_read_only_when_its_particles_are_needed() {
+    let (b, mut r) = unwritten_keeping(SLUMP, true);
+    assert_eq!(r.sim.backend.reads, 1, "the state at the start");
+    // 70 calls of one step (a frame end crossed): nothing read back.
+    for _ in 0..70 {
+        assert!(r.advance_steps(1).expect("step").is_empty());
+    }
+    assert_eq!(r.sim.backend.reads, 1, "no call read the worlds");
+    for world in &r.worlds {
+        assert_eq!((world.steps(), world.frame()), (70, 1));
+    }
+    r.sync().expect("sync");
+    assert_eq!(r.sim.backend.reads, 2);
+    r.sync().expect("sync again");
+    assert_eq!(r.sim.backend.reads, 2, "a second sync reads nothing");
+    for (w, world) in r.worlds.iter().enumerate() {
+        assert_eq!(
+            bits(world.particles()),
+            bits(&alone_steps(&b.worlds[w], 70)),
+            "world {w}"
+        );
+    }
+    // A checkpoint needs the particles: it reads them, once.
+    assert!(r.advance_steps(3).expect("steps").is_empty());
+    let dir = std::env::temp_dir().join(format!("rtmpm-lockstep-lazy-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    r.checkpoint(&dir, SLUMP, "slump.toml").expect("checkpoint");
+    std::fs::remove_dir_all(&dir).expect("clean up");
+    assert_eq!(r.sim.backend.reads, 3);
+    assert_eq!(
+        bits(r.worlds[0].particles()),
+        bits(&alone_steps(&b.worlds[0], 73))
+    );
+}
+
+/// One run of blow-ups and resets in calls of a few steps: world 2 made to blow up within the
+/// second call (its particles sped up to 10^5 m/s before its 10th step, behind the driver's
+/// back), a call, world 1 reset to a body at 10^5 m/s (it blows up in the next call, world 2
+/// frozen before it), then world 2 reset to its start; the batch at the end, synced, and every
+/// world as the backend held it after world 1's blow-up (the frozen ones parked and stepped).
+fn resets_and_blow_ups(keeps_point: bool) -> (BatchScene, LockstepRun<SideBySide>, Vec<Particles>) {
+    let (b, mut r) = unwritten_keeping(SLUMP, keeps_point);
+    r.sim.backend.poison = Some((2, 9));
+    assert!(r.advance_steps(7).expect("steps").is_empty());
+    assert_eq!(r.advance_steps(5).expect("steps"), [2]);
+    // Frozen at its last good state, the start of the call: its separate run of 7 steps.
+    assert_eq!(
+        bits(r.worlds[2].particles()),
+        bits(&alone_steps(&b.worlds[2], 7)),
+        "world 2 keeps its state of the call's start"
+    );
+    assert!(r.advance_steps(3).expect("steps").is_empty());
+    let mut fast = b.worlds[1].sample_particles().expect("sample");
+    fast.v
+        .iter_mut()
+        .for_each(|v| *v = glam::Vec3::new(1e5, 0.0, 0.0));
+    r.reset_worlds(vec![(1, fast)]).expect("reset");
+    assert_eq!(r.advance_steps(4).expect("steps"), [1]);
+    let held = r.sim.backend.read_all().expect("read");
+    let start = b.worlds[2].sample_particles().expect("sample");
+    r.reset_worlds(vec![(2, start)]).expect("reset");
+    assert!(r.advance_steps(6).expect("steps").is_empty());
+    r.sync().expect("sync");
+    (b, r, held)
+}
+
+#[test]
+fn a_rewind_to_the_backends_own_point_equals_the_host_rewind_bit_for_bit() {
+    let (b, host, host_held) = resets_and_blow_ups(false);
+    let (_, kept, kept_held) = resets_and_blow_ups(true);
+    // The backend held the same worlds after the second rewind, the frozen world 2 (parked
+    // again from its last good state, as the host's rewind parks it) among them.
+    for w in 0..3 {
+        assert_eq!(
+            bits(&kept_held[w]),
+            bits(&host_held[w]),
+            "world {w} as held"
+        );
+    }
+    for w in 0..3 {
+        let (a, k) = (&host.worlds[w], &kept.worlds[w]);
+        assert_eq!(k.status, a.status, "world {w}");
+        assert_eq!(bits(k.particles()), bits(a.particles()), "world {w}");
+        assert_eq!((k.steps(), k.frame()), (a.steps(), a.frame()), "world {w}");
+        assert_eq!(k.time().to_bits(), a.time().to_bits(), "world {w}");
+    }
+    assert!(matches!(kept.worlds[1].status, WorldStatus::Frozen { .. }));
+    assert_eq!(kept.worlds[2].steps(), 6);
+    assert_eq!(kept.worlds[1].steps(), 0, "frozen at its reset");
+    // World 0 went through both rewinds: bit for bit its separate run of 25 steps (in f32
+    // builds: a rewind puts the worlds back through the particles' f32 interface, so an f64
+    // world rewound after its first steps goes on from its state rounded, in both modes alike);
+    // world 2 is its separate run of 6 steps from its reset.
+    if cfg!(not(feature = "f64")) {
+        assert_eq!(
+            bits(kept.worlds[0].particles()),
+            bits(&alone_steps(&b.worlds[0], 25))
+        );
+    }
+    assert_eq!(
+        bits(kept.worlds[2].particles()),
+        bits(&alone_steps(&b.worlds[2], 6))
+    );
+    // A frozen world keeps its last good state: world 1's fast start.
+    let fast = kept.worlds[1].particles();
+    assert!(
+        fast.v.iter().all(|v| v.x == 1e5),
+        "world 1 keeps its reset state"
+    );
+    // The host's copy read the worlds after every call; the backend's point only when needed
+    // (the start, the first rewind, the second, the end's sync).
+    assert!(
+        kept.sim.backend.reads < host.sim.backend.reads,
+        "{} reads against {}",
+        kept.sim.backend.reads,
+        host.sim.backend.reads
+    );
+    assert_eq!(kept.sim.backend.reads, 4);
 }
 
 /// Every file under `dir` (relative path, bytes), the run locks aside.

@@ -98,6 +98,11 @@ pub struct CudaBatch {
     bodies: Option<bodies::WorldBodies>,
     /// The worlds' own colliders, when they differ (kept alive: `c_batch` points into them).
     colliders: Option<colliders::WorldColliders>,
+    /// The rewind point ([`CudaBatch::save_point`]): a copy of the particle state on the
+    /// device, allocated at the first save.
+    point: Option<CudaSlice<u8>>,
+    /// The device had no memory for the point: the driver keeps it on the host instead.
+    no_point: bool,
 }
 
 impl CudaBatch {
@@ -201,6 +206,8 @@ impl CudaBatch {
             params,
             bodies,
             colliders,
+            point: None,
+            no_point: false,
         })
     }
 
@@ -339,6 +346,74 @@ impl CudaBatch {
 }
 
 impl CudaBatch {
+    /// Keep every world's particles as they are now as the rewind point (the lockstep driver's,
+    /// as an advance begins): one device-to-device copy of the particle state (every word of
+    /// every slot, in its storage order), into memory allocated at the first call (as much as
+    /// the state). `false`: the device has no memory for it (the driver then keeps the point on
+    /// the host, reading every world after each advance, as without this).
+    pub fn save_point(&mut self) -> Result<bool, SimError> {
+        if self.no_point {
+            return Ok(false);
+        }
+        let b = &mut self.backend;
+        if self.point.is_none() {
+            // SAFETY: every byte is written by the copy below before anything reads it.
+            match unsafe { b.stream.alloc::<u8>(b.buffers.state.len()) } {
+                Ok(p) => self.point = Some(p),
+                Err(_) => {
+                    self.no_point = true;
+                    return Ok(false);
+                }
+            }
+        }
+        let Some(point) = self.point.as_mut() else {
+            return Ok(false);
+        };
+        b.stream
+            .memcpy_dtod(&b.buffers.state, point)
+            .map_err(err("keep the rewind point"))?;
+        Ok(true)
+    }
+
+    /// Put every world's particles back to the last [`CudaBatch::save_point`], word for word
+    /// (their storage order too); the next step rebuilds the mapping and redoes its P2G, as
+    /// after [`CudaBatch::put_world`]. Rigid bodies are not part of the point
+    /// ([`CudaBatch::set_world_poses`]).
+    pub fn restore_point(&mut self) -> Result<(), SimError> {
+        let Some(point) = self.point.as_ref().filter(|_| !self.no_point) else {
+            return Err(SimError::Backend(
+                "CUDA batch: no rewind point was kept (save_point first)".into(),
+            ));
+        };
+        let b = &mut self.backend;
+        b.stream
+            .memcpy_dtod(point, &mut b.buffers.state)
+            .map_err(err("put the rewind point back"))?;
+        b.set_ctl_word(CTL_NEED_REBUILD, 1)?;
+        if b.g2p2g() {
+            b.set_ctl_word(CTL_P2G_PENDING, 1)?;
+        }
+        b.stream
+            .synchronize()
+            .map_err(err("put the rewind point back"))
+    }
+
+    /// Keep the rewind point on the device (`true`, the default) or not (`false`: the driver
+    /// keeps it on the host, reading every world after each advance, as before the device
+    /// point existed; for comparisons of the two).
+    pub fn set_device_point(&mut self, on: bool) {
+        self.no_point = !on;
+        if !on {
+            self.point = None;
+        }
+    }
+
+    /// Bytes of the rewind point on the device (0 before the first
+    /// [`CudaBatch::save_point`]).
+    pub fn point_bytes(&self) -> usize {
+        self.point.as_ref().map_or(0, |p| p.len())
+    }
+
     /// Put world `w`'s particles to `particles` (its initial ones for a reset, or any state of
     /// as many particles, in its own material indices), the other worlds untouched: the state
     /// words of its slots are overwritten (`batch_put_world`, `kernels/batch.cu`) and the next
@@ -462,6 +537,14 @@ impl Worlds for CudaBatch {
 
     fn put_world(&mut self, w: usize, particles: &Particles) -> Result<(), SimError> {
         CudaBatch::put_world(self, w, particles)
+    }
+
+    fn save_point(&mut self) -> Result<bool, SimError> {
+        CudaBatch::save_point(self)
+    }
+
+    fn restore_point(&mut self) -> Result<(), SimError> {
+        CudaBatch::restore_point(self)
     }
 
     fn world_of_particle(&self, index: usize) -> Option<(usize, usize)> {

@@ -9,6 +9,7 @@
 //! `frames.pvd` and Houdini a world's `frame_$F5.bgeo` as they would any run.
 
 pub mod checkpoint;
+pub mod chunk;
 pub mod lockstep;
 
 use crate::outdir::{OutDir, scene_identity};

@@ -2,7 +2,11 @@
 every world bit for bit its own separate Simulation on the CPU, resets and blow-ups that leave
 the other worlds bit-identical, per-world rigid-body poses and loads, and clear errors."""
 
+import _thread
 import pathlib
+import signal
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -402,3 +406,35 @@ def test_device_arrays_of_a_cpu_batch_are_refused_naming_the_cuda_backend():
             call()
     # Nothing changed: the batch still steps and reads.
     assert sim.step(1) == [] and sim.x.shape[0] == 2
+
+
+def test_calls_of_one_step_are_one_call_of_as_many_and_ctrl_c_interrupts_a_long_step():
+    """step(n) runs in driver calls of a chunk it learns and keeps between calls: 30 calls of
+    step(1) give bit for bit one call of step(30), and a huge step is still interrupted by
+    Ctrl-C (between two of its calls) once the chunk was learnt, the batch going on after it."""
+    scene = rtmpm.Scene.from_toml(sweep_text('"material[0].yield_stress" = [100, 250, 600]'))
+    ones = rtmpm.Simulation(scene, backend="cpu")
+    for _ in range(30):
+        assert ones.step(1) == []
+    whole = rtmpm.Simulation(scene, backend="cpu")
+    assert whole.step(30) == []
+    np.testing.assert_array_equal(ones.x, whole.x)
+    np.testing.assert_array_equal(ones.v, whole.v)
+    assert list(ones.steps) == [30] * 3
+    for _ in range(5):
+        whole.step(10)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    timer = threading.Timer(0.5, _thread.interrupt_main)
+    timer.start()
+    t0 = time.perf_counter()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            whole.step(10**9)
+    finally:
+        timer.cancel()
+        signal.signal(signal.SIGINT, previous)
+    assert time.perf_counter() - t0 < 5.0
+    done = int(whole.steps[0])
+    assert 80 < done < 10**9 and list(whole.steps) == [done] * 3
+    whole.step(2)
+    assert list(whole.steps) == [done + 2] * 3

@@ -110,6 +110,35 @@ def test_a_world_that_blows_up_is_frozen_and_the_others_go_on():
     assert sim.step(1) == []
 
 
+def test_calls_of_one_step_give_one_calls_worlds_and_x_is_read_when_asked_for():
+    """A step loop reads nothing back (the rewind point is on the device, docs/batch.md): 60
+    calls of step(1) give the worlds of one step(60) call, bit for bit when the GPU repeats
+    itself (two step(60) runs bit-identical), else within the agreement tolerances; x and v,
+    read when asked for, are the state after the last call (they move between calls)."""
+    scene = rtmpm.Scene.from_toml(sweep_text('"material[0].yield_stress" = [100, 250, 600]'))
+
+    def run(calls):
+        sim = rtmpm.Simulation(scene, backend="cuda")
+        for k in calls:
+            assert sim.step(k) == []
+        assert list(sim.steps) == [sum(calls)] * 3
+        return sim
+
+    ones, whole, again = run([1] * 60), run([60]), run([60])
+    repeats = np.array_equal(whole.x, again.x) and np.array_equal(whole.v, again.v)
+    print(f"two runs of step(60) bit-identical: {repeats}")
+    x, v, xw, vw = ones.x, ones.v, whole.x, whole.v
+    for w in range(3):
+        if repeats:
+            np.testing.assert_array_equal(x[w], xw[w], err_msg=f"world {w}")
+            np.testing.assert_array_equal(v[w], vw[w], err_msg=f"world {w}")
+        else:
+            agree(f"world {w}: 60 calls of step(1) vs step(60)", x[w], v[w], xw[w], vw[w])
+    before = ones.x.copy()
+    ones.step(5)
+    assert not np.array_equal(ones.x, before), "x is the state after the last call"
+
+
 def test_what_the_gpu_batch_does_not_do_raises_naming_it_and_the_cpu(tmp_path):
     sim = rtmpm.Simulation(rtmpm.Scene.from_toml(world_text()), batch=2, backend="cuda")
     # Without rigid bodies there is no body 0 to pose or read, as on the CPU.

@@ -20,6 +20,27 @@ pub trait Worlds: Backend {
     /// indices); the other worlds are not touched.
     fn put_world(&mut self, w: usize, particles: &Particles) -> Result<(), SimError>;
 
+    /// Keep every world's state as it is now as the point [`Worlds::restore_point`] puts the
+    /// worlds back to (the rewind after a world blows up), held by the backend itself (a GPU:
+    /// a device-to-device copy of its particle state). `Ok(true)`: kept; `Ok(false)`: this
+    /// backend keeps no such point (the default), and the driver keeps each world's particles
+    /// on the host instead, read after every advance and put back world by world with
+    /// [`Worlds::put_world`]. Rigid bodies are not part of the point: the driver keeps and puts
+    /// back their poses ([`Worlds::set_world_rigid_poses`]).
+    fn save_point(&mut self) -> Result<bool, SimError> {
+        Ok(false)
+    }
+
+    /// Put every world's particles back to the last point [`Worlds::save_point`] kept (`true`),
+    /// exactly as they were (what a step derives from them, the grid and its mapping, made
+    /// again at the next step). An error where no point was kept.
+    fn restore_point(&mut self) -> Result<(), SimError> {
+        Err(SimError::Backend(format!(
+            "the backend `{}` keeps no rewind point of its worlds",
+            self.name()
+        )))
+    }
+
     /// The world of particle `index` (original order over all worlds, as
     /// [`crate::BadParticle::index`] and [`crate::Blowup::particle`] give it) and its index in
     /// that world.

@@ -13,6 +13,14 @@
 //! ([`LockstepRun::advance_steps`]) and resets chosen worlds ([`LockstepRun::reset_worlds`]):
 //! the worlds share one clock, so a world's time, steps and frames count from its last reset.
 //!
+//! The rewind point: a backend that keeps it itself ([`Worlds::save_point`]: the GPU, a copy of
+//! its particle state on the device) is saved as every advance begins and put back
+//! ([`Worlds::restore_point`]) when a world blows up, and its worlds are read to the host only
+//! when something needs their particles: frame files, a checkpoint, a rewind that freezes a
+//! world (its last good state is what it keeps), or a caller's [`LockstepRun::sync`] (Python's
+//! `x` and `v`). Otherwise (the default, the CPU) every world is read after every advance and
+//! put back world by world, as the point.
+//!
 //! Rigid bodies: each world's are the backend's ([`Worlds::world_rigid_poses`]); the driver
 //! keeps them with the world's particles (at the start of each advance, and at each state read)
 //! and puts them back with them: a rewind puts every world's bodies back (a frozen world's
@@ -40,7 +48,8 @@ pub struct LockWorld {
     /// Its own scene (its files are written with it).
     scene: Scene,
     output: Option<FrameOutput>,
-    /// Its particles at the last completed frame (of the frame it froze at, once frozen).
+    /// Its particles at the last completed frame (of the frame it froze at, once frozen); of a
+    /// running world, at the last read of the backend (see [`LockstepRun::sync`]).
     kept: Particles,
     /// Its rigid bodies with `kept` (as the last advance began, or at the last state read).
     bodies: Vec<BodyPose>,
@@ -62,7 +71,10 @@ struct Clock {
 
 impl LockWorld {
     /// The particles of the last completed frame (as written to its files), or of the end of
-    /// the last [`LockstepRun::advance_steps`].
+    /// the last [`LockstepRun::advance_steps`]; a frozen world's last good state. On a backend
+    /// that keeps its own rewind point (the GPU) a run without files reads the worlds only when
+    /// something needs them: there, a running world's particles are those of the last
+    /// [`LockstepRun::sync`] (call it first; [`LockstepRun::execute`] ends with it).
     pub fn particles(&self) -> &Particles {
         &self.kept
     }
@@ -107,6 +119,9 @@ pub struct LockstepRun<B: Worlds + ?Sized> {
     out: Option<OutDir>,
     /// Taken up from a checkpoint (its current frame's files are already written).
     resumed: bool,
+    /// The running worlds' particles (`kept`) lag the backend's: the last advance kept its
+    /// rewind point on the backend and read nothing back ([`LockstepRun::sync`] reads them).
+    stale: bool,
 }
 
 impl<B: Worlds + ?Sized> LockstepRun<B> {
@@ -174,6 +189,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             frames: options.frames.unwrap_or_else(|| batch.base.time.frames()),
             out,
             resumed: resumed.is_some(),
+            stale: false,
         };
         run.write_summary()?;
         Ok(run)
@@ -221,6 +237,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
                 self.checkpoint(&dir, text, origin)?;
             }
         }
+        self.sync()?;
         self.write_summary()
     }
 
@@ -248,14 +265,25 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         })
     }
 
-    /// Advance with `advance` from the last state read; a blow-up or stall freezes its world,
-    /// puts every world back to that state and advances again; then read (and write) it.
+    /// Advance with `advance` from the state now (the rewind point: kept by the backend when it
+    /// can, else the last state read); a blow-up or stall freezes its world, puts every world
+    /// back to that point and advances again; then write the frame's files (reading the worlds
+    /// for them), or, where the backend keeps the point, read nothing.
     fn advance_by(
         &mut self,
         mut advance: impl FnMut(&mut Simulation<B>) -> Result<(), SimError>,
     ) -> Result<Vec<usize>> {
         let clock = self.clock();
         self.keep_bodies()?;
+        let on_backend = self
+            .sim
+            .backend
+            .save_point()
+            .context("keeping the worlds' rewind point")?;
+        if !on_backend {
+            // The point is the particles read last: they must be the state now.
+            self.sync()?;
+        }
         let mut frozen = Vec::new();
         loop {
             let e = match advance(&mut self.sim) {
@@ -265,13 +293,22 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             };
             let w = self.freeze(&e, clock.frame)?;
             frozen.push(w);
-            self.rewind(clock)?;
+            if on_backend {
+                self.rewind_on_backend(clock, &frozen)?;
+            } else {
+                self.rewind(clock)?;
+            }
             if self.running() == 0 {
                 break;
             }
         }
         if self.running() > 0 {
-            self.read_and_write_frame()?;
+            if on_backend && self.out.is_none() {
+                self.note_running();
+                self.stale = true;
+            } else {
+                self.read_and_write_frame()?;
+            }
         }
         if !frozen.is_empty() {
             self.write_summary()?;
@@ -426,9 +463,82 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         Ok(())
     }
 
+    /// Every world back to the rewind point the backend kept as this advance began (at `clock`),
+    /// the worlds of `frozen` (frozen in this advance) with the others frozen before parked, as
+    /// [`LockstepRun::rewind`] puts them: the running worlds exactly at the point, each frozen
+    /// world at its last good state, at rest; every world's bodies as the advance began (a
+    /// frozen world's parked). The particles of the worlds frozen now are read at the point
+    /// first, when the host's copy lags it (their last good state, which they keep).
+    fn rewind_on_backend(&mut self, clock: Clock, frozen: &[usize]) -> Result<()> {
+        let frame = clock.frame;
+        self.sim
+            .backend
+            .restore_point()
+            .with_context(|| format!("putting every world back to frame {frame}"))?;
+        if self.stale {
+            let all = self.sim.backend.read_worlds()?;
+            for (w, (world, p)) in self.worlds.iter_mut().zip(all).enumerate() {
+                if world.status == WorldStatus::Running || frozen.contains(&w) {
+                    world.kept = p;
+                }
+            }
+            self.stale = false;
+        }
+        for (w, world) in self.worlds.iter().enumerate() {
+            let bodies = match world.status {
+                WorldStatus::Running => world.bodies.clone(),
+                WorldStatus::Frozen { .. } => {
+                    self.sim
+                        .backend
+                        .put_world(w, &parked(&world.kept))
+                        .with_context(|| format!("parking world {w} at frame {frame}"))?;
+                    parked_bodies(&world.bodies)
+                }
+            };
+            self.sim
+                .backend
+                .set_world_rigid_poses(w, &bodies)
+                .with_context(|| {
+                    format!("putting world {w}'s rigid bodies back to frame {frame}")
+                })?;
+        }
+        (self.sim.time, self.sim.step, self.sim.frame) = (clock.time, clock.step, clock.frame);
+        Ok(())
+    }
+
+    /// Read every running world's particles where the last advance left them on the backend
+    /// only (it kept its rewind point itself and nothing needed them: [`Worlds::save_point`]);
+    /// then [`LockWorld::particles`] is each world's state now. Nothing to do otherwise.
+    pub fn sync(&mut self) -> Result<()> {
+        if !self.stale {
+            return Ok(());
+        }
+        let all = self.sim.backend.read_worlds()?;
+        for (world, p) in self.worlds.iter_mut().zip(all) {
+            if world.status == WorldStatus::Running {
+                world.kept = p;
+            }
+        }
+        self.stale = false;
+        Ok(())
+    }
+
+    /// The running worlds' clock and bodies now, their particles left on the backend (a run
+    /// without files on a backend that keeps its own rewind point).
+    fn note_running(&mut self) {
+        let now = self.clock();
+        for (w, world) in self.worlds.iter_mut().enumerate() {
+            if world.status == WorldStatus::Running {
+                world.bodies = self.sim.backend.world_rigid_poses(w);
+                world.at = now;
+            }
+        }
+    }
+
     /// Read every world; keep and write the running ones' frame.
     fn read_and_write_frame(&mut self) -> Result<()> {
         let all = self.sim.backend.read_worlds()?;
+        self.stale = false;
         let now = self.clock();
         for (w, (world, p)) in self.worlds.iter_mut().zip(all).enumerate() {
             if world.status != WorldStatus::Running {

@@ -22,6 +22,7 @@ impl PyBatch {
         shape: &[usize],
         field: impl Fn(&Particles) -> Vec<T>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        self.read_back(py)?;
         let counts = self.counts();
         let mut flat = Vec::new();
         let r = self.r();

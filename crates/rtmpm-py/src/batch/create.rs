@@ -257,6 +257,7 @@ impl Start {
             initial: self.initial,
             broken: None,
             device: Default::default(),
+            chunk: 1,
         })
     }
 }

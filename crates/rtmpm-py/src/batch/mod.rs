@@ -91,6 +91,9 @@ pub struct PyBatch {
     broken: Option<String>,
     /// The device arrays of a GPU batch (`x_device`, `v_device`), refreshed after every call.
     device: Gathered,
+    /// Steps a driver call of `step(n)` takes at most (`step.rs`): learnt from the calls'
+    /// times, kept between calls.
+    chunk: u64,
 }
 
 /// A Python error from a batch run's error (`anyhow`, with its context).
@@ -121,6 +124,26 @@ impl PyBatch {
             Ok(frozen)
         };
         match py.detach(|| catch_unwind(AssertUnwindSafe(|| call(run.get())))) {
+            Ok(r) => r.map_err(run_error),
+            Err(payload) => {
+                let err = internal_error(payload.as_ref());
+                self.broken = Some(err.to_string());
+                Err(err)
+            }
+        }
+    }
+
+    /// Every world's particles read to the host where the last call left them on the GPU only
+    /// (`Run::sync`: the GPU batch keeps its rewind point on the device and reads the worlds
+    /// when something needs them), with the interpreter lock released, panics caught (the
+    /// batch is then marked broken).
+    fn read_back(&mut self, py: Python<'_>) -> PyResult<()> {
+        self.usable()?;
+        let run = match self.run.get_mut() {
+            Ok(r) => r,
+            Err(poisoned) => poisoned.into_inner(),
+        };
+        match py.detach(|| catch_unwind(AssertUnwindSafe(|| run.get().sync()))) {
             Ok(r) => r.map_err(run_error),
             Err(payload) => {
                 let err = internal_error(payload.as_ref());

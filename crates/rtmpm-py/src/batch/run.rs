@@ -64,7 +64,17 @@ impl Run {
         }
     }
 
-    /// World `w`'s particles after the last call (a frozen world's last good state).
+    /// Every world's particles on the host as they are now: on the GPU the driver reads the
+    /// worlds only when something needs them (`LockstepRun::sync`); nothing to do on the CPU.
+    pub fn sync(&mut self) -> Result<()> {
+        match self {
+            Run::Each(_) => Ok(()),
+            Run::Lockstep(r) => r.sync(),
+        }
+    }
+
+    /// World `w`'s particles after the last call (a frozen world's last good state); on the
+    /// GPU as of the last [`Run::sync`] (their number is always right).
     pub fn particles(&self, w: usize) -> &Particles {
         match self {
             Run::Each(r) => r.worlds[w].particles(),

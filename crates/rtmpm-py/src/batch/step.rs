@@ -2,6 +2,7 @@
 
 use super::PyBatch;
 use pyo3::prelude::*;
+use rtmpm_driver::batch::chunk::next_chunk;
 
 #[pymethods]
 impl PyBatch {
@@ -10,18 +11,17 @@ impl PyBatch {
     /// worlds frozen by a blow-up during the call.
     #[pyo3(signature = (n = 1))]
     fn step(&mut self, py: Python<'_>, n: u64) -> PyResult<Vec<usize>> {
-        // In chunks that grow while they take less than a tenth of a second, with Ctrl-C
-        // checked between them: a huge `n` can be interrupted.
-        let (mut left, mut chunk) = (n, 1u64);
+        // In driver calls of at most `self.chunk` steps, with Ctrl-C checked between them: a
+        // huge `n` can be interrupted. The chunk is learnt from the calls' times and kept
+        // between calls (`step(10)` called again and again is one driver call each).
+        let mut left = n;
         let mut frozen = Vec::new();
         while left > 0 && self.r().running() > 0 {
-            let k = chunk.min(left);
+            let k = self.chunk.min(left);
             let t0 = std::time::Instant::now();
             frozen.extend(self.drive(py, |run| run.advance_steps(k))?);
             left -= k;
-            if t0.elapsed().as_secs_f64() < 0.1 {
-                chunk = (chunk * 2).min(1 << 20);
-            }
+            self.chunk = next_chunk(self.chunk, k, t0.elapsed().as_secs_f64());
             py.check_signals()?;
         }
         Ok(frozen)

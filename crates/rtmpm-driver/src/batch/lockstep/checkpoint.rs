@@ -22,6 +22,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
     /// `origin` where it came from, both stored with each world.
     pub fn checkpoint(&mut self, dir: &Path, text: &str, origin: &str) -> Result<()> {
         prepare_dir(dir)?;
+        self.sync()?;
         let backend = &self.sim.backend;
         let saved: Vec<Saved> = self
             .worlds
