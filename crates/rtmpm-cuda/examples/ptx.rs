@@ -42,7 +42,7 @@ fn main() {
             .find_map(|a| a.strip_prefix(key))
             .and_then(|v| v.parse::<u32>().ok())
     };
-    o.ck_min_blocks = number("ck_bound=").unwrap_or(0);
+    o.ck_min_blocks = number("ck_bound=");
     o.cluster = number("cluster=").unwrap_or(0);
     let ptx = if args.iter().any(|a| a == "lineinfo") {
         with_line_info(&o)

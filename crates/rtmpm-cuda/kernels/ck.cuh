@@ -9,11 +9,19 @@
 
 // Occupancy bound of CK-MPM's warp-scatter kernels (g2p2g_ck, p2g_ck_warp), set by the CUDA option
 // ck_bound=N (-DCK_MIN_BLOCKS=N): N resident blocks of 128 threads a SM, at most 65536 / (128 N)
-// registers a thread. Left out (the default): ptxas's own choice (128 registers for g2p2g_ck).
+// registers a thread; ck_bound=0: ptxas's own choice (128 registers for g2p2g_ck). Left out (the
+// default): the fused g2p2g_ck, CK-MPM's default kernel, held to 5 blocks in f32 (measured on an
+// H200 with its resident grid: -4.9 % on the fluid dam 2M, -2.6 % on the jelly drop 2M;
+// bench/RESULTS.md), ptxas's choice in f64 (not timed there) and for p2g_ck_warp.
 #if defined(CK_MIN_BLOCKS) && CK_MIN_BLOCKS > 0
 #define CK_BOUNDS 128, CK_MIN_BLOCKS
+#define CK_FUSED_BOUNDS 128, CK_MIN_BLOCKS
+#elif defined(CK_MIN_BLOCKS) || defined(RTMPM_F64)
+#define CK_BOUNDS 128
+#define CK_FUSED_BOUNDS 128
 #else
 #define CK_BOUNDS 128
+#define CK_FUSED_BOUNDS 128, 5
 #endif
 
 // Offset of grid g's nodes from the B-spline grid's, in cells (compact_kernel.rs: GRID_SHIFT).

@@ -29,8 +29,9 @@ pub struct KernelOptions {
     /// of one world, unchanged.
     pub batch: bool,
     /// CK-MPM's warp-scatter kernels held to this many blocks of 128 threads a SM
-    /// (`-DCK_MIN_BLOCKS`, [`crate::CudaOptions::ck_min_blocks`]); 0: no bound (left out).
-    pub ck_min_blocks: u32,
+    /// (`-DCK_MIN_BLOCKS`, [`crate::CudaOptions::ck_min_blocks`]; 0: no bound); `None`: left
+    /// out, the kernels' default (`kernels/ck.cuh`: `g2p2g_ck` at 5 blocks in f32).
+    pub ck_min_blocks: Option<u32>,
     /// MLS-MPM's fused kernels in thread-block clusters of this many blocks
     /// (`-DRTMPM_P2G_CLUSTER`, [`crate::CudaOptions::cluster`]); 0 or 1: off (left out). Passed
     /// for compute capability 9.0 or later only: before Hopper the kernels stay unchanged.
@@ -55,7 +56,7 @@ impl KernelOptions {
             state64: false,
             layout: contract::StateLayout::Full,
             batch: false,
-            ck_min_blocks: 0,
+            ck_min_blocks: None,
             cluster: 0,
         }
     }
@@ -162,8 +163,8 @@ pub fn nvrtc_options(o: &KernelOptions) -> Vec<String> {
     if o.batch {
         v.push("-DRTMPM_BATCH".into());
     }
-    if o.ck_min_blocks > 0 {
-        v.push(format!("-DCK_MIN_BLOCKS={}", o.ck_min_blocks));
+    if let Some(blocks) = o.ck_min_blocks {
+        v.push(format!("-DCK_MIN_BLOCKS={blocks}"));
     }
     if o.cluster > 1 && o.arch.0 >= 9 {
         v.push(format!("-DRTMPM_P2G_CLUSTER={}", o.cluster));
@@ -470,7 +471,7 @@ mod tests {
                 .iter()
                 .any(|d| d.contains("CK_MIN_BLOCKS") || d.contains("CLUSTER"))
         );
-        o.ck_min_blocks = 5;
+        o.ck_min_blocks = Some(5);
         o.cluster = 2;
         let v = nvrtc_options(&o);
         assert!(v.contains(&"-DCK_MIN_BLOCKS=5".to_string()), "{v:?}");
@@ -504,15 +505,18 @@ mod tests {
         if !nvrtc_or_skip() {
             return;
         }
-        // (arch, f64, ck_bound, cluster)
-        let jobs: &[((i32, i32), bool, u32, u32)] = &[
-            ((9, 0), false, 5, 0),
-            ((9, 0), false, 6, 0),
-            ((9, 0), true, 5, 0),
-            ((9, 0), false, 0, 2),
-            ((9, 0), false, 0, 4),
-            ((9, 0), true, 0, 2),
-            ((8, 0), false, 5, 2),
+        // (arch, f64, ck_bound, cluster); `None`: the kernels' default bound.
+        type Job = ((i32, i32), bool, Option<u32>, u32);
+        let jobs: &[Job] = &[
+            ((9, 0), false, None, 0),
+            ((9, 0), true, None, 0),
+            ((9, 0), false, Some(0), 0),
+            ((9, 0), false, Some(6), 0),
+            ((9, 0), true, Some(5), 0),
+            ((9, 0), false, None, 2),
+            ((9, 0), false, None, 4),
+            ((9, 0), true, None, 2),
+            ((8, 0), false, Some(5), 2),
         ];
         let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
         std::thread::scope(|scope| {
@@ -538,15 +542,19 @@ mod tests {
         });
     }
 
-    /// The PTX checks of [`the_ck_bound_and_cluster_kernels_compile`].
+    /// The PTX checks of [`the_ck_bound_and_cluster_kernels_compile`]: the bound asked for, or
+    /// by default 5 blocks for the fused `g2p2g_ck` in f32 and none otherwise.
     fn check_bound_and_cluster(ptx: &str, o: &KernelOptions, what: &str) {
-        for k in ["g2p2g_ck", "p2g_ck_warp"] {
-            let bound = format!(".minnctapersm {}", o.ck_min_blocks);
+        let default_fused = if o.f64 { 0 } else { 5 };
+        for (k, default) in [("g2p2g_ck", default_fused), ("p2g_ck_warp", 0)] {
+            let blocks = o.ck_min_blocks.unwrap_or(default);
+            let body = entry(ptx, k);
             assert_eq!(
-                entry(ptx, k).contains(&bound),
-                o.ck_min_blocks > 0,
+                body.contains(&format!(".minnctapersm {blocks}")),
+                blocks > 0,
                 "{what}: {k}"
             );
+            assert_eq!(body.contains(".minnctapersm"), blocks > 0, "{what}: {k}");
         }
         let clustered = o.cluster > 1 && o.arch.0 >= 9;
         for k in ["g2p2g", "g2p2g_fluid"] {

@@ -26,8 +26,8 @@ pub struct Kernels {
     /// in f64 or with `RTMPM_G2P2G_GRID=wave`.
     pub g2p2g_resident: Option<[u32; 2]>,
     /// Blocks of 128 threads of CK-MPM's fused kernel `g2p2g_ck` resident at once, its grid
-    /// with `ck_grid=resident` ([`crate::CudaOptions::ck_resident_grid`]); `None`: one wave of
-    /// threads, as before.
+    /// in f32 or with `ck_grid=resident` ([`crate::CudaOptions::ck_resident_grid`]); `None`:
+    /// one wave of threads, in f64 or with `ck_grid=wave`.
     pub g2p2g_ck_resident: Option<u32>,
     /// Blocks in a thread-block cluster of the fused MLS-MPM kernels (1: no clusters; 2 or 4
     /// with `cluster=`, [`crate::CudaOptions::cluster`]): their grids are a multiple of it.
@@ -92,7 +92,7 @@ impl Kernels {
             let fluid = whole(resident(&k, Kernel::G2p2gFluid)?);
             k.g2p2g_resident = Some([general, fluid]);
         }
-        if o.ck_resident_grid {
+        if o.ck_resident_grid.unwrap_or(!o.f64) {
             k.g2p2g_ck_resident = Some(resident(&k, Kernel::G2p2gCk)?);
         }
         Ok(k)

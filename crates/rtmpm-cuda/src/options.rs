@@ -92,13 +92,15 @@ pub struct CudaOptions {
     pub ck_p2g: CkP2g,
     /// CK-MPM's warp-scatter kernels (`g2p2g_ck`, `p2g_ck_warp`) held to this many resident
     /// blocks of 128 threads a SM (`__launch_bounds__(128, N)`: at most 65536 / (128 N)
-    /// registers a thread; `ck_bound=N`); 0 (the default): ptxas's own choice, as before. An
-    /// experiment for the speed A/B (bench/RESULTS.md), not tuned.
-    pub ck_min_blocks: u32,
+    /// registers a thread; `ck_bound=N`, 0: ptxas's own choice). `None` (the default): the fused
+    /// `g2p2g_ck` held to 5 blocks in f32 (measured faster on an H200, bench/RESULTS.md), ptxas's
+    /// choice in f64 and for `p2g_ck_warp` (`kernels/ck.cuh`).
+    pub ck_min_blocks: Option<u32>,
     /// CK-MPM's fused kernel `g2p2g_ck` launched as the blocks resident at once (occupancy
-    /// API), each looping over the warp list, instead of one wave of 2048 threads a SM
-    /// (`ck_grid=resident|wave`; default wave, as before).
-    pub ck_resident_grid: bool,
+    /// API), each looping over the warp list (`ck_grid=resident`, `Some(true)`), or as one wave
+    /// of 2048 threads a SM (`ck_grid=wave`, `Some(false)`). `None` (the default): resident in
+    /// f32, one wave in f64 (not timed there), as MLS-MPM's fused kernels.
+    pub ck_resident_grid: Option<bool>,
     /// MLS-MPM's fused kernels (`g2p2g`, `g2p2g_fluid`) in thread-block clusters of this many
     /// blocks (`cluster=2|4`, or `on` for 2; 0 or 1: off, the default): the scatter of a
     /// cluster's warps into the nodes of one gblock summed in distributed shared memory before
@@ -197,8 +199,8 @@ impl Default for CudaOptions {
             warp_reduce: true,
             p2g: P2gMode::Warp,
             ck_p2g: CkP2g::Fused,
-            ck_min_blocks: 0,
-            ck_resident_grid: false,
+            ck_min_blocks: None,
+            ck_resident_grid: None,
             cluster: 0,
             rmap_replicas: DEFAULT_RMAP_REPLICAS,
             rmap_slots: None,
@@ -280,15 +282,17 @@ impl std::str::FromStr for CudaOptions {
                     )?
                 }
                 "ck_bound" => {
-                    o.ck_min_blocks = n()? as u32;
-                    if o.ck_min_blocks > 16 {
+                    let blocks = n()? as u32;
+                    o.ck_min_blocks = Some(blocks);
+                    if blocks > 16 {
                         return Err(format!(
                             "`{item}`: expected 0 (no bound) to 16 blocks of 128 threads a SM"
                         ));
                     }
                 }
                 "ck_grid" => {
-                    o.ck_resident_grid = choice(item, v, &[("wave", false), ("resident", true)])?
+                    o.ck_resident_grid =
+                        Some(choice(item, v, &[("wave", false), ("resident", true)])?)
                 }
                 "cluster" => {
                     o.cluster = choice(
@@ -467,12 +471,12 @@ mod tests {
         let d = CudaOptions::default();
         assert_eq!(
             (d.ck_min_blocks, d.ck_resident_grid, d.cluster),
-            (0, false, 0)
+            (None, None, 0)
         );
         let o: CudaOptions = "ck_bound=5,ck_grid=resident,cluster=4".parse().unwrap();
         assert_eq!(
             (o.ck_min_blocks, o.ck_resident_grid, o.cluster),
-            (5, true, 4)
+            (Some(5), Some(true), 4)
         );
         assert_eq!("cluster=on".parse::<CudaOptions>().unwrap().cluster, 2);
         assert_eq!("cluster=off".parse::<CudaOptions>().unwrap().cluster, 0);

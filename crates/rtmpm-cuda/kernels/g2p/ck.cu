@@ -69,8 +69,9 @@ extern "C" __global__ void g2p_ck(Ctx c) {
 // p2g_ck_warp. A particle that left its free zone is not scattered (it has set the rebuild flag;
 // the next step rebuilds and redoes the P2G from the stored state). Warps loop over the warp list
 // (grid-stride, launched with about one wave of blocks, or with ck_grid=resident the blocks resident
-// at once). Register bound: CK_BOUNDS (ck.cuh, the CUDA option ck_bound=N; none by default).
-extern "C" __global__ void __launch_bounds__(CK_BOUNDS) g2p2g_ck(Ctx c) {
+// at once). Register bound: CK_FUSED_BOUNDS (ck.cuh, the CUDA option ck_bound=N; 5 blocks in f32 by
+// default).
+extern "C" __global__ void __launch_bounds__(CK_FUSED_BOUNDS) g2p2g_ck(Ctx c) {
     if (c.ctl[CTL_ERROR]) return;
     unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
     unsigned lane = threadIdx.x & 31;
