@@ -577,7 +577,17 @@ fn a_blown_up_world_rewinds_to_the_device_point_as_to_the_hosts() {
         same_worlds("two identical runs", &device, &run(true), &[0, 1, 3], true).is_empty();
     println!("two identical runs bit-identical: {repeats}");
     for w in 0..4 {
-        assert_eq!(device.worlds[w].status, host.worlds[w].status, "world {w}");
+        let (d, h) = (&device.worlds[w].status, &host.worlds[w].status);
+        // A frozen world's reason quotes the bad particle's place and speed after the failed
+        // step: word for word only where the GPU repeats itself.
+        match (d, h) {
+            (WorldStatus::Frozen { frame: a, .. }, WorldStatus::Frozen { frame: b, .. })
+                if !repeats =>
+            {
+                assert_eq!(a, b, "world {w}")
+            }
+            _ => assert_eq!(d, h, "world {w}"),
+        }
         assert_eq!(
             (device.worlds[w].steps(), device.worlds[w].frame()),
             (host.worlds[w].steps(), host.worlds[w].frame()),
