@@ -296,26 +296,17 @@ impl CudaBatch {
         }
     }
 
-    /// Every world's particles, in their own coordinates and material indices.
+    /// Every world's particles, in their own coordinates and material indices (read in
+    /// original order, then cut into worlds on every core).
     pub fn read_worlds(&mut self) -> Result<Vec<Particles>, SimError> {
+        use rayon::prelude::*;
         let mut all = Particles::default();
         self.backend.read_particles(&mut all)?;
-        Ok((0..self.worlds()).map(|w| self.world_of(&all, w)).collect())
-    }
-
-    fn world_of(&self, all: &Particles, w: usize) -> Particles {
-        let r = self.offsets[w]..self.offsets[w + 1];
-        let k0 = (w * self.materials) as u32;
-        Particles {
-            x: all.x[r.clone()].to_vec(),
-            v: all.v[r.clone()].to_vec(),
-            c: all.c[r.clone()].to_vec(),
-            f: all.f[r.clone()].to_vec(),
-            plastic: all.plastic[r.clone()].to_vec(),
-            mass: all.mass[r.clone()].to_vec(),
-            vol0: all.vol0[r.clone()].to_vec(),
-            material: all.material[r].iter().map(|k| k - k0).collect(),
-        }
+        let (offsets, materials) = (&self.offsets, self.materials);
+        Ok((0..self.worlds())
+            .into_par_iter()
+            .map(|w| world_of(&all, offsets, materials, w))
+            .collect())
     }
 
     /// The world of particle `index` (original order) and its index in that world.
@@ -561,6 +552,23 @@ impl Worlds for CudaBatch {
 
     fn world_rigid_loads(&self, w: usize) -> Result<Option<Vec<BodyLoad>>, SimError> {
         self.world_loads(w).map(Some)
+    }
+}
+
+/// World `w`'s particles of `all` (every world's, in original order; world `w`'s from
+/// `offsets[w]`), its material rows (`materials` a world) back to its own indices.
+fn world_of(all: &Particles, offsets: &[usize], materials: usize, w: usize) -> Particles {
+    let r = offsets[w]..offsets[w + 1];
+    let k0 = (w * materials) as u32;
+    Particles {
+        x: all.x[r.clone()].to_vec(),
+        v: all.v[r.clone()].to_vec(),
+        c: all.c[r.clone()].to_vec(),
+        f: all.f[r.clone()].to_vec(),
+        plastic: all.plastic[r.clone()].to_vec(),
+        mass: all.mass[r.clone()].to_vec(),
+        vol0: all.vol0[r.clone()].to_vec(),
+        material: all.material[r].iter().map(|k| k - k0).collect(),
     }
 }
 
