@@ -29,9 +29,10 @@
 #                the fluid dam 2M and the jelly 2M; a table of ms/step last (KERNEL_AB_MLS,
 #                KERNEL_AB_CK: the --cuda-options of each line, "-" for none)
 #   kernel_agree the agreement tests with those switches: every example scene in f32 and f64 with
-#                cluster=4 (RTMPM_AGREEMENT_OPTIONS; KERNEL_AGREE_CLUSTER="cluster=2 cluster=4" for both),
+#                cluster=4 (RTMPM_AGREEMENT_OPTIONS; KERNEL_AGREE_CLUSTER="cluster=2 cluster=4" for both,
+#                or any other --cuda-options of the MLS-MPM kernels, e.g. "halo=sync halo=async"),
 #                then CK-MPM with ck_p2g=fused,ck_bound=5,ck_grid=resident (RTMPM_CK_AGREEMENT;
-#                KERNEL_AGREE_CK to change)
+#                KERNEL_AGREE_CK to change, KERNEL_AGREE_CK=none to skip it)
 #   validate_compact  the same with the compact particle state (`--particle-state compact`)
 #   convergence  the convergence studies and the f64 validation cases
 #   bench        the claymore scenes (fluid 2M, jelly 2M, snow 1.33M) and a fluid block; with
@@ -42,7 +43,8 @@
 #                defines in one entry separated by commas), interleaved REPS times (default 1)
 #   sanitize     compute-sanitizer (memcheck, then racecheck and synccheck) on short runs of the fused step: the
 #                snow 1.33M (general G2P2G; a bench scene: bench needs a fixed dt) and a fluid block n = 64 (fluid G2P2G), 20 steps each, with
-#                RTMPM_KERNEL_DEFINES as set by the caller (SANITIZE_TOOLS to choose the tools)
+#                RTMPM_KERNEL_DEFINES as set by the caller (SANITIZE_TOOLS to choose the tools;
+#                SANITIZE_OPTIONS: --cuda-options of the runs, e.g. halo=async)
 #   profile      Nsight Compute on the fused G2P2G kernel (one launch after 5): PROFILE_RUNS="label|binary|
 #                defines|scene ..." (default: the fluid dam 2M); the bound (issue, stalls, L1/L2, atomics)
 #   multi        several GPUs: agreement tests in every mode, 2 NCCL processes, scaling
@@ -234,10 +236,12 @@ for suite in "$@"; do
         RTMPM_AGREEMENT_OPTIONS="$o" t test_agreement every_example_scene --nocapture
         cp "$OUT/test_agreement.log" "$OUT/test_agreement_$o.log"
       done
-      say "test_agreement, CK-MPM with ${KERNEL_AGREE_CK:-ck_p2g=fused,ck_bound=5,ck_grid=resident}:"
-      RTMPM_CK_AGREEMENT="${KERNEL_AGREE_CK:-ck_p2g=fused,ck_bound=5,ck_grid=resident}" \
-        t test_agreement cuda_agrees_with_cpu_with_ck_mpm --nocapture
-      grep -E "ck-mpm" "$OUT/test_agreement.log" | tee -a "$S"
+      if [ "${KERNEL_AGREE_CK:-}" != "none" ]; then
+        say "test_agreement, CK-MPM with ${KERNEL_AGREE_CK:-ck_p2g=fused,ck_bound=5,ck_grid=resident}:"
+        RTMPM_CK_AGREEMENT="${KERNEL_AGREE_CK:-ck_p2g=fused,ck_bound=5,ck_grid=resident}" \
+          t test_agreement cuda_agrees_with_cpu_with_ck_mpm --nocapture
+        grep -E "ck-mpm" "$OUT/test_agreement.log" | tee -a "$S"
+      fi
       ;;
     validate_compact)
       timeout 500 "$D/rtmpm" validate --backend cuda --particle-state compact --out "$OUT/validation_compact" > "$OUT/validate_compact.log" 2>&1
@@ -321,6 +325,7 @@ for suite in "$@"; do
       for tool in ${SANITIZE_TOOLS:-memcheck racecheck synccheck}; do
         for a in "--scene bench/snow_1m.toml --steps 20" "--n 64 --steps 20"; do
           timeout 300 "$cs" --tool "$tool" --error-exitcode 9 "$D/rtmpm" bench --backend cuda $a \
+            ${SANITIZE_OPTIONS:+--cuda-options "$SANITIZE_OPTIONS"} \
             > "$OUT/sanitize-$tool-$(echo "$a" | tr -c 'a-z0-9' _).log" 2>&1
           rc=$?
           say "compute-sanitizer $tool rtmpm bench $a rc=$rc: $(grep -hE 'ERROR SUMMARY|RACECHECK SUMMARY' "$OUT"/sanitize-$tool-$(echo "$a" | tr -c 'a-z0-9' _).log | tail -1)"

@@ -2,7 +2,8 @@
 //! with `ptxas -v` (scripts/kernel_report.sh).
 //!
 //! `cargo run -p rtmpm-cuda --example ptx -- [f64] [no_fast_math] [sm_90] [materials=0xMASK]
-//! [layout=N] [ck_bound=N] [cluster=K] [lineinfo]` (N: the state layout's code, `StateLayout::code`:
+//! [layout=N] [ck_bound=N] [cluster=K] [halo=sync|async] [warp_list=sorted]
+//! [lineinfo]` (N: the state layout's code, `StateLayout::code`:
 //! 1 is the 20-word fluid layout; `ck_bound=N` and `cluster=K`: the CUDA options of the same names
 //! (`CudaOptions::ck_min_blocks`, `CudaOptions::cluster`); `lineinfo`: NVRTC's
 //! `--generate-line-info`, so that `nvdisasm -g` names the source line of every SASS instruction;
@@ -44,6 +45,14 @@ fn main() {
     };
     o.ck_min_blocks = number("ck_bound=");
     o.cluster = number("cluster=").unwrap_or(0);
+    // `halo=sync|async`: the fused kernels' gather from a shared-memory node halo.
+    o.halo = match args.iter().find_map(|a| a.strip_prefix("halo=")) {
+        Some("sync") => 1,
+        Some("async") => 2,
+        _ => 0,
+    };
+    // `warp_list=sorted`: the warp list in the order of the sorted particles.
+    o.sorted_warps = args.iter().any(|a| a == "warp_list=sorted");
     let ptx = if args.iter().any(|a| a == "lineinfo") {
         with_line_info(&o)
     } else {

@@ -36,6 +36,13 @@ pub struct KernelOptions {
     /// (`-DRTMPM_P2G_CLUSTER`, [`crate::CudaOptions::cluster`]); 0 or 1: off (left out). Passed
     /// for compute capability 9.0 or later only: before Hopper the kernels stay unchanged.
     pub cluster: u32,
+    /// The G2P gather of MLS-MPM's fused kernels from a shared-memory node halo
+    /// (`-DRTMPM_G2P_HALO`, [`crate::CudaOptions::halo`]): 1 sync, 2 async; 0: off (left out).
+    /// Every architecture (`cp.async`, sm_80 and later like the whole program: `kernels/g2p/halo.cuh`).
+    pub halo: u32,
+    /// The warp list in the order of the sorted particles (`-DRTMPM_WARP_LIST_SORTED=1`,
+    /// [`crate::CudaOptions::sorted_warps`]; also defined whenever `halo` is on).
+    pub sorted_warps: bool,
 }
 
 /// True when state arrays of `capacity` particles of `words` words each hold 2^32 words or more:
@@ -58,6 +65,8 @@ impl KernelOptions {
             batch: false,
             ck_min_blocks: None,
             cluster: 0,
+            halo: 0,
+            sorted_warps: false,
         }
     }
 }
@@ -168,6 +177,12 @@ pub fn nvrtc_options(o: &KernelOptions) -> Vec<String> {
     }
     if o.cluster > 1 && o.arch.0 >= 9 {
         v.push(format!("-DRTMPM_P2G_CLUSTER={}", o.cluster));
+    }
+    if o.halo > 0 {
+        v.push(format!("-DRTMPM_G2P_HALO={}", o.halo));
+    }
+    if o.halo > 0 || o.sorted_warps {
+        v.push("-DRTMPM_WARP_LIST_SORTED=1".into());
     }
     // Tuning experiments: extra `-DNAME=VALUE` flags, e.g. "-DG2P_MIN_BLOCKS=6" (part of the
     // cache key like every other option).
@@ -427,6 +442,16 @@ mod tests {
             &["-DG2P2G_MIN_BLOCKS=0", "-DG2P2G_FLUID_MIN_BLOCKS=4"],
             // Many worlds in one set of arrays (crate::batch).
             &["-DRTMPM_BATCH"],
+            // The warp list in the order of the sorted particles (warp_list=sorted), alone and
+            // with the batch's kernels.
+            &["-DRTMPM_WARP_LIST_SORTED=1"],
+            &["-DRTMPM_WARP_LIST_SORTED=1", "-DRTMPM_BATCH"],
+            // The G2P gather from a shared-memory halo (halo=async) in the batch's kernels.
+            &[
+                "-DRTMPM_G2P_HALO=2",
+                "-DRTMPM_WARP_LIST_SORTED=1",
+                "-DRTMPM_BATCH",
+            ],
             // The node-by-node step as it was before the three became the default.
             &[
                 "-DRTMPM_P2G_REDUCE=0",
@@ -536,6 +561,97 @@ mod tests {
                             .unwrap_or_else(|e| panic!("{what}: {e}"));
                         assert_every_kernel(&ptx, &what);
                         check_bound_and_cluster(&ptx, &o, &what);
+                    }
+                });
+            }
+        });
+    }
+
+    /// `halo=sync|async` becomes `-DRTMPM_G2P_HALO=1|2` on every architecture, with the sorted
+    /// warp list it needs; `warp_list=sorted` alone the list's define; off, nothing is defined.
+    #[test]
+    fn the_halo_option_becomes_a_define() {
+        let mut o = KernelOptions::all_models((9, 0), true, false);
+        let sorted = "-DRTMPM_WARP_LIST_SORTED=1".to_string();
+        let v = nvrtc_options(&o);
+        assert!(
+            !v.iter()
+                .any(|d| d.contains("HALO") || d.contains("WARP_LIST"))
+        );
+        for (arch, halo) in [((9, 0), 1), ((9, 0), 2), ((8, 0), 2), ((7, 5), 2)] {
+            o.arch = arch;
+            o.halo = halo;
+            let v = nvrtc_options(&o);
+            assert!(v.contains(&format!("-DRTMPM_G2P_HALO={halo}")), "{v:?}");
+            assert_eq!(v.iter().filter(|d| d.contains("HALO")).count(), 1);
+            // The halo needs the sorted list.
+            assert!(v.contains(&sorted), "{v:?}");
+        }
+        o.halo = 0;
+        o.sorted_warps = true;
+        let v = nvrtc_options(&o);
+        assert!(
+            v.contains(&sorted) && !v.iter().any(|d| d.contains("HALO")),
+            "{v:?}"
+        );
+    }
+
+    /// The kernels of `halo=sync|async` compile with NVRTC (front end only, on every core at
+    /// once): f32 and f64, the window's three sizes, sm_90 and sm_80 (the program needs sm_80:
+    /// `__reduce_max_sync`). The fused MLS-MPM kernels hold the halo buffers in static shared
+    /// memory (one buffer of HALO_N^3 nodes for sync, two for async) and copy with `cp.async`;
+    /// without the option no kernel has the buffers or `cp.async`.
+    #[test]
+    fn the_halo_kernels_compile() {
+        if !nvrtc_or_skip() {
+            return;
+        }
+        // (arch, f64, halo, window edge)
+        let jobs: &[((i32, i32), bool, u32, u32)] = &[
+            ((9, 0), false, 0, 8),
+            ((9, 0), false, 1, 8),
+            ((9, 0), false, 2, 8),
+            ((9, 0), true, 2, 8),
+            ((9, 0), false, 2, 6),
+            ((9, 0), false, 2, 10),
+            ((8, 0), false, 2, 8),
+        ];
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+        std::thread::scope(|scope| {
+            for t in 0..threads.min(jobs.len()) {
+                scope.spawn(move || {
+                    for &(arch, f64, halo, edge) in jobs.iter().skip(t).step_by(threads) {
+                        let o = KernelOptions {
+                            halo,
+                            ..KernelOptions::all_models(arch, true, f64)
+                        };
+                        let mut opts = nvrtc_options(&o);
+                        if edge != 8 {
+                            opts.push(format!("-DRTMPM_G2P_HALO_N={edge}"));
+                        }
+                        opts.push("--Ofast-compile=max".into());
+                        let what = format!("{o:?}, window {edge}");
+                        let ptx = program_source(f64)
+                            .and_then(|src| nvrtc(&src, "rtmpm_pipeline.cu", opts))
+                            .unwrap_or_else(|e| panic!("{what}: {e}"));
+                        assert_every_kernel(&ptx, &what);
+                        // The buffers: HALO_N^3 nodes of 4 reals, one or two.
+                        let real = if f64 { 8 } else { 4 };
+                        let bytes = halo * edge.pow(3) * 4 * real;
+                        for k in ["g2p2g", "g2p2g_fluid"] {
+                            let tiles = format!("_ZZ{}{k}E5tiles[{bytes}]", k.len());
+                            assert_eq!(ptx.contains(&tiles), halo > 0, "{what}: {tiles}");
+                        }
+                        assert_eq!(
+                            ptx.contains("cp.async.cg.shared.global"),
+                            halo > 0 && arch.0 >= 8,
+                            "{what}: cp.async"
+                        );
+                        assert_eq!(
+                            ptx.contains("cp.async.wait_all"),
+                            halo > 0 && arch.0 >= 8,
+                            "{what}: cp.async.wait_all"
+                        );
                     }
                 });
             }

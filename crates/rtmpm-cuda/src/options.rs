@@ -107,6 +107,20 @@ pub struct CudaOptions {
     /// one global atomic a node (`kernels/p2g/cluster.cuh`). Compute capability 9.0 or later
     /// only (the backend refuses it before Hopper). An experiment for the speed A/B.
     pub cluster: u32,
+    /// The G2P gather of MLS-MPM's fused kernels (`g2p2g`, `g2p2g_fluid`) from a window of nodes
+    /// copied into shared memory once per gblock (`kernels/g2p/halo.cuh`): 0 off (the default,
+    /// `halo=off`: every lane reads its 27 nodes from the grid), 1 `halo=sync` (one buffer,
+    /// copied when the block's gblock changes), 2 `halo=async` (two buffers, the next gblock's
+    /// window copied with `cp.async` while the block works on the current one). Every GPU;
+    /// `cp.async` (compute capability 8.0, like the whole program). Not with `cluster`. An
+    /// experiment for the speed A/B (bench/RESULTS.md).
+    pub halo: u32,
+    /// The rebuild writes the warp list in the order of the sorted particles, gblock by gblock
+    /// (`warp_list=sorted`; `kernels/rebuild.cu`, `rb_rank`), instead of the order in which the
+    /// warps reach an atomic counter (`warp_list=arrival`, the default), which interleaves the
+    /// gblocks: the four warps of a fused kernel's block then mostly share one gblock (and its
+    /// nodes in the L1). `halo` implies it. An experiment for the speed A/B.
+    pub sorted_warps: bool,
     /// `p2g=reverse_map`: number of replicated maps (the paper's nine by default).
     pub rmap_replicas: usize,
     /// `p2g=reverse_map`: entries per node and map; `None`: twice the initial largest node load.
@@ -202,6 +216,8 @@ impl Default for CudaOptions {
             ck_min_blocks: None,
             ck_resident_grid: None,
             cluster: 0,
+            halo: 0,
+            sorted_warps: false,
             rmap_replicas: DEFAULT_RMAP_REPLICAS,
             rmap_slots: None,
             rmap_pblocks: None,
@@ -234,7 +250,7 @@ impl std::str::FromStr for CudaOptions {
     /// Comma separated `key=value`: `free_zone`, `mixed_sort`, `warp_reduce`, `fast_math`,
     /// `graph`, `f64`, `rebalance`, `overlap`, `g2p2g`, `rigid_overlap`, `specialize` (on/off/true/false/1/0), `rebuild` (fused/kernels), `fill` (device/host), `p2g`
     /// (warp/shared/reverse_map/sort), `ck_p2g` (direct/warp/fused), `ck_bound` (0 to 16 blocks),
-    /// `ck_grid` (wave/resident), `cluster` (off/on/1/2/4), `transport` (p2p/nccl), `barrier` (spin/events), `devices`
+    /// `ck_grid` (wave/resident), `cluster` (off/on/1/2/4), `halo` (off/sync/async), `warp_list` (arrival/sorted), `transport` (p2p/nccl), `barrier` (spin/events), `devices`
     /// (ordinals separated by `:`), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
     /// `rmap_pblocks`, `shared`, `sort_fields` (counts), `fluid_state` (on/off), `state`
     /// (f32/compact).
@@ -300,6 +316,10 @@ impl std::str::FromStr for CudaOptions {
                         v,
                         &[("off", 0), ("on", 2), ("1", 0), ("2", 2), ("4", 4)],
                     )?
+                }
+                "halo" => o.halo = choice(item, v, &[("off", 0), ("sync", 1), ("async", 2)])?,
+                "warp_list" => {
+                    o.sorted_warps = choice(item, v, &[("arrival", false), ("sorted", true)])?
                 }
                 "gblocks" => o.gblock_capacity = Some(n()?),
                 "pblocks" => o.pblock_capacity = Some(n()?),
@@ -368,6 +388,14 @@ impl std::str::FromStr for CudaOptions {
                 }
                 _ => return Err(format!("unknown CUDA option `{k}`")),
             }
+        }
+        if o.halo > 0 && o.cluster > 1 {
+            return Err(format!(
+                "`halo` and `cluster` are two variants of the same fused kernels: give one of \
+                 them (halo={}, cluster={})",
+                ["off", "sync", "async"][o.halo.min(2) as usize],
+                o.cluster
+            ));
         }
         Ok(o)
     }
@@ -484,6 +512,31 @@ mod tests {
             "cluster=3".parse::<CudaOptions>().unwrap_err(),
             "`cluster=3`: expected off, on, 1, 2 or 4"
         );
+        assert_eq!(CudaOptions::default().halo, 0);
+        for (v, h) in [("off", 0), ("sync", 1), ("async", 2)] {
+            assert_eq!(format!("halo={v}").parse::<CudaOptions>().unwrap().halo, h);
+        }
+        assert_eq!(
+            "halo=tma".parse::<CudaOptions>().unwrap_err(),
+            "`halo=tma`: expected off, sync or async"
+        );
+        let e = "halo=async,cluster=2".parse::<CudaOptions>().unwrap_err();
+        assert!(e.contains("give one of them"), "{e}");
+        assert!("halo=async,cluster=off".parse::<CudaOptions>().is_ok());
+        assert!(!CudaOptions::default().sorted_warps);
+        assert!(
+            "warp_list=sorted"
+                .parse::<CudaOptions>()
+                .unwrap()
+                .sorted_warps
+        );
+        assert!(
+            !"warp_list=arrival"
+                .parse::<CudaOptions>()
+                .unwrap()
+                .sorted_warps
+        );
+        assert!("warp_list=random".parse::<CudaOptions>().is_err());
         assert!("ck_bound=17".parse::<CudaOptions>().is_err());
         assert!("ck_grid=big".parse::<CudaOptions>().is_err());
     }

@@ -40,6 +40,39 @@
 #define G2P2G_BOUNDS 128
 #endif
 
+// One entry w of the warp list, by every lane of a warp: the G2P of step n of its particles
+// (lane < count) and the P2G of step n+1 of those that stay in their free zone. `halo`: gblock
+// g's node window (RTMPM_G2P_HALO) or null.
+template <bool ALL_FLUID>
+__device__ __forceinline__ void g2p2g_warp(const Ctx& c, unsigned w, unsigned lane, unsigned* speed, const real* halo) {
+    unsigned g = c.warps[3 * w], first = c.warps[3 * w + 1], count = c.warps[3 * w + 2];
+#if RTMPM_WARP_LIST_SORTED
+    if (count == 0) return;  // a slot the sorted list left over (rebuild.cu: rb_rank)
+#endif
+    // G2P of step n; the particle's P2G quantities of step n+1 from the new state.
+    bool scatter = false;
+    unsigned key = P2G_KEY_NONE;
+    P2gParticle q = p2g_particle_zero();
+    if (lane < count) {
+        unsigned p = first + lane;
+        real m = state_ld(c.state, sidx(c.cap, F_MASS, p)), vol0 = state_ld(c.state, sidx(c.cap, F_VOL0, p));
+        G2pResult r = g2p_particle<ALL_FLUID>(c, g, p, halo);
+        *speed = max(*speed, r.speed);
+        if (!r.leave) {
+            q = p2g_particle_of<ALL_FLUID>(c, r.x, m, vol0, r.v, r.C, r.F, r.plastic, r.material);
+            key = p2g_sort_key(c, g, q.base);
+            scatter = true;
+        }
+    }
+    // P2G of step n+1, as in p2g.cu: in-warp sort (the particles change lanes by shuffles,
+    // only when the warp is out of order), segmented reduction, atomics into grid_next.
+    if (c.warp_sort) {
+        unsigned src = p2g_warp_sort(key, lane, &scatter);
+        if (__any_sync(0xffffffffu, src != lane)) q = p2g_particle_from_lane(q, src);
+    }
+    p2g_scatter_warp(c, g, q, scatter, lane, c.grid_next);
+}
+
 // Warps loop over the warp list (grid-stride, launched with about one wave of blocks).
 template <bool ALL_FLUID>
 __device__ __forceinline__ void g2p2g_body(const Ctx& c) {
@@ -47,33 +80,62 @@ __device__ __forceinline__ void g2p2g_body(const Ctx& c) {
     unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
     unsigned lane = threadIdx.x & 31;
     unsigned speed = 0;
-    for (unsigned w = thread_index() >> 5; w < n_warps; w += stride) {
-        unsigned g = c.warps[3 * w], first = c.warps[3 * w + 1], count = c.warps[3 * w + 2];
-        // G2P of step n; the particle's P2G quantities of step n+1 from the new state.
-        bool scatter = false;
-        unsigned key = P2G_KEY_NONE;
-        P2gParticle q = p2g_particle_zero();
-        if (lane < count) {
-            unsigned p = first + lane;
-            real m = state_ld(c.state, sidx(c.cap, F_MASS, p)), vol0 = state_ld(c.state, sidx(c.cap, F_VOL0, p));
-            G2pResult r = g2p_particle<ALL_FLUID>(c, g, p);
-            speed = max(speed, r.speed);
-            if (!r.leave) {
-                q = p2g_particle_of<ALL_FLUID>(c, r.x, m, vol0, r.v, r.C, r.F, r.plastic, r.material);
-                key = p2g_sort_key(c, g, q.base);
-                scatter = true;
-            }
-        }
-        // P2G of step n+1, as in p2g.cu: in-warp sort (the particles change lanes by shuffles,
-        // only when the warp is out of order), segmented reduction, atomics into grid_next.
-        if (c.warp_sort) {
-            unsigned src = p2g_warp_sort(key, lane, &scatter);
-            if (__any_sync(0xffffffffu, src != lane)) q = p2g_particle_from_lane(q, src);
-        }
-        p2g_scatter_warp(c, g, q, scatter, lane, c.grid_next);
-    }
+    for (unsigned w = thread_index() >> 5; w < n_warps; w += stride) g2p2g_warp<ALL_FLUID>(c, w, lane, &speed, nullptr);
     report_max_speed(c, speed);
 }
+
+#if RTMPM_G2P_HALO
+// The same with the G2P gather from a shared-memory node halo (halo.cuh says how): each block
+// takes a contiguous run of the warp list, four warps (a sub-round) at a time; the sub-round's
+// window is that of its second warp's gblock (`halo_gblock`), copied once for the sub-rounds of
+// that gblock in a row. The loop runs sub-round by sub-round for the whole block (every thread
+// reaches the barriers, also past the run's end); the barriers are block-uniform decisions.
+__device__ __forceinline__ unsigned halo_gblock(const Ctx& c, unsigned w0, unsigned hi) {
+    return w0 < hi ? c.warps[3 * min(w0 + 1u, hi - 1u)] : HALO_NONE;
+}
+template <bool ALL_FLUID>
+__device__ __forceinline__ void g2p2g_halo_body(const Ctx& c, HaloTiles& tiles) {
+    if (c.ctl[CTL_ERROR]) return;  // the same value in every thread: no thread leaves a barrier alone
+    unsigned n_warps = c.ctl[CTL_WARPS], lane = threadIdx.x & 31, warps_a_block = blockDim.x >> 5;
+    // This block's run of the list: [lo, hi), the runs of the blocks differing by at most one warp.
+    unsigned lo = (unsigned)((unsigned long long)n_warps * blockIdx.x / gridDim.x);
+    unsigned hi = (unsigned)((unsigned long long)n_warps * (blockIdx.x + 1) / gridDim.x);
+    unsigned speed = 0;
+    // The window in buffer `buf` holds gblock `held`.
+    unsigned buf = 0, held = halo_gblock(c, lo, hi);
+    if (held != HALO_NONE) halo_issue(c, held, tiles.v[0]);
+    halo_wait();
+    __syncthreads();
+    for (unsigned w0 = lo; w0 < hi; w0 += warps_a_block) {
+        unsigned hg = halo_gblock(c, w0, hi);
+#if RTMPM_G2P_HALO == 2
+        // A new gblock: its window was issued into the other buffer at the start of the previous
+        // sub-round (below); wait for it. After the barrier no thread reads the old buffer.
+        if (hg != held) {
+            buf ^= 1u;
+            held = hg;
+            halo_wait();
+            __syncthreads();
+        }
+        // The next sub-round's window into the other buffer, when its gblock is another one.
+        unsigned next = halo_gblock(c, w0 + warps_a_block, hi);
+        if (next != HALO_NONE && next != held) halo_issue(c, next, tiles.v[buf ^ 1u]);
+#else
+        if (hg != held) {
+            __syncthreads();  // every thread is done with the old window
+            halo_issue(c, hg, tiles.v[0]);
+            held = hg;
+            halo_wait();
+            __syncthreads();
+        }
+#endif
+        unsigned w = w0 + (threadIdx.x >> 5);
+        if (w < hi) g2p2g_warp<ALL_FLUID>(c, w, lane, &speed, c.warps[3 * w] == held ? tiles.v[buf] : nullptr);
+    }
+    halo_wait();  // no copy outlives the kernel (the last sub-round issues none; kept for safety)
+    report_max_speed(c, speed);
+}
+#endif
 
 #if defined(RTMPM_P2G_CLUSTER) && RTMPM_P2G_CLUSTER > 1
 // The same in thread-block clusters of RTMPM_P2G_CLUSTER blocks (the CUDA option cluster=K,
@@ -137,6 +199,9 @@ extern "C" __global__ void __launch_bounds__(G2P2G_BOUNDS) G2P2G_CLUSTER_DIMS g2
 #if defined(RTMPM_P2G_CLUSTER) && RTMPM_P2G_CLUSTER > 1
     __shared__ ClusterTiles tiles;
     g2p2g_cluster_body<false>(c, tiles);
+#elif RTMPM_G2P_HALO
+    __shared__ HaloTiles tiles;
+    g2p2g_halo_body<false>(c, tiles);
 #else
     g2p2g_body<false>(c);
 #endif
@@ -146,6 +211,9 @@ extern "C" __global__ void __launch_bounds__(128, G2P2G_FLUID_MIN_BLOCKS) G2P2G_
 #if defined(RTMPM_P2G_CLUSTER) && RTMPM_P2G_CLUSTER > 1
     __shared__ ClusterTiles tiles;
     g2p2g_cluster_body<true>(c, tiles);
+#elif RTMPM_G2P_HALO
+    __shared__ HaloTiles tiles;
+    g2p2g_halo_body<true>(c, tiles);
 #else
     g2p2g_body<true>(c);
 #endif

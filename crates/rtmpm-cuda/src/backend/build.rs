@@ -392,6 +392,8 @@ impl Plan {
             batch: self.batch,
             ck_min_blocks: o.ck_min_blocks,
             cluster: o.cluster,
+            halo: o.halo,
+            sorted_warps: o.sorted_warps,
         })
         .map_err(SimError::Backend)?;
         // Single stream: no cross-stream event tracking (keeps launches capturable).
