@@ -52,6 +52,13 @@ struct ColliderPoses {
     float omega[RTMPM_MAX_COLLIDERS][3];     // angular velocity at t (world frame)
 };
 
+// One collider's pose at the step's time: a row of a batch's per-world table (c_batch.poses,
+// worlds x n_colliders rows; crate::contract::GpuColliderPose).
+struct GpuColliderPose {
+    float rot[9];  // rest -> world rotation at t (column-major)
+    float pivot[3], velocity[3], omega[3];
+};
+
 // A rigid body at the step's time (rtmpm_rigid::BodyState; constant memory: body_at(c, b)):
 // its shape about the centre of mass as a collider shape (pivot 0) with its boundary rule.
 struct GpuBody {
@@ -239,10 +246,12 @@ __device__ __forceinline__ unsigned state_bits(real w) {
 struct BatchParams {
     unsigned worlds, materials, stride, origin;
     const real* gravity;  // 3 per world
-    // Worlds with colliders of their own (static ones: crate::batch::colliders): n_colliders
-    // records and one pose per world; null: every world's are the scene's (c_colliders, c_poses).
+    // Worlds with colliders of their own (crate::batch::colliders): n_colliders records and
+    // n_colliders poses per world (row world * n_colliders + k; the poses at the step's time,
+    // uploaded each step while a collider of some world moves); null: every world's are the
+    // scene's (c_colliders, c_poses).
     const GpuCollider* colliders;
-    const ColliderPoses* poses;
+    const GpuColliderPose* poses;
 };
 static_assert(sizeof(BatchParams) == 40, "BatchParams: crate::batch::BatchParams");
 __constant__ BatchParams c_batch;

@@ -48,17 +48,16 @@ extern "C" __global__ void grid_update(Ctx c, unsigned part) {
 // boundary).
 __device__ vec3 node_boundary(const Ctx& c, unsigned t, vec3 v) {
     const Scalars& sc = scalars(c);
-#ifndef RTMPM_BATCH
     const ColliderPoses& pose = poses(c);
-#endif
     unsigned id = t >> 6, cell = t & 63u;
     int gi[3] = {c.block_coords[3 * id] * 4 + (int)(cell >> 4), c.block_coords[3 * id + 1] * 4 + (int)((cell >> 2) & 3u),
                  c.block_coords[3 * id + 2] * 4 + (int)(cell & 3u)};
 #ifdef RTMPM_BATCH
     unsigned world = node_world(gi[0]);
     gi[0] -= world_cells(world);  // in the node's world's own grid
-    // The world's own colliders and poses, or the scene's shared by every world.
-    const ColliderPoses& pose = c_batch.poses ? c_batch.poses[world] : poses(c);
+    // The world's own colliders and poses (rows world * n_colliders + k), or the scene's shared
+    // by every world.
+    const GpuColliderPose* own = c_batch.poses ? c_batch.poses + world * c.n_colliders : nullptr;
 #endif
     // Walls (rtmpm_physics::boundary::Walls::apply): index counted from the domain min = gi - 4.
     for (int a = 0; a < 3; ++a) {
@@ -84,6 +83,21 @@ __device__ vec3 node_boundary(const Ctx& c, unsigned t, vec3 v) {
             GpuCollider col = collider_at(c, k);
 #endif
             mat3 R;
+#ifdef RTMPM_BATCH
+            // The world's own pose row at the step's time: the formula below on it (the single
+            // run's lines are left as they are, so its PTX does not change).
+            if (own) {
+                const GpuColliderPose& p = own[k];
+                for (int q = 0; q < 9; ++q) R.m[q] = p.rot[q];
+                vec3 pt = v3f(p.pivot);
+                vec3 xr = transpose(R) * (x - pt) + v3f(col.pivot);
+                if (shape_distance(c, col, xr) > 0) continue;
+                vec3 n = normalize_or_y(R * shape_normal(c, col, xr));
+                vec3 vc = v3f(p.velocity) + cross(v3f(p.omega), x - pt);
+                v = vc + rule_apply(col.cond, col.friction, v - vc, n);
+                continue;
+            }
+#endif
             for (int q = 0; q < 9; ++q) R.m[q] = pose.rot[k][q];
             vec3 pt = v3f(pose.pivot[k]);
             vec3 xr = transpose(R) * (x - pt) + v3f(col.pivot);

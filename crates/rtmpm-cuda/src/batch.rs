@@ -22,13 +22,14 @@
 //! only (in the world's coordinates) and sums the reaction of every body, dynamic or not, per
 //! world and body: the loads of [`Worlds::world_rigid_loads`], and what moves a dynamic body.
 //!
-//! Colliders ([`colliders`]): the scene's, shared by every world, or, when the worlds' static
-//! colliders differ (place, size, turn, boundary rule), each world's own records and poses in
-//! per-world tables that the grid update reads by the node's world.
+//! Colliders ([`colliders`]): the scene's, shared by every world, or, when the worlds'
+//! colliders differ (place, size, turn, boundary rule, velocity, keyframes), each world's own
+//! records and poses in per-world tables that the grid update reads by the node's world; the
+//! poses of moving ones evaluated on the host for every world at each step's time.
 //!
-//! What a batch shares: the time step (the caller's; one `dt` for every world), the domain and
-//! grid spacing, the walls and solver, the number of colliders and rigid bodies (and a mesh's
-//! mesh), the moving colliders. Not yet: emitters, moving colliders that differ between worlds.
+//! What a batch shares: the time step (the caller's; one `dt` for every world: the driver's
+//! bound counts every world, [`CudaBatch::scene`]), the domain and grid spacing, the walls and
+//! solver, the number of colliders and rigid bodies (and a mesh's mesh). Not yet: emitters.
 
 mod bodies;
 mod colliders;
@@ -103,6 +104,8 @@ pub struct CudaBatch {
     point: Option<CudaSlice<u8>>,
     /// The device had no memory for the point: the driver keeps it on the host instead.
     no_point: bool,
+    /// The scene of the shared clock ([`CudaBatch::scene`]).
+    clock: Scene,
 }
 
 impl CudaBatch {
@@ -121,15 +124,13 @@ impl CudaBatch {
             )));
         }
         check_particles(worlds, particles)?;
-        let base = &worlds[0];
-        let m = base.materials.len();
-        let stride = world_stride(base.n_cells()[0] as usize);
-        let mut merged = base.clone();
-        merged.materials = worlds.iter().flat_map(|s| s.materials.clone()).collect();
-        // The step's gravity bound (rtmpm-driver's CFL) is the strongest world's.
-        merged.gravity = worlds.iter().map(|s| s.gravity).fold(Vec3::ZERO, |a, g| {
-            if g.length() > a.length() { g } else { a }
-        });
+        let m = worlds[0].materials.len();
+        let stride = world_stride(worlds[0].n_cells()[0] as usize);
+        let merged = merged_scene(worlds);
+        let clock = Scene {
+            colliders: colliders::clock_colliders(worlds),
+            ..merged.clone()
+        };
         let mut all = Particles::default();
         let mut offsets = vec![0];
         for (w, p) in particles.iter().enumerate() {
@@ -208,6 +209,7 @@ impl CudaBatch {
             colliders,
             point: None,
             no_point: false,
+            clock,
         })
     }
 
@@ -221,11 +223,13 @@ impl CudaBatch {
         self.params
     }
 
-    /// The scene the kernels run: world 0's, with every world's materials (rows `w *
-    /// materials ..` are world `w`'s) and the strongest world's gravity (what bounds the
-    /// shared time step).
+    /// The scene of the worlds' shared clock, which the driver steps the batch by: world 0's,
+    /// with every world's materials (rows `w * materials ..` are world `w`'s, as in the
+    /// kernels), the strongest world's gravity, and after world 0's colliders every other
+    /// world's moving colliders that are not world 0's (what bounds the shared time step: its
+    /// CFL step counts the fastest collider of any world, and ends at any world's keyframe).
     pub fn scene(&self) -> &Scene {
-        &self.backend.scene
+        &self.clock
     }
 
     /// The one backend that holds every world (for its timing and memory figures).
@@ -243,12 +247,16 @@ impl CudaBatch {
         self.colliders.as_ref().map_or(0, |c| c.bytes())
     }
 
-    /// One step of `dt` for every world at time `t`: every world's rigid bodies go to the
-    /// device before it, and advance by it after (their sums read back).
+    /// One step of `dt` for every world at time `t`: every world's rigid bodies, and the poses
+    /// of its own moving colliders at `t`, go to the device before it, and the bodies advance
+    /// by it after (their sums read back).
     pub fn step(&mut self, dt: f32, t: f32) -> Result<(), SimError> {
         let stream = self.backend.stream.clone();
         if let Some(b) = self.bodies.as_mut() {
             b.upload(&stream)?;
+        }
+        if let Some(c) = self.colliders.as_mut() {
+            c.update(&stream, t)?;
         }
         self.backend.step(dt, t)?;
         match self.bodies.as_mut() {
@@ -572,6 +580,17 @@ fn world_of(all: &Particles, offsets: &[usize], materials: usize, w: usize) -> P
     }
 }
 
+/// The scene the kernels run: world 0's, with every world's materials (rows `w * m ..` are
+/// world `w`'s) and the strongest world's gravity (the driver's gravity bound on the step).
+fn merged_scene(worlds: &[Scene]) -> Scene {
+    let mut merged = worlds[0].clone();
+    merged.materials = worlds.iter().flat_map(|s| s.materials.clone()).collect();
+    merged.gravity = worlds.iter().map(|s| s.gravity).fold(Vec3::ZERO, |a, g| {
+        if g.length() > a.length() { g } else { a }
+    });
+    merged
+}
+
 /// The worlds' rigid bodies on `backend` (built for the merged scene, world 0's bodies): the
 /// single run's bodies it made are dropped (their mesh offsets kept: the mesh table is world
 /// 0's, which every world shares) and every world's take their place in the kernels' `Ctx`.
@@ -636,7 +655,7 @@ pub fn unsupported(worlds: &[Scene], options: &CudaOptions) -> Option<String> {
             return Some(format!(
                 "world {w} differs from world 0 in its domain, grid spacing, walls, solver or \
                  number of materials: on the GPU the worlds share those (they may differ in \
-                 material values, gravity, static colliders and rigid bodies)"
+                 material values, gravity, colliders and rigid bodies)"
             ));
         }
     }

@@ -4,7 +4,8 @@
 //! built in f64 (rtmpm-physics-f64) from the scene's parameters, so the GPU's f64 materials are the CPU's.
 
 use crate::contract::{
-    self, ColliderPoses, GpuCollider, GpuReal, MAX_COLLIDERS, MAX_MATERIALS, Scalars, StepParams,
+    self, ColliderPoses, GpuCollider, GpuColliderPose, GpuReal, MAX_COLLIDERS, MAX_MATERIALS,
+    Scalars, StepParams,
 };
 use rtmpm_geometry::Collider;
 use rtmpm_geometry::Shape;
@@ -196,18 +197,26 @@ pub fn step_bytes(scene: &Scene, dt: f32, t: f32, f64: bool, without_t: bool) ->
     }
 }
 
-/// Every collider's pose and velocity at time `t`, as the CPU backend evaluates them
-/// (`Collider::rotation`, `pivot_at`, `motion_at`: constant velocities or keyframes).
+/// Every collider's pose and velocity at time `t` ([`collider_pose`]).
 pub fn poses(scene: &Scene, t: f32) -> ColliderPoses {
     let mut p = ColliderPoses::default();
     for (k, c) in scene.colliders.iter().enumerate().take(MAX_COLLIDERS) {
-        p.rot[k] = c.rotation(t).to_cols_array();
-        p.pivot[k] = c.pivot_at(t).to_array();
-        let (v, w) = c.motion_at(t);
-        p.velocity[k] = v.to_array();
-        p.omega[k] = w.to_array();
+        let r = collider_pose(c, t);
+        (p.rot[k], p.pivot[k], p.velocity[k], p.omega[k]) = (r.rot, r.pivot, r.velocity, r.omega);
     }
     p
+}
+
+/// Collider `c`'s pose and velocity at time `t`, as the CPU backend evaluates them
+/// (`Collider::rotation`, `pivot_at`, `motion_at`: constant velocities or keyframes).
+pub fn collider_pose(c: &Collider, t: f32) -> GpuColliderPose {
+    let (v, w) = c.motion_at(t);
+    GpuColliderPose {
+        rot: c.rotation(t).to_cols_array(),
+        pivot: c.pivot_at(t).to_array(),
+        velocity: v.to_array(),
+        omega: w.to_array(),
+    }
 }
 
 /// The user's tool as the grid update reads it (`kernels/grid_update.cu`: `node_boundary`): its

@@ -1,13 +1,22 @@
-//! Worlds with static colliders of their own in a batch on the GPU (`rtmpm_cuda::batch::CudaBatch`:
-//! per-world collider tables; needs a GPU, skips with a message otherwise), against the same
-//! worlds run one by one on the CUDA backend:
-//! `cargo test --release -p rtmpm-cuda --test batch_colliders -- --include-ignored --nocapture`.
+//! Worlds with colliders of their own in a batch on the GPU (`rtmpm_cuda::batch::CudaBatch`:
+//! per-world collider tables; static obstacles, and pushers whose motion differs, posed per
+//! world each step; needs a GPU, skips with a message otherwise), against the same worlds run
+//! one by one on the CUDA backend and on the CPU backend:
+//! `cargo test --release -p rtmpm-cuda --test batch_colliders -- --include-ignored --nocapture
+//! --test-threads 1`.
+//!
+//! Both tests run the same two programs (one world's kernels and the batch's, precise math,
+//! specialised to the water's model): the first test of a process with a cold kernel cache
+//! (`RTMPM_CACHE_DIR`, and the driver's JIT cache) compiles them with NVRTC, side by side on two
+//! threads, and the driver turns their PTX into machine code; the second finds them cached.
 
+use rtmpm_cpu::CpuBackend;
 use rtmpm_cuda::batch::CudaBatch;
 use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
 use rtmpm_physics::Particles;
 use rtmpm_scene::Scene;
 use rtmpm_sim::Backend;
+use std::time::Instant;
 
 fn gpu() -> bool {
     match probe() {
@@ -25,20 +34,67 @@ fn read(b: &mut dyn Backend) -> Particles {
     p
 }
 
-/// A water column (0.1 x 0.2 x 0.28 m at 2 cm cells) collapsing against an obstacle of world
-/// `w`'s own: a box 2 cm further along x in each world, a ball in world 2, sticky in world 3
-/// (slip elsewhere).
-fn world(w: usize) -> Scene {
-    let x = 0.18 + 0.02 * w as f32;
-    let obstacle = if w == 2 {
-        "shape = \"sphere\"\ncenter = [0.24, 0.06, 0.2]\nradius = 0.06\n".to_string()
-    } else {
-        format!(
-            "shape = \"box\"\nmin = [{x}, 0.0, 0.12]\nmax = [{}, 0.12, 0.28]\n",
-            x + 0.04
-        )
-    };
-    let rule = if w == 3 { "sticky" } else { "slip" };
+/// Precise math (as the agreement tests compare), the kernels specialised to the scenes'
+/// models (water only: a smaller program to compile).
+fn options() -> CudaOptions {
+    CudaOptions {
+        fast_math: false,
+        specialize: true,
+        ..CudaOptions::default()
+    }
+}
+
+fn max_diff(a: &Particles, b: &Particles) -> (f32, f32) {
+    assert_eq!(a.len(), b.len());
+    let mut dx = 0.0f32;
+    let mut dv = 0.0f32;
+    for i in 0..a.len() {
+        dx = dx.max((a.x[i] - b.x[i]).length());
+        dv = dv.max((a.v[i] - b.v[i]).length());
+    }
+    (dx, dv)
+}
+
+/// The agreement test's tolerances (tests/agreement.rs, as tests/batch.rs compares a world of a
+/// batch with its separate run): after one step every particle (|dx| <= 1e-5 dx + 1e-6, |dv|
+/// <= 1e-3 of the speed scale); at the end the centre of mass within 0.1 cell, kinetic energy
+/// within 2 %, bounding box within a cell.
+fn agrees(
+    what: &str,
+    one_step: Option<(&Particles, &Particles)>,
+    a: &Particles,
+    b: &Particles,
+    dx: f32,
+) -> Vec<String> {
+    let mut failures = Vec::new();
+    if let Some((a1, b1)) = one_step {
+        let vscale = a1.v.iter().map(|v| v.length()).fold(1e-3f32, f32::max);
+        let (wx, wv) = max_diff(a1, b1);
+        if wx > 1e-5 * dx.max(1e-3) + 1e-6 || wv > 1e-3 * vscale {
+            failures.push(format!(
+                "{what}: first step differs: |dx| {wx:.3e}, |dv| {wv:.3e}"
+            ));
+        }
+    }
+    let d = a.aggregate_difference(b);
+    let dxd = dx as f64;
+    println!(
+        "{what}: |d com| {:.4} dx, KE {:.4e} vs {:.4e} ({:.3} %), |d bbox| {:.3} dx",
+        d.com / dxd,
+        a.kinetic_energy(),
+        b.kinetic_energy(),
+        100.0 * d.kinetic,
+        d.bbox / dxd
+    );
+    if d.com > 0.1 * dxd || d.kinetic > 0.02 || d.bbox > dxd {
+        failures.push(format!("{what}: aggregates differ"));
+    }
+    failures
+}
+
+/// A water column (0.1 x 0.2 x 0.28 m at 2 cm cells, 8 particles a cell) in a 0.4 m box with
+/// `colliders` (`[[collider]]` tables).
+fn water_with(colliders: &str) -> Scene {
     let text = format!(
         r#"name = "obstacle"
 [domain]
@@ -62,75 +118,139 @@ shape = "box"
 min = [0.06, 0.06, 0.06]
 max = [0.16, 0.26, 0.34]
 particles_per_cell = 8
-[[collider]]
-{obstacle}condition = "{rule}"
-"#
+{colliders}"#
     );
     Scene::from_toml(&text, "obstacle.toml").unwrap_or_else(|e| panic!("{e}"))
 }
 
-/// Four worlds whose obstacles differ (place, shape, boundary rule) in one batch give, world by
-/// world, the particles of their separate CUDA runs after 500 steps (0.1 s: the water front
-/// reaches every obstacle): the agreement test's aggregate tolerances (centre of mass within
-/// 0.1 cell, kinetic energy within 2 %, bounding box within a cell), while the worlds differ
-/// from each other by more than that (the check could see a world reading another's
-/// obstacle). About 5 s on an H200.
-#[test]
-#[ignore = "needs a CUDA GPU"]
-fn worlds_with_their_own_obstacles_agree_with_their_separate_runs() {
-    let worlds: Vec<Scene> = (0..4).map(world).collect();
-    if !gpu() {
-        return;
-    }
-    let options = CudaOptions {
-        fast_math: false,
-        ..CudaOptions::default()
+/// A water column collapsing against an obstacle of world `w`'s own: a box 2 cm further along
+/// x in each world, a ball in world 2, sticky in world 3 (slip elsewhere).
+fn world(w: usize) -> Scene {
+    let x = 0.18 + 0.02 * w as f32;
+    let obstacle = if w == 2 {
+        "shape = \"sphere\"\ncenter = [0.24, 0.06, 0.2]\nradius = 0.06\n".to_string()
+    } else {
+        format!(
+            "shape = \"box\"\nmin = [{x}, 0.0, 0.12]\nmax = [{}, 0.12, 0.28]\n",
+            x + 0.04
+        )
     };
-    let p0: Vec<Particles> = worlds
-        .iter()
-        .map(|s| s.sample_particles().expect("particles"))
-        .collect();
-    let mut batch = CudaBatch::new(&worlds, &p0, options.clone()).expect("batch");
+    let rule = if w == 3 { "sticky" } else { "slip" };
+    water_with(&format!("[[collider]]\n{obstacle}condition = \"{rule}\"\n"))
+}
+
+const DT: f32 = 2e-4;
+
+/// Every world's particles after the first step and at the end of a run.
+struct Ends {
+    first: Vec<Particles>,
+    last: Vec<Particles>,
+}
+
+/// The worlds from `p0` for `steps` steps of [`DT`] in one batch.
+fn run_batch(worlds: &[Scene], p0: &[Particles], steps: usize) -> Ends {
+    let mut batch = CudaBatch::new(worlds, p0, options()).expect("batch");
     assert!(
         batch.collider_bytes() > 0,
         "the worlds read tables of their own"
     );
-    let mut single: Vec<CudaBackend> = worlds
-        .iter()
-        .zip(&p0)
-        .map(|(s, p)| CudaBackend::new(s, p, options.clone()).expect("world"))
-        .collect();
-    let dt = 2e-4f32;
-    for s in 0..500 {
-        let t = s as f32 * dt;
-        batch.step(dt, t).expect("batch step");
-        for b in &mut single {
-            b.step(dt, t).expect("step");
+    let mut first = Vec::new();
+    for s in 0..steps {
+        batch.step(DT, s as f32 * DT).expect("batch step");
+        if s == 0 {
+            first = batch.read_worlds().expect("read");
         }
     }
     assert!(
         batch.bad_world().expect("check").is_none(),
         "a world blew up"
     );
-    let got = batch.read_worlds().expect("read");
-    let dx = worlds[0].dx as f64;
-    let mut failures = Vec::new();
-    for w in 0..worlds.len() {
-        let want = read(&mut single[w]);
-        let d = got[w].aggregate_difference(&want);
-        println!(
-            "world {w}: |d com| {:.4} dx, KE {:.4e} vs {:.4e} ({:.3} %), |d bbox| {:.3} dx",
-            d.com / dx,
-            got[w].kinetic_energy(),
-            want.kinetic_energy(),
-            100.0 * d.kinetic,
-            d.bbox / dx
-        );
-        if d.com > 0.1 * dx || d.kinetic > 0.02 || d.bbox > dx {
-            failures.push(format!("world {w}: aggregates differ"));
+    let last = batch.read_worlds().expect("read");
+    Ends { first, last }
+}
+
+/// Each of `runs` (one world each) for `steps` steps of [`DT`].
+fn run_each<B: Backend>(mut runs: Vec<B>, steps: usize) -> Ends {
+    let mut first = Vec::new();
+    for s in 0..steps {
+        for b in &mut runs {
+            b.step(DT, s as f32 * DT).expect("step");
+        }
+        if s == 0 {
+            first = runs.iter_mut().map(|b| read(b)).collect();
         }
     }
-    for (a, b) in [(0, 1), (0, 2), (1, 3)] {
+    for (w, b) in runs.iter_mut().enumerate() {
+        assert!(b.check().expect("check").is_none(), "world {w} blew up");
+    }
+    let last = runs.iter_mut().map(|b| read(b)).collect();
+    Ends { first, last }
+}
+
+/// The worlds `worlds` for `steps` steps of [`DT`] in one batch and one by one on the CUDA
+/// backend (and on the CPU backend with `cpu`, what a batch on the CPU runs world by world),
+/// each world's particles compared with its separate runs after the first step and at the end
+/// ([`agrees`]); the batch's worlds at the end, and the failures. The batch runs on a thread of
+/// its own beside the separate runs: with a cold kernel cache its program and one world's are
+/// compiled side by side.
+fn batch_and_separate_runs(
+    worlds: &[Scene],
+    steps: usize,
+    cpu: bool,
+) -> (Vec<Particles>, Vec<String>) {
+    let start = Instant::now();
+    let p0: Vec<Particles> = worlds
+        .iter()
+        .map(|s| s.sample_particles().expect("particles"))
+        .collect();
+    let (batch, single, on_cpu) = std::thread::scope(|scope| {
+        let batch = scope.spawn(|| run_batch(worlds, &p0, steps));
+        let single: Vec<CudaBackend> = worlds
+            .iter()
+            .zip(&p0)
+            .map(|(s, p)| CudaBackend::new(s, p, options()).expect("world"))
+            .collect();
+        let single = run_each(single, steps);
+        let on_cpu = cpu.then(|| {
+            let runs: Vec<CpuBackend> = worlds
+                .iter()
+                .zip(&p0)
+                .map(|(s, p)| CpuBackend::new(s, p.clone(), None).expect("cpu"))
+                .collect();
+            run_each(runs, steps)
+        });
+        (batch.join().expect("the batch's thread"), single, on_cpu)
+    });
+    let mut failures = Vec::new();
+    for (w, world) in worlds.iter().enumerate() {
+        let dx = world.dx;
+        let what = format!("world {w} after {steps} steps vs its CUDA run");
+        let one = (&batch.first[w], &single.first[w]);
+        failures.extend(agrees(
+            &what,
+            Some(one),
+            &batch.last[w],
+            &single.last[w],
+            dx,
+        ));
+        if let Some(c) = &on_cpu {
+            let what = format!("world {w} after {steps} steps vs its CPU run");
+            let one = (&c.first[w], &batch.first[w]);
+            failures.extend(agrees(&what, Some(one), &c.last[w], &batch.last[w], dx));
+        }
+    }
+    println!(
+        "built, {steps} steps and compared in {:.1} s",
+        start.elapsed().as_secs_f64()
+    );
+    (batch.last, failures)
+}
+
+/// The worlds `got` differ pairwise (`pairs`) by more than the tolerances: a world reading
+/// another's colliders would be seen.
+fn assert_the_worlds_differ(got: &[Particles], pairs: &[(usize, usize)], dx: f32) {
+    let dx = dx as f64;
+    for &(a, b) in pairs {
         let d = got[a].aggregate_difference(&got[b]);
         println!(
             "world {a} vs world {b}: |d com| {:.3} dx, KE {:.2} %, |d bbox| {:.2} dx",
@@ -143,5 +263,70 @@ fn worlds_with_their_own_obstacles_agree_with_their_separate_runs() {
             "worlds {a} and {b} end alike: the check could not see a mix-up"
         );
     }
+}
+
+/// Four worlds whose obstacles differ (place, shape, boundary rule) in one batch give, world by
+/// world, the particles of their separate CUDA runs after 500 steps (0.1 s: the water front
+/// reaches every obstacle): the agreement test's tolerances ([`agrees`]), while the worlds
+/// differ from each other by more than that (the check could see a world reading another's
+/// obstacle). About 2 s on an H200 in release with the kernels cached, plus the compilation
+/// of the two programs with a cold cache.
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn worlds_with_their_own_obstacles_agree_with_their_separate_runs() {
+    let worlds: Vec<Scene> = (0..4).map(world).collect();
+    if !gpu() {
+        return;
+    }
+    let (got, failures) = batch_and_separate_runs(&worlds, 500, false);
+    assert_the_worlds_differ(&got, &[(0, 1), (0, 2), (1, 3)], worlds[0].dx);
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// World `w` with two colliders: a static block on the far side at its own height (collider 0)
+/// and a paddle across the tank on the water's near side (collider 1, its face on the column's
+/// x = 0.06 m side) that pushes the water along +x each world its own way: world 0 at 0.25 m/s,
+/// world 1 at 0.6 m/s, world 2 at 0.4 m/s turning about y at 2 rad/s, world 3 keyframed (still
+/// for 20 ms, 1 m/s to 60 ms, then back at 0.5 m/s).
+fn pusher_world(w: usize) -> Scene {
+    let motion = match w {
+        0 => "velocity = [0.25, 0.0, 0.0]\n".to_string(),
+        1 => "velocity = [0.6, 0.0, 0.0]\n".to_string(),
+        2 => "velocity = [0.4, 0.0, 0.0]\nangular_velocity = [0.0, 2.0, 0.0]\n".to_string(),
+        _ => "keyframes = [{ t = 0.0, position = [0.03, 0.17, 0.2] }, \
+              { t = 0.02, position = [0.03, 0.17, 0.2] }, \
+              { t = 0.06, position = [0.07, 0.17, 0.2] }, \
+              { t = 0.08, position = [0.06, 0.17, 0.2] }]\n"
+            .to_string(),
+    };
+    let top = 0.1 + 0.02 * w as f32;
+    water_with(&format!(
+        "[[collider]]\nshape = \"box\"\nmin = [0.26, 0.0, 0.1]\nmax = [0.3, {top}, 0.3]\n\
+         condition = \"slip\"\n\
+         [[collider]]\nshape = \"box\"\nmin = [0.0, 0.04, 0.04]\nmax = [0.06, 0.3, 0.36]\n\
+         condition = \"slip\"\n{motion}"
+    ))
+}
+
+/// Four worlds whose paddles move differently (speed, spin, keyframes: the sweep of a pusher's
+/// motion), beside a static block of each world's own, in one batch: each world's poses go up
+/// every step, and each world gives the particles of its separate CUDA run and of its CPU run
+/// (the CPU backend's poses are the reference) after the first step and after 400 steps (80 ms:
+/// the paddles are 2 to 5 cm into the water), within the agreement test's tolerances, while the
+/// worlds differ from each other by more than that. About 3 s on an H200 in release with the
+/// kernels cached (those of the test above; the CPU runs take most of it).
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn worlds_whose_pushers_move_differently_agree_with_their_cuda_and_cpu_runs() {
+    let worlds: Vec<Scene> = (0..4).map(pusher_world).collect();
+    assert!(
+        rtmpm_cuda::batch::unsupported(&worlds, &options()).is_none(),
+        "the GPU batch runs these worlds"
+    );
+    if !gpu() {
+        return;
+    }
+    let (got, failures) = batch_and_separate_runs(&worlds, 400, true);
+    assert_the_worlds_differ(&got, &[(0, 1), (1, 2), (0, 3), (2, 3)], worlds[0].dx);
     assert!(failures.is_empty(), "{failures:#?}");
 }

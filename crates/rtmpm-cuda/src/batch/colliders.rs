@@ -1,16 +1,19 @@
 //! Worlds with colliders of their own in a GPU batch ([`super::CudaBatch`]): when the worlds'
-//! colliders differ (a swept obstacle's place, size, shape, boundary rule or friction), every
-//! world's collider records and poses go to per-world tables on the device once, and the grid
-//! update reads a node's world's (`kernels/grid_update.cu`: `node_boundary`, through
-//! `c_batch.colliders` and `c_batch.poses`); when they are the same in every world, the scene's
-//! shared tables serve them all, as before.
+//! colliders differ (a swept obstacle's place, size, shape, boundary rule or friction, or a
+//! pusher's speed or keyframes), every world's collider records go to a per-world table on the
+//! device once, and their poses at the step's time to another, `worlds x n_colliders` rows
+//! ([`GpuColliderPose`]); the grid update reads a node's world's rows (`kernels/grid_update.cu`:
+//! `node_boundary`, through `c_batch.colliders` and `c_batch.poses`). When they are the same in
+//! every world, the scene's shared tables serve them all, as before.
 //!
-//! Only static colliders may differ: a collider that moves (a velocity, an angular velocity or
-//! keyframes) in any world is the same in every world, so the shared clock's time step (the
-//! driver's CFL bound reads world 0's colliders) and its reset rule hold for every world, and
-//! the tables never change after they are made.
+//! Static colliders' poses go up once. While a collider of some world moves (a velocity, an
+//! angular velocity or keyframes), every world's poses are evaluated on the host at each step's
+//! time by the CPU backend's formula (`crate::encode::collider_pose`: `Collider::rotation`,
+//! `pivot_at`, `motion_at`) and the table goes up before the step when it changed. The shared
+//! clock's time step counts every world's colliders (the scene [`super::CudaBatch::scene`] gives
+//! the driver).
 
-use crate::contract::{ColliderPoses, GpuCollider};
+use crate::contract::{GpuCollider, GpuColliderPose};
 use crate::error::err;
 use cudarc::driver::{CudaSlice, CudaStream, DevicePtr};
 use rtmpm_geometry::{Collider, Shape};
@@ -22,13 +25,18 @@ use std::sync::Arc;
 pub(crate) struct WorldColliders {
     /// `worlds x n_colliders` [`GpuCollider`] records.
     records: CudaSlice<u8>,
-    /// One [`ColliderPoses`] per world.
+    /// `worlds x n_colliders` [`GpuColliderPose`] rows.
     poses: CudaSlice<u8>,
+    /// Every world's colliders, when one of them moves (the poses follow the clock); empty:
+    /// every collider is static and the poses went up once.
+    moving: Vec<Vec<Collider>>,
+    /// The rows last uploaded.
+    last: Vec<GpuColliderPose>,
 }
 
 impl WorldColliders {
-    /// The worlds' own tables, or `None` when their colliders are the same (the scene's serve
-    /// every world); the worlds passed [`refusal`].
+    /// The worlds' own tables (their poses at time 0), or `None` when their colliders are the
+    /// same (the scene's serve every world); the worlds passed [`refusal`].
     pub fn new(
         worlds: &[Scene],
         stream: &Arc<CudaStream>,
@@ -37,19 +45,44 @@ impl WorldColliders {
             return Ok(None);
         }
         let mut records: Vec<GpuCollider> = Vec::new();
-        let mut poses: Vec<ColliderPoses> = Vec::with_capacity(worlds.len());
         for s in worlds {
             records.extend(crate::encode::colliders(s)?.0);
-            // Static colliders: their pose at any time.
-            poses.push(crate::encode::poses(s, 0.0));
         }
+        let all: Vec<Vec<Collider>> = worlds.iter().map(|s| s.colliders.clone()).collect();
+        let last = pose_rows(&all, 0.0);
         let records = stream
             .clone_htod(bytemuck::cast_slice::<GpuCollider, u8>(&records))
             .map_err(err("upload the worlds' colliders"))?;
-        let poses = stream
-            .clone_htod(bytemuck::cast_slice::<ColliderPoses, u8>(&poses))
-            .map_err(err("upload the worlds' collider poses"))?;
-        Ok(Some(WorldColliders { records, poses }))
+        // At least one byte: a table of no rows is still an address.
+        let mut poses = stream
+            .alloc_zeros::<u8>((last.len() * size_of::<GpuColliderPose>()).max(1))
+            .map_err(err("allocate the worlds' collider poses"))?;
+        upload(stream, &last, &mut poses)?;
+        let moving = if all.iter().flatten().any(moves) {
+            all
+        } else {
+            Vec::new()
+        };
+        Ok(Some(WorldColliders {
+            records,
+            poses,
+            moving,
+            last,
+        }))
+    }
+
+    /// Before the step from time `t`: every world's poses at `t`, uploaded when they changed
+    /// (only while a collider moves).
+    pub fn update(&mut self, stream: &Arc<CudaStream>, t: f32) -> Result<(), SimError> {
+        if self.moving.is_empty() {
+            return Ok(());
+        }
+        let rows = pose_rows(&self.moving, t);
+        if rows != self.last {
+            upload(stream, &rows, &mut self.poses)?;
+            self.last = rows;
+        }
+        Ok(())
     }
 
     /// Bytes of the tables.
@@ -65,6 +98,31 @@ impl WorldColliders {
     }
 }
 
+/// Copy the rows `rows` to the poses table `to` (in order on `stream`, behind the last step).
+fn upload(
+    stream: &Arc<CudaStream>,
+    rows: &[GpuColliderPose],
+    to: &mut CudaSlice<u8>,
+) -> Result<(), SimError> {
+    let bytes: &[u8] = bytemuck::cast_slice(rows);
+    if bytes.is_empty() {
+        return Ok(());
+    }
+    stream
+        .memcpy_htod(bytes, &mut to.slice_mut(..bytes.len()))
+        .map_err(err("upload the worlds' collider poses"))
+}
+
+/// Every world's collider poses at time `t`, world by world (row `w * n + k`: collider `k` of
+/// world `w`; every world has `n`), by the CPU backend's formula.
+pub(crate) fn pose_rows(worlds: &[Vec<Collider>], t: f32) -> Vec<GpuColliderPose> {
+    worlds
+        .iter()
+        .flatten()
+        .map(|c| crate::encode::collider_pose(c, t))
+        .collect()
+}
+
 /// Whether some world's colliders differ from world 0's.
 fn differ(worlds: &[Scene]) -> bool {
     let Some(base) = worlds.first() else {
@@ -76,15 +134,36 @@ fn differ(worlds: &[Scene]) -> bool {
 }
 
 /// A collider that moves with the clock.
-fn moves(c: &Collider) -> bool {
+pub(crate) fn moves(c: &Collider) -> bool {
     c.keyframes.is_some()
         || c.velocity != rtmpm_physics::math::Vec3::ZERO
         || c.angular_velocity != rtmpm_physics::math::Vec3::ZERO
 }
 
+/// The colliders that bound the shared clock of the worlds: world 0's, then every other
+/// world's moving colliders that are not world 0's (so the driver's CFL step counts the
+/// fastest collider of any world, a step ends at any world's keyframe, and a reset of some
+/// worlds is refused when a collider of any world moves with the clock).
+pub(crate) fn clock_colliders(worlds: &[Scene]) -> Vec<Collider> {
+    let Some(base) = worlds.first() else {
+        return Vec::new();
+    };
+    let mut out = base.colliders.clone();
+    let mut seen: Vec<String> = out.iter().map(|c| format!("{c:?}")).collect();
+    for c in worlds.iter().skip(1).flat_map(|s| &s.colliders) {
+        let key = format!("{c:?}");
+        if moves(c) && !seen.contains(&key) {
+            out.push(c.clone());
+            seen.push(key);
+        }
+    }
+    out
+}
+
 /// Why the worlds' colliders cannot run in one GPU batch, or `None`: the same in every world,
-/// or as many in every world, each a mesh only where world 0's is the same mesh, and the
-/// colliders that move the same in every world (only static ones differ).
+/// or as many in every world, each a mesh only where world 0's is the same mesh (the mesh
+/// table is shared). They may differ in anything else, moving or not (place, size, shape,
+/// boundary rule, velocity, angular velocity, keyframes).
 pub fn refusal(worlds: &[Scene]) -> Option<String> {
     if !differ(worlds) {
         return None;
@@ -95,22 +174,11 @@ pub fn refusal(worlds: &[Scene]) -> Option<String> {
         if s.colliders.len() != n {
             return Some(format!(
                 "world {w} has {} colliders and world 0 has {n}: on the GPU every world has the \
-                 same number (their static ones may differ in place, shape and boundary rule)",
+                 same number (they may differ in place, shape, boundary rule and motion)",
                 s.colliders.len()
             ));
         }
         for (k, (c, c0)) in s.colliders.iter().zip(&base.colliders).enumerate() {
-            let same = format!("{c:?}") == format!("{c0:?}");
-            if same {
-                continue;
-            }
-            if moves(c) || moves(c0) {
-                return Some(format!(
-                    "collider {k} moves and differs between world 0 and world {w}: on the GPU \
-                     only static colliders may differ between worlds (a moving one is the same \
-                     in every world)"
-                ));
-            }
             let mesh = |s: &Shape| matches!(s, Shape::Mesh(_));
             if (mesh(&c.shape) || mesh(&c0.shape)) && c.shape != c0.shape {
                 return Some(format!(
@@ -145,11 +213,11 @@ mod tests {
         )
     }
 
-    /// Worlds whose static colliders differ (place, rule) run with tables of their own;
-    /// the same colliders need none; different counts and moving colliders that differ are
-    /// refused with the reason; a moving collider the same in every world is fine.
+    /// Worlds whose colliders differ (place, rule, motion) run with tables of their own; the
+    /// same colliders need none; different counts and different meshes are refused with the
+    /// reason.
     #[test]
-    fn static_colliders_may_differ_between_worlds_and_the_rest_is_refused_with_the_reason() {
+    fn colliders_may_differ_between_worlds_moving_or_not_and_counts_are_refused() {
         let same = [scene(&wall(0.2, "")), scene(&wall(0.2, ""))];
         assert!(!differ(&same) && refusal(&same).is_none());
         let placed = [
@@ -169,14 +237,133 @@ mod tests {
         );
         let moving = [
             scene(&wall(0.2, "velocity = [0.1, 0.0, 0.0]\n")),
-            scene(&wall(0.24, "velocity = [0.1, 0.0, 0.0]\n")),
+            scene(&wall(0.24, "velocity = [0.3, 0.0, 0.0]\n")),
+            scene(&wall(0.24, "")),
         ];
-        let why = crate::batch::unsupported(&moving, &o).expect("refused");
-        assert!(why.contains("collider 0 moves and differs"), "{why}");
+        assert!(differ(&moving));
+        assert_eq!(crate::batch::unsupported(&moving, &o), None);
+        let moving_counts = [
+            scene(&wall(0.2, "velocity = [0.1, 0.0, 0.0]\n")),
+            scene(&format!(
+                "{}{}",
+                wall(0.2, "velocity = [0.2, 0.0, 0.0]\n"),
+                wall(0.3, "")
+            )),
+        ];
+        let why = crate::batch::unsupported(&moving_counts, &o).expect("refused");
+        assert!(
+            why.contains("world 1 has 2 colliders and world 0 has 1"),
+            "{why}"
+        );
         let both = [
             scene(&wall(0.2, "velocity = [0.1, 0.0, 0.0]\n")),
             scene(&wall(0.2, "velocity = [0.1, 0.0, 0.0]\n")),
         ];
+        assert!(!differ(&both));
         assert_eq!(crate::batch::unsupported(&both, &o), None);
+    }
+
+    /// A pusher swept over its speed in one world, keyframed in another, static in a third: the
+    /// pose rows at any time are, world by world, the single run's poses of that world
+    /// (`encode::poses`, what a separate CUDA run uploads), in rows `w * n + k`.
+    #[test]
+    fn each_worlds_pose_rows_are_its_single_runs_poses_at_every_time() {
+        let keyframed = "keyframes = [{ t = 0.0, position = [0.22, 0.075, 0.2] }, \
+                         { t = 0.05, position = [0.24, 0.075, 0.2], rotation = [0.0, 0.5, 0.0] }, \
+                         { t = 0.1, position = [0.22, 0.1, 0.2] }]\n";
+        let worlds = [
+            scene(&format!(
+                "{}{}",
+                wall(0.2, "velocity = [0.1, 0.0, 0.0]\n"),
+                wall(0.3, "")
+            )),
+            scene(&format!(
+                "{}{}",
+                wall(
+                    0.2,
+                    "velocity = [0.4, 0.0, 0.0]\nangular_velocity = [0.0, 1.0, 0.0]\n"
+                ),
+                wall(0.3, "")
+            )),
+            scene(&format!("{}{}", wall(0.2, keyframed), wall(0.3, ""))),
+            scene(&format!("{}{}", wall(0.24, ""), wall(0.3, ""))),
+        ];
+        assert_eq!(refusal(&worlds), None);
+        let all: Vec<Vec<Collider>> = worlds.iter().map(|s| s.colliders.clone()).collect();
+        assert!(
+            all[2][0].keyframes.is_some(),
+            "world 2's pusher is keyframed"
+        );
+        for t in [0.0f32, 0.01, 0.03, 0.05, 0.07, 0.2] {
+            let rows = pose_rows(&all, t);
+            assert_eq!(rows.len(), 4 * 2);
+            for (w, s) in worlds.iter().enumerate() {
+                let single = crate::encode::poses(s, t);
+                for k in 0..2 {
+                    let r = rows[w * 2 + k];
+                    assert_eq!(r.rot, single.rot[k], "world {w}, collider {k}, t {t}");
+                    assert_eq!(r.pivot, single.pivot[k], "world {w}, collider {k}, t {t}");
+                    assert_eq!(r.velocity, single.velocity[k], "world {w}, collider {k}");
+                    assert_eq!(r.omega, single.omega[k], "world {w}, collider {k}");
+                }
+            }
+        }
+        // The worlds' pushers are where their own motion puts them.
+        let at = pose_rows(&all, 0.05);
+        assert!(
+            (at[0].pivot[0] - (0.22 + 0.1 * 0.05)).abs() < 1e-6,
+            "{:?}",
+            at[0]
+        );
+        assert!(
+            (at[2].pivot[0] - (0.22 + 0.4 * 0.05)).abs() < 1e-6,
+            "{:?}",
+            at[2]
+        );
+        assert_eq!(at[6].velocity, [0.0; 3], "world 3's wall is static");
+        assert_ne!(at[0], at[2]);
+        assert_ne!(at[2], at[4]);
+        // The static second wall is the same row in every world.
+        assert!((0..4).all(|w| at[w * 2 + 1] == at[1]));
+    }
+
+    /// The shared clock's colliders: world 0's, then the moving ones of the other worlds that
+    /// are not world 0's (each once): the CFL bound counts the fastest of any world and a step
+    /// ends at any world's keyframe.
+    #[test]
+    fn the_shared_clock_counts_every_worlds_moving_colliders() {
+        let keyframed = "keyframes = [{ t = 0.0, position = [0.22, 0.075, 0.2] }, \
+                         { t = 0.05, position = [0.22, 0.075, 0.2] }, \
+                         { t = 0.06, position = [0.27, 0.075, 0.2] }]\n";
+        let worlds = [
+            scene(&wall(0.2, "")),
+            scene(&wall(0.2, "velocity = [0.5, 0.0, 0.0]\n")),
+            scene(&wall(0.2, "velocity = [2.0, 0.0, 0.0]\n")),
+            scene(&wall(0.2, "velocity = [0.5, 0.0, 0.0]\n")),
+            scene(&wall(0.2, keyframed)),
+        ];
+        let clock = Scene {
+            colliders: clock_colliders(&worlds),
+            ..worlds[0].clone()
+        };
+        assert_eq!(clock.colliders.len(), 4, "world 0's, then 3 moving ones");
+        assert_eq!(
+            format!("{:?}", clock.colliders[0]),
+            format!("{:?}", worlds[0].colliders[0])
+        );
+        let fastest = rtmpm_scene::speeds::fastest_boundary(&clock, (0.0, 0.0), &[])
+            .expect("a moving collider");
+        assert!((fastest.speed - 2.0).abs() < 1e-6, "{fastest:?}");
+        // World 0 alone would not bound the step at all.
+        assert!(rtmpm_scene::speeds::fastest_boundary(&worlds[0], (0.0, 0.0), &[]).is_none());
+        // World 4's keyframe at 0.05 s (5 m/s after it) ends a step that would pass it.
+        let step = rtmpm_scene::speeds::keyframe_step(&clock, 0.049, 0.01, |v| 0.2 * 0.02 / v);
+        assert!((step - 0.001).abs() < 1e-6, "{step}");
+        // Same colliders everywhere: the clock's are world 0's.
+        let same = [
+            scene(&wall(0.2, "velocity = [0.5, 0.0, 0.0]\n")),
+            scene(&wall(0.2, "velocity = [0.5, 0.0, 0.0]\n")),
+        ];
+        assert_eq!(clock_colliders(&same).len(), 1);
     }
 }

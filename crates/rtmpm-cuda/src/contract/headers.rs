@@ -104,6 +104,11 @@ fn layouts<R: GpuReal>() -> Vec<Layout> {
             [rot, pivot, velocity, omega]
         ),
         layout!(
+            GpuColliderPose,
+            "GpuColliderPose",
+            [rot, pivot, velocity, omega]
+        ),
+        layout!(
             GpuCollider,
             "GpuCollider",
             [kind, cond, friction, mesh_offset, pivot, p, dims, pad]

@@ -232,6 +232,22 @@ impl Default for ColliderPoses {
     }
 }
 
+/// One collider's pose and velocity at the step's time, as a row of a batch's per-world table
+/// (`c_batch.poses`, `worlds x n_colliders` rows: [`crate::batch`]); the fields of one collider
+/// of [`ColliderPoses`] (`crate::encode::collider_pose`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuColliderPose {
+    /// Rest-to-world rotation at t, column-major.
+    pub rot: [f32; 9],
+    /// Pivot at t.
+    pub pivot: [f32; 3],
+    /// Linear velocity of the pivot at t.
+    pub velocity: [f32; 3],
+    /// Angular velocity at t (rad/s, world frame).
+    pub omega: [f32; 3],
+}
+
 /// A collider (constant memory `c_colliders`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
