@@ -14,7 +14,7 @@ use rtmpm_cpu::CpuBackend;
 use rtmpm_cuda::batch::CudaBatch;
 use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
 use rtmpm_physics::Particles;
-use rtmpm_scene::Scene;
+use rtmpm_scene::{BatchScene, Scene, StepMode};
 use rtmpm_sim::Backend;
 use std::time::Instant;
 
@@ -95,7 +95,13 @@ fn agrees(
 /// A water column (0.1 x 0.2 x 0.28 m at 2 cm cells, 8 particles a cell) in a 0.4 m box with
 /// `colliders` (`[[collider]]` tables).
 fn water_with(colliders: &str) -> Scene {
-    let text = format!(
+    let text = water_text(colliders);
+    Scene::from_toml(&text, "obstacle.toml").unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The scene file of [`water_with`], at fixed steps of [`DT`].
+fn water_text(colliders: &str) -> String {
+    format!(
         r#"name = "obstacle"
 [domain]
 min = [0.0, 0.0, 0.0]
@@ -119,8 +125,7 @@ min = [0.06, 0.06, 0.06]
 max = [0.16, 0.26, 0.34]
 particles_per_cell = 8
 {colliders}"#
-    );
-    Scene::from_toml(&text, "obstacle.toml").unwrap_or_else(|e| panic!("{e}"))
+    )
 }
 
 /// A water column collapsing against an obstacle of world `w`'s own: a box 2 cm further along
@@ -329,4 +334,76 @@ fn worlds_whose_pushers_move_differently_agree_with_their_cuda_and_cpu_runs() {
     let (got, failures) = batch_and_separate_runs(&worlds, 400, true);
     assert_the_worlds_differ(&got, &[(0, 1), (1, 2), (0, 3), (2, 3)], worlds[0].dx);
     assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// The driver's shared clock counts every world's colliders: two worlds whose paddle is swept
+/// over its speed (`[batch.sweep]` of `collider[1].velocity`: 0.25 and 2.5 m/s) at CFL steps,
+/// one frame (20 ms) through the lockstep driver (what `rtmpm run --backend cuda` and Python's
+/// GPU batch drive). Every step is at most the CFL step of world 1's paddle (`cfl dx` over its
+/// speed plus the sound speed; world 0's alone would allow 1.7 times longer ones), the worlds
+/// stay healthy and differ. Under a second on an H200 in release with the kernels of the tests above
+/// cached.
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn the_shared_time_step_follows_the_fastest_worlds_paddle() {
+    use rtmpm_driver::batch::BatchOptions;
+    use rtmpm_driver::batch::lockstep::LockstepRun;
+    let paddle = "[[collider]]\nshape = \"box\"\nmin = [0.26, 0.0, 0.1]\nmax = [0.3, 0.1, 0.3]\n\
+                  [[collider]]\nshape = \"box\"\nmin = [0.0, 0.04, 0.04]\n\
+                  max = [0.06, 0.3, 0.36]\nvelocity = [0.25, 0.0, 0.0]\n\
+                  [batch]\ncount = 2\n[batch.sweep]\n\
+                  \"collider[1].velocity\" = [[0.25, 0.0, 0.0], [2.5, 0.0, 0.0]]\n";
+    // CFL steps, not capped by max_dt below the paddles' bounds.
+    let text = water_text(paddle).replace("dt = 2e-4\n", "max_dt = 0.01\n");
+    let b = BatchScene::from_toml(&text, "paddles.toml").unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(b.worlds[1].colliders[1].velocity.x, 2.5);
+    let StepMode::Cfl { cfl, .. } = b.base.time.step else {
+        panic!("CFL steps expected: {:?}", b.base.time.step);
+    };
+    let m = &b.base.materials[0];
+    let sound = m.model.sound_speed(m.density);
+    let bound = cfl * b.base.dx / (2.5 + sound);
+    let slow = cfl * b.base.dx / (0.25 + sound);
+    assert!(bound < slow && slow < 0.01, "{bound} {slow}");
+    if !gpu() {
+        return;
+    }
+    let p0: Vec<Particles> = b
+        .worlds
+        .iter()
+        .map(|s| s.sample_particles().expect("particles"))
+        .collect();
+    let batch = CudaBatch::new(&b.worlds, &p0, options()).expect("batch");
+    let scene = batch.scene().clone();
+    let options = BatchOptions {
+        frames: Some(1),
+        ..BatchOptions::default()
+    };
+    let mut r =
+        LockstepRun::new(&b, &text, scene, Box::new(batch), &options).expect("lockstep run");
+    let mut longest = 0.0f32;
+    while r.sim.frame < 1 {
+        r.advance_steps(1).expect("a step");
+        longest = longest.max(r.sim.last_dt);
+    }
+    println!(
+        "{} steps in the frame, the longest {longest:.3e} s; the fast paddle's CFL step \
+         {bound:.3e} s, the slow one's {slow:.3e} s",
+        r.sim.step
+    );
+    assert!(
+        longest <= bound * (1.0 + 1e-5),
+        "a step of {longest:.3e} s: longer than the fast paddle's CFL step {bound:.3e} s"
+    );
+    assert!(r.sim.step as f32 >= 0.02 / bound - 1e-3);
+    r.sync().expect("read the worlds");
+    assert_eq!(r.running(), 2, "both worlds healthy");
+    assert_the_worlds_differ(
+        &[
+            r.worlds[0].particles().clone(),
+            r.worlds[1].particles().clone(),
+        ],
+        &[(0, 1)],
+        b.base.dx,
+    );
 }
