@@ -225,9 +225,11 @@ impl CudaBatch {
 
     /// The scene of the worlds' shared clock, which the driver steps the batch by: world 0's,
     /// with every world's materials (rows `w * materials ..` are world `w`'s, as in the
-    /// kernels), the strongest world's gravity, and after world 0's colliders every other
-    /// world's moving colliders that are not world 0's (what bounds the shared time step: its
-    /// CFL step counts the fastest collider of any world, and ends at any world's keyframe).
+    /// kernels), the strongest world's gravity, and every world's moving colliders (collider
+    /// `k` is world 0's, or the first world's that moves when world 0's is static; the other
+    /// moving ones after them): what bounds the shared time step (its CFL step counts the
+    /// fastest collider of any world and ends at any world's keyframe) and refuses a reset of
+    /// some worlds while a collider of any world moves.
     pub fn scene(&self) -> &Scene {
         &self.clock
     }

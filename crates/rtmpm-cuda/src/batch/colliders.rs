@@ -140,17 +140,30 @@ pub(crate) fn moves(c: &Collider) -> bool {
         || c.angular_velocity != rtmpm_physics::math::Vec3::ZERO
 }
 
-/// The colliders that bound the shared clock of the worlds: world 0's, then every other
-/// world's moving colliders that are not world 0's (so the driver's CFL step counts the
+/// The colliders that bound the shared clock of the worlds (so the driver's CFL step counts the
 /// fastest collider of any world, a step ends at any world's keyframe, and a reset of some
-/// worlds is refused when a collider of any world moves with the clock).
+/// worlds is refused when a collider of any world moves with the clock): collider `k` is world
+/// 0's, or when that one is static the first world's collider `k` that moves (so a message
+/// naming collider `k` names it in every world's file), then every other world's moving
+/// colliders not already among them (each once).
 pub(crate) fn clock_colliders(worlds: &[Scene]) -> Vec<Collider> {
     let Some(base) = worlds.first() else {
         return Vec::new();
     };
-    let mut out = base.colliders.clone();
+    let mut out: Vec<Collider> = base
+        .colliders
+        .iter()
+        .enumerate()
+        .map(|(k, c0)| {
+            let moving = worlds
+                .iter()
+                .filter_map(|s| s.colliders.get(k))
+                .find(|c| moves(c));
+            moving.unwrap_or(c0).clone()
+        })
+        .collect();
     let mut seen: Vec<String> = out.iter().map(|c| format!("{c:?}")).collect();
-    for c in worlds.iter().skip(1).flat_map(|s| &s.colliders) {
+    for c in worlds.iter().flat_map(|s| &s.colliders) {
         let key = format!("{c:?}");
         if moves(c) && !seen.contains(&key) {
             out.push(c.clone());
@@ -346,11 +359,14 @@ mod tests {
             colliders: clock_colliders(&worlds),
             ..worlds[0].clone()
         };
-        assert_eq!(clock.colliders.len(), 4, "world 0's, then 3 moving ones");
-        assert_eq!(
-            format!("{:?}", clock.colliders[0]),
-            format!("{:?}", worlds[0].colliders[0])
-        );
+        // World 0's wall is static: collider 0 of the clock is world 1's (the first that
+        // moves), then world 2's and world 4's (world 3's is world 1's).
+        assert_eq!(clock.colliders.len(), 3, "{:?}", clock.colliders);
+        let key = |c: &Collider| format!("{c:?}");
+        assert_eq!(key(&clock.colliders[0]), key(&worlds[1].colliders[0]));
+        assert_eq!(key(&clock.colliders[1]), key(&worlds[2].colliders[0]));
+        assert_eq!(key(&clock.colliders[2]), key(&worlds[4].colliders[0]));
+        assert_eq!(clock.colliders.iter().position(moves), Some(0));
         let fastest = rtmpm_scene::speeds::fastest_boundary(&clock, (0.0, 0.0), &[])
             .expect("a moving collider");
         assert!((fastest.speed - 2.0).abs() < 1e-6, "{fastest:?}");
@@ -359,6 +375,17 @@ mod tests {
         // World 4's keyframe at 0.05 s (5 m/s after it) ends a step that would pass it.
         let step = rtmpm_scene::speeds::keyframe_step(&clock, 0.049, 0.01, |v| 0.2 * 0.02 / v);
         assert!((step - 0.001).abs() < 1e-6, "{step}");
+        // World 0's moving collider keeps its place; a static one of every world is world 0's.
+        let two = |v: &str| format!("{}{}", wall(0.1, ""), wall(0.2, v));
+        let mixed = [
+            scene(&two("velocity = [0.5, 0.0, 0.0]\n")),
+            scene(&two("velocity = [1.0, 0.0, 0.0]\n")),
+        ];
+        let c = clock_colliders(&mixed);
+        assert_eq!(c.len(), 3);
+        assert_eq!(key(&c[0]), key(&mixed[0].colliders[0]));
+        assert_eq!(key(&c[1]), key(&mixed[0].colliders[1]));
+        assert_eq!(key(&c[2]), key(&mixed[1].colliders[1]));
         // Same colliders everywhere: the clock's are world 0's.
         let same = [
             scene(&wall(0.2, "velocity = [0.5, 0.0, 0.0]\n")),
