@@ -69,7 +69,7 @@ struct Gathered {
 /// world runs in the same CUDA kernels, each isolated in the grid, at one time step for all
 /// worlds (the smallest any world needs); a world's time, frames and steps count from its last
 /// reset; each world's rigid bodies are its own there too. What the GPU batch does not do
-/// (emitters, worlds that differ in domain, moving colliders or number of rigid bodies)
+/// (emitters, worlds that differ in domain or number of colliders or rigid bodies)
 /// raises an error naming it and ``backend="cpu"``.
 ///
 /// Arrays: :attr:`x`, :attr:`v`, :attr:`mass`, :attr:`material` are shaped ``(N, n, ...)``
