@@ -175,4 +175,59 @@ mod tests {
         };
         assert_eq!(c.kind, want, "{}", c.reason);
     }
+
+    /// A pusher's motion swept over the worlds (`[batch.sweep]` of a collider's velocity, or of
+    /// a key of its keyframes) is a batch the GPU runs, so `auto` takes it to the GPU when one
+    /// is usable; worlds with different numbers of colliders still go to the CPU, saying why.
+    #[test]
+    fn a_sweep_of_a_pushers_motion_runs_on_the_gpu_batch() {
+        let pusher = "[[collider]]\nshape = \"box\"\nmin = [0.0, 0.0, 0.0]\n\
+                      max = [0.2, 0.8, 1.0]\n";
+        let sweeps = [
+            format!(
+                "{pusher}velocity = [0.1, 0.0, 0.0]\n[batch]\ncount = 4\n[batch.sweep]\n\
+                 \"collider[0].velocity[0]\" = {{ from = 0.1, to = 1.0 }}\n"
+            ),
+            format!(
+                "{pusher}keyframes = [{{ t = 0.0, position = [0.1, 0.4, 0.5] }}, \
+                 {{ t = 0.05, position = [0.2, 0.4, 0.5] }}]\n[batch]\ncount = 3\n\
+                 [batch.sweep]\n\"collider[0].keyframes[1].t\" = [0.02, 0.05, 0.08]\n"
+            ),
+        ];
+        let opts = CudaOptions::default();
+        for extra in sweeps {
+            let text = format!(
+                "[domain]\nmin = [0,0,0]\nmax = [1,1,1]\ndx = 0.1\n[time]\nduration = 0.1\n\
+                 [[material]]\nname = \"w\"\ntype = \"fluid\"\ndensity = 1000.0\n\
+                 bulk_modulus = 1e4\n[[body]]\nmaterial = \"w\"\nshape = \"box\"\n\
+                 min = [0.3,0.3,0.3]\nmax = [0.5,0.5,0.5]\n{extra}"
+            );
+            let b = rtmpm_scene::BatchScene::from_toml(&text, "<test>")
+                .unwrap_or_else(|e| panic!("{e}"));
+            let (first, last) = (
+                &b.worlds[0].colliders[0],
+                &b.worlds[b.count() - 1].colliders[0],
+            );
+            assert_ne!(
+                format!("{first:?}"),
+                format!("{last:?}"),
+                "the worlds differ"
+            );
+            let support = rtmpm_cuda::batch::unsupported(&b.worlds, &opts);
+            assert_eq!(support, None);
+            let c = choose(BackendKind::Auto, GPU, support.as_deref()).unwrap();
+            assert_eq!(c.kind, BackendKind::Cuda, "{}", c.reason);
+        }
+        let one =
+            scene("[[collider]]\nshape = \"sphere\"\ncenter = [0.7, 0.2, 0.5]\nradius = 0.1\n");
+        let why = rtmpm_cuda::batch::unsupported(&[one, scene("")], &opts).expect("refused");
+        let c = choose(BackendKind::Auto, GPU, Some(&why)).unwrap();
+        assert_eq!(c.kind, BackendKind::Cpu);
+        assert!(
+            c.reason
+                .contains("world 1 has 0 colliders and world 0 has 1"),
+            "{}",
+            c.reason
+        );
+    }
 }
