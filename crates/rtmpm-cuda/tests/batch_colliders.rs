@@ -129,14 +129,15 @@ particles_per_cell = 8
 }
 
 /// A water column collapsing against an obstacle of world `w`'s own: a box 2 cm further along
-/// x in each world, a ball in world 2, sticky in world 3 (slip elsewhere).
+/// x in each world, a ball in world 2, sticky in world 3 (slip elsewhere). The faces lie 1 mm
+/// off the grid's nodes (see [`pusher_world`]).
 fn world(w: usize) -> Scene {
-    let x = 0.18 + 0.02 * w as f32;
+    let x = 0.181 + 0.02 * w as f32;
     let obstacle = if w == 2 {
-        "shape = \"sphere\"\ncenter = [0.24, 0.06, 0.2]\nradius = 0.06\n".to_string()
+        "shape = \"sphere\"\ncenter = [0.241, 0.061, 0.201]\nradius = 0.06\n".to_string()
     } else {
         format!(
-            "shape = \"box\"\nmin = [{x}, 0.0, 0.12]\nmax = [{}, 0.12, 0.28]\n",
+            "shape = \"box\"\nmin = [{x}, 0.0, 0.121]\nmax = [{}, 0.121, 0.281]\n",
             x + 0.04
         )
     };
@@ -289,26 +290,30 @@ fn worlds_with_their_own_obstacles_agree_with_their_separate_runs() {
 }
 
 /// World `w` with two colliders: a static block on the far side at its own height (collider 0)
-/// and a paddle across the tank on the water's near side (collider 1, its face on the column's
-/// x = 0.06 m side) that pushes the water along +x each world its own way: world 0 at 0.25 m/s,
-/// world 1 at 0.6 m/s, world 2 at 0.4 m/s turning about y at 2 rad/s, world 3 keyframed (still
-/// for 20 ms, 1 m/s to 60 ms, then back at 0.5 m/s).
+/// and a 4 cm paddle across the tank on the water's near side (collider 1, its face 1 mm short
+/// of the column's x = 0.06 m side) that pushes the water along +x each world its own way:
+/// world 0 at 0.25 m/s, world 1 at 0.6 m/s, world 2 at 0.4 m/s turning about y at 2 rad/s,
+/// world 3 keyframed (still for 20 ms, 1 m/s to 60 ms, then back at 0.5 m/s). No face of a
+/// collider lies on the grid's nodes at the start (x and y 1 mm off them): a node exactly on a
+/// face is inside or outside by the last bit of the arithmetic, which the CPU comparison
+/// would see (the first step's velocities of the CPU's f32 and f64 builds differ by the
+/// paddle's speed there).
 fn pusher_world(w: usize) -> Scene {
     let motion = match w {
         0 => "velocity = [0.25, 0.0, 0.0]\n".to_string(),
         1 => "velocity = [0.6, 0.0, 0.0]\n".to_string(),
         2 => "velocity = [0.4, 0.0, 0.0]\nangular_velocity = [0.0, 2.0, 0.0]\n".to_string(),
-        _ => "keyframes = [{ t = 0.0, position = [0.03, 0.17, 0.2] }, \
-              { t = 0.02, position = [0.03, 0.17, 0.2] }, \
-              { t = 0.06, position = [0.07, 0.17, 0.2] }, \
-              { t = 0.08, position = [0.06, 0.17, 0.2] }]\n"
+        _ => "keyframes = [{ t = 0.0, position = [0.029, 0.171, 0.2] }, \
+              { t = 0.02, position = [0.029, 0.171, 0.2] }, \
+              { t = 0.06, position = [0.069, 0.171, 0.2] }, \
+              { t = 0.08, position = [0.059, 0.171, 0.2] }]\n"
             .to_string(),
     };
-    let top = 0.1 + 0.02 * w as f32;
+    let top = 0.101 + 0.02 * w as f32;
     water_with(&format!(
-        "[[collider]]\nshape = \"box\"\nmin = [0.26, 0.0, 0.1]\nmax = [0.3, {top}, 0.3]\n\
+        "[[collider]]\nshape = \"box\"\nmin = [0.261, 0.0, 0.101]\nmax = [0.301, {top}, 0.301]\n\
          condition = \"slip\"\n\
-         [[collider]]\nshape = \"box\"\nmin = [0.0, 0.04, 0.04]\nmax = [0.06, 0.3, 0.36]\n\
+         [[collider]]\nshape = \"box\"\nmin = [0.009, 0.041, 0.041]\nmax = [0.049, 0.301, 0.359]\n\
          condition = \"slip\"\n{motion}"
     ))
 }
