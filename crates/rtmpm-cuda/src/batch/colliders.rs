@@ -17,8 +17,10 @@ use crate::contract::{GpuCollider, GpuColliderPose};
 use crate::error::err;
 use cudarc::driver::{CudaSlice, CudaStream, DevicePtr};
 use rtmpm_geometry::{Collider, Shape};
+use rtmpm_physics::math::Vec3;
 use rtmpm_scene::Scene;
 use rtmpm_sim::SimError;
+use std::collections::HashSet;
 use std::sync::Arc;
 
 /// Every world's collider records and poses on the device.
@@ -128,16 +130,29 @@ fn differ(worlds: &[Scene]) -> bool {
     let Some(base) = worlds.first() else {
         return false;
     };
-    let key = |s: &Scene| format!("{:?}", s.colliders);
-    let want = key(base);
-    worlds.iter().skip(1).any(|s| key(s) != want)
+    worlds.iter().skip(1).any(|s| {
+        s.colliders.len() != base.colliders.len()
+            || s.colliders
+                .iter()
+                .zip(&base.colliders)
+                .any(|(a, b)| !same(a, b))
+    })
+}
+
+/// Whether two colliders are the same: motion and rule first, the shape last (a mesh's
+/// distance grid is compared only when everything else is the same).
+fn same(a: &Collider, b: &Collider) -> bool {
+    a.velocity == b.velocity
+        && a.angular_velocity == b.angular_velocity
+        && a.pivot == b.pivot
+        && a.keyframes == b.keyframes
+        && a.rule == b.rule
+        && a.shape == b.shape
 }
 
 /// A collider that moves with the clock.
 pub(crate) fn moves(c: &Collider) -> bool {
-    c.keyframes.is_some()
-        || c.velocity != rtmpm_physics::math::Vec3::ZERO
-        || c.angular_velocity != rtmpm_physics::math::Vec3::ZERO
+    c.keyframes.is_some() || c.velocity != Vec3::ZERO || c.angular_velocity != Vec3::ZERO
 }
 
 /// The colliders that bound the shared clock of the worlds (so the driver's CFL step counts the
@@ -162,12 +177,24 @@ pub(crate) fn clock_colliders(worlds: &[Scene]) -> Vec<Collider> {
             moving.unwrap_or(c0).clone()
         })
         .collect();
-    let mut seen: Vec<String> = out.iter().map(|c| format!("{c:?}")).collect();
+    // What the clock reads of a collider (its motion, and its rest bounds for a spin's reach):
+    // colliders alike in it count once, in time linear in the worlds.
+    let clock_key = |c: &Collider| {
+        let f = |v: Vec3| v.to_array().map(f32::to_bits);
+        let bounds = c.shape.finite_bounds().map(|(lo, hi)| (f(lo), f(hi)));
+        let keys = format!("{:?}", c.keyframes);
+        (
+            f(c.velocity),
+            f(c.angular_velocity),
+            f(c.pivot),
+            bounds,
+            keys,
+        )
+    };
+    let mut seen: HashSet<_> = out.iter().map(clock_key).collect();
     for c in worlds.iter().flat_map(|s| &s.colliders) {
-        let key = format!("{c:?}");
-        if moves(c) && !seen.contains(&key) {
+        if moves(c) && seen.insert(clock_key(c)) {
             out.push(c.clone());
-            seen.push(key);
         }
     }
     out
