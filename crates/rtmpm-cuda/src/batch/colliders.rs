@@ -16,6 +16,7 @@
 use crate::contract::{GpuCollider, GpuColliderPose};
 use crate::error::err;
 use cudarc::driver::{CudaSlice, CudaStream, DevicePtr};
+use rayon::prelude::*;
 use rtmpm_geometry::{Collider, Shape};
 use rtmpm_physics::math::Vec3;
 use rtmpm_scene::Scene;
@@ -116,12 +117,13 @@ fn upload(
 }
 
 /// Every world's collider poses at time `t`, world by world (row `w * n + k`: collider `k` of
-/// world `w`; every world has `n`), by the CPU backend's formula.
+/// world `w`; every world has `n`), by the CPU backend's formula; the worlds on every core (in
+/// order).
 pub(crate) fn pose_rows(worlds: &[Vec<Collider>], t: f32) -> Vec<GpuColliderPose> {
     worlds
-        .iter()
-        .flatten()
-        .map(|c| crate::encode::collider_pose(c, t))
+        .par_iter()
+        .with_min_len(256)
+        .flat_map_iter(|w| w.iter().map(|c| crate::encode::collider_pose(c, t)))
         .collect()
 }
 
@@ -365,6 +367,11 @@ mod tests {
         assert_ne!(at[2], at[4]);
         // The static second wall is the same row in every world.
         assert!((0..4).all(|w| at[w * 2 + 1] == at[1]));
+        // Many worlds (evaluated on every core) keep their order.
+        let many: Vec<Vec<Collider>> = (0..3000).map(|w| all[w % 4].clone()).collect();
+        let rows = pose_rows(&many, 0.05);
+        assert_eq!(rows.len(), 6000);
+        assert!((0..6000).all(|r| rows[r] == at[r % 8]));
     }
 
     /// The shared clock's colliders: world 0's, then the moving ones of the other worlds that
