@@ -446,6 +446,18 @@ mod tests {
             // with the batch's kernels.
             &["-DRTMPM_WARP_LIST_SORTED=1"],
             &["-DRTMPM_WARP_LIST_SORTED=1", "-DRTMPM_BATCH"],
+            // The halo's two ways of gathering a particle outside the window in both fused
+            // kernels (the default takes one in each).
+            &[
+                "-DRTMPM_G2P_HALO=2",
+                "-DRTMPM_WARP_LIST_SORTED=1",
+                "-DRTMPM_G2P_HALO_MIXED=0",
+            ],
+            &[
+                "-DRTMPM_G2P_HALO=1",
+                "-DRTMPM_WARP_LIST_SORTED=1",
+                "-DRTMPM_G2P_HALO_MIXED=1",
+            ],
             // The G2P gather from a shared-memory halo (halo=async) in the batch's kernels.
             &[
                 "-DRTMPM_G2P_HALO=2",

@@ -58,6 +58,15 @@
 #if RTMPM_G2P_HALO_N != 6 && RTMPM_G2P_HALO_N != 8 && RTMPM_G2P_HALO_N != 10
 #error "RTMPM_G2P_HALO_N: 6, 8 or 10 nodes"
 #endif
+// How a particle outside the window gathers (compile-time): 0 a branch, the window's gather or
+// the grid's (g2p_gather), each its own code; 1 one code path whose loads take each lane's node
+// from the window or the grid (generic loads; HaloOrGridNodes in particle.cuh); 2 (default) 1 in
+// the general kernel, 0 in the fluid one: what spills least at 96 registers (ptxas 13.0, sm_90,
+// f32: the general kernel 120 / 128 bytes of spill stores / loads with 0 and 52 / 76 with 1, the
+// fluid kernel in the fluid layout 0 / 0 with 0 and 68 / 76 with 1).
+#ifndef RTMPM_G2P_HALO_MIXED
+#define RTMPM_G2P_HALO_MIXED 2
+#endif
 #define HALO_N RTMPM_G2P_HALO_N
 #define HALO_LO (-(RTMPM_G2P_HALO_N - 6) / 2)
 #define HALO_NODES (HALO_N * HALO_N * HALO_N)

@@ -180,6 +180,44 @@ __device__ __forceinline__ void g2p_gather_sums(const Nodes& nodes, const real w
     *b_out = mat3_from_cols(b0, b1, b2);
 }
 
+#if RTMPM_G2P_HALO
+// The gather's two sources in one code path (RTMPM_G2P_HALO_MIXED, halo.cuh): each lane's 27
+// nodes from the window (`in`) or from the grid (`sb`, read only then), one generic load a node;
+// the sums as g2p_gather_sums makes them for either.
+struct HaloOrGridNodes {
+    bool in;
+    const real* grid;
+    const real* tile;
+    unsigned first;
+    StencilBlocks sb;
+    struct Row {
+        const real* p[2];  // the row's first node in the window (both), or its two pblocks' nodes
+    };
+    __device__ __forceinline__ Row row(int i, int j) const {
+        Row r;
+        if (in) {
+            r.p[0] = r.p[1] = tile + 4u * (first + (unsigned)(i * HALO_N + j) * HALO_N);
+        } else {
+            unsigned id[2];
+            stencil_row_blocks(sb, sb.hi[0][i], sb.hi[1][j], id);
+            unsigned cell = sb.cell[0][i] | sb.cell[1][j];
+            r.p[0] = grid + 4u * (id[0] * 64u + cell);
+            r.p[1] = grid + 4u * (id[1] * 64u + cell);
+        }
+        return r;
+    }
+    __device__ __forceinline__ vec3 velocity(const Row& r, int k) const {
+        const real* n = in ? r.p[0] + 4 * k : (sb.hi[2][k] ? r.p[1] : r.p[0]) + 4u * sb.cell[2][k];
+#ifdef RTMPM_F64
+        return make_v3(n[1], n[2], n[3]);
+#else
+        float4 nd = *reinterpret_cast<const float4*>(n);
+        return make_v3(nd.y, nd.z, nd.w);
+#endif
+    }
+};
+#endif
+
 // v = sum w v_i and B = sum w v_i (i, j, k)^T over the stencil of the particle at base/wt.
 __device__ __forceinline__ void g2p_gather(const Ctx& c, const int* bc, const unsigned* nbs, const int base[3],
                                            const real wt[3][3], vec3* v_out, mat3* b_out) {
@@ -232,7 +270,16 @@ __device__ __forceinline__ G2pResult g2p_particle(const Ctx& c, unsigned g, unsi
     mat3 B;
 #if RTMPM_G2P_HALO
     unsigned first;
-    if (halo && halo_window(bc, base, &first)) {
+    bool in = halo && halo_window(bc, base, &first);
+    if constexpr (RTMPM_G2P_HALO_MIXED == 1 || (RTMPM_G2P_HALO_MIXED == 2 && !ALL_FLUID)) {
+        HaloOrGridNodes nodes;
+        nodes.in = in;
+        nodes.grid = c.grid;
+        nodes.tile = halo;
+        nodes.first = first;
+        if (!in) nodes.sb = stencil_blocks(c.neighbors + 27 * g, bc, base);
+        g2p_gather_sums(nodes, wt, &v, &B);
+    } else if (in) {
         HaloNodes nodes = {halo, first};
         g2p_gather_sums(nodes, wt, &v, &B);
     } else {
