@@ -318,6 +318,55 @@ fn pusher_world(w: usize) -> Scene {
     ))
 }
 
+/// Every node of `scene`'s grid that the first step's transfer reaches (the 3 x 3 x 3
+/// stencils of the particles' bounding box; positions as the CPU backend computes them, origin
+/// plus index times dx) at least `margin` from every collider's surface at the times `ts`.
+fn nodes_off_the_faces(scene: &Scene, ts: &[f32], margin: f32) -> Result<(), String> {
+    let p = scene.sample_particles().map_err(|e| e.to_string())?;
+    let origin = scene.domain_min - glam::Vec3::splat(4.0 * scene.dx);
+    let base = |x: glam::Vec3| ((x - origin) / scene.dx - 0.5).floor().as_ivec3();
+    let lo = p.x.iter().fold(glam::Vec3::INFINITY, |a, &x| a.min(x));
+    let hi = p.x.iter().fold(glam::Vec3::NEG_INFINITY, |a, &x| a.max(x));
+    let (lo, hi) = (base(lo), base(hi) + glam::IVec3::splat(2));
+    for (k, c) in scene.colliders.iter().enumerate() {
+        for &t in ts {
+            for i in lo.x..=hi.x {
+                for j in lo.y..=hi.y {
+                    for l in lo.z..=hi.z {
+                        let x = origin + glam::IVec3::new(i, j, l).as_vec3() * scene.dx;
+                        let d = c.distance(x, t);
+                        if d.abs() < margin {
+                            return Err(format!(
+                                "collider {k} at t = {t}: node {x} is {d:e} m from its surface"
+                            ));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The scenes of the tests above and below keep every node that the first step's transfer
+/// reaches at least 0.5 mm off every collider face during that step, which they compare
+/// particle by particle with the CPU backend. A node exactly on a face is inside (distance <= 0) or not by the last bit of its
+/// position: with the paddle's face on the x = 0.06 m node plane, the CPU backend places the
+/// node at -0.08 + 7 x 0.02 rounded twice (0.060000002, distance +3.7e-9: outside) and the
+/// CUDA kernel, whose `origin + index * dx` NVRTC contracts into one fused multiply-add, at
+/// 0.059999999 (distance 0: inside), so the plane took the paddle's velocity on the GPU only and
+/// the first step differed by 0.75 x the paddle's speed (the quadratic B-spline's central weight
+/// of a particle on that plane). Runs without a GPU.
+#[test]
+fn the_test_scenes_keep_every_node_off_the_collider_faces() {
+    for w in 0..4 {
+        for (what, scene) in [("obstacle", world(w)), ("pusher", pusher_world(w))] {
+            nodes_off_the_faces(&scene, &[0.0, DT], 5e-4)
+                .unwrap_or_else(|e| panic!("{what} world {w}: {e}"));
+        }
+    }
+}
+
 /// Four worlds whose paddles move differently (speed, spin, keyframes: the sweep of a pusher's
 /// motion), beside a static block of each world's own, in one batch: each world's poses go up
 /// every step, and each world gives the particles of its separate CUDA run and of its CPU run
