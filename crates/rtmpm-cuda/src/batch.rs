@@ -104,6 +104,9 @@ pub struct CudaBatch {
     point: Option<CudaSlice<u8>>,
     /// The device had no memory for the point: the driver keeps it on the host instead.
     no_point: bool,
+    /// The worlds' images the last [`CudaBatch::put_worlds`] uploaded (kept for the next; it
+    /// grows to the largest put).
+    put_buffer: Option<CudaSlice<u8>>,
     /// The scene of the shared clock ([`CudaBatch::scene`]).
     clock: Scene,
 }
@@ -209,6 +212,7 @@ impl CudaBatch {
             colliders,
             point: None,
             no_point: false,
+            put_buffer: None,
             clock,
         })
     }
@@ -418,15 +422,38 @@ impl CudaBatch {
     /// Put world `w`'s particles to `particles` (its initial ones for a reset, or any state of
     /// as many particles, in its own material indices), the other worlds untouched: the state
     /// words of its slots are overwritten (`batch_put_world`, `kernels/batch.cu`) and the next
-    /// step rebuilds the mapping and redoes its P2G.
+    /// step rebuilds the mapping and redoes its P2G. [`CudaBatch::put_worlds`] of one world.
     pub fn put_world(&mut self, w: usize, particles: &Particles) -> Result<(), SimError> {
+        self.put_many(&[(w, particles)])
+    }
+
+    /// Put each world `w` of `worlds` to its particles as [`CudaBatch::put_world`] does, all at
+    /// once: every world is checked before any changes (a world listed twice ends with its
+    /// last); each run of consecutive worlds is packed as one (their particles are consecutive
+    /// in original order), all runs go to the device in one copy (into a buffer kept between
+    /// calls, [`CudaBatch::put_bytes`]), one `batch_put_world` launch a run, the control words
+    /// set once and one wait at the end, where a world at a time paid an allocation, a copy,
+    /// two control-word writes and a wait.
+    pub fn put_worlds(&mut self, worlds: &[(usize, Particles)]) -> Result<(), SimError> {
+        let refs: Vec<(usize, &Particles)> = worlds.iter().map(|(w, p)| (*w, p)).collect();
+        self.put_many(&refs)
+    }
+
+    /// Bytes of the device buffer the last [`CudaBatch::put_worlds`] uploaded into (kept for
+    /// the next; as large as the largest put so far, 0 before the first).
+    pub fn put_bytes(&self) -> usize {
+        self.put_buffer.as_ref().map_or(0, |b| b.len())
+    }
+
+    /// World `w` exists and `particles` fit it (as many as it has, its own materials).
+    fn check_put(&self, w: usize, particles: &Particles) -> Result<(), SimError> {
         if w >= self.worlds() {
             return Err(SimError::Backend(format!(
                 "CUDA batch: no world {w} (the batch has {})",
                 self.worlds()
             )));
         }
-        let (first, count) = (self.offsets[w], self.offsets[w + 1] - self.offsets[w]);
+        let count = self.offsets[w + 1] - self.offsets[w];
         if particles.len() != count {
             return Err(SimError::Backend(format!(
                 "CUDA batch: world {w} has {count} particles, {} given",
@@ -443,35 +470,96 @@ impl CudaBatch {
                 self.materials
             )));
         }
-        let mut p = particles.clone();
-        for k in &mut p.material {
-            *k += (w * self.materials) as u32;
+        Ok(())
+    }
+
+    /// The packed images of the runs of consecutive worlds of `given` (world `w`'s particles or
+    /// `None`), one after another in `bytes`: each run as (its first particle, its particles,
+    /// where its image starts in `bytes`, its image's length), its materials as the kernels'
+    /// rows (`w * materials + k`).
+    fn pack_runs(&self, given: &[Option<&Particles>]) -> Result<(Vec<PutRun>, Vec<u8>), SimError> {
+        let b = &self.backend;
+        let fluid = crate::state::fluid_materials(&b.scene);
+        let (mut runs, mut bytes) = (Vec::new(), Vec::new());
+        let mut w = 0;
+        while w < given.len() {
+            if given[w].is_none() {
+                w += 1;
+                continue;
+            }
+            let mut run = Particles::default();
+            let first = self.offsets[w];
+            while let Some(Some(p)) = given.get(w) {
+                let at = run.len();
+                run.extend(p);
+                for k in &mut run.material[at..] {
+                    *k += (w * self.materials) as u32;
+                }
+                w += 1;
+            }
+            let image = crate::state::pack(&run, &fluid, b.layout, b.options.f64, run.len(), None)
+                .map_err(SimError::Backend)?;
+            runs.push((first as u32, run.len() as u32, bytes.len(), image.len()));
+            bytes.extend_from_slice(&image);
+        }
+        Ok((runs, bytes))
+    }
+
+    /// [`CudaBatch::put_worlds`] of borrowed particles.
+    fn put_many(&mut self, worlds: &[(usize, &Particles)]) -> Result<(), SimError> {
+        for &(w, p) in worlds {
+            self.check_put(w, p)?;
+        }
+        let mut given: Vec<Option<&Particles>> = vec![None; self.worlds()];
+        for &(w, p) in worlds {
+            given[w] = Some(p);
+        }
+        let (runs, bytes) = self.pack_runs(&given)?;
+        if runs.is_empty() {
+            return Ok(());
         }
         let b = &mut self.backend;
-        let fluid = crate::state::fluid_materials(&b.scene);
-        let bytes = crate::state::pack(&p, &fluid, b.layout, b.options.f64, count, None)
-            .map_err(SimError::Backend)?;
-        let src = b.stream.clone_htod(&bytes).map_err(err("upload a world"))?;
-        let (first, count32) = (first as u32, count as u32);
-        // SAFETY: the kernel reads `src` below `count` particles of the state's words and writes
-        // the state's slots below n.
-        unsafe {
-            b.stream
-                .launch_builder(&b.kernels[Kernel::BatchPutWorld])
-                .arg(&b.ctx)
-                .arg(&src)
-                .arg(&first)
-                .arg(&count32)
-                .launch(b.kernels.wave(b.n, 256))
+        match self.put_buffer.as_mut() {
+            Some(buf) if buf.len() >= bytes.len() => b
+                .stream
+                .memcpy_htod(&bytes, &mut buf.slice_mut(..bytes.len()))
+                .map_err(err("upload worlds"))?,
+            _ => {
+                self.put_buffer = None;
+                let buf = b.stream.clone_htod(&bytes).map_err(err("upload worlds"))?;
+                self.put_buffer = Some(buf);
+            }
         }
-        .map_err(err("put a world"))?;
+        let Some(buf) = self.put_buffer.as_ref() else {
+            return Ok(());
+        };
+        for (first, count, at, len) in &runs {
+            let src = buf.slice(*at..*at + *len);
+            // SAFETY: the kernel reads `src` below `count` particles of the state's words (the
+            // run's image) and writes the state's slots below n.
+            unsafe {
+                b.stream
+                    .launch_builder(&b.kernels[Kernel::BatchPutWorld])
+                    .arg(&b.ctx)
+                    .arg(&src)
+                    .arg(first)
+                    .arg(count)
+                    .launch(b.kernels.wave(b.n, 256))
+            }
+            .map_err(err("put worlds"))?;
+        }
         b.set_ctl_word(CTL_NEED_REBUILD, 1)?;
         if b.g2p2g() {
             b.set_ctl_word(CTL_P2G_PENDING, 1)?;
         }
-        b.stream.synchronize().map_err(err("put a world"))
+        b.stream.synchronize().map_err(err("put worlds"))
     }
 }
+
+/// A run of consecutive worlds put at once ([`CudaBatch::put_worlds`]): its first particle
+/// (original order), its particles, where its packed image starts in the upload and its length
+/// (bytes).
+type PutRun = (u32, u32, usize, usize);
 
 /// The batch as one backend: every world stepped by the same launches (one `dt` for all), its
 /// health check over every world (the bad particle's index is over all worlds:
@@ -538,6 +626,10 @@ impl Worlds for CudaBatch {
 
     fn put_world(&mut self, w: usize, particles: &Particles) -> Result<(), SimError> {
         CudaBatch::put_world(self, w, particles)
+    }
+
+    fn put_worlds(&mut self, worlds: &[(usize, Particles)]) -> Result<(), SimError> {
+        CudaBatch::put_worlds(self, worlds)
     }
 
     fn save_point(&mut self) -> Result<bool, SimError> {

@@ -281,6 +281,88 @@ fn a_reset_or_blown_up_world_leaves_the_others_as_they_were() {
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
+/// Worlds put at once (`CudaBatch::put_worlds`: runs of consecutive worlds packed as one, one
+/// upload) hold what one `put_world` a world leaves, bit for bit, the worlds not listed
+/// untouched; a world listed twice ends with its last; a list with one bad entry is refused
+/// before any world changes.
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn worlds_put_at_once_hold_what_one_put_a_world_leaves() {
+    if !gpu() {
+        return;
+    }
+    let worlds = wedge_worlds(5);
+    let p0: Vec<Particles> = worlds
+        .iter()
+        .map(|s| s.sample_particles().expect("particles"))
+        .collect();
+    let mut b = CudaBatch::new(&worlds, &p0, precise()).expect("batch");
+    for s in 0..20 {
+        b.step(DT, s as f32 * DT).expect("step");
+    }
+    let before = b.read_worlds().expect("read");
+    // World w's new state: its initial particles, moving at (w + 1) m/s along x.
+    let moving = |w: usize, speed: f32| {
+        let mut p = p0[w].clone();
+        p.v.iter_mut().for_each(|v| *v = Vec3::new(speed, 0.0, 0.0));
+        p
+    };
+    let list = vec![
+        (3, moving(3, 9.0)),
+        (0, moving(0, 1.0)),
+        (1, moving(1, 2.0)),
+        (3, moving(3, 4.0)),
+    ];
+    let mut short = p0[4].clone();
+    short.x.pop();
+    let refused = b.put_worlds(&[(0, moving(0, 7.0)), (4, short)]);
+    assert!(
+        refused.is_err(),
+        "a world given too few particles is refused"
+    );
+    let untouched = b.read_worlds().expect("read");
+    for w in 0..5 {
+        assert!(
+            bit_identical(&untouched[w], &before[w]),
+            "world {w} changed by a refused put"
+        );
+    }
+    b.put_worlds(&list).expect("put worlds at once");
+    let at_once = b.read_worlds().expect("read");
+    for (w, p) in &list {
+        b.put_world(*w, p).expect("put one world");
+    }
+    let one_each = b.read_worlds().expect("read");
+    for w in 0..5 {
+        assert!(
+            bit_identical(&at_once[w], &one_each[w]),
+            "world {w}: put at once differs from one put a world"
+        );
+    }
+    for w in [2, 4] {
+        assert!(bit_identical(&at_once[w], &before[w]), "world {w} touched");
+    }
+    for (w, speed) in [(0, 1.0), (1, 2.0), (3, 4.0)] {
+        let p = &at_once[w];
+        assert!(
+            p.v.iter().all(|v| *v == Vec3::new(speed, 0.0, 0.0)),
+            "world {w}'s v"
+        );
+        assert!(
+            p.x.iter()
+                .zip(&p0[w].x)
+                .all(|(a, b)| (*a - *b).length() < 1e-6),
+            "world {w}'s x"
+        );
+    }
+    assert!(b.put_bytes() > 0);
+    // Steps go on from the worlds put (the next step rebuilds the mapping).
+    for s in 0..5 {
+        b.step(DT, s as f32 * DT).expect("step after the put");
+    }
+    assert!(b.bad_world().expect("check").is_none());
+}
+
 /// Worlds that cannot share the arrays, and a batch larger than the GPU, are refused before
 /// anything is allocated, with the numbers.
 #[test]

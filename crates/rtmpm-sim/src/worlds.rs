@@ -20,6 +20,17 @@ pub trait Worlds: Backend {
     /// indices); the other worlds are not touched.
     fn put_world(&mut self, w: usize, particles: &Particles) -> Result<(), SimError>;
 
+    /// Put each world `w` of `worlds` to its particles, as [`Worlds::put_world`] one after
+    /// another (a world listed twice ends with its last); the other worlds are not touched.
+    /// The default is that loop; a backend may do it at once (the GPU batch: one upload and
+    /// one launch for each run of consecutive worlds, every world checked before any changes).
+    fn put_worlds(&mut self, worlds: &[(usize, Particles)]) -> Result<(), SimError> {
+        for (w, p) in worlds {
+            self.put_world(*w, p)?;
+        }
+        Ok(())
+    }
+
     /// Keep every world's state as it is now as the point [`Worlds::restore_point`] puts the
     /// worlds back to (the rewind after a world blows up), held by the backend itself (a GPU:
     /// a device-to-device copy of its particle state). `Ok(true)`: kept; `Ok(false)`: this

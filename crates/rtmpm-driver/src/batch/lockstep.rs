@@ -356,11 +356,12 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             (self.sim.time, self.sim.step, self.sim.frame) = (0.0, 0, 0);
         }
         let now = self.clock();
+        // Every world's particles at once (on the GPU one upload, no wait per world).
+        self.sim.backend.put_worlds(&starts).with_context(|| {
+            let listed: Vec<usize> = starts.iter().map(|s| s.0).collect();
+            format!("resetting worlds {listed:?}")
+        })?;
         for (w, p) in starts {
-            self.sim
-                .backend
-                .put_world(w, &p)
-                .with_context(|| format!("resetting world {w}"))?;
             let start = self.worlds[w].start_bodies.clone();
             self.sim
                 .backend
