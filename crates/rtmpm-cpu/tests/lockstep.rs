@@ -64,6 +64,8 @@ struct SideBySide {
     /// 10^5 m/s before step `k` (it blows up in that step), once.
     steps: usize,
     poison: Option<(usize, usize)>,
+    /// World `w` set to 10^5 m/s before every step (it fails again once frozen and parked).
+    relapse: Option<usize>,
 }
 
 impl SideBySide {
@@ -90,6 +92,7 @@ impl SideBySide {
             reads: 0,
             steps: 0,
             poison: None,
+            relapse: None,
         }
     }
 
@@ -124,15 +127,19 @@ impl Backend for SideBySide {
     }
 
     fn step(&mut self, dt: f32, t: f32) -> Result<(), SimError> {
-        if let Some((w, k)) = self.poison
-            && k == self.steps
-        {
+        let poisoned = match self.poison {
+            Some((w, k)) if k == self.steps => {
+                self.poison = None;
+                Some(w)
+            }
+            _ => self.relapse,
+        };
+        if let Some(w) = poisoned {
             let mut p = Particles::default();
             self.worlds[w].read_particles(&mut p)?;
             p.v.iter_mut()
                 .for_each(|v| *v = glam::Vec3::new(1e5, 0.0, 0.0));
             self.put_world(w, &p)?;
-            self.poison = None;
         }
         self.steps += 1;
         self.worlds.iter_mut().try_for_each(|b| b.step(dt, t))
@@ -603,6 +610,35 @@ fn a_rewind_to_the_backends_own_point_equals_the_host_rewind_bit_for_bit() {
         host.sim.backend.reads
     );
     assert_eq!(kept.sim.backend.reads, 4);
+}
+
+/// A world that fails again once frozen and parked (here sped up to 10^5 m/s before every step,
+/// behind the driver's back) ends the call with an error naming it, after one rewind, whether
+/// the rewind point is the host's copy or the backend's own: the driver never rewinds twice for
+/// one world (stepping the same blow-up again and again).
+#[test]
+fn a_frozen_world_that_fails_again_ends_the_call_with_an_error_not_a_loop() {
+    for keeps_point in [false, true] {
+        let (_, mut r) = unwritten_keeping(SLUMP, keeps_point);
+        r.sim.backend.relapse = Some(1);
+        let e = r
+            .advance_steps(5)
+            .expect_err("a parked world that fails again ends the call");
+        let e = format!("{e:#}");
+        assert!(
+            e.contains("world 1 (its particle") && e.contains("failed again"),
+            "keeps_point {keeps_point}: {e}"
+        );
+        assert!(e.contains("blew up"), "the failure itself is said: {e}");
+        // The failed step, then the step again from the rewind point (world 1 frozen), which
+        // fails in world 1 once more: two steps, one rewind.
+        assert_eq!(r.sim.backend.steps, 2, "keeps_point {keeps_point}");
+        assert!(matches!(
+            r.worlds[1].status,
+            WorldStatus::Frozen { frame: 0, .. }
+        ));
+        assert_eq!(r.running(), 2);
+    }
 }
 
 /// Every file under `dir` (relative path, bytes), the run locks aside.

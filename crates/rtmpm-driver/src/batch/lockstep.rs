@@ -405,19 +405,30 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         }
     }
 
-    /// Freeze the world of the particle `e` names at `frame`, its last; an error that names no particle of a running
-    /// world cannot be pinned on one and ends the run.
+    /// Freeze the world of the particle `e` names at `frame`, its last. An error that names no
+    /// particle of any world cannot be pinned on one and ends the run; so does a world frozen
+    /// before that blows up again (parked, it should not): rewinding for it would step the
+    /// same blow-up again. Each rewind of an advance thus freezes another running world, and
+    /// an advance rewinds at most as many times as there are worlds.
     fn freeze(&mut self, e: &SimError, frame: u64) -> Result<usize> {
         let particle = match e {
             SimError::Blowup(b) | SimError::Stall(b) => b.particle,
             _ => unreachable!("only blow-ups and stalls freeze a world"),
         };
-        let found = self.sim.backend.world_of_particle(particle);
-        let Some((w, i)) = found.filter(|&(w, _)| self.worlds[w].status == WorldStatus::Running)
-        else {
+        let Some((w, i)) = self.sim.backend.world_of_particle(particle) else {
             return Err(anyhow::anyhow!("{e}"))
-                .context("a batch's step failed and no running world can be frozen for it");
+                .context("a batch's step failed and names no particle of any world");
         };
+        if let WorldStatus::Frozen { frame: at, .. } = &self.worlds[w].status {
+            bail!(
+                "world {w} (its particle {i}), frozen at frame {at} and parked (at rest, \
+                 unstressed), failed again, so the batch's run stops rather than rewind and step \
+                 the same failure again: {e}\n  a parked world should not fail: its own moving \
+                 colliders or rigid bodies driven into it, or a backend that did not put it back \
+                 at rest (`Worlds::put_world`, `Worlds::restore_point`)\n  fix: leave world {w} \
+                 out of the batch, or run the batch with --backend cpu"
+            );
+        }
         // Said as the world's own run would say it: its particle, its step and time.
         let origin = self.worlds[w].origin;
         let own = |b: &Blowup| {
