@@ -44,6 +44,23 @@ extern "C" __global__ void grid_update(Ctx c, unsigned part) {
     }
 }
 
+// The world position of the node of grid index gi: origin + gi dx with the product and the sum
+// rounded each on its own, as the CPU backend computes it (cpu/grid_update.rs: boundary, couple).
+// Written plainly, NVRTC fuses it into one multiply-add (its default --fmad=true), which places
+// a node lying on a collider's face on the other side of it than the CPU does: with a face at
+// x = 0.06 m (dx 0.02, origin -0.08), 0.059999999 (distance 0: inside) against the CPU's
+// 0.060000002 (+3.7e-9: outside), a whole node plane taking a moving collider's velocity on the
+// GPU only.
+__device__ __forceinline__ vec3 node_position(const Scalars& sc, int gx, int gy, int gz) {
+#ifdef RTMPM_F64
+    return make_v3(__dadd_rn(sc.origin[0], __dmul_rn((real)gx, sc.dx)), __dadd_rn(sc.origin[1], __dmul_rn((real)gy, sc.dx)),
+                   __dadd_rn(sc.origin[2], __dmul_rn((real)gz, sc.dx)));
+#else
+    return make_v3(__fadd_rn(sc.origin[0], __fmul_rn((real)gx, sc.dx)), __fadd_rn(sc.origin[1], __fmul_rn((real)gy, sc.dx)),
+                   __fadd_rn(sc.origin[2], __fmul_rn((real)gz, sc.dx)));
+#endif
+}
+
 // Boundary conditions of node t at the step's time: walls, then colliders (cpu/grid_update.rs:
 // boundary).
 __device__ vec3 node_boundary(const Ctx& c, unsigned t, vec3 v) {
@@ -75,7 +92,7 @@ __device__ vec3 node_boundary(const Ctx& c, unsigned t, vec3 v) {
     // user's tool, the same way.
     const GpuTool& tool = tool_at(c);
     if (c.n_colliders || tool.active) {
-        vec3 x = make_v3(sc.origin[0] + gi[0] * sc.dx, sc.origin[1] + gi[1] * sc.dx, sc.origin[2] + gi[2] * sc.dx);
+        vec3 x = node_position(sc, gi[0], gi[1], gi[2]);
         for (unsigned k = 0; k < c.n_colliders; ++k) {
 #ifdef RTMPM_BATCH
             GpuCollider col = c_batch.colliders ? c_batch.colliders[world * c.n_colliders + k] : collider_at(c, k);
@@ -198,8 +215,8 @@ __device__ __forceinline__ void grid_node_finish(const Ctx& c, real* node, unsig
         int gx = c.block_coords[3 * id] * 4 + (int)(cell >> 4);
         unsigned world = node_world(gx);
         gx -= world_cells(world);
-        vec3 x = make_v3(sc.origin[0] + gx * sc.dx, sc.origin[1] + (c.block_coords[3 * id + 1] * 4 + (int)((cell >> 2) & 3u)) * sc.dx,
-                         sc.origin[2] + (c.block_coords[3 * id + 2] * 4 + (int)(cell & 3u)) * sc.dx);
+        vec3 x = node_position(sc, gx, c.block_coords[3 * id + 1] * 4 + (int)((cell >> 2) & 3u),
+                               c.block_coords[3 * id + 2] * 4 + (int)(cell & 3u));
         vec3 g_dt = make_v3(gravity[0], gravity[1], gravity[2]) * (real)sp.dt;
         v = couple_world_bodies(c, world, x, m, v, g_dt);
     }
@@ -207,9 +224,8 @@ __device__ __forceinline__ void grid_node_finish(const Ctx& c, real* node, unsig
     if (c.n_bodies) {
         const Scalars& sc = scalars(c);
         unsigned id = t >> 6, cell = t & 63u;
-        vec3 x = make_v3(sc.origin[0] + (c.block_coords[3 * id] * 4 + (int)(cell >> 4)) * sc.dx,
-                         sc.origin[1] + (c.block_coords[3 * id + 1] * 4 + (int)((cell >> 2) & 3u)) * sc.dx,
-                         sc.origin[2] + (c.block_coords[3 * id + 2] * 4 + (int)(cell & 3u)) * sc.dx);
+        vec3 x = node_position(sc, c.block_coords[3 * id] * 4 + (int)(cell >> 4), c.block_coords[3 * id + 1] * 4 + (int)((cell >> 2) & 3u),
+                               c.block_coords[3 * id + 2] * 4 + (int)(cell & 3u));
         vec3 g_dt = make_v3(gravity[0], gravity[1], gravity[2]) * (real)sp.dt;
         // One GPU: shared_pblock is all zeros (only sb_boundary writes it).
         unsigned holders = c.shared_pblock ? c.shared_pblock[id] : 0u;

@@ -835,7 +835,48 @@ mod tests {
                     .collect();
                 assert!(bad.is_empty(), "{o:?}: {k} contracts or flushes: {bad:?}");
             }
+            grid_update_positions_unfused(&ptx, real, &format!("{o:?}"));
         }
+    }
+
+    /// The grid update places its nodes as the CPU backend does (kernels/grid_update.cu:
+    /// node_position): no fused multiply-add takes a node index converted to a real (one
+    /// rounding instead of two puts a node on a collider's face on the other side of it).
+    fn grid_update_positions_unfused(ptx: &str, real: &str, what: &str) {
+        // The entry and the node functions it calls where they stay calls (fast math).
+        let mut body = entry(ptx, "grid_update").to_string();
+        for f in ptx.split(".func ").skip(1) {
+            let name = f.split(['(', ' ', '\n']).next().unwrap_or_default();
+            let node = ["grid_update_node", "node_boundary", "grid_node_finish"];
+            if f.starts_with(name)
+                && f[name.len()..].starts_with('(')
+                && node.iter().any(|n| name.contains(n))
+            {
+                body.push_str(f.split("\n}\n").next().unwrap_or_default());
+            }
+        }
+        let cvt = format!("cvt.rn.{real}.s32");
+        let tokens = |l: &str| -> Vec<String> {
+            l.split(|c: char| c == ',' || c == ';' || c.is_whitespace())
+                .filter(|t| !t.is_empty())
+                .map(str::to_string)
+                .collect()
+        };
+        let indices: Vec<String> = body
+            .lines()
+            .filter(|l| l.contains(&cvt))
+            .filter_map(|l| tokens(l).get(1).cloned())
+            .collect();
+        assert!(!indices.is_empty(), "{what}: no node index in grid_update");
+        let fused: Vec<&str> = body
+            .lines()
+            .filter(|l| l.trim_start().starts_with("fma"))
+            .filter(|l| tokens(l).iter().any(|t| indices.contains(t)))
+            .collect();
+        assert!(
+            fused.is_empty(),
+            "{what}: grid_update fuses node positions: {fused:?}"
+        );
     }
 
     #[test]
