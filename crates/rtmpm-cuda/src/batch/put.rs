@@ -1,0 +1,222 @@
+//! Putting state into a batch: the lockstep driver's rewind point kept on the device
+//! ([`CudaBatch::save_point`], [`CudaBatch::restore_point`]) and worlds put back from the host,
+//! one or many in one upload ([`CudaBatch::put_world`], [`CudaBatch::put_worlds`]).
+
+use super::CudaBatch;
+use crate::contract::{CTL_NEED_REBUILD, CTL_P2G_PENDING};
+use crate::error::err;
+use crate::kernels::Kernel;
+use cudarc::driver::PushKernelArg;
+use rtmpm_physics::Particles;
+use rtmpm_sim::SimError;
+
+impl CudaBatch {
+    /// Keep every world's particles as they are now as the rewind point (the lockstep driver's,
+    /// as an advance begins): one device-to-device copy of the particle state (every word of
+    /// every slot, in its storage order), into memory allocated at the first call (as much as
+    /// the state). `false`: the device has no memory for it (the driver then keeps the point on
+    /// the host, reading every world after each advance, as without this).
+    pub fn save_point(&mut self) -> Result<bool, SimError> {
+        if self.no_point {
+            return Ok(false);
+        }
+        let b = &mut self.backend;
+        if self.point.is_none() {
+            // SAFETY: every byte is written by the copy below before anything reads it.
+            match unsafe { b.stream.alloc::<u8>(b.buffers.state.len()) } {
+                Ok(p) => self.point = Some(p),
+                Err(_) => {
+                    self.no_point = true;
+                    return Ok(false);
+                }
+            }
+        }
+        let Some(point) = self.point.as_mut() else {
+            return Ok(false);
+        };
+        b.stream
+            .memcpy_dtod(&b.buffers.state, point)
+            .map_err(err("keep the rewind point"))?;
+        Ok(true)
+    }
+
+    /// Put every world's particles back to the last [`CudaBatch::save_point`], word for word
+    /// (their storage order too); the next step rebuilds the mapping and redoes its P2G, as
+    /// after [`CudaBatch::put_world`]. Rigid bodies are not part of the point
+    /// ([`CudaBatch::set_world_poses`]).
+    pub fn restore_point(&mut self) -> Result<(), SimError> {
+        let Some(point) = self.point.as_ref().filter(|_| !self.no_point) else {
+            return Err(SimError::Backend(
+                "CUDA batch: no rewind point was kept (save_point first)".into(),
+            ));
+        };
+        let b = &mut self.backend;
+        b.stream
+            .memcpy_dtod(point, &mut b.buffers.state)
+            .map_err(err("put the rewind point back"))?;
+        b.set_ctl_word(CTL_NEED_REBUILD, 1)?;
+        if b.g2p2g() {
+            b.set_ctl_word(CTL_P2G_PENDING, 1)?;
+        }
+        b.stream
+            .synchronize()
+            .map_err(err("put the rewind point back"))
+    }
+
+    /// Keep the rewind point on the device (`true`, the default) or not (`false`: the driver
+    /// keeps it on the host, reading every world after each advance, as before the device
+    /// point existed; for comparisons of the two).
+    pub fn set_device_point(&mut self, on: bool) {
+        self.no_point = !on;
+        if !on {
+            self.point = None;
+        }
+    }
+
+    /// Bytes of the rewind point on the device (0 before the first
+    /// [`CudaBatch::save_point`]).
+    pub fn point_bytes(&self) -> usize {
+        self.point.as_ref().map_or(0, |p| p.len())
+    }
+
+    /// Put world `w`'s particles to `particles` (its initial ones for a reset, or any state of
+    /// as many particles, in its own material indices), the other worlds untouched: the state
+    /// words of its slots are overwritten (`batch_put_world`, `kernels/batch.cu`) and the next
+    /// step rebuilds the mapping and redoes its P2G. [`CudaBatch::put_worlds`] of one world.
+    pub fn put_world(&mut self, w: usize, particles: &Particles) -> Result<(), SimError> {
+        self.put_many(&[(w, particles)])
+    }
+
+    /// Put each world `w` of `worlds` to its particles as [`CudaBatch::put_world`] does, all at
+    /// once: every world is checked before any changes (a world listed twice ends with its
+    /// last); each run of consecutive worlds is packed as one (their particles are consecutive
+    /// in original order), all runs go to the device in one copy (into a buffer kept between
+    /// calls, [`CudaBatch::put_bytes`]), one `batch_put_world` launch a run, the control words
+    /// set once and one wait at the end, where a world at a time paid an allocation, a copy,
+    /// two control-word writes and a wait.
+    pub fn put_worlds(&mut self, worlds: &[(usize, Particles)]) -> Result<(), SimError> {
+        let refs: Vec<(usize, &Particles)> = worlds.iter().map(|(w, p)| (*w, p)).collect();
+        self.put_many(&refs)
+    }
+
+    /// Bytes of the device buffer the last [`CudaBatch::put_worlds`] uploaded into (kept for
+    /// the next; as large as the largest put so far, 0 before the first).
+    pub fn put_bytes(&self) -> usize {
+        self.put_buffer.as_ref().map_or(0, |b| b.len())
+    }
+
+    /// World `w` exists and `particles` fit it (as many as it has, its own materials).
+    fn check_put(&self, w: usize, particles: &Particles) -> Result<(), SimError> {
+        if w >= self.worlds() {
+            return Err(SimError::Backend(format!(
+                "CUDA batch: no world {w} (the batch has {})",
+                self.worlds()
+            )));
+        }
+        let count = self.offsets[w + 1] - self.offsets[w];
+        if particles.len() != count {
+            return Err(SimError::Backend(format!(
+                "CUDA batch: world {w} has {count} particles, {} given",
+                particles.len()
+            )));
+        }
+        if let Some(k) = particles
+            .material
+            .iter()
+            .find(|&&k| k as usize >= self.materials)
+        {
+            return Err(SimError::Backend(format!(
+                "CUDA batch: world {w}: material {k}, a world has {}",
+                self.materials
+            )));
+        }
+        Ok(())
+    }
+
+    /// The packed images of the runs of consecutive worlds of `given` (world `w`'s particles or
+    /// `None`), one after another in `bytes`: each run as (its first particle, its particles,
+    /// where its image starts in `bytes`, its image's length), its materials as the kernels'
+    /// rows (`w * materials + k`).
+    fn pack_runs(&self, given: &[Option<&Particles>]) -> Result<(Vec<PutRun>, Vec<u8>), SimError> {
+        let b = &self.backend;
+        let fluid = crate::state::fluid_materials(&b.scene);
+        let (mut runs, mut bytes) = (Vec::new(), Vec::new());
+        let mut w = 0;
+        while w < given.len() {
+            if given[w].is_none() {
+                w += 1;
+                continue;
+            }
+            let mut run = Particles::default();
+            let first = self.offsets[w];
+            while let Some(Some(p)) = given.get(w) {
+                let at = run.len();
+                run.extend(p);
+                for k in &mut run.material[at..] {
+                    *k += (w * self.materials) as u32;
+                }
+                w += 1;
+            }
+            let image = crate::state::pack(&run, &fluid, b.layout, b.options.f64, run.len(), None)
+                .map_err(SimError::Backend)?;
+            runs.push((first as u32, run.len() as u32, bytes.len(), image.len()));
+            bytes.extend_from_slice(&image);
+        }
+        Ok((runs, bytes))
+    }
+
+    /// [`CudaBatch::put_worlds`] of borrowed particles.
+    fn put_many(&mut self, worlds: &[(usize, &Particles)]) -> Result<(), SimError> {
+        for &(w, p) in worlds {
+            self.check_put(w, p)?;
+        }
+        let mut given: Vec<Option<&Particles>> = vec![None; self.worlds()];
+        for &(w, p) in worlds {
+            given[w] = Some(p);
+        }
+        let (runs, bytes) = self.pack_runs(&given)?;
+        if runs.is_empty() {
+            return Ok(());
+        }
+        let b = &mut self.backend;
+        match self.put_buffer.as_mut() {
+            Some(buf) if buf.len() >= bytes.len() => b
+                .stream
+                .memcpy_htod(&bytes, &mut buf.slice_mut(..bytes.len()))
+                .map_err(err("upload worlds"))?,
+            _ => {
+                self.put_buffer = None;
+                let buf = b.stream.clone_htod(&bytes).map_err(err("upload worlds"))?;
+                self.put_buffer = Some(buf);
+            }
+        }
+        let Some(buf) = self.put_buffer.as_ref() else {
+            return Ok(());
+        };
+        for (first, count, at, len) in &runs {
+            let src = buf.slice(*at..*at + *len);
+            // SAFETY: the kernel reads `src` below `count` particles of the state's words (the
+            // run's image) and writes the state's slots below n.
+            unsafe {
+                b.stream
+                    .launch_builder(&b.kernels[Kernel::BatchPutWorld])
+                    .arg(&b.ctx)
+                    .arg(&src)
+                    .arg(first)
+                    .arg(count)
+                    .launch(b.kernels.wave(b.n, 256))
+            }
+            .map_err(err("put worlds"))?;
+        }
+        b.set_ctl_word(CTL_NEED_REBUILD, 1)?;
+        if b.g2p2g() {
+            b.set_ctl_word(CTL_P2G_PENDING, 1)?;
+        }
+        b.stream.synchronize().map_err(err("put worlds"))
+    }
+}
+
+/// A run of consecutive worlds put at once ([`CudaBatch::put_worlds`]): its first particle
+/// (original order), its particles, where its packed image starts in the upload and its length
+/// (bytes).
+type PutRun = (u32, u32, usize, usize);
