@@ -8,6 +8,7 @@
 // end of this file.
 #include "common.cuh"
 #include "scan.cuh"
+#include "grid_barrier.cuh"
 
 #define GRID_STRIDE(i, n) for (unsigned i = thread_index(); i < (n); i += gridDim.x * blockDim.x)
 
@@ -305,26 +306,6 @@ extern "C" __global__ void grid_clear_aux(Ctx c) {
 // a rebuild then costs one launch (the decision, the per-step resets and the grid clear) instead of
 // fifteen early-exiting ones. Phases never return early: an error only skips the work of the
 // remaining phases, every block still meets every barrier.
-
-// Grid-wide barrier (sense by generation): the last block to arrive resets the count and bumps
-// the generation; the others spin on the generation they saw before arriving.
-__device__ __forceinline__ void rb_grid_barrier(const Ctx& c) {
-    __syncthreads();
-    if (threadIdx.x == 0) {
-        volatile unsigned* gen = c.ctl + CTL_BARRIER_GEN;
-        unsigned g = *gen;
-        __threadfence();
-        if (atomicAdd(&c.ctl[CTL_BARRIER_COUNT], 1u) == gridDim.x - 1) {
-            c.ctl[CTL_BARRIER_COUNT] = 0;
-            __threadfence();
-            atomicAdd(&c.ctl[CTL_BARRIER_GEN], 1u);
-        } else {
-            while (*gen == g) {}
-        }
-        __threadfence();
-    }
-    __syncthreads();
-}
 
 __device__ __forceinline__ bool rb_error(const Ctx& c) { return ((volatile unsigned*)c.ctl)[CTL_ERROR] != 0; }
 

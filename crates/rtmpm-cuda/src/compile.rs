@@ -530,6 +530,46 @@ mod tests {
             .unwrap_or_default()
     }
 
+    /// The kernels of `exchange=fused|push` (`kernels/multi/reduce_shared.cu`), compiled alone
+    /// and optimised for sm_90 in f32 and f64: `sb_push` stores 16 bytes a thread into the
+    /// inboxes and arrives with system-scope atomics, `sb_gather` waits with a system-scope
+    /// acquire on its own counter and reads its inbox 16 bytes a thread past the L1;
+    /// `sb_list_fused` takes the spin barrier (a system-scope atomic and acquire) inside it.
+    #[test]
+    fn the_fused_and_pushed_exchange_kernels_move_16_bytes_a_thread() {
+        if !nvrtc_or_skip() {
+            return;
+        }
+        for f64 in [false, true] {
+            let o = KernelOptions::all_models((9, 0), true, f64);
+            let ptx = compile_unit(
+                "exchange_check.cu",
+                "#include \"multi/reduce_shared.cu\"\n",
+                &o,
+            )
+            .unwrap_or_else(|e| panic!("f64 {f64}: {e}"));
+            let v = if f64 { "v2.f64" } else { "v4.f32" };
+            if std::env::var_os("RTMPM_DUMP_EXCHANGE_PTX").is_some() {
+                for k in ["sb_push", "sb_gather", "sb_list_fused"] {
+                    println!("==== {k} ({v})\n{}", entry(&ptx, k));
+                }
+            }
+            let push = entry(&ptx, "sb_push");
+            assert!(push.contains(&format!("st.global.{v}")), "sb_push, {v}");
+            assert!(push.contains("atom.global.sys.add.u64"), "sb_push");
+            assert!(push.contains("membar.sys"), "sb_push");
+            let gather = entry(&ptx, "sb_gather");
+            assert!(
+                gather.contains(&format!("ld.global.cg.{v}")),
+                "sb_gather, {v}"
+            );
+            assert!(gather.contains("ld.acquire.sys.global.u64"), "sb_gather");
+            let list = entry(&ptx, "sb_list_fused");
+            assert!(list.contains("ld.acquire.sys.global.u64"), "sb_list_fused");
+            assert!(list.contains("atom.global.sys.add.u64"), "sb_list_fused");
+        }
+    }
+
     /// The kernels of `ck_bound=N` and `cluster=K` compile with NVRTC (front end only, on every
     /// core at once): for sm_90, f32 and f64, CK-MPM's warp-scatter kernels carry the bound
     /// (`.minnctapersm N`) and MLS-MPM's fused kernels the cluster size (`.reqnctapercluster`),

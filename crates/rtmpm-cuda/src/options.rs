@@ -77,6 +77,23 @@ pub enum BarrierKind {
     Events,
 }
 
+/// Several GPUs of one process with `transport=p2p` and the spin barrier: how the shared
+/// blocks are listed and summed in a step (`exchange=`; docs/multi-gpu.md, "exchange=").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ExchangeMode {
+    /// Separate kernels (the default): eight launches for the shared list (seven return at
+    /// once in a step without a rebuild), then pack, spin barrier and the sum of peer reads.
+    #[default]
+    Kernels,
+    /// The shared list in one cooperative kernel with the inter-GPU barrier inside it; the sum
+    /// as `Kernels`.
+    Fused,
+    /// `Fused`, and the sum pushed: each GPU writes its nodes of the shared blocks it holds
+    /// into the inboxes of the other GPUs that hold them (16-byte remote stores), arrives at
+    /// their counters, waits on its own and sums its inbox (two launches, no peer reads).
+    Push,
+}
+
 /// Ablation switches of the principles of Fei, Huang & Gao (GTC 2022). `Default` = all on.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CudaOptions {
@@ -153,6 +170,10 @@ pub struct CudaOptions {
     pub transport: Option<Transport>,
     /// Several GPUs with `transport=p2p`: the synchronisation (`None`: spin).
     pub barrier: Option<BarrierKind>,
+    /// Several GPUs with `transport=p2p` and the spin barrier: the kernels of the shared-block
+    /// list and sum (`exchange=kernels|fused|push`, default `kernels`; the others are refused
+    /// with NCCL, the events barrier and one process per GPU).
+    pub exchange: ExchangeMode,
     /// Several GPUs of one process: the CUDA device of each rank (`devices=0:1`; `None`: rank i
     /// on device i). A device may be named more than once, to run the multi-GPU code on fewer
     /// GPUs (tests on one GPU: `devices=0:0`); ranks sharing a device run transport=p2p with
@@ -231,6 +252,7 @@ impl Default for CudaOptions {
             overlap: true,
             transport: None,
             barrier: None,
+            exchange: ExchangeMode::Kernels,
             devices: None,
             fused_rebuild: true,
             g2p2g: true,
@@ -250,7 +272,7 @@ impl std::str::FromStr for CudaOptions {
     /// Comma separated `key=value`: `free_zone`, `mixed_sort`, `warp_reduce`, `fast_math`,
     /// `graph`, `f64`, `rebalance`, `overlap`, `g2p2g`, `rigid_overlap`, `specialize` (on/off/true/false/1/0), `rebuild` (fused/kernels), `fill` (device/host), `p2g`
     /// (warp/shared/reverse_map/sort), `ck_p2g` (direct/warp/fused), `ck_bound` (0 to 16 blocks),
-    /// `ck_grid` (wave/resident), `cluster` (off/on/1/2/4), `halo` (off/sync/async), `warp_list` (arrival/sorted), `transport` (p2p/nccl), `barrier` (spin/events), `devices`
+    /// `ck_grid` (wave/resident), `cluster` (off/on/1/2/4), `halo` (off/sync/async), `warp_list` (arrival/sorted), `transport` (p2p/nccl), `barrier` (spin/events), `exchange` (kernels/fused/push), `devices`
     /// (ordinals separated by `:`), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
     /// `rmap_pblocks`, `shared`, `sort_fields` (counts), `fluid_state` (on/off), `state`
     /// (f32/compact).
@@ -376,6 +398,17 @@ impl std::str::FromStr for CudaOptions {
                         _ => return Err(format!("`{item}`: expected spin or events")),
                     })
                 }
+                "exchange" => {
+                    o.exchange = choice(
+                        item,
+                        v,
+                        &[
+                            ("kernels", ExchangeMode::Kernels),
+                            ("fused", ExchangeMode::Fused),
+                            ("push", ExchangeMode::Push),
+                        ],
+                    )?
+                }
                 "devices" => {
                     let d = v
                         .split(':')
@@ -457,6 +490,19 @@ mod tests {
         assert_eq!(o.barrier, Some(BarrierKind::Events));
         assert!("transport=mpi".parse::<CudaOptions>().is_err());
         assert!("barrier=sleep".parse::<CudaOptions>().is_err());
+        assert_eq!(CudaOptions::default().exchange, ExchangeMode::Kernels);
+        for (v, m) in [
+            ("kernels", ExchangeMode::Kernels),
+            ("fused", ExchangeMode::Fused),
+            ("push", ExchangeMode::Push),
+        ] {
+            let o: CudaOptions = format!("exchange={v}").parse().unwrap();
+            assert_eq!(o.exchange, m);
+        }
+        assert_eq!(
+            "exchange=pull".parse::<CudaOptions>().unwrap_err(),
+            "`exchange=pull`: expected kernels, fused or push"
+        );
         assert!(CudaOptions::default().fused_rebuild);
         assert!(
             !"rebuild=kernels"

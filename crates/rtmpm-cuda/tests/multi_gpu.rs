@@ -146,6 +146,63 @@ fn several_gpus_agree_with_one_on_every_example_scene() {
     if !usable(2) {
         return;
     }
+    let modes: Vec<String> = std::env::var("RTMPM_MULTI_GPU_MODES")
+        .unwrap_or_else(|_| {
+            "transport=p2p,barrier=spin;transport=p2p,barrier=events;transport=nccl".into()
+        })
+        .split(';')
+        .map(|m| m.trim().to_string())
+        .filter(|m| !m.is_empty())
+        .collect();
+    let (ran, failures) = agree_on_every_example_scene(&modes);
+    assert!(failures.is_empty(), "{failures:#?}");
+    println!("{ran} runs of several GPUs compared with one GPU");
+}
+
+/// `exchange=fused` (the shared list in one cooperative kernel with the inter-GPU barrier
+/// inside) and `exchange=push` (the shared nodes pushed into the holders' inboxes, the barrier
+/// inside the push and sum kernels) against one GPU, as the agreement test above: every example
+/// scene, 2 GPUs and 4 where present (`RTMPM_MULTI_GPU_COUNTS`, e.g. "2,4,8"), a re-partition
+/// halfway.
+/// Skips without 2 GPUs; ranks sharing a device (`RTMPM_MULTI_GPU_DEVICES=0,0`) must refuse
+/// both (they need the spin barrier).
+#[test]
+#[ignore = "needs 2 CUDA GPUs"]
+fn the_fused_and_pushed_exchanges_agree_with_one_gpu() {
+    if !usable(2) {
+        return;
+    }
+    if ranks_share_a_device() {
+        let scene = Scene::from_file(
+            &Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/dam_break.toml"),
+        )
+        .expect("scene");
+        let p = scene.sample_particles().expect("particles");
+        for mode in ["exchange=fused", "exchange=push"] {
+            let e = MultiGpuBackend::new(&scene, &p, 2, options(2, mode))
+                .err()
+                .map(|e| e.to_string())
+                .unwrap_or_default();
+            assert!(e.contains("use exchange=kernels"), "{mode}: {e:?}");
+            println!("{mode}: refused with ranks sharing a device, as it must be: {e}");
+        }
+        return;
+    }
+    let modes = [
+        "transport=p2p,barrier=spin,exchange=fused".to_string(),
+        "transport=p2p,barrier=spin,exchange=push".to_string(),
+    ];
+    let (ran, failures) = agree_on_every_example_scene(&modes);
+    assert!(failures.is_empty(), "{failures:#?}");
+    assert!(ran > 0, "no run of several GPUs");
+    println!("{ran} runs of the fused and pushed exchanges compared with one GPU");
+}
+
+/// Every example scene on several GPUs in each of `modes` against one GPU (the tolerances of
+/// [`several_gpus_agree_with_one_on_every_example_scene`]); `RTMPM_MULTI_GPU_STEPS`,
+/// `RTMPM_MULTI_GPU_COUNTS` and `RTMPM_MULTI_GPU_OPTIONS` as documented at the top. Returns the
+/// runs made and the failures.
+fn agree_on_every_example_scene(modes: &[String]) -> (usize, Vec<String>) {
     let steps: usize = std::env::var("RTMPM_MULTI_GPU_STEPS")
         .ok()
         .and_then(|s| s.parse().ok())
@@ -159,14 +216,6 @@ fn several_gpus_agree_with_one_on_every_example_scene() {
             .filter(|&n| n >= 2 && n <= device_count())
             .collect(),
     };
-    let modes: Vec<String> = std::env::var("RTMPM_MULTI_GPU_MODES")
-        .unwrap_or_else(|_| {
-            "transport=p2p,barrier=spin;transport=p2p,barrier=events;transport=nccl".into()
-        })
-        .split(';')
-        .map(|m| m.trim().to_string())
-        .filter(|m| !m.is_empty())
-        .collect();
     let mut failures = Vec::new();
     let mut ran = 0;
     for path in scenes() {
@@ -259,8 +308,7 @@ fn several_gpus_agree_with_one_on_every_example_scene() {
             }
         }
     }
-    assert!(failures.is_empty(), "{failures:#?}");
-    println!("{ran} runs of several GPUs compared with one GPU");
+    (ran, failures)
 }
 
 /// barrier= with transport=nccl, and an unknown transport: clear errors, no panic.

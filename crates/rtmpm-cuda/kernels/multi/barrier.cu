@@ -13,45 +13,10 @@
 // spin orders this GPU's later reads of peer memory after it. A GPU that never arrives (its host
 // thread failed) does not hang the others: after timeout_ns the kernel sets ERR_BARRIER and
 // returns; the host reports the error at the next check.
-#include "../common.cuh"
-
-struct SpinBarrier {
-    unsigned long long* count;  // on GPU 0: arrivals so far, over every GPU and call
-    unsigned long long* calls;  // on this GPU: this GPU's barrier calls so far
-    unsigned long long timeout_ns;
-    unsigned n;                 // GPUs
-    unsigned pad;
-};
-
-__device__ __forceinline__ unsigned long long bar_now_ns() {
-    unsigned long long t;
-    asm volatile("mov.u64 %0, %%globaltimer;" : "=l"(t));
-    return t;
-}
+#include "spin.cuh"
 
 // One block of one thread.
 extern "C" __global__ void barrier_spin(Ctx c, SpinBarrier b) {
-#if __CUDA_ARCH__ >= 700
     if (threadIdx.x != 0 || blockIdx.x != 0) return;
-    __threadfence_system();
-    unsigned long long g = *b.calls + 1ull;
-    *b.calls = g;
-    atomicAdd_system(b.count, 1ull);
-    unsigned long long target = g * (unsigned long long)b.n;
-    unsigned long long start = bar_now_ns();
-    for (;;) {
-        unsigned long long v;
-        asm volatile("ld.acquire.sys.global.u64 %0, [%1];" : "=l"(v) : "l"(b.count) : "memory");
-        if (v >= target) break;
-        if (bar_now_ns() - start > b.timeout_ns) {
-            atomicOr(&c.ctl[CTL_ERROR], ERR_BARRIER);
-            break;
-        }
-        __nanosleep(32);
-    }
-    __threadfence_system();
-#else
-    // Peer access and system-scope atomics need compute capability 7.0 here.
-    if (threadIdx.x == 0 && blockIdx.x == 0) atomicOr(&c.ctl[CTL_ERROR], ERR_BARRIER);
-#endif
+    spin_barrier_arrive_wait(c, b);
 }

@@ -21,6 +21,8 @@
 // The scan helper block_exclusive_scan is rebuild.cu's (same NVRTC program, compiled before).
 #include "../common.cuh"
 #include "../scan.cuh"
+#include "../grid_barrier.cuh"
+#include "spin.cuh"
 
 struct SharedCtx {
     unsigned char* mask;     // d + 1: this GPU's pblocks; [d] = 1 if it rebuilt this step
@@ -28,10 +30,20 @@ struct SharedCtx {
     unsigned* chunk;         // per chunk of 1024 dense blocks: shared count, then its offset
     unsigned* shared_local;  // cap: this GPU's pblock id of each shared block, or EMPTY_ID
     real* buf;               // cap * 256 reals: the nodes of the shared blocks
+    unsigned char* holders;  // cap (exchange=fused|push): bit g set when GPU g holds the block
     int dims[3];             // dense block array: pblock coordinates -1 .. dims - 2 per axis
     unsigned d;              // dims[0] * dims[1] * dims[2]
     unsigned cap;            // shared blocks the reduction holds
     unsigned pad;
+};
+
+// transport=p2p: every GPU's mask and packed buffer (this GPU's included), as pointers this GPU
+// can dereference (unified addressing + peer access), in rank order.
+struct PeerCtx {
+    const unsigned char* mask[SB_MAX_GPUS];  // d + 1 bytes each (SharedCtx::mask of that GPU)
+    const real* buf[SB_MAX_GPUS];            // cap * 256 reals each (SharedCtx::buf of that GPU)
+    unsigned n;                              // GPUs
+    unsigned me;                             // this GPU's rank
 };
 
 #define SB_GRID_STRIDE(i, n) for (unsigned i = thread_index(); i < (n); i += gridDim.x * blockDim.x)
@@ -54,10 +66,7 @@ extern "C" __global__ void sb_clear_mask(Ctx c, SharedCtx s) {
     SB_GRID_STRIDE(i, s.d) s.mask[i] = 0;
 }
 
-extern "C" __global__ void sb_mark(Ctx c, SharedCtx s) {
-    unsigned rebuilt = c.ctl[CTL_REBUILT_NOW];
-    if (thread_index() == 0) s.mask[s.d] = rebuilt ? 1 : 0;
-    if (!rebuilt) return;
+__device__ __forceinline__ void sb_mark_body(const Ctx& c, const SharedCtx& s) {
     unsigned np = min(c.ctl[CTL_PBLOCKS], c.pblock_cap);
     SB_GRID_STRIDE(id, np) {
         const int* bc = c.block_coords + 3 * id;
@@ -65,10 +74,15 @@ extern "C" __global__ void sb_mark(Ctx c, SharedCtx s) {
         if (di != EMPTY_ID) s.mask[di] = 1;
     }
 }
+extern "C" __global__ void sb_mark(Ctx c, SharedCtx s) {
+    unsigned rebuilt = c.ctl[CTL_REBUILT_NOW];
+    if (thread_index() == 0) s.mask[s.d] = rebuilt ? 1 : 0;
+    if (!rebuilt) return;
+    sb_mark_body(c, s);
+}
 
 // One CUDA block of 1024 threads per chunk of 1024 dense blocks (grid-stride over chunks).
-extern "C" __global__ void sb_chunk_count(Ctx c, SharedCtx s) {
-    if (!sb_any_rebuilt(s)) return;
+__device__ __forceinline__ void sb_chunk_count_body(const SharedCtx& s) {
     unsigned chunks = (s.d + 1023u) / 1024u;
     for (unsigned ch = blockIdx.x; ch < chunks; ch += gridDim.x) {
         unsigned i = ch * 1024u + threadIdx.x;
@@ -76,11 +90,14 @@ extern "C" __global__ void sb_chunk_count(Ctx c, SharedCtx s) {
         if (threadIdx.x == 0) s.chunk[ch] = (unsigned)n;
     }
 }
+extern "C" __global__ void sb_chunk_count(Ctx c, SharedCtx s) {
+    if (!sb_any_rebuilt(s)) return;
+    sb_chunk_count_body(s);
+}
 
 // One CUDA block of 1024 threads: exclusive scan of the chunk counts; the total is the number of
 // shared blocks.
-extern "C" __global__ void sb_chunk_scan(Ctx c, SharedCtx s) {
-    if (!sb_any_rebuilt(s)) return;
+__device__ __forceinline__ void sb_chunk_scan_body(const Ctx& c, const SharedCtx& s) {
     unsigned chunks = (s.d + 1023u) / 1024u;
     unsigned carry = 0;
     for (unsigned start = 0; start < chunks; start += blockDim.x) {
@@ -97,9 +114,13 @@ extern "C" __global__ void sb_chunk_scan(Ctx c, SharedCtx s) {
         if (carry > s.cap) atomicOr(&c.ctl[CTL_ERROR], ERR_SHARED);
     }
 }
-
-extern "C" __global__ void sb_list(Ctx c, SharedCtx s) {
+extern "C" __global__ void sb_chunk_scan(Ctx c, SharedCtx s) {
     if (!sb_any_rebuilt(s)) return;
+    sb_chunk_scan_body(c, s);
+}
+
+// `p` (exchange=fused|push, else null): also the holders of each shared block, from the masks.
+__device__ __forceinline__ void sb_list_body(const Ctx& c, const SharedCtx& s, const PeerCtx* p) {
     unsigned chunks = (s.d + 1023u) / 1024u;
     for (unsigned ch = blockIdx.x; ch < chunks; ch += gridDim.x) {
         unsigned i = ch * 1024u + threadIdx.x;
@@ -111,16 +132,25 @@ extern "C" __global__ void sb_list(Ctx c, SharedCtx s) {
             int bj = (int)(i / (unsigned)s.dims[2] % (unsigned)s.dims[1]) - 1;
             int bi = (int)(i / ((unsigned)s.dims[2] * (unsigned)s.dims[1])) - 1;
             s.shared_local[pos] = hash_find(c, block_code(bi, bj, bk));
+            if (p) {
+                unsigned h = 0;
+                for (unsigned g = 0; g < p->n; ++g)
+                    if (__ldcg(p->mask[g] + i)) h |= 1u << g;
+                s.holders[pos] = (unsigned char)h;
+            }
         }
     }
+}
+extern "C" __global__ void sb_list(Ctx c, SharedCtx s) {
+    if (!sb_any_rebuilt(s)) return;
+    sb_list_body(c, s, nullptr);
 }
 
 // A gblock is a boundary gblock when one of its 27 neighbours is shared; a pblock shared itself
 // gets the number of GPUs that hold it (its grid update waits for the sum, and its share of a
 // rigid body's impulse is 1 / that number on each of them, grid_update.cu: couple_bodies), 0
 // otherwise.
-extern "C" __global__ void sb_boundary(Ctx c, SharedCtx s) {
-    if (!sb_any_rebuilt(s)) return;
+__device__ __forceinline__ void sb_boundary_body(const Ctx& c, const SharedCtx& s) {
     unsigned np = min(c.ctl[CTL_PBLOCKS], c.pblock_cap);
     SB_GRID_STRIDE(p, np) {
         const int* bc = c.block_coords + 3 * p;
@@ -139,6 +169,10 @@ extern "C" __global__ void sb_boundary(Ctx c, SharedCtx s) {
         }
         c.boundary[g] = b;
     }
+}
+extern "C" __global__ void sb_boundary(Ctx c, SharedCtx s) {
+    if (!sb_any_rebuilt(s)) return;
+    sb_boundary_body(c, s);
 }
 
 // 256 reals per block: 64 nodes of (mass, momentum).
@@ -160,14 +194,14 @@ extern "C" __global__ void sb_unpack(Ctx c, SharedCtx s) {
     }
 }
 
-// transport=p2p: every GPU's mask and packed buffer (this GPU's included), as pointers this GPU
-// can dereference (unified addressing + peer access), in rank order.
-struct PeerCtx {
-    const unsigned char* mask[SB_MAX_GPUS];  // d + 1 bytes each (SharedCtx::mask of that GPU)
-    const real* buf[SB_MAX_GPUS];            // cap * 256 reals each (SharedCtx::buf of that GPU)
-    unsigned n;                              // GPUs
-    unsigned me;                             // this GPU's rank
-};
+
+__device__ __forceinline__ void sb_counts_body(const SharedCtx& s, const PeerCtx& p) {
+    SB_GRID_STRIDE(i, s.d) {
+        unsigned n = 0;
+        for (unsigned g = 0; g < p.n; ++g) n += __ldcg(p.mask[g] + i);
+        s.counts[i] = (unsigned char)n;
+    }
+}
 
 // counts = the sum of every GPU's mask (the NCCL all-reduce of the masks, done by reading the peers'
 // masks; runs after the barrier that follows every GPU's sb_mark). When no GPU rebuilt, no mask
@@ -177,11 +211,7 @@ extern "C" __global__ void sb_counts_peers(Ctx c, SharedCtx s, PeerCtx p) {
     for (unsigned g = 0; g < p.n; ++g) rebuilt += __ldcg(p.mask[g] + s.d);
     if (thread_index() == 0) s.counts[s.d] = (unsigned char)rebuilt;
     if (!rebuilt) return;
-    SB_GRID_STRIDE(i, s.d) {
-        unsigned n = 0;
-        for (unsigned g = 0; g < p.n; ++g) n += __ldcg(p.mask[g] + i);
-        s.counts[i] = (unsigned char)n;
-    }
+    sb_counts_body(s, p);
 }
 
 // The reduce-sum of the shared blocks through peer reads: after the barrier that follows every
@@ -196,5 +226,168 @@ extern "C" __global__ void sb_sum_peers(Ctx c, SharedCtx s, PeerCtx p) {
         real sum = __ldcg(p.buf[0] + t);
         for (unsigned g = 1; g < p.n; ++g) sum += __ldcg(p.buf[g] + t);
         c.grid[id * 256u + (t & 255u)] = sum;
+    }
+}
+
+// ---- exchange=fused and exchange=push (transport=p2p with the spin barrier, one process) ----
+//
+// exchange=fused: the whole shared-list stage of a step in ONE cooperative launch (its grid: one
+// block of 1024 threads per SM, all resident), where `kernels` launches eight (sb_clear_mask,
+// sb_mark, barrier_spin, sb_counts_peers, sb_chunk_count, sb_chunk_scan, sb_list, sb_boundary),
+// seven of them returning at once in a step without a rebuild. The phases are separated by the
+// grid barrier of the fused rebuild; the inter-GPU barrier is taken by one thread while the
+// other blocks wait at a grid barrier. Every branch below depends only on values that are the
+// same in every block (the control words written by earlier kernels, the peers' rebuilt flags
+// read after the inter-GPU barrier), so every block meets the same barriers. With `q` (push)
+// it also lists the holders of each shared block.
+extern "C" __global__ void __launch_bounds__(1024) sb_list_fused(Ctx c, SharedCtx s, PeerCtx p,
+                                                                 SpinBarrier b) {
+    unsigned rebuilt = c.ctl[CTL_REBUILT_NOW];
+    if (rebuilt) {
+        SB_GRID_STRIDE(i, s.d) s.mask[i] = 0;
+        rb_grid_barrier(c);
+        sb_mark_body(c, s);
+        // The peers read the mask after the inter-GPU barrier: every writer's fence.
+        __threadfence_system();
+    }
+    if (thread_index() == 0) {
+        s.mask[s.d] = rebuilt ? 1 : 0;
+        spin_barrier_arrive_wait(c, b);
+    }
+    rb_grid_barrier(c);
+    unsigned any = 0;
+    for (unsigned g = 0; g < p.n; ++g) any += __ldcg(p.mask[g] + s.d);
+    if (thread_index() == 0) s.counts[s.d] = (unsigned char)any;
+    if (!any) return;  // the same in every block: no GPU rebuilt, the list stands
+    sb_counts_body(s, p);
+    rb_grid_barrier(c);
+    sb_chunk_count_body(s);
+    rb_grid_barrier(c);
+    if (blockIdx.x == 0) sb_chunk_scan_body(c, s);
+    rb_grid_barrier(c);
+    sb_list_body(c, s, s.holders ? &p : nullptr);
+    sb_boundary_body(c, s);
+}
+
+// exchange=push: each GPU writes its nodes of every shared block it holds straight into the inbox
+// of every other GPU that holds it (remote stores through peer pointers, 16 bytes a thread),
+// then arrives at the other GPUs' counters; each GPU waits on its OWN counter (no polling across
+// the link) and sums its inbox with its own nodes, every holder in rank order (the same order,
+// so the same bits, on every GPU, and the same sum as sb_sum_peers). Two launches where
+// exchange=kernels/fused makes three (sb_pack, barrier_spin, sb_sum_peers), and the nodes cross
+// the link once, to the GPUs that hold them (pull reads every GPU's buffer, holder or not).
+//
+// The inbox is double buffered by the parity of the exchange count g, so no GPU overwrites a
+// buffer a peer still reads: GPU i writes buffer g & 1 again at exchange g + 2, after its wait of
+// exchange g + 1, which needs GPU j's arrival at g + 1, which j makes after its sum of g (stream
+// order). Arrival counters only grow (target g * n): a CUDA graph replays both kernels as is.
+struct PushCtx {
+    real* inbox[SB_MAX_GPUS];                   // every GPU's inbox: 2 x n x cap x 256 reals
+    unsigned long long* arrivals[SB_MAX_GPUS];  // every GPU's arrival counter (its memory)
+    unsigned long long* calls;                  // this GPU: exchanges so far
+    unsigned* done;                             // this GPU: blocks of sb_push done (reset by the last)
+    unsigned long long timeout_ns;
+    unsigned n;                                 // GPUs
+    unsigned me;                                // this GPU's rank
+};
+
+// 16 bytes a thread: 4 reals in f32, 2 in f64.
+#ifdef RTMPM_F64
+typedef double2 sb_vec;
+#define SB_VEC 2u
+__device__ __forceinline__ sb_vec sb_vadd(sb_vec a, sb_vec b) { return make_double2(a.x + b.x, a.y + b.y); }
+__device__ __forceinline__ sb_vec sb_vzero() { return make_double2(0.0, 0.0); }
+#else
+typedef float4 sb_vec;
+#define SB_VEC 4u
+__device__ __forceinline__ sb_vec sb_vadd(sb_vec a, sb_vec b) {
+    return make_float4(a.x + b.x, a.y + b.y, a.z + b.z, a.w + b.w);
+}
+__device__ __forceinline__ sb_vec sb_vzero() { return make_float4(0.f, 0.f, 0.f, 0.f); }
+#endif
+#define SB_VECS (256u / SB_VEC)  // vectors a block
+
+// Index of vector v of shared block pos from GPU `from` in an inbox, exchange parity `par`.
+__device__ __forceinline__ size_t sb_inbox_at(const SharedCtx& s, const PushCtx& q, unsigned par,
+                                              unsigned from, unsigned pos, unsigned v) {
+    return (((size_t)par * q.n + from) * s.cap + pos) * SB_VECS + v;
+}
+
+extern "C" __global__ void sb_push(Ctx c, SharedCtx s, PushCtx q) {
+    unsigned long long g = *q.calls + 1ull;  // this exchange (set by the last block at the end)
+    unsigned par = (unsigned)(g & 1ull);
+    if (!c.ctl[CTL_ERROR]) {
+        unsigned nb = min(c.ctl[CTL_SHARED], s.cap);
+        const sb_vec* grid = (const sb_vec*)c.grid;
+        SB_GRID_STRIDE(t, nb * SB_VECS) {
+            unsigned pos = t / SB_VECS, v = t % SB_VECS;
+            unsigned h = s.holders[pos];
+            if (!(h >> q.me & 1u)) continue;  // not held here: nothing to send
+            h &= ~(1u << q.me);
+            unsigned id = s.shared_local[pos];
+            sb_vec x = id == EMPTY_ID ? sb_vzero() : grid[(size_t)id * SB_VECS + v];
+            size_t at = sb_inbox_at(s, q, par, q.me, pos, v);
+            for (unsigned to = 0; to < q.n; ++to)
+                if (h >> to & 1u) ((sb_vec*)q.inbox[to])[at] = x;
+        }
+    }
+    // Every thread's remote stores are visible everywhere before the block counts as done; the
+    // last block done arrives at every GPU's counter (always, error or not: no GPU is left
+    // waiting for the timeout).
+    __threadfence_system();
+    __syncthreads();
+    if (threadIdx.x == 0 && atomicAdd(q.done, 1u) == gridDim.x - 1) {
+        *q.done = 0;
+        __threadfence_system();
+#if __CUDA_ARCH__ >= 700
+        for (unsigned to = 0; to < q.n; ++to) atomicAdd_system(q.arrivals[to], 1ull);
+#else
+        atomicOr(&c.ctl[CTL_ERROR], ERR_BARRIER);
+#endif
+        *q.calls = g;
+    }
+}
+
+extern "C" __global__ void sb_gather(Ctx c, SharedCtx s, PushCtx q) {
+    unsigned long long g = *q.calls;  // set by sb_push, the kernel before on this stream
+    unsigned par = (unsigned)(g & 1ull);
+    if (threadIdx.x == 0) {
+        unsigned long long target = g * (unsigned long long)q.n;
+        unsigned long long start = bar_now_ns();
+        for (;;) {
+            unsigned long long v;
+            asm volatile("ld.acquire.sys.global.u64 %0, [%1];"
+                         : "=l"(v)
+                         : "l"(q.arrivals[q.me])
+                         : "memory");
+            if (v >= target) break;
+            if (bar_now_ns() - start > q.timeout_ns) {
+                atomicOr(&c.ctl[CTL_ERROR], ERR_BARRIER);
+                break;
+            }
+            __nanosleep(32);
+        }
+        __threadfence();
+    }
+    __syncthreads();
+    if (((volatile unsigned*)c.ctl)[CTL_ERROR]) return;
+    unsigned nb = min(c.ctl[CTL_SHARED], s.cap);
+    sb_vec* grid = (sb_vec*)c.grid;
+    const sb_vec* inbox = (const sb_vec*)q.inbox[q.me];
+    SB_GRID_STRIDE(t, nb * SB_VECS) {
+        unsigned pos = t / SB_VECS, v = t % SB_VECS;
+        unsigned id = s.shared_local[pos];
+        unsigned h = s.holders[pos];
+        if (id == EMPTY_ID || !(h >> q.me & 1u)) continue;
+        sb_vec* own = grid + (size_t)id * SB_VECS + v;
+        sb_vec sum = sb_vzero();
+        bool first = true;
+        for (unsigned from = 0; from < q.n; ++from) {
+            if (!(h >> from & 1u)) continue;
+            sb_vec x = from == q.me ? *own : __ldcg(inbox + sb_inbox_at(s, q, par, from, pos, v));
+            sum = first ? x : sb_vadd(sum, x);
+            first = false;
+        }
+        *own = sum;
     }
 }

@@ -171,9 +171,25 @@ fn layouts<R: GpuReal>() -> Vec<Layout> {
         layout!(
             SharedCtx,
             "SharedCtx",
-            [mask, counts, chunk, shared_local, buf, dims, d, cap, pad]
+            [
+                mask,
+                counts,
+                chunk,
+                shared_local,
+                buf,
+                holders,
+                dims,
+                d,
+                cap,
+                pad
+            ]
         ),
         layout!(PeerCtx, "PeerCtx", [mask, buf, n, me]),
+        layout!(
+            PushCtx,
+            "PushCtx",
+            [inbox, arrivals, calls, done, timeout_ns, n, me]
+        ),
         layout!(
             SpinBarrier,
             "SpinBarrier",

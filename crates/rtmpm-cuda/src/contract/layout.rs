@@ -322,6 +322,8 @@ pub struct SharedCtx {
     pub shared_local: u64,
     /// 256 reals per shared block.
     pub buf: u64,
+    /// u8 per shared block (`exchange=push`, else null): bit g set when GPU g holds it.
+    pub holders: u64,
     /// Dense block array dimensions.
     pub dims: [i32; 3],
     /// Number of dense blocks.
@@ -352,6 +354,31 @@ pub struct PeerCtx {
 
 // SAFETY: Pod, passed by value with the C layout the kernels declare.
 unsafe impl cudarc::driver::DeviceRepr for PeerCtx {}
+
+/// `exchange=push` (transport=p2p): every GPU's inbox and arrival counter (this GPU's
+/// included, rank order) as pointers this GPU can dereference, and this GPU's own counters
+/// (`kernels/multi/reduce_shared.cu`, `sb_push` and `sb_gather`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct PushCtx {
+    /// Every GPU's inbox: 2 x GPUs x capacity x 256 reals.
+    pub inbox: [u64; MAX_PEER_GPUS],
+    /// Every GPU's arrival counter (u64, in that GPU's memory).
+    pub arrivals: [u64; MAX_PEER_GPUS],
+    /// This GPU's exchange count (u64).
+    pub calls: u64,
+    /// This GPU's count of `sb_push` blocks done (u32).
+    pub done: u64,
+    /// Nanoseconds a GPU waits for the others before it reports the barrier timed out.
+    pub timeout_ns: u64,
+    /// Number of GPUs.
+    pub n: u32,
+    /// This GPU's rank.
+    pub me: u32,
+}
+
+// SAFETY: Pod, passed by value with the C layout the kernels declare.
+unsafe impl cudarc::driver::DeviceRepr for PushCtx {}
 
 /// The spin-lock barrier between GPUs of Fei, Huang & Gao, "Real-Time Simulation of MPM on
 /// Modern GPUs" (GTC 2022) (`kernels/multi/barrier.cu`).

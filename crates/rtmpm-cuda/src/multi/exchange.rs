@@ -30,13 +30,14 @@
 use super::barrier::{HostBarrier, SpinBarrier, TIMEOUT, enqueue_spin, wait_events};
 use super::nccl::{Communicator, DataType, RedOp};
 use super::reduce_shared::{
-    MAX_PEER_GPUS, PeerCtx, SharedCtx, dense_dims, enqueue_copy, enqueue_counts_peers,
-    enqueue_list, enqueue_mask, enqueue_sum_peers,
+    MAX_PEER_GPUS, PeerCtx, PushCtx, SharedCtx, dense_dims, enqueue_copy, enqueue_counts_peers,
+    enqueue_list, enqueue_list_fused, enqueue_mask, enqueue_push_gather, enqueue_sum_peers,
+    inbox_bytes, list_fused_blocks,
 };
 use crate::contract::Ctx;
 use crate::error::err;
 use crate::kernels::Kernels;
-use crate::options::BarrierKind;
+use crate::options::{BarrierKind, ExchangeMode};
 use crate::step::{Exchange, Hooks};
 use cudarc::driver::{CudaEvent, CudaSlice, CudaStream, DevicePtr};
 use rtmpm_sim::SimError;
@@ -56,6 +57,9 @@ pub struct PeerExport {
     buf: u64,
     count: u64,
     events: [usize; 2],
+    /// `exchange=push`: the arrival counter and the inbox (0 otherwise).
+    arrivals: u64,
+    inbox: u64,
 }
 
 /// transport=p2p: this GPU's barrier resources and its view of the other GPUs.
@@ -72,6 +76,12 @@ struct P2pRank {
     spin: SpinBarrier,
     peer_events: [Vec<usize>; 2],
     host: Option<Arc<HostBarrier>>,
+    /// `exchange=push`: this GPU's arrival counter, exchange count and done word (u64 each).
+    push_words: CudaSlice<u64>,
+    /// `exchange=push`: the inbox (2 x GPUs x capacity x 256 reals), made at the export.
+    inbox: Option<CudaSlice<u8>>,
+    /// `exchange=push`: set by [`Exchanger::connect`].
+    qc: PushCtx,
 }
 
 /// One GPU's part of the exchange: the reduction buffers, the second stream it runs on, its
@@ -91,13 +101,21 @@ pub struct Exchanger {
     pub(crate) timing: Option<(CudaEvent, CudaEvent)>,
     real: DataType,
     overlap: bool,
+    /// The kernels of the list and sum (`exchange=`; not `Kernels` only with p2p + spin).
+    mode: ExchangeMode,
+    /// `exchange=push`: u8 per shared block, the GPUs that hold it.
+    holders: Option<CudaSlice<u8>>,
+    /// `exchange=fused|push`: the grid of the fused list, found at the first (uncaptured) step.
+    list_blocks: std::sync::OnceLock<u32>,
     /// transport=p2p (`None`: NCCL).
     p2p: Option<P2pRank>,
 }
 
 impl Exchanger {
     /// The exchange of a GPU whose compute stream is `s`, for a domain of `n_cells` cells;
-    /// `comm`: its NCCL communicator (`None`: transport=p2p with barrier `barrier`).
+    /// `comm`: its NCCL communicator (`None`: transport=p2p with barrier `barrier`); `mode`:
+    /// the kernels of the list and the sum (other than `Kernels` only with p2p and the spin
+    /// barrier: refused otherwise).
     pub(crate) fn new(
         s: &Arc<CudaStream>,
         n_cells: [u32; 3],
@@ -105,7 +123,15 @@ impl Exchanger {
         barrier: BarrierKind,
         f64: bool,
         overlap: bool,
+        mode: ExchangeMode,
     ) -> Result<Exchanger, SimError> {
+        if mode != ExchangeMode::Kernels && (comm.is_some() || barrier != BarrierKind::Spin) {
+            return Err(SimError::Backend(format!(
+                "exchange={}: needs transport=p2p with the spin barrier (the GPUs of one \
+                 process with peer access and native atomics between them); use exchange=kernels",
+                mode_name(mode)
+            )));
+        }
         let ctx = s.context().clone();
         let comm_stream = ctx.new_stream().map_err(err("comm stream"))?;
         let dims = dense_dims(n_cells);
@@ -135,6 +161,11 @@ impl Exchanger {
                 spin: SpinBarrier::default(),
                 peer_events: [Vec::new(), Vec::new()],
                 host: None,
+                push_words: s
+                    .alloc_zeros::<u64>(3)
+                    .map_err(err("alloc push counters"))?,
+                inbox: None,
+                qc: PushCtx::default(),
             }),
         };
         Ok(Exchanger {
@@ -150,6 +181,9 @@ impl Exchanger {
             timing: None,
             real: if f64 { DataType::F64 } else { DataType::F32 },
             overlap,
+            mode,
+            holders: None,
+            list_blocks: std::sync::OnceLock::new(),
             p2p,
         })
     }
@@ -190,16 +224,46 @@ impl Exchanger {
         self.sc.buf = buf.device_ptr(s).0;
         self.sc.cap = cap as u32;
         self.shared_bufs = Some((local, buf));
+        if self.mode == ExchangeMode::Push {
+            let h = s
+                .alloc_zeros::<u8>(cap)
+                .map_err(err("alloc shared holders"))?;
+            self.sc.holders = h.device_ptr(s).0;
+            self.holders = Some(h);
+        }
+        // The inbox follows the capacity: made again at the next export.
+        if let Some(p) = self.p2p.as_mut() {
+            p.inbox = None;
+        }
         Ok(())
     }
 
-    /// transport=p2p: what the other GPUs need of this one.
-    pub(crate) fn peer_export(&self, s: &CudaStream) -> Result<PeerExport, SimError> {
+    /// transport=p2p: what the other GPUs need of this one, in a run of `gpus` GPUs
+    /// (`exchange=push`: its inbox is made here, for `gpus` GPUs and the capacity).
+    pub(crate) fn peer_export(
+        &mut self,
+        s: &Arc<CudaStream>,
+        gpus: usize,
+    ) -> Result<PeerExport, SimError> {
+        let (push, cap, f64) = (
+            self.mode == ExchangeMode::Push,
+            self.sc.cap as usize,
+            self.real == DataType::F64,
+        );
         let p = self
             .p2p
-            .as_ref()
+            .as_mut()
             .ok_or_else(|| SimError::Backend("not a transport=p2p rank".into()))?;
+        let want = inbox_bytes(gpus, cap, f64);
+        if push && p.inbox.as_ref().is_none_or(|b| b.len() != want) {
+            p.inbox = None;
+            p.inbox = Some(s.alloc_zeros::<u8>(want).map_err(err("alloc push inbox"))?);
+            s.synchronize().map_err(err("sync"))?;
+        }
+        let inbox = p.inbox.as_ref().map_or(0, |b| b.device_ptr(s).0);
         Ok(PeerExport {
+            arrivals: p.push_words.device_ptr(s).0,
+            inbox,
             device: s.context().ordinal(),
             ctx: s.context().cu_ctx() as usize,
             mask: self.sc.mask,
@@ -235,11 +299,23 @@ impl Exchanger {
             me: me as u32,
             ..Default::default()
         };
+        let words = p.push_words.device_ptr(s).0;
+        let mut qc = PushCtx {
+            calls: words + 8,
+            done: words + 16,
+            timeout_ns: TIMEOUT.as_nanos() as u64,
+            n: n as u32,
+            me: me as u32,
+            ..Default::default()
+        };
         for (j, e) in all.iter().enumerate() {
             pc.mask[j] = e.mask;
             pc.buf[j] = e.buf;
+            qc.inbox[j] = e.inbox;
+            qc.arrivals[j] = e.arrivals;
         }
         p.pc = pc;
+        p.qc = qc;
         p.spin = SpinBarrier {
             count: all[0].count,
             calls: p.calls.device_ptr(s).0,
@@ -294,6 +370,18 @@ impl Exchanger {
 impl Exchange for Exchanger {
     fn after_rebuild(&self, k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), SimError> {
         let sc = &self.sc;
+        if let (Some(p), false) = (&self.p2p, self.mode == ExchangeMode::Kernels) {
+            // One cooperative launch: mask, barrier, sum of the masks, list, boundary.
+            let blocks = match self.list_blocks.get() {
+                Some(&b) => b,
+                None => {
+                    let b = list_fused_blocks(k).map_err(err("occupancy of sb_list_fused"))?;
+                    *self.list_blocks.get_or_init(|| b)
+                }
+            };
+            return enqueue_list_fused(k, s, c, sc, &p.pc, &p.spin, blocks)
+                .map_err(err("shared list"));
+        }
         enqueue_mask(k, s, c, sc).map_err(err("mask"))?;
         if let Some(p) = &self.p2p {
             self.barrier(p, 0, k, s, c)?;
@@ -326,11 +414,15 @@ impl Exchange for Exchanger {
         if let Some((a, _)) = &self.timing {
             a.record(t).map_err(err("event"))?;
         }
-        enqueue_copy(k, t, c, sc, true).map_err(err("pack"))?;
-        if let Some(p) = &self.p2p {
+        if let (Some(p), ExchangeMode::Push) = (&self.p2p, self.mode) {
+            let f64 = self.real == DataType::F64;
+            enqueue_push_gather(k, t, c, sc, &p.qc, f64).map_err(err("push"))?;
+        } else if let Some(p) = &self.p2p {
+            enqueue_copy(k, t, c, sc, true).map_err(err("pack"))?;
             self.barrier(p, 1, k, t, c)?;
             enqueue_sum_peers(k, t, c, sc, &p.pc).map_err(err("peer sum"))?;
         } else {
+            enqueue_copy(k, t, c, sc, true).map_err(err("pack"))?;
             // SAFETY: buf holds cap * 256 reals on this GPU and lives as long as self.
             unsafe {
                 self.comm()?.all_reduce(
@@ -353,6 +445,15 @@ impl Exchange for Exchanger {
 
     fn finish(&self, _k: &Kernels, s: &CudaStream, _c: &Ctx) -> Result<(), SimError> {
         s.wait(&self.reduced).map_err(err("wait"))
+    }
+}
+
+/// The option value of `mode` (`exchange=`).
+pub(crate) fn mode_name(mode: ExchangeMode) -> &'static str {
+    match mode {
+        ExchangeMode::Kernels => "kernels",
+        ExchangeMode::Fused => "fused",
+        ExchangeMode::Push => "push",
     }
 }
 

@@ -11,7 +11,7 @@ use super::rigid::RankBodies;
 use crate::backend::Part;
 use crate::backend::readback::{resize_particles, scatter_state};
 use crate::contract::{CTL_BAD_INDEX, CTL_MAX_SPEED, CTL_SHARED};
-use crate::options::{CudaOptions, Transport};
+use crate::options::{CudaOptions, ExchangeMode, Transport};
 use crate::step::rigid::{loads_of, poses_of, set_poses_of, states_of};
 use rtmpm_physics::Particles;
 use rtmpm_scene::Scene;
@@ -78,6 +78,13 @@ impl NcclRankBackend {
                  of several processes use NCCL, one device each"
                     .into(),
             ));
+        }
+        if options.exchange != ExchangeMode::Kernels {
+            return Err(SimError::Backend(format!(
+                "exchange={} needs the GPUs in one process (--gpus N) with transport=p2p; runs \
+                 of several processes use NCCL: use exchange=kernels",
+                super::exchange::mode_name(options.exchange)
+            )));
         }
         // The bodies' world before any GPU work (its refusals are clear errors).
         let bodies = RankBodies::new(scene, &options, ranks)?;

@@ -90,6 +90,7 @@ impl GpuRank {
             b.options.barrier.unwrap_or(BarrierKind::Spin),
             b.options.f64,
             b.options.overlap,
+            b.options.exchange,
         )?;
         let mut r = GpuRank {
             b,
@@ -156,12 +157,12 @@ impl GpuRank {
         self.x.last_reduce_ms()
     }
 
-    /// transport=p2p: what the other GPUs need of this one (synchronises, so that the buffers
-    /// exist before anyone reads them).
-    pub fn peer_export(&self) -> Result<PeerExport, SimError> {
-        let s = &self.b.stream;
+    /// transport=p2p: what the other GPUs need of this one, in a run of `gpus` GPUs
+    /// (synchronises, so that the buffers exist before anyone reads them).
+    pub fn peer_export(&mut self, gpus: usize) -> Result<PeerExport, SimError> {
+        let s = self.b.stream.clone();
         s.synchronize().map_err(err("sync"))?;
-        self.x.peer_export(s)
+        self.x.peer_export(&s, gpus)
     }
 
     /// transport=p2p: enable peer access to every other GPU and take their buffers and barrier

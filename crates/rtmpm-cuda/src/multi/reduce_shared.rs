@@ -4,7 +4,7 @@
 //! launches are made by [`super::exchange`].
 
 use crate::contract::Ctx;
-pub use crate::contract::{MAX_PEER_GPUS, PeerCtx, SharedCtx};
+pub use crate::contract::{MAX_PEER_GPUS, PeerCtx, PushCtx, SharedCtx, SpinBarrier};
 use crate::kernels::{Kernel, Kernels, cfg};
 use cudarc::driver::{CudaStream, DriverError, LaunchConfig, PushKernelArg};
 
@@ -133,6 +133,100 @@ pub(crate) fn enqueue_sum_peers(
     Ok(())
 }
 
+/// Streaming multiprocessors of the device (the kernels' wave is 2048 threads a SM).
+fn sms(k: &Kernels) -> usize {
+    (k.wave_threads / 2048).max(1)
+}
+
+/// `exchange=fused|push`: the grid of `sb_list_fused`, one block of 1024 threads a SM (every
+/// block resident, for its grid barriers; one block where not even one a SM fits).
+pub(crate) fn list_fused_blocks(k: &Kernels) -> Result<u32, DriverError> {
+    let per_sm =
+        k[Kernel::SbListFused].occupancy_max_active_blocks_per_multiprocessor(1024, 0, None)?;
+    Ok((sms(k) as u32 * per_sm.min(1)).max(1))
+}
+
+/// `exchange=fused|push`: enqueue the whole shared-list stage (mask, inter-GPU barrier `b`, sum
+/// of the masks, list, boundary gblocks) as one cooperative launch of `sb_list_fused` on
+/// `blocks` blocks ([`list_fused_blocks`]).
+pub(crate) fn enqueue_list_fused(
+    k: &Kernels,
+    s: &CudaStream,
+    c: &Ctx,
+    sc: &SharedCtx,
+    pc: &PeerCtx,
+    b: &SpinBarrier,
+    blocks: u32,
+) -> Result<(), DriverError> {
+    let f = &k[Kernel::SbListFused];
+    let cfg = LaunchConfig {
+        grid_dim: (blocks, 1, 1),
+        block_dim: (1024, 1, 1),
+        shared_mem_bytes: 0,
+    };
+    // SAFETY: the phases bound every index by `sc.d`, the chunk count, `sc.cap` and the block
+    // counts; the peers' masks hold d + 1 bytes; the cooperative launch keeps every block
+    // resident for the grid barriers.
+    unsafe {
+        s.launch_builder(f)
+            .arg(c)
+            .arg(sc)
+            .arg(pc)
+            .arg(b)
+            .launch_cooperative(cfg)?;
+    }
+    Ok(())
+}
+
+/// `exchange=push`: reals of a shared block per 16-byte vector of `sb_push`/`sb_gather`.
+fn vectors_per_block(f64: bool) -> usize {
+    if f64 { 128 } else { 64 }
+}
+
+/// `exchange=push`: the launch of `sb_push` and `sb_gather` (grid-stride over the vectors of
+/// the shared blocks; at most four blocks of 256 threads a SM, enough 16-byte accesses in
+/// flight for the link).
+fn push_cfg(k: &Kernels, sc: &SharedCtx, f64: bool) -> LaunchConfig {
+    let n = (sc.cap as usize * vectors_per_block(f64)).min(sms(k) * 1024);
+    cfg(n, 256)
+}
+
+/// `exchange=push`: enqueue the push of this GPU's shared nodes into the holders' inboxes and its
+/// arrival (`sb_push`), then the wait for every GPU's arrival and the sum of the inbox
+/// (`sb_gather`).
+pub(crate) fn enqueue_push_gather(
+    k: &Kernels,
+    s: &CudaStream,
+    c: &Ctx,
+    sc: &SharedCtx,
+    q: &PushCtx,
+    f64: bool,
+) -> Result<(), DriverError> {
+    let launch = push_cfg(k, sc, f64);
+    // SAFETY: every inbox of `q` holds 2 x n x cap x 256 reals on a GPU this one has peer
+    // access to (every GPU has the same cap), the counters are live u64 (the done word a u32);
+    // the kernels bound their work by the device shared count and `sc.cap`.
+    unsafe {
+        s.launch_builder(&k[Kernel::SbPush])
+            .arg(c)
+            .arg(sc)
+            .arg(q)
+            .launch(launch)?;
+        s.launch_builder(&k[Kernel::SbGather])
+            .arg(c)
+            .arg(sc)
+            .arg(q)
+            .launch(launch)?;
+    }
+    Ok(())
+}
+
+/// `exchange=push`: bytes of one GPU's inbox for `gpus` GPUs and `cap` shared blocks (double
+/// buffered: 2 x gpus x cap x 256 reals).
+pub fn inbox_bytes(gpus: usize, cap: usize, f64: bool) -> usize {
+    2 * gpus * cap * 256 * if f64 { 8 } else { 4 }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -142,5 +236,15 @@ mod tests {
         // 48 cells: bases 3..=51, gblocks 0..=12, pblocks -1..=13: 15 blocks.
         assert_eq!(dense_dims([48, 48, 48]), [15, 15, 15]);
         assert_eq!(dense_dims([1, 2, 5]), [4, 4, 5]);
+    }
+
+    #[test]
+    fn a_push_inbox_holds_both_parities_of_every_gpu() {
+        // 2 GPUs, 5,344 blocks (the weak benchmark's capacity), f32: 21.9 MB.
+        assert_eq!(inbox_bytes(2, 5344, false), 2 * 2 * 5344 * 1024);
+        assert_eq!(inbox_bytes(8, 10, true), 2 * 8 * 10 * 2048);
+        // 16 bytes a thread: a block of 256 reals is 64 vectors in f32, 128 in f64.
+        assert_eq!(vectors_per_block(false) * 4, 256);
+        assert_eq!(vectors_per_block(true) * 2, 256);
     }
 }

@@ -11,7 +11,7 @@ use super::rigid::SharedBodies;
 use crate::backend::Part;
 use crate::backend::readback::{resize_particles, scatter_state};
 use crate::contract::{CTL_MAX_SPEED, CTL_SHARED};
-use crate::options::{BarrierKind, CudaOptions, Transport};
+use crate::options::{BarrierKind, CudaOptions, ExchangeMode, Transport};
 use crate::step::rigid::{HeldBodies, loads_of, poses_of, set_poses_of, states_of};
 use rtmpm_physics::Particles;
 use rtmpm_scene::Scene;
@@ -81,6 +81,7 @@ impl MultiGpuBackend {
         if transport == Transport::P2p {
             options.barrier = Some(choose_barrier(&devices, &options)?);
         }
+        check_exchange(&options)?;
         let on = match &options.devices {
             Some(_) => format!(
                 " on devices {}",
@@ -151,12 +152,18 @@ impl MultiGpuBackend {
 
     /// What the reduction of a step consists of (for reports).
     pub fn reduction_steps(&self) -> &'static str {
-        match (self.transport, self.options.barrier) {
-            (Transport::Nccl, _) => "pack + NCCL all-reduce + unpack",
-            (Transport::P2p, Some(BarrierKind::Events)) => {
+        match (self.transport, self.options.barrier, self.options.exchange) {
+            (Transport::Nccl, _, _) => "pack + NCCL all-reduce + unpack",
+            (Transport::P2p, Some(BarrierKind::Events), _) => {
                 "pack + events barrier + sum of peer reads"
             }
-            (Transport::P2p, _) => "pack + spin barrier + sum of peer reads",
+            (Transport::P2p, _, ExchangeMode::Push) => {
+                "push to the holders' inboxes + wait on own counter + sum of the inbox; list fused"
+            }
+            (Transport::P2p, _, ExchangeMode::Fused) => {
+                "pack + spin barrier + sum of peer reads; list fused"
+            }
+            (Transport::P2p, _, ExchangeMode::Kernels) => "pack + spin barrier + sum of peer reads",
         }
     }
 
@@ -165,7 +172,8 @@ impl MultiGpuBackend {
         if self.transport != Transport::P2p {
             return Ok(());
         }
-        let all = Arc::new(self.all(|_, r| rank(r)?.peer_export())?);
+        let gpus = self.workers.len();
+        let all = Arc::new(self.all(move |_, r| rank(r)?.peer_export(gpus))?);
         let host = self.host.clone();
         self.all(move |i, r| rank(r)?.connect(i, &all, host.clone()))?;
         Ok(())
@@ -567,6 +575,28 @@ fn choose_transport(devices: &[usize], o: &CudaOptions) -> Result<(Transport, St
     Ok(chosen)
 }
 
+/// `exchange=fused|push` need transport=p2p with the spin barrier (their kernels take the
+/// inter-GPU barrier inside them); a clear error otherwise. `o`: the options with the transport
+/// and barrier chosen.
+fn check_exchange(o: &CudaOptions) -> Result<(), SimError> {
+    if o.exchange == ExchangeMode::Kernels {
+        return Ok(());
+    }
+    let name = super::exchange::mode_name(o.exchange);
+    match (o.transport, o.barrier) {
+        (Some(Transport::P2p), Some(BarrierKind::Spin)) => Ok(()),
+        (Some(Transport::P2p), _) => Err(SimError::Backend(format!(
+            "exchange={name} takes the spin barrier inside its kernels, and this run has the \
+             events barrier (barrier=events, ranks sharing a device, or GPUs without native \
+             atomics between them); use exchange=kernels"
+        ))),
+        _ => Err(SimError::Backend(format!(
+            "exchange={name} needs transport=p2p (peer access between every pair of GPUs); with \
+             NCCL use exchange=kernels"
+        ))),
+    }
+}
+
 /// The barrier of transport=p2p: the one asked for, else spin (it needs native atomics between
 /// every pair of GPUs; without them the default is events). Ranks sharing a device: events only
 /// (the one-thread spin kernels of two ranks on one device may not run at the same time, and
@@ -644,6 +674,36 @@ mod tests {
         let many = [0; MAX_PEER_GPUS + 1];
         let e = msg(choose_transport(&many, &o("")));
         assert!(e.contains(&format!("at most {MAX_PEER_GPUS} GPUs")), "{e}");
+    }
+
+    /// `exchange=fused|push` run with transport=p2p and the spin barrier only; the others are
+    /// clear errors that say what to use (decided without a GPU).
+    #[test]
+    fn the_fused_exchanges_need_p2p_with_the_spin_barrier() {
+        let with = |text: &str, t: Transport, b: Option<BarrierKind>| {
+            let mut o = o(text);
+            o.transport = Some(t);
+            o.barrier = b;
+            check_exchange(&o)
+        };
+        for mode in ["fused", "push"] {
+            let x = format!("exchange={mode}");
+            assert!(with(&x, Transport::P2p, Some(BarrierKind::Spin)).is_ok());
+            let e = msg(with(&x, Transport::P2p, Some(BarrierKind::Events)));
+            assert!(
+                e.contains(&format!("exchange={mode} takes the spin barrier"))
+                    && e.contains("use exchange=kernels"),
+                "{e}"
+            );
+            let e = msg(with(&x, Transport::Nccl, None));
+            assert!(
+                e.contains("needs transport=p2p") && e.contains("use exchange=kernels"),
+                "{e}"
+            );
+        }
+        for t in [Transport::P2p, Transport::Nccl] {
+            assert!(with("", t, Some(BarrierKind::Events)).is_ok());
+        }
     }
 
     #[test]
