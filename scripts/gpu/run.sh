@@ -55,6 +55,12 @@
 #                (`rtmpm run --rendezvous` in two processes against one GPU, bodies.csv and the last frame).
 #                Both are also part of `multi`
 #   multi4       the same on 4 GPUs: agreement at 2 and 4, strong and weak scaling at 1, 2, 4, 4 ranks
+#   exchange     --cuda-options exchange=fused|push against the default (docs/multi-gpu.md, "The exchange's
+#                launches"): test_multi_gpu's the_fused_and_pushed_exchanges_agree_with_one_gpu, then the weak
+#                benchmark (4.2M a GPU) on 1 GPU and on 2 and 4 GPUs (those present) with exchange=kernels,
+#                fused, push, push+overlap=off and overlap=off, REPS times interleaved (default 2), then the
+#                strong 16.8M at 1, 2, 4 with kernels, push, push+overlap=off (EXCHANGE_STRONG=0 skips it);
+#                each run's reduction line in the summary. About 4 min on 4 GPUs
 #   multi1       the multi-GPU code on ONE GPU: test_multi_gpu with two ranks on device 0
 #                (RTMPM_MULTI_GPU_DEVICES=0,0, the CUDA option devices=0:0; transport=p2p with the events
 #                barrier, the spin barrier and NCCL checked to be refused there): every example scene,
@@ -398,6 +404,32 @@ for suite in "$@"; do
       done
       wait
       say "strong 16.8M four NCCL processes: $(grep -hE 'throughput|^error' "$OUT"/rank4_*.log | tr -s ' ' | tr '\n' ' ')"
+      ;;
+    exchange)
+      t test_multi_gpu the_fused_and_pushed_exchanges_agree_with_one_gpu --nocapture
+      grep -hE "runs of the fused|first step differs|aggregates differ|timed out" "$OUT/test_multi_gpu.log" | head -8 | tee -a "$S"
+      ngpu=$(nvidia-smi -L | wc -l)
+      red() { grep -E "reduction" "$OUT/bench.log" | tail -1 | sed -E 's/^ +/    /' | tee -a "$S"; }
+      for rep in $(seq "${REPS:-2}"); do
+        b "weak 4.2M gpus=1 #$rep" rtmpm --scene bench/weak_4m_x1.toml --frames 4
+        for g in 2 4; do
+          [ "$g" -le "$ngpu" ] || continue
+          for o in exchange=kernels exchange=fused exchange=push exchange=push,overlap=off overlap=off; do
+            b "weak gpus=$g $o #$rep" rtmpm --scene "bench/weak_4m_x$g.toml" --frames 4 --gpus "$g" --cuda-options "$o"
+            red
+          done
+        done
+      done
+      if [ "${EXCHANGE_STRONG:-1}" != 0 ]; then
+        b "strong 16.8M gpus=1" rtmpm --scene bench/strong_16m.toml --frames 2
+        for g in 2 4; do
+          [ "$g" -le "$ngpu" ] || continue
+          for o in exchange=kernels exchange=push exchange=push,overlap=off; do
+            b "strong gpus=$g $o" rtmpm --scene bench/strong_16m.toml --frames 2 --gpus "$g" --cuda-options "$o"
+            red
+          done
+        done
+      fi
       ;;
     view)
       # The render stage against the simulation (crates/rtmpm-cuda/examples/render_bench.rs): frames
