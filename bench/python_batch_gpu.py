@@ -2,7 +2,8 @@
 calls, against the same steps with no Python work between them.
 
     python bench/python_batch_gpu.py [--worlds 256] [--steps 200] [--per-call 1,10]
-                                     [--resets 4] [--repeats 5] [--json out.json]
+                                     [--resets 4] [--repeats 5] [--budget S] [--breakdown]
+                                     [--json out.json]
 
 A batch of ``--worlds`` small sand beds (1,024 particles each, dx = 0.025 m, fixed dt = 4e-4 s,
 the scene of bench/batch_python_loop.py) as ``BatchSimulation(backend="cuda")``: every world in
@@ -30,7 +31,21 @@ chunk of steps between calls, so ``bare``'s one call of ``--steps`` is a few dri
 call of ``k`` steps is one, once learnt. Wall seconds (the GPU's work included: every call ends
 by reading the control words, which waits for its steps), min / median / max over the repeats,
 modes interleaved; the issue's bound is loop / bare at most 1.10. Prints a table; ``--json``
-writes every timing.
+writes every timing. Each round's progress (and the seconds a fresh batch takes to set up, not
+timed) goes to stderr as it ends; ``--budget S`` starts no round after S seconds (the warm-up,
+with its kernel compiles, and the first timed round always run; the table then says how many
+timed rounds it has), so that a GPU call with a time limit gets a table.
+
+``--breakdown`` then runs the modes calls, reset, pose and loop once more (``--repeats`` rounds
+after a warm-up, fresh batches) and times each part of a call on its own: the poses, the resets
+and the steps, with the device synchronised after each part (``BatchSimulation.synchronize``;
+PyTorch's where the module has none), so that a part's time includes the device work it queued.
+These timings perturb what they measure (the waits keep the host from queueing the next part
+while the device works, which the plain modes allow), so they say where a call's time goes, not
+what the plain modes cost; the plain table above them is the measurement. The breakdown's step
+part of reset / loop against calls' is what a reset costs the steps after it (the mapping
+rebuilt, the P2G done again); ``rebuilds a call`` counts the mapping's rebuilds
+(``BatchSimulation.rebuilds``, where the module has it).
 """
 
 import argparse
@@ -119,6 +134,156 @@ def summary(xs):
     return f"{min(xs):.4f} / {statistics.median(xs):.4f} / {max(xs):.4f}"
 
 
+def device_sync(sim, torch):
+    """A wait for the device (the breakdown's, between a call's parts): the batch's own
+    ``synchronize`` (the whole device), else PyTorch's, else None (the parts then time the host
+    only, said in the output)."""
+    if hasattr(sim, "synchronize"):
+        return sim.synchronize
+    if torch is not None:
+        return torch.cuda.synchronize
+    return None
+
+
+def rebuilds(sim):
+    """The mapping's rebuilds so far (``BatchSimulation.rebuilds``), None where the module has no
+    such counter."""
+    return getattr(sim, "rebuilds", None)
+
+
+def run_parts(mode, sim, steps, k, resets, sync):
+    """``run_mode`` of calls / reset / pose / loop with each part of a call timed on its own, the
+    device synchronised after each part: {part: [seconds a call]}, and the rebuilds over the run
+    (None where not counted)."""
+    n = len(sim)
+    vel = np.tile(np.array([0.0, -SPEED, 0.0], np.float32), (n, 1))
+    pos = np.empty((n, 3), np.float32)
+    parts = {"pose": [], "reset": [], "step": []}
+    before = rebuilds(sim)
+    for c in range(steps // k):
+        if mode in ("pose", "loop"):
+            t0 = time.perf_counter()
+            pose(sim, pos, vel)
+            sync()
+            parts["pose"].append(time.perf_counter() - t0)
+        if mode in ("reset", "loop"):
+            t0 = time.perf_counter()
+            sim.reset([(c * resets + j) % n for j in range(resets)])
+            sync()
+            parts["reset"].append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        sim.step(k)
+        sync()
+        parts["step"].append(time.perf_counter() - t0)
+    after = rebuilds(sim)
+    built = None if before is None or after is None else after - before
+    return parts, built
+
+
+class Clock:
+    """Seconds since the start, for the progress lines and the budget."""
+
+    def __init__(self, budget):
+        self.t0 = time.perf_counter()
+        self.budget = budget
+
+    def now(self):
+        return time.perf_counter() - self.t0
+
+    def over(self):
+        return self.budget is not None and self.now() > self.budget
+
+    def say(self, what):
+        print(f"[{self.now():6.1f} s] {what}", file=sys.stderr, flush=True)
+
+
+def fresh(one, setups):
+    """A fresh batch of ``one`` on the GPU, its set-up seconds kept in ``setups`` (not timed)."""
+    t0 = time.perf_counter()
+    sim = rtmpm.Simulation(one, backend="cuda")
+    sim.step(1)  # the first step's graph capture is set-up, not the loop
+    setups.append(time.perf_counter() - t0)
+    return sim
+
+
+def plain_rounds(a, one, runs, torch, clock, setups):
+    """The modes' rounds (the first a warm-up): {run: [wall s]}, the batch's info, the timed
+    rounds done."""
+    times = {r: [] for r in runs}
+    info = {}
+    done = 0
+    for rep in range(a.repeats + 1):  # the first round warms up (kernel cache, pools), not counted
+        if rep > 1 and clock.over():
+            clock.say(f"budget of {a.budget} s spent: {done} timed rounds of {a.repeats}")
+            break
+        for run in runs if rep % 2 == 0 else runs[::-1]:
+            sim = fresh(one, setups)
+            info = {"particles": int(sim.num_particles.sum()), "backend": sim.backend.name}
+            t0 = time.perf_counter()
+            run_mode(run[0], sim, a.steps, run[1], a.resets, torch)
+            wall = time.perf_counter() - t0
+            assert sim.running.all(), f"{run}: a world blew up: {sim.status}"
+            if rep > 0:
+                times[run].append(wall)
+            del sim
+        done = rep
+        clock.say(f"round {rep} of {a.repeats} ({'warm-up' if rep == 0 else 'timed'}) done; a batch's "
+                  f"set-up (not timed) {statistics.median(setups):.3f} s (median of {len(setups)})")
+    return times, info, done
+
+
+def breakdown_rounds(a, one, modes, per_call, torch, clock, setups):
+    """``--breakdown``: {(mode, k): {part: [seconds a call]}, "rebuilds": [...]}, how the device was
+    synchronised, the timed rounds done."""
+    runs = [(m, k) for k in per_call for m in modes]
+    got = {r: {"pose": [], "reset": [], "step": [], "rebuilds": []} for r in runs}
+    how = None
+    done = 0
+    for rep in range(a.repeats + 1):
+        if rep > 1 and clock.over():
+            clock.say(f"budget of {a.budget} s spent: breakdown of {done} timed rounds of {a.repeats}")
+            break
+        for run in runs if rep % 2 == 0 else runs[::-1]:
+            sim = fresh(one, setups)
+            sync = device_sync(sim, torch)
+            how = ("BatchSimulation.synchronize" if hasattr(sim, "synchronize")
+                   else "torch.cuda.synchronize" if sync else "none (host time only)")
+            parts, built = run_parts(run[0], sim, a.steps, run[1], a.resets, sync or (lambda: None))
+            assert sim.running.all(), f"breakdown {run}: a world blew up: {sim.status}"
+            if rep > 0:
+                for part, xs in parts.items():
+                    got[run][part].extend(xs)
+                if built is not None:
+                    got[run]["rebuilds"].append(built / (a.steps // run[1]))
+            del sim
+        done = rep
+        clock.say(f"breakdown round {rep} of {a.repeats} ({'warm-up' if rep == 0 else 'timed'}) done")
+    return got, how, done
+
+
+def print_breakdown(got, how, done):
+    """The breakdown's table: ms a call of each part (medians over every call of the timed
+    rounds)."""
+    print()
+    print(f"breakdown ({done} timed rounds; the device synchronised after each part by {how}: these "
+          "waits perturb the timings, which say where a call's time goes; the plain table is the "
+          "measurement):")
+    print("| mode | steps a call | poses ms | resets ms | steps ms | sum ms | step part - calls' ms "
+          "| rebuilds a call |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    med = lambda xs: 1e3 * statistics.median(xs) if xs else 0.0  # noqa: E731
+    for (mode, k), parts in got.items():
+        if not parts["step"]:
+            continue
+        base = got.get(("calls", k), {}).get("step")
+        extra = f"{med(parts['step']) - med(base):+.3f}" if base else "-"
+        rb = f"{statistics.mean(parts['rebuilds']):.2f}" if parts["rebuilds"] else "not counted"
+        pose_ms = f"{med(parts['pose']):.3f}" if parts["pose"] else "-"
+        reset_ms = f"{med(parts['reset']):.3f}" if parts["reset"] else "-"
+        total = med(parts["pose"]) + med(parts["reset"]) + med(parts["step"])
+        print(f"| {mode} | {k} | {pose_ms} | {reset_ms} | {med(parts['step']):.3f} | {total:.3f} | {extra} | {rb} |")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--worlds", type=int, default=256)
@@ -126,8 +291,13 @@ def main():
     ap.add_argument("--per-call", default="1,10", help="steps per Python call, a comma list (default 1,10)")
     ap.add_argument("--resets", type=int, default=4, help="worlds reset before every call (default 4)")
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--budget", type=float, default=None,
+                    help="seconds after which no further round starts (default: no limit)")
+    ap.add_argument("--breakdown", action="store_true",
+                    help="also time a call's poses, resets and steps on their own (perturbing)")
     ap.add_argument("--json", default=None)
     a = ap.parse_args()
+    clock = Clock(a.budget)
     ok, why = rtmpm.cuda_available()
     if not ok:
         sys.exit(f"no usable GPU: {why}")
@@ -141,26 +311,15 @@ def main():
     except ImportError:
         torch = None
     one, no_tool = make_batch(a.worlds)
+    clock.say("scene made; the first batch compiles the kernels (or takes them from the cache)")
     modes = ["bare", "calls", "reset"] + ([] if no_tool else ["pose"]) + ["loop"]
     modes += ["device"] if torch is not None else []
     runs = [("bare", a.steps)] + [(m, k) for k in per_call for m in modes if m != "bare"]
-    times = {r: [] for r in runs}
-    info = {}
-    for rep in range(a.repeats + 1):  # the first round warms up (kernel cache, pools), not counted
-        for run in runs if rep % 2 == 0 else runs[::-1]:
-            sim = rtmpm.Simulation(one, backend="cuda")
-            info = {"particles": int(sim.num_particles.sum()), "backend": sim.backend.name}
-            sim.step(1)  # the first step's graph capture is set-up, not the loop
-            t0 = time.perf_counter()
-            run_mode(run[0], sim, a.steps, run[1], a.resets, torch)
-            wall = time.perf_counter() - t0
-            assert sim.running.all(), f"{run}: a world blew up: {sim.status}"
-            if rep > 0:
-                times[run].append(wall)
-            del sim
+    setups = []
+    times, info, done = plain_rounds(a, one, runs, torch, clock, setups)
     bare = statistics.median(times[("bare", a.steps)])
     print(f"{a.worlds} worlds, {info['particles']} particles, {a.steps} steps, {a.resets} resets a call, "
-          f"{a.repeats} repeats, on {info['backend']}")
+          f"{done} repeats, on {info['backend']}")
     if no_tool:
         print(f"pose: not measured (no tool in the worlds: {no_tool})")
     if torch is None:
@@ -176,11 +335,21 @@ def main():
         print(f"| {mode} | {k} | {summary(times[(mode, k)])} | {1e3 * med / calls:.3f} | {med / bare:.3f} |")
     print(f"bare: {1e3 * bare / a.steps:.3f} ms a step of the {a.worlds} worlds "
           f"({info['particles'] * a.steps / bare / 1e6:.1f} M particle-steps/s); bound: loop / bare <= 1.10")
+    print(f"a fresh batch's set-up (not timed): median {statistics.median(setups):.3f} s of {len(setups)}; "
+          f"{clock.now():.1f} s so far", flush=True)
+    out = {"worlds": a.worlds, "steps": a.steps, "resets": a.resets, "repeats": done, "per_call": per_call,
+           "pose_not_measured": no_tool, "torch": torch is not None, **info, "rows": rows,
+           "setup_s": setups}
+    if a.breakdown:
+        parts_modes = [m for m in ("calls", "reset", "pose", "loop") if m in modes]
+        got, how, bdone = breakdown_rounds(a, one, parts_modes, per_call, torch, clock, setups)
+        print_breakdown(got, how, bdone)
+        out["breakdown"] = {"synchronised_by": how, "repeats": bdone,
+                            "rows": [{"mode": m, "steps_per_call": k, **parts} for (m, k), parts in got.items()]}
+    print(f"{clock.now():.1f} s in all", flush=True)
     if a.json:
         with open(a.json, "w") as f:
-            json.dump({"worlds": a.worlds, "steps": a.steps, "resets": a.resets, "repeats": a.repeats,
-                       "per_call": per_call, "pose_not_measured": no_tool, "torch": torch is not None,
-                       **info, "rows": rows}, f, indent=1)
+            json.dump(out, f, indent=1)
 
 
 if __name__ == "__main__":

@@ -263,6 +263,41 @@ impl CudaBatch {
         }
     }
 
+    /// World `w`'s rigid bodies' poses into `out` (emptied first; empty without bodies).
+    pub fn world_poses_into(&self, w: usize, out: &mut Vec<BodyPose>) {
+        match self.bodies.as_ref() {
+            Some(b) => b.poses_into(w, out),
+            None => out.clear(),
+        }
+    }
+
+    /// Rigid body `body` of world `w` now (its pose and velocities), `None` where there is no
+    /// such world or body.
+    pub fn world_body_pose(&self, w: usize, body: usize) -> Option<BodyPose> {
+        self.bodies.as_ref()?.pose(w, body)
+    }
+
+    /// Put rigid body `body` of each world `w` of `poses` at its pose from the next step on,
+    /// the worlds' other bodies where they are ([`Worlds::set_body_poses`]): every world and the
+    /// body checked first (nothing changes on an error), then the worlds posed on every core
+    /// (each world's rapier world is its own: the same result in any order). A script posing a
+    /// tool in every world pays no vector per world.
+    pub fn set_body_poses(
+        &mut self,
+        body: usize,
+        poses: &[(usize, BodyPose)],
+    ) -> Result<(), SimError> {
+        match self.bodies.as_mut() {
+            Some(b) => b.set_body_poses(body, poses),
+            None if poses.is_empty() => Ok(()),
+            None => Err(SimError::Backend(format!(
+                "CUDA batch: a pose for rigid body {body} of {} worlds, whose scenes have no \
+                 rigid bodies",
+                poses.len()
+            ))),
+        }
+    }
+
     /// The force and torque the material put on each of world `w`'s rigid bodies over the
     /// last step (zeros before the first), for every kind of body (the CPU backend's
     /// `rigid_loads`); waits for the last step.
@@ -408,6 +443,14 @@ impl Worlds for CudaBatch {
 
     fn set_world_rigid_poses(&mut self, w: usize, poses: &[BodyPose]) -> Result<(), SimError> {
         self.set_world_poses(w, poses)
+    }
+
+    fn world_rigid_poses_into(&self, w: usize, out: &mut Vec<BodyPose>) {
+        self.world_poses_into(w, out)
+    }
+
+    fn set_body_poses(&mut self, body: usize, poses: &[(usize, BodyPose)]) -> Result<(), SimError> {
+        CudaBatch::set_body_poses(self, body, poses)
     }
 
     fn world_rigid_loads(&self, w: usize) -> Result<Option<Vec<BodyLoad>>, SimError> {

@@ -53,25 +53,51 @@ pub fn states<'py>(
 
 /// The index among `specs` of `body`: an int (negative counts from the end) or a body's name.
 pub fn body_index(body: &Bound<'_, PyAny>, specs: &[RigidBodySpec]) -> PyResult<usize> {
-    if let Ok(name) = body.extract::<String>() {
-        return specs.iter().position(|s| s.name == name).ok_or_else(|| {
-            let names: Vec<&str> = specs.iter().map(|s| s.name.as_str()).collect();
-            PyKeyError::new_err(format!(
-                "no rigid body named `{name}`; the scene's are {names:?}"
-            ))
-        });
+    BodyRef::from_py(body)?.index(specs)
+}
+
+/// A rigid body as a script names it: its index in `[[rigid_body]]` (negative counts from the
+/// end) or its name, read from Python once and looked up in each scene (a batch's worlds).
+pub enum BodyRef {
+    /// An index.
+    Index(i64),
+    /// A name.
+    Name(String),
+}
+
+impl BodyRef {
+    /// `body` as Python gave it: a str or an int, else `TypeError`.
+    pub fn from_py(body: &Bound<'_, PyAny>) -> PyResult<BodyRef> {
+        if let Ok(name) = body.extract::<String>() {
+            return Ok(BodyRef::Name(name));
+        }
+        let i: i64 = body.extract().map_err(|_| {
+            PyTypeError::new_err("body: an int (its index in [[rigid_body]]) or a str (its name)")
+        })?;
+        Ok(BodyRef::Index(i))
     }
-    let i: i64 = body.extract().map_err(|_| {
-        PyTypeError::new_err("body: an int (its index in [[rigid_body]]) or a str (its name)")
-    })?;
-    let n = specs.len() as i64;
-    let j = if i < 0 { i + n } else { i };
-    if (0..n).contains(&j) {
-        Ok(j as usize)
-    } else {
-        Err(PyIndexError::new_err(format!(
-            "rigid body {i} does not exist: the scene has {n} rigid bodies"
-        )))
+
+    /// Its index among `specs` (`KeyError` for an unknown name, `IndexError` past the end).
+    pub fn index(&self, specs: &[RigidBodySpec]) -> PyResult<usize> {
+        match self {
+            BodyRef::Name(name) => specs.iter().position(|s| s.name == *name).ok_or_else(|| {
+                let names: Vec<&str> = specs.iter().map(|s| s.name.as_str()).collect();
+                PyKeyError::new_err(format!(
+                    "no rigid body named `{name}`; the scene's are {names:?}"
+                ))
+            }),
+            &BodyRef::Index(i) => {
+                let n = specs.len() as i64;
+                let j = if i < 0 { i + n } else { i };
+                if (0..n).contains(&j) {
+                    Ok(j as usize)
+                } else {
+                    Err(PyIndexError::new_err(format!(
+                        "rigid body {i} does not exist: the scene has {n} rigid bodies"
+                    )))
+                }
+            }
+        }
     }
 }
 

@@ -103,6 +103,9 @@ def test_batch_n_copies_a_plain_scene_and_steps_every_world():
     x = sim.x
     assert all(same_bits(x[0], x[w]) for w in range(1, 4))
     assert sim.mass.shape == x.shape[:2] and sim.material.dtype == np.int32
+    # The GPU's diagnostics: nothing to wait for on the CPU, no mapping to count.
+    sim.synchronize()
+    assert sim.rebuilds is None
 
 
 def test_a_plain_simulation_and_a_resumed_one_are_simulations(tmp_path):

@@ -181,6 +181,77 @@ impl RigidWorld {
         Ok(())
     }
 
+    /// Body `i`'s pose and velocities as rapier holds them (one of [`RigidWorld::poses`],
+    /// without building the others); `None` past the last body.
+    pub fn pose(&self, i: usize) -> Option<BodyPose> {
+        let &h = self.handles.get(i)?;
+        let b = &self.world.bodies[h];
+        let q = b.rotation().to_array();
+        Some(BodyPose {
+            position: gv(b.translation()),
+            rotation: glam::Quat::from_array(q),
+            velocity: gv(b.linvel()),
+            angular_velocity: gv(b.angvel()),
+        })
+    }
+
+    /// Every body's pose and velocities into `out` (emptied first): [`RigidWorld::poses`]
+    /// without a new vector.
+    pub fn poses_into(&self, out: &mut Vec<BodyPose>) {
+        out.clear();
+        out.extend((0..self.handles.len()).filter_map(|i| self.pose(i)));
+    }
+
+    /// Put body `i` at `pose`, the others where they are: exactly what
+    /// [`RigidWorld::set_poses`] of [`RigidWorld::poses`] with row `i` replaced does (every
+    /// body set again, rapier's no-op for an unchanged value), without building either vector
+    /// (a script posing one body of many worlds: a batch's tool).
+    pub fn set_pose(&mut self, i: usize, pose: &BodyPose) -> Result<(), String> {
+        if i >= self.handles.len() {
+            return Err(format!(
+                "rigid body {i}: the scene has {} rigid bodies",
+                self.handles.len()
+            ));
+        }
+        for j in 0..self.handles.len() {
+            let p = if j == i {
+                *pose
+            } else {
+                match self.pose(j) {
+                    Some(p) => p,
+                    None => continue,
+                }
+            };
+            let b = &mut self.world.bodies[self.handles[j]];
+            let q = p.rotation.to_array();
+            b.set_translation(rv(p.position), true);
+            b.set_rotation(rp::Rotation::from_array(q), true);
+            b.set_linvel(rv(p.velocity), true);
+            b.set_angvel(rv(p.angular_velocity), true);
+        }
+        self.refresh_in_place();
+        Ok(())
+    }
+
+    /// [`RigidWorld::refresh`] into the states there are (as many as bodies), no new vector.
+    fn refresh_in_place(&mut self) {
+        if self.states.len() != self.handles.len() {
+            self.refresh();
+            return;
+        }
+        for ((&h, s), state) in self.handles.iter().zip(&self.specs).zip(&mut self.states) {
+            let b = &self.world.bodies[h];
+            let q = b.rotation().to_array();
+            state.rotation = glam::Mat3::from_quat(glam::Quat::from_array(q));
+            state.center = gv(b.center_of_mass());
+            state.velocity = gv(b.linvel());
+            state.angular_velocity = gv(b.angvel());
+            state.dynamic = s.kind == RigidKind::Dynamic;
+            state.condition = s.condition;
+            state.friction = s.friction;
+        }
+    }
+
     /// Give each dynamic body the impulses the grid gave it this step, then advance the world
     /// by `dt` (gravity, contacts).
     pub fn advance(&mut self, exchange: &[Exchange], dt: f32) {
@@ -309,5 +380,116 @@ fn insert_joints(
         }
         let h1 = j.to.map_or(ground, |b| handles[b]);
         world.insert_impulse_joint(h1, handles[j.body], builder.build());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::{Quat, Vec3};
+    use rtmpm_geometry::shape::Cuboid;
+    use rtmpm_physics::boundary::Condition;
+
+    fn body(name: &str, kind: RigidKind, position: Vec3, velocity: Vec3) -> RigidBodySpec {
+        RigidBodySpec {
+            name: name.into(),
+            shape: Shape::Box(Cuboid::centred(Vec3::ZERO, Vec3::splat(0.05))),
+            kind,
+            mass: 1.0,
+            position,
+            rotation: Quat::IDENTITY,
+            velocity,
+            angular_velocity: Vec3::ZERO,
+            condition: Condition::Slip,
+            friction: 0.0,
+        }
+    }
+
+    /// A world of a kinematic tool, a dynamic box falling onto the floor and a fixed block.
+    fn world() -> RigidWorld {
+        let bodies = [
+            body(
+                "tool",
+                RigidKind::Kinematic,
+                Vec3::new(0.5, 0.7, 0.5),
+                Vec3::new(0.0, -0.2, 0.0),
+            ),
+            body(
+                "box",
+                RigidKind::Dynamic,
+                Vec3::new(0.3, 0.07, 0.3),
+                Vec3::new(0.1, 0.0, 0.0),
+            ),
+            body(
+                "block",
+                RigidKind::Fixed,
+                Vec3::new(0.8, 0.2, 0.8),
+                Vec3::ZERO,
+            ),
+        ];
+        let interior = (Vec3::ZERO, Vec3::ONE);
+        RigidWorld::new(&bodies, &[], Vec3::new(0.0, -9.81, 0.0), interior)
+            .expect("world")
+            .expect("bodies")
+    }
+
+    fn bits(w: &RigidWorld) -> Vec<u32> {
+        let mut out = Vec::new();
+        for p in w.poses() {
+            out.extend(p.position.to_array().map(f32::to_bits));
+            out.extend(p.rotation.to_array().map(f32::to_bits));
+            out.extend(p.velocity.to_array().map(f32::to_bits));
+            out.extend(p.angular_velocity.to_array().map(f32::to_bits));
+        }
+        for s in w.states() {
+            out.extend(s.rotation.to_cols_array().map(f32::to_bits));
+            out.extend(s.center.to_array().map(f32::to_bits));
+            out.extend(s.velocity.to_array().map(f32::to_bits));
+            out.extend(s.angular_velocity.to_array().map(f32::to_bits));
+        }
+        out
+    }
+
+    /// One body posed with `set_pose` gives bit for bit what `set_poses` of every body's pose with
+    /// its row replaced gives, then and over the steps after (the dynamic box posed onto the floor
+    /// at 0.3 m/s down, in contact with it); `pose(i)` is row `i` of `poses()`, `poses_into` is
+    /// `poses()`.
+    #[test]
+    fn setting_one_body_is_setting_every_pose_with_its_row_replaced() {
+        let (mut a, mut b) = (world(), world());
+        let none = vec![Exchange::default(); 3];
+        for step in 0..40 {
+            if step % 7 == 3 {
+                let i = (step / 7) % 3;
+                let mut pose = a.pose(i).expect("body i");
+                pose.position += Vec3::new(0.01, -0.02, 0.005);
+                pose.rotation = Quat::from_rotation_y(0.1 * step as f32);
+                if i != 2 {
+                    pose.velocity = Vec3::new(0.0, -0.3, 0.05 * step as f32);
+                    pose.angular_velocity = Vec3::new(0.0, 1.0, 0.0);
+                }
+                let mut all = a.poses();
+                all[i] = pose;
+                a.set_poses(&all).expect("set_poses");
+                b.set_pose(i, &pose).expect("set_pose");
+                assert_eq!(bits(&a), bits(&b), "step {step}: after posing body {i}");
+            }
+            a.advance(&none, 1e-3);
+            b.advance(&none, 1e-3);
+            assert_eq!(bits(&a), bits(&b), "step {step}");
+        }
+        let all = a.poses();
+        // The floor held the box (posed 2 cm into it at 0.3 m/s down at steps 10 and 31, free
+        // fall would leave its centre near 0.021 m): the steps compared had contacts.
+        assert!(all[1].position.y > 0.028, "box at {}", all[1].position);
+        for (i, p) in all.iter().enumerate() {
+            assert_eq!(a.pose(i).as_ref(), Some(p));
+        }
+        assert!(a.pose(3).is_none());
+        let mut into = vec![all[0]; 7];
+        a.poses_into(&mut into);
+        assert_eq!(into, all);
+        let err = b.set_pose(3, &all[0]).expect_err("no body 3");
+        assert!(err.contains("rigid body 3: the scene has 3"), "{err}");
     }
 }

@@ -50,6 +50,21 @@ impl RigidWorld {
         match self.never {}
     }
 
+    /// Body `i`'s pose and velocities.
+    pub fn pose(&self, _i: usize) -> Option<BodyPose> {
+        match self.never {}
+    }
+
+    /// Every body's pose and velocities into `out`.
+    pub fn poses_into(&self, _out: &mut Vec<BodyPose>) {
+        match self.never {}
+    }
+
+    /// Put body `i` at `pose`, the others where they are.
+    pub fn set_pose(&mut self, _i: usize, _pose: &BodyPose) -> Result<(), String> {
+        match self.never {}
+    }
+
     /// Put every body at `poses`.
     pub fn set_poses(&mut self, _poses: &[BodyPose]) -> Result<(), String> {
         match self.never {}

@@ -78,6 +78,33 @@ pub trait Worlds: Backend {
         )))
     }
 
+    /// World `w`'s rigid bodies' poses into `out` (emptied first): what
+    /// [`Worlds::world_rigid_poses`] gives, without a new vector where the backend can (the
+    /// driver keeps every world's poses at every call).
+    fn world_rigid_poses_into(&self, w: usize, out: &mut Vec<BodyPose>) {
+        *out = self.world_rigid_poses(w);
+    }
+
+    /// Put rigid body `body` of each world `w` of `poses` at its pose, the world's other bodies
+    /// where they are, from the next step on: [`Worlds::set_world_rigid_poses`] of each world's
+    /// [`Worlds::world_rigid_poses`] with row `body` replaced (the default, world after world;
+    /// an error leaves the worlds before it posed). A backend may pose them all at once (the
+    /// GPU batch: every world checked first, then posed on every core), with the same result.
+    fn set_body_poses(&mut self, body: usize, poses: &[(usize, BodyPose)]) -> Result<(), SimError> {
+        for (w, pose) in poses {
+            let mut all = self.world_rigid_poses(*w);
+            let count = all.len();
+            let row = all.get_mut(body).ok_or_else(|| {
+                SimError::Backend(format!(
+                    "rigid body {body} of world {w}: the backend holds {count} for it"
+                ))
+            })?;
+            *row = *pose;
+            self.set_world_rigid_poses(*w, &all)?;
+        }
+        Ok(())
+    }
+
     /// The load (force and torque) the material put on each of world `w`'s rigid bodies over
     /// the last step, as [`Backend::rigid_loads`] gives a single run's (zeros before the first
     /// step); `None`: this backend does not report loads. An error: the backend failed while

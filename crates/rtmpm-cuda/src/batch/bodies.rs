@@ -184,6 +184,59 @@ impl WorldBodies {
         self.worlds.get(w).map_or_else(Vec::new, |r| r.poses())
     }
 
+    /// World `w`'s bodies' poses and velocities into `out` (emptied first; empty for no such
+    /// world).
+    pub fn poses_into(&self, w: usize, out: &mut Vec<BodyPose>) {
+        match self.worlds.get(w) {
+            Some(r) => r.poses_into(out),
+            None => out.clear(),
+        }
+    }
+
+    /// Body `body` of world `w` (`None`: no such world or body).
+    pub fn pose(&self, w: usize, body: usize) -> Option<BodyPose> {
+        self.worlds.get(w)?.pose(body)
+    }
+
+    /// Put body `body` of each world `w` of `poses` at its pose, the worlds' other bodies where
+    /// they are: the worlds and the body checked first, then posed on every core (a world
+    /// listed twice ends with its last pose, as one after the other would).
+    pub fn set_body_poses(
+        &mut self,
+        body: usize,
+        poses: &[(usize, BodyPose)],
+    ) -> Result<(), SimError> {
+        let count = self.worlds.len();
+        if body >= self.per && !poses.is_empty() {
+            return Err(SimError::Backend(format!(
+                "CUDA batch: rigid body {body}: a world has {}",
+                self.per
+            )));
+        }
+        let mut last = vec![None; count];
+        for (j, (w, _)) in poses.iter().enumerate() {
+            let slot = last.get_mut(*w).ok_or_else(|| {
+                SimError::Backend(format!("CUDA batch: no world {w} (the batch has {count})"))
+            })?;
+            *slot = Some(j);
+        }
+        let failed: Option<(usize, String)> = self
+            .worlds
+            .par_iter_mut()
+            .zip(&last)
+            .enumerate()
+            .with_min_len(16)
+            .filter_map(|(w, (world, at))| {
+                let pose = &poses[(*at)?].1;
+                world.set_pose(body, pose).err().map(|e| (w, e))
+            })
+            .min_by_key(|(w, _)| *w);
+        match failed {
+            Some((w, e)) => Err(SimError::Backend(format!("CUDA batch: world {w}: {e}"))),
+            None => Ok(()),
+        }
+    }
+
     /// Put world `w`'s bodies at `poses` (one per body).
     pub fn set_poses(&mut self, w: usize, poses: &[BodyPose]) -> Result<(), SimError> {
         let count = self.worlds.len();

@@ -385,7 +385,9 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
                 continue;
             }
             if world.status == WorldStatus::Running {
-                world.bodies = self.sim.backend.world_rigid_poses(w);
+                self.sim
+                    .backend
+                    .world_rigid_poses_into(w, &mut world.bodies);
             } else {
                 self.sim
                     .backend
@@ -541,7 +543,9 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         let now = self.clock();
         for (w, world) in self.worlds.iter_mut().enumerate() {
             if world.status == WorldStatus::Running {
-                world.bodies = self.sim.backend.world_rigid_poses(w);
+                self.sim
+                    .backend
+                    .world_rigid_poses_into(w, &mut world.bodies);
                 world.at = now;
             }
         }
@@ -557,7 +561,9 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
                 continue;
             }
             world.kept = p;
-            world.bodies = self.sim.backend.world_rigid_poses(w);
+            self.sim
+                .backend
+                .world_rigid_poses_into(w, &mut world.bodies);
             world.at = now;
             if let Some(out) = world.output.as_mut() {
                 out.write_frame(

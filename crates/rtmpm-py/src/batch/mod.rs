@@ -138,12 +138,22 @@ impl PyBatch {
     /// when something needs them), with the interpreter lock released, panics caught (the
     /// batch is then marked broken).
     fn read_back(&mut self, py: Python<'_>) -> PyResult<()> {
+        self.detached(py, Run::sync)
+    }
+
+    /// `work` on the run with the interpreter lock released, panics caught (the batch is then
+    /// marked broken); unlike [`PyBatch::drive`], no device arrays are gathered after it.
+    fn detached<T: Send>(
+        &mut self,
+        py: Python<'_>,
+        work: impl FnOnce(&mut Run) -> anyhow::Result<T> + Send,
+    ) -> PyResult<T> {
         self.usable()?;
         let run = match self.run.get_mut() {
             Ok(r) => r,
             Err(poisoned) => poisoned.into_inner(),
         };
-        match py.detach(|| catch_unwind(AssertUnwindSafe(|| run.get().sync()))) {
+        match py.detach(|| catch_unwind(AssertUnwindSafe(|| work(run.get())))) {
             Ok(r) => r.map_err(run_error),
             Err(payload) => {
                 let err = internal_error(payload.as_ref());

@@ -6,7 +6,7 @@
 use super::PyBatch;
 use super::arrays::f32_array;
 use super::run::Run;
-use crate::bodies::{BodyUpdate, body_index, set_body};
+use crate::bodies::{BodyRef, BodyUpdate, set_body};
 use crate::errors::{BackendError, sim_error};
 use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyIndexError, PyValueError};
@@ -15,7 +15,7 @@ use pyo3::types::PyDict;
 use rtmpm_cuda::batch::CudaBatch;
 use rtmpm_driver::batch::WorldStatus;
 use rtmpm_driver::batch::lockstep::LockstepRun;
-use rtmpm_rigid::BodyLoad;
+use rtmpm_rigid::{BodyLoad, BodyPose};
 use rtmpm_sim::Worlds;
 
 /// A per-world vector argument: one value for every world listed, or one row per world.
@@ -50,7 +50,9 @@ impl PyBatch {
     /// (m/s), ``angular_velocity`` (rad/s), each one value for every world listed (shape
     /// ``(3,)``, ``(4,)``) or one row per world (``(k, 3)``, ``(k, 4)``). A kinematic body (a
     /// tool, a pusher) moves at the velocity given. Bad values raise ``ValueError`` naming the
-    /// world; the worlds before it are already set.
+    /// world; the worlds before it are already set. One call for every world is the fast way
+    /// to pose a tool in a loop: the arrays are read once and, on the GPU, every world's new
+    /// pose is checked first and then set on every core (no Python, no vector, per world).
     #[pyo3(signature = (body, *, worlds = None, position = None, rotation = None, velocity = None, angular_velocity = None))]
     #[allow(clippy::too_many_arguments)] // Python's keyword arguments
     fn set_rigid_body(
@@ -66,34 +68,41 @@ impl PyBatch {
         self.usable()?;
         let list = self.world_list(worlds)?;
         let k = list.len();
+        let body = BodyRef::from_py(body)?;
         let position = per_world::<3>("position", position, k)?;
         let rotation = per_world::<4>("rotation", rotation, k)?;
         let velocity = per_world::<3>("velocity", velocity, k)?;
         let angular = per_world::<3>("angular_velocity", angular_velocity, k)?;
-        for (j, &w) in list.iter().enumerate() {
-            let update = BodyUpdate {
-                position: position.as_ref().map(|p| p[j]),
-                rotation: rotation.as_ref().map(|p| p[j]),
-                velocity: velocity.as_ref().map(|p| p[j]),
-                angular_velocity: angular.as_ref().map(|p| p[j]),
-            };
-            let done = match self.r() {
-                Run::Each(r) => {
+        let update = |j: usize| BodyUpdate {
+            position: position.as_ref().map(|p| p[j]),
+            rotation: rotation.as_ref().map(|p| p[j]),
+            velocity: velocity.as_ref().map(|p| p[j]),
+            angular_velocity: angular.as_ref().map(|p| p[j]),
+        };
+        let in_world = |w: usize, e: PyErr| {
+            let msg = format!("world {w}: {}", e.value(py));
+            PyErr::from_type(e.get_type(py), msg)
+        };
+        match self.r() {
+            Run::Each(r) => {
+                for (j, &w) in list.iter().enumerate() {
                     let sim = &mut r.worlds[w].sim;
-                    let i = body_index(body, &sim.scene.rigid_bodies)?;
-                    set_body(py, sim, i, &update)
+                    let i = body.index(&sim.scene.rigid_bodies)?;
+                    set_body(py, sim, i, &update(j)).map_err(|e| in_world(w, e))?;
                 }
-                Run::Lockstep(r) => {
-                    let i = body_index(body, &r.worlds[w].scene().rigid_bodies)?;
-                    pose_world(py, r, w, i, &update)
+                Ok(())
+            }
+            Run::Lockstep(r) => {
+                let (posed, failed) = new_poses(r, &body, &list, update, in_world);
+                for (i, run) in posed {
+                    r.sim
+                        .backend
+                        .set_body_poses(i, &run)
+                        .map_err(|e| sim_error(py, &e))?;
                 }
-            };
-            done.map_err(|e| {
-                let msg = format!("world {w}: {}", e.value(py));
-                PyErr::from_type(e.get_type(py), msg)
-            })?;
+                failed.map_or(Ok(()), Err)
+            }
         }
-        Ok(())
     }
 
     /// World ``world``'s rigid bodies as :attr:`Simulation.rigid_bodies` gives them (dicts of
@@ -152,11 +161,12 @@ impl PyBatch {
         part: impl Fn(&rtmpm_rigid::BodyLoad) -> [f64; 3],
     ) -> PyResult<Bound<'py, PyAny>> {
         let count = self.count();
+        let body = BodyRef::from_py(body)?;
         let mut flat = Vec::with_capacity(3 * count);
         for w in 0..count {
             let run = self.r();
             let specs = &run.scene(w).rigid_bodies;
-            let i = body_index(body, specs)?;
+            let i = body.index(specs)?;
             if *run.status(w) != WorldStatus::Running {
                 flat.extend([f64::NAN; 3]);
                 continue;
@@ -187,24 +197,45 @@ impl PyBatch {
     }
 }
 
-/// Set the fields of `update` on rigid body `i` of world `w` of a GPU batch from the next step
-/// on (the checks of `Simulation.set_rigid_body`; the batch moves bodies a step at a time, so
-/// the fields not given are the body's now).
-fn pose_world(
-    py: Python<'_>,
-    run: &mut LockstepRun<CudaBatch>,
-    w: usize,
-    i: usize,
-    update: &BodyUpdate,
-) -> PyResult<()> {
-    let mut poses = run.sim.backend.world_rigid_poses(w);
-    let pose = poses.get_mut(i).ok_or_else(|| {
-        PyIndexError::new_err(format!("rigid body {i}: the backend holds no state for it"))
-    })?;
-    let scene = run.worlds[w].scene();
-    update.apply(&scene.rigid_bodies[i], pose, scene.interior())?;
-    run.sim
-        .backend
-        .set_world_rigid_poses(w, &poses)
-        .map_err(|e| sim_error(py, &e))
+/// The new poses of `body` in the worlds `list` of a GPU batch (`update(j)`: the fields given
+/// for the `j`th world listed; the checks of `Simulation.set_rigid_body`; the batch moves
+/// bodies a step at a time, so the fields not given are the body's now), in runs of worlds
+/// whose scenes give `body` the same index (every world's, unless their bodies' names differ),
+/// up to the first world whose pose is refused, and the error for it (a body the world's scene
+/// does not have as it is; a refused pose through `in_world`, which names the world).
+#[allow(clippy::type_complexity)]
+fn new_poses(
+    run: &LockstepRun<CudaBatch>,
+    body: &BodyRef,
+    list: &[usize],
+    update: impl Fn(usize) -> BodyUpdate,
+    in_world: impl Fn(usize, PyErr) -> PyErr,
+) -> (Vec<(usize, Vec<(usize, BodyPose)>)>, Option<PyErr>) {
+    let mut runs: Vec<(usize, Vec<(usize, BodyPose)>)> = Vec::new();
+    for (j, &w) in list.iter().enumerate() {
+        let scene = run.worlds[w].scene();
+        let i = match body.index(&scene.rigid_bodies) {
+            Ok(i) => i,
+            Err(e) => return (runs, Some(e)),
+        };
+        let posed = run
+            .sim
+            .backend
+            .world_body_pose(w, i)
+            .ok_or_else(|| {
+                PyIndexError::new_err(format!("rigid body {i}: the backend holds no state for it"))
+            })
+            .and_then(|mut pose| {
+                update(j).apply(&scene.rigid_bodies[i], &mut pose, scene.interior())?;
+                Ok(pose)
+            });
+        match posed {
+            Ok(pose) => match runs.last_mut() {
+                Some((at, poses)) if *at == i => poses.push((w, pose)),
+                _ => runs.push((i, vec![(w, pose)])),
+            },
+            Err(e) => return (runs, Some(in_world(w, e))),
+        }
+    }
+    (runs, None)
 }

@@ -73,6 +73,24 @@ impl Run {
         }
     }
 
+    /// Wait until the device has done everything queued so far, every stream of the batch's
+    /// context (on the GPU; nothing to do on the CPU, whose calls end with their work done).
+    pub fn synchronize(&mut self) -> Result<()> {
+        match self {
+            Run::Each(_) => Ok(()),
+            Run::Lockstep(r) => Ok(r.sim.backend.backend().wait_for_device()?),
+        }
+    }
+
+    /// Rebuilds of the particle-to-block mapping so far (on the GPU, read from the device after
+    /// its queued work; `None` on the CPU, which rebuilds its grid every step).
+    pub fn rebuilds(&mut self) -> Result<Option<u32>> {
+        match self {
+            Run::Each(_) => Ok(None),
+            Run::Lockstep(r) => Ok(Some(r.sim.backend.backend().rebuild_count()?)),
+        }
+    }
+
     /// World `w`'s particles after the last call (a frozen world's last good state); on the
     /// GPU as of the last [`Run::sync`] (their number is always right).
     pub fn particles(&self, w: usize) -> &Particles {

@@ -1,6 +1,6 @@
 //! Stepping the worlds: steps, a frame, or frames, every running world at once.
 
-use super::PyBatch;
+use super::{PyBatch, Run};
 use pyo3::prelude::*;
 use rtmpm_driver::batch::chunk::next_chunk;
 
@@ -45,5 +45,23 @@ impl PyBatch {
             py.check_signals()?;
         }
         Ok(frozen)
+    }
+
+    /// Wait until the GPU has done all the work the batch queued (every stream of its context:
+    /// PyTorch's or CuPy's work on the device arrays too); nothing to do on the CPU. Every call
+    /// that steps or resets returns with its work queued and, where it read anything back (the
+    /// end of :meth:`step`), done; this is for timing a loop's parts on their own
+    /// (``bench/python_batch_gpu.py --breakdown``).
+    fn synchronize(&mut self, py: Python<'_>) -> PyResult<()> {
+        self.detached(py, Run::synchronize)
+    }
+
+    /// Rebuilds of the GPU's particle-to-block mapping since the batch was made (``None`` on the
+    /// CPU): a diagnostic, read from the device after its queued work (a wait). A step rebuilds
+    /// the mapping when a particle left the part of the grid it was mapped to, and the step
+    /// after a reset when a reset world's particles left it (see :meth:`reset`).
+    #[getter]
+    fn rebuilds(&mut self, py: Python<'_>) -> PyResult<Option<u32>> {
+        self.detached(py, Run::rebuilds)
     }
 }
