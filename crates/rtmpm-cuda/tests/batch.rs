@@ -363,6 +363,101 @@ fn worlds_put_at_once_hold_what_one_put_a_world_leaves() {
     assert!(b.bad_world().expect("check").is_none());
 }
 
+/// A put rebuilds the particle-to-block mapping only where a particle put leaves the free zone
+/// of the block its slot is mapped to (`kernels/batch.cu`): four sand beds after 10 steps
+/// (settled by a few thousandths of a cell), world 1 put back as it is and world 2 reset to its
+/// start cost no rebuild, and both go on as their separate runs from those states (every
+/// particle after one step within the agreement test's first-step tolerance, the aggregates
+/// after 20): the mapping they kept holds them. World 3 put 3 cells along x asks for a rebuild
+/// at the next step, and goes on as its separate run from there too. About 10 s on an H200 (most
+/// of it the programs' compiles on a cold cache).
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn a_put_rebuilds_the_mapping_only_where_a_particle_leaves_its_zone() {
+    if !gpu() {
+        return;
+    }
+    let dt = 2.5e-4;
+    let world = Scene::from_toml(&sand_bed(0.109375), "sand_bed").expect("scene");
+    let worlds = vec![world.clone(); 4];
+    let p0: Vec<Particles> = worlds
+        .iter()
+        .map(|s| s.sample_particles().expect("particles"))
+        .collect();
+    let mut b = CudaBatch::new(&worlds, &p0, precise()).expect("batch");
+    let mut t = 0.0f32;
+    for _ in 0..10 {
+        b.step(dt, t).expect("step");
+        t += dt;
+    }
+    let now = b.read_worlds().expect("read");
+    let rebuilds = |b: &mut CudaBatch| b.backend().rebuild_count().expect("control words");
+    let before = rebuilds(&mut b);
+    let mut shifted = p0[3].clone();
+    shifted.x.iter_mut().for_each(|x| x.x += 3.0 * world.dx);
+    // The separate runs from the states put, and the batch's worlds after the same steps.
+    let starts = [(1, now[1].clone()), (2, p0[2].clone())];
+    b.put_worlds(&starts).expect("put worlds 1 and 2");
+    b.step(dt, t).expect("step after the put");
+    assert_eq!(
+        rebuilds(&mut b),
+        before,
+        "worlds put within their blocks' free zones rebuilt the mapping"
+    );
+    let one_step = b.read_worlds().expect("read");
+    b.put_world(3, &shifted)
+        .expect("put world 3 three cells along x");
+    b.step(dt, t + dt).expect("step after the shifted put");
+    assert_eq!(
+        rebuilds(&mut b),
+        before + 1,
+        "a world put three cells away did not rebuild the mapping"
+    );
+    let shifted_one = b.read_worlds().expect("read");
+    for s in 2..21 {
+        b.step(dt, t + s as f32 * dt).expect("step");
+    }
+    let got = b.read_worlds().expect("read");
+    let alone = |p: &Particles, steps: usize| {
+        let mut one = CudaBackend::new(&world, p, precise()).expect("world alone");
+        let mut out = Vec::new();
+        for s in 0..steps {
+            one.step(dt, s as f32 * dt).expect("step");
+            if s == 0 || s + 1 == steps {
+                out.push(read(&mut one));
+            }
+        }
+        out
+    };
+    let mut failures = Vec::new();
+    let dx = world.dx;
+    for (w, p) in &starts {
+        let runs = alone(p, 21);
+        failures.extend(agrees(
+            &format!("world {w} put without a rebuild"),
+            Some((&one_step[*w], &runs[0])),
+            &got[*w],
+            &runs[1],
+            dx,
+        ));
+    }
+    let runs = alone(&shifted, 20);
+    failures.extend(agrees(
+        "world 3 put three cells along x",
+        Some((&shifted_one[3], &runs[0])),
+        &got[3],
+        &runs[1],
+        dx,
+    ));
+    let d = got[3].aggregate_difference(&got[2]);
+    assert!(
+        d.com > 2.0 * dx as f64,
+        "world 3 is not three cells from world 2: |d com| {:.3e}",
+        d.com
+    );
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
 /// Worlds that cannot share the arrays, and a batch larger than the GPU, are refused before
 /// anything is allocated, with the numbers.
 #[test]

@@ -82,7 +82,12 @@ impl CudaBatch {
     /// Put world `w`'s particles to `particles` (its initial ones for a reset, or any state of
     /// as many particles, in its own material indices), the other worlds untouched: the state
     /// words of its slots are overwritten (`batch_put_world`, `kernels/batch.cu`) and the next
-    /// step rebuilds the mapping and redoes its P2G. [`CudaBatch::put_worlds`] of one world.
+    /// step redoes its P2G (with G2P2G, whose last fused scatter was of the old particles). The
+    /// mapping of particles to blocks is rebuilt at the next step only when a particle put
+    /// needs it: when its stencil base leaves the free zone of the gblock its slot is mapped to
+    /// (the kernel's rule, `kernels/batch.cu`), as a step rebuilds when a particle moves out of
+    /// it; a world put back near where it is (a reset of a world that has not gone far) costs
+    /// the other worlds no rebuild. [`CudaBatch::put_worlds`] of one world.
     pub fn put_world(&mut self, w: usize, particles: &Particles) -> Result<(), SimError> {
         self.put_many(&[(w, particles)])
     }
@@ -91,9 +96,11 @@ impl CudaBatch {
     /// once: every world is checked before any changes (a world listed twice ends with its
     /// last); each run of consecutive worlds is packed as one (their particles are consecutive
     /// in original order), all runs go to the device in one copy (into a buffer kept between
-    /// calls, [`CudaBatch::put_bytes`]), one `batch_put_world` launch a run, the control words
-    /// set once and one wait at the end, where a world at a time paid an allocation, a copy,
-    /// two control-word writes and a wait.
+    /// calls, [`CudaBatch::put_bytes`]), one `batch_put_world` launch a run and the P2G flag
+    /// set once (with G2P2G), where a world at a time paid an allocation, a copy, two
+    /// control-word writes and a wait. Nothing waits for the device: the copy's source is staged
+    /// by the driver before the call returns, and whatever reads the worlds next (a step, a
+    /// read, a gather) is queued behind the launches on the same stream.
     pub fn put_worlds(&mut self, worlds: &[(usize, Particles)]) -> Result<(), SimError> {
         let refs: Vec<(usize, &Particles)> = worlds.iter().map(|(w, p)| (*w, p)).collect();
         self.put_many(&refs)
@@ -196,7 +203,7 @@ impl CudaBatch {
         for (first, count, at, len) in &runs {
             let src = buf.slice(*at..*at + *len);
             // SAFETY: the kernel reads `src` below `count` particles of the state's words (the
-            // run's image) and writes the state's slots below n.
+            // run's image), writes the state's slots below n and the rebuild flag.
             unsafe {
                 b.stream
                     .launch_builder(&b.kernels[Kernel::BatchPutWorld])
@@ -208,11 +215,11 @@ impl CudaBatch {
             }
             .map_err(err("put worlds"))?;
         }
-        b.set_ctl_word(CTL_NEED_REBUILD, 1)?;
+        // The rebuild flag is the kernel's (only where a particle put leaves its zone).
         if b.g2p2g() {
             b.set_ctl_word(CTL_P2G_PENDING, 1)?;
         }
-        b.stream.synchronize().map_err(err("put worlds"))
+        Ok(())
     }
 }
 
