@@ -134,8 +134,9 @@ __device__ __forceinline__ void sb_list_body(const Ctx& c, const SharedCtx& s, c
             s.shared_local[pos] = hash_find(c, block_code(bi, bj, bk));
             if (p) {
                 unsigned h = 0;
-                for (unsigned g = 0; g < p->n; ++g)
-                    if (__ldcg(p->mask[g] + i)) h |= 1u << g;
+#pragma unroll
+                for (unsigned g = 0; g < SB_MAX_GPUS; ++g)
+                    if (g < p->n && __ldcg(p->mask[g] + i)) h |= 1u << g;
                 s.holders[pos] = (unsigned char)h;
             }
         }
@@ -198,7 +199,10 @@ extern "C" __global__ void sb_unpack(Ctx c, SharedCtx s) {
 __device__ __forceinline__ void sb_counts_body(const SharedCtx& s, const PeerCtx& p) {
     SB_GRID_STRIDE(i, s.d) {
         unsigned n = 0;
-        for (unsigned g = 0; g < p.n; ++g) n += __ldcg(p.mask[g] + i);
+        // Unrolled over the constant bound: no local copy of the pointer array.
+#pragma unroll
+        for (unsigned g = 0; g < SB_MAX_GPUS; ++g)
+            if (g < p.n) n += __ldcg(p.mask[g] + i);
         s.counts[i] = (unsigned char)n;
     }
 }
@@ -247,8 +251,10 @@ extern "C" __global__ void __launch_bounds__(1024) sb_list_fused(Ctx c, SharedCt
         SB_GRID_STRIDE(i, s.d) s.mask[i] = 0;
         rb_grid_barrier(c);
         sb_mark_body(c, s);
-        // The peers read the mask after the inter-GPU barrier: every writer's fence.
+        // The peers read the mask after the inter-GPU barrier: every writer's fence, and every
+        // block done marking before the one thread arrives there.
         __threadfence_system();
+        rb_grid_barrier(c);
     }
     if (thread_index() == 0) {
         s.mask[s.d] = rebuilt ? 1 : 0;
@@ -256,7 +262,9 @@ extern "C" __global__ void __launch_bounds__(1024) sb_list_fused(Ctx c, SharedCt
     }
     rb_grid_barrier(c);
     unsigned any = 0;
-    for (unsigned g = 0; g < p.n; ++g) any += __ldcg(p.mask[g] + s.d);
+#pragma unroll
+    for (unsigned g = 0; g < SB_MAX_GPUS; ++g)
+        if (g < p.n) any += __ldcg(p.mask[g] + s.d);
     if (thread_index() == 0) s.counts[s.d] = (unsigned char)any;
     if (!any) return;  // the same in every block: no GPU rebuilt, the list stands
     sb_counts_body(s, p);
@@ -327,7 +335,10 @@ extern "C" __global__ void sb_push(Ctx c, SharedCtx s, PushCtx q) {
             unsigned id = s.shared_local[pos];
             sb_vec x = id == EMPTY_ID ? sb_vzero() : grid[(size_t)id * SB_VECS + v];
             size_t at = sb_inbox_at(s, q, par, q.me, pos, v);
-            for (unsigned to = 0; to < q.n; ++to)
+            // Unrolled over the constant bound: the inbox pointers stay kernel parameters (global
+            // stores), never a local copy of the array indexed at run time.
+#pragma unroll
+            for (unsigned to = 0; to < SB_MAX_GPUS; ++to)
                 if (h >> to & 1u) ((sb_vec*)q.inbox[to])[at] = x;
         }
     }
@@ -340,7 +351,9 @@ extern "C" __global__ void sb_push(Ctx c, SharedCtx s, PushCtx q) {
         *q.done = 0;
         __threadfence_system();
 #if __CUDA_ARCH__ >= 700
-        for (unsigned to = 0; to < q.n; ++to) atomicAdd_system(q.arrivals[to], 1ull);
+#pragma unroll
+        for (unsigned to = 0; to < SB_MAX_GPUS; ++to)
+            if (to < q.n) atomicAdd_system(q.arrivals[to], 1ull);
 #else
         atomicOr(&c.ctl[CTL_ERROR], ERR_BARRIER);
 #endif
@@ -351,6 +364,15 @@ extern "C" __global__ void sb_push(Ctx c, SharedCtx s, PushCtx q) {
 extern "C" __global__ void sb_gather(Ctx c, SharedCtx s, PushCtx q) {
     unsigned long long g = *q.calls;  // set by sb_push, the kernel before on this stream
     unsigned par = (unsigned)(g & 1ull);
+    // This GPU's inbox and counter, picked with constant indices (no local copy of the arrays).
+    const sb_vec* inbox = nullptr;
+    unsigned long long* mine = nullptr;
+#pragma unroll
+    for (unsigned k = 0; k < SB_MAX_GPUS; ++k)
+        if (k == q.me) {
+            inbox = (const sb_vec*)q.inbox[k];
+            mine = q.arrivals[k];
+        }
     if (threadIdx.x == 0) {
         unsigned long long target = g * (unsigned long long)q.n;
         unsigned long long start = bar_now_ns();
@@ -358,7 +380,7 @@ extern "C" __global__ void sb_gather(Ctx c, SharedCtx s, PushCtx q) {
             unsigned long long v;
             asm volatile("ld.acquire.sys.global.u64 %0, [%1];"
                          : "=l"(v)
-                         : "l"(q.arrivals[q.me])
+                         : "l"(mine)
                          : "memory");
             if (v >= target) break;
             if (bar_now_ns() - start > q.timeout_ns) {
@@ -373,7 +395,6 @@ extern "C" __global__ void sb_gather(Ctx c, SharedCtx s, PushCtx q) {
     if (((volatile unsigned*)c.ctl)[CTL_ERROR]) return;
     unsigned nb = min(c.ctl[CTL_SHARED], s.cap);
     sb_vec* grid = (sb_vec*)c.grid;
-    const sb_vec* inbox = (const sb_vec*)q.inbox[q.me];
     SB_GRID_STRIDE(t, nb * SB_VECS) {
         unsigned pos = t / SB_VECS, v = t % SB_VECS;
         unsigned id = s.shared_local[pos];
