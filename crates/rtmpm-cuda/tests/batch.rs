@@ -364,13 +364,16 @@ fn worlds_put_at_once_hold_what_one_put_a_world_leaves() {
 }
 
 /// A put rebuilds the particle-to-block mapping only where a particle put leaves the free zone
-/// of the block its slot is mapped to (`kernels/batch.cu`): four sand beds after 10 steps
-/// (settled by a few thousandths of a cell), world 1 put back as it is and world 2 reset to its
-/// start cost no rebuild, and both go on as their separate runs from those states (every
-/// particle after one step within the agreement test's first-step tolerance, the aggregates
-/// after 20): the mapping they kept holds them. World 3 put 3 cells along x asks for a rebuild
-/// at the next step, and goes on as its separate run from there too. About 10 s on an H200 (most
-/// of it the programs' compiles on a cold cache).
+/// of the gblock its slot is sorted into (`kernels/batch.cu`): four sand beds after 10 steps
+/// (settled by a few thousandths of a cell), world 1 put back as it is, world 2 reset to its
+/// start and world 0 put at its start moved one cell along x and one back along z (still in
+/// every zone: a base may go 4 cells below its block and 5 above its block's first) cost no
+/// rebuild, and all three go on as their separate runs from those states (every particle after
+/// one step within the agreement test's first-step tolerance, the aggregates after 20): the
+/// mapping they kept holds them. World 3 put 3 cells along x (the particles of each block's
+/// last cell column leave its zone) asks for a rebuild at the next step, and goes on as its
+/// separate run from there too. About 10 s on an H200 (most of it the programs' compiles on a
+/// cold cache).
 #[test]
 #[ignore = "needs a CUDA GPU"]
 fn a_put_rebuilds_the_mapping_only_where_a_particle_leaves_its_zone() {
@@ -393,11 +396,19 @@ fn a_put_rebuilds_the_mapping_only_where_a_particle_leaves_its_zone() {
     let now = b.read_worlds().expect("read");
     let rebuilds = |b: &mut CudaBatch| b.backend().rebuild_count().expect("control words");
     let before = rebuilds(&mut b);
-    let mut shifted = p0[3].clone();
-    shifted.x.iter_mut().for_each(|x| x.x += 3.0 * world.dx);
+    let moved = |p: &Particles, by: Vec3| {
+        let mut q = p.clone();
+        q.x.iter_mut().for_each(|x| *x += by * world.dx);
+        q
+    };
+    let shifted = moved(&p0[3], Vec3::new(3.0, 0.0, 0.0));
     // The separate runs from the states put, and the batch's worlds after the same steps.
-    let starts = [(1, now[1].clone()), (2, p0[2].clone())];
-    b.put_worlds(&starts).expect("put worlds 1 and 2");
+    let starts = [
+        (0, moved(&p0[0], Vec3::new(1.0, 0.0, -1.0))),
+        (1, now[1].clone()),
+        (2, p0[2].clone()),
+    ];
+    b.put_worlds(&starts).expect("put worlds 0, 1 and 2");
     b.step(dt, t).expect("step after the put");
     assert_eq!(
         rebuilds(&mut b),
@@ -449,12 +460,15 @@ fn a_put_rebuilds_the_mapping_only_where_a_particle_leaves_its_zone() {
         &runs[1],
         dx,
     ));
-    let d = got[3].aggregate_difference(&got[2]);
-    assert!(
-        d.com > 2.0 * dx as f64,
-        "world 3 is not three cells from world 2: |d com| {:.3e}",
-        d.com
-    );
+    for (w, cells) in [(3, 2.0), (0, 1.0)] {
+        let d = got[w].aggregate_difference(&got[2]);
+        assert!(
+            d.com > cells * dx as f64,
+            "world {w} is not where it was put, more than {cells} cells from world 2: |d com| \
+             {:.3e}",
+            d.com
+        );
+    }
     assert!(failures.is_empty(), "{failures:#?}");
 }
 

@@ -84,10 +84,11 @@ impl CudaBatch {
     /// words of its slots are overwritten (`batch_put_world`, `kernels/batch.cu`) and the next
     /// step redoes its P2G (with G2P2G, whose last fused scatter was of the old particles). The
     /// mapping of particles to blocks is rebuilt at the next step only when a particle put
-    /// needs it: when its stencil base leaves the free zone of the gblock its slot is mapped to
-    /// (the kernel's rule, `kernels/batch.cu`), as a step rebuilds when a particle moves out of
-    /// it; a world put back near where it is (a reset of a world that has not gone far) costs
-    /// the other worlds no rebuild. [`CudaBatch::put_worlds`] of one world.
+    /// needs it: when its stencil base leaves the free zone of the gblock its slot was sorted
+    /// into (G2P's rule, checked by the kernel, `kernels/batch.cu`), as a step rebuilds when a
+    /// particle moves out of it; a world put back within about a block of where it is (a reset
+    /// of a world that has not gone far) costs the other worlds no rebuild.
+    /// [`CudaBatch::put_worlds`] of one world.
     pub fn put_world(&mut self, w: usize, particles: &Particles) -> Result<(), SimError> {
         self.put_many(&[(w, particles)])
     }
