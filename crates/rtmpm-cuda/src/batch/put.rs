@@ -41,8 +41,9 @@ impl CudaBatch {
     }
 
     /// Put every world's particles back to the last [`CudaBatch::save_point`], word for word
-    /// (their storage order too); the next step rebuilds the mapping and redoes its P2G, as
-    /// after [`CudaBatch::put_world`]. Rigid bodies are not part of the point
+    /// (their storage order too); the next step rebuilds the mapping (always, unlike after
+    /// [`CudaBatch::put_world`]: the point is in the storage order of its save, which a rebuild
+    /// since may have changed) and redoes its P2G. Rigid bodies are not part of the point
     /// ([`CudaBatch::set_world_poses`]).
     pub fn restore_point(&mut self) -> Result<(), SimError> {
         let Some(point) = self.point.as_ref().filter(|_| !self.no_point) else {
