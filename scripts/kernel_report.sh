@@ -2,8 +2,8 @@
 # Registers, stack frame and spills of every kernel, without a GPU: the PTX that NVRTC makes
 # (crates/rtmpm-cuda/examples/ptx.rs) assembled by ptxas -v for sm_90. NVRTC and ptxas come
 # from the PyPI wheels nvidia-cuda-nvrtc / nvidia-cuda-nvcc 13.0 (installed into target/ci-tools).
-# Usage: bash scripts/kernel_report.sh [f64] [no_fast_math] [layout=N] [ck_bound=N] [cluster=K]
-# (layout N: StateLayout::code, 1 = fluid; ck_bound, cluster: the CUDA options of those names)
+# Usage: bash scripts/kernel_report.sh [f64] [no_fast_math] [layout=N] [ck_bound=N]
+# (layout N: StateLayout::code, 1 = fluid; ck_bound: the CUDA option of that name)
 # (RTMPM_KERNEL_DEFINES, e.g. "-DRTMPM_P2G_REDUCE=1", reaches the compile as in the backend)
 set -euo pipefail
 cd "$(dirname "$0")/.."

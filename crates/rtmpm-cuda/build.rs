@@ -33,8 +33,7 @@ fn files(dir: &Path, rel: &str, out: &mut Vec<(String, PathBuf)>) {
 }
 
 /// Names of the `extern "C" __global__` functions of a source (the identifier before the first
-/// `(` after `void`, skipping `__launch_bounds__(...)` and attribute macros written in capitals,
-/// e.g. `G2P2G_CLUSTER_DIMS`; kernel names are lower case).
+/// `(` after `void`, skipping `__launch_bounds__(...)`).
 fn entry_points(text: &str) -> Vec<String> {
     let mut out = Vec::new();
     for line in text.lines() {
@@ -49,21 +48,6 @@ fn entry_points(text: &str) -> Vec<String> {
         if let Some(r) = rest.strip_prefix("__launch_bounds__(") {
             let close = r.find(')').unwrap_or(0);
             rest = r[close + 1..].trim_start();
-        }
-        loop {
-            let word: String = rest
-                .chars()
-                .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
-                .collect();
-            let macro_attribute = !word.is_empty()
-                && word
-                    .chars()
-                    .all(|c| c.is_ascii_uppercase() || c.is_ascii_digit() || c == '_')
-                && rest[word.len()..].starts_with(char::is_whitespace);
-            if !macro_attribute {
-                break;
-            }
-            rest = rest[word.len()..].trim_start();
         }
         let name: String = rest
             .chars()

@@ -22,17 +22,15 @@
 #                then the agreement test with the new kernels only (about 3 min a variant;
 #                RTMPM_CK_AGREEMENT from CK_AGREEMENT, default "ck_p2g=warp;ck_p2g=fused")
 #   kernel_ab    the kernel switches of the CUDA options in one binary, interleaved REPS times (default
-#                1; about 5 min, not timed: the first compile of each variant and 20 runs): MLS-MPM's fused step with
-#                thread-block clusters (cluster=2, cluster=4: sm_90 and later) against the default, and
-#                CK-MPM's kernels with an occupancy bound (ck_bound=N: N blocks of 128 a SM) and the
+#                1; about 4 min, not timed: the first compile of each variant and 16 runs): MLS-MPM's fused step
+#                as it is, and CK-MPM's kernels with an occupancy bound (ck_bound=N: N blocks of 128 a SM) and the
 #                resident grid (ck_grid=resident) against ck_p2g=fused / ck_p2g=warp as they are, on
 #                the fluid dam 2M and the jelly 2M; a table of ms/step last (KERNEL_AB_MLS,
 #                KERNEL_AB_CK: the --cuda-options of each line, "-" for none)
-#   kernel_agree the agreement tests with those switches: every example scene in f32 and f64 with
-#                cluster=4 (RTMPM_AGREEMENT_OPTIONS; KERNEL_AGREE_CLUSTER="cluster=2 cluster=4" for both,
-#                or any other --cuda-options of the MLS-MPM kernels, e.g. "halo=sync halo=async"),
-#                then CK-MPM with ck_p2g=fused,ck_bound=5,ck_grid=resident (RTMPM_CK_AGREEMENT;
-#                KERNEL_AGREE_CK to change, KERNEL_AGREE_CK=none to skip it)
+#   kernel_agree the agreement tests with those switches: every example scene in f32 and f64 with each
+#                --cuda-options of KERNEL_AGREE_MLS (RTMPM_AGREEMENT_OPTIONS; none by default, e.g.
+#                KERNEL_AGREE_MLS="g2p2g=off"), then CK-MPM with ck_p2g=fused,ck_bound=5,ck_grid=resident
+#                (RTMPM_CK_AGREEMENT; KERNEL_AGREE_CK to change, KERNEL_AGREE_CK=none to skip it)
 #   validate_compact  the same with the compact particle state (`--particle-state compact`)
 #   convergence  the convergence studies and the f64 validation cases
 #   bench        the claymore scenes (fluid 2M, jelly 2M, snow 1.33M) and a fluid block; with
@@ -44,7 +42,7 @@
 #   sanitize     compute-sanitizer (memcheck, then racecheck and synccheck) on short runs of the fused step: the
 #                snow 1.33M (general G2P2G; a bench scene: bench needs a fixed dt) and a fluid block n = 64 (fluid G2P2G), 20 steps each, with
 #                RTMPM_KERNEL_DEFINES as set by the caller (SANITIZE_TOOLS to choose the tools;
-#                SANITIZE_OPTIONS: --cuda-options of the runs, e.g. halo=async)
+#                SANITIZE_OPTIONS: --cuda-options of the runs, e.g. g2p2g=off)
 #   profile      Nsight Compute on the fused G2P2G kernel (one launch after 5): PROFILE_RUNS="label|binary|
 #                defines|scene ..." (default: the fluid dam 2M); the bound (issue, stalls, L1/L2, atomics)
 #   multi        several GPUs: agreement tests in every mode, 2 NCCL processes, scaling
@@ -158,7 +156,7 @@ ck_bench() {
 # MLS-MPM lines on the scenes as they are, CK-MPM lines on the same scenes with [solver] transfer =
 # "ck-mpm"; one row per line and scene, then a table of ms/step (one column per repetition).
 kernel_ab() {
-  local mls=${KERNEL_AB_MLS:-"- cluster=2 cluster=4"}
+  local mls=${KERNEL_AB_MLS:-"-"}
   local ck=${KERNEL_AB_CK:-"ck_p2g=fused ck_p2g=fused,ck_grid=resident ck_p2g=fused,ck_bound=5 ck_p2g=fused,ck_bound=5,ck_grid=resident ck_p2g=fused,ck_bound=6,ck_grid=resident ck_p2g=warp ck_p2g=warp,ck_bound=5"}
   local table="$OUT/kernel_ab_table.txt" sc v o label
   : > "$table"
@@ -237,7 +235,7 @@ for suite in "$@"; do
       kernel_ab
       ;;
     kernel_agree)
-      for o in ${KERNEL_AGREE_CLUSTER:-cluster=4}; do
+      for o in ${KERNEL_AGREE_MLS:-}; do
         say "test_agreement, the example scenes in f32 and f64 with $o:"
         RTMPM_AGREEMENT_OPTIONS="$o" t test_agreement every_example_scene --nocapture
         cp "$OUT/test_agreement.log" "$OUT/test_agreement_$o.log"

@@ -2,10 +2,9 @@
 //! with `ptxas -v` (scripts/kernel_report.sh).
 //!
 //! `cargo run -p rtmpm-cuda --example ptx -- [f64] [no_fast_math] [sm_90] [materials=0xMASK]
-//! [layout=N] [ck_bound=N] [cluster=K] [halo=sync|async] [warp_list=sorted]
-//! [lineinfo]` (N: the state layout's code, `StateLayout::code`:
-//! 1 is the 20-word fluid layout; `ck_bound=N` and `cluster=K`: the CUDA options of the same names
-//! (`CudaOptions::ck_min_blocks`, `CudaOptions::cluster`); `lineinfo`: NVRTC's
+//! [layout=N] [ck_bound=N] [lineinfo]` (N: the state layout's code, `StateLayout::code`:
+//! 1 is the 20-word fluid layout; `ck_bound=N`: the CUDA option of the same name
+//! (`CudaOptions::ck_min_blocks`); `lineinfo`: NVRTC's
 //! `--generate-line-info`, so that `nvdisasm -g` names the source line of every SASS instruction;
 //! not cached, the same code otherwise)
 
@@ -37,22 +36,11 @@ fn main() {
     {
         o.layout = l;
     }
-    // `ck_bound=5`, `cluster=2`: the kernels of those CUDA options.
-    let number = |key: &str| {
-        args.iter()
-            .find_map(|a| a.strip_prefix(key))
-            .and_then(|v| v.parse::<u32>().ok())
-    };
-    o.ck_min_blocks = number("ck_bound=");
-    o.cluster = number("cluster=").unwrap_or(0);
-    // `halo=sync|async`: the fused kernels' gather from a shared-memory node halo.
-    o.halo = match args.iter().find_map(|a| a.strip_prefix("halo=")) {
-        Some("sync") => 1,
-        Some("async") => 2,
-        _ => 0,
-    };
-    // `warp_list=sorted`: the warp list in the order of the sorted particles.
-    o.sorted_warps = args.iter().any(|a| a == "warp_list=sorted");
+    // `ck_bound=5`: the kernels of that CUDA option.
+    o.ck_min_blocks = args
+        .iter()
+        .find_map(|a| a.strip_prefix("ck_bound="))
+        .and_then(|v| v.parse::<u32>().ok());
     let ptx = if args.iter().any(|a| a == "lineinfo") {
         with_line_info(&o)
     } else {

@@ -373,13 +373,6 @@ __device__ __forceinline__ void hash_insert(const Ctx& c, unsigned long long key
 }
 __device__ __forceinline__ unsigned thread_index() { return blockIdx.x * blockDim.x + threadIdx.x; }
 
-// The warp list (Ctx::warps) in the order of the sorted particles, with entries of no particles
-// where a gblock leaves a slot over (1: the CUDA options warp_list=sorted and halo; rebuild.cu,
-// rb_rank); 0, the default: in the order of an atomic counter, every entry a warp of particles.
-#ifndef RTMPM_WARP_LIST_SORTED
-#define RTMPM_WARP_LIST_SORTED 0
-#endif
-
 // G2P2G: does this step's grid still need its P2G (and the clear before it)? Always without
 // G2P2G; with it only after a rebuild (new mapping) or when the host asked (first step, new dt):
 // otherwise the previous step's fused kernel has already scattered the particles into it.

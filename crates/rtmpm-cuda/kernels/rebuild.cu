@@ -189,16 +189,6 @@ extern "C" __global__ void rb_scan_add(Ctx c) {
 // written over its rank; and the warp list (each warp: up to 32 consecutive particles of one
 // gblock). The bucket keys live in the first scratch field (Ctx::pkey aliases it): they are read
 // here for the last time, before the scatter overwrites the scratch.
-//
-// The list's order: by default the order in which the warps' first particles reach the atomic
-// counter, which interleaves the gblocks of every block in flight (consecutive entries are mostly
-// of different gblocks). With RTMPM_WARP_LIST_SORTED (the CUDA options warp_list=sorted and
-// halo=sync|async) in the order of the sorted particles, gblock by gblock: warp k of gblock g at
-// floor(start / 32) + g + k, where start is g's first sorted particle. A gblock of n particles
-// has ceil(n / 32) warps in its floor((start + n) / 32) - floor(start / 32) + 1 slots, so a slot
-// may be left over (at most one a gblock; for a gblock of a multiple of 32 particles always one):
-// it is written as an entry of no particles (count 0, which every reader skips), and the list
-// ends at floor(n_particles / 32) + gblocks, within the capacity of n_particles / 32 + gblocks + 1.
 __device__ __forceinline__ void rb_rank_body(const Ctx& c) {
     GRID_STRIDE(i, c.n) {
         unsigned key = c.pkey[i];
@@ -208,23 +198,8 @@ __device__ __forceinline__ void rb_rank_body(const Ctx& c) {
         unsigned start = c.hist[g * 64u];
         unsigned end = (g + 1 < c.ctl[CTL_GBLOCKS]) ? c.hist[(g + 1) * 64u] : c.n;
         if ((dst - start) % 32u == 0) {
-#if RTMPM_WARP_LIST_SORTED
-            unsigned w = start / 32u + g + (dst - start) / 32u;
-            unsigned next = end / 32u + g + 1u;  // the next gblock's first slot
-            if (next > c.warp_cap) { atomicOr(&c.ctl[CTL_ERROR], ERR_WARPS); continue; }
-            if (dst + 32u >= end) {
-                // The gblock's last warp: the slot left over, if any, and the list's length.
-                for (unsigned h = w + 1u; h < next; ++h) {
-                    c.warps[3 * h] = g;
-                    c.warps[3 * h + 1] = end;
-                    c.warps[3 * h + 2] = 0u;
-                }
-                atomicMax(&c.ctl[CTL_WARPS], next);
-            }
-#else
             unsigned w = atomicAdd(&c.ctl[CTL_WARPS], 1u);
             if (w >= c.warp_cap) { atomicOr(&c.ctl[CTL_ERROR], ERR_WARPS); continue; }
-#endif
             c.warps[3 * w] = g;
             c.warps[3 * w + 1] = dst;
             c.warps[3 * w + 2] = min(32u, end - dst);

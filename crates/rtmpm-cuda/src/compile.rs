@@ -32,17 +32,6 @@ pub struct KernelOptions {
     /// (`-DCK_MIN_BLOCKS`, [`crate::CudaOptions::ck_min_blocks`]; 0: no bound); `None`: left
     /// out, the kernels' default (`kernels/ck.cuh`: `g2p2g_ck` at 5 blocks in f32).
     pub ck_min_blocks: Option<u32>,
-    /// MLS-MPM's fused kernels in thread-block clusters of this many blocks
-    /// (`-DRTMPM_P2G_CLUSTER`, [`crate::CudaOptions::cluster`]); 0 or 1: off (left out). Passed
-    /// for compute capability 9.0 or later only: before Hopper the kernels stay unchanged.
-    pub cluster: u32,
-    /// The G2P gather of MLS-MPM's fused kernels from a shared-memory node halo
-    /// (`-DRTMPM_G2P_HALO`, [`crate::CudaOptions::halo`]): 1 sync, 2 async; 0: off (left out).
-    /// Every architecture (`cp.async`, sm_80 and later like the whole program: `kernels/g2p/halo.cuh`).
-    pub halo: u32,
-    /// The warp list in the order of the sorted particles (`-DRTMPM_WARP_LIST_SORTED=1`,
-    /// [`crate::CudaOptions::sorted_warps`]; also defined whenever `halo` is on).
-    pub sorted_warps: bool,
 }
 
 /// True when state arrays of `capacity` particles of `words` words each hold 2^32 words or more:
@@ -64,9 +53,6 @@ impl KernelOptions {
             layout: contract::StateLayout::Full,
             batch: false,
             ck_min_blocks: None,
-            cluster: 0,
-            halo: 0,
-            sorted_warps: false,
         }
     }
 }
@@ -174,15 +160,6 @@ pub fn nvrtc_options(o: &KernelOptions) -> Vec<String> {
     }
     if let Some(blocks) = o.ck_min_blocks {
         v.push(format!("-DCK_MIN_BLOCKS={blocks}"));
-    }
-    if o.cluster > 1 && o.arch.0 >= 9 {
-        v.push(format!("-DRTMPM_P2G_CLUSTER={}", o.cluster));
-    }
-    if o.halo > 0 {
-        v.push(format!("-DRTMPM_G2P_HALO={}", o.halo));
-    }
-    if o.halo > 0 || o.sorted_warps {
-        v.push("-DRTMPM_WARP_LIST_SORTED=1".into());
     }
     // Tuning experiments: extra `-DNAME=VALUE` flags, e.g. "-DG2P_MIN_BLOCKS=6" (part of the
     // cache key like every other option).
@@ -442,28 +419,6 @@ mod tests {
             &["-DG2P2G_MIN_BLOCKS=0", "-DG2P2G_FLUID_MIN_BLOCKS=4"],
             // Many worlds in one set of arrays (crate::batch).
             &["-DRTMPM_BATCH"],
-            // The warp list in the order of the sorted particles (warp_list=sorted), alone and
-            // with the batch's kernels.
-            &["-DRTMPM_WARP_LIST_SORTED=1"],
-            &["-DRTMPM_WARP_LIST_SORTED=1", "-DRTMPM_BATCH"],
-            // The halo's two ways of gathering a particle outside the window in both fused
-            // kernels (the default takes one in each).
-            &[
-                "-DRTMPM_G2P_HALO=2",
-                "-DRTMPM_WARP_LIST_SORTED=1",
-                "-DRTMPM_G2P_HALO_MIXED=0",
-            ],
-            &[
-                "-DRTMPM_G2P_HALO=1",
-                "-DRTMPM_WARP_LIST_SORTED=1",
-                "-DRTMPM_G2P_HALO_MIXED=1",
-            ],
-            // The G2P gather from a shared-memory halo (halo=async) in the batch's kernels.
-            &[
-                "-DRTMPM_G2P_HALO=2",
-                "-DRTMPM_WARP_LIST_SORTED=1",
-                "-DRTMPM_BATCH",
-            ],
             // The node-by-node step as it was before the three became the default.
             &[
                 "-DRTMPM_P2G_REDUCE=0",
@@ -496,30 +451,22 @@ mod tests {
         });
     }
 
-    /// The CUDA options that select kernel variants at compile time: `ck_bound=N` reaches every
-    /// architecture, `cluster=K` only sm_90 and later (the kernels before Hopper stay as they
-    /// are; the backend refuses the option there).
+    /// The CUDA option that selects a kernel variant at compile time: `ck_bound=N` becomes
+    /// `-DCK_MIN_BLOCKS=N` on every architecture; left out, nothing is defined.
     #[test]
-    fn the_ck_bound_and_cluster_options_become_defines() {
+    fn the_ck_bound_option_becomes_a_define() {
         let mut o = KernelOptions::all_models((9, 0), true, false);
-        let base = nvrtc_options(&o);
         assert!(
-            !base
+            !nvrtc_options(&o)
                 .iter()
-                .any(|d| d.contains("CK_MIN_BLOCKS") || d.contains("CLUSTER"))
+                .any(|d| d.contains("CK_MIN_BLOCKS"))
         );
         o.ck_min_blocks = Some(5);
-        o.cluster = 2;
         let v = nvrtc_options(&o);
         assert!(v.contains(&"-DCK_MIN_BLOCKS=5".to_string()), "{v:?}");
-        assert!(v.contains(&"-DRTMPM_P2G_CLUSTER=2".to_string()), "{v:?}");
         o.arch = (8, 0);
         let v = nvrtc_options(&o);
         assert!(v.contains(&"-DCK_MIN_BLOCKS=5".to_string()), "{v:?}");
-        assert!(!v.iter().any(|d| d.contains("CLUSTER")), "{v:?}");
-        o.arch = (9, 0);
-        o.cluster = 1;
-        assert!(!nvrtc_options(&o).iter().any(|d| d.contains("CLUSTER")));
     }
 
     /// The entry directives and the body of kernel `k` in `ptx` (up to its closing brace).
@@ -575,39 +522,32 @@ mod tests {
         }
     }
 
-    /// The kernels of `ck_bound=N` and `cluster=K` compile with NVRTC (front end only, on every
-    /// core at once): for sm_90, f32 and f64, CK-MPM's warp-scatter kernels carry the bound
-    /// (`.minnctapersm N`) and MLS-MPM's fused kernels the cluster size (`.reqnctapercluster`),
-    /// their scatter reduces into distributed shared memory (`red.shared::cluster`) between
-    /// cluster barriers, with the global vector atomic kept for the nodes outside the tile and
-    /// the tile's flush; for sm_80 (where `cluster` is dropped) every kernel compiles without
-    /// clusters.
+    /// The kernels of `ck_bound=N` compile with NVRTC (front end only, on every core at once):
+    /// for sm_90 and sm_80, f32 and f64, CK-MPM's warp-scatter kernels carry the bound
+    /// (`.minnctapersm N`), by default 5 blocks for the fused `g2p2g_ck` in f32 and none
+    /// otherwise.
     #[test]
-    fn the_ck_bound_and_cluster_kernels_compile() {
+    fn the_ck_bound_kernels_compile() {
         if !nvrtc_or_skip() {
             return;
         }
-        // (arch, f64, ck_bound, cluster); `None`: the kernels' default bound.
-        type Job = ((i32, i32), bool, Option<u32>, u32);
+        // (arch, f64, ck_bound); `None`: the kernels' default bound.
+        type Job = ((i32, i32), bool, Option<u32>);
         let jobs: &[Job] = &[
-            ((9, 0), false, None, 0),
-            ((9, 0), true, None, 0),
-            ((9, 0), false, Some(0), 0),
-            ((9, 0), false, Some(6), 0),
-            ((9, 0), true, Some(5), 0),
-            ((9, 0), false, None, 2),
-            ((9, 0), false, None, 4),
-            ((9, 0), true, None, 2),
-            ((8, 0), false, Some(5), 2),
+            ((9, 0), false, None),
+            ((9, 0), true, None),
+            ((9, 0), false, Some(0)),
+            ((9, 0), false, Some(6)),
+            ((9, 0), true, Some(5)),
+            ((8, 0), false, Some(5)),
         ];
         let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
         std::thread::scope(|scope| {
             for t in 0..threads.min(jobs.len()) {
                 scope.spawn(move || {
-                    for &(arch, f64, bound, cluster) in jobs.iter().skip(t).step_by(threads) {
+                    for &(arch, f64, bound) in jobs.iter().skip(t).step_by(threads) {
                         let o = KernelOptions {
                             ck_min_blocks: bound,
-                            cluster,
                             ..KernelOptions::all_models(arch, true, f64)
                         };
                         let mut opts = nvrtc_options(&o);
@@ -617,107 +557,16 @@ mod tests {
                             .and_then(|src| nvrtc(&src, "rtmpm_pipeline.cu", opts))
                             .unwrap_or_else(|e| panic!("{what}: {e}"));
                         assert_every_kernel(&ptx, &what);
-                        check_bound_and_cluster(&ptx, &o, &what);
+                        check_bound(&ptx, &o, &what);
                     }
                 });
             }
         });
     }
 
-    /// `halo=sync|async` becomes `-DRTMPM_G2P_HALO=1|2` on every architecture, with the sorted
-    /// warp list it needs; `warp_list=sorted` alone the list's define; off, nothing is defined.
-    #[test]
-    fn the_halo_option_becomes_a_define() {
-        let mut o = KernelOptions::all_models((9, 0), true, false);
-        let sorted = "-DRTMPM_WARP_LIST_SORTED=1".to_string();
-        let v = nvrtc_options(&o);
-        assert!(
-            !v.iter()
-                .any(|d| d.contains("HALO") || d.contains("WARP_LIST"))
-        );
-        for (arch, halo) in [((9, 0), 1), ((9, 0), 2), ((8, 0), 2), ((7, 5), 2)] {
-            o.arch = arch;
-            o.halo = halo;
-            let v = nvrtc_options(&o);
-            assert!(v.contains(&format!("-DRTMPM_G2P_HALO={halo}")), "{v:?}");
-            assert_eq!(v.iter().filter(|d| d.contains("HALO")).count(), 1);
-            // The halo needs the sorted list.
-            assert!(v.contains(&sorted), "{v:?}");
-        }
-        o.halo = 0;
-        o.sorted_warps = true;
-        let v = nvrtc_options(&o);
-        assert!(
-            v.contains(&sorted) && !v.iter().any(|d| d.contains("HALO")),
-            "{v:?}"
-        );
-    }
-
-    /// The kernels of `halo=sync|async` compile with NVRTC (front end only, on every core at
-    /// once): f32 and f64, the window's three sizes, sm_90 and sm_80 (the program needs sm_80:
-    /// `__reduce_max_sync`). The fused MLS-MPM kernels hold the halo buffers in static shared
-    /// memory (one buffer of HALO_N^3 nodes for sync, two for async) and copy with `cp.async`;
-    /// without the option no kernel has the buffers or `cp.async`.
-    #[test]
-    fn the_halo_kernels_compile() {
-        if !nvrtc_or_skip() {
-            return;
-        }
-        // (arch, f64, halo, window edge)
-        let jobs: &[((i32, i32), bool, u32, u32)] = &[
-            ((9, 0), false, 0, 8),
-            ((9, 0), false, 1, 8),
-            ((9, 0), false, 2, 8),
-            ((9, 0), true, 2, 8),
-            ((9, 0), false, 2, 6),
-            ((9, 0), false, 2, 10),
-            ((8, 0), false, 2, 8),
-        ];
-        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-        std::thread::scope(|scope| {
-            for t in 0..threads.min(jobs.len()) {
-                scope.spawn(move || {
-                    for &(arch, f64, halo, edge) in jobs.iter().skip(t).step_by(threads) {
-                        let o = KernelOptions {
-                            halo,
-                            ..KernelOptions::all_models(arch, true, f64)
-                        };
-                        let mut opts = nvrtc_options(&o);
-                        if edge != 8 {
-                            opts.push(format!("-DRTMPM_G2P_HALO_N={edge}"));
-                        }
-                        opts.push("--Ofast-compile=max".into());
-                        let what = format!("{o:?}, window {edge}");
-                        let ptx = program_source(f64)
-                            .and_then(|src| nvrtc(&src, "rtmpm_pipeline.cu", opts))
-                            .unwrap_or_else(|e| panic!("{what}: {e}"));
-                        assert_every_kernel(&ptx, &what);
-                        // The buffers: HALO_N^3 nodes of 4 reals, one or two.
-                        let real = if f64 { 8 } else { 4 };
-                        let bytes = halo * edge.pow(3) * 4 * real;
-                        for k in ["g2p2g", "g2p2g_fluid"] {
-                            let tiles = format!("_ZZ{}{k}E5tiles[{bytes}]", k.len());
-                            assert_eq!(ptx.contains(&tiles), halo > 0, "{what}: {tiles}");
-                        }
-                        assert_eq!(
-                            ptx.contains("cp.async.cg.shared.global"),
-                            halo > 0 && arch.0 >= 8,
-                            "{what}: cp.async"
-                        );
-                        assert_eq!(
-                            ptx.contains("cp.async.wait_all"),
-                            halo > 0 && arch.0 >= 8,
-                            "{what}: cp.async.wait_all"
-                        );
-                    }
-                });
-            }
-        });
-    }
-
-    /// The PTX checks of [`the_ck_bound_and_cluster_kernels_compile`]: the bound asked for, or
-    /// by default 5 blocks for the fused `g2p2g_ck` in f32 and none otherwise.
-    fn check_bound_and_cluster(ptx: &str, o: &KernelOptions, what: &str) {
+    /// The PTX checks of [`the_ck_bound_kernels_compile`]: the bound asked for, or by default 5
+    /// blocks for the fused `g2p2g_ck` in f32 and none otherwise.
+    fn check_bound(ptx: &str, o: &KernelOptions, what: &str) {
         let default_fused = if o.f64 { 0 } else { 5 };
         for (k, default) in [("g2p2g_ck", default_fused), ("p2g_ck_warp", 0)] {
             let blocks = o.ck_min_blocks.unwrap_or(default);
@@ -729,24 +578,6 @@ mod tests {
             );
             assert_eq!(body.contains(".minnctapersm"), blocks > 0, "{what}: {k}");
         }
-        let clustered = o.cluster > 1 && o.arch.0 >= 9;
-        for k in ["g2p2g", "g2p2g_fluid"] {
-            let dims = format!(".reqnctapercluster {}, 1, 1", o.cluster);
-            assert_eq!(entry(ptx, k).contains(&dims), clustered, "{what}: {k}");
-        }
-        for op in [
-            "red.shared::cluster.add",
-            "barrier.cluster.arrive",
-            "mapa.shared::cluster",
-        ] {
-            assert_eq!(ptx.contains(op), clustered, "{what}: {op}");
-        }
-        // Every other kernel unclustered.
-        assert_eq!(
-            ptx.matches(".reqnctapercluster").count(),
-            if clustered { 2 } else { 0 },
-            "{what}"
-        );
     }
 
     /// The kernels that scatter (mass, momentum) into grid nodes through `atomic_add_node`

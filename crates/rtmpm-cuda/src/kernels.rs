@@ -29,9 +29,6 @@ pub struct Kernels {
     /// in f32 or with `ck_grid=resident` ([`crate::CudaOptions::ck_resident_grid`]); `None`:
     /// one wave of threads, in f64 or with `ck_grid=wave`.
     pub g2p2g_ck_resident: Option<u32>,
-    /// Blocks in a thread-block cluster of the fused MLS-MPM kernels (1: no clusters; 2 or 4
-    /// with `cluster=`, [`crate::CudaOptions::cluster`]): their grids are a multiple of it.
-    pub cluster: u32,
     /// Fields of the rebuild's sort scratch
     /// ([`crate::options::CudaOptions::sort_scratch_fields`]): the state is permuted that many
     /// fields per pass.
@@ -45,9 +42,8 @@ impl Kernels {
     /// `fused_rebuild` asks for the persistent rebuild kernel's grid, `sort_scratch_fields` is
     /// the sort scratch's fields (at most the `layout`'s words), `f64` says the module is double
     /// precision (its fused kernels keep one wave of threads unless asked:
-    /// [`Kernels::g2p2g_resident`]), `ck_resident_grid` asks for the resident grid of
-    /// `g2p2g_ck` and `cluster` is the fused MLS-MPM kernels' cluster size (their grids a
-    /// multiple of it).
+    /// [`Kernels::g2p2g_resident`]) and `ck_resident_grid` asks for the resident grid of
+    /// `g2p2g_ck`.
     pub(crate) fn load(
         module: &Arc<CudaModule>,
         sm_count: i32,
@@ -68,7 +64,6 @@ impl Kernels {
             rb_fused_grid: None,
             g2p2g_resident: None,
             g2p2g_ck_resident: None,
-            cluster: o.cluster.max(1),
             sort_fields: o.sort_scratch_fields.clamp(1, layout.words()) as u32,
             sort_mask: layout.all_words(),
         };
@@ -86,10 +81,8 @@ impl Kernels {
         };
         let grid = std::env::var("RTMPM_G2P2G_GRID").unwrap_or_default();
         if grid.trim() == "resident" || (grid.trim() != "wave" && !o.f64) {
-            // In clusters: whole clusters only (every block of a cluster is resident with it).
-            let whole = |blocks: u32| blocks / k.cluster * k.cluster;
-            let general = whole(resident(&k, Kernel::G2p2g)?);
-            let fluid = whole(resident(&k, Kernel::G2p2gFluid)?);
+            let general = resident(&k, Kernel::G2p2g)?;
+            let fluid = resident(&k, Kernel::G2p2gFluid)?;
             k.g2p2g_resident = Some([general, fluid]);
         }
         if o.ck_resident_grid.unwrap_or(!o.f64) {

@@ -38,8 +38,8 @@ fn compare(name: &str, scene: &Scene, steps: usize) -> Vec<String> {
 }
 
 /// CUDA options (`--cuda-options` syntax) for the tests of every example scene, f32 and f64:
-/// `RTMPM_AGREEMENT_OPTIONS`, e.g. `cluster=2` for the cluster variant of the fused kernels or
-/// `halo=async` for their gather from a shared-memory node halo; none by default.
+/// `RTMPM_AGREEMENT_OPTIONS`, e.g. `g2p2g=off` for the separate G2P and P2G kernels; none by
+/// default.
 fn extra_options() -> String {
     let o = std::env::var("RTMPM_AGREEMENT_OPTIONS").unwrap_or_default();
     if !o.trim().is_empty() {

@@ -190,6 +190,36 @@ fn steps_limit_stops_early() {
     assert!(t.contains("steps        3"), "{t}");
 }
 
+/// An unknown `--cuda-options` switch, among them the kernel experiments removed after they lost
+/// on an H200 (`halo`, `warp_list`, `cluster`: bench/RESULTS.md), is refused before anything runs,
+/// with the option named, in every command that takes the switches.
+#[test]
+fn unknown_cuda_options_are_clear_errors() {
+    for (option, key) in [
+        ("bogus=1", "bogus"),
+        ("halo=async", "halo"),
+        ("warp_list=sorted", "warp_list"),
+        ("cluster=2", "cluster"),
+    ] {
+        for cmd in ["run", "bench"] {
+            let scene = data("small_drop.toml");
+            let args: &[&str] = if cmd == "run" {
+                &["run", &scene, "--cuda-options", option, "--no-output"]
+            } else {
+                &["bench", "--scene", &scene, "--cuda-options", option]
+            };
+            let o = rtmpm(args);
+            let t = text(&o);
+            assert!(!o.status.success(), "{cmd} accepted {option}:\n{t}");
+            assert!(
+                t.contains(&format!("unknown CUDA option `{key}`")),
+                "{cmd} {option}: message does not name `{key}`:\n{t}"
+            );
+            assert!(!t.contains("panicked"), "{cmd} {option} panicked:\n{t}");
+        }
+    }
+}
+
 #[test]
 fn precision_flag_selects_the_f64_backend() {
     let dir = scratch("precision");

@@ -4,7 +4,6 @@
 #pragma once
 #include "../common.cuh"
 #include "../material/dispatch.cuh"
-#include "halo.cuh"
 
 // The state G2P updates besides x, v and C: loaded before the grid gather, so that its memory
 // latency overlaps the gather's instead of following it (G2P is bound by load latency).
@@ -113,33 +112,11 @@ __device__ __forceinline__ vec3 g2p_node_velocity(const Ctx& c, unsigned node) {
 #endif
 }
 
-// The nodes of a stencil in the grid, for g2p_gather_sums: the stencil's eight pblocks read once
-// (stencil_blocks); row (i, j) is its two pblocks (z pair) and cell bits, node k of the row one of
-// the two.
-struct GridNodes {
-    const Ctx& c;
-    StencilBlocks sb;
-    struct Row {
-        unsigned id[2];
-        unsigned cell;
-    };
-    __device__ __forceinline__ Row row(int i, int j) const {
-        Row r;
-        stencil_row_blocks(sb, sb.hi[0][i], sb.hi[1][j], r.id);
-        r.cell = sb.cell[0][i] | sb.cell[1][j];
-        return r;
-    }
-    __device__ __forceinline__ vec3 velocity(const Row& r, int k) const {
-        return g2p_node_velocity(c, (sb.hi[2][k] ? r.id[1] : r.id[0]) * 64u + (r.cell | sb.cell[2][k]));
-    }
-};
-
-// v = sum w v_i and B = sum w v_i (i, j, k)^T over a stencil's nodes (weights wt), factorised per
-// axis (RTMPM_G2P_GATHER 1): `nodes` gives row (i, j) (nodes.row) and node k of a row
-// (nodes.velocity): GridNodes from the grid, HaloNodes (halo.cuh) from a shared-memory window;
-// the same sums in the same order either way.
-template <class Nodes>
-__device__ __forceinline__ void g2p_gather_sums(const Nodes& nodes, const real wt[3][3], vec3* v_out, mat3* b_out) {
+// v = sum w v_i and B = sum w v_i (i, j, k)^T over the stencil of the particle at base/wt.
+__device__ __forceinline__ void g2p_gather(const Ctx& c, const int* bc, const unsigned* nbs, const int base[3],
+                                           const real wt[3][3], vec3* v_out, mat3* b_out) {
+#if RTMPM_G2P_GATHER == 1
+    StencilBlocks sb = stencil_blocks(nbs, bc, base);
     // k sums of row (i, j): r = sum_k w_k v_k and rk = sum_k k w_k v_k; j sums of plane i:
     // p = sum_j w_j r, pj = sum_j j w_j r, pk = sum_j w_j rk; then the i sums.
     real w1_2 = (real)2 * wt[1][2], w0_2 = (real)2 * wt[0][2];
@@ -149,10 +126,12 @@ __device__ __forceinline__ void g2p_gather_sums(const Nodes& nodes, const real w
         vec3 p, pj, pk;
 #pragma unroll
         for (int j = 0; j < 3; ++j) {
-            typename Nodes::Row row = nodes.row(i, j);
+            unsigned row[2];
+            stencil_row_blocks(sb, sb.hi[0][i], sb.hi[1][j], row);
+            unsigned cell_ij = sb.cell[0][i] | sb.cell[1][j];
             vec3 vk[3];
 #pragma unroll
-            for (int k = 0; k < 3; ++k) vk[k] = nodes.velocity(row, k);
+            for (int k = 0; k < 3; ++k) vk[k] = g2p_node_velocity(c, (sb.hi[2][k] ? row[1] : row[0]) * 64u + (cell_ij | sb.cell[2][k]));
             vec3 t = vk[1] * wt[2][1] + vk[2] * wt[2][2];
             vec3 r = vk[0] * wt[2][0] + t;
             vec3 rk = vk[2] * wt[2][2] + t;  // = w_1 v_1 + 2 w_2 v_2
@@ -176,54 +155,6 @@ __device__ __forceinline__ void g2p_gather_sums(const Nodes& nodes, const real w
             b0 = i == 1 ? p * wt[0][1] : b0 + p * w0_2;
         }
     }
-    *v_out = v;
-    *b_out = mat3_from_cols(b0, b1, b2);
-}
-
-#if RTMPM_G2P_HALO
-// The gather's two sources in one code path (RTMPM_G2P_HALO_MIXED, halo.cuh): each lane's 27
-// nodes from the window (`in`) or from the grid (`sb`, read only then), one generic load a node;
-// the sums as g2p_gather_sums makes them for either.
-struct HaloOrGridNodes {
-    bool in;
-    const real* grid;
-    const real* tile;
-    unsigned first;
-    StencilBlocks sb;
-    struct Row {
-        const real* p[2];  // the row's first node in the window (both), or its two pblocks' nodes
-    };
-    __device__ __forceinline__ Row row(int i, int j) const {
-        Row r;
-        if (in) {
-            r.p[0] = r.p[1] = tile + 4u * (first + (unsigned)(i * HALO_N + j) * HALO_N);
-        } else {
-            unsigned id[2];
-            stencil_row_blocks(sb, sb.hi[0][i], sb.hi[1][j], id);
-            unsigned cell = sb.cell[0][i] | sb.cell[1][j];
-            r.p[0] = grid + 4u * (id[0] * 64u + cell);
-            r.p[1] = grid + 4u * (id[1] * 64u + cell);
-        }
-        return r;
-    }
-    __device__ __forceinline__ vec3 velocity(const Row& r, int k) const {
-        const real* n = in ? r.p[0] + 4 * k : (sb.hi[2][k] ? r.p[1] : r.p[0]) + 4u * sb.cell[2][k];
-#ifdef RTMPM_F64
-        return make_v3(n[1], n[2], n[3]);
-#else
-        float4 nd = *reinterpret_cast<const float4*>(n);
-        return make_v3(nd.y, nd.z, nd.w);
-#endif
-    }
-};
-#endif
-
-// v = sum w v_i and B = sum w v_i (i, j, k)^T over the stencil of the particle at base/wt.
-__device__ __forceinline__ void g2p_gather(const Ctx& c, const int* bc, const unsigned* nbs, const int base[3],
-                                           const real wt[3][3], vec3* v_out, mat3* b_out) {
-#if RTMPM_G2P_GATHER == 1
-    GridNodes nodes = {c, stencil_blocks(nbs, bc, base)};
-    g2p_gather_sums(nodes, wt, v_out, b_out);
 #else
     StencilIdx si = stencil_idx(bc, base);
     // v = sum w v_i; B = sum w v_i (i, j, k)^T accumulated axis by axis (cpu/g2p.rs does the same).
@@ -249,17 +180,15 @@ __device__ __forceinline__ void g2p_gather(const Ctx& c, const int* bc, const un
         b1 = b1 + b1_i;
         b2 = b2 + b2_i;
     }
+#endif
     *v_out = v;
     *b_out = mat3_from_cols(b0, b1, b2);
-#endif
 }
 
 // MLS-MPM G2P of particle p of gblock g (Hu et al. 2018): gather of v and C from the grid, then
-// g2p_finish. The new state is stored and returned. `halo` (the fused kernels with
-// RTMPM_G2P_HALO, halo.cuh): gblock g's node window in shared memory, or null; a particle whose
-// stencil lies in it gathers from there, any other from the grid.
+// g2p_finish. The new state is stored and returned.
 template <bool ALL_FLUID>
-__device__ __forceinline__ G2pResult g2p_particle(const Ctx& c, unsigned g, unsigned p, const real* halo = nullptr) {
+__device__ __forceinline__ G2pResult g2p_particle(const Ctx& c, unsigned g, unsigned p) {
     vec3 x = load_v3(c.state, c.cap, F_X, p);
     G2pState st = g2p_load_state<ALL_FLUID>(c, p);
     int base[3]; real fx[3]; real wt[3][3];
@@ -268,27 +197,7 @@ __device__ __forceinline__ G2pResult g2p_particle(const Ctx& c, unsigned g, unsi
     const int* bc = c.block_coords + 3 * g;
     vec3 v;
     mat3 B;
-#if RTMPM_G2P_HALO
-    unsigned first;
-    bool in = halo && halo_window(bc, base, &first);
-    if constexpr (RTMPM_G2P_HALO_MIXED == 1 || (RTMPM_G2P_HALO_MIXED == 2 && !ALL_FLUID)) {
-        HaloOrGridNodes nodes;
-        nodes.in = in;
-        nodes.grid = c.grid;
-        nodes.tile = halo;
-        nodes.first = first;
-        if (!in) nodes.sb = stencil_blocks(c.neighbors + 27 * g, bc, base);
-        g2p_gather_sums(nodes, wt, &v, &B);
-    } else if (in) {
-        HaloNodes nodes = {halo, first};
-        g2p_gather_sums(nodes, wt, &v, &B);
-    } else {
-        g2p_gather(c, bc, c.neighbors + 27 * g, base, wt, &v, &B);
-    }
-#else
-    (void)halo;
     g2p_gather(c, bc, c.neighbors + 27 * g, base, wt, &v, &B);
-#endif
     // C = D^-1 dx (B - v fx^T) = D^-1 sum w v_i (x_i - x_p)^T (APIC), D^-1 = 4 / dx^2.
     const Scalars& sc = scalars(c);
     B = (B - outer(v, make_v3(fx[0], fx[1], fx[2]))) * sc.dx;

@@ -130,23 +130,12 @@ __device__ __forceinline__ unsigned scatter_node(const ScatterNodes& s, const Sc
 #endif
 }
 
-// Where the segment heads add their summed node values: the sink's add(node, i, j, k, val) gets
-// the node's memory index and its place (i, j, k) in the particle's 3x3x3 stencil. GlobalSink, the
-// default: one atomic_add_node into a grid in global memory. (The cluster variant's sink,
-// p2g/cluster.cuh, sums a cluster's nodes in distributed shared memory first.)
-struct GlobalSink {
-    real* grid;
-    __device__ __forceinline__ void add(unsigned node, int, int, int, const real val[4]) const {
-        atomic_add_node(grid + 4u * node, val);
-    }
-};
-
 // The 27 nodes row by row: row (i, j) holds nodes k = 0, 1, 2, whose 12 values are reduced
-// together (one shuffle round serves three nodes), then added by the heads into `sink`. ROUNDS >=
-// 0: exactly that many rounds (RTMPM_P2G_REDUCE 4); -1: up to the longest segment (max_seg).
-template <int ROUNDS, class Sink>
+// together (one shuffle round serves three nodes), then added by the heads. ROUNDS >= 0: exactly
+// that many rounds (RTMPM_P2G_REDUCE 4); -1: up to the longest segment (max_seg).
+template <int ROUNDS>
 __device__ __forceinline__ void p2g_scatter_rows(const ScatterNodes& nodes, const P2gParticle& q, unsigned seg_len,
-                                                 unsigned max_seg, bool head, const Sink& sink) {
+                                                 unsigned max_seg, bool head, real* grid) {
 #if RTMPM_P2G_UNROLL
 #pragma unroll
 #endif
@@ -179,7 +168,7 @@ __device__ __forceinline__ void p2g_scatter_rows(const ScatterNodes& nodes, cons
             }
             if (head) {
 #pragma unroll
-                for (int k = 0; k < 3; ++k) sink.add(scatter_node(nodes, row, k), i, j, k, val[k]);
+                for (int k = 0; k < 3; ++k) atomic_add_node(grid + 4u * scatter_node(nodes, row, k), val[k]);
             }
         }
 }
@@ -223,11 +212,10 @@ __device__ __forceinline__ WarpSegments warp_segments(const Ctx& c, const int ba
 }
 
 // The scatter of one warp's particles (one per lane, in sorted order; q of an inactive lane is
-// p2g_particle_zero) into `sink` (GlobalSink: a grid): segmented warp reduction (Gao et al.
-// 2018), then the segment heads' adds. Every lane of the warp calls it.
-template <class Sink>
-__device__ __forceinline__ void p2g_scatter_warp_into(const Ctx& c, unsigned g, const P2gParticle& q, bool active,
-                                                      unsigned lane, const Sink& sink) {
+// p2g_particle_zero) into `grid`: segmented warp reduction (Gao et al. 2018), then global
+// atomics by segment heads. Every lane of the warp calls it.
+__device__ __forceinline__ void p2g_scatter_warp(const Ctx& c, unsigned g, const P2gParticle& q, bool active, unsigned lane,
+                                                 real* grid) {
     const int* base = q.base;
     WarpSegments seg = warp_segments(c, base, active, lane);
     unsigned seg_len = seg.seg_len, max_seg = seg.max_seg;
@@ -237,29 +225,21 @@ __device__ __forceinline__ void p2g_scatter_warp_into(const Ctx& c, unsigned g, 
     // Rounds s = 1, 2, 4, ... up to the longest segment, at most RTMPM_P2G_ROUNDS_MAX.
     int rounds = min(max_seg ? 32 - __clz(max_seg) : 0, RTMPM_P2G_ROUNDS_MAX);
     switch (rounds) {
-        case 0: p2g_scatter_rows<0>(nodes, q, seg_len, max_seg, head, sink); break;
-        case 1: p2g_scatter_rows<1>(nodes, q, seg_len, max_seg, head, sink); break;
-        case 2: p2g_scatter_rows<2>(nodes, q, seg_len, max_seg, head, sink); break;
+        case 0: p2g_scatter_rows<0>(nodes, q, seg_len, max_seg, head, grid); break;
+        case 1: p2g_scatter_rows<1>(nodes, q, seg_len, max_seg, head, grid); break;
+        case 2: p2g_scatter_rows<2>(nodes, q, seg_len, max_seg, head, grid); break;
 #if RTMPM_P2G_ROUNDS_MAX > 2
-        case 3: p2g_scatter_rows<3>(nodes, q, seg_len, max_seg, head, sink); break;
+        case 3: p2g_scatter_rows<3>(nodes, q, seg_len, max_seg, head, grid); break;
 #endif
 #if RTMPM_P2G_ROUNDS_MAX > 3
-        case 4: p2g_scatter_rows<4>(nodes, q, seg_len, max_seg, head, sink); break;
+        case 4: p2g_scatter_rows<4>(nodes, q, seg_len, max_seg, head, grid); break;
 #endif
-        default: p2g_scatter_rows<RTMPM_P2G_ROUNDS_MAX>(nodes, q, seg_len, max_seg, head, sink); break;
+        default: p2g_scatter_rows<RTMPM_P2G_ROUNDS_MAX>(nodes, q, seg_len, max_seg, head, grid); break;
     }
 #else
 #if RTMPM_P2G_ROUNDS_MAX < 5
     max_seg = min(max_seg, (1u << RTMPM_P2G_ROUNDS_MAX) - 1u);
 #endif
-    p2g_scatter_rows<-1>(nodes, q, seg_len, max_seg, head, sink);
+    p2g_scatter_rows<-1>(nodes, q, seg_len, max_seg, head, grid);
 #endif
-}
-
-// The same into a grid in global memory: one atomic_add_node a node of each segment.
-__device__ __forceinline__ void p2g_scatter_warp(const Ctx& c, unsigned g, const P2gParticle& q, bool active, unsigned lane,
-                                                 real* grid) {
-    GlobalSink sink;
-    sink.grid = grid;
-    p2g_scatter_warp_into(c, g, q, active, lane, sink);
 }

@@ -366,13 +366,6 @@ impl Plan {
         info: &DeviceInfo,
     ) -> Result<(Arc<CudaStream>, Arc<CudaModule>, Kernels), SimError> {
         let o = &self.options;
-        if o.cluster > 1 && info.compute_capability.0 < 9 {
-            return Err(SimError::Backend(format!(
-                "CUDA option cluster={}: thread-block clusters need compute capability 9.0 or later, \
-                 and this GPU ({}) has {}.{}; leave the option out (or cluster=off)",
-                o.cluster, info.name, info.compute_capability.0, info.compute_capability.1
-            )));
-        }
         // Compiled for this GPU, the state's index width (64 bits past 2^32 words), and with
         // specialize=on the scene's models only (a smaller material switch).
         let ptx = compile(&KernelOptions {
@@ -391,9 +384,6 @@ impl Plan {
             },
             batch: self.batch,
             ck_min_blocks: o.ck_min_blocks,
-            cluster: o.cluster,
-            halo: o.halo,
-            sorted_warps: o.sorted_warps,
         })
         .map_err(SimError::Backend)?;
         // Single stream: no cross-stream event tracking (keeps launches capturable).

@@ -29,7 +29,7 @@ pub(crate) fn enqueue(
         Kernel::G2pMpm
     };
     let threads = c.warp_cap as usize * 32;
-    let mut launch = match (f, k.g2p2g_resident, k.g2p2g_ck_resident) {
+    let launch = match (f, k.g2p2g_resident, k.g2p2g_ck_resident) {
         (Kernel::G2p2g, Some([blocks, _]), _)
         | (Kernel::G2p2gFluid, Some([_, blocks]), _)
         | (Kernel::G2p2gCk, _, Some(blocks))
@@ -39,11 +39,6 @@ pub(crate) fn enqueue(
         }
         _ => k.wave(threads, 128),
     };
-    if matches!(f, Kernel::G2p2g | Kernel::G2p2gFluid) && k.cluster > 1 {
-        // Thread-block clusters (cluster=): whole clusters (the kernel's warps past the list's
-        // end take part in the cluster's barriers only).
-        launch.grid_dim.0 = launch.grid_dim.0.div_ceil(k.cluster) * k.cluster;
-    }
     // SAFETY: the kernel bounds-checks against the warp count (grid-stride over the warp list).
     unsafe { s.launch_builder(&k[f]).arg(c).launch(launch)? };
     Ok(())
