@@ -46,7 +46,7 @@
 #   profile      Nsight Compute on the fused G2P2G kernel (one launch after 5): PROFILE_RUNS="label|binary|
 #                defines|scene ..." (default: the fluid dam 2M); the bound (issue, stalls, L1/L2, atomics)
 #   multi        several GPUs: agreement tests in every mode, 2 NCCL processes, scaling
-#   multi_rigid  rigid bodies with one process per GPU (2 GPUs and NCCL; skipped with fewer): test_multi_gpu's
+#   multi_rigid  rigid bodies with one process per GPU (2 GPUs and NCCL; skipped with fewer): test_multi_gpu_rigid's
 #                nccl_ranks_agree_with_one_gpu_on_the_rigid_scenes (two NCCL ranks in two threads, every
 #                scenes/rigid/ scene 0.5 s at a fixed dt, a re-partition halfway, against one GPU; the ranks'
 #                bodies equal bit for bit) and test_multi_gpu_cli's two_processes_agree_with_one_gpu_on_the_rigid_scenes
@@ -54,12 +54,12 @@
 #                Both are also part of `multi`
 #   multi4       the same on 4 GPUs: agreement at 2 and 4, strong and weak scaling at 1, 2, 4, 4 ranks
 #   exchange     --cuda-options exchange=fused|push against the default (docs/multi-gpu.md, "The exchange's
-#                launches"): test_multi_gpu's the_fused_and_pushed_exchanges_agree_with_one_gpu, then the weak
+#                launches"): test_multi_gpu_agreement's the_fused_and_pushed_exchanges_agree_with_one_gpu, then the weak
 #                benchmark (4.2M a GPU) on 1 GPU and on 2 and 4 GPUs (those present) with exchange=kernels,
 #                fused, push, push+overlap=off and overlap=off, REPS times interleaved (default 2), then the
 #                strong 16.8M at 1, 2, 4 with kernels, push, push+overlap=off (EXCHANGE_STRONG=0 skips it);
 #                each run's reduction line in the summary. About 4 min on 4 GPUs
-#   multi1       the multi-GPU code on ONE GPU: test_multi_gpu with two ranks on device 0
+#   multi1       the multi-GPU code on ONE GPU: the test_multi_gpu_* binaries with two ranks on device 0
 #                (RTMPM_MULTI_GPU_DEVICES=0,0, the CUDA option devices=0:0; transport=p2p with the events
 #                barrier, the spin barrier and NCCL checked to be refused there): every example scene,
 #                steering, the rigid scenes (scenes/rigid/*) and the bad-particle report against one GPU;
@@ -95,10 +95,12 @@
 #                host and GPU memory of the server at the start, middle and end (every VIEW_SOAK_EVERY s);
 #                the view's default (pictures overlapped with the steps), RTMPM_VIEW_OVERLAP=0 in the
 #                environment for the loop without
-#   batch        many worlds in the same kernels: tests/batch.rs (16 wedge worlds vs 16 separate runs, a
-#                reset and a blown-up world beside others, refusals, the lockstep driver, a checkpointed
-#                batch resumed against the uninterrupted one) and its benchmark (1,024 sand beds of
-#                9,408 particles: batched vs one scene of as many particles vs worlds one after another)
+#   batch        many worlds in the same kernels: test_batch_isolation (16 wedge worlds vs 16 separate runs,
+#                refusals), test_batch_resets (a reset and a blown-up world beside others, puts),
+#                test_batch_rewind (the device rewind point), test_batch_lockstep (the lockstep driver, a
+#                checkpointed batch resumed against the uninterrupted one), then test_batch_benchmark
+#                (1,024 sand beds of 9,408 particles: batched vs one scene of as many particles vs worlds
+#                one after another)
 #   long         the strong-scaling scene for 12 frames (0.24 s, past its 0.1 s duration) on one GPU, fused
 #                and unfused, and at dt/2: does the 12-frame blow-up seen on 2 GPUs happen on one?
 set -uo pipefail
@@ -122,6 +124,11 @@ t() {
   say "$name rc=$?: $(grep -E '^test result' "$OUT/$name.log" | tail -1)"
   grep -E "FAILED|panicked" "$OUT/$name.log" | head -8 | tee -a "$S"
 }
+
+# The test binaries of several GPUs (crates/rtmpm-cuda/tests/multi_gpu_*.rs) and of a GPU batch's
+# worlds against their separate runs (tests/batch_*.rs but the colliders' and the rigid bodies').
+MULTI_GPU_TESTS="test_multi_gpu_agreement test_multi_gpu_errors test_multi_gpu_rigid"
+BATCH_TESTS="test_batch_isolation test_batch_resets test_batch_rewind test_batch_lockstep"
 
 # label, binary, bench args...: one summary line with ms/step and the stage times.
 b() {
@@ -337,7 +344,7 @@ for suite in "$@"; do
       done
       ;;
     multi)
-      t test_multi_gpu
+      for x in $MULTI_GPU_TESTS; do t "$x"; done
       t test_multi_gpu_cli
       for g in 1 2; do b "strong 16.8M gpus=$g" rtmpm --scene bench/strong_16m.toml --frames 2 --gpus "$g"; done
       b "strong 16.8M gpus=1 g2p2g=off" rtmpm --scene bench/strong_16m.toml --frames 2 --cuda-options g2p2g=off
@@ -363,9 +370,9 @@ for suite in "$@"; do
       say "strong 16.8M two NCCL processes: $(grep -hE 'throughput|^error' "$OUT/rank_0.log" "$OUT/rank_1.log" | tr -s ' ' | tr '\n' ' ')"
       ;;
     multi1)
-      RTMPM_MULTI_GPU_DEVICES=0,0 t test_multi_gpu --nocapture
+      for x in $MULTI_GPU_TESTS; do RTMPM_MULTI_GPU_DEVICES=0,0 t "$x" --nocapture; done
       grep -hE "^test |refused with ranks|rigid-body runs|: body [0-9]|particles: \||GPU: particle|runs of several GPUs" \
-        "$OUT/test_multi_gpu.log" | head -80 | tee -a "$S"
+        $(for x in $MULTI_GPU_TESTS; do echo "$OUT/$x.log"; done) | head -80 | tee -a "$S"
       for g in 1 2; do
         o=""; [ "$g" = 2 ] && o="--gpus 2 --cuda-options devices=0:0"
         x=$(timeout 300 "$D/rtmpm" run scenes/rigid/floating_box.toml --backend cuda --frames 30 $o --out "$OUT/floating_box_$g" 2>&1)
@@ -375,8 +382,8 @@ for suite in "$@"; do
       done
       ;;
     multi_rigid)
-      t test_multi_gpu nccl_ranks_agree_with_one_gpu_on_the_rigid_scenes --nocapture
-      grep -hE "^test |skipped|: body [0-9]|particles: \||runs of 2 NCCL ranks" "$OUT/test_multi_gpu.log" | head -60 | tee -a "$S"
+      t test_multi_gpu_rigid nccl_ranks_agree_with_one_gpu_on_the_rigid_scenes --nocapture
+      grep -hE "^test |skipped|: body [0-9]|particles: \||runs of 2 NCCL ranks" "$OUT/test_multi_gpu_rigid.log" | head -60 | tee -a "$S"
       t test_multi_gpu_cli two_processes_agree_with_one_gpu_on_the_rigid_scenes --nocapture
       grep -hE "^test |skipped|2 processes: body|2 processes: \|d com" "$OUT/test_multi_gpu_cli.log" | head -40 | tee -a "$S"
       ;;
@@ -384,7 +391,7 @@ for suite in "$@"; do
       # 4 GPUs: the agreement tests at 2 and 4 GPUs (RTMPM_MULTI_GPU_COUNTS
       # defaults to 2,4), strong scaling 16.8M on 1, 2, 4 GPUs, weak scaling 4.2M a GPU, and 4 NCCL
       # processes against one process driving the 4 GPUs through NCCL (12 frames at dt = 5e-5).
-      t test_multi_gpu
+      for x in $MULTI_GPU_TESTS; do t "$x"; done
       t test_multi_gpu_cli
       for g in 1 2 4; do b "strong 16.8M gpus=$g" rtmpm --scene bench/strong_16m.toml --frames 2 --gpus "$g"; done
       b "strong 16.8M gpus=4 transport=nccl" rtmpm --scene bench/strong_16m.toml --frames 2 --gpus 4 --cuda-options transport=nccl
@@ -404,8 +411,8 @@ for suite in "$@"; do
       say "strong 16.8M four NCCL processes: $(grep -hE 'throughput|^error' "$OUT"/rank4_*.log | tr -s ' ' | tr '\n' ' ')"
       ;;
     exchange)
-      t test_multi_gpu the_fused_and_pushed_exchanges_agree_with_one_gpu --nocapture
-      grep -hE "runs of the fused|first step differs|aggregates differ|timed out" "$OUT/test_multi_gpu.log" | head -8 | tee -a "$S"
+      t test_multi_gpu_agreement the_fused_and_pushed_exchanges_agree_with_one_gpu --nocapture
+      grep -hE "runs of the fused|first step differs|aggregates differ|timed out" "$OUT/test_multi_gpu_agreement.log" | head -8 | tee -a "$S"
       ngpu=$(nvidia-smi -L | wc -l)
       red() { grep -E "reduction" "$OUT/bench.log" | tail -1 | sed -E 's/^ +/    /' | tee -a "$S"; }
       for rep in $(seq "${REPS:-2}"); do
@@ -553,15 +560,16 @@ for suite in "$@"; do
       ;;
     batch)
       # Many worlds in the same kernels (rtmpm_cuda::batch): isolation, reset and blow-up checks
-      # against separate CUDA runs (tests/batch.rs), then the benchmark: BATCH_WORLDS (1024) sand
-      # beds of 9,408 particles batched vs one scene of as many particles vs BATCH_ALONE (16)
-      # worlds one after another, extrapolated.
-      t test_batch --nocapture --skip batch_benchmark
-      timeout "${TEST_TIMEOUT:-500}" "$D/test_batch" --include-ignored --test-threads 1 --nocapture --exact batch_benchmark \
+      # against separate CUDA runs (BATCH_TESTS: tests/batch_isolation.rs, batch_resets.rs,
+      # batch_rewind.rs, batch_lockstep.rs), then the benchmark (tests/batch_benchmark.rs):
+      # BATCH_WORLDS (1024) sand beds of 9,408 particles batched vs one scene of as many particles
+      # vs BATCH_ALONE (16) worlds one after another, extrapolated.
+      for x in $BATCH_TESTS; do t "$x" --nocapture; done
+      timeout "${TEST_TIMEOUT:-500}" "$D/test_batch_benchmark" --include-ignored --test-threads 1 --nocapture --exact batch_benchmark \
         > "$OUT/batch_bench.log" 2>&1
       say "batch_benchmark rc=$?"
       grep -hoE "BENCH.*|panicked.*" "$OUT/batch_bench.log" | tee -a "$S"
-      grep -hE "^world|^lockstep|^resumed|^blow-up|refused in" "$OUT/test_batch.log" | head -48 | tee -a "$S"
+      grep -hE "^world|^lockstep|^resumed|^blow-up|refused in" $(for x in $BATCH_TESTS; do echo "$OUT/$x.log"; done) | head -48 | tee -a "$S"
       # The CLI: --backend auto runs the wedge on the GPU (its one-line note), 4 frames with a
       # checkpoint every 2, against a run cut at frame 2 and resumed from its checkpoint_00002:
       # the same files (names) in both folders. Frames stay in a scratch folder, not in $OUT.

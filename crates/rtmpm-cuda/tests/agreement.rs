@@ -17,7 +17,7 @@ fn scenes() -> Vec<std::path::PathBuf> {
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|e| e == "toml"))
         // A batch of worlds ([batch]) is many scenes, not one: its worlds against separate
-        // CUDA runs are tests/batch.rs.
+        // CUDA runs are the tests/batch_*.rs.
         .filter(|p| !rtmpm_scene::BatchScene::from_file(p).is_ok_and(|b| b.batch.is_some()))
         .collect();
     v.sort();

@@ -10,86 +10,25 @@
 //! (`RTMPM_CACHE_DIR`, and the driver's JIT cache) compiles them with NVRTC, side by side on two
 //! threads, and the driver turns their PTX into machine code; the second finds them cached.
 
+mod common;
+
+use common::batch::{agrees, precise};
+use common::{gpu, read};
 use rtmpm_cpu::CpuBackend;
 use rtmpm_cuda::batch::CudaBatch;
-use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
+use rtmpm_cuda::{CudaBackend, CudaOptions};
 use rtmpm_physics::Particles;
 use rtmpm_scene::{BatchScene, Scene, StepMode};
 use rtmpm_sim::Backend;
 use std::time::Instant;
 
-fn gpu() -> bool {
-    match probe() {
-        Ok(_) => true,
-        Err(e) => {
-            println!("skipped: no usable CUDA GPU ({e})");
-            false
-        }
-    }
-}
-
-fn read(b: &mut dyn Backend) -> Particles {
-    let mut p = Particles::default();
-    b.read_particles(&mut p).expect("read particles");
-    p
-}
-
 /// Precise math (as the agreement tests compare), the kernels specialised to the scenes'
 /// models (water only: a smaller program to compile).
 fn options() -> CudaOptions {
     CudaOptions {
-        fast_math: false,
         specialize: true,
-        ..CudaOptions::default()
+        ..precise()
     }
-}
-
-fn max_diff(a: &Particles, b: &Particles) -> (f32, f32) {
-    assert_eq!(a.len(), b.len());
-    let mut dx = 0.0f32;
-    let mut dv = 0.0f32;
-    for i in 0..a.len() {
-        dx = dx.max((a.x[i] - b.x[i]).length());
-        dv = dv.max((a.v[i] - b.v[i]).length());
-    }
-    (dx, dv)
-}
-
-/// The agreement test's tolerances (tests/agreement.rs, as tests/batch.rs compares a world of a
-/// batch with its separate run): after one step every particle (|dx| <= 1e-5 dx + 1e-6, |dv|
-/// <= 1e-3 of the speed scale); at the end the centre of mass within 0.1 cell, kinetic energy
-/// within 2 %, bounding box within a cell.
-fn agrees(
-    what: &str,
-    one_step: Option<(&Particles, &Particles)>,
-    a: &Particles,
-    b: &Particles,
-    dx: f32,
-) -> Vec<String> {
-    let mut failures = Vec::new();
-    if let Some((a1, b1)) = one_step {
-        let vscale = a1.v.iter().map(|v| v.length()).fold(1e-3f32, f32::max);
-        let (wx, wv) = max_diff(a1, b1);
-        if wx > 1e-5 * dx.max(1e-3) + 1e-6 || wv > 1e-3 * vscale {
-            failures.push(format!(
-                "{what}: first step differs: |dx| {wx:.3e}, |dv| {wv:.3e}"
-            ));
-        }
-    }
-    let d = a.aggregate_difference(b);
-    let dxd = dx as f64;
-    println!(
-        "{what}: |d com| {:.4} dx, KE {:.4e} vs {:.4e} ({:.3} %), |d bbox| {:.3} dx",
-        d.com / dxd,
-        a.kinetic_energy(),
-        b.kinetic_energy(),
-        100.0 * d.kinetic,
-        d.bbox / dxd
-    );
-    if d.com > 0.1 * dxd || d.kinetic > 0.02 || d.bbox > dxd {
-        failures.push(format!("{what}: aggregates differ"));
-    }
-    failures
 }
 
 /// A water column (0.1 x 0.2 x 0.28 m at 2 cm cells, 8 particles a cell) in a 0.4 m box with

@@ -6,58 +6,24 @@
 //! `cargo test --release -p rtmpm-cuda --features rigid --test batch_rigid -- --include-ignored --nocapture`.
 #![cfg(feature = "rigid")]
 
+mod common;
+
+use common::batch::agrees;
+use common::{gpu, read};
 use rtmpm_cpu::CpuBackend;
 use rtmpm_cuda::batch::CudaBatch;
-use rtmpm_cuda::{CudaBackend, CudaOptions, probe};
+use rtmpm_cuda::{CudaBackend, CudaOptions};
 use rtmpm_physics::Particles;
 use rtmpm_rigid::BodyPose;
 use rtmpm_scene::Scene;
 use rtmpm_sim::{Backend, Worlds};
 
-fn gpu() -> bool {
-    match probe() {
-        Ok(_) => true,
-        Err(e) => {
-            println!("skipped: no usable CUDA GPU ({e})");
-            false
-        }
-    }
-}
-
 /// Precise math, and the bodies advanced by each step's sums before the next (the batch's
 /// order; a single run's default moves them a step late).
 fn precise() -> CudaOptions {
     CudaOptions {
-        fast_math: false,
         rigid_overlap: false,
-        ..CudaOptions::default()
-    }
-}
-
-fn read(b: &mut dyn Backend) -> Particles {
-    let mut p = Particles::default();
-    b.read_particles(&mut p).expect("read particles");
-    p
-}
-
-/// The aggregate tolerances of the agreement test (tests/agreement.rs, as tests/batch.rs
-/// compares a world of a batch with its separate run): centre of mass within 0.1 cell,
-/// kinetic energy within 2 %, bounding box within a cell.
-fn agrees(what: &str, a: &Particles, b: &Particles, dx: f32) -> Vec<String> {
-    let d = a.aggregate_difference(b);
-    let dxd = dx as f64;
-    println!(
-        "{what}: |d com| {:.4} dx, KE {:.4e} vs {:.4e} ({:.3} %), |d bbox| {:.3} dx",
-        d.com / dxd,
-        a.kinetic_energy(),
-        b.kinetic_energy(),
-        100.0 * d.kinetic,
-        d.bbox / dxd
-    );
-    if d.com > 0.1 * dxd || d.kinetic > 0.02 || d.bbox > dxd {
-        vec![format!("{what}: aggregates differ")]
-    } else {
-        Vec::new()
+        ..common::batch::precise()
     }
 }
 
@@ -219,7 +185,13 @@ fn kinematic_tools_posed_per_world_agree_with_separate_runs_and_the_cpu_load() {
     let mut failures = Vec::new();
     for w in 0..worlds.len() {
         let want = read(&mut single[w]);
-        failures.extend(agrees(&format!("world {w}"), &got[w], &want, worlds[w].dx));
+        failures.extend(agrees(
+            &format!("world {w}"),
+            None,
+            &got[w],
+            &want,
+            worlds[w].dx,
+        ));
         single[w].flush_rigid().expect("flush");
         let (a, b) = (batch.world_poses(w)[0], single[w].rigid_poses()[0]);
         let d = (a.position - b.position).length();
@@ -307,7 +279,13 @@ fn dynamic_bodies_move_by_their_own_worlds_material() {
     let mut heights = Vec::new();
     for w in 0..worlds.len() {
         let want = read(&mut single[w]);
-        failures.extend(agrees(&format!("world {w}"), &got[w], &want, worlds[w].dx));
+        failures.extend(agrees(
+            &format!("world {w}"),
+            None,
+            &got[w],
+            &want,
+            worlds[w].dx,
+        ));
         single[w].flush_rigid().expect("flush");
         let (a, b) = (batch.world_poses(w)[0], single[w].rigid_poses()[0]);
         let d = (a.position - b.position).length();

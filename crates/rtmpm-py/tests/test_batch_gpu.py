@@ -34,8 +34,9 @@ def alone_cuda(text, frames):
 
 def agree(what, x, v, xa, va, dx=DX):
     """The agreement test's aggregate tolerances (crates/rtmpm-cuda/tests/agreement.rs, as
-    crates/rtmpm-cuda/tests/batch.rs compares a batch's world with its separate run): centre of
-    mass within 0.1 cell, kinetic energy (equal masses) within 2 %, bounding box within a cell."""
+    crates/rtmpm-cuda/tests/common/batch.rs compares a batch's world with its separate run):
+    centre of mass within 0.1 cell, kinetic energy (equal masses) within 2 %, bounding box within
+    a cell."""
     assert x.shape == xa.shape, what
     com = np.linalg.norm(x.mean(0) - xa.mean(0))
     ke, kea = (v.astype(np.float64) ** 2).sum(), (va.astype(np.float64) ** 2).sum()

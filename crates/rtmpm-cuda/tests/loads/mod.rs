@@ -1,8 +1,8 @@
 //! The load on a kinematic tool pushed into sand, shared by the GPU tests of rigid-body loads
-//! (`tests/rigid.rs`: one GPU against the CPU backend; `tests/multi_gpu.rs`: several GPUs against
-//! one): the scene, a run that averages the tool's load over its last steps, and the tolerance
-//! of `tests/batch_rigid.rs` on such a mean (the force within 5 % of its size, the torque within
-//! 5 % of its size plus 1e-4 N m).
+//! (`tests/rigid.rs`: one GPU against the CPU backend; `tests/multi_gpu_rigid.rs`: several
+//! GPUs against one): the scene, a run that averages the tool's load over its last steps, and
+//! the tolerance of `tests/batch_rigid.rs` on such a mean (the force within 5 % of its size,
+//! the torque within 5 % of its size plus 1e-4 N m).
 #![allow(dead_code)] // each test binary uses its part
 
 use rtmpm_rigid::BodyLoad;

@@ -4,7 +4,7 @@
 //! Resuming builds the backend from the saved particles (a frozen world parked, as the run that
 //! wrote it left it) and puts the shared clock back. On a backend that is bit-reproducible the
 //! resumed run goes on bit for bit as the one that wrote the checkpoint
-//! (`crates/rtmpm-cpu/tests/lockstep.rs`); on the GPU within what its atomic sums allow.
+//! (`crates/rtmpm-cpu/tests/lockstep_files.rs`); on the GPU within what its atomic sums allow.
 
 use super::{Clock, LockstepRun, parked, parked_bodies};
 use crate::batch::checkpoint::{Saved, prepare_dir, read_folder, write_folder};

@@ -1,0 +1,164 @@
+//! The lockstep batch driver's rewind point on CPU worlds side by side (`lockstep_support`): a
+//! backend that keeps its own rewind point (as the GPU does on the device) is read only when its
+//! particles are needed, and rewinds to that point bit for bit as the host's copy does; a frozen
+//! world that fails again ends the call with an error, not a loop.
+
+mod common;
+mod lockstep_support;
+
+use common::bits;
+use lockstep_support::{SLUMP, SideBySide, alone_steps, unwritten_keeping};
+use rtmpm_driver::batch::WorldStatus;
+use rtmpm_driver::batch::lockstep::LockstepRun;
+use rtmpm_scene::BatchScene;
+use rtmpm_sim::Particles;
+
+#[test]
+fn a_backend_keeping_its_rewind_point_is_read_only_when_its_particles_are_needed() {
+    let (b, mut r) = unwritten_keeping(SLUMP, true);
+    assert_eq!(r.sim.backend.reads, 1, "the state at the start");
+    // 70 calls of one step (a frame end crossed): nothing read back.
+    for _ in 0..70 {
+        assert!(r.advance_steps(1).expect("step").is_empty());
+    }
+    assert_eq!(r.sim.backend.reads, 1, "no call read the worlds");
+    for world in &r.worlds {
+        assert_eq!((world.steps(), world.frame()), (70, 1));
+    }
+    r.sync().expect("sync");
+    assert_eq!(r.sim.backend.reads, 2);
+    r.sync().expect("sync again");
+    assert_eq!(r.sim.backend.reads, 2, "a second sync reads nothing");
+    for (w, world) in r.worlds.iter().enumerate() {
+        assert_eq!(
+            bits(world.particles()),
+            bits(&alone_steps(&b.worlds[w], 70)),
+            "world {w}"
+        );
+    }
+    // A checkpoint needs the particles: it reads them, once.
+    assert!(r.advance_steps(3).expect("steps").is_empty());
+    let dir = std::env::temp_dir().join(format!("rtmpm-lockstep-lazy-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    r.checkpoint(&dir, SLUMP, "slump.toml").expect("checkpoint");
+    std::fs::remove_dir_all(&dir).expect("clean up");
+    assert_eq!(r.sim.backend.reads, 3);
+    assert_eq!(
+        bits(r.worlds[0].particles()),
+        bits(&alone_steps(&b.worlds[0], 73))
+    );
+}
+
+/// One run of blow-ups and resets in calls of a few steps: world 2 made to blow up within the
+/// second call (its particles sped up to 10^5 m/s before its 10th step, behind the driver's
+/// back), a call, world 1 reset to a body at 10^5 m/s (it blows up in the next call, world 2
+/// frozen before it), then world 2 reset to its start; the batch at the end, synced, and every
+/// world as the backend held it after world 1's blow-up (the frozen ones parked and stepped).
+fn resets_and_blow_ups(keeps_point: bool) -> (BatchScene, LockstepRun<SideBySide>, Vec<Particles>) {
+    let (b, mut r) = unwritten_keeping(SLUMP, keeps_point);
+    r.sim.backend.poison = Some((2, 9));
+    assert!(r.advance_steps(7).expect("steps").is_empty());
+    assert_eq!(r.advance_steps(5).expect("steps"), [2]);
+    // Frozen at its last good state, the start of the call: its separate run of 7 steps.
+    assert_eq!(
+        bits(r.worlds[2].particles()),
+        bits(&alone_steps(&b.worlds[2], 7)),
+        "world 2 keeps its state of the call's start"
+    );
+    assert!(r.advance_steps(3).expect("steps").is_empty());
+    let mut fast = b.worlds[1].sample_particles().expect("sample");
+    fast.v
+        .iter_mut()
+        .for_each(|v| *v = glam::Vec3::new(1e5, 0.0, 0.0));
+    r.reset_worlds(vec![(1, fast)]).expect("reset");
+    assert_eq!(r.advance_steps(4).expect("steps"), [1]);
+    let held = r.sim.backend.read_all().expect("read");
+    let start = b.worlds[2].sample_particles().expect("sample");
+    r.reset_worlds(vec![(2, start)]).expect("reset");
+    assert!(r.advance_steps(6).expect("steps").is_empty());
+    r.sync().expect("sync");
+    (b, r, held)
+}
+
+#[test]
+fn a_rewind_to_the_backends_own_point_equals_the_host_rewind_bit_for_bit() {
+    let (b, host, host_held) = resets_and_blow_ups(false);
+    let (_, kept, kept_held) = resets_and_blow_ups(true);
+    // The backend held the same worlds after the second rewind, the frozen world 2 (parked
+    // again from its last good state, as the host's rewind parks it) among them.
+    for w in 0..3 {
+        assert_eq!(
+            bits(&kept_held[w]),
+            bits(&host_held[w]),
+            "world {w} as held"
+        );
+    }
+    for w in 0..3 {
+        let (a, k) = (&host.worlds[w], &kept.worlds[w]);
+        assert_eq!(k.status, a.status, "world {w}");
+        assert_eq!(bits(k.particles()), bits(a.particles()), "world {w}");
+        assert_eq!((k.steps(), k.frame()), (a.steps(), a.frame()), "world {w}");
+        assert_eq!(k.time().to_bits(), a.time().to_bits(), "world {w}");
+    }
+    assert!(matches!(kept.worlds[1].status, WorldStatus::Frozen { .. }));
+    assert_eq!(kept.worlds[2].steps(), 6);
+    assert_eq!(kept.worlds[1].steps(), 0, "frozen at its reset");
+    // World 0 went through both rewinds: bit for bit its separate run of 25 steps (in f32
+    // builds: a rewind puts the worlds back through the particles' f32 interface, so an f64
+    // world rewound after its first steps goes on from its state rounded, in both modes alike);
+    // world 2 is its separate run of 6 steps from its reset.
+    if cfg!(not(feature = "f64")) {
+        assert_eq!(
+            bits(kept.worlds[0].particles()),
+            bits(&alone_steps(&b.worlds[0], 25))
+        );
+    }
+    assert_eq!(
+        bits(kept.worlds[2].particles()),
+        bits(&alone_steps(&b.worlds[2], 6))
+    );
+    // A frozen world keeps its last good state: world 1's fast start.
+    let fast = kept.worlds[1].particles();
+    assert!(
+        fast.v.iter().all(|v| v.x == 1e5),
+        "world 1 keeps its reset state"
+    );
+    // The host's copy read the worlds after every call; the backend's point only when needed
+    // (the start, the first rewind, the second, the end's sync).
+    assert!(
+        kept.sim.backend.reads < host.sim.backend.reads,
+        "{} reads against {}",
+        kept.sim.backend.reads,
+        host.sim.backend.reads
+    );
+    assert_eq!(kept.sim.backend.reads, 4);
+}
+
+/// A world that fails again once frozen and parked (here sped up to 10^5 m/s before every step,
+/// behind the driver's back) ends the call with an error naming it, after one rewind, whether
+/// the rewind point is the host's copy or the backend's own: the driver never rewinds twice for
+/// one world (stepping the same blow-up again and again).
+#[test]
+fn a_frozen_world_that_fails_again_ends_the_call_with_an_error_not_a_loop() {
+    for keeps_point in [false, true] {
+        let (_, mut r) = unwritten_keeping(SLUMP, keeps_point);
+        r.sim.backend.relapse = Some(1);
+        let e = r
+            .advance_steps(5)
+            .expect_err("a parked world that fails again ends the call");
+        let e = format!("{e:#}");
+        assert!(
+            e.contains("world 1 (its particle") && e.contains("failed again"),
+            "keeps_point {keeps_point}: {e}"
+        );
+        assert!(e.contains("blew up"), "the failure itself is said: {e}");
+        // The failed step, then the step again from the rewind point (world 1 frozen), which
+        // fails in world 1 once more: two steps, one rewind.
+        assert_eq!(r.sim.backend.steps, 2, "keeps_point {keeps_point}");
+        assert!(matches!(
+            r.worlds[1].status,
+            WorldStatus::Frozen { frame: 0, .. }
+        ));
+        assert_eq!(r.running(), 2);
+    }
+}
