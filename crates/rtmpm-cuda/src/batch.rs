@@ -76,6 +76,10 @@ pub struct CudaBatch {
     /// The worlds' images the last [`CudaBatch::put_worlds`] uploaded (kept for the next; it
     /// grows to the largest put).
     put_buffer: Option<CudaSlice<u8>>,
+    /// The host side of the puts, kept between calls (no allocation, no fresh pages a put):
+    /// the particles of a run of worlds, and the images of all runs uploaded.
+    put_run: Particles,
+    put_host: Vec<u8>,
     /// The scene of the shared clock ([`CudaBatch::scene`]).
     clock: Scene,
 }
@@ -182,6 +186,8 @@ impl CudaBatch {
             point: None,
             no_point: false,
             put_buffer: None,
+            put_run: Particles::default(),
+            put_host: Vec::new(),
             clock,
         })
     }

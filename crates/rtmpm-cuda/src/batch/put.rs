@@ -143,20 +143,25 @@ impl CudaBatch {
     }
 
     /// The packed images of the runs of consecutive worlds of `given` (world `w`'s particles or
-    /// `None`), one after another in `bytes`: each run as (its first particle, its particles,
-    /// where its image starts in `bytes`, its image's length), its materials as the kernels'
-    /// rows (`w * materials + k`).
-    fn pack_runs(&self, given: &[Option<&Particles>]) -> Result<(Vec<PutRun>, Vec<u8>), SimError> {
-        let b = &self.backend;
-        let fluid = crate::state::fluid_materials(&b.scene);
-        let (mut runs, mut bytes) = (Vec::new(), Vec::new());
+    /// `None`), one after another in the kept host buffer `put_host`: each run as (its first
+    /// particle, its particles, where its image starts in the buffer, its image's length), its
+    /// materials as the kernels' rows (`w * materials + k`). The run's particles are gathered
+    /// in the kept `put_run` and packed straight into the buffer: no allocation, no fresh page.
+    fn pack_runs(&mut self, given: &[Option<&Particles>]) -> Result<Vec<PutRun>, SimError> {
+        let fluid = crate::state::fluid_materials(&self.backend.scene);
+        let (layout, f64) = (self.backend.layout, self.backend.options.f64);
+        let mut run = std::mem::take(&mut self.put_run);
+        let mut bytes = std::mem::take(&mut self.put_host);
+        bytes.clear();
+        let mut runs = Vec::new();
+        let mut packed = Ok(());
         let mut w = 0;
-        while w < given.len() {
+        while w < given.len() && packed.is_ok() {
             if given[w].is_none() {
                 w += 1;
                 continue;
             }
-            let mut run = Particles::default();
+            clear(&mut run);
             let first = self.offsets[w];
             while let Some(Some(p)) = given.get(w) {
                 let at = run.len();
@@ -166,12 +171,14 @@ impl CudaBatch {
                 }
                 w += 1;
             }
-            let image = crate::state::pack(&run, &fluid, b.layout, b.options.f64, run.len(), None)
-                .map_err(SimError::Backend)?;
-            runs.push((first as u32, run.len() as u32, bytes.len(), image.len()));
-            bytes.extend_from_slice(&image);
+            let at = bytes.len();
+            packed = crate::state::pack_into(&run, &fluid, layout, f64, run.len(), &mut bytes);
+            runs.push((first as u32, run.len() as u32, at, bytes.len() - at));
         }
-        Ok((runs, bytes))
+        self.put_run = run;
+        self.put_host = bytes;
+        packed.map_err(SimError::Backend)?;
+        Ok(runs)
     }
 
     /// [`CudaBatch::put_worlds`] of borrowed particles.
@@ -183,19 +190,19 @@ impl CudaBatch {
         for &(w, p) in worlds {
             given[w] = Some(p);
         }
-        let (runs, bytes) = self.pack_runs(&given)?;
+        let runs = self.pack_runs(&given)?;
         if runs.is_empty() {
             return Ok(());
         }
-        let b = &mut self.backend;
+        let (b, bytes) = (&mut self.backend, &self.put_host);
         match self.put_buffer.as_mut() {
             Some(buf) if buf.len() >= bytes.len() => b
                 .stream
-                .memcpy_htod(&bytes, &mut buf.slice_mut(..bytes.len()))
+                .memcpy_htod(bytes, &mut buf.slice_mut(..bytes.len()))
                 .map_err(err("upload worlds"))?,
             _ => {
                 self.put_buffer = None;
-                let buf = b.stream.clone_htod(&bytes).map_err(err("upload worlds"))?;
+                let buf = b.stream.clone_htod(bytes).map_err(err("upload worlds"))?;
                 self.put_buffer = Some(buf);
             }
         }
@@ -229,3 +236,15 @@ impl CudaBatch {
 /// (original order), its particles, where its packed image starts in the upload and its length
 /// (bytes).
 type PutRun = (u32, u32, usize, usize);
+
+/// `p` emptied, its vectors' memory kept.
+fn clear(p: &mut Particles) {
+    p.x.clear();
+    p.v.clear();
+    p.c.clear();
+    p.f.clear();
+    p.plastic.clear();
+    p.mass.clear();
+    p.vol0.clear();
+    p.material.clear();
+}

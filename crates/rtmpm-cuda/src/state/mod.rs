@@ -25,7 +25,7 @@ mod unpack;
 mod word;
 
 pub use edit::edit_rows;
-pub use pack::{body_constant_words, map_positions, max_speed, pack, pack_bodies};
+pub use pack::{body_constant_words, map_positions, max_speed, pack, pack_bodies, pack_into};
 pub use unpack::{resize_particles, scatter_f32, unpack, unpack_rows, unpack_x_v_f64};
 
 use crate::contract::StateLayout;

@@ -34,6 +34,26 @@ pub fn pack(
     }
 }
 
+/// [`pack`] appended to `out`: its bytes so far kept, the image (stride `cap`) after them, in
+/// memory the caller keeps between calls (a GPU batch's puts pack a few worlds a call, where
+/// a fresh image's allocation and first touch of its pages cost more than the packing), in
+/// tasks of a few hundred particles on every core (the same bytes as [`pack`]'s).
+pub fn pack_into(
+    particles: &Particles,
+    fluid: &[bool],
+    layout: StateLayout,
+    f64: bool,
+    cap: usize,
+    out: &mut Vec<u8>,
+) -> Result<(), String> {
+    check_layout(fluid, layout, f64)?;
+    if f64 {
+        pack_words_into::<f64>(particles, fluid, layout, cap, out)
+    } else {
+        pack_words_into::<f32>(particles, fluid, layout, cap, out)
+    }
+}
+
 /// Particles a task of the packing writes (at most).
 pub(super) const PACK_CHUNK: usize = 1 << 14;
 
@@ -84,10 +104,24 @@ fn write_image<W: Word>(
     l: StateLayout,
     ids: Option<&[u32]>,
 ) -> Vec<u8> {
+    let mut bytes = vec![0u8; l.words() * cap * W::BYTES];
+    write_image_into::<W>(tasks, n, cap, fluid, l, ids, &mut bytes);
+    bytes
+}
+
+/// [`write_image`] into `bytes` (zeroed, `l.words() * cap` words).
+fn write_image_into<W: Word>(
+    tasks: Vec<(Source, usize)>,
+    n: usize,
+    cap: usize,
+    fluid: &[bool],
+    l: StateLayout,
+    ids: Option<&[u32]>,
+    bytes: &mut [u8],
+) {
     let words = l.words();
-    let mut bytes = vec![0u8; words * cap * W::BYTES];
     if n == 0 {
-        return bytes;
+        return;
     }
     // Each task's piece of each field's row.
     let mut pieces: Vec<Vec<&mut [u8]>> = tasks.iter().map(|_| Vec::with_capacity(words)).collect();
@@ -180,16 +214,24 @@ fn write_image<W: Word>(
                 }
             }
         });
-    bytes
 }
 
 /// Tasks of [`write_image`] over particles `0..n` of `p`.
 fn particle_tasks(p: &Particles) -> Vec<(Source<'_>, usize)> {
+    particle_tasks_of(p, PACK_CHUNK)
+}
+
+/// Tasks of at most `chunk` particles over particles `0..n` of `p`.
+fn particle_tasks_of(p: &Particles, chunk: usize) -> Vec<(Source<'_>, usize)> {
     (0..p.len())
-        .step_by(PACK_CHUNK)
-        .map(|s| (Source::Particles(p, s), PACK_CHUNK.min(p.len() - s)))
+        .step_by(chunk)
+        .map(|s| (Source::Particles(p, s), chunk.min(p.len() - s)))
         .collect()
 }
+
+/// Particles a task of [`pack_into`] writes (at most): a put's few thousand particles (about
+/// 100 ns each packed on one core) spread over every core.
+const PUT_CHUNK: usize = 512;
 
 /// The first particle whose material is not below `fluid.len()`.
 fn bad_material(p: &Particles, fluid: &[bool]) -> Option<usize> {
@@ -218,6 +260,29 @@ fn pack_words<W: Word>(
         ));
     }
     Ok(write_image::<W>(particle_tasks(p), n, cap, fluid, l, ids))
+}
+
+/// [`pack_words`] appended to `out` (ids `0..n`).
+fn pack_words_into<W: Word>(
+    p: &Particles,
+    fluid: &[bool],
+    l: StateLayout,
+    cap: usize,
+    out: &mut Vec<u8>,
+) -> Result<(), String> {
+    let n = p.len();
+    let cap = cap.max(n);
+    if let Some(i) = bad_material(p, fluid) {
+        return Err(format!(
+            "particle {i} has material {} out of range",
+            p.material[i]
+        ));
+    }
+    let start = out.len();
+    out.resize(start + l.words() * cap * W::BYTES, 0);
+    let tasks = particle_tasks_of(p, PUT_CHUNK);
+    write_image_into::<W>(tasks, n, cap, fluid, l, None, &mut out[start..]);
+    Ok(())
 }
 
 /// The device image (stride: the particle count, ids `0..n`) of the particles of sampled bodies

@@ -85,6 +85,23 @@ fn the_parallel_pack_is_the_one_thread_pack() {
         ids.push((n - 1 - i) as u32);
     }
     let fluid = [true, false, true];
+    // Packed into kept memory after other bytes (a GPU batch's puts): the same image after them,
+    // them untouched, in every layout and precision; a bad material refused there too.
+    for l in StateLayout::ALL {
+        for f64 in [false, true] {
+            if pack(&p, &fluid, l, f64, n, None).is_err() {
+                continue; // a fluid layout with a solid material, a compact one in f64
+            }
+            let mut kept = vec![7u8; 13];
+            for cap in [n, n + 77] {
+                let at = kept.len();
+                pack_into(&p, &fluid, l, f64, cap, &mut kept).expect("pack into");
+                let image = pack(&p, &fluid, l, f64, cap, None).expect("pack");
+                assert!(kept[at..] == image[..], "{l:?}, f64 {f64}, cap {cap}");
+            }
+            assert_eq!(kept[..13], [7u8; 13]);
+        }
+    }
     for cap in [n, n + 77] {
         let got = pack(&p, &fluid, FULL, false, cap, Some(&ids)).expect("pack");
         assert!(
@@ -101,6 +118,11 @@ fn the_parallel_pack_is_the_one_thread_pack() {
     p.material[PACK_CHUNK + 5] = 7;
     p.material[PACK_CHUNK + 9] = 9;
     let e = pack(&p, &fluid, FULL, false, n, None).unwrap_err();
+    assert!(
+        e.contains(&format!("particle {} has material 7", PACK_CHUNK + 5)),
+        "{e}"
+    );
+    let e = pack_into(&p, &fluid, FULL, false, n, &mut Vec::new()).unwrap_err();
     assert!(
         e.contains(&format!("particle {} has material 7", PACK_CHUNK + 5)),
         "{e}"
