@@ -285,8 +285,8 @@ impl CudaBatch {
 
     /// Put rigid body `body` of each world `w` of `poses` at its pose from the next step on,
     /// the worlds' other bodies where they are ([`Worlds::set_body_poses`]): every world and the
-    /// body checked first (nothing changes on an error), then the worlds posed on every core
-    /// (each world's rapier world is its own: the same result in any order). A script posing a
+    /// body checked first (nothing changes on an error), then the worlds posed (on every core
+    /// from 4,096 worlds; each world's rapier world is its own: the same result in any order). A script posing a
     /// tool in every world pays no vector per world.
     pub fn set_body_poses(
         &mut self,

@@ -89,7 +89,8 @@ pub trait Worlds: Backend {
     /// where they are, from the next step on: [`Worlds::set_world_rigid_poses`] of each world's
     /// [`Worlds::world_rigid_poses`] with row `body` replaced (the default, world after world;
     /// an error leaves the worlds before it posed). A backend may pose them all at once (the
-    /// GPU batch: every world checked first, then posed on every core), with the same result.
+    /// GPU batch: every world checked first, then posed with no vector per world), with the same
+    /// result.
     fn set_body_poses(&mut self, body: usize, poses: &[(usize, BodyPose)]) -> Result<(), SimError> {
         for (w, pose) in poses {
             let mut all = self.world_rigid_poses(*w);

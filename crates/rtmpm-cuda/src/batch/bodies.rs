@@ -20,6 +20,9 @@ use rtmpm_scene::Scene;
 use rtmpm_sim::SimError;
 use std::sync::Arc;
 
+/// Worlds posed at once from which [`WorldBodies::set_body_poses`] poses them on every core.
+const PARALLEL_POSES: usize = 4096;
+
 /// Every world's rigid bodies: their rapier worlds and the device side of their coupling.
 pub(crate) struct WorldBodies {
     /// One rapier world per world, in order.
@@ -199,8 +202,9 @@ impl WorldBodies {
     }
 
     /// Put body `body` of each world `w` of `poses` at its pose, the worlds' other bodies where
-    /// they are: the worlds and the body checked first, then posed on every core (a world
-    /// listed twice ends with its last pose, as one after the other would).
+    /// they are: the worlds and the body checked first, then posed (on every core from
+    /// [`PARALLEL_POSES`] worlds; a world listed twice ends with its last pose, as one after the
+    /// other would).
     pub fn set_body_poses(
         &mut self,
         body: usize,
@@ -220,17 +224,28 @@ impl WorldBodies {
             })?;
             *slot = Some(j);
         }
-        let failed: Option<(usize, String)> = self
-            .worlds
-            .par_iter_mut()
-            .zip(&last)
-            .enumerate()
-            .with_min_len(16)
-            .filter_map(|(w, (world, at))| {
-                let pose = &poses[(*at)?].1;
-                world.set_pose(body, pose).err().map(|e| (w, e))
-            })
-            .min_by_key(|(w, _)| *w);
+        let pose_one = |(w, (world, at)): (usize, (&mut RigidWorld, &Option<usize>))| {
+            let pose = &poses[(*at)?].1;
+            world.set_pose(body, pose).err().map(|e| (w, e))
+        };
+        // About 65 ns a world on one core (2-core machine, rapier's setters and the state):
+        // on every core only where that outweighs waking the pool.
+        let failed: Option<(usize, String)> = if poses.len() < PARALLEL_POSES {
+            self.worlds
+                .iter_mut()
+                .zip(&last)
+                .enumerate()
+                .filter_map(pose_one)
+                .min_by_key(|(w, _)| *w)
+        } else {
+            self.worlds
+                .par_iter_mut()
+                .zip(&last)
+                .enumerate()
+                .with_min_len(256)
+                .filter_map(pose_one)
+                .min_by_key(|(w, _)| *w)
+        };
         match failed {
             Some((w, e)) => Err(SimError::Backend(format!("CUDA batch: world {w}: {e}"))),
             None => Ok(()),

@@ -52,7 +52,7 @@ impl PyBatch {
     /// tool, a pusher) moves at the velocity given. Bad values raise ``ValueError`` naming the
     /// world; the worlds before it are already set. One call for every world is the fast way
     /// to pose a tool in a loop: the arrays are read once and, on the GPU, every world's new
-    /// pose is checked first and then set on every core (no Python, no vector, per world).
+    /// pose is checked first and then set (no Python object, no vector, per world).
     #[pyo3(signature = (body, *, worlds = None, position = None, rotation = None, velocity = None, angular_velocity = None))]
     #[allow(clippy::too_many_arguments)] // Python's keyword arguments
     fn set_rigid_body(
