@@ -16,6 +16,24 @@ fn gv(v: rp::Vector) -> glam::Vec3 {
     glam::Vec3::new(v.x, v.y, v.z)
 }
 
+/// A body's pose and velocities as rapier holds them.
+fn pose_of(b: &rp::RigidBody) -> BodyPose {
+    BodyPose {
+        position: gv(b.translation()),
+        rotation: glam::Quat::from_array(b.rotation().to_array()),
+        velocity: gv(b.linvel()),
+        angular_velocity: gv(b.angvel()),
+    }
+}
+
+/// Put a body at pose `p` with its velocities (rapier's no-op for an unchanged value).
+fn put_pose(b: &mut rp::RigidBody, p: &BodyPose) {
+    b.set_translation(rv(p.position), true);
+    b.set_rotation(rp::Rotation::from_array(p.rotation.to_array()), true);
+    b.set_linvel(rv(p.velocity), true);
+    b.set_angvel(rv(p.angular_velocity), true);
+}
+
 /// Thickness of the fixed slabs around the interior (m): thick enough that no body tunnels.
 const SLAB: f32 = 1.0;
 
@@ -97,26 +115,32 @@ impl RigidWorld {
         Ok(Some(w))
     }
 
+    /// The bodies' states for the grid from rapier's bodies (in place once they exist).
     fn refresh(&mut self) {
-        self.states = self
-            .handles
-            .iter()
-            .zip(&self.specs)
-            .map(|(&h, s)| {
-                let b = &self.world.bodies[h];
-                let q = b.rotation().to_array();
-                BodyState {
+        if self.states.len() != self.handles.len() {
+            // The shapes once (they never change); the moving fields just below.
+            self.states = self
+                .specs
+                .iter()
+                .map(|s| BodyState {
                     shape: s.shape.clone(),
-                    rotation: glam::Mat3::from_quat(glam::Quat::from_array(q)),
-                    center: gv(b.center_of_mass()),
-                    velocity: gv(b.linvel()),
-                    angular_velocity: gv(b.angvel()),
+                    rotation: glam::Mat3::IDENTITY,
+                    center: glam::Vec3::ZERO,
+                    velocity: glam::Vec3::ZERO,
+                    angular_velocity: glam::Vec3::ZERO,
                     dynamic: s.kind == RigidKind::Dynamic,
                     condition: s.condition,
                     friction: s.friction,
-                }
-            })
-            .collect();
+                })
+                .collect();
+        }
+        for (&h, state) in self.handles.iter().zip(&mut self.states) {
+            let b = &self.world.bodies[h];
+            state.rotation = glam::Mat3::from_quat(glam::Quat::from_array(b.rotation().to_array()));
+            state.center = gv(b.center_of_mass());
+            state.velocity = gv(b.linvel());
+            state.angular_velocity = gv(b.angvel());
+        }
     }
 
     /// Change gravity from the next advance on.
@@ -141,19 +165,9 @@ impl RigidWorld {
 
     /// Every body's pose and velocities as rapier holds them (for checkpoints).
     pub fn poses(&self) -> Vec<BodyPose> {
-        self.handles
-            .iter()
-            .map(|&h| {
-                let b = &self.world.bodies[h];
-                let q = b.rotation().to_array();
-                BodyPose {
-                    position: gv(b.translation()),
-                    rotation: glam::Quat::from_array(q),
-                    velocity: gv(b.linvel()),
-                    angular_velocity: gv(b.angvel()),
-                }
-            })
-            .collect()
+        let mut out = Vec::with_capacity(self.handles.len());
+        self.poses_into(&mut out);
+        out
     }
 
     /// Put every body at `poses` (one per body, in the scene's order, as [`RigidWorld::poses`]
@@ -170,12 +184,7 @@ impl RigidWorld {
             ));
         }
         for (&h, p) in self.handles.iter().zip(poses) {
-            let b = &mut self.world.bodies[h];
-            let q = p.rotation.to_array();
-            b.set_translation(rv(p.position), true);
-            b.set_rotation(rp::Rotation::from_array(q), true);
-            b.set_linvel(rv(p.velocity), true);
-            b.set_angvel(rv(p.angular_velocity), true);
+            put_pose(&mut self.world.bodies[h], p);
         }
         self.refresh();
         Ok(())
@@ -185,21 +194,14 @@ impl RigidWorld {
     /// without building the others); `None` past the last body.
     pub fn pose(&self, i: usize) -> Option<BodyPose> {
         let &h = self.handles.get(i)?;
-        let b = &self.world.bodies[h];
-        let q = b.rotation().to_array();
-        Some(BodyPose {
-            position: gv(b.translation()),
-            rotation: glam::Quat::from_array(q),
-            velocity: gv(b.linvel()),
-            angular_velocity: gv(b.angvel()),
-        })
+        Some(pose_of(&self.world.bodies[h]))
     }
 
     /// Every body's pose and velocities into `out` (emptied first): [`RigidWorld::poses`]
     /// without a new vector.
     pub fn poses_into(&self, out: &mut Vec<BodyPose>) {
         out.clear();
-        out.extend((0..self.handles.len()).filter_map(|i| self.pose(i)));
+        out.extend(self.handles.iter().map(|&h| pose_of(&self.world.bodies[h])));
     }
 
     /// Put body `i` at `pose`, the others where they are: exactly what
@@ -213,43 +215,13 @@ impl RigidWorld {
                 self.handles.len()
             ));
         }
-        for j in 0..self.handles.len() {
-            let p = if j == i {
-                *pose
-            } else {
-                match self.pose(j) {
-                    Some(p) => p,
-                    None => continue,
-                }
-            };
-            let b = &mut self.world.bodies[self.handles[j]];
-            let q = p.rotation.to_array();
-            b.set_translation(rv(p.position), true);
-            b.set_rotation(rp::Rotation::from_array(q), true);
-            b.set_linvel(rv(p.velocity), true);
-            b.set_angvel(rv(p.angular_velocity), true);
+        for (j, &h) in self.handles.iter().enumerate() {
+            let b = &mut self.world.bodies[h];
+            let p = if j == i { *pose } else { pose_of(b) };
+            put_pose(b, &p);
         }
-        self.refresh_in_place();
+        self.refresh();
         Ok(())
-    }
-
-    /// [`RigidWorld::refresh`] into the states there are (as many as bodies), no new vector.
-    fn refresh_in_place(&mut self) {
-        if self.states.len() != self.handles.len() {
-            self.refresh();
-            return;
-        }
-        for ((&h, s), state) in self.handles.iter().zip(&self.specs).zip(&mut self.states) {
-            let b = &self.world.bodies[h];
-            let q = b.rotation().to_array();
-            state.rotation = glam::Mat3::from_quat(glam::Quat::from_array(q));
-            state.center = gv(b.center_of_mass());
-            state.velocity = gv(b.linvel());
-            state.angular_velocity = gv(b.angvel());
-            state.dynamic = s.kind == RigidKind::Dynamic;
-            state.condition = s.condition;
-            state.friction = s.friction;
-        }
     }
 
     /// Give each dynamic body the impulses the grid gave it this step, then advance the world
