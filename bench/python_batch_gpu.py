@@ -3,7 +3,7 @@ calls, against the same steps with no Python work between them.
 
     python bench/python_batch_gpu.py [--worlds 256] [--steps 200] [--per-call 1,10]
                                      [--resets 4] [--repeats 5] [--budget S] [--breakdown]
-                                     [--moving-tool] [--json out.json]
+                                     [--moving-tool] [--cuda-options S] [--json out.json]
 
 A batch of ``--worlds`` small sand beds (1,024 particles each, dx = 0.025 m, fixed dt = 4e-4 s,
 the scene of bench/batch_python_loop.py) as ``BatchSimulation(backend="cuda")``: every world in
@@ -65,6 +65,7 @@ import numpy as np
 
 import rtmpm
 
+CUDA_OPTIONS = None  # --cuda-options: every batch's (an A/B switch, e.g. "body_sums=step")
 BED_TOP = 0.15  # m
 HALF = 0.03  # m, the tool's half size
 SPEED = 0.2  # m/s, downwards
@@ -99,7 +100,7 @@ def make_batch(worlds, moving=False):
     if "rigid" in rtmpm.features:
         one = rtmpm.Scene.from_dict(scene(worlds, tool=True, moving=moving))
         try:
-            sim = rtmpm.Simulation(one, backend="cuda")
+            sim = rtmpm.Simulation(one, backend="cuda", cuda_options=CUDA_OPTIONS)
             sim.set_rigid_body("tool", velocity=[0.0, -SPEED, 0.0])
             return one, None
         except rtmpm.BackendError as e:
@@ -210,7 +211,7 @@ class Clock:
 def fresh(one, setups):
     """A fresh batch of ``one`` on the GPU, its set-up seconds kept in ``setups`` (not timed)."""
     t0 = time.perf_counter()
-    sim = rtmpm.Simulation(one, backend="cuda")
+    sim = rtmpm.Simulation(one, backend="cuda", cuda_options=CUDA_OPTIONS)
     sim.step(1)  # the first step's graph capture is set-up, not the loop
     setups.append(time.perf_counter() - t0)
     return sim
@@ -308,8 +309,13 @@ def main():
     ap.add_argument("--moving-tool", action="store_true",
                     help="the scene's tool moves down at 0.2 m/s in every mode (default: static "
                          "but where posed, as the figures in bench/RESULTS.md)")
+    ap.add_argument("--cuda-options", default=None,
+                    help="the CUDA backend's options for every batch (rtmpm --cuda-options), e.g. "
+                         "body_sums=step for the sums copied after every step")
     ap.add_argument("--json", default=None)
     a = ap.parse_args()
+    global CUDA_OPTIONS
+    CUDA_OPTIONS = a.cuda_options
     clock = Clock(a.budget)
     ok, why = rtmpm.cuda_available()
     if not ok:
@@ -352,8 +358,10 @@ def main():
           f"{clock.now():.1f} s so far", flush=True)
     if a.moving_tool:
         print("the tool moves down at 0.2 m/s in every mode (--moving-tool)")
+    if a.cuda_options:
+        print(f"cuda_options: {a.cuda_options}")
     out = {"worlds": a.worlds, "steps": a.steps, "resets": a.resets, "repeats": done, "per_call": per_call,
-           "moving_tool": a.moving_tool,
+           "moving_tool": a.moving_tool, "cuda_options": a.cuda_options,
            "pose_not_measured": no_tool, "torch": torch is not None, **info, "rows": rows,
            "setup_s": setups}
     if a.breakdown:

@@ -504,7 +504,8 @@ fn world_bodies(
     };
     let mesh_offsets = single.mesh_offsets();
     drop(single);
-    let made = bodies::WorldBodies::new(worlds, &backend.stream, mesh_offsets)?;
+    let at_read = backend.options.batch_sums_at_read;
+    let made = bodies::WorldBodies::new(worlds, &backend.stream, mesh_offsets, at_read)?;
     if let Some(b) = &made {
         let c = &mut backend.ctx;
         (c.bodies, c.body_exchange, c.n_bodies) = b.ctx_fields(&backend.stream);

@@ -200,6 +200,12 @@ pub struct CudaOptions {
     /// [`crate::state::codec`]; single precision only); also set by the scene's
     /// `[solver] particle_state = "compact"`.
     pub compact_state: bool,
+    /// A batch of worlds (`crate::batch::CudaBatch`) whose bodies are all kinematic or fixed
+    /// (no sum moves them): each step's sums of the reaction on the bodies stay on the device
+    /// until a load is read (one copy then, of the last step's), instead of a copy to the host
+    /// after every step (`body_sums=step`, kept for comparison). The loads are the same bit for
+    /// bit. A batch with a dynamic body copies and waits for every step's sums either way.
+    pub batch_sums_at_read: bool,
 }
 
 /// Default of [`CudaOptions::sort_scratch_fields`]: 4 words per particle of scratch instead of
@@ -240,6 +246,7 @@ impl Default for CudaOptions {
             device_sample: true,
             fluid_state: true,
             compact_state: false,
+            batch_sums_at_read: true,
         }
     }
 }
@@ -252,7 +259,7 @@ impl std::str::FromStr for CudaOptions {
     /// `ck_grid` (wave/resident), `transport` (p2p/nccl), `barrier` (spin/events), `exchange` (kernels/fused/push), `devices`
     /// (ordinals separated by `:`), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
     /// `rmap_pblocks`, `shared`, `sort_fields` (counts), `fluid_state` (on/off), `state`
-    /// (f32/compact).
+    /// (f32/compact), `body_sums` (read/step).
     fn from_str(s: &str) -> Result<Self, String> {
         let mut o = CudaOptions::default();
         for item in s.split(',').map(str::trim).filter(|t| !t.is_empty()) {
@@ -343,6 +350,9 @@ impl std::str::FromStr for CudaOptions {
                     }
                     o.sort_scratch_fields = k;
                 }
+                "body_sums" => {
+                    o.batch_sums_at_read = choice(item, v, &[("read", true), ("step", false)])?
+                }
                 "fill" => o.device_fill = choice(item, v, &[("device", true), ("host", false)])?,
                 "sample" => {
                     o.device_sample = choice(item, v, &[("device", true), ("host", false)])?
@@ -426,6 +436,11 @@ mod tests {
         assert_eq!(o.p2g, P2gMode::Sort);
         assert!("p2g=gather".parse::<CudaOptions>().is_err());
         assert_eq!(CudaOptions::default().ck_p2g, CkP2g::Fused);
+        assert!(CudaOptions::default().batch_sums_at_read);
+        let o: CudaOptions = "body_sums=step".parse().unwrap();
+        assert!(!o.batch_sums_at_read);
+        let e = "body_sums=never".parse::<CudaOptions>().unwrap_err();
+        assert!(e.contains("expected read or step"), "{e}");
         let o: CudaOptions = "ck_p2g=warp".parse().unwrap();
         assert_eq!((o.ck_p2g, o.p2g), (CkP2g::Warp, P2gMode::Warp));
         assert_eq!(o.ck_p2g.name(), "warp");

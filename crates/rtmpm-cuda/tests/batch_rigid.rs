@@ -360,3 +360,113 @@ fn the_lockstep_driver_puts_a_reset_worlds_tool_back() {
         parked.position
     );
 }
+
+/// Every world's loads, poses and particles bit for bit over a run of the tool worlds: the
+/// loads read at the steps `read(s)` says (twice at every third of them), the tools posed per
+/// body (`set_body_poses`) at the steps `pose(s)` says (world 1's twice in a row at every
+/// fifth: the second on the first's result).
+#[allow(clippy::type_complexity)]
+fn tool_run(
+    options: CudaOptions,
+    steps: usize,
+    read: impl Fn(usize) -> bool,
+    pose: impl Fn(usize) -> bool,
+) -> (Vec<Vec<u64>>, Vec<Vec<u32>>, Vec<Vec<u32>>) {
+    let worlds: Vec<Scene> = (0..4).map(tool_world).collect();
+    let p0: Vec<Particles> = worlds
+        .iter()
+        .map(|s| s.sample_particles().expect("particles"))
+        .collect();
+    let mut batch = CudaBatch::new(&worlds, &p0, options).expect("batch");
+    let load_bits = |batch: &CudaBatch| -> Vec<u64> {
+        (0..4)
+            .flat_map(|w| batch.world_loads(w).expect("loads"))
+            .flat_map(|l| l.force.into_iter().chain(l.torque))
+            .map(f64::to_bits)
+            .collect()
+    };
+    let pose_bits = |p: &BodyPose| -> Vec<u32> {
+        [
+            p.position.to_array(),
+            p.velocity.to_array(),
+            p.angular_velocity.to_array(),
+        ]
+        .into_iter()
+        .flatten()
+        .chain(p.rotation.to_array())
+        .map(f32::to_bits)
+        .collect()
+    };
+    let (mut loads, mut poses) = (vec![load_bits(&batch)], Vec::new());
+    for s in 0..steps {
+        if pose(s) {
+            let mut posed: Vec<(usize, BodyPose)> = Vec::new();
+            for w in 0..4 {
+                let mut p = batch.world_body_pose(w, 0).expect("tool");
+                p.velocity = glam::Vec3::new(0.05 * w as f32, -0.2 - 0.01 * s as f32, 0.0);
+                p.position.y -= 1e-5;
+                posed.push((w, p));
+            }
+            batch.set_body_poses(0, &posed).expect("poses");
+            if s.is_multiple_of(5) {
+                let mut p = batch.world_body_pose(1, 0).expect("tool");
+                p.angular_velocity = glam::Vec3::new(0.0, 0.5, 0.0);
+                batch.set_body_poses(0, &[(1, p)]).expect("pose world 1");
+            }
+            poses.extend((0..4).map(|w| pose_bits(&batch.world_body_pose(w, 0).expect("tool"))));
+        }
+        batch.step(DT, s as f32 * DT).expect("batch step");
+        if read(s) {
+            loads.push(load_bits(&batch));
+            if s.is_multiple_of(3) {
+                loads.push(load_bits(&batch));
+            }
+        }
+    }
+    loads.push(load_bits(&batch));
+    poses.extend((0..4).map(|w| pose_bits(&batch.world_poses(w)[0])));
+    let particles = batch
+        .read_worlds()
+        .expect("read")
+        .iter()
+        .map(|p| {
+            p.x.iter()
+                .chain(&p.v)
+                .flat_map(|v| v.to_array())
+                .map(f32::to_bits)
+                .collect()
+        })
+        .collect();
+    (loads, poses, particles)
+}
+
+/// A batch of kinematic tools keeps each step's sums on the device until a load is read
+/// (`body_sums=read`, the default): the loads read then, at any step, twice in a step or not
+/// at all for a while, are those of the copy after every step (`body_sums=step`) bit for bit,
+/// and so are the tools' poses and every particle (200 steps, the tools posed by body at some
+/// steps). About 3 s on an H200.
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn loads_read_from_the_device_are_those_copied_after_every_step_bit_for_bit() {
+    if !gpu() {
+        return;
+    }
+    let read = |s: usize| s.is_multiple_of(7) || (120..130).contains(&s);
+    let pose = |s: usize| s % 4 == 1;
+    let step_copy = CudaOptions {
+        batch_sums_at_read: false,
+        ..precise()
+    };
+    let (loads_a, poses_a, parts_a) = tool_run(precise(), 200, read, pose);
+    let (loads_b, poses_b, parts_b) = tool_run(step_copy, 200, read, pose);
+    assert!(
+        loads_a
+            .iter()
+            .skip(1)
+            .any(|l| l.iter().any(|&b| f64::from_bits(b) != 0.0)),
+        "the tools feel the jelly"
+    );
+    assert_eq!(loads_a, loads_b, "loads");
+    assert_eq!(poses_a, poses_b, "poses");
+    assert!(parts_a == parts_b, "particles differ");
+}

@@ -2,14 +2,17 @@
 //! ([`RigidWorld`], as each world of a CPU batch has its own), every world's bodies in one table
 //! on the device (row `w * per + b`: body `b` of world `w`), which the grid update couples to
 //! that world's nodes only (`kernels/grid_update.cu`: `couple_world_bodies`), and the reaction of
-//! every body of every world summed per row, read back after each step.
+//! every body of every world summed per row, read back as below.
 //!
-//! Per step: every world's body states go to the table (one copy), the step runs, its sums are
-//! copied to page-locked memory and cleared. With a dynamic body in any world the host waits for
-//! the sums and advances each world's rapier world by its own (the order of
-//! `rigid_overlap=off` in a single run: the CPU backend's); with kinematic and fixed bodies only,
-//! which no sum moves, the worlds advance at once and the sums are waited for only when a load
-//! is read ([`WorldBodies::loads`]).
+//! Per step: every world's body states go to the table (one copy), the step runs, and the
+//! bodies advance. With a dynamic body in any world the step's sums are copied to page-locked
+//! memory and cleared, and the host waits for them and advances each world's rapier world by its
+//! own (the order of `rigid_overlap=off` in a single run: the CPU backend's). With kinematic and
+//! fixed bodies only, which no sum moves, the worlds advance at once and the sums are needed only
+//! for the loads: they stay on the device until a load is read ([`WorldBodies::loads`]: one copy
+//! of the last step's, then kept for the other worlds' reads) and are cleared as the next step
+//! begins (`CudaOptions::batch_sums_at_read`; `body_sums=step` copies them after every step, as
+//! before, for comparison: 393 KB a step for 256 worlds of one body, 32 copies of 6 sums a row).
 
 use crate::contract::{BODY_EXCHANGE_SLOTS, GpuBody};
 use crate::error::err;
@@ -18,7 +21,7 @@ use rayon::prelude::*;
 use rtmpm_rigid::{BodyLoad, BodyPose, BodyState, Exchange, RigidKind, RigidWorld};
 use rtmpm_scene::Scene;
 use rtmpm_sim::SimError;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, MutexGuard};
 
 /// Worlds posed at once from which [`WorldBodies::set_body_poses`] poses them on every core.
 const PARALLEL_POSES: usize = 4096;
@@ -33,26 +36,42 @@ pub(crate) struct WorldBodies {
     table: CudaSlice<u8>,
     /// `BODY_EXCHANGE_SLOTS` x `worlds x per` rows x 6 f64 sums (`Ctx::body_exchange`).
     exchange: CudaSlice<f64>,
-    /// The page-locked copy of the last step's sums, and the event after its copy.
-    host: PinnedHostSlice<f64>,
-    done: CudaEvent,
+    /// The host's copy of the sums (filled when a load is read, with `at_read`).
+    host: Mutex<HostSums>,
+    /// The sums stay on the device until a load is read (no dynamic body, and
+    /// `CudaOptions::batch_sums_at_read`).
+    at_read: bool,
+    /// `exchange` holds the last step's sums, to be cleared before the next step (`at_read`).
+    held: bool,
+    /// The batch's stream (the copies of the sums when read).
+    stream: Arc<CudaStream>,
     /// Where each body's distance grid starts in the mesh table (world 0's mesh bodies, which
     /// every world shares: `super::unsupported`).
     mesh_offsets: Vec<u32>,
     /// Some world has a dynamic body (the host waits for every step's sums).
     dynamic: bool,
-    /// The dt of the step whose sums `host` holds; `None` before the first step.
+    /// The dt of the last step (whose sums are the loads); `None` before the first step.
     last_dt: Option<f32>,
+}
+
+/// The page-locked copy of the last step's sums, the event after its copy, and whether it is
+/// of the last step (a copy is queued for it).
+struct HostSums {
+    sums: PinnedHostSlice<f64>,
+    done: CudaEvent,
+    copied: bool,
 }
 
 impl WorldBodies {
     /// The bodies of the worlds `worlds` (`None` when they have none; every world has as many,
     /// `super::unsupported`), their buffers allocated on `stream`; `mesh_offsets`: where each
-    /// body's distance grid starts in the mesh table (`encode::Tables::body_mesh`).
+    /// body's distance grid starts in the mesh table (`encode::Tables::body_mesh`);
+    /// `sums_at_read`: `CudaOptions::batch_sums_at_read`.
     pub fn new(
         worlds: &[Scene],
         stream: &Arc<CudaStream>,
         mesh_offsets: Vec<u32>,
+        sums_at_read: bool,
     ) -> Result<Option<WorldBodies>, SimError> {
         let per = worlds.first().map_or(0, |s| s.rigid_bodies.len());
         if per == 0 {
@@ -88,8 +107,14 @@ impl WorldBodies {
             per,
             table,
             exchange,
-            host,
-            done,
+            host: Mutex::new(HostSums {
+                sums: host,
+                done,
+                copied: true,
+            }),
+            at_read: sums_at_read && !dynamic,
+            held: false,
+            stream: stream.clone(),
             mesh_offsets,
             dynamic,
             last_dt: None,
@@ -103,8 +128,15 @@ impl WorldBodies {
         (a, b, self.per as u32)
     }
 
-    /// Before a step: every world's body states to the table.
+    /// Before a step: every world's body states to the table, and the last step's sums cleared
+    /// where they were kept on the device.
     pub fn upload(&mut self, stream: &Arc<CudaStream>) -> Result<(), SimError> {
+        if self.held {
+            stream
+                .memset_zeros(&mut self.exchange)
+                .map_err(err("clear the worlds' rigid-body impulses"))?;
+            self.held = false;
+        }
         let recs: Vec<GpuBody> = self
             .worlds
             .iter()
@@ -120,17 +152,24 @@ impl WorldBodies {
             .map_err(err("upload the worlds' rigid bodies"))
     }
 
-    /// After a step of `dt` was queued: its sums are copied to the host and cleared, and every
-    /// world's bodies advance by `dt` (with a dynamic body, by their world's sums, waited for).
+    /// After a step of `dt` was queued: its sums are copied to the host and cleared (kept on the
+    /// device until read or the next step, with `at_read`), and every world's bodies advance by
+    /// `dt` (with a dynamic body, by their world's sums, waited for).
     pub fn after_step(&mut self, stream: &Arc<CudaStream>, dt: f32) -> Result<(), SimError> {
-        stream
-            .memcpy_dtoh(&self.exchange, &mut self.host)
-            .map_err(err("read the worlds' rigid-body impulses"))?;
-        self.done = stream.record_event(None).map_err(err("record an event"))?;
-        stream
-            .memset_zeros(&mut self.exchange)
-            .map_err(err("clear the worlds' rigid-body impulses"))?;
         self.last_dt = Some(dt);
+        if self.at_read {
+            self.held = true;
+            lock(&self.host).copied = false;
+        } else {
+            let host = self.host.get_mut().unwrap_or_else(|p| p.into_inner());
+            stream
+                .memcpy_dtoh(&self.exchange, &mut host.sums)
+                .map_err(err("read the worlds' rigid-body impulses"))?;
+            host.done = stream.record_event(None).map_err(err("record an event"))?;
+            stream
+                .memset_zeros(&mut self.exchange)
+                .map_err(err("clear the worlds' rigid-body impulses"))?;
+        }
         // The worlds advance on every core (each world is independent: the same results in
         // any order).
         if !self.dynamic {
@@ -140,13 +179,13 @@ impl WorldBodies {
                 .for_each(|w| w.advance(&none, dt));
             return Ok(());
         }
-        let (rows, per) = (self.worlds.len() * self.per, self.per);
-        let each: Vec<Vec<Exchange>> = {
-            let sums = self.wait()?;
-            (0..self.worlds.len())
+        let (count, per) = (self.worlds.len(), self.per);
+        let rows = count * per;
+        let each: Vec<Vec<Exchange>> = self.with_sums(|sums| {
+            (0..count)
                 .map(|w| row_sums(sums, rows, w * per, per))
                 .collect()
-        };
+        })?;
         self.worlds
             .par_iter_mut()
             .zip(&each)
@@ -154,12 +193,27 @@ impl WorldBodies {
         Ok(())
     }
 
-    /// Wait for the last step's sums and give them.
-    fn wait(&self) -> Result<&[f64], SimError> {
-        self.done
+    /// `read` of the last step's sums on the host: copied from the device first where they were
+    /// kept there (`at_read`, once a step), waited for.
+    fn with_sums<T>(&self, read: impl FnOnce(&[f64]) -> T) -> Result<T, SimError> {
+        let mut host = lock(&self.host);
+        if !host.copied {
+            let h = &mut *host;
+            self.stream
+                .memcpy_dtoh(&self.exchange, &mut h.sums)
+                .map_err(err("read the worlds' rigid-body impulses"))?;
+            h.done = self
+                .stream
+                .record_event(None)
+                .map_err(err("record an event"))?;
+            h.copied = true;
+        }
+        host.done
             .synchronize()
             .map_err(err("wait for the worlds' rigid-body impulses"))?;
-        self.host.as_slice().map_err(err("page-locked memory"))
+        Ok(read(
+            host.sums.as_slice().map_err(err("page-locked memory"))?,
+        ))
     }
 
     /// The load the material put on each of world `w`'s bodies over the last step (zeros
@@ -170,7 +224,7 @@ impl WorldBodies {
             return Ok(vec![BodyLoad::default(); self.per]);
         };
         let rows = self.worlds.len() * self.per;
-        let sums = row_sums(self.wait()?, rows, w * self.per, self.per);
+        let sums = self.with_sums(|s| row_sums(s, rows, w * self.per, self.per))?;
         Ok(sums.iter().map(|e| e.load(dt as f64)).collect())
     }
 
@@ -267,6 +321,11 @@ impl WorldBodies {
     pub fn per_world(&self) -> usize {
         self.per
     }
+}
+
+/// The host's sums, also after a panic while they were held (they are plain numbers).
+fn lock(host: &Mutex<HostSums>) -> MutexGuard<'_, HostSums> {
+    host.lock().unwrap_or_else(|p| p.into_inner())
 }
 
 /// The sums of rows `first .. first + count` of `rows` per copy, over the
