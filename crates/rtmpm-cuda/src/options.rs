@@ -81,8 +81,9 @@ pub enum BarrierKind {
 /// blocks are listed and summed in a step (`exchange=`; docs/multi-gpu.md, "exchange=").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum ExchangeMode {
-    /// Separate kernels (the default): eight launches for the shared list (seven return at
-    /// once in a step without a rebuild), then pack, spin barrier and the sum of peer reads.
+    /// Separate kernels (the only mode of NCCL, the events barrier and one process per GPU):
+    /// eight launches for the shared list (seven return at once in a step without a rebuild),
+    /// then pack, barrier and the sum of peer reads.
     #[default]
     Kernels,
     /// The shared list in one cooperative kernel with the inter-GPU barrier inside it; the sum
@@ -90,7 +91,8 @@ pub enum ExchangeMode {
     Fused,
     /// `Fused`, and the sum pushed: each GPU writes its nodes of the shared blocks it holds
     /// into the inboxes of the other GPUs that hold them (16-byte remote stores), arrives at
-    /// their counters, waits on its own and sums its inbox (two launches, no peer reads).
+    /// their counters, waits on its own and sums its inbox (two launches, no peer reads). The
+    /// default with transport=p2p and the spin barrier.
     Push,
 }
 
@@ -142,18 +144,20 @@ pub struct CudaOptions {
     pub rebalance: bool,
     /// Several GPUs: overlap the shared-block reduction with work that does not need it: the
     /// P2G of the interior gblocks (separate P2G) and the grid update of the pblocks no other
-    /// GPU shares (off: P2G, the reduction, then the grid update). Measured on 2 H200s it gains
-    /// nothing measurable (docs/multi-gpu.md); on by default as it costs nothing either.
-    pub overlap: bool,
+    /// GPU shares (off: P2G, the reduction, then the grid update). `None`: off with
+    /// transport=p2p and the spin barrier (measured slower on with 2 H200s: docs/multi-gpu.md,
+    /// "The defaults of two GPUs"), on otherwise. Resolved when a multi-GPU backend is made.
+    pub overlap: Option<bool>,
     /// Several GPUs of one process: transport of the shared-block reduction (`None`: p2p when
     /// every pair of GPUs has peer access, else NCCL).
     pub transport: Option<Transport>,
     /// Several GPUs with `transport=p2p`: the synchronisation (`None`: spin).
     pub barrier: Option<BarrierKind>,
     /// Several GPUs with `transport=p2p` and the spin barrier: the kernels of the shared-block
-    /// list and sum (`exchange=kernels|fused|push`, default `kernels`; the others are refused
-    /// with NCCL, the events barrier and one process per GPU).
-    pub exchange: ExchangeMode,
+    /// list and sum (`exchange=kernels|fused|push`; `None`: `push` with transport=p2p and the
+    /// spin barrier, `kernels` otherwise; `fused` and `push` asked for are refused with NCCL,
+    /// the events barrier and one process per GPU). Resolved when a multi-GPU backend is made.
+    pub exchange: Option<ExchangeMode>,
     /// Several GPUs of one process: the CUDA device of each rank (`devices=0:1`; `None`: rank i
     /// on device i). A device may be named more than once, to run the multi-GPU code on fewer
     /// GPUs (tests on one GPU: `devices=0:0`); ranks sharing a device run transport=p2p with
@@ -232,10 +236,10 @@ impl Default for CudaOptions {
             pblock_capacity: None,
             shared_capacity: None,
             rebalance: true,
-            overlap: true,
+            overlap: None,
             transport: None,
             barrier: None,
-            exchange: ExchangeMode::Kernels,
+            exchange: None,
             devices: None,
             fused_rebuild: true,
             g2p2g: true,
@@ -331,7 +335,7 @@ impl std::str::FromStr for CudaOptions {
                 "g2p2g" => o.g2p2g = b()?,
                 "rigid_overlap" => o.rigid_overlap = b()?,
                 "specialize" => o.specialize = b()?,
-                "overlap" => o.overlap = b()?,
+                "overlap" => o.overlap = Some(b()?),
                 "fluid_state" => o.fluid_state = b()?,
                 "state" => {
                     o.compact_state = match v {
@@ -375,7 +379,7 @@ impl std::str::FromStr for CudaOptions {
                     })
                 }
                 "exchange" => {
-                    o.exchange = choice(
+                    o.exchange = Some(choice(
                         item,
                         v,
                         &[
@@ -383,7 +387,7 @@ impl std::str::FromStr for CudaOptions {
                             ("fused", ExchangeMode::Fused),
                             ("push", ExchangeMode::Push),
                         ],
-                    )?
+                    )?)
                 }
                 "devices" => {
                     let d = v
@@ -466,14 +470,19 @@ mod tests {
         assert_eq!(o.barrier, Some(BarrierKind::Events));
         assert!("transport=mpi".parse::<CudaOptions>().is_err());
         assert!("barrier=sleep".parse::<CudaOptions>().is_err());
-        assert_eq!(CudaOptions::default().exchange, ExchangeMode::Kernels);
+        assert_eq!(CudaOptions::default().exchange, None);
+        assert_eq!(CudaOptions::default().overlap, None);
+        assert_eq!(
+            "overlap=off".parse::<CudaOptions>().unwrap().overlap,
+            Some(false)
+        );
         for (v, m) in [
             ("kernels", ExchangeMode::Kernels),
             ("fused", ExchangeMode::Fused),
             ("push", ExchangeMode::Push),
         ] {
             let o: CudaOptions = format!("exchange={v}").parse().unwrap();
-            assert_eq!(o.exchange, m);
+            assert_eq!(o.exchange, Some(m));
         }
         assert_eq!(
             "exchange=pull".parse::<CudaOptions>().unwrap_err(),

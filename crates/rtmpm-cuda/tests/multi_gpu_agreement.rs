@@ -47,9 +47,12 @@ fn several_gpus_agree_with_one_on_every_example_scene() {
     println!("{ran} runs of several GPUs compared with one GPU");
 }
 
+/// The exchanges of p2p with the spin barrier other than its default (`exchange=push` without
+/// the overlap, run by the test above): `exchange=kernels` with the overlap (the default before),
 /// `exchange=fused` (the shared list in one cooperative kernel with the inter-GPU barrier
-/// inside) and `exchange=push` (the shared nodes pushed into the holders' inboxes, the barrier
-/// inside the push and sum kernels) against one GPU, as the agreement test above: every example
+/// inside) and `exchange=push` with the overlap (the shared nodes pushed into the holders'
+/// inboxes, the barrier inside the push and sum kernels) against one GPU, as the agreement test
+/// above: every example
 /// scene, 2 GPUs and 4 where present (`RTMPM_MULTI_GPU_COUNTS`, e.g. "2,4,8"), a re-partition
 /// halfway.
 /// Skips without 2 GPUs; ranks sharing a device (`RTMPM_MULTI_GPU_DEVICES=0,0`) must refuse
@@ -76,9 +79,12 @@ fn the_fused_and_pushed_exchanges_agree_with_one_gpu() {
         }
         return;
     }
+    // The default with p2p and the spin barrier is exchange=push without the overlap (run by
+    // several_gpus_agree_with_one_on_every_example_scene); here the others.
     let modes = [
+        "transport=p2p,barrier=spin,exchange=kernels,overlap=on".to_string(),
         "transport=p2p,barrier=spin,exchange=fused".to_string(),
-        "transport=p2p,barrier=spin,exchange=push".to_string(),
+        "transport=p2p,barrier=spin,exchange=push,overlap=on".to_string(),
     ];
     let (ran, failures) = agree_on_every_example_scene(&modes);
     assert!(failures.is_empty(), "{failures:#?}");

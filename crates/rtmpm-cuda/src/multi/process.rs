@@ -79,11 +79,11 @@ impl NcclRankBackend {
                     .into(),
             ));
         }
-        if options.exchange != ExchangeMode::Kernels {
+        if let Some(mode) = options.exchange.filter(|&m| m != ExchangeMode::Kernels) {
             return Err(SimError::Backend(format!(
                 "exchange={} needs the GPUs in one process (--gpus N) with transport=p2p; runs \
                  of several processes use NCCL: use exchange=kernels",
-                super::exchange::mode_name(options.exchange)
+                super::exchange::mode_name(mode)
             )));
         }
         // The bodies' world before any GPU work (its refusals are clear errors).

@@ -89,8 +89,9 @@ impl GpuRank {
             comm,
             b.options.barrier.unwrap_or(BarrierKind::Spin),
             b.options.f64,
-            b.options.overlap,
-            b.options.exchange,
+            // Resolved by the backend that made this rank (NCCL's defaults where it did not).
+            b.options.overlap.unwrap_or(true),
+            b.options.exchange.unwrap_or_default(),
         )?;
         let mut r = GpuRank {
             b,

@@ -82,6 +82,7 @@ impl MultiGpuBackend {
             options.barrier = Some(choose_barrier(&devices, &options)?);
         }
         check_exchange(&options)?;
+        resolve_exchange_defaults(&mut options);
         let on = match &options.devices {
             Some(_) => format!(
                 " on devices {}",
@@ -152,7 +153,11 @@ impl MultiGpuBackend {
 
     /// What the reduction of a step consists of (for reports).
     pub fn reduction_steps(&self) -> &'static str {
-        match (self.transport, self.options.barrier, self.options.exchange) {
+        match (
+            self.transport,
+            self.options.barrier,
+            self.options.exchange.unwrap_or_default(),
+        ) {
             (Transport::Nccl, _, _) => "pack + NCCL all-reduce + unpack",
             (Transport::P2p, Some(BarrierKind::Events), _) => {
                 "pack + events barrier + sum of peer reads"
@@ -579,10 +584,10 @@ fn choose_transport(devices: &[usize], o: &CudaOptions) -> Result<(Transport, St
 /// inter-GPU barrier inside them); a clear error otherwise. `o`: the options with the transport
 /// and barrier chosen.
 fn check_exchange(o: &CudaOptions) -> Result<(), SimError> {
-    if o.exchange == ExchangeMode::Kernels {
+    let Some(mode) = o.exchange.filter(|&m| m != ExchangeMode::Kernels) else {
         return Ok(());
-    }
-    let name = super::exchange::mode_name(o.exchange);
+    };
+    let name = super::exchange::mode_name(mode);
     match (o.transport, o.barrier) {
         (Some(Transport::P2p), Some(BarrierKind::Spin)) => Ok(()),
         (Some(Transport::P2p), _) => Err(SimError::Backend(format!(
@@ -595,6 +600,21 @@ fn check_exchange(o: &CudaOptions) -> Result<(), SimError> {
              NCCL use exchange=kernels"
         ))),
     }
+}
+
+/// The defaults of `exchange=` and `overlap=` for the transport and barrier chosen (`o`: the
+/// options with both set): with transport=p2p and the spin barrier `exchange=push` without the
+/// overlap (measured faster on 2 H200s, weak and strong: docs/multi-gpu.md, "The defaults of
+/// two GPUs"); otherwise `exchange=kernels` with the overlap, as before. What was asked for is
+/// kept.
+fn resolve_exchange_defaults(o: &mut CudaOptions) {
+    let spin = o.transport == Some(Transport::P2p) && o.barrier == Some(BarrierKind::Spin);
+    o.exchange = Some(o.exchange.unwrap_or(if spin {
+        ExchangeMode::Push
+    } else {
+        ExchangeMode::Kernels
+    }));
+    o.overlap = Some(o.overlap.unwrap_or(!spin));
 }
 
 /// The barrier of transport=p2p: the one asked for, else spin (it needs native atomics between
