@@ -6,6 +6,7 @@
 #include "contract.cuh"
 #include "math.cuh"
 #include "shape.cuh"
+#include "stencil.cuh"
 
 #define EMPTY_KEY 0xffffffffffffffffull
 #define EMPTY_ID 0xffffffffu
@@ -289,63 +290,6 @@ __device__ __forceinline__ void particle_stencil(const Ctx& c, vec3 x, unsigned 
                                                  real d[3][3]) {
     stencil_of(c, x, world, base, fx);
     for (int a = 0; a < 3; ++a) shape_1d(c.transfer, fx[a], w[a], d[a]);
-}
-
-// Node addressing of one particle's 3x3x3 stencil, split per axis once (rtmpm_physics's
-// BlockLayout::stencil_nodes): node (i, j, k) lives at
-// neighbors[27 g + slot[0][i] + slot[1][j] + slot[2][k]] * 64 + (cell[0][i] | cell[1][j] | cell[2][k]).
-struct StencilIdx { int slot[3][3]; unsigned cell[3][3]; };
-__device__ __forceinline__ StencilIdx stencil_idx(const int* bc, const int base[3]) {
-    StencilIdx s;
-    const int stride[3] = {9, 3, 1}, shift[3] = {4, 2, 0};
-    for (int a = 0; a < 3; ++a)
-        for (int n = 0; n < 3; ++n) {
-            int r = base[a] + n - 4 * bc[a];
-            s.slot[a][n] = ((r >> 2) + 1) * stride[a];
-            s.cell[a][n] = (unsigned)(r & 3) << shift[a];
-        }
-    return s;
-}
-
-// The same addressing with the pblocks loaded once (RTMPM_G2P_GATHER, RTMPM_P2G_NODES): along each
-// axis a particle's three stencil nodes lie in at most two consecutive neighbour slots, so its
-// 27 nodes lie in at most eight pblocks. Their ids are read from the gblock's neighbour list at
-// eight fixed offsets from one address (instead of one computed address and load per node), and
-// node n of axis a takes the pair's second block when hi[a][n]: node (i, j, k) lives at
-// id[4 hi[0][i] + 2 hi[1][j] + hi[2][k]] * 64 + (cell[0][i] | cell[1][j] | cell[2][k]).
-// When the stencil starts in the last slot of an axis (base - 4 bc >= 4, allowed by the free
-// zone) the pair is taken one slot back, so that every load stays in the list.
-struct StencilBlocks {
-    unsigned id[8];
-    unsigned cell[3][3];
-    bool hi[3][3];
-};
-__device__ __forceinline__ StencilBlocks stencil_blocks(const unsigned* nbs, const int* bc, const int base[3]) {
-    StencilBlocks s;
-    const int stride[3] = {9, 3, 1}, shift[3] = {4, 2, 0};
-    int first = 0;
-#pragma unroll
-    for (int a = 0; a < 3; ++a) {
-        int r = base[a] - 4 * bc[a];   // the stencil's first node from the gblock's origin
-        int p = min((r >> 2) + 1, 1);  // the pair's first neighbour slot along a (0 or 1)
-        first += p * stride[a];
-#pragma unroll
-        for (int n = 0; n < 3; ++n) {
-            s.hi[a][n] = ((r + n) >> 2) + 1 != p;
-            s.cell[a][n] = (unsigned)((r + n) & 3) << shift[a];
-        }
-    }
-    const unsigned* q = nbs + first;
-#pragma unroll
-    for (int t = 0; t < 8; ++t) s.id[t] = q[9 * (t >> 2) + 3 * ((t >> 1) & 1) + (t & 1)];
-    return s;
-}
-// The two pblocks (z pair) of stencil row (i, j): row[0] and row[1].
-__device__ __forceinline__ void stencil_row_blocks(const StencilBlocks& s, bool hi_i, bool hi_j, unsigned row[2]) {
-    unsigned y0 = hi_i ? s.id[4] : s.id[0], y0z1 = hi_i ? s.id[5] : s.id[1];
-    unsigned y1 = hi_i ? s.id[6] : s.id[2], y1z1 = hi_i ? s.id[7] : s.id[3];
-    row[0] = hi_j ? y1 : y0;
-    row[1] = hi_j ? y1z1 : y0z1;
 }
 
 // Hash lookup of a block code; EMPTY_ID if absent.

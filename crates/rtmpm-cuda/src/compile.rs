@@ -32,6 +32,10 @@ pub struct KernelOptions {
     /// (`-DCK_MIN_BLOCKS`, [`crate::CudaOptions::ck_min_blocks`]; 0: no bound); `None`: left
     /// out, the kernels' default (`kernels/ck.cuh`: `g2p2g_ck` at 5 blocks in f32).
     pub ck_min_blocks: Option<u32>,
+    /// The pair addressing of the stencil nodes ([`crate::CudaOptions::stencil_pairs`], the
+    /// kernels' default); `false`: `-DRTMPM_G2P_GATHER=1 -DRTMPM_P2G_NODES=1`, the addressing
+    /// before it.
+    pub stencil_pairs: bool,
 }
 
 /// True when state arrays of `capacity` particles of `words` words each hold 2^32 words or more:
@@ -53,6 +57,7 @@ impl KernelOptions {
             layout: contract::StateLayout::Full,
             batch: false,
             ck_min_blocks: None,
+            stencil_pairs: true,
         }
     }
 }
@@ -160,6 +165,10 @@ pub fn nvrtc_options(o: &KernelOptions) -> Vec<String> {
     }
     if let Some(blocks) = o.ck_min_blocks {
         v.push(format!("-DCK_MIN_BLOCKS={blocks}"));
+    }
+    if !o.stencil_pairs {
+        v.push("-DRTMPM_G2P_GATHER=1".into());
+        v.push("-DRTMPM_P2G_NODES=1".into());
     }
     // Tuning experiments: extra `-DNAME=VALUE` flags, e.g. "-DG2P_MIN_BLOCKS=6" (part of the
     // cache key like every other option).
@@ -398,7 +407,7 @@ mod tests {
 
     /// The compile-time variants of the fused step (`kernels/p2g/warp.cuh`,
     /// `kernels/g2p/particle.cuh`; the defaults, which the test above compiles, are
-    /// RTMPM_P2G_REDUCE=1, RTMPM_G2P_GATHER=1, RTMPM_P2G_NODES=1) compile in
+    /// RTMPM_P2G_REDUCE=1, RTMPM_G2P_GATHER=2, RTMPM_P2G_NODES=2) compile in
     /// f32 and f64 with every kernel, alone and together, so that turning one on is a one-line
     /// change. Front end only (`--Ofast-compile=max`), on every core at once.
     #[test]
@@ -411,6 +420,10 @@ mod tests {
             &["-DRTMPM_P2G_REDUCE=4"],
             &["-DRTMPM_G2P_GATHER=0"],
             &["-DRTMPM_P2G_NODES=0"],
+            // The stencil-block addressing before the pair addressing (`addressing=blocks`).
+            &["-DRTMPM_G2P_GATHER=1", "-DRTMPM_P2G_NODES=1"],
+            &["-DRTMPM_G2P_GATHER=1"],
+            &["-DRTMPM_P2G_NODES=1"],
             &["-DRTMPM_P2G_ROUNDS_MAX=3"],
             &["-DRTMPM_P2G_REDUCE=4", "-DRTMPM_P2G_ROUNDS_MAX=3"],
             &["-DRTMPM_P2G_UNROLL=1"],
@@ -467,6 +480,24 @@ mod tests {
         o.arch = (8, 0);
         let v = nvrtc_options(&o);
         assert!(v.contains(&"-DCK_MIN_BLOCKS=5".to_string()), "{v:?}");
+    }
+
+    /// `addressing=blocks` becomes the defines of the stencil-block addressing; the default
+    /// (`pairs`) defines nothing (the kernels' own default).
+    #[test]
+    fn the_addressing_option_becomes_defines() {
+        let mut o = KernelOptions::all_models((9, 0), true, false);
+        assert!(o.stencil_pairs);
+        let v = nvrtc_options(&o);
+        assert!(
+            !v.iter()
+                .any(|d| d.contains("RTMPM_G2P_GATHER") || d.contains("RTMPM_P2G_NODES")),
+            "{v:?}"
+        );
+        o.stencil_pairs = false;
+        let v = nvrtc_options(&o);
+        assert!(v.contains(&"-DRTMPM_G2P_GATHER=1".to_string()), "{v:?}");
+        assert!(v.contains(&"-DRTMPM_P2G_NODES=1".to_string()), "{v:?}");
     }
 
     /// The entry directives and the body of kernel `k` in `ptx` (up to its closing brace).

@@ -210,6 +210,13 @@ pub struct CudaOptions {
     /// after every step (`body_sums=step`, kept for comparison). The loads are the same bit for
     /// bit. A batch with a dynamic body copies and waits for every step's sums either way.
     pub batch_sums_at_read: bool,
+    /// Stencil node addressing of the G2P gather and the warp scatter (`addressing=pairs|blocks`):
+    /// `true` (`pairs`, the default) the node indices per row of three nodes, the node's offset in
+    /// the loads' and atomics' immediate offsets (`kernels/stencil.cuh`: `stencil_pairs`;
+    /// `RTMPM_G2P_GATHER=2`, `RTMPM_P2G_NODES=2`); `false` (`blocks`) the addressing before
+    /// it, node by node (`stencil_blocks`; `=1`). The same nodes and the same sums bit for bit,
+    /// fewer instructions; kept to compare the two in one binary.
+    pub stencil_pairs: bool,
 }
 
 /// Default of [`CudaOptions::sort_scratch_fields`]: 4 words per particle of scratch instead of
@@ -251,6 +258,7 @@ impl Default for CudaOptions {
             fluid_state: true,
             compact_state: false,
             batch_sums_at_read: true,
+            stencil_pairs: true,
         }
     }
 }
@@ -263,7 +271,7 @@ impl std::str::FromStr for CudaOptions {
     /// `ck_grid` (wave/resident), `transport` (p2p/nccl), `barrier` (spin/events), `exchange` (kernels/fused/push), `devices`
     /// (ordinals separated by `:`), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
     /// `rmap_pblocks`, `shared`, `sort_fields` (counts), `fluid_state` (on/off), `state`
-    /// (f32/compact), `body_sums` (read/step).
+    /// (f32/compact), `body_sums` (read/step), `addressing` (pairs/blocks).
     fn from_str(s: &str) -> Result<Self, String> {
         let mut o = CudaOptions::default();
         for item in s.split(',').map(str::trim).filter(|t| !t.is_empty()) {
@@ -356,6 +364,9 @@ impl std::str::FromStr for CudaOptions {
                 }
                 "body_sums" => {
                     o.batch_sums_at_read = choice(item, v, &[("read", true), ("step", false)])?
+                }
+                "addressing" => {
+                    o.stencil_pairs = choice(item, v, &[("pairs", true), ("blocks", false)])?
                 }
                 "fill" => o.device_fill = choice(item, v, &[("device", true), ("host", false)])?,
                 "sample" => {
@@ -533,6 +544,23 @@ mod tests {
         assert_eq!((o.ck_min_blocks, o.ck_resident_grid), (Some(5), Some(true)));
         assert!("ck_bound=17".parse::<CudaOptions>().is_err());
         assert!("ck_grid=big".parse::<CudaOptions>().is_err());
+        assert!(CudaOptions::default().stencil_pairs);
+        assert!(
+            !"addressing=blocks"
+                .parse::<CudaOptions>()
+                .unwrap()
+                .stencil_pairs
+        );
+        assert!(
+            "addressing=pairs"
+                .parse::<CudaOptions>()
+                .unwrap()
+                .stencil_pairs
+        );
+        assert_eq!(
+            "addressing=nodes".parse::<CudaOptions>().unwrap_err(),
+            "`addressing=nodes`: expected pairs or blocks"
+        );
     }
 
     /// The experiments removed after they lost on an H200 (bench/RESULTS.md: the thread-block

@@ -92,13 +92,16 @@ __device__ __forceinline__ G2pResult g2p_finish(const Ctx& c, const int* bc, uns
     return r;
 }
 
-// The G2P gather (compile-time, default 1): 0 node by node as written in the paper's sums,
+// The G2P gather (compile-time, default 2): 0 node by node as written in the paper's sums,
 // every node's id read from the neighbour list; 1 the stencil's eight pblocks read once
 // (stencil_blocks) and the sums factorised per axis (the weights are a tensor product, so the k
 // sums of a row, then the j sums of a plane, then the i sum): about 40 % fewer instructions for the
-// same sums in another order (float rounding only).
+// same sums in another order (float rounding only); 2 the sums of 1 with the pair addressing
+// (stencil_pairs in stencil.cuh: a row's node indices computed once, the node's offset in the
+// load's immediate offset; the same loads and sums as 1 bit for bit, about 50 fewer
+// instructions a particle). The CUDA option `addressing=blocks` compiles 1 (compile.rs).
 #ifndef RTMPM_G2P_GATHER
-#define RTMPM_G2P_GATHER 1
+#define RTMPM_G2P_GATHER 2
 #endif
 
 // Velocity of grid node `node` (memory index pblock id * 64 + cell).
@@ -111,12 +114,27 @@ __device__ __forceinline__ vec3 g2p_node_velocity(const Ctx& c, unsigned node) {
     return make_v3(nd.y, nd.z, nd.w);
 #endif
 }
+// Velocity of node k of a pair-addressed row (stencil_pair_row): memory index n + k, the k in
+// the load's immediate offset.
+__device__ __forceinline__ vec3 g2p_row_node_velocity(const Ctx& c, int n, int k) {
+#ifdef RTMPM_F64
+    const real* nd = c.grid + 4ll * n + 4 * k;
+    return make_v3(nd[1], nd[2], nd[3]);
+#else
+    float4 nd = __ldg(reinterpret_cast<const float4*>(c.grid) + n + k);
+    return make_v3(nd.y, nd.z, nd.w);
+#endif
+}
 
 // v = sum w v_i and B = sum w v_i (i, j, k)^T over the stencil of the particle at base/wt.
 __device__ __forceinline__ void g2p_gather(const Ctx& c, const int* bc, const unsigned* nbs, const int base[3],
                                            const real wt[3][3], vec3* v_out, mat3* b_out) {
-#if RTMPM_G2P_GATHER == 1
+#if RTMPM_G2P_GATHER == 1 || RTMPM_G2P_GATHER == 2
+#if RTMPM_G2P_GATHER == 2
+    StencilPairs sp = stencil_pairs(nbs, bc, base);
+#else
     StencilBlocks sb = stencil_blocks(nbs, bc, base);
+#endif
     // k sums of row (i, j): r = sum_k w_k v_k and rk = sum_k k w_k v_k; j sums of plane i:
     // p = sum_j w_j r, pj = sum_j j w_j r, pk = sum_j w_j rk; then the i sums.
     real w1_2 = (real)2 * wt[1][2], w0_2 = (real)2 * wt[0][2];
@@ -124,14 +142,26 @@ __device__ __forceinline__ void g2p_gather(const Ctx& c, const int* bc, const un
 #pragma unroll
     for (int i = 0; i < 3; ++i) {
         vec3 p, pj, pk;
+#if RTMPM_G2P_GATHER == 2
+        int tx = sp.r[0] + i;
+        unsigned plane[4];
+        stencil_pair_plane(sp, tx >= 4, plane);
+#endif
 #pragma unroll
         for (int j = 0; j < 3; ++j) {
+            vec3 vk[3];
+#if RTMPM_G2P_GATHER == 2
+            int ty = sp.r[1] + j;
+            PairRow row = stencil_pair_row(sp, plane, ty >= 4, ((unsigned)(tx & 3) << 4) | ((unsigned)(ty & 3) << 2));
+#pragma unroll
+            for (int k = 0; k < 3; ++k) vk[k] = g2p_row_node_velocity(c, row.n[k], k);
+#else
             unsigned row[2];
             stencil_row_blocks(sb, sb.hi[0][i], sb.hi[1][j], row);
             unsigned cell_ij = sb.cell[0][i] | sb.cell[1][j];
-            vec3 vk[3];
 #pragma unroll
             for (int k = 0; k < 3; ++k) vk[k] = g2p_node_velocity(c, (sb.hi[2][k] ? row[1] : row[0]) * 64u + (cell_ij | sb.cell[2][k]));
+#endif
             vec3 t = vk[1] * wt[2][1] + vk[2] * wt[2][2];
             vec3 r = vk[0] * wt[2][0] + t;
             vec3 rk = vk[2] * wt[2][2] + t;  // = w_1 v_1 + 2 w_2 v_2

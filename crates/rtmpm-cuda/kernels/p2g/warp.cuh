@@ -22,11 +22,14 @@
 #ifndef RTMPM_P2G_ROUNDS_MAX
 #define RTMPM_P2G_ROUNDS_MAX 5
 #endif
-// Node addresses of the scatter (compile-time, default 1): 0 each node's pblock id read from
+// Node addresses of the scatter (compile-time, default 2): 0 each node's pblock id read from
 // the neighbour list at a computed address; 1 the stencil's eight pblocks read once
-// (stencil_blocks in common.cuh) and each node's id picked from them.
+// (stencil_blocks in stencil.cuh) and each node's id picked from them; 2 the pair addressing
+// (stencil_pairs: the row's node indices once, the node's offset in the atomic's immediate
+// offset; the same nodes as 1, a row's head block 25 instructions instead of 40 in ptxas 13.0).
+// The CUDA option `addressing=blocks` compiles 1 (compile.rs).
 #ifndef RTMPM_P2G_NODES
-#define RTMPM_P2G_NODES 1
+#define RTMPM_P2G_NODES 2
 #endif
 // 1: the nine rows unrolled (compile-time i, j: no selects of the row's weights, pblocks and
 // cells; a larger kernel).
@@ -77,7 +80,9 @@ __device__ __forceinline__ unsigned p2g_warp_sort(unsigned key, unsigned lane, b
 // Addresses of the stencil nodes of the scatter, per row (i, j): node k of the row lives at
 // row_node(...) (memory index pblock id * 64 + cell).
 struct ScatterNodes {
-#if RTMPM_P2G_NODES == 1
+#if RTMPM_P2G_NODES == 2
+    StencilPairs sp;
+#elif RTMPM_P2G_NODES == 1
     StencilBlocks sb;
 #else
     const unsigned* nbs;
@@ -87,7 +92,9 @@ struct ScatterNodes {
 __device__ __forceinline__ ScatterNodes scatter_nodes(const Ctx& c, unsigned g, const int base[3]) {
     ScatterNodes s;
     const int* bc = c.block_coords + 3 * g;
-#if RTMPM_P2G_NODES == 1
+#if RTMPM_P2G_NODES == 2
+    s.sp = stencil_pairs(c.neighbors + 27 * g, bc, base);
+#elif RTMPM_P2G_NODES == 1
     s.sb = stencil_blocks(c.neighbors + 27 * g, bc, base);
 #else
     s.r0 = base[0] - 4 * bc[0];
@@ -97,21 +104,29 @@ __device__ __forceinline__ ScatterNodes scatter_nodes(const Ctx& c, unsigned g, 
 #endif
     return s;
 }
-// The row's part of the addresses: (slot, cell) of node (i, j, 0) as in stencil_idx, or the row's
-// two pblocks and cell bits.
+// The row's part of the addresses: (slot, cell) of node (i, j, 0) as in stencil_idx, the row's
+// two pblocks and cell bits, or (pair addressing) the row's node indices.
 struct ScatterRow {
-#if RTMPM_P2G_NODES == 1
+#if RTMPM_P2G_NODES == 2
+    PairRow pr;
+#elif RTMPM_P2G_NODES == 1
     unsigned id[2];
+    unsigned cell;
 #else
     int slot;
-#endif
     unsigned cell;
+#endif
 };
 __device__ __forceinline__ bool pick3b(const bool a[3], int i) { return i == 0 ? a[0] : (i == 1 ? a[1] : a[2]); }
 __device__ __forceinline__ unsigned pick3u(const unsigned a[3], int i) { return i == 0 ? a[0] : (i == 1 ? a[1] : a[2]); }
 __device__ __forceinline__ ScatterRow scatter_row(const ScatterNodes& s, int i, int j) {
     ScatterRow r;
-#if RTMPM_P2G_NODES == 1
+#if RTMPM_P2G_NODES == 2
+    int tx = s.sp.r[0] + i, ty = s.sp.r[1] + j;
+    unsigned plane[4];
+    stencil_pair_plane(s.sp, tx >= 4, plane);
+    r.pr = stencil_pair_row(s.sp, plane, ty >= 4, ((unsigned)(tx & 3) << 4) | ((unsigned)(ty & 3) << 2));
+#elif RTMPM_P2G_NODES == 1
     stencil_row_blocks(s.sb, pick3b(s.sb.hi[0], i), pick3b(s.sb.hi[1], j), r.id);
     r.cell = pick3u(s.sb.cell[0], i) | pick3u(s.sb.cell[1], j);
 #else
@@ -121,12 +136,23 @@ __device__ __forceinline__ ScatterRow scatter_row(const ScatterNodes& s, int i, 
 #endif
     return r;
 }
+#if RTMPM_P2G_NODES != 2
 __device__ __forceinline__ unsigned scatter_node(const ScatterNodes& s, const ScatterRow& r, int k) {
 #if RTMPM_P2G_NODES == 1
     return (s.sb.hi[2][k] ? r.id[1] : r.id[0]) * 64u + (r.cell | s.sb.cell[2][k]);
 #else
     int rk = s.r2 + k;
     return s.nbs[r.slot + (rk >> 2)] * 64u + (r.cell | (unsigned)(rk & 3));
+#endif
+}
+#endif
+// The (mass, momentum) words of node k of the row in `grid`.
+__device__ __forceinline__ real* scatter_node_words(real* grid, const ScatterNodes& s, const ScatterRow& r, int k) {
+#if RTMPM_P2G_NODES == 2
+    (void)s;
+    return grid + 4ll * r.pr.n[k] + 4 * k;  // the k in the atomic's immediate offset
+#else
+    return grid + 4u * scatter_node(s, r, k);
 #endif
 }
 
@@ -168,7 +194,7 @@ __device__ __forceinline__ void p2g_scatter_rows(const ScatterNodes& nodes, cons
             }
             if (head) {
 #pragma unroll
-                for (int k = 0; k < 3; ++k) atomic_add_node(grid + 4u * scatter_node(nodes, row, k), val[k]);
+                for (int k = 0; k < 3; ++k) atomic_add_node(scatter_node_words(grid, nodes, row, k), val[k]);
             }
         }
 }

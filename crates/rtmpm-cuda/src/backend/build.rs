@@ -384,6 +384,7 @@ impl Plan {
             },
             batch: self.batch,
             ck_min_blocks: o.ck_min_blocks,
+            stencil_pairs: o.stencil_pairs,
         })
         .map_err(SimError::Backend)?;
         // Single stream: no cross-stream event tracking (keeps launches capturable).
