@@ -46,7 +46,8 @@
 #   profile      Nsight Compute on the fused G2P2G kernel (one launch after 5): PROFILE_RUNS="label|binary|
 #                defines|scene ..." (default: the fluid dam 2M); the bound (issue, stalls, L1/L2, atomics)
 #   multi        several GPUs: agreement tests in every mode, 2 NCCL processes, scaling
-#   multi_rigid  rigid bodies with one process per GPU (2 GPUs and NCCL; skipped with fewer): test_multi_gpu_rigid's
+#   multi_rigid  rigid bodies with one process per GPU (2 GPUs and NCCL; skipped with fewer), after one GPU run
+#                twice (one_gpu_twice_agrees_with_itself_on_the_rigid_scenes): test_multi_gpu_rigid's
 #                nccl_ranks_agree_with_one_gpu_on_the_rigid_scenes (two NCCL ranks in two threads, every
 #                scenes/rigid/ scene 0.5 s at a fixed dt, a re-partition halfway, against one GPU; the ranks'
 #                bodies equal bit for bit) and test_multi_gpu_cli's two_processes_agree_with_one_gpu_on_the_rigid_scenes
@@ -382,6 +383,9 @@ for suite in "$@"; do
       done
       ;;
     multi_rigid)
+      # One GPU run twice first: how far two runs of one GPU already are (the tolerances' premise).
+      t test_multi_gpu_rigid one_gpu_twice_agrees_with_itself_on_the_rigid_scenes --nocapture
+      grep -hE "twice #" "$OUT/test_multi_gpu_rigid.log" | cut -c1-220 | tee -a "$S"
       t test_multi_gpu_rigid nccl_ranks_agree_with_one_gpu_on_the_rigid_scenes --nocapture
       grep -hE "^test |skipped|: body [0-9]|particles: \||runs of 2 NCCL ranks" "$OUT/test_multi_gpu_rigid.log" | head -60 | tee -a "$S"
       t test_multi_gpu_cli two_processes_agree_with_one_gpu_on_the_rigid_scenes --nocapture

@@ -50,6 +50,16 @@ fn rigid_seconds() -> f32 {
         .unwrap_or(0.5)
 }
 
+/// The share of a body's peak speed (and angular speed) by which its velocity (and angular
+/// velocity) at the end may differ between two runs. Chosen from measurement after a miss at 2 %:
+/// one H200 run twice (`one_gpu_twice_agrees_with_itself_on_the_rigid_scenes`, 6 pairs,
+/// 2026-11-29) put floating_box's angular velocity 0.342 and 0.356 rad/s apart (4.4 and 4.6 % of
+/// its peak 7.7) and its velocity 1.4 % of its peak apart, the GPU's atomic sums coming in
+/// another order each run while the box rocks in the splash; two GPUs against one missed 2 % by
+/// the same amount (0.312 rad/s, NCCL, 1 of 4 runs). Twice the largest spread seen; a body's
+/// position and rotation keep their 0.1 dx, and a doubled or lost impulse moves them far more.
+const VELOCITY_SHARE: f32 = 0.10;
+
 /// The bodies of a multi-GPU run (`b`) against one GPU's (`a`), printed; a failure per body
 /// outside the tolerances of [`several_gpus_agree_with_one_on_the_rigid_scenes`] (`peak`: each
 /// body's largest speed and angular speed in the one-GPU run).
@@ -79,7 +89,10 @@ fn bodies_differ(
             pa.position,
             pa.velocity
         );
-        if dpos > 0.1 * dx || drot > 0.1 * dx || dv > 0.02 * vmax + 1e-3 || dw > 0.02 * wmax + 1e-2
+        if dpos > 0.1 * dx
+            || drot > 0.1 * dx
+            || dv > VELOCITY_SHARE * vmax + 1e-3
+            || dw > VELOCITY_SHARE * wmax + 1e-2
         {
             failures.push(format!("{label}: body {k} differs"));
         }
@@ -109,8 +122,8 @@ fn particles_differ(label: &str, dx: f32, a: &Particles, b: &Particles) -> Optio
 /// ranks) against one GPU; heavy_ball also with `rigid_overlap=off`. Every body's position
 /// within 0.1 dx and its rotation within 0.1 dx at its farthest point (the tolerance of
 /// tests/rigid.rs for one GPU against the CPU: the floating height within a tenth of a cell);
-/// its velocity and angular velocity within 2 % of the largest the body reached in the one-GPU
-/// run (the kinetic-energy tolerance of the agreement test) plus 1 mm/s (0.01 rad/s); the
+/// its velocity and angular velocity within [`VELOCITY_SHARE`] (10 %) of the largest the body
+/// reached in the one-GPU run plus 1 mm/s (0.01 rad/s); the
 /// particles' aggregates within the agreement test's tolerances. heavy_ball's ball starts over
 /// the cut between the first two GPUs' slabs (checked), so it lands on blocks both GPUs hold:
 /// with their nodes' reactions counted on both, its impulse from them would double.

@@ -216,7 +216,7 @@ fn norm(a: &[f64]) -> f64 {
 /// also with `rigid_overlap=off`: every body of the last row of `bodies.csv` against one GPU's
 /// with the tolerances of rtmpm-cuda's `several_gpus_agree_with_one_on_the_rigid_scenes`
 /// (position and rotation at its farthest point within 0.1 dx, velocity and angular velocity
-/// within 2 % of the largest the body reached in the one-GPU run plus 1 mm/s and 0.01 rad/s),
+/// within 10 % of the largest the body reached in the one-GPU run plus 1 mm/s and 0.01 rad/s),
 /// the particles of the last frame as the agreement test. Only rank 0 writes: rank 1, given
 /// its own output folder, leaves it without bodies.csv or frames. Both runs step by the CFL
 /// condition (the step sizes may differ in their last bits between them).
@@ -346,8 +346,10 @@ fn two_processes_agree_with_one_gpu_on_the_rigid_scenes() {
                 );
                 if dpos > 0.1 * dx
                     || drot > 0.1 * dx
-                    || dv > 0.02 * vmax + 1e-3
-                    || dw > 0.02 * wmax + 1e-2
+                    // 10 %: one GPU run twice differs by up to 4.6 % of the peak angular
+                    // speed on floating_box (rtmpm-cuda tests/multi_gpu_rigid.rs, VELOCITY_SHARE).
+                    || dv > 0.10 * vmax + 1e-3
+                    || dw > 0.10 * wmax + 1e-2
                 {
                     failures.push(format!("{label}: body {k} differs"));
                 }
