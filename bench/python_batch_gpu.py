@@ -3,7 +3,7 @@ calls, against the same steps with no Python work between them.
 
     python bench/python_batch_gpu.py [--worlds 256] [--steps 200] [--per-call 1,10]
                                      [--resets 4] [--repeats 5] [--budget S] [--breakdown]
-                                     [--moving-tool] [--cuda-options S] [--json out.json]
+                                     [--moving-tool] [--cuda-options S] [--overlap] [--json out.json]
 
 A batch of ``--worlds`` small sand beds (1,024 particles each, dx = 0.025 m, fixed dt = 4e-4 s,
 the scene of bench/batch_python_loop.py) as ``BatchSimulation(backend="cuda")``: every world in
@@ -42,6 +42,11 @@ not (the H200's breakdown of 9cb5bac had pose's steps 0.22 ms a call slower than
 calls of 10 steps, which this would explain: not checked). ``--moving-tool`` gives the scene's tool that velocity, so that every mode, bare
 included, moves it and the ratios count only the loop's own cost (not the default, so that the
 default figures stay comparable with earlier ones).
+
+``--overlap`` sets ``BatchSimulation.overlap`` on every batch (where the module has it): a step
+call returns with its steps queued, its health check made as the next call begins, so that the
+loop's resets and poses run on the host while the device steps (run the script with and without
+it for the A/B; the table's first line says which).
 
 ``--breakdown`` then runs the modes calls, reset, pose and loop once more (``--repeats`` rounds
 after a warm-up, fresh batches) and times each part of a call on its own: the poses, the resets
@@ -208,10 +213,15 @@ class Clock:
         print(f"[{self.now():6.1f} s] {what}", file=sys.stderr, flush=True)
 
 
+OVERLAP = False  # --overlap: BatchSimulation.overlap on every batch
+
+
 def fresh(one, setups):
     """A fresh batch of ``one`` on the GPU, its set-up seconds kept in ``setups`` (not timed)."""
     t0 = time.perf_counter()
     sim = rtmpm.Simulation(one, backend="cuda", cuda_options=CUDA_OPTIONS)
+    if OVERLAP:
+        sim.overlap = True
     sim.step(1)  # the first step's graph capture is set-up, not the loop
     setups.append(time.perf_counter() - t0)
     return sim
@@ -312,10 +322,13 @@ def main():
     ap.add_argument("--cuda-options", default=None,
                     help="the CUDA backend's options for every batch (rtmpm --cuda-options), e.g. "
                          "body_sums=step for the sums copied after every step")
+    ap.add_argument("--overlap", action="store_true",
+                    help="BatchSimulation.overlap on: step calls return before their check")
     ap.add_argument("--json", default=None)
     a = ap.parse_args()
-    global CUDA_OPTIONS
+    global CUDA_OPTIONS, OVERLAP
     CUDA_OPTIONS = a.cuda_options
+    OVERLAP = a.overlap
     clock = Clock(a.budget)
     ok, why = rtmpm.cuda_available()
     if not ok:
@@ -338,7 +351,7 @@ def main():
     times, info, done = plain_rounds(a, one, runs, torch, clock, setups)
     bare = statistics.median(times[("bare", a.steps)])
     print(f"{a.worlds} worlds, {info['particles']} particles, {a.steps} steps, {a.resets} resets a call, "
-          f"{done} repeats, on {info['backend']}")
+          f"{done} repeats, on {info['backend']}; overlap {'on' if a.overlap else 'off'}")
     if no_tool:
         print(f"pose: not measured (no tool in the worlds: {no_tool})")
     if torch is None:
@@ -361,7 +374,7 @@ def main():
     if a.cuda_options:
         print(f"cuda_options: {a.cuda_options}")
     out = {"worlds": a.worlds, "steps": a.steps, "resets": a.resets, "repeats": done, "per_call": per_call,
-           "moving_tool": a.moving_tool, "cuda_options": a.cuda_options,
+           "moving_tool": a.moving_tool, "cuda_options": a.cuda_options, "overlap": a.overlap,
            "pose_not_measured": no_tool, "torch": torch is not None, **info, "rows": rows,
            "setup_s": setups}
     if a.breakdown:

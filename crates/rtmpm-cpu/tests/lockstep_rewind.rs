@@ -162,3 +162,52 @@ fn a_frozen_world_that_fails_again_ends_the_call_with_an_error_not_a_loop() {
         assert_eq!(r.running(), 2);
     }
 }
+
+/// Calls of steps on worlds whose check is not cheap (made at a call's end): world 2 made to
+/// blow up within the second call, world 1 reset after that call, then a third call and a
+/// sync; with `defer` the calls return before their last check
+/// ([`LockstepRun::set_deferred_checks`]). The worlds each call returned frozen, and the run.
+fn late_checks(defer: bool) -> (Vec<Vec<usize>>, LockstepRun<SideBySide>) {
+    let (b, mut r) = unwritten_keeping(SLUMP, true);
+    r.sim.backend.checks_late = true;
+    r.set_deferred_checks(defer).expect("defer");
+    r.sim.backend.poison = Some((2, 9));
+    let mut calls = vec![r.advance_steps(7).expect("steps")];
+    calls.push(r.advance_steps(5).expect("steps"));
+    assert_eq!(r.check_pending(), defer);
+    let start = b.worlds[1].sample_particles().expect("sample");
+    r.reset_worlds(vec![(1, start)]).expect("reset");
+    calls.push(r.advance_steps(6).expect("steps"));
+    r.sync().expect("sync");
+    assert!(!r.check_pending(), "a sync makes the pending check");
+    (calls, r)
+}
+
+#[test]
+fn calls_returning_before_their_check_end_as_calls_that_check_at_once() {
+    let (at_once, mut a) = late_checks(false);
+    let (deferred, mut d) = late_checks(true);
+    // The blow-up is returned by the call that found it: the one after its steps when deferred.
+    assert_eq!(at_once, [vec![], vec![2], vec![]]);
+    assert_eq!(deferred, [vec![], vec![], vec![2]]);
+    // The reset made while the check was pending was made again after the rewind: every world
+    // ends bit for bit as when the second call found the blow-up itself.
+    for w in 0..3 {
+        let (x, y) = (&a.worlds[w], &d.worlds[w]);
+        assert_eq!(y.status, x.status, "world {w}");
+        assert_eq!(bits(y.particles()), bits(x.particles()), "world {w}");
+        assert_eq!((y.steps(), y.frame()), (x.steps(), x.frame()), "world {w}");
+        assert_eq!(y.time().to_bits(), x.time().to_bits(), "world {w}");
+    }
+    assert!(matches!(d.worlds[2].status, WorldStatus::Frozen { .. }));
+    assert_eq!(d.worlds[1].steps(), 6, "world 1 from its reset");
+    assert_eq!(d.worlds[0].steps(), 18);
+    // The backends hold the same worlds (the frozen one parked alike).
+    let (ha, hd) = (
+        a.sim.backend.read_all().expect("read"),
+        d.sim.backend.read_all().expect("read"),
+    );
+    for w in 0..3 {
+        assert_eq!(bits(&hd[w]), bits(&ha[w]), "world {w} as held");
+    }
+}

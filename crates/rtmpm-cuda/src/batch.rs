@@ -36,6 +36,7 @@ mod bodies;
 mod colliders;
 mod layout;
 mod put;
+mod staging;
 
 pub use accept::unsupported;
 use accept::{batch_capacities, check_particles};
@@ -80,6 +81,9 @@ pub struct CudaBatch {
     /// the particles of a run of worlds, and the images of all runs uploaded.
     put_run: Particles,
     put_host: Vec<u8>,
+    /// The page-locked copy of `put_host` the device reads the upload from
+    /// ([`CudaBatch::put_worlds`] without a wait for the device).
+    put_staging: staging::PutStaging,
     /// The scene of the shared clock ([`CudaBatch::scene`]).
     clock: Scene,
 }
@@ -188,6 +192,7 @@ impl CudaBatch {
             put_buffer: None,
             put_run: Particles::default(),
             put_host: Vec::new(),
+            put_staging: staging::PutStaging::default(),
             clock,
         })
     }

@@ -286,6 +286,28 @@ impl<B: Backend + ?Sized> Simulation<B> {
         max_steps: u64,
         queued: &mut dyn FnMut(&mut B),
     ) -> Result<bool, SimError> {
+        self.advance_checked(max_steps, queued, true)
+    }
+
+    /// [`Simulation::advance`] without the health check of its last step when it takes all
+    /// `max_steps` steps (at a frame's end too, whose frame then counts and whose backend's
+    /// `end_of_frame` runs before that check): the steps stay queued on a backend that runs
+    /// them asynchronously (the GPU), and the caller must [`Simulation::check`] before anything
+    /// else steps, reads or changes the backend: that check finds what the skipped one would
+    /// have found (no step was taken since), reported at the same step and time. The checks of
+    /// earlier steps (a frame ending before the last step) are made as in `advance`.
+    pub fn advance_unchecked(&mut self, max_steps: u64) -> Result<bool, SimError> {
+        self.advance_checked(max_steps, &mut |_| {}, false)
+    }
+
+    /// [`Simulation::advance_with`], the last step's check made (`check_last`) or left to the
+    /// caller ([`Simulation::advance_unchecked`]).
+    fn advance_checked(
+        &mut self,
+        max_steps: u64,
+        queued: &mut dyn FnMut(&mut B),
+        check_last: bool,
+    ) -> Result<bool, SimError> {
         let mut called = false;
         let mut once = |b: &mut B| {
             if !called {
@@ -305,7 +327,9 @@ impl<B: Backend + ?Sized> Simulation<B> {
                 while done + taken < per_frame {
                     if taken == max_steps {
                         once(&mut self.backend);
-                        self.check()?;
+                        if check_last {
+                            self.check()?;
+                        }
                         return Ok(false);
                     }
                     self.step_once(dt)?;
@@ -314,7 +338,7 @@ impl<B: Backend + ?Sized> Simulation<B> {
                 }
                 self.time = frame_end;
                 once(&mut self.backend);
-                self.finish_frame()?;
+                self.finish_frame(check_last || taken < max_steps)?;
                 return Ok(true);
             }
         }
@@ -322,7 +346,9 @@ impl<B: Backend + ?Sized> Simulation<B> {
         while self.time < frame_end - eps {
             if taken == max_steps {
                 once(&mut self.backend);
-                self.check()?;
+                if check_last {
+                    self.check()?;
+                }
                 return Ok(false);
             }
             if taken > 0 {
@@ -335,7 +361,7 @@ impl<B: Backend + ?Sized> Simulation<B> {
         }
         self.time = frame_end;
         once(&mut self.backend);
-        self.finish_frame()?;
+        self.finish_frame(check_last || taken < max_steps)?;
         Ok(true)
     }
 
@@ -361,9 +387,13 @@ impl<B: Backend + ?Sized> Simulation<B> {
         self.emitted.as_deref().unwrap_or(&[])
     }
 
-    fn finish_frame(&mut self) -> Result<(), SimError> {
+    /// The frame counted, checked (unless `check` is false: the caller checks later,
+    /// [`Simulation::advance_unchecked`]) and ended on the backend.
+    fn finish_frame(&mut self, check: bool) -> Result<(), SimError> {
         self.frame += 1;
-        self.check()?;
+        if check {
+            self.check()?;
+        }
         self.backend.end_of_frame()
     }
 

@@ -6,7 +6,7 @@ use super::CudaBatch;
 use crate::contract::{CTL_NEED_REBUILD, CTL_P2G_PENDING};
 use crate::error::err;
 use crate::kernels::Kernel;
-use cudarc::driver::PushKernelArg;
+use cudarc::driver::{DevicePtrMut, PushKernelArg};
 use rtmpm_physics::Particles;
 use rtmpm_sim::SimError;
 
@@ -100,9 +100,11 @@ impl CudaBatch {
     /// in original order), all runs go to the device in one copy (into a buffer kept between
     /// calls, [`CudaBatch::put_bytes`]), one `batch_put_world` launch a run and the P2G flag
     /// set once (with G2P2G), where a world at a time paid an allocation, a copy, two
-    /// control-word writes and a wait. Nothing waits for the device: the copy's source is staged
-    /// by the driver before the call returns, and whatever reads the worlds next (a step, a
-    /// read, a gather) is queued behind the launches on the same stream.
+    /// control-word writes and a wait. Nothing waits for the device: the images go through kept
+    /// page-locked memory, an asynchronous copy even while steps are queued ahead of it
+    /// ([`CudaBatch::upload_put`]; `RTMPM_BATCH_PAGEABLE_PUT=1` copies from pageable memory as
+    /// before), and whatever reads the worlds next (a step, a read, a gather) is queued behind
+    /// the launches on the same stream.
     pub fn put_worlds(&mut self, worlds: &[(usize, Particles)]) -> Result<(), SimError> {
         let refs: Vec<(usize, &Particles)> = worlds.iter().map(|(w, p)| (*w, p)).collect();
         self.put_many(&refs)
@@ -194,18 +196,8 @@ impl CudaBatch {
         if runs.is_empty() {
             return Ok(());
         }
-        let (b, bytes) = (&mut self.backend, &self.put_host);
-        match self.put_buffer.as_mut() {
-            Some(buf) if buf.len() >= bytes.len() => b
-                .stream
-                .memcpy_htod(bytes, &mut buf.slice_mut(..bytes.len()))
-                .map_err(err("upload worlds"))?,
-            _ => {
-                self.put_buffer = None;
-                let buf = b.stream.clone_htod(bytes).map_err(err("upload worlds"))?;
-                self.put_buffer = Some(buf);
-            }
-        }
+        self.upload_put()?;
+        let b = &mut self.backend;
         let Some(buf) = self.put_buffer.as_ref() else {
             return Ok(());
         };
@@ -230,6 +222,74 @@ impl CudaBatch {
         }
         Ok(())
     }
+}
+
+impl CudaBatch {
+    /// The packed images of a put (`put_host`) into the device buffer `put_buffer` (allocated,
+    /// or grown, to fit): by default through the kept page-locked buffer `put_pinned`, an
+    /// asynchronous copy that returns at once even while steps are queued ahead of it (the
+    /// images are copied there first, once the previous put's copy out of it is done); with
+    /// `RTMPM_BATCH_PAGEABLE_PUT=1` ([`pageable_puts`]) straight from the pageable `put_host`
+    /// as before, which the driver stages itself (and, for a large put, may wait for the
+    /// stream to reach the copy).
+    fn upload_put(&mut self) -> Result<(), SimError> {
+        let (stream, len) = (self.backend.stream.clone(), self.put_host.len());
+        if self.put_buffer.as_ref().is_none_or(|buf| buf.len() < len) {
+            self.put_buffer = None;
+            // SAFETY: the copy below writes every byte the kernels read (`len` bytes).
+            let buf = unsafe { stream.alloc::<u8>(len) }.map_err(err("upload worlds"))?;
+            self.put_buffer = Some(buf);
+        }
+        let Some(buf) = self.put_buffer.as_mut() else {
+            return Ok(());
+        };
+        if pageable_puts() {
+            return stream
+                .memcpy_htod(&self.put_host, &mut buf.slice_mut(..len))
+                .map_err(err("upload worlds"));
+        }
+        let staging = &mut self.put_staging;
+        if staging.pinned.as_ref().is_none_or(|p| p.len() < len) {
+            staging.wait()?;
+            staging.pinned = None;
+            // SAFETY: bytes below `len` are written below before the copy reads them. Plain
+            // page-locked memory (the host writes it, the copy engine reads it).
+            let pinned = unsafe {
+                stream
+                    .context()
+                    .alloc_pinned_with_flags::<u8>(len.max(1), 0)
+            }
+            .map_err(err("allocate page-locked memory for a put"))?;
+            staging.pinned = Some(pinned);
+        }
+        staging.wait()?;
+        let Some(pinned) = staging.pinned.as_mut() else {
+            return Ok(());
+        };
+        let host = pinned
+            .as_mut_slice()
+            .map_err(err("page-locked memory for a put"))?;
+        host[..len].copy_from_slice(&self.put_host);
+        let (dst, _written) = buf.device_ptr_mut(&stream);
+        // SAFETY: `dst` holds at least `len` bytes (sized above); `host[..len]` stays alive and
+        // unwritten until the event recorded next has passed: the next put, a larger buffer
+        // and the staging's drop all wait for it first (`PutStaging::wait`).
+        unsafe { cudarc::driver::result::memcpy_htod_async(dst, &host[..len], stream.cu_stream()) }
+            .map_err(err("upload worlds"))?;
+        staging.done = Some(
+            stream
+                .record_event(None)
+                .map_err(err("record the put's event"))?,
+        );
+        Ok(())
+    }
+}
+
+/// Puts go to the device from pageable memory, as before the page-locked upload
+/// (`RTMPM_BATCH_PAGEABLE_PUT=1`; for comparing the two: bench/python_batch_gpu.py). Read once.
+pub fn pageable_puts() -> bool {
+    static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *ON.get_or_init(|| std::env::var("RTMPM_BATCH_PAGEABLE_PUT").is_ok_and(|v| v.trim() == "1"))
 }
 
 /// A run of consecutive worlds put at once ([`CudaBatch::put_worlds`]): its first particle

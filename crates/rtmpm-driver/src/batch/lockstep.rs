@@ -36,7 +36,7 @@ use anyhow::{Context, Result, bail};
 use rtmpm_physics::Particles;
 use rtmpm_physics::math::{Mat3, Vec3};
 use rtmpm_rigid::BodyPose;
-use rtmpm_scene::{BatchScene, Scene};
+use rtmpm_scene::{BatchScene, Scene, StepMode};
 use rtmpm_sim::{Blowup, SimError, Worlds};
 
 /// One world of a lockstep batch: what sets it apart, where it stands, its files.
@@ -122,6 +122,36 @@ pub struct LockstepRun<B: Worlds + ?Sized> {
     /// The running worlds' particles (`kept`) lag the backend's: the last advance kept its
     /// rewind point on the backend and read nothing back ([`LockstepRun::sync`] reads them).
     stale: bool,
+    /// Steps queued without their last health check ([`LockstepRun::set_deferred_checks`]).
+    defer: bool,
+    pending: Option<Box<Pending>>,
+    /// Worlds frozen by a deferred check made outside an advance (the next advance returns
+    /// them).
+    found: Vec<usize>,
+}
+
+/// An advance whose steps were queued and returned before their last health check
+/// ([`LockstepRun::set_deferred_checks`]): what putting the worlds back needs when that check
+/// finds a blow-up ([`LockstepRun::settle`]), and what was done to the worlds since.
+struct Pending {
+    /// The shared clock as the advance began (the rewind point's), and its steps.
+    clock: Clock,
+    steps: u64,
+    /// Each world's status, bodies (as the advance began), clock and origin then.
+    statuses: Vec<WorldStatus>,
+    bodies: Vec<Vec<BodyPose>>,
+    at: Vec<Clock>,
+    origin: Vec<Clock>,
+    /// Resets and poses made since, in order: made again after the rewind.
+    since: Vec<Since>,
+}
+
+/// A change made to the worlds while a check was pending.
+enum Since {
+    /// These worlds reset (to the particles they then kept).
+    Reset(Vec<usize>),
+    /// Rigid body `.0` of each world listed put at its pose.
+    Poses(usize, Vec<(usize, BodyPose)>),
 }
 
 impl<B: Worlds + ?Sized> LockstepRun<B> {
@@ -190,6 +220,9 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             out,
             resumed: resumed.is_some(),
             stale: false,
+            defer: false,
+            pending: None,
+            found: Vec::new(),
         };
         run.write_summary()?;
         Ok(run)
@@ -245,7 +278,12 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
     /// is frozen at its last frame (returned) and the frame run again without it; an error of
     /// the backend itself ends the run.
     pub fn advance_frame(&mut self) -> Result<Vec<usize>> {
-        self.advance_by(|sim| sim.advance_frame().map(drop))
+        self.settle()?;
+        let mut frozen = std::mem::take(&mut self.found);
+        if self.running() > 0 {
+            frozen.extend(self.advance_by(|sim| sim.advance_frame().map(drop))?);
+        }
+        Ok(frozen)
     }
 
     /// Advance every running world by `steps` steps of the shared time step (crossing frame
@@ -256,13 +294,165 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         if self.out.is_some() {
             bail!("a batch run that writes frame files advances by whole frames");
         }
-        self.advance_by(|sim| {
-            let target = sim.step.saturating_add(steps);
-            while sim.step < target {
-                sim.advance(target - sim.step)?;
+        self.settle()?;
+        let mut frozen = std::mem::take(&mut self.found);
+        if self.running() == 0 {
+            return Ok(frozen);
+        }
+        let fixed = matches!(self.sim.scene.time.step, StepMode::Fixed { .. });
+        if self.defer && fixed {
+            frozen.extend(self.advance_deferred(steps)?);
+        } else {
+            frozen.extend(self.advance_by(steps_of(steps))?);
+        }
+        Ok(frozen)
+    }
+
+    /// Return from [`LockstepRun::advance_steps`] with its steps queued, before the health
+    /// check of their last step (`true`), or after it (`false`, the default). Deferred, the
+    /// host goes on (a script's resets and poses for the next call, its own work) while the
+    /// device steps; the check is made by [`LockstepRun::settle`], at the start of the next
+    /// advance, [`LockstepRun::sync`] or checkpoint, or when the caller asks (a read of the
+    /// worlds' status). What it finds is handled as if the call had found it: the world frozen,
+    /// every world put back to the call's rewind point and its steps taken again, then every
+    /// reset ([`LockstepRun::reset_worlds`]) and pose ([`LockstepRun::set_body_poses`]) made
+    /// since made again, in order; the worlds frozen are returned by the next advance. Only
+    /// for a fixed time step (a CFL step waits for each step's speed anyway) and a backend that
+    /// keeps its rewind point (otherwise the calls check as before). Turning it off settles
+    /// first.
+    pub fn set_deferred_checks(&mut self, on: bool) -> Result<()> {
+        if !on {
+            self.settle()?;
+        }
+        self.defer = on;
+        Ok(())
+    }
+
+    /// Whether [`LockstepRun::advance_steps`] returns before its last check.
+    pub fn deferred_checks(&self) -> bool {
+        self.defer
+    }
+
+    /// A check still to be made ([`LockstepRun::set_deferred_checks`]).
+    pub fn check_pending(&self) -> bool {
+        self.pending.is_some()
+    }
+
+    /// [`LockstepRun::advance_steps`] with the last check deferred: the steps queued, the
+    /// worlds' clocks and bodies noted as if no world failed, what a rewind needs kept.
+    fn advance_deferred(&mut self, steps: u64) -> Result<Vec<usize>> {
+        let clock = self.clock();
+        self.keep_bodies()?;
+        let on_backend = self
+            .sim
+            .backend
+            .save_point()
+            .context("keeping the worlds' rewind point")?;
+        if !on_backend {
+            self.sync()?;
+        }
+        let queued = (|| {
+            let target = self.sim.step.saturating_add(steps);
+            while self.sim.step < target {
+                if on_backend {
+                    self.sim.advance_unchecked(target - self.sim.step)?;
+                } else {
+                    self.sim.advance(target - self.sim.step)?;
+                }
             }
             Ok(())
-        })
+        })();
+        let frozen = match queued {
+            Ok(()) if on_backend => {
+                self.pending = Some(Box::new(Pending {
+                    clock,
+                    steps,
+                    statuses: self.worlds.iter().map(|w| w.status.clone()).collect(),
+                    bodies: self.worlds.iter().map(|w| w.bodies.clone()).collect(),
+                    at: self.worlds.iter().map(|w| w.at).collect(),
+                    origin: self.worlds.iter().map(|w| w.origin).collect(),
+                    since: Vec::new(),
+                }));
+                Vec::new()
+            }
+            Ok(()) => Vec::new(),
+            Err(e @ (SimError::Blowup(_) | SimError::Stall(_))) => {
+                self.rewinds(clock, on_backend, e, steps_of(steps))?
+            }
+            Err(e) => return Err(e.into()),
+        };
+        self.after_advance(on_backend, &frozen)?;
+        Ok(frozen)
+    }
+
+    /// Make the check an advance left pending ([`LockstepRun::set_deferred_checks`]), if any:
+    /// nothing more when it passes; when it finds a blow-up or stall, the worlds' records back
+    /// to the end of that advance, its world frozen and every world put back and stepped again
+    /// as the advance would have done, then the resets and poses made since made again (the
+    /// worlds frozen are returned by the next advance). An error of the backend itself is
+    /// returned.
+    pub fn settle(&mut self) -> Result<()> {
+        let Some(p) = self.pending.take() else {
+            return Ok(());
+        };
+        let e = match self.sim.check() {
+            Ok(()) => return Ok(()),
+            Err(e @ (SimError::Blowup(_) | SimError::Stall(_))) => e,
+            Err(e) => return Err(e.into()),
+        };
+        let Pending {
+            clock,
+            steps,
+            statuses,
+            bodies,
+            at,
+            origin,
+            since,
+        } = *p;
+        // The particles the worlds reset since were put to (they keep them), for the replay.
+        let mut reset_to: Vec<Option<Particles>> = vec![None; self.worlds.len()];
+        for change in &since {
+            if let Since::Reset(list) = change {
+                for &w in list {
+                    reset_to[w] = Some(self.worlds[w].kept.clone());
+                }
+            }
+        }
+        for (w, world) in self.worlds.iter_mut().enumerate() {
+            world.status = statuses[w].clone();
+            world.bodies.clone_from(&bodies[w]);
+            (world.at, world.origin) = (at[w], origin[w]);
+        }
+        let frozen = self.rewinds(clock, true, e, steps_of(steps))?;
+        self.after_advance(true, &frozen)?;
+        self.found.extend(frozen);
+        for change in since {
+            match change {
+                Since::Reset(list) => {
+                    let starts = list
+                        .into_iter()
+                        .filter_map(|w| reset_to[w].clone().map(|p| (w, p)))
+                        .collect();
+                    self.reset_worlds(starts)?;
+                }
+                Since::Poses(body, poses) => self.set_body_poses(body, poses)?,
+            }
+        }
+        Ok(())
+    }
+
+    /// Put rigid body `body` of each world listed in `poses` at its pose from the next step on
+    /// ([`Worlds::set_body_poses`]), remembered while a check is pending (made again if that
+    /// check puts the worlds back).
+    pub fn set_body_poses(&mut self, body: usize, poses: Vec<(usize, BodyPose)>) -> Result<()> {
+        self.sim
+            .backend
+            .set_body_poses(body, &poses)
+            .with_context(|| format!("posing rigid body {body}"))?;
+        if let Some(p) = self.pending.as_mut() {
+            p.since.push(Since::Poses(body, poses));
+        }
+        Ok(())
     }
 
     /// Advance with `advance` from the state now (the rewind point: kept by the backend when it
@@ -284,13 +474,29 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             // The point is the particles read last: they must be the state now.
             self.sync()?;
         }
+        let frozen = match advance(&mut self.sim) {
+            Ok(()) => Vec::new(),
+            Err(e @ (SimError::Blowup(_) | SimError::Stall(_))) => {
+                self.rewinds(clock, on_backend, e, advance)?
+            }
+            Err(e) => return Err(e.into()),
+        };
+        self.after_advance(on_backend, &frozen)?;
+        Ok(frozen)
+    }
+
+    /// After an advance's failure `e`: freeze its world, put every world back to the point
+    /// (at `clock`) and advance again with `advance`, until it passes or no world runs; the
+    /// worlds frozen.
+    fn rewinds(
+        &mut self,
+        clock: Clock,
+        on_backend: bool,
+        mut e: SimError,
+        mut advance: impl FnMut(&mut Simulation<B>) -> Result<(), SimError>,
+    ) -> Result<Vec<usize>> {
         let mut frozen = Vec::new();
         loop {
-            let e = match advance(&mut self.sim) {
-                Ok(()) => break,
-                Err(e @ (SimError::Blowup(_) | SimError::Stall(_))) => e,
-                Err(e) => return Err(e.into()),
-            };
             let w = self.freeze(&e, clock.frame)?;
             frozen.push(w);
             if on_backend {
@@ -299,9 +505,20 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
                 self.rewind(clock)?;
             }
             if self.running() == 0 {
-                break;
+                return Ok(frozen);
             }
+            e = match advance(&mut self.sim) {
+                Ok(()) => return Ok(frozen),
+                Err(e @ (SimError::Blowup(_) | SimError::Stall(_))) => e,
+                Err(e) => return Err(e.into()),
+            };
         }
+    }
+
+    /// The end of an advance: the running worlds' clocks and bodies noted, their particles
+    /// left on the backend (or read, and a frame written, where the point is on the host or
+    /// the run writes files); the summary written when a world froze.
+    fn after_advance(&mut self, on_backend: bool, frozen: &[usize]) -> Result<()> {
         if self.running() > 0 {
             if on_backend && self.out.is_none() {
                 self.note_running();
@@ -313,7 +530,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         if !frozen.is_empty() {
             self.write_summary()?;
         }
-        Ok(frozen)
+        Ok(())
     }
 
     /// Put each world `w` of `starts` to its particles `p` (its initial ones, or any state of as
@@ -372,6 +589,9 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             world.kept = p;
             world.status = WorldStatus::Running;
             (world.at, world.origin) = (now, now);
+        }
+        if let Some(p) = self.pending.as_mut() {
+            p.since.push(Since::Reset(listed_worlds(&listed)));
         }
         Ok(())
     }
@@ -524,6 +744,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
     /// only (it kept its rewind point itself and nothing needed them: [`Worlds::save_point`]);
     /// then [`LockWorld::particles`] is each world's state now. Nothing to do otherwise.
     pub fn sync(&mut self) -> Result<()> {
+        self.settle()?;
         if !self.stale {
             return Ok(());
         }
@@ -599,6 +820,24 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         rtmpm_io::write_atomic(&path, csv.as_bytes())
             .with_context(|| format!("writing {}", path.display()))
     }
+}
+
+/// An advance of `steps` steps of the shared time step (crossing frame ends).
+fn steps_of<B: Worlds + ?Sized>(
+    steps: u64,
+) -> impl FnMut(&mut Simulation<B>) -> Result<(), SimError> {
+    move |sim| {
+        let target = sim.step.saturating_add(steps);
+        while sim.step < target {
+            sim.advance(target - sim.step)?;
+        }
+        Ok(())
+    }
+}
+
+/// The worlds marked in `listed`.
+fn listed_worlds(listed: &[bool]) -> Vec<usize> {
+    (0..listed.len()).filter(|&w| listed[w]).collect()
 }
 
 /// The first collider of `scene` that moves with time (a velocity, an angular velocity or

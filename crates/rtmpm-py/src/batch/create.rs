@@ -109,6 +109,8 @@ fn lockstep_run(s: &Start) -> anyhow::Result<Run> {
     let options = BatchOptions::default();
     let mut run = LockstepRun::new(&s.worlds, text, scene, Box::new(batch), &options)?;
     run.write_first_frame()?;
+    // Step calls return before their check (`BatchSimulation.overlap`) when asked for.
+    run.set_deferred_checks(std::env::var("RTMPM_BATCH_OVERLAP").is_ok_and(|v| v.trim() == "1"))?;
     Ok(Run::Lockstep(Box::new(run)))
 }
 

@@ -95,10 +95,8 @@ impl PyBatch {
             Run::Lockstep(r) => {
                 let (posed, failed) = new_poses(r, &body, &list, update, in_world);
                 for (i, run) in posed {
-                    r.sim
-                        .backend
-                        .set_body_poses(i, &run)
-                        .map_err(|e| sim_error(py, &e))?;
+                    // Through the run: remembered while a step call's check is pending.
+                    r.set_body_poses(i, run).map_err(super::run_error)?;
                 }
                 failed.map_or(Ok(()), Err)
             }
@@ -113,6 +111,7 @@ impl PyBatch {
         world: i64,
     ) -> PyResult<Vec<Bound<'py, PyDict>>> {
         let w = self.world_list(Some(vec![world]))?[0];
+        self.detached(py, Run::settle)?;
         match self.r() {
             Run::Each(r) => {
                 let backend = &mut r.worlds[w].sim.backend;
@@ -162,6 +161,7 @@ impl PyBatch {
     ) -> PyResult<Bound<'py, PyAny>> {
         let count = self.count();
         let body = BodyRef::from_py(body)?;
+        self.detached(py, Run::settle)?;
         let mut flat = Vec::with_capacity(3 * count);
         for w in 0..count {
             let run = self.r();

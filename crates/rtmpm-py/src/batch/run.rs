@@ -73,6 +73,36 @@ impl Run {
         }
     }
 
+    /// Make the health check a GPU step call left pending, if any (see
+    /// [`Run::set_overlap`]; nothing to do on the CPU).
+    pub fn settle(&mut self) -> Result<()> {
+        match self {
+            Run::Each(_) => Ok(()),
+            Run::Lockstep(r) => r.settle(),
+        }
+    }
+
+    /// On the GPU, return from a step call with its steps queued, before its health check
+    /// (`LockstepRun::set_deferred_checks`); refused on the CPU, whose calls end with their
+    /// work done.
+    pub fn set_overlap(&mut self, on: bool) -> Result<()> {
+        match self {
+            Run::Each(_) if on => {
+                anyhow::bail!("overlap is for a batch on the GPU (this one runs on the CPU)")
+            }
+            Run::Each(_) => Ok(()),
+            Run::Lockstep(r) => r.set_deferred_checks(on),
+        }
+    }
+
+    /// Whether step calls return before their health check.
+    pub fn overlap(&self) -> bool {
+        match self {
+            Run::Each(_) => false,
+            Run::Lockstep(r) => r.deferred_checks(),
+        }
+    }
+
     /// Wait until the device has done everything queued so far, every stream of the batch's
     /// context (on the GPU; nothing to do on the CPU, whose calls end with their work done).
     pub fn synchronize(&mut self) -> Result<()> {

@@ -1,7 +1,7 @@
 //! What the worlds are: their number, labels, scene and backend, each world's state (running
 //! or frozen, and why), time, frames and steps.
 
-use super::PyBatch;
+use super::{PyBatch, Run};
 use crate::backend::BackendInfo;
 use crate::scene::PyScene;
 use numpy::PyArray1;
@@ -53,6 +53,7 @@ impl PyBatch {
     /// count from its last reset.
     #[getter]
     fn status<'py>(&mut self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        self.detached(py, Run::settle)?;
         let r = self.r();
         (0..r.count())
             .map(|w| {
@@ -80,13 +81,16 @@ impl PyBatch {
 
     /// ``(N,)`` bool array: True where a world is running, False where it is frozen.
     #[getter]
-    fn running<'py>(&mut self, py: Python<'py>) -> Bound<'py, PyArray1<bool>> {
+    fn running<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<bool>>> {
+        self.detached(py, Run::settle)?;
         let r = self.r();
         let running = (0..r.count()).map(|w| *r.status(w) == WorldStatus::Running);
-        PyArray1::from_vec(py, running.collect())
+        Ok(PyArray1::from_vec(py, running.collect()))
     }
 
-    /// ``(N,)`` float64 array: each world's simulated time (s).
+    /// ``(N,)`` float64 array: each world's simulated time (s). With :attr:`overlap` on, read
+    /// without waiting for the last step call's check: a world that check then freezes goes
+    /// back to its frame's time.
     #[getter]
     fn time<'py>(&mut self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         let r = self.r();

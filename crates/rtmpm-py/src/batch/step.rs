@@ -56,6 +56,28 @@ impl PyBatch {
         self.detached(py, Run::synchronize)
     }
 
+    /// On the GPU: whether :meth:`step` returns with its steps queued, before the health check
+    /// of its last step (default ``False``, or ``True`` with ``RTMPM_BATCH_OVERLAP=1`` in the
+    /// environment as the batch is made). On, the script's resets, poses and own work for the
+    /// next call run while the device steps. The check is made as the next call that steps,
+    /// reads the particles (``x``, ``v``, a checkpoint), :attr:`status`, :attr:`running` or the
+    /// rigid bodies begins (waiting for the steps then); a blow-up it finds is handled as
+    /// before (the world frozen, every world put back and stepped again without it), the
+    /// resets and poses made since made again, and the world is returned by the next
+    /// :meth:`step` rather than by the call whose steps failed. :attr:`time`, :attr:`frame`,
+    /// :attr:`steps` and the device arrays do not wait: a world that check then freezes goes
+    /// back to its frame. Only for a fixed time step (``time.dt``); otherwise each call checks as
+    /// before. Setting ``False`` makes a pending check first. The CPU batch refuses ``True``.
+    #[getter]
+    fn overlap(&mut self) -> bool {
+        self.r().overlap()
+    }
+
+    #[setter]
+    fn set_overlap(&mut self, py: Python<'_>, on: bool) -> PyResult<()> {
+        self.detached(py, move |run| run.set_overlap(on))
+    }
+
     /// Rebuilds of the GPU's particle-to-block mapping since the batch was made (``None`` on the
     /// CPU): a diagnostic, read from the device after its queued work (a wait). A step rebuilds
     /// the mapping when a particle left the part of the grid it was mapped to, and the step
