@@ -290,9 +290,11 @@ impl CudaBatch {
 
     /// Put rigid body `body` of each world `w` of `poses` at its pose from the next step on,
     /// the worlds' other bodies where they are ([`Worlds::set_body_poses`]): every world and the
-    /// body checked first (nothing changes on an error), then the worlds posed (on every core
-    /// from 4,096 worlds; each world's rapier world is its own: the same result in any order). A script posing a
-    /// tool in every world pays no vector per world.
+    /// body checked first (nothing changes on an error), then the poses kept until the next
+    /// step's upload puts them into the worlds' rapier worlds on every core (or a read that needs
+    /// them does; `CudaOptions::batch_poses`: the same state bit for bit as putting each in at
+    /// once). A script posing a tool in every world pays no vector per world and touches no
+    /// world's rapier world.
     pub fn set_body_poses(
         &mut self,
         body: usize,
@@ -509,8 +511,9 @@ fn world_bodies(
     };
     let mesh_offsets = single.mesh_offsets();
     drop(single);
-    let at_read = backend.options.batch_sums_at_read;
-    let made = bodies::WorldBodies::new(worlds, &backend.stream, mesh_offsets, at_read)?;
+    let o = &backend.options;
+    let lazy = (o.batch_sums_at_read, o.batch_poses);
+    let made = bodies::WorldBodies::new(worlds, &backend.stream, mesh_offsets, lazy)?;
     if let Some(b) = &made {
         let c = &mut backend.ctx;
         (c.bodies, c.body_exchange, c.n_bodies) = b.ctx_fields(&backend.stream);

@@ -217,6 +217,25 @@ pub struct CudaOptions {
     /// it, node by node (`stencil_blocks`; `=1`). The same nodes and the same sums bit for bit,
     /// fewer instructions; kept to compare the two in one binary.
     pub stencil_pairs: bool,
+    /// A batch of worlds: when a pose given to one body of many worlds
+    /// (`crate::batch::CudaBatch::set_body_poses`, Python's `set_rigid_body`) goes into its
+    /// world's rapier world ([`BodyPoses`]).
+    pub batch_poses: BodyPoses,
+}
+
+/// When the poses given to a body of a batch's worlds go into their rapier worlds
+/// (`--cuda-options body_poses=...`). The worlds go through the same setter calls in the same
+/// order either way: the same state bit for bit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BodyPoses {
+    /// `deferred` (the default): kept until the next step's upload (or a read that needs them),
+    /// which puts them in on every core.
+    Deferred,
+    /// `deferred_serial`: kept as with `Deferred`, put in on one thread (for comparison).
+    DeferredSerial,
+    /// `eager`: put in at once, on the caller's thread (as before the kept poses; for
+    /// comparison).
+    Eager,
 }
 
 /// Default of [`CudaOptions::sort_scratch_fields`]: 4 words per particle of scratch instead of
@@ -259,6 +278,7 @@ impl Default for CudaOptions {
             compact_state: false,
             batch_sums_at_read: true,
             stencil_pairs: true,
+            batch_poses: BodyPoses::Deferred,
         }
     }
 }
@@ -271,7 +291,8 @@ impl std::str::FromStr for CudaOptions {
     /// `ck_grid` (wave/resident), `transport` (p2p/nccl), `barrier` (spin/events), `exchange` (kernels/fused/push), `devices`
     /// (ordinals separated by `:`), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
     /// `rmap_pblocks`, `shared`, `sort_fields` (counts), `fluid_state` (on/off), `state`
-    /// (f32/compact), `body_sums` (read/step), `addressing` (pairs/blocks).
+    /// (f32/compact), `body_sums` (read/step), `addressing` (pairs/blocks), `body_poses`
+    /// (deferred/deferred_serial/eager).
     fn from_str(s: &str) -> Result<Self, String> {
         let mut o = CudaOptions::default();
         for item in s.split(',').map(str::trim).filter(|t| !t.is_empty()) {
@@ -368,6 +389,17 @@ impl std::str::FromStr for CudaOptions {
                 "addressing" => {
                     o.stencil_pairs = choice(item, v, &[("pairs", true), ("blocks", false)])?
                 }
+                "body_poses" => {
+                    o.batch_poses = choice(
+                        item,
+                        v,
+                        &[
+                            ("deferred", BodyPoses::Deferred),
+                            ("deferred_serial", BodyPoses::DeferredSerial),
+                            ("eager", BodyPoses::Eager),
+                        ],
+                    )?
+                }
                 "fill" => o.device_fill = choice(item, v, &[("device", true), ("host", false)])?,
                 "sample" => {
                     o.device_sample = choice(item, v, &[("device", true), ("host", false)])?
@@ -454,6 +486,11 @@ mod tests {
         assert!(CudaOptions::default().batch_sums_at_read);
         let o: CudaOptions = "body_sums=step".parse().unwrap();
         assert!(!o.batch_sums_at_read);
+        assert_eq!(CudaOptions::default().batch_poses, BodyPoses::Deferred);
+        let o: CudaOptions = "body_poses=eager".parse().unwrap();
+        assert!(o.batch_poses == BodyPoses::Eager && o.batch_sums_at_read);
+        let o: CudaOptions = "body_poses=deferred_serial".parse().unwrap();
+        assert_eq!(o.batch_poses, BodyPoses::DeferredSerial);
         let e = "body_sums=never".parse::<CudaOptions>().unwrap_err();
         assert!(e.contains("expected read or step"), "{e}");
         let o: CudaOptions = "ck_p2g=warp".parse().unwrap();

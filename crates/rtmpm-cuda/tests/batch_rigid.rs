@@ -441,32 +441,45 @@ fn tool_run(
 }
 
 /// A batch of kinematic tools keeps each step's sums on the device until a load is read
-/// (`body_sums=read`, the default): the loads read then, at any step, twice in a step or not
-/// at all for a while, are those of the copy after every step (`body_sums=step`) bit for bit,
-/// and so are the tools' poses and every particle (200 steps, the tools posed by body at some
-/// steps). About 3 s on an H200.
+/// (`body_sums=read`, the default) and the poses given to its tools until the next step
+/// (`body_poses=deferred`, the default): the loads read then, at any step, twice in a step or not
+/// at all for a while, the tools' poses read and stepped, and every particle are those of the
+/// copy after every step (`body_sums=step`) and of poses put at once (`body_poses=eager`) bit for
+/// bit, each switch alone and both, and the kept poses put in on one thread
+/// (`deferred_serial`) (200 steps, the tools posed by body at some steps, one world's
+/// twice with a read between). About 5 s on an H200.
 #[test]
 #[ignore = "needs a CUDA GPU"]
-fn loads_read_from_the_device_are_those_copied_after_every_step_bit_for_bit() {
+fn kept_sums_and_kept_poses_give_the_eager_results_bit_for_bit() {
     if !gpu() {
         return;
     }
     let read = |s: usize| s.is_multiple_of(7) || (120..130).contains(&s);
     let pose = |s: usize| s % 4 == 1;
-    let step_copy = CudaOptions {
-        batch_sums_at_read: false,
+    use rtmpm_cuda::BodyPoses;
+    let with = |sums_at_read, poses| CudaOptions {
+        batch_sums_at_read: sums_at_read,
+        batch_poses: poses,
         ..precise()
     };
-    let (loads_a, poses_a, parts_a) = tool_run(precise(), 200, read, pose);
-    let (loads_b, poses_b, parts_b) = tool_run(step_copy, 200, read, pose);
+    let (loads, poses, parts) = tool_run(with(true, BodyPoses::Deferred), 200, read, pose);
     assert!(
-        loads_a
+        loads
             .iter()
             .skip(1)
             .any(|l| l.iter().any(|&b| f64::from_bits(b) != 0.0)),
         "the tools feel the jelly"
     );
-    assert_eq!(loads_a, loads_b, "loads");
-    assert_eq!(poses_a, poses_b, "poses");
-    assert!(parts_a == parts_b, "particles differ");
+    for (sums, kept) in [
+        (false, BodyPoses::Deferred),
+        (true, BodyPoses::DeferredSerial),
+        (true, BodyPoses::Eager),
+        (false, BodyPoses::Eager),
+    ] {
+        let (l, p, x) = tool_run(with(sums, kept), 200, read, pose);
+        let what = format!("body_sums at read {sums}, poses {kept:?}");
+        assert_eq!(loads, l, "{what}: loads");
+        assert_eq!(poses, p, "{what}: poses");
+        assert!(parts == x, "{what}: particles differ");
+    }
 }

@@ -16,20 +16,25 @@
 
 use crate::contract::{BODY_EXCHANGE_SLOTS, GpuBody};
 use crate::error::err;
+use crate::options::BodyPoses;
 use cudarc::driver::{CudaEvent, CudaSlice, CudaStream, DevicePtr, PinnedHostSlice};
-use rayon::prelude::*;
-use rtmpm_rigid::{BodyLoad, BodyPose, BodyState, Exchange, RigidKind, RigidWorld};
+use rtmpm_rigid::{BodyLoad, BodyPose, BodyState, Exchange, RigidKind};
 use rtmpm_scene::Scene;
 use rtmpm_sim::SimError;
 use std::sync::{Arc, Mutex, MutexGuard};
 
-/// Worlds posed at once from which [`WorldBodies::set_body_poses`] poses them on every core.
-const PARALLEL_POSES: usize = 4096;
+mod host;
+
+use host::HostBodies;
 
 /// Every world's rigid bodies: their rapier worlds and the device side of their coupling.
 pub(crate) struct WorldBodies {
-    /// One rapier world per world, in order.
-    worlds: Vec<RigidWorld>,
+    /// The host side: every world's rapier world, its bodies' poses and device records, the
+    /// poses given and not yet put into the worlds (behind a lock: a read through `&self` may
+    /// put them in first).
+    rigid: Mutex<HostBodies>,
+    /// Worlds.
+    count: usize,
     /// Bodies of one world.
     per: usize,
     /// `worlds x per` [`GpuBody`] records (`Ctx::bodies` in a batch).
@@ -45,9 +50,6 @@ pub(crate) struct WorldBodies {
     held: bool,
     /// The batch's stream (the copies of the sums when read).
     stream: Arc<CudaStream>,
-    /// Where each body's distance grid starts in the mesh table (world 0's mesh bodies, which
-    /// every world shares: `super::unsupported`).
-    mesh_offsets: Vec<u32>,
     /// Some world has a dynamic body (the host waits for every step's sums).
     dynamic: bool,
     /// The dt of the last step (whose sums are the loads); `None` before the first step.
@@ -66,12 +68,12 @@ impl WorldBodies {
     /// The bodies of the worlds `worlds` (`None` when they have none; every world has as many,
     /// `super::unsupported`), their buffers allocated on `stream`; `mesh_offsets`: where each
     /// body's distance grid starts in the mesh table (`encode::Tables::body_mesh`);
-    /// `sums_at_read`: `CudaOptions::batch_sums_at_read`.
+    /// `sums_at_read`: `CudaOptions::batch_sums_at_read`; `poses`: `CudaOptions::batch_poses`.
     pub fn new(
         worlds: &[Scene],
         stream: &Arc<CudaStream>,
         mesh_offsets: Vec<u32>,
-        sums_at_read: bool,
+        (sums_at_read, poses): (bool, BodyPoses),
     ) -> Result<Option<WorldBodies>, SimError> {
         let per = worlds.first().map_or(0, |s| s.rigid_bodies.len());
         if per == 0 {
@@ -103,7 +105,8 @@ impl WorldBodies {
             .flat_map(|s| &s.rigid_bodies)
             .any(|b| b.kind == RigidKind::Dynamic);
         Ok(Some(WorldBodies {
-            worlds: rapier,
+            count: rapier.len(),
+            rigid: Mutex::new(HostBodies::new(rapier, mesh_offsets, poses)),
             per,
             table,
             exchange,
@@ -115,7 +118,6 @@ impl WorldBodies {
             at_read: sums_at_read && !dynamic,
             held: false,
             stream: stream.clone(),
-            mesh_offsets,
             dynamic,
             last_dt: None,
         }))
@@ -137,16 +139,8 @@ impl WorldBodies {
                 .map_err(err("clear the worlds' rigid-body impulses"))?;
             self.held = false;
         }
-        let recs: Vec<GpuBody> = self
-            .worlds
-            .iter()
-            .flat_map(|w| w.states().iter().enumerate())
-            .map(|(i, b)| {
-                let mesh = self.mesh_offsets.get(i).copied().unwrap_or(0);
-                crate::step::rigid::encode(b, mesh)
-            })
-            .collect();
-        let bytes: &[u8] = bytemuck::cast_slice(&recs);
+        let rigid = self.rigid.get_mut().unwrap_or_else(|p| p.into_inner());
+        let bytes: &[u8] = bytemuck::cast_slice::<GpuBody, u8>(rigid.records());
         stream
             .memcpy_htod(bytes, &mut self.table.slice_mut(..bytes.len()))
             .map_err(err("upload the worlds' rigid bodies"))
@@ -170,26 +164,19 @@ impl WorldBodies {
                 .memset_zeros(&mut self.exchange)
                 .map_err(err("clear the worlds' rigid-body impulses"))?;
         }
-        // The worlds advance on every core (each world is independent: the same results in
-        // any order).
+        // The worlds advance on every core.
         if !self.dynamic {
-            let none = vec![Exchange::default(); self.per];
-            self.worlds
-                .par_iter_mut()
-                .for_each(|w| w.advance(&none, dt));
+            self.host_mut().advance(None, dt);
             return Ok(());
         }
-        let (count, per) = (self.worlds.len(), self.per);
+        let (count, per) = (self.count, self.per);
         let rows = count * per;
         let each: Vec<Vec<Exchange>> = self.with_sums(|sums| {
             (0..count)
                 .map(|w| row_sums(sums, rows, w * per, per))
                 .collect()
         })?;
-        self.worlds
-            .par_iter_mut()
-            .zip(&each)
-            .for_each(|(world, ex)| world.advance(ex, dt));
+        self.host_mut().advance(Some(&each), dt);
         Ok(())
     }
 
@@ -223,98 +210,60 @@ impl WorldBodies {
         let Some(dt) = self.last_dt else {
             return Ok(vec![BodyLoad::default(); self.per]);
         };
-        let rows = self.worlds.len() * self.per;
+        let rows = self.count * self.per;
         let sums = self.with_sums(|s| row_sums(s, rows, w * self.per, self.per))?;
         Ok(sums.iter().map(|e| e.load(dt as f64)).collect())
     }
 
+    /// The host side, also after a panic while it was held.
+    fn host(&self) -> MutexGuard<'_, HostBodies> {
+        self.rigid.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// The host side through `&mut self` (no lock taken).
+    fn host_mut(&mut self) -> &mut HostBodies {
+        self.rigid.get_mut().unwrap_or_else(|p| p.into_inner())
+    }
+
     /// Every world's body states, world by world (what bounds the shared time step).
     pub fn states(&self) -> Vec<BodyState> {
-        self.worlds
-            .iter()
-            .flat_map(|w| w.states().iter().cloned())
-            .collect()
+        self.host().states()
     }
 
     /// World `w`'s bodies' poses and velocities.
     pub fn poses(&self, w: usize) -> Vec<BodyPose> {
-        self.worlds.get(w).map_or_else(Vec::new, |r| r.poses())
+        let mut out = Vec::with_capacity(self.per);
+        self.poses_into(w, &mut out);
+        out
     }
 
     /// World `w`'s bodies' poses and velocities into `out` (emptied first; empty for no such
     /// world).
     pub fn poses_into(&self, w: usize, out: &mut Vec<BodyPose>) {
-        match self.worlds.get(w) {
-            Some(r) => r.poses_into(out),
-            None => out.clear(),
-        }
+        self.host().poses_into(w, out)
     }
 
     /// Body `body` of world `w` (`None`: no such world or body).
     pub fn pose(&self, w: usize, body: usize) -> Option<BodyPose> {
-        self.worlds.get(w)?.pose(body)
+        self.host().pose(w, body)
     }
 
-    /// Put body `body` of each world `w` of `poses` at its pose, the worlds' other bodies where
-    /// they are: the worlds and the body checked first, then posed (on every core from
-    /// [`PARALLEL_POSES`] worlds; a world listed twice ends with its last pose, as one after the
-    /// other would).
+    /// Put body `body` of each world `w` of `poses` at its pose from the next step on, the
+    /// worlds' other bodies where they are: the worlds and the body checked first (nothing
+    /// changes on an error; a world listed twice ends with its last pose, as one after the other
+    /// would), then the poses kept until the next step puts them into the worlds on every core
+    /// ([`HostBodies::set_body_poses`]).
     pub fn set_body_poses(
         &mut self,
         body: usize,
         poses: &[(usize, BodyPose)],
     ) -> Result<(), SimError> {
-        let count = self.worlds.len();
-        if body >= self.per && !poses.is_empty() {
-            return Err(SimError::Backend(format!(
-                "CUDA batch: rigid body {body}: a world has {}",
-                self.per
-            )));
-        }
-        let mut last = vec![None; count];
-        for (j, (w, _)) in poses.iter().enumerate() {
-            let slot = last.get_mut(*w).ok_or_else(|| {
-                SimError::Backend(format!("CUDA batch: no world {w} (the batch has {count})"))
-            })?;
-            *slot = Some(j);
-        }
-        let pose_one = |(w, (world, at)): (usize, (&mut RigidWorld, &Option<usize>))| {
-            let pose = &poses[(*at)?].1;
-            world.set_pose(body, pose).err().map(|e| (w, e))
-        };
-        // About 65 ns a world on one core (2-core machine, rapier's setters and the state):
-        // on every core only where that outweighs waking the pool.
-        let failed: Option<(usize, String)> = if poses.len() < PARALLEL_POSES {
-            self.worlds
-                .iter_mut()
-                .zip(&last)
-                .enumerate()
-                .filter_map(pose_one)
-                .min_by_key(|(w, _)| *w)
-        } else {
-            self.worlds
-                .par_iter_mut()
-                .zip(&last)
-                .enumerate()
-                .with_min_len(256)
-                .filter_map(pose_one)
-                .min_by_key(|(w, _)| *w)
-        };
-        match failed {
-            Some((w, e)) => Err(SimError::Backend(format!("CUDA batch: world {w}: {e}"))),
-            None => Ok(()),
-        }
+        self.host_mut().set_body_poses(body, poses)
     }
 
     /// Put world `w`'s bodies at `poses` (one per body).
     pub fn set_poses(&mut self, w: usize, poses: &[BodyPose]) -> Result<(), SimError> {
-        let count = self.worlds.len();
-        let world = self.worlds.get_mut(w).ok_or_else(|| {
-            SimError::Backend(format!("CUDA batch: no world {w} (the batch has {count})"))
-        })?;
-        world
-            .set_poses(poses)
-            .map_err(|e| SimError::Backend(format!("CUDA batch: world {w}: {e}")))
+        self.host_mut().set_poses(w, poses)
     }
 
     /// Bodies of one world.

@@ -17,6 +17,49 @@ use rtmpm_driver::batch::WorldStatus;
 use rtmpm_driver::batch::lockstep::LockstepRun;
 use rtmpm_rigid::{BodyLoad, BodyPose};
 use rtmpm_sim::Worlds;
+use std::time::Instant;
+
+/// `RTMPM_POSE_TIMING=1`: where `set_rigid_body`'s time goes on a GPU batch, printed to stderr
+/// every 100 calls (the means of the arrays read, the checks of the new poses, and their putting
+/// in); off by default (one check of a flag a call).
+mod timing {
+    use std::sync::Mutex;
+    use std::sync::OnceLock;
+    use std::time::Instant;
+
+    /// Calls summed, worlds posed, and seconds of each part.
+    static SUMS: Mutex<(u32, usize, [f64; 3])> = Mutex::new((0, 0, [0.0; 3]));
+
+    fn on() -> bool {
+        static ON: OnceLock<bool> = OnceLock::new();
+        *ON.get_or_init(|| std::env::var("RTMPM_POSE_TIMING").is_ok_and(|v| v.trim() == "1"))
+    }
+
+    /// One call posing `worlds` worlds, its parts between the instants `t`.
+    pub fn record(worlds: usize, t: [Instant; 4]) {
+        if !on() {
+            return;
+        }
+        let mut s = SUMS.lock().unwrap_or_else(|p| p.into_inner());
+        s.0 += 1;
+        s.1 += worlds;
+        for (i, part) in s.2.iter_mut().enumerate() {
+            *part += (t[i + 1] - t[i]).as_secs_f64();
+        }
+        if s.0 == 100 {
+            let us = |x: f64| 1e6 * x / 100.0;
+            eprintln!(
+                "RTMPM_POSE_TIMING set_rigid_body (mean of 100 calls, {} worlds a call): arrays \
+                 {:.1} us, checks {:.1} us, put {:.1} us",
+                s.1 / 100,
+                us(s.2[0]),
+                us(s.2[1]),
+                us(s.2[2])
+            );
+            *s = (0, 0, [0.0; 3]);
+        }
+    }
+}
 
 /// A per-world vector argument: one value for every world listed, or one row per world.
 fn per_world<const K: usize>(
@@ -66,6 +109,7 @@ impl PyBatch {
         angular_velocity: Option<Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         self.usable()?;
+        let t0 = Instant::now();
         let list = self.world_list(worlds)?;
         let k = list.len();
         let body = BodyRef::from_py(body)?;
@@ -73,6 +117,7 @@ impl PyBatch {
         let rotation = per_world::<4>("rotation", rotation, k)?;
         let velocity = per_world::<3>("velocity", velocity, k)?;
         let angular = per_world::<3>("angular_velocity", angular_velocity, k)?;
+        let t1 = Instant::now();
         let update = |j: usize| BodyUpdate {
             position: position.as_ref().map(|p| p[j]),
             rotation: rotation.as_ref().map(|p| p[j]),
@@ -94,10 +139,12 @@ impl PyBatch {
             }
             Run::Lockstep(r) => {
                 let (posed, failed) = new_poses(r, &body, &list, update, in_world);
+                let t2 = Instant::now();
                 for (i, run) in posed {
                     // Through the run: remembered while a step call's check is pending.
                     r.set_body_poses(i, run).map_err(super::run_error)?;
                 }
+                timing::record(k, [t0, t1, t2, Instant::now()]);
                 failed.map_or(Ok(()), Err)
             }
         }

@@ -1,0 +1,657 @@
+//! The host side of a GPU batch's rigid bodies ([`HostBodies`]): every world's rapier world and,
+//! beside them in rows `w * per + b` (body `b` of world `w`), each body's pose as its world holds
+//! it and its record for the device table, rewritten whenever a world changes (each step's
+//! advance, on every core; a pose given to it).
+//!
+//! Why the rows: between two calls of a script the step advanced every world on every core, so a
+//! script posing a tool in every world from its one thread found each world's rapier bodies in
+//! other cores' caches or in memory: reading and setting 256 worlds' tool took 0.15-0.22 ms with
+//! the caches flushed between calls, 0.03 ms warm (the `pose_path_timing` test below, on a
+//! 2-core machine). Now the pose a script reads is its row (0.01-0.02 ms a call there), and the
+//! pose it gives a body is kept, in the order given (`CudaOptions::batch_poses`), until something
+//! needs the world's own state: the next step's upload, a read of that body's pose, the worlds'
+//! states, a new pose for every body of that world (a reset, a rewind). Then every kept pose is
+//! given to its world, on every core from [`PARALLEL_FLUSH`] worlds, with the same setter calls
+//! in the same order as when each is given at once (`body_poses=eager`, kept for comparison), so
+//! the worlds' state is the same bit for bit. A row of a body with no kept pose is its world's:
+//! giving another body of that world its pose puts this one again at the pose it has (rapier's
+//! setters change nothing for an unchanged value), which leaves its pose and velocities as they
+//! are.
+
+use crate::contract::GpuBody;
+use crate::options::BodyPoses;
+use rayon::prelude::*;
+use rtmpm_rigid::{BodyPose, BodyState, Exchange, RigidWorld};
+use rtmpm_sim::SimError;
+
+/// Worlds posed at once from which [`HostBodies::set_body_poses`] poses them on every core when
+/// poses are given at once (`body_poses=eager`).
+const PARALLEL_POSES: usize = 4096;
+
+/// Worlds with kept poses from which [`HostBodies::flush`] gives them on every core (each world
+/// costs about a microsecond when its memory is cold, waking the pool some microseconds).
+const PARALLEL_FLUSH: usize = 16;
+
+/// A kept pose: world, body, pose.
+type Kept = (usize, usize, BodyPose);
+
+/// Every world's rapier world, its bodies' poses and device records in rows, and the poses given
+/// but not yet put into the worlds.
+pub(crate) struct HostBodies {
+    /// One rapier world per world, in order.
+    worlds: Vec<RigidWorld>,
+    /// Bodies of one world.
+    per: usize,
+    /// Where each body's distance grid starts in the mesh table.
+    mesh_offsets: Vec<u32>,
+    /// Each body's pose as its world holds it (row `w * per + b`), for the rows not `pending`.
+    poses: Vec<BodyPose>,
+    /// Each body's device record of its world's state (row `w * per + b`), once no pose is kept.
+    records: Vec<GpuBody>,
+    /// Poses given and not yet put into their worlds, in the order given.
+    kept: Vec<Kept>,
+    /// Rows with a pose in `kept`.
+    pending: Vec<bool>,
+    /// Poses are kept until needed and then put in on every core, or on one thread, or put in
+    /// at once (`CudaOptions::batch_poses`).
+    mode: BodyPoses,
+}
+
+/// World `world`'s rows from its state now: `poses` and `records` are its bodies'.
+fn write_rows(world: &RigidWorld, mesh: &[u32], poses: &mut [BodyPose], records: &mut [GpuBody]) {
+    let rows = poses.iter_mut().zip(records.iter_mut());
+    for (i, ((p, r), s)) in rows.zip(world.states()).enumerate() {
+        if let Some(pose) = world.pose(i) {
+            *p = pose;
+        }
+        *r = crate::step::rigid::encode(s, mesh.get(i).copied().unwrap_or(0));
+    }
+}
+
+/// Put the kept poses `run` (one world's, in the order given) into `world`, then its rows.
+fn put_kept(
+    world: &mut RigidWorld,
+    run: &[Kept],
+    mesh: &[u32],
+    poses: &mut [BodyPose],
+    records: &mut [GpuBody],
+) {
+    for (_, body, pose) in run {
+        // `set_body_poses` checked the body: `set_pose` refuses only a body past the last.
+        let _ = world.set_pose(*body, pose);
+    }
+    write_rows(world, mesh, poses, records);
+}
+
+impl HostBodies {
+    /// The bodies of `worlds` (every world has as many), `mesh_offsets` where each body's distance
+    /// grid starts in the mesh table; `mode`: `CudaOptions::batch_poses`.
+    pub fn new(worlds: Vec<RigidWorld>, mesh_offsets: Vec<u32>, mode: BodyPoses) -> HostBodies {
+        let per = worlds.first().map_or(0, |w| w.states().len());
+        let rows = worlds.len() * per;
+        let poses: Vec<BodyPose> = worlds.iter().flat_map(|w| w.poses()).collect();
+        let records = vec![GpuBody::default(); rows];
+        let mut h = HostBodies {
+            worlds,
+            per,
+            mesh_offsets,
+            poses,
+            records,
+            kept: Vec::new(),
+            pending: vec![false; rows],
+            mode,
+        };
+        for w in 0..h.worlds.len() {
+            h.rewrite(w);
+        }
+        h
+    }
+
+    /// World `w`'s rows rewritten from its state.
+    fn rewrite(&mut self, w: usize) {
+        let rows = w * self.per..(w + 1) * self.per;
+        write_rows(
+            &self.worlds[w],
+            &self.mesh_offsets,
+            &mut self.poses[rows.clone()],
+            &mut self.records[rows],
+        );
+    }
+
+    /// Every kept pose put into its world (each world's in the order given; on every core from
+    /// [`PARALLEL_FLUSH`] worlds), and the posed worlds' rows rewritten.
+    pub fn flush(&mut self) {
+        if self.kept.is_empty() {
+            return;
+        }
+        let mut kept = std::mem::take(&mut self.kept);
+        kept.sort_by_key(|k| k.0); // stable: each world's in the order given
+        let per = self.per.max(1);
+        for &(w, b, _) in &kept {
+            self.pending[w * per + b] = false;
+        }
+        let runs = kept.chunk_by(|a, b| a.0 == b.0);
+        let mesh = &self.mesh_offsets;
+        let serial = self.mode == BodyPoses::DeferredSerial;
+        if serial || runs.clone().count() < PARALLEL_FLUSH {
+            for run in runs {
+                let w = run[0].0;
+                let rows = w * per..(w + 1) * per;
+                put_kept(
+                    &mut self.worlds[w],
+                    run,
+                    mesh,
+                    &mut self.poses[rows.clone()],
+                    &mut self.records[rows],
+                );
+            }
+        } else {
+            // Each world's run of kept poses by its index (`usize::MAX`: none).
+            let mut first = vec![usize::MAX; self.worlds.len()];
+            for (j, k) in kept.iter().enumerate().rev() {
+                first[k.0] = j;
+            }
+            let kept = &kept;
+            self.worlds
+                .par_iter_mut()
+                .zip(self.poses.par_chunks_mut(per))
+                .zip(self.records.par_chunks_mut(per))
+                .zip(first.par_iter())
+                .filter(|(_, f)| **f != usize::MAX)
+                .for_each(|(((world, poses), records), &f)| {
+                    let w = kept[f].0;
+                    let n = kept[f..].iter().take_while(|k| k.0 == w).count();
+                    put_kept(world, &kept[f..f + n], mesh, poses, records);
+                });
+        }
+        kept.clear();
+        self.kept = kept; // its memory kept for the next poses
+    }
+
+    /// World `w`'s kept poses put into it (the others kept), and its rows rewritten.
+    fn flush_world(&mut self, w: usize) {
+        if !self.kept.iter().any(|k| k.0 == w) {
+            return;
+        }
+        let run: Vec<Kept> = self.kept.iter().filter(|k| k.0 == w).copied().collect();
+        self.kept.retain(|k| k.0 != w);
+        let per = self.per;
+        for &(_, b, _) in &run {
+            self.pending[w * per + b] = false;
+        }
+        let rows = w * per..(w + 1) * per;
+        put_kept(
+            &mut self.worlds[w],
+            &run,
+            &self.mesh_offsets,
+            &mut self.poses[rows.clone()],
+            &mut self.records[rows],
+        );
+    }
+
+    /// Every body's record for the device table (the kept poses put into their worlds first).
+    pub fn records(&mut self) -> &[GpuBody] {
+        self.flush();
+        &self.records
+    }
+
+    /// Advance every world by `dt` (each by its bodies' sums `each[w]`, or none), on every core,
+    /// and rewrite its rows.
+    pub fn advance(&mut self, each: Option<&[Vec<Exchange>]>, dt: f32) {
+        self.flush();
+        let none = vec![Exchange::default(); self.per];
+        let mesh = &self.mesh_offsets;
+        let per = self.per.max(1);
+        // Each world is independent: the same results in any order.
+        self.worlds
+            .par_iter_mut()
+            .zip(self.poses.par_chunks_mut(per))
+            .zip(self.records.par_chunks_mut(per))
+            .enumerate()
+            .for_each(|(w, ((world, poses), records))| {
+                let ex = each.and_then(|e| e.get(w)).unwrap_or(&none);
+                world.advance(ex, dt);
+                write_rows(world, mesh, poses, records);
+            });
+    }
+
+    /// Every world's body states, world by world (the kept poses put into their worlds first).
+    pub fn states(&mut self) -> Vec<BodyState> {
+        self.flush();
+        self.worlds
+            .iter()
+            .flat_map(|w| w.states().iter().cloned())
+            .collect()
+    }
+
+    /// Body `body` of world `w` as its world holds it (its kept pose put in first, with every
+    /// other: a pose read is its world's); `None`: no such world or body.
+    pub fn pose(&mut self, w: usize, body: usize) -> Option<BodyPose> {
+        if w >= self.worlds.len() || body >= self.per {
+            return None;
+        }
+        let row = w * self.per + body;
+        if self.pending[row] {
+            self.flush();
+        }
+        Some(self.poses[row])
+    }
+
+    /// World `w`'s bodies' poses into `out` (emptied first; empty for no such world).
+    pub fn poses_into(&mut self, w: usize, out: &mut Vec<BodyPose>) {
+        out.clear();
+        if w >= self.worlds.len() {
+            return;
+        }
+        let rows = w * self.per..(w + 1) * self.per;
+        if self.pending[rows.clone()].contains(&true) {
+            self.flush();
+        }
+        out.extend_from_slice(&self.poses[rows]);
+    }
+
+    /// Put world `w`'s bodies at `poses` (one per body), after the poses kept for it.
+    pub fn set_poses(&mut self, w: usize, poses: &[BodyPose]) -> Result<(), SimError> {
+        let count = self.worlds.len();
+        if w >= count {
+            return Err(SimError::Backend(format!(
+                "CUDA batch: no world {w} (the batch has {count})"
+            )));
+        }
+        self.flush_world(w);
+        let r = self.worlds[w]
+            .set_poses(poses)
+            .map_err(|e| SimError::Backend(format!("CUDA batch: world {w}: {e}")));
+        self.rewrite(w);
+        r
+    }
+
+    /// Put body `body` of each world `w` of `poses` at its pose, the worlds' other bodies where
+    /// they are: the worlds and the body checked first (nothing changes on an error), then each
+    /// world's last pose of the list kept (or, `body_poses=eager`, put into the world at once: on
+    /// every core from [`PARALLEL_POSES`] worlds).
+    pub fn set_body_poses(
+        &mut self,
+        body: usize,
+        poses: &[(usize, BodyPose)],
+    ) -> Result<(), SimError> {
+        let count = self.worlds.len();
+        if body >= self.per && !poses.is_empty() {
+            return Err(SimError::Backend(format!(
+                "CUDA batch: rigid body {body}: a world has {}",
+                self.per
+            )));
+        }
+        let mut last = vec![None; count];
+        for (j, (w, _)) in poses.iter().enumerate() {
+            let slot = last.get_mut(*w).ok_or_else(|| {
+                SimError::Backend(format!("CUDA batch: no world {w} (the batch has {count})"))
+            })?;
+            *slot = Some(j);
+        }
+        if self.mode != BodyPoses::Eager {
+            for (w, at) in last.iter().enumerate() {
+                if let Some(j) = at {
+                    self.kept.push((w, body, poses[*j].1));
+                    self.pending[w * self.per + body] = true;
+                }
+            }
+            return Ok(());
+        }
+        let (per, mesh) = (self.per, &self.mesh_offsets);
+        if poses.len() < PARALLEL_POSES {
+            let rows = self.poses.chunks_mut(per).zip(self.records.chunks_mut(per));
+            for ((world, (p, r)), at) in self.worlds.iter_mut().zip(rows).zip(&last) {
+                if let Some(j) = at {
+                    put_kept(world, &[(0, body, poses[*j].1)], mesh, p, r);
+                }
+            }
+        } else {
+            self.worlds
+                .par_iter_mut()
+                .zip(self.poses.par_chunks_mut(per))
+                .zip(self.records.par_chunks_mut(per))
+                .zip(last.par_iter())
+                .with_min_len(256)
+                .for_each(|(((world, p), r), at)| {
+                    if let Some(j) = at {
+                        put_kept(world, &[(0, body, poses[*j].1)], mesh, p, r);
+                    }
+                });
+        }
+        Ok(())
+    }
+}
+
+#[cfg(all(test, feature = "rigid"))]
+mod tests {
+    use super::*;
+    use glam::{Quat, Vec3};
+    use rtmpm_geometry::Shape;
+    use rtmpm_geometry::shape::Cuboid;
+    use rtmpm_physics::boundary::Condition;
+    use rtmpm_rigid::{RigidBodySpec, RigidKind};
+
+    fn body(kind: RigidKind, position: Vec3, velocity: Vec3) -> RigidBodySpec {
+        RigidBodySpec {
+            name: format!("{kind:?}"),
+            shape: Shape::Box(Cuboid::centred(Vec3::ZERO, Vec3::splat(0.05))),
+            kind,
+            mass: 1.0,
+            position,
+            rotation: Quat::IDENTITY,
+            velocity,
+            angular_velocity: Vec3::ZERO,
+            condition: Condition::Slip,
+            friction: 0.0,
+        }
+    }
+
+    /// World `w` of `n`: a kinematic tool, a dynamic box falling onto the floor and a fixed
+    /// block (`all`), or the tool alone.
+    fn world(w: usize, all: bool) -> RigidWorld {
+        let x = 0.2 + 0.01 * (w % 7) as f32;
+        let mut bodies = vec![body(
+            RigidKind::Kinematic,
+            Vec3::new(x, 0.7, 0.5),
+            Vec3::new(0.0, -0.2, 0.0),
+        )];
+        if all {
+            bodies.push(body(
+                RigidKind::Dynamic,
+                Vec3::new(0.3, 0.07 + 0.001 * w as f32, 0.3),
+                Vec3::new(0.1, 0.0, 0.0),
+            ));
+            bodies.push(body(RigidKind::Fixed, Vec3::new(0.8, 0.2, 0.8), Vec3::ZERO));
+        }
+        let interior = (Vec3::ZERO, Vec3::ONE);
+        RigidWorld::new(&bodies, &[], Vec3::new(0.0, -9.81, 0.0), interior)
+            .expect("world")
+            .expect("bodies")
+    }
+
+    fn pose_bits(p: &BodyPose) -> [u32; 13] {
+        let mut out = [0; 13];
+        let all = p
+            .position
+            .to_array()
+            .into_iter()
+            .chain(p.rotation.to_array());
+        let all = all
+            .chain(p.velocity.to_array())
+            .chain(p.angular_velocity.to_array());
+        for (o, v) in out.iter_mut().zip(all) {
+            *o = v.to_bits();
+        }
+        out
+    }
+
+    fn state_bits(s: &[BodyState]) -> Vec<u32> {
+        s.iter()
+            .flat_map(|s| {
+                let m = s.rotation.to_cols_array().into_iter();
+                m.chain(s.center.to_array())
+                    .chain(s.velocity.to_array())
+                    .chain(s.angular_velocity.to_array())
+            })
+            .map(f32::to_bits)
+            .collect()
+    }
+
+    /// The batch's bodies as they were before the rows: the rapier worlds, each pose put at once,
+    /// the records encoded from the states at the upload.
+    struct Plain(Vec<RigidWorld>, Vec<u32>);
+
+    impl Plain {
+        fn records(&self) -> Vec<u8> {
+            let recs: Vec<GpuBody> = self
+                .0
+                .iter()
+                .flat_map(|w| w.states().iter().enumerate())
+                .map(|(i, b)| crate::step::rigid::encode(b, self.1[i]))
+                .collect();
+            bytemuck::cast_slice(&recs).to_vec()
+        }
+    }
+
+    /// Each world's pose of `body` at a call `c`: a little lower, its velocity from the call
+    /// (signed zeros and repeats of the pose it has among them).
+    fn posed(now: BodyPose, w: usize, c: usize) -> BodyPose {
+        let mut p = now;
+        if !c.is_multiple_of(3) {
+            p.position.y -= 1e-4 * (1 + w % 3) as f32;
+            p.velocity = Vec3::new(0.01 * (w % 4) as f32, -0.2 - 0.01 * c as f32, -0.0);
+        }
+        if c % 4 == 1 {
+            p.rotation = Quat::from_rotation_y(0.01 * (c + w) as f32);
+            p.angular_velocity = Vec3::new(0.0, 0.3, 0.0);
+        }
+        p
+    }
+
+    /// Kept poses, put in on every core (`body_poses=deferred`) or on one thread
+    /// (`deferred_serial`), and poses put in at once (`eager`), give every
+    /// read (a body's pose, a world's poses, the states), every device record and every step's
+    /// result bit for bit as the rapier worlds posed at once did before the rows: 40 worlds of a
+    /// kinematic tool, a dynamic box on the floor and a fixed block over 60 steps, posed in every
+    /// world (the flush on every core), in a few (the flush on one thread), the same body twice
+    /// before a step with a read between, two bodies before a step, a world's every body put
+    /// (a reset) over kept poses, reads of other bodies while poses are kept, the box moved by
+    /// impulses.
+    #[test]
+    fn kept_poses_read_and_step_as_poses_put_at_once_bit_for_bit() {
+        let n = 40;
+        let mesh = vec![0, 0, 0];
+        let make = |d| HostBodies::new((0..n).map(|w| world(w, true)).collect(), mesh.clone(), d);
+        let mut deferred = make(BodyPoses::Deferred);
+        let mut serial = make(BodyPoses::DeferredSerial);
+        let mut eager = make(BodyPoses::Eager);
+        let mut plain = Plain((0..n).map(|w| world(w, true)).collect(), mesh.clone());
+        let check = |h: &mut HostBodies, plain: &Plain, what: &str| {
+            for w in 0..n {
+                for b in 0..3 {
+                    let want = plain.0[w].pose(b).expect("body");
+                    let got = h.pose(w, b).expect("body");
+                    assert_eq!(
+                        pose_bits(&got),
+                        pose_bits(&want),
+                        "{what}: world {w} body {b}"
+                    );
+                }
+            }
+        };
+        for c in 0..60 {
+            let mut bodies_posed = Vec::new();
+            match c % 5 {
+                0 => bodies_posed.push((0, (0..n).collect::<Vec<_>>())),
+                1 => bodies_posed.push((0, vec![3, 17, 5])),
+                2 => {
+                    bodies_posed.push((0, (0..n).step_by(2).collect()));
+                    bodies_posed.push((1, (0..n).step_by(3).collect()));
+                }
+                3 => {
+                    bodies_posed.push((0, (0..n).collect()));
+                    bodies_posed.push((0, vec![4, 9]));
+                }
+                _ => {}
+            }
+            for (k, (b, list)) in bodies_posed.iter().enumerate() {
+                // Read from the rows (kept poses of other bodies or worlds untouched), then put.
+                let poses: Vec<(usize, BodyPose)> = list
+                    .iter()
+                    .map(|&w| {
+                        let now = deferred.pose(w, *b).expect("body");
+                        let want = plain.0[w].pose(*b).expect("body");
+                        assert_eq!(pose_bits(&now), pose_bits(&want), "call {c}: world {w}");
+                        (w, posed(now, w, c + k))
+                    })
+                    .collect();
+                for h in [&mut deferred, &mut serial, &mut eager] {
+                    h.set_body_poses(*b, &poses).expect("poses");
+                }
+                for (w, p) in &poses {
+                    plain.0[*w].set_pose(*b, p).expect("pose");
+                }
+                // Reads of an unposed world's poses and of an unposed body of a posed world while
+                // poses are kept (from the rows: nothing put into the worlds yet).
+                if let Some(u) = (0..n).find(|w| !list.contains(w)) {
+                    let mut out = Vec::new();
+                    deferred.poses_into(u, &mut out);
+                    assert_eq!(out, plain.0[u].poses(), "call {c}");
+                }
+                let other = (b + 2) % 3;
+                let got = deferred.pose(list[0], other).expect("body");
+                let want = plain.0[list[0]].pose(other).expect("body");
+                assert_eq!(pose_bits(&got), pose_bits(&want), "call {c}");
+            }
+            if c % 5 == 4 {
+                // The same body of world 7 posed twice with no read between: both kept, put in
+                // the order given.
+                for k in 0..2 {
+                    let p = posed(plain.0[7].pose(0).expect("tool"), 7, c + k + 1);
+                    for h in [&mut deferred, &mut serial, &mut eager] {
+                        h.set_body_poses(0, &[(7, p)]).expect("pose");
+                    }
+                    plain.0[7].set_pose(0, &p).expect("pose");
+                }
+            }
+            if c % 11 == 7 {
+                // A reset of world 5 over the poses kept for it.
+                let start = world(5, true).poses();
+                for h in [&mut deferred, &mut serial, &mut eager] {
+                    h.set_poses(5, &start).expect("reset");
+                }
+                plain.0[5].set_poses(&start).expect("reset");
+            }
+            if c % 13 == 4 {
+                let want = state_bits(
+                    &plain
+                        .0
+                        .iter()
+                        .flat_map(|w| w.states().to_vec())
+                        .collect::<Vec<_>>(),
+                );
+                assert_eq!(state_bits(&deferred.states()), want, "call {c}: states");
+            }
+            let want = plain.records();
+            for h in [&mut deferred, &mut serial, &mut eager] {
+                let got = bytemuck::cast_slice::<GpuBody, u8>(h.records());
+                assert!(got == &want[..], "call {c}: the device records differ");
+            }
+            let each: Vec<Vec<Exchange>> = (0..n)
+                .map(|w| {
+                    let mut e = vec![Exchange::default(); 3];
+                    e[1].impulse = [1e-3 * (w % 5) as f64, 2e-3, 0.0];
+                    e[1].torque = [0.0, 1e-5 * (c % 3) as f64, 0.0];
+                    e
+                })
+                .collect();
+            let ex = (c % 2 == 0).then_some(&each[..]);
+            for h in [&mut deferred, &mut serial, &mut eager] {
+                h.advance(ex, 1e-3);
+            }
+            for (w, world) in plain.0.iter_mut().enumerate() {
+                let none = vec![Exchange::default(); 3];
+                world.advance(ex.map_or(&none, |e| &e[w]), 1e-3);
+            }
+            check(&mut deferred, &plain, &format!("after step {c}"));
+            check(&mut serial, &plain, &format!("after step {c} (serial)"));
+            check(&mut eager, &plain, &format!("after step {c} (eager)"));
+        }
+        // The box rested on the floor (contacts in the steps compared).
+        assert!(plain.0[0].pose(1).expect("box").position.y > 0.04);
+    }
+
+    /// Where a script's pose call goes on the host (`cargo test --release -p rtmpm-cuda
+    /// --features rigid --lib pose_path_timing -- --ignored --nocapture`; no GPU): 256 worlds of
+    /// one kinematic tool (bench/python_batch_gpu.py's), 200 calls of [every world advanced on
+    /// every core (a step's `after_step`); with `cold`, 64 MB written (the rest of a step's host
+    /// work and the device's, which leave the worlds' memory out of this thread's caches); the
+    /// call: each world's tool read, moved, and the 256 poses given (`set_body_poses`); the next
+    /// step's upload (`records`)], for the rapier worlds posed at once as before the rows
+    /// (`plain`), `body_poses=eager`, `deferred_serial` and `deferred`. Prints the median microseconds of the call
+    /// and of the upload.
+    #[test]
+    #[ignore = "a timing, not a check"]
+    fn pose_path_timing() {
+        use std::time::Instant;
+        let n = 256;
+        let tool = || {
+            let mut b = body(RigidKind::Kinematic, Vec3::new(0.2, 0.22, 0.2), Vec3::ZERO);
+            b.shape = Shape::Box(Cuboid::centred(Vec3::ZERO, Vec3::splat(0.03)));
+            let interior = (Vec3::splat(0.075), Vec3::new(0.325, 0.275, 0.325));
+            RigidWorld::new(&[b], &[], Vec3::new(0.0, -9.81, 0.0), interior)
+                .expect("world")
+                .expect("bodies")
+        };
+        let mut junk = vec![0u8; 64 << 20];
+        let med = |mut v: Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            1e6 * v[v.len() / 2]
+        };
+        for cold in [false, true] {
+            for mode in ["plain", "eager", "deferred_serial", "deferred"] {
+                let mut h = HostBodies::new(
+                    (0..n).map(|_| tool()).collect(),
+                    vec![0],
+                    match mode {
+                        "deferred" => BodyPoses::Deferred,
+                        "deferred_serial" => BodyPoses::DeferredSerial,
+                        _ => BodyPoses::Eager,
+                    },
+                );
+                let mut plain = Plain((0..n).map(|_| tool()).collect(), vec![0]);
+                let (mut call, mut upload) = (Vec::new(), Vec::new());
+                for c in 0..200 {
+                    if mode == "plain" {
+                        let none = [Exchange::default()];
+                        plain.0.par_iter_mut().for_each(|w| w.advance(&none, 4e-4));
+                    } else {
+                        h.advance(None, 4e-4);
+                    }
+                    if cold {
+                        for (i, b) in junk.iter_mut().enumerate().step_by(64) {
+                            *b = b.wrapping_add(i as u8);
+                        }
+                    }
+                    let y = 0.22 - 1e-5 * c as f32;
+                    let t0 = Instant::now();
+                    if mode == "plain" {
+                        for w in plain.0.iter_mut() {
+                            let mut p = w.pose(0).expect("tool");
+                            p.position.y = y;
+                            p.velocity = Vec3::new(0.0, -0.2, 0.0);
+                            w.set_pose(0, &p).expect("pose");
+                        }
+                    } else {
+                        let poses: Vec<(usize, BodyPose)> = (0..n)
+                            .map(|w| {
+                                let mut p = h.pose(w, 0).expect("tool");
+                                p.position.y = y;
+                                p.velocity = Vec3::new(0.0, -0.2, 0.0);
+                                (w, p)
+                            })
+                            .collect();
+                        h.set_body_poses(0, &poses).expect("poses");
+                    }
+                    call.push(t0.elapsed().as_secs_f64());
+                    let t0 = Instant::now();
+                    let bytes = if mode == "plain" {
+                        plain.records().len()
+                    } else {
+                        h.records().len()
+                    };
+                    std::hint::black_box(bytes);
+                    upload.push(t0.elapsed().as_secs_f64());
+                }
+                println!(
+                    "{mode:>8}, caches {}: the call {:.1} us, the next upload {:.1} us (medians of 200, {n} worlds)",
+                    if cold { "flushed" } else { "warm" },
+                    med(call),
+                    med(upload)
+                );
+            }
+        }
+        std::hint::black_box(&junk);
+    }
+}
