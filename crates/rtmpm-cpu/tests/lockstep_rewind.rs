@@ -164,10 +164,10 @@ fn a_frozen_world_that_fails_again_ends_the_call_with_an_error_not_a_loop() {
 }
 
 /// Calls of steps on worlds whose check is not cheap (made at a call's end): world 2 made to
-/// blow up within the second call, world 1 reset after that call, then a third call and a
-/// sync; with `defer` the calls return before their last check
+/// blow up within the second call, the worlds `reset` reset after that call, then a third
+/// call and a sync; with `defer` the calls return before their last check
 /// ([`LockstepRun::set_deferred_checks`]). The worlds each call returned frozen, and the run.
-fn late_checks(defer: bool) -> (Vec<Vec<usize>>, LockstepRun<SideBySide>) {
+fn late_checks(defer: bool, reset: &[usize]) -> (Vec<Vec<usize>>, LockstepRun<SideBySide>) {
     let (b, mut r) = unwritten_keeping(SLUMP, true);
     r.sim.backend.checks_late = true;
     r.set_deferred_checks(defer).expect("defer");
@@ -175,8 +175,11 @@ fn late_checks(defer: bool) -> (Vec<Vec<usize>>, LockstepRun<SideBySide>) {
     let mut calls = vec![r.advance_steps(7).expect("steps")];
     calls.push(r.advance_steps(5).expect("steps"));
     assert_eq!(r.check_pending(), defer);
-    let start = b.worlds[1].sample_particles().expect("sample");
-    r.reset_worlds(vec![(1, start)]).expect("reset");
+    let starts = reset
+        .iter()
+        .map(|&w| (w, b.worlds[w].sample_particles().expect("sample")))
+        .collect();
+    r.reset_worlds(starts).expect("reset");
     calls.push(r.advance_steps(6).expect("steps"));
     r.sync().expect("sync");
     assert!(!r.check_pending(), "a sync makes the pending check");
@@ -185,8 +188,8 @@ fn late_checks(defer: bool) -> (Vec<Vec<usize>>, LockstepRun<SideBySide>) {
 
 #[test]
 fn calls_returning_before_their_check_end_as_calls_that_check_at_once() {
-    let (at_once, mut a) = late_checks(false);
-    let (deferred, mut d) = late_checks(true);
+    let (at_once, mut a) = late_checks(false, &[1]);
+    let (deferred, mut d) = late_checks(true, &[1]);
     // The blow-up is returned by the call that found it: the one after its steps when deferred.
     assert_eq!(at_once, [vec![], vec![2], vec![]]);
     assert_eq!(deferred, [vec![], vec![], vec![2]]);
@@ -210,4 +213,44 @@ fn calls_returning_before_their_check_end_as_calls_that_check_at_once() {
     for w in 0..3 {
         assert_eq!(bits(&hd[w]), bits(&ha[w]), "world {w} as held");
     }
+}
+
+/// World 2 reset after a first call (its origin then), made to blow up in the second, every
+/// world reset after that call (the shared clock back to 0), a third call; with `defer` the
+/// blow-up's check is pending through that reset. The worlds each call returned frozen, and
+/// the run, synced.
+fn reset_all_pending(defer: bool) -> (Vec<Vec<usize>>, LockstepRun<SideBySide>) {
+    let (b, mut r) = unwritten_keeping(SLUMP, true);
+    r.sim.backend.checks_late = true;
+    r.set_deferred_checks(defer).expect("defer");
+    r.sim.backend.poison = Some((2, 9));
+    let start = |w: usize| (w, b.worlds[w].sample_particles().expect("sample"));
+    let mut calls = vec![r.advance_steps(7).expect("steps")];
+    r.reset_worlds(vec![start(2)]).expect("reset");
+    calls.push(r.advance_steps(5).expect("steps"));
+    r.reset_worlds((0..3).map(start).collect()).expect("reset");
+    calls.push(r.advance_steps(6).expect("steps"));
+    r.sync().expect("sync");
+    (calls, r)
+}
+
+#[test]
+fn a_reset_of_every_world_while_a_check_is_pending_ends_as_after_the_check() {
+    // The check is made at the clock the steps ended at (not the reset's 0: the blow-up is
+    // said at its world's own step, after its reset), then the reset made again.
+    let (at_once, a) = reset_all_pending(false);
+    let (deferred, d) = reset_all_pending(true);
+    assert_eq!(at_once, [vec![], vec![2], vec![]]);
+    assert_eq!(deferred, [vec![], vec![], vec![2]]);
+    for w in 0..3 {
+        let (x, y) = (&a.worlds[w], &d.worlds[w]);
+        assert_eq!(y.status, x.status, "world {w}");
+        assert_eq!(bits(y.particles()), bits(x.particles()), "world {w}");
+        assert_eq!(
+            (y.steps(), y.time().to_bits()),
+            (6, x.time().to_bits()),
+            "world {w}"
+        );
+    }
+    assert_eq!(d.sim.step, 6);
 }

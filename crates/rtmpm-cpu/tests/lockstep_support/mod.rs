@@ -64,8 +64,11 @@ pub struct SideBySide {
     /// World `w` set to 10^5 m/s before every step (it fails again once frozen and parked).
     pub relapse: Option<usize>,
     /// The health check is not cheap (as the GPU's: the driver checks at the end of a call
-    /// and of a frame, not after every step), so a blow-up is found there.
+    /// and of a frame, not after every step), so a blow-up is found there; the first bad
+    /// particle since the last check is kept as the step finds it (`latched`), as the GPU's
+    /// control words keep it (a world put since does not hide it).
     pub checks_late: bool,
+    pub latched: Option<BadParticle>,
 }
 
 impl SideBySide {
@@ -95,6 +98,7 @@ impl SideBySide {
             poison: None,
             relapse: None,
             checks_late: false,
+            latched: None,
         }
     }
 
@@ -107,6 +111,18 @@ impl SideBySide {
                 b.read_particles(&mut p).map(|()| p)
             })
             .collect()
+    }
+
+    /// The first bad particle (over all worlds) each world's own check reports.
+    fn check_worlds(&mut self) -> Result<Option<BadParticle>, SimError> {
+        let o = self.offsets();
+        for (w, b) in self.worlds.iter_mut().enumerate() {
+            if let Some(mut bad) = b.check()? {
+                bad.index += o[w];
+                return Ok(Some(bad));
+            }
+        }
+        Ok(None)
     }
 
     /// First particle (over all worlds) of each world, and the total.
@@ -144,7 +160,11 @@ impl Backend for SideBySide {
             self.put_world(w, &p)?;
         }
         self.steps += 1;
-        self.worlds.iter_mut().try_for_each(|b| b.step(dt, t))
+        self.worlds.iter_mut().try_for_each(|b| b.step(dt, t))?;
+        if self.checks_late && self.latched.is_none() {
+            self.latched = self.check_worlds()?;
+        }
+        Ok(())
     }
 
     fn max_speed(&mut self) -> Result<f32, SimError> {
@@ -156,14 +176,10 @@ impl Backend for SideBySide {
     }
 
     fn check(&mut self) -> Result<Option<BadParticle>, SimError> {
-        let o = self.offsets();
-        for (w, b) in self.worlds.iter_mut().enumerate() {
-            if let Some(mut bad) = b.check()? {
-                bad.index += o[w];
-                return Ok(Some(bad));
-            }
+        if self.checks_late {
+            return Ok(self.latched.take());
         }
-        Ok(None)
+        self.check_worlds()
     }
 
     fn read_particles(&mut self, out: &mut Particles) -> Result<(), SimError> {

@@ -134,8 +134,10 @@ pub struct LockstepRun<B: Worlds + ?Sized> {
 /// ([`LockstepRun::set_deferred_checks`]): what putting the worlds back needs when that check
 /// finds a blow-up ([`LockstepRun::settle`]), and what was done to the worlds since.
 struct Pending {
-    /// The shared clock as the advance began (the rewind point's), and its steps.
+    /// The shared clock as the advance began (the rewind point's) and as it ended, and its
+    /// steps.
     clock: Clock,
+    end: Clock,
     steps: u64,
     /// Each world's status, bodies (as the advance began), clock and origin then.
     statuses: Vec<WorldStatus>,
@@ -366,6 +368,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             Ok(()) if on_backend => {
                 self.pending = Some(Box::new(Pending {
                     clock,
+                    end: self.clock(),
                     steps,
                     statuses: self.worlds.iter().map(|w| w.status.clone()).collect(),
                     bodies: self.worlds.iter().map(|w| w.bodies.clone()).collect(),
@@ -395,13 +398,21 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         let Some(p) = self.pending.take() else {
             return Ok(());
         };
+        // Checked at the clock the advance ended at (a reset of every world since put it back
+        // to 0), as the advance would have checked.
+        let now = self.clock();
+        self.set_clock(p.end);
         let e = match self.sim.check() {
-            Ok(()) => return Ok(()),
+            Ok(()) => {
+                self.set_clock(now);
+                return Ok(());
+            }
             Err(e @ (SimError::Blowup(_) | SimError::Stall(_))) => e,
             Err(e) => return Err(e.into()),
         };
         let Pending {
             clock,
+            end: _,
             steps,
             statuses,
             bodies,
@@ -616,6 +627,11 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             }
         }
         Ok(())
+    }
+
+    /// Set the shared clock to `c`.
+    fn set_clock(&mut self, c: Clock) {
+        (self.sim.time, self.sim.step, self.sim.frame) = (c.time, c.step, c.frame);
     }
 
     /// The shared clock now.
