@@ -35,6 +35,40 @@ const PARALLEL_FLUSH: usize = 16;
 /// A kept pose: world, body, pose.
 type Kept = (usize, usize, BodyPose);
 
+/// `RTMPM_POSE_TIMING=1`: the host's time in the kept poses' putting in ([`HostBodies::flush`])
+/// and in the steps' advance of the worlds, printed to stderr every 100 of each (means); off by
+/// default (one check of a flag a call).
+mod timing {
+    use std::sync::{Mutex, OnceLock};
+    use std::time::Instant;
+
+    /// Per kind (0: putting in, 1: advance): calls, worlds, seconds.
+    static SUMS: Mutex<[(u32, usize, f64); 2]> = Mutex::new([(0, 0, 0.0); 2]);
+
+    /// The flag is set.
+    pub fn on() -> bool {
+        static ON: OnceLock<bool> = OnceLock::new();
+        *ON.get_or_init(|| std::env::var("RTMPM_POSE_TIMING").is_ok_and(|v| v.trim() == "1"))
+    }
+
+    /// One putting in (`kind` 0) or advance (1) of `worlds` worlds since `t0`.
+    pub fn record(kind: usize, worlds: usize, t0: Instant) {
+        let dt = t0.elapsed().as_secs_f64();
+        let mut s = SUMS.lock().unwrap_or_else(|p| p.into_inner());
+        let e = &mut s[kind];
+        (e.0, e.1, e.2) = (e.0 + 1, e.1 + worlds, e.2 + dt);
+        if e.0 == 100 {
+            let what = ["kept poses put in", "worlds advanced"][kind];
+            eprintln!(
+                "RTMPM_POSE_TIMING {what} (mean of 100): {:.1} us, {} worlds",
+                1e6 * e.2 / 100.0,
+                e.1 / 100
+            );
+            *e = (0, 0, 0.0);
+        }
+    }
+}
+
 /// Every world's rapier world, its bodies' poses and device records in rows, and the poses given
 /// but not yet put into the worlds.
 pub(crate) struct HostBodies {
@@ -124,6 +158,7 @@ impl HostBodies {
         if self.kept.is_empty() {
             return;
         }
+        let t0 = std::time::Instant::now();
         let mut kept = std::mem::take(&mut self.kept);
         kept.sort_by_key(|k| k.0); // stable: each world's in the order given
         let per = self.per.max(1);
@@ -164,6 +199,9 @@ impl HostBodies {
                     put_kept(world, &kept[f..f + n], mesh, poses, records);
                 });
         }
+        if timing::on() {
+            timing::record(0, kept.chunk_by(|a, b| a.0 == b.0).count(), t0);
+        }
         kept.clear();
         self.kept = kept; // its memory kept for the next poses
     }
@@ -199,6 +237,7 @@ impl HostBodies {
     /// and rewrite its rows.
     pub fn advance(&mut self, each: Option<&[Vec<Exchange>]>, dt: f32) {
         self.flush();
+        let t0 = std::time::Instant::now();
         let none = vec![Exchange::default(); self.per];
         let mesh = &self.mesh_offsets;
         let per = self.per.max(1);
@@ -213,6 +252,9 @@ impl HostBodies {
                 world.advance(ex, dt);
                 write_rows(world, mesh, poses, records);
             });
+        if timing::on() {
+            timing::record(1, self.worlds.len(), t0);
+        }
     }
 
     /// Every world's body states, world by world (the kept poses put into their worlds first).
