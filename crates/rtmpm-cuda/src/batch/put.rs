@@ -192,11 +192,14 @@ impl CudaBatch {
         for &(w, p) in worlds {
             given[w] = Some(p);
         }
+        let t0 = std::time::Instant::now();
         let runs = self.pack_runs(&given)?;
         if runs.is_empty() {
             return Ok(());
         }
+        let t1 = std::time::Instant::now();
         self.upload_put()?;
+        let t2 = std::time::Instant::now();
         let b = &mut self.backend;
         let Some(buf) = self.put_buffer.as_ref() else {
             return Ok(());
@@ -220,6 +223,7 @@ impl CudaBatch {
         if b.g2p2g() {
             b.set_ctl_word(CTL_P2G_PENDING, 1)?;
         }
+        put_timing(worlds.len(), [t0, t1, t2, std::time::Instant::now()]);
         Ok(())
     }
 }
@@ -290,6 +294,35 @@ impl CudaBatch {
 pub fn pageable_puts() -> bool {
     static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     *ON.get_or_init(|| std::env::var("RTMPM_BATCH_PAGEABLE_PUT").is_ok_and(|v| v.trim() == "1"))
+}
+
+/// `RTMPM_RESET_TIMING=1`: where a put's host time goes, printed to stderr every 100 puts (the
+/// means of the packing, the upload's host side and the launches); off by default.
+fn put_timing(worlds: usize, t: [std::time::Instant; 4]) {
+    use std::sync::{Mutex, OnceLock};
+    static ON: OnceLock<bool> = OnceLock::new();
+    static SUMS: Mutex<(u32, usize, [f64; 3])> = Mutex::new((0, 0, [0.0; 3]));
+    if !*ON.get_or_init(|| std::env::var("RTMPM_RESET_TIMING").is_ok_and(|v| v.trim() == "1")) {
+        return;
+    }
+    let mut s = SUMS.lock().unwrap_or_else(|p| p.into_inner());
+    s.0 += 1;
+    s.1 += worlds;
+    for (i, part) in s.2.iter_mut().enumerate() {
+        *part += (t[i + 1] - t[i]).as_secs_f64();
+    }
+    if s.0 == 100 {
+        let us = |x: f64| 1e6 * x / 100.0;
+        eprintln!(
+            "RTMPM_RESET_TIMING put (mean of 100 puts, {} worlds a put): pack {:.1} us, upload \
+             {:.1} us, launches {:.1} us",
+            s.1 / 100,
+            us(s.2[0]),
+            us(s.2[1]),
+            us(s.2[2])
+        );
+        *s = (0, 0, [0.0; 3]);
+    }
 }
 
 /// A run of consecutive worlds put at once ([`CudaBatch::put_worlds`]): its first particle

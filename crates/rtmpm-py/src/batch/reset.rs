@@ -9,6 +9,48 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use rtmpm_physics::Particles;
 use rtmpm_physics::math::Vec3;
+use std::time::Instant;
+
+/// `RTMPM_RESET_TIMING=1`: where `reset`'s time goes, printed to stderr every 100 calls (the
+/// means of the arrays and start states made on the host, and the driver's reset: on the GPU
+/// the put, whose own parts `RTMPM_RESET_TIMING` prints from rtmpm-cuda, the bodies and
+/// records); off by default (one check of a flag a call).
+mod timing {
+    use std::sync::{Mutex, OnceLock};
+    use std::time::Instant;
+
+    /// Calls summed, worlds reset, and seconds of each part.
+    static SUMS: Mutex<(u32, usize, [f64; 2])> = Mutex::new((0, 0, [0.0; 2]));
+
+    fn on() -> bool {
+        static ON: OnceLock<bool> = OnceLock::new();
+        *ON.get_or_init(|| std::env::var("RTMPM_RESET_TIMING").is_ok_and(|v| v.trim() == "1"))
+    }
+
+    /// One call resetting `worlds` worlds, its parts between the instants `t`.
+    pub fn record(worlds: usize, t: [Instant; 3]) {
+        if !on() {
+            return;
+        }
+        let mut s = SUMS.lock().unwrap_or_else(|p| p.into_inner());
+        s.0 += 1;
+        s.1 += worlds;
+        for (i, part) in s.2.iter_mut().enumerate() {
+            *part += (t[i + 1] - t[i]).as_secs_f64();
+        }
+        if s.0 == 100 {
+            let us = |x: f64| 1e6 * x / 100.0;
+            eprintln!(
+                "RTMPM_RESET_TIMING reset (mean of 100 calls, {} worlds a call): start states \
+                 {:.1} us, driver's reset {:.1} us",
+                s.1 / 100,
+                us(s.2[0]),
+                us(s.2[1])
+            );
+            *s = (0, 0, [0.0; 2]);
+        }
+    }
+}
 
 impl PyBatch {
     /// World `w`'s particles at time 0, with `x` / `v` (rows of `n` x 3) replacing theirs.
@@ -98,7 +140,9 @@ impl PyBatch {
         v: Option<Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         self.usable()?;
+        let t0 = Instant::now();
         let list = self.world_list(worlds)?;
+        let k = list.len();
         let counts: Vec<usize> = self.initial.iter().map(Particles::len).collect();
         let xs = split_rows("x", x, &list, &counts)?;
         let vs = split_rows("v", v, &list, &counts)?;
@@ -109,6 +153,7 @@ impl PyBatch {
             starts.push(self.start_state(w, x, v)?);
         }
         let req = self.request.clone();
+        let t1 = Instant::now();
         self.drive(py, move |run| {
             match run {
                 Run::Each(run) => {
@@ -120,6 +165,7 @@ impl PyBatch {
             }
             Ok(Vec::new())
         })?;
+        timing::record(k, [t0, t1, Instant::now()]);
         Ok(())
     }
 }
