@@ -163,6 +163,17 @@ impl PyBatch {
         }
     }
 
+    /// The health check a GPU step call left pending made (`overlap`, [`Run::settle`]) before a
+    /// read that must see its outcome (status, running, rigid bodies); nothing to do without
+    /// one, or on a batch stopped by an internal error (whose state is read as it was left).
+    fn settled(&mut self, py: Python<'_>) -> PyResult<()> {
+        let pending = matches!(self.r(), Run::Lockstep(r) if r.check_pending());
+        if pending && self.broken.is_none() {
+            self.detached(py, Run::settle)?;
+        }
+        Ok(())
+    }
+
     /// The run (no locking: `&mut self` is exclusive already).
     fn r(&mut self) -> &mut Run {
         match self.run.get_mut() {

@@ -158,7 +158,7 @@ impl PyBatch {
         world: i64,
     ) -> PyResult<Vec<Bound<'py, PyDict>>> {
         let w = self.world_list(Some(vec![world]))?[0];
-        self.detached(py, Run::settle)?;
+        self.settled(py)?;
         match self.r() {
             Run::Each(r) => {
                 let backend = &mut r.worlds[w].sim.backend;
@@ -208,7 +208,7 @@ impl PyBatch {
     ) -> PyResult<Bound<'py, PyAny>> {
         let count = self.count();
         let body = BodyRef::from_py(body)?;
-        self.detached(py, Run::settle)?;
+        self.settled(py)?;
         let mut flat = Vec::with_capacity(3 * count);
         for w in 0..count {
             let run = self.r();

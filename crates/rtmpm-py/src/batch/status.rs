@@ -1,7 +1,7 @@
 //! What the worlds are: their number, labels, scene and backend, each world's state (running
 //! or frozen, and why), time, frames and steps.
 
-use super::{PyBatch, Run};
+use super::PyBatch;
 use crate::backend::BackendInfo;
 use crate::scene::PyScene;
 use numpy::PyArray1;
@@ -53,7 +53,7 @@ impl PyBatch {
     /// count from its last reset.
     #[getter]
     fn status<'py>(&mut self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
-        self.detached(py, Run::settle)?;
+        self.settled(py)?;
         let r = self.r();
         (0..r.count())
             .map(|w| {
@@ -82,7 +82,7 @@ impl PyBatch {
     /// ``(N,)`` bool array: True where a world is running, False where it is frozen.
     #[getter]
     fn running<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<bool>>> {
-        self.detached(py, Run::settle)?;
+        self.settled(py)?;
         let r = self.r();
         let running = (0..r.count()).map(|w| *r.status(w) == WorldStatus::Running);
         Ok(PyArray1::from_vec(py, running.collect()))
