@@ -4,10 +4,11 @@
 //! that world's nodes only (`kernels/grid_update.cu`: `couple_world_bodies`), and the reaction of
 //! every body of every world summed per row, read back as below.
 //!
-//! Per step: every world's body states go to the table (one copy), the step runs, and the
-//! bodies advance. With a dynamic body in any world the step's sums are copied to page-locked
-//! memory and cleared, and the host waits for them and advances each world's rapier world by its
-//! own (the order of `rigid_overlap=off` in a single run: the CPU backend's). With kinematic and
+//! Per step: every world's body states go to the table (one copy of the host's rows, none when the
+//! table holds them already: bodies at rest), the step runs, and the bodies advance. With a
+//! dynamic body in any world the step's sums are copied to page-locked memory and cleared, and
+//! the host waits for them and advances each world's rapier world by its own (the order of
+//! `rigid_overlap=off` in a single run: the CPU backend's). With kinematic and
 //! fixed bodies only, which no sum moves, the worlds advance at once and the sums are needed only
 //! for the loads: they stay on the device until a load is read ([`WorldBodies::loads`]: one copy
 //! of the last step's, then kept for the other worlds' reads) and are cleared as the next step
@@ -39,6 +40,9 @@ pub(crate) struct WorldBodies {
     per: usize,
     /// `worlds x per` [`GpuBody`] records (`Ctx::bodies` in a batch).
     table: CudaSlice<u8>,
+    /// The bytes `table` holds (the last upload's; empty before the first): an upload of the
+    /// same bytes is skipped (bodies at rest, tools standing still).
+    uploaded: Vec<u8>,
     /// `BODY_EXCHANGE_SLOTS` x `worlds x per` rows x 6 f64 sums (`Ctx::body_exchange`).
     exchange: CudaSlice<f64>,
     /// The host's copy of the sums (filled when a load is read, with `at_read`).
@@ -109,6 +113,7 @@ impl WorldBodies {
             rigid: Mutex::new(HostBodies::new(rapier, mesh_offsets, poses)),
             per,
             table,
+            uploaded: Vec::new(),
             exchange,
             host: Mutex::new(HostSums {
                 sums: host,
@@ -130,8 +135,8 @@ impl WorldBodies {
         (a, b, self.per as u32)
     }
 
-    /// Before a step: every world's body states to the table, and the last step's sums cleared
-    /// where they were kept on the device.
+    /// Before a step: every world's body states to the table (unless it holds them already),
+    /// and the last step's sums cleared where they were kept on the device.
     pub fn upload(&mut self, stream: &Arc<CudaStream>) -> Result<(), SimError> {
         if self.held {
             stream
@@ -141,9 +146,15 @@ impl WorldBodies {
         }
         let rigid = self.rigid.get_mut().unwrap_or_else(|p| p.into_inner());
         let bytes: &[u8] = bytemuck::cast_slice::<GpuBody, u8>(rigid.records());
+        if bytes == self.uploaded.as_slice() {
+            return Ok(());
+        }
         stream
             .memcpy_htod(bytes, &mut self.table.slice_mut(..bytes.len()))
-            .map_err(err("upload the worlds' rigid bodies"))
+            .map_err(err("upload the worlds' rigid bodies"))?;
+        self.uploaded.clear();
+        self.uploaded.extend_from_slice(bytes);
+        Ok(())
     }
 
     /// After a step of `dt` was queued: its sums are copied to the host and cleared (kept on the
