@@ -36,6 +36,10 @@ pub struct KernelOptions {
     /// kernels' default); `false`: `-DRTMPM_G2P_GATHER=1 -DRTMPM_P2G_NODES=1`, the addressing
     /// before it.
     pub stencil_pairs: bool,
+    /// The fused kernels' warp loop over warp-uniform values
+    /// ([`crate::CudaOptions::uniform_loop`], the kernels' default); `false`:
+    /// `-DRTMPM_G2P2G_UNIFORM=0`, the loop before it.
+    pub uniform_loop: bool,
 }
 
 /// True when state arrays of `capacity` particles of `words` words each hold 2^32 words or more:
@@ -58,6 +62,7 @@ impl KernelOptions {
             batch: false,
             ck_min_blocks: None,
             stencil_pairs: true,
+            uniform_loop: true,
         }
     }
 }
@@ -169,6 +174,9 @@ pub fn nvrtc_options(o: &KernelOptions) -> Vec<String> {
     if !o.stencil_pairs {
         v.push("-DRTMPM_G2P_GATHER=1".into());
         v.push("-DRTMPM_P2G_NODES=1".into());
+    }
+    if !o.uniform_loop {
+        v.push("-DRTMPM_G2P2G_UNIFORM=0".into());
     }
     // Tuning experiments: extra `-DNAME=VALUE` flags, e.g. "-DG2P_MIN_BLOCKS=6" (part of the
     // cache key like every other option).
@@ -424,6 +432,14 @@ mod tests {
             &["-DRTMPM_G2P_GATHER=1", "-DRTMPM_P2G_NODES=1"],
             &["-DRTMPM_G2P_GATHER=1"],
             &["-DRTMPM_P2G_NODES=1"],
+            // The fused kernels' warp loop before the warp-uniform one (`uniform_loop=off`), alone
+            // and with the block addressing (main's kernels before both).
+            &["-DRTMPM_G2P2G_UNIFORM=0"],
+            &[
+                "-DRTMPM_G2P2G_UNIFORM=0",
+                "-DRTMPM_G2P_GATHER=1",
+                "-DRTMPM_P2G_NODES=1",
+            ],
             &["-DRTMPM_P2G_ROUNDS_MAX=3"],
             &["-DRTMPM_P2G_REDUCE=4", "-DRTMPM_P2G_ROUNDS_MAX=3"],
             &["-DRTMPM_P2G_UNROLL=1"],
@@ -482,8 +498,9 @@ mod tests {
         assert!(v.contains(&"-DCK_MIN_BLOCKS=5".to_string()), "{v:?}");
     }
 
-    /// `addressing=blocks` becomes the defines of the stencil-block addressing; the default
-    /// (`pairs`) defines nothing (the kernels' own default).
+    /// `addressing=blocks` becomes the defines of the stencil-block addressing and
+    /// `uniform_loop=off` that of the warp loop before it; the defaults define nothing (the
+    /// kernels' own defaults).
     #[test]
     fn the_addressing_option_becomes_defines() {
         let mut o = KernelOptions::all_models((9, 0), true, false);
@@ -498,6 +515,13 @@ mod tests {
         let v = nvrtc_options(&o);
         assert!(v.contains(&"-DRTMPM_G2P_GATHER=1".to_string()), "{v:?}");
         assert!(v.contains(&"-DRTMPM_P2G_NODES=1".to_string()), "{v:?}");
+        assert!(
+            !v.iter().any(|d| d.contains("RTMPM_G2P2G_UNIFORM")),
+            "{v:?}"
+        );
+        o.uniform_loop = false;
+        let v = nvrtc_options(&o);
+        assert!(v.contains(&"-DRTMPM_G2P2G_UNIFORM=0".to_string()), "{v:?}");
     }
 
     /// The entry directives and the body of kernel `k` in `ptx` (up to its closing brace).

@@ -221,6 +221,12 @@ pub struct CudaOptions {
     /// (`crate::batch::CudaBatch::set_body_poses`, Python's `set_rigid_body`) goes into its
     /// world's rapier world ([`BodyPoses`]).
     pub batch_poses: BodyPoses,
+    /// The fused G2P2G kernels' warp loop over warp-uniform values (`uniform_loop=on|off`,
+    /// default on; `kernels/g2p/g2p2g.cu`: `RTMPM_G2P2G_UNIFORM`): the error flag by a vote, the
+    /// warp count and the first entry by warp reductions, so that ptxas drops its divergence
+    /// checks before every shuffle. The same arithmetic bit for bit, fewer instructions; `off`
+    /// keeps the loop before it, to compare the two in one binary.
+    pub uniform_loop: bool,
 }
 
 /// When the poses given to a body of a batch's worlds go into their rapier worlds
@@ -279,6 +285,7 @@ impl Default for CudaOptions {
             batch_sums_at_read: true,
             stencil_pairs: true,
             batch_poses: BodyPoses::Deferred,
+            uniform_loop: true,
         }
     }
 }
@@ -291,8 +298,8 @@ impl std::str::FromStr for CudaOptions {
     /// `ck_grid` (wave/resident), `transport` (p2p/nccl), `barrier` (spin/events), `exchange` (kernels/fused/push), `devices`
     /// (ordinals separated by `:`), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
     /// `rmap_pblocks`, `shared`, `sort_fields` (counts), `fluid_state` (on/off), `state`
-    /// (f32/compact), `body_sums` (read/step), `addressing` (pairs/blocks), `body_poses`
-    /// (deferred/deferred_serial/eager).
+    /// (f32/compact), `body_sums` (read/step), `addressing` (pairs/blocks), `uniform_loop` (on/off),
+    /// `body_poses` (deferred/deferred_serial/eager).
     fn from_str(s: &str) -> Result<Self, String> {
         let mut o = CudaOptions::default();
         for item in s.split(',').map(str::trim).filter(|t| !t.is_empty()) {
@@ -386,6 +393,7 @@ impl std::str::FromStr for CudaOptions {
                 "body_sums" => {
                     o.batch_sums_at_read = choice(item, v, &[("read", true), ("step", false)])?
                 }
+                "uniform_loop" => o.uniform_loop = b()?,
                 "addressing" => {
                     o.stencil_pairs = choice(item, v, &[("pairs", true), ("blocks", false)])?
                 }
@@ -597,6 +605,13 @@ mod tests {
         assert_eq!(
             "addressing=nodes".parse::<CudaOptions>().unwrap_err(),
             "`addressing=nodes`: expected pairs or blocks"
+        );
+        assert!(CudaOptions::default().uniform_loop);
+        assert!(
+            !"uniform_loop=off"
+                .parse::<CudaOptions>()
+                .unwrap()
+                .uniform_loop
         );
     }
 

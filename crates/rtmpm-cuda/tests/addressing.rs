@@ -1,6 +1,8 @@
-//! GPU tests of the stencil node addressing (`--cuda-options addressing=pairs|blocks`,
-//! `kernels/stencil.cuh`): the pair addressing, the default, reads and scatters the same nodes
-//! with the same arithmetic as the stencil-block addressing before it, so
+//! GPU tests of the fused kernels' instruction cuts: the stencil node addressing
+//! (`--cuda-options addressing=pairs|blocks`, `kernels/stencil.cuh`) and the warp-uniform warp
+//! loop (`uniform_loop=on|off`, `kernels/g2p/g2p2g.cu`). The defaults (pair addressing, uniform
+//! loop) read and scatter the same nodes with the same arithmetic as the kernels before them
+//! (`addressing=blocks,uniform_loop=off`, whose PTX is main's before the change, byte for byte), so
 //!
 //! 1. with isolated particles (each grid node gets one particle's contribution, so P2G's atomic
 //!    sums are exact and the run is deterministic) the two give bit-identical particles after 60
@@ -94,9 +96,11 @@ fn block(s: &Scene, lo: Vec3, hi: Vec3, h: f32) -> Particles {
     p
 }
 
-fn options(pairs: bool, f64: bool, g2p2g: bool) -> CudaOptions {
+/// `new`: the defaults; else the kernels before the cuts (`addressing=blocks,uniform_loop=off`).
+fn options(new: bool, f64: bool, g2p2g: bool) -> CudaOptions {
     CudaOptions {
-        stencil_pairs: pairs,
+        stencil_pairs: new,
+        uniform_loop: new,
         f64,
         g2p2g,
         ..Default::default()
@@ -123,7 +127,7 @@ fn max_dx(a: &Particles, b: &Particles) -> f32 {
 
 #[test]
 #[ignore = "needs a CUDA GPU"]
-fn the_pair_addressing_gives_bit_identical_particles_to_the_block_addressing() {
+fn the_new_kernels_give_bit_identical_particles_to_the_kernels_before_them() {
     if !gpu() {
         return;
     }
@@ -136,15 +140,15 @@ fn the_pair_addressing_gives_bit_identical_particles_to_the_block_addressing() {
         for f64 in [false, true] {
             for g2p2g in [true, false] {
                 let what = format!("water {water}, f64 {f64}, g2p2g {g2p2g}");
-                let blocks = run(&s, &p, options(false, f64, g2p2g), 60);
-                let pairs = run(&s, &p, options(true, f64, g2p2g), 60);
-                assert!(max_dx(&blocks, &p) > 0.0, "{what}: nothing moved");
+                let before = run(&s, &p, options(false, f64, g2p2g), 60);
+                let new = run(&s, &p, options(true, f64, g2p2g), 60);
+                assert!(max_dx(&before, &p) > 0.0, "{what}: nothing moved");
                 for i in 0..p.len() {
                     let bits = |v: Vec3| v.to_array().map(f32::to_bits);
-                    assert_eq!(bits(blocks.x[i]), bits(pairs.x[i]), "{what}: x of {i}");
-                    assert_eq!(bits(blocks.v[i]), bits(pairs.v[i]), "{what}: v of {i}");
-                    assert_eq!(blocks.c[i], pairs.c[i], "{what}: C of {i}");
-                    assert_eq!(blocks.f[i], pairs.f[i], "{what}: F of {i}");
+                    assert_eq!(bits(before.x[i]), bits(new.x[i]), "{what}: x of {i}");
+                    assert_eq!(bits(before.v[i]), bits(new.v[i]), "{what}: v of {i}");
+                    assert_eq!(before.c[i], new.c[i], "{what}: C of {i}");
+                    assert_eq!(before.f[i], new.f[i], "{what}: F of {i}");
                 }
                 println!("{what}: {} particles bit-identical", p.len());
             }
@@ -154,7 +158,7 @@ fn the_pair_addressing_gives_bit_identical_particles_to_the_block_addressing() {
 
 #[test]
 #[ignore = "needs a CUDA GPU"]
-fn in_a_dense_scene_the_pair_addressing_differs_no_more_than_a_rerun() {
+fn in_a_dense_scene_the_new_kernels_differ_no_more_than_a_rerun() {
     if !gpu() {
         return;
     }
@@ -164,17 +168,17 @@ fn in_a_dense_scene_the_pair_addressing_differs_no_more_than_a_rerun() {
         let p = block(&s, Vec3::splat(0.3), Vec3::new(0.6, 0.55, 0.6), 0.5);
         let a = run(&s, &p, options(true, false, true), 100);
         let again = run(&s, &p, options(true, false, true), 100);
-        let blocks = run(&s, &p, options(false, false, true), 100);
-        let (rerun, other) = (max_dx(&a, &again), max_dx(&a, &blocks));
+        let before = run(&s, &p, options(false, false, true), 100);
+        let (rerun, other) = (max_dx(&a, &again), max_dx(&a, &before));
         println!(
-            "water {water}, {} particles: max |dx| rerun {rerun:e}, block addressing {other:e} (dx {})",
+            "water {water}, {} particles: max |dx| rerun {rerun:e}, kernels before {other:e} (dx {})",
             p.len(),
             s.dx
         );
         // A wrong node read or scattered moves particles by far more than this floor.
         assert!(
             other <= (4.0 * rerun).max(1e-4 * s.dx),
-            "the addressings differ by {other:e}, a rerun by {rerun:e}"
+            "the kernels before differ by {other:e}, a rerun by {rerun:e}"
         );
     }
 }

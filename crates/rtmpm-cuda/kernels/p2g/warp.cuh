@@ -32,7 +32,7 @@
 #define RTMPM_P2G_NODES 2
 #endif
 // 1: the nine rows unrolled (compile-time i, j: no selects of the row's weights, pblocks and
-// cells; a larger kernel).
+// cells; a larger kernel); 2: the three rows of a plane unrolled (compile-time j).
 #ifndef RTMPM_P2G_UNROLL
 #define RTMPM_P2G_UNROLL 0
 #endif
@@ -162,7 +162,7 @@ __device__ __forceinline__ real* scatter_node_words(real* grid, const ScatterNod
 template <int ROUNDS>
 __device__ __forceinline__ void p2g_scatter_rows(const ScatterNodes& nodes, const P2gParticle& q, unsigned seg_len,
                                                  unsigned max_seg, bool head, real* grid) {
-#if RTMPM_P2G_UNROLL
+#if RTMPM_P2G_UNROLL == 1
 #pragma unroll
 #endif
     for (int i = 0; i < 3; ++i)

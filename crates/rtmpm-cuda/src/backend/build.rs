@@ -385,6 +385,7 @@ impl Plan {
             batch: self.batch,
             ck_min_blocks: o.ck_min_blocks,
             stencil_pairs: o.stencil_pairs,
+            uniform_loop: o.uniform_loop,
         })
         .map_err(SimError::Backend)?;
         // Single stream: no cross-stream event tracking (keeps launches capturable).
