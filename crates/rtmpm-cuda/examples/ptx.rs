@@ -2,7 +2,7 @@
 //! with `ptxas -v` (scripts/kernel_report.sh).
 //!
 //! `cargo run -p rtmpm-cuda --example ptx -- [f64] [no_fast_math] [sm_90] [materials=0xMASK]
-//! [layout=N] [ck_bound=N] [addressing=blocks] [uniform_loop=off] [lineinfo]` (N: the state layout's code, `StateLayout::code`:
+//! [layout=N] [ck_bound=N] [addressing=blocks] [uniform_loop=off] [row_unroll=N] [lineinfo]` (N: the state layout's code, `StateLayout::code`:
 //! 1 is the 20-word fluid layout; `ck_bound=N`: the CUDA option of the same name
 //! (`CudaOptions::ck_min_blocks`); `lineinfo`: NVRTC's
 //! `--generate-line-info`, so that `nvdisasm -g` names the source line of every SASS instruction;
@@ -45,6 +45,12 @@ fn main() {
     o.stencil_pairs = !args.iter().any(|a| a == "addressing=blocks");
     // `uniform_loop=off`: the fused kernels' warp loop of that CUDA option.
     o.uniform_loop = !args.iter().any(|a| a == "uniform_loop=off");
+    // `row_unroll=2`: RTMPM_P2G_UNROLL of the CUDA option `row_unroll` (2 planes, 1 all).
+    o.row_unroll = args
+        .iter()
+        .find_map(|a| a.strip_prefix("row_unroll="))
+        .and_then(|v| v.parse::<u32>().ok())
+        .unwrap_or(0);
     let ptx = if args.iter().any(|a| a == "lineinfo") {
         with_line_info(&o)
     } else {

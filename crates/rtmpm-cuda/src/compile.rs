@@ -40,6 +40,9 @@ pub struct KernelOptions {
     /// ([`crate::CudaOptions::uniform_loop`], the kernels' default); `false`:
     /// `-DRTMPM_G2P2G_UNIFORM=0`, the loop before it.
     pub uniform_loop: bool,
+    /// `RTMPM_P2G_UNROLL` ([`crate::CudaOptions::row_unroll`], [`crate::RowUnroll::define`]);
+    /// 0: left out (the kernels' default, the row loop).
+    pub row_unroll: u32,
 }
 
 /// True when state arrays of `capacity` particles of `words` words each hold 2^32 words or more:
@@ -63,6 +66,7 @@ impl KernelOptions {
             ck_min_blocks: None,
             stencil_pairs: true,
             uniform_loop: true,
+            row_unroll: 0,
         }
     }
 }
@@ -177,6 +181,9 @@ pub fn nvrtc_options(o: &KernelOptions) -> Vec<String> {
     }
     if !o.uniform_loop {
         v.push("-DRTMPM_G2P2G_UNIFORM=0".into());
+    }
+    if o.row_unroll != 0 {
+        v.push(format!("-DRTMPM_P2G_UNROLL={}", o.row_unroll));
     }
     // Tuning experiments: extra `-DNAME=VALUE` flags, e.g. "-DG2P_MIN_BLOCKS=6" (part of the
     // cache key like every other option).
@@ -443,6 +450,7 @@ mod tests {
             &["-DRTMPM_P2G_ROUNDS_MAX=3"],
             &["-DRTMPM_P2G_REDUCE=4", "-DRTMPM_P2G_ROUNDS_MAX=3"],
             &["-DRTMPM_P2G_UNROLL=1"],
+            &["-DRTMPM_P2G_UNROLL=2"],
             &["-DRTMPM_STATE_STREAM=1"],
             // The fused kernels' register bounds before 96 registers became the default.
             &["-DG2P2G_MIN_BLOCKS=0", "-DG2P2G_FLUID_MIN_BLOCKS=4"],
@@ -498,9 +506,9 @@ mod tests {
         assert!(v.contains(&"-DCK_MIN_BLOCKS=5".to_string()), "{v:?}");
     }
 
-    /// `addressing=blocks` becomes the defines of the stencil-block addressing and
-    /// `uniform_loop=off` that of the warp loop before it; the defaults define nothing (the
-    /// kernels' own defaults).
+    /// `addressing=blocks` becomes the defines of the stencil-block addressing,
+    /// `uniform_loop=off` that of the warp loop before it and `row_unroll=planes` that of the
+    /// unrolled rows; the defaults define nothing (the kernels' own defaults).
     #[test]
     fn the_addressing_option_becomes_defines() {
         let mut o = KernelOptions::all_models((9, 0), true, false);
@@ -522,6 +530,10 @@ mod tests {
         o.uniform_loop = false;
         let v = nvrtc_options(&o);
         assert!(v.contains(&"-DRTMPM_G2P2G_UNIFORM=0".to_string()), "{v:?}");
+        assert!(!v.iter().any(|d| d.contains("RTMPM_P2G_UNROLL")), "{v:?}");
+        o.row_unroll = crate::RowUnroll::Planes.define();
+        let v = nvrtc_options(&o);
+        assert!(v.contains(&"-DRTMPM_P2G_UNROLL=2".to_string()), "{v:?}");
     }
 
     /// The entry directives and the body of kernel `k` in `ptx` (up to its closing brace).

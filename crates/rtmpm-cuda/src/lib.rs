@@ -97,5 +97,7 @@ pub use cudarc::driver::PinnedHostSlice;
 pub use error::Unavailable;
 pub use export::DeviceParticles;
 pub use multi::{MultiGpuBackend, NcclRankBackend, nccl, peer, rendezvous};
-pub use options::{BarrierKind, BodyPoses, CkP2g, CudaOptions, ExchangeMode, P2gMode, Transport};
+pub use options::{
+    BarrierKind, BodyPoses, CkP2g, CudaOptions, ExchangeMode, P2gMode, RowUnroll, Transport,
+};
 pub use probe::{DeviceInfo, device_count, probe, probe_device};

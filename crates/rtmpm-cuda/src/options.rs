@@ -227,6 +227,34 @@ pub struct CudaOptions {
     /// checks before every shuffle. The same arithmetic bit for bit, fewer instructions; `off`
     /// keeps the loop before it, to compare the two in one binary.
     pub uniform_loop: bool,
+    /// The warp scatter's rows of three nodes unrolled (`row_unroll=off|planes|all`;
+    /// `kernels/p2g/warp.cuh`: `RTMPM_P2G_UNROLL`): `Off` (the default) a loop over the nine
+    /// rows; `Planes` the three rows of a plane unrolled; `All` all nine. The same arithmetic bit
+    /// for bit; fewer instructions issued (no row selects, no loop counter) for a larger kernel.
+    pub row_unroll: RowUnroll,
+}
+
+/// The warp scatter's row loop ([`CudaOptions::row_unroll`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum RowUnroll {
+    /// A loop over the nine rows (the default).
+    #[default]
+    Off,
+    /// The three rows of a plane unrolled (`-DRTMPM_P2G_UNROLL=2`).
+    Planes,
+    /// All nine rows unrolled (`-DRTMPM_P2G_UNROLL=1`).
+    All,
+}
+
+impl RowUnroll {
+    /// The value of `RTMPM_P2G_UNROLL` (`kernels/p2g/warp.cuh`).
+    pub fn define(self) -> u32 {
+        match self {
+            RowUnroll::Off => 0,
+            RowUnroll::Planes => 2,
+            RowUnroll::All => 1,
+        }
+    }
 }
 
 /// When the poses given to a body of a batch's worlds go into their rapier worlds
@@ -286,6 +314,7 @@ impl Default for CudaOptions {
             stencil_pairs: true,
             batch_poses: BodyPoses::Deferred,
             uniform_loop: true,
+            row_unroll: RowUnroll::Off,
         }
     }
 }
@@ -299,7 +328,7 @@ impl std::str::FromStr for CudaOptions {
     /// (ordinals separated by `:`), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
     /// `rmap_pblocks`, `shared`, `sort_fields` (counts), `fluid_state` (on/off), `state`
     /// (f32/compact), `body_sums` (read/step), `addressing` (pairs/blocks), `uniform_loop` (on/off),
-    /// `body_poses` (deferred/deferred_serial/eager).
+    /// `body_poses` (deferred/deferred_serial/eager), `row_unroll` (off/planes/all).
     fn from_str(s: &str) -> Result<Self, String> {
         let mut o = CudaOptions::default();
         for item in s.split(',').map(str::trim).filter(|t| !t.is_empty()) {
@@ -394,6 +423,17 @@ impl std::str::FromStr for CudaOptions {
                     o.batch_sums_at_read = choice(item, v, &[("read", true), ("step", false)])?
                 }
                 "uniform_loop" => o.uniform_loop = b()?,
+                "row_unroll" => {
+                    o.row_unroll = choice(
+                        item,
+                        v,
+                        &[
+                            ("off", RowUnroll::Off),
+                            ("planes", RowUnroll::Planes),
+                            ("all", RowUnroll::All),
+                        ],
+                    )?
+                }
                 "addressing" => {
                     o.stencil_pairs = choice(item, v, &[("pairs", true), ("blocks", false)])?
                 }
@@ -605,6 +645,19 @@ mod tests {
         assert_eq!(
             "addressing=nodes".parse::<CudaOptions>().unwrap_err(),
             "`addressing=nodes`: expected pairs or blocks"
+        );
+        assert_eq!(CudaOptions::default().row_unroll, RowUnroll::Off);
+        for (v, r, d) in [
+            ("off", RowUnroll::Off, 0),
+            ("planes", RowUnroll::Planes, 2),
+            ("all", RowUnroll::All, 1),
+        ] {
+            let o: CudaOptions = format!("row_unroll={v}").parse().unwrap();
+            assert_eq!((o.row_unroll, o.row_unroll.define()), (r, d));
+        }
+        assert_eq!(
+            "row_unroll=rows".parse::<CudaOptions>().unwrap_err(),
+            "`row_unroll=rows`: expected off, planes or all"
         );
         assert!(CudaOptions::default().uniform_loop);
         assert!(

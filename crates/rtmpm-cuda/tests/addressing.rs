@@ -10,7 +10,9 @@
 //!    with separate G2P and P2G kernels; the particles start at every cell offset of the blocks,
 //!    so the stencils start at every node of their pairs;
 //! 2. in a dense scene they differ no more than four times as much as two runs of the default
-//!    differ from each other (P2G's atomic sums are not deterministic), or 1e-4 dx.
+//!    differ from each other (P2G's atomic sums are not deterministic), or 1e-4 dx;
+//! 3. the warp scatter's rows unrolled (`row_unroll=planes|all`, off by default) give the
+//!    default's particles bit for bit (isolated water and jelly, f32, G2P2G).
 //!
 //! `cargo test -p rtmpm-cuda --test addressing -- --include-ignored`; the GPU tests skip with a
 //! message when no usable CUDA device is present.
@@ -18,7 +20,7 @@
 mod common;
 
 use common::{gpu, read};
-use rtmpm_cuda::{CudaBackend, CudaOptions};
+use rtmpm_cuda::{CudaBackend, CudaOptions, RowUnroll};
 use rtmpm_physics::Particles;
 use rtmpm_physics::boundary::Walls;
 use rtmpm_physics::material::Material;
@@ -180,5 +182,35 @@ fn in_a_dense_scene_the_new_kernels_differ_no_more_than_a_rerun() {
             other <= (4.0 * rerun).max(1e-4 * s.dx),
             "the kernels before differ by {other:e}, a rerun by {rerun:e}"
         );
+    }
+}
+
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn the_unrolled_rows_give_bit_identical_particles() {
+    if !gpu() {
+        return;
+    }
+    for water in [true, false] {
+        let s = scene(water);
+        let p = block(&s, Vec3::splat(0.2), Vec3::splat(0.8), 5.25);
+        let default = run(&s, &p, CudaOptions::default(), 60);
+        assert!(max_dx(&default, &p) > 0.0, "water {water}: nothing moved");
+        for unroll in [RowUnroll::Planes, RowUnroll::All] {
+            let what = format!("water {water}, {unroll:?}");
+            let o = CudaOptions {
+                row_unroll: unroll,
+                ..Default::default()
+            };
+            let unrolled = run(&s, &p, o, 60);
+            for i in 0..p.len() {
+                let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+                assert_eq!(bits(default.x[i]), bits(unrolled.x[i]), "{what}: x of {i}");
+                assert_eq!(bits(default.v[i]), bits(unrolled.v[i]), "{what}: v of {i}");
+                assert_eq!(default.c[i], unrolled.c[i], "{what}: C of {i}");
+                assert_eq!(default.f[i], unrolled.f[i], "{what}: F of {i}");
+            }
+            println!("{what}: {} particles bit-identical", p.len());
+        }
     }
 }

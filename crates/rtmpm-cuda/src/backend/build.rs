@@ -386,6 +386,7 @@ impl Plan {
             ck_min_blocks: o.ck_min_blocks,
             stencil_pairs: o.stencil_pairs,
             uniform_loop: o.uniform_loop,
+            row_unroll: o.row_unroll.define(),
         })
         .map_err(SimError::Backend)?;
         // Single stream: no cross-stream event tracking (keeps launches capturable).
