@@ -365,13 +365,12 @@ fn the_lockstep_driver_puts_a_reset_worlds_tool_back() {
 /// loads read at the steps `read(s)` says (twice at every third of them), the tools posed per
 /// body (`set_body_poses`) at the steps `pose(s)` says (world 1's twice in a row at every
 /// fifth: the second on the first's result).
-#[allow(clippy::type_complexity)]
 fn tool_run(
     options: CudaOptions,
     steps: usize,
     read: impl Fn(usize) -> bool,
     pose: impl Fn(usize) -> bool,
-) -> (Vec<Vec<u64>>, Vec<Vec<u32>>, Vec<Vec<u32>>) {
+) -> ToolRun {
     let worlds: Vec<Scene> = (0..4).map(tool_world).collect();
     let p0: Vec<Particles> = worlds
         .iter()
@@ -444,13 +443,17 @@ fn tool_run(
 /// (`body_sums=read`, the default) and the poses given to its tools until the next step
 /// (`body_poses=deferred`, the default): the loads read then, at any step, twice in a step or not
 /// at all for a while, the tools' poses read and stepped, and every particle are those of the
-/// copy after every step (`body_sums=step`) and of poses put at once (`body_poses=eager`) bit for
-/// bit, each switch alone and both, and the kept poses put in on one thread
-/// (`deferred_serial`) (200 steps, the tools posed by body at some steps, one world's
-/// twice with a read between). About 5 s on an H200.
+/// copy after every step (`body_sums=step`) and of poses put at once (`body_poses=eager`), each
+/// switch alone and both, and the kept poses put in on one thread (`deferred_serial`) (200
+/// steps, the tools posed by body at some steps, one world's twice with a read between).
+/// Within what the default differs from itself when run again, not bit for bit: the jelly's
+/// P2G atomics come in another order each run (measured on an H200, 2026-11-29: the first loads
+/// of two such runs 1e-8 apart relatively), so every figure may differ by 8 times the rerun's
+/// largest difference of its kind or 1e-5 of the largest magnitude of its kind, far below what
+/// a load from another step or a pose put at the wrong step changes. About 10 s on an H200.
 #[test]
 #[ignore = "needs a CUDA GPU"]
-fn kept_sums_and_kept_poses_give_the_eager_results_bit_for_bit() {
+fn kept_sums_and_kept_poses_give_the_eager_results() {
     if !gpu() {
         return;
     }
@@ -462,24 +465,93 @@ fn kept_sums_and_kept_poses_give_the_eager_results_bit_for_bit() {
         batch_poses: poses,
         ..precise()
     };
-    let (loads, poses, parts) = tool_run(with(true, BodyPoses::Deferred), 200, read, pose);
+    let base = tool_run(with(true, BodyPoses::Deferred), 200, read, pose);
     assert!(
-        loads
+        base.0
             .iter()
             .skip(1)
             .any(|l| l.iter().any(|&b| f64::from_bits(b) != 0.0)),
         "the tools feel the jelly"
     );
+    let rerun = tool_run(with(true, BodyPoses::Deferred), 200, read, pose);
+    let spread = RunDiff::between(&base, &rerun);
+    println!("the default run again: {spread:?}");
+    let scale = RunDiff::magnitudes(&base);
     for (sums, kept) in [
         (false, BodyPoses::Deferred),
         (true, BodyPoses::DeferredSerial),
         (true, BodyPoses::Eager),
         (false, BodyPoses::Eager),
     ] {
-        let (l, p, x) = tool_run(with(sums, kept), 200, read, pose);
+        let run = tool_run(with(sums, kept), 200, read, pose);
         let what = format!("body_sums at read {sums}, poses {kept:?}");
-        assert_eq!(loads, l, "{what}: loads");
-        assert_eq!(poses, p, "{what}: poses");
-        assert!(parts == x, "{what}: particles differ");
+        assert_eq!(base.0.len(), run.0.len(), "{what}: as many load reads");
+        let d = RunDiff::between(&base, &run);
+        println!("{what}: {d:?}");
+        for (name, got, again, big) in [
+            ("loads", d.loads, spread.loads, scale.loads),
+            ("poses", d.poses, spread.poses, scale.poses),
+            ("particles", d.particles, spread.particles, scale.particles),
+        ] {
+            let limit = (8.0 * again).max(1e-5 * big);
+            assert!(
+                got <= limit,
+                "{what}: {name} differ by {got:e}, more than {limit:e} (rerun {again:e})"
+            );
+        }
+    }
+}
+
+/// The largest differences of two [`tool_run`]s (or, from [`RunDiff::magnitudes`], the largest
+/// magnitudes of one): loads, poses, particles.
+#[derive(Debug, Clone, Copy)]
+struct RunDiff {
+    loads: f64,
+    poses: f64,
+    particles: f64,
+}
+
+type ToolRun = (Vec<Vec<u64>>, Vec<Vec<u32>>, Vec<Vec<u32>>);
+
+impl RunDiff {
+    fn between(a: &ToolRun, b: &ToolRun) -> RunDiff {
+        let f64s = |x: &[Vec<u64>], y: &[Vec<u64>]| {
+            x.iter()
+                .flatten()
+                .zip(y.iter().flatten())
+                .map(|(&p, &q)| (f64::from_bits(p) - f64::from_bits(q)).abs())
+                .fold(0.0, f64::max)
+        };
+        let f32s = |x: &[Vec<u32>], y: &[Vec<u32>]| {
+            x.iter()
+                .flatten()
+                .zip(y.iter().flatten())
+                .map(|(&p, &q)| (f32::from_bits(p) as f64 - f32::from_bits(q) as f64).abs())
+                .fold(0.0, f64::max)
+        };
+        RunDiff {
+            loads: f64s(&a.0, &b.0),
+            poses: f32s(&a.1, &b.1),
+            particles: f32s(&a.2, &b.2),
+        }
+    }
+
+    fn magnitudes(a: &ToolRun) -> RunDiff {
+        let f32s = |x: &[Vec<u32>]| {
+            x.iter()
+                .flatten()
+                .map(|&p| (f32::from_bits(p) as f64).abs())
+                .fold(0.0, f64::max)
+        };
+        RunDiff {
+            loads: a
+                .0
+                .iter()
+                .flatten()
+                .map(|&p| f64::from_bits(p).abs())
+                .fold(0.0, f64::max),
+            poses: f32s(&a.1),
+            particles: f32s(&a.2),
+        }
     }
 }
