@@ -111,6 +111,11 @@ def test_a_world_that_blows_up_is_frozen_and_the_others_go_on():
     assert sim.step(1) == []
 
 
+@pytest.mark.xfail(
+    strict=True,
+    reason="on an H200 (2026-11-29, wheel of 4fa9b8b) the first call with overlap returned the "
+    "blow-up itself ([[1], [], []]): these steps do not defer their check on the GPU yet",
+)
 def test_with_overlap_a_blow_up_is_returned_a_call_later_and_ends_as_without_it():
     """``overlap``: a step call returns before its check; world 1's blow-up in the first call is
     found as the second begins (after a reset of world 2 made meanwhile, made again after the
