@@ -28,6 +28,9 @@ mod host;
 
 use host::HostBodies;
 
+/// Page-locked buffers the body table's uploads take in turn ([`WorldBodies`]`::staging`).
+const UPLOAD_BUFFERS: usize = 4;
+
 /// Every world's rigid bodies: their rapier worlds and the device side of their coupling.
 pub(crate) struct WorldBodies {
     /// The host side: every world's rapier world, its bodies' poses and device records, the
@@ -43,6 +46,12 @@ pub(crate) struct WorldBodies {
     /// The bytes `table` holds (the last upload's; empty before the first): an upload of the
     /// same bytes is skipped (bodies at rest, tools standing still).
     uploaded: Vec<u8>,
+    /// The page-locked memory the uploads of `table` go through, used in turn (a copy from
+    /// pageable memory would wait for the steps queued ahead of it; with several buffers the
+    /// host may be that many changed uploads ahead of the device).
+    staging: [super::staging::PutStaging; UPLOAD_BUFFERS],
+    /// The next of `staging` to use.
+    next_staging: usize,
     /// `BODY_EXCHANGE_SLOTS` x `worlds x per` rows x 6 f64 sums (`Ctx::body_exchange`).
     exchange: CudaSlice<f64>,
     /// The host's copy of the sums (filled when a load is read, with `at_read`).
@@ -114,6 +123,8 @@ impl WorldBodies {
             per,
             table,
             uploaded: Vec::new(),
+            staging: Default::default(),
+            next_staging: 0,
             exchange,
             host: Mutex::new(HostSums {
                 sums: host,
@@ -149,9 +160,15 @@ impl WorldBodies {
         if bytes == self.uploaded.as_slice() {
             return Ok(());
         }
-        stream
-            .memcpy_htod(bytes, &mut self.table.slice_mut(..bytes.len()))
-            .map_err(err("upload the worlds' rigid bodies"))?;
+        if super::put::pageable_puts() {
+            stream
+                .memcpy_htod(bytes, &mut self.table.slice_mut(..bytes.len()))
+                .map_err(err("upload the worlds' rigid bodies"))?;
+        } else {
+            let k = self.next_staging;
+            self.next_staging = (k + 1) % UPLOAD_BUFFERS;
+            self.staging[k].copy_to_device(stream, bytes, &mut self.table)?;
+        }
         self.uploaded.clear();
         self.uploaded.extend_from_slice(bytes);
         Ok(())

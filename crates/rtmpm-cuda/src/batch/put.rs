@@ -6,7 +6,7 @@ use super::CudaBatch;
 use crate::contract::{CTL_NEED_REBUILD, CTL_P2G_PENDING};
 use crate::error::err;
 use crate::kernels::Kernel;
-use cudarc::driver::{DevicePtrMut, PushKernelArg};
+use cudarc::driver::PushKernelArg;
 use rtmpm_physics::Particles;
 use rtmpm_sim::SimError;
 
@@ -252,40 +252,8 @@ impl CudaBatch {
                 .memcpy_htod(&self.put_host, &mut buf.slice_mut(..len))
                 .map_err(err("upload worlds"));
         }
-        let staging = &mut self.put_staging;
-        if staging.pinned.as_ref().is_none_or(|p| p.len() < len) {
-            staging.wait()?;
-            staging.pinned = None;
-            // SAFETY: bytes below `len` are written below before the copy reads them. Plain
-            // page-locked memory (the host writes it, the copy engine reads it).
-            let pinned = unsafe {
-                stream
-                    .context()
-                    .alloc_pinned_with_flags::<u8>(len.max(1), 0)
-            }
-            .map_err(err("allocate page-locked memory for a put"))?;
-            staging.pinned = Some(pinned);
-        }
-        staging.wait()?;
-        let Some(pinned) = staging.pinned.as_mut() else {
-            return Ok(());
-        };
-        let host = pinned
-            .as_mut_slice()
-            .map_err(err("page-locked memory for a put"))?;
-        host[..len].copy_from_slice(&self.put_host);
-        let (dst, _written) = buf.device_ptr_mut(&stream);
-        // SAFETY: `dst` holds at least `len` bytes (sized above); `host[..len]` stays alive and
-        // unwritten until the event recorded next has passed: the next put, a larger buffer
-        // and the staging's drop all wait for it first (`PutStaging::wait`).
-        unsafe { cudarc::driver::result::memcpy_htod_async(dst, &host[..len], stream.cu_stream()) }
-            .map_err(err("upload worlds"))?;
-        staging.done = Some(
-            stream
-                .record_event(None)
-                .map_err(err("record the put's event"))?,
-        );
-        Ok(())
+        self.put_staging
+            .copy_to_device(&stream, &self.put_host, buf)
     }
 }
 

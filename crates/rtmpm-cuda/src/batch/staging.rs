@@ -1,7 +1,9 @@
 //! The page-locked memory a batch's puts go through ([`PutStaging`], used by `put.rs`).
 
 use crate::error::err;
+use cudarc::driver::{CudaSlice, CudaStream, DevicePtrMut};
 use rtmpm_sim::SimError;
+use std::sync::Arc;
 
 /// The page-locked memory of the puts and the event after the last copy out of it.
 #[derive(Default)]
@@ -20,6 +22,54 @@ impl PutStaging {
                 .map_err(err("wait for the last put's copy")),
             None => Ok(()),
         }
+    }
+}
+
+impl PutStaging {
+    /// Copy `bytes` to the start of `dst` (at least as long) on `stream` through this page-locked
+    /// memory: an asynchronous copy that returns at once even while work is queued ahead of it
+    /// on the stream (a copy from pageable memory waits for the stream to reach it). The memory
+    /// is written once the previous copy out of it is done, and grown (reallocated) to fit.
+    pub(super) fn copy_to_device(
+        &mut self,
+        stream: &Arc<CudaStream>,
+        bytes: &[u8],
+        dst: &mut CudaSlice<u8>,
+    ) -> Result<(), SimError> {
+        let len = bytes.len();
+        assert!(dst.len() >= len, "a staged copy past its destination");
+        self.wait()?;
+        if self.pinned.as_ref().is_none_or(|p| p.len() < len) {
+            self.pinned = None;
+            // SAFETY: bytes below `len` are written below before the copy reads them. Plain
+            // page-locked memory (the host writes it, the copy engine reads it).
+            let pinned = unsafe {
+                stream
+                    .context()
+                    .alloc_pinned_with_flags::<u8>(len.max(1), 0)
+            }
+            .map_err(err("allocate page-locked memory for an upload"))?;
+            self.pinned = Some(pinned);
+        }
+        let Some(pinned) = self.pinned.as_mut() else {
+            return Ok(());
+        };
+        let host = pinned
+            .as_mut_slice()
+            .map_err(err("page-locked memory for an upload"))?;
+        host[..len].copy_from_slice(bytes);
+        let (ptr, _written) = dst.device_ptr_mut(stream);
+        // SAFETY: `ptr` holds at least `len` bytes (checked above); `host[..len]` stays alive and
+        // unwritten until the event recorded next has passed: the next copy through this
+        // memory, its growth and its drop all wait for it first (`PutStaging::wait`).
+        unsafe { cudarc::driver::result::memcpy_htod_async(ptr, &host[..len], stream.cu_stream()) }
+            .map_err(err("upload through page-locked memory"))?;
+        self.done = Some(
+            stream
+                .record_event(None)
+                .map_err(err("record the upload's event"))?,
+        );
+        Ok(())
     }
 }
 
