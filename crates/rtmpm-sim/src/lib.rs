@@ -8,6 +8,7 @@ pub mod backend;
 pub mod chunks;
 pub mod edit;
 pub mod error;
+pub mod timing;
 pub mod worlds;
 
 pub use backend::Backend;

@@ -160,7 +160,7 @@ impl WorldBodies {
         if bytes == self.uploaded.as_slice() {
             return Ok(());
         }
-        if super::put::pageable_puts() {
+        if super::staging::pageable_puts() {
             stream
                 .memcpy_htod(bytes, &mut self.table.slice_mut(..bytes.len()))
                 .map_err(err("upload the worlds' rigid bodies"))?;

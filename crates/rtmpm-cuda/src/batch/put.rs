@@ -3,6 +3,7 @@
 //! one or many in one upload ([`CudaBatch::put_world`], [`CudaBatch::put_worlds`]).
 
 use super::CudaBatch;
+use super::staging::pageable_puts;
 use crate::contract::{CTL_NEED_REBUILD, CTL_P2G_PENDING};
 use crate::error::err;
 use crate::kernels::Kernel;
@@ -223,7 +224,7 @@ impl CudaBatch {
         if b.g2p2g() {
             b.set_ctl_word(CTL_P2G_PENDING, 1)?;
         }
-        put_timing(worlds.len(), [t0, t1, t2, std::time::Instant::now()]);
+        PUT_TIMING.record(worlds.len(), [t0, t1, t2], std::time::Instant::now());
         Ok(())
     }
 }
@@ -257,41 +258,14 @@ impl CudaBatch {
     }
 }
 
-/// Puts go to the device from pageable memory, as before the page-locked upload
-/// (`RTMPM_BATCH_PAGEABLE_PUT=1`; for comparing the two: bench/python_batch_gpu.py). Read once.
-pub fn pageable_puts() -> bool {
-    static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *ON.get_or_init(|| std::env::var("RTMPM_BATCH_PAGEABLE_PUT").is_ok_and(|v| v.trim() == "1"))
-}
-
 /// `RTMPM_RESET_TIMING=1`: where a put's host time goes, printed to stderr every 100 puts (the
 /// means of the packing, the upload's host side and the launches); off by default.
-fn put_timing(worlds: usize, t: [std::time::Instant; 4]) {
-    use std::sync::{Mutex, OnceLock};
-    static ON: OnceLock<bool> = OnceLock::new();
-    static SUMS: Mutex<(u32, usize, [f64; 3])> = Mutex::new((0, 0, [0.0; 3]));
-    if !*ON.get_or_init(|| std::env::var("RTMPM_RESET_TIMING").is_ok_and(|v| v.trim() == "1")) {
-        return;
-    }
-    let mut s = SUMS.lock().unwrap_or_else(|p| p.into_inner());
-    s.0 += 1;
-    s.1 += worlds;
-    for (i, part) in s.2.iter_mut().enumerate() {
-        *part += (t[i + 1] - t[i]).as_secs_f64();
-    }
-    if s.0 == 100 {
-        let us = |x: f64| 1e6 * x / 100.0;
-        eprintln!(
-            "RTMPM_RESET_TIMING put (mean of 100 puts, {} worlds a put): pack {:.1} us, upload \
-             {:.1} us, launches {:.1} us",
-            s.1 / 100,
-            us(s.2[0]),
-            us(s.2[1]),
-            us(s.2[2])
-        );
-        *s = (0, 0, [0.0; 3]);
-    }
-}
+static PUT_TIMING: rtmpm_sim::timing::PartTimes<3> = rtmpm_sim::timing::PartTimes::new(
+    "RTMPM_RESET_TIMING",
+    "put",
+    "worlds",
+    ["pack", "upload", "launches"],
+);
 
 /// A run of consecutive worlds put at once ([`CudaBatch::put_worlds`]): its first particle
 /// (original order), its particles, where its packed image starts in the upload and its length

@@ -1,4 +1,5 @@
-//! The page-locked memory a batch's puts go through ([`PutStaging`], used by `put.rs`).
+//! The page-locked memory a batch's uploads go through ([`PutStaging`]: the puts of `put.rs`, the
+//! rigid bodies' table of `bodies.rs`) and the switch back to pageable memory ([`pageable_puts`]).
 
 use crate::error::err;
 use cudarc::driver::{CudaSlice, CudaStream, DevicePtrMut};
@@ -78,4 +79,11 @@ impl Drop for PutStaging {
     fn drop(&mut self) {
         let _ = self.wait();
     }
+}
+
+/// Puts go to the device from pageable memory, as before the page-locked upload
+/// (`RTMPM_BATCH_PAGEABLE_PUT=1`; for comparing the two: bench/python_batch_gpu.py). Read once.
+pub(super) fn pageable_puts() -> bool {
+    static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *ON.get_or_init(|| std::env::var("RTMPM_BATCH_PAGEABLE_PUT").is_ok_and(|v| v.trim() == "1"))
 }

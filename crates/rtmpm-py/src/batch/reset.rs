@@ -15,42 +15,12 @@ use std::time::Instant;
 /// means of the arrays and start states made on the host, and the driver's reset: on the GPU
 /// the put, whose own parts `RTMPM_RESET_TIMING` prints from rtmpm-cuda, the bodies and
 /// records); off by default (one check of a flag a call).
-mod timing {
-    use std::sync::{Mutex, OnceLock};
-    use std::time::Instant;
-
-    /// Calls summed, worlds reset, and seconds of each part.
-    static SUMS: Mutex<(u32, usize, [f64; 2])> = Mutex::new((0, 0, [0.0; 2]));
-
-    fn on() -> bool {
-        static ON: OnceLock<bool> = OnceLock::new();
-        *ON.get_or_init(|| std::env::var("RTMPM_RESET_TIMING").is_ok_and(|v| v.trim() == "1"))
-    }
-
-    /// One call resetting `worlds` worlds, its parts between the instants `t`.
-    pub fn record(worlds: usize, t: [Instant; 3]) {
-        if !on() {
-            return;
-        }
-        let mut s = SUMS.lock().unwrap_or_else(|p| p.into_inner());
-        s.0 += 1;
-        s.1 += worlds;
-        for (i, part) in s.2.iter_mut().enumerate() {
-            *part += (t[i + 1] - t[i]).as_secs_f64();
-        }
-        if s.0 == 100 {
-            let us = |x: f64| 1e6 * x / 100.0;
-            eprintln!(
-                "RTMPM_RESET_TIMING reset (mean of 100 calls, {} worlds a call): start states \
-                 {:.1} us, driver's reset {:.1} us",
-                s.1 / 100,
-                us(s.2[0]),
-                us(s.2[1])
-            );
-            *s = (0, 0, [0.0; 2]);
-        }
-    }
-}
+static TIMING: rtmpm_sim::timing::PartTimes<2> = rtmpm_sim::timing::PartTimes::new(
+    "RTMPM_RESET_TIMING",
+    "reset",
+    "worlds",
+    ["start states", "driver's reset"],
+);
 
 impl PyBatch {
     /// World `w`'s particles at time 0, with `x` / `v` (rows of `n` x 3) replacing theirs.
@@ -165,7 +135,7 @@ impl PyBatch {
             }
             Ok(Vec::new())
         })?;
-        timing::record(k, [t0, t1, Instant::now()]);
+        TIMING.record(k, [t0, t1], Instant::now());
         Ok(())
     }
 }

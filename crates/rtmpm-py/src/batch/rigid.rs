@@ -22,44 +22,12 @@ use std::time::Instant;
 /// `RTMPM_POSE_TIMING=1`: where `set_rigid_body`'s time goes on a GPU batch, printed to stderr
 /// every 100 calls (the means of the arrays read, the checks of the new poses, and their putting
 /// in); off by default (one check of a flag a call).
-mod timing {
-    use std::sync::Mutex;
-    use std::sync::OnceLock;
-    use std::time::Instant;
-
-    /// Calls summed, worlds posed, and seconds of each part.
-    static SUMS: Mutex<(u32, usize, [f64; 3])> = Mutex::new((0, 0, [0.0; 3]));
-
-    fn on() -> bool {
-        static ON: OnceLock<bool> = OnceLock::new();
-        *ON.get_or_init(|| std::env::var("RTMPM_POSE_TIMING").is_ok_and(|v| v.trim() == "1"))
-    }
-
-    /// One call posing `worlds` worlds, its parts between the instants `t`.
-    pub fn record(worlds: usize, t: [Instant; 4]) {
-        if !on() {
-            return;
-        }
-        let mut s = SUMS.lock().unwrap_or_else(|p| p.into_inner());
-        s.0 += 1;
-        s.1 += worlds;
-        for (i, part) in s.2.iter_mut().enumerate() {
-            *part += (t[i + 1] - t[i]).as_secs_f64();
-        }
-        if s.0 == 100 {
-            let us = |x: f64| 1e6 * x / 100.0;
-            eprintln!(
-                "RTMPM_POSE_TIMING set_rigid_body (mean of 100 calls, {} worlds a call): arrays \
-                 {:.1} us, checks {:.1} us, put {:.1} us",
-                s.1 / 100,
-                us(s.2[0]),
-                us(s.2[1]),
-                us(s.2[2])
-            );
-            *s = (0, 0, [0.0; 3]);
-        }
-    }
-}
+static TIMING: rtmpm_sim::timing::PartTimes<3> = rtmpm_sim::timing::PartTimes::new(
+    "RTMPM_POSE_TIMING",
+    "set_rigid_body",
+    "worlds",
+    ["arrays", "checks", "put"],
+);
 
 /// A per-world vector argument: one value for every world listed, or one row per world.
 fn per_world<const K: usize>(
@@ -144,7 +112,7 @@ impl PyBatch {
                     // Through the run: remembered while a step call's check is pending.
                     r.set_body_poses(i, run).map_err(super::run_error)?;
                 }
-                timing::record(k, [t0, t1, t2, Instant::now()]);
+                TIMING.record(k, [t0, t1, t2], Instant::now());
                 failed.map_or(Ok(()), Err)
             }
         }

@@ -38,36 +38,20 @@ type Kept = (usize, usize, BodyPose);
 /// `RTMPM_POSE_TIMING=1`: the host's time in the kept poses' putting in ([`HostBodies::flush`])
 /// and in the steps' advance of the worlds, printed to stderr every 100 of each (means); off by
 /// default (one check of a flag a call).
-mod timing {
-    use std::sync::{Mutex, OnceLock};
-    use std::time::Instant;
+static PUT_IN: rtmpm_sim::timing::PartTimes<1> = rtmpm_sim::timing::PartTimes::new(
+    "RTMPM_POSE_TIMING",
+    "kept poses put in",
+    "worlds",
+    ["put in"],
+);
 
-    /// Per kind (0: putting in, 1: advance): calls, worlds, seconds.
-    static SUMS: Mutex<[(u32, usize, f64); 2]> = Mutex::new([(0, 0, 0.0); 2]);
-
-    /// The flag is set.
-    pub fn on() -> bool {
-        static ON: OnceLock<bool> = OnceLock::new();
-        *ON.get_or_init(|| std::env::var("RTMPM_POSE_TIMING").is_ok_and(|v| v.trim() == "1"))
-    }
-
-    /// One putting in (`kind` 0) or advance (1) of `worlds` worlds since `t0`.
-    pub fn record(kind: usize, worlds: usize, t0: Instant) {
-        let dt = t0.elapsed().as_secs_f64();
-        let mut s = SUMS.lock().unwrap_or_else(|p| p.into_inner());
-        let e = &mut s[kind];
-        (e.0, e.1, e.2) = (e.0 + 1, e.1 + worlds, e.2 + dt);
-        if e.0 == 100 {
-            let what = ["kept poses put in", "worlds advanced"][kind];
-            eprintln!(
-                "RTMPM_POSE_TIMING {what} (mean of 100): {:.1} us, {} worlds",
-                1e6 * e.2 / 100.0,
-                e.1 / 100
-            );
-            *e = (0, 0, 0.0);
-        }
-    }
-}
+/// `RTMPM_POSE_TIMING=1`: the steps' advance of the worlds (see [`PUT_IN`]).
+static ADVANCE: rtmpm_sim::timing::PartTimes<1> = rtmpm_sim::timing::PartTimes::new(
+    "RTMPM_POSE_TIMING",
+    "worlds advanced",
+    "worlds",
+    ["advance"],
+);
 
 /// Every world's rapier world, its bodies' poses and device records in rows, and the poses given
 /// but not yet put into the worlds.
@@ -199,8 +183,9 @@ impl HostBodies {
                     put_kept(world, &kept[f..f + n], mesh, poses, records);
                 });
         }
-        if timing::on() {
-            timing::record(0, kept.chunk_by(|a, b| a.0 == b.0).count(), t0);
+        if PUT_IN.on() {
+            let worlds = kept.chunk_by(|a, b| a.0 == b.0).count();
+            PUT_IN.record(worlds, [t0], std::time::Instant::now());
         }
         kept.clear();
         self.kept = kept; // its memory kept for the next poses
@@ -252,8 +237,8 @@ impl HostBodies {
                 world.advance(ex, dt);
                 write_rows(world, mesh, poses, records);
             });
-        if timing::on() {
-            timing::record(1, self.worlds.len(), t0);
+        if ADVANCE.on() {
+            ADVANCE.record(self.worlds.len(), [t0], std::time::Instant::now());
         }
     }
 
