@@ -27,6 +27,7 @@
 //! parked, at rest where they were), a reset puts a world's back to their poses at its start.
 
 mod checkpoint;
+mod deferred;
 
 use super::{BatchOptions, WorldStatus, checkpoint_due, open_out, summary_row, world_output};
 use crate::outdir::OutDir;
@@ -310,162 +311,6 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         Ok(frozen)
     }
 
-    /// Return from [`LockstepRun::advance_steps`] with its steps queued, before the health
-    /// check of their last step (`true`), or after it (`false`, the default). Deferred, the
-    /// host goes on (a script's resets and poses for the next call, its own work) while the
-    /// device steps; the check is made by [`LockstepRun::settle`], at the start of the next
-    /// advance, [`LockstepRun::sync`] or checkpoint, or when the caller asks (a read of the
-    /// worlds' status). What it finds is handled as if the call had found it: the world frozen,
-    /// every world put back to the call's rewind point and its steps taken again, then every
-    /// reset ([`LockstepRun::reset_worlds`]) and pose ([`LockstepRun::set_body_poses`]) made
-    /// since made again, in order; the worlds frozen are returned by the next advance. Only
-    /// for a fixed time step (a CFL step waits for each step's speed anyway) and a backend that
-    /// keeps its rewind point (otherwise the calls check as before). Turning it off settles
-    /// first.
-    pub fn set_deferred_checks(&mut self, on: bool) -> Result<()> {
-        if !on {
-            self.settle()?;
-        }
-        self.defer = on;
-        Ok(())
-    }
-
-    /// Whether [`LockstepRun::advance_steps`] returns before its last check.
-    pub fn deferred_checks(&self) -> bool {
-        self.defer
-    }
-
-    /// A check still to be made ([`LockstepRun::set_deferred_checks`]).
-    pub fn check_pending(&self) -> bool {
-        self.pending.is_some()
-    }
-
-    /// [`LockstepRun::advance_steps`] with the last check deferred: the steps queued, the
-    /// worlds' clocks and bodies noted as if no world failed, what a rewind needs kept.
-    fn advance_deferred(&mut self, steps: u64) -> Result<Vec<usize>> {
-        let clock = self.clock();
-        self.keep_bodies()?;
-        let on_backend = self
-            .sim
-            .backend
-            .save_point()
-            .context("keeping the worlds' rewind point")?;
-        if !on_backend {
-            self.sync()?;
-        }
-        let queued = (|| {
-            let target = self.sim.step.saturating_add(steps);
-            while self.sim.step < target {
-                if on_backend {
-                    self.sim.advance_unchecked(target - self.sim.step)?;
-                } else {
-                    self.sim.advance(target - self.sim.step)?;
-                }
-            }
-            Ok(())
-        })();
-        let frozen = match queued {
-            Ok(()) if on_backend => {
-                self.pending = Some(Box::new(Pending {
-                    clock,
-                    end: self.clock(),
-                    steps,
-                    statuses: self.worlds.iter().map(|w| w.status.clone()).collect(),
-                    bodies: self.worlds.iter().map(|w| w.bodies.clone()).collect(),
-                    at: self.worlds.iter().map(|w| w.at).collect(),
-                    origin: self.worlds.iter().map(|w| w.origin).collect(),
-                    since: Vec::new(),
-                }));
-                Vec::new()
-            }
-            Ok(()) => Vec::new(),
-            Err(e @ (SimError::Blowup(_) | SimError::Stall(_))) => {
-                self.rewinds(clock, on_backend, e, steps_of(steps))?
-            }
-            Err(e) => return Err(e.into()),
-        };
-        self.after_advance(on_backend, &frozen)?;
-        Ok(frozen)
-    }
-
-    /// Make the check an advance left pending ([`LockstepRun::set_deferred_checks`]), if any:
-    /// nothing more when it passes; when it finds a blow-up or stall, the worlds' records back
-    /// to the end of that advance, its world frozen and every world put back and stepped again
-    /// as the advance would have done, then the resets and poses made since made again (the
-    /// worlds frozen are returned by the next advance). An error of the backend itself is
-    /// returned.
-    pub fn settle(&mut self) -> Result<()> {
-        let Some(p) = self.pending.take() else {
-            return Ok(());
-        };
-        // Checked at the clock the advance ended at (a reset of every world since put it back
-        // to 0), as the advance would have checked.
-        let now = self.clock();
-        self.set_clock(p.end);
-        let e = match self.sim.check() {
-            Ok(()) => {
-                self.set_clock(now);
-                return Ok(());
-            }
-            Err(e @ (SimError::Blowup(_) | SimError::Stall(_))) => e,
-            Err(e) => return Err(e.into()),
-        };
-        let Pending {
-            clock,
-            end: _,
-            steps,
-            statuses,
-            bodies,
-            at,
-            origin,
-            since,
-        } = *p;
-        // The particles the worlds reset since were put to (they keep them), for the replay.
-        let mut reset_to: Vec<Option<Particles>> = vec![None; self.worlds.len()];
-        for change in &since {
-            if let Since::Reset(list) = change {
-                for &w in list {
-                    reset_to[w] = Some(self.worlds[w].kept.clone());
-                }
-            }
-        }
-        for (w, world) in self.worlds.iter_mut().enumerate() {
-            world.status = statuses[w].clone();
-            world.bodies.clone_from(&bodies[w]);
-            (world.at, world.origin) = (at[w], origin[w]);
-        }
-        let frozen = self.rewinds(clock, true, e, steps_of(steps))?;
-        self.after_advance(true, &frozen)?;
-        self.found.extend(frozen);
-        for change in since {
-            match change {
-                Since::Reset(list) => {
-                    let starts = list
-                        .into_iter()
-                        .filter_map(|w| reset_to[w].clone().map(|p| (w, p)))
-                        .collect();
-                    self.reset_worlds(starts)?;
-                }
-                Since::Poses(body, poses) => self.set_body_poses(body, poses)?,
-            }
-        }
-        Ok(())
-    }
-
-    /// Put rigid body `body` of each world listed in `poses` at its pose from the next step on
-    /// ([`Worlds::set_body_poses`]), remembered while a check is pending (made again if that
-    /// check puts the worlds back).
-    pub fn set_body_poses(&mut self, body: usize, poses: Vec<(usize, BodyPose)>) -> Result<()> {
-        self.sim
-            .backend
-            .set_body_poses(body, &poses)
-            .with_context(|| format!("posing rigid body {body}"))?;
-        if let Some(p) = self.pending.as_mut() {
-            p.since.push(Since::Poses(body, poses));
-        }
-        Ok(())
-    }
-
     /// Advance with `advance` from the state now (the rewind point: kept by the backend when it
     /// can, else the last state read); a blow-up or stall freezes its world, puts every world
     /// back to that point and advances again; then write the frame's files (reading the worlds
@@ -601,9 +446,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             world.status = WorldStatus::Running;
             (world.at, world.origin) = (now, now);
         }
-        if let Some(p) = self.pending.as_mut() {
-            p.since.push(Since::Reset(listed_worlds(&listed)));
-        }
+        self.note_reset(listed_worlds(&listed));
         Ok(())
     }
 
