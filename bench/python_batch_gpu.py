@@ -49,6 +49,14 @@ loop's resets and poses run on the host while the device steps (run the script w
 it for the A/B; the table's first line says which). The timed part of a mode then ends with
 that check of the last call (reading ``running``), which waits for its steps.
 
+After the table, the host's waits a call of each mode (the last round's,
+``BatchSimulation.host_waits``: where the host blocked until the GPU had done queued work, by
+reason: the checks, other control words, reads, rigid-body sums, page-locked upload memory in
+use, copies from pageable memory, allocations, synchronisations); ``RTMPM_SYNC_TRACE=1`` in the
+environment also times them (ms a call). ``RTMPM_BATCH_WAITS=old`` runs the batch's paths as
+before those waits were cut (the A/B in one wheel); ``RTMPM_BATCH_PAGEABLE_PUT=1`` uploads from
+pageable memory.
+
 ``--breakdown`` then runs the modes calls, reset, pose and loop once more (``--repeats`` rounds
 after a warm-up, fresh batches) and times each part of a call on its own: the poses, the resets
 and the steps, with the device synchronised after each part (``BatchSimulation.synchronize``;
@@ -63,6 +71,7 @@ rebuilt, the P2G done again); ``rebuilds a call`` counts the mapping's rebuilds
 
 import argparse
 import json
+import os
 import statistics
 import sys
 import time
@@ -228,10 +237,29 @@ def fresh(one, setups):
     return sim
 
 
+def host_waits(sim):
+    """The batch's host waits so far: ({reason: count}, {reason: seconds}), or None where the
+    module has no such counter (``BatchSimulation.host_waits``; the seconds are zeros without
+    ``RTMPM_SYNC_TRACE=1``)."""
+    counts = getattr(sim, "host_waits", None)
+    if counts is None:
+        return None
+    return counts, sim.host_wait_seconds
+
+
+def waits_per_call(before, after, calls):
+    """{reason: (waits a call, ms waited a call)} between two ``host_waits`` readings."""
+    if before is None or after is None:
+        return None
+    return {k: ((after[0][k] - before[0][k]) / calls, 1e3 * (after[1][k] - before[1][k]) / calls)
+            for k in after[0]}
+
+
 def plain_rounds(a, one, runs, torch, clock, setups):
     """The modes' rounds (the first a warm-up): {run: [wall s]}, the batch's info, the timed
-    rounds done."""
+    rounds done, and {run: host waits a call} of the last round (None where not counted)."""
     times = {r: [] for r in runs}
+    waits = {r: None for r in runs}
     info = {}
     done = 0
     for rep in range(a.repeats + 1):  # the first round warms up (kernel cache, pools), not counted
@@ -241,6 +269,7 @@ def plain_rounds(a, one, runs, torch, clock, setups):
         for run in runs if rep % 2 == 0 else runs[::-1]:
             sim = fresh(one, setups)
             info = {"particles": int(sim.num_particles.sum()), "backend": sim.backend.name}
+            w0 = host_waits(sim)
             t0 = time.perf_counter()
             run_mode(run[0], sim, a.steps, run[1], a.resets, torch)
             if OVERLAP:
@@ -251,13 +280,35 @@ def plain_rounds(a, one, runs, torch, clock, setups):
             if not OVERLAP:
                 ok_all = sim.running.all()
             assert ok_all, f"{run}: a world blew up: {sim.status}"
+            waits[run] = waits_per_call(w0, host_waits(sim), a.steps // run[1])
             if rep > 0:
                 times[run].append(wall)
             del sim
         done = rep
         clock.say(f"round {rep} of {a.repeats} ({'warm-up' if rep == 0 else 'timed'}) done; a batch's "
                   f"set-up (not timed) {statistics.median(setups):.3f} s (median of {len(setups)})")
-    return times, info, done
+    return times, info, done, waits
+
+
+def print_waits(waits, runs):
+    """The host's waits a call of each mode (the last round's; ``BatchSimulation.host_waits``:
+    where the host blocked until the GPU had done queued work, by reason), and the ms they took
+    where ``RTMPM_SYNC_TRACE=1`` timed them."""
+    rows = [(run, waits[run]) for run in runs if waits[run] is not None]
+    if not rows:
+        print("host waits: not counted (the module has no BatchSimulation.host_waits)")
+        return
+    names = list(rows[0][1])
+    traced = any(ms for _, w in rows for _, ms in w.values())
+    print()
+    print("host waits a call (the last round; counted where the host blocks until the GPU has done "
+          "queued work" + (", ms waited a call in brackets" if traced else "; RTMPM_SYNC_TRACE=1 "
+                           "also times them") + "):")
+    print("| mode | steps a call | " + " | ".join(names) + " |")
+    print("| --- | --- | " + " | ".join("---" for _ in names) + " |")
+    for (mode, k), w in rows:
+        cells = [f"{w[n][0]:.2f}" + (f" ({w[n][1]:.3f})" if traced and w[n][0] else "") for n in names]
+        print(f"| {mode} | {k} | " + " | ".join(cells) + " |")
 
 
 def breakdown_rounds(a, one, modes, per_call, torch, clock, setups):
@@ -355,7 +406,7 @@ def main():
     modes += ["device"] if torch is not None else []
     runs = [("bare", a.steps)] + [(m, k) for k in per_call for m in modes if m != "bare"]
     setups = []
-    times, info, done = plain_rounds(a, one, runs, torch, clock, setups)
+    times, info, done, waits = plain_rounds(a, one, runs, torch, clock, setups)
     bare = statistics.median(times[("bare", a.steps)])
     print(f"{a.worlds} worlds, {info['particles']} particles, {a.steps} steps, {a.resets} resets a call, "
           f"{done} repeats, on {info['backend']}; overlap {'on' if a.overlap else 'off'}")
@@ -370,12 +421,17 @@ def main():
         med = statistics.median(times[(mode, k)])
         calls = a.steps // k
         rows.append({"mode": mode, "steps_per_call": k, "wall_s": times[(mode, k)], "median_s": med,
-                     "ratio_to_bare": med / bare})
+                     "ratio_to_bare": med / bare, "host_waits_per_call": waits[(mode, k)]})
         print(f"| {mode} | {k} | {summary(times[(mode, k)])} | {1e3 * med / calls:.3f} | {med / bare:.3f} |")
     print(f"bare: {1e3 * bare / a.steps:.3f} ms a step of the {a.worlds} worlds "
           f"({info['particles'] * a.steps / bare / 1e6:.1f} M particle-steps/s); bound: loop / bare <= 1.10")
     print(f"a fresh batch's set-up (not timed): median {statistics.median(setups):.3f} s of {len(setups)}; "
           f"{clock.now():.1f} s so far", flush=True)
+    print_waits(waits, runs)
+    switches = {k: os.environ[k] for k in ("RTMPM_BATCH_WAITS", "RTMPM_BATCH_PAGEABLE_PUT", "RTMPM_SYNC_TRACE")
+                if k in os.environ}
+    if switches:
+        print(f"environment: {switches}")
     if a.moving_tool:
         print("the tool moves down at 0.2 m/s in every mode (--moving-tool)")
     if a.cuda_options:

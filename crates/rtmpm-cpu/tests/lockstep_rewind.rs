@@ -215,6 +215,74 @@ fn calls_returning_before_their_check_end_as_calls_that_check_at_once() {
     }
 }
 
+/// Calls of 45, 10 and 6 steps (the second crossing the frame end at step 50), world 2 made to
+/// blow up in step `poison` of the second, world 1 reset after it; checks deferred with `defer`,
+/// and with `queues` the backend queues what a check reads (`Worlds::queue_check`: the frame
+/// end's check inside the call queued too, made as the next call begins, at that frame end's
+/// clock). The worlds each call returned frozen, and the run, synced.
+fn frame_end_inside(
+    defer: bool,
+    queues: bool,
+    poison: usize,
+) -> (Vec<Vec<usize>>, LockstepRun<SideBySide>) {
+    let (b, mut r) = unwritten_keeping(SLUMP, true);
+    r.sim.backend.checks_late = true;
+    r.sim.backend.queues = queues;
+    r.set_deferred_checks(defer).expect("defer");
+    r.sim.backend.poison = Some((2, poison));
+    let mut calls = vec![r.advance_steps(45).expect("steps")];
+    calls.push(r.advance_steps(10).expect("steps"));
+    let start = vec![(1, b.worlds[1].sample_particles().expect("sample"))];
+    r.reset_worlds(start).expect("reset");
+    calls.push(r.advance_steps(6).expect("steps"));
+    r.sync().expect("sync");
+    assert!(
+        r.sim.backend.queued.is_empty(),
+        "every queued check was made"
+    );
+    (calls, r)
+}
+
+#[test]
+fn checks_queued_at_a_frame_end_inside_a_call_end_as_checks_made_at_once() {
+    // World 2 blows up in step 48 (before the frame end at 50: found by that frame end's check)
+    // or in step 53 (after it: found by the call's last check).
+    for poison in [47, 52] {
+        let (at_once, a) = frame_end_inside(false, false, poison);
+        assert_eq!(at_once, [vec![], vec![2], vec![]], "poison {poison}");
+        for queues in [false, true] {
+            let (deferred, d) = frame_end_inside(true, queues, poison);
+            let what = format!("poison {poison}, queued checks {queues}");
+            // Found a call late, but by a frame end's check inside the call that is not queued
+            // (made at once, as before the queued checks).
+            let late = queues || poison > 50;
+            let expected = if late {
+                [vec![], vec![], vec![2]]
+            } else {
+                [vec![], vec![2], vec![]]
+            };
+            assert_eq!(deferred, expected, "{what}");
+            // Said as at once (the frame end's step and time where that check found it).
+            for w in 0..3 {
+                let (x, y) = (&a.worlds[w], &d.worlds[w]);
+                assert_eq!(y.status, x.status, "{what}: world {w}");
+                assert_eq!(
+                    bits(y.particles()),
+                    bits(x.particles()),
+                    "{what}: world {w}"
+                );
+                assert_eq!(
+                    (y.steps(), y.frame()),
+                    (x.steps(), x.frame()),
+                    "{what}: world {w}"
+                );
+                assert_eq!(y.time().to_bits(), x.time().to_bits(), "{what}: world {w}");
+            }
+            assert_eq!(d.sim.step, a.sim.step, "{what}");
+        }
+    }
+}
+
 /// World 2 reset after a first call (its origin then), made to blow up in the second, every
 /// world reset after that call (the shared clock back to 0), a third call; with `defer` the
 /// blow-up's check is pending through that reset. The worlds each call returned frozen, and

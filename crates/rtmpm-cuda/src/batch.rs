@@ -55,6 +55,10 @@ use rtmpm_rigid::{BodyLoad, BodyPose, BodyState};
 use rtmpm_scene::Scene;
 use rtmpm_sim::{Backend, BadParticle, SimError, Worlds};
 
+/// Page-locked buffers a batch's puts go through at most ([`CudaBatch::put_worlds`]: a put is
+/// written into one whose last copy is done; 1, waited for, with `RTMPM_BATCH_WAITS=old`).
+const PUT_BUFFERS: usize = 8;
+
 /// The worlds of a batch on one GPU, stepped together.
 pub struct CudaBatch {
     backend: CudaBackend,
@@ -81,9 +85,9 @@ pub struct CudaBatch {
     /// the particles of a run of worlds, and the images of all runs uploaded.
     put_run: Particles,
     put_host: Vec<u8>,
-    /// The page-locked copy of `put_host` the device reads the upload from
+    /// The page-locked copies of `put_host` the device reads the uploads from
     /// ([`CudaBatch::put_worlds`] without a wait for the device).
-    put_staging: staging::PutStaging,
+    put_staging: staging::StagingRing,
     /// The scene of the shared clock ([`CudaBatch::scene`]).
     clock: Scene,
 }
@@ -192,7 +196,7 @@ impl CudaBatch {
             put_buffer: None,
             put_run: Particles::default(),
             put_host: Vec::new(),
-            put_staging: staging::PutStaging::default(),
+            put_staging: staging::StagingRing::new(PUT_BUFFERS, 1),
             clock,
         })
     }
@@ -242,7 +246,7 @@ impl CudaBatch {
             b.upload(&stream)?;
         }
         if let Some(c) = self.colliders.as_mut() {
-            c.update(&stream, t)?;
+            c.update(&stream, t, &self.backend.waits)?;
         }
         self.backend.step(dt, t)?;
         match self.bodies.as_mut() {
@@ -349,6 +353,12 @@ impl CudaBatch {
         (w < self.worlds()).then(|| (w, index - self.offsets[w]))
     }
 
+    /// The host's waits for the device so far, by reason ([`crate::waits`]): the batch's steps,
+    /// puts, poses and reads.
+    pub fn host_waits(&self) -> crate::waits::WaitCounts {
+        self.backend.host_waits()
+    }
+
     /// The first world with a bad particle (non-finite, or faster than two cells a step) since
     /// the last call, and that particle in its world; `None`: every world is healthy.
     pub fn bad_world(&mut self) -> Result<Option<(usize, BadParticle)>, SimError> {
@@ -442,6 +452,26 @@ impl Worlds for CudaBatch {
         CudaBatch::save_point(self)
     }
 
+    /// The kept rigid-body poses put into their worlds ([`CudaBatch::set_body_poses`]).
+    fn prepare_steps(&mut self) -> Result<(), SimError> {
+        if crate::waits::old_waits() {
+            return Ok(());
+        }
+        if let Some(b) = self.bodies.as_mut() {
+            b.flush_kept();
+        }
+        Ok(())
+    }
+
+    fn queues_checks(&self) -> bool {
+        self.backend.queues_checks()
+    }
+
+    /// The control words copied behind the steps queued ([`CudaBackend::queue_check`]).
+    fn queue_check(&mut self) -> Result<bool, SimError> {
+        self.backend.queue_check()
+    }
+
     fn restore_point(&mut self) -> Result<(), SimError> {
         CudaBatch::restore_point(self)
     }
@@ -513,7 +543,8 @@ fn world_bodies(
     drop(single);
     let o = &backend.options;
     let lazy = (o.batch_sums_at_read, o.batch_poses);
-    let made = bodies::WorldBodies::new(worlds, &backend.stream, mesh_offsets, lazy)?;
+    let waits = backend.waits.clone();
+    let made = bodies::WorldBodies::new(worlds, &backend.stream, mesh_offsets, lazy, waits)?;
     if let Some(b) = &made {
         let c = &mut backend.ctx;
         (c.bodies, c.body_exchange, c.n_bodies) = b.ctx_fields(&backend.stream);

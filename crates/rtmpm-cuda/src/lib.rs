@@ -27,6 +27,7 @@
 //! * [`export`]: the state for other libraries (`kernels/export.cu`): zero-copy views, frame
 //!   chunks ([`export::chunks`]), positions in original order ([`export::ordered`]).
 //! * [`multi`]: several GPUs (`kernels/multi/`).
+//! * [`waits`]: the host's waits for the device, counted by reason (`RTMPM_SYNC_TRACE`).
 //! * [`view`]: a live view (the picture drawn from the state on the GPU, `kernels/render/`;
 //!   gravity and the user's tool changed between steps).
 //!
@@ -89,6 +90,7 @@ pub mod setup;
 pub mod state;
 pub mod step;
 pub mod view;
+pub mod waits;
 
 pub use backend::CudaBackend;
 pub use backend::bench::{KernelTimings, bench_kernels, measure_copy_bandwidth};
@@ -101,3 +103,4 @@ pub use options::{
     BarrierKind, BodyPoses, CkP2g, CudaOptions, ExchangeMode, P2gMode, RowUnroll, Transport,
 };
 pub use probe::{DeviceInfo, device_count, probe, probe_device};
+pub use waits::{HostWaits, WaitCounts, WaitReason};

@@ -36,6 +36,17 @@ impl Simulation {
     }
 }
 
+/// Which checks an advance makes ([`Simulation::advance_with`] and its variants).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Checks {
+    /// Every frame end's and the last step's.
+    All,
+    /// A frame end's where the call goes on past it, not the last step's.
+    NotLast,
+    /// None.
+    None,
+}
+
 impl<B: Backend + ?Sized> Simulation<B> {
     /// A simulation of a backend of type `B` (see [`Simulation::new`] for the usual
     /// `Box<dyn Backend>`).
@@ -286,7 +297,7 @@ impl<B: Backend + ?Sized> Simulation<B> {
         max_steps: u64,
         queued: &mut dyn FnMut(&mut B),
     ) -> Result<bool, SimError> {
-        self.advance_checked(max_steps, queued, true)
+        self.advance_checked(max_steps, queued, Checks::All)
     }
 
     /// [`Simulation::advance`] without the health check of its last step when it takes all
@@ -297,17 +308,30 @@ impl<B: Backend + ?Sized> Simulation<B> {
     /// have found (no step was taken since), reported at the same step and time. The checks of
     /// earlier steps (a frame ending before the last step) are made as in `advance`.
     pub fn advance_unchecked(&mut self, max_steps: u64) -> Result<bool, SimError> {
-        self.advance_checked(max_steps, &mut |_| {}, false)
+        self.advance_checked(max_steps, &mut |_| {}, Checks::NotLast)
     }
 
-    /// [`Simulation::advance_with`], the last step's check made (`check_last`) or left to the
-    /// caller ([`Simulation::advance_unchecked`]).
+    /// [`Simulation::advance_unchecked`] without the check of a frame's end either (the call
+    /// ends there, as `advance` does): the caller checks every step it took later, and each frame
+    /// end the call ended at (a backend that queues what a check reads, `Worlds::queue_check`,
+    /// behind each frame's steps: the lockstep driver's deferred checks).
+    pub fn advance_no_checks(&mut self, max_steps: u64) -> Result<bool, SimError> {
+        self.advance_checked(max_steps, &mut |_| {}, Checks::None)
+    }
+
+    /// [`Simulation::advance_with`], the checks made or left to the caller as `checks` says.
     fn advance_checked(
         &mut self,
         max_steps: u64,
         queued: &mut dyn FnMut(&mut B),
-        check_last: bool,
+        checks: Checks,
     ) -> Result<bool, SimError> {
+        let check_last = checks == Checks::All;
+        let check_frame = |taken: u64| match checks {
+            Checks::All => true,
+            Checks::NotLast => taken < max_steps,
+            Checks::None => false,
+        };
         let mut called = false;
         let mut once = |b: &mut B| {
             if !called {
@@ -338,7 +362,7 @@ impl<B: Backend + ?Sized> Simulation<B> {
                 }
                 self.time = frame_end;
                 once(&mut self.backend);
-                self.finish_frame(check_last || taken < max_steps)?;
+                self.finish_frame(check_frame(taken))?;
                 return Ok(true);
             }
         }
@@ -361,7 +385,7 @@ impl<B: Backend + ?Sized> Simulation<B> {
         }
         self.time = frame_end;
         once(&mut self.backend);
-        self.finish_frame(check_last || taken < max_steps)?;
+        self.finish_frame(check_frame(taken))?;
         Ok(true)
     }
 

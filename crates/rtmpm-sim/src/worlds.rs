@@ -31,6 +31,32 @@ pub trait Worlds: Backend {
         Ok(())
     }
 
+    /// Do now the host's work the next step would do first where it changes nothing of what
+    /// the worlds are (the GPU batch: the rigid-body poses a script gave, kept until then, put
+    /// into their worlds), so that it runs while the device still works on the steps queued
+    /// before (the lockstep driver calls it before it waits for them, as a call with deferred
+    /// checks begins). The same state as doing it then. Nothing by default.
+    fn prepare_steps(&mut self) -> Result<(), SimError> {
+        Ok(())
+    }
+
+    /// Whether [`Worlds::queue_check`] queues anything (then a caller checking steps later may
+    /// leave the checks of the frame ends it crosses to then as well). `false` by default.
+    fn queues_checks(&self) -> bool {
+        false
+    }
+
+    /// The steps queued so far will be checked later (the lockstep driver's deferred checks):
+    /// a backend that runs them asynchronously may queue the read of what a check reads now
+    /// (`Ok(true)`), and the next [`Backend::check`] then reads the oldest read queued, waiting
+    /// for the steps before it alone, not for work queued after them (the GPU batch: its control
+    /// words copied to page-locked memory behind the steps). A check that finds a bad particle
+    /// or an error drops the later reads. Nothing by default (`Ok(false)`: the check reads the
+    /// state when made).
+    fn queue_check(&mut self) -> Result<bool, SimError> {
+        Ok(false)
+    }
+
     /// Keep every world's state as it is now as the point [`Worlds::restore_point`] puts the
     /// worlds back to (the rewind after a world blows up), held by the backend itself (a GPU:
     /// a device-to-device copy of its particle state). `Ok(true)`: kept; `Ok(false)`: this

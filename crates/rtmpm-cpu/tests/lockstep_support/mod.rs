@@ -11,6 +11,7 @@ use rtmpm_driver::batch::BatchOptions;
 use rtmpm_driver::batch::lockstep::LockstepRun;
 use rtmpm_scene::{BatchScene, Scene};
 use rtmpm_sim::{Backend, BadParticle, Particles, SimError, Worlds};
+use std::collections::VecDeque;
 
 /// A small slump: a column of Herschel-Bulkley mud on a sticky floor, at a fixed step.
 pub const SLUMP: &str = r#"name = "slump"
@@ -69,6 +70,12 @@ pub struct SideBySide {
     /// control words keep it (a world put since does not hide it).
     pub checks_late: bool,
     pub latched: Option<BadParticle>,
+    /// With `checks_late`: what a check reads (`latched`) is queued behind the steps when the
+    /// driver asks (`Worlds::queue_check`), as the GPU batch copies its control words, and the
+    /// checks read the copies oldest first (a bad particle found drops the later ones and
+    /// clears the latch, as the GPU's check resets its words).
+    pub queues: bool,
+    pub queued: VecDeque<Option<BadParticle>>,
 }
 
 impl SideBySide {
@@ -99,6 +106,8 @@ impl SideBySide {
             relapse: None,
             checks_late: false,
             latched: None,
+            queues: false,
+            queued: VecDeque::new(),
         }
     }
 
@@ -176,6 +185,15 @@ impl Backend for SideBySide {
     }
 
     fn check(&mut self) -> Result<Option<BadParticle>, SimError> {
+        if self.checks_late
+            && let Some(copy) = self.queued.pop_front()
+        {
+            if copy.is_some() {
+                self.queued.clear();
+                self.latched = None;
+            }
+            return Ok(copy);
+        }
         if self.checks_late {
             return Ok(self.latched.take());
         }
@@ -203,6 +221,17 @@ impl Worlds for SideBySide {
     fn read_worlds(&mut self) -> Result<Vec<Particles>, SimError> {
         self.reads += 1;
         self.read_all()
+    }
+
+    fn queues_checks(&self) -> bool {
+        self.checks_late && self.queues
+    }
+
+    fn queue_check(&mut self) -> Result<bool, SimError> {
+        if self.queues_checks() {
+            self.queued.push_back(self.latched.clone());
+        }
+        Ok(self.queues_checks())
     }
 
     fn save_point(&mut self) -> Result<bool, SimError> {

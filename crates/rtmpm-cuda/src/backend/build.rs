@@ -143,6 +143,8 @@ impl CudaBackend {
             },
             render: None,
             tool: None,
+            waits: Default::default(),
+            check_copies: Default::default(),
         })
     }
 }

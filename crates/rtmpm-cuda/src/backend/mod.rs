@@ -26,6 +26,8 @@ use std::sync::Arc;
 
 pub mod bench;
 mod build;
+mod check;
+mod check_copies;
 pub mod emit;
 pub mod readback;
 
@@ -79,6 +81,12 @@ pub struct CudaBackend {
     pub(crate) render: Option<Box<RenderBuffers>>,
     /// The user's tool (its world shape), see `view/steer.rs`.
     pub(crate) tool: Option<rtmpm_geometry::Shape>,
+    /// The host's waits for the device, by reason ([`crate::waits`]; shared with a batch's
+    /// parts).
+    pub(crate) waits: Arc<crate::waits::HostWaits>,
+    /// The health check's words copied behind steps whose check was left for later
+    /// ([`CudaBackend::queue_check`], `backend/check.rs`).
+    pub(crate) check_copies: check_copies::CheckCopies,
 }
 
 /// Memory reused by [`CudaBackend::read_fields`] and [`CudaBackend::read_vec3_ordered`]:
@@ -298,6 +306,9 @@ impl CudaBackend {
         }
         let step = encode::step_bytes(&self.scene, dt, t, f64, false);
         let s = &self.stream;
+        // Pageable copies (counted: the driver may wait for the stream to reach them); only
+        // when the parameters change (moving colliders, a new dt).
+        self.waits.wait(crate::waits::WaitReason::Pageable, || ());
         s.memcpy_htod(&step, &mut self.buffers.step.slice_mut(..step.len()))
             .map_err(err("upload step parameters"))?;
         s.memcpy_htod(bytemuck::bytes_of(&key.1), &mut self.buffers.poses)
@@ -319,6 +330,11 @@ impl CudaBackend {
         self.last_grid = self.parity;
         let last = Stage::P2g(self.p2g.phases().len() - 1);
         self.enqueue(&mut NoHooks, last)
+    }
+
+    /// The host's waits for the device so far, by reason ([`crate::waits`]).
+    pub fn host_waits(&self) -> crate::waits::WaitCounts {
+        self.waits.snapshot()
     }
 
     /// The rigid bodies' states now (none without `[[rigid_body]]`).
@@ -379,19 +395,11 @@ impl Backend for CudaBackend {
         Ok(f32::from_bits(c[crate::contract::CTL_MAX_SPEED]))
     }
 
+    /// The first bad particle since the last check (the control words read back: a wait for the
+    /// steps queued; or the copy [`CudaBackend::queue_check`] queued after them, waited for
+    /// alone), its words reset for the next.
     fn check(&mut self) -> Result<Option<BadParticle>, SimError> {
-        use crate::contract::{CTL_BAD_INDEX, bad_particle};
-        let c = self.ctl_words()?;
-        self.error_check(&c)?;
-        let Some(bad) = bad_particle(c[CTL_BAD_INDEX]) else {
-            return Ok(None);
-        };
-        let reset = [u32::MAX, 0];
-        let mut view = self.buffers.ctl.slice_mut(CTL_BAD_INDEX..CTL_BAD_INDEX + 2);
-        self.stream
-            .memcpy_htod(&reset, &mut view)
-            .map_err(err("reset bad particle"))?;
-        Ok(Some(bad))
+        self.check_now()
     }
 
     fn add_particles(&mut self, particles: &Particles) -> Result<(), SimError> {

@@ -137,18 +137,9 @@ impl CudaBackend {
         Ok(s)
     }
 
+    /// Every control word, read now (a wait for the stream).
     pub(crate) fn ctl_words(&mut self) -> Result<Vec<u32>, SimError> {
-        self.stream
-            .clone_dtoh(&self.buffers.ctl)
-            .map_err(err("read control words"))
-    }
-
-    /// Write one control word (asynchronously, on the compute stream).
-    pub(crate) fn set_ctl_word(&mut self, word: usize, value: u32) -> Result<(), SimError> {
-        let mut view = self.buffers.ctl.slice_mut(word..word + 1);
-        self.stream
-            .memcpy_htod(&[value], &mut view)
-            .map_err(err("write control word"))
+        self.ctl_words_for(crate::waits::WaitReason::Control)
     }
 
     /// Positions and velocities of every particle in original order, in the backend's

@@ -18,6 +18,7 @@
 use crate::contract::{BODY_EXCHANGE_SLOTS, GpuBody};
 use crate::error::err;
 use crate::options::BodyPoses;
+use crate::waits::{HostWaits, WaitReason};
 use cudarc::driver::{CudaEvent, CudaSlice, CudaStream, DevicePtr, PinnedHostSlice};
 use rtmpm_rigid::{BodyLoad, BodyPose, BodyState, Exchange, RigidKind};
 use rtmpm_scene::Scene;
@@ -28,8 +29,11 @@ mod host;
 
 use host::HostBodies;
 
-/// Page-locked buffers the body table's uploads take in turn ([`WorldBodies`]`::staging`).
-const UPLOAD_BUFFERS: usize = 4;
+/// Page-locked buffers the body table's uploads go through at most ([`WorldBodies`]`::staging`):
+/// the host may be that many changed uploads (steps of a moving tool) ahead of the device before
+/// it waits; 4, used in turn, with `RTMPM_BATCH_WAITS=old`.
+const UPLOAD_BUFFERS: usize = 64;
+const OLD_UPLOAD_BUFFERS: usize = 4;
 
 /// Every world's rigid bodies: their rapier worlds and the device side of their coupling.
 pub(crate) struct WorldBodies {
@@ -46,12 +50,12 @@ pub(crate) struct WorldBodies {
     /// The bytes `table` holds (the last upload's; empty before the first): an upload of the
     /// same bytes is skipped (bodies at rest, tools standing still).
     uploaded: Vec<u8>,
-    /// The page-locked memory the uploads of `table` go through, used in turn (a copy from
-    /// pageable memory would wait for the steps queued ahead of it; with several buffers the
-    /// host may be that many changed uploads ahead of the device).
-    staging: [super::staging::PutStaging; UPLOAD_BUFFERS],
-    /// The next of `staging` to use.
-    next_staging: usize,
+    /// The page-locked memory the uploads of `table` go through (a copy from pageable memory
+    /// may wait for the steps queued ahead of it; with several buffers the host may be that
+    /// many changed uploads ahead of the device).
+    staging: super::staging::StagingRing,
+    /// The host's waits, counted ([`crate::waits`]; the backend's).
+    waits: Arc<HostWaits>,
     /// `BODY_EXCHANGE_SLOTS` x `worlds x per` rows x 6 f64 sums (`Ctx::body_exchange`).
     exchange: CudaSlice<f64>,
     /// The host's copy of the sums (filled when a load is read, with `at_read`).
@@ -81,12 +85,14 @@ impl WorldBodies {
     /// The bodies of the worlds `worlds` (`None` when they have none; every world has as many,
     /// `super::unsupported`), their buffers allocated on `stream`; `mesh_offsets`: where each
     /// body's distance grid starts in the mesh table (`encode::Tables::body_mesh`);
-    /// `sums_at_read`: `CudaOptions::batch_sums_at_read`; `poses`: `CudaOptions::batch_poses`.
+    /// `sums_at_read`: `CudaOptions::batch_sums_at_read`; `poses`: `CudaOptions::batch_poses`;
+    /// `waits`: the backend's count of the host's waits.
     pub fn new(
         worlds: &[Scene],
         stream: &Arc<CudaStream>,
         mesh_offsets: Vec<u32>,
         (sums_at_read, poses): (bool, BodyPoses),
+        waits: Arc<HostWaits>,
     ) -> Result<Option<WorldBodies>, SimError> {
         let per = worlds.first().map_or(0, |s| s.rigid_bodies.len());
         if per == 0 {
@@ -123,8 +129,8 @@ impl WorldBodies {
             per,
             table,
             uploaded: Vec::new(),
-            staging: Default::default(),
-            next_staging: 0,
+            staging: super::staging::StagingRing::new(UPLOAD_BUFFERS, OLD_UPLOAD_BUFFERS),
+            waits,
             exchange,
             host: Mutex::new(HostSums {
                 sums: host,
@@ -161,13 +167,13 @@ impl WorldBodies {
             return Ok(());
         }
         if super::staging::pageable_puts() {
+            self.waits.wait(WaitReason::Pageable, || ());
             stream
                 .memcpy_htod(bytes, &mut self.table.slice_mut(..bytes.len()))
                 .map_err(err("upload the worlds' rigid bodies"))?;
         } else {
-            let k = self.next_staging;
-            self.next_staging = (k + 1) % UPLOAD_BUFFERS;
-            self.staging[k].copy_to_device(stream, bytes, &mut self.table)?;
+            self.staging
+                .copy_to_device(stream, bytes, &mut self.table, &self.waits)?;
         }
         self.uploaded.clear();
         self.uploaded.extend_from_slice(bytes);
@@ -223,8 +229,8 @@ impl WorldBodies {
                 .map_err(err("record an event"))?;
             h.copied = true;
         }
-        host.done
-            .synchronize()
+        self.waits
+            .wait(WaitReason::Sums, || host.done.synchronize())
             .map_err(err("wait for the worlds' rigid-body impulses"))?;
         Ok(read(
             host.sums.as_slice().map_err(err("page-locked memory"))?,
@@ -287,6 +293,12 @@ impl WorldBodies {
         poses: &[(usize, BodyPose)],
     ) -> Result<(), SimError> {
         self.host_mut().set_body_poses(body, poses)
+    }
+
+    /// The kept poses put into their worlds now ([`HostBodies::flush`]: what the next upload
+    /// or read would do first; the same state).
+    pub fn flush_kept(&mut self) {
+        self.host_mut().flush();
     }
 
     /// Put world `w`'s bodies at `poses` (one per body).

@@ -15,6 +15,7 @@
 
 use crate::contract::{GpuCollider, GpuColliderPose};
 use crate::error::err;
+use crate::waits::{HostWaits, WaitReason};
 use cudarc::driver::{CudaSlice, CudaStream, DevicePtr};
 use rayon::prelude::*;
 use rtmpm_geometry::{Collider, Shape};
@@ -35,7 +36,14 @@ pub(crate) struct WorldColliders {
     moving: Vec<Vec<Collider>>,
     /// The rows last uploaded.
     last: Vec<GpuColliderPose>,
+    /// The page-locked memory the moving poses' uploads go through (a copy from pageable memory
+    /// may wait for the steps queued ahead of it).
+    staging: super::staging::StagingRing,
 }
+
+/// Page-locked buffers the moving poses' uploads go through at most (1 with
+/// `RTMPM_BATCH_WAITS=old`, which copies them from pageable memory as before).
+const UPLOAD_BUFFERS: usize = 64;
 
 impl WorldColliders {
     /// The worlds' own tables (their poses at time 0), or `None` when their colliders are the
@@ -71,18 +79,33 @@ impl WorldColliders {
             poses,
             moving,
             last,
+            staging: super::staging::StagingRing::new(UPLOAD_BUFFERS, 1),
         }))
     }
 
     /// Before the step from time `t`: every world's poses at `t`, uploaded when they changed
-    /// (only while a collider moves).
-    pub fn update(&mut self, stream: &Arc<CudaStream>, t: f32) -> Result<(), SimError> {
+    /// (only while a collider moves), through page-locked memory; `waits`: the backend's count
+    /// of the host's waits.
+    pub fn update(
+        &mut self,
+        stream: &Arc<CudaStream>,
+        t: f32,
+        waits: &HostWaits,
+    ) -> Result<(), SimError> {
         if self.moving.is_empty() {
             return Ok(());
         }
         let rows = pose_rows(&self.moving, t);
         if rows != self.last {
-            upload(stream, &rows, &mut self.poses)?;
+            let bytes: &[u8] = bytemuck::cast_slice(&rows);
+            let old = crate::waits::old_waits();
+            if old && !bytes.is_empty() {
+                waits.wait(WaitReason::Pageable, || ());
+                upload(stream, &rows, &mut self.poses)?;
+            } else if !bytes.is_empty() {
+                self.staging
+                    .copy_to_device(stream, bytes, &mut self.poses, waits)?;
+            }
             self.last = rows;
         }
         Ok(())

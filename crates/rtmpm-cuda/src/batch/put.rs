@@ -7,6 +7,7 @@ use super::staging::pageable_puts;
 use crate::contract::{CTL_NEED_REBUILD, CTL_P2G_PENDING};
 use crate::error::err;
 use crate::kernels::Kernel;
+use crate::waits::WaitReason;
 use cudarc::driver::PushKernelArg;
 use rtmpm_physics::Particles;
 use rtmpm_sim::SimError;
@@ -24,7 +25,11 @@ impl CudaBatch {
         let b = &mut self.backend;
         if self.point.is_none() {
             // SAFETY: every byte is written by the copy below before anything reads it.
-            match unsafe { b.stream.alloc::<u8>(b.buffers.state.len()) } {
+            let (stream, len) = (&b.stream, b.buffers.state.len());
+            match b
+                .waits
+                .wait(WaitReason::Alloc, || unsafe { stream.alloc::<u8>(len) })
+            {
                 Ok(p) => self.point = Some(p),
                 Err(_) => {
                     self.no_point = true;
@@ -60,8 +65,8 @@ impl CudaBatch {
         if b.g2p2g() {
             b.set_ctl_word(CTL_P2G_PENDING, 1)?;
         }
-        b.stream
-            .synchronize()
+        b.waits
+            .wait(WaitReason::Sync, || b.stream.synchronize())
             .map_err(err("put the rewind point back"))
     }
 
@@ -231,9 +236,9 @@ impl CudaBatch {
 
 impl CudaBatch {
     /// The packed images of a put (`put_host`) into the device buffer `put_buffer` (allocated,
-    /// or grown, to fit): by default through the kept page-locked buffer `put_pinned`, an
+    /// or grown, to fit): by default through the kept page-locked buffers `put_staging`, an
     /// asynchronous copy that returns at once even while steps are queued ahead of it (the
-    /// images are copied there first, once the previous put's copy out of it is done); with
+    /// images are copied into a buffer whose last copy is done, [`super::staging::StagingRing`]); with
     /// `RTMPM_BATCH_PAGEABLE_PUT=1` ([`pageable_puts`]) straight from the pageable `put_host`
     /// as before, which the driver stages itself (and, for a large put, may wait for the
     /// stream to reach the copy).
@@ -242,19 +247,24 @@ impl CudaBatch {
         if self.put_buffer.as_ref().is_none_or(|buf| buf.len() < len) {
             self.put_buffer = None;
             // SAFETY: the copy below writes every byte the kernels read (`len` bytes).
-            let buf = unsafe { stream.alloc::<u8>(len) }.map_err(err("upload worlds"))?;
+            let buf = self
+                .backend
+                .waits
+                .wait(WaitReason::Alloc, || unsafe { stream.alloc::<u8>(len) })
+                .map_err(err("upload worlds"))?;
             self.put_buffer = Some(buf);
         }
         let Some(buf) = self.put_buffer.as_mut() else {
             return Ok(());
         };
         if pageable_puts() {
+            self.backend.waits.wait(WaitReason::Pageable, || ());
             return stream
                 .memcpy_htod(&self.put_host, &mut buf.slice_mut(..len))
                 .map_err(err("upload worlds"));
         }
         self.put_staging
-            .copy_to_device(&stream, &self.put_host, buf)
+            .copy_to_device(&stream, &self.put_host, buf, &self.backend.waits)
     }
 }
 

@@ -15,6 +15,7 @@ pub mod ordered;
 use crate::backend::CudaBackend;
 use crate::contract::*;
 use crate::error::err;
+use crate::waits::WaitReason;
 use cudarc::driver::{DevicePtr, PinnedHostSlice};
 use rtmpm_sim::{ParticleEdit, SimError};
 
@@ -69,7 +70,9 @@ impl CudaBackend {
     /// arrays are complete when this returns. The address stays valid for the backend's life
     /// (rebuilds sort the particles in place).
     pub fn device_particles(&mut self) -> Result<DeviceParticles, SimError> {
-        self.stream.synchronize().map_err(err("synchronize"))?;
+        self.waits
+            .wait(WaitReason::Sync, || self.stream.synchronize())
+            .map_err(err("synchronize"))?;
         Ok(DeviceParticles {
             device: self.stream.context().ordinal(),
             ptr: self.buffers.state.device_ptr(&self.stream).0,
@@ -84,9 +87,8 @@ impl CudaBackend {
     /// PyTorch reading the arrays of [`CudaBackend::device_particles`] on its own stream), so
     /// that a step does not overwrite arrays still being read.
     pub fn wait_for_device(&self) -> Result<(), SimError> {
-        self.stream
-            .context()
-            .synchronize()
+        self.waits
+            .wait(WaitReason::Sync, || self.stream.context().synchronize())
             .map_err(err("synchronize the context"))
     }
 
@@ -120,7 +122,9 @@ impl CudaBackend {
                 .map_err(err("read particle fields"))?;
         }
         // The copies into pinned memory are asynchronous: wait for them before the host reads.
-        stream.synchronize().map_err(err("synchronize"))?;
+        self.waits
+            .wait(WaitReason::Read, || stream.synchronize())
+            .map_err(err("synchronize"))?;
         let all: &[u8] = all;
         Ok((0..fields.len())
             .map(|k| &all[k * row..(k + 1) * row])

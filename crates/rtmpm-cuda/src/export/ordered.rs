@@ -241,7 +241,10 @@ impl CudaBackend {
             &mut out.out,
             &mut out.bad,
         )?;
-        check_flag(&self.stream, &out.bad)
+        let stream = &self.stream;
+        self.waits.wait(crate::waits::WaitReason::Control, || {
+            check_flag(stream, &out.bad)
+        })
     }
 }
 

@@ -139,6 +139,9 @@ struct Pending {
     /// steps.
     clock: Clock,
     end: Clock,
+    /// The clock at each frame end inside the advance whose check the backend queued
+    /// ([`Worlds::queue_check`]), in order: checked first.
+    marks: Vec<Clock>,
     steps: u64,
     /// Each world's status, bodies (as the advance began), clock and origin then.
     statuses: Vec<WorldStatus>,
@@ -296,6 +299,13 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
     pub fn advance_steps(&mut self, steps: u64) -> Result<Vec<usize>> {
         if self.out.is_some() {
             bail!("a batch run that writes frame files advances by whole frames");
+        }
+        if self.pending.is_some() {
+            // The host's own work for these steps while the device ends the last call's.
+            self.sim
+                .backend
+                .prepare_steps()
+                .context("preparing the steps")?;
         }
         self.settle()?;
         let mut frozen = std::mem::take(&mut self.found);

@@ -121,6 +121,15 @@ impl Run {
         }
     }
 
+    /// The host's waits for the device so far, by reason (on the GPU; `None` on the CPU,
+    /// whose calls do their work on the host).
+    pub fn host_waits(&self) -> Option<rtmpm_cuda::WaitCounts> {
+        match self {
+            Run::Each(_) => None,
+            Run::Lockstep(r) => Some(r.sim.backend.host_waits()),
+        }
+    }
+
     /// World `w`'s particles after the last call (a frozen world's last good state); on the
     /// GPU as of the last [`Run::sync`] (their number is always right).
     pub fn particles(&self, w: usize) -> &Particles {

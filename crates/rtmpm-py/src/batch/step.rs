@@ -2,7 +2,13 @@
 
 use super::{PyBatch, Run};
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 use rtmpm_driver::batch::chunk::next_chunk;
+
+/// With `overlap`, the steps of a `step(n)` call queued by one driver call up to this many (or
+/// the learnt chunk, when larger); `RTMPM_BATCH_WAITS=old` cuts them into learnt chunks as
+/// without `overlap`.
+const OVERLAP_CALL_STEPS: u64 = 64;
 
 #[pymethods]
 impl PyBatch {
@@ -14,10 +20,19 @@ impl PyBatch {
         // In driver calls of at most `self.chunk` steps, with Ctrl-C checked between them: a
         // huge `n` can be interrupted. The chunk is learnt from the calls' times and kept
         // between calls (`step(10)` called again and again is one driver call each).
+        // With `overlap` the steps are only queued: a call of up to `OVERLAP_CALL_STEPS` steps
+        // is one driver call (cut into chunks, each chunk's check would be made, waiting for
+        // the device, as the next chunk begins: the blow-up of a call's first steps found and
+        // returned by that same call).
+        let whole = self.r().overlap() && !rtmpm_cuda::waits::old_waits();
         let mut left = n;
         let mut frozen = Vec::new();
         while left > 0 && self.r().running() > 0 {
-            let k = self.chunk.min(left);
+            let k = if whole {
+                left.min(self.chunk.max(OVERLAP_CALL_STEPS))
+            } else {
+                self.chunk.min(left)
+            };
             let t0 = std::time::Instant::now();
             frozen.extend(self.drive(py, |run| run.advance_steps(k))?);
             left -= k;
@@ -68,6 +83,10 @@ impl PyBatch {
     /// :attr:`steps` and the device arrays do not wait: a world that check then freezes goes
     /// back to its frame. Only for a fixed time step (``time.dt``); otherwise each call checks as
     /// before. Setting ``False`` makes a pending check first. The CPU batch refuses ``True``.
+    /// A call of up to 64 steps is then one driver call; the check waits for its steps alone
+    /// (its control words copied behind them, and behind each frame end inside the call), not for
+    /// the resets made since (:attr:`host_waits` counts the waits; ``RTMPM_BATCH_WAITS=old``
+    /// in the environment: as before, for comparisons).
     #[getter]
     fn overlap(&mut self) -> bool {
         self.r().overlap()
@@ -76,6 +95,49 @@ impl PyBatch {
     #[setter]
     fn set_overlap(&mut self, py: Python<'_>, on: bool) -> PyResult<()> {
         self.detached(py, move |run| run.set_overlap(on))
+    }
+
+    /// The host's waits for the GPU since the batch was made, by reason (``None`` on the CPU): a
+    /// diagnostic, a dict of counts, ``{"check": ..., "control": ..., "read": ..., "sums": ...,
+    /// "staging": ..., "pageable": ..., "alloc": ..., "sync": ...}``: the health check's control
+    /// words (a step call's check, or with :attr:`overlap` the check made as the next call
+    /// begins), other control words, particles read back, rigid-body sums, page-locked upload
+    /// memory still in use, copies from pageable memory (which may wait), allocations, and
+    /// synchronisations. Counted where the host blocks whether or not the GPU was already done;
+    /// with ``RTMPM_SYNC_TRACE=1`` in the environment :attr:`host_wait_seconds` says how long
+    /// they took. Reading it waits for nothing. Take the difference of two reads for a loop's
+    /// waits per call (``bench/python_batch_gpu.py`` prints them).
+    #[getter]
+    fn host_waits<'py>(&mut self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        self.usable()?;
+        self.r()
+            .host_waits()
+            .map(|w| {
+                let d = PyDict::new(py);
+                for (name, n, _) in w.rows() {
+                    d.set_item(name, n)?;
+                }
+                Ok(d)
+            })
+            .transpose()
+    }
+
+    /// The seconds the host spent in each reason's waits of :attr:`host_waits` (``None`` on the
+    /// CPU): zeros unless ``RTMPM_SYNC_TRACE=1`` was in the environment as the module was
+    /// first used (timing every wait costs a clock read).
+    #[getter]
+    fn host_wait_seconds<'py>(&mut self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        self.usable()?;
+        self.r()
+            .host_waits()
+            .map(|w| {
+                let d = PyDict::new(py);
+                for (name, _, s) in w.rows() {
+                    d.set_item(name, s)?;
+                }
+                Ok(d)
+            })
+            .transpose()
     }
 
     /// Rebuilds of the GPU's particle-to-block mapping since the batch was made (``None`` on the

@@ -53,10 +53,23 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         if !on_backend {
             self.sync()?;
         }
+        // A backend that queues what a check reads has a frame end's check inside the call
+        // queued too (made by `settle`, at that frame end's clock), not made now.
+        let queue = on_backend && self.sim.backend.queues_checks();
+        let mut marks = Vec::new();
         let queued = (|| {
             let target = self.sim.step.saturating_add(steps);
             while self.sim.step < target {
-                if on_backend {
+                if queue {
+                    let frame_ended = self.sim.advance_no_checks(target - self.sim.step)?;
+                    if frame_ended && self.sim.step < target {
+                        if self.sim.backend.queue_check()? {
+                            marks.push(self.clock());
+                        } else {
+                            self.sim.check()?;
+                        }
+                    }
+                } else if on_backend {
                     self.sim.advance_unchecked(target - self.sim.step)?;
                 } else {
                     self.sim.advance(target - self.sim.step)?;
@@ -66,8 +79,14 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         })();
         let frozen = match queued {
             Ok(()) if on_backend => {
+                // What the check reads, queued behind these steps (read when it is made).
+                self.sim
+                    .backend
+                    .queue_check()
+                    .context("queueing the deferred check's read")?;
                 self.pending = Some(Box::new(Pending {
                     clock,
+                    marks,
                     end: self.clock(),
                     steps,
                     statuses: self.worlds.iter().map(|w| w.status.clone()).collect(),
@@ -98,20 +117,29 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         let Some(p) = self.pending.take() else {
             return Ok(());
         };
-        // Checked at the clock the advance ended at (a reset of every world since put it back
-        // to 0), as the advance would have checked.
+        // Checked at the clock of each frame end inside the advance whose check was queued, then
+        // at the clock the advance ended at (a reset of every world since put it back to 0), as
+        // the advance would have checked; the first that fails is the advance's failure.
         let now = self.clock();
-        self.set_clock(p.end);
-        let e = match self.sim.check() {
-            Ok(()) => {
-                self.set_clock(now);
-                return Ok(());
+        let mut failed = None;
+        for at in p.marks.iter().copied().chain([p.end]) {
+            self.set_clock(at);
+            match self.sim.check() {
+                Ok(()) => {}
+                Err(e @ (SimError::Blowup(_) | SimError::Stall(_))) => {
+                    failed = Some(e);
+                    break;
+                }
+                Err(e) => return Err(e.into()),
             }
-            Err(e @ (SimError::Blowup(_) | SimError::Stall(_))) => e,
-            Err(e) => return Err(e.into()),
+        }
+        let Some(e) = failed else {
+            self.set_clock(now);
+            return Ok(());
         };
         let Pending {
             clock,
+            marks: _,
             end: _,
             steps,
             statuses,
