@@ -547,8 +547,10 @@ mod tests {
     /// The kernels of `exchange=fused|push` (`kernels/multi/reduce_shared.cu`), compiled alone
     /// and optimised for sm_90 in f32 and f64: `sb_push` stores 16 bytes a thread into the
     /// inboxes and arrives with system-scope atomics, `sb_gather` waits with a system-scope
-    /// acquire on its own counter and reads its inbox 16 bytes a thread past the L1;
-    /// `sb_list_fused` takes the spin barrier (a system-scope atomic and acquire) inside it.
+    /// acquire on its own counter and reads its inbox 16 bytes a thread past the L1, and so does
+    /// `grid_update_gather` (`exchange=push_update`), which also updates the nodes (their
+    /// velocities stored); `sb_list_fused` takes the spin barrier (a system-scope atomic and
+    /// acquire) inside it.
     #[test]
     fn the_fused_and_pushed_exchange_kernels_move_16_bytes_a_thread() {
         if !nvrtc_or_skip() {
@@ -564,7 +566,12 @@ mod tests {
             .unwrap_or_else(|e| panic!("f64 {f64}: {e}"));
             let v = if f64 { "v2.f64" } else { "v4.f32" };
             if std::env::var_os("RTMPM_DUMP_EXCHANGE_PTX").is_some() {
-                for k in ["sb_push", "sb_gather", "sb_list_fused"] {
+                for k in [
+                    "sb_push",
+                    "sb_gather",
+                    "grid_update_gather",
+                    "sb_list_fused",
+                ] {
                     println!("==== {k} ({v})\n{}", entry(&ptx, k));
                 }
             }
@@ -583,6 +590,17 @@ mod tests {
                 "sb_gather, {v}"
             );
             assert!(gather.contains("ld.acquire.sys.global.u64"), "sb_gather");
+            let update = entry(&ptx, "grid_update_gather");
+            assert!(
+                update.contains(&format!("ld.global.cg.{v}")),
+                "grid_update_gather, {v}"
+            );
+            assert!(
+                update.contains("ld.acquire.sys.global.u64"),
+                "grid_update_gather"
+            );
+            // Its blocks meet after the wait (the threads of a block read the inbox only then).
+            assert!(update.contains("bar.sync"), "grid_update_gather");
             let list = entry(&ptx, "sb_list_fused");
             assert!(list.contains("ld.acquire.sys.global.u64"), "sb_list_fused");
             assert!(list.contains("atom.global.sys.add.u64"), "sb_list_fused");
@@ -778,16 +796,20 @@ mod tests {
                     .collect();
                 assert!(bad.is_empty(), "{o:?}: {k} contracts or flushes: {bad:?}");
             }
-            grid_update_positions_unfused(&ptx, real, &format!("{o:?}"));
+            for k in ["grid_update", "grid_update_gather"] {
+                grid_update_positions_unfused(&ptx, k, real, &format!("{o:?}"));
+            }
         }
     }
 
     /// The grid update places its nodes as the CPU backend does (kernels/grid_update.cu:
     /// node_position): no fused multiply-add takes a node index converted to a real (one
     /// rounding instead of two puts a node on a collider's face on the other side of it).
-    fn grid_update_positions_unfused(ptx: &str, real: &str, what: &str) {
-        // The entry and the node functions it calls where they stay calls (fast math).
-        let mut body = entry(ptx, "grid_update").to_string();
+    /// `kernel`: the entry (`grid_update`, or `grid_update_gather` of `exchange=push_update`).
+    fn grid_update_positions_unfused(ptx: &str, kernel: &str, real: &str, what: &str) {
+        // The entry and the node functions it calls where they stay calls (fast math, or
+        // called from several kernels), each on its own: PTX names its registers per function.
+        let mut bodies = vec![entry(ptx, kernel).to_string()];
         for f in ptx.split(".func ").skip(1) {
             let name = f.split(['(', ' ', '\n']).next().unwrap_or_default();
             let node = ["grid_update_node", "node_boundary", "grid_node_finish"];
@@ -795,7 +817,7 @@ mod tests {
                 && f[name.len()..].starts_with('(')
                 && node.iter().any(|n| name.contains(n))
             {
-                body.push_str(f.split("\n}\n").next().unwrap_or_default());
+                bodies.push(f.split("\n}\n").next().unwrap_or_default().to_string());
             }
         }
         let cvt = format!("cvt.rn.{real}.s32");
@@ -805,21 +827,25 @@ mod tests {
                 .map(str::to_string)
                 .collect()
         };
-        let indices: Vec<String> = body
-            .lines()
-            .filter(|l| l.contains(&cvt))
-            .filter_map(|l| tokens(l).get(1).cloned())
-            .collect();
-        assert!(!indices.is_empty(), "{what}: no node index in grid_update");
-        let fused: Vec<&str> = body
-            .lines()
-            .filter(|l| l.trim_start().starts_with("fma"))
-            .filter(|l| tokens(l).iter().any(|t| indices.contains(t)))
-            .collect();
-        assert!(
-            fused.is_empty(),
-            "{what}: grid_update fuses node positions: {fused:?}"
-        );
+        let mut found = 0;
+        for body in &bodies {
+            let indices: Vec<String> = body
+                .lines()
+                .filter(|l| l.contains(&cvt))
+                .filter_map(|l| tokens(l).get(1).cloned())
+                .collect();
+            found += indices.len();
+            let fused: Vec<&str> = body
+                .lines()
+                .filter(|l| l.trim_start().starts_with("fma"))
+                .filter(|l| tokens(l).iter().any(|t| indices.contains(t)))
+                .collect();
+            assert!(
+                fused.is_empty(),
+                "{what}: {kernel} fuses node positions: {fused:?}"
+            );
+        }
+        assert!(found > 0, "{what}: no node index in {kernel}");
     }
 
     #[test]

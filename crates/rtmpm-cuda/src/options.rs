@@ -94,6 +94,33 @@ pub enum ExchangeMode {
     /// their counters, waits on its own and sums its inbox (two launches, no peer reads). The
     /// default with transport=p2p and the spin barrier.
     Push,
+    /// `Push`, with the inbox summed inside the grid update (`push_update`): the push, then
+    /// one kernel that updates the pblocks no other GPU holds, waits on its own counter and
+    /// sums and updates the shared ones (one launch and one pass over the shared nodes less
+    /// than `Push`, no second stream). Runs without the overlap (its kernel overlaps the wait
+    /// with the unshared pblocks itself).
+    PushUpdate,
+}
+
+impl ExchangeMode {
+    /// True for the modes that push the shared nodes into the holders' inboxes (`push`,
+    /// `push_update`): they need the holders of every shared block and an inbox per GPU.
+    pub fn pushes(self) -> bool {
+        matches!(self, ExchangeMode::Push | ExchangeMode::PushUpdate)
+    }
+}
+
+/// Several GPUs: how the particles are split between them (`partition=`;
+/// `crate::multi::partition`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PartitionKind {
+    /// Slabs of equal count along the longest axis of the particles' bounding box.
+    #[default]
+    Slabs,
+    /// Boxes of equal count cut along up to three axes: of every way to factor the GPU count
+    /// into pieces per axis, the one whose worst piece shares the least cut area (the same as
+    /// `Slabs` at 2 GPUs; at 4, 2 x 2 where a middle slab would share two whole faces).
+    Boxes,
 }
 
 /// Ablation switches of the principles of Fei, Huang & Gao (GTC 2022). `Default` = all on.
@@ -154,10 +181,13 @@ pub struct CudaOptions {
     /// Several GPUs with `transport=p2p`: the synchronisation (`None`: spin).
     pub barrier: Option<BarrierKind>,
     /// Several GPUs with `transport=p2p` and the spin barrier: the kernels of the shared-block
-    /// list and sum (`exchange=kernels|fused|push`; `None`: `push` with transport=p2p and the
+    /// list and sum (`exchange=kernels|fused|push|push_update`; `None`: `push` with transport=p2p and the
     /// spin barrier, `kernels` otherwise; `fused` and `push` asked for are refused with NCCL,
     /// the events barrier and one process per GPU). Resolved when a multi-GPU backend is made.
     pub exchange: Option<ExchangeMode>,
+    /// Several GPUs: how the particles are split between them (`partition=slabs|boxes`;
+    /// default slabs along the longest axis), at the start and at every re-partition.
+    pub partition: PartitionKind,
     /// Several GPUs of one process: the CUDA device of each rank (`devices=0:1`; `None`: rank i
     /// on device i). A device may be named more than once, to run the multi-GPU code on fewer
     /// GPUs (tests on one GPU: `devices=0:0`); ranks sharing a device run transport=p2p with
@@ -300,6 +330,7 @@ impl Default for CudaOptions {
             transport: None,
             barrier: None,
             exchange: None,
+            partition: PartitionKind::Slabs,
             devices: None,
             fused_rebuild: true,
             g2p2g: true,
@@ -324,7 +355,7 @@ impl std::str::FromStr for CudaOptions {
     /// Comma separated `key=value`: `free_zone`, `mixed_sort`, `warp_reduce`, `fast_math`,
     /// `graph`, `f64`, `rebalance`, `overlap`, `g2p2g`, `rigid_overlap`, `specialize` (on/off/true/false/1/0), `rebuild` (fused/kernels), `fill` (device/host), `p2g`
     /// (warp/shared/reverse_map/sort), `ck_p2g` (direct/warp/fused), `ck_bound` (0 to 16 blocks),
-    /// `ck_grid` (wave/resident), `transport` (p2p/nccl), `barrier` (spin/events), `exchange` (kernels/fused/push), `devices`
+    /// `ck_grid` (wave/resident), `transport` (p2p/nccl), `barrier` (spin/events), `exchange` (kernels/fused/push/push_update), `partition` (slabs/boxes), `devices`
     /// (ordinals separated by `:`), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
     /// `rmap_pblocks`, `shared`, `sort_fields` (counts), `fluid_state` (on/off), `state`
     /// (f32/compact), `body_sums` (read/step), `addressing` (pairs/blocks), `uniform_loop` (on/off),
@@ -477,8 +508,19 @@ impl std::str::FromStr for CudaOptions {
                             ("kernels", ExchangeMode::Kernels),
                             ("fused", ExchangeMode::Fused),
                             ("push", ExchangeMode::Push),
+                            ("push_update", ExchangeMode::PushUpdate),
                         ],
                     )?)
+                }
+                "partition" => {
+                    o.partition = choice(
+                        item,
+                        v,
+                        &[
+                            ("slabs", PartitionKind::Slabs),
+                            ("boxes", PartitionKind::Boxes),
+                        ],
+                    )?
                 }
                 "devices" => {
                     let d = v
@@ -576,13 +618,23 @@ mod tests {
             ("kernels", ExchangeMode::Kernels),
             ("fused", ExchangeMode::Fused),
             ("push", ExchangeMode::Push),
+            ("push_update", ExchangeMode::PushUpdate),
         ] {
             let o: CudaOptions = format!("exchange={v}").parse().unwrap();
             assert_eq!(o.exchange, Some(m));
         }
         assert_eq!(
             "exchange=pull".parse::<CudaOptions>().unwrap_err(),
-            "`exchange=pull`: expected kernels, fused or push"
+            "`exchange=pull`: expected kernels, fused, push or push_update"
+        );
+        assert_eq!(CudaOptions::default().partition, PartitionKind::Slabs);
+        assert_eq!(
+            "partition=boxes".parse::<CudaOptions>().unwrap().partition,
+            PartitionKind::Boxes
+        );
+        assert_eq!(
+            "partition=cubes".parse::<CudaOptions>().unwrap_err(),
+            "`partition=cubes`: expected slabs or boxes"
         );
         assert!(CudaOptions::default().fused_rebuild);
         assert!(

@@ -50,13 +50,14 @@ fn several_gpus_agree_with_one_on_every_example_scene() {
 /// The exchanges of p2p with the spin barrier other than its default (`exchange=push` without
 /// the overlap, run by the test above): `exchange=kernels` with the overlap (the default before),
 /// `exchange=fused` (the shared list in one cooperative kernel with the inter-GPU barrier
-/// inside) and `exchange=push` with the overlap (the shared nodes pushed into the holders'
-/// inboxes, the barrier inside the push and sum kernels) against one GPU, as the agreement test
-/// above: every example
+/// inside), `exchange=push` with the overlap (the shared nodes pushed into the holders'
+/// inboxes, the barrier inside the push and sum kernels) and `exchange=push_update` (the inbox
+/// summed inside the grid update's kernel) against one GPU, as the agreement test above: every
+/// example
 /// scene, 2 GPUs and 4 where present (`RTMPM_MULTI_GPU_COUNTS`, e.g. "2,4,8"), a re-partition
 /// halfway.
 /// Skips without 2 GPUs; ranks sharing a device (`RTMPM_MULTI_GPU_DEVICES=0,0`) must refuse
-/// both (they need the spin barrier).
+/// them all (they need the spin barrier).
 #[test]
 #[ignore = "needs 2 CUDA GPUs"]
 fn the_fused_and_pushed_exchanges_agree_with_one_gpu() {
@@ -69,7 +70,7 @@ fn the_fused_and_pushed_exchanges_agree_with_one_gpu() {
         )
         .expect("scene");
         let p = scene.sample_particles().expect("particles");
-        for mode in ["exchange=fused", "exchange=push"] {
+        for mode in ["exchange=fused", "exchange=push", "exchange=push_update"] {
             let e = MultiGpuBackend::new(&scene, &p, 2, options(2, mode))
                 .err()
                 .map(|e| e.to_string())
@@ -85,6 +86,7 @@ fn the_fused_and_pushed_exchanges_agree_with_one_gpu() {
         "transport=p2p,barrier=spin,exchange=kernels,overlap=on".to_string(),
         "transport=p2p,barrier=spin,exchange=fused".to_string(),
         "transport=p2p,barrier=spin,exchange=push,overlap=on".to_string(),
+        "transport=p2p,barrier=spin,exchange=push_update".to_string(),
     ];
     let (ran, failures) = agree_on_every_example_scene(&modes);
     assert!(failures.is_empty(), "{failures:#?}");

@@ -23,6 +23,9 @@
 #include "../scan.cuh"
 #include "../grid_barrier.cuh"
 #include "spin.cuh"
+// grid_update_node, clear_node (exchange=push_update: grid_update_gather); compiled before in
+// the one program, included here so that this file also compiles alone (the exchange PTX test).
+#include "../grid_update.cu"
 
 struct SharedCtx {
     unsigned char* mask;     // d + 1: this GPU's pblocks; [d] = 1 if it rebuilt this step
@@ -361,18 +364,23 @@ extern "C" __global__ void sb_push(Ctx c, SharedCtx s, PushCtx q) {
     }
 }
 
-extern "C" __global__ void sb_gather(Ctx c, SharedCtx s, PushCtx q) {
-    unsigned long long g = *q.calls;  // set by sb_push, the kernel before on this stream
-    unsigned par = (unsigned)(g & 1ull);
-    // This GPU's inbox and counter, picked with constant indices (no local copy of the arrays).
-    const sb_vec* inbox = nullptr;
-    unsigned long long* mine = nullptr;
+// This GPU's inbox and arrival counter, picked with constant indices (no local copy of the
+// arrays, which would put them in local memory).
+__device__ __forceinline__ void sb_own(const PushCtx& q, const sb_vec** inbox, unsigned long long** mine) {
 #pragma unroll
     for (unsigned k = 0; k < SB_MAX_GPUS; ++k)
         if (k == q.me) {
-            inbox = (const sb_vec*)q.inbox[k];
-            mine = q.arrivals[k];
+            *inbox = (const sb_vec*)q.inbox[k];
+            *mine = q.arrivals[k];
         }
+}
+
+// Every thread of the block calls it: thread 0 waits until this GPU's own counter `mine` reaches
+// exchange g's target (every GPU arrived, so their pushes into this inbox are visible), then the
+// block goes on; ERR_BARRIER after the timeout. False when the step has an error (the block then
+// stops: no thread of it meets another barrier).
+__device__ __forceinline__ bool sb_wait_own(const Ctx& c, const PushCtx& q, unsigned long long* mine,
+                                            unsigned long long g) {
     if (threadIdx.x == 0) {
         unsigned long long target = g * (unsigned long long)q.n;
         unsigned long long start = bar_now_ns();
@@ -392,7 +400,32 @@ extern "C" __global__ void sb_gather(Ctx c, SharedCtx s, PushCtx q) {
         __threadfence();
     }
     __syncthreads();
-    if (((volatile unsigned*)c.ctl)[CTL_ERROR]) return;
+    return !((volatile unsigned*)c.ctl)[CTL_ERROR];
+}
+
+// Vector v of shared block `pos` summed over its holders `h` in rank order (this GPU's own value
+// `mine` at its rank, the others' from the inbox of exchange parity `par`): the same additions in
+// the same order on every GPU, in sb_gather and in grid_update_gather.
+__device__ __forceinline__ sb_vec sb_sum_holders(const SharedCtx& s, const PushCtx& q, const sb_vec* inbox,
+                                                 unsigned par, unsigned h, unsigned pos, unsigned v, sb_vec mine) {
+    sb_vec sum = sb_vzero();
+    bool first = true;
+    for (unsigned from = 0; from < q.n; ++from) {
+        if (!(h >> from & 1u)) continue;
+        sb_vec x = from == q.me ? mine : __ldcg(inbox + sb_inbox_at(s, q, par, from, pos, v));
+        sum = first ? x : sb_vadd(sum, x);
+        first = false;
+    }
+    return sum;
+}
+
+extern "C" __global__ void sb_gather(Ctx c, SharedCtx s, PushCtx q) {
+    unsigned long long g = *q.calls;  // set by sb_push, the kernel before on this stream
+    unsigned par = (unsigned)(g & 1ull);
+    const sb_vec* inbox = nullptr;
+    unsigned long long* mine = nullptr;
+    sb_own(q, &inbox, &mine);
+    if (!sb_wait_own(c, q, mine, g)) return;
     unsigned nb = min(c.ctl[CTL_SHARED], s.cap);
     sb_vec* grid = (sb_vec*)c.grid;
     SB_GRID_STRIDE(t, nb * SB_VECS) {
@@ -401,14 +434,57 @@ extern "C" __global__ void sb_gather(Ctx c, SharedCtx s, PushCtx q) {
         unsigned h = s.holders[pos];
         if (id == EMPTY_ID || !(h >> q.me & 1u)) continue;
         sb_vec* own = grid + (size_t)id * SB_VECS + v;
-        sb_vec sum = sb_vzero();
-        bool first = true;
-        for (unsigned from = 0; from < q.n; ++from) {
-            if (!(h >> from & 1u)) continue;
-            sb_vec x = from == q.me ? *own : __ldcg(inbox + sb_inbox_at(s, q, par, from, pos, v));
-            sum = first ? x : sb_vadd(sum, x);
-            first = false;
+        *own = sb_sum_holders(s, q, inbox, par, h, pos, v, *own);
+    }
+}
+
+// ---- exchange=push_update: the inbox summed inside the grid update ----
+//
+// One kernel in place of sb_gather and grid_update: after sb_push (the kernel before, on the same
+// stream), every thread first updates its nodes of the pblocks no other GPU holds (grid_update's
+// part 1, while the peers' pushes are still arriving), then each block waits on this GPU's own
+// counter (sb_wait_own) and updates the nodes of the shared pblocks, each summed from its holders
+// as sb_gather sums it (sb_sum_holders: the same bits) just before its update. One launch and one
+// read and write of the shared nodes less than sb_gather + grid_update, no event between two
+// streams. The inbox's double buffering holds as for sb_gather: GPU j reads exchange g's buffer
+// here, before its sb_push of g + 1, without which no GPU gets past its wait of g + 1 to write
+// that buffer again at g + 2.
+#define SB_NODE_VECS (4u / SB_VEC)  // vectors a node (mass, momentum)
+
+extern "C" __global__ void grid_update_gather(Ctx c, SharedCtx s, PushCtx q) {
+    unsigned long long g = *q.calls;  // set by sb_push
+    unsigned par = (unsigned)(g & 1ull);
+    const sb_vec* inbox = nullptr;
+    unsigned long long* mine = nullptr;
+    sb_own(q, &inbox, &mine);
+    // No early return before the wait: every thread of a block meets its __syncthreads.
+    if (!c.ctl[CTL_ERROR]) {
+        unsigned n_nodes = c.ctl[CTL_PBLOCKS] * 64u;
+        if (c.grid_next && thread_index() == 0) c.ctl[CTL_P2G_PENDING] = 0;  // this step's P2G is done
+        SB_GRID_STRIDE(t, n_nodes) {
+            if (c.shared_pblock[t >> 6] != 0) continue;
+            grid_update_node(c, t);
+            if (c.grid_next) clear_node(c.grid_next, t);
+            if (c.grid_aux_next) clear_node(c.grid_aux_next, t);
         }
-        *own = sum;
+    }
+    if (!sb_wait_own(c, q, mine, g)) return;
+    unsigned nb = min(c.ctl[CTL_SHARED], s.cap);
+    sb_vec* grid = (sb_vec*)c.grid;
+    SB_GRID_STRIDE(t, nb * 64u) {
+        unsigned pos = t >> 6, cell = t & 63u;
+        unsigned id = s.shared_local[pos];
+        unsigned h = s.holders[pos];
+        if (id == EMPTY_ID || !(h >> q.me & 1u)) continue;
+        unsigned node = id * 64u + cell;
+#pragma unroll
+        for (unsigned j = 0; j < SB_NODE_VECS; ++j) {
+            unsigned v = cell * SB_NODE_VECS + j;
+            sb_vec* own = grid + (size_t)id * SB_VECS + v;
+            *own = sb_sum_holders(s, q, inbox, par, h, pos, v, *own);
+        }
+        grid_update_node(c, node);
+        if (c.grid_next) clear_node(c.grid_next, node);
+        if (c.grid_aux_next) clear_node(c.grid_aux_next, node);
     }
 }

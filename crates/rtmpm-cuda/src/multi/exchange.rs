@@ -14,6 +14,9 @@
 //!
 //! With G2P2G the P2G of a step was done by the previous step's fused kernel (one launch after a
 //! rebuild), so only the grid update overlaps the sum. `overlap=off`: P2G, sum, grid update.
+//! `exchange=push_update` uses no second stream: the push on the compute stream, then one grid
+//! update kernel that updates the unshared pblocks, waits for the peers' pushes and sums and
+//! updates the shared ones ([`Exchange::grid_update`]).
 //!
 //! The sums are NCCL all-reduces (transport=nccl), or (transport=p2p, one process) a barrier
 //! ([`super::barrier`]) and a kernel reading the other GPUs' buffers through peer pointers.
@@ -31,8 +34,8 @@ use super::barrier::{HostBarrier, SpinBarrier, TIMEOUT, enqueue_spin, wait_event
 use super::nccl::{Communicator, DataType, RedOp};
 use super::reduce_shared::{
     MAX_PEER_GPUS, PeerCtx, PushCtx, SharedCtx, dense_dims, enqueue_copy, enqueue_counts_peers,
-    enqueue_list, enqueue_list_fused, enqueue_mask, enqueue_push_gather, enqueue_sum_peers,
-    inbox_bytes, list_fused_blocks,
+    enqueue_grid_update_gather, enqueue_list, enqueue_list_fused, enqueue_mask, enqueue_push,
+    enqueue_push_gather, enqueue_sum_peers, inbox_bytes, list_fused_blocks,
 };
 use crate::contract::Ctx;
 use crate::error::err;
@@ -57,7 +60,7 @@ pub struct PeerExport {
     buf: u64,
     count: u64,
     events: [usize; 2],
-    /// `exchange=push`: the arrival counter and the inbox (0 otherwise).
+    /// `exchange=push|push_update`: the arrival counter and the inbox (0 otherwise).
     arrivals: u64,
     inbox: u64,
 }
@@ -103,7 +106,7 @@ pub struct Exchanger {
     overlap: bool,
     /// The kernels of the list and sum (`exchange=`; not `Kernels` only with p2p + spin).
     mode: ExchangeMode,
-    /// `exchange=push`: u8 per shared block, the GPUs that hold it.
+    /// `exchange=push|push_update`: u8 per shared block, the GPUs that hold it.
     holders: Option<CudaSlice<u8>>,
     /// `exchange=fused|push`: the grid of the fused list, found at the first (uncaptured) step.
     list_blocks: std::sync::OnceLock<u32>,
@@ -224,7 +227,7 @@ impl Exchanger {
         self.sc.buf = buf.device_ptr(s).0;
         self.sc.cap = cap as u32;
         self.shared_bufs = Some((local, buf));
-        if self.mode == ExchangeMode::Push {
+        if self.mode.pushes() {
             let h = s
                 .alloc_zeros::<u8>(cap)
                 .map_err(err("alloc shared holders"))?;
@@ -239,14 +242,14 @@ impl Exchanger {
     }
 
     /// transport=p2p: what the other GPUs need of this one, in a run of `gpus` GPUs
-    /// (`exchange=push`: its inbox is made here, for `gpus` GPUs and the capacity).
+    /// (`exchange=push|push_update`: its inbox is made here, for `gpus` GPUs and the capacity).
     pub(crate) fn peer_export(
         &mut self,
         s: &Arc<CudaStream>,
         gpus: usize,
     ) -> Result<PeerExport, SimError> {
         let (push, cap, f64) = (
-            self.mode == ExchangeMode::Push,
+            self.mode.pushes(),
             self.sc.cap as usize,
             self.real == DataType::F64,
         );
@@ -404,11 +407,20 @@ impl Exchange for Exchanger {
     }
 
     fn overlap(&self) -> bool {
-        self.overlap
+        // push_update: the grid update is its own kernel's (refused with overlap=on).
+        self.overlap && self.mode != ExchangeMode::PushUpdate
     }
 
     fn start(&self, k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), SimError> {
         let (sc, t) = (&self.sc, &self.comm_stream);
+        if let (Some(p), ExchangeMode::PushUpdate) = (&self.p2p, self.mode) {
+            // On the compute stream: the grid update that follows waits and sums inside it.
+            if let Some((a, _)) = &self.timing {
+                a.record(s).map_err(err("event"))?;
+            }
+            let f64 = self.real == DataType::F64;
+            return enqueue_push(k, s, c, sc, &p.qc, f64).map_err(err("push"));
+        }
         self.p2g_done.record(s).map_err(err("event"))?;
         t.wait(&self.p2g_done).map_err(err("wait"))?;
         if let Some((a, _)) = &self.timing {
@@ -444,7 +456,27 @@ impl Exchange for Exchanger {
     }
 
     fn finish(&self, _k: &Kernels, s: &CudaStream, _c: &Ctx) -> Result<(), SimError> {
+        if self.mode == ExchangeMode::PushUpdate && self.p2p.is_some() {
+            return Ok(()); // nothing on a second stream
+        }
         s.wait(&self.reduced).map_err(err("wait"))
+    }
+
+    fn grid_update(&self, k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<bool, SimError> {
+        let Some(p) = self
+            .p2p
+            .as_ref()
+            .filter(|_| self.mode == ExchangeMode::PushUpdate)
+        else {
+            return Ok(false);
+        };
+        enqueue_grid_update_gather(k, s, c, &self.sc, &p.qc)
+            .map_err(err("grid update with the sum of the inbox"))?;
+        // Timing: the push and this grid update together (the sum is inside the update).
+        if let Some((_, b)) = &self.timing {
+            b.record(s).map_err(err("event"))?;
+        }
+        Ok(true)
     }
 }
 
@@ -454,6 +486,7 @@ pub(crate) fn mode_name(mode: ExchangeMode) -> &'static str {
         ExchangeMode::Kernels => "kernels",
         ExchangeMode::Fused => "fused",
         ExchangeMode::Push => "push",
+        ExchangeMode::PushUpdate => "push_update",
     }
 }
 

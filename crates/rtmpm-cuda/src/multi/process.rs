@@ -4,7 +4,7 @@
 //! process's GPU, summed through NCCL with a check that the worlds agree ([`super::rigid`]).
 
 use super::nccl::UniqueId;
-use super::partition::slabs;
+use super::partition::split;
 use super::plan::{check_supported, combine, dense_count, plan, shared_capacity, subset};
 use super::rank::{CommSource, GpuRank};
 use super::rigid::RankBodies;
@@ -132,7 +132,7 @@ impl NcclRankBackend {
     /// Partition every particle (the same on every rank) and build this rank's share; every rank
     /// gets the capacity of the largest share, so that the state arrays can be all-gathered.
     fn load(&mut self, particles: &Particles, comm: CommSource) -> Result<(), SimError> {
-        let part = slabs(&particles.x, self.ranks);
+        let part = split(&particles.x, self.ranks, self.options.partition);
         let (cap, s) = shared_capacity(&self.scene, particles, &part, &self.options);
         self.shared_cap = cap.max(self.shared_cap.min(self.d));
         self.shared_at_partition = s;

@@ -202,21 +202,61 @@ pub(crate) fn enqueue_push_gather(
     q: &PushCtx,
     f64: bool,
 ) -> Result<(), DriverError> {
-    let launch = push_cfg(k, sc, f64);
+    enqueue_push(k, s, c, sc, q, f64)?;
+    // SAFETY: as `enqueue_push`; `sb_gather` reads this GPU's inbox and counter and writes the
+    // sums into this GPU's shared nodes, bounded by the device shared count and `sc.cap`.
+    unsafe {
+        s.launch_builder(&k[Kernel::SbGather])
+            .arg(c)
+            .arg(sc)
+            .arg(q)
+            .launch(push_cfg(k, sc, f64))?;
+    }
+    Ok(())
+}
+
+/// `exchange=push|push_update`: enqueue the push of this GPU's shared nodes into the holders'
+/// inboxes and its arrival at every GPU's counter (`sb_push`).
+pub(crate) fn enqueue_push(
+    k: &Kernels,
+    s: &CudaStream,
+    c: &Ctx,
+    sc: &SharedCtx,
+    q: &PushCtx,
+    f64: bool,
+) -> Result<(), DriverError> {
     // SAFETY: every inbox of `q` holds 2 x n x cap x 256 reals on a GPU this one has peer
     // access to (every GPU has the same cap), the counters are live u64 (the done word a u32);
-    // the kernels bound their work by the device shared count and `sc.cap`.
+    // the kernel bounds its work by the device shared count and `sc.cap`.
     unsafe {
         s.launch_builder(&k[Kernel::SbPush])
             .arg(c)
             .arg(sc)
             .arg(q)
-            .launch(launch)?;
-        s.launch_builder(&k[Kernel::SbGather])
+            .launch(push_cfg(k, sc, f64))?;
+    }
+    Ok(())
+}
+
+/// `exchange=push_update`: enqueue the grid update with the sum of the inbox inside it
+/// (`grid_update_gather`, after [`enqueue_push`] on the same stream): the pblocks no other GPU
+/// holds first, then the wait on this GPU's counter, then every shared node summed and updated.
+/// The grid update's launch (one wave of blocks of 128 threads over the pblocks' nodes).
+pub(crate) fn enqueue_grid_update_gather(
+    k: &Kernels,
+    s: &CudaStream,
+    c: &Ctx,
+    sc: &SharedCtx,
+    q: &PushCtx,
+) -> Result<(), DriverError> {
+    // SAFETY: the kernel bounds the nodes by the pblock count, the shared blocks by the device
+    // shared count and `sc.cap`; the inbox and counter are this GPU's (as `sb_gather`).
+    unsafe {
+        s.launch_builder(&k[Kernel::GridUpdateGather])
             .arg(c)
             .arg(sc)
             .arg(q)
-            .launch(launch)?;
+            .launch(k.wave(c.pblock_cap as usize * 64, 128))?;
     }
     Ok(())
 }

@@ -3,7 +3,7 @@
 
 use super::barrier::HostBarrier;
 use super::nccl::UniqueId;
-use super::partition::slabs;
+use super::partition::split;
 use super::plan::{check_supported, dense_count, plan, shared_capacity, subset};
 use super::rank::{CommSource, GpuRank};
 use super::reduce_shared::MAX_PEER_GPUS;
@@ -162,6 +162,10 @@ impl MultiGpuBackend {
             (Transport::P2p, Some(BarrierKind::Events), _) => {
                 "pack + events barrier + sum of peer reads"
             }
+            (Transport::P2p, _, ExchangeMode::PushUpdate) => {
+                "push to the holders' inboxes + grid update that waits on own counter and sums \
+                 the inbox (timed together with the grid update); list fused"
+            }
             (Transport::P2p, _, ExchangeMode::Push) => {
                 "push to the holders' inboxes + wait on own counter + sum of the inbox; list fused"
             }
@@ -216,7 +220,7 @@ impl MultiGpuBackend {
     /// Partition `particles` and (re)build every GPU's rank (new communicator when `id` is given).
     fn load(&mut self, particles: &Particles, id: Option<UniqueId>) -> Result<(), SimError> {
         let ranks = self.workers.len();
-        let part = slabs(&particles.x, ranks);
+        let part = split(&particles.x, ranks, self.options.partition);
         let (cap, s) = shared_capacity(&self.scene, particles, &part, &self.options);
         self.shared_cap = cap.max(self.shared_cap.min(self.d));
         self.shared_at_partition = s;
@@ -580,14 +584,23 @@ fn choose_transport(devices: &[usize], o: &CudaOptions) -> Result<(Transport, St
     Ok(chosen)
 }
 
-/// `exchange=fused|push` need transport=p2p with the spin barrier (their kernels take the
-/// inter-GPU barrier inside them); a clear error otherwise. `o`: the options with the transport
-/// and barrier chosen.
+/// `exchange=fused|push|push_update` need transport=p2p with the spin barrier (their kernels
+/// take the inter-GPU barrier inside them), and `push_update` runs without the overlap (its
+/// grid update kernel overlaps the wait itself); a clear error otherwise. `o`: the options with
+/// the transport and barrier chosen.
 fn check_exchange(o: &CudaOptions) -> Result<(), SimError> {
     let Some(mode) = o.exchange.filter(|&m| m != ExchangeMode::Kernels) else {
         return Ok(());
     };
     let name = super::exchange::mode_name(mode);
+    if mode == ExchangeMode::PushUpdate && o.overlap == Some(true) {
+        return Err(SimError::Backend(
+            "exchange=push_update sums the inbox inside the grid update, which updates the \
+             unshared pblocks while it waits: it has no overlap on a second stream; leave \
+             overlap= out (or off), or use exchange=push with overlap=on"
+                .into(),
+        ));
+    }
     match (o.transport, o.barrier) {
         (Some(Transport::P2p), Some(BarrierKind::Spin)) => Ok(()),
         (Some(Transport::P2p), _) => Err(SimError::Backend(format!(
@@ -706,7 +719,7 @@ mod tests {
             o.barrier = b;
             check_exchange(&o)
         };
-        for mode in ["fused", "push"] {
+        for mode in ["fused", "push", "push_update"] {
             let x = format!("exchange={mode}");
             assert!(with(&x, Transport::P2p, Some(BarrierKind::Spin)).is_ok());
             let e = msg(with(&x, Transport::P2p, Some(BarrierKind::Events)));
@@ -724,6 +737,28 @@ mod tests {
         for t in [Transport::P2p, Transport::Nccl] {
             assert!(with("", t, Some(BarrierKind::Events)).is_ok());
         }
+        // push_update has no overlap on a second stream: overlap=on is refused, off allowed.
+        let spin = Some(BarrierKind::Spin);
+        let e = msg(with(
+            "exchange=push_update,overlap=on",
+            Transport::P2p,
+            spin,
+        ));
+        assert!(
+            e.contains("exchange=push_update") && e.contains("leave overlap= out"),
+            "{e}"
+        );
+        assert!(with("exchange=push_update,overlap=off", Transport::P2p, spin).is_ok());
+        assert!(with("exchange=push,overlap=on", Transport::P2p, spin).is_ok());
+        // Without the overlap asked for, it resolves to off.
+        let mut r = o("exchange=push_update");
+        r.transport = Some(Transport::P2p);
+        r.barrier = spin;
+        resolve_exchange_defaults(&mut r);
+        assert_eq!(
+            (r.exchange, r.overlap),
+            (Some(ExchangeMode::PushUpdate), Some(false))
+        );
     }
 
     #[test]

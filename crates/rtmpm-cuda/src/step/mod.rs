@@ -92,6 +92,13 @@ pub trait Exchange {
     fn start(&self, k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), SimError>;
     /// Make `s` wait for the exchange (before the grid update).
     fn finish(&self, k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), SimError>;
+    /// Without the overlap, after [`Exchange::finish`]: enqueue the grid update of every pblock
+    /// with the end of the exchange inside it and return true (`exchange=push_update`: the
+    /// inbox summed in the grid update's kernel), or return false and let the step enqueue the
+    /// plain grid update.
+    fn grid_update(&self, _k: &Kernels, _s: &CudaStream, _c: &Ctx) -> Result<bool, SimError> {
+        Ok(false)
+    }
 }
 
 /// What a mode adds to the step.
@@ -155,7 +162,9 @@ pub fn enqueue_until(
                 }
                 Some(x) => {
                     x.finish(k, s, c)?;
-                    grid_update::enqueue(k, s, c, 0).map_err(err("grid update"))?;
+                    if !x.grid_update(k, s, c)? {
+                        grid_update::enqueue(k, s, c, 0).map_err(err("grid update"))?;
+                    }
                 }
                 None => grid_update::enqueue(k, s, c, 0).map_err(err("grid update"))?,
             },
