@@ -87,7 +87,7 @@ pub struct CudaBatch {
     put_host: Vec<u8>,
     /// The page-locked copies of `put_host` the device reads the uploads from
     /// ([`CudaBatch::put_worlds`] without a wait for the device).
-    put_staging: staging::StagingRing,
+    put_staging: crate::staging::StagingRing,
     /// The scene of the shared clock ([`CudaBatch::scene`]).
     clock: Scene,
 }
@@ -196,7 +196,7 @@ impl CudaBatch {
             put_buffer: None,
             put_run: Particles::default(),
             put_host: Vec::new(),
-            put_staging: staging::StagingRing::new(PUT_BUFFERS, 1),
+            put_staging: crate::staging::StagingRing::new(PUT_BUFFERS, 1),
             clock,
         })
     }

@@ -87,6 +87,7 @@ pub mod multi;
 pub mod options;
 mod probe;
 pub mod setup;
+mod staging;
 pub mod state;
 pub mod step;
 pub mod view;

@@ -116,19 +116,20 @@ fn loop_call(run: &mut LockstepRun<CudaBatch>, p0: &[Particles], c: usize) {
     assert!(frozen.is_empty(), "call {c}: worlds {frozen:?} blew up");
 }
 
-/// The waits of `calls` loop calls (after 5 calls that warm the rings and pools up, the first
-/// step call one step long, so that frame ends fall inside calls), each call's checks made
-/// before the counts are read: (the waits, the frame ends crossed inside the calls).
+/// The waits of `calls` loop calls (after 10 calls that warm the rings and pools up and cross a
+/// frame end, the first step call one step long, so that frame ends fall inside calls), each
+/// call's checks made before the counts are read: (the waits, the frame ends crossed inside the
+/// calls).
 fn loop_waits(deferred: bool, calls: usize) -> (WaitCounts, u64) {
     let (worlds, p0) = tool_worlds(16);
     let mut run = lockstep(&worlds, &p0, deferred);
     assert!(run.advance_steps(1).expect("one step").is_empty());
-    for c in 0..5 {
+    for c in 0..10 {
         loop_call(&mut run, &p0, c);
     }
     run.settle().expect("settle");
     let (before, frame0) = (run.sim.backend.host_waits(), run.sim.frame);
-    for c in 5..5 + calls {
+    for c in 10..10 + calls {
         loop_call(&mut run, &p0, c);
     }
     run.settle().expect("settle");

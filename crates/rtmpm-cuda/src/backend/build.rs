@@ -145,6 +145,7 @@ impl CudaBackend {
             tool: None,
             waits: Default::default(),
             check_copies: Default::default(),
+            params_staging: crate::staging::StagingRing::new(super::PARAMS_BUFFERS, 4),
         })
     }
 }

@@ -87,7 +87,13 @@ pub struct CudaBackend {
     /// The health check's words copied behind steps whose check was left for later
     /// ([`CudaBackend::queue_check`], `backend/check.rs`).
     pub(crate) check_copies: check_copies::CheckCopies,
+    /// The page-locked memory the step parameters and collider poses go up through when they
+    /// change (moving colliders: every step).
+    params_staging: crate::staging::StagingRing,
 }
+
+/// Page-locked buffers of the step parameters' uploads at most (four uploads a change).
+pub(crate) const PARAMS_BUFFERS: usize = 64;
 
 /// Memory reused by [`CudaBackend::read_fields`] and [`CudaBackend::read_vec3_ordered`]:
 /// pinned host memory, and the device array that the ordered export gathers into.
@@ -305,22 +311,43 @@ impl CudaBackend {
             return Ok(());
         }
         let step = encode::step_bytes(&self.scene, dt, t, f64, false);
-        let s = &self.stream;
-        // Pageable copies (counted: the driver may wait for the stream to reach them); only
-        // when the parameters change (moving colliders, a new dt).
-        self.waits.wait(crate::waits::WaitReason::Pageable, || ());
-        s.memcpy_htod(&step, &mut self.buffers.step.slice_mut(..step.len()))
-            .map_err(err("upload step parameters"))?;
-        s.memcpy_htod(bytemuck::bytes_of(&key.1), &mut self.buffers.poses)
-            .map_err(err("upload collider poses"))?;
-        write_symbol(&self.module, s, "c_step", &step)?;
-        write_symbol(&self.module, s, "c_poses", bytemuck::bytes_of(&key.1))?;
+        if crate::waits::old_waits() {
+            // Pageable copies (counted: the driver may wait for the stream to reach them).
+            self.waits.wait(crate::waits::WaitReason::Pageable, || ());
+            let s = &self.stream;
+            s.memcpy_htod(&step, &mut self.buffers.step.slice_mut(..step.len()))
+                .map_err(err("upload step parameters"))?;
+            s.memcpy_htod(bytemuck::bytes_of(&key.1), &mut self.buffers.poses)
+                .map_err(err("upload collider poses"))?;
+            write_symbol(&self.module, s, "c_step", &step)?;
+            write_symbol(&self.module, s, "c_poses", bytemuck::bytes_of(&key.1))?;
+        } else {
+            self.upload_params_staged(&step, bytemuck::bytes_of(&key.1))?;
+        }
         self.last_params = Some(key);
         // G2P2G: the last fused scatter used the old dt in the stress term; redo this step's P2G.
         if self.g2p2g() && self.last_dt.is_some_and(|d| d != dt) {
             self.set_ctl_word(CTL_P2G_PENDING, 1)?;
         }
         self.last_dt = Some(dt);
+        Ok(())
+    }
+
+    /// The step parameters `step` and collider poses `poses` to their buffers and constant
+    /// symbols through page-locked memory (`params_staging`: no wait for the steps queued ahead).
+    fn upload_params_staged(&mut self, step: &[u8], poses: &[u8]) -> Result<(), SimError> {
+        let (s, w) = (&self.stream, &*self.waits);
+        let ring = &mut self.params_staging;
+        ring.copy_to_device(s, step, &mut self.buffers.step, w)?;
+        ring.copy_to_device(s, poses, &mut self.buffers.poses, w)?;
+        for (name, bytes) in [("c_step", step), ("c_poses", poses)] {
+            let mut sym = self
+                .module
+                .get_global(name, s)
+                .map_err(|e| SimError::Backend(format!("CUDA: constant symbol {name}: {e:?}")))?;
+            let len = bytes.len().min(sym.len());
+            ring.copy_to_device(s, &bytes[..len], &mut sym, w)?;
+        }
         Ok(())
     }
 

@@ -53,7 +53,7 @@ pub(crate) struct WorldBodies {
     /// The page-locked memory the uploads of `table` go through (a copy from pageable memory
     /// may wait for the steps queued ahead of it; with several buffers the host may be that
     /// many changed uploads ahead of the device).
-    staging: super::staging::StagingRing,
+    staging: crate::staging::StagingRing,
     /// The host's waits, counted ([`crate::waits`]; the backend's).
     waits: Arc<HostWaits>,
     /// `BODY_EXCHANGE_SLOTS` x `worlds x per` rows x 6 f64 sums (`Ctx::body_exchange`).
@@ -129,7 +129,7 @@ impl WorldBodies {
             per,
             table,
             uploaded: Vec::new(),
-            staging: super::staging::StagingRing::new(UPLOAD_BUFFERS, OLD_UPLOAD_BUFFERS),
+            staging: crate::staging::StagingRing::new(UPLOAD_BUFFERS, OLD_UPLOAD_BUFFERS),
             waits,
             exchange,
             host: Mutex::new(HostSums {

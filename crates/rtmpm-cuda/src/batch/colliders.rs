@@ -38,7 +38,7 @@ pub(crate) struct WorldColliders {
     last: Vec<GpuColliderPose>,
     /// The page-locked memory the moving poses' uploads go through (a copy from pageable memory
     /// may wait for the steps queued ahead of it).
-    staging: super::staging::StagingRing,
+    staging: crate::staging::StagingRing,
 }
 
 /// Page-locked buffers the moving poses' uploads go through at most (1 with
@@ -79,7 +79,7 @@ impl WorldColliders {
             poses,
             moving,
             last,
-            staging: super::staging::StagingRing::new(UPLOAD_BUFFERS, 1),
+            staging: crate::staging::StagingRing::new(UPLOAD_BUFFERS, 1),
         }))
     }
 

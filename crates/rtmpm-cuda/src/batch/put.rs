@@ -65,9 +65,14 @@ impl CudaBatch {
         if b.g2p2g() {
             b.set_ctl_word(CTL_P2G_PENDING, 1)?;
         }
-        b.waits
-            .wait(WaitReason::Sync, || b.stream.synchronize())
-            .map_err(err("put the rewind point back"))
+        // Everything after is queued behind the copy on the same stream: no wait (but with
+        // `RTMPM_BATCH_WAITS=old`, as before).
+        if crate::waits::old_waits() {
+            b.waits
+                .wait(WaitReason::Sync, || b.stream.synchronize())
+                .map_err(err("put the rewind point back"))?;
+        }
+        Ok(())
     }
 
     /// Keep the rewind point on the device (`true`, the default) or not (`false`: the driver
@@ -238,7 +243,8 @@ impl CudaBatch {
     /// The packed images of a put (`put_host`) into the device buffer `put_buffer` (allocated,
     /// or grown, to fit): by default through the kept page-locked buffers `put_staging`, an
     /// asynchronous copy that returns at once even while steps are queued ahead of it (the
-    /// images are copied into a buffer whose last copy is done, [`super::staging::StagingRing`]); with
+    /// images are copied into a buffer whose last copy is done:
+    /// [`crate::staging::StagingRing`]); with
     /// `RTMPM_BATCH_PAGEABLE_PUT=1` ([`pageable_puts`]) straight from the pageable `put_host`
     /// as before, which the driver stages itself (and, for a large put, may wait for the
     /// stream to reach the copy).
