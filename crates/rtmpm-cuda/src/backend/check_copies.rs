@@ -25,3 +25,13 @@ impl CheckCopies {
         self.free.extend(self.queued.drain(..));
     }
 }
+
+impl Drop for CheckCopies {
+    /// No page-locked memory is freed while a queued copy may still write it (a check left
+    /// pending as the backend goes).
+    fn drop(&mut self) {
+        for c in &self.queued {
+            let _ = c.done.synchronize();
+        }
+    }
+}
