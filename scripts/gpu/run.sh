@@ -57,11 +57,13 @@
 #   exchange     --cuda-options exchange=fused|push|push_update against the default (docs/multi-gpu.md, "The exchange's
 #                launches"): test_multi_gpu_agreement's the_fused_and_pushed_exchanges_agree_with_one_gpu, then the weak
 #                benchmark (4.2M a GPU) on 1 GPU and on 2 and 4 GPUs (those present) with exchange=kernels,
-#                fused, push, push+overlap=off, push_update (the inbox summed in the grid update) and
-#                overlap=off, REPS times interleaved (default 2), then the strong 16.8M at 1, 2, 4 with
-#                kernels, push, push+overlap=off, push_update (EXCHANGE_STRONG=0 skips it); at 4 GPUs also
-#                partition=boxes (2 x 2 pieces) with push and push_update; each run's reduction line in
-#                the summary (push_update's includes its grid update). About 6 min on 4 GPUs
+#                fused, push, push+overlap=off, push_update (the inbox summed in the grid update),
+#                list_push_update (and the list made with the push) and overlap=off, REPS times
+#                interleaved (default 2), then the strong 16.8M at 1, 2, 4 with kernels, push,
+#                push+overlap=off, push_update, list_push_update (EXCHANGE_STRONG=0 skips it); at 4 GPUs
+#                also partition=boxes (2 x 2 pieces) with push and list_push_update; each run's reduction
+#                line in the summary (push_update's includes its grid update, list_push_update's also the
+#                list). About 7 min on 4 GPUs
 #   multi1       the multi-GPU code on ONE GPU: the test_multi_gpu_* binaries with two ranks on device 0
 #                (RTMPM_MULTI_GPU_DEVICES=0,0, the CUDA option devices=0:0; transport=p2p with the events
 #                barrier, the spin barrier and NCCL checked to be refused there): every example scene,
@@ -422,12 +424,12 @@ for suite in "$@"; do
       ngpu=$(nvidia-smi -L | wc -l)
       red() { grep -E "reduction" "$OUT/bench.log" | tail -1 | sed -E 's/^ +/    /' | tee -a "$S"; }
       # partition=boxes splits 4 GPUs 2 x 2 where it shares less (at 2 GPUs it is the slabs).
-      boxes() { [ "$1" -ge 4 ] && echo "partition=boxes exchange=push_update,partition=boxes"; }
+      boxes() { [ "$1" -ge 4 ] && echo "partition=boxes exchange=list_push_update,partition=boxes"; }
       for rep in $(seq "${REPS:-2}"); do
         b "weak 4.2M gpus=1 #$rep" rtmpm --scene bench/weak_4m_x1.toml --frames 4
         for g in 2 4; do
           [ "$g" -le "$ngpu" ] || continue
-          for o in exchange=kernels exchange=fused exchange=push exchange=push,overlap=off exchange=push_update overlap=off $(boxes "$g"); do
+          for o in exchange=kernels exchange=fused exchange=push exchange=push,overlap=off exchange=push_update exchange=list_push_update overlap=off $(boxes "$g"); do
             b "weak gpus=$g $o #$rep" rtmpm --scene "bench/weak_4m_x$g.toml" --frames 4 --gpus "$g" --cuda-options "$o"
             red
           done
@@ -437,7 +439,7 @@ for suite in "$@"; do
         b "strong 16.8M gpus=1" rtmpm --scene bench/strong_16m.toml --frames 2
         for g in 2 4; do
           [ "$g" -le "$ngpu" ] || continue
-          for o in exchange=kernels exchange=push exchange=push,overlap=off exchange=push_update $(boxes "$g"); do
+          for o in exchange=kernels exchange=push exchange=push,overlap=off exchange=push_update exchange=list_push_update $(boxes "$g"); do
             b "strong gpus=$g $o" rtmpm --scene bench/strong_16m.toml --frames 2 --gpus "$g" --cuda-options "$o"
             red
           done

@@ -550,7 +550,8 @@ mod tests {
     /// acquire on its own counter and reads its inbox 16 bytes a thread past the L1, and so does
     /// `grid_update_gather` (`exchange=push_update`), which also updates the nodes (their
     /// velocities stored); `sb_list_fused` takes the spin barrier (a system-scope atomic and
-    /// acquire) inside it.
+    /// acquire) inside it, and `sb_list_push` (`exchange=list_push_update`) both the barrier and
+    /// the push's 16-byte stores and arrivals.
     #[test]
     fn the_fused_and_pushed_exchange_kernels_move_16_bytes_a_thread() {
         if !nvrtc_or_skip() {
@@ -571,6 +572,7 @@ mod tests {
                     "sb_gather",
                     "grid_update_gather",
                     "sb_list_fused",
+                    "sb_list_push",
                 ] {
                     println!("==== {k} ({v})\n{}", entry(&ptx, k));
                 }
@@ -604,6 +606,18 @@ mod tests {
             let list = entry(&ptx, "sb_list_fused");
             assert!(list.contains("ld.acquire.sys.global.u64"), "sb_list_fused");
             assert!(list.contains("atom.global.sys.add.u64"), "sb_list_fused");
+            let both = entry(&ptx, "sb_list_push");
+            assert!(
+                both.contains(&format!("st.global.{v}")) || both.contains(&format!("st.{v}")),
+                "sb_list_push, {v}"
+            );
+            assert!(both.contains("ld.acquire.sys.global.u64"), "sb_list_push");
+            // The spin barrier's arrival and the push's arrivals at every GPU's counter.
+            assert!(
+                both.matches("atom.global.sys.add.u64").count() >= 2,
+                "sb_list_push"
+            );
+            assert!(both.contains("membar.sys"), "sb_list_push");
         }
     }
 

@@ -100,13 +100,29 @@ pub enum ExchangeMode {
     /// than `Push`, no second stream). Runs without the overlap (its kernel overlaps the wait
     /// with the unshared pblocks itself).
     PushUpdate,
+    /// `PushUpdate`, with the shared list and the push in one cooperative kernel after the
+    /// step's P2G (`list_push_update`; without the overlap P2G needs no list): one launch less
+    /// than `PushUpdate`.
+    ListPushUpdate,
 }
 
 impl ExchangeMode {
     /// True for the modes that push the shared nodes into the holders' inboxes (`push`,
     /// `push_update`): they need the holders of every shared block and an inbox per GPU.
     pub fn pushes(self) -> bool {
-        matches!(self, ExchangeMode::Push | ExchangeMode::PushUpdate)
+        matches!(
+            self,
+            ExchangeMode::Push | ExchangeMode::PushUpdate | ExchangeMode::ListPushUpdate
+        )
+    }
+
+    /// True for the modes that sum the inbox inside the grid update (`push_update`,
+    /// `list_push_update`): no second stream, no overlap.
+    pub fn sums_in_update(self) -> bool {
+        matches!(
+            self,
+            ExchangeMode::PushUpdate | ExchangeMode::ListPushUpdate
+        )
     }
 }
 
@@ -181,7 +197,7 @@ pub struct CudaOptions {
     /// Several GPUs with `transport=p2p`: the synchronisation (`None`: spin).
     pub barrier: Option<BarrierKind>,
     /// Several GPUs with `transport=p2p` and the spin barrier: the kernels of the shared-block
-    /// list and sum (`exchange=kernels|fused|push|push_update`; `None`: `push` with transport=p2p and the
+    /// list and sum (`exchange=kernels|fused|push|push_update|list_push_update`; `None`: `push` with transport=p2p and the
     /// spin barrier, `kernels` otherwise; `fused` and `push` asked for are refused with NCCL,
     /// the events barrier and one process per GPU). Resolved when a multi-GPU backend is made.
     pub exchange: Option<ExchangeMode>,
@@ -355,7 +371,7 @@ impl std::str::FromStr for CudaOptions {
     /// Comma separated `key=value`: `free_zone`, `mixed_sort`, `warp_reduce`, `fast_math`,
     /// `graph`, `f64`, `rebalance`, `overlap`, `g2p2g`, `rigid_overlap`, `specialize` (on/off/true/false/1/0), `rebuild` (fused/kernels), `fill` (device/host), `p2g`
     /// (warp/shared/reverse_map/sort), `ck_p2g` (direct/warp/fused), `ck_bound` (0 to 16 blocks),
-    /// `ck_grid` (wave/resident), `transport` (p2p/nccl), `barrier` (spin/events), `exchange` (kernels/fused/push/push_update), `partition` (slabs/boxes), `devices`
+    /// `ck_grid` (wave/resident), `transport` (p2p/nccl), `barrier` (spin/events), `exchange` (kernels/fused/push/push_update/list_push_update), `partition` (slabs/boxes), `devices`
     /// (ordinals separated by `:`), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
     /// `rmap_pblocks`, `shared`, `sort_fields` (counts), `fluid_state` (on/off), `state`
     /// (f32/compact), `body_sums` (read/step), `addressing` (pairs/blocks), `uniform_loop` (on/off),
@@ -509,6 +525,7 @@ impl std::str::FromStr for CudaOptions {
                             ("fused", ExchangeMode::Fused),
                             ("push", ExchangeMode::Push),
                             ("push_update", ExchangeMode::PushUpdate),
+                            ("list_push_update", ExchangeMode::ListPushUpdate),
                         ],
                     )?)
                 }
@@ -619,13 +636,14 @@ mod tests {
             ("fused", ExchangeMode::Fused),
             ("push", ExchangeMode::Push),
             ("push_update", ExchangeMode::PushUpdate),
+            ("list_push_update", ExchangeMode::ListPushUpdate),
         ] {
             let o: CudaOptions = format!("exchange={v}").parse().unwrap();
             assert_eq!(o.exchange, Some(m));
         }
         assert_eq!(
             "exchange=pull".parse::<CudaOptions>().unwrap_err(),
-            "`exchange=pull`: expected kernels, fused, push or push_update"
+            "`exchange=pull`: expected kernels, fused, push, push_update or list_push_update"
         );
         assert_eq!(CudaOptions::default().partition, PartitionKind::Slabs);
         assert_eq!(

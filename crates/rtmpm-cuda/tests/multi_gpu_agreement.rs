@@ -51,8 +51,9 @@ fn several_gpus_agree_with_one_on_every_example_scene() {
 /// the overlap, run by the test above): `exchange=kernels` with the overlap (the default before),
 /// `exchange=fused` (the shared list in one cooperative kernel with the inter-GPU barrier
 /// inside), `exchange=push` with the overlap (the shared nodes pushed into the holders'
-/// inboxes, the barrier inside the push and sum kernels) and `exchange=push_update` (the inbox
-/// summed inside the grid update's kernel) against one GPU, as the agreement test above: every
+/// inboxes, the barrier inside the push and sum kernels), `exchange=push_update` (the inbox
+/// summed inside the grid update's kernel) and `exchange=list_push_update` (that, with the
+/// shared list and the push in one kernel after P2G) against one GPU, as the agreement test above: every
 /// example
 /// scene, 2 GPUs and 4 where present (`RTMPM_MULTI_GPU_COUNTS`, e.g. "2,4,8"), a re-partition
 /// halfway.
@@ -70,7 +71,12 @@ fn the_fused_and_pushed_exchanges_agree_with_one_gpu() {
         )
         .expect("scene");
         let p = scene.sample_particles().expect("particles");
-        for mode in ["exchange=fused", "exchange=push", "exchange=push_update"] {
+        for mode in [
+            "exchange=fused",
+            "exchange=push",
+            "exchange=push_update",
+            "exchange=list_push_update",
+        ] {
             let e = MultiGpuBackend::new(&scene, &p, 2, options(2, mode))
                 .err()
                 .map(|e| e.to_string())
@@ -87,6 +93,7 @@ fn the_fused_and_pushed_exchanges_agree_with_one_gpu() {
         "transport=p2p,barrier=spin,exchange=fused".to_string(),
         "transport=p2p,barrier=spin,exchange=push,overlap=on".to_string(),
         "transport=p2p,barrier=spin,exchange=push_update".to_string(),
+        "transport=p2p,barrier=spin,exchange=list_push_update".to_string(),
     ];
     let (ran, failures) = agree_on_every_example_scene(&modes);
     assert!(failures.is_empty(), "{failures:#?}");

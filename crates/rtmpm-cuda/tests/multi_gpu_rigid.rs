@@ -30,9 +30,12 @@ fn first_cut(p: &Particles, gpus: usize) -> (usize, f32) {
     (part.axis, cut)
 }
 
-/// The exchange that sums the shared nodes inside the grid update (not a default, so not in
-/// [`MODES`]): the rigid scenes' comparison runs it too.
-const PUSH_UPDATE: &str = "transport=p2p,barrier=spin,exchange=push_update";
+/// The exchanges that sum the shared nodes inside the grid update (not a default, so not in
+/// [`MODES`]): the rigid scenes' comparison runs them too.
+const SUMMED_IN_UPDATE: [&str; 2] = [
+    "transport=p2p,barrier=spin,exchange=push_update",
+    "transport=p2p,barrier=spin,exchange=list_push_update",
+];
 
 /// The scenes of `scenes/rigid/`, sorted.
 fn rigid_scenes() -> Vec<std::path::PathBuf> {
@@ -131,8 +134,8 @@ fn particles_differ(label: &str, dx: f32, a: &Particles, b: &Particles) -> Optio
 /// particles' aggregates within the agreement test's tolerances. heavy_ball's ball starts over
 /// the cut between the first two GPUs' slabs (checked), so it lands on blocks both GPUs hold:
 /// with their nodes' reactions counted on both, its impulse from them would double. Every mode
-/// of [`MODES`], and `exchange=push_update` (the bodies coupled in the grid update kernel that
-/// also sums the shared nodes).
+/// of [`MODES`], and `exchange=push_update` and `list_push_update` (the bodies coupled in the
+/// grid update kernel that also sums the shared nodes).
 #[test]
 #[ignore = "needs 2 CUDA GPUs (or RTMPM_MULTI_GPU_DEVICES=0,0)"]
 fn several_gpus_agree_with_one_on_the_rigid_scenes() {
@@ -168,7 +171,7 @@ fn several_gpus_agree_with_one_on_the_rigid_scenes() {
         };
         for (variant, mode) in variants
             .iter()
-            .flat_map(|v| MODES.iter().chain([&PUSH_UPDATE]).map(move |m| (*v, *m)))
+            .flat_map(|v| MODES.iter().chain(&SUMMED_IN_UPDATE).map(move |m| (*v, *m)))
         {
             if !mode_usable(mode, gpus, &scene, &p0) {
                 continue;

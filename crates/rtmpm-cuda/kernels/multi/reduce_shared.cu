@@ -246,9 +246,10 @@ extern "C" __global__ void sb_sum_peers(Ctx c, SharedCtx s, PeerCtx p) {
 // other blocks wait at a grid barrier. Every branch below depends only on values that are the
 // same in every block (the control words written by earlier kernels, the peers' rebuilt flags
 // read after the inter-GPU barrier), so every block meets the same barriers. With `q` (push)
-// it also lists the holders of each shared block.
-extern "C" __global__ void __launch_bounds__(1024) sb_list_fused(Ctx c, SharedCtx s, PeerCtx p,
-                                                                 SpinBarrier b) {
+// it also lists the holders of each shared block. The stage is a device function so that
+// sb_list_push (exchange=list_push_update) runs it too; its return is the same in every block.
+__device__ __forceinline__ void sb_list_stage(const Ctx& c, const SharedCtx& s, const PeerCtx& p,
+                                              const SpinBarrier& b) {
     unsigned rebuilt = c.ctl[CTL_REBUILT_NOW];
     if (rebuilt) {
         SB_GRID_STRIDE(i, s.d) s.mask[i] = 0;
@@ -278,6 +279,11 @@ extern "C" __global__ void __launch_bounds__(1024) sb_list_fused(Ctx c, SharedCt
     rb_grid_barrier(c);
     sb_list_body(c, s, s.holders ? &p : nullptr);
     sb_boundary_body(c, s);
+}
+
+extern "C" __global__ void __launch_bounds__(1024) sb_list_fused(Ctx c, SharedCtx s, PeerCtx p,
+                                                                 SpinBarrier b) {
+    sb_list_stage(c, s, p, b);
 }
 
 // exchange=push: each GPU writes its nodes of every shared block it holds straight into the inbox
@@ -324,43 +330,52 @@ __device__ __forceinline__ size_t sb_inbox_at(const SharedCtx& s, const PushCtx&
     return (((size_t)par * q.n + from) * s.cap + pos) * SB_VECS + v;
 }
 
+// This GPU's nodes of every shared block it holds into the inboxes of the other holders
+// (exchange parity `par`), grid-stride; nothing after an error.
+__device__ __forceinline__ void sb_push_nodes(const Ctx& c, const SharedCtx& s, const PushCtx& q, unsigned par) {
+    if (c.ctl[CTL_ERROR]) return;
+    unsigned nb = min(c.ctl[CTL_SHARED], s.cap);
+    const sb_vec* grid = (const sb_vec*)c.grid;
+    SB_GRID_STRIDE(t, nb * SB_VECS) {
+        unsigned pos = t / SB_VECS, v = t % SB_VECS;
+        unsigned h = s.holders[pos];
+        if (!(h >> q.me & 1u)) continue;  // not held here: nothing to send
+        h &= ~(1u << q.me);
+        unsigned id = s.shared_local[pos];
+        sb_vec x = id == EMPTY_ID ? sb_vzero() : grid[(size_t)id * SB_VECS + v];
+        size_t at = sb_inbox_at(s, q, par, q.me, pos, v);
+        // Unrolled over the constant bound: the inbox pointers stay kernel parameters (global
+        // stores), never a local copy of the array indexed at run time.
+#pragma unroll
+        for (unsigned to = 0; to < SB_MAX_GPUS; ++to)
+            if (h >> to & 1u) ((sb_vec*)q.inbox[to])[at] = x;
+    }
+}
+
+// One thread, once every thread's pushes are fenced: arrive at every GPU's counter for exchange
+// g (always, error or not: no GPU is left waiting for the timeout) and count the exchange.
+__device__ __forceinline__ void sb_arrive(const Ctx& c, const PushCtx& q, unsigned long long g) {
+    __threadfence_system();
+#if __CUDA_ARCH__ >= 700
+#pragma unroll
+    for (unsigned to = 0; to < SB_MAX_GPUS; ++to)
+        if (to < q.n) atomicAdd_system(q.arrivals[to], 1ull);
+#else
+    atomicOr(&c.ctl[CTL_ERROR], ERR_BARRIER);
+#endif
+    *q.calls = g;
+}
+
 extern "C" __global__ void sb_push(Ctx c, SharedCtx s, PushCtx q) {
     unsigned long long g = *q.calls + 1ull;  // this exchange (set by the last block at the end)
-    unsigned par = (unsigned)(g & 1ull);
-    if (!c.ctl[CTL_ERROR]) {
-        unsigned nb = min(c.ctl[CTL_SHARED], s.cap);
-        const sb_vec* grid = (const sb_vec*)c.grid;
-        SB_GRID_STRIDE(t, nb * SB_VECS) {
-            unsigned pos = t / SB_VECS, v = t % SB_VECS;
-            unsigned h = s.holders[pos];
-            if (!(h >> q.me & 1u)) continue;  // not held here: nothing to send
-            h &= ~(1u << q.me);
-            unsigned id = s.shared_local[pos];
-            sb_vec x = id == EMPTY_ID ? sb_vzero() : grid[(size_t)id * SB_VECS + v];
-            size_t at = sb_inbox_at(s, q, par, q.me, pos, v);
-            // Unrolled over the constant bound: the inbox pointers stay kernel parameters (global
-            // stores), never a local copy of the array indexed at run time.
-#pragma unroll
-            for (unsigned to = 0; to < SB_MAX_GPUS; ++to)
-                if (h >> to & 1u) ((sb_vec*)q.inbox[to])[at] = x;
-        }
-    }
+    sb_push_nodes(c, s, q, (unsigned)(g & 1ull));
     // Every thread's remote stores are visible everywhere before the block counts as done; the
-    // last block done arrives at every GPU's counter (always, error or not: no GPU is left
-    // waiting for the timeout).
+    // last block done arrives.
     __threadfence_system();
     __syncthreads();
     if (threadIdx.x == 0 && atomicAdd(q.done, 1u) == gridDim.x - 1) {
         *q.done = 0;
-        __threadfence_system();
-#if __CUDA_ARCH__ >= 700
-#pragma unroll
-        for (unsigned to = 0; to < SB_MAX_GPUS; ++to)
-            if (to < q.n) atomicAdd_system(q.arrivals[to], 1ull);
-#else
-        atomicOr(&c.ctl[CTL_ERROR], ERR_BARRIER);
-#endif
-        *q.calls = g;
+        sb_arrive(c, q, g);
     }
 }
 
@@ -487,4 +502,26 @@ extern "C" __global__ void grid_update_gather(Ctx c, SharedCtx s, PushCtx q) {
         if (c.grid_next) clear_node(c.grid_next, node);
         if (c.grid_aux_next) clear_node(c.grid_aux_next, node);
     }
+}
+
+// ---- exchange=list_push_update: the shared list and the push in one cooperative kernel ----
+//
+// Without the overlap the P2G of a step needs no shared list (only its split into boundary and
+// interior gblocks does), so the list can follow it: after the step's P2G, one launch makes the
+// list stage of sb_list_fused (mask, spin barrier, sum of the masks, list, boundary), then, after
+// a grid barrier, the push of sb_push, then, after a second grid barrier (every thread's remote
+// stores fenced before it), one thread's arrival at every GPU's counter; grid_update_gather
+// follows. Launches a step: the rebuild, the gated P2G, this, grid_update_gather and G2P2G (one
+// GPU: 4). The masks, inboxes and counters are used as with exchange=push: a GPU rewrites its
+// mask or an inbox buffer only after a wait that needs every peer's arrival of the step before,
+// which each peer makes after its reads of them (here: after the list, in the same kernel).
+extern "C" __global__ void __launch_bounds__(1024) sb_list_push(Ctx c, SharedCtx s, PeerCtx p, SpinBarrier b,
+                                                                PushCtx q) {
+    unsigned long long g = *q.calls + 1ull;  // read by every thread before one sets it, at the end
+    sb_list_stage(c, s, p, b);
+    rb_grid_barrier(c);  // the list, holders and shared count of every block written
+    sb_push_nodes(c, s, q, (unsigned)(g & 1ull));
+    __threadfence_system();
+    rb_grid_barrier(c);
+    if (thread_index() == 0) sb_arrive(c, q, g);
 }

@@ -16,7 +16,8 @@
 //! rebuild), so only the grid update overlaps the sum. `overlap=off`: P2G, sum, grid update.
 //! `exchange=push_update` uses no second stream: the push on the compute stream, then one grid
 //! update kernel that updates the unshared pblocks, waits for the peers' pushes and sums and
-//! updates the shared ones ([`Exchange::grid_update`]).
+//! updates the shared ones ([`Exchange::grid_update`]); `list_push_update` makes the shared list
+//! after P2G, in one cooperative kernel with the push (nothing after the rebuild).
 //!
 //! The sums are NCCL all-reduces (transport=nccl), or (transport=p2p, one process) a barrier
 //! ([`super::barrier`]) and a kernel reading the other GPUs' buffers through peer pointers.
@@ -34,8 +35,9 @@ use super::barrier::{HostBarrier, SpinBarrier, TIMEOUT, enqueue_spin, wait_event
 use super::nccl::{Communicator, DataType, RedOp};
 use super::reduce_shared::{
     MAX_PEER_GPUS, PeerCtx, PushCtx, SharedCtx, dense_dims, enqueue_copy, enqueue_counts_peers,
-    enqueue_grid_update_gather, enqueue_list, enqueue_list_fused, enqueue_mask, enqueue_push,
-    enqueue_push_gather, enqueue_sum_peers, inbox_bytes, list_fused_blocks,
+    enqueue_grid_update_gather, enqueue_list, enqueue_list_fused, enqueue_list_push, enqueue_mask,
+    enqueue_push, enqueue_push_gather, enqueue_sum_peers, inbox_bytes, list_fused_blocks,
+    list_push_blocks,
 };
 use crate::contract::Ctx;
 use crate::error::err;
@@ -108,7 +110,8 @@ pub struct Exchanger {
     mode: ExchangeMode,
     /// `exchange=push|push_update`: u8 per shared block, the GPUs that hold it.
     holders: Option<CudaSlice<u8>>,
-    /// `exchange=fused|push`: the grid of the fused list, found at the first (uncaptured) step.
+    /// `exchange=fused|push|push_update`: the grid of the fused list (`list_push_update`: of the
+    /// list and push), found at the first (uncaptured) step.
     list_blocks: std::sync::OnceLock<u32>,
     /// transport=p2p (`None`: NCCL).
     p2p: Option<P2pRank>,
@@ -361,6 +364,22 @@ impl Exchanger {
         }
     }
 
+    /// The grid of the mode's cooperative list kernel (`occupancy`: [`list_fused_blocks`] or
+    /// [`list_push_blocks`]), found once.
+    fn fused_grid(
+        &self,
+        k: &Kernels,
+        occupancy: fn(&Kernels) -> Result<u32, cudarc::driver::DriverError>,
+    ) -> Result<u32, SimError> {
+        match self.list_blocks.get() {
+            Some(&b) => Ok(b),
+            None => {
+                let b = occupancy(k).map_err(err("occupancy of the fused shared list"))?;
+                Ok(*self.list_blocks.get_or_init(|| b))
+            }
+        }
+    }
+
     /// Milliseconds of the last step's reduction (pack, sum, unpack; synchronises).
     pub(crate) fn last_reduce_ms(&self) -> Result<f64, SimError> {
         match &self.timing {
@@ -373,15 +392,12 @@ impl Exchanger {
 impl Exchange for Exchanger {
     fn after_rebuild(&self, k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), SimError> {
         let sc = &self.sc;
+        if self.p2p.is_some() && self.mode == ExchangeMode::ListPushUpdate {
+            return Ok(()); // the list is made with the push, after P2G (start)
+        }
         if let (Some(p), false) = (&self.p2p, self.mode == ExchangeMode::Kernels) {
             // One cooperative launch: mask, barrier, sum of the masks, list, boundary.
-            let blocks = match self.list_blocks.get() {
-                Some(&b) => b,
-                None => {
-                    let b = list_fused_blocks(k).map_err(err("occupancy of sb_list_fused"))?;
-                    *self.list_blocks.get_or_init(|| b)
-                }
-            };
+            let blocks = self.fused_grid(k, list_fused_blocks)?;
             return enqueue_list_fused(k, s, c, sc, &p.pc, &p.spin, blocks)
                 .map_err(err("shared list"));
         }
@@ -408,15 +424,20 @@ impl Exchange for Exchanger {
 
     fn overlap(&self) -> bool {
         // push_update: the grid update is its own kernel's (refused with overlap=on).
-        self.overlap && self.mode != ExchangeMode::PushUpdate
+        self.overlap && !self.mode.sums_in_update()
     }
 
     fn start(&self, k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<(), SimError> {
         let (sc, t) = (&self.sc, &self.comm_stream);
-        if let (Some(p), ExchangeMode::PushUpdate) = (&self.p2p, self.mode) {
+        if let (Some(p), true) = (&self.p2p, self.mode.sums_in_update()) {
             // On the compute stream: the grid update that follows waits and sums inside it.
             if let Some((a, _)) = &self.timing {
                 a.record(s).map_err(err("event"))?;
+            }
+            if self.mode == ExchangeMode::ListPushUpdate {
+                let blocks = self.fused_grid(k, list_push_blocks)?;
+                return enqueue_list_push(k, s, c, sc, &p.pc, &p.spin, &p.qc, blocks)
+                    .map_err(err("shared list and push"));
             }
             let f64 = self.real == DataType::F64;
             return enqueue_push(k, s, c, sc, &p.qc, f64).map_err(err("push"));
@@ -456,18 +477,14 @@ impl Exchange for Exchanger {
     }
 
     fn finish(&self, _k: &Kernels, s: &CudaStream, _c: &Ctx) -> Result<(), SimError> {
-        if self.mode == ExchangeMode::PushUpdate && self.p2p.is_some() {
+        if self.mode.sums_in_update() && self.p2p.is_some() {
             return Ok(()); // nothing on a second stream
         }
         s.wait(&self.reduced).map_err(err("wait"))
     }
 
     fn grid_update(&self, k: &Kernels, s: &CudaStream, c: &Ctx) -> Result<bool, SimError> {
-        let Some(p) = self
-            .p2p
-            .as_ref()
-            .filter(|_| self.mode == ExchangeMode::PushUpdate)
-        else {
+        let Some(p) = self.p2p.as_ref().filter(|_| self.mode.sums_in_update()) else {
             return Ok(false);
         };
         enqueue_grid_update_gather(k, s, c, &self.sc, &p.qc)
@@ -487,6 +504,7 @@ pub(crate) fn mode_name(mode: ExchangeMode) -> &'static str {
         ExchangeMode::Fused => "fused",
         ExchangeMode::Push => "push",
         ExchangeMode::PushUpdate => "push_update",
+        ExchangeMode::ListPushUpdate => "list_push_update",
     }
 }
 

@@ -146,6 +146,46 @@ pub(crate) fn list_fused_blocks(k: &Kernels) -> Result<u32, DriverError> {
     Ok((sms(k) as u32 * per_sm.min(1)).max(1))
 }
 
+/// `exchange=list_push_update`: the grid of `sb_list_push`, as [`list_fused_blocks`].
+pub(crate) fn list_push_blocks(k: &Kernels) -> Result<u32, DriverError> {
+    let per_sm =
+        k[Kernel::SbListPush].occupancy_max_active_blocks_per_multiprocessor(1024, 0, None)?;
+    Ok((sms(k) as u32 * per_sm.min(1)).max(1))
+}
+
+/// `exchange=list_push_update`: enqueue the shared-list stage of [`enqueue_list_fused`] and the
+/// push of [`enqueue_push`] as one cooperative launch of `sb_list_push` on `blocks` blocks
+/// ([`list_push_blocks`]), after the step's P2G.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn enqueue_list_push(
+    k: &Kernels,
+    s: &CudaStream,
+    c: &Ctx,
+    sc: &SharedCtx,
+    pc: &PeerCtx,
+    b: &SpinBarrier,
+    q: &PushCtx,
+    blocks: u32,
+) -> Result<(), DriverError> {
+    let cfg = LaunchConfig {
+        grid_dim: (blocks, 1, 1),
+        block_dim: (1024, 1, 1),
+        shared_mem_bytes: 0,
+    };
+    // SAFETY: as `enqueue_list_fused` and `enqueue_push`; the cooperative launch keeps every
+    // block resident for the grid barriers.
+    unsafe {
+        s.launch_builder(&k[Kernel::SbListPush])
+            .arg(c)
+            .arg(sc)
+            .arg(pc)
+            .arg(b)
+            .arg(q)
+            .launch_cooperative(cfg)?;
+    }
+    Ok(())
+}
+
 /// `exchange=fused|push`: enqueue the whole shared-list stage (mask, inter-GPU barrier `b`, sum
 /// of the masks, list, boundary gblocks) as one cooperative launch of `sb_list_fused` on
 /// `blocks` blocks ([`list_fused_blocks`]).

@@ -162,6 +162,10 @@ impl MultiGpuBackend {
             (Transport::P2p, Some(BarrierKind::Events), _) => {
                 "pack + events barrier + sum of peer reads"
             }
+            (Transport::P2p, _, ExchangeMode::ListPushUpdate) => {
+                "shared list and push in one kernel after P2G + grid update that waits on own \
+                 counter and sums the inbox (timed together with the list and the grid update)"
+            }
             (Transport::P2p, _, ExchangeMode::PushUpdate) => {
                 "push to the holders' inboxes + grid update that waits on own counter and sums \
                  the inbox (timed together with the grid update); list fused"
@@ -593,13 +597,12 @@ fn check_exchange(o: &CudaOptions) -> Result<(), SimError> {
         return Ok(());
     };
     let name = super::exchange::mode_name(mode);
-    if mode == ExchangeMode::PushUpdate && o.overlap == Some(true) {
-        return Err(SimError::Backend(
-            "exchange=push_update sums the inbox inside the grid update, which updates the \
-             unshared pblocks while it waits: it has no overlap on a second stream; leave \
-             overlap= out (or off), or use exchange=push with overlap=on"
-                .into(),
-        ));
+    if mode.sums_in_update() && o.overlap == Some(true) {
+        return Err(SimError::Backend(format!(
+            "exchange={name} sums the inbox inside the grid update, which updates the unshared \
+             pblocks while it waits: it has no overlap on a second stream; leave overlap= out \
+             (or off), or use exchange=push with overlap=on"
+        )));
     }
     match (o.transport, o.barrier) {
         (Some(Transport::P2p), Some(BarrierKind::Spin)) => Ok(()),
@@ -719,7 +722,7 @@ mod tests {
             o.barrier = b;
             check_exchange(&o)
         };
-        for mode in ["fused", "push", "push_update"] {
+        for mode in ["fused", "push", "push_update", "list_push_update"] {
             let x = format!("exchange={mode}");
             assert!(with(&x, Transport::P2p, Some(BarrierKind::Spin)).is_ok());
             let e = msg(with(&x, Transport::P2p, Some(BarrierKind::Events)));
@@ -739,16 +742,19 @@ mod tests {
         }
         // push_update has no overlap on a second stream: overlap=on is refused, off allowed.
         let spin = Some(BarrierKind::Spin);
-        let e = msg(with(
-            "exchange=push_update,overlap=on",
-            Transport::P2p,
-            spin,
-        ));
-        assert!(
-            e.contains("exchange=push_update") && e.contains("leave overlap= out"),
-            "{e}"
-        );
-        assert!(with("exchange=push_update,overlap=off", Transport::P2p, spin).is_ok());
+        for mode in ["push_update", "list_push_update"] {
+            let e = msg(with(
+                &format!("exchange={mode},overlap=on"),
+                Transport::P2p,
+                spin,
+            ));
+            assert!(
+                e.contains(&format!("exchange={mode} sums")) && e.contains("leave overlap= out"),
+                "{e}"
+            );
+            let off = format!("exchange={mode},overlap=off");
+            assert!(with(&off, Transport::P2p, spin).is_ok());
+        }
         assert!(with("exchange=push,overlap=on", Transport::P2p, spin).is_ok());
         // Without the overlap asked for, it resolves to off.
         let mut r = o("exchange=push_update");
