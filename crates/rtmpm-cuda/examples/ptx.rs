@@ -2,7 +2,8 @@
 //! with `ptxas -v` (scripts/kernel_report.sh).
 //!
 //! `cargo run -p rtmpm-cuda --example ptx -- [f64] [no_fast_math] [sm_90] [materials=0xMASK]
-//! [layout=N] [ck_bound=N] [addressing=blocks] [uniform_loop=off] [row_unroll=N] [lineinfo]` (N: the state layout's code, `StateLayout::code`:
+//! [layout=N] [ck_bound=N] [addressing=blocks] [uniform_loop=off] [row_unroll=N] [lean_lanes]
+//! [seg_clamp] [zero_terms] [flat_checks] [state_index=wide] [lineinfo]` (N: the state layout's code, `StateLayout::code`:
 //! 1 is the 20-word fluid layout; `ck_bound=N`: the CUDA option of the same name
 //! (`CudaOptions::ck_min_blocks`); `lineinfo`: NVRTC's
 //! `--generate-line-info`, so that `nvdisasm -g` names the source line of every SASS instruction;
@@ -51,6 +52,16 @@ fn main() {
         .find_map(|a| a.strip_prefix("row_unroll="))
         .and_then(|v| v.parse::<u32>().ok())
         .unwrap_or(0);
+    // The instruction cuts of the CUDA options of the same names (`KernelCuts`), and
+    // `state_index=wide` (the 64-bit state index).
+    let has = |name: &str| args.iter().any(|a| a == name);
+    o.cuts = rtmpm_cuda::KernelCuts {
+        lean_lanes: has("lean_lanes"),
+        seg_clamp: has("seg_clamp"),
+        zero_terms: has("zero_terms"),
+        flat_checks: has("flat_checks"),
+    };
+    o.state64 = has("state_index=wide");
     let ptx = if args.iter().any(|a| a == "lineinfo") {
         with_line_info(&o)
     } else {

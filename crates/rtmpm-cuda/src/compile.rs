@@ -43,6 +43,8 @@ pub struct KernelOptions {
     /// `RTMPM_P2G_UNROLL` ([`crate::CudaOptions::row_unroll`], [`crate::RowUnroll::define`]);
     /// 0: left out (the kernels' default, the row loop).
     pub row_unroll: u32,
+    /// The fused kernels' instruction cuts ([`crate::CudaOptions::cuts`]); default: none.
+    pub cuts: crate::options::KernelCuts,
 }
 
 /// True when state arrays of `capacity` particles of `words` words each hold 2^32 words or more:
@@ -67,6 +69,7 @@ impl KernelOptions {
             stencil_pairs: true,
             uniform_loop: true,
             row_unroll: 0,
+            cuts: crate::options::KernelCuts::default(),
         }
     }
 }
@@ -185,6 +188,7 @@ pub fn nvrtc_options(o: &KernelOptions) -> Vec<String> {
     if o.row_unroll != 0 {
         v.push(format!("-DRTMPM_P2G_UNROLL={}", o.row_unroll));
     }
+    v.extend(o.cuts.defines().into_iter().map(String::from));
     // Tuning experiments: extra `-DNAME=VALUE` flags, e.g. "-DG2P_MIN_BLOCKS=6" (part of the
     // cache key like every other option).
     if let Ok(defines) = std::env::var("RTMPM_KERNEL_DEFINES") {
@@ -451,6 +455,23 @@ mod tests {
             &["-DRTMPM_P2G_REDUCE=4", "-DRTMPM_P2G_ROUNDS_MAX=3"],
             &["-DRTMPM_P2G_UNROLL=1"],
             &["-DRTMPM_P2G_UNROLL=2"],
+            // The second round of instruction cuts (`KernelCuts`), alone, together, and with the
+            // unrolled rows (whose compile-time row indices the zero terms use).
+            &["-DRTMPM_G2P2G_LEAN_LANES=1"],
+            &["-DRTMPM_P2G_SEG_CLAMP=1"],
+            &["-DRTMPM_P2G_ZERO_TERMS=1"],
+            &["-DRTMPM_G2P_FLAT_CHECKS=1"],
+            &[
+                "-DRTMPM_G2P2G_LEAN_LANES=1",
+                "-DRTMPM_P2G_SEG_CLAMP=1",
+                "-DRTMPM_P2G_ZERO_TERMS=1",
+                "-DRTMPM_G2P_FLAT_CHECKS=1",
+                "-DRTMPM_STATE_64",
+            ],
+            &["-DRTMPM_P2G_ZERO_TERMS=1", "-DRTMPM_P2G_UNROLL=1"],
+            &["-DRTMPM_P2G_ZERO_TERMS=1", "-DRTMPM_P2G_UNROLL=2"],
+            &["-DRTMPM_P2G_SEG_CLAMP=1", "-DRTMPM_P2G_REDUCE=0"],
+            &["-DRTMPM_P2G_SEG_CLAMP=1", "-DRTMPM_P2G_REDUCE=4"],
             &["-DRTMPM_STATE_STREAM=1"],
             // The fused kernels' register bounds before 96 registers became the default.
             &["-DG2P2G_MIN_BLOCKS=0", "-DG2P2G_FLUID_MIN_BLOCKS=4"],
@@ -534,6 +555,37 @@ mod tests {
         o.row_unroll = crate::RowUnroll::Planes.define();
         let v = nvrtc_options(&o);
         assert!(v.contains(&"-DRTMPM_P2G_UNROLL=2".to_string()), "{v:?}");
+    }
+
+    /// Each instruction cut of `KernelCuts` becomes its own define, none by default.
+    #[test]
+    fn the_instruction_cuts_become_defines() {
+        let mut o = KernelOptions::all_models((9, 0), true, false);
+        let names = [
+            "RTMPM_G2P2G_LEAN_LANES",
+            "RTMPM_P2G_SEG_CLAMP",
+            "RTMPM_P2G_ZERO_TERMS",
+            "RTMPM_G2P_FLAT_CHECKS",
+        ];
+        let v = nvrtc_options(&o);
+        assert!(
+            !v.iter().any(|d| names.iter().any(|n| d.contains(n))),
+            "{v:?}"
+        );
+        for (i, name) in names.iter().enumerate() {
+            o.cuts = crate::options::KernelCuts {
+                lean_lanes: i == 0,
+                seg_clamp: i == 1,
+                zero_terms: i == 2,
+                flat_checks: i == 3,
+            };
+            let v = nvrtc_options(&o);
+            let on: Vec<_> = v
+                .iter()
+                .filter(|d| names.iter().any(|n| d.contains(n)))
+                .collect();
+            assert_eq!(on, [&format!("-D{name}=1")], "{v:?}");
+        }
     }
 
     /// The entry directives and the body of kernel `k` in `ptx` (up to its closing brace).

@@ -278,6 +278,54 @@ pub struct CudaOptions {
     /// rows; `Planes` the three rows of a plane unrolled; `All` all nine. The same arithmetic bit
     /// for bit; fewer instructions issued (no row selects, no loop counter) for a larger kernel.
     pub row_unroll: RowUnroll,
+    /// Further instruction cuts of the fused kernels, each its own switch, all off by default
+    /// until timed ([`KernelCuts`]).
+    pub cuts: KernelCuts,
+    /// The particle state's word index in 64 bits always (`state_index=wide`; default `auto`:
+    /// 32 bits unless the arrays hold 2^32 words or more). The same words; ptxas then forms each
+    /// field's address with one multiply-add from the previous one instead of an add and a
+    /// multiply-add (`kernels/common.cuh`: `sidx`, `RTMPM_STATE_64`).
+    pub wide_state_index: bool,
+}
+
+/// Instruction cuts of the fused G2P2G kernels (`--cuda-options lean_lanes=on,seg_clamp=on,
+/// zero_terms=skip,flat_checks=on`), each a compile-time define of the kernels, off by default
+/// until measured on a GPU (bench/RESULTS.md, "Fewer instructions, second round").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct KernelCuts {
+    /// `lean_lanes=on` (`RTMPM_G2P2G_LEAN_LANES`, `kernels/g2p/g2p2g.cu`): the P2G quantities
+    /// of a lane that does not scatter are left unset (its stencil base set) instead of zeroed
+    /// in every warp entry; the same sums (such a lane's values reach no atomic).
+    pub lean_lanes: bool,
+    /// `seg_clamp=on` (`RTMPM_P2G_SEG_CLAMP`, `kernels/p2g/warp.cuh`): the segmented
+    /// reduction's test "is lane + s in my segment" read from the shuffle's own in-range
+    /// predicate (the segment's last lane as its clamp) instead of a comparison in every round
+    /// of every row; the same additions in the same order.
+    pub seg_clamp: bool,
+    /// `zero_terms=skip` (`RTMPM_P2G_ZERO_TERMS`, `kernels/p2g/particle.cuh`): the affine
+    /// term's products with a node offset of 0 left out of the scattered momentum instead of
+    /// added (x + a 0); the same sums except for the sign of a zero and for a term that is not
+    /// finite.
+    pub zero_terms: bool,
+    /// `flat_checks=on` (`RTMPM_G2P_FLAT_CHECKS`, `kernels/g2p/particle.cuh`): G2P's health and
+    /// free-zone checks without branches between their terms and the gblock's coordinates read
+    /// once per particle; the same predicates.
+    pub flat_checks: bool,
+}
+
+impl KernelCuts {
+    /// The kernels' defines of the cuts that are on.
+    pub fn defines(self) -> Vec<&'static str> {
+        [
+            (self.lean_lanes, "-DRTMPM_G2P2G_LEAN_LANES=1"),
+            (self.seg_clamp, "-DRTMPM_P2G_SEG_CLAMP=1"),
+            (self.zero_terms, "-DRTMPM_P2G_ZERO_TERMS=1"),
+            (self.flat_checks, "-DRTMPM_G2P_FLAT_CHECKS=1"),
+        ]
+        .into_iter()
+        .filter_map(|(on, d)| on.then_some(d))
+        .collect()
+    }
 }
 
 /// The warp scatter's row loop ([`CudaOptions::row_unroll`]).
@@ -362,6 +410,8 @@ impl Default for CudaOptions {
             batch_poses: BodyPoses::Deferred,
             uniform_loop: true,
             row_unroll: RowUnroll::Off,
+            cuts: KernelCuts::default(),
+            wide_state_index: false,
         }
     }
 }
@@ -375,7 +425,9 @@ impl std::str::FromStr for CudaOptions {
     /// (ordinals separated by `:`), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
     /// `rmap_pblocks`, `shared`, `sort_fields` (counts), `fluid_state` (on/off), `state`
     /// (f32/compact), `body_sums` (read/step), `addressing` (pairs/blocks), `uniform_loop` (on/off),
-    /// `body_poses` (deferred/deferred_serial/eager), `row_unroll` (off/planes/all).
+    /// `body_poses` (deferred/deferred_serial/eager), `row_unroll` (off/planes/all),
+    /// `lean_lanes`, `seg_clamp`, `flat_checks` (on/off), `zero_terms` (skip/keep),
+    /// `state_index` (auto/wide).
     fn from_str(s: &str) -> Result<Self, String> {
         let mut o = CudaOptions::default();
         for item in s.split(',').map(str::trim).filter(|t| !t.is_empty()) {
@@ -470,6 +522,15 @@ impl std::str::FromStr for CudaOptions {
                     o.batch_sums_at_read = choice(item, v, &[("read", true), ("step", false)])?
                 }
                 "uniform_loop" => o.uniform_loop = b()?,
+                "lean_lanes" => o.cuts.lean_lanes = b()?,
+                "seg_clamp" => o.cuts.seg_clamp = b()?,
+                "flat_checks" => o.cuts.flat_checks = b()?,
+                "zero_terms" => {
+                    o.cuts.zero_terms = choice(item, v, &[("skip", true), ("keep", false)])?
+                }
+                "state_index" => {
+                    o.wide_state_index = choice(item, v, &[("wide", true), ("auto", false)])?
+                }
                 "row_unroll" => {
                     o.row_unroll = choice(
                         item,
@@ -715,6 +776,31 @@ mod tests {
         assert_eq!(
             "addressing=nodes".parse::<CudaOptions>().unwrap_err(),
             "`addressing=nodes`: expected pairs or blocks"
+        );
+        assert_eq!(CudaOptions::default().cuts, crate::KernelCuts::default());
+        assert!(!CudaOptions::default().wide_state_index);
+        let o: CudaOptions =
+            "lean_lanes=on,seg_clamp=on,zero_terms=skip,flat_checks=on,state_index=wide"
+                .parse()
+                .unwrap();
+        assert_eq!(
+            o.cuts,
+            crate::KernelCuts {
+                lean_lanes: true,
+                seg_clamp: true,
+                zero_terms: true,
+                flat_checks: true
+            }
+        );
+        assert!(o.wide_state_index);
+        assert_eq!(o.cuts.defines().len(), 4);
+        assert_eq!(
+            "zero_terms=on".parse::<CudaOptions>().unwrap_err(),
+            "`zero_terms=on`: expected skip or keep"
+        );
+        assert_eq!(
+            "state_index=64".parse::<CudaOptions>().unwrap_err(),
+            "`state_index=64`: expected wide or auto"
         );
         assert_eq!(CudaOptions::default().row_unroll, RowUnroll::Off);
         for (v, r, d) in [

@@ -12,7 +12,13 @@
 //! 2. in a dense scene they differ no more than four times as much as two runs of the default
 //!    differ from each other (P2G's atomic sums are not deterministic), or 1e-4 dx;
 //! 3. the warp scatter's rows unrolled (`row_unroll=planes|all`, off by default) give the
-//!    default's particles bit for bit (isolated water and jelly, f32, G2P2G).
+//!    default's particles bit for bit (isolated water and jelly, f32, G2P2G);
+//! 4. the second round of cuts (`lean_lanes`, `seg_clamp`, `zero_terms=skip`, `flat_checks`,
+//!    `state_index=wide`, off by default) give the default's particles bit for bit, all
+//!    together (f32 and f64, fused and separate kernels), on isolated
+//!    clusters of 1 to 12 particles at one position (so that the warp reduction runs 0 to 4
+//!    shuffle rounds on segments of those lengths while every node still gets one segment's
+//!    sum, deterministic), and in a dense scene no further from the default than a rerun.
 //!
 //! `cargo test -p rtmpm-cuda --test addressing -- --include-ignored`; the GPU tests skip with a
 //! message when no usable CUDA device is present.
@@ -20,7 +26,7 @@
 mod common;
 
 use common::{gpu, read};
-use rtmpm_cuda::{CudaBackend, CudaOptions, RowUnroll};
+use rtmpm_cuda::{CudaBackend, CudaOptions, KernelCuts, RowUnroll};
 use rtmpm_physics::Particles;
 use rtmpm_physics::boundary::Walls;
 use rtmpm_physics::material::Material;
@@ -212,5 +218,111 @@ fn the_unrolled_rows_give_bit_identical_particles() {
             }
             println!("{what}: {} particles bit-identical", p.len());
         }
+    }
+}
+
+/// `block`'s sites, each holding `1 + site % 12` identical particles (same position, velocity,
+/// mass): a warp holds them in adjacent lanes (the rebuild sorts by cell), so the warp
+/// reduction sums segments of 1 to 12 lanes; identical particles make the sums independent of
+/// their order in the bucket, and the sites' stencils share no node.
+fn clusters(s: &Scene, lo: Vec3, hi: Vec3, h: f32) -> Particles {
+    let sites = block(s, lo, hi, h);
+    let mut p = Particles::default();
+    for i in 0..sites.len() {
+        for _ in 0..1 + i % 12 {
+            p.push(sites.x[i], sites.v[i], sites.mass[i], sites.vol0[i], 0, 0.0);
+            let last = p.len() - 1;
+            p.c[last] = sites.c[i];
+        }
+    }
+    p
+}
+
+/// Every cut of the second round on (`--cuda-options lean_lanes=on,seg_clamp=on,
+/// zero_terms=skip,flat_checks=on,state_index=wide`).
+fn all_cuts() -> (KernelCuts, bool) {
+    let cuts = KernelCuts {
+        lean_lanes: true,
+        seg_clamp: true,
+        zero_terms: true,
+        flat_checks: true,
+    };
+    (cuts, true)
+}
+
+/// Particles of two runs equal bit for bit.
+fn assert_bit_identical(what: &str, a: &Particles, b: &Particles) {
+    assert_eq!(a.len(), b.len(), "{what}: particle count");
+    let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+    for i in 0..a.len() {
+        assert_eq!(bits(a.x[i]), bits(b.x[i]), "{what}: x of {i}");
+        assert_eq!(bits(a.v[i]), bits(b.v[i]), "{what}: v of {i}");
+        assert_eq!(a.c[i], b.c[i], "{what}: C of {i}");
+        assert_eq!(a.f[i], b.f[i], "{what}: F of {i}");
+    }
+}
+
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn the_second_round_of_cuts_gives_bit_identical_particles() {
+    if !gpu() {
+        return;
+    }
+    for water in [true, false] {
+        let s = scene(water);
+        let p = clusters(&s, Vec3::splat(0.2), Vec3::splat(0.8), 5.25);
+        for f64 in [false, true] {
+            for g2p2g in [true, false] {
+                let base = CudaOptions {
+                    f64,
+                    g2p2g,
+                    ..Default::default()
+                };
+                let default = run(&s, &p, base.clone(), 60);
+                assert!(max_dx(&default, &p) > 0.0, "water {water}: nothing moved");
+                // All the cuts together (each alone is a subset of the same arithmetic; one
+                // compile a layout and precision instead of five).
+                let what = format!("water {water}, f64 {f64}, g2p2g {g2p2g}, all cuts");
+                let (cuts, wide) = all_cuts();
+                let o = CudaOptions {
+                    cuts,
+                    wide_state_index: wide,
+                    ..base.clone()
+                };
+                assert_bit_identical(&what, &default, &run(&s, &p, o, 60));
+                println!("{what}: {} particles bit-identical", p.len());
+            }
+        }
+    }
+}
+
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn in_a_dense_scene_the_second_round_of_cuts_differs_no_more_than_a_rerun() {
+    if !gpu() {
+        return;
+    }
+    for water in [true, false] {
+        let s = scene(water);
+        let p = block(&s, Vec3::splat(0.3), Vec3::new(0.6, 0.55, 0.6), 0.5);
+        let a = run(&s, &p, CudaOptions::default(), 100);
+        let again = run(&s, &p, CudaOptions::default(), 100);
+        let (cuts, wide) = all_cuts();
+        let o = CudaOptions {
+            cuts,
+            wide_state_index: wide,
+            ..Default::default()
+        };
+        let cut = run(&s, &p, o, 100);
+        let (rerun, other) = (max_dx(&a, &again), max_dx(&a, &cut));
+        println!(
+            "water {water}, {} particles: max |dx| rerun {rerun:e}, all cuts {other:e} (dx {})",
+            p.len(),
+            s.dx
+        );
+        assert!(
+            other <= (4.0 * rerun).max(1e-4 * s.dx),
+            "the cuts differ by {other:e}, a rerun by {rerun:e}"
+        );
     }
 }

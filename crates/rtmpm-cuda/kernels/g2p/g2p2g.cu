@@ -39,6 +39,13 @@
 #define G2P2G_BOUNDS 128
 #endif
 
+// Lanes that do not scatter (past the warp's count, or leaving their free zone) keep their
+// P2G quantities unset except the stencil base (compile-time, default 0: all zeroed, as
+// before; the CUDA option `lean_lanes=on`). The same sums: such a lane's values reach no atomic.
+#ifndef RTMPM_G2P2G_LEAN_LANES
+#define RTMPM_G2P2G_LEAN_LANES 0
+#endif
+
 // One entry w of the warp list, by every lane of a warp: the G2P of step n of its particles
 // (lane < count) and the P2G of step n+1 of those that stay in their free zone.
 template <bool ALL_FLUID>
@@ -47,7 +54,16 @@ __device__ __forceinline__ void g2p2g_warp(const Ctx& c, unsigned w, unsigned la
     // G2P of step n; the particle's P2G quantities of step n+1 from the new state.
     bool scatter = false;
     unsigned key = P2G_KEY_NONE;
+#if RTMPM_G2P2G_LEAN_LANES
+    // Only the stencil base of a lane that does not scatter is set (its node ids are loaded):
+    // the segmented reduction never adds an inactive lane's values into a head's (an inactive
+    // lane is a segment boundary) and such a lane is no head, so the other fields are left as
+    // they are instead of zeroed in every warp entry.
+    P2gParticle q;
+    q.base[0] = q.base[1] = q.base[2] = 0;
+#else
     P2gParticle q = p2g_particle_zero();
+#endif
     if (lane < count) {
         unsigned p = first + lane;
         real m = state_ld(c.state, sidx(c.cap, F_MASS, p)), vol0 = state_ld(c.state, sidx(c.cap, F_VOL0, p));

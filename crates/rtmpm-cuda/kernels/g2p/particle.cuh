@@ -47,6 +47,15 @@ __device__ __forceinline__ void report_max_speed(const Ctx& c, unsigned bits) {
     if ((threadIdx.x & 31) == 0 && wmax) atomicMax(&c.ctl[CTL_MAX_SPEED], wmax);
 }
 
+// The health and free-zone checks of g2p_finish without branches between their terms, and
+// the gblock's coordinates read once per particle for the gather and the checks (compile-time,
+// default 0; the CUDA option `flat_checks=on`). The same predicates, so the same particles
+// flagged and scattered. The fused kernel's P2G still reads the coordinates again: holding them
+// through the G2P took more instructions with ptxas 13.0 than reading them.
+#ifndef RTMPM_G2P_FLAT_CHECKS
+#define RTMPM_G2P_FLAT_CHECKS 0
+#endif
+
 // The end of every G2P: F = (I + dt C) F, plasticity, health check (before the clamp, which
 // would hide NaN), max speed, domain clamp, free-zone check, stores. `x` is the advected position,
 // `C` the velocity gradient (APIC's C for MLS). Returns the new state.
@@ -60,9 +69,15 @@ __device__ __forceinline__ G2pResult g2p_finish(const Ctx& c, const int* bc, uns
     F = ALL_FLUID ? fluid_project(fluid_params(mat), F, &plastic, dt) : material_project(mat, F, &plastic, dt);
     // Health check before the clamp (the clamp would hide NaN).
     real speed = length(v);
+#if RTMPM_G2P_FLAT_CHECKS
+    bool finite = isfinite(x.x) & isfinite(x.y) & isfinite(x.z) & isfinite(v.x) & isfinite(v.y) & isfinite(v.z);
+    const Scalars& sc = scalars(c);
+    if (!finite | (speed * dt > (real)2 * sc.dx)) {
+#else
     bool finite = isfinite(x.x) && isfinite(x.y) && isfinite(x.z) && isfinite(v.x) && isfinite(v.y) && isfinite(v.z);
     const Scalars& sc = scalars(c);
     if (!finite || speed * dt > (real)2 * sc.dx) {
+#endif
         unsigned id = ALL_FLUID ? state_bits(state_ld(c.state, sidx(c.cap, F_ID, p))) : st.id;
         // The reason in the key's low bit (0: not finite, 1: too fast), so that one atomic keeps
         // the lowest id with its own reason (a second word written after the minimum could pair
@@ -76,7 +91,13 @@ __device__ __forceinline__ G2pResult g2p_finish(const Ctx& c, const int* bc, uns
     int nb[3]; real nfx[3];
     stencil_of(c, x, material_world(st.material), nb, nfx);
     bool leave = !finite;
+#if RTMPM_G2P_FLAT_CHECKS
+    // nb - 4 bc in [-4, 5] as one unsigned comparison per axis (x is clamped to the domain, so
+    // the difference is small), with no branch between the axes.
+    for (int a = 0; a < 3; ++a) leave |= (unsigned)(nb[a] - 4 * bc[a] + 4) > 9u;
+#else
     for (int a = 0; a < 3; ++a) leave = leave || nb[a] < 4 * bc[a] - 4 || nb[a] > 4 * bc[a] + 5;
+#endif
     if (leave) c.ctl[CTL_NEED_REBUILD] = 1;
     store_v3(c.state, c.cap, F_X, p, x);
     // The compact state rounds v and C: the fused P2G uses what is stored, as a separate P2G would.
@@ -224,7 +245,14 @@ __device__ __forceinline__ G2pResult g2p_particle(const Ctx& c, unsigned g, unsi
     int base[3]; real fx[3]; real wt[3][3];
     stencil_of(c, x, material_world(st.material), base, fx);
     for (int a = 0; a < 3; ++a) weights_1d(fx[a], wt[a]);
+#if RTMPM_G2P_FLAT_CHECKS
+    // The gblock's coordinates read once: the gather and the free-zone check use these values
+    // (through a pointer into memory they are read again after every store that may alias them).
+    const int* bcp = c.block_coords + 3 * g;
+    const int bc[3] = {bcp[0], bcp[1], bcp[2]};
+#else
     const int* bc = c.block_coords + 3 * g;
+#endif
     vec3 v;
     mat3 B;
     g2p_gather(c, bc, c.neighbors + 27 * g, base, wt, &v, &B);

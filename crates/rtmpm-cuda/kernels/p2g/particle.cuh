@@ -79,9 +79,26 @@ __device__ __forceinline__ P2gParticle p2g_particle_from_lane(const P2gParticle&
 // a[i] for i in 0..3 by selects (a dynamic index would move the whole particle to local memory).
 __device__ __forceinline__ real pick3(const real a[3], int i) { return i == 0 ? a[0] : (i == 1 ? a[1] : a[2]); }
 
+// RTMPM_P2G_ZERO_TERMS (compile-time, default 0; the CUDA option `zero_terms=skip`): the terms
+// a[c] * 0 of node 0 along an axis left out instead of added (x + a * 0 is x for a finite a, but
+// the compiler may not drop it: three FFMA with a zero operand a row). The same sums except where
+// the momentum term is a zero of the other sign or a is not finite.
+#ifndef RTMPM_P2G_ZERO_TERMS
+#define RTMPM_P2G_ZERO_TERMS 0
+#endif
 // Weight product w0[i] w1[j] and momentum term q0 + i a0 + j a1 of the stencil row (i, j).
 __device__ __forceinline__ real p2g_row_weight(const P2gParticle& q, int i, int j) { return pick3(q.w[0], i) * pick3(q.w[1], j); }
 __device__ __forceinline__ vec3 p2g_row_momentum(const P2gParticle& q, int i, int j) {
+#if RTMPM_P2G_ZERO_TERMS && RTMPM_P2G_UNROLL == 1
+    // The warp scatter's rows unrolled (RTMPM_P2G_UNROLL, p2g/warp.cuh): i and j are
+    // compile-time there, so the zero terms fold away; in a row loop they stay (selects).
+    if (i == 0 || j == 0) {
+        if (i == 0 && j == 0) return q.q0;
+        return i == 0 ? q.q0 + q.a[1] * (real)j : q.q0 + q.a[0] * (real)i;
+    }
+#elif RTMPM_P2G_ZERO_TERMS && RTMPM_P2G_UNROLL == 2
+    if (j == 0) return q.q0 + q.a[0] * (real)i;
+#endif
     return q.q0 + q.a[0] * (real)i + q.a[1] * (real)j;
 }
 
@@ -89,7 +106,11 @@ __device__ __forceinline__ vec3 p2g_row_momentum(const P2gParticle& q, int i, in
 // w_ip (m_p, m_p v_p + A_p (x_i - x_p)).
 __device__ __forceinline__ void p2g_row_node_value(const P2gParticle& q, real w_ij, vec3 mom_ij, int k, real val[4]) {
     real weight = w_ij * pick3(q.w[2], k);
+#if RTMPM_P2G_ZERO_TERMS
+    vec3 mom = (k == 0 ? mom_ij : mom_ij + q.a[2] * (real)k) * weight;
+#else
     vec3 mom = (mom_ij + q.a[2] * (real)k) * weight;
+#endif
     val[0] = weight * q.m;
     val[1] = mom.x;
     val[2] = mom.y;

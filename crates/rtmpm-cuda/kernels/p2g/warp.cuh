@@ -37,6 +37,33 @@
 #define RTMPM_P2G_UNROLL 0
 #endif
 
+// The reduction's bookkeeping (compile-time, default 0; the CUDA option `seg_clamp=on`): each
+// round's shuffle of a row's first value clamped to this lane's segment (its last lane given as
+// the shuffle's clamp operand), so that the shuffle's own in-range predicate says whether the value
+// comes from the same segment, instead of a comparison of the round with the segment length in
+// every round of every row. The same additions in the same order.
+#ifndef RTMPM_P2G_SEG_CLAMP
+#define RTMPM_P2G_SEG_CLAMP 0
+#endif
+#if RTMPM_P2G_SEG_CLAMP
+// The value `s` lanes down (all lanes of the warp call it) and whether that lane is at most lane
+// `last` (PTX shfl.sync.down with clamp `last`, no sub-segments: in range iff lane + s <= last).
+__device__ __forceinline__ float shfl_down_clamped(float v, unsigned s, unsigned last, bool* in_range) {
+    float o;
+    unsigned in;
+    asm("{\n\t.reg .pred p;\n\tshfl.sync.down.b32 %0|p, %2, %3, %4, 0xffffffff;\n\tselp.u32 %1, 1, 0, p;\n\t}"
+        : "=f"(o), "=r"(in)
+        : "f"(v), "r"(s), "r"(last));
+    *in_range = in != 0;
+    return o;
+}
+__device__ __forceinline__ double shfl_down_clamped(double v, unsigned s, unsigned last, bool* in_range) {
+    float lo = shfl_down_clamped(__int_as_float(__double2loint(v)), s, last, in_range);
+    int hi = __shfl_down_sync(0xffffffffu, __double2hiint(v), s);
+    return __hiloint2double(hi, __float_as_int(lo));
+}
+#endif
+
 // Add (mass, momentum) to a node: one 16-byte vector atomic on sm_90 (f32), else four.
 __device__ __forceinline__ void atomic_add_node(real* node, const real val[4]) {
 #if !defined(RTMPM_F64) && defined(__CUDA_ARCH__) && __CUDA_ARCH__ >= 900
@@ -183,12 +210,22 @@ __device__ __forceinline__ void p2g_scatter_rows(const ScatterNodes& nodes, cons
 #else
             for (unsigned s = 1; s <= max_seg; s <<= 1) {
 #endif
+#if RTMPM_P2G_SEG_CLAMP
+                // seg_len is the segment's last lane here (p2g_scatter_warp).
+                bool take;
+                real o0 = shfl_down_clamped(val[0][0], s, seg_len, &take);
+#else
                 bool take = s <= seg_len;
+#endif
 #pragma unroll
                 for (int k = 0; k < 3; ++k)
 #pragma unroll
                     for (int e = 0; e < 4; ++e) {
+#if RTMPM_P2G_SEG_CLAMP
+                        real o = k == 0 && e == 0 ? o0 : __shfl_down_sync(0xffffffffu, val[k][e], s);
+#else
                         real o = __shfl_down_sync(0xffffffffu, val[k][e], s);
+#endif
                         if (take) val[k][e] += o;
                     }
             }
@@ -245,6 +282,9 @@ __device__ __forceinline__ void p2g_scatter_warp(const Ctx& c, unsigned g, const
     const int* base = q.base;
     WarpSegments seg = warp_segments(c, base, active, lane);
     unsigned seg_len = seg.seg_len, max_seg = seg.max_seg;
+#if RTMPM_P2G_SEG_CLAMP
+    seg_len += lane;  // the segment's last lane: the rounds' shuffle clamp
+#endif
     bool head = seg.head;
     ScatterNodes nodes = scatter_nodes(c, g, base);
 #if RTMPM_P2G_REDUCE == 4

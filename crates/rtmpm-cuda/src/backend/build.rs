@@ -372,7 +372,8 @@ impl Plan {
         // Compiled for this GPU, the state's index width (64 bits past 2^32 words), and with
         // specialize=on the scene's models only (a smaller material switch).
         let ptx = compile(&KernelOptions {
-            state64: state_needs_64_bits(self.layout.words(), self.cap.particles),
+            state64: o.wide_state_index
+                || state_needs_64_bits(self.layout.words(), self.cap.particles),
             layout: self.layout,
             arch: info.compute_capability,
             fast_math: o.fast_math,
@@ -390,6 +391,7 @@ impl Plan {
             stencil_pairs: o.stencil_pairs,
             uniform_loop: o.uniform_loop,
             row_unroll: o.row_unroll.define(),
+            cuts: o.cuts,
         })
         .map_err(SimError::Backend)?;
         // Single stream: no cross-stream event tracking (keeps launches capturable).
