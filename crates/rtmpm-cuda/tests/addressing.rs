@@ -15,7 +15,8 @@
 //!    default's particles bit for bit (isolated water and jelly, f32, G2P2G);
 //! 4. the second round of cuts (`lean_lanes`, `seg_clamp`, `zero_terms=skip`, `flat_checks`,
 //!    `state_index=wide`, off by default) give the default's particles bit for bit, all
-//!    together (f32 and f64, fused and separate kernels), on isolated
+//!    together but `zero_terms` (f32 and f64, fused and separate kernels), and with it up to the
+//!    sign of a zero, on isolated
 //!    clusters of 1 to 12 particles at one position (so that the warp reduction runs 0 to 4
 //!    shuffle rounds on segments of those lengths while every node still gets one segment's
 //!    sum, deterministic), and in a dense scene no further from the default than a rerun.
@@ -239,26 +240,38 @@ fn clusters(s: &Scene, lo: Vec3, hi: Vec3, h: f32) -> Particles {
 }
 
 /// Every cut of the second round on (`--cuda-options lean_lanes=on,seg_clamp=on,
-/// zero_terms=skip,flat_checks=on,state_index=wide`).
-fn all_cuts() -> (KernelCuts, bool) {
-    let cuts = KernelCuts {
-        lean_lanes: true,
-        seg_clamp: true,
-        zero_terms: true,
-        flat_checks: true,
-    };
-    (cuts, true)
+/// zero_terms=skip,flat_checks=on,state_index=wide`); `zero_terms: false` leaves out the one
+/// that may change the sign of a zero.
+fn all_cuts(zero_terms: bool) -> CudaOptions {
+    CudaOptions {
+        cuts: KernelCuts {
+            lean_lanes: true,
+            seg_clamp: true,
+            zero_terms,
+            flat_checks: true,
+        },
+        wide_state_index: true,
+        ..Default::default()
+    }
 }
 
-/// Particles of two runs equal bit for bit.
-fn assert_bit_identical(what: &str, a: &Particles, b: &Particles) {
+/// Particles of two runs equal bit for bit (`signed_zeros`), or as numbers (-0 == +0).
+fn assert_identical(what: &str, a: &Particles, b: &Particles, signed_zeros: bool) {
     assert_eq!(a.len(), b.len(), "{what}: particle count");
-    let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+    let key = |x: f32| {
+        if signed_zeros || x != 0.0 {
+            x.to_bits()
+        } else {
+            0
+        }
+    };
+    let v3 = |v: Vec3| v.to_array().map(key);
+    let m3 = |m: Mat3| m.to_cols_array().map(key);
     for i in 0..a.len() {
-        assert_eq!(bits(a.x[i]), bits(b.x[i]), "{what}: x of {i}");
-        assert_eq!(bits(a.v[i]), bits(b.v[i]), "{what}: v of {i}");
-        assert_eq!(a.c[i], b.c[i], "{what}: C of {i}");
-        assert_eq!(a.f[i], b.f[i], "{what}: F of {i}");
+        assert_eq!(v3(a.x[i]), v3(b.x[i]), "{what}: x of {i}");
+        assert_eq!(v3(a.v[i]), v3(b.v[i]), "{what}: v of {i}");
+        assert_eq!(m3(a.c[i]), m3(b.c[i]), "{what}: C of {i}");
+        assert_eq!(m3(a.f[i]), m3(b.f[i]), "{what}: F of {i}");
     }
 }
 
@@ -278,19 +291,22 @@ fn the_second_round_of_cuts_gives_bit_identical_particles() {
                     g2p2g,
                     ..Default::default()
                 };
-                let default = run(&s, &p, base.clone(), 60);
+                let default = run(&s, &p, base, 60);
                 assert!(max_dx(&default, &p) > 0.0, "water {water}: nothing moved");
-                // All the cuts together (each alone is a subset of the same arithmetic; one
-                // compile a layout and precision instead of five).
-                let what = format!("water {water}, f64 {f64}, g2p2g {g2p2g}, all cuts");
-                let (cuts, wide) = all_cuts();
-                let o = CudaOptions {
-                    cuts,
-                    wide_state_index: wide,
-                    ..base.clone()
-                };
-                assert_bit_identical(&what, &default, &run(&s, &p, o, 60));
-                println!("{what}: {} particles bit-identical", p.len());
+                // The cuts together (each alone is a subset of the same arithmetic; one compile
+                // a layout and precision instead of five): bit for bit without zero_terms, with
+                // it up to the sign of a zero.
+                for zero_terms in [false, true] {
+                    let what =
+                        format!("water {water}, f64 {f64}, g2p2g {g2p2g}, zero_terms {zero_terms}");
+                    let o = CudaOptions {
+                        f64,
+                        g2p2g,
+                        ..all_cuts(zero_terms)
+                    };
+                    assert_identical(&what, &default, &run(&s, &p, o, 60), !zero_terms);
+                    println!("{what}: {} particles identical", p.len());
+                }
             }
         }
     }
@@ -307,13 +323,7 @@ fn in_a_dense_scene_the_second_round_of_cuts_differs_no_more_than_a_rerun() {
         let p = block(&s, Vec3::splat(0.3), Vec3::new(0.6, 0.55, 0.6), 0.5);
         let a = run(&s, &p, CudaOptions::default(), 100);
         let again = run(&s, &p, CudaOptions::default(), 100);
-        let (cuts, wide) = all_cuts();
-        let o = CudaOptions {
-            cuts,
-            wide_state_index: wide,
-            ..Default::default()
-        };
-        let cut = run(&s, &p, o, 100);
+        let cut = run(&s, &p, all_cuts(true), 100);
         let (rerun, other) = (max_dx(&a, &again), max_dx(&a, &cut));
         println!(
             "water {water}, {} particles: max |dx| rerun {rerun:e}, all cuts {other:e} (dx {})",
