@@ -155,8 +155,8 @@ def test_a_loop_with_overlap_waits_only_for_its_checks():
     10) waits for the GPU only for its checks (``host_waits``): one a call and one a frame end
     inside a call (with ``overlap`` each made as the next call begins, waiting for its copy of
     the control words alone), no read of control words or sums, no copy from pageable memory, no
-    synchronisation, no wait for page-locked memory in use, at most 2 buffers allocated after
-    the warm-up; the same without ``overlap`` (each call's checks made at once). A few seconds on
+    synchronisation, no wait for page-locked memory in use, at most 4 buffers allocated after
+    the warm-up (the rings grow while the host gets further ahead than before); the same without ``overlap`` (each call's checks made at once). A few seconds on
     an H200."""
     scene = rtmpm.Scene.from_toml(TOOL_SCENE)
     n, calls, per_frame = 16, 12, 40  # TOOL_SCENE: dt = 5e-4 s, 50 frames a second
@@ -189,7 +189,7 @@ def test_a_loop_with_overlap_waits_only_for_its_checks():
         assert waits["check"] == calls + frames, waits
         for k in ("control", "read", "sums", "staging", "pageable", "sync"):
             assert waits[k] == 0, f"overlap {overlap}: {k} waits: {waits}"
-        assert waits["alloc"] <= 2, waits
+        assert waits["alloc"] <= 4, waits
     cpu = rtmpm.Simulation(rtmpm.Scene.from_toml(world_text()), batch=2, backend="cpu")
     assert cpu.host_waits is None and cpu.host_wait_seconds is None
 
