@@ -1,143 +1,17 @@
-//! The switches of the CUDA backend (`--cuda-options`): the ablation switches of the principles
-//! of Fei, Huang & Gao's "Real-Time Simulation of MPM on Modern GPUs" (GTC 2022), the P2G
-//! strategy, capacities, and the multi-GPU transport.
+//! The switches of the CUDA backend (`--cuda-options`, parsed by [`CudaOptions`]'s `FromStr`): the
+//! ablation switches of the principles of Fei, Huang & Gao's "Real-Time Simulation of MPM on Modern
+//! GPUs" (GTC 2022), the P2G strategy, capacities, the kernels' instruction switches, several GPUs
+//! (`multi`: transport, barrier, exchange, partition) and batches of worlds (`batch`).
 
-/// P2G variant.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum P2gMode {
-    /// Warps of 32 particles, no shared memory (Fei, Huang & Gao, "Real-Time Simulation of MPM on Modern GPUs" (GTC 2022)).
-    Warp,
-    /// One CUDA block per gblock with a shared-memory node tile (earlier work), for ablation.
-    Shared,
-    /// Gather through replicated node-to-particle reverse maps built with atomicAdd (Chiang et al., "GPU Acceleration of the Generalized Interpolation Material Point Method" (SAAHPC 2009)).
-    ReverseMap,
-    /// Gather through one sort per step of the particle-node contributions (Chiang et al.).
-    Sort,
-}
+mod batch;
+mod kernels;
+mod multi;
 
-impl P2gMode {
-    /// The name used by `--cuda-options p2g=NAME`.
-    pub fn name(self) -> &'static str {
-        match self {
-            P2gMode::Warp => "warp",
-            P2gMode::Shared => "shared",
-            P2gMode::ReverseMap => "reverse_map",
-            P2gMode::Sort => "sort",
-        }
-    }
-}
-
-/// Replicated reverse maps of `p2g=reverse_map` by default (Chiang et al.: "we maintain a set of
-/// nine independent reverse maps").
-pub const DEFAULT_RMAP_REPLICAS: usize = 9;
-
-/// CK-MPM's P2G kernel (`[solver] transfer = "ck-mpm"`; `kernels/p2g/ck.cu`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum CkP2g {
-    /// `p2g_ck`: one lane per particle, 16 direct global atomics a particle.
-    Direct,
-    /// `p2g_ck_warp`: per grid, the in-warp sort, segmented warp reduction and one lane's atomics
-    /// per segment of the MLS-MPM scatter (Fei, Huang & Gao, "Real-Time Simulation of MPM on
-    /// Modern GPUs", GTC 2022).
-    Warp,
-    /// G2P2G for CK-MPM (`g2p2g_ck`, the default): the G2P of a step from both grids and, from the new
-    /// state in registers, the warp scatter of `p2g_ck_warp` into both grids of the next step;
-    /// `p2g_ck_warp` then runs only after a rebuild or a new dt. Where G2P2G does not apply
-    /// ([`CudaOptions::g2p2g`] off, no free zone or mixed sorting) it is `Warp`.
-    Fused,
-}
-
-impl CkP2g {
-    /// The name used by `--cuda-options ck_p2g=NAME`.
-    pub fn name(self) -> &'static str {
-        match self {
-            CkP2g::Direct => "direct",
-            CkP2g::Warp => "warp",
-            CkP2g::Fused => "fused",
-        }
-    }
-}
-
-/// Several GPUs of one process: how the shared blocks are summed across GPUs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Transport {
-    /// Each GPU's kernel reads the peers' packed shared blocks through peer pointers (Fei et al.).
-    P2p,
-    /// NCCL all-reduce.
-    Nccl,
-}
-
-/// Several GPUs with `transport=p2p`: the inter-GPU synchronisation of a step.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum BarrierKind {
-    /// The spin-lock barrier of Fei, Huang & Gao (GTC 2022): a one-block kernel with
-    /// system-scope atomics.
-    Spin,
-    /// Events: every GPU's stream waits on the peers' events (no CUDA graph).
-    Events,
-}
-
-/// Several GPUs of one process with `transport=p2p` and the spin barrier: how the shared
-/// blocks are listed and summed in a step (`exchange=`; docs/multi-gpu.md, "exchange=").
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum ExchangeMode {
-    /// Separate kernels (the only mode of NCCL, the events barrier and one process per GPU):
-    /// eight launches for the shared list (seven return at once in a step without a rebuild),
-    /// then pack, barrier and the sum of peer reads.
-    #[default]
-    Kernels,
-    /// The shared list in one cooperative kernel with the inter-GPU barrier inside it; the sum
-    /// as `Kernels`.
-    Fused,
-    /// `Fused`, and the sum pushed: each GPU writes its nodes of the shared blocks it holds
-    /// into the inboxes of the other GPUs that hold them (16-byte remote stores), arrives at
-    /// their counters, waits on its own and sums its inbox (two launches, no peer reads). The
-    /// default with transport=p2p and the spin barrier.
-    Push,
-    /// `Push`, with the inbox summed inside the grid update (`push_update`): the push, then
-    /// one kernel that updates the pblocks no other GPU holds, waits on its own counter and
-    /// sums and updates the shared ones (one launch and one pass over the shared nodes less
-    /// than `Push`, no second stream). Runs without the overlap (its kernel overlaps the wait
-    /// with the unshared pblocks itself).
-    PushUpdate,
-    /// `PushUpdate`, with the shared list and the push in one cooperative kernel after the
-    /// step's P2G (`list_push_update`; without the overlap P2G needs no list): one launch less
-    /// than `PushUpdate`.
-    ListPushUpdate,
-}
-
-impl ExchangeMode {
-    /// True for the modes that push the shared nodes into the holders' inboxes (`push`,
-    /// `push_update`): they need the holders of every shared block and an inbox per GPU.
-    pub fn pushes(self) -> bool {
-        matches!(
-            self,
-            ExchangeMode::Push | ExchangeMode::PushUpdate | ExchangeMode::ListPushUpdate
-        )
-    }
-
-    /// True for the modes that sum the inbox inside the grid update (`push_update`,
-    /// `list_push_update`): no second stream, no overlap.
-    pub fn sums_in_update(self) -> bool {
-        matches!(
-            self,
-            ExchangeMode::PushUpdate | ExchangeMode::ListPushUpdate
-        )
-    }
-}
-
-/// Several GPUs: how the particles are split between them (`partition=`;
-/// `crate::multi::partition`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum PartitionKind {
-    /// Slabs of equal count along the longest axis of the particles' bounding box.
-    #[default]
-    Slabs,
-    /// Boxes of equal count cut along up to three axes: of every way to factor the GPU count
-    /// into pieces per axis, the one whose worst piece shares the least cut area (the same as
-    /// `Slabs` at 2 GPUs; at 4, 2 x 2 where a middle slab would share two whole faces).
-    Boxes,
-}
+pub use batch::BodyPoses;
+pub use kernels::{
+    CkP2g, DEFAULT_RMAP_REPLICAS, DEFAULT_SORT_SCRATCH_FIELDS, KernelCuts, P2gMode, RowUnroll,
+};
+pub use multi::{BarrierKind, ExchangeMode, PartitionKind, Transport};
 
 /// Ablation switches of the principles of Fei, Huang & Gao (GTC 2022). `Default` = all on.
 #[derive(Clone, Debug, PartialEq)]
@@ -287,88 +161,6 @@ pub struct CudaOptions {
     /// multiply-add (`kernels/common.cuh`: `sidx`, `RTMPM_STATE_64`).
     pub wide_state_index: bool,
 }
-
-/// Instruction cuts of the fused G2P2G kernels (`--cuda-options lean_lanes=on,seg_clamp=on,
-/// zero_terms=skip,flat_checks=on`), each a compile-time define of the kernels, off by default
-/// until measured on a GPU (bench/RESULTS.md, "Fewer instructions, second round").
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub struct KernelCuts {
-    /// `lean_lanes=on` (`RTMPM_G2P2G_LEAN_LANES`, `kernels/g2p/g2p2g.cu`): the P2G quantities
-    /// of a lane that does not scatter are left unset (its stencil base set) instead of zeroed
-    /// in every warp entry; the same sums (such a lane's values reach no atomic).
-    pub lean_lanes: bool,
-    /// `seg_clamp=on` (`RTMPM_P2G_SEG_CLAMP`, `kernels/p2g/warp.cuh`): the segmented
-    /// reduction's test "is lane + s in my segment" read from the shuffle's own in-range
-    /// predicate (the segment's last lane as its clamp) instead of a comparison in every round
-    /// of every row; the same additions in the same order.
-    pub seg_clamp: bool,
-    /// `zero_terms=skip` (`RTMPM_P2G_ZERO_TERMS`, `kernels/p2g/particle.cuh`): the affine
-    /// term's products with a node offset of 0 left out of the scattered momentum instead of
-    /// added (x + a 0); the same sums except for the sign of a zero and for a term that is not
-    /// finite.
-    pub zero_terms: bool,
-    /// `flat_checks=on` (`RTMPM_G2P_FLAT_CHECKS`, `kernels/g2p/particle.cuh`): G2P's health and
-    /// free-zone checks without branches between their terms and the gblock's coordinates read
-    /// once per particle; the same predicates.
-    pub flat_checks: bool,
-}
-
-impl KernelCuts {
-    /// The kernels' defines of the cuts that are on.
-    pub fn defines(self) -> Vec<&'static str> {
-        [
-            (self.lean_lanes, "-DRTMPM_G2P2G_LEAN_LANES=1"),
-            (self.seg_clamp, "-DRTMPM_P2G_SEG_CLAMP=1"),
-            (self.zero_terms, "-DRTMPM_P2G_ZERO_TERMS=1"),
-            (self.flat_checks, "-DRTMPM_G2P_FLAT_CHECKS=1"),
-        ]
-        .into_iter()
-        .filter_map(|(on, d)| on.then_some(d))
-        .collect()
-    }
-}
-
-/// The warp scatter's row loop ([`CudaOptions::row_unroll`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum RowUnroll {
-    /// A loop over the nine rows (the default).
-    #[default]
-    Off,
-    /// The three rows of a plane unrolled (`-DRTMPM_P2G_UNROLL=2`).
-    Planes,
-    /// All nine rows unrolled (`-DRTMPM_P2G_UNROLL=1`).
-    All,
-}
-
-impl RowUnroll {
-    /// The value of `RTMPM_P2G_UNROLL` (`kernels/p2g/warp.cuh`).
-    pub fn define(self) -> u32 {
-        match self {
-            RowUnroll::Off => 0,
-            RowUnroll::Planes => 2,
-            RowUnroll::All => 1,
-        }
-    }
-}
-
-/// When the poses given to a body of a batch's worlds go into their rapier worlds
-/// (`--cuda-options body_poses=...`). The worlds go through the same setter calls in the same
-/// order either way: the same state bit for bit.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum BodyPoses {
-    /// `deferred` (the default): kept until the next step's upload (or a read that needs them),
-    /// which puts them in on every core.
-    Deferred,
-    /// `deferred_serial`: kept as with `Deferred`, put in on one thread (for comparison).
-    DeferredSerial,
-    /// `eager`: put in at once, on the caller's thread (as before the kept poses; for
-    /// comparison).
-    Eager,
-}
-
-/// Default of [`CudaOptions::sort_scratch_fields`]: 4 words per particle of scratch instead of
-/// 29 (f32: 16 instead of 116 bytes), for 8 passes of the sort's scatter and copy back.
-pub const DEFAULT_SORT_SCRATCH_FIELDS: usize = 4;
 
 impl Default for CudaOptions {
     fn default() -> Self {
