@@ -229,7 +229,7 @@ impl Worlds for SideBySide {
 
     fn queue_check(&mut self) -> Result<bool, SimError> {
         if self.queues_checks() {
-            self.queued.push_back(self.latched.clone());
+            self.queued.push_back(self.latched);
         }
         Ok(self.queues_checks())
     }
