@@ -1,6 +1,7 @@
 //! Stepping the worlds: steps, a frame, or frames, every running world at once.
 
 use super::{PyBatch, Run};
+use pyo3::IntoPyObjectExt;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rtmpm_driver::batch::chunk::next_chunk;
@@ -109,17 +110,7 @@ impl PyBatch {
     /// waits per call (``bench/python_batch_gpu.py`` prints them).
     #[getter]
     fn host_waits<'py>(&mut self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
-        self.usable()?;
-        self.r()
-            .host_waits()
-            .map(|w| {
-                let d = PyDict::new(py);
-                for (name, n, _) in w.rows() {
-                    d.set_item(name, n)?;
-                }
-                Ok(d)
-            })
-            .transpose()
+        self.waits_dict(py, |n, _| n.into_bound_py_any(py))
     }
 
     /// The seconds the host spent in each reason's waits of :attr:`host_waits` (``None`` on the
@@ -127,17 +118,7 @@ impl PyBatch {
     /// first used (timing every wait costs a clock read).
     #[getter]
     fn host_wait_seconds<'py>(&mut self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
-        self.usable()?;
-        self.r()
-            .host_waits()
-            .map(|w| {
-                let d = PyDict::new(py);
-                for (name, _, s) in w.rows() {
-                    d.set_item(name, s)?;
-                }
-                Ok(d)
-            })
-            .transpose()
+        self.waits_dict(py, |_, s| s.into_bound_py_any(py))
     }
 
     /// Rebuilds of the GPU's particle-to-block mapping since the batch was made (``None`` on the
@@ -147,5 +128,27 @@ impl PyBatch {
     #[getter]
     fn rebuilds(&mut self, py: Python<'_>) -> PyResult<Option<u32>> {
         self.detached(py, Run::rebuilds)
+    }
+}
+
+impl PyBatch {
+    /// The host's waits by reason as a dict, each reason's value `value(count, seconds)` (`None`
+    /// on the CPU): what [`PyBatch::host_waits`] and [`PyBatch::host_wait_seconds`] give.
+    fn waits_dict<'py>(
+        &mut self,
+        py: Python<'py>,
+        value: impl Fn(u64, f64) -> PyResult<Bound<'py, PyAny>>,
+    ) -> PyResult<Option<Bound<'py, PyDict>>> {
+        self.usable()?;
+        self.r()
+            .host_waits()
+            .map(|w| {
+                let d = PyDict::new(py);
+                for (name, n, s) in w.rows() {
+                    d.set_item(name, value(n, s)?)?;
+                }
+                Ok(d)
+            })
+            .transpose()
     }
 }
