@@ -6,10 +6,14 @@
 // stencil_pair_plane and stencil_pair_row (RTMPM_G2P_GATHER 2, RTMPM_P2G_NODES 2: node k of a row
 // at n[k] + k). Every read of the neighbour list stays in the gblock's 27 entries, and the ids
 // are random and large (up to 2^25 - 1 pblocks, the most whose indices fit in 31 bits), so that
-// a wrong block or a lost high bit shows. Run by scripts/check_stencil_twin.sh (in CI).
+// a wrong block or a lost high bit shows. A lane of the warp scatter that does not scatter
+// addresses its gblock's first node (scatter_base) whatever base it holds: its reads stay in the
+// 27 entries too, where its base itself (0, p2g_particle_zero's) would read other gblocks'
+// entries (checked to be caught). Run by scripts/check_stencil_twin.sh (in CI).
 #include <algorithm>
 #include <cstdio>
 #include <random>
+#include <vector>
 #define __device__
 #define __forceinline__ inline
 using std::max;
@@ -63,5 +67,53 @@ int main() {
                 }
     }
     printf("%ld stencil nodes checked, %ld differ\n", checked, bad);
-    return bad != 0;
+    long idle = 0, idle_bad = 0, caught = 0;
+    {
+        // Lanes that do not scatter: the neighbour list in a wide poisoned array (gblock
+        // coordinates up to 8 put base 0's pair up to 9 slots a axis, 117 entries, away).
+        std::vector<unsigned> wide(27 * 17, poison);
+        unsigned* nbs = wide.data() + 27 * 8;
+        for (int s = 0; s < 27; ++s) nbs[s] = (unsigned)s;
+        // The addressing of `at` reads only the gblock's entries (no poisoned id).
+        auto inside = [&](const int bc[3], const int at[3]) {
+            StencilBlocks sb = stencil_blocks(nbs, bc, at);
+            StencilPairs sp = stencil_pairs(nbs, bc, at);
+            StencilIdx si = stencil_idx(bc, at);
+            bool ok = true;
+            for (int t = 0; t < 8; ++t) ok = ok && sb.id[t] != poison && sp.id[t] != poison;
+            for (int i = 0; i < 3; ++i)
+                for (int j = 0; j < 3; ++j)
+                    for (int k = 0; k < 3; ++k) {
+                        int slot = si.slot[0][i] + si.slot[1][j] + si.slot[2][k];
+                        ok = ok && slot >= 0 && slot < 27;
+                    }
+            return ok;
+        };
+        const int held[4][3] = {{0, 0, 0}, {-1000, 77, 5}, {1 << 20, -(1 << 20), 3}, {-4, -4, -4}};
+        for (int b0 = -8; b0 <= 8; b0 += 2)
+            for (int b1 = -8; b1 <= 8; b1 += 4)
+                for (int b2 = -7; b2 <= 8; b2 += 5) {
+                    const int bc[3] = {b0, b1, b2};
+                    for (const auto& base : held) {
+                        int at[3];
+                        scatter_base(bc, base, false, at);
+                        ++idle;
+                        bool ok = inside(bc, at) && at[0] == 4 * bc[0] && at[1] == 4 * bc[1] && at[2] == 4 * bc[2];
+                        if (!ok) {
+                            if (idle_bad < 10) printf("idle lane, gblock (%d, %d, %d): reads outside its row\n", b0, b1, b2);
+                            ++idle_bad;
+                        }
+                        // A lane that scatters keeps its base.
+                        scatter_base(bc, base, true, at);
+                        if (at[0] != base[0] || at[1] != base[1] || at[2] != base[2]) ++idle_bad;
+                    }
+                    // The base itself (0) read outside when the gblock is away from the origin:
+                    // the check above would catch a scatter that used it.
+                    const int zero[3] = {0, 0, 0};
+                    if ((b0 > 1 || b1 > 1 || b2 > 1) && !inside(bc, zero)) ++caught;
+                }
+    }
+    printf("%ld idle lanes checked, %ld read outside their gblock's row; base 0 caught reading outside %ld times\n", idle,
+           idle_bad, caught);
+    return bad != 0 || idle_bad != 0 || caught == 0;
 }

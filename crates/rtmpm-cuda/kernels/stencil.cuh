@@ -116,3 +116,16 @@ __device__ __forceinline__ PairRow stencil_pair_row(const StencilPairs& s, const
     row.n[2] = s.r[2] >= 2 ? n_second : n_first;
     return row;
 }
+
+// The stencil base whose nodes the warp scatter addresses for a lane (RTMPM_P2G_NODES 1 and 2
+// read a row's pblock ids for every lane, its atomics only by segment heads): its particle's
+// base when the lane scatters, else the gblock's own first node (base - 4 bc = 0 on each axis),
+// so that the neighbour-list reads of a lane that does not scatter stay in the gblock's 27
+// entries. Such a lane's base is whatever it was given (0 from p2g_particle_zero and with
+// RTMPM_G2P2G_LEAN_LANES): with base 0 and a gblock away from the origin the reads fell in other
+// gblocks' entries (never used: such a lane is no head). The same sums: only heads add.
+// scripts/stencil_twin.cpp checks that the reads stay in the 27 entries.
+__device__ __forceinline__ void scatter_base(const int* bc, const int base[3], bool active, int out[3]) {
+#pragma unroll
+    for (int a = 0; a < 3; ++a) out[a] = active ? base[a] : 4 * bc[a];
+}

@@ -55,10 +55,11 @@ __device__ __forceinline__ void g2p2g_warp(const Ctx& c, unsigned w, unsigned la
     bool scatter = false;
     unsigned key = P2G_KEY_NONE;
 #if RTMPM_G2P2G_LEAN_LANES
-    // Only the stencil base of a lane that does not scatter is set (its node ids are loaded):
-    // the segmented reduction never adds an inactive lane's values into a head's (an inactive
-    // lane is a segment boundary) and such a lane is no head, so the other fields are left as
-    // they are instead of zeroed in every warp entry.
+    // Only the stencil base of a lane that does not scatter is set (the scatter then addresses
+    // its gblock's own nodes instead, p2g_scatter_warp): the segmented reduction never adds an
+    // inactive lane's values into a head's (an inactive lane is a segment boundary) and such a
+    // lane is no head, so the other fields are left as they are instead of zeroed in every warp
+    // entry.
     P2gParticle q;
     q.base[0] = q.base[1] = q.base[2] = 0;
 #else

@@ -275,8 +275,9 @@ __device__ __forceinline__ WarpSegments warp_segments(const Ctx& c, const int ba
 }
 
 // The scatter of one warp's particles (one per lane, in sorted order; q of an inactive lane is
-// p2g_particle_zero) into `grid`: segmented warp reduction (Gao et al. 2018), then global
-// atomics by segment heads. Every lane of the warp calls it.
+// p2g_particle_zero, its base replaced by its gblock's first node) into `grid`: segmented warp
+// reduction (Gao et al. 2018), then global atomics by segment heads. Every lane of the warp
+// calls it.
 __device__ __forceinline__ void p2g_scatter_warp(const Ctx& c, unsigned g, const P2gParticle& q, bool active, unsigned lane,
                                                  real* grid) {
     const int* base = q.base;
@@ -286,7 +287,10 @@ __device__ __forceinline__ void p2g_scatter_warp(const Ctx& c, unsigned g, const
     seg_len += lane;  // the segment's last lane: the rounds' shuffle clamp
 #endif
     bool head = seg.head;
-    ScatterNodes nodes = scatter_nodes(c, g, base);
+    // A lane that does not scatter addresses its gblock's own nodes (stencil.cuh: scatter_base).
+    int at[3];
+    scatter_base(c.block_coords + 3 * g, base, active, at);
+    ScatterNodes nodes = scatter_nodes(c, g, at);
 #if RTMPM_P2G_REDUCE == 4
     // Rounds s = 1, 2, 4, ... up to the longest segment, at most RTMPM_P2G_ROUNDS_MAX.
     int rounds = min(max_seg ? 32 - __clz(max_seg) : 0, RTMPM_P2G_ROUNDS_MAX);
