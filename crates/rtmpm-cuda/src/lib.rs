@@ -101,8 +101,8 @@ pub use error::Unavailable;
 pub use export::DeviceParticles;
 pub use multi::{MultiGpuBackend, NcclRankBackend, nccl, peer, rendezvous};
 pub use options::{
-    BarrierKind, BodyPoses, CkP2g, CudaOptions, ExchangeMode, KernelCuts, P2gMode, PartitionKind,
-    RowUnroll, Transport,
+    BarrierKind, BodyPoses, CkP2g, CudaOptions, ExchangeMode, FusedCode, FusedDefaults,
+    FusedSwitches, KernelCuts, KernelSet, P2gMode, PartitionKind, RowUnroll, Transport,
 };
 pub use probe::{DeviceInfo, device_count, probe, probe_device};
 pub use waits::{HostWaits, WaitCounts, WaitReason};

@@ -12,7 +12,7 @@ use crate::contract::{Ctx, StateLayout};
 use crate::encode::{self, Tables};
 use crate::error::err;
 use crate::kernels::{Kernels, write_symbol};
-use crate::options::{CkP2g, CudaOptions, P2gMode};
+use crate::options::{CkP2g, CudaOptions, KernelSet, P2gMode};
 use crate::probe::DeviceInfo;
 use crate::setup::buffers::{self, Buffers};
 use crate::setup::capacity::{self, Capacity};
@@ -369,10 +369,18 @@ impl Plan {
         info: &DeviceInfo,
     ) -> Result<(Arc<CudaStream>, Arc<CudaModule>, Kernels), SimError> {
         let o = &self.options;
+        // The fused kernels' code switches of this backend's kernel set (fused_defaults=auto
+        // gives the fluid set its own).
+        let set = if self.all_fluid() && scene.solver.transfer == Transfer::Mls {
+            KernelSet::Fluid
+        } else {
+            KernelSet::General
+        };
+        let code = o.fused.resolve(set);
         // Compiled for this GPU, the state's index width (64 bits past 2^32 words), and with
         // specialize=on the scene's models only (a smaller material switch).
         let ptx = compile(&KernelOptions {
-            state64: o.wide_state_index
+            state64: code.wide_state_index
                 || state_needs_64_bits(self.layout.words(), self.cap.particles),
             layout: self.layout,
             arch: info.compute_capability,
@@ -390,8 +398,8 @@ impl Plan {
             ck_min_blocks: o.ck_min_blocks,
             stencil_pairs: o.stencil_pairs,
             uniform_loop: o.uniform_loop,
-            row_unroll: o.row_unroll.define(),
-            cuts: o.cuts,
+            row_unroll: code.row_unroll.define(),
+            cuts: code.cuts,
         })
         .map_err(SimError::Backend)?;
         // Single stream: no cross-stream event tracking (keeps launches capturable).

@@ -1,5 +1,6 @@
 //! The kernel switches' own types: the P2G strategy, CK-MPM's P2G kernel, the instruction cuts
-//! and the row unrolling of the fused kernels, and the defaults of the capacities they use.
+//! and the row unrolling of the fused kernels (resolved per kernel set: [`FusedSwitches`]), and
+//! the defaults of the capacities they use.
 
 /// P2G variant.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -59,7 +60,8 @@ impl CkP2g {
 
 /// Instruction cuts of the fused G2P2G kernels (`--cuda-options lean_lanes=on,seg_clamp=on,
 /// zero_terms=skip,flat_checks=on`), each a compile-time define of the kernels, off by default
-/// until measured on a GPU (bench/RESULTS.md, "Fewer instructions, second round").
+/// (bench/RESULTS.md, "Fewer instructions, second round"; per kernel set with
+/// `fused_defaults=auto`, [`FusedSwitches`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct KernelCuts {
     /// `lean_lanes=on` (`RTMPM_G2P2G_LEAN_LANES`, `kernels/g2p/g2p2g.cu`): the P2G quantities
@@ -97,8 +99,8 @@ impl KernelCuts {
     }
 }
 
-/// The warp scatter's row loop ([`crate::options::CudaOptions::row_unroll`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// The warp scatter's row loop (`row_unroll=off|planes|all`, [`FusedSwitches::row_unroll`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum RowUnroll {
     /// A loop over the nine rows (the default).
     #[default]
@@ -116,6 +118,150 @@ impl RowUnroll {
             RowUnroll::Off => 0,
             RowUnroll::Planes => 2,
             RowUnroll::All => 1,
+        }
+    }
+}
+
+/// The kernel set a backend compiles, as far as the fused kernels' code switches go
+/// ([`FusedSwitches::resolve`]): one program per backend, whose fused G2P2G kernel is
+/// `g2p2g_fluid` when every material is a fluid, `g2p2g` otherwise.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum KernelSet {
+    /// Every material a fluid and the MLS-MPM transfer: the fluid kernels (`g2p2g_fluid`; the
+    /// fluid dam's, the water scenes').
+    Fluid,
+    /// Every other scene: the general kernels (`g2p2g`; jelly, snow, mixed scenes, and CK-MPM
+    /// and classic-MPM transfers whatever the materials).
+    General,
+}
+
+/// What the fused kernels' code switches that `--cuda-options` leaves unset become
+/// (`fused_defaults=off|auto`, [`FusedSwitches::defaults`]); a switch given explicitly applies to
+/// every kernel set whatever this says.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum FusedDefaults {
+    /// Today's code in every kernel set: the row loop and no cut ([`FusedCode::default`]).
+    #[default]
+    Off,
+    /// Per kernel set, the combination that was fastest on an H200 (bench/RESULTS.md, "Fewer
+    /// instructions in the fused kernels, second round"): the fluid set
+    /// [`FusedCode::FLUID_TUNED`] (`row_unroll=planes,seg_clamp=on,zero_terms=skip,
+    /// flat_checks=on,state_index=wide`, -2.2 % on the fluid dam 2M), the general set today's
+    /// code (every combination lost on the jelly and the snow, whose spills it raised).
+    Auto,
+}
+
+impl FusedDefaults {
+    /// The name used by `--cuda-options fused_defaults=NAME`.
+    pub fn name(self) -> &'static str {
+        match self {
+            FusedDefaults::Off => "off",
+            FusedDefaults::Auto => "auto",
+        }
+    }
+}
+
+/// The default of [`FusedSwitches::defaults`]: `Off` until `Auto` is timed against it in one
+/// binary (one line to change).
+pub const DEFAULT_FUSED_DEFAULTS: FusedDefaults = FusedDefaults::Off;
+
+/// The fused kernels' code switches of one kernel set, resolved: the compile-time defines of
+/// the program ([`crate::compile::KernelOptions`]'s `row_unroll`, `cuts` and `state64`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct FusedCode {
+    /// The warp scatter's rows (`row_unroll`).
+    pub row_unroll: RowUnroll,
+    /// The instruction cuts (`lean_lanes`, `seg_clamp`, `zero_terms`, `flat_checks`).
+    pub cuts: KernelCuts,
+    /// The particle state's word index in 64 bits always (`state_index=wide`).
+    pub wide_state_index: bool,
+}
+
+impl FusedCode {
+    /// `fused_defaults=auto`'s code of the fluid kernel set: the three rows of a plane unrolled,
+    /// `seg_clamp`, `zero_terms=skip`, `flat_checks` and the wide state index (not
+    /// `lean_lanes`, which lost 2.4 % there).
+    pub const FLUID_TUNED: FusedCode = FusedCode {
+        row_unroll: RowUnroll::Planes,
+        cuts: KernelCuts {
+            lean_lanes: false,
+            seg_clamp: true,
+            zero_terms: true,
+            flat_checks: true,
+        },
+        wide_state_index: true,
+    };
+}
+
+/// The fused kernels' code switches as asked on the command line (`row_unroll`, `lean_lanes`,
+/// `seg_clamp`, `zero_terms`, `flat_checks`, `state_index`): each one given applies to every
+/// kernel set; each one left out (`None`) takes the value [`FusedSwitches::defaults`] gives it
+/// for the backend's kernel set ([`KernelSet`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FusedSwitches {
+    /// What the switches left out become (`fused_defaults=off|auto`; default
+    /// [`DEFAULT_FUSED_DEFAULTS`]).
+    pub defaults: FusedDefaults,
+    /// `row_unroll=off|planes|all`.
+    pub row_unroll: Option<RowUnroll>,
+    /// `lean_lanes=on|off` ([`KernelCuts::lean_lanes`]).
+    pub lean_lanes: Option<bool>,
+    /// `seg_clamp=on|off` ([`KernelCuts::seg_clamp`]).
+    pub seg_clamp: Option<bool>,
+    /// `zero_terms=skip|keep` ([`KernelCuts::zero_terms`]).
+    pub zero_terms: Option<bool>,
+    /// `flat_checks=on|off` ([`KernelCuts::flat_checks`]).
+    pub flat_checks: Option<bool>,
+    /// `state_index=wide|auto` (`auto`, the name it had before the kernel sets: 32 bits unless
+    /// the arrays hold 2^32 words or more; [`crate::CudaOptions::fused`]).
+    pub wide_state_index: Option<bool>,
+}
+
+impl Default for FusedSwitches {
+    fn default() -> Self {
+        FusedSwitches {
+            defaults: DEFAULT_FUSED_DEFAULTS,
+            row_unroll: None,
+            lean_lanes: None,
+            seg_clamp: None,
+            zero_terms: None,
+            flat_checks: None,
+            wide_state_index: None,
+        }
+    }
+}
+
+impl FusedSwitches {
+    /// `code` for every kernel set, every switch given (tests and comparisons).
+    pub fn all(code: FusedCode) -> FusedSwitches {
+        let c = code.cuts;
+        FusedSwitches {
+            defaults: DEFAULT_FUSED_DEFAULTS,
+            row_unroll: Some(code.row_unroll),
+            lean_lanes: Some(c.lean_lanes),
+            seg_clamp: Some(c.seg_clamp),
+            zero_terms: Some(c.zero_terms),
+            flat_checks: Some(c.flat_checks),
+            wide_state_index: Some(code.wide_state_index),
+        }
+    }
+
+    /// The code of kernel set `set`: each switch as given, else as [`FusedSwitches::defaults`]
+    /// sets it for `set`.
+    pub fn resolve(&self, set: KernelSet) -> FusedCode {
+        let d = match (self.defaults, set) {
+            (FusedDefaults::Auto, KernelSet::Fluid) => FusedCode::FLUID_TUNED,
+            _ => FusedCode::default(),
+        };
+        FusedCode {
+            row_unroll: self.row_unroll.unwrap_or(d.row_unroll),
+            cuts: KernelCuts {
+                lean_lanes: self.lean_lanes.unwrap_or(d.cuts.lean_lanes),
+                seg_clamp: self.seg_clamp.unwrap_or(d.cuts.seg_clamp),
+                zero_terms: self.zero_terms.unwrap_or(d.cuts.zero_terms),
+                flat_checks: self.flat_checks.unwrap_or(d.cuts.flat_checks),
+            },
+            wide_state_index: self.wide_state_index.unwrap_or(d.wide_state_index),
         }
     }
 }

@@ -9,7 +9,8 @@ mod multi;
 
 pub use batch::BodyPoses;
 pub use kernels::{
-    CkP2g, DEFAULT_RMAP_REPLICAS, DEFAULT_SORT_SCRATCH_FIELDS, KernelCuts, P2gMode, RowUnroll,
+    CkP2g, DEFAULT_FUSED_DEFAULTS, DEFAULT_RMAP_REPLICAS, DEFAULT_SORT_SCRATCH_FIELDS, FusedCode,
+    FusedDefaults, FusedSwitches, KernelCuts, KernelSet, P2gMode, RowUnroll,
 };
 pub use multi::{BarrierKind, ExchangeMode, PartitionKind, Transport};
 
@@ -147,19 +148,17 @@ pub struct CudaOptions {
     /// checks before every shuffle. The same arithmetic bit for bit, fewer instructions; `off`
     /// keeps the loop before it, to compare the two in one binary.
     pub uniform_loop: bool,
-    /// The warp scatter's rows of three nodes unrolled (`row_unroll=off|planes|all`;
-    /// `kernels/p2g/warp.cuh`: `RTMPM_P2G_UNROLL`): `Off` (the default) a loop over the nine
-    /// rows; `Planes` the three rows of a plane unrolled; `All` all nine. The same arithmetic bit
-    /// for bit; fewer instructions issued (no row selects, no loop counter) for a larger kernel.
-    pub row_unroll: RowUnroll,
-    /// Further instruction cuts of the fused kernels, each its own switch, all off by default
-    /// until timed ([`KernelCuts`]).
-    pub cuts: KernelCuts,
-    /// The particle state's word index in 64 bits always (`state_index=wide`; default `auto`:
-    /// 32 bits unless the arrays hold 2^32 words or more). The same words; ptxas then forms each
-    /// field's address with one multiply-add from the previous one instead of an add and a
-    /// multiply-add (`kernels/common.cuh`: `sidx`, `RTMPM_STATE_64`).
-    pub wide_state_index: bool,
+    /// The fused kernels' code switches, resolved per kernel set when the backend compiles its
+    /// program ([`FusedSwitches::resolve`], [`KernelSet`]; `fused_defaults=off|auto` for the
+    /// switches left out, `off` by default): the warp scatter's rows of three nodes unrolled
+    /// (`row_unroll=off|planes|all`; `kernels/p2g/warp.cuh`: `RTMPM_P2G_UNROLL`; `Off` a loop
+    /// over the nine rows, `Planes` the three rows of a plane unrolled, `All` all nine: the same
+    /// arithmetic bit for bit, fewer instructions issued for a larger kernel); the instruction
+    /// cuts ([`KernelCuts`]); the particle state's word index in 64 bits always
+    /// (`state_index=wide`; `auto`: 32 bits unless the arrays hold 2^32 words or more; the same
+    /// words, each field's address one multiply-add from the previous one; `kernels/common.cuh`:
+    /// `sidx`, `RTMPM_STATE_64`).
+    pub fused: FusedSwitches,
 }
 
 impl Default for CudaOptions {
@@ -201,9 +200,7 @@ impl Default for CudaOptions {
             stencil_pairs: true,
             batch_poses: BodyPoses::Deferred,
             uniform_loop: true,
-            row_unroll: RowUnroll::Off,
-            cuts: KernelCuts::default(),
-            wide_state_index: false,
+            fused: FusedSwitches::default(),
         }
     }
 }
@@ -219,7 +216,7 @@ impl std::str::FromStr for CudaOptions {
     /// (f32/compact), `body_sums` (read/step), `addressing` (pairs/blocks), `uniform_loop` (on/off),
     /// `body_poses` (deferred/deferred_serial/eager), `row_unroll` (off/planes/all),
     /// `lean_lanes`, `seg_clamp`, `flat_checks` (on/off), `zero_terms` (skip/keep),
-    /// `state_index` (auto/wide).
+    /// `state_index` (auto/wide), `fused_defaults` (off/auto: the last six when left out).
     fn from_str(s: &str) -> Result<Self, String> {
         let mut o = CudaOptions::default();
         for item in s.split(',').map(str::trim).filter(|t| !t.is_empty()) {
@@ -314,17 +311,25 @@ impl std::str::FromStr for CudaOptions {
                     o.batch_sums_at_read = choice(item, v, &[("read", true), ("step", false)])?
                 }
                 "uniform_loop" => o.uniform_loop = b()?,
-                "lean_lanes" => o.cuts.lean_lanes = b()?,
-                "seg_clamp" => o.cuts.seg_clamp = b()?,
-                "flat_checks" => o.cuts.flat_checks = b()?,
+                "lean_lanes" => o.fused.lean_lanes = Some(b()?),
+                "seg_clamp" => o.fused.seg_clamp = Some(b()?),
+                "flat_checks" => o.fused.flat_checks = Some(b()?),
                 "zero_terms" => {
-                    o.cuts.zero_terms = choice(item, v, &[("skip", true), ("keep", false)])?
+                    o.fused.zero_terms = Some(choice(item, v, &[("skip", true), ("keep", false)])?)
                 }
                 "state_index" => {
-                    o.wide_state_index = choice(item, v, &[("wide", true), ("auto", false)])?
+                    o.fused.wide_state_index =
+                        Some(choice(item, v, &[("wide", true), ("auto", false)])?)
+                }
+                "fused_defaults" => {
+                    o.fused.defaults = choice(
+                        item,
+                        v,
+                        &[("off", FusedDefaults::Off), ("auto", FusedDefaults::Auto)],
+                    )?
                 }
                 "row_unroll" => {
-                    o.row_unroll = choice(
+                    o.fused.row_unroll = Some(choice(
                         item,
                         v,
                         &[
@@ -332,7 +337,7 @@ impl std::str::FromStr for CudaOptions {
                             ("planes", RowUnroll::Planes),
                             ("all", RowUnroll::All),
                         ],
-                    )?
+                    )?)
                 }
                 "addressing" => {
                     o.stencil_pairs = choice(item, v, &[("pairs", true), ("blocks", false)])?
@@ -569,23 +574,41 @@ mod tests {
             "addressing=nodes".parse::<CudaOptions>().unwrap_err(),
             "`addressing=nodes`: expected pairs or blocks"
         );
-        assert_eq!(CudaOptions::default().cuts, crate::KernelCuts::default());
-        assert!(!CudaOptions::default().wide_state_index);
+        let d = CudaOptions::default().fused;
+        assert_eq!(d, FusedSwitches::default());
+        assert_eq!(d.defaults, DEFAULT_FUSED_DEFAULTS);
+        assert_eq!(
+            (d.row_unroll, d.lean_lanes, d.seg_clamp, d.zero_terms),
+            (None, None, None, None)
+        );
+        assert_eq!((d.flat_checks, d.wide_state_index), (None, None));
+        let sets = [KernelSet::Fluid, KernelSet::General];
         let o: CudaOptions =
             "lean_lanes=on,seg_clamp=on,zero_terms=skip,flat_checks=on,state_index=wide"
                 .parse()
                 .unwrap();
-        assert_eq!(
-            o.cuts,
-            crate::KernelCuts {
-                lean_lanes: true,
-                seg_clamp: true,
-                zero_terms: true,
-                flat_checks: true
+        let all_cuts = crate::KernelCuts {
+            lean_lanes: true,
+            seg_clamp: true,
+            zero_terms: true,
+            flat_checks: true,
+        };
+        for set in sets {
+            let c = o.fused.resolve(set);
+            assert_eq!(c.cuts, all_cuts, "{set:?}");
+            assert!(c.wide_state_index, "{set:?}");
+            assert_eq!(c.cuts.defines().len(), 4);
+            // Explicit values for every switch: the same code whatever fused_defaults says.
+            for fd in ["off", "auto"] {
+                let o2: CudaOptions = format!(
+                    "fused_defaults={fd},row_unroll=off,lean_lanes=off,seg_clamp=off,\
+                     zero_terms=keep,flat_checks=off,state_index=auto"
+                )
+                .parse()
+                .unwrap();
+                assert_eq!(o2.fused.resolve(set), FusedCode::default(), "{fd} {set:?}");
             }
-        );
-        assert!(o.wide_state_index);
-        assert_eq!(o.cuts.defines().len(), 4);
+        }
         assert_eq!(
             "zero_terms=on".parse::<CudaOptions>().unwrap_err(),
             "`zero_terms=on`: expected skip or keep"
@@ -594,14 +617,17 @@ mod tests {
             "state_index=64".parse::<CudaOptions>().unwrap_err(),
             "`state_index=64`: expected wide or auto"
         );
-        assert_eq!(CudaOptions::default().row_unroll, RowUnroll::Off);
         for (v, r, d) in [
             ("off", RowUnroll::Off, 0),
             ("planes", RowUnroll::Planes, 2),
             ("all", RowUnroll::All, 1),
         ] {
             let o: CudaOptions = format!("row_unroll={v}").parse().unwrap();
-            assert_eq!((o.row_unroll, o.row_unroll.define()), (r, d));
+            assert_eq!(o.fused.row_unroll, Some(r));
+            for set in sets {
+                let u = o.fused.resolve(set).row_unroll;
+                assert_eq!((u, u.define()), (r, d));
+            }
         }
         assert_eq!(
             "row_unroll=rows".parse::<CudaOptions>().unwrap_err(),
@@ -614,6 +640,74 @@ mod tests {
                 .unwrap()
                 .uniform_loop
         );
+    }
+
+    /// `fused_defaults`: `off` gives today's code to every kernel set; `auto` gives the fluid set
+    /// `row_unroll=planes` with `seg_clamp`, `zero_terms=skip`, `flat_checks` and the wide state
+    /// index and the general set today's code; a switch given explicitly overrides it in every
+    /// set, in whichever order the two are written; the default is [`DEFAULT_FUSED_DEFAULTS`].
+    #[test]
+    fn fused_defaults_resolve_per_kernel_set() {
+        let (fluid, general) = (KernelSet::Fluid, KernelSet::General);
+        let off: CudaOptions = "fused_defaults=off".parse().unwrap();
+        assert_eq!(off.fused.defaults, FusedDefaults::Off);
+        assert_eq!(off.fused.resolve(fluid), FusedCode::default());
+        assert_eq!(off.fused.resolve(general), FusedCode::default());
+        let auto: CudaOptions = "fused_defaults=auto".parse().unwrap();
+        assert_eq!(auto.fused.defaults.name(), "auto");
+        let tuned = auto.fused.resolve(fluid);
+        assert_eq!(tuned, FusedCode::FLUID_TUNED);
+        assert_eq!(
+            (tuned.row_unroll, tuned.cuts.defines().len()),
+            (RowUnroll::Planes, 3)
+        );
+        assert!(tuned.wide_state_index && !tuned.cuts.lean_lanes);
+        assert_eq!(auto.fused.resolve(general), FusedCode::default());
+        // Last session's comparison, given explicitly: the same code in both sets, with or
+        // without auto.
+        let ab = "row_unroll=planes,seg_clamp=on,zero_terms=skip,flat_checks=on,state_index=wide";
+        for o in [ab.to_string(), format!("fused_defaults=auto,{ab}")] {
+            let o: CudaOptions = o.parse().unwrap();
+            assert_eq!(o.fused.resolve(fluid), FusedCode::FLUID_TUNED, "{o:?}");
+            assert_eq!(o.fused.resolve(general), FusedCode::FLUID_TUNED, "{o:?}");
+        }
+        // An explicit value beats auto in the fluid set, and applies to the general set too.
+        for s in [
+            "fused_defaults=auto,row_unroll=off,lean_lanes=on",
+            "row_unroll=off,lean_lanes=on,fused_defaults=auto",
+        ] {
+            let o: CudaOptions = s.parse().unwrap();
+            let f = o.fused.resolve(fluid);
+            assert_eq!(f.row_unroll, RowUnroll::Off, "{s}");
+            assert!(
+                f.cuts.lean_lanes && f.cuts.seg_clamp && f.wide_state_index,
+                "{s}"
+            );
+            let g = o.fused.resolve(general);
+            assert_eq!(g.row_unroll, RowUnroll::Off, "{s}");
+            assert!(
+                g.cuts.lean_lanes && !g.cuts.seg_clamp && !g.wide_state_index,
+                "{s}"
+            );
+        }
+        // Every switch given: `all` is that code in every set.
+        for set in [fluid, general] {
+            for code in [FusedCode::default(), FusedCode::FLUID_TUNED] {
+                assert_eq!(FusedSwitches::all(code).resolve(set), code);
+            }
+        }
+        assert_eq!(
+            "fused_defaults=on".parse::<CudaOptions>().unwrap_err(),
+            "`fused_defaults=on`: expected off or auto"
+        );
+        // The default resolves as its value says.
+        let d = CudaOptions::default().fused;
+        let explicit: CudaOptions = format!("fused_defaults={}", DEFAULT_FUSED_DEFAULTS.name())
+            .parse()
+            .unwrap();
+        for set in [fluid, general] {
+            assert_eq!(d.resolve(set), explicit.fused.resolve(set));
+        }
     }
 
     /// The experiments removed after they lost on an H200 (bench/RESULTS.md: the thread-block
