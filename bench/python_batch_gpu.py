@@ -55,7 +55,8 @@ reason: the checks, other control words, reads, rigid-body sums, page-locked upl
 use, copies from pageable memory, allocations, synchronisations); ``RTMPM_SYNC_TRACE=1`` in the
 environment also times them (ms a call). ``RTMPM_BATCH_WAITS=old`` runs the batch's paths as
 before those waits were cut (the A/B in one wheel); ``RTMPM_BATCH_PAGEABLE_PUT=1`` uploads from
-pageable memory.
+pageable memory; ``RTMPM_BATCH_RESET=old`` packs and uploads a reset's initial particles every
+call as before the image of them kept on the device (the A/B of the resets in one wheel).
 
 ``--breakdown`` then runs the modes calls, reset, pose and loop once more (``--repeats`` rounds
 after a warm-up, fresh batches) and times each part of a call on its own: the poses, the resets
@@ -428,8 +429,8 @@ def main():
     print(f"a fresh batch's set-up (not timed): median {statistics.median(setups):.3f} s of {len(setups)}; "
           f"{clock.now():.1f} s so far", flush=True)
     print_waits(waits, runs)
-    switches = {k: os.environ[k] for k in ("RTMPM_BATCH_WAITS", "RTMPM_BATCH_PAGEABLE_PUT", "RTMPM_SYNC_TRACE")
-                if k in os.environ}
+    names = ("RTMPM_BATCH_WAITS", "RTMPM_BATCH_PAGEABLE_PUT", "RTMPM_BATCH_RESET", "RTMPM_SYNC_TRACE")
+    switches = {k: os.environ[k] for k in names if k in os.environ}
     if switches:
         print(f"environment: {switches}")
     if a.moving_tool:

@@ -1,9 +1,10 @@
 // Batches of worlds (crate::batch): one world's particles put back into the state (a reset to
 // its initial state, or to a given one), wherever the sort has moved them. `src` holds the
-// world's `count` particles, structure of arrays with stride `count`, in original order from
-// `first`; a slot whose id lies in [first, first + count) takes every word of its particle but
-// the id. Launched in the batch's program; compiled in every program (there a particle's world
-// is 0).
+// world's `count` particles, structure of arrays with stride `stride` (`count` for a put's own
+// image; the batch's kept image of every world's initial particles has stride n, `src` then
+// pointing at particle `first` of its first row), in original order from `first`; a slot whose
+// id lies in [first, first + count) takes every word of its particle but the id. Launched in
+// the batch's program; compiled in every program (there a particle's world is 0).
 //
 // The mapping is rebuilt only when a particle put needs it (not for every put, which would
 // rebuild every world's mapping for a few worlds' reset). The last rebuild sorted the slots by
@@ -28,7 +29,8 @@ __device__ __forceinline__ unsigned slot_gblock(const Ctx& c, unsigned i, unsign
     return lo;
 }
 
-extern "C" __global__ void batch_put_world(Ctx c, const real* src, unsigned first, unsigned count) {
+extern "C" __global__ void batch_put_world(Ctx c, const real* src, unsigned first, unsigned count,
+                                           unsigned stride) {
     unsigned gblocks = min(c.ctl[CTL_GBLOCKS], c.gblock_cap);
     bool check = ((volatile unsigned*)c.ctl)[CTL_NEED_REBUILD] == 0 && c.ctl[CTL_ERROR] == 0;
     bool rebuild = false;
@@ -39,15 +41,15 @@ extern "C" __global__ void batch_put_world(Ctx c, const real* src, unsigned firs
             rebuild = true;
         } else if (check) {
             const int* bc = c.block_coords + 3 * slot_gblock(c, i, gblocks);
-            vec3 x = make_v3(src[(size_t)F_X * count + k], src[(size_t)(F_X + 1) * count + k],
-                             src[(size_t)(F_X + 2) * count + k]);
+            vec3 x = make_v3(src[(size_t)F_X * stride + k], src[(size_t)(F_X + 1) * stride + k],
+                             src[(size_t)(F_X + 2) * stride + k]);
             int nb[3];
             real fx[3];
             stencil_of(c, x, particle_world(c, i), nb, fx);
             for (int a = 0; a < 3; ++a) rebuild = rebuild || nb[a] < 4 * bc[a] - 4 || nb[a] > 4 * bc[a] + 5;
         }
         for (int f = 0; f < RTMPM_NFIELDS; ++f)
-            if (f != F_ID) c.state[sidx(c.cap, f, i)] = src[(size_t)f * count + k];
+            if (f != F_ID) c.state[sidx(c.cap, f, i)] = src[(size_t)f * stride + k];
     }
     if (rebuild) c.ctl[CTL_NEED_REBUILD] = 1;
 }

@@ -34,6 +34,7 @@
 mod accept;
 mod bodies;
 mod colliders;
+mod initial;
 mod layout;
 mod put;
 mod staging;
@@ -43,6 +44,7 @@ use accept::{batch_capacities, check_particles};
 pub use layout::{
     BatchParams, MAX_GRID_CELLS_X, WORLD_GAP_CELLS, WORLD_ORIGIN_CELLS, world_stride,
 };
+pub use staging::old_resets;
 
 use crate::backend::{CudaBackend, Part};
 use crate::error::err;
@@ -78,6 +80,9 @@ pub struct CudaBatch {
     point: Option<CudaSlice<u8>>,
     /// The device had no memory for the point: the driver keeps it on the host instead.
     no_point: bool,
+    /// Every world's particles at time 0, packed (rows of the batch's particle count), kept by
+    /// [`CudaBatch::keep_initial`] for [`CudaBatch::put_initial`].
+    initial: Option<CudaSlice<u8>>,
     /// The worlds' images the last [`CudaBatch::put_worlds`] uploaded (kept for the next; it
     /// grows to the largest put).
     put_buffer: Option<CudaSlice<u8>>,
@@ -193,6 +198,7 @@ impl CudaBatch {
             colliders,
             point: None,
             no_point: false,
+            initial: None,
             put_buffer: None,
             put_run: Particles::default(),
             put_host: Vec::new(),
@@ -446,6 +452,10 @@ impl Worlds for CudaBatch {
 
     fn put_worlds(&mut self, worlds: &[(usize, Particles)]) -> Result<(), SimError> {
         CudaBatch::put_worlds(self, worlds)
+    }
+
+    fn put_initial(&mut self, worlds: &[usize]) -> Result<bool, SimError> {
+        CudaBatch::put_initial(self, worlds)
     }
 
     fn save_point(&mut self) -> Result<bool, SimError> {

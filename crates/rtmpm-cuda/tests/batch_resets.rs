@@ -302,3 +302,116 @@ fn a_put_rebuilds_the_mapping_only_where_a_particle_leaves_its_zone() {
     }
     assert!(failures.is_empty(), "{failures:#?}");
 }
+
+/// World `w`'s particles of `p` made its own: the last `13 w` dropped and every velocity
+/// `(w + 1) / 20` m/s along x, so that a world put from another world's range (or a range off by
+/// a few particles) differs from it.
+fn own(p: &Particles, w: usize) -> Particles {
+    let mut q = Particles::default();
+    for i in 0..p.len() - 13 * w {
+        q.push(
+            p.x[i],
+            Vec3::new(0.05 * (w + 1) as f32, 0.0, 0.0),
+            p.mass[i],
+            p.vol0[i],
+            p.material[i],
+            p.plastic[i],
+        );
+        let at = q.len() - 1;
+        (q.c[at], q.f[at]) = (p.c[i], p.f[i]);
+    }
+    q
+}
+
+/// A reset from the image the batch keeps of its initial particles (`CudaBatch::keep_initial`,
+/// `put_initial`: launches reading the kept image in place, its rows of the whole batch's
+/// particles) leaves every world bit for bit as a put of those particles (`put_worlds`, packed and
+/// uploaded) does, in f32 and f64, right after the put and 10 steps on: the worlds listed (out of
+/// order, one twice: runs 1-2 and 4) hold their own initial particles (each world its own count
+/// and velocity, so another world's range or an offset range would show), the others untouched.
+/// Before `keep_initial` the batch keeps nothing (`Ok(false)`, nothing changed); initial
+/// particles that do not fit the worlds are refused. About 10 s on an H200.
+#[test]
+#[ignore = "needs a CUDA GPU"]
+fn a_reset_from_the_kept_image_puts_back_exactly_the_worlds_listed() {
+    if !gpu() {
+        return;
+    }
+    let worlds = wedge_worlds(5);
+    let p0: Vec<Particles> = worlds
+        .iter()
+        .enumerate()
+        .map(|(w, s)| own(&s.sample_particles().expect("particles"), w))
+        .collect();
+    for f64 in [false, true] {
+        let options = rtmpm_cuda::CudaOptions { f64, ..precise() };
+        if let Err(e) = CudaBatch::new(&worlds, &p0, options.clone()) {
+            assert!(f64, "the f32 batch: {e}");
+            println!("no f64 batch of these worlds ({e}): f32 only");
+            continue;
+        }
+        let run = |kept: bool| {
+            let mut b = CudaBatch::new(&worlds, &p0, options.clone()).expect("batch");
+            for s in 0..20 {
+                b.step(DT, s as f32 * DT).expect("step");
+            }
+            let before = b.read_worlds().expect("read");
+            let list = [4, 2, 1, 2];
+            if kept {
+                assert!(
+                    !b.put_initial(&list).expect("nothing kept yet"),
+                    "kept nothing"
+                );
+                assert!(
+                    bit_identical(&b.read_worlds().expect("read")[1], &before[1]),
+                    "a put with nothing kept changed world 1"
+                );
+                assert!(
+                    b.keep_initial(&p0[..4]).is_err(),
+                    "4 worlds' particles for 5"
+                );
+                let mut short = p0.clone();
+                short[3].x.pop();
+                assert!(
+                    b.keep_initial(&short).is_err(),
+                    "world 3 short of a particle"
+                );
+                assert!(b.keep_initial(&p0).expect("keep"), "the image kept");
+                assert!(b.initial_bytes() > 0);
+                assert!(b.put_initial(&list).expect("put from the image"));
+            } else {
+                let starts: Vec<(usize, Particles)> =
+                    list.iter().map(|&w| (w, p0[w].clone())).collect();
+                b.put_worlds(&starts).expect("put worlds");
+            }
+            let put = b.read_worlds().expect("read");
+            for s in 20..30 {
+                b.step(DT, s as f32 * DT).expect("step");
+            }
+            (before, put, b.read_worlds().expect("read"))
+        };
+        let (before, kept_put, kept_on) = run(true);
+        let (_, packed_put, packed_on) = run(false);
+        for w in 0..5 {
+            assert!(
+                bit_identical(&kept_put[w], &packed_put[w]),
+                "f64 {f64}: world {w} put from the kept image differs from the packed put"
+            );
+            assert!(
+                bit_identical(&kept_on[w], &packed_on[w]),
+                "f64 {f64}: world {w} 10 steps after the puts differs"
+            );
+        }
+        for w in [0, 3] {
+            assert!(bit_identical(&kept_put[w], &before[w]), "world {w} touched");
+        }
+        for w in [1, 2, 4] {
+            let p = &kept_put[w];
+            assert_eq!(p.len(), p0[w].len());
+            assert!(
+                p.v.iter().all(|v| *v == p0[w].v[0]) && p.x == p0[w].x,
+                "f64 {f64}: world {w} is not its initial particles"
+            );
+        }
+    }
+}

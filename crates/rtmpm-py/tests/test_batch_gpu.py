@@ -348,6 +348,32 @@ def test_gathered_device_arrays_of_ragged_worlds_are_cut_by_the_offsets():
         np.testing.assert_array_equal(v[rows].cpu().numpy(), host_v[rows], err_msg=f"world {w}")
 
 
+def test_a_reset_puts_back_exactly_the_worlds_listed_on_the_device():
+    """reset(worlds) on the GPU puts the worlds back from the image of their initial particles
+    that the batch keeps on the device (no packing, no upload; RTMPM_BATCH_RESET=old: packed and
+    uploaded as before): read on the device right after (x_device / v_device, gathered after the
+    call), the worlds listed (out of order, one twice) hold exactly their own initial particles
+    (ragged worlds: another world's range, or an offset one, would not fit), the other world
+    exactly as before the reset."""
+    torch = torch_or_skip()
+    text = sweep_text('"body[0].max" = [[0.3, 0.25, 0.3], [0.3, 0.3, 0.3], [0.35, 0.25, 0.3]]')
+    sim = rtmpm.Simulation(rtmpm.Scene.from_toml(text), backend="cuda")
+    off = sim.offsets
+    rows = [slice(int(off[w]), int(off[w + 1])) for w in range(3)]
+    x0, v0 = sim.x.copy(), sim.v.copy()
+    xd, vd = torch.from_dlpack(sim.x_device), torch.from_dlpack(sim.v_device)
+    sim.run(1)
+    before_x, before_v = xd.cpu().numpy().copy(), vd.cpu().numpy().copy()
+    for w in (0, 2):
+        assert not np.array_equal(before_x[rows[w]], x0[rows[w]]), f"world {w} did not move"
+    sim.reset([2, 0, 2])
+    x, v = xd.cpu().numpy(), vd.cpu().numpy()
+    for w, (want_x, want_v) in enumerate([(x0, v0), (before_x, before_v), (x0, v0)]):
+        np.testing.assert_array_equal(x[rows[w]], want_x[rows[w]], err_msg=f"world {w}'s x")
+        np.testing.assert_array_equal(v[rows[w]], want_v[rows[w]], err_msg=f"world {w}'s v")
+    assert sim.step(5) == [] and list(sim.steps) == [5, 55, 5]
+
+
 def test_storage_views_are_the_batchs_own_memory_and_map_to_worlds():
     torch = torch_or_skip()
     scene = rtmpm.Scene.from_toml(sweep_text('"material[0].yield_stress" = [100, 250, 600]'))

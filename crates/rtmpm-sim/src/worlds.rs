@@ -31,6 +31,17 @@ pub trait Worlds: Backend {
         Ok(())
     }
 
+    /// Put each world of `worlds` back to the particles it was given for its time 0, by the
+    /// backend's own means, as [`Worlds::put_worlds`] of those particles would leave it, bit for
+    /// bit (the GPU batch: from an image of them kept on the device, no packing and no upload);
+    /// the other worlds are not touched. `Ok(false)`: the backend keeps no such state (the
+    /// default), nothing changed, and the caller puts the particles with
+    /// [`Worlds::put_worlds`].
+    fn put_initial(&mut self, worlds: &[usize]) -> Result<bool, SimError> {
+        let _ = worlds;
+        Ok(false)
+    }
+
     /// Do now the host's work the next step would do first where it changes nothing of what
     /// the worlds are (the GPU batch: the rigid-body poses a script gave, kept until then, put
     /// into their worlds), so that it runs while the device still works on the steps queued

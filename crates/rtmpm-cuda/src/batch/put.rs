@@ -128,7 +128,7 @@ impl CudaBatch {
     }
 
     /// World `w` exists and `particles` fit it (as many as it has, its own materials).
-    fn check_put(&self, w: usize, particles: &Particles) -> Result<(), SimError> {
+    pub(super) fn check_put(&self, w: usize, particles: &Particles) -> Result<(), SimError> {
         if w >= self.worlds() {
             return Err(SimError::Backend(format!(
                 "CUDA batch: no world {w} (the batch has {})",
@@ -174,7 +174,7 @@ impl CudaBatch {
                 w += 1;
                 continue;
             }
-            clear(&mut run);
+            clear_particles(&mut run);
             let first = self.offsets[w];
             while let Some(Some(p)) = given.get(w) {
                 let at = run.len();
@@ -226,6 +226,7 @@ impl CudaBatch {
                     .arg(&src)
                     .arg(first)
                     .arg(count)
+                    .arg(count) // the image's stride: its own particles
                     .launch(b.kernels.wave(b.n, 256))
             }
             .map_err(err("put worlds"))?;
@@ -289,7 +290,7 @@ static PUT_TIMING: rtmpm_sim::timing::PartTimes<3> = rtmpm_sim::timing::PartTime
 type PutRun = (u32, u32, usize, usize);
 
 /// `p` emptied, its vectors' memory kept.
-fn clear(p: &mut Particles) {
+pub(super) fn clear_particles(p: &mut Particles) {
     p.x.clear();
     p.v.clear();
     p.c.clear();

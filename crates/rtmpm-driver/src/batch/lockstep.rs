@@ -406,6 +406,21 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
     /// when the scene's colliders move with the clock (a reset world would meet them where they
     /// are now, not where they were at time 0). Checked before any world changes.
     pub fn reset_worlds(&mut self, starts: Vec<(usize, Particles)>) -> Result<()> {
+        self.reset_with(starts, false)
+    }
+
+    /// [`LockstepRun::reset_worlds`] to each world's particles at its time 0 (`starts[i].1`:
+    /// the particles the batch's worlds were made with, which the backend may keep): the
+    /// backend puts them back by its own means where it keeps them ([`Worlds::put_initial`]:
+    /// the GPU batch's image on the device, no packing and no upload), else as
+    /// [`LockstepRun::reset_worlds`] does; the same state either way.
+    pub fn reset_worlds_initial(&mut self, starts: Vec<(usize, Particles)>) -> Result<()> {
+        self.reset_with(starts, true)
+    }
+
+    /// [`LockstepRun::reset_worlds`], the particles put by [`Worlds::put_initial`] first when
+    /// `initial`.
+    fn reset_with(&mut self, starts: Vec<(usize, Particles)>, initial: bool) -> Result<()> {
         if self.out.is_some() {
             bail!("a batch run that writes frame files cannot reset a world");
         }
@@ -439,11 +454,21 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             (self.sim.time, self.sim.step, self.sim.frame) = (0.0, 0, 0);
         }
         let now = self.clock();
-        // Every world's particles at once (on the GPU one upload, no wait per world).
-        self.sim.backend.put_worlds(&starts).with_context(|| {
-            let listed: Vec<usize> = starts.iter().map(|s| s.0).collect();
-            format!("resetting worlds {listed:?}")
-        })?;
+        // Every world's particles at once (on the GPU one upload, no wait per world; to the
+        // initial state, from the image the backend keeps, without it).
+        let listed_now = || starts.iter().map(|s| s.0).collect::<Vec<usize>>();
+        let kept = initial
+            && self
+                .sim
+                .backend
+                .put_initial(&listed_now())
+                .with_context(|| format!("resetting worlds {:?}", listed_now()))?;
+        if !kept {
+            self.sim
+                .backend
+                .put_worlds(&starts)
+                .with_context(|| format!("resetting worlds {:?}", listed_now()))?;
+        }
         for (w, p) in starts {
             let start = self.worlds[w].start_bodies.clone();
             self.sim

@@ -102,7 +102,11 @@ fn batch_request(
 /// The worlds of a batch on one GPU, every world in the same kernels, their state at the start
 /// read.
 fn lockstep_run(s: &Start) -> anyhow::Result<Run> {
-    let batch = CudaBatch::new(&s.worlds.worlds, &s.initial, s.request.cuda.clone())
+    let mut batch = CudaBatch::new(&s.worlds.worlds, &s.initial, s.request.cuda.clone())
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    // What `reset` puts back, kept on the device (where it has the memory).
+    batch
+        .keep_initial(&s.initial)
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     let scene = batch.scene().clone();
     let text = &s.scene.get().text;
@@ -150,7 +154,11 @@ fn resumed_run(s: &mut Start, path: &std::path::Path) -> anyhow::Result<Run> {
     let options = BatchOptions::default();
     if s.choice.kind == BackendKind::Cuda {
         let make = |p: &[Particles]| {
-            let batch = CudaBatch::new(&s.worlds.worlds, p, s.request.cuda.clone())
+            let mut batch = CudaBatch::new(&s.worlds.worlds, p, s.request.cuda.clone())
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
+            // A reset puts a world back to its time 0, not to the checkpoint.
+            batch
+                .keep_initial(&s.initial)
                 .map_err(|e| anyhow::anyhow!("{e}"))?;
             Ok((batch.scene().clone(), Box::new(batch)))
         };

@@ -122,6 +122,9 @@ impl PyBatch {
             let v = vs.as_ref().map(|r| r[k].as_slice());
             starts.push(self.start_state(w, x, v)?);
         }
+        // Back to the initial state (no `x`, no `v`): on the GPU from the image of it the batch
+        // keeps on the device.
+        let initial = xs.is_none() && vs.is_none();
         let req = self.request.clone();
         let t1 = Instant::now();
         self.drive(py, move |run| {
@@ -131,7 +134,14 @@ impl PyBatch {
                         run.reset_world(w, |scene| make_backend(&req, scene, p))?;
                     }
                 }
-                Run::Lockstep(run) => run.reset_worlds(list.into_iter().zip(starts).collect())?,
+                Run::Lockstep(run) => {
+                    let starts = list.into_iter().zip(starts).collect();
+                    if initial {
+                        run.reset_worlds_initial(starts)?
+                    } else {
+                        run.reset_worlds(starts)?
+                    }
+                }
             }
             Ok(Vec::new())
         })?;
