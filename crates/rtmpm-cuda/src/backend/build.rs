@@ -371,12 +371,9 @@ impl Plan {
         let o = &self.options;
         // The fused kernels' code switches of this backend's kernel set (fused_defaults=auto
         // gives the fluid set its own).
-        let set = if self.all_fluid() && scene.solver.transfer == Transfer::Mls {
-            KernelSet::Fluid
-        } else {
-            KernelSet::General
-        };
-        let code = o.fused.resolve(set);
+        let code = o
+            .fused
+            .resolve(KernelSet::of(self.all_fluid(), scene.solver.transfer));
         // Compiled for this GPU, the state's index width (64 bits past 2^32 words), and with
         // specialize=on the scene's models only (a smaller material switch).
         let ptx = compile(&KernelOptions {

@@ -135,6 +135,18 @@ pub enum KernelSet {
     General,
 }
 
+impl KernelSet {
+    /// The kernel set of a backend whose materials are all fluids (`all_fluid`) and whose
+    /// transfer is `transfer`.
+    pub fn of(all_fluid: bool, transfer: rtmpm_physics::transfer::Transfer) -> KernelSet {
+        if all_fluid && transfer == rtmpm_physics::transfer::Transfer::Mls {
+            KernelSet::Fluid
+        } else {
+            KernelSet::General
+        }
+    }
+}
+
 /// What the fused kernels' code switches that `--cuda-options` leaves unset become
 /// (`fused_defaults=off|auto`, [`FusedSwitches::defaults`]); a switch given explicitly applies to
 /// every kernel set whatever this says.

@@ -648,6 +648,12 @@ mod tests {
     /// set, in whichever order the two are written; the default is [`DEFAULT_FUSED_DEFAULTS`].
     #[test]
     fn fused_defaults_resolve_per_kernel_set() {
+        use rtmpm_physics::transfer::Transfer;
+        assert_eq!(KernelSet::of(true, Transfer::Mls), KernelSet::Fluid);
+        for t in [Transfer::CkMpm, Transfer::Gimp, Transfer::MpmLinear] {
+            assert_eq!(KernelSet::of(true, t), KernelSet::General, "{t:?}");
+        }
+        assert_eq!(KernelSet::of(false, Transfer::Mls), KernelSet::General);
         let (fluid, general) = (KernelSet::Fluid, KernelSet::General);
         let off: CudaOptions = "fused_defaults=off".parse().unwrap();
         assert_eq!(off.fused.defaults, FusedDefaults::Off);
