@@ -40,10 +40,12 @@ pub struct KernelOptions {
     /// ([`crate::CudaOptions::uniform_loop`], the kernels' default); `false`:
     /// `-DRTMPM_G2P2G_UNIFORM=0`, the loop before it.
     pub uniform_loop: bool,
-    /// `RTMPM_P2G_UNROLL` ([`crate::CudaOptions::row_unroll`], [`crate::RowUnroll::define`]);
+    /// `RTMPM_P2G_UNROLL` ([`crate::FusedSwitches::row_unroll`] resolved for the backend's
+    /// kernel set, [`crate::RowUnroll::define`]);
     /// 0: left out (the kernels' default, the row loop).
     pub row_unroll: u32,
-    /// The fused kernels' instruction cuts ([`crate::CudaOptions::cuts`]); default: none.
+    /// The fused kernels' instruction cuts ([`crate::FusedSwitches::resolve`] for the backend's
+    /// kernel set); default: none.
     pub cuts: crate::options::KernelCuts,
 }
 
