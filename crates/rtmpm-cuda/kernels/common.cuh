@@ -317,6 +317,28 @@ __device__ __forceinline__ void hash_insert(const Ctx& c, unsigned long long key
 }
 __device__ __forceinline__ unsigned thread_index() { return blockIdx.x * blockDim.x + threadIdx.x; }
 
+// Programmatic dependent launch (Hopper, compute capability 9.0+; `--cuda-options pdl=on`, which
+// defines RTMPM_PDL only when the GPU has it). The host launches the step's kernels after the
+// first (`p2g`, `grid_update`, the G2P and G2P2G kernels, crate::kernels::Kernels::launch_step)
+// with the attribute CU_LAUNCH_ATTRIBUTE_PROGRAMMATIC_STREAM_SERIALIZATION: such a kernel's blocks
+// may start while the kernel before it still runs, so every one of them calls `step_kernel_entry`
+// as its first statement, on every path, before any read or write of device memory (each first
+// reads c.ctl, which the kernel before writes; a kernel's parameter `c` and the __constant__
+// symbols, written before the step, are no dependency). `griddepcontrol.wait` returns when the
+// kernels this one depends on have completed and their writes are visible; since every kernel of
+// the chain waits before it ends, a kernel's completion implies that of every kernel before it.
+// `griddepcontrol.launch_dependents` then lets the next kernel's blocks be scheduled as this
+// kernel's blocks drain (they wait in their own entry until this kernel completes). Both are
+// no-ops in a kernel launched without the attribute; without RTMPM_PDL both are left out.
+#if defined(RTMPM_PDL) && defined(__CUDA_ARCH__) && __CUDA_ARCH__ >= 900
+__device__ __forceinline__ void step_kernel_entry() {
+    asm volatile("griddepcontrol.wait;" ::: "memory");
+    asm volatile("griddepcontrol.launch_dependents;" ::: "memory");
+}
+#else
+__device__ __forceinline__ void step_kernel_entry() {}
+#endif
+
 // G2P2G: does this step's grid still need its P2G (and the clear before it)? Always without
 // G2P2G; with it only after a rebuild (new mapping) or when the host asked (first step, new dt):
 // otherwise the previous step's fused kernel has already scattered the particles into it.

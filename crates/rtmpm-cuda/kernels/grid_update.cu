@@ -32,6 +32,7 @@ __device__ __forceinline__ void clear_node(real* grid, unsigned t) {
 // `part`: 0 every pblock; several GPUs: 1 the pblocks no other GPU shares (run while the shared
 // ones are summed across GPUs), 2 the shared ones (after the sum).
 extern "C" __global__ void grid_update(Ctx c, unsigned part) {
+    step_kernel_entry();
     if (c.ctl[CTL_ERROR]) return;
     unsigned n_nodes = c.ctl[CTL_PBLOCKS] * 64u;
     if (c.grid_next && thread_index() == 0) c.ctl[CTL_P2G_PENDING] = 0;  // this step's P2G is done

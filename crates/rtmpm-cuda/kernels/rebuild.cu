@@ -287,6 +287,10 @@ __device__ __forceinline__ bool rb_error(const Ctx& c) { return ((volatile unsig
 // `chunk`: the fields of the scratch (1 to RTMPM_NFIELDS), the fields permuted per pass;
 // `fields`: the mask of the fields the sort permutes (see rb_scatter_body).
 extern "C" __global__ void __launch_bounds__(1024) rb_fused(Ctx c, int chunk, unsigned fields) {
+    // Launched without the attribute (the step's first kernel, cooperative): the wait is a no-op;
+    // with pdl=on the trigger lets the next kernel's blocks be scheduled while this one runs (all
+    // of this kernel's blocks are resident already: the cooperative launch).
+    step_kernel_entry();
     // Every block takes the same decision before anyone writes the flag (it is cleared only at the end).
     bool need = NEED(c) || c.always_rebuild;
     if (!need) {

@@ -3,11 +3,33 @@
 //! [`Kernels`] loads every one of them by name, and launch code indexes it by [`Kernel`]. The
 //! module's `__constant__` symbols ([`CONSTANT_SYMBOLS`]) are written by [`write_symbol`].
 
-use cudarc::driver::{CudaFunction, CudaModule, CudaStream, LaunchConfig};
+use crate::contract::Ctx;
+use cudarc::driver::{
+    CudaFunction, CudaModule, CudaStream, DriverError, LaunchConfig, PushKernelArg, sys,
+};
 use rtmpm_sim::SimError;
+use std::ffi::c_void;
 use std::sync::Arc;
 
 include!(concat!(env!("OUT_DIR"), "/kernel_list.rs"));
+
+/// The kernels [`Kernels::launch_step`] may launch with programmatic dependent launch: the
+/// step's kernels after its first, each beginning with `step_kernel_entry()`
+/// (`kernels/common.cuh`), the wait for the kernel before it. `rb_fused`, the step's first
+/// kernel, has the entry too (its trigger only) but is launched without the attribute.
+pub const PDL_KERNELS: [Kernel; 11] = [
+    Kernel::P2g,
+    Kernel::P2gMpm,
+    Kernel::P2gCk,
+    Kernel::P2gCkWarp,
+    Kernel::GridUpdate,
+    Kernel::G2p,
+    Kernel::G2pMpm,
+    Kernel::G2pCk,
+    Kernel::G2p2g,
+    Kernel::G2p2gFluid,
+    Kernel::G2p2gCk,
+];
 
 /// Every kernel of the loaded module, and the launch sizes of the device.
 pub struct Kernels {
@@ -35,6 +57,10 @@ pub struct Kernels {
     pub sort_fields: u32,
     /// The fields the sort permutes (bit f: field f; [`crate::step::rebuild::sorted_fields`]).
     pub sort_mask: u32,
+    /// Programmatic dependent launch ([`crate::CudaOptions::pdl`] on a GPU that has it, the
+    /// module compiled with `-DRTMPM_PDL`): [`Kernels::launch_step`] launches with the
+    /// attribute. Off: every launch as before.
+    pub pdl: bool,
 }
 
 impl Kernels {
@@ -66,6 +92,7 @@ impl Kernels {
             g2p2g_ck_resident: None,
             sort_fields: o.sort_scratch_fields.clamp(1, layout.words()) as u32,
             sort_mask: layout.all_words(),
+            pdl: false,
         };
         if o.fused_rebuild {
             // A cooperative launch needs every block resident, so its grid barrier cannot deadlock.
@@ -91,6 +118,49 @@ impl Kernels {
         Ok(k)
     }
 
+    /// Launch `f`, a kernel of the step after its first whose arguments are the context `c`
+    /// and, for some, the `part` of the blocks, on `s` with `cfg`: with [`Kernels::pdl`] as a
+    /// programmatic dependent launch (`cuLaunchKernelEx` with
+    /// `CU_LAUNCH_ATTRIBUTE_PROGRAMMATIC_STREAM_SERIALIZATION`: its blocks may be scheduled
+    /// before the kernel before it on `s` completes; stream capture makes that a programmatic
+    /// edge of the graph), else as every other launch. Only for kernels that begin with
+    /// `step_kernel_entry()` (`kernels/common.cuh`), which waits for the kernel before.
+    ///
+    /// # Safety
+    /// As [`cudarc::driver::LaunchArgs::launch`]: `f` takes `(Ctx)` (`part` `None`) or
+    /// `(Ctx, unsigned)`, and bounds-checks what it reads and writes against `c`.
+    pub(crate) unsafe fn launch_step(
+        &self,
+        s: &CudaStream,
+        f: Kernel,
+        cfg: LaunchConfig,
+        c: &Ctx,
+        part: Option<u32>,
+    ) -> Result<(), DriverError> {
+        debug_assert!(
+            PDL_KERNELS.contains(&f),
+            "{} has no step_kernel_entry",
+            f.name()
+        );
+        if !self.pdl {
+            let mut b = s.launch_builder(&self[f]);
+            b.arg(c);
+            if let Some(p) = &part {
+                b.arg(p);
+            }
+            // SAFETY: the caller's.
+            unsafe { b.launch(cfg)? };
+            return Ok(());
+        }
+        let mut args: Vec<*mut c_void> = vec![c as *const Ctx as *mut c_void];
+        if let Some(p) = &part {
+            args.push(p as *const u32 as *mut c_void);
+        }
+        // SAFETY: the caller's; `args` points at `c` and `part`, which outlive the call (the
+        // driver copies the arguments at the launch).
+        unsafe { launch_programmatic(s, &self[f], cfg, &mut args) }
+    }
+
     /// Launch configuration for `n` threads in blocks of `block`, at most one wave (the kernels
     /// loop over their items, grid-stride).
     pub(crate) fn wave(&self, n: usize, block: u32) -> LaunchConfig {
@@ -103,6 +173,48 @@ impl std::ops::Index<Kernel> for Kernels {
     fn index(&self, k: Kernel) -> &CudaFunction {
         &self.functions[k as usize]
     }
+}
+
+/// `cuLaunchKernelEx` of `f` on `s` with `cfg` and the argument pointers `args`, with the one
+/// attribute `CU_LAUNCH_ATTRIBUTE_PROGRAMMATIC_STREAM_SERIALIZATION` (cudarc's launch builder
+/// takes no launch attributes).
+///
+/// # Safety
+/// `args` match `f`'s parameters and point at live values; `f` waits (`griddepcontrol.wait`)
+/// before it touches memory that the work before it on `s` writes or reads.
+unsafe fn launch_programmatic(
+    s: &CudaStream,
+    f: &CudaFunction,
+    cfg: LaunchConfig,
+    args: &mut [*mut c_void],
+) -> Result<(), DriverError> {
+    s.context().bind_to_thread()?;
+    // SAFETY: a plain C struct of integers and a union of them; all zero is a valid value.
+    let mut attr: sys::CUlaunchAttribute = unsafe { std::mem::zeroed() };
+    attr.id = sys::CUlaunchAttributeID::CU_LAUNCH_ATTRIBUTE_PROGRAMMATIC_STREAM_SERIALIZATION;
+    attr.value.programmaticStreamSerializationAllowed = 1;
+    let config = sys::CUlaunchConfig {
+        gridDimX: cfg.grid_dim.0,
+        gridDimY: cfg.grid_dim.1,
+        gridDimZ: cfg.grid_dim.2,
+        blockDimX: cfg.block_dim.0,
+        blockDimY: cfg.block_dim.1,
+        blockDimZ: cfg.block_dim.2,
+        sharedMemBytes: cfg.shared_mem_bytes,
+        hStream: s.cu_stream(),
+        attrs: &mut attr,
+        numAttrs: 1,
+    };
+    // SAFETY: `config` and `attr` live through the call; the rest is the caller's.
+    unsafe {
+        sys::cuLaunchKernelEx(
+            &config,
+            f.cu_function(),
+            args.as_mut_ptr(),
+            std::ptr::null_mut(),
+        )
+    }
+    .result()
 }
 
 /// Launch configuration covering `n` threads in blocks of `block`.

@@ -52,6 +52,7 @@ __device__ __forceinline__ G2pResult g2p_ck_particle(const Ctx& c, unsigned g, u
 }
 
 extern "C" __global__ void g2p_ck(Ctx c) {
+    step_kernel_entry();
     if (c.ctl[CTL_ERROR]) return;
     unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
     unsigned lane = threadIdx.x & 31;
@@ -72,6 +73,7 @@ extern "C" __global__ void g2p_ck(Ctx c) {
 // at once). Register bound: CK_FUSED_BOUNDS (ck.cuh, the CUDA option ck_bound=N; 5 blocks in f32 by
 // default).
 extern "C" __global__ void __launch_bounds__(CK_FUSED_BOUNDS) g2p2g_ck(Ctx c) {
+    step_kernel_entry();
     if (c.ctl[CTL_ERROR]) return;
     unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
     unsigned lane = threadIdx.x & 31;

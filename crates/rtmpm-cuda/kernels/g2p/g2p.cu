@@ -8,6 +8,7 @@
 
 // Warps loop over the warp list (grid-stride, launched with about one wave of blocks).
 extern "C" __global__ void __launch_bounds__(128, G2P_MIN_BLOCKS) g2p(Ctx c) {
+    step_kernel_entry();
     if (c.ctl[CTL_ERROR]) return;
     unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
     unsigned lane = threadIdx.x & 31;
@@ -58,6 +59,7 @@ __device__ __forceinline__ void g2p_mpm_gather(const Ctx& c, unsigned g, vec3 x,
 // final MUSL pass (v already blended by g2p_mpm_velocity, L from the re-mapped grid). Positions
 // move with v_pic; L is kept in the particle's C.
 extern "C" __global__ void g2p_mpm(Ctx c) {
+    step_kernel_entry();
     if (c.ctl[CTL_ERROR]) return;
     unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
     unsigned lane = threadIdx.x & 31;

@@ -99,6 +99,7 @@ __device__ __forceinline__ void g2p2g_warp(const Ctx& c, unsigned w, unsigned la
 // Warps loop over the warp list (grid-stride, launched with about one wave of blocks).
 template <bool ALL_FLUID>
 __device__ __forceinline__ void g2p2g_body(const Ctx& c) {
+    step_kernel_entry();
 #if RTMPM_G2P2G_UNIFORM
     if (__any_sync(0xffffffffu, c.ctl[CTL_ERROR] != 0)) return;
     unsigned n_warps = __reduce_max_sync(0xffffffffu, c.ctl[CTL_WARPS]), stride = (gridDim.x * blockDim.x) >> 5;

@@ -7,6 +7,7 @@
 #include "ck_scatter.cuh"
 
 extern "C" __global__ void p2g_ck(Ctx c) {
+    step_kernel_entry();
     if (c.ctl[CTL_ERROR] || !grid_needs_p2g(c)) return;
     unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
     unsigned lane = threadIdx.x & 31;
@@ -42,6 +43,7 @@ extern "C" __global__ void p2g_ck(Ctx c) {
 // scattered the particles, and this kernel only runs after a rebuild or when the host asks
 // (grid_needs_p2g: always without G2P2G).
 extern "C" __global__ void __launch_bounds__(CK_BOUNDS) p2g_ck_warp(Ctx c) {
+    step_kernel_entry();
     if (c.ctl[CTL_ERROR] || !grid_needs_p2g(c)) return;
     unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
     unsigned lane = threadIdx.x & 31;

@@ -31,6 +31,7 @@ __device__ __forceinline__ bool in_part(const Ctx& c, unsigned g, unsigned part)
 // G2P2G (g2p2g.cu) the previous step's fused kernel has already scattered the particles, and this
 // kernel only runs after a rebuild or when the host asks (grid_needs_p2g).
 extern "C" __global__ void __launch_bounds__(128, P2G_MIN_BLOCKS) p2g(Ctx c, unsigned part) {
+    step_kernel_entry();
     if (c.ctl[CTL_ERROR] || !grid_needs_p2g(c)) return;
     unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
     unsigned lane = threadIdx.x & 31;
@@ -97,6 +98,7 @@ extern "C" __global__ void p2g_shared(Ctx c, unsigned part) {
 // into the grid, dt f_i = -dt sum_p V0_p tau_p grad w_ip into grid_aux (kept apart for FLIP's
 // v_old). One lane per particle of the warp list, direct atomics (no in-warp reduction).
 extern "C" __global__ void p2g_mpm(Ctx c) {
+    step_kernel_entry();
     if (c.ctl[CTL_ERROR]) return;
     unsigned n_warps = c.ctl[CTL_WARPS], stride = (gridDim.x * blockDim.x) >> 5;
     unsigned lane = threadIdx.x & 31;

@@ -374,6 +374,7 @@ impl Plan {
         let code = o
             .fused
             .resolve(KernelSet::of(self.all_fluid(), scene.solver.transfer));
+        let pdl = pdl_on(o, info);
         // Compiled for this GPU, the state's index width (64 bits past 2^32 words), and with
         // specialize=on the scene's models only (a smaller material switch).
         let ptx = compile(&KernelOptions {
@@ -397,6 +398,7 @@ impl Plan {
             uniform_loop: o.uniform_loop,
             row_unroll: code.row_unroll.define(),
             cuts: code.cuts,
+            pdl,
         })
         .map_err(SimError::Backend)?;
         // Single stream: no cross-stream event tracking (keeps launches capturable).
@@ -408,6 +410,7 @@ impl Plan {
             .map_err(err("load module"))?;
         let mut kernels = Kernels::load(&module, info.sm_count, o, self.layout)?;
         kernels.sort_mask = sorted_fields(self.layout, self.all_fluid());
+        kernels.pdl = pdl;
         Ok((stream, module, kernels))
     }
 
@@ -502,6 +505,20 @@ fn write_constants(
         "c_colliders",
         bytemuck::cast_slice(&tables.colliders),
     )
+}
+
+/// Whether the step launches with programmatic dependent launch: `pdl=on` on a GPU of compute
+/// capability 9.0 or newer; on an older one the switch is ignored, with a warning.
+fn pdl_on(o: &CudaOptions, info: &DeviceInfo) -> bool {
+    if o.pdl && !crate::compile::pdl_supported(info.compute_capability) {
+        let (major, minor) = info.compute_capability;
+        eprintln!(
+            "rtmpm: warning: --cuda-options pdl=on ignored: programmatic dependent launch needs \
+             compute capability 9.0 or newer (Hopper), {} is {major}.{minor}",
+            info.name
+        );
+    }
+    o.pdl && crate::compile::pdl_supported(info.compute_capability)
 }
 
 #[cfg(test)]

@@ -204,6 +204,12 @@ impl CudaBackend {
         self.layout
     }
 
+    /// True when the step's kernels after its first are launched with programmatic dependent
+    /// launch ([`CudaOptions::pdl`] asked for on a GPU of compute capability 9.0 or newer).
+    pub fn pdl(&self) -> bool {
+        self.kernels.pdl
+    }
+
     /// True when G2P and the next step's P2G run as one kernel (see [`CudaOptions::g2p2g`]).
     pub fn g2p2g(&self) -> bool {
         self.buffers.grid_next.is_some()

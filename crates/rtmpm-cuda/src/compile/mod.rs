@@ -47,6 +47,16 @@ pub struct KernelOptions {
     /// The fused kernels' instruction cuts ([`crate::FusedSwitches::resolve`] for the backend's
     /// kernel set); default: none.
     pub cuts: crate::options::KernelCuts,
+    /// Programmatic dependent launch ([`crate::CudaOptions::pdl`]): `-DRTMPM_PDL`, the wait
+    /// and trigger of `kernels/common.cuh`'s `step_kernel_entry`, only for compute capability
+    /// 9.0 or newer ([`pdl_supported`]; below it the define is left out whatever this says).
+    pub pdl: bool,
+}
+
+/// True when a GPU of compute capability `arch` has programmatic dependent launch
+/// (`griddepcontrol`, sm_90 and newer).
+pub fn pdl_supported(arch: (i32, i32)) -> bool {
+    arch.0 >= 9
 }
 
 /// True when state arrays of `capacity` particles of `words` words each hold 2^32 words or more:
@@ -72,6 +82,7 @@ impl KernelOptions {
             uniform_loop: true,
             row_unroll: 0,
             cuts: crate::options::KernelCuts::default(),
+            pdl: false,
         }
     }
 }
@@ -191,6 +202,9 @@ pub fn nvrtc_options(o: &KernelOptions) -> Vec<String> {
         v.push(format!("-DRTMPM_P2G_UNROLL={}", o.row_unroll));
     }
     v.extend(o.cuts.defines().into_iter().map(String::from));
+    if o.pdl && pdl_supported(o.arch) {
+        v.push("-DRTMPM_PDL=1".into());
+    }
     // Tuning experiments: extra `-DNAME=VALUE` flags, e.g. "-DG2P_MIN_BLOCKS=6" (part of the
     // cache key like every other option).
     if let Ok(defines) = std::env::var("RTMPM_KERNEL_DEFINES") {

@@ -602,3 +602,130 @@ fn preprocessor_inlines_headers_once_with_line_directives() {
             .starts_with("#define RTMPM_F64")
     );
 }
+
+/// `pdl=on` becomes `-DRTMPM_PDL=1` only for compute capability 9.0 and newer; off by default.
+#[test]
+fn the_pdl_option_becomes_a_define_from_sm90_on() {
+    let define = "-DRTMPM_PDL=1".to_string();
+    let mut o = KernelOptions::all_models((9, 0), true, false);
+    assert!(!o.pdl && !nvrtc_options(&o).contains(&define));
+    o.pdl = true;
+    assert!(nvrtc_options(&o).contains(&define));
+    o.arch = (10, 0);
+    assert!(nvrtc_options(&o).contains(&define));
+    for arch in [(8, 0), (8, 6), (8, 9)] {
+        o.arch = arch;
+        assert!(!nvrtc_options(&o).contains(&define), "{arch:?}");
+    }
+    assert!(pdl_supported((9, 0)) && !pdl_supported((8, 9)));
+}
+
+/// The lines of `body` (a kernel's PTX) before its `griddepcontrol.wait` that touch memory
+/// another kernel may write or read: loads other than of the kernel's parameters, constant
+/// banks and the thread's own local memory (the copy of the parameters the kernel may make
+/// there), stores other than to local memory, atomics and calls.
+fn memory_ops_before_wait(body: &str) -> Vec<&str> {
+    body.lines()
+        .map(str::trim)
+        .take_while(|l| !l.starts_with("griddepcontrol.wait"))
+        .filter(|l| {
+            let op = l.split_whitespace().next().unwrap_or_default();
+            let private = [".param", ".const", ".local"]
+                .iter()
+                .any(|space| op.contains(space));
+            ((op.starts_with("ld.") || op.starts_with("st.")) && !private)
+                || op.starts_with("atom.")
+                || op.starts_with("red.")
+                || op.starts_with("call")
+        })
+        .collect()
+}
+
+/// The PTX function `step_kernel_entry` (`kernels/common.cuh`) as NVRTC's fast front end leaves
+/// it, not inlined.
+const ENTRY_FUNC: &str = "_Z17step_kernel_entryv";
+
+/// With `pdl=on` for sm_90, f32, optimised as the backend compiles it: every kernel of
+/// [`crate::kernels::PDL_KERNELS`] and `rb_fused` carries `griddepcontrol.wait` and
+/// `griddepcontrol.launch_dependents`, the wait before any load, store, atomic or call that
+/// another kernel's memory could be behind; no other kernel carries either (the host launches
+/// only those with the attribute). f64 and the fluid layout (NVRTC's fast front end) compile
+/// with both instructions. `pdl=off` on sm_90 and `pdl=on` for sm_80 leave them out.
+#[test]
+fn with_pdl_the_step_kernels_wait_before_they_touch_memory() {
+    if !nvrtc_or_skip() {
+        return;
+    }
+    use crate::contract::StateLayout;
+    use crate::kernels::{Kernel, PDL_KERNELS};
+    let on = |arch, f64, layout| KernelOptions {
+        pdl: true,
+        layout,
+        ..KernelOptions::all_models(arch, true, f64)
+    };
+    // (options, optimised, PDL expected in the PTX)
+    let jobs = [
+        (on((9, 0), false, StateLayout::Full), true, true),
+        (on((9, 0), true, StateLayout::Full), false, true),
+        (on((9, 0), false, StateLayout::Fluid), false, true),
+        (KernelOptions::all_models((9, 0), true, false), false, false),
+        (on((8, 0), false, StateLayout::Full), false, false),
+    ];
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    std::thread::scope(|scope| {
+        for t in 0..threads.min(jobs.len()) {
+            let jobs = &jobs;
+            scope.spawn(move || {
+                for (o, optimised, expect) in jobs.iter().skip(t).step_by(threads) {
+                    let what = format!("{o:?}");
+                    let ptx = if *optimised {
+                        compile_fresh(o)
+                    } else {
+                        let mut opts = nvrtc_options(o);
+                        opts.push("--Ofast-compile=max".into());
+                        program_source(o.f64).and_then(|src| nvrtc(&src, "rtmpm_pipeline.cu", opts))
+                    }
+                    .unwrap_or_else(|e| panic!("{what}: {e}"));
+                    assert_every_kernel(&ptx, &what);
+                    if !*expect {
+                        assert!(!ptx.contains("griddepcontrol"), "{what}");
+                        continue;
+                    }
+                    if !*optimised {
+                        // NVRTC's fast front end inlines nothing: the kernels call
+                        // `step_kernel_entry` (through their bodies' functions), which holds the
+                        // two instructions; the optimised compile checks each kernel.
+                        let func = ptx
+                            .split(&format!(".func {ENTRY_FUNC}("))
+                            .nth(1)
+                            .and_then(|s| s.split("\n}\n").next())
+                            .unwrap_or_default();
+                        assert!(
+                            func.contains("griddepcontrol.wait;")
+                                && func.contains("griddepcontrol.launch_dependents;"),
+                            "{what}: {func}"
+                        );
+                        continue;
+                    }
+                    for &k in Kernel::ALL.iter() {
+                        let body = entry(&ptx, k.name());
+                        let listed = PDL_KERNELS.contains(&k) || k == Kernel::RbFused;
+                        let (wait, trigger) = (
+                            body.contains("griddepcontrol.wait;"),
+                            body.contains("griddepcontrol.launch_dependents;"),
+                        );
+                        assert_eq!((wait, trigger), (listed, listed), "{what}: {}", k.name());
+                        if listed {
+                            let early = memory_ops_before_wait(body);
+                            assert!(
+                                early.is_empty(),
+                                "{what}: {} touches memory before its wait: {early:?}",
+                                k.name()
+                            );
+                        }
+                    }
+                }
+            });
+        }
+    });
+}

@@ -159,6 +159,15 @@ pub struct CudaOptions {
     /// words, each field's address one multiply-add from the previous one; `kernels/common.cuh`:
     /// `sidx`, `RTMPM_STATE_64`).
     pub fused: FusedSwitches,
+    /// Programmatic dependent launch (`pdl=on|off`, default off until measured): the step's
+    /// kernels after its first (P2G, the grid update, G2P / G2P2G) launched with the attribute
+    /// `CU_LAUNCH_ATTRIBUTE_PROGRAMMATIC_STREAM_SERIALIZATION`, so that a kernel's blocks are
+    /// scheduled while the kernel before it drains; each of them waits (`griddepcontrol.wait`,
+    /// `kernels/common.cuh`: `step_kernel_entry`) before it touches device memory. Compiled in
+    /// (`-DRTMPM_PDL`) only on a GPU of compute capability 9.0 or newer; on an older GPU it is
+    /// ignored with a warning; one GPU only (a run of several GPUs launches without it, with a
+    /// warning). The same arithmetic in the same order: the results are those of `pdl=off`.
+    pub pdl: bool,
 }
 
 impl Default for CudaOptions {
@@ -201,6 +210,7 @@ impl Default for CudaOptions {
             batch_poses: BodyPoses::Deferred,
             uniform_loop: true,
             fused: FusedSwitches::default(),
+            pdl: false,
         }
     }
 }
@@ -216,7 +226,8 @@ impl std::str::FromStr for CudaOptions {
     /// (f32/compact), `body_sums` (read/step), `addressing` (pairs/blocks), `uniform_loop` (on/off),
     /// `body_poses` (deferred/deferred_serial/eager), `row_unroll` (off/planes/all),
     /// `lean_lanes`, `seg_clamp`, `flat_checks` (on/off), `zero_terms` (skip/keep),
-    /// `state_index` (auto/wide), `fused_defaults` (off/auto: the last six when left out).
+    /// `state_index` (auto/wide), `fused_defaults` (off/auto: the last six when left out),
+    /// `pdl` (on/off).
     fn from_str(s: &str) -> Result<Self, String> {
         let mut o = CudaOptions::default();
         for item in s.split(',').map(str::trim).filter(|t| !t.is_empty()) {
@@ -311,6 +322,7 @@ impl std::str::FromStr for CudaOptions {
                     o.batch_sums_at_read = choice(item, v, &[("read", true), ("step", false)])?
                 }
                 "uniform_loop" => o.uniform_loop = b()?,
+                "pdl" => o.pdl = b()?,
                 "lean_lanes" => o.fused.lean_lanes = Some(b()?),
                 "seg_clamp" => o.fused.seg_clamp = Some(b()?),
                 "flat_checks" => o.fused.flat_checks = Some(b()?),
@@ -632,6 +644,13 @@ mod tests {
         assert_eq!(
             "row_unroll=rows".parse::<CudaOptions>().unwrap_err(),
             "`row_unroll=rows`: expected off, planes or all"
+        );
+        assert!(!CudaOptions::default().pdl);
+        assert!("pdl=on".parse::<CudaOptions>().unwrap().pdl);
+        assert!(!"pdl=on,pdl=off".parse::<CudaOptions>().unwrap().pdl);
+        assert_eq!(
+            "pdl=auto".parse::<CudaOptions>().unwrap_err(),
+            "`pdl=auto`: expected on/off"
         );
         assert!(CudaOptions::default().uniform_loop);
         assert!(

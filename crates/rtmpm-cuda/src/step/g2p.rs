@@ -40,8 +40,7 @@ pub(crate) fn enqueue(
         _ => k.wave(threads, 128),
     };
     // SAFETY: the kernel bounds-checks against the warp count (grid-stride over the warp list).
-    unsafe { s.launch_builder(&k[f]).arg(c).launch(launch)? };
-    Ok(())
+    unsafe { k.launch_step(s, f, launch, c, None) }
 }
 
 /// Enqueue the first MUSL pass: PIC/FLIP blend of the particle velocities only.

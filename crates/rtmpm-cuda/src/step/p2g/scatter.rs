@@ -28,29 +28,26 @@ pub(crate) fn enqueue(
                 CkP2g::Direct => Kernel::P2gCk,
                 CkP2g::Warp | CkP2g::Fused => Kernel::P2gCkWarp,
             };
-            s.launch_builder(&k[f]).arg(c).launch(wave)?;
+            k.launch_step(s, f, wave, c, None)?;
             return Ok(());
         }
         if c.transfer != Transfer::Mls.code() {
-            s.launch_builder(&k[Kernel::P2gMpm]).arg(c).launch(wave)?;
+            k.launch_step(s, Kernel::P2gMpm, wave, c, None)?;
             return Ok(());
         }
         match mode {
-            P2gMode::Shared => s
-                .launch_builder(&k[Kernel::P2gShared])
-                .arg(c)
-                .arg(&part)
-                .launch(LaunchConfig {
-                    grid_dim: (c.gblock_cap, 1, 1),
-                    block_dim: (256, 1, 1),
-                    shared_mem_bytes: 0,
-                })?,
-            _ => s
-                .launch_builder(&k[Kernel::P2g])
-                .arg(c)
-                .arg(&part)
-                .launch(wave)?,
-        };
+            P2gMode::Shared => {
+                s.launch_builder(&k[Kernel::P2gShared])
+                    .arg(c)
+                    .arg(&part)
+                    .launch(LaunchConfig {
+                        grid_dim: (c.gblock_cap, 1, 1),
+                        block_dim: (256, 1, 1),
+                        shared_mem_bytes: 0,
+                    })?;
+            }
+            _ => k.launch_step(s, Kernel::P2g, wave, c, Some(part))?,
+        }
     }
     Ok(())
 }
