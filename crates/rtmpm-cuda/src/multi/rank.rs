@@ -63,21 +63,11 @@ impl GpuRank {
         scene: &Scene,
         particles: &Particles,
         part: &Part,
-        mut options: CudaOptions,
+        options: CudaOptions,
         shared_cap: usize,
         comm: CommSource,
     ) -> Result<GpuRank, SimError> {
         check_supported(scene, &options)?;
-        if options.pdl {
-            // The exchange's kernels and cross-stream waits sit between the step's kernels
-            // here; programmatic dependent launch is built and tested for one GPU's step only.
-            eprintln!(
-                "rtmpm: warning: --cuda-options pdl=on ignored on GPU {}: several GPUs launch \
-                 without programmatic dependent launch (one GPU only for now)",
-                part.device
-            );
-            options.pdl = false;
-        }
         // With G2P2G (the default) the exchange sums what the previous step's fused kernel (or
         // this step's P2G, after a rebuild) scattered into this step's grid: it is the step's hook
         // between P2G and the grid update either way (crate::step).

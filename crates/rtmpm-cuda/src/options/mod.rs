@@ -165,8 +165,9 @@ pub struct CudaOptions {
     /// scheduled while the kernel before it drains; each of them waits (`griddepcontrol.wait`,
     /// `kernels/common.cuh`: `step_kernel_entry`) before it touches device memory. Compiled in
     /// (`-DRTMPM_PDL`) only on a GPU of compute capability 9.0 or newer; on an older GPU it is
-    /// ignored with a warning; one GPU only (a run of several GPUs launches without it, with a
-    /// warning). The same arithmetic in the same order: the results are those of `pdl=off`.
+    /// ignored with a warning. On several GPUs the same kernels of each GPU's step; the
+    /// exchange's own kernels keep plain launches. The same arithmetic in the same order: the
+    /// results are those of `pdl=off`.
     pub pdl: bool,
 }
 
