@@ -360,28 +360,20 @@ impl Plan {
         }
     }
 
-    /// The program, compiled for this GPU (or read from the cache), its module loaded on the
-    /// backend's one stream, and its kernels.
-    fn load_program(
-        &self,
-        scene: &Scene,
-        context: &Arc<CudaContext>,
-        info: &DeviceInfo,
-    ) -> Result<(Arc<CudaStream>, Arc<CudaModule>, Kernels), SimError> {
+    /// The program's compile options for a GPU of compute capability `arch`: the state's index
+    /// width (64 bits past 2^32 words), with specialize=on the scene's models only (a smaller
+    /// material switch), the fused kernels' code switches of this backend's kernel set
+    /// (`fused_defaults=auto` gives the fluid set its own), and `pdl` ([`pdl_on`]).
+    fn kernel_options(&self, scene: &Scene, arch: (i32, i32), pdl: bool) -> KernelOptions {
         let o = &self.options;
-        // The fused kernels' code switches of this backend's kernel set (fused_defaults=auto
-        // gives the fluid set its own).
         let code = o
             .fused
             .resolve(KernelSet::of(self.all_fluid(), scene.solver.transfer));
-        let pdl = pdl_on(o, info);
-        // Compiled for this GPU, the state's index width (64 bits past 2^32 words), and with
-        // specialize=on the scene's models only (a smaller material switch).
-        let ptx = compile(&KernelOptions {
+        KernelOptions {
             state64: code.wide_state_index
                 || state_needs_64_bits(self.layout.words(), self.cap.particles),
             layout: self.layout,
-            arch: info.compute_capability,
+            arch,
             fast_math: o.fast_math,
             f64: o.f64,
             materials: if o.specialize {
@@ -399,8 +391,20 @@ impl Plan {
             row_unroll: code.row_unroll.define(),
             cuts: code.cuts,
             pdl,
-        })
-        .map_err(SimError::Backend)?;
+        }
+    }
+
+    /// The program, compiled for this GPU (or read from the cache), its module loaded on the
+    /// backend's one stream, and its kernels.
+    fn load_program(
+        &self,
+        scene: &Scene,
+        context: &Arc<CudaContext>,
+        info: &DeviceInfo,
+    ) -> Result<(Arc<CudaStream>, Arc<CudaModule>, Kernels), SimError> {
+        let pdl = pdl_on(&self.options, info);
+        let ptx = compile(&self.kernel_options(scene, info.compute_capability, pdl))
+            .map_err(SimError::Backend)?;
         // Single stream: no cross-stream event tracking (keeps launches capturable).
         // SAFETY: all our buffers are used on `stream` only.
         unsafe { context.disable_event_tracking() };
@@ -408,7 +412,7 @@ impl Plan {
         let module = context
             .load_module(cudarc::nvrtc::Ptx::from_src(ptx))
             .map_err(err("load module"))?;
-        let mut kernels = Kernels::load(&module, info.sm_count, o, self.layout)?;
+        let mut kernels = Kernels::load(&module, info.sm_count, &self.options, self.layout)?;
         kernels.sort_mask = sorted_fields(self.layout, self.all_fluid());
         kernels.pdl = pdl;
         Ok((stream, module, kernels))
@@ -524,6 +528,7 @@ fn pdl_on(o: &CudaOptions, info: &DeviceInfo) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::options::{FusedCode, KernelCuts, RowUnroll};
 
     fn free_fall() -> Scene {
         let path = concat!(
@@ -578,6 +583,73 @@ mod tests {
         // The other transfers are not concerned.
         scene.solver.transfer = Transfer::Mls;
         assert!(check_ck_mpm(&scene, &several, true).is_ok());
+    }
+
+    /// The plan of `scene` (in validation/) with `options`, no GPU needed.
+    fn plan_of(file: &str, options: &str) -> (Scene, Plan) {
+        let path = format!("{}/../../validation/{file}", env!("CARGO_MANIFEST_DIR"));
+        let scene = Scene::from_file(std::path::Path::new(&path)).expect("scene");
+        let p = scene.sample_particles().expect("particles");
+        let o: CudaOptions = options.parse().expect("options");
+        let mut setup = SetupPhases::default();
+        let plan = Plan::new(
+            &scene,
+            Initial::Particles(&p),
+            &one_gpu(),
+            o,
+            false,
+            &mut setup,
+        )
+        .expect("plan");
+        (scene, plan)
+    }
+
+    /// `fused_defaults=auto` compiles the water scene's program (the fluid kernel set) with
+    /// `row_unroll=planes` and the cuts but `lean_lanes`, and the jelly scene's and a CK-MPM
+    /// water scene's (the general set) as `off` does; explicit switches reach every program.
+    #[test]
+    fn the_fused_switches_reach_the_program_of_the_scenes_kernel_set() {
+        let tuned = |k: &KernelOptions| {
+            (k.row_unroll, k.cuts, k.state64)
+                == (
+                    RowUnroll::Planes.define(),
+                    FusedCode::FLUID_TUNED.cuts,
+                    true,
+                )
+        };
+        let arch = (9, 0);
+        let (water, w) = plan_of("dam_break.toml", "fused_defaults=auto");
+        assert!(w.all_fluid());
+        assert!(tuned(&w.kernel_options(&water, arch, false)));
+        let (water_off, w_off) = plan_of("dam_break.toml", "fused_defaults=off");
+        let today = w_off.kernel_options(&water_off, arch, false);
+        assert_eq!(
+            (today.row_unroll, today.cuts, today.state64),
+            (0, KernelCuts::default(), false)
+        );
+        let (jelly, j) = plan_of("free_fall.toml", "fused_defaults=auto");
+        assert!(!j.all_fluid());
+        let (jelly_off, j_off) = plan_of("free_fall.toml", "fused_defaults=off");
+        assert_eq!(
+            j.kernel_options(&jelly, arch, false),
+            j_off.kernel_options(&jelly_off, arch, false)
+        );
+        let (mut ck, _) = plan_of("dam_break.toml", "fused_defaults=auto");
+        ck.solver.transfer = Transfer::CkMpm;
+        let c = Plan::new(
+            &ck,
+            Initial::Particles(&ck.sample_particles().expect("particles")),
+            &one_gpu(),
+            "fused_defaults=auto".parse().expect("options"),
+            false,
+            &mut SetupPhases::default(),
+        )
+        .expect("ck-mpm plan");
+        assert!(!tuned(&c.kernel_options(&ck, arch, false)));
+        // Last session's comparison line: the same program switches for the jelly as for the water.
+        let ab = "row_unroll=planes,seg_clamp=on,zero_terms=skip,flat_checks=on,state_index=wide";
+        let (jelly_ab, j_ab) = plan_of("free_fall.toml", ab);
+        assert!(tuned(&j_ab.kernel_options(&jelly_ab, arch, false)));
     }
 
     #[cfg(feature = "rigid")]
