@@ -330,10 +330,17 @@ __device__ __forceinline__ unsigned thread_index() { return blockIdx.x * blockDi
 // `griddepcontrol.launch_dependents` then lets the next kernel's blocks be scheduled as this
 // kernel's blocks drain (they wait in their own entry until this kernel completes). Both are
 // no-ops in a kernel launched without the attribute; without RTMPM_PDL both are left out.
+// RTMPM_PDL_TRIGGER=0 (an experiment, through RTMPM_KERNEL_DEFINES) leaves the trigger out: the
+// next kernel's blocks are then scheduled as this kernel's blocks exit.
+#ifndef RTMPM_PDL_TRIGGER
+#define RTMPM_PDL_TRIGGER 1
+#endif
 #if defined(RTMPM_PDL) && defined(__CUDA_ARCH__) && __CUDA_ARCH__ >= 900
 __device__ __forceinline__ void step_kernel_entry() {
     asm volatile("griddepcontrol.wait;" ::: "memory");
+#if RTMPM_PDL_TRIGGER
     asm volatile("griddepcontrol.launch_dependents;" ::: "memory");
+#endif
 }
 #else
 __device__ __forceinline__ void step_kernel_entry() {}

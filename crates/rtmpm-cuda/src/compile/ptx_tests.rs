@@ -650,7 +650,8 @@ const ENTRY_FUNC: &str = "_Z17step_kernel_entryv";
 /// `griddepcontrol.launch_dependents`, the wait before any load, store, atomic or call that
 /// another kernel's memory could be behind; no other kernel carries either (the host launches
 /// only those with the attribute). f64 and the fluid layout (NVRTC's fast front end) compile
-/// with both instructions. `pdl=off` on sm_90 and `pdl=on` for sm_80 leave them out.
+/// with both instructions, `-DRTMPM_PDL_TRIGGER=0` with the wait only. `pdl=off` on sm_90 and
+/// `pdl=on` for sm_80 leave them out.
 #[test]
 fn with_pdl_the_step_kernels_wait_before_they_touch_memory() {
     if !nvrtc_or_skip() {
@@ -663,29 +664,39 @@ fn with_pdl_the_step_kernels_wait_before_they_touch_memory() {
         layout,
         ..KernelOptions::all_models(arch, true, f64)
     };
-    // (options, optimised, PDL expected in the PTX)
+    // (options, optimised, PDL expected in the PTX, the trigger: RTMPM_PDL_TRIGGER's default)
     let jobs = [
-        (on((9, 0), false, StateLayout::Full), true, true),
-        (on((9, 0), true, StateLayout::Full), false, true),
-        (on((9, 0), false, StateLayout::Fluid), false, true),
-        (KernelOptions::all_models((9, 0), true, false), false, false),
-        (on((8, 0), false, StateLayout::Full), false, false),
+        (on((9, 0), false, StateLayout::Full), true, true, true),
+        (on((9, 0), true, StateLayout::Full), false, true, true),
+        (on((9, 0), false, StateLayout::Fluid), false, true, true),
+        (on((9, 0), false, StateLayout::Full), false, true, false),
+        (
+            KernelOptions::all_models((9, 0), true, false),
+            false,
+            false,
+            true,
+        ),
+        (on((8, 0), false, StateLayout::Full), false, false, true),
     ];
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     std::thread::scope(|scope| {
         for t in 0..threads.min(jobs.len()) {
             let jobs = &jobs;
             scope.spawn(move || {
-                for (o, optimised, expect) in jobs.iter().skip(t).step_by(threads) {
+                for (o, optimised, expect, trigger) in jobs.iter().skip(t).step_by(threads) {
                     let what = format!("{o:?}");
                     let ptx = if *optimised {
                         compile_fresh(o)
                     } else {
                         let mut opts = nvrtc_options(o);
                         opts.push("--Ofast-compile=max".into());
+                        if !*trigger {
+                            opts.push("-DRTMPM_PDL_TRIGGER=0".into());
+                        }
                         program_source(o.f64).and_then(|src| nvrtc(&src, "rtmpm_pipeline.cu", opts))
                     }
                     .unwrap_or_else(|e| panic!("{what}: {e}"));
+                    let what = format!("{what}, trigger {trigger}");
                     assert_every_kernel(&ptx, &what);
                     if !*expect {
                         assert!(!ptx.contains("griddepcontrol"), "{what}");
@@ -700,9 +711,10 @@ fn with_pdl_the_step_kernels_wait_before_they_touch_memory() {
                             .nth(1)
                             .and_then(|s| s.split("\n}\n").next())
                             .unwrap_or_default();
-                        assert!(
-                            func.contains("griddepcontrol.wait;")
-                                && func.contains("griddepcontrol.launch_dependents;"),
+                        assert!(func.contains("griddepcontrol.wait;"), "{what}: {func}");
+                        assert_eq!(
+                            func.contains("griddepcontrol.launch_dependents;"),
+                            *trigger,
                             "{what}: {func}"
                         );
                         continue;
