@@ -56,7 +56,9 @@ use, copies from pageable memory, allocations, synchronisations); ``RTMPM_SYNC_T
 environment also times them (ms a call). ``RTMPM_BATCH_WAITS=old`` runs the batch's paths as
 before those waits were cut (the A/B in one wheel); ``RTMPM_BATCH_PAGEABLE_PUT=1`` uploads from
 pageable memory; ``RTMPM_BATCH_RESET=old`` packs and uploads a reset's initial particles every
-call as before the image of them kept on the device (the A/B of the resets in one wheel).
+call as before the image of them kept on the device (the A/B of the resets in one wheel);
+``RTMPM_BATCH_REST=old`` steps every world's rapier world at every step, also a world whose tool
+stands still (which the batch no longer steps).
 
 ``--breakdown`` then runs the modes calls, reset, pose and loop once more (``--repeats`` rounds
 after a warm-up, fresh batches) and times each part of a call on its own: the poses, the resets
@@ -429,7 +431,8 @@ def main():
     print(f"a fresh batch's set-up (not timed): median {statistics.median(setups):.3f} s of {len(setups)}; "
           f"{clock.now():.1f} s so far", flush=True)
     print_waits(waits, runs)
-    names = ("RTMPM_BATCH_WAITS", "RTMPM_BATCH_PAGEABLE_PUT", "RTMPM_BATCH_RESET", "RTMPM_SYNC_TRACE")
+    names = ("RTMPM_BATCH_WAITS", "RTMPM_BATCH_PAGEABLE_PUT", "RTMPM_BATCH_RESET", "RTMPM_BATCH_REST",
+             "RTMPM_SYNC_TRACE")
     switches = {k: os.environ[k] for k in names if k in os.environ}
     if switches:
         print(f"environment: {switches}")

@@ -73,6 +73,64 @@ pub(crate) struct HostBodies {
     /// Poses are kept until needed and then put in on every core, or on one thread, or put in
     /// at once (`CudaOptions::batch_poses`).
     mode: BodyPoses,
+    /// Each body's row as its world's last advance left it (row `w * per + b`).
+    advanced: Vec<BodyPose>,
+    /// Each world's last advance changed none of its rows and left it at rest: no dynamic body,
+    /// every velocity zero (see [`HostBodies::advance`]).
+    rest: Vec<bool>,
+    /// Worlds the last advance stepped (the others were at rest and unchanged since).
+    stepped: usize,
+}
+
+/// `RTMPM_BATCH_REST=old`: every world's rapier world is stepped at every step, also a world
+/// at rest that a step leaves as it is (as before the skip of [`HostBodies::advance`]); for
+/// comparing the two in one binary. Read once.
+pub fn old_rest() -> bool {
+    static OLD: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *OLD.get_or_init(|| std::env::var("RTMPM_BATCH_REST").is_ok_and(|v| v.trim() == "old"))
+}
+
+/// The rows `a` and `b` hold the same poses bit for bit.
+fn same_bits(a: &[BodyPose], b: &[BodyPose]) -> bool {
+    let words = |p: &BodyPose| {
+        let all = p
+            .position
+            .to_array()
+            .into_iter()
+            .chain(p.rotation.to_array());
+        let all = all.chain(p.velocity.to_array());
+        all.chain(p.angular_velocity.to_array()).map(f32::to_bits)
+    };
+    a.len() == b.len() && a.iter().zip(b).all(|(p, q)| words(p).eq(words(q)))
+}
+
+/// `world`, whose rows are `poses`, is at rest: no dynamic body (gravity and the material move
+/// those), every body's velocity and angular velocity zero (a kinematic body moves by them).
+fn at_rest(world: &RigidWorld, poses: &[BodyPose]) -> bool {
+    world.states().iter().all(|s| !s.dynamic)
+        && poses
+            .iter()
+            .all(|p| p.velocity == glam::Vec3::ZERO && p.angular_velocity == glam::Vec3::ZERO)
+}
+
+/// A step of `world` (rows `poses`, `records`; `advanced`: its rows after its last advance;
+/// `rest`: that advance left it at rest, unchanged) by `dt` with the sums `ex`; `false`: skipped,
+/// the world at rest and its rows as that advance left them (`skip`), where the step would
+/// change nothing (below).
+fn advance_world(
+    (world, poses, records): (&mut RigidWorld, &mut [BodyPose], &mut [GpuBody]),
+    (advanced, rest): (&mut [BodyPose], &mut bool),
+    (ex, dt, mesh, skip): (&[Exchange], f32, &[u32], bool),
+) -> bool {
+    if skip && *rest && same_bits(poses, advanced) {
+        return false;
+    }
+    advanced.copy_from_slice(poses);
+    world.advance(ex, dt);
+    write_rows(world, mesh, poses, records);
+    *rest = at_rest(world, poses) && same_bits(poses, advanced);
+    advanced.copy_from_slice(poses);
+    true
 }
 
 /// World `world`'s rows from its state now: `poses` and `records` are its bodies'.
@@ -106,7 +164,7 @@ impl HostBodies {
     /// grid starts in the mesh table; `mode`: `CudaOptions::batch_poses`.
     pub fn new(worlds: Vec<RigidWorld>, mesh_offsets: Vec<u32>, mode: BodyPoses) -> HostBodies {
         let per = worlds.first().map_or(0, |w| w.states().len());
-        let rows = worlds.len() * per;
+        let (rows, worlds_count) = (worlds.len() * per, worlds.len());
         let poses: Vec<BodyPose> = worlds.iter().flat_map(|w| w.poses()).collect();
         let records = vec![GpuBody::default(); rows];
         let mut h = HostBodies {
@@ -118,10 +176,14 @@ impl HostBodies {
             kept: Vec::new(),
             pending: vec![false; rows],
             mode,
+            advanced: Vec::new(),
+            rest: vec![false; worlds_count],
+            stepped: 0,
         };
         for w in 0..h.worlds.len() {
             h.rewrite(w);
         }
+        h.advanced = h.poses.clone();
         h
     }
 
@@ -219,27 +281,64 @@ impl HostBodies {
     }
 
     /// Advance every world by `dt` (each by its bodies' sums `each[w]`, or none), on every core,
-    /// and rewrite its rows.
+    /// and rewrite its rows; a world at rest is not stepped. At rest: its last advance left its
+    /// rows (poses and velocities) as they were, bit for bit, with no dynamic body and every
+    /// velocity zero, and its rows are still those (no pose given since, or the same): a step
+    /// of it is then a function of those rows alone (a kinematic body moves by its velocities
+    /// times dt, zero for any dt; a fixed body does not move; no dynamic body for gravity or the
+    /// material to move), so it would leave them as they are again, and the rapier world is not
+    /// stepped (a kinematic tool standing still in 256 worlds: no step of any of them; a world
+    /// whose rotation a step renormalises is stepped until it stops changing). Tested bit for
+    /// bit against stepping every world (`worlds_at_rest_are_skipped_and_step_on_as_before`).
+    /// `RTMPM_BATCH_REST=old`: every world stepped, as before.
     pub fn advance(&mut self, each: Option<&[Vec<Exchange>]>, dt: f32) {
+        self.advance_skipping(each, dt, !old_rest());
+    }
+
+    /// [`HostBodies::advance`], the worlds at rest skipped when `skip`.
+    fn advance_skipping(&mut self, each: Option<&[Vec<Exchange>]>, dt: f32, skip: bool) {
         self.flush();
         let t0 = std::time::Instant::now();
         let none = vec![Exchange::default(); self.per];
         let mesh = &self.mesh_offsets;
         let per = self.per.max(1);
+        // Every world at rest and unchanged: nothing to step, no worker woken.
+        let resting = |w: usize| {
+            let rows = w * per..(w + 1) * per;
+            self.rest[w] && same_bits(&self.poses[rows.clone()], &self.advanced[rows])
+        };
+        if skip && (0..self.worlds.len()).all(resting) {
+            self.stepped = 0;
+            return;
+        }
         // Each world is independent: the same results in any order.
-        self.worlds
+        self.stepped = self
+            .worlds
             .par_iter_mut()
             .zip(self.poses.par_chunks_mut(per))
             .zip(self.records.par_chunks_mut(per))
+            .zip(self.advanced.par_chunks_mut(per))
+            .zip(self.rest.par_iter_mut())
             .enumerate()
-            .for_each(|(w, ((world, poses), records))| {
+            .map(|(w, ((((world, poses), records), advanced), rest))| {
                 let ex = each.and_then(|e| e.get(w)).unwrap_or(&none);
-                world.advance(ex, dt);
-                write_rows(world, mesh, poses, records);
-            });
+                advance_world(
+                    (world, poses, records),
+                    (advanced, rest),
+                    (ex, dt, mesh, skip),
+                )
+            })
+            .filter(|&stepped| stepped)
+            .count();
         if ADVANCE.on() {
-            ADVANCE.record(self.worlds.len(), [t0], std::time::Instant::now());
+            ADVANCE.record(self.stepped, [t0], std::time::Instant::now());
         }
+    }
+
+    /// Worlds the last [`HostBodies::advance`] stepped (the others at rest).
+    #[cfg(test)]
+    pub fn stepped(&self) -> usize {
+        self.stepped
     }
 
     /// Every world's body states, world by world (the kept poses put into their worlds first).
@@ -589,6 +688,163 @@ mod tests {
         assert!(plain.0[0].pose(1).expect("box").position.y > 0.04);
     }
 
+    /// Worlds at rest (a kinematic tool and a fixed block, every velocity zero) are not stepped
+    /// by `advance` (`stepped` counts the others) and every read, record and step stays bit for
+    /// bit what stepping every world gives (`Plain`): 20 worlds over 80 steps, the even ones put
+    /// at rest (world 8 turned, its rotation renormalised by its first steps), the odd ones
+    /// moving; world 2 posed again at the pose it has (still skipped), world 4 set moving and
+    /// later at rest again, world 6 put back to its start (moving) by `set_poses`, world 10's
+    /// tool given an angular velocity alone, and the worlds with a dynamic box never skipped.
+    /// Unless `RTMPM_BATCH_REST=old` is set (then every world is stepped, as before).
+    #[test]
+    fn worlds_at_rest_are_skipped_and_step_on_as_before() {
+        let n = 20;
+        let mesh = vec![0];
+        let make = |w: usize| world(w, false);
+        let mut h = HostBodies::new(
+            (0..n).map(make).collect(),
+            mesh.clone(),
+            BodyPoses::Deferred,
+        );
+        let mut plain = Plain((0..n).map(make).collect(), mesh.clone());
+        let put = |h: &mut HostBodies, plain: &mut Plain, w: usize, p: BodyPose| {
+            h.set_body_poses(0, &[(w, p)]).expect("pose");
+            plain.0[w].set_pose(0, &p).expect("pose");
+        };
+        let still = |mut p: BodyPose| {
+            p.velocity = Vec3::ZERO;
+            p.angular_velocity = Vec3::ZERO;
+            p
+        };
+        for w in (0..n).step_by(2) {
+            let mut p = still(plain.0[w].pose(0).expect("tool"));
+            if w == 8 {
+                p.rotation = Quat::from_rotation_y(0.3) * Quat::from_rotation_x(0.2);
+            }
+            put(&mut h, &mut plain, w, p);
+        }
+        // Worlds with a dynamic box (and their tool still): stepped at every step.
+        let mut boxes = HostBodies::new(
+            (0..4).map(|w| world(w, true)).collect(),
+            vec![0, 0, 0],
+            BodyPoses::Deferred,
+        );
+        let tools: Vec<(usize, BodyPose)> = (0..4)
+            .map(|w| (w, still(boxes.pose(w, 0).expect("tool"))))
+            .collect();
+        boxes.set_body_poses(0, &tools).expect("poses");
+        let none = [Exchange::default()];
+        for c in 0..80 {
+            match c {
+                20 => {
+                    let p = plain.0[2].pose(0).expect("tool");
+                    put(&mut h, &mut plain, 2, p);
+                }
+                30 => {
+                    let mut p = plain.0[4].pose(0).expect("tool");
+                    p.velocity = Vec3::new(0.05, -0.1, 0.0);
+                    put(&mut h, &mut plain, 4, p);
+                }
+                45 => {
+                    let p = still(plain.0[4].pose(0).expect("tool"));
+                    put(&mut h, &mut plain, 4, p);
+                }
+                50 => {
+                    let start = make(6).poses();
+                    h.set_poses(6, &start).expect("reset");
+                    plain.0[6].set_poses(&start).expect("reset");
+                }
+                60 => {
+                    let mut p = plain.0[10].pose(0).expect("tool");
+                    p.angular_velocity = Vec3::new(0.0, 0.5, 0.0);
+                    put(&mut h, &mut plain, 10, p);
+                }
+                _ => {}
+            }
+            h.advance(None, 4e-4);
+            boxes.advance(None, 4e-4);
+            for world in plain.0.iter_mut() {
+                world.advance(&none, 4e-4);
+            }
+            for w in 0..n {
+                let (got, want) = (
+                    h.pose(w, 0).expect("tool"),
+                    plain.0[w].pose(0).expect("tool"),
+                );
+                assert_eq!(pose_bits(&got), pose_bits(&want), "step {c}: world {w}");
+            }
+            let got: Vec<u8> = bytemuck::cast_slice(h.records()).to_vec();
+            assert_eq!(got, plain.records(), "step {c}: the records");
+            // The moving worlds: the 10 odd ones, world 4 from its pose at step 30 to the one at
+            // 45, world 6 from its reset, world 10 from 60.
+            let moving = 10
+                + usize::from((30..45).contains(&c))
+                + usize::from(c >= 50)
+                + usize::from(c >= 60);
+            if old_rest() {
+                assert_eq!(
+                    h.stepped(),
+                    n,
+                    "step {c}: RTMPM_BATCH_REST=old steps every world"
+                );
+            } else if c >= 5 && c != 45 {
+                assert_eq!(h.stepped(), moving, "step {c}: the worlds stepped");
+            }
+            assert_eq!(boxes.stepped(), 4, "step {c}: a world with a dynamic body");
+        }
+        let want = state_bits(
+            &plain
+                .0
+                .iter()
+                .flat_map(|w| w.states().to_vec())
+                .collect::<Vec<_>>(),
+        );
+        assert_eq!(state_bits(&h.states()), want, "the states");
+    }
+
+    /// A step's advance of 256 worlds whose kinematic tool stands still (bench/python_batch_gpu.py's
+    /// bare, calls and reset modes) with the worlds at rest skipped and with every world stepped
+    /// (`RTMPM_BATCH_REST=old`), on this machine (`cargo test --release -p rtmpm-cuda --features
+    /// rigid --lib rest_advance_timing -- --ignored --nocapture`; no GPU). Medians of 200 steps.
+    #[test]
+    #[ignore = "a timing, not a check"]
+    fn rest_advance_timing() {
+        use std::time::Instant;
+        let n = 256;
+        let tool = || {
+            let mut b = body(RigidKind::Kinematic, Vec3::new(0.2, 0.22, 0.2), Vec3::ZERO);
+            b.shape = Shape::Box(Cuboid::centred(Vec3::ZERO, Vec3::splat(0.03)));
+            let interior = (Vec3::splat(0.075), Vec3::new(0.325, 0.275, 0.325));
+            RigidWorld::new(&[b], &[], Vec3::new(0.0, -9.81, 0.0), interior)
+                .expect("world")
+                .expect("bodies")
+        };
+        for skip in [true, false] {
+            let mut h = HostBodies::new(
+                (0..n).map(|_| tool()).collect(),
+                vec![0],
+                BodyPoses::Deferred,
+            );
+            let mut times = Vec::new();
+            for _ in 0..200 {
+                let t0 = Instant::now();
+                h.advance_skipping(None, 4e-4, skip);
+                times.push(t0.elapsed().as_secs_f64());
+            }
+            times.sort_by(f64::total_cmp);
+            println!(
+                "{}: a step's advance of {n} worlds at rest {:.1} us (median of 200), {} stepped at the last",
+                if skip {
+                    "at rest skipped"
+                } else {
+                    "every world stepped (RTMPM_BATCH_REST=old)"
+                },
+                1e6 * times[100],
+                h.stepped()
+            );
+        }
+    }
+
     /// Where a script's pose call goes on the host (`cargo test --release -p rtmpm-cuda
     /// --features rigid --lib pose_path_timing -- --ignored --nocapture`; no GPU): 256 worlds of
     /// one kinematic tool (bench/python_batch_gpu.py's), 200 calls of [every world advanced on
@@ -628,14 +884,16 @@ mod tests {
                     },
                 );
                 let mut plain = Plain((0..n).map(|_| tool()).collect(), vec![0]);
-                let (mut call, mut upload) = (Vec::new(), Vec::new());
+                let (mut call, mut upload, mut advance) = (Vec::new(), Vec::new(), Vec::new());
                 for c in 0..200 {
+                    let t0 = Instant::now();
                     if mode == "plain" {
                         let none = [Exchange::default()];
                         plain.0.par_iter_mut().for_each(|w| w.advance(&none, 4e-4));
                     } else {
                         h.advance(None, 4e-4);
                     }
+                    advance.push(t0.elapsed().as_secs_f64());
                     if cold {
                         for (i, b) in junk.iter_mut().enumerate().step_by(64) {
                             *b = b.wrapping_add(i as u8);
@@ -672,10 +930,12 @@ mod tests {
                     upload.push(t0.elapsed().as_secs_f64());
                 }
                 println!(
-                    "{mode:>8}, caches {}: the call {:.1} us, the next upload {:.1} us (medians of 200, {n} worlds)",
+                    "{mode:>8}, caches {}: the call {:.1} us, the next upload {:.1} us, a step's \
+                     advance of the worlds {:.1} us (medians of 200, {n} worlds)",
                     if cold { "flushed" } else { "warm" },
                     med(call),
-                    med(upload)
+                    med(upload),
+                    med(advance)
                 );
             }
         }
