@@ -61,6 +61,22 @@ use rtmpm_sim::{Backend, BadParticle, SimError, Worlds};
 /// written into one whose last copy is done; 1, waited for, with `RTMPM_BATCH_WAITS=old`).
 const PUT_BUFFERS: usize = 8;
 
+/// `RTMPM_STEP_TIMING=1`: where a batch's step spends the host's time, printed to stderr every
+/// 100 steps (the means of the rigid bodies' table put in and uploaded, the worlds' own
+/// colliders' poses, the step's kernels queued, and the bodies' sums and advance after it); off
+/// by default. With the driver's advance parts (rtmpm-driver, the same variable).
+static STEP_TIMING: rtmpm_sim::timing::PartTimes<4> = rtmpm_sim::timing::PartTimes::new(
+    "RTMPM_STEP_TIMING",
+    "batch step",
+    "steps",
+    [
+        "bodies up",
+        "colliders",
+        "kernels queued",
+        "bodies advanced",
+    ],
+);
+
 /// The worlds of a batch on one GPU, stepped together.
 pub struct CudaBatch {
     backend: CudaBackend,
@@ -247,18 +263,23 @@ impl CudaBatch {
     /// of its own moving colliders at `t`, go to the device before it, and the bodies advance
     /// by it after (their sums read back).
     pub fn step(&mut self, dt: f32, t: f32) -> Result<(), SimError> {
+        let t0 = std::time::Instant::now();
         let stream = self.backend.stream.clone();
         if let Some(b) = self.bodies.as_mut() {
             b.upload(&stream)?;
         }
+        let t1 = std::time::Instant::now();
         if let Some(c) = self.colliders.as_mut() {
             c.update(&stream, t, &self.backend.waits)?;
         }
+        let t2 = std::time::Instant::now();
         self.backend.step(dt, t)?;
-        match self.bodies.as_mut() {
-            Some(b) => b.after_step(&stream, dt),
-            None => Ok(()),
+        let t3 = std::time::Instant::now();
+        if let Some(b) = self.bodies.as_mut() {
+            b.after_step(&stream, dt)?;
         }
+        STEP_TIMING.record(1, [t0, t1, t2, t3], std::time::Instant::now());
+        Ok(())
     }
 
     /// Rigid bodies of one world (every world has as many).

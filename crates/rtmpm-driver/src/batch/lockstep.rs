@@ -40,6 +40,20 @@ use rtmpm_rigid::BodyPose;
 use rtmpm_scene::{BatchScene, Scene, StepMode};
 use rtmpm_sim::{Blowup, SimError, Worlds};
 
+/// `RTMPM_STEP_TIMING=1`: where an advance of the worlds (a call of Python's `step` on the GPU,
+/// with checks made at once) spends the host's time, printed to stderr every 100 advances (the
+/// means of keeping every world's bodies, keeping the rewind point, the steps with their check
+/// (the wait for the device among them), and noting the worlds after, rewinds included); off
+/// by default (one check of a flag an advance). The deferred checks' advance has its own
+/// (`deferred.rs`).
+pub(crate) static ADVANCE_TIMING: rtmpm_sim::timing::PartTimes<4> =
+    rtmpm_sim::timing::PartTimes::new(
+        "RTMPM_STEP_TIMING",
+        "advance",
+        "advances",
+        ["bodies kept", "point kept", "steps and check", "after"],
+    );
+
 /// One world of a lockstep batch: what sets it apart, where it stands, its files.
 pub struct LockWorld {
     /// What sets it apart (`material[0].yield_stress = 150`).
@@ -329,8 +343,10 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         &mut self,
         mut advance: impl FnMut(&mut Simulation<B>) -> Result<(), SimError>,
     ) -> Result<Vec<usize>> {
+        let t0 = std::time::Instant::now();
         let clock = self.clock();
         self.keep_bodies()?;
+        let t1 = std::time::Instant::now();
         let on_backend = self
             .sim
             .backend
@@ -340,7 +356,10 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             // The point is the particles read last: they must be the state now.
             self.sync()?;
         }
-        let frozen = match advance(&mut self.sim) {
+        let t2 = std::time::Instant::now();
+        let result = advance(&mut self.sim);
+        let t3 = std::time::Instant::now();
+        let frozen = match result {
             Ok(()) => Vec::new(),
             Err(e @ (SimError::Blowup(_) | SimError::Stall(_))) => {
                 self.rewinds(clock, on_backend, e, advance)?
@@ -348,6 +367,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             Err(e) => return Err(e.into()),
         };
         self.after_advance(on_backend, &frozen)?;
+        ADVANCE_TIMING.record(1, [t0, t1, t2, t3], std::time::Instant::now());
         Ok(frozen)
     }
 

@@ -9,6 +9,17 @@ use rtmpm_physics::Particles;
 use rtmpm_rigid::BodyPose;
 use rtmpm_sim::{SimError, Worlds};
 
+/// `RTMPM_STEP_TIMING=1`: where an advance with its check deferred (Python's `step` with
+/// `overlap`) spends the host's time, printed to stderr every 100 advances (the means of keeping
+/// every world's bodies, keeping the rewind point, queueing the steps, and keeping what a later
+/// rewind needs); off by default. The check itself is made by `settle`, as the next call begins.
+static DEFERRED_TIMING: rtmpm_sim::timing::PartTimes<4> = rtmpm_sim::timing::PartTimes::new(
+    "RTMPM_STEP_TIMING",
+    "deferred advance",
+    "advances",
+    ["bodies kept", "point kept", "steps queued", "pending kept"],
+);
+
 impl<B: Worlds + ?Sized> LockstepRun<B> {
     /// Return from [`LockstepRun::advance_steps`] with its steps queued, before the health
     /// check of their last step (`true`), or after it (`false`, the default). Deferred, the
@@ -43,8 +54,10 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
     /// [`LockstepRun::advance_steps`] with the last check deferred: the steps queued, the
     /// worlds' clocks and bodies noted as if no world failed, what a rewind needs kept.
     pub(super) fn advance_deferred(&mut self, steps: u64) -> Result<Vec<usize>> {
+        let t0 = std::time::Instant::now();
         let clock = self.clock();
         self.keep_bodies()?;
+        let t1 = std::time::Instant::now();
         let on_backend = self
             .sim
             .backend
@@ -53,6 +66,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         if !on_backend {
             self.sync()?;
         }
+        let t2 = std::time::Instant::now();
         // A backend that queues what a check reads has a frame end's check inside the call
         // queued too (made by `settle`, at that frame end's clock), not made now.
         let queue = on_backend && self.sim.backend.queues_checks();
@@ -77,6 +91,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             }
             Ok(())
         })();
+        let t3 = std::time::Instant::now();
         let frozen = match queued {
             Ok(()) if on_backend => {
                 // What the check reads, queued behind these steps (read when it is made).
@@ -104,6 +119,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             Err(e) => return Err(e.into()),
         };
         self.after_advance(on_backend, &frozen)?;
+        DEFERRED_TIMING.record(1, [t0, t1, t2, t3], std::time::Instant::now());
         Ok(frozen)
     }
 
