@@ -33,14 +33,18 @@ static INITIAL_TIMING: rtmpm_sim::timing::PartTimes<2> = rtmpm_sim::timing::Part
     ["runs", "launches"],
 );
 
+/// Device memory [`CudaBatch::keep_initial`] leaves free past the image and the rewind point
+/// (the puts' buffer, the device arrays, other users of the GPU).
+const SPARE_BYTES: usize = 256 << 20;
+
 impl CudaBatch {
     /// Keep every world's particles at time 0, `initial[w]` (world `w`'s, in its own material
     /// indices; what a reset puts back), on the device as one packed image (original order,
     /// rows of the batch's particle count), so that [`CudaBatch::put_initial`] puts worlds back
     /// to them with launches alone. Packed on the host and uploaded once (as much device memory
     /// as the particle state's rows; replaced by a later call). `Ok(false)`: nothing kept, the
-    /// device had no memory for it or `RTMPM_BATCH_RESET=old` (resets then put the particles
-    /// with [`CudaBatch::put_worlds`]). Refused, before anything is kept, when `initial` does
+    /// device's free memory would not also hold the rewind point and 256 MB more, or
+    /// `RTMPM_BATCH_RESET=old` (resets then put the particles with [`CudaBatch::put_worlds`]). Refused, before anything is kept, when `initial` does
     /// not fit the worlds (their count, each world's particles, their materials).
     pub fn keep_initial(&mut self, initial: &[Particles]) -> Result<bool, SimError> {
         if initial.len() != self.worlds() {
@@ -60,6 +64,16 @@ impl CudaBatch {
         let bytes = self.initial_image(initial)?;
         let b = &mut self.backend;
         let stream = b.stream.clone();
+        // Not at the cost of the rewind point (as large as the state, allocated at the first
+        // advance) or of the memory the batch's other buffers may still ask for.
+        let point = if self.point.is_none() { b.buffers.state.len() } else { 0 };
+        let (free, _) = stream
+            .context()
+            .mem_get_info()
+            .map_err(err("memory info"))?;
+        if free < bytes.len() + point + SPARE_BYTES {
+            return Ok(false);
+        }
         // SAFETY: the copy below writes every byte before a launch reads it.
         let Ok(mut buf) = b.waits.wait(WaitReason::Alloc, || unsafe {
             stream.alloc::<u8>(bytes.len())
