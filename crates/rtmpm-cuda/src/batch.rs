@@ -471,8 +471,8 @@ impl Worlds for CudaBatch {
         CudaBatch::put_world(self, w, particles)
     }
 
-    fn put_worlds(&mut self, worlds: &[(usize, Particles)]) -> Result<(), SimError> {
-        CudaBatch::put_worlds(self, worlds)
+    fn put_worlds(&mut self, worlds: &[(usize, &Particles)]) -> Result<(), SimError> {
+        self.put_many(worlds)
     }
 
     fn put_initial(&mut self, worlds: &[usize]) -> Result<bool, SimError> {

@@ -24,7 +24,7 @@ pub trait Worlds: Backend {
     /// another (a world listed twice ends with its last); the other worlds are not touched.
     /// The default is that loop; a backend may do it at once (the GPU batch: one upload and
     /// one launch for each run of consecutive worlds, every world checked before any changes).
-    fn put_worlds(&mut self, worlds: &[(usize, Particles)]) -> Result<(), SimError> {
+    fn put_worlds(&mut self, worlds: &[(usize, &Particles)]) -> Result<(), SimError> {
         for (w, p) in worlds {
             self.put_world(*w, p)?;
         }

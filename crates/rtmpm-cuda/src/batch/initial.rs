@@ -66,7 +66,11 @@ impl CudaBatch {
         let stream = b.stream.clone();
         // Not at the cost of the rewind point (as large as the state, allocated at the first
         // advance) or of the memory the batch's other buffers may still ask for.
-        let point = if self.point.is_none() { b.buffers.state.len() } else { 0 };
+        let point = if self.point.is_none() {
+            b.buffers.state.len()
+        } else {
+            0
+        };
         let (free, _) = stream
             .context()
             .mem_get_info()

@@ -195,7 +195,7 @@ impl CudaBatch {
     }
 
     /// [`CudaBatch::put_worlds`] of borrowed particles.
-    fn put_many(&mut self, worlds: &[(usize, &Particles)]) -> Result<(), SimError> {
+    pub(super) fn put_many(&mut self, worlds: &[(usize, &Particles)]) -> Result<(), SimError> {
         for &(w, p) in worlds {
             self.check_put(w, p)?;
         }

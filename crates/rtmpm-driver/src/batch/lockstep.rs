@@ -39,6 +39,7 @@ use rtmpm_physics::math::{Mat3, Vec3};
 use rtmpm_rigid::BodyPose;
 use rtmpm_scene::{BatchScene, Scene, StepMode};
 use rtmpm_sim::{Blowup, SimError, Worlds};
+use std::sync::Arc;
 
 /// `RTMPM_STEP_TIMING=1`: where an advance of the worlds (a call of Python's `step` on the GPU,
 /// with checks made at once) spends the host's time, printed to stderr every 100 advances (the
@@ -64,8 +65,10 @@ pub struct LockWorld {
     scene: Scene,
     output: Option<FrameOutput>,
     /// Its particles at the last completed frame (of the frame it froze at, once frozen); of a
-    /// running world, at the last read of the backend (see [`LockstepRun::sync`]).
-    kept: Particles,
+    /// running world, at the last read of the backend (see [`LockstepRun::sync`]); shared with
+    /// the caller's copy where a reset put it to its initial particles
+    /// ([`LockstepRun::reset_worlds_initial`]: no copy a reset).
+    kept: Arc<Particles>,
     /// Its rigid bodies with `kept` (as the last advance began, or at the last state read).
     bodies: Vec<BodyPose>,
     /// Its rigid bodies at its time 0 (what a reset puts back).
@@ -226,7 +229,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
                 status: WorldStatus::Running,
                 scene: s.clone(),
                 output,
-                kept: Particles::default(),
+                kept: Arc::default(),
                 bodies: start_bodies.clone(),
                 start_bodies,
                 at: Clock::default(),
@@ -426,21 +429,22 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
     /// when the scene's colliders move with the clock (a reset world would meet them where they
     /// are now, not where they were at time 0). Checked before any world changes.
     pub fn reset_worlds(&mut self, starts: Vec<(usize, Particles)>) -> Result<()> {
+        let starts = starts.into_iter().map(|(w, p)| (w, Arc::new(p))).collect();
         self.reset_with(starts, false)
     }
 
     /// [`LockstepRun::reset_worlds`] to each world's particles at its time 0 (`starts[i].1`:
-    /// the particles the batch's worlds were made with, which the backend may keep): the
-    /// backend puts them back by its own means where it keeps them ([`Worlds::put_initial`]:
-    /// the GPU batch's image on the device, no packing and no upload), else as
-    /// [`LockstepRun::reset_worlds`] does; the same state either way.
-    pub fn reset_worlds_initial(&mut self, starts: Vec<(usize, Particles)>) -> Result<()> {
+    /// the particles the batch's worlds were made with, which the backend may keep; shared, not
+    /// copied, as the world's particles): the backend puts them back by its own means where it
+    /// keeps them ([`Worlds::put_initial`]: the GPU batch's image on the device, no packing and
+    /// no upload), else as [`LockstepRun::reset_worlds`] does; the same state either way.
+    pub fn reset_worlds_initial(&mut self, starts: Vec<(usize, Arc<Particles>)>) -> Result<()> {
         self.reset_with(starts, true)
     }
 
     /// [`LockstepRun::reset_worlds`], the particles put by [`Worlds::put_initial`] first when
     /// `initial`.
-    fn reset_with(&mut self, starts: Vec<(usize, Particles)>, initial: bool) -> Result<()> {
+    fn reset_with(&mut self, starts: Vec<(usize, Arc<Particles>)>, initial: bool) -> Result<()> {
         if self.out.is_some() {
             bail!("a batch run that writes frame files cannot reset a world");
         }
@@ -484,9 +488,10 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
                 .put_initial(&listed_now())
                 .with_context(|| format!("resetting worlds {:?}", listed_now()))?;
         if !kept {
+            let refs: Vec<(usize, &Particles)> = starts.iter().map(|(w, p)| (*w, &**p)).collect();
             self.sim
                 .backend
-                .put_worlds(&starts)
+                .put_worlds(&refs)
                 .with_context(|| format!("resetting worlds {:?}", listed_now()))?;
         }
         for (w, p) in starts {
@@ -594,7 +599,9 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         for (w, world) in self.worlds.iter().enumerate() {
             let (p, bodies) = match world.status {
                 WorldStatus::Running => (world.kept.clone(), world.bodies.clone()),
-                WorldStatus::Frozen { .. } => (parked(&world.kept), parked_bodies(&world.bodies)),
+                WorldStatus::Frozen { .. } => {
+                    (Arc::new(parked(&world.kept)), parked_bodies(&world.bodies))
+                }
             };
             self.sim
                 .backend
@@ -627,7 +634,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             let all = self.sim.backend.read_worlds()?;
             for (w, (world, p)) in self.worlds.iter_mut().zip(all).enumerate() {
                 if world.status == WorldStatus::Running || frozen.contains(&w) {
-                    world.kept = p;
+                    world.kept = Arc::new(p);
                 }
             }
             self.stale = false;
@@ -665,7 +672,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         let all = self.sim.backend.read_worlds()?;
         for (world, p) in self.worlds.iter_mut().zip(all) {
             if world.status == WorldStatus::Running {
-                world.kept = p;
+                world.kept = Arc::new(p);
             }
         }
         self.stale = false;
@@ -695,7 +702,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             if world.status != WorldStatus::Running {
                 continue;
             }
-            world.kept = p;
+            world.kept = Arc::new(p);
             self.sim
                 .backend
                 .world_rigid_poses_into(w, &mut world.bodies);

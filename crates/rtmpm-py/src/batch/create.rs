@@ -264,7 +264,7 @@ impl Start {
             scene: self.scene,
             request,
             reason: self.choice.reason,
-            initial: self.initial,
+            initial: self.initial.into_iter().map(std::sync::Arc::new).collect(),
             broken: None,
             device: Default::default(),
             chunk: 1,

@@ -86,7 +86,7 @@ pub struct PyBatch {
     request: BackendRequest,
     reason: String,
     /// Each world's particles at time 0 (what a reset starts from).
-    initial: Vec<Particles>,
+    initial: Vec<std::sync::Arc<Particles>>,
     /// Set after a panic: the state may be inconsistent.
     broken: Option<String>,
     /// The device arrays of a GPU batch (`x_device`, `v_device`), refreshed after every call.

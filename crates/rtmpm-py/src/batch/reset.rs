@@ -9,6 +9,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use rtmpm_physics::Particles;
 use rtmpm_physics::math::Vec3;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// `RTMPM_RESET_TIMING=1`: where `reset`'s time goes, printed to stderr every 100 calls (the
@@ -23,14 +24,18 @@ static TIMING: rtmpm_sim::timing::PartTimes<2> = rtmpm_sim::timing::PartTimes::n
 );
 
 impl PyBatch {
-    /// World `w`'s particles at time 0, with `x` / `v` (rows of `n` x 3) replacing theirs.
+    /// World `w`'s particles at time 0, with `x` / `v` (rows of `n` x 3) replacing theirs: its
+    /// initial particles shared (no copy) when neither is given.
     fn start_state(
         &mut self,
         w: usize,
         x: Option<&[f32]>,
         v: Option<&[f32]>,
-    ) -> PyResult<Particles> {
-        let mut p = self.initial[w].clone();
+    ) -> PyResult<Arc<Particles>> {
+        if x.is_none() && v.is_none() {
+            return Ok(self.initial[w].clone());
+        }
+        let mut p = Particles::clone(&self.initial[w]);
         let (lo, hi) = {
             let scene = self.r().scene(w);
             (scene.domain_min, scene.domain_max)
@@ -52,7 +57,7 @@ impl PyBatch {
                 target[i] = r;
             }
         }
-        Ok(p)
+        Ok(Arc::new(p))
     }
 }
 
@@ -113,7 +118,7 @@ impl PyBatch {
         let t0 = Instant::now();
         let list = self.world_list(worlds)?;
         let k = list.len();
-        let counts: Vec<usize> = self.initial.iter().map(Particles::len).collect();
+        let counts: Vec<usize> = self.initial.iter().map(|p| p.len()).collect();
         let xs = split_rows("x", x, &list, &counts)?;
         let vs = split_rows("v", v, &list, &counts)?;
         let mut starts = Vec::with_capacity(list.len());
@@ -131,16 +136,16 @@ impl PyBatch {
             match run {
                 Run::Each(run) => {
                     for (w, p) in list.into_iter().zip(starts) {
+                        let p = Arc::unwrap_or_clone(p);
                         run.reset_world(w, |scene| make_backend(&req, scene, p))?;
                     }
                 }
+                Run::Lockstep(run) if initial => {
+                    run.reset_worlds_initial(list.into_iter().zip(starts).collect())?
+                }
                 Run::Lockstep(run) => {
-                    let starts = list.into_iter().zip(starts).collect();
-                    if initial {
-                        run.reset_worlds_initial(starts)?
-                    } else {
-                        run.reset_worlds(starts)?
-                    }
+                    let starts = starts.into_iter().map(Arc::unwrap_or_clone);
+                    run.reset_worlds(list.into_iter().zip(starts).collect())?
                 }
             }
             Ok(Vec::new())

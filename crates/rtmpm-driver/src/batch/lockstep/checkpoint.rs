@@ -45,7 +45,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
                     },
                     files: world.scene.file_hashes(),
                     // A running world's state now; a frozen world's last good one.
-                    particles: world.kept.clone(),
+                    particles: rtmpm_physics::Particles::clone(&world.kept),
                 },
             })
             .collect();
@@ -106,7 +106,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
                 frame: s.ckpt.frame,
             };
             world.origin = Clock::default();
-            world.kept = s.ckpt.particles;
+            world.kept = std::sync::Arc::new(s.ckpt.particles);
             world.status = s.status;
         }
         run.write_summary()?;

@@ -165,7 +165,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             since,
         } = *p;
         // The particles the worlds reset since were put to (they keep them), for the replay.
-        let mut reset_to: Vec<Option<Particles>> = vec![None; self.worlds.len()];
+        let mut reset_to: Vec<Option<std::sync::Arc<Particles>>> = vec![None; self.worlds.len()];
         for change in &since {
             if let Since::Reset(list) = change {
                 for &w in list {
@@ -188,7 +188,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
                         .into_iter()
                         .filter_map(|w| reset_to[w].clone().map(|p| (w, p)))
                         .collect();
-                    self.reset_worlds(starts)?;
+                    self.reset_with(starts, false)?;
                 }
                 Since::Poses(body, poses) => self.set_body_poses(body, poses)?,
             }
