@@ -523,6 +523,14 @@ impl Worlds for CudaBatch {
         self.world_poses_into(w, out)
     }
 
+    /// From the bodies' rows under one lock (none: every world's empty).
+    fn each_world_rigid_poses(&self, each: &mut dyn FnMut(usize, &[BodyPose])) {
+        match self.bodies.as_ref() {
+            Some(b) => b.each_poses(each),
+            None => (0..self.worlds()).for_each(|w| each(w, &[])),
+        }
+    }
+
     fn set_body_poses(&mut self, body: usize, poses: &[(usize, BodyPose)]) -> Result<(), SimError> {
         CudaBatch::set_body_poses(self, body, poses)
     }

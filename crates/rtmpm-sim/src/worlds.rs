@@ -122,6 +122,19 @@ pub trait Worlds: Backend {
         *out = self.world_rigid_poses(w);
     }
 
+    /// Every world's rigid bodies' poses, handed to `each(w, poses)` world after world (what
+    /// [`Worlds::world_rigid_poses_into`] gives of each): the default asks world by world; a
+    /// backend may hand them all at once (the GPU batch: from its rows, under one lock, where
+    /// world by world took a lock a world; the driver keeps every running world's poses twice
+    /// a call).
+    fn each_world_rigid_poses(&self, each: &mut dyn FnMut(usize, &[BodyPose])) {
+        let mut out = Vec::new();
+        for w in 0..self.worlds() {
+            self.world_rigid_poses_into(w, &mut out);
+            each(w, &out);
+        }
+    }
+
     /// Put rigid body `body` of each world `w` of `poses` at its pose, the world's other bodies
     /// where they are, from the next step on: [`Worlds::set_world_rigid_poses`] of each world's
     /// [`Worlds::world_rigid_poses`] with row `body` replaced (the default, world after world;

@@ -277,6 +277,11 @@ impl WorldBodies {
         self.host().poses_into(w, out)
     }
 
+    /// Every world's bodies' poses handed to `each(w, poses)`, world after world, under one lock.
+    pub fn each_poses(&self, each: &mut dyn FnMut(usize, &[BodyPose])) {
+        self.host().each_poses(each)
+    }
+
     /// Body `body` of world `w` (`None`: no such world or body).
     pub fn pose(&self, w: usize, body: usize) -> Option<BodyPose> {
         self.host().pose(w, body)

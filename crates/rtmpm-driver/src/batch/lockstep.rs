@@ -514,15 +514,16 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
     /// have posed them since the last read), what a rewind puts back; a frozen world's are
     /// parked again (a script posing every world's tool does not move a frozen world's).
     fn keep_bodies(&mut self) -> Result<()> {
-        for (w, world) in self.worlds.iter_mut().enumerate() {
-            if world.bodies.is_empty() {
-                continue;
+        let worlds = &mut self.worlds;
+        self.sim.backend.each_world_rigid_poses(&mut |w, poses| {
+            let world = &mut worlds[w];
+            if !world.bodies.is_empty() && world.status == WorldStatus::Running {
+                world.bodies.clear();
+                world.bodies.extend_from_slice(poses);
             }
-            if world.status == WorldStatus::Running {
-                self.sim
-                    .backend
-                    .world_rigid_poses_into(w, &mut world.bodies);
-            } else {
+        });
+        for (w, world) in self.worlds.iter().enumerate() {
+            if !world.bodies.is_empty() && world.status != WorldStatus::Running {
                 self.sim
                     .backend
                     .set_world_rigid_poses(w, &parked_bodies(&world.bodies))
@@ -683,14 +684,15 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
     /// without files on a backend that keeps its own rewind point).
     fn note_running(&mut self) {
         let now = self.clock();
-        for (w, world) in self.worlds.iter_mut().enumerate() {
+        let worlds = &mut self.worlds;
+        self.sim.backend.each_world_rigid_poses(&mut |w, poses| {
+            let world = &mut worlds[w];
             if world.status == WorldStatus::Running {
-                self.sim
-                    .backend
-                    .world_rigid_poses_into(w, &mut world.bodies);
+                world.bodies.clear();
+                world.bodies.extend_from_slice(poses);
                 world.at = now;
             }
-        }
+        });
     }
 
     /// Read every world; keep and write the running ones' frame.

@@ -376,6 +376,17 @@ impl HostBodies {
         out.extend_from_slice(&self.poses[rows]);
     }
 
+    /// Every world's bodies' poses handed to `each(w, poses)`, world after world, from the rows
+    /// (the kept poses put into their worlds first, as a read of one world's does).
+    pub fn each_poses(&mut self, each: &mut dyn FnMut(usize, &[BodyPose])) {
+        if self.pending.contains(&true) {
+            self.flush();
+        }
+        for (w, rows) in self.poses.chunks(self.per.max(1)).enumerate() {
+            each(w, rows);
+        }
+    }
+
     /// Put world `w`'s bodies at `poses` (one per body), after the poses kept for it.
     pub fn set_poses(&mut self, w: usize, poses: &[BodyPose]) -> Result<(), SimError> {
         let count = self.worlds.len();
@@ -630,6 +641,22 @@ mod tests {
                 let want = plain.0[list[0]].pose(other).expect("body");
                 assert_eq!(pose_bits(&got), pose_bits(&want), "call {c}");
             }
+            if c % 2 == 0 {
+                // Every world's poses at once (the driver's reads of a call), poses kept or not.
+                let mut all: Vec<Vec<BodyPose>> = Vec::new();
+                deferred.each_poses(&mut |w, p| {
+                    assert_eq!(w, all.len(), "call {c}: worlds in order");
+                    all.push(p.to_vec());
+                });
+                assert_eq!(all.len(), n);
+                for (w, got) in all.iter().enumerate() {
+                    assert_eq!(
+                        *got,
+                        plain.0[w].poses(),
+                        "call {c}: each_poses of world {w}"
+                    );
+                }
+            }
             if c % 5 == 4 {
                 // The same body of world 7 posed twice with no read between: both kept, put in
                 // the order given.
@@ -843,6 +870,63 @@ mod tests {
                 h.stepped()
             );
         }
+    }
+
+    /// The lockstep driver's reads of every world's poses (twice a call: as the advance begins
+    /// and after it) on this machine, 256 worlds of one tool behind the batch's lock: world by
+    /// world (`world_rigid_poses_into`, a lock a world) against `each_poses` (one lock), caches
+    /// warm and flushed (`cargo test --release -p rtmpm-cuda --features rigid --lib
+    /// pose_reads_timing -- --ignored --nocapture`; no GPU). Medians of 200.
+    #[test]
+    #[ignore = "a timing, not a check"]
+    fn pose_reads_timing() {
+        use std::sync::Mutex;
+        use std::time::Instant;
+        let n = 256;
+        let h = Mutex::new(HostBodies::new(
+            (0..n).map(|w| world(w, false)).collect(),
+            vec![0],
+            BodyPoses::Deferred,
+        ));
+        let mut kept: Vec<Vec<BodyPose>> = vec![Vec::new(); n];
+        let mut junk = vec![0u8; 64 << 20];
+        for cold in [false, true] {
+            let (mut one, mut all) = (Vec::new(), Vec::new());
+            for _ in 0..200 {
+                let mut flush = || {
+                    if cold {
+                        for (i, b) in junk.iter_mut().enumerate().step_by(64) {
+                            *b = b.wrapping_add(i as u8);
+                        }
+                    }
+                };
+                flush();
+                let t0 = Instant::now();
+                for (w, out) in kept.iter_mut().enumerate() {
+                    h.lock().expect("lock").poses_into(w, out);
+                }
+                one.push(t0.elapsed().as_secs_f64());
+                flush();
+                let t0 = Instant::now();
+                h.lock().expect("lock").each_poses(&mut |w, p| {
+                    kept[w].clear();
+                    kept[w].extend_from_slice(p);
+                });
+                all.push(t0.elapsed().as_secs_f64());
+            }
+            let med = |mut v: Vec<f64>| {
+                v.sort_by(f64::total_cmp);
+                1e6 * v[v.len() / 2]
+            };
+            println!(
+                "caches {}: every world's poses read world by world {:.1} us, at once {:.1} us \
+                 ({n} worlds, medians of 200)",
+                if cold { "flushed" } else { "warm" },
+                med(one),
+                med(all)
+            );
+        }
+        std::hint::black_box(&junk);
     }
 
     /// Where a script's pose call goes on the host (`cargo test --release -p rtmpm-cuda
