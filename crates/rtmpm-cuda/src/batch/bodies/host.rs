@@ -80,6 +80,10 @@ pub(crate) struct HostBodies {
     rest: Vec<bool>,
     /// Worlds the last advance stepped (the others were at rest and unchanged since).
     stepped: usize,
+    /// Every world was at rest after the last advance (and its rows as it left them).
+    all_rest: bool,
+    /// A world's rapier world or rows may have changed since the last advance (a pose put in).
+    touched: bool,
 }
 
 /// `RTMPM_BATCH_REST=old`: every world's rapier world is stepped at every step, also a world
@@ -179,6 +183,8 @@ impl HostBodies {
             advanced: Vec::new(),
             rest: vec![false; worlds_count],
             stepped: 0,
+            all_rest: false,
+            touched: true,
         };
         for w in 0..h.worlds.len() {
             h.rewrite(w);
@@ -204,6 +210,7 @@ impl HostBodies {
         if self.kept.is_empty() {
             return;
         }
+        self.touched = true;
         let t0 = std::time::Instant::now();
         let mut kept = std::mem::take(&mut self.kept);
         kept.sort_by_key(|k| k.0); // stable: each world's in the order given
@@ -258,6 +265,7 @@ impl HostBodies {
         if !self.kept.iter().any(|k| k.0 == w) {
             return;
         }
+        self.touched = true;
         let run: Vec<Kept> = self.kept.iter().filter(|k| k.0 == w).copied().collect();
         self.kept.retain(|k| k.0 != w);
         let per = self.per;
@@ -302,13 +310,14 @@ impl HostBodies {
         let none = vec![Exchange::default(); self.per];
         let mesh = &self.mesh_offsets;
         let per = self.per.max(1);
-        // Every world at rest and unchanged: nothing to step, no worker woken.
+        // Every world at rest and unchanged: nothing to step, no worker woken (nothing put in
+        // since the last advance left every world at rest: not even a look at the rows).
         let resting = |w: usize| {
             let rows = w * per..(w + 1) * per;
             self.rest[w] && same_bits(&self.poses[rows.clone()], &self.advanced[rows])
         };
-        if skip && (0..self.worlds.len()).all(resting) {
-            self.stepped = 0;
+        if skip && ((self.all_rest && !self.touched) || (0..self.worlds.len()).all(resting)) {
+            (self.stepped, self.all_rest, self.touched) = (0, true, false);
             return;
         }
         // Each world is independent: the same results in any order.
@@ -330,6 +339,8 @@ impl HostBodies {
             })
             .filter(|&stepped| stepped)
             .count();
+        // Every world's rows are now as this advance left them.
+        (self.all_rest, self.touched) = (self.rest.iter().all(|&r| r), false);
         if ADVANCE.on() {
             ADVANCE.record(self.stepped, [t0], std::time::Instant::now());
         }
@@ -396,6 +407,7 @@ impl HostBodies {
             )));
         }
         self.flush_world(w);
+        self.touched = true;
         let r = self.worlds[w]
             .set_poses(poses)
             .map_err(|e| SimError::Backend(format!("CUDA batch: world {w}: {e}")));
@@ -435,6 +447,7 @@ impl HostBodies {
             }
             return Ok(());
         }
+        self.touched = true;
         let (per, mesh) = (self.per, &self.mesh_offsets);
         if poses.len() < PARALLEL_POSES {
             let rows = self.poses.chunks_mut(per).zip(self.records.chunks_mut(per));
@@ -827,6 +840,49 @@ mod tests {
                 .collect::<Vec<_>>(),
         );
         assert_eq!(state_bits(&h.states()), want, "the states");
+
+        // Every world at rest (the advance returns without a look at the rows), then one set
+        // moving by a pose, later at rest again: stepped as `Plain` steps it.
+        let mut h = HostBodies::new(
+            (0..4).map(make).collect(),
+            mesh.clone(),
+            BodyPoses::Deferred,
+        );
+        let mut plain = Plain((0..4).map(make).collect(), mesh.clone());
+        for w in 0..4 {
+            let p = still(plain.0[w].pose(0).expect("tool"));
+            put(&mut h, &mut plain, w, p);
+        }
+        for c in 0..30 {
+            if c == 10 {
+                let mut p = plain.0[1].pose(0).expect("tool");
+                p.velocity = Vec3::new(0.0, -0.2, 0.0);
+                put(&mut h, &mut plain, 1, p);
+            }
+            if c == 20 {
+                let p = still(plain.0[1].pose(0).expect("tool"));
+                put(&mut h, &mut plain, 1, p);
+            }
+            h.advance(None, 4e-4);
+            for world in plain.0.iter_mut() {
+                world.advance(&none, 4e-4);
+            }
+            for w in 0..4 {
+                let (got, want) = (
+                    h.pose(w, 0).expect("tool"),
+                    plain.0[w].pose(0).expect("tool"),
+                );
+                assert_eq!(
+                    pose_bits(&got),
+                    pose_bits(&want),
+                    "all still, step {c}: world {w}"
+                );
+            }
+            let want = usize::from((10..21).contains(&c));
+            if !old_rest() && (2..).contains(&c) {
+                assert_eq!(h.stepped(), want, "all still, step {c}: the worlds stepped");
+            }
+        }
     }
 
     /// A step's advance of 256 worlds whose kinematic tool stands still (bench/python_batch_gpu.py's
