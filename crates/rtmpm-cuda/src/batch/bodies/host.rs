@@ -45,7 +45,8 @@ static PUT_IN: rtmpm_sim::timing::PartTimes<1> = rtmpm_sim::timing::PartTimes::n
     ["put in"],
 );
 
-/// `RTMPM_POSE_TIMING=1`: the steps' advance of the worlds (see [`PUT_IN`]).
+/// `RTMPM_POSE_TIMING=1`: the steps' advance of the worlds (see [`PUT_IN`]; its worlds are
+/// those stepped, the others at rest).
 static ADVANCE: rtmpm_sim::timing::PartTimes<1> = rtmpm_sim::timing::PartTimes::new(
     "RTMPM_POSE_TIMING",
     "worlds advanced",
@@ -318,6 +319,9 @@ impl HostBodies {
         };
         if skip && ((self.all_rest && !self.touched) || (0..self.worlds.len()).all(resting)) {
             (self.stepped, self.all_rest, self.touched) = (0, true, false);
+            if ADVANCE.on() {
+                ADVANCE.record(0, [t0], std::time::Instant::now());
+            }
             return;
         }
         // Each world is independent: the same results in any order.
