@@ -319,6 +319,19 @@ impl CudaBatch {
         self.bodies.as_ref()?.pose(w, body)
     }
 
+    /// Rigid body `body` of each world of `worlds` now into `out` (emptied first; `None` where
+    /// there is no such world or body): [`CudaBatch::world_body_pose`] of each, read at once (a
+    /// script posing a tool in every world reads them all before it poses them).
+    pub fn world_body_poses(&self, body: usize, worlds: &[usize], out: &mut Vec<Option<BodyPose>>) {
+        match self.bodies.as_ref() {
+            Some(b) => b.body_poses(body, worlds, out),
+            None => {
+                out.clear();
+                out.resize(worlds.len(), None);
+            }
+        }
+    }
+
     /// Put rigid body `body` of each world `w` of `poses` at its pose from the next step on,
     /// the worlds' other bodies where they are ([`Worlds::set_body_poses`]): every world and the
     /// body checked first (nothing changes on an error), then the poses kept until the next

@@ -277,6 +277,12 @@ impl WorldBodies {
         self.host().poses_into(w, out)
     }
 
+    /// Body `body` of each world of `worlds` into `out` (`None`: no such world or body), under
+    /// one lock.
+    pub fn body_poses(&self, body: usize, worlds: &[usize], out: &mut Vec<Option<BodyPose>>) {
+        self.host().body_poses(body, worlds, out)
+    }
+
     /// Every world's bodies' poses handed to `each(w, poses)`, world after world, under one lock.
     pub fn each_poses(&self, each: &mut dyn FnMut(usize, &[BodyPose])) {
         self.host().each_poses(each)

@@ -227,16 +227,27 @@ fn new_poses(
     in_world: impl Fn(usize, PyErr) -> PyErr,
 ) -> (Vec<(usize, Vec<(usize, BodyPose)>)>, Option<PyErr>) {
     let mut runs: Vec<(usize, Vec<(usize, BodyPose)>)> = Vec::new();
+    // The first world's index of the body, and every listed world's pose of that body read at
+    // once (one lock, not one a world); a world whose scene gives the body another index reads
+    // its own.
+    let first = list
+        .first()
+        .and_then(|&w| body.index(&run.worlds[w].scene().rigid_bodies).ok());
+    let mut now = Vec::new();
+    if let Some(i) = first {
+        run.sim.backend.world_body_poses(i, list, &mut now);
+    }
     for (j, &w) in list.iter().enumerate() {
         let scene = run.worlds[w].scene();
         let i = match body.index(&scene.rigid_bodies) {
             Ok(i) => i,
             Err(e) => return (runs, Some(e)),
         };
-        let posed = run
-            .sim
-            .backend
-            .world_body_pose(w, i)
+        let read = match now.get(j) {
+            Some(&pose) if first == Some(i) => pose,
+            _ => run.sim.backend.world_body_pose(w, i),
+        };
+        let posed = read
             .ok_or_else(|| {
                 PyIndexError::new_err(format!("rigid body {i}: the backend holds no state for it"))
             })

@@ -391,6 +391,22 @@ impl HostBodies {
         out.extend_from_slice(&self.poses[rows]);
     }
 
+    /// Body `body` of each world of `worlds` into `out` (emptied first; `None` for no such world
+    /// or body): [`HostBodies::pose`] of each, from the rows (the kept poses put into their
+    /// worlds first where one of these rows has one, as a read of it does).
+    pub fn body_poses(&mut self, body: usize, worlds: &[usize], out: &mut Vec<Option<BodyPose>>) {
+        out.clear();
+        let (count, per) = (self.worlds.len(), self.per);
+        let row = |w: usize| (w < count && body < per).then(|| w * per + body);
+        if worlds
+            .iter()
+            .any(|&w| row(w).is_some_and(|r| self.pending[r]))
+        {
+            self.flush();
+        }
+        out.extend(worlds.iter().map(|&w| row(w).map(|r| self.poses[r])));
+    }
+
     /// Every world's bodies' poses handed to `each(w, poses)`, world after world, from the rows
     /// (the kept poses put into their worlds first, as a read of one world's does).
     pub fn each_poses(&mut self, each: &mut dyn FnMut(usize, &[BodyPose])) {
@@ -658,6 +674,21 @@ mod tests {
                 let want = plain.0[list[0]].pose(other).expect("body");
                 assert_eq!(pose_bits(&got), pose_bits(&want), "call {c}");
             }
+            // A body of listed worlds at once (a script's reads before it poses), poses kept or
+            // not, a world past the last and a body past the last read as `None`.
+            let listed = [(c * 7) % n, 3, n, 3];
+            let mut got = Vec::new();
+            deferred.body_poses(c % 3, &listed, &mut got);
+            for (&w, p) in listed.iter().zip(&got) {
+                let want = plain.0.get(w).and_then(|x| x.pose(c % 3));
+                assert_eq!(
+                    p.map(|p| pose_bits(&p)),
+                    want.map(|p| pose_bits(&p)),
+                    "call {c}"
+                );
+            }
+            deferred.body_poses(3, &[0], &mut got);
+            assert_eq!(got, vec![None]);
             if c % 2 == 0 {
                 // Every world's poses at once (the driver's reads of a call), poses kept or not.
                 let mut all: Vec<Vec<BodyPose>> = Vec::new();
