@@ -118,7 +118,11 @@ impl PyBatch {
         let t0 = Instant::now();
         let list = self.world_list(worlds)?;
         let k = list.len();
-        let counts: Vec<usize> = self.initial.iter().map(|p| p.len()).collect();
+        // Every world's count, for the rows of `x` / `v` (none to split without them).
+        let counts: Vec<usize> = match (&x, &v) {
+            (None, None) => Vec::new(),
+            _ => self.initial.iter().map(|p| p.len()).collect(),
+        };
         let xs = split_rows("x", x, &list, &counts)?;
         let vs = split_rows("v", v, &list, &counts)?;
         let mut starts = Vec::with_capacity(list.len());
