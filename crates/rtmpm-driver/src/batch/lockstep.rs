@@ -143,6 +143,9 @@ pub struct LockstepRun<B: Worlds + ?Sized> {
     /// Steps queued without their last health check ([`LockstepRun::set_deferred_checks`]).
     defer: bool,
     pending: Option<Box<Pending>>,
+    /// The last pending advance's record once its check passed, kept for the next (its
+    /// vectors' memory reused: no allocation a world a call).
+    spare: Option<Box<Pending>>,
     /// Worlds frozen by a deferred check made outside an advance (the next advance returns
     /// them).
     found: Vec<usize>,
@@ -151,6 +154,7 @@ pub struct LockstepRun<B: Worlds + ?Sized> {
 /// An advance whose steps were queued and returned before their last health check
 /// ([`LockstepRun::set_deferred_checks`]): what putting the worlds back needs when that check
 /// finds a blow-up ([`LockstepRun::settle`]), and what was done to the worlds since.
+#[derive(Default)]
 struct Pending {
     /// The shared clock as the advance began (the rewind point's) and as it ended, and its
     /// steps.
@@ -245,6 +249,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             stale: false,
             defer: false,
             pending: None,
+            spare: None,
             found: Vec::new(),
         };
         run.write_summary()?;

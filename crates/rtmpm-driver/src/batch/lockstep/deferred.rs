@@ -99,17 +99,22 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
                     .backend
                     .queue_check()
                     .context("queueing the deferred check's read")?;
-                self.pending = Some(Box::new(Pending {
-                    clock,
-                    marks,
-                    end: self.clock(),
-                    steps,
-                    statuses: self.worlds.iter().map(|w| w.status.clone()).collect(),
-                    bodies: self.worlds.iter().map(|w| w.bodies.clone()).collect(),
-                    at: self.worlds.iter().map(|w| w.at).collect(),
-                    origin: self.worlds.iter().map(|w| w.origin).collect(),
-                    since: Vec::new(),
-                }));
+                // Into the last record's memory where there is one.
+                let mut p = self.spare.take().unwrap_or_default();
+                (p.clock, p.marks, p.end, p.steps) = (clock, marks, self.clock(), steps);
+                p.statuses.clear();
+                p.statuses
+                    .extend(self.worlds.iter().map(|w| w.status.clone()));
+                p.bodies.resize_with(self.worlds.len(), Vec::new);
+                for (kept, w) in p.bodies.iter_mut().zip(&self.worlds) {
+                    kept.clone_from(&w.bodies);
+                }
+                p.at.clear();
+                p.at.extend(self.worlds.iter().map(|w| w.at));
+                p.origin.clear();
+                p.origin.extend(self.worlds.iter().map(|w| w.origin));
+                p.since.clear();
+                self.pending = Some(p);
                 Vec::new()
             }
             Ok(()) => Vec::new(),
@@ -151,6 +156,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         }
         let Some(e) = failed else {
             self.set_clock(now);
+            self.spare = Some(p);
             return Ok(());
         };
         let Pending {
