@@ -325,10 +325,13 @@ fn own(p: &Particles, w: usize) -> Particles {
 
 /// A reset from the image the batch keeps of its initial particles (`CudaBatch::keep_initial`,
 /// `put_initial`: launches reading the kept image in place, its rows of the whole batch's
-/// particles) leaves every world bit for bit as a put of those particles (`put_worlds`, packed and
-/// uploaded) does, in f32 and f64, right after the put and 10 steps on: the worlds listed (out of
-/// order, one twice: runs 1-2 and 4) hold their own initial particles (each world its own count
-/// and velocity, so another world's range or an offset range would show), the others untouched.
+/// particles) puts the worlds listed (out of order, one twice: runs 1-2 and 4) bit for bit as a put
+/// of those particles (`put_worlds`, packed and uploaded) does, in f32 and f64: they hold their own
+/// initial particles (each world its own count and velocity, so another world's range or an offset
+/// range would show), and the others are left bit for bit as they were. 10 steps on, every world
+/// of the two batches agrees within the tolerance of the batch tests (`agrees`), not bit for bit:
+/// two runs of one batch on the GPU differ in the last bits (the atomic sums of P2G; the unlisted
+/// worlds already differ between the two runs before the puts).
 /// Before `keep_initial` the batch keeps nothing (`Ok(false)`, nothing changed); initial
 /// particles that do not fit the worlds are refused. About 10 s on an H200.
 #[test]
@@ -392,16 +395,25 @@ fn a_reset_from_the_kept_image_puts_back_exactly_the_worlds_listed() {
         };
         let (before, kept_put, kept_on) = run(true);
         let (_, packed_put, packed_on) = run(false);
-        for w in 0..5 {
+        for w in [1, 2, 4] {
             assert!(
                 bit_identical(&kept_put[w], &packed_put[w]),
                 "f64 {f64}: world {w} put from the kept image differs from the packed put"
             );
-            assert!(
-                bit_identical(&kept_on[w], &packed_on[w]),
-                "f64 {f64}: world {w} 10 steps after the puts differs"
-            );
         }
+        let dx = worlds[0].dx;
+        let failures: Vec<String> = (0..5)
+            .flat_map(|w| {
+                agrees(
+                    &format!("f64 {f64}: world {w} 10 steps after the puts"),
+                    None,
+                    &kept_on[w],
+                    &packed_on[w],
+                    dx,
+                )
+            })
+            .collect();
+        assert!(failures.is_empty(), "{failures:#?}");
         for w in [0, 3] {
             assert!(bit_identical(&kept_put[w], &before[w]), "world {w} touched");
         }
