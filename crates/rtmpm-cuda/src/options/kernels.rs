@@ -59,9 +59,9 @@ impl CkP2g {
 }
 
 /// Instruction cuts of the fused G2P2G kernels (`--cuda-options lean_lanes=on,seg_clamp=on,
-/// zero_terms=skip,flat_checks=on`), each a compile-time define of the kernels, off by default
-/// (bench/RESULTS.md, "Fewer instructions, second round"; per kernel set with
-/// `fused_defaults=auto`, [`FusedSwitches`]).
+/// zero_terms=skip,flat_checks=on`), each a compile-time define of the kernels, off unless given
+/// or given by the kernel set (bench/RESULTS.md, "Fewer instructions, second round"; per kernel
+/// set with `fused_defaults=auto`, the default: [`FusedSwitches`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct KernelCuts {
     /// `lean_lanes=on` (`RTMPM_G2P2G_LEAN_LANES`, `kernels/g2p/g2p2g.cu`): the P2G quantities
@@ -173,9 +173,9 @@ impl FusedDefaults {
     }
 }
 
-/// The default of [`FusedSwitches::defaults`]: `Off` until `Auto` is timed against it in one
-/// binary (one line to change).
-pub const DEFAULT_FUSED_DEFAULTS: FusedDefaults = FusedDefaults::Off;
+/// The default of [`FusedSwitches::defaults`]: `Auto`, timed against `Off` in one binary on an
+/// H200 (the fluid dam 2M -2.7 %, the jelly and the snow the same program; bench/RESULTS.md).
+pub const DEFAULT_FUSED_DEFAULTS: FusedDefaults = FusedDefaults::Auto;
 
 /// The fused kernels' code switches of one kernel set, resolved: the compile-time defines of
 /// the program ([`crate::compile::KernelOptions`]'s `row_unroll`, `cuts` and `state64`).
