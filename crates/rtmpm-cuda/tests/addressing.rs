@@ -38,13 +38,12 @@
 
 mod common;
 
-use common::{gpu, read};
+use common::{gpu, read, unit_cube_scene};
 use rtmpm_cuda::{CudaBackend, CudaOptions, FusedCode, FusedSwitches, KernelCuts, RowUnroll};
 use rtmpm_physics::Particles;
-use rtmpm_physics::boundary::Walls;
 use rtmpm_physics::material::Material;
 use rtmpm_physics::math::{Mat3, Vec3};
-use rtmpm_scene::{OutputSettings, Scene, StepMode, TimeSettings};
+use rtmpm_scene::Scene;
 use rtmpm_sim::Backend;
 
 const DT: f32 = 2e-4;
@@ -57,39 +56,7 @@ fn scene(water: bool) -> Scene {
         Material::parse("jelly", 1000.0, "fixed_corotated", "mu = 4e4\nlambda = 6e4")
             .expect("jelly")
     };
-    Scene {
-        name: "addressing".into(),
-        source: None,
-        domain_min: Vec3::ZERO,
-        domain_max: Vec3::ONE,
-        dx: 1.0 / 32.0,
-        gravity: Vec3::new(0.0, -9.81, 0.0),
-        time: TimeSettings {
-            duration: 1.0,
-            fps: 30.0,
-            step: StepMode::Fixed { dt: DT },
-            damping: Default::default(),
-        },
-        materials: vec![material],
-        bodies: vec![],
-        colliders: vec![],
-        emitters: vec![],
-        rigid_bodies: vec![],
-        joints: vec![],
-        walls: Walls::default(),
-        output: OutputSettings {
-            dir: "out".into(),
-            stress: false,
-            jacobian: false,
-            ..Default::default()
-        },
-        render: Default::default(),
-        seed: 0,
-        solver: Default::default(),
-        precision: Default::default(),
-        particle_state: Default::default(),
-        files: Vec::new(),
-    }
+    unit_cube_scene("addressing", 1.0 / 32.0, DT, material)
 }
 
 /// Particles at spacing `h` (in cells) in [lo, hi], spinning about the block's centre and moving

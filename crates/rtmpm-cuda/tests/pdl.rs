@@ -25,14 +25,13 @@
 
 mod common;
 
-use common::{gpu, read};
+use common::{gpu, read, unit_cube_scene};
 use rtmpm_cuda::{CudaBackend, CudaOptions};
 use rtmpm_physics::Particles;
-use rtmpm_physics::boundary::Walls;
 use rtmpm_physics::material::Material;
 use rtmpm_physics::math::{Mat3, Vec3};
 use rtmpm_physics::transfer::{SolverSettings, Transfer, Update};
-use rtmpm_scene::{OutputSettings, Scene, StepMode, TimeSettings};
+use rtmpm_scene::{Scene, StepMode};
 use rtmpm_sim::Backend;
 
 const DT: f32 = 2e-4;
@@ -63,39 +62,7 @@ fn scene(kind: Kind) -> Scene {
         ),
     }
     .expect("material");
-    Scene {
-        name: "pdl".into(),
-        source: None,
-        domain_min: Vec3::ZERO,
-        domain_max: Vec3::ONE,
-        dx: 1.0 / 128.0,
-        gravity: Vec3::new(0.0, -9.81, 0.0),
-        time: TimeSettings {
-            duration: 1.0,
-            fps: 30.0,
-            step: StepMode::Fixed { dt: DT },
-            damping: Default::default(),
-        },
-        materials: vec![material],
-        bodies: vec![],
-        colliders: vec![],
-        emitters: vec![],
-        rigid_bodies: vec![],
-        joints: vec![],
-        walls: Walls::default(),
-        output: OutputSettings {
-            dir: "out".into(),
-            stress: false,
-            jacobian: false,
-            ..Default::default()
-        },
-        render: Default::default(),
-        seed: 0,
-        solver: Default::default(),
-        precision: Default::default(),
-        particle_state: Default::default(),
-        files: Vec::new(),
-    }
+    unit_cube_scene("pdl", 1.0 / 128.0, DT, material)
 }
 
 /// Particles every 5.25 cells in [0.2, 0.8]^3 (3,375 of them: their stencils never share a

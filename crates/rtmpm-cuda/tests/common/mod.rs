@@ -8,6 +8,10 @@ pub mod batch;
 pub mod multi;
 
 use rtmpm_physics::Particles;
+use rtmpm_physics::boundary::Walls;
+use rtmpm_physics::material::Material;
+use rtmpm_physics::math::Vec3;
+use rtmpm_scene::{OutputSettings, Scene, StepMode, TimeSettings};
 use rtmpm_sim::Backend;
 
 /// True when a usable CUDA GPU is there; else says why the test is skipped.
@@ -26,4 +30,43 @@ pub fn read(b: &mut dyn Backend) -> Particles {
     let mut p = Particles::default();
     b.read_particles(&mut p).expect("read particles");
     p
+}
+
+/// A unit cube of one material, cell size `dx`, gravity, the fixed step `dt`, default walls and
+/// solver, no bodies (the kernel tests place their own particles): the scene of the kernel
+/// switch tests (`tests/addressing.rs`, `tests/pdl.rs`).
+pub fn unit_cube_scene(name: &str, dx: f32, dt: f32, material: Material) -> Scene {
+    Scene {
+        name: name.into(),
+        source: None,
+        domain_min: Vec3::ZERO,
+        domain_max: Vec3::ONE,
+        dx,
+        gravity: Vec3::new(0.0, -9.81, 0.0),
+        time: TimeSettings {
+            duration: 1.0,
+            fps: 30.0,
+            step: StepMode::Fixed { dt },
+            damping: Default::default(),
+        },
+        materials: vec![material],
+        bodies: vec![],
+        colliders: vec![],
+        emitters: vec![],
+        rigid_bodies: vec![],
+        joints: vec![],
+        walls: Walls::default(),
+        output: OutputSettings {
+            dir: "out".into(),
+            stress: false,
+            jacobian: false,
+            ..Default::default()
+        },
+        render: Default::default(),
+        seed: 0,
+        solver: Default::default(),
+        precision: Default::default(),
+        particle_state: Default::default(),
+        files: Vec::new(),
+    }
 }
