@@ -920,6 +920,17 @@ mod tests {
         }
     }
 
+    /// The world of bench/python_batch_gpu.py's tool: one kinematic box of half size 0.03 m above
+    /// the sand bed's interior (the timings' world, 256 of them).
+    fn tool_world() -> RigidWorld {
+        let mut b = body(RigidKind::Kinematic, Vec3::new(0.2, 0.22, 0.2), Vec3::ZERO);
+        b.shape = Shape::Box(Cuboid::centred(Vec3::ZERO, Vec3::splat(0.03)));
+        let interior = (Vec3::splat(0.075), Vec3::new(0.325, 0.275, 0.325));
+        RigidWorld::new(&[b], &[], Vec3::new(0.0, -9.81, 0.0), interior)
+            .expect("world")
+            .expect("bodies")
+    }
+
     /// A step's advance of 256 worlds whose kinematic tool stands still (bench/python_batch_gpu.py's
     /// bare, calls and reset modes) with the worlds at rest skipped and with every world stepped
     /// (`RTMPM_BATCH_REST=old`), on this machine (`cargo test --release -p rtmpm-cuda --features
@@ -929,17 +940,9 @@ mod tests {
     fn rest_advance_timing() {
         use std::time::Instant;
         let n = 256;
-        let tool = || {
-            let mut b = body(RigidKind::Kinematic, Vec3::new(0.2, 0.22, 0.2), Vec3::ZERO);
-            b.shape = Shape::Box(Cuboid::centred(Vec3::ZERO, Vec3::splat(0.03)));
-            let interior = (Vec3::splat(0.075), Vec3::new(0.325, 0.275, 0.325));
-            RigidWorld::new(&[b], &[], Vec3::new(0.0, -9.81, 0.0), interior)
-                .expect("world")
-                .expect("bodies")
-        };
         for skip in [true, false] {
             let mut h = HostBodies::new(
-                (0..n).map(|_| tool()).collect(),
+                (0..n).map(|_| tool_world()).collect(),
                 vec![0],
                 BodyPoses::Deferred,
             );
@@ -1034,14 +1037,6 @@ mod tests {
     fn pose_path_timing() {
         use std::time::Instant;
         let n = 256;
-        let tool = || {
-            let mut b = body(RigidKind::Kinematic, Vec3::new(0.2, 0.22, 0.2), Vec3::ZERO);
-            b.shape = Shape::Box(Cuboid::centred(Vec3::ZERO, Vec3::splat(0.03)));
-            let interior = (Vec3::splat(0.075), Vec3::new(0.325, 0.275, 0.325));
-            RigidWorld::new(&[b], &[], Vec3::new(0.0, -9.81, 0.0), interior)
-                .expect("world")
-                .expect("bodies")
-        };
         let mut junk = vec![0u8; 64 << 20];
         let med = |mut v: Vec<f64>| {
             v.sort_by(f64::total_cmp);
@@ -1050,7 +1045,7 @@ mod tests {
         for cold in [false, true] {
             for mode in ["plain", "eager", "deferred_serial", "deferred"] {
                 let mut h = HostBodies::new(
-                    (0..n).map(|_| tool()).collect(),
+                    (0..n).map(|_| tool_world()).collect(),
                     vec![0],
                     match mode {
                         "deferred" => BodyPoses::Deferred,
@@ -1058,7 +1053,7 @@ mod tests {
                         _ => BodyPoses::Eager,
                     },
                 );
-                let mut plain = Plain((0..n).map(|_| tool()).collect(), vec![0]);
+                let mut plain = Plain((0..n).map(|_| tool_world()).collect(), vec![0]);
                 let (mut call, mut upload, mut advance) = (Vec::new(), Vec::new(), Vec::new());
                 for c in 0..200 {
                     let t0 = Instant::now();
