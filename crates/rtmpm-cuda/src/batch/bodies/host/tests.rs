@@ -1,0 +1,617 @@
+//! Tests of the host's rigid worlds of a GPU batch (`HostBodies`): the kept poses, the rows, the
+//! worlds at rest, and timings of the pose path (ignored: timings, not checks).
+
+use super::*;
+use glam::{Quat, Vec3};
+use rtmpm_geometry::Shape;
+use rtmpm_geometry::shape::Cuboid;
+use rtmpm_physics::boundary::Condition;
+use rtmpm_rigid::{RigidBodySpec, RigidKind};
+
+fn body(kind: RigidKind, position: Vec3, velocity: Vec3) -> RigidBodySpec {
+    RigidBodySpec {
+        name: format!("{kind:?}"),
+        shape: Shape::Box(Cuboid::centred(Vec3::ZERO, Vec3::splat(0.05))),
+        kind,
+        mass: 1.0,
+        position,
+        rotation: Quat::IDENTITY,
+        velocity,
+        angular_velocity: Vec3::ZERO,
+        condition: Condition::Slip,
+        friction: 0.0,
+    }
+}
+
+/// World `w` of `n`: a kinematic tool, a dynamic box falling onto the floor and a fixed
+/// block (`all`), or the tool alone.
+fn world(w: usize, all: bool) -> RigidWorld {
+    let x = 0.2 + 0.01 * (w % 7) as f32;
+    let mut bodies = vec![body(
+        RigidKind::Kinematic,
+        Vec3::new(x, 0.7, 0.5),
+        Vec3::new(0.0, -0.2, 0.0),
+    )];
+    if all {
+        bodies.push(body(
+            RigidKind::Dynamic,
+            Vec3::new(0.3, 0.07 + 0.001 * w as f32, 0.3),
+            Vec3::new(0.1, 0.0, 0.0),
+        ));
+        bodies.push(body(RigidKind::Fixed, Vec3::new(0.8, 0.2, 0.8), Vec3::ZERO));
+    }
+    let interior = (Vec3::ZERO, Vec3::ONE);
+    RigidWorld::new(&bodies, &[], Vec3::new(0.0, -9.81, 0.0), interior)
+        .expect("world")
+        .expect("bodies")
+}
+
+fn pose_bits(p: &BodyPose) -> [u32; 13] {
+    let mut out = [0; 13];
+    let all = p
+        .position
+        .to_array()
+        .into_iter()
+        .chain(p.rotation.to_array());
+    let all = all
+        .chain(p.velocity.to_array())
+        .chain(p.angular_velocity.to_array());
+    for (o, v) in out.iter_mut().zip(all) {
+        *o = v.to_bits();
+    }
+    out
+}
+
+fn state_bits(s: &[BodyState]) -> Vec<u32> {
+    s.iter()
+        .flat_map(|s| {
+            let m = s.rotation.to_cols_array().into_iter();
+            m.chain(s.center.to_array())
+                .chain(s.velocity.to_array())
+                .chain(s.angular_velocity.to_array())
+        })
+        .map(f32::to_bits)
+        .collect()
+}
+
+/// The batch's bodies as they were before the rows: the rapier worlds, each pose put at once,
+/// the records encoded from the states at the upload.
+struct Plain(Vec<RigidWorld>, Vec<u32>);
+
+impl Plain {
+    fn records(&self) -> Vec<u8> {
+        let recs: Vec<GpuBody> = self
+            .0
+            .iter()
+            .flat_map(|w| w.states().iter().enumerate())
+            .map(|(i, b)| crate::step::rigid::encode(b, self.1[i]))
+            .collect();
+        bytemuck::cast_slice(&recs).to_vec()
+    }
+}
+
+/// Each world's pose of `body` at a call `c`: a little lower, its velocity from the call
+/// (signed zeros and repeats of the pose it has among them).
+fn posed(now: BodyPose, w: usize, c: usize) -> BodyPose {
+    let mut p = now;
+    if !c.is_multiple_of(3) {
+        p.position.y -= 1e-4 * (1 + w % 3) as f32;
+        p.velocity = Vec3::new(0.01 * (w % 4) as f32, -0.2 - 0.01 * c as f32, -0.0);
+    }
+    if c % 4 == 1 {
+        p.rotation = Quat::from_rotation_y(0.01 * (c + w) as f32);
+        p.angular_velocity = Vec3::new(0.0, 0.3, 0.0);
+    }
+    p
+}
+
+/// Kept poses, put in on every core (`body_poses=deferred`) or on one thread
+/// (`deferred_serial`), and poses put in at once (`eager`), give every
+/// read (a body's pose, a world's poses, the states), every device record and every step's
+/// result bit for bit as the rapier worlds posed at once did before the rows: 40 worlds of a
+/// kinematic tool, a dynamic box on the floor and a fixed block over 60 steps, posed in every
+/// world (the flush on every core), in a few (the flush on one thread), the same body twice
+/// before a step with a read between, two bodies before a step, a world's every body put
+/// (a reset) over kept poses, reads of other bodies while poses are kept, the box moved by
+/// impulses.
+#[test]
+fn kept_poses_read_and_step_as_poses_put_at_once_bit_for_bit() {
+    let n = 40;
+    let mesh = vec![0, 0, 0];
+    let make = |d| HostBodies::new((0..n).map(|w| world(w, true)).collect(), mesh.clone(), d);
+    let mut deferred = make(BodyPoses::Deferred);
+    let mut serial = make(BodyPoses::DeferredSerial);
+    let mut eager = make(BodyPoses::Eager);
+    let mut plain = Plain((0..n).map(|w| world(w, true)).collect(), mesh.clone());
+    let check = |h: &mut HostBodies, plain: &Plain, what: &str| {
+        for w in 0..n {
+            for b in 0..3 {
+                let want = plain.0[w].pose(b).expect("body");
+                let got = h.pose(w, b).expect("body");
+                assert_eq!(
+                    pose_bits(&got),
+                    pose_bits(&want),
+                    "{what}: world {w} body {b}"
+                );
+            }
+        }
+    };
+    for c in 0..60 {
+        let mut bodies_posed = Vec::new();
+        match c % 5 {
+            0 => bodies_posed.push((0, (0..n).collect::<Vec<_>>())),
+            1 => bodies_posed.push((0, vec![3, 17, 5])),
+            2 => {
+                bodies_posed.push((0, (0..n).step_by(2).collect()));
+                bodies_posed.push((1, (0..n).step_by(3).collect()));
+            }
+            3 => {
+                bodies_posed.push((0, (0..n).collect()));
+                bodies_posed.push((0, vec![4, 9]));
+            }
+            _ => {}
+        }
+        for (k, (b, list)) in bodies_posed.iter().enumerate() {
+            // Read from the rows (kept poses of other bodies or worlds untouched), then put.
+            let poses: Vec<(usize, BodyPose)> = list
+                .iter()
+                .map(|&w| {
+                    let now = deferred.pose(w, *b).expect("body");
+                    let want = plain.0[w].pose(*b).expect("body");
+                    assert_eq!(pose_bits(&now), pose_bits(&want), "call {c}: world {w}");
+                    (w, posed(now, w, c + k))
+                })
+                .collect();
+            for h in [&mut deferred, &mut serial, &mut eager] {
+                h.set_body_poses(*b, &poses).expect("poses");
+            }
+            for (w, p) in &poses {
+                plain.0[*w].set_pose(*b, p).expect("pose");
+            }
+            // Reads of an unposed world's poses and of an unposed body of a posed world while
+            // poses are kept (from the rows: nothing put into the worlds yet).
+            if let Some(u) = (0..n).find(|w| !list.contains(w)) {
+                let mut out = Vec::new();
+                deferred.poses_into(u, &mut out);
+                assert_eq!(out, plain.0[u].poses(), "call {c}");
+            }
+            let other = (b + 2) % 3;
+            let got = deferred.pose(list[0], other).expect("body");
+            let want = plain.0[list[0]].pose(other).expect("body");
+            assert_eq!(pose_bits(&got), pose_bits(&want), "call {c}");
+        }
+        // A body of listed worlds at once (a script's reads before it poses), poses kept or
+        // not, a world past the last and a body past the last read as `None`.
+        let listed = [(c * 7) % n, 3, n, 3];
+        let mut got = Vec::new();
+        deferred.body_poses(c % 3, &listed, &mut got);
+        for (&w, p) in listed.iter().zip(&got) {
+            let want = plain.0.get(w).and_then(|x| x.pose(c % 3));
+            assert_eq!(
+                p.map(|p| pose_bits(&p)),
+                want.map(|p| pose_bits(&p)),
+                "call {c}"
+            );
+        }
+        deferred.body_poses(3, &[0], &mut got);
+        assert_eq!(got, vec![None]);
+        if c % 2 == 0 {
+            // Every world's poses at once (the driver's reads of a call), poses kept or not.
+            let mut all: Vec<Vec<BodyPose>> = Vec::new();
+            deferred.each_poses(&mut |w, p| {
+                assert_eq!(w, all.len(), "call {c}: worlds in order");
+                all.push(p.to_vec());
+            });
+            assert_eq!(all.len(), n);
+            for (w, got) in all.iter().enumerate() {
+                assert_eq!(
+                    *got,
+                    plain.0[w].poses(),
+                    "call {c}: each_poses of world {w}"
+                );
+            }
+        }
+        if c % 5 == 4 {
+            // The same body of world 7 posed twice with no read between: both kept, put in
+            // the order given.
+            for k in 0..2 {
+                let p = posed(plain.0[7].pose(0).expect("tool"), 7, c + k + 1);
+                for h in [&mut deferred, &mut serial, &mut eager] {
+                    h.set_body_poses(0, &[(7, p)]).expect("pose");
+                }
+                plain.0[7].set_pose(0, &p).expect("pose");
+            }
+        }
+        if c % 11 == 7 {
+            // A reset of world 5 over the poses kept for it.
+            let start = world(5, true).poses();
+            for h in [&mut deferred, &mut serial, &mut eager] {
+                h.set_poses(5, &start).expect("reset");
+            }
+            plain.0[5].set_poses(&start).expect("reset");
+        }
+        if c % 13 == 4 {
+            let want = state_bits(
+                &plain
+                    .0
+                    .iter()
+                    .flat_map(|w| w.states().to_vec())
+                    .collect::<Vec<_>>(),
+            );
+            assert_eq!(state_bits(&deferred.states()), want, "call {c}: states");
+        }
+        let want = plain.records();
+        for h in [&mut deferred, &mut serial, &mut eager] {
+            let got = bytemuck::cast_slice::<GpuBody, u8>(h.records());
+            assert!(got == &want[..], "call {c}: the device records differ");
+        }
+        let each: Vec<Vec<Exchange>> = (0..n)
+            .map(|w| {
+                let mut e = vec![Exchange::default(); 3];
+                e[1].impulse = [1e-3 * (w % 5) as f64, 2e-3, 0.0];
+                e[1].torque = [0.0, 1e-5 * (c % 3) as f64, 0.0];
+                e
+            })
+            .collect();
+        let ex = (c % 2 == 0).then_some(&each[..]);
+        for h in [&mut deferred, &mut serial, &mut eager] {
+            h.advance(ex, 1e-3);
+        }
+        for (w, world) in plain.0.iter_mut().enumerate() {
+            let none = vec![Exchange::default(); 3];
+            world.advance(ex.map_or(&none, |e| &e[w]), 1e-3);
+        }
+        check(&mut deferred, &plain, &format!("after step {c}"));
+        check(&mut serial, &plain, &format!("after step {c} (serial)"));
+        check(&mut eager, &plain, &format!("after step {c} (eager)"));
+    }
+    // The box rested on the floor (contacts in the steps compared).
+    assert!(plain.0[0].pose(1).expect("box").position.y > 0.04);
+}
+
+/// Worlds at rest (a kinematic tool and a fixed block, every velocity zero) are not stepped
+/// by `advance` (`stepped` counts the others) and every read, record and step stays bit for
+/// bit what stepping every world gives (`Plain`): 20 worlds over 80 steps, the even ones put
+/// at rest (world 8 turned, its rotation renormalised by its first steps), the odd ones
+/// moving; world 2 posed again at the pose it has (still skipped), world 4 set moving and
+/// later at rest again, world 6 put back to its start (moving) by `set_poses`, world 10's
+/// tool given an angular velocity alone, and the worlds with a dynamic box never skipped.
+/// Unless `RTMPM_BATCH_REST=old` is set (then every world is stepped, as before).
+#[test]
+fn worlds_at_rest_are_skipped_and_step_on_as_before() {
+    let n = 20;
+    let mesh = vec![0];
+    let make = |w: usize| world(w, false);
+    let mut h = HostBodies::new(
+        (0..n).map(make).collect(),
+        mesh.clone(),
+        BodyPoses::Deferred,
+    );
+    let mut plain = Plain((0..n).map(make).collect(), mesh.clone());
+    let put = |h: &mut HostBodies, plain: &mut Plain, w: usize, p: BodyPose| {
+        h.set_body_poses(0, &[(w, p)]).expect("pose");
+        plain.0[w].set_pose(0, &p).expect("pose");
+    };
+    let still = |mut p: BodyPose| {
+        p.velocity = Vec3::ZERO;
+        p.angular_velocity = Vec3::ZERO;
+        p
+    };
+    for w in (0..n).step_by(2) {
+        let mut p = still(plain.0[w].pose(0).expect("tool"));
+        if w == 8 {
+            p.rotation = Quat::from_rotation_y(0.3) * Quat::from_rotation_x(0.2);
+        }
+        put(&mut h, &mut plain, w, p);
+    }
+    // Worlds with a dynamic box (and their tool still): stepped at every step.
+    let mut boxes = HostBodies::new(
+        (0..4).map(|w| world(w, true)).collect(),
+        vec![0, 0, 0],
+        BodyPoses::Deferred,
+    );
+    let tools: Vec<(usize, BodyPose)> = (0..4)
+        .map(|w| (w, still(boxes.pose(w, 0).expect("tool"))))
+        .collect();
+    boxes.set_body_poses(0, &tools).expect("poses");
+    let none = [Exchange::default()];
+    for c in 0..80 {
+        match c {
+            20 => {
+                let p = plain.0[2].pose(0).expect("tool");
+                put(&mut h, &mut plain, 2, p);
+            }
+            30 => {
+                let mut p = plain.0[4].pose(0).expect("tool");
+                p.velocity = Vec3::new(0.05, -0.1, 0.0);
+                put(&mut h, &mut plain, 4, p);
+            }
+            45 => {
+                let p = still(plain.0[4].pose(0).expect("tool"));
+                put(&mut h, &mut plain, 4, p);
+            }
+            50 => {
+                let start = make(6).poses();
+                h.set_poses(6, &start).expect("reset");
+                plain.0[6].set_poses(&start).expect("reset");
+            }
+            60 => {
+                let mut p = plain.0[10].pose(0).expect("tool");
+                p.angular_velocity = Vec3::new(0.0, 0.5, 0.0);
+                put(&mut h, &mut plain, 10, p);
+            }
+            _ => {}
+        }
+        h.advance(None, 4e-4);
+        boxes.advance(None, 4e-4);
+        for world in plain.0.iter_mut() {
+            world.advance(&none, 4e-4);
+        }
+        for w in 0..n {
+            let (got, want) = (
+                h.pose(w, 0).expect("tool"),
+                plain.0[w].pose(0).expect("tool"),
+            );
+            assert_eq!(pose_bits(&got), pose_bits(&want), "step {c}: world {w}");
+        }
+        let got: Vec<u8> = bytemuck::cast_slice(h.records()).to_vec();
+        assert_eq!(got, plain.records(), "step {c}: the records");
+        // The moving worlds: the 10 odd ones, world 4 from its pose at step 30 to the one at
+        // 45, world 6 from its reset, world 10 from 60.
+        let moving =
+            10 + usize::from((30..45).contains(&c)) + usize::from(c >= 50) + usize::from(c >= 60);
+        if old_rest() {
+            assert_eq!(
+                h.stepped(),
+                n,
+                "step {c}: RTMPM_BATCH_REST=old steps every world"
+            );
+        } else if c >= 5 && c != 45 {
+            assert_eq!(h.stepped(), moving, "step {c}: the worlds stepped");
+        }
+        assert_eq!(boxes.stepped(), 4, "step {c}: a world with a dynamic body");
+    }
+    let want = state_bits(
+        &plain
+            .0
+            .iter()
+            .flat_map(|w| w.states().to_vec())
+            .collect::<Vec<_>>(),
+    );
+    assert_eq!(state_bits(&h.states()), want, "the states");
+
+    // Every world at rest (the advance returns without a look at the rows), then one set
+    // moving by a pose, later at rest again: stepped as `Plain` steps it.
+    let mut h = HostBodies::new(
+        (0..4).map(make).collect(),
+        mesh.clone(),
+        BodyPoses::Deferred,
+    );
+    let mut plain = Plain((0..4).map(make).collect(), mesh.clone());
+    for w in 0..4 {
+        let p = still(plain.0[w].pose(0).expect("tool"));
+        put(&mut h, &mut plain, w, p);
+    }
+    for c in 0..30 {
+        if c == 10 {
+            let mut p = plain.0[1].pose(0).expect("tool");
+            p.velocity = Vec3::new(0.0, -0.2, 0.0);
+            put(&mut h, &mut plain, 1, p);
+        }
+        if c == 20 {
+            let p = still(plain.0[1].pose(0).expect("tool"));
+            put(&mut h, &mut plain, 1, p);
+        }
+        h.advance(None, 4e-4);
+        for world in plain.0.iter_mut() {
+            world.advance(&none, 4e-4);
+        }
+        for w in 0..4 {
+            let (got, want) = (
+                h.pose(w, 0).expect("tool"),
+                plain.0[w].pose(0).expect("tool"),
+            );
+            assert_eq!(
+                pose_bits(&got),
+                pose_bits(&want),
+                "all still, step {c}: world {w}"
+            );
+        }
+        let want = usize::from((10..21).contains(&c));
+        if !old_rest() && (2..).contains(&c) {
+            assert_eq!(h.stepped(), want, "all still, step {c}: the worlds stepped");
+        }
+    }
+}
+
+/// The world of bench/python_batch_gpu.py's tool: one kinematic box of half size 0.03 m above
+/// the sand bed's interior (the timings' world, 256 of them).
+fn tool_world() -> RigidWorld {
+    let mut b = body(RigidKind::Kinematic, Vec3::new(0.2, 0.22, 0.2), Vec3::ZERO);
+    b.shape = Shape::Box(Cuboid::centred(Vec3::ZERO, Vec3::splat(0.03)));
+    let interior = (Vec3::splat(0.075), Vec3::new(0.325, 0.275, 0.325));
+    RigidWorld::new(&[b], &[], Vec3::new(0.0, -9.81, 0.0), interior)
+        .expect("world")
+        .expect("bodies")
+}
+
+/// A step's advance of 256 worlds whose kinematic tool stands still (bench/python_batch_gpu.py's
+/// bare, calls and reset modes) with the worlds at rest skipped and with every world stepped
+/// (`RTMPM_BATCH_REST=old`), on this machine (`cargo test --release -p rtmpm-cuda --features
+/// rigid --lib rest_advance_timing -- --ignored --nocapture`; no GPU). Medians of 200 steps.
+#[test]
+#[ignore = "a timing, not a check"]
+fn rest_advance_timing() {
+    use std::time::Instant;
+    let n = 256;
+    for skip in [true, false] {
+        let mut h = HostBodies::new(
+            (0..n).map(|_| tool_world()).collect(),
+            vec![0],
+            BodyPoses::Deferred,
+        );
+        let mut times = Vec::new();
+        for _ in 0..200 {
+            let t0 = Instant::now();
+            h.advance_skipping(None, 4e-4, skip);
+            times.push(t0.elapsed().as_secs_f64());
+        }
+        times.sort_by(f64::total_cmp);
+        println!(
+            "{}: a step's advance of {n} worlds at rest {:.1} us (median of 200), {} stepped at the last",
+            if skip {
+                "at rest skipped"
+            } else {
+                "every world stepped (RTMPM_BATCH_REST=old)"
+            },
+            1e6 * times[100],
+            h.stepped()
+        );
+    }
+}
+
+/// The lockstep driver's reads of every world's poses (twice a call: as the advance begins
+/// and after it) on this machine, 256 worlds of one tool behind the batch's lock: world by
+/// world (`world_rigid_poses_into`, a lock a world) against `each_poses` (one lock), caches
+/// warm and flushed (`cargo test --release -p rtmpm-cuda --features rigid --lib
+/// pose_reads_timing -- --ignored --nocapture`; no GPU). Medians of 200.
+#[test]
+#[ignore = "a timing, not a check"]
+fn pose_reads_timing() {
+    use std::sync::Mutex;
+    use std::time::Instant;
+    let n = 256;
+    let h = Mutex::new(HostBodies::new(
+        (0..n).map(|w| world(w, false)).collect(),
+        vec![0],
+        BodyPoses::Deferred,
+    ));
+    let mut kept: Vec<Vec<BodyPose>> = vec![Vec::new(); n];
+    let mut junk = vec![0u8; 64 << 20];
+    for cold in [false, true] {
+        let (mut one, mut all) = (Vec::new(), Vec::new());
+        for _ in 0..200 {
+            let mut flush = || {
+                if cold {
+                    for (i, b) in junk.iter_mut().enumerate().step_by(64) {
+                        *b = b.wrapping_add(i as u8);
+                    }
+                }
+            };
+            flush();
+            let t0 = Instant::now();
+            for (w, out) in kept.iter_mut().enumerate() {
+                h.lock().expect("lock").poses_into(w, out);
+            }
+            one.push(t0.elapsed().as_secs_f64());
+            flush();
+            let t0 = Instant::now();
+            h.lock().expect("lock").each_poses(&mut |w, p| {
+                kept[w].clear();
+                kept[w].extend_from_slice(p);
+            });
+            all.push(t0.elapsed().as_secs_f64());
+        }
+        let med = |mut v: Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            1e6 * v[v.len() / 2]
+        };
+        println!(
+            "caches {}: every world's poses read world by world {:.1} us, at once {:.1} us \
+             ({n} worlds, medians of 200)",
+            if cold { "flushed" } else { "warm" },
+            med(one),
+            med(all)
+        );
+    }
+    std::hint::black_box(&junk);
+}
+
+/// Where a script's pose call goes on the host (`cargo test --release -p rtmpm-cuda
+/// --features rigid --lib pose_path_timing -- --ignored --nocapture`; no GPU): 256 worlds of
+/// one kinematic tool (bench/python_batch_gpu.py's), 200 calls of [every world advanced on
+/// every core (a step's `after_step`); with `cold`, 64 MB written (the rest of a step's host
+/// work and the device's, which leave the worlds' memory out of this thread's caches); the
+/// call: each world's tool read, moved, and the 256 poses given (`set_body_poses`); the next
+/// step's upload (`records`)], for the rapier worlds posed at once as before the rows
+/// (`plain`), `body_poses=eager`, `deferred_serial` and `deferred`. Prints the median microseconds of the call
+/// and of the upload.
+#[test]
+#[ignore = "a timing, not a check"]
+fn pose_path_timing() {
+    use std::time::Instant;
+    let n = 256;
+    let mut junk = vec![0u8; 64 << 20];
+    let med = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        1e6 * v[v.len() / 2]
+    };
+    for cold in [false, true] {
+        for mode in ["plain", "eager", "deferred_serial", "deferred"] {
+            let mut h = HostBodies::new(
+                (0..n).map(|_| tool_world()).collect(),
+                vec![0],
+                match mode {
+                    "deferred" => BodyPoses::Deferred,
+                    "deferred_serial" => BodyPoses::DeferredSerial,
+                    _ => BodyPoses::Eager,
+                },
+            );
+            let mut plain = Plain((0..n).map(|_| tool_world()).collect(), vec![0]);
+            let (mut call, mut upload, mut advance) = (Vec::new(), Vec::new(), Vec::new());
+            for c in 0..200 {
+                let t0 = Instant::now();
+                if mode == "plain" {
+                    let none = [Exchange::default()];
+                    plain.0.par_iter_mut().for_each(|w| w.advance(&none, 4e-4));
+                } else {
+                    h.advance(None, 4e-4);
+                }
+                advance.push(t0.elapsed().as_secs_f64());
+                if cold {
+                    for (i, b) in junk.iter_mut().enumerate().step_by(64) {
+                        *b = b.wrapping_add(i as u8);
+                    }
+                }
+                let y = 0.22 - 1e-5 * c as f32;
+                let t0 = Instant::now();
+                if mode == "plain" {
+                    for w in plain.0.iter_mut() {
+                        let mut p = w.pose(0).expect("tool");
+                        p.position.y = y;
+                        p.velocity = Vec3::new(0.0, -0.2, 0.0);
+                        w.set_pose(0, &p).expect("pose");
+                    }
+                } else {
+                    let poses: Vec<(usize, BodyPose)> = (0..n)
+                        .map(|w| {
+                            let mut p = h.pose(w, 0).expect("tool");
+                            p.position.y = y;
+                            p.velocity = Vec3::new(0.0, -0.2, 0.0);
+                            (w, p)
+                        })
+                        .collect();
+                    h.set_body_poses(0, &poses).expect("poses");
+                }
+                call.push(t0.elapsed().as_secs_f64());
+                let t0 = Instant::now();
+                let bytes = if mode == "plain" {
+                    plain.records().len()
+                } else {
+                    h.records().len()
+                };
+                std::hint::black_box(bytes);
+                upload.push(t0.elapsed().as_secs_f64());
+            }
+            println!(
+                "{mode:>8}, caches {}: the call {:.1} us, the next upload {:.1} us, a step's \
+                 advance of the worlds {:.1} us (medians of 200, {n} worlds)",
+                if cold { "flushed" } else { "warm" },
+                med(call),
+                med(upload),
+                med(advance)
+            );
+        }
+    }
+    std::hint::black_box(&junk);
+}
