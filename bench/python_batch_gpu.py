@@ -58,7 +58,11 @@ before those waits were cut (the A/B in one wheel); ``RTMPM_BATCH_PAGEABLE_PUT=1
 pageable memory; ``RTMPM_BATCH_RESET=old`` packs and uploads a reset's initial particles every
 call as before the image of them kept on the device (the A/B of the resets in one wheel);
 ``RTMPM_BATCH_REST=old`` steps every world's rapier world at every step, also a world whose tool
-stands still (which the batch no longer steps).
+stands still (which the batch no longer steps). ``RTMPM_KINEMATIC=rapier`` steps a world with no
+dynamic body (here every world: one kinematic tool) through rapier's whole pipeline as before,
+where by default ``RigidWorld::advance`` moves its kinematic bodies by their velocities itself
+(the A/B of the moving tool's cost on the host: run pose / loop, or ``--moving-tool``, with and
+without it).
 
 ``--breakdown`` then runs the modes calls, reset, pose and loop once more (``--repeats`` rounds
 after a warm-up, fresh batches) and times each part of a call on its own: the poses, the resets
@@ -432,7 +436,7 @@ def main():
           f"{clock.now():.1f} s so far", flush=True)
     print_waits(waits, runs)
     names = ("RTMPM_BATCH_WAITS", "RTMPM_BATCH_PAGEABLE_PUT", "RTMPM_BATCH_RESET", "RTMPM_BATCH_REST",
-             "RTMPM_SYNC_TRACE")
+             "RTMPM_KINEMATIC", "RTMPM_SYNC_TRACE")
     switches = {k: os.environ[k] for k in names if k in os.environ}
     if switches:
         print(f"environment: {switches}")

@@ -37,12 +37,24 @@ fn put_pose(b: &mut rp::RigidBody, p: &BodyPose) {
 /// Thickness of the fixed slabs around the interior (m): thick enough that no body tunnels.
 const SLAB: f32 = 1.0;
 
+/// `RTMPM_KINEMATIC=rapier`: a world with no dynamic body is stepped through rapier's pipeline
+/// as before [`RigidWorld::advance`]'s own integration of its kinematic bodies (for comparing
+/// the two in one binary). Read once.
+fn kinematic_through_rapier() -> bool {
+    static RAPIER: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *RAPIER.get_or_init(|| std::env::var("RTMPM_KINEMATIC").is_ok_and(|v| v.trim() == "rapier"))
+}
+
 /// The bodies' rapier world.
 pub struct RigidWorld {
     world: rp::PhysicsWorld,
     handles: Vec<rp::RigidBodyHandle>,
     specs: Vec<RigidBodySpec>,
     states: Vec<BodyState>,
+    /// No dynamic body (decided once: the kinds never change) and `RTMPM_KINEMATIC` is not
+    /// `rapier`: [`RigidWorld::advance`] moves the kinematic bodies by their velocities itself
+    /// instead of stepping rapier's pipeline.
+    kinematic_only: bool,
 }
 
 impl std::fmt::Debug for RigidWorld {
@@ -110,6 +122,8 @@ impl RigidWorld {
             handles,
             specs: bodies.to_vec(),
             states: Vec::new(),
+            kinematic_only: bodies.iter().all(|b| b.kind != RigidKind::Dynamic)
+                && !kinematic_through_rapier(),
         };
         w.refresh();
         Ok(Some(w))
@@ -224,9 +238,44 @@ impl RigidWorld {
         Ok(())
     }
 
+    /// Every advance of this world through rapier's step, also without a dynamic body (what
+    /// `RTMPM_KINEMATIC=rapier` does for every world; for comparisons in one binary).
+    pub fn with_rapier_steps(mut self) -> RigidWorld {
+        self.kinematic_only = false;
+        self
+    }
+
+    /// This world's advance moves its kinematic bodies itself, without rapier's step (no
+    /// dynamic body, `RTMPM_KINEMATIC` not `rapier`; see [`RigidWorld::advance`]).
+    pub fn kinematic_only(&self) -> bool {
+        self.kinematic_only
+    }
+
     /// Give each dynamic body the impulses the grid gave it this step, then advance the world
     /// by `dt` (gravity, contacts).
+    ///
+    /// A world with no dynamic body ([`RigidWorld::kinematic_only`]) is not stepped through
+    /// rapier's pipeline (broad and narrow phase, islands, the solver's substeps): rapier
+    /// computes no contact between kinematic and fixed bodies, nothing pushes a kinematic body,
+    /// joints then constrain nothing and no contact event is read, so such a step only moves
+    /// each kinematic body by its velocities. That is done here ([`advance_kinematic`]): the
+    /// pose rotated about the centre of mass by `angular_velocity * dt`, then translated by
+    /// `velocity * dt` (rapier's exact form, `RigidBodyVelocity::integrate`), the rotation
+    /// renormalised; the velocities are kept. rapier's step integrates the same motion in its
+    /// solver's substeps with a linearised rotation, renormalised every substep, so the two
+    /// differ in the last bits (tested: `the_fast_path_follows_rapiers_step`); rapier's speed
+    /// caps (400 m/s, a turn of pi/4 a step) are not applied. The colliders are not moved with
+    /// their bodies (nothing here reads them: no scene queries, no contacts). Every consumer
+    /// (single runs on the CPU and GPU, the CPU and GPU batches) advances through here, so a
+    /// batch's worlds stay bit for bit their separate runs. `RTMPM_KINEMATIC=rapier` steps
+    /// such worlds through rapier as before.
     pub fn advance(&mut self, exchange: &[Exchange], dt: f32) {
+        self.world.integration_parameters.dt = dt;
+        if self.kinematic_only {
+            advance_kinematic(&mut self.world.bodies, &self.handles, &self.specs, dt);
+            self.refresh();
+            return;
+        }
         for ((&h, s), e) in self.handles.iter().zip(&self.specs).zip(exchange) {
             if s.kind != RigidKind::Dynamic {
                 continue;
@@ -236,9 +285,40 @@ impl RigidWorld {
             b.apply_impulse(f(e.impulse), true);
             b.apply_torque_impulse(f(e.torque), true);
         }
-        self.world.integration_parameters.dt = dt;
         self.world.step();
         self.refresh();
+    }
+}
+
+/// Each kinematic body of `handles` (kinds `specs`) moved by its velocities over `dt`: rotated
+/// about its centre of mass by `angvel * dt`, then translated by `linvel * dt` (rapier's
+/// `RigidBodyVelocity::integrate`, the exact rotation), the rotation renormalised (rapier's
+/// step renormalises after each substep; without it the rounding of many steps' products
+/// would drift its norm). A body with both velocities zero, or a zero `dt`, is left as it is,
+/// bit for bit; without angular velocity the rotation is kept as it is.
+fn advance_kinematic(
+    bodies: &mut rp::RigidBodySet,
+    handles: &[rp::RigidBodyHandle],
+    specs: &[RigidBodySpec],
+    dt: f32,
+) {
+    for (&h, s) in handles.iter().zip(specs) {
+        if s.kind != RigidKind::Kinematic {
+            continue;
+        }
+        let b = &bodies[h];
+        let vels = *b.vels();
+        if dt == 0.0 || (vels.linvel == rp::Vector::ZERO && vels.angvel == rp::Vector::ZERO) {
+            continue;
+        }
+        let mut pose = vels.integrate(dt, b.position(), &b.local_center_of_mass());
+        pose.rotation = if vels.angvel == rp::Vector::ZERO {
+            *b.rotation()
+        } else {
+            pose.rotation.normalize()
+        };
+        // Moves the body's pose (and its world centre of mass), keeps its velocities.
+        bodies[h].set_position(pose, false);
     }
 }
 
@@ -463,5 +543,196 @@ mod tests {
         assert_eq!(into, all);
         let err = b.set_pose(3, &all[0]).expect_err("no body 3");
         assert!(err.contains("rigid body 3: the scene has 3"), "{err}");
+    }
+
+    /// Where body `i`'s collider is in rapier's collider set (moved only by rapier's step).
+    fn collider_at(w: &RigidWorld, i: usize) -> Vec3 {
+        let b = &w.world.bodies[w.handles[i]];
+        gv(w.world.colliders[b.colliders()[0]].position().translation)
+    }
+
+    /// Bodies of the kinematic-only worlds: a translating kinematic box, a turned one that
+    /// turns about an axis off its own while it translates, a fixed block and a kinematic box
+    /// standing still.
+    fn tools() -> Vec<RigidBodySpec> {
+        let mut spin = body(
+            "spin",
+            RigidKind::Kinematic,
+            Vec3::new(0.4, 0.5, 0.6),
+            Vec3::new(0.05, 0.0, -0.02),
+        );
+        spin.rotation = Quat::from_rotation_x(0.4);
+        spin.angular_velocity = Vec3::new(0.5, 3.0, 1.0);
+        vec![
+            body(
+                "slide",
+                RigidKind::Kinematic,
+                Vec3::new(0.5, 0.7, 0.5),
+                Vec3::new(0.3, -0.2, 0.1),
+            ),
+            spin,
+            body(
+                "block",
+                RigidKind::Fixed,
+                Vec3::new(0.8, 0.2, 0.8),
+                Vec3::ZERO,
+            ),
+            body(
+                "still",
+                RigidKind::Kinematic,
+                Vec3::new(0.2, 0.3, 0.2),
+                Vec3::ZERO,
+            ),
+        ]
+    }
+
+    fn tool_world() -> RigidWorld {
+        let interior = (Vec3::ZERO, Vec3::ONE);
+        RigidWorld::new(&tools(), &[], Vec3::new(0.0, -9.81, 0.0), interior)
+            .expect("world")
+            .expect("bodies")
+    }
+
+    /// A world of kinematic and fixed bodies advanced by its own integration follows rapier's
+    /// step of the same world over 100 steps of 1 ms: a translating box, a box turning 3.2
+    /// rad/s about an axis off its own while translating, a pose given to one body between
+    /// steps (`set_pose`) and to every body (`set_poses`, the turning box given another angular
+    /// velocity); the velocities stay bit for bit, the fixed block and the box standing still
+    /// do not move by a bit, and rapier's colliders stay where they were (its step never ran).
+    /// Not bit for bit: rapier integrates in 4 substeps with a linearised rotation. Its
+    /// linearisation (a substep's turn 2 atan(w h / 2) for w h, h = dt / 4) errs by
+    /// (w h)^3 / 12 = 4e-14 rad a substep, nothing in f32; what differs is rounding: 4
+    /// additions of v h a step against one of v dt (each rounding at most half an ulp of a
+    /// coordinate below 1 m, 3e-8 m: 1.5e-7 m a step, 1.5e-5 m over 100 steps at worst), and
+    /// 4 quaternion products and normalisations against one (a few ulps of a unit quaternion,
+    /// 2.4e-7 each: 1.2e-6 rad a step, 1.2e-4 rad over 100 steps at worst); the bounds below
+    /// are those worst cases. Against the exact motion: the sliding box at its start plus
+    /// `v t` to 1e-5 m.
+    #[test]
+    fn the_fast_path_follows_rapiers_step() {
+        let (mut a, mut b) = (tool_world(), tool_world().with_rapier_steps());
+        assert!(a.kinematic_only() || kinematic_through_rapier());
+        assert!(!b.kinematic_only());
+        let none = vec![Exchange::default(); 4];
+        let dt = 1e-3;
+        let start = a.poses();
+        let colliders: Vec<Vec3> = (0..4).map(|i| collider_at(&a, i)).collect();
+        let (mut max_dx, mut max_da) = (0.0f32, 0.0f32);
+        let mut posed_at = (0, start[0].position, start[0].velocity);
+        for step in 0..100 {
+            if step == 50 {
+                let mut p = a.pose(0).expect("slide");
+                p.position += Vec3::new(-0.1, 0.05, 0.0);
+                p.velocity = Vec3::new(-0.2, 0.0, 0.25);
+                a.set_pose(0, &p).expect("pose");
+                b.set_pose(0, &p).expect("pose");
+                posed_at = (step, p.position, p.velocity);
+            }
+            if step == 70 {
+                let mut all = a.poses();
+                all[1].rotation = Quat::from_rotation_z(-0.7);
+                all[1].angular_velocity = Vec3::new(-2.0, 0.0, 1.5);
+                a.set_poses(&all).expect("poses");
+                b.set_poses(&all).expect("poses");
+            }
+            a.advance(&none, dt);
+            b.advance(&none, dt);
+            for (i, (p, q)) in a.poses().iter().zip(b.poses()).enumerate() {
+                max_dx = max_dx.max((p.position - q.position).abs().max_element());
+                max_da = max_da.max(turn(p.rotation, q.rotation));
+                assert_eq!(p.velocity, q.velocity, "step {step}: body {i}");
+                assert_eq!(
+                    p.angular_velocity, q.angular_velocity,
+                    "step {step}: body {i}"
+                );
+                assert!(p.rotation.is_normalized(), "step {step}: body {i}");
+            }
+            for (i, s) in a.states().iter().enumerate() {
+                let p = a.pose(i).expect("body");
+                assert_eq!(s.center, p.position, "step {step}: body {i}'s centre");
+                let r = glam::Mat3::from_quat(p.rotation);
+                assert_eq!(s.rotation, r, "step {step}: body {i}'s rotation");
+            }
+            let p = a.pose(0).expect("slide");
+            let t = (step + 1 - posed_at.0) as f32 * dt;
+            let exact = posed_at.1 + posed_at.2 * t;
+            assert!(
+                (p.position - exact).abs().max_element() < 1e-5,
+                "step {step}: the sliding box at {} for {exact}",
+                p.position
+            );
+        }
+        println!("fast path against rapier's step: {max_dx:e} m, {max_da:e} rad at most");
+        assert!(max_dx <= 1.5e-5, "positions apart by {max_dx} m");
+        assert!(max_da <= 1.2e-4, "rotations apart by {max_da} rad");
+        // The turning box turned (0.3 rad before step 70 at 3.2 rad/s): compared at all.
+        assert!(start[1].rotation.angle_between(a.poses()[1].rotation) > 0.5);
+        let end = a.poses();
+        for i in [2, 3] {
+            assert_eq!(bits_of(&end[i]), bits_of(&start[i]), "body {i} moved");
+        }
+        for (i, c) in colliders.iter().enumerate() {
+            if a.kinematic_only() {
+                assert_eq!(collider_at(&a, i), *c, "collider {i}: rapier stepped");
+            }
+        }
+        assert_ne!(
+            collider_at(&b, 0),
+            colliders[0],
+            "rapier's step moves colliders"
+        );
+    }
+
+    /// The angle of the turn from `a` to `b` (rad), precise for small turns (glam's
+    /// `angle_between`, an arc cosine of their dot product, reads one ulp of it as 5e-4 rad).
+    fn turn(a: Quat, b: Quat) -> f32 {
+        2.0 * (a.inverse() * b).xyz().length().min(1.0).asin()
+    }
+
+    fn bits_of(p: &BodyPose) -> Vec<u32> {
+        let all = p.position.to_array().into_iter();
+        let all = all
+            .chain(p.rotation.to_array())
+            .chain(p.velocity.to_array());
+        all.chain(p.angular_velocity.to_array())
+            .map(f32::to_bits)
+            .collect()
+    }
+
+    /// A world with a dynamic body is stepped through rapier: its box, dropped from 0.4 m,
+    /// falls under gravity and comes to rest on the floor slab (its centre at its half size,
+    /// 0.05 m), while the kinematic tool in it moves by its velocity.
+    #[test]
+    fn a_world_with_a_dynamic_body_steps_through_rapier() {
+        let mut bodies = tools();
+        bodies.push(body(
+            "box",
+            RigidKind::Dynamic,
+            Vec3::new(0.2, 0.4, 0.8),
+            Vec3::ZERO,
+        ));
+        let interior = (Vec3::ZERO, Vec3::ONE);
+        let mut w = RigidWorld::new(&bodies, &[], Vec3::new(0.0, -9.81, 0.0), interior)
+            .expect("world")
+            .expect("bodies");
+        assert!(!w.kinematic_only());
+        let none = vec![Exchange::default(); bodies.len()];
+        let tool = collider_at(&w, 0);
+        let mut lowest = f32::MAX;
+        for _ in 0..600 {
+            w.advance(&none, 1e-3);
+            lowest = lowest.min(w.pose(4).expect("box").position.y);
+        }
+        let p = w.pose(4).expect("box");
+        assert!(lowest > 0.045, "the box went through the floor: {lowest}");
+        assert!((p.position.y - 0.05).abs() < 2e-3, "box at {}", p.position);
+        assert!(p.velocity.length() < 0.05, "box moving at {}", p.velocity);
+        let slide = w.pose(0).expect("slide").position;
+        let exact = bodies[0].position + bodies[0].velocity * 0.6;
+        assert!(
+            (slide - exact).abs().max_element() < 1e-4,
+            "tool at {slide}"
+        );
+        assert_ne!(collider_at(&w, 0), tool, "rapier's step moves colliders");
     }
 }
