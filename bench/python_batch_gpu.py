@@ -62,7 +62,10 @@ stands still (which the batch no longer steps). ``RTMPM_KINEMATIC=rapier`` steps
 dynamic body (here every world: one kinematic tool) through rapier's whole pipeline as before,
 where by default ``RigidWorld::advance`` moves its kinematic bodies by their velocities itself
 (the A/B of the moving tool's cost on the host: run pose / loop, or ``--moving-tool``, with and
-without it).
+without it). ``RTMPM_BATCH_FAN`` chooses how the host's advance of the worlds' bodies is spread over
+the cores (``serial``: on the calling thread; ``cores``: every core, a world or more a task, as
+before; a number ``n``: every core, ``n`` or more worlds a task; unset: on the calling thread for up
+to 512 worlds without a dynamic body, every core otherwise).
 
 ``--breakdown`` then runs the modes calls, reset, pose and loop once more (``--repeats`` rounds
 after a warm-up, fresh batches) and times each part of a call on its own: the poses, the resets
@@ -436,7 +439,7 @@ def main():
           f"{clock.now():.1f} s so far", flush=True)
     print_waits(waits, runs)
     names = ("RTMPM_BATCH_WAITS", "RTMPM_BATCH_PAGEABLE_PUT", "RTMPM_BATCH_RESET", "RTMPM_BATCH_REST",
-             "RTMPM_KINEMATIC", "RTMPM_SYNC_TRACE")
+             "RTMPM_KINEMATIC", "RTMPM_BATCH_FAN", "RTMPM_SYNC_TRACE")
     switches = {k: os.environ[k] for k in names if k in os.environ}
     if switches:
         print(f"environment: {switches}")

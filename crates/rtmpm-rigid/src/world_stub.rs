@@ -70,6 +70,16 @@ impl RigidWorld {
         match self.never {}
     }
 
+    /// Every advance through the engine's step.
+    pub fn with_rapier_steps(self) -> RigidWorld {
+        match self.never {}
+    }
+
+    /// The world's advance moves its kinematic bodies itself (no dynamic body).
+    pub fn kinematic_only(&self) -> bool {
+        match self.never {}
+    }
+
     /// Apply the step's exchanges and advance by `dt`.
     pub fn advance(&mut self, _exchange: &[Exchange], _dt: f32) {
         match self.never {}

@@ -83,6 +83,9 @@ pub(crate) struct HostBodies {
     stepped: usize,
     /// Every world was at rest after the last advance (and its rows as it left them).
     all_rest: bool,
+    /// No world has a dynamic body: each advances by its own integration, without rapier's
+    /// step ([`RigidWorld::kinematic_only`]; see [`HostBodies::fan`]).
+    cheap: bool,
     /// A world's rapier world or rows may have changed since the last advance (a pose put in).
     touched: bool,
 }
@@ -107,6 +110,51 @@ fn same_bits(a: &[BodyPose], b: &[BodyPose]) -> bool {
         all.chain(p.angular_velocity.to_array()).map(f32::to_bits)
     };
     a.len() == b.len() && a.iter().zip(b).all(|(p, q)| words(p).eq(words(q)))
+}
+
+/// Worlds of kinematic and fixed bodies only up to which [`HostBodies::advance`] advances them
+/// on the calling thread (`moving_advance_timing`: 256 such worlds 25 us a step on one thread of
+/// the 2-core machine, 38-40 us on both cores).
+const SERIAL_ADVANCE: usize = 512;
+
+/// Worlds of kinematic and fixed bodies only a task of [`HostBodies::advance`] takes at least
+/// on every core (past [`SERIAL_ADVANCE`]): some microseconds of work a task, as a wake-up costs.
+const CHEAP_MIN_LEN: usize = 64;
+
+/// `RTMPM_BATCH_FAN`: how [`HostBodies::advance`] spreads the worlds over the cores whatever
+/// they hold (for the A/B on a machine of many cores): `serial` on the calling thread, `cores`
+/// on every core one or more worlds a task (as before the choice of [`HostBodies::fan`]), a
+/// number `n` on every core `n` or more worlds a task; unset or anything else: the choice of
+/// [`HostBodies::fan`]. Read once.
+fn fan_switch() -> Option<Fan> {
+    static FAN: std::sync::OnceLock<Option<Fan>> = std::sync::OnceLock::new();
+    *FAN.get_or_init(|| {
+        let v = std::env::var("RTMPM_BATCH_FAN").ok()?;
+        match v.trim() {
+            "serial" => Some(Fan::Serial),
+            "cores" => Some(Fan::Cores(1)),
+            n => n.parse().ok().filter(|&n| n > 0).map(Fan::Cores),
+        }
+    })
+}
+
+/// One world's rapier world and rows as [`HostBodies::advance`] hands them to a core: the world,
+/// its poses, its records, its rows after its last advance, its flag of rest.
+type WorldRows<'a> = (
+    (
+        ((&'a mut RigidWorld, &'a mut [BodyPose]), &'a mut [GpuBody]),
+        &'a mut [BodyPose],
+    ),
+    &'a mut bool,
+);
+
+/// How [`HostBodies::advance`] spreads the worlds over the cores.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Fan {
+    /// Every world on the calling thread (no worker woken).
+    Serial,
+    /// On every core, at least this many worlds a task.
+    Cores(usize),
 }
 
 /// `world`, whose rows are `poses`, is at rest: no dynamic body (gravity and the material move
@@ -169,6 +217,7 @@ impl HostBodies {
     /// grid starts in the mesh table; `mode`: `CudaOptions::batch_poses`.
     pub fn new(worlds: Vec<RigidWorld>, mesh_offsets: Vec<u32>, mode: BodyPoses) -> HostBodies {
         let per = worlds.first().map_or(0, |w| w.states().len());
+        let cheap = worlds.iter().all(RigidWorld::kinematic_only);
         let (rows, worlds_count) = (worlds.len() * per, worlds.len());
         let poses: Vec<BodyPose> = worlds.iter().flat_map(|w| w.poses()).collect();
         let records = vec![GpuBody::default(); rows];
@@ -185,6 +234,7 @@ impl HostBodies {
             rest: vec![false; worlds_count],
             stepped: 0,
             all_rest: false,
+            cheap,
             touched: true,
         };
         for w in 0..h.worlds.len() {
@@ -306,6 +356,27 @@ impl HostBodies {
 
     /// [`HostBodies::advance`], the worlds at rest skipped when `skip`.
     fn advance_skipping(&mut self, each: Option<&[Vec<Exchange>]>, dt: f32, skip: bool) {
+        let fan = self.fan();
+        self.advance_fanned(each, dt, skip, fan);
+    }
+
+    /// How [`HostBodies::advance`] spreads the worlds over the cores: `RTMPM_BATCH_FAN` where
+    /// set ([`fan_switch`]); otherwise worlds that rapier steps (a dynamic body: 1-3 us a world)
+    /// one or more a task on every core, as before; worlds of kinematic and fixed bodies only
+    /// (their own integration, [`RigidWorld::advance`]: about 0.1 us a world with its rows) on
+    /// the calling thread up to [`SERIAL_ADVANCE`] worlds (waking the pool costs more than
+    /// they do), [`CHEAP_MIN_LEN`] or more a task past that.
+    fn fan(&self) -> Fan {
+        match fan_switch() {
+            Some(fan) => fan,
+            None if !self.cheap => Fan::Cores(1),
+            None if self.worlds.len() <= SERIAL_ADVANCE => Fan::Serial,
+            None => Fan::Cores(CHEAP_MIN_LEN),
+        }
+    }
+
+    /// [`HostBodies::advance_skipping`], the worlds spread over the cores as `fan` says.
+    fn advance_fanned(&mut self, each: Option<&[Vec<Exchange>]>, dt: f32, skip: bool, fan: Fan) {
         self.flush();
         let t0 = std::time::Instant::now();
         let none = vec![Exchange::default(); self.per];
@@ -325,24 +396,39 @@ impl HostBodies {
             return;
         }
         // Each world is independent: the same results in any order.
-        self.stepped = self
-            .worlds
-            .par_iter_mut()
-            .zip(self.poses.par_chunks_mut(per))
-            .zip(self.records.par_chunks_mut(per))
-            .zip(self.advanced.par_chunks_mut(per))
-            .zip(self.rest.par_iter_mut())
-            .enumerate()
-            .map(|(w, ((((world, poses), records), advanced), rest))| {
-                let ex = each.and_then(|e| e.get(w)).unwrap_or(&none);
-                advance_world(
-                    (world, poses, records),
-                    (advanced, rest),
-                    (ex, dt, mesh, skip),
-                )
-            })
-            .filter(|&stepped| stepped)
-            .count();
+        let step = |(w, ((((world, poses), records), advanced), rest)): (usize, WorldRows)| {
+            let ex = each.and_then(|e| e.get(w)).unwrap_or(&none);
+            advance_world(
+                (world, poses, records),
+                (advanced, rest),
+                (ex, dt, mesh, skip),
+            )
+        };
+        self.stepped = match fan {
+            Fan::Serial => self
+                .worlds
+                .iter_mut()
+                .zip(self.poses.chunks_mut(per))
+                .zip(self.records.chunks_mut(per))
+                .zip(self.advanced.chunks_mut(per))
+                .zip(self.rest.iter_mut())
+                .enumerate()
+                .map(step)
+                .filter(|&stepped| stepped)
+                .count(),
+            Fan::Cores(min_len) => self
+                .worlds
+                .par_iter_mut()
+                .zip(self.poses.par_chunks_mut(per))
+                .zip(self.records.par_chunks_mut(per))
+                .zip(self.advanced.par_chunks_mut(per))
+                .zip(self.rest.par_iter_mut())
+                .enumerate()
+                .with_min_len(min_len)
+                .map(step)
+                .filter(|&stepped| stepped)
+                .count(),
+        };
         // Every world's rows are now as this advance left them.
         (self.all_rest, self.touched) = (self.rest.iter().all(|&r| r), false);
         if ADVANCE.on() {

@@ -615,3 +615,175 @@ fn pose_path_timing() {
     }
     std::hint::black_box(&junk);
 }
+
+/// Every way of spreading the worlds over the cores ([`Fan`]) steps them alike, bit for bit:
+/// 12 worlds of a moving tool, a dynamic box and a fixed block, and 12 whose box is kinematic
+/// too (the world not stepped through rapier), 40 steps, the tools posed moving at step 10.
+#[test]
+fn every_fan_of_the_worlds_steps_them_alike() {
+    let make = || {
+        let worlds = (0..24)
+            .map(|w| {
+                let mut bodies = vec![
+                    body(RigidKind::Kinematic, Vec3::new(0.2, 0.7, 0.5), Vec3::ZERO),
+                    body(RigidKind::Dynamic, Vec3::new(0.3, 0.3, 0.3), Vec3::ZERO),
+                    body(RigidKind::Fixed, Vec3::new(0.8, 0.2, 0.8), Vec3::ZERO),
+                ];
+                if w >= 12 {
+                    bodies[1].kind = RigidKind::Kinematic;
+                    bodies[1].velocity = Vec3::new(0.1, 0.01 * w as f32, 0.0);
+                    bodies[1].angular_velocity = Vec3::new(0.0, 1.0, 0.5);
+                }
+                let interior = (Vec3::ZERO, Vec3::ONE);
+                RigidWorld::new(&bodies, &[], Vec3::new(0.0, -9.81, 0.0), interior)
+                    .expect("world")
+                    .expect("bodies")
+            })
+            .collect();
+        HostBodies::new(worlds, vec![0, 0, 0], BodyPoses::Deferred)
+    };
+    let fans = [Fan::Serial, Fan::Cores(1), Fan::Cores(5), Fan::Cores(64)];
+    let mut all: Vec<HostBodies> = fans.iter().map(|_| make()).collect();
+    for c in 0..40 {
+        for (h, &fan) in all.iter_mut().zip(&fans) {
+            if c == 10 {
+                let poses: Vec<(usize, BodyPose)> = (0..24)
+                    .map(|w| (w, posed(h.pose(w, 0).expect("tool"), w, 1)))
+                    .collect();
+                h.set_body_poses(0, &poses).expect("poses");
+            }
+            h.advance_fanned(None, 1e-3, true, fan);
+        }
+        let want = state_bits(&all[0].states());
+        for (h, fan) in all.iter_mut().zip(&fans).skip(1) {
+            assert_eq!(state_bits(&h.states()), want, "step {c}: {fan:?}");
+        }
+        assert_eq!(all[0].stepped(), 24, "step {c}: every world moves");
+    }
+}
+
+/// A step's advance of 256 worlds whose kinematic tool moves down at 0.2 m/s
+/// (bench/python_batch_gpu.py's `--moving-tool`, and its pose and loop modes' steps) on this
+/// machine, through rapier's step (`RTMPM_KINEMATIC=rapier`) and by the worlds' own integration
+/// of their tools (`RigidWorld::advance`), first the worlds' advance alone on one thread, then
+/// the batch's (with its rows) spread over the cores in each way of [`Fan`] (`cargo test --release -p rtmpm-cuda --features rigid --lib moving_advance_timing --
+/// --ignored --nocapture`; no GPU). Medians of 200 steps.
+#[test]
+#[ignore = "a timing, not a check"]
+fn moving_advance_timing() {
+    use std::time::Instant;
+    let n = 256;
+    let moving = |rapier: bool| {
+        let mut w = tool_world();
+        if rapier {
+            w = w.with_rapier_steps();
+        }
+        let mut p = w.pose(0).expect("tool");
+        p.velocity = Vec3::new(0.0, -0.2, 0.0);
+        w.set_pose(0, &p).expect("pose");
+        w
+    };
+    let fans = [
+        (true, Fan::Cores(1)),
+        (false, Fan::Cores(1)),
+        (false, Fan::Cores(16)),
+        (false, Fan::Cores(64)),
+        (false, Fan::Serial),
+    ];
+    // The rapier worlds' advance alone, one after the other on this thread (no rows).
+    for rapier in [true, false] {
+        let mut worlds: Vec<RigidWorld> = (0..n).map(|_| moving(rapier)).collect();
+        let none = [Exchange::default()];
+        let mut times = Vec::new();
+        for _ in 0..200 {
+            let t0 = Instant::now();
+            for w in worlds.iter_mut() {
+                w.advance(&none, 4e-4);
+            }
+            times.push(t0.elapsed().as_secs_f64());
+        }
+        times.sort_by(f64::total_cmp);
+        println!(
+            "{}: RigidWorld::advance of {n} worlds of a moving tool on one thread {:.1} us \
+             (median of 200)",
+            if rapier {
+                "rapier's step"
+            } else {
+                "own integration"
+            },
+            1e6 * times[100]
+        );
+    }
+    for (rapier, fan) in fans {
+        let worlds = (0..n).map(|_| moving(rapier)).collect();
+        let mut h = HostBodies::new(worlds, vec![0], BodyPoses::Deferred);
+        let mut times = Vec::new();
+        for _ in 0..200 {
+            let t0 = Instant::now();
+            h.advance_fanned(None, 4e-4, true, fan);
+            times.push(t0.elapsed().as_secs_f64());
+        }
+        times.sort_by(f64::total_cmp);
+        println!(
+            "{}, {fan:?}: a step's advance of {n} worlds of a moving tool {:.1} us (median of \
+             200, min {:.1}), {} stepped",
+            if rapier {
+                "rapier's step"
+            } else {
+                "own integration"
+            },
+            1e6 * times[100],
+            1e6 * times[0],
+            h.stepped()
+        );
+    }
+}
+
+/// `advance` spreads the worlds as [`HostBodies::fan`] says: worlds of kinematic and fixed
+/// bodies only on the calling thread up to [`SERIAL_ADVANCE`], in tasks of [`CHEAP_MIN_LEN`]
+/// past it, worlds that rapier steps (a dynamic body in any) on every core one a task; unless
+/// `RTMPM_BATCH_FAN` says otherwise.
+#[test]
+fn the_fan_follows_what_the_worlds_cost() {
+    let tools = |n: usize| {
+        HostBodies::new(
+            (0..n).map(|_| tool_world()).collect(),
+            vec![0],
+            BodyPoses::Deferred,
+        )
+    };
+    let boxes = HostBodies::new(
+        (0..4).map(|w| world(w, true)).collect(),
+        vec![0, 0, 0],
+        BodyPoses::Deferred,
+    );
+    let rapier = HostBodies::new(
+        (0..4).map(|_| tool_world().with_rapier_steps()).collect(),
+        vec![0],
+        BodyPoses::Deferred,
+    );
+    let got = [
+        tools(256).fan(),
+        tools(SERIAL_ADVANCE + 1).fan(),
+        boxes.fan(),
+        rapier.fan(),
+    ];
+    let want = match fan_switch() {
+        Some(fan) => [fan; 4],
+        None => [
+            Fan::Serial,
+            Fan::Cores(CHEAP_MIN_LEN),
+            Fan::Cores(1),
+            Fan::Cores(1),
+        ],
+    };
+    if tools(1).cheap {
+        assert_eq!(got, want);
+    } else {
+        // RTMPM_KINEMATIC=rapier: every world stepped through rapier.
+        assert!(
+            got.iter()
+                .all(|f| *f == fan_switch().unwrap_or(Fan::Cores(1)))
+        );
+    }
+}
