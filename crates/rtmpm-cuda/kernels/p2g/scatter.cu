@@ -38,20 +38,7 @@ extern "C" __global__ void __launch_bounds__(128, P2G_MIN_BLOCKS) p2g(Ctx c, uns
     for (unsigned w = thread_index() >> 5; w < n_warps; w += stride) {
         unsigned g = c.warps[3 * w], first = c.warps[3 * w + 1], count = c.warps[3 * w + 2];
         if (!in_part(c, g, part)) continue;
-        bool active = lane < count;
-        unsigned src = lane;
-        if (c.warp_sort) {
-            unsigned key = P2G_KEY_NONE;
-            if (active) {
-                int base[3]; real fx[3];
-                stencil_of(c, load_v3(c.state, c.cap, F_X, first + lane), particle_world(c, first + lane), base, fx);
-                key = p2g_sort_key(c, g, base);
-            }
-            src = p2g_warp_sort(key, lane, &active);
-        }
-        P2gParticle q = p2g_particle_zero();
-        if (active) q = p2g_particle(c, first + src);
-        p2g_scatter_warp(c, g, q, active, lane, c.grid);
+        p2g_warp_entry(c, g, first, count, lane);
     }
 }
 

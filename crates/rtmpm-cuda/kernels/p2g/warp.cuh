@@ -313,3 +313,25 @@ __device__ __forceinline__ void p2g_scatter_warp(const Ctx& c, unsigned g, const
     p2g_scatter_rows<-1>(nodes, q, seg_len, max_seg, head, grid);
 #endif
 }
+
+// One entry of the warp list into c.grid: the `count` (at most 32) particles of gblock g from
+// slot `first`, sorted in the warp by stencil key (c.warp_sort), summed by segments and scattered.
+// Every lane of the warp calls it (the sort and the sums shuffle). The P2G kernel `p2g`
+// (scatter.cu) and the batch's redo of some worlds' P2G (`redo_p2g`, kernels/redo.cu).
+__device__ __forceinline__ void p2g_warp_entry(const Ctx& c, unsigned g, unsigned first, unsigned count,
+                                               unsigned lane) {
+    bool active = lane < count;
+    unsigned src = lane;
+    if (c.warp_sort) {
+        unsigned key = P2G_KEY_NONE;
+        if (active) {
+            int base[3]; real fx[3];
+            stencil_of(c, load_v3(c.state, c.cap, F_X, first + lane), particle_world(c, first + lane), base, fx);
+            key = p2g_sort_key(c, g, base);
+        }
+        src = p2g_warp_sort(key, lane, &active);
+    }
+    P2gParticle q = p2g_particle_zero();
+    if (active) q = p2g_particle(c, first + src);
+    p2g_scatter_warp(c, g, q, active, lane, c.grid);
+}
