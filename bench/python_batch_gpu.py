@@ -65,7 +65,9 @@ where by default ``RigidWorld::advance`` moves its kinematic bodies by their vel
 without it). ``RTMPM_BATCH_FAN`` chooses how the host's advance of the worlds' bodies is spread over
 the cores (``serial``: on the calling thread; ``cores``: every core, a world or more a task, as
 before; a number ``n``: every core, ``n`` or more worlds a task; unset: on the calling thread for up
-to 512 worlds without a dynamic body, every core otherwise).
+to 512 worlds without a dynamic body, every core otherwise). ``RTMPM_BATCH_REDO=old`` redoes the
+P2G of every world at the step after a reset, as before the redo of the reset worlds' P2G alone
+(with G2P2G; docs/batch.md, "The P2G after a put").
 
 ``--breakdown`` then runs the modes calls, reset, pose and loop once more (``--repeats`` rounds
 after a warm-up, fresh batches) and times each part of a call on its own: the poses, the resets

@@ -37,6 +37,7 @@ mod colliders;
 mod initial;
 mod layout;
 mod put;
+mod redo;
 mod staging;
 
 pub use accept::unsupported;
@@ -44,6 +45,7 @@ use accept::{batch_capacities, check_particles};
 pub use layout::{
     BatchParams, MAX_GRID_CELLS_X, WORLD_GAP_CELLS, WORLD_ORIGIN_CELLS, world_stride,
 };
+pub use redo::plan::{PutWorlds, Redo, RedoCounts, old_redo};
 pub use staging::old_resets;
 
 use crate::backend::{CudaBackend, Part};
@@ -111,6 +113,12 @@ pub struct CudaBatch {
     put_staging: crate::staging::StagingRing,
     /// The scene of the shared clock ([`CudaBatch::scene`]).
     clock: Scene,
+    /// The worlds put since the last step, whose P2G the next redoes ([`CudaBatch::redo_puts`]).
+    put_since: PutWorlds,
+    /// After a put, redo every world's P2G ([`CudaBatch::set_full_redo`]).
+    full_redo: bool,
+    /// The redos so far ([`CudaBatch::redo_counts`]).
+    redo_counts: RedoCounts,
 }
 
 impl CudaBatch {
@@ -220,6 +228,9 @@ impl CudaBatch {
             put_host: Vec::new(),
             put_staging: crate::staging::StagingRing::new(PUT_BUFFERS, 1),
             clock,
+            put_since: PutWorlds::default(),
+            full_redo: old_redo(),
+            redo_counts: RedoCounts::default(),
         })
     }
 
@@ -273,6 +284,12 @@ impl CudaBatch {
             c.update(&stream, t, &self.backend.waits)?;
         }
         let t2 = std::time::Instant::now();
+        if self.backend.p2g_due_for(dt) {
+            // The step redoes every world's P2G (a new dt).
+            self.put_since.clear();
+        } else {
+            self.redo_puts()?;
+        }
         self.backend.step(dt, t)?;
         let t3 = std::time::Instant::now();
         if let Some(b) = self.bodies.as_mut() {

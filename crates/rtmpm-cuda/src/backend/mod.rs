@@ -339,6 +339,12 @@ impl CudaBackend {
         Ok(())
     }
 
+    /// True when a step of `dt` will redo every world's P2G because its dt is not the last
+    /// step's (G2P2G: the last fused scatter used the old dt; [`CudaBackend::upload_params`]).
+    pub(crate) fn p2g_due_for(&self, dt: f32) -> bool {
+        self.g2p2g() && self.last_dt.is_some_and(|d| d != dt)
+    }
+
     /// The step parameters `step` and collider poses `poses` to their buffers and constant
     /// symbols through page-locked memory (`params_staging`: no wait for the steps queued ahead).
     fn upload_params_staged(&mut self, step: &[u8], poses: &[u8]) -> Result<(), SimError> {

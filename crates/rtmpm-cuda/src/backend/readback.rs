@@ -93,11 +93,25 @@ impl CudaBackend {
     /// by grid coordinate. Pblock ids differ between runs, coordinates do not: this compares the
     /// grids of two backends node by node.
     pub fn grid_nodes(&mut self) -> Result<Vec<(IVec3, [f64; 4])>, SimError> {
+        self.nodes_of(false)
+    }
+
+    /// [`CudaBackend::grid_nodes`] of the grid the coming step reads: with G2P2G the last fused
+    /// scatter (masses and momenta) and whatever was redone into it since (a batch's redo of
+    /// the worlds put); without, the last step's grid, as `grid_nodes`.
+    pub fn coming_grid_nodes(&mut self) -> Result<Vec<(IVec3, [f64; 4])>, SimError> {
+        self.nodes_of(self.g2p2g())
+    }
+
+    /// The nodes of the grid the last step wrote, or (`coming`) of the other of G2P2G's two.
+    fn nodes_of(&mut self, coming: bool) -> Result<Vec<(IVec3, [f64; 4])>, SimError> {
         let (_, p, _) = self.block_counts()?;
-        let grid = self
-            .stream
-            .clone_dtoh(self.shown_grid())
-            .map_err(err("read grid"))?;
+        let which = match (coming, self.parity, &self.buffers.grid_next) {
+            (true, 1, Some(g)) => g,
+            (true, _, _) => &self.buffers.grid,
+            (false, _, _) => self.shown_grid(),
+        };
+        let grid = self.stream.clone_dtoh(which).map_err(err("read grid"))?;
         let coords: Vec<i32> = self
             .stream
             .clone_dtoh(&self.buffers.block_coords)

@@ -15,7 +15,6 @@
 
 use super::CudaBatch;
 use super::staging::old_resets;
-use crate::contract::CTL_P2G_PENDING;
 use crate::error::err;
 use crate::kernels::Kernel;
 use crate::waits::WaitReason;
@@ -161,8 +160,8 @@ impl CudaBatch {
             }
             .map_err(err("put worlds back to their initial particles"))?;
         }
-        if b.g2p2g() && !runs.is_empty() {
-            b.set_ctl_word(CTL_P2G_PENDING, 1)?;
+        if !runs.is_empty() {
+            self.note_put(worlds.iter().copied())?;
         }
         INITIAL_TIMING.record(worlds.len(), [t0, t1], std::time::Instant::now());
         Ok(true)

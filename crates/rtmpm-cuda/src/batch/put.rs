@@ -65,6 +65,8 @@ impl CudaBatch {
         if b.g2p2g() {
             b.set_ctl_word(CTL_P2G_PENDING, 1)?;
         }
+        // Every world's P2G is redone (and the mapping rebuilt): nothing left to redo alone.
+        self.put_since.clear();
         // Everything after is queued behind the copy on the same stream: no wait (but with
         // `RTMPM_BATCH_WAITS=old`, as before).
         if crate::waits::old_waits() {
@@ -94,7 +96,8 @@ impl CudaBatch {
     /// Put world `w`'s particles to `particles` (its initial ones for a reset, or any state of
     /// as many particles, in its own material indices), the other worlds untouched: the state
     /// words of its slots are overwritten (`batch_put_world`, `kernels/batch.cu`) and the next
-    /// step redoes its P2G (with G2P2G, whose last fused scatter was of the old particles). The
+    /// step redoes its P2G (with G2P2G, whose last fused scatter was of the old particles: that
+    /// world's alone, [`CudaBatch::redo_puts`]). The
     /// mapping of particles to blocks is rebuilt at the next step only when a particle put
     /// needs it: when its stencil base leaves the free zone of the gblock its slot was sorted
     /// into (G2P's rule, checked by the kernel, `kernels/batch.cu`), as a step rebuilds when a
@@ -109,8 +112,9 @@ impl CudaBatch {
     /// once: every world is checked before any changes (a world listed twice ends with its
     /// last); each run of consecutive worlds is packed as one (their particles are consecutive
     /// in original order), all runs go to the device in one copy (into a buffer kept between
-    /// calls, [`CudaBatch::put_bytes`]), one `batch_put_world` launch a run and the P2G flag
-    /// set once (with G2P2G), where a world at a time paid an allocation, a copy, two
+    /// calls, [`CudaBatch::put_bytes`]), one `batch_put_world` launch a run and the worlds
+    /// listed for the redo of their P2G before the next step (with G2P2G,
+    /// [`CudaBatch::redo_puts`]), where a world at a time paid an allocation, a copy, two
     /// control-word writes and a wait. Nothing waits for the device: the images go through kept
     /// page-locked memory, an asynchronous copy even while steps are queued ahead of it
     /// ([`CudaBatch::upload_put`]; `RTMPM_BATCH_PAGEABLE_PUT=1` copies from pageable memory as
@@ -231,10 +235,9 @@ impl CudaBatch {
             }
             .map_err(err("put worlds"))?;
         }
-        // The rebuild flag is the kernel's (only where a particle put leaves its zone).
-        if b.g2p2g() {
-            b.set_ctl_word(CTL_P2G_PENDING, 1)?;
-        }
+        // The rebuild flag is the kernel's (only where a particle put leaves its zone); the P2G
+        // of the worlds put is redone before the next step (crate::batch::redo).
+        self.note_put(worlds.iter().map(|(w, _)| *w))?;
         PUT_TIMING.record(worlds.len(), [t0, t1, t2], std::time::Instant::now());
         Ok(())
     }

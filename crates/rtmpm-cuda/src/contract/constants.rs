@@ -157,6 +157,9 @@ pub const MAX_COLLIDERS: usize = 16;
 pub const MAX_MATERIALS: usize = 64;
 /// Rigid bodies a scene may have on the GPU (constant-memory table).
 pub const MAX_BODIES: usize = 32;
+/// Runs of consecutive worlds a batch's redo of some worlds' P2G takes at once
+/// ([`RedoWorlds`], a kernel argument; more runs fall back to the full redo).
+pub const REDO_RANGES: usize = 32;
 /// Copies of the rigid bodies' impulse sums (thread blocks add to copy `blockIdx.x % slots`, so
 /// fewer atomics meet on one address); the host sums them.
 pub const BODY_EXCHANGE_SLOTS: usize = 32;

@@ -190,6 +190,7 @@ fn layouts<R: GpuReal>() -> Vec<Layout> {
             "PushCtx",
             [inbox, arrivals, calls, done, timeout_ns, n, me]
         ),
+        layout!(RedoWorlds, "RedoWorlds", [count, lo, hi]),
         layout!(
             SpinBarrier,
             "SpinBarrier",
@@ -294,6 +295,7 @@ pub fn prelude() -> String {
         ("RTMPM_MAX_COLLIDERS", MAX_COLLIDERS),
         ("RTMPM_MAX_MATERIALS", MAX_MATERIALS),
         ("RTMPM_MAX_BODIES", MAX_BODIES),
+        ("REDO_RANGES", REDO_RANGES),
         ("BODY_EXCHANGE_SLOTS", BODY_EXCHANGE_SLOTS),
         ("MATERIAL_PARAMS", MATERIAL_PARAMS),
         ("SB_MAX_GPUS", MAX_PEER_GPUS),

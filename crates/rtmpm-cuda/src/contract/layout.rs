@@ -1,7 +1,7 @@
 //! The structs copied to the GPU, each the twin of a C struct of the kernels (field offsets
 //! checked by [`super::layout_asserts`]).
 
-use super::constants::{MATERIAL_PARAMS, MAX_COLLIDERS, MAX_PEER_GPUS};
+use super::constants::{MATERIAL_PARAMS, MAX_COLLIDERS, MAX_PEER_GPUS, REDO_RANGES};
 use bytemuck::{Pod, Zeroable};
 use std::mem::size_of;
 
@@ -399,6 +399,29 @@ pub struct SpinBarrier {
 
 // SAFETY: Pod, passed by value with the C layout the kernels declare.
 unsafe impl cudarc::driver::DeviceRepr for SpinBarrier {}
+
+/// The worlds of a batch whose P2G is redone (`redo_clear`, `redo_p2g` in `kernels/redo.cu`;
+/// `crate::batch::CudaBatch::redo_puts`): `count` runs of consecutive worlds, run `i` the
+/// worlds `lo[i]..hi[i]`. Passed by value (260 bytes of kernel arguments).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Pod, Zeroable)]
+pub struct RedoWorlds {
+    /// Runs in use (at most [`REDO_RANGES`]).
+    pub count: u32,
+    /// First world of each run.
+    pub lo: [u32; REDO_RANGES],
+    /// One past the last world of each run.
+    pub hi: [u32; REDO_RANGES],
+}
+
+impl Default for RedoWorlds {
+    fn default() -> Self {
+        bytemuck::Zeroable::zeroed()
+    }
+}
+
+// SAFETY: Pod, passed by value with the C layout the kernels declare.
+unsafe impl cudarc::driver::DeviceRepr for RedoWorlds {}
 
 /// `p2g=reverse_map`: the replicated node-to-particle maps (`kernels/p2g/reverse_map.cu`).
 #[repr(C)]

@@ -1,0 +1,74 @@
+// The P2G of some worlds of a batch redone (crate::batch::redo), queued before a step: with
+// G2P2G the grid the coming step reads holds the last fused scatter, of the particles as they
+// were; worlds put since (a reset, a state given) need theirs again, the others' is still right.
+// `redo_clear` zeroes the pblocks of the worlds listed, `redo_p2g` scatters their particles
+// again, the warp scatter of the P2G kernel (p2g_warp_entry, p2g/warp.cuh); every other world's
+// nodes are left as they are. MLS-MPM only: a batch takes no CK-MPM scene (batch/accept.rs).
+//
+// Which pblocks and warps are a world's: the world of a block is its x block coordinate's
+// stripe (node_world; crate::batch::layout: each world's stripe is whole blocks and holds every
+// node its particles reach, the neighbour blocks too), a warp's that of its gblock. Neither the
+// pblock ids nor the warp list are in world order (ids are given in hash-table order at a
+// rebuild), so each kernel tests every pblock or warp entry against the runs listed.
+//
+// Both kernels do nothing when the step will redo every world's P2G anyway: a rebuild is due
+// (a put particle left its zone, the mapping the scatter would use no longer holds it), the
+// host asked for the full P2G (CTL_P2G_PENDING: first step, new dt, a put the redo does not
+// cover), every step rebuilds, or an error stopped the run. The flags are not changed between
+// the two launches, so both take the same decision.
+#include "p2g/warp.cuh"
+
+#ifndef P2G_MIN_BLOCKS
+#define P2G_MIN_BLOCKS 1
+#endif
+
+struct RedoWorlds {
+    unsigned count;
+    unsigned lo[REDO_RANGES], hi[REDO_RANGES];  // run i: worlds lo[i] .. hi[i] - 1
+};
+
+__device__ __forceinline__ bool redo_listed(const RedoWorlds& r, unsigned world) {
+    for (unsigned i = 0; i < r.count && i < REDO_RANGES; ++i)
+        if (world >= r.lo[i] && world < r.hi[i]) return true;
+    return false;
+}
+
+// The world of pblock `id` (0 in a program of one world).
+__device__ __forceinline__ unsigned redo_block_world(const Ctx& c, unsigned id) {
+#ifdef RTMPM_BATCH
+    int bx = c.block_coords[3 * id];
+    return bx < 0 ? ~0u : node_world(4 * bx);
+#else
+    return 0u;
+#endif
+}
+
+__device__ __forceinline__ bool redo_skipped(const Ctx& c) {
+    const volatile unsigned* ctl = c.ctl;
+    return !c.grid_next || c.always_rebuild || ctl[CTL_ERROR] || ctl[CTL_NEED_REBUILD] ||
+           ctl[CTL_P2G_PENDING];
+}
+
+// The nodes of the listed worlds' pblocks (and grid_aux's, where there is one), as
+// grid_clear_body (rebuild.cu) clears every pblock.
+extern "C" __global__ void redo_clear(Ctx c, RedoWorlds r) {
+    if (redo_skipped(c)) return;
+    unsigned words = min(c.ctl[CTL_PBLOCKS], c.pblock_cap) * 64u * 4u;
+    for (unsigned t = thread_index(); t < words; t += gridDim.x * blockDim.x) {
+        if (!redo_listed(r, redo_block_world(c, t >> 8))) continue;
+        c.grid[t] = 0;
+        if (c.grid_aux) c.grid_aux[t] = 0;
+    }
+}
+
+// The warp list's entries of the listed worlds' gblocks, as `p2g` (p2g/scatter.cu) scatters them.
+extern "C" __global__ void __launch_bounds__(128, P2G_MIN_BLOCKS) redo_p2g(Ctx c, RedoWorlds r) {
+    if (redo_skipped(c)) return;
+    unsigned n_warps = min(c.ctl[CTL_WARPS], c.warp_cap), stride = (gridDim.x * blockDim.x) >> 5;
+    unsigned lane = threadIdx.x & 31;
+    for (unsigned w = thread_index() >> 5; w < n_warps; w += stride) {
+        unsigned g = c.warps[3 * w];
+        if (redo_listed(r, redo_block_world(c, g)))
+            p2g_warp_entry(c, g, c.warps[3 * w + 1], c.warps[3 * w + 2], lane);
+    }
+}
