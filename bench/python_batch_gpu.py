@@ -67,7 +67,8 @@ the cores (``serial``: on the calling thread; ``cores``: every core, a world or 
 before; a number ``n``: every core, ``n`` or more worlds a task; unset: on the calling thread for up
 to 512 worlds without a dynamic body, every core otherwise). ``RTMPM_BATCH_REDO=old`` redoes the
 P2G of every world at the step after a reset, as before the redo of the reset worlds' P2G alone
-(with G2P2G; docs/batch.md, "The P2G after a put").
+(with G2P2G; docs/batch.md, "The P2G after a put"); the table of the redos a call of reset and
+loop (``BatchSimulation.p2g_redos``: of the worlds put alone, of every world) says which ran.
 
 ``--breakdown`` then runs the modes calls, reset, pose and loop once more (``--repeats`` rounds
 after a warm-up, fresh batches) and times each part of a call on its own: the poses, the resets
@@ -259,6 +260,19 @@ def host_waits(sim):
     return counts, sim.host_wait_seconds
 
 
+def p2g_redos(sim):
+    """The P2G redos after resets so far, (worlds put alone, every world)
+    (``BatchSimulation.p2g_redos``), or None where the module has no such counter."""
+    return getattr(sim, "p2g_redos", None)
+
+
+def redos_per_call(before, after, calls):
+    """(redos of the worlds put alone, of every world) a call between two ``p2g_redos``."""
+    if before is None or after is None:
+        return None
+    return ((after[0] - before[0]) / calls, (after[1] - before[1]) / calls)
+
+
 def waits_per_call(before, after, calls):
     """{reason: (waits a call, ms waited a call)} between two ``host_waits`` readings."""
     if before is None or after is None:
@@ -269,9 +283,11 @@ def waits_per_call(before, after, calls):
 
 def plain_rounds(a, one, runs, torch, clock, setups):
     """The modes' rounds (the first a warm-up): {run: [wall s]}, the batch's info, the timed
-    rounds done, and {run: host waits a call} of the last round (None where not counted)."""
+    rounds done, and {run: host waits a call} and {run: P2G redos a call} of the last round
+    (None where not counted)."""
     times = {r: [] for r in runs}
     waits = {r: None for r in runs}
+    redos = {r: None for r in runs}
     info = {}
     done = 0
     for rep in range(a.repeats + 1):  # the first round warms up (kernel cache, pools), not counted
@@ -281,7 +297,7 @@ def plain_rounds(a, one, runs, torch, clock, setups):
         for run in runs if rep % 2 == 0 else runs[::-1]:
             sim = fresh(one, setups)
             info = {"particles": int(sim.num_particles.sum()), "backend": sim.backend.name}
-            w0 = host_waits(sim)
+            w0, r0 = host_waits(sim), p2g_redos(sim)
             t0 = time.perf_counter()
             run_mode(run[0], sim, a.steps, run[1], a.resets, torch)
             if OVERLAP:
@@ -293,13 +309,28 @@ def plain_rounds(a, one, runs, torch, clock, setups):
                 ok_all = sim.running.all()
             assert ok_all, f"{run}: a world blew up: {sim.status}"
             waits[run] = waits_per_call(w0, host_waits(sim), a.steps // run[1])
+            redos[run] = redos_per_call(r0, p2g_redos(sim), a.steps // run[1])
             if rep > 0:
                 times[run].append(wall)
             del sim
         done = rep
         clock.say(f"round {rep} of {a.repeats} ({'warm-up' if rep == 0 else 'timed'}) done; a batch's "
                   f"set-up (not timed) {statistics.median(setups):.3f} s (median of {len(setups)})")
-    return times, info, done, waits
+    return times, info, done, waits, redos
+
+
+def print_redos(redos, runs):
+    """The P2G redos a call of the modes that reset (the last round's;
+    ``BatchSimulation.p2g_redos``)."""
+    rows = [(run, redos[run]) for run in runs if redos[run] is not None and run[0] in ("reset", "loop")]
+    if not rows:
+        return
+    print()
+    print("P2G redos after the resets a call (the last round; RTMPM_BATCH_REDO=old: every world):")
+    print("| mode | steps a call | worlds put alone | every world |")
+    print("| --- | --- | --- | --- |")
+    for (mode, k), (alone, every) in rows:
+        print(f"| {mode} | {k} | {alone:.2f} | {every:.2f} |")
 
 
 def print_waits(waits, runs):
@@ -418,7 +449,7 @@ def main():
     modes += ["device"] if torch is not None else []
     runs = [("bare", a.steps)] + [(m, k) for k in per_call for m in modes if m != "bare"]
     setups = []
-    times, info, done, waits = plain_rounds(a, one, runs, torch, clock, setups)
+    times, info, done, waits, redos = plain_rounds(a, one, runs, torch, clock, setups)
     bare = statistics.median(times[("bare", a.steps)])
     print(f"{a.worlds} worlds, {info['particles']} particles, {a.steps} steps, {a.resets} resets a call, "
           f"{done} repeats, on {info['backend']}; overlap {'on' if a.overlap else 'off'}")
@@ -433,15 +464,17 @@ def main():
         med = statistics.median(times[(mode, k)])
         calls = a.steps // k
         rows.append({"mode": mode, "steps_per_call": k, "wall_s": times[(mode, k)], "median_s": med,
-                     "ratio_to_bare": med / bare, "host_waits_per_call": waits[(mode, k)]})
+                     "ratio_to_bare": med / bare, "host_waits_per_call": waits[(mode, k)],
+                     "p2g_redos_per_call": redos[(mode, k)]})
         print(f"| {mode} | {k} | {summary(times[(mode, k)])} | {1e3 * med / calls:.3f} | {med / bare:.3f} |")
     print(f"bare: {1e3 * bare / a.steps:.3f} ms a step of the {a.worlds} worlds "
           f"({info['particles'] * a.steps / bare / 1e6:.1f} M particle-steps/s); bound: loop / bare <= 1.10")
     print(f"a fresh batch's set-up (not timed): median {statistics.median(setups):.3f} s of {len(setups)}; "
           f"{clock.now():.1f} s so far", flush=True)
     print_waits(waits, runs)
+    print_redos(redos, runs)
     names = ("RTMPM_BATCH_WAITS", "RTMPM_BATCH_PAGEABLE_PUT", "RTMPM_BATCH_RESET", "RTMPM_BATCH_REST",
-             "RTMPM_KINEMATIC", "RTMPM_BATCH_FAN", "RTMPM_SYNC_TRACE")
+             "RTMPM_KINEMATIC", "RTMPM_BATCH_FAN", "RTMPM_BATCH_REDO", "RTMPM_SYNC_TRACE")
     switches = {k: os.environ[k] for k in names if k in os.environ}
     if switches:
         print(f"environment: {switches}")

@@ -105,7 +105,7 @@ def test_batch_n_copies_a_plain_scene_and_steps_every_world():
     assert sim.mass.shape == x.shape[:2] and sim.material.dtype == np.int32
     # The GPU's diagnostics: nothing to wait for on the CPU, no mapping to count.
     sim.synchronize()
-    assert sim.rebuilds is None
+    assert sim.rebuilds is None and sim.p2g_redos is None
 
 
 def test_a_plain_simulation_and_a_resumed_one_are_simulations(tmp_path):

@@ -121,6 +121,18 @@ impl Run {
         }
     }
 
+    /// How the P2G after resets was redone so far (on the GPU: the redos of the worlds put
+    /// alone, and of every world; `None` on the CPU, whose every step does its P2G).
+    pub fn p2g_redos(&self) -> Option<(u64, u64)> {
+        match self {
+            Run::Each(_) => None,
+            Run::Lockstep(r) => {
+                let c = r.sim.backend.redo_counts();
+                Some((c.partial, c.full))
+            }
+        }
+    }
+
     /// The host's waits for the device so far, by reason (on the GPU; `None` on the CPU,
     /// whose calls do their work on the host).
     pub fn host_waits(&self) -> Option<rtmpm_cuda::WaitCounts> {

@@ -129,6 +129,16 @@ impl PyBatch {
     fn rebuilds(&mut self, py: Python<'_>) -> PyResult<Option<u32>> {
         self.detached(py, Run::rebuilds)
     }
+
+    /// How the GPU redid the grid's P2G after resets since the batch was made, ``(worlds put
+    /// alone, every world)`` (``None`` on the CPU): a diagnostic. With the fused G2P2G step the
+    /// step after a reset (or another put) redoes the P2G of the worlds put alone, or of every
+    /// world where more than half were put, where the step also rebuilds the mapping, or with
+    /// ``RTMPM_BATCH_REDO=old`` in the environment (as before).
+    #[getter]
+    fn p2g_redos(&mut self, py: Python<'_>) -> PyResult<Option<(u64, u64)>> {
+        self.detached(py, |run| Ok(run.p2g_redos()))
+    }
 }
 
 impl PyBatch {
