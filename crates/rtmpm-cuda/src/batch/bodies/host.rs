@@ -1,7 +1,8 @@
 //! The host side of a GPU batch's rigid bodies ([`HostBodies`]): every world's rapier world and,
 //! beside them in rows `w * per + b` (body `b` of world `w`), each body's pose as its world holds
 //! it and its record for the device table, rewritten whenever a world changes (each step's
-//! advance, on every core; a pose given to it).
+//! advance, on every core or, for worlds without a dynamic body, on the calling thread
+//! ([`HostBodies::fan`]); a pose given to it).
 //!
 //! Why the rows: between two calls of a script the step advanced every world on every core, so a
 //! script posing a tool in every world from its one thread found each world's rapier bodies in
@@ -339,8 +340,8 @@ impl HostBodies {
         &self.records
     }
 
-    /// Advance every world by `dt` (each by its bodies' sums `each[w]`, or none), on every core,
-    /// and rewrite its rows; a world at rest is not stepped. At rest: its last advance left its
+    /// Advance every world by `dt` (each by its bodies' sums `each[w]`, or none), on every core
+    /// or on the calling thread ([`HostBodies::fan`]), and rewrite its rows; a world at rest is not stepped. At rest: its last advance left its
     /// rows (poses and velocities) as they were, bit for bit, with no dynamic body and every
     /// velocity zero, and its rows are still those (no pose given since, or the same): a step
     /// of it is then a function of those rows alone (a kinematic body moves by its velocities
