@@ -50,14 +50,17 @@ __device__ __forceinline__ bool redo_skipped(const Ctx& c) {
 }
 
 // The nodes of the listed worlds' pblocks (and grid_aux's, where there is one), as
-// grid_clear_body (rebuild.cu) clears every pblock.
+// grid_clear_body (rebuild.cu) clears every pblock: a warp a pblock, its 256 words by the lanes.
 extern "C" __global__ void redo_clear(Ctx c, RedoWorlds r) {
     if (redo_skipped(c)) return;
-    unsigned words = min(c.ctl[CTL_PBLOCKS], c.pblock_cap) * 64u * 4u;
-    for (unsigned t = thread_index(); t < words; t += gridDim.x * blockDim.x) {
-        if (!redo_listed(r, redo_block_world(c, t >> 8))) continue;
-        c.grid[t] = 0;
-        if (c.grid_aux) c.grid_aux[t] = 0;
+    unsigned pblocks = min(c.ctl[CTL_PBLOCKS], c.pblock_cap), stride = (gridDim.x * blockDim.x) >> 5;
+    unsigned lane = threadIdx.x & 31;
+    for (unsigned id = thread_index() >> 5; id < pblocks; id += stride) {
+        if (!redo_listed(r, redo_block_world(c, id))) continue;
+        for (unsigned t = id * 256u + lane; t < id * 256u + 256u; t += 32) {
+            c.grid[t] = 0;
+            if (c.grid_aux) c.grid_aux[t] = 0;
+        }
     }
 }
 

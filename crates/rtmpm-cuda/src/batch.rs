@@ -271,8 +271,9 @@ impl CudaBatch {
     }
 
     /// One step of `dt` for every world at time `t`: every world's rigid bodies, and the poses
-    /// of its own moving colliders at `t`, go to the device before it, and the bodies advance
-    /// by it after (their sums read back).
+    /// of its own moving colliders at `t`, go to the device before it, and the P2G of the
+    /// worlds put since the last step is queued first (with G2P2G, [`CudaBatch::redo_puts`]);
+    /// the bodies advance by it after (their sums read back).
     pub fn step(&mut self, dt: f32, t: f32) -> Result<(), SimError> {
         let t0 = std::time::Instant::now();
         let stream = self.backend.stream.clone();

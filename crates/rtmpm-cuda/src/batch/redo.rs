@@ -83,7 +83,7 @@ impl CudaBatch {
                 .launch_builder(&k[Kernel::RedoClear])
                 .arg(&c)
                 .arg(r)
-                .launch(k.wave(c.pblock_cap as usize * 256, 256))
+                .launch(k.wave(c.pblock_cap as usize * 32, 256))
                 .map_err(err("redo the P2G of the worlds put (clear)"))?;
             b.stream
                 .launch_builder(&k[Kernel::RedoP2g])
