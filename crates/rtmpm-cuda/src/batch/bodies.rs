@@ -198,7 +198,8 @@ impl WorldBodies {
                 .memset_zeros(&mut self.exchange)
                 .map_err(err("clear the worlds' rigid-body impulses"))?;
         }
-        // The worlds advance on every core.
+        // The worlds advance (on every core, or on this thread: `HostBodies::fan`) while the
+        // device runs the step just queued.
         if !self.dynamic {
             self.host_mut().advance(None, dt);
             return Ok(());

@@ -341,16 +341,18 @@ impl HostBodies {
     }
 
     /// Advance every world by `dt` (each by its bodies' sums `each[w]`, or none), on every core
-    /// or on the calling thread ([`HostBodies::fan`]), and rewrite its rows; a world at rest is not stepped. At rest: its last advance left its
-    /// rows (poses and velocities) as they were, bit for bit, with no dynamic body and every
-    /// velocity zero, and its rows are still those (no pose given since, or the same): a step
-    /// of it is then a function of those rows alone (a kinematic body moves by its velocities
-    /// times dt, zero for any dt; a fixed body does not move; no dynamic body for gravity or the
-    /// material to move), so it would leave them as they are again, and the rapier world is not
-    /// stepped (a kinematic tool standing still in 256 worlds: no step of any of them; a world
-    /// whose rotation a step renormalises is stepped until it stops changing). Tested bit for
-    /// bit against stepping every world (`worlds_at_rest_are_skipped_and_step_on_as_before`).
-    /// `RTMPM_BATCH_REST=old`: every world stepped, as before.
+    /// or on the calling thread ([`HostBodies::fan`]), and rewrite its rows; a world at rest is
+    /// not stepped. At rest: its last advance left its rows (poses and velocities) as they were,
+    /// bit for bit, with no dynamic body and every velocity zero, and its rows are still those
+    /// (no pose given since, or the same): a step of it is then a function of those rows alone
+    /// (a kinematic body moves by its velocities times dt, zero for any dt; a fixed body does
+    /// not move; no dynamic body for gravity or the material to move), so it would leave them as
+    /// they are again, and the rapier world is not stepped (a kinematic tool standing still in
+    /// 256 worlds: no step of any of them; a world whose rotation a step renormalises, under
+    /// `RTMPM_KINEMATIC=rapier`, is stepped until it stops changing; the worlds' own integration
+    /// leaves a body without velocities as it is). Tested bit for bit against stepping every
+    /// world (`worlds_at_rest_are_skipped_and_step_on_as_before`). `RTMPM_BATCH_REST=old`: every
+    /// world stepped, as before.
     pub fn advance(&mut self, each: Option<&[Vec<Exchange>]>, dt: f32) {
         self.advance_skipping(each, dt, !old_rest());
     }

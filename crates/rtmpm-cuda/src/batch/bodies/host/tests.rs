@@ -272,7 +272,8 @@ fn kept_poses_read_and_step_as_poses_put_at_once_bit_for_bit() {
 /// Worlds at rest (a kinematic tool and a fixed block, every velocity zero) are not stepped
 /// by `advance` (`stepped` counts the others) and every read, record and step stays bit for
 /// bit what stepping every world gives (`Plain`): 20 worlds over 80 steps, the even ones put
-/// at rest (world 8 turned, its rotation renormalised by its first steps), the odd ones
+/// at rest (world 8 turned: its rotation renormalised by its first steps under
+/// `RTMPM_KINEMATIC=rapier`, left as it is by the worlds' own integration), the odd ones
 /// moving; world 2 posed again at the pose it has (still skipped), world 4 set moving and
 /// later at rest again, world 6 put back to its start (moving) by `set_poses`, world 10's
 /// tool given an angular velocity alone, and the worlds with a dynamic box never skipped.
@@ -666,8 +667,9 @@ fn every_fan_of_the_worlds_steps_them_alike() {
 /// (bench/python_batch_gpu.py's `--moving-tool`, and its pose and loop modes' steps) on this
 /// machine, through rapier's step (`RTMPM_KINEMATIC=rapier`) and by the worlds' own integration
 /// of their tools (`RigidWorld::advance`), first the worlds' advance alone on one thread, then
-/// the batch's (with its rows) spread over the cores in each way of [`Fan`] (`cargo test --release -p rtmpm-cuda --features rigid --lib moving_advance_timing --
-/// --ignored --nocapture`; no GPU). Medians of 200 steps.
+/// the batch's (with its rows) spread over the cores in each way of [`Fan`] (`cargo test
+/// --release -p rtmpm-cuda --features rigid --lib moving_advance_timing -- --ignored
+/// --nocapture`; no GPU). Medians of 200 steps.
 #[test]
 #[ignore = "a timing, not a check"]
 fn moving_advance_timing() {
