@@ -440,7 +440,7 @@ impl HostBodies {
     }
 
     /// Worlds the last [`HostBodies::advance`] stepped (the others at rest).
-    #[cfg(test)]
+    #[cfg(all(test, feature = "rigid"))]
     pub fn stepped(&self) -> usize {
         self.stepped
     }
