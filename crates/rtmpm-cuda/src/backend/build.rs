@@ -7,7 +7,7 @@
 
 use super::{CudaBackend, Part};
 use crate::backend::emit;
-use crate::compile::{KernelOptions, compile, state_needs_64_bits};
+use crate::compile::{Image, KernelOptions, compile, compile_image, state_needs_64_bits};
 use crate::contract::{Ctx, StateLayout};
 use crate::encode::{self, Tables};
 use crate::error::err;
@@ -403,15 +403,13 @@ impl Plan {
         info: &DeviceInfo,
     ) -> Result<(Arc<CudaStream>, Arc<CudaModule>, Kernels), SimError> {
         let pdl = pdl_on(&self.options, info);
-        let ptx = compile(&self.kernel_options(scene, info.compute_capability, pdl))
-            .map_err(SimError::Backend)?;
+        let o = self.kernel_options(scene, info.compute_capability, pdl);
+        let image = compile_image(&o).map_err(SimError::Backend)?;
         // Single stream: no cross-stream event tracking (keeps launches capturable).
         // SAFETY: all our buffers are used on `stream` only.
         unsafe { context.disable_event_tracking() };
         let stream = context.new_stream().map_err(err("stream"))?;
-        let module = context
-            .load_module(cudarc::nvrtc::Ptx::from_src(ptx))
-            .map_err(err("load module"))?;
+        let module = load_module(context, image, &o)?;
         let mut kernels = Kernels::load(&module, info.sm_count, &self.options, self.layout)?;
         kernels.sort_mask = sorted_fields(self.layout, self.all_fluid());
         kernels.pdl = pdl;
@@ -523,6 +521,27 @@ fn pdl_on(o: &CudaOptions, info: &DeviceInfo) -> bool {
         );
     }
     o.pdl && crate::compile::pdl_supported(info.compute_capability)
+}
+
+/// `image` loaded into `context`: a cubin as it is; should the driver refuse a cubin (one not
+/// made for this GPU after all), the PTX of `o` instead, which the driver compiles.
+fn load_module(
+    context: &Arc<CudaContext>,
+    image: Image,
+    o: &KernelOptions,
+) -> Result<Arc<CudaModule>, SimError> {
+    let kind = image.kind();
+    match context.load_module(image.into_module_source()) {
+        Ok(m) => Ok(m),
+        Err(e) if kind == "cubin" => {
+            eprintln!("warning: the driver refused the kernels' cubin ({e:?}); loading their PTX");
+            let ptx = compile(o).map_err(SimError::Backend)?;
+            context
+                .load_module(cudarc::nvrtc::Ptx::from_src(ptx))
+                .map_err(err("load module"))
+        }
+        Err(e) => Err(err("load module")(e)),
+    }
 }
 
 #[cfg(test)]

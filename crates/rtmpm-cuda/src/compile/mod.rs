@@ -1,12 +1,15 @@
 //! The program's source (the kernel files of [`crate::kernels::SOURCES`] and the generated
 //! headers of [`crate::contract`]), a small `#include` preprocessor and NVRTC compilation with
-//! an on-disk PTX cache.
+//! an on-disk cache of the PTX and the cubin ([`image`]: what the backend loads).
 
 use crate::contract;
 use crate::kernels::{SOURCES, UNITS};
 use std::borrow::Cow;
 use std::collections::HashSet;
 use std::path::PathBuf;
+
+pub mod image;
+pub use image::{Image, compile_image};
 
 /// Compilation options of the kernels.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
@@ -297,7 +300,24 @@ pub fn cache_dir() -> Option<PathBuf> {
 }
 
 /// Compile the pipeline to PTX (or take it from the disk cache). Errors carry the NVRTC log.
+/// The backend loads [`compile_image`]'s cubin instead; this PTX is what the tests read.
 pub fn compile(o: &KernelOptions) -> Result<String, String> {
+    let (src, opts, path) = cache_entry(o, cache_dir())?;
+    if let Some(p) = &path
+        && let Ok(ptx) = std::fs::read_to_string(p)
+    {
+        return Ok(ptx);
+    }
+    Ok(compile_and_keep(&src, opts, path.as_deref())?.ptx)
+}
+
+/// The program's source, its NVRTC options and its PTX's path in the cache folder `dir` (named
+/// by a hash of the source, the options and NVRTC's version; its cubin beside it,
+/// [`image::cubin_path`]).
+fn cache_entry(
+    o: &KernelOptions,
+    dir: Option<PathBuf>,
+) -> Result<(String, Vec<String>, Option<PathBuf>), String> {
     if !nvrtc_available() {
         return Err(NO_NVRTC.into());
     }
@@ -306,24 +326,37 @@ pub fn compile(o: &KernelOptions) -> Result<String, String> {
     let mut h = fnv1a(src.as_bytes(), 0xcbf2_9ce4_8422_2325);
     h = fnv1a(opts.join(" ").as_bytes(), h);
     h = fnv1a(format!("{:?}", nvrtc_version()).as_bytes(), h);
-    let path = cache_dir().map(|d| d.join(format!("{h:016x}.ptx")));
-    if let Some(p) = &path
-        && let Ok(ptx) = std::fs::read_to_string(p)
-    {
-        return Ok(ptx);
-    }
-    let ptx = nvrtc(&src, "rtmpm_pipeline.cu", opts)?;
-    if let Some(p) = &path {
-        // Best effort; write atomically via a temporary file.
+    let path = dir.map(|d| d.join(format!("{h:016x}.ptx")));
+    Ok((src, opts, path))
+}
+
+/// NVRTC's PTX and cubin of `src`, both written into the cache at `path` (the cubin beside the
+/// PTX; best effort, each written atomically through a temporary file).
+fn compile_and_keep(
+    src: &str,
+    opts: Vec<String>,
+    path: Option<&std::path::Path>,
+) -> Result<Compiled, String> {
+    let compiled = nvrtc(src, "rtmpm_pipeline.cu", opts)?;
+    if let Some(p) = path {
         if let Some(d) = p.parent() {
             let _ = std::fs::create_dir_all(d);
         }
-        let tmp = p.with_extension(format!("tmp{}", std::process::id()));
-        if std::fs::write(&tmp, &ptx).is_ok() {
-            let _ = std::fs::rename(&tmp, p);
+        keep(p, compiled.ptx.as_bytes());
+        if let Some(cubin) = &compiled.cubin {
+            keep(&image::cubin_path(p), cubin);
         }
     }
-    Ok(ptx)
+    Ok(compiled)
+}
+
+/// `bytes` written to `path` through a temporary file renamed over it (a reader never sees a
+/// part); best effort.
+fn keep(path: &std::path::Path, bytes: &[u8]) {
+    let tmp = path.with_extension(format!("tmp{}", std::process::id()));
+    if std::fs::write(&tmp, bytes).is_ok() {
+        let _ = std::fs::rename(&tmp, path);
+    }
 }
 
 const NO_NVRTC: &str = "libnvrtc.so.13 not found (pip install nvidia-cuda-nvrtc==13.0.*, or set RTMPM_NVRTC_LIB / LD_LIBRARY_PATH)";
@@ -340,26 +373,75 @@ pub fn compile_unit(name: &str, text: &str, o: &KernelOptions) -> Result<String,
         src.push_str("#define RTMPM_F64\n");
     }
     expand_text(name, text, &mut HashSet::new(), &mut src)?;
-    nvrtc(&src, name, nvrtc_options(o))
+    Ok(nvrtc(&src, name, nvrtc_options(o))?.ptx)
 }
 
-/// NVRTC: `src` to PTX.
-fn nvrtc(src: &str, name: &str, opts: Vec<String>) -> Result<String, String> {
-    let copts = cudarc::nvrtc::CompileOptions {
-        options: opts,
-        name: Some(name.into()),
-        ..Default::default()
-    };
-    let res = std::panic::catch_unwind(|| cudarc::nvrtc::compile_ptx_with_opts(src, copts))
-        .map_err(|_| "NVRTC panicked (library missing?)".to_string())?;
-    match res {
-        Ok(p) => Ok(p.to_src()),
-        Err(cudarc::nvrtc::CompileError::CompileError { log, options, .. }) => {
-            let log = log.to_string_lossy();
-            eprintln!("NVRTC compilation failed (options {options:?}):\n{log}");
-            Err(format!("NVRTC compilation failed:\n{log}"))
+/// What NVRTC made of a program: its PTX and, for a real architecture (`sm_XX`, which the
+/// pipeline always names), its cubin, the machine code the driver loads as it is.
+pub struct Compiled {
+    /// The PTX (what the tests read, and what the driver compiles again on load).
+    pub ptx: String,
+    /// The cubin; `None` where NVRTC gave none.
+    pub cubin: Option<Vec<u8>>,
+}
+
+/// NVRTC: `src` to PTX (and cubin, where NVRTC made one).
+fn nvrtc(src: &str, name: &str, opts: Vec<String>) -> Result<Compiled, String> {
+    std::panic::catch_unwind(|| nvrtc_run(src, name, &opts))
+        .map_err(|_| "NVRTC panicked (library missing?)".to_string())?
+}
+
+/// One NVRTC program: created, compiled with `opts`, its PTX and cubin read, destroyed.
+fn nvrtc_run(src: &str, name: &str, opts: &[String]) -> Result<Compiled, String> {
+    use cudarc::nvrtc::result;
+    let c_src = std::ffi::CString::new(src).map_err(|_| "a NUL byte in the kernel source")?;
+    let c_name = std::ffi::CString::new(name).map_err(|_| "a NUL byte in the program name")?;
+    let prog =
+        result::create_program(&c_src, Some(&c_name)).map_err(|e| format!("NVRTC error: {e:?}"))?;
+    // SAFETY: `prog` was just created and is destroyed once, below, after its last use.
+    let out = unsafe {
+        match result::compile_program(prog, opts) {
+            Err(_) => {
+                let log = result::get_program_log(prog)
+                    .map(|l| {
+                        std::ffi::CStr::from_ptr(l.as_ptr())
+                            .to_string_lossy()
+                            .into_owned()
+                    })
+                    .unwrap_or_default();
+                eprintln!("NVRTC compilation failed (options {opts:?}):\n{log}");
+                Err(format!("NVRTC compilation failed:\n{log}"))
+            }
+            Ok(()) => result::get_ptx(prog)
+                .map_err(|e| format!("NVRTC error: {e:?}"))
+                .map(|ptx| Compiled {
+                    ptx: std::ffi::CStr::from_ptr(ptx.as_ptr())
+                        .to_string_lossy()
+                        .into_owned(),
+                    cubin: cubin_of(prog),
+                }),
         }
-        Err(e) => Err(format!("NVRTC error: {e:?}")),
+    };
+    // SAFETY: as above; nothing reads `prog` after this.
+    let _ = unsafe { result::destroy_program(prog) };
+    out
+}
+
+/// The cubin NVRTC made of the compiled `prog` (`None` for a virtual architecture).
+///
+/// # Safety
+/// `prog` is a compiled program not yet destroyed.
+unsafe fn cubin_of(prog: cudarc::nvrtc::sys::nvrtcProgram) -> Option<Vec<u8>> {
+    use cudarc::nvrtc::sys;
+    let mut size = 0usize;
+    // SAFETY: `prog` compiled (the caller); `size` and the buffer outlive the calls.
+    unsafe {
+        if sys::nvrtcGetCUBINSize(prog, &mut size) != sys::nvrtcResult::NVRTC_SUCCESS || size == 0 {
+            return None;
+        }
+        let mut cubin = vec![0u8; size];
+        (sys::nvrtcGetCUBIN(prog, cubin.as_mut_ptr().cast()) == sys::nvrtcResult::NVRTC_SUCCESS)
+            .then_some(cubin)
     }
 }
 

@@ -153,7 +153,7 @@ fn the_compile_time_kernel_variants_compile() {
                     opts.push("--Ofast-compile=max".into());
                     let what = format!("f64 {f64}, {defines:?}");
                     let ptx = program_source(f64)
-                        .and_then(|src| nvrtc(&src, "rtmpm_pipeline.cu", opts))
+                        .and_then(|src| nvrtc(&src, "rtmpm_pipeline.cu", opts).map(|c| c.ptx))
                         .unwrap_or_else(|e| panic!("{what}: {e}"));
                     assert_every_kernel(&ptx, &what);
                 }
@@ -358,7 +358,7 @@ fn the_ck_bound_kernels_compile() {
                     opts.push("--Ofast-compile=max".into());
                     let what = format!("{o:?}");
                     let ptx = program_source(f64)
-                        .and_then(|src| nvrtc(&src, "rtmpm_pipeline.cu", opts))
+                        .and_then(|src| nvrtc(&src, "rtmpm_pipeline.cu", opts).map(|c| c.ptx))
                         .unwrap_or_else(|e| panic!("{what}: {e}"));
                     assert_every_kernel(&ptx, &what);
                     check_bound(&ptx, &o, &what);
@@ -431,7 +431,7 @@ fn every_kernel_compiles_for_sm80_with_scalar_node_atomics() {
     let mut opts = nvrtc_options(&KernelOptions::all_models((8, 0), true, false));
     opts.push("--Ofast-compile=max".into());
     let ptx = program_source(false)
-        .and_then(|src| nvrtc(&src, "rtmpm_pipeline.cu", opts))
+        .and_then(|src| nvrtc(&src, "rtmpm_pipeline.cu", opts).map(|c| c.ptx))
         .unwrap_or_else(|e| panic!("sm_80: {e}"));
     assert_every_kernel(&ptx, "sm_80");
     assert!(!ptx.contains("atomicAddP6float4") && !ptx.contains(".add.v4.f32"));
@@ -461,7 +461,8 @@ fn check_variant(
         } else {
             let mut opts = nvrtc_options(&o);
             opts.push("--Ofast-compile=max".into());
-            program_source(o.f64).and_then(|src| nvrtc(&src, "rtmpm_pipeline.cu", opts))
+            program_source(o.f64)
+                .and_then(|src| nvrtc(&src, "rtmpm_pipeline.cu", opts).map(|c| c.ptx))
         }
         .unwrap_or_else(|e| panic!("{o:?}: {e}"));
         assert_every_kernel(&ptx, &format!("{o:?}"));
@@ -693,7 +694,8 @@ fn with_pdl_the_step_kernels_wait_before_they_touch_memory() {
                         if !*trigger {
                             opts.push("-DRTMPM_PDL_TRIGGER=0".into());
                         }
-                        program_source(o.f64).and_then(|src| nvrtc(&src, "rtmpm_pipeline.cu", opts))
+                        program_source(o.f64)
+                            .and_then(|src| nvrtc(&src, "rtmpm_pipeline.cu", opts).map(|c| c.ptx))
                     }
                     .unwrap_or_else(|e| panic!("{what}: {e}"));
                     let what = format!("{what}, trigger {trigger}");
