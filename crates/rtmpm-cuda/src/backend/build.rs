@@ -7,7 +7,8 @@
 
 use super::{CudaBackend, Part};
 use crate::backend::emit;
-use crate::compile::{Image, KernelOptions, compile, compile_image, state_needs_64_bits};
+use crate::compile::image::{Image, compile_image};
+use crate::compile::{KernelOptions, compile, state_needs_64_bits};
 use crate::contract::{Ctx, StateLayout};
 use crate::encode::{self, Tables};
 use crate::error::err;

@@ -6,8 +6,8 @@
 //! NVRTC's own compile, which already made the same machine code.
 //! `RTMPM_KERNEL_IMAGE=ptx` loads the PTX as before (for comparisons in one binary).
 
-use super::{KernelOptions, cache_dir, cache_entry, compile, compile_and_keep};
-use std::path::{Path, PathBuf};
+use super::{KernelOptions, cache_dir, cache_entry, compile, compile_and_keep, cubin_path};
+use std::path::PathBuf;
 
 /// The compiled pipeline as the driver loads it.
 pub enum Image {
@@ -40,11 +40,6 @@ impl Image {
 pub fn ptx_switch() -> bool {
     static PTX: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     *PTX.get_or_init(|| std::env::var("RTMPM_KERNEL_IMAGE").is_ok_and(|v| v.trim() == "ptx"))
-}
-
-/// Where the cubin of the PTX cached at `ptx` is kept: beside it, `.cubin` for `.ptx`.
-pub fn cubin_path(ptx: &Path) -> PathBuf {
-    ptx.with_extension("cubin")
 }
 
 /// A cubin as NVRTC writes one: an ELF file (its magic number; a file cut short or not a cubin
@@ -141,13 +136,14 @@ mod tests {
             println!("skipped: libnvrtc.so.13 not found");
             return;
         }
-        let e = crate::compile::compile_unit(
+        let r = crate::compile::compile_unit(
             "broken.cu",
             "int f() { return undeclared_name; }\n",
             &o(),
-        )
-        .err()
-        .expect("refused");
+        );
+        let Err(e) = r else {
+            panic!("NVRTC compiled a program with an undeclared name");
+        };
         assert!(e.contains("NVRTC compilation failed"), "{e}");
         assert!(
             e.contains("undeclared_name"),

@@ -9,7 +9,6 @@ use std::collections::HashSet;
 use std::path::PathBuf;
 
 pub mod image;
-pub use image::{Image, compile_image};
 
 /// Compilation options of the kernels.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
@@ -313,7 +312,7 @@ pub fn compile(o: &KernelOptions) -> Result<String, String> {
 
 /// The program's source, its NVRTC options and its PTX's path in the cache folder `dir` (named
 /// by a hash of the source, the options and NVRTC's version; its cubin beside it,
-/// [`image::cubin_path`]).
+/// [`cubin_path`]).
 fn cache_entry(
     o: &KernelOptions,
     dir: Option<PathBuf>,
@@ -344,10 +343,15 @@ fn compile_and_keep(
         }
         keep(p, compiled.ptx.as_bytes());
         if let Some(cubin) = &compiled.cubin {
-            keep(&image::cubin_path(p), cubin);
+            keep(&cubin_path(p), cubin);
         }
     }
     Ok(compiled)
+}
+
+/// Where the cubin of the PTX cached at `ptx` is kept: beside it, `.cubin` for `.ptx`.
+pub fn cubin_path(ptx: &std::path::Path) -> PathBuf {
+    ptx.with_extension("cubin")
 }
 
 /// `bytes` written to `path` through a temporary file renamed over it (a reader never sees a
