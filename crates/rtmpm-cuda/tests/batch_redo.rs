@@ -72,78 +72,76 @@ fn put_and_step_on(f64: bool) {
     }
     let (worlds, p0, dt) = beds();
     let dx = worlds[0].dx;
-    {
-        // (the worlds 1 and 10 steps after the puts, the redo counts) of a run.
-        let run = |full: bool| {
-            let mut b = batch(&worlds, &p0, f64)?;
-            b.set_full_redo(full);
-            assert!(b.keep_initial(&p0).expect("keep"), "the image kept");
-            let mut t = 0.0f32;
-            for _ in 0..10 {
-                b.step(dt, t).expect("step");
-                t += dt;
-            }
-            let now = b.read_worlds().expect("read");
-            assert!(b.put_initial(&[4, 1]).expect("reset worlds 1 and 4"));
-            b.put_worlds(&[(2, now[2].clone())]).expect("put world 2");
-            let before = rebuilds(&mut b);
-            b.step(dt, t).expect("step after the puts");
+    // (the worlds 1 and 10 steps after the puts, the redo counts) of a run.
+    let run = |full: bool| {
+        let mut b = batch(&worlds, &p0, f64)?;
+        b.set_full_redo(full);
+        assert!(b.keep_initial(&p0).expect("keep"), "the image kept");
+        let mut t = 0.0f32;
+        for _ in 0..10 {
+            b.step(dt, t).expect("step");
             t += dt;
-            assert_eq!(
-                rebuilds(&mut b),
-                before,
-                "f64 {f64}: the puts rebuilt the mapping (the partial redo was skipped)"
-            );
-            let one = b.read_worlds().expect("read");
-            for _ in 1..10 {
-                b.step(dt, t).expect("step");
-                t += dt;
-            }
-            Some((one, b.read_worlds().expect("read"), b.redo_counts()))
-        };
-        let Some((part_one, part_ten, part_counts)) = run(false) else {
-            return;
-        };
-        let (full_one, full_ten, full_counts) = run(true).expect("the full redo's batch");
+        }
+        let now = b.read_worlds().expect("read");
+        assert!(b.put_initial(&[4, 1]).expect("reset worlds 1 and 4"));
+        b.put_worlds(&[(2, now[2].clone())]).expect("put world 2");
+        let before = rebuilds(&mut b);
+        b.step(dt, t).expect("step after the puts");
+        t += dt;
         assert_eq!(
-            (part_counts.partial, part_counts.full),
-            (1, 0),
-            "f64 {f64}: one partial redo for the three worlds put"
+            rebuilds(&mut b),
+            before,
+            "f64 {f64}: the puts rebuilt the mapping (the partial redo was skipped)"
         );
-        assert_eq!(
-            (full_counts.partial, full_counts.full),
-            (0, 2),
-            "f64 {f64}: the full redo asked by each of the two puts"
-        );
-        let mut failures = Vec::new();
-        for w in 0..6 {
-            failures.extend(agrees(
-                &format!("f64 {f64}: world {w}, redo of the worlds put against the full redo"),
-                Some((&part_one[w], &full_one[w])),
-                &part_ten[w],
-                &full_ten[w],
-                dx,
-            ));
+        let one = b.read_worlds().expect("read");
+        for _ in 1..10 {
+            b.step(dt, t).expect("step");
+            t += dt;
         }
-        // A fresh batch's first 10 steps.
-        let mut fresh = batch(&worlds, &p0, f64).expect("fresh batch");
-        fresh.step(dt, 0.0).expect("step");
-        let fresh_one = fresh.read_worlds().expect("read");
-        for s in 1..10 {
-            fresh.step(dt, s as f32 * dt).expect("step");
-        }
-        let fresh_ten = fresh.read_worlds().expect("read");
-        for w in [1, 4] {
-            failures.extend(agrees(
-                &format!("f64 {f64}: world {w} reset, against a fresh batch's"),
-                Some((&part_one[w], &fresh_one[w])),
-                &part_ten[w],
-                &fresh_ten[w],
-                dx,
-            ));
-        }
-        assert!(failures.is_empty(), "{failures:#?}");
+        Some((one, b.read_worlds().expect("read"), b.redo_counts()))
+    };
+    let Some((part_one, part_ten, part_counts)) = run(false) else {
+        return;
+    };
+    let (full_one, full_ten, full_counts) = run(true).expect("the full redo's batch");
+    assert_eq!(
+        (part_counts.partial, part_counts.full),
+        (1, 0),
+        "f64 {f64}: one partial redo for the three worlds put"
+    );
+    assert_eq!(
+        (full_counts.partial, full_counts.full),
+        (0, 2),
+        "f64 {f64}: the full redo asked by each of the two puts"
+    );
+    let mut failures = Vec::new();
+    for w in 0..6 {
+        failures.extend(agrees(
+            &format!("f64 {f64}: world {w}, redo of the worlds put against the full redo"),
+            Some((&part_one[w], &full_one[w])),
+            &part_ten[w],
+            &full_ten[w],
+            dx,
+        ));
     }
+    // A fresh batch's first 10 steps.
+    let mut fresh = batch(&worlds, &p0, f64).expect("fresh batch");
+    fresh.step(dt, 0.0).expect("step");
+    let fresh_one = fresh.read_worlds().expect("read");
+    for s in 1..10 {
+        fresh.step(dt, s as f32 * dt).expect("step");
+    }
+    let fresh_ten = fresh.read_worlds().expect("read");
+    for w in [1, 4] {
+        failures.extend(agrees(
+            &format!("f64 {f64}: world {w} reset, against a fresh batch's"),
+            Some((&part_one[w], &fresh_one[w])),
+            &part_ten[w],
+            &fresh_ten[w],
+            dx,
+        ));
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
 }
 
 /// Nodes by grid coordinate.
