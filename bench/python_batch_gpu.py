@@ -69,6 +69,10 @@ to 512 worlds without a dynamic body, every core otherwise). ``RTMPM_BATCH_REDO=
 P2G of every world at the step after a reset, as before the redo of the reset worlds' P2G alone
 (with G2P2G; docs/batch.md, "The P2G after a put"); the table of the redos a call of reset and
 loop (``BatchSimulation.p2g_redos``: of the worlds put alone, of every world) says which ran.
+``RTMPM_BATCH_UPLOAD=old`` uploads the rigid bodies' table on the batch's stream before each step
+whose bodies changed, serial with the kernels, as before the two tables taken in turn whose copies
+run on a stream of their own while the step before runs (docs/batch.md, "Rigid bodies in a GPU
+batch"; the A/B of a moving tool's cost on the device: run pose / loop, or ``--moving-tool``).
 
 ``--breakdown`` then runs the modes calls, reset, pose and loop once more (``--repeats`` rounds
 after a warm-up, fresh batches) and times each part of a call on its own: the poses, the resets
@@ -474,7 +478,8 @@ def main():
     print_waits(waits, runs)
     print_redos(redos, runs)
     names = ("RTMPM_BATCH_WAITS", "RTMPM_BATCH_PAGEABLE_PUT", "RTMPM_BATCH_RESET", "RTMPM_BATCH_REST",
-             "RTMPM_KINEMATIC", "RTMPM_BATCH_FAN", "RTMPM_BATCH_REDO", "RTMPM_SYNC_TRACE")
+             "RTMPM_KINEMATIC", "RTMPM_BATCH_FAN", "RTMPM_BATCH_REDO", "RTMPM_BATCH_UPLOAD",
+             "RTMPM_SYNC_TRACE")
     switches = {k: os.environ[k] for k in names if k in os.environ}
     if switches:
         print(f"environment: {switches}")

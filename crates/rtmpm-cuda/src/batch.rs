@@ -278,7 +278,11 @@ impl CudaBatch {
         let t0 = std::time::Instant::now();
         let stream = self.backend.stream.clone();
         if let Some(b) = self.bodies.as_mut() {
-            b.upload(&stream)?;
+            // The step reads the table just given the rows (the two are taken in turn).
+            let k = b.upload(&stream)?;
+            let c = &mut self.backend.ctx;
+            (c.bodies, c.body_exchange, c.n_bodies) = b.ctx_fields(&stream, k);
+            self.backend.body_table = k;
         }
         let t1 = std::time::Instant::now();
         if let Some(c) = self.colliders.as_mut() {
@@ -612,12 +616,12 @@ fn world_bodies(
     let mesh_offsets = single.mesh_offsets();
     drop(single);
     let o = &backend.options;
-    let lazy = (o.batch_sums_at_read, o.batch_poses);
+    let lazy = (o.batch_sums_at_read, o.batch_poses, o.batch_body_turns);
     let waits = backend.waits.clone();
     let made = bodies::WorldBodies::new(worlds, &backend.stream, mesh_offsets, lazy, waits)?;
     if let Some(b) = &made {
         let c = &mut backend.ctx;
-        (c.bodies, c.body_exchange, c.n_bodies) = b.ctx_fields(&backend.stream);
+        (c.bodies, c.body_exchange, c.n_bodies) = b.ctx_fields(&backend.stream, 0);
     }
     Ok(made)
 }

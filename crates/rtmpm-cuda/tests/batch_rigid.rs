@@ -444,8 +444,10 @@ fn tool_run(
 /// (`body_poses=deferred`, the default): the loads read then, at any step, twice in a step or not
 /// at all for a while, the tools' poses read and stepped, and every particle are those of the
 /// copy after every step (`body_sums=step`) and of poses put at once (`body_poses=eager`), each
-/// switch alone and both, and the kept poses put in on one thread (`deferred_serial`) (200
-/// steps, the tools posed by body at some steps, one world's twice with a read between).
+/// switch alone and both, the kept poses put in on one thread (`deferred_serial`), and the body
+/// table uploaded on the batch's stream before each step (`body_upload=serial`) where the default
+/// takes two tables in turn, each uploaded on a stream of its own (200 steps, the tools posed by
+/// body at some steps, one world's twice with a read between).
 /// Within what the default differs from itself when run again, not bit for bit: the jelly's
 /// P2G atomics come in another order each run (measured on an H200, 2026-11-29: the first loads
 /// of two such runs 1e-8 apart relatively), so every figure may differ by 8 times the rerun's
@@ -460,12 +462,13 @@ fn kept_sums_and_kept_poses_give_the_eager_results() {
     let read = |s: usize| s.is_multiple_of(7) || (120..130).contains(&s);
     let pose = |s: usize| s % 4 == 1;
     use rtmpm_cuda::BodyPoses;
-    let with = |sums_at_read, poses| CudaOptions {
+    let with = |sums_at_read, poses, turns| CudaOptions {
         batch_sums_at_read: sums_at_read,
         batch_poses: poses,
+        batch_body_turns: turns,
         ..precise()
     };
-    let base = tool_run(with(true, BodyPoses::Deferred), 200, read, pose);
+    let base = tool_run(with(true, BodyPoses::Deferred, true), 200, read, pose);
     assert!(
         base.0
             .iter()
@@ -473,18 +476,20 @@ fn kept_sums_and_kept_poses_give_the_eager_results() {
             .any(|l| l.iter().any(|&b| f64::from_bits(b) != 0.0)),
         "the tools feel the jelly"
     );
-    let rerun = tool_run(with(true, BodyPoses::Deferred), 200, read, pose);
+    let rerun = tool_run(with(true, BodyPoses::Deferred, true), 200, read, pose);
     let spread = RunDiff::between(&base, &rerun);
     println!("the default run again: {spread:?}");
     let scale = RunDiff::magnitudes(&base);
-    for (sums, kept) in [
-        (false, BodyPoses::Deferred),
-        (true, BodyPoses::DeferredSerial),
-        (true, BodyPoses::Eager),
-        (false, BodyPoses::Eager),
+    for (sums, kept, turns) in [
+        (false, BodyPoses::Deferred, true),
+        (true, BodyPoses::DeferredSerial, true),
+        (true, BodyPoses::Eager, true),
+        (false, BodyPoses::Eager, true),
+        (true, BodyPoses::Deferred, false),
+        (false, BodyPoses::Eager, false),
     ] {
-        let run = tool_run(with(sums, kept), 200, read, pose);
-        let what = format!("body_sums at read {sums}, poses {kept:?}");
+        let run = tool_run(with(sums, kept, turns), 200, read, pose);
+        let what = format!("body_sums at read {sums}, poses {kept:?}, tables in turn {turns}");
         assert_eq!(base.0.len(), run.0.len(), "{what}: as many load reads");
         let d = RunDiff::between(&base, &run);
         println!("{what}: {d:?}");

@@ -128,6 +128,7 @@ impl CudaBackend {
             all_fluid,
             layout: plan.layout,
             parity: 0,
+            body_table: 0,
             last_grid: 0,
             last_dt: None,
             last_params: None,

@@ -58,6 +58,9 @@ pub struct CudaBackend {
     pub(crate) layout: StateLayout,
     /// G2P2G: which grid the coming step reads (0: `grid`, 1: `grid_next`).
     parity: usize,
+    /// Which of a batch's body tables `ctx` points at for the coming step (0 elsewhere; the
+    /// batch's bodies take theirs in turn, `crate::batch::bodies`): a key of the step's graph.
+    pub(crate) body_table: usize,
     /// The grid the last step (or P2G) wrote, read back by [`CudaBackend::grid_nodes`].
     pub(crate) last_grid: usize,
     /// G2P2G: dt of the last upload (a new dt asks for a P2G: the fused scatter used the old one).
@@ -286,9 +289,8 @@ impl CudaBackend {
     ) -> Result<(), SimError> {
         let r = if graph && self.options.graph {
             let mut graphs = std::mem::take(&mut self.graphs);
-            let r = graphs.run(&self.stream, self.parity, dt, || {
-                self.enqueue(hooks, Stage::G2p)
-            });
+            let key = (self.parity, self.body_table);
+            let r = graphs.run(&self.stream, key, dt, || self.enqueue(hooks, Stage::G2p));
             self.graphs = graphs;
             r
         } else {

@@ -5,7 +5,26 @@
 //! every body of every world summed per row, read back as below.
 //!
 //! Per step: every world's body states go to the table (one copy of the host's rows, none when the
-//! table holds them already: bodies at rest), the step runs, and the bodies advance. With a
+//! table holds them already: bodies at rest), the step runs, and the bodies advance.
+//!
+//! Two tables, taken in turn. A moving tool changes the rows every step; its upload on the
+//! batch's stream ran between two steps' kernels, serial with them (4 us a step of 256 rows on
+//! an H200, 40 us a call of 10 steps). So each step reads one of two tables (its sums too go to
+//! that table's own sums buffer), the next step the other, and a step's copy of the rows (and the
+//! clear of its sums buffer) is queued on a stream of its own: it waits for the step that last
+//! read that table (an event recorded after it, and after any read of its sums) and the step
+//! waits for it (an event after the copy); so the copy for step k + 1 runs while step k's kernels
+//! do. The context of the step points at its table (the step's graph is captured once per table,
+//! `step::graph`). Each table remembers the version of the rows it holds
+//! ([`HostBodies::version`]): none copied when they are the same (tools standing still: no copy
+//! to either after the first two steps). Why not one table and the copy ordered after the grid
+//! update that reads it: that needs an event inside the step's graph; two tables keep the graph
+//! as it is. `body_upload=serial` (`CudaOptions::batch_body_turns`) or
+//! `RTMPM_BATCH_UPLOAD=old`: one table, the copy and the clear on the batch's stream
+//! before the step, an upload skipped by comparing the rows' bytes with the last upload's, as
+//! before (the A/B in one binary).
+//!
+//! With a
 //! dynamic body in any world the step's sums are copied to page-locked memory and cleared, and
 //! the host waits for them and advances each world's rapier world by its own (the order of
 //! `rigid_overlap=off` in a single run: the CPU backend's). With kinematic and
@@ -18,6 +37,7 @@
 use crate::contract::{BODY_EXCHANGE_SLOTS, GpuBody};
 use crate::error::err;
 use crate::options::BodyPoses;
+use crate::step::graph::GRAPH_TABLES;
 use crate::waits::{HostWaits, WaitReason};
 use cudarc::driver::{CudaEvent, CudaSlice, CudaStream, DevicePtr, PinnedHostSlice};
 use rtmpm_rigid::{BodyLoad, BodyPose, BodyState, Exchange, RigidKind};
@@ -35,6 +55,32 @@ use host::HostBodies;
 const UPLOAD_BUFFERS: usize = 64;
 const OLD_UPLOAD_BUFFERS: usize = 4;
 
+/// `RTMPM_BATCH_UPLOAD=old`: one body table, uploaded on the batch's stream before each step
+/// that changed it (as before the two tables of this module's doc); for comparing the two in one
+/// binary (bench/python_batch_gpu.py). Read once.
+pub fn old_upload() -> bool {
+    static OLD: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *OLD.get_or_init(|| std::env::var("RTMPM_BATCH_UPLOAD").is_ok_and(|v| v.trim() == "old"))
+}
+
+/// One of the tables the steps read in turn: the records, the sums the step that reads it writes,
+/// what it holds and the event after its last reader.
+struct Table {
+    /// `worlds x per` [`GpuBody`] records (`Ctx::bodies` of the steps that read it).
+    records: CudaSlice<u8>,
+    /// `BODY_EXCHANGE_SLOTS` x `worlds x per` rows x 6 f64 sums (`Ctx::body_exchange`).
+    exchange: CudaSlice<f64>,
+    /// The version of the host's rows it holds ([`HostBodies::version`]; `None` before the first
+    /// upload).
+    version: Option<u64>,
+    /// `exchange` holds the sums of the step that last read it, to be cleared before the next
+    /// (`at_read`: they stay for a read of the loads).
+    held: bool,
+    /// Recorded on the batch's stream after the last work that reads the table or its sums (the
+    /// step, a copy of its sums): a copy into them waits for it.
+    free: CudaEvent,
+}
+
 /// Every world's rigid bodies: their rapier worlds and the device side of their coupling.
 pub(crate) struct WorldBodies {
     /// The host side: every world's rapier world, its bodies' poses and device records, the
@@ -45,10 +91,17 @@ pub(crate) struct WorldBodies {
     count: usize,
     /// Bodies of one world.
     per: usize,
-    /// `worlds x per` [`GpuBody`] records (`Ctx::bodies` in a batch).
-    table: CudaSlice<u8>,
-    /// The bytes `table` holds (the last upload's; empty before the first): an upload of the
-    /// same bytes is skipped (bodies at rest, tools standing still).
+    /// The tables the steps read in turn (one with `RTMPM_BATCH_UPLOAD=old`).
+    tables: Vec<Table>,
+    /// The table the last step read (its sums are the last step's).
+    last: usize,
+    /// The stream the uploads and clears of the tables go on (`None` with
+    /// `RTMPM_BATCH_UPLOAD=old`: the batch's).
+    copies: Option<Arc<CudaStream>>,
+    /// Recorded on `copies` after a table's upload: the step that reads it waits for it.
+    copied: CudaEvent,
+    /// `RTMPM_BATCH_UPLOAD=old`: the bytes the table holds (the last upload's; empty before the
+    /// first): an upload of the same bytes is skipped (bodies at rest, tools standing still).
     uploaded: Vec<u8>,
     /// The page-locked memory the uploads of `table` go through (a copy from pageable memory
     /// may wait for the steps queued ahead of it; with several buffers the host may be that
@@ -56,15 +109,11 @@ pub(crate) struct WorldBodies {
     staging: crate::staging::StagingRing,
     /// The host's waits, counted ([`crate::waits`]; the backend's).
     waits: Arc<HostWaits>,
-    /// `BODY_EXCHANGE_SLOTS` x `worlds x per` rows x 6 f64 sums (`Ctx::body_exchange`).
-    exchange: CudaSlice<f64>,
     /// The host's copy of the sums (filled when a load is read, with `at_read`).
     host: Mutex<HostSums>,
     /// The sums stay on the device until a load is read (no dynamic body, and
     /// `CudaOptions::batch_sums_at_read`).
     at_read: bool,
-    /// `exchange` holds the last step's sums, to be cleared before the next step (`at_read`).
-    held: bool,
     /// The batch's stream (the copies of the sums when read).
     stream: Arc<CudaStream>,
     /// Some world has a dynamic body (the host waits for every step's sums).
@@ -86,12 +135,13 @@ impl WorldBodies {
     /// `super::unsupported`), their buffers allocated on `stream`; `mesh_offsets`: where each
     /// body's distance grid starts in the mesh table (`encode::Tables::body_mesh`);
     /// `sums_at_read`: `CudaOptions::batch_sums_at_read`; `poses`: `CudaOptions::batch_poses`;
-    /// `waits`: the backend's count of the host's waits.
+    /// `turns`: `CudaOptions::batch_body_turns` (unless `RTMPM_BATCH_UPLOAD=old`); `waits`: the
+    /// backend's count of the host's waits.
     pub fn new(
         worlds: &[Scene],
         stream: &Arc<CudaStream>,
         mesh_offsets: Vec<u32>,
-        (sums_at_read, poses): (bool, BodyPoses),
+        (sums_at_read, poses, turns): (bool, BodyPoses, bool),
         waits: Arc<HostWaits>,
     ) -> Result<Option<WorldBodies>, SimError> {
         let per = worlds.first().map_or(0, |s| s.rigid_bodies.len());
@@ -108,13 +158,22 @@ impl WorldBodies {
             rapier.push(world);
         }
         let rows = worlds.len() * per;
-        let table = stream
-            .alloc_zeros::<u8>(rows * std::mem::size_of::<GpuBody>())
-            .map_err(err("alloc the worlds' rigid bodies"))?;
         let len = BODY_EXCHANGE_SLOTS * rows * 6;
-        let exchange = stream
-            .alloc_zeros::<f64>(len)
-            .map_err(err("alloc the worlds' rigid-body impulses"))?;
+        let old = !turns || old_upload();
+        let tables = (0..if old { 1 } else { GRAPH_TABLES })
+            .map(|_| new_table(stream, rows, len))
+            .collect::<Result<Vec<_>, _>>()?;
+        let copies = if old {
+            None
+        } else {
+            Some(
+                stream
+                    .context()
+                    .new_stream()
+                    .map_err(err("a stream for uploads"))?,
+            )
+        };
+        let copied = stream.record_event(None).map_err(err("record an event"))?;
         // SAFETY: the copy is written by a device copy before the host reads it (after `done`).
         let host = unsafe { stream.context().alloc_pinned_with_flags::<f64>(len, 0) }
             .map_err(err("allocate page-locked memory"))?;
@@ -127,57 +186,89 @@ impl WorldBodies {
             count: rapier.len(),
             rigid: Mutex::new(HostBodies::new(rapier, mesh_offsets, poses)),
             per,
-            table,
+            last: tables.len() - 1,
+            tables,
+            copies,
+            copied,
             uploaded: Vec::new(),
             staging: crate::staging::StagingRing::new(UPLOAD_BUFFERS, OLD_UPLOAD_BUFFERS),
             waits,
-            exchange,
             host: Mutex::new(HostSums {
                 sums: host,
                 done,
                 copied: true,
             }),
             at_read: sums_at_read && !dynamic,
-            held: false,
             stream: stream.clone(),
             dynamic,
             last_dt: None,
         }))
     }
 
-    /// Device addresses for [`crate::contract::Ctx`]: (the table, the sums, bodies of a world).
-    pub fn ctx_fields(&self, stream: &Arc<CudaStream>) -> (u64, u64, u32) {
-        let (a, _) = self.table.device_ptr(stream);
-        let (b, _) = self.exchange.device_ptr(stream);
+    /// Device addresses for [`crate::contract::Ctx`] of a step that reads table `k`: (the
+    /// table, its sums, bodies of a world).
+    pub fn ctx_fields(&self, stream: &Arc<CudaStream>, k: usize) -> (u64, u64, u32) {
+        let t = &self.tables[k];
+        let (a, _) = t.records.device_ptr(stream);
+        let (b, _) = t.exchange.device_ptr(stream);
         (a, b, self.per as u32)
     }
 
-    /// Before a step: every world's body states to the table (unless it holds them already),
-    /// and the last step's sums cleared where they were kept on the device.
-    pub fn upload(&mut self, stream: &Arc<CudaStream>) -> Result<(), SimError> {
-        if self.held {
-            stream
-                .memset_zeros(&mut self.exchange)
-                .map_err(err("clear the worlds' rigid-body impulses"))?;
-            self.held = false;
-        }
+    /// Before a step: the table it reads (the other of the last step's; the one with
+    /// `RTMPM_BATCH_UPLOAD=old`) given every world's body states unless it holds them already,
+    /// and its sums cleared where they were kept on the device; returns that table's index. The
+    /// copy and the clear go on the uploads' stream after the last reader of the table, and
+    /// `stream` waits for them (the module's doc).
+    pub fn upload(&mut self, stream: &Arc<CudaStream>) -> Result<usize, SimError> {
+        let k = (self.last + 1) % self.tables.len();
+        self.last = k;
+        let side = self.copies.clone().unwrap_or_else(|| stream.clone());
         let rigid = self.rigid.get_mut().unwrap_or_else(|p| p.into_inner());
-        let bytes: &[u8] = bytemuck::cast_slice::<GpuBody, u8>(rigid.records());
-        if bytes == self.uploaded.as_slice() {
-            return Ok(());
-        }
-        if super::staging::pageable_puts() {
-            self.waits.wait(WaitReason::Pageable, || ());
-            stream
-                .memcpy_htod(bytes, &mut self.table.slice_mut(..bytes.len()))
-                .map_err(err("upload the worlds' rigid bodies"))?;
+        let version = rigid.version();
+        let t = &mut self.tables[k];
+        let copy = if self.copies.is_none() {
+            let bytes: &[u8] = bytemuck::cast_slice::<GpuBody, u8>(rigid.records());
+            bytes != self.uploaded.as_slice()
         } else {
-            self.staging
-                .copy_to_device(stream, bytes, &mut self.table, &self.waits)?;
+            t.version != Some(version)
+        };
+        if !copy && !t.held {
+            return Ok(k);
         }
-        self.uploaded.clear();
-        self.uploaded.extend_from_slice(bytes);
-        Ok(())
+        if self.copies.is_some() {
+            side.wait(&t.free)
+                .map_err(err("order an upload after its table's reader"))?;
+        }
+        if t.held {
+            side.memset_zeros(&mut t.exchange)
+                .map_err(err("clear the worlds' rigid-body impulses"))?;
+            t.held = false;
+        }
+        if copy {
+            let bytes: &[u8] = bytemuck::cast_slice::<GpuBody, u8>(rigid.records());
+            if super::staging::pageable_puts() {
+                self.waits.wait(WaitReason::Pageable, || ());
+                side.memcpy_htod(bytes, &mut t.records.slice_mut(..bytes.len()))
+                    .map_err(err("upload the worlds' rigid bodies"))?;
+            } else {
+                self.staging
+                    .copy_to_device(&side, bytes, &mut t.records, &self.waits)?;
+            }
+            t.version = Some(version);
+            if self.copies.is_none() {
+                self.uploaded.clear();
+                self.uploaded.extend_from_slice(bytes);
+            }
+        }
+        if self.copies.is_some() {
+            self.copied
+                .record(&side)
+                .map_err(err("record an upload's event"))?;
+            stream
+                .wait(&self.copied)
+                .map_err(err("order a step after its table's upload"))?;
+        }
+        Ok(k)
     }
 
     /// After a step of `dt` was queued: its sums are copied to the host and cleared (kept on the
@@ -185,18 +276,22 @@ impl WorldBodies {
     /// `dt` (with a dynamic body, by their world's sums, waited for).
     pub fn after_step(&mut self, stream: &Arc<CudaStream>, dt: f32) -> Result<(), SimError> {
         self.last_dt = Some(dt);
+        let t = &mut self.tables[self.last];
         if self.at_read {
-            self.held = true;
+            t.held = true;
             lock(&self.host).copied = false;
         } else {
             let host = self.host.get_mut().unwrap_or_else(|p| p.into_inner());
             stream
-                .memcpy_dtoh(&self.exchange, &mut host.sums)
+                .memcpy_dtoh(&t.exchange, &mut host.sums)
                 .map_err(err("read the worlds' rigid-body impulses"))?;
             host.done = stream.record_event(None).map_err(err("record an event"))?;
             stream
-                .memset_zeros(&mut self.exchange)
+                .memset_zeros(&mut t.exchange)
                 .map_err(err("clear the worlds' rigid-body impulses"))?;
+        }
+        if self.copies.is_some() {
+            t.free.record(stream).map_err(err("record an event"))?;
         }
         // The worlds advance (on every core, or on this thread: `HostBodies::fan`) while the
         // device runs the step just queued.
@@ -221,12 +316,17 @@ impl WorldBodies {
         let mut host = lock(&self.host);
         if !host.copied {
             let h = &mut *host;
+            let t = &self.tables[self.last];
             self.stream
-                .memcpy_dtoh(&self.exchange, &mut h.sums)
+                .memcpy_dtoh(&t.exchange, &mut h.sums)
                 .map_err(err("read the worlds' rigid-body impulses"))?;
             h.done = self
                 .stream
                 .record_event(None)
+                .map_err(err("record an event"))?;
+            // The next clear of these sums waits for this copy too.
+            t.free
+                .record(&self.stream)
                 .map_err(err("record an event"))?;
             h.copied = true;
         }
@@ -322,6 +422,24 @@ impl WorldBodies {
     pub fn per_world(&self) -> usize {
         self.per
     }
+}
+
+/// A table of `rows` records and its `len` sums, zeroed on `stream`, its event recorded after.
+fn new_table(stream: &Arc<CudaStream>, rows: usize, len: usize) -> Result<Table, SimError> {
+    let records = stream
+        .alloc_zeros::<u8>(rows * std::mem::size_of::<GpuBody>())
+        .map_err(err("alloc the worlds' rigid bodies"))?;
+    let exchange = stream
+        .alloc_zeros::<f64>(len)
+        .map_err(err("alloc the worlds' rigid-body impulses"))?;
+    let free = stream.record_event(None).map_err(err("record an event"))?;
+    Ok(Table {
+        records,
+        exchange,
+        version: None,
+        held: false,
+        free,
+    })
 }
 
 /// The host's sums, also after a panic while they were held (they are plain numbers).

@@ -142,6 +142,13 @@ pub struct CudaOptions {
     /// (`crate::batch::CudaBatch::set_body_poses`, Python's `set_rigid_body`) goes into its
     /// world's rapier world ([`BodyPoses`]).
     pub batch_poses: BodyPoses,
+    /// A batch of worlds with rigid bodies (`body_upload=turns|serial`): the steps read two
+    /// body tables in turn, each step's rows copied into its table on a stream of their own
+    /// while the step before runs (`turns`, the default; `crate::batch::CudaBatch`'s bodies),
+    /// or one table, the copy on the batch's stream before the step, serial with the kernels
+    /// (`serial`, as before; also `RTMPM_BATCH_UPLOAD=old` in the environment). Each step reads
+    /// the same records either way.
+    pub batch_body_turns: bool,
     /// The fused G2P2G kernels' warp loop over warp-uniform values (`uniform_loop=on|off`,
     /// default on; `kernels/g2p/g2p2g.cu`: `RTMPM_G2P2G_UNIFORM`): the error flag by a vote, the
     /// warp count and the first entry by warp reductions, so that ptxas drops its divergence
@@ -209,6 +216,7 @@ impl Default for CudaOptions {
             batch_sums_at_read: true,
             stencil_pairs: true,
             batch_poses: BodyPoses::Deferred,
+            batch_body_turns: true,
             uniform_loop: true,
             fused: FusedSwitches::default(),
             pdl: false,
@@ -225,7 +233,8 @@ impl std::str::FromStr for CudaOptions {
     /// (ordinals separated by `:`), `gblocks`, `pblocks`, `rmap_replicas`, `rmap_slots`,
     /// `rmap_pblocks`, `shared`, `sort_fields` (counts), `fluid_state` (on/off), `state`
     /// (f32/compact), `body_sums` (read/step), `addressing` (pairs/blocks), `uniform_loop` (on/off),
-    /// `body_poses` (deferred/deferred_serial/eager), `row_unroll` (off/planes/all),
+    /// `body_poses` (deferred/deferred_serial/eager), `body_upload` (turns/serial),
+    /// `row_unroll` (off/planes/all),
     /// `lean_lanes`, `seg_clamp`, `flat_checks` (on/off), `zero_terms` (skip/keep),
     /// `state_index` (auto/wide), `fused_defaults` (off/auto: the last six when left out),
     /// `pdl` (on/off).
@@ -365,6 +374,9 @@ impl std::str::FromStr for CudaOptions {
                             ("eager", BodyPoses::Eager),
                         ],
                     )?
+                }
+                "body_upload" => {
+                    o.batch_body_turns = choice(item, v, &[("turns", true), ("serial", false)])?
                 }
                 "fill" => o.device_fill = choice(item, v, &[("device", true), ("host", false)])?,
                 "sample" => {

@@ -27,6 +27,16 @@ fn options_parse() {
     assert!(o.batch_poses == BodyPoses::Eager && o.batch_sums_at_read);
     let o: CudaOptions = "body_poses=deferred_serial".parse().unwrap();
     assert_eq!(o.batch_poses, BodyPoses::DeferredSerial);
+    assert!(CudaOptions::default().batch_body_turns);
+    let o: CudaOptions = "body_upload=serial".parse().unwrap();
+    assert!(!o.batch_body_turns && o.batch_sums_at_read);
+    assert!(
+        "body_upload=turns"
+            .parse::<CudaOptions>()
+            .unwrap()
+            .batch_body_turns
+    );
+    assert!("body_upload=both".parse::<CudaOptions>().is_err());
     let e = "body_sums=never".parse::<CudaOptions>().unwrap_err();
     assert!(e.contains("expected read or step"), "{e}");
     let o: CudaOptions = "ck_p2g=warp".parse().unwrap();

@@ -89,6 +89,10 @@ pub(crate) struct HostBodies {
     cheap: bool,
     /// A world's rapier world or rows may have changed since the last advance (a pose put in).
     touched: bool,
+    /// Bumped whenever a row's record may have changed (a pose put in, a world stepped): the
+    /// device's copies of the records hold the rows of the version they were uploaded at
+    /// ([`HostBodies::version`]).
+    version: u64,
 }
 
 /// `RTMPM_BATCH_REST=old`: every world's rapier world is stepped at every step, also a world
@@ -237,6 +241,7 @@ impl HostBodies {
             all_rest: false,
             cheap,
             touched: true,
+            version: 0,
         };
         for w in 0..h.worlds.len() {
             h.rewrite(w);
@@ -264,6 +269,7 @@ impl HostBodies {
             return;
         }
         self.touched = true;
+        self.version += 1;
         let t0 = std::time::Instant::now();
         let mut kept = std::mem::take(&mut self.kept);
         kept.sort_by_key(|k| k.0); // stable: each world's in the order given
@@ -322,6 +328,7 @@ impl HostBodies {
             return;
         }
         self.touched = true;
+        self.version += 1;
         let run: Vec<Kept> = self.kept.iter().filter(|k| k.0 == w).copied().collect();
         self.kept.retain(|k| k.0 != w);
         let per = self.per;
@@ -342,6 +349,14 @@ impl HostBodies {
     pub fn records(&mut self) -> &[GpuBody] {
         self.flush();
         &self.records
+    }
+
+    /// The version of the records (the kept poses put into their worlds first): the same number
+    /// means the same records, bit for bit (a new one may hold the same records: a world stepped
+    /// or posed to where it was).
+    pub fn version(&mut self) -> u64 {
+        self.flush();
+        self.version
     }
 
     /// Advance every world by `dt` (each by its bodies' sums `each[w]`, or none), on every core
@@ -438,6 +453,9 @@ impl HostBodies {
         };
         // Every world's rows are now as this advance left them.
         (self.all_rest, self.touched) = (self.rest.iter().all(|&r| r), false);
+        if self.stepped > 0 {
+            self.version += 1;
+        }
         if ADVANCE.on() {
             ADVANCE.record(self.stepped, [t0], std::time::Instant::now());
         }
@@ -521,6 +539,7 @@ impl HostBodies {
         }
         self.flush_world(w);
         self.touched = true;
+        self.version += 1;
         let r = self.worlds[w]
             .set_poses(poses)
             .map_err(|e| SimError::Backend(format!("CUDA batch: world {w}: {e}")));
@@ -561,6 +580,7 @@ impl HostBodies {
             return Ok(());
         }
         self.touched = true;
+        self.version += 1;
         let (per, mesh) = (self.per, &self.mesh_offsets);
         if poses.len() < PARALLEL_POSES {
             let rows = self.poses.chunks_mut(per).zip(self.records.chunks_mut(per));

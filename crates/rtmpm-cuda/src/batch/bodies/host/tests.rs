@@ -113,7 +113,8 @@ fn posed(now: BodyPose, w: usize, c: usize) -> BodyPose {
 /// world (the flush on every core), in a few (the flush on one thread), the same body twice
 /// before a step with a read between, two bodies before a step, a world's every body put
 /// (a reset) over kept poses, reads of other bodies while poses are kept, the box moved by
-/// impulses.
+/// impulses. Records that differ from the last call's have another version (what the device
+/// tables' uploads go by).
 #[test]
 fn kept_poses_read_and_step_as_poses_put_at_once_bit_for_bit() {
     let n = 40;
@@ -123,6 +124,7 @@ fn kept_poses_read_and_step_as_poses_put_at_once_bit_for_bit() {
     let mut serial = make(BodyPoses::DeferredSerial);
     let mut eager = make(BodyPoses::Eager);
     let mut plain = Plain((0..n).map(|w| world(w, true)).collect(), mesh.clone());
+    let mut seen: [(u64, Vec<u8>); 3] = Default::default();
     let check = |h: &mut HostBodies, plain: &Plain, what: &str| {
         for w in 0..n {
             for b in 0..3 {
@@ -241,9 +243,18 @@ fn kept_poses_read_and_step_as_poses_put_at_once_bit_for_bit() {
             assert_eq!(state_bits(&deferred.states()), want, "call {c}: states");
         }
         let want = plain.records();
-        for h in [&mut deferred, &mut serial, &mut eager] {
+        for (h, seen) in [&mut deferred, &mut serial, &mut eager]
+            .into_iter()
+            .zip(&mut seen)
+        {
+            let version = h.version();
             let got = bytemuck::cast_slice::<GpuBody, u8>(h.records());
             assert!(got == &want[..], "call {c}: the device records differ");
+            assert!(
+                version != seen.0 || got == &seen.1[..],
+                "call {c}: new records at version {version} of the last call's"
+            );
+            *seen = (version, got.to_vec());
         }
         let each: Vec<Vec<Exchange>> = (0..n)
             .map(|w| {
@@ -277,7 +288,8 @@ fn kept_poses_read_and_step_as_poses_put_at_once_bit_for_bit() {
 /// moving; world 2 posed again at the pose it has (still skipped), world 4 set moving and
 /// later at rest again, world 6 put back to its start (moving) by `set_poses`, world 10's
 /// tool given an angular velocity alone, and the worlds with a dynamic box never skipped.
-/// Unless `RTMPM_BATCH_REST=old` is set (then every world is stepped, as before).
+/// Unless `RTMPM_BATCH_REST=old` is set (then every world is stepped, as before). The records'
+/// version stays while every world rests (no upload of a table that holds them).
 #[test]
 fn worlds_at_rest_are_skipped_and_step_on_as_before() {
     let n = 20;
@@ -421,6 +433,21 @@ fn worlds_at_rest_are_skipped_and_step_on_as_before() {
         let want = usize::from((10..21).contains(&c));
         if !old_rest() && (2..).contains(&c) {
             assert_eq!(h.stepped(), want, "all still, step {c}: the worlds stepped");
+        }
+        if !old_rest() && (2..10).contains(&c) {
+            let bytes =
+                |h: &mut HostBodies| bytemuck::cast_slice::<GpuBody, u8>(h.records()).to_vec();
+            let (before, records) = (h.version(), bytes(&mut h));
+            h.advance(None, 4e-4);
+            assert_eq!(
+                h.version(),
+                before,
+                "all still, step {c}: the version stays"
+            );
+            assert_eq!(bytes(&mut h), records, "all still, step {c}");
+            for world in plain.0.iter_mut() {
+                world.advance(&none, 4e-4);
+            }
         }
     }
 }
