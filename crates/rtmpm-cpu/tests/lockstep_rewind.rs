@@ -166,10 +166,17 @@ fn a_frozen_world_that_fails_again_ends_the_call_with_an_error_not_a_loop() {
 /// Calls of steps on worlds whose check is not cheap (made at a call's end): world 2 made to
 /// blow up within the second call, the worlds `reset` reset after that call, then a third
 /// call and a sync; with `defer` the calls return before their last check
-/// ([`LockstepRun::set_deferred_checks`]). The worlds each call returned frozen, and the run.
-fn late_checks(defer: bool, reset: &[usize]) -> (Vec<Vec<usize>>, LockstepRun<SideBySide>) {
+/// ([`LockstepRun::set_deferred_checks`]), and with `two` the backend keeps the next call's
+/// point in a second slot (saved before the last call's check is made). The worlds each call
+/// returned frozen, and the run.
+fn late_checks(
+    defer: bool,
+    two: bool,
+    reset: &[usize],
+) -> (Vec<Vec<usize>>, LockstepRun<SideBySide>) {
     let (b, mut r) = unwritten_keeping(SLUMP, true);
     r.sim.backend.checks_late = true;
+    r.sim.backend.two_points = two;
     r.set_deferred_checks(defer).expect("defer");
     r.sim.backend.poison = Some((2, 9));
     let mut calls = vec![r.advance_steps(7).expect("steps")];
@@ -188,30 +195,53 @@ fn late_checks(defer: bool, reset: &[usize]) -> (Vec<Vec<usize>>, LockstepRun<Si
 
 #[test]
 fn calls_returning_before_their_check_end_as_calls_that_check_at_once() {
-    let (at_once, mut a) = late_checks(false, &[1]);
-    let (deferred, mut d) = late_checks(true, &[1]);
-    // The blow-up is returned by the call that found it: the one after its steps when deferred.
+    let (at_once, mut a) = late_checks(false, false, &[1]);
     assert_eq!(at_once, [vec![], vec![2], vec![]]);
-    assert_eq!(deferred, [vec![], vec![], vec![2]]);
-    // The reset made while the check was pending was made again after the rewind: every world
-    // ends bit for bit as when the second call found the blow-up itself.
-    for w in 0..3 {
-        let (x, y) = (&a.worlds[w], &d.worlds[w]);
-        assert_eq!(y.status, x.status, "world {w}");
-        assert_eq!(bits(y.particles()), bits(x.particles()), "world {w}");
-        assert_eq!((y.steps(), y.frame()), (x.steps(), x.frame()), "world {w}");
-        assert_eq!(y.time().to_bits(), x.time().to_bits(), "world {w}");
-    }
-    assert!(matches!(d.worlds[2].status, WorldStatus::Frozen { .. }));
-    assert_eq!(d.worlds[1].steps(), 6, "world 1 from its reset");
-    assert_eq!(d.worlds[0].steps(), 18);
-    // The backends hold the same worlds (the frozen one parked alike).
-    let (ha, hd) = (
-        a.sim.backend.read_all().expect("read"),
-        d.sim.backend.read_all().expect("read"),
-    );
-    for w in 0..3 {
-        assert_eq!(bits(&hd[w]), bits(&ha[w]), "world {w} as held");
+    let ha = a.sim.backend.read_all().expect("read");
+    // With a second slot, each call after the first keeps its point before the last call's
+    // check: the third call's before the check that finds the second's blow-up (the rewind
+    // then goes back to the second call's point, and the third keeps its point again).
+    for two in [false, true] {
+        let (deferred, mut d) = late_checks(true, two, &[1]);
+        // The blow-up is returned by the call that found it: the one after its steps when
+        // deferred.
+        assert_eq!(deferred, [vec![], vec![], vec![2]], "two {two}");
+        // The reset made while the check was pending was made again after the rewind: every
+        // world ends bit for bit as when the second call found the blow-up itself.
+        for w in 0..3 {
+            let (x, y) = (&a.worlds[w], &d.worlds[w]);
+            assert_eq!(y.status, x.status, "two {two}: world {w}");
+            assert_eq!(
+                bits(y.particles()),
+                bits(x.particles()),
+                "two {two}: world {w}"
+            );
+            assert_eq!(
+                (y.steps(), y.frame()),
+                (x.steps(), x.frame()),
+                "two {two}: world {w}"
+            );
+            assert_eq!(
+                y.time().to_bits(),
+                x.time().to_bits(),
+                "two {two}: world {w}"
+            );
+        }
+        assert!(matches!(d.worlds[2].status, WorldStatus::Frozen { .. }));
+        assert_eq!(d.worlds[1].steps(), 6, "world 1 from its reset");
+        assert_eq!(d.worlds[0].steps(), 18);
+        // The backends hold the same worlds (the frozen one parked alike).
+        let hd = d.sim.backend.read_all().expect("read");
+        for w in 0..3 {
+            assert_eq!(bits(&hd[w]), bits(&ha[w]), "two {two}: world {w} as held");
+        }
+        // Kept ahead by the second call (its check passed: its point taken up) and the third
+        // (its check rewound: its point kept again after the rewind, the one ahead dropped).
+        let b = &d.sim.backend;
+        assert_eq!(
+            (b.next_saves, b.next_uses),
+            if two { (2, 1) } else { (0, 0) }
+        );
     }
 }
 
@@ -228,6 +258,7 @@ fn frame_end_inside(
     let (b, mut r) = unwritten_keeping(SLUMP, true);
     r.sim.backend.checks_late = true;
     r.sim.backend.queues = queues;
+    r.sim.backend.two_points = true;
     r.set_deferred_checks(defer).expect("defer");
     r.sim.backend.poison = Some((2, poison));
     let mut calls = vec![r.advance_steps(45).expect("steps")];
@@ -287,9 +318,10 @@ fn checks_queued_at_a_frame_end_inside_a_call_end_as_checks_made_at_once() {
 /// world reset after that call (the shared clock back to 0), a third call; with `defer` the
 /// blow-up's check is pending through that reset. The worlds each call returned frozen, and
 /// the run, synced.
-fn reset_all_pending(defer: bool) -> (Vec<Vec<usize>>, LockstepRun<SideBySide>) {
+fn reset_all_pending(defer: bool, two: bool) -> (Vec<Vec<usize>>, LockstepRun<SideBySide>) {
     let (b, mut r) = unwritten_keeping(SLUMP, true);
     r.sim.backend.checks_late = true;
+    r.sim.backend.two_points = two;
     r.set_deferred_checks(defer).expect("defer");
     r.sim.backend.poison = Some((2, 9));
     let start = |w: usize| (w, b.worlds[w].sample_particles().expect("sample"));
@@ -306,19 +338,30 @@ fn reset_all_pending(defer: bool) -> (Vec<Vec<usize>>, LockstepRun<SideBySide>) 
 fn a_reset_of_every_world_while_a_check_is_pending_ends_as_after_the_check() {
     // The check is made at the clock the steps ended at (not the reset's 0: the blow-up is
     // said at its world's own step, after its reset), then the reset made again.
-    let (at_once, a) = reset_all_pending(false);
-    let (deferred, d) = reset_all_pending(true);
+    let (at_once, a) = reset_all_pending(false, false);
     assert_eq!(at_once, [vec![], vec![2], vec![]]);
-    assert_eq!(deferred, [vec![], vec![], vec![2]]);
-    for w in 0..3 {
-        let (x, y) = (&a.worlds[w], &d.worlds[w]);
-        assert_eq!(y.status, x.status, "world {w}");
-        assert_eq!(bits(y.particles()), bits(x.particles()), "world {w}");
+    for two in [false, true] {
+        let (deferred, d) = reset_all_pending(true, two);
+        assert_eq!(deferred, [vec![], vec![], vec![2]], "two {two}");
+        for w in 0..3 {
+            let (x, y) = (&a.worlds[w], &d.worlds[w]);
+            assert_eq!(y.status, x.status, "two {two}: world {w}");
+            assert_eq!(
+                bits(y.particles()),
+                bits(x.particles()),
+                "two {two}: world {w}"
+            );
+            assert_eq!(
+                (y.steps(), y.time().to_bits()),
+                (6, x.time().to_bits()),
+                "two {two}: world {w}"
+            );
+        }
+        assert_eq!(d.sim.step, 6);
+        let b = &d.sim.backend;
         assert_eq!(
-            (y.steps(), y.time().to_bits()),
-            (6, x.time().to_bits()),
-            "world {w}"
+            (b.next_saves, b.next_uses),
+            if two { (2, 1) } else { (0, 0) }
         );
     }
-    assert_eq!(d.sim.step, 6);
 }

@@ -1,6 +1,7 @@
 //! Rigid bodies in a lockstep batch on CPU worlds side by side (`lockstep_support`; cargo
 //! feature `rigid`): each world's tool goes with its particles through a rewind, a checkpoint
-//! and a reset.
+//! and a reset, and through a rewind found by a deferred check with the next call's bodies and
+//! rewind point kept ahead of that check.
 #![cfg(feature = "rigid")]
 
 mod common;
@@ -8,7 +9,7 @@ mod lockstep_support;
 
 use common::bits;
 use common::cpu::CpuBackend;
-use lockstep_support::{SLUMP, SideBySide, unwritten};
+use lockstep_support::{SLUMP, SideBySide, unwritten, unwritten_keeping};
 use rtmpm_driver::Simulation;
 use rtmpm_driver::batch::BatchOptions;
 use rtmpm_driver::batch::lockstep::LockstepRun;
@@ -145,4 +146,96 @@ fn each_worlds_tool_goes_with_its_particles_through_a_rewind_and_a_reset() {
     assert_eq!(r.sim.backend.world_rigid_poses(2)[0], start[2]);
     assert_eq!(r.worlds[2].bodies()[0], start[2]);
     assert_eq!(r.sim.backend.world_rigid_poses(0)[0], moved);
+}
+
+/// Four calls of 5 steps on the tool slump, each world's tool posed before every call (back at
+/// its start, with a new velocity), world 1 made to blow up in the second call; checks made at
+/// once, or deferred (`defer`), the backend keeping the next call's point in a second slot
+/// (`two`: kept, with every world's bodies, before the last call's check). The worlds each call
+/// returned frozen with every world's tool as the backend held it after the call, and the run,
+/// synced.
+type Calls = Vec<(Vec<usize>, Vec<Vec<rtmpm_rigid::BodyPose>>)>;
+fn posed_calls(defer: bool, two: bool) -> (Calls, LockstepRun<SideBySide>) {
+    let (_, mut r) = unwritten_keeping(&with_tool(SLUMP), true);
+    r.sim.backend.checks_late = true;
+    r.sim.backend.two_points = two;
+    r.set_deferred_checks(defer).expect("defer");
+    r.sim.backend.poison = Some((1, 7));
+    let start: Vec<_> = (0..3).map(|w| r.worlds[w].bodies()[0]).collect();
+    let mut calls = Vec::new();
+    for k in 0..4 {
+        let poses = (0..3)
+            .map(|w| {
+                let v = glam::Vec3::new(0.1 * w as f32, -0.2 * (k + w + 1) as f32, 0.0);
+                (
+                    w,
+                    rtmpm_rigid::BodyPose {
+                        velocity: v,
+                        ..start[w]
+                    },
+                )
+            })
+            .collect();
+        r.set_body_poses(0, poses).expect("pose");
+        let frozen = r.advance_steps(5).expect("steps");
+        let held = (0..3).map(|w| r.sim.backend.world_rigid_poses(w)).collect();
+        calls.push((frozen, held));
+    }
+    r.sync().expect("sync");
+    (calls, r)
+}
+
+/// A blow-up found by a deferred check after the next call kept every world's tool and its
+/// rewind point ahead of that check ends bit for bit as found at once: the worlds' particles,
+/// statuses, kept and held tools (the frozen world's parked), the frozen lists a call later.
+#[test]
+fn a_late_blow_up_with_the_next_calls_tools_kept_ahead_ends_as_found_at_once() {
+    let (at_once, a) = posed_calls(false, false);
+    let frozen = |calls: &Calls| calls.iter().map(|c| c.0.clone()).collect::<Vec<_>>();
+    assert_eq!(frozen(&at_once), [vec![], vec![1], vec![], vec![]]);
+    for two in [false, true] {
+        let (deferred, d) = posed_calls(true, two);
+        assert_eq!(
+            frozen(&deferred),
+            [vec![], vec![], vec![1], vec![]],
+            "two {two}"
+        );
+        // The tools held after each call: the same, but for the frozen world's after the call
+        // whose check is still pending (stepped on as if it ran); parked from the next on,
+        // although the script posed it (the pose made again after the rewind, then parked).
+        for (k, (x, y)) in at_once.iter().zip(&deferred).enumerate() {
+            for w in 0..3 {
+                if (k, w) != (1, 1) {
+                    assert_eq!(y.1[w], x.1[w], "two {two}: call {k}, world {w}'s tool");
+                }
+            }
+        }
+        for w in 0..3 {
+            let (x, y) = (&a.worlds[w], &d.worlds[w]);
+            assert_eq!(y.status, x.status, "two {two}: world {w}");
+            assert_eq!(
+                bits(y.particles()),
+                bits(x.particles()),
+                "two {two}: world {w}"
+            );
+            assert_eq!(y.bodies(), x.bodies(), "two {two}: world {w}'s kept tool");
+            assert_eq!(
+                d.sim.backend.world_rigid_poses(w),
+                a.sim.backend.world_rigid_poses(w),
+                "two {two}: world {w}'s tool"
+            );
+            assert_eq!(y.steps(), x.steps(), "two {two}: world {w}");
+        }
+        assert_eq!(
+            d.sim.backend.world_rigid_poses(1)[0].velocity,
+            glam::Vec3::ZERO,
+            "the frozen world's tool is parked"
+        );
+        // Kept ahead by calls 2 to 4; taken up by 2 and 4 (3's check rewound).
+        let b = &d.sim.backend;
+        assert_eq!(
+            (b.next_saves, b.next_uses),
+            if two { (3, 2) } else { (0, 0) }
+        );
+    }
 }

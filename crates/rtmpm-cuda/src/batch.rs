@@ -96,6 +96,9 @@ pub struct CudaBatch {
     /// The rewind point ([`CudaBatch::save_point`]): a copy of the particle state on the
     /// device, allocated at the first save.
     point: Option<CudaSlice<u8>>,
+    /// The next call's rewind point, kept while the last call's check may still need `point`
+    /// ([`CudaBatch::save_next_point`]), allocated at the first such save.
+    next_point: Option<CudaSlice<u8>>,
     /// The device had no memory for the point: the driver keeps it on the host instead.
     no_point: bool,
     /// Every world's particles at time 0, packed (rows of the batch's particle count), kept by
@@ -221,6 +224,7 @@ impl CudaBatch {
             bodies,
             colliders,
             point: None,
+            next_point: None,
             no_point: false,
             initial: None,
             put_buffer: None,
@@ -527,6 +531,14 @@ impl Worlds for CudaBatch {
             b.flush_kept();
         }
         Ok(())
+    }
+
+    fn save_next_point(&mut self) -> Result<bool, SimError> {
+        CudaBatch::save_next_point(self)
+    }
+
+    fn use_next_point(&mut self) -> Result<(), SimError> {
+        CudaBatch::use_next_point(self)
     }
 
     fn queues_checks(&self) -> bool {

@@ -46,7 +46,8 @@ pub trait Worlds: Backend {
     /// the worlds are (the GPU batch: the rigid-body poses a script gave, kept until then, put
     /// into their worlds), so that it runs while the device still works on the steps queued
     /// before (the lockstep driver calls it before it waits for them, as a call with deferred
-    /// checks begins). The same state as doing it then. Nothing by default.
+    /// checks begins). The same state as doing it then; a rewind after it is still correct
+    /// (the next step does again whatever the rewind changed). Nothing by default.
     fn prepare_steps(&mut self) -> Result<(), SimError> {
         Ok(())
     }
@@ -85,6 +86,26 @@ pub trait Worlds: Backend {
     fn restore_point(&mut self) -> Result<(), SimError> {
         Err(SimError::Backend(format!(
             "the backend `{}` keeps no rewind point of its worlds",
+            self.name()
+        )))
+    }
+
+    /// Keep the state the worlds will have once everything queued so far has run (the GPU:
+    /// a device-to-device copy queued behind it) as the *next* rewind point, in a second slot,
+    /// leaving the point [`Worlds::restore_point`] puts back untouched (`Ok(true)`): the
+    /// lockstep driver keeps the next call's point while the last call's check, which may
+    /// still need the last point, is pending. [`Worlds::use_next_point`] then makes it the
+    /// point. `Ok(false)`: no second slot (the default), nothing kept.
+    fn save_next_point(&mut self) -> Result<bool, SimError> {
+        Ok(false)
+    }
+
+    /// Make the point the last [`Worlds::save_next_point`] kept the one
+    /// [`Worlds::restore_point`] puts back (the state it was kept at, not the state now); the
+    /// point before is dropped. An error where no next point was kept.
+    fn use_next_point(&mut self) -> Result<(), SimError> {
+        Err(SimError::Backend(format!(
+            "the backend `{}` keeps no second rewind point of its worlds",
             self.name()
         )))
     }

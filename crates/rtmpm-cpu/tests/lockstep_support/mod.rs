@@ -56,6 +56,13 @@ pub struct SideBySide {
     /// device), in `point`; otherwise the driver keeps it on the host (the trait's default).
     pub keeps_point: bool,
     pub point: Vec<Particles>,
+    /// With `keeps_point`, a second slot for the next call's point ([`Worlds::save_next_point`],
+    /// as the GPU batch keeps one on the device), in `next_point`; the saves into it counted in
+    /// `next_saves`, the points made current from it in `next_uses`.
+    pub two_points: bool,
+    pub next_point: Vec<Particles>,
+    pub next_saves: usize,
+    pub next_uses: usize,
     /// Calls of [`Worlds::read_worlds`] (the driver reading every world to the host).
     pub reads: usize,
     /// Steps taken (counted over rewinds), and `(w, k)`: every particle of world `w` set to
@@ -100,6 +107,10 @@ impl SideBySide {
             worlds,
             keeps_point: false,
             point: Vec::new(),
+            two_points: false,
+            next_point: Vec::new(),
+            next_saves: 0,
+            next_uses: 0,
             reads: 0,
             steps: 0,
             poison: None,
@@ -239,6 +250,25 @@ impl Worlds for SideBySide {
             self.point = self.read_all()?;
         }
         Ok(self.keeps_point)
+    }
+
+    fn save_next_point(&mut self) -> Result<bool, SimError> {
+        if !(self.keeps_point && self.two_points) {
+            return Ok(false);
+        }
+        self.next_point = self.read_all()?;
+        self.next_saves += 1;
+        Ok(true)
+    }
+
+    fn use_next_point(&mut self) -> Result<(), SimError> {
+        if self.next_point.is_empty() {
+            return Err(SimError::Backend("no next point was kept".into()));
+        }
+        std::mem::swap(&mut self.point, &mut self.next_point);
+        self.next_point.clear();
+        self.next_uses += 1;
+        Ok(())
     }
 
     fn restore_point(&mut self) -> Result<(), SimError> {

@@ -8,7 +8,7 @@ use crate::contract::{CTL_NEED_REBUILD, CTL_P2G_PENDING};
 use crate::error::err;
 use crate::kernels::Kernel;
 use crate::waits::WaitReason;
-use cudarc::driver::PushKernelArg;
+use cudarc::driver::{CudaSlice, PushKernelArg};
 use rtmpm_physics::Particles;
 use rtmpm_sim::SimError;
 
@@ -44,6 +44,50 @@ impl CudaBatch {
             .memcpy_dtod(&b.buffers.state, point)
             .map_err(err("keep the rewind point"))?;
         Ok(true)
+    }
+
+    /// Keep the state the worlds will have once everything queued so far has run as the next
+    /// rewind point (one device-to-device copy queued behind it, into a second buffer as large
+    /// as the point, allocated at the first call), leaving the point [`CudaBatch::restore_point`]
+    /// puts back as it is: the lockstep driver's next call keeps its point before the last
+    /// call's check, which may still rewind to the last point, is made. `false`: no rewind
+    /// point is kept on the device, or no memory for a second (nothing kept; the driver keeps
+    /// the point after that check, as before).
+    pub fn save_next_point(&mut self) -> Result<bool, SimError> {
+        if self.no_point || self.point.is_none() {
+            return Ok(false);
+        }
+        let b = &mut self.backend;
+        if self.next_point.is_none() {
+            // SAFETY: every byte is written by the copy below before anything reads it.
+            let (stream, len) = (&b.stream, b.buffers.state.len());
+            match b
+                .waits
+                .wait(WaitReason::Alloc, || unsafe { stream.alloc::<u8>(len) })
+            {
+                Ok(p) => self.next_point = Some(p),
+                Err(_) => return Ok(false),
+            }
+        }
+        let Some(next) = self.next_point.as_mut() else {
+            return Ok(false);
+        };
+        b.stream
+            .memcpy_dtod(&b.buffers.state, next)
+            .map_err(err("keep the next rewind point"))?;
+        Ok(true)
+    }
+
+    /// Make the point the last [`CudaBatch::save_next_point`] kept the rewind point (the two
+    /// buffers swapped: no copy); the point before becomes the next one's buffer.
+    pub fn use_next_point(&mut self) -> Result<(), SimError> {
+        if self.next_point.is_none() || self.no_point {
+            return Err(SimError::Backend(
+                "CUDA batch: no next rewind point was kept (save_next_point first)".into(),
+            ));
+        }
+        std::mem::swap(&mut self.point, &mut self.next_point);
+        Ok(())
     }
 
     /// Put every world's particles back to the last [`CudaBatch::save_point`], word for word
@@ -83,14 +127,16 @@ impl CudaBatch {
     pub fn set_device_point(&mut self, on: bool) {
         self.no_point = !on;
         if !on {
-            self.point = None;
+            (self.point, self.next_point) = (None, None);
         }
     }
 
-    /// Bytes of the rewind point on the device (0 before the first
-    /// [`CudaBatch::save_point`]).
+    /// Bytes of the rewind points on the device (0 before the first
+    /// [`CudaBatch::save_point`]; twice the state once a next point was kept,
+    /// [`CudaBatch::save_next_point`]).
     pub fn point_bytes(&self) -> usize {
-        self.point.as_ref().map_or(0, |p| p.len())
+        let bytes = |p: &Option<CudaSlice<u8>>| p.as_ref().map_or(0, |p| p.len());
+        bytes(&self.point) + bytes(&self.next_point)
     }
 
     /// Put world `w`'s particles to `particles` (its initial ones for a reset, or any state of

@@ -323,21 +323,16 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         if self.out.is_some() {
             bail!("a batch run that writes frame files advances by whole frames");
         }
-        if self.pending.is_some() {
-            // The host's own work for these steps while the device ends the last call's.
-            self.sim
-                .backend
-                .prepare_steps()
-                .context("preparing the steps")?;
-        }
-        self.settle()?;
+        // The host's own work for these steps while the device ends the last call's, then that
+        // call's check (its wait); the work done ahead is done again after a rewind.
+        let ahead = self.start_deferred_call()?;
         let mut frozen = std::mem::take(&mut self.found);
         if self.running() == 0 {
             return Ok(frozen);
         }
         let fixed = matches!(self.sim.scene.time.step, StepMode::Fixed { .. });
         if self.defer && fixed {
-            frozen.extend(self.advance_deferred(steps)?);
+            frozen.extend(self.advance_deferred(steps, ahead)?);
         } else {
             frozen.extend(self.advance_by(steps_of(steps))?);
         }

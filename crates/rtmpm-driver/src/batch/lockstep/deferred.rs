@@ -2,6 +2,15 @@
 //! queued, before the health check of its last step, so the host goes on while the device steps;
 //! [`LockstepRun::settle`] makes the check later and, when it finds a blow-up, puts the worlds
 //! back as the advance would have, then makes again the resets and poses made meanwhile.
+//!
+//! The next call's host work that does not depend on that check is done before its wait
+//! ([`LockstepRun::start_deferred_call`]): every world's bodies kept, the next rewind point
+//! queued into the backend's second slot ([`Worlds::save_next_point`]: stream order makes it the
+//! state after the last call's steps and the resets since), the first step's host preparation
+//! ([`Worlds::prepare_steps`]); the device works on the last call's steps meanwhile. When the
+//! check passes the call goes on from there (the point made current,
+//! [`Worlds::use_next_point`]); when it finds a blow-up the rewind goes back to the last call's
+//! point (untouched by the early save) and the call does that work again after it.
 
 use super::{LockstepRun, Pending, Since, steps_of};
 use anyhow::{Context, Result};
@@ -19,6 +28,25 @@ static DEFERRED_TIMING: rtmpm_sim::timing::PartTimes<4> = rtmpm_sim::timing::Par
     "advances",
     ["bodies kept", "point kept", "steps queued", "pending kept"],
 );
+
+/// `RTMPM_STEP_TIMING=1`: how a call begins while the last call's check is pending (Python's
+/// `step` with `overlap`), printed to stderr every 100 such calls: the host's work done ahead of
+/// that check (bodies kept, the next point queued, the first step prepared) and the check itself
+/// (its wait for the device to end the last call's steps, and a rewind when it finds one).
+static AHEAD_TIMING: rtmpm_sim::timing::PartTimes<2> = rtmpm_sim::timing::PartTimes::new(
+    "RTMPM_STEP_TIMING",
+    "deferred call start",
+    "calls",
+    ["work ahead", "settle"],
+);
+
+/// What a call did ahead of the last call's check ([`LockstepRun::start_deferred_call`]):
+/// every world's bodies kept, and, with `point`, the next rewind point in the backend's second
+/// slot.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Ahead {
+    point: bool,
+}
 
 impl<B: Worlds + ?Sized> LockstepRun<B> {
     /// Return from [`LockstepRun::advance_steps`] with its steps queued, before the health
@@ -51,18 +79,60 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         self.pending.is_some()
     }
 
-    /// [`LockstepRun::advance_steps`] with the last check deferred: the steps queued, the
-    /// worlds' clocks and bodies noted as if no world failed, what a rewind needs kept.
-    pub(super) fn advance_deferred(&mut self, steps: u64) -> Result<Vec<usize>> {
+    /// As [`LockstepRun::advance_steps`] begins: where the last call's check is pending, the
+    /// coming steps' host work that does not depend on it done first, while the device ends
+    /// that call's steps (the bodies kept as the steps begin, the next rewind point queued, the
+    /// first step's host preparation), then the check ([`LockstepRun::settle`]). What was done
+    /// ahead (`None` when nothing was pending, or when the check rewound the worlds: the
+    /// rewind changed what it kept, so the advance does it all again).
+    pub(super) fn start_deferred_call(&mut self) -> Result<Option<Ahead>> {
+        if self.pending.is_none() {
+            self.settle()?;
+            return Ok(None);
+        }
         let t0 = std::time::Instant::now();
-        let clock = self.clock();
         self.keep_bodies()?;
-        let t1 = std::time::Instant::now();
-        let on_backend = self
+        let point = self
             .sim
             .backend
-            .save_point()
-            .context("keeping the worlds' rewind point")?;
+            .save_next_point()
+            .context("keeping the next rewind point")?;
+        self.sim
+            .backend
+            .prepare_steps()
+            .context("preparing the steps")?;
+        let t1 = std::time::Instant::now();
+        let rewound = self.settle_found()?;
+        AHEAD_TIMING.record(1, [t0, t1], std::time::Instant::now());
+        Ok((!rewound).then_some(Ahead { point }))
+    }
+
+    /// [`LockstepRun::advance_steps`] with the last check deferred: the steps queued, the
+    /// worlds' clocks and bodies noted as if no world failed, what a rewind needs kept (the
+    /// bodies and the point kept already where `ahead` says so).
+    pub(super) fn advance_deferred(
+        &mut self,
+        steps: u64,
+        ahead: Option<Ahead>,
+    ) -> Result<Vec<usize>> {
+        let t0 = std::time::Instant::now();
+        let clock = self.clock();
+        if ahead.is_none() {
+            self.keep_bodies()?;
+        }
+        let t1 = std::time::Instant::now();
+        let on_backend = if ahead.is_some_and(|a| a.point) {
+            self.sim
+                .backend
+                .use_next_point()
+                .context("taking up the next rewind point")?;
+            true
+        } else {
+            self.sim
+                .backend
+                .save_point()
+                .context("keeping the worlds' rewind point")?
+        };
         if !on_backend {
             self.sync()?;
         }
@@ -135,8 +205,14 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
     /// worlds frozen are returned by the next advance). An error of the backend itself is
     /// returned.
     pub fn settle(&mut self) -> Result<()> {
+        self.settle_found().map(drop)
+    }
+
+    /// [`LockstepRun::settle`]; `true` when its check found a failure (the worlds rewound and
+    /// stepped again, the changes since made again).
+    fn settle_found(&mut self) -> Result<bool> {
         let Some(p) = self.pending.take() else {
-            return Ok(());
+            return Ok(false);
         };
         // Checked at the clock of each frame end inside the advance whose check was queued, then
         // at the clock the advance ended at (a reset of every world since put it back to 0), as
@@ -157,7 +233,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         let Some(e) = failed else {
             self.set_clock(now);
             self.spare = Some(p);
-            return Ok(());
+            return Ok(false);
         };
         let Pending {
             clock,
@@ -199,7 +275,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
                 Since::Poses(body, poses) => self.set_body_poses(body, poses)?,
             }
         }
-        Ok(())
+        Ok(true)
     }
 
     /// Put rigid body `body` of each world listed in `poses` at its pose from the next step on
