@@ -35,16 +35,26 @@ pub fn encode(b: &BodyState, mesh_offset: u32) -> GpuBody {
     };
     crate::encode::shape_params(s, &mut col);
     col.mesh_offset = mesh_offset;
-    GpuBody {
+    let mut r = GpuBody {
         shape: col,
-        rot: b.rotation.to_cols_array(),
-        center: b.center.to_array(),
-        velocity: b.velocity.to_array(),
-        omega: b.angular_velocity.to_array(),
         // The farthest point of the shape from its centre, and a little more for rounding.
         bound: b.shape.bounding_radius() * 1.001 + 1e-6,
         dynamic: b.dynamic as u32,
-    }
+        ..Default::default()
+    };
+    encode_motion(b, &mut r);
+    r
+}
+
+/// The fields of `r`, the device record of a body ([`encode`]), that move with the body: its
+/// rotation, centre and velocities from its state `b`; the others (shape, boundary rule, bound,
+/// kind) are a body's for good, left as [`encode`] wrote them (a batch's worlds rewrite their
+/// records after every step: `crate::batch::bodies`).
+pub fn encode_motion(b: &BodyState, r: &mut GpuBody) {
+    r.rot = b.rotation.to_cols_array();
+    r.center = b.center.to_array();
+    r.velocity = b.velocity.to_array();
+    r.omega = b.angular_velocity.to_array();
 }
 
 /// Words after the `BODY_EXCHANGE_SLOTS` x bodies x 6 impulse sums of [`BodyLink`]'s buffer and

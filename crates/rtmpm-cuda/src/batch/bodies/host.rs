@@ -178,14 +178,14 @@ fn at_rest(world: &RigidWorld, poses: &[BodyPose]) -> bool {
 fn advance_world(
     (world, poses, records): (&mut RigidWorld, &mut [BodyPose], &mut [GpuBody]),
     (advanced, rest): (&mut [BodyPose], &mut bool),
-    (ex, dt, mesh, skip): (&[Exchange], f32, &[u32], bool),
+    (ex, dt, skip): (&[Exchange], f32, bool),
 ) -> bool {
     if skip && *rest && same_bits(poses, advanced) {
         return false;
     }
     advanced.copy_from_slice(poses);
     world.advance(ex, dt);
-    write_rows(world, mesh, poses, records);
+    write_motion(world, poses, records);
     *rest = at_rest(world, poses) && same_bits(poses, advanced);
     advanced.copy_from_slice(poses);
     true
@@ -202,19 +202,26 @@ fn write_rows(world: &RigidWorld, mesh: &[u32], poses: &mut [BodyPose], records:
     }
 }
 
+/// [`write_rows`] of a world whose records [`write_rows`] wrote before: only the fields that move
+/// (`step::rigid::encode_motion`; a body's shape, rule and kind never change), the same records
+/// bit for bit with less work at every step's advance and put-in of a pose.
+fn write_motion(world: &RigidWorld, poses: &mut [BodyPose], records: &mut [GpuBody]) {
+    let rows = poses.iter_mut().zip(records.iter_mut());
+    for (i, ((p, r), s)) in rows.zip(world.states()).enumerate() {
+        if let Some(pose) = world.pose(i) {
+            *p = pose;
+        }
+        crate::step::rigid::encode_motion(s, r);
+    }
+}
+
 /// Put the kept poses `run` (one world's, in the order given) into `world`, then its rows.
-fn put_kept(
-    world: &mut RigidWorld,
-    run: &[Kept],
-    mesh: &[u32],
-    poses: &mut [BodyPose],
-    records: &mut [GpuBody],
-) {
+fn put_kept(world: &mut RigidWorld, run: &[Kept], poses: &mut [BodyPose], records: &mut [GpuBody]) {
     for (_, body, pose) in run {
         // `set_body_poses` checked the body: `set_pose` refuses only a body past the last.
         let _ = world.set_pose(*body, pose);
     }
-    write_rows(world, mesh, poses, records);
+    write_motion(world, poses, records);
 }
 
 impl HostBodies {
@@ -278,7 +285,6 @@ impl HostBodies {
             self.pending[w * per + b] = false;
         }
         let runs = kept.chunk_by(|a, b| a.0 == b.0);
-        let mesh = &self.mesh_offsets;
         // On the calling thread where the advance of these worlds is (`HostBodies::fan`): on the
         // 32-core host every core's putting in of 256 kinematic tools took 154-167 us a call
         // (session 15 call 3, RTMPM_POSE_TIMING), the rayon fan-out costing more than the work.
@@ -290,7 +296,6 @@ impl HostBodies {
                 put_kept(
                     &mut self.worlds[w],
                     run,
-                    mesh,
                     &mut self.poses[rows.clone()],
                     &mut self.records[rows],
                 );
@@ -311,7 +316,7 @@ impl HostBodies {
                 .for_each(|(((world, poses), records), &f)| {
                     let w = kept[f].0;
                     let n = kept[f..].iter().take_while(|k| k.0 == w).count();
-                    put_kept(world, &kept[f..f + n], mesh, poses, records);
+                    put_kept(world, &kept[f..f + n], poses, records);
                 });
         }
         if PUT_IN.on() {
@@ -339,7 +344,6 @@ impl HostBodies {
         put_kept(
             &mut self.worlds[w],
             &run,
-            &self.mesh_offsets,
             &mut self.poses[rows.clone()],
             &mut self.records[rows],
         );
@@ -402,7 +406,6 @@ impl HostBodies {
         self.flush();
         let t0 = std::time::Instant::now();
         let none = vec![Exchange::default(); self.per];
-        let mesh = &self.mesh_offsets;
         let per = self.per.max(1);
         // Every world at rest and unchanged: nothing to step, no worker woken (nothing put in
         // since the last advance left every world at rest: not even a look at the rows).
@@ -420,11 +423,7 @@ impl HostBodies {
         // Each world is independent: the same results in any order.
         let step = |(w, ((((world, poses), records), advanced), rest)): (usize, WorldRows)| {
             let ex = each.and_then(|e| e.get(w)).unwrap_or(&none);
-            advance_world(
-                (world, poses, records),
-                (advanced, rest),
-                (ex, dt, mesh, skip),
-            )
+            advance_world((world, poses, records), (advanced, rest), (ex, dt, skip))
         };
         self.stepped = match fan {
             Fan::Serial => self
@@ -581,12 +580,12 @@ impl HostBodies {
         }
         self.touched = true;
         self.version += 1;
-        let (per, mesh) = (self.per, &self.mesh_offsets);
+        let per = self.per;
         if poses.len() < PARALLEL_POSES {
             let rows = self.poses.chunks_mut(per).zip(self.records.chunks_mut(per));
             for ((world, (p, r)), at) in self.worlds.iter_mut().zip(rows).zip(&last) {
                 if let Some(j) = at {
-                    put_kept(world, &[(0, body, poses[*j].1)], mesh, p, r);
+                    put_kept(world, &[(0, body, poses[*j].1)], p, r);
                 }
             }
         } else {
@@ -598,7 +597,7 @@ impl HostBodies {
                 .with_min_len(256)
                 .for_each(|(((world, p), r), at)| {
                     if let Some(j) = at {
-                        put_kept(world, &[(0, body, poses[*j].1)], mesh, p, r);
+                        put_kept(world, &[(0, body, poses[*j].1)], p, r);
                     }
                 });
         }
