@@ -93,6 +93,8 @@ pub(crate) struct HostBodies {
     /// device's copies of the records hold the rows of the version they were uploaded at
     /// ([`HostBodies::version`]).
     version: u64,
+    /// No sums, one per body: what a world advances by without any (no allocation a step).
+    none: Vec<Exchange>,
 }
 
 /// `RTMPM_BATCH_REST=old`: every world's rapier world is stepped at every step, also a world
@@ -249,6 +251,7 @@ impl HostBodies {
             cheap,
             touched: true,
             version: 0,
+            none: vec![Exchange::default(); per],
         };
         for w in 0..h.worlds.len() {
             h.rewrite(w);
@@ -405,7 +408,7 @@ impl HostBodies {
     fn advance_fanned(&mut self, each: Option<&[Vec<Exchange>]>, dt: f32, skip: bool, fan: Fan) {
         self.flush();
         let t0 = std::time::Instant::now();
-        let none = vec![Exchange::default(); self.per];
+        let none = &self.none[..];
         let per = self.per.max(1);
         // Every world at rest and unchanged: nothing to step, no worker woken (nothing put in
         // since the last advance left every world at rest: not even a look at the rows).
@@ -422,7 +425,7 @@ impl HostBodies {
         }
         // Each world is independent: the same results in any order.
         let step = |(w, ((((world, poses), records), advanced), rest)): (usize, WorldRows)| {
-            let ex = each.and_then(|e| e.get(w)).unwrap_or(&none);
+            let ex = each.and_then(|e| e.get(w)).map_or(none, |e| &e[..]);
             advance_world((world, poses, records), (advanced, rest), (ex, dt, skip))
         };
         self.stepped = match fan {
