@@ -163,21 +163,85 @@ fn a_frozen_world_that_fails_again_ends_the_call_with_an_error_not_a_loop() {
     }
 }
 
-/// Calls of steps on worlds whose check is not cheap (made at a call's end): world 2 made to
-/// blow up within the second call, the worlds `reset` reset after that call, then a third
-/// call and a sync; with `defer` the calls return before their last check
-/// ([`LockstepRun::set_deferred_checks`]), and with `two` the backend keeps the next call's
-/// point in a second slot (saved before the last call's check is made). The worlds each call
-/// returned frozen, and the run.
-fn late_checks(
+/// How calls check their steps: at once (`defer` false), or returning before their last check
+/// ([`LockstepRun::set_deferred_checks`]) with the backend keeping the next call's point in a
+/// second slot (`two`: saved before the last call's check is made), queueing its checks' reads
+/// (`queues`, `Worlds::queue_check`), and calls queueing their steps before the last call's
+/// check where they can (`pipeline`, [`LockstepRun::set_pipelined`]: with `two` and `queues`).
+#[derive(Clone, Copy, Debug)]
+struct Mode {
     defer: bool,
     two: bool,
-    reset: &[usize],
-) -> (Vec<Vec<usize>>, LockstepRun<SideBySide>) {
+    queues: bool,
+    pipeline: bool,
+}
+
+const AT_ONCE: Mode = Mode {
+    defer: false,
+    two: false,
+    queues: false,
+    pipeline: false,
+};
+
+/// The deferred modes: one slot, two, two with queued reads, and those pipelined.
+const DEFERRED: [Mode; 4] = [
+    Mode {
+        defer: true,
+        two: false,
+        queues: false,
+        pipeline: true,
+    },
+    Mode {
+        defer: true,
+        two: true,
+        queues: false,
+        pipeline: true,
+    },
+    Mode {
+        defer: true,
+        two: true,
+        queues: true,
+        pipeline: false,
+    },
+    Mode {
+        defer: true,
+        two: true,
+        queues: true,
+        pipeline: true,
+    },
+];
+
+impl Mode {
+    /// Run `r` this way (its checks late, as the GPU's).
+    fn set(self, r: &mut LockstepRun<SideBySide>) {
+        r.sim.backend.checks_late = true;
+        r.sim.backend.two_points = self.two;
+        r.sim.backend.queues = self.queues;
+        r.set_pipelined(self.pipeline);
+        r.set_deferred_checks(self.defer).expect("defer");
+    }
+
+    /// What three calls whose second blows up leave counted on the backend: (next points
+    /// saved, taken up, pipelined steps dropped). The second and third calls keep their points
+    /// ahead; the second's is taken up (the first call's check passes), the third's dropped
+    /// (the second's check rewinds), with the third's steps when pipelined.
+    fn counts(self) -> (usize, usize, usize) {
+        match (self.two, self.queues && self.pipeline) {
+            (false, _) => (0, 0, 0),
+            (true, false) => (2, 1, 0),
+            (true, true) => (2, 1, 1),
+        }
+    }
+}
+
+/// Calls of steps on worlds whose check is not cheap (made at a call's end): world 2 made to
+/// blow up within the second call, the worlds `reset` reset after that call, then a third
+/// call and a sync, the checks made as `mode` says. The worlds each call returned frozen, and
+/// the run.
+fn late_checks(mode: Mode, reset: &[usize]) -> (Vec<Vec<usize>>, LockstepRun<SideBySide>) {
     let (b, mut r) = unwritten_keeping(SLUMP, true);
-    r.sim.backend.checks_late = true;
-    r.sim.backend.two_points = two;
-    r.set_deferred_checks(defer).expect("defer");
+    let defer = mode.defer;
+    mode.set(&mut r);
     r.sim.backend.poison = Some((2, 9));
     let mut calls = vec![r.advance_steps(7).expect("steps")];
     calls.push(r.advance_steps(5).expect("steps"));
@@ -195,14 +259,16 @@ fn late_checks(
 
 #[test]
 fn calls_returning_before_their_check_end_as_calls_that_check_at_once() {
-    let (at_once, mut a) = late_checks(false, false, &[1]);
+    let (at_once, mut a) = late_checks(AT_ONCE, &[1]);
     assert_eq!(at_once, [vec![], vec![2], vec![]]);
     let ha = a.sim.backend.read_all().expect("read");
     // With a second slot, each call after the first keeps its point before the last call's
     // check: the third call's before the check that finds the second's blow-up (the rewind
-    // then goes back to the second call's point, and the third keeps its point again).
-    for two in [false, true] {
-        let (deferred, mut d) = late_checks(true, two, &[1]);
+    // then goes back to the second call's point, and the third keeps its point again);
+    // pipelined, the third call's steps are taken before that check too, then dropped.
+    for mode in DEFERRED {
+        let two = format!("{mode:?}");
+        let (deferred, mut d) = late_checks(mode, &[1]);
         // The blow-up is returned by the call that found it: the one after its steps when
         // deferred.
         assert_eq!(deferred, [vec![], vec![], vec![2]], "two {two}");
@@ -235,13 +301,8 @@ fn calls_returning_before_their_check_end_as_calls_that_check_at_once() {
         for w in 0..3 {
             assert_eq!(bits(&hd[w]), bits(&ha[w]), "two {two}: world {w} as held");
         }
-        // Kept ahead by the second call (its check passed: its point taken up) and the third
-        // (its check rewound: its point kept again after the rewind, the one ahead dropped).
         let b = &d.sim.backend;
-        assert_eq!(
-            (b.next_saves, b.next_uses),
-            if two { (2, 1) } else { (0, 0) }
-        );
+        assert_eq!((b.next_saves, b.next_uses, b.drops), mode.counts(), "{two}");
     }
 }
 
@@ -250,16 +311,9 @@ fn calls_returning_before_their_check_end_as_calls_that_check_at_once() {
 /// and with `queues` the backend queues what a check reads (`Worlds::queue_check`: the frame
 /// end's check inside the call queued too, made as the next call begins, at that frame end's
 /// clock). The worlds each call returned frozen, and the run, synced.
-fn frame_end_inside(
-    defer: bool,
-    queues: bool,
-    poison: usize,
-) -> (Vec<Vec<usize>>, LockstepRun<SideBySide>) {
+fn frame_end_inside(mode: Mode, poison: usize) -> (Vec<Vec<usize>>, LockstepRun<SideBySide>) {
     let (b, mut r) = unwritten_keeping(SLUMP, true);
-    r.sim.backend.checks_late = true;
-    r.sim.backend.queues = queues;
-    r.sim.backend.two_points = true;
-    r.set_deferred_checks(defer).expect("defer");
+    mode.set(&mut r);
     r.sim.backend.poison = Some((2, poison));
     let mut calls = vec![r.advance_steps(45).expect("steps")];
     calls.push(r.advance_steps(10).expect("steps"));
@@ -279,11 +333,12 @@ fn checks_queued_at_a_frame_end_inside_a_call_end_as_checks_made_at_once() {
     // World 2 blows up in step 48 (before the frame end at 50: found by that frame end's check)
     // or in step 53 (after it: found by the call's last check).
     for poison in [47, 52] {
-        let (at_once, a) = frame_end_inside(false, false, poison);
+        let (at_once, a) = frame_end_inside(AT_ONCE, poison);
         assert_eq!(at_once, [vec![], vec![2], vec![]], "poison {poison}");
-        for queues in [false, true] {
-            let (deferred, d) = frame_end_inside(true, queues, poison);
-            let what = format!("poison {poison}, queued checks {queues}");
+        for mode in DEFERRED {
+            let queues = mode.queues;
+            let (deferred, d) = frame_end_inside(mode, poison);
+            let what = format!("poison {poison}, {mode:?}");
             // Found a call late, but by a frame end's check inside the call that is not queued
             // (made at once, as before the queued checks).
             let late = queues || poison > 50;
@@ -318,11 +373,9 @@ fn checks_queued_at_a_frame_end_inside_a_call_end_as_checks_made_at_once() {
 /// world reset after that call (the shared clock back to 0), a third call; with `defer` the
 /// blow-up's check is pending through that reset. The worlds each call returned frozen, and
 /// the run, synced.
-fn reset_all_pending(defer: bool, two: bool) -> (Vec<Vec<usize>>, LockstepRun<SideBySide>) {
+fn reset_all_pending(mode: Mode) -> (Vec<Vec<usize>>, LockstepRun<SideBySide>) {
     let (b, mut r) = unwritten_keeping(SLUMP, true);
-    r.sim.backend.checks_late = true;
-    r.sim.backend.two_points = two;
-    r.set_deferred_checks(defer).expect("defer");
+    mode.set(&mut r);
     r.sim.backend.poison = Some((2, 9));
     let start = |w: usize| (w, b.worlds[w].sample_particles().expect("sample"));
     let mut calls = vec![r.advance_steps(7).expect("steps")];
@@ -338,10 +391,11 @@ fn reset_all_pending(defer: bool, two: bool) -> (Vec<Vec<usize>>, LockstepRun<Si
 fn a_reset_of_every_world_while_a_check_is_pending_ends_as_after_the_check() {
     // The check is made at the clock the steps ended at (not the reset's 0: the blow-up is
     // said at its world's own step, after its reset), then the reset made again.
-    let (at_once, a) = reset_all_pending(false, false);
+    let (at_once, a) = reset_all_pending(AT_ONCE);
     assert_eq!(at_once, [vec![], vec![2], vec![]]);
-    for two in [false, true] {
-        let (deferred, d) = reset_all_pending(true, two);
+    for mode in DEFERRED {
+        let two = format!("{mode:?}");
+        let (deferred, d) = reset_all_pending(mode);
         assert_eq!(deferred, [vec![], vec![], vec![2]], "two {two}");
         for w in 0..3 {
             let (x, y) = (&a.worlds[w], &d.worlds[w]);
@@ -359,9 +413,6 @@ fn a_reset_of_every_world_while_a_check_is_pending_ends_as_after_the_check() {
         }
         assert_eq!(d.sim.step, 6);
         let b = &d.sim.backend;
-        assert_eq!(
-            (b.next_saves, b.next_uses),
-            if two { (2, 1) } else { (0, 0) }
-        );
+        assert_eq!((b.next_saves, b.next_uses, b.drops), mode.counts(), "{two}");
     }
 }

@@ -151,14 +151,18 @@ fn each_worlds_tool_goes_with_its_particles_through_a_rewind_and_a_reset() {
 /// Four calls of 5 steps on the tool slump, each world's tool posed before every call (back at
 /// its start, with a new velocity), world 1 made to blow up in the second call; checks made at
 /// once, or deferred (`defer`), the backend keeping the next call's point in a second slot
-/// (`two`: kept, with every world's bodies, before the last call's check). The worlds each call
+/// (`two`: kept, with every world's bodies, before the last call's check), and with `pipelined`
+/// queueing its checks' reads and each call queueing its steps before the last call's check
+/// ([`LockstepRun::set_pipelined`]). The worlds each call
 /// returned frozen with every world's tool as the backend held it after the call, and the run,
 /// synced.
 type Calls = Vec<(Vec<usize>, Vec<Vec<rtmpm_rigid::BodyPose>>)>;
-fn posed_calls(defer: bool, two: bool) -> (Calls, LockstepRun<SideBySide>) {
+fn posed_calls(defer: bool, two: bool, pipelined: bool) -> (Calls, LockstepRun<SideBySide>) {
     let (_, mut r) = unwritten_keeping(&with_tool(SLUMP), true);
     r.sim.backend.checks_late = true;
     r.sim.backend.two_points = two;
+    r.sim.backend.queues = pipelined;
+    r.set_pipelined(pipelined);
     r.set_deferred_checks(defer).expect("defer");
     r.sim.backend.poison = Some((1, 7));
     let start: Vec<_> = (0..3).map(|w| r.worlds[w].bodies()[0]).collect();
@@ -190,11 +194,13 @@ fn posed_calls(defer: bool, two: bool) -> (Calls, LockstepRun<SideBySide>) {
 /// statuses, kept and held tools (the frozen world's parked), the frozen lists a call later.
 #[test]
 fn a_late_blow_up_with_the_next_calls_tools_kept_ahead_ends_as_found_at_once() {
-    let (at_once, a) = posed_calls(false, false);
+    let (at_once, a) = posed_calls(false, false, false);
     let frozen = |calls: &Calls| calls.iter().map(|c| c.0.clone()).collect::<Vec<_>>();
     assert_eq!(frozen(&at_once), [vec![], vec![1], vec![], vec![]]);
-    for two in [false, true] {
-        let (deferred, d) = posed_calls(true, two);
+    for (two, pipelined) in [(false, false), (true, false), (true, true)] {
+        let (deferred, d) = posed_calls(true, two, pipelined);
+        let slots = two;
+        let two = format!("{two}, pipelined {pipelined}");
         assert_eq!(
             frozen(&deferred),
             [vec![], vec![], vec![1], vec![]],
@@ -231,11 +237,13 @@ fn a_late_blow_up_with_the_next_calls_tools_kept_ahead_ends_as_found_at_once() {
             glam::Vec3::ZERO,
             "the frozen world's tool is parked"
         );
-        // Kept ahead by calls 2 to 4; taken up by 2 and 4 (3's check rewound).
+        // Kept ahead by calls 2 to 4; taken up by 2 and 4 (3's check rewound; pipelined, its
+        // steps dropped then).
         let b = &d.sim.backend;
+        assert_eq!(b.drops, usize::from(pipelined), "{two}");
         assert_eq!(
             (b.next_saves, b.next_uses),
-            if two { (3, 2) } else { (0, 0) }
+            if slots { (3, 2) } else { (0, 0) }
         );
     }
 }

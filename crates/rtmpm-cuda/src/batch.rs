@@ -541,6 +541,10 @@ impl Worlds for CudaBatch {
         CudaBatch::use_next_point(self)
     }
 
+    fn drop_queued_steps(&mut self) -> Result<(), SimError> {
+        CudaBatch::drop_queued_steps(self)
+    }
+
     fn queues_checks(&self) -> bool {
         self.backend.queues_checks()
     }

@@ -120,9 +120,10 @@ fn loop_call(run: &mut LockstepRun<CudaBatch>, p0: &[Particles], c: usize) {
 /// frame end, the first step call one step long, so that frame ends fall inside calls), each
 /// call's checks made before the counts are read: (the waits, the frame ends crossed inside the
 /// calls).
-fn loop_waits(deferred: bool, calls: usize) -> (WaitCounts, u64) {
+fn loop_waits(deferred: bool, pipelined: bool, calls: usize) -> (WaitCounts, u64) {
     let (worlds, p0) = tool_worlds(16);
     let mut run = lockstep(&worlds, &p0, deferred);
+    run.set_pipelined(pipelined);
     assert!(run.advance_steps(1).expect("one step").is_empty());
     for c in 0..10 {
         loop_call(&mut run, &p0, c);
@@ -142,7 +143,8 @@ fn loop_waits(deferred: bool, calls: usize) -> (WaitCounts, u64) {
 /// call and one a frame end inside a call, nothing else (no read of control words or sums, no
 /// copy from pageable memory, no synchronisation, no wait for page-locked memory in use), and
 /// allocates at most 4 buffers after the warm-up (the rings grow only when the host gets further
-/// ahead than before: 2 on an H200, session 13). The same loop checking each call at once waits as often for its checks
+/// ahead than before: 2 on an H200, session 13); pipelined or not (`LockstepRun::set_pipelined`).
+/// The same loop checking each call at once waits as often for its checks
 /// (a frame end's check inside a call made at once too). With `RTMPM_BATCH_WAITS=old` this test
 /// fails (the old paths count pageable copies and wait on the upload buffers in turn). A few
 /// seconds on an H200.
@@ -157,10 +159,11 @@ fn a_loop_with_deferred_checks_waits_only_for_its_checks() {
         return;
     }
     let calls = 20;
-    for deferred in [true, false] {
-        let (w, frames) = loop_waits(deferred, calls);
+    for (deferred, pipelined) in [(true, true), (true, false), (false, false)] {
+        let (w, frames) = loop_waits(deferred, pipelined, calls);
         println!(
-            "deferred checks {deferred}: {calls} calls, {frames} frame ends inside them: waits {w}"
+            "deferred checks {deferred} (pipelined {pipelined}): {calls} calls, {frames} frame \
+             ends inside them: waits {w}"
         );
         assert_eq!(
             w.get(WaitReason::Check),
@@ -197,7 +200,9 @@ fn a_loop_with_deferred_checks_waits_only_for_its_checks() {
 /// worlds frozen per call are a call late, the statuses (frame, steps, that a reason is given),
 /// clocks and the other worlds' particles (within the agreement test's tolerances: the rewind's
 /// steps are taken again, and CUDA's atomic sums are not bit-reproducible) end as with checks
-/// made at once. A few seconds on an H200.
+/// made at once; deferred calls pipelined or not (`LockstepRun::set_pipelined`: pipelined, the
+/// call after the blow-up queues its steps before the check that finds it, which drops them and
+/// advances again after the rewind). A few seconds on an H200.
 #[test]
 #[ignore = "needs a CUDA GPU"]
 fn deferred_checks_queued_at_a_frame_end_find_a_blow_up_a_call_late() {
@@ -209,8 +214,9 @@ fn deferred_checks_queued_at_a_frame_end_find_a_blow_up_a_call_late() {
     fast.v
         .iter_mut()
         .for_each(|v| *v = Vec3::new(1e5, 0.0, 0.0));
-    let run = |deferred: bool| {
+    let run = |deferred: bool, pipelined: bool| {
         let mut r = lockstep(&worlds, &p0, deferred);
+        r.set_pipelined(pipelined);
         let mut calls = vec![r.advance_steps(95).expect("95 steps")];
         r.reset_worlds(vec![(1, fast.clone())])
             .expect("world 1 fast");
@@ -223,8 +229,24 @@ fn deferred_checks_queued_at_a_frame_end_find_a_blow_up_a_call_late() {
         r.sync().expect("read the worlds");
         (r, calls)
     };
-    let (eager, eager_calls) = run(false);
-    let (late, late_calls) = run(true);
+    let (eager, eager_calls) = run(false, false);
+    for pipelined in [false, true] {
+        let (late, late_calls) = run(true, pipelined);
+        ends_alike(&worlds, (&eager, &eager_calls), (&late, &late_calls));
+        assert!(
+            late.sim.backend.point_bytes() > eager.sim.backend.point_bytes(),
+            "pipelined {pipelined}: the next call's point kept in a second buffer"
+        );
+    }
+}
+
+/// The run `late` (deferred checks) ends as `eager` (checks at once), its frozen worlds a call
+/// late (`deferred_checks_queued_at_a_frame_end_find_a_blow_up_a_call_late`).
+fn ends_alike(
+    worlds: &[Scene],
+    (eager, eager_calls): (&LockstepRun<CudaBatch>, &[Vec<usize>]),
+    (late, late_calls): (&LockstepRun<CudaBatch>, &[Vec<usize>]),
+) {
     println!("frozen per call: at once {eager_calls:?}, deferred {late_calls:?}");
     let empty: Vec<usize> = Vec::new();
     assert_eq!(
@@ -244,12 +266,12 @@ fn deferred_checks_queued_at_a_frame_end_find_a_blow_up_a_call_late() {
             })
             .collect()
     };
-    assert_eq!(brief(&late), brief(&eager));
+    assert_eq!(brief(late), brief(eager));
     assert!(matches!(late.worlds[1].status, WorldStatus::Frozen { .. }));
     let times = |r: &LockstepRun<CudaBatch>| -> Vec<u64> {
         r.worlds.iter().map(|w| w.time().to_bits()).collect()
     };
-    assert_eq!(times(&late), times(&eager));
+    assert_eq!(times(late), times(eager));
     assert_eq!(late.sim.step, eager.sim.step);
     let mut failures = Vec::new();
     for w in [0, 2, 3] {

@@ -110,6 +110,16 @@ pub trait Worlds: Backend {
         )))
     }
 
+    /// The steps queued after the copy a check just found a failure in are being dropped (the
+    /// lockstep driver's pipelined calls: the next call's steps, queued before the last call's
+    /// check, which found a blow-up): undo what they did that [`Worlds::restore_point`] does not
+    /// put back (the GPU batch: the error word of its control words cleared, which steps from a
+    /// blown-up state may set; the state, its mapping and the check's words are put back or
+    /// reset already). Called before the rewind. Nothing by default.
+    fn drop_queued_steps(&mut self) -> Result<(), SimError> {
+        Ok(())
+    }
+
     /// The world of particle `index` (original order over all worlds, as
     /// [`crate::BadParticle::index`] and [`crate::Blowup::particle`] give it) and its index in
     /// that world.

@@ -63,6 +63,9 @@ pub struct SideBySide {
     pub next_point: Vec<Particles>,
     pub next_saves: usize,
     pub next_uses: usize,
+    /// Calls of [`Worlds::drop_queued_steps`] (a pipelined call's steps dropped after the last
+    /// call's check failed).
+    pub drops: usize,
     /// Calls of [`Worlds::read_worlds`] (the driver reading every world to the host).
     pub reads: usize,
     /// Steps taken (counted over rewinds), and `(w, k)`: every particle of world `w` set to
@@ -111,6 +114,7 @@ impl SideBySide {
             next_point: Vec::new(),
             next_saves: 0,
             next_uses: 0,
+            drops: 0,
             reads: 0,
             steps: 0,
             poison: None,
@@ -268,6 +272,11 @@ impl Worlds for SideBySide {
         std::mem::swap(&mut self.point, &mut self.next_point);
         self.next_point.clear();
         self.next_uses += 1;
+        Ok(())
+    }
+
+    fn drop_queued_steps(&mut self) -> Result<(), SimError> {
+        self.drops += 1;
         Ok(())
     }
 

@@ -4,7 +4,7 @@
 
 use super::CudaBatch;
 use super::staging::pageable_puts;
-use crate::contract::{CTL_NEED_REBUILD, CTL_P2G_PENDING};
+use crate::contract::{CTL_ERROR, CTL_NEED_REBUILD, CTL_P2G_PENDING};
 use crate::error::err;
 use crate::kernels::Kernel;
 use crate::waits::WaitReason;
@@ -88,6 +88,16 @@ impl CudaBatch {
         }
         std::mem::swap(&mut self.point, &mut self.next_point);
         Ok(())
+    }
+
+    /// The steps queued after a check's copy that found a failure are dropped (the lockstep
+    /// driver's pipelined call, rewound): the error word they may have set, stepping from the
+    /// blown-up state (a grid's capacity overflowed by particles flying off), is cleared on the
+    /// stream behind them, as it was when the check's copy was taken (a set word ends the run at
+    /// that check). The rest is put back by [`CudaBatch::restore_point`] (the state; the mapping
+    /// rebuilt) or was reset by the check (its bad-particle words).
+    pub fn drop_queued_steps(&mut self) -> Result<(), SimError> {
+        self.backend.set_ctl_word(CTL_ERROR, 0)
     }
 
     /// Put every world's particles back to the last [`CudaBatch::save_point`], word for word

@@ -29,6 +29,7 @@
 mod checkpoint;
 mod deferred;
 mod freeze;
+mod pipeline;
 
 use super::{BatchOptions, WorldStatus, checkpoint_due, open_out, summary_row, world_output};
 use crate::outdir::OutDir;
@@ -150,6 +151,8 @@ pub struct LockstepRun<B: Worlds + ?Sized> {
     /// Worlds frozen by a deferred check made outside an advance (the next advance returns
     /// them).
     found: Vec<usize>,
+    /// Queue a call's steps before the last call's check where it can (`pipeline.rs`).
+    pipeline: bool,
 }
 
 /// An advance whose steps were queued and returned before their last health check
@@ -252,6 +255,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             pending: None,
             spare: None,
             found: Vec::new(),
+            pipeline: pipeline_default(),
         };
         run.write_summary()?;
         Ok(run)
@@ -323,6 +327,11 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         if self.out.is_some() {
             bail!("a batch run that writes frame files advances by whole frames");
         }
+        let fixed = matches!(self.sim.scene.time.step, StepMode::Fixed { .. });
+        if self.defer && fixed && self.can_pipeline() {
+            // This call's steps queued before the last call's check (`pipeline.rs`).
+            return self.advance_pipelined(steps);
+        }
         // The host's own work for these steps while the device ends the last call's, then that
         // call's check (its wait); the work done ahead is done again after a rewind.
         let ahead = self.start_deferred_call()?;
@@ -330,7 +339,6 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         if self.running() == 0 {
             return Ok(frozen);
         }
-        let fixed = matches!(self.sim.scene.time.step, StepMode::Fixed { .. });
         if self.defer && fixed {
             frozen.extend(self.advance_deferred(steps, ahead)?);
         } else {
@@ -629,6 +637,13 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         rtmpm_io::write_atomic(&path, csv.as_bytes())
             .with_context(|| format!("writing {}", path.display()))
     }
+}
+
+/// Whether deferred calls are pipelined by default (`lockstep/pipeline.rs`): not with
+/// `RTMPM_BATCH_PIPELINE=off` (read once).
+fn pipeline_default() -> bool {
+    static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *ON.get_or_init(|| std::env::var("RTMPM_BATCH_PIPELINE").map_or(true, |v| v.trim() != "off"))
 }
 
 /// An advance of `steps` steps of the shared time step (crossing frame ends).

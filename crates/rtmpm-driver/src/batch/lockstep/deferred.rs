@@ -42,10 +42,12 @@ static AHEAD_TIMING: rtmpm_sim::timing::PartTimes<2> = rtmpm_sim::timing::PartTi
 
 /// What a call did ahead of the last call's check ([`LockstepRun::start_deferred_call`]):
 /// every world's bodies kept, and, with `point`, the next rewind point in the backend's second
-/// slot.
+/// slot; `take_up`: the advance makes that point current as it begins (the check passed), else
+/// the caller does once it passes (a pipelined call).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Ahead {
-    point: bool,
+    pub(super) point: bool,
+    pub(super) take_up: bool,
 }
 
 impl<B: Worlds + ?Sized> LockstepRun<B> {
@@ -91,6 +93,20 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             return Ok(None);
         }
         let t0 = std::time::Instant::now();
+        let point = self.work_ahead()?;
+        let t1 = std::time::Instant::now();
+        let rewound = self.settle_found()?;
+        AHEAD_TIMING.record(1, [t0, t1], std::time::Instant::now());
+        Ok((!rewound).then_some(Ahead {
+            point,
+            take_up: true,
+        }))
+    }
+
+    /// The coming steps' host work that does not depend on the pending check: every world's
+    /// bodies kept as the steps begin, the next rewind point queued into the backend's second
+    /// slot (`true` where it has one), the first step's host preparation.
+    pub(super) fn work_ahead(&mut self) -> Result<bool> {
         self.keep_bodies()?;
         let point = self
             .sim
@@ -101,10 +117,7 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             .backend
             .prepare_steps()
             .context("preparing the steps")?;
-        let t1 = std::time::Instant::now();
-        let rewound = self.settle_found()?;
-        AHEAD_TIMING.record(1, [t0, t1], std::time::Instant::now());
-        Ok((!rewound).then_some(Ahead { point }))
+        Ok(point)
     }
 
     /// [`LockstepRun::advance_steps`] with the last check deferred: the steps queued, the
@@ -121,11 +134,13 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             self.keep_bodies()?;
         }
         let t1 = std::time::Instant::now();
-        let on_backend = if ahead.is_some_and(|a| a.point) {
-            self.sim
-                .backend
-                .use_next_point()
-                .context("taking up the next rewind point")?;
+        let on_backend = if let Some(a) = ahead.filter(|a| a.point) {
+            if a.take_up {
+                self.sim
+                    .backend
+                    .use_next_point()
+                    .context("taking up the next rewind point")?;
+            }
             true
         } else {
             self.sim
@@ -210,10 +225,18 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
 
     /// [`LockstepRun::settle`]; `true` when its check found a failure (the worlds rewound and
     /// stepped again, the changes since made again).
-    fn settle_found(&mut self) -> Result<bool> {
+    pub(super) fn settle_found(&mut self) -> Result<bool> {
         let Some(p) = self.pending.take() else {
             return Ok(false);
         };
+        self.check_record(p, false)
+    }
+
+    /// [`LockstepRun::settle`] of the pending advance `p`; with `queued_after`, the steps of
+    /// the next call were queued after it (a pipelined call): when the check fails they are
+    /// dropped ([`Worlds::drop_queued_steps`]) before the rewind, whose records the caller
+    /// drops.
+    pub(super) fn check_record(&mut self, p: Box<Pending>, queued_after: bool) -> Result<bool> {
         // Checked at the clock of each frame end inside the advance whose check was queued, then
         // at the clock the advance ended at (a reset of every world since put it back to 0), as
         // the advance would have checked; the first that fails is the advance's failure.
@@ -235,6 +258,12 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             self.spare = Some(p);
             return Ok(false);
         };
+        if queued_after {
+            self.sim
+                .backend
+                .drop_queued_steps()
+                .context("dropping the steps queued after a failed check")?;
+        }
         let Pending {
             clock,
             marks: _,
