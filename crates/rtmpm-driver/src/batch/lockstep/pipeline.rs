@@ -18,7 +18,7 @@
 
 use super::LockstepRun;
 use super::deferred::Ahead;
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use rtmpm_sim::Worlds;
 
 /// `RTMPM_STEP_TIMING=1`: a pipelined call's host time, printed to stderr every 100 such calls:
@@ -84,7 +84,16 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
             take_up: false,
         };
         let queued = self.advance_deferred(steps, Some(ahead))?;
-        debug_assert!(queued.is_empty(), "a deferred advance freezes no world");
+        if !queued.is_empty() {
+            // Only a check made inside the call freezes a world, which a backend that queues its
+            // checks' reads does not make (`can_pipeline`).
+            bail!(
+                "a pipelined call froze worlds {queued:?} before the last call's check: the \
+                 backend `{}` made a check inside the call although it queues its checks' reads \
+                 (`Worlds::queues_checks`)\n  fix: RTMPM_BATCH_PIPELINE=off",
+                self.sim.backend.name()
+            );
+        }
         let this = self.pending.take();
         let t2 = std::time::Instant::now();
         let failed = self.check_record(last, true)?;
