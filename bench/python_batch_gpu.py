@@ -58,7 +58,9 @@ before those waits were cut (the A/B in one wheel); ``RTMPM_BATCH_PAGEABLE_PUT=1
 pageable memory; ``RTMPM_BATCH_RESET=old`` packs and uploads a reset's initial particles every
 call as before the image of them kept on the device (the A/B of the resets in one wheel);
 ``RTMPM_BATCH_REST=old`` steps every world's rapier world at every step, also a world whose tool
-stands still (which the batch no longer steps). ``RTMPM_KINEMATIC=rapier`` steps a world with no
+stands still (which the batch no longer steps). ``RTMPM_KINEMATIC=eager`` moves the rapier bodies of
+such a world at every step as before their rows went ahead of them (docs/batch.md; the same state
+bit for bit). ``RTMPM_KINEMATIC=rapier`` steps a world with no
 dynamic body (here every world: one kinematic tool) through rapier's whole pipeline as before,
 where by default ``RigidWorld::advance`` moves its kinematic bodies by their velocities itself
 (the A/B of the moving tool's cost on the host: run pose / loop, or ``--moving-tool``, with and

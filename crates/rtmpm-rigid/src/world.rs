@@ -45,6 +45,14 @@ fn kinematic_through_rapier() -> bool {
     *RAPIER.get_or_init(|| std::env::var("RTMPM_KINEMATIC").is_ok_and(|v| v.trim() == "rapier"))
 }
 
+/// `RTMPM_KINEMATIC=eager`: a kinematic-only world's advance moves rapier's bodies at every step
+/// as before their rows ([`Ahead`]) went ahead of them (the same state bit for bit; for
+/// comparing the two in one binary). Read once.
+fn old_kinematic_rows() -> bool {
+    static EAGER: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *EAGER.get_or_init(|| std::env::var("RTMPM_KINEMATIC").is_ok_and(|v| v.trim() == "eager"))
+}
+
 /// The bodies' rapier world.
 pub struct RigidWorld {
     world: rp::PhysicsWorld,
@@ -55,6 +63,27 @@ pub struct RigidWorld {
     /// `rapier`: [`RigidWorld::advance`] moves the kinematic bodies by their velocities itself
     /// instead of stepping rapier's pipeline.
     kinematic_only: bool,
+    /// A kinematic-only world's kinematic bodies as its advance moves them, ahead of rapier's
+    /// (empty in other worlds; see [`Ahead`]).
+    ahead: Vec<Option<Ahead>>,
+    /// rapier's bodies are behind `ahead` (an advance moved it since they were last put in).
+    behind: bool,
+}
+
+/// A kinematic body of a kinematic-only world as [`RigidWorld::advance`] moves it, kept beside
+/// rapier's body (compact: one small row a body, where rapier's bodies lie in their set's
+/// storage, hundreds of bytes each): its pose, velocities and centre of mass in its own frame.
+/// The advance moves these and rewrites the body's state from them; rapier's body is given the
+/// pose only when something reads or sets rapier's bodies ([`RigidWorld::catch_up`]), with the
+/// same `set_position` the advance gave it at every step before: rapier keeps nothing of the
+/// poses between (the setter overwrites the pose and derives the world mass properties from it;
+/// the body's velocities and its own frame's mass properties do not change), so the world is
+/// the same bit for bit. Reads of the poses come from these rows.
+#[derive(Clone, Copy, Debug)]
+struct Ahead {
+    pos: rp::Pose,
+    vels: rp::RigidBodyVelocity<f32>,
+    local_com: rp::Vector,
 }
 
 impl std::fmt::Debug for RigidWorld {
@@ -124,13 +153,17 @@ impl RigidWorld {
             states: Vec::new(),
             kinematic_only: bodies.iter().all(|b| b.kind != RigidKind::Dynamic)
                 && !kinematic_through_rapier(),
+            ahead: Vec::new(),
+            behind: false,
         };
+        w.reload_ahead();
         w.refresh();
         Ok(Some(w))
     }
 
     /// The bodies' states for the grid from rapier's bodies (in place once they exist).
     fn refresh(&mut self) {
+        debug_assert!(!self.behind, "rapier's bodies behind their rows");
         if self.states.len() != self.handles.len() {
             // The shapes once (they never change); the moving fields just below.
             self.states = self
@@ -177,6 +210,54 @@ impl RigidWorld {
         &self.states
     }
 
+    /// The rows of the kinematic bodies (a kinematic-only world's; none otherwise) taken anew
+    /// from rapier's bodies (which are not behind: at the world's making, after a setter).
+    fn reload_ahead(&mut self) {
+        debug_assert!(!self.behind, "rapier's bodies behind their rows");
+        self.ahead.clear();
+        if !self.kinematic_only {
+            return;
+        }
+        let bodies = &self.world.bodies;
+        self.ahead
+            .extend(self.handles.iter().zip(&self.specs).map(|(&h, s)| {
+                (s.kind == RigidKind::Kinematic).then(|| Ahead {
+                    pos: *bodies[h].position(),
+                    vels: *bodies[h].vels(),
+                    local_com: bodies[h].local_center_of_mass(),
+                })
+            }));
+    }
+
+    /// rapier's bodies given the poses the advance moved their rows to (each moved body
+    /// `set_position` as the advance did before at every step: see [`Ahead`]).
+    fn catch_up(&mut self) {
+        if !self.behind {
+            return;
+        }
+        for (&h, a) in self.handles.iter().zip(&self.ahead) {
+            if let Some(a) = a {
+                // Moves the body's pose (and its world centre of mass), keeps its velocities.
+                self.world.bodies[h].set_position(a.pos, false);
+            }
+        }
+        self.behind = false;
+    }
+
+    /// Body `i`'s pose and velocities: its row where it has one (a kinematic body of a
+    /// kinematic-only world), else rapier's.
+    fn pose_at(&self, i: usize, h: rp::RigidBodyHandle) -> BodyPose {
+        match self.ahead.get(i) {
+            Some(Some(a)) => BodyPose {
+                position: gv(a.pos.translation),
+                rotation: glam::Quat::from_array(a.pos.rotation.to_array()),
+                velocity: gv(a.vels.linvel),
+                angular_velocity: gv(a.vels.angvel),
+            },
+            _ => pose_of(&self.world.bodies[h]),
+        }
+    }
+
     /// Every body's pose and velocities as rapier holds them (for checkpoints).
     pub fn poses(&self) -> Vec<BodyPose> {
         let mut out = Vec::with_capacity(self.handles.len());
@@ -197,9 +278,11 @@ impl RigidWorld {
                 self.handles.len()
             ));
         }
+        self.catch_up();
         for (&h, p) in self.handles.iter().zip(poses) {
             put_pose(&mut self.world.bodies[h], p);
         }
+        self.reload_ahead();
         self.refresh();
         Ok(())
     }
@@ -208,14 +291,15 @@ impl RigidWorld {
     /// without building the others); `None` past the last body.
     pub fn pose(&self, i: usize) -> Option<BodyPose> {
         let &h = self.handles.get(i)?;
-        Some(pose_of(&self.world.bodies[h]))
+        Some(self.pose_at(i, h))
     }
 
     /// Every body's pose and velocities into `out` (emptied first): [`RigidWorld::poses`]
     /// without a new vector.
     pub fn poses_into(&self, out: &mut Vec<BodyPose>) {
         out.clear();
-        out.extend(self.handles.iter().map(|&h| pose_of(&self.world.bodies[h])));
+        let all = self.handles.iter().enumerate();
+        out.extend(all.map(|(i, &h)| self.pose_at(i, h)));
     }
 
     /// Put body `i` at `pose`, the others where they are: exactly what
@@ -229,11 +313,13 @@ impl RigidWorld {
                 self.handles.len()
             ));
         }
+        self.catch_up();
         for (j, &h) in self.handles.iter().enumerate() {
             let b = &mut self.world.bodies[h];
             let p = if j == i { *pose } else { pose_of(b) };
             put_pose(b, &p);
         }
+        self.reload_ahead();
         self.refresh();
         Ok(())
     }
@@ -241,7 +327,9 @@ impl RigidWorld {
     /// Every advance of this world through rapier's step, also without a dynamic body (what
     /// `RTMPM_KINEMATIC=rapier` does for every world; for comparisons in one binary).
     pub fn with_rapier_steps(mut self) -> RigidWorld {
+        self.catch_up();
         self.kinematic_only = false;
+        self.reload_ahead();
         self
     }
 
@@ -263,7 +351,13 @@ impl RigidWorld {
     /// `velocity * dt` (rapier's exact form, `RigidBodyVelocity::integrate`), the rotation
     /// renormalised; the velocities are kept. rapier's step integrates the same motion in its
     /// solver's substeps with a linearised rotation, renormalised every substep, so the two
-    /// differ in the last bits (tested: `the_fast_path_follows_rapiers_step`); rapier's speed
+    /// differ in the last bits (tested: `the_fast_path_follows_rapiers_step`). The integration
+    /// moves each kinematic body's row ([`Ahead`]: pose, velocities, centre of mass in its frame,
+    /// beside rapier's body) and rapier's body is given that pose only when something reads or
+    /// sets rapier's bodies, with the `set_position` each step gave it before: the same world bit
+    /// for bit (`rows_ahead_of_rapier_are_rapiers_bodies_bit_for_bit`), without a look at
+    /// rapier's bodies a step; `RTMPM_KINEMATIC=eager` moves rapier's bodies at every step as
+    /// before (the A/B). rapier's speed
     /// caps (400 m/s, a turn of pi/4 a step) are not applied. The colliders are not moved with
     /// their bodies (nothing here reads them: no scene queries, no contacts). Every consumer
     /// (single runs on the CPU and GPU, the CPU and GPU batches) advances through here, so a
@@ -272,8 +366,7 @@ impl RigidWorld {
     pub fn advance(&mut self, exchange: &[Exchange], dt: f32) {
         self.world.integration_parameters.dt = dt;
         if self.kinematic_only {
-            advance_kinematic(&mut self.world.bodies, &self.handles, &self.specs, dt);
-            self.refresh();
+            self.advance_own(dt, !old_kinematic_rows());
             return;
         }
         for ((&h, s), e) in self.handles.iter().zip(&self.specs).zip(exchange) {
@@ -288,6 +381,55 @@ impl RigidWorld {
         self.world.step();
         self.refresh();
     }
+}
+
+impl RigidWorld {
+    /// A kinematic-only world's advance by its own integration: on the kinematic bodies' rows,
+    /// rapier's bodies left behind (`rows`), or on rapier's bodies as before
+    /// (`RTMPM_KINEMATIC=eager`); the same state bit for bit.
+    fn advance_own(&mut self, dt: f32, rows: bool) {
+        if rows {
+            self.advance_rows(dt);
+        } else {
+            self.catch_up();
+            advance_kinematic(&mut self.world.bodies, &self.handles, &self.specs, dt);
+            self.reload_ahead();
+            self.refresh();
+        }
+    }
+
+    /// [`advance_kinematic`] of a kinematic-only world on its rows ([`Ahead`]), rapier's bodies
+    /// left behind: each moving kinematic body's row moved by the same integration, its state's
+    /// rotation and centre rewritten as [`RigidWorld::refresh`] derives them from rapier's body
+    /// after that `set_position` (the rotation matrix of the pose's rotation; the centre of mass
+    /// `pose * local_com`, parry's `MassProperties::world_com`); velocities, fixed bodies and
+    /// bodies standing still unchanged, as there.
+    fn advance_rows(&mut self, dt: f32) {
+        for (a, state) in self.ahead.iter_mut().zip(&mut self.states) {
+            let Some(a) = a else { continue };
+            let vels = a.vels;
+            if dt == 0.0 || (vels.linvel == rp::Vector::ZERO && vels.angvel == rp::Vector::ZERO) {
+                continue;
+            }
+            let mut pose = vels.integrate(dt, &a.pos, &a.local_com);
+            pose.rotation = if vels.angvel == rp::Vector::ZERO {
+                a.pos.rotation
+            } else {
+                pose.rotation.normalize()
+            };
+            a.pos = pose;
+            self.behind = true;
+            state.rotation =
+                glam::Mat3::from_quat(glam::Quat::from_array(pose.rotation.to_array()));
+            state.center = gv(world_com(&pose, a.local_com));
+        }
+    }
+}
+
+/// The world centre of mass of a body at `pos` whose centre of mass in its own frame is
+/// `local_com`: parry's `MassProperties::world_com`, the same expression.
+fn world_com(pos: &rp::Pose, local_com: rp::Vector) -> rp::Vector {
+    pos * local_com
 }
 
 /// Each kinematic body of `handles` (kinds `specs`) moved by its velocities over `dt`: rotated

@@ -248,6 +248,84 @@ fn the_fast_path_follows_rapiers_step() {
     );
 }
 
+/// A kinematic-only world advanced on its rows, rapier's bodies behind them, is the world whose
+/// rapier bodies are moved at every step (`RTMPM_KINEMATIC=eager`, as before the rows) bit for
+/// bit: every read (a pose, every pose, the states) at every step, and rapier's every body (all
+/// its fields, as Debug prints them) once caught up, here and there over 100 steps of 1 ms of
+/// the tool worlds (a translating box, a turning one, a fixed block, a box standing still), with
+/// a pose given to one body (steps 30, 50) and to every body (step 70) between steps and reads.
+#[test]
+fn rows_ahead_of_rapier_are_rapiers_bodies_bit_for_bit() {
+    let (mut a, mut b) = (tool_world(), tool_world());
+    if !a.kinematic_only() {
+        println!("skipped: RTMPM_KINEMATIC=rapier");
+        return;
+    }
+    let dt = 1e-3;
+    let state_bits = |w: &RigidWorld| -> Vec<u32> {
+        w.states()
+            .iter()
+            .flat_map(|s| {
+                let m = s.rotation.to_cols_array().into_iter();
+                m.chain(s.center.to_array())
+                    .chain(s.velocity.to_array())
+                    .chain(s.angular_velocity.to_array())
+            })
+            .map(f32::to_bits)
+            .collect()
+    };
+    let rapier = |w: &mut RigidWorld| -> Vec<String> {
+        w.catch_up();
+        let bodies = &w.world.bodies;
+        w.handles
+            .iter()
+            .map(|&h| format!("{:?}", bodies[h]))
+            .collect()
+    };
+    let mut behind = 0;
+    for step in 0..100 {
+        if step == 30 || step == 50 {
+            let mut p = a.pose(1).expect("spin");
+            p.position += Vec3::new(0.01, -0.02, 0.0);
+            p.angular_velocity = Vec3::new(0.2 * step as f32, 1.0, 0.0);
+            a.set_pose(1, &p).expect("pose");
+            b.set_pose(1, &p).expect("pose");
+        }
+        if step == 70 {
+            let mut all = b.poses();
+            all[0].velocity = Vec3::new(-0.2, 0.0, 0.25);
+            all[3].velocity = Vec3::new(0.0, 0.1, 0.0);
+            a.set_poses(&all).expect("poses");
+            b.set_poses(&all).expect("poses");
+        }
+        a.advance_own(dt, true);
+        b.advance_own(dt, false);
+        behind += usize::from(a.behind);
+        assert!(!b.behind, "step {step}: the eager world is never behind");
+        for i in 0..4 {
+            let (p, q) = (a.pose(i).expect("body"), b.pose(i).expect("body"));
+            assert_eq!(bits_of(&p), bits_of(&q), "step {step}: body {i}");
+        }
+        assert_eq!(
+            a.poses().iter().map(bits_of).collect::<Vec<_>>(),
+            b.poses().iter().map(bits_of).collect::<Vec<_>>(),
+            "step {step}"
+        );
+        assert_eq!(state_bits(&a), state_bits(&b), "step {step}: the states");
+        if step % 17 == 5 || step == 99 {
+            assert_eq!(
+                rapier(&mut a),
+                rapier(&mut b),
+                "step {step}: rapier's bodies"
+            );
+        }
+    }
+    assert!(
+        behind > 50,
+        "rapier's bodies behind at {behind} steps of 100"
+    );
+}
+
 /// The angle of the turn from `a` to `b` (rad), precise for small turns (glam's
 /// `angle_between`, an arc cosine of their dot product, reads one ulp of it as 5e-4 rad).
 fn turn(a: Quat, b: Quat) -> f32 {
