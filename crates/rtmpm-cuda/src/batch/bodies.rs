@@ -222,53 +222,69 @@ impl WorldBodies {
     pub fn upload(&mut self, stream: &Arc<CudaStream>) -> Result<usize, SimError> {
         let k = (self.last + 1) % self.tables.len();
         self.last = k;
-        let side = self.copies.clone().unwrap_or_else(|| stream.clone());
         let rigid = self.rigid.get_mut().unwrap_or_else(|p| p.into_inner());
         let version = rigid.version();
-        let t = &mut self.tables[k];
         let copy = if self.copies.is_none() {
             let bytes: &[u8] = bytemuck::cast_slice::<GpuBody, u8>(rigid.records());
             bytes != self.uploaded.as_slice()
         } else {
-            t.version != Some(version)
+            self.tables[k].version != Some(version)
         };
-        if !copy && !t.held {
+        if !copy && !self.tables[k].held {
             return Ok(k);
         }
-        if self.copies.is_some() {
-            side.wait(&t.free)
-                .map_err(err("order an upload after its table's reader"))?;
-        }
+        let Some(side) = self.copies.clone() else {
+            self.fill_table(k, stream, copy, version)?;
+            return Ok(k);
+        };
+        side.wait(&self.tables[k].free)
+            .map_err(err("order an upload after its table's reader"))?;
+        let filled = self.fill_table(k, &side, copy, version);
+        // The step waits for whatever was queued, also after an error (nothing on `side` may
+        // outlive what the batch's stream orders: its buffers are freed on that stream).
+        self.copied
+            .record(&side)
+            .map_err(err("record an upload's event"))?;
+        stream
+            .wait(&self.copied)
+            .map_err(err("order a step after its table's upload"))?;
+        filled.map(|()| k)
+    }
+
+    /// Queue on `side` the clear of table `k`'s sums where they are held and, with `copy`, the
+    /// copy of the host's records (of `version`) into it (through the staging ring).
+    fn fill_table(
+        &mut self,
+        k: usize,
+        side: &Arc<CudaStream>,
+        copy: bool,
+        version: u64,
+    ) -> Result<(), SimError> {
+        let t = &mut self.tables[k];
         if t.held {
             side.memset_zeros(&mut t.exchange)
                 .map_err(err("clear the worlds' rigid-body impulses"))?;
             t.held = false;
         }
-        if copy {
-            let bytes: &[u8] = bytemuck::cast_slice::<GpuBody, u8>(rigid.records());
-            if super::staging::pageable_puts() {
-                self.waits.wait(WaitReason::Pageable, || ());
-                side.memcpy_htod(bytes, &mut t.records.slice_mut(..bytes.len()))
-                    .map_err(err("upload the worlds' rigid bodies"))?;
-            } else {
-                self.staging
-                    .copy_to_device(&side, bytes, &mut t.records, &self.waits)?;
-            }
-            t.version = Some(version);
-            if self.copies.is_none() {
-                self.uploaded.clear();
-                self.uploaded.extend_from_slice(bytes);
-            }
+        if !copy {
+            return Ok(());
         }
-        if self.copies.is_some() {
-            self.copied
-                .record(&side)
-                .map_err(err("record an upload's event"))?;
-            stream
-                .wait(&self.copied)
-                .map_err(err("order a step after its table's upload"))?;
+        let rigid = self.rigid.get_mut().unwrap_or_else(|p| p.into_inner());
+        let bytes: &[u8] = bytemuck::cast_slice::<GpuBody, u8>(rigid.records());
+        if super::staging::pageable_puts() {
+            self.waits.wait(WaitReason::Pageable, || ());
+            side.memcpy_htod(bytes, &mut t.records.slice_mut(..bytes.len()))
+                .map_err(err("upload the worlds' rigid bodies"))?;
+        } else {
+            self.staging
+                .copy_to_device(side, bytes, &mut t.records, &self.waits)?;
         }
-        Ok(k)
+        t.version = Some(version);
+        if self.copies.is_none() {
+            self.uploaded.clear();
+            self.uploaded.extend_from_slice(bytes);
+        }
+        Ok(())
     }
 
     /// After a step of `dt` was queued: its sums are copied to the host and cleared (kept on the
