@@ -75,3 +75,45 @@ extern "C" __global__ void __launch_bounds__(128, P2G_MIN_BLOCKS) redo_p2g(Ctx c
             p2g_warp_entry(c, g, c.warps[3 * w + 1], c.warps[3 * w + 2], lane);
     }
 }
+
+// The redo's kernels as launched by default (crate::batch::redo; RTMPM_BATCH_REDO=wave launches
+// the two above): the same nodes cleared and the same entries scattered, found with a lane an
+// item. A warp tests 32 pblocks (`redo_clear_lanes`) or REDO_ENTRIES_PER_WARP warp-list entries
+// (`redo_p2g_lanes`) at once and then clears or scatters those of the worlds listed one after
+// another, so the host launches a thread a pblock or eight an entry, where the kernels above
+// take a warp each (a full wave); the flags are read together, not one after the other.
+__device__ __forceinline__ bool redo_skipped_at_once(const Ctx& c) {
+    const volatile unsigned* ctl = c.ctl;
+    unsigned e = ctl[CTL_ERROR], r = ctl[CTL_NEED_REBUILD], p = ctl[CTL_P2G_PENDING];
+    return !c.grid_next || c.always_rebuild || (e | r | p) != 0;
+}
+
+extern "C" __global__ void redo_clear_lanes(Ctx c, RedoWorlds r) {
+    if (redo_skipped_at_once(c)) return;
+    unsigned pblocks = min(c.ctl[CTL_PBLOCKS], c.pblock_cap), lane = threadIdx.x & 31;
+    for (unsigned first = thread_index() & ~31u; first < pblocks; first += gridDim.x * blockDim.x) {
+        unsigned id = first + lane;
+        bool listed = id < pblocks && redo_listed(r, redo_block_world(c, id));
+        for (unsigned m = __ballot_sync(0xffffffffu, listed); m != 0; m &= m - 1) {
+            unsigned b = first + (unsigned)(__ffs(m) - 1);
+            for (unsigned t = b * 256u + lane; t < b * 256u + 256u; t += 32) {
+                c.grid[t] = 0;
+                if (c.grid_aux) c.grid_aux[t] = 0;
+            }
+        }
+    }
+}
+
+extern "C" __global__ void __launch_bounds__(128, P2G_MIN_BLOCKS) redo_p2g_lanes(Ctx c, RedoWorlds r) {
+    if (redo_skipped_at_once(c)) return;
+    unsigned n_warps = min(c.ctl[CTL_WARPS], c.warp_cap), lane = threadIdx.x & 31;
+    unsigned step = ((gridDim.x * blockDim.x) >> 5) * REDO_ENTRIES_PER_WARP;
+    for (unsigned w0 = (thread_index() >> 5) * REDO_ENTRIES_PER_WARP; w0 < n_warps; w0 += step) {
+        unsigned w = w0 + lane;
+        bool listed = lane < REDO_ENTRIES_PER_WARP && w < n_warps && redo_listed(r, redo_block_world(c, c.warps[3 * w]));
+        for (unsigned m = __ballot_sync(0xffffffffu, listed); m != 0; m &= m - 1) {
+            unsigned e = w0 + (unsigned)(__ffs(m) - 1);
+            p2g_warp_entry(c, c.warps[3 * e], c.warps[3 * e + 1], c.warps[3 * e + 2], lane);
+        }
+    }
+}

@@ -37,6 +37,7 @@ mod colliders;
 mod initial;
 mod layout;
 mod put;
+mod put_slots;
 mod redo;
 mod staging;
 
@@ -45,7 +46,8 @@ use accept::{batch_capacities, check_particles};
 pub use layout::{
     BatchParams, MAX_GRID_CELLS_X, WORLD_GAP_CELLS, WORLD_ORIGIN_CELLS, world_stride,
 };
-pub use redo::plan::{PutWorlds, Redo, RedoCounts, old_redo};
+pub use put_slots::{PutSlots, old_puts};
+pub use redo::plan::{PutWorlds, Redo, RedoCounts, old_redo, wave_redo};
 pub use staging::old_resets;
 
 use crate::backend::{CudaBackend, Part};
@@ -122,6 +124,16 @@ pub struct CudaBatch {
     full_redo: bool,
     /// The redos so far ([`CudaBatch::redo_counts`]).
     redo_counts: RedoCounts,
+    /// Whether the last rebuild's gblock slot ranges can serve a put ([`put_slots`]).
+    put_slots: PutSlots,
+    /// Puts use `batch_put_gblocks` where the ranges serve ([`CudaBatch::set_gblock_puts`]).
+    gblock_puts: bool,
+    /// Every particle of the image [`CudaBatch::keep_initial`] kept lies within the domain's x
+    /// range (a put from it leaves the slot ranges trusted).
+    initial_within: bool,
+    /// The partial redo launches its kernels of a warp an item over a full wave
+    /// ([`CudaBatch::set_wave_redo`]).
+    wave_redo: bool,
 }
 
 impl CudaBatch {
@@ -235,6 +247,10 @@ impl CudaBatch {
             put_since: PutWorlds::default(),
             full_redo: old_redo(),
             redo_counts: RedoCounts::default(),
+            put_slots: PutSlots::default(),
+            gblock_puts: !old_puts(),
+            initial_within: false,
+            wave_redo: wave_redo(),
         })
     }
 
@@ -300,6 +316,7 @@ impl CudaBatch {
             self.redo_puts()?;
         }
         self.backend.step(dt, t)?;
+        self.put_slots.stepped();
         let t3 = std::time::Instant::now();
         if let Some(b) = self.bodies.as_mut() {
             b.after_step(&stream, dt)?;

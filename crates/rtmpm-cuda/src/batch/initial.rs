@@ -6,7 +6,7 @@
 //! packs them into the state's words and uploads the image, every call (for 4 worlds of 1,024
 //! particles, 475 KB packed and copied: most of a Python step loop's host time a reset call);
 //! the image of the initial particles is the same every time. Kept once, a reset is one
-//! `batch_put_world` launch per run of consecutive worlds reading it in place (its rows have the
+//! put launch per run of consecutive worlds reading it in place (its rows have the
 //! stride of the whole image, `kernels/batch.cu`). The words put are the same as a put of those
 //! particles packs (the same packing, [`crate::state::pack_into`], of the same particles: only
 //! the id word, which the kernel skips, and the stride differ), so a world put back either way
@@ -14,11 +14,10 @@
 //! particles as before; for A/B comparisons in one binary).
 
 use super::CudaBatch;
+use super::put_slots::within_x;
 use super::staging::old_resets;
 use crate::error::err;
-use crate::kernels::Kernel;
 use crate::waits::WaitReason;
-use cudarc::driver::PushKernelArg;
 use rtmpm_physics::Particles;
 use rtmpm_sim::SimError;
 
@@ -89,6 +88,8 @@ impl CudaBatch {
             .memcpy_htod(&bytes, &mut buf)
             .map_err(err("upload the worlds' initial particles"))?;
         self.initial = Some(buf);
+        let (lo, hi) = (self.clock.domain_min.x, self.clock.domain_max.x);
+        self.initial_within = initial.iter().all(|p| within_x(p, lo, hi));
         Ok(true)
     }
 
@@ -120,7 +121,7 @@ impl CudaBatch {
     /// Put each world of `worlds` back to its particles kept by [`CudaBatch::keep_initial`], as
     /// [`CudaBatch::put_worlds`] of those particles does (the same words, the mapping rebuilt
     /// only where a particle put leaves its zone, the P2G redone at the next step with G2P2G),
-    /// with no packing and no upload: one `batch_put_world` launch a run of consecutive worlds
+    /// with no packing and no upload: one put launch a run of consecutive worlds
     /// listed, reading the kept image in place, queued on the stream (no wait). Every world is
     /// checked before any changes (a world listed twice is put once). `Ok(false)`: no image kept
     /// (nothing changed; put the particles with [`CudaBatch::put_worlds`]).
@@ -137,28 +138,18 @@ impl CudaBatch {
         }
         let runs = initial_runs(worlds, &self.offsets);
         let t1 = std::time::Instant::now();
-        let b = &mut self.backend;
+        if !self.initial_within {
+            self.put_slots.doubt();
+        }
         let Some(image) = self.initial.as_ref() else {
             return Ok(false);
         };
-        let word = if b.options.f64 { 8 } else { 4 };
-        let stride = b.n as u32;
+        let word = if self.backend.options.f64 { 8 } else { 4 };
+        let stride = self.backend.n as u32;
         for &(first, count) in &runs {
-            let src = image.slice(first as usize * word..);
-            // SAFETY: the kernel reads `src` at `f * stride + k` for the state's words `f` and
-            // `k < count` (inside the image: `first + count <= n`), writes the state's slots
-            // below n and the rebuild flag.
-            unsafe {
-                b.stream
-                    .launch_builder(&b.kernels[Kernel::BatchPutWorld])
-                    .arg(&b.ctx)
-                    .arg(&src)
-                    .arg(&first)
-                    .arg(&count)
-                    .arg(&stride)
-                    .launch(b.kernels.wave(b.n, 256))
-            }
-            .map_err(err("put worlds back to their initial particles"))?;
+            // Rows of the whole image (stride n), from particle `first` of its first row.
+            self.launch_put(&image.slice(first as usize * word..), first, count, stride)
+                .map_err(err("put worlds back to their initial particles"))?;
         }
         if !runs.is_empty() {
             self.note_put(worlds.iter().copied())?;

@@ -3,12 +3,14 @@
 //! one or many in one upload ([`CudaBatch::put_world`], [`CudaBatch::put_worlds`]).
 
 use super::CudaBatch;
+use super::put_slots::within_x;
 use super::staging::pageable_puts;
+use crate::contract::PUT_GBLOCKS_PER_WARP;
 use crate::contract::{CTL_ERROR, CTL_NEED_REBUILD, CTL_P2G_PENDING};
 use crate::error::err;
 use crate::kernels::Kernel;
 use crate::waits::WaitReason;
-use cudarc::driver::{CudaSlice, PushKernelArg};
+use cudarc::driver::{CudaSlice, CudaView, DriverError, PushKernelArg};
 use rtmpm_physics::Particles;
 use rtmpm_sim::SimError;
 
@@ -97,6 +99,9 @@ impl CudaBatch {
     /// that check). The rest is put back by [`CudaBatch::restore_point`] (the state; the mapping
     /// rebuilt) or was reset by the check (its bad-particle words).
     pub fn drop_queued_steps(&mut self) -> Result<(), SimError> {
+        // A rebuild the error stopped may have left the slot ranges half made
+        // (crate::batch::put_slots), and the cleared word no longer says so.
+        self.put_slots.doubt();
         self.backend.set_ctl_word(CTL_ERROR, 0)
     }
 
@@ -121,6 +126,8 @@ impl CudaBatch {
         }
         // Every world's P2G is redone (and the mapping rebuilt): nothing left to redo alone.
         self.put_since.clear();
+        // The state is in the point's order, not the last rebuild's (crate::batch::put_slots).
+        self.put_slots.doubt();
         // Everything after is queued behind the copy on the same stream: no wait (but with
         // `RTMPM_BATCH_WAITS=old`, as before).
         if crate::waits::old_waits() {
@@ -151,7 +158,8 @@ impl CudaBatch {
 
     /// Put world `w`'s particles to `particles` (its initial ones for a reset, or any state of
     /// as many particles, in its own material indices), the other worlds untouched: the state
-    /// words of its slots are overwritten (`batch_put_world`, `kernels/batch.cu`) and the next
+    /// words of its slots are overwritten (`batch_put_gblocks` or `batch_put_world`,
+    /// `kernels/batch.cu`, [`super::put_slots`]) and the next
     /// step redoes its P2G (with G2P2G, whose last fused scatter was of the old particles: that
     /// world's alone, [`CudaBatch::redo_puts`]). The
     /// mapping of particles to blocks is rebuilt at the next step only when a particle put
@@ -168,7 +176,7 @@ impl CudaBatch {
     /// once: every world is checked before any changes (a world listed twice ends with its
     /// last); each run of consecutive worlds is packed as one (their particles are consecutive
     /// in original order), all runs go to the device in one copy (into a buffer kept between
-    /// calls, [`CudaBatch::put_bytes`]), one `batch_put_world` launch a run and the worlds
+    /// calls, [`CudaBatch::put_bytes`]), one put launch a run and the worlds
     /// listed for the redo of their P2G before the next step (with G2P2G,
     /// [`CudaBatch::redo_puts`]), where a world at a time paid an allocation, a copy, two
     /// control-word writes and a wait. Nothing waits for the device: the images go through kept
@@ -259,6 +267,11 @@ impl CudaBatch {
         for &(w, p) in worlds {
             self.check_put(w, p)?;
         }
+        let (lo, hi) = (self.clock.domain_min.x, self.clock.domain_max.x);
+        if !worlds.iter().all(|(_, p)| within_x(p, lo, hi)) {
+            // Before any launch: the put's own launches test every slot.
+            self.put_slots.doubt();
+        }
         let mut given: Vec<Option<&Particles>> = vec![None; self.worlds()];
         for &(w, p) in worlds {
             given[w] = Some(p);
@@ -271,25 +284,13 @@ impl CudaBatch {
         let t1 = std::time::Instant::now();
         self.upload_put()?;
         let t2 = std::time::Instant::now();
-        let b = &mut self.backend;
         let Some(buf) = self.put_buffer.as_ref() else {
             return Ok(());
         };
         for (first, count, at, len) in &runs {
-            let src = buf.slice(*at..*at + *len);
-            // SAFETY: the kernel reads `src` below `count` particles of the state's words (the
-            // run's image), writes the state's slots below n and the rebuild flag.
-            unsafe {
-                b.stream
-                    .launch_builder(&b.kernels[Kernel::BatchPutWorld])
-                    .arg(&b.ctx)
-                    .arg(&src)
-                    .arg(first)
-                    .arg(count)
-                    .arg(count) // the image's stride: its own particles
-                    .launch(b.kernels.wave(b.n, 256))
-            }
-            .map_err(err("put worlds"))?;
+            // The run's image: `count` particles a row.
+            self.launch_put(&buf.slice(*at..*at + *len), *first, *count, *count)
+                .map_err(err("put worlds"))?;
         }
         // The rebuild flag is the kernel's (only where a particle put leaves its zone); the P2G
         // of the worlds put is redone before the next step (crate::batch::redo).
@@ -331,6 +332,55 @@ impl CudaBatch {
         }
         self.put_staging
             .copy_to_device(&stream, &self.put_host, buf, &self.backend.waits)
+    }
+}
+
+/// The launch of a put (which kernel, over which slots: [`super::put_slots`]).
+impl CudaBatch {
+    /// Queue the put of particles `first..first + count` (original order, whole worlds) from
+    /// `src` (structure of arrays, rows of `stride` particles, from particle `first`):
+    /// `batch_put_gblocks` where the slot ranges are trusted ([`super::PutSlots`]), else
+    /// `batch_put_world` over every slot.
+    pub(super) fn launch_put(
+        &self,
+        src: &CudaView<'_, u8>,
+        first: u32,
+        count: u32,
+        stride: u32,
+    ) -> Result<(), DriverError> {
+        let b = &self.backend;
+        let (kernel, cfg) = if self.gblock_puts && self.put_slots.trusted() {
+            let threads = b.ctx.gblock_cap as usize * 32 / PUT_GBLOCKS_PER_WARP;
+            (Kernel::BatchPutGblocks, b.kernels.wave(threads, 256))
+        } else {
+            (Kernel::BatchPutWorld, b.kernels.wave(b.n, 256))
+        };
+        // SAFETY: the kernels read `src` at `f * stride + k` for the state's words `f` and
+        // `k < count` (the caller's image holds them), write the state's slots below n and the
+        // rebuild flag, and bound every other index by the device counters and capacities.
+        unsafe {
+            b.stream
+                .launch_builder(&b.kernels[kernel])
+                .arg(&b.ctx)
+                .arg(src)
+                .arg(&first)
+                .arg(&count)
+                .arg(&stride)
+                .launch(cfg)
+        }
+        .map(|_| ())
+    }
+
+    /// Put with `batch_put_gblocks` where it applies (`true`, the default but with
+    /// `RTMPM_BATCH_PUT=old`) or always with `batch_put_world` over every slot (`false`); for
+    /// comparisons of the two in one process.
+    pub fn set_gblock_puts(&mut self, on: bool) {
+        self.gblock_puts = on;
+    }
+
+    /// Whether the next put would use `batch_put_gblocks` (on, and the slot ranges trusted).
+    pub fn gblock_put_next(&self) -> bool {
+        self.gblock_puts && self.put_slots.trusted()
     }
 }
 

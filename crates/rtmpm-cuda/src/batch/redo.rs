@@ -4,7 +4,8 @@
 //! [`CudaBatch::put_worlds`], [`CudaBatch::put_initial`]) needs its P2G again, every other
 //! world's is still right. The puts list their worlds ([`plan::PutWorlds`]); before the next step,
 //! [`CudaBatch::redo_puts`] clears those worlds' pblocks and scatters their particles again
-//! (`redo_clear`, then `redo_p2g`), the other worlds' nodes untouched, where
+//! (`redo_clear_lanes`, then `redo_p2g_lanes`; `redo_clear`, `redo_p2g` with
+//! `RTMPM_BATCH_REDO=wave`), the other worlds' nodes untouched, where
 //! the step used to redo the P2G of every world (`CTL_P2G_PENDING`).
 //!
 //! The full redo stays where the partial one would not pay or does not apply ([`Redo::Full`]):
@@ -20,7 +21,7 @@ pub(super) mod plan;
 use plan::{Redo, RedoCounts};
 
 use super::CudaBatch;
-use crate::contract::{CTL_P2G_PENDING, RedoWorlds};
+use crate::contract::{CTL_P2G_PENDING, REDO_ENTRIES_PER_WARP, RedoWorlds};
 use crate::error::err;
 use crate::kernels::Kernel;
 use cudarc::driver::PushKernelArg;
@@ -70,29 +71,53 @@ impl CudaBatch {
         Ok(plan)
     }
 
-    /// `redo_clear` then `redo_p2g` of the runs `r`, on the stream, into the grid the coming
-    /// step reads.
+    /// `redo_clear_lanes` then `redo_p2g_lanes` of the runs `r` (a thread a pblock, eight a
+    /// warp-list entry), or with [`CudaBatch::set_wave_redo`] `redo_clear` then `redo_p2g` (a
+    /// warp each, a full wave), on the stream, into the grid the coming step reads.
     fn launch_redo(&mut self, r: &RedoWorlds) -> Result<(), SimError> {
         let b = &self.backend;
         let c = b.step_ctx();
         let k = &b.kernels;
+        let (pblocks, entries) = (c.pblock_cap as usize, c.warp_cap as usize);
+        let (clear, p2g) = if self.wave_redo {
+            (
+                (Kernel::RedoClear, k.wave(pblocks * 32, 256)),
+                (Kernel::RedoP2g, k.wave(entries * 32, 128)),
+            )
+        } else {
+            (
+                (Kernel::RedoClearLanes, k.wave(pblocks, 256)),
+                (
+                    Kernel::RedoP2gLanes,
+                    k.wave(entries * 32 / REDO_ENTRIES_PER_WARP, 128),
+                ),
+            )
+        };
         // SAFETY: the kernels bound every index by the device counters and capacities
         // (pblocks, warps) and read `r` by value.
         unsafe {
             b.stream
-                .launch_builder(&k[Kernel::RedoClear])
+                .launch_builder(&k[clear.0])
                 .arg(&c)
                 .arg(r)
-                .launch(k.wave(c.pblock_cap as usize * 32, 256))
+                .launch(clear.1)
                 .map_err(err("redo the P2G of the worlds put (clear)"))?;
             b.stream
-                .launch_builder(&k[Kernel::RedoP2g])
+                .launch_builder(&k[p2g.0])
                 .arg(&c)
                 .arg(r)
-                .launch(k.wave(c.warp_cap as usize * 32, 128))
+                .launch(p2g.1)
                 .map_err(err("redo the P2G of the worlds put"))?;
         }
         Ok(())
+    }
+
+    /// Launch the partial redo's kernels of a warp an item over a full wave (`redo_clear`,
+    /// `redo_p2g`: `true`, the default with `RTMPM_BATCH_REDO=wave`) or of a lane an item
+    /// (`redo_clear_lanes`, `redo_p2g_lanes`: `false`, the default otherwise); for comparisons
+    /// of the two in one process.
+    pub fn set_wave_redo(&mut self, on: bool) {
+        self.wave_redo = on;
     }
 
     /// Redo the P2G of every world after a put (`true`: as with `RTMPM_BATCH_REDO=old`, the

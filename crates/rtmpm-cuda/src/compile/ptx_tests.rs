@@ -519,7 +519,28 @@ fn check_variant(
         for k in ["grid_update", "grid_update_gather"] {
             grid_update_positions_unfused(&ptx, k, real, &format!("{o:?}"));
         }
+        // The put over the gblocks (kernels/batch.cu, put_slot_words) loads every word of a
+        // slot but its id before it stores any (the put of every slot, a load then its store).
+        let gblocks = longest_load_run(entry(&ptx, "batch_put_gblocks"));
+        assert!(
+            gblocks >= layout.words() - 1,
+            "{o:?}: batch_put_gblocks: {gblocks} loads at most between stores"
+        );
     }
+}
+
+/// The most global loads in `body` (PTX) with no global store between them.
+fn longest_load_run(body: &str) -> usize {
+    let (mut run, mut longest) = (0, 0);
+    for op in body.lines().map(str::trim_start) {
+        if op.starts_with("ld.global") {
+            run += 1;
+            longest = longest.max(run);
+        } else if op.starts_with("st.global") {
+            run = 0;
+        }
+    }
+    longest
 }
 
 /// The grid update places its nodes as the CPU backend does (kernels/grid_update.cu:

@@ -160,6 +160,14 @@ pub const MAX_BODIES: usize = 32;
 /// Runs of consecutive worlds a batch's redo of some worlds' P2G takes at once
 /// ([`RedoWorlds`], a kernel argument; more runs fall back to the full redo).
 pub const REDO_RANGES: usize = 32;
+/// Gblocks a warp of `batch_put_gblocks` tests at once (`kernels/batch.cu`: it then puts the
+/// slots of the put worlds' ones among them one after another): the launch is
+/// `gblock_cap * 32 / PUT_GBLOCKS_PER_WARP` threads.
+pub const PUT_GBLOCKS_PER_WARP: usize = 8;
+/// Warp-list entries a warp of `redo_p2g_lanes` tests at once (`kernels/redo.cu`: it then
+/// scatters those of the worlds listed one after another): the launch is
+/// `warp_cap * 32 / REDO_ENTRIES_PER_WARP` threads.
+pub const REDO_ENTRIES_PER_WARP: usize = 4;
 /// Copies of the rigid bodies' impulse sums (thread blocks add to copy `blockIdx.x % slots`, so
 /// fewer atomics meet on one address); the host sums them.
 pub const BODY_EXCHANGE_SLOTS: usize = 32;

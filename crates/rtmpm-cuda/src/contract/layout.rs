@@ -400,7 +400,8 @@ pub struct SpinBarrier {
 // SAFETY: Pod, passed by value with the C layout the kernels declare.
 unsafe impl cudarc::driver::DeviceRepr for SpinBarrier {}
 
-/// The worlds of a batch whose P2G is redone (`redo_clear`, `redo_p2g` in `kernels/redo.cu`;
+/// The worlds of a batch whose P2G is redone (`redo_clear`, `redo_p2g` and their `_lanes` forms in
+/// `kernels/redo.cu`;
 /// `crate::batch::CudaBatch::redo_puts`): `count` runs of consecutive worlds, run `i` the
 /// worlds `lo[i]..hi[i]`. Passed by value (260 bytes of kernel arguments).
 #[repr(C)]

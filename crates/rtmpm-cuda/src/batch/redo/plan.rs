@@ -11,6 +11,14 @@ pub fn old_redo() -> bool {
     *OLD.get_or_init(|| std::env::var("RTMPM_BATCH_REDO").is_ok_and(|v| v.trim() == "old"))
 }
 
+/// `RTMPM_BATCH_REDO=wave`: the partial redo launches `redo_clear` and `redo_p2g`, a warp a
+/// pblock or warp-list entry over a full wave, as before `redo_clear_lanes` and
+/// `redo_p2g_lanes` (`kernels/redo.cu`); for comparing the two in one binary. Read once.
+pub fn wave_redo() -> bool {
+    static WAVE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *WAVE.get_or_init(|| std::env::var("RTMPM_BATCH_REDO").is_ok_and(|v| v.trim() == "wave"))
+}
+
 /// What the next step's P2G needs after the puts since the last step.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Redo {
