@@ -80,8 +80,11 @@ extern "C" __global__ void __launch_bounds__(128, P2G_MIN_BLOCKS) redo_p2g(Ctx c
 // the two above): the same nodes cleared and the same entries scattered, found with a lane an
 // item. A warp tests 32 pblocks (`redo_clear_lanes`) or REDO_ENTRIES_PER_WARP warp-list entries
 // (`redo_p2g_lanes`) at once and then clears or scatters those of the worlds listed one after
-// another, so the host launches a thread a pblock or eight an entry, where the kernels above
-// take a warp each (a full wave); the flags are read together, not one after the other.
+// another, so the host launches a thread a pblock (where `redo_clear` takes a warp each, a full
+// wave). A warp-list entry's scatter is long (the warp's particles' stresses, then the shuffles
+// and atomics of nine rows): two in one warp would double the launch's longest warp, so
+// REDO_ENTRIES_PER_WARP is 1, the entries spread over the warps as `redo_p2g` spreads them. Both
+// read the flags together, not one after the other.
 __device__ __forceinline__ bool redo_skipped_at_once(const Ctx& c) {
     const volatile unsigned* ctl = c.ctl;
     unsigned e = ctl[CTL_ERROR], r = ctl[CTL_NEED_REBUILD], p = ctl[CTL_P2G_PENDING];

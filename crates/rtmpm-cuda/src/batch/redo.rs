@@ -71,9 +71,10 @@ impl CudaBatch {
         Ok(plan)
     }
 
-    /// `redo_clear_lanes` then `redo_p2g_lanes` of the runs `r` (a thread a pblock, eight a
-    /// warp-list entry), or with [`CudaBatch::set_wave_redo`] `redo_clear` then `redo_p2g` (a
-    /// warp each, a full wave), on the stream, into the grid the coming step reads.
+    /// `redo_clear_lanes` then `redo_p2g_lanes` of the runs `r` (a thread a pblock, a warp a
+    /// warp-list entry: [`REDO_ENTRIES_PER_WARP`]), or with [`CudaBatch::set_wave_redo`]
+    /// `redo_clear` then `redo_p2g` (a warp each, a full wave), on the stream, into the grid the
+    /// coming step reads.
     fn launch_redo(&mut self, r: &RedoWorlds) -> Result<(), SimError> {
         let b = &self.backend;
         let c = b.step_ctx();

@@ -166,8 +166,9 @@ pub const REDO_RANGES: usize = 32;
 pub const PUT_GBLOCKS_PER_WARP: usize = 8;
 /// Warp-list entries a warp of `redo_p2g_lanes` tests at once (`kernels/redo.cu`: it then
 /// scatters those of the worlds listed one after another): the launch is
-/// `warp_cap * 32 / REDO_ENTRIES_PER_WARP` threads.
-pub const REDO_ENTRIES_PER_WARP: usize = 4;
+/// `warp_cap * 32 / REDO_ENTRIES_PER_WARP` threads (one wave at most). 1: an entry's scatter is
+/// the launch's longest path, two in one warp would double it (not measured).
+pub const REDO_ENTRIES_PER_WARP: usize = 1;
 /// Copies of the rigid bodies' impulse sums (thread blocks add to copy `blockIdx.x % slots`, so
 /// fewer atomics meet on one address); the host sums them.
 pub const BODY_EXCHANGE_SLOTS: usize = 32;
