@@ -102,6 +102,7 @@
 #                environment for the loop without
 #   batch        many worlds in the same kernels: test_batch_isolation (16 wedge worlds vs 16 separate runs,
 #                refusals), test_batch_resets (a reset and a blown-up world beside others, puts),
+#                test_batch_put_slots (the put over the put worlds' gblocks against the put of every slot),
 #                test_batch_rewind (the device rewind point), test_batch_lockstep (the lockstep driver, a
 #                checkpointed batch resumed against the uninterrupted one), then test_batch_benchmark
 #                (1,024 sand beds of 9,408 particles: batched vs one scene of as many particles vs worlds
@@ -133,7 +134,7 @@ t() {
 # The test binaries of several GPUs (crates/rtmpm-cuda/tests/multi_gpu_*.rs) and of a GPU batch's
 # worlds against their separate runs (tests/batch_*.rs but the colliders' and the rigid bodies').
 MULTI_GPU_TESTS="test_multi_gpu_agreement test_multi_gpu_errors test_multi_gpu_rigid"
-BATCH_TESTS="test_batch_isolation test_batch_resets test_batch_rewind test_batch_lockstep"
+BATCH_TESTS="test_batch_isolation test_batch_resets test_batch_put_slots test_batch_rewind test_batch_lockstep"
 
 # label, binary, bench args...: one summary line with ms/step and the stage times.
 b() {
@@ -571,7 +572,7 @@ for suite in "$@"; do
     batch)
       # Many worlds in the same kernels (rtmpm_cuda::batch): isolation, reset and blow-up checks
       # against separate CUDA runs (BATCH_TESTS: tests/batch_isolation.rs, batch_resets.rs,
-      # batch_rewind.rs, batch_lockstep.rs), then the benchmark (tests/batch_benchmark.rs):
+      # batch_put_slots.rs, batch_rewind.rs, batch_lockstep.rs), then the benchmark (tests/batch_benchmark.rs):
       # BATCH_WORLDS (1024) sand beds of 9,408 particles batched vs one scene of as many particles
       # vs BATCH_ALONE (16) worlds one after another, extrapolated.
       for x in $BATCH_TESTS; do t "$x" --nocapture; done
