@@ -70,7 +70,11 @@ before; a number ``n``: every core, ``n`` or more worlds a task; unset: on the c
 to 512 worlds without a dynamic body, every core otherwise). ``RTMPM_BATCH_REDO=old`` redoes the
 P2G of every world at the step after a reset, as before the redo of the reset worlds' P2G alone
 (with G2P2G; docs/batch.md, "The P2G after a put"); the table of the redos a call of reset and
-loop (``BatchSimulation.p2g_redos``: of the worlds put alone, of every world) says which ran.
+loop (``BatchSimulation.p2g_redos``: of the worlds put alone, of every world) says which ran;
+``RTMPM_BATCH_REDO=wave`` redoes the reset worlds' P2G alone with the kernels of a warp an item
+over a full wave, as before ``redo_clear_lanes`` / ``redo_p2g_lanes``. ``RTMPM_BATCH_PUT=old``
+puts a reset's particles with ``batch_put_world`` over every slot of the batch, as before the put
+over the reset worlds' gblocks (``batch_put_gblocks``; docs/batch.md, "The reset's device work").
 ``RTMPM_BATCH_UPLOAD=old`` uploads the rigid bodies' table on the batch's stream before each step
 whose bodies changed, serial with the kernels, as before the two tables taken in turn whose copies
 run on a stream of their own while the step before runs (docs/batch.md, "Rigid bodies in a GPU
@@ -481,7 +485,7 @@ def main():
     print_redos(redos, runs)
     names = ("RTMPM_BATCH_WAITS", "RTMPM_BATCH_PAGEABLE_PUT", "RTMPM_BATCH_RESET", "RTMPM_BATCH_REST",
              "RTMPM_KINEMATIC", "RTMPM_BATCH_FAN", "RTMPM_BATCH_REDO", "RTMPM_BATCH_UPLOAD",
-             "RTMPM_SYNC_TRACE")
+             "RTMPM_BATCH_PUT", "RTMPM_SYNC_TRACE")
     switches = {k: os.environ[k] for k in names if k in os.environ}
     if switches:
         print(f"environment: {switches}")
