@@ -53,6 +53,22 @@ impl StagingRing {
         }
     }
 
+    /// At least `count` buffers of `len` bytes (no more than the ring's most) allocated now (each
+    /// an [`WaitReason::Alloc`] wait), so that uploads that far ahead of the device find one
+    /// free instead of allocating it then.
+    pub(crate) fn reserve(
+        &mut self,
+        stream: &Arc<CudaStream>,
+        count: usize,
+        len: usize,
+        waits: &HostWaits,
+    ) -> Result<(), SimError> {
+        while self.slots.len() < count.min(self.most) {
+            self.slots.push(new_slot(stream, len, waits)?);
+        }
+        Ok(())
+    }
+
     /// Copy `bytes` to the start of `dst` (at least as long) on `stream` through a buffer of
     /// the ring (written once its previous copy is done; grown to fit), the host's waits
     /// counted in `waits`.

@@ -55,6 +55,15 @@ use host::HostBodies;
 const UPLOAD_BUFFERS: usize = 64;
 const OLD_UPLOAD_BUFFERS: usize = 4;
 
+/// Upload buffers allocated with the batch (two tables in turn), at most
+/// [`RESERVED_UPLOAD_BYTES`] of them: a loop whose tools move uploads at every step, and with a
+/// call's steps queued ahead of the last call's check (Python's overlap) the host ran 20 or so
+/// uploads ahead of the device, so the ring grew in the loop (session 16 call 2: 0.90-0.95 page-
+/// locked allocations a call of 10 steps over 20 calls of a fresh batch of 256 worlds).
+const RESERVED_UPLOADS: usize = 32;
+/// Bytes of page-locked memory [`RESERVED_UPLOADS`] may take (1.3 MB for 256 worlds of a body).
+const RESERVED_UPLOAD_BYTES: usize = 4 << 20;
+
 /// `RTMPM_BATCH_UPLOAD=old`: one body table, uploaded on the batch's stream before each step
 /// that changed it (as before the two tables of this module's doc); for comparing the two in one
 /// binary (bench/python_batch_gpu.py). Read once.
@@ -174,6 +183,12 @@ impl WorldBodies {
             )
         };
         let copied = stream.record_event(None).map_err(err("record an event"))?;
+        let mut staging = crate::staging::StagingRing::new(UPLOAD_BUFFERS, OLD_UPLOAD_BUFFERS);
+        if !old {
+            let bytes = (rows * std::mem::size_of::<GpuBody>()).max(1);
+            let count = (RESERVED_UPLOAD_BYTES / bytes).clamp(1, RESERVED_UPLOADS);
+            staging.reserve(stream, count, bytes, &waits)?;
+        }
         // SAFETY: the copy is written by a device copy before the host reads it (after `done`).
         let host = unsafe { stream.context().alloc_pinned_with_flags::<f64>(len, 0) }
             .map_err(err("allocate page-locked memory"))?;
@@ -191,7 +206,7 @@ impl WorldBodies {
             copies,
             copied,
             uploaded: Vec::new(),
-            staging: crate::staging::StagingRing::new(UPLOAD_BUFFERS, OLD_UPLOAD_BUFFERS),
+            staging,
             waits,
             host: Mutex::new(HostSums {
                 sums: host,
