@@ -3,7 +3,8 @@ calls, against the same steps with no Python work between them.
 
     python bench/python_batch_gpu.py [--worlds 256] [--steps 200] [--per-call 1,10]
                                      [--resets 4] [--repeats 5] [--budget S] [--breakdown]
-                                     [--moving-tool] [--cuda-options S] [--overlap] [--json out.json]
+                                     [--moving-tool] [--cuda-options S] [--overlap [on|off] | --no-overlap]
+                                     [--json out.json]
 
 A batch of ``--worlds`` small sand beds (1,024 particles each, dx = 0.025 m, fixed dt = 4e-4 s,
 the scene of bench/batch_python_loop.py) as ``BatchSimulation(backend="cuda")``: every world in
@@ -43,10 +44,14 @@ calls of 10 steps, which this would explain: not checked). ``--moving-tool`` giv
 included, moves it and the ratios count only the loop's own cost (not the default, so that the
 default figures stay comparable with earlier ones).
 
-``--overlap`` sets ``BatchSimulation.overlap`` on every batch (where the module has it): a step
-call returns with its steps queued, its health check made as the next call begins, so that the
-loop's resets and poses run on the host while the device steps (run the script with and without
-it for the A/B; the table's first line says which). The timed part of a mode then ends with
+``BatchSimulation.overlap`` (on by default for a GPU batch since session 16; before, off unless
+set): a step call returns with its steps queued, its health check made as the next call begins,
+so that the loop's resets and poses run on the host while the device steps. ``--overlap`` (or
+``--overlap on``) sets it on every batch, ``--no-overlap`` (or ``--overlap off``) sets it off
+(the old behaviour: each call checks before it returns); neither leaves the module's default
+(which ``RTMPM_BATCH_OVERLAP=0`` in the environment turns off). Run the script with
+``--overlap`` and ``--no-overlap`` for the A/B; the table's first line says which mode ran (read
+back from the batch) and how it was chosen. With overlap on, the timed part of a mode ends with
 that check of the last call (reading ``running``), which waits for its steps.
 
 After the table, the host's waits a call of each mode (the last round's,
@@ -246,15 +251,15 @@ class Clock:
         print(f"[{self.now():6.1f} s] {what}", file=sys.stderr, flush=True)
 
 
-OVERLAP = False  # --overlap: BatchSimulation.overlap on every batch
+OVERLAP = None  # --overlap / --no-overlap: BatchSimulation.overlap set on every batch (None: default)
 
 
 def fresh(one, setups):
     """A fresh batch of ``one`` on the GPU, its set-up seconds kept in ``setups`` (not timed)."""
     t0 = time.perf_counter()
     sim = rtmpm.Simulation(one, backend="cuda", cuda_options=CUDA_OPTIONS)
-    if OVERLAP:
-        sim.overlap = True
+    if OVERLAP is not None:
+        sim.overlap = OVERLAP
     sim.step(1)  # the first step's graph capture is set-up, not the loop
     setups.append(time.perf_counter() - t0)
     return sim
@@ -306,16 +311,18 @@ def plain_rounds(a, one, runs, torch, clock, setups):
             break
         for run in runs if rep % 2 == 0 else runs[::-1]:
             sim = fresh(one, setups)
-            info = {"particles": int(sim.num_particles.sum()), "backend": sim.backend.name}
+            over = bool(getattr(sim, "overlap", False))  # the mode this batch runs
+            info = {"particles": int(sim.num_particles.sum()), "backend": sim.backend.name,
+                    "overlap": over}
             w0, r0 = host_waits(sim), p2g_redos(sim)
             t0 = time.perf_counter()
             run_mode(run[0], sim, a.steps, run[1], a.resets, torch)
-            if OVERLAP:
+            if over:
                 # The last call returned before its steps and check: both are timed (reading
                 # `running` makes the check, waiting for the steps).
                 ok_all = sim.running.all()
             wall = time.perf_counter() - t0
-            if not OVERLAP:
+            if not over:
                 ok_all = sim.running.all()
             assert ok_all, f"{run}: a world blew up: {sim.status}"
             waits[run] = waits_per_call(w0, host_waits(sim), a.steps // run[1])
@@ -433,13 +440,18 @@ def main():
     ap.add_argument("--cuda-options", default=None,
                     help="the CUDA backend's options for every batch (rtmpm --cuda-options), e.g. "
                          "body_sums=step for the sums copied after every step")
-    ap.add_argument("--overlap", action="store_true",
-                    help="BatchSimulation.overlap on: step calls return before their check")
+    ap.add_argument("--overlap", nargs="?", const="on", default=None, choices=["on", "off"],
+                    help="BatchSimulation.overlap on (bare --overlap, or --overlap on: step calls "
+                         "return before their check) or off (--overlap off); default: the "
+                         "module's (on for a GPU batch unless RTMPM_BATCH_OVERLAP=0)")
+    ap.add_argument("--no-overlap", dest="overlap", action="store_const", const="off",
+                    help="BatchSimulation.overlap off: each step call checks before it returns "
+                         "(the old behaviour; same as --overlap off)")
     ap.add_argument("--json", default=None)
     a = ap.parse_args()
     global CUDA_OPTIONS, OVERLAP
     CUDA_OPTIONS = a.cuda_options
-    OVERLAP = a.overlap
+    OVERLAP = None if a.overlap is None else a.overlap == "on"
     clock = Clock(a.budget)
     ok, why = rtmpm.cuda_available()
     if not ok:
@@ -462,7 +474,8 @@ def main():
     times, info, done, waits, redos = plain_rounds(a, one, runs, torch, clock, setups)
     bare = statistics.median(times[("bare", a.steps)])
     print(f"{a.worlds} worlds, {info['particles']} particles, {a.steps} steps, {a.resets} resets a call, "
-          f"{done} repeats, on {info['backend']}; overlap {'on' if a.overlap else 'off'}")
+          f"{done} repeats, on {info['backend']}; overlap {'on' if info['overlap'] else 'off'} "
+          f"({'default' if a.overlap is None else ('--overlap' if OVERLAP else '--no-overlap')})")
     if no_tool:
         print(f"pose: not measured (no tool in the worlds: {no_tool})")
     if torch is None:
@@ -494,7 +507,7 @@ def main():
     if a.cuda_options:
         print(f"cuda_options: {a.cuda_options}")
     out = {"worlds": a.worlds, "steps": a.steps, "resets": a.resets, "repeats": done, "per_call": per_call,
-           "moving_tool": a.moving_tool, "cuda_options": a.cuda_options, "overlap": a.overlap,
+           "moving_tool": a.moving_tool, "cuda_options": a.cuda_options, "overlap_asked": a.overlap,
            "pose_not_measured": no_tool, "torch": torch is not None, **info, "rows": rows,
            "setup_s": setups}
     if a.breakdown:

@@ -1,7 +1,8 @@
 """The device's timeline of the Python GPU batch loop: where the GPU idles in a call, and what each
 mode of ``bench/python_batch_gpu.py`` adds to the device's work.
 
-    python bench/python_batch_trace.py [--worlds 256] [--calls 6] [--per-call 10] [--overlap]
+    python bench/python_batch_trace.py [--worlds 256] [--calls 6] [--per-call 10]
+                                       [--overlap | --no-overlap]
                                        [--moving-tool] [--trace out.json] [--summary-of in.json]
 
 PyTorch's profiler (CUPTI's activity records) sees every kernel, copy and memset of the process,
@@ -14,7 +15,9 @@ of a call (pose, reset, step) marked. It prints, per mode: the wall time a call 
 own cost included: compare modes with each other, not with ``python_batch_gpu.py``'s table), the
 device's busy time and its idle gaps a call, and the device work a call by kernel, copy and
 memset. ``--trace`` keeps the Chrome trace (open it in chrome://tracing or Perfetto);
-``--summary-of`` prints the summary of a kept trace without a GPU.
+``--summary-of`` prints the summary of a kept trace without a GPU. ``--overlap`` /
+``--no-overlap`` set ``BatchSimulation.overlap`` on or off on every batch; neither: the module's
+default (on for a GPU batch since session 16, unless ``RTMPM_BATCH_OVERLAP=0``).
 """
 
 import argparse
@@ -43,7 +46,7 @@ def record(a):
     one, why = b.make_batch(a.worlds, moving=a.moving_tool)
     if why:
         print(f"no tool in the worlds ({why}): pose and loop not recorded", file=sys.stderr)
-    b.OVERLAP = a.overlap
+    b.OVERLAP = a.overlap  # None: the module's default
     n = a.worlds
     vel = np.tile(np.array([0.0, -b.SPEED, 0.0], np.float32), (n, 1))
     pos = np.empty((n, 3), np.float32)
@@ -137,7 +140,10 @@ def main():
     ap.add_argument("--calls", type=int, default=6, help="calls recorded a mode (default 6)")
     ap.add_argument("--per-call", type=int, default=10, help="steps a call (default 10)")
     ap.add_argument("--resets", type=int, default=4, help="worlds reset before every call (default 4)")
-    ap.add_argument("--overlap", action="store_true", help="BatchSimulation.overlap on every batch")
+    ap.add_argument("--overlap", action="store_const", const=True, default=None,
+                    help="BatchSimulation.overlap on every batch")
+    ap.add_argument("--no-overlap", dest="overlap", action="store_const", const=False,
+                    help="BatchSimulation.overlap off on every batch (the old behaviour)")
     ap.add_argument("--moving-tool", action="store_true", help="the tool moves in every mode, bare too")
     ap.add_argument("--trace", default="python_batch_trace.json", help="where the Chrome trace goes")
     ap.add_argument("--summary-of", default=None, help="summarise this kept trace; record nothing")

@@ -177,6 +177,23 @@ def test_a_world_that_blows_up_is_frozen_and_the_others_go_on_bit_identical():
     assert sim.step(1) == []
 
 
+def test_overlap_is_off_on_the_cpu_batch_and_true_is_refused(monkeypatch):
+    """``overlap`` (on by default for a GPU batch: tests/test_batch_gpu.py) is off on the CPU
+    batch whatever ``RTMPM_BATCH_OVERLAP`` says, ``True`` is refused naming the GPU, and a
+    blow-up is returned by the call whose steps failed."""
+    monkeypatch.setenv("RTMPM_BATCH_OVERLAP", "1")
+    text = sweep_text('"body[0].velocity" = [[0, 0, 0], [1e5, 0, 0], [0, 0.5, 0]]')
+    sim = rtmpm.Simulation(rtmpm.Scene.from_toml(text), backend="cpu")
+    assert sim.backend.kind == "cpu" and sim.overlap is False
+    with pytest.raises(rtmpm.SimulationError, match="overlap is for a batch on the GPU"):
+        sim.overlap = True
+    assert sim.overlap is False
+    sim.overlap = False
+    assert sim.step(10) == [1]
+    assert list(sim.running) == [True, False, True]
+    assert sim.step(1) == []
+
+
 def test_ragged_worlds_are_flat_arrays_with_offsets():
     text = sweep_text('"body[0].max" = [[0.3, 0.25, 0.3], [0.3, 0.3, 0.3], [0.35, 0.25, 0.3]]')
     sim = rtmpm.Simulation(rtmpm.Scene.from_toml(text), backend="cpu")

@@ -113,9 +113,21 @@ fn lockstep_run(s: &Start) -> anyhow::Result<Run> {
     let options = BatchOptions::default();
     let mut run = LockstepRun::new(&s.worlds, text, scene, Box::new(batch), &options)?;
     run.write_first_frame()?;
-    // Step calls return before their check (`BatchSimulation.overlap`) when asked for.
-    run.set_deferred_checks(std::env::var("RTMPM_BATCH_OVERLAP").is_ok_and(|v| v.trim() == "1"))?;
+    // Step calls return before their check (`BatchSimulation.overlap`): on by default,
+    // `RTMPM_BATCH_OVERLAP=0` in the environment turns the default off.
+    run.set_deferred_checks(overlap_default(
+        std::env::var("RTMPM_BATCH_OVERLAP").ok().as_deref(),
+    ))?;
     Ok(Run::Lockstep(Box::new(run)))
+}
+
+/// `BatchSimulation.overlap` as a GPU batch is made, from `RTMPM_BATCH_OVERLAP`: on unless it is
+/// `0`, `off` or `false` (any other value, `1` included, or none: on).
+fn overlap_default(var: Option<&str>) -> bool {
+    !matches!(
+        var.map(|v| v.trim().to_ascii_lowercase()).as_deref(),
+        Some("0" | "off" | "false")
+    )
 }
 
 /// The worlds on the backend chosen: on the GPU when chosen, falling back to the CPU backend

@@ -79,6 +79,13 @@ struct Gathered {
 /// :meth:`storage_device` views the batch's own state. A world that blows up is
 /// frozen at its last good state (:attr:`status` says why); the others go on; :meth:`reset`
 /// starts chosen worlds again.
+///
+/// On the GPU :meth:`step` returns with its steps queued (:attr:`overlap`, on by default there,
+/// as GPU simulators step asynchronously): a blow-up in a call's steps is returned by the next
+/// ``step()``, or seen at once by reading :attr:`running`, :attr:`status` or the particles
+/// (which wait for the steps). ``sim.overlap = False``, or ``RTMPM_BATCH_OVERLAP=0`` in the
+/// environment as the batch is made, gives the old behaviour: each call returns after its
+/// check, with the worlds its own steps froze (as on the CPU, which always does).
 #[pyclass(name = "BatchSimulation", module = "rtmpm")]
 pub struct PyBatch {
     run: Mutex<Worlds>,

@@ -50,7 +50,9 @@ impl PyBatch {
     /// Each world's state: a dict with ``world``, ``state`` (``"running"`` or ``"frozen"``),
     /// ``frame`` (frames completed; for a frozen world the one it keeps), ``steps`` and
     /// ``reason`` (why it froze, ``None`` while running). On the GPU a world's frames and steps
-    /// count from its last reset.
+    /// count from its last reset. With :attr:`overlap` (the GPU's default) it first makes the
+    /// last :meth:`step` call's health check, waiting for its steps: a world they froze reads
+    /// ``"frozen"`` here before the next ``step()`` returns it.
     #[getter]
     fn status<'py>(&mut self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
         self.settled(py)?;
@@ -79,7 +81,9 @@ impl PyBatch {
             .collect()
     }
 
-    /// ``(N,)`` bool array: True where a world is running, False where it is frozen.
+    /// ``(N,)`` bool array: True where a world is running, False where it is frozen. With
+    /// :attr:`overlap` (the GPU's default) it first makes the last :meth:`step` call's health
+    /// check, waiting for its steps, as :attr:`status` does.
     #[getter]
     fn running<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<bool>>> {
         self.settled(py)?;

@@ -15,7 +15,12 @@ const OVERLAP_CALL_STEPS: u64 = 64;
 impl PyBatch {
     /// Take ``n`` steps in every running world, each of its own time step (on the GPU: the one
     /// step of every world; frames end on their times as with ``rtmpm run``). Returns the
-    /// worlds frozen by a blow-up during the call.
+    /// worlds frozen by a blow-up found during the call. On the GPU, with :attr:`overlap` (the
+    /// default there, for a fixed time step), the call returns with its steps queued, before
+    /// their health check: a blow-up in them is returned by the next ``step()`` (or seen by
+    /// reading :attr:`running`, :attr:`status` or the particles, which wait for the check);
+    /// ``overlap = False`` (or ``RTMPM_BATCH_OVERLAP=0`` in the environment) returns it from
+    /// the call whose steps failed, as on the CPU.
     #[pyo3(signature = (n = 1))]
     fn step(&mut self, py: Python<'_>, n: u64) -> PyResult<Vec<usize>> {
         // In driver calls of at most `self.chunk` steps, with Ctrl-C checked between them: a
@@ -66,24 +71,27 @@ impl PyBatch {
     /// Wait until the GPU has done all the work the batch queued (every stream of its context:
     /// PyTorch's or CuPy's work on the device arrays too); nothing to do on the CPU. Every call
     /// that steps or resets returns with its work queued and, where it read anything back (the
-    /// end of :meth:`step`), done; this is for timing a loop's parts on their own
-    /// (``bench/python_batch_gpu.py --breakdown``).
+    /// end of :meth:`step` with :attr:`overlap` off), done; this is for timing a loop's parts on
+    /// their own (``bench/python_batch_gpu.py --breakdown``).
     fn synchronize(&mut self, py: Python<'_>) -> PyResult<()> {
         self.detached(py, Run::synchronize)
     }
 
     /// On the GPU: whether :meth:`step` returns with its steps queued, before the health check
-    /// of its last step (default ``False``, or ``True`` with ``RTMPM_BATCH_OVERLAP=1`` in the
-    /// environment as the batch is made). On, the script's resets, poses and own work for the
-    /// next call run while the device steps. The check is made as the next call that steps,
+    /// of its last step (default ``True`` on the GPU, as GPU simulators step asynchronously;
+    /// ``RTMPM_BATCH_OVERLAP=0`` in the environment as the batch is made turns the default off;
+    /// always ``False`` on the CPU). On, the script's resets, poses and own work for the next
+    /// call run while the device steps. The check is made as the next call that steps,
     /// reads the particles (``x``, ``v``, a checkpoint), :attr:`status`, :attr:`running` or the
     /// rigid bodies begins (waiting for the steps then); a blow-up it finds is handled as
     /// before (the world frozen, every world put back and stepped again without it), the
     /// resets and poses made since made again, and the world is returned by the next
-    /// :meth:`step` rather than by the call whose steps failed. :attr:`time`, :attr:`frame`,
-    /// :attr:`steps` and the device arrays do not wait: a world that check then freezes goes
-    /// back to its frame. Only for a fixed time step (``time.dt``); otherwise each call checks as
-    /// before. Setting ``False`` makes a pending check first. The CPU batch refuses ``True``.
+    /// :meth:`step` rather than by the call whose steps failed (set ``False`` for the old
+    /// behaviour: each call returns after its check, its blow-ups returned by it).
+    /// :attr:`time`, :attr:`frame`, :attr:`steps` and the device arrays do not wait: a world
+    /// that check then freezes goes back to its frame. Only for a fixed time step
+    /// (``time.dt``); otherwise each call checks as before (``overlap`` still reads ``True``).
+    /// Setting ``False`` makes a pending check first. The CPU batch refuses ``True``.
     /// A call of up to 64 steps is then one driver call; the check waits for its steps alone
     /// (its control words copied behind them, and behind each frame end inside the call), not for
     /// the resets made since (:attr:`host_waits` counts the waits; ``RTMPM_BATCH_WAITS=old``
