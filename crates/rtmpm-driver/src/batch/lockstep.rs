@@ -29,15 +29,17 @@
 mod checkpoint;
 mod deferred;
 mod freeze;
+mod parked;
 mod pipeline;
+mod reset;
 
 use super::{BatchOptions, WorldStatus, checkpoint_due, open_out, summary_row, world_output};
 use crate::outdir::OutDir;
 use crate::output::FrameOutput;
 use crate::simulation::Simulation;
 use anyhow::{Context, Result, bail};
+use parked::parked_bodies;
 use rtmpm_physics::Particles;
-use rtmpm_physics::math::{Mat3, Vec3};
 use rtmpm_rigid::BodyPose;
 use rtmpm_scene::{BatchScene, Scene, StepMode};
 use rtmpm_sim::{SimError, Worlds};
@@ -431,94 +433,6 @@ impl<B: Worlds + ?Sized> LockstepRun<B> {
         Ok(())
     }
 
-    /// Put each world `w` of `starts` to its particles `p` (its initial ones, or any state of as
-    /// many particles) at its time 0, running again (a frozen one too); the other worlds are not
-    /// touched. For runs that write no files. The worlds share one clock: when every world is
-    /// reset it goes back to 0; otherwise the reset worlds count their time from now, refused
-    /// when the scene's colliders move with the clock (a reset world would meet them where they
-    /// are now, not where they were at time 0). Checked before any world changes.
-    pub fn reset_worlds(&mut self, starts: Vec<(usize, Particles)>) -> Result<()> {
-        let starts = starts.into_iter().map(|(w, p)| (w, Arc::new(p))).collect();
-        self.reset_with(starts, false)
-    }
-
-    /// [`LockstepRun::reset_worlds`] to each world's particles at its time 0 (`starts[i].1`:
-    /// the particles the batch's worlds were made with, which the backend may keep; shared, not
-    /// copied, as the world's particles): the backend puts them back by its own means where it
-    /// keeps them ([`Worlds::put_initial`]: the GPU batch's image on the device, no packing and
-    /// no upload), else as [`LockstepRun::reset_worlds`] does; the same state either way.
-    pub fn reset_worlds_initial(&mut self, starts: Vec<(usize, Arc<Particles>)>) -> Result<()> {
-        self.reset_with(starts, true)
-    }
-
-    /// [`LockstepRun::reset_worlds`], the particles put by [`Worlds::put_initial`] first when
-    /// `initial`.
-    fn reset_with(&mut self, starts: Vec<(usize, Arc<Particles>)>, initial: bool) -> Result<()> {
-        if self.out.is_some() {
-            bail!("a batch run that writes frame files cannot reset a world");
-        }
-        let count = self.worlds.len();
-        let mut listed = vec![false; count];
-        for (w, p) in &starts {
-            let Some(world) = self.worlds.get(*w) else {
-                bail!("no world {w}: the batch has {count} (0 to {})", count - 1);
-            };
-            if p.len() != world.kept.len() {
-                bail!(
-                    "world {w} has {} particles, {} given",
-                    world.kept.len(),
-                    p.len()
-                );
-            }
-            listed[*w] = true;
-        }
-        let all = listed.iter().all(|&l| l);
-        if !all && let Some(k) = moving_collider(&self.sim.scene) {
-            bail!(
-                "resetting some worlds of a batch whose worlds share one clock (all worlds in the \
-                 same kernels): collider {k} moves with that clock, so a reset world would meet \
-                 it where it is now (t = {:.6} s), not where it was at time 0\n  fix: reset every \
-                 world at once (the clock goes back to 0), or run the batch on the CPU backend \
-                 (each world has its own clock)",
-                self.sim.time
-            );
-        }
-        if all {
-            (self.sim.time, self.sim.step, self.sim.frame) = (0.0, 0, 0);
-        }
-        let now = self.clock();
-        // Every world's particles at once (on the GPU one upload, no wait per world; to the
-        // initial state, from the image the backend keeps, without it).
-        let listed_now = || starts.iter().map(|s| s.0).collect::<Vec<usize>>();
-        let kept = initial
-            && self
-                .sim
-                .backend
-                .put_initial(&listed_now())
-                .with_context(|| format!("resetting worlds {:?}", listed_now()))?;
-        if !kept {
-            let refs: Vec<(usize, &Particles)> = starts.iter().map(|(w, p)| (*w, &**p)).collect();
-            self.sim
-                .backend
-                .put_worlds(&refs)
-                .with_context(|| format!("resetting worlds {:?}", listed_now()))?;
-        }
-        for (w, p) in starts {
-            let start = self.worlds[w].start_bodies.clone();
-            self.sim
-                .backend
-                .set_world_rigid_poses(w, &start)
-                .with_context(|| format!("resetting world {w}'s rigid bodies"))?;
-            let world = &mut self.worlds[w];
-            world.bodies = start;
-            world.kept = p;
-            world.status = WorldStatus::Running;
-            (world.at, world.origin) = (now, now);
-        }
-        self.note_reset(listed_worlds(&listed));
-        Ok(())
-    }
-
     /// As an advance begins: keep each running world's bodies as they are now (a script may
     /// have posed them since the last read), what a rewind puts back; a frozen world's are
     /// parked again (a script posing every world's tool does not move a frozen world's).
@@ -656,67 +570,5 @@ fn steps_of<B: Worlds + ?Sized>(
             sim.advance(target - sim.step)?;
         }
         Ok(())
-    }
-}
-
-/// The worlds marked in `listed`.
-fn listed_worlds(listed: &[bool]) -> Vec<usize> {
-    (0..listed.len()).filter(|&w| listed[w]).collect()
-}
-
-/// The first collider of `scene` that moves with time (a velocity, an angular velocity or
-/// keyframes), if any.
-fn moving_collider(scene: &Scene) -> Option<usize> {
-    scene.colliders.iter().position(|c| {
-        c.keyframes.is_some()
-            || c.velocity != rtmpm_physics::math::Vec3::ZERO
-            || c.angular_velocity != rtmpm_physics::math::Vec3::ZERO
-    })
-}
-
-/// A frozen world's particles as it is left in the backend: where they were at its last frame,
-/// at rest (`v = 0`, `C = 0`) and unstressed (`F = I`), so that it bounds no time step and
-/// cannot blow up again; its files keep the state it froze at.
-fn parked(kept: &Particles) -> Particles {
-    let mut p = kept.clone();
-    p.v.iter_mut().for_each(|v| *v = Default::default());
-    p.c.iter_mut().for_each(|c| *c = Mat3::ZERO);
-    p.f.iter_mut().for_each(|f| *f = Mat3::IDENTITY);
-    p
-}
-
-/// A frozen world's rigid bodies as it is left in the backend: where they were, at rest.
-fn parked_bodies(kept: &[BodyPose]) -> Vec<BodyPose> {
-    kept.iter()
-        .map(|b| BodyPose {
-            velocity: Vec3::ZERO,
-            angular_velocity: Vec3::ZERO,
-            ..*b
-        })
-        .collect()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use rtmpm_physics::math::Vec3;
-
-    #[test]
-    fn a_parked_world_keeps_its_places_at_rest_and_unstressed() {
-        let mut p = Particles::default();
-        p.x.push(Vec3::new(0.1, 0.2, 0.3));
-        p.v.push(Vec3::new(5.0, -1.0, 2.0));
-        p.c.push(Mat3::from_diagonal(Vec3::splat(3.0)));
-        p.f.push(Mat3::from_diagonal(Vec3::splat(1.5)));
-        p.plastic.push(0.9);
-        p.mass.push(1.0);
-        p.vol0.push(1.0);
-        p.material.push(0);
-        let q = parked(&p);
-        assert_eq!(q.x, p.x);
-        assert_eq!(q.v[0], Vec3::ZERO);
-        assert_eq!(q.c[0], Mat3::ZERO);
-        assert_eq!(q.f[0], Mat3::IDENTITY);
-        assert_eq!((q.mass.clone(), q.material.clone()), (p.mass, p.material));
     }
 }

@@ -6,7 +6,8 @@
 //! resumed run goes on bit for bit as the one that wrote the checkpoint
 //! (`crates/rtmpm-cpu/tests/lockstep_files.rs`); on the GPU within what its atomic sums allow.
 
-use super::{Clock, LockstepRun, parked, parked_bodies};
+use super::parked::{parked, parked_bodies};
+use super::{Clock, LockstepRun};
 use crate::batch::checkpoint::{Saved, prepare_dir, read_folder, write_folder};
 use crate::batch::{BatchOptions, WorldStatus};
 use anyhow::{Context, Result, bail};

@@ -1,10 +1,11 @@
 //! A world that blows up in a lockstep batch: frozen at its last frame ([`LockstepRun::freeze`]),
 //! every world put back to that frame ([`LockstepRun::rewind`], or to the rewind point the
 //! backend kept, [`LockstepRun::rewind_on_backend`]), the frozen one parked: its particles where
-//! they were, at rest and unstressed ([`super::parked`]), its rigid bodies at rest
-//! ([`super::parked_bodies`]).
+//! they were, at rest and unstressed ([`super::parked::parked`]), its rigid bodies at rest
+//! ([`super::parked::parked_bodies`]).
 
-use super::{Clock, LockstepRun, WorldStatus, parked, parked_bodies};
+use super::parked::{parked, parked_bodies};
+use super::{Clock, LockstepRun, WorldStatus};
 use anyhow::{Context, Result, bail};
 use rtmpm_sim::{Blowup, SimError, Worlds};
 use std::sync::Arc;
